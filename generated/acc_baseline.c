@@ -1,0 +1,197 @@
+/* How to prefix internal symbols */
+#ifdef CASADI_CODEGEN_PREFIX
+  #define CASADI_NAMESPACE_CONCAT(NS, ID) _CASADI_NAMESPACE_CONCAT(NS, ID)
+  #define _CASADI_NAMESPACE_CONCAT(NS, ID) NS ## ID
+  #define CASADI_PREFIX(ID) CASADI_NAMESPACE_CONCAT(CODEGEN_PREFIX, ID)
+#else
+  #define CASADI_PREFIX(ID) acc_baseline_ ## ID
+#endif
+
+#include <math.h>
+
+#ifndef casadi_real
+#define casadi_real double
+#endif
+
+#ifndef casadi_int
+#define casadi_int long long int
+#endif
+
+/* Add prefix to internal symbols */
+#define casadi_f0 CASADI_PREFIX(f0)
+#define casadi_s0 CASADI_PREFIX(s0)
+#define casadi_s1 CASADI_PREFIX(s1)
+#define casadi_s2 CASADI_PREFIX(s2)
+#define casadi_s3 CASADI_PREFIX(s3)
+#define casadi_s4 CASADI_PREFIX(s4)
+
+/* Symbol visibility in DLLs */
+#ifndef CASADI_SYMBOL_EXPORT
+  #if defined(_WIN32) || defined(__WIN32__) || defined(__CYGWIN__)
+    #if defined(STATIC_LINKED)
+      #define CASADI_SYMBOL_EXPORT
+    #else
+      #define CASADI_SYMBOL_EXPORT __declspec(dllexport)
+    #endif
+  #elif defined(__GNUC__) && defined(GCC_HASCLASSVISIBILITY)
+    #define CASADI_SYMBOL_EXPORT __attribute__ ((visibility ("default")))
+  #else
+    #define CASADI_SYMBOL_EXPORT
+  #endif
+#endif
+
+/* Configuration this file was compiled with */
+CASADI_SYMBOL_EXPORT void acc_baseline_casadi_version(int* major, int* minor, int* patch) {
+  *major = 3;
+  *minor = 8;
+  *patch = 2;
+}
+CASADI_SYMBOL_EXPORT int acc_baseline_casadi_int_size(void) { return (int) sizeof(casadi_int); }
+CASADI_SYMBOL_EXPORT int acc_baseline_casadi_real_size(void) { return (int) sizeof(casadi_real); }
+
+static const casadi_int casadi_s0[3] = {3, 1, 1};
+static const casadi_int casadi_s1[3] = {9, 1, 1};
+static const casadi_int casadi_s2[3] = {2, 1, 1};
+static const casadi_int casadi_s3[12] = 
+  {3, 3, 0, 3, 5, 6, 0, 1,
+  2, 1, 2, 2};
+static const casadi_int casadi_s4[21] = 
+  {3, 9, 0, 1, 2, 3, 4, 5,
+  6, 7, 8, 9, 0, 1, 2, 1,
+  2, 2, 0, 1, 2};
+
+/* simucal_acc_baseline:(u[3],p[9],aux[2])->(N[3],N_u[3x3,6nz],N_p[3x9,9nz]) */
+static int casadi_f0(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem) {
+  casadi_real a00, a01, a02, a03, a04, a05, a06, a07, a08, a09, a10;
+  a00=arg[1]? arg[1][6] : 0;
+  a01=arg[1]? arg[1][0] : 0;
+  a02=arg[0]? arg[0][0] : 0;
+  a03=(a01*a02);
+  a00=(a00+a03);
+  a00=(a00+a02);
+  if (res[0]!=0) res[0][0]=a00;
+  a00=arg[1]? arg[1][7] : 0;
+  a03=arg[1]? arg[1][1] : 0;
+  a04=arg[0]? arg[0][1] : 0;
+  a05=(a03*a04);
+  a00=(a00+a05);
+  a05=arg[1]? arg[1][3] : 0;
+  a06=(a02*a05);
+  a00=(a00+a06);
+  a00=(a00+a04);
+  if (res[0]!=0) res[0][1]=a00;
+  a00=arg[1]? arg[1][8] : 0;
+  a06=arg[1]? arg[1][2] : 0;
+  a07=arg[0]? arg[0][2] : 0;
+  a08=(a06*a07);
+  a00=(a00+a08);
+  a08=arg[1]? arg[1][4] : 0;
+  a09=(a02*a08);
+  a00=(a00+a09);
+  a09=arg[1]? arg[1][5] : 0;
+  a10=(a04*a09);
+  a00=(a00+a10);
+  a00=(a00+a07);
+  if (res[0]!=0) res[0][2]=a00;
+  a00=1.;
+  a01=(a01+a00);
+  if (res[1]!=0) res[1][0]=a01;
+  if (res[1]!=0) res[1][1]=a05;
+  if (res[1]!=0) res[1][2]=a08;
+  a03=(a03+a00);
+  if (res[1]!=0) res[1][3]=a03;
+  if (res[1]!=0) res[1][4]=a09;
+  a06=(a06+a00);
+  if (res[1]!=0) res[1][5]=a06;
+  if (res[2]!=0) res[2][0]=a02;
+  if (res[2]!=0) res[2][1]=a04;
+  if (res[2]!=0) res[2][2]=a07;
+  if (res[2]!=0) res[2][3]=a02;
+  if (res[2]!=0) res[2][4]=a02;
+  if (res[2]!=0) res[2][5]=a04;
+  if (res[2]!=0) res[2][6]=a00;
+  if (res[2]!=0) res[2][7]=a00;
+  if (res[2]!=0) res[2][8]=a00;
+  return 0;
+}
+
+CASADI_SYMBOL_EXPORT int simucal_acc_baseline(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem){
+  return casadi_f0(arg, res, iw, w, mem);
+}
+
+CASADI_SYMBOL_EXPORT int simucal_acc_baseline_checkout(void) {
+  return 0;
+}
+
+CASADI_SYMBOL_EXPORT void simucal_acc_baseline_release(int mem) {
+}
+
+CASADI_SYMBOL_EXPORT void simucal_acc_baseline_incref(void) {
+}
+
+CASADI_SYMBOL_EXPORT void simucal_acc_baseline_decref(void) {
+}
+
+CASADI_SYMBOL_EXPORT casadi_int simucal_acc_baseline_n_in(void) { return 3;}
+
+CASADI_SYMBOL_EXPORT casadi_int simucal_acc_baseline_n_out(void) { return 3;}
+
+CASADI_SYMBOL_EXPORT casadi_real simucal_acc_baseline_default_in(casadi_int i) {
+  switch (i) {
+    default: return 0;
+  }
+}
+
+CASADI_SYMBOL_EXPORT const char* simucal_acc_baseline_name_in(casadi_int i) {
+  switch (i) {
+    case 0: return "u";
+    case 1: return "p";
+    case 2: return "aux";
+    default: return 0;
+  }
+}
+
+CASADI_SYMBOL_EXPORT const char* simucal_acc_baseline_name_out(casadi_int i) {
+  switch (i) {
+    case 0: return "N";
+    case 1: return "N_u";
+    case 2: return "N_p";
+    default: return 0;
+  }
+}
+
+CASADI_SYMBOL_EXPORT const casadi_int* simucal_acc_baseline_sparsity_in(casadi_int i) {
+  switch (i) {
+    case 0: return casadi_s0;
+    case 1: return casadi_s1;
+    case 2: return casadi_s2;
+    default: return 0;
+  }
+}
+
+CASADI_SYMBOL_EXPORT const casadi_int* simucal_acc_baseline_sparsity_out(casadi_int i) {
+  switch (i) {
+    case 0: return casadi_s0;
+    case 1: return casadi_s3;
+    case 2: return casadi_s4;
+    default: return 0;
+  }
+}
+
+CASADI_SYMBOL_EXPORT int simucal_acc_baseline_work(casadi_int *sz_arg, casadi_int* sz_res, casadi_int *sz_iw, casadi_int *sz_w) {
+  if (sz_arg) *sz_arg = 3;
+  if (sz_res) *sz_res = 3;
+  if (sz_iw) *sz_iw = 0;
+  if (sz_w) *sz_w = 0;
+  return 0;
+}
+
+CASADI_SYMBOL_EXPORT int simucal_acc_baseline_work_bytes(casadi_int *sz_arg, casadi_int* sz_res, casadi_int *sz_iw, casadi_int *sz_w) {
+  if (sz_arg) *sz_arg = 3*sizeof(const casadi_real*);
+  if (sz_res) *sz_res = 3*sizeof(casadi_real*);
+  if (sz_iw) *sz_iw = 0*sizeof(casadi_int);
+  if (sz_w) *sz_w = 0*sizeof(casadi_real);
+  return 0;
+}
+
+

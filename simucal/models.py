@@ -1,0 +1,117 @@
+"""Load a generated error model and evaluate it: compiled CasADi C when a C
+compiler is found, else the SymPy-printed numpy module (same derivation)."""
+from __future__ import annotations
+
+import functools
+import hashlib
+import importlib
+import json
+import os
+import shutil
+import subprocess
+import warnings
+from importlib import resources
+from pathlib import Path
+
+import numpy as np
+
+
+class StaleGeneratedCode(RuntimeError):
+    pass
+
+
+def manifest() -> dict:
+    return json.loads(resources.files("simucal.generated").joinpath("manifest.json").read_text())
+
+
+def cache_dir() -> Path:
+    root = os.environ.get("SIMUCAL_CACHE") or os.path.join(
+        os.environ.get("XDG_CACHE_HOME") or os.path.expanduser("~/.cache"), "simucal")
+    return Path(root)
+
+
+def compile_c(name: str, source: str) -> Path | None:
+    """Build the CasADi C of a model into the cache; None where no compiler works."""
+    if os.environ.get("SIMUCAL_NO_COMPILE"):
+        return None
+    cc = shutil.which(os.environ.get("CC", "cc")) or shutil.which("gcc")
+    if cc is None:
+        return None
+    digest = hashlib.sha256(source.encode()).hexdigest()[:16]
+    lib = cache_dir() / f"{name}-{digest}.so"
+    if lib.is_file():
+        return lib
+    lib.parent.mkdir(parents=True, exist_ok=True)
+    src = lib.with_suffix(".c")
+    src.write_text(source)
+    tmp = lib.with_suffix(f".{os.getpid()}.tmp")
+    res = subprocess.run([cc, "-O2", "-shared", "-fPIC", str(src), "-o", str(tmp), "-lm"],
+                         capture_output=True, text=True)
+    if res.returncode != 0:
+        warnings.warn(f"compiling {name}.c failed with {cc}; using the numpy module instead:\n{res.stderr[-500:]}")
+        return None
+    tmp.replace(lib)
+    return lib
+
+
+class GeneratedModel:
+    """An error model from generated/: N(u, p), its Jacobians, the norm regression."""
+
+    def __init__(self, name: str, compiled: bool = True):
+        entry = manifest()["models"].get(name)
+        if entry is None:
+            raise KeyError(f"no generated model {name!r}; known: {sorted(manifest()['models'])}. "
+                           "Run `simucal derive` (with --model FILE for your own model).")
+        self.module = importlib.import_module(f"simucal.generated.{name}")
+        if self.module.MODEL_SHA256 != entry["sha256"]:
+            raise StaleGeneratedCode(f"generated/{name}.py does not match manifest.json; run `simucal derive`")
+        self.name, self.sensor, self.unit = name, self.module.SENSOR, self.module.UNIT
+        self.params = self.module.PARAMS
+        self.param_units = self.module.PARAM_UNITS
+        self._c = None
+        if compiled:
+            src = resources.files("simucal.generated").joinpath(entry["c_file"]).read_text()
+            lib = compile_c(name, src)
+            if lib is not None:
+                import casadi as ca
+                self._c = ca.external(f"simucal_{name}", str(lib))
+
+    @property
+    def backend(self) -> str:
+        return "casadi-c" if self._c is not None else "numpy"
+
+    def output(self, u, p, temp_c=0.0, t_s=0.0):
+        return self.module.output(u, p, temp_c, t_s)
+
+    def jacobians(self, u, p, temp_c=0.0, t_s=0.0):
+        """N, dN/du (n,3,3), dN/dp (n,3,m) for rows u (n,3) and one p (m,)."""
+        if self._c is None:
+            N = self.module.output(u, p, temp_c, t_s)
+            Ju, Jp = self.module.output_jacobians(u, p, temp_c, t_s)
+            return N, Ju, Jp
+        n, m = len(u), len(self.params)
+        aux = np.vstack([np.broadcast_to(temp_c, (n,)), np.broadcast_to(t_s, (n,))])
+        N, Ju, Jp = self._mapped(n)(np.asarray(u, float).T, np.asarray(p, float), aux)
+        N = np.asarray(N).T
+        Ju = np.asarray(Ju).reshape(3, n, 3).transpose(1, 0, 2)
+        Jp = np.asarray(Jp).reshape(3, n, m).transpose(1, 0, 2)
+        return N, Ju, Jp
+
+    @functools.lru_cache(maxsize=16)
+    def _mapped(self, n):
+        return self._c.map(n, "serial")
+
+    def norm_regressors(self, N, temp_c=0.0, t_s=0.0):
+        return self.module.norm_regressors(N, temp_c, t_s)
+
+    def params_of_K(self, K, first_order=False):
+        f = self.module.params_of_K_first_order if first_order else self.module.params_of_K
+        return f(K)
+
+    def matrix_and_bias(self, p):
+        return self.module.matrix_and_bias(p)
+
+
+@functools.lru_cache(maxsize=None)
+def load(name: str, compiled: bool = True) -> GeneratedModel:
+    return GeneratedModel(name, compiled)
