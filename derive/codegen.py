@@ -118,7 +118,7 @@ def model_module(model: ErrorModel) -> tuple[str, dict]:
         numpy_function("params_of_K_first_order", [("K", reg.K)],
                        [((m,), sp.Matrix([reg.p_of_K_first[s] for s in p]))],
                        "First-order back-substitution, linear in K around K(p = 0)."),
-        numpy_function("matrix_and_bias", [("p", p)], [((3, 3), M), ((3,), bias)],
+        numpy_function("matrix_and_bias", [("p", p), ("temp_c", None), ("t_s", None)], [((3, 3), M), ((3,), bias)],
                        "M = dN/du at u = 0 and bias = N(0): output = M u + bias + nonlinear terms."),
     ]
     entry = {"sensor": model.sensor, "sha256": model.sha256(), "module": f"{model.name}.py",

@@ -256,7 +256,7 @@ def params_of_K_first_order(K):
     return out0
 
 
-def matrix_and_bias(p):
+def matrix_and_bias(p, temp_c=0.0, t_s=0.0):
     """M = dN/du at u = 0 and bias = N(0): output = M u + bias + nonlinear terms."""
     dK_x = p[..., 0]
     dK_y = p[..., 1]
@@ -270,7 +270,7 @@ def matrix_and_bias(p):
     K2_z = p[..., 9]
     Kc_xy = p[..., 10]
     bt_y = p[..., 11]
-    shape = numpy.broadcast_shapes(numpy.shape(dK_x), numpy.shape(dK_y), numpy.shape(dK_z), numpy.shape(theta_yx), numpy.shape(theta_zx), numpy.shape(theta_zy), numpy.shape(b_x), numpy.shape(b_y), numpy.shape(b_z), numpy.shape(K2_z), numpy.shape(Kc_xy), numpy.shape(bt_y), )
+    shape = numpy.broadcast_shapes(numpy.shape(dK_x), numpy.shape(dK_y), numpy.shape(dK_z), numpy.shape(theta_yx), numpy.shape(theta_zx), numpy.shape(theta_zy), numpy.shape(b_x), numpy.shape(b_y), numpy.shape(b_z), numpy.shape(K2_z), numpy.shape(Kc_xy), numpy.shape(bt_y), numpy.shape(temp_c), numpy.shape(t_s), )
     out0 = numpy.empty(shape + (3, 3))
     out0[..., 0, 0] = dK_x + 1
     out0[..., 0, 1] = 0

@@ -214,7 +214,7 @@ def params_of_K_first_order(K):
     return out0
 
 
-def matrix_and_bias(p):
+def matrix_and_bias(p, temp_c=0.0, t_s=0.0):
     """M = dN/du at u = 0 and bias = N(0): output = M u + bias + nonlinear terms."""
     dK_x = p[..., 0]
     dK_y = p[..., 1]
@@ -225,7 +225,7 @@ def matrix_and_bias(p):
     b_x = p[..., 6]
     b_y = p[..., 7]
     b_z = p[..., 8]
-    shape = numpy.broadcast_shapes(numpy.shape(dK_x), numpy.shape(dK_y), numpy.shape(dK_z), numpy.shape(phi_yx), numpy.shape(phi_zx), numpy.shape(phi_zy), numpy.shape(b_x), numpy.shape(b_y), numpy.shape(b_z), )
+    shape = numpy.broadcast_shapes(numpy.shape(dK_x), numpy.shape(dK_y), numpy.shape(dK_z), numpy.shape(phi_yx), numpy.shape(phi_zx), numpy.shape(phi_zy), numpy.shape(b_x), numpy.shape(b_y), numpy.shape(b_z), numpy.shape(temp_c), numpy.shape(t_s), )
     out0 = numpy.empty(shape + (3, 3))
     out0[..., 0, 0] = dK_x + 1
     out0[..., 0, 1] = 0

@@ -5,11 +5,7 @@ import json
 import time
 from pathlib import Path
 
-import simucal.generated
-
-
-def generated_dir() -> Path:
-    return Path(simucal.generated.__path__[0])
+from simucal.models import generated_dir
 
 
 def run(check: bool = False, model_files=(), out_dir: Path | None = None) -> tuple[list[str], float]:

@@ -10,7 +10,6 @@ import os
 import shutil
 import subprocess
 import warnings
-from importlib import resources
 from pathlib import Path
 
 import numpy as np
@@ -20,8 +19,13 @@ class StaleGeneratedCode(RuntimeError):
     pass
 
 
+def generated_dir() -> Path:
+    import simucal.generated
+    return Path(simucal.generated.__file__).parent
+
+
 def manifest() -> dict:
-    return json.loads(resources.files("simucal.generated").joinpath("manifest.json").read_text())
+    return json.loads((generated_dir() / "manifest.json").read_text())
 
 
 def cache_dir() -> Path:
@@ -70,7 +74,7 @@ class GeneratedModel:
         self.param_units = self.module.PARAM_UNITS
         self._c = None
         if compiled:
-            src = resources.files("simucal.generated").joinpath(entry["c_file"]).read_text()
+            src = (generated_dir() / entry["c_file"]).read_text()
             lib = compile_c(name, src)
             if lib is not None:
                 import casadi as ca
@@ -108,8 +112,8 @@ class GeneratedModel:
         f = self.module.params_of_K_first_order if first_order else self.module.params_of_K
         return f(K)
 
-    def matrix_and_bias(self, p):
-        return self.module.matrix_and_bias(p)
+    def matrix_and_bias(self, p, temp_c=0.0, t_s=0.0):
+        return self.module.matrix_and_bias(p, temp_c, t_s)
 
 
 @functools.lru_cache(maxsize=None)

@@ -1,0 +1,199 @@
+"""Norm-observation fits of one sensor triad (dong2018 section 1).
+
+Observations are per-position mean outputs N_i (physical units), the known
+input norm rho_i (1 g at rest; |w_T + w_e sin L| under outer-axis rate), and
+optionally the standard deviation of each mean.
+
+- fit_linear: the paper's method, eq. 7/8 and 11/12: regress rho^2 on the
+  derived columns psi(N), then back-substitute K -> p (exact inverse).
+- fit_exact: maximum likelihood with no term neglected. The unknowns are the
+  parameters p and each position's input direction on the sphere of radius
+  rho_i (the norm principle: the direction is not known, the norm is):
+      minimise sum_i |(N_i - h(rho_i u_i, p)) / sigma_i|^2,  |u_i| = 1.
+  Gauss-Newton on p and a 2-D tangent step per direction; the directions are
+  eliminated by a Schur complement, so each step solves an m x m system.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+from scipy import stats
+
+from .models import GeneratedModel
+
+
+class CalibrationError(ValueError):
+    """The data cannot give a trustworthy calibration; the message says why."""
+
+
+@dataclass
+class Observations:
+    N: np.ndarray                  # (n, 3) mean outputs
+    rho: np.ndarray                # (n,) known input norm
+    sigma: np.ndarray | None = None  # (n, 3) std of each mean, or None (unknown)
+    temp_c: np.ndarray | float = 0.0
+    t_s: np.ndarray | float = 0.0
+    labels: list = field(default_factory=list)  # segment ids, for messages
+
+
+@dataclass
+class Fit:
+    model: str
+    method: str
+    params: dict            # name -> value
+    std: dict               # name -> standard uncertainty
+    cov: np.ndarray
+    residuals: np.ndarray   # (n, 3) N - model, physical units
+    residual_rms: float
+    chi2: float | None
+    dof: int
+    p_value: float | None
+    iterations: int = 0
+    directions: np.ndarray | None = None  # (n, 3) unit input directions (exact fit)
+
+    def vector(self, names):
+        return np.array([self.params[k] for k in names])
+
+
+def _check_inputs(model: GeneratedModel, obs: Observations):
+    n, m = len(obs.N), len(model.params)
+    if n == 0:
+        raise CalibrationError(f"no {model.sensor} positions to calibrate from")
+    if not np.all(np.isfinite(obs.N)):
+        raise CalibrationError(f"{model.sensor} outputs contain NaN or infinite values")
+    if n < m:
+        raise CalibrationError(
+            f"{n} {model.sensor} positions for {m} parameters of {model.name}: the norm gives one "
+            f"equation per position, so at least {m} positions are needed")
+
+
+def unobservable(H, names, tol=1e-10):
+    """Parameter combinations H cannot see, as readable strings (empty if none)."""
+    d = np.sqrt(np.clip(np.diag(H), 1e-300, None))
+    Hn = H / np.outer(d, d)
+    w, V = np.linalg.eigh(Hn)
+    out = []
+    for k in np.nonzero(w < tol * max(w.max(), 1e-300))[0]:
+        v = V[:, k]
+        big = np.argsort(-np.abs(v))[:3]
+        out.append(" + ".join(f"{v[j]:+.2f}*{names[j]}" for j in big if abs(v[j]) > 0.1))
+    return out
+
+
+def fit_linear(model: GeneratedModel, obs: Observations) -> Fit:
+    """dong2018 eq. 8 / 12 and the back-substitution, for any derived model."""
+    _check_inputs(model, obs)
+    n, m = len(obs.N), len(model.params)
+    Psi = model.norm_regressors(obs.N, obs.temp_c, obs.t_s)
+    y = obs.rho ** 2
+    scale = np.linalg.norm(Psi, axis=0)
+    H = (Psi / scale).T @ (Psi / scale)
+    bad = unobservable(H, model.params)
+    if bad:
+        raise CalibrationError(f"the {model.sensor} plan leaves these parameter combinations "
+                               f"unobservable by the norm: {bad}; add positions that change them")
+    K, *_ = np.linalg.lstsq(Psi, y, rcond=None)
+    r = y - Psi @ K
+    dof = n - m
+    s2 = float(r @ r / dof) if dof > 0 else np.nan
+    cov_K = s2 * np.linalg.inv(Psi.T @ Psi)
+    p = model.params_of_K(K)
+    J = np.empty((m, m))
+    for j in range(m):  # numerical Jacobian of the generated back-substitution
+        h = 1e-7 * max(abs(K[j]), 1e-3)
+        dK = np.zeros(m)
+        dK[j] = h
+        J[:, j] = (model.params_of_K(K + dK) - model.params_of_K(K - dK)) / (2 * h)
+    cov = J @ cov_K @ J.T
+    norm_err = (Psi @ K - y) / (2 * obs.rho)  # first-order norm residual, output units
+    return Fit(model.name, "linear", dict(zip(model.params, p)),
+               dict(zip(model.params, np.sqrt(np.abs(np.diag(cov))))), cov,
+               residuals=norm_err[:, None] * np.ones((1, 3)) / np.sqrt(3),
+               residual_rms=float(np.sqrt(np.mean(norm_err ** 2))), chi2=None, dof=dof, p_value=None)
+
+
+def _tangent_basis(u):
+    """Orthonormal E (n, 3, 2) with columns perpendicular to unit u (n, 3)."""
+    a = np.where(np.abs(u[:, :1]) < 0.9, np.array([[1.0, 0, 0]]), np.array([[0, 1.0, 0]]))
+    e1 = np.cross(u, a)
+    e1 /= np.linalg.norm(e1, axis=1, keepdims=True)
+    e2 = np.cross(u, e1)
+    return np.stack([e1, e2], axis=2)
+
+
+def initial_directions(model, obs, p):
+    M, b = model.matrix_and_bias(p, obs.temp_c, obs.t_s)
+    u = np.linalg.solve(M, (obs.N - b)[..., None])[..., 0]
+    return u / np.linalg.norm(u, axis=1, keepdims=True)
+
+
+def fit_exact(model: GeneratedModel, obs: Observations, p0=None, max_iter=50, tol=1e-12) -> Fit:
+    """Maximum-likelihood norm-observation fit, exact model (see module doc)."""
+    _check_inputs(model, obs)
+    n, m = len(obs.N), len(model.params)
+    if p0 is None:
+        try:
+            p0 = fit_linear(model, obs).vector(model.params)
+        except (CalibrationError, np.linalg.LinAlgError):
+            p0 = np.zeros(m)
+    p = np.array(p0, float)
+    known_sigma = obs.sigma is not None
+    sig = np.broadcast_to(obs.sigma if known_sigma else 1.0, (n, 3))
+    u = initial_directions(model, obs, p)
+    rho = obs.rho[:, None]
+
+    def residual(p, u):
+        return (obs.N - model.output(rho * u, p, obs.temp_c, obs.t_s)) / sig
+
+    cost = float(np.sum(residual(p, u) ** 2))
+    for it in range(1, max_iter + 1):
+        Nm, Ju, Jp = model.jacobians(rho * u, p, obs.temp_c, obs.t_s)
+        r = (obs.N - Nm) / sig
+        E = _tangent_basis(u)
+        Jd = -np.einsum("nij,njk->nik", Ju, rho[:, :, None] * E) / sig[:, :, None]   # (n,3,2)
+        Jq = -Jp / sig[:, :, None]                                                  # (n,3,m)
+        A = np.einsum("nia,nib->nab", Jd, Jd)
+        B = np.einsum("nia,nib->nab", Jd, Jq)
+        gd = np.einsum("nia,ni->na", Jd, r)
+        Ainv = np.linalg.inv(A)
+        H = np.einsum("nia,nib->ab", Jq, Jq) - np.einsum("nca,ncd,ndb->ab", B, Ainv, B)
+        g = np.einsum("nia,ni->a", Jq, r) - np.einsum("nca,ncd,nd->a", B, Ainv, gd)
+        bad = unobservable(H, model.params)
+        if bad:
+            raise CalibrationError(f"the {model.sensor} plan leaves these parameter combinations "
+                                   f"unobservable: {bad}; add positions (other input directions, "
+                                   "temperatures or times) that change them")
+        dp = -np.linalg.solve(H, g)
+        dd = -np.einsum("nab,nb->na", Ainv, gd + np.einsum("nab,b->na", B, dp))
+        step = 1.0
+        while True:  # step halving keeps the cost from rising
+            p_new = p + step * dp
+            v = u + np.einsum("nij,nj->ni", E, step * dd)
+            u_new = v / np.linalg.norm(v, axis=1, keepdims=True)
+            new_cost = float(np.sum(residual(p_new, u_new) ** 2))
+            if new_cost <= cost * (1 + 1e-12) or step < 1e-6:
+                break
+            step /= 2
+        p, u = p_new, u_new
+        done = abs(cost - new_cost) <= tol * max(cost, 1e-30) or np.max(np.abs(step * dp) * np.sqrt(np.diag(H))) < 1e-9
+        cost = new_cost
+        if done:
+            break
+    else:
+        raise CalibrationError(f"the exact {model.sensor} fit did not converge in {max_iter} "
+                               f"iterations (cost {cost:.6g}); check the data for outliers or a wrong unit")
+    res_phys = (obs.N - model.output(rho * u, p, obs.temp_c, obs.t_s))
+    dof = n - m
+    cov = np.linalg.inv(H)
+    chi2 = p_value = None
+    if known_sigma:
+        chi2 = cost
+        p_value = float(stats.chi2.sf(chi2, dof)) if dof > 0 else None
+    elif dof > 0:
+        cov = cov * cost / dof
+    else:
+        cov = cov * np.nan
+    return Fit(model.name, "exact", dict(zip(model.params, p)),
+               dict(zip(model.params, np.sqrt(np.diag(cov)))), cov, res_phys,
+               float(np.sqrt(np.mean(res_phys ** 2))), chi2, dof, p_value, it, u)
