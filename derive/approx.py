@@ -38,7 +38,7 @@ def remainder_size(exact, first, small, sample_other, bounds, n=400, seed=0):
     exact, first = sp.Matrix([exact]), sp.Matrix([first])
     rem = exact - first
     other_syms = sorted((rem.free_symbols - set(small)), key=str)
-    f = sp.lambdify([list(small), other_syms], rem, "numpy")
+    fs = [sp.lambdify([list(small), other_syms], e, "numpy") for e in rem]
     rng = np.random.default_rng(seed)
     draws = rng.uniform(-1, 1, (n, len(small))) * np.array([bounds[s] for s in small])
     others = sample_other(rng, n)
@@ -47,9 +47,8 @@ def remainder_size(exact, first, small, sample_other, bounds, n=400, seed=0):
         raise ValueError(f"no values given for {missing}")
 
     def worst(scale):
-        r = f([draws[:, j] * scale for j in range(len(small))], [others[s] for s in other_syms])
-        r = np.array([np.broadcast_to(np.asarray(x, float), (n,)) for x in np.ravel(r)])
-        return float(np.max(np.abs(r)))
+        args = ([draws[:, j] * scale for j in range(len(small))], [others[s] for s in other_syms])
+        return max(float(np.max(np.abs(np.broadcast_to(np.asarray(f(*args), float), (n,))))) for f in fs)
 
     full, half = worst(1.0), worst(0.5)
     return {"max_abs": full, "max_abs_half": half, "ratio": full / half if half > 0 else float("inf")}

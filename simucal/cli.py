@@ -32,3 +32,108 @@ def derive(check, model_files):
 
 if __name__ == "__main__":
     main()
+
+
+def _fail(e):
+    click.echo(f"error: {e}", err=True)
+    sys.exit(2)
+
+
+@main.command()
+@click.argument("out_dir", type=click.Path(file_okay=False))
+@click.option("--scenario", type=click.Choice(["paper"]), default="paper", show_default=True,
+              help="Preset: 'paper' is dong2018 section 4.")
+@click.option("--seed", type=int, default=0, show_default=True)
+@click.option("--plan", default=None, help="table1, fibonacci24, fibonacci48, or a CSV of outer_deg,middle_deg,inner_deg.")
+@click.option("--rate-hz", type=float, default=None, help="Write raw samples at this rate instead of one row per position.")
+@click.option("--position-error-arcmin", type=float, default=None, help="Uniform +- angular position error.")
+@click.option("--acc-model", default=None, help="Generated model for the truth (may hold terms calibration lacks).")
+@click.option("--acc-unit", type=click.Choice(["g", "m/s^2", "pulse/s"]), default=None)
+@click.option("--gyro-unit", type=click.Choice(["deg/h", "deg/s", "rad/s", "pulse/s"]), default=None)
+def simulate(out_dir, scenario, seed, plan, rate_hz, position_error_arcmin, acc_model, acc_unit, gyro_unit):
+    """Simulate a turntable test; write a measurement set and truth.json."""
+    from simucal.simulate import ARCMIN, SCENARIOS, write
+    sc = SCENARIOS[scenario]()
+    for key, val in (("plan", plan), ("rate_hz", rate_hz), ("acc_model", acc_model),
+                     ("acc_unit", acc_unit), ("gyro_unit", gyro_unit)):
+        if val is not None:
+            setattr(sc, key, val)
+    if position_error_arcmin is not None:
+        sc.position_error_rad = position_error_arcmin * ARCMIN
+    try:
+        write(out_dir, sc, seed)
+    except (ValueError, KeyError) as e:
+        _fail(e)
+    click.echo(f"wrote {out_dir} (scenario {scenario}, seed {seed})")
+
+
+@main.command()
+@click.argument("data_dir", type=click.Path(exists=True, file_okay=False))
+@click.option("-o", "--output", type=click.Path(dir_okay=False), default="calibration.json", show_default=True)
+@click.option("--method", type=click.Choice(["exact", "linear", "multiposition"]), default="exact", show_default=True)
+@click.option("--acc-model", default="acc_baseline", show_default=True)
+@click.option("--gyro-model", default="gyro_baseline", show_default=True)
+def calibrate(data_dir, output, method, acc_model, gyro_model):
+    """Calibrate a measurement set; write calibration.json."""
+    import json
+    from pathlib import Path
+
+    from simucal.calibrate import calibrate as run
+    from simucal.io import MeasurementSetError
+    from simucal.norm_fit import CalibrationError
+    try:
+        result = run(Path(data_dir), method, acc_model, gyro_model)
+    except (MeasurementSetError, CalibrationError, KeyError) as e:
+        _fail(e)
+    Path(output).write_text(json.dumps(result, indent=2) + "\n")
+    click.echo(f"wrote {output}: method {method}; residual rms " +
+               ", ".join(f"{k} {v:.3g} {result[k]['bias_unit']}" for k, v in result["residual_rms"].items()))
+
+
+@main.command()
+@click.option("-o", "--output", type=click.Path(dir_okay=False), default="audit.md", show_default=True)
+def audit(output):
+    """Check the paper's printed equations (5)-(27) and Table 1 against the derivation."""
+    from pathlib import Path
+
+    from simucal.derive.audit import run_audit
+    from tqdm import tqdm
+    report = run_audit(progress=lambda items: tqdm(items, desc="audit", unit="check"))
+    Path(output).write_text(report.markdown())
+    click.echo(f"wrote {output}: {report.summary()}")
+
+
+@main.command()
+@click.option("-o", "--out-dir", type=click.Path(file_okay=False), default="out", show_default=True)
+@click.option("--seed", type=int, default=0, show_default=True)
+def demo(out_dir, seed):
+    """The main job end to end on built-in simulated data:
+    derive --check, simulate (paper scenario), calibrate (all methods), audit, report."""
+    import json
+    from pathlib import Path
+
+    from simucal import derive_cmd, report
+    from simucal.calibrate import calibrate as run
+    from simucal.derive.audit import run_audit
+    from simucal.simulate import SCENARIOS, write
+
+    out = Path(out_dir)
+    out.mkdir(parents=True, exist_ok=True)
+    stale, secs = derive_cmd.run(check=True)
+    if stale:
+        _fail("generated/ is stale; run `simucal derive`. Differs: " + ", ".join(stale))
+    click.echo(f"derive: generated/ matches the derivation ({secs:.1f} s)")
+    write(out / "paper", SCENARIOS["paper"](), seed)
+    click.echo(f"simulate: {out / 'paper'} (dong2018 section 4 settings, seed {seed})")
+    results = {}
+    for method in ("exact", "linear", "multiposition"):
+        results[method] = run(out / "paper", method)
+        (out / f"calibration_{method}.json").write_text(json.dumps(results[method], indent=2) + "\n")
+    click.echo("calibrate: " + ", ".join(f"calibration_{m}.json" for m in results))
+    audit_report = run_audit()
+    (out / "audit.md").write_text(audit_report.markdown())
+    click.echo(f"audit: {out / 'audit.md'}: {audit_report.summary()}")
+    truth = json.loads((out / "paper" / "truth.json").read_text())
+    text = report.compare_table(results, truth)
+    (out / "report.md").write_text(text)
+    click.echo(text)

@@ -1,0 +1,211 @@
+"""Calibrate a turntable measurement set (dong2018), writing calibration.json.
+
+Methods:
+- exact (default): maximum-likelihood norm fits (norm_fit.fit_exact) of both
+  triads, then the gyro frame d tied to b by pairing each rate run's rotation
+  axis (seen by the gyros, in d) with the gravity direction of the static
+  position at the same middle/inner angles (seen by the accelerometers, in b):
+  Wahba's problem, solved by SVD. It needs no accurate table angles, unlike
+  eq. 25-27.
+- linear: the paper as printed: eq. 8 / 12 with the back-substitution, and
+  frame unification by the (derived) eq. 25-27 at the Table 2 positions.
+- multiposition: the traditional method: outputs regressed on the inputs
+  computed from the commanded angles of an ideal table, b = k assumed.
+Outputs follow output = M f + bias with f in b (g, deg/h).
+"""
+from __future__ import annotations
+
+import hashlib
+
+import numpy as np
+
+from . import io, units
+from .generated import table, unify
+from .models import load
+from .norm_fit import CalibrationError, Fit, Observations, fit_exact, fit_linear, initial_directions
+
+METHODS = ("exact", "linear", "multiposition")
+
+
+def input_sha256(folder) -> str:
+    h = hashlib.sha256()
+    for name in ("meta.json", "segments.csv", "samples.csv"):
+        p = folder / name
+        if p.is_file():
+            h.update(name.encode() + b"\0" + p.read_bytes())
+    return h.hexdigest()
+
+
+def _mean_and_sigma(x, stated):
+    """Mean of a segment's rows and the std of that mean.
+
+    Several rows: from their scatter, with the lag-1 autocorrelation taken
+    into account (effective sample count). One row: the stated noise, if any.
+    """
+    n = len(x)
+    if n >= 3:
+        d = x - x.mean(0)
+        var = d.var(0, ddof=1)
+        r1 = np.clip(np.sum(d[1:] * d[:-1], 0) / np.maximum(np.sum(d * d, 0), 1e-300), -0.9, 0.99)
+        n_eff = n * (1 - r1) / (1 + r1)
+        return x.mean(0), np.sqrt(var / np.maximum(n_eff, 1.0))
+    if stated is None:
+        return x.mean(0), None
+    return x.mean(0), np.full(3, stated / np.sqrt(n))
+
+
+def segment_observations(ms: io.MeasurementSet, sensor: str):
+    """(Observations, segments) for 'acc' (static) or 'gyro' (rate segments)."""
+    if ms.segments is None:
+        raise CalibrationError(f"{ms.path}: no segments.csv; turntable calibration needs segments "
+                               "(a continuous stream needs static detection, not yet supported)")
+    kind = "static" if sensor == "acc" else "rate"
+    segs = [s for s in ms.segments if s.kind == kind]
+    data = ms.acc_g() if sensor == "acc" else ms.gyro_dph()
+    stated = ms.meta.get("acc_noise_g" if sensor == "acc" else "gyro_noise_dph")
+    lat = np.radians(ms.meta.get("latitude_deg", 0.0))
+    w_e = units.earth_rate_dph(ms.meta)
+    N, sig, rho, t, temp, keep = [], [], [], [], [], []
+    for s in segs:
+        rows = ms.samples["segment"] == s.segment
+        if not rows.any():
+            raise CalibrationError(f"{ms.path / 'samples.csv'}: segment {s.segment} has no samples")
+        m, sd = _mean_and_sigma(data[rows], stated)
+        N.append(m)
+        sig.append(sd)
+        rho.append(1.0 if sensor == "acc" else abs(s.outer_rate_dps * 3600.0 + w_e * np.sin(lat)))
+        t.append(ms.samples["t_s"][rows].mean())
+        temp.append(ms.samples["temp_c"][rows].mean() if "temp_c" in ms.samples else 0.0)
+        keep.append(s)
+    sigma = None if any(s is None for s in sig) or not sig else np.array(sig)
+    obs = Observations(np.array(N).reshape(-1, 3), np.array(rho), sigma, np.array(temp), np.array(t),
+                       [s.segment for s in keep])
+    return obs, keep
+
+
+def _find(segs, **want):
+    for i, s in enumerate(segs):
+        if all(getattr(s, k) is not None and abs(getattr(s, k) - v) < 1e-6 for k, v in want.items()):
+            return i
+    return None
+
+
+def unify_paper(acc_obs, acc_segs, gyro_obs, gyro_segs, p_acc, p_gyro, meta):
+    """eq. 25-27 (derived, generated/unify.py) at the Table 2 positions."""
+    ia = [_find(acc_segs, middle_deg=a, outer_deg=g, inner_deg=0.0) for a, g in ((0, 0), (90, 0), (0, 180), (90, 180))]
+    ig = [_find(gyro_segs, middle_deg=a, inner_deg=0.0) for a in (0.0, 90.0)]
+    if None in ia or None in ig:
+        raise CalibrationError("the paper's frame unification needs the Table 2 static positions "
+                               "(alpha, gamma) = (0,0), (90,0), (0,180), (90,180) with beta = 0, and rate runs "
+                               "at alpha = 0 and 90 deg, beta = 0; use --method exact, which needs none")
+    x = unify.acc_table2(acc_obs.N[ia].reshape(12), p_acc)
+    w_T = gyro_segs[ig[0]].outer_rate_dps * 3600.0
+    lam = unify.gyro_mounting(gyro_obs.N[ig].reshape(6), p_gyro, w_T, units.earth_rate_dph(meta),
+                              np.radians(meta["latitude_deg"]))
+    C_b_d = table.mounting(lam).T @ table.mounting(x[:3])
+    return C_b_d, {"theta4_rad": x[:3].tolist(), "tilt_rad": x[3:].tolist(), "lambda4_rad": lam.tolist()}
+
+
+def unify_directions(acc_model, acc_fit, acc_obs, acc_segs, gyro_model, gyro_fit, gyro_obs, gyro_segs):
+    """C_b^d from paired directions: rate-run axis in d vs gravity in b (Wahba, SVD)."""
+    ua = initial_directions(acc_model, acc_obs, acc_fit.vector(acc_model.params))
+    ug = initial_directions(gyro_model, gyro_obs, gyro_fit.vector(gyro_model.params))
+    pairs_b, pairs_d = [], []
+    for j, s in enumerate(gyro_segs):
+        i = _find(acc_segs, middle_deg=s.middle_deg, inner_deg=s.inner_deg)
+        if i is not None:
+            pairs_b.append(ua[i])
+            pairs_d.append(ug[j] * np.sign(s.outer_rate_dps))  # axis = +up for a positive rate
+    if len(pairs_b) < 2 or np.linalg.matrix_rank(np.array(pairs_b), tol=1e-3) < 2:
+        raise CalibrationError("frame unification needs at least two rate runs, at distinct middle/inner "
+                               "angles, each with a static position at the same angles")
+    B = np.array(pairs_d).T @ np.array(pairs_b)
+    U, _, Vt = np.linalg.svd(B)
+    C_b_d = U @ np.diag([1, 1, np.linalg.det(U @ Vt)]) @ Vt
+    resid = np.array(pairs_d) - np.array(pairs_b) @ C_b_d.T
+    return C_b_d, {"pairs": len(pairs_b), "direction_residual_rms_rad": float(np.sqrt(np.mean(resid ** 2)))}
+
+
+def multiposition(ms, acc_obs, acc_segs, gyro_obs, gyro_segs):
+    """Traditional method: y = M f + b with f from commanded angles, ideal table, b = k."""
+    lat = np.radians(ms.meta["latitude_deg"]) if gyro_obs is not None else 0.0
+    w_e = units.earth_rate_dph(ms.meta)
+    out = {}
+    for sensor, obs, segs in (("acc", acc_obs, acc_segs), ("gyro", gyro_obs, gyro_segs)):
+        if obs is None:
+            continue
+        if any(s.middle_deg is None or s.inner_deg is None for s in segs):
+            raise CalibrationError("the multi-position method needs commanded middle and inner angles")
+        C = table.C_k_n(0.0, np.radians([s.middle_deg for s in segs]), np.radians([s.inner_deg for s in segs]),
+                        np.zeros(7))
+        up_k = C[:, 2, :]
+        f = up_k if sensor == "acc" else up_k * np.array(
+            [s.outer_rate_dps * 3600.0 + w_e * np.sin(lat) for s in segs])[:, None]
+        X = np.column_stack([f, np.ones(len(f))])
+        if len(f) < 4 or np.linalg.matrix_rank(X) < 4:
+            raise CalibrationError(f"the multi-position {sensor} regression is rank deficient: "
+                                   "input directions must span three dimensions")
+        coef, *_ = np.linalg.lstsq(X, obs.N, rcond=None)
+        r = obs.N - X @ coef
+        dof = max(len(f) - 4, 1)
+        s2 = np.sum(r ** 2, 0) / dof
+        cov = np.linalg.inv(X.T @ X)
+        out[sensor] = {"M": coef[:3].T, "bias": coef[3], "residual_rms": float(np.sqrt(np.mean(r ** 2))),
+                       "std": {"M": np.sqrt(np.outer(s2, np.diag(cov)[:3])).tolist(),
+                               "bias": np.sqrt(s2 * cov[3, 3]).tolist()}}
+    return out
+
+
+def _fit_block(model, fit: Fit, M, bias, unit):
+    return {"M": np.asarray(M).tolist(), "bias": np.asarray(bias).tolist(), "bias_unit": unit,
+            "model": model.name, "params": fit.params,
+            "std": fit.std, "residual_rms": fit.residual_rms, "chi2": fit.chi2, "dof": fit.dof,
+            "p_value": fit.p_value}
+
+
+def calibrate(folder, method="exact", acc_model="acc_baseline", gyro_model="gyro_baseline") -> dict:
+    if method not in METHODS:
+        raise CalibrationError(f"unknown method {method!r}; one of {METHODS}")
+    ms = io.read(folder)
+    acc_obs = acc_segs = gyro_obs = gyro_segs = None
+    if ms.has_acc:
+        acc_obs, acc_segs = segment_observations(ms, "acc")
+    if ms.has_gyro:
+        gyro_obs, gyro_segs = segment_observations(ms, "gyro")
+        if not gyro_segs:
+            gyro_obs = None
+    result = {"format": "simucal.calibration/1", "method": method, "input": str(folder),
+              "input_sha256": input_sha256(ms.path)}
+    if method == "multiposition":
+        mp = multiposition(ms, acc_obs, acc_segs, gyro_obs, gyro_segs)
+        for sensor, unit in (("acc", "g"), ("gyro", "deg/h")):
+            if sensor in mp:
+                r = mp[sensor]
+                result[sensor] = {"M": r["M"].tolist(), "bias": r["bias"].tolist(), "bias_unit": unit,
+                                  "model": "linear y = M f + b", "std": r["std"], "residual_rms": r["residual_rms"]}
+        result["model"] = "multiposition"
+        result["residual_rms"] = {s: result[s]["residual_rms"] for s in ("acc", "gyro") if s in result}
+        return result
+
+    fit = fit_exact if method == "exact" else fit_linear
+    am, gm = load(acc_model), load(gyro_model)
+    fa = fit(am, acc_obs) if acc_obs is not None else None
+    fg = fit(gm, gyro_obs) if gyro_obs is not None else None
+    if fa is not None:
+        M, b = am.matrix_and_bias(fa.vector(am.params))
+        result["acc"] = _fit_block(am, fa, M, b, "g")
+    if fg is not None:
+        M_d, b_g = gm.matrix_and_bias(fg.vector(gm.params))
+        if fa is None:
+            raise CalibrationError("gyro data without accelerometer data: the gyro frame cannot be tied to b")
+        if method == "exact":
+            C_b_d, info = unify_directions(am, fa, acc_obs, acc_segs, gm, fg, gyro_obs, gyro_segs)
+        else:
+            C_b_d, info = unify_paper(acc_obs, acc_segs, gyro_obs, gyro_segs,
+                                      fa.vector(am.params), fg.vector(gm.params), ms.meta)
+        result["gyro"] = _fit_block(gm, fg, M_d @ C_b_d, b_g, "deg/h")
+        result["gyro"]["M_in_d"] = np.asarray(M_d).tolist()
+        result["unification"] = {"C_b_d": C_b_d.tolist(), **info}
+    result["model"] = {"acc": acc_model, "gyro": gyro_model}
+    result["residual_rms"] = {s: result[s]["residual_rms"] for s in ("acc", "gyro") if s in result}
+    return result

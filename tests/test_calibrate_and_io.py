@@ -1,0 +1,111 @@
+"""Calibration of simulated sets, spec refusals, the CLI and the audit."""
+import json
+import shutil
+
+import numpy as np
+import pytest
+from click.testing import CliRunner
+
+from simucal import io
+from simucal.calibrate import calibrate
+from simucal.cli import main
+from simucal.norm_fit import CalibrationError
+
+
+def test_exact_within_3_sigma_of_truth(paper_set):
+    folder, truth = paper_set
+    r = calibrate(folder, "exact")
+    for sensor in ("acc", "gyro"):
+        for name, est in r[sensor]["params"].items():
+            err = est - truth[sensor]["params"][name]
+            assert abs(err) < 3 * r[sensor]["std"][name] + 1e-15, (sensor, name, err, r[sensor]["std"][name])
+    assert r["acc"]["p_value"] > 1e-3  # the baseline model explains its own data
+
+
+def test_norm_beats_multiposition_on_gyro_bias(paper_set):
+    folder, truth = paper_set
+    tb = np.array(truth["gyro"]["bias"])
+    err = {m: np.abs(np.array(calibrate(folder, m)["gyro"]["bias"]) - tb).max() for m in ("exact", "multiposition")}
+    assert err["exact"] < err["multiposition"] / 10
+
+
+def _copy(folder, tmp_path):
+    dst = tmp_path / "set"
+    shutil.copytree(folder, dst)
+    return dst
+
+
+def test_nan_cell_named_with_line(paper_set, tmp_path):
+    dst = _copy(paper_set[0], tmp_path)
+    lines = (dst / "samples.csv").read_text().splitlines()
+    cells = lines[3].split(",")
+    cells[2] = "nan"
+    lines[3] = ",".join(cells)
+    (dst / "samples.csv").write_text("\n".join(lines) + "\n")
+    with pytest.raises(io.MeasurementSetError, match=r"samples.csv, line 4: column ax: nan is not finite"):
+        io.read(dst)
+
+
+def test_unknown_unit_and_missing_latitude(paper_set, tmp_path):
+    dst = _copy(paper_set[0], tmp_path)
+    meta = json.loads((dst / "meta.json").read_text())
+    (dst / "meta.json").write_text(json.dumps({**meta, "acc_unit": "mg"}))
+    with pytest.raises(io.MeasurementSetError, match="not a known unit"):
+        io.read(dst)
+    meta.pop("latitude_deg")
+    (dst / "meta.json").write_text(json.dumps(meta))
+    with pytest.raises(io.MeasurementSetError, match="latitude_deg is required"):
+        io.read(dst)
+
+
+def test_empty_cell_named(paper_set, tmp_path):
+    dst = _copy(paper_set[0], tmp_path)
+    lines = (dst / "samples.csv").read_text().splitlines()
+    lines[5] = lines[5].replace(lines[5].split(",")[4], "", 1)
+    (dst / "samples.csv").write_text("\n".join(lines) + "\n")
+    with pytest.raises(io.MeasurementSetError, match="line 6: column .* is empty"):
+        io.read(dst)
+
+
+def test_paper_unification_needs_table2(paper_set, tmp_path):
+    dst = _copy(paper_set[0], tmp_path)
+    segs = (dst / "segments.csv").read_text().splitlines()
+    keep = [segs[0]] + [s for s in segs[1:] if not s.split(",")[3] in ("90.0",) or s.split(",")[1] == "rate"]
+    kept_ids = {s.split(",")[0] for s in keep[1:]}
+    (dst / "segments.csv").write_text("\n".join(keep) + "\n")
+    rows = (dst / "samples.csv").read_text().splitlines()
+    (dst / "samples.csv").write_text("\n".join([rows[0]] + [r for r in rows[1:] if r.split(",")[0] in kept_ids]) + "\n")
+    with pytest.raises(CalibrationError, match="Table 2"):
+        calibrate(dst, "linear")
+
+
+def test_cli_simulate_calibrate(tmp_path):
+    runner = CliRunner()
+    res = runner.invoke(main, ["simulate", str(tmp_path / "s"), "--seed", "1", "--gyro-unit", "deg/s"])
+    assert res.exit_code == 0, res.output
+    res = runner.invoke(main, ["calibrate", str(tmp_path / "s"), "-o", str(tmp_path / "c.json")])
+    assert res.exit_code == 0, res.output
+    cal = json.loads((tmp_path / "c.json").read_text())
+    truth = json.loads((tmp_path / "s" / "truth.json").read_text())
+    assert np.abs(np.array(cal["gyro"]["bias"]) - truth["gyro"]["bias"]).max() < 0.05
+    res = runner.invoke(main, ["calibrate", str(tmp_path / "nope")])
+    assert res.exit_code != 0
+
+
+def test_audit_covers_eq5_to_27_and_table1():
+    from simucal.derive.audit import run_audit
+    rep = run_audit()
+    covered = set()
+    for f in rep.findings:
+        label = f.eq.split()[0]
+        if "-" in label:
+            a, b = label.split("-")
+            covered |= set(range(int(a), int(b) + 1))
+        elif label.isdigit():
+            covered.add(int(label))
+    assert set(range(5, 28)) <= covered, sorted(set(range(5, 28)) - covered)
+    assert any(f.eq == "Table 1" for f in rep.findings)
+    phi = next(f for f in rep.findings if f.what == "gyro back-substitution phi_zy")
+    assert phi.max_abs_diff > 1e-6  # the paper's K_4 for phi_zy is caught
+    for name, r in rep.remainders:
+        assert 3.5 < r["ratio"] < 4.5, (name, r)  # every linearisation is second order

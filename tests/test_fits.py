@@ -1,0 +1,80 @@
+"""Exact and linear norm fits against noise-free data made with exact rotations."""
+import numpy as np
+import sympy as sp
+
+from simucal import plans
+from simucal.derive import norm
+from simucal.derive.frames import N_out
+from simucal.derive.models.baseline import ACC_BASELINE
+from simucal.generated import table
+from simucal.models import load
+from simucal.norm_fit import CalibrationError, Observations, fit_exact, fit_linear
+
+P_ACC = np.array([0.002, 0.008, 0.006, 1e-4, 1e-4, 1e-4, 8e-4, -1e-3, -3.2e-3])
+
+
+def directions(plan, errors=None, seed=0):
+    """Gravity directions in k from the exact table with random errors."""
+    ang = np.radians(np.array(plan))
+    err = np.random.default_rng(seed).normal(size=(len(plan), 7)) * 1e-3 if errors is None else errors
+    C = table.C_k_n(ang[:, 0], ang[:, 1], ang[:, 2], err)
+    return C[:, 2, :]
+
+
+def test_exact_recovers_baseline_to_1e10():
+    m = load("acc_baseline")
+    u = directions(plans.TABLE1)
+    fit = fit_exact(m, Observations(m.output(u, P_ACC), np.ones(12)))
+    assert np.max(np.abs(fit.vector(m.params) - P_ACC)) < 1e-10
+
+
+def test_exact_recovers_model_with_extra_terms_to_1e10():
+    m = load("acc_extended")
+    u = directions(plans.fibonacci(48))
+    t = np.arange(48) * 20.0
+    p = np.r_[P_ACC, 3e-5, -2e-5, 4e-7]
+    fit = fit_exact(m, Observations(m.output(u, p, 0.0, t), np.ones(48), t_s=t))
+    assert np.max(np.abs(fit.vector(m.params) - p)) < 1e-10
+
+
+def test_linear_error_agrees_with_derived_remainder():
+    """The paper's regression is exact but for the derived remainder R(N):
+    its K error must equal the least-squares image of R."""
+    m = load("acc_baseline")
+    reg = norm.derive_norm_regression(ACC_BASELINE)
+    u = directions(plans.TABLE1)
+    N = m.output(u, P_ACC)
+    R = sp.lambdify([list(N_out), list(ACC_BASELINE.params)], reg.norm_sq_exact - reg.norm_sq_first, "numpy")
+    rem = np.array([R(list(n), list(P_ACC)) for n in N])
+    Psi = m.norm_regressors(N)
+    K_true = m.module.K_of_params(P_ACC)
+    K_fit, *_ = np.linalg.lstsq(Psi, np.ones(12), rcond=None)
+    predicted = np.linalg.lstsq(Psi, rem, rcond=None)[0]
+    assert np.max(np.abs(predicted)) > 1e-8  # the remainder is not trivially zero
+    np.testing.assert_allclose(K_fit - K_true, predicted, rtol=1e-6, atol=1e-14)
+    lin = fit_linear(m, Observations(N, np.ones(12)))
+    assert np.max(np.abs(lin.vector(m.params) - P_ACC)) < 1e-4  # first order is close, not exact
+
+
+def test_refuses_too_few_positions():
+    m = load("acc_baseline")
+    u = directions(plans.TABLE1[:8])
+    try:
+        fit_exact(m, Observations(m.output(u, P_ACC), np.ones(8)))
+    except CalibrationError as e:
+        assert "8 acc positions for 9 parameters" in str(e)
+    else:
+        raise AssertionError("no refusal")
+
+
+def test_refuses_coplanar_plan():
+    m = load("acc_baseline")
+    a = np.linspace(0, 2 * np.pi, 16, endpoint=False)
+    u = np.stack([np.zeros(16), np.sin(a), np.cos(a)], 1)  # all gravity directions in the y-z plane
+    for fit in (fit_linear, fit_exact):
+        try:
+            fit(m, Observations(m.output(u, P_ACC), np.ones(16)))
+        except CalibrationError as e:
+            assert "unobservable" in str(e)
+        else:
+            raise AssertionError(f"{fit.__name__} accepted a coplanar plan")
