@@ -36,13 +36,18 @@ def input_sha256(folder) -> str:
     return h.hexdigest()
 
 
-def _mean_and_sigma(x, stated):
+def _mean_and_sigma(x, stated, varying=False):
     """Mean of a segment's rows and the std of that mean.
 
     Several rows: from their scatter, with the lag-1 autocorrelation taken
-    into account (effective sample count). One row: the stated noise, if any.
+    into account (effective sample count). For a rate run (varying=True) the
+    rows hold a deterministic signal, the horizontal Earth rate turning in
+    the body, so the noise comes from first differences, which remove it.
+    One row: the stated noise, if any.
     """
     n = len(x)
+    if n >= 3 and varying:
+        return x.mean(0), np.sqrt(np.var(np.diff(x, axis=0), axis=0, ddof=1) / 2 / n)
     if n >= 3:
         d = x - x.mean(0)
         var = d.var(0, ddof=1)
@@ -70,7 +75,7 @@ def segment_observations(ms: io.MeasurementSet, sensor: str):
         rows = ms.samples["segment"] == s.segment
         if not rows.any():
             raise CalibrationError(f"{ms.path / 'samples.csv'}: segment {s.segment} has no samples")
-        m, sd = _mean_and_sigma(data[rows], stated)
+        m, sd = _mean_and_sigma(data[rows], stated, varying=(kind == "rate"))
         N.append(m)
         sig.append(sd)
         rho.append(1.0 if sensor == "acc" else abs(s.outer_rate_dps * 3600.0 + w_e * np.sin(lat)))

@@ -109,3 +109,40 @@ def test_audit_covers_eq5_to_27_and_table1():
     assert phi.max_abs_diff > 1e-6  # the paper's K_4 for phi_zy is caught
     for name, r in rep.remainders:
         assert 3.5 < r["ratio"] < 4.5, (name, r)  # every linearisation is second order
+
+
+def test_raw_samples_within_3_sigma(tmp_path):
+    from simucal.simulate import Scenario, write
+    truth = write(tmp_path / "raw", Scenario(rate_hz=20.0, static_s=5.0, acc_unit="m/s^2", gyro_unit="rad/s"), seed=5)
+    r = calibrate(tmp_path / "raw", "exact")
+    for sensor in ("acc", "gyro"):
+        for name, est in r[sensor]["params"].items():
+            assert abs(est - truth[sensor]["params"][name]) < 3 * r[sensor]["std"][name], (sensor, name)
+        assert r[sensor]["p_value"] > 1e-3
+
+
+def test_not_converged_is_reported(paper_set):
+    from simucal.calibrate import segment_observations
+    from simucal.models import load
+    from simucal.norm_fit import fit_exact
+    obs, _ = segment_observations(io.read(paper_set[0]), "acc")
+    with pytest.raises(CalibrationError, match="did not converge"):
+        fit_exact(load("acc_baseline"), obs, p0=[0.3] * 9, max_iter=1)
+
+
+def test_user_model_file_generates_beside_baseline(tmp_path):
+    from simucal import derive_cmd
+    from simucal.models import generated_dir
+    model_file = tmp_path / "my_model.py"
+    model_file.write_text(
+        "from simucal.derive.models.baseline import ACC_BASELINE\n"
+        "from simucal.derive.models.effects import acc_quadratic\n"
+        "MODELS = [ACC_BASELINE.with_terms('acc_mine', [acc_quadratic('x')])]\n")
+    out = tmp_path / "generated"
+    shutil.copytree(generated_dir(), out, ignore=shutil.ignore_patterns("__pycache__"))
+    derive_cmd.run(model_files=[model_file], out_dir=out)
+    assert (out / "acc_mine.py").is_file() and (out / "acc_mine.c").is_file()
+    manifest = json.loads((out / "manifest.json").read_text())
+    assert "acc_mine" in manifest["models"] and str(model_file) in manifest["model_files"]
+    assert (out / "acc_baseline.py").read_text() == (generated_dir() / "acc_baseline.py").read_text()
+    assert derive_cmd.run(check=True, out_dir=out)[0] == []  # the stale check covers the user model too
