@@ -63,22 +63,20 @@ class Linearised:
     small: tuple         # the quantities treated as small
 
 
+def _outputs(model: ErrorModel, u, unknowns) -> Linearised:
+    exact = model.output().subs(dict(zip(model.inputs, u)), simultaneous=True)
+    small = model.params + unknowns
+    return Linearised(exact, exact.applyfunc(lambda e: _first_order(e, small)), small)
+
+
 def acc_outputs(model: ErrorModel) -> Linearised:
     """eq. 17: accelerometer outputs at table angles, exact and first order."""
-    f = acc_input_b()
-    exact = model.output().subs(dict(zip(model.inputs, f)), simultaneous=True)
-    small = model.params + ACC_UNIFY_UNKNOWNS
-    first = exact.applyfunc(lambda e: _first_order(e, small))
-    return Linearised(exact, first, small)
+    return _outputs(model, acc_input_b(), ACC_UNIFY_UNKNOWNS)
 
 
 def gyro_outputs(model: ErrorModel) -> Linearised:
     """eq. 21 (corrected for the averaging of Earth rate): mean gyro outputs."""
-    w = gyro_mean_input_d()
-    exact = model.output().subs(dict(zip(model.inputs, w)), simultaneous=True)
-    small = model.params + GYRO_UNIFY_UNKNOWNS
-    first = exact.applyfunc(lambda e: _first_order(e, small))
-    return Linearised(exact, first, small)
+    return _outputs(model, gyro_mean_input_d(), GYRO_UNIFY_UNKNOWNS)
 
 
 def solve_at_positions(lin: Linearised, positions, unknowns, outputs):
