@@ -44,17 +44,20 @@ def _fail(e):
 @click.option("--scenario", type=click.Choice(["paper"]), default="paper", show_default=True,
               help="Preset: 'paper' is dong2018 section 4.")
 @click.option("--seed", type=int, default=0, show_default=True)
-@click.option("--plan", default=None, help="table1, fibonacci24, fibonacci48, or a CSV of outer_deg,middle_deg,inner_deg.")
+@click.option("--plan", default=None,
+              help="table1, dodecahedron20, fibonacci24, fibonacci48, or a CSV of outer_deg,middle_deg,inner_deg.")
 @click.option("--rate-hz", type=float, default=None, help="Write raw samples at this rate instead of one row per position.")
 @click.option("--position-error-arcmin", type=float, default=None, help="Uniform +- angular position error.")
 @click.option("--acc-model", default=None, help="Generated model for the truth (may hold terms calibration lacks).")
+@click.option("--gyro-model", default=None, help="Generated gyro model for the truth.")
 @click.option("--acc-unit", type=click.Choice(["g", "m/s^2", "pulse/s"]), default=None)
 @click.option("--gyro-unit", type=click.Choice(["deg/h", "deg/s", "rad/s", "pulse/s"]), default=None)
-def simulate(out_dir, scenario, seed, plan, rate_hz, position_error_arcmin, acc_model, acc_unit, gyro_unit):
+def simulate(out_dir, scenario, seed, plan, rate_hz, position_error_arcmin, acc_model, gyro_model, acc_unit,
+             gyro_unit):
     """Simulate a turntable test; write a measurement set and truth.json."""
     from simucal.simulate import ARCMIN, SCENARIOS, write
     sc = SCENARIOS[scenario]()
-    for key, val in (("plan", plan), ("rate_hz", rate_hz), ("acc_model", acc_model),
+    for key, val in (("plan", plan), ("rate_hz", rate_hz), ("acc_model", acc_model), ("gyro_model", gyro_model),
                      ("acc_unit", acc_unit), ("gyro_unit", gyro_unit)):
         if val is not None:
             setattr(sc, key, val)

@@ -23,18 +23,37 @@ TABLE1 = [
 TABLE2 = [(0, 0, 0), (0, 90, 0), (180, 0, 0), (180, 90, 0)]  # (gamma, alpha, beta)
 
 
+def angles_for(f_k):
+    """Commanded (gamma, alpha, beta) putting f^k on the given unit directions.
+
+    f^k = Ry(-beta) Rx(-alpha) z = [-cos(a) sin(b), sin(a), cos(a) cos(b)];
+    gamma only turns the Earth rate, so it is spread evenly.
+    """
+    f = np.asarray(f_k, float)
+    f = f / np.linalg.norm(f, axis=1, keepdims=True)
+    alpha = np.degrees(np.arcsin(np.clip(f[:, 1], -1, 1)))
+    beta = np.degrees(np.arctan2(-f[:, 0], f[:, 2]))
+    gamma = (np.arange(len(f)) * 360.0 / len(f)) % 360
+    return [tuple(map(float, x)) for x in zip(gamma, alpha, beta)]
+
+
 def fibonacci(n: int):
-    """n angles (gamma, alpha, beta) putting f^k on a spherical Fibonacci set."""
+    """n positions with f^k on a spherical Fibonacci set."""
     i = np.arange(n) + 0.5
     z = 1 - 2 * i / n
     phi = np.pi * (1 + 5 ** 0.5) * i
     r = np.sqrt(1 - z ** 2)
-    f = np.stack([r * np.cos(phi), r * np.sin(phi), z], 1)
-    # f^k = Ry(-beta) Rx(-alpha) z = [-cos(a) sin(b), sin(a), cos(a) cos(b)]
-    alpha = np.degrees(np.arcsin(np.clip(f[:, 1], -1, 1)))
-    beta = np.degrees(np.arctan2(-f[:, 0], f[:, 2]))
-    gamma = (np.arange(n) * 360.0 / n) % 360
-    return [tuple(map(float, x)) for x in zip(gamma, alpha, beta)]
+    return angles_for(np.stack([r * np.cos(phi), r * np.sin(phi), z], 1))
+
+
+def dodecahedron():
+    """20 positions with f^k on the vertices of a regular dodecahedron."""
+    g = (1 + 5 ** 0.5) / 2
+    v = [(x, y, z) for x in (-1, 1) for y in (-1, 1) for z in (-1, 1)]
+    for a in (-1 / g, 1 / g):
+        for b in (-g, g):
+            v += [(0, a, b), (a, b, 0), (b, 0, a)]
+    return angles_for(np.array(v))
 
 
 def read_csv(path) -> list:
@@ -54,4 +73,5 @@ def read_csv(path) -> list:
     return out
 
 
-PLANS = {"table1": lambda: TABLE1, "fibonacci24": lambda: fibonacci(24), "fibonacci48": lambda: fibonacci(48)}
+PLANS = {"table1": lambda: TABLE1, "dodecahedron20": dodecahedron,
+         "fibonacci24": lambda: fibonacci(24), "fibonacci48": lambda: fibonacci(48)}

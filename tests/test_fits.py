@@ -78,3 +78,13 @@ def test_refuses_coplanar_plan():
             assert "unobservable" in str(e)
         else:
             raise AssertionError(f"{fit.__name__} accepted a coplanar plan")
+
+
+def test_generated_plans_hit_their_directions():
+    u = directions(plans.dodecahedron(), errors=np.zeros((20, 7)))
+    cosines = u @ u.T
+    nearest = np.sort(cosines, axis=1)[:, -2]  # each vertex's nearest neighbour
+    assert np.allclose(nearest, nearest[0]) and np.isclose(np.arccos(nearest[0]), np.arccos(np.sqrt(5) / 3))
+    m = load("acc_baseline")
+    fit = fit_exact(m, Observations(m.output(u, P_ACC), np.ones(20)))
+    assert np.max(np.abs(fit.vector(m.params) - P_ACC)) < 1e-10
