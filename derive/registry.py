@@ -12,10 +12,11 @@ from pathlib import Path
 
 from .models import ErrorModel
 from .models.baseline import ACC_BASELINE, GYRO_BASELINE
-from .models.effects import acc_bias_drift_time, acc_cross_coupling, acc_quadratic
+from .models.effects import CANDIDATES
 
 ACC_EXTENDED = ACC_BASELINE.with_terms(
-    "acc_extended", [acc_quadratic("z"), acc_cross_coupling("x", "y"), acc_bias_drift_time("y")])
+    "acc_extended", [CANDIDATES["acc.quadratic.z"], CANDIDATES["acc.cross_coupling.xy"],
+                     CANDIDATES["acc.bias_drift_time.y"]])
 
 BUILTIN = (ACC_BASELINE, GYRO_BASELINE, ACC_EXTENDED)
 

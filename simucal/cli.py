@@ -140,3 +140,32 @@ def demo(out_dir, seed):
     text = report.compare_table(results, truth)
     (out / "report.md").write_text(text)
     click.echo(text)
+
+
+@main.command()
+@click.argument("data_dir", type=click.Path(exists=True, file_okay=False))
+@click.option("-o", "--output", type=click.Path(dir_okay=False), default="diagnosis.json", show_default=True)
+@click.option("--html", "html_path", type=click.Path(dir_okay=False), default=None, help="Also write a self-contained HTML report.")
+@click.option("--add", "add", multiple=True, help="Effect id to add to the model, e.g. acc.quadratic.z (repeatable).")
+@click.option("--acc-model", default="acc_baseline", show_default=True)
+@click.option("--gyro-model", default="gyro_baseline", show_default=True)
+@click.option("--acc-noise-g", type=float, default=None, help="Stated noise of one acc row (g), when the data cannot give it.")
+@click.option("--gyro-noise-dph", type=float, default=None, help="Stated noise of one gyro row (deg/h).")
+def diagnose(data_dir, output, html_path, add, acc_model, gyro_model, acc_noise_g, gyro_noise_dph):
+    """Compare model and measurements; rank the candidate missing effects."""
+    import json
+    from pathlib import Path
+
+    from simucal.diagnose import diagnose as run
+    from simucal.io import MeasurementSetError
+    from simucal.norm_fit import CalibrationError
+    try:
+        result = run(Path(data_dir), add, acc_model, gyro_model, acc_noise_g, gyro_noise_dph)
+    except (MeasurementSetError, CalibrationError, KeyError) as e:
+        _fail(e)
+    Path(output).write_text(json.dumps(result, indent=1, default=float) + "\n")
+    if html_path:
+        from simucal.report_html import render
+        Path(html_path).write_text(render(result))
+    click.echo(result["verdict"])
+    click.echo(f"wrote {output}" + (f" and {html_path}" if html_path else ""))

@@ -10,8 +10,9 @@ optionally the standard deviation of each mean.
   parameters p and each position's input direction on the sphere of radius
   rho_i (the norm principle: the direction is not known, the norm is):
       minimise sum_i |(N_i - h(rho_i u_i, p)) / sigma_i|^2,  |u_i| = 1.
-  Gauss-Newton on p and a 2-D tangent step per direction; the directions are
-  eliminated by a Schur complement, so each step solves an m x m system.
+  Gauss-Newton (Levenberg-Marquardt damped) on p and a 2-D tangent step per
+  direction; the directions are eliminated by a Schur complement, so each
+  step solves an m x m system.
 """
 from __future__ import annotations
 
@@ -20,7 +21,6 @@ from dataclasses import dataclass, field
 import numpy as np
 from scipy import stats
 
-from .models import GeneratedModel
 
 
 class CalibrationError(ValueError):
@@ -56,7 +56,7 @@ class Fit:
         return np.array([self.params[k] for k in names])
 
 
-def _check_inputs(model: GeneratedModel, obs: Observations):
+def _check_inputs(model, obs: Observations):
     n, m = len(obs.N), len(model.params)
     if n == 0:
         raise CalibrationError(f"no {model.sensor} positions to calibrate from")
@@ -81,7 +81,7 @@ def unobservable(H, names, tol=1e-10):
     return out
 
 
-def fit_linear(model: GeneratedModel, obs: Observations) -> Fit:
+def fit_linear(model, obs: Observations) -> Fit:
     """dong2018 eq. 8 / 12 and the back-substitution, for any derived model."""
     _check_inputs(model, obs)
     n, m = len(obs.N), len(model.params)
@@ -128,14 +128,14 @@ def initial_directions(model, obs, p):
     return u / np.linalg.norm(u, axis=1, keepdims=True)
 
 
-def fit_exact(model: GeneratedModel, obs: Observations, p0=None, max_iter=50, tol=1e-12) -> Fit:
+def fit_exact(model, obs: Observations, p0=None, max_iter=200, tol=1e-12) -> Fit:
     """Maximum-likelihood norm-observation fit, exact model (see module doc)."""
     _check_inputs(model, obs)
     n, m = len(obs.N), len(model.params)
     if p0 is None:
         try:
             p0 = fit_linear(model, obs).vector(model.params)
-        except (CalibrationError, np.linalg.LinAlgError):
+        except (CalibrationError, np.linalg.LinAlgError, NotImplementedError):
             p0 = np.zeros(m)
     p = np.array(p0, float)
     known_sigma = obs.sigma is not None
@@ -147,6 +147,7 @@ def fit_exact(model: GeneratedModel, obs: Observations, p0=None, max_iter=50, to
         return (obs.N - model.output(rho * u, p, obs.temp_c, obs.t_s)) / sig
 
     cost = float(np.sum(residual(p, u) ** 2))
+    lam = 0.0
     for it in range(1, max_iter + 1):
         Nm, Ju, Jp = model.jacobians(rho * u, p, obs.temp_c, obs.t_s)
         r = (obs.N - Nm) / sig
@@ -164,19 +165,27 @@ def fit_exact(model: GeneratedModel, obs: Observations, p0=None, max_iter=50, to
             raise CalibrationError(f"the {model.sensor} plan leaves these parameter combinations "
                                    f"unobservable: {bad}; add positions (other input directions, "
                                    "temperatures or times) that change them")
-        dp = -np.linalg.solve(H, g)
-        dd = -np.einsum("nab,nb->na", Ainv, gd + np.einsum("nab,b->na", B, dp))
-        step = 1.0
-        while True:  # step halving keeps the cost from rising
-            p_new = p + step * dp
-            v = u + np.einsum("nij,nj->ni", E, step * dd)
+        dH = np.sqrt(np.diag(H))  # Jacobi scaling: terms of very different size stay conditioned
+        Hs, gs = H / np.outer(dH, dH), g / dH
+        while True:  # Levenberg-Marquardt: damp until the cost does not rise
+            dp = -np.linalg.solve(Hs + lam * np.eye(m), gs) / dH
+            dd = -np.einsum("nab,nb->na", Ainv, gd + np.einsum("nab,b->na", B, dp))
+            p_new = p + dp
+            v = u + np.einsum("nij,nj->ni", E, dd)
             u_new = v / np.linalg.norm(v, axis=1, keepdims=True)
             new_cost = float(np.sum(residual(p_new, u_new) ** 2))
-            if new_cost <= cost * (1 + 1e-12) or step < 1e-6:
+            if new_cost <= cost * (1 + 1e-12) or lam > 1e8:
+                lam = lam / 10 if lam > 1e-6 else 0.0
                 break
-            step /= 2
+            lam = max(1e-3, 10 * lam)
+        step = 1.0
         p, u = p_new, u_new
-        done = abs(cost - new_cost) <= tol * max(cost, 1e-30) or np.max(np.abs(step * dp) * np.sqrt(np.diag(H))) < 1e-9
+        # converged: the cost stalls, or the step is below 1e-6 of each parameter's standard
+        # deviation, or the Gauss-Newton decrement is at round-off level
+        decrement = float(-(g @ dp))
+        done = (abs(cost - new_cost) <= tol * max(cost, 1e-30)
+                or np.max(np.abs(step * dp) * np.sqrt(np.diag(H))) < 1e-6
+                or decrement <= 1e-12 * max(cost, 1.0))
         cost = new_cost
         if done:
             break
@@ -185,7 +194,8 @@ def fit_exact(model: GeneratedModel, obs: Observations, p0=None, max_iter=50, to
                                f"iterations (cost {cost:.6g}); check the data for outliers or a wrong unit")
     res_phys = (obs.N - model.output(rho * u, p, obs.temp_c, obs.t_s))
     dof = n - m
-    cov = np.linalg.inv(H)
+    dH = np.sqrt(np.diag(H))
+    cov = np.linalg.inv(H / np.outer(dH, dH)) / np.outer(dH, dH)
     chi2 = p_value = None
     if known_sigma:
         chi2 = cost

@@ -15,7 +15,7 @@ import numpy as np
 
 from . import io, plans, units
 from .generated import table
-from .models import load
+from .augmented import AugmentedModel
 
 ARCMIN = np.radians(1 / 60)
 ARCSEC = np.radians(1 / 3600)
@@ -51,6 +51,11 @@ class Scenario:
     gyro_unit: str = "pulse/s"
     acc_pulses_per_g: tuple = (10800.0, 10400.0, 10600.0)
     gyro_pulses_per_arcsec: tuple = (1.1866, 1.1866, 1.1866)
+    # Effects in the truth that a calibration model may lack: {effect id: value}.
+    acc_effects: dict = field(default_factory=dict)
+    gyro_effects: dict = field(default_factory=dict)
+    temp_c: tuple | None = None       # (first, last): a linear sweep over the segments; None: no temp_c column
+    shuffle: bool = False             # visit the positions in random order (separates time from direction)
 
 
 SCENARIOS = {"paper": Scenario}
@@ -64,9 +69,10 @@ def _C_k_n(angles_deg, errs):
 def simulate(sc: Scenario, seed: int = 0):
     """Return (meta, samples, segments, truth) of one simulated test."""
     rng = np.random.default_rng(seed)
-    acc, gyro = load(sc.acc_model), load(sc.gyro_model)
-    p_acc = np.array([sc.acc_params.get(k, 0.0) for k in acc.params])
-    p_gyro = np.array([sc.gyro_params.get(k, 0.0) for k in gyro.params])
+    acc = AugmentedModel(sc.acc_model, tuple(sc.acc_effects))
+    gyro = AugmentedModel(sc.gyro_model, tuple(sc.gyro_effects))
+    p_acc = np.array([{**sc.acc_params, **sc.acc_effects}.get(k, 0.0) for k in acc.params])
+    p_gyro = np.array([{**sc.gyro_params, **sc.gyro_effects}.get(k, 0.0) for k in gyro.params])
     C_b_k = table.mounting(np.array(sc.theta4_rad))
     C_d_k = table.mounting(np.array(sc.lambda4_rad))
     lat = np.radians(sc.latitude_deg)
@@ -79,6 +85,9 @@ def simulate(sc: Scenario, seed: int = 0):
     if sc.unify_positions:
         rates += [(0.0, a, 0.0, r) for r in sc.outer_rate_dps for a in (0.0, 90.0)]
 
+    if sc.shuffle:
+        static = [static[i] for i in rng.permutation(len(static))]
+        rates = [rates[i] for i in rng.permutation(len(rates))]
     segments, rows = [], []
     t0 = 0.0
 
@@ -117,22 +126,26 @@ def simulate(sc: Scenario, seed: int = 0):
     if sc.gyro_unit == "pulse/s":
         meta["gyro_pulses_per_arcsec"] = list(sc.gyro_pulses_per_arcsec)
 
-    seg_ids, times, acc_out, gyro_out = [], [], [], []
-    for seg, (f_b, w_d, dur) in zip(segments, rows):
+    seg_ids, times, temps, acc_out, gyro_out = [], [], [], [], []
+    temp_of = (np.linspace(*sc.temp_c, len(segments)) if sc.temp_c else np.zeros(len(segments)))
+    for seg, (f_b, w_d, dur), temp in zip(segments, rows, temp_of):
         if sc.rate_hz is None:
             f, w, t = f_b.mean(0, keepdims=True), w_d.mean(0, keepdims=True), np.array([t0 + dur / 2])
         else:
             n = int(round(dur * sc.rate_hz))
             idx = np.arange(n) * len(f_b) // n
             f, w, t = f_b[idx], w_d[idx], t0 + np.arange(n) / sc.rate_hz
-        acc_out.append(acc.output(f, p_acc, 0.0, t) + rng.normal(0, sc.acc_noise_g, f.shape))
-        gyro_out.append(gyro.output(w, p_gyro, 0.0, t) + rng.normal(0, sc.gyro_noise_dph, w.shape))
+        acc_out.append(acc.output(f, p_acc, temp, t) + rng.normal(0, sc.acc_noise_g, f.shape))
+        gyro_out.append(gyro.output(w, p_gyro, temp, t) + rng.normal(0, sc.gyro_noise_dph, w.shape))
         seg_ids.append(np.full(len(t), seg.segment))
+        temps.append(np.full(len(t), temp))
         times.append(t)
         t0 += dur + 5.0
     N_a = units.g_to_acc(np.concatenate(acc_out), meta)
     N_g = units.dph_to_gyro(np.concatenate(gyro_out), meta)
     samples = {"segment": np.concatenate(seg_ids), "t_s": np.concatenate(times)}
+    if sc.temp_c:
+        samples["temp_c"] = np.concatenate(temps)
     for j, c in enumerate("xyz"):
         samples["a" + c] = N_a[:, j]
         samples["g" + c] = N_g[:, j]

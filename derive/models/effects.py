@@ -1,10 +1,16 @@
 """Candidate physical effects, each one Term to add to a baseline model.
 
-Every effect is a function of the axis (and, where it matters, a second axis)
-returning a Term with its unit and a one-line physical meaning.
+CANDIDATES maps an effect id, `<sensor>.<family>.<axis>` (e.g.
+`acc.quadratic.z`, `acc.cross_coupling.xy`), to its Term. `simucal derive`
+generates their regressors and derivatives (generated/effects.py) so that
+`simucal diagnose` can fit baseline + any candidate with the exact solver.
 """
+import sympy as sp
+
 from ..frames import AXES, f_b, omega_d, t_s, temp_c
 from . import Term
+
+DPS = 3600.0  # deg/h per deg/s: gyro rates enter nonlinear terms in deg/s to keep coefficients O(1)
 
 
 def _f(axis):
@@ -16,13 +22,18 @@ def _w(axis):
 
 
 def acc_quadratic(axis):
-    return Term(f"K2_{axis}", axis, _f(axis) ** 2, "1/g",
-                f"{axis} accelerometer second-order nonlinearity (pendulum/servo loop)")
+    return Term(f"K2_{axis}", axis, _f(axis) ** 2, "g/g^2",
+                f"{axis} accelerometer second-order nonlinearity (output grows with f_{axis}^2)")
 
 
 def acc_cross_coupling(axis, other):
-    return Term(f"Kc_{axis}{other}", axis, _f(axis) * _f(other), "1/g",
+    return Term(f"Kc_{axis}{other}", axis, _f(axis) * _f(other), "g/g^2",
                 f"{axis} accelerometer output proportional to f_{axis} f_{other} (cross-axis coupling)")
+
+
+def acc_scale_asymmetry(axis):
+    return Term(f"Ka_{axis}", axis, sp.Abs(_f(axis)), "1",
+                f"{axis} accelerometer scale factor differs for positive and negative inputs")
 
 
 def acc_bias_drift_time(axis):
@@ -30,8 +41,13 @@ def acc_bias_drift_time(axis):
 
 
 def gyro_quadratic(axis):
-    return Term(f"K2g_{axis}", axis, _w(axis) ** 2, "1/(deg/h)",
+    return Term(f"K2g_{axis}", axis, (_w(axis) / DPS) ** 2, "(deg/h)/(deg/s)^2",
                 f"{axis} gyro scale factor depending on rate (second-order nonlinearity)")
+
+
+def gyro_scale_asymmetry(axis):
+    return Term(f"Kag_{axis}", axis, sp.Abs(_w(axis)), "1",
+                f"{axis} gyro scale factor differs for positive and negative rates")
 
 
 def gyro_bias_temperature(axis):
@@ -40,3 +56,22 @@ def gyro_bias_temperature(axis):
 
 def gyro_bias_drift_time(axis):
     return Term(f"btg_{axis}", axis, t_s, "(deg/h)/s", f"{axis} gyro bias drifting linearly in time")
+
+
+def _catalog():
+    out = {}
+    for a in AXES:
+        out[f"acc.quadratic.{a}"] = acc_quadratic(a)
+        out[f"acc.scale_asymmetry.{a}"] = acc_scale_asymmetry(a)
+        out[f"acc.bias_drift_time.{a}"] = acc_bias_drift_time(a)
+        for o in AXES:
+            if o != a:
+                out[f"acc.cross_coupling.{a}{o}"] = acc_cross_coupling(a, o)
+        out[f"gyro.quadratic.{a}"] = gyro_quadratic(a)
+        out[f"gyro.scale_asymmetry.{a}"] = gyro_scale_asymmetry(a)
+        out[f"gyro.bias_temperature.{a}"] = gyro_bias_temperature(a)
+        out[f"gyro.bias_drift_time.{a}"] = gyro_bias_drift_time(a)
+    return dict(sorted(out.items()))
+
+
+CANDIDATES = _catalog()

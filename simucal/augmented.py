@@ -1,0 +1,77 @@
+"""A generated baseline model plus candidate effects from generated/effects.py.
+
+N(u, p, q) = N_base(u, p) + sum_k q_k * phi_k(u, temp_c, t_s) * e_axis(k)
+
+Both halves are generated from derive/, so fitting baseline + candidate is
+the exact solver on the derived model, with no re-derivation at run time.
+"""
+from __future__ import annotations
+
+import numpy as np
+
+from .generated.effects import EFFECTS
+from .models import GeneratedModel, load
+
+
+def effect_ids(sensor: str) -> list[str]:
+    return [k for k, v in EFFECTS.items() if v[0] == sensor]
+
+
+def check_effect(eid: str, sensor: str | None = None):
+    if eid not in EFFECTS:
+        fam = sorted({".".join(k.split(".")[:2]) for k in EFFECTS})
+        raise KeyError(f"unknown effect {eid!r}: use <family>.<axis>, families {fam} "
+                       "(your own term: write a model file and run `simucal derive --model FILE`)")
+    if sensor is not None and EFFECTS[eid][0] != sensor:
+        raise KeyError(f"effect {eid} is for the {EFFECTS[eid][0]}, not the {sensor}")
+
+
+class AugmentedModel:
+    def __init__(self, base: GeneratedModel | str, effects=()):
+        self.base = load(base) if isinstance(base, str) else base
+        for e in effects:
+            check_effect(e, self.base.sensor)
+        self.effects = tuple(effects)
+        self.sensor, self.unit = self.base.sensor, self.base.unit
+        self.name = self.base.name + "".join(f"+{e}" for e in self.effects)
+        self.params = tuple(self.base.params) + self.effects
+        self.param_units = tuple(self.base.param_units) + tuple(EFFECTS[e][3] for e in self.effects)
+        self._m = len(self.base.params)
+
+    def _terms(self, u, temp_c, t_s):
+        for e in self.effects:
+            _, axis, _, _, _, f = EFFECTS[e]
+            phi, dphi = f(u, temp_c, t_s)
+            yield axis, np.broadcast_to(phi[..., 0], np.shape(u)[:-1]), dphi
+
+    def output(self, u, p, temp_c=0.0, t_s=0.0):
+        p = np.asarray(p, float)
+        N = self.base.output(u, p[..., :self._m], temp_c, t_s)
+        for q, (axis, phi, _) in zip(p[..., self._m:].T, self._terms(u, temp_c, t_s)):
+            N[..., axis] += q * phi
+        return N
+
+    def jacobians(self, u, p, temp_c=0.0, t_s=0.0):
+        p = np.asarray(p, float)
+        N, Ju, Jp = self.base.jacobians(u, p[:self._m], temp_c, t_s)
+        cols = []
+        for q, (axis, phi, dphi) in zip(p[self._m:], self._terms(u, temp_c, t_s)):
+            N[:, axis] += q * phi
+            Ju[:, axis, :] += q * dphi
+            col = np.zeros((len(u), 3))
+            col[:, axis] = phi
+            cols.append(col)
+        if cols:
+            Jp = np.concatenate([Jp, np.stack(cols, axis=2)], axis=2)
+        return N, Ju, Jp
+
+    def matrix_and_bias(self, p, temp_c=0.0, t_s=0.0):
+        return self.base.matrix_and_bias(np.asarray(p, float)[..., :self._m], temp_c, t_s)
+
+    def norm_regressors(self, N, temp_c=0.0, t_s=0.0):
+        if self.effects:
+            raise NotImplementedError("the linear norm regression exists for derived models only")
+        return self.base.norm_regressors(N, temp_c, t_s)
+
+    def params_of_K(self, K, first_order=False):
+        return self.base.params_of_K(K, first_order)

@@ -1,0 +1,79 @@
+"""Diagnosis on simulated sets whose truth holds an effect the model lacks."""
+import json
+
+import numpy as np
+import pytest
+from click.testing import CliRunner
+
+from simucal.cli import main
+from simucal.diagnose import diagnose
+from simucal.simulate import Scenario, write
+
+RATES = (5.0, 10.0, -10.0, 20.0)
+HIDDEN = [  # (effect id, size, scenario settings rich enough to see it)
+    ("acc.quadratic.z", 5e-5, dict(plan="fibonacci48")),
+    ("acc.cross_coupling.xy", 6e-5, dict(plan="fibonacci48")),
+    ("acc.scale_asymmetry.x", 1.5e-4, dict(plan="fibonacci48")),
+    ("acc.bias_drift_time.y", 3e-7, dict(plan="fibonacci48", shuffle=True)),
+    ("gyro.quadratic.x", 2e-4, dict(plan="fibonacci24", outer_rate_dps=RATES)),
+    ("gyro.scale_asymmetry.y", 2e-6, dict(plan="fibonacci24", outer_rate_dps=RATES)),
+    ("gyro.bias_temperature.z", 3e-3, dict(plan="fibonacci24", outer_rate_dps=RATES, temp_c=(15.0, 45.0))),
+    ("gyro.bias_drift_time.x", 2e-5, dict(plan="fibonacci24", outer_rate_dps=RATES, shuffle=True)),
+]
+
+
+def base_errors(block, truth, sensor):
+    t = truth[sensor]["params"]
+    return np.array([abs(v["after"] - t[k]) / v["std_after"] for k, v in block["added"]["params"].items()
+                     if k in t and "." not in k]), \
+        np.array([abs(v["before"] - t[k]) / v["std_before"] for k, v in block["added"]["params"].items()
+                  if k in t and "." not in k])
+
+
+@pytest.mark.parametrize("eid,size,settings", HIDDEN, ids=[h[0] for h in HIDDEN])
+def test_hidden_effect_found_added_and_explained(tmp_path, eid, size, settings):
+    sensor = eid.split(".")[0]
+    sc = Scenario(**settings, **{f"{sensor}_effects": {eid: size}})
+    truth = write(tmp_path / "set", sc, seed=11)
+    d = diagnose(tmp_path / "set")
+    block = d[sensor]
+    assert block["baseline"]["p_value"] < 0.01, "the baseline should fail on this set"
+    first = block["candidates"][0]
+    assert first["id"] == eid and first["significant"], [c["id"] for c in block["candidates"][:3]]
+    assert d["candidates"][0]["id"] == eid
+    assert abs(first["estimate"] - size) < 4 * first["std"]
+    after = diagnose(tmp_path / "set", add=[eid])[sensor]
+    assert after["baseline"]["p_value"] > 0.01
+    assert after["baseline"]["residual_rms"] < 1.2 * after["baseline"]["noise_floor"]
+    err_after, err_before = base_errors(after, truth, sensor)
+    assert np.sqrt(np.mean(err_after ** 2)) < np.sqrt(np.mean(err_before ** 2))  # the other parameters improve
+
+
+def test_clean_sets_declare_nothing_beyond_nominal_rate(tmp_path):
+    declared = 0
+    seeds = 30
+    for seed in range(seeds):
+        write(tmp_path / f"c{seed}", Scenario(), seed=100 + seed)
+        d = diagnose(tmp_path / f"c{seed}")
+        declared += any(c.get("significant") for c in d["candidates"])
+    # nominal rate 1 %: four or more of 30 has probability below 3e-4 if the test holds its level
+    assert declared <= 3, declared
+
+
+def test_cli_diagnose_writes_json_and_html(tmp_path):
+    write(tmp_path / "s", Scenario(plan="fibonacci48", acc_effects={"acc.quadratic.z": 5e-5}), seed=2)
+    res = CliRunner().invoke(main, ["diagnose", str(tmp_path / "s"), "-o", str(tmp_path / "d.json"),
+                                    "--html", str(tmp_path / "r.html"), "--add", "acc.quadratic.z"])
+    assert res.exit_code == 0, res.output
+    d = json.loads((tmp_path / "d.json").read_text())
+    for key in ("baseline", "candidates", "verdict"):
+        assert key in d
+    for key in ("residual_rms", "noise_floor", "p_value"):
+        assert key in d["baseline"]
+    c = d["candidates"][0]
+    for key in ("effect", "axis", "estimate", "std", "statistic", "p_value", "residual_rms_after"):
+        assert key in c
+    html = (tmp_path / "r.html").read_text()
+    assert html.count("data:image/png;base64,") >= 5 and "http" not in html.split("<body>")[1]
+    bad = CliRunner().invoke(main, ["diagnose", str(tmp_path / "s"), "--add", "acc.nonsense.z"])
+    assert bad.exit_code != 0 and "unknown effect" in bad.output
