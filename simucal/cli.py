@@ -41,8 +41,9 @@ def _fail(e):
 
 @main.command()
 @click.argument("out_dir", type=click.Path(file_okay=False))
-@click.option("--scenario", type=click.Choice(["paper"]), default="paper", show_default=True,
-              help="Preset: 'paper' is dong2018 section 4.")
+@click.option("--scenario", type=click.Choice(["paper", "field"]), default="paper", show_default=True,
+              help="Preset: 'paper' is dong2018 section 4 (turntable); 'field' is ruan2019 (three positions, no table).")
+@click.option("--heading-error-deg", type=float, default=None, help="field: the north reference's error, uniform +- this.")
 @click.option("--seed", type=int, default=0, show_default=True)
 @click.option("--plan", default=None,
               help="table1, dodecahedron20, fibonacci24, fibonacci48, or a CSV of outer_deg,middle_deg,inner_deg.")
@@ -52,10 +53,20 @@ def _fail(e):
 @click.option("--gyro-model", default=None, help="Generated gyro model for the truth.")
 @click.option("--acc-unit", type=click.Choice(["g", "m/s^2", "pulse/s"]), default=None)
 @click.option("--gyro-unit", type=click.Choice(["deg/h", "deg/s", "rad/s", "pulse/s"]), default=None)
-def simulate(out_dir, scenario, seed, plan, rate_hz, position_error_arcmin, acc_model, gyro_model, acc_unit,
-             gyro_unit):
-    """Simulate a turntable test; write a measurement set and truth.json."""
+def simulate(out_dir, scenario, heading_error_deg, seed, plan, rate_hz, position_error_arcmin, acc_model, gyro_model,
+             acc_unit, gyro_unit):
+    """Simulate a test; write a measurement set and truth.json."""
     from simucal.simulate import ARCMIN, SCENARIOS, write
+    if scenario == "field":
+        from simucal.simulate_field import FieldScenario, write_field
+        fs = FieldScenario()
+        if heading_error_deg is not None:
+            fs.heading_error_deg = heading_error_deg
+        if rate_hz is not None:
+            fs.rate_hz = rate_hz
+        write_field(out_dir, fs, seed)
+        click.echo(f"wrote {out_dir} (field scenario, seed {seed})")
+        return
     sc = SCENARIOS[scenario]()
     for key, val in (("plan", plan), ("rate_hz", rate_hz), ("acc_model", acc_model), ("gyro_model", gyro_model),
                      ("acc_unit", acc_unit), ("gyro_unit", gyro_unit)):
@@ -111,7 +122,7 @@ def audit(output):
 @click.option("--seed", type=int, default=0, show_default=True)
 def demo(out_dir, seed):
     """The main job end to end on built-in simulated data:
-    derive --check, simulate (paper scenario), calibrate (all methods), audit, report."""
+    derive --check, simulate (paper scenario), calibrate (all methods), audit, report, diagnose."""
     import json
     from pathlib import Path
 
@@ -140,6 +151,12 @@ def demo(out_dir, seed):
     text = report.compare_table(results, truth)
     (out / "report.md").write_text(text)
     click.echo(text)
+    from simucal.diagnose import diagnose as run_diagnose
+    from simucal.report_html import render
+    diag = run_diagnose(out / "paper")
+    (out / "diagnosis.json").write_text(json.dumps(diag, indent=1, default=float) + "\n")
+    (out / "diagnosis.html").write_text(render(diag))
+    click.echo(f"diagnose: {out / 'diagnosis.html'}: {diag['verdict']}")
 
 
 @main.command()
@@ -169,3 +186,29 @@ def diagnose(data_dir, output, html_path, add, acc_model, gyro_model, acc_noise_
         Path(html_path).write_text(render(result))
     click.echo(result["verdict"])
     click.echo(f"wrote {output}" + (f" and {html_path}" if html_path else ""))
+
+
+@main.command("field-drift")
+@click.argument("data_dir", type=click.Path(exists=True, file_okay=False))
+@click.option("-o", "--output", type=click.Path(dir_okay=False), default="drift.json", show_default=True)
+@click.option("--plot", type=click.Path(dir_okay=False), default=None, help="PNG of each position's filter estimate (paper Fig. 4).")
+@click.option("--heading-accuracy-deg", type=float, default=5.0, show_default=True,
+              help="Stated accuracy of the north reference; its effect enters the uncertainty.")
+def field_drift(data_dir, output, plot, heading_accuracy_deg):
+    """Three-position field calibration of gyro constant drift (ruan2019)."""
+    import json
+    from pathlib import Path
+
+    from simucal.field import field_drift as run, plot_history
+    from simucal.io import MeasurementSetError
+    from simucal.norm_fit import CalibrationError
+    try:
+        result, hist = run(Path(data_dir), heading_accuracy_deg=heading_accuracy_deg)
+    except (MeasurementSetError, CalibrationError) as e:
+        _fail(e)
+    Path(output).write_text(json.dumps(result, indent=2) + "\n")
+    if plot:
+        plot_history(hist, plot)
+    d, s = result["gyro_drift_dph"], result["std_dph"]
+    click.echo("gyro drift (deg/h, body FUR): " + ", ".join(f"{a} {v:+.3f} +- {e:.3f}" for a, v, e in zip("xyz", d, s)))
+    click.echo(f"wrote {output}" + (f" and {plot}" if plot else ""))

@@ -1,0 +1,46 @@
+"""ruan2019 three-position field calibration on simulated sets."""
+import numpy as np
+import pytest
+import sympy as sp
+
+from simucal import io
+from simucal.derive import field as dfield
+from simucal.field import field_drift
+from simucal.norm_fit import CalibrationError
+from simucal.simulate_field import FieldScenario, simulate_field, write_field
+
+
+def test_observability_one_drift_per_position():
+    rank, null = dfield.observability()
+    assert rank == 7 and len(null) == 1
+    v = dict(zip(dfield.STATES, null[0]))
+    assert v[sp.Symbol("eps_N", real=True)] == 0  # the north drift is observable
+    assert v[sp.Symbol("eps_E", real=True)] != 0 and v[sp.Symbol("phi_U", real=True)] != 0
+
+
+@pytest.mark.parametrize("seed", range(4))
+def test_drifts_within_bound(tmp_path, seed):
+    truth = write_field(tmp_path / "f", FieldScenario(heading_error_deg=5.0), seed)
+    r, hist = field_drift(tmp_path / "f")
+    err = np.abs(np.array(r["gyro_drift_dph"]) - truth["gyro_drift_dph"])
+    assert np.all(err <= np.maximum(0.06, 3 * np.array(r["std_dph"]))), (err, r["std_dph"])
+    assert len(hist) == 3 and all(len(h["eps_N"]) == 300 for h in hist)
+
+
+@pytest.mark.parametrize("attitudes,hidden", [
+    (((0, 0, 0), (90, 0, 0), (90, 0, 0.0)), "y (up)"),        # position 3 not rolled
+    (((0, 0, 0), (0, 0, 0), (90, 0, 20.0)), "y (up)"),        # positions 1 and 2 alike: hidden [0, -0.94, 0.35]
+])
+def test_degenerate_geometry_refused(tmp_path, attitudes, hidden):
+    write_field(tmp_path / "f", FieldScenario(attitudes_deg=attitudes, attitude_jitter_deg=0.3, duration_s=60), 1)
+    with pytest.raises(CalibrationError, match=r"cannot be seen") as e:
+        field_drift(tmp_path / "f")
+    assert hidden in str(e.value)
+
+
+def test_missing_heading_reference_refused(tmp_path):
+    meta, samples, segments, _ = simulate_field(FieldScenario(duration_s=60), 0)
+    segments[1].heading_ref_deg = None
+    io.write(tmp_path / "f", meta, samples, segments)
+    with pytest.raises(CalibrationError, match="segment 2 has no heading_ref_deg"):
+        field_drift(tmp_path / "f")
