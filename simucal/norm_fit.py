@@ -122,21 +122,71 @@ def _tangent_basis(u):
     return np.stack([e1, e2], axis=2)
 
 
+def _start_cost(model, obs, p):
+    try:
+        u = initial_directions(model, obs, p)
+    except np.linalg.LinAlgError:
+        return np.inf
+    r = obs.N - model.output(obs.rho[:, None] * u, p, obs.temp_c, obs.t_s)
+    c = float(np.sum((r / (obs.sigma if obs.sigma is not None else 1.0)) ** 2))
+    return c if np.isfinite(c) else np.inf
+
+
 def initial_directions(model, obs, p):
     M, b = model.matrix_and_bias(p, obs.temp_c, obs.t_s)
     u = np.linalg.solve(M, (obs.N - b)[..., None])[..., 0]
     return u / np.linalg.norm(u, axis=1, keepdims=True)
 
 
+def ellipsoid_start(model, obs: Observations):
+    """Closed-form start for large offsets (raw counts): the general quadric
+    through the outputs, N'QN + q'N + c = 0, is the ellipsoid |M^-1 (N - b)| = rho
+    of any affine model; its centre is b and M M' = k Q^-1 with M lower triangular
+    is a Cholesky factor. p then follows from M(p), b(p), which are linear in p.
+    Exact where the paper's regression (first order in b) is not. None if the
+    quadric is not an ellipsoid."""
+    N = obs.N / obs.rho[:, None]  # unit norm for every row
+    x, y, z = N.T
+    D = np.column_stack([x * x, y * y, z * z, 2 * x * y, 2 * x * z, 2 * y * z, 2 * x, 2 * y, 2 * z, np.ones(len(N))])
+    if len(N) < 10:
+        return None
+    v = np.linalg.svd(D)[2][-1]
+    Q = np.array([[v[0], v[3], v[4]], [v[3], v[1], v[5]], [v[4], v[5], v[2]]])
+    try:
+        b = -np.linalg.solve(Q, v[6:9])
+        k = b @ Q @ b - v[9]
+        M = np.linalg.cholesky(k * np.linalg.inv(Q))
+    except np.linalg.LinAlgError:
+        return None
+    m = len(model.params)
+    M0, b0 = model.matrix_and_bias(np.zeros(m))
+    cols = []
+    for j in range(m):  # M(p) and bias(p) are linear in p: one column per parameter
+        e = np.zeros(m)
+        e[j] = 1.0
+        Mj, bj = model.matrix_and_bias(e)
+        cols.append(np.r_[(Mj - M0).ravel(), bj - b0])
+    A = np.array(cols).T
+    target = np.r_[(M - M0).ravel(), b - b0]
+    return np.linalg.lstsq(A, target, rcond=None)[0] if np.linalg.matrix_rank(A) > 0 else None
+
+
 def fit_exact(model, obs: Observations, p0=None, max_iter=200, tol=1e-12) -> Fit:
     """Maximum-likelihood norm-observation fit, exact model (see module doc)."""
     _check_inputs(model, obs)
     n, m = len(obs.N), len(model.params)
-    if p0 is None:
+    if p0 is None:  # the better of the paper's linear fit and the exact ellipsoid
+        starts = []
         try:
-            p0 = fit_linear(model, obs).vector(model.params)
+            with np.errstate(invalid="ignore", divide="ignore"):  # a failed start is simply not used
+                starts.append(fit_linear(model, obs).vector(model.params))
         except (CalibrationError, np.linalg.LinAlgError, NotImplementedError):
-            p0 = np.zeros(m)
+            pass
+        ell = ellipsoid_start(model, obs)
+        if ell is not None and np.all(np.isfinite(ell)):
+            starts.append(ell)
+        starts.append(np.zeros(m))
+        p0 = min(starts, key=lambda s: _start_cost(model, obs, s))
     p = np.array(p0, float)
     known_sigma = obs.sigma is not None
     sig = np.broadcast_to(obs.sigma if known_sigma else 1.0, (n, 3))

@@ -88,3 +88,15 @@ def test_generated_plans_hit_their_directions():
     m = load("acc_baseline")
     fit = fit_exact(m, Observations(m.output(u, P_ACC), np.ones(20)))
     assert np.max(np.abs(fit.vector(m.params) - P_ACC)) < 1e-10
+
+
+def test_exact_fit_starts_from_raw_count_offsets():
+    """Offsets of 8 g and scale errors of 5 % (raw counts over a nominal scale):
+    the paper's first-order regression cannot start this, the quadric can."""
+    m = load("acc_baseline")
+    rng = np.random.default_rng(0)
+    u = rng.normal(size=(30, 3))
+    u /= np.linalg.norm(u, axis=1, keepdims=True)
+    p = np.array([0.05, -0.03, 0.02, 0.01, -0.02, 0.015, 8.1, 8.2, 7.9])
+    fit = fit_exact(m, Observations(m.output(u, p), np.ones(30)))
+    assert np.max(np.abs(fit.vector(m.params) - p)) < 1e-9
