@@ -62,8 +62,8 @@ def _mean_and_sigma(x, stated, varying=False):
 def segment_observations(ms: io.MeasurementSet, sensor: str):
     """(Observations, segments) for 'acc' (static) or 'gyro' (rate segments)."""
     if ms.segments is None:
-        raise CalibrationError(f"{ms.path}: no segments.csv; turntable calibration needs segments "
-                               "(a continuous stream needs static detection, not yet supported)")
+        raise CalibrationError(f"{ms.path}: no segments.csv: this is a continuous stream (use calibrate, "
+                               "which detects its static poses)")
     kind = "static" if sensor == "acc" else "rate"
     segs = [s for s in ms.segments if s.kind == kind]
     data = ms.acc_g() if sensor == "acc" else ms.gyro_dph()
@@ -168,10 +168,15 @@ def _fit_block(model, fit: Fit, M, bias, unit):
             "p_value": fit.p_value}
 
 
-def calibrate(folder, method="exact", acc_model="acc_baseline", gyro_model="gyro_baseline") -> dict:
+def calibrate(folder, method="exact", acc_model="acc_baseline", gyro_model="gyro_baseline", detect_kw=None) -> dict:
     if method not in METHODS:
         raise CalibrationError(f"unknown method {method!r}; one of {METHODS}")
     ms = io.read(folder)
+    if ms.segments is None:  # one continuous stream: a hand-placed session
+        from .handheld import calibrate_handheld
+        result = calibrate_handheld(ms, acc_model, detect_kw)
+        result.update(input=str(folder), input_sha256=input_sha256(ms.path))
+        return result
     acc_obs = acc_segs = gyro_obs = gyro_segs = None
     if ms.has_acc:
         acc_obs, acc_segs = segment_observations(ms, "acc")

@@ -100,8 +100,9 @@ def calibrate(data_dir, output, method, acc_model, gyro_model):
     except (MeasurementSetError, CalibrationError, KeyError) as e:
         _fail(e)
     Path(output).write_text(json.dumps(result, indent=2) + "\n")
-    click.echo(f"wrote {output}: method {method}; residual rms " +
-               ", ".join(f"{k} {v:.3g} {result[k]['bias_unit']}" for k, v in result["residual_rms"].items()))
+    click.echo(f"wrote {output}: method {result['method']}; residual rms " +
+               ", ".join(f"{k} {v:.3g} {result[k].get('residual_unit', result[k]['bias_unit'])}"
+                         for k, v in result["residual_rms"].items()))
 
 
 @main.command()
@@ -212,3 +213,37 @@ def field_drift(data_dir, output, plot, heading_accuracy_deg):
     d, s = result["gyro_drift_dph"], result["std_dph"]
     click.echo("gyro drift (deg/h, body FUR): " + ", ".join(f"{a} {v:+.3f} +- {e:.3f}" for a, v, e in zip("xyz", d, s)))
     click.echo(f"wrote {output}" + (f" and {plot}" if plot else ""))
+
+
+@main.command("import")
+@click.argument("fmt", type=click.Choice(["imu_tk", "imucal-ferraris", "csv"]))
+@click.argument("sources", nargs=-1, required=True, type=click.Path(exists=True, dir_okay=False))
+@click.option("-o", "--out-dir", required=True, type=click.Path(file_okay=False))
+@click.option("--latitude-deg", type=float, default=None, help="Site latitude (the spec needs it with gyro data).")
+@click.option("--acc-counts-per-g", type=float, default=None, help="imu_tk: nominal accelerometer LSB per g.")
+@click.option("--gyro-counts-per-dps", type=float, default=None, help="imu_tk: nominal gyro LSB per deg/s.")
+@click.option("--gravity-mps2", type=float, default=None)
+@click.option("--rate-hz", type=float, default=None, help="Sample rate where the file has no time column.")
+@click.option("--columns", default=None, help="csv: map, e.g. 't_s=time,ax=acc_x,ay=acc_y,az=acc_z,gx=gyr_x,gy=gyr_y,gz=gyr_z'.")
+@click.option("--acc-unit", default=None)
+@click.option("--gyro-unit", default=None)
+def import_cmd(fmt, sources, out_dir, latitude_deg, acc_counts_per_g, gyro_counts_per_dps, gravity_mps2, rate_hz,
+               columns, acc_unit, gyro_unit):
+    """Write a measurement set from another tool's recording."""
+    from simucal import importers as im
+    try:
+        if fmt == "imu_tk":
+            if len(sources) != 2 or not acc_counts_per_g or not gyro_counts_per_dps:
+                raise im.ImportError_("imu_tk needs ACC_FILE GYRO_FILE, --acc-counts-per-g and --gyro-counts-per-dps")
+            im.import_imu_tk(sources[0], sources[1], out_dir, acc_counts_per_g, gyro_counts_per_dps, latitude_deg,
+                             gravity_mps2)
+        elif fmt == "imucal-ferraris":
+            im.import_ferraris(sources[0], out_dir, rate_hz or 102.4, latitude_deg)
+        else:
+            if not columns or not acc_unit or not gyro_unit:
+                raise im.ImportError_("csv needs --columns, --acc-unit and --gyro-unit")
+            cmap = dict(kv.split("=", 1) for kv in columns.split(","))
+            im.import_csv(sources[0], out_dir, cmap, acc_unit, gyro_unit, rate_hz, latitude_deg)
+    except im.ImportError_ as e:
+        _fail(e)
+    click.echo(f"wrote {out_dir}")

@@ -1,0 +1,225 @@
+"""Calibration of a hand-placed session (Tedaldi et al. 2014, as in imu_tk).
+
+A continuous stream of a unit put by hand in many static poses:
+- static poses found by static_detect (threshold from the initial rest);
+- accelerometer: the exact norm fit (norm_fit.fit_exact) on the pose means,
+  any generated model, started from the closed-form quadric for raw offsets;
+- gyro: bias from the initial rest (a prior, refined with the moves); T = M_g^-1 (full 3x3: scale factors,
+  misalignment and the rotation between the triads, so omega is in the
+  accelerometer frame b) from the moves between consecutive poses: integrate
+  omega_k = T (y_k - b_g) over the move and ask that the gravity direction the
+  calibrated accelerometer sees after the move equal the one before, rotated:
+      r_i = g_{i+1} - R_i(T)^T g_i.
+  R_i = prod_k exp([omega_k dt x]); a right perturbation gives the Jacobian
+  d(phi_i) = sum_k A_k^T J_r(omega_k dt) d(omega_k) dt with A_k the product of
+  the later steps and J_r the right Jacobian of SO(3), and
+  d(r_i) = -[g_pred x] d(phi_i).
+Moves holding saturated samples are left out and named; moves whose rotation
+sense contradicts the accelerometers (wrong sign, rate or axes) are refused.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from . import units
+from .augmented import AugmentedModel
+from .norm_fit import CalibrationError, Observations, fit_exact, initial_directions
+from .rotations import exp_so3, prefix_products, right_jacobian, skew
+from .static_detect import Detection, detect_static
+
+
+@dataclass
+class Moves:
+    y: np.ndarray        # (m, L, 3) bias-free gyro outputs (deg/s), zero-padded
+    dt: np.ndarray       # (m, L) sample intervals, 0 on padding
+    before: np.ndarray   # (m,) index of the pose before
+    after: np.ndarray    # (m,) index of the pose after
+
+
+def saturated_rows(raw, full_scale=None):
+    """Rows at or beyond full scale; without it, rows equal to a column's extreme
+    in a run of two or more (a clipped sensor repeats its rail)."""
+    bad = np.zeros(len(raw), bool)
+    report = []
+    for j in range(raw.shape[1]):
+        col = raw[:, j]
+        if full_scale is not None:
+            hit = (col <= full_scale[0]) | (col >= full_scale[1])
+        else:
+            hit = np.zeros(len(col), bool)
+            for ext in (col.min(), col.max()):
+                eq = col == ext
+                run = eq & (np.r_[False, eq[:-1]] | np.r_[eq[1:], False])
+                hit |= run
+        if hit.any():
+            report.append({"axis": "xyz"[j], "count": int(hit.sum()), "first_row": int(np.argmax(hit))})
+        bad |= hit
+    return bad, report
+
+
+def build_moves(w, t, det: Detection, bias, bad):
+    idx, skipped = [], []
+    for i in range(len(det.starts) - 1):
+        a, b = det.ends[i] - 1, det.starts[i + 1]
+        if bad[a:b + 1].any():
+            skipped.append({"from_pose": i, "to_pose": i + 1, "t_s": [float(t[a]), float(t[b])],
+                            "reason": "saturated samples in the move"})
+            continue
+        idx.append((i, a, b))
+    if not idx:
+        raise CalibrationError("every move between poses holds saturated gyro samples: nothing left to fit the gyro")
+    L = max(b - a for _, a, b in idx)
+    y = np.zeros((len(idx), L, 3))
+    dt = np.zeros((len(idx), L))
+    for m, (i, a, b) in enumerate(idx):
+        y[m, :b - a] = w[a + 1:b + 1] - bias
+        dt[m, :b - a] = np.diff(t[a:b + 1])
+    return Moves(y, dt, np.array([i for i, _, _ in idx]), np.array([i + 1 for i, _, _ in idx])), skipped
+
+
+def move_residuals(T, mv: Moves, g_dirs, jac=True, db=None):
+    """r (m, 3) and dr/d[vec(T), db] (m, 3, 12); omega = T (y - db) in deg/s, y the
+    outputs less the rest bias, db a correction to that bias."""
+    y = mv.y - (0.0 if db is None else db) * (mv.dt[..., None] > 0)
+    omega = np.einsum("ab,mkb->mka", T, y) * np.radians(1.0)
+    v = omega * mv.dt[..., None]
+    R = exp_so3(v)
+    C = prefix_products(R)
+    Rt = C[:, -1]
+    g0, g1 = g_dirs[mv.before], g_dirs[mv.after]
+    pred = np.einsum("mba,mb->ma", Rt, g0)
+    r = g1 - pred
+    if not jac:
+        return r, None
+    AkT = np.einsum("mba,mkbc->mkac", Rt, C) @ right_jacobian(v)  # A_k^T J_r(v_k), A_k^T = R_total^T C_k
+    dphi_T = np.einsum("mkia,mkb,mk->miab", AkT, y, mv.dt).reshape(len(r), 3, 9)
+    dphi_b = -np.einsum("mkia,ab,mk->mib", AkT, T, mv.dt)
+    dphi = np.concatenate([dphi_T, dphi_b], axis=2) * np.radians(1.0)
+    return r, -np.einsum("mij,mjp->mip", skew(pred), dphi)
+
+
+def fit_gyro_moves(mv: Moves, g_dirs, T0, bias_std, max_iter=30):
+    """Gauss-Newton on vec(T) and a bias correction db, the rest's bias entering as
+    a prior with its standard error bias_std (deg/s): the moves inform the bias too.
+    The direction noise sigma_r is the moves' residual rms (re-estimated each step)."""
+    x = np.r_[np.ravel(T0), np.zeros(3)]
+
+    def stacked(x):
+        r, J = move_residuals(x[:9].reshape(3, 3), mv, g_dirs, db=x[9:])
+        return r, J
+
+    r, J = stacked(x)
+    for it in range(1, max_iter + 1):
+        s_r = max(float(np.sqrt(np.mean(r ** 2))), 1e-12)
+        A = np.vstack([J.reshape(-1, 12) / s_r, np.c_[np.zeros((3, 9)), np.diag(1 / bias_std)]])
+        e = np.r_[r.ravel() / s_r, x[9:] / bias_std]
+        cost = float(e @ e)
+        step = np.linalg.lstsq(A, -e, rcond=None)[0]
+        lam = 1.0
+        while lam > 1e-4:
+            x_new = x + lam * step
+            r_new, J_new = stacked(x_new)
+            e_new = np.r_[r_new.ravel() / s_r, x_new[9:] / bias_std]
+            if e_new @ e_new <= cost:
+                break
+            lam /= 2
+        done = cost - float(e_new @ e_new) < 1e-12 * max(cost, 1e-30)
+        x, r, J = x_new, r_new, J_new
+        if done:
+            break
+    s_r = float(np.sqrt(np.mean(r ** 2)))
+    A = np.vstack([J.reshape(-1, 12) / s_r, np.c_[np.zeros((3, 9)), np.diag(1 / bias_std)]])
+    cov = np.linalg.pinv(A.T @ A)
+    return x[:9].reshape(3, 3), x[9:], r, cov, it
+
+
+def check_rotation_sense(mv: Moves, g_dirs, T0):
+    """Refuse a gyro whose rotations turn gravity the wrong way (sign, axes, rate)."""
+    r_pos, _ = move_residuals(T0, mv, g_dirs, jac=False)
+    r_neg, _ = move_residuals(-T0, mv, g_dirs, jac=False)
+    good, bad = np.linalg.norm(r_pos, axis=1), np.linalg.norm(r_neg, axis=1)
+    flipped = bad < 0.5 * good
+    if flipped.mean() > 0.5:
+        raise CalibrationError(
+            f"{int(flipped.sum())} of {len(flipped)} moves turn gravity opposite to what the gyro says: the gyro's "
+            "rotation sense contradicts the accelerometers (sign convention, axes or sample rate wrong); "
+            "not fitted, since it would give a gyro matrix near -I")
+    return [int(i) for i in np.nonzero(flipped)[0]]
+
+
+def with_model_error(model, obs: Observations, fit, alpha=0.01):
+    """When chi2 rejects the model, give every pose an extra variance tau^2 (the
+    same on all axes) with chi2/dof = 1 and refit: the weights then reflect what
+    the model misses, not only the noise within a pose, and the stds grow to match."""
+    if fit.p_value is None or fit.p_value >= alpha or fit.dof <= 0:
+        return fit, 0.0
+    r2, s2 = fit.residuals ** 2, obs.sigma ** 2
+    lo, hi = 0.0, float(np.max(r2)) * 10
+    for _ in range(60):  # bisection on tau^2: sum r^2 / (s^2 + tau^2) = dof
+        mid = (lo + hi) / 2
+        lo, hi = (mid, hi) if np.sum(r2 / (s2 + mid)) > fit.dof else (lo, mid)
+    tau2 = (lo + hi) / 2
+    obs2 = Observations(obs.N, obs.rho, np.sqrt(s2 + tau2), obs.temp_c, obs.t_s, obs.labels)
+    refit = fit_exact(model, obs2, p0=fit.vector(model.params))
+    refit.chi2, refit.p_value = fit.chi2, fit.p_value  # the test is the one without the extra variance
+    return refit, float(np.sqrt(tau2))
+
+
+def calibrate_handheld(ms, acc_model="acc_baseline", detect_kw=None, pose_window_s=1.0) -> dict:
+    """pose_window_s: seconds at the start of each static interval averaged into the
+    pose (None: the whole interval). Hand-placed poses creep: on imu_tk's Xsens
+    session the baseline's chi2 falls from 472 to 141 (29 dof) when only the first
+    second is used, which is also imu_tk's convention (100 samples)."""
+    if not ms.has_acc:
+        raise CalibrationError(f"{ms.path}: a hand-placed session needs accelerometer data")
+    t = ms.samples["t_s"]
+    acc = ms.acc_g()
+    det = detect_static(acc, t, **(detect_kw or {}))
+    dt = float(np.median(np.diff(t)))
+    win = None if pose_window_s is None else max(int(round(pose_window_s / dt)), 2)
+    poses = [(a, b if win is None else min(a + win, b)) for a, b in zip(det.starts, det.ends)]
+    N = np.array([acc[a:b].mean(0) for a, b in poses])
+    sig = np.array([acc[a:b].std(0, ddof=1) / np.sqrt(b - a) for a, b in poses])
+    obs = Observations(N, np.ones(len(N)), np.maximum(sig, 1e-12), 0.0, np.array([t[a:b].mean() for a, b in poses]))
+    am = AugmentedModel(acc_model)
+    fa = fit_exact(am, obs)
+    fa, tau = with_model_error(am, obs, fa)
+    M_a, b_a = am.matrix_and_bias(fa.vector(am.params))
+    result = {"format": "simucal.calibration/1", "method": "handheld (Tedaldi): exact norm fit + gyro moves",
+              "static_detection": {**det.as_dict(t), "pose_window_s": pose_window_s},
+              "acc": {"M": M_a.tolist(), "bias": b_a.tolist(), "bias_unit": "g", "model": am.name,
+                      "params": fa.params, "std": fa.std, "residual_rms": fa.residual_rms, "chi2": fa.chi2,
+                      "dof": fa.dof, "p_value": fa.p_value, "model_error_std_g": tau,
+                      "note": None if tau == 0 else (
+                          "the model does not explain the poses down to their own noise (see chi2, p_value before "
+                          "the extra variance: simucal diagnose); each pose got an extra variance tau^2 so that "
+                          "chi2/dof = 1, and the stds include it")}}
+    if ms.has_gyro:
+        w = ms.gyro_dph() / 3600.0  # deg/s
+        # the first static interval, trimmed by half a window: a centred window sees
+        # the start of a move half a window late
+        rest = slice(det.starts[0] + det.window // 2, det.ends[0] - det.window // 2)
+        bias = w[rest].mean(0)
+        raw = np.column_stack([ms.samples[c] for c in ("gx", "gy", "gz")])
+        fs = ms.meta.get("full_scale", {}).get("gyro")
+        bad, sat = saturated_rows(raw, fs)
+        mv, skipped = build_moves(w, t, det, bias, bad)
+        g_dirs = initial_directions(am, obs, fa.vector(am.params))  # the calibrated pose means, normalised
+        flipped = check_rotation_sense(mv, g_dirs, np.eye(3))
+        bias_std = w[rest].std(0, ddof=1) / np.sqrt(rest.stop - rest.start)
+        T, db, r, cov, it = fit_gyro_moves(mv, g_dirs, np.eye(3), np.maximum(bias_std, 1e-9))
+        bias = bias + db
+        bias_std = np.sqrt(np.diag(cov)[9:])
+        M_g = np.linalg.inv(T)
+        result["gyro"] = {"M": M_g.tolist(), "bias": (bias * 3600).tolist(), "bias_unit": "deg/h",
+                          "model": "full 3x3 M (scale, misalignment, triad rotation), bias from the initial rest",
+                          "T": T.tolist(), "std": {"T": np.sqrt(np.diag(cov)[:9]).reshape(3, 3).tolist(),
+                                                   "bias": (bias_std * 3600).tolist()},
+                          "residual_rms": float(np.sqrt(np.mean(np.sum(r ** 2, 1)))),
+                          "residual_unit": "gravity direction (unit vector), per move",
+                          "moves_used": int(len(r)), "moves_skipped": skipped, "saturation": sat,
+                          "moves_opposite_sense": flipped, "iterations": it}
+    result["residual_rms"] = {s: result[s]["residual_rms"] for s in ("acc", "gyro") if s in result}
+    return result

@@ -1,0 +1,111 @@
+"""`simucal import`: other tools' recordings to measurement sets.
+
+Formats:
+- imu_tk: two text files (acc, gyro), each line `t x y z`, raw counts.
+- imucal-ferraris: imucal's session CSV (n_samples, gyr_*, acc_*; m/s^2 and
+  deg/s) at a given sample rate; its section list is not needed (the poses
+  are found by static detection).
+- csv: any CSV with a column map, units, nominal scales and sample rate.
+Every error names the original file and line.
+"""
+from __future__ import annotations
+
+import csv
+import math
+from pathlib import Path
+
+import numpy as np
+
+from . import io, units
+
+
+class ImportError_(ValueError):
+    pass
+
+
+def _read_numeric(path, ncols=None, skip_header=False):
+    path = Path(path)
+    rows = []
+    with path.open() as fh:
+        for line_no, line in enumerate(fh, start=1):
+            if skip_header and line_no == 1:
+                continue
+            parts = line.replace(",", " ").split()
+            if not parts:
+                continue
+            try:
+                vals = [float(p) for p in parts]
+            except ValueError:
+                raise ImportError_(f"{path}, line {line_no}: not numbers: {line.strip()[:60]!r}") from None
+            if ncols is not None and len(vals) != ncols:
+                raise ImportError_(f"{path}, line {line_no}: {len(vals)} values, expected {ncols}")
+            if not all(math.isfinite(v) for v in vals):
+                raise ImportError_(f"{path}, line {line_no}: NaN or infinite value")
+            rows.append(vals)
+    if not rows:
+        raise ImportError_(f"{path}: no data")
+    return np.array(rows)
+
+
+def _meta(acc_unit, gyro_unit, latitude_deg, extra):
+    meta = {"acc_unit": acc_unit, "gyro_unit": gyro_unit, **extra}
+    if latitude_deg is None:
+        raise ImportError_("give --latitude-deg: the spec needs the latitude when gyro data are present "
+                           "(where the Earth rate is below the gyro noise any nearby value will do)")
+    meta["latitude_deg"] = latitude_deg
+    return meta
+
+
+def import_imu_tk(acc_path, gyro_path, out, acc_counts_per_g, gyro_counts_per_dps, latitude_deg,
+                  gravity_mps2=None):
+    a = _read_numeric(acc_path, 4)
+    g = _read_numeric(gyro_path, 4)
+    if len(a) != len(g) or np.any(np.abs(a[:, 0] - g[:, 0]) > 1e-9):
+        raise ImportError_(f"{gyro_path}: its time column differs from {acc_path}'s (imu_tk files pair row for row)")
+    bad = np.nonzero(np.diff(a[:, 0]) <= 0)[0]
+    if bad.size:
+        raise ImportError_(f"{acc_path}, line {bad[0] + 2}: time does not increase")
+    extra = {"acc_counts_per_g": [acc_counts_per_g] * 3, "gyro_counts_per_dps": [gyro_counts_per_dps] * 3,
+             "description": f"imported from imu_tk files {Path(acc_path).name}, {Path(gyro_path).name}"}
+    if gravity_mps2:
+        extra["gravity_mps2"] = gravity_mps2
+    meta = _meta("counts", "counts", latitude_deg, extra)
+    samples = {"t_s": a[:, 0], "ax": a[:, 1], "ay": a[:, 2], "az": a[:, 3], "gx": g[:, 1], "gy": g[:, 2], "gz": g[:, 3]}
+    io.write(out, meta, samples)
+    return meta
+
+
+def import_csv(path, out, columns: dict, acc_unit, gyro_unit, rate_hz=None, latitude_deg=None, scales=None):
+    """columns: {spec column: source column name}, e.g. {"ax": "acc_x", ...};
+    without a t_s column, time is row / rate_hz."""
+    path = Path(path)
+    with path.open(newline="") as fh:
+        reader = csv.DictReader(fh)
+        missing = [src for src in columns.values() if src not in (reader.fieldnames or [])]
+        if missing:
+            raise ImportError_(f"{path}, line 1: no columns {missing}; the header has {reader.fieldnames}")
+        data = {k: [] for k in columns}
+        for line_no, row in enumerate(reader, start=2):
+            for k, src in columns.items():
+                try:
+                    v = float(row[src])
+                except (TypeError, ValueError):
+                    raise ImportError_(f"{path}, line {line_no}: column {src}: {row[src]!r} is not a number") from None
+                if not math.isfinite(v):
+                    raise ImportError_(f"{path}, line {line_no}: column {src} is not finite")
+                data[k].append(v)
+    samples = {k: np.array(v) for k, v in data.items()}
+    n = len(next(iter(samples.values())))
+    if "t_s" not in samples:
+        if not rate_hz:
+            raise ImportError_(f"{path}: no time column mapped; give --rate-hz")
+        samples["t_s"] = np.arange(n) / rate_hz
+    meta = _meta(acc_unit, gyro_unit, latitude_deg, dict(scales or {}, description=f"imported from {path.name}"))
+    units.check_meta(meta, path, lambda p, line, rule: ImportError_(f"{p}: {rule}"))
+    io.write(out, meta, samples)
+    return meta
+
+
+def import_ferraris(path, out, rate_hz, latitude_deg):
+    cols = {"ax": "acc_x", "ay": "acc_y", "az": "acc_z", "gx": "gyr_x", "gy": "gyr_y", "gz": "gyr_z"}
+    return import_csv(path, out, cols, "m/s^2", "deg/s", rate_hz, latitude_deg, {"gravity_mps2": 9.81})

@@ -1,0 +1,69 @@
+"""Static intervals in a continuous stream (Tedaldi et al. 2014, as in imu_tk).
+
+The norm of the per-axis accelerometer variance over a centred window is
+compared with `factor` times the same norm over the initial rest; runs below
+it, at least `min_s` long, are static poses. The initial rest is found from
+the data: it lasts while the moving variance stays within `rest_factor` of
+its level over the first window-lengths. Everything is reported so a user can
+check and override it.
+"""
+from __future__ import annotations
+
+from dataclasses import asdict, dataclass
+
+import numpy as np
+
+from .norm_fit import CalibrationError
+
+
+@dataclass
+class Detection:
+    starts: list          # first row of each interval
+    ends: list            # one past the last row
+    threshold: float      # on the moving-variance norm, (output unit)^2
+    window: int           # samples
+    min_samples: int
+    init_rest_end: int    # rows [0, init_rest_end) are the initial rest
+    factor: float
+
+    def as_dict(self, t):
+        d = asdict(self)
+        d["intervals_s"] = [[float(t[a]), float(t[b - 1])] for a, b in zip(self.starts, self.ends)]
+        d["count"] = len(self.starts)
+        return d
+
+
+def moving_variance(x, w):
+    """Per-axis variance over a centred window of w samples (edges: shrunk window)."""
+    n = len(x)
+    c1 = np.vstack([np.zeros((1, x.shape[1])), np.cumsum(x, 0)])
+    c2 = np.vstack([np.zeros((1, x.shape[1])), np.cumsum(x * x, 0)])
+    lo = np.clip(np.arange(n) - w // 2, 0, n)
+    hi = np.clip(np.arange(n) + w // 2 + 1, 0, n)
+    cnt = (hi - lo)[:, None]
+    mean = (c1[hi] - c1[lo]) / cnt
+    return np.maximum((c2[hi] - c2[lo]) / cnt - mean ** 2, 0.0)
+
+
+def detect_static(acc, t, window_s=1.0, factor=6.0, min_s=1.0, init_rest_s=None, rest_factor=20.0) -> Detection:
+    dt = float(np.median(np.diff(t)))
+    w = max(int(round(window_s / dt)) | 1, 3)
+    mv = np.linalg.norm(moving_variance(acc, w), axis=1)
+    if init_rest_s is not None:
+        init_end = int(np.searchsorted(t, t[0] + init_rest_s))
+    else:
+        seed = float(np.median(mv[: 2 * w]))
+        above = np.nonzero(mv[w:] > rest_factor * max(seed, 1e-300))[0]
+        init_end = w + (int(above[0]) if above.size else len(mv) - w)
+    if t[min(init_end, len(t) - 1)] - t[0] < 3.0:
+        raise CalibrationError(
+            f"the stream has no initial rest (the first {t[min(init_end, len(t) - 1)] - t[0]:.1f} s are not still); "
+            "the static detector takes its threshold from a rest of at least 3 s at the start "
+            "(Tedaldi: about 50 s); record one, or give --init-rest-s")
+    threshold = factor * float(np.linalg.norm(np.var(acc[:init_end], axis=0)))
+    still = mv < threshold
+    edges = np.diff(np.r_[0, still.astype(int), 0])
+    starts, ends = np.nonzero(edges == 1)[0], np.nonzero(edges == -1)[0]
+    min_samples = int(round(min_s / dt))
+    keep = (ends - starts) >= min_samples
+    return Detection(starts[keep].tolist(), ends[keep].tolist(), threshold, w, min_samples, init_end, factor)
