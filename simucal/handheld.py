@@ -129,7 +129,8 @@ def fit_gyro_moves(mv: Moves, g_dirs, T0, bias_std, max_iter=30):
         x, r, J = x_new, r_new, J_new
         if done:
             break
-    s_r = float(np.sqrt(np.mean(r ** 2)))
+    # each residual joins two unit vectors, so it has 2 degrees of freedom, not 3
+    s_r = float(np.sqrt(np.sum(r ** 2) / max(2 * len(r) - 12, 1)))
     A = np.vstack([J.reshape(-1, 12) / s_r, np.c_[np.zeros((3, 9)), np.diag(1 / bias_std)]])
     cov = np.linalg.pinv(A.T @ A)
     return x[:9].reshape(3, 3), x[9:], r, cov, it

@@ -4,7 +4,7 @@ The norm of the per-axis accelerometer variance over a centred window is
 compared with `factor` times the same norm over the initial rest; runs below
 it, at least `min_s` long, are static poses. The initial rest is found from
 the data: it lasts while the moving variance stays within `rest_factor` of
-its level over the first window-lengths. Everything is reported so a user can
+the white-noise level that first differences give over the first window. Everything is reported so a user can
 check and override it.
 """
 from __future__ import annotations
@@ -52,9 +52,11 @@ def detect_static(acc, t, window_s=1.0, factor=6.0, min_s=1.0, init_rest_s=None,
     if init_rest_s is not None:
         init_end = int(np.searchsorted(t, t[0] + init_rest_s))
     else:
-        seed = float(np.median(mv[: 2 * w]))
-        above = np.nonzero(mv[w:] > rest_factor * max(seed, 1e-300))[0]
-        init_end = w + (int(above[0]) if above.size else len(mv) - w)
+        # the noise level from first differences of the first window: blind to slow
+        # motion, so a stream that starts moving shows a moving variance far above it
+        seed = float(np.linalg.norm(np.var(np.diff(acc[:w], axis=0), axis=0) / 2))
+        above = np.nonzero(mv > rest_factor * max(seed, 1e-300))[0]
+        init_end = int(above[0]) if above.size else len(mv)
     if t[min(init_end, len(t) - 1)] - t[0] < 3.0:
         raise CalibrationError(
             f"the stream has no initial rest (the first {t[min(init_end, len(t) - 1)] - t[0]:.1f} s are not still); "

@@ -1,0 +1,54 @@
+"""Hand-placed sessions: simulated with known truth, refusals, and the real recordings."""
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from simucal.calibrate import calibrate
+from simucal.importers import import_imu_tk
+from simucal.norm_fit import CalibrationError
+from simucal.simulate_handheld import HandheldScenario, write_handheld
+
+DATA = Path(__file__).resolve().parents[2] / "shared" / "data"
+
+
+@pytest.mark.parametrize("seed", [1, 2])
+def test_simulated_session_within_3_sigma(tmp_path, seed):
+    truth = write_handheld(tmp_path / "h", HandheldScenario(clip_moves=2), seed)
+    r = calibrate(tmp_path / "h")
+    assert r["static_detection"]["count"] == 31
+    acc_b_err = np.array(r["acc"]["bias"]) - truth["acc"]["bias"]
+    std_b = np.array([r["acc"]["std"][k] for k in ("b_x", "b_y", "b_z")])
+    assert np.all(np.abs(acc_b_err) < 3 * std_b)
+    M = np.array(r["acc"]["M"])
+    for (i, j), name in {(0, 0): "dK_x", (1, 1): "dK_y", (2, 2): "dK_z", (1, 0): "theta_yx", (2, 0): "theta_zx",
+                         (2, 1): "theta_zy"}.items():
+        assert abs(M[i, j] - truth["acc"]["M"][i][j]) < 3 * r["acc"]["std"][name], name
+    T_err = np.array(r["gyro"]["T"]) - truth["gyro"]["T"]
+    assert np.all(np.abs(T_err) < 3 * np.array(r["gyro"]["std"]["T"]))
+    bias_err = np.array(r["gyro"]["bias"]) / 3600 - truth["gyro"]["bias_dps"]
+    assert np.all(np.abs(bias_err) < 3 * np.array(r["gyro"]["std"]["bias"]) / 3600)
+    assert len(r["gyro"]["moves_skipped"]) == 2 and r["gyro"]["saturation"]  # clipped moves named, left out
+
+
+@pytest.mark.parametrize("settings,message", [
+    (dict(poses=6), "positions for 9 parameters"),
+    (dict(clip_moves=14, poses=14), "every move between poses holds saturated"),
+    (dict(rest_s=0.5), "no initial rest"),
+    (dict(flip_gyro=True), "rotation sense contradicts the accelerometers"),
+])
+def test_refusals(tmp_path, settings, message):
+    write_handheld(tmp_path / "h", HandheldScenario(**settings), 0)
+    with pytest.raises(CalibrationError, match=message):
+        calibrate(tmp_path / "h")
+
+
+def test_imu_tk_xsens_unattended(tmp_path):
+    import_imu_tk(DATA / "imu_tk-xsens" / "xsens_acc.mat", DATA / "imu_tk-xsens" / "xsens_gyro.mat", tmp_path / "x",
+                  4096.0, 6258 * np.pi / 180, 45.4, 9.81744)
+    r = calibrate(tmp_path / "x")
+    assert 36 <= r["static_detection"]["count"] <= 40  # about 38 intervals, found unattended
+    assert r["gyro"]["moves_used"] >= 35
+    # the nominal 1/6258 (rad/s)/count is 24 % off; the fit finds imu_tk's scale to 0.1 %
+    scale = np.radians(np.diag(np.array(r["gyro"]["T"]))) / (6258 * np.pi / 180)
+    assert np.allclose(scale, [2.09295e-4, 2.09899e-4, 2.09483e-4], rtol=2e-3)
