@@ -87,8 +87,15 @@ def simulate(out_dir, scenario, heading_error_deg, seed, plan, rate_hz, position
 @click.option("--method", type=click.Choice(["exact", "linear", "multiposition"]), default="exact", show_default=True)
 @click.option("--acc-model", default="acc_baseline", show_default=True)
 @click.option("--gyro-model", default="gyro_baseline", show_default=True)
-def calibrate(data_dir, output, method, acc_model, gyro_model):
-    """Calibrate a measurement set; write calibration.json."""
+@click.option("--init-rest-s", type=float, default=None, help="Stream: length of the initial rest (default: found from the data).")
+@click.option("--threshold-factor", type=float, default=6.0, show_default=True, help="Stream: static threshold, times the rest's variance.")
+@click.option("--window-s", type=float, default=1.0, show_default=True, help="Stream: moving-variance window.")
+@click.option("--min-static-s", type=float, default=1.0, show_default=True, help="Stream: shortest static interval.")
+def calibrate(data_dir, output, method, acc_model, gyro_model, init_rest_s, threshold_factor, window_s, min_static_s):
+    """Calibrate a measurement set; write calibration.json.
+
+    With segments.csv: a turntable test (dong2018). Without: a continuous stream
+    from a hand-placed session (static poses found from the data; Tedaldi)."""
     import json
     from pathlib import Path
 
@@ -96,10 +103,11 @@ def calibrate(data_dir, output, method, acc_model, gyro_model):
     from simucal.io import MeasurementSetError
     from simucal.norm_fit import CalibrationError
     try:
-        result = run(Path(data_dir), method, acc_model, gyro_model)
+        result = run(Path(data_dir), method, acc_model, gyro_model,
+                     dict(init_rest_s=init_rest_s, factor=threshold_factor, window_s=window_s, min_s=min_static_s))
     except (MeasurementSetError, CalibrationError, KeyError) as e:
         _fail(e)
-    Path(output).write_text(json.dumps(result, indent=2) + "\n")
+    Path(output).write_text(json.dumps(result, indent=2, default=float) + "\n")
     click.echo(f"wrote {output}: method {result['method']}; residual rms " +
                ", ".join(f"{k} {v:.3g} {result[k].get('residual_unit', result[k]['bias_unit'])}"
                          for k, v in result["residual_rms"].items()))

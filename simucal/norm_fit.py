@@ -69,7 +69,8 @@ def _check_inputs(model, obs: Observations):
 
 
 def unobservable(H, names, tol=1e-10):
-    """Parameter combinations H cannot see, as readable strings (empty if none)."""
+    """Parameter combinations H cannot see (an eigenvalue of the Jacobi-scaled
+    information below tol; healthy plans give 0.05 to 0.7), as readable strings."""
     d = np.sqrt(np.clip(np.diag(H), 1e-300, None))
     Hn = H / np.outer(d, d)
     w, V = np.linalg.eigh(Hn)
@@ -92,7 +93,7 @@ def fit_linear(model, obs: Observations) -> Fit:
     bad = unobservable(H, model.params)
     if bad:
         raise CalibrationError(f"the {model.sensor} plan leaves these parameter combinations "
-                               f"unobservable by the norm: {bad}; add positions that change them")
+                               f"unobservable by the norm (or nearly): {bad}; add positions that change them")
     K, *_ = np.linalg.lstsq(Psi, y, rcond=None)
     r = y - Psi @ K
     dof = n - m
@@ -210,12 +211,7 @@ def fit_exact(model, obs: Observations, p0=None, max_iter=200, tol=1e-12) -> Fit
         Ainv = np.linalg.inv(A)
         H = np.einsum("nia,nib->ab", Jq, Jq) - np.einsum("nca,ncd,ndb->ab", B, Ainv, B)
         g = np.einsum("nia,ni->a", Jq, r) - np.einsum("nca,ncd,nd->a", B, Ainv, gd)
-        bad = unobservable(H, model.params)
-        if bad:
-            raise CalibrationError(f"the {model.sensor} plan leaves these parameter combinations "
-                                   f"unobservable: {bad}; add positions (other input directions, "
-                                   "temperatures or times) that change them")
-        dH = np.sqrt(np.diag(H))  # Jacobi scaling: terms of very different size stay conditioned
+        dH = np.sqrt(np.maximum(np.diag(H), 1e-300))  # Jacobi scaling: terms of very different size stay conditioned
         Hs, gs = H / np.outer(dH, dH), g / dH
         while True:  # Levenberg-Marquardt: damp until the cost does not rise
             dp = -np.linalg.solve(Hs + lam * np.eye(m), gs) / dH
@@ -240,8 +236,18 @@ def fit_exact(model, obs: Observations, p0=None, max_iter=200, tol=1e-12) -> Fit
         if done:
             break
     else:
-        raise CalibrationError(f"the exact {model.sensor} fit did not converge in {max_iter} "
-                               f"iterations (cost {cost:.6g}); check the data for outliers or a wrong unit")
+        weak = unobservable(H, model.params, tol=1e-3)
+        axis_only = np.all(np.max(np.abs(u), axis=1) > np.cos(np.radians(10)))
+        raise CalibrationError(
+            f"the exact {model.sensor} fit did not converge in {max_iter} iterations (cost {cost:.6g})"
+            + (f"; the plan barely sees {weak}: add positions that change them" if weak else
+               "; check the data for outliers or a wrong unit")
+            + ("; all the poses point along the sensor axes (the Ferraris six-position design), from which the "
+               "norm cannot see misalignments: add tilted poses" if axis_only else ""))
+    bad = unobservable(H, model.params)
+    if bad:
+        raise CalibrationError(f"the {model.sensor} plan leaves these parameter combinations unobservable: {bad}; "
+                               "add positions (other input directions, temperatures or times) that change them")
     res_phys = (obs.N - model.output(rho * u, p, obs.temp_c, obs.t_s))
     dof = n - m
     dH = np.sqrt(np.diag(H))

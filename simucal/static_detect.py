@@ -57,7 +57,8 @@ def detect_static(acc, t, window_s=1.0, factor=6.0, min_s=1.0, init_rest_s=None,
         seed = float(np.linalg.norm(np.var(np.diff(acc[:w], axis=0), axis=0) / 2))
         above = np.nonzero(mv > rest_factor * max(seed, 1e-300))[0]
         init_end = int(above[0]) if above.size else len(mv)
-    if t[min(init_end, len(t) - 1)] - t[0] < 3.0:
+    needed = 3.0 if init_rest_s is None else 0.5  # a stated rest is the user's call
+    if t[min(init_end, len(t) - 1)] - t[0] < needed:
         raise CalibrationError(
             f"the stream has no initial rest (the first {t[min(init_end, len(t) - 1)] - t[0]:.1f} s are not still); "
             "the static detector takes its threshold from a rest of at least 3 s at the start "
