@@ -160,7 +160,14 @@ def _verdict(sensor, base, cands):
 
 
 def diagnose_sensor(ms, sensor, base_model, add=(), stated=None, truth=None):
-    obs, segs = segment_observations(ms, sensor)
+    if ms.segments is None:  # a stream: its static poses, as the hand-placed calibration finds them
+        if sensor != "acc":
+            return None
+        from .handheld import pose_observations
+        obs, det, poses = pose_observations(ms)
+        segs = [io.Segment(i, "static", None, None, None, 0.0) for i in range(len(poses))]
+    else:
+        obs, segs = segment_observations(ms, sensor)
     if not segs:
         return None
     if obs.sigma is None and stated is not None:

@@ -168,13 +168,11 @@ def with_model_error(model, obs: Observations, fit, alpha=0.01):
     return refit, float(np.sqrt(tau2))
 
 
-def calibrate_handheld(ms, acc_model="acc_baseline", detect_kw=None, pose_window_s=1.0) -> dict:
-    """pose_window_s: seconds at the start of each static interval averaged into the
-    pose (None: the whole interval). Hand-placed poses creep: on imu_tk's Xsens
-    session the baseline's chi2 falls from 472 to 141 (29 dof) when only the first
-    second is used, which is also imu_tk's convention (100 samples)."""
-    if not ms.has_acc:
-        raise CalibrationError(f"{ms.path}: a hand-placed session needs accelerometer data")
+def pose_observations(ms, detect_kw=None, pose_window_s=1.0):
+    """Accelerometer observations of a stream's static poses: (Observations, Detection, poses).
+
+    Each pose is the mean of its first pose_window_s (None: the whole interval),
+    with the std of that mean from the scatter of its samples."""
     t = ms.samples["t_s"]
     acc = ms.acc_g()
     det = detect_static(acc, t, **(detect_kw or {}))
@@ -183,7 +181,21 @@ def calibrate_handheld(ms, acc_model="acc_baseline", detect_kw=None, pose_window
     poses = [(a, b if win is None else min(a + win, b)) for a, b in zip(det.starts, det.ends)]
     N = np.array([acc[a:b].mean(0) for a, b in poses])
     sig = np.array([acc[a:b].std(0, ddof=1) / np.sqrt(b - a) for a, b in poses])
-    obs = Observations(N, np.ones(len(N)), np.maximum(sig, 1e-12), 0.0, np.array([t[a:b].mean() for a, b in poses]))
+    temp = (np.array([ms.samples["temp_c"][a:b].mean() for a, b in poses]) if "temp_c" in ms.samples else 0.0)
+    obs = Observations(N, np.ones(len(N)), np.maximum(sig, 1e-12), temp,
+                       np.array([t[a:b].mean() for a, b in poses]), list(range(len(poses))))
+    return obs, det, poses
+
+
+def calibrate_handheld(ms, acc_model="acc_baseline", detect_kw=None, pose_window_s=1.0) -> dict:
+    """pose_window_s: seconds at the start of each static interval averaged into the
+    pose (None: the whole interval). Hand-placed poses creep: on imu_tk's Xsens
+    session the baseline's chi2 falls from 472 to 141 (29 dof) when only the first
+    second is used, which is also imu_tk's convention (100 samples)."""
+    if not ms.has_acc:
+        raise CalibrationError(f"{ms.path}: a hand-placed session needs accelerometer data")
+    t = ms.samples["t_s"]
+    obs, det, _ = pose_observations(ms, detect_kw, pose_window_s)
     am = AugmentedModel(acc_model)
     fa = fit_exact(am, obs)
     fa, tau = with_model_error(am, obs, fa)

@@ -52,3 +52,14 @@ def test_imu_tk_xsens_unattended(tmp_path):
     # the nominal 1/6258 (rad/s)/count is 24 % off; the fit finds imu_tk's scale to 0.1 %
     scale = np.radians(np.diag(np.array(r["gyro"]["T"]))) / (6258 * np.pi / 180)
     assert np.allclose(scale, [2.09295e-4, 2.09899e-4, 2.09483e-4], rtol=2e-3)
+
+
+def test_diagnose_real_stream_says_honestly_what_it_finds(tmp_path):
+    from simucal.diagnose import diagnose
+    import_imu_tk(DATA / "imu_tk-xsens" / "xsens_acc.mat", DATA / "imu_tk-xsens" / "xsens_gyro.mat", tmp_path / "x",
+                  4096.0, 6258 * np.pi / 180, 45.4, 9.81744)
+    d = diagnose(tmp_path / "x")
+    assert d["acc"]["baseline"]["p_value"] < 1e-6  # real poses: more than noise
+    assert len(d["acc"]["residuals"]) == d["acc"]["baseline"]["dof"] + 9
+    if not any(c.get("significant") for c in d["candidates"]):
+        assert "not in the library" in d["verdict"]
