@@ -131,34 +131,85 @@ def unify_directions(acc_model, acc_fit, acc_obs, acc_segs, gyro_model, gyro_fit
     return C_b_d, {"pairs": len(pairs_b), "direction_residual_rms_rad": float(np.sqrt(np.mean(resid ** 2)))}
 
 
+def _commanded_up_k(segs):
+    """Unit vertical (outer axis) in k at each segment's commanded middle/inner angles."""
+    if any(s.middle_deg is None or s.inner_deg is None for s in segs):
+        raise CalibrationError("this method needs commanded middle and inner angles in segments.csv")
+    C = table.C_k_n(0.0, np.radians([s.middle_deg for s in segs]), np.radians([s.inner_deg for s in segs]),
+                    np.zeros(7))
+    return C[:, 2, :], C
+
+
+def check_rate_sense(ms, gyro_obs, gyro_segs):
+    """Refuse rate runs whose gyro output turns opposite to the commanded rate.
+
+    The mean output along the commanded axis, less the static outputs' mean,
+    must have the sign of outer_rate_dps; a reversed turn (or a gyro of the
+    opposite sign convention) would otherwise be fitted into a matrix near -I.
+    """
+    if gyro_obs is None or not gyro_segs:
+        return
+    up, _ = _commanded_up_k(gyro_segs)
+    static = ms.samples["segment"] == -1
+    for s in ms.segments:
+        if s.kind == "static":
+            static |= ms.samples["segment"] == s.segment
+    rest = ms.gyro_dph()[static].mean(0) if static.any() else np.zeros(3)
+    along = np.einsum("ni,ni->n", gyro_obs.N - rest, up) / 3600.0
+    rate = np.array([s.outer_rate_dps for s in gyro_segs])
+    wrong = np.sign(along) != np.sign(rate)
+    if wrong.any():
+        detail = ", ".join(f"segment {s.segment}: commanded {r:+.1f} deg/s, measured {a:+.1f} deg/s"
+                           for s, r, a, w in zip(gyro_segs, rate, along, wrong) if w)
+        raise CalibrationError(
+            f"the gyro turns opposite to the commanded rate in {int(wrong.sum())} of {len(rate)} rate segments "
+            f"({detail}): the rotation was made the other way (or the gyro's sign convention or axes differ); "
+            "not fitted, since it would give a gyro matrix near -I. Check the protocol's rotation sense "
+            "(for imucal's Ferraris: import with --turn-deg 360 if the turns were counter-clockwise)")
+
+
 def multiposition(ms, acc_obs, acc_segs, gyro_obs, gyro_segs):
-    """Traditional method: y = M f + b with f from commanded angles, ideal table, b = k."""
-    lat = np.radians(ms.meta["latitude_deg"]) if gyro_obs is not None else 0.0
+    """Traditional method: y = M f + b with f from commanded angles, ideal table, b = k.
+
+    Gyro inputs: rate runs (w_T + w_e sin L) along the commanded vertical, and
+    the static positions' Earth rate (its heading taken from outer_deg, 0 where blank).
+    """
+    lat = np.radians(ms.meta.get("latitude_deg", 0.0))
     w_e = units.earth_rate_dph(ms.meta)
+    w_ie_n = np.array([0.0, w_e * np.cos(lat), w_e * np.sin(lat)])
     out = {}
-    for sensor, obs, segs in (("acc", acc_obs, acc_segs), ("gyro", gyro_obs, gyro_segs)):
-        if obs is None:
-            continue
-        if any(s.middle_deg is None or s.inner_deg is None for s in segs):
-            raise CalibrationError("the multi-position method needs commanded middle and inner angles")
-        C = table.C_k_n(0.0, np.radians([s.middle_deg for s in segs]), np.radians([s.inner_deg for s in segs]),
-                        np.zeros(7))
-        up_k = C[:, 2, :]
-        f = up_k if sensor == "acc" else up_k * np.array(
-            [s.outer_rate_dps * 3600.0 + w_e * np.sin(lat) for s in segs])[:, None]
-        X = np.column_stack([f, np.ones(len(f))])
-        if len(f) < 4 or np.linalg.matrix_rank(X) < 4:
-            raise CalibrationError(f"the multi-position {sensor} regression is rank deficient: "
-                                   "input directions must span three dimensions")
-        coef, *_ = np.linalg.lstsq(X, obs.N, rcond=None)
-        r = obs.N - X @ coef
-        dof = max(len(f) - 4, 1)
-        s2 = np.sum(r ** 2, 0) / dof
-        cov = np.linalg.inv(X.T @ X)
-        out[sensor] = {"M": coef[:3].T, "bias": coef[3], "residual_rms": float(np.sqrt(np.mean(r ** 2))),
-                       "std": {"M": np.sqrt(np.outer(s2, np.diag(cov)[:3])).tolist(),
-                               "bias": np.sqrt(s2 * cov[3, 3]).tolist()}}
+    if acc_obs is not None:
+        up, _ = _commanded_up_k(acc_segs)
+        out["acc"] = _affine_fit(up, acc_obs.N, "acc")
+    if gyro_obs is not None:
+        up, _ = _commanded_up_k(gyro_segs)
+        f = up * np.array([s.outer_rate_dps * 3600.0 + w_e * np.sin(lat) for s in gyro_segs])[:, None]
+        N = gyro_obs.N
+        statics = [s for s in ms.segments if s.kind == "static"]
+        if statics:
+            C = table.C_k_n(np.radians([s.outer_deg or 0.0 for s in statics]),
+                            np.radians([s.middle_deg for s in statics]), np.radians([s.inner_deg for s in statics]),
+                            np.zeros(7))
+            gyro = ms.gyro_dph()
+            Ns = np.array([gyro[ms.samples["segment"] == s.segment].mean(0) for s in statics])
+            f = np.vstack([f, np.einsum("nji,j->ni", C, w_ie_n)])
+            N = np.vstack([N, Ns])
+        out["gyro"] = _affine_fit(f, N, "gyro")
     return out
+
+
+def _affine_fit(f, N, sensor):
+    X = np.column_stack([f, np.ones(len(f))])
+    if len(f) < 5 or np.linalg.matrix_rank(X) < 4:
+        raise CalibrationError(f"the multi-position {sensor} regression is rank deficient: input directions "
+                               "must span three dimensions (and a bias needs a fourth position)")
+    coef, *_ = np.linalg.lstsq(X, N, rcond=None)
+    r = N - X @ coef
+    dof = max(len(f) - 4, 1)
+    s2 = np.sum(r ** 2, 0) / dof
+    cov = np.linalg.inv(X.T @ X)
+    return {"M": coef[:3].T, "bias": coef[3], "residual_rms": float(np.sqrt(np.mean(r ** 2))),
+            "std": {"M": np.sqrt(np.outer(s2, np.diag(cov)[:3])).tolist(), "bias": np.sqrt(s2 * cov[3, 3]).tolist()}}
 
 
 def _fit_block(model, fit: Fit, M, bias, unit):
@@ -184,6 +235,7 @@ def calibrate(folder, method="exact", acc_model="acc_baseline", gyro_model="gyro
         gyro_obs, gyro_segs = segment_observations(ms, "gyro")
         if not gyro_segs:
             gyro_obs = None
+    check_rate_sense(ms, gyro_obs, gyro_segs)
     result = {"format": "simucal.calibration/1", "method": method, "input": str(folder),
               "input_sha256": input_sha256(ms.path)}
     if method == "multiposition":

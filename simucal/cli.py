@@ -224,7 +224,7 @@ def field_drift(data_dir, output, plot, heading_accuracy_deg):
 
 
 @main.command("import")
-@click.argument("fmt", type=click.Choice(["imu_tk", "imucal-ferraris", "csv"]))
+@click.argument("fmt", type=click.Choice(["imu_tk", "imucal-ferraris", "imucal-annotated", "csv"]))
 @click.argument("sources", nargs=-1, required=True, type=click.Path(exists=True, dir_okay=False))
 @click.option("-o", "--out-dir", required=True, type=click.Path(file_okay=False))
 @click.option("--latitude-deg", type=float, default=None, help="Site latitude (the spec needs it with gyro data).")
@@ -235,8 +235,10 @@ def field_drift(data_dir, output, plot, heading_accuracy_deg):
 @click.option("--columns", default=None, help="csv: map, e.g. 't_s=time,ax=acc_x,ay=acc_y,az=acc_z,gx=gyr_x,gy=gyr_y,gz=gyr_z'.")
 @click.option("--acc-unit", default=None)
 @click.option("--gyro-unit", default=None)
+@click.option("--turn-deg", type=float, default=-360.0, show_default=True,
+              help="Ferraris: the protocol's turn angle (imucal's default -360, clockwise).")
 def import_cmd(fmt, sources, out_dir, latitude_deg, acc_counts_per_g, gyro_counts_per_dps, gravity_mps2, rate_hz,
-               columns, acc_unit, gyro_unit):
+               columns, acc_unit, gyro_unit, turn_deg):
     """Write a measurement set from another tool's recording."""
     from simucal import importers as im
     try:
@@ -246,7 +248,13 @@ def import_cmd(fmt, sources, out_dir, latitude_deg, acc_counts_per_g, gyro_count
             im.import_imu_tk(sources[0], sources[1], out_dir, acc_counts_per_g, gyro_counts_per_dps, latitude_deg,
                              gravity_mps2)
         elif fmt == "imucal-ferraris":
-            im.import_ferraris(sources[0], out_dir, rate_hz or 102.4, latitude_deg)
+            if len(sources) == 2:  # with the section list: poses and turns as segments
+                im.import_ferraris_sections(sources[0], sources[1], out_dir, rate_hz or 102.4, latitude_deg, turn_deg)
+            else:  # a continuous stream: poses found by static detection
+                im.import_ferraris(sources[0], out_dir, rate_hz or 102.4, latitude_deg)
+        elif fmt == "imucal-annotated":
+            im.import_imucal_annotated(sources[0], out_dir, rate_hz or 204.8, acc_counts_per_g or 2048.0,
+                                       gyro_counts_per_dps or 16.4, latitude_deg, turn_deg)
         else:
             if not columns or not acc_unit or not gyro_unit:
                 raise im.ImportError_("csv needs --columns, --acc-unit and --gyro-unit")

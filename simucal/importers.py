@@ -109,3 +109,81 @@ def import_csv(path, out, columns: dict, acc_unit, gyro_unit, rate_hz=None, lati
 def import_ferraris(path, out, rate_hz, latitude_deg):
     cols = {"ax": "acc_x", "ay": "acc_y", "az": "acc_z", "gx": "gyr_x", "gy": "gyr_y", "gz": "gyr_z"}
     return import_csv(path, out, cols, "m/s^2", "deg/s", rate_hz, latitude_deg, {"gravity_mps2": 9.81})
+
+
+# Ferraris poses as the middle/inner angles that put f^k along the labelled axis:
+# f^k = [-cos(a) sin(b), sin(a), cos(a) cos(b)] (spec: C_k^n = Rz Rx Ry).
+FERRARIS_POSES = {"x_p": (0.0, -90.0), "x_a": (0.0, 90.0), "y_p": (90.0, 0.0), "y_a": (-90.0, 0.0),
+                  "z_p": (0.0, 0.0), "z_a": (0.0, 180.0)}
+FERRARIS_TURNS = {"x_rot": "x_p", "y_rot": "y_p", "z_rot": "z_p"}
+
+
+def _ferraris_set(out, sections, data, t, units_meta, latitude_deg, turn_deg, source):
+    """sections: [(label, row indices)] in recording order. Static poses become static
+    segments at their nominal orientation; each 360 deg turn a rate segment about the
+    vertical (the pose's axis) at the protocol's mean rate turn_deg / duration."""
+    segs, keep_rows, seg_col = [], [], []
+    for sid, (label, rows) in enumerate(sections, start=1):
+        if label in FERRARIS_POSES:
+            a, b = FERRARIS_POSES[label]
+            segs.append(io.Segment(sid, "static", None, a, b, 0.0))
+        elif label in FERRARIS_TURNS:
+            a, b = FERRARIS_POSES[FERRARIS_TURNS[label]]
+            duration = float(t[rows[-1]] - t[rows[0]] + np.median(np.diff(t)))
+            segs.append(io.Segment(sid, "rate", None, a, b, turn_deg / duration))
+        else:
+            raise ImportError_(f"{source}: unknown section label {label!r}; Ferraris labels are "
+                               f"{sorted(FERRARIS_POSES) + sorted(FERRARIS_TURNS)}")
+        keep_rows.append(rows)
+        seg_col.append(np.full(len(rows), sid))
+    rows = np.concatenate(keep_rows)
+    samples = {"segment": np.concatenate(seg_col), "t_s": t[rows], **{k: v[rows] for k, v in data.items()}}
+    meta = _meta(units_meta["acc_unit"], units_meta["gyro_unit"], latitude_deg,
+                 {k: v for k, v in units_meta.items() if k not in ("acc_unit", "gyro_unit")})
+    meta["description"] = (f"imported from {source}: Ferraris protocol; static poses at their nominal orientation, "
+                           f"each turn a rate segment at the protocol's {turn_deg:+.0f} deg over its duration")
+    io.write(out, meta, samples, segs)
+    return meta
+
+
+def import_ferraris_sections(csv_path, json_path, out, rate_hz, latitude_deg, turn_deg=-360.0):
+    """imucal's session CSV with its section list (0-based rows, end exclusive)."""
+    import json
+    sections = json.loads(Path(json_path).read_text())
+    with Path(csv_path).open(newline="") as fh:
+        reader = csv.DictReader(fh)
+        cols = {"ax": "acc_x", "ay": "acc_y", "az": "acc_z", "gx": "gyr_x", "gy": "gyr_y", "gz": "gyr_z"}
+        rows = [[float(r[c]) for c in cols.values()] for r in reader]
+    arr = np.array(rows)
+    data = {k: arr[:, j] for j, k in enumerate(cols)}
+    t = np.arange(len(arr)) / rate_hz
+    order = sorted(sections.items(), key=lambda kv: kv[1]["start"])
+    secs = [(label, np.arange(s["start"], s["end"])) for label, s in order]
+    return _ferraris_set(out, secs, data, t, {"acc_unit": "m/s^2", "gyro_unit": "deg/s", "gravity_mps2": 9.81},
+                         latitude_deg, turn_deg, Path(csv_path).name)
+
+
+def import_imucal_annotated(csv_path, out, rate_hz, acc_counts_per_g, gyro_counts_per_dps, latitude_deg,
+                            turn_deg=-360.0):
+    """imucal's annotated session: sections already cut, sorted by label; `samples`
+    gives the recording order."""
+    path = Path(csv_path)
+    labels, idx, vals = [], [], []
+    with path.open(newline="") as fh:
+        reader = csv.DictReader(fh)
+        for line_no, r in enumerate(reader, start=2):
+            try:
+                idx.append(int(r["samples"]))
+                vals.append([float(r[c]) for c in ("acc_x", "acc_y", "acc_z", "gyr_x", "gyr_y", "gyr_z")])
+            except (KeyError, TypeError, ValueError):
+                raise ImportError_(f"{path}, line {line_no}: expected part,samples,acc_x..gyr_z numbers") from None
+            labels.append(r["part"])
+    order = np.argsort(idx)
+    labels, arr = np.array(labels)[order], np.array(vals)[order]
+    t = np.array(idx)[order] / rate_hz
+    data = {k: arr[:, j] for j, k in enumerate(("ax", "ay", "az", "gx", "gy", "gz"))}
+    change = np.r_[0, np.nonzero(labels[1:] != labels[:-1])[0] + 1, len(labels)]
+    secs = [(labels[a], np.arange(a, b)) for a, b in zip(change[:-1], change[1:])]
+    units_meta = {"acc_unit": "counts", "gyro_unit": "counts", "acc_counts_per_g": [acc_counts_per_g] * 3,
+                  "gyro_counts_per_dps": [gyro_counts_per_dps] * 3}
+    return _ferraris_set(out, secs, data, t, units_meta, latitude_deg, turn_deg, path.name)

@@ -63,3 +63,18 @@ def test_diagnose_real_stream_says_honestly_what_it_finds(tmp_path):
     assert len(d["acc"]["residuals"]) == d["acc"]["baseline"]["dof"] + 9
     if not any(c.get("significant") for c in d["candidates"]):
         assert "not in the library" in d["verdict"]
+
+
+def test_ferraris_sessions(tmp_path):
+    from simucal.importers import import_ferraris_sections, import_imucal_annotated
+    d = DATA / "imucal-ferraris"
+    import_ferraris_sections(d / "example_ferraris_session.csv", d / "example_ferraris_session_list.json",
+                             tmp_path / "ex", 102.4, 49.6)
+    r = calibrate(tmp_path / "ex", "multiposition")
+    assert np.allclose(np.diag(r["gyro"]["M"]), 1, atol=0.05) and np.allclose(np.diag(r["acc"]["M"]), 1, atol=0.05)
+    # imucal's annotated session turns +360 deg where imucal assumes -360: caught, not fitted into -I
+    import_imucal_annotated(d / "annotated_session.csv", tmp_path / "an", 204.8, 2048.0, 16.4, 49.6)
+    with pytest.raises(CalibrationError, match="turns opposite to the commanded rate in 3 of 3"):
+        calibrate(tmp_path / "an", "multiposition")
+    import_imucal_annotated(d / "annotated_session.csv", tmp_path / "an2", 204.8, 2048.0, 16.4, 49.6, turn_deg=360.0)
+    assert np.all(np.diag(calibrate(tmp_path / "an2", "multiposition")["gyro"]["M"]) > 0.9)
