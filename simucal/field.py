@@ -25,18 +25,10 @@ from scipy.linalg import expm
 from . import io, units
 from .generated import field as gen
 from .norm_fit import CalibrationError
+from .rotations import exp_so3
 
 DPH = np.radians(1 / 3600)  # rad/s per deg/h
 AXIS_NAMES = ("x (forward)", "y (up)", "z (right)")
-
-
-def _rodrigues(v):
-    a = np.linalg.norm(v)
-    if a < 1e-15:
-        return np.eye(3)
-    k = v / a
-    K = np.array([[0, -k[2], k[1]], [k[2], 0, -k[0]], [-k[1], k[0], 0]])
-    return np.eye(3) + np.sin(a) * K + (1 - np.cos(a)) * K @ K
 
 
 def coarse_attitude(f_mean, heading_rad):
@@ -90,16 +82,16 @@ class StaticFilter:
         """
         C, v = C0.copy(), np.zeros(3)
         x = np.zeros(8)
-        earth = _rodrigues(-w_ie_n * dt)
+        earth = exp_so3(-w_ie_n * dt)
         xs, north = np.empty((len(f_b), 8)), np.empty((len(f_b), 3))
         for k in range(len(f_b)):
-            C = earth @ C @ _rodrigues(w_b[k] * dt)
+            C = earth @ C @ exp_so3(w_b[k] * dt)
             v = v + (C @ f_b[k] + g_n) * dt
             v[1] = 0.0  # the vertical channel is not used
             x = self.Phi @ x
             x = x + self.gains[k] @ (np.array([v[0], v[2]]) - self.H @ x)
             xs[k] = x
-            C = _rodrigues(np.array([x[2], 0.0, x[4]])) @ C
+            C = exp_so3(np.array([x[2], 0.0, x[4]])) @ C
             v[0] -= x[0]
             v[2] -= x[1]
             x[[0, 1, 2, 4]] = 0.0
@@ -134,7 +126,7 @@ def position_estimate(f_raw, w_raw, t, heading_rad, meta, block_s=1.0, stages=2)
     C0 = coarse_attitude(f_b.mean(0), heading_rad)
     for _ in range(stages):  # two-stage alignment: correct the level at the start, twice
         xs, _ = kf.run(C0, f_b, w_b, dt, w_ie_n, g_n)
-        C0 = _rodrigues(np.array([xs[0, 2], 0.0, xs[0, 4]])) @ C0  # the azimuth stays from the reference
+        C0 = exp_so3(np.array([xs[0, 2], 0.0, xs[0, 4]])) @ C0  # the azimuth stays from the reference
     xs, north = kf.run(C0, f_b, w_b, dt, w_ie_n, g_n)
     # eps_N is the drift along the computed north, which turns slowly (up drift);
     # the estimate weighs the whole window, so project on the mean computed north.

@@ -26,7 +26,7 @@ import numpy as np
 from . import units
 from .augmented import AugmentedModel
 from .norm_fit import CalibrationError, Observations, fit_exact, initial_directions
-from .rotations import exp_so3, prefix_products, right_jacobian, skew
+from .rotations import prefix_rotations, right_jacobian, skew
 from .static_detect import Detection, detect_static
 
 
@@ -85,19 +85,21 @@ def move_residuals(T, mv: Moves, g_dirs, jac=True, db=None):
     y = mv.y - (0.0 if db is None else db) * (mv.dt[..., None] > 0)
     omega = np.einsum("ab,mkb->mka", T, y) * np.radians(1.0)
     v = omega * mv.dt[..., None]
-    R = exp_so3(v)
-    C = prefix_products(R)
+    C = prefix_rotations(v)
     Rt = C[:, -1]
     g0, g1 = g_dirs[mv.before], g_dirs[mv.after]
     pred = np.einsum("mba,mb->ma", Rt, g0)
     r = g1 - pred
     if not jac:
         return r, None
-    AkT = np.einsum("mba,mkbc->mkac", Rt, C) @ right_jacobian(v)  # A_k^T J_r(v_k), A_k^T = R_total^T C_k
-    dphi_T = np.einsum("mkia,mkb,mk->miab", AkT, y, mv.dt).reshape(len(r), 3, 9)
-    dphi_b = -np.einsum("mkia,ab,mk->mib", AkT, T, mv.dt)
+    # A_k^T J_r(v_k) with A_k^T = R_total^T C_k, weighted by dt, then summed over k as matmuls
+    AkT = np.matmul(np.swapaxes(Rt, 1, 2)[:, None], C) @ right_jacobian(v)
+    W = AkT * mv.dt[..., None, None]
+    m, L = mv.dt.shape
+    dphi_T = np.matmul(np.swapaxes(W.reshape(m, L, 9), 1, 2), y).reshape(m, 3, 9)
+    dphi_b = -W.sum(1) @ T
     dphi = np.concatenate([dphi_T, dphi_b], axis=2) * np.radians(1.0)
-    return r, -np.einsum("mij,mjp->mip", skew(pred), dphi)
+    return r, -np.matmul(skew(pred), dphi)
 
 
 def fit_gyro_moves(mv: Moves, g_dirs, T0, bias_std, max_iter=30):
@@ -125,7 +127,7 @@ def fit_gyro_moves(mv: Moves, g_dirs, T0, bias_std, max_iter=30):
             if e_new @ e_new <= cost:
                 break
             lam /= 2
-        done = cost - float(e_new @ e_new) < 1e-12 * max(cost, 1e-30)
+        done = cost - float(e_new @ e_new) < 1e-9 * max(cost, 1e-30)  # quadratic convergence: round-off next
         x, r, J = x_new, r_new, J_new
         if done:
             break
