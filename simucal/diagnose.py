@@ -202,6 +202,24 @@ def _p0(base_model, add, obs):
     return np.r_[f0.vector(f0.params), np.zeros(len(add))]
 
 
+def stream_summary(ms, max_points=4000):
+    """A continuous stream for the report: |f| over time (decimated), the static
+    intervals found, and the gyro's residual per move (hand-placed calibration)."""
+    from .handheld import calibrate_handheld
+    cal = calibrate_handheld(ms)
+    t = ms.samples["t_s"]
+    step = max(len(t) // max_points, 1)
+    M, b = np.array(cal["acc"]["M"]), np.array(cal["acc"]["bias"])
+    f = np.linalg.solve(M, (ms.acc_g()[::step] - b).T).T  # calibrated specific force, g
+    out = {"t_s": t[::step].tolist(), "acc_norm_g": np.linalg.norm(f, axis=1).tolist(),
+           "static_detection": cal["static_detection"]}
+    if "gyro" in cal:
+        out["gyro_moves"] = cal["gyro"]["moves"]
+        out["gyro_moves_skipped"] = cal["gyro"]["moves_skipped"]
+        out["gyro_residual_rms"] = cal["gyro"]["residual_rms"]
+    return out
+
+
 def diagnose(folder, add=(), acc_model="acc_baseline", gyro_model="gyro_baseline",
              acc_noise_g=None, gyro_noise_dph=None) -> dict:
     folder = Path(folder)
@@ -217,6 +235,8 @@ def diagnose(folder, add=(), acc_model="acc_baseline", gyro_model="gyro_baseline
         block = diagnose_sensor(ms, sensor, model, mine, stated, truth)
         if block is not None:
             result[sensor] = block
+    if ms.segments is None:
+        result["stream"] = stream_summary(ms)
     sensors = [s for s in ("acc", "gyro") if s in result]
     if not sensors:
         raise CalibrationError(f"{folder}: nothing to diagnose (no static or rate segments)")

@@ -76,7 +76,9 @@ def build_moves(w, t, det: Detection, bias, bad):
     for m, (i, a, b) in enumerate(idx):
         y[m, :b - a] = w[a + 1:b + 1] - bias
         dt[m, :b - a] = np.diff(t[a:b + 1])
-    return Moves(y, dt, np.array([i for i, _, _ in idx]), np.array([i + 1 for i, _, _ in idx])), skipped
+    mv = Moves(y, dt, np.array([i for i, _, _ in idx]), np.array([i + 1 for i, _, _ in idx]))
+    mv.t_span = [(float(t[a]), float(t[b])) for _, a, b in idx]
+    return mv, skipped
 
 
 def move_residuals(T, mv: Moves, g_dirs, jac=True, db=None):
@@ -233,6 +235,8 @@ def calibrate_handheld(ms, acc_model="acc_baseline", detect_kw=None, pose_window
                           "T": T.tolist(), "std": {"T": np.sqrt(np.diag(cov)[:9]).reshape(3, 3).tolist(),
                                                    "bias": (bias_std * 3600).tolist()},
                           "residual_rms": float(np.sqrt(np.mean(np.sum(r ** 2, 1)))),
+                          "moves": [{"from_pose": int(a), "to_pose": int(b), "t_s": list(span), "residual": ri.tolist()}
+                                    for a, b, span, ri in zip(mv.before, mv.after, mv.t_span, r)],
                           "residual_unit": "gravity direction (unit vector), per move",
                           "moves_used": int(len(r)), "moves_skipped": skipped, "saturation": sat,
                           "moves_opposite_sense": flipped, "iterations": it}

@@ -120,12 +120,43 @@ def _fmt(v):
     return str(v)
 
 
+def stream_figures(stream):
+    """The stream with its static intervals shaded, and the gyro's residual per move."""
+    figs = []
+    fig, ax = plt.subplots(figsize=(12, 3))
+    ax.plot(stream["t_s"], stream["acc_norm_g"], lw=0.6, color="k")
+    det = stream["static_detection"]
+    for k, (a, b) in enumerate(det["intervals_s"]):
+        ax.axvspan(a, b, color="tab:green", alpha=0.25, label="static (detected)" if k == 0 else None)
+    ax.set(xlabel="time (s)", ylabel="calibrated |f| (g)", ylim=(0.5, 1.5), title=f"stream: {det['count']} static intervals "
+           f"(threshold {det['threshold']:.3g}, window {det['window']} samples, min {det['min_samples']} samples)")
+    ax.legend(fontsize=8)
+    figs.append(_png(fig))
+    moves = stream.get("gyro_moves")
+    if moves:
+        fig, ax = plt.subplots(figsize=(12, 3))
+        mid = [(m["t_s"][0] + m["t_s"][1]) / 2 for m in moves]
+        res = np.array([m["residual"] for m in moves])
+        for j in range(3):
+            ax.plot(mid, res[:, j], "o", label=f"gravity direction {AXES[j]}")
+        for k, sk in enumerate(stream.get("gyro_moves_skipped", [])):
+            ax.axvspan(*sk["t_s"], color="tab:red", alpha=0.3, label="move left out (saturated)" if k == 0 else None)
+        ax.axhline(0, color="0.5", lw=0.8)
+        ax.set(xlabel="time (s)", ylabel="residual (unit vector)", title="gyro: gravity-direction residual per move")
+        ax.legend(fontsize=8, ncol=4)
+        figs.append(_png(fig))
+    return figs
+
+
 def render(diag: dict) -> str:
     units = {"acc": "g", "gyro": "deg/h"}
     parts = ["<!doctype html><html><head><meta charset='utf-8'><title>simucal diagnosis</title><style>",
              "body{font-family:sans-serif;max-width:1250px;margin:auto} table{border-collapse:collapse;font-size:12px}",
              "td,th{border:1px solid #ccc;padding:2px 6px} .bad{color:#b00} .ok{color:#070} img{max-width:100%}",
              "</style></head><body>", f"<h1>Diagnosis of {html.escape(diag['input'])}</h1>"]
+    if "stream" in diag:
+        parts.append("<h2>stream</h2>")
+        parts += stream_figures(diag["stream"])
     for s in ("acc", "gyro"):
         if s not in diag:
             continue
