@@ -149,6 +149,11 @@ def check_rate_sense(ms, gyro_obs, gyro_segs):
     """
     if gyro_obs is None or not gyro_segs:
         return
+    keep = [i for i, s in enumerate(gyro_segs) if s.middle_deg is not None and s.inner_deg is not None]
+    if not keep:
+        return  # no commanded axis to compare with
+    gyro_segs = [gyro_segs[i] for i in keep]
+    gyro_obs = Observations(gyro_obs.N[keep], gyro_obs.rho[keep])
     up, _ = _commanded_up_k(gyro_segs)
     static = ms.samples["segment"] == -1
     for s in ms.segments:
@@ -258,16 +263,22 @@ def calibrate(folder, method="exact", acc_model="acc_baseline", gyro_model="gyro
         result["acc"] = _fit_block(am, fa, M, b, "g")
     if fg is not None:
         M_d, b_g = gm.matrix_and_bias(fg.vector(gm.params))
-        if fa is None:
-            raise CalibrationError("gyro data without accelerometer data: the gyro frame cannot be tied to b")
-        if method == "exact":
-            C_b_d, info = unify_directions(am, fa, acc_obs, acc_segs, gm, fg, gyro_obs, gyro_segs)
+        no_angles = any(s.middle_deg is None or s.inner_deg is None for s in (acc_segs or []) + gyro_segs)
+        if fa is None or no_angles:
+            why = ("no accelerometer data" if fa is None else
+                   "segments.csv gives no middle/inner angles to pair rate runs with static positions")
+            result["gyro"] = _fit_block(gm, fg, M_d, b_g, "deg/h")
+            result["gyro"].update(frame="d (the gyro parameter frame)",
+                                  note=f"M is in the gyro frame d, not in b: {why}, so the frames cannot be tied")
         else:
-            C_b_d, info = unify_paper(acc_obs, acc_segs, gyro_obs, gyro_segs,
-                                      fa.vector(am.params), fg.vector(gm.params), ms.meta)
-        result["gyro"] = _fit_block(gm, fg, M_d @ C_b_d, b_g, "deg/h")
-        result["gyro"]["M_in_d"] = np.asarray(M_d).tolist()
-        result["unification"] = {"C_b_d": C_b_d.tolist(), **info}
+            if method == "exact":
+                C_b_d, info = unify_directions(am, fa, acc_obs, acc_segs, gm, fg, gyro_obs, gyro_segs)
+            else:
+                C_b_d, info = unify_paper(acc_obs, acc_segs, gyro_obs, gyro_segs,
+                                          fa.vector(am.params), fg.vector(gm.params), ms.meta)
+            result["gyro"] = _fit_block(gm, fg, M_d @ C_b_d, b_g, "deg/h")
+            result["gyro"]["M_in_d"] = np.asarray(M_d).tolist()
+            result["unification"] = {"C_b_d": C_b_d.tolist(), **info}
     result["model"] = {"acc": acc_model, "gyro": gyro_model}
     result["residual_rms"] = {s: result[s]["residual_rms"] for s in ("acc", "gyro") if s in result}
     return result
