@@ -22,6 +22,7 @@ import numpy as np
 from . import io, units
 from .generated import table, unify
 from .models import load
+from .handheld import saturated_rows
 from .norm_fit import CalibrationError, Fit, Observations, fit_exact, fit_linear, initial_directions
 
 METHODS = ("exact", "linear", "multiposition")
@@ -71,10 +72,18 @@ def segment_observations(ms: io.MeasurementSet, sensor: str):
     lat = np.radians(ms.meta.get("latitude_deg", 0.0))
     w_e = units.earth_rate_dph(ms.meta)
     N, sig, rho, t, temp, keep = [], [], [], [], [], []
+    raw = np.column_stack([ms.samples[c] for c in (("ax", "ay", "az") if sensor == "acc" else ("gx", "gy", "gz"))])
+    fs = ms.meta.get("full_scale", {}).get(sensor)
+    counts = ms.meta.get(f"{sensor}_unit") == "counts"
+    saturated = saturated_rows(raw, fs)[0] if (fs is not None or counts) else np.zeros(len(raw), bool)
     for s in segs:
         rows = ms.samples["segment"] == s.segment
         if not rows.any():
             raise CalibrationError(f"{ms.path / 'samples.csv'}: segment {s.segment} has no samples")
+        if saturated[rows].any():
+            ms.extra.setdefault("saturated_segments", []).append(
+                {"sensor": sensor, "segment": s.segment, "samples": int(saturated[rows].sum())})
+            continue
         m, sd = _mean_and_sigma(data[rows], stated, varying=(kind == "rate"))
         N.append(m)
         sig.append(sd)
@@ -85,6 +94,8 @@ def segment_observations(ms: io.MeasurementSet, sensor: str):
     sigma = None if any(s is None for s in sig) or not sig else np.array(sig)
     obs = Observations(np.array(N).reshape(-1, 3), np.array(rho), sigma, np.array(temp), np.array(t),
                        [s.segment for s in keep])
+    if keep:
+        units.check_magnitude(sensor, np.linalg.norm(obs.N, axis=1), obs.rho, ms.path / "samples.csv", ms.meta)
     return obs, keep
 
 
@@ -218,6 +229,7 @@ def _affine_fit(f, N, sensor):
 
 
 def _fit_block(model, fit: Fit, M, bias, unit):
+    units.check_scale(model.sensor, M, fit.model)
     return {"M": np.asarray(M).tolist(), "bias": np.asarray(bias).tolist(), "bias_unit": unit,
             "model": model.name, "params": fit.params,
             "std": fit.std, "residual_rms": fit.residual_rms, "chi2": fit.chi2, "dof": fit.dof,
@@ -243,6 +255,8 @@ def calibrate(folder, method="exact", acc_model="acc_baseline", gyro_model="gyro
     check_rate_sense(ms, gyro_obs, gyro_segs)
     result = {"format": "simucal.calibration/1", "method": method, "input": str(folder),
               "input_sha256": input_sha256(ms.path)}
+    if ms.extra.get("saturated_segments"):
+        result["excluded_segments"] = [{**e, "reason": "saturated samples"} for e in ms.extra["saturated_segments"]]
     if method == "multiposition":
         mp = multiposition(ms, acc_obs, acc_segs, gyro_obs, gyro_segs)
         for sensor, unit in (("acc", "g"), ("gyro", "deg/h")):

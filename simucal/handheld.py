@@ -38,9 +38,10 @@ class Moves:
     after: np.ndarray    # (m,) index of the pose after
 
 
-def saturated_rows(raw, full_scale=None):
+def saturated_rows(raw, full_scale=None, min_run=3):
     """Rows at or beyond full scale; without it, rows equal to a column's extreme
-    in a run of two or more (a clipped sensor repeats its rail)."""
+    in a run of min_run or more (a clipped sensor repeats its rail; two equal
+    extremes of quantised noise are common, three are not)."""
     bad = np.zeros(len(raw), bool)
     report = []
     for j in range(raw.shape[1]):
@@ -50,9 +51,11 @@ def saturated_rows(raw, full_scale=None):
         else:
             hit = np.zeros(len(col), bool)
             for ext in (col.min(), col.max()):
-                eq = col == ext
-                run = eq & (np.r_[False, eq[:-1]] | np.r_[eq[1:], False])
-                hit |= run
+                eq = (col == ext).astype(int)
+                edges = np.diff(np.r_[0, eq, 0])
+                for a, b in zip(np.nonzero(edges == 1)[0], np.nonzero(edges == -1)[0]):
+                    if b - a >= min_run:
+                        hit[a:b] = True
         if hit.any():
             report.append({"axis": "xyz"[j], "count": int(hit.sum()), "first_row": int(np.argmax(hit))})
         bad |= hit
@@ -200,10 +203,12 @@ def calibrate_handheld(ms, acc_model="acc_baseline", detect_kw=None, pose_window
         raise CalibrationError(f"{ms.path}: a hand-placed session needs accelerometer data")
     t = ms.samples["t_s"]
     obs, det, _ = pose_observations(ms, detect_kw, pose_window_s)
+    units.check_magnitude("acc", np.linalg.norm(obs.N, axis=1), obs.rho, ms.path / "samples.csv", ms.meta)
     am = AugmentedModel(acc_model)
     fa = fit_exact(am, obs)
     fa, tau = with_model_error(am, obs, fa)
     M_a, b_a = am.matrix_and_bias(fa.vector(am.params))
+    units.check_scale("acc", M_a, ms.path / "samples.csv")
     result = {"format": "simucal.calibration/1", "method": "handheld (Tedaldi): exact norm fit + gyro moves",
               "static_detection": {**det.as_dict(t), "pose_window_s": pose_window_s},
               "acc": {"M": M_a.tolist(), "bias": b_a.tolist(), "bias_unit": "g", "model": am.name,
@@ -230,6 +235,7 @@ def calibrate_handheld(ms, acc_model="acc_baseline", detect_kw=None, pose_window
         bias = bias + db
         bias_std = np.sqrt(np.diag(cov)[9:])
         M_g = np.linalg.inv(T)
+        units.check_scale("gyro", M_g, ms.path / "samples.csv")
         result["gyro"] = {"M": M_g.tolist(), "bias": (bias * 3600).tolist(), "bias_unit": "deg/h",
                           "model": "full 3x3 M (scale, misalignment, triad rotation), bias from the initial rest",
                           "T": T.tolist(), "std": {"T": np.sqrt(np.diag(cov)[:9]).reshape(3, 3).tolist(),

@@ -82,3 +82,38 @@ def dph_to_gyro(w_dph, meta):
     if u == "pulse/s":
         return w_dph * np.asarray(meta["gyro_pulses_per_arcsec"], float)
     return w_dph / 3600.0 * np.asarray(meta["gyro_counts_per_dps"], float)
+
+
+# Ratios between the units a recording may really use and the one its meta.json names.
+_MIXUPS = {"acc": {"m/s^2 labelled g": DEFAULT_GRAVITY, "g labelled m/s^2": 1 / DEFAULT_GRAVITY,
+                   "mg labelled g": 1000.0},
+           "gyro": {"deg/s labelled deg/h": 1 / 3600.0, "deg/h labelled deg/s": 3600.0,
+                    "rad/s labelled deg/s": np.pi / 180, "deg/s labelled rad/s": 180 / np.pi,
+                    "rad/s labelled deg/h": np.pi / 180 / 3600, "deg/h labelled rad/s": 3600 * 180 / np.pi}}
+
+
+def check_magnitude(sensor, measured_norm, expected_norm, where, meta=None):
+    """Refuse outputs whose size is far from the known input's: almost always a unit
+    mix-up, which a calibration would otherwise absorb into absurd scale factors.
+    Raw counts carry an offset by design (the bias absorbs it): for them see check_scale."""
+    if meta is not None and meta.get(f"{sensor}_unit") == "counts":
+        return
+    r = float(np.median(np.asarray(measured_norm) / np.asarray(expected_norm)))
+    _refuse_ratio(sensor, r, where)
+
+
+def check_scale(sensor, M, where):
+    """After a fit: scale factors (diagonal of M) far from 1 mean a wrong unit or nominal scale."""
+    d = np.abs(np.diag(np.asarray(M, float)))
+    r = float(np.median(d))
+    _refuse_ratio(sensor, r, where, "fitted scale factors")
+
+
+def _refuse_ratio(sensor, r, where, what="outputs"):
+    if 0.5 < r < 2.0:
+        return
+    guess = min(_MIXUPS[sensor].items(), key=lambda kv: abs(np.log(r / kv[1])))
+    likely = f"; the ratio matches {guess[0]}" if abs(np.log(r / guess[1])) < 0.2 else ""
+    from .norm_fit import CalibrationError
+    raise CalibrationError(f"{where}: the {sensor} {what} are {r:.4g} times the known input (1 g at rest, or the "
+                           f"commanded rate): check {sensor}_unit and the nominal scale factors in meta.json{likely}")

@@ -146,3 +146,34 @@ def test_user_model_file_generates_beside_baseline(tmp_path):
     assert "acc_mine" in manifest["models"] and str(model_file) in manifest["model_files"]
     assert (out / "acc_baseline.py").read_text() == (generated_dir() / "acc_baseline.py").read_text()
     assert derive_cmd.run(check=True, out_dir=out)[0] == []  # the stale check covers the user model too
+
+
+def test_unit_mixup_named(paper_set, tmp_path):
+    dst = _copy(paper_set[0], tmp_path)
+    meta = json.loads((dst / "meta.json").read_text())
+    meta["acc_unit"] = "m/s^2"  # the outputs are really pulse/s; and a g-labelled m/s^2 set below
+    meta.pop("acc_pulses_per_g")
+    (dst / "meta.json").write_text(json.dumps(meta))
+    with pytest.raises(CalibrationError, match="times the known input"):
+        calibrate(dst, "exact")
+    from simucal.simulate import Scenario, write
+    write(tmp_path / "ms2", Scenario(acc_unit="m/s^2"), 1)
+    meta = json.loads((tmp_path / "ms2" / "meta.json").read_text())
+    meta["acc_unit"] = "g"
+    (tmp_path / "ms2" / "meta.json").write_text(json.dumps(meta))
+    with pytest.raises(CalibrationError, match="m/s\\^2 labelled g"):
+        calibrate(tmp_path / "ms2", "exact")
+
+
+def test_saturated_segment_left_out_and_reported(tmp_path):
+    from simucal.simulate import Scenario, write
+    write(tmp_path / "s", Scenario(rate_hz=20.0, static_s=3.0, acc_unit="g"), 2)
+    meta = json.loads((tmp_path / "s" / "meta.json").read_text())
+    meta["full_scale"] = {"acc": [-0.98, 0.98]}  # clips the positions nearest an axis
+    (tmp_path / "s" / "meta.json").write_text(json.dumps(meta))
+    try:
+        r = calibrate(tmp_path / "s", "exact")
+    except CalibrationError as e:  # too few left is also an honest answer
+        assert "positions" in str(e)
+        return
+    assert r["excluded_segments"] and all(e["reason"] == "saturated samples" for e in r["excluded_segments"])
