@@ -97,12 +97,12 @@ def move_residuals(T, mv: Moves, g_dirs, jac=True, db=None):
     r = g1 - pred
     if not jac:
         return r, None
-    # A_k^T J_r(v_k) with A_k^T = R_total^T C_k, weighted by dt, then summed over k as matmuls
-    AkT = np.matmul(np.swapaxes(Rt, 1, 2)[:, None], C) @ right_jacobian(v)
-    W = AkT * mv.dt[..., None, None]
+    # A_k^T J_r(v_k) dt_k with A_k^T = R_total^T C_k; R_total^T leaves the sum over k
+    W = (C @ right_jacobian(v)) * mv.dt[..., None, None]
     m, L = mv.dt.shape
-    dphi_T = np.matmul(np.swapaxes(W.reshape(m, L, 9), 1, 2), y).reshape(m, 3, 9)
-    dphi_b = -W.sum(1) @ T
+    RtT = np.swapaxes(Rt, 1, 2)
+    dphi_T = (RtT @ np.matmul(np.swapaxes(W.reshape(m, L, 9), 1, 2), y).reshape(m, 3, 9))
+    dphi_b = -RtT @ W.sum(1) @ T
     dphi = np.concatenate([dphi_T, dphi_b], axis=2) * np.radians(1.0)
     return r, -np.matmul(skew(pred), dphi)
 
