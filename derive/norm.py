@@ -19,7 +19,7 @@ from dataclasses import dataclass
 
 import sympy as sp
 
-from .frames import AUX, AXES, N_out
+from .frames import AXES, N_out
 from .models import ErrorModel
 
 EPS = sp.Symbol("epsilon", positive=True)  # bookkeeping for "first order"
@@ -85,7 +85,7 @@ def _split(term, N_syms):
 
 
 def derive_norm_regression(model: ErrorModel) -> NormRegression:
-    N_syms = tuple(N_out) + AUX
+    N_syms = tuple(N_out) + model.aux
     # D^-1 as symbols r_i = 1/(1 + dK_i) keeps the expansion polynomial.
     D = scale_matrix(model)
     r = sp.symbols("r_x r_y r_z", positive=True)

@@ -1,8 +1,9 @@
 """The models `simucal derive` generates by default.
 
 `acc_baseline` and `gyro_baseline` are dong2018 eq. 5 and 9; `acc_extended`
-shows a user-extended model (three extra terms) and is what the tests and the
-benchmark use for "a model with extra terms". A user's own model file is a
+and `gyro_extended` show user-extended models (three extra terms each; the
+gyro one uses the specific force) and are what the tests and the benchmark use
+for "a model with extra terms". A user's own model file is a
 Python file defining MODELS = [ErrorModel, ...]; see README.
 """
 from __future__ import annotations
@@ -18,7 +19,11 @@ ACC_EXTENDED = ACC_BASELINE.with_terms(
     "acc_extended", [CANDIDATES["acc.quadratic.z"], CANDIDATES["acc.cross_coupling.xy"],
                      CANDIDATES["acc.bias_drift_time.y"]])
 
-BUILTIN = (ACC_BASELINE, GYRO_BASELINE, ACC_EXTENDED)
+GYRO_EXTENDED = GYRO_BASELINE.with_terms(
+    "gyro_extended", [CANDIDATES["gyro.g_sensitivity.xz"], CANDIDATES["gyro.quadratic.y"],
+                      CANDIDATES["gyro.bias_temperature.z"]])
+
+BUILTIN = (ACC_BASELINE, GYRO_BASELINE, ACC_EXTENDED, GYRO_EXTENDED)
 
 
 def load_model_file(path) -> list[ErrorModel]:

@@ -231,12 +231,15 @@ def phi_acc_scale_asymmetry_z(u, temp_c=0.0, t_s=0.0):
     return out0, out1
 
 
-def phi_gyro_bias_drift_time_x(u, temp_c=0.0, t_s=0.0):
+def phi_gyro_bias_drift_time_x(u, temp_c=0.0, t_s=0.0, f=numpy.zeros(3)):
     """gyro.bias_drift_time.x: phi = t_s and dphi/du."""
     w_x = u[..., 0]
     w_y = u[..., 1]
     w_z = u[..., 2]
-    shape = numpy.broadcast_shapes(numpy.shape(w_x), numpy.shape(w_y), numpy.shape(w_z), numpy.shape(temp_c), numpy.shape(t_s), )
+    f_x = f[..., 0]
+    f_y = f[..., 1]
+    f_z = f[..., 2]
+    shape = numpy.broadcast_shapes(numpy.shape(w_x), numpy.shape(w_y), numpy.shape(w_z), numpy.shape(temp_c), numpy.shape(t_s), numpy.shape(f_x), numpy.shape(f_y), numpy.shape(f_z), )
     out0 = numpy.empty(shape + (1,))
     out0[..., 0] = t_s
     out1 = numpy.empty(shape + (3,))
@@ -246,12 +249,15 @@ def phi_gyro_bias_drift_time_x(u, temp_c=0.0, t_s=0.0):
     return out0, out1
 
 
-def phi_gyro_bias_drift_time_y(u, temp_c=0.0, t_s=0.0):
+def phi_gyro_bias_drift_time_y(u, temp_c=0.0, t_s=0.0, f=numpy.zeros(3)):
     """gyro.bias_drift_time.y: phi = t_s and dphi/du."""
     w_x = u[..., 0]
     w_y = u[..., 1]
     w_z = u[..., 2]
-    shape = numpy.broadcast_shapes(numpy.shape(w_x), numpy.shape(w_y), numpy.shape(w_z), numpy.shape(temp_c), numpy.shape(t_s), )
+    f_x = f[..., 0]
+    f_y = f[..., 1]
+    f_z = f[..., 2]
+    shape = numpy.broadcast_shapes(numpy.shape(w_x), numpy.shape(w_y), numpy.shape(w_z), numpy.shape(temp_c), numpy.shape(t_s), numpy.shape(f_x), numpy.shape(f_y), numpy.shape(f_z), )
     out0 = numpy.empty(shape + (1,))
     out0[..., 0] = t_s
     out1 = numpy.empty(shape + (3,))
@@ -261,12 +267,15 @@ def phi_gyro_bias_drift_time_y(u, temp_c=0.0, t_s=0.0):
     return out0, out1
 
 
-def phi_gyro_bias_drift_time_z(u, temp_c=0.0, t_s=0.0):
+def phi_gyro_bias_drift_time_z(u, temp_c=0.0, t_s=0.0, f=numpy.zeros(3)):
     """gyro.bias_drift_time.z: phi = t_s and dphi/du."""
     w_x = u[..., 0]
     w_y = u[..., 1]
     w_z = u[..., 2]
-    shape = numpy.broadcast_shapes(numpy.shape(w_x), numpy.shape(w_y), numpy.shape(w_z), numpy.shape(temp_c), numpy.shape(t_s), )
+    f_x = f[..., 0]
+    f_y = f[..., 1]
+    f_z = f[..., 2]
+    shape = numpy.broadcast_shapes(numpy.shape(w_x), numpy.shape(w_y), numpy.shape(w_z), numpy.shape(temp_c), numpy.shape(t_s), numpy.shape(f_x), numpy.shape(f_y), numpy.shape(f_z), )
     out0 = numpy.empty(shape + (1,))
     out0[..., 0] = t_s
     out1 = numpy.empty(shape + (3,))
@@ -276,12 +285,15 @@ def phi_gyro_bias_drift_time_z(u, temp_c=0.0, t_s=0.0):
     return out0, out1
 
 
-def phi_gyro_bias_temperature_x(u, temp_c=0.0, t_s=0.0):
+def phi_gyro_bias_temperature_x(u, temp_c=0.0, t_s=0.0, f=numpy.zeros(3)):
     """gyro.bias_temperature.x: phi = temp_c and dphi/du."""
     w_x = u[..., 0]
     w_y = u[..., 1]
     w_z = u[..., 2]
-    shape = numpy.broadcast_shapes(numpy.shape(w_x), numpy.shape(w_y), numpy.shape(w_z), numpy.shape(temp_c), numpy.shape(t_s), )
+    f_x = f[..., 0]
+    f_y = f[..., 1]
+    f_z = f[..., 2]
+    shape = numpy.broadcast_shapes(numpy.shape(w_x), numpy.shape(w_y), numpy.shape(w_z), numpy.shape(temp_c), numpy.shape(t_s), numpy.shape(f_x), numpy.shape(f_y), numpy.shape(f_z), )
     out0 = numpy.empty(shape + (1,))
     out0[..., 0] = temp_c
     out1 = numpy.empty(shape + (3,))
@@ -291,12 +303,15 @@ def phi_gyro_bias_temperature_x(u, temp_c=0.0, t_s=0.0):
     return out0, out1
 
 
-def phi_gyro_bias_temperature_y(u, temp_c=0.0, t_s=0.0):
+def phi_gyro_bias_temperature_y(u, temp_c=0.0, t_s=0.0, f=numpy.zeros(3)):
     """gyro.bias_temperature.y: phi = temp_c and dphi/du."""
     w_x = u[..., 0]
     w_y = u[..., 1]
     w_z = u[..., 2]
-    shape = numpy.broadcast_shapes(numpy.shape(w_x), numpy.shape(w_y), numpy.shape(w_z), numpy.shape(temp_c), numpy.shape(t_s), )
+    f_x = f[..., 0]
+    f_y = f[..., 1]
+    f_z = f[..., 2]
+    shape = numpy.broadcast_shapes(numpy.shape(w_x), numpy.shape(w_y), numpy.shape(w_z), numpy.shape(temp_c), numpy.shape(t_s), numpy.shape(f_x), numpy.shape(f_y), numpy.shape(f_z), )
     out0 = numpy.empty(shape + (1,))
     out0[..., 0] = temp_c
     out1 = numpy.empty(shape + (3,))
@@ -306,12 +321,15 @@ def phi_gyro_bias_temperature_y(u, temp_c=0.0, t_s=0.0):
     return out0, out1
 
 
-def phi_gyro_bias_temperature_z(u, temp_c=0.0, t_s=0.0):
+def phi_gyro_bias_temperature_z(u, temp_c=0.0, t_s=0.0, f=numpy.zeros(3)):
     """gyro.bias_temperature.z: phi = temp_c and dphi/du."""
     w_x = u[..., 0]
     w_y = u[..., 1]
     w_z = u[..., 2]
-    shape = numpy.broadcast_shapes(numpy.shape(w_x), numpy.shape(w_y), numpy.shape(w_z), numpy.shape(temp_c), numpy.shape(t_s), )
+    f_x = f[..., 0]
+    f_y = f[..., 1]
+    f_z = f[..., 2]
+    shape = numpy.broadcast_shapes(numpy.shape(w_x), numpy.shape(w_y), numpy.shape(w_z), numpy.shape(temp_c), numpy.shape(t_s), numpy.shape(f_x), numpy.shape(f_y), numpy.shape(f_z), )
     out0 = numpy.empty(shape + (1,))
     out0[..., 0] = temp_c
     out1 = numpy.empty(shape + (3,))
@@ -321,12 +339,177 @@ def phi_gyro_bias_temperature_z(u, temp_c=0.0, t_s=0.0):
     return out0, out1
 
 
-def phi_gyro_quadratic_x(u, temp_c=0.0, t_s=0.0):
+def phi_gyro_g_sensitivity_xx(u, temp_c=0.0, t_s=0.0, f=numpy.zeros(3)):
+    """gyro.g_sensitivity.xx: phi = f_x and dphi/du."""
+    w_x = u[..., 0]
+    w_y = u[..., 1]
+    w_z = u[..., 2]
+    f_x = f[..., 0]
+    f_y = f[..., 1]
+    f_z = f[..., 2]
+    shape = numpy.broadcast_shapes(numpy.shape(w_x), numpy.shape(w_y), numpy.shape(w_z), numpy.shape(temp_c), numpy.shape(t_s), numpy.shape(f_x), numpy.shape(f_y), numpy.shape(f_z), )
+    out0 = numpy.empty(shape + (1,))
+    out0[..., 0] = f_x
+    out1 = numpy.empty(shape + (3,))
+    out1[..., 0] = 0
+    out1[..., 1] = 0
+    out1[..., 2] = 0
+    return out0, out1
+
+
+def phi_gyro_g_sensitivity_xy(u, temp_c=0.0, t_s=0.0, f=numpy.zeros(3)):
+    """gyro.g_sensitivity.xy: phi = f_y and dphi/du."""
+    w_x = u[..., 0]
+    w_y = u[..., 1]
+    w_z = u[..., 2]
+    f_x = f[..., 0]
+    f_y = f[..., 1]
+    f_z = f[..., 2]
+    shape = numpy.broadcast_shapes(numpy.shape(w_x), numpy.shape(w_y), numpy.shape(w_z), numpy.shape(temp_c), numpy.shape(t_s), numpy.shape(f_x), numpy.shape(f_y), numpy.shape(f_z), )
+    out0 = numpy.empty(shape + (1,))
+    out0[..., 0] = f_y
+    out1 = numpy.empty(shape + (3,))
+    out1[..., 0] = 0
+    out1[..., 1] = 0
+    out1[..., 2] = 0
+    return out0, out1
+
+
+def phi_gyro_g_sensitivity_xz(u, temp_c=0.0, t_s=0.0, f=numpy.zeros(3)):
+    """gyro.g_sensitivity.xz: phi = f_z and dphi/du."""
+    w_x = u[..., 0]
+    w_y = u[..., 1]
+    w_z = u[..., 2]
+    f_x = f[..., 0]
+    f_y = f[..., 1]
+    f_z = f[..., 2]
+    shape = numpy.broadcast_shapes(numpy.shape(w_x), numpy.shape(w_y), numpy.shape(w_z), numpy.shape(temp_c), numpy.shape(t_s), numpy.shape(f_x), numpy.shape(f_y), numpy.shape(f_z), )
+    out0 = numpy.empty(shape + (1,))
+    out0[..., 0] = f_z
+    out1 = numpy.empty(shape + (3,))
+    out1[..., 0] = 0
+    out1[..., 1] = 0
+    out1[..., 2] = 0
+    return out0, out1
+
+
+def phi_gyro_g_sensitivity_yx(u, temp_c=0.0, t_s=0.0, f=numpy.zeros(3)):
+    """gyro.g_sensitivity.yx: phi = f_x and dphi/du."""
+    w_x = u[..., 0]
+    w_y = u[..., 1]
+    w_z = u[..., 2]
+    f_x = f[..., 0]
+    f_y = f[..., 1]
+    f_z = f[..., 2]
+    shape = numpy.broadcast_shapes(numpy.shape(w_x), numpy.shape(w_y), numpy.shape(w_z), numpy.shape(temp_c), numpy.shape(t_s), numpy.shape(f_x), numpy.shape(f_y), numpy.shape(f_z), )
+    out0 = numpy.empty(shape + (1,))
+    out0[..., 0] = f_x
+    out1 = numpy.empty(shape + (3,))
+    out1[..., 0] = 0
+    out1[..., 1] = 0
+    out1[..., 2] = 0
+    return out0, out1
+
+
+def phi_gyro_g_sensitivity_yy(u, temp_c=0.0, t_s=0.0, f=numpy.zeros(3)):
+    """gyro.g_sensitivity.yy: phi = f_y and dphi/du."""
+    w_x = u[..., 0]
+    w_y = u[..., 1]
+    w_z = u[..., 2]
+    f_x = f[..., 0]
+    f_y = f[..., 1]
+    f_z = f[..., 2]
+    shape = numpy.broadcast_shapes(numpy.shape(w_x), numpy.shape(w_y), numpy.shape(w_z), numpy.shape(temp_c), numpy.shape(t_s), numpy.shape(f_x), numpy.shape(f_y), numpy.shape(f_z), )
+    out0 = numpy.empty(shape + (1,))
+    out0[..., 0] = f_y
+    out1 = numpy.empty(shape + (3,))
+    out1[..., 0] = 0
+    out1[..., 1] = 0
+    out1[..., 2] = 0
+    return out0, out1
+
+
+def phi_gyro_g_sensitivity_yz(u, temp_c=0.0, t_s=0.0, f=numpy.zeros(3)):
+    """gyro.g_sensitivity.yz: phi = f_z and dphi/du."""
+    w_x = u[..., 0]
+    w_y = u[..., 1]
+    w_z = u[..., 2]
+    f_x = f[..., 0]
+    f_y = f[..., 1]
+    f_z = f[..., 2]
+    shape = numpy.broadcast_shapes(numpy.shape(w_x), numpy.shape(w_y), numpy.shape(w_z), numpy.shape(temp_c), numpy.shape(t_s), numpy.shape(f_x), numpy.shape(f_y), numpy.shape(f_z), )
+    out0 = numpy.empty(shape + (1,))
+    out0[..., 0] = f_z
+    out1 = numpy.empty(shape + (3,))
+    out1[..., 0] = 0
+    out1[..., 1] = 0
+    out1[..., 2] = 0
+    return out0, out1
+
+
+def phi_gyro_g_sensitivity_zx(u, temp_c=0.0, t_s=0.0, f=numpy.zeros(3)):
+    """gyro.g_sensitivity.zx: phi = f_x and dphi/du."""
+    w_x = u[..., 0]
+    w_y = u[..., 1]
+    w_z = u[..., 2]
+    f_x = f[..., 0]
+    f_y = f[..., 1]
+    f_z = f[..., 2]
+    shape = numpy.broadcast_shapes(numpy.shape(w_x), numpy.shape(w_y), numpy.shape(w_z), numpy.shape(temp_c), numpy.shape(t_s), numpy.shape(f_x), numpy.shape(f_y), numpy.shape(f_z), )
+    out0 = numpy.empty(shape + (1,))
+    out0[..., 0] = f_x
+    out1 = numpy.empty(shape + (3,))
+    out1[..., 0] = 0
+    out1[..., 1] = 0
+    out1[..., 2] = 0
+    return out0, out1
+
+
+def phi_gyro_g_sensitivity_zy(u, temp_c=0.0, t_s=0.0, f=numpy.zeros(3)):
+    """gyro.g_sensitivity.zy: phi = f_y and dphi/du."""
+    w_x = u[..., 0]
+    w_y = u[..., 1]
+    w_z = u[..., 2]
+    f_x = f[..., 0]
+    f_y = f[..., 1]
+    f_z = f[..., 2]
+    shape = numpy.broadcast_shapes(numpy.shape(w_x), numpy.shape(w_y), numpy.shape(w_z), numpy.shape(temp_c), numpy.shape(t_s), numpy.shape(f_x), numpy.shape(f_y), numpy.shape(f_z), )
+    out0 = numpy.empty(shape + (1,))
+    out0[..., 0] = f_y
+    out1 = numpy.empty(shape + (3,))
+    out1[..., 0] = 0
+    out1[..., 1] = 0
+    out1[..., 2] = 0
+    return out0, out1
+
+
+def phi_gyro_g_sensitivity_zz(u, temp_c=0.0, t_s=0.0, f=numpy.zeros(3)):
+    """gyro.g_sensitivity.zz: phi = f_z and dphi/du."""
+    w_x = u[..., 0]
+    w_y = u[..., 1]
+    w_z = u[..., 2]
+    f_x = f[..., 0]
+    f_y = f[..., 1]
+    f_z = f[..., 2]
+    shape = numpy.broadcast_shapes(numpy.shape(w_x), numpy.shape(w_y), numpy.shape(w_z), numpy.shape(temp_c), numpy.shape(t_s), numpy.shape(f_x), numpy.shape(f_y), numpy.shape(f_z), )
+    out0 = numpy.empty(shape + (1,))
+    out0[..., 0] = f_z
+    out1 = numpy.empty(shape + (3,))
+    out1[..., 0] = 0
+    out1[..., 1] = 0
+    out1[..., 2] = 0
+    return out0, out1
+
+
+def phi_gyro_quadratic_x(u, temp_c=0.0, t_s=0.0, f=numpy.zeros(3)):
     """gyro.quadratic.x: phi = 7.71604938271605e-8*w_x**2 and dphi/du."""
     w_x = u[..., 0]
     w_y = u[..., 1]
     w_z = u[..., 2]
-    shape = numpy.broadcast_shapes(numpy.shape(w_x), numpy.shape(w_y), numpy.shape(w_z), numpy.shape(temp_c), numpy.shape(t_s), )
+    f_x = f[..., 0]
+    f_y = f[..., 1]
+    f_z = f[..., 2]
+    shape = numpy.broadcast_shapes(numpy.shape(w_x), numpy.shape(w_y), numpy.shape(w_z), numpy.shape(temp_c), numpy.shape(t_s), numpy.shape(f_x), numpy.shape(f_y), numpy.shape(f_z), )
     out0 = numpy.empty(shape + (1,))
     out0[..., 0] = 7.71604938271605e-8*w_x**2
     out1 = numpy.empty(shape + (3,))
@@ -336,12 +519,15 @@ def phi_gyro_quadratic_x(u, temp_c=0.0, t_s=0.0):
     return out0, out1
 
 
-def phi_gyro_quadratic_y(u, temp_c=0.0, t_s=0.0):
+def phi_gyro_quadratic_y(u, temp_c=0.0, t_s=0.0, f=numpy.zeros(3)):
     """gyro.quadratic.y: phi = 7.71604938271605e-8*w_y**2 and dphi/du."""
     w_x = u[..., 0]
     w_y = u[..., 1]
     w_z = u[..., 2]
-    shape = numpy.broadcast_shapes(numpy.shape(w_x), numpy.shape(w_y), numpy.shape(w_z), numpy.shape(temp_c), numpy.shape(t_s), )
+    f_x = f[..., 0]
+    f_y = f[..., 1]
+    f_z = f[..., 2]
+    shape = numpy.broadcast_shapes(numpy.shape(w_x), numpy.shape(w_y), numpy.shape(w_z), numpy.shape(temp_c), numpy.shape(t_s), numpy.shape(f_x), numpy.shape(f_y), numpy.shape(f_z), )
     out0 = numpy.empty(shape + (1,))
     out0[..., 0] = 7.71604938271605e-8*w_y**2
     out1 = numpy.empty(shape + (3,))
@@ -351,12 +537,15 @@ def phi_gyro_quadratic_y(u, temp_c=0.0, t_s=0.0):
     return out0, out1
 
 
-def phi_gyro_quadratic_z(u, temp_c=0.0, t_s=0.0):
+def phi_gyro_quadratic_z(u, temp_c=0.0, t_s=0.0, f=numpy.zeros(3)):
     """gyro.quadratic.z: phi = 7.71604938271605e-8*w_z**2 and dphi/du."""
     w_x = u[..., 0]
     w_y = u[..., 1]
     w_z = u[..., 2]
-    shape = numpy.broadcast_shapes(numpy.shape(w_x), numpy.shape(w_y), numpy.shape(w_z), numpy.shape(temp_c), numpy.shape(t_s), )
+    f_x = f[..., 0]
+    f_y = f[..., 1]
+    f_z = f[..., 2]
+    shape = numpy.broadcast_shapes(numpy.shape(w_x), numpy.shape(w_y), numpy.shape(w_z), numpy.shape(temp_c), numpy.shape(t_s), numpy.shape(f_x), numpy.shape(f_y), numpy.shape(f_z), )
     out0 = numpy.empty(shape + (1,))
     out0[..., 0] = 7.71604938271605e-8*w_z**2
     out1 = numpy.empty(shape + (3,))
@@ -366,12 +555,15 @@ def phi_gyro_quadratic_z(u, temp_c=0.0, t_s=0.0):
     return out0, out1
 
 
-def phi_gyro_scale_asymmetry_x(u, temp_c=0.0, t_s=0.0):
+def phi_gyro_scale_asymmetry_x(u, temp_c=0.0, t_s=0.0, f=numpy.zeros(3)):
     """gyro.scale_asymmetry.x: phi = Abs(w_x) and dphi/du."""
     w_x = u[..., 0]
     w_y = u[..., 1]
     w_z = u[..., 2]
-    shape = numpy.broadcast_shapes(numpy.shape(w_x), numpy.shape(w_y), numpy.shape(w_z), numpy.shape(temp_c), numpy.shape(t_s), )
+    f_x = f[..., 0]
+    f_y = f[..., 1]
+    f_z = f[..., 2]
+    shape = numpy.broadcast_shapes(numpy.shape(w_x), numpy.shape(w_y), numpy.shape(w_z), numpy.shape(temp_c), numpy.shape(t_s), numpy.shape(f_x), numpy.shape(f_y), numpy.shape(f_z), )
     out0 = numpy.empty(shape + (1,))
     out0[..., 0] = abs(w_x)
     out1 = numpy.empty(shape + (3,))
@@ -381,12 +573,15 @@ def phi_gyro_scale_asymmetry_x(u, temp_c=0.0, t_s=0.0):
     return out0, out1
 
 
-def phi_gyro_scale_asymmetry_y(u, temp_c=0.0, t_s=0.0):
+def phi_gyro_scale_asymmetry_y(u, temp_c=0.0, t_s=0.0, f=numpy.zeros(3)):
     """gyro.scale_asymmetry.y: phi = Abs(w_y) and dphi/du."""
     w_x = u[..., 0]
     w_y = u[..., 1]
     w_z = u[..., 2]
-    shape = numpy.broadcast_shapes(numpy.shape(w_x), numpy.shape(w_y), numpy.shape(w_z), numpy.shape(temp_c), numpy.shape(t_s), )
+    f_x = f[..., 0]
+    f_y = f[..., 1]
+    f_z = f[..., 2]
+    shape = numpy.broadcast_shapes(numpy.shape(w_x), numpy.shape(w_y), numpy.shape(w_z), numpy.shape(temp_c), numpy.shape(t_s), numpy.shape(f_x), numpy.shape(f_y), numpy.shape(f_z), )
     out0 = numpy.empty(shape + (1,))
     out0[..., 0] = abs(w_y)
     out1 = numpy.empty(shape + (3,))
@@ -396,12 +591,15 @@ def phi_gyro_scale_asymmetry_y(u, temp_c=0.0, t_s=0.0):
     return out0, out1
 
 
-def phi_gyro_scale_asymmetry_z(u, temp_c=0.0, t_s=0.0):
+def phi_gyro_scale_asymmetry_z(u, temp_c=0.0, t_s=0.0, f=numpy.zeros(3)):
     """gyro.scale_asymmetry.z: phi = Abs(w_z) and dphi/du."""
     w_x = u[..., 0]
     w_y = u[..., 1]
     w_z = u[..., 2]
-    shape = numpy.broadcast_shapes(numpy.shape(w_x), numpy.shape(w_y), numpy.shape(w_z), numpy.shape(temp_c), numpy.shape(t_s), )
+    f_x = f[..., 0]
+    f_y = f[..., 1]
+    f_z = f[..., 2]
+    shape = numpy.broadcast_shapes(numpy.shape(w_x), numpy.shape(w_y), numpy.shape(w_z), numpy.shape(temp_c), numpy.shape(t_s), numpy.shape(f_x), numpy.shape(f_y), numpy.shape(f_z), )
     out0 = numpy.empty(shape + (1,))
     out0[..., 0] = abs(w_z)
     out1 = numpy.empty(shape + (3,))
@@ -434,6 +632,15 @@ EFFECTS = {
     'gyro.bias_temperature.x': ('gyro', 0, 'bT_x', '(deg/h)/degC', 'x gyro bias changing with temperature', phi_gyro_bias_temperature_x),
     'gyro.bias_temperature.y': ('gyro', 1, 'bT_y', '(deg/h)/degC', 'y gyro bias changing with temperature', phi_gyro_bias_temperature_y),
     'gyro.bias_temperature.z': ('gyro', 2, 'bT_z', '(deg/h)/degC', 'z gyro bias changing with temperature', phi_gyro_bias_temperature_z),
+    'gyro.g_sensitivity.xx': ('gyro', 0, 'G_xx', '(deg/h)/g', 'x gyro output proportional to the specific force along x (g-sensitivity)', phi_gyro_g_sensitivity_xx),
+    'gyro.g_sensitivity.xy': ('gyro', 0, 'G_xy', '(deg/h)/g', 'x gyro output proportional to the specific force along y (g-sensitivity)', phi_gyro_g_sensitivity_xy),
+    'gyro.g_sensitivity.xz': ('gyro', 0, 'G_xz', '(deg/h)/g', 'x gyro output proportional to the specific force along z (g-sensitivity)', phi_gyro_g_sensitivity_xz),
+    'gyro.g_sensitivity.yx': ('gyro', 1, 'G_yx', '(deg/h)/g', 'y gyro output proportional to the specific force along x (g-sensitivity)', phi_gyro_g_sensitivity_yx),
+    'gyro.g_sensitivity.yy': ('gyro', 1, 'G_yy', '(deg/h)/g', 'y gyro output proportional to the specific force along y (g-sensitivity)', phi_gyro_g_sensitivity_yy),
+    'gyro.g_sensitivity.yz': ('gyro', 1, 'G_yz', '(deg/h)/g', 'y gyro output proportional to the specific force along z (g-sensitivity)', phi_gyro_g_sensitivity_yz),
+    'gyro.g_sensitivity.zx': ('gyro', 2, 'G_zx', '(deg/h)/g', 'z gyro output proportional to the specific force along x (g-sensitivity)', phi_gyro_g_sensitivity_zx),
+    'gyro.g_sensitivity.zy': ('gyro', 2, 'G_zy', '(deg/h)/g', 'z gyro output proportional to the specific force along y (g-sensitivity)', phi_gyro_g_sensitivity_zy),
+    'gyro.g_sensitivity.zz': ('gyro', 2, 'G_zz', '(deg/h)/g', 'z gyro output proportional to the specific force along z (g-sensitivity)', phi_gyro_g_sensitivity_zz),
     'gyro.quadratic.x': ('gyro', 0, 'K2g_x', '(deg/h)/(deg/s)^2', 'x gyro scale factor depending on rate (second-order nonlinearity)', phi_gyro_quadratic_x),
     'gyro.quadratic.y': ('gyro', 1, 'K2g_y', '(deg/h)/(deg/s)^2', 'y gyro scale factor depending on rate (second-order nonlinearity)', phi_gyro_quadratic_y),
     'gyro.quadratic.z': ('gyro', 2, 'K2g_z', '(deg/h)/(deg/s)^2', 'z gyro scale factor depending on rate (second-order nonlinearity)', phi_gyro_quadratic_z),

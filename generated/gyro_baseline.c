@@ -51,7 +51,7 @@ CASADI_SYMBOL_EXPORT int gyro_baseline_casadi_real_size(void) { return (int) siz
 
 static const casadi_int casadi_s0[3] = {3, 1, 1};
 static const casadi_int casadi_s1[3] = {9, 1, 1};
-static const casadi_int casadi_s2[3] = {2, 1, 1};
+static const casadi_int casadi_s2[3] = {5, 1, 1};
 static const casadi_int casadi_s3[12] = 
   {3, 3, 0, 3, 5, 6, 0, 1,
   2, 1, 2, 2};
@@ -60,7 +60,7 @@ static const casadi_int casadi_s4[21] =
   6, 7, 8, 9, 0, 1, 2, 1,
   2, 2, 0, 1, 2};
 
-/* simucal_gyro_baseline:(u[3],p[9],aux[2])->(N[3],N_u[3x3,6nz],N_p[3x9,9nz]) */
+/* simucal_gyro_baseline:(u[3],p[9],aux[5])->(N[3],N_u[3x3,6nz],N_p[3x9,9nz]) */
 static int casadi_f0(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem) {
   casadi_real a00, a01, a02, a03, a04, a05, a06, a07, a08, a09, a10;
   a00=arg[1]? arg[1][6] : 0;

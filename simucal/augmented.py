@@ -38,24 +38,26 @@ class AugmentedModel:
         self.param_units = tuple(self.base.param_units) + tuple(EFFECTS[e][3] for e in self.effects)
         self._m = len(self.base.params)
 
-    def _terms(self, u, temp_c, t_s):
+    def _terms(self, u, temp_c, t_s, f=None):
+        aux = (temp_c, t_s) + ((np.zeros(3) if f is None else f,) if self.sensor == "gyro" else ())
         for e in self.effects:
-            _, axis, _, _, _, f = EFFECTS[e]
-            phi, dphi = f(u, temp_c, t_s)
+            phi_fn = EFFECTS[e][5]
+            axis = EFFECTS[e][1]
+            phi, dphi = phi_fn(u, *aux)
             yield axis, np.broadcast_to(phi[..., 0], np.shape(u)[:-1]), dphi
 
-    def output(self, u, p, temp_c=0.0, t_s=0.0):
+    def output(self, u, p, temp_c=0.0, t_s=0.0, f=None):
         p = np.asarray(p, float)
-        N = self.base.output(u, p[..., :self._m], temp_c, t_s)
-        for q, (axis, phi, _) in zip(p[..., self._m:].T, self._terms(u, temp_c, t_s)):
+        N = self.base.output(u, p[..., :self._m], temp_c, t_s, f)
+        for q, (axis, phi, _) in zip(p[..., self._m:].T, self._terms(u, temp_c, t_s, f)):
             N[..., axis] += q * phi
         return N
 
-    def jacobians(self, u, p, temp_c=0.0, t_s=0.0):
+    def jacobians(self, u, p, temp_c=0.0, t_s=0.0, f=None):
         p = np.asarray(p, float)
-        N, Ju, Jp = self.base.jacobians(u, p[:self._m], temp_c, t_s)
+        N, Ju, Jp = self.base.jacobians(u, p[:self._m], temp_c, t_s, f)
         cols = []
-        for q, (axis, phi, dphi) in zip(p[self._m:], self._terms(u, temp_c, t_s)):
+        for q, (axis, phi, dphi) in zip(p[self._m:], self._terms(u, temp_c, t_s, f)):
             N[:, axis] += q * phi
             Ju[:, axis, :] += q * dphi
             col = np.zeros((len(u), 3))
@@ -65,13 +67,13 @@ class AugmentedModel:
             Jp = np.concatenate([Jp, np.stack(cols, axis=2)], axis=2)
         return N, Ju, Jp
 
-    def matrix_and_bias(self, p, temp_c=0.0, t_s=0.0):
-        return self.base.matrix_and_bias(np.asarray(p, float)[..., :self._m], temp_c, t_s)
+    def matrix_and_bias(self, p, temp_c=0.0, t_s=0.0, f=None):
+        return self.base.matrix_and_bias(np.asarray(p, float)[..., :self._m], temp_c, t_s, f)
 
-    def norm_regressors(self, N, temp_c=0.0, t_s=0.0):
+    def norm_regressors(self, N, temp_c=0.0, t_s=0.0, f=None):
         if self.effects:
             raise NotImplementedError("the linear norm regression exists for derived models only")
-        return self.base.norm_regressors(N, temp_c, t_s)
+        return self.base.norm_regressors(N, temp_c, t_s, f)
 
     def params_of_K(self, K, first_order=False):
         return self.base.params_of_K(K, first_order)

@@ -93,10 +93,23 @@ def segment_observations(ms: io.MeasurementSet, sensor: str):
         keep.append(s)
     sigma = None if any(s is None for s in sig) or not sig else np.array(sig)
     obs = Observations(np.array(N).reshape(-1, 3), np.array(rho), sigma, np.array(temp), np.array(t),
-                       [s.segment for s in keep])
+                       [s.segment for s in keep], specific_force(ms, keep) if sensor == "gyro" else None)
     if keep:
         units.check_magnitude(sensor, np.linalg.norm(obs.N, axis=1), obs.rho, ms.path / "samples.csv", ms.meta)
     return obs, keep
+
+
+def specific_force(ms, segs):
+    """The specific force (g) each segment's gyro saw, for g-sensitivity terms: the
+    accelerometer mean where there is one, else the commanded vertical, else none."""
+    if not segs:
+        return None
+    if ms.has_acc:
+        acc = ms.acc_g()
+        return np.array([acc[ms.samples["segment"] == s.segment].mean(0) for s in segs])
+    if all(s.middle_deg is not None and s.inner_deg is not None for s in segs):
+        return _commanded_up_k(segs)[0]
+    return None
 
 
 def _find(segs, **want):

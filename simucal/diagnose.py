@@ -35,6 +35,8 @@ SEPARATE = {  # what a plan needs for each family to be told apart from the base
     "cross_coupling": "static positions where both axes carry input at once (e.g. --plan fibonacci48)",
     "bias_drift_time": "positions revisited at the start and the end of the test",
     "bias_temperature": "a temperature sweep across the positions (a temp_c column)",
+    "g_sensitivity": "rate runs of both signs at each attitude: the specific force keeps its direction while the "
+                     "rate flips, which separates G f from the scale and misalignment",
 }
 
 
@@ -61,7 +63,7 @@ def _weighted_jacobian(model, obs, fit):
     n, m = len(obs.N), len(model.params)
     sig = np.broadcast_to(obs.sigma if obs.sigma is not None else 1.0, (n, 3))
     u = fit.directions
-    _, Ju, Jp = model.jacobians(obs.rho[:, None] * u, fit.vector(model.params), obs.temp_c, obs.t_s)
+    _, Ju, Jp = model.jacobians(obs.rho[:, None] * u, fit.vector(model.params), obs.temp_c, obs.t_s, obs.f)
     from .norm_fit import _tangent_basis
     Jd = np.einsum("nij,njk->nik", Ju, obs.rho[:, None, None] * _tangent_basis(u)) / sig[:, :, None]
     J = np.zeros((3 * n, m + 2 * n))
@@ -79,7 +81,8 @@ def rank_candidates(model: AugmentedModel, obs: Observations, fit: Fit, base_fai
     cols, out = {}, []
     for eid in ids:
         _, axis, pname, unit, meaning, f = EFFECTS[eid]
-        phi = np.broadcast_to(f(u, obs.temp_c, obs.t_s)[0][..., 0], (len(u),))
+        aux = (obs.temp_c, obs.t_s) + ((np.zeros(3) if obs.f is None else obs.f,) if model.sensor == "gyro" else ())
+        phi = np.broadcast_to(f(u, *aux)[0][..., 0], (len(u),))
         col = np.zeros((len(u), 3))
         col[:, axis] = phi
         col = (col / sig).ravel()
@@ -88,8 +91,10 @@ def rank_candidates(model: AugmentedModel, obs: Observations, fit: Fit, base_fai
         entry = {"effect": ".".join(eid.split(".")[:2]), "axis": ax, "id": eid, "parameter": pname,
                  "unit": unit, "meaning": meaning}
         norm_col = np.linalg.norm(col)
-        if norm_col == 0 or np.linalg.norm(perp) < 1e-6 * norm_col:
-            why = "no input for it in these data" if norm_col == 0 else "collinear with the baseline model"
+        if norm_col == 0 or np.linalg.norm(perp) < 1e-3 * norm_col:
+            why = ("no input for it in these data" if norm_col == 0 else
+                   f"collinear with the baseline model ({100 * np.linalg.norm(perp) / norm_col:.2g} % of its "
+                   "signature is separable)")
             entry.update(separable=False, note=f"{why}; to see it: {SEPARATE[family]}")
             out.append(entry)
             continue

@@ -84,18 +84,25 @@ class GeneratedModel:
     def backend(self) -> str:
         return "casadi-c" if self._c is not None else "numpy"
 
-    def output(self, u, p, temp_c=0.0, t_s=0.0):
-        return self.module.output(u, p, temp_c, t_s)
+    def _aux(self, temp_c, t_s, f):
+        """The generated functions' auxiliary arguments: gyros also take the specific force f (g)."""
+        return (temp_c, t_s) + ((np.zeros(3) if f is None else f,) if self.sensor == "gyro" else ())
 
-    def jacobians(self, u, p, temp_c=0.0, t_s=0.0):
+    def output(self, u, p, temp_c=0.0, t_s=0.0, f=None):
+        return self.module.output(u, p, *self._aux(temp_c, t_s, f))
+
+    def jacobians(self, u, p, temp_c=0.0, t_s=0.0, f=None):
         """N, dN/du (n,3,3), dN/dp (n,3,m) for rows u (n,3) and one p (m,)."""
+        aux = self._aux(temp_c, t_s, f)
         if self._c is None:
-            N = self.module.output(u, p, temp_c, t_s)
-            Ju, Jp = self.module.output_jacobians(u, p, temp_c, t_s)
+            N = self.module.output(u, p, *aux)
+            Ju, Jp = self.module.output_jacobians(u, p, *aux)
             return N, Ju, Jp
         n, m = len(u), len(self.params)
-        aux = np.vstack([np.broadcast_to(temp_c, (n,)), np.broadcast_to(t_s, (n,))])
-        N, Ju, Jp = self._mapped(n)(np.asarray(u, float).T, np.asarray(p, float), aux)
+        rows = [np.broadcast_to(temp_c, (n,)), np.broadcast_to(t_s, (n,))]
+        if self.sensor == "gyro":
+            rows += list(np.broadcast_to(aux[2], (n, 3)).T)
+        N, Ju, Jp = self._mapped(n)(np.asarray(u, float).T, np.asarray(p, float), np.vstack(rows))
         N = np.asarray(N).T
         Ju = np.asarray(Ju).reshape(3, n, 3).transpose(1, 0, 2)
         Jp = np.asarray(Jp).reshape(3, n, m).transpose(1, 0, 2)
@@ -105,15 +112,15 @@ class GeneratedModel:
     def _mapped(self, n):
         return self._c.map(n, "serial")
 
-    def norm_regressors(self, N, temp_c=0.0, t_s=0.0):
-        return self.module.norm_regressors(N, temp_c, t_s)
+    def norm_regressors(self, N, temp_c=0.0, t_s=0.0, f=None):
+        return self.module.norm_regressors(N, *self._aux(temp_c, t_s, f))
 
     def params_of_K(self, K, first_order=False):
         f = self.module.params_of_K_first_order if first_order else self.module.params_of_K
         return f(K)
 
-    def matrix_and_bias(self, p, temp_c=0.0, t_s=0.0):
-        return self.module.matrix_and_bias(p, temp_c, t_s)
+    def matrix_and_bias(self, p, temp_c=0.0, t_s=0.0, f=None):
+        return self.module.matrix_and_bias(p, *self._aux(temp_c, t_s, f))
 
 
 @functools.lru_cache(maxsize=None)

@@ -103,8 +103,9 @@ def simulate(sc: Scenario, seed: int = 0):
         C = table.C_k_n(*np.radians(ang), err)
         f_b = C_b_k.T @ C.T @ np.array([0, 0, 1.0])
         w_d = C_d_k.T @ C.T @ w_ie_n
+        f_d = C_d_k.T @ C.T @ np.array([0, 0, 1.0])
         segments.append(io.Segment(len(segments) + 1, "static", *ang, 0.0))
-        rows.append((f_b[None], w_d[None], sc.static_s))
+        rows.append((f_b[None], w_d[None], f_d[None], sc.static_s))
     tilt_n = table.C_k_n(0.0, 0.0, 0.0, np.r_[sc.tilt_rad, np.zeros(5)])[:, 2]
     for (g0, a, b, rate), err in zip(rates, table_errors(len(rates))):
         period = 360.0 / abs(rate)
@@ -114,8 +115,9 @@ def simulate(sc: Scenario, seed: int = 0):
         w_n = w_ie_n + rate * 3600.0 * tilt_n
         f_b = np.einsum("ji,nkj,k->ni", C_b_k, C, np.array([0, 0, 1.0]))
         w_d = np.einsum("ji,nkj,k->ni", C_d_k, C, w_n)
+        f_d = np.einsum("ji,nkj,k->ni", C_d_k, C, np.array([0, 0, 1.0]))
         segments.append(io.Segment(len(segments) + 1, "rate", None, a, b, rate))
-        rows.append((f_b, w_d, period))
+        rows.append((f_b, w_d, f_d, period))
 
     meta = {"latitude_deg": sc.latitude_deg, "gravity_mps2": units.DEFAULT_GRAVITY,
             "earth_rate_dph": w_e, "acc_unit": sc.acc_unit, "gyro_unit": sc.gyro_unit,
@@ -128,15 +130,16 @@ def simulate(sc: Scenario, seed: int = 0):
 
     seg_ids, times, temps, acc_out, gyro_out = [], [], [], [], []
     temp_of = (np.linspace(*sc.temp_c, len(segments)) if sc.temp_c else np.zeros(len(segments)))
-    for seg, (f_b, w_d, dur), temp in zip(segments, rows, temp_of):
+    for seg, (f_b, w_d, f_d, dur), temp in zip(segments, rows, temp_of):
         if sc.rate_hz is None:
-            f, w, t = f_b.mean(0, keepdims=True), w_d.mean(0, keepdims=True), np.array([t0 + dur / 2])
+            f, w, fd, t = (f_b.mean(0, keepdims=True), w_d.mean(0, keepdims=True), f_d.mean(0, keepdims=True),
+                           np.array([t0 + dur / 2]))
         else:
             n = int(round(dur * sc.rate_hz))
             idx = np.arange(n) * len(f_b) // n
-            f, w, t = f_b[idx], w_d[idx], t0 + np.arange(n) / sc.rate_hz
+            f, w, fd, t = f_b[idx], w_d[idx], f_d[idx], t0 + np.arange(n) / sc.rate_hz
         acc_out.append(acc.output(f, p_acc, temp, t) + rng.normal(0, sc.acc_noise_g, f.shape))
-        gyro_out.append(gyro.output(w, p_gyro, temp, t) + rng.normal(0, sc.gyro_noise_dph, w.shape))
+        gyro_out.append(gyro.output(w, p_gyro, temp, t, fd) + rng.normal(0, sc.gyro_noise_dph, w.shape))
         seg_ids.append(np.full(len(t), seg.segment))
         temps.append(np.full(len(t), temp))
         times.append(t)

@@ -34,17 +34,22 @@ def test_every_generated_function_equals_sympy(model):
     for _ in range(5):
         u = rng.normal(size=3)
         p = rng.normal(size=m) * 1e-2
-        aux = rng.normal(size=2) * 10
-        subs = {**dict(zip(model.inputs, u)), **dict(zip(model.params, p)), **dict(zip(AUX, aux))}
+        aux = list(rng.normal(size=2) * 10)
+        aux_syms = list(AUX)
+        if model.sensor == "gyro":  # gyros also take the specific force
+            aux.append(rng.normal(size=3))
+            aux_syms += list(model.aux[2:])
+        flat = [a for x in aux for a in np.atleast_1d(x)]
+        subs = {**dict(zip(model.inputs, u)), **dict(zip(model.params, p)), **dict(zip(aux_syms, flat))}
         ev = lambda e: np.array(sp.Matrix(e).evalf(30, subs=subs), dtype=float).reshape(sp.Matrix(e).shape)
         close(gen_np.output(u, p, *aux), ev(out)[:, 0])
         N, Ju, Jp = gen_np.jacobians(u[None], p, *aux)
         close(Ju[0], ev(out.jacobian(model.inputs)))
         close(Jp[0], ev(out.jacobian(model.params)))
-        Nc, Juc, Jpc = gen_c.jacobians(u[None], p, np.array([aux[0]]), np.array([aux[1]]))
+        Nc, Juc, Jpc = gen_c.jacobians(u[None], p, np.array([aux[0]]), np.array([aux[1]]), *aux[2:])
         close(Nc[0], N[0]); close(Juc[0], Ju[0]); close(Jpc[0], Jp[0])
         Nv = rng.normal(size=3)
-        subsN = {**dict(zip(N_out, Nv)), **dict(zip(AUX, aux))}
+        subsN = {**dict(zip(N_out, Nv)), **dict(zip(aux_syms, flat))}
         close(gen_np.norm_regressors(Nv, *aux), [float(c.evalf(30, subs=subsN)) for c in reg.psi])
         K = gen_np.module.K_of_params(p)
         close(K, [float(k.evalf(30, subs=subs)) for k in reg.K_of_p])

@@ -3,7 +3,8 @@
 A model is a list of named terms. Each term adds ``parameter * regressor`` to
 one output axis, the regressor being any SymPy expression in the model's
 inputs (f_x, f_y, f_z in g for accelerometers; w_x, w_y, w_z in deg/h for
-gyros) and the auxiliary inputs temp_c and t_s. The output is
+gyros) and the auxiliary inputs temp_c and t_s (and, for gyros, the specific
+force f_x, f_y, f_z in g, for g-sensitivity). The output is
 
     N = u + sum_j p_j * regressor_j(u, temp_c, t_s) * e_axis(j)
 
@@ -60,7 +61,7 @@ class ErrorModel:
         dup = {n for n in names if names.count(n) > 1}
         if dup:
             raise ValueError(f"model {self.name}: duplicate term names {sorted(dup)}")
-        allowed = set(self.inputs) | set(AUX) | {t.symbol for t in self.terms}
+        allowed = set(self.inputs) | set(self.aux) | {t.symbol for t in self.terms}
         for t in self.terms:
             stray = t.regressor.free_symbols - allowed
             if stray:
@@ -71,6 +72,11 @@ class ErrorModel:
     @property
     def inputs(self) -> tuple[sp.Symbol, ...]:
         return tuple(INPUTS[self.sensor])
+
+    @property
+    def aux(self) -> tuple[sp.Symbol, ...]:
+        """Auxiliary inputs: temperature, time, and for gyros the specific force."""
+        return AUX + (tuple(f_b) if self.sensor == "gyro" else ())
 
     @property
     def params(self) -> tuple[sp.Symbol, ...]:

@@ -50,6 +50,11 @@ def gyro_scale_asymmetry(axis):
                 f"{axis} gyro scale factor differs for positive and negative rates")
 
 
+def gyro_g_sensitivity(axis, other):
+    return Term(f"G_{axis}{other}", axis, _f(other), "(deg/h)/g",
+                f"{axis} gyro output proportional to the specific force along {other} (g-sensitivity)")
+
+
 def gyro_bias_temperature(axis):
     return Term(f"bT_{axis}", axis, temp_c, "(deg/h)/degC", f"{axis} gyro bias changing with temperature")
 
@@ -71,6 +76,8 @@ def _catalog():
         out[f"gyro.scale_asymmetry.{a}"] = gyro_scale_asymmetry(a)
         out[f"gyro.bias_temperature.{a}"] = gyro_bias_temperature(a)
         out[f"gyro.bias_drift_time.{a}"] = gyro_bias_drift_time(a)
+        for o in AXES:
+            out[f"gyro.g_sensitivity.{a}{o}"] = gyro_g_sensitivity(a, o)
     return dict(sorted(out.items()))
 
 
