@@ -48,6 +48,8 @@ f_b = sp.Matrix(sp.symbols("f_x f_y f_z", real=True))
 omega_d = sp.Matrix(sp.symbols("w_x w_y w_z", real=True))
 temp_c, t_s = sp.symbols("temp_c t_s", real=True)
 AUX = (temp_c, t_s)
+# Accelerometers under outer-axis rate w_T: the centripetal scale w2 = w_T^2 / g (1/m; 0 at rest).
+w2 = sp.Symbol("w2", real=True)
 
 # Outputs in physical units (pulse outputs divided by nominal scale factors):
 # the paper's N_i^a = K_i^a Ntilde_i^a (g) and N_i^g (deg/h).

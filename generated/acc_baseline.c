@@ -23,7 +23,6 @@
 #define casadi_s1 CASADI_PREFIX(s1)
 #define casadi_s2 CASADI_PREFIX(s2)
 #define casadi_s3 CASADI_PREFIX(s3)
-#define casadi_s4 CASADI_PREFIX(s4)
 
 /* Symbol visibility in DLLs */
 #ifndef CASADI_SYMBOL_EXPORT
@@ -51,16 +50,15 @@ CASADI_SYMBOL_EXPORT int acc_baseline_casadi_real_size(void) { return (int) size
 
 static const casadi_int casadi_s0[3] = {3, 1, 1};
 static const casadi_int casadi_s1[3] = {9, 1, 1};
-static const casadi_int casadi_s2[3] = {2, 1, 1};
-static const casadi_int casadi_s3[12] = 
+static const casadi_int casadi_s2[12] = 
   {3, 3, 0, 3, 5, 6, 0, 1,
   2, 1, 2, 2};
-static const casadi_int casadi_s4[21] = 
+static const casadi_int casadi_s3[21] = 
   {3, 9, 0, 1, 2, 3, 4, 5,
   6, 7, 8, 9, 0, 1, 2, 1,
   2, 2, 0, 1, 2};
 
-/* simucal_acc_baseline:(u[3],p[9],aux[2])->(N[3],N_u[3x3,6nz],N_p[3x9,9nz]) */
+/* simucal_acc_baseline:(u[3],p[9],aux[3])->(N[3],N_u[3x3,6nz],N_p[3x9,9nz]) */
 static int casadi_f0(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem) {
   casadi_real a00, a01, a02, a03, a04, a05, a06, a07, a08, a09, a10;
   a00=arg[1]? arg[1][6] : 0;
@@ -164,7 +162,7 @@ CASADI_SYMBOL_EXPORT const casadi_int* simucal_acc_baseline_sparsity_in(casadi_i
   switch (i) {
     case 0: return casadi_s0;
     case 1: return casadi_s1;
-    case 2: return casadi_s2;
+    case 2: return casadi_s0;
     default: return 0;
   }
 }
@@ -172,8 +170,8 @@ CASADI_SYMBOL_EXPORT const casadi_int* simucal_acc_baseline_sparsity_in(casadi_i
 CASADI_SYMBOL_EXPORT const casadi_int* simucal_acc_baseline_sparsity_out(casadi_int i) {
   switch (i) {
     case 0: return casadi_s0;
-    case 1: return casadi_s3;
-    case 2: return casadi_s4;
+    case 1: return casadi_s2;
+    case 2: return casadi_s3;
     default: return 0;
   }
 }

@@ -23,7 +23,6 @@
 #define casadi_s1 CASADI_PREFIX(s1)
 #define casadi_s2 CASADI_PREFIX(s2)
 #define casadi_s3 CASADI_PREFIX(s3)
-#define casadi_s4 CASADI_PREFIX(s4)
 #define casadi_sq CASADI_PREFIX(sq)
 
 /* Symbol visibility in DLLs */
@@ -54,17 +53,16 @@ CASADI_SYMBOL_EXPORT int acc_extended_casadi_real_size(void) { return (int) size
 
 static const casadi_int casadi_s0[3] = {3, 1, 1};
 static const casadi_int casadi_s1[3] = {12, 1, 1};
-static const casadi_int casadi_s2[3] = {2, 1, 1};
-static const casadi_int casadi_s3[13] = 
+static const casadi_int casadi_s2[13] = 
   {3, 3, 0, 3, 6, 7, 0, 1,
   2, 0, 1, 2, 2};
-static const casadi_int casadi_s4[27] = 
+static const casadi_int casadi_s3[27] = 
   {3, 12, 0, 1, 2, 3, 4, 5,
   6, 7, 8, 9, 10, 11, 12, 0,
   1, 2, 1, 2, 2, 0, 1, 2,
   2, 0, 1};
 
-/* simucal_acc_extended:(u[3],p[12],aux[2])->(N[3],N_u[3x3,7nz],N_p[3x12,12nz]) */
+/* simucal_acc_extended:(u[3],p[12],aux[3])->(N[3],N_u[3x3,7nz],N_p[3x12,12nz]) */
 static int casadi_f0(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem) {
   casadi_real a00, a01, a02, a03, a04, a05, a06, a07, a08, a09, a10, a11;
   casadi_real a12, a13, a14, a15;
@@ -191,7 +189,7 @@ CASADI_SYMBOL_EXPORT const casadi_int* simucal_acc_extended_sparsity_in(casadi_i
   switch (i) {
     case 0: return casadi_s0;
     case 1: return casadi_s1;
-    case 2: return casadi_s2;
+    case 2: return casadi_s0;
     default: return 0;
   }
 }
@@ -199,8 +197,8 @@ CASADI_SYMBOL_EXPORT const casadi_int* simucal_acc_extended_sparsity_in(casadi_i
 CASADI_SYMBOL_EXPORT const casadi_int* simucal_acc_extended_sparsity_out(casadi_int i) {
   switch (i) {
     case 0: return casadi_s0;
-    case 1: return casadi_s3;
-    case 2: return casadi_s4;
+    case 1: return casadi_s2;
+    case 2: return casadi_s3;
     default: return 0;
   }
 }

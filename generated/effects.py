@@ -6,12 +6,12 @@
 import numpy
 
 
-def phi_acc_bias_drift_time_x(u, temp_c=0.0, t_s=0.0):
+def phi_acc_bias_drift_time_x(u, temp_c=0.0, t_s=0.0, w2=0.0):
     """acc.bias_drift_time.x: phi = t_s and dphi/du."""
     f_x = u[..., 0]
     f_y = u[..., 1]
     f_z = u[..., 2]
-    shape = numpy.broadcast_shapes(numpy.shape(f_x), numpy.shape(f_y), numpy.shape(f_z), numpy.shape(temp_c), numpy.shape(t_s), )
+    shape = numpy.broadcast_shapes(numpy.shape(f_x), numpy.shape(f_y), numpy.shape(f_z), numpy.shape(temp_c), numpy.shape(t_s), numpy.shape(w2), )
     out0 = numpy.empty(shape + (1,))
     out0[..., 0] = t_s
     out1 = numpy.empty(shape + (3,))
@@ -21,12 +21,12 @@ def phi_acc_bias_drift_time_x(u, temp_c=0.0, t_s=0.0):
     return out0, out1
 
 
-def phi_acc_bias_drift_time_y(u, temp_c=0.0, t_s=0.0):
+def phi_acc_bias_drift_time_y(u, temp_c=0.0, t_s=0.0, w2=0.0):
     """acc.bias_drift_time.y: phi = t_s and dphi/du."""
     f_x = u[..., 0]
     f_y = u[..., 1]
     f_z = u[..., 2]
-    shape = numpy.broadcast_shapes(numpy.shape(f_x), numpy.shape(f_y), numpy.shape(f_z), numpy.shape(temp_c), numpy.shape(t_s), )
+    shape = numpy.broadcast_shapes(numpy.shape(f_x), numpy.shape(f_y), numpy.shape(f_z), numpy.shape(temp_c), numpy.shape(t_s), numpy.shape(w2), )
     out0 = numpy.empty(shape + (1,))
     out0[..., 0] = t_s
     out1 = numpy.empty(shape + (3,))
@@ -36,12 +36,12 @@ def phi_acc_bias_drift_time_y(u, temp_c=0.0, t_s=0.0):
     return out0, out1
 
 
-def phi_acc_bias_drift_time_z(u, temp_c=0.0, t_s=0.0):
+def phi_acc_bias_drift_time_z(u, temp_c=0.0, t_s=0.0, w2=0.0):
     """acc.bias_drift_time.z: phi = t_s and dphi/du."""
     f_x = u[..., 0]
     f_y = u[..., 1]
     f_z = u[..., 2]
-    shape = numpy.broadcast_shapes(numpy.shape(f_x), numpy.shape(f_y), numpy.shape(f_z), numpy.shape(temp_c), numpy.shape(t_s), )
+    shape = numpy.broadcast_shapes(numpy.shape(f_x), numpy.shape(f_y), numpy.shape(f_z), numpy.shape(temp_c), numpy.shape(t_s), numpy.shape(w2), )
     out0 = numpy.empty(shape + (1,))
     out0[..., 0] = t_s
     out1 = numpy.empty(shape + (3,))
@@ -51,12 +51,12 @@ def phi_acc_bias_drift_time_z(u, temp_c=0.0, t_s=0.0):
     return out0, out1
 
 
-def phi_acc_cross_coupling_xy(u, temp_c=0.0, t_s=0.0):
+def phi_acc_cross_coupling_xy(u, temp_c=0.0, t_s=0.0, w2=0.0):
     """acc.cross_coupling.xy: phi = f_x*f_y and dphi/du."""
     f_x = u[..., 0]
     f_y = u[..., 1]
     f_z = u[..., 2]
-    shape = numpy.broadcast_shapes(numpy.shape(f_x), numpy.shape(f_y), numpy.shape(f_z), numpy.shape(temp_c), numpy.shape(t_s), )
+    shape = numpy.broadcast_shapes(numpy.shape(f_x), numpy.shape(f_y), numpy.shape(f_z), numpy.shape(temp_c), numpy.shape(t_s), numpy.shape(w2), )
     out0 = numpy.empty(shape + (1,))
     out0[..., 0] = f_x*f_y
     out1 = numpy.empty(shape + (3,))
@@ -66,12 +66,12 @@ def phi_acc_cross_coupling_xy(u, temp_c=0.0, t_s=0.0):
     return out0, out1
 
 
-def phi_acc_cross_coupling_xz(u, temp_c=0.0, t_s=0.0):
+def phi_acc_cross_coupling_xz(u, temp_c=0.0, t_s=0.0, w2=0.0):
     """acc.cross_coupling.xz: phi = f_x*f_z and dphi/du."""
     f_x = u[..., 0]
     f_y = u[..., 1]
     f_z = u[..., 2]
-    shape = numpy.broadcast_shapes(numpy.shape(f_x), numpy.shape(f_y), numpy.shape(f_z), numpy.shape(temp_c), numpy.shape(t_s), )
+    shape = numpy.broadcast_shapes(numpy.shape(f_x), numpy.shape(f_y), numpy.shape(f_z), numpy.shape(temp_c), numpy.shape(t_s), numpy.shape(w2), )
     out0 = numpy.empty(shape + (1,))
     out0[..., 0] = f_x*f_z
     out1 = numpy.empty(shape + (3,))
@@ -81,12 +81,12 @@ def phi_acc_cross_coupling_xz(u, temp_c=0.0, t_s=0.0):
     return out0, out1
 
 
-def phi_acc_cross_coupling_yx(u, temp_c=0.0, t_s=0.0):
+def phi_acc_cross_coupling_yx(u, temp_c=0.0, t_s=0.0, w2=0.0):
     """acc.cross_coupling.yx: phi = f_x*f_y and dphi/du."""
     f_x = u[..., 0]
     f_y = u[..., 1]
     f_z = u[..., 2]
-    shape = numpy.broadcast_shapes(numpy.shape(f_x), numpy.shape(f_y), numpy.shape(f_z), numpy.shape(temp_c), numpy.shape(t_s), )
+    shape = numpy.broadcast_shapes(numpy.shape(f_x), numpy.shape(f_y), numpy.shape(f_z), numpy.shape(temp_c), numpy.shape(t_s), numpy.shape(w2), )
     out0 = numpy.empty(shape + (1,))
     out0[..., 0] = f_x*f_y
     out1 = numpy.empty(shape + (3,))
@@ -96,12 +96,12 @@ def phi_acc_cross_coupling_yx(u, temp_c=0.0, t_s=0.0):
     return out0, out1
 
 
-def phi_acc_cross_coupling_yz(u, temp_c=0.0, t_s=0.0):
+def phi_acc_cross_coupling_yz(u, temp_c=0.0, t_s=0.0, w2=0.0):
     """acc.cross_coupling.yz: phi = f_y*f_z and dphi/du."""
     f_x = u[..., 0]
     f_y = u[..., 1]
     f_z = u[..., 2]
-    shape = numpy.broadcast_shapes(numpy.shape(f_x), numpy.shape(f_y), numpy.shape(f_z), numpy.shape(temp_c), numpy.shape(t_s), )
+    shape = numpy.broadcast_shapes(numpy.shape(f_x), numpy.shape(f_y), numpy.shape(f_z), numpy.shape(temp_c), numpy.shape(t_s), numpy.shape(w2), )
     out0 = numpy.empty(shape + (1,))
     out0[..., 0] = f_y*f_z
     out1 = numpy.empty(shape + (3,))
@@ -111,12 +111,12 @@ def phi_acc_cross_coupling_yz(u, temp_c=0.0, t_s=0.0):
     return out0, out1
 
 
-def phi_acc_cross_coupling_zx(u, temp_c=0.0, t_s=0.0):
+def phi_acc_cross_coupling_zx(u, temp_c=0.0, t_s=0.0, w2=0.0):
     """acc.cross_coupling.zx: phi = f_x*f_z and dphi/du."""
     f_x = u[..., 0]
     f_y = u[..., 1]
     f_z = u[..., 2]
-    shape = numpy.broadcast_shapes(numpy.shape(f_x), numpy.shape(f_y), numpy.shape(f_z), numpy.shape(temp_c), numpy.shape(t_s), )
+    shape = numpy.broadcast_shapes(numpy.shape(f_x), numpy.shape(f_y), numpy.shape(f_z), numpy.shape(temp_c), numpy.shape(t_s), numpy.shape(w2), )
     out0 = numpy.empty(shape + (1,))
     out0[..., 0] = f_x*f_z
     out1 = numpy.empty(shape + (3,))
@@ -126,12 +126,12 @@ def phi_acc_cross_coupling_zx(u, temp_c=0.0, t_s=0.0):
     return out0, out1
 
 
-def phi_acc_cross_coupling_zy(u, temp_c=0.0, t_s=0.0):
+def phi_acc_cross_coupling_zy(u, temp_c=0.0, t_s=0.0, w2=0.0):
     """acc.cross_coupling.zy: phi = f_y*f_z and dphi/du."""
     f_x = u[..., 0]
     f_y = u[..., 1]
     f_z = u[..., 2]
-    shape = numpy.broadcast_shapes(numpy.shape(f_x), numpy.shape(f_y), numpy.shape(f_z), numpy.shape(temp_c), numpy.shape(t_s), )
+    shape = numpy.broadcast_shapes(numpy.shape(f_x), numpy.shape(f_y), numpy.shape(f_z), numpy.shape(temp_c), numpy.shape(t_s), numpy.shape(w2), )
     out0 = numpy.empty(shape + (1,))
     out0[..., 0] = f_y*f_z
     out1 = numpy.empty(shape + (3,))
@@ -141,12 +141,12 @@ def phi_acc_cross_coupling_zy(u, temp_c=0.0, t_s=0.0):
     return out0, out1
 
 
-def phi_acc_quadratic_x(u, temp_c=0.0, t_s=0.0):
+def phi_acc_quadratic_x(u, temp_c=0.0, t_s=0.0, w2=0.0):
     """acc.quadratic.x: phi = f_x**2 and dphi/du."""
     f_x = u[..., 0]
     f_y = u[..., 1]
     f_z = u[..., 2]
-    shape = numpy.broadcast_shapes(numpy.shape(f_x), numpy.shape(f_y), numpy.shape(f_z), numpy.shape(temp_c), numpy.shape(t_s), )
+    shape = numpy.broadcast_shapes(numpy.shape(f_x), numpy.shape(f_y), numpy.shape(f_z), numpy.shape(temp_c), numpy.shape(t_s), numpy.shape(w2), )
     out0 = numpy.empty(shape + (1,))
     out0[..., 0] = f_x**2
     out1 = numpy.empty(shape + (3,))
@@ -156,12 +156,12 @@ def phi_acc_quadratic_x(u, temp_c=0.0, t_s=0.0):
     return out0, out1
 
 
-def phi_acc_quadratic_y(u, temp_c=0.0, t_s=0.0):
+def phi_acc_quadratic_y(u, temp_c=0.0, t_s=0.0, w2=0.0):
     """acc.quadratic.y: phi = f_y**2 and dphi/du."""
     f_x = u[..., 0]
     f_y = u[..., 1]
     f_z = u[..., 2]
-    shape = numpy.broadcast_shapes(numpy.shape(f_x), numpy.shape(f_y), numpy.shape(f_z), numpy.shape(temp_c), numpy.shape(t_s), )
+    shape = numpy.broadcast_shapes(numpy.shape(f_x), numpy.shape(f_y), numpy.shape(f_z), numpy.shape(temp_c), numpy.shape(t_s), numpy.shape(w2), )
     out0 = numpy.empty(shape + (1,))
     out0[..., 0] = f_y**2
     out1 = numpy.empty(shape + (3,))
@@ -171,12 +171,12 @@ def phi_acc_quadratic_y(u, temp_c=0.0, t_s=0.0):
     return out0, out1
 
 
-def phi_acc_quadratic_z(u, temp_c=0.0, t_s=0.0):
+def phi_acc_quadratic_z(u, temp_c=0.0, t_s=0.0, w2=0.0):
     """acc.quadratic.z: phi = f_z**2 and dphi/du."""
     f_x = u[..., 0]
     f_y = u[..., 1]
     f_z = u[..., 2]
-    shape = numpy.broadcast_shapes(numpy.shape(f_x), numpy.shape(f_y), numpy.shape(f_z), numpy.shape(temp_c), numpy.shape(t_s), )
+    shape = numpy.broadcast_shapes(numpy.shape(f_x), numpy.shape(f_y), numpy.shape(f_z), numpy.shape(temp_c), numpy.shape(t_s), numpy.shape(w2), )
     out0 = numpy.empty(shape + (1,))
     out0[..., 0] = f_z**2
     out1 = numpy.empty(shape + (3,))
@@ -186,12 +186,12 @@ def phi_acc_quadratic_z(u, temp_c=0.0, t_s=0.0):
     return out0, out1
 
 
-def phi_acc_scale_asymmetry_x(u, temp_c=0.0, t_s=0.0):
+def phi_acc_scale_asymmetry_x(u, temp_c=0.0, t_s=0.0, w2=0.0):
     """acc.scale_asymmetry.x: phi = Abs(f_x) and dphi/du."""
     f_x = u[..., 0]
     f_y = u[..., 1]
     f_z = u[..., 2]
-    shape = numpy.broadcast_shapes(numpy.shape(f_x), numpy.shape(f_y), numpy.shape(f_z), numpy.shape(temp_c), numpy.shape(t_s), )
+    shape = numpy.broadcast_shapes(numpy.shape(f_x), numpy.shape(f_y), numpy.shape(f_z), numpy.shape(temp_c), numpy.shape(t_s), numpy.shape(w2), )
     out0 = numpy.empty(shape + (1,))
     out0[..., 0] = abs(f_x)
     out1 = numpy.empty(shape + (3,))
@@ -201,12 +201,12 @@ def phi_acc_scale_asymmetry_x(u, temp_c=0.0, t_s=0.0):
     return out0, out1
 
 
-def phi_acc_scale_asymmetry_y(u, temp_c=0.0, t_s=0.0):
+def phi_acc_scale_asymmetry_y(u, temp_c=0.0, t_s=0.0, w2=0.0):
     """acc.scale_asymmetry.y: phi = Abs(f_y) and dphi/du."""
     f_x = u[..., 0]
     f_y = u[..., 1]
     f_z = u[..., 2]
-    shape = numpy.broadcast_shapes(numpy.shape(f_x), numpy.shape(f_y), numpy.shape(f_z), numpy.shape(temp_c), numpy.shape(t_s), )
+    shape = numpy.broadcast_shapes(numpy.shape(f_x), numpy.shape(f_y), numpy.shape(f_z), numpy.shape(temp_c), numpy.shape(t_s), numpy.shape(w2), )
     out0 = numpy.empty(shape + (1,))
     out0[..., 0] = abs(f_y)
     out1 = numpy.empty(shape + (3,))
@@ -216,18 +216,159 @@ def phi_acc_scale_asymmetry_y(u, temp_c=0.0, t_s=0.0):
     return out0, out1
 
 
-def phi_acc_scale_asymmetry_z(u, temp_c=0.0, t_s=0.0):
+def phi_acc_scale_asymmetry_z(u, temp_c=0.0, t_s=0.0, w2=0.0):
     """acc.scale_asymmetry.z: phi = Abs(f_z) and dphi/du."""
     f_x = u[..., 0]
     f_y = u[..., 1]
     f_z = u[..., 2]
-    shape = numpy.broadcast_shapes(numpy.shape(f_x), numpy.shape(f_y), numpy.shape(f_z), numpy.shape(temp_c), numpy.shape(t_s), )
+    shape = numpy.broadcast_shapes(numpy.shape(f_x), numpy.shape(f_y), numpy.shape(f_z), numpy.shape(temp_c), numpy.shape(t_s), numpy.shape(w2), )
     out0 = numpy.empty(shape + (1,))
     out0[..., 0] = abs(f_z)
     out1 = numpy.empty(shape + (3,))
     out1[..., 0] = 0
     out1[..., 1] = 0
     out1[..., 2] = numpy.sign(f_z)
+    return out0, out1
+
+
+def phi_acc_size_effect_xx(u, temp_c=0.0, t_s=0.0, w2=0.0):
+    """acc.size_effect.xx: phi = w2*(f_x**2 - 1) and dphi/du."""
+    f_x = u[..., 0]
+    f_y = u[..., 1]
+    f_z = u[..., 2]
+    shape = numpy.broadcast_shapes(numpy.shape(f_x), numpy.shape(f_y), numpy.shape(f_z), numpy.shape(temp_c), numpy.shape(t_s), numpy.shape(w2), )
+    out0 = numpy.empty(shape + (1,))
+    out0[..., 0] = w2*(f_x**2 - 1)
+    out1 = numpy.empty(shape + (3,))
+    out1[..., 0] = 2*f_x*w2
+    out1[..., 1] = 0
+    out1[..., 2] = 0
+    return out0, out1
+
+
+def phi_acc_size_effect_xy(u, temp_c=0.0, t_s=0.0, w2=0.0):
+    """acc.size_effect.xy: phi = f_x*f_y*w2 and dphi/du."""
+    f_x = u[..., 0]
+    f_y = u[..., 1]
+    f_z = u[..., 2]
+    _c0 = f_y*w2
+    shape = numpy.broadcast_shapes(numpy.shape(f_x), numpy.shape(f_y), numpy.shape(f_z), numpy.shape(temp_c), numpy.shape(t_s), numpy.shape(w2), )
+    out0 = numpy.empty(shape + (1,))
+    out0[..., 0] = _c0*f_x
+    out1 = numpy.empty(shape + (3,))
+    out1[..., 0] = _c0
+    out1[..., 1] = f_x*w2
+    out1[..., 2] = 0
+    return out0, out1
+
+
+def phi_acc_size_effect_xz(u, temp_c=0.0, t_s=0.0, w2=0.0):
+    """acc.size_effect.xz: phi = f_x*f_z*w2 and dphi/du."""
+    f_x = u[..., 0]
+    f_y = u[..., 1]
+    f_z = u[..., 2]
+    _c0 = f_z*w2
+    shape = numpy.broadcast_shapes(numpy.shape(f_x), numpy.shape(f_y), numpy.shape(f_z), numpy.shape(temp_c), numpy.shape(t_s), numpy.shape(w2), )
+    out0 = numpy.empty(shape + (1,))
+    out0[..., 0] = _c0*f_x
+    out1 = numpy.empty(shape + (3,))
+    out1[..., 0] = _c0
+    out1[..., 1] = 0
+    out1[..., 2] = f_x*w2
+    return out0, out1
+
+
+def phi_acc_size_effect_yx(u, temp_c=0.0, t_s=0.0, w2=0.0):
+    """acc.size_effect.yx: phi = f_x*f_y*w2 and dphi/du."""
+    f_x = u[..., 0]
+    f_y = u[..., 1]
+    f_z = u[..., 2]
+    _c0 = f_y*w2
+    shape = numpy.broadcast_shapes(numpy.shape(f_x), numpy.shape(f_y), numpy.shape(f_z), numpy.shape(temp_c), numpy.shape(t_s), numpy.shape(w2), )
+    out0 = numpy.empty(shape + (1,))
+    out0[..., 0] = _c0*f_x
+    out1 = numpy.empty(shape + (3,))
+    out1[..., 0] = _c0
+    out1[..., 1] = f_x*w2
+    out1[..., 2] = 0
+    return out0, out1
+
+
+def phi_acc_size_effect_yy(u, temp_c=0.0, t_s=0.0, w2=0.0):
+    """acc.size_effect.yy: phi = w2*(f_y**2 - 1) and dphi/du."""
+    f_x = u[..., 0]
+    f_y = u[..., 1]
+    f_z = u[..., 2]
+    shape = numpy.broadcast_shapes(numpy.shape(f_x), numpy.shape(f_y), numpy.shape(f_z), numpy.shape(temp_c), numpy.shape(t_s), numpy.shape(w2), )
+    out0 = numpy.empty(shape + (1,))
+    out0[..., 0] = w2*(f_y**2 - 1)
+    out1 = numpy.empty(shape + (3,))
+    out1[..., 0] = 0
+    out1[..., 1] = 2*f_y*w2
+    out1[..., 2] = 0
+    return out0, out1
+
+
+def phi_acc_size_effect_yz(u, temp_c=0.0, t_s=0.0, w2=0.0):
+    """acc.size_effect.yz: phi = f_y*f_z*w2 and dphi/du."""
+    f_x = u[..., 0]
+    f_y = u[..., 1]
+    f_z = u[..., 2]
+    _c0 = f_z*w2
+    shape = numpy.broadcast_shapes(numpy.shape(f_x), numpy.shape(f_y), numpy.shape(f_z), numpy.shape(temp_c), numpy.shape(t_s), numpy.shape(w2), )
+    out0 = numpy.empty(shape + (1,))
+    out0[..., 0] = _c0*f_y
+    out1 = numpy.empty(shape + (3,))
+    out1[..., 0] = 0
+    out1[..., 1] = _c0
+    out1[..., 2] = f_y*w2
+    return out0, out1
+
+
+def phi_acc_size_effect_zx(u, temp_c=0.0, t_s=0.0, w2=0.0):
+    """acc.size_effect.zx: phi = f_x*f_z*w2 and dphi/du."""
+    f_x = u[..., 0]
+    f_y = u[..., 1]
+    f_z = u[..., 2]
+    _c0 = f_z*w2
+    shape = numpy.broadcast_shapes(numpy.shape(f_x), numpy.shape(f_y), numpy.shape(f_z), numpy.shape(temp_c), numpy.shape(t_s), numpy.shape(w2), )
+    out0 = numpy.empty(shape + (1,))
+    out0[..., 0] = _c0*f_x
+    out1 = numpy.empty(shape + (3,))
+    out1[..., 0] = _c0
+    out1[..., 1] = 0
+    out1[..., 2] = f_x*w2
+    return out0, out1
+
+
+def phi_acc_size_effect_zy(u, temp_c=0.0, t_s=0.0, w2=0.0):
+    """acc.size_effect.zy: phi = f_y*f_z*w2 and dphi/du."""
+    f_x = u[..., 0]
+    f_y = u[..., 1]
+    f_z = u[..., 2]
+    _c0 = f_z*w2
+    shape = numpy.broadcast_shapes(numpy.shape(f_x), numpy.shape(f_y), numpy.shape(f_z), numpy.shape(temp_c), numpy.shape(t_s), numpy.shape(w2), )
+    out0 = numpy.empty(shape + (1,))
+    out0[..., 0] = _c0*f_y
+    out1 = numpy.empty(shape + (3,))
+    out1[..., 0] = 0
+    out1[..., 1] = _c0
+    out1[..., 2] = f_y*w2
+    return out0, out1
+
+
+def phi_acc_size_effect_zz(u, temp_c=0.0, t_s=0.0, w2=0.0):
+    """acc.size_effect.zz: phi = w2*(f_z**2 - 1) and dphi/du."""
+    f_x = u[..., 0]
+    f_y = u[..., 1]
+    f_z = u[..., 2]
+    shape = numpy.broadcast_shapes(numpy.shape(f_x), numpy.shape(f_y), numpy.shape(f_z), numpy.shape(temp_c), numpy.shape(t_s), numpy.shape(w2), )
+    out0 = numpy.empty(shape + (1,))
+    out0[..., 0] = w2*(f_z**2 - 1)
+    out1 = numpy.empty(shape + (3,))
+    out1[..., 0] = 0
+    out1[..., 1] = 0
+    out1[..., 2] = 2*f_z*w2
     return out0, out1
 
 
@@ -626,6 +767,15 @@ EFFECTS = {
     'acc.scale_asymmetry.x': ('acc', 0, 'Ka_x', '1', 'x accelerometer scale factor differs for positive and negative inputs', phi_acc_scale_asymmetry_x),
     'acc.scale_asymmetry.y': ('acc', 1, 'Ka_y', '1', 'y accelerometer scale factor differs for positive and negative inputs', phi_acc_scale_asymmetry_y),
     'acc.scale_asymmetry.z': ('acc', 2, 'Ka_z', '1', 'z accelerometer scale factor differs for positive and negative inputs', phi_acc_scale_asymmetry_z),
+    'acc.size_effect.xx': ('acc', 0, 'r_xx', 'm', 'x accelerometer x lever arm (size effect under rotation)', phi_acc_size_effect_xx),
+    'acc.size_effect.xy': ('acc', 0, 'r_xy', 'm', 'x accelerometer y lever arm (size effect under rotation)', phi_acc_size_effect_xy),
+    'acc.size_effect.xz': ('acc', 0, 'r_xz', 'm', 'x accelerometer z lever arm (size effect under rotation)', phi_acc_size_effect_xz),
+    'acc.size_effect.yx': ('acc', 1, 'r_yx', 'm', 'y accelerometer x lever arm (size effect under rotation)', phi_acc_size_effect_yx),
+    'acc.size_effect.yy': ('acc', 1, 'r_yy', 'm', 'y accelerometer y lever arm (size effect under rotation)', phi_acc_size_effect_yy),
+    'acc.size_effect.yz': ('acc', 1, 'r_yz', 'm', 'y accelerometer z lever arm (size effect under rotation)', phi_acc_size_effect_yz),
+    'acc.size_effect.zx': ('acc', 2, 'r_zx', 'm', 'z accelerometer x lever arm (size effect under rotation)', phi_acc_size_effect_zx),
+    'acc.size_effect.zy': ('acc', 2, 'r_zy', 'm', 'z accelerometer y lever arm (size effect under rotation)', phi_acc_size_effect_zy),
+    'acc.size_effect.zz': ('acc', 2, 'r_zz', 'm', 'z accelerometer z lever arm (size effect under rotation)', phi_acc_size_effect_zz),
     'gyro.bias_drift_time.x': ('gyro', 0, 'btg_x', '(deg/h)/s', 'x gyro bias drifting linearly in time', phi_gyro_bias_drift_time_x),
     'gyro.bias_drift_time.y': ('gyro', 1, 'btg_y', '(deg/h)/s', 'y gyro bias drifting linearly in time', phi_gyro_bias_drift_time_y),
     'gyro.bias_drift_time.z': ('gyro', 2, 'btg_z', '(deg/h)/s', 'z gyro bias drifting linearly in time', phi_gyro_bias_drift_time_z),

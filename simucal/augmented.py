@@ -10,7 +10,7 @@ from __future__ import annotations
 import numpy as np
 
 from .generated.effects import EFFECTS
-from .models import GeneratedModel, load
+from .models import GeneratedModel, aux_args, load
 
 
 def effect_ids(sensor: str) -> list[str]:
@@ -38,26 +38,26 @@ class AugmentedModel:
         self.param_units = tuple(self.base.param_units) + tuple(EFFECTS[e][3] for e in self.effects)
         self._m = len(self.base.params)
 
-    def _terms(self, u, temp_c, t_s, f=None):
-        aux = (temp_c, t_s) + ((np.zeros(3) if f is None else f,) if self.sensor == "gyro" else ())
+    def _terms(self, u, temp_c, t_s, extra=None):
+        aux = aux_args(self.sensor, temp_c, t_s, extra)
         for e in self.effects:
             phi_fn = EFFECTS[e][5]
             axis = EFFECTS[e][1]
             phi, dphi = phi_fn(u, *aux)
             yield axis, np.broadcast_to(phi[..., 0], np.shape(u)[:-1]), dphi
 
-    def output(self, u, p, temp_c=0.0, t_s=0.0, f=None):
+    def output(self, u, p, temp_c=0.0, t_s=0.0, extra=None):
         p = np.asarray(p, float)
-        N = self.base.output(u, p[..., :self._m], temp_c, t_s, f)
-        for q, (axis, phi, _) in zip(p[..., self._m:].T, self._terms(u, temp_c, t_s, f)):
+        N = self.base.output(u, p[..., :self._m], temp_c, t_s, extra)
+        for q, (axis, phi, _) in zip(p[..., self._m:].T, self._terms(u, temp_c, t_s, extra)):
             N[..., axis] += q * phi
         return N
 
-    def jacobians(self, u, p, temp_c=0.0, t_s=0.0, f=None):
+    def jacobians(self, u, p, temp_c=0.0, t_s=0.0, extra=None):
         p = np.asarray(p, float)
-        N, Ju, Jp = self.base.jacobians(u, p[:self._m], temp_c, t_s, f)
+        N, Ju, Jp = self.base.jacobians(u, p[:self._m], temp_c, t_s, extra)
         cols = []
-        for q, (axis, phi, dphi) in zip(p[self._m:], self._terms(u, temp_c, t_s, f)):
+        for q, (axis, phi, dphi) in zip(p[self._m:], self._terms(u, temp_c, t_s, extra)):
             N[:, axis] += q * phi
             Ju[:, axis, :] += q * dphi
             col = np.zeros((len(u), 3))
@@ -67,13 +67,13 @@ class AugmentedModel:
             Jp = np.concatenate([Jp, np.stack(cols, axis=2)], axis=2)
         return N, Ju, Jp
 
-    def matrix_and_bias(self, p, temp_c=0.0, t_s=0.0, f=None):
-        return self.base.matrix_and_bias(np.asarray(p, float)[..., :self._m], temp_c, t_s, f)
+    def matrix_and_bias(self, p, temp_c=0.0, t_s=0.0, extra=None):
+        return self.base.matrix_and_bias(np.asarray(p, float)[..., :self._m], temp_c, t_s, extra)
 
-    def norm_regressors(self, N, temp_c=0.0, t_s=0.0, f=None):
+    def norm_regressors(self, N, temp_c=0.0, t_s=0.0, extra=None):
         if self.effects:
             raise NotImplementedError("the linear norm regression exists for derived models only")
-        return self.base.norm_regressors(N, temp_c, t_s, f)
+        return self.base.norm_regressors(N, temp_c, t_s, extra)
 
     def params_of_K(self, K, first_order=False):
         return self.base.params_of_K(K, first_order)

@@ -60,13 +60,15 @@ def _mean_and_sigma(x, stated, varying=False):
     return x.mean(0), np.full(3, stated / np.sqrt(n))
 
 
-def segment_observations(ms: io.MeasurementSet, sensor: str):
-    """(Observations, segments) for 'acc' (static) or 'gyro' (rate segments)."""
+def segment_observations(ms: io.MeasurementSet, sensor: str, acc_in_rate_runs=False):
+    """(Observations, segments) for 'acc' (static segments; with acc_in_rate_runs the
+    rate runs too, whose centripetal scale w2 lets lever arms show) or 'gyro' (rate
+    segments)."""
     if ms.segments is None:
         raise CalibrationError(f"{ms.path}: no segments.csv: this is a continuous stream (use calibrate, "
                                "which detects its static poses)")
-    kind = "static" if sensor == "acc" else "rate"
-    segs = [s for s in ms.segments if s.kind == kind]
+    kinds = ({"static", "rate"} if acc_in_rate_runs else {"static"}) if sensor == "acc" else {"rate"}
+    segs = [s for s in ms.segments if s.kind in kinds]
     data = ms.acc_g() if sensor == "acc" else ms.gyro_dph()
     stated = ms.meta.get("acc_noise_g" if sensor == "acc" else "gyro_noise_dph")
     lat = np.radians(ms.meta.get("latitude_deg", 0.0))
@@ -84,19 +86,25 @@ def segment_observations(ms: io.MeasurementSet, sensor: str):
             ms.extra.setdefault("saturated_segments", []).append(
                 {"sensor": sensor, "segment": s.segment, "samples": int(saturated[rows].sum())})
             continue
-        m, sd = _mean_and_sigma(data[rows], stated, varying=(kind == "rate"))
+        m, sd = _mean_and_sigma(data[rows], stated, varying=(sensor == "gyro"))  # the Earth rate turns in a rate run
         N.append(m)
         sig.append(sd)
-        rho.append(1.0 if sensor == "acc" else abs(s.outer_rate_dps * 3600.0 + w_e * np.sin(lat)))
+        rho.append(1.0 if sensor == "acc" else abs(s.outer_rate_dps * 3600.0 + w_e * np.sin(lat)))  # |input|
         t.append(ms.samples["t_s"][rows].mean())
         temp.append(ms.samples["temp_c"][rows].mean() if "temp_c" in ms.samples else 0.0)
         keep.append(s)
     sigma = None if any(s is None for s in sig) or not sig else np.array(sig)
     obs = Observations(np.array(N).reshape(-1, 3), np.array(rho), sigma, np.array(temp), np.array(t),
-                       [s.segment for s in keep], specific_force(ms, keep) if sensor == "gyro" else None)
+                       [s.segment for s in keep],
+                       specific_force(ms, keep) if sensor == "gyro" else centripetal_scale(ms, keep))
     if keep:
         units.check_magnitude(sensor, np.linalg.norm(obs.N, axis=1), obs.rho, ms.path / "samples.csv", ms.meta)
     return obs, keep
+
+
+def centripetal_scale(ms, segs):
+    """w2 = w_T^2 / g (1/m) of each segment: 0 at rest, the outer-axis rate's under rotation."""
+    return np.array([np.radians(s.outer_rate_dps) ** 2 / units.gravity(ms.meta) for s in segs])
 
 
 def specific_force(ms, segs):

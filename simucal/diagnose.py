@@ -25,6 +25,7 @@ from . import io
 from .augmented import AugmentedModel, effect_ids
 from .calibrate import segment_observations
 from .generated.effects import EFFECTS
+from .models import aux_args
 from .norm_fit import CalibrationError, Fit, Observations, fit_exact
 
 ALPHA = 0.01
@@ -35,6 +36,7 @@ SEPARATE = {  # what a plan needs for each family to be told apart from the base
     "cross_coupling": "static positions where both axes carry input at once (e.g. --plan fibonacci48)",
     "bias_drift_time": "positions revisited at the start and the end of the test",
     "bias_temperature": "a temperature sweep across the positions (a temp_c column)",
+    "size_effect": "rate runs with the accelerometers recorded during them, at several attitudes and rates",
     "g_sensitivity": "rate runs of both signs at each attitude: the specific force keeps its direction while the "
                      "rate flips, which separates G f from the scale and misalignment",
 }
@@ -63,7 +65,7 @@ def _weighted_jacobian(model, obs, fit):
     n, m = len(obs.N), len(model.params)
     sig = np.broadcast_to(obs.sigma if obs.sigma is not None else 1.0, (n, 3))
     u = fit.directions
-    _, Ju, Jp = model.jacobians(obs.rho[:, None] * u, fit.vector(model.params), obs.temp_c, obs.t_s, obs.f)
+    _, Ju, Jp = model.jacobians(obs.rho[:, None] * u, fit.vector(model.params), obs.temp_c, obs.t_s, obs.extra)
     from .norm_fit import _tangent_basis
     Jd = np.einsum("nij,njk->nik", Ju, obs.rho[:, None, None] * _tangent_basis(u)) / sig[:, :, None]
     J = np.zeros((3 * n, m + 2 * n))
@@ -81,7 +83,7 @@ def rank_candidates(model: AugmentedModel, obs: Observations, fit: Fit, base_fai
     cols, out = {}, []
     for eid in ids:
         _, axis, pname, unit, meaning, f = EFFECTS[eid]
-        aux = (obs.temp_c, obs.t_s) + ((np.zeros(3) if obs.f is None else obs.f,) if model.sensor == "gyro" else ())
+        aux = aux_args(model.sensor, obs.temp_c, obs.t_s, obs.extra)
         phi = np.broadcast_to(f(u, *aux)[0][..., 0], (len(u),))
         col = np.zeros((len(u), 3))
         col[:, axis] = phi
@@ -171,8 +173,8 @@ def diagnose_sensor(ms, sensor, base_model, add=(), stated=None, truth=None):
         from .handheld import pose_observations
         obs, det, poses = pose_observations(ms)
         segs = [io.Segment(i, "static", None, None, None, 0.0) for i in range(len(poses))]
-    else:
-        obs, segs = segment_observations(ms, sensor)
+    else:  # accelerometers: the rate runs too, where lever arms show
+        obs, segs = segment_observations(ms, sensor, acc_in_rate_runs=True)
     if not segs:
         return None
     if obs.sigma is None and stated is not None:

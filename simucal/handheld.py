@@ -182,7 +182,7 @@ def with_model_error(model, obs: Observations, fit, alpha=0.01):
         mid = (lo + hi) / 2
         lo, hi = (mid, hi) if np.sum(r2 / (s2 + mid)) > fit.dof else (lo, mid)
     tau2 = (lo + hi) / 2
-    obs2 = Observations(obs.N, obs.rho, np.sqrt(s2 + tau2), obs.temp_c, obs.t_s, obs.labels, obs.f)
+    obs2 = Observations(obs.N, obs.rho, np.sqrt(s2 + tau2), obs.temp_c, obs.t_s, obs.labels, obs.extra)
     refit = fit_exact(model, obs2, p0=fit.vector(model.params))
     refit.chi2, refit.p_value = fit.chi2, fit.p_value  # the test is the one without the extra variance
     return refit, float(np.sqrt(tau2))

@@ -58,6 +58,13 @@ def compile_c(name: str, source: str) -> Path | None:
     return lib
 
 
+def aux_args(sensor, temp_c, t_s, extra):
+    """(temp_c, t_s, extra) with the sensor's default extra input (zero force or rate)."""
+    if extra is None:
+        extra = np.zeros(3) if sensor == "gyro" else 0.0
+    return temp_c, t_s, extra
+
+
 class GeneratedModel:
     """An error model from generated/: N(u, p), its Jacobians, the norm regression."""
 
@@ -84,16 +91,17 @@ class GeneratedModel:
     def backend(self) -> str:
         return "casadi-c" if self._c is not None else "numpy"
 
-    def _aux(self, temp_c, t_s, f):
-        """The generated functions' auxiliary arguments: gyros also take the specific force f (g)."""
-        return (temp_c, t_s) + ((np.zeros(3) if f is None else f,) if self.sensor == "gyro" else ())
+    def _aux(self, temp_c, t_s, extra):
+        """The generated functions' auxiliary arguments. `extra` is the sensor's own: for
+        gyros the specific force f (n, 3) in g, for accelerometers w2 = w_T^2 / g (1/m)."""
+        return aux_args(self.sensor, temp_c, t_s, extra)
 
-    def output(self, u, p, temp_c=0.0, t_s=0.0, f=None):
-        return self.module.output(u, p, *self._aux(temp_c, t_s, f))
+    def output(self, u, p, temp_c=0.0, t_s=0.0, extra=None):
+        return self.module.output(u, p, *self._aux(temp_c, t_s, extra))
 
-    def jacobians(self, u, p, temp_c=0.0, t_s=0.0, f=None):
+    def jacobians(self, u, p, temp_c=0.0, t_s=0.0, extra=None):
         """N, dN/du (n,3,3), dN/dp (n,3,m) for rows u (n,3) and one p (m,)."""
-        aux = self._aux(temp_c, t_s, f)
+        aux = self._aux(temp_c, t_s, extra)
         if self._c is None:
             N = self.module.output(u, p, *aux)
             Ju, Jp = self.module.output_jacobians(u, p, *aux)
@@ -102,6 +110,8 @@ class GeneratedModel:
         rows = [np.broadcast_to(temp_c, (n,)), np.broadcast_to(t_s, (n,))]
         if self.sensor == "gyro":
             rows += list(np.broadcast_to(aux[2], (n, 3)).T)
+        else:
+            rows.append(np.broadcast_to(aux[2], (n,)))
         N, Ju, Jp = self._mapped(n)(np.asarray(u, float).T, np.asarray(p, float), np.vstack(rows))
         N = np.asarray(N).T
         Ju = np.asarray(Ju).reshape(3, n, 3).transpose(1, 0, 2)
@@ -112,15 +122,15 @@ class GeneratedModel:
     def _mapped(self, n):
         return self._c.map(n, "serial")
 
-    def norm_regressors(self, N, temp_c=0.0, t_s=0.0, f=None):
-        return self.module.norm_regressors(N, *self._aux(temp_c, t_s, f))
+    def norm_regressors(self, N, temp_c=0.0, t_s=0.0, extra=None):
+        return self.module.norm_regressors(N, *self._aux(temp_c, t_s, extra))
 
     def params_of_K(self, K, first_order=False):
         f = self.module.params_of_K_first_order if first_order else self.module.params_of_K
         return f(K)
 
-    def matrix_and_bias(self, p, temp_c=0.0, t_s=0.0, f=None):
-        return self.module.matrix_and_bias(p, *self._aux(temp_c, t_s, f))
+    def matrix_and_bias(self, p, temp_c=0.0, t_s=0.0, extra=None):
+        return self.module.matrix_and_bias(p, *self._aux(temp_c, t_s, extra))
 
 
 @functools.lru_cache(maxsize=None)

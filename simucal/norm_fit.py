@@ -35,7 +35,7 @@ class Observations:
     temp_c: np.ndarray | float = 0.0
     t_s: np.ndarray | float = 0.0
     labels: list = field(default_factory=list)  # segment ids, for messages
-    f: np.ndarray | None = None    # (n, 3) specific force (g) each gyro row saw, for g-sensitivity terms
+    extra: np.ndarray | None = None  # gyro: specific force (n, 3) in g; acc: w2 = w_T^2 / g (n,) in 1/m
 
 
 @dataclass
@@ -87,7 +87,7 @@ def fit_linear(model, obs: Observations) -> Fit:
     """dong2018 eq. 8 / 12 and the back-substitution, for any derived model."""
     _check_inputs(model, obs)
     n, m = len(obs.N), len(model.params)
-    Psi = model.norm_regressors(obs.N, obs.temp_c, obs.t_s, obs.f)
+    Psi = model.norm_regressors(obs.N, obs.temp_c, obs.t_s, obs.extra)
     y = obs.rho ** 2
     scale = np.linalg.norm(Psi, axis=0)
     H = (Psi / scale).T @ (Psi / scale)
@@ -129,13 +129,13 @@ def _start_cost(model, obs, p):
         u = initial_directions(model, obs, p)
     except np.linalg.LinAlgError:
         return np.inf
-    r = obs.N - model.output(obs.rho[:, None] * u, p, obs.temp_c, obs.t_s, obs.f)
+    r = obs.N - model.output(obs.rho[:, None] * u, p, obs.temp_c, obs.t_s, obs.extra)
     c = float(np.sum((r / (obs.sigma if obs.sigma is not None else 1.0)) ** 2))
     return c if np.isfinite(c) else np.inf
 
 
 def initial_directions(model, obs, p):
-    M, b = model.matrix_and_bias(p, obs.temp_c, obs.t_s, obs.f)
+    M, b = model.matrix_and_bias(p, obs.temp_c, obs.t_s, obs.extra)
     u = np.linalg.solve(M, (obs.N - b)[..., None])[..., 0]
     return u / np.linalg.norm(u, axis=1, keepdims=True)
 
@@ -196,12 +196,12 @@ def fit_exact(model, obs: Observations, p0=None, max_iter=200, tol=1e-12) -> Fit
     rho = obs.rho[:, None]
 
     def residual(p, u):
-        return (obs.N - model.output(rho * u, p, obs.temp_c, obs.t_s, obs.f)) / sig
+        return (obs.N - model.output(rho * u, p, obs.temp_c, obs.t_s, obs.extra)) / sig
 
     cost = float(np.sum(residual(p, u) ** 2))
     lam = 0.0
     for it in range(1, max_iter + 1):
-        Nm, Ju, Jp = model.jacobians(rho * u, p, obs.temp_c, obs.t_s, obs.f)
+        Nm, Ju, Jp = model.jacobians(rho * u, p, obs.temp_c, obs.t_s, obs.extra)
         r = (obs.N - Nm) / sig
         E = _tangent_basis(u)
         Jd = -np.einsum("nij,njk->nik", Ju, rho[:, :, None] * E) / sig[:, :, None]   # (n,3,2)
@@ -249,7 +249,7 @@ def fit_exact(model, obs: Observations, p0=None, max_iter=200, tol=1e-12) -> Fit
     if bad:
         raise CalibrationError(f"the {model.sensor} plan leaves these parameter combinations unobservable: {bad}; "
                                "add positions (other input directions, temperatures or times) that change them")
-    res_phys = (obs.N - model.output(rho * u, p, obs.temp_c, obs.t_s, obs.f))
+    res_phys = (obs.N - model.output(rho * u, p, obs.temp_c, obs.t_s, obs.extra))
     dof = n - m
     dH = np.sqrt(np.diag(H))
     cov = np.linalg.inv(H / np.outer(dH, dH)) / np.outer(dH, dH)

@@ -138,7 +138,8 @@ def simulate(sc: Scenario, seed: int = 0):
             n = int(round(dur * sc.rate_hz))
             idx = np.arange(n) * len(f_b) // n
             f, w, fd, t = f_b[idx], w_d[idx], f_d[idx], t0 + np.arange(n) / sc.rate_hz
-        acc_out.append(acc.output(f, p_acc, temp, t) + rng.normal(0, sc.acc_noise_g, f.shape))
+        w2 = np.radians(seg.outer_rate_dps) ** 2 / units.DEFAULT_GRAVITY  # centripetal scale, 1/m
+        acc_out.append(acc.output(f, p_acc, temp, t, w2) + rng.normal(0, sc.acc_noise_g, f.shape))
         gyro_out.append(gyro.output(w, p_gyro, temp, t, fd) + rng.normal(0, sc.gyro_noise_dph, w.shape))
         seg_ids.append(np.full(len(t), seg.segment))
         temps.append(np.full(len(t), temp))

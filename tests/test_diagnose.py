@@ -10,7 +10,12 @@ from simucal.diagnose import diagnose
 from simucal.simulate import Scenario, write
 
 RATES = (5.0, 10.0, -10.0, 20.0)
-HIDDEN = [  # (effect id, size, scenario settings rich enough to see it)
+# (effect id, size, scenario settings rich enough to see it). Every case uses seed 11 except where
+# noted: "p > 0.01 after adding" fails 1 % of the time under the null by construction, and seed 11's
+# noise is such a draw for the size-effect plan (its clean set gives p = 0.008; 12 other clean seeds
+# give p from 0.04 to 0.94).
+SEEDS = {"acc.size_effect.yx": 13}
+HIDDEN = [
     ("acc.quadratic.z", 5e-5, dict(plan="fibonacci48")),
     ("acc.cross_coupling.xy", 6e-5, dict(plan="fibonacci48")),
     ("acc.scale_asymmetry.x", 1.5e-4, dict(plan="fibonacci48")),
@@ -20,6 +25,7 @@ HIDDEN = [  # (effect id, size, scenario settings rich enough to see it)
     ("gyro.bias_temperature.z", 3e-3, dict(plan="fibonacci24", outer_rate_dps=RATES, temp_c=(15.0, 45.0))),
     ("gyro.bias_drift_time.x", 2e-5, dict(plan="fibonacci24", outer_rate_dps=RATES, shuffle=True)),
     ("gyro.g_sensitivity.xz", 0.05, dict(plan="fibonacci24", outer_rate_dps=RATES)),
+    ("acc.size_effect.yx", 0.005, dict(plan="fibonacci24", outer_rate_dps=(20.0, -20.0, 40.0))),
 ]
 
 
@@ -35,7 +41,7 @@ def base_errors(block, truth, sensor):
 def test_hidden_effect_found_added_and_explained(tmp_path, eid, size, settings):
     sensor = eid.split(".")[0]
     sc = Scenario(**settings, **{f"{sensor}_effects": {eid: size}})
-    truth = write(tmp_path / "set", sc, seed=11)
+    truth = write(tmp_path / "set", sc, seed=SEEDS.get(eid, 11))
     d = diagnose(tmp_path / "set")
     block = d[sensor]
     assert block["baseline"]["p_value"] < 0.01, "the baseline should fail on this set"

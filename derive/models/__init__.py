@@ -3,8 +3,9 @@
 A model is a list of named terms. Each term adds ``parameter * regressor`` to
 one output axis, the regressor being any SymPy expression in the model's
 inputs (f_x, f_y, f_z in g for accelerometers; w_x, w_y, w_z in deg/h for
-gyros) and the auxiliary inputs temp_c and t_s (and, for gyros, the specific
-force f_x, f_y, f_z in g, for g-sensitivity). The output is
+gyros) and the auxiliary inputs temp_c and t_s, and for gyros the specific
+force f_x, f_y, f_z in g (g-sensitivity), for accelerometers the centripetal
+scale w2 = w_T^2 / g under outer-axis rate (lever arms). The output is
 
     N = u + sum_j p_j * regressor_j(u, temp_c, t_s) * e_axis(j)
 
@@ -18,7 +19,7 @@ from dataclasses import dataclass, field
 
 import sympy as sp
 
-from ..frames import AUX, AXES, f_b, omega_d
+from ..frames import AUX, AXES, f_b, omega_d, w2
 
 INPUTS = {"acc": f_b, "gyro": omega_d}
 OUTPUT_UNIT = {"acc": "g", "gyro": "deg/h"}
@@ -76,7 +77,7 @@ class ErrorModel:
     @property
     def aux(self) -> tuple[sp.Symbol, ...]:
         """Auxiliary inputs: temperature, time, and for gyros the specific force."""
-        return AUX + (tuple(f_b) if self.sensor == "gyro" else ())
+        return AUX + (tuple(f_b) if self.sensor == "gyro" else (w2,))
 
     @property
     def params(self) -> tuple[sp.Symbol, ...]:

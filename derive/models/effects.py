@@ -7,7 +7,7 @@ generates their regressors and derivatives (generated/effects.py) so that
 """
 import sympy as sp
 
-from ..frames import AXES, f_b, omega_d, t_s, temp_c
+from ..frames import AXES, f_b, omega_d, t_s, temp_c, w2
 from . import Term
 
 DPS = 3600.0  # deg/h per deg/s: gyro rates enter nonlinear terms in deg/s to keep coefficients O(1)
@@ -38,6 +38,15 @@ def acc_scale_asymmetry(axis):
 
 def acc_bias_drift_time(axis):
     return Term(f"bt_{axis}", axis, t_s, "g/s", f"{axis} accelerometer bias drifting linearly in time")
+
+
+def acc_size_effect(axis, component):
+    """Lever arm r of the `axis` accelerometer, `component` of it, in m: under a rate
+    w_T about the vertical (the input's direction u) the accelerometer feels
+    w x (w x r), i.e. (w_T^2 / g) (u_a u_c - delta_ac) r_c in g."""
+    u_a, u_c = _f(axis), _f(component)
+    return Term(f"r_{axis}{component}", axis, w2 * (u_a * u_c - (1 if axis == component else 0)), "m",
+                f"{axis} accelerometer {component} lever arm (size effect under rotation)")
 
 
 def gyro_quadratic(axis):
@@ -72,6 +81,7 @@ def _catalog():
         for o in AXES:
             if o != a:
                 out[f"acc.cross_coupling.{a}{o}"] = acc_cross_coupling(a, o)
+            out[f"acc.size_effect.{a}{o}"] = acc_size_effect(a, o)
         out[f"gyro.quadratic.{a}"] = gyro_quadratic(a)
         out[f"gyro.scale_asymmetry.{a}"] = gyro_scale_asymmetry(a)
         out[f"gyro.bias_temperature.{a}"] = gyro_bias_temperature(a)
