@@ -170,6 +170,11 @@ def table_module() -> str:
         numpy_function("C_k_n", args, [((3, 3), table.C_k_n())], "C_k^n of the table with its errors."),
         numpy_function("mounting", [("angles", table.theta4)], [((3, 3), table.C_b_k())],
                        "C_b^k (or C_d^k) = Rx(a_x) Ry(a_y) Rz(a_z) from three mounting angles."),
+        f"TABLE_FIT_PARAMS = {tuple(map(str, table.TABLE_FIT_PARAMS))!r}\n",
+        numpy_function("up_in_b", [("gamma", None), ("alpha", None), ("beta", None), ("x", table.TABLE_FIT_PARAMS)],
+                       [((3,), table.up_in_b()), ((3, len(table.TABLE_FIT_PARAMS)),
+                                                  table.up_in_b().jacobian(table.TABLE_FIT_PARAMS))],
+                       "Vertical in b at commanded angles (rad) and its Jacobian wrt x = table errors + theta_4."),
     ])
 
 

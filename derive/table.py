@@ -56,3 +56,12 @@ def earth_rate_n():
 def outer_axis_n():
     """Unit vector of the (tilted) outer axis in n."""
     return tilt() * UP
+
+
+def up_in_b():
+    """The vertical (specific force at rest, g) in b at commanded angles: C_k^b C_n^k z,
+    as a function of the table errors and the mounting angles theta_4."""
+    return C_b_k().T * specific_force_k()
+
+
+TABLE_FIT_PARAMS = TABLE_ERRORS + theta4  # what a table fit can estimate from gravity directions

@@ -184,8 +184,21 @@ def diagnose_sensor(ms, sensor, base_model, add=(), stated=None, truth=None):
     fit = fit_exact(model, obs, p0=None if not add else _p0(base_model, add, obs))
     base = baseline_block(fit, obs)
     cands = rank_candidates(model, obs, fit, base["p_value"] is not None and base["p_value"] < ALPHA)
+    table_info = None
+    if sensor == "acc" and ms.segments is not None:  # the table, from the static positions' directions
+        idx = [i for i, s in enumerate(segs) if s.kind == "static" and s.middle_deg is not None
+               and s.inner_deg is not None]
+        if len(idx) >= 6:
+            from .table_fit import table_candidates
+            ang = [[segs[i].outer_deg or 0.0, segs[i].middle_deg, segs[i].inner_deg] for i in idx]
+            tc, table_info = table_candidates(fit.directions[idx], ang, ALPHA)
+            cands = sorted([c for c in cands + tc if c["separable"]],
+                           key=lambda c: (c["p_value"] if c["p_value"] is not None else 2.0, -c["statistic"])) + \
+                [c for c in cands + tc if not c["separable"]]
     out = {"baseline": base, "candidates": cands, "verdict": _verdict(sensor, base, cands),
            "params": fit.params, "std": fit.std, "residuals": residual_table(fit, obs, segs)}
+    if table_info is not None:
+        out["table"] = table_info
     if add:
         before_model = AugmentedModel(base_model)
         f0 = fit_exact(before_model, obs)
@@ -251,7 +264,8 @@ def diagnose(folder, add=(), acc_model="acc_baseline", gyro_model="gyro_baseline
     result["sensor"] = worst
     result["baseline"] = result[worst]["baseline"]
     result["candidates"] = sorted([c for s in sensors for c in result[s]["candidates"] if c["separable"]],
-                                  key=lambda c: -c["statistic"]) + \
+                                  key=lambda c: (c["p_value"] if c["p_value"] is not None else 2.0,
+                                                 -c["statistic"])) + \
         [c for s in sensors for c in result[s]["candidates"] if not c["separable"]]
     result["verdict"] = " | ".join(result[s]["verdict"] for s in sensors)
     return result

@@ -93,3 +93,19 @@ def test_cli_diagnose_writes_json_and_html(tmp_path):
     assert html.count("data:image/png;base64,") >= 5 and "http" not in html.split("<body>")[1]
     bad = CliRunner().invoke(main, ["diagnose", str(tmp_path / "s"), "--add", "acc.nonsense.z"])
     assert bad.exit_code != 0 and "unknown effect" in bad.output
+
+
+def test_table_tilt_where_the_data_can_show_it(tmp_path):
+    from simucal.simulate import ARCSEC
+    tilt = 60 * ARCSEC
+    write(tmp_path / "t", Scenario(plan="fibonacci48", tilt_rad=(tilt, 0.0), position_error_rad=2 * ARCSEC), seed=3)
+    d = diagnose(tmp_path / "t")
+    table = [c for c in d["acc"]["candidates"] if c["id"].startswith("table.")]
+    first = table[0]
+    assert first["id"] == "table.tilt.x" and first["significant"]
+    assert abs(first["estimate"] - tilt) < 4 * first["std"]
+    assert any(not c["separable"] and "collinear with the mounting" in c["note"] for c in table)
+    # the paper's 5" tilt under 1' position errors: the data cannot show it, and nothing is declared
+    write(tmp_path / "p", Scenario(), seed=3)
+    d = diagnose(tmp_path / "p")
+    assert not any(c.get("significant") for c in d["acc"]["candidates"] if c["id"].startswith("table."))
