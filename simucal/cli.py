@@ -172,7 +172,9 @@ def demo(out_dir, seed):
 @click.argument("data_dir", type=click.Path(exists=True, file_okay=False))
 @click.option("-o", "--output", type=click.Path(dir_okay=False), default="diagnosis.json", show_default=True)
 @click.option("--html", "html_path", type=click.Path(dir_okay=False), default=None, help="Also write a self-contained HTML report.")
-@click.option("--add", "add", multiple=True, help="Effect id to add to the model, e.g. acc.quadratic.z (repeatable).")
+@click.option("--add", "add", multiple=True,
+              help="Effect id to add, e.g. acc.quadratic.z, or a model file (MODELS = [...]) with your own SymPy "
+                   "terms, which is derived, generated and used (repeatable).")
 @click.option("--acc-model", default="acc_baseline", show_default=True)
 @click.option("--gyro-model", default="gyro_baseline", show_default=True)
 @click.option("--acc-noise-g", type=float, default=None, help="Stated noise of one acc row (g), when the data cannot give it.")
@@ -185,6 +187,21 @@ def diagnose(data_dir, output, html_path, add, acc_model, gyro_model, acc_noise_
     from simucal.diagnose import diagnose as run
     from simucal.io import MeasurementSetError
     from simucal.norm_fit import CalibrationError
+    files = [a for a in add if a.endswith(".py")]
+    add = tuple(a for a in add if not a.endswith(".py"))
+    if files:  # a user's own terms: derive, generate, then diagnose with those models
+        from simucal import derive_cmd
+        from simucal.derive.registry import load_model_file
+        from simucal.models import load
+        try:
+            models = [m for f in files for m in load_model_file(f)]
+        except (FileNotFoundError, ValueError) as e:
+            _fail(e)
+        _, secs = derive_cmd.run(model_files=files)
+        load.cache_clear()
+        click.echo(f"derived and generated {', '.join(m.name for m in models)} ({secs:.1f} s)")
+        for m in models:
+            acc_model, gyro_model = (m.name, gyro_model) if m.sensor == "acc" else (acc_model, m.name)
     try:
         result = run(Path(data_dir), add, acc_model, gyro_model, acc_noise_g, gyro_noise_dph)
     except (MeasurementSetError, CalibrationError, KeyError) as e:
