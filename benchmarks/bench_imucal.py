@@ -8,7 +8,6 @@ files as its own docs show. imucal's model: raw = K R x + b (+ K_ga a for the
 gyro), so K R is compared with simucal's M; biases in m/s^2 and deg/s.
 Usage: python3 benchmarks/bench_imucal.py
 """
-import json
 import tempfile
 from pathlib import Path
 
@@ -46,9 +45,11 @@ def theirs(session):
     return cal.K_a @ cal.R_a, cal.b_a, cal.K_g @ cal.R_g, cal.b_g
 
 
-def show(name, a, b, scale_a=1.0, scale_g=1.0):
-    fmt = lambda m: np.array2string(np.asarray(m), precision=4, suppress_small=True).replace("\n", "")
-    print(f"| {name} | {fmt(a[0] * scale_a)} | {fmt(a[1])} | {fmt(a[2] * scale_g)} | {fmt(a[3])} |" if b is None else "")
+def show(name, cal):
+    """One table row: acc M, acc bias, gyro M, gyro bias."""
+    def fmt(m):
+        return np.array2string(np.asarray(m), precision=4, suppress_small=True).replace("\n", "")
+    print(f"| {name} | " + " | ".join(fmt(x) for x in cal) + " |")
 
 
 def main():
@@ -57,11 +58,12 @@ def main():
     with tempfile.TemporaryDirectory() as tmp:
         import_ferraris_sections(DATA / "example_ferraris_session.csv", DATA / "example_ferraris_session_list.json",
                                  Path(tmp) / "ex", 102.4, 49.6)
-        show("example, simucal", ours(Path(tmp) / "ex"), None)
+        show("example, simucal", ours(Path(tmp) / "ex"))
         t = theirs("example")
-        print("| example, imucal | not installed (pip install -e '.[bench]') | | | |" if t is None else "", end="")
-        if t is not None:
-            show("example, imucal", t, None)
+        if t is None:
+            print("| example, imucal | not installed (pip install -e '.[bench]') | | | |")
+        else:
+            show("example, imucal", t)
         import_imucal_annotated(DATA / "annotated_session.csv", Path(tmp) / "an", 204.8, 2048.0, 16.4, 49.6)
         try:
             ours(Path(tmp) / "an")
@@ -72,11 +74,11 @@ def main():
                                 turn_deg=360.0)
         a = ours(Path(tmp) / "an2")
         # simucal's outputs are counts / nominal: back to counts for imucal's a.u.
-        show("annotated, simucal (+360 deg, as measured)", (a[0] * 1.0, a[1] / G * 2048, a[2], a[3] * 16.4), None)
+        show("annotated, simucal (+360 deg, as measured)", (a[0], a[1] / G * 2048, a[2], a[3] * 16.4))
         t = theirs("annotated")
         if t is not None:
             # imucal's a.u. matrices map g-units (m/s^2 at its g) and deg/s to counts: scale to simucal's nominal
-            show("annotated, imucal (assumes -360 deg)", (t[0] * G / 2048, t[1], t[2] / 16.4, t[3]), None)
+            show("annotated, imucal (assumes -360 deg)", (t[0] * G / 2048, t[1], t[2] / 16.4, t[3]))
     print("\nimucal assumes each turn is -360 deg; the annotated session's turns are +360 deg, so its gyro K R comes out")
     print("near -I. simucal checks the sense of every rate segment against the gyro and refuses; imported with")
     print("--turn-deg 360 it calibrates normally.")

@@ -97,7 +97,6 @@ def calibrate(data_dir, output, method, acc_model, gyro_model, init_rest_s, thre
     With segments.csv: a turntable test (dong2018). Without: a continuous stream
     from a hand-placed session (static poses found from the data; Tedaldi)."""
     import json
-    from pathlib import Path
 
     from simucal.calibrate import calibrate as run
     from simucal.io import MeasurementSetError
@@ -117,7 +116,6 @@ def calibrate(data_dir, output, method, acc_model, gyro_model, init_rest_s, thre
 @click.option("-o", "--output", type=click.Path(dir_okay=False), default="audit.md", show_default=True)
 def audit(output):
     """Check the paper's printed equations (5)-(27) and Table 1 against the derivation."""
-    from pathlib import Path
 
     from simucal.derive.audit import run_audit
     from tqdm import tqdm
@@ -133,7 +131,6 @@ def demo(out_dir, seed):
     """The main job end to end on built-in simulated data:
     derive --check, simulate (paper scenario), calibrate (all methods), audit, report, diagnose."""
     import json
-    from pathlib import Path
 
     from simucal import derive_cmd, report
     from simucal.calibrate import calibrate as run
@@ -182,7 +179,6 @@ def demo(out_dir, seed):
 def diagnose(data_dir, output, html_path, add, acc_model, gyro_model, acc_noise_g, gyro_noise_dph):
     """Compare model and measurements; rank the candidate missing effects."""
     import json
-    from pathlib import Path
 
     from simucal.diagnose import diagnose as run
     from simucal.io import MeasurementSetError
@@ -223,7 +219,6 @@ def diagnose(data_dir, output, html_path, add, acc_model, gyro_model, acc_noise_
 def field_drift(data_dir, output, plot, heading_accuracy_deg):
     """Three-position field calibration of gyro constant drift (ruan2019)."""
     import json
-    from pathlib import Path
 
     from simucal.field import field_drift as run, plot_history
     from simucal.io import MeasurementSetError

@@ -9,7 +9,7 @@ reference's heading per position, with its error, goes to segments.csv
 """
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 
 import numpy as np
 
