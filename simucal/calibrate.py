@@ -23,6 +23,7 @@ from . import io, units
 from .generated import table, unify
 from .models import load
 from .handheld import saturated_rows
+from .noise import white_noise_var
 from .norm_fit import CalibrationError, Fit, Observations, fit_exact, fit_linear, initial_directions
 
 METHODS = ("exact", "linear", "multiposition")
@@ -48,7 +49,7 @@ def _mean_and_sigma(x, stated, varying=False):
     """
     n = len(x)
     if n >= 3 and varying:
-        return x.mean(0), np.sqrt(np.var(np.diff(x, axis=0), axis=0, ddof=1) / 2 / n)
+        return x.mean(0), np.sqrt(white_noise_var(x, ddof=1) / n)
     if n >= 3:
         d = x - x.mean(0)
         var = d.var(0, ddof=1)

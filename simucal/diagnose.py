@@ -26,7 +26,7 @@ from .augmented import AugmentedModel, effect_ids
 from .calibrate import segment_observations
 from .generated.effects import EFFECTS
 from .models import aux_args
-from .norm_fit import CalibrationError, Fit, Observations, fit_exact
+from .norm_fit import CalibrationError, Fit, Observations, fit_exact, jacobian_blocks
 
 ALPHA = 0.01
 SEPARATE = {  # what a plan needs for each family to be told apart from the baseline
@@ -64,12 +64,9 @@ def _weighted_jacobian(model, obs, fit):
     """Dense weighted Jacobian of the exact problem at the solution: [dr/dp | dr/dd]."""
     n, m = len(obs.N), len(model.params)
     sig = np.broadcast_to(obs.sigma if obs.sigma is not None else 1.0, (n, 3))
-    u = fit.directions
-    _, Ju, Jp = model.jacobians(obs.rho[:, None] * u, fit.vector(model.params), obs.temp_c, obs.t_s, obs.extra)
-    from .norm_fit import _tangent_basis
-    Jd = np.einsum("nij,njk->nik", Ju, obs.rho[:, None, None] * _tangent_basis(u)) / sig[:, :, None]
+    _, Jq, Jd, _ = jacobian_blocks(model, obs, fit.vector(model.params), fit.directions, sig)
     J = np.zeros((3 * n, m + 2 * n))
-    J[:, :m] = (Jp / sig[:, :, None]).reshape(3 * n, m)
+    J[:, :m] = Jq.reshape(3 * n, m)
     for i in range(n):
         J[3 * i:3 * i + 3, m + 2 * i:m + 2 * i + 2] = Jd[i]
     return J, sig

@@ -24,6 +24,7 @@ from scipy.linalg import expm
 
 from . import io, units
 from .generated import field as gen
+from .noise import white_noise_var
 from .norm_fit import CalibrationError
 from .rotations import exp_so3
 
@@ -101,7 +102,7 @@ class StaticFilter:
 
 def _noise(raw, dt_raw):
     """White-noise density from first differences of raw samples (units * sqrt(s))."""
-    return float(np.sqrt(np.mean(np.var(np.diff(raw, axis=0), axis=0) / 2)) * np.sqrt(dt_raw))
+    return float(np.sqrt(np.mean(white_noise_var(raw))) * np.sqrt(dt_raw))
 
 
 def position_estimate(f_raw, w_raw, t, heading_rad, meta, block_s=1.0, stages=2):

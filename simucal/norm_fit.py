@@ -134,6 +134,18 @@ def _start_cost(model, obs, p):
     return c if np.isfinite(c) else np.inf
 
 
+def jacobian_blocks(model, obs, p, u, sig):
+    """The exact problem's weighted residual and Jacobian at (p, directions u):
+    r (n,3), dr/dp (n,3,m), dr/d(tangent step) (n,3,2), and the tangent bases E (n,3,2)."""
+    rho = obs.rho[:, None]
+    Nm, Ju, Jp = model.jacobians(rho * u, p, obs.temp_c, obs.t_s, obs.extra)
+    E = _tangent_basis(u)
+    r = (obs.N - Nm) / sig
+    Jd = -np.einsum("nij,njk->nik", Ju, rho[:, :, None] * E) / sig[:, :, None]
+    Jq = -Jp / sig[:, :, None]
+    return r, Jq, Jd, E
+
+
 def initial_directions(model, obs, p):
     M, b = model.matrix_and_bias(p, obs.temp_c, obs.t_s, obs.extra)
     u = np.linalg.solve(M, (obs.N - b)[..., None])[..., 0]
@@ -201,11 +213,7 @@ def fit_exact(model, obs: Observations, p0=None, max_iter=200, tol=1e-12) -> Fit
     cost = float(np.sum(residual(p, u) ** 2))
     lam = 0.0
     for it in range(1, max_iter + 1):
-        Nm, Ju, Jp = model.jacobians(rho * u, p, obs.temp_c, obs.t_s, obs.extra)
-        r = (obs.N - Nm) / sig
-        E = _tangent_basis(u)
-        Jd = -np.einsum("nij,njk->nik", Ju, rho[:, :, None] * E) / sig[:, :, None]   # (n,3,2)
-        Jq = -Jp / sig[:, :, None]                                                  # (n,3,m)
+        r, Jq, Jd, E = jacobian_blocks(model, obs, p, u, sig)
         A = np.einsum("nia,nib->nab", Jd, Jd)
         B = np.einsum("nia,nib->nab", Jd, Jq)
         gd = np.einsum("nia,ni->na", Jd, r)

@@ -61,11 +61,6 @@ class Scenario:
 SCENARIOS = {"paper": Scenario}
 
 
-def _C_k_n(angles_deg, errs):
-    g, a, b = np.radians(np.asarray(angles_deg, float)).T
-    return table.C_k_n(g, a, b, errs)
-
-
 def simulate(sc: Scenario, seed: int = 0):
     """Return (meta, samples, segments, truth) of one simulated test."""
     rng = np.random.default_rng(seed)

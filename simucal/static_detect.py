@@ -13,6 +13,7 @@ from dataclasses import asdict, dataclass
 
 import numpy as np
 
+from .noise import white_noise_var
 from .norm_fit import CalibrationError
 
 
@@ -54,7 +55,7 @@ def detect_static(acc, t, window_s=1.0, factor=6.0, min_s=1.0, init_rest_s=None,
     else:
         # the noise level from first differences of the first window: blind to slow
         # motion, so a stream that starts moving shows a moving variance far above it
-        seed = float(np.linalg.norm(np.var(np.diff(acc[:w], axis=0), axis=0) / 2))
+        seed = float(np.linalg.norm(white_noise_var(acc[:w])))
         above = np.nonzero(mv > rest_factor * max(seed, 1e-300))[0]
         init_end = int(above[0]) if above.size else len(mv)
     needed = 3.0 if init_rest_s is None else 0.5  # a stated rest is the user's call
