@@ -26,16 +26,18 @@ import numpy as np
 from . import units
 from .augmented import AugmentedModel
 from .norm_fit import CalibrationError, Observations, fit_exact, initial_directions
-from .rotations import prefix_rotations, right_jacobian, skew
+from .generated import moves as gen_moves
+from .rotations import skew
 from .static_detect import Detection, detect_static
 
 
 @dataclass
 class Moves:
-    y: np.ndarray        # (m, L, 3) bias-free gyro outputs (deg/s), zero-padded
+    y: np.ndarray        # (3, m, L) bias-free gyro outputs (deg/s), zero-padded
     dt: np.ndarray       # (m, L) sample intervals, 0 on padding
     before: np.ndarray   # (m,) index of the pose before
     after: np.ndarray    # (m,) index of the pose after
+    t_span: list = None  # (m,) (start, end) times (s)
 
 
 def saturated_rows(raw, full_scale=None, min_run=3):
@@ -74,73 +76,100 @@ def build_moves(w, t, det: Detection, bias, bad):
     if not idx:
         raise CalibrationError("every move between poses holds saturated gyro samples: nothing left to fit the gyro")
     L = max(b - a for _, a, b in idx)
-    y = np.zeros((len(idx), L, 3))
+    y = np.zeros((3, len(idx), L))
     dt = np.zeros((len(idx), L))
     for m, (i, a, b) in enumerate(idx):
-        y[m, :b - a] = w[a + 1:b + 1] - bias
+        y[:, m, :b - a] = (w[a + 1:b + 1] - bias).T
         dt[m, :b - a] = np.diff(t[a:b + 1])
-    mv = Moves(y, dt, np.array([i for i, _, _ in idx]), np.array([i + 1 for i, _, _ in idx]))
-    mv.t_span = [(float(t[a]), float(t[b])) for _, a, b in idx]
-    return mv, skipped
+    return Moves(y, dt, np.array([i for i, _, _ in idx]), np.array([i + 1 for i, _, _ in idx]),
+                 [(float(t[a]), float(t[b])) for _, a, b in idx]), skipped
+
+
+def prefix_products(Q):
+    """Q[:, m, k] <- Q[:, m, 0] (x) ... (x) Q[:, m, k], in place: a work-efficient
+    (Blelloch) scan, about 2 L products in 2 log2(L) vectorised steps."""
+    n, d = Q.shape[-1], 1
+    while 2 * d <= n:  # up-sweep: Q[i] <- product over (i - 2d, i] at i = 2d-1, 4d-1, ...
+        Q[..., 2 * d - 1::2 * d] = gen_moves.quaternion_product(Q[..., d - 1:n - d:2 * d], Q[..., 2 * d - 1::2 * d])
+        d *= 2
+    while d > 1:  # down-sweep: the complete prefixes at 2d-1, 4d-1, ... fill in the halves between
+        d //= 2
+        Q[..., 3 * d - 1::2 * d] = gen_moves.quaternion_product(Q[..., 2 * d - 1:n - d:2 * d], Q[..., 3 * d - 1::2 * d])
+    return Q
+
+
+def total_products(Q):
+    """Q[:, m, 0] (x) ... (x) Q[:, m, -1] by pairwise halving (order kept)."""
+    while Q.shape[-1] > 1:
+        if Q.shape[-1] % 2:
+            Q = np.concatenate([Q, np.eye(4)[:, :1, None] * np.ones(Q.shape[1:-1] + (1,))], -1)
+        Q = gen_moves.quaternion_product(Q[..., 0::2], Q[..., 1::2])
+    return Q[..., 0]
 
 
 def move_residuals(T, mv: Moves, g_dirs, jac=True, db=None):
-    """r (m, 3) and dr/d[vec(T), db] (m, 3, 12); omega = T (y - db) in deg/s, y the
-    outputs less the rest bias, db a correction to that bias."""
-    y = mv.y - (0.0 if db is None else db) * (mv.dt[..., None] > 0)
-    omega = np.einsum("ab,mkb->mka", T, y) * np.radians(1.0)
-    v = omega * mv.dt[..., None]
-    C = prefix_rotations(v)
-    Rt = C[:, -1]
-    g0, g1 = g_dirs[mv.before], g_dirs[mv.after]
-    pred = np.einsum("mba,mb->ma", Rt, g0)
-    r = g1 - pred
+    """r (m, 3) and dr/d[vec(T), db] (m, 3, 12) of Tedaldi's cost (derive/moves.py); omega =
+    T (y - db) in deg/s, y the outputs less the rest bias, db a correction to that bias."""
+    y = mv.y if db is None else mv.y - db[:, None, None] * (mv.dt > 0)
+    v = np.einsum("ab,bmk->amk", T, y) * (np.radians(1.0) * mv.dt)
+    Q = gen_moves.step_quaternion(v)
+    Q_end = total_products(Q) if not jac else prefix_products(Q)[..., -1]
+    Rt = np.moveaxis(gen_moves.rotation_matrix(Q_end), -1, 0).swapaxes(1, 2)  # (m, 3, 3): R_i^T
+    pred = np.einsum("mab,mb->ma", Rt, g_dirs[mv.before])
+    r = g_dirs[mv.after] - pred
     if not jac:
         return r, None
-    # A_k^T J_r(v_k) dt_k with A_k^T = R_total^T C_k; R_total^T leaves the sum over k
-    W = (C @ right_jacobian(v)) * mv.dt[..., None, None]
     m, L = mv.dt.shape
-    RtT = np.swapaxes(Rt, 1, 2)
-    dphi_T = (RtT @ np.matmul(np.swapaxes(W.reshape(m, L, 9), 1, 2), y).reshape(m, 3, 9))
-    dphi_b = -RtT @ W.sum(1) @ T
+    W = gen_moves.integration_jacobian(Q, v, mv.dt).reshape(9, m, L).transpose(1, 0, 2)  # (m, 9, L)
+    dphi_T = Rt @ (W @ y.transpose(1, 2, 0)).reshape(m, 3, 9)  # sum_k W_k (x) y_k
+    dphi_b = -Rt @ W.sum(2).reshape(m, 3, 3) @ T
     dphi = np.concatenate([dphi_T, dphi_b], axis=2) * np.radians(1.0)
     return r, -np.matmul(skew(pred), dphi)
 
 
-def fit_gyro_moves(mv: Moves, g_dirs, T0, bias_std, max_iter=30, db0=None):
+def fit_gyro_moves(mv: Moves, g_dirs, T0, bias_std, max_iter=30, db0=None, step_tol=1e-3, offset=0.0):
     """Gauss-Newton on vec(T) and a bias correction db, the rest's bias entering as
     a prior with its standard error bias_std (deg/s): the moves inform the bias too.
-    The direction noise sigma_r is the moves' residual rms (re-estimated each step)."""
+    The direction noise sigma_r is the moves' residual rms (re-estimated each step).
+    offset is added to the residuals (a coarse level's defect, see calibrate_handheld).
+
+    Converged when no step exceeds step_tol of its parameter's std: that step is
+    taken and only the residual recomputed, the Jacobian of the point before serving
+    the covariance (it differs by ~step_tol). Returns (T, db, r, cov, iterations, converged)."""
     x = np.r_[np.ravel(T0), np.zeros(3) if db0 is None else db0]
+    prior = np.c_[np.zeros((3, 9)), np.diag(1 / bias_std)]
 
-    def stacked(x):
-        r, J = move_residuals(x[:9].reshape(3, 3), mv, g_dirs, db=x[9:])
-        return r, J
+    def evaluate(x, jac=True):
+        r, J = move_residuals(x[:9].reshape(3, 3), mv, g_dirs, jac, db=x[9:])
+        return r + offset, J
 
-    r, J = stacked(x)
+    def system(x, r, J, s_r):
+        return np.vstack([J.reshape(-1, 12) / s_r, prior]), np.r_[r.ravel() / s_r, x[9:] / bias_std]
+
+    r, J = evaluate(x)
+    converged = False
     for it in range(1, max_iter + 1):
         s_r = max(float(np.sqrt(np.mean(r ** 2))), 1e-12)
-        A = np.vstack([J.reshape(-1, 12) / s_r, np.c_[np.zeros((3, 9)), np.diag(1 / bias_std)]])
-        e = np.r_[r.ravel() / s_r, x[9:] / bias_std]
-        cost = float(e @ e)
+        A, e = system(x, r, J, s_r)
         step = np.linalg.lstsq(A, -e, rcond=None)[0]
-        lam = 1.0
-        while lam > 1e-4:
+        if np.all(np.abs(step) < step_tol * np.sqrt(np.diag(np.linalg.pinv(A.T @ A)))):
+            x = x + step
+            r = evaluate(x, jac=False)[0]
+            converged = True
+            break
+        cost, lam = float(e @ e), 1.0
+        while True:  # step halving; GN steps near the optimum are taken whole
             x_new = x + lam * step
-            r_new, J_new = stacked(x_new)
-            e_new = np.r_[r_new.ravel() / s_r, x_new[9:] / bias_std]
-            if e_new @ e_new <= cost:
+            r_new, J_new = evaluate(x_new)
+            e_new = system(x_new, r_new, J_new, s_r)[1]
+            if e_new @ e_new <= cost or lam < 1e-4:
                 break
             lam /= 2
-        done = cost - float(e_new @ e_new) < 1e-9 * max(cost, 1e-30)  # quadratic convergence: round-off next
         x, r, J = x_new, r_new, J_new
-        if done:
-            break
     # each residual joins two unit vectors, so it has 2 degrees of freedom, not 3
     s_r = float(np.sqrt(np.sum(r ** 2) / max(2 * len(r) - 12, 1)))
-    A = np.vstack([J.reshape(-1, 12) / s_r, np.c_[np.zeros((3, 9)), np.diag(1 / bias_std)]])
-    cov = np.linalg.pinv(A.T @ A)
-    return x[:9].reshape(3, 3), x[9:], r, cov, it
+    A = system(x, r, J, s_r)[0]
+    return x[:9].reshape(3, 3), x[9:], r, np.linalg.pinv(A.T @ A), it, converged
 
 
 def decimate(mv: Moves, k: int) -> Moves:
@@ -148,12 +177,12 @@ def decimate(mv: Moves, k: int) -> Moves:
     iterations whose composition error (~1e-3 rad) the full-resolution steps remove."""
     m, L = mv.dt.shape
     n = -(-L // k) * k
-    y = np.zeros((m, n, 3))
+    y = np.zeros((3, m, n))
     dt = np.zeros((m, n))
-    y[:, :L], dt[:, :L] = mv.y * mv.dt[..., None], mv.dt
+    y[..., :L], dt[:, :L] = mv.y * mv.dt, mv.dt
     dt_b = dt.reshape(m, n // k, k).sum(2)
-    y_b = y.reshape(m, n // k, k, 3).sum(2) / np.where(dt_b > 0, dt_b, 1.0)[..., None]
-    return Moves(y_b, dt_b, mv.before, mv.after)
+    y_b = y.reshape(3, m, n // k, k).sum(3) / np.where(dt_b > 0, dt_b, 1.0)
+    return Moves(y_b, dt_b, mv.before, mv.after, mv.t_span)
 
 
 def check_rotation_sense(mv: Moves, g_dirs, T0):
@@ -244,10 +273,20 @@ def calibrate_handheld(ms, acc_model="acc_baseline", detect_kw=None, pose_window
         g_dirs = initial_directions(am, obs, fa.vector(am.params))  # the calibrated pose means, normalised
         flipped = check_rotation_sense(decimate(mv, 4), g_dirs, np.eye(3))  # a sign question: coarse moves suffice
         bias_std = w[rest].std(0, ddof=1) / np.sqrt(rest.stop - rest.start)
-        T, db = np.eye(3), None
-        for k, iters in ((16, 30), (4, 3)):  # coarse to fine; only the full-resolution fixed point is reported
-            T, db, *_ = fit_gyro_moves(decimate(mv, k), g_dirs, T, np.maximum(bias_std, 1e-9), iters, db)
-        T, db, r, cov, it = fit_gyro_moves(mv, g_dirs, T, np.maximum(bias_std, 1e-9), 30, db)
+        bias_std = np.maximum(bias_std, 1e-9)
+        # Coarse to fine; only the full-resolution fixed point is reported. Moves in blocks
+        # of 16 samples get near it; blocks of 4, with their defect against the full
+        # resolution at that point added (defect correction), get close enough that
+        # one full-resolution Jacobian usually suffices.
+        T, db, *_ = fit_gyro_moves(decimate(mv, 16), g_dirs, np.eye(3), bias_std)
+        mv4 = decimate(mv, 4)
+        defect = (move_residuals(T, mv, g_dirs, jac=False, db=db)[0]
+                  - move_residuals(T, mv4, g_dirs, jac=False, db=db)[0])
+        T, db, *_ = fit_gyro_moves(mv4, g_dirs, T, bias_std, db0=db, offset=defect)
+        T, db, r, cov, it, converged = fit_gyro_moves(mv, g_dirs, T, bias_std, db0=db)
+        if not converged:
+            raise CalibrationError(f"{ms.path}: the gyro fit over the moves did not converge in {it} Gauss-Newton "
+                                   "steps; look at the moves (simucal diagnose) for ones the model cannot follow")
         bias = bias + db
         bias_std = np.sqrt(np.diag(cov)[9:])
         M_g = np.linalg.inv(T)

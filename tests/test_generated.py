@@ -78,3 +78,61 @@ def test_table_and_unify_modules_equal_sympy():
     syms = [s for v in U.measured("Na", 4) for s in v]
     subs = {**dict(zip(syms, Na)), **dict(zip(ACC_BASELINE.params, p))}
     close(unify.acc_table2(Na, p), [float(sol[s].evalf(30, subs=subs)) for s in U.ACC_UNIFY_UNKNOWNS])
+
+
+def test_moves_module_equals_its_derivation():
+    """generated/moves.py against derive/moves.py; the closed-form J_r against the one derived
+    by differentiating q(v), and against finite differences of exp; both finite at v = 0."""
+    from simucal.derive import moves as D
+    from simucal.generated import moves
+    from simucal.rotations import exp_so3
+    for scale in (1e-4, 0.05, 2.0):  # both branches of c2
+        v = rng.normal(size=3) * scale
+        qv = rng.normal(size=4)
+        qv /= np.linalg.norm(qv)
+        subs = {**dict(zip(D.v, v)), **dict(zip(D.q, qv)), D.dt: 0.01}
+        ev = lambda e: np.array(sp.Matrix(e).evalf(30, subs=subs), dtype=float)
+        close(moves.step_quaternion(v), ev(D.step_quaternion())[:, 0])
+        close(moves.rotation_matrix(qv), ev(D.rotation_matrix()))
+        close(moves.rotation_matrix(moves.step_quaternion(v)), exp_so3(v))
+        close(moves.integration_jacobian(qv, v, 0.01), ev(D.integration_jacobian()))
+        J_r = moves.integration_jacobian(np.array([1.0, 0, 0, 0]), v, 1.0)
+        close(J_r, ev(D.right_jacobian_derived()), rel=1e-10)
+        h = 1e-6 * max(scale, 1e-2)
+        for j in range(3):  # exp(v + h e_j) = exp(v) exp(h J_r e_j)
+            dv = np.eye(3)[j] * h
+            D_fd = exp_so3(v).T @ exp_so3(v + dv)
+            close((D_fd - D_fd.T)[[2, 0, 1], [1, 2, 0]] / 2 / h, J_r[:, j], rel=1e-5)
+    assert np.all(np.isfinite(moves.integration_jacobian(np.array([1.0, 0, 0, 0]), np.zeros(3), 1.0)))
+    assert np.allclose(moves.step_quaternion(np.zeros(3)), [1, 0, 0, 0])
+
+
+def test_move_integration_and_its_jacobian():
+    """The scan equals the sequential product; move_residuals' Jacobian equals finite differences."""
+    from simucal.handheld import Moves, move_residuals, prefix_products, total_products
+    from simucal.rotations import exp_so3
+    from simucal.generated import moves
+    m, L = 3, 37
+    y = rng.normal(size=(3, m, L)) * 60  # deg/s
+    dt = np.full((m, L), 0.01)
+    dt[1, 30:] = 0.0  # a shorter move, zero-padded
+    y[:, 1, 30:] = 0.0
+    v = np.radians(y) * dt
+    Q = prefix_products(moves.step_quaternion(v))
+    for i in range(m):
+        R = np.eye(3)
+        for k in range(L):
+            R = R @ exp_so3(v[:, i, k])
+            close(moves.rotation_matrix(Q[:, i, k]), R, rel=1e-12)
+    close(total_products(moves.step_quaternion(v)), Q[..., -1], rel=1e-12)
+    g = rng.normal(size=(m + 1, 3))
+    g /= np.linalg.norm(g, axis=1, keepdims=True)
+    mv = Moves(y, dt, np.arange(m), np.arange(1, m + 1))
+    T, db = np.eye(3) + rng.normal(size=(3, 3)) * 0.02, rng.normal(size=3) * 0.1
+    r, J = move_residuals(T, mv, g, db=db)
+    x = np.r_[T.ravel(), db]
+    for j in range(12):
+        dx = np.eye(12)[j] * 1e-6
+        rp = move_residuals((x + dx)[:9].reshape(3, 3), mv, g, jac=False, db=(x + dx)[9:])[0]
+        rm = move_residuals((x - dx)[:9].reshape(3, 3), mv, g, jac=False, db=(x - dx)[9:])[0]
+        close(J[..., j], (rp - rm) / 2e-6, rel=1e-6)

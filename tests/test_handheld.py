@@ -78,3 +78,12 @@ def test_ferraris_sessions(tmp_path):
         calibrate(tmp_path / "an", "multiposition")
     import_imucal_annotated(d / "annotated_session.csv", tmp_path / "an2", 204.8, 2048.0, 16.4, 49.6, turn_deg=360.0)
     assert np.all(np.diag(calibrate(tmp_path / "an2", "multiposition")["gyro"]["M"]) > 0.9)
+
+
+def test_gyro_fit_that_does_not_converge_is_refused(tmp_path, monkeypatch):
+    from simucal import handheld
+    write_handheld(tmp_path / "h", HandheldScenario(), 0)
+    real = handheld.fit_gyro_moves
+    monkeypatch.setattr(handheld, "fit_gyro_moves", lambda *a, **k: real(*a, **{**k, "max_iter": 1, "step_tol": 1e-12}))
+    with pytest.raises(CalibrationError, match="did not converge in 1 Gauss-Newton steps"):
+        calibrate(tmp_path / "h")
