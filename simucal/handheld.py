@@ -38,6 +38,24 @@ class Moves:
     before: np.ndarray   # (m,) index of the pose before
     after: np.ndarray    # (m,) index of the pose after
     t_span: list = None  # (m,) (start, end) times (s)
+    rows: list = None    # (m,) (a, b): the move integrates stream rows a+1 .. b
+    phi: np.ndarray = None  # (q, m, L) regressors of added effects, (deg/s) per unit parameter, 0 on padding
+    phi_axes: tuple = ()    # the output axis each one acts on
+
+    @property
+    def n_terms(self):
+        return len(self.phi_axes)
+
+
+@dataclass
+class GyroFit:
+    T: np.ndarray        # omega = T (y - b_rest - db - sum_j p_j e_j phi_j), deg/s
+    db: np.ndarray       # correction to the rest's bias (deg/s)
+    p: np.ndarray        # parameters of added effects (their own units)
+    r: np.ndarray        # (m, 3) gravity-direction residuals
+    cov: np.ndarray      # of [vec(T), db, p]
+    iterations: int
+    converged: bool
 
 
 def saturated_rows(raw, full_scale=None, min_run=3):
@@ -82,7 +100,7 @@ def build_moves(w, t, det: Detection, bias, bad):
         y[:, m, :b - a] = (w[a + 1:b + 1] - bias).T
         dt[m, :b - a] = np.diff(t[a:b + 1])
     return Moves(y, dt, np.array([i for i, _, _ in idx]), np.array([i + 1 for i, _, _ in idx]),
-                 [(float(t[a]), float(t[b])) for _, a, b in idx]), skipped
+                 [(float(t[a]), float(t[b])) for _, a, b in idx], [(a, b) for _, a, b in idx]), skipped
 
 
 def prefix_products(Q):
@@ -107,10 +125,13 @@ def total_products(Q):
     return Q[..., 0]
 
 
-def move_residuals(T, mv: Moves, g_dirs, jac=True, db=None):
-    """r (m, 3) and dr/d[vec(T), db] (m, 3, 12) of Tedaldi's cost (derive/moves.py); omega =
-    T (y - db) in deg/s, y the outputs less the rest bias, db a correction to that bias."""
+def move_residuals(T, mv: Moves, g_dirs, jac=True, db=None, p=None):
+    """r (m, 3) and dr/d[vec(T), db, p] (m, 3, 12 + q) of Tedaldi's cost (derive/moves.py);
+    omega = T (y - db - sum_j p_j e_j phi_j) in deg/s, y the outputs less the rest bias, db a
+    correction to that bias, phi_j the regressor of an added effect on output axis j."""
     y = mv.y if db is None else mv.y - db[:, None, None] * (mv.dt > 0)
+    if mv.n_terms:
+        y = y - np.einsum("j,ja,jmk->amk", p, np.eye(3)[list(mv.phi_axes)], mv.phi)
     v = np.einsum("ab,bmk->amk", T, y) * (np.radians(1.0) * mv.dt)
     Q = gen_moves.step_quaternion(v)
     Q_end = total_products(Q) if not jac else prefix_products(Q)[..., -1]
@@ -121,30 +142,33 @@ def move_residuals(T, mv: Moves, g_dirs, jac=True, db=None):
         return r, None
     m, L = mv.dt.shape
     W = gen_moves.integration_jacobian(Q, v, mv.dt).reshape(9, m, L).transpose(1, 0, 2)  # (m, 9, L)
-    dphi_T = Rt @ (W @ y.transpose(1, 2, 0)).reshape(m, 3, 9)  # sum_k W_k (x) y_k
-    dphi_b = -Rt @ W.sum(2).reshape(m, 3, 3) @ T
-    dphi = np.concatenate([dphi_T, dphi_b], axis=2) * np.radians(1.0)
+    cols = [Rt @ (W @ y.transpose(1, 2, 0)).reshape(m, 3, 9),  # sum_k W_k (x) y_k
+            -Rt @ W.sum(2).reshape(m, 3, 3) @ T]
+    for j, axis in enumerate(mv.phi_axes):
+        cols.append(-Rt @ (W @ mv.phi[j][..., None]).reshape(m, 3, 3) @ T[:, axis:axis + 1])
+    dphi = np.concatenate(cols, axis=2) * np.radians(1.0)
     return r, -np.matmul(skew(pred), dphi)
 
 
-def fit_gyro_moves(mv: Moves, g_dirs, T0, bias_std, max_iter=30, db0=None, step_tol=1e-3, offset=0.0):
-    """Gauss-Newton on vec(T) and a bias correction db, the rest's bias entering as
-    a prior with its standard error bias_std (deg/s): the moves inform the bias too.
-    The direction noise sigma_r is the moves' residual rms (re-estimated each step).
-    offset is added to the residuals (a coarse level's defect, see calibrate_handheld).
+def fit_gyro_moves(mv: Moves, g_dirs, x0, bias_std, max_iter=30, step_tol=1e-3, offset=0.0) -> GyroFit:
+    """Gauss-Newton on x = [vec(T), db, p] from x0, the rest's bias entering as a prior
+    with its standard error bias_std (deg/s): the moves inform the bias too. The
+    direction noise sigma_r is the moves' residual rms (re-estimated each step).
+    offset is added to the residuals (a coarse level's defect, see fit_gyro).
 
     Converged when no step exceeds step_tol of its parameter's std: that step is
     taken and only the residual recomputed, the Jacobian of the point before serving
-    the covariance (it differs by ~step_tol). Returns (T, db, r, cov, iterations, converged)."""
-    x = np.r_[np.ravel(T0), np.zeros(3) if db0 is None else db0]
-    prior = np.c_[np.zeros((3, 9)), np.diag(1 / bias_std)]
+    the covariance (it differs by ~step_tol)."""
+    x = np.array(x0, float)
+    n = len(x)
+    prior = np.c_[np.zeros((3, 9)), np.diag(1 / bias_std), np.zeros((3, n - 12))]
 
     def evaluate(x, jac=True):
-        r, J = move_residuals(x[:9].reshape(3, 3), mv, g_dirs, jac, db=x[9:])
+        r, J = move_residuals(x[:9].reshape(3, 3), mv, g_dirs, jac, db=x[9:12], p=x[12:])
         return r + offset, J
 
     def system(x, r, J, s_r):
-        return np.vstack([J.reshape(-1, 12) / s_r, prior]), np.r_[r.ravel() / s_r, x[9:] / bias_std]
+        return np.vstack([J.reshape(-1, n) / s_r, prior]), np.r_[r.ravel() / s_r, x[9:12] / bias_std]
 
     r, J = evaluate(x)
     converged = False
@@ -167,9 +191,24 @@ def fit_gyro_moves(mv: Moves, g_dirs, T0, bias_std, max_iter=30, db0=None, step_
             lam /= 2
         x, r, J = x_new, r_new, J_new
     # each residual joins two unit vectors, so it has 2 degrees of freedom, not 3
-    s_r = float(np.sqrt(np.sum(r ** 2) / max(2 * len(r) - 12, 1)))
+    s_r = float(np.sqrt(np.sum(r ** 2) / max(2 * len(r) - n, 1)))
     A = system(x, r, J, s_r)[0]
-    return x[:9].reshape(3, 3), x[9:], r, np.linalg.pinv(A.T @ A), it, converged
+    return GyroFit(x[:9].reshape(3, 3), x[9:12], x[12:], r, np.linalg.pinv(A.T @ A), it, converged)
+
+
+def fit_gyro(mv: Moves, g_dirs, bias_std, x0=None) -> GyroFit:
+    """Coarse to fine; only the full-resolution fixed point is reported. Moves in blocks
+    of 16 samples get near it; blocks of 4, with their defect against the full
+    resolution at that point added (defect correction), get close enough that one
+    full-resolution Jacobian usually suffices."""
+    x = np.r_[np.ravel(np.eye(3)), np.zeros(3 + mv.n_terms)] if x0 is None else x0
+    f = fit_gyro_moves(decimate(mv, 16), g_dirs, x, bias_std)
+    x = np.r_[f.T.ravel(), f.db, f.p]
+    mv4 = decimate(mv, 4)
+    defect = (move_residuals(f.T, mv, g_dirs, jac=False, db=f.db, p=f.p)[0]
+              - move_residuals(f.T, mv4, g_dirs, jac=False, db=f.db, p=f.p)[0])
+    f = fit_gyro_moves(mv4, g_dirs, x, bias_std, offset=defect)
+    return fit_gyro_moves(mv, g_dirs, np.r_[f.T.ravel(), f.db, f.p], bias_std)
 
 
 def decimate(mv: Moves, k: int) -> Moves:
@@ -177,12 +216,17 @@ def decimate(mv: Moves, k: int) -> Moves:
     iterations whose composition error (~1e-3 rad) the full-resolution steps remove."""
     m, L = mv.dt.shape
     n = -(-L // k) * k
-    y = np.zeros((3, m, n))
     dt = np.zeros((m, n))
-    y[..., :L], dt[:, :L] = mv.y * mv.dt, mv.dt
+    dt[:, :L] = mv.dt
     dt_b = dt.reshape(m, n // k, k).sum(2)
-    y_b = y.reshape(3, m, n // k, k).sum(3) / np.where(dt_b > 0, dt_b, 1.0)
-    return Moves(y_b, dt_b, mv.before, mv.after, mv.t_span)
+
+    def block_means(z):  # rate-like (..., m, L): dt-weighted means over the blocks
+        out = np.zeros(z.shape[:-1] + (n,))
+        out[..., :L] = z * mv.dt
+        return out.reshape(z.shape[:-1] + (n // k, k)).sum(-1) / np.where(dt_b > 0, dt_b, 1.0)
+
+    return Moves(block_means(mv.y), dt_b, mv.before, mv.after, mv.t_span, mv.rows,
+                 None if mv.phi is None else block_means(mv.phi), mv.phi_axes)
 
 
 def check_rotation_sense(mv: Moves, g_dirs, T0):
@@ -236,6 +280,33 @@ def pose_observations(ms, detect_kw=None, pose_window_s=1.0):
     return obs, det, poses
 
 
+@dataclass
+class GyroMoves:
+    """What the gyro fit needs from a stream (calibrate and diagnose share it)."""
+    mv: Moves
+    g_dirs: np.ndarray     # (poses, 3) calibrated gravity directions of the poses, in b
+    bias: np.ndarray       # gyro bias from the initial rest (deg/s)
+    bias_std: np.ndarray   # its standard error (deg/s)
+    rest: slice            # the rest's rows
+    skipped: list          # moves left out, with the reason
+    saturation: list       # saturated samples found
+    flipped: list          # moves turning gravity against the gyro's sense
+
+
+def prepare_moves(ms, det: Detection, g_dirs) -> GyroMoves:
+    w = ms.gyro_dph() / 3600.0  # deg/s
+    # the first static interval, trimmed by half a window: a centred window sees
+    # the start of a move half a window late
+    rest = slice(det.starts[0] + det.window // 2, det.ends[0] - det.window // 2)
+    bias = w[rest].mean(0)
+    raw = np.column_stack([ms.samples[c] for c in ("gx", "gy", "gz")])
+    bad, sat = saturated_rows(raw, ms.meta.get("full_scale", {}).get("gyro"))
+    mv, skipped = build_moves(w, ms.samples["t_s"], det, bias, bad)
+    flipped = check_rotation_sense(decimate(mv, 4), g_dirs, np.eye(3))  # a sign question: coarse moves suffice
+    bias_std = np.maximum(w[rest].std(0, ddof=1) / np.sqrt(rest.stop - rest.start), 1e-9)
+    return GyroMoves(mv, g_dirs, bias, bias_std, rest, skipped, sat, flipped)
+
+
 def calibrate_handheld(ms, acc_model="acc_baseline", detect_kw=None, pose_window_s=1.0) -> dict:
     """pose_window_s: seconds at the start of each static interval averaged into the
     pose (None: the whole interval). Hand-placed poses creep: on imu_tk's Xsens
@@ -261,34 +332,15 @@ def calibrate_handheld(ms, acc_model="acc_baseline", detect_kw=None, pose_window
                           "the extra variance: simucal diagnose); each pose got an extra variance tau^2 so that "
                           "chi2/dof = 1, and the stds include it")}}
     if ms.has_gyro:
-        w = ms.gyro_dph() / 3600.0  # deg/s
-        # the first static interval, trimmed by half a window: a centred window sees
-        # the start of a move half a window late
-        rest = slice(det.starts[0] + det.window // 2, det.ends[0] - det.window // 2)
-        bias = w[rest].mean(0)
-        raw = np.column_stack([ms.samples[c] for c in ("gx", "gy", "gz")])
-        fs = ms.meta.get("full_scale", {}).get("gyro")
-        bad, sat = saturated_rows(raw, fs)
-        mv, skipped = build_moves(w, t, det, bias, bad)
-        g_dirs = initial_directions(am, obs, fa.vector(am.params))  # the calibrated pose means, normalised
-        flipped = check_rotation_sense(decimate(mv, 4), g_dirs, np.eye(3))  # a sign question: coarse moves suffice
-        bias_std = w[rest].std(0, ddof=1) / np.sqrt(rest.stop - rest.start)
-        bias_std = np.maximum(bias_std, 1e-9)
-        # Coarse to fine; only the full-resolution fixed point is reported. Moves in blocks
-        # of 16 samples get near it; blocks of 4, with their defect against the full
-        # resolution at that point added (defect correction), get close enough that
-        # one full-resolution Jacobian usually suffices.
-        T, db, *_ = fit_gyro_moves(decimate(mv, 16), g_dirs, np.eye(3), bias_std)
-        mv4 = decimate(mv, 4)
-        defect = (move_residuals(T, mv, g_dirs, jac=False, db=db)[0]
-                  - move_residuals(T, mv4, g_dirs, jac=False, db=db)[0])
-        T, db, *_ = fit_gyro_moves(mv4, g_dirs, T, bias_std, db0=db, offset=defect)
-        T, db, r, cov, it, converged = fit_gyro_moves(mv, g_dirs, T, bias_std, db0=db)
-        if not converged:
-            raise CalibrationError(f"{ms.path}: the gyro fit over the moves did not converge in {it} Gauss-Newton "
-                                   "steps; look at the moves (simucal diagnose) for ones the model cannot follow")
-        bias = bias + db
-        bias_std = np.sqrt(np.diag(cov)[9:])
+        gm = prepare_moves(ms, det, initial_directions(am, obs, fa.vector(am.params)))
+        f = fit_gyro(gm.mv, gm.g_dirs, gm.bias_std)
+        if not f.converged:
+            raise CalibrationError(f"{ms.path}: the gyro fit over the moves did not converge in {f.iterations} "
+                                   "Gauss-Newton steps; look at the moves (simucal diagnose) for ones the model "
+                                   "cannot follow")
+        T, r, cov, mv = f.T, f.r, f.cov, gm.mv
+        bias = gm.bias + f.db
+        bias_std = np.sqrt(np.diag(cov)[9:12])
         M_g = np.linalg.inv(T)
         units.check_scale("gyro", M_g, ms.path / "samples.csv")
         result["gyro"] = {"M": M_g.tolist(), "bias": (bias * 3600).tolist(), "bias_unit": "deg/h",
@@ -299,7 +351,7 @@ def calibrate_handheld(ms, acc_model="acc_baseline", detect_kw=None, pose_window
                           "moves": [{"from_pose": int(a), "to_pose": int(b), "t_s": list(span), "residual": ri.tolist()}
                                     for a, b, span, ri in zip(mv.before, mv.after, mv.t_span, r)],
                           "residual_unit": "gravity direction (unit vector), per move",
-                          "moves_used": int(len(r)), "moves_skipped": skipped, "saturation": sat,
-                          "moves_opposite_sense": flipped, "iterations": it}
+                          "moves_used": int(len(r)), "moves_skipped": gm.skipped, "saturation": gm.saturation,
+                          "moves_opposite_sense": gm.flipped, "iterations": f.iterations}
     result["residual_rms"] = {s: result[s]["residual_rms"] for s in ("acc", "gyro") if s in result}
     return result

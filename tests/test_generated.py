@@ -127,12 +127,14 @@ def test_move_integration_and_its_jacobian():
     close(total_products(moves.step_quaternion(v)), Q[..., -1], rel=1e-12)
     g = rng.normal(size=(m + 1, 3))
     g /= np.linalg.norm(g, axis=1, keepdims=True)
-    mv = Moves(y, dt, np.arange(m), np.arange(1, m + 1))
+    phi = rng.normal(size=(2, m, L)) * (dt > 0)  # two added effects, on axes z and x
+    mv = Moves(y, dt, np.arange(m), np.arange(1, m + 1), phi=phi, phi_axes=(2, 0))
     T, db = np.eye(3) + rng.normal(size=(3, 3)) * 0.02, rng.normal(size=3) * 0.1
-    r, J = move_residuals(T, mv, g, db=db)
-    x = np.r_[T.ravel(), db]
-    for j in range(12):
-        dx = np.eye(12)[j] * 1e-6
-        rp = move_residuals((x + dx)[:9].reshape(3, 3), mv, g, jac=False, db=(x + dx)[9:])[0]
-        rm = move_residuals((x - dx)[:9].reshape(3, 3), mv, g, jac=False, db=(x - dx)[9:])[0]
+    x = np.r_[T.ravel(), db, 0.3, -0.2]
+    r, J = move_residuals(T, mv, g, db=db, p=x[12:])
+    assert J.shape == (m, 3, 14)
+    for j in range(14):
+        dx = np.eye(14)[j] * 1e-6
+        rp, rm = (move_residuals(z[:9].reshape(3, 3), mv, g, jac=False, db=z[9:12], p=z[12:])[0]
+                  for z in (x + dx, x - dx))
         close(J[..., j], (rp - rm) / 2e-6, rel=1e-6)
