@@ -157,16 +157,26 @@ def _verdict(sensor, base, cands):
             f"{base['noise_floor']:.3g})")
     if sig:
         c = sig[0]
+        after = c.get("residual_rms_after")
+        more = (f" With it the residual rms would be {after:.3g}, still above the floor: more is missing "
+                "(see the other candidates)." if after and base["noise_floor"] and after > 2 * base["noise_floor"]
+                else "")
         return (head + f". Most likely missing: {c['id']} ({c['meaning']}), estimate {c['estimate']:.3g} "
                 f"+- {c['std']:.2g} {c['unit']}, LR {c['statistic']:.1f}, p = {c['p_value']:.2g}. "
-                f"Add it: simucal diagnose DIR --add {c['id']}")
+                f"Add it: simucal diagnose DIR --add {c['id']}.{more}")
     return head + ". No candidate explains it; the missing effect is not in the library (or the plan cannot separate it)."
 
 
 def diagnose_sensor(ms, sensor, base_model, add=(), stated=None, truth=None):
+    if ms.segments is None and sensor == "gyro":  # a stream: the gyro against its moves
+        if base_model != "gyro_baseline":
+            raise CalibrationError(f"{ms.path}: on a stream the gyro is fit as a full T and a bias over the moves, so "
+                                   f"the model {base_model} does not apply; add effects with --add gyro.<effect>.<axis>")
+        from .diagnose_moves import diagnose_moves
+        from .handheld import acc_from_poses
+        obs, det, am, fa, _ = acc_from_poses(ms)
+        return diagnose_moves(ms, obs, det, am, fa, tuple(add), truth, ALPHA)
     if ms.segments is None:  # a stream: its static poses, as the hand-placed calibration finds them
-        if sensor != "acc":
-            return None
         from .handheld import pose_observations
         obs, det, poses = pose_observations(ms)
         segs = [io.Segment(i, "static", None, None, None, 0.0) for i in range(len(poses))]

@@ -25,6 +25,7 @@ import numpy as np
 
 from . import units
 from .augmented import AugmentedModel
+from .noise import quantization_step
 from .norm_fit import CalibrationError, Observations, fit_exact, initial_directions
 from .generated import moves as gen_moves
 from .rotations import skew
@@ -41,6 +42,7 @@ class Moves:
     rows: list = None    # (m,) (a, b): the move integrates stream rows a+1 .. b
     phi: np.ndarray = None  # (q, m, L) regressors of added effects, (deg/s) per unit parameter, 0 on padding
     phi_axes: tuple = ()    # the output axis each one acts on
+    phi_rest: np.ndarray = None  # (q,) their mean over the initial rest, which reads b + sum_j p_j e_j phi_j
 
     @property
     def n_terms(self):
@@ -161,14 +163,18 @@ def fit_gyro_moves(mv: Moves, g_dirs, x0, bias_std, max_iter=30, step_tol=1e-3, 
     the covariance (it differs by ~step_tol)."""
     x = np.array(x0, float)
     n = len(x)
-    prior = np.c_[np.zeros((3, 9)), np.diag(1 / bias_std), np.zeros((3, n - 12))]
+    # the prior: the rest read b_rest = b + sum_j p_j e_j phi_j(rest), so db + that sum = 0 +- bias_std
+    E = np.zeros((3, n - 12))
+    if mv.n_terms:
+        E[list(mv.phi_axes), np.arange(n - 12)] = mv.phi_rest
+    prior = np.c_[np.zeros((3, 9)), np.eye(3), E] / bias_std[:, None]
 
     def evaluate(x, jac=True):
         r, J = move_residuals(x[:9].reshape(3, 3), mv, g_dirs, jac, db=x[9:12], p=x[12:])
         return r + offset, J
 
     def system(x, r, J, s_r):
-        return np.vstack([J.reshape(-1, n) / s_r, prior]), np.r_[r.ravel() / s_r, x[9:12] / bias_std]
+        return np.vstack([J.reshape(-1, n) / s_r, prior]), np.r_[r.ravel() / s_r, prior @ x]
 
     r, J = evaluate(x)
     converged = False
@@ -226,7 +232,7 @@ def decimate(mv: Moves, k: int) -> Moves:
         return out.reshape(z.shape[:-1] + (n // k, k)).sum(-1) / np.where(dt_b > 0, dt_b, 1.0)
 
     return Moves(block_means(mv.y), dt_b, mv.before, mv.after, mv.t_span, mv.rows,
-                 None if mv.phi is None else block_means(mv.phi), mv.phi_axes)
+                 None if mv.phi is None else block_means(mv.phi), mv.phi_axes, mv.phi_rest)
 
 
 def check_rotation_sense(mv: Moves, g_dirs, T0):
@@ -280,6 +286,17 @@ def pose_observations(ms, detect_kw=None, pose_window_s=1.0):
     return obs, det, poses
 
 
+def acc_from_poses(ms, acc_model="acc_baseline", detect_kw=None, pose_window_s=1.0):
+    """The accelerometer from a stream's poses: (Observations, Detection, model, fit, tau)."""
+    if not ms.has_acc:
+        raise CalibrationError(f"{ms.path}: a hand-placed session needs accelerometer data")
+    obs, det, _ = pose_observations(ms, detect_kw, pose_window_s)
+    units.check_magnitude("acc", np.linalg.norm(obs.N, axis=1), obs.rho, ms.path / "samples.csv", ms.meta)
+    am = AugmentedModel(acc_model)
+    fa, tau = with_model_error(am, obs, fit_exact(am, obs))
+    return obs, det, am, fa, tau
+
+
 @dataclass
 class GyroMoves:
     """What the gyro fit needs from a stream (calibrate and diagnose share it)."""
@@ -303,7 +320,9 @@ def prepare_moves(ms, det: Detection, g_dirs) -> GyroMoves:
     bad, sat = saturated_rows(raw, ms.meta.get("full_scale", {}).get("gyro"))
     mv, skipped = build_moves(w, ms.samples["t_s"], det, bias, bad)
     flipped = check_rotation_sense(decimate(mv, 4), g_dirs, np.eye(3))  # a sign question: coarse moves suffice
-    bias_std = np.maximum(w[rest].std(0, ddof=1) / np.sqrt(rest.stop - rest.start), 1e-9)
+    # a rest quieter than one LSB averages to within about q/sqrt(12), not s/sqrt(n)
+    s, q = w[rest].std(0, ddof=1), quantization_step(w[rest], w)
+    bias_std = np.maximum(np.where(s < q, q / np.sqrt(12), s / np.sqrt(rest.stop - rest.start)), 1e-9)
     return GyroMoves(mv, g_dirs, bias, bias_std, rest, skipped, sat, flipped)
 
 
@@ -312,14 +331,8 @@ def calibrate_handheld(ms, acc_model="acc_baseline", detect_kw=None, pose_window
     pose (None: the whole interval). Hand-placed poses creep: on imu_tk's Xsens
     session the baseline's chi2 falls from 472 to 141 (29 dof) when only the first
     second is used, which is also imu_tk's convention (100 samples)."""
-    if not ms.has_acc:
-        raise CalibrationError(f"{ms.path}: a hand-placed session needs accelerometer data")
     t = ms.samples["t_s"]
-    obs, det, _ = pose_observations(ms, detect_kw, pose_window_s)
-    units.check_magnitude("acc", np.linalg.norm(obs.N, axis=1), obs.rho, ms.path / "samples.csv", ms.meta)
-    am = AugmentedModel(acc_model)
-    fa = fit_exact(am, obs)
-    fa, tau = with_model_error(am, obs, fa)
+    obs, det, am, fa, tau = acc_from_poses(ms, acc_model, detect_kw, pose_window_s)
     M_a, b_a = am.matrix_and_bias(fa.vector(am.params))
     units.check_scale("acc", M_a, ms.path / "samples.csv")
     result = {"format": "simucal.calibration/1", "method": "handheld (Tedaldi): exact norm fit + gyro moves",

@@ -5,15 +5,17 @@ R(t) = R_i exp(s(t) theta k) with s a smooth step, so the body rate is exactly
 s'(t) theta k. Outputs: counts = nominal * (M f + b) + noise, clipped at the
 full scale; accelerometer in g through acc M_a (lower triangular, b frame),
 gyro through a full M_g (so omega is in b). Translational acceleration during
-moves and the Earth rate are left out.
+moves and the Earth rate are left out. Gyro effects of generated/effects.py
+can be planted (gyro_effects), evaluated at the true rate and specific force.
 """
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 
 from . import io
+from .generated.effects import EFFECTS
 from .rotations import exp_so3
 
 
@@ -33,6 +35,7 @@ class HandheldScenario:
     full_scale_dps: float = 2000.0
     clip_moves: int = 0          # this many moves peak beyond full scale
     flip_gyro: bool = False      # gyro sign reversed (a wrong convention)
+    gyro_effects: dict = field(default_factory=dict)  # planted candidate effects: {effect id: value in its unit}
 
 
 def _random_rotation(rng):
@@ -91,7 +94,13 @@ def simulate_handheld(sc: HandheldScenario, seed=0):
     n = len(f)
     acc = sc.offset_counts + sc.acc_counts_per_g * (f @ M_a.T + b_a + rng.normal(0, sc.acc_noise_g, (n, 3)))
     gsign = -1.0 if sc.flip_gyro else 1.0
-    gyro = sc.offset_counts + sc.gyro_counts_per_dps * (gsign * (w @ M_g.T) + b_g + rng.normal(0, sc.gyro_noise_dps, (n, 3)))
+    out_dps = gsign * (w @ M_g.T) + b_g
+    for eid, value in sc.gyro_effects.items():
+        sensor, axis, _, _, _, phi = EFFECTS[eid]
+        if sensor != "gyro":
+            raise ValueError(f"{eid}: only gyro effects can be planted in a hand-placed session")
+        out_dps[:, axis] += value * phi(w * 3600.0, 0.0, np.arange(n) * dt, f)[0][:, 0] / 3600.0
+    gyro = sc.offset_counts + sc.gyro_counts_per_dps * (out_dps + rng.normal(0, sc.gyro_noise_dps, (n, 3)))
     lo = sc.offset_counts - sc.full_scale_dps * sc.gyro_counts_per_dps
     hi = sc.offset_counts + sc.full_scale_dps * sc.gyro_counts_per_dps
     gyro = np.clip(np.round(gyro), lo, hi)
@@ -102,7 +111,8 @@ def simulate_handheld(sc: HandheldScenario, seed=0):
     # output = M f + bias with outputs in physical units: counts / nominal, offset in the bias
     truth = {"acc": {"M": M_a.tolist(), "bias": (b_a + sc.offset_counts / sc.acc_counts_per_g).tolist()},
              "gyro": {"M": M_g.tolist(), "T": np.linalg.inv(M_g).tolist(),
-                      "bias_dps": (b_g + sc.offset_counts / sc.gyro_counts_per_dps).tolist()},
+                      "bias_dps": (b_g + sc.offset_counts / sc.gyro_counts_per_dps).tolist(),
+                      "params": {EFFECTS[e][2]: v for e, v in sc.gyro_effects.items()}},
              "clipped_moves": sorted(clip), "seed": seed}
     samples = {"t_s": np.arange(n) * dt, "ax": acc[:, 0], "ay": acc[:, 1], "az": acc[:, 2],
                "gx": gyro[:, 0], "gy": gyro[:, 1], "gz": gyro[:, 2]}

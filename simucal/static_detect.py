@@ -13,7 +13,7 @@ from dataclasses import asdict, dataclass
 
 import numpy as np
 
-from .noise import white_noise_var
+from .noise import quantization_step, white_noise_var
 from .norm_fit import CalibrationError
 
 
@@ -64,10 +64,16 @@ def detect_static(acc, t, window_s=1.0, factor=6.0, min_s=1.0, init_rest_s=None,
             f"the stream has no initial rest (the first {t[min(init_end, len(t) - 1)] - t[0]:.1f} s are not still); "
             "the static detector takes its threshold from a rest of at least 3 s at the start "
             "(Tedaldi: about 50 s); record one, or give --init-rest-s")
-    threshold = factor * float(np.linalg.norm(np.var(acc[:init_end], axis=0)))
+    # a rest quieter than one LSB reads constant: its variance is floored at q^2/12 (noise.quantization_step)
+    q2 = np.maximum(np.var(acc[:init_end], axis=0), quantization_step(acc[:init_end], acc) ** 2 / 12)
+    threshold = factor * float(np.linalg.norm(q2))
     still = mv < threshold
     edges = np.diff(np.r_[0, still.astype(int), 0])
     starts, ends = np.nonzero(edges == 1)[0], np.nonzero(edges == -1)[0]
     min_samples = int(round(min_s / dt))
     keep = (ends - starts) >= min_samples
+    if not keep.any():
+        raise CalibrationError(f"no static interval of at least {min_s:g} s found (threshold {threshold:.3g}, "
+                               f"{factor:g} x the initial rest's variance); lower --min-static-s or raise "
+                               "--threshold-factor")
     return Detection(starts[keep].tolist(), ends[keep].tolist(), threshold, w, min_samples, init_end, factor)

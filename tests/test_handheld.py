@@ -63,6 +63,28 @@ def test_diagnose_real_stream_says_honestly_what_it_finds(tmp_path):
     assert len(d["acc"]["residuals"]) == d["acc"]["baseline"]["dof"] + 9
     if not any(c.get("significant") for c in d["candidates"]):
         assert "not in the library" in d["verdict"]
+    g = d["gyro"]  # the moves: far above the white-noise floor of the rests, and it says so
+    assert g["baseline"]["p_value"] < 1e-6 and g["baseline"]["residual_rms"] > 3 * g["baseline"]["noise_floor"]
+    assert len(g["residuals"]) == 37 and g["candidates"][0]["separable"]
+    assert "more is missing" in g["verdict"] or "not in the library" in g["verdict"]
+
+
+def test_diagnose_moves_clean_and_with_a_planted_g_sensitivity(tmp_path):
+    """A clean simulated session passes the moves' chi-square test with nothing declared missing; a
+    planted y-gyro g-sensitivity (1000 (deg/h)/g along z) is found first, and adding it recovers its
+    value and brings the residual down to the noise floor."""
+    from simucal.diagnose import diagnose
+    write_handheld(tmp_path / "clean", HandheldScenario(), 1)
+    g = diagnose(tmp_path / "clean")["gyro"]
+    assert g["baseline"]["p_value"] > 0.01 and not any(c.get("significant") for c in g["candidates"])
+    write_handheld(tmp_path / "g", HandheldScenario(gyro_effects={"gyro.g_sensitivity.yz": 1000.0}), 1)
+    d = diagnose(tmp_path / "g", add=("gyro.g_sensitivity.yz",))
+    top = d["gyro"]["candidates"][0]
+    assert top["id"] == "gyro.g_sensitivity.yz" and top["significant"]
+    a = d["gyro"]["added"]
+    assert abs(a["params"]["G_yz"]["error_after"]) < 3 * a["params"]["G_yz"]["std_after"]
+    assert a["residual_rms_after"] < 1.5 * d["gyro"]["baseline"]["noise_floor"] < a["residual_rms_before"] / 10
+    assert abs(a["params"]["T_xx"]["error_after"]) < abs(a["params"]["T_xx"]["error_before"])
 
 
 def test_ferraris_sessions(tmp_path):
