@@ -292,6 +292,15 @@ def acc_from_poses(ms, acc_model="acc_baseline", detect_kw=None, pose_window_s=1
         raise CalibrationError(f"{ms.path}: a hand-placed session needs accelerometer data")
     obs, det, _ = pose_observations(ms, detect_kw, pose_window_s)
     units.check_magnitude("acc", np.linalg.norm(obs.N, axis=1), obs.rho, ms.path / "samples.csv", ms.meta)
+    # the norm sees an axis's scale and misalignment only if gravity leaves the poses' plane; the
+    # Jacobi-scaled information cannot tell (noise alone keeps those columns independent), so look
+    # at the pose means themselves: on an ellipsoid, or on an ellipse in one plane
+    spread, normal = np.linalg.eigh(np.cov(obs.N.T))
+    if spread[0] < 1e-3 * spread[-1]:
+        raise CalibrationError(
+            f"{ms.path}: the {len(obs.N)} poses' gravity directions lie in one plane (spread across it "
+            f"{np.sqrt(spread[0]):.2g} g, normal {np.round(normal[:, 0], 2).tolist()} in the output axes): the scale "
+            "and misalignment along its normal are unobservable; add poses tilted out of that plane")
     am = AugmentedModel(acc_model)
     fa, tau = with_model_error(am, obs, fit_exact(am, obs))
     return obs, det, am, fa, tau
@@ -352,6 +361,10 @@ def calibrate_handheld(ms, acc_model="acc_baseline", detect_kw=None, pose_window
                                    "Gauss-Newton steps; look at the moves (simucal diagnose) for ones the model "
                                    "cannot follow")
         T, r, cov, mv = f.T, f.r, f.cov, gm.mv
+        unseen = [f"T_{'xyz'[k // 3]}{'xyz'[k % 3]}" for k in range(9) if np.sqrt(cov[k, k]) > 0.05]
+        if unseen:  # T is near I: a 5 % std means the moves barely turn the unit about that axis
+            raise CalibrationError(f"{ms.path}: the moves leave {unseen} unobservable (std above 0.05): turn the "
+                                   "unit about every axis between poses, not about one or two")
         bias = gm.bias + f.db
         bias_std = np.sqrt(np.diag(cov)[9:12])
         M_g = np.linalg.inv(T)

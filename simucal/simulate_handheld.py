@@ -36,6 +36,7 @@ class HandheldScenario:
     clip_moves: int = 0          # this many moves peak beyond full scale
     flip_gyro: bool = False      # gyro sign reversed (a wrong convention)
     gyro_effects: dict = field(default_factory=dict)  # planted candidate effects: {effect id: value in its unit}
+    coplanar_poses: bool = False  # every pose turned about body x only: gravity directions in one plane
 
 
 def _random_rotation(rng):
@@ -62,7 +63,10 @@ def simulate_handheld(sc: HandheldScenario, seed=0):
     M_g = np.eye(3) + rng.uniform(-0.01, 0.01, (3, 3)) + np.diag(rng.uniform(-0.03, 0.03, 3))
     b_g = rng.uniform(-2, 2, 3)
     dt = 1 / sc.rate_hz
-    Rs = [np.eye(3)] + [_random_rotation(rng) for _ in range(sc.poses)]
+    if sc.coplanar_poses:
+        Rs = [exp_so3(np.array([a, 0.0, 0.0])) for a in np.r_[0.0, rng.uniform(-np.pi, np.pi, sc.poses)]]
+    else:
+        Rs = [np.eye(3)] + [_random_rotation(rng) for _ in range(sc.poses)]
     f_list, w_list = [], []
 
     def hold(R, secs):
