@@ -363,8 +363,13 @@ def calibrate_handheld(ms, acc_model="acc_baseline", detect_kw=None, pose_window
         T, r, cov, mv = f.T, f.r, f.cov, gm.mv
         unseen = [f"T_{'xyz'[k // 3]}{'xyz'[k % 3]}" for k in range(9) if np.sqrt(cov[k, k]) > 0.05]
         if unseen:  # T is near I: a 5 % std means the moves barely turn the unit about that axis
-            raise CalibrationError(f"{ms.path}: the moves leave {unseen} unobservable (std above 0.05): turn the "
-                                   "unit about every axis between poses, not about one or two")
+            rms = np.sqrt(np.sum(mv.y ** 2 * mv.dt, axis=(1, 2)) / np.sum(mv.dt))  # per output axis, deg/s
+            dead = [f"{'xyz'[j]} ({rms[j]:.2g} deg/s against {rms.max():.2g})" for j in range(3)
+                    if rms[j] < 0.05 * rms.max()]
+            raise CalibrationError(f"{ms.path}: the moves leave {unseen} unobservable (std above 0.05): "
+                                   + (f"gyro output {', '.join(dead)} hardly changes during the moves: a dead or "
+                                      "unconnected channel?" if dead else
+                                      "turn the unit about every axis between poses, not about one or two"))
         bias = gm.bias + f.db
         bias_std = np.sqrt(np.diag(cov)[9:12])
         M_g = np.linalg.inv(T)

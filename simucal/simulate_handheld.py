@@ -37,6 +37,7 @@ class HandheldScenario:
     flip_gyro: bool = False      # gyro sign reversed (a wrong convention)
     gyro_effects: dict = field(default_factory=dict)  # planted candidate effects: {effect id: value in its unit}
     coplanar_poses: bool = False  # every pose turned about body x only: gravity directions in one plane
+    dead_gyro_axis: int = None    # this gyro output does not respond to rate (a dead channel)
 
 
 def _random_rotation(rng):
@@ -62,6 +63,8 @@ def simulate_handheld(sc: HandheldScenario, seed=0):
     b_a = rng.uniform(-0.05, 0.05, 3)
     M_g = np.eye(3) + rng.uniform(-0.01, 0.01, (3, 3)) + np.diag(rng.uniform(-0.03, 0.03, 3))
     b_g = rng.uniform(-2, 2, 3)
+    if sc.dead_gyro_axis is not None:
+        M_g[sc.dead_gyro_axis] = 0.0
     dt = 1 / sc.rate_hz
     if sc.coplanar_poses:
         Rs = [exp_so3(np.array([a, 0.0, 0.0])) for a in np.r_[0.0, rng.uniform(-np.pi, np.pi, sc.poses)]]
@@ -114,7 +117,7 @@ def simulate_handheld(sc: HandheldScenario, seed=0):
             "full_scale": {"gyro": [lo, hi]}, "description": "simucal hand-placed session simulation"}
     # output = M f + bias with outputs in physical units: counts / nominal, offset in the bias
     truth = {"acc": {"M": M_a.tolist(), "bias": (b_a + sc.offset_counts / sc.acc_counts_per_g).tolist()},
-             "gyro": {"M": M_g.tolist(), "T": np.linalg.inv(M_g).tolist(),
+             "gyro": {"M": M_g.tolist(), "T": None if sc.dead_gyro_axis is not None else np.linalg.inv(M_g).tolist(),
                       "bias_dps": (b_g + sc.offset_counts / sc.gyro_counts_per_dps).tolist(),
                       "params": {EFFECTS[e][2]: v for e, v in sc.gyro_effects.items()}},
              "clipped_moves": sorted(clip), "seed": seed}

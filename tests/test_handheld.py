@@ -36,6 +36,7 @@ def test_simulated_session_within_3_sigma(tmp_path, seed):
     (dict(clip_moves=14, poses=14), "every move between poses holds saturated"),
     (dict(rest_s=0.5), "no initial rest"),
     (dict(coplanar_poses=True), "unobservable"),
+    (dict(dead_gyro_axis=1), r"unobservable .*gyro output y .* a dead or unconnected channel"),
     (dict(flip_gyro=True), "rotation sense contradicts the accelerometers"),
 ])
 def test_refusals(tmp_path, settings, message):
