@@ -111,3 +111,12 @@ def test_gyro_fit_that_does_not_converge_is_refused(tmp_path, monkeypatch):
     monkeypatch.setattr(handheld, "fit_gyro_moves", lambda *a, **k: real(*a, **{**k, "max_iter": 1, "step_tol": 1e-12}))
     with pytest.raises(CalibrationError, match="did not converge in 1 Gauss-Newton steps"):
         calibrate(tmp_path / "h")
+
+
+def test_stream_with_no_long_enough_static_interval_is_refused(tmp_path):
+    from simucal import io
+    from simucal.static_detect import detect_static
+    write_handheld(tmp_path / "h", HandheldScenario(poses=8), 0)
+    ms = io.read(tmp_path / "h")
+    with pytest.raises(CalibrationError, match="no static interval of at least 100 s found"):
+        detect_static(ms.acc_g(), ms.samples["t_s"], min_s=100.0)
