@@ -121,14 +121,21 @@ def rank_candidates(model: AugmentedModel, obs: Observations, fit: Fit, base_fai
             entry["note"] = (f"nearly collinear with the baseline: {100 * visible:.2g} % of its signature is separable, "
                              f"so it is weakly seen; to see it: {SEPARATE[family]}")
         out.append(entry)
-    tested = [e for e in out if e["separable"]]
-    for e in tested:
-        e["significant"] = bool(base_fails and e["p_value"] is not None and e["p_value"] < ALPHA / len(tested))
-        twins = [o for o in cols if o != e["id"] and abs(cols[o] @ cols[e["id"]]) > 0.99]
+    for e in out:
+        twins = [o for o in cols if o != e["id"] and abs(cols[o] @ cols[e["id"]]) > 0.99] if e["separable"] else []
         if twins:
             e["note"] = "cannot be told apart from " + ", ".join(twins) + " by this plan"
-    tested.sort(key=lambda e: -e["statistic"])
-    return tested + [e for e in out if not e["separable"]]
+    return gate_candidates(out, base_fails)
+
+
+def gate_candidates(out, base_fails, alpha=ALPHA):
+    """The Bonferroni gate over one family of tests: a separable candidate is significant only
+    when the baseline fails and its p-value beats alpha / (number tested). Returns the
+    tested candidates, strongest first, then the ones that could not be tested."""
+    tested = [e for e in out if e["separable"]]
+    for e in tested:
+        e["significant"] = bool(base_fails and e["p_value"] is not None and e["p_value"] < alpha / len(tested))
+    return sorted(tested, key=lambda e: -e["statistic"]) + [e for e in out if not e["separable"]]
 
 
 def residual_table(fit: Fit, obs: Observations, segs) -> list[dict]:
@@ -145,7 +152,7 @@ def residual_table(fit: Fit, obs: Observations, segs) -> list[dict]:
     return rows
 
 
-def _verdict(sensor, base, cands):
+def verdict(sensor, base, cands):
     if base["p_value"] is None:
         return f"{sensor}: no noise estimate, so no test; residual rms {base['residual_rms']:.3g}"
     if base["p_value"] >= ALPHA:
@@ -202,7 +209,7 @@ def diagnose_sensor(ms, sensor, base_model, add=(), stated=None, truth=None):
             cands = sorted([c for c in cands + tc if c["separable"]],
                            key=lambda c: (c["p_value"] if c["p_value"] is not None else 2.0, -c["statistic"])) + \
                 [c for c in cands + tc if not c["separable"]]
-    out = {"baseline": base, "candidates": cands, "verdict": _verdict(sensor, base, cands),
+    out = {"baseline": base, "candidates": cands, "verdict": verdict(sensor, base, cands),
            "params": fit.params, "std": fit.std, "residuals": residual_table(fit, obs, segs)}
     if table_info is not None:
         out["table"] = table_info
@@ -230,21 +237,17 @@ def _p0(base_model, add, obs):
 
 
 def stream_summary(ms, max_points=4000):
-    """A continuous stream for the report: |f| over time (decimated), the static
-    intervals found, and the gyro's residual per move (hand-placed calibration)."""
-    from .handheld import calibrate_handheld
-    cal = calibrate_handheld(ms)
+    """A continuous stream for the report: |f| over time (decimated), calibrated by the
+    hand-placed accelerometer fit, and the static intervals found (the gyro's moves are in
+    the gyro block, diagnose_moves)."""
+    from .handheld import acc_from_poses
+    _, det, am, fa, _ = acc_from_poses(ms)
     t = ms.samples["t_s"]
     step = max(len(t) // max_points, 1)
-    M, b = np.array(cal["acc"]["M"]), np.array(cal["acc"]["bias"])
+    M, b = am.matrix_and_bias(fa.vector(am.params))
     f = np.linalg.solve(M, (ms.acc_g()[::step] - b).T).T  # calibrated specific force, g
-    out = {"t_s": t[::step].tolist(), "acc_norm_g": np.linalg.norm(f, axis=1).tolist(),
-           "static_detection": cal["static_detection"]}
-    if "gyro" in cal:
-        out["gyro_moves"] = cal["gyro"]["moves"]
-        out["gyro_moves_skipped"] = cal["gyro"]["moves_skipped"]
-        out["gyro_residual_rms"] = cal["gyro"]["residual_rms"]
-    return out
+    return {"t_s": t[::step].tolist(), "acc_norm_g": np.linalg.norm(f, axis=1).tolist(),
+            "static_detection": det.as_dict(t)}
 
 
 def diagnose(folder, add=(), acc_model="acc_baseline", gyro_model="gyro_baseline",

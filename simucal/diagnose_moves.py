@@ -29,6 +29,7 @@ import numpy as np
 from scipy import stats
 
 from .augmented import check_effect, effect_ids
+from .diagnose import verdict, gate_candidates
 from .generated.effects import EFFECTS
 from .handheld import GyroFit, Moves, fit_gyro, fit_gyro_moves, move_residuals, prepare_moves
 from .noise import quantization_step, white_noise_var
@@ -149,16 +150,11 @@ def rank_move_candidates(gm, base: GyroFit, inputs, base_fails, alpha):
             entry["note"] = (f"nearly collinear with T and the bias: {100 * perp / norm_col:.2g} % of its signature "
                              f"is separable; to see it: {SEPARATE_MOVES[family]}")
         out.append(entry)
-    tested = [e for e in out if e["separable"]]
-    for e in tested:
-        e["significant"] = bool(base_fails and e["p_value"] < alpha / len(tested))
-    tested.sort(key=lambda e: -e["statistic"])
-    return tested + [e for e in out if not e["separable"]]
+    return gate_candidates(out, base_fails, alpha)
 
 
 def diagnose_moves(ms, obs, det, am, fa, add=(), truth=None, alpha=0.01):
     """The gyro block of `simucal diagnose` for a stream (same keys as for a turntable set)."""
-    from .diagnose import _verdict
     gm = prepare_moves(ms, det, initial_directions(am, obs, fa.vector(am.params)))
     base = fit_gyro(gm.mv, gm.g_dirs, gm.bias_std)
     rest = ms.gyro_dph()[gm.rest] / 3600.0
@@ -185,10 +181,11 @@ def diagnose_moves(ms, obs, det, am, fa, add=(), truth=None, alpha=0.01):
         S = move_covariances(gm, fit, obs, sigma_g)
     vec = lambda f: np.r_[f.T.ravel(), (gm.bias + f.db) * 3600, f.p]
     std = lambda f: np.sqrt(np.diag(f.cov)) * np.r_[np.ones(9), np.full(3, 3600.0), np.ones(len(f.p))]
-    out = {"baseline": block, "candidates": cands, "verdict": _verdict("gyro (moves)", block, cands),
+    out = {"baseline": block, "candidates": cands, "verdict": verdict("gyro (moves)", block, cands),
            "params": dict(zip(names, vec(fit).tolist())), "std": dict(zip(names, std(fit).tolist())),
            "param_units": {"T": "1 (deg/s of rate per deg/s of output)", "b": "deg/h"},
-           "residuals": move_rows(gm, fit, S, temp), "residual_unit": "gravity direction (unit vector), per move"}
+           "residuals": move_rows(gm, fit, S, temp), "residual_unit": "gravity direction (unit vector), per move",
+           "moves_skipped": gm.skipped, "saturation": gm.saturation, "moves_opposite_sense": gm.flipped}
     if add:
         _, _, p1 = chi2_test(fit, S, gm.bias_std, mv)
         v0, s0, v1, s1 = vec(base), std(base), vec(fit), std(fit)

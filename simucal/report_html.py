@@ -121,7 +121,7 @@ def _fmt(v):
 
 
 def stream_figures(stream):
-    """The stream with its static intervals shaded, and the gyro's residual per move."""
+    """The stream with its static intervals shaded."""
     figs = []
     fig, ax = plt.subplots(figsize=(12, 3))
     ax.plot(stream["t_s"], stream["acc_norm_g"], lw=0.6, color="k")
@@ -132,19 +132,6 @@ def stream_figures(stream):
            f"(threshold {det['threshold']:.3g}, window {det['window']} samples, min {det['min_samples']} samples)")
     ax.legend(fontsize=8)
     figs.append(_png(fig))
-    moves = stream.get("gyro_moves")
-    if moves:
-        fig, ax = plt.subplots(figsize=(12, 3))
-        mid = [(m["t_s"][0] + m["t_s"][1]) / 2 for m in moves]
-        res = np.array([m["residual"] for m in moves])
-        for j in range(3):
-            ax.plot(mid, res[:, j], "o", label=f"gravity direction {AXES[j]}")
-        for k, sk in enumerate(stream.get("gyro_moves_skipped", [])):
-            ax.axvspan(*sk["t_s"], color="tab:red", alpha=0.3, label="move left out (saturated)" if k == 0 else None)
-        ax.axhline(0, color="0.5", lw=0.8)
-        ax.set(xlabel="time (s)", ylabel="residual (unit vector)", title="gyro: gravity-direction residual per move")
-        ax.legend(fontsize=8, ncol=4)
-        figs.append(_png(fig))
     return figs
 
 
@@ -164,6 +151,8 @@ def render(diag: dict) -> str:
         ok = b["baseline"]["p_value"] is None or b["baseline"]["p_value"] >= diag["alpha"]
         parts.append(f"<h2>{s}</h2><p class='{'ok' if ok else 'bad'}'><b>{html.escape(b['verdict'])}</b></p>")
         parts += residual_figures(s, b, units[s])
+        if b.get("moves_skipped"):  # a stream's gyro: the moves left out, and why
+            parts.append(_table(b["moves_skipped"], ["from_pose", "to_pose", "t_s", "reason"]))
         tested = [c for c in b["candidates"] if c["separable"]]
         parts.append(candidate_figure(s, b, len(tested)))
         parts.append(_table(b["candidates"], ["id", "estimate", "std", "unit", "statistic", "p_value", "delta_aic",

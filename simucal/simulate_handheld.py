@@ -16,6 +16,7 @@ import numpy as np
 
 from . import io
 from .generated.effects import EFFECTS
+from .generated.moves import rotation_matrix
 from .rotations import exp_so3
 
 
@@ -41,12 +42,9 @@ class HandheldScenario:
 
 
 def _random_rotation(rng):
+    """A uniformly random rotation: C(q) of a uniformly random unit quaternion."""
     q = rng.normal(size=4)
-    q /= np.linalg.norm(q)
-    w, x, y, z = q
-    return np.array([[1 - 2 * (y * y + z * z), 2 * (x * y - w * z), 2 * (x * z + w * y)],
-                     [2 * (x * y + w * z), 1 - 2 * (x * x + z * z), 2 * (y * z - w * x)],
-                     [2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y)]])
+    return rotation_matrix(q / np.linalg.norm(q))
 
 
 def _log_so3(R):

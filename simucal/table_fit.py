@@ -12,6 +12,7 @@ from __future__ import annotations
 import numpy as np
 from scipy import stats
 
+from .diagnose import gate_candidates
 from .generated import table
 
 PARAMS = table.TABLE_FIT_PARAMS
@@ -71,7 +72,5 @@ def table_candidates(u_meas, ang_deg, alpha=0.01):
         entry.update(separable=True, estimate=float(x1[j]), std=float(np.sqrt(cov1[-1, -1])), statistic=float(F),
                      p_value=p, delta_aic=None, residual_rms_after=float(np.sqrt(np.mean(res1 ** 2))))
         out.append(entry)
-    tested = [e for e in out if e["separable"]]
-    for e in tested:
-        e["significant"] = bool(e["p_value"] is not None and e["p_value"] < alpha / len(tested))
-    return out, {"mounting_rad": x0[MOUNT].tolist(), "direction_residual_rms": float(np.sqrt(rss0 / (3 * len(u_meas))))}
+    # an F test against the mounting-only fit: it needs no failing baseline to count
+    return gate_candidates(out, True, alpha), {"mounting_rad": x0[MOUNT].tolist(), "direction_residual_rms": float(np.sqrt(rss0 / (3 * len(u_meas))))}
