@@ -95,8 +95,9 @@ def _versions():
     return {"sympy": sp.__version__, "casadi": ca.__version__}
 
 
-def model_module(model: ErrorModel) -> tuple[str, dict]:
-    """The numpy module of one error model, and its manifest entry."""
+def model_module(model: ErrorModel, source: str | None = None) -> tuple[str, dict]:
+    """The numpy module of one error model, and its manifest entry. `source`: the
+    user's model file it came from (None for the built-in models)."""
     reg = derive_norm_regression(model)
     u, p = model.inputs, model.params
     out = model.output()
@@ -118,6 +119,7 @@ def model_module(model: ErrorModel) -> tuple[str, dict]:
         f"PARAM_UNITS = {tuple(t.unit for t in model.terms)!r}\n"
         f"PARAM_AXES = {tuple(t.axis for t in model.terms)!r}\n"
         f"MEANINGS = {tuple(t.meaning for t in model.terms)!r}\n"
+        + (f"SOURCE = {source!r}\n" if source else "") +
         f"NORM_COLUMNS = {tuple(str(c) for c in reg.psi)!r}\n"
         f"K_OF_PARAMS = {tuple(str(k) for k in reg.K_of_p)!r}\n",
         numpy_function("output", args_up, [((3,), out)],
@@ -166,7 +168,8 @@ def casadi_function(model: ErrorModel) -> ca.Function:
 def c_source(model: ErrorModel) -> str:
     cg = ca.CodeGenerator(f"{model.name}.c", {"with_header": False})
     cg.add(casadi_function(model))
-    return cg.dump()
+    head = HEADER.format(what=f"model {model.name}, sha256 {model.sha256()}", **_versions())
+    return "/*\n" + head.replace("# ", " * ").replace("#", " *") + " */\n" + cg.dump()
 
 
 def table_module() -> str:
@@ -269,9 +272,10 @@ def unify_module(acc: ErrorModel, gyro: ErrorModel) -> str:
     ])
 
 
-def generate(models, model_files=()) -> dict:
-    """Every generated file as {filename: text}."""
-    files, manifest = {}, {"format": "simucal.generated/1", "models": {}, "model_files": list(model_files)}
+def generate(models) -> dict:
+    """Every generated file of the built-in models as {filename: text} (a user's model
+    goes to the cache: simucal.user_models)."""
+    files, manifest = {}, {"format": "simucal.generated/1", "models": {}}
     for model in models:
         text, entry = model_module(model)
         files[f"{model.name}.py"] = text

@@ -18,10 +18,16 @@ def effect_ids(sensor: str) -> list[str]:
 
 
 def check_effect(eid: str, sensor: str | None = None):
+    """Refuse anything but an exact effect id, naming the ids that come closest."""
     if eid not in EFFECTS:
+        import difflib
+        low = {k.lower(): k for k in EFFECTS}
+        near = ([low[eid.lower()]] if eid.lower() in low else
+                [k for k in EFFECTS if eid and eid.lower() in k] or difflib.get_close_matches(eid, list(EFFECTS), 5))
         fam = sorted({".".join(k.split(".")[:2]) for k in EFFECTS})
-        raise KeyError(f"unknown effect {eid!r}: use <family>.<axis>, families {fam} "
-                       "(your own term: write a model file and run `simucal derive --model FILE`)")
+        raise KeyError(f"unknown effect {eid!r}" + (f"; did you mean {', '.join(near[:9])}?" if near else "")
+                       + f" Ids are <sensor>.<family>.<axis>, families {fam}, axes x, y, z (and pairs xy, ...). "
+                       "A term of your own: a model file (--add my_model.py)")
     if sensor is not None and EFFECTS[eid][0] != sensor:
         raise KeyError(f"effect {eid} is for the {EFFECTS[eid][0]}, not the {sensor}")
 
@@ -36,6 +42,7 @@ class AugmentedModel:
         self.name = self.base.name + "".join(f"+{e}" for e in self.effects)
         self.params = tuple(self.base.params) + self.effects
         self.param_units = tuple(self.base.param_units) + tuple(EFFECTS[e][3] for e in self.effects)
+        self.meanings = tuple(self.base.meanings) + tuple(EFFECTS[e][4] for e in self.effects)
         self._m = len(self.base.params)
 
     def _terms(self, u, temp_c, t_s, extra=None):

@@ -15,27 +15,18 @@ Outputs follow output = M f + bias with f in b (g, deg/h).
 """
 from __future__ import annotations
 
-import hashlib
-
 import numpy as np
 
-from . import io, units
+from . import calibration, io, units
+from .augmented import AugmentedModel
+from .candidates import ALPHA, rank_candidates, shape_if_unexplained, test_model, verdict
 from .generated import table, unify
-from .models import load
 from .handheld import saturated_rows
 from .noise import white_noise_var
-from .norm_fit import CalibrationError, Fit, Observations, fit_exact, fit_linear, initial_directions
+from .norm_fit import CalibrationError, Observations, fit_linear, initial_directions
+from .user_models import resolve_add
 
 METHODS = ("exact", "linear", "multiposition")
-
-
-def input_sha256(folder) -> str:
-    h = hashlib.sha256()
-    for name in ("meta.json", "segments.csv", "samples.csv"):
-        p = folder / name
-        if p.is_file():
-            h.update(name.encode() + b"\0" + p.read_bytes())
-    return h.hexdigest()
 
 
 def _mean_and_sigma(x, stated, varying=False):
@@ -45,7 +36,8 @@ def _mean_and_sigma(x, stated, varying=False):
     into account (effective sample count). For a rate run (varying=True) the
     rows hold a deterministic signal, the horizontal Earth rate turning in
     the body, so the noise comes from first differences, which remove it.
-    One row: the stated noise, if any.
+    One row: the stated noise, if any, else NaN (lack_of_fit.fit_with_noise then
+    estimates a variance component for such rows).
     """
     n = len(x)
     if n >= 3 and varying:
@@ -56,22 +48,22 @@ def _mean_and_sigma(x, stated, varying=False):
         r1 = np.clip(np.sum(d[1:] * d[:-1], 0) / np.maximum(np.sum(d * d, 0), 1e-300), -0.9, 0.99)
         n_eff = n * (1 - r1) / (1 + r1)
         return x.mean(0), np.sqrt(var / np.maximum(n_eff, 1.0))
-    if stated is None:
-        return x.mean(0), None
-    return x.mean(0), np.full(3, stated / np.sqrt(n))
+    return x.mean(0), np.full(3, np.nan if stated is None else stated / np.sqrt(n))
 
 
-def segment_observations(ms: io.MeasurementSet, sensor: str, acc_in_rate_runs=False):
+def segment_observations(ms: io.MeasurementSet, sensor: str, acc_in_rate_runs=False, stated=None):
     """(Observations, segments) for 'acc' (static segments; with acc_in_rate_runs the
     rate runs too, whose centripetal scale w2 lets lever arms show) or 'gyro' (rate
-    segments)."""
+    segments). stated: the noise of one row (g or deg/h) where the data cannot give it;
+    default meta's acc_noise_g / gyro_noise_dph."""
     if ms.segments is None:
         raise CalibrationError(f"{ms.path}: no segments.csv: this is a continuous stream (use calibrate, "
                                "which detects its static poses)")
     kinds = ({"static", "rate"} if acc_in_rate_runs else {"static"}) if sensor == "acc" else {"rate"}
     segs = [s for s in ms.segments if s.kind in kinds]
     data = ms.acc_g() if sensor == "acc" else ms.gyro_dph()
-    stated = ms.meta.get("acc_noise_g" if sensor == "acc" else "gyro_noise_dph")
+    if stated is None:
+        stated = ms.meta.get("acc_noise_g" if sensor == "acc" else "gyro_noise_dph")
     lat = np.radians(ms.meta.get("latitude_deg", 0.0))
     w_e = units.earth_rate_dph(ms.meta)
     N, sig, rho, t, temp, keep = [], [], [], [], [], []
@@ -94,8 +86,7 @@ def segment_observations(ms: io.MeasurementSet, sensor: str, acc_in_rate_runs=Fa
         t.append(ms.samples["t_s"][rows].mean())
         temp.append(ms.samples["temp_c"][rows].mean() if "temp_c" in ms.samples else 0.0)
         keep.append(s)
-    sigma = None if any(s is None for s in sig) or not sig else np.array(sig)
-    obs = Observations(np.array(N).reshape(-1, 3), np.array(rho), sigma, np.array(temp), np.array(t),
+    obs = Observations(np.array(N).reshape(-1, 3), np.array(rho), np.array(sig).reshape(-1, 3), np.array(temp), np.array(t),
                        [s.segment for s in keep],
                        specific_force(ms, keep) if sensor == "gyro" else centripetal_scale(ms, keep))
     if keep:
@@ -146,8 +137,10 @@ def unify_paper(acc_obs, acc_segs, gyro_obs, gyro_segs, p_acc, p_gyro, meta):
 
 def unify_directions(acc_model, acc_fit, acc_obs, acc_segs, gyro_model, gyro_fit, gyro_obs, gyro_segs):
     """C_b^d from paired directions: rate-run axis in d vs gravity in b (Wahba, SVD)."""
-    ua = initial_directions(acc_model, acc_obs, acc_fit.vector(acc_model.params))
-    ug = initial_directions(gyro_model, gyro_obs, gyro_fit.vector(gyro_model.params))
+    ua = acc_fit.directions if acc_fit.directions is not None else \
+        initial_directions(acc_model, acc_obs, acc_fit.vector(acc_model.params))
+    ug = gyro_fit.directions if gyro_fit.directions is not None else \
+        initial_directions(gyro_model, gyro_obs, gyro_fit.vector(gyro_model.params))
     pairs_b, pairs_d = [], []
     for j, s in enumerate(gyro_segs):
         i = _find(acc_segs, middle_deg=s.middle_deg, inner_deg=s.inner_deg)
@@ -250,60 +243,80 @@ def _affine_fit(f, N, sensor):
             "std": {"M": np.sqrt(np.outer(s2, np.diag(cov)[:3])).tolist(), "bias": np.sqrt(s2 * cov[3, 3]).tolist()}}
 
 
-def _fit_block(model, fit: Fit, M, bias, unit):
-    units.check_scale(model.sensor, M, fit.model)
-    return {"M": np.asarray(M).tolist(), "bias": np.asarray(bias).tolist(), "bias_unit": unit,
-            "model": model.name, "params": fit.params,
-            "std": fit.std, "residual_rms": fit.residual_rms, "chi2": fit.chi2, "dof": fit.dof,
-            "p_value": fit.p_value}
+def _exact_sensor(model, obs, method, where):
+    """Fit one sensor; when the model fails, the effect diagnose would add. Returns (fit, block info)."""
+    if method == "linear":
+        if model.effects:
+            raise CalibrationError("--add needs --method exact: the paper's linear regression exists for "
+                                   "derived models only (or derive a model file with the term and use it)")
+        return fit_linear(model, obs), None, None
+    fit, obs2, base = test_model(model, obs)
+    advice = None
+    if base["p_value"] is not None and base["p_value"] < ALPHA:
+        cands = rank_candidates(model, obs2, fit, True)
+        shape = shape_if_unexplained(model, obs2, fit, base, cands)
+        base["verdict"] = verdict(model.sensor, base, cands, where, shape, command="calibrate")
+        sig = [c for c in cands if c.get("significant")]
+        advice = sig[0]["id"] if sig else ("a term " + shape["text"] if shape else None)
+    else:
+        base["verdict"] = verdict(model.sensor, base, [], where)
+    return fit, base, advice
 
 
-def calibrate(folder, method="exact", acc_model="acc_baseline", gyro_model="gyro_baseline", detect_kw=None) -> dict:
+def calibrate(folder, method="exact", acc_model="acc_baseline", gyro_model="gyro_baseline", detect_kw=None,
+              add=(), acc_noise_g=None, gyro_noise_dph=None) -> dict:
+    """Calibrate a measurement set. add: effect ids and model files (user_models.resolve_add);
+    acc_noise_g / gyro_noise_dph: the noise of one row where the data cannot give it."""
     if method not in METHODS:
         raise CalibrationError(f"unknown method {method!r}; one of {METHODS}")
     ms = io.read(folder)
+    acc_model, gyro_model, ids = resolve_add(add, acc_model, gyro_model)
     if ms.segments is None:  # one continuous stream: a hand-placed session
         from .handheld import calibrate_handheld
-        result = calibrate_handheld(ms, acc_model, detect_kw)
-        result.update(input=str(folder), input_sha256=input_sha256(ms.path))
-        return result
+        return calibrate_handheld(ms, AugmentedModel(acc_model, tuple(e for e in ids if e.startswith("acc."))),
+                                  detect_kw, gyro_effects=tuple(e for e in ids if e.startswith("gyro.")))
     acc_obs = acc_segs = gyro_obs = gyro_segs = None
     if ms.has_acc:
-        acc_obs, acc_segs = segment_observations(ms, "acc")
+        acc_obs, acc_segs = segment_observations(ms, "acc", stated=acc_noise_g)
     if ms.has_gyro:
-        gyro_obs, gyro_segs = segment_observations(ms, "gyro")
+        gyro_obs, gyro_segs = segment_observations(ms, "gyro", stated=gyro_noise_dph)
         if not gyro_segs:
             gyro_obs = None
     check_rate_sense(ms, gyro_obs, gyro_segs)
-    result = {"format": "simucal.calibration/1", "method": method, "input": str(folder),
-              "input_sha256": input_sha256(ms.path)}
+    result = calibration.header(method, ms)
     if ms.extra.get("saturated_segments"):
         result["excluded_segments"] = [{**e, "reason": "saturated samples"} for e in ms.extra["saturated_segments"]]
     if method == "multiposition":
+        if ids or acc_model != "acc_baseline" or gyro_model != "gyro_baseline":
+            raise CalibrationError("the multi-position method is the linear y = M f + b; --add and models need "
+                                   "--method exact")
         mp = multiposition(ms, acc_obs, acc_segs, gyro_obs, gyro_segs)
-        for sensor, unit in (("acc", "g"), ("gyro", "deg/h")):
+        for sensor in ("acc", "gyro"):
             if sensor in mp:
                 r = mp[sensor]
-                result[sensor] = {"M": r["M"].tolist(), "bias": r["bias"].tolist(), "bias_unit": unit,
-                                  "model": "linear y = M f + b", "std": r["std"], "residual_rms": r["residual_rms"]}
-        result["model"] = "multiposition"
+                result[sensor] = calibration.affine_block(sensor, r["M"], r["bias"], r["std"], r["residual_rms"],
+                                                          "linear y = M f + b on commanded inputs")
         result["residual_rms"] = {s: result[s]["residual_rms"] for s in ("acc", "gyro") if s in result}
         return result
 
-    fit = fit_exact if method == "exact" else fit_linear
-    am, gm = load(acc_model), load(gyro_model)
-    fa = fit(am, acc_obs) if acc_obs is not None else None
-    fg = fit(gm, gyro_obs) if gyro_obs is not None else None
-    if fa is not None:
+    am = AugmentedModel(acc_model, tuple(e for e in ids if e.startswith("acc.")))
+    gm = AugmentedModel(gyro_model, tuple(e for e in ids if e.startswith("gyro.")))
+    fa = fg = None
+    if acc_obs is not None:
+        fa, base_a, advice_a = _exact_sensor(am, acc_obs, method, str(ms.path))
         M, b = am.matrix_and_bias(fa.vector(am.params))
-        result["acc"] = _fit_block(am, fa, M, b, "g")
-    if fg is not None:
+        units.check_scale("acc", M, am.name)
+        result["acc"] = calibration.sensor_block(am, fa, M, b, base_a)
+        result["acc"]["advice"] = advice_a
+    if gyro_obs is not None:
+        fg, base_g, advice_g = _exact_sensor(gm, gyro_obs, method, str(ms.path))
         M_d, b_g = gm.matrix_and_bias(fg.vector(gm.params))
         no_angles = any(s.middle_deg is None or s.inner_deg is None for s in (acc_segs or []) + gyro_segs)
         if fa is None or no_angles:
             why = ("no accelerometer data" if fa is None else
                    "segments.csv gives no middle/inner angles to pair rate runs with static positions")
-            result["gyro"] = _fit_block(gm, fg, M_d, b_g, "deg/h")
+            units.check_scale("gyro", M_d, gm.name)
+            result["gyro"] = calibration.sensor_block(gm, fg, M_d, b_g, base_g, np.eye(3))
             result["gyro"].update(frame="d (the gyro parameter frame)",
                                   note=f"M is in the gyro frame d, not in b: {why}, so the frames cannot be tied")
         else:
@@ -312,9 +325,13 @@ def calibrate(folder, method="exact", acc_model="acc_baseline", gyro_model="gyro
             else:
                 C_b_d, info = unify_paper(acc_obs, acc_segs, gyro_obs, gyro_segs,
                                           fa.vector(am.params), fg.vector(gm.params), ms.meta)
-            result["gyro"] = _fit_block(gm, fg, M_d @ C_b_d, b_g, "deg/h")
+            units.check_scale("gyro", M_d @ C_b_d, gm.name)
+            result["gyro"] = calibration.sensor_block(gm, fg, M_d @ C_b_d, b_g, base_g, C_b_d)
             result["gyro"]["M_in_d"] = np.asarray(M_d).tolist()
             result["unification"] = {"C_b_d": C_b_d.tolist(), **info}
-    result["model"] = {"acc": acc_model, "gyro": gyro_model}
+        result["gyro"]["advice"] = advice_g
+    for s in ("acc", "gyro"):
+        if s in result:
+            calibration.inflate_if_failing(result[s])
     result["residual_rms"] = {s: result[s]["residual_rms"] for s in ("acc", "gyro") if s in result}
     return result

@@ -13,30 +13,37 @@ def main():
     """Strapdown IMU calibration: derive, simulate, calibrate, audit."""
 
 
+def _fail(e):
+    """One line on stderr, exit 2: the refusal of bad input (nothing is written)."""
+    click.echo(f"error: {e.args[0] if isinstance(e, KeyError) and e.args else e}", err=True)
+    sys.exit(2)
+
+
 @main.command()
 @click.option("--check", is_flag=True, help="Fail if generated/ differs from what derive writes now.")
 @click.option("--model", "model_files", multiple=True, type=click.Path(exists=True, dir_okay=False),
-              help="A Python file defining MODELS = [ErrorModel, ...]; generated beside the baseline.")
+              help="A Python file defining MODELS = [ErrorModel, ...]: derived into the cache "
+                   "(not generated/), then usable by name from any folder.")
 def derive(check, model_files):
-    """Derive the models and (re)write generated/."""
+    """Derive the built-in models and (re)write generated/; or derive your own model file."""
     from simucal import derive_cmd
-    stale, secs = derive_cmd.run(check=check, model_files=model_files)
+    if model_files:
+        from simucal.user_models import derive_model_file
+        for f in model_files:
+            try:
+                names, _ = derive_model_file(f)
+            except (FileNotFoundError, ValueError, SyntaxError) as e:
+                _fail(e)
+            click.echo(f"derived {', '.join(names)} from {f} into the cache")
+        return
+    stale, secs, diff = derive_cmd.run(check=check)
     if check:
         if stale:
-            click.echo("generated/ is stale; run `simucal derive`. Differs: " + ", ".join(stale), err=True)
+            click.echo(diff + "generated/ is stale; run `simucal derive`. Differs: " + ", ".join(stale), err=True)
             sys.exit(1)
         click.echo(f"generated/ is up to date ({secs:.1f} s)")
     else:
         click.echo(f"wrote {derive_cmd.generated_dir()} ({secs:.1f} s)")
-
-
-if __name__ == "__main__":
-    main()
-
-
-def _fail(e):
-    click.echo(f"error: {e}", err=True)
-    sys.exit(2)
 
 
 @main.command()
@@ -53,10 +60,18 @@ def _fail(e):
 @click.option("--gyro-model", default=None, help="Generated gyro model for the truth.")
 @click.option("--acc-unit", type=click.Choice(["g", "m/s^2", "pulse/s"]), default=None)
 @click.option("--gyro-unit", type=click.Choice(["deg/h", "deg/s", "rad/s", "pulse/s"]), default=None)
+@click.option("--effect", "effects", multiple=True, metavar="ID=VALUE",
+              help="Plant a candidate effect in the truth, in the unit its term declares, e.g. "
+                   "acc.quadratic.z=6e-5 or gyro.g_sensitivity.xz=0.3 (repeatable).")
+@click.option("--effect-file", default=None, type=click.Path(dir_okay=False),
+              help="A model file of your own terms (MODELS = [...]); its models become the truth models.")
+@click.option("--set", "sets", multiple=True, metavar="NAME=VALUE",
+              help="With --effect-file: the true value of one of its parameters (repeatable).")
+@click.option("--no-noise-stated", is_flag=True, help="Leave acc_noise_g / gyro_noise_dph out of meta.json.")
 def simulate(out_dir, scenario, heading_error_deg, seed, plan, rate_hz, position_error_arcmin, acc_model, gyro_model,
-             acc_unit, gyro_unit):
+             acc_unit, gyro_unit, effects, effect_file, sets, no_noise_stated):
     """Simulate a test; write a measurement set and truth.json."""
-    from simucal.simulate import ARCMIN, SCENARIOS, write
+    from simucal.simulate import ARCMIN, SCENARIOS, plant, write
     if scenario == "field":
         from simucal.simulate_field import FieldScenario, write_field
         fs = FieldScenario()
@@ -74,11 +89,43 @@ def simulate(out_dir, scenario, heading_error_deg, seed, plan, rate_hz, position
             setattr(sc, key, val)
     if position_error_arcmin is not None:
         sc.position_error_rad = position_error_arcmin * ARCMIN
+    sc.state_noise = not no_noise_stated
     try:
+        plant(sc, effects, effect_file, sets)
         write(out_dir, sc, seed)
-    except (ValueError, KeyError) as e:
+    except (ValueError, KeyError, FileNotFoundError, SyntaxError) as e:
         _fail(e)
     click.echo(f"wrote {out_dir} (scenario {scenario}, seed {seed})")
+
+
+def _check_out(*paths):
+    """Refuse output paths whose folder does not exist, before any work (nothing is written)."""
+    for p in paths:
+        if p and not Path(p).resolve().parent.is_dir():
+            _fail(f"{p}: the folder {Path(p).parent} does not exist; create it or choose another path")
+
+
+_ADD_HELP = ("Effect id to add, e.g. acc.quadratic.z (exact ids; unknown ones are refused), or a model file "
+             "(MODELS = [...]) with your own SymPy terms, derived into the cache (repeatable).")
+
+
+def _sensor_lines(result):
+    """One line per sensor: the test, and when the model fails what to add."""
+    for s in ("acc", "gyro"):
+        b = result.get(s)
+        if not b:
+            continue
+        unit = b.get("residual_unit", b.get("bias_unit"))
+        test = (f"chi2 {b['chi2']:.1f}, dof {b['dof']}, p = {b['p_value']:.3g}" if b.get("chi2") is not None
+                else f"p = {b['p_value']:.3g} ({b.get('test', '')})" if b.get("p_value") is not None
+                else "no test (" + b.get("test", "no noise estimate") + ")")
+        eff = "".join(f"; {e} = {v['value']:.4g} +- {v['std']:.2g} {v['unit']}" for e, v in b.get("effects", {}).items())
+        yield f"{s}: residual rms {b['residual_rms']:.3g} {unit}; {test}{eff}"
+        if b.get("p_value") is not None and b["p_value"] < 1e-3:
+            what = b.get("advice")
+            yield (f"{s}: THE MODEL FAILS (p = {b['p_value']:.2g} < 1e-3): "
+                   + (f"diagnose would add {what}; " if what else "no candidate explains it (simucal diagnose); ")
+                   + "stds are inflated by sqrt(chi2/dof) (std_raw keeps the unscaled ones)")
 
 
 @main.command()
@@ -87,29 +134,53 @@ def simulate(out_dir, scenario, heading_error_deg, seed, plan, rate_hz, position
 @click.option("--method", type=click.Choice(["exact", "linear", "multiposition"]), default="exact", show_default=True)
 @click.option("--acc-model", default="acc_baseline", show_default=True)
 @click.option("--gyro-model", default="gyro_baseline", show_default=True)
+@click.option("--add", "add", multiple=True, help=_ADD_HELP)
+@click.option("--acc-noise-g", type=float, default=None, help="Noise of one acc row (g), where the data cannot give it.")
+@click.option("--gyro-noise-dph", type=float, default=None, help="Noise of one gyro row (deg/h).")
 @click.option("--init-rest-s", type=float, default=None, help="Stream: length of the initial rest (default: found from the data).")
 @click.option("--threshold-factor", type=float, default=6.0, show_default=True, help="Stream: static threshold, times the rest's variance.")
 @click.option("--window-s", type=float, default=1.0, show_default=True, help="Stream: moving-variance window.")
 @click.option("--min-static-s", type=float, default=1.0, show_default=True, help="Stream: shortest static interval.")
-def calibrate(data_dir, output, method, acc_model, gyro_model, init_rest_s, threshold_factor, window_s, min_static_s):
+def calibrate(data_dir, output, method, acc_model, gyro_model, add, acc_noise_g, gyro_noise_dph, init_rest_s,
+              threshold_factor, window_s, min_static_s):
     """Calibrate a measurement set; write calibration.json.
 
     With segments.csv: a turntable test (dong2018). Without: a continuous stream
     from a hand-placed session (static poses found from the data; Tedaldi)."""
-    import json
-
-    from simucal.calibrate import calibrate as run
+    from simucal import calibration
+    from simucal.calibrate import calibrate as calibrate_set
     from simucal.io import MeasurementSetError
     from simucal.norm_fit import CalibrationError
+    _check_out(output)
     try:
-        result = run(Path(data_dir), method, acc_model, gyro_model,
-                     dict(init_rest_s=init_rest_s, factor=threshold_factor, window_s=window_s, min_s=min_static_s))
-    except (MeasurementSetError, CalibrationError, KeyError) as e:
+        result = calibrate_set(Path(data_dir), method, acc_model, gyro_model,
+                               dict(init_rest_s=init_rest_s, factor=threshold_factor, window_s=window_s,
+                                    min_s=min_static_s), add, acc_noise_g, gyro_noise_dph)
+        calibration.write(output, result)
+    except (MeasurementSetError, CalibrationError, KeyError, FileNotFoundError, ValueError) as e:
         _fail(e)
-    Path(output).write_text(json.dumps(result, indent=2, default=float) + "\n")
-    click.echo(f"wrote {output}: method {result['method']}; residual rms " +
-               ", ".join(f"{k} {v:.3g} {result[k].get('residual_unit', result[k]['bias_unit'])}"
-                         for k, v in result["residual_rms"].items()))
+    for line in _sensor_lines(result):
+        click.echo(line)
+    click.echo(f"wrote {output} (method {result['method']})")
+
+
+@main.command("apply")
+@click.argument("calibration_file", type=click.Path(exists=True, dir_okay=False))
+@click.argument("data_dir", type=click.Path(exists=True, file_okay=False))
+@click.option("-o", "--out-dir", required=True, type=click.Path(file_okay=False))
+def apply_cmd(calibration_file, data_dir, out_dir):
+    """Apply a calibration to raw data: a measurement set in g and deg/h, frame b."""
+    from simucal import calibration, io
+    from simucal.apply import apply
+    _check_out(out_dir)
+    try:
+        cal = calibration.read(calibration_file)
+        meta, samples, segments = apply(cal, Path(data_dir), calibration_file)
+    except (ValueError, KeyError) as e:  # MeasurementSetError, CalibrationError, CalibrationFileError
+        _fail(e)
+    io.write(out_dir, meta, samples, segments)
+    click.echo(f"wrote {out_dir}: {len(samples['t_s'])} rows in g and deg/h (frame b), calibrated by "
+               f"{calibration_file}")
 
 
 @main.command()
@@ -128,50 +199,49 @@ def audit(output):
 @click.option("-o", "--out-dir", type=click.Path(file_okay=False), default="out", show_default=True)
 @click.option("--seed", type=int, default=0, show_default=True)
 def demo(out_dir, seed):
-    """The main job end to end on built-in simulated data:
-    derive --check, simulate (paper scenario), calibrate (all methods), audit, report, diagnose."""
-    import json
+    """The main job end to end on built-in simulated data: a hidden effect found, added,
+    calibrated with and applied; then dong2018's methods, the audit and the diagnosis."""
+    from simucal import demo as demo_mod
+    try:
+        demo_mod.run(out_dir, seed, click.echo)
+    except RuntimeError as e:
+        _fail(e)
 
-    from simucal import derive_cmd, report
-    from simucal.calibrate import calibrate as run
-    from simucal.derive.audit import run_audit
-    from simucal.simulate import SCENARIOS, write
 
-    out = Path(out_dir)
-    out.mkdir(parents=True, exist_ok=True)
-    stale, secs = derive_cmd.run(check=True)
-    if stale:
-        _fail("generated/ is stale; run `simucal derive`. Differs: " + ", ".join(stale))
-    click.echo(f"derive: generated/ matches the derivation ({secs:.1f} s)")
-    write(out / "paper", SCENARIOS["paper"](), seed)
-    click.echo(f"simulate: {out / 'paper'} (dong2018 section 4 settings, seed {seed})")
-    results = {}
-    for method in ("exact", "linear", "multiposition"):
-        results[method] = run(out / "paper", method)
-        (out / f"calibration_{method}.json").write_text(json.dumps(results[method], indent=2) + "\n")
-    click.echo("calibrate: " + ", ".join(f"calibration_{m}.json" for m in results))
-    audit_report = run_audit()
-    (out / "audit.md").write_text(audit_report.markdown())
-    click.echo(f"audit: {out / 'audit.md'}: {audit_report.summary()}")
-    truth = json.loads((out / "paper" / "truth.json").read_text())
-    text = report.compare_table(results, truth)
-    (out / "report.md").write_text(text)
-    click.echo(text)
-    from simucal.diagnose import diagnose as run_diagnose
-    from simucal.report_html import render
-    diag = run_diagnose(out / "paper")
-    (out / "diagnosis.json").write_text(json.dumps(diag, indent=1, default=float) + "\n")
-    (out / "diagnosis.html").write_text(render(diag))
-    click.echo(f"diagnose: {out / 'diagnosis.html'}: {diag['verdict']}")
+def _added_lines(result):
+    """diagnose --add: the residual and p before and after, per sensor, with units."""
+    for s in ("acc", "gyro"):
+        a = result.get(s, {}).get("added")
+        if a:
+            u = a.get("residual_unit", "")
+            p0, p1 = a["p_value_before"], a["p_value_after"]
+            fmt = lambda p: "n/a" if p is None else f"{p:.3g}"
+            yield (f"{s} with {', '.join(a['effects'])}: residual rms {a['residual_rms_before']:.3g} -> "
+                   f"{a['residual_rms_after']:.3g} {u}, p {fmt(p0)} -> {fmt(p1)}")
+            for k, row in a["params"].items():
+                if row["before"] is None:
+                    err = f", truth {row['truth']:.4g}" if "truth" in row else ""
+                    yield f"    {k} = {row['after']:.4g} +- {row['std_after']:.2g}{err}"
+
+
+def _write_shape_models(result, output):
+    """Each sensor's found term as a ready model file beside the diagnosis; returns the paths."""
+    paths = []
+    for s in ("acc", "gyro"):
+        shape = result.get(s, {}).get("shape")
+        if shape and not shape.get("catalog_id"):
+            path = Path(output).with_name(f"{Path(output).stem}_{s}_model.py")
+            path.write_text(shape["model_file"])
+            shape["model_file_path"] = str(path)
+            paths.append(path)
+    return paths
 
 
 @main.command()
 @click.argument("data_dir", type=click.Path(exists=True, file_okay=False))
 @click.option("-o", "--output", type=click.Path(dir_okay=False), default="diagnosis.json", show_default=True)
 @click.option("--html", "html_path", type=click.Path(dir_okay=False), default=None, help="Also write a self-contained HTML report.")
-@click.option("--add", "add", multiple=True,
-              help="Effect id to add, e.g. acc.quadratic.z, or a model file (MODELS = [...]) with your own SymPy "
-                   "terms, which is derived, generated and used (repeatable).")
+@click.option("--add", "add", multiple=True, help=_ADD_HELP)
 @click.option("--acc-model", default="acc_baseline", show_default=True)
 @click.option("--gyro-model", default="gyro_baseline", show_default=True)
 @click.option("--acc-noise-g", type=float, default=None, help="Stated noise of one acc row (g), when the data cannot give it.")
@@ -180,33 +250,25 @@ def diagnose(data_dir, output, html_path, add, acc_model, gyro_model, acc_noise_
     """Compare model and measurements; rank the candidate missing effects."""
     import json
 
-    from simucal.diagnose import diagnose as run
+    from simucal.diagnose import diagnose as diagnose_set
     from simucal.io import MeasurementSetError
     from simucal.norm_fit import CalibrationError
-    files = [a for a in add if a.endswith(".py")]
-    add = tuple(a for a in add if not a.endswith(".py"))
-    if files:  # a user's own terms: derive, generate, then diagnose with those models
-        from simucal import derive_cmd
-        from simucal.derive.registry import load_model_file
-        from simucal.models import load
-        try:
-            models = [m for f in files for m in load_model_file(f)]
-        except (FileNotFoundError, ValueError) as e:
-            _fail(e)
-        _, secs = derive_cmd.run(model_files=files)
-        load.cache_clear()
-        click.echo(f"derived and generated {', '.join(m.name for m in models)} ({secs:.1f} s)")
-        for m in models:
-            acc_model, gyro_model = (m.name, gyro_model) if m.sensor == "acc" else (acc_model, m.name)
+    _check_out(output, html_path)
     try:
-        result = run(Path(data_dir), add, acc_model, gyro_model, acc_noise_g, gyro_noise_dph)
-    except (MeasurementSetError, CalibrationError, KeyError) as e:
+        result = diagnose_set(Path(data_dir), add, acc_model, gyro_model, acc_noise_g, gyro_noise_dph)
+    except (MeasurementSetError, CalibrationError, KeyError, FileNotFoundError, ValueError) as e:
         _fail(e)
+    models = _write_shape_models(result, output)
     Path(output).write_text(json.dumps(result, indent=1, default=float) + "\n")
     if html_path:
         from simucal.report_html import render
         Path(html_path).write_text(render(result))
-    click.echo(result["verdict"])
+    for line in result["verdict"].split(" | "):
+        click.echo(line)
+    for line in _added_lines(result):
+        click.echo(line)
+    for m in models:
+        click.echo(f"wrote {m}: the found term as a model file; try: simucal diagnose {data_dir} --add {m}")
     click.echo(f"wrote {output}" + (f" and {html_path}" if html_path else ""))
 
 
@@ -275,3 +337,7 @@ def import_cmd(fmt, sources, out_dir, latitude_deg, acc_counts_per_g, gyro_count
     except im.ImportError_ as e:
         _fail(e)
     click.echo(f"wrote {out_dir}")
+
+
+if __name__ == "__main__":
+    main()

@@ -1,28 +1,31 @@
-"""`simucal derive`: regenerate generated/ from derive/, or check it is fresh."""
+"""`simucal derive`: regenerate generated/ from derive/ (built-in models only), or
+check it is fresh and show what differs."""
 from __future__ import annotations
 
-import json
+import difflib
 import time
 from pathlib import Path
 
 from simucal.models import generated_dir
 
 
-def run(check: bool = False, model_files=(), out_dir: Path | None = None) -> tuple[list[str], float]:
-    """Derive and write (or compare). Returns (stale file names, seconds)."""
+def run(check: bool = False, out_dir: Path | None = None) -> tuple[list[str], float, str]:
+    """Derive the built-in models and write (or compare). Returns (stale file names,
+    seconds, a unified diff of the stale files, at most 60 lines)."""
     from simucal.derive import codegen
-    from simucal.derive.registry import BUILTIN, load_model_file
+    from simucal.derive.registry import BUILTIN
 
     t0 = time.perf_counter()
     out_dir = out_dir or generated_dir()
-    old = out_dir / "manifest.json"
-    files_known = json.loads(old.read_text()).get("model_files", []) if old.is_file() else []
-    model_files = sorted(set(map(str, model_files)) | set(files_known))
-    models = list(BUILTIN)
-    for f in model_files:
-        models += load_model_file(f)
-    files = codegen.generate(models, model_files)
+    files = codegen.generate(list(BUILTIN))
     if check:
-        return codegen.stale(out_dir, files), time.perf_counter() - t0
+        stale = codegen.stale(out_dir, files)
+        diff = []
+        for name in stale:
+            path = out_dir / name
+            old = path.read_text().splitlines(keepends=True) if path.is_file() else []
+            diff += difflib.unified_diff(old, files.get(name, "").splitlines(keepends=True),
+                                         f"generated/{name} (checked in)", f"generated/{name} (derived now)", n=1)
+        return stale, time.perf_counter() - t0, "".join(diff[:60]) + ("...\n" if len(diff) > 60 else "")
     codegen.write(out_dir, files)
-    return [], time.perf_counter() - t0
+    return [], time.perf_counter() - t0, ""

@@ -29,7 +29,7 @@ import numpy as np
 from scipy import stats
 
 from .augmented import check_effect, effect_ids
-from .diagnose import verdict, gate_candidates
+from .candidates import gate_candidates, verdict
 from .generated.effects import EFFECTS
 from .handheld import GyroFit, Moves, fit_gyro, fit_gyro_moves, move_residuals, prepare_moves
 from .noise import quantization_step, white_noise_var
@@ -163,7 +163,8 @@ def diagnose_moves(ms, obs, det, am, fa, add=(), truth=None, alpha=0.01):
     S = move_covariances(gm, base, obs, sigma_g)
     chi2, dof, p = chi2_test(base, S, gm.bias_std, gm.mv)
     floor = float(np.sqrt(np.einsum("mii->", S) / (3 * len(S)) * max(dof, 0) / (2 * len(S))))
-    block = {"residual_rms": float(np.sqrt(np.mean(base.r ** 2))), "dof": dof, "model": "full 3x3 T + bias (moves)",
+    block = {"residual_rms": float(np.sqrt(np.mean(base.r ** 2))), "residual_unit": "(gravity direction)",
+             "dof": dof, "model": "full 3x3 T + bias (moves)", "noise": {"source": "the rests' white noise"},
              "noise_floor": floor, "noise_std_of_mean": None, "chi2": chi2, "p_value": p,
              "test": "chi-square against the white noise of the rests (gyro) and of the pose means (acc)",
              "gyro_white_noise_dps": sigma_g.tolist()}
@@ -181,7 +182,7 @@ def diagnose_moves(ms, obs, det, am, fa, add=(), truth=None, alpha=0.01):
         S = move_covariances(gm, fit, obs, sigma_g)
     vec = lambda f: np.r_[f.T.ravel(), (gm.bias + f.db) * 3600, f.p]
     std = lambda f: np.sqrt(np.diag(f.cov)) * np.r_[np.ones(9), np.full(3, 3600.0), np.ones(len(f.p))]
-    out = {"baseline": block, "candidates": cands, "verdict": verdict("gyro (moves)", block, cands),
+    out = {"baseline": block, "candidates": cands, "verdict": verdict("gyro (moves)", block, cands, str(ms.path)),
            "params": dict(zip(names, vec(fit).tolist())), "std": dict(zip(names, std(fit).tolist())),
            "param_units": {"T": "1 (deg/s of rate per deg/s of output)", "b": "deg/h"},
            "residuals": move_rows(gm, fit, S, temp), "residual_unit": "gravity direction (unit vector), per move",

@@ -301,7 +301,7 @@ def acc_from_poses(ms, acc_model="acc_baseline", detect_kw=None, pose_window_s=1
             f"{ms.path}: the {len(obs.N)} poses' gravity directions lie in one plane (spread across it "
             f"{np.sqrt(spread[0]):.2g} g, normal {np.round(normal[:, 0], 2).tolist()} in the output axes): the scale "
             "and misalignment along its normal are unobservable; add poses tilted out of that plane")
-    am = AugmentedModel(acc_model)
+    am = acc_model if isinstance(acc_model, AugmentedModel) else AugmentedModel(acc_model)
     fa, tau = with_model_error(am, obs, fit_exact(am, obs))
     return obs, det, am, fa, tau
 
@@ -335,27 +335,37 @@ def prepare_moves(ms, det: Detection, g_dirs) -> GyroMoves:
     return GyroMoves(mv, g_dirs, bias, bias_std, rest, skipped, sat, flipped)
 
 
-def calibrate_handheld(ms, acc_model="acc_baseline", detect_kw=None, pose_window_s=1.0) -> dict:
+def calibrate_handheld(ms, acc_model="acc_baseline", detect_kw=None, pose_window_s=1.0, gyro_effects=()) -> dict:
     """pose_window_s: seconds at the start of each static interval averaged into the
     pose (None: the whole interval). Hand-placed poses creep: on imu_tk's Xsens
     session the baseline's chi2 falls from 472 to 141 (29 dof) when only the first
-    second is used, which is also imu_tk's convention (100 samples)."""
+    second is used, which is also imu_tk's convention (100 samples).
+    gyro_effects: candidate ids fit with T and the bias over the moves."""
+    from . import calibration
     t = ms.samples["t_s"]
     obs, det, am, fa, tau = acc_from_poses(ms, acc_model, detect_kw, pose_window_s)
     M_a, b_a = am.matrix_and_bias(fa.vector(am.params))
     units.check_scale("acc", M_a, ms.path / "samples.csv")
-    result = {"format": "simucal.calibration/1", "method": "handheld (Tedaldi): exact norm fit + gyro moves",
-              "static_detection": {**det.as_dict(t), "pose_window_s": pose_window_s},
-              "acc": {"M": M_a.tolist(), "bias": b_a.tolist(), "bias_unit": "g", "model": am.name,
-                      "params": fa.params, "std": fa.std, "residual_rms": fa.residual_rms, "chi2": fa.chi2,
-                      "dof": fa.dof, "p_value": fa.p_value, "model_error_std_g": tau,
-                      "note": None if tau == 0 else (
-                          "the model does not explain the poses down to their own noise (see chi2, p_value before "
-                          "the extra variance: simucal diagnose); each pose got an extra variance tau^2 so that "
-                          "chi2/dof = 1, and the stds include it")}}
+    result = calibration.header("handheld (Tedaldi): exact norm fit + gyro moves", ms)
+    result["static_detection"] = {**det.as_dict(t), "pose_window_s": pose_window_s}
+    result["acc"] = calibration.sensor_block(am, fa, M_a, b_a)
+    result["acc"].update(model_error_std_g=tau, note=None if tau == 0 else (
+        "the model does not explain the poses down to their own noise (see chi2, p_value before "
+        "the extra variance: simucal diagnose); each pose got an extra variance tau^2 so that "
+        "chi2/dof = 1, and the stds include it"))
     if ms.has_gyro:
         gm = prepare_moves(ms, det, initial_directions(am, obs, fa.vector(am.params)))
         f = fit_gyro(gm.mv, gm.g_dirs, gm.bias_std)
+        effects = {}
+        if gyro_effects and f.converged:
+            from .diagnose_moves import regressor_inputs, with_terms
+            from .generated.effects import EFFECTS
+            inputs = regressor_inputs(ms, gm, f, (M_a, b_a))
+            gm.mv = with_terms(gm.mv, list(gyro_effects), inputs)
+            f = fit_gyro(gm.mv, gm.g_dirs, gm.bias_std, np.r_[f.T.ravel(), f.db, np.zeros(len(gyro_effects))])
+            std_p = np.sqrt(np.diag(f.cov)[12:])
+            effects = {e: {"value": float(v), "std": float(sd), "unit": EFFECTS[e][3], "meaning": EFFECTS[e][4]}
+                       for e, v, sd in zip(gyro_effects, f.p, std_p)}
         if not f.converged:
             raise CalibrationError(f"{ms.path}: the gyro fit over the moves did not converge in {f.iterations} "
                                    "Gauss-Newton steps; look at the moves (simucal diagnose) for ones the model "
@@ -374,15 +384,16 @@ def calibrate_handheld(ms, acc_model="acc_baseline", detect_kw=None, pose_window
         bias_std = np.sqrt(np.diag(cov)[9:12])
         M_g = np.linalg.inv(T)
         units.check_scale("gyro", M_g, ms.path / "samples.csv")
-        result["gyro"] = {"M": M_g.tolist(), "bias": (bias * 3600).tolist(), "bias_unit": "deg/h",
-                          "model": "full 3x3 M (scale, misalignment, triad rotation), bias from the initial rest",
-                          "T": T.tolist(), "std": {"T": np.sqrt(np.diag(cov)[:9]).reshape(3, 3).tolist(),
-                                                   "bias": (bias_std * 3600).tolist()},
-                          "residual_rms": float(np.sqrt(np.mean(np.sum(r ** 2, 1)))),
-                          "moves": [{"from_pose": int(a), "to_pose": int(b), "t_s": list(span), "residual": ri.tolist()}
-                                    for a, b, span, ri in zip(mv.before, mv.after, mv.t_span, r)],
-                          "residual_unit": "gravity direction (unit vector), per move",
-                          "moves_used": int(len(r)), "moves_skipped": gm.skipped, "saturation": gm.saturation,
-                          "moves_opposite_sense": gm.flipped, "iterations": f.iterations}
+        result["gyro"] = calibration.affine_block(
+            "gyro", M_g, bias * 3600, {"T": np.sqrt(np.diag(cov)[:9]).reshape(3, 3).tolist(),
+                                       "bias": (bias_std * 3600).tolist()},
+            float(np.sqrt(np.mean(np.sum(r ** 2, 1)))),
+            "full 3x3 M (scale, misalignment, triad rotation), bias from the initial rest, effects over the moves",
+            residual_unit="gravity direction (unit vector), per move", effects=effects,
+            T=T.tolist(), T_note="T = M^-1: the rate in b is T (output - bias - effects)",
+            moves=[{"from_pose": int(a), "to_pose": int(b), "t_s": list(span), "residual": ri.tolist()}
+                   for a, b, span, ri in zip(mv.before, mv.after, mv.t_span, r)],
+            moves_used=int(len(r)), moves_skipped=gm.skipped, saturation=gm.saturation,
+            moves_opposite_sense=gm.flipped, iterations=f.iterations)
     result["residual_rms"] = {s: result[s]["residual_rms"] for s in ("acc", "gyro") if s in result}
     return result

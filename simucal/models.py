@@ -66,23 +66,20 @@ def aux_args(sensor, temp_c, t_s, extra):
 
 
 class GeneratedModel:
-    """An error model from generated/: N(u, p), its Jacobians, the norm regression."""
+    """An error model from generated/ (or a user's model from the cache): N(u, p), its
+    Jacobians, the norm regression. `module` is the generated numpy module, `c_source`
+    the CasADi C of the same derivation."""
 
-    def __init__(self, name: str, compiled: bool = True):
-        entry = manifest()["models"].get(name)
-        if entry is None:
-            raise KeyError(f"no generated model {name!r}; known: {sorted(manifest()['models'])}. "
-                           "Run `simucal derive` (with --model FILE for your own model).")
-        self.module = importlib.import_module(f"simucal.generated.{name}")
-        if self.module.MODEL_SHA256 != entry["sha256"]:
-            raise StaleGeneratedCode(f"generated/{name}.py does not match manifest.json; run `simucal derive`")
+    def __init__(self, name: str, module, c_source: str | None, compiled: bool = True):
+        self.module = module
         self.name, self.sensor, self.unit = name, self.module.SENSOR, self.module.UNIT
         self.params = self.module.PARAMS
         self.param_units = self.module.PARAM_UNITS
+        self.meanings = getattr(self.module, "MEANINGS", ("",) * len(self.params))
+        self.source = getattr(self.module, "SOURCE", "built-in")
         self._c = None
-        if compiled:
-            src = (generated_dir() / entry["c_file"]).read_text()
-            lib = compile_c(name, src)
+        if compiled and c_source is not None:
+            lib = compile_c(name, c_source)
             if lib is not None:
                 import casadi as ca
                 self._c = ca.external(f"simucal_{name}", str(lib))
@@ -135,4 +132,13 @@ class GeneratedModel:
 
 @functools.lru_cache(maxsize=None)
 def load(name: str, compiled: bool = True) -> GeneratedModel:
-    return GeneratedModel(name, compiled)
+    """A model by name: built-in (generated/) first, then the user models derived into
+    the cache (simucal.user_models)."""
+    entry = manifest()["models"].get(name)
+    if entry is not None:
+        module = importlib.import_module(f"simucal.generated.{name}")
+        if module.MODEL_SHA256 != entry["sha256"]:
+            raise StaleGeneratedCode(f"generated/{name}.py does not match manifest.json; run `simucal derive`")
+        return GeneratedModel(name, module, (generated_dir() / entry["c_file"]).read_text(), compiled)
+    from .user_models import load_user_model
+    return load_user_model(name, compiled)

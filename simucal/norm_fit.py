@@ -146,6 +146,19 @@ def jacobian_blocks(model, obs, p, u, sig):
     return r, Jq, Jd, E
 
 
+def dense_jacobian(model, obs, fit):
+    """Dense weighted Jacobian of the exact problem at the solution, [dr/dp | dr/d(directions)]
+    (3n, m + 2n), and the sigma used (n, 3; ones where the noise is unknown)."""
+    n, m = len(obs.N), len(model.params)
+    sig = np.broadcast_to(obs.sigma if obs.sigma is not None else 1.0, (n, 3))
+    _, Jq, Jd, _ = jacobian_blocks(model, obs, fit.vector(model.params), fit.directions, sig)
+    J = np.zeros((3 * n, m + 2 * n))
+    J[:, :m] = Jq.reshape(3 * n, m)
+    for i in range(n):
+        J[3 * i:3 * i + 3, m + 2 * i:m + 2 * i + 2] = Jd[i]
+    return J, sig
+
+
 def initial_directions(model, obs, p):
     M, b = model.matrix_and_bias(p, obs.temp_c, obs.t_s, obs.extra)
     u = np.linalg.solve(M, (obs.N - b)[..., None])[..., 0]
@@ -189,6 +202,9 @@ def fit_exact(model, obs: Observations, p0=None, max_iter=200, tol=1e-12) -> Fit
     """Maximum-likelihood norm-observation fit, exact model (see module doc)."""
     _check_inputs(model, obs)
     n, m = len(obs.N), len(model.params)
+    if p0 is None and getattr(model, "effects", ()):  # baseline + effects: start from the baseline's fit
+        base = fit_exact(model.base, obs, max_iter=max_iter)
+        p0 = np.r_[base.vector(model.base.params), np.zeros(m - len(model.base.params))]
     if p0 is None:  # the better of the paper's linear fit and the exact ellipsoid
         starts = []
         try:

@@ -56,6 +56,44 @@ class Scenario:
     gyro_effects: dict = field(default_factory=dict)
     temp_c: tuple | None = None       # (first, last): a linear sweep over the segments; None: no temp_c column
     shuffle: bool = False             # visit the positions in random order (separates time from direction)
+    state_noise: bool = True          # write acc_noise_g / gyro_noise_dph into meta.json
+
+
+def _pairs(items, what):
+    """NAME=VALUE strings -> {name: float}, refusing malformed ones."""
+    out = {}
+    for item in items:
+        name, eq, val = item.partition("=")
+        try:
+            if not eq or not name.strip():
+                raise ValueError
+            out[name.strip()] = float(val)
+        except ValueError:
+            raise ValueError(f"{what} {item!r}: write NAME=VALUE with a number, e.g. acc.quadratic.z=6e-5") from None
+    return out
+
+
+def plant(sc: Scenario, effects=(), effect_file=None, sets=()):
+    """Put effects into the truth: candidate ids (--effect ID=VALUE) and a model file's terms
+    (--effect-file FILE --set NAME=VALUE). Unknown ids or names are refused."""
+    from .augmented import check_effect
+    for eid, val in _pairs(effects, "--effect").items():
+        check_effect(eid)
+        (sc.acc_effects if eid.startswith("acc.") else sc.gyro_effects)[eid] = val
+    values = _pairs(sets, "--set")
+    if values and not effect_file:
+        raise ValueError("--set needs --effect-file: the model file that defines those parameters")
+    if effect_file:
+        from .models import load
+        from .user_models import derive_model_file
+        for name in derive_model_file(effect_file)[0]:
+            model = load(name)
+            setattr(sc, f"{model.sensor}_model", name)
+            getattr(sc, f"{model.sensor}_params").update({k: v for k, v in values.items() if k in model.params})
+        known = set(load(sc.acc_model).params) | set(load(sc.gyro_model).params)
+        unknown = sorted(set(values) - known)
+        if unknown:
+            raise ValueError(f"--set {unknown}: not parameters of {effect_file}; its parameters are {sorted(known)}")
 
 
 SCENARIOS = {"paper": Scenario}
@@ -63,6 +101,8 @@ SCENARIOS = {"paper": Scenario}
 
 def simulate(sc: Scenario, seed: int = 0):
     """Return (meta, samples, segments, truth) of one simulated test."""
+    if sc.rate_hz is not None and not sc.rate_hz > 0:
+        raise ValueError(f"--rate-hz {sc.rate_hz}: the sample rate must be positive")
     rng = np.random.default_rng(seed)
     acc = AugmentedModel(sc.acc_model, tuple(sc.acc_effects))
     gyro = AugmentedModel(sc.gyro_model, tuple(sc.gyro_effects))
@@ -116,8 +156,9 @@ def simulate(sc: Scenario, seed: int = 0):
 
     meta = {"latitude_deg": sc.latitude_deg, "gravity_mps2": units.DEFAULT_GRAVITY,
             "earth_rate_dph": w_e, "acc_unit": sc.acc_unit, "gyro_unit": sc.gyro_unit,
-            "acc_noise_g": sc.acc_noise_g, "gyro_noise_dph": sc.gyro_noise_dph,
             "description": f"simucal simulate, seed {seed}"}
+    if sc.state_noise:
+        meta.update(acc_noise_g=sc.acc_noise_g, gyro_noise_dph=sc.gyro_noise_dph)
     if sc.acc_unit == "pulse/s":
         meta["acc_pulses_per_g"] = list(sc.acc_pulses_per_g)
     if sc.gyro_unit == "pulse/s":
@@ -153,9 +194,10 @@ def simulate(sc: Scenario, seed: int = 0):
     M_g_d, b_g = gyro.matrix_and_bias(p_gyro)
     C_b_d = C_d_k.T @ C_b_k
     truth = {
-        "acc": {"model": acc.name, "params": dict(zip(acc.params, p_acc.tolist())),
+        "acc": {"model": acc.name, "params": dict(zip(acc.params, p_acc.tolist())), "effects": dict(sc.acc_effects),
                 "M": M_a.tolist(), "bias": b_a.tolist(), "bias_unit": "g"},
         "gyro": {"model": gyro.name, "params": dict(zip(gyro.params, p_gyro.tolist())),
+                 "effects": dict(sc.gyro_effects),
                  "M": (M_g_d @ C_b_d).tolist(), "bias": b_g.tolist(), "bias_unit": "deg/h",
                  "M_in_d": M_g_d.tolist()},
         "mounting": {"theta4_rad": list(sc.theta4_rad), "lambda4_rad": list(sc.lambda4_rad)},

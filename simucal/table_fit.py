@@ -12,7 +12,7 @@ from __future__ import annotations
 import numpy as np
 from scipy import stats
 
-from .diagnose import gate_candidates
+from .candidates import gate_candidates
 from .generated import table
 
 PARAMS = table.TABLE_FIT_PARAMS

@@ -1,4 +1,10 @@
+import os
+import tempfile
+
 import pytest
+
+# user models derived by the tests go to a cache of their own, never the user's
+os.environ.setdefault("SIMUCAL_CACHE", tempfile.mkdtemp(prefix="simucal-test-cache-"))
 
 from simucal.simulate import Scenario, write
 

@@ -130,22 +130,27 @@ def test_not_converged_is_reported(paper_set):
         fit_exact(load("acc_baseline"), obs, p0=[0.3] * 9, max_iter=1)
 
 
-def test_user_model_file_generates_beside_baseline(tmp_path):
-    from simucal import derive_cmd
-    from simucal.models import generated_dir
+def test_user_model_file_goes_to_the_cache_not_the_package(tmp_path, monkeypatch, paper_set):
+    """A user's model is derived into the cache, keyed by its file; generated/ stays as it was,
+    the model works by name from any folder, and a second use needs no derivation."""
+    from simucal.models import generated_dir, load
+    from simucal.user_models import derive_model_file
+    before = {p.name: p.read_bytes() for p in generated_dir().iterdir() if p.is_file()}
     model_file = tmp_path / "my_model.py"
     model_file.write_text(
         "from simucal.derive.models.baseline import ACC_BASELINE\n"
         "from simucal.derive.models.effects import acc_quadratic\n"
         "MODELS = [ACC_BASELINE.with_terms('acc_mine', [acc_quadratic('x')])]\n")
-    out = tmp_path / "generated"
-    shutil.copytree(generated_dir(), out, ignore=shutil.ignore_patterns("__pycache__"))
-    derive_cmd.run(model_files=[model_file], out_dir=out)
-    assert (out / "acc_mine.py").is_file() and (out / "acc_mine.c").is_file()
-    manifest = json.loads((out / "manifest.json").read_text())
-    assert "acc_mine" in manifest["models"] and str(model_file) in manifest["model_files"]
-    assert (out / "acc_baseline.py").read_text() == (generated_dir() / "acc_baseline.py").read_text()
-    assert derive_cmd.run(check=True, out_dir=out)[0] == []  # the stale check covers the user model too
+    names, derived = derive_model_file(model_file)
+    assert names == ["acc_mine"] and derived
+    assert derive_model_file(model_file) == (["acc_mine"], False)  # cached: no SymPy the second time
+    assert {p.name: p.read_bytes() for p in generated_dir().iterdir() if p.is_file()} == before
+    monkeypatch.chdir(tmp_path.parent)  # from another folder, by name
+    load.cache_clear()
+    m = load("acc_mine")
+    assert m.params[-1] == "K2_x" and m.source == str(model_file.resolve())
+    result = calibrate(paper_set[0], "exact", acc_model="acc_mine")
+    assert result["acc"]["model"] == "acc_mine" and "K2_x" in result["acc"]["params"]
 
 
 def test_unit_mixup_named(paper_set, tmp_path):
