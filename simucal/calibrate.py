@@ -277,7 +277,8 @@ def calibrate(folder, method="exact", acc_model="acc_baseline", gyro_model="gyro
                                   detect_kw, gyro_effects=tuple(e for e in ids if e.startswith("gyro.")))
     acc_obs = acc_segs = gyro_obs = gyro_segs = None
     if ms.has_acc:
-        acc_obs, acc_segs = segment_observations(ms, "acc", stated=acc_noise_g)
+        lever_arms = any(e.startswith("acc.size_effect.") for e in ids)  # seen only under rotation
+        acc_obs, acc_segs = segment_observations(ms, "acc", acc_in_rate_runs=lever_arms, stated=acc_noise_g)
     if ms.has_gyro:
         gyro_obs, gyro_segs = segment_observations(ms, "gyro", stated=gyro_noise_dph)
         if not gyro_segs:

@@ -238,8 +238,16 @@ def fit_exact(model, obs: Observations, p0=None, max_iter=200, tol=1e-12) -> Fit
         g = np.einsum("nia,ni->a", Jq, r) - np.einsum("nca,ncd,nd->a", B, Ainv, gd)
         dH = np.sqrt(np.maximum(np.diag(H), 1e-300))  # Jacobi scaling: terms of very different size stay conditioned
         Hs, gs = H / np.outer(dH, dH), g / dH
+        if it == 1 and np.any(np.diag(H) <= 1e-300):
+            dead = [model.params[j] for j in np.nonzero(np.diag(H) <= 1e-300)[0]]
+            raise CalibrationError(f"the {model.sensor} data give no input for {dead}: these parameters are not "
+                                   "seen at all by these positions (leave them out, or add positions that excite them)")
         while True:  # Levenberg-Marquardt: damp until the cost does not rise
-            dp = -np.linalg.solve(Hs + lam * np.eye(m), gs) / dH
+            try:
+                dp = -np.linalg.solve(Hs + lam * np.eye(m), gs) / dH
+            except np.linalg.LinAlgError:
+                raise CalibrationError(f"the {model.sensor} plan leaves these parameter combinations unobservable: "
+                                       f"{unobservable(H, model.params)}; add positions that change them") from None
             dd = -np.einsum("nab,nb->na", Ainv, gd + np.einsum("nab,b->na", B, dp))
             p_new = p + dp
             v = u + np.einsum("nij,nj->ni", E, dd)
