@@ -14,7 +14,7 @@ from simucal import plans
 from simucal.derive import codegen
 from simucal.derive.registry import ACC_BASELINE, ACC_EXTENDED, GYRO_BASELINE
 from simucal.generated import table
-from simucal.models import GeneratedModel
+from simucal.models import load
 from simucal.norm_fit import Observations, fit_exact, fit_linear
 
 
@@ -40,7 +40,7 @@ def main():
     ang = np.radians(np.array(plans.TABLE1))
     u = table.C_k_n(ang[:, 0], ang[:, 1], ang[:, 2], np.zeros(7))[:, 2, :]
     p = np.array([0.002, 0.008, 0.006, 1e-4, 1e-4, 1e-4, 8e-4, -1e-3, -3.2e-3])
-    c, n = GeneratedModel("acc_baseline", True), GeneratedModel("acc_baseline", False)
+    c, n = load("acc_baseline", True), load("acc_baseline", False)
     N = c.output(u, p) + rng.normal(0, 1e-5, (12, 3))
     obs = Observations(N, np.ones(12), np.full((12, 3), 1e-5))
 

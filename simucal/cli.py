@@ -123,9 +123,12 @@ def _sensor_lines(result):
         yield f"{s}: residual rms {b['residual_rms']:.3g} {unit}; {test}{eff}"
         if b.get("p_value") is not None and b["p_value"] < 1e-3:
             what = b.get("advice")
+            stds = ("stds are inflated by sqrt(chi2/dof) (std_raw keeps the unscaled ones)" if "std_raw" in b else
+                    f"stds include a model-error std {b['model_error_std_g']:.2g} g per pose"
+                    if b.get("model_error_std_g") else "stds assume the model is right")
             yield (f"{s}: THE MODEL FAILS (p = {b['p_value']:.2g} < 1e-3): "
-                   + (f"diagnose would add {what}; " if what else "no candidate explains it (simucal diagnose); ")
-                   + "stds are inflated by sqrt(chi2/dof) (std_raw keeps the unscaled ones)")
+                   + (f"diagnose would add {what}; " if what else
+                      f"see simucal diagnose {result['input']} for what is missing; ") + stds)
 
 
 @main.command()
