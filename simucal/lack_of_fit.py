@@ -220,6 +220,10 @@ def describe_shape(model, obs: Observations, fit: Fit) -> dict | None:
             "estimate": coef, "unit": t.unit(), "parameter": t.name(), "sympy": t.sympy(),
             "share_of_misfit": float(lr[best] / max(r @ r, 1e-300)), "residual_rms_after": rms_after,
             "indistinguishable_here": twins[:6],
+            "points": {"regressor": t.values(fit.directions * obs.rho[:, None], obs).tolist(),
+                       "residual": fit.residuals[:, t.axis].tolist(),
+                       # the part of the term the model cannot absorb: what the residual should show
+                       "term_visible": (coef * Gp[:, best].reshape(-1, 3) * sig)[:, t.axis].tolist()},
             "text": (f"on the {'xyz'[t.axis]} axis, about {coef:.2g} * {t.text()} {unit}"
                      + (" (rates in deg/s)" if model.sensor == "gyro" and not t.aux else "")
                      + f": {t.parity()}; it explains {100 * lr[best] / max(r @ r, 1e-300):.0f} % of the misfit")}

@@ -32,6 +32,18 @@ def _res(rows, key="normalized"):
     return np.array([r[use] for r in rows]), use
 
 
+def shape_figure(sensor, shape, unit):
+    """The residual on the found term's axis against its regressor, with the fitted term."""
+    x, r = np.array(shape["points"]["regressor"]), np.array(shape["points"]["residual"])
+    fig, ax = plt.subplots(figsize=(6, 3.2))
+    ax.plot(x, r, "o", ms=4, label=f"{sensor} {shape['axis']} residual")
+    ax.plot(x, shape["points"]["term_visible"], "x", ms=5,
+            label=f"{shape['estimate']:.2g} * {shape['regressor']}, less what the model absorbs")
+    ax.set(xlabel=shape["regressor"], ylabel=f"residual ({unit})", title=f"{sensor}: the shape of the misfit")
+    ax.legend(fontsize=8)
+    return f"<p>{html.escape(shape['text'])}</p>" + _png(fig)
+
+
 def residual_figures(sensor, block, unit):
     rows = block["residuals"]
     r, kind = _res(rows)
@@ -153,6 +165,8 @@ def render(diag: dict) -> str:
         parts += residual_figures(s, b, units[s])
         if b.get("moves_skipped"):  # a stream's gyro: the moves left out, and why
             parts.append(_table(b["moves_skipped"], ["from_pose", "to_pose", "t_s", "reason"]))
+        if b.get("shape"):
+            parts.append(shape_figure(s, b["shape"], units[s]))
         tested = [c for c in b["candidates"] if c["separable"]]
         parts.append(candidate_figure(s, b, len(tested)))
         parts.append(_table(b["candidates"], ["id", "estimate", "std", "unit", "statistic", "p_value", "delta_aic",
