@@ -124,7 +124,7 @@ def _sensor_lines(result):
         if b.get("p_value") is not None and b["p_value"] < 1e-3:
             what = b.get("advice")
             stds = ("stds are inflated by sqrt(chi2/dof) (std_raw keeps the unscaled ones)" if "std_raw" in b else
-                    f"stds include a model-error std {b['model_error_std_g']:.2g} g per pose"
+                    b["std_note"] if b.get("std_note") else f"stds include a model-error std {b['model_error_std_g']:.2g} g per pose"
                     if b.get("model_error_std_g") else "stds assume the model is right")
             yield (f"{s}: THE MODEL FAILS (p = {b['p_value']:.2g} < 1e-3): "
                    + (f"diagnose would add {what}; " if what else

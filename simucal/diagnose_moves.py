@@ -49,6 +49,13 @@ def _param_names(n_terms_names):
     return [f"T_{a}{b}" for a in "xyz" for b in "xyz"] + [f"b_{a}" for a in "xyz"] + list(n_terms_names)
 
 
+def gyro_noise_dps(ms, gm) -> np.ndarray:
+    """White noise of one gyro sample (deg/s) from the initial rest: a moving gyro has at
+    least its quantisation noise, even where the rest reads constant."""
+    rest = ms.gyro_dph()[gm.rest] / 3600.0
+    return np.sqrt(np.maximum(white_noise_var(rest), quantization_step(rest, ms.gyro_dph() / 3600.0) ** 2 / 12))
+
+
 def move_covariances(gm, fit: GyroFit, obs, sigma_g_dps):
     """S_i of every move (m, 3, 3), in squared unit-vector components."""
     mv = gm.mv
@@ -157,9 +164,7 @@ def diagnose_moves(ms, obs, det, am, fa, add=(), truth=None, alpha=0.01):
     """The gyro block of `simucal diagnose` for a stream (same keys as for a turntable set)."""
     gm = prepare_moves(ms, det, initial_directions(am, obs, fa.vector(am.params)))
     base = fit_gyro(gm.mv, gm.g_dirs, gm.bias_std)
-    rest = ms.gyro_dph()[gm.rest] / 3600.0
-    # a moving gyro has at least its quantisation noise, even where the rest reads constant
-    sigma_g = np.sqrt(np.maximum(white_noise_var(rest), quantization_step(rest, ms.gyro_dph() / 3600.0) ** 2 / 12))
+    sigma_g = gyro_noise_dps(ms, gm)
     S = move_covariances(gm, base, obs, sigma_g)
     chi2, dof, p = chi2_test(base, S, gm.bias_std, gm.mv)
     floor = float(np.sqrt(np.einsum("mii->", S) / (3 * len(S)) * max(dof, 0) / (2 * len(S))))

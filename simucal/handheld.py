@@ -380,6 +380,8 @@ def calibrate_handheld(ms, acc_model="acc_baseline", detect_kw=None, pose_window
                                    + (f"gyro output {', '.join(dead)} hardly changes during the moves: a dead or "
                                       "unconnected channel?" if dead else
                                       "turn the unit about every axis between poses, not about one or two"))
+        from .diagnose_moves import chi2_test, gyro_noise_dps, move_covariances
+        chi2, dof, p_value = chi2_test(f, move_covariances(gm, f, obs, gyro_noise_dps(ms, gm)), gm.bias_std, mv)
         bias = gm.bias + f.db
         bias_std = np.sqrt(np.diag(cov)[9:12])
         M_g = np.linalg.inv(T)
@@ -394,6 +396,8 @@ def calibrate_handheld(ms, acc_model="acc_baseline", detect_kw=None, pose_window
             moves=[{"from_pose": int(a), "to_pose": int(b), "t_s": list(span), "residual": ri.tolist()}
                    for a, b, span, ri in zip(mv.before, mv.after, mv.t_span, r)],
             moves_used=int(len(r)), moves_skipped=gm.skipped, saturation=gm.saturation,
-            moves_opposite_sense=gm.flipped, iterations=f.iterations)
+            moves_opposite_sense=gm.flipped, iterations=f.iterations, chi2=chi2, dof=dof, p_value=p_value,
+            test="chi-square of the moves against the rests' white noise (simucal diagnose shows them)",
+            std_note="stds scale with the moves' own residual scatter, so they include any misfit")
     result["residual_rms"] = {s: result[s]["residual_rms"] for s in ("acc", "gyro") if s in result}
     return result

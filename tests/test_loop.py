@@ -171,3 +171,18 @@ def test_apply_refuses_another_layout(tmp_path, paper_set):
     (other / "meta.json").write_text(json.dumps(meta))
     r = CliRunner().invoke(main, ["apply", str(tmp_path / "c.json"), str(other), "-o", str(tmp_path / "out")])
     assert r.exit_code == 2 and "another sensor or unit" in r.output and not (tmp_path / "out").exists()
+
+
+def test_stream_calibrate_carries_a_gyro_effect_and_applies(tmp_path):
+    """A hand-placed stream: calibrate --add fits a gyro effect over the moves (planted
+    G_yz = 1000 (deg/h)/g), reports the moves' chi-square, and apply reads the stream back."""
+    from simucal.simulate_handheld import HandheldScenario, write_handheld
+    write_handheld(tmp_path / "h", HandheldScenario(gyro_effects={"gyro.g_sensitivity.yz": 1000.0}), 1)
+    base = calibrate(tmp_path / "h")
+    cal = calibrate(tmp_path / "h", add=("gyro.g_sensitivity.yz",))
+    e = cal["gyro"]["effects"]["gyro.g_sensitivity.yz"]
+    assert abs(e["value"] - 1000.0) < 3 * e["std"] and e["unit"] == "(deg/h)/g"
+    assert base["gyro"]["p_value"] < 1e-3 < cal["gyro"]["p_value"] and cal["gyro"]["dof"] > 0
+    calibration.write(tmp_path / "c.json", cal)
+    meta, samples, _ = apply(calibration.read(tmp_path / "c.json"), tmp_path / "h")
+    assert meta["gyro_unit"] == "deg/h" and np.all(np.isfinite(samples["gx"]))
