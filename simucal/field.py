@@ -64,10 +64,11 @@ class StaticFilter:
         P = np.diag(P0_diag)
         self.gains, self.sd = [], []
         for _ in range(steps):  # the covariance does not depend on the data: run it once
-            P = self.Phi @ P @ self.Phi.T + Q
-            S = self.H @ P @ self.H.T + R
-            K = P @ self.H.T @ np.linalg.inv(S)
-            P = (np.eye(8) - K @ self.H) @ P
+            P = self.Phi @ P @ self.Phi.T + Q          # predict: P = Phi P Phi^T + Q
+            S = self.H @ P @ self.H.T + R               # innovation covariance: S = H P H^T + R
+            K = P @ self.H.T @ np.linalg.inv(S)         # gain: K = P H^T S^-1
+            I_KH = np.eye(8) - K @ self.H
+            P = I_KH @ P @ I_KH.T + K @ R @ K.T         # Joseph form: stays symmetric and positive
             self.gains.append(K)
             self.sd.append(np.sqrt(np.diag(P)))
         self.sd = np.array(self.sd)
