@@ -244,7 +244,8 @@ def _affine_fit(f, N, sensor):
 
 
 def _exact_sensor(model, obs, method, where):
-    """Fit one sensor; when the model fails, the effect diagnose would add. Returns (fit, block info)."""
+    """Fit and test one sensor. Returns (fit, test block or None for the linear method, the
+    effect to add when the model fails or None)."""
     if method == "linear":
         if model.effects:
             raise CalibrationError("--add needs --method exact: the paper's linear regression exists for "

@@ -12,7 +12,6 @@ import json
 from pathlib import Path
 
 import numpy as np
-from scipy import stats
 
 from . import io
 from .augmented import AugmentedModel

@@ -1,6 +1,7 @@
 """The gyro of a hand-placed session against its moves: noise floor, verdict, candidates.
 
-Noise floor, from the stream's own rests. The gyro's white noise (first
+Noise floor, from the stream's own rests (handheld.gyro_noise_dps, move_covariances,
+chi2_test: calibrate reports the same test). The gyro's white noise (first
 differences over the initial rest, at least the quantisation's q^2/12: sigma_g
 per axis and sample, deg/s)
 integrates over a move into an attitude error of covariance
@@ -21,7 +22,7 @@ included), time and temperature, enters the output model
 and is fit with T and the bias by the same Gauss-Newton (handheld.fit_gyro_moves).
 Ranked by the likelihood ratio with the noise variance profiled out,
 LR = 2m ln(RSS_0 / RSS_1) ~ chi2(1) (2m: the residuals' degrees of freedom),
-significant under the same Bonferroni gate as the poses (diagnose.py).
+significant under the same Bonferroni gate as the poses (candidates.py).
 """
 from __future__ import annotations
 
@@ -31,10 +32,9 @@ from scipy import stats
 from .augmented import check_effect, effect_ids
 from .candidates import gate_candidates, verdict
 from .generated.effects import EFFECTS
-from .handheld import GyroFit, Moves, fit_gyro, fit_gyro_moves, move_residuals, prepare_moves
-from .noise import quantization_step, white_noise_var
+from .handheld import (GyroFit, chi2_test, fit_gyro, fit_gyro_moves, gyro_noise_dps, move_covariances,
+                       move_residuals, prepare_moves, regressor_inputs, with_terms)
 from .norm_fit import initial_directions
-from .rotations import skew
 
 SEPARATE_MOVES = {
     "quadratic": "moves at several rates, fast and slow, about that axis",
@@ -49,38 +49,6 @@ def _param_names(n_terms_names):
     return [f"T_{a}{b}" for a in "xyz" for b in "xyz"] + [f"b_{a}" for a in "xyz"] + list(n_terms_names)
 
 
-def gyro_noise_dps(ms, gm) -> np.ndarray:
-    """White noise of one gyro sample (deg/s) from the initial rest: a moving gyro has at
-    least its quantisation noise, even where the rest reads constant."""
-    rest = ms.gyro_dph()[gm.rest] / 3600.0
-    return np.sqrt(np.maximum(white_noise_var(rest), quantization_step(rest, ms.gyro_dph() / 3600.0) ** 2 / 12))
-
-
-def move_covariances(gm, fit: GyroFit, obs, sigma_g_dps):
-    """S_i of every move (m, 3, 3), in squared unit-vector components."""
-    mv = gm.mv
-    ang = fit.T @ np.diag(sigma_g_dps ** 2) @ fit.T.T * np.radians(1.0) ** 2
-    S_theta = ang[None] * np.sum(mv.dt ** 2, axis=1)[:, None, None]
-    g1 = gm.g_dirs[mv.after]
-    pred = g1 - fit.r
-    pred /= np.linalg.norm(pred, axis=1, keepdims=True)
-    s_a2 = np.mean(obs.sigma ** 2, axis=1) / obs.rho ** 2  # direction noise of each pose (rho: |f|, g)
-    P = lambda u: np.eye(3) - u[:, :, None] * u[:, None, :]
-    K = skew(pred)
-    return (K @ S_theta @ K.transpose(0, 2, 1) + s_a2[mv.after, None, None] * P(g1)
-            + s_a2[mv.before, None, None] * P(pred))
-
-
-def chi2_test(fit: GyroFit, S, bias_std, mv: Moves):
-    chi2 = sum(float(r @ np.linalg.pinv(s, rcond=1e-6, hermitian=True) @ r) for r, s in zip(fit.r, S))
-    rest = fit.db.copy()  # the rest reads b + sum_j p_j e_j phi_j(rest): the prior's residual
-    for j, axis in enumerate(mv.phi_axes):
-        rest[axis] += fit.p[j] * mv.phi_rest[j]
-    chi2 += float(np.sum((rest / bias_std) ** 2))
-    dof = 2 * len(fit.r) + 3 - 12 - len(fit.p)
-    return chi2, dof, float(stats.chi2.sf(chi2, dof)) if dof > 0 else None
-
-
 def move_rows(gm, fit: GyroFit, S, temp=None):
     """Per-move residuals in the shape of diagnose.residual_table (one row per move)."""
     mv, sig = gm.mv, np.sqrt(np.einsum("mii->mi", S))
@@ -89,36 +57,6 @@ def move_rows(gm, fit: GyroFit, S, temp=None):
              "temp_c": None if temp is None else float(temp[i]), "direction": gm.g_dirs[a].tolist(),
              "residual": r.tolist(), "sigma": s.tolist(), "normalized": (r / s).tolist()}
             for i, (a, b, span, r, s) in enumerate(zip(mv.before, mv.after, mv.t_span, fit.r, sig))]
-
-
-def regressor_inputs(ms, gm, fit: GyroFit, acc_cal):
-    """Inputs of the candidate regressors, (u deg/h, f g, t_s, temp_c), at every move sample
-    (m, L) and at every sample of the initial rest (n,): the calibrated rate and specific force."""
-    M_a, b_a = acc_cal
-    mv = gm.mv
-    m, L = mv.dt.shape
-    idx = np.zeros((m, L), int)
-    for i, (a, b) in enumerate(mv.rows):
-        idx[i, :b - a] = np.arange(a + 1, b + 1)
-    rest = np.arange(gm.rest.start, gm.rest.stop)
-    w = ms.gyro_dph() / 3600.0 - gm.bias - fit.db
-    temp = ms.samples.get("temp_c", np.zeros(len(w)))
-    out = []
-    for ix in (idx, rest):
-        f = np.linalg.solve(M_a, (ms.acc_g()[ix] - b_a).reshape(-1, 3).T).T.reshape(ix.shape + (3,))
-        out.append((w[ix] @ fit.T.T * 3600.0, f, ms.samples["t_s"][ix], temp[ix]))
-    return out
-
-
-def with_terms(mv: Moves, ids, inputs) -> Moves:
-    """mv with the regressors of effects ids along the moves and their mean over the rest."""
-    (u, f, t, temp), (u0, f0, t0, temp0) = inputs
-    mask = mv.dt > 0
-    phi = np.array([EFFECTS[e][5](u, temp, t, f)[0][..., 0] * mask / 3600.0 for e in ids]).reshape(len(ids), *mask.shape)
-    phi_rest = np.array([np.mean(np.broadcast_to(EFFECTS[e][5](u0, temp0, t0, f0)[0][..., 0], t0.shape)) / 3600.0
-                         for e in ids])
-    return Moves(mv.y, mv.dt, mv.before, mv.after, mv.t_span, mv.rows, phi, tuple(EFFECTS[e][1] for e in ids),
-                 phi_rest)
 
 
 def rank_move_candidates(gm, base: GyroFit, inputs, base_fails, alpha):

@@ -22,10 +22,12 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
+from scipy import stats
 
 from . import units
 from .augmented import AugmentedModel
-from .noise import quantization_step
+from .generated.effects import EFFECTS
+from .noise import quantization_step, white_noise_var
 from .norm_fit import CalibrationError, Observations, fit_exact, initial_directions
 from .generated import moves as gen_moves
 from .rotations import skew
@@ -335,6 +337,68 @@ def prepare_moves(ms, det: Detection, g_dirs) -> GyroMoves:
     return GyroMoves(mv, g_dirs, bias, bias_std, rest, skipped, sat, flipped)
 
 
+def gyro_noise_dps(ms, gm) -> np.ndarray:
+    """White noise of one gyro sample (deg/s) from the initial rest: a moving gyro has at
+    least its quantisation noise, even where the rest reads constant."""
+    rest = ms.gyro_dph()[gm.rest] / 3600.0
+    return np.sqrt(np.maximum(white_noise_var(rest), quantization_step(rest, ms.gyro_dph() / 3600.0) ** 2 / 12))
+
+
+def move_covariances(gm, fit: GyroFit, obs, sigma_g_dps):
+    """S_i of every move (m, 3, 3), in squared unit-vector components."""
+    mv = gm.mv
+    ang = fit.T @ np.diag(sigma_g_dps ** 2) @ fit.T.T * np.radians(1.0) ** 2
+    S_theta = ang[None] * np.sum(mv.dt ** 2, axis=1)[:, None, None]
+    g1 = gm.g_dirs[mv.after]
+    pred = g1 - fit.r
+    pred /= np.linalg.norm(pred, axis=1, keepdims=True)
+    s_a2 = np.mean(obs.sigma ** 2, axis=1) / obs.rho ** 2  # direction noise of each pose (rho: |f|, g)
+    P = lambda u: np.eye(3) - u[:, :, None] * u[:, None, :]
+    K = skew(pred)
+    return (K @ S_theta @ K.transpose(0, 2, 1) + s_a2[mv.after, None, None] * P(g1)
+            + s_a2[mv.before, None, None] * P(pred))
+
+
+def chi2_test(fit: GyroFit, S, bias_std, mv: Moves):
+    chi2 = sum(float(r @ np.linalg.pinv(s, rcond=1e-6, hermitian=True) @ r) for r, s in zip(fit.r, S))
+    rest = fit.db.copy()  # the rest reads b + sum_j p_j e_j phi_j(rest): the prior's residual
+    for j, axis in enumerate(mv.phi_axes):
+        rest[axis] += fit.p[j] * mv.phi_rest[j]
+    chi2 += float(np.sum((rest / bias_std) ** 2))
+    dof = 2 * len(fit.r) + 3 - 12 - len(fit.p)
+    return chi2, dof, float(stats.chi2.sf(chi2, dof)) if dof > 0 else None
+
+
+def regressor_inputs(ms, gm, fit: GyroFit, acc_cal):
+    """Inputs of the candidate regressors, (u deg/h, f g, t_s, temp_c), at every move sample
+    (m, L) and at every sample of the initial rest (n,): the calibrated rate and specific force."""
+    M_a, b_a = acc_cal
+    mv = gm.mv
+    m, L = mv.dt.shape
+    idx = np.zeros((m, L), int)
+    for i, (a, b) in enumerate(mv.rows):
+        idx[i, :b - a] = np.arange(a + 1, b + 1)
+    rest = np.arange(gm.rest.start, gm.rest.stop)
+    w = ms.gyro_dph() / 3600.0 - gm.bias - fit.db
+    temp = ms.samples.get("temp_c", np.zeros(len(w)))
+    out = []
+    for ix in (idx, rest):
+        f = np.linalg.solve(M_a, (ms.acc_g()[ix] - b_a).reshape(-1, 3).T).T.reshape(ix.shape + (3,))
+        out.append((w[ix] @ fit.T.T * 3600.0, f, ms.samples["t_s"][ix], temp[ix]))
+    return out
+
+
+def with_terms(mv: Moves, ids, inputs) -> Moves:
+    """mv with the regressors of effects ids along the moves and their mean over the rest."""
+    (u, f, t, temp), (u0, f0, t0, temp0) = inputs
+    mask = mv.dt > 0
+    phi = np.array([EFFECTS[e][5](u, temp, t, f)[0][..., 0] * mask / 3600.0 for e in ids]).reshape(len(ids), *mask.shape)
+    phi_rest = np.array([np.mean(np.broadcast_to(EFFECTS[e][5](u0, temp0, t0, f0)[0][..., 0], t0.shape)) / 3600.0
+                         for e in ids])
+    return Moves(mv.y, mv.dt, mv.before, mv.after, mv.t_span, mv.rows, phi, tuple(EFFECTS[e][1] for e in ids),
+                 phi_rest)
+
+
 def calibrate_handheld(ms, acc_model="acc_baseline", detect_kw=None, pose_window_s=1.0, gyro_effects=()) -> dict:
     """pose_window_s: seconds at the start of each static interval averaged into the
     pose (None: the whole interval). Hand-placed poses creep: on imu_tk's Xsens
@@ -358,8 +422,6 @@ def calibrate_handheld(ms, acc_model="acc_baseline", detect_kw=None, pose_window
         f = fit_gyro(gm.mv, gm.g_dirs, gm.bias_std)
         effects = {}
         if gyro_effects and f.converged:
-            from .diagnose_moves import regressor_inputs, with_terms
-            from .generated.effects import EFFECTS
             inputs = regressor_inputs(ms, gm, f, (M_a, b_a))
             gm.mv = with_terms(gm.mv, list(gyro_effects), inputs)
             f = fit_gyro(gm.mv, gm.g_dirs, gm.bias_std, np.r_[f.T.ravel(), f.db, np.zeros(len(gyro_effects))])
@@ -380,7 +442,6 @@ def calibrate_handheld(ms, acc_model="acc_baseline", detect_kw=None, pose_window
                                    + (f"gyro output {', '.join(dead)} hardly changes during the moves: a dead or "
                                       "unconnected channel?" if dead else
                                       "turn the unit about every axis between poses, not about one or two"))
-        from .diagnose_moves import chi2_test, gyro_noise_dps, move_covariances
         chi2, dof, p_value = chi2_test(f, move_covariances(gm, f, obs, gyro_noise_dps(ms, gm)), gm.bias_std, mv)
         bias = gm.bias + f.db
         bias_std = np.sqrt(np.diag(cov)[9:12])

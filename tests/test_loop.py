@@ -59,7 +59,7 @@ def test_mixed_raw_and_averaged_rows_are_tested(tmp_path):
     write(tmp_path / "raw", sc, 2)
     ms = io.read(tmp_path / "raw")
     kinds = {s.segment: s.kind for s in ms.segments}
-    keep, rows = [], {k: [] for k in ms.samples}
+    rows = {k: [] for k in ms.samples}
     for seg in np.unique(ms.samples["segment"]):
         m = ms.samples["segment"] == seg
         for k, v in ms.samples.items():
