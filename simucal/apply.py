@@ -34,21 +34,23 @@ def _affine_effects(block):
     return h
 
 
-def _generated(block):
-    model = AugmentedModel(block["model"], tuple(block["effects"]))
-    p = np.array([block["params"][k] for k in model.params])
-    C = np.array(block.get("C_b_model", np.eye(3)))
-
+def model_function(model: AugmentedModel, p, C=np.eye(3)):
+    """h(u_b) = model output at C u_b with parameters p, and dh/du_b."""
     def h(u_b, temp, t, extra):
         N, Ju, _ = model.jacobians(u_b @ C.T, p, temp, t, extra)
         return N, Ju @ C
     return h
 
 
-def invert(block, sensor, N, temp, t, extra, where) -> np.ndarray:
-    """u_b with h(u_b) = N, every row (n, 3)."""
-    h = _affine_effects(block) if block["model"] == "affine" else _generated(block)
-    u = np.linalg.solve(np.array(block["M"]), (N - np.array(block["bias"])).T).T
+def _generated(block):
+    model = AugmentedModel(block["model"], tuple(block["effects"]))
+    return model_function(model, np.array([block["params"][k] for k in model.params]),
+                          np.array(block.get("C_b_model", np.eye(3))))
+
+
+def solve_inputs(h, M, bias, N, temp, t, extra, sensor, where) -> np.ndarray:
+    """u_b with h(u_b) = N, every row (n, 3): linear start M^-1 (N - bias), then Newton."""
+    u = np.linalg.solve(M, (N - bias).T).T
     # per row: 1e-11 of its size, or of 1e-6 of the largest input (rows at rest are near 0)
     tol = 1e-11 * np.maximum(np.abs(u).max(axis=1), 1e-6 * max(np.abs(u).max(), 1e-300))
     for _ in range(30):
@@ -63,6 +65,12 @@ def invert(block, sensor, N, temp, t, extra, where) -> np.ndarray:
     raise CalibrationError(f"{where}: the {sensor} model could not be inverted at {len(bad)} samples "
                            f"(rows {(bad[:5] + 2).tolist()} of samples.csv): the output lies outside what the "
                            "calibrated model can produce")
+
+
+def invert(block, sensor, N, temp, t, extra, where) -> np.ndarray:
+    """u_b with h(u_b) = N for a calibration block, every row (n, 3)."""
+    h = _affine_effects(block) if block["model"] == "affine" else _generated(block)
+    return solve_inputs(h, np.array(block["M"]), np.array(block["bias"]), N, temp, t, extra, sensor, where)
 
 
 def apply(cal: dict, folder, where="the calibration"):

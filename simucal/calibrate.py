@@ -2,11 +2,10 @@
 
 Methods:
 - exact (default): maximum-likelihood norm fits (norm_fit.fit_exact) of both
-  triads, then the gyro frame d tied to b by pairing each rate run's rotation
-  axis (seen by the gyros, in d) with the gravity direction of the static
-  position at the same middle/inner angles (seen by the accelerometers, in b):
-  Wahba's problem, solved by SVD. It needs no accurate table angles, unlike
-  eq. 25-27.
+  triads, then the gyro frame d tied to b by each rate run's mean specific force
+  (in b) and mean rate (in d), both along the outer axis (simucal/unification.py):
+  no accurate table angles needed, unlike eq. 25-27; C_b^d and the gyro M in b
+  come with their stds.
 - linear: the paper as printed: eq. 8 / 12 with the back-substitution, and
   frame unification by the (derived) eq. 25-27 at the Table 2 positions.
 - multiposition: the traditional method: outputs regressed on the inputs
@@ -20,10 +19,12 @@ import numpy as np
 from . import calibration, io, units
 from .augmented import AugmentedModel
 from .candidates import ALPHA, rank_candidates, shape_if_unexplained, test_model, verdict
-from .generated import table, unify
+from .generated import table
 from .handheld import saturated_rows
 from .noise import white_noise_var
-from .norm_fit import CalibrationError, Observations, fit_linear, initial_directions
+from .norm_fit import CalibrationError, Observations, fit_linear
+from .consistency import latitude, mirror_error, mirror_test
+from .unification import Unifier, unify, unify_paper
 from .user_models import resolve_add
 
 METHODS = ("exact", "linear", "multiposition")
@@ -51,15 +52,15 @@ def _mean_and_sigma(x, stated, varying=False):
     return x.mean(0), np.full(3, np.nan if stated is None else stated / np.sqrt(n))
 
 
-def segment_observations(ms: io.MeasurementSet, sensor: str, acc_in_rate_runs=False, stated=None):
-    """(Observations, segments) for 'acc' (static segments; with acc_in_rate_runs the
-    rate runs too, whose centripetal scale w2 lets lever arms show) or 'gyro' (rate
-    segments). stated: the noise of one row (g or deg/h) where the data cannot give it;
-    default meta's acc_noise_g / gyro_noise_dph."""
+def segment_observations(ms: io.MeasurementSet, sensor: str, kinds=None, stated=None):
+    """(Observations, segments) for 'acc' (by default the static segments; with kinds
+    {"static", "rate"} the rate runs too, whose centripetal scale w2 lets lever arms show)
+    or 'gyro' (rate segments). stated: the noise of one row (g or deg/h) where the data
+    cannot give it; default meta's acc_noise_g / gyro_noise_dph."""
     if ms.segments is None:
         raise CalibrationError(f"{ms.path}: no segments.csv: this is a continuous stream (use calibrate, "
                                "which detects its static poses)")
-    kinds = ({"static", "rate"} if acc_in_rate_runs else {"static"}) if sensor == "acc" else {"rate"}
+    kinds = kinds or ({"static"} if sensor == "acc" else {"rate"})
     segs = [s for s in ms.segments if s.kind in kinds]
     data = ms.acc_g() if sensor == "acc" else ms.gyro_dph()
     if stated is None:
@@ -79,7 +80,7 @@ def segment_observations(ms: io.MeasurementSet, sensor: str, acc_in_rate_runs=Fa
             ms.extra.setdefault("saturated_segments", []).append(
                 {"sensor": sensor, "segment": s.segment, "samples": int(saturated[rows].sum())})
             continue
-        m, sd = _mean_and_sigma(data[rows], stated, varying=(sensor == "gyro"))  # the Earth rate turns in a rate run
+        m, sd = _mean_and_sigma(data[rows], stated, varying=(s.kind == "rate"))  # the inputs turn in a rate run
         N.append(m)
         sig.append(sd)
         rho.append(1.0 if sensor == "acc" else abs(s.outer_rate_dps * 3600.0 + w_e * np.sin(lat)))  # |input|
@@ -119,42 +120,73 @@ def _find(segs, **want):
     return None
 
 
-def unify_paper(acc_obs, acc_segs, gyro_obs, gyro_segs, p_acc, p_gyro, meta):
-    """eq. 25-27 (derived, generated/unify.py) at the Table 2 positions."""
-    ia = [_find(acc_segs, middle_deg=a, outer_deg=g, inner_deg=0.0) for a, g in ((0, 0), (90, 0), (0, 180), (90, 180))]
-    ig = [_find(gyro_segs, middle_deg=a, inner_deg=0.0) for a in (0.0, 90.0)]
-    if None in ia or None in ig:
-        raise CalibrationError("the paper's frame unification needs the Table 2 static positions "
-                               "(alpha, gamma) = (0,0), (90,0), (0,180), (90,180) with beta = 0, and rate runs "
-                               "at alpha = 0 and 90 deg, beta = 0; use --method exact, which needs none")
-    x = unify.acc_table2(acc_obs.N[ia].reshape(12), p_acc)
-    w_T = gyro_segs[ig[0]].outer_rate_dps * 3600.0
-    lam = unify.gyro_mounting(gyro_obs.N[ig].reshape(6), p_gyro, w_T, units.earth_rate_dph(meta),
-                              np.radians(meta["latitude_deg"]))
-    C_b_d = table.mounting(lam).T @ table.mounting(x[:3])
-    return C_b_d, {"theta4_rad": x[:3].tolist(), "tilt_rad": x[3:].tolist(), "lambda4_rad": lam.tolist()}
+def _rate_run_acc_means(ms, gyro_segs, acc_obs):
+    """The rate runs' mean accelerometer outputs (Unifier's acc_means), or None without any.
+    Rows without a stated or measurable noise get the static positions' median noise."""
+    if not ms.has_acc:
+        return None
+    obs, segs = segment_observations(ms, "acc", {"rate"})
+    at = {s.segment: i for i, s in enumerate(segs)}
+    rows = [j for j, s in enumerate(gyro_segs) if s.segment in at]
+    if len(rows) < 2:
+        return None
+    k = [at[gyro_segs[j].segment] for j in rows]
+    sig = obs.sigma[k]
+    if np.isnan(sig).any():
+        sig = np.where(np.isnan(sig), np.nanmedian(acc_obs.sigma) if acc_obs.sigma is not None else np.nan, sig)
+    if np.isnan(sig).any():
+        return None
+    pick = (lambda v: np.asarray(v)[k] if np.ndim(v) else v)
+    return np.array(rows), obs.N[k], sig, pick(obs.temp_c), pick(obs.t_s), obs.extra[k]
 
 
-def unify_directions(acc_model, acc_fit, acc_obs, acc_segs, gyro_model, gyro_fit, gyro_obs, gyro_segs):
-    """C_b^d from paired directions: rate-run axis in d vs gravity in b (Wahba, SVD)."""
-    ua = acc_fit.directions if acc_fit.directions is not None else \
-        initial_directions(acc_model, acc_obs, acc_fit.vector(acc_model.params))
-    ug = gyro_fit.directions if gyro_fit.directions is not None else \
-        initial_directions(gyro_model, gyro_obs, gyro_fit.vector(gyro_model.params))
-    pairs_b, pairs_d = [], []
-    for j, s in enumerate(gyro_segs):
-        i = _find(acc_segs, middle_deg=s.middle_deg, inner_deg=s.inner_deg)
-        if i is not None:
-            pairs_b.append(ua[i])
-            pairs_d.append(ug[j] * np.sign(s.outer_rate_dps))  # axis = +up for a positive rate
-    if len(pairs_b) < 2 or np.linalg.matrix_rank(np.array(pairs_b), tol=1e-3) < 2:
-        raise CalibrationError("frame unification needs at least two rate runs, at distinct middle/inner "
-                               "angles, each with a static position at the same angles")
-    B = np.array(pairs_d).T @ np.array(pairs_b)
-    U, _, Vt = np.linalg.svd(B)
-    C_b_d = U @ np.diag([1, 1, np.linalg.det(U @ Vt)]) @ Vt
-    resid = np.array(pairs_d) - np.array(pairs_b) @ C_b_d.T
-    return C_b_d, {"pairs": len(pairs_b), "direction_residual_rms_rad": float(np.sqrt(np.mean(resid ** 2)))}
+def handedness(ms, fa, acc_obs, acc_segs, fg, gyro_segs) -> list[str]:
+    """Each triad's fitted directions against the commanded table vertical (consistency.py):
+    refuses a reflected triad; where both are reflected, the table's angles follow another
+    convention than the spec's, which the exact method does not need (a note)."""
+    found = {}
+    for sensor, fit, segs, sign in (("accelerometer", fa, acc_segs, None), ("gyro", fg, gyro_segs, True)):
+        if fit is None or fit.directions is None:
+            continue
+        rows = [i for i, s in enumerate(segs) if s.middle_deg is not None and s.inner_deg is not None
+                and (sign or s.kind == "static")]
+        if len(rows) < 3:
+            continue
+        up_k, _ = _commanded_up_k([segs[i] for i in rows])
+        u = fit.directions[rows] * (np.sign([segs[i].outer_rate_dps for i in rows])[:, None] if sign else 1.0)
+        axis, resid, r = mirror_test(up_k, u)
+        if axis is not None:
+            found[sensor] = (axis, resid, r)
+    if len(found) == 1:
+        (sensor, (axis, resid, r)), = found.items()
+        raise mirror_error(f"{ms.path}: the {sensor} directions against the commanded table vertical",
+                           f"the {sensor}'s", axis, resid, r)
+    if len(found) == 2:
+        return ["handedness: both triads are mirror images of the commanded table geometry, so the table's angles "
+                "follow another sign convention than the spec's (segments.csv); the exact method does not use them"]
+    return []
+
+
+def _latitude_check(ms, fa, acc_segs, gm, fg, C_b_d):
+    """consistency.latitude at the static positions that have gyro data."""
+    rows = [i for i, s in enumerate(acc_segs) if s.kind == "static"]
+    if not rows:
+        return {"verdict": "not checked: no static positions"}
+    gyro = ms.gyro_dph()
+    stated = ms.meta.get("gyro_noise_dph")
+    N, sig, temp, t = [], [], [], []
+    for i in rows:
+        r = ms.samples["segment"] == acc_segs[i].segment
+        m, sd = _mean_and_sigma(gyro[r], stated)
+        N.append(m)
+        sig.append(sd)
+        temp.append(ms.samples["temp_c"][r].mean() if "temp_c" in ms.samples else 0.0)
+        t.append(ms.samples["t_s"][r].mean())
+    sig = np.array(sig)
+    if np.isnan(sig).all():
+        return {"verdict": "not checked: one gyro row per static position and no gyro_noise_dph"}
+    return latitude(ms, gm, fg, C_b_d, fa.directions[rows],
+                    (np.array(N), np.where(np.isnan(sig), np.nanmax(sig), sig), np.array(temp), np.array(t)))
 
 
 def _commanded_up_k(segs):
@@ -186,17 +218,26 @@ def check_rate_sense(ms, gyro_obs, gyro_segs):
         if s.kind == "static":
             static |= ms.samples["segment"] == s.segment
     rest = ms.gyro_dph()[static].mean(0) if static.any() else np.zeros(3)
-    along = np.einsum("ni,ni->n", gyro_obs.N - rest, up) / 3600.0
     rate = np.array([s.outer_rate_dps for s in gyro_segs])
+    along = np.einsum("ni,ni->n", gyro_obs.N - rest, up) / 3600.0
     wrong = np.sign(along) != np.sign(rate)
-    if wrong.any():
-        detail = ", ".join(f"segment {s.segment}: commanded {r:+.1f} deg/s, measured {a:+.1f} deg/s"
-                           for s, r, a, w in zip(gyro_segs, rate, along, wrong) if w)
-        raise CalibrationError(
-            f"the gyro turns opposite to the commanded rate in {int(wrong.sum())} of {len(rate)} rate segments "
-            f"({detail}): the rotation was made the other way (or the gyro's sign convention or axes differ); "
-            "not fitted, since it would give a gyro matrix near -I. Check the protocol's rotation sense "
-            "(for imucal's Ferraris: import with --turn-deg 360 if the turns were counter-clockwise)")
+    if not wrong.any():
+        return
+    for k in range(3):  # some runs reversed, some not: one axis of the triad reversed?
+        D = np.diag([-1.0 if j == k else 1.0 for j in range(3)])
+        if wrong.sum() < len(rate) and np.all(np.sign(np.einsum("ni,ni->n", (gyro_obs.N - rest) @ D, up)) == np.sign(rate)):
+            raise CalibrationError(
+                f"{ms.path}: the gyro {'xyz'[k]} output has the wrong sign: {int(wrong.sum())} of {len(rate)} rate runs "
+                f"turn opposite to the commanded rate, and all agree once gyro {'xyz'[k]} is reversed (a left-handed "
+                f"triad, the axis wired or declared with its sign reversed); fix the sign of g{'xyz'[k]} in samples.csv "
+                "(or the wiring) and calibrate again")
+    detail = ", ".join(f"segment {s.segment}: commanded {r:+.1f} deg/s, measured {a:+.1f} deg/s"
+                       for s, r, a, w in list(zip(gyro_segs, rate, along, wrong))[:4] if w)
+    raise CalibrationError(
+        f"the gyro turns opposite to the commanded rate in {int(wrong.sum())} of {len(rate)} rate segments "
+        f"({detail}{', ...' if wrong.sum() > 4 else ''}): the rotation was made the other way (or the gyro's sign "
+        "convention or axes differ); not fitted, since it would give a gyro matrix near -I. Check the protocol's "
+        "rotation sense (for imucal's Ferraris: import with --turn-deg 360 if the turns were counter-clockwise)")
 
 
 def multiposition(ms, acc_obs, acc_segs, gyro_obs, gyro_segs):
@@ -245,12 +286,12 @@ def _affine_fit(f, N, sensor):
 
 def _exact_sensor(model, obs, method, where):
     """Fit and test one sensor. Returns (fit, test block or None for the linear method, the
-    effect to add when the model fails or None)."""
+    effect to add when the model fails or None, the observations with the noise used)."""
     if method == "linear":
         if model.effects:
             raise CalibrationError("--add needs --method exact: the paper's linear regression exists for "
                                    "derived models only (or derive a model file with the term and use it)")
-        return fit_linear(model, obs), None, None
+        return fit_linear(model, obs), None, None, obs
     fit, obs2, base = test_model(model, obs)
     advice = None
     if base["p_value"] is not None and base["p_value"] < ALPHA:
@@ -261,7 +302,7 @@ def _exact_sensor(model, obs, method, where):
         advice = sig[0]["id"] if sig else ("a term " + shape["text"] if shape else None)
     else:
         base["verdict"] = verdict(model.sensor, base, [], where)
-    return fit, base, advice
+    return fit, base, advice, obs2
 
 
 def calibrate(folder, method="exact", acc_model="acc_baseline", gyro_model="gyro_baseline", detect_kw=None,
@@ -279,7 +320,7 @@ def calibrate(folder, method="exact", acc_model="acc_baseline", gyro_model="gyro
     acc_obs = acc_segs = gyro_obs = gyro_segs = None
     if ms.has_acc:
         lever_arms = any(e.startswith("acc.size_effect.") for e in ids)  # seen only under rotation
-        acc_obs, acc_segs = segment_observations(ms, "acc", acc_in_rate_runs=lever_arms, stated=acc_noise_g)
+        acc_obs, acc_segs = segment_observations(ms, "acc", {"static", "rate"} if lever_arms else None, acc_noise_g)
     if ms.has_gyro:
         gyro_obs, gyro_segs = segment_observations(ms, "gyro", stated=gyro_noise_dph)
         if not gyro_segs:
@@ -305,32 +346,44 @@ def calibrate(folder, method="exact", acc_model="acc_baseline", gyro_model="gyro
     gm = AugmentedModel(gyro_model, tuple(e for e in ids if e.startswith("gyro.")))
     fa = fg = None
     if acc_obs is not None:
-        fa, base_a, advice_a = _exact_sensor(am, acc_obs, method, str(ms.path))
+        fa, base_a, advice_a, acc_obs = _exact_sensor(am, acc_obs, method, str(ms.path))
         M, b = am.matrix_and_bias(fa.vector(am.params))
         units.check_scale("acc", M, am.name)
         result["acc"] = calibration.sensor_block(am, fa, M, b, base_a)
         result["acc"]["advice"] = advice_a
     if gyro_obs is not None:
-        fg, base_g, advice_g = _exact_sensor(gm, gyro_obs, method, str(ms.path))
+        fg, base_g, advice_g, gyro_obs = _exact_sensor(gm, gyro_obs, method, str(ms.path))
         M_d, b_g = gm.matrix_and_bias(fg.vector(gm.params))
+    if method == "exact":
+        result["consistency"] = {"lines": handedness(ms, fa, acc_obs, acc_segs, fg, gyro_segs)}
+    if gyro_obs is not None:
         no_angles = any(s.middle_deg is None or s.inner_deg is None for s in (acc_segs or []) + gyro_segs)
-        if fa is None or no_angles:
-            why = ("no accelerometer data" if fa is None else
-                   "segments.csv gives no middle/inner angles to pair rate runs with static positions")
+        acc_means = _rate_run_acc_means(ms, gyro_segs, acc_obs) if fa is not None and method == "exact" else None
+        if fa is None or (no_angles and acc_means is None):
+            why = ("no accelerometer data" if fa is None else "the rate runs have no accelerometer data and "
+                   "segments.csv gives no middle/inner angles to pair them with static positions")
             units.check_scale("gyro", M_d, gm.name)
             result["gyro"] = calibration.sensor_block(gm, fg, M_d, b_g, base_g, np.eye(3))
             result["gyro"].update(frame="d (the gyro parameter frame)",
                                   note=f"M is in the gyro frame d, not in b: {why}, so the frames cannot be tied")
         else:
+            std_M = None
             if method == "exact":
-                C_b_d, info = unify_directions(am, fa, acc_obs, acc_segs, gm, fg, gyro_obs, gyro_segs)
+                un = Unifier(am, fa, acc_obs, gm, fg, gyro_obs, acc_means)
+                C_b_d, M_b, std_M, info = unify(un, acc_segs, gyro_segs, _find)
+                result["consistency"]["latitude"] = _latitude_check(ms, fa, acc_segs, gm, fg, C_b_d)
+                result["consistency"]["lines"].append("latitude: " + result["consistency"]["latitude"]["verdict"])
             else:
                 C_b_d, info = unify_paper(acc_obs, acc_segs, gyro_obs, gyro_segs,
-                                          fa.vector(am.params), fg.vector(gm.params), ms.meta)
-            units.check_scale("gyro", M_d @ C_b_d, gm.name)
-            result["gyro"] = calibration.sensor_block(gm, fg, M_d @ C_b_d, b_g, base_g, C_b_d)
+                                          fa.vector(am.params), fg.vector(gm.params), ms.meta, _find)
+                M_b = M_d @ C_b_d
+                info = {"method": "dong2018 eq. 25-27 at the Table 2 positions", "C_b_d": C_b_d.tolist(), **info}
+            units.check_scale("gyro", M_b, gm.name)
+            result["gyro"] = calibration.sensor_block(gm, fg, M_b, b_g, base_g, C_b_d)
             result["gyro"]["M_in_d"] = np.asarray(M_d).tolist()
-            result["unification"] = {"C_b_d": C_b_d.tolist(), **info}
+            if std_M is not None:
+                result["gyro"]["std_M"] = std_M.tolist()
+            result["unification"] = info
         result["gyro"]["advice"] = advice_g
     for s in ("acc", "gyro"):
         if s in result:

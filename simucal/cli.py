@@ -129,6 +129,13 @@ def _sensor_lines(result):
             yield (f"{s}: THE MODEL FAILS (p = {b['p_value']:.2g} < 1e-3): "
                    + (f"diagnose would add {what}; " if what else
                       f"see simucal diagnose {result['input']} for what is missing; ") + stds)
+    u = result.get("unification")
+    if u and "std_rad" in u:
+        yield (f"frames: C_b^d by {u['method'].replace('_', ' ')} ({u['pairs']} pairs), std "
+               f"{max(u['std_rad']):.2g} rad, residual {u['direction_residual_rms_rad']:.2g} rad rms"
+               + (f"; cross-check: {u['cross_check']['note']}" if "cross_check" in u else ""))
+    for line in result.get("consistency", {}).get("lines", []):
+        yield line
 
 
 @main.command()

@@ -51,7 +51,7 @@ def diagnose_sensor(ms, sensor, base_model, add=(), stated=None, truth=None, bef
         obs, det, poses = pose_observations(ms)
         segs = [io.Segment(i, "static", None, None, None, 0.0) for i in range(len(poses))]
     else:  # accelerometers: the rate runs too, where lever arms show
-        obs, segs = segment_observations(ms, sensor, acc_in_rate_runs=True, stated=stated)
+        obs, segs = segment_observations(ms, sensor, kinds={"static", "rate"} if sensor == "acc" else None, stated=stated)
     if not segs:
         return None
     model = AugmentedModel(base_model, tuple(add))

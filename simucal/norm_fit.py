@@ -115,7 +115,7 @@ def fit_linear(model, obs: Observations) -> Fit:
                residual_rms=float(np.sqrt(np.mean(norm_err ** 2))), chi2=None, dof=dof, p_value=None)
 
 
-def _tangent_basis(u):
+def tangent_basis(u):
     """Orthonormal E (n, 3, 2) with columns perpendicular to unit u (n, 3)."""
     a = np.where(np.abs(u[:, :1]) < 0.9, np.array([[1.0, 0, 0]]), np.array([[0, 1.0, 0]]))
     e1 = np.cross(u, a)
@@ -139,7 +139,7 @@ def jacobian_blocks(model, obs, p, u, sig):
     r (n,3), dr/dp (n,3,m), dr/d(tangent step) (n,3,2), and the tangent bases E (n,3,2)."""
     rho = obs.rho[:, None]
     Nm, Ju, Jp = model.jacobians(rho * u, p, obs.temp_c, obs.t_s, obs.extra)
-    E = _tangent_basis(u)
+    E = tangent_basis(u)
     r = (obs.N - Nm) / sig
     Jd = -np.einsum("nij,njk->nik", Ju, rho[:, :, None] * E) / sig[:, :, None]
     Jq = -Jp / sig[:, :, None]
@@ -157,6 +157,17 @@ def dense_jacobian(model, obs, fit):
     for i in range(n):
         J[3 * i:3 * i + 3, m + 2 * i:m + 2 * i + 2] = Jd[i]
     return J, sig
+
+
+def full_covariance(model, obs, fit):
+    """Covariance of [p, tangent steps of every direction] (m + 2n), scaled as fit.cov (so
+    with the estimated noise where the data gave none). A direction's error is E_i dt_i,
+    E_i = tangent_basis(fit.directions)[i]."""
+    J, _ = dense_jacobian(model, obs, fit)
+    cov = np.linalg.pinv(J.T @ J)
+    m = len(model.params)
+    scale = np.median(np.diag(fit.cov) / np.maximum(np.diag(cov)[:m], 1e-300))
+    return cov * scale
 
 
 def initial_directions(model, obs, p):

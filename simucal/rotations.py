@@ -21,3 +21,23 @@ def exp_so3(v):
     s = np.where(small, 1.0 - a ** 2 / 6, np.sin(a) / np.where(small, 1.0, a))
     c = np.where(small, 0.5 - a ** 2 / 24, (1 - np.cos(a)) / np.where(small, 1.0, a) ** 2)
     return np.eye(3) + s * K + c * (K @ K)
+
+
+def log_so3(R):
+    """Rotation vector phi with R = exp([phi x]), for any rotation (also near 180 deg)."""
+    c = np.clip((np.trace(R) - 1) / 2, -1.0, 1.0)
+    a = np.arccos(c)
+    v = np.array([R[2, 1] - R[1, 2], R[0, 2] - R[2, 0], R[1, 0] - R[0, 1]])
+    if a < 1e-8:
+        return v / 2
+    if np.pi - a < 1e-6:  # sin a ~ 0: the axis is the dominant column of R + I
+        B = R + np.eye(3)
+        axis = B[:, np.argmax(np.linalg.norm(B, axis=0))]
+        return a * axis / np.linalg.norm(axis)
+    return v * a / (2 * np.sin(a))
+
+
+def wahba(u_b, u_d, w):
+    """The rotation C (b -> d) minimising sum w_i |u_d,i - C u_b,i|^2 (SVD; Markley 1988)."""
+    U, _, Vt = np.linalg.svd((w[:, None] * u_d).T @ u_b)
+    return U @ np.diag([1, 1, np.linalg.det(U @ Vt)]) @ Vt

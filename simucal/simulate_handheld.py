@@ -17,7 +17,7 @@ import numpy as np
 from . import io
 from .generated.effects import EFFECTS
 from .generated.moves import rotation_matrix
-from .rotations import exp_so3
+from .rotations import exp_so3, log_so3
 
 
 @dataclass
@@ -47,14 +47,6 @@ def _random_rotation(rng):
     return rotation_matrix(q / np.linalg.norm(q))
 
 
-def _log_so3(R):
-    c = np.clip((np.trace(R) - 1) / 2, -1, 1)
-    a = np.arccos(c)
-    if a < 1e-9:
-        return np.zeros(3)
-    return a / (2 * np.sin(a)) * np.array([R[2, 1] - R[1, 2], R[0, 2] - R[2, 0], R[1, 0] - R[0, 1]])
-
-
 def simulate_handheld(sc: HandheldScenario, seed=0):
     rng = np.random.default_rng(seed)
     M_a = np.eye(3) + np.tril(rng.uniform(-0.01, 0.01, (3, 3)))
@@ -78,7 +70,7 @@ def simulate_handheld(sc: HandheldScenario, seed=0):
     hold(Rs[0], sc.rest_s)
     clip = set(rng.choice(sc.poses, sc.clip_moves, replace=False).tolist()) if sc.clip_moves else set()
     for i in range(sc.poses):
-        v = _log_so3(Rs[i].T @ Rs[i + 1])
+        v = log_so3(Rs[i].T @ Rs[i + 1])
         theta = np.linalg.norm(v)
         if i in clip:  # a fast whirl: one extra full turn in 0.1 s, far beyond full scale
             v = v * (theta + 2 * np.pi) / max(theta, 1e-9)

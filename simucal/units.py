@@ -29,6 +29,13 @@ def check_meta(meta, path, error):
     lat = meta.get("latitude_deg")
     if lat is not None and not (isinstance(lat, (int, float)) and -90 <= lat <= 90):
         raise error(path, None, f'"latitude_deg" must be a number in -90..90, got {lat!r}')
+    for key, what, lo, hi, default in (("gravity_mps2", "local gravity's magnitude, m/s^2", 9.0, 10.5, DEFAULT_GRAVITY),
+                                       ("earth_rate_dph", "the Earth's rotation rate, deg/h", 14.5, 15.5,
+                                        DEFAULT_EARTH_RATE_DPH)):
+        v = meta.get(key)
+        if v is not None and not (isinstance(v, (int, float)) and not isinstance(v, bool) and lo <= v <= hi):
+            raise error(path, None, f'"{key}" is {v!r}, but it is {what} ({default} by default, {lo}..{hi} '
+                                    'anywhere on the Earth): fix the value, or leave the key out for the default')
 
 
 def gravity(meta):
