@@ -312,6 +312,13 @@ def calibrate(folder, method="exact", acc_model="acc_baseline", gyro_model="gyro
     if method not in METHODS:
         raise CalibrationError(f"unknown method {method!r}; one of {METHODS}")
     ms = io.read(folder)
+    try:
+        return _calibrate(ms, method, acc_model, gyro_model, detect_kw, add, acc_noise_g, gyro_noise_dph)
+    except CalibrationError as e:
+        raise e.naming(ms.path) from None
+
+
+def _calibrate(ms, method, acc_model, gyro_model, detect_kw, add, acc_noise_g, gyro_noise_dph):
     acc_model, gyro_model, ids = resolve_add(add, acc_model, gyro_model)
     if ms.segments is None:  # one continuous stream: a hand-placed session
         from .handheld import calibrate_handheld

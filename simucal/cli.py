@@ -1,13 +1,33 @@
 """The `simucal` command."""
 from __future__ import annotations
 
+import os
 import sys
+import warnings
 from pathlib import Path
 
 import click
 
 
-@click.group()
+class _Commands(click.Group):
+    """Every refusal is one line (_fail, exit 2). Anything else escaping a command is a bug:
+    one line too, exit 3, and the traceback with SIMUCAL_DEBUG=1."""
+
+    def invoke(self, ctx):
+        warnings.simplefilter("ignore", RuntimeWarning)  # numpy's, printed before a clear error otherwise
+        try:
+            return super().invoke(ctx)
+        except (click.exceptions.Exit, click.exceptions.Abort, click.ClickException, KeyboardInterrupt):
+            raise
+        except Exception as e:
+            if os.environ.get("SIMUCAL_DEBUG"):
+                raise
+            click.echo(f"error: internal error ({type(e).__name__}: {e}); this is a bug in simucal: please report it "
+                       "with the command and the data (SIMUCAL_DEBUG=1 shows the traceback)", err=True)
+            sys.exit(3)
+
+
+@click.group(cls=_Commands)
 @click.version_option(package_name="simucal")
 def main():
     """Strapdown IMU calibration: derive, simulate, calibrate, audit."""
@@ -342,7 +362,7 @@ def import_cmd(fmt, sources, out_dir, latitude_deg, acc_counts_per_g, gyro_count
         else:
             if not columns or not acc_unit or not gyro_unit:
                 raise im.ImportError_("csv needs --columns, --acc-unit and --gyro-unit")
-            cmap = dict(kv.split("=", 1) for kv in columns.split(","))
+            cmap = im.parse_columns(columns)
             im.import_csv(sources[0], out_dir, cmap, acc_unit, gyro_unit, rate_hz, latitude_deg)
     except im.ImportError_ as e:
         _fail(e)

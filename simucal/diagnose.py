@@ -111,9 +111,16 @@ def stream_summary(ms, max_points=4000):
 def diagnose(folder, add=(), acc_model="acc_baseline", gyro_model="gyro_baseline",
              acc_noise_g=None, gyro_noise_dph=None) -> dict:
     """add: effect ids and model files (simucal.user_models.resolve_add)."""
-    from .user_models import resolve_add
     folder = Path(folder)
     ms = io.read(folder)
+    try:
+        return _diagnose(ms, folder, add, acc_model, gyro_model, acc_noise_g, gyro_noise_dph)
+    except CalibrationError as e:
+        raise e.naming(ms.path) from None
+
+
+def _diagnose(ms, folder, add, acc_model, gyro_model, acc_noise_g, gyro_noise_dph):
+    from .user_models import resolve_add
     before = {"acc": acc_model, "gyro": gyro_model}
     acc_model, gyro_model, ids = resolve_add(add, acc_model, gyro_model)
     truth_path = folder / "truth.json"

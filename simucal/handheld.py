@@ -28,7 +28,7 @@ from . import units
 from .augmented import AugmentedModel
 from .generated.effects import EFFECTS
 from .noise import quantization_step, white_noise_var
-from .norm_fit import CalibrationError, Observations, fit_exact, initial_directions
+from .norm_fit import CalibrationError, Observations, check_not_coplanar, fit_exact, initial_directions
 from .generated import moves as gen_moves
 from .rotations import skew
 from .static_detect import Detection, detect_static
@@ -269,12 +269,45 @@ def with_model_error(model, obs: Observations, fit, alpha=0.01):
     return refit, float(np.sqrt(tau2))
 
 
+def stuck_channels(ms):
+    """Refuse a column that holds one value in every row: no sensor reads that, even at rest."""
+    fs = ms.meta.get("full_scale", {})
+    for c in ("ax", "ay", "az", "gx", "gy", "gz"):
+        v = ms.samples.get(c)
+        if v is not None and len(v) > 1 and np.all(v == v[0]):
+            rail = fs.get("acc" if c[0] == "a" else "gyro")
+            at_rail = (rail is not None and v[0] in rail) or v[0] in (0.0, 65535.0, 32767.0, -32768.0)
+            raise CalibrationError(f"{ms.path / 'samples.csv'}: column {c} holds {v[0]:g} in every row: a stuck "
+                                   + ("(at the rail) " if at_rail else "") + "or unconnected channel; check the "
+                                   "wiring or the column mapping")
+
+
+def swapped_or_still(ms, obs, poses):
+    """Refuse poses whose gravity directions barely differ: accelerometer and gyro columns
+    swapped (the gyro's pose means then spread instead), or a session that never turned."""
+    spread = float(np.sqrt(np.trace(np.atleast_2d(np.cov(obs.N.T)))))  # g
+    if spread > 0.2:
+        return
+    detail = (f"the {len(obs.N)} poses' accelerometer means differ by {spread:.2g} g rms, where turning the unit "
+              "moves gravity by about 1 g")
+    if ms.has_gyro:
+        w = ms.gyro_dph()
+        means = np.array([w[a:b].mean(0) for a, b in poses])
+        noise = np.sqrt(np.mean([w[a:b].var(0).sum() / (b - a) for a, b in poses]))  # std of a pose mean
+        if np.sqrt(np.trace(np.atleast_2d(np.cov(means.T)))) > 100 * noise:
+            raise CalibrationError(f"{ms.path / 'samples.csv'}: {detail}, while the gyro's pose means differ by far "
+                                   "more than their noise: the accelerometer and gyro columns look swapped (ax ay az "
+                                   "hold the gyro); check the column names")
+    raise CalibrationError(f"{ms.path / 'samples.csv'}: {detail}: the unit was not turned between poses")
+
+
 def pose_observations(ms, detect_kw=None, pose_window_s=1.0):
     """Accelerometer observations of a stream's static poses: (Observations, Detection, poses).
 
     Each pose is the mean of its first pose_window_s (None: the whole interval),
     with the std of that mean from the scatter of its samples."""
     t = ms.samples["t_s"]
+    stuck_channels(ms)
     acc = ms.acc_g()
     det = detect_static(acc, t, **(detect_kw or {}))
     dt = float(np.median(np.diff(t)))
@@ -292,17 +325,10 @@ def acc_from_poses(ms, acc_model="acc_baseline", detect_kw=None, pose_window_s=1
     """The accelerometer from a stream's poses: (Observations, Detection, model, fit, tau)."""
     if not ms.has_acc:
         raise CalibrationError(f"{ms.path}: a hand-placed session needs accelerometer data")
-    obs, det, _ = pose_observations(ms, detect_kw, pose_window_s)
+    obs, det, poses = pose_observations(ms, detect_kw, pose_window_s)
+    swapped_or_still(ms, obs, poses)
     units.check_magnitude("acc", np.linalg.norm(obs.N, axis=1), obs.rho, ms.path / "samples.csv", ms.meta)
-    # the norm sees an axis's scale and misalignment only if gravity leaves the poses' plane; the
-    # Jacobi-scaled information cannot tell (noise alone keeps those columns independent), so look
-    # at the pose means themselves: on an ellipsoid, or on an ellipse in one plane
-    spread, normal = np.linalg.eigh(np.cov(obs.N.T))
-    if spread[0] < 1e-3 * spread[-1]:
-        raise CalibrationError(
-            f"{ms.path}: the {len(obs.N)} poses' gravity directions lie in one plane (spread across it "
-            f"{np.sqrt(spread[0]):.2g} g, normal {np.round(normal[:, 0], 2).tolist()} in the output axes): the scale "
-            "and misalignment along its normal are unobservable; add poses tilted out of that plane")
+    check_not_coplanar(obs.N, "accelerometer", f"{ms.path}: ")
     am = acc_model if isinstance(acc_model, AugmentedModel) else AugmentedModel(acc_model)
     fa, tau = with_model_error(am, obs, fit_exact(am, obs))
     return obs, det, am, fa, tau

@@ -75,6 +75,29 @@ def import_imu_tk(acc_path, gyro_path, out, acc_counts_per_g, gyro_counts_per_dp
     return meta
 
 
+def parse_columns(text: str) -> dict:
+    """--columns 'SPEC=SOURCE,...' -> {spec column: source column}, refusing anything malformed."""
+    allowed = ("t_s", "segment", "temp_c", "ax", "ay", "az", "gx", "gy", "gz")
+    out = {}
+    for item in text.split(","):
+        spec, eq, src = (x.strip() for x in item.partition("="))
+        if not eq or not spec or not src:
+            raise ImportError_(f"--columns item {item!r}: write SPEC=SOURCE (t_s=NAME, ax=NAME, ...), comma-separated")
+        if spec not in allowed:
+            raise ImportError_(f"--columns: {spec!r} is not a spec column; use {', '.join(allowed)}")
+        if spec in out:
+            raise ImportError_(f"--columns: {spec} is mapped twice")
+        out[spec] = src
+    for group in (("ax", "ay", "az"), ("gx", "gy", "gz")):
+        got = [c for c in group if c in out]
+        if got and len(got) < 3:
+            raise ImportError_(f"--columns maps {got} but not {[c for c in group if c not in out]}: a triad needs all "
+                               "three axes")
+    if not any(c in out for c in ("ax", "gx")):
+        raise ImportError_("--columns maps no sensor: give ax, ay, az and/or gx, gy, gz")
+    return out
+
+
 def import_csv(path, out, columns: dict, acc_unit, gyro_unit, rate_hz=None, latitude_deg=None, scales=None):
     """columns: {spec column: source column name}, e.g. {"ax": "acc_x", ...};
     without a t_s column, time is row / rate_hz."""

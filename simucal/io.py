@@ -6,8 +6,10 @@ MeasurementSetError naming the file, the line and the rule.
 from __future__ import annotations
 
 import csv
+import io as _io
 import json
 import math
+import warnings
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -18,6 +20,7 @@ from . import units
 FORMAT = "simucal.measurements/1"
 SAMPLE_COLS = ("ax", "ay", "az", "gx", "gy", "gz")
 SEGMENT_COLS = ("segment", "kind", "outer_deg", "middle_deg", "inner_deg", "outer_rate_dps")
+PLAUSIBLE = 1e12  # no output, time or temperature of a real unit is this large (counts and pulse/s included)
 
 
 class MeasurementSetError(ValueError):
@@ -84,14 +87,40 @@ def _cell(row, col, path, line, required=True):
     return text
 
 
+def read_text(path: Path) -> str:
+    """A file's text: UTF-8 (a byte-order mark is dropped); binary files and other encodings
+    are refused, naming the line."""
+    data = path.read_bytes()
+    if b"\0" in data[:65536]:
+        raise MeasurementSetError(path, None, "a binary file, not text (the spec's files are UTF-8 CSV and JSON)")
+    try:
+        return data.decode("utf-8-sig")
+    except UnicodeDecodeError as e:
+        line = data[:e.start].count(b"\n") + 1
+        raise MeasurementSetError(path, line, f"not UTF-8 text (byte 0x{data[e.start]:02x}): save the file as "
+                                              "UTF-8") from None
+
+
+def _csv_header_check(path, text):
+    """The spec's CSV is comma-separated: name another delimiter instead of a missing column."""
+    first = text.split("\n", 1)[0]
+    if "," not in first:
+        for sep, name in (("\t", "tabs"), (";", "semicolons"), ("|", "bars")):
+            if sep in first:
+                raise MeasurementSetError(path, 1, f"the columns are separated by {name}; the spec's CSV uses commas "
+                                                   "(convert it, or use simucal import csv)")
+
+
 def read_meta(folder: Path) -> dict:
     path = folder / "meta.json"
     if not path.is_file():
         raise MeasurementSetError(path, None, "missing: a measurement set needs meta.json")
     try:
-        meta = json.loads(path.read_text())
+        meta = json.loads(read_text(path))
     except json.JSONDecodeError as e:
         raise MeasurementSetError(path, e.lineno, f"not valid JSON: {e.msg}") from None
+    if not isinstance(meta, dict):
+        raise MeasurementSetError(path, None, "must hold a JSON object ({...})")
     if meta.get("format") != FORMAT:
         raise MeasurementSetError(path, None, f'"format" must be "{FORMAT}", got {meta.get("format")!r}')
     units.check_meta(meta, path, MeasurementSetError)
@@ -103,7 +132,9 @@ def read_segments(folder: Path) -> list[Segment] | None:
     if not path.is_file():
         return None
     out, seen = [], set()
-    with path.open(newline="") as fh:
+    text = read_text(path)
+    _csv_header_check(path, text)
+    with _io.StringIO(text, newline="") as fh:
         reader = csv.DictReader(fh)
         missing = [c for c in ("segment", "kind") if c not in (reader.fieldnames or [])]
         if missing:
@@ -138,7 +169,9 @@ def read_samples(folder: Path, segments) -> dict:
     path = folder / "samples.csv"
     if not path.is_file():
         raise MeasurementSetError(path, None, "missing: a measurement set needs samples.csv")
-    with path.open(newline="") as fh:
+    text = read_text(path)
+    _csv_header_check(path, text)
+    with _io.StringIO(text, newline="") as fh:
         reader = csv.reader(fh)
         try:
             header = [h.strip() for h in next(reader)]
@@ -156,7 +189,7 @@ def read_samples(folder: Path, segments) -> dict:
             raise MeasurementSetError(path, 1, "segments.csv exists, so samples.csv needs a segment column")
         cols = [c for c in header if c in ("segment", "t_s", "temp_c") + SAMPLE_COLS]
         idx = {c: header.index(c) for c in cols}
-        fast = _fast_numeric(path, len(header))
+        fast = _fast_numeric(text, len(header))
         if fast is not None:  # numpy's parser; on any doubt the careful one below names the line
             out = {c: fast[:, idx[c]] for c in cols}
             return _check_samples(out, path, segments)
@@ -176,10 +209,12 @@ def read_samples(folder: Path, segments) -> dict:
     return _check_samples({c: np.asarray(v, float) for c, v in data.items()}, path, segments)
 
 
-def _fast_numeric(path, ncols):
+def _fast_numeric(text, ncols):
     """All cells as floats via numpy, or None if anything is unusual."""
     try:
-        arr = np.loadtxt(path, delimiter=",", skiprows=1, ndmin=2, dtype=float)
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")  # "no data": the careful reader then says so with the file's name
+            arr = np.loadtxt(_io.StringIO(text), delimiter=",", skiprows=1, ndmin=2, dtype=float)
     except ValueError:
         return None
     if arr.shape[0] == 0 or arr.shape[1] != ncols or not np.all(np.isfinite(arr)):
@@ -188,6 +223,18 @@ def _fast_numeric(path, ncols):
 
 
 def _check_samples(out, path, segments):
+    for c, v in out.items():
+        big = np.nonzero(np.abs(v) > PLAUSIBLE)[0]
+        if big.size:
+            raise MeasurementSetError(path, 2 + int(big[0]), f"column {c}: {v[big[0]]:g} is not a plausible value "
+                                                             f"(|value| > {PLAUSIBLE:g})")
+    if segments is None:  # one continuous stream: time runs forward over the whole file
+        bad = np.nonzero(np.diff(out["t_s"]) <= 0)[0]
+        if bad.size:
+            i = int(bad[0]) + 1
+            raise MeasurementSetError(path, 2 + i, f"t_s must increase through a stream: {out['t_s'][i]:g} s follows "
+                                                   f"{out['t_s'][i - 1]:g} s (rows repeated, or files joined out of "
+                                                   "order?)")
     if "segment" in out:
         seg = out["segment"]
         if np.any(seg != np.round(seg)):

@@ -26,6 +26,10 @@ from scipy import stats
 class CalibrationError(ValueError):
     """The data cannot give a trustworthy calibration; the message says why."""
 
+    def naming(self, path) -> "CalibrationError":
+        """The same refusal, its message starting with the data's path where it does not name it."""
+        return self if str(path) in str(self) else CalibrationError(f"{path}: {self}")
+
 
 @dataclass
 class Observations:
@@ -67,6 +71,23 @@ def _check_inputs(model, obs: Observations):
         raise CalibrationError(
             f"{n} {model.sensor} positions for {m} parameters of {model.name}: the norm gives one "
             f"equation per position, so at least {m} positions are needed")
+    check_not_coplanar(obs.N, model.sensor)
+
+
+def check_not_coplanar(N, sensor, where=""):
+    """Refuse outputs whose input directions all lie in one plane (a great or a small circle):
+    the scale, misalignment and bias along its normal cannot be told apart by the norm. Outputs
+    are an affine image of the inputs, so the plane shows in their own covariance; the fit's
+    linearised stds would not show it (the solver wanders along the unseen direction)."""
+    if len(N) < 4:
+        return
+    spread, normal = np.linalg.eigh(np.cov(np.asarray(N).T))
+    if spread[0] < 1e-3 * spread[-1]:
+        raise CalibrationError(
+            f"{where}the {len(N)} {sensor} input directions lie in one plane (spread across it "
+            f"{np.sqrt(max(spread[0], 0)):.2g} against {np.sqrt(spread[-1]):.2g} along it; normal "
+            f"{np.round(normal[:, 0], 2).tolist()} in the output axes): the scale, misalignment and bias along that "
+            "normal are unobservable; add positions tilted out of that plane")
 
 
 def unobservable(H, names, tol=1e-10):

@@ -59,6 +59,9 @@ def dodecahedron():
 def read_csv(path) -> list:
     """A user's plan: CSV with columns outer_deg, middle_deg, inner_deg."""
     path = Path(path)
+    if not path.is_file():
+        raise ValueError(f"--plan {path}: no such file; a plan is one of {sorted(PLANS)} or a CSV file with "
+                         "columns outer_deg, middle_deg, inner_deg")
     out = []
     with path.open(newline="") as fh:
         reader = csv.DictReader(fh)

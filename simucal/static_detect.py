@@ -47,6 +47,9 @@ def moving_variance(x, w):
 
 
 def detect_static(acc, t, window_s=1.0, factor=6.0, min_s=1.0, init_rest_s=None, rest_factor=20.0) -> Detection:
+    if len(t) < 20:
+        raise CalibrationError(f"the stream has {len(t)} row{'s' * (len(t) != 1)}: a hand-placed session is one "
+                               "continuous recording, an initial rest and then poses joined by moves")
     dt = float(np.median(np.diff(t)))
     w = max(int(round(window_s / dt)) | 1, 3)
     mv = np.linalg.norm(moving_variance(acc, w), axis=1)
@@ -58,6 +61,9 @@ def detect_static(acc, t, window_s=1.0, factor=6.0, min_s=1.0, init_rest_s=None,
         seed = float(np.linalg.norm(white_noise_var(acc[:w])))
         above = np.nonzero(mv > rest_factor * max(seed, 1e-300))[0]
         init_end = int(above[0]) if above.size else len(mv)
+    if init_end >= len(mv) and init_rest_s is None:
+        raise CalibrationError(f"no motion: the accelerometers stay still through the whole stream "
+                               f"({t[-1] - t[0]:.1f} s); a calibration needs the unit turned into many poses")
     needed = 3.0 if init_rest_s is None else 0.5  # a stated rest is the user's call
     if t[min(init_end, len(t) - 1)] - t[0] < needed:
         raise CalibrationError(
