@@ -87,16 +87,24 @@ def saturated_rows(raw, full_scale=None, min_run=3):
 
 
 def build_moves(w, t, det: Detection, bias, bad):
+    """The moves between consecutive poses, leaving out (and naming) those with saturated
+    samples or a time gap (samples missing: more than 5 median steps), which no integration
+    can bridge."""
+    dt_all = np.diff(t)
+    gap = np.r_[False, dt_all > 5 * np.median(dt_all)]  # row k follows a gap
     idx, skipped = [], []
     for i in range(len(det.starts) - 1):
         a, b = det.ends[i] - 1, det.starts[i + 1]
-        if bad[a:b + 1].any():
-            skipped.append({"from_pose": i, "to_pose": i + 1, "t_s": [float(t[a]), float(t[b])],
-                            "reason": "saturated samples in the move"})
+        why = ("saturated samples in the move" if bad[a:b + 1].any() else
+               f"a time gap of {dt_all[a:b].max():.3g} s in the move (samples missing)" if gap[a + 1:b + 1].any()
+               else None)
+        if why:
+            skipped.append({"from_pose": i, "to_pose": i + 1, "t_s": [float(t[a]), float(t[b])], "reason": why})
             continue
         idx.append((i, a, b))
     if not idx:
-        raise CalibrationError("every move between poses holds saturated gyro samples: nothing left to fit the gyro")
+        reasons = sorted({s["reason"].split(" of ")[0] for s in skipped})
+        raise CalibrationError(f"every move between poses holds {' or '.join(reasons)}: nothing left to fit the gyro")
     L = max(b - a for _, a, b in idx)
     y = np.zeros((3, len(idx), L))
     dt = np.zeros((len(idx), L))
@@ -238,10 +246,17 @@ def decimate(mv: Moves, k: int) -> Moves:
 
 
 def check_rotation_sense(mv: Moves, g_dirs, T0):
-    """Refuse a gyro whose rotations turn gravity the wrong way (sign, axes, rate)."""
+    """Refuse a gyro whose rotations turn gravity the wrong way (sign, axes, rate), or by a
+    unit mix-up's factor (units.UNIT_MIXUPS: deg/s read as rad/s, ...)."""
     r_pos, _ = move_residuals(T0, mv, g_dirs, jac=False)
     r_neg, _ = move_residuals(-T0, mv, g_dirs, jac=False)
     good, bad = np.linalg.norm(r_pos, axis=1), np.linalg.norm(r_neg, axis=1)
+    for name, ratio in units.UNIT_MIXUPS["gyro"].items():
+        mixed = np.linalg.norm(move_residuals(T0 / ratio, mv, g_dirs, jac=False)[0], axis=1)
+        if np.median(mixed) < 0.3 * np.median(good) and np.median(mixed) < 0.3 * np.median(bad):
+            raise CalibrationError(
+                f"the gyro's rates are {ratio:.4g} times the rotations that turn gravity between the poses: the ratio "
+                f"matches {name}; check gyro_unit and the nominal scale factors in meta.json")
     flipped = bad < 0.5 * good
     if flipped.mean() > 0.5:
         raise CalibrationError(

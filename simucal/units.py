@@ -92,7 +92,7 @@ def dph_to_gyro(w_dph, meta):
 
 
 # Ratios between the units a recording may really use and the one its meta.json names.
-_MIXUPS = {"acc": {"m/s^2 labelled g": DEFAULT_GRAVITY, "g labelled m/s^2": 1 / DEFAULT_GRAVITY,
+UNIT_MIXUPS = {"acc": {"m/s^2 labelled g": DEFAULT_GRAVITY, "g labelled m/s^2": 1 / DEFAULT_GRAVITY,
                    "mg labelled g": 1000.0},
            "gyro": {"deg/s labelled deg/h": 1 / 3600.0, "deg/h labelled deg/s": 3600.0,
                     "rad/s labelled deg/s": np.pi / 180, "deg/s labelled rad/s": 180 / np.pi,
@@ -119,7 +119,7 @@ def check_scale(sensor, M, where):
 def _refuse_ratio(sensor, r, where, what="outputs"):
     if 0.5 < r < 2.0:
         return
-    guess = min(_MIXUPS[sensor].items(), key=lambda kv: abs(np.log(r / kv[1])))
+    guess = min(UNIT_MIXUPS[sensor].items(), key=lambda kv: abs(np.log(r / kv[1])))
     likely = f"; the ratio matches {guess[0]}" if abs(np.log(r / guess[1])) < 0.2 else ""
     from .norm_fit import CalibrationError
     raise CalibrationError(f"{where}: the {sensor} {what} are {r:.4g} times the known input (1 g at rest, or the "

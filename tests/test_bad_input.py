@@ -263,3 +263,25 @@ def test_reader_gives_a_set_or_a_clean_error(tmp_path, samples, meta):
         assert str(d) in str(e)
         return
     assert len(ms.samples["t_s"]) > 0 and all(np.all(np.isfinite(v)) for v in ms.samples.values())
+
+
+def test_time_gap_in_a_move_leaves_that_move_out(sets, tmp_path):
+    d = _copy(sets, "stream", tmp_path)
+    good = CliRunner().invoke(main, ["calibrate", str(d), "-o", str(tmp_path / "a.json")])
+    assert good.exit_code == 0, good.output
+    rests = json.loads((tmp_path / "a.json").read_text())["static_detection"]["intervals_s"]
+    t_gap = (rests[3][1] + rests[4][0]) / 2  # the middle of the fourth move
+    rows = _rows(d)
+    j = rows[0].index("t_s")
+    _put_rows(d, [rows[0]] + [r for r in rows[1:] if abs(float(r[j]) - t_gap) > 0.2])
+    r = CliRunner().invoke(main, ["calibrate", str(d), "-o", str(tmp_path / "b.json")])
+    assert r.exit_code == 0, r.output
+    skipped = json.loads((tmp_path / "b.json").read_text())["gyro"]["moves_skipped"]
+    assert [s["from_pose"] for s in skipped if "time gap" in s["reason"]] == [3], skipped
+
+
+def test_gyro_scale_in_the_wrong_unit_named(sets, tmp_path):
+    d = _copy(sets, "stream", tmp_path)
+    meta = json.loads((d / "meta.json").read_text())
+    _meta(d, gyro_counts_per_dps=[v * 180 / np.pi for v in meta["gyro_counts_per_dps"]])  # LSB per rad/s
+    run_refused(["calibrate", d, "-o", tmp_path / "c.json"], "gyro_unit", "rad/s labelled deg/s")
