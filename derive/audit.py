@@ -37,6 +37,31 @@ def P(text, **extra):
     return sp.sympify(text, locals=names)
 
 
+PRINTED_21 = [  # (row, truncated by the OCR): the y row is printed twice and the rest of it lost
+    ("laz4*wT*sin(al) - lay4*wT*cos(al) + b_x", False),
+    ("(1+dKy)*wT*sin(al) + we*cos(L)*cos(al) + we*sin(L)*sin(al)", True),
+    ("phi_zy*wT*sin(al) + (1+dKz)*wT*cos(al) - lax4*wT*sin(al) - we*cos(L)*sin(al) + we*sin(L)*cos(al)"
+     " + wT*cos(al) + b_z", False)]
+PRINTED_17 = ["-ty0*cos(ga) + tx0*sin(ga) + thz4*sin(al) - thy4*cos(al) + b_x",
+              "(1+dKy)*sin(al) + ty0*cos(al)*sin(ga) + tx0*cos(al)*cos(ga) + thx4*cos(al) + b_y",
+              "theta_zy*sin(al) + (1+dKz)*cos(al) - ty0*sin(al)*sin(ga) - tx0*sin(al)*cos(ga) - thx4*sin(al) + b_z"]
+PRINTED_25 = [  # (printed label, the angle it must give, formula as printed, note)
+    ("theta_x4 (eq. 25, line 1)", "theta_x4", "(N1y + N3y)/2 - b_y", None),
+    ("theta_y4 (eq. 25, line 2)", "theta_y4", "(-N1x - N3x)/2 + b_x", None),
+    ("theta_y4 (eq. 25, line 3)", "theta_z4", "(N2x + N4x)/2 + b_x",
+     "error in the paper or OCR: labelled theta_y4 again and + b_x; theta_z4 = (N_x(2) + N_x(4))/2 - b_x"),
+    ("dtheta_z0 (eq. 26, line 1)", "tilt_x", "(N1y - N3y + N4z - N2z)/4", None),
+    ("dtheta_y0 (eq. 26, line 2)", "tilt_y", "(N3x - N1x + N4x - N2x)/4", None)]
+PRINTED_27 = [  # as means over one revolution: (1/2pi) sum N T = mean(N) / w_T
+    ("lambda_x4", "lambda_x4", "(N1y - b_y - we*cos(L))/wT",
+     "error in the paper: subtracts w_e cos L, which averages out over the revolution"),
+    ("lambda_y4", "lambda_y4", "(-N1x + b_x)/wT",
+     "neglected term: divides by w_T where the mean input is w_T + w_e sin L (the size shown)"),
+    ("lambda_z4", "lambda_z4", "(N1x - b_x)/wT",
+     "error in the paper or OCR: position 1 (alpha = 0), where N_x carries -lambda_y4; lambda_z4 needs "
+     "position 2 (alpha = 90 deg): (N_x(2) - b_x) / w_T")]
+
+
 @dataclass
 class Finding:
     eq: str
@@ -51,10 +76,18 @@ class Finding:
 class Report:
     findings: list = field(default_factory=list)
     remainders: list = field(default_factory=list)
+    terms: list = field(default_factory=list)      # audit_terms.TermRow, at the section-4 values
+    claims: list = field(default_factory=list)     # rows of the paper's numeric claims (simucal.paper_claims)
 
     def summary(self):
         n_diff = sum(f.max_abs_diff > 1e-12 for f in self.findings)
-        return f"{len(self.findings)} checks, {n_diff} differences, {len(self.remainders)} remainders"
+        out = f"{len(self.findings)} checks, {n_diff} differences, {len(self.remainders)} remainders"
+        if self.terms:
+            out += f", {len(self.terms)} terms at the section-4 values"
+        if self.claims:
+            out += (f", {len(self.claims)} claims ("
+                    f"{sum(c['holds'] in ('claim not supported', 'not reproducible') for c in self.claims)} not supported)")
+        return out
 
     def markdown(self):
         out = ["# Audit of dong2018 against the derivation", "",
@@ -69,6 +102,19 @@ class Report:
                 "|---|---|---|---|"]
         for name, r in self.remainders:
             out.append(f"| {name} | {r['max_abs']:.3g} | {r['max_abs_half']:.3g} | {r['ratio']:.2f} |")
+        if self.terms:
+            out += ["", "## Term by term at the section-4 values", "",
+                    "Every additive term of each printed row and of the derived first order, its largest size at "
+                    "the paper's positions (Table 2) with the section-4 values, and each printed row and solution "
+                    "against the exact outputs (rate runs: the mean over a whole revolution).", "",
+                    "| eq. | row | term | size | unit | verdict |", "|---|---|---|---|---|---|"]
+            for t in self.terms:
+                out.append(f"| {t.eq} | {t.row} | `{t.term}` | {t.size:.3g} | {t.unit} | {t.verdict} |")
+        if self.claims:
+            out += ["", "## The paper's numeric claims against a Monte Carlo of its stated settings", "",
+                    "| source | claim | measured | holds |", "|---|---|---|---|"]
+            for c in self.claims:
+                out.append(f"| {c['source']} | {c['claim']} | {c['measured']} | {c['holds']} |")
         return "\n".join(out) + "\n"
 
 
@@ -202,14 +248,12 @@ def check_unify(rep):
     rep.findings.append(Finding("14-16", "C_k^n with tilt; f^b = C_k^b C_n^k z", "Rx(dtheta_x0) Ry(dtheta_y0) Rz(gamma) Rx(alpha)",
                                 "derive/table.py C_k_n at beta = 0, no gimbal errors", d, _verdict(d, 1e-12, "agrees", "differs")))
     lin = unify.acc_outputs(ACC_BASELINE)
-    printed17 = P("Matrix([-ty0*cos(ga) + tx0*sin(ga) + thz4*sin(al) - thy4*cos(al) + b_x,"
-                  " (1+dKy)*sin(al) + ty0*cos(al)*sin(ga) + tx0*cos(al)*cos(ga) + thx4*cos(al) + b_y,"
-                  " theta_zy*sin(al) + (1+dKz)*cos(al) - ty0*sin(al)*sin(ga) - tx0*sin(al)*cos(ga) - thx4*sin(al) + b_z])")
+    printed17 = sp.Matrix([P(t) for t in PRINTED_17])
     d = max_diff(printed17, lin.first)
     rep.findings.append(Finding("17", "acc outputs at table angles (first order)", "3 rows as printed", "derive.unify.acc_outputs",
                                 d, _verdict(d, 1e-12, "agrees (with C_k^b = I - [theta x], see eq. 13)", "differs")))
     glin = unify.gyro_outputs(GYRO_BASELINE)
-    printed21x = P("laz4*wT*sin(al) - lay4*wT*cos(al) + b_x")
+    printed21x = P(PRINTED_21[0][0])
     d = max_diff(printed21x, glin.first[0], "gyro")
     rep.findings.append(Finding("19-21", "gyro x output under outer-axis rate (deg/h)", str(printed21x), str(glin.first[0]), d,
                                 "neglects w_e sin L beside w_T on the mounting terms (second order relative, "
@@ -225,25 +269,20 @@ def check_unify(rep):
     pos = [{al: sp.rad(a), ga: sp.rad(c)} for a, c in unify.TABLE2]
     out = [lin.first.subs(p) for p in pos]
     Nsub = {f"N{i + 1}{ax}": out[i][j] for i in range(4) for j, ax in enumerate("xyz")}
-    printed25 = {"theta_x4": "(N1y + N3y)/2 - b_y", "theta_y4": "(-N1x - N3x)/2 + b_x",
-                 "theta_z4": "(N2x + N4x)/2 - b_x", "tilt_x": "(N1y - N3y + N4z - N2z)/4",
-                 "tilt_y": "(N3x - N1x + N4x - N2x)/4"}
     truth = dict(zip(["theta_x4", "theta_y4", "theta_z4", "tilt_x", "tilt_y"], unify.ACC_UNIFY_UNKNOWNS))
-    for name, text in printed25.items():
-        d = max_diff(P(text, **{k: v for k, v in Nsub.items()}), truth[name])
-        rep.findings.append(Finding("25-26", f"{name} from Table 2", text, f"recovers {name} from the first-order outputs",
-                                    d, _verdict(d, 1e-12, "agrees (a valid first-order solution; derived least squares also "
-                                                "uses the z outputs for theta_x4)" + ("; OCR labels tilt_x 'dtheta_z0'" if name == "tilt_x" else ""),
-                                                "differs")))
+    for label, target, text, note in PRINTED_25:
+        d = max_diff(P(text, **Nsub), truth[target])
+        rep.findings.append(Finding("25-26", f"{label}: {target} from Table 2", text,
+                                    f"recovers {target} from the first-order outputs", d,
+                                    note or _verdict(d, 1e-12, "agrees (a valid first-order solution)", "differs")))
     # eq. 27 read as means over one revolution: lambda_x4 = (mean N_y - b_y - w_e cos L) / w_T.
     gpos = [{al: sp.rad(a)} for a in unify.GYRO_ALPHAS]
     gout = [glin.first.subs(p) for p in gpos]
-    printed27 = P("(Ny1 - b_y - we*cos(L))/wT", Ny1=gout[0][1])
-    d = max_diff(printed27, la["x"], "gyro")
-    rep.findings.append(Finding("27", "lambda_x4 (rad), as mean outputs over one revolution",
-                                "(1/2pi) sum N_y^g(1) - b_y T - w_e cos L T", "lambda_x4", d,
-                                "error in the paper: the horizontal Earth rate turns with gamma and averages out over a "
-                                "whole revolution; subtracting w_e cos L biases lambda_x4 by w_e cos L / w_T (the size shown)"))
+    Nsub = {f"N{i + 1}{ax}": gout[i][j] for i in range(2) for j, ax in enumerate("xyz")}
+    for label, target, text, note in PRINTED_27:
+        d = max_diff(P(text, **Nsub), la[target[-2]], "gyro")
+        rep.findings.append(Finding("27", f"{label} (rad), from mean outputs over one revolution", text, target, d,
+                                    note or _verdict(d, 1e-12, "agrees (a valid first-order solution)", "differs")))
 
 
 def check_table1(rep):
@@ -303,9 +342,24 @@ def remainders(rep):
     rep.remainders.append(("eq. 25-26 solution error (rad)", approx.remainder_size(err, sp.zeros(5, 1), lin.small, lambda r, n: {}, _bounds(lin.small, "acc"))))
 
 
-def run_audit(progress=None) -> Report:
+def check_terms(rep, values):
+    """audit_terms at the section-4 values (values: see audit_terms.section4_subs)."""
+    from . import audit_terms as at
+    at.eq17(rep.terms, values, [P(t) for t in PRINTED_17])
+    at.eq21(rep.terms, values, [(P(t), trunc) for t, trunc in PRINTED_21])
+    N = {f"N{i}{ax}": S(f"N{i}{ax}") for i in range(1, 5) for ax in "xyz"}
+    at.solutions(rep.terms, values, [(a, b, P(t, **N), n) for a, b, t, n in PRINTED_25],
+                 [(a, b, P(t, **N), n) for a, b, t, n in PRINTED_27])
+    at.norm_constant(rep.terms, values)
+    at.table2_rank(rep.terms)
+
+
+def run_audit(progress=None, values=None) -> Report:
+    """values: the section-4 values for the term-by-term check (simucal.paper_claims.section4_values)."""
     rep = Report()
     steps = [check_models, check_norm, check_unify, check_table1, remainders]
+    if values is not None:
+        steps.append(lambda r: check_terms(r, values))
     for step in (progress(steps) if progress else steps):
         step(rep)
     for f in rep.findings:  # a verdict must follow the computed difference
