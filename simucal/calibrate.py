@@ -20,7 +20,7 @@ from . import calibration, io, units
 from .augmented import AugmentedModel
 from .candidates import ALPHA, rank_candidates, shape_if_unexplained, test_model, verdict
 from .generated import table
-from .handheld import saturated_rows
+from .handheld import saturated_rows, stuck_channels
 from .noise import white_noise_var
 from .norm_fit import CalibrationError, Observations, fit_linear
 from .consistency import latitude, mirror_error, mirror_test
@@ -76,6 +76,7 @@ def segment_observations(ms: io.MeasurementSet, sensor: str, kinds=None, stated=
         rows = ms.samples["segment"] == s.segment
         if not rows.any():
             raise CalibrationError(f"{ms.path / 'samples.csv'}: segment {s.segment} has no samples")
+        refuse_outliers(ms, raw, rows, sensor, s.segment)
         if saturated[rows].any():
             ms.extra.setdefault("saturated_segments", []).append(
                 {"sensor": sensor, "segment": s.segment, "samples": int(saturated[rows].sum())})
@@ -93,6 +94,23 @@ def segment_observations(ms: io.MeasurementSet, sensor: str, kinds=None, stated=
     if keep:
         units.check_magnitude(sensor, np.linalg.norm(obs.N, axis=1), obs.rho, ms.path / "samples.csv", ms.meta)
     return obs, keep
+
+
+def refuse_outliers(ms, raw, rows, sensor, segment, k=100.0):
+    """Refuse a gross glitch: a sample k robust spreads (1.4826 MAD, floored at 1e-9 of the median)
+    from its segment's median would carry the segment's mean with it."""
+    x = raw[rows]
+    if len(x) < 10:
+        return
+    med = np.median(x, axis=0)
+    spread = np.maximum(1.4826 * np.median(np.abs(x - med), axis=0), 1e-9 * np.maximum(np.abs(med), 1.0))
+    bad = np.abs(x - med) > k * spread
+    if bad.any():
+        i, j = np.argwhere(bad)[0]
+        line = 2 + int(np.nonzero(rows)[0][i])
+        col = ("ax", "ay", "az", "gx", "gy", "gz")[j + (0 if sensor == "acc" else 3)]
+        raise CalibrationError(f"{ms.path / 'samples.csv'}, line {line}: {col} = {x[i, j]:g} is a glitch in segment "
+                               f"{segment} (its median {med[j]:g}, spread {spread[j]:.3g}): remove or repair that row")
 
 
 def centripetal_scale(ms, segs):
@@ -173,10 +191,12 @@ def _latitude_check(ms, fa, acc_segs, gm, fg, C_b_d):
     if not rows:
         return {"verdict": "not checked: no static positions"}
     gyro = ms.gyro_dph()
+    raw = np.column_stack([ms.samples[c] for c in ("gx", "gy", "gz")])
     stated = ms.meta.get("gyro_noise_dph")
     N, sig, temp, t = [], [], [], []
     for i in rows:
         r = ms.samples["segment"] == acc_segs[i].segment
+        refuse_outliers(ms, raw, r, "gyro", acc_segs[i].segment)
         m, sd = _mean_and_sigma(gyro[r], stated)
         N.append(m)
         sig.append(sd)
@@ -217,7 +237,7 @@ def check_rate_sense(ms, gyro_obs, gyro_segs):
     for s in ms.segments:
         if s.kind == "static":
             static |= ms.samples["segment"] == s.segment
-    rest = ms.gyro_dph()[static].mean(0) if static.any() else np.zeros(3)
+    rest = np.median(ms.gyro_dph()[static], axis=0) if static.any() else np.zeros(3)  # robust to a glitch
     rate = np.array([s.outer_rate_dps for s in gyro_segs])
     along = np.einsum("ni,ni->n", gyro_obs.N - rest, up) / 3600.0
     wrong = np.sign(along) != np.sign(rate)
@@ -231,8 +251,8 @@ def check_rate_sense(ms, gyro_obs, gyro_segs):
                 f"turn opposite to the commanded rate, and all agree once gyro {'xyz'[k]} is reversed (a left-handed "
                 f"triad, the axis wired or declared with its sign reversed); fix the sign of g{'xyz'[k]} in samples.csv "
                 "(or the wiring) and calibrate again")
-    detail = ", ".join(f"segment {s.segment}: commanded {r:+.1f} deg/s, measured {a:+.1f} deg/s"
-                       for s, r, a, w in list(zip(gyro_segs, rate, along, wrong))[:4] if w)
+    detail = ", ".join([f"segment {s.segment}: commanded {r:+.1f} deg/s, measured {a:+.1f} deg/s"
+                        for s, r, a, w in zip(gyro_segs, rate, along, wrong) if w][:4])
     raise CalibrationError(
         f"the gyro turns opposite to the commanded rate in {int(wrong.sum())} of {len(rate)} rate segments "
         f"({detail}{', ...' if wrong.sum() > 4 else ''}): the rotation was made the other way (or the gyro's sign "
@@ -319,6 +339,7 @@ def calibrate(folder, method="exact", acc_model="acc_baseline", gyro_model="gyro
 
 
 def _calibrate(ms, method, acc_model, gyro_model, detect_kw, add, acc_noise_g, gyro_noise_dph):
+    stuck_channels(ms)
     acc_model, gyro_model, ids = resolve_add(add, acc_model, gyro_model)
     if ms.segments is None:  # one continuous stream: a hand-placed session
         from .handheld import calibrate_handheld

@@ -15,7 +15,7 @@ import numpy as np
 
 from . import io
 from .augmented import AugmentedModel
-from .calibrate import segment_observations
+from .calibrate import check_rate_sense, segment_observations
 from .candidates import ALPHA, rank_candidates, shape_if_unexplained, test_model, verdict
 from .lack_of_fit import model_file_text
 from .norm_fit import CalibrationError, Fit, Observations
@@ -52,6 +52,8 @@ def diagnose_sensor(ms, sensor, base_model, add=(), stated=None, truth=None, bef
         segs = [io.Segment(i, "static", None, None, None, 0.0) for i in range(len(poses))]
     else:  # accelerometers: the rate runs too, where lever arms show
         obs, segs = segment_observations(ms, sensor, kinds={"static", "rate"} if sensor == "acc" else None, stated=stated)
+        if sensor == "gyro":
+            check_rate_sense(ms, obs, segs)
     if not segs:
         return None
     model = AugmentedModel(base_model, tuple(add))
@@ -120,7 +122,9 @@ def diagnose(folder, add=(), acc_model="acc_baseline", gyro_model="gyro_baseline
 
 
 def _diagnose(ms, folder, add, acc_model, gyro_model, acc_noise_g, gyro_noise_dph):
+    from .handheld import stuck_channels
     from .user_models import resolve_add
+    stuck_channels(ms)
     before = {"acc": acc_model, "gyro": gyro_model}
     acc_model, gyro_model, ids = resolve_add(add, acc_model, gyro_model)
     truth_path = folder / "truth.json"

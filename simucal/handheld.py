@@ -322,7 +322,6 @@ def pose_observations(ms, detect_kw=None, pose_window_s=1.0):
     Each pose is the mean of its first pose_window_s (None: the whole interval),
     with the std of that mean from the scatter of its samples."""
     t = ms.samples["t_s"]
-    stuck_channels(ms)
     acc = ms.acc_g()
     det = detect_static(acc, t, **(detect_kw or {}))
     dt = float(np.median(np.diff(t)))

@@ -285,3 +285,40 @@ def test_gyro_scale_in_the_wrong_unit_named(sets, tmp_path):
     meta = json.loads((d / "meta.json").read_text())
     _meta(d, gyro_counts_per_dps=[v * 180 / np.pi for v in meta["gyro_counts_per_dps"]])  # LSB per rad/s
     run_refused(["calibrate", d, "-o", tmp_path / "c.json"], "gyro_unit", "rad/s labelled deg/s")
+
+
+@pytest.fixture(scope="module")
+def raw_table(tmp_path_factory):
+    d = tmp_path_factory.mktemp("raw") / "t"
+    write(d, Scenario(rate_hz=20.0, static_s=5.0), 2)
+    return d
+
+
+@pytest.mark.parametrize("cmd", ["calibrate", "diagnose"])
+def test_single_glitch_named_with_its_line(raw_table, tmp_path, cmd):
+    d = Path(shutil.copytree(raw_table, tmp_path / "t"))
+    rows = _rows(d)
+    rate = {r[0] for r in csv.reader(open(d / "segments.csv")) if r[1] == "rate"}
+    i = next(k for k, r in enumerate(rows) if r[0] in rate) + 40  # a sample inside the first rate run
+    rows[i][rows[0].index("gy")] = "1e10"
+    _put_rows(d, rows)
+    run_refused([cmd, d, "-o", tmp_path / "c.json"], f"line {i + 1}", "gy", "glitch")
+
+
+def test_dead_column_on_a_turntable_set(raw_table, tmp_path):
+    d = Path(shutil.copytree(raw_table, tmp_path / "t"))
+    rows = _rows(d)
+    for r in rows[1:]:
+        r[rows[0].index("gz")] = "0"
+    _put_rows(d, rows)
+    run_refused(["calibrate", d, "-o", tmp_path / "c.json"], "column gz holds 0 in every row")
+
+
+def test_diagnose_refuses_reversed_rate_runs(sets, tmp_path):
+    d = _copy(sets, "table", tmp_path)
+    seg = list(csv.reader(open(d / "segments.csv")))
+    for r in seg[1:]:
+        if r[1] == "rate":
+            r[5] = str(-float(r[5]))
+    csv.writer(open(d / "segments.csv", "w", newline="")).writerows(seg)
+    run_refused(["diagnose", d, "-o", tmp_path / "d.json"], "opposite to the commanded rate")
