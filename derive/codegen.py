@@ -161,15 +161,20 @@ def casadi_function(model: ErrorModel) -> ca.Function:
     out = model.output()
     N = ca.vertcat(*[sp.lambdify(syms, e, modules=[mapping])(*vals) for e in out])
     return ca.Function(f"simucal_{model.name}", [u, p, aux],
-                       [N, ca.jacobian(N, u), ca.jacobian(N, p)],
+                       [N, ca.densify(ca.jacobian(N, u)), ca.densify(ca.jacobian(N, p))],
                        ["u", "p", "aux"], ["N", "N_u", "N_p"])
 
 
 def c_source(model: ErrorModel) -> str:
+    """CasADi C of the per-row model, then the whole exact fit (templates/exact_fit.c) bound to it."""
     cg = ca.CodeGenerator(f"{model.name}.c", {"with_header": False})
     cg.add(casadi_function(model))
     head = HEADER.format(what=f"model {model.name}, sha256 {model.sha256()}", **_versions())
-    return "/*\n" + head.replace("# ", " * ").replace("#", " *") + " */\n" + cg.dump()
+    name = f"simucal_{model.name}"
+    bind = (f"\n#define MODEL_M {len(model.params)}\n#define MODEL_NAUX {len(model.aux)}\n"
+            f"#define MODEL_EVAL {name}\n#define MODEL_WORK {name}_work\n#define MODEL_FIT {name}_fit\n")
+    template = (Path(__file__).parent / "templates" / "exact_fit.c").read_text()
+    return "/*\n" + head.replace("# ", " * ").replace("#", " *") + " */\n" + cg.dump() + bind + template
 
 
 def table_module() -> str:

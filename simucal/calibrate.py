@@ -18,12 +18,18 @@ import numpy as np
 
 from . import calibration, io, units
 from .augmented import AugmentedModel
-from .candidates import ALPHA, rank_candidates, shape_if_unexplained, test_model, verdict
+from .candidates import (
+    ALPHA,
+    rank_candidates,
+    shape_if_unexplained,
+    test_model,
+    verdict,
+)
+from .consistency import latitude, mirror_error, mirror_test
 from .generated import table
 from .handheld import saturated_rows, stuck_channels
 from .noise import white_noise_var
 from .norm_fit import CalibrationError, Observations, fit_linear
-from .consistency import latitude, mirror_error, mirror_test
 from .unification import Unifier, unify, unify_paper
 from .user_models import resolve_add
 

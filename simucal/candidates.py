@@ -19,7 +19,7 @@ Used by calibrate, diagnose (turntable sets and streams' poses), diagnose_moves 
 from __future__ import annotations
 
 import numpy as np
-from scipy import stats
+from .distributions import chi2_sf, f_sf
 
 from .augmented import AugmentedModel, effect_ids
 from .generated.effects import EFFECTS
@@ -76,12 +76,12 @@ def rank_candidates(model: AugmentedModel, obs: Observations, fit: Fit, base_fai
             continue
         if f1.chi2 is not None:
             stat = max(fit.chi2 - f1.chi2, 0.0)
-            p = float(stats.chi2.sf(stat, 1))
+            p = float(chi2_sf(stat, 1))
             daic = stat - 2.0
         else:  # unknown noise: F test on the residual sums of squares
             rss0, rss1 = fit.residual_rms ** 2, f1.residual_rms ** 2
             stat = max((rss0 - rss1) / max(rss1 / max(f1.dof, 1), 1e-300), 0.0) if f1.dof > 0 else 0.0
-            p = float(stats.f.sf(stat, 1, f1.dof)) if f1.dof > 0 else None
+            p = float(f_sf(stat, 1, f1.dof)) if f1.dof > 0 else None
             daic = None
         entry.update(separable=True, estimate=f1.params[eid], std=f1.std[eid], statistic=float(stat),
                      p_value=p, delta_aic=daic, residual_rms_after=f1.residual_rms)

@@ -27,7 +27,7 @@ significant under the same Bonferroni gate as the poses (candidates.py).
 from __future__ import annotations
 
 import numpy as np
-from scipy import stats
+from .distributions import chi2_sf
 
 from .augmented import check_effect, effect_ids
 from .candidates import gate_candidates, verdict
@@ -89,7 +89,7 @@ def rank_move_candidates(gm, base: GyroFit, inputs, base_fails, alpha):
         rss1 = float(np.sum(f1.r ** 2))
         stat = max(2 * m * np.log(rss0 / rss1), 0.0)
         entry.update(separable=True, estimate=float(f1.p[0]), std=float(np.sqrt(f1.cov[12, 12])),
-                     statistic=float(stat), p_value=float(stats.chi2.sf(stat, 1)), delta_aic=float(stat - 2.0),
+                     statistic=float(stat), p_value=float(chi2_sf(stat, 1)), delta_aic=float(stat - 2.0),
                      residual_rms_after=float(np.sqrt(np.mean(f1.r ** 2))))
         if perp < 0.05 * norm_col:
             entry["note"] = (f"nearly collinear with T and the bias: {100 * perp / norm_col:.2g} % of its signature "

@@ -22,7 +22,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
-from scipy import stats
+from .distributions import chi2_sf
 
 from . import units
 from .augmented import AugmentedModel
@@ -406,7 +406,7 @@ def chi2_test(fit: GyroFit, S, bias_std, mv: Moves):
         rest[axis] += fit.p[j] * mv.phi_rest[j]
     chi2 += float(np.sum((rest / bias_std) ** 2))
     dof = 2 * len(fit.r) + 3 - 12 - len(fit.p)
-    return chi2, dof, float(stats.chi2.sf(chi2, dof)) if dof > 0 else None
+    return chi2, dof, float(chi2_sf(chi2, dof)) if dof > 0 else None
 
 
 def regressor_inputs(ms, gm, fit: GyroFit, acc_cal):

@@ -90,11 +90,17 @@ def _cell(row, col, path, line, required=True):
 def read_text(path: Path) -> str:
     """A file's text: UTF-8 (a byte-order mark is dropped); binary files and other encodings
     are refused, naming the line."""
+    return _read_checked(path)[1]
+
+
+def _read_checked(path: Path) -> tuple[bytes, str]:
+    """(bytes without a byte-order mark, text) of a UTF-8 file; see read_text."""
     data = path.read_bytes()
     if b"\0" in data[:65536]:
         raise MeasurementSetError(path, None, "a binary file, not text (the spec's files are UTF-8 CSV and JSON)")
     try:
-        return data.decode("utf-8-sig")
+        data = data[3:] if data.startswith(b"\xef\xbb\xbf") else data
+        return data, data.decode("utf-8")
     except UnicodeDecodeError as e:
         line = data[:e.start].count(b"\n") + 1
         raise MeasurementSetError(path, line, f"not UTF-8 text (byte 0x{data[e.start]:02x}): save the file as "
@@ -103,7 +109,7 @@ def read_text(path: Path) -> str:
 
 def _csv_header_check(path, text):
     """The spec's CSV is comma-separated: name another delimiter instead of a missing column."""
-    first = text.split("\n", 1)[0]
+    first = text[:text.find("\n")] if "\n" in text else text
     if "," not in first:
         for sep, name in (("\t", "tabs"), (";", "semicolons"), ("|", "bars")):
             if sep in first:
@@ -169,7 +175,7 @@ def read_samples(folder: Path, segments) -> dict:
     path = folder / "samples.csv"
     if not path.is_file():
         raise MeasurementSetError(path, None, "missing: a measurement set needs samples.csv")
-    text = read_text(path)
+    data, text = _read_checked(path)
     _csv_header_check(path, text)
     with _io.StringIO(text, newline="") as fh:
         reader = csv.reader(fh)
@@ -189,7 +195,7 @@ def read_samples(folder: Path, segments) -> dict:
             raise MeasurementSetError(path, 1, "segments.csv exists, so samples.csv needs a segment column")
         cols = [c for c in header if c in ("segment", "t_s", "temp_c") + SAMPLE_COLS]
         idx = {c: header.index(c) for c in cols}
-        fast = _fast_numeric(text, len(header))
+        fast = _fast_numeric(data, len(header))
         if fast is not None:  # numpy's parser; on any doubt the careful one below names the line
             out = {c: fast[:, idx[c]] for c in cols}
             return _check_samples(out, path, segments)
@@ -209,12 +215,12 @@ def read_samples(folder: Path, segments) -> dict:
     return _check_samples({c: np.asarray(v, float) for c, v in data.items()}, path, segments)
 
 
-def _fast_numeric(text, ncols):
-    """All cells as floats via numpy, or None if anything is unusual."""
+def _fast_numeric(data: bytes, ncols):
+    """All cells as floats via numpy's C reader, or None if anything is unusual."""
     try:
         with warnings.catch_warnings():
             warnings.simplefilter("ignore")  # "no data": the careful reader then says so with the file's name
-            arr = np.loadtxt(_io.StringIO(text), delimiter=",", skiprows=1, ndmin=2, dtype=float)
+            arr = np.loadtxt(_io.BytesIO(data), delimiter=",", skiprows=1, ndmin=2, dtype=float)
     except ValueError:
         return None
     if arr.shape[0] == 0 or arr.shape[1] != ncols or not np.all(np.isfinite(arr)):

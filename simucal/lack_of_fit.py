@@ -24,7 +24,7 @@ import itertools
 from dataclasses import dataclass, replace
 
 import numpy as np
-from scipy import stats
+from .distributions import chi2_sf, f_sf
 
 from .norm_fit import Fit, Observations, dense_jacobian, fit_exact
 
@@ -153,7 +153,7 @@ def fit_with_noise(model, obs: Observations, p0=None) -> tuple[Fit, Observations
         if done:
             break
     fit.dof -= 1  # one variance estimated
-    fit.p_value = float(stats.chi2.sf(fit.chi2, fit.dof)) if fit.dof > 0 else None
+    fit.p_value = float(chi2_sf(fit.chi2, fit.dof)) if fit.dof > 0 else None
     return fit, replace(obs, sigma=np.where(known[:, None], sig, s_u)), {"source": f"{int(known.sum())} rows from their scatter or the stated noise; {int((~known).sum())} "
                            "rows (one averaged row, no stated noise) from a variance component estimated from the fit",
                  "estimated_std": s_u, "rows_estimated": int((~known).sum())}
@@ -191,7 +191,7 @@ def lack_of_fit(model, obs: Observations, fit: Fit) -> dict:
     F = (ss1 / q) / max((ss - ss1) / (dof - q), 1e-300)
     return {"test": "lack-of-fit F test against a generic basis (monomials of the input of degree 2-3 per axis, "
                     "time, temperature" + (", specific force" if model.sensor == "gyro" else "") + ")",
-            "F": float(F), "q": q, "dof": int(dof - q), "p_value": float(stats.f.sf(F, q, dof - q))}
+            "F": float(F), "q": q, "dof": int(dof - q), "p_value": float(f_sf(F, q, dof - q))}
 
 
 def describe_shape(model, obs: Observations, fit: Fit) -> dict | None:

@@ -58,6 +58,17 @@ def compile_c(name: str, source: str) -> Path | None:
     return lib
 
 
+def _bind_fit(lib, name):
+    """The compiled whole-fit entry point of a model's library, through ctypes."""
+    import ctypes
+    f = getattr(ctypes.CDLL(str(lib)), f"simucal_{name}_fit")
+    d = np.ctypeslib.ndpointer(dtype=float, flags="C_CONTIGUOUS")
+    i = np.ctypeslib.ndpointer(dtype=np.intc, flags="C_CONTIGUOUS")
+    f.argtypes = [ctypes.c_int, ctypes.c_int, d, d, d, d, d, ctypes.c_int, ctypes.c_double, d, d, d, d, i, i]
+    f.restype = ctypes.c_int
+    return f
+
+
 def aux_args(sensor, temp_c, t_s, extra):
     """(temp_c, t_s, extra) with the sensor's default extra input (zero force or rate)."""
     if extra is None:
@@ -77,16 +88,39 @@ class GeneratedModel:
         self.param_units = self.module.PARAM_UNITS
         self.meanings = getattr(self.module, "MEANINGS", ("",) * len(self.params))
         self.source = getattr(self.module, "SOURCE", "built-in")
-        self._c = None
+        self._c = self._fit = None
         if compiled and c_source is not None:
             lib = compile_c(name, c_source)
             if lib is not None:
                 import casadi as ca
                 self._c = ca.external(f"simucal_{name}", str(lib))
+                self._fit = _bind_fit(lib, name) if f"simucal_{name}_fit" in c_source else None
 
     @property
     def backend(self) -> str:
         return "casadi-c" if self._c is not None else "numpy"
+
+    def aux_rows(self, n, temp_c=0.0, t_s=0.0, extra=None) -> np.ndarray:
+        """(n, naux): temp_c, t_s and the sensor's extra input per row, as the C takes them."""
+        aux = self._aux(temp_c, t_s, extra)
+        cols = [np.broadcast_to(temp_c, (n,)), np.broadcast_to(t_s, (n,))]
+        cols += list(np.broadcast_to(aux[2], (n, 3)).T) if self.sensor == "gyro" else [np.broadcast_to(aux[2], (n,))]
+        return np.column_stack(cols)
+
+    def fit_compiled(self, N, rho, sig, aux, p0, max_iter=200, tol=1e-12):
+        """The whole exact fit in one compiled call (derive/templates/exact_fit.c) for a batch of
+        data sets: N, sig (S, n, 3), rho (S, n), aux (S, n, naux), p0 (S, m). Returns p (S, m),
+        cov (S, m, m), u (S, n, 3), cost (S,), iterations (S,), status (S,); None without a compiler."""
+        if self._fit is None:
+            return None
+        S, n, _ = N.shape
+        m = len(self.params)
+        c = lambda a: np.ascontiguousarray(a, dtype=float)
+        N, rho, sig, aux, p0 = c(N), c(rho), c(sig), c(aux), c(p0)
+        p, cov, u = np.empty((S, m)), np.empty((S, m, m)), np.empty((S, n, 3))
+        cost, iters, status = np.empty(S), np.empty(S, np.intc), np.empty(S, np.intc)
+        self._fit(S, n, N, rho, sig, aux, p0, max_iter, tol, p, cov, u, cost, iters, status)
+        return p, cov, u, cost, iters, status
 
     def _aux(self, temp_c, t_s, extra):
         """The generated functions' auxiliary arguments. `extra` is the sensor's own: for
@@ -104,12 +138,7 @@ class GeneratedModel:
             Ju, Jp = self.module.output_jacobians(u, p, *aux)
             return N, Ju, Jp
         n, m = len(u), len(self.params)
-        rows = [np.broadcast_to(temp_c, (n,)), np.broadcast_to(t_s, (n,))]
-        if self.sensor == "gyro":
-            rows += list(np.broadcast_to(aux[2], (n, 3)).T)
-        else:
-            rows.append(np.broadcast_to(aux[2], (n,)))
-        N, Ju, Jp = self._mapped(n)(np.asarray(u, float).T, np.asarray(p, float), np.vstack(rows))
+        N, Ju, Jp = self._mapped(n)(np.asarray(u, float).T, np.asarray(p, float), self.aux_rows(n, *aux).T)
         N = np.asarray(N).T
         Ju = np.asarray(Ju).reshape(3, n, 3).transpose(1, 0, 2)
         Jp = np.asarray(Jp).reshape(3, n, m).transpose(1, 0, 2)

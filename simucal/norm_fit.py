@@ -19,7 +19,7 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 
 import numpy as np
-from scipy import stats
+from .distributions import chi2_sf
 
 
 
@@ -104,19 +104,24 @@ def unobservable(H, names, tol=1e-10):
     return out
 
 
+def _linear_K(model, obs: Observations):
+    """eq. 8 / 12: least squares of rho^2 on the derived columns psi(N): (K, Psi, rho^2)."""
+    Psi = model.norm_regressors(obs.N, obs.temp_c, obs.t_s, obs.extra)
+    y = obs.rho ** 2
+    return np.linalg.lstsq(Psi, y, rcond=None)[0], Psi, y
+
+
 def fit_linear(model, obs: Observations) -> Fit:
     """dong2018 eq. 8 / 12 and the back-substitution, for any derived model."""
     _check_inputs(model, obs)
     n, m = len(obs.N), len(model.params)
-    Psi = model.norm_regressors(obs.N, obs.temp_c, obs.t_s, obs.extra)
-    y = obs.rho ** 2
+    K, Psi, y = _linear_K(model, obs)
     scale = np.linalg.norm(Psi, axis=0)
     H = (Psi / scale).T @ (Psi / scale)
     bad = unobservable(H, model.params)
     if bad:
-        raise CalibrationError(f"the {model.sensor} plan leaves these parameter combinations "
-                               f"unobservable by the norm (or nearly): {bad}; add positions that change them")
-    K, *_ = np.linalg.lstsq(Psi, y, rcond=None)
+        raise CalibrationError(f"the {model.sensor} plan leaves these parameter combinations unobservable "
+                               f"by the norm (or nearly): {bad}; add positions that change them")
     r = y - Psi @ K
     dof = n - m
     s2 = float(r @ r / dof) if dof > 0 else np.nan
@@ -197,6 +202,19 @@ def initial_directions(model, obs, p):
     return u / np.linalg.norm(u, axis=1, keepdims=True)
 
 
+_AFFINE = {}
+
+
+def _affine_columns(model):
+    """M(0), bias(0) and the columns d[vec M, bias]/dp of a model (linear in p): computed once."""
+    if model.name not in _AFFINE:
+        m = len(model.params)
+        M0, b0 = model.matrix_and_bias(np.zeros(m))
+        cols = [np.r_[(Mj - M0).ravel(), bj - b0] for Mj, bj in (model.matrix_and_bias(e) for e in np.eye(m))]
+        _AFFINE[model.name] = (M0, b0, np.array(cols).T)
+    return _AFFINE[model.name]
+
+
 def ellipsoid_start(model, obs: Observations):
     """Closed-form start for large offsets (raw counts): the general quadric
     through the outputs, N'QN + q'N + c = 0, is the ellipsoid |M^-1 (N - b)| = rho
@@ -209,7 +227,7 @@ def ellipsoid_start(model, obs: Observations):
     D = np.column_stack([x * x, y * y, z * z, 2 * x * y, 2 * x * z, 2 * y * z, 2 * x, 2 * y, 2 * z, np.ones(len(N))])
     if len(N) < 10:
         return None
-    v = np.linalg.svd(D)[2][-1]
+    v = np.linalg.svd(D, full_matrices=False)[2][-1]  # (N x 10): linear in N
     Q = np.array([[v[0], v[3], v[4]], [v[3], v[1], v[5]], [v[4], v[5], v[2]]])
     try:
         b = -np.linalg.solve(Q, v[6:9])
@@ -217,15 +235,7 @@ def ellipsoid_start(model, obs: Observations):
         M = np.linalg.cholesky(k * np.linalg.inv(Q))
     except np.linalg.LinAlgError:
         return None
-    m = len(model.params)
-    M0, b0 = model.matrix_and_bias(np.zeros(m))
-    cols = []
-    for j in range(m):  # M(p) and bias(p) are linear in p: one column per parameter
-        e = np.zeros(m)
-        e[j] = 1.0
-        Mj, bj = model.matrix_and_bias(e)
-        cols.append(np.r_[(Mj - M0).ravel(), bj - b0])
-    A = np.array(cols).T
+    M0, b0, A = _affine_columns(model)
     target = np.r_[(M - M0).ravel(), b - b0]
     return np.linalg.lstsq(A, target, rcond=None)[0] if np.linalg.matrix_rank(A) > 0 else None
 
@@ -241,14 +251,17 @@ def fit_exact(model, obs: Observations, p0=None, max_iter=200, tol=1e-12) -> Fit
         starts = []
         try:
             with np.errstate(invalid="ignore", divide="ignore"):  # a failed start is simply not used
-                starts.append(fit_linear(model, obs).vector(model.params))
-        except (CalibrationError, np.linalg.LinAlgError, NotImplementedError):
+                starts.append(model.params_of_K(_linear_K(model, obs)[0]))
+        except (np.linalg.LinAlgError, NotImplementedError):
             pass
         ell = ellipsoid_start(model, obs)
         if ell is not None and np.all(np.isfinite(ell)):
             starts.append(ell)
         starts.append(np.zeros(m))
         p0 = min(starts, key=lambda s: _start_cost(model, obs, s))
+    compiled = _fit_compiled(model, obs, p0, max_iter, tol)
+    if compiled is not None:
+        return compiled
     p = np.array(p0, float)
     known_sigma = obs.sigma is not None
     sig = np.broadcast_to(obs.sigma if known_sigma else 1.0, (n, 3))
@@ -309,18 +322,24 @@ def fit_exact(model, obs: Observations, p0=None, max_iter=200, tol=1e-12) -> Fit
                "; check the data for outliers or a wrong unit")
             + ("; all the poses point along the sensor axes (the Ferraris six-position design), from which the "
                "norm cannot see misalignments: add tilted poses" if axis_only else ""))
+    dH = np.sqrt(np.diag(H))
+    return _finish(model, obs, p, u, np.linalg.inv(H / np.outer(dH, dH)) / np.outer(dH, dH), H, cost, it)
+
+
+def _finish(model, obs, p, u, cov, H, cost, it) -> Fit:
+    """The Fit at the solution: the unobservability check, residuals, chi-square, covariance
+    (scaled by cost/dof where the noise is unknown)."""
     bad = unobservable(H, model.params)
     if bad:
         raise CalibrationError(f"the {model.sensor} plan leaves these parameter combinations unobservable: {bad}; "
                                "add positions (other input directions, temperatures or times) that change them")
-    res_phys = (obs.N - model.output(rho * u, p, obs.temp_c, obs.t_s, obs.extra))
+    n, m = len(obs.N), len(model.params)
+    res_phys = (obs.N - model.output(obs.rho[:, None] * u, p, obs.temp_c, obs.t_s, obs.extra))
     dof = n - m
-    dH = np.sqrt(np.diag(H))
-    cov = np.linalg.inv(H / np.outer(dH, dH)) / np.outer(dH, dH)
     chi2 = p_value = None
-    if known_sigma:
+    if obs.sigma is not None:
         chi2 = cost
-        p_value = float(stats.chi2.sf(chi2, dof)) if dof > 0 else None
+        p_value = float(chi2_sf(chi2, dof)) if dof > 0 else None
     elif dof > 0:
         cov = cov * cost / dof
     else:
@@ -328,3 +347,21 @@ def fit_exact(model, obs: Observations, p0=None, max_iter=200, tol=1e-12) -> Fit
     return Fit(model.name, "exact", dict(zip(model.params, p)),
                dict(zip(model.params, np.sqrt(np.diag(cov)))), cov, res_phys,
                float(np.sqrt(np.mean(res_phys ** 2))), chi2, dof, p_value, it, u)
+
+
+def _fit_compiled(model, obs, p0, max_iter, tol) -> Fit | None:
+    """fit_exact through the model's compiled whole fit (one call), or None where there is none
+    (no compiler, or candidate effects added) or where it did not converge cleanly (the Python
+    loop then says why)."""
+    base = model.base if getattr(model, "effects", None) == () else model
+    if getattr(base, "fit_compiled", None) is None:
+        return None
+    n = len(obs.N)
+    sig = np.broadcast_to(obs.sigma if obs.sigma is not None else 1.0, (n, 3))
+    out = base.fit_compiled(obs.N[None], obs.rho[None], sig[None],
+                            base.aux_rows(n, obs.temp_c, obs.t_s, obs.extra)[None], np.asarray(p0, float)[None],
+                            max_iter, tol)
+    if out is None or out[5][0] != 0:
+        return None
+    p, cov, u, cost, it, _ = (a[0] for a in out)
+    return _finish(model, obs, p, u, cov, np.linalg.inv(cov), float(cost), int(it))

@@ -94,8 +94,8 @@ def candidate_figure(sensor, block, n_tested):
     fig, ax = plt.subplots(figsize=(8, 3))
     colors = ["tab:red" if x.get("significant") else "tab:gray" for x in c]
     ax.barh([x["id"] for x in c][::-1], [x["statistic"] for x in c][::-1], color=colors[::-1])
-    from scipy import stats
-    thr = stats.chi2.isf(0.01 / max(n_tested, 1), 1)
+    from .distributions import chi2_isf
+    thr = chi2_isf(0.01 / max(n_tested, 1), 1)
     ax.axvline(thr, color="k", ls="--", lw=1, label=f"significance threshold ({thr:.1f})")
     ax.set(xlabel="likelihood-ratio statistic", title=f"{sensor}: which effect is missing (red: significant)")
     ax.legend(fontsize=8)

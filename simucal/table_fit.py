@@ -10,7 +10,7 @@ whose noise, the random angular position errors, is estimated from the fit.
 from __future__ import annotations
 
 import numpy as np
-from scipy import stats
+from .distributions import f_sf
 
 from .candidates import gate_candidates
 from .generated import table
@@ -68,7 +68,7 @@ def table_candidates(u_meas, ang_deg, alpha=0.01):
             continue
         x1, cov1, rss1, dof1, res1, _ = fit_directions(u_meas, ang, MOUNT + [j])
         F = max((rss0 - rss1) / (rss1 / max(dof1, 1)), 0.0)
-        p = float(stats.f.sf(F, 1, dof1)) if dof1 > 0 else None
+        p = float(f_sf(F, 1, dof1)) if dof1 > 0 else None
         entry.update(separable=True, estimate=float(x1[j]), std=float(np.sqrt(cov1[-1, -1])), statistic=float(F),
                      p_value=p, delta_aic=None, residual_rms_after=float(np.sqrt(np.mean(res1 ** 2))))
         out.append(entry)

@@ -27,18 +27,17 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
-from scipy.linalg import block_diag
-from scipy.special import chdtri
 
-from .apply import model_function, solve_inputs
 from . import units
+from .apply import model_function, solve_inputs
 from .consistency import GROSS_RAD, mirror_error, mirror_test
-from .norm_fit import CalibrationError, full_covariance, tangent_basis
+from .distributions import chi2_isf
 from .generated import table
 from .generated import unify as eq
+from .norm_fit import CalibrationError, full_covariance, tangent_basis
 from .rotations import log_so3, skew, wahba
 
-CHI2_3DOF_P1E3 = float(chdtri(3, 1e-3))  # the chi-square quantile, 3 dof, p = 1e-3
+CHI2_3DOF_P1E3 = float(chi2_isf(1e-3, 3))  # the chi-square quantile, 3 dof, p = 1e-3
 
 
 @dataclass
@@ -77,7 +76,7 @@ class Unifier:
         cov_a = full_covariance(am, obs_a, fa) * _misfit_scale(fa)
         cov_g = full_covariance(gm, obs_g, fg) * _misfit_scale(fg)
         sig_m = np.zeros((0, 3)) if acc_means is None else acc_means[2]
-        self.z = Inputs(block_diag(cov_a, np.diag(sig_m.ravel() ** 2), cov_g),
+        self.z = Inputs(_block_diag(cov_a, np.diag(sig_m.ravel() ** 2), cov_g),
                         0, len(cov_a), len(cov_a) + sig_m.size)
         self.nz = len(self.z.cov)
 
@@ -150,6 +149,15 @@ class Unifier:
 _LEVI_CIVITA = np.zeros((3, 3, 3))
 _LEVI_CIVITA[0, 1, 2] = _LEVI_CIVITA[1, 2, 0] = _LEVI_CIVITA[2, 0, 1] = 1
 _LEVI_CIVITA[0, 2, 1] = _LEVI_CIVITA[2, 1, 0] = _LEVI_CIVITA[1, 0, 2] = -1
+
+
+def _block_diag(*blocks):
+    out = np.zeros((sum(len(b) for b in blocks),) * 2)
+    k = 0
+    for b in blocks:
+        out[k:k + len(b), k:k + len(b)] = b
+        k += len(b)
+    return out
 
 
 def pair_weights(sig_b, sig_d):

@@ -1,5 +1,8 @@
 """Exact and linear norm fits against noise-free data made with exact rotations."""
+import os
+
 import numpy as np
+import pytest
 import sympy as sp
 
 from simucal import plans
@@ -100,3 +103,37 @@ def test_exact_fit_starts_from_raw_count_offsets():
     p = np.array([0.05, -0.03, 0.02, 0.01, -0.02, 0.015, 8.1, 8.2, 7.9])
     fit = fit_exact(m, Observations(m.output(u, p), np.ones(30)))
     assert np.max(np.abs(fit.vector(m.params) - p)) < 1e-9
+
+
+@pytest.mark.parametrize("name,sensor", [("acc_baseline", "acc"), ("gyro_baseline", "gyro")])
+def test_compiled_whole_fit_matches_the_python_solver(tmp_path, name, sensor):
+    """One compiled call (derive/templates/exact_fit.c) gives the Python Gauss-Newton's solution
+    (to 1e-5 of each std: both stop within 1e-6 std of the optimum) and its covariance, for one
+    set and for a batch."""
+    from simucal import io
+    from simucal.calibrate import segment_observations
+    from simucal.models import load
+    from simucal.norm_fit import fit_exact
+    from simucal.simulate import Scenario, write
+    c, py = load(name), load(name, compiled=False)
+    if os.environ.get("SIMUCAL_NO_COMPILE"):  # the fallback by request: no compiled fit, the Python one
+        assert c.backend == "numpy" and c.fit_compiled(None, None, None, None, None) is None
+        return
+    assert c.backend == "casadi-c"
+    sets = []
+    for seed in range(3):
+        write(tmp_path / str(seed), Scenario(plan="fibonacci24"), seed)
+        sets.append(segment_observations(io.read(tmp_path / str(seed)), sensor)[0])
+    for obs in sets:  # both stop within 1e-6 std of the optimum (the convergence test): agree to 1e-5 std
+        a, b = fit_exact(c, obs), fit_exact(py, obs)
+        assert np.all(np.abs(a.vector(c.params) - b.vector(py.params)) < 1e-5 * np.sqrt(np.diag(b.cov)))
+        assert np.allclose(a.cov, b.cov, rtol=1e-8, atol=0) and a.chi2 == pytest.approx(b.chi2, rel=1e-8)
+    n = len(sets[0].N)
+    batch = c.fit_compiled(np.array([o.N for o in sets]), np.array([o.rho for o in sets]),
+                           np.array([np.broadcast_to(o.sigma, (n, 3)) for o in sets]),
+                           np.array([c.aux_rows(n, o.temp_c, o.t_s, o.extra) for o in sets]),
+                           np.zeros((3, len(c.params))))
+    assert np.all(batch[5] == 0)
+    for k, obs in enumerate(sets):  # another start (zeros): the same optimum, to 1e-5 of each std
+        ref = fit_exact(py, obs)
+        assert np.all(np.abs(batch[0][k] - ref.vector(py.params)) < 1e-5 * np.sqrt(np.diag(ref.cov)))
