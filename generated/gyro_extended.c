@@ -476,14 +476,22 @@ CASADI_SYMBOL_EXPORT int MODEL_FIT(int n_sets, int n, const double *N, const dou
                                    double *cov, double *u, double *cost, int *iters, int *status) {
   casadi_int sz_arg, sz_res, sz_iw, sz_w;
   MODEL_WORK(&sz_arg, &sz_res, &sz_iw, &sz_w);
-  casadi_int *iw = malloc(sizeof(casadi_int) * (sz_iw + 1));
-  double *w = malloc(sizeof(double) * (sz_w + 1));
-  double *buf = malloc(sizeof(double) * (size_t) n * (6 + 3 * FIT_M + 4 + 2 * FIT_M + 2 + 6 + 3 + 3));
-  if (!iw || !w || !buf) { free(iw); free(w); free(buf); return -1; }
-  for (int s = 0; s < n_sets; s++)
-    status[s] = fit_one(n, N + 3 * n * s, rho + n * s, sig + 3 * n * s, aux + FIT_NAUX * n * s, p0 + FIT_M * s,
-                        max_iter, tol, p + FIT_M * s, cov + FIT_M * FIT_M * s, u + 3 * n * s, cost + s, iters + s,
-                        buf, iw, w);
-  free(iw); free(w); free(buf);
-  return 0;
+  int failed = 0;
+  /* sets are independent: one work area per thread (OpenMP where the compiler has it) */
+#pragma omp parallel reduction(+:failed)
+  {
+    casadi_int *iw = malloc(sizeof(casadi_int) * (sz_iw + 1));
+    double *w = malloc(sizeof(double) * (sz_w + 1));
+    double *buf = malloc(sizeof(double) * (size_t) n * (6 + 3 * FIT_M + 4 + 2 * FIT_M + 2 + 6 + 3 + 3));
+    if (!iw || !w || !buf) failed++;
+    else {
+#pragma omp for schedule(static)
+      for (int s = 0; s < n_sets; s++)
+        status[s] = fit_one(n, N + 3 * n * s, rho + n * s, sig + 3 * n * s, aux + FIT_NAUX * n * s, p0 + FIT_M * s,
+                            max_iter, tol, p + FIT_M * s, cov + FIT_M * FIT_M * s, u + 3 * n * s, cost + s, iters + s,
+                            buf, iw, w);
+    }
+    free(iw); free(w); free(buf);
+  }
+  return failed ? -1 : 0;
 }

@@ -305,6 +305,43 @@ def diagnose(data_dir, output, html_path, add, acc_model, gyro_model, acc_noise_
     click.echo(f"wrote {output}" + (f" and {html_path}" if html_path else ""))
 
 
+@main.command()
+@click.option("--scenario", type=click.Choice(["paper"]), default="paper", show_default=True,
+              help="dong2018 section 4 (simulate's defaults).")
+@click.option("--plan", default=None, help="table1 (default), dodecahedron20, fibonacci24, fibonacci48 or plan.csv.")
+@click.option("--trials", type=int, default=10000, show_default=True)
+@click.option("--seed", type=int, default=0, show_default=True)
+@click.option("--effect", "effects", multiple=True, metavar="ID=VALUE",
+              help="Plant a candidate effect in the truth and fit it (repeatable; slower: fit_exact per trial).")
+@click.option("-o", "--output", type=click.Path(dir_okay=False), default="montecarlo.json", show_default=True)
+def montecarlo(scenario, plan, trials, seed, effects, output):
+    """Monte Carlo of a scenario: simulate, exact fits, unification; std against the Cramer-Rao bound."""
+    import json
+    from tqdm import tqdm
+    from simucal.montecarlo import run
+    from simucal.simulate import SCENARIOS, plant
+    _check_out(output)
+    if trials < 2:
+        _fail(f"--trials {trials}: at least 2 trials are needed for a std")
+    sc = SCENARIOS[scenario]()
+    if plan:
+        sc.plan = plan
+    try:
+        plant(sc, effects)
+        result = run(sc, trials, seed, progress=lambda it: tqdm(it, desc="montecarlo", unit="batch", leave=False,
+                                                                 disable=not sys.stderr.isatty()))
+    except (ValueError, KeyError, FileNotFoundError) as e:
+        _fail(e)
+    Path(output).write_text(json.dumps(result, indent=1) + "\n")
+    click.echo(f"{trials} trials in {result['seconds']:.2f} s ({result['trials_per_s']:.0f}/s, {result['backend']}); "
+               f"{result['failed']} failed")
+    click.echo(f"{'parameter':18} {'truth':>12} {'mean':>12} {'std':>10} {'CRLB':>10} {'std/CRLB':>9}")
+    for name, v in result["parameters"].items():
+        click.echo(f"{name:18} {v['truth']:12.5g} {v['mean']:12.5g} {v['std']:10.3g} {v['crlb']:10.3g} "
+                   f"{v['std_over_crlb']:9.3f}")
+    click.echo(f"wrote {output}")
+
+
 @main.command("field-drift")
 @click.argument("data_dir", type=click.Path(exists=True, file_okay=False))
 @click.option("-o", "--output", type=click.Path(dir_okay=False), default="drift.json", show_default=True)

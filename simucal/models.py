@@ -49,8 +49,10 @@ def compile_c(name: str, source: str) -> Path | None:
     src = lib.with_suffix(".c")
     src.write_text(source)
     tmp = lib.with_suffix(f".{os.getpid()}.tmp")
-    res = subprocess.run([cc, "-O2", "-shared", "-fPIC", str(src), "-o", str(tmp), "-lm"],
-                         capture_output=True, text=True)
+    base = [cc, "-O2", "-shared", "-fPIC", str(src), "-o", str(tmp), "-lm"]
+    res = subprocess.run(base + ["-fopenmp"], capture_output=True, text=True)  # batches over the cores
+    if res.returncode != 0:
+        res = subprocess.run(base, capture_output=True, text=True)
     if res.returncode != 0:
         warnings.warn(f"compiling {name}.c failed with {cc}; using the numpy module instead:\n{res.stderr[-500:]}")
         return None

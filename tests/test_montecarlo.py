@@ -1,0 +1,48 @@
+"""simucal montecarlo (issue 14): batched simulation and compiled fits, std against the CRLB."""
+import json
+
+import numpy as np
+from click.testing import CliRunner
+
+from simucal.cli import main
+from simucal.montecarlo import run, simulate_batch
+from simucal.simulate import Scenario
+
+
+def test_std_matches_the_cramer_rao_bound(tmp_path):
+    r = CliRunner().invoke(main, ["montecarlo", "--trials", "3000", "--seed", "2", "-o", str(tmp_path / "mc.json")])
+    assert r.exit_code == 0, r.output
+    out = json.loads((tmp_path / "mc.json").read_text())
+    assert out["trials"] == 3000 and out["failed"] == 0 and out["trials_per_s"] > 0
+    assert len(out["parameters"]) == 18
+    for name, v in out["parameters"].items():  # 3000 trials: the ratio's spread is about 1.3 %
+        assert 0.94 < v["std_over_crlb"] < 1.06, (name, v)
+        assert abs(v["mean"] - v["truth"]) < 4 * v["std"] / np.sqrt(3000), (name, v)
+    assert max(out["unification"]["C_b_d_error_rms_rad"]) < 3e-5
+
+
+def test_batched_simulation_matches_the_simulator(tmp_path):
+    """Noise-free, no position errors: the batch's mean outputs are simulate()'s (720 samples per revolution)."""
+    from simucal import io
+    from simucal.simulate import write
+    sc = Scenario(position_error_rad=0.0, acc_effects={"acc.quadratic.z": 2e-4}, gyro_effects={"gyro.g_sensitivity.xz": 0.3})
+    sc.acc_noise_g = sc.gyro_noise_dph = 0.0
+    write(tmp_path, sc, 0)
+    ms = io.read(tmp_path)
+    b = simulate_batch(sc, 1, np.random.default_rng(0), noise=False)
+    acc, gyro = ms.acc_g(), ms.gyro_dph()
+    static = [s.segment for s in ms.segments if s.kind == "static"]
+    rate = [s.segment for s in ms.segments if s.kind == "rate"]
+    mean = lambda x, segs: np.array([x[ms.samples["segment"] == s].mean(0) for s in segs])
+    assert np.allclose(mean(acc, static), b["acc"][0], atol=1e-12)
+    assert np.allclose(mean(gyro, rate), b["gyro"][0], atol=1e-9)
+    assert np.allclose(mean(acc, rate), b["acc_rate"][0], atol=1e-12)
+
+
+def test_failed_trials_are_counted_not_dropped():
+    """A trial the fit cannot solve is counted and listed (gyro noise 1e5 deg/h, above the 36000 deg/h rate)."""
+    sc = Scenario()
+    sc.gyro_noise_dph = 1e5
+    out = run(sc, 50, 1)
+    assert 0 < out["failed"] == len(out["failed_trials"]) <= 50
+    assert all(0 <= t < 50 for t in out["failed_trials"]) and len(set(out["failed_trials"])) == out["failed"]
