@@ -2,6 +2,8 @@
 integration is derived: derive/moves.py, generated/moves.py)."""
 from __future__ import annotations
 
+import math
+
 import numpy as np
 
 
@@ -15,6 +17,13 @@ def skew(v):
 def exp_so3(v):
     """Rotation matrix exp([v x]) for rotation vectors v (..., 3), safe at 0."""
     v = np.asarray(v, float)
+    if v.ndim == 1:  # one vector: Rodrigues in plain floats (array set-up would cost more than the work)
+        x, y, z = map(float, v)
+        a = math.sqrt(x * x + y * y + z * z)
+        s, c = (1 - a * a / 6, 0.5 - a * a / 24) if a < 1e-8 else (math.sin(a) / a, (1 - math.cos(a)) / (a * a))
+        return np.array([[1 - c * (y * y + z * z), -s * z + c * x * y, s * y + c * x * z],
+                         [s * z + c * x * y, 1 - c * (x * x + z * z), -s * x + c * y * z],
+                         [-s * y + c * x * z, s * x + c * y * z, 1 - c * (x * x + y * y)]])
     a = np.linalg.norm(v, axis=-1)[..., None, None]
     K = skew(v)
     small = a < 1e-8

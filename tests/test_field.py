@@ -44,3 +44,14 @@ def test_missing_heading_reference_refused(tmp_path):
     io.write(tmp_path / "f", meta, samples, segments)
     with pytest.raises(CalibrationError, match="segment 2 has no heading_ref_deg"):
         field_drift(tmp_path / "f")
+
+
+def test_transition_matrix_matches_scipy():
+    import scipy.linalg
+
+    from simucal.field import expm
+    from simucal.generated import field as gen
+    F = gen.error_model(9.80665, 7.292115e-5, np.radians(45.0))
+    for dt in (0.01, 1.0, 30.0):
+        ref = scipy.linalg.expm(F * dt)
+        assert np.abs(expm(F * dt) - ref).max() <= 1e-12 * np.abs(ref).max()
