@@ -344,6 +344,18 @@ def calibrate(folder, method="exact", acc_model="acc_baseline", gyro_model="gyro
         raise e.naming(ms.path) from None
 
 
+def calibrate_to_file(folder, output, kwargs: dict):
+    """calibrate() one set and write its file; (result, None), or (None, the refusal's message).
+    One task of a batch (`simucal calibrate DIR1 DIR2 ... --scheduler`): a refusal loses no other set."""
+    from .io import MeasurementSetError
+    try:
+        result = calibrate(folder, **kwargs)
+        calibration.write(output, result)
+        return result, None
+    except (MeasurementSetError, CalibrationError, KeyError, FileNotFoundError, ValueError) as e:
+        return None, str(e.args[0] if isinstance(e, KeyError) and e.args else e)
+
+
 def _calibrate(ms, method, acc_model, gyro_model, detect_kw, add, acc_noise_g, gyro_noise_dph):
     stuck_channels(ms)
     acc_model, gyro_model, ids = resolve_add(add, acc_model, gyro_model)

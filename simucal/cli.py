@@ -159,8 +159,9 @@ def _sensor_lines(result):
 
 
 @main.command()
-@click.argument("data_dir", type=click.Path(exists=True, file_okay=False))
-@click.option("-o", "--output", type=click.Path(dir_okay=False), default="calibration.json", show_default=True)
+@click.argument("data_dirs", nargs=-1, required=True, type=click.Path(exists=True, file_okay=False))
+@click.option("-o", "--output", type=click.Path(), default="calibration.json", show_default=True,
+              help="The calibration file; with several sets, a folder that gets one <set>.json each.")
 @click.option("--method", type=click.Choice(["exact", "linear", "multiposition"]), default="exact", show_default=True)
 @click.option("--acc-model", default="acc_baseline", show_default=True)
 @click.option("--gyro-model", default="gyro_baseline", show_default=True)
@@ -171,27 +172,53 @@ def _sensor_lines(result):
 @click.option("--threshold-factor", type=float, default=6.0, show_default=True, help="Stream: static threshold, times the rest's variance.")
 @click.option("--window-s", type=float, default=1.0, show_default=True, help="Stream: moving-variance window.")
 @click.option("--min-static-s", type=float, default=1.0, show_default=True, help="Stream: shortest static interval.")
-def calibrate(data_dir, output, method, acc_model, gyro_model, add, acc_noise_g, gyro_noise_dph, init_rest_s,
-              threshold_factor, window_s, min_static_s):
-    """Calibrate a measurement set; write calibration.json.
+@click.option("--scheduler", default="local", show_default=True,
+              help="Several sets: local, processes (a Dask LocalCluster) or a Dask scheduler's address.")
+def calibrate(data_dirs, output, method, acc_model, gyro_model, add, acc_noise_g, gyro_noise_dph, init_rest_s,
+              threshold_factor, window_s, min_static_s, scheduler):
+    """Calibrate measurement sets; write calibration.json (one per set into a folder for several).
 
     With segments.csv: a turntable test (dong2018). Without: a continuous stream
     from a hand-placed session (static poses found from the data; Tedaldi)."""
-    from simucal import calibration
-    from simucal.calibrate import calibrate as calibrate_set
-    from simucal.io import MeasurementSetError
-    from simucal.norm_fit import CalibrationError
-    _check_out(output)
-    try:
-        result = calibrate_set(Path(data_dir), method, acc_model, gyro_model,
-                               dict(init_rest_s=init_rest_s, factor=threshold_factor, window_s=window_s,
-                                    min_s=min_static_s), add, acc_noise_g, gyro_noise_dph)
-        calibration.write(output, result)
-    except (MeasurementSetError, CalibrationError, KeyError, FileNotFoundError, ValueError) as e:
-        _fail(e)
-    for line in _sensor_lines(result):
-        click.echo(line)
-    click.echo(f"wrote {output} (method {result['method']})")
+    from simucal.calibrate import calibrate_to_file
+    kwargs = dict(method=method, acc_model=acc_model, gyro_model=gyro_model,
+                  detect_kw=dict(init_rest_s=init_rest_s, factor=threshold_factor, window_s=window_s,
+                                 min_s=min_static_s), add=add, acc_noise_g=acc_noise_g, gyro_noise_dph=gyro_noise_dph)
+    if len(data_dirs) == 1:
+        _check_out(output)
+        result, error = calibrate_to_file(Path(data_dirs[0]), output, kwargs)
+        if error:
+            _fail(error)
+        for line in _sensor_lines(result):
+            click.echo(line)
+        click.echo(f"wrote {output} (method {result['method']})")
+        return
+    from tqdm import tqdm
+    from simucal.sweeps import map_tasks
+    out = Path(output)
+    names = [Path(d).resolve().name for d in data_dirs]
+    if out.suffix == ".json" or (out.exists() and not out.is_dir()):
+        _fail(f"-o {output}: with {len(data_dirs)} sets, -o names a folder (one <set>.json each)")
+    if len(set(names)) < len(names):
+        _fail(f"two sets share a folder name ({sorted(n for n in names if names.count(n) > 1)[0]}): their files "
+              "would collide; calibrate them separately")
+    _check_out(out)
+    out.mkdir(exist_ok=True)
+    tasks = [(Path(d), out / f"{n}.json", kwargs) for d, n in zip(data_dirs, names)]
+    done = map_tasks(calibrate_to_file, tasks, scheduler,
+                     progress=lambda it: tqdm(it, desc="calibrate", unit="set", leave=False, disable=not sys.stderr.isatty()))
+    failed = 0
+    for (d, path, _), (result, error) in zip(tasks, done):
+        if error:
+            failed += 1
+            click.echo(f"{d}: error: {error}", err=True)
+        else:
+            tests = ", ".join(f"{k} p = {result[k]['p_value']:.3g}" for k in ("acc", "gyro")
+                              if result.get(k, {}).get("p_value") is not None)
+            click.echo(f"{d}: wrote {path}" + (f" ({tests})" if tests else ""))
+    click.echo(f"{len(tasks) - failed} of {len(tasks)} sets calibrated into {out}")
+    if failed:
+        sys.exit(2)
 
 
 @main.command("apply")
@@ -314,7 +341,10 @@ def diagnose(data_dir, output, html_path, add, acc_model, gyro_model, acc_noise_
 @click.option("--effect", "effects", multiple=True, metavar="ID=VALUE",
               help="Plant a candidate effect in the truth and fit it (repeatable; slower: fit_exact per trial).")
 @click.option("-o", "--output", type=click.Path(dir_okay=False), default="montecarlo.json", show_default=True)
-def montecarlo(scenario, plan, trials, seed, effects, output):
+@click.option("--scheduler", default="local", show_default=True,
+              help="local (this process), processes (a Dask LocalCluster, one worker per core) or a Dask "
+                   "scheduler's address: the same numbers on any.")
+def montecarlo(scenario, plan, trials, seed, effects, output, scheduler):
     """Monte Carlo of a scenario: simulate, exact fits, unification; std against the Cramer-Rao bound."""
     import json
     from tqdm import tqdm
@@ -328,12 +358,14 @@ def montecarlo(scenario, plan, trials, seed, effects, output):
         sc.plan = plan
     try:
         plant(sc, effects)
-        result = run(sc, trials, seed, progress=lambda it: tqdm(it, desc="montecarlo", unit="batch", leave=False,
-                                                                 disable=not sys.stderr.isatty()))
+        result = run(sc, trials, seed, scheduler=scheduler,
+                     progress=lambda it: tqdm(it, desc="montecarlo", unit="batch", leave=False,
+                                              disable=not sys.stderr.isatty()))
     except (ValueError, KeyError, FileNotFoundError) as e:
         _fail(e)
     Path(output).write_text(json.dumps(result, indent=1) + "\n")
-    click.echo(f"{trials} trials in {result['seconds']:.2f} s ({result['trials_per_s']:.0f}/s, {result['backend']}); "
+    click.echo(f"{trials} trials in {result['seconds']:.2f} s ({result['trials_per_s']:.0f}/s, {result['backend']}, "
+               f"scheduler {scheduler}); "
                f"{result['failed']} failed")
     click.echo(f"{'parameter':18} {'truth':>12} {'mean':>12} {'std':>10} {'CRLB':>10} {'std/CRLB':>9}")
     for name, v in result["parameters"].items():

@@ -147,29 +147,37 @@ def _unify_batch(am, p_a, N_ar, u_g, sign):
     return U @ D @ Vt
 
 
-def run(sc: Scenario, trials: int, seed: int = 0, chunk: int = 5000, progress=None) -> dict:
-    """The Monte Carlo result (module doc) as a dict ready for JSON."""
-    rng = np.random.default_rng(seed)
+def chunk_of_trials(sc: Scenario, size: int, seed: int, k: int) -> dict:
+    """One batch of trials with its own random stream (seed, k): the estimates of the trials whose
+    fits converged, the error rotation of C_b^d, and the indices (within the batch) of the others."""
+    rng = np.random.default_rng([seed, k])
     am, gm = AugmentedModel(sc.acc_model, tuple(sc.acc_effects)), AugmentedModel(sc.gyro_model, tuple(sc.gyro_effects))
-    est = {"acc": [], "gyro": []}
-    phi_err, failed = [], []
+    sim = simulate_batch(sc, size, rng)
+    pa, _, _, ok_a = fit_batch(am, sim["acc"], 1.0, sc.acc_noise_g)
+    pg, _, ug, ok_g = fit_batch(gm, sim["gyro"], sim["rho_gyro"], sc.gyro_noise_dph)
+    ok = ok_a & ok_g
+    C = _unify_batch(am, pa[ok], sim["acc_rate"][ok], ug[ok], sim["rate_sign"])
+    R = np.einsum("tji,jk->tik", C, sim["truth"]["C_b_d"])  # C^T C_true: the error rotation
+    phi = 0.5 * np.stack([R[:, 2, 1] - R[:, 1, 2], R[:, 0, 2] - R[:, 2, 0], R[:, 1, 0] - R[:, 0, 1]], 1)
+    return {"acc": pa[ok], "gyro": pg[ok], "phi": phi, "failed": np.nonzero(~ok)[0].tolist()}
+
+
+def run(sc: Scenario, trials: int, seed: int = 0, chunk: int = 5000, progress=None, scheduler=None) -> dict:
+    """The Monte Carlo result (module doc) as a dict ready for JSON. Batches of `chunk` trials
+    run on the scheduler (sweeps.map_tasks), each with its own seed: the same numbers on any."""
+    from .sweeps import map_tasks
+    am, gm = AugmentedModel(sc.acc_model, tuple(sc.acc_effects)), AugmentedModel(sc.gyro_model, tuple(sc.gyro_effects))
     t0 = time.perf_counter()
-    sizes = [min(chunk, trials - k) for k in range(0, trials, chunk)]
-    for k, size in enumerate(progress(sizes) if progress else sizes):
-        sim = simulate_batch(sc, size, rng)
-        pa, _, _, ok_a = fit_batch(am, sim["acc"], 1.0, sc.acc_noise_g)
-        pg, _, ug, ok_g = fit_batch(gm, sim["gyro"], sim["rho_gyro"], sc.gyro_noise_dph)
-        ok = ok_a & ok_g
-        failed += (k * chunk + np.nonzero(~ok)[0]).tolist()
-        C = _unify_batch(am, pa[ok], sim["acc_rate"][ok], ug[ok], sim["rate_sign"])
-        R = np.einsum("tji,jk->tik", C, sim["truth"]["C_b_d"])  # C^T C_true: the error rotation
-        phi_err.append(0.5 * np.stack([R[:, 2, 1] - R[:, 1, 2], R[:, 0, 2] - R[:, 2, 0], R[:, 1, 0] - R[:, 0, 1]], 1))
-        est["acc"].append(pa[ok])
-        est["gyro"].append(pg[ok])
+    tasks = [(sc, min(chunk, trials - k0), seed, k) for k, k0 in enumerate(range(0, trials, chunk))]
+    parts = map_tasks(chunk_of_trials, tasks, scheduler, progress)
+    est = {s: [p[s] for p in parts] for s in ("acc", "gyro")}
+    phi_err = [p["phi"] for p in parts]
+    failed = [k * chunk + i for k, p in enumerate(parts) for i in p["failed"]]
     secs = time.perf_counter() - t0
     ref = simulate_batch(sc, 1, np.random.default_rng(0), noise=False)  # the CRLB at the truth
     out = {"format": "simucal.montecarlo/1", "scenario": "paper", "trials": trials, "failed": len(failed),
            "failed_trials": failed[:1000], "seed": seed, "seconds": secs, "trials_per_s": trials / secs,
+           "scheduler": scheduler or "local",
            "backend": "compiled (one call per batch)" if getattr(am.base, "fit_compiled", None) and
            am.base._fit is not None and not am.effects else "numpy (fit_exact per trial)", "parameters": {}}
     for sensor, model, N, rho, sig in (("acc", am, ref["acc"], 1.0, sc.acc_noise_g),

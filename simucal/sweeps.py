@@ -1,0 +1,33 @@
+"""Run independent tasks in order, on one process or on Dask (dask.distributed).
+
+scheduler: None or "local" runs them here, one after the other; "processes" starts a
+LocalCluster with one single-threaded worker per core; anything else is the address of a
+running scheduler (a real cluster). Results come back in the order of the tasks, so a
+sweep gives the same numbers on any scheduler (each task carries its own seed).
+"""
+from __future__ import annotations
+
+import os
+
+
+def map_tasks(fn, tasks: list, scheduler=None, progress=None) -> list:
+    """[fn(*t) for t in tasks] on the scheduler; progress wraps an iterable (e.g. tqdm)."""
+    if scheduler in (None, "local"):
+        return [fn(*t) for t in (progress(tasks) if progress else tasks)]
+    from dask.distributed import Client, LocalCluster, as_completed
+    if scheduler == "processes":
+        cluster = LocalCluster(n_workers=os.cpu_count() or 2, threads_per_worker=1, processes=True,
+                               dashboard_address=None)
+        client = Client(cluster)
+    else:
+        cluster, client = None, Client(scheduler)
+    try:
+        futures = [client.submit(fn, *t, pure=False) for t in tasks]
+        done = as_completed(futures)
+        for _ in (progress(done) if progress else done):
+            pass
+        return client.gather(futures)
+    finally:
+        client.close()
+        if cluster is not None:
+            cluster.close()
