@@ -434,5 +434,13 @@ def _calibrate(ms, method, acc_model, gyro_model, detect_kw, add, acc_noise_g, g
     for s in ("acc", "gyro"):
         if s in result:
             calibration.inflate_if_failing(result[s])
+    if ms.has_gyro and "gyro" not in result:  # the data hold a gyro, the plan determines none of it
+        n_rate = sum(s.kind == "rate" for s in ms.segments)
+        result["not_calibrated"] = {"gyro": (
+            f"no usable rate runs ({n_rate} in segments.csv, all saturated)" if n_rate else
+            "no rate runs in segments.csv") + ": the gyro is not calibrated; the norm needs rate runs "
+            "about several axes (the outer axis turning at several middle/inner angles)"}
+        result["layout"]["sensors"] = [x for x in result["layout"]["sensors"] if x != "gyro"]
+        result["formula"].pop("gyro", None)
     result["residual_rms"] = {s: result[s]["residual_rms"] for s in ("acc", "gyro") if s in result}
     return result

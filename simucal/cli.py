@@ -156,6 +156,17 @@ def _sensor_lines(result):
                + (f"; cross-check: {u['cross_check']['note']}" if "cross_check" in u else ""))
     for line in result.get("consistency", {}).get("lines", []):
         yield line
+    for s in ("acc", "gyro"):
+        und = (result.get(s) or {}).get("undetermined") or {}
+        if und:
+            alone = [v["std_moves_alone"] for v in und.values() if "std_moves_alone" in v]
+            first = next(iter(und.values()))
+            yield (f"{s}: {', '.join(und)} not determined by these data"
+                   + (f" (std alone {max(alone):.2g})" if alone else "")
+                   + f": held at {first['held_at']:g} +- {first['prior_std']:g} (\"determined\": false in the file); "
+                   f"to determine them, " + "; ".join(sorted({v["to_determine"] for v in und.values()})))
+    for sensor, why in result.get("not_calibrated", {}).items():
+        yield f"{sensor}: NOT CALIBRATED: {why}"
 
 
 @main.command()

@@ -56,6 +56,7 @@ class Fit:
     p_value: float | None
     iterations: int = 0
     directions: np.ndarray | None = None  # (n, 3) unit input directions (exact fit)
+    undetermined: dict = field(default_factory=dict)  # parameters held by a prior: {name: how and why}
 
     def vector(self, names):
         return np.array([self.params[k] for k in names])
@@ -240,8 +241,10 @@ def ellipsoid_start(model, obs: Observations):
     return np.linalg.lstsq(A, target, rcond=None)[0] if np.linalg.matrix_rank(A) > 0 else None
 
 
-def fit_exact(model, obs: Observations, p0=None, max_iter=200, tol=1e-12) -> Fit:
-    """Maximum-likelihood norm-observation fit, exact model (see module doc)."""
+def fit_exact(model, obs: Observations, p0=None, max_iter=200, tol=1e-12, prior=None) -> Fit:
+    """Maximum-likelihood norm-observation fit, exact model (see module doc). prior: {parameter:
+    (value, std)} for parameters the data do not determine, held at value by a pseudo-observation
+    (the stds then say how well they are held; the chi2 excludes the prior)."""
     _check_inputs(model, obs)
     n, m = len(obs.N), len(model.params)
     if p0 is None and getattr(model, "effects", ()):  # baseline + effects: start from the baseline's fit
@@ -259,9 +262,15 @@ def fit_exact(model, obs: Observations, p0=None, max_iter=200, tol=1e-12) -> Fit
             starts.append(ell)
         starts.append(np.zeros(m))
         p0 = min(starts, key=lambda s: _start_cost(model, obs, s))
-    compiled = _fit_compiled(model, obs, p0, max_iter, tol)
+    compiled = None if prior else _fit_compiled(model, obs, p0, max_iter, tol)
     if compiled is not None:
         return compiled
+    held = [model.params.index(k) for k in (prior or {})]
+    held_val = np.array([prior[k][0] for k in (prior or {})])
+    held_w = np.array([1.0 / prior[k][1] ** 2 for k in (prior or {})])
+
+    def prior_cost(p):
+        return float(np.sum(held_w * (p[held] - held_val) ** 2)) if held else 0.0
     p = np.array(p0, float)
     known_sigma = obs.sigma is not None
     sig = np.broadcast_to(obs.sigma if known_sigma else 1.0, (n, 3))
@@ -271,7 +280,7 @@ def fit_exact(model, obs: Observations, p0=None, max_iter=200, tol=1e-12) -> Fit
     def residual(p, u):
         return (obs.N - model.output(rho * u, p, obs.temp_c, obs.t_s, obs.extra)) / sig
 
-    cost = float(np.sum(residual(p, u) ** 2))
+    cost = float(np.sum(residual(p, u) ** 2)) + prior_cost(p)
     lam = 0.0
     for it in range(1, max_iter + 1):
         r, Jq, Jd, E = jacobian_blocks(model, obs, p, u, sig)
@@ -281,6 +290,9 @@ def fit_exact(model, obs: Observations, p0=None, max_iter=200, tol=1e-12) -> Fit
         Ainv = np.linalg.inv(A)
         H = np.einsum("nia,nib->ab", Jq, Jq) - np.einsum("nca,ncd,ndb->ab", B, Ainv, B)
         g = np.einsum("nia,ni->a", Jq, r) - np.einsum("nca,ncd,nd->a", B, Ainv, gd)
+        if held:  # the prior's pseudo-observations (p_k - value) / std
+            H[held, held] += held_w
+            g[held] += held_w * (p[held] - held_val)
         dH = np.sqrt(np.maximum(np.diag(H), 1e-300))  # Jacobi scaling: terms of very different size stay conditioned
         Hs, gs = H / np.outer(dH, dH), g / dH
         if it == 1 and np.any(np.diag(H) <= 1e-300):
@@ -297,7 +309,7 @@ def fit_exact(model, obs: Observations, p0=None, max_iter=200, tol=1e-12) -> Fit
             p_new = p + dp
             v = u + np.einsum("nij,nj->ni", E, dd)
             u_new = v / np.linalg.norm(v, axis=1, keepdims=True)
-            new_cost = float(np.sum(residual(p_new, u_new) ** 2))
+            new_cost = float(np.sum(residual(p_new, u_new) ** 2)) + prior_cost(p_new)
             if new_cost <= cost * (1 + 1e-12) or lam > 1e8:
                 lam = lam / 10 if lam > 1e-6 else 0.0
                 break
@@ -323,7 +335,8 @@ def fit_exact(model, obs: Observations, p0=None, max_iter=200, tol=1e-12) -> Fit
             + ("; all the poses point along the sensor axes (the Ferraris six-position design), from which the "
                "norm cannot see misalignments: add tilted poses" if axis_only else ""))
     dH = np.sqrt(np.diag(H))
-    return _finish(model, obs, p, u, np.linalg.inv(H / np.outer(dH, dH)) / np.outer(dH, dH), H, cost, it)
+    return _finish(model, obs, p, u, np.linalg.inv(H / np.outer(dH, dH)) / np.outer(dH, dH), H,
+                   cost - prior_cost(p), it)
 
 
 def _finish(model, obs, p, u, cov, H, cost, it) -> Fit:

@@ -39,6 +39,7 @@ class HandheldScenario:
     gyro_effects: dict = field(default_factory=dict)  # planted candidate effects: {effect id: value in its unit}
     coplanar_poses: bool = False  # every pose turned about body x only: gravity directions in one plane
     dead_gyro_axis: int = None    # this gyro output does not respond to rate (a dead channel)
+    weak_axis: int = None         # the moves turn about axes perpendicular to this body axis, never about it
 
 
 def _random_rotation(rng):
@@ -71,6 +72,10 @@ def simulate_handheld(sc: HandheldScenario, seed=0):
     clip = set(rng.choice(sc.poses, sc.clip_moves, replace=False).tolist()) if sc.clip_moves else set()
     for i in range(sc.poses):
         v = log_so3(Rs[i].T @ Rs[i + 1])
+        if sc.weak_axis is not None:  # the same angle, about an axis in the plane perpendicular to it
+            norm = np.linalg.norm(v)
+            v[sc.weak_axis] = 0.0
+            v *= norm / max(np.linalg.norm(v), 1e-12)
         theta = np.linalg.norm(v)
         if i in clip:  # a fast whirl: one extra full turn in 0.1 s, far beyond full scale
             v = v * (theta + 2 * np.pi) / max(theta, 1e-9)

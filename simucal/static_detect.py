@@ -26,6 +26,7 @@ class Detection:
     min_samples: int
     init_rest_end: int    # rows [0, init_rest_end) are the initial rest
     factor: float
+    threshold_from: str = "the initial rest"  # or the quietest 3 s of a stream without one
 
     def as_dict(self, t):
         d = asdict(self)
@@ -65,13 +66,20 @@ def detect_static(acc, t, window_s=1.0, factor=6.0, min_s=1.0, init_rest_s=None,
         raise CalibrationError(f"no motion: the accelerometers stay still through the whole stream "
                                f"({t[-1] - t[0]:.1f} s); a calibration needs the unit turned into many poses")
     needed = 3.0 if init_rest_s is None else 0.5  # a stated rest is the user's call
+    rest = slice(0, init_end)
     if t[min(init_end, len(t) - 1)] - t[0] < needed:
-        raise CalibrationError(
-            f"the stream has no initial rest (the first {t[min(init_end, len(t) - 1)] - t[0]:.1f} s are not still); "
-            "the static detector takes its threshold from a rest of at least 3 s at the start "
-            "(Tedaldi: about 50 s); record one, or give --init-rest-s")
+        if init_rest_s is not None:
+            raise CalibrationError(f"--init-rest-s {init_rest_s:g}: shorter than {needed} s of samples")
+        # no initial rest (Tedaldi's protocol starts with one): the quietest 3 s anywhere sets the threshold
+        k = max(int(round(3.0 / dt)), w)
+        if len(mv) < 2 * k:
+            raise CalibrationError(f"the stream is {t[-1] - t[0]:.1f} s long, too short to find a still stretch of "
+                                   "3 s for the static detector's threshold; record an initial rest of 3 s or more")
+        c = np.cumsum(np.r_[0.0, mv])
+        j = int(np.argmin(c[k:] - c[:-k]))
+        rest = slice(j, j + k)
     # a rest quieter than one LSB reads constant: its variance is floored at q^2/12 (noise.quantization_step)
-    q2 = np.maximum(np.var(acc[:init_end], axis=0), quantization_step(acc[:init_end], acc) ** 2 / 12)
+    q2 = np.maximum(np.var(acc[rest], axis=0), quantization_step(acc[rest], acc) ** 2 / 12)
     threshold = factor * float(np.linalg.norm(q2))
     still = mv < threshold
     edges = np.diff(np.r_[0, still.astype(int), 0])
@@ -82,4 +90,6 @@ def detect_static(acc, t, window_s=1.0, factor=6.0, min_s=1.0, init_rest_s=None,
         raise CalibrationError(f"no static interval of at least {min_s:g} s found (threshold {threshold:.3g}, "
                                f"{factor:g} x the initial rest's variance); lower --min-static-s or raise "
                                "--threshold-factor")
-    return Detection(starts[keep].tolist(), ends[keep].tolist(), threshold, w, min_samples, init_end, factor)
+    source = ("the initial rest" if rest.start == 0 else
+              f"the quietest 3 s ({t[rest.start]:.1f}-{t[rest.stop - 1]:.1f} s; the stream has no initial rest)")
+    return Detection(starts[keep].tolist(), ends[keep].tolist(), threshold, w, min_samples, init_end, factor, source)
