@@ -385,6 +385,64 @@ def montecarlo(scenario, plan, trials, seed, effects, output, scheduler):
     click.echo(f"wrote {output}")
 
 
+@main.command()
+@click.option("--score", "score_plan", default=None, metavar="PLAN",
+              help="Score a plan: table1, dodecahedron20, fibonacci24, fibonacci48 or a CSV (outer_deg,middle_deg,inner_deg).")
+@click.option("--model", "model_name", default="acc_baseline", show_default=True, help="Generated model (acc or gyro).")
+@click.option("--add", "add", multiple=True, help="Candidate effect ids to add to the model (repeatable).")
+@click.option("--positions", type=int, default=None, help="Design a plan with this many positions.")
+@click.option("--criterion", type=click.Choice(["D", "A"]), default="D", show_default=True)
+@click.option("--rate-dps", type=float, default=10.0, show_default=True, help="Gyro models: the outer-axis rate of the rate runs.")
+@click.option("--sigma", type=float, default=None, help="Noise of one position's mean (default: section 4's, 1e-5 g or 0.01 deg/h).")
+@click.option("-o", "--output", type=click.Path(dir_okay=False), default=None,
+              help="Design: the plan CSV (a JSON sidecar with its scores beside it); score: the JSON.")
+def plan(score_plan, model_name, add, positions, criterion, rate_dps, sigma, output):
+    """Score a test plan (Fisher information, CRLB, correlations, D and A criteria) or design one."""
+    import json
+    from simucal import plans
+    from simucal.augmented import AugmentedModel
+    from simucal.norm_fit import CalibrationError
+    from simucal.plan_design import design, directions_k, plan_rows, score
+    if (score_plan is None) == (positions is None):
+        _fail("give --score PLAN to score a plan, or --positions N to design one")
+    if output:
+        _check_out(output)
+    try:
+        model = AugmentedModel(model_name, tuple(add))
+        gyro = model.sensor == "gyro"
+        if gyro and not rate_dps > 0:
+            raise ValueError(f"--rate-dps {rate_dps}: a rate run needs a non-zero rate (deg/s)")
+        rho = abs(rate_dps) * 3600.0 if gyro else 1.0
+        sigma = sigma if sigma is not None else (0.01 if gyro else 1e-5)
+        if score_plan is not None:
+            rows = plans.PLANS[score_plan]() if score_plan in plans.PLANS else plans.read_csv(score_plan)
+            u, name = directions_k(rows), score_plan
+        else:
+            u = design(model, positions, rho, sigma, criterion)
+            name = f"{criterion}-optimal, {positions} positions"
+        result = {"plan": name, **score(model, u, rho, sigma)}
+    except (ValueError, KeyError, CalibrationError, FileNotFoundError) as e:
+        _fail(e)
+    unit = model.unit
+    click.echo(f"{name}: {model.name}, noise {sigma:g} {unit} per position"
+               + (f", rate runs at {rate_dps:g} deg/s" if gyro else ""))
+    click.echo(f"  D per position {result['D_per_position']:.6g}, A {result['A']:.4g}, "
+               f"largest |correlation| {result['max_abs_correlation']:.2f}")
+    for k, v in result["crlb"].items():
+        click.echo(f"  {k:16} CRLB {v:.3g} {result['units'][k]}")
+    if positions is not None:
+        rows = plan_rows(u, rate_dps if gyro else None)
+        out = Path(output or "plan.csv")
+        cols = "outer_deg,middle_deg,inner_deg" + (",outer_rate_dps" if gyro else "")
+        out.write_text(cols + "\n" + "".join(",".join(f"{x:.6f}" for x in r) + "\n" for r in rows))
+        result["rows"] = rows
+        out.with_suffix(".json").write_text(json.dumps(result, indent=1) + "\n")
+        click.echo(f"wrote {out} and {out.with_suffix('.json')}")
+    elif output:
+        Path(output).write_text(json.dumps(result, indent=1) + "\n")
+        click.echo(f"wrote {output}")
+
+
 @main.command("field-drift")
 @click.argument("data_dir", type=click.Path(exists=True, file_okay=False))
 @click.option("-o", "--output", type=click.Path(dir_okay=False), default="drift.json", show_default=True)

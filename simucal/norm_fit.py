@@ -173,6 +173,21 @@ def jacobian_blocks(model, obs, p, u, sig):
     return r, Jq, Jd, E
 
 
+def normal_equations(model, obs, p, u, sig):
+    """The Gauss-Newton system with every direction's 2-D tangent step eliminated (Schur
+    complement of its 2x2 block): H (m, m), the information of p with the directions profiled
+    out (the inverse of the CRLB where sig is the true noise), and g; with the blocks the
+    direction steps need: r, H, g, A^-1 (n, 2, 2), B (n, 2, m), gd (n, 2), E (n, 3, 2)."""
+    r, Jq, Jd, E = jacobian_blocks(model, obs, p, u, sig)
+    A = np.einsum("nia,nib->nab", Jd, Jd)
+    B = np.einsum("nia,nib->nab", Jd, Jq)
+    gd = np.einsum("nia,ni->na", Jd, r)
+    Ainv = np.linalg.inv(A)
+    H = np.einsum("nia,nib->ab", Jq, Jq) - np.einsum("nca,ncd,ndb->ab", B, Ainv, B)
+    g = np.einsum("nia,ni->a", Jq, r) - np.einsum("nca,ncd,nd->a", B, Ainv, gd)
+    return r, H, g, Ainv, B, gd, E
+
+
 def dense_jacobian(model, obs, fit):
     """Dense weighted Jacobian of the exact problem at the solution, [dr/dp | dr/d(directions)]
     (3n, m + 2n), and the sigma used (n, 3; ones where the noise is unknown)."""
@@ -283,13 +298,7 @@ def fit_exact(model, obs: Observations, p0=None, max_iter=200, tol=1e-12, prior=
     cost = float(np.sum(residual(p, u) ** 2)) + prior_cost(p)
     lam = 0.0
     for it in range(1, max_iter + 1):
-        r, Jq, Jd, E = jacobian_blocks(model, obs, p, u, sig)
-        A = np.einsum("nia,nib->nab", Jd, Jd)
-        B = np.einsum("nia,nib->nab", Jd, Jq)
-        gd = np.einsum("nia,ni->na", Jd, r)
-        Ainv = np.linalg.inv(A)
-        H = np.einsum("nia,nib->ab", Jq, Jq) - np.einsum("nca,ncd,ndb->ab", B, Ainv, B)
-        g = np.einsum("nia,ni->a", Jq, r) - np.einsum("nca,ncd,nd->a", B, Ainv, gd)
+        r, H, g, Ainv, B, gd, E = normal_equations(model, obs, p, u, sig)
         if held:  # the prior's pseudo-observations (p_k - value) / std
             H[held, held] += held_w
             g[held] += held_w * (p[held] - held_val)

@@ -37,13 +37,18 @@ def angles_for(f_k):
     return [tuple(map(float, x)) for x in zip(gamma, alpha, beta)]
 
 
-def fibonacci(n: int):
-    """n positions with f^k on a spherical Fibonacci set."""
+def fibonacci_directions(n: int) -> np.ndarray:
+    """n unit vectors spread evenly on the sphere (a spherical Fibonacci set)."""
     i = np.arange(n) + 0.5
     z = 1 - 2 * i / n
     phi = np.pi * (1 + 5 ** 0.5) * i
     r = np.sqrt(1 - z ** 2)
-    return angles_for(np.stack([r * np.cos(phi), r * np.sin(phi), z], 1))
+    return np.stack([r * np.cos(phi), r * np.sin(phi), z], 1)
+
+
+def fibonacci(n: int):
+    """n positions with f^k on a spherical Fibonacci set."""
+    return angles_for(fibonacci_directions(n))
 
 
 def dodecahedron():

@@ -1,0 +1,123 @@
+"""Test-plan design: the Fisher information of a plan, its scores, and D/A-optimal plans.
+
+A plan is a list of commanded table positions (gamma, alpha, beta), optionally with an
+outer-axis rate for rate runs. With a nominal table, the input direction of each
+position in k is the vertical C_n^k z (at rest: the specific force; under rate: the
+rate axis). The information of the model's parameters is the exact problem's
+Gauss-Newton matrix at the nominal parameters with every direction profiled out
+(norm_fit.normal_equations, Schur complement of the 2x2 direction blocks), weighted by
+the stated noise: its inverse is the Cramer-Rao bound of the exact fit.
+
+- score: CRLB of every parameter, correlations, the D-criterion per position
+  det(H / n)^(1/m) and the A-criterion trace(H^-1) (both in the parameters' units).
+- design: the D- (or A-) optimal n-position plan over a fine candidate grid on the
+  sphere (a spherical Fibonacci set), by Fedorov exchange from the best of several
+  random starts, each direction then written as table angles (plans.angles_for).
+"""
+from __future__ import annotations
+
+import numpy as np
+
+from . import plans
+from .augmented import AugmentedModel
+from .generated import table
+from .norm_fit import CalibrationError, Observations, normal_equations
+
+
+def directions_k(rows) -> np.ndarray:
+    """Unit input directions in k of commanded (gamma, alpha, beta) in degrees, nominal table."""
+    a = np.radians(np.asarray(rows, float)[:, :3])
+    return table.C_k_n(a[:, 0], a[:, 1], a[:, 2], np.zeros(7))[:, 2, :]
+
+
+def information(model: AugmentedModel, u, rho, sigma, p=None) -> np.ndarray:
+    """H (m, m) of the exact problem at p (default: nominal, all zero) for unit directions u (n, 3)."""
+    n, m = len(u), len(model.params)
+    p = np.zeros(m) if p is None else np.asarray(p, float)
+    rho = np.broadcast_to(np.asarray(rho, float), (n,))
+    N = model.output(rho[:, None] * u, p)
+    obs = Observations(N, rho, np.full((n, 3), float(sigma)))
+    return normal_equations(model, obs, p, u, obs.sigma)[1]
+
+
+def score(model: AugmentedModel, u, rho, sigma) -> dict:
+    """CRLB, correlation, D- and A-criteria of a plan (module doc)."""
+    n, m = len(u), len(model.params)
+    if n < m:
+        raise CalibrationError(f"{n} positions for {m} parameters of {model.name}: the norm gives one equation per "
+                               f"position, so a plan needs at least {m}")
+    H = information(model, u, rho, sigma)
+    w = np.linalg.eigvalsh(H / np.outer(np.sqrt(np.diag(H)), np.sqrt(np.diag(H))))
+    if w[0] < 1e-10 * w[-1]:
+        raise CalibrationError(f"the plan leaves a combination of {model.name}'s parameters unobservable (the "
+                               "information is singular): add positions with other input directions")
+    cov = np.linalg.inv(H)
+    sd = np.sqrt(np.diag(cov))
+    return {"model": model.name, "positions": n, "sigma": sigma,
+            "crlb": dict(zip(model.params, sd.tolist())), "units": dict(zip(model.params, model.param_units)),
+            "correlation": (cov / np.outer(sd, sd)).tolist(),
+            "D_per_position": float(np.exp(np.linalg.slogdet(H / n)[1] / m)),
+            "A": float(np.trace(cov)), "max_abs_correlation": float(np.max(np.abs(cov / np.outer(sd, sd) - np.eye(m))))}
+
+
+def _crit(H, criterion):
+    """log det H (D) or -trace H^-1 (A) of one or many (..., m, m); -inf where singular."""
+    sign, logdet = np.linalg.slogdet(H)
+    ok = sign > 0
+    if criterion == "D":
+        return np.where(ok, logdet, -np.inf)
+    Hs = np.where(ok[..., None, None], H, np.eye(H.shape[-1]))
+    return np.where(ok, -np.trace(np.linalg.inv(Hs), axis1=-2, axis2=-1), -np.inf)
+
+
+def design(model: AugmentedModel, n: int, rho, sigma, criterion="D", grid=600, starts=6, seed=0) -> np.ndarray:
+    """Unit directions (n, 3) of an optimal n-position plan (module doc)."""
+    m = len(model.params)
+    if n < m:
+        raise CalibrationError(f"--positions {n}: {model.name} has {m} parameters, so a plan needs at least {m}")
+    if criterion not in ("D", "A"):
+        raise CalibrationError(f"--criterion {criterion!r}: D or A")
+    cand = plans.fibonacci_directions(grid)
+    # each candidate's own information (rank <= 3): the plan's H is the sum over its positions
+    Hs = np.array([information(model, c[None], rho, sigma) for c in cand])
+    rng = np.random.default_rng(seed)
+    best, best_val = None, -np.inf
+    for _ in range(starts):
+        pick = list(rng.choice(grid, n, replace=False))
+        H = Hs[pick].sum(0)
+        val = _crit(H, criterion)
+        improved = True
+        while improved:  # Fedorov exchange: the best single swap, until none improves
+            improved = False
+            for i in range(n):
+                H_wo = H - Hs[pick[i]]
+                vals = _crit(H_wo + Hs, criterion)
+                vals[pick] = -np.inf
+                j = int(np.argmax(vals))
+                if vals[j] > val + 1e-9 * abs(val) + 1e-12:
+                    pick[i], H, val, improved = j, H_wo + Hs[j], vals[j], True
+        if val > best_val:
+            best, best_val = list(pick), val
+    return _refine(model, cand[best], rho, sigma, criterion)
+
+
+def _refine(model, u, rho, sigma, criterion):
+    """The grid's plan refined continuously: every direction moved on the sphere (two angles
+    each) to maximise the criterion (L-BFGS-B); kept only where it improves."""
+    from scipy.optimize import minimize
+
+    def dirs(x):
+        th, ph = x[0::2], x[1::2]
+        return np.stack([np.sin(th) * np.cos(ph), np.sin(th) * np.sin(ph), np.cos(th)], 1)
+
+    def f(x):
+        return -float(_crit(information(model, dirs(x), rho, sigma), criterion))
+    x0 = np.ravel(np.stack([np.arccos(np.clip(u[:, 2], -1, 1)), np.arctan2(u[:, 1], u[:, 0])], 1))
+    res = minimize(f, x0, method="L-BFGS-B", options={"maxiter": 200})
+    return dirs(res.x) if res.fun < f(x0) else u
+
+
+def plan_rows(u, rate_dps=None) -> list[tuple]:
+    """Table angles (gamma, alpha, beta) deg for directions u in k, with the outer rate for rate runs."""
+    rows = plans.angles_for(u)
+    return [r + ((rate_dps,) if rate_dps else ()) for r in rows]

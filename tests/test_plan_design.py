@@ -1,0 +1,77 @@
+"""simucal plan (issue 16): the Fisher information of a plan, its scores, D/A-optimal designs."""
+import numpy as np
+import pytest
+from click.testing import CliRunner
+
+from simucal import plans
+from simucal.augmented import AugmentedModel
+from simucal.cli import main
+from simucal.norm_fit import Observations, fit_exact
+from simucal.plan_design import design, directions_k, information, plan_rows, score
+
+
+def test_information_is_the_exact_solvers_covariance_by_finite_differences():
+    """inv(H) equals the covariance of the exact fit propagated by finite differences of its solution
+    with respect to every output (noise-free data, sigma per output)."""
+    am = AugmentedModel("acc_baseline")
+    u = directions_k(plans.TABLE1)
+    p = np.array([2e-3, 8e-3, 6e-3, 1e-4, 1e-4, 1e-4, 8e-4, -1e-3, -3.2e-3])
+    N0, sigma = am.output(u, p), 1e-5
+    sig = np.full_like(N0, sigma)
+
+    def solve(N):
+        return fit_exact(am, Observations(N, np.ones(len(N)), sig), p0=p).vector(am.params)
+    base, h = solve(N0), 1e-7
+    S = np.empty((len(p), N0.size))
+    for k in range(N0.size):
+        d = np.zeros(N0.size)
+        d[k] = h
+        S[:, k] = (solve(N0 + d.reshape(N0.shape)) - base) / h
+    cov_fd = S @ S.T * sigma ** 2
+    H = information(am, u, 1.0, sigma, p)
+    assert np.allclose(cov_fd, np.linalg.inv(H), rtol=1e-3, atol=1e-6 * np.abs(cov_fd).max())
+
+
+def test_designs_match_or_beat_table1_per_position():
+    am = AugmentedModel("acc_baseline")
+    t1 = score(am, directions_k(plans.TABLE1), 1.0, 1e-5)
+    for n in (12, 24):
+        d = score(am, design(am, n, 1.0, 1e-5, "D"), 1.0, 1e-5)
+        assert d["D_per_position"] >= t1["D_per_position"] * (1 - 1e-6), (n, d["D_per_position"])
+    a = score(am, design(am, 12, 1.0, 1e-5, "A"), 1.0, 1e-5)
+    assert a["A"] <= t1["A"] * (1 + 1e-9)
+
+
+def test_designed_plan_monte_carlo_std_matches_its_crlb(tmp_path):
+    from simucal.montecarlo import run
+    from simucal.simulate import Scenario
+    am = AugmentedModel("acc_baseline")
+    u = design(am, 12, 1.0, 1e-5)
+    csv = tmp_path / "p.csv"
+    csv.write_text("outer_deg,middle_deg,inner_deg\n" + "".join(",".join(map(str, r)) + "\n" for r in plan_rows(u)))
+    predicted = score(am, u, 1.0, 1e-5)["crlb"]
+    out = run(Scenario(plan=str(csv), unify_positions=False), 3000, 4)
+    for k, crlb in predicted.items():
+        assert out["parameters"][f"acc.{k}"]["std"] == pytest.approx(crlb, rel=0.05), k
+
+
+@pytest.mark.parametrize("args,named", [
+    (["--score", "{bad}"], "plan needs columns"),
+    (["--score", "table1", "--add", "acc.quad"], "unknown effect"),
+    (["--positions", "6"], "at least 9"),
+    (["--score", "table1", "--model", "gyro_baseline", "--rate-dps", "0"], "non-zero rate"),
+    ([], "--score PLAN"),
+])
+def test_bad_input_one_line(tmp_path, args, named):
+    bad = tmp_path / "bad.csv"
+    bad.write_text("outer_deg,middle_deg\n0,0\n")
+    r = CliRunner().invoke(main, ["plan"] + [a.replace("{bad}", str(bad)) for a in args])
+    assert r.exit_code == 2 and named in r.stderr and len(r.stderr.strip().splitlines()) == 1, r.stderr
+
+
+def test_designed_plan_file_runs_a_test(tmp_path):
+    r = CliRunner().invoke(main, ["plan", "--positions", "12", "--model", "gyro_baseline", "-o", str(tmp_path / "g.csv")])
+    assert r.exit_code == 0, r.output
+    lines = (tmp_path / "g.csv").read_text().splitlines()
+    assert lines[0] == "outer_deg,middle_deg,inner_deg,outer_rate_dps" and len(lines) == 13
+    assert (tmp_path / "g.json").is_file()
