@@ -394,11 +394,17 @@ def montecarlo(scenario, plan, trials, seed, effects, output, scheduler):
 @click.option("--criterion", type=click.Choice(["D", "A"]), default="D", show_default=True)
 @click.option("--rate-dps", type=float, default=10.0, show_default=True, help="Gyro models: the outer-axis rate of the rate runs.")
 @click.option("--sigma", type=float, default=None, help="Noise of one position's mean (default: section 4's, 1e-5 g or 0.01 deg/h).")
+@click.option("--separate", "pair", default=None, metavar="ID1,ID2",
+              help="With --score: the positions to add so that these two candidate effects are told apart.")
+@click.option("--sizes", default=None, metavar="Q1,Q2", help="With --separate: the effects' sizes, in their units.")
+@click.option("--power", "target", type=float, default=0.9, show_default=True, help="With --separate: the power to reach.")
 @click.option("-o", "--output", type=click.Path(dir_okay=False), default=None,
               help="Design: the plan CSV (a JSON sidecar with its scores beside it); score: the JSON.")
-def plan(score_plan, model_name, add, positions, criterion, rate_dps, sigma, output):
+def plan(score_plan, model_name, add, positions, criterion, rate_dps, sigma, pair, sizes, target, output):
     """Score a test plan (Fisher information, CRLB, correlations, D and A criteria) or design one."""
     import json
+
+    import numpy as np
     from simucal import plans
     from simucal.augmented import AugmentedModel
     from simucal.norm_fit import CalibrationError
@@ -421,6 +427,19 @@ def plan(score_plan, model_name, add, positions, criterion, rate_dps, sigma, out
             u = design(model, positions, rho, sigma, criterion)
             name = f"{criterion}-optimal, {positions} positions"
         result = {"plan": name, **score(model, u, rho, sigma)}
+        if pair:
+            if score_plan is None or not sizes:
+                raise ValueError("--separate needs --score PLAN (the plan you have) and --sizes Q1,Q2")
+            from simucal.augmented import check_effect
+            from simucal.plan_design import separate
+            ids = [x.strip() for x in pair.split(",")]
+            q = [float(x) for x in sizes.split(",")]
+            if len(ids) != 2 or len(q) != 2:
+                raise ValueError("--separate ID1,ID2 and --sizes Q1,Q2: two of each")
+            for e in ids:
+                check_effect(e, model.sensor)
+            rates = (np.array([0.5, 1.0, 2.0]) * rho) if gyro else ()
+            result["separation"] = separate(model.base, ids[0], ids[1], u, rho, sigma, q, rates, target)
     except (ValueError, KeyError, CalibrationError, FileNotFoundError) as e:
         _fail(e)
     unit = model.unit
@@ -430,6 +449,25 @@ def plan(score_plan, model_name, add, positions, criterion, rate_dps, sigma, out
                f"largest |correlation| {result['max_abs_correlation']:.2f}")
     for k, v in result["crlb"].items():
         click.echo(f"  {k:16} CRLB {v:.3g} {result['units'][k]}")
+    sep = result.get("separation")
+    if sep:
+        from simucal.candidates import SEPARATE
+        a, b = sep["effects"]
+        click.echo(f"separate {a} from {b}: on this plan the expected likelihood ratios are "
+                   f"{sep['start']['noncentrality'][0]:.3g} and {sep['start']['noncentrality'][1]:.3g} "
+                   f"(power {sep['start']['power'][0]:.2f}, {sep['start']['power'][1]:.2f} at alpha {sep['alpha']})")
+        if sep["added"]:
+            click.echo(f"  {len(sep['added'])} added positions give {sep['noncentrality'][0]:.3g} and "
+                       f"{sep['noncentrality'][1]:.3g} (power {sep['power'][0]:.2f}, {sep['power'][1]:.2f}): "
+                       + ("the target is reached" if sep["reached"] else f"short of {sep['target_power']}"))
+            for x in plan_rows(np.array([d["direction_k"] for d in sep["added"]]))[:48]:
+                click.echo(f"    outer {x[0]:8.3f}  middle {x[1]:9.4f}  inner {x[2]:9.4f} deg")
+        elif sep["reached"]:
+            click.echo("  the plan already tells them apart at the target power")
+        if not sep["reached"]:
+            hints = sorted({SEPARATE[e.split(".")[1]] for e in (a, b)})
+            click.echo("  no positions on the sphere separate them" + (" further" if sep["added"] else "")
+                       + ": they differ in what the plan cannot vary by direction; " + "; ".join(hints))
     if positions is not None:
         rows = plan_rows(u, rate_dps if gyro else None)
         out = Path(output or "plan.csv")

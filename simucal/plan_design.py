@@ -13,6 +13,10 @@ the stated noise: its inverse is the Cramer-Rao bound of the exact fit.
 - design: the D- (or A-) optimal n-position plan over a fine candidate grid on the
   sphere (a spherical Fibonacci set), by Fedorov exchange from the best of several
   random starts, each direction then written as table angles (plans.angles_for).
+- separate: the positions to add to a plan so that two candidate effects are told apart:
+  the expected likelihood-ratio statistic (noncentrality) of fitting the wrong one to data
+  that carry the other at its stated size, both ways, raised greedily over the candidate
+  grid (and rates, for gyros) until the 1-dof test reaches the target power.
 """
 from __future__ import annotations
 
@@ -121,3 +125,67 @@ def plan_rows(u, rate_dps=None) -> list[tuple]:
     """Table angles (gamma, alpha, beta) deg for directions u in k, with the outer rate for rate runs."""
     rows = plans.angles_for(u)
     return [r + ((rate_dps,) if rate_dps else ()) for r in rows]
+
+
+def _separation_matrix(model, u, rho, sigma):
+    """Dense weighted Jacobian of the exact problem at the nominal parameters: [dr/dp | dr/d(directions)]."""
+    from .norm_fit import jacobian_blocks
+    n, m = len(u), len(model.params)
+    rho = np.broadcast_to(np.asarray(rho, float), (n,))
+    p = np.zeros(m)
+    obs = Observations(model.output(rho[:, None] * u, p), rho, np.full((n, 3), float(sigma)))
+    _, Jq, Jd, _ = jacobian_blocks(model, obs, p, u, obs.sigma)
+    J = np.zeros((3 * n, m + 2 * n))
+    J[:, :m] = Jq.reshape(3 * n, m)
+    for i in range(n):
+        J[3 * i:3 * i + 3, m + 2 * i:m + 2 * i + 2] = Jd[i]
+    return J
+
+
+def noncentrality(model, u, rho, sigma, sizes) -> tuple[float, float]:
+    """Expected likelihood-ratio statistics for telling the model's last two effects apart: the
+    misfit left when the data carry effect 1 (size sizes[0]) and effect 2 is fitted instead
+    (everything else free), and the reverse. model: base + (effect 1, effect 2)."""
+    J = _separation_matrix(model, u, rho, sigma)
+    m = len(model.params)
+    out = []
+    for k, other, q in ((m - 2, m - 1, sizes[0]), (m - 1, m - 2, sizes[1])):
+        A = np.delete(J, k, axis=1)  # fit: every parameter and direction except the true effect's
+        s = J[:, k] * q
+        resid = s - A @ np.linalg.lstsq(A, s, rcond=None)[0]
+        out.append(float(resid @ resid))
+    return out[0], out[1]
+
+
+def power(lam, alpha=0.01):
+    """P(the 1-dof likelihood-ratio test rejects) at noncentrality lam."""
+    from scipy.stats import chi2, ncx2
+    return float(ncx2.sf(chi2.isf(alpha, 1), 1, lam)) if lam > 0 else alpha
+
+
+def separate(base, e1, e2, u, rho, sigma, sizes, rates_dph=(), target=0.9, alpha=0.01, max_extra=48, grid=150):
+    """Positions to add to a plan (u, rho) so that effects e1 and e2 are told apart with the target
+    power both ways; a dict with the current and final noncentralities, the power and the added
+    directions (and their rho), or the reason no positions can."""
+    model = AugmentedModel(base, (e1, e2))
+    cand = plans.fibonacci_directions(grid)
+    rho_c = np.array(rates_dph if model.sensor == "gyro" and len(rates_dph) else [1.0 if model.sensor == "acc" else
+                                                                                   float(np.max(rho))])
+    cands = [(c, r) for r in rho_c for c in cand]
+    U, R = np.asarray(u, float), np.broadcast_to(np.asarray(rho, float), (len(u),)).copy()
+    lam = noncentrality(model, U, R, sigma, sizes)
+    start = {"noncentrality": list(lam), "power": [power(x, alpha) for x in lam]}
+    added = []
+    while min(power(x, alpha) for x in lam) < target and len(added) < max_extra:
+        vals = [min(noncentrality(model, np.vstack([U, c]), np.r_[R, r], sigma, sizes)) for c, r in cands]
+        j = int(np.argmax(vals))
+        if vals[j] <= min(lam) * (1 + 1e-6) + 1e-12:
+            break
+        c, r = cands[j]
+        U, R = np.vstack([U, c]), np.r_[R, r]
+        added.append((c, float(r)))
+        lam = noncentrality(model, U, R, sigma, sizes)
+    ok = min(power(x, alpha) for x in lam) >= target
+    return {"effects": [e1, e2], "sizes": list(sizes), "alpha": alpha, "target_power": target, "start": start,
+            "noncentrality": list(lam), "power": [power(x, alpha) for x in lam], "reached": ok,
+            "added": [{"direction_k": c.tolist(), "rho": r} for c, r in added]}

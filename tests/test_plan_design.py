@@ -61,6 +61,8 @@ def test_designed_plan_monte_carlo_std_matches_its_crlb(tmp_path):
     (["--positions", "6"], "at least 9"),
     (["--score", "table1", "--model", "gyro_baseline", "--rate-dps", "0"], "non-zero rate"),
     ([], "--score PLAN"),
+    (["--positions", "12", "--separate", "acc.quadratic.z,acc.quadratic.y", "--sizes", "1,1"], "--separate needs --score"),
+    (["--score", "table1", "--separate", "acc.quadratic.z,gyro.quadratic.y", "--sizes", "1,1"], "not the acc"),
 ])
 def test_bad_input_one_line(tmp_path, args, named):
     bad = tmp_path / "bad.csv"
@@ -75,3 +77,25 @@ def test_designed_plan_file_runs_a_test(tmp_path):
     lines = (tmp_path / "g.csv").read_text().splitlines()
     assert lines[0] == "outer_deg,middle_deg,inner_deg,outer_rate_dps" and len(lines) == 13
     assert (tmp_path / "g.json").is_file()
+
+
+def test_separation_design_decides_an_inseparable_pair(tmp_path):
+    """On Table 1, acc.quadratic.z and acc.scale_asymmetry.z cannot be told apart (noncentrality 0);
+    the designed extra positions separate them, and a simulated test on the extended plan finds the
+    planted quadratic first, with its twin rejected."""
+    from simucal.diagnose import diagnose
+    from simucal.plan_design import separate
+    from simucal.simulate import Scenario, write
+    u = directions_k(plans.TABLE1)
+    sep = separate("acc_baseline", "acc.quadratic.z", "acc.scale_asymmetry.z", u, 1.0, 1e-5, (3e-4, 3e-4),
+                   target=0.99)
+    assert max(sep["start"]["noncentrality"]) < 1e-12 and sep["reached"] and sep["added"]
+    rows = list(plans.TABLE1) + plan_rows(np.array([a["direction_k"] for a in sep["added"]]))
+    csv = tmp_path / "p.csv"
+    csv.write_text("outer_deg,middle_deg,inner_deg\n" + "".join(",".join(map(str, r[:3])) + "\n" for r in rows))
+    write(tmp_path / "s", Scenario(plan=str(csv), unify_positions=False, acc_effects={"acc.quadratic.z": 3e-4}), 2)
+    cands = {c["id"]: c for c in diagnose(tmp_path / "s")["acc"]["candidates"]}
+    top = max((c for c in cands.values() if c.get("separable", True) and "statistic" in c), key=lambda c: c["statistic"])
+    assert top["id"] == "acc.quadratic.z" and top.get("significant")
+    twin = cands["acc.scale_asymmetry.z"]
+    assert twin.get("separable", True) and twin["statistic"] < top["statistic"]
