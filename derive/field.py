@@ -70,6 +70,9 @@ def north_row():
     return C_b_n()[0, :]
 
 
-def north_residual_earth_rate(dpsi):
+dpsi = sp.Symbol("dpsi", real=True)  # heading error of the external north reference, rad
+
+
+def north_residual_earth_rate(dpsi=dpsi):
     """Earth rate left in the computed north channel when the heading is off by dpsi."""
     return w_e * sp.cos(lat) * (sp.cos(dpsi) - 1)

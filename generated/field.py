@@ -107,3 +107,21 @@ def C_b_n(psi, theta, gamma):
     out0[..., 2, 1] = -_c5*_c8 + _c9
     out0[..., 2, 2] = _c4*_c5 + _c7
     return out0
+
+
+def earth_rate_n(w_e, L):
+    """The Earth rate in ruan2019's n frame (north, up, east), in w_e's unit; L in rad."""
+    shape = numpy.broadcast_shapes(numpy.shape(w_e), numpy.shape(L), )
+    out0 = numpy.empty(shape + (3,))
+    out0[..., 0] = w_e*numpy.cos(L)
+    out0[..., 1] = w_e*numpy.sin(L)
+    out0[..., 2] = 0
+    return out0
+
+
+def north_residual_earth_rate(w_e, L, dpsi):
+    """Earth rate left in the computed north channel when the heading is off by dpsi (rad)."""
+    shape = numpy.broadcast_shapes(numpy.shape(w_e), numpy.shape(L), numpy.shape(dpsi), )
+    out0 = numpy.empty(shape + (1,))
+    out0[..., 0] = w_e*(numpy.cos(dpsi) - 1)*numpy.cos(L)
+    return out0

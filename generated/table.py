@@ -107,6 +107,16 @@ def mounting(angles):
 TABLE_FIT_PARAMS = ('tilt_x', 'tilt_y', 'nonperp_om', 'nonperp_mi', 'd_gamma', 'd_alpha', 'd_beta', 'theta_x4', 'theta_y4', 'theta_z4')
 
 
+def earth_rate_n(w_e, L):
+    """The Earth rate in the table's n frame (x east, y north, z up), in w_e's unit; L in rad."""
+    shape = numpy.broadcast_shapes(numpy.shape(w_e), numpy.shape(L), )
+    out0 = numpy.empty(shape + (3,))
+    out0[..., 0] = 0
+    out0[..., 1] = w_e*numpy.cos(L)
+    out0[..., 2] = w_e*numpy.sin(L)
+    return out0
+
+
 def up_in_b(gamma, alpha, beta, x):
     """Vertical in b at commanded angles (rad) and its Jacobian wrt x = table errors + theta_4."""
     tilt_x = x[..., 0]

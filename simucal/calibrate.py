@@ -274,7 +274,7 @@ def multiposition(ms, acc_obs, acc_segs, gyro_obs, gyro_segs):
     """
     lat = np.radians(ms.meta.get("latitude_deg", 0.0))
     w_e = units.earth_rate_dph(ms.meta)
-    w_ie_n = np.array([0.0, w_e * np.cos(lat), w_e * np.sin(lat)])
+    w_ie_n = table.earth_rate_n(w_e, lat)
     out = {}
     if acc_obs is not None:
         up, _ = _commanded_up_k(acc_segs)

@@ -133,7 +133,7 @@ def position_estimate(f_raw, w_raw, t, heading_rad, meta, block_s=1.0, stages=2)
     w_b = w_raw[:k * per].reshape(k, per, 3).mean(1)
     dt = per * dt_raw
     g = float(np.linalg.norm(f_b.mean(0)))
-    w_ie_n = np.array([w_e * np.cos(lat), w_e * np.sin(lat), 0.0])
+    w_ie_n = gen.earth_rate_n(w_e, lat)
     g_n = np.array([0.0, -g, 0.0])
     arw, vrw = _noise(w_raw, dt_raw), _noise(f_raw, dt_raw)
     P0 = [0.01 ** 2, 0.01 ** 2, 0.01 ** 2, np.radians(10) ** 2, 0.01 ** 2,
@@ -173,8 +173,9 @@ def solve_drifts(north_rows, eps_N, std):
 def heading_term_dph(meta, accuracy_deg):
     """Std of the Earth rate left in the north channel by a heading error uniform in
     +-accuracy: w_e cos L (1 - cos dpsi) (derive.field.north_residual_earth_rate)."""
-    worst = units.earth_rate_dph(meta) * np.cos(np.radians(meta["latitude_deg"])) * (1 - np.cos(np.radians(accuracy_deg)))
-    return worst / np.sqrt(3)
+    worst = gen.north_residual_earth_rate(units.earth_rate_dph(meta), np.radians(meta["latitude_deg"]),
+                                          np.radians(accuracy_deg))[0]
+    return abs(float(worst)) / np.sqrt(3)
 
 
 def field_drift(folder, block_s=1.0, stages=2, heading_accuracy_deg=5.0) -> dict:

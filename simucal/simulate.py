@@ -112,7 +112,7 @@ def simulate(sc: Scenario, seed: int = 0):
     C_d_k = table.mounting(np.array(sc.lambda4_rad))
     lat = np.radians(sc.latitude_deg)
     w_e = units.DEFAULT_EARTH_RATE_DPH
-    w_ie_n = np.array([0.0, w_e * np.cos(lat), w_e * np.sin(lat)])
+    w_ie_n = table.earth_rate_n(w_e, lat)
 
     plan = plans.PLANS[sc.plan]() if sc.plan in plans.PLANS else plans.read_csv(sc.plan)
     static = list(plan) + (plans.TABLE2 if sc.unify_positions else [])

@@ -36,7 +36,7 @@ def simulate_field(sc: FieldScenario, seed: int = 0):
     rng = np.random.default_rng(seed)
     lat = np.radians(sc.latitude_deg)
     w_e = np.radians(units.DEFAULT_EARTH_RATE_DPH / 3600)
-    w_ie_n = np.array([w_e * np.cos(lat), w_e * np.sin(lat), 0.0])
+    w_ie_n = gen.earth_rate_n(w_e, lat)
     drift = (np.array(sc.drift_dph) if sc.drift_dph is not None
              else rng.uniform(1, 10, 3) * rng.choice([-1, 1], 3))
     acc_bias = rng.uniform(-1, 1, 3) * sc.acc_bias_mps2
