@@ -205,7 +205,7 @@ def table_module() -> str:
 def effects_module() -> str:
     """Regressor phi(u, temp_c, t_s) and dphi/du of every candidate effect."""
     from .models import INPUTS
-    from .models.effects import CANDIDATES
+    from .models.effects import CANDIDATES, SEPARATE, SEPARATE_MOVES
     parts = [HEADER.format(what="derive.models.effects", **_versions()),
              '"""Candidate effects (derive/models/effects.py): each adds p * phi(u) to one axis."""\nimport numpy\n']
     table_rows = []
@@ -222,6 +222,9 @@ def effects_module() -> str:
                           f"{term.meaning!r}, phi_{fname}),")
     parts.append("# id: (sensor, axis index, parameter name, unit, meaning, function)\nEFFECTS = {\n"
                  + "\n".join(table_rows) + "\n}\n")
+    parts.append("# family: what a turntable plan needs to tell it from the baseline (derive/models/effects.py)\n"
+                 f"SEPARATE = {SEPARATE!r}\n\n# gyro family: what a hand-placed session's moves need\n"
+                 f"SEPARATE_MOVES = {SEPARATE_MOVES!r}\n")
     return "\n\n".join(parts)
 
 
@@ -277,7 +280,9 @@ def unify_module(acc: ErrorModel, gyro: ErrorModel) -> str:
         f"(2, 3) at alpha = {unify.GYRO_ALPHAS} deg under outer-axis rate w_T (deg/h).\n"
         '"""\nimport numpy\n',
         f"ACC_UNKNOWNS = {tuple(map(str, unify.ACC_UNIFY_UNKNOWNS))!r}\n"
-        f"GYRO_UNKNOWNS = {tuple(map(str, unify.GYRO_UNIFY_UNKNOWNS))!r}\n",
+        f"GYRO_UNKNOWNS = {tuple(map(str, unify.GYRO_UNIFY_UNKNOWNS))!r}\n"
+        f"TABLE2 = {tuple(tuple(float(x) for x in r) for r in unify.TABLE2)!r}  # (alpha, gamma) deg, inner at 0\n"
+        f"GYRO_ALPHAS = {tuple(float(a) for a in unify.GYRO_ALPHAS)!r}  # middle angles (deg) of eq. 27's rate runs\n",
         numpy_function("acc_table2", [("Na", [s for v in Na for s in v]), ("p", acc.params)],
                        [((5,), sp.Matrix([acc_sol[s] for s in unify.ACC_UNIFY_UNKNOWNS]))],
                        "theta_x4, theta_y4, theta_z4, tilt_x, tilt_y (rad) from Table 2 outputs (eq. 25-26)."),

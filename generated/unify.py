@@ -14,6 +14,8 @@ import numpy
 
 ACC_UNKNOWNS = ('theta_x4', 'theta_y4', 'theta_z4', 'tilt_x', 'tilt_y')
 GYRO_UNKNOWNS = ('lambda_x4', 'lambda_y4', 'lambda_z4')
+TABLE2 = ((0.0, 0.0), (90.0, 0.0), (0.0, 180.0), (90.0, 180.0))  # (alpha, gamma) deg, inner at 0
+GYRO_ALPHAS = (0.0, 90.0)  # middle angles (deg) of eq. 27's rate runs
 
 
 def acc_table2(Na, p):

@@ -22,23 +22,12 @@ import numpy as np
 from .distributions import chi2_sf, f_sf
 
 from .augmented import AugmentedModel, effect_ids
-from .generated.effects import EFFECTS
+from .generated.effects import EFFECTS, SEPARATE
 from .lack_of_fit import describe_shape, fit_with_noise, lack_of_fit
 from .models import aux_args
 from .norm_fit import CalibrationError, Fit, Observations, dense_jacobian, fit_exact
 
 ALPHA = 0.01
-SEPARATE = {  # what a plan needs for each family to be told apart from the baseline
-    "quadratic": "static positions at several levels and both signs of the input on that axis "
-                 "(e.g. --plan fibonacci48); for gyros rate runs at several rates (e.g. 5, 10, 20 deg/s)",
-    "scale_asymmetry": "inputs of both signs on that axis (for gyros, rate runs of both signs)",
-    "cross_coupling": "static positions where both axes carry input at once (e.g. --plan fibonacci48)",
-    "bias_drift_time": "positions revisited at the start and the end of the test",
-    "bias_temperature": "a temperature sweep across the positions (a temp_c column)",
-    "size_effect": "rate runs with the accelerometers recorded during them, at several attitudes and rates",
-    "g_sensitivity": "rate runs of both signs at each attitude: the specific force keeps its direction while the "
-                     "rate flips, which separates G f from the scale and misalignment",
-}
 
 
 def rank_candidates(model: AugmentedModel, obs: Observations, fit: Fit, base_fails: bool) -> list[dict]:

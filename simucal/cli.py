@@ -451,7 +451,7 @@ def plan(score_plan, model_name, add, positions, criterion, rate_dps, sigma, pai
         click.echo(f"  {k:16} CRLB {v:.3g} {result['units'][k]}")
     sep = result.get("separation")
     if sep:
-        from simucal.candidates import SEPARATE
+        from simucal.generated.effects import SEPARATE
         a, b = sep["effects"]
         click.echo(f"separate {a} from {b}: on this plan the expected likelihood ratios are "
                    f"{sep['start']['noncentrality'][0]:.3g} and {sep['start']['noncentrality'][1]:.3g} "

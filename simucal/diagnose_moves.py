@@ -31,18 +31,11 @@ from .distributions import chi2_sf
 
 from .augmented import check_effect, effect_ids
 from .candidates import gate_candidates, verdict
-from .generated.effects import EFFECTS
+from .generated.effects import EFFECTS, SEPARATE_MOVES
 from .handheld import (GyroFit, chi2_test, fit_gyro, fit_gyro_moves, gyro_noise_dps, move_covariances,
                        move_residuals, prepare_moves, regressor_inputs, with_terms)
 from .norm_fit import initial_directions
 
-SEPARATE_MOVES = {
-    "quadratic": "moves at several rates, fast and slow, about that axis",
-    "scale_asymmetry": "moves turning both ways about that axis",
-    "bias_drift_time": "moves spread over a longer session",
-    "bias_temperature": "a temp_c column, with the temperature changing over the session",
-    "g_sensitivity": "moves made with that axis at several attitudes to gravity",
-}
 
 
 def _param_names(n_terms_names):

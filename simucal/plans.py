@@ -11,6 +11,8 @@ from pathlib import Path
 
 import numpy as np
 
+from .generated import unify
+
 # (outer gamma, middle alpha, inner beta), dong2018 Table 1. The paper prints
 # 148.282 and 31.717 for positions 3 and 4; the icosahedron needs
 # atan(m/n) = 31.7175 deg exactly (see the audit), used here.
@@ -20,7 +22,7 @@ TABLE1 = [
     (150, 90 - ICO, 0), (180, 90 + ICO, 0), (210, -(90 - ICO), 0), (240, 180 + 90 - ICO, 0),
     (270, 180 - ICO, 90), (300, 180 + ICO, 90), (330, ICO, 90), (0, -ICO, 90),
 ]
-TABLE2 = [(0, 0, 0), (0, 90, 0), (180, 0, 0), (180, 90, 0)]  # (gamma, alpha, beta)
+TABLE2 = [(g, a, 0.0) for a, g in unify.TABLE2]  # (gamma, alpha, beta): dong2018 Table 2, from derive/unify.py
 
 
 def angles_for(f_k):

@@ -230,12 +230,12 @@ def unify(un: Unifier, acc_segs, gyro_segs, find):
 
 def unify_paper(acc_obs, acc_segs, gyro_obs, gyro_segs, p_acc, p_gyro, meta, find):
     """dong2018 eq. 25-27 (derived, generated/unify.py) at the Table 2 positions (--method linear)."""
-    ia = [find(acc_segs, middle_deg=a, outer_deg=g, inner_deg=0.0) for a, g in ((0, 0), (90, 0), (0, 180), (90, 180))]
-    ig = [find(gyro_segs, middle_deg=a, inner_deg=0.0) for a in (0.0, 90.0)]
+    ia = [find(acc_segs, middle_deg=a, outer_deg=g, inner_deg=0.0) for a, g in eq.TABLE2]
+    ig = [find(gyro_segs, middle_deg=a, inner_deg=0.0) for a in eq.GYRO_ALPHAS]
     if None in ia or None in ig:
-        raise CalibrationError("the paper's frame unification needs the Table 2 static positions "
-                               "(alpha, gamma) = (0,0), (90,0), (0,180), (90,180) with beta = 0, and rate runs "
-                               "at alpha = 0 and 90 deg, beta = 0; use --method exact, which needs none")
+        raise CalibrationError(f"the paper's frame unification needs the Table 2 static positions "
+                               f"(alpha, gamma) = {eq.TABLE2} deg with beta = 0, and rate runs at alpha = "
+                               f"{eq.GYRO_ALPHAS} deg, beta = 0; use --method exact, which needs none")
     x = eq.acc_table2(acc_obs.N[ia].reshape(12), p_acc)
     w_T = gyro_segs[ig[0]].outer_rate_dps * 3600.0
     lam = eq.gyro_mounting(gyro_obs.N[ig].reshape(6), p_gyro, w_T, units.earth_rate_dph(meta),

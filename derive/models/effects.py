@@ -92,3 +92,24 @@ def _catalog():
 
 
 CANDIDATES = _catalog()
+
+SEPARATE = {  # what a turntable plan needs for each family to be told apart from the baseline
+    "quadratic": "static positions at several levels and both signs of the input on that axis "
+                 "(e.g. --plan fibonacci48); for gyros rate runs at several rates (e.g. 5, 10, 20 deg/s)",
+    "scale_asymmetry": "inputs of both signs on that axis (for gyros, rate runs of both signs)",
+    "cross_coupling": "static positions where both axes carry input at once (e.g. --plan fibonacci48)",
+    "bias_drift_time": "positions revisited at the start and the end of the test",
+    "bias_temperature": "a temperature sweep across the positions (a temp_c column)",
+    "size_effect": "rate runs with the accelerometers recorded during them, at several attitudes and rates",
+    "g_sensitivity": "rate runs of both signs at each attitude: the specific force keeps its direction while the "
+                     "rate flips, which separates G f from the scale and misalignment",
+}
+
+SEPARATE_MOVES = {  # what a hand-placed session's moves need, per gyro family
+    "quadratic": "moves at several rates, fast and slow, about that axis",
+    "scale_asymmetry": "moves turning both ways about that axis",
+    "bias_drift_time": "moves spread over a longer session",
+    "bias_temperature": "a temp_c column, with the temperature changing over the session",
+    "g_sensitivity": "moves made with that axis at several attitudes to gravity",
+}
+
