@@ -30,7 +30,9 @@ from .norm_fit import CalibrationError, Fit, Observations, dense_jacobian, fit_e
 ALPHA = 0.01
 
 
-def rank_candidates(model: AugmentedModel, obs: Observations, fit: Fit, base_fails: bool) -> list[dict]:
+def rank_candidates(model: AugmentedModel, obs: Observations, fit: Fit, base_fails: bool, advise=False) -> list[dict]:
+    """advise: for candidates this plan cannot see, also the positions to add (plan_design.reveal;
+    the directions taken as the table's, i.e. a nominal mounting: turntable sets only)."""
     J, sig = dense_jacobian(model, obs, fit)
     Q, _ = np.linalg.qr(J)
     u = fit.directions * obs.rho[:, None]
@@ -52,7 +54,15 @@ def rank_candidates(model: AugmentedModel, obs: Observations, fit: Fit, base_fai
             why = ("no input for it in these data" if norm_col == 0 else
                    f"collinear with the baseline model ({100 * np.linalg.norm(perp) / norm_col:.2g} % of its "
                    "signature is separable)")
-            entry.update(separable=False, note=f"{why}; to see it: {SEPARATE[family]}")
+            note = f"{why}; to see it: {SEPARATE[family]}"
+            if advise and norm_col > 0:
+                from .plan_design import plan_rows, reveal
+                adds, share = reveal(model, eid, fit.directions, obs.rho, float(np.median(sig)))
+                if share > 1e-3:
+                    note += ("; for this plan, adding positions at (outer, middle, inner) = "
+                             + ", ".join(f"({g:.1f}, {a:.1f}, {b:.1f})" for g, a, b in plan_rows(adds))
+                             + f" deg (nominal mounting) makes {100 * share:.2g} % of its signature separable")
+            entry.update(separable=False, note=note)
             out.append(entry)
             continue
         cols[eid] = perp / np.linalg.norm(perp)
@@ -83,7 +93,26 @@ def rank_candidates(model: AugmentedModel, obs: Observations, fit: Fit, base_fai
         twins = [o for o in cols if o != e["id"] and abs(cols[o] @ cols[e["id"]]) > 0.99] if e["separable"] else []
         if twins:
             e["note"] = "cannot be told apart from " + ", ".join(twins) + " by this plan"
+            if advise and e["p_value"] is not None and e["p_value"] < ALPHA:
+                e["note"] += "; " + _separation_advice(model, e, twins[0], fit, obs, sig)
     return gate_candidates(out, base_fails)
+
+
+def _separation_advice(model, e, twin, fit, obs, sig):
+    """The plan that would tell e from its twin at its estimated size (plan_design.separate, 12
+    added positions at most), as one sentence."""
+    from .plan_design import plan_rows, separate
+    size = max(abs(e["estimate"]), 3 * e["std"])
+    rates = np.unique(np.round(obs.rho, 6)) if model.sensor == "gyro" else ()
+    sep = separate(model.base, e["id"], twin, fit.directions, obs.rho, float(np.median(sig)), (size, size), rates,
+                   max_extra=12, grid=100)
+    if not sep["added"]:
+        return f"no added positions separate them: {SEPARATE[twin.split('.')[1]]}"
+    rows = plan_rows(np.array([a["direction_k"] for a in sep["added"]]))
+    return (f"{len(rows)} positions added to this plan, (outer, middle, inner) = "
+            + ", ".join(f"({g:.1f}, {a:.1f}, {b:.1f})" for g, a, b in rows[:6]) + (" ..." if len(rows) > 6 else "")
+            + f" deg (nominal mounting), tell them apart with power {min(sep['power']):.2f} at the estimated size "
+            f"{size:.2g} (simucal plan --separate {e['id']},{twin} shows all)")
 
 
 def gate_candidates(out, base_fails, alpha=ALPHA):

@@ -58,7 +58,8 @@ def diagnose_sensor(ms, sensor, base_model, add=(), stated=None, truth=None, bef
         return None
     model = AugmentedModel(base_model, tuple(add))
     fit, obs, base = test_model(model, obs)
-    cands = rank_candidates(model, obs, fit, base["p_value"] is not None and base["p_value"] < ALPHA)
+    cands = rank_candidates(model, obs, fit, base["p_value"] is not None and base["p_value"] < ALPHA,
+                            advise=ms.segments is not None)
     table_info = None
     if sensor == "acc" and ms.segments is not None:  # the table, from the static positions' directions
         idx = [i for i, s in enumerate(segs) if s.kind == "static" and s.middle_deg is not None

@@ -142,19 +142,41 @@ def _separation_matrix(model, u, rho, sigma):
     return J
 
 
+def _misfit(J, k, q):
+    """|| the part of column k (times q) that the other columns cannot fit ||^2."""
+    A = np.delete(J, k, axis=1)
+    s = J[:, k] * q
+    resid = s - A @ np.linalg.lstsq(A, s, rcond=None)[0]
+    return float(resid @ resid)
+
+
+def reveal(model: AugmentedModel, eid, u, rho, sigma, n_add=3, grid=150):
+    """For an effect the plan (u, rho) cannot tell from the model: the n_add positions (directions
+    in k, greedy over the grid) that make the most of its signature separable, and the share of its
+    signature then separable. The model's own rho is kept for the added positions."""
+    aug = AugmentedModel(model.base, model.effects + (eid,))
+    k = len(aug.params) - 1
+    U, R = np.asarray(u, float), np.broadcast_to(np.asarray(rho, float), (len(u),)).copy()
+    r0 = float(np.median(R))
+    added = []
+    for _ in range(n_add):
+        cand = plans.fibonacci_directions(grid)
+        vals = [_misfit(_separation_matrix(aug, np.vstack([U, c]), np.r_[R, r0], sigma), k, 1.0) for c in cand]
+        c = cand[int(np.argmax(vals))]
+        U, R = np.vstack([U, c]), np.r_[R, r0]
+        added.append(c)
+    J = _separation_matrix(aug, U, R, sigma)
+    share = _misfit(J, k, 1.0) / max(float(J[:, k] @ J[:, k]), 1e-300)
+    return np.array(added), float(share)
+
+
 def noncentrality(model, u, rho, sigma, sizes) -> tuple[float, float]:
     """Expected likelihood-ratio statistics for telling the model's last two effects apart: the
     misfit left when the data carry effect 1 (size sizes[0]) and effect 2 is fitted instead
     (everything else free), and the reverse. model: base + (effect 1, effect 2)."""
     J = _separation_matrix(model, u, rho, sigma)
     m = len(model.params)
-    out = []
-    for k, other, q in ((m - 2, m - 1, sizes[0]), (m - 1, m - 2, sizes[1])):
-        A = np.delete(J, k, axis=1)  # fit: every parameter and direction except the true effect's
-        s = J[:, k] * q
-        resid = s - A @ np.linalg.lstsq(A, s, rcond=None)[0]
-        out.append(float(resid @ resid))
-    return out[0], out[1]
+    return _misfit(J, m - 2, sizes[0]), _misfit(J, m - 1, sizes[1])  # the wrong effect and the rest fitted
 
 
 def power(lam, alpha=0.01):
