@@ -55,9 +55,9 @@ def rank_candidates(model: AugmentedModel, obs: Observations, fit: Fit, base_fai
                    f"collinear with the baseline model ({100 * np.linalg.norm(perp) / norm_col:.2g} % of its "
                    "signature is separable)")
             note = f"{why}; to see it: {SEPARATE[family]}"
-            if advise and norm_col > 0:
+            if advise and base_fails and norm_col > 0:  # advice only where a misfit needs explaining
                 from .plan_design import plan_rows, reveal
-                adds, share = reveal(model, eid, fit.directions, obs.rho, float(np.median(sig)))
+                adds, share = reveal(model, eid, fit.directions, obs.rho, float(np.median(sig)), grid=60)
                 if share > 1e-3:
                     note += ("; for this plan, adding positions at (outer, middle, inner) = "
                              + ", ".join(f"({g:.1f}, {a:.1f}, {b:.1f})" for g, a, b in plan_rows(adds))
@@ -89,23 +89,25 @@ def rank_candidates(model: AugmentedModel, obs: Observations, fit: Fit, base_fai
             entry["note"] = (f"nearly collinear with the baseline: {100 * visible:.2g} % of its signature is separable, "
                              f"so it is weakly seen; to see it: {SEPARATE[family]}")
         out.append(entry)
-    for e in out:
+    advised = False
+    for e in sorted(out, key=lambda e: -e.get("statistic", -1.0)):
         twins = [o for o in cols if o != e["id"] and abs(cols[o] @ cols[e["id"]]) > 0.99] if e["separable"] else []
         if twins:
             e["note"] = "cannot be told apart from " + ", ".join(twins) + " by this plan"
-            if advise and e["p_value"] is not None and e["p_value"] < ALPHA:
+            if advise and base_fails and not advised and e["p_value"] is not None and e["p_value"] < ALPHA:
                 e["note"] += "; " + _separation_advice(model, e, twins[0], fit, obs, sig)
+                advised = True  # the strongest pair only: the one the verdict rests on
     return gate_candidates(out, base_fails)
 
 
 def _separation_advice(model, e, twin, fit, obs, sig):
-    """The plan that would tell e from its twin at its estimated size (plan_design.separate, 12
-    added positions at most), as one sentence."""
+    """The plan that would tell e from its twin at its estimated size (plan_design.separate, 8
+    added positions at most, over 60 directions), as one sentence."""
     from .plan_design import plan_rows, separate
     size = max(abs(e["estimate"]), 3 * e["std"])
     rates = np.unique(np.round(obs.rho, 6)) if model.sensor == "gyro" else ()
     sep = separate(model.base, e["id"], twin, fit.directions, obs.rho, float(np.median(sig)), (size, size), rates,
-                   max_extra=12, grid=100)
+                   max_extra=8, grid=60)
     if not sep["added"]:
         return f"no added positions separate them: {SEPARATE[twin.split('.')[1]]}"
     rows = plan_rows(np.array([a["direction_k"] for a in sep["added"]]))

@@ -127,19 +127,18 @@ def plan_rows(u, rate_dps=None) -> list[tuple]:
     return [r + ((rate_dps,) if rate_dps else ()) for r in rows]
 
 
-def _separation_matrix(model, u, rho, sigma):
-    """Dense weighted Jacobian of the exact problem at the nominal parameters: [dr/dp | dr/d(directions)]."""
+def _reduced_jacobian(model, u, rho, sigma):
+    """The exact problem's weighted parameter Jacobian at the nominal parameters with each position's
+    direction profiled out: every 3-row block projected off its own two direction columns (those
+    columns touch no other block, so this is the Schur complement row by row). (3n, m)."""
     from .norm_fit import jacobian_blocks
     n, m = len(u), len(model.params)
     rho = np.broadcast_to(np.asarray(rho, float), (n,))
     p = np.zeros(m)
     obs = Observations(model.output(rho[:, None] * u, p), rho, np.full((n, 3), float(sigma)))
     _, Jq, Jd, _ = jacobian_blocks(model, obs, p, u, obs.sigma)
-    J = np.zeros((3 * n, m + 2 * n))
-    J[:, :m] = Jq.reshape(3 * n, m)
-    for i in range(n):
-        J[3 * i:3 * i + 3, m + 2 * i:m + 2 * i + 2] = Jd[i]
-    return J
+    P = np.einsum("nia,nab,njb->nij", Jd, np.linalg.inv(np.einsum("nia,nib->nab", Jd, Jd)), Jd)
+    return ((np.eye(3) - P) @ Jq).reshape(3 * n, m)
 
 
 def _misfit(J, k, q):
@@ -156,16 +155,16 @@ def reveal(model: AugmentedModel, eid, u, rho, sigma, n_add=3, grid=150):
     signature then separable. The model's own rho is kept for the added positions."""
     aug = AugmentedModel(model.base, model.effects + (eid,))
     k = len(aug.params) - 1
-    U, R = np.asarray(u, float), np.broadcast_to(np.asarray(rho, float), (len(u),)).copy()
-    r0 = float(np.median(R))
+    R = np.broadcast_to(np.asarray(rho, float), (len(u),))
+    J = _reduced_jacobian(aug, np.asarray(u, float), R, sigma)
+    cand = plans.fibonacci_directions(grid)
+    blocks = _reduced_jacobian(aug, cand, float(np.median(R)), sigma).reshape(grid, 3, -1)
     added = []
     for _ in range(n_add):
-        cand = plans.fibonacci_directions(grid)
-        vals = [_misfit(_separation_matrix(aug, np.vstack([U, c]), np.r_[R, r0], sigma), k, 1.0) for c in cand]
-        c = cand[int(np.argmax(vals))]
-        U, R = np.vstack([U, c]), np.r_[R, r0]
-        added.append(c)
-    J = _separation_matrix(aug, U, R, sigma)
+        vals = [_misfit(np.vstack([J, c]), k, 1.0) for c in blocks]
+        j = int(np.argmax(vals))
+        J = np.vstack([J, blocks[j]])
+        added.append(cand[j])
     share = _misfit(J, k, 1.0) / max(float(J[:, k] @ J[:, k]), 1e-300)
     return np.array(added), float(share)
 
@@ -174,7 +173,7 @@ def noncentrality(model, u, rho, sigma, sizes) -> tuple[float, float]:
     """Expected likelihood-ratio statistics for telling the model's last two effects apart: the
     misfit left when the data carry effect 1 (size sizes[0]) and effect 2 is fitted instead
     (everything else free), and the reverse. model: base + (effect 1, effect 2)."""
-    J = _separation_matrix(model, u, rho, sigma)
+    J = _reduced_jacobian(model, u, rho, sigma)
     m = len(model.params)
     return _misfit(J, m - 2, sizes[0]), _misfit(J, m - 1, sizes[1])  # the wrong effect and the rest fitted
 
@@ -190,23 +189,29 @@ def separate(base, e1, e2, u, rho, sigma, sizes, rates_dph=(), target=0.9, alpha
     power both ways; a dict with the current and final noncentralities, the power and the added
     directions (and their rho), or the reason no positions can."""
     model = AugmentedModel(base, (e1, e2))
+    m = len(model.params)
     cand = plans.fibonacci_directions(grid)
     rho_c = np.array(rates_dph if model.sensor == "gyro" and len(rates_dph) else [1.0 if model.sensor == "acc" else
                                                                                    float(np.max(rho))])
     cands = [(c, r) for r in rho_c for c in cand]
-    U, R = np.asarray(u, float), np.broadcast_to(np.asarray(rho, float), (len(u),)).copy()
-    lam = noncentrality(model, U, R, sigma, sizes)
+    blocks = np.concatenate([_reduced_jacobian(model, cand, r, sigma).reshape(grid, 3, m) for r in rho_c])
+    R = np.broadcast_to(np.asarray(rho, float), (len(u),))
+    J = _reduced_jacobian(model, np.asarray(u, float), R, sigma)
+
+    def lams(J):
+        return _misfit(J, m - 2, sizes[0]), _misfit(J, m - 1, sizes[1])
+    lam = lams(J)
     start = {"noncentrality": list(lam), "power": [power(x, alpha) for x in lam]}
     added = []
     while min(power(x, alpha) for x in lam) < target and len(added) < max_extra:
-        vals = [min(noncentrality(model, np.vstack([U, c]), np.r_[R, r], sigma, sizes)) for c, r in cands]
+        vals = [min(lams(np.vstack([J, blk]))) for blk in blocks]
         j = int(np.argmax(vals))
         if vals[j] <= min(lam) * (1 + 1e-6) + 1e-12:
             break
+        J = np.vstack([J, blocks[j]])
         c, r = cands[j]
-        U, R = np.vstack([U, c]), np.r_[R, r]
         added.append((c, float(r)))
-        lam = noncentrality(model, U, R, sigma, sizes)
+        lam = lams(J)
     ok = min(power(x, alpha) for x in lam) >= target
     return {"effects": [e1, e2], "sizes": list(sizes), "alpha": alpha, "target_power": target, "start": start,
             "noncentrality": list(lam), "power": [power(x, alpha) for x in lam], "reached": ok,
