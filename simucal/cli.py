@@ -393,6 +393,9 @@ def montecarlo(scenario, plan, trials, seed, effects, output, scheduler):
 @click.option("--positions", type=int, default=None, help="Design a plan with this many positions.")
 @click.option("--criterion", type=click.Choice(["D", "A"]), default="D", show_default=True)
 @click.option("--rate-dps", type=float, default=10.0, show_default=True, help="Gyro models: the outer-axis rate of the rate runs.")
+@click.option("--rates", default=None, metavar="R1,R2,...", help="Gyro design: rates (deg/s) to choose from, e.g. 5,10,20.")
+@click.option("--table", "kind", type=click.Choice(["three-axis", "hand"]), default="three-axis", show_default=True,
+              help="Design for a three-axis table (angles) or hand-placed poses (gravity directions in the unit).")
 @click.option("--sigma", type=float, default=None, help="Noise of one position's mean (default: section 4's, 1e-5 g or 0.01 deg/h).")
 @click.option("--separate", "pair", default=None, metavar="ID1,ID2",
               help="With --score: the positions to add so that these two candidate effects are told apart.")
@@ -400,7 +403,7 @@ def montecarlo(scenario, plan, trials, seed, effects, output, scheduler):
 @click.option("--power", "target", type=float, default=0.9, show_default=True, help="With --separate: the power to reach.")
 @click.option("-o", "--output", type=click.Path(dir_okay=False), default=None,
               help="Design: the plan CSV (a JSON sidecar with its scores beside it); score: the JSON.")
-def plan(score_plan, model_name, add, positions, criterion, rate_dps, sigma, pair, sizes, target, output):
+def plan(score_plan, model_name, add, positions, criterion, rate_dps, rates, kind, sigma, pair, sizes, target, output):
     """Score a test plan (Fisher information, CRLB, correlations, D and A criteria) or design one."""
     import json
 
@@ -418,13 +421,16 @@ def plan(score_plan, model_name, add, positions, criterion, rate_dps, sigma, pai
         gyro = model.sensor == "gyro"
         if gyro and not rate_dps > 0:
             raise ValueError(f"--rate-dps {rate_dps}: a rate run needs a non-zero rate (deg/s)")
+        rate_list = [float(x) for x in rates.split(",")] if rates else [rate_dps]
+        if gyro and not all(abs(x) > 0 for x in rate_list):
+            raise ValueError(f"--rates {rates}: a rate run needs a non-zero rate (deg/s)")
         rho = abs(rate_dps) * 3600.0 if gyro else 1.0
         sigma = sigma if sigma is not None else (0.01 if gyro else 1e-5)
         if score_plan is not None:
             rows = plans.PLANS[score_plan]() if score_plan in plans.PLANS else plans.read_csv(score_plan)
             u, name = directions_k(rows), score_plan
         else:
-            u = design(model, positions, rho, sigma, criterion)
+            u, rho = design(model, positions, np.abs(rate_list) * 3600.0 if gyro else 1.0, sigma, criterion)
             name = f"{criterion}-optimal, {positions} positions"
         result = {"plan": name, **score(model, u, rho, sigma)}
         if pair:
@@ -444,7 +450,8 @@ def plan(score_plan, model_name, add, positions, criterion, rate_dps, sigma, pai
         _fail(e)
     unit = model.unit
     click.echo(f"{name}: {model.name}, noise {sigma:g} {unit} per position"
-               + (f", rate runs at {rate_dps:g} deg/s" if gyro else ""))
+               + (f", rate runs at {', '.join(f'{x:g}' for x in sorted(set(np.round(np.atleast_1d(rho) / 3600, 6))))} "
+                  "deg/s" if gyro else ""))
     click.echo(f"  D per position {result['D_per_position']:.6g}, A {result['A']:.4g}, "
                f"largest |correlation| {result['max_abs_correlation']:.2f}")
     for k, v in result["crlb"].items():
@@ -469,9 +476,13 @@ def plan(score_plan, model_name, add, positions, criterion, rate_dps, sigma, pai
             click.echo("  no positions on the sphere separate them" + (" further" if sep["added"] else "")
                        + ": they differ in what the plan cannot vary by direction; " + "; ".join(hints))
     if positions is not None:
-        rows = plan_rows(u, rate_dps if gyro else None)
         out = Path(output or "plan.csv")
-        cols = "outer_deg,middle_deg,inner_deg" + (",outer_rate_dps" if gyro else "")
+        if kind == "hand":  # a pose is where gravity (or the turn axis) points in the unit's own axes
+            rows = [(i + 1, *map(float, d)) for i, d in enumerate(u)]
+            cols = "pose,f_x,f_y,f_z"
+        else:
+            rows = plan_rows(u, np.asarray(rho) / 3600.0 if gyro else None)
+            cols = "outer_deg,middle_deg,inner_deg" + (",outer_rate_dps" if gyro else "")
         out.write_text(cols + "\n" + "".join(",".join(f"{x:.6f}" for x in r) + "\n" for r in rows))
         result["rows"] = rows
         out.with_suffix(".json").write_text(json.dumps(result, indent=1) + "\n")

@@ -74,16 +74,21 @@ def _crit(H, criterion):
     return np.where(ok, -np.trace(np.linalg.inv(Hs), axis1=-2, axis2=-1), -np.inf)
 
 
-def design(model: AugmentedModel, n: int, rho, sigma, criterion="D", grid=600, starts=6, seed=0) -> np.ndarray:
-    """Unit directions (n, 3) of an optimal n-position plan (module doc)."""
+def design(model: AugmentedModel, n: int, rho, sigma, criterion="D", grid=600, starts=6, seed=0):
+    """Unit directions (n, 3) and input norms (n,) of an optimal n-position plan (module doc);
+    rho: one input norm, or several (rate runs at several rates) to choose from."""
     m = len(model.params)
     if n < m:
         raise CalibrationError(f"--positions {n}: {model.name} has {m} parameters, so a plan needs at least {m}")
     if criterion not in ("D", "A"):
         raise CalibrationError(f"--criterion {criterion!r}: D or A")
-    cand = plans.fibonacci_directions(grid)
+    dirs = plans.fibonacci_directions(grid)
+    rhos = np.atleast_1d(np.asarray(rho, float))
+    cand = np.concatenate([dirs] * len(rhos))
+    cand_rho = np.repeat(rhos, grid)
+    grid = len(cand)
     # each candidate's own information (rank <= 3): the plan's H is the sum over its positions
-    Hs = np.array([information(model, c[None], rho, sigma) for c in cand])
+    Hs = np.array([information(model, c[None], r, sigma) for c, r in zip(cand, cand_rho)])
     rng = np.random.default_rng(seed)
     best, best_val = None, -np.inf
     for _ in range(starts):
@@ -102,7 +107,7 @@ def design(model: AugmentedModel, n: int, rho, sigma, criterion="D", grid=600, s
                     pick[i], H, val, improved = j, H_wo + Hs[j], vals[j], True
         if val > best_val:
             best, best_val = list(pick), val
-    return _refine(model, cand[best], rho, sigma, criterion)
+    return _refine(model, cand[best], cand_rho[best], sigma, criterion), cand_rho[best]
 
 
 def _refine(model, u, rho, sigma, criterion):
@@ -122,9 +127,12 @@ def _refine(model, u, rho, sigma, criterion):
 
 
 def plan_rows(u, rate_dps=None) -> list[tuple]:
-    """Table angles (gamma, alpha, beta) deg for directions u in k, with the outer rate for rate runs."""
+    """Table angles (gamma, alpha, beta) deg for directions u in k, with the outer rate (one, or one
+    per row) for rate runs."""
     rows = plans.angles_for(u)
-    return [r + ((rate_dps,) if rate_dps else ()) for r in rows]
+    if rate_dps is None:
+        return rows
+    return [r + (float(q),) for r, q in zip(rows, np.broadcast_to(rate_dps, (len(rows),)))]
 
 
 def _reduced_jacobian(model, u, rho, sigma):

@@ -36,9 +36,9 @@ def test_designs_match_or_beat_table1_per_position():
     am = AugmentedModel("acc_baseline")
     t1 = score(am, directions_k(plans.TABLE1), 1.0, 1e-5)
     for n in (12, 24):
-        d = score(am, design(am, n, 1.0, 1e-5, "D"), 1.0, 1e-5)
+        d = score(am, design(am, n, 1.0, 1e-5, "D")[0], 1.0, 1e-5)
         assert d["D_per_position"] >= t1["D_per_position"] * (1 - 1e-6), (n, d["D_per_position"])
-    a = score(am, design(am, 12, 1.0, 1e-5, "A"), 1.0, 1e-5)
+    a = score(am, design(am, 12, 1.0, 1e-5, "A")[0], 1.0, 1e-5)
     assert a["A"] <= t1["A"] * (1 + 1e-9)
 
 
@@ -46,7 +46,7 @@ def test_designed_plan_monte_carlo_std_matches_its_crlb(tmp_path):
     from simucal.montecarlo import run
     from simucal.simulate import Scenario
     am = AugmentedModel("acc_baseline")
-    u = design(am, 12, 1.0, 1e-5)
+    u = design(am, 12, 1.0, 1e-5)[0]
     csv = tmp_path / "p.csv"
     csv.write_text("outer_deg,middle_deg,inner_deg\n" + "".join(",".join(map(str, r)) + "\n" for r in plan_rows(u)))
     predicted = score(am, u, 1.0, 1e-5)["crlb"]
@@ -72,11 +72,20 @@ def test_bad_input_one_line(tmp_path, args, named):
 
 
 def test_designed_plan_file_runs_a_test(tmp_path):
-    r = CliRunner().invoke(main, ["plan", "--positions", "12", "--model", "gyro_baseline", "-o", str(tmp_path / "g.csv")])
+    """A gyro plan choosing among three rates runs as a simulated test (for a quadratic the D-optimum
+    takes the fastest: its signature varies with the direction too); a hand-placed design is
+    written as gravity directions."""
+    from simucal.simulate import Scenario, write
+    r = CliRunner().invoke(main, ["plan", "--positions", "12", "--model", "gyro_baseline", "--add", "gyro.quadratic.x",
+                                  "--rates", "5,10,20", "-o", str(tmp_path / "g.csv")])
     assert r.exit_code == 0, r.output
     lines = (tmp_path / "g.csv").read_text().splitlines()
     assert lines[0] == "outer_deg,middle_deg,inner_deg,outer_rate_dps" and len(lines) == 13
-    assert (tmp_path / "g.json").is_file()
+    assert {float(line.split(",")[3]) for line in lines[1:]} <= {5.0, 10.0, 20.0} and (tmp_path / "g.json").is_file()
+    write(tmp_path / "s", Scenario(plan=str(tmp_path / "g.csv"), unify_positions=False), 1)
+    r = CliRunner().invoke(main, ["plan", "--positions", "12", "--table", "hand", "-o", str(tmp_path / "h.csv")])
+    lines = (tmp_path / "h.csv").read_text().splitlines()
+    assert r.exit_code == 0 and lines[0] == "pose,f_x,f_y,f_z" and len(lines) == 13
 
 
 def test_separation_design_decides_an_inseparable_pair(tmp_path):
