@@ -108,3 +108,28 @@ def test_separation_design_decides_an_inseparable_pair(tmp_path):
     assert top["id"] == "acc.quadratic.z" and top.get("significant")
     twin = cands["acc.scale_asymmetry.z"]
     assert twin.get("separable", True) and twin["statistic"] < top["statistic"]
+
+
+def test_separation_power_is_the_rate_observed(tmp_path):
+    """The predicted power of telling acc.quadratic.z from acc.scale_asymmetry.z on a designed plan is
+    the rate at which simulated tests reject the twin (chi2 of the twin's fit less the true one's
+    beyond the 1-dof critical value)."""
+    from simucal import io
+    from simucal.calibrate import segment_observations
+    from simucal.distributions import chi2_isf
+    from simucal.plan_design import separate
+    from simucal.simulate import Scenario, write
+    u = directions_k(plans.TABLE1)
+    sep = separate("acc_baseline", "acc.quadratic.z", "acc.scale_asymmetry.z", u, 1.0, 1e-5, (1e-4, 1e-4), target=0.6)
+    predicted = sep["power"][0]
+    rows = list(plans.TABLE1) + plan_rows(np.array([a["direction_k"] for a in sep["added"]]))
+    csv = tmp_path / "p.csv"
+    csv.write_text("outer_deg,middle_deg,inner_deg\n" + "".join(",".join(map(str, r[:3])) + "\n" for r in rows))
+    truth, twin = AugmentedModel("acc_baseline", ("acc.quadratic.z",)), AugmentedModel("acc_baseline", ("acc.scale_asymmetry.z",))
+    crit, rejected, n = chi2_isf(0.01, 1), 0, 40
+    for seed in range(n):
+        write(tmp_path / str(seed), Scenario(plan=str(csv), unify_positions=False, acc_effects={"acc.quadratic.z": 1e-4}),
+              seed)
+        obs, _ = segment_observations(io.read(tmp_path / str(seed)), "acc")
+        rejected += (fit_exact(twin, obs).chi2 - fit_exact(truth, obs).chi2) > crit
+    assert abs(rejected / n - predicted) < 3 * np.sqrt(predicted * (1 - predicted) / n) + 0.05, (rejected / n, predicted)
