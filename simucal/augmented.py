@@ -56,22 +56,25 @@ class AugmentedModel:
     def output(self, u, p, temp_c=0.0, t_s=0.0, extra=None):
         p = np.asarray(p, float)
         N = self.base.output(u, p[..., :self._m], temp_c, t_s, extra)
-        for q, (axis, phi, _) in zip(p[..., self._m:].T, self._terms(u, temp_c, t_s, extra)):
-            N[..., axis] += q * phi
+        batch = p.ndim > 1 and np.ndim(u) > 2  # one p per set: its effects broadcast over the set's rows
+        for q, (axis, phi, _) in zip(np.moveaxis(p[..., self._m:], -1, 0), self._terms(u, temp_c, t_s, extra)):
+            N[..., axis] += (q[..., None] if batch else q) * phi
         return N
 
     def jacobians(self, u, p, temp_c=0.0, t_s=0.0, extra=None):
+        """As GeneratedModel.jacobians, rows (n, 3) with one p, or a batch u (S, n, 3), p (S, m)."""
         p = np.asarray(p, float)
-        N, Ju, Jp = self.base.jacobians(u, p[:self._m], temp_c, t_s, extra)
+        N, Ju, Jp = self.base.jacobians(u, p[..., :self._m], temp_c, t_s, extra)
         cols = []
-        for q, (axis, phi, dphi) in zip(p[self._m:], self._terms(u, temp_c, t_s, extra)):
-            N[:, axis] += q * phi
-            Ju[:, axis, :] += q * dphi
-            col = np.zeros((len(u), 3))
-            col[:, axis] = phi
+        for q, (axis, phi, dphi) in zip(np.moveaxis(p[..., self._m:], -1, 0), self._terms(u, temp_c, t_s, extra)):
+            q = np.asarray(q)[..., None] if p.ndim > 1 else q
+            N[..., axis] += q * phi
+            Ju[..., axis, :] += q[..., None] * dphi if np.ndim(q) else q * dphi
+            col = np.zeros(np.shape(u))
+            col[..., axis] = phi
             cols.append(col)
         if cols:
-            Jp = np.concatenate([Jp, np.stack(cols, axis=2)], axis=2)
+            Jp = np.concatenate([Jp, np.stack(cols, axis=-1)], axis=-1)
         return N, Ju, Jp
 
     def matrix_and_bias(self, p, temp_c=0.0, t_s=0.0, extra=None):

@@ -130,12 +130,19 @@ class GeneratedModel:
         return aux_args(self.sensor, temp_c, t_s, extra)
 
     def output(self, u, p, temp_c=0.0, t_s=0.0, extra=None):
+        p = np.asarray(p, float)
+        if p.ndim > 1 and np.ndim(u) > 2:  # a batch: one p per set
+            p = p[..., None, :]
         return self.module.output(u, p, *self._aux(temp_c, t_s, extra))
 
     def jacobians(self, u, p, temp_c=0.0, t_s=0.0, extra=None):
-        """N, dN/du (n,3,3), dN/dp (n,3,m) for rows u (n,3) and one p (m,)."""
+        """N, dN/du (n,3,3), dN/dp (n,3,m) for rows u (n,3) and one p (m,); or for a batch of sets,
+        u (S, n, 3) and p (S, m) (the numpy module, vectorised over the sets)."""
         aux = self._aux(temp_c, t_s, extra)
-        if self._c is None:
+        u, p = np.asarray(u, float), np.asarray(p, float)
+        if p.ndim > 1:  # one p per set: broadcast it over the set's rows
+            p = p[..., None, :]
+        if self._c is None or u.ndim > 2 or p.ndim > 1:
             N = self.module.output(u, p, *aux)
             Ju, Jp = self.module.output_jacobians(u, p, *aux)
             return N, Ju, Jp

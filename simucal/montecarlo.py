@@ -8,8 +8,8 @@ exact for every model term of degree below 12 in the input (a trigonometric
 polynomial in gamma of that degree averages exactly), where simulate() samples 720.
 
 Each batch of trials is fitted by one call of the compiled whole fit per sensor
-(derive/templates/exact_fit.c), or without a compiler by fit_exact per trial (slower,
-same numbers). The start is the paper's linear fit (eq. 8/12), vectorised. C_b^d
+(derive/templates/exact_fit.c), or without a compiler (or with effects added) by the same
+Levenberg-Marquardt in numpy vectorised over the trials (norm_fit.fit_batch). The start is the paper's linear fit (eq. 8/12), vectorised. C_b^d
 follows from the rate runs' means (unification.py, Wahba by batched SVD).
 
 The Cramer-Rao bound is the covariance of the exact fit of a noise-free trial with the
@@ -25,7 +25,7 @@ import numpy as np
 from . import plans, units
 from .augmented import AugmentedModel
 from .generated import table
-from .norm_fit import CalibrationError, Observations, fit_exact
+from .norm_fit import fit_batch
 from .simulate import Scenario
 
 K_REV = 12  # outer-angle samples per revolution (module doc)
@@ -106,31 +106,31 @@ def simulate_batch(sc: Scenario, trials: int, rng, noise=True):
             "truth": {"acc": p_a, "gyro": p_g, "C_b_d": C_d_k.T @ C_b_k}, "models": (am, gm)}
 
 
-def fit_batch(model, N, rho, sigma):
-    """Exact fits of a batch (T, n, 3): (p (T, m), cov (T, m, m), u (T, n, 3), ok (T,)), by one
-    compiled call, else fit_exact per trial. The start: the paper's linear fit, vectorised."""
+def fit_trials(model, N, rho, sigma):
+    """Exact fits of a batch (T, n, 3): (p (T, m), cov (T, m, m), u (T, n, 3), ok (T,)): one compiled
+    call where there is one (no effects added), else norm_fit.fit_batch (numpy, vectorised over
+    the trials). The start: the paper's linear fit of the base model, vectorised, effects at 0."""
     T, n, _ = N.shape
     m = len(model.params)
-    base = model.base if not model.effects else None
+    base = model.base
     rho_b = np.broadcast_to(rho, (T, n))
     sig = np.full((T, n, 3), float(sigma))
-    out = None
-    if base is not None and getattr(base, "fit_compiled", None) is not None:
-        Psi = base.norm_regressors(N)
-        K = np.linalg.solve(np.einsum("tna,tnb->tab", Psi, Psi), np.einsum("tna,tn->ta", Psi, rho_b ** 2)[..., None])[..., 0]
-        with np.errstate(invalid="ignore", divide="ignore"):  # a hopeless start fails its trial, counted
-            p0 = base.params_of_K(K)
-        out = base.fit_compiled(N, rho_b, sig, np.zeros((T, n, len(base.aux_rows(1)[0]))), p0)
+    Psi = base.norm_regressors(N)
+    K = np.linalg.solve(np.einsum("tna,tnb->tab", Psi, Psi), np.einsum("tna,tn->ta", Psi, rho_b ** 2)[..., None])[..., 0]
+    with np.errstate(invalid="ignore", divide="ignore"):  # a hopeless start fails its trial, counted
+        p0 = np.c_[base.params_of_K(K), np.zeros((T, m - len(base.params)))]
+    out = base.fit_compiled(N, rho_b, sig, np.zeros((T, n, len(base.aux_rows(1)[0]))), p0) if not model.effects else None
     if out is not None:
         p, cov, u, _, _, status = out
         return p, cov, u, status == 0
-    p, cov, u, ok = np.full((T, m), np.nan), np.full((T, m, m), np.nan), np.full((T, n, 3), np.nan), np.zeros(T, bool)
-    for t in range(T):
-        try:
-            f = fit_exact(model, Observations(N[t], rho_b[t], sig[t]))
-        except CalibrationError:
-            continue
-        p[t], cov[t], u[t], ok[t] = f.vector(model.params), f.cov, f.directions, True
+    bad = ~np.all(np.isfinite(p0), axis=1)
+    p0[bad] = 0.0
+    with np.errstate(invalid="ignore", divide="ignore", over="ignore"):
+        p, u, _, H, _, status = fit_batch(model, N, rho_b, sig, p0)
+    ok = status == 0
+    cov = np.full((T, m, m), np.nan)
+    if ok.any():
+        cov[ok] = np.linalg.inv(H[ok])
     return p, cov, u, ok
 
 
@@ -153,8 +153,8 @@ def chunk_of_trials(sc: Scenario, size: int, seed: int, k: int) -> dict:
     rng = np.random.default_rng([seed, k])
     am, gm = AugmentedModel(sc.acc_model, tuple(sc.acc_effects)), AugmentedModel(sc.gyro_model, tuple(sc.gyro_effects))
     sim = simulate_batch(sc, size, rng)
-    pa, _, _, ok_a = fit_batch(am, sim["acc"], 1.0, sc.acc_noise_g)
-    pg, _, ug, ok_g = fit_batch(gm, sim["gyro"], sim["rho_gyro"], sc.gyro_noise_dph)
+    pa, _, _, ok_a = fit_trials(am, sim["acc"], 1.0, sc.acc_noise_g)
+    pg, _, ug, ok_g = fit_trials(gm, sim["gyro"], sim["rho_gyro"], sc.gyro_noise_dph)
     ok = ok_a & ok_g
     C = _unify_batch(am, pa[ok], sim["acc_rate"][ok], ug[ok], sim["rate_sign"])
     R = np.einsum("tji,jk->tik", C, sim["truth"]["C_b_d"])  # C^T C_true: the error rotation
@@ -178,11 +178,11 @@ def run(sc: Scenario, trials: int, seed: int = 0, chunk: int = 5000, progress=No
     out = {"format": "simucal.montecarlo/1", "scenario": "paper", "trials": trials, "failed": len(failed),
            "failed_trials": failed[:1000], "seed": seed, "seconds": secs, "trials_per_s": trials / secs,
            "scheduler": scheduler or "local",
-           "backend": "compiled (one call per batch)" if getattr(am.base, "fit_compiled", None) and
-           am.base._fit is not None and not am.effects else "numpy (fit_exact per trial)", "parameters": {}}
+           "backend": "compiled (one call per batch)" if am.base._fit is not None and not am.effects else
+           "numpy (norm_fit.fit_batch, vectorised over the trials)", "parameters": {}}
     for sensor, model, N, rho, sig in (("acc", am, ref["acc"], 1.0, sc.acc_noise_g),
                                        ("gyro", gm, ref["gyro"], ref["rho_gyro"], sc.gyro_noise_dph)):
-        _, cov0, _, ok0 = fit_batch(model, N, rho, sig)
+        _, cov0, _, ok0 = fit_trials(model, N, rho, sig)
         crlb = np.sqrt(np.diag(cov0[0])) if ok0[0] else np.full(len(model.params), np.nan)
         e = np.concatenate(est[sensor])
         for j, name in enumerate(model.params):

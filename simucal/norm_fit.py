@@ -280,61 +280,19 @@ def fit_exact(model, obs: Observations, p0=None, max_iter=200, tol=1e-12, prior=
     compiled = None if prior else _fit_compiled(model, obs, p0, max_iter, tol)
     if compiled is not None:
         return compiled
-    held = [model.params.index(k) for k in (prior or {})]
-    held_val = np.array([prior[k][0] for k in (prior or {})])
-    held_w = np.array([1.0 / prior[k][1] ** 2 for k in (prior or {})])
-
-    def prior_cost(p):
-        return float(np.sum(held_w * (p[held] - held_val) ** 2)) if held else 0.0
-    p = np.array(p0, float)
-    known_sigma = obs.sigma is not None
-    sig = np.broadcast_to(obs.sigma if known_sigma else 1.0, (n, 3))
-    u = initial_directions(model, obs, p)
-    rho = obs.rho[:, None]
-
-    def residual(p, u):
-        return (obs.N - model.output(rho * u, p, obs.temp_c, obs.t_s, obs.extra)) / sig
-
-    cost = float(np.sum(residual(p, u) ** 2)) + prior_cost(p)
-    lam = 0.0
-    for it in range(1, max_iter + 1):
-        r, H, g, Ainv, B, gd, E = normal_equations(model, obs, p, u, sig)
-        if held:  # the prior's pseudo-observations (p_k - value) / std
-            H[held, held] += held_w
-            g[held] += held_w * (p[held] - held_val)
-        dH = np.sqrt(np.maximum(np.diag(H), 1e-300))  # Jacobi scaling: terms of very different size stay conditioned
-        Hs, gs = H / np.outer(dH, dH), g / dH
-        if it == 1 and np.any(np.diag(H) <= 1e-300):
-            dead = [model.params[j] for j in np.nonzero(np.diag(H) <= 1e-300)[0]]
-            raise CalibrationError(f"the {model.sensor} data give no input for {dead}: these parameters are not "
-                                   "seen at all by these positions (leave them out, or add positions that excite them)")
-        while True:  # Levenberg-Marquardt: damp until the cost does not rise
-            try:
-                dp = -np.linalg.solve(Hs + lam * np.eye(m), gs) / dH
-            except np.linalg.LinAlgError:
-                raise CalibrationError(f"the {model.sensor} plan leaves these parameter combinations unobservable: "
-                                       f"{unobservable(H, model.params)}; add positions that change them") from None
-            dd = -np.einsum("nab,nb->na", Ainv, gd + np.einsum("nab,b->na", B, dp))
-            p_new = p + dp
-            v = u + np.einsum("nij,nj->ni", E, dd)
-            u_new = v / np.linalg.norm(v, axis=1, keepdims=True)
-            new_cost = float(np.sum(residual(p_new, u_new) ** 2)) + prior_cost(p_new)
-            if new_cost <= cost * (1 + 1e-12) or lam > 1e8:
-                lam = lam / 10 if lam > 1e-6 else 0.0
-                break
-            lam = max(1e-3, 10 * lam)
-        step = 1.0
-        p, u = p_new, u_new
-        # converged: the cost stalls, or the step is below 1e-6 of each parameter's standard
-        # deviation, or the Gauss-Newton decrement is at round-off level
-        decrement = float(-(g @ dp))
-        done = (abs(cost - new_cost) <= tol * max(cost, 1e-30)
-                or np.max(np.abs(step * dp) * np.sqrt(np.diag(H))) < 1e-6
-                or decrement <= 1e-12 * max(cost, 1.0))
-        cost = new_cost
-        if done:
-            break
-    else:
+    sig = np.broadcast_to(obs.sigma if obs.sigma is not None else 1.0, (n, 3))
+    aux = (obs.temp_c, obs.t_s, obs.extra)
+    p, u, cost, H, it, status = fit_batch(model, obs.N[None], obs.rho[None], sig[None], np.asarray(p0, float)[None],
+                                          aux, max_iter, tol, prior)
+    p, u, cost, H, it, status = p[0], u[0], float(cost[0]), H[0], int(it[0]), int(status[0])
+    if status == 3:
+        dead = [model.params[j] for j in np.nonzero(np.diag(H) <= 1e-300)[0]]
+        raise CalibrationError(f"the {model.sensor} data give no input for {dead}: these parameters are not "
+                               "seen at all by these positions (leave them out, or add positions that excite them)")
+    if status == 2:
+        raise CalibrationError(f"the {model.sensor} plan leaves these parameter combinations unobservable: "
+                               f"{unobservable(H, model.params)}; add positions that change them")
+    if status == 1:
         weak = unobservable(H, model.params, tol=1e-3)
         axis_only = np.all(np.max(np.abs(u), axis=1) > np.cos(np.radians(10)))
         raise CalibrationError(
@@ -344,8 +302,106 @@ def fit_exact(model, obs: Observations, p0=None, max_iter=200, tol=1e-12, prior=
             + ("; all the poses point along the sensor axes (the Ferraris six-position design), from which the "
                "norm cannot see misalignments: add tilted poses" if axis_only else ""))
     dH = np.sqrt(np.diag(H))
-    return _finish(model, obs, p, u, np.linalg.inv(H / np.outer(dH, dH)) / np.outer(dH, dH), H,
-                   cost - prior_cost(p), it)
+    return _finish(model, obs, p, u, np.linalg.inv(H / np.outer(dH, dH)) / np.outer(dH, dH), H, cost, it)
+
+
+def fit_batch(model, N, rho, sig, p0, aux=(0.0, 0.0, None), max_iter=200, tol=1e-12, prior=None):
+    """The Levenberg-Marquardt loop of fit_exact for S data sets at once, numpy vectorised over
+    the sets (the compiled whole fit does the same steps in C): N, sig (S, n, 3), rho (S, n),
+    p0 (S, m); aux (temp_c, t_s, extra) shared by the sets. prior: {parameter: (value, std)}.
+    Returns p (S, m), u (S, n, 3), cost without the prior (S,), the last H (S, m, m), the
+    iterations (S,) and a status (S,): 0 converged, 1 not converged, 2 singular, 3 a parameter
+    without any input (as derive/templates/exact_fit.c)."""
+    S, n, _ = N.shape
+    m = len(model.params)
+    held = [model.params.index(k) for k in (prior or {})]
+    held_val = np.array([prior[k][0] for k in (prior or {})])
+    held_w = np.array([1.0 / prior[k][1] ** 2 for k in (prior or {})])
+    rho3 = rho[..., None]
+    p = np.array(p0, float)
+    M, b = model.matrix_and_bias(p[:, None, :], *aux)  # initial directions: M u = N - b
+    u = np.linalg.solve(M, (N - b)[..., None])[..., 0]
+    u /= np.linalg.norm(u, axis=2, keepdims=True)
+    cost = _costs(model, N, rho3, sig, aux, p, u, held, held_val, held_w)
+    lam = np.zeros(S)
+    status = np.ones(S, int)  # 1 until converged
+    active = np.ones(S, bool)
+    iters = np.zeros(S, int)
+    H_last = np.zeros((S, m, m))
+    for it in range(1, max_iter + 1):
+        idx = np.nonzero(active)[0]
+        if not len(idx):
+            break
+        iters[idx] = it
+        Nm, Ju, Jp = model.jacobians(rho3[idx] * u[idx], p[idx], *aux)
+        E = tangent_basis(u[idx].reshape(-1, 3)).reshape(len(idx), n, 3, 2)
+        s_ = sig[idx]
+        r = (N[idx] - Nm) / s_
+        Jd = -(Ju @ (rho3[idx][..., None] * E)) / s_[..., None]  # (s, n, 3, 2)
+        Jq = -Jp / s_[..., None]                                  # (s, n, 3, m)
+        JdT = Jd.swapaxes(-1, -2)
+        A, Bm, gd = JdT @ Jd, JdT @ Jq, (JdT @ r[..., None])[..., 0]
+        Ainv = np.linalg.inv(A)
+        AB, Ag = Ainv @ Bm, (Ainv @ gd[..., None])[..., 0]  # (s, n, 2, m), (s, n, 2)
+        k2, k3 = len(idx), Jq.shape[1]
+        Jq2, Bm2 = Jq.reshape(k2, 3 * k3, m), Bm.reshape(k2, 2 * k3, m)  # sums over rows as matrix products
+        H = Jq2.swapaxes(1, 2) @ Jq2 - Bm2.swapaxes(1, 2) @ AB.reshape(k2, 2 * k3, m)
+        g = (Jq2.swapaxes(1, 2) @ r.reshape(k2, 3 * k3, 1))[..., 0] - (Bm2.swapaxes(1, 2) @ Ag.reshape(k2, 2 * k3, 1))[..., 0]
+        if held:  # the prior's pseudo-observations (p_k - value) / std
+            H[:, held, held] += held_w
+            g[:, held] += held_w * (p[idx][:, held] - held_val)
+        H_last[idx] = H
+        diag = np.einsum("sii->si", H)
+        if it == 1:
+            dead = np.any(diag <= 1e-300, axis=1)
+            status[idx[dead]], active[idx[dead]] = 3, False
+        dH = np.sqrt(np.maximum(diag, 1e-300))  # Jacobi scaling: terms of very different size stay conditioned
+        Hs, gs = H / (dH[:, :, None] * dH[:, None, :]), g / dH
+        need = active[idx].copy()  # Levenberg-Marquardt: damp each set until its cost does not rise
+        dp = np.zeros((len(idx), m))
+        p_new, u_new, new_cost = p[idx].copy(), u[idx].copy(), cost[idx].copy()
+        while need.any():
+            k = np.nonzero(need)[0]
+            try:
+                dp[k] = -np.linalg.solve(Hs[k] + lam[idx[k], None, None] * np.eye(m), gs[k][..., None])[..., 0] / dH[k]
+            except np.linalg.LinAlgError:  # find the singular sets one by one
+                for j in k:
+                    try:
+                        dp[j] = -np.linalg.solve(Hs[j] + lam[idx[j]] * np.eye(m), gs[j]) / dH[j]
+                    except np.linalg.LinAlgError:
+                        status[idx[j]], active[idx[j]], need[j] = 2, False, False
+                k = np.nonzero(need)[0]
+                if not len(k):
+                    break
+            dd = -(Ainv[k] @ (gd[k] + (Bm[k] @ dp[k][:, None, :, None])[..., 0])[..., None])[..., 0]
+            pk = p[idx[k]] + dp[k]
+            v = u[idx[k]] + (E[k] @ dd[..., None])[..., 0]
+            uk = v / np.linalg.norm(v, axis=2, keepdims=True)
+            ck = _costs(model, N[idx[k]], rho3[idx[k]], sig[idx[k]], aux, pk, uk, held, held_val, held_w)
+            ok = (ck <= cost[idx[k]] * (1 + 1e-12)) | (lam[idx[k]] > 1e8)
+            acc, rej = k[ok], k[~ok]
+            p_new[acc], u_new[acc], new_cost[acc] = pk[ok], uk[ok], ck[ok]
+            lam[idx[acc]] = np.where(lam[idx[acc]] > 1e-6, lam[idx[acc]] / 10, 0.0)
+            lam[idx[rej]] = np.maximum(1e-3, 10 * lam[idx[rej]])
+            need[acc] = False
+        go = active[idx]
+        # converged: the cost stalls, or the step is below 1e-6 of each parameter's standard
+        # deviation, or the Gauss-Newton decrement is at round-off level
+        decrement = -np.einsum("sa,sa->s", g, dp)
+        done = ((np.abs(cost[idx] - new_cost) <= tol * np.maximum(cost[idx], 1e-30))
+                | (np.max(np.abs(dp) * np.sqrt(np.maximum(diag, 0)), axis=1) < 1e-6)
+                | (decrement <= 1e-12 * np.maximum(cost[idx], 1.0)))
+        p[idx[go]], u[idx[go]], cost[idx[go]] = p_new[go], u_new[go], new_cost[go]
+        fin = go & done
+        status[idx[fin]], active[idx[fin]] = 0, False
+    prior_part = np.sum(held_w * (p[:, held] - held_val) ** 2, axis=1) if held else 0.0
+    return p, u, cost - prior_part, H_last, iters, status
+
+
+def _costs(model, N, rho3, sig, aux, p, u, held, held_val, held_w):
+    """Each set's weighted sum of squares, with the prior's pseudo-observations."""
+    c = np.sum(((N - model.output(rho3 * u, p, *aux)) / sig) ** 2, axis=(1, 2))
+    return c + (np.sum(held_w * (p[:, held] - held_val) ** 2, axis=1) if held else 0.0)
 
 
 def _finish(model, obs, p, u, cov, H, cost, it) -> Fit:

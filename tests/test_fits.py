@@ -137,3 +137,26 @@ def test_compiled_whole_fit_matches_the_python_solver(tmp_path, name, sensor):
     for k, obs in enumerate(sets):  # another start (zeros): the same optimum, to 1e-5 of each std
         ref = fit_exact(py, obs)
         assert np.all(np.abs(batch[0][k] - ref.vector(py.params)) < 1e-5 * np.sqrt(np.diag(ref.cov)))
+
+
+def test_numpy_batch_equals_one_set_at_a_time(tmp_path):
+    """norm_fit.fit_batch on several sets at once gives each set's fit_exact (the numpy path)."""
+    from simucal import io
+    from simucal.calibrate import segment_observations
+    from simucal.models import load
+    from simucal.norm_fit import fit_batch, fit_exact
+    from simucal.simulate import Scenario, write
+    py = load("gyro_baseline", compiled=False)
+    sets = []
+    for seed in range(3):
+        write(tmp_path / str(seed), Scenario(), seed)
+        sets.append(segment_observations(io.read(tmp_path / str(seed)), "gyro")[0])
+    n = len(sets[0].N)
+    p, u, cost, H, it, status = fit_batch(py, np.array([o.N for o in sets]), np.array([o.rho for o in sets]),
+                                          np.array([np.broadcast_to(o.sigma, (n, 3)) for o in sets]),
+                                          np.zeros((3, len(py.params))))
+    assert np.all(status == 0)
+    for k, obs in enumerate(sets):
+        ref = fit_exact(py, obs)
+        assert np.all(np.abs(p[k] - ref.vector(py.params)) < 1e-5 * np.sqrt(np.diag(ref.cov)))
+        assert cost[k] == pytest.approx(ref.chi2, rel=1e-8)
