@@ -492,6 +492,16 @@ def plan(score_plan, model_name, add, positions, criterion, rate_dps, rates, kin
         click.echo(f"wrote {output}")
 
 
+@main.command()
+@click.option("--json", "json_path", type=click.Path(dir_okay=False), default=None, help="Also write the figures as JSON.")
+def bench(json_path):
+    """Measure the speed figures (fits, Monte Carlo, whole commands) on this machine."""
+    from simucal.bench import run
+    if json_path:
+        _check_out(json_path)
+    run(json_path, click.echo)
+
+
 @main.command("field-drift")
 @click.argument("data_dir", type=click.Path(exists=True, file_okay=False))
 @click.option("-o", "--output", type=click.Path(dir_okay=False), default="drift.json", show_default=True)

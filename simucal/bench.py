@@ -1,0 +1,109 @@
+"""`simucal bench`: the speed figures of issue 14, measured in one run on this machine.
+
+- one exact accelerometer fit, N = 12 (Table 1 plan): the compiled whole fit called once
+  (min of repeats), the same fit by fit_exact with the compiled call, and the numpy path;
+- the cost of fit_exact against N (12 ... 10^5 rows), which must stay linear;
+- Monte Carlo of the paper scenario (simulate + exact fits + unification), trials per second,
+  compiled and numpy (SIMUCAL_NO_COMPILE=1 in a subprocess);
+- whole processes: `simucal calibrate` on a raw turntable set (86 segments at 100 Hz), on the
+  imu_tk Xsens stream, `simucal field-drift` (3 x 300 s at 100 Hz), `simucal --help`;
+- compiling one model's C.
+Run by `simucal bench [--json OUT]` or `python3 benchmarks/bench_speed.py [--json OUT]`; the
+imu_tk Xsens figure needs shared/data beside the repository. Benchmarks print; tests never time.
+"""
+import json
+import os
+import subprocess
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+import numpy as np
+
+from simucal import io
+from simucal.calibrate import segment_observations
+from simucal.models import compile_c, generated_dir, load
+from simucal import montecarlo
+from simucal.norm_fit import Observations, fit_exact
+from simucal.simulate import Scenario, write
+
+DATA = Path(__file__).resolve().parents[2] / "shared" / "data" / "imu_tk-xsens"  # beside a source checkout
+
+
+def best(f, repeats=7, inner=20):
+    out = []
+    for _ in range(repeats):
+        t = time.perf_counter()
+        for _ in range(inner):
+            f()
+        out.append((time.perf_counter() - t) / inner)
+    return min(out)
+
+
+def process(args, repeats=3):
+    out = []
+    for _ in range(repeats):
+        t = time.perf_counter()
+        subprocess.run(args, check=True, capture_output=True)
+        out.append(time.perf_counter() - t)
+    return min(out)
+
+
+def run(json_path=None, echo=print) -> dict:
+    """Every figure, printed as a table (and written as JSON to json_path)."""
+    fig = {}
+    with tempfile.TemporaryDirectory() as tmp:
+        tmp = Path(tmp)
+        write(tmp / "t1", Scenario(unify_positions=False), 3)
+        obs, _ = segment_observations(io.read(tmp / "t1"), "acc")
+        c, py = load("acc_baseline"), load("acc_baseline", compiled=False)
+        n = len(obs.N)
+        args = (obs.N[None], obs.rho[None], np.broadcast_to(obs.sigma, (n, 3))[None],
+                c.aux_rows(n)[None], np.zeros((1, 9)))
+        if c.fit_compiled(*args) is not None:
+            fig["fit_exact_acc_n12_compiled_call_s"] = best(lambda: c.fit_compiled(*args))
+            fig["fit_exact_acc_n12_s"] = best(lambda: fit_exact(c, obs))
+        fig["fit_exact_acc_n12_numpy_s"] = best(lambda: fit_exact(py, obs), inner=5)
+        scaling = {}
+        rng = np.random.default_rng(0)
+        for N in (12, 100, 1000, 10000, 100000):
+            u = rng.normal(size=(N, 3))
+            u /= np.linalg.norm(u, axis=1, keepdims=True)
+            p = np.array([2e-3, 8e-3, 6e-3, 1e-4, 1e-4, 1e-4, 8e-4, -1e-3, -3.2e-3])
+            o = Observations(c.output(u, p) + rng.normal(0, 1e-5, (N, 3)), np.ones(N), np.full((N, 3), 1e-5))
+            scaling[N] = best(lambda: fit_exact(c, o), repeats=3, inner=1)
+        fig["fit_exact_scaling_s"] = scaling
+        montecarlo.run(Scenario(), 2000, 0)  # warm: compiled libraries loaded
+        mc = montecarlo.run(Scenario(), 100000, 1)
+        fig["montecarlo_trials_per_s"] = mc["trials_per_s"]
+        code = "from simucal.montecarlo import run; from simucal.simulate import Scenario; print(run(Scenario(), 300, 1)['trials_per_s'])"
+        env = {**os.environ, "SIMUCAL_NO_COMPILE": "1"}
+        fig["montecarlo_trials_per_s_numpy"] = float(subprocess.run([sys.executable, "-c", code], env=env, check=True,
+                                                                    capture_output=True, text=True).stdout.split()[-1])
+        write(tmp / "raw", Scenario(rate_hz=100.0), 1)
+        fig["rows_raw_turntable"] = len(io.read(tmp / "raw").samples["t_s"])
+        fig["cli_calibrate_raw_turntable_s"] = process(["simucal", "calibrate", str(tmp / "raw"), "-o", str(tmp / "c.json")])
+        if DATA.is_dir():
+            subprocess.run(["simucal", "import", "imu_tk", str(DATA / "xsens_acc.mat"), str(DATA / "xsens_gyro.mat"),
+                            "-o", str(tmp / "xsens"), "--acc-counts-per-g", "4096", "--gyro-counts-per-dps",
+                            str(6258 * np.pi / 180), "--latitude-deg", "45.4"], check=True, capture_output=True)
+            fig["cli_calibrate_xsens_s"] = process(["simucal", "calibrate", str(tmp / "xsens"), "-o", str(tmp / "x.json")])
+        subprocess.run(["simucal", "simulate", str(tmp / "field"), "--scenario", "field"], check=True, capture_output=True)
+        fig["cli_field_drift_s"] = process(["simucal", "field-drift", str(tmp / "field"), "-o", str(tmp / "d.json")])
+        fig["cli_help_s"] = process(["simucal", "--help"])
+        src = (generated_dir() / "acc_baseline.c").read_text() + f"\n/* {time.time()} */\n"  # a fresh build
+        t = time.perf_counter()
+        compile_c("bench_acc_baseline", src)
+        fig["derive_compile_one_model_s"] = time.perf_counter() - t
+    echo("| figure | value |\n|---|---|")
+    for k, v in fig.items():
+        if isinstance(v, dict):
+            for n, s in v.items():
+                echo(f"| {k}, N = {n} | {s * 1e3:.3g} ms ({s / n * 1e6:.3g} us per row) |")
+        else:
+            echo(f"| {k} | {v * 1e3:.3g} ms |" if k.endswith("_s") and not k.endswith("per_s") else f"| {k} | {v:.4g} |")
+    if json_path:
+        Path(json_path).write_text(json.dumps({k: ({str(n): s for n, s in v.items()} if isinstance(v, dict) else v)
+                                               for k, v in fig.items()}, indent=1) + "\n")
+    return fig
