@@ -82,11 +82,11 @@ def segment_observations(ms: io.MeasurementSet, sensor: str, kinds=None, stated=
         rows = ms.samples["segment"] == s.segment
         if not rows.any():
             raise CalibrationError(f"{ms.path / 'samples.csv'}: segment {s.segment} has no samples")
-        refuse_outliers(ms, raw, rows, sensor, s.segment)
-        if saturated[rows].any():
+        if saturated[rows].any():  # before the glitch test: a clipped sample is no glitch
             ms.extra.setdefault("saturated_segments", []).append(
                 {"sensor": sensor, "segment": s.segment, "samples": int(saturated[rows].sum())})
             continue
+        refuse_outliers(ms, raw, rows, sensor, s.segment)
         m, sd = _mean_and_sigma(data[rows], stated, varying=(s.kind == "rate"))  # the inputs turn in a rate run
         N.append(m)
         sig.append(sd)

@@ -153,7 +153,8 @@ def _sensor_lines(result):
     if u and "std_rad" in u:
         yield (f"frames: C_b^d by {u['method'].replace('_', ' ')} ({u['pairs']} pairs), std "
                f"{max(u['std_rad']):.2g} rad, residual {u['direction_residual_rms_rad']:.2g} rad rms"
-               + (f"; cross-check: {u['cross_check']['note']}" if "cross_check" in u else ""))
+               + (f"; cross-check: {u['cross_check']['note']}" if "cross_check" in u else "")
+               + (f"; {u['note']}" if u.get("note") else ""))
     for line in result.get("consistency", {}).get("lines", []):
         yield line
     for s in ("acc", "gyro"):

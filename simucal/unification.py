@@ -195,6 +195,15 @@ def unify(un: Unifier, acc_segs, gyro_segs, find):
                                "accelerometers recorded during them, or each with a static position at the same "
                                "middle/inner angles")
     method = "rate_run_means" if "rate_run_means" in usable else "static_pairs"
+    fallback = None
+    if (method == "rate_run_means" and usable[method]["residual_rms_rad"] > GROSS_RAD and "static_pairs" in usable
+            and usable["static_pairs"]["residual_rms_rad"] <= GROSS_RAD):
+        # the rate runs' means disagree grossly (not whole revolutions? lever arms at a high rate?) while
+        # the static pairs agree: use those, and say so
+        fallback = (f"the rate runs' means leave a direction residual of "
+                    f"{usable[method]['residual_rms_rad']:.2g} rad (rate runs not whole revolutions, or lever arms "
+                    "the model lacks?), so the static pairs tie the frames; they carry the table's angle errors")
+        method = "static_pairs"
     best = usable[method]
     if best["residual_rms_rad"] > GROSS_RAD:
         axis, resid, r = mirror_test(best["u_b"], best["u_d"])
@@ -210,7 +219,8 @@ def unify(un: Unifier, acc_segs, gyro_segs, find):
     info = {"method": method, "pairs": best["pairs"], "C_b_d": C.tolist(),
             "std_rad": np.sqrt(np.diag(un.covariance(J_phi))).tolist(),
             "std_note": "std of the small rotation phi with C_b_d = C (I + [phi x]), about b's x, y, z",
-            "direction_residual_rms_rad": best["residual_rms_rad"], "chi2": best["chi2"], "dof": best["dof"]}
+            "direction_residual_rms_rad": best["residual_rms_rad"], "chi2": best["chi2"], "dof": best["dof"],
+            **({"note": fallback} if fallback else {})}
     if method == "rate_run_means" and "static_pairs" in usable:
         two = usable["static_pairs"]
         d = log_so3(C.T @ two["C"])
