@@ -31,7 +31,7 @@ import numpy as np
 from . import units
 from .apply import model_function, solve_inputs
 from .consistency import GROSS_RAD, mirror_error, mirror_test
-from .distributions import chi2_isf
+from .distributions import chi2_isf, chi2_sf
 from .generated import table
 from .generated import unify as eq
 from .norm_fit import CalibrationError, full_covariance, tangent_basis
@@ -216,8 +216,16 @@ def unify(un: Unifier, acc_segs, gyro_segs, find):
             "runs are whole revolutions and that segments.csv matches the data")
     C, J_phi = best["C"], best["J_phi"]
     M_b, cov_M = un.gyro_matrix_in_b(C, J_phi)
+    p_pairs = chi2_sf(best["chi2"], best["dof"]) if best["dof"] > 0 else 1.0
+    inflate = max(1.0, best["chi2"] / best["dof"]) if p_pairs < 1e-3 else 1.0
+    if inflate > 1:  # the pairs disagree beyond their noise: the stds take the misfit in
+        cov_M = cov_M * inflate
+        misfit = (f"the {best['pairs']} pairs misfit (chi2 {best['chi2']:.4g} on {best['dof']} dof): stds inflated by "
+                  f"{np.sqrt(inflate):.3g}" + ("; lever arms the accelerometer model lacks? (--add acc.size_effect.*)"
+                                               if method == "rate_run_means" else ""))
+        fallback = f"{fallback}; {misfit}" if fallback else misfit
     info = {"method": method, "pairs": best["pairs"], "C_b_d": C.tolist(),
-            "std_rad": np.sqrt(np.diag(un.covariance(J_phi))).tolist(),
+            "std_rad": np.sqrt(inflate * np.diag(un.covariance(J_phi))).tolist(),
             "std_note": "std of the small rotation phi with C_b_d = C (I + [phi x]), about b's x, y, z",
             "direction_residual_rms_rad": best["residual_rms_rad"], "chi2": best["chi2"], "dof": best["dof"],
             **({"note": fallback} if fallback else {})}
