@@ -332,6 +332,26 @@ def swapped_or_still(ms, obs, poses):
     raise CalibrationError(f"{ms.path / 'samples.csv'}: {detail}: the unit was not turned between poses")
 
 
+def rail_poses(ms, poses):
+    """Refuse poses whose accelerometer sits at a rail: meta's full scale where given, else a column's
+    extreme value held by nearly every sample of a pose (an unclipped pose's quantised noise does not)."""
+    raw = np.column_stack([ms.samples[c] for c in ("ax", "ay", "az")])
+    fs = ms.meta.get("full_scale", {}).get("acc")
+    hits = []
+    for j, c in enumerate(("ax", "ay", "az")):
+        rails = fs if fs is not None else (raw[:, j].min(), raw[:, j].max())
+        for i, (a, b) in enumerate(poses):
+            x = raw[a:b, j]
+            at = (x <= rails[0]) | (x >= rails[1]) if fs is not None else np.isin(x, rails)
+            if np.mean(at) > (0.0 if fs is not None else 0.9):
+                hits.append((i, c, float(x[at][0])))
+    if hits:
+        named = ", ".join(f"pose {i + 1} ({c} at {v:g})" for i, c, v in hits[:6]) + (" ..." if len(hits) > 6 else "")
+        raise CalibrationError(f"{ms.path / 'samples.csv'}: {len({h[0] for h in hits})} of {len(poses)} poses hold "
+                               f"accelerometer samples at a rail ({named}): the accelerometer saturates there; use a "
+                               "larger range (or give full_scale in meta.json), or record those poses again")
+
+
 def pose_observations(ms, detect_kw=None, pose_window_s=1.0):
     """Accelerometer observations of a stream's static poses: (Observations, Detection, poses).
 
@@ -343,6 +363,7 @@ def pose_observations(ms, detect_kw=None, pose_window_s=1.0):
     dt = float(np.median(np.diff(t)))
     win = None if pose_window_s is None else max(int(round(pose_window_s / dt)), 2)
     poses = [(a, b if win is None else min(a + win, b)) for a, b in zip(det.starts, det.ends)]
+    rail_poses(ms, poses)
     N = np.array([acc[a:b].mean(0) for a, b in poses])
     sig = np.array([acc[a:b].std(0, ddof=1) / np.sqrt(b - a) for a, b in poses])
     temp = (np.array([ms.samples["temp_c"][a:b].mean() for a, b in poses]) if "temp_c" in ms.samples else 0.0)

@@ -322,3 +322,17 @@ def test_diagnose_refuses_reversed_rate_runs(sets, tmp_path):
             r[5] = str(-float(r[5]))
     csv.writer(open(d / "segments.csv", "w", newline="")).writerows(seg)
     run_refused(["diagnose", d, "-o", tmp_path / "d.json"], "opposite to the commanded rate")
+
+
+def test_accelerometer_at_a_rail_on_the_poses(sets, tmp_path):
+    """An accelerometer range too small: most poses clip; refused naming the poses and the rail."""
+    d = _copy(sets, "stream", tmp_path)
+    rows = _rows(d)
+    for c in ("ax", "ay", "az"):
+        j = rows[0].index(c)
+        vals = np.array([float(r[j]) for r in rows[1:]])
+        lo, hi = np.percentile(vals, 15), np.percentile(vals, 85)
+        for r in rows[1:]:
+            r[j] = repr(float(np.clip(float(r[j]), lo, hi)))
+    _put_rows(d, rows)
+    run_refused(["calibrate", d, "-o", tmp_path / "c.json"], "poses hold accelerometer samples at a rail", "saturates")
