@@ -14,8 +14,8 @@ from pathlib import Path
 import numpy as np
 
 from simucal.calibrate import calibrate
+from simucal.errors import CalibrationError
 from simucal.importers import import_ferraris_sections, import_imucal_annotated
-from simucal.norm_fit import CalibrationError
 
 DATA = Path(__file__).resolve().parents[2] / "shared" / "data" / "imucal-ferraris"
 G = 9.81
@@ -30,7 +30,11 @@ def ours(folder):
 def theirs(session):
     try:
         import pandas as pd
-        from imucal import FerrarisCalibration, ferraris_regions_from_df, ferraris_regions_from_section_list
+        from imucal import (
+            FerrarisCalibration,
+            ferraris_regions_from_df,
+            ferraris_regions_from_section_list,
+        )
     except ImportError:
         return None
     if session == "example":

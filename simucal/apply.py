@@ -14,8 +14,8 @@ import numpy as np
 
 from . import calibration, io, units
 from .augmented import AugmentedModel
+from .errors import CalibrationError
 from .generated.effects import EFFECTS
-from .norm_fit import CalibrationError
 
 
 def _affine_effects(block):

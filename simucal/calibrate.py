@@ -26,10 +26,11 @@ from .candidates import (
     verdict,
 )
 from .consistency import latitude, mirror_error, mirror_test
+from .errors import CalibrationError
 from .generated import table
 from .handheld import saturated_rows, stuck_channels
 from .noise import white_noise_var
-from .norm_fit import CalibrationError, Observations, fit_linear
+from .norm_fit import Observations, fit_linear
 from .unification import Unifier, unify, unify_paper
 from .user_models import resolve_add
 

@@ -19,13 +19,14 @@ Used by calibrate, diagnose (turntable sets and streams' poses), diagnose_moves 
 from __future__ import annotations
 
 import numpy as np
-from .distributions import chi2_sf, f_sf
 
 from .augmented import AugmentedModel, effect_ids
+from .distributions import chi2_sf, f_sf
+from .errors import CalibrationError
 from .generated.effects import EFFECTS, SEPARATE
 from .lack_of_fit import describe_shape, fit_with_noise, lack_of_fit
 from .models import aux_args
-from .norm_fit import CalibrationError, Fit, Observations, dense_jacobian, fit_exact
+from .norm_fit import Fit, Observations, dense_jacobian, fit_exact
 
 ALPHA = 0.01
 

@@ -206,6 +206,7 @@ def calibrate(data_dirs, output, method, acc_model, gyro_model, add, acc_noise_g
         click.echo(f"wrote {output} (method {result['method']})")
         return
     from tqdm import tqdm
+
     from simucal.sweeps import map_tasks
     out = Path(output)
     names = [Path(d).resolve().name for d in data_dirs]
@@ -260,6 +261,7 @@ def audit(output, seeds):
     """Check the paper's printed equations (4)-(27), Table 1 and 2, term by term at the section-4
     values, and its numeric claims (abstract, Tables 3 and 4) against a Monte Carlo."""
     from tqdm import tqdm
+
     from simucal.paper_claims import full_audit
     _check_out(output)
     report = full_audit(seeds, progress=lambda items: tqdm(items, desc="audit", leave=False))
@@ -323,8 +325,8 @@ def diagnose(data_dir, output, html_path, add, acc_model, gyro_model, acc_noise_
     import json
 
     from simucal.diagnose import diagnose as diagnose_set
+    from simucal.errors import CalibrationError
     from simucal.io import MeasurementSetError
-    from simucal.norm_fit import CalibrationError
     _check_out(output, html_path)
     try:
         result = diagnose_set(Path(data_dir), add, acc_model, gyro_model, acc_noise_g, gyro_noise_dph)
@@ -359,7 +361,9 @@ def diagnose(data_dir, output, html_path, add, acc_model, gyro_model, acc_noise_
 def montecarlo(scenario, plan, trials, seed, effects, output, scheduler):
     """Monte Carlo of a scenario: simulate, exact fits, unification; std against the Cramer-Rao bound."""
     import json
+
     from tqdm import tqdm
+
     from simucal.montecarlo import run
     from simucal.simulate import SCENARIOS, plant
     _check_out(output)
@@ -409,9 +413,10 @@ def plan(score_plan, model_name, add, positions, criterion, rate_dps, rates, kin
     import json
 
     import numpy as np
+
     from simucal import plans
     from simucal.augmented import AugmentedModel
-    from simucal.norm_fit import CalibrationError
+    from simucal.errors import CalibrationError
     from simucal.plan_design import design, directions_k, plan_rows, score
     if (score_plan is None) == (positions is None):
         _fail("give --score PLAN to score a plan, or --positions N to design one")
@@ -513,9 +518,10 @@ def field_drift(data_dir, output, plot, heading_accuracy_deg):
     """Three-position field calibration of gyro constant drift (ruan2019)."""
     import json
 
-    from simucal.field import field_drift as run, plot_history
+    from simucal.errors import CalibrationError
+    from simucal.field import field_drift as run
+    from simucal.field import plot_history
     from simucal.io import MeasurementSetError
-    from simucal.norm_fit import CalibrationError
     try:
         result, hist = run(Path(data_dir), heading_accuracy_deg=heading_accuracy_deg)
     except (MeasurementSetError, CalibrationError) as e:

@@ -21,7 +21,7 @@ import numpy as np
 
 from . import units
 from .apply import model_function, solve_inputs
-from .norm_fit import CalibrationError
+from .errors import CalibrationError
 from .rotations import log_so3, wahba
 
 GROSS_RAD = 0.05  # a direction residual no table (1 deg errors give 0.017 rad) or noise explains

@@ -16,9 +16,17 @@ import numpy as np
 from . import io
 from .augmented import AugmentedModel
 from .calibrate import check_rate_sense, segment_observations
-from .candidates import ALPHA, rank_candidates, shape_if_unexplained, test_model, verdict
+from .candidates import (
+    ALPHA,
+    rank_candidates,
+    shape_if_unexplained,
+    test_model,
+    verdict,
+)
+from .errors import CalibrationError
 from .lack_of_fit import model_file_text
-from .norm_fit import CalibrationError, Fit, Observations
+from .norm_fit import Fit, Observations
+
 
 def residual_table(fit: Fit, obs: Observations, segs) -> list[dict]:
     rows = []

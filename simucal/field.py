@@ -22,9 +22,9 @@ import hashlib
 import numpy as np
 
 from . import io, units
+from .errors import CalibrationError
 from .generated import field as gen
 from .noise import white_noise_var
-from .norm_fit import CalibrationError
 from .rotations import exp_so3
 
 DPH = np.radians(1 / 3600)  # rad/s per deg/h

@@ -22,14 +22,15 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
-from .distributions import chi2_sf
 
 from . import units
 from .augmented import AugmentedModel
+from .distributions import chi2_sf
+from .errors import CalibrationError
+from .generated import moves as gen_moves
 from .generated.effects import EFFECTS
 from .noise import quantization_step, white_noise_var
-from .norm_fit import CalibrationError, Observations, check_not_coplanar, fit_exact, initial_directions
-from .generated import moves as gen_moves
+from .norm_fit import Observations, check_not_coplanar, fit_exact, initial_directions
 from .rotations import skew
 from .static_detect import Detection, detect_static
 

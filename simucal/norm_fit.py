@@ -19,16 +19,9 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 
 import numpy as np
+
 from .distributions import chi2_sf
-
-
-
-class CalibrationError(ValueError):
-    """The data cannot give a trustworthy calibration; the message says why."""
-
-    def naming(self, path) -> "CalibrationError":
-        """The same refusal, its message starting with the data's path where it does not name it."""
-        return self if str(path) in str(self) else CalibrationError(f"{path}: {self}")
+from .errors import CalibrationError
 
 
 @dataclass

@@ -24,8 +24,9 @@ import numpy as np
 
 from . import plans
 from .augmented import AugmentedModel
+from .errors import CalibrationError
 from .generated import table
-from .norm_fit import CalibrationError, Observations, normal_equations
+from .norm_fit import Observations, normal_equations
 
 
 def directions_k(rows) -> np.ndarray:

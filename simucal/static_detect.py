@@ -13,8 +13,8 @@ from dataclasses import asdict, dataclass
 
 import numpy as np
 
+from .errors import CalibrationError
 from .noise import quantization_step, white_noise_var
-from .norm_fit import CalibrationError
 
 
 @dataclass

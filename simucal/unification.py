@@ -32,9 +32,10 @@ from . import units
 from .apply import model_function, solve_inputs
 from .consistency import GROSS_RAD, mirror_error, mirror_test
 from .distributions import chi2_isf, chi2_sf
+from .errors import CalibrationError
 from .generated import table
 from .generated import unify as eq
-from .norm_fit import CalibrationError, full_covariance, tangent_basis
+from .norm_fit import full_covariance, tangent_basis
 from .rotations import log_so3, skew, wahba
 
 CHI2_3DOF_P1E3 = float(chi2_isf(1e-3, 3))  # the chi-square quantile, 3 dof, p = 1e-3

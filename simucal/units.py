@@ -121,6 +121,6 @@ def _refuse_ratio(sensor, r, where, what="outputs"):
         return
     guess = min(UNIT_MIXUPS[sensor].items(), key=lambda kv: abs(np.log(r / kv[1])))
     likely = f"; the ratio matches {guess[0]}" if abs(np.log(r / guess[1])) < 0.2 else ""
-    from .norm_fit import CalibrationError
+    from .errors import CalibrationError
     raise CalibrationError(f"{where}: the {sensor} {what} are {r:.4g} times the known input (1 g at rest, or the "
                            f"commanded rate): check {sensor}_unit and the nominal scale factors in meta.json{likely}")

@@ -9,7 +9,7 @@ from click.testing import CliRunner
 from simucal import io
 from simucal.calibrate import calibrate
 from simucal.cli import main
-from simucal.norm_fit import CalibrationError
+from simucal.errors import CalibrationError
 
 
 def test_exact_within_3_sigma_of_truth(paper_set):

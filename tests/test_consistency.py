@@ -5,10 +5,10 @@ import shutil
 
 import numpy as np
 import pytest
+from simucal.generated import table
 
 from simucal.calibrate import calibrate
-from simucal.generated import table
-from simucal.norm_fit import CalibrationError
+from simucal.errors import CalibrationError
 from simucal.rotations import log_so3
 from simucal.simulate import ARCMIN, Scenario, write
 

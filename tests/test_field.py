@@ -2,11 +2,11 @@
 import numpy as np
 import pytest
 import sympy as sp
+from simucal.derive import field as dfield
 
 from simucal import io
-from simucal.derive import field as dfield
+from simucal.errors import CalibrationError
 from simucal.field import field_drift
-from simucal.norm_fit import CalibrationError
 from simucal.simulate_field import FieldScenario, simulate_field, write_field
 
 
@@ -48,9 +48,9 @@ def test_missing_heading_reference_refused(tmp_path):
 
 def test_transition_matrix_matches_scipy():
     import scipy.linalg
+    from simucal.generated import field as gen
 
     from simucal.field import expm
-    from simucal.generated import field as gen
     F = gen.error_model(9.80665, 7.292115e-5, np.radians(45.0))
     for dt in (0.01, 1.0, 30.0):
         ref = scipy.linalg.expm(F * dt)

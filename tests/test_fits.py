@@ -4,14 +4,15 @@ import os
 import numpy as np
 import pytest
 import sympy as sp
-
-from simucal import plans
 from simucal.derive import norm
 from simucal.derive.frames import N_out
 from simucal.derive.models.baseline import ACC_BASELINE
 from simucal.generated import table
+
+from simucal import plans
+from simucal.errors import CalibrationError
 from simucal.models import load
-from simucal.norm_fit import CalibrationError, Observations, fit_exact, fit_linear
+from simucal.norm_fit import Observations, fit_exact, fit_linear
 
 P_ACC = np.array([0.002, 0.008, 0.006, 1e-4, 1e-4, 1e-4, 8e-4, -1e-3, -3.2e-3])
 

@@ -5,8 +5,8 @@ import numpy as np
 import pytest
 
 from simucal.calibrate import calibrate
+from simucal.errors import CalibrationError
 from simucal.importers import import_imu_tk
-from simucal.norm_fit import CalibrationError
 from simucal.simulate_handheld import HandheldScenario, write_handheld
 
 DATA = Path(__file__).resolve().parents[2] / "shared" / "data"
