@@ -332,7 +332,7 @@ def _exact_sensor(model, obs, method, where):
     return fit, base, advice, obs2
 
 
-def calibrate(folder, method="exact", acc_model="acc_baseline", gyro_model="gyro_baseline", detect_kw=None,
+def calibrate(folder, method="exact", acc_model="acc_baseline", gyro_model="gyro_baseline", detect=None,
               add=(), acc_noise_g=None, gyro_noise_dph=None) -> dict:
     """Calibrate a measurement set. add: effect ids and model files (user_models.resolve_add);
     acc_noise_g / gyro_noise_dph: the noise of one row where the data cannot give it."""
@@ -340,7 +340,7 @@ def calibrate(folder, method="exact", acc_model="acc_baseline", gyro_model="gyro
         raise CalibrationError(f"unknown method {method!r}; one of {METHODS}")
     ms = io.read(folder)
     try:
-        return _calibrate(ms, method, acc_model, gyro_model, detect_kw, add, acc_noise_g, gyro_noise_dph)
+        return _calibrate(ms, method, acc_model, gyro_model, detect, add, acc_noise_g, gyro_noise_dph)
     except CalibrationError as e:
         raise e.naming(ms.path) from None
 
@@ -357,13 +357,13 @@ def calibrate_to_file(folder, output, kwargs: dict):
         return None, str(e.args[0] if isinstance(e, KeyError) and e.args else e)
 
 
-def _calibrate(ms, method, acc_model, gyro_model, detect_kw, add, acc_noise_g, gyro_noise_dph):
+def _calibrate(ms, method, acc_model, gyro_model, detect, add, acc_noise_g, gyro_noise_dph):
     stuck_channels(ms)
     acc_model, gyro_model, ids = resolve_add(add, acc_model, gyro_model)
     if ms.segments is None:  # one continuous stream: a hand-placed session
         from .handheld import calibrate_handheld
         return calibrate_handheld(ms, AugmentedModel(acc_model, tuple(e for e in ids if e.startswith("acc."))),
-                                  detect_kw, gyro_effects=tuple(e for e in ids if e.startswith("gyro.")))
+                                  detect, gyro_effects=tuple(e for e in ids if e.startswith("gyro.")))
     acc_obs = acc_segs = gyro_obs = gyro_segs = None
     if ms.has_acc:
         lever_arms = any(e.startswith("acc.size_effect.") for e in ids)  # seen only under rotation

@@ -193,9 +193,9 @@ def calibrate(data_dirs, output, method, acc_model, gyro_model, add, acc_noise_g
     With segments.csv: a turntable test (dong2018). Without: a continuous stream
     from a hand-placed session (static poses found from the data; Tedaldi)."""
     from simucal.calibrate import calibrate_to_file
+    from simucal.static_detect import DetectSettings
     kwargs = dict(method=method, acc_model=acc_model, gyro_model=gyro_model,
-                  detect_kw=dict(init_rest_s=init_rest_s, factor=threshold_factor, window_s=window_s,
-                                 min_s=min_static_s), add=add, acc_noise_g=acc_noise_g, gyro_noise_dph=gyro_noise_dph)
+                  detect=DetectSettings(window_s, threshold_factor, min_static_s, init_rest_s), add=add, acc_noise_g=acc_noise_g, gyro_noise_dph=gyro_noise_dph)
     if len(data_dirs) == 1:
         _check_out(output)
         result, error = calibrate_to_file(Path(data_dirs[0]), output, kwargs)

@@ -32,7 +32,7 @@ from .generated.effects import EFFECTS
 from .noise import quantization_step, white_noise_var
 from .norm_fit import Observations, check_not_coplanar, fit_exact, initial_directions
 from .rotations import skew
-from .static_detect import Detection, detect_static
+from .static_detect import Detection, DetectSettings, detect_static
 
 
 @dataclass
@@ -353,14 +353,14 @@ def rail_poses(ms, poses):
                                "larger range (or give full_scale in meta.json), or record those poses again")
 
 
-def pose_observations(ms, detect_kw=None, pose_window_s=1.0):
+def pose_observations(ms, detect=None, pose_window_s=1.0):
     """Accelerometer observations of a stream's static poses: (Observations, Detection, poses).
 
     Each pose is the mean of its first pose_window_s (None: the whole interval),
     with the std of that mean from the scatter of its samples."""
     t = ms.samples["t_s"]
     acc = ms.acc_g()
-    det = detect_static(acc, t, **(detect_kw or {}))
+    det = detect_static(acc, t, detect or DetectSettings())
     dt = float(np.median(np.diff(t)))
     win = None if pose_window_s is None else max(int(round(pose_window_s / dt)), 2)
     poses = [(a, b if win is None else min(a + win, b)) for a, b in zip(det.starts, det.ends)]
@@ -373,11 +373,11 @@ def pose_observations(ms, detect_kw=None, pose_window_s=1.0):
     return obs, det, poses
 
 
-def acc_from_poses(ms, acc_model="acc_baseline", detect_kw=None, pose_window_s=1.0):
+def acc_from_poses(ms, acc_model="acc_baseline", detect=None, pose_window_s=1.0):
     """The accelerometer from a stream's poses: (Observations, Detection, model, fit, tau)."""
     if not ms.has_acc:
         raise CalibrationError(f"{ms.path}: a hand-placed session needs accelerometer data")
-    obs, det, poses = pose_observations(ms, detect_kw, pose_window_s)
+    obs, det, poses = pose_observations(ms, detect, pose_window_s)
     swapped_or_still(ms, obs, poses)
     units.check_magnitude("acc", np.linalg.norm(obs.N, axis=1), obs.rho, ms.path / "samples.csv", ms.meta)
     check_not_coplanar(obs.N, "accelerometer", f"{ms.path}: ")
@@ -485,7 +485,7 @@ def with_terms(mv: Moves, ids, inputs) -> Moves:
                  phi_rest)
 
 
-def calibrate_handheld(ms, acc_model="acc_baseline", detect_kw=None, pose_window_s=1.0, gyro_effects=()) -> dict:
+def calibrate_handheld(ms, acc_model="acc_baseline", detect=None, pose_window_s=1.0, gyro_effects=()) -> dict:
     """pose_window_s: seconds at the start of each static interval averaged into the
     pose (None: the whole interval). Hand-placed poses creep: on imu_tk's Xsens
     session the baseline's chi2 falls from 472 to 141 (29 dof) when only the first
@@ -493,7 +493,7 @@ def calibrate_handheld(ms, acc_model="acc_baseline", detect_kw=None, pose_window
     gyro_effects: candidate ids fit with T and the bias over the moves."""
     from . import calibration
     t = ms.samples["t_s"]
-    obs, det, am, fa, tau = acc_from_poses(ms, acc_model, detect_kw, pose_window_s)
+    obs, det, am, fa, tau = acc_from_poses(ms, acc_model, detect, pose_window_s)
     M_a, b_a = am.matrix_and_bias(fa.vector(am.params))
     units.check_scale("acc", M_a, ms.path / "samples.csv")
     result = calibration.header("handheld (Tedaldi): exact norm fit + gyro moves", ms)

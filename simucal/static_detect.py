@@ -17,6 +17,17 @@ from .errors import CalibrationError
 from .noise import quantization_step, white_noise_var
 
 
+@dataclass(frozen=True)
+class DetectSettings:
+    """The static detector's settings (the --init-rest-s, --threshold-factor, --window-s and
+    --min-static-s options): window of the moving variance (s), threshold as a multiple of the
+    rest's variance, shortest static interval (s), the initial rest's length (None: found)."""
+    window_s: float = 1.0
+    factor: float = 6.0
+    min_s: float = 1.0
+    init_rest_s: float | None = None
+
+
 @dataclass
 class Detection:
     starts: list          # first row of each interval
@@ -47,10 +58,11 @@ def moving_variance(x, w):
     return np.maximum((c2[hi] - c2[lo]) / cnt - mean ** 2, 0.0)
 
 
-def detect_static(acc, t, window_s=1.0, factor=6.0, min_s=1.0, init_rest_s=None, rest_factor=20.0) -> Detection:
+def detect_static(acc, t, settings: DetectSettings = DetectSettings(), rest_factor=20.0) -> Detection:
     if len(t) < 20:
         raise CalibrationError(f"the stream has {len(t)} row{'s' * (len(t) != 1)}: a hand-placed session is one "
                                "continuous recording, an initial rest and then poses joined by moves")
+    window_s, factor, min_s, init_rest_s = settings.window_s, settings.factor, settings.min_s, settings.init_rest_s
     dt = float(np.median(np.diff(t)))
     w = max(int(round(window_s / dt)) | 1, 3)
     mv = np.linalg.norm(moving_variance(acc, w), axis=1)
