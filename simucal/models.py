@@ -34,6 +34,9 @@ def cache_dir() -> Path:
     return Path(root)
 
 
+CFLAGS = ("-O3", "-shared", "-fPIC")  # no -march=native: a cache may be shared by machines of other CPUs
+
+
 def compile_c(name: str, source: str) -> Path | None:
     """Build the CasADi C of a model into the cache; None where no compiler works."""
     if os.environ.get("SIMUCAL_NO_COMPILE"):
@@ -41,7 +44,7 @@ def compile_c(name: str, source: str) -> Path | None:
     cc = shutil.which(os.environ.get("CC", "cc")) or shutil.which("gcc")
     if cc is None:
         return None
-    digest = hashlib.sha256(source.encode()).hexdigest()[:16]
+    digest = hashlib.sha256((" ".join(CFLAGS) + "\n" + source).encode()).hexdigest()[:16]  # flags change the build
     lib = cache_dir() / f"{name}-{digest}.so"
     if lib.is_file():
         return lib
@@ -49,7 +52,7 @@ def compile_c(name: str, source: str) -> Path | None:
     src = lib.with_suffix(".c")
     src.write_text(source)
     tmp = lib.with_suffix(f".{os.getpid()}.tmp")
-    base = [cc, "-O2", "-shared", "-fPIC", str(src), "-o", str(tmp), "-lm"]
+    base = [cc, *CFLAGS, str(src), "-o", str(tmp), "-lm"]
     res = subprocess.run(base + ["-fopenmp"], capture_output=True, text=True)  # batches over the cores
     if res.returncode != 0:
         res = subprocess.run(base, capture_output=True, text=True)
