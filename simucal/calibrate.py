@@ -421,6 +421,10 @@ def _calibrate(ms, method, acc_model, gyro_model, detect, add, acc_noise_g, gyro
                 result["consistency"]["latitude"] = _latitude_check(ms, fa, acc_segs, gm, fg, C_b_d)
                 result["consistency"]["lines"].append("latitude: " + result["consistency"]["latitude"]["verdict"])
             else:
+                if (am.name, gm.name) != ("acc_baseline", "gyro_baseline"):
+                    raise CalibrationError(f"the paper's frame unification (eq. 25-27) is derived for the baseline "
+                                           f"models; {am.name} / {gm.name} have other terms it would neglect: use "
+                                           "--method exact, whose unification holds for any model")
                 C_b_d, info = unify_paper(acc_obs, acc_segs, gyro_obs, gyro_segs,
                                           fa.vector(am.params), fg.vector(gm.params), ms.meta, _find)
                 M_b = M_d @ C_b_d

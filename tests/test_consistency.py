@@ -136,3 +136,8 @@ def test_lever_arms_the_model_lacks_inflate_the_unification_and_adding_them_fixe
         err = np.array(cal["gyro"]["M"]) - np.array(truth["gyro"]["M"])
         assert np.all(np.abs(err) < 3 * np.array(cal["gyro"]["std_M"]))
     assert "acc.size_effect" in calibrate(tmp_path)["unification"]["note"]
+
+
+def test_paper_unification_refused_for_other_models(paper_set):
+    with pytest.raises(CalibrationError, match="derived for the baseline models"):
+        calibrate(paper_set[0], "linear", acc_model="acc_extended")
