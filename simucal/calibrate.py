@@ -104,14 +104,17 @@ def segment_observations(ms: io.MeasurementSet, sensor: str, kinds=None, stated=
 
 
 def refuse_outliers(ms, raw, rows, sensor, segment, k=100.0):
-    """Refuse a gross glitch: a sample k robust spreads (1.4826 MAD, floored at 1e-9 of the median)
-    from its segment's median would carry the segment's mean with it."""
+    """Refuse a gross glitch: an isolated sample k robust spreads (1.4826 MAD, floored at 1e-9 of
+    the median) from its segment's median, whose neighbours are normal, would carry the segment's
+    mean with it. A smooth excursion (a table settling) spans its neighbours and is not a glitch."""
     x = raw[rows]
     if len(x) < 10:
         return
     med = np.median(x, axis=0)
     spread = np.maximum(1.4826 * np.median(np.abs(x - med), axis=0), 1e-9 * np.maximum(np.abs(med), 1.0))
-    bad = np.abs(x - med) > k * spread
+    dev = np.abs(x - med) / spread
+    calm = np.pad(dev, ((1, 1), (0, 0)), constant_values=0.0) < k / 10  # the neighbours are normal
+    bad = (dev > k) & calm[:-2] & calm[2:]
     if bad.any():
         i, j = np.argwhere(bad)[0]
         line = 2 + int(np.nonzero(rows)[0][i])

@@ -336,3 +336,17 @@ def test_accelerometer_at_a_rail_on_the_poses(sets, tmp_path):
             r[j] = repr(float(np.clip(float(r[j]), lo, hi)))
     _put_rows(d, rows)
     run_refused(["calibrate", d, "-o", tmp_path / "c.json"], "poses hold accelerometer samples at a rail", "saturates")
+
+
+def test_a_settling_table_is_no_glitch(raw_table, tmp_path):
+    """A smooth excursion at each segment's start (the table settling) is data, not a glitch."""
+    d = Path(shutil.copytree(raw_table, tmp_path / "t"))
+    rows = _rows(d)
+    j, seg, k = rows[0].index("ax"), None, 0
+    for r in rows[1:]:
+        seg, k = (r[0], 0) if r[0] != seg else (seg, k + 1)
+        if k < 20:
+            r[j] = repr(float(r[j]) * (1 + 2e-3 * np.exp(-k / 5)))
+    _put_rows(d, rows)
+    r = CliRunner().invoke(main, ["calibrate", str(d), "-o", str(tmp_path / "c.json")])
+    assert r.exit_code == 0, r.output
