@@ -346,7 +346,7 @@ def test_a_settling_table_is_no_glitch(raw_table, tmp_path):
     for r in rows[1:]:
         seg, k = (r[0], 0) if r[0] != seg else (seg, k + 1)
         if k < 20:
-            r[j] = repr(float(r[j]) * (1 + 2e-3 * np.exp(-k / 5)))
+            r[j] = repr(float(float(r[j]) * (1 + 2e-3 * np.exp(-k / 5))))
     _put_rows(d, rows)
     r = CliRunner().invoke(main, ["calibrate", str(d), "-o", str(tmp_path / "c.json")])
     assert r.exit_code == 0, r.output
