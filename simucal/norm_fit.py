@@ -136,12 +136,12 @@ def fit_linear(model, obs: Observations) -> Fit:
 
 
 def tangent_basis(u):
-    """Orthonormal E (n, 3, 2) with columns perpendicular to unit u (n, 3)."""
-    a = np.where(np.abs(u[:, :1]) < 0.9, np.array([[1.0, 0, 0]]), np.array([[0, 1.0, 0]]))
+    """Orthonormal E (..., 3, 2) with columns perpendicular to unit u (..., 3)."""
+    a = np.where(np.abs(u[..., :1]) < 0.9, np.array([1.0, 0, 0]), np.array([0, 1.0, 0]))
     e1 = np.cross(u, a)
-    e1 /= np.linalg.norm(e1, axis=1, keepdims=True)
+    e1 /= np.linalg.norm(e1, axis=-1, keepdims=True)
     e2 = np.cross(u, e1)
-    return np.stack([e1, e2], axis=2)
+    return np.stack([e1, e2], axis=-1)
 
 
 def _start_cost(model, obs, p):
@@ -157,12 +157,17 @@ def _start_cost(model, obs, p):
 def jacobian_blocks(model, obs, p, u, sig):
     """The exact problem's weighted residual and Jacobian at (p, directions u):
     r (n,3), dr/dp (n,3,m), dr/d(tangent step) (n,3,2), and the tangent bases E (n,3,2)."""
-    rho = obs.rho[:, None]
-    Nm, Ju, Jp = model.jacobians(rho * u, p, obs.temp_c, obs.t_s, obs.extra)
+    return _blocks(model, obs.N, obs.rho, sig, p, u, (obs.temp_c, obs.t_s, obs.extra))
+
+
+def _blocks(model, N, rho, sig, p, u, aux):
+    """jacobian_blocks for one set (N (n, 3), p (m,)) or a batch (N (S, n, 3), p (S, m))."""
+    rho3 = rho[..., None]
+    Nm, Ju, Jp = model.jacobians(rho3 * u, p, *aux)
     E = tangent_basis(u)
-    r = (obs.N - Nm) / sig
-    Jd = -np.einsum("nij,njk->nik", Ju, rho[:, :, None] * E) / sig[:, :, None]
-    Jq = -Jp / sig[:, :, None]
+    r = (N - Nm) / sig
+    Jd = -(Ju @ (rho3[..., None] * E)) / sig[..., None]
+    Jq = -Jp / sig[..., None]
     return r, Jq, Jd, E
 
 
@@ -171,13 +176,21 @@ def normal_equations(model, obs, p, u, sig):
     complement of its 2x2 block): H (m, m), the information of p with the directions profiled
     out (the inverse of the CRLB where sig is the true noise), and g; with the blocks the
     direction steps need: r, H, g, A^-1 (n, 2, 2), B (n, 2, m), gd (n, 2), E (n, 3, 2)."""
-    r, Jq, Jd, E = jacobian_blocks(model, obs, p, u, sig)
-    A = np.einsum("nia,nib->nab", Jd, Jd)
-    B = np.einsum("nia,nib->nab", Jd, Jq)
-    gd = np.einsum("nia,ni->na", Jd, r)
-    Ainv = np.linalg.inv(A)
-    H = np.einsum("nia,nib->ab", Jq, Jq) - np.einsum("nca,ncd,ndb->ab", B, Ainv, B)
-    g = np.einsum("nia,ni->a", Jq, r) - np.einsum("nca,ncd,nd->a", B, Ainv, gd)
+    return _schur(*jacobian_blocks(model, obs, p, u, sig))
+
+
+def _schur(r, Jq, Jd, E):
+    """normal_equations from the blocks, for one set or a batch (leading axes): the sums over
+    the rows as matrix products."""
+    JdT = Jd.swapaxes(-1, -2)
+    B, gd = JdT @ Jq, (JdT @ r[..., None])[..., 0]
+    Ainv = np.linalg.inv(JdT @ Jd)
+    AB, Ag = Ainv @ B, (Ainv @ gd[..., None])[..., 0]
+    lead, n, m = Jq.shape[:-3], Jq.shape[-3], Jq.shape[-1]
+    Jq2, B2 = Jq.reshape(*lead, 3 * n, m), B.reshape(*lead, 2 * n, m)
+    H = Jq2.swapaxes(-1, -2) @ Jq2 - B2.swapaxes(-1, -2) @ AB.reshape(*lead, 2 * n, m)
+    g = ((Jq2.swapaxes(-1, -2) @ r.reshape(*lead, 3 * n, 1))[..., 0]
+         - (B2.swapaxes(-1, -2) @ Ag.reshape(*lead, 2 * n, 1))[..., 0])
     return r, H, g, Ainv, B, gd, E
 
 
@@ -326,20 +339,7 @@ def fit_batch(model, N, rho, sig, p0, aux=(0.0, 0.0, None), max_iter=200, tol=1e
         if not len(idx):
             break
         iters[idx] = it
-        Nm, Ju, Jp = model.jacobians(rho3[idx] * u[idx], p[idx], *aux)
-        E = tangent_basis(u[idx].reshape(-1, 3)).reshape(len(idx), n, 3, 2)
-        s_ = sig[idx]
-        r = (N[idx] - Nm) / s_
-        Jd = -(Ju @ (rho3[idx][..., None] * E)) / s_[..., None]  # (s, n, 3, 2)
-        Jq = -Jp / s_[..., None]                                  # (s, n, 3, m)
-        JdT = Jd.swapaxes(-1, -2)
-        A, Bm, gd = JdT @ Jd, JdT @ Jq, (JdT @ r[..., None])[..., 0]
-        Ainv = np.linalg.inv(A)
-        AB, Ag = Ainv @ Bm, (Ainv @ gd[..., None])[..., 0]  # (s, n, 2, m), (s, n, 2)
-        k2, k3 = len(idx), Jq.shape[1]
-        Jq2, Bm2 = Jq.reshape(k2, 3 * k3, m), Bm.reshape(k2, 2 * k3, m)  # sums over rows as matrix products
-        H = Jq2.swapaxes(1, 2) @ Jq2 - Bm2.swapaxes(1, 2) @ AB.reshape(k2, 2 * k3, m)
-        g = (Jq2.swapaxes(1, 2) @ r.reshape(k2, 3 * k3, 1))[..., 0] - (Bm2.swapaxes(1, 2) @ Ag.reshape(k2, 2 * k3, 1))[..., 0]
+        r, H, g, Ainv, Bm, gd, E = _schur(*_blocks(model, N[idx], rho[idx], sig[idx], p[idx], u[idx], aux))
         if held:  # the prior's pseudo-observations (p_k - value) / std
             H[:, held, held] += held_w
             g[:, held] += held_w * (p[idx][:, held] - held_val)
