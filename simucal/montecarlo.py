@@ -26,6 +26,7 @@ from . import plans, units
 from .augmented import AugmentedModel
 from .generated import table
 from .norm_fit import fit_batch
+from .rotations import wahba
 from .simulate import Scenario
 
 K_REV = 12  # outer-angle samples per revolution (module doc)
@@ -139,12 +140,7 @@ def _unify_batch(am, p_a, N_ar, u_g, sign):
     M, b = am.matrix_and_bias(p_a)  # (T, 3, 3), (T, 3): the affine inverse, exact for affine models
     f = np.linalg.solve(M[:, None], (N_ar - b[:, None])[..., None])[..., 0]
     u_b = f / np.linalg.norm(f, axis=2, keepdims=True)
-    B = np.einsum("tni,tnj->tij", u_g * sign[None, :, None], u_b)
-    U, _, Vt = np.linalg.svd(B)
-    d = np.linalg.det(U @ Vt)
-    D = np.broadcast_to(np.eye(3), B.shape).copy()
-    D[:, 2, 2] = d
-    return U @ D @ Vt
+    return wahba(u_b, u_g * sign[None, :, None], np.ones(u_b.shape[:2]))
 
 
 def chunk_of_trials(sc: Scenario, size: int, seed: int, k: int) -> dict:

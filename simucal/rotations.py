@@ -47,6 +47,9 @@ def log_so3(R):
 
 
 def wahba(u_b, u_d, w):
-    """The rotation C (b -> d) minimising sum w_i |u_d,i - C u_b,i|^2 (SVD; Markley 1988)."""
-    U, _, Vt = np.linalg.svd((w[:, None] * u_d).T @ u_b)
-    return U @ np.diag([1, 1, np.linalg.det(U @ Vt)]) @ Vt
+    """The rotation C (b -> d) minimising sum w_i |u_d,i - C u_b,i|^2 (SVD; Markley 1988), for
+    pairs (n, 3) or batches of them (..., n, 3) with weights (..., n)."""
+    U, _, Vt = np.linalg.svd((w[..., None] * u_d).swapaxes(-1, -2) @ u_b)
+    D = np.broadcast_to(np.eye(3), U.shape).copy()
+    D[..., 2, 2] = np.linalg.det(U @ Vt)
+    return U @ D @ Vt
