@@ -9,13 +9,13 @@ import time
 
 import numpy as np
 from scipy.optimize import least_squares
-
-from simucal import plans
 from simucal.derive import codegen
 from simucal.derive.registry import ACC_BASELINE, ACC_EXTENDED, GYRO_BASELINE
 from simucal.generated import table
-from simucal.models import load
-from simucal.norm_fit import Observations, fit_exact, fit_linear
+
+from simucal.fit.catalog import load
+from simucal.fit.norm_fit import Observations, fit_exact, fit_linear
+from simucal.turntable import plans
 
 
 def best(f, reps):

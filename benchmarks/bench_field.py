@@ -14,8 +14,8 @@ from pathlib import Path
 
 import numpy as np
 
-from simucal.field import field_drift
-from simucal.simulate_field import FieldScenario, write_field
+from simucal.field.drift import field_drift
+from simucal.field.simulate import FieldScenario, write_field
 
 
 def main():

@@ -20,9 +20,9 @@ import numpy as np
 
 from simucal import io
 from simucal.calibrate import calibrate
-from simucal.handheld import calibrate_handheld
-from simucal.importers import import_imu_tk
-from simucal.rotations import exp_so3
+from simucal.fit.rotations import exp_so3
+from simucal.handheld.calibrate import calibrate_handheld
+from simucal.io.importers import import_imu_tk
 
 DATA = Path(__file__).resolve().parents[2] / "shared" / "data" / "imu_tk-xsens"
 G = 9.81744

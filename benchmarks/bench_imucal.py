@@ -15,7 +15,7 @@ import numpy as np
 
 from simucal.calibrate import calibrate
 from simucal.errors import CalibrationError
-from simucal.importers import import_ferraris_sections, import_imucal_annotated
+from simucal.io.importers import import_ferraris_sections, import_imucal_annotated
 
 DATA = Path(__file__).resolve().parents[2] / "shared" / "data" / "imucal-ferraris"
 G = 9.81

@@ -16,10 +16,10 @@ from pathlib import Path
 import numpy as np
 from tqdm import tqdm
 
-from simucal import report
 from simucal.calibrate import calibrate
-from simucal.paper_claims import LEVELS, PAPER_T3, PAPER_T4
-from simucal.simulate import Scenario, write
+from simucal.report import markdown as report
+from simucal.report.paper_claims import LEVELS, PAPER_T3, PAPER_T4
+from simucal.turntable.simulate import Scenario, write
 
 METHODS = ("exact", "linear", "multiposition")
 

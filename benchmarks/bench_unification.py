@@ -15,8 +15,8 @@ from pathlib import Path
 import numpy as np
 
 from simucal.calibrate import calibrate
-from simucal.rotations import exp_so3
-from simucal.simulate import ARCMIN, Scenario, write
+from simucal.fit.rotations import exp_so3
+from simucal.turntable.simulate import ARCMIN, Scenario, write
 
 
 def main():

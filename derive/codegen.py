@@ -295,7 +295,7 @@ def unify_module(acc: ErrorModel, gyro: ErrorModel) -> str:
 
 def generate(models) -> dict:
     """Every generated file of the built-in models as {filename: text} (a user's model
-    goes to the cache: simucal.user_models)."""
+    goes to the cache: simucal.fit.catalog)."""
     files, manifest = {}, {"format": "simucal.generated/1", "models": {}}
     for model in models:
         text, entry = model_module(model)

@@ -22,11 +22,12 @@ from pathlib import Path
 import numpy as np
 
 from simucal import io
-from simucal.calibrate import segment_observations
-from simucal.models import compile_c, generated_dir, load
-from simucal import montecarlo
-from simucal.norm_fit import Observations, fit_exact
-from simucal.simulate import Scenario, write
+from simucal.fit.catalog import load
+from simucal.fit.models import compile_c, generated_dir
+from simucal.fit.norm_fit import Observations, fit_exact
+from simucal.turntable import montecarlo
+from simucal.turntable.calibrate import segment_observations
+from simucal.turntable.simulate import Scenario, write
 
 DATA = Path(__file__).resolve().parents[2] / "shared" / "data" / "imu_tk-xsens"  # beside a source checkout
 

@@ -48,7 +48,7 @@ def derive(check, model_files):
     """Derive the built-in models and (re)write generated/; or derive your own model file."""
     from simucal import derive_cmd
     if model_files:
-        from simucal.user_models import derive_model_file
+        from simucal.fit.catalog import derive_model_file
         for f in model_files:
             try:
                 names, _ = derive_model_file(f)
@@ -91,9 +91,9 @@ def derive(check, model_files):
 def simulate(out_dir, scenario, heading_error_deg, seed, plan, rate_hz, position_error_arcmin, acc_model, gyro_model,
              acc_unit, gyro_unit, effects, effect_file, sets, no_noise_stated):
     """Simulate a test; write a measurement set and truth.json."""
-    from simucal.simulate import ARCMIN, SCENARIOS, plant, write
+    from simucal.turntable.simulate import ARCMIN, SCENARIOS, plant, write
     if scenario == "field":
-        from simucal.simulate_field import FieldScenario, write_field
+        from simucal.field.simulate import FieldScenario, write_field
         fs = FieldScenario()
         if heading_error_deg is not None:
             fs.heading_error_deg = heading_error_deg
@@ -193,7 +193,7 @@ def calibrate(data_dirs, output, method, acc_model, gyro_model, add, acc_noise_g
     With segments.csv: a turntable test (dong2018). Without: a continuous stream
     from a hand-placed session (static poses found from the data; Tedaldi)."""
     from simucal.calibrate import calibrate_to_file
-    from simucal.static_detect import DetectSettings
+    from simucal.handheld.static_detect import DetectSettings
     kwargs = dict(method=method, acc_model=acc_model, gyro_model=gyro_model,
                   detect=DetectSettings(window_s, threshold_factor, min_static_s, init_rest_s), add=add, acc_noise_g=acc_noise_g, gyro_noise_dph=gyro_noise_dph)
     if len(data_dirs) == 1:
@@ -240,8 +240,9 @@ def calibrate(data_dirs, output, method, acc_model, gyro_model, add, acc_noise_g
 @click.option("-o", "--out-dir", required=True, type=click.Path(file_okay=False))
 def apply_cmd(calibration_file, data_dir, out_dir):
     """Apply a calibration to raw data: a measurement set in g and deg/h, frame b."""
-    from simucal import calibration, io
-    from simucal.apply import apply
+    from simucal import io
+    from simucal.fit.apply import apply
+    from simucal.io import calibration
     _check_out(out_dir)
     try:
         cal = calibration.read(calibration_file)
@@ -262,7 +263,7 @@ def audit(output, seeds):
     values, and its numeric claims (abstract, Tables 3 and 4) against a Monte Carlo."""
     from tqdm import tqdm
 
-    from simucal.paper_claims import full_audit
+    from simucal.report.paper_claims import full_audit
     _check_out(output)
     report = full_audit(seeds, progress=lambda items: tqdm(items, desc="audit", leave=False))
     Path(output).write_text(report.markdown())
@@ -335,7 +336,7 @@ def diagnose(data_dir, output, html_path, add, acc_model, gyro_model, acc_noise_
     models = _write_shape_models(result, output)
     Path(output).write_text(json.dumps(result, indent=1, default=float) + "\n")
     if html_path:
-        from simucal.report_html import render
+        from simucal.report.html import render
         Path(html_path).write_text(render(result))
     for line in result["verdict"].split(" | "):
         click.echo(line)
@@ -364,8 +365,8 @@ def montecarlo(scenario, plan, trials, seed, effects, output, scheduler):
 
     from tqdm import tqdm
 
-    from simucal.montecarlo import run
-    from simucal.simulate import SCENARIOS, plant
+    from simucal.turntable.montecarlo import run
+    from simucal.turntable.simulate import SCENARIOS, plant
     _check_out(output)
     if trials < 2:
         _fail(f"--trials {trials}: at least 2 trials are needed for a std")
@@ -414,10 +415,10 @@ def plan(score_plan, model_name, add, positions, criterion, rate_dps, rates, kin
 
     import numpy as np
 
-    from simucal import plans
-    from simucal.augmented import AugmentedModel
     from simucal.errors import CalibrationError
-    from simucal.plan_design import design, directions_k, plan_rows, score
+    from simucal.fit.augmented import AugmentedModel
+    from simucal.turntable import plans
+    from simucal.turntable.plan_design import design, directions_k, plan_rows, score
     if (score_plan is None) == (positions is None):
         _fail("give --score PLAN to score a plan, or --positions N to design one")
     if output:
@@ -442,8 +443,8 @@ def plan(score_plan, model_name, add, positions, criterion, rate_dps, rates, kin
         if pair:
             if score_plan is None or not sizes:
                 raise ValueError("--separate needs --score PLAN (the plan you have) and --sizes Q1,Q2")
-            from simucal.augmented import check_effect
-            from simucal.plan_design import separate
+            from simucal.fit.augmented import check_effect
+            from simucal.turntable.plan_design import separate
             ids = [x.strip() for x in pair.split(",")]
             q = [float(x) for x in sizes.split(",")]
             if len(ids) != 2 or len(q) != 2:
@@ -519,8 +520,8 @@ def field_drift(data_dir, output, plot, heading_accuracy_deg):
     import json
 
     from simucal.errors import CalibrationError
-    from simucal.field import field_drift as run
-    from simucal.field import plot_history
+    from simucal.field.drift import field_drift as run
+    from simucal.field.drift import plot_history
     from simucal.io import MeasurementSetError
     try:
         result, hist = run(Path(data_dir), heading_accuracy_deg=heading_accuracy_deg)
@@ -551,7 +552,7 @@ def field_drift(data_dir, output, plot, heading_accuracy_deg):
 def import_cmd(fmt, sources, out_dir, latitude_deg, acc_counts_per_g, gyro_counts_per_dps, gravity_mps2, rate_hz,
                columns, acc_unit, gyro_unit, turn_deg):
     """Write a measurement set from another tool's recording."""
-    from simucal import importers as im
+    from simucal.io import importers as im
     try:
         if fmt == "imu_tk":
             if len(sources) != 2 or not acc_counts_per_g or not gyro_counts_per_dps:

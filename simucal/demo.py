@@ -13,12 +13,14 @@ from pathlib import Path
 
 import numpy as np
 
-from . import calibration, derive_cmd, io, report
-from .apply import apply
-from .calibrate import calibrate
-from .diagnose import diagnose
-from .report_html import render
-from .simulate import SCENARIOS, write
+from simucal import derive_cmd, io
+from simucal.calibrate import calibrate
+from simucal.diagnose import diagnose
+from simucal.fit.apply import apply
+from simucal.io import calibration
+from simucal.report import markdown as report
+from simucal.report.html import render
+from simucal.turntable.simulate import SCENARIOS, write
 
 HIDDEN = {"acc.quadratic.z": 2e-4}  # g/g^2: a z accelerometer second-order nonlinearity
 
@@ -69,7 +71,7 @@ def loop(out: Path, seed: int, echo) -> dict:
 
 
 def paper(out: Path, seed: int, echo) -> None:
-    from .paper_claims import full_audit
+    from simucal.report.paper_claims import full_audit
     write(out / "paper", SCENARIOS["paper"](), seed)
     echo(f"simulate: {out / 'paper'} (dong2018 section 4 settings, seed {seed})")
     results = {}

@@ -6,7 +6,7 @@ import difflib
 import time
 from pathlib import Path
 
-from simucal.models import generated_dir
+from simucal.fit.models import generated_dir
 
 
 def run(check: bool = False, out_dir: Path | None = None) -> tuple[list[str], float, str]:

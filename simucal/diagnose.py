@@ -13,19 +13,20 @@ from pathlib import Path
 
 import numpy as np
 
-from . import io
-from .augmented import AugmentedModel
-from .calibrate import check_rate_sense, segment_observations
-from .candidates import (
+from simucal import io
+from simucal.errors import CalibrationError
+from simucal.fit.augmented import AugmentedModel
+from simucal.fit.candidates import (
     ALPHA,
     rank_candidates,
     shape_if_unexplained,
     test_model,
     verdict,
 )
-from .errors import CalibrationError
-from .lack_of_fit import model_file_text
-from .norm_fit import Fit, Observations
+from simucal.fit.lack_of_fit import model_file_text
+from simucal.fit.norm_fit import Fit, Observations
+from simucal.turntable.calibrate import check_rate_sense, segment_observations
+from simucal.turntable.plan_design import TableAdvice
 
 
 def residual_table(fit: Fit, obs: Observations, segs) -> list[dict]:
@@ -50,12 +51,12 @@ def diagnose_sensor(ms, sensor, base_model, add=(), stated=None, truth=None, bef
         if base_model != "gyro_baseline":
             raise CalibrationError(f"{ms.path}: on a stream the gyro is fit as a full T and a bias over the moves, so "
                                    f"the model {base_model} does not apply; add effects with --add gyro.<effect>.<axis>")
-        from .diagnose_moves import diagnose_moves
-        from .handheld import acc_from_poses
+        from simucal.handheld.calibrate import acc_from_poses
+        from simucal.handheld.diagnose_moves import diagnose_moves
         obs, det, am, fa, _ = acc_from_poses(ms)
         return diagnose_moves(ms, obs, det, am, fa, tuple(add), truth, ALPHA)
     if ms.segments is None:  # a stream: its static poses, as the hand-placed calibration finds them
-        from .handheld import pose_observations
+        from simucal.handheld.calibrate import pose_observations
         obs, det, poses = pose_observations(ms)
         segs = [io.Segment(i, "static", None, None, None, 0.0) for i in range(len(poses))]
     else:  # accelerometers: the rate runs too, where lever arms show
@@ -67,13 +68,13 @@ def diagnose_sensor(ms, sensor, base_model, add=(), stated=None, truth=None, bef
     model = AugmentedModel(base_model, tuple(add))
     fit, obs, base = test_model(model, obs)
     cands = rank_candidates(model, obs, fit, base["p_value"] is not None and base["p_value"] < ALPHA,
-                            advise=ms.segments is not None)
+                            advisor=TableAdvice() if ms.segments is not None else None)
     table_info = None
     if sensor == "acc" and ms.segments is not None:  # the table, from the static positions' directions
         idx = [i for i, s in enumerate(segs) if s.kind == "static" and s.middle_deg is not None
                and s.inner_deg is not None]
         if len(idx) >= 6:
-            from .table_fit import table_candidates
+            from simucal.turntable.table_fit import table_candidates
             ang = [[segs[i].outer_deg or 0.0, segs[i].middle_deg, segs[i].inner_deg] for i in idx]
             tc, table_info = table_candidates(fit.directions[idx], ang, ALPHA)
             cands = sorted([c for c in cands + tc if c["separable"]],
@@ -109,7 +110,7 @@ def stream_summary(ms, max_points=4000):
     """A continuous stream for the report: |f| over time (decimated), calibrated by the
     hand-placed accelerometer fit, and the static intervals found (the gyro's moves are in
     the gyro block, diagnose_moves)."""
-    from .handheld import acc_from_poses
+    from simucal.handheld.calibrate import acc_from_poses
     _, det, am, fa, _ = acc_from_poses(ms)
     t = ms.samples["t_s"]
     step = max(len(t) // max_points, 1)
@@ -121,7 +122,7 @@ def stream_summary(ms, max_points=4000):
 
 def diagnose(folder, add=(), acc_model="acc_baseline", gyro_model="gyro_baseline",
              acc_noise_g=None, gyro_noise_dph=None) -> dict:
-    """add: effect ids and model files (simucal.user_models.resolve_add)."""
+    """add: effect ids and model files (fit/augmented.resolve_add)."""
     folder = Path(folder)
     ms = io.read(folder)
     try:
@@ -131,8 +132,8 @@ def diagnose(folder, add=(), acc_model="acc_baseline", gyro_model="gyro_baseline
 
 
 def _diagnose(ms, folder, add, acc_model, gyro_model, acc_noise_g, gyro_noise_dph):
-    from .handheld import stuck_channels
-    from .user_models import resolve_add
+    from simucal.fit.augmented import resolve_add
+    from simucal.io.sensor_checks import stuck_channels
     stuck_channels(ms)
     before = {"acc": acc_model, "gyro": gyro_model}
     acc_model, gyro_model, ids = resolve_add(add, acc_model, gyro_model)

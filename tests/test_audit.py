@@ -4,7 +4,7 @@ import math
 
 import pytest
 
-from simucal.paper_claims import claims, section4_values
+from simucal.report.paper_claims import claims, section4_values
 
 VERDICTS = ("agrees", "OCR damage", "error in the paper", "neglected", "claim not supported", "reproducible",
             "not reproducible")

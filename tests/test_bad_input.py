@@ -16,8 +16,8 @@ from hypothesis import strategies as st
 
 from simucal import io
 from simucal.cli import main
-from simucal.simulate import Scenario, write
-from simucal.simulate_handheld import HandheldScenario, write_handheld
+from simucal.handheld.simulate import HandheldScenario, write_handheld
+from simucal.turntable.simulate import Scenario, write
 
 
 @pytest.fixture(scope="module")

@@ -112,7 +112,7 @@ def test_audit_covers_eq5_to_27_and_table1():
 
 
 def test_raw_samples_within_3_sigma(tmp_path):
-    from simucal.simulate import Scenario, write
+    from simucal.turntable.simulate import Scenario, write
     truth = write(tmp_path / "raw", Scenario(rate_hz=20.0, static_s=5.0, acc_unit="m/s^2", gyro_unit="rad/s"), seed=5)
     r = calibrate(tmp_path / "raw", "exact")
     for sensor in ("acc", "gyro"):
@@ -122,9 +122,9 @@ def test_raw_samples_within_3_sigma(tmp_path):
 
 
 def test_not_converged_is_reported(paper_set):
-    from simucal.calibrate import segment_observations
-    from simucal.models import load
-    from simucal.norm_fit import fit_exact
+    from simucal.fit.catalog import load
+    from simucal.fit.norm_fit import fit_exact
+    from simucal.turntable.calibrate import segment_observations
     obs, _ = segment_observations(io.read(paper_set[0]), "acc")
     with pytest.raises(CalibrationError, match="did not converge"):
         fit_exact(load("acc_baseline"), obs, p0=[0.3] * 9, max_iter=1)
@@ -133,8 +133,8 @@ def test_not_converged_is_reported(paper_set):
 def test_user_model_file_goes_to_the_cache_not_the_package(tmp_path, monkeypatch, paper_set):
     """A user's model is derived into the cache, keyed by its file; generated/ stays as it was,
     the model works by name from any folder, and a second use needs no derivation."""
-    from simucal.models import generated_dir, load
-    from simucal.user_models import derive_model_file
+    from simucal.fit.catalog import derive_model_file, load
+    from simucal.fit.models import generated_dir
     before = {p.name: p.read_bytes() for p in generated_dir().iterdir() if p.is_file()}
     model_file = tmp_path / "my_model.py"
     model_file.write_text(
@@ -161,7 +161,7 @@ def test_unit_mixup_named(paper_set, tmp_path):
     (dst / "meta.json").write_text(json.dumps(meta))
     with pytest.raises(CalibrationError, match="times the known input"):
         calibrate(dst, "exact")
-    from simucal.simulate import Scenario, write
+    from simucal.turntable.simulate import Scenario, write
     write(tmp_path / "ms2", Scenario(acc_unit="m/s^2"), 1)
     meta = json.loads((tmp_path / "ms2" / "meta.json").read_text())
     meta["acc_unit"] = "g"
@@ -171,7 +171,7 @@ def test_unit_mixup_named(paper_set, tmp_path):
 
 
 def test_saturated_segment_left_out_and_reported(tmp_path):
-    from simucal.simulate import Scenario, write
+    from simucal.turntable.simulate import Scenario, write
     write(tmp_path / "s", Scenario(rate_hz=20.0, static_s=3.0, acc_unit="g"), 2)
     meta = json.loads((tmp_path / "s" / "meta.json").read_text())
     meta["full_scale"] = {"acc": [-0.98, 0.98]}  # clips the positions nearest an axis

@@ -9,8 +9,8 @@ from simucal.generated import table
 
 from simucal.calibrate import calibrate
 from simucal.errors import CalibrationError
-from simucal.rotations import log_so3
-from simucal.simulate import ARCMIN, Scenario, write
+from simucal.fit.rotations import log_so3
+from simucal.turntable.simulate import ARCMIN, Scenario, write
 
 
 def _truth_C_b_d(sc):

@@ -7,7 +7,7 @@ from click.testing import CliRunner
 
 from simucal.cli import main
 from simucal.diagnose import diagnose
-from simucal.simulate import Scenario, write
+from simucal.turntable.simulate import Scenario, write
 
 RATES = (5.0, 10.0, -10.0, 20.0)
 # (effect id, size, scenario settings rich enough to see it). Every case uses seed 11 except where
@@ -96,7 +96,7 @@ def test_cli_diagnose_writes_json_and_html(tmp_path):
 
 
 def test_table_tilt_where_the_data_can_show_it(tmp_path):
-    from simucal.simulate import ARCSEC
+    from simucal.turntable.simulate import ARCSEC
     tilt = 60 * ARCSEC
     write(tmp_path / "t", Scenario(plan="fibonacci48", tilt_rad=(tilt, 0.0), position_error_rad=2 * ARCSEC), seed=3)
     d = diagnose(tmp_path / "t")

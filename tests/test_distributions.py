@@ -5,7 +5,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 from scipy import special
 
-from simucal.distributions import chi2_isf, chi2_sf, f_sf
+from simucal.fit.distributions import chi2_isf, chi2_sf, f_sf
 
 
 @settings(max_examples=300, deadline=None)

@@ -6,8 +6,8 @@ from simucal.derive import field as dfield
 
 from simucal import io
 from simucal.errors import CalibrationError
-from simucal.field import field_drift
-from simucal.simulate_field import FieldScenario, simulate_field, write_field
+from simucal.field.drift import field_drift
+from simucal.field.simulate import FieldScenario, simulate_field, write_field
 
 
 def test_observability_one_drift_per_position():
@@ -50,7 +50,7 @@ def test_transition_matrix_matches_scipy():
     import scipy.linalg
     from simucal.generated import field as gen
 
-    from simucal.field import expm
+    from simucal.field.drift import expm
     F = gen.error_model(9.80665, 7.292115e-5, np.radians(45.0))
     for dt in (0.01, 1.0, 30.0):
         ref = scipy.linalg.expm(F * dt)

@@ -9,10 +9,10 @@ from simucal.derive.frames import N_out
 from simucal.derive.models.baseline import ACC_BASELINE
 from simucal.generated import table
 
-from simucal import plans
 from simucal.errors import CalibrationError
-from simucal.models import load
-from simucal.norm_fit import Observations, fit_exact, fit_linear
+from simucal.fit.catalog import load
+from simucal.fit.norm_fit import Observations, fit_exact, fit_linear
+from simucal.turntable import plans
 
 P_ACC = np.array([0.002, 0.008, 0.006, 1e-4, 1e-4, 1e-4, 8e-4, -1e-3, -3.2e-3])
 
@@ -112,10 +112,10 @@ def test_compiled_whole_fit_matches_the_python_solver(tmp_path, name, sensor):
     (to 1e-5 of each std: both stop within 1e-6 std of the optimum) and its covariance, for one
     set and for a batch."""
     from simucal import io
-    from simucal.calibrate import segment_observations
-    from simucal.models import load
-    from simucal.norm_fit import fit_exact
-    from simucal.simulate import Scenario, write
+    from simucal.fit.catalog import load
+    from simucal.fit.norm_fit import fit_exact
+    from simucal.turntable.calibrate import segment_observations
+    from simucal.turntable.simulate import Scenario, write
     c, py = load(name), load(name, compiled=False)
     if os.environ.get("SIMUCAL_NO_COMPILE"):  # the fallback by request: no compiled fit, the Python one
         assert c.backend == "numpy" and c.fit_compiled(None, None, None, None, None) is None
@@ -143,10 +143,10 @@ def test_compiled_whole_fit_matches_the_python_solver(tmp_path, name, sensor):
 def test_numpy_batch_equals_one_set_at_a_time(tmp_path):
     """norm_fit.fit_batch on several sets at once gives each set's fit_exact (the numpy path)."""
     from simucal import io
-    from simucal.calibrate import segment_observations
-    from simucal.models import load
-    from simucal.norm_fit import fit_batch, fit_exact
-    from simucal.simulate import Scenario, write
+    from simucal.fit.catalog import load
+    from simucal.fit.norm_fit import fit_batch, fit_exact
+    from simucal.turntable.calibrate import segment_observations
+    from simucal.turntable.simulate import Scenario, write
     py = load("gyro_baseline", compiled=False)
     sets = []
     for seed in range(3):

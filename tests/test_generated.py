@@ -2,12 +2,12 @@
 import numpy as np
 import pytest
 import sympy as sp
-
-from simucal import derive_cmd
 from simucal.derive import norm
 from simucal.derive.frames import AUX, N_out
 from simucal.derive.registry import BUILTIN
-from simucal.models import load
+
+from simucal import derive_cmd
+from simucal.fit.catalog import load
 
 rng = np.random.default_rng(42)
 
@@ -65,7 +65,8 @@ def test_every_generated_function_equals_sympy(model):
 
 
 def test_table_and_unify_modules_equal_sympy():
-    from simucal.derive import table as T, unify as U
+    from simucal.derive import table as T
+    from simucal.derive import unify as U
     from simucal.derive.models.baseline import ACC_BASELINE
     from simucal.generated import table, unify
     ang = rng.uniform(-3, 3, 3)
@@ -85,7 +86,8 @@ def test_moves_module_equals_its_derivation():
     by differentiating q(v), and against finite differences of exp; both finite at v = 0."""
     from simucal.derive import moves as D
     from simucal.generated import moves
-    from simucal.rotations import exp_so3
+
+    from simucal.fit.rotations import exp_so3
     for scale in (1e-4, 0.05, 2.0):  # both branches of c2
         v = rng.normal(size=3) * scale
         qv = rng.normal(size=4)
@@ -109,9 +111,15 @@ def test_moves_module_equals_its_derivation():
 
 def test_move_integration_and_its_jacobian():
     """The scan equals the sequential product; move_residuals' Jacobian equals finite differences."""
-    from simucal.handheld import Moves, move_residuals, prefix_products, total_products
-    from simucal.rotations import exp_so3
     from simucal.generated import moves
+
+    from simucal.fit.rotations import exp_so3
+    from simucal.handheld.calibrate import (
+        Moves,
+        move_residuals,
+        prefix_products,
+        total_products,
+    )
     m, L = 3, 37
     y = rng.normal(size=(3, m, L)) * 60  # deg/s
     dt = np.full((m, L), 0.01)

@@ -6,8 +6,8 @@ import pytest
 
 from simucal.calibrate import calibrate
 from simucal.errors import CalibrationError
-from simucal.importers import import_imu_tk
-from simucal.simulate_handheld import HandheldScenario, write_handheld
+from simucal.handheld.simulate import HandheldScenario, write_handheld
+from simucal.io.importers import import_imu_tk
 
 DATA = Path(__file__).resolve().parents[2] / "shared" / "data"
 
@@ -89,7 +89,7 @@ def test_diagnose_moves_clean_and_with_a_planted_g_sensitivity(tmp_path):
 
 
 def test_ferraris_sessions(tmp_path):
-    from simucal.importers import import_ferraris_sections, import_imucal_annotated
+    from simucal.io.importers import import_ferraris_sections, import_imucal_annotated
     d = DATA / "imucal-ferraris"
     import_ferraris_sections(d / "example_ferraris_session.csv", d / "example_ferraris_session_list.json",
                              tmp_path / "ex", 102.4, 49.6)
@@ -130,7 +130,7 @@ def test_too_few_turns_about_one_axis_calibrates_what_the_moves_determine(tmp_pa
 def test_ferraris_stream_without_its_section_list_gives_what_it_can(tmp_path):
     """imucal's example stream: six axis poses, no initial rest, no section list. The accelerometer's
     scales and biases come out, its misalignments are named undetermined (held at 0)."""
-    from simucal.importers import import_ferraris
+    from simucal.io.importers import import_ferraris
     import_ferraris(DATA / "imucal-ferraris" / "example_ferraris_session.csv", tmp_path / "f", 102.4, 49.6)
     r = calibrate(tmp_path / "f")
     assert sorted(r["acc"]["undetermined"]) == ["theta_yx", "theta_zx", "theta_zy"]
@@ -139,7 +139,7 @@ def test_ferraris_stream_without_its_section_list_gives_what_it_can(tmp_path):
 
 
 def test_gyro_fit_that_does_not_converge_is_refused(tmp_path, monkeypatch):
-    from simucal import handheld
+    from simucal.handheld import calibrate as handheld
     write_handheld(tmp_path / "h", HandheldScenario(), 0)
     real = handheld.fit_gyro_moves
     monkeypatch.setattr(handheld, "fit_gyro_moves", lambda *a, **k: real(*a, **{**k, "max_iter": 1, "step_tol": 1e-12}))
@@ -149,7 +149,7 @@ def test_gyro_fit_that_does_not_converge_is_refused(tmp_path, monkeypatch):
 
 def test_stream_with_no_long_enough_static_interval_is_refused(tmp_path):
     from simucal import io
-    from simucal.static_detect import DetectSettings, detect_static
+    from simucal.handheld.static_detect import DetectSettings, detect_static
     write_handheld(tmp_path / "h", HandheldScenario(poses=8), 0)
     ms = io.read(tmp_path / "h")
     with pytest.raises(CalibrationError, match="no static interval of at least 100 s found"):

@@ -6,12 +6,13 @@ import numpy as np
 import pytest
 from click.testing import CliRunner
 
-from simucal import calibration, io
-from simucal.apply import apply
+from simucal import io
 from simucal.calibrate import calibrate
 from simucal.cli import main
 from simucal.diagnose import diagnose
-from simucal.simulate import Scenario, write
+from simucal.fit.apply import apply
+from simucal.io import calibration
+from simucal.turntable.simulate import Scenario, write
 
 PLANTED = {"acc.quadratic.z": 2e-4, "acc.cross_coupling.xy": 2e-4, "acc.scale_asymmetry.x": 1e-4,
            "acc.bias_drift_time.y": 1e-7, "acc.size_effect.xx": 0.05, "gyro.quadratic.y": 0.5,
@@ -132,14 +133,14 @@ def test_apply_brings_rest_to_one_g(tmp_path):
 
 def test_apply_inverts_the_nonlinear_model_exactly(tmp_path):
     """Noise-free outputs of a model with effects come back as the true inputs."""
-    from simucal.augmented import AugmentedModel
+    from simucal.fit.augmented import AugmentedModel
     m = AugmentedModel("acc_baseline", ("acc.quadratic.z", "acc.cross_coupling.xy"))
     p = np.r_[np.random.default_rng(0).normal(size=9) * 1e-3, 3e-3, -2e-3]
     u = np.random.default_rng(1).normal(size=(50, 3))
     M, b = m.matrix_and_bias(p)
     block = {"model": "acc_baseline", "effects": {e: {"value": v} for e, v in zip(m.effects, p[9:])},
              "params": dict(zip(m.params, p)), "M": M.tolist(), "bias": b.tolist()}
-    from simucal.apply import invert
+    from simucal.fit.apply import invert
     got = invert(block, "acc", m.output(u, p), 0.0, 0.0, 0.0, "test")
     assert np.max(np.abs(got - u)) < 1e-12
 
@@ -176,7 +177,7 @@ def test_apply_refuses_another_layout(tmp_path, paper_set):
 def test_stream_calibrate_carries_a_gyro_effect_and_applies(tmp_path):
     """A hand-placed stream: calibrate --add fits a gyro effect over the moves (planted
     G_yz = 1000 (deg/h)/g), reports the moves' chi-square, and apply reads the stream back."""
-    from simucal.simulate_handheld import HandheldScenario, write_handheld
+    from simucal.handheld.simulate import HandheldScenario, write_handheld
     write_handheld(tmp_path / "h", HandheldScenario(gyro_effects={"gyro.g_sensitivity.yz": 1000.0}), 1)
     base = calibrate(tmp_path / "h")
     cal = calibrate(tmp_path / "h", add=("gyro.g_sensitivity.yz",))

@@ -5,8 +5,8 @@ import numpy as np
 from click.testing import CliRunner
 
 from simucal.cli import main
-from simucal.montecarlo import run, simulate_batch
-from simucal.simulate import Scenario
+from simucal.turntable.montecarlo import run, simulate_batch
+from simucal.turntable.simulate import Scenario
 
 
 def test_std_matches_the_cramer_rao_bound(tmp_path):
@@ -24,7 +24,7 @@ def test_std_matches_the_cramer_rao_bound(tmp_path):
 def test_batched_simulation_matches_the_simulator(tmp_path):
     """Noise-free, no position errors: the batch's mean outputs are simulate()'s (720 samples per revolution)."""
     from simucal import io
-    from simucal.simulate import write
+    from simucal.turntable.simulate import write
     sc = Scenario(position_error_rad=0.0, acc_effects={"acc.quadratic.z": 2e-4}, gyro_effects={"gyro.g_sensitivity.xz": 0.3})
     sc.acc_noise_g = sc.gyro_noise_dph = 0.0
     write(tmp_path, sc, 0)
@@ -58,7 +58,7 @@ def test_dask_local_cluster_gives_the_same_numbers(tmp_path):
 
 
 def test_batch_calibration_keeps_the_good_sets(tmp_path):
-    from simucal.simulate import write
+    from simucal.turntable.simulate import write
     for i in (1, 2):
         write(tmp_path / f"u{i}", Scenario(), i)
     (tmp_path / "bad").mkdir()

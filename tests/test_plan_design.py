@@ -3,11 +3,17 @@ import numpy as np
 import pytest
 from click.testing import CliRunner
 
-from simucal import plans
-from simucal.augmented import AugmentedModel
 from simucal.cli import main
-from simucal.norm_fit import Observations, fit_exact
-from simucal.plan_design import design, directions_k, information, plan_rows, score
+from simucal.fit.augmented import AugmentedModel
+from simucal.fit.norm_fit import Observations, fit_exact
+from simucal.turntable import plans
+from simucal.turntable.plan_design import (
+    design,
+    directions_k,
+    information,
+    plan_rows,
+    score,
+)
 
 
 def test_information_is_the_exact_solvers_covariance_by_finite_differences():
@@ -43,8 +49,8 @@ def test_designs_match_or_beat_table1_per_position():
 
 
 def test_designed_plan_monte_carlo_std_matches_its_crlb(tmp_path):
-    from simucal.montecarlo import run
-    from simucal.simulate import Scenario
+    from simucal.turntable.montecarlo import run
+    from simucal.turntable.simulate import Scenario
     am = AugmentedModel("acc_baseline")
     u = design(am, 12, 1.0, 1e-5)[0]
     csv = tmp_path / "p.csv"
@@ -75,7 +81,7 @@ def test_designed_plan_file_runs_a_test(tmp_path):
     """A gyro plan choosing among three rates runs as a simulated test (for a quadratic the D-optimum
     takes the fastest: its signature varies with the direction too); a hand-placed design is
     written as gravity directions."""
-    from simucal.simulate import Scenario, write
+    from simucal.turntable.simulate import Scenario, write
     r = CliRunner().invoke(main, ["plan", "--positions", "12", "--model", "gyro_baseline", "--add", "gyro.quadratic.x",
                                   "--rates", "5,10,20", "-o", str(tmp_path / "g.csv")])
     assert r.exit_code == 0, r.output
@@ -93,8 +99,8 @@ def test_separation_design_decides_an_inseparable_pair(tmp_path):
     the designed extra positions separate them, and a simulated test on the extended plan finds the
     planted quadratic first, with its twin rejected."""
     from simucal.diagnose import diagnose
-    from simucal.plan_design import separate
-    from simucal.simulate import Scenario, write
+    from simucal.turntable.plan_design import separate
+    from simucal.turntable.simulate import Scenario, write
     u = directions_k(plans.TABLE1)
     sep = separate("acc_baseline", "acc.quadratic.z", "acc.scale_asymmetry.z", u, 1.0, 1e-5, (3e-4, 3e-4),
                    target=0.99)
@@ -115,10 +121,10 @@ def test_separation_power_is_the_rate_observed(tmp_path):
     the rate at which simulated tests reject the twin (chi2 of the twin's fit less the true one's
     beyond the 1-dof critical value)."""
     from simucal import io
-    from simucal.calibrate import segment_observations
-    from simucal.distributions import chi2_isf
-    from simucal.plan_design import separate
-    from simucal.simulate import Scenario, write
+    from simucal.fit.distributions import chi2_isf
+    from simucal.turntable.calibrate import segment_observations
+    from simucal.turntable.plan_design import separate
+    from simucal.turntable.simulate import Scenario, write
     u = directions_k(plans.TABLE1)
     sep = separate("acc_baseline", "acc.quadratic.z", "acc.scale_asymmetry.z", u, 1.0, 1e-5, (1e-4, 1e-4), target=0.6)
     predicted = sep["power"][0]

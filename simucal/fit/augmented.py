@@ -1,0 +1,108 @@
+"""A generated baseline model plus candidate effects from generated/effects.py.
+
+N(u, p, q) = N_base(u, p) + sum_k q_k * phi_k(u, temp_c, t_s) * e_axis(k)
+
+Both halves are generated from derive/, so fitting baseline + candidate is
+the exact solver on the derived model, with no re-derivation at run time.
+"""
+from __future__ import annotations
+
+import numpy as np
+
+from simucal.fit.catalog import derive_model_file, load
+from simucal.fit.models import GeneratedModel, aux_args
+from simucal.generated.effects import EFFECTS
+
+
+def effect_ids(sensor: str) -> list[str]:
+    return [k for k, v in EFFECTS.items() if v[0] == sensor]
+
+
+def check_effect(eid: str, sensor: str | None = None):
+    """Refuse anything but an exact effect id, naming the ids that come closest."""
+    if eid not in EFFECTS:
+        import difflib
+        low = {k.lower(): k for k in EFFECTS}
+        near = ([low[eid.lower()]] if eid.lower() in low else
+                [k for k in EFFECTS if eid and eid.lower() in k] or difflib.get_close_matches(eid, list(EFFECTS), 5))
+        fam = sorted({".".join(k.split(".")[:2]) for k in EFFECTS})
+        raise KeyError(f"unknown effect {eid!r}" + (f"; did you mean {', '.join(near[:9])}?" if near else "")
+                       + f" Ids are <sensor>.<family>.<axis>, families {fam}, axes x, y, z (and pairs xy, ...). "
+                       "A term of your own: a model file (--add my_model.py)")
+    if sensor is not None and EFFECTS[eid][0] != sensor:
+        raise KeyError(f"effect {eid} is for the {EFFECTS[eid][0]}, not the {sensor}")
+
+
+class AugmentedModel:
+    def __init__(self, base: GeneratedModel | str, effects=()):
+        self.base = load(base) if isinstance(base, str) else base
+        for e in effects:
+            check_effect(e, self.base.sensor)
+        self.effects = tuple(effects)
+        self.sensor, self.unit = self.base.sensor, self.base.unit
+        self.name = self.base.name + "".join(f"+{e}" for e in self.effects)
+        self.params = tuple(self.base.params) + self.effects
+        self.param_units = tuple(self.base.param_units) + tuple(EFFECTS[e][3] for e in self.effects)
+        self.meanings = tuple(self.base.meanings) + tuple(EFFECTS[e][4] for e in self.effects)
+        self._m = len(self.base.params)
+
+    def _terms(self, u, temp_c, t_s, extra=None):
+        aux = aux_args(self.sensor, temp_c, t_s, extra)
+        for e in self.effects:
+            phi_fn = EFFECTS[e][5]
+            axis = EFFECTS[e][1]
+            phi, dphi = phi_fn(u, *aux)
+            yield axis, np.broadcast_to(phi[..., 0], np.shape(u)[:-1]), dphi
+
+    def output(self, u, p, temp_c=0.0, t_s=0.0, extra=None):
+        p = np.asarray(p, float)
+        N = self.base.output(u, p[..., :self._m], temp_c, t_s, extra)
+        batch = p.ndim > 1 and np.ndim(u) > 2  # one p per set: its effects broadcast over the set's rows
+        for q, (axis, phi, _) in zip(np.moveaxis(p[..., self._m:], -1, 0), self._terms(u, temp_c, t_s, extra)):
+            N[..., axis] += (q[..., None] if batch else q) * phi
+        return N
+
+    def jacobians(self, u, p, temp_c=0.0, t_s=0.0, extra=None):
+        """As GeneratedModel.jacobians, rows (n, 3) with one p, or a batch u (S, n, 3), p (S, m)."""
+        p = np.asarray(p, float)
+        N, Ju, Jp = self.base.jacobians(u, p[..., :self._m], temp_c, t_s, extra)
+        cols = []
+        for q, (axis, phi, dphi) in zip(np.moveaxis(p[..., self._m:], -1, 0), self._terms(u, temp_c, t_s, extra)):
+            q = np.asarray(q)[..., None] if p.ndim > 1 else q
+            N[..., axis] += q * phi
+            Ju[..., axis, :] += q[..., None] * dphi if np.ndim(q) else q * dphi
+            col = np.zeros(np.shape(u))
+            col[..., axis] = phi
+            cols.append(col)
+        if cols:
+            Jp = np.concatenate([Jp, np.stack(cols, axis=-1)], axis=-1)
+        return N, Ju, Jp
+
+    def matrix_and_bias(self, p, temp_c=0.0, t_s=0.0, extra=None):
+        return self.base.matrix_and_bias(np.asarray(p, float)[..., :self._m], temp_c, t_s, extra)
+
+    def norm_regressors(self, N, temp_c=0.0, t_s=0.0, extra=None):
+        if self.effects:
+            raise NotImplementedError("the linear norm regression exists for derived models only")
+        return self.base.norm_regressors(N, temp_c, t_s, extra)
+
+    def params_of_K(self, K, first_order=False):
+        return self.base.params_of_K(K, first_order)
+
+
+def resolve_add(add, acc_model: str, gyro_model: str) -> tuple[str, str, tuple[str, ...]]:
+    """What `--add` names: effect ids (checked; unknown ones refused) and model files
+    (derived into the cache; each file's models replace the base model of their sensor).
+    Returns (acc base model, gyro base model, effect ids)."""
+    ids = []
+    for a in add:
+        if a.endswith(".py"):
+            for name in derive_model_file(a)[0]:
+                if load(name).sensor == "acc":
+                    acc_model = name
+                else:
+                    gyro_model = name
+        else:
+            check_effect(a)
+            ids.append(a)
+    return acc_model, gyro_model, tuple(dict.fromkeys(ids))

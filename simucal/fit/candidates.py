@@ -1,0 +1,194 @@
+"""Is the model enough, and which effect is missing: one test for every diagnosis.
+
+- test_model: the exact fit with the noise the data give (lack_of_fit.fit_with_noise),
+  a chi-square test where the noise is known, the lack-of-fit F test always, and one
+  p-value for the verdict (the chi-square's where every row's noise is known, the F
+  test's where none is, the smaller of the two, Bonferroni-doubled, where some is).
+- rank_candidates: every candidate effect of generated/effects.py fit as model +
+  candidate by the same exact solver, ranked by the likelihood ratio (chi-square
+  difference; an F ratio where the noise is unknown); gate_candidates applies the
+  Bonferroni gate: a candidate is significant only when the model fails and its
+  p-value beats alpha / (number tested). Candidates whose Jacobian column lies in the
+  span of the model's (or of another candidate's) are reported as not separable by
+  this plan, with what would separate them.
+- shape: when no candidate explains the misfit, the generic term that does
+  (lack_of_fit.describe_shape).
+- verdict: one paragraph for the user, with units and the command to run next.
+Used by calibrate, diagnose (turntable sets and streams' poses), diagnose_moves and table_fit.
+"""
+from __future__ import annotations
+
+import numpy as np
+
+from simucal.errors import CalibrationError
+from simucal.fit.augmented import AugmentedModel, effect_ids
+from simucal.fit.distributions import chi2_sf, f_sf
+from simucal.fit.lack_of_fit import describe_shape, fit_with_noise, lack_of_fit
+from simucal.fit.models import aux_args
+from simucal.fit.norm_fit import Fit, Observations, dense_jacobian, fit_exact
+from simucal.generated.effects import EFFECTS, SEPARATE
+
+ALPHA = 0.01
+
+
+def rank_candidates(model: AugmentedModel, obs: Observations, fit: Fit, base_fails: bool, advisor=None) -> list[dict]:
+    """advisor: where the data come from a plan that can grow (turntable/plan_design.TableAdvice),
+    the positions to add for a candidate this plan cannot see, and for the strongest pair of
+    candidates it cannot tell apart."""
+    J, sig = dense_jacobian(model, obs, fit)
+    Q, _ = np.linalg.qr(J)
+    u = fit.directions * obs.rho[:, None]
+    ids = [e for e in effect_ids(model.sensor) if e not in model.effects]
+    cols, out = {}, []
+    for eid in ids:
+        _, axis, pname, unit, meaning, f = EFFECTS[eid]
+        aux = aux_args(model.sensor, obs.temp_c, obs.t_s, obs.extra)
+        phi = np.broadcast_to(f(u, *aux)[0][..., 0], (len(u),))
+        col = np.zeros((len(u), 3))
+        col[:, axis] = phi
+        col = (col / sig).ravel()
+        perp = col - Q @ (Q.T @ col)
+        family, ax = eid.split(".")[1], eid.split(".")[2]
+        entry = {"effect": ".".join(eid.split(".")[:2]), "axis": ax, "id": eid, "parameter": pname,
+                 "unit": unit, "meaning": meaning}
+        norm_col = np.linalg.norm(col)
+        if norm_col == 0 or np.linalg.norm(perp) < 1e-3 * norm_col:
+            why = ("no input for it in these data" if norm_col == 0 else
+                   f"collinear with the baseline model ({100 * np.linalg.norm(perp) / norm_col:.2g} % of its "
+                   "signature is separable)")
+            note = f"{why}; to see it: {SEPARATE[family]}"
+            if advisor is not None and base_fails and norm_col > 0:  # advice only where a misfit needs explaining
+                note += advisor.reveal(model, eid, fit, obs, sig)
+            entry.update(separable=False, note=note)
+            out.append(entry)
+            continue
+        cols[eid] = perp / np.linalg.norm(perp)
+        aug = AugmentedModel(model.base, model.effects + (eid,))
+        try:
+            f1 = fit_exact(aug, obs, p0=np.r_[fit.vector(model.params), 0.0])
+        except CalibrationError as e:
+            entry.update(separable=False, note=f"augmented fit failed: {e}")
+            out.append(entry)
+            continue
+        if f1.chi2 is not None:
+            stat = max(fit.chi2 - f1.chi2, 0.0)
+            p = float(chi2_sf(stat, 1))
+            daic = stat - 2.0
+        else:  # unknown noise: F test on the residual sums of squares
+            rss0, rss1 = fit.residual_rms ** 2, f1.residual_rms ** 2
+            stat = max((rss0 - rss1) / max(rss1 / max(f1.dof, 1), 1e-300), 0.0) if f1.dof > 0 else 0.0
+            p = float(f_sf(stat, 1, f1.dof)) if f1.dof > 0 else None
+            daic = None
+        entry.update(separable=True, estimate=f1.params[eid], std=f1.std[eid], statistic=float(stat),
+                     p_value=p, delta_aic=daic, residual_rms_after=f1.residual_rms)
+        visible = float(np.linalg.norm(perp) / norm_col)
+        if visible < 0.05:
+            entry["note"] = (f"nearly collinear with the baseline: {100 * visible:.2g} % of its signature is separable, "
+                             f"so it is weakly seen; to see it: {SEPARATE[family]}")
+        out.append(entry)
+    advised = False
+    for e in sorted(out, key=lambda e: -e.get("statistic", -1.0)):
+        twins = [o for o in cols if o != e["id"] and abs(cols[o] @ cols[e["id"]]) > 0.99] if e["separable"] else []
+        if twins:
+            e["note"] = "cannot be told apart from " + ", ".join(twins) + " by this plan"
+            if advisor is not None and base_fails and not advised and e["p_value"] is not None and e["p_value"] < ALPHA:
+                e["note"] += "; " + advisor.separate(model, e, twins[0], fit, obs, sig)
+                advised = True  # the strongest pair only: the one the verdict rests on
+    return gate_candidates(out, base_fails)
+
+
+def gate_candidates(out, base_fails, alpha=ALPHA):
+    """The Bonferroni gate over one family of tests: a separable candidate is significant only
+    when the baseline fails and its p-value beats alpha / (number tested). Returns the
+    tested candidates, strongest first, then the ones that could not be tested."""
+    tested = [e for e in out if e["separable"]]
+    for e in tested:
+        e["significant"] = bool(base_fails and e["p_value"] is not None and e["p_value"] < alpha / len(tested))
+    return sorted(tested, key=lambda e: -e["statistic"]) + [e for e in out if not e["separable"]]
+
+
+
+
+def test_model(model, obs: Observations, p0=None) -> tuple[Fit, Observations, dict]:
+    """Fit and test the model. Returns (fit, observations with the sigma used, baseline block)."""
+    fit, obs, noise = fit_with_noise(model, obs, p0)
+    n, m = len(obs.N), len(model.params)
+    lof = lack_of_fit(model, obs, fit)
+    block = {"residual_rms": fit.residual_rms, "residual_unit": model.unit, "dof": fit.dof, "model": fit.model,
+             "noise": noise, "lack_of_fit": lof, "chi2": fit.chi2}
+    if fit.chi2 is not None:
+        noise_std = float(np.sqrt(np.mean(obs.sigma ** 2)))
+        # expected residual rms if the model is right: chi2 has n - m dof over 3n components
+        block.update(noise_floor=noise_std * float(np.sqrt(max(n - m, 0) / (3 * n))), noise_std_of_mean=noise_std)
+        if noise.get("rows_estimated"):
+            ps = [p for p in (fit.p_value, lof["p_value"]) if p is not None]
+            block.update(p_value=min(1.0, 2 * min(ps)) if ps else None,
+                         test="chi-square (noise partly estimated) and lack-of-fit F, the smaller p doubled")
+        else:
+            block.update(p_value=fit.p_value, test="chi-square")
+    else:
+        block.update(noise_floor=None, noise_std_of_mean=None, p_value=lof["p_value"],
+                     test="lack-of-fit F (no noise in the data or stated)")
+    return fit, obs, block
+
+
+def shape_if_unexplained(model, obs, fit, base, cands) -> dict | None:
+    """The generic term's description when the model fails and no candidate explains the
+    misfit as well (no significant candidate, or the generic term's likelihood ratio is
+    more than 1.5 times the best candidate's)."""
+    if base["p_value"] is None or base["p_value"] >= ALPHA:
+        return None
+    shape = describe_shape(model, obs, fit)
+    if shape is None:
+        return None
+    sig = [c for c in cands if c.get("significant")]
+    if sig:
+        best_share = 1 - (sig[0]["residual_rms_after"] / max(fit.residual_rms, 1e-300)) ** 2
+        if shape["share_of_misfit"] <= 1.5 * max(best_share, 0.0):
+            return None
+    return shape
+
+
+def _fmt_test(base):
+    if base["chi2"] is not None and not base["noise"].get("rows_estimated"):
+        return f"chi2 {base['chi2']:.1f} on {base['dof']} dof, p = {base['p_value']:.2g}"
+    lof = base["lack_of_fit"]
+    t = f"lack-of-fit F {lof['F']:.3g} on ({lof['q']}, {lof['dof']}) dof" if lof.get("F") is not None else "no F test"
+    if base["chi2"] is not None:
+        t = f"chi2 {base['chi2']:.1f} on {base['dof']} dof with the noise partly estimated, " + t
+    return t + (f", p = {base['p_value']:.2g}" if base["p_value"] is not None else "")
+
+
+def verdict(sensor, base, cands, where="DIR", shape=None, command="diagnose") -> str:
+    unit = base.get("residual_unit", "")
+    rms = f"residual rms {base['residual_rms']:.3g} {unit}".rstrip()
+    if base["p_value"] is None:
+        return (f"{sensor}: too few degrees of freedom for any test (no noise in the data or stated, and the "
+                f"lack-of-fit test needs 4 dof); {rms}; state the noise (--{sensor}-noise-...) or add positions")
+    if base["p_value"] >= ALPHA:
+        return f"{sensor}: the model explains the data down to the noise ({_fmt_test(base)}; {rms})"
+    floor = f" against a noise floor {base['noise_floor']:.3g} {unit}" if base.get("noise_floor") else ""
+    head = f"{sensor}: the model does not explain the data ({_fmt_test(base)}; {rms}{floor})"
+    sig = [c for c in cands if c.get("significant")]
+    text = head + "."
+    if sig:
+        c = sig[0]
+        after = c.get("residual_rms_after")
+        more = (f" With it the residual rms would be {after:.3g} {unit}, still above the floor: more is missing "
+                "(see the other candidates)." if after and base.get("noise_floor") and after > 2 * base["noise_floor"]
+                else "")
+        text += (f" Most likely missing: {c['id']} ({c['meaning']}), estimate {c['estimate']:.3g} "
+                 f"+- {c['std']:.2g} {c['unit']}, LR {c['statistic']:.1f}, p = {c['p_value']:.2g}. "
+                 f"Add it: simucal {command} {where} --add {c['id']}.{more}")
+    elif not shape:
+        text += (" No candidate explains it; the missing effect is not in the library (or the plan cannot "
+                 "separate it).")
+    if shape and shape.get("catalog_id"):
+        text += (f" The residual looks like a term {shape['text']} (rms {shape['residual_rms_after']:.3g} {unit} "
+                 f"without it): that is the library's {shape['catalog_id']}, too weak alone to pass the gate over "
+                 f"every candidate; try it: simucal {command} {where} --add {shape['catalog_id']}.")
+    elif shape:
+        text += (f" {'Beyond the library' if sig else 'Not in the library'}: the residual looks like a term "
+                 f"{shape['text']} (rms {shape['residual_rms_after']:.3g} {unit} without it); a model file with "
+                 "this term is written beside the report: add it with --add FILE.")
+    return text

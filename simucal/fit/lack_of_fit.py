@@ -1,0 +1,253 @@
+"""Is the model wrong? Answers that need no stated noise, and the shape of what is missing.
+
+- fit_with_noise: the exact norm fit (norm_fit.fit_exact) with the noise taken
+  from whatever the data give: each segment's own scatter or the stated noise
+  where there is one, and for the rows with neither one variance component
+  sigma_u^2 estimated from the fit (REML-like: their residual sum of squares
+  over their share of the degrees of freedom, 1 - h_ii summed over their rows,
+  h the hat matrix of the weighted Jacobian). One row without scatter never
+  switches the test off.
+- lack_of_fit: an F test of the model against the model plus a generic
+  flexible basis (monomials of the input of degree 2 and 3 on each output
+  axis, time, temperature, and for gyros the specific force). It needs no
+  noise level: F = (|P_G r|^2 / q) / ((|r|^2 - |P_G r|^2) / (dof - q)), with
+  P_G the projection on the basis columns made orthogonal to the model's
+  Jacobian (the per-position direction unknowns included), linearised at the
+  solution.
+- describe_shape / model_file_text: the single generic term that explains
+  most of the misfit, in words ("on the x axis, about 3e-4 * f_x^3 g: odd in
+  f_x, third degree") and as a model file that `--add FILE` accepts.
+"""
+from __future__ import annotations
+
+import itertools
+from dataclasses import dataclass, replace
+
+import numpy as np
+
+from simucal.fit.distributions import chi2_sf, f_sf
+from simucal.fit.norm_fit import Fit, Observations, dense_jacobian, fit_exact
+
+DPS = 3600.0  # deg/h per deg/s: gyro rates enter generic terms in deg/s (as in derive/models/effects.py)
+
+
+@dataclass
+class GenericTerm:
+    axis: int          # output axis
+    exponents: tuple   # powers of the three input components (empty for aux terms)
+    aux: str | None    # "t_s", "temp_c", "w2" or "f_x".. (gyro specific force), else None
+    sensor: str
+
+    @property
+    def degree(self) -> int:
+        return sum(self.exponents)
+
+    def symbol(self, i):
+        return ("f_x", "f_y", "f_z")[i] if self.sensor == "acc" else ("w_x", "w_y", "w_z")[i]
+
+    def text(self) -> str:
+        """The regressor as a reader writes it: f_x^3, w_z^2 (deg/s), t_s."""
+        if self.aux:
+            return self.aux
+        return " ".join(self.symbol(i) + (f"^{e}" if e > 1 else "") for i, e in enumerate(self.exponents) if e)
+
+    def sympy(self) -> str:
+        """The regressor as SymPy source for a model file (derive.frames symbols)."""
+        if self.aux:
+            return {"t_s": "t_s", "temp_c": "temp_c", "w2": "w2"}.get(self.aux) or f"f_b[{'xyz'.index(self.aux[-1])}]"
+        v = "f_b[{}]" if self.sensor == "acc" else "(omega_d[{}] / 3600)"
+        return " * ".join(v.format(i) + (f"**{e}" if e > 1 else "") for i, e in enumerate(self.exponents) if e)
+
+    def unit(self) -> str:
+        out = "g" if self.sensor == "acc" else "deg/h"
+        if self.aux:
+            return {"t_s": f"{out}/s", "temp_c": f"{out}/degC", "w2": "m"}.get(self.aux, f"({out})/g")
+        return f"{out}/g^{self.degree}" if self.sensor == "acc" else f"({out})/(deg/s)^{self.degree}"
+
+    def name(self) -> str:
+        a = "xyz"[self.axis]
+        if self.aux:
+            return f"c_{a}_{self.aux.replace('_', '')}"
+        return f"c_{a}_" + "".join("xyz"[i] * e for i, e in enumerate(self.exponents))
+
+    def parity(self) -> str:
+        if self.aux:
+            return {"t_s": "linear in time", "temp_c": "linear in temperature", "w2": "with the centripetal scale"}.get(
+                self.aux, "proportional to the specific force")
+        parts = [f"{'odd' if e % 2 else 'even'} in {self.symbol(i)}" for i, e in enumerate(self.exponents) if e]
+        return ", ".join(parts) + f", {('second', 'third')[self.degree - 2]} degree"
+
+    def values(self, u, obs: Observations) -> np.ndarray:
+        n = len(u)
+        if self.aux == "t_s":
+            return np.broadcast_to(np.asarray(obs.t_s, float), (n,)).copy()
+        if self.aux == "temp_c":
+            return np.broadcast_to(np.asarray(obs.temp_c, float), (n,)).copy()
+        if self.aux == "w2":
+            return np.broadcast_to(np.asarray(obs.extra, float), (n,)).copy()
+        if self.aux:
+            return np.asarray(obs.extra, float)[:, "xyz".index(self.aux[-1])]
+        x = u if self.sensor == "acc" else u / DPS
+        return np.prod([x[:, i] ** e for i, e in enumerate(self.exponents)], axis=0)
+
+
+def catalog_id(term: GenericTerm) -> str | None:
+    """The candidate effect (generated/effects.py) with this very regressor, if there is one:
+    compared on random inputs, so the catalog's own forms need no second description here."""
+    from simucal.generated.effects import EFFECTS
+    rng = np.random.default_rng(0)
+    u = rng.normal(size=(6, 3)) * (1.0 if term.sensor == "acc" else DPS)
+    obs = Observations(u, np.ones(6), None, rng.normal(size=6), rng.normal(size=6), [],
+                       rng.normal(size=(6, 3)) if term.sensor == "gyro" else rng.normal(size=6))
+    mine = term.values(u, obs)
+    for eid, (sensor, axis, _, _, _, fn) in EFFECTS.items():
+        if sensor == term.sensor and axis == term.axis:
+            phi = np.broadcast_to(fn(u, obs.temp_c, obs.t_s, obs.extra)[0][..., 0], (6,))
+            if np.allclose(phi, mine, rtol=1e-9, atol=1e-12):
+                return eid
+    return None
+
+
+def generic_terms(sensor: str, obs: Observations) -> list[GenericTerm]:
+    """Pure powers first, so that a tie (monomials are dependent on a sphere) names the simplest."""
+    mono = [e for d in (2, 3) for e in itertools.product(range(d + 1), repeat=3) if sum(e) == d]
+    mono.sort(key=lambda e: (sum(e), -max(e)))
+    aux = []
+    if np.ptp(np.atleast_1d(obs.t_s)) > 0:
+        aux.append("t_s")
+    if np.ptp(np.atleast_1d(obs.temp_c)) > 0:
+        aux.append("temp_c")
+    if sensor == "acc" and obs.extra is not None and np.ptp(np.atleast_1d(obs.extra)) > 0:
+        aux.append("w2")
+    if sensor == "gyro" and obs.extra is not None:
+        aux += ["f_x", "f_y", "f_z"]
+    return [GenericTerm(a, e, None, sensor) for e in mono for a in range(3)] + \
+        [GenericTerm(a, (), x, sensor) for x in aux for a in range(3)]
+
+
+def fit_with_noise(model, obs: Observations, p0=None) -> tuple[Fit, Observations, dict]:
+    """The exact fit with sigma from the data, the statement, or a variance component.
+    Returns (fit, the observations with the sigma used (None: one unknown std), noise info)."""
+    sig = None if obs.sigma is None else np.asarray(obs.sigma, float)
+    known = np.zeros(len(obs.N), bool) if sig is None else np.all(np.isfinite(sig), axis=1)
+    if known.all():
+        return fit_exact(model, obs, p0), obs, {"source": "each segment's scatter or the stated noise"}
+    if not known.any():
+        obs = replace(obs, sigma=None)
+        fit = fit_exact(model, obs, p0)
+        s = float(np.sqrt(np.sum(fit.residuals ** 2) / fit.dof)) if fit.dof > 0 else None
+        return fit, obs, {"source": "none in the data and none stated: one std for all rows, estimated from the fit "
+                               "(so no chi-square test; the lack-of-fit F test decides)",
+                     "estimated_std": s, "rows_estimated": int(len(obs.N))}
+    s_u = float(np.median(sig[known]))
+    for _ in range(8):
+        full = np.where(known[:, None], sig, s_u)
+        fit = fit_exact(model, replace(obs, sigma=full), p0)
+        p0 = fit.vector(model.params)
+        J, _ = dense_jacobian(model, replace(obs, sigma=full), fit)
+        h = np.einsum("ij,ji->i", J, np.linalg.pinv(J)).reshape(-1, 3)  # hat-matrix diagonal, per component
+        share = float(np.sum(1 - h[~known]))
+        new = float(np.sqrt(np.sum(fit.residuals[~known] ** 2) / max(share, 1e-9)))
+        done = abs(new - s_u) <= 1e-3 * s_u
+        s_u = max(new, 1e-300)
+        if done:
+            break
+    fit.dof -= 1  # one variance estimated
+    fit.p_value = float(chi2_sf(fit.chi2, fit.dof)) if fit.dof > 0 else None
+    return fit, replace(obs, sigma=np.where(known[:, None], sig, s_u)), {"source": f"{int(known.sum())} rows from their scatter or the stated noise; {int((~known).sum())} "
+                           "rows (one averaged row, no stated noise) from a variance component estimated from the fit",
+                 "estimated_std": s_u, "rows_estimated": int((~known).sum())}
+
+
+def _perp_basis(model, obs, fit, terms):
+    """Weighted residual r, and the generic columns made orthogonal to the model's Jacobian."""
+    J, sig = dense_jacobian(model, obs, fit)
+    r = (fit.residuals / sig).ravel()
+    Q, _ = np.linalg.qr(J)
+    u = fit.directions * obs.rho[:, None]
+    cols = []
+    for t in terms:
+        c = np.zeros((len(u), 3))
+        c[:, t.axis] = t.values(u, obs)
+        cols.append((c / sig).ravel())
+    G = np.array(cols).T
+    return r, G, G - Q @ (Q.T @ G), sig
+
+
+def lack_of_fit(model, obs: Observations, fit: Fit) -> dict:
+    """F test of the model against model + generic basis (see module doc)."""
+    terms = generic_terms(model.sensor, obs)
+    r, G, Gp, _ = _perp_basis(model, obs, fit, terms)
+    norms = np.linalg.norm(G, axis=0)
+    keep = np.linalg.norm(Gp, axis=0) > 1e-6 * np.maximum(norms, 1e-300)
+    dof = fit.dof
+    if not keep.any() or dof < 4:
+        return {"test": "lack-of-fit F test", "p_value": None, "q": 0, "dof": dof,
+                "note": "too few degrees of freedom for a lack-of-fit test (need 4 or more)"}
+    U, S, _ = np.linalg.svd(Gp[:, keep] / np.linalg.norm(Gp[:, keep], axis=0), full_matrices=False)
+    q = int(min(np.sum(S > 1e-6 * S[0]), dof - max(3, dof // 3)))
+    ss1 = float(np.sum((U[:, :q].T @ r) ** 2))
+    ss = float(r @ r)
+    F = (ss1 / q) / max((ss - ss1) / (dof - q), 1e-300)
+    return {"test": "lack-of-fit F test against a generic basis (monomials of the input of degree 2-3 per axis, "
+                    "time, temperature" + (", specific force" if model.sensor == "gyro" else "") + ")",
+            "F": float(F), "q": q, "dof": int(dof - q), "p_value": float(f_sf(F, q, dof - q))}
+
+
+def describe_shape(model, obs: Observations, fit: Fit) -> dict | None:
+    """The one generic term that explains most of the misfit, with its estimate."""
+    terms = generic_terms(model.sensor, obs)
+    r, G, Gp, sig = _perp_basis(model, obs, fit, terms)
+    n2 = np.sum(Gp ** 2, axis=0)
+    ok = n2 > 1e-12 * np.maximum(np.sum(G ** 2, axis=0), 1e-300)
+    if not ok.any():
+        return None
+    proj = np.where(ok, Gp.T @ r, 0.0)
+    lr = np.where(ok, proj ** 2 / np.where(ok, n2, 1.0), 0.0)
+    best = 0
+    for k in range(1, len(terms)):  # the first of near ties (simplest form) stays
+        if lr[k] > 1.01 * lr[best]:
+            best = k
+    t = terms[best]
+    coef = float(proj[best] / n2[best])
+    cos = np.where(ok, (Gp.T @ Gp[:, best]) / np.sqrt(np.where(ok, n2, 1.0) * n2[best]), 0.0)
+    twins = [terms[k].text() + f" on {'xyz'[terms[k].axis]}" for k in range(len(terms))
+             if k != best and ok[k] and abs(cos[k]) > 0.99]
+    after = (fit.residuals / sig).ravel() - coef * Gp[:, best]
+    rms_after = float(np.sqrt(np.mean((after.reshape(-1, 3) * sig) ** 2)))
+    unit = "g" if model.sensor == "acc" else "deg/h"
+    return {"axis": "xyz"[t.axis], "regressor": t.text(), "catalog_id": catalog_id(t), "degree": t.degree, "parity": t.parity(),
+            "estimate": coef, "unit": t.unit(), "parameter": t.name(), "sympy": t.sympy(),
+            "share_of_misfit": float(lr[best] / max(r @ r, 1e-300)), "residual_rms_after": rms_after,
+            "indistinguishable_here": twins[:6],
+            "points": {"regressor": t.values(fit.directions * obs.rho[:, None], obs).tolist(),
+                       "residual": fit.residuals[:, t.axis].tolist(),
+                       # the part of the term the model cannot absorb: what the residual should show
+                       "term_visible": (coef * Gp[:, best].reshape(-1, 3) * sig)[:, t.axis].tolist()},
+            "text": (f"on the {'xyz'[t.axis]} axis, about {coef:.2g} * {t.text()} {unit}"
+                     + (" (rates in deg/s)" if model.sensor == "gyro" and not t.aux else "")
+                     + f": {t.parity()}; it explains {100 * lr[best] / max(r @ r, 1e-300):.0f} % of the misfit")}
+
+
+def model_file_text(base_model: str, effect_ids, shape: dict, sensor: str) -> str:
+    """A model file (MODELS = [...]) with the found term added to the base model and effects."""
+    from simucal.fit.models import manifest
+    const = {"acc_baseline": "ACC_BASELINE", "gyro_baseline": "GYRO_BASELINE",
+             "acc_extended": "ACC_EXTENDED", "gyro_extended": "GYRO_EXTENDED"}
+    if base_model not in const or base_model not in manifest()["models"]:
+        base_model = f"{sensor}_baseline"
+    src = "simucal.derive.models.baseline" if base_model.endswith("baseline") else "simucal.derive.registry"
+    extra = "".join(f"    CANDIDATES[{e!r}],\n" for e in effect_ids)
+    meaning = f"{shape['axis']} output {shape['parity']} (found by simucal diagnose)"
+    return (f'"""A model with the term simucal diagnose found: {shape["text"]}.\n\n'
+            f"Use it: simucal calibrate DIR --add THIS_FILE (or diagnose --add THIS_FILE).\n"
+            '"""\n'
+            "from simucal.derive.frames import f_b, omega_d, t_s, temp_c, w2  # noqa: F401\n"
+            "from simucal.derive.models import Term\n"
+            "from simucal.derive.models.effects import CANDIDATES  # noqa: F401\n"
+            f"from {src} import {const[base_model]}\n\n"
+            f"MODELS = [{const[base_model]}.with_terms({sensor + '_found_' + shape['parameter']!r}, [\n"
+            f"{extra}"
+            f"    Term({shape['parameter']!r}, {shape['axis']!r}, {shape['sympy']}, {shape['unit']!r},\n"
+            f"         {meaning!r}),\n"
+            "])]\n")

@@ -1,0 +1,182 @@
+"""Load a generated error model and evaluate it: compiled CasADi C when a C
+compiler is found, else the SymPy-printed numpy module (same derivation)."""
+from __future__ import annotations
+
+import functools
+import hashlib
+import importlib
+import json
+import os
+import shutil
+import subprocess
+import warnings
+from pathlib import Path
+
+import numpy as np
+
+
+class StaleGeneratedCode(RuntimeError):
+    pass
+
+
+def generated_dir() -> Path:
+    import simucal.generated
+    return Path(simucal.generated.__file__).parent
+
+
+def manifest() -> dict:
+    return json.loads((generated_dir() / "manifest.json").read_text())
+
+
+def cache_dir() -> Path:
+    root = os.environ.get("SIMUCAL_CACHE") or os.path.join(
+        os.environ.get("XDG_CACHE_HOME") or os.path.expanduser("~/.cache"), "simucal")
+    return Path(root)
+
+
+CFLAGS = ("-O3", "-shared", "-fPIC")  # no -march=native: a cache may be shared by machines of other CPUs
+
+
+def compile_c(name: str, source: str) -> Path | None:
+    """Build the CasADi C of a model into the cache; None where no compiler works."""
+    if os.environ.get("SIMUCAL_NO_COMPILE"):
+        return None
+    cc = shutil.which(os.environ.get("CC", "cc")) or shutil.which("gcc")
+    if cc is None:
+        return None
+    digest = hashlib.sha256((" ".join(CFLAGS) + "\n" + source).encode()).hexdigest()[:16]  # flags change the build
+    lib = cache_dir() / f"{name}-{digest}.so"
+    if lib.is_file():
+        return lib
+    lib.parent.mkdir(parents=True, exist_ok=True)
+    src = lib.with_suffix(".c")
+    src.write_text(source)
+    tmp = lib.with_suffix(f".{os.getpid()}.tmp")
+    base = [cc, *CFLAGS, str(src), "-o", str(tmp), "-lm"]
+    res = subprocess.run(base + ["-fopenmp"], capture_output=True, text=True)  # batches over the cores
+    if res.returncode != 0:
+        res = subprocess.run(base, capture_output=True, text=True)
+    if res.returncode != 0:
+        warnings.warn(f"compiling {name}.c failed with {cc}; using the numpy module instead:\n{res.stderr[-500:]}")
+        return None
+    tmp.replace(lib)
+    return lib
+
+
+def _bind_fit(lib, name):
+    """The compiled whole-fit entry point of a model's library, through ctypes."""
+    import ctypes
+    f = getattr(ctypes.CDLL(str(lib)), f"simucal_{name}_fit")
+    d = np.ctypeslib.ndpointer(dtype=float, flags="C_CONTIGUOUS")
+    i = np.ctypeslib.ndpointer(dtype=np.intc, flags="C_CONTIGUOUS")
+    f.argtypes = [ctypes.c_int, ctypes.c_int, d, d, d, d, d, ctypes.c_int, ctypes.c_double, d, d, d, d, i, i]
+    f.restype = ctypes.c_int
+    return f
+
+
+def aux_args(sensor, temp_c, t_s, extra):
+    """(temp_c, t_s, extra) with the sensor's default extra input (zero force or rate)."""
+    if extra is None:
+        extra = np.zeros(3) if sensor == "gyro" else 0.0
+    return temp_c, t_s, extra
+
+
+class GeneratedModel:
+    """An error model from generated/ (or a user's model from the cache): N(u, p), its
+    Jacobians, the norm regression. `module` is the generated numpy module, `c_source`
+    the CasADi C of the same derivation."""
+
+    def __init__(self, name: str, module, c_source: str | None, compiled: bool = True):
+        self.module = module
+        self.name, self.sensor, self.unit = name, self.module.SENSOR, self.module.UNIT
+        self.params = self.module.PARAMS
+        self.param_units = self.module.PARAM_UNITS
+        self.meanings = getattr(self.module, "MEANINGS", ("",) * len(self.params))
+        self.source = getattr(self.module, "SOURCE", "built-in")
+        self._c = self._fit = None
+        if compiled and c_source is not None:
+            lib = compile_c(name, c_source)
+            if lib is not None:
+                import casadi as ca
+                self._c = ca.external(f"simucal_{name}", str(lib))
+                self._fit = _bind_fit(lib, name) if f"simucal_{name}_fit" in c_source else None
+
+    @property
+    def backend(self) -> str:
+        return "casadi-c" if self._c is not None else "numpy"
+
+    def aux_rows(self, n, temp_c=0.0, t_s=0.0, extra=None) -> np.ndarray:
+        """(n, naux): temp_c, t_s and the sensor's extra input per row, as the C takes them."""
+        aux = self._aux(temp_c, t_s, extra)
+        cols = [np.broadcast_to(temp_c, (n,)), np.broadcast_to(t_s, (n,))]
+        cols += list(np.broadcast_to(aux[2], (n, 3)).T) if self.sensor == "gyro" else [np.broadcast_to(aux[2], (n,))]
+        return np.column_stack(cols)
+
+    def fit_compiled(self, N, rho, sig, aux, p0, max_iter=200, tol=1e-12):
+        """The whole exact fit in one compiled call (derive/templates/exact_fit.c) for a batch of
+        data sets: N, sig (S, n, 3), rho (S, n), aux (S, n, naux), p0 (S, m). Returns p (S, m),
+        cov (S, m, m), u (S, n, 3), cost (S,), iterations (S,), status (S,); None without a compiler."""
+        if self._fit is None:
+            return None
+        S, n, _ = N.shape
+        m = len(self.params)
+        c = lambda a: np.ascontiguousarray(a, dtype=float)
+        N, rho, sig, aux, p0 = c(N), c(rho), c(sig), c(aux), c(p0)
+        p, cov, u = np.empty((S, m)), np.empty((S, m, m)), np.empty((S, n, 3))
+        cost, iters, status = np.empty(S), np.empty(S, np.intc), np.empty(S, np.intc)
+        self._fit(S, n, N, rho, sig, aux, p0, max_iter, tol, p, cov, u, cost, iters, status)
+        return p, cov, u, cost, iters, status
+
+    def _aux(self, temp_c, t_s, extra):
+        """The generated functions' auxiliary arguments. `extra` is the sensor's own: for
+        gyros the specific force f (n, 3) in g, for accelerometers w2 = w_T^2 / g (1/m)."""
+        return aux_args(self.sensor, temp_c, t_s, extra)
+
+    def output(self, u, p, temp_c=0.0, t_s=0.0, extra=None):
+        p = np.asarray(p, float)
+        if p.ndim > 1 and np.ndim(u) > 2:  # a batch: one p per set
+            p = p[..., None, :]
+        return self.module.output(u, p, *self._aux(temp_c, t_s, extra))
+
+    def jacobians(self, u, p, temp_c=0.0, t_s=0.0, extra=None):
+        """N, dN/du (n,3,3), dN/dp (n,3,m) for rows u (n,3) and one p (m,); or for a batch of sets,
+        u (S, n, 3) and p (S, m) (the numpy module, vectorised over the sets)."""
+        aux = self._aux(temp_c, t_s, extra)
+        u, p = np.asarray(u, float), np.asarray(p, float)
+        if p.ndim > 1:  # one p per set: broadcast it over the set's rows
+            p = p[..., None, :]
+        if self._c is None or u.ndim > 2 or p.ndim > 1:
+            N = self.module.output(u, p, *aux)
+            Ju, Jp = self.module.output_jacobians(u, p, *aux)
+            return N, Ju, Jp
+        n, m = len(u), len(self.params)
+        N, Ju, Jp = self._mapped(n)(np.asarray(u, float).T, np.asarray(p, float), self.aux_rows(n, *aux).T)
+        N = np.asarray(N).T
+        Ju = np.asarray(Ju).reshape(3, n, 3).transpose(1, 0, 2)
+        Jp = np.asarray(Jp).reshape(3, n, m).transpose(1, 0, 2)
+        return N, Ju, Jp
+
+    @functools.lru_cache(maxsize=16)
+    def _mapped(self, n):
+        return self._c.map(n, "serial")
+
+    def norm_regressors(self, N, temp_c=0.0, t_s=0.0, extra=None):
+        return self.module.norm_regressors(N, *self._aux(temp_c, t_s, extra))
+
+    def params_of_K(self, K, first_order=False):
+        f = self.module.params_of_K_first_order if first_order else self.module.params_of_K
+        return f(K)
+
+    def matrix_and_bias(self, p, temp_c=0.0, t_s=0.0, extra=None):
+        return self.module.matrix_and_bias(p, *self._aux(temp_c, t_s, extra))
+
+
+def load_builtin(name: str, compiled: bool = True) -> GeneratedModel | None:
+    """A built-in model from generated/, checked against its manifest entry; None if no such model."""
+    entry = manifest()["models"].get(name)
+    if entry is None:
+        return None
+    module = importlib.import_module(f"simucal.generated.{name}")
+    if module.MODEL_SHA256 != entry["sha256"]:
+        raise StaleGeneratedCode(f"generated/{name}.py does not match manifest.json; run `simucal derive`")
+    return GeneratedModel(name, module, (generated_dir() / entry["c_file"]).read_text(), compiled)

@@ -1,0 +1,438 @@
+"""Norm-observation fits of one sensor triad (dong2018 section 1).
+
+Observations are per-position mean outputs N_i (physical units), the known
+input norm rho_i (1 g at rest; |w_T + w_e sin L| under outer-axis rate), and
+optionally the standard deviation of each mean.
+
+- fit_linear: the paper's method, eq. 7/8 and 11/12: regress rho^2 on the
+  derived columns psi(N), then back-substitute K -> p (exact inverse).
+- fit_exact: maximum likelihood with no term neglected. The unknowns are the
+  parameters p and each position's input direction on the sphere of radius
+  rho_i (the norm principle: the direction is not known, the norm is):
+      minimise sum_i |(N_i - h(rho_i u_i, p)) / sigma_i|^2,  |u_i| = 1.
+  Gauss-Newton (Levenberg-Marquardt damped) on p and a 2-D tangent step per
+  direction; the directions are eliminated by a Schur complement, so each
+  step solves an m x m system.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from simucal.errors import CalibrationError
+from simucal.fit.distributions import chi2_sf
+
+
+@dataclass
+class Observations:
+    N: np.ndarray                  # (n, 3) mean outputs
+    rho: np.ndarray                # (n,) known input norm
+    sigma: np.ndarray | None = None  # (n, 3) std of each mean, or None (unknown)
+    temp_c: np.ndarray | float = 0.0
+    t_s: np.ndarray | float = 0.0
+    labels: list = field(default_factory=list)  # segment ids, for messages
+    extra: np.ndarray | None = None  # gyro: specific force (n, 3) in g; acc: w2 = w_T^2 / g (n,) in 1/m
+
+
+@dataclass
+class Fit:
+    model: str
+    method: str
+    params: dict            # name -> value
+    std: dict               # name -> standard uncertainty
+    cov: np.ndarray
+    residuals: np.ndarray   # (n, 3) N - model, physical units
+    residual_rms: float
+    chi2: float | None
+    dof: int
+    p_value: float | None
+    iterations: int = 0
+    directions: np.ndarray | None = None  # (n, 3) unit input directions (exact fit)
+    undetermined: dict = field(default_factory=dict)  # parameters held by a prior: {name: how and why}
+
+    def vector(self, names):
+        return np.array([self.params[k] for k in names])
+
+
+def _check_inputs(model, obs: Observations):
+    n, m = len(obs.N), len(model.params)
+    if n == 0:
+        raise CalibrationError(f"no {model.sensor} positions to calibrate from")
+    if not np.all(np.isfinite(obs.N)):
+        raise CalibrationError(f"{model.sensor} outputs contain NaN or infinite values")
+    if n < m:
+        raise CalibrationError(
+            f"{n} {model.sensor} positions for {m} parameters of {model.name}: the norm gives one "
+            f"equation per position, so at least {m} positions are needed")
+    check_not_coplanar(obs.N, model.sensor)
+
+
+def check_not_coplanar(N, sensor, where=""):
+    """Refuse outputs whose input directions all lie in one plane (a great or a small circle):
+    the scale, misalignment and bias along its normal cannot be told apart by the norm. Outputs
+    are an affine image of the inputs, so the plane shows in their own covariance; the fit's
+    linearised stds would not show it (the solver wanders along the unseen direction)."""
+    if len(N) < 4:
+        return
+    spread, normal = np.linalg.eigh(np.cov(np.asarray(N).T))
+    if spread[0] < 1e-3 * spread[-1]:
+        raise CalibrationError(
+            f"{where}the {len(N)} {sensor} input directions lie in one plane (spread across it "
+            f"{np.sqrt(max(spread[0], 0)):.2g} against {np.sqrt(spread[-1]):.2g} along it; normal "
+            f"{np.round(normal[:, 0], 2).tolist()} in the output axes): the scale, misalignment and bias along that "
+            "normal are unobservable; add positions tilted out of that plane")
+
+
+def unobservable(H, names, tol=1e-10):
+    """Parameter combinations H cannot see (an eigenvalue of the Jacobi-scaled
+    information below tol; healthy plans give 0.05 to 0.7), as readable strings."""
+    d = np.sqrt(np.clip(np.diag(H), 1e-300, None))
+    Hn = H / np.outer(d, d)
+    w, V = np.linalg.eigh(Hn)
+    out = []
+    for k in np.nonzero(w < tol * max(w.max(), 1e-300))[0]:
+        v = V[:, k]
+        big = np.argsort(-np.abs(v))[:3]
+        out.append(" + ".join(f"{v[j]:+.2f}*{names[j]}" for j in big if abs(v[j]) > 0.1))
+    return out
+
+
+def _linear_K(model, obs: Observations):
+    """eq. 8 / 12: least squares of rho^2 on the derived columns psi(N): (K, Psi, rho^2)."""
+    Psi = model.norm_regressors(obs.N, obs.temp_c, obs.t_s, obs.extra)
+    y = obs.rho ** 2
+    return np.linalg.lstsq(Psi, y, rcond=None)[0], Psi, y
+
+
+def fit_linear(model, obs: Observations) -> Fit:
+    """dong2018 eq. 8 / 12 and the back-substitution, for any derived model."""
+    _check_inputs(model, obs)
+    n, m = len(obs.N), len(model.params)
+    K, Psi, y = _linear_K(model, obs)
+    scale = np.linalg.norm(Psi, axis=0)
+    H = (Psi / scale).T @ (Psi / scale)
+    bad = unobservable(H, model.params)
+    if bad:
+        raise CalibrationError(f"the {model.sensor} plan leaves these parameter combinations unobservable "
+                               f"by the norm (or nearly): {bad}; add positions that change them")
+    r = y - Psi @ K
+    dof = n - m
+    s2 = float(r @ r / dof) if dof > 0 else np.nan
+    cov_K = s2 * np.linalg.inv(Psi.T @ Psi)
+    p = model.params_of_K(K)
+    J = np.empty((m, m))
+    for j in range(m):  # numerical Jacobian of the generated back-substitution
+        h = 1e-7 * max(abs(K[j]), 1e-3)
+        dK = np.zeros(m)
+        dK[j] = h
+        J[:, j] = (model.params_of_K(K + dK) - model.params_of_K(K - dK)) / (2 * h)
+    cov = J @ cov_K @ J.T
+    norm_err = (Psi @ K - y) / (2 * obs.rho)  # first-order norm residual, output units
+    return Fit(model.name, "linear", dict(zip(model.params, p)),
+               dict(zip(model.params, np.sqrt(np.abs(np.diag(cov))))), cov,
+               residuals=norm_err[:, None] * np.ones((1, 3)) / np.sqrt(3),
+               residual_rms=float(np.sqrt(np.mean(norm_err ** 2))), chi2=None, dof=dof, p_value=None)
+
+
+def tangent_basis(u):
+    """Orthonormal E (..., 3, 2) with columns perpendicular to unit u (..., 3)."""
+    a = np.where(np.abs(u[..., :1]) < 0.9, np.array([1.0, 0, 0]), np.array([0, 1.0, 0]))
+    e1 = np.cross(u, a)
+    e1 /= np.linalg.norm(e1, axis=-1, keepdims=True)
+    e2 = np.cross(u, e1)
+    return np.stack([e1, e2], axis=-1)
+
+
+def _start_cost(model, obs, p):
+    try:
+        u = initial_directions(model, obs, p)
+    except np.linalg.LinAlgError:
+        return np.inf
+    r = obs.N - model.output(obs.rho[:, None] * u, p, obs.temp_c, obs.t_s, obs.extra)
+    c = float(np.sum((r / (obs.sigma if obs.sigma is not None else 1.0)) ** 2))
+    return c if np.isfinite(c) else np.inf
+
+
+def jacobian_blocks(model, obs, p, u, sig):
+    """The exact problem's weighted residual and Jacobian at (p, directions u):
+    r (n,3), dr/dp (n,3,m), dr/d(tangent step) (n,3,2), and the tangent bases E (n,3,2)."""
+    return _blocks(model, obs.N, obs.rho, sig, p, u, (obs.temp_c, obs.t_s, obs.extra))
+
+
+def _blocks(model, N, rho, sig, p, u, aux):
+    """jacobian_blocks for one set (N (n, 3), p (m,)) or a batch (N (S, n, 3), p (S, m))."""
+    rho3 = rho[..., None]
+    Nm, Ju, Jp = model.jacobians(rho3 * u, p, *aux)
+    E = tangent_basis(u)
+    r = (N - Nm) / sig
+    Jd = -(Ju @ (rho3[..., None] * E)) / sig[..., None]
+    Jq = -Jp / sig[..., None]
+    return r, Jq, Jd, E
+
+
+def normal_equations(model, obs, p, u, sig):
+    """The Gauss-Newton system with every direction's 2-D tangent step eliminated (Schur
+    complement of its 2x2 block): H (m, m), the information of p with the directions profiled
+    out (the inverse of the CRLB where sig is the true noise), and g; with the blocks the
+    direction steps need: r, H, g, A^-1 (n, 2, 2), B (n, 2, m), gd (n, 2), E (n, 3, 2)."""
+    return _schur(*jacobian_blocks(model, obs, p, u, sig))
+
+
+def _schur(r, Jq, Jd, E):
+    """normal_equations from the blocks, for one set or a batch (leading axes): the sums over
+    the rows as matrix products."""
+    JdT = Jd.swapaxes(-1, -2)
+    B, gd = JdT @ Jq, (JdT @ r[..., None])[..., 0]
+    Ainv = np.linalg.inv(JdT @ Jd)
+    AB, Ag = Ainv @ B, (Ainv @ gd[..., None])[..., 0]
+    lead, n, m = Jq.shape[:-3], Jq.shape[-3], Jq.shape[-1]
+    Jq2, B2 = Jq.reshape(*lead, 3 * n, m), B.reshape(*lead, 2 * n, m)
+    H = Jq2.swapaxes(-1, -2) @ Jq2 - B2.swapaxes(-1, -2) @ AB.reshape(*lead, 2 * n, m)
+    g = ((Jq2.swapaxes(-1, -2) @ r.reshape(*lead, 3 * n, 1))[..., 0]
+         - (B2.swapaxes(-1, -2) @ Ag.reshape(*lead, 2 * n, 1))[..., 0])
+    return r, H, g, Ainv, B, gd, E
+
+
+def dense_jacobian(model, obs, fit):
+    """Dense weighted Jacobian of the exact problem at the solution, [dr/dp | dr/d(directions)]
+    (3n, m + 2n), and the sigma used (n, 3; ones where the noise is unknown)."""
+    n, m = len(obs.N), len(model.params)
+    sig = np.broadcast_to(obs.sigma if obs.sigma is not None else 1.0, (n, 3))
+    _, Jq, Jd, _ = jacobian_blocks(model, obs, fit.vector(model.params), fit.directions, sig)
+    J = np.zeros((3 * n, m + 2 * n))
+    J[:, :m] = Jq.reshape(3 * n, m)
+    for i in range(n):
+        J[3 * i:3 * i + 3, m + 2 * i:m + 2 * i + 2] = Jd[i]
+    return J, sig
+
+
+def full_covariance(model, obs, fit):
+    """Covariance of [p, tangent steps of every direction] (m + 2n), scaled as fit.cov (so
+    with the estimated noise where the data gave none). A direction's error is E_i dt_i,
+    E_i = tangent_basis(fit.directions)[i]."""
+    J, _ = dense_jacobian(model, obs, fit)
+    cov = np.linalg.pinv(J.T @ J)
+    m = len(model.params)
+    scale = np.median(np.diag(fit.cov) / np.maximum(np.diag(cov)[:m], 1e-300))
+    return cov * scale
+
+
+def initial_directions(model, obs, p):
+    M, b = model.matrix_and_bias(p, obs.temp_c, obs.t_s, obs.extra)
+    u = np.linalg.solve(M, (obs.N - b)[..., None])[..., 0]
+    return u / np.linalg.norm(u, axis=1, keepdims=True)
+
+
+_AFFINE = {}
+
+
+def _affine_columns(model):
+    """M(0), bias(0) and the columns d[vec M, bias]/dp of a model (linear in p): computed once."""
+    if model.name not in _AFFINE:
+        m = len(model.params)
+        M0, b0 = model.matrix_and_bias(np.zeros(m))
+        cols = [np.r_[(Mj - M0).ravel(), bj - b0] for Mj, bj in (model.matrix_and_bias(e) for e in np.eye(m))]
+        _AFFINE[model.name] = (M0, b0, np.array(cols).T)
+    return _AFFINE[model.name]
+
+
+def ellipsoid_start(model, obs: Observations):
+    """Closed-form start for large offsets (raw counts): the general quadric
+    through the outputs, N'QN + q'N + c = 0, is the ellipsoid |M^-1 (N - b)| = rho
+    of any affine model; its centre is b and M M' = k Q^-1 with M lower triangular
+    is a Cholesky factor. p then follows from M(p), b(p), which are linear in p.
+    Exact where the paper's regression (first order in b) is not. None if the
+    quadric is not an ellipsoid."""
+    N = obs.N / obs.rho[:, None]  # unit norm for every row
+    x, y, z = N.T
+    D = np.column_stack([x * x, y * y, z * z, 2 * x * y, 2 * x * z, 2 * y * z, 2 * x, 2 * y, 2 * z, np.ones(len(N))])
+    if len(N) < 10:
+        return None
+    v = np.linalg.svd(D, full_matrices=False)[2][-1]  # (N x 10): linear in N
+    Q = np.array([[v[0], v[3], v[4]], [v[3], v[1], v[5]], [v[4], v[5], v[2]]])
+    try:
+        b = -np.linalg.solve(Q, v[6:9])
+        k = b @ Q @ b - v[9]
+        M = np.linalg.cholesky(k * np.linalg.inv(Q))
+    except np.linalg.LinAlgError:
+        return None
+    M0, b0, A = _affine_columns(model)
+    target = np.r_[(M - M0).ravel(), b - b0]
+    return np.linalg.lstsq(A, target, rcond=None)[0] if np.linalg.matrix_rank(A) > 0 else None
+
+
+def fit_exact(model, obs: Observations, p0=None, max_iter=200, tol=1e-12, prior=None) -> Fit:
+    """Maximum-likelihood norm-observation fit, exact model (see module doc). prior: {parameter:
+    (value, std)} for parameters the data do not determine, held at value by a pseudo-observation
+    (the stds then say how well they are held; the chi2 excludes the prior)."""
+    _check_inputs(model, obs)
+    n, m = len(obs.N), len(model.params)
+    if p0 is None and getattr(model, "effects", ()):  # baseline + effects: start from the baseline's fit
+        base = fit_exact(model.base, obs, max_iter=max_iter)
+        p0 = np.r_[base.vector(model.base.params), np.zeros(m - len(model.base.params))]
+    if p0 is None:  # the better of the paper's linear fit and the exact ellipsoid
+        starts = []
+        try:
+            with np.errstate(invalid="ignore", divide="ignore"):  # a failed start is simply not used
+                starts.append(model.params_of_K(_linear_K(model, obs)[0]))
+        except (np.linalg.LinAlgError, NotImplementedError):
+            pass
+        ell = ellipsoid_start(model, obs)
+        if ell is not None and np.all(np.isfinite(ell)):
+            starts.append(ell)
+        starts.append(np.zeros(m))
+        p0 = min(starts, key=lambda s: _start_cost(model, obs, s))
+    compiled = None if prior else _fit_compiled(model, obs, p0, max_iter, tol)
+    if compiled is not None:
+        return compiled
+    sig = np.broadcast_to(obs.sigma if obs.sigma is not None else 1.0, (n, 3))
+    aux = (obs.temp_c, obs.t_s, obs.extra)
+    p, u, cost, H, it, status = fit_batch(model, obs.N[None], obs.rho[None], sig[None], np.asarray(p0, float)[None],
+                                          aux, max_iter, tol, prior)
+    p, u, cost, H, it, status = p[0], u[0], float(cost[0]), H[0], int(it[0]), int(status[0])
+    if status == 3:
+        dead = [model.params[j] for j in np.nonzero(np.diag(H) <= 1e-300)[0]]
+        raise CalibrationError(f"the {model.sensor} data give no input for {dead}: these parameters are not "
+                               "seen at all by these positions (leave them out, or add positions that excite them)")
+    if status == 2:
+        raise CalibrationError(f"the {model.sensor} plan leaves these parameter combinations unobservable: "
+                               f"{unobservable(H, model.params)}; add positions that change them")
+    if status == 1:
+        weak = unobservable(H, model.params, tol=1e-3)
+        axis_only = np.all(np.max(np.abs(u), axis=1) > np.cos(np.radians(10)))
+        raise CalibrationError(
+            f"the exact {model.sensor} fit did not converge in {max_iter} iterations (cost {cost:.6g})"
+            + (f"; the plan barely sees {weak}: add positions that change them" if weak else
+               "; check the data for outliers or a wrong unit")
+            + ("; all the poses point along the sensor axes (the Ferraris six-position design), from which the "
+               "norm cannot see misalignments: add tilted poses" if axis_only else ""))
+    dH = np.sqrt(np.diag(H))
+    return _finish(model, obs, p, u, np.linalg.inv(H / np.outer(dH, dH)) / np.outer(dH, dH), H, cost, it)
+
+
+def fit_batch(model, N, rho, sig, p0, aux=(0.0, 0.0, None), max_iter=200, tol=1e-12, prior=None):
+    """The Levenberg-Marquardt loop of fit_exact for S data sets at once, numpy vectorised over
+    the sets (the compiled whole fit does the same steps in C): N, sig (S, n, 3), rho (S, n),
+    p0 (S, m); aux (temp_c, t_s, extra) shared by the sets. prior: {parameter: (value, std)}.
+    Returns p (S, m), u (S, n, 3), cost without the prior (S,), the last H (S, m, m), the
+    iterations (S,) and a status (S,): 0 converged, 1 not converged, 2 singular, 3 a parameter
+    without any input (as derive/templates/exact_fit.c)."""
+    S, n, _ = N.shape
+    m = len(model.params)
+    held = [model.params.index(k) for k in (prior or {})]
+    held_val = np.array([prior[k][0] for k in (prior or {})])
+    held_w = np.array([1.0 / prior[k][1] ** 2 for k in (prior or {})])
+    rho3 = rho[..., None]
+    p = np.array(p0, float)
+    M, b = model.matrix_and_bias(p[:, None, :], *aux)  # initial directions: M u = N - b
+    u = np.linalg.solve(M, (N - b)[..., None])[..., 0]
+    u /= np.linalg.norm(u, axis=2, keepdims=True)
+    cost = _costs(model, N, rho3, sig, aux, p, u, held, held_val, held_w)
+    lam = np.zeros(S)
+    status = np.ones(S, int)  # 1 until converged
+    active = np.ones(S, bool)
+    iters = np.zeros(S, int)
+    H_last = np.zeros((S, m, m))
+    for it in range(1, max_iter + 1):
+        idx = np.nonzero(active)[0]
+        if not len(idx):
+            break
+        iters[idx] = it
+        r, H, g, Ainv, Bm, gd, E = _schur(*_blocks(model, N[idx], rho[idx], sig[idx], p[idx], u[idx], aux))
+        if held:  # the prior's pseudo-observations (p_k - value) / std
+            H[:, held, held] += held_w
+            g[:, held] += held_w * (p[idx][:, held] - held_val)
+        H_last[idx] = H
+        diag = np.einsum("sii->si", H)
+        if it == 1:
+            dead = np.any(diag <= 1e-300, axis=1)
+            status[idx[dead]], active[idx[dead]] = 3, False
+        dH = np.sqrt(np.maximum(diag, 1e-300))  # Jacobi scaling: terms of very different size stay conditioned
+        Hs, gs = H / (dH[:, :, None] * dH[:, None, :]), g / dH
+        need = active[idx].copy()  # Levenberg-Marquardt: damp each set until its cost does not rise
+        dp = np.zeros((len(idx), m))
+        p_new, u_new, new_cost = p[idx].copy(), u[idx].copy(), cost[idx].copy()
+        while need.any():
+            k = np.nonzero(need)[0]
+            try:
+                dp[k] = -np.linalg.solve(Hs[k] + lam[idx[k], None, None] * np.eye(m), gs[k][..., None])[..., 0] / dH[k]
+            except np.linalg.LinAlgError:  # find the singular sets one by one
+                for j in k:
+                    try:
+                        dp[j] = -np.linalg.solve(Hs[j] + lam[idx[j]] * np.eye(m), gs[j]) / dH[j]
+                    except np.linalg.LinAlgError:
+                        status[idx[j]], active[idx[j]], need[j] = 2, False, False
+                k = np.nonzero(need)[0]
+                if not len(k):
+                    break
+            dd = -(Ainv[k] @ (gd[k] + (Bm[k] @ dp[k][:, None, :, None])[..., 0])[..., None])[..., 0]
+            pk = p[idx[k]] + dp[k]
+            v = u[idx[k]] + (E[k] @ dd[..., None])[..., 0]
+            uk = v / np.linalg.norm(v, axis=2, keepdims=True)
+            ck = _costs(model, N[idx[k]], rho3[idx[k]], sig[idx[k]], aux, pk, uk, held, held_val, held_w)
+            ok = (ck <= cost[idx[k]] * (1 + 1e-12)) | (lam[idx[k]] > 1e8)
+            acc, rej = k[ok], k[~ok]
+            p_new[acc], u_new[acc], new_cost[acc] = pk[ok], uk[ok], ck[ok]
+            lam[idx[acc]] = np.where(lam[idx[acc]] > 1e-6, lam[idx[acc]] / 10, 0.0)
+            lam[idx[rej]] = np.maximum(1e-3, 10 * lam[idx[rej]])
+            need[acc] = False
+        go = active[idx]
+        # converged: the cost stalls, or the step is below 1e-6 of each parameter's standard
+        # deviation, or the Gauss-Newton decrement is at round-off level
+        decrement = -np.einsum("sa,sa->s", g, dp)
+        done = ((np.abs(cost[idx] - new_cost) <= tol * np.maximum(cost[idx], 1e-30))
+                | (np.max(np.abs(dp) * np.sqrt(np.maximum(diag, 0)), axis=1) < 1e-6)
+                | (decrement <= 1e-12 * np.maximum(cost[idx], 1.0)))
+        p[idx[go]], u[idx[go]], cost[idx[go]] = p_new[go], u_new[go], new_cost[go]
+        fin = go & done
+        status[idx[fin]], active[idx[fin]] = 0, False
+    prior_part = np.sum(held_w * (p[:, held] - held_val) ** 2, axis=1) if held else 0.0
+    return p, u, cost - prior_part, H_last, iters, status
+
+
+def _costs(model, N, rho3, sig, aux, p, u, held, held_val, held_w):
+    """Each set's weighted sum of squares, with the prior's pseudo-observations."""
+    c = np.sum(((N - model.output(rho3 * u, p, *aux)) / sig) ** 2, axis=(1, 2))
+    return c + (np.sum(held_w * (p[:, held] - held_val) ** 2, axis=1) if held else 0.0)
+
+
+def _finish(model, obs, p, u, cov, H, cost, it) -> Fit:
+    """The Fit at the solution: the unobservability check, residuals, chi-square, covariance
+    (scaled by cost/dof where the noise is unknown)."""
+    bad = unobservable(H, model.params)
+    if bad:
+        raise CalibrationError(f"the {model.sensor} plan leaves these parameter combinations unobservable: {bad}; "
+                               "add positions (other input directions, temperatures or times) that change them")
+    n, m = len(obs.N), len(model.params)
+    res_phys = (obs.N - model.output(obs.rho[:, None] * u, p, obs.temp_c, obs.t_s, obs.extra))
+    dof = n - m
+    chi2 = p_value = None
+    if obs.sigma is not None:
+        chi2 = cost
+        p_value = float(chi2_sf(chi2, dof)) if dof > 0 else None
+    elif dof > 0:
+        cov = cov * cost / dof
+    else:
+        cov = cov * np.nan
+    return Fit(model.name, "exact", dict(zip(model.params, p)),
+               dict(zip(model.params, np.sqrt(np.diag(cov)))), cov, res_phys,
+               float(np.sqrt(np.mean(res_phys ** 2))), chi2, dof, p_value, it, u)
+
+
+def _fit_compiled(model, obs, p0, max_iter, tol) -> Fit | None:
+    """fit_exact through the model's compiled whole fit (one call), or None where there is none
+    (no compiler, or candidate effects added) or where it did not converge cleanly (the Python
+    loop then says why)."""
+    base = model.base if getattr(model, "effects", None) == () else model
+    if getattr(base, "fit_compiled", None) is None:
+        return None
+    n = len(obs.N)
+    sig = np.broadcast_to(obs.sigma if obs.sigma is not None else 1.0, (n, 3))
+    out = base.fit_compiled(obs.N[None], obs.rho[None], sig[None],
+                            base.aux_rows(n, obs.temp_c, obs.t_s, obs.extra)[None], np.asarray(p0, float)[None],
+                            max_iter, tol)
+    if out is None or out[5][0] != 0:
+        return None
+    p, cov, u, cost, it, _ = (a[0] for a in out)
+    return _finish(model, obs, p, u, cov, np.linalg.inv(cov), float(cost), int(it))

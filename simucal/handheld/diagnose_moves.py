@@ -1,0 +1,163 @@
+"""The gyro of a hand-placed session against its moves: noise floor, verdict, candidates.
+
+Noise floor, from the stream's own rests (handheld.gyro_noise_dps, move_covariances,
+chi2_test: calibrate reports the same test). The gyro's white noise (first
+differences over the initial rest, at least the quantisation's q^2/12: sigma_g
+per axis and sample, deg/s)
+integrates over a move into an attitude error of covariance
+    S_theta = T diag(sigma_g^2) T^T sum_k dt_k^2        (rad^2 after scaling),
+and each pose direction carries the noise of its accelerometer mean (sigma_a,
+g, across the direction). The residual r_i = g_{i+1} - R_i^T g_i then has
+    S_i = [p x] S_theta [p x]^T + sigma_a(i+1)^2 P(g_{i+1}) + sigma_a(i)^2 P(p),
+p = R_i^T g_i and P(u) = I - u u^T (rank 2: the component along gravity is second
+order). chi2 = sum_i r_i^T S_i^+ r_i + |db / sigma_db|^2 on 2m + 3 - 12 dof tests
+"the model explains the moves down to the noise". The floor is white noise only:
+bias instability over a move, timing jitter and creep of the poses are effects
+the test is there to reveal.
+
+Candidates: every gyro effect of generated/effects.py, evaluated along each move
+at the calibrated rate (u, deg/h), the calibrated specific force (f, g, motion
+included), time and temperature, enters the output model
+    y = M omega + b + p phi e_axis,  so  omega = T (y - b - p phi e_axis),
+and is fit with T and the bias by the same Gauss-Newton (handheld.fit_gyro_moves).
+Ranked by the likelihood ratio with the noise variance profiled out,
+LR = 2m ln(RSS_0 / RSS_1) ~ chi2(1) (2m: the residuals' degrees of freedom),
+significant under the same Bonferroni gate as the poses (candidates.py).
+"""
+from __future__ import annotations
+
+import numpy as np
+
+from simucal.fit.augmented import check_effect, effect_ids
+from simucal.fit.candidates import gate_candidates, verdict
+from simucal.fit.distributions import chi2_sf
+from simucal.fit.norm_fit import initial_directions
+from simucal.generated.effects import EFFECTS, SEPARATE_MOVES
+from simucal.handheld.calibrate import (
+    GyroFit,
+    chi2_test,
+    fit_gyro,
+    fit_gyro_moves,
+    gyro_noise_dps,
+    move_covariances,
+    move_residuals,
+    prepare_moves,
+    regressor_inputs,
+    with_terms,
+)
+
+
+def _param_names(n_terms_names):
+    return [f"T_{a}{b}" for a in "xyz" for b in "xyz"] + [f"b_{a}" for a in "xyz"] + list(n_terms_names)
+
+
+def move_rows(gm, fit: GyroFit, S, temp=None):
+    """Per-move residuals in the shape of diagnose.residual_table (one row per move)."""
+    mv, sig = gm.mv, np.sqrt(np.einsum("mii->mi", S))
+    return [{"segment": i, "kind": "move", "from_pose": int(a), "to_pose": int(b), "t_span_s": list(span),
+             "outer_rate_dps": None, "t_s": (span[0] + span[1]) / 2,
+             "temp_c": None if temp is None else float(temp[i]), "direction": gm.g_dirs[a].tolist(),
+             "residual": r.tolist(), "sigma": s.tolist(), "normalized": (r / s).tolist()}
+            for i, (a, b, span, r, s) in enumerate(zip(mv.before, mv.after, mv.t_span, fit.r, sig))]
+
+
+def rank_move_candidates(gm, base: GyroFit, inputs, base_fails, alpha):
+    x0 = np.r_[base.T.ravel(), base.db]
+    rss0 = float(np.sum(base.r ** 2))
+    m = len(base.r)
+    _, J0 = move_residuals(base.T, gm.mv, gm.g_dirs, db=base.db)
+    Q, _ = np.linalg.qr(J0.reshape(-1, 12))
+    out = []
+    for eid in effect_ids("gyro"):
+        _, axis, pname, unit, meaning, _ = EFFECTS[eid]
+        family, ax = eid.split(".")[1], eid.split(".")[2]
+        entry = {"effect": f"gyro.{family}", "axis": ax, "id": eid, "parameter": pname, "unit": unit,
+                 "meaning": meaning}
+        mv = with_terms(gm.mv, [eid], inputs)
+        col = move_residuals(base.T, mv, gm.g_dirs, db=base.db, p=np.zeros(1))[1][..., 12].ravel()
+        norm_col = float(np.linalg.norm(col))
+        perp = float(np.linalg.norm(col - Q @ (Q.T @ col)))
+        if norm_col == 0 or perp < 1e-3 * norm_col:
+            why = ("no input for it in these data" if norm_col == 0 else
+                   f"collinear with T and the bias ({100 * perp / norm_col:.2g} % of its signature is separable)")
+            entry.update(separable=False, note=f"{why}; to see it: {SEPARATE_MOVES[family]}")
+            out.append(entry)
+            continue
+        f1 = fit_gyro_moves(mv, gm.g_dirs, np.r_[x0, 0.0], gm.bias_std)
+        if not f1.converged:
+            entry.update(separable=False, note=f"the fit with it did not converge in {f1.iterations} steps")
+            out.append(entry)
+            continue
+        rss1 = float(np.sum(f1.r ** 2))
+        stat = max(2 * m * np.log(rss0 / rss1), 0.0)
+        entry.update(separable=True, estimate=float(f1.p[0]), std=float(np.sqrt(f1.cov[12, 12])),
+                     statistic=float(stat), p_value=float(chi2_sf(stat, 1)), delta_aic=float(stat - 2.0),
+                     residual_rms_after=float(np.sqrt(np.mean(f1.r ** 2))))
+        if perp < 0.05 * norm_col:
+            entry["note"] = (f"nearly collinear with T and the bias: {100 * perp / norm_col:.2g} % of its signature "
+                             f"is separable; to see it: {SEPARATE_MOVES[family]}")
+        out.append(entry)
+    return gate_candidates(out, base_fails, alpha)
+
+
+def diagnose_moves(ms, obs, det, am, fa, add=(), truth=None, alpha=0.01):
+    """The gyro block of `simucal diagnose` for a stream (same keys as for a turntable set)."""
+    gm = prepare_moves(ms, det, initial_directions(am, obs, fa.vector(am.params)))
+    base = fit_gyro(gm.mv, gm.g_dirs, gm.bias_std)
+    sigma_g = gyro_noise_dps(ms, gm)
+    S = move_covariances(gm, base, obs, sigma_g)
+    chi2, dof, p = chi2_test(base, S, gm.bias_std, gm.mv)
+    floor = float(np.sqrt(np.einsum("mii->", S) / (3 * len(S)) * max(dof, 0) / (2 * len(S))))
+    block = {"residual_rms": float(np.sqrt(np.mean(base.r ** 2))), "residual_unit": "(gravity direction)",
+             "dof": dof, "model": "full 3x3 T + bias (moves)", "noise": {"source": "the rests' white noise"},
+             "noise_floor": floor, "noise_std_of_mean": None, "chi2": chi2, "p_value": p,
+             "test": "chi-square against the white noise of the rests (gyro) and of the pose means (acc)",
+             "gyro_white_noise_dps": sigma_g.tolist()}
+    acc_cal = am.matrix_and_bias(fa.vector(am.params))
+    inputs = regressor_inputs(ms, gm, base, acc_cal)
+    temp = inputs[0][3].sum(1) / np.maximum((gm.mv.dt > 0).sum(1), 1) if "temp_c" in ms.samples else None
+    cands = rank_move_candidates(gm, base, inputs, p is not None and p < alpha, alpha)
+    fit, names = base, _param_names([])
+    if add:
+        for e in add:
+            check_effect(e, "gyro")
+        mv = with_terms(gm.mv, list(add), inputs)
+        fit = fit_gyro_moves(mv, gm.g_dirs, np.r_[base.T.ravel(), base.db, np.zeros(len(add))], gm.bias_std)
+        names = _param_names(EFFECTS[e][2] for e in add)
+        S = move_covariances(gm, fit, obs, sigma_g)
+    vec = lambda f: np.r_[f.T.ravel(), (gm.bias + f.db) * 3600, f.p]
+    std = lambda f: np.sqrt(np.diag(f.cov)) * np.r_[np.ones(9), np.full(3, 3600.0), np.ones(len(f.p))]
+    out = {"baseline": block, "candidates": cands, "verdict": verdict("gyro (moves)", block, cands, str(ms.path)),
+           "params": dict(zip(names, vec(fit).tolist())), "std": dict(zip(names, std(fit).tolist())),
+           "param_units": {"T": "1 (deg/s of rate per deg/s of output)", "b": "deg/h"},
+           "residuals": move_rows(gm, fit, S, temp), "residual_unit": "gravity direction (unit vector), per move",
+           "moves_skipped": gm.skipped, "saturation": gm.saturation, "moves_opposite_sense": gm.flipped}
+    if add:
+        _, _, p1 = chi2_test(fit, S, gm.bias_std, mv)
+        v0, s0, v1, s1 = vec(base), std(base), vec(fit), std(fit)
+        comp = {}
+        for k, name in enumerate(names):
+            row = {"before": None if k >= len(v0) else float(v0[k]), "std_before": None if k >= len(v0) else float(s0[k]),
+                   "after": float(v1[k]), "std_after": float(s1[k])}
+            comp[name] = row
+        _with_truth(comp, truth)
+        out["added"] = {"effects": list(add), "residual_rms_before": block["residual_rms"],
+                        "residual_rms_after": float(np.sqrt(np.mean(fit.r ** 2))), "p_value_before": p,
+                        "p_value_after": p1, "params": comp,
+                        "residuals_before": move_rows(gm, base, move_covariances(gm, base, obs, sigma_g), temp)}
+    return out
+
+
+def _with_truth(comp, truth):
+    """Errors against a simulated session's truth.json (T and the bias in deg/h), when present."""
+    g = (truth or {}).get("gyro", {})
+    known = {}
+    if "T" in g:
+        known.update({f"T_{a}{b}": g["T"][i][j] for i, a in enumerate("xyz") for j, b in enumerate("xyz")})
+    if "bias_dps" in g:
+        known.update({f"b_{a}": 3600.0 * g["bias_dps"][i] for i, a in enumerate("xyz")})
+    known.update(g.get("params", {}))
+    for k, row in comp.items():
+        if k in known:
+            row.update(truth=known[k], error_before=None if row["before"] is None else row["before"] - known[k],
+                       error_after=row["after"] - known[k])

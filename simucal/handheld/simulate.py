@@ -1,0 +1,127 @@
+"""Simulated hand-placed session (the Tedaldi / imu_tk workflow), raw counts.
+
+An initial rest, then random static poses joined by smooth hand-like moves:
+R(t) = R_i exp(s(t) theta k) with s a smooth step, so the body rate is exactly
+s'(t) theta k. Outputs: counts = nominal * (M f + b) + noise, clipped at the
+full scale; accelerometer in g through acc M_a (lower triangular, b frame),
+gyro through a full M_g (so omega is in b). Translational acceleration during
+moves and the Earth rate are left out. Gyro effects of generated/effects.py
+can be planted (gyro_effects), evaluated at the true rate and specific force.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from simucal import io
+from simucal.fit.rotations import exp_so3, log_so3
+from simucal.generated.effects import EFFECTS
+from simucal.generated.moves import rotation_matrix
+
+
+@dataclass
+class HandheldScenario:
+    poses: int = 30
+    rest_s: float = 30.0
+    pose_s: float = 5.0
+    move_s: float = 3.0
+    peak_rate_dps: float = 200.0
+    rate_hz: float = 100.0
+    acc_counts_per_g: float = 4096.0
+    gyro_counts_per_dps: float = 16.4
+    offset_counts: float = 32768.0
+    acc_noise_g: float = 1e-3
+    gyro_noise_dps: float = 0.1
+    full_scale_dps: float = 2000.0
+    clip_moves: int = 0          # this many moves peak beyond full scale
+    flip_gyro: bool = False      # gyro sign reversed (a wrong convention)
+    gyro_effects: dict = field(default_factory=dict)  # planted candidate effects: {effect id: value in its unit}
+    coplanar_poses: bool = False  # every pose turned about body x only: gravity directions in one plane
+    dead_gyro_axis: int = None    # this gyro output does not respond to rate (a dead channel)
+    weak_axis: int = None         # the moves turn about axes perpendicular to this body axis, never about it
+
+
+def _random_rotation(rng):
+    """A uniformly random rotation: C(q) of a uniformly random unit quaternion."""
+    q = rng.normal(size=4)
+    return rotation_matrix(q / np.linalg.norm(q))
+
+
+def simulate_handheld(sc: HandheldScenario, seed=0):
+    rng = np.random.default_rng(seed)
+    M_a = np.eye(3) + np.tril(rng.uniform(-0.01, 0.01, (3, 3)))
+    b_a = rng.uniform(-0.05, 0.05, 3)
+    M_g = np.eye(3) + rng.uniform(-0.01, 0.01, (3, 3)) + np.diag(rng.uniform(-0.03, 0.03, 3))
+    b_g = rng.uniform(-2, 2, 3)
+    if sc.dead_gyro_axis is not None:
+        M_g[sc.dead_gyro_axis] = 0.0
+    dt = 1 / sc.rate_hz
+    if sc.coplanar_poses:
+        Rs = [exp_so3(np.array([a, 0.0, 0.0])) for a in np.r_[0.0, rng.uniform(-np.pi, np.pi, sc.poses)]]
+    else:
+        Rs = [np.eye(3)] + [_random_rotation(rng) for _ in range(sc.poses)]
+    f_list, w_list = [], []
+
+    def hold(R, secs):
+        n = int(round(secs * sc.rate_hz))
+        f_list.append(np.tile(R.T @ np.array([0, 0, 1.0]), (n, 1)))
+        w_list.append(np.zeros((n, 3)))
+
+    hold(Rs[0], sc.rest_s)
+    clip = set(rng.choice(sc.poses, sc.clip_moves, replace=False).tolist()) if sc.clip_moves else set()
+    for i in range(sc.poses):
+        v = log_so3(Rs[i].T @ Rs[i + 1])
+        if sc.weak_axis is not None:  # the same angle, about an axis in the plane perpendicular to it
+            norm = np.linalg.norm(v)
+            v[sc.weak_axis] = 0.0
+            v *= norm / max(np.linalg.norm(v), 1e-12)
+        theta = np.linalg.norm(v)
+        if i in clip:  # a fast whirl: one extra full turn in 0.1 s, far beyond full scale
+            v = v * (theta + 2 * np.pi) / max(theta, 1e-9)
+            T = 0.1
+        else:
+            T = max(sc.move_s, 1.875 * np.degrees(theta) / sc.peak_rate_dps)  # s' peaks at 1.875/T
+        n = int(round(T * sc.rate_hz)) | 1  # odd: a sample at the peak
+        T = n / sc.rate_hz
+        u = (np.arange(n) + 0.5) / n
+        s = 10 * u ** 3 - 15 * u ** 4 + 6 * u ** 5
+        ds = (30 * u ** 2 - 60 * u ** 3 + 30 * u ** 4) / T
+        R_t = Rs[i] @ exp_so3(s[:, None] * v)
+        f_list.append(np.einsum("nji,j->ni", R_t, np.array([0, 0, 1.0])))
+        w_list.append(np.degrees(ds[:, None] * v))
+        Rs[i + 1] = Rs[i] @ exp_so3(v)  # the pose the move really reaches
+        hold(Rs[i + 1], sc.pose_s)
+    f, w = np.vstack(f_list), np.vstack(w_list)
+    n = len(f)
+    acc = sc.offset_counts + sc.acc_counts_per_g * (f @ M_a.T + b_a + rng.normal(0, sc.acc_noise_g, (n, 3)))
+    gsign = -1.0 if sc.flip_gyro else 1.0
+    out_dps = gsign * (w @ M_g.T) + b_g
+    for eid, value in sc.gyro_effects.items():
+        sensor, axis, _, _, _, phi = EFFECTS[eid]
+        if sensor != "gyro":
+            raise ValueError(f"{eid}: only gyro effects can be planted in a hand-placed session")
+        out_dps[:, axis] += value * phi(w * 3600.0, 0.0, np.arange(n) * dt, f)[0][:, 0] / 3600.0
+    gyro = sc.offset_counts + sc.gyro_counts_per_dps * (out_dps + rng.normal(0, sc.gyro_noise_dps, (n, 3)))
+    lo = sc.offset_counts - sc.full_scale_dps * sc.gyro_counts_per_dps
+    hi = sc.offset_counts + sc.full_scale_dps * sc.gyro_counts_per_dps
+    gyro = np.clip(np.round(gyro), lo, hi)
+    acc = np.round(acc)
+    meta = {"acc_unit": "counts", "gyro_unit": "counts", "latitude_deg": 45.0,
+            "acc_counts_per_g": [sc.acc_counts_per_g] * 3, "gyro_counts_per_dps": [sc.gyro_counts_per_dps] * 3,
+            "full_scale": {"gyro": [lo, hi]}, "description": "simucal hand-placed session simulation"}
+    # output = M f + bias with outputs in physical units: counts / nominal, offset in the bias
+    truth = {"acc": {"M": M_a.tolist(), "bias": (b_a + sc.offset_counts / sc.acc_counts_per_g).tolist()},
+             "gyro": {"M": M_g.tolist(), "T": None if sc.dead_gyro_axis is not None else np.linalg.inv(M_g).tolist(),
+                      "bias_dps": (b_g + sc.offset_counts / sc.gyro_counts_per_dps).tolist(),
+                      "params": {EFFECTS[e][2]: v for e, v in sc.gyro_effects.items()}},
+             "clipped_moves": sorted(clip), "seed": seed}
+    samples = {"t_s": np.arange(n) * dt, "ax": acc[:, 0], "ay": acc[:, 1], "az": acc[:, 2],
+               "gx": gyro[:, 0], "gy": gyro[:, 1], "gz": gyro[:, 2]}
+    return meta, samples, truth
+
+
+def write_handheld(folder, sc: HandheldScenario, seed=0):
+    meta, samples, truth = simulate_handheld(sc, seed)
+    io.write(folder, meta, samples, None, {"truth.json": truth})
+    return truth

@@ -1,0 +1,107 @@
+"""Static intervals in a continuous stream (Tedaldi et al. 2014, as in imu_tk).
+
+The norm of the per-axis accelerometer variance over a centred window is
+compared with `factor` times the same norm over the initial rest; runs below
+it, at least `min_s` long, are static poses. The initial rest is found from
+the data: it lasts while the moving variance stays within `rest_factor` of
+the white-noise level that first differences give over the first window. Everything is reported so a user can
+check and override it.
+"""
+from __future__ import annotations
+
+from dataclasses import asdict, dataclass
+
+import numpy as np
+
+from simucal.errors import CalibrationError
+from simucal.fit.noise import quantization_step, white_noise_var
+
+
+@dataclass(frozen=True)
+class DetectSettings:
+    """The static detector's settings (the --init-rest-s, --threshold-factor, --window-s and
+    --min-static-s options): window of the moving variance (s), threshold as a multiple of the
+    rest's variance, shortest static interval (s), the initial rest's length (None: found)."""
+    window_s: float = 1.0
+    factor: float = 6.0
+    min_s: float = 1.0
+    init_rest_s: float | None = None
+
+
+@dataclass
+class Detection:
+    starts: list          # first row of each interval
+    ends: list            # one past the last row
+    threshold: float      # on the moving-variance norm, (output unit)^2
+    window: int           # samples
+    min_samples: int
+    init_rest_end: int    # rows [0, init_rest_end) are the initial rest
+    factor: float
+    threshold_from: str = "the initial rest"  # or the quietest 3 s of a stream without one
+
+    def as_dict(self, t):
+        d = asdict(self)
+        d["intervals_s"] = [[float(t[a]), float(t[b - 1])] for a, b in zip(self.starts, self.ends)]
+        d["count"] = len(self.starts)
+        return d
+
+
+def moving_variance(x, w):
+    """Per-axis variance over a centred window of w samples (edges: shrunk window)."""
+    n = len(x)
+    c1 = np.vstack([np.zeros((1, x.shape[1])), np.cumsum(x, 0)])
+    c2 = np.vstack([np.zeros((1, x.shape[1])), np.cumsum(x * x, 0)])
+    lo = np.clip(np.arange(n) - w // 2, 0, n)
+    hi = np.clip(np.arange(n) + w // 2 + 1, 0, n)
+    cnt = (hi - lo)[:, None]
+    mean = (c1[hi] - c1[lo]) / cnt
+    return np.maximum((c2[hi] - c2[lo]) / cnt - mean ** 2, 0.0)
+
+
+def detect_static(acc, t, settings: DetectSettings = DetectSettings(), rest_factor=20.0) -> Detection:
+    if len(t) < 20:
+        raise CalibrationError(f"the stream has {len(t)} row{'s' * (len(t) != 1)}: a hand-placed session is one "
+                               "continuous recording, an initial rest and then poses joined by moves")
+    window_s, factor, min_s, init_rest_s = settings.window_s, settings.factor, settings.min_s, settings.init_rest_s
+    dt = float(np.median(np.diff(t)))
+    w = max(int(round(window_s / dt)) | 1, 3)
+    mv = np.linalg.norm(moving_variance(acc, w), axis=1)
+    if init_rest_s is not None:
+        init_end = int(np.searchsorted(t, t[0] + init_rest_s))
+    else:
+        # the noise level from first differences of the first window: blind to slow
+        # motion, so a stream that starts moving shows a moving variance far above it
+        seed = float(np.linalg.norm(white_noise_var(acc[:w])))
+        above = np.nonzero(mv > rest_factor * max(seed, 1e-300))[0]
+        init_end = int(above[0]) if above.size else len(mv)
+    if init_end >= len(mv) and init_rest_s is None:
+        raise CalibrationError(f"no motion: the accelerometers stay still through the whole stream "
+                               f"({t[-1] - t[0]:.1f} s); a calibration needs the unit turned into many poses")
+    needed = 3.0 if init_rest_s is None else 0.5  # a stated rest is the user's call
+    rest = slice(0, init_end)
+    if t[min(init_end, len(t) - 1)] - t[0] < needed:
+        if init_rest_s is not None:
+            raise CalibrationError(f"--init-rest-s {init_rest_s:g}: shorter than {needed} s of samples")
+        # no initial rest (Tedaldi's protocol starts with one): the quietest 3 s anywhere sets the threshold
+        k = max(int(round(3.0 / dt)), w)
+        if len(mv) < 2 * k:
+            raise CalibrationError(f"the stream is {t[-1] - t[0]:.1f} s long, too short to find a still stretch of "
+                                   "3 s for the static detector's threshold; record an initial rest of 3 s or more")
+        c = np.cumsum(np.r_[0.0, mv])
+        j = int(np.argmin(c[k:] - c[:-k]))
+        rest = slice(j, j + k)
+    # a rest quieter than one LSB reads constant: its variance is floored at q^2/12 (noise.quantization_step)
+    q2 = np.maximum(np.var(acc[rest], axis=0), quantization_step(acc[rest], acc) ** 2 / 12)
+    threshold = factor * float(np.linalg.norm(q2))
+    still = mv < threshold
+    edges = np.diff(np.r_[0, still.astype(int), 0])
+    starts, ends = np.nonzero(edges == 1)[0], np.nonzero(edges == -1)[0]
+    min_samples = int(round(min_s / dt))
+    keep = (ends - starts) >= min_samples
+    if not keep.any():
+        raise CalibrationError(f"no static interval of at least {min_s:g} s found (threshold {threshold:.3g}, "
+                               f"{factor:g} x the initial rest's variance); lower --min-static-s or raise "
+                               "--threshold-factor")
+    source = ("the initial rest" if rest.start == 0 else
+              f"the quietest 3 s ({t[rest.start]:.1f}-{t[rest.stop - 1]:.1f} s; the stream has no initial rest)")
+    return Detection(starts[keep].tolist(), ends[keep].tolist(), threshold, w, min_samples, init_end, factor, source)

@@ -1,0 +1,304 @@
+"""Read and write measurement sets (spec: shared/spec/measurement-set.md).
+
+Every rule the spec states is checked; a break is reported as
+MeasurementSetError naming the file, the line and the rule.
+"""
+from __future__ import annotations
+
+import csv
+import io as _io
+import json
+import math
+import warnings
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from simucal.io import units
+
+FORMAT = "simucal.measurements/1"
+SAMPLE_COLS = ("ax", "ay", "az", "gx", "gy", "gz")
+SEGMENT_COLS = ("segment", "kind", "outer_deg", "middle_deg", "inner_deg", "outer_rate_dps")
+PLAUSIBLE = 1e12  # no output, time or temperature of a real unit is this large (counts and pulse/s included)
+
+
+class MeasurementSetError(ValueError):
+    def __init__(self, path, line, rule):
+        where = f"{path}" + (f", line {line}" if line else "")
+        super().__init__(f"{where}: {rule}")
+        self.path, self.line, self.rule = path, line, rule
+
+
+@dataclass
+class Segment:
+    segment: int
+    kind: str
+    outer_deg: float | None
+    middle_deg: float | None
+    inner_deg: float | None
+    outer_rate_dps: float
+    heading_ref_deg: float | None = None
+
+
+@dataclass
+class MeasurementSet:
+    path: Path
+    meta: dict
+    samples: dict                     # column -> float array (segment as int array)
+    segments: list[Segment] | None    # None: one continuous stream
+    extra: dict = field(default_factory=dict)
+
+    @property
+    def has_acc(self):
+        return "ax" in self.samples
+
+    @property
+    def has_gyro(self):
+        return "gx" in self.samples
+
+    def acc_g(self):
+        """Accelerometer outputs in g (n, 3)."""
+        raw = np.column_stack([self.samples[c] for c in ("ax", "ay", "az")])
+        return units.acc_to_g(raw, self.meta)
+
+    def gyro_dph(self):
+        """Gyro outputs in deg/h (n, 3)."""
+        raw = np.column_stack([self.samples[c] for c in ("gx", "gy", "gz")])
+        return units.gyro_to_dph(raw, self.meta)
+
+
+def _number(text, path, line, col):
+    try:
+        v = float(text)
+    except ValueError:
+        raise MeasurementSetError(path, line, f"column {col}: {text!r} is not a number") from None
+    if not math.isfinite(v):
+        raise MeasurementSetError(path, line, f"column {col}: {text} is not finite (NaN and infinities are errors)")
+    return v
+
+
+def _cell(row, col, path, line, required=True):
+    text = (row.get(col) or "").strip()
+    if text == "":
+        if required:
+            raise MeasurementSetError(path, line, f"column {col} is empty (empty cells are errors)")
+        return None
+    return text
+
+
+def read_text(path: Path) -> str:
+    """A file's text: UTF-8 (a byte-order mark is dropped); binary files and other encodings
+    are refused, naming the line."""
+    return _read_checked(path)[1]
+
+
+def _read_checked(path: Path) -> tuple[bytes, str]:
+    """(bytes without a byte-order mark, text) of a UTF-8 file; see read_text."""
+    data = path.read_bytes()
+    if b"\0" in data[:65536]:
+        raise MeasurementSetError(path, None, "a binary file, not text (the spec's files are UTF-8 CSV and JSON)")
+    try:
+        data = data[3:] if data.startswith(b"\xef\xbb\xbf") else data
+        return data, data.decode("utf-8")
+    except UnicodeDecodeError as e:
+        line = data[:e.start].count(b"\n") + 1
+        raise MeasurementSetError(path, line, f"not UTF-8 text (byte 0x{data[e.start]:02x}): save the file as "
+                                              "UTF-8") from None
+
+
+def _csv_header_check(path, text):
+    """The spec's CSV is comma-separated: name another delimiter instead of a missing column."""
+    first = text[:text.find("\n")] if "\n" in text else text
+    if "," not in first:
+        for sep, name in (("\t", "tabs"), (";", "semicolons"), ("|", "bars")):
+            if sep in first:
+                raise MeasurementSetError(path, 1, f"the columns are separated by {name}; the spec's CSV uses commas "
+                                                   "(convert it, or use simucal import csv)")
+
+
+def read_meta(folder: Path) -> dict:
+    path = folder / "meta.json"
+    if not path.is_file():
+        raise MeasurementSetError(path, None, "missing: a measurement set needs meta.json")
+    try:
+        meta = json.loads(read_text(path))
+    except json.JSONDecodeError as e:
+        raise MeasurementSetError(path, e.lineno, f"not valid JSON: {e.msg}") from None
+    if not isinstance(meta, dict):
+        raise MeasurementSetError(path, None, "must hold a JSON object ({...})")
+    if meta.get("format") != FORMAT:
+        raise MeasurementSetError(path, None, f'"format" must be "{FORMAT}", got {meta.get("format")!r}')
+    units.check_meta(meta, path, MeasurementSetError)
+    return meta
+
+
+def read_segments(folder: Path) -> list[Segment] | None:
+    path = folder / "segments.csv"
+    if not path.is_file():
+        return None
+    out, seen = [], set()
+    text = read_text(path)
+    _csv_header_check(path, text)
+    with _io.StringIO(text, newline="") as fh:
+        reader = csv.DictReader(fh)
+        missing = [c for c in ("segment", "kind") if c not in (reader.fieldnames or [])]
+        if missing:
+            raise MeasurementSetError(path, 1, f"header lacks columns {missing}")
+        for line, row in enumerate(reader, start=2):
+            sid = _cell(row, "segment", path, line)
+            try:
+                sid = int(sid)
+            except ValueError:
+                raise MeasurementSetError(path, line, f"segment {sid!r} is not an integer") from None
+            if sid in seen:
+                raise MeasurementSetError(path, line, f"segment {sid} appears twice (ids must be unique)")
+            seen.add(sid)
+            kind = _cell(row, "kind", path, line)
+            if kind not in ("static", "rate"):
+                raise MeasurementSetError(path, line, f"kind must be 'static' or 'rate', got {kind!r}")
+            vals = {}
+            for col in ("outer_deg", "middle_deg", "inner_deg", "outer_rate_dps", "heading_ref_deg"):
+                text = _cell(row, col, path, line, required=False)
+                vals[col] = None if text is None else _number(text, path, line, col)
+            rate = vals["outer_rate_dps"] or 0.0
+            if kind == "rate" and rate == 0.0:
+                raise MeasurementSetError(path, line, "a rate segment needs a non-zero outer_rate_dps")
+            out.append(Segment(sid, kind, vals["outer_deg"], vals["middle_deg"], vals["inner_deg"],
+                               rate, vals["heading_ref_deg"]))
+    if not out:
+        raise MeasurementSetError(path, None, "no segments")
+    return out
+
+
+def read_samples(folder: Path, segments) -> dict:
+    path = folder / "samples.csv"
+    if not path.is_file():
+        raise MeasurementSetError(path, None, "missing: a measurement set needs samples.csv")
+    data, text = _read_checked(path)
+    _csv_header_check(path, text)
+    with _io.StringIO(text, newline="") as fh:
+        reader = csv.reader(fh)
+        try:
+            header = [h.strip() for h in next(reader)]
+        except StopIteration:
+            raise MeasurementSetError(path, 1, "empty file") from None
+        if "t_s" not in header:
+            raise MeasurementSetError(path, 1, "header lacks column t_s")
+        for group in (("ax", "ay", "az"), ("gx", "gy", "gz")):
+            present = [c for c in group if c in header]
+            if present and len(present) != 3:
+                raise MeasurementSetError(path, 1, f"columns {group} must all be present or all absent")
+        if "ax" not in header and "gx" not in header:
+            raise MeasurementSetError(path, 1, "neither accelerometer (ax ay az) nor gyro (gx gy gz) columns")
+        if segments is not None and "segment" not in header:
+            raise MeasurementSetError(path, 1, "segments.csv exists, so samples.csv needs a segment column")
+        cols = [c for c in header if c in ("segment", "t_s", "temp_c") + SAMPLE_COLS]
+        idx = {c: header.index(c) for c in cols}
+        fast = _fast_numeric(data, len(header))
+        if fast is not None:  # numpy's parser; on any doubt the careful one below names the line
+            out = {c: fast[:, idx[c]] for c in cols}
+            return _check_samples(out, path, segments)
+        data = {c: [] for c in cols}
+        for line, row in enumerate(reader, start=2):
+            if not row or all(not x.strip() for x in row):
+                continue
+            if len(row) != len(header):
+                raise MeasurementSetError(path, line, f"{len(row)} cells, header has {len(header)}")
+            for c in cols:
+                text = row[idx[c]].strip()
+                if text == "":
+                    raise MeasurementSetError(path, line, f"column {c} is empty (empty cells are errors)")
+                data[c].append(_number(text, path, line, c))
+    if not data["t_s"]:
+        raise MeasurementSetError(path, None, "no samples")
+    return _check_samples({c: np.asarray(v, float) for c, v in data.items()}, path, segments)
+
+
+def _fast_numeric(data: bytes, ncols):
+    """All cells as floats via numpy's C reader, or None if anything is unusual."""
+    try:
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")  # "no data": the careful reader then says so with the file's name
+            arr = np.loadtxt(_io.BytesIO(data), delimiter=",", skiprows=1, ndmin=2, dtype=float)
+    except ValueError:
+        return None
+    if arr.shape[0] == 0 or arr.shape[1] != ncols or not np.all(np.isfinite(arr)):
+        return None
+    return arr
+
+
+def _check_samples(out, path, segments):
+    for c, v in out.items():
+        big = np.nonzero(np.abs(v) > PLAUSIBLE)[0]
+        if big.size:
+            raise MeasurementSetError(path, 2 + int(big[0]), f"column {c}: {v[big[0]]:g} is not a plausible value "
+                                                             f"(|value| > {PLAUSIBLE:g})")
+    if segments is None:  # one continuous stream: time runs forward over the whole file
+        bad = np.nonzero(np.diff(out["t_s"]) <= 0)[0]
+        if bad.size:
+            i = int(bad[0]) + 1
+            raise MeasurementSetError(path, 2 + i, f"t_s must increase through a stream: {out['t_s'][i]:g} s follows "
+                                                   f"{out['t_s'][i - 1]:g} s (rows repeated, or files joined out of "
+                                                   "order?)")
+    if "segment" in out:
+        seg = out["segment"]
+        if np.any(seg != np.round(seg)):
+            raise MeasurementSetError(path, None, "segment ids must be integers")
+        out["segment"] = seg.astype(int)
+        if segments is not None:
+            known = {s.segment for s in segments}
+            unknown = sorted(set(out["segment"].tolist()) - known)
+            if unknown:
+                line = 2 + int(np.argmax(np.isin(out["segment"], unknown)))
+                raise MeasurementSetError(path, line, f"segment {unknown[0]} is not in segments.csv")
+        for s in np.unique(out["segment"]):
+            t = out["t_s"][out["segment"] == s]
+            bad = np.nonzero(np.diff(t) <= 0)[0]
+            if bad.size:
+                line = 2 + int(np.nonzero(out["segment"] == s)[0][bad[0] + 1])
+                raise MeasurementSetError(path, line, f"t_s must increase within segment {s}")
+    return out
+
+
+def read(folder) -> MeasurementSet:
+    folder = Path(folder)
+    if not folder.is_dir():
+        raise MeasurementSetError(folder, None, "not a folder (a measurement set is a folder)")
+    meta = read_meta(folder)
+    segments = read_segments(folder)
+    samples = read_samples(folder, segments)
+    if "gx" in samples and "latitude_deg" not in meta:
+        raise MeasurementSetError(folder / "meta.json", None,
+                                  "latitude_deg is required when gyro data are present")
+    return MeasurementSet(folder, meta, samples, segments)
+
+
+def _fmt(v):
+    return "" if v is None else repr(float(v))
+
+
+def write(folder, meta: dict, samples: dict, segments: list[Segment] | None = None, extra_files=None):
+    """Write a measurement set; extra_files: {name: json-able} (e.g. truth.json)."""
+    folder = Path(folder)
+    folder.mkdir(parents=True, exist_ok=True)
+    (folder / "meta.json").write_text(json.dumps({"format": FORMAT, **meta}, indent=2) + "\n")
+    if segments is not None:
+        with (folder / "segments.csv").open("w", newline="") as fh:
+            w = csv.writer(fh)
+            has_ref = any(s.heading_ref_deg is not None for s in segments)
+            w.writerow(SEGMENT_COLS + (("heading_ref_deg",) if has_ref else ()))
+            for s in segments:
+                row = [s.segment, s.kind, _fmt(s.outer_deg), _fmt(s.middle_deg), _fmt(s.inner_deg),
+                       _fmt(s.outer_rate_dps) if s.kind == "rate" else ""]
+                w.writerow(row + ([_fmt(s.heading_ref_deg)] if has_ref else []))
+    cols = [c for c in ("segment", "t_s", *SAMPLE_COLS, "temp_c") if c in samples]
+    n = len(samples["t_s"])
+    with (folder / "samples.csv").open("w", newline="") as fh:
+        w = csv.writer(fh)
+        w.writerow(cols)
+        arrays = [np.asarray(samples[c]) for c in cols]
+        for i in range(n):
+            w.writerow([str(int(a[i])) if c == "segment" else repr(float(a[i])) for c, a in zip(cols, arrays)])
+    for name, obj in (extra_files or {}).items():
+        (folder / name).write_text(json.dumps(obj, indent=2) + "\n")

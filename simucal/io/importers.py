@@ -1,0 +1,213 @@
+"""`simucal import`: other tools' recordings to measurement sets.
+
+Formats:
+- imu_tk: two text files (acc, gyro), each line `t x y z`, raw counts.
+- imucal-ferraris: imucal's session CSV (n_samples, gyr_*, acc_*; m/s^2 and
+  deg/s) at a given sample rate; its section list is not needed (the poses
+  are found by static detection).
+- csv: any CSV with a column map, units, nominal scales and sample rate.
+Every error names the original file and line.
+"""
+from __future__ import annotations
+
+import csv
+import math
+from pathlib import Path
+
+import numpy as np
+
+from simucal import io
+from simucal.io import units
+
+
+class ImportError_(ValueError):
+    pass
+
+
+def _read_numeric(path, ncols=None, skip_header=False):
+    path = Path(path)
+    rows = []
+    with path.open() as fh:
+        for line_no, line in enumerate(fh, start=1):
+            if skip_header and line_no == 1:
+                continue
+            parts = line.replace(",", " ").split()
+            if not parts:
+                continue
+            try:
+                vals = [float(p) for p in parts]
+            except ValueError:
+                raise ImportError_(f"{path}, line {line_no}: not numbers: {line.strip()[:60]!r}") from None
+            if ncols is not None and len(vals) != ncols:
+                raise ImportError_(f"{path}, line {line_no}: {len(vals)} values, expected {ncols}")
+            if not all(math.isfinite(v) for v in vals):
+                raise ImportError_(f"{path}, line {line_no}: NaN or infinite value")
+            rows.append(vals)
+    if not rows:
+        raise ImportError_(f"{path}: no data")
+    return np.array(rows)
+
+
+def _meta(acc_unit, gyro_unit, latitude_deg, extra):
+    meta = {"acc_unit": acc_unit, "gyro_unit": gyro_unit, **extra}
+    if latitude_deg is None:
+        raise ImportError_("give --latitude-deg: the spec needs the latitude when gyro data are present "
+                           "(where the Earth rate is below the gyro noise any nearby value will do)")
+    meta["latitude_deg"] = latitude_deg
+    return meta
+
+
+def import_imu_tk(acc_path, gyro_path, out, acc_counts_per_g, gyro_counts_per_dps, latitude_deg,
+                  gravity_mps2=None):
+    a = _read_numeric(acc_path, 4)
+    g = _read_numeric(gyro_path, 4)
+    if len(a) != len(g) or np.any(np.abs(a[:, 0] - g[:, 0]) > 1e-9):
+        raise ImportError_(f"{gyro_path}: its time column differs from {acc_path}'s (imu_tk files pair row for row)")
+    bad = np.nonzero(np.diff(a[:, 0]) <= 0)[0]
+    if bad.size:
+        raise ImportError_(f"{acc_path}, line {bad[0] + 2}: time does not increase")
+    extra = {"acc_counts_per_g": [acc_counts_per_g] * 3, "gyro_counts_per_dps": [gyro_counts_per_dps] * 3,
+             "description": f"imported from imu_tk files {Path(acc_path).name}, {Path(gyro_path).name}"}
+    if gravity_mps2:
+        extra["gravity_mps2"] = gravity_mps2
+    meta = _meta("counts", "counts", latitude_deg, extra)
+    samples = {"t_s": a[:, 0], "ax": a[:, 1], "ay": a[:, 2], "az": a[:, 3], "gx": g[:, 1], "gy": g[:, 2], "gz": g[:, 3]}
+    io.write(out, meta, samples)
+    return meta
+
+
+def parse_columns(text: str) -> dict:
+    """--columns 'SPEC=SOURCE,...' -> {spec column: source column}, refusing anything malformed."""
+    allowed = ("t_s", "segment", "temp_c", "ax", "ay", "az", "gx", "gy", "gz")
+    out = {}
+    for item in text.split(","):
+        spec, eq, src = (x.strip() for x in item.partition("="))
+        if not eq or not spec or not src:
+            raise ImportError_(f"--columns item {item!r}: write SPEC=SOURCE (t_s=NAME, ax=NAME, ...), comma-separated")
+        if spec not in allowed:
+            raise ImportError_(f"--columns: {spec!r} is not a spec column; use {', '.join(allowed)}")
+        if spec in out:
+            raise ImportError_(f"--columns: {spec} is mapped twice")
+        out[spec] = src
+    for group in (("ax", "ay", "az"), ("gx", "gy", "gz")):
+        got = [c for c in group if c in out]
+        if got and len(got) < 3:
+            raise ImportError_(f"--columns maps {got} but not {[c for c in group if c not in out]}: a triad needs all "
+                               "three axes")
+    if not any(c in out for c in ("ax", "gx")):
+        raise ImportError_("--columns maps no sensor: give ax, ay, az and/or gx, gy, gz")
+    return out
+
+
+def import_csv(path, out, columns: dict, acc_unit, gyro_unit, rate_hz=None, latitude_deg=None, scales=None):
+    """columns: {spec column: source column name}, e.g. {"ax": "acc_x", ...};
+    without a t_s column, time is row / rate_hz."""
+    path = Path(path)
+    with path.open(newline="") as fh:
+        reader = csv.DictReader(fh)
+        missing = [src for src in columns.values() if src not in (reader.fieldnames or [])]
+        if missing:
+            raise ImportError_(f"{path}, line 1: no columns {missing}; the header has {reader.fieldnames}")
+        data = {k: [] for k in columns}
+        for line_no, row in enumerate(reader, start=2):
+            for k, src in columns.items():
+                try:
+                    v = float(row[src])
+                except (TypeError, ValueError):
+                    raise ImportError_(f"{path}, line {line_no}: column {src}: {row[src]!r} is not a number") from None
+                if not math.isfinite(v):
+                    raise ImportError_(f"{path}, line {line_no}: column {src} is not finite")
+                data[k].append(v)
+    samples = {k: np.array(v) for k, v in data.items()}
+    n = len(next(iter(samples.values())))
+    if "t_s" not in samples:
+        if not rate_hz:
+            raise ImportError_(f"{path}: no time column mapped; give --rate-hz")
+        samples["t_s"] = np.arange(n) / rate_hz
+    meta = _meta(acc_unit, gyro_unit, latitude_deg, dict(scales or {}, description=f"imported from {path.name}"))
+    units.check_meta(meta, path, lambda p, line, rule: ImportError_(f"{p}: {rule}"))
+    io.write(out, meta, samples)
+    return meta
+
+
+def import_ferraris(path, out, rate_hz, latitude_deg):
+    cols = {"ax": "acc_x", "ay": "acc_y", "az": "acc_z", "gx": "gyr_x", "gy": "gyr_y", "gz": "gyr_z"}
+    return import_csv(path, out, cols, "m/s^2", "deg/s", rate_hz, latitude_deg, {"gravity_mps2": 9.81})
+
+
+# Ferraris poses as the middle/inner angles that put f^k along the labelled axis:
+# f^k = [-cos(a) sin(b), sin(a), cos(a) cos(b)] (spec: C_k^n = Rz Rx Ry).
+FERRARIS_POSES = {"x_p": (0.0, -90.0), "x_a": (0.0, 90.0), "y_p": (90.0, 0.0), "y_a": (-90.0, 0.0),
+                  "z_p": (0.0, 0.0), "z_a": (0.0, 180.0)}
+FERRARIS_TURNS = {"x_rot": "x_p", "y_rot": "y_p", "z_rot": "z_p"}
+
+
+def _ferraris_set(out, sections, data, t, units_meta, latitude_deg, turn_deg, source):
+    """sections: [(label, row indices)] in recording order. Static poses become static
+    segments at their nominal orientation; each 360 deg turn a rate segment about the
+    vertical (the pose's axis) at the protocol's mean rate turn_deg / duration."""
+    segs, keep_rows, seg_col = [], [], []
+    for sid, (label, rows) in enumerate(sections, start=1):
+        if label in FERRARIS_POSES:
+            a, b = FERRARIS_POSES[label]
+            segs.append(io.Segment(sid, "static", None, a, b, 0.0))
+        elif label in FERRARIS_TURNS:
+            a, b = FERRARIS_POSES[FERRARIS_TURNS[label]]
+            duration = float(t[rows[-1]] - t[rows[0]] + np.median(np.diff(t)))
+            segs.append(io.Segment(sid, "rate", None, a, b, turn_deg / duration))
+        else:
+            raise ImportError_(f"{source}: unknown section label {label!r}; Ferraris labels are "
+                               f"{sorted(FERRARIS_POSES) + sorted(FERRARIS_TURNS)}")
+        keep_rows.append(rows)
+        seg_col.append(np.full(len(rows), sid))
+    rows = np.concatenate(keep_rows)
+    samples = {"segment": np.concatenate(seg_col), "t_s": t[rows], **{k: v[rows] for k, v in data.items()}}
+    meta = _meta(units_meta["acc_unit"], units_meta["gyro_unit"], latitude_deg,
+                 {k: v for k, v in units_meta.items() if k not in ("acc_unit", "gyro_unit")})
+    meta["description"] = (f"imported from {source}: Ferraris protocol; static poses at their nominal orientation, "
+                           f"each turn a rate segment at the protocol's {turn_deg:+.0f} deg over its duration")
+    io.write(out, meta, samples, segs)
+    return meta
+
+
+def import_ferraris_sections(csv_path, json_path, out, rate_hz, latitude_deg, turn_deg=-360.0):
+    """imucal's session CSV with its section list (0-based rows, end exclusive)."""
+    import json
+    sections = json.loads(Path(json_path).read_text())
+    with Path(csv_path).open(newline="") as fh:
+        reader = csv.DictReader(fh)
+        cols = {"ax": "acc_x", "ay": "acc_y", "az": "acc_z", "gx": "gyr_x", "gy": "gyr_y", "gz": "gyr_z"}
+        rows = [[float(r[c]) for c in cols.values()] for r in reader]
+    arr = np.array(rows)
+    data = {k: arr[:, j] for j, k in enumerate(cols)}
+    t = np.arange(len(arr)) / rate_hz
+    order = sorted(sections.items(), key=lambda kv: kv[1]["start"])
+    secs = [(label, np.arange(s["start"], s["end"])) for label, s in order]
+    return _ferraris_set(out, secs, data, t, {"acc_unit": "m/s^2", "gyro_unit": "deg/s", "gravity_mps2": 9.81},
+                         latitude_deg, turn_deg, Path(csv_path).name)
+
+
+def import_imucal_annotated(csv_path, out, rate_hz, acc_counts_per_g, gyro_counts_per_dps, latitude_deg,
+                            turn_deg=-360.0):
+    """imucal's annotated session: sections already cut, sorted by label; `samples`
+    gives the recording order."""
+    path = Path(csv_path)
+    labels, idx, vals = [], [], []
+    with path.open(newline="") as fh:
+        reader = csv.DictReader(fh)
+        for line_no, r in enumerate(reader, start=2):
+            try:
+                idx.append(int(r["samples"]))
+                vals.append([float(r[c]) for c in ("acc_x", "acc_y", "acc_z", "gyr_x", "gyr_y", "gyr_z")])
+            except (KeyError, TypeError, ValueError):
+                raise ImportError_(f"{path}, line {line_no}: expected part,samples,acc_x..gyr_z numbers") from None
+            labels.append(r["part"])
+    order = np.argsort(idx)
+    labels, arr = np.array(labels)[order], np.array(vals)[order]
+    t = np.array(idx)[order] / rate_hz
+    data = {k: arr[:, j] for j, k in enumerate(("ax", "ay", "az", "gx", "gy", "gz"))}
+    change = np.r_[0, np.nonzero(labels[1:] != labels[:-1])[0] + 1, len(labels)]
+    secs = [(labels[a], np.arange(a, b)) for a, b in zip(change[:-1], change[1:])]
+    units_meta = {"acc_unit": "counts", "gyro_unit": "counts", "acc_counts_per_g": [acc_counts_per_g] * 3,
+                  "gyro_counts_per_dps": [gyro_counts_per_dps] * 3}
+    return _ferraris_set(out, secs, data, t, units_meta, latitude_deg, turn_deg, path.name)

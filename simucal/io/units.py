@@ -1,0 +1,126 @@
+"""Units of the spec and their conversion to the calibration's units.
+
+Calibrations work in g (accelerometers) and deg/h (gyros). Pulse and count
+outputs are divided by the nominal scale factors of meta.json. Note
+1 arcsec/s = 1 deg/h, so gyro pulse/s / (pulses per arcsec) is deg/h.
+"""
+import numpy as np
+
+ACC_UNITS = ("g", "m/s^2", "pulse/s", "counts")
+GYRO_UNITS = ("deg/h", "deg/s", "rad/s", "pulse/s", "counts")
+DEFAULT_GRAVITY = 9.80665
+DEFAULT_EARTH_RATE_DPH = 15.04107
+SCALE_KEY = {("acc", "pulse/s"): "acc_pulses_per_g", ("acc", "counts"): "acc_counts_per_g",
+             ("gyro", "pulse/s"): "gyro_pulses_per_arcsec", ("gyro", "counts"): "gyro_counts_per_dps"}
+
+
+def check_meta(meta, path, error):
+    for sensor, allowed in (("acc", ACC_UNITS), ("gyro", GYRO_UNITS)):
+        key = f"{sensor}_unit"
+        if key not in meta:
+            raise error(path, None, f'"{key}" is required, one of {allowed}')
+        if meta[key] not in allowed:
+            raise error(path, None, f'"{key}" {meta[key]!r} is not a known unit; use one of {allowed}')
+        skey = SCALE_KEY.get((sensor, meta[key]))
+        if skey:
+            v = meta.get(skey)
+            if not (isinstance(v, list) and len(v) == 3 and all(isinstance(x, (int, float)) and x > 0 for x in v)):
+                raise error(path, None, f'{key} is {meta[key]!r}, so "{skey}" must be three positive numbers')
+    lat = meta.get("latitude_deg")
+    if lat is not None and not (isinstance(lat, (int, float)) and -90 <= lat <= 90):
+        raise error(path, None, f'"latitude_deg" must be a number in -90..90, got {lat!r}')
+    for key, what, lo, hi, default in (("gravity_mps2", "local gravity's magnitude, m/s^2", 9.0, 10.5, DEFAULT_GRAVITY),
+                                       ("earth_rate_dph", "the Earth's rotation rate, deg/h", 14.5, 15.5,
+                                        DEFAULT_EARTH_RATE_DPH)):
+        v = meta.get(key)
+        if v is not None and not (isinstance(v, (int, float)) and not isinstance(v, bool) and lo <= v <= hi):
+            raise error(path, None, f'"{key}" is {v!r}, but it is {what} ({default} by default, {lo}..{hi} '
+                                    'anywhere on the Earth): fix the value, or leave the key out for the default')
+
+
+def gravity(meta):
+    return float(meta.get("gravity_mps2", DEFAULT_GRAVITY))
+
+
+def earth_rate_dph(meta):
+    return float(meta.get("earth_rate_dph", DEFAULT_EARTH_RATE_DPH))
+
+
+def acc_to_g(raw, meta):
+    u = meta["acc_unit"]
+    if u == "g":
+        return raw
+    if u == "m/s^2":
+        return raw / gravity(meta)
+    return raw / np.asarray(meta[SCALE_KEY[("acc", u)]], float)
+
+
+def gyro_to_dph(raw, meta):
+    u = meta["gyro_unit"]
+    if u == "deg/h":
+        return raw
+    if u == "deg/s":
+        return raw * 3600.0
+    if u == "rad/s":
+        return np.degrees(raw) * 3600.0
+    if u == "pulse/s":
+        return raw / np.asarray(meta["gyro_pulses_per_arcsec"], float)
+    return raw / np.asarray(meta["gyro_counts_per_dps"], float) * 3600.0
+
+
+def g_to_acc(f_g, meta):
+    """Inverse of acc_to_g, for the simulator."""
+    u = meta["acc_unit"]
+    if u == "g":
+        return f_g
+    if u == "m/s^2":
+        return f_g * gravity(meta)
+    return f_g * np.asarray(meta[SCALE_KEY[("acc", u)]], float)
+
+
+def dph_to_gyro(w_dph, meta):
+    u = meta["gyro_unit"]
+    if u == "deg/h":
+        return w_dph
+    if u == "deg/s":
+        return w_dph / 3600.0
+    if u == "rad/s":
+        return np.radians(w_dph / 3600.0)
+    if u == "pulse/s":
+        return w_dph * np.asarray(meta["gyro_pulses_per_arcsec"], float)
+    return w_dph / 3600.0 * np.asarray(meta["gyro_counts_per_dps"], float)
+
+
+# Ratios between the units a recording may really use and the one its meta.json names.
+UNIT_MIXUPS = {"acc": {"m/s^2 labelled g": DEFAULT_GRAVITY, "g labelled m/s^2": 1 / DEFAULT_GRAVITY,
+                   "mg labelled g": 1000.0},
+           "gyro": {"deg/s labelled deg/h": 1 / 3600.0, "deg/h labelled deg/s": 3600.0,
+                    "rad/s labelled deg/s": np.pi / 180, "deg/s labelled rad/s": 180 / np.pi,
+                    "rad/s labelled deg/h": np.pi / 180 / 3600, "deg/h labelled rad/s": 3600 * 180 / np.pi}}
+
+
+def check_magnitude(sensor, measured_norm, expected_norm, where, meta=None):
+    """Refuse outputs whose size is far from the known input's: almost always a unit
+    mix-up, which a calibration would otherwise absorb into absurd scale factors.
+    Raw counts carry an offset by design (the bias absorbs it): for them see check_scale."""
+    if meta is not None and meta.get(f"{sensor}_unit") == "counts":
+        return
+    r = float(np.median(np.asarray(measured_norm) / np.asarray(expected_norm)))
+    _refuse_ratio(sensor, r, where)
+
+
+def check_scale(sensor, M, where):
+    """After a fit: scale factors (diagonal of M) far from 1 mean a wrong unit or nominal scale."""
+    d = np.abs(np.diag(np.asarray(M, float)))
+    r = float(np.median(d))
+    _refuse_ratio(sensor, r, where, "fitted scale factors")
+
+
+def _refuse_ratio(sensor, r, where, what="outputs"):
+    if 0.5 < r < 2.0:
+        return
+    guess = min(UNIT_MIXUPS[sensor].items(), key=lambda kv: abs(np.log(r / kv[1])))
+    likely = f"; the ratio matches {guess[0]}" if abs(np.log(r / guess[1])) < 0.2 else ""
+    from simucal.errors import CalibrationError
+    raise CalibrationError(f"{where}: the {sensor} {what} are {r:.4g} times the known input (1 g at rest, or the "
+                           f"commanded rate): check {sensor}_unit and the nominal scale factors in meta.json{likely}")

@@ -1,0 +1,180 @@
+"""Self-contained HTML report of a diagnosis: plots embedded as PNG data URIs.
+
+Pictures a test engineer reads at a glance: residuals (in units of their own
+standard deviation) against time, against the input direction on the
+sphere, against the outer-axis rate, against temperature; the candidate
+effects' test statistics; before/after bars when effects were added.
+"""
+from __future__ import annotations
+
+import base64
+import html
+import io as _io
+
+import matplotlib
+
+matplotlib.use("Agg")
+import matplotlib.pyplot as plt  # noqa: E402
+import numpy as np  # noqa: E402
+
+AXES = "xyz"
+
+
+def _png(fig) -> str:
+    buf = _io.BytesIO()
+    fig.savefig(buf, format="png", dpi=90, bbox_inches="tight")
+    plt.close(fig)
+    return f'<img src="data:image/png;base64,{base64.b64encode(buf.getvalue()).decode()}">'
+
+
+def _res(rows, key="normalized"):
+    use = key if rows[0][key] is not None else "residual"
+    return np.array([r[use] for r in rows]), use
+
+
+def shape_figure(sensor, shape, unit):
+    """The residual on the found term's axis against its regressor, with the fitted term."""
+    x, r = np.array(shape["points"]["regressor"]), np.array(shape["points"]["residual"])
+    fig, ax = plt.subplots(figsize=(6, 3.2))
+    ax.plot(x, r, "o", ms=4, label=f"{sensor} {shape['axis']} residual")
+    ax.plot(x, shape["points"]["term_visible"], "x", ms=5,
+            label=f"{shape['estimate']:.2g} * {shape['regressor']}, less what the model absorbs")
+    ax.set(xlabel=shape["regressor"], ylabel=f"residual ({unit})", title=f"{sensor}: the shape of the misfit")
+    ax.legend(fontsize=8)
+    return f"<p>{html.escape(shape['text'])}</p>" + _png(fig)
+
+
+def residual_figures(sensor, block, unit):
+    rows = block["residuals"]
+    r, kind = _res(rows)
+    ylab = "residual / sigma" if kind == "normalized" else f"residual ({unit})"
+    t = np.array([x["t_s"] for x in rows])
+    figs = []
+    fig, ax = plt.subplots(figsize=(8, 3))
+    for j in range(3):
+        ax.plot(t, r[:, j], "o-", ms=4, lw=0.8, label=f"{sensor} {AXES[j]}")
+    if kind == "normalized":
+        ax.axhspan(-2, 2, color="0.9", zorder=0, label="+-2 sigma")
+    ax.set(xlabel="time (s)", ylabel=ylab, title=f"{sensor}: residual against time")
+    ax.legend(fontsize=8, ncol=4)
+    figs.append(_png(fig))
+    d = np.array([x["direction"] for x in rows])
+    lon, lat = np.arctan2(d[:, 1], d[:, 0]), np.arcsin(np.clip(d[:, 2], -1, 1))
+    lim = max(np.max(np.abs(r)), 1e-300)
+    fig, axs = plt.subplots(1, 3, figsize=(12, 3.2), subplot_kw={"projection": "mollweide"})
+    for j, ax in enumerate(axs):
+        sc = ax.scatter(lon, lat, c=r[:, j], cmap="coolwarm", vmin=-lim, vmax=lim, s=60, edgecolors="k")
+        ax.set_title(f"{sensor} {AXES[j]} residual vs input direction", fontsize=9)
+        ax.tick_params(labelsize=6)
+    fig.colorbar(sc, ax=axs, shrink=0.7, label=ylab)
+    figs.append(_png(fig))
+    rate = np.array([x["outer_rate_dps"] for x in rows])
+    if sensor == "gyro" and len(set(rate)) > 1:
+        fig, ax = plt.subplots(figsize=(6, 3))
+        for j in range(3):
+            ax.plot(rate, r[:, j], "o", label=AXES[j])
+        ax.set(xlabel="outer-axis rate (deg/s)", ylabel=ylab, title="gyro: residual against rate sign and size")
+        ax.legend(fontsize=8)
+        figs.append(_png(fig))
+    temp = [x["temp_c"] for x in rows]
+    if temp[0] is not None and len(set(temp)) > 1:
+        fig, ax = plt.subplots(figsize=(6, 3))
+        for j in range(3):
+            ax.plot(temp, r[:, j], "o", label=AXES[j])
+        ax.set(xlabel="temperature (degC)", ylabel=ylab, title=f"{sensor}: residual against temperature")
+        ax.legend(fontsize=8)
+        figs.append(_png(fig))
+    return figs
+
+
+def candidate_figure(sensor, block, n_tested):
+    c = [x for x in block["candidates"] if x["separable"]][:12]
+    if not c:
+        return ""
+    fig, ax = plt.subplots(figsize=(8, 3))
+    colors = ["tab:red" if x.get("significant") else "tab:gray" for x in c]
+    ax.barh([x["id"] for x in c][::-1], [x["statistic"] for x in c][::-1], color=colors[::-1])
+    from simucal.fit.distributions import chi2_isf
+    thr = chi2_isf(0.01 / max(n_tested, 1), 1)
+    ax.axvline(thr, color="k", ls="--", lw=1, label=f"significance threshold ({thr:.1f})")
+    ax.set(xlabel="likelihood-ratio statistic", title=f"{sensor}: which effect is missing (red: significant)")
+    ax.legend(fontsize=8)
+    return _png(fig)
+
+
+def before_after_figure(sensor, block):
+    a = block["added"]
+    r0 = np.sqrt(np.mean(np.array([x["residual"] for x in a["residuals_before"]]) ** 2, axis=0))
+    r1 = np.sqrt(np.mean(np.array([x["residual"] for x in block["residuals"]]) ** 2, axis=0))
+    fig, ax = plt.subplots(figsize=(6, 3))
+    x = np.arange(3)
+    ax.bar(x - 0.2, r0, 0.4, label="before")
+    ax.bar(x + 0.2, r1, 0.4, label="after " + ", ".join(a["effects"]))
+    if block["baseline"].get("noise_floor"):
+        ax.axhline(block["baseline"]["noise_floor"], color="k", ls="--", label="noise floor")
+    ax.set_xticks(x, [f"{sensor} {c}" for c in AXES])
+    ax.set(ylabel="residual rms", title="residual before and after adding")
+    ax.legend(fontsize=8)
+    return _png(fig)
+
+
+def _table(rows, cols):
+    head = "".join(f"<th>{html.escape(c)}</th>" for c in cols)
+    body = "".join("<tr>" + "".join(f"<td>{html.escape(_fmt(r.get(c)))}</td>" for c in cols) + "</tr>" for r in rows)
+    return f"<table><tr>{head}</tr>{body}</table>"
+
+
+def _fmt(v):
+    if v is None:
+        return ""
+    if isinstance(v, float):
+        return f"{v:.4g}"
+    return str(v)
+
+
+def stream_figures(stream):
+    """The stream with its static intervals shaded."""
+    figs = []
+    fig, ax = plt.subplots(figsize=(12, 3))
+    ax.plot(stream["t_s"], stream["acc_norm_g"], lw=0.6, color="k")
+    det = stream["static_detection"]
+    for k, (a, b) in enumerate(det["intervals_s"]):
+        ax.axvspan(a, b, color="tab:green", alpha=0.25, label="static (detected)" if k == 0 else None)
+    ax.set(xlabel="time (s)", ylabel="calibrated |f| (g)", ylim=(0.5, 1.5), title=f"stream: {det['count']} static intervals "
+           f"(threshold {det['threshold']:.3g}, window {det['window']} samples, min {det['min_samples']} samples)")
+    ax.legend(fontsize=8)
+    figs.append(_png(fig))
+    return figs
+
+
+def render(diag: dict) -> str:
+    units = {"acc": "g", "gyro": "deg/h"}
+    parts = ["<!doctype html><html><head><meta charset='utf-8'><title>simucal diagnosis</title><style>",
+             "body{font-family:sans-serif;max-width:1250px;margin:auto} table{border-collapse:collapse;font-size:12px}",
+             "td,th{border:1px solid #ccc;padding:2px 6px} .bad{color:#b00} .ok{color:#070} img{max-width:100%}",
+             "</style></head><body>", f"<h1>Diagnosis of {html.escape(diag['input'])}</h1>"]
+    if "stream" in diag:
+        parts.append("<h2>stream</h2>")
+        parts += stream_figures(diag["stream"])
+    for s in ("acc", "gyro"):
+        if s not in diag:
+            continue
+        b = diag[s]
+        ok = b["baseline"]["p_value"] is None or b["baseline"]["p_value"] >= diag["alpha"]
+        parts.append(f"<h2>{s}</h2><p class='{'ok' if ok else 'bad'}'><b>{html.escape(b['verdict'])}</b></p>")
+        parts += residual_figures(s, b, units[s])
+        if b.get("moves_skipped"):  # a stream's gyro: the moves left out, and why
+            parts.append(_table(b["moves_skipped"], ["from_pose", "to_pose", "t_s", "reason"]))
+        if b.get("shape"):
+            parts.append(shape_figure(s, b["shape"], units[s]))
+        tested = [c for c in b["candidates"] if c["separable"]]
+        parts.append(candidate_figure(s, b, len(tested)))
+        parts.append(_table(b["candidates"], ["id", "estimate", "std", "unit", "statistic", "p_value", "delta_aic",
+                                              "residual_rms_after", "significant", "note"]))
+        if "added" in b:
+            parts.append(before_after_figure(s, b))
+            rows = [{"parameter": k, **v} for k, v in b["added"]["params"].items()]
+            parts.append(_table(rows, ["parameter", "before", "std_before", "after", "std_after", "truth",
+                                       "error_before", "error_after"]))
+    parts.append("</body></html>")
+    return "\n".join(parts)

@@ -1,0 +1,109 @@
+"""Physical consistency of a turntable calibration: refuse what cannot be physics.
+
+A norm observation cannot see the handedness of a triad (a reversed axis fits
+as well as a right one, with mirrored directions), nor whether meta.json's
+latitude is right. So, after the fits:
+
+- handedness: the fitted input directions against the commanded table vertical
+  (static positions for accelerometers, rate-run axes for gyros), and the two
+  triads against each other (unification.py). A reflection explains a residual
+  no rotation can: the triad is refused, naming the axis whose reversal brings
+  the residual to the noise.
+- latitude: at rest the gyros see the Earth rate, whose component along the
+  specific force (up) is w_ie sin L, estimated with the gyro bias from the static
+  positions alone. Where the gyros resolve it (a std of L below 10 deg), a latitude
+  that differs from meta.json's by more than max(5 sigma, 3 deg) is refused,
+  stating the measured one.
+"""
+from __future__ import annotations
+
+import numpy as np
+
+from simucal.errors import CalibrationError
+from simucal.fit.apply import model_function, solve_inputs
+from simucal.fit.rotations import log_so3, wahba
+from simucal.io import units
+
+GROSS_RAD = 0.05  # a direction residual no table (1 deg errors give 0.017 rad) or noise explains
+
+
+def mirror_test(u_from, u_to):
+    """Wahba of u_to ~ C u_from. Returns (axis, residual, residual with that axis of u_to
+    reversed): axis is None unless no rotation fits (residual > GROSS_RAD) and reversing one
+    axis does (to 0.3 of the residual); of the three axes, the one whose reversal needs the
+    smallest rotation, i.e. the one named assuming the axes are near nominal."""
+    w = np.ones(len(u_from))
+    resid = float(np.sqrt(np.mean(np.sum((u_to - u_from @ wahba(u_from, u_to, w).T) ** 2, axis=1))))
+    if resid <= GROSS_RAD or np.linalg.matrix_rank(u_from, tol=1e-3) < 3:
+        return None, resid, None
+    fits = []
+    for k in range(3):
+        D = np.diag([-1.0 if j == k else 1.0 for j in range(3)])
+        C = wahba(u_from, u_to @ D, w)
+        r = float(np.sqrt(np.mean(np.sum((u_to @ D - u_from @ C.T) ** 2, axis=1))))
+        if r < 0.3 * resid:
+            fits.append((np.linalg.norm(log_so3(C)), k, r))
+    if not fits:
+        return None, resid, None
+    _, k, r = min(fits)
+    return k, resid, r
+
+
+def mirror_error(what, whose, axis, resid, r):
+    """The refusal of a reflected triad, naming the axis."""
+    ax = "xyz"[axis]
+    return CalibrationError(
+        f"{what}: no rotation fits (direction residual {resid:.2g} rad), but reversing {whose} {ax} axis does "
+        f"({r:.2g} rad): a left-handed triad, that axis wired or declared with its sign reversed (named assuming "
+        f"the unit is mounted near nominal; a reflection can be put on any one axis). Fix the sign of that "
+        "column in samples.csv (or the wiring) and calibrate again")
+
+
+def latitude(ms, gm, fg, C_b_d, u_b, static_gyro):
+    """The latitude the gyros measure at rest, against meta.json's; refuses a mismatch.
+
+    u_b: (n, 3) unit specific force (up) in b at static positions; static_gyro: (N (n, 3)
+    deg/h, sigma (n, 3), temp, t) of their gyro outputs. With w_i the calibrated rate in d
+    and up_i = C_b^d u_b,i, the Earth rate's vertical component gives, per position,
+        up_i . w_i = up_i . db + w_ie sin L,
+    solved by weighted least squares for sin L and a bias correction db, so a bias that a
+    failing rate-run model got wrong does not bias L (the rate runs give only M here)."""
+    w_e = units.earth_rate_dph(ms.meta)
+    L_meta = float(ms.meta["latitude_deg"])
+    N, sig, temp, t = static_gyro
+    p = fg.vector(gm.params)
+    M_d, b_d = gm.matrix_and_bias(p)
+    up_d = u_b @ C_b_d.T
+    w_d = solve_inputs(model_function(gm, p), M_d, b_d, N, temp, t, up_d, "gyro", ms.path / "samples.csv")
+    X = np.column_stack([up_d, np.full(len(up_d), w_e)])
+    n = len(X)
+    if n < 6 or np.linalg.matrix_rank(X / w_e, tol=1e-3) < 4:
+        return {"verdict": f"not checked: {n} static positions, which do not separate the gyro bias from the Earth "
+                           "rate's vertical component (it needs at least 6, not all on one cone)"}
+    sd = np.sqrt(np.einsum("ni,ni->n", up_d ** 2, sig ** 2))
+    coef, *_ = np.linalg.lstsq(X / sd[:, None], np.einsum("ni,ni->n", up_d, w_d) / sd, rcond=None)
+    r = (np.einsum("ni,ni->n", up_d, w_d) - X @ coef) / sd
+    chi2 = float(r @ r)
+    cov = np.linalg.inv((X / sd[:, None]).T @ (X / sd[:, None])) * max(1.0, chi2 / (n - 4))
+    s_L, std_s = float(coef[3]), float(np.sqrt(cov[3, 3]))
+    out = {"meta_deg": L_meta, "positions": n, "sin_L_measured": s_L, "sin_L_std": std_s,
+           "chi2": chi2, "dof": n - 4}
+    if abs(s_L) > 1 + 5 * std_s:
+        raise CalibrationError(
+            f"{ms.path}: at rest the gyros measure a vertical rate of {s_L * w_e:.3g} deg/h, more than the "
+            f"Earth's rate ({w_e} deg/h): check gyro_unit, earth_rate_dph and the static segments")
+    L = float(np.degrees(np.arcsin(np.clip(s_L, -1, 1))))
+    std_L = float(np.degrees(std_s / max(np.cos(np.radians(L)), 0.05)))
+    out.update(measured_deg=L, std_deg=std_L)
+    if std_L > 10.0:
+        out["verdict"] = (f"not checked: the gyros do not resolve the Earth rate's vertical component (latitude "
+                          f"std {std_L:.3g} deg)")
+        return out
+    if abs(L - L_meta) > max(5 * std_L, 3.0):
+        raise CalibrationError(
+            f"{ms.path / 'meta.json'}: latitude_deg is {L_meta:g}, but the gyros measure {L:.2f} +- {std_L:.2g} deg "
+            f"(the Earth rate's component along gravity at {n} static positions): fix latitude_deg (north "
+            "positive); if it is right, the gyro model lacks an effect of that size at rest (g-sensitivity: "
+            "--add gyro.g_sensitivity.*)")
+    out["verdict"] = f"agrees: measured {L:.2f} +- {std_L:.2g} deg, meta.json {L_meta:g} deg"
+    return out

@@ -1,0 +1,215 @@
+"""Turntable simulation: exact rotations for the truth, any generated model.
+
+Truth: the table of derive/table.py with its errors (tilt, non-perpendicular
+axes, zero-position and random angular position errors), the IMU mounted by
+C_b^k and C_d^k, accelerometer and gyro error models with true parameters
+(any generated model, including terms a calibration model lacks), Earth rate
+at the latitude, white noise. Rate runs turn the outer axis through whole
+revolutions; their mean outputs are averaged over the exact rotation.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from simucal import io
+from simucal.fit.augmented import AugmentedModel
+from simucal.generated import table
+from simucal.io import units
+from simucal.turntable import plans
+
+ARCMIN = np.radians(1 / 60)
+ARCSEC = np.radians(1 / 3600)
+
+
+@dataclass
+class Scenario:
+    """Settings of one simulated test (defaults: dong2018 section 4)."""
+    latitude_deg: float = 45.0
+    acc_model: str = "acc_baseline"
+    gyro_model: str = "gyro_baseline"
+    acc_params: dict = field(default_factory=lambda: dict(
+        dK_x=0.002, dK_y=0.008, dK_z=0.006, theta_yx=1e-4, theta_zx=1e-4, theta_zy=1e-4,
+        b_x=8e-4, b_y=-1e-3, b_z=-3.2e-3))
+    # phi and lambda chosen so that M^g in b (eq. 23) has Table 3's off-diagonals.
+    gyro_params: dict = field(default_factory=lambda: dict(
+        dK_x=0.002, dK_y=-0.0015, dK_z=-0.0015, phi_yx=3e-4, phi_zx=-5e-4, phi_zy=6e-4,
+        b_x=-0.34, b_y=0.17, b_z=-0.02))
+    theta4_rad: tuple = (12 * ARCMIN, 2 * ARCMIN, -5 * ARCMIN)
+    lambda4_rad: tuple = (12 * ARCMIN + 1e-4, 2 * ARCMIN - 1e-4, -5 * ARCMIN + 1e-4)
+    tilt_rad: tuple = (5 * ARCSEC, 5 * ARCSEC)
+    nonperp_rad: tuple = (5 * ARCSEC, 5 * ARCSEC)        # outer/middle, middle/inner
+    zero_rad: tuple = (0.0, 5 * ARCSEC, 5 * ARCSEC)       # outer, middle, inner
+    position_error_rad: float = 1 * ARCMIN               # uniform +- this, each axis, each position
+    outer_rate_dps: tuple = (10.0,)
+    acc_noise_g: float = 1e-5         # std of one row (one position mean when rate_hz is None)
+    gyro_noise_dph: float = 0.01
+    rate_hz: float | None = None      # None: one averaged row per position
+    static_s: float = 10.0
+    plan: str = "table1"
+    unify_positions: bool = True      # add the Table 2 positions and rate runs
+    acc_unit: str = "pulse/s"
+    gyro_unit: str = "pulse/s"
+    acc_pulses_per_g: tuple = (10800.0, 10400.0, 10600.0)
+    gyro_pulses_per_arcsec: tuple = (1.1866, 1.1866, 1.1866)
+    # Effects in the truth that a calibration model may lack: {effect id: value}.
+    acc_effects: dict = field(default_factory=dict)
+    gyro_effects: dict = field(default_factory=dict)
+    temp_c: tuple | None = None       # (first, last): a linear sweep over the segments; None: no temp_c column
+    shuffle: bool = False             # visit the positions in random order (separates time from direction)
+    state_noise: bool = True          # write acc_noise_g / gyro_noise_dph into meta.json
+
+
+def _pairs(items, what):
+    """NAME=VALUE strings -> {name: float}, refusing malformed ones."""
+    out = {}
+    for item in items:
+        name, eq, val = item.partition("=")
+        try:
+            if not eq or not name.strip():
+                raise ValueError
+            out[name.strip()] = float(val)
+        except ValueError:
+            raise ValueError(f"{what} {item!r}: write NAME=VALUE with a number, e.g. acc.quadratic.z=6e-5") from None
+    return out
+
+
+def plant(sc: Scenario, effects=(), effect_file=None, sets=()):
+    """Put effects into the truth: candidate ids (--effect ID=VALUE) and a model file's terms
+    (--effect-file FILE --set NAME=VALUE). Unknown ids or names are refused."""
+    from simucal.fit.augmented import check_effect
+    for eid, val in _pairs(effects, "--effect").items():
+        check_effect(eid)
+        (sc.acc_effects if eid.startswith("acc.") else sc.gyro_effects)[eid] = val
+    values = _pairs(sets, "--set")
+    if values and not effect_file:
+        raise ValueError("--set needs --effect-file: the model file that defines those parameters")
+    if effect_file:
+        from simucal.fit.catalog import derive_model_file, load
+        for name in derive_model_file(effect_file)[0]:
+            model = load(name)
+            setattr(sc, f"{model.sensor}_model", name)
+            getattr(sc, f"{model.sensor}_params").update({k: v for k, v in values.items() if k in model.params})
+        known = set(load(sc.acc_model).params) | set(load(sc.gyro_model).params)
+        unknown = sorted(set(values) - known)
+        if unknown:
+            raise ValueError(f"--set {unknown}: not parameters of {effect_file}; its parameters are {sorted(known)}")
+
+
+SCENARIOS = {"paper": Scenario}
+
+
+def simulate(sc: Scenario, seed: int = 0):
+    """Return (meta, samples, segments, truth) of one simulated test."""
+    if sc.rate_hz is not None and not sc.rate_hz > 0:
+        raise ValueError(f"--rate-hz {sc.rate_hz}: the sample rate must be positive")
+    rng = np.random.default_rng(seed)
+    acc = AugmentedModel(sc.acc_model, tuple(sc.acc_effects))
+    gyro = AugmentedModel(sc.gyro_model, tuple(sc.gyro_effects))
+    p_acc = np.array([{**sc.acc_params, **sc.acc_effects}.get(k, 0.0) for k in acc.params])
+    p_gyro = np.array([{**sc.gyro_params, **sc.gyro_effects}.get(k, 0.0) for k in gyro.params])
+    C_b_k = table.mounting(np.array(sc.theta4_rad))
+    C_d_k = table.mounting(np.array(sc.lambda4_rad))
+    lat = np.radians(sc.latitude_deg)
+    w_e = units.DEFAULT_EARTH_RATE_DPH
+    w_ie_n = table.earth_rate_n(w_e, lat)
+
+    plan = plans.PLANS[sc.plan]() if sc.plan in plans.PLANS else plans.read_csv(sc.plan)
+    static = list(plan) + (plans.TABLE2 if sc.unify_positions else [])
+    rates = [(0.0, a, b, r) for r in sc.outer_rate_dps for (_, a, b) in plan]
+    if sc.unify_positions:
+        rates += [(0.0, a, 0.0, r) for r in sc.outer_rate_dps for a in (0.0, 90.0)]
+
+    if sc.shuffle:
+        static = [static[i] for i in rng.permutation(len(static))]
+        rates = [rates[i] for i in rng.permutation(len(rates))]
+    segments, rows = [], []
+    t0 = 0.0
+
+    def table_errors(n):
+        pos = rng.uniform(-1, 1, (n, 3)) * sc.position_error_rad
+        e = np.zeros((n, 7))
+        e[:, 0:2] = sc.tilt_rad
+        e[:, 2:4] = sc.nonperp_rad
+        e[:, 4:7] = np.array(sc.zero_rad) + pos
+        return e
+
+    for ang, err in zip(static, table_errors(len(static))):
+        C = table.C_k_n(*np.radians(ang), err)
+        f_b = C_b_k.T @ C.T @ np.array([0, 0, 1.0])
+        w_d = C_d_k.T @ C.T @ w_ie_n
+        f_d = C_d_k.T @ C.T @ np.array([0, 0, 1.0])
+        segments.append(io.Segment(len(segments) + 1, "static", *ang, 0.0))
+        rows.append((f_b[None], w_d[None], f_d[None], sc.static_s))
+    tilt_n = table.C_k_n(0.0, 0.0, 0.0, np.r_[sc.tilt_rad, np.zeros(5)])[:, 2]
+    for (g0, a, b, rate), err in zip(rates, table_errors(len(rates))):
+        period = 360.0 / abs(rate)
+        k = 720  # exact average over one revolution by sampling gamma finely
+        gam = np.radians(g0 + np.sign(rate) * np.arange(k) * 360.0 / k)
+        C = table.C_k_n(gam, *np.radians([a, b]), err)
+        w_n = w_ie_n + rate * 3600.0 * tilt_n
+        f_b = np.einsum("ji,nkj,k->ni", C_b_k, C, np.array([0, 0, 1.0]))
+        w_d = np.einsum("ji,nkj,k->ni", C_d_k, C, w_n)
+        f_d = np.einsum("ji,nkj,k->ni", C_d_k, C, np.array([0, 0, 1.0]))
+        segments.append(io.Segment(len(segments) + 1, "rate", None, a, b, rate))
+        rows.append((f_b, w_d, f_d, period))
+
+    meta = {"latitude_deg": sc.latitude_deg, "gravity_mps2": units.DEFAULT_GRAVITY,
+            "earth_rate_dph": w_e, "acc_unit": sc.acc_unit, "gyro_unit": sc.gyro_unit,
+            "description": f"simucal simulate, seed {seed}"}
+    if sc.state_noise:
+        meta.update(acc_noise_g=sc.acc_noise_g, gyro_noise_dph=sc.gyro_noise_dph)
+    if sc.acc_unit == "pulse/s":
+        meta["acc_pulses_per_g"] = list(sc.acc_pulses_per_g)
+    if sc.gyro_unit == "pulse/s":
+        meta["gyro_pulses_per_arcsec"] = list(sc.gyro_pulses_per_arcsec)
+
+    seg_ids, times, temps, acc_out, gyro_out = [], [], [], [], []
+    temp_of = (np.linspace(*sc.temp_c, len(segments)) if sc.temp_c else np.zeros(len(segments)))
+    for seg, (f_b, w_d, f_d, dur), temp in zip(segments, rows, temp_of):
+        if sc.rate_hz is None:
+            f, w, fd, t = (f_b.mean(0, keepdims=True), w_d.mean(0, keepdims=True), f_d.mean(0, keepdims=True),
+                           np.array([t0 + dur / 2]))
+        else:
+            n = int(round(dur * sc.rate_hz))
+            idx = np.arange(n) * len(f_b) // n
+            f, w, fd, t = f_b[idx], w_d[idx], f_d[idx], t0 + np.arange(n) / sc.rate_hz
+        w2 = np.radians(seg.outer_rate_dps) ** 2 / units.DEFAULT_GRAVITY  # centripetal scale, 1/m
+        acc_out.append(acc.output(f, p_acc, temp, t, w2) + rng.normal(0, sc.acc_noise_g, f.shape))
+        gyro_out.append(gyro.output(w, p_gyro, temp, t, fd) + rng.normal(0, sc.gyro_noise_dph, w.shape))
+        seg_ids.append(np.full(len(t), seg.segment))
+        temps.append(np.full(len(t), temp))
+        times.append(t)
+        t0 += dur + 5.0
+    N_a = units.g_to_acc(np.concatenate(acc_out), meta)
+    N_g = units.dph_to_gyro(np.concatenate(gyro_out), meta)
+    samples = {"segment": np.concatenate(seg_ids), "t_s": np.concatenate(times)}
+    if sc.temp_c:
+        samples["temp_c"] = np.concatenate(temps)
+    for j, c in enumerate("xyz"):
+        samples["a" + c] = N_a[:, j]
+        samples["g" + c] = N_g[:, j]
+
+    M_a, b_a = acc.matrix_and_bias(p_acc)
+    M_g_d, b_g = gyro.matrix_and_bias(p_gyro)
+    C_b_d = C_d_k.T @ C_b_k
+    truth = {
+        "acc": {"model": acc.name, "params": dict(zip(acc.params, p_acc.tolist())), "effects": dict(sc.acc_effects),
+                "M": M_a.tolist(), "bias": b_a.tolist(), "bias_unit": "g"},
+        "gyro": {"model": gyro.name, "params": dict(zip(gyro.params, p_gyro.tolist())),
+                 "effects": dict(sc.gyro_effects),
+                 "M": (M_g_d @ C_b_d).tolist(), "bias": b_g.tolist(), "bias_unit": "deg/h",
+                 "M_in_d": M_g_d.tolist()},
+        "mounting": {"theta4_rad": list(sc.theta4_rad), "lambda4_rad": list(sc.lambda4_rad)},
+        "table": {"tilt_rad": list(sc.tilt_rad), "nonperp_rad": list(sc.nonperp_rad),
+                  "zero_rad": list(sc.zero_rad), "position_error_rad": sc.position_error_rad},
+        "seed": seed,
+    }
+    return meta, samples, segments, truth
+
+
+def write(folder, sc: Scenario, seed: int = 0):
+    meta, samples, segments, truth = simulate(sc, seed)
+    io.write(folder, meta, samples, segments, {"truth.json": truth})
+    return truth

@@ -1,0 +1,136 @@
+"""The package's shape: no import circles, every import runs down the layers, and the
+runtime neither imports SymPy nor writes into the package when it calibrates,
+diagnoses or applies (README, "Layout")."""
+import ast
+import hashlib
+import json
+import subprocess
+import sys
+from pathlib import Path
+
+import simucal
+
+ROOT = Path(simucal.__file__).parent
+# Lower layers first; a module may import from its own layer's package and from lower layers.
+# The three methods sit side by side and never import each other.
+LAYERS = [
+    {"simucal.errors", "simucal.sweeps", "simucal.generated"},
+    {"simucal.io"},
+    {"simucal.fit"},
+    {"simucal.turntable", "simucal.handheld", "simucal.field"},
+    {"simucal.report"},
+    {"simucal.calibrate", "simucal.diagnose", "simucal.bench", "simucal.derive_cmd"},
+    {"simucal.demo"},
+    {"simucal.cli"},
+]
+DERIVES = {"simucal.derive_cmd", "simucal.fit.catalog", "simucal.report.paper_claims"}  # SymPy on purpose
+
+
+def _group(module: str) -> str:
+    parts = module.split(".")
+    return ".".join(parts[:2])
+
+
+def _layer(module: str) -> int:
+    return next(i for i, names in enumerate(LAYERS) if _group(module) in names)
+
+
+def _imports() -> dict:
+    out = {}
+    for p in ROOT.rglob("*.py"):
+        rel = p.relative_to(ROOT.parent).with_suffix("")
+        name = ".".join(rel.parts[:-1] if rel.name == "__init__" else rel.parts)
+        deps = set()
+        for node in ast.walk(ast.parse(p.read_text())):  # lazy imports inside functions too
+            if isinstance(node, ast.ImportFrom) and node.module and node.module.startswith("simucal"):
+                deps.add(node.module)
+            if isinstance(node, ast.Import):
+                deps |= {a.name for a in node.names if a.name.startswith("simucal")}
+        out[name] = deps
+    return out
+
+
+def test_imports_run_down_the_layers_without_circles():
+    graph = _imports()
+    wrong = []
+    for mod, deps in graph.items():
+        for d in deps:
+            if d.startswith("simucal.derive"):
+                if mod not in DERIVES:
+                    wrong.append(f"{mod} imports {d} (SymPy at run time)")
+                continue
+            if d == "simucal" or _group(d) == _group(mod):
+                continue
+            lo, hi = _layer(d), _layer(mod)
+            if lo > hi or (lo == hi and lo > 0):
+                wrong.append(f"{mod} (layer {hi}) imports {d} (layer {lo})")
+    assert not wrong, "\n".join(wrong)
+    # circles among modules (the layer rule already forbids them between packages)
+    mods = {m: {d for d in deps if d in graph and d != m} for m, deps in graph.items()}
+    state, circles = {}, []
+
+    def visit(m, stack):
+        state[m] = 1
+        for d in mods[m]:
+            if state.get(d) == 1:
+                circles.append(stack[stack.index(d):] + [d])
+            elif d not in state:
+                visit(d, stack + [d])
+        state[m] = 2
+    for m in mods:
+        if m not in state:
+            visit(m, [m])
+    assert not circles, circles
+
+
+def test_every_subpackage_is_installed():
+    import tomllib
+    listed = set(tomllib.loads((ROOT.parent / "pyproject.toml").read_text())["tool"]["setuptools"]["packages"])
+    found = {".".join(p.parent.relative_to(ROOT.parent).parts) for p in ROOT.rglob("__init__.py")}
+    assert found <= listed, f"add {sorted(found - listed)} to pyproject.toml's packages"
+
+
+def _package_digest():
+    h = hashlib.sha256()
+    for p in sorted(ROOT.parent.glob("generated/*")) + sorted(ROOT.rglob("*")):
+        if p.is_file() and "__pycache__" not in p.parts:
+            h.update(str(p).encode() + p.read_bytes())
+    return h.hexdigest()
+
+
+def test_runtime_imports_no_sympy_and_writes_nothing_into_the_package(tmp_path):
+    before = _package_digest()
+    script = f"""
+import json, sys
+from pathlib import Path
+from simucal.turntable.simulate import SCENARIOS, write
+from simucal.calibrate import calibrate
+from simucal.diagnose import diagnose
+from simucal.fit.apply import apply
+from simucal.io import calibration
+tmp = Path({str(tmp_path)!r})
+write(tmp / "set", SCENARIOS["paper"](), seed=1)
+assert "sympy" not in sys.modules
+calibration.write(tmp / "cal.json", calibrate(tmp / "set"))
+diagnose(tmp / "set")
+apply(calibration.read(tmp / "cal.json"), tmp / "set")
+print(json.dumps(sorted(m for m in sys.modules if m.split(".")[0] == "sympy")))
+"""
+    res = subprocess.run([sys.executable, "-c", script], capture_output=True, text=True)
+    assert res.returncode == 0, res.stderr[-2000:]
+    assert json.loads(res.stdout.strip().splitlines()[-1]) == []
+    assert _package_digest() == before
+
+
+def test_readme_layout_table_names_every_module():
+    import re
+    readme = (ROOT.parent / "README.md").read_text()
+    missing = []
+    for folder in [ROOT] + [p.parent for p in ROOT.glob("*/__init__.py")]:
+        rel = folder.relative_to(ROOT.parent).as_posix()
+        row = re.search(rf"^\| `{rel}/` \|(.*)$", readme, re.M)
+        assert row, f"README's layout table has no row for {rel}/"
+        named = set(re.findall(r"`([\w]+\.py)`", row.group(1))) - {"__init__.py"}
+        files = {p.name for p in folder.glob("*.py")} - {"__init__.py"}
+        missing += [f"{rel}/{f}" for f in sorted(files ^ named)]
+    assert not missing, f"README's layout table and the tree differ on {missing}"
