@@ -11,6 +11,8 @@ Conventions (spec ``measurement-set.md``, section "Frames and angles"):
   C_k^b = I - [theta x] to first order. This sign is the one under which the
   paper's eq. 17 and 21 hold (its eq. 13 and 18 print other signs; see audit).
 """
+from dataclasses import dataclass
+
 import sympy as sp
 
 
@@ -43,13 +45,58 @@ AXES = ("x", "y", "z")
 UP = sp.Matrix([0, 0, 1])
 
 # Inputs of the sensor models. Accelerometer: specific force in b, in g.
-# Gyro: angular rate in d, in deg/h. Auxiliary inputs any term may use.
+# Gyro: angular rate in d, in deg/h.
 f_b = sp.Matrix(sp.symbols("f_x f_y f_z", real=True))
 omega_d = sp.Matrix(sp.symbols("w_x w_y w_z", real=True))
-temp_c, t_s = sp.symbols("temp_c t_s", real=True)
-AUX = (temp_c, t_s)
-# Accelerometers under outer-axis rate w_T: the centripetal scale w2 = w_T^2 / g (1/m; 0 at rest).
-w2 = sp.Symbol("w2", real=True)
+
+
+@dataclass(frozen=True)
+class AuxInput:
+    """An auxiliary input a term may use besides its sensor's own input, and where the
+    runtime finds it (source): "column" a samples.csv column of that name, averaged over a
+    position like the outputs; "specific force" what the accelerometers measure (gyro
+    terms: g-sensitivity); "table rate" the outer-axis rate of a rate run (accelerometer
+    terms: lever arms)."""
+
+    name: str
+    unit: str
+    meaning: str
+    source: str = "column"
+
+    @property
+    def symbol(self) -> sp.Symbol:
+        return sp.Symbol(self.name, real=True)
+
+
+AUX_INPUTS = {a.name: a for a in (
+    AuxInput("temp_c", "degC", "sensor temperature"),
+    AuxInput("t_s", "s", "time"),
+    AuxInput("f_x", "g", "specific force along x of b", "specific force"),
+    AuxInput("f_y", "g", "specific force along y of b", "specific force"),
+    AuxInput("f_z", "g", "specific force along z of b", "specific force"),
+    AuxInput("w2", "1/m", "centripetal scale w_T^2 / g of the outer-axis rate (0 at rest)", "table rate"),
+)}
+SENSOR_AUX = {"acc": ("temp_c", "t_s", "w2"), "gyro": ("temp_c", "t_s", "f_x", "f_y", "f_z")}
+temp_c, t_s, w2 = (AUX_INPUTS[n].symbol for n in ("temp_c", "t_s", "w2"))
+_COLUMN_INPUTS: dict[str, AuxInput] = {}
+
+
+def column_input(name: str, unit: str = "", meaning: str = "") -> sp.Symbol:
+    """A user's auxiliary input read from the samples.csv column `name` (for example
+    column_input("supply_v", "V", "supply voltage")): its symbol, for a Term's regressor.
+    The runtime averages the column over each position as it does temp_c."""
+    if not name.isidentifier() or name in AUX_INPUTS or name in RESERVED:
+        raise ValueError(f"column input {name!r}: choose an identifier that is not a built-in input "
+                         f"({sorted(AUX_INPUTS)}) or a derivation symbol ({sorted(RESERVED)})")
+    _COLUMN_INPUTS[name] = AuxInput(name, unit, meaning or f"samples.csv column {name}")
+    return _COLUMN_INPUTS[name].symbol
+
+
+def aux_input(symbol: sp.Symbol) -> AuxInput:
+    """The AuxInput of a symbol: built-in, declared by column_input, or a plain symbol read as a column."""
+    name = str(symbol)
+    return AUX_INPUTS.get(name) or _COLUMN_INPUTS.get(name) or AuxInput(name, "", f"samples.csv column {name}")
+
 
 # Outputs in physical units (pulse outputs divided by nominal scale factors):
 # the paper's N_i^a = K_i^a Ntilde_i^a (g) and N_i^g (deg/h).
@@ -57,3 +104,5 @@ N_out = sp.Matrix(sp.symbols("N_x N_y N_z", real=True))
 
 # Site and test constants.
 lat, w_e, w_T, g = sp.symbols("L w_e w_T g", real=True)
+# Symbols of the derivation that no term may read as an auxiliary input.
+RESERVED = {str(s) for s in (*omega_d, *N_out, lat, w_e, w_T, g)}

@@ -2,15 +2,32 @@
 # derive/ and run `simucal derive`. sympy 1.14.0, casadi 3.8.2.
 
 
-"""Candidate effects (derive/models/effects.py): each adds p * phi(u) to one axis."""
+"""Candidate effects (derive/models/effects.py): each adds p * phi(u, aux) to one axis."""
+from typing import Callable, NamedTuple
+
 import numpy
 
 
-def phi_acc_bias_drift_time_x(u, temp_c=0.0, t_s=0.0, w2=0.0):
+class Effect(NamedTuple):
+    sensor: str
+    axis: int  # the output axis it adds to, 0 1 2
+    parameter: str
+    unit: str
+    meaning: str
+    phi: Callable  # phi(u, aux) -> (phi, dphi/du)
+
+
+AUX = {'acc': ('temp_c', 't_s', 'w2'), 'gyro': ('temp_c', 't_s', 'f_x', 'f_y', 'f_z')}  # the aux argument of each sensor's phi, by name (derive/frames.py)
+
+
+def phi_acc_bias_drift_time_x(u, aux=numpy.zeros(3)):
     """acc.bias_drift_time.x: phi = t_s and dphi/du."""
     f_x = u[..., 0]
     f_y = u[..., 1]
     f_z = u[..., 2]
+    temp_c = aux[..., 0]
+    t_s = aux[..., 1]
+    w2 = aux[..., 2]
     shape = numpy.broadcast_shapes(numpy.shape(f_x), numpy.shape(f_y), numpy.shape(f_z), numpy.shape(temp_c), numpy.shape(t_s), numpy.shape(w2), )
     out0 = numpy.empty(shape + (1,))
     out0[..., 0] = t_s
@@ -21,11 +38,14 @@ def phi_acc_bias_drift_time_x(u, temp_c=0.0, t_s=0.0, w2=0.0):
     return out0, out1
 
 
-def phi_acc_bias_drift_time_y(u, temp_c=0.0, t_s=0.0, w2=0.0):
+def phi_acc_bias_drift_time_y(u, aux=numpy.zeros(3)):
     """acc.bias_drift_time.y: phi = t_s and dphi/du."""
     f_x = u[..., 0]
     f_y = u[..., 1]
     f_z = u[..., 2]
+    temp_c = aux[..., 0]
+    t_s = aux[..., 1]
+    w2 = aux[..., 2]
     shape = numpy.broadcast_shapes(numpy.shape(f_x), numpy.shape(f_y), numpy.shape(f_z), numpy.shape(temp_c), numpy.shape(t_s), numpy.shape(w2), )
     out0 = numpy.empty(shape + (1,))
     out0[..., 0] = t_s
@@ -36,11 +56,14 @@ def phi_acc_bias_drift_time_y(u, temp_c=0.0, t_s=0.0, w2=0.0):
     return out0, out1
 
 
-def phi_acc_bias_drift_time_z(u, temp_c=0.0, t_s=0.0, w2=0.0):
+def phi_acc_bias_drift_time_z(u, aux=numpy.zeros(3)):
     """acc.bias_drift_time.z: phi = t_s and dphi/du."""
     f_x = u[..., 0]
     f_y = u[..., 1]
     f_z = u[..., 2]
+    temp_c = aux[..., 0]
+    t_s = aux[..., 1]
+    w2 = aux[..., 2]
     shape = numpy.broadcast_shapes(numpy.shape(f_x), numpy.shape(f_y), numpy.shape(f_z), numpy.shape(temp_c), numpy.shape(t_s), numpy.shape(w2), )
     out0 = numpy.empty(shape + (1,))
     out0[..., 0] = t_s
@@ -51,11 +74,14 @@ def phi_acc_bias_drift_time_z(u, temp_c=0.0, t_s=0.0, w2=0.0):
     return out0, out1
 
 
-def phi_acc_cross_coupling_xy(u, temp_c=0.0, t_s=0.0, w2=0.0):
+def phi_acc_cross_coupling_xy(u, aux=numpy.zeros(3)):
     """acc.cross_coupling.xy: phi = f_x*f_y and dphi/du."""
     f_x = u[..., 0]
     f_y = u[..., 1]
     f_z = u[..., 2]
+    temp_c = aux[..., 0]
+    t_s = aux[..., 1]
+    w2 = aux[..., 2]
     shape = numpy.broadcast_shapes(numpy.shape(f_x), numpy.shape(f_y), numpy.shape(f_z), numpy.shape(temp_c), numpy.shape(t_s), numpy.shape(w2), )
     out0 = numpy.empty(shape + (1,))
     out0[..., 0] = f_x*f_y
@@ -66,11 +92,14 @@ def phi_acc_cross_coupling_xy(u, temp_c=0.0, t_s=0.0, w2=0.0):
     return out0, out1
 
 
-def phi_acc_cross_coupling_xz(u, temp_c=0.0, t_s=0.0, w2=0.0):
+def phi_acc_cross_coupling_xz(u, aux=numpy.zeros(3)):
     """acc.cross_coupling.xz: phi = f_x*f_z and dphi/du."""
     f_x = u[..., 0]
     f_y = u[..., 1]
     f_z = u[..., 2]
+    temp_c = aux[..., 0]
+    t_s = aux[..., 1]
+    w2 = aux[..., 2]
     shape = numpy.broadcast_shapes(numpy.shape(f_x), numpy.shape(f_y), numpy.shape(f_z), numpy.shape(temp_c), numpy.shape(t_s), numpy.shape(w2), )
     out0 = numpy.empty(shape + (1,))
     out0[..., 0] = f_x*f_z
@@ -81,11 +110,14 @@ def phi_acc_cross_coupling_xz(u, temp_c=0.0, t_s=0.0, w2=0.0):
     return out0, out1
 
 
-def phi_acc_cross_coupling_yx(u, temp_c=0.0, t_s=0.0, w2=0.0):
+def phi_acc_cross_coupling_yx(u, aux=numpy.zeros(3)):
     """acc.cross_coupling.yx: phi = f_x*f_y and dphi/du."""
     f_x = u[..., 0]
     f_y = u[..., 1]
     f_z = u[..., 2]
+    temp_c = aux[..., 0]
+    t_s = aux[..., 1]
+    w2 = aux[..., 2]
     shape = numpy.broadcast_shapes(numpy.shape(f_x), numpy.shape(f_y), numpy.shape(f_z), numpy.shape(temp_c), numpy.shape(t_s), numpy.shape(w2), )
     out0 = numpy.empty(shape + (1,))
     out0[..., 0] = f_x*f_y
@@ -96,11 +128,14 @@ def phi_acc_cross_coupling_yx(u, temp_c=0.0, t_s=0.0, w2=0.0):
     return out0, out1
 
 
-def phi_acc_cross_coupling_yz(u, temp_c=0.0, t_s=0.0, w2=0.0):
+def phi_acc_cross_coupling_yz(u, aux=numpy.zeros(3)):
     """acc.cross_coupling.yz: phi = f_y*f_z and dphi/du."""
     f_x = u[..., 0]
     f_y = u[..., 1]
     f_z = u[..., 2]
+    temp_c = aux[..., 0]
+    t_s = aux[..., 1]
+    w2 = aux[..., 2]
     shape = numpy.broadcast_shapes(numpy.shape(f_x), numpy.shape(f_y), numpy.shape(f_z), numpy.shape(temp_c), numpy.shape(t_s), numpy.shape(w2), )
     out0 = numpy.empty(shape + (1,))
     out0[..., 0] = f_y*f_z
@@ -111,11 +146,14 @@ def phi_acc_cross_coupling_yz(u, temp_c=0.0, t_s=0.0, w2=0.0):
     return out0, out1
 
 
-def phi_acc_cross_coupling_zx(u, temp_c=0.0, t_s=0.0, w2=0.0):
+def phi_acc_cross_coupling_zx(u, aux=numpy.zeros(3)):
     """acc.cross_coupling.zx: phi = f_x*f_z and dphi/du."""
     f_x = u[..., 0]
     f_y = u[..., 1]
     f_z = u[..., 2]
+    temp_c = aux[..., 0]
+    t_s = aux[..., 1]
+    w2 = aux[..., 2]
     shape = numpy.broadcast_shapes(numpy.shape(f_x), numpy.shape(f_y), numpy.shape(f_z), numpy.shape(temp_c), numpy.shape(t_s), numpy.shape(w2), )
     out0 = numpy.empty(shape + (1,))
     out0[..., 0] = f_x*f_z
@@ -126,11 +164,14 @@ def phi_acc_cross_coupling_zx(u, temp_c=0.0, t_s=0.0, w2=0.0):
     return out0, out1
 
 
-def phi_acc_cross_coupling_zy(u, temp_c=0.0, t_s=0.0, w2=0.0):
+def phi_acc_cross_coupling_zy(u, aux=numpy.zeros(3)):
     """acc.cross_coupling.zy: phi = f_y*f_z and dphi/du."""
     f_x = u[..., 0]
     f_y = u[..., 1]
     f_z = u[..., 2]
+    temp_c = aux[..., 0]
+    t_s = aux[..., 1]
+    w2 = aux[..., 2]
     shape = numpy.broadcast_shapes(numpy.shape(f_x), numpy.shape(f_y), numpy.shape(f_z), numpy.shape(temp_c), numpy.shape(t_s), numpy.shape(w2), )
     out0 = numpy.empty(shape + (1,))
     out0[..., 0] = f_y*f_z
@@ -141,11 +182,14 @@ def phi_acc_cross_coupling_zy(u, temp_c=0.0, t_s=0.0, w2=0.0):
     return out0, out1
 
 
-def phi_acc_quadratic_x(u, temp_c=0.0, t_s=0.0, w2=0.0):
+def phi_acc_quadratic_x(u, aux=numpy.zeros(3)):
     """acc.quadratic.x: phi = f_x**2 and dphi/du."""
     f_x = u[..., 0]
     f_y = u[..., 1]
     f_z = u[..., 2]
+    temp_c = aux[..., 0]
+    t_s = aux[..., 1]
+    w2 = aux[..., 2]
     shape = numpy.broadcast_shapes(numpy.shape(f_x), numpy.shape(f_y), numpy.shape(f_z), numpy.shape(temp_c), numpy.shape(t_s), numpy.shape(w2), )
     out0 = numpy.empty(shape + (1,))
     out0[..., 0] = f_x**2
@@ -156,11 +200,14 @@ def phi_acc_quadratic_x(u, temp_c=0.0, t_s=0.0, w2=0.0):
     return out0, out1
 
 
-def phi_acc_quadratic_y(u, temp_c=0.0, t_s=0.0, w2=0.0):
+def phi_acc_quadratic_y(u, aux=numpy.zeros(3)):
     """acc.quadratic.y: phi = f_y**2 and dphi/du."""
     f_x = u[..., 0]
     f_y = u[..., 1]
     f_z = u[..., 2]
+    temp_c = aux[..., 0]
+    t_s = aux[..., 1]
+    w2 = aux[..., 2]
     shape = numpy.broadcast_shapes(numpy.shape(f_x), numpy.shape(f_y), numpy.shape(f_z), numpy.shape(temp_c), numpy.shape(t_s), numpy.shape(w2), )
     out0 = numpy.empty(shape + (1,))
     out0[..., 0] = f_y**2
@@ -171,11 +218,14 @@ def phi_acc_quadratic_y(u, temp_c=0.0, t_s=0.0, w2=0.0):
     return out0, out1
 
 
-def phi_acc_quadratic_z(u, temp_c=0.0, t_s=0.0, w2=0.0):
+def phi_acc_quadratic_z(u, aux=numpy.zeros(3)):
     """acc.quadratic.z: phi = f_z**2 and dphi/du."""
     f_x = u[..., 0]
     f_y = u[..., 1]
     f_z = u[..., 2]
+    temp_c = aux[..., 0]
+    t_s = aux[..., 1]
+    w2 = aux[..., 2]
     shape = numpy.broadcast_shapes(numpy.shape(f_x), numpy.shape(f_y), numpy.shape(f_z), numpy.shape(temp_c), numpy.shape(t_s), numpy.shape(w2), )
     out0 = numpy.empty(shape + (1,))
     out0[..., 0] = f_z**2
@@ -186,11 +236,14 @@ def phi_acc_quadratic_z(u, temp_c=0.0, t_s=0.0, w2=0.0):
     return out0, out1
 
 
-def phi_acc_scale_asymmetry_x(u, temp_c=0.0, t_s=0.0, w2=0.0):
+def phi_acc_scale_asymmetry_x(u, aux=numpy.zeros(3)):
     """acc.scale_asymmetry.x: phi = Abs(f_x) and dphi/du."""
     f_x = u[..., 0]
     f_y = u[..., 1]
     f_z = u[..., 2]
+    temp_c = aux[..., 0]
+    t_s = aux[..., 1]
+    w2 = aux[..., 2]
     shape = numpy.broadcast_shapes(numpy.shape(f_x), numpy.shape(f_y), numpy.shape(f_z), numpy.shape(temp_c), numpy.shape(t_s), numpy.shape(w2), )
     out0 = numpy.empty(shape + (1,))
     out0[..., 0] = abs(f_x)
@@ -201,11 +254,14 @@ def phi_acc_scale_asymmetry_x(u, temp_c=0.0, t_s=0.0, w2=0.0):
     return out0, out1
 
 
-def phi_acc_scale_asymmetry_y(u, temp_c=0.0, t_s=0.0, w2=0.0):
+def phi_acc_scale_asymmetry_y(u, aux=numpy.zeros(3)):
     """acc.scale_asymmetry.y: phi = Abs(f_y) and dphi/du."""
     f_x = u[..., 0]
     f_y = u[..., 1]
     f_z = u[..., 2]
+    temp_c = aux[..., 0]
+    t_s = aux[..., 1]
+    w2 = aux[..., 2]
     shape = numpy.broadcast_shapes(numpy.shape(f_x), numpy.shape(f_y), numpy.shape(f_z), numpy.shape(temp_c), numpy.shape(t_s), numpy.shape(w2), )
     out0 = numpy.empty(shape + (1,))
     out0[..., 0] = abs(f_y)
@@ -216,11 +272,14 @@ def phi_acc_scale_asymmetry_y(u, temp_c=0.0, t_s=0.0, w2=0.0):
     return out0, out1
 
 
-def phi_acc_scale_asymmetry_z(u, temp_c=0.0, t_s=0.0, w2=0.0):
+def phi_acc_scale_asymmetry_z(u, aux=numpy.zeros(3)):
     """acc.scale_asymmetry.z: phi = Abs(f_z) and dphi/du."""
     f_x = u[..., 0]
     f_y = u[..., 1]
     f_z = u[..., 2]
+    temp_c = aux[..., 0]
+    t_s = aux[..., 1]
+    w2 = aux[..., 2]
     shape = numpy.broadcast_shapes(numpy.shape(f_x), numpy.shape(f_y), numpy.shape(f_z), numpy.shape(temp_c), numpy.shape(t_s), numpy.shape(w2), )
     out0 = numpy.empty(shape + (1,))
     out0[..., 0] = abs(f_z)
@@ -231,11 +290,14 @@ def phi_acc_scale_asymmetry_z(u, temp_c=0.0, t_s=0.0, w2=0.0):
     return out0, out1
 
 
-def phi_acc_size_effect_xx(u, temp_c=0.0, t_s=0.0, w2=0.0):
+def phi_acc_size_effect_xx(u, aux=numpy.zeros(3)):
     """acc.size_effect.xx: phi = w2*(f_x**2 - 1) and dphi/du."""
     f_x = u[..., 0]
     f_y = u[..., 1]
     f_z = u[..., 2]
+    temp_c = aux[..., 0]
+    t_s = aux[..., 1]
+    w2 = aux[..., 2]
     shape = numpy.broadcast_shapes(numpy.shape(f_x), numpy.shape(f_y), numpy.shape(f_z), numpy.shape(temp_c), numpy.shape(t_s), numpy.shape(w2), )
     out0 = numpy.empty(shape + (1,))
     out0[..., 0] = w2*(f_x**2 - 1)
@@ -246,11 +308,14 @@ def phi_acc_size_effect_xx(u, temp_c=0.0, t_s=0.0, w2=0.0):
     return out0, out1
 
 
-def phi_acc_size_effect_xy(u, temp_c=0.0, t_s=0.0, w2=0.0):
+def phi_acc_size_effect_xy(u, aux=numpy.zeros(3)):
     """acc.size_effect.xy: phi = f_x*f_y*w2 and dphi/du."""
     f_x = u[..., 0]
     f_y = u[..., 1]
     f_z = u[..., 2]
+    temp_c = aux[..., 0]
+    t_s = aux[..., 1]
+    w2 = aux[..., 2]
     _c0 = f_y*w2
     shape = numpy.broadcast_shapes(numpy.shape(f_x), numpy.shape(f_y), numpy.shape(f_z), numpy.shape(temp_c), numpy.shape(t_s), numpy.shape(w2), )
     out0 = numpy.empty(shape + (1,))
@@ -262,11 +327,14 @@ def phi_acc_size_effect_xy(u, temp_c=0.0, t_s=0.0, w2=0.0):
     return out0, out1
 
 
-def phi_acc_size_effect_xz(u, temp_c=0.0, t_s=0.0, w2=0.0):
+def phi_acc_size_effect_xz(u, aux=numpy.zeros(3)):
     """acc.size_effect.xz: phi = f_x*f_z*w2 and dphi/du."""
     f_x = u[..., 0]
     f_y = u[..., 1]
     f_z = u[..., 2]
+    temp_c = aux[..., 0]
+    t_s = aux[..., 1]
+    w2 = aux[..., 2]
     _c0 = f_z*w2
     shape = numpy.broadcast_shapes(numpy.shape(f_x), numpy.shape(f_y), numpy.shape(f_z), numpy.shape(temp_c), numpy.shape(t_s), numpy.shape(w2), )
     out0 = numpy.empty(shape + (1,))
@@ -278,11 +346,14 @@ def phi_acc_size_effect_xz(u, temp_c=0.0, t_s=0.0, w2=0.0):
     return out0, out1
 
 
-def phi_acc_size_effect_yx(u, temp_c=0.0, t_s=0.0, w2=0.0):
+def phi_acc_size_effect_yx(u, aux=numpy.zeros(3)):
     """acc.size_effect.yx: phi = f_x*f_y*w2 and dphi/du."""
     f_x = u[..., 0]
     f_y = u[..., 1]
     f_z = u[..., 2]
+    temp_c = aux[..., 0]
+    t_s = aux[..., 1]
+    w2 = aux[..., 2]
     _c0 = f_y*w2
     shape = numpy.broadcast_shapes(numpy.shape(f_x), numpy.shape(f_y), numpy.shape(f_z), numpy.shape(temp_c), numpy.shape(t_s), numpy.shape(w2), )
     out0 = numpy.empty(shape + (1,))
@@ -294,11 +365,14 @@ def phi_acc_size_effect_yx(u, temp_c=0.0, t_s=0.0, w2=0.0):
     return out0, out1
 
 
-def phi_acc_size_effect_yy(u, temp_c=0.0, t_s=0.0, w2=0.0):
+def phi_acc_size_effect_yy(u, aux=numpy.zeros(3)):
     """acc.size_effect.yy: phi = w2*(f_y**2 - 1) and dphi/du."""
     f_x = u[..., 0]
     f_y = u[..., 1]
     f_z = u[..., 2]
+    temp_c = aux[..., 0]
+    t_s = aux[..., 1]
+    w2 = aux[..., 2]
     shape = numpy.broadcast_shapes(numpy.shape(f_x), numpy.shape(f_y), numpy.shape(f_z), numpy.shape(temp_c), numpy.shape(t_s), numpy.shape(w2), )
     out0 = numpy.empty(shape + (1,))
     out0[..., 0] = w2*(f_y**2 - 1)
@@ -309,11 +383,14 @@ def phi_acc_size_effect_yy(u, temp_c=0.0, t_s=0.0, w2=0.0):
     return out0, out1
 
 
-def phi_acc_size_effect_yz(u, temp_c=0.0, t_s=0.0, w2=0.0):
+def phi_acc_size_effect_yz(u, aux=numpy.zeros(3)):
     """acc.size_effect.yz: phi = f_y*f_z*w2 and dphi/du."""
     f_x = u[..., 0]
     f_y = u[..., 1]
     f_z = u[..., 2]
+    temp_c = aux[..., 0]
+    t_s = aux[..., 1]
+    w2 = aux[..., 2]
     _c0 = f_z*w2
     shape = numpy.broadcast_shapes(numpy.shape(f_x), numpy.shape(f_y), numpy.shape(f_z), numpy.shape(temp_c), numpy.shape(t_s), numpy.shape(w2), )
     out0 = numpy.empty(shape + (1,))
@@ -325,11 +402,14 @@ def phi_acc_size_effect_yz(u, temp_c=0.0, t_s=0.0, w2=0.0):
     return out0, out1
 
 
-def phi_acc_size_effect_zx(u, temp_c=0.0, t_s=0.0, w2=0.0):
+def phi_acc_size_effect_zx(u, aux=numpy.zeros(3)):
     """acc.size_effect.zx: phi = f_x*f_z*w2 and dphi/du."""
     f_x = u[..., 0]
     f_y = u[..., 1]
     f_z = u[..., 2]
+    temp_c = aux[..., 0]
+    t_s = aux[..., 1]
+    w2 = aux[..., 2]
     _c0 = f_z*w2
     shape = numpy.broadcast_shapes(numpy.shape(f_x), numpy.shape(f_y), numpy.shape(f_z), numpy.shape(temp_c), numpy.shape(t_s), numpy.shape(w2), )
     out0 = numpy.empty(shape + (1,))
@@ -341,11 +421,14 @@ def phi_acc_size_effect_zx(u, temp_c=0.0, t_s=0.0, w2=0.0):
     return out0, out1
 
 
-def phi_acc_size_effect_zy(u, temp_c=0.0, t_s=0.0, w2=0.0):
+def phi_acc_size_effect_zy(u, aux=numpy.zeros(3)):
     """acc.size_effect.zy: phi = f_y*f_z*w2 and dphi/du."""
     f_x = u[..., 0]
     f_y = u[..., 1]
     f_z = u[..., 2]
+    temp_c = aux[..., 0]
+    t_s = aux[..., 1]
+    w2 = aux[..., 2]
     _c0 = f_z*w2
     shape = numpy.broadcast_shapes(numpy.shape(f_x), numpy.shape(f_y), numpy.shape(f_z), numpy.shape(temp_c), numpy.shape(t_s), numpy.shape(w2), )
     out0 = numpy.empty(shape + (1,))
@@ -357,11 +440,14 @@ def phi_acc_size_effect_zy(u, temp_c=0.0, t_s=0.0, w2=0.0):
     return out0, out1
 
 
-def phi_acc_size_effect_zz(u, temp_c=0.0, t_s=0.0, w2=0.0):
+def phi_acc_size_effect_zz(u, aux=numpy.zeros(3)):
     """acc.size_effect.zz: phi = w2*(f_z**2 - 1) and dphi/du."""
     f_x = u[..., 0]
     f_y = u[..., 1]
     f_z = u[..., 2]
+    temp_c = aux[..., 0]
+    t_s = aux[..., 1]
+    w2 = aux[..., 2]
     shape = numpy.broadcast_shapes(numpy.shape(f_x), numpy.shape(f_y), numpy.shape(f_z), numpy.shape(temp_c), numpy.shape(t_s), numpy.shape(w2), )
     out0 = numpy.empty(shape + (1,))
     out0[..., 0] = w2*(f_z**2 - 1)
@@ -372,14 +458,16 @@ def phi_acc_size_effect_zz(u, temp_c=0.0, t_s=0.0, w2=0.0):
     return out0, out1
 
 
-def phi_gyro_bias_drift_time_x(u, temp_c=0.0, t_s=0.0, f=numpy.zeros(3)):
+def phi_gyro_bias_drift_time_x(u, aux=numpy.zeros(5)):
     """gyro.bias_drift_time.x: phi = t_s and dphi/du."""
     w_x = u[..., 0]
     w_y = u[..., 1]
     w_z = u[..., 2]
-    f_x = f[..., 0]
-    f_y = f[..., 1]
-    f_z = f[..., 2]
+    temp_c = aux[..., 0]
+    t_s = aux[..., 1]
+    f_x = aux[..., 2]
+    f_y = aux[..., 3]
+    f_z = aux[..., 4]
     shape = numpy.broadcast_shapes(numpy.shape(w_x), numpy.shape(w_y), numpy.shape(w_z), numpy.shape(temp_c), numpy.shape(t_s), numpy.shape(f_x), numpy.shape(f_y), numpy.shape(f_z), )
     out0 = numpy.empty(shape + (1,))
     out0[..., 0] = t_s
@@ -390,14 +478,16 @@ def phi_gyro_bias_drift_time_x(u, temp_c=0.0, t_s=0.0, f=numpy.zeros(3)):
     return out0, out1
 
 
-def phi_gyro_bias_drift_time_y(u, temp_c=0.0, t_s=0.0, f=numpy.zeros(3)):
+def phi_gyro_bias_drift_time_y(u, aux=numpy.zeros(5)):
     """gyro.bias_drift_time.y: phi = t_s and dphi/du."""
     w_x = u[..., 0]
     w_y = u[..., 1]
     w_z = u[..., 2]
-    f_x = f[..., 0]
-    f_y = f[..., 1]
-    f_z = f[..., 2]
+    temp_c = aux[..., 0]
+    t_s = aux[..., 1]
+    f_x = aux[..., 2]
+    f_y = aux[..., 3]
+    f_z = aux[..., 4]
     shape = numpy.broadcast_shapes(numpy.shape(w_x), numpy.shape(w_y), numpy.shape(w_z), numpy.shape(temp_c), numpy.shape(t_s), numpy.shape(f_x), numpy.shape(f_y), numpy.shape(f_z), )
     out0 = numpy.empty(shape + (1,))
     out0[..., 0] = t_s
@@ -408,14 +498,16 @@ def phi_gyro_bias_drift_time_y(u, temp_c=0.0, t_s=0.0, f=numpy.zeros(3)):
     return out0, out1
 
 
-def phi_gyro_bias_drift_time_z(u, temp_c=0.0, t_s=0.0, f=numpy.zeros(3)):
+def phi_gyro_bias_drift_time_z(u, aux=numpy.zeros(5)):
     """gyro.bias_drift_time.z: phi = t_s and dphi/du."""
     w_x = u[..., 0]
     w_y = u[..., 1]
     w_z = u[..., 2]
-    f_x = f[..., 0]
-    f_y = f[..., 1]
-    f_z = f[..., 2]
+    temp_c = aux[..., 0]
+    t_s = aux[..., 1]
+    f_x = aux[..., 2]
+    f_y = aux[..., 3]
+    f_z = aux[..., 4]
     shape = numpy.broadcast_shapes(numpy.shape(w_x), numpy.shape(w_y), numpy.shape(w_z), numpy.shape(temp_c), numpy.shape(t_s), numpy.shape(f_x), numpy.shape(f_y), numpy.shape(f_z), )
     out0 = numpy.empty(shape + (1,))
     out0[..., 0] = t_s
@@ -426,14 +518,16 @@ def phi_gyro_bias_drift_time_z(u, temp_c=0.0, t_s=0.0, f=numpy.zeros(3)):
     return out0, out1
 
 
-def phi_gyro_bias_temperature_x(u, temp_c=0.0, t_s=0.0, f=numpy.zeros(3)):
+def phi_gyro_bias_temperature_x(u, aux=numpy.zeros(5)):
     """gyro.bias_temperature.x: phi = temp_c and dphi/du."""
     w_x = u[..., 0]
     w_y = u[..., 1]
     w_z = u[..., 2]
-    f_x = f[..., 0]
-    f_y = f[..., 1]
-    f_z = f[..., 2]
+    temp_c = aux[..., 0]
+    t_s = aux[..., 1]
+    f_x = aux[..., 2]
+    f_y = aux[..., 3]
+    f_z = aux[..., 4]
     shape = numpy.broadcast_shapes(numpy.shape(w_x), numpy.shape(w_y), numpy.shape(w_z), numpy.shape(temp_c), numpy.shape(t_s), numpy.shape(f_x), numpy.shape(f_y), numpy.shape(f_z), )
     out0 = numpy.empty(shape + (1,))
     out0[..., 0] = temp_c
@@ -444,14 +538,16 @@ def phi_gyro_bias_temperature_x(u, temp_c=0.0, t_s=0.0, f=numpy.zeros(3)):
     return out0, out1
 
 
-def phi_gyro_bias_temperature_y(u, temp_c=0.0, t_s=0.0, f=numpy.zeros(3)):
+def phi_gyro_bias_temperature_y(u, aux=numpy.zeros(5)):
     """gyro.bias_temperature.y: phi = temp_c and dphi/du."""
     w_x = u[..., 0]
     w_y = u[..., 1]
     w_z = u[..., 2]
-    f_x = f[..., 0]
-    f_y = f[..., 1]
-    f_z = f[..., 2]
+    temp_c = aux[..., 0]
+    t_s = aux[..., 1]
+    f_x = aux[..., 2]
+    f_y = aux[..., 3]
+    f_z = aux[..., 4]
     shape = numpy.broadcast_shapes(numpy.shape(w_x), numpy.shape(w_y), numpy.shape(w_z), numpy.shape(temp_c), numpy.shape(t_s), numpy.shape(f_x), numpy.shape(f_y), numpy.shape(f_z), )
     out0 = numpy.empty(shape + (1,))
     out0[..., 0] = temp_c
@@ -462,14 +558,16 @@ def phi_gyro_bias_temperature_y(u, temp_c=0.0, t_s=0.0, f=numpy.zeros(3)):
     return out0, out1
 
 
-def phi_gyro_bias_temperature_z(u, temp_c=0.0, t_s=0.0, f=numpy.zeros(3)):
+def phi_gyro_bias_temperature_z(u, aux=numpy.zeros(5)):
     """gyro.bias_temperature.z: phi = temp_c and dphi/du."""
     w_x = u[..., 0]
     w_y = u[..., 1]
     w_z = u[..., 2]
-    f_x = f[..., 0]
-    f_y = f[..., 1]
-    f_z = f[..., 2]
+    temp_c = aux[..., 0]
+    t_s = aux[..., 1]
+    f_x = aux[..., 2]
+    f_y = aux[..., 3]
+    f_z = aux[..., 4]
     shape = numpy.broadcast_shapes(numpy.shape(w_x), numpy.shape(w_y), numpy.shape(w_z), numpy.shape(temp_c), numpy.shape(t_s), numpy.shape(f_x), numpy.shape(f_y), numpy.shape(f_z), )
     out0 = numpy.empty(shape + (1,))
     out0[..., 0] = temp_c
@@ -480,14 +578,16 @@ def phi_gyro_bias_temperature_z(u, temp_c=0.0, t_s=0.0, f=numpy.zeros(3)):
     return out0, out1
 
 
-def phi_gyro_g_sensitivity_xx(u, temp_c=0.0, t_s=0.0, f=numpy.zeros(3)):
+def phi_gyro_g_sensitivity_xx(u, aux=numpy.zeros(5)):
     """gyro.g_sensitivity.xx: phi = f_x and dphi/du."""
     w_x = u[..., 0]
     w_y = u[..., 1]
     w_z = u[..., 2]
-    f_x = f[..., 0]
-    f_y = f[..., 1]
-    f_z = f[..., 2]
+    temp_c = aux[..., 0]
+    t_s = aux[..., 1]
+    f_x = aux[..., 2]
+    f_y = aux[..., 3]
+    f_z = aux[..., 4]
     shape = numpy.broadcast_shapes(numpy.shape(w_x), numpy.shape(w_y), numpy.shape(w_z), numpy.shape(temp_c), numpy.shape(t_s), numpy.shape(f_x), numpy.shape(f_y), numpy.shape(f_z), )
     out0 = numpy.empty(shape + (1,))
     out0[..., 0] = f_x
@@ -498,14 +598,16 @@ def phi_gyro_g_sensitivity_xx(u, temp_c=0.0, t_s=0.0, f=numpy.zeros(3)):
     return out0, out1
 
 
-def phi_gyro_g_sensitivity_xy(u, temp_c=0.0, t_s=0.0, f=numpy.zeros(3)):
+def phi_gyro_g_sensitivity_xy(u, aux=numpy.zeros(5)):
     """gyro.g_sensitivity.xy: phi = f_y and dphi/du."""
     w_x = u[..., 0]
     w_y = u[..., 1]
     w_z = u[..., 2]
-    f_x = f[..., 0]
-    f_y = f[..., 1]
-    f_z = f[..., 2]
+    temp_c = aux[..., 0]
+    t_s = aux[..., 1]
+    f_x = aux[..., 2]
+    f_y = aux[..., 3]
+    f_z = aux[..., 4]
     shape = numpy.broadcast_shapes(numpy.shape(w_x), numpy.shape(w_y), numpy.shape(w_z), numpy.shape(temp_c), numpy.shape(t_s), numpy.shape(f_x), numpy.shape(f_y), numpy.shape(f_z), )
     out0 = numpy.empty(shape + (1,))
     out0[..., 0] = f_y
@@ -516,14 +618,16 @@ def phi_gyro_g_sensitivity_xy(u, temp_c=0.0, t_s=0.0, f=numpy.zeros(3)):
     return out0, out1
 
 
-def phi_gyro_g_sensitivity_xz(u, temp_c=0.0, t_s=0.0, f=numpy.zeros(3)):
+def phi_gyro_g_sensitivity_xz(u, aux=numpy.zeros(5)):
     """gyro.g_sensitivity.xz: phi = f_z and dphi/du."""
     w_x = u[..., 0]
     w_y = u[..., 1]
     w_z = u[..., 2]
-    f_x = f[..., 0]
-    f_y = f[..., 1]
-    f_z = f[..., 2]
+    temp_c = aux[..., 0]
+    t_s = aux[..., 1]
+    f_x = aux[..., 2]
+    f_y = aux[..., 3]
+    f_z = aux[..., 4]
     shape = numpy.broadcast_shapes(numpy.shape(w_x), numpy.shape(w_y), numpy.shape(w_z), numpy.shape(temp_c), numpy.shape(t_s), numpy.shape(f_x), numpy.shape(f_y), numpy.shape(f_z), )
     out0 = numpy.empty(shape + (1,))
     out0[..., 0] = f_z
@@ -534,14 +638,16 @@ def phi_gyro_g_sensitivity_xz(u, temp_c=0.0, t_s=0.0, f=numpy.zeros(3)):
     return out0, out1
 
 
-def phi_gyro_g_sensitivity_yx(u, temp_c=0.0, t_s=0.0, f=numpy.zeros(3)):
+def phi_gyro_g_sensitivity_yx(u, aux=numpy.zeros(5)):
     """gyro.g_sensitivity.yx: phi = f_x and dphi/du."""
     w_x = u[..., 0]
     w_y = u[..., 1]
     w_z = u[..., 2]
-    f_x = f[..., 0]
-    f_y = f[..., 1]
-    f_z = f[..., 2]
+    temp_c = aux[..., 0]
+    t_s = aux[..., 1]
+    f_x = aux[..., 2]
+    f_y = aux[..., 3]
+    f_z = aux[..., 4]
     shape = numpy.broadcast_shapes(numpy.shape(w_x), numpy.shape(w_y), numpy.shape(w_z), numpy.shape(temp_c), numpy.shape(t_s), numpy.shape(f_x), numpy.shape(f_y), numpy.shape(f_z), )
     out0 = numpy.empty(shape + (1,))
     out0[..., 0] = f_x
@@ -552,14 +658,16 @@ def phi_gyro_g_sensitivity_yx(u, temp_c=0.0, t_s=0.0, f=numpy.zeros(3)):
     return out0, out1
 
 
-def phi_gyro_g_sensitivity_yy(u, temp_c=0.0, t_s=0.0, f=numpy.zeros(3)):
+def phi_gyro_g_sensitivity_yy(u, aux=numpy.zeros(5)):
     """gyro.g_sensitivity.yy: phi = f_y and dphi/du."""
     w_x = u[..., 0]
     w_y = u[..., 1]
     w_z = u[..., 2]
-    f_x = f[..., 0]
-    f_y = f[..., 1]
-    f_z = f[..., 2]
+    temp_c = aux[..., 0]
+    t_s = aux[..., 1]
+    f_x = aux[..., 2]
+    f_y = aux[..., 3]
+    f_z = aux[..., 4]
     shape = numpy.broadcast_shapes(numpy.shape(w_x), numpy.shape(w_y), numpy.shape(w_z), numpy.shape(temp_c), numpy.shape(t_s), numpy.shape(f_x), numpy.shape(f_y), numpy.shape(f_z), )
     out0 = numpy.empty(shape + (1,))
     out0[..., 0] = f_y
@@ -570,14 +678,16 @@ def phi_gyro_g_sensitivity_yy(u, temp_c=0.0, t_s=0.0, f=numpy.zeros(3)):
     return out0, out1
 
 
-def phi_gyro_g_sensitivity_yz(u, temp_c=0.0, t_s=0.0, f=numpy.zeros(3)):
+def phi_gyro_g_sensitivity_yz(u, aux=numpy.zeros(5)):
     """gyro.g_sensitivity.yz: phi = f_z and dphi/du."""
     w_x = u[..., 0]
     w_y = u[..., 1]
     w_z = u[..., 2]
-    f_x = f[..., 0]
-    f_y = f[..., 1]
-    f_z = f[..., 2]
+    temp_c = aux[..., 0]
+    t_s = aux[..., 1]
+    f_x = aux[..., 2]
+    f_y = aux[..., 3]
+    f_z = aux[..., 4]
     shape = numpy.broadcast_shapes(numpy.shape(w_x), numpy.shape(w_y), numpy.shape(w_z), numpy.shape(temp_c), numpy.shape(t_s), numpy.shape(f_x), numpy.shape(f_y), numpy.shape(f_z), )
     out0 = numpy.empty(shape + (1,))
     out0[..., 0] = f_z
@@ -588,14 +698,16 @@ def phi_gyro_g_sensitivity_yz(u, temp_c=0.0, t_s=0.0, f=numpy.zeros(3)):
     return out0, out1
 
 
-def phi_gyro_g_sensitivity_zx(u, temp_c=0.0, t_s=0.0, f=numpy.zeros(3)):
+def phi_gyro_g_sensitivity_zx(u, aux=numpy.zeros(5)):
     """gyro.g_sensitivity.zx: phi = f_x and dphi/du."""
     w_x = u[..., 0]
     w_y = u[..., 1]
     w_z = u[..., 2]
-    f_x = f[..., 0]
-    f_y = f[..., 1]
-    f_z = f[..., 2]
+    temp_c = aux[..., 0]
+    t_s = aux[..., 1]
+    f_x = aux[..., 2]
+    f_y = aux[..., 3]
+    f_z = aux[..., 4]
     shape = numpy.broadcast_shapes(numpy.shape(w_x), numpy.shape(w_y), numpy.shape(w_z), numpy.shape(temp_c), numpy.shape(t_s), numpy.shape(f_x), numpy.shape(f_y), numpy.shape(f_z), )
     out0 = numpy.empty(shape + (1,))
     out0[..., 0] = f_x
@@ -606,14 +718,16 @@ def phi_gyro_g_sensitivity_zx(u, temp_c=0.0, t_s=0.0, f=numpy.zeros(3)):
     return out0, out1
 
 
-def phi_gyro_g_sensitivity_zy(u, temp_c=0.0, t_s=0.0, f=numpy.zeros(3)):
+def phi_gyro_g_sensitivity_zy(u, aux=numpy.zeros(5)):
     """gyro.g_sensitivity.zy: phi = f_y and dphi/du."""
     w_x = u[..., 0]
     w_y = u[..., 1]
     w_z = u[..., 2]
-    f_x = f[..., 0]
-    f_y = f[..., 1]
-    f_z = f[..., 2]
+    temp_c = aux[..., 0]
+    t_s = aux[..., 1]
+    f_x = aux[..., 2]
+    f_y = aux[..., 3]
+    f_z = aux[..., 4]
     shape = numpy.broadcast_shapes(numpy.shape(w_x), numpy.shape(w_y), numpy.shape(w_z), numpy.shape(temp_c), numpy.shape(t_s), numpy.shape(f_x), numpy.shape(f_y), numpy.shape(f_z), )
     out0 = numpy.empty(shape + (1,))
     out0[..., 0] = f_y
@@ -624,14 +738,16 @@ def phi_gyro_g_sensitivity_zy(u, temp_c=0.0, t_s=0.0, f=numpy.zeros(3)):
     return out0, out1
 
 
-def phi_gyro_g_sensitivity_zz(u, temp_c=0.0, t_s=0.0, f=numpy.zeros(3)):
+def phi_gyro_g_sensitivity_zz(u, aux=numpy.zeros(5)):
     """gyro.g_sensitivity.zz: phi = f_z and dphi/du."""
     w_x = u[..., 0]
     w_y = u[..., 1]
     w_z = u[..., 2]
-    f_x = f[..., 0]
-    f_y = f[..., 1]
-    f_z = f[..., 2]
+    temp_c = aux[..., 0]
+    t_s = aux[..., 1]
+    f_x = aux[..., 2]
+    f_y = aux[..., 3]
+    f_z = aux[..., 4]
     shape = numpy.broadcast_shapes(numpy.shape(w_x), numpy.shape(w_y), numpy.shape(w_z), numpy.shape(temp_c), numpy.shape(t_s), numpy.shape(f_x), numpy.shape(f_y), numpy.shape(f_z), )
     out0 = numpy.empty(shape + (1,))
     out0[..., 0] = f_z
@@ -642,14 +758,16 @@ def phi_gyro_g_sensitivity_zz(u, temp_c=0.0, t_s=0.0, f=numpy.zeros(3)):
     return out0, out1
 
 
-def phi_gyro_quadratic_x(u, temp_c=0.0, t_s=0.0, f=numpy.zeros(3)):
+def phi_gyro_quadratic_x(u, aux=numpy.zeros(5)):
     """gyro.quadratic.x: phi = 7.71604938271605e-8*w_x**2 and dphi/du."""
     w_x = u[..., 0]
     w_y = u[..., 1]
     w_z = u[..., 2]
-    f_x = f[..., 0]
-    f_y = f[..., 1]
-    f_z = f[..., 2]
+    temp_c = aux[..., 0]
+    t_s = aux[..., 1]
+    f_x = aux[..., 2]
+    f_y = aux[..., 3]
+    f_z = aux[..., 4]
     shape = numpy.broadcast_shapes(numpy.shape(w_x), numpy.shape(w_y), numpy.shape(w_z), numpy.shape(temp_c), numpy.shape(t_s), numpy.shape(f_x), numpy.shape(f_y), numpy.shape(f_z), )
     out0 = numpy.empty(shape + (1,))
     out0[..., 0] = 7.71604938271605e-8*w_x**2
@@ -660,14 +778,16 @@ def phi_gyro_quadratic_x(u, temp_c=0.0, t_s=0.0, f=numpy.zeros(3)):
     return out0, out1
 
 
-def phi_gyro_quadratic_y(u, temp_c=0.0, t_s=0.0, f=numpy.zeros(3)):
+def phi_gyro_quadratic_y(u, aux=numpy.zeros(5)):
     """gyro.quadratic.y: phi = 7.71604938271605e-8*w_y**2 and dphi/du."""
     w_x = u[..., 0]
     w_y = u[..., 1]
     w_z = u[..., 2]
-    f_x = f[..., 0]
-    f_y = f[..., 1]
-    f_z = f[..., 2]
+    temp_c = aux[..., 0]
+    t_s = aux[..., 1]
+    f_x = aux[..., 2]
+    f_y = aux[..., 3]
+    f_z = aux[..., 4]
     shape = numpy.broadcast_shapes(numpy.shape(w_x), numpy.shape(w_y), numpy.shape(w_z), numpy.shape(temp_c), numpy.shape(t_s), numpy.shape(f_x), numpy.shape(f_y), numpy.shape(f_z), )
     out0 = numpy.empty(shape + (1,))
     out0[..., 0] = 7.71604938271605e-8*w_y**2
@@ -678,14 +798,16 @@ def phi_gyro_quadratic_y(u, temp_c=0.0, t_s=0.0, f=numpy.zeros(3)):
     return out0, out1
 
 
-def phi_gyro_quadratic_z(u, temp_c=0.0, t_s=0.0, f=numpy.zeros(3)):
+def phi_gyro_quadratic_z(u, aux=numpy.zeros(5)):
     """gyro.quadratic.z: phi = 7.71604938271605e-8*w_z**2 and dphi/du."""
     w_x = u[..., 0]
     w_y = u[..., 1]
     w_z = u[..., 2]
-    f_x = f[..., 0]
-    f_y = f[..., 1]
-    f_z = f[..., 2]
+    temp_c = aux[..., 0]
+    t_s = aux[..., 1]
+    f_x = aux[..., 2]
+    f_y = aux[..., 3]
+    f_z = aux[..., 4]
     shape = numpy.broadcast_shapes(numpy.shape(w_x), numpy.shape(w_y), numpy.shape(w_z), numpy.shape(temp_c), numpy.shape(t_s), numpy.shape(f_x), numpy.shape(f_y), numpy.shape(f_z), )
     out0 = numpy.empty(shape + (1,))
     out0[..., 0] = 7.71604938271605e-8*w_z**2
@@ -696,14 +818,16 @@ def phi_gyro_quadratic_z(u, temp_c=0.0, t_s=0.0, f=numpy.zeros(3)):
     return out0, out1
 
 
-def phi_gyro_scale_asymmetry_x(u, temp_c=0.0, t_s=0.0, f=numpy.zeros(3)):
+def phi_gyro_scale_asymmetry_x(u, aux=numpy.zeros(5)):
     """gyro.scale_asymmetry.x: phi = Abs(w_x) and dphi/du."""
     w_x = u[..., 0]
     w_y = u[..., 1]
     w_z = u[..., 2]
-    f_x = f[..., 0]
-    f_y = f[..., 1]
-    f_z = f[..., 2]
+    temp_c = aux[..., 0]
+    t_s = aux[..., 1]
+    f_x = aux[..., 2]
+    f_y = aux[..., 3]
+    f_z = aux[..., 4]
     shape = numpy.broadcast_shapes(numpy.shape(w_x), numpy.shape(w_y), numpy.shape(w_z), numpy.shape(temp_c), numpy.shape(t_s), numpy.shape(f_x), numpy.shape(f_y), numpy.shape(f_z), )
     out0 = numpy.empty(shape + (1,))
     out0[..., 0] = abs(w_x)
@@ -714,14 +838,16 @@ def phi_gyro_scale_asymmetry_x(u, temp_c=0.0, t_s=0.0, f=numpy.zeros(3)):
     return out0, out1
 
 
-def phi_gyro_scale_asymmetry_y(u, temp_c=0.0, t_s=0.0, f=numpy.zeros(3)):
+def phi_gyro_scale_asymmetry_y(u, aux=numpy.zeros(5)):
     """gyro.scale_asymmetry.y: phi = Abs(w_y) and dphi/du."""
     w_x = u[..., 0]
     w_y = u[..., 1]
     w_z = u[..., 2]
-    f_x = f[..., 0]
-    f_y = f[..., 1]
-    f_z = f[..., 2]
+    temp_c = aux[..., 0]
+    t_s = aux[..., 1]
+    f_x = aux[..., 2]
+    f_y = aux[..., 3]
+    f_z = aux[..., 4]
     shape = numpy.broadcast_shapes(numpy.shape(w_x), numpy.shape(w_y), numpy.shape(w_z), numpy.shape(temp_c), numpy.shape(t_s), numpy.shape(f_x), numpy.shape(f_y), numpy.shape(f_z), )
     out0 = numpy.empty(shape + (1,))
     out0[..., 0] = abs(w_y)
@@ -732,14 +858,16 @@ def phi_gyro_scale_asymmetry_y(u, temp_c=0.0, t_s=0.0, f=numpy.zeros(3)):
     return out0, out1
 
 
-def phi_gyro_scale_asymmetry_z(u, temp_c=0.0, t_s=0.0, f=numpy.zeros(3)):
+def phi_gyro_scale_asymmetry_z(u, aux=numpy.zeros(5)):
     """gyro.scale_asymmetry.z: phi = Abs(w_z) and dphi/du."""
     w_x = u[..., 0]
     w_y = u[..., 1]
     w_z = u[..., 2]
-    f_x = f[..., 0]
-    f_y = f[..., 1]
-    f_z = f[..., 2]
+    temp_c = aux[..., 0]
+    t_s = aux[..., 1]
+    f_x = aux[..., 2]
+    f_y = aux[..., 3]
+    f_z = aux[..., 4]
     shape = numpy.broadcast_shapes(numpy.shape(w_x), numpy.shape(w_y), numpy.shape(w_z), numpy.shape(temp_c), numpy.shape(t_s), numpy.shape(f_x), numpy.shape(f_y), numpy.shape(f_z), )
     out0 = numpy.empty(shape + (1,))
     out0[..., 0] = abs(w_z)
@@ -750,53 +878,52 @@ def phi_gyro_scale_asymmetry_z(u, temp_c=0.0, t_s=0.0, f=numpy.zeros(3)):
     return out0, out1
 
 
-# id: (sensor, axis index, parameter name, unit, meaning, function)
 EFFECTS = {
-    'acc.bias_drift_time.x': ('acc', 0, 'bt_x', 'g/s', 'x accelerometer bias drifting linearly in time', phi_acc_bias_drift_time_x),
-    'acc.bias_drift_time.y': ('acc', 1, 'bt_y', 'g/s', 'y accelerometer bias drifting linearly in time', phi_acc_bias_drift_time_y),
-    'acc.bias_drift_time.z': ('acc', 2, 'bt_z', 'g/s', 'z accelerometer bias drifting linearly in time', phi_acc_bias_drift_time_z),
-    'acc.cross_coupling.xy': ('acc', 0, 'Kc_xy', 'g/g^2', 'x accelerometer output proportional to f_x f_y (cross-axis coupling)', phi_acc_cross_coupling_xy),
-    'acc.cross_coupling.xz': ('acc', 0, 'Kc_xz', 'g/g^2', 'x accelerometer output proportional to f_x f_z (cross-axis coupling)', phi_acc_cross_coupling_xz),
-    'acc.cross_coupling.yx': ('acc', 1, 'Kc_yx', 'g/g^2', 'y accelerometer output proportional to f_y f_x (cross-axis coupling)', phi_acc_cross_coupling_yx),
-    'acc.cross_coupling.yz': ('acc', 1, 'Kc_yz', 'g/g^2', 'y accelerometer output proportional to f_y f_z (cross-axis coupling)', phi_acc_cross_coupling_yz),
-    'acc.cross_coupling.zx': ('acc', 2, 'Kc_zx', 'g/g^2', 'z accelerometer output proportional to f_z f_x (cross-axis coupling)', phi_acc_cross_coupling_zx),
-    'acc.cross_coupling.zy': ('acc', 2, 'Kc_zy', 'g/g^2', 'z accelerometer output proportional to f_z f_y (cross-axis coupling)', phi_acc_cross_coupling_zy),
-    'acc.quadratic.x': ('acc', 0, 'K2_x', 'g/g^2', 'x accelerometer second-order nonlinearity (output grows with f_x^2)', phi_acc_quadratic_x),
-    'acc.quadratic.y': ('acc', 1, 'K2_y', 'g/g^2', 'y accelerometer second-order nonlinearity (output grows with f_y^2)', phi_acc_quadratic_y),
-    'acc.quadratic.z': ('acc', 2, 'K2_z', 'g/g^2', 'z accelerometer second-order nonlinearity (output grows with f_z^2)', phi_acc_quadratic_z),
-    'acc.scale_asymmetry.x': ('acc', 0, 'Ka_x', '1', 'x accelerometer scale factor differs for positive and negative inputs', phi_acc_scale_asymmetry_x),
-    'acc.scale_asymmetry.y': ('acc', 1, 'Ka_y', '1', 'y accelerometer scale factor differs for positive and negative inputs', phi_acc_scale_asymmetry_y),
-    'acc.scale_asymmetry.z': ('acc', 2, 'Ka_z', '1', 'z accelerometer scale factor differs for positive and negative inputs', phi_acc_scale_asymmetry_z),
-    'acc.size_effect.xx': ('acc', 0, 'r_xx', 'm', 'x accelerometer x lever arm (size effect under rotation)', phi_acc_size_effect_xx),
-    'acc.size_effect.xy': ('acc', 0, 'r_xy', 'm', 'x accelerometer y lever arm (size effect under rotation)', phi_acc_size_effect_xy),
-    'acc.size_effect.xz': ('acc', 0, 'r_xz', 'm', 'x accelerometer z lever arm (size effect under rotation)', phi_acc_size_effect_xz),
-    'acc.size_effect.yx': ('acc', 1, 'r_yx', 'm', 'y accelerometer x lever arm (size effect under rotation)', phi_acc_size_effect_yx),
-    'acc.size_effect.yy': ('acc', 1, 'r_yy', 'm', 'y accelerometer y lever arm (size effect under rotation)', phi_acc_size_effect_yy),
-    'acc.size_effect.yz': ('acc', 1, 'r_yz', 'm', 'y accelerometer z lever arm (size effect under rotation)', phi_acc_size_effect_yz),
-    'acc.size_effect.zx': ('acc', 2, 'r_zx', 'm', 'z accelerometer x lever arm (size effect under rotation)', phi_acc_size_effect_zx),
-    'acc.size_effect.zy': ('acc', 2, 'r_zy', 'm', 'z accelerometer y lever arm (size effect under rotation)', phi_acc_size_effect_zy),
-    'acc.size_effect.zz': ('acc', 2, 'r_zz', 'm', 'z accelerometer z lever arm (size effect under rotation)', phi_acc_size_effect_zz),
-    'gyro.bias_drift_time.x': ('gyro', 0, 'btg_x', '(deg/h)/s', 'x gyro bias drifting linearly in time', phi_gyro_bias_drift_time_x),
-    'gyro.bias_drift_time.y': ('gyro', 1, 'btg_y', '(deg/h)/s', 'y gyro bias drifting linearly in time', phi_gyro_bias_drift_time_y),
-    'gyro.bias_drift_time.z': ('gyro', 2, 'btg_z', '(deg/h)/s', 'z gyro bias drifting linearly in time', phi_gyro_bias_drift_time_z),
-    'gyro.bias_temperature.x': ('gyro', 0, 'bT_x', '(deg/h)/degC', 'x gyro bias changing with temperature', phi_gyro_bias_temperature_x),
-    'gyro.bias_temperature.y': ('gyro', 1, 'bT_y', '(deg/h)/degC', 'y gyro bias changing with temperature', phi_gyro_bias_temperature_y),
-    'gyro.bias_temperature.z': ('gyro', 2, 'bT_z', '(deg/h)/degC', 'z gyro bias changing with temperature', phi_gyro_bias_temperature_z),
-    'gyro.g_sensitivity.xx': ('gyro', 0, 'G_xx', '(deg/h)/g', 'x gyro output proportional to the specific force along x (g-sensitivity)', phi_gyro_g_sensitivity_xx),
-    'gyro.g_sensitivity.xy': ('gyro', 0, 'G_xy', '(deg/h)/g', 'x gyro output proportional to the specific force along y (g-sensitivity)', phi_gyro_g_sensitivity_xy),
-    'gyro.g_sensitivity.xz': ('gyro', 0, 'G_xz', '(deg/h)/g', 'x gyro output proportional to the specific force along z (g-sensitivity)', phi_gyro_g_sensitivity_xz),
-    'gyro.g_sensitivity.yx': ('gyro', 1, 'G_yx', '(deg/h)/g', 'y gyro output proportional to the specific force along x (g-sensitivity)', phi_gyro_g_sensitivity_yx),
-    'gyro.g_sensitivity.yy': ('gyro', 1, 'G_yy', '(deg/h)/g', 'y gyro output proportional to the specific force along y (g-sensitivity)', phi_gyro_g_sensitivity_yy),
-    'gyro.g_sensitivity.yz': ('gyro', 1, 'G_yz', '(deg/h)/g', 'y gyro output proportional to the specific force along z (g-sensitivity)', phi_gyro_g_sensitivity_yz),
-    'gyro.g_sensitivity.zx': ('gyro', 2, 'G_zx', '(deg/h)/g', 'z gyro output proportional to the specific force along x (g-sensitivity)', phi_gyro_g_sensitivity_zx),
-    'gyro.g_sensitivity.zy': ('gyro', 2, 'G_zy', '(deg/h)/g', 'z gyro output proportional to the specific force along y (g-sensitivity)', phi_gyro_g_sensitivity_zy),
-    'gyro.g_sensitivity.zz': ('gyro', 2, 'G_zz', '(deg/h)/g', 'z gyro output proportional to the specific force along z (g-sensitivity)', phi_gyro_g_sensitivity_zz),
-    'gyro.quadratic.x': ('gyro', 0, 'K2g_x', '(deg/h)/(deg/s)^2', 'x gyro scale factor depending on rate (second-order nonlinearity)', phi_gyro_quadratic_x),
-    'gyro.quadratic.y': ('gyro', 1, 'K2g_y', '(deg/h)/(deg/s)^2', 'y gyro scale factor depending on rate (second-order nonlinearity)', phi_gyro_quadratic_y),
-    'gyro.quadratic.z': ('gyro', 2, 'K2g_z', '(deg/h)/(deg/s)^2', 'z gyro scale factor depending on rate (second-order nonlinearity)', phi_gyro_quadratic_z),
-    'gyro.scale_asymmetry.x': ('gyro', 0, 'Kag_x', '1', 'x gyro scale factor differs for positive and negative rates', phi_gyro_scale_asymmetry_x),
-    'gyro.scale_asymmetry.y': ('gyro', 1, 'Kag_y', '1', 'y gyro scale factor differs for positive and negative rates', phi_gyro_scale_asymmetry_y),
-    'gyro.scale_asymmetry.z': ('gyro', 2, 'Kag_z', '1', 'z gyro scale factor differs for positive and negative rates', phi_gyro_scale_asymmetry_z),
+    'acc.bias_drift_time.x': Effect('acc', 0, 'bt_x', 'g/s', 'x accelerometer bias drifting linearly in time', phi_acc_bias_drift_time_x),
+    'acc.bias_drift_time.y': Effect('acc', 1, 'bt_y', 'g/s', 'y accelerometer bias drifting linearly in time', phi_acc_bias_drift_time_y),
+    'acc.bias_drift_time.z': Effect('acc', 2, 'bt_z', 'g/s', 'z accelerometer bias drifting linearly in time', phi_acc_bias_drift_time_z),
+    'acc.cross_coupling.xy': Effect('acc', 0, 'Kc_xy', 'g/g^2', 'x accelerometer output proportional to f_x f_y (cross-axis coupling)', phi_acc_cross_coupling_xy),
+    'acc.cross_coupling.xz': Effect('acc', 0, 'Kc_xz', 'g/g^2', 'x accelerometer output proportional to f_x f_z (cross-axis coupling)', phi_acc_cross_coupling_xz),
+    'acc.cross_coupling.yx': Effect('acc', 1, 'Kc_yx', 'g/g^2', 'y accelerometer output proportional to f_y f_x (cross-axis coupling)', phi_acc_cross_coupling_yx),
+    'acc.cross_coupling.yz': Effect('acc', 1, 'Kc_yz', 'g/g^2', 'y accelerometer output proportional to f_y f_z (cross-axis coupling)', phi_acc_cross_coupling_yz),
+    'acc.cross_coupling.zx': Effect('acc', 2, 'Kc_zx', 'g/g^2', 'z accelerometer output proportional to f_z f_x (cross-axis coupling)', phi_acc_cross_coupling_zx),
+    'acc.cross_coupling.zy': Effect('acc', 2, 'Kc_zy', 'g/g^2', 'z accelerometer output proportional to f_z f_y (cross-axis coupling)', phi_acc_cross_coupling_zy),
+    'acc.quadratic.x': Effect('acc', 0, 'K2_x', 'g/g^2', 'x accelerometer second-order nonlinearity (output grows with f_x^2)', phi_acc_quadratic_x),
+    'acc.quadratic.y': Effect('acc', 1, 'K2_y', 'g/g^2', 'y accelerometer second-order nonlinearity (output grows with f_y^2)', phi_acc_quadratic_y),
+    'acc.quadratic.z': Effect('acc', 2, 'K2_z', 'g/g^2', 'z accelerometer second-order nonlinearity (output grows with f_z^2)', phi_acc_quadratic_z),
+    'acc.scale_asymmetry.x': Effect('acc', 0, 'Ka_x', '1', 'x accelerometer scale factor differs for positive and negative inputs', phi_acc_scale_asymmetry_x),
+    'acc.scale_asymmetry.y': Effect('acc', 1, 'Ka_y', '1', 'y accelerometer scale factor differs for positive and negative inputs', phi_acc_scale_asymmetry_y),
+    'acc.scale_asymmetry.z': Effect('acc', 2, 'Ka_z', '1', 'z accelerometer scale factor differs for positive and negative inputs', phi_acc_scale_asymmetry_z),
+    'acc.size_effect.xx': Effect('acc', 0, 'r_xx', 'm', 'x accelerometer x lever arm (size effect under rotation)', phi_acc_size_effect_xx),
+    'acc.size_effect.xy': Effect('acc', 0, 'r_xy', 'm', 'x accelerometer y lever arm (size effect under rotation)', phi_acc_size_effect_xy),
+    'acc.size_effect.xz': Effect('acc', 0, 'r_xz', 'm', 'x accelerometer z lever arm (size effect under rotation)', phi_acc_size_effect_xz),
+    'acc.size_effect.yx': Effect('acc', 1, 'r_yx', 'm', 'y accelerometer x lever arm (size effect under rotation)', phi_acc_size_effect_yx),
+    'acc.size_effect.yy': Effect('acc', 1, 'r_yy', 'm', 'y accelerometer y lever arm (size effect under rotation)', phi_acc_size_effect_yy),
+    'acc.size_effect.yz': Effect('acc', 1, 'r_yz', 'm', 'y accelerometer z lever arm (size effect under rotation)', phi_acc_size_effect_yz),
+    'acc.size_effect.zx': Effect('acc', 2, 'r_zx', 'm', 'z accelerometer x lever arm (size effect under rotation)', phi_acc_size_effect_zx),
+    'acc.size_effect.zy': Effect('acc', 2, 'r_zy', 'm', 'z accelerometer y lever arm (size effect under rotation)', phi_acc_size_effect_zy),
+    'acc.size_effect.zz': Effect('acc', 2, 'r_zz', 'm', 'z accelerometer z lever arm (size effect under rotation)', phi_acc_size_effect_zz),
+    'gyro.bias_drift_time.x': Effect('gyro', 0, 'btg_x', '(deg/h)/s', 'x gyro bias drifting linearly in time', phi_gyro_bias_drift_time_x),
+    'gyro.bias_drift_time.y': Effect('gyro', 1, 'btg_y', '(deg/h)/s', 'y gyro bias drifting linearly in time', phi_gyro_bias_drift_time_y),
+    'gyro.bias_drift_time.z': Effect('gyro', 2, 'btg_z', '(deg/h)/s', 'z gyro bias drifting linearly in time', phi_gyro_bias_drift_time_z),
+    'gyro.bias_temperature.x': Effect('gyro', 0, 'bT_x', '(deg/h)/degC', 'x gyro bias changing with temperature', phi_gyro_bias_temperature_x),
+    'gyro.bias_temperature.y': Effect('gyro', 1, 'bT_y', '(deg/h)/degC', 'y gyro bias changing with temperature', phi_gyro_bias_temperature_y),
+    'gyro.bias_temperature.z': Effect('gyro', 2, 'bT_z', '(deg/h)/degC', 'z gyro bias changing with temperature', phi_gyro_bias_temperature_z),
+    'gyro.g_sensitivity.xx': Effect('gyro', 0, 'G_xx', '(deg/h)/g', 'x gyro output proportional to the specific force along x (g-sensitivity)', phi_gyro_g_sensitivity_xx),
+    'gyro.g_sensitivity.xy': Effect('gyro', 0, 'G_xy', '(deg/h)/g', 'x gyro output proportional to the specific force along y (g-sensitivity)', phi_gyro_g_sensitivity_xy),
+    'gyro.g_sensitivity.xz': Effect('gyro', 0, 'G_xz', '(deg/h)/g', 'x gyro output proportional to the specific force along z (g-sensitivity)', phi_gyro_g_sensitivity_xz),
+    'gyro.g_sensitivity.yx': Effect('gyro', 1, 'G_yx', '(deg/h)/g', 'y gyro output proportional to the specific force along x (g-sensitivity)', phi_gyro_g_sensitivity_yx),
+    'gyro.g_sensitivity.yy': Effect('gyro', 1, 'G_yy', '(deg/h)/g', 'y gyro output proportional to the specific force along y (g-sensitivity)', phi_gyro_g_sensitivity_yy),
+    'gyro.g_sensitivity.yz': Effect('gyro', 1, 'G_yz', '(deg/h)/g', 'y gyro output proportional to the specific force along z (g-sensitivity)', phi_gyro_g_sensitivity_yz),
+    'gyro.g_sensitivity.zx': Effect('gyro', 2, 'G_zx', '(deg/h)/g', 'z gyro output proportional to the specific force along x (g-sensitivity)', phi_gyro_g_sensitivity_zx),
+    'gyro.g_sensitivity.zy': Effect('gyro', 2, 'G_zy', '(deg/h)/g', 'z gyro output proportional to the specific force along y (g-sensitivity)', phi_gyro_g_sensitivity_zy),
+    'gyro.g_sensitivity.zz': Effect('gyro', 2, 'G_zz', '(deg/h)/g', 'z gyro output proportional to the specific force along z (g-sensitivity)', phi_gyro_g_sensitivity_zz),
+    'gyro.quadratic.x': Effect('gyro', 0, 'K2g_x', '(deg/h)/(deg/s)^2', 'x gyro scale factor depending on rate (second-order nonlinearity)', phi_gyro_quadratic_x),
+    'gyro.quadratic.y': Effect('gyro', 1, 'K2g_y', '(deg/h)/(deg/s)^2', 'y gyro scale factor depending on rate (second-order nonlinearity)', phi_gyro_quadratic_y),
+    'gyro.quadratic.z': Effect('gyro', 2, 'K2g_z', '(deg/h)/(deg/s)^2', 'z gyro scale factor depending on rate (second-order nonlinearity)', phi_gyro_quadratic_z),
+    'gyro.scale_asymmetry.x': Effect('gyro', 0, 'Kag_x', '1', 'x gyro scale factor differs for positive and negative rates', phi_gyro_scale_asymmetry_x),
+    'gyro.scale_asymmetry.y': Effect('gyro', 1, 'Kag_y', '1', 'y gyro scale factor differs for positive and negative rates', phi_gyro_scale_asymmetry_y),
+    'gyro.scale_asymmetry.z': Effect('gyro', 2, 'Kag_z', '1', 'z gyro scale factor differs for positive and negative rates', phi_gyro_scale_asymmetry_z),
 }
 
 

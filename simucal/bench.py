@@ -61,7 +61,7 @@ def run(json_path=None, echo=print) -> dict:
         c, py = load("acc_baseline"), load("acc_baseline", compiled=False)
         n = len(obs.N)
         args = (obs.N[None], obs.rho[None], np.broadcast_to(obs.sigma, (n, 3))[None],
-                c.aux_rows(n)[None], np.zeros((1, 9)))
+                np.zeros((1, n, len(c.aux))), np.zeros((1, 9)))
         if c.fit_compiled(*args) is not None:
             fig["fit_exact_acc_n12_compiled_call_s"] = best(lambda: c.fit_compiled(*args))
             fig["fit_exact_acc_n12_s"] = best(lambda: fit_exact(c, obs))

@@ -87,9 +87,12 @@ def derive(check, model_files):
               help="A model file of your own terms (MODELS = [...]); its models become the truth models.")
 @click.option("--set", "sets", multiple=True, metavar="NAME=VALUE",
               help="With --effect-file: the true value of one of its parameters (repeatable).")
+@click.option("--column", "columns", multiple=True, metavar="NAME=LOW:HIGH",
+              help="Write an auxiliary column, one value per segment drawn uniformly in [LOW, HIGH], e.g. "
+                   "supply_v=4.5:5.5 (one your --effect-file terms read) or temp_c=20:40; repeatable.")
 @click.option("--no-noise-stated", is_flag=True, help="Leave acc_noise_g / gyro_noise_dph out of meta.json.")
 def simulate(out_dir, scenario, heading_error_deg, seed, plan, rate_hz, position_error_arcmin, acc_model, gyro_model,
-             acc_unit, gyro_unit, effects, effect_file, sets, no_noise_stated):
+             acc_unit, gyro_unit, effects, effect_file, sets, columns, no_noise_stated):
     """Simulate a test; write a measurement set and truth.json."""
     from simucal.turntable.simulate import ARCMIN, SCENARIOS, plant, write
     if scenario == "field":
@@ -111,7 +114,7 @@ def simulate(out_dir, scenario, heading_error_deg, seed, plan, rate_hz, position
         sc.position_error_rad = position_error_arcmin * ARCMIN
     sc.state_noise = not no_noise_stated
     try:
-        plant(sc, effects, effect_file, sets)
+        plant(sc, effects, effect_file, sets, columns)
         write(out_dir, sc, seed)
     except (ValueError, KeyError, FileNotFoundError, SyntaxError) as e:
         _fail(e)

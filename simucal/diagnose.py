@@ -35,8 +35,7 @@ def residual_table(fit: Fit, obs: Observations, segs) -> list[dict]:
         r = fit.residuals[i]
         sd = obs.sigma[i] if obs.sigma is not None else None
         rows.append({"segment": s.segment, "kind": s.kind, "outer_rate_dps": s.outer_rate_dps,
-                     "t_s": float(np.atleast_1d(obs.t_s)[i]) if np.ndim(obs.t_s) else 0.0,
-                     "temp_c": float(np.atleast_1d(obs.temp_c)[i]) if np.ndim(obs.temp_c) else None,
+                     **{k: float(np.broadcast_to(v, len(segs))[i]) for k, v in obs.aux.values.items()},
                      "direction": fit.directions[i].tolist(), "residual": r.tolist(),
                      "sigma": None if sd is None else sd.tolist(),
                      "normalized": None if sd is None else (r / sd).tolist()})

@@ -10,6 +10,7 @@ from simucal.derive.models.baseline import ACC_BASELINE
 from simucal.generated import table
 
 from simucal.errors import CalibrationError
+from simucal.fit.aux_inputs import AuxInputs
 from simucal.fit.catalog import load
 from simucal.fit.norm_fit import Observations, fit_exact, fit_linear
 from simucal.turntable import plans
@@ -37,7 +38,8 @@ def test_exact_recovers_model_with_extra_terms_to_1e10():
     u = directions(plans.fibonacci(48))
     t = np.arange(48) * 20.0
     p = np.r_[P_ACC, 3e-5, -2e-5, 4e-7]
-    fit = fit_exact(m, Observations(m.output(u, p, 0.0, t), np.ones(48), t_s=t))
+    aux = AuxInputs({"t_s": t})
+    fit = fit_exact(m, Observations(m.output(u, p, aux), np.ones(48), aux=aux))
     assert np.max(np.abs(fit.vector(m.params) - p)) < 1e-10
 
 
@@ -132,7 +134,7 @@ def test_compiled_whole_fit_matches_the_python_solver(tmp_path, name, sensor):
     n = len(sets[0].N)
     batch = c.fit_compiled(np.array([o.N for o in sets]), np.array([o.rho for o in sets]),
                            np.array([np.broadcast_to(o.sigma, (n, 3)) for o in sets]),
-                           np.array([c.aux_rows(n, o.temp_c, o.t_s, o.extra) for o in sets]),
+                           np.array([c.aux_array(o.aux, (n,)) for o in sets]),
                            np.zeros((3, len(c.params))))
     assert np.all(batch[5] == 0)
     for k, obs in enumerate(sets):  # another start (zeros): the same optimum, to 1e-5 of each std

@@ -3,10 +3,11 @@ import numpy as np
 import pytest
 import sympy as sp
 from simucal.derive import norm
-from simucal.derive.frames import AUX, N_out
+from simucal.derive.frames import N_out
 from simucal.derive.registry import BUILTIN
 
 from simucal import derive_cmd
+from simucal.fit.aux_inputs import AuxInputs
 from simucal.fit.catalog import load
 
 rng = np.random.default_rng(42)
@@ -34,23 +35,20 @@ def test_every_generated_function_equals_sympy(model):
     for _ in range(5):
         u = rng.normal(size=3)
         p = rng.normal(size=m) * 1e-2
-        aux = list(rng.normal(size=2) * 10)
-        aux_syms = list(AUX)
-        if model.sensor == "gyro":  # gyros also take the specific force
-            aux.append(rng.normal(size=3))
-            aux_syms += list(model.aux[2:])
-        flat = [a for x in aux for a in np.atleast_1d(x)]
-        subs = {**dict(zip(model.inputs, u)), **dict(zip(model.params, p)), **dict(zip(aux_syms, flat))}
+        aux_values = rng.normal(size=len(model.aux)) * 10
+        aux = AuxInputs(dict(zip(map(str, model.aux), aux_values)))
+        assert gen_np.aux == tuple(map(str, model.aux))
+        subs = {**dict(zip(model.inputs, u)), **dict(zip(model.params, p)), **dict(zip(model.aux, aux_values))}
         ev = lambda e: np.array(sp.Matrix(e).evalf(30, subs=subs), dtype=float).reshape(sp.Matrix(e).shape)
-        close(gen_np.output(u, p, *aux), ev(out)[:, 0])
-        N, Ju, Jp = gen_np.jacobians(u[None], p, *aux)
+        close(gen_np.output(u, p, aux), ev(out)[:, 0])
+        N, Ju, Jp = gen_np.jacobians(u[None], p, aux)
         close(Ju[0], ev(out.jacobian(model.inputs)))
         close(Jp[0], ev(out.jacobian(model.params)))
-        Nc, Juc, Jpc = gen_c.jacobians(u[None], p, np.array([aux[0]]), np.array([aux[1]]), *aux[2:])
+        Nc, Juc, Jpc = gen_c.jacobians(u[None], p, aux)
         close(Nc[0], N[0]); close(Juc[0], Ju[0]); close(Jpc[0], Jp[0])
         Nv = rng.normal(size=3)
-        subsN = {**dict(zip(N_out, Nv)), **dict(zip(aux_syms, flat))}
-        close(gen_np.norm_regressors(Nv, *aux), [float(c.evalf(30, subs=subsN)) for c in reg.psi])
+        subsN = {**dict(zip(N_out, Nv)), **dict(zip(model.aux, aux_values))}
+        close(gen_np.norm_regressors(Nv, aux), [float(c.evalf(30, subs=subsN)) for c in reg.psi])
         K = gen_np.module.K_of_params(p)
         close(K, [float(k.evalf(30, subs=subs)) for k in reg.K_of_p])
         subsK = dict(zip(reg.K, K))
@@ -58,7 +56,7 @@ def test_every_generated_function_equals_sympy(model):
         close(gen_np.params_of_K(K), p, rel=1e-10)  # the inverse really inverts
         close(gen_np.params_of_K(K, first_order=True),
               [float(reg.p_of_K_first[s].evalf(30, subs=subsK)) for s in model.params])
-        M, b = gen_np.matrix_and_bias(p, *aux)
+        M, b = gen_np.matrix_and_bias(p, aux)
         zero = {**subs, **{s: 0 for s in model.inputs}}
         close(M, np.array(out.jacobian(model.inputs).evalf(30, subs=zero), dtype=float))
         close(b, np.array(out.evalf(30, subs=zero), dtype=float)[:, 0])

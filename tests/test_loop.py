@@ -141,7 +141,8 @@ def test_apply_inverts_the_nonlinear_model_exactly(tmp_path):
     block = {"model": "acc_baseline", "effects": {e: {"value": v} for e, v in zip(m.effects, p[9:])},
              "params": dict(zip(m.params, p)), "M": M.tolist(), "bias": b.tolist()}
     from simucal.fit.apply import invert
-    got = invert(block, "acc", m.output(u, p), 0.0, 0.0, 0.0, "test")
+    from simucal.fit.aux_inputs import AuxInputs
+    got = invert(block, "acc", m.output(u, p), AuxInputs(), "test")
     assert np.max(np.abs(got - u)) < 1e-12
 
 

@@ -3,11 +3,12 @@
 A model is a list of named terms. Each term adds ``parameter * regressor`` to
 one output axis, the regressor being any SymPy expression in the model's
 inputs (f_x, f_y, f_z in g for accelerometers; w_x, w_y, w_z in deg/h for
-gyros) and the auxiliary inputs temp_c and t_s, and for gyros the specific
-force f_x, f_y, f_z in g (g-sensitivity), for accelerometers the centripetal
-scale w2 = w_T^2 / g under outer-axis rate (lever arms). The output is
+gyros) and the auxiliary inputs of frames.AUX_INPUTS: temp_c and t_s, for gyros
+the specific force f_x, f_y, f_z in g (g-sensitivity), for accelerometers the
+centripetal scale w2 = w_T^2 / g under outer-axis rate (lever arms); and any
+samples.csv column a user names (frames.column_input, e.g. supply_v). The output is
 
-    N = u + sum_j p_j * regressor_j(u, temp_c, t_s) * e_axis(j)
+    N = u + sum_j p_j * regressor_j(u, aux) * e_axis(j)
 
 with u the input in the sensor's parameter frame. dong2018 eq. 5 and 9 are the
 baseline lists in ``baseline.py``; adding an effect is adding a Term.
@@ -19,7 +20,7 @@ from dataclasses import dataclass, field
 
 import sympy as sp
 
-from ..frames import AUX, AXES, f_b, omega_d, w2
+from ..frames import AUX_INPUTS, AXES, RESERVED, SENSOR_AUX, f_b, omega_d
 
 INPUTS = {"acc": f_b, "gyro": omega_d}
 OUTPUT_UNIT = {"acc": "g", "gyro": "deg/h"}
@@ -62,13 +63,20 @@ class ErrorModel:
         dup = {n for n in names if names.count(n) > 1}
         if dup:
             raise ValueError(f"model {self.name}: duplicate term names {sorted(dup)}")
-        allowed = set(self.inputs) | set(self.aux) | {t.symbol for t in self.terms}
+        known = set(self.inputs) | set(self.params)
         for t in self.terms:
-            stray = t.regressor.free_symbols - allowed
-            if stray:
-                raise ValueError(
-                    f"model {self.name}, term {t.name}: regressor uses unknown symbols "
-                    f"{sorted(map(str, stray))}; allowed are {sorted(map(str, allowed))}")
+            for s in t.regressor.free_symbols - known:
+                name = str(s)
+                if name in SENSOR_AUX[self.sensor]:
+                    continue
+                if name in RESERVED or name in AUX_INPUTS:
+                    raise ValueError(
+                        f"model {self.name}, term {t.name}: {name} is not an input of {self.sensor} terms; they may "
+                        f"use {sorted(map(str, self.inputs))}, {list(SENSOR_AUX[self.sensor])}, their parameters "
+                        "and samples.csv columns (frames.column_input)")
+                if not name.isidentifier():
+                    raise ValueError(f"model {self.name}, term {t.name}: symbol {name!r} cannot name a samples.csv "
+                                     "column; use an identifier (frames.column_input)")
 
     @property
     def inputs(self) -> tuple[sp.Symbol, ...]:
@@ -76,8 +84,12 @@ class ErrorModel:
 
     @property
     def aux(self) -> tuple[sp.Symbol, ...]:
-        """Auxiliary inputs: temperature, time, and for gyros the specific force."""
-        return AUX + (tuple(f_b) if self.sensor == "gyro" else (w2,))
+        """Auxiliary inputs, in the order the generated functions take them: the sensor's
+        built-in ones (frames.SENSOR_AUX), then the samples.csv columns its terms use, sorted."""
+        builtin = tuple(AUX_INPUTS[n].symbol for n in SENSOR_AUX[self.sensor])
+        used = set().union(*(t.regressor.free_symbols for t in self.terms)) if self.terms else set()
+        columns = used - set(self.inputs) - set(self.params) - set(builtin)
+        return builtin + tuple(sorted(columns, key=str))
 
     @property
     def params(self) -> tuple[sp.Symbol, ...]:

@@ -15,6 +15,7 @@ import numpy as np
 from simucal import io
 from simucal.errors import CalibrationError
 from simucal.fit.augmented import AugmentedModel
+from simucal.fit.aux_inputs import SENSOR_AUX, AuxInputs, columns_at, specific_force
 from simucal.generated.effects import EFFECTS
 from simucal.io import calibration, units
 
@@ -24,21 +25,21 @@ def _affine_effects(block):
     M, bias = np.array(block["M"]), np.array(block["bias"])
     effects = [(EFFECTS[e], v["value"]) for e, v in block["effects"].items()]
 
-    def h(u, temp, t, extra):
+    def h(u, aux: AuxInputs):
         N = u @ M.T + bias
         J = np.broadcast_to(M, u.shape + (3,)).copy()
-        for (_, axis, _, _, _, fn), p in effects:
-            phi, dphi = fn(u, temp, t, extra)
-            N[:, axis] += p * np.broadcast_to(phi[..., 0], len(u))
-            J[:, axis, :] += p * np.broadcast_to(dphi, u.shape)
+        for effect, p in effects:
+            phi, dphi = effect.phi(u, aux.array(SENSOR_AUX[effect.sensor], u.shape[:-1]))
+            N[:, effect.axis] += p * np.broadcast_to(phi[..., 0], len(u))
+            J[:, effect.axis, :] += p * np.broadcast_to(dphi, u.shape)
         return N, J
     return h
 
 
 def model_function(model: AugmentedModel, p, C=np.eye(3)):
     """h(u_b) = model output at C u_b with parameters p, and dh/du_b."""
-    def h(u_b, temp, t, extra):
-        N, Ju, _ = model.jacobians(u_b @ C.T, p, temp, t, extra)
+    def h(u_b, aux: AuxInputs):
+        N, Ju, _ = model.jacobians(u_b @ C.T, p, aux)
         return N, Ju @ C
     return h
 
@@ -49,13 +50,13 @@ def _generated(block):
                           np.array(block.get("C_b_model", np.eye(3))))
 
 
-def solve_inputs(h, M, bias, N, temp, t, extra, sensor, where) -> np.ndarray:
+def solve_inputs(h, M, bias, N, aux: AuxInputs, sensor, where) -> np.ndarray:
     """u_b with h(u_b) = N, every row (n, 3): linear start M^-1 (N - bias), then Newton."""
     u = np.linalg.solve(M, (N - bias).T).T
     # per row: 1e-11 of its size, or of 1e-6 of the largest input (rows at rest are near 0)
     tol = 1e-11 * np.maximum(np.abs(u).max(axis=1), 1e-6 * max(np.abs(u).max(), 1e-300))
     for _ in range(30):
-        r, J = h(u, temp, t, extra)
+        r, J = h(u, aux)
         du = np.linalg.solve(J, (r - N)[..., None])[..., 0]
         u = u - du
         if np.all(np.abs(du).max(axis=1) <= tol):
@@ -68,10 +69,10 @@ def solve_inputs(h, M, bias, N, temp, t, extra, sensor, where) -> np.ndarray:
                            "calibrated model can produce")
 
 
-def invert(block, sensor, N, temp, t, extra, where) -> np.ndarray:
+def invert(block, sensor, N, aux: AuxInputs, where) -> np.ndarray:
     """u_b with h(u_b) = N for a calibration block, every row (n, 3)."""
     h = _affine_effects(block) if block["model"] == "affine" else _generated(block)
-    return solve_inputs(h, np.array(block["M"]), np.array(block["bias"]), N, temp, t, extra, sensor, where)
+    return solve_inputs(h, np.array(block["M"]), np.array(block["bias"]), N, aux, sensor, where)
 
 
 def apply(cal: dict, folder, where="the calibration"):
@@ -79,20 +80,20 @@ def apply(cal: dict, folder, where="the calibration"):
     ms = io.read(folder)
     calibration.check_layout(cal, ms, where)
     n = len(ms.samples["t_s"])
-    t = ms.samples["t_s"]
-    temp = ms.samples.get("temp_c", np.zeros(n))
-    samples = {k: v for k, v in ms.samples.items() if k in ("segment", "t_s", "temp_c")}
+    aux = AuxInputs(columns_at(ms.samples, slice(None)))
+    samples = {k: v for k, v in ms.samples.items() if k not in io.SAMPLE_COLS}  # the keys and auxiliary columns
     f_b = None
     if ms.has_acc:
         rate = {s.segment: s.outer_rate_dps for s in (ms.segments or [])}
         w2 = (np.radians([rate.get(s, 0.0) for s in ms.samples["segment"]]) ** 2 / units.gravity(ms.meta)
               if "segment" in ms.samples else np.zeros(n))
-        f_b = invert(cal["acc"], "acc", ms.acc_g(), temp, t, w2, ms.path / "samples.csv")
+        f_b = invert(cal["acc"], "acc", ms.acc_g(), aux.with_values(w2=w2), ms.path / "samples.csv")
         samples.update(ax=f_b[:, 0], ay=f_b[:, 1], az=f_b[:, 2])
     if ms.has_gyro:
         C = np.array(cal["gyro"].get("C_b_model", np.eye(3)))
         f_model = f_b @ C.T if f_b is not None else np.zeros((n, 3))
-        w_b = invert(cal["gyro"], "gyro", ms.gyro_dph(), temp, t, f_model, ms.path / "samples.csv")
+        w_b = invert(cal["gyro"], "gyro", ms.gyro_dph(), aux.with_values(**specific_force(f_model)),
+                     ms.path / "samples.csv")
         samples.update(gx=w_b[:, 0], gy=w_b[:, 1], gz=w_b[:, 2])
     meta = {k: v for k, v in ms.meta.items() if k not in calibration.LAYOUT_KEYS + ("full_scale", "format")}
     meta.update(acc_unit="g", gyro_unit="deg/h",

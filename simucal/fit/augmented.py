@@ -1,6 +1,6 @@
 """A generated baseline model plus candidate effects from generated/effects.py.
 
-N(u, p, q) = N_base(u, p) + sum_k q_k * phi_k(u, temp_c, t_s) * e_axis(k)
+N(u, p, q) = N_base(u, p, aux) + sum_k q_k * phi_k(u, aux) * e_axis(k)
 
 Both halves are generated from derive/, so fitting baseline + candidate is
 the exact solver on the derived model, with no re-derivation at run time.
@@ -9,13 +9,14 @@ from __future__ import annotations
 
 import numpy as np
 
+from simucal.fit.aux_inputs import SENSOR_AUX, AuxInputs
 from simucal.fit.catalog import derive_model_file, load
-from simucal.fit.models import GeneratedModel, aux_args
+from simucal.fit.models import GeneratedModel
 from simucal.generated.effects import EFFECTS
 
 
 def effect_ids(sensor: str) -> list[str]:
-    return [k for k, v in EFFECTS.items() if v[0] == sensor]
+    return [k for k, v in EFFECTS.items() if v.sensor == sensor]
 
 
 def check_effect(eid: str, sensor: str | None = None):
@@ -29,8 +30,8 @@ def check_effect(eid: str, sensor: str | None = None):
         raise KeyError(f"unknown effect {eid!r}" + (f"; did you mean {', '.join(near[:9])}?" if near else "")
                        + f" Ids are <sensor>.<family>.<axis>, families {fam}, axes x, y, z (and pairs xy, ...). "
                        "A term of your own: a model file (--add my_model.py)")
-    if sensor is not None and EFFECTS[eid][0] != sensor:
-        raise KeyError(f"effect {eid} is for the {EFFECTS[eid][0]}, not the {sensor}")
+    if sensor is not None and EFFECTS[eid].sensor != sensor:
+        raise KeyError(f"effect {eid} is for the {EFFECTS[eid].sensor}, not the {sensor}")
 
 
 class AugmentedModel:
@@ -42,32 +43,33 @@ class AugmentedModel:
         self.sensor, self.unit = self.base.sensor, self.base.unit
         self.name = self.base.name + "".join(f"+{e}" for e in self.effects)
         self.params = tuple(self.base.params) + self.effects
-        self.param_units = tuple(self.base.param_units) + tuple(EFFECTS[e][3] for e in self.effects)
-        self.meanings = tuple(self.base.meanings) + tuple(EFFECTS[e][4] for e in self.effects)
+        self.param_units = tuple(self.base.param_units) + tuple(EFFECTS[e].unit for e in self.effects)
+        self.meanings = tuple(self.base.meanings) + tuple(EFFECTS[e].meaning for e in self.effects)
+        self.aux = self.base.aux
         self._m = len(self.base.params)
 
-    def _terms(self, u, temp_c, t_s, extra=None):
-        aux = aux_args(self.sensor, temp_c, t_s, extra)
+    def _terms(self, u, aux: AuxInputs | None):
+        if not self.effects:
+            return
+        A = (aux or AuxInputs()).array(SENSOR_AUX[self.sensor], np.shape(u)[:-1])  # built-in inputs only: 0 by default
         for e in self.effects:
-            phi_fn = EFFECTS[e][5]
-            axis = EFFECTS[e][1]
-            phi, dphi = phi_fn(u, *aux)
-            yield axis, np.broadcast_to(phi[..., 0], np.shape(u)[:-1]), dphi
+            phi, dphi = EFFECTS[e].phi(u, A)
+            yield EFFECTS[e].axis, np.broadcast_to(phi[..., 0], np.shape(u)[:-1]), dphi
 
-    def output(self, u, p, temp_c=0.0, t_s=0.0, extra=None):
+    def output(self, u, p, aux: AuxInputs | None = None):
         p = np.asarray(p, float)
-        N = self.base.output(u, p[..., :self._m], temp_c, t_s, extra)
+        N = self.base.output(u, p[..., :self._m], aux)
         batch = p.ndim > 1 and np.ndim(u) > 2  # one p per set: its effects broadcast over the set's rows
-        for q, (axis, phi, _) in zip(np.moveaxis(p[..., self._m:], -1, 0), self._terms(u, temp_c, t_s, extra)):
+        for q, (axis, phi, _) in zip(np.moveaxis(p[..., self._m:], -1, 0), self._terms(u, aux)):
             N[..., axis] += (q[..., None] if batch else q) * phi
         return N
 
-    def jacobians(self, u, p, temp_c=0.0, t_s=0.0, extra=None):
+    def jacobians(self, u, p, aux: AuxInputs | None = None):
         """As GeneratedModel.jacobians, rows (n, 3) with one p, or a batch u (S, n, 3), p (S, m)."""
         p = np.asarray(p, float)
-        N, Ju, Jp = self.base.jacobians(u, p[..., :self._m], temp_c, t_s, extra)
+        N, Ju, Jp = self.base.jacobians(u, p[..., :self._m], aux)
         cols = []
-        for q, (axis, phi, dphi) in zip(np.moveaxis(p[..., self._m:], -1, 0), self._terms(u, temp_c, t_s, extra)):
+        for q, (axis, phi, dphi) in zip(np.moveaxis(p[..., self._m:], -1, 0), self._terms(u, aux)):
             q = np.asarray(q)[..., None] if p.ndim > 1 else q
             N[..., axis] += q * phi
             Ju[..., axis, :] += q[..., None] * dphi if np.ndim(q) else q * dphi
@@ -78,13 +80,13 @@ class AugmentedModel:
             Jp = np.concatenate([Jp, np.stack(cols, axis=-1)], axis=-1)
         return N, Ju, Jp
 
-    def matrix_and_bias(self, p, temp_c=0.0, t_s=0.0, extra=None):
-        return self.base.matrix_and_bias(np.asarray(p, float)[..., :self._m], temp_c, t_s, extra)
+    def matrix_and_bias(self, p, aux: AuxInputs | None = None):
+        return self.base.matrix_and_bias(np.asarray(p, float)[..., :self._m], aux)
 
-    def norm_regressors(self, N, temp_c=0.0, t_s=0.0, extra=None):
+    def norm_regressors(self, N, aux: AuxInputs | None = None):
         if self.effects:
             raise NotImplementedError("the linear norm regression exists for derived models only")
-        return self.base.norm_regressors(N, temp_c, t_s, extra)
+        return self.base.norm_regressors(N, aux)
 
     def params_of_K(self, K, first_order=False):
         return self.base.params_of_K(K, first_order)

@@ -22,9 +22,9 @@ import numpy as np
 
 from simucal.errors import CalibrationError
 from simucal.fit.augmented import AugmentedModel, effect_ids
+from simucal.fit.aux_inputs import SENSOR_AUX
 from simucal.fit.distributions import chi2_sf, f_sf
 from simucal.fit.lack_of_fit import describe_shape, fit_with_noise, lack_of_fit
-from simucal.fit.models import aux_args
 from simucal.fit.norm_fit import Fit, Observations, dense_jacobian, fit_exact
 from simucal.generated.effects import EFFECTS, SEPARATE
 
@@ -41,9 +41,9 @@ def rank_candidates(model: AugmentedModel, obs: Observations, fit: Fit, base_fai
     ids = [e for e in effect_ids(model.sensor) if e not in model.effects]
     cols, out = {}, []
     for eid in ids:
-        _, axis, pname, unit, meaning, f = EFFECTS[eid]
-        aux = aux_args(model.sensor, obs.temp_c, obs.t_s, obs.extra)
-        phi = np.broadcast_to(f(u, *aux)[0][..., 0], (len(u),))
+        axis, pname, unit, meaning = (getattr(EFFECTS[eid], k) for k in ("axis", "parameter", "unit", "meaning"))
+        phi = np.broadcast_to(EFFECTS[eid].phi(u, obs.aux.array(SENSOR_AUX[model.sensor], (len(u),)))[0][..., 0],
+                              (len(u),))
         col = np.zeros((len(u), 3))
         col[:, axis] = phi
         col = (col / sig).ravel()

@@ -25,17 +25,19 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
+from simucal.fit.aux_inputs import DEFAULT_ZERO, SENSOR_AUX, AuxInputs
 from simucal.fit.distributions import chi2_sf, f_sf
 from simucal.fit.norm_fit import Fit, Observations, dense_jacobian, fit_exact
 
 DPS = 3600.0  # deg/h per deg/s: gyro rates enter generic terms in deg/s (as in derive/models/effects.py)
+FORCE = ("f_x", "f_y", "f_z")  # the specific force, as gyro terms read it
 
 
 @dataclass
 class GenericTerm:
     axis: int          # output axis
     exponents: tuple   # powers of the three input components (empty for aux terms)
-    aux: str | None    # "t_s", "temp_c", "w2" or "f_x".. (gyro specific force), else None
+    aux: str | None    # an auxiliary input's name (t_s, temp_c, w2, f_x.., a user's column), else None
     sensor: str
 
     @property
@@ -53,15 +55,18 @@ class GenericTerm:
 
     def sympy(self) -> str:
         """The regressor as SymPy source for a model file (derive.frames symbols)."""
+        if self.aux in FORCE:
+            return f"f_b[{FORCE.index(self.aux)}]"
         if self.aux:
-            return {"t_s": "t_s", "temp_c": "temp_c", "w2": "w2"}.get(self.aux) or f"f_b[{'xyz'.index(self.aux[-1])}]"
+            return self.aux if self.aux in DEFAULT_ZERO else f"column_input({self.aux!r})"
         v = "f_b[{}]" if self.sensor == "acc" else "(omega_d[{}] / 3600)"
         return " * ".join(v.format(i) + (f"**{e}" if e > 1 else "") for i, e in enumerate(self.exponents) if e)
 
     def unit(self) -> str:
         out = "g" if self.sensor == "acc" else "deg/h"
         if self.aux:
-            return {"t_s": f"{out}/s", "temp_c": f"{out}/degC", "w2": "m"}.get(self.aux, f"({out})/g")
+            return {"t_s": f"{out}/s", "temp_c": f"{out}/degC", "w2": "m"}.get(
+                self.aux, f"({out})/g" if self.aux in FORCE else f"{out} per unit of {self.aux}")
         return f"{out}/g^{self.degree}" if self.sensor == "acc" else f"({out})/(deg/s)^{self.degree}"
 
     def name(self) -> str:
@@ -73,20 +78,13 @@ class GenericTerm:
     def parity(self) -> str:
         if self.aux:
             return {"t_s": "linear in time", "temp_c": "linear in temperature", "w2": "with the centripetal scale"}.get(
-                self.aux, "proportional to the specific force")
+                self.aux, "proportional to the specific force" if self.aux in FORCE else f"linear in {self.aux}")
         parts = [f"{'odd' if e % 2 else 'even'} in {self.symbol(i)}" for i, e in enumerate(self.exponents) if e]
         return ", ".join(parts) + f", {('second', 'third')[self.degree - 2]} degree"
 
     def values(self, u, obs: Observations) -> np.ndarray:
-        n = len(u)
-        if self.aux == "t_s":
-            return np.broadcast_to(np.asarray(obs.t_s, float), (n,)).copy()
-        if self.aux == "temp_c":
-            return np.broadcast_to(np.asarray(obs.temp_c, float), (n,)).copy()
-        if self.aux == "w2":
-            return np.broadcast_to(np.asarray(obs.extra, float), (n,)).copy()
         if self.aux:
-            return np.asarray(obs.extra, float)[:, "xyz".index(self.aux[-1])]
+            return np.broadcast_to(np.asarray(obs.aux.get(self.aux), float), (len(u),)).copy()
         x = u if self.sensor == "acc" else u / DPS
         return np.prod([x[:, i] ** e for i, e in enumerate(self.exponents)], axis=0)
 
@@ -97,12 +95,12 @@ def catalog_id(term: GenericTerm) -> str | None:
     from simucal.generated.effects import EFFECTS
     rng = np.random.default_rng(0)
     u = rng.normal(size=(6, 3)) * (1.0 if term.sensor == "acc" else DPS)
-    obs = Observations(u, np.ones(6), None, rng.normal(size=6), rng.normal(size=6), [],
-                       rng.normal(size=(6, 3)) if term.sensor == "gyro" else rng.normal(size=6))
+    aux = AuxInputs({name: rng.normal(size=6) for name in SENSOR_AUX[term.sensor]})
+    obs = Observations(u, np.ones(6), None, aux)
     mine = term.values(u, obs)
-    for eid, (sensor, axis, _, _, _, fn) in EFFECTS.items():
-        if sensor == term.sensor and axis == term.axis:
-            phi = np.broadcast_to(fn(u, obs.temp_c, obs.t_s, obs.extra)[0][..., 0], (6,))
+    for eid, effect in EFFECTS.items():
+        if effect.sensor == term.sensor and effect.axis == term.axis:
+            phi = np.broadcast_to(effect.phi(u, aux.array(SENSOR_AUX[term.sensor], (6,)))[0][..., 0], (6,))
             if np.allclose(phi, mine, rtol=1e-9, atol=1e-12):
                 return eid
     return None
@@ -112,15 +110,8 @@ def generic_terms(sensor: str, obs: Observations) -> list[GenericTerm]:
     """Pure powers first, so that a tie (monomials are dependent on a sphere) names the simplest."""
     mono = [e for d in (2, 3) for e in itertools.product(range(d + 1), repeat=3) if sum(e) == d]
     mono.sort(key=lambda e: (sum(e), -max(e)))
-    aux = []
-    if np.ptp(np.atleast_1d(obs.t_s)) > 0:
-        aux.append("t_s")
-    if np.ptp(np.atleast_1d(obs.temp_c)) > 0:
-        aux.append("temp_c")
-    if sensor == "acc" and obs.extra is not None and np.ptp(np.atleast_1d(obs.extra)) > 0:
-        aux.append("w2")
-    if sensor == "gyro" and obs.extra is not None:
-        aux += ["f_x", "f_y", "f_z"]
+    names = list(SENSOR_AUX[sensor]) + sorted(set(obs.aux.values) - DEFAULT_ZERO)  # then a user's columns
+    aux = [x for x in names if np.ptp(np.atleast_1d(obs.aux.get(x))) > 0]  # inputs that vary over the positions
     return [GenericTerm(a, e, None, sensor) for e in mono for a in range(3)] + \
         [GenericTerm(a, (), x, sensor) for x in aux for a in range(3)]
 
@@ -242,7 +233,7 @@ def model_file_text(base_model: str, effect_ids, shape: dict, sensor: str) -> st
     return (f'"""A model with the term simucal diagnose found: {shape["text"]}.\n\n'
             f"Use it: simucal calibrate DIR --add THIS_FILE (or diagnose --add THIS_FILE).\n"
             '"""\n'
-            "from simucal.derive.frames import f_b, omega_d, t_s, temp_c, w2  # noqa: F401\n"
+            "from simucal.derive.frames import column_input, f_b, omega_d, t_s, temp_c, w2  # noqa: F401\n"
             "from simucal.derive.models import Term\n"
             "from simucal.derive.models.effects import CANDIDATES  # noqa: F401\n"
             f"from {src} import {const[base_model]}\n\n"

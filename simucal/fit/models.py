@@ -14,6 +14,8 @@ from pathlib import Path
 
 import numpy as np
 
+from simucal.fit.aux_inputs import AuxInputs
+
 
 class StaleGeneratedCode(RuntimeError):
     pass
@@ -74,13 +76,6 @@ def _bind_fit(lib, name):
     return f
 
 
-def aux_args(sensor, temp_c, t_s, extra):
-    """(temp_c, t_s, extra) with the sensor's default extra input (zero force or rate)."""
-    if extra is None:
-        extra = np.zeros(3) if sensor == "gyro" else 0.0
-    return temp_c, t_s, extra
-
-
 class GeneratedModel:
     """An error model from generated/ (or a user's model from the cache): N(u, p), its
     Jacobians, the norm regression. `module` is the generated numpy module, `c_source`
@@ -93,6 +88,7 @@ class GeneratedModel:
         self.param_units = self.module.PARAM_UNITS
         self.meanings = getattr(self.module, "MEANINGS", ("",) * len(self.params))
         self.source = getattr(self.module, "SOURCE", "built-in")
+        self.aux = self.module.AUX
         self._c = self._fit = None
         if compiled and c_source is not None:
             lib = compile_c(name, c_source)
@@ -105,12 +101,12 @@ class GeneratedModel:
     def backend(self) -> str:
         return "casadi-c" if self._c is not None else "numpy"
 
-    def aux_rows(self, n, temp_c=0.0, t_s=0.0, extra=None) -> np.ndarray:
-        """(n, naux): temp_c, t_s and the sensor's extra input per row, as the C takes them."""
-        aux = self._aux(temp_c, t_s, extra)
-        cols = [np.broadcast_to(temp_c, (n,)), np.broadcast_to(t_s, (n,))]
-        cols += list(np.broadcast_to(aux[2], (n, 3)).T) if self.sensor == "gyro" else [np.broadcast_to(aux[2], (n,))]
-        return np.column_stack(cols)
+    def aux_array(self, aux: AuxInputs | None, shape=None) -> np.ndarray:
+        """The auxiliary inputs in this model's order (AUX), (*shape, naux), as its functions take them.
+        None: the nominal point, every input 0 (M and the bias a calibration file reports)."""
+        if aux is None:
+            return np.zeros(tuple(shape or ()) + (len(self.aux),))
+        return aux.array(self.aux, shape)
 
     def fit_compiled(self, N, rho, sig, aux, p0, max_iter=200, tol=1e-12):
         """The whole exact fit in one compiled call (derive/templates/exact_fit.c) for a batch of
@@ -127,30 +123,25 @@ class GeneratedModel:
         self._fit(S, n, N, rho, sig, aux, p0, max_iter, tol, p, cov, u, cost, iters, status)
         return p, cov, u, cost, iters, status
 
-    def _aux(self, temp_c, t_s, extra):
-        """The generated functions' auxiliary arguments. `extra` is the sensor's own: for
-        gyros the specific force f (n, 3) in g, for accelerometers w2 = w_T^2 / g (1/m)."""
-        return aux_args(self.sensor, temp_c, t_s, extra)
-
-    def output(self, u, p, temp_c=0.0, t_s=0.0, extra=None):
-        p = np.asarray(p, float)
-        if p.ndim > 1 and np.ndim(u) > 2:  # a batch: one p per set
+    def output(self, u, p, aux: AuxInputs | None = None):
+        u, p = np.asarray(u, float), np.asarray(p, float)
+        if p.ndim > 1 and u.ndim > 2:  # a batch: one p per set
             p = p[..., None, :]
-        return self.module.output(u, p, *self._aux(temp_c, t_s, extra))
+        return self.module.output(u, p, self.aux_array(aux, u.shape[:-1]))
 
-    def jacobians(self, u, p, temp_c=0.0, t_s=0.0, extra=None):
+    def jacobians(self, u, p, aux: AuxInputs | None = None):
         """N, dN/du (n,3,3), dN/dp (n,3,m) for rows u (n,3) and one p (m,); or for a batch of sets,
         u (S, n, 3) and p (S, m) (the numpy module, vectorised over the sets)."""
-        aux = self._aux(temp_c, t_s, extra)
         u, p = np.asarray(u, float), np.asarray(p, float)
+        A = self.aux_array(aux, u.shape[:-1])
         if p.ndim > 1:  # one p per set: broadcast it over the set's rows
             p = p[..., None, :]
         if self._c is None or u.ndim > 2 or p.ndim > 1:
-            N = self.module.output(u, p, *aux)
-            Ju, Jp = self.module.output_jacobians(u, p, *aux)
+            N = self.module.output(u, p, A)
+            Ju, Jp = self.module.output_jacobians(u, p, A)
             return N, Ju, Jp
         n, m = len(u), len(self.params)
-        N, Ju, Jp = self._mapped(n)(np.asarray(u, float).T, np.asarray(p, float), self.aux_rows(n, *aux).T)
+        N, Ju, Jp = self._mapped(n)(u.T, p, A.T)
         N = np.asarray(N).T
         Ju = np.asarray(Ju).reshape(3, n, 3).transpose(1, 0, 2)
         Jp = np.asarray(Jp).reshape(3, n, m).transpose(1, 0, 2)
@@ -160,15 +151,17 @@ class GeneratedModel:
     def _mapped(self, n):
         return self._c.map(n, "serial")
 
-    def norm_regressors(self, N, temp_c=0.0, t_s=0.0, extra=None):
-        return self.module.norm_regressors(N, *self._aux(temp_c, t_s, extra))
+    def norm_regressors(self, N, aux: AuxInputs | None = None):
+        N = np.asarray(N, float)
+        return self.module.norm_regressors(N, self.aux_array(aux, N.shape[:-1]))
 
     def params_of_K(self, K, first_order=False):
         f = self.module.params_of_K_first_order if first_order else self.module.params_of_K
         return f(K)
 
-    def matrix_and_bias(self, p, temp_c=0.0, t_s=0.0, extra=None):
-        return self.module.matrix_and_bias(p, *self._aux(temp_c, t_s, extra))
+    def matrix_and_bias(self, p, aux: AuxInputs | None = None):
+        """M and the bias (the model at u = 0), per row where the auxiliary inputs vary."""
+        return self.module.matrix_and_bias(p, self.aux_array(aux))
 
 
 def load_builtin(name: str, compiled: bool = True) -> GeneratedModel | None:

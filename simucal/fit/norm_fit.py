@@ -21,6 +21,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from simucal.errors import CalibrationError
+from simucal.fit.aux_inputs import AuxInputs
 from simucal.fit.distributions import chi2_sf
 
 
@@ -29,10 +30,8 @@ class Observations:
     N: np.ndarray                  # (n, 3) mean outputs
     rho: np.ndarray                # (n,) known input norm
     sigma: np.ndarray | None = None  # (n, 3) std of each mean, or None (unknown)
-    temp_c: np.ndarray | float = 0.0
-    t_s: np.ndarray | float = 0.0
+    aux: AuxInputs = field(default_factory=AuxInputs)  # temp_c, t_s, f_x.. or w2, a user's columns: per row
     labels: list = field(default_factory=list)  # segment ids, for messages
-    extra: np.ndarray | None = None  # gyro: specific force (n, 3) in g; acc: w2 = w_T^2 / g (n,) in 1/m
 
 
 @dataclass
@@ -100,7 +99,7 @@ def unobservable(H, names, tol=1e-10):
 
 def _linear_K(model, obs: Observations):
     """eq. 8 / 12: least squares of rho^2 on the derived columns psi(N): (K, Psi, rho^2)."""
-    Psi = model.norm_regressors(obs.N, obs.temp_c, obs.t_s, obs.extra)
+    Psi = model.norm_regressors(obs.N, obs.aux)
     y = obs.rho ** 2
     return np.linalg.lstsq(Psi, y, rcond=None)[0], Psi, y
 
@@ -149,7 +148,7 @@ def _start_cost(model, obs, p):
         u = initial_directions(model, obs, p)
     except np.linalg.LinAlgError:
         return np.inf
-    r = obs.N - model.output(obs.rho[:, None] * u, p, obs.temp_c, obs.t_s, obs.extra)
+    r = obs.N - model.output(obs.rho[:, None] * u, p, obs.aux)
     c = float(np.sum((r / (obs.sigma if obs.sigma is not None else 1.0)) ** 2))
     return c if np.isfinite(c) else np.inf
 
@@ -157,13 +156,13 @@ def _start_cost(model, obs, p):
 def jacobian_blocks(model, obs, p, u, sig):
     """The exact problem's weighted residual and Jacobian at (p, directions u):
     r (n,3), dr/dp (n,3,m), dr/d(tangent step) (n,3,2), and the tangent bases E (n,3,2)."""
-    return _blocks(model, obs.N, obs.rho, sig, p, u, (obs.temp_c, obs.t_s, obs.extra))
+    return _blocks(model, obs.N, obs.rho, sig, p, u, obs.aux)
 
 
 def _blocks(model, N, rho, sig, p, u, aux):
     """jacobian_blocks for one set (N (n, 3), p (m,)) or a batch (N (S, n, 3), p (S, m))."""
     rho3 = rho[..., None]
-    Nm, Ju, Jp = model.jacobians(rho3 * u, p, *aux)
+    Nm, Ju, Jp = model.jacobians(rho3 * u, p, aux)
     E = tangent_basis(u)
     r = (N - Nm) / sig
     Jd = -(Ju @ (rho3[..., None] * E)) / sig[..., None]
@@ -219,7 +218,7 @@ def full_covariance(model, obs, fit):
 
 
 def initial_directions(model, obs, p):
-    M, b = model.matrix_and_bias(p, obs.temp_c, obs.t_s, obs.extra)
+    M, b = model.matrix_and_bias(p, obs.aux)
     u = np.linalg.solve(M, (obs.N - b)[..., None])[..., 0]
     return u / np.linalg.norm(u, axis=1, keepdims=True)
 
@@ -287,9 +286,8 @@ def fit_exact(model, obs: Observations, p0=None, max_iter=200, tol=1e-12, prior=
     if compiled is not None:
         return compiled
     sig = np.broadcast_to(obs.sigma if obs.sigma is not None else 1.0, (n, 3))
-    aux = (obs.temp_c, obs.t_s, obs.extra)
     p, u, cost, H, it, status = fit_batch(model, obs.N[None], obs.rho[None], sig[None], np.asarray(p0, float)[None],
-                                          aux, max_iter, tol, prior)
+                                          obs.aux, max_iter, tol, prior)
     p, u, cost, H, it, status = p[0], u[0], float(cost[0]), H[0], int(it[0]), int(status[0])
     if status == 3:
         dead = [model.params[j] for j in np.nonzero(np.diag(H) <= 1e-300)[0]]
@@ -311,10 +309,10 @@ def fit_exact(model, obs: Observations, p0=None, max_iter=200, tol=1e-12, prior=
     return _finish(model, obs, p, u, np.linalg.inv(H / np.outer(dH, dH)) / np.outer(dH, dH), H, cost, it)
 
 
-def fit_batch(model, N, rho, sig, p0, aux=(0.0, 0.0, None), max_iter=200, tol=1e-12, prior=None):
+def fit_batch(model, N, rho, sig, p0, aux=None, max_iter=200, tol=1e-12, prior=None):
     """The Levenberg-Marquardt loop of fit_exact for S data sets at once, numpy vectorised over
     the sets (the compiled whole fit does the same steps in C): N, sig (S, n, 3), rho (S, n),
-    p0 (S, m); aux (temp_c, t_s, extra) shared by the sets. prior: {parameter: (value, std)}.
+    p0 (S, m); aux (AuxInputs) shared by the sets, per row. prior: {parameter: (value, std)}.
     Returns p (S, m), u (S, n, 3), cost without the prior (S,), the last H (S, m, m), the
     iterations (S,) and a status (S,): 0 converged, 1 not converged, 2 singular, 3 a parameter
     without any input (as derive/templates/exact_fit.c)."""
@@ -325,7 +323,7 @@ def fit_batch(model, N, rho, sig, p0, aux=(0.0, 0.0, None), max_iter=200, tol=1e
     held_w = np.array([1.0 / prior[k][1] ** 2 for k in (prior or {})])
     rho3 = rho[..., None]
     p = np.array(p0, float)
-    M, b = model.matrix_and_bias(p[:, None, :], *aux)  # initial directions: M u = N - b
+    M, b = model.matrix_and_bias(p[:, None, :], aux)  # initial directions: M u = N - b
     u = np.linalg.solve(M, (N - b)[..., None])[..., 0]
     u /= np.linalg.norm(u, axis=2, keepdims=True)
     cost = _costs(model, N, rho3, sig, aux, p, u, held, held_val, held_w)
@@ -393,7 +391,7 @@ def fit_batch(model, N, rho, sig, p0, aux=(0.0, 0.0, None), max_iter=200, tol=1e
 
 def _costs(model, N, rho3, sig, aux, p, u, held, held_val, held_w):
     """Each set's weighted sum of squares, with the prior's pseudo-observations."""
-    c = np.sum(((N - model.output(rho3 * u, p, *aux)) / sig) ** 2, axis=(1, 2))
+    c = np.sum(((N - model.output(rho3 * u, p, aux)) / sig) ** 2, axis=(1, 2))
     return c + (np.sum(held_w * (p[:, held] - held_val) ** 2, axis=1) if held else 0.0)
 
 
@@ -405,7 +403,7 @@ def _finish(model, obs, p, u, cov, H, cost, it) -> Fit:
         raise CalibrationError(f"the {model.sensor} plan leaves these parameter combinations unobservable: {bad}; "
                                "add positions (other input directions, temperatures or times) that change them")
     n, m = len(obs.N), len(model.params)
-    res_phys = (obs.N - model.output(obs.rho[:, None] * u, p, obs.temp_c, obs.t_s, obs.extra))
+    res_phys = (obs.N - model.output(obs.rho[:, None] * u, p, obs.aux))
     dof = n - m
     chi2 = p_value = None
     if obs.sigma is not None:
@@ -430,7 +428,7 @@ def _fit_compiled(model, obs, p0, max_iter, tol) -> Fit | None:
     n = len(obs.N)
     sig = np.broadcast_to(obs.sigma if obs.sigma is not None else 1.0, (n, 3))
     out = base.fit_compiled(obs.N[None], obs.rho[None], sig[None],
-                            base.aux_rows(n, obs.temp_c, obs.t_s, obs.extra)[None], np.asarray(p0, float)[None],
+                            base.aux_array(obs.aux, (n,))[None], np.asarray(p0, float)[None],
                             max_iter, tol)
     if out is None or out[5][0] != 0:
         return None

@@ -19,12 +19,19 @@ sense contradicts the accelerometers (wrong sign, rate or axes) are refused.
 """
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 
 from simucal.errors import CalibrationError
 from simucal.fit.augmented import AugmentedModel
+from simucal.fit.aux_inputs import (
+    SENSOR_AUX,
+    AuxInputs,
+    column_means,
+    columns_at,
+    specific_force,
+)
 from simucal.fit.distributions import chi2_sf
 from simucal.fit.noise import quantization_step, white_noise_var
 from simucal.fit.norm_fit import (
@@ -277,7 +284,7 @@ def with_model_error(model, obs: Observations, fit, prior=None, alpha=0.01):
         mid = (lo + hi) / 2
         lo, hi = (mid, hi) if np.sum(r2 / (s2 + mid)) > fit.dof else (lo, mid)
     tau2 = (lo + hi) / 2
-    obs2 = Observations(obs.N, obs.rho, np.sqrt(s2 + tau2), obs.temp_c, obs.t_s, obs.labels, obs.extra)
+    obs2 = replace(obs, sigma=np.sqrt(s2 + tau2))
     refit = fit_exact(model, obs2, p0=fit.vector(model.params), prior=prior)
     refit.chi2, refit.p_value = fit.chi2, fit.p_value  # the test is the one without the extra variance
     return refit, float(np.sqrt(tau2))
@@ -336,9 +343,8 @@ def pose_observations(ms, detect=None, pose_window_s=1.0):
     rail_poses(ms, poses)
     N = np.array([acc[a:b].mean(0) for a, b in poses])
     sig = np.array([acc[a:b].std(0, ddof=1) / np.sqrt(b - a) for a, b in poses])
-    temp = (np.array([ms.samples["temp_c"][a:b].mean() for a, b in poses]) if "temp_c" in ms.samples else 0.0)
-    obs = Observations(N, np.ones(len(N)), np.maximum(sig, 1e-12), temp,
-                       np.array([t[a:b].mean() for a, b in poses]), list(range(len(poses))))
+    aux = AuxInputs(column_means(ms.samples, [slice(a, b) for a, b in poses]))
+    obs = Observations(N, np.ones(len(N)), np.maximum(sig, 1e-12), aux, list(range(len(poses))))
     return obs, det, poses
 
 
@@ -425,8 +431,9 @@ def chi2_test(fit: GyroFit, S, bias_std, mv: Moves):
 
 
 def regressor_inputs(ms, gm, fit: GyroFit, acc_cal):
-    """Inputs of the candidate regressors, (u deg/h, f g, t_s, temp_c), at every move sample
-    (m, L) and at every sample of the initial rest (n,): the calibrated rate and specific force."""
+    """Inputs of the candidate regressors, (u deg/h, AuxInputs), at every move sample (m, L) and
+    at every sample of the initial rest (n,): the calibrated rate, the calibrated specific
+    force and the samples' auxiliary columns (t_s, temp_c, ...)."""
     M_a, b_a = acc_cal
     mv = gm.mv
     m, L = mv.dt.shape
@@ -435,22 +442,22 @@ def regressor_inputs(ms, gm, fit: GyroFit, acc_cal):
         idx[i, :b - a] = np.arange(a + 1, b + 1)
     rest = np.arange(gm.rest.start, gm.rest.stop)
     w = ms.gyro_dph() / 3600.0 - gm.bias - fit.db
-    temp = ms.samples.get("temp_c", np.zeros(len(w)))
     out = []
     for ix in (idx, rest):
         f = np.linalg.solve(M_a, (ms.acc_g()[ix] - b_a).reshape(-1, 3).T).T.reshape(ix.shape + (3,))
-        out.append((w[ix] @ fit.T.T * 3600.0, f, ms.samples["t_s"][ix], temp[ix]))
+        out.append((w[ix] @ fit.T.T * 3600.0, AuxInputs({**columns_at(ms.samples, ix), **specific_force(f)})))
     return out
 
 
 def with_terms(mv: Moves, ids, inputs) -> Moves:
     """mv with the regressors of effects ids along the moves and their mean over the rest."""
-    (u, f, t, temp), (u0, f0, t0, temp0) = inputs
+    (u, aux), (u0, aux0) = inputs
     mask = mv.dt > 0
-    phi = np.array([EFFECTS[e][5](u, temp, t, f)[0][..., 0] * mask / 3600.0 for e in ids]).reshape(len(ids), *mask.shape)
-    phi_rest = np.array([np.mean(np.broadcast_to(EFFECTS[e][5](u0, temp0, t0, f0)[0][..., 0], t0.shape)) / 3600.0
+    A, A0 = aux.array(SENSOR_AUX["gyro"], u.shape[:-1]), aux0.array(SENSOR_AUX["gyro"], u0.shape[:-1])
+    phi = np.array([EFFECTS[e].phi(u, A)[0][..., 0] * mask / 3600.0 for e in ids]).reshape(len(ids), *mask.shape)
+    phi_rest = np.array([np.mean(np.broadcast_to(EFFECTS[e].phi(u0, A0)[0][..., 0], u0.shape[:-1])) / 3600.0
                          for e in ids])
-    return Moves(mv.y, mv.dt, mv.before, mv.after, mv.t_span, mv.rows, phi, tuple(EFFECTS[e][1] for e in ids),
+    return Moves(mv.y, mv.dt, mv.before, mv.after, mv.t_span, mv.rows, phi, tuple(EFFECTS[e].axis for e in ids),
                  phi_rest)
 
 
@@ -482,7 +489,7 @@ def calibrate_handheld(ms, acc_model="acc_baseline", detect=None, pose_window_s=
             gm.mv = with_terms(gm.mv, list(gyro_effects), inputs)
             f = fit_gyro(gm.mv, gm.g_dirs, gm.bias_std, np.r_[f.T.ravel(), f.db, np.zeros(len(gyro_effects))])
             std_p = np.sqrt(np.diag(f.cov)[12:])
-            effects = {e: {"value": float(v), "std": float(sd), "unit": EFFECTS[e][3], "meaning": EFFECTS[e][4]}
+            effects = {e: {"value": float(v), "std": float(sd), "unit": EFFECTS[e].unit, "meaning": EFFECTS[e].meaning}
                        for e, v, sd in zip(gyro_effects, f.p, std_p)}
         if not f.converged:
             raise CalibrationError(f"{ms.path}: the gyro fit over the moves did not converge in {f.iterations} "

@@ -51,13 +51,14 @@ def _param_names(n_terms_names):
     return [f"T_{a}{b}" for a in "xyz" for b in "xyz"] + [f"b_{a}" for a in "xyz"] + list(n_terms_names)
 
 
-def move_rows(gm, fit: GyroFit, S, temp=None):
-    """Per-move residuals in the shape of diagnose.residual_table (one row per move)."""
+def move_rows(gm, fit: GyroFit, S, columns: dict):
+    """Per-move residuals in the shape of diagnose.residual_table (one row per move); columns:
+    each auxiliary samples.csv column's mean over each move (temp_c, a user's supply_v, ...)."""
     mv, sig = gm.mv, np.sqrt(np.einsum("mii->mi", S))
     return [{"segment": i, "kind": "move", "from_pose": int(a), "to_pose": int(b), "t_span_s": list(span),
-             "outer_rate_dps": None, "t_s": (span[0] + span[1]) / 2,
-             "temp_c": None if temp is None else float(temp[i]), "direction": gm.g_dirs[a].tolist(),
-             "residual": r.tolist(), "sigma": s.tolist(), "normalized": (r / s).tolist()}
+             "outer_rate_dps": None, **{k: float(v[i]) for k, v in columns.items()}, "t_s": (span[0] + span[1]) / 2,
+             "direction": gm.g_dirs[a].tolist(), "residual": r.tolist(), "sigma": s.tolist(),
+             "normalized": (r / s).tolist()}
             for i, (a, b, span, r, s) in enumerate(zip(mv.before, mv.after, mv.t_span, fit.r, sig))]
 
 
@@ -69,7 +70,7 @@ def rank_move_candidates(gm, base: GyroFit, inputs, base_fails, alpha):
     Q, _ = np.linalg.qr(J0.reshape(-1, 12))
     out = []
     for eid in effect_ids("gyro"):
-        _, axis, pname, unit, meaning, _ = EFFECTS[eid]
+        pname, unit, meaning = EFFECTS[eid].parameter, EFFECTS[eid].unit, EFFECTS[eid].meaning
         family, ax = eid.split(".")[1], eid.split(".")[2]
         entry = {"effect": f"gyro.{family}", "axis": ax, "id": eid, "parameter": pname, "unit": unit,
                  "meaning": meaning}
@@ -115,7 +116,9 @@ def diagnose_moves(ms, obs, det, am, fa, add=(), truth=None, alpha=0.01):
              "gyro_white_noise_dps": sigma_g.tolist()}
     acc_cal = am.matrix_and_bias(fa.vector(am.params))
     inputs = regressor_inputs(ms, gm, base, acc_cal)
-    temp = inputs[0][3].sum(1) / np.maximum((gm.mv.dt > 0).sum(1), 1) if "temp_c" in ms.samples else None
+    inside = gm.mv.dt > 0
+    columns = {k: np.sum(np.where(inside, v, 0.0), 1) / np.maximum(inside.sum(1), 1)
+               for k, v in inputs[0][1].values.items() if k not in ("f_x", "f_y", "f_z")}
     cands = rank_move_candidates(gm, base, inputs, p is not None and p < alpha, alpha)
     fit, names = base, _param_names([])
     if add:
@@ -123,14 +126,14 @@ def diagnose_moves(ms, obs, det, am, fa, add=(), truth=None, alpha=0.01):
             check_effect(e, "gyro")
         mv = with_terms(gm.mv, list(add), inputs)
         fit = fit_gyro_moves(mv, gm.g_dirs, np.r_[base.T.ravel(), base.db, np.zeros(len(add))], gm.bias_std)
-        names = _param_names(EFFECTS[e][2] for e in add)
+        names = _param_names(EFFECTS[e].parameter for e in add)
         S = move_covariances(gm, fit, obs, sigma_g)
     vec = lambda f: np.r_[f.T.ravel(), (gm.bias + f.db) * 3600, f.p]
     std = lambda f: np.sqrt(np.diag(f.cov)) * np.r_[np.ones(9), np.full(3, 3600.0), np.ones(len(f.p))]
     out = {"baseline": block, "candidates": cands, "verdict": verdict("gyro (moves)", block, cands, str(ms.path)),
            "params": dict(zip(names, vec(fit).tolist())), "std": dict(zip(names, std(fit).tolist())),
            "param_units": {"T": "1 (deg/s of rate per deg/s of output)", "b": "deg/h"},
-           "residuals": move_rows(gm, fit, S, temp), "residual_unit": "gravity direction (unit vector), per move",
+           "residuals": move_rows(gm, fit, S, columns), "residual_unit": "gravity direction (unit vector), per move",
            "moves_skipped": gm.skipped, "saturation": gm.saturation, "moves_opposite_sense": gm.flipped}
     if add:
         _, _, p1 = chi2_test(fit, S, gm.bias_std, mv)
@@ -144,7 +147,7 @@ def diagnose_moves(ms, obs, det, am, fa, add=(), truth=None, alpha=0.01):
         out["added"] = {"effects": list(add), "residual_rms_before": block["residual_rms"],
                         "residual_rms_after": float(np.sqrt(np.mean(fit.r ** 2))), "p_value_before": p,
                         "p_value_after": p1, "params": comp,
-                        "residuals_before": move_rows(gm, base, move_covariances(gm, base, obs, sigma_g), temp)}
+                        "residuals_before": move_rows(gm, base, move_covariances(gm, base, obs, sigma_g), columns)}
     return out
 
 

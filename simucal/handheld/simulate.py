@@ -15,6 +15,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from simucal import io
+from simucal.fit.aux_inputs import SENSOR_AUX, AuxInputs, specific_force
 from simucal.fit.rotations import exp_so3, log_so3
 from simucal.generated.effects import EFFECTS
 from simucal.generated.moves import rotation_matrix
@@ -98,10 +99,11 @@ def simulate_handheld(sc: HandheldScenario, seed=0):
     gsign = -1.0 if sc.flip_gyro else 1.0
     out_dps = gsign * (w @ M_g.T) + b_g
     for eid, value in sc.gyro_effects.items():
-        sensor, axis, _, _, _, phi = EFFECTS[eid]
-        if sensor != "gyro":
+        effect = EFFECTS[eid]
+        if effect.sensor != "gyro":
             raise ValueError(f"{eid}: only gyro effects can be planted in a hand-placed session")
-        out_dps[:, axis] += value * phi(w * 3600.0, 0.0, np.arange(n) * dt, f)[0][:, 0] / 3600.0
+        aux = AuxInputs({"t_s": np.arange(n) * dt, **specific_force(f)}).array(SENSOR_AUX["gyro"], (n,))
+        out_dps[:, effect.axis] += value * effect.phi(w * 3600.0, aux)[0][:, 0] / 3600.0
     gyro = sc.offset_counts + sc.gyro_counts_per_dps * (out_dps + rng.normal(0, sc.gyro_noise_dps, (n, 3)))
     lo = sc.offset_counts - sc.full_scale_dps * sc.gyro_counts_per_dps
     hi = sc.offset_counts + sc.full_scale_dps * sc.gyro_counts_per_dps
@@ -114,7 +116,7 @@ def simulate_handheld(sc: HandheldScenario, seed=0):
     truth = {"acc": {"M": M_a.tolist(), "bias": (b_a + sc.offset_counts / sc.acc_counts_per_g).tolist()},
              "gyro": {"M": M_g.tolist(), "T": None if sc.dead_gyro_axis is not None else np.linalg.inv(M_g).tolist(),
                       "bias_dps": (b_g + sc.offset_counts / sc.gyro_counts_per_dps).tolist(),
-                      "params": {EFFECTS[e][2]: v for e, v in sc.gyro_effects.items()}},
+                      "params": {EFFECTS[e].parameter: v for e, v in sc.gyro_effects.items()}},
              "clipped_moves": sorted(clip), "seed": seed}
     samples = {"t_s": np.arange(n) * dt, "ax": acc[:, 0], "ay": acc[:, 1], "az": acc[:, 2],
                "gx": gyro[:, 0], "gy": gyro[:, 1], "gz": gyro[:, 2]}

@@ -194,12 +194,15 @@ def read_samples(folder: Path, segments) -> dict:
         if segments is not None and "segment" not in header:
             raise MeasurementSetError(path, 1, "segments.csv exists, so samples.csv needs a segment column")
         cols = [c for c in header if c in ("segment", "t_s", "temp_c") + SAMPLE_COLS]
-        idx = {c: header.index(c) for c in cols}
+        # further numeric columns are auxiliary inputs a user's error model may read (supply_v, ...);
+        # a column holding anything else (a note, a label) is left out, as before
+        others = [c for c in dict.fromkeys(header) if c.isidentifier() and c not in cols]
+        idx = {c: header.index(c) for c in cols + others}
         fast = _fast_numeric(data, len(header))
         if fast is not None:  # numpy's parser; on any doubt the careful one below names the line
-            out = {c: fast[:, idx[c]] for c in cols}
+            out = {c: fast[:, idx[c]] for c in cols + others}
             return _check_samples(out, path, segments)
-        data = {c: [] for c in cols}
+        data = {c: [] for c in cols + others}
         for line, row in enumerate(reader, start=2):
             if not row or all(not x.strip() for x in row):
                 continue
@@ -210,6 +213,12 @@ def read_samples(folder: Path, segments) -> dict:
                 if text == "":
                     raise MeasurementSetError(path, line, f"column {c} is empty (empty cells are errors)")
                 data[c].append(_number(text, path, line, c))
+            for c in list(others):
+                try:
+                    data[c].append(_number(row[idx[c]].strip(), path, line, c))
+                except MeasurementSetError:
+                    others.remove(c)
+                    del data[c]
     if not data["t_s"]:
         raise MeasurementSetError(path, None, "no samples")
     return _check_samples({c: np.asarray(v, float) for c, v in data.items()}, path, segments)
@@ -293,6 +302,7 @@ def write(folder, meta: dict, samples: dict, segments: list[Segment] | None = No
                        _fmt(s.outer_rate_dps) if s.kind == "rate" else ""]
                 w.writerow(row + ([_fmt(s.heading_ref_deg)] if has_ref else []))
     cols = [c for c in ("segment", "t_s", *SAMPLE_COLS, "temp_c") if c in samples]
+    cols += [c for c in samples if c not in cols]  # auxiliary inputs (supply_v, ...)
     n = len(samples["t_s"])
     with (folder / "samples.csv").open("w", newline="") as fh:
         w = csv.writer(fh)

@@ -44,6 +44,16 @@ def shape_figure(sensor, shape, unit):
     return f"<p>{html.escape(shape['text'])}</p>" + _png(fig)
 
 
+ROW_KEYS = {"segment", "kind", "outer_rate_dps", "t_s", "direction", "residual", "sigma", "normalized", "from_pose",
+            "to_pose", "t_span_s", "f_x", "f_y", "f_z", "w2"}  # a residual row's own fields and the inputs plotted elsewhere
+
+
+def _varying_inputs(rows):
+    """(name, axis label) of the auxiliary inputs in the rows that vary: temp_c and a user's columns."""
+    names = [k for k in rows[0] if k not in ROW_KEYS and all(x.get(k) is not None for x in rows)]
+    return [(k, "temperature (degC)" if k == "temp_c" else k) for k in names if len({x[k] for x in rows}) > 1]
+
+
 def residual_figures(sensor, block, unit):
     rows = block["residuals"]
     r, kind = _res(rows)
@@ -76,12 +86,12 @@ def residual_figures(sensor, block, unit):
         ax.set(xlabel="outer-axis rate (deg/s)", ylabel=ylab, title="gyro: residual against rate sign and size")
         ax.legend(fontsize=8)
         figs.append(_png(fig))
-    temp = [x["temp_c"] for x in rows]
-    if temp[0] is not None and len(set(temp)) > 1:
+    for name, label in _varying_inputs(rows):  # temperature, a user's column (supply_v, ...)
+        x = [row[name] for row in rows]
         fig, ax = plt.subplots(figsize=(6, 3))
         for j in range(3):
-            ax.plot(temp, r[:, j], "o", label=AXES[j])
-        ax.set(xlabel="temperature (degC)", ylabel=ylab, title=f"{sensor}: residual against temperature")
+            ax.plot(x, r[:, j], "o", label=AXES[j])
+        ax.set(xlabel=label, ylabel=ylab, title=f"{sensor}: residual against {label}")
         ax.legend(fontsize=8)
         figs.append(_png(fig))
     return figs

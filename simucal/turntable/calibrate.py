@@ -18,7 +18,9 @@ import numpy as np
 
 from simucal import io
 from simucal.errors import CalibrationError
+from simucal.fit import aux_inputs
 from simucal.fit.augmented import AugmentedModel
+from simucal.fit.aux_inputs import AuxInputs, column_means
 from simucal.fit.candidates import (
     ALPHA,
     rank_candidates,
@@ -74,7 +76,7 @@ def segment_observations(ms: io.MeasurementSet, sensor: str, kinds=None, stated=
         stated = ms.meta.get("acc_noise_g" if sensor == "acc" else "gyro_noise_dph")
     lat = np.radians(ms.meta.get("latitude_deg", 0.0))
     w_e = units.earth_rate_dph(ms.meta)
-    N, sig, rho, t, temp, keep = [], [], [], [], [], []
+    N, sig, rho, keep = [], [], [], []
     raw = np.column_stack([ms.samples[c] for c in (("ax", "ay", "az") if sensor == "acc" else ("gx", "gy", "gz"))])
     fs = ms.meta.get("full_scale", {}).get(sensor)
     counts = ms.meta.get(f"{sensor}_unit") == "counts"
@@ -92,12 +94,11 @@ def segment_observations(ms: io.MeasurementSet, sensor: str, kinds=None, stated=
         N.append(m)
         sig.append(sd)
         rho.append(1.0 if sensor == "acc" else abs(s.outer_rate_dps * 3600.0 + w_e * np.sin(lat)))  # |input|
-        t.append(ms.samples["t_s"][rows].mean())
-        temp.append(ms.samples["temp_c"][rows].mean() if "temp_c" in ms.samples else 0.0)
         keep.append(s)
-    obs = Observations(np.array(N).reshape(-1, 3), np.array(rho), np.array(sig).reshape(-1, 3), np.array(temp), np.array(t),
-                       [s.segment for s in keep],
-                       specific_force(ms, keep) if sensor == "gyro" else centripetal_scale(ms, keep))
+    aux = column_means(ms.samples, [ms.samples["segment"] == s.segment for s in keep])
+    aux.update(specific_force(ms, keep) if sensor == "gyro" else {"w2": centripetal_scale(ms, keep)})
+    obs = Observations(np.array(N).reshape(-1, 3), np.array(rho), np.array(sig).reshape(-1, 3), AuxInputs(aux),
+                       [s.segment for s in keep])
     if keep:
         units.check_magnitude(sensor, np.linalg.norm(obs.N, axis=1), obs.rho, ms.path / "samples.csv", ms.meta)
     return obs, keep
@@ -128,17 +129,17 @@ def centripetal_scale(ms, segs):
     return np.array([np.radians(s.outer_rate_dps) ** 2 / units.gravity(ms.meta) for s in segs])
 
 
-def specific_force(ms, segs):
-    """The specific force (g) each segment's gyro saw, for g-sensitivity terms: the
-    accelerometer mean where there is one, else the commanded vertical, else none."""
+def specific_force(ms, segs) -> dict:
+    """The specific force (g) each segment's gyro saw, for g-sensitivity terms (f_x, f_y, f_z):
+    the accelerometer mean where there is one, else the commanded vertical, else none."""
     if not segs:
-        return None
+        return {}
     if ms.has_acc:
         acc = ms.acc_g()
-        return np.array([acc[ms.samples["segment"] == s.segment].mean(0) for s in segs])
+        return aux_inputs.specific_force([acc[ms.samples["segment"] == s.segment].mean(0) for s in segs])
     if all(s.middle_deg is not None and s.inner_deg is not None for s in segs):
-        return _commanded_up_k(segs)[0]
-    return None
+        return aux_inputs.specific_force(_commanded_up_k(segs)[0])
+    return {}
 
 
 def _find(segs, **want):
@@ -164,8 +165,7 @@ def _rate_run_acc_means(ms, gyro_segs, acc_obs):
         sig = np.where(np.isnan(sig), np.nanmedian(acc_obs.sigma) if acc_obs.sigma is not None else np.nan, sig)
     if np.isnan(sig).any():
         return None
-    pick = (lambda v: np.asarray(v)[k] if np.ndim(v) else v)
-    return np.array(rows), obs.N[k], sig, pick(obs.temp_c), pick(obs.t_s), obs.extra[k]
+    return np.array(rows), obs.N[k], sig, obs.aux.take(k)
 
 
 def handedness(ms, fa, acc_obs, acc_segs, fg, gyro_segs) -> list[str]:
@@ -203,20 +203,19 @@ def _latitude_check(ms, fa, acc_segs, gm, fg, C_b_d):
     gyro = ms.gyro_dph()
     raw = np.column_stack([ms.samples[c] for c in ("gx", "gy", "gz")])
     stated = ms.meta.get("gyro_noise_dph")
-    N, sig, temp, t = [], [], [], []
+    N, sig, groups = [], [], []
     for i in rows:
         r = ms.samples["segment"] == acc_segs[i].segment
         refuse_outliers(ms, raw, r, "gyro", acc_segs[i].segment)
         m, sd = _mean_and_sigma(gyro[r], stated)
         N.append(m)
         sig.append(sd)
-        temp.append(ms.samples["temp_c"][r].mean() if "temp_c" in ms.samples else 0.0)
-        t.append(ms.samples["t_s"][r].mean())
+        groups.append(r)
     sig = np.array(sig)
     if np.isnan(sig).all():
         return {"verdict": "not checked: one gyro row per static position and no gyro_noise_dph"}
     return latitude(ms, gm, fg, C_b_d, fa.directions[rows],
-                    (np.array(N), np.where(np.isnan(sig), np.nanmax(sig), sig), np.array(temp), np.array(t)))
+                    (np.array(N), np.where(np.isnan(sig), np.nanmax(sig), sig), AuxInputs(column_means(ms.samples, groups))))
 
 
 def _commanded_up_k(segs):

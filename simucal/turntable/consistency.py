@@ -21,6 +21,7 @@ import numpy as np
 
 from simucal.errors import CalibrationError
 from simucal.fit.apply import model_function, solve_inputs
+from simucal.fit.aux_inputs import specific_force
 from simucal.fit.rotations import log_so3, wahba
 from simucal.io import units
 
@@ -63,18 +64,19 @@ def latitude(ms, gm, fg, C_b_d, u_b, static_gyro):
     """The latitude the gyros measure at rest, against meta.json's; refuses a mismatch.
 
     u_b: (n, 3) unit specific force (up) in b at static positions; static_gyro: (N (n, 3)
-    deg/h, sigma (n, 3), temp, t) of their gyro outputs. With w_i the calibrated rate in d
+    deg/h, sigma (n, 3), AuxInputs) of their gyro outputs. With w_i the calibrated rate in d
     and up_i = C_b^d u_b,i, the Earth rate's vertical component gives, per position,
         up_i . w_i = up_i . db + w_ie sin L,
     solved by weighted least squares for sin L and a bias correction db, so a bias that a
     failing rate-run model got wrong does not bias L (the rate runs give only M here)."""
     w_e = units.earth_rate_dph(ms.meta)
     L_meta = float(ms.meta["latitude_deg"])
-    N, sig, temp, t = static_gyro
+    N, sig, aux = static_gyro
     p = fg.vector(gm.params)
     M_d, b_d = gm.matrix_and_bias(p)
     up_d = u_b @ C_b_d.T
-    w_d = solve_inputs(model_function(gm, p), M_d, b_d, N, temp, t, up_d, "gyro", ms.path / "samples.csv")
+    w_d = solve_inputs(model_function(gm, p), M_d, b_d, N, aux.with_values(**specific_force(up_d)), "gyro",
+                       ms.path / "samples.csv")
     X = np.column_stack([up_d, np.full(len(up_d), w_e)])
     n = len(X)
     if n < 6 or np.linalg.matrix_rank(X / w_e, tol=1e-3) < 4:

@@ -23,6 +23,7 @@ import time
 import numpy as np
 
 from simucal.fit.augmented import AugmentedModel
+from simucal.fit.aux_inputs import AuxInputs, specific_force
 from simucal.fit.norm_fit import fit_batch
 from simucal.fit.rotations import wahba
 from simucal.generated import table
@@ -87,8 +88,8 @@ def simulate_batch(sc: Scenario, trials: int, rng, noise=True):
         f_k = C0t @ (P @ up)
         f_r, f_d = f_k @ C_b_k, f_k @ C_d_k
         w_d = (C0t @ (w_n @ P.T)[:, :, None])[..., 0] @ C_d_k
-        N_ar = am.output(f_r, p_a, 0.0, 0.0, w2)
-        N_g = gm.output(w_d, p_g, 0.0, 0.0, f_d)
+        N_ar = am.output(f_r, p_a, AuxInputs({"w2": w2}))
+        N_g = gm.output(w_d, p_g, AuxInputs(specific_force(f_d)))
     else:  # nonlinear terms: the mean of K samples, exact below degree K
         gam = np.arange(K_REV) * 2 * np.pi / K_REV
         Cr = table.C_k_n(gam[None, None, :], np.radians(rates[:, 0])[None, :, None],
@@ -96,8 +97,8 @@ def simulate_batch(sc: Scenario, trials: int, rng, noise=True):
         f_r = np.einsum("ji,tpqkj,k->tpqi", C_b_k, Cr, up)
         w_d = np.einsum("ji,tpqkj,pk->tpqi", C_d_k, Cr, w_n)
         f_d = np.einsum("ji,tpqkj,k->tpqi", C_d_k, Cr, up)
-        N_ar = am.output(f_r, p_a, 0.0, 0.0, w2[..., None]).mean(2)
-        N_g = gm.output(w_d, p_g, 0.0, 0.0, f_d).mean(2)
+        N_ar = am.output(f_r, p_a, AuxInputs({"w2": w2[..., None]})).mean(2)
+        N_g = gm.output(w_d, p_g, AuxInputs(specific_force(f_d))).mean(2)
     N_as = am.output(f_s, p_a)
     if noise:
         N_as = N_as + rng.normal(0, sc.acc_noise_g, N_as.shape)
@@ -121,7 +122,7 @@ def fit_trials(model, N, rho, sigma):
     K = np.linalg.solve(np.einsum("tna,tnb->tab", Psi, Psi), np.einsum("tna,tn->ta", Psi, rho_b ** 2)[..., None])[..., 0]
     with np.errstate(invalid="ignore", divide="ignore"):  # a hopeless start fails its trial, counted
         p0 = np.c_[base.params_of_K(K), np.zeros((T, m - len(base.params)))]
-    out = base.fit_compiled(N, rho_b, sig, np.zeros((T, n, len(base.aux_rows(1)[0]))), p0) if not model.effects else None
+    out = base.fit_compiled(N, rho_b, sig, np.zeros((T, n, len(base.aux))), p0) if not model.effects else None
     if out is not None:
         p, cov, u, _, _, status = out
         return p, cov, u, status == 0

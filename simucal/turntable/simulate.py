@@ -15,6 +15,7 @@ import numpy as np
 
 from simucal import io
 from simucal.fit.augmented import AugmentedModel
+from simucal.fit.aux_inputs import DEFAULT_ZERO, AuxInputs, specific_force
 from simucal.generated import table
 from simucal.io import units
 from simucal.turntable import plans
@@ -57,6 +58,7 @@ class Scenario:
     acc_effects: dict = field(default_factory=dict)
     gyro_effects: dict = field(default_factory=dict)
     temp_c: tuple | None = None       # (first, last): a linear sweep over the segments; None: no temp_c column
+    columns: dict = field(default_factory=dict)  # auxiliary columns {name: (low, high)}: uniform, one value per segment
     shuffle: bool = False             # visit the positions in random order (separates time from direction)
     state_noise: bool = True          # write acc_noise_g / gyro_noise_dph into meta.json
 
@@ -75,9 +77,20 @@ def _pairs(items, what):
     return out
 
 
-def plant(sc: Scenario, effects=(), effect_file=None, sets=()):
+def plant(sc: Scenario, effects=(), effect_file=None, sets=(), columns=()):
     """Put effects into the truth: candidate ids (--effect ID=VALUE) and a model file's terms
-    (--effect-file FILE --set NAME=VALUE). Unknown ids or names are refused."""
+    (--effect-file FILE --set NAME=VALUE), with the auxiliary columns they read
+    (--column NAME=LOW:HIGH). Unknown ids or names are refused."""
+    for item in columns:
+        name, eq, ends = item.partition("=")
+        try:
+            first, last = (float(x) for x in ends.split(":"))
+            if not eq or not name.strip().isidentifier() or name.strip() in io.SAMPLE_COLS + ("segment", "t_s"):
+                raise ValueError
+        except ValueError:
+            raise ValueError(f"--column {item!r}: write NAME=LOW:HIGH with a new column name and two numbers, "
+                             "e.g. supply_v=4.8:5.2") from None
+        sc.columns[name.strip()] = (first, last)
     from simucal.fit.augmented import check_effect
     for eid, val in _pairs(effects, "--effect").items():
         check_effect(eid)
@@ -95,6 +108,10 @@ def plant(sc: Scenario, effects=(), effect_file=None, sets=()):
         unknown = sorted(set(values) - known)
         if unknown:
             raise ValueError(f"--set {unknown}: not parameters of {effect_file}; its parameters are {sorted(known)}")
+        reads = (set(load(sc.acc_model).aux) | set(load(sc.gyro_model).aux)) - DEFAULT_ZERO - set(sc.columns)
+        if reads:
+            raise ValueError(f"{effect_file} reads the column(s) {sorted(reads)}: give their values with "
+                             f"--column {sorted(reads)[0]}=LOW:HIGH")
 
 
 SCENARIOS = {"paper": Scenario}
@@ -165,9 +182,12 @@ def simulate(sc: Scenario, seed: int = 0):
     if sc.gyro_unit == "pulse/s":
         meta["gyro_pulses_per_arcsec"] = list(sc.gyro_pulses_per_arcsec)
 
-    seg_ids, times, temps, acc_out, gyro_out = [], [], [], [], []
-    temp_of = (np.linspace(*sc.temp_c, len(segments)) if sc.temp_c else np.zeros(len(segments)))
-    for seg, (f_b, w_d, f_d, dur), temp in zip(segments, rows, temp_of):
+    seg_ids, times, acc_out, gyro_out = [], [], [], []
+    values = {name: rng.uniform(*ends, len(segments)) for name, ends in sc.columns.items()}
+    if sc.temp_c:
+        values["temp_c"] = np.linspace(*sc.temp_c, len(segments))
+    columns = {name: [] for name in values}  # auxiliary columns written
+    for k, (seg, (f_b, w_d, f_d, dur)) in enumerate(zip(segments, rows)):
         if sc.rate_hz is None:
             f, w, fd, t = (f_b.mean(0, keepdims=True), w_d.mean(0, keepdims=True), f_d.mean(0, keepdims=True),
                            np.array([t0 + dur / 2]))
@@ -175,18 +195,21 @@ def simulate(sc: Scenario, seed: int = 0):
             n = int(round(dur * sc.rate_hz))
             idx = np.arange(n) * len(f_b) // n
             f, w, fd, t = f_b[idx], w_d[idx], f_d[idx], t0 + np.arange(n) / sc.rate_hz
+        col = {name: np.full(len(t), v[k]) for name, v in values.items()}
+        aux = AuxInputs({"t_s": t, **col})
         w2 = np.radians(seg.outer_rate_dps) ** 2 / units.DEFAULT_GRAVITY  # centripetal scale, 1/m
-        acc_out.append(acc.output(f, p_acc, temp, t, w2) + rng.normal(0, sc.acc_noise_g, f.shape))
-        gyro_out.append(gyro.output(w, p_gyro, temp, t, fd) + rng.normal(0, sc.gyro_noise_dph, w.shape))
+        acc_out.append(acc.output(f, p_acc, aux.with_values(w2=w2)) + rng.normal(0, sc.acc_noise_g, f.shape))
+        gyro_out.append(gyro.output(w, p_gyro, aux.with_values(**specific_force(fd)))
+                        + rng.normal(0, sc.gyro_noise_dph, w.shape))
         seg_ids.append(np.full(len(t), seg.segment))
-        temps.append(np.full(len(t), temp))
         times.append(t)
+        for name in columns:
+            columns[name].append(col[name])
         t0 += dur + 5.0
     N_a = units.g_to_acc(np.concatenate(acc_out), meta)
     N_g = units.dph_to_gyro(np.concatenate(gyro_out), meta)
     samples = {"segment": np.concatenate(seg_ids), "t_s": np.concatenate(times)}
-    if sc.temp_c:
-        samples["temp_c"] = np.concatenate(temps)
+    samples.update({name: np.concatenate(v) for name, v in columns.items()})
     for j, c in enumerate("xyz"):
         samples["a" + c] = N_a[:, j]
         samples["g" + c] = N_g[:, j]

@@ -70,7 +70,7 @@ class Unifier:
     """Both fits and their covariances, for any pairing of directions."""
 
     def __init__(self, am, fa, obs_a, gm, fg, obs_g, acc_means=None):
-        """acc_means: (rows, N (n_r, 3) g, sigma (n_r, 3), temp, t, w2) of the rate runs that have
+        """acc_means: (rows, N (n_r, 3) g, sigma (n_r, 3), AuxInputs) of the rate runs that have
         accelerometer data (rows: their index in the gyro fit), or None where none has."""
         self.am, self.fa, self.obs_a, self.gm, self.fg, self.obs_g = am, fa, obs_a, gm, fg, obs_g
         self.acc_means = acc_means
@@ -99,11 +99,11 @@ class Unifier:
     def acc_mean_directions(self):
         """The rate runs' mean specific force, calibrated: unit u_b and du_b/dz. At the solution
         of h(f, p) = N: df = (dh/df)^-1 (dN - dh/dp dp)."""
-        _, N, _, temp, t, w2 = self.acc_means
+        _, N, _, aux = self.acc_means
         p = self.fa.vector(self.am.params)
         M, b = self.am.matrix_and_bias(p)
-        f = solve_inputs(model_function(self.am, p), M, b, N, temp, t, w2, "acc", "the rate runs")
-        _, Ju, Jp = self.am.jacobians(f, p, temp, t, w2)
+        f = solve_inputs(model_function(self.am, p), M, b, N, aux, "acc", "the rate runs")
+        _, Ju, Jp = self.am.jacobians(f, p, aux)
         Jinv = np.linalg.inv(Ju)
         m, n = len(p), len(N)
         df = np.zeros((n, 3, self.nz))
