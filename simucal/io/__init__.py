@@ -10,7 +10,7 @@ import io as _io
 import json
 import math
 import warnings
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
@@ -47,7 +47,6 @@ class MeasurementSet:
     meta: dict
     samples: dict                     # column -> float array (segment as int array)
     segments: list[Segment] | None    # None: one continuous stream
-    extra: dict = field(default_factory=dict)
 
     @property
     def has_acc(self):

@@ -77,17 +77,13 @@ def segment_observations(ms: io.MeasurementSet, sensor: str, kinds=None, stated=
     lat = np.radians(ms.meta.get("latitude_deg", 0.0))
     w_e = units.earth_rate_dph(ms.meta)
     N, sig, rho, keep = [], [], [], []
-    raw = np.column_stack([ms.samples[c] for c in (("ax", "ay", "az") if sensor == "acc" else ("gx", "gy", "gz"))])
-    fs = ms.meta.get("full_scale", {}).get(sensor)
-    counts = ms.meta.get(f"{sensor}_unit") == "counts"
-    saturated = saturated_rows(raw, fs)[0] if (fs is not None or counts) else np.zeros(len(raw), bool)
+    raw = _raw(ms, sensor)
+    clipped = saturated_segments(ms, sensor)
     for s in segs:
         rows = ms.samples["segment"] == s.segment
         if not rows.any():
             raise CalibrationError(f"{ms.path / 'samples.csv'}: segment {s.segment} has no samples")
-        if saturated[rows].any():  # before the glitch test: a clipped sample is no glitch
-            ms.extra.setdefault("saturated_segments", []).append(
-                {"sensor": sensor, "segment": s.segment, "samples": int(saturated[rows].sum())})
+        if s.segment in clipped:  # before the glitch test: a clipped sample is no glitch
             continue
         refuse_outliers(ms, raw, rows, sensor, s.segment)
         m, sd = _mean_and_sigma(data[rows], stated, varying=(s.kind == "rate"))  # the inputs turn in a rate run
@@ -102,6 +98,21 @@ def segment_observations(ms: io.MeasurementSet, sensor: str, kinds=None, stated=
     if keep:
         units.check_magnitude(sensor, np.linalg.norm(obs.N, axis=1), obs.rho, ms.path / "samples.csv", ms.meta)
     return obs, keep
+
+
+def _raw(ms, sensor):
+    return np.column_stack([ms.samples[c] for c in (("ax", "ay", "az") if sensor == "acc" else ("gx", "gy", "gz"))])
+
+
+def saturated_segments(ms, sensor) -> dict:
+    """{segment: number of its samples at a rail} of one sensor: with full_scale in meta.json,
+    or for raw counts the rails the data repeat (io/sensor_checks.saturated_rows)."""
+    fs = ms.meta.get("full_scale", {}).get(sensor)
+    if fs is None and ms.meta.get(f"{sensor}_unit") != "counts":
+        return {}
+    bad = saturated_rows(_raw(ms, sensor), fs)[0]
+    seg, n = np.unique(ms.samples["segment"][bad], return_counts=True)
+    return dict(zip(seg.tolist(), n.tolist()))
 
 
 def refuse_outliers(ms, raw, rows, sensor, segment, k=100.0):
@@ -339,8 +350,8 @@ def calibrate_table(ms, method, acc_model, gyro_model, ids, acc_noise_g=None, gy
     if method not in METHODS:
         raise CalibrationError(f"unknown method {method!r}; one of {METHODS}")
     acc_obs = acc_segs = gyro_obs = gyro_segs = None
+    lever_arms = any(e.startswith("acc.size_effect.") for e in ids)  # seen only under rotation
     if ms.has_acc:
-        lever_arms = any(e.startswith("acc.size_effect.") for e in ids)  # seen only under rotation
         acc_obs, acc_segs = segment_observations(ms, "acc", {"static", "rate"} if lever_arms else None, acc_noise_g)
     if ms.has_gyro:
         gyro_obs, gyro_segs = segment_observations(ms, "gyro", stated=gyro_noise_dph)
@@ -348,8 +359,13 @@ def calibrate_table(ms, method, acc_model, gyro_model, ids, acc_noise_g=None, gy
             gyro_obs = None
     check_rate_sense(ms, gyro_obs, gyro_segs)
     result = calibration.header(method, ms)
-    if ms.extra.get("saturated_segments"):
-        result["excluded_segments"] = [{**e, "reason": "saturated samples"} for e in ms.extra["saturated_segments"]]
+    kind = {s.segment: s.kind for s in ms.segments}
+    fitted = {"acc": {"static", "rate"} if lever_arms else {"static"}, "gyro": {"rate"}}
+    excluded = [{"sensor": sensor, "segment": k, "samples": n, "reason": "saturated samples"}
+                for sensor, present in (("acc", ms.has_acc), ("gyro", ms.has_gyro)) if present
+                for k, n in saturated_segments(ms, sensor).items() if kind.get(k) in fitted[sensor]]
+    if excluded:
+        result["excluded_segments"] = excluded
     if method == "multiposition":
         if ids or acc_model != "acc_baseline" or gyro_model != "gyro_baseline":
             raise CalibrationError("the multi-position method is the linear y = M f + b; --add and models need "
