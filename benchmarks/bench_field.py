@@ -16,15 +16,15 @@ import numpy as np
 
 from simucal.field.drift import field_drift
 from simucal.field.simulate import FieldScenario, write_field
+from simucal.report.markdown import header
 
 
 def main():
     ap = argparse.ArgumentParser()
     ap.add_argument("--seeds", type=int, default=20)
     args = ap.parse_args()
-    print("| ARW (deg/sqrt h) | heading error (deg) | rms error x, y, z (deg/h) | max abs error (deg/h) | predicted std x, y, z "
-          "| heading term bound (deg/h) | max |error|/std | seconds per calibration |")
-    print("|---|---|---|---|---|---|---|---|")
+    print(header(["ARW (deg/sqrt h)", "heading error (deg)", "rms error x, y, z (deg/h)", "max abs error (deg/h)",
+                  "predicted std x, y, z", "heading term bound (deg/h)", "max |error|/std", "seconds per calibration"]))
     with tempfile.TemporaryDirectory() as tmp:
         for arw, herr in [(0.01, h) for h in (0.0, 1.0, 3.0, 5.0)] + [(0.002, h) for h in (0.0, 5.0)]:
             errs, stds, secs = [], [], []

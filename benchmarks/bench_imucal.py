@@ -16,6 +16,7 @@ import numpy as np
 from simucal.calibrate import calibrate
 from simucal.errors import CalibrationError
 from simucal.io.importers import import_ferraris_sections, import_imucal_annotated
+from simucal.report.markdown import header
 
 DATA = Path(__file__).resolve().parents[2] / "shared" / "data" / "imucal-ferraris"
 G = 9.81
@@ -57,8 +58,8 @@ def show(name, cal):
 
 
 def main():
-    print("| session, tool | acc M (K R) | acc bias (m/s^2 or counts) | gyro M (K R) | gyro bias (deg/s or counts) |")
-    print("|---|---|---|---|---|")
+    print(header(["session, tool", "acc M (K R)", "acc bias (m/s^2 or counts)", "gyro M (K R)",
+                  "gyro bias (deg/s or counts)"]))
     with tempfile.TemporaryDirectory() as tmp:
         import_ferraris_sections(DATA / "example_ferraris_session.csv", DATA / "example_ferraris_session_list.json",
                                  Path(tmp) / "ex", 102.4, 49.6)

@@ -52,8 +52,8 @@ def main():
         wall = time.perf_counter() - t0
         t = report.entries(truth)
         print(f"## Table 3: {args.seeds} seeds, position errors +-1', table errors 5\" (section 4)\n")
-        print("| entry | truth | exact mean | exact std | linear mean | linear std | paper norm | multipos. mean | multipos. std | paper previous |")
-        print("|---|---|---|---|---|---|---|---|---|---|")
+        print(report.header(["entry", "truth", "exact mean", "exact std", "linear mean", "linear std", "paper norm",
+                             "multipos. mean", "multipos. std", "paper previous"]))
         for i, (label, _, _) in enumerate(report.ENTRIES):
             cells = [label, f"{t[i]:.6g}"]
             for m, paper in (("exact", None), ("linear", "linear"), ("multiposition", "multiposition")):
@@ -91,8 +91,7 @@ def main():
                 for m in METHODS:
                     d = e[m][:, idx] - tt[idx]
                     rows.setdefault((key, m), []).append(f"{d.mean():+.2e} +- {d.std(ddof=1):.1e}")
-        print("| parameter | method | " + " | ".join(n for n, _ in LEVELS) + " |")
-        print("|---|---|" + "---|" * len(LEVELS))
+        print(report.header(["parameter", "method"] + [n for n, _ in LEVELS]))
         for key in ("dK_x^a", "b_y^g"):
             for m in METHODS:
                 print(f"| {key} | {m} | " + " | ".join(rows[(key, m)]) + " |")

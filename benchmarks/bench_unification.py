@@ -16,20 +16,17 @@ import numpy as np
 
 from simucal.calibrate import calibrate
 from simucal.fit.rotations import exp_so3
+from simucal.report.markdown import header
 from simucal.turntable.simulate import ARCMIN, Scenario, write
 
 
-def main():
-    ap = argparse.ArgumentParser()
-    ap.add_argument("--seeds", type=int, default=10)
-    args = ap.parse_args()
-    print("| plan | position error | max err M_b, rate-run means (median over seeds) | static pairs | paper eq. 25-27 "
-          "| rms error/std, rate-run means |")
-    print("|---|---|---|---|---|---|")
+def main(seeds: int):
+    print(header(["plan", "position error", "max err M_b, rate-run means (median over seeds)", "static pairs",
+                  "paper eq. 25-27", "rms error/std, rate-run means"]))
     with tempfile.TemporaryDirectory() as tmp:
         for plan, arcmin in (("table1", 1.0), ("table1", 60.0), ("fibonacci48", 1.0), ("fibonacci48", 60.0)):
             e_rate, e_static, e_paper, z = [], [], [], []
-            for seed in range(args.seeds):
+            for seed in range(seeds):
                 folder = Path(tmp) / f"{plan}-{arcmin}-{seed}"
                 truth = np.array(write(folder, Scenario(plan=plan, position_error_rad=arcmin * ARCMIN), seed)["gyro"]["M"])
                 cal = calibrate(folder)
@@ -46,4 +43,6 @@ def main():
 
 
 if __name__ == "__main__":
-    main()
+    ap = argparse.ArgumentParser()
+    ap.add_argument("--seeds", type=int, default=10)
+    main(ap.parse_args().seeds)

@@ -20,6 +20,11 @@ ENTRIES = [  # (label, sensor, getter) in dong2018 Table 3's order
 ]
 
 
+def header(cells) -> str:
+    """The two header lines of a markdown table."""
+    return "| " + " | ".join(cells) + " |\n" + "|---" * len(cells) + "|"
+
+
 def entries(result: dict) -> np.ndarray:
     return np.array([get(result[s]) for _, s, get in ENTRIES])
 
@@ -28,8 +33,7 @@ def compare_table(results: dict, truth: dict) -> str:
     """Markdown table: truth and each method's estimate and error."""
     t = entries(truth)
     methods = list(results)
-    lines = ["| entry | truth | " + " | ".join(f"{m} | {m} error" for m in methods) + " |",
-             "|---" * (2 + 2 * len(methods)) + "|"]
+    lines = [header(["entry", "truth"] + [c for m in methods for c in (m, f"{m} error")])]
     est = {m: entries(results[m]) for m in methods}
     for i, (label, _, _) in enumerate(ENTRIES):
         cells = [label, f"{t[i]:.6g}"]
