@@ -31,6 +31,17 @@ def test_simulated_session_within_3_sigma(tmp_path, seed):
     assert len(r["gyro"]["moves_skipped"]) == 2 and r["gyro"]["saturation"]  # clipped moves named, left out
 
 
+def test_clean_sessions_moves_chi2_per_dof_is_one(tmp_path):
+    """The moves' noise floor is right: over 20 clean simulated sessions chi2/dof averages
+    1.00 +- 0.05 (each session's std is about sqrt(2 / 51) = 0.2, so the mean's is 0.045)."""
+    ratios = []
+    for seed in range(20):
+        write_handheld(tmp_path / str(seed), HandheldScenario(), seed)
+        g = calibrate(tmp_path / str(seed))["gyro"]
+        ratios.append(g["chi2"] / g["dof"])
+    assert abs(np.mean(ratios) - 1.0) < 0.05, (np.mean(ratios), ratios)
+
+
 @pytest.mark.parametrize("settings,message", [
     (dict(poses=6), "positions for 9 parameters"),
     (dict(clip_moves=14, poses=14), "every move between poses holds saturated"),

@@ -31,7 +31,6 @@ import numpy as np
 from simucal.fit.augmented import check_effect, effect_ids
 from simucal.fit.candidates import gate_candidates, verdict
 from simucal.fit.distributions import chi2_sf
-from simucal.fit.norm_fit import initial_directions
 from simucal.generated.effects import EFFECTS, SEPARATE_MOVES
 from simucal.handheld.calibrate import (
     GyroFit,
@@ -41,6 +40,7 @@ from simucal.handheld.calibrate import (
     gyro_noise_dps,
     move_covariances,
     move_residuals,
+    pose_directions,
     prepare_moves,
     regressor_inputs,
     with_terms,
@@ -103,10 +103,10 @@ def rank_move_candidates(gm, base: GyroFit, inputs, base_fails, alpha):
 
 def diagnose_moves(ms, obs, det, am, fa, add=(), truth=None, alpha=0.01):
     """The gyro block of `simucal diagnose` for a stream (same keys as for a turntable set)."""
-    gm = prepare_moves(ms, det, initial_directions(am, obs, fa.vector(am.params)))
+    gm = prepare_moves(ms, det, *pose_directions(am, obs, fa))
     base = fit_gyro(gm.mv, gm.g_dirs, gm.bias_std)
     sigma_g = gyro_noise_dps(ms, gm)
-    S = move_covariances(gm, base, obs, sigma_g)
+    S = move_covariances(gm, base, sigma_g)
     chi2, dof, p = chi2_test(base, S, gm.bias_std, gm.mv)
     floor = float(np.sqrt(np.einsum("mii->", S) / (3 * len(S)) * max(dof, 0) / (2 * len(S))))
     block = {"residual_rms": float(np.sqrt(np.mean(base.r ** 2))), "residual_unit": "(gravity direction)",
@@ -127,7 +127,7 @@ def diagnose_moves(ms, obs, det, am, fa, add=(), truth=None, alpha=0.01):
         mv = with_terms(gm.mv, list(add), inputs)
         fit = fit_gyro_moves(mv, gm.g_dirs, np.r_[base.T.ravel(), base.db, np.zeros(len(add))], gm.bias_std)
         names = _param_names(EFFECTS[e].parameter for e in add)
-        S = move_covariances(gm, fit, obs, sigma_g)
+        S = move_covariances(gm, fit, sigma_g)
     vec = lambda f: np.r_[f.T.ravel(), (gm.bias + f.db) * 3600, f.p]
     std = lambda f: np.sqrt(np.diag(f.cov)) * np.r_[np.ones(9), np.full(3, 3600.0), np.ones(len(f.p))]
     out = {"baseline": block, "candidates": cands, "verdict": verdict("gyro (moves)", block, cands, str(ms.path)),
@@ -147,7 +147,7 @@ def diagnose_moves(ms, obs, det, am, fa, add=(), truth=None, alpha=0.01):
         out["added"] = {"effects": list(add), "residual_rms_before": block["residual_rms"],
                         "residual_rms_after": float(np.sqrt(np.mean(fit.r ** 2))), "p_value_before": p,
                         "p_value_after": p1, "params": comp,
-                        "residuals_before": move_rows(gm, base, move_covariances(gm, base, obs, sigma_g), columns)}
+                        "residuals_before": move_rows(gm, base, move_covariances(gm, base, sigma_g), columns)}
     return out
 
 
