@@ -21,8 +21,10 @@ import numpy as np
 from simucal import io
 from simucal.calibrate import calibrate
 from simucal.fit.rotations import exp_so3
-from simucal.handheld.calibrate import calibrate_handheld
+from simucal.handheld.calibrate import acc_from_poses, calibrate_handheld
+from simucal.handheld.diagnose_moves import diagnose_moves
 from simucal.io.importers import import_imu_tk
+from simucal.report.markdown import header
 
 DATA = Path(__file__).resolve().parents[2] / "shared" / "data" / "imu_tk-xsens"
 G = 9.81744
@@ -115,6 +117,27 @@ def main():
                   f"{'yes' if out else 'no'} |")
     print("\nThe gyro matrices are compared in each tool's own accelerometer frame (simucal: b, x along the x")
     print("accelerometer; imu_tk: its upper-triangular T), which differ by the accelerometer misalignment (~0.02).")
+    misfit_table(ms, theirs[1])
+
+
+def misfit_table(ms, theirs):
+    """What the moves' misfit is made of: diagnose's forward selection over the library, each
+    effect's estimate and the share of the baseline's excess chi-square it removes, beside
+    imu_tk's residual on the same moves (its own calibration, no effects)."""
+    obs, det, am, fa, _ = acc_from_poses(ms)
+    d = diagnose_moves(ms, obs, det, am, fa)
+    s, floor = d["misfit_shares"], d["baseline"]["noise_floor"]
+    print(f"\n### The moves' misfit, effect by effect (noise floor {floor:.3g}, imu_tk's residual {theirs:.4g})\n")
+    print(header(["step", "effect added", "estimate", "chi2 / dof after", "share of the excess chi2",
+                  "residual rms after", "x floor"]))
+    print(f"| 0 | baseline (T, bias) | | {s['chi2']:.0f} / {s['dof']} | | {s['residual_rms']:.4g} | "
+          f"{s['residual_rms'] / floor:.2f} |")
+    for k, x in enumerate(s["steps"], 1):
+        print(f"| {k} | {x['id']} | {x['estimate']:.0f} +- {x['std']:.0f} {x['unit']} | {x['chi2_after']:.0f} / "
+              f"{x['dof_after']} | {100 * x['share']:.1f} % | {x['residual_rms_after']:.4g} | "
+              f"{x['residual_rms_after'] / floor:.2f} |")
+    print(f"\nleft unexplained: {100 * s['unexplained']:.1f} % of the excess chi2 (no further library effect passes "
+          "the F test)")
 
 
 if __name__ == "__main__":

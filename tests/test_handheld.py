@@ -79,6 +79,14 @@ def test_diagnose_real_stream_says_honestly_what_it_finds(tmp_path):
     assert g["baseline"]["p_value"] < 1e-6 and g["baseline"]["residual_rms"] > 3 * g["baseline"]["noise_floor"]
     assert len(g["residuals"]) == 37 and g["candidates"][0]["separable"]
     assert "more is missing" in g["verdict"] or "not in the library" in g["verdict"]
+    # together, the effects chosen one by one bring the moves within 1.5 x the floor, and calibrate carries them
+    s = g["misfit_shares"]
+    assert s["steps"] and s["steps"][-1]["residual_rms_after"] < 1.5 * g["baseline"]["noise_floor"]
+    assert all(x["id"].startswith("gyro.") for x in s["steps"]) and s["unexplained"] < 0.05
+    assert " ".join(f"--add {e}" for e in s["effects"]) in g["verdict"]
+    r = calibrate(tmp_path / "x", add=tuple(s["effects"]))
+    assert r["gyro"]["chi2"] == pytest.approx(s["steps"][-1]["chi2_after"], rel=1e-6)
+    assert r["gyro"]["chi2"] < 0.05 * g["baseline"]["chi2"]
 
 
 def test_diagnose_moves_clean_and_with_a_planted_g_sensitivity(tmp_path):
@@ -97,6 +105,20 @@ def test_diagnose_moves_clean_and_with_a_planted_g_sensitivity(tmp_path):
     assert abs(a["params"]["G_yz"]["error_after"]) < 3 * a["params"]["G_yz"]["std_after"]
     assert a["residual_rms_after"] < 1.5 * d["gyro"]["baseline"]["noise_floor"] < a["residual_rms_before"] / 10
     assert abs(a["params"]["T_xx"]["error_after"]) < abs(a["params"]["T_xx"]["error_before"])
+
+
+@pytest.mark.parametrize("eid,value", [("gyro.quadratic.x", 0.05), ("gyro.scale_asymmetry.y", 2e-3),
+                                       ("gyro.g_sensitivity.zx", 500.0)])
+def test_stream_effect_found_first_and_carried_by_calibrate(tmp_path, eid, value):
+    """A rate-dependent scale (the fast turns of a hand session), a scale asymmetry and a
+    g-sensitivity planted in a simulated session: diagnose ranks it first, calibrate --add
+    recovers it within 3 sigma."""
+    from simucal.diagnose import diagnose
+    write_handheld(tmp_path / "s", HandheldScenario(gyro_effects={eid: value}), 3)
+    top = diagnose(tmp_path / "s")["gyro"]["candidates"][0]
+    assert top["id"] == eid and top["significant"]
+    e = calibrate(tmp_path / "s", add=(eid,))["gyro"]["effects"][eid]
+    assert abs(e["value"] - value) < 3 * e["std"]
 
 
 def test_ferraris_sessions(tmp_path):
