@@ -251,7 +251,7 @@ CASADI_SYMBOL_EXPORT int simucal_acc_extended_work_bytes(casadi_int *sz_arg, cas
 #define MODEL_EVAL simucal_acc_extended
 #define MODEL_WORK simucal_acc_extended_work
 #define MODEL_FIT simucal_acc_extended_fit
-/* The whole exact norm fit of MODEL in one call (simucal.norm_fit.fit_exact, written in C).
+/* The whole exact norm fit of MODEL in one call (simucal.fit.norm_fit.fit_exact, written in C).
  *
  * For each of n_sets data sets of n rows: maximum likelihood on the norm principle,
  *     minimise sum_i |(N_i - h(rho_i u_i, p, aux_i)) / sigma_i|^2,  |u_i| = 1,

@@ -222,7 +222,7 @@ CASADI_SYMBOL_EXPORT int simucal_gyro_baseline_work_bytes(casadi_int *sz_arg, ca
 #define MODEL_EVAL simucal_gyro_baseline
 #define MODEL_WORK simucal_gyro_baseline_work
 #define MODEL_FIT simucal_gyro_baseline_fit
-/* The whole exact norm fit of MODEL in one call (simucal.norm_fit.fit_exact, written in C).
+/* The whole exact norm fit of MODEL in one call (simucal.fit.norm_fit.fit_exact, written in C).
  *
  * For each of n_sets data sets of n rows: maximum likelihood on the norm principle,
  *     minimise sum_i |(N_i - h(rho_i u_i, p, aux_i)) / sigma_i|^2,  |u_i| = 1,

@@ -76,6 +76,47 @@ def C_k_n(gamma, alpha, beta, errors):
     return out0
 
 
+def specific_force_k(gamma, alpha, beta, errors):
+    """f^k at rest (g): C_n^k z, the third row of C_k_n alone (a third of its cost)."""
+    tilt_x = errors[..., 0]
+    tilt_y = errors[..., 1]
+    nonperp_om = errors[..., 2]
+    nonperp_mi = errors[..., 3]
+    d_gamma = errors[..., 4]
+    d_alpha = errors[..., 5]
+    d_beta = errors[..., 6]
+    _c0 = beta + d_beta
+    _c1 = numpy.sin(_c0)
+    _c2 = alpha + d_alpha
+    _c3 = numpy.sin(_c2)
+    _c4 = numpy.sin(tilt_x)
+    _c5 = d_gamma + gamma
+    _c6 = numpy.cos(_c5)
+    _c7 = numpy.sin(_c5)
+    _c8 = numpy.cos(tilt_x)
+    _c9 = _c8*numpy.sin(tilt_y)
+    _c10 = _c4*_c6 + _c7*_c9
+    _c11 = numpy.cos(_c2)
+    _c12 = numpy.cos(nonperp_om)
+    _c13 = _c8*numpy.cos(tilt_y)
+    _c14 = numpy.sin(nonperp_om)
+    _c15 = _c4*_c7 - _c6*_c9
+    _c16 = _c12*_c13 + _c14*_c15
+    _c17 = -_c10*_c3 + _c11*_c16
+    _c18 = numpy.cos(_c0)
+    _c19 = numpy.cos(nonperp_mi)
+    _c20 = _c12*_c15 - _c13*_c14
+    _c21 = numpy.sin(nonperp_mi)
+    _c22 = _c10*_c11 + _c16*_c3
+    _c23 = _c19*_c20 + _c21*_c22
+    shape = numpy.broadcast_shapes(numpy.shape(gamma), numpy.shape(alpha), numpy.shape(beta), numpy.shape(tilt_x), numpy.shape(tilt_y), numpy.shape(nonperp_om), numpy.shape(nonperp_mi), numpy.shape(d_gamma), numpy.shape(d_alpha), numpy.shape(d_beta), )
+    out0 = numpy.empty(shape + (3,))
+    out0[..., 0] = -_c1*_c17 + _c18*_c23
+    out0[..., 1] = _c19*_c22 - _c20*_c21
+    out0[..., 2] = _c1*_c23 + _c17*_c18
+    return out0
+
+
 def mounting(angles):
     """C_b^k (or C_d^k) = Rx(a_x) Ry(a_y) Rz(a_z) from three mounting angles."""
     theta_x4 = angles[..., 0]

@@ -2,7 +2,7 @@
 
 For each sensor triad: the exact norm fit with the noise the data give,
 residuals per segment and axis against the noise floor, the tests and the
-candidate ranking of simucal.candidates (one test for every diagnosis), the
+candidate ranking of simucal.fit.candidates (one test for every diagnosis), the
 shape of a misfit no candidate explains (with a model file for it), and with
 --add the parameters and the residual before and after.
 """

@@ -178,12 +178,24 @@ def normal_equations(model, obs, p, u, sig):
     return _schur(*jacobian_blocks(model, obs, p, u, sig))
 
 
+def _inv2(A):
+    """Inverses of 2x2 matrices (..., 2, 2) in closed form (LAPACK's per-matrix call costs more
+    than the arithmetic); a singular one raises as np.linalg.inv would."""
+    det = A[..., 0, 0] * A[..., 1, 1] - A[..., 0, 1] * A[..., 1, 0]
+    if np.any(det == 0):
+        raise np.linalg.LinAlgError("Singular matrix")
+    out = np.empty_like(A)
+    out[..., 0, 0], out[..., 1, 1] = A[..., 1, 1] / det, A[..., 0, 0] / det
+    out[..., 0, 1], out[..., 1, 0] = -A[..., 0, 1] / det, -A[..., 1, 0] / det
+    return out
+
+
 def _schur(r, Jq, Jd, E):
     """normal_equations from the blocks, for one set or a batch (leading axes): the sums over
     the rows as matrix products."""
     JdT = Jd.swapaxes(-1, -2)
     B, gd = JdT @ Jq, (JdT @ r[..., None])[..., 0]
-    Ainv = np.linalg.inv(JdT @ Jd)
+    Ainv = _inv2(JdT @ Jd)
     AB, Ag = Ainv @ B, (Ainv @ gd[..., None])[..., 0]
     lead, n, m = Jq.shape[:-3], Jq.shape[-3], Jq.shape[-1]
     Jq2, B2 = Jq.reshape(*lead, 3 * n, m), B.reshape(*lead, 2 * n, m)
@@ -337,7 +349,8 @@ def fit_batch(model, N, rho, sig, p0, aux=None, max_iter=200, tol=1e-12, prior=N
         if not len(idx):
             break
         iters[idx] = it
-        r, H, g, Ainv, Bm, gd, E = _schur(*_blocks(model, N[idx], rho[idx], sig[idx], p[idx], u[idx], aux))
+        I = slice(None) if len(idx) == S else idx  # a view where every set is active: no copies
+        r, H, g, Ainv, Bm, gd, E = _schur(*_blocks(model, N[I], rho[I], sig[I], p[I], u[I], aux))
         if held:  # the prior's pseudo-observations (p_k - value) / std
             H[:, held, held] += held_w
             g[:, held] += held_w * (p[idx][:, held] - held_val)
@@ -350,11 +363,12 @@ def fit_batch(model, N, rho, sig, p0, aux=None, max_iter=200, tol=1e-12, prior=N
         Hs, gs = H / (dH[:, :, None] * dH[:, None, :]), g / dH
         need = active[idx].copy()  # Levenberg-Marquardt: damp each set until its cost does not rise
         dp = np.zeros((len(idx), m))
-        p_new, u_new, new_cost = p[idx].copy(), u[idx].copy(), cost[idx].copy()
+        p_new, u_new, new_cost = p[I].copy(), u[I].copy(), cost[idx].copy()
         while need.any():
             k = np.nonzero(need)[0]
+            K, IK = (slice(None), I) if len(k) == len(idx) else (k, idx[k])
             try:
-                dp[k] = -np.linalg.solve(Hs[k] + lam[idx[k], None, None] * np.eye(m), gs[k][..., None])[..., 0] / dH[k]
+                dp[K] = -np.linalg.solve(Hs[K] + lam[idx[k], None, None] * np.eye(m), gs[K][..., None])[..., 0] / dH[K]
             except np.linalg.LinAlgError:  # find the singular sets one by one
                 for j in k:
                     try:
@@ -364,11 +378,12 @@ def fit_batch(model, N, rho, sig, p0, aux=None, max_iter=200, tol=1e-12, prior=N
                 k = np.nonzero(need)[0]
                 if not len(k):
                     break
-            dd = -(Ainv[k] @ (gd[k] + (Bm[k] @ dp[k][:, None, :, None])[..., 0])[..., None])[..., 0]
-            pk = p[idx[k]] + dp[k]
-            v = u[idx[k]] + (E[k] @ dd[..., None])[..., 0]
+                K, IK = k, idx[k]
+            dd = -(Ainv[K] @ (gd[K] + (Bm[K] @ dp[K][:, None, :, None])[..., 0])[..., None])[..., 0]
+            pk = p[IK] + dp[K]
+            v = u[IK] + (E[K] @ dd[..., None])[..., 0]
             uk = v / np.linalg.norm(v, axis=2, keepdims=True)
-            ck = _costs(model, N[idx[k]], rho3[idx[k]], sig[idx[k]], aux, pk, uk, held, held_val, held_w)
+            ck = _costs(model, N[IK], rho3[IK], sig[IK], aux, pk, uk, held, held_val, held_w)
             ok = (ck <= cost[idx[k]] * (1 + 1e-12)) | (lam[idx[k]] > 1e8)
             acc, rej = k[ok], k[~ok]
             p_new[acc], u_new[acc], new_cost[acc] = pk[ok], uk[ok], ck[ok]

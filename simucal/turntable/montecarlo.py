@@ -73,8 +73,7 @@ def simulate_batch(sc: Scenario, trials: int, rng, noise=True):
     w_ie_n = table.earth_rate_n(w_e, lat)
     up = np.array([0, 0, 1.0])
     T, Ps, Pr = trials, len(static), len(rates)
-    C = table.C_k_n(static[:, 0], static[:, 1], static[:, 2], _errors(sc, rng, (T, Ps), noise))  # (T, Ps, 3, 3)
-    f_s = C[..., 2, :] @ C_b_k  # C_k^b C_n^k z
+    f_s = table.specific_force_k(static[:, 0], static[:, 1], static[:, 2], _errors(sc, rng, (T, Ps), noise)) @ C_b_k
     tilt_n = table.C_k_n(0.0, 0.0, 0.0, np.r_[sc.tilt_rad, np.zeros(5)])[:, 2]
     w_n = w_ie_n + (rates[:, 2] * 3600.0)[:, None] * tilt_n  # (Pr, 3)
     err_r = _errors(sc, rng, (T, Pr), noise)
@@ -160,7 +159,7 @@ def chunk_of_trials(sc: Scenario, size: int, seed: int, k: int) -> dict:
     return {"acc": pa[ok], "gyro": pg[ok], "phi": phi, "failed": np.nonzero(~ok)[0].tolist()}
 
 
-def run(sc: Scenario, trials: int, seed: int = 0, chunk: int = 5000, progress=None, scheduler=None) -> dict:
+def run(sc: Scenario, trials: int, seed: int = 0, chunk: int = 2500, progress=None, scheduler=None) -> dict:
     """The Monte Carlo result (module doc) as a dict ready for JSON. Batches of `chunk` trials
     run on the scheduler (sweeps.map_tasks), each with its own seed: the same numbers on any."""
     from simucal.sweeps import map_tasks
