@@ -18,18 +18,21 @@ from simucal.turntable.calibrate import METHODS, calibrate_table
 
 def calibrate(folder, method="exact", acc_model="acc_baseline", gyro_model="gyro_baseline", detect=None,
               add=(), acc_noise_g=None, gyro_noise_dph=None) -> dict:
-    """Calibrate a measurement set. add: effect ids and model files (catalog.resolve_add);
-    acc_noise_g / gyro_noise_dph: the noise of one row where the data cannot give it."""
+    """Calibrate a measurement set. add: effect ids and model files (augmented.resolve_add), and
+    "auto": the library effects a failing model needs, chosen one at a time (each sensor's
+    block lists them under `auto`); acc_noise_g / gyro_noise_dph: the noise of one row where
+    the data cannot give it."""
     if method not in METHODS:
         raise CalibrationError(f"unknown method {method!r}; one of {METHODS}")
     ms = io.read(folder)
     try:
         stuck_channels(ms)
-        acc_model, gyro_model, ids = resolve_add(add, acc_model, gyro_model)
+        auto = "auto" in add
+        acc_model, gyro_model, ids = resolve_add([a for a in add if a != "auto"], acc_model, gyro_model)
         if ms.segments is None:  # one continuous stream: a hand-placed session
             return calibrate_handheld(ms, AugmentedModel(acc_model, tuple(e for e in ids if e.startswith("acc."))),
-                                      detect, gyro_effects=tuple(e for e in ids if e.startswith("gyro.")))
-        return calibrate_table(ms, method, acc_model, gyro_model, ids, acc_noise_g, gyro_noise_dph)
+                                      detect, gyro_effects=tuple(e for e in ids if e.startswith("gyro.")), auto=auto)
+        return calibrate_table(ms, method, acc_model, gyro_model, ids, acc_noise_g, gyro_noise_dph, auto)
     except CalibrationError as e:
         raise e.naming(ms.path) from None
 

@@ -129,7 +129,8 @@ def _check_out(*paths):
 
 
 _ADD_HELP = ("Effect id to add, e.g. acc.quadratic.z (exact ids; unknown ones are refused), or a model file "
-             "(MODELS = [...]) with your own SymPy terms, derived into the cache (repeatable).")
+             "(MODELS = [...]) with your own SymPy terms, derived into the cache (repeatable). calibrate also takes "
+             "'auto': the library effects a failing model needs, chosen one at a time by the same test as diagnose.")
 
 
 def _sensor_lines(result):
@@ -144,6 +145,10 @@ def _sensor_lines(result):
                 else "no test (" + b.get("test", "no noise estimate") + ")")
         eff = "".join(f"; {e} = {v['value']:.4g} +- {v['std']:.2g} {v['unit']}" for e, v in b.get("effects", {}).items())
         yield f"{s}: residual rms {b['residual_rms']:.3g} {unit}; {test}{eff}"
+        if "auto" in b:
+            yield (f"{s}: --add auto chose " + ", ".join(x["id"] for x in b["auto"]) + " (one at a time, each passing "
+                   "the candidate test)" if b["auto"] else f"{s}: --add auto chose nothing (the model passes, or no "
+                   "library effect passes the candidate test)")
         if b.get("p_value") is not None and b["p_value"] < 1e-3:
             what = b.get("advice")
             stds = ("stds are inflated by sqrt(chi2/dof) (std_raw keeps the unscaled ones)" if "std_raw" in b else

@@ -188,3 +188,20 @@ def test_stream_calibrate_carries_a_gyro_effect_and_applies(tmp_path):
     calibration.write(tmp_path / "c.json", cal)
     meta, samples, _ = apply(calibration.read(tmp_path / "c.json"), tmp_path / "h")
     assert meta["gyro_unit"] == "deg/h" and np.all(np.isfinite(samples["gx"]))
+
+
+def test_add_auto_chooses_the_planted_effects_and_nothing_on_clean_data(tmp_path):
+    """calibrate --add auto: the library effects a failing model needs, one at a time; none where
+    the model already passes."""
+    sc = rich()
+    sc.acc_effects["acc.quadratic.z"] = 2e-4
+    sc.gyro_effects["gyro.bias_temperature.z"] = 0.02
+    write(tmp_path / "s", sc, 2)
+    r = calibrate(tmp_path / "s", add=("auto",))
+    for sensor, eid, value in (("acc", "acc.quadratic.z", 2e-4), ("gyro", "gyro.bias_temperature.z", 0.02)):
+        assert [x["id"] for x in r[sensor]["auto"]] == [eid]
+        e = r[sensor]["effects"][eid]
+        assert abs(e["value"] - value) < 3 * e["std"] and r[sensor]["p_value"] > 1e-3
+    write(tmp_path / "clean", rich(), 2)
+    r = calibrate(tmp_path / "clean", add=("auto",))
+    assert r["acc"]["auto"] == [] and r["gyro"]["auto"] == [] and not r["acc"]["effects"]

@@ -132,6 +132,25 @@ def test_model(model, obs: Observations, p0=None) -> tuple[Fit, Observations, di
     return fit, obs, block
 
 
+def forward_selection(model: AugmentedModel, obs: Observations, max_terms=6) -> tuple[AugmentedModel, list]:
+    """`--add auto`: the library effects that explain a failing model, chosen one at a time.
+    While the model fails its test (test_model), the strongest candidate that passes
+    rank_candidates' Bonferroni gate is added and the model tested again. Returns the model
+    with them and the steps (id, its estimate when chosen, the test's p-value after)."""
+    steps = []
+    fit, obs2, base = test_model(model, obs)
+    while len(steps) < max_terms and base["p_value"] is not None and base["p_value"] < ALPHA:
+        sig = [c for c in rank_candidates(model, obs2, fit, True) if c.get("significant")]
+        if not sig:
+            break
+        model = AugmentedModel(model.base, model.effects + (sig[0]["id"],))
+        fit, obs2, base = test_model(model, obs)
+        steps.append({"id": sig[0]["id"], "estimate": sig[0]["estimate"], "std": sig[0]["std"],
+                      "unit": sig[0]["unit"], "p_value_after": base["p_value"],
+                      "residual_rms_after": fit.residual_rms})
+    return model, steps
+
+
 def shape_if_unexplained(model, obs, fit, base, cands) -> dict | None:
     """The generic term's description when the model fails and no candidate explains the
     misfit as well (no significant candidate, or the generic term's likelihood ratio is

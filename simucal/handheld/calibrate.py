@@ -24,7 +24,7 @@ from dataclasses import dataclass, replace
 import numpy as np
 
 from simucal.errors import CalibrationError
-from simucal.fit.augmented import AugmentedModel
+from simucal.fit.augmented import AugmentedModel, effect_ids
 from simucal.fit.aux_inputs import (
     SENSOR_AUX,
     AuxInputs,
@@ -32,7 +32,8 @@ from simucal.fit.aux_inputs import (
     columns_at,
     specific_force,
 )
-from simucal.fit.distributions import chi2_sf
+from simucal.fit.candidates import forward_selection
+from simucal.fit.distributions import chi2_sf, f_sf
 from simucal.fit.noise import quantization_step, white_noise_var
 from simucal.fit.norm_fit import (
     Observations,
@@ -447,6 +448,52 @@ def chi2_test(fit: GyroFit, S, bias_std, mv: Moves):
     return chi2, dof, float(chi2_sf(chi2, dof)) if dof > 0 else None
 
 
+def misfit_shares(gm, base: GyroFit, sigma_g, inputs, chi0, dof0, alpha=0.01, max_terms=9) -> dict:
+    """How much of the moves' misfit the library explains, effect by effect: forward selection.
+    Each step adds the candidate that lowers the chi-square most, kept while its F test against
+    the remaining misfit, F = (chi2_before - chi2_after) / (chi2_after / dof_after), beats
+    alpha / (candidates left). share: its chi-square drop over the baseline's excess
+    (chi2 - dof); `unexplained` is what the chosen effects leave of that excess."""
+    excess0 = max(chi0 - dof0, 1e-300)
+    chosen, steps, chi_prev, fit = [], [], chi0, base
+    left = effect_ids("gyro")
+    while len(chosen) < max_terms:
+        # rank the candidates on moves in blocks of 4 samples with their defect against full
+        # resolution at the current fit (as fit_gyro does), then refit the best at full resolution
+        mv = with_terms(gm.mv, chosen, inputs)
+        defect = (move_residuals(fit.T, mv, gm.g_dirs, jac=False, db=fit.db, p=fit.p)[0]
+                  - move_residuals(fit.T, decimate(mv, 4), gm.g_dirs, jac=False, db=fit.db, p=fit.p)[0])
+        trials = []
+        for eid in left:
+            mv4 = decimate(with_terms(gm.mv, chosen + [eid], inputs), 4)
+            f = fit_gyro_moves(mv4, gm.g_dirs, np.r_[fit.T.ravel(), fit.db, fit.p, 0.0], gm.bias_std, offset=defect)
+            if f.converged and np.all(np.isfinite(f.cov)):
+                trials.append((float(np.sum(f.r ** 2)), eid))
+        if not trials:
+            break
+        eid = min(trials)[1]
+        mv = with_terms(gm.mv, chosen + [eid], inputs)
+        f = fit_gyro_moves(mv, gm.g_dirs, np.r_[fit.T.ravel(), fit.db, fit.p, 0.0], gm.bias_std)
+        if not f.converged:
+            break
+        chi2, dof, _ = chi2_test(f, move_covariances(gm, f, sigma_g), gm.bias_std, mv)
+        F = (chi_prev - chi2) / max(chi2 / dof, 1e-300) if dof > 0 else 0.0
+        p = float(f_sf(max(F, 0.0), 1, dof)) if dof > 0 else 1.0
+        if p >= alpha / len(left):
+            break
+        k = len(chosen)
+        steps.append({"id": eid, "estimate": float(f.p[k]), "std": float(np.sqrt(f.cov[12 + k, 12 + k])),
+                      "unit": EFFECTS[eid].unit, "chi2_after": chi2, "dof_after": dof, "F": float(F), "p_value": p,
+                      "share": float((chi_prev - chi2) / excess0),
+                      "residual_rms_after": float(np.sqrt(np.mean(f.r ** 2)))})
+        chosen.append(eid)
+        left = [e for e in left if e != eid]
+        chi_prev, fit = chi2, f
+    return {"chi2": chi0, "dof": dof0, "residual_rms": float(np.sqrt(np.mean(base.r ** 2))), "steps": steps,
+            "effects": chosen,
+            "unexplained": float(max(chi_prev - (steps[-1]["dof_after"] if steps else dof0), 0.0) / excess0)}
+
+
 def regressor_inputs(ms, gm, fit: GyroFit, acc_cal):
     """Inputs of the candidate regressors, (u deg/h, AuxInputs), at every move sample (m, L) and
     at every sample of the initial rest (n,): the calibrated rate, the calibrated specific
@@ -478,7 +525,8 @@ def with_terms(mv: Moves, ids, inputs) -> Moves:
                  phi_rest)
 
 
-def calibrate_handheld(ms, acc_model="acc_baseline", detect=None, pose_window_s=1.0, gyro_effects=()) -> dict:
+def calibrate_handheld(ms, acc_model="acc_baseline", detect=None, pose_window_s=1.0, gyro_effects=(),
+                       auto=False) -> dict:
     """pose_window_s: seconds at the start of each static interval averaged into the
     pose (None: the whole interval). Hand-placed poses creep: on imu_tk's Xsens
     session the baseline's chi2 falls from 472 to 141 (29 dof) when only the first
@@ -487,12 +535,19 @@ def calibrate_handheld(ms, acc_model="acc_baseline", detect=None, pose_window_s=
     from simucal.io import calibration
     t = ms.samples["t_s"]
     obs, det, am, fa, tau = acc_from_poses(ms, acc_model, detect, pose_window_s)
+    acc_chosen = None
+    if auto:  # the library effects the failing poses need (candidates.forward_selection)
+        am2, acc_chosen = forward_selection(am, obs)
+        if acc_chosen:
+            obs, det, am, fa, tau = acc_from_poses(ms, am2, detect, pose_window_s)
     M_a, b_a = am.matrix_and_bias(fa.vector(am.params))
     units.check_scale("acc", M_a, ms.path / "samples.csv")
     result = calibration.header("handheld (Tedaldi): exact norm fit + gyro moves", ms)
     result["static_detection"] = {**det.as_dict(t), "pose_window_s": pose_window_s}
     result["acc"] = calibration.sensor_block(am, fa, M_a, b_a)
     result["acc"]["undetermined"] = fa.undetermined
+    if auto:
+        result["acc"]["auto"] = acc_chosen
     result["acc"].update(model_error_std_g=tau, note=None if tau == 0 else (
         "the model does not explain the poses down to their own noise (see chi2, p_value before "
         "the extra variance: simucal diagnose); each pose got an extra variance tau^2 so that "
@@ -500,7 +555,14 @@ def calibrate_handheld(ms, acc_model="acc_baseline", detect=None, pose_window_s=
     if ms.has_gyro:
         gm = prepare_moves(ms, det, *pose_directions(am, obs, fa))
         f = fit_gyro(gm.mv, gm.g_dirs, gm.bias_std)
-        effects = {}
+        effects, chosen = {}, None
+        if auto and f.converged:  # the library effects the failing moves need (misfit_shares)
+            sigma_g = gyro_noise_dps(ms, gm)
+            chi2, dof, p_value = chi2_test(f, move_covariances(gm, f, sigma_g), gm.bias_std, gm.mv)
+            if p_value is not None and p_value < 0.01:
+                shares = misfit_shares(gm, f, sigma_g, regressor_inputs(ms, gm, f, (M_a, b_a)), chi2, dof)
+                chosen = shares["steps"]
+                gyro_effects = tuple(dict.fromkeys(tuple(gyro_effects) + tuple(shares["effects"])))
         if gyro_effects and f.converged:
             inputs = regressor_inputs(ms, gm, f, (M_a, b_a))
             gm.mv = with_terms(gm.mv, list(gyro_effects), inputs)
@@ -556,6 +618,6 @@ def calibrate_handheld(ms, acc_model="acc_baseline", detect=None, pose_window_s=
             moves_opposite_sense=gm.flipped, iterations=f.iterations, chi2=chi2, dof=dof, p_value=p_value,
             test="chi-square of the moves against the rests' white noise (simucal diagnose shows them)",
             std_note="stds scale with the moves' own residual scatter, so they include any misfit",
-            undetermined=undetermined)
+            undetermined=undetermined, **({"auto": chosen or []} if auto else {}))
     result["residual_rms"] = {s: result[s]["residual_rms"] for s in ("acc", "gyro") if s in result}
     return result

@@ -30,15 +30,15 @@ import numpy as np
 
 from simucal.fit.augmented import check_effect, effect_ids
 from simucal.fit.candidates import gate_candidates, verdict
-from simucal.fit.distributions import chi2_sf, f_sf
+from simucal.fit.distributions import chi2_sf
 from simucal.generated.effects import EFFECTS, SEPARATE_MOVES
 from simucal.handheld.calibrate import (
     GyroFit,
     chi2_test,
-    decimate,
     fit_gyro,
     fit_gyro_moves,
     gyro_noise_dps,
+    misfit_shares,
     move_covariances,
     move_residuals,
     pose_directions,
@@ -153,52 +153,6 @@ def diagnose_moves(ms, obs, det, am, fa, add=(), truth=None, alpha=0.01):
                         "p_value_after": p1, "params": comp,
                         "residuals_before": move_rows(gm, base, move_covariances(gm, base, sigma_g), columns)}
     return out
-
-
-def misfit_shares(gm, base: GyroFit, sigma_g, inputs, chi0, dof0, alpha=0.01, max_terms=9) -> dict:
-    """How much of the moves' misfit the library explains, effect by effect: forward selection.
-    Each step adds the candidate that lowers the chi-square most, kept while its F test against
-    the remaining misfit, F = (chi2_before - chi2_after) / (chi2_after / dof_after), beats
-    alpha / (candidates left). share: its chi-square drop over the baseline's excess
-    (chi2 - dof); `unexplained` is what the chosen effects leave of that excess."""
-    excess0 = max(chi0 - dof0, 1e-300)
-    chosen, steps, chi_prev, fit = [], [], chi0, base
-    left = effect_ids("gyro")
-    while len(chosen) < max_terms:
-        # rank the candidates on moves in blocks of 4 samples with their defect against full
-        # resolution at the current fit (as fit_gyro does), then refit the best at full resolution
-        mv = with_terms(gm.mv, chosen, inputs)
-        defect = (move_residuals(fit.T, mv, gm.g_dirs, jac=False, db=fit.db, p=fit.p)[0]
-                  - move_residuals(fit.T, decimate(mv, 4), gm.g_dirs, jac=False, db=fit.db, p=fit.p)[0])
-        trials = []
-        for eid in left:
-            mv4 = decimate(with_terms(gm.mv, chosen + [eid], inputs), 4)
-            f = fit_gyro_moves(mv4, gm.g_dirs, np.r_[fit.T.ravel(), fit.db, fit.p, 0.0], gm.bias_std, offset=defect)
-            if f.converged and np.all(np.isfinite(f.cov)):
-                trials.append((float(np.sum(f.r ** 2)), eid))
-        if not trials:
-            break
-        eid = min(trials)[1]
-        mv = with_terms(gm.mv, chosen + [eid], inputs)
-        f = fit_gyro_moves(mv, gm.g_dirs, np.r_[fit.T.ravel(), fit.db, fit.p, 0.0], gm.bias_std)
-        if not f.converged:
-            break
-        chi2, dof, _ = chi2_test(f, move_covariances(gm, f, sigma_g), gm.bias_std, mv)
-        F = (chi_prev - chi2) / max(chi2 / dof, 1e-300) if dof > 0 else 0.0
-        p = float(f_sf(max(F, 0.0), 1, dof)) if dof > 0 else 1.0
-        if p >= alpha / len(left):
-            break
-        k = len(chosen)
-        steps.append({"id": eid, "estimate": float(f.p[k]), "std": float(np.sqrt(f.cov[12 + k, 12 + k])),
-                      "unit": EFFECTS[eid].unit, "chi2_after": chi2, "dof_after": dof, "F": float(F), "p_value": p,
-                      "share": float((chi_prev - chi2) / excess0),
-                      "residual_rms_after": float(np.sqrt(np.mean(f.r ** 2)))})
-        chosen.append(eid)
-        left = [e for e in left if e != eid]
-        chi_prev, fit = chi2, f
-    return {"chi2": chi0, "dof": dof0, "residual_rms": float(np.sqrt(np.mean(base.r ** 2))), "steps": steps,
-            "effects": chosen,
-            "unexplained": float(max(chi_prev - (steps[-1]["dof_after"] if steps else dof0), 0.0) / excess0)}
 
 
 def _shares_text(shares, where) -> str:

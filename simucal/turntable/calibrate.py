@@ -23,6 +23,7 @@ from simucal.fit.augmented import AugmentedModel
 from simucal.fit.aux_inputs import AuxInputs, column_means
 from simucal.fit.candidates import (
     ALPHA,
+    forward_selection,
     rank_candidates,
     shape_if_unexplained,
     test_model,
@@ -345,10 +346,14 @@ def _exact_sensor(model, obs, method, where):
     return fit, base, advice, obs2
 
 
-def calibrate_table(ms, method, acc_model, gyro_model, ids, acc_noise_g=None, gyro_noise_dph=None) -> dict:
-    """Calibrate a turntable set (segments.csv) by `method`, the models with the effect ids added."""
+def calibrate_table(ms, method, acc_model, gyro_model, ids, acc_noise_g=None, gyro_noise_dph=None,
+                    auto=False) -> dict:
+    """Calibrate a turntable set (segments.csv) by `method`, the models with the effect ids added
+    (auto: and the library effects that a failing model needs, candidates.forward_selection)."""
     if method not in METHODS:
         raise CalibrationError(f"unknown method {method!r}; one of {METHODS}")
+    if auto and method != "exact":
+        raise CalibrationError("--add auto needs --method exact (the effects are chosen by the exact fit's test)")
     acc_obs = acc_segs = gyro_obs = gyro_segs = None
     lever_arms = any(e.startswith("acc.size_effect.") for e in ids)  # seen only under rotation
     if ms.has_acc:
@@ -381,6 +386,12 @@ def calibrate_table(ms, method, acc_model, gyro_model, ids, acc_noise_g=None, gy
 
     am = AugmentedModel(acc_model, tuple(e for e in ids if e.startswith("acc.")))
     gm = AugmentedModel(gyro_model, tuple(e for e in ids if e.startswith("gyro.")))
+    chosen = {}
+    if auto:
+        if acc_obs is not None:
+            am, chosen["acc"] = forward_selection(am, acc_obs)
+        if gyro_obs is not None:
+            gm, chosen["gyro"] = forward_selection(gm, gyro_obs)
     fa = fg = None
     if acc_obs is not None:
         fa, base_a, advice_a, acc_obs = _exact_sensor(am, acc_obs, method, str(ms.path))
@@ -429,6 +440,8 @@ def calibrate_table(ms, method, acc_model, gyro_model, ids, acc_noise_g=None, gy
     for s in ("acc", "gyro"):
         if s in result:
             calibration.inflate_if_failing(result[s])
+            if s in chosen:
+                result[s]["auto"] = chosen[s]
     if ms.has_gyro and "gyro" not in result:  # the data hold a gyro, the plan determines none of it
         n_rate = sum(s.kind == "rate" for s in ms.segments)
         result["not_calibrated"] = {"gyro": (
