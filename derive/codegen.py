@@ -177,8 +177,14 @@ def c_source(model: ErrorModel) -> str:
     cg.add(casadi_function(model))
     head = HEADER.format(what=f"model {model.name}, sha256 {model.sha256()}", **_versions())
     name = f"simucal_{model.name}"
-    bind = (f"\n#define MODEL_M {len(model.params)}\n#define MODEL_NAUX {len(model.aux)}\n"
-            f"#define MODEL_EVAL {name}\n#define MODEL_WORK {name}_work\n#define MODEL_FIT {name}_fit\n")
+    m = len(model.params)
+    Jp = model.output().jacobian(model.params)  # its structural zeros: the fit skips them
+    cols = [[k for k in range(m) if Jp[a, k] != 0] for a in range(3)]
+    bind = (f"\n#define MODEL_M {m}\n#define MODEL_NAUX {len(model.aux)}\n"
+            f"#define MODEL_EVAL {name}\n#define MODEL_WORK {name}_work\n#define MODEL_FIT {name}_fit\n"
+            f"#define MODEL_JP_COUNT {{{', '.join(str(len(c)) for c in cols)}}}\n"
+            "#define MODEL_JP_COLS {" + ", ".join("{" + ", ".join(map(str, c + [0] * (m - len(c)))) + "}"
+                                                for c in cols) + "}\n")
     template = (Path(__file__).parent / "templates" / "exact_fit.c").read_text()
     return "/*\n" + head.replace("# ", " * ").replace("#", " *") + " */\n" + cg.dump() + bind + template
 

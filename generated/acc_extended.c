@@ -251,6 +251,8 @@ CASADI_SYMBOL_EXPORT int simucal_acc_extended_work_bytes(casadi_int *sz_arg, cas
 #define MODEL_EVAL simucal_acc_extended
 #define MODEL_WORK simucal_acc_extended_work
 #define MODEL_FIT simucal_acc_extended_fit
+#define MODEL_JP_COUNT {3, 4, 5}
+#define MODEL_JP_COLS {{0, 6, 10, 0, 0, 0, 0, 0, 0, 0, 0, 0}, {1, 3, 7, 11, 0, 0, 0, 0, 0, 0, 0, 0}, {2, 4, 5, 8, 9, 0, 0, 0, 0, 0, 0, 0}}
 /* The whole exact norm fit of MODEL in one call (simucal.fit.norm_fit.fit_exact, written in C).
  *
  * For each of n_sets data sets of n rows: maximum likelihood on the norm principle,
@@ -269,6 +271,9 @@ CASADI_SYMBOL_EXPORT int simucal_acc_extended_work_bytes(casadi_int *sz_arg, cas
 
 #define FIT_M MODEL_M
 #define FIT_NAUX MODEL_NAUX
+/* the parameters each output row depends on (the structural non-zeros of dN/dp, from derive) */
+static const int fit_jp_count[3] = MODEL_JP_COUNT;
+static const int fit_jp_cols[3][FIT_M] = MODEL_JP_COLS;
 
 static int fit_eval(const double *u, const double *p, const double *aux, double *Nm, double *Ju, double *Jp,
                     casadi_int *iw, double *w) {
@@ -401,13 +406,18 @@ static int fit_one(int n, const double *N, const double *rho, const double *sig,
         double ga = 0;
         for (int c = 0; c < 3; c++) ga += Jqi[c * m + a] * ri[c];
         g[a] += ga - (Bi[a] * Ag[0] + Bi[m + a] * Ag[1]);
-        for (int b = 0; b < m; b++) {
-          double h = 0;
-          for (int c = 0; c < 3; c++) h += Jqi[c * m + a] * Jqi[c * m + b];
-          H[a * m + b] += h - (Bi[a] * AB[b] + Bi[m + a] * AB[m + b]);
-        }
+        for (int b = a; b < m; b++)  /* H is symmetric: the upper triangle, mirrored below */
+          H[a * m + b] -= Bi[a] * AB[b] + Bi[m + a] * AB[m + b];
       }
+      for (int c = 0; c < 3; c++)  /* + Jq^T Jq over the non-zeros of each output row */
+        for (int ka = 0; ka < fit_jp_count[c]; ka++)
+          for (int kb = ka; kb < fit_jp_count[c]; kb++) {
+            int a = fit_jp_cols[c][ka], b = fit_jp_cols[c][kb];
+            double h = Jqi[c * m + a] * Jqi[c * m + b];
+            if (a <= b) H[a * m + b] += h; else H[b * m + a] += h;
+          }
     }
+    for (int a = 0; a < m; a++) for (int b = 0; b < a; b++) H[a * m + b] = H[b * m + a];
     for (int a = 0; a < m; a++) {
       if (it == 1 && !(H[a * m + a] > 1e-300)) return 3;
       dH[a] = sqrt(H[a * m + a] > 1e-300 ? H[a * m + a] : 1e-300);
