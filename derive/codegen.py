@@ -200,6 +200,8 @@ def table_module() -> str:
         numpy_function("C_k_n", args, [((3, 3), table.C_k_n())], "C_k^n of the table with its errors."),
         numpy_function("specific_force_k", args, [((3,), table.specific_force_k())],
                        "f^k at rest (g): C_n^k z, the third row of C_k_n alone (a third of its cost)."),
+        numpy_function("outer_axis_k", [("alpha", None), ("beta", None), ("errors", errs)], [((3,), table.outer_axis_k())],
+                       "The outer axis in k: a rate run's mean input direction over whole revolutions."),
         numpy_function("mounting", [("angles", table.theta4)], [((3, 3), table.C_b_k())],
                        "C_b^k (or C_d^k) = Rx(a_x) Ry(a_y) Rz(a_z) from three mounting angles."),
         f"TABLE_FIT_PARAMS = {tuple(map(str, table.TABLE_FIT_PARAMS))!r}\n",

@@ -30,10 +30,21 @@ def tilt():
     return rot_x(tilt_x) * rot_y(tilt_y)
 
 
+def gimbals():
+    """The middle and inner gimbals with their errors: k in the outer-axis frame."""
+    return rot_y(nonperp_om) * rot_x(alpha + d_alpha) * rot_z(nonperp_mi) * rot_y(beta + d_beta)
+
+
 def C_k_n():
     """Exact attitude of the table frame k in n at commanded (gamma, alpha, beta)."""
-    return (tilt() * rot_z(gamma + d_gamma) * rot_y(nonperp_om) * rot_x(alpha + d_alpha)
-            * rot_z(nonperp_mi) * rot_y(beta + d_beta))
+    return tilt() * rot_z(gamma + d_gamma) * gimbals()
+
+
+def outer_axis_k():
+    """The outer axis in k at (alpha, beta). Over a whole revolution a vector v^n fixed in n
+    averages, in k, to this axis times v's component along the (tilted) outer axis, since
+    Rz(gamma)^T averages to diag(0, 0, 1): a rate run's mean input direction."""
+    return gimbals().T * UP
 
 
 def C_b_k():

@@ -313,6 +313,27 @@ static void fit_chol_solve(const double *L, int k, double *x) {
   }
 }
 
+/* A^-1 = L^-T L^-1 from the Cholesky factor L (row-major, lower) into inv (k x k, row-major, full):
+ * the triangular inverse by forward substitution, then the product over its non-zeros. */
+static void fit_chol_inverse(const double *L, int k, double *inv) {
+  double Li[FIT_M * FIT_M];
+  memset(Li, 0, sizeof(double) * k * k);
+  for (int j = 0; j < k; j++) {
+    Li[j * k + j] = 1.0 / L[j * k + j];
+    for (int i = j + 1; i < k; i++) {
+      double s = 0;
+      for (int l = j; l < i; l++) s -= L[i * k + l] * Li[l * k + j];
+      Li[i * k + j] = s / L[i * k + i];
+    }
+  }
+  for (int a = 0; a < k; a++)
+    for (int b = a; b < k; b++) {
+      double s = 0;
+      for (int l = b; l < k; l++) s += Li[l * k + a] * Li[l * k + b];
+      inv[a * k + b] = inv[b * k + a] = s;
+    }
+}
+
 static void fit_tangent(const double *u, double *E) {  /* E (3x2, row-major): e1 = u x a / |.|, e2 = u x e1 */
   double a[3] = {1, 0, 0};
   if (!(fabs(u[0]) < 0.9)) { a[0] = 0; a[1] = 1; }
@@ -377,14 +398,14 @@ static int fit_one(int n, const double *N, const double *rho, const double *sig,
       double *Ei = E + 6 * i, *Jdi = Jd + 6 * i, *Jqi = Jq + 3 * m * i, *ri = r + 3 * i;
       fit_tangent(u + 3 * i, Ei);
       for (int a = 0; a < 3; a++) {
-        double s = sig[3 * i + a];
-        ri[a] = (N[3 * i + a] - Nm[a]) / s;
+        double ws = 1.0 / sig[3 * i + a];  /* one division per component, products after */
+        ri[a] = (N[3 * i + a] - Nm[a]) * ws;
         for (int k = 0; k < 2; k++) {
           double v = 0;
-          for (int b = 0; b < 3; b++) v += Ju[b * 3 + a] * rho[i] * Ei[b * 2 + k];
-          Jdi[a * 2 + k] = -v / s;
+          for (int b = 0; b < 3; b++) v += Ju[b * 3 + a] * Ei[b * 2 + k];
+          Jdi[a * 2 + k] = -v * rho[i] * ws;
         }
-        for (int k = 0; k < m; k++) Jqi[a * m + k] = -Jp[k * 3 + a] / s;
+        for (int k = 0; k < m; k++) Jqi[a * m + k] = -Jp[k * 3 + a] * ws;
       }
       double A[4] = {0, 0, 0, 0}, *Bi = B + 2 * m * i, *gdi = gd + 2 * i;
       for (int k = 0; k < 2; k++) {
@@ -425,14 +446,16 @@ static int fit_one(int n, const double *N, const double *rho, const double *sig,
       dH[a] = sqrt(H[a * m + a] > 1e-300 ? H[a * m + a] : 1e-300);
     }
     double new_cost;
+    double rdH[FIT_M];
+    for (int a = 0; a < m; a++) rdH[a] = 1.0 / dH[a];
     for (;;) {  /* Levenberg-Marquardt: damp until the cost does not rise */
       for (int a = 0; a < m; a++) {
-        for (int b = 0; b < m; b++) Hs[a * m + b] = H[a * m + b] / (dH[a] * dH[b]) + (a == b ? lam : 0);
-        dp[a] = -g[a] / dH[a];
+        for (int b = 0; b < m; b++) Hs[a * m + b] = H[a * m + b] * (rdH[a] * rdH[b]) + (a == b ? lam : 0);
+        dp[a] = -g[a] * rdH[a];
       }
       if (!fit_cholesky(Hs, m)) return 2;
       fit_chol_solve(Hs, m, dp);
-      for (int a = 0; a < m; a++) { dp[a] /= dH[a]; p_new[a] = p[a] + dp[a]; }
+      for (int a = 0; a < m; a++) { dp[a] *= rdH[a]; p_new[a] = p[a] + dp[a]; }
       for (int i = 0; i < n; i++) {
         double *Bi = B + 2 * m * i, *Ai = Ainv + 4 * i, *Ei = E + 6 * i, v[2], dd[2], s = 0;
         for (int k = 0; k < 2; k++) {
@@ -472,12 +495,8 @@ static int fit_one(int n, const double *N, const double *rho, const double *sig,
   /* covariance from the last linearisation: inv(H scaled) / outer(dH) */
   for (int a = 0; a < m; a++) for (int b = 0; b < m; b++) Hs[a * m + b] = H[a * m + b] / (dH[a] * dH[b]);
   if (!fit_cholesky(Hs, m)) return 2;
-  for (int b = 0; b < m; b++) {
-    double e[FIT_M];
-    for (int a = 0; a < m; a++) e[a] = a == b;
-    fit_chol_solve(Hs, m, e);
-    for (int a = 0; a < m; a++) cov[a * m + b] = e[a] / (dH[a] * dH[b]);
-  }
+  fit_chol_inverse(Hs, m, cov);
+  for (int a = 0; a < m; a++) for (int b = 0; b < m; b++) cov[a * m + b] /= dH[a] * dH[b];
   return done ? 0 : 1;
 }
 

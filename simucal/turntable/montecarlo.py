@@ -79,14 +79,13 @@ def simulate_batch(sc: Scenario, trials: int, rng, noise=True):
     err_r = _errors(sc, rng, (T, Pr), noise)
     w2 = (np.radians(rates[:, 2]) ** 2 / units.DEFAULT_GRAVITY)[None, :]
     if _affine(am, p_a) and _affine(gm, p_g):
-        # mean over a revolution of C_k^n(gamma)^T v = C0^T tilt P_z tilt^T v, with C0 = C_k^n at gamma = -d_gamma
-        C0 = table.C_k_n(-err_r[..., 4], np.radians(rates[:, 0]), np.radians(rates[:, 1]), err_r)  # (T, Pr, 3, 3)
+        # over a revolution a vector v fixed in n averages, in k, to the outer axis times v's component
+        # along the tilted outer axis (derive/table.py outer_axis_k)
+        axis_k = table.outer_axis_k(np.radians(rates[:, 0]), np.radians(rates[:, 1]), err_r)  # (T, Pr, 3)
         tilt = table.C_k_n(0.0, 0.0, 0.0, np.r_[sc.tilt_rad, np.zeros(5)])
-        P = tilt @ np.diag([0.0, 0.0, 1.0]) @ tilt.T
-        C0t = C0.swapaxes(-1, -2)
-        f_k = C0t @ (P @ up)
+        f_k = axis_k * tilt[2, 2]
         f_r, f_d = f_k @ C_b_k, f_k @ C_d_k
-        w_d = (C0t @ (w_n @ P.T)[:, :, None])[..., 0] @ C_d_k
+        w_d = (axis_k * (w_n @ tilt)[:, 2][:, None]) @ C_d_k
         N_ar = am.output(f_r, p_a, AuxInputs({"w2": w2}))
         N_g = gm.output(w_d, p_g, AuxInputs(specific_force(f_d)))
     else:  # nonlinear terms: the mean of K samples, exact below degree K
@@ -118,7 +117,8 @@ def fit_trials(model, N, rho, sigma):
     rho_b = np.broadcast_to(rho, (T, n))
     sig = np.full((T, n, 3), float(sigma))
     Psi = base.norm_regressors(N)
-    K = np.linalg.solve(np.einsum("tna,tnb->tab", Psi, Psi), np.einsum("tna,tn->ta", Psi, rho_b ** 2)[..., None])[..., 0]
+    PsiT = Psi.swapaxes(1, 2)
+    K = np.linalg.solve(PsiT @ Psi, PsiT @ (rho_b ** 2)[..., None])[..., 0]  # matmul: einsum does not use BLAS here
     with np.errstate(invalid="ignore", divide="ignore"):  # a hopeless start fails its trial, counted
         p0 = np.c_[base.params_of_K(K), np.zeros((T, m - len(base.params)))]
     out = base.fit_compiled(N, rho_b, sig, np.zeros((T, n, len(base.aux))), p0) if not model.effects else None
@@ -139,7 +139,7 @@ def fit_trials(model, N, rho, sigma):
 def _unify_batch(am, p_a, N_ar, u_g, sign):
     """C_b^d per trial from the rate runs' mean specific force (b) and rate (d): Wahba, batched."""
     M, b = am.matrix_and_bias(p_a)  # (T, 3, 3), (T, 3): the affine inverse, exact for affine models
-    f = np.linalg.solve(M[:, None], (N_ar - b[:, None])[..., None])[..., 0]
+    f = (N_ar - b[:, None]) @ np.linalg.inv(M).swapaxes(1, 2)  # one inverse per trial, not per run
     u_b = f / np.linalg.norm(f, axis=2, keepdims=True)
     return wahba(u_b, u_g * sign[None, :, None], np.ones(u_b.shape[:2]))
 
@@ -154,7 +154,7 @@ def chunk_of_trials(sc: Scenario, size: int, seed: int, k: int) -> dict:
     pg, _, ug, ok_g = fit_trials(gm, sim["gyro"], sim["rho_gyro"], sc.gyro_noise_dph)
     ok = ok_a & ok_g
     C = _unify_batch(am, pa[ok], sim["acc_rate"][ok], ug[ok], sim["rate_sign"])
-    R = np.einsum("tji,jk->tik", C, sim["truth"]["C_b_d"])  # C^T C_true: the error rotation
+    R = C.swapaxes(1, 2) @ sim["truth"]["C_b_d"]  # C^T C_true: the error rotation
     phi = 0.5 * np.stack([R[:, 2, 1] - R[:, 1, 2], R[:, 0, 2] - R[:, 2, 0], R[:, 1, 0] - R[:, 0, 1]], 1)
     return {"acc": pa[ok], "gyro": pg[ok], "phi": phi, "failed": np.nonzero(~ok)[0].tolist()}
 
