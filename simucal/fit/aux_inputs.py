@@ -19,6 +19,7 @@ from simucal.io import SAMPLE_COLS
 
 DEFAULT_ZERO = set(SENSOR_AUX["acc"]) | set(SENSOR_AUX["gyro"])  # built-in inputs: 0 where the data have none
 NOT_AUX_COLUMNS = ("segment",) + SAMPLE_COLS  # samples.csv's key and outputs
+FORCE = ("f_x", "f_y", "f_z")  # the specific force in b, as gyro terms read it
 
 
 @dataclass(frozen=True)
@@ -58,7 +59,7 @@ class AuxInputs:
 def specific_force(f_b_g) -> dict:
     """{f_x, f_y, f_z} of a specific force (..., 3) in g, for AuxInputs."""
     f = np.asarray(f_b_g, float)
-    return {"f_x": f[..., 0], "f_y": f[..., 1], "f_z": f[..., 2]}
+    return {name: f[..., j] for j, name in enumerate(FORCE)}
 
 
 def column_means(samples: dict, groups) -> dict:

@@ -25,12 +25,11 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
-from simucal.fit.aux_inputs import DEFAULT_ZERO, SENSOR_AUX, AuxInputs
+from simucal.fit.aux_inputs import DEFAULT_ZERO, FORCE, SENSOR_AUX, AuxInputs
 from simucal.fit.distributions import chi2_sf, f_sf
 from simucal.fit.norm_fit import Fit, Observations, dense_jacobian, fit_exact
 
 DPS = 3600.0  # deg/h per deg/s: gyro rates enter generic terms in deg/s (as in derive/models/effects.py)
-FORCE = ("f_x", "f_y", "f_z")  # the specific force, as gyro terms read it
 
 
 @dataclass

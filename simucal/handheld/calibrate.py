@@ -32,7 +32,7 @@ from simucal.fit.aux_inputs import (
     columns_at,
     specific_force,
 )
-from simucal.fit.candidates import forward_selection
+from simucal.fit.candidates import ALPHA, forward_selection
 from simucal.fit.distributions import chi2_sf, f_sf
 from simucal.fit.noise import quantization_step, white_noise_var
 from simucal.fit.norm_fit import (
@@ -315,7 +315,7 @@ def swapped_or_still(ms, obs, poses):
 def rail_poses(ms, poses):
     """Refuse poses whose accelerometer sits at a rail: meta's full scale where given, else a column's
     extreme value held by nearly every sample of a pose (an unclipped pose's quantised noise does not)."""
-    raw = np.column_stack([ms.samples[c] for c in ("ax", "ay", "az")])
+    raw = ms.raw("acc")
     fs = ms.meta.get("full_scale", {}).get("acc")
     hits = []
     for j, c in enumerate(("ax", "ay", "az")):
@@ -404,7 +404,7 @@ def prepare_moves(ms, det: Detection, g_dirs, dir_var) -> GyroMoves:
     # the start of a move half a window late
     rest = slice(det.starts[0] + det.window // 2, det.ends[0] - det.window // 2)
     bias = w[rest].mean(0)
-    raw = np.column_stack([ms.samples[c] for c in ("gx", "gy", "gz")])
+    raw = ms.raw("gyro")
     bad, sat = saturated_rows(raw, ms.meta.get("full_scale", {}).get("gyro"))
     mv, skipped = build_moves(w, ms.samples["t_s"], det, bias, bad)
     flipped = check_rotation_sense(decimate(mv, 4), g_dirs, np.eye(3))  # a sign question: coarse moves suffice
@@ -559,7 +559,7 @@ def calibrate_handheld(ms, acc_model="acc_baseline", detect=None, pose_window_s=
         if auto and f.converged:  # the library effects the failing moves need (misfit_shares)
             sigma_g = gyro_noise_dps(ms, gm)
             chi2, dof, p_value = chi2_test(f, move_covariances(gm, f, sigma_g), gm.bias_std, gm.mv)
-            if p_value is not None and p_value < 0.01:
+            if p_value is not None and p_value < ALPHA:
                 shares = misfit_shares(gm, f, sigma_g, regressor_inputs(ms, gm, f, (M_a, b_a)), chi2, dof)
                 chosen = shares["steps"]
                 gyro_effects = tuple(dict.fromkeys(tuple(gyro_effects) + tuple(shares["effects"])))

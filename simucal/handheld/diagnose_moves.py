@@ -29,6 +29,7 @@ from __future__ import annotations
 import numpy as np
 
 from simucal.fit.augmented import check_effect, effect_ids
+from simucal.fit.aux_inputs import FORCE
 from simucal.fit.candidates import gate_candidates, verdict
 from simucal.fit.distributions import chi2_sf
 from simucal.generated.effects import EFFECTS, SEPARATE_MOVES
@@ -119,7 +120,7 @@ def diagnose_moves(ms, obs, det, am, fa, add=(), truth=None, alpha=0.01):
     inputs = regressor_inputs(ms, gm, base, acc_cal)
     inside = gm.mv.dt > 0
     columns = {k: np.sum(np.where(inside, v, 0.0), 1) / np.maximum(inside.sum(1), 1)
-               for k, v in inputs[0][1].values.items() if k not in ("f_x", "f_y", "f_z")}
+               for k, v in inputs[0][1].values.items() if k not in FORCE}
     cands = rank_move_candidates(gm, base, inputs, p is not None and p < alpha, alpha)
     shares = (misfit_shares(gm, base, sigma_g, inputs, chi2, dof, alpha)
               if not add and p is not None and p < alpha and any(c.get("significant") for c in cands) else None)

@@ -56,15 +56,17 @@ class MeasurementSet:
     def has_gyro(self):
         return "gx" in self.samples
 
+    def raw(self, sensor: str) -> np.ndarray:
+        """The outputs of 'acc' (ax ay az) or 'gyro' (gx gy gz) as recorded, in their own unit (n, 3)."""
+        return np.column_stack([self.samples[c] for c in (SAMPLE_COLS[:3] if sensor == "acc" else SAMPLE_COLS[3:])])
+
     def acc_g(self):
         """Accelerometer outputs in g (n, 3)."""
-        raw = np.column_stack([self.samples[c] for c in ("ax", "ay", "az")])
-        return units.acc_to_g(raw, self.meta)
+        return units.acc_to_g(self.raw("acc"), self.meta)
 
     def gyro_dph(self):
         """Gyro outputs in deg/h (n, 3)."""
-        raw = np.column_stack([self.samples[c] for c in ("gx", "gy", "gz")])
-        return units.gyro_to_dph(raw, self.meta)
+        return units.gyro_to_dph(self.raw("gyro"), self.meta)
 
 
 def _number(text, path, line, col):

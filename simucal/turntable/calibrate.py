@@ -78,7 +78,7 @@ def segment_observations(ms: io.MeasurementSet, sensor: str, kinds=None, stated=
     lat = np.radians(ms.meta.get("latitude_deg", 0.0))
     w_e = units.earth_rate_dph(ms.meta)
     N, sig, rho, keep = [], [], [], []
-    raw = _raw(ms, sensor)
+    raw = ms.raw(sensor)
     clipped = saturated_segments(ms, sensor)
     for s in segs:
         rows = ms.samples["segment"] == s.segment
@@ -101,17 +101,13 @@ def segment_observations(ms: io.MeasurementSet, sensor: str, kinds=None, stated=
     return obs, keep
 
 
-def _raw(ms, sensor):
-    return np.column_stack([ms.samples[c] for c in (("ax", "ay", "az") if sensor == "acc" else ("gx", "gy", "gz"))])
-
-
 def saturated_segments(ms, sensor) -> dict:
     """{segment: number of its samples at a rail} of one sensor: with full_scale in meta.json,
     or for raw counts the rails the data repeat (io/sensor_checks.saturated_rows)."""
     fs = ms.meta.get("full_scale", {}).get(sensor)
     if fs is None and ms.meta.get(f"{sensor}_unit") != "counts":
         return {}
-    bad = saturated_rows(_raw(ms, sensor), fs)[0]
+    bad = saturated_rows(ms.raw(sensor), fs)[0]
     seg, n = np.unique(ms.samples["segment"][bad], return_counts=True)
     return dict(zip(seg.tolist(), n.tolist()))
 
@@ -213,7 +209,7 @@ def _latitude_check(ms, fa, acc_segs, gm, fg, C_b_d):
     if not rows:
         return {"verdict": "not checked: no static positions"}
     gyro = ms.gyro_dph()
-    raw = np.column_stack([ms.samples[c] for c in ("gx", "gy", "gz")])
+    raw = ms.raw("gyro")
     stated = ms.meta.get("gyro_noise_dph")
     N, sig, groups = [], [], []
     for i in rows:

@@ -84,13 +84,13 @@ def plant(sc: Scenario, effects=(), effect_file=None, sets=(), columns=()):
     for item in columns:
         name, eq, ends = item.partition("=")
         try:
-            first, last = (float(x) for x in ends.split(":"))
+            low, high = (float(x) for x in ends.split(":"))
             if not eq or not name.strip().isidentifier() or name.strip() in io.SAMPLE_COLS + ("segment", "t_s"):
                 raise ValueError
         except ValueError:
             raise ValueError(f"--column {item!r}: write NAME=LOW:HIGH with a new column name and two numbers, "
                              "e.g. supply_v=4.8:5.2") from None
-        sc.columns[name.strip()] = (first, last)
+        sc.columns[name.strip()] = (low, high)
     from simucal.fit.augmented import check_effect
     for eid, val in _pairs(effects, "--effect").items():
         check_effect(eid)
