@@ -3,12 +3,12 @@
  * For each of n_sets data sets of n rows: maximum likelihood on the norm principle,
  *     minimise sum_i |(N_i - h(rho_i u_i, p, aux_i)) / sigma_i|^2,  |u_i| = 1,
  * by Levenberg-Marquardt on p with a 2-D tangent step per direction u_i, the directions
- * eliminated by the Schur complement of their 2x2 blocks, the damping, the convergence
+ * eliminated by the Schur complement of their 2x2 blocks (rank one per row), the damping, the convergence
  * test and the covariance at the solution exactly as in fit_exact (so both give the same
  * numbers). h and its Jacobians come from the CasADi function above (dense outputs).
  *
  * Arrays are C-contiguous: N, sig, u (n_sets, n, 3); rho (n_sets, n); aux (n_sets, n, NAUX);
- * p0, p (n_sets, M); cov (n_sets, M, M). status per set: 0 converged, 1 not converged,
+ * p0, p (n_sets, M); cov (n_sets, M, M), or NULL where only the estimates are wanted. status per set: 0 converged, 1 not converged,
  * 2 singular (the plan leaves a combination unobservable), 3 a parameter without any input.
  */
 #include <stdlib.h>
@@ -77,62 +77,78 @@ static void fit_chol_inverse(const double *L, int k, double *inv) {
     }
 }
 
-static void fit_tangent(const double *u, double *E) {  /* E (3x2, row-major): e1 = u x a / |.|, e2 = u x e1 */
-  double a[3] = {1, 0, 0};
-  if (!(fabs(u[0]) < 0.9)) { a[0] = 0; a[1] = 1; }
-  double e1[3] = {u[1] * a[2] - u[2] * a[1], u[2] * a[0] - u[0] * a[2], u[0] * a[1] - u[1] * a[0]};
-  double s = sqrt(e1[0] * e1[0] + e1[1] * e1[1] + e1[2] * e1[2]);
-  for (int c = 0; c < 3; c++) e1[c] /= s;
+static void fit_tangent(const double *u, double *E) {
+  /* E (3x2, row-major): a basis of the plane normal to u, e1 = u x a, e2 = u x e1, with a the
+   * axis u is furthest from (|e1| >= 0.43). Not normalised: a direction's step E dd is the same
+   * in any basis of the plane, and fit_exact's orthonormal one gives the same numbers. */
+  double e1[3];
+  if (fabs(u[0]) < 0.9) { e1[0] = 0; e1[1] = u[2]; e1[2] = -u[1]; }  /* a = x */
+  else { e1[0] = -u[2]; e1[1] = 0; e1[2] = u[0]; }                     /* a = y */
   double e2[3] = {u[1] * e1[2] - u[2] * e1[1], u[2] * e1[0] - u[0] * e1[2], u[0] * e1[1] - u[1] * e1[0]};
   for (int c = 0; c < 3; c++) { E[c * 2] = e1[c]; E[c * 2 + 1] = e2[c]; }
 }
 
-static double fit_cost(int n, const double *N, const double *rho, const double *sig, const double *aux,
+/* dp = -(Hsc + lam I)^-1 g, in the scaled variables (Hsc = H / outer(dH), lower triangle; rdH = 1/dH);
+ * L receives the Cholesky factor. 0 where the system is singular. */
+static int fit_damped_step(const double *Hsc, double lam, const double *g, const double *rdH, int m, double *L,
+                           double *dp) {
+  for (int a = 0; a < m; a++) {
+    for (int b = 0; b <= a; b++) L[a * m + b] = Hsc[a * m + b] + (a == b ? lam : 0);
+    dp[a] = -g[a] * rdH[a];
+  }
+  if (!fit_cholesky(L, m)) return 0;
+  fit_chol_solve(L, m, dp);
+  for (int a = 0; a < m; a++) dp[a] *= rdH[a];
+  return 1;
+}
+
+static double fit_cost(int n, const double *N, const double *rho, const double *wsig, const double *aux,
                        const double *p, const double *u, double *Nm, double *Ju, double *Jp, casadi_int *iw, double *w) {
   double c = 0;
   for (int i = 0; i < n; i++) {
     double x[3] = {rho[i] * u[3 * i], rho[i] * u[3 * i + 1], rho[i] * u[3 * i + 2]};
     fit_eval(x, p, aux + i * FIT_NAUX, Nm, Ju, Jp, iw, w);
     for (int c3 = 0; c3 < 3; c3++) {
-      double r = (N[3 * i + c3] - Nm[c3]) / sig[3 * i + c3];
+      double r = (N[3 * i + c3] - Nm[c3]) * wsig[3 * i + c3];
       c += r * r;
     }
   }
   return c;
 }
 
+static void fit_normalise(double *v) {
+  double s = 1.0 / sqrt(v[0] * v[0] + v[1] * v[1] + v[2] * v[2]);
+  v[0] *= s; v[1] *= s; v[2] *= s;
+}
+
 static int fit_one(int n, const double *N, const double *rho, const double *sig, const double *aux, const double *p0,
                    int max_iter, double tol, double *p, double *cov, double *u, double *cost_out, int *iters,
                    double *buf, casadi_int *iw, double *w) {
   const int m = FIT_M;
-  double *Jd = buf, *Jq = Jd + 6 * n, *Ainv = Jq + 3 * m * n, *B = Ainv + 4 * n, *gd = B + 2 * m * n;
-  double *E = gd + 2 * n, *r = E + 6 * n, *u_new = r + 3 * n;
+  double *Jd = buf, *Jq = Jd + 6 * n, *Ainv = Jq + 3 * m * n, *E = Ainv + 4 * n, *r = E + 6 * n;
+  double *u_new = r + 3 * n, *wsig = u_new + 3 * n;
   double H[FIT_M * FIT_M], Hs[FIT_M * FIT_M], g[FIT_M], dH[FIT_M], dp[FIT_M], p_new[FIT_M];
   double Nm[3], Ju[9], Jp[3 * FIT_M];
   memcpy(p, p0, sizeof(double) * m);
+  for (int k = 0; k < 3 * n; k++) wsig[k] = 1.0 / sig[k];  /* one division per component, products after */
   for (int i = 0; i < n; i++) {  /* initial directions: M u = N - b at u = 0 */
     double z[3] = {0, 0, 0}, M3[9];
     fit_eval(z, p, aux + i * FIT_NAUX, Nm, Ju, Jp, iw, w);
     for (int a = 0; a < 3; a++) for (int b = 0; b < 3; b++) M3[a * 3 + b] = Ju[b * 3 + a];
     double y[3] = {N[3 * i] - Nm[0], N[3 * i + 1] - Nm[1], N[3 * i + 2] - Nm[2]};
-    double det = M3[0] * (M3[4] * M3[8] - M3[5] * M3[7]) - M3[1] * (M3[3] * M3[8] - M3[5] * M3[6])
-               + M3[2] * (M3[3] * M3[7] - M3[4] * M3[6]);
-    double inv[9] = {(M3[4] * M3[8] - M3[5] * M3[7]) / det, (M3[2] * M3[7] - M3[1] * M3[8]) / det,
-                     (M3[1] * M3[5] - M3[2] * M3[4]) / det, (M3[5] * M3[6] - M3[3] * M3[8]) / det,
-                     (M3[0] * M3[8] - M3[2] * M3[6]) / det, (M3[2] * M3[3] - M3[0] * M3[5]) / det,
-                     (M3[3] * M3[7] - M3[4] * M3[6]) / det, (M3[1] * M3[6] - M3[0] * M3[7]) / det,
-                     (M3[0] * M3[4] - M3[1] * M3[3]) / det};
-    double s = 0;
-    for (int a = 0; a < 3; a++) {
-      u[3 * i + a] = inv[a * 3] * y[0] + inv[a * 3 + 1] * y[1] + inv[a * 3 + 2] * y[2];
-      s += u[3 * i + a] * u[3 * i + a];
-    }
-    s = sqrt(s);
-    for (int a = 0; a < 3; a++) u[3 * i + a] /= s;
+    /* the adjugate solves up to the determinant's factor, which the normalisation removes */
+    double adj[9] = {M3[4] * M3[8] - M3[5] * M3[7], M3[2] * M3[7] - M3[1] * M3[8], M3[1] * M3[5] - M3[2] * M3[4],
+                     M3[5] * M3[6] - M3[3] * M3[8], M3[0] * M3[8] - M3[2] * M3[6], M3[2] * M3[3] - M3[0] * M3[5],
+                     M3[3] * M3[7] - M3[4] * M3[6], M3[1] * M3[6] - M3[0] * M3[7], M3[0] * M3[4] - M3[1] * M3[3]};
+    double det = M3[0] * adj[0] + M3[1] * adj[3] + M3[2] * adj[6];
+    for (int a = 0; a < 3; a++) u[3 * i + a] = (adj[a * 3] * y[0] + adj[a * 3 + 1] * y[1] + adj[a * 3 + 2] * y[2]) * det;
+    fit_normalise(u + 3 * i);
   }
-  double cost = fit_cost(n, N, rho, sig, aux, p, u, Nm, Ju, Jp, iw, w), lam = 0;
-  int it, done = 0;
-  for (it = 1; it <= max_iter && !done; it++) {
+  double cost = fit_cost(n, N, rho, wsig, aux, p, u, Nm, Ju, Jp, iw, w), lam = 0;
+  int done = 0;
+  *iters = 0;
+  for (int it = 1; it <= max_iter && !done; it++) {
+    *iters = it;
     memset(H, 0, sizeof H);
     memset(g, 0, sizeof g);
     for (int i = 0; i < n; i++) {  /* residual, Jacobian blocks, Schur complement */
@@ -141,7 +157,7 @@ static int fit_one(int n, const double *N, const double *rho, const double *sig,
       double *Ei = E + 6 * i, *Jdi = Jd + 6 * i, *Jqi = Jq + 3 * m * i, *ri = r + 3 * i;
       fit_tangent(u + 3 * i, Ei);
       for (int a = 0; a < 3; a++) {
-        double ws = 1.0 / sig[3 * i + a];  /* one division per component, products after */
+        double ws = wsig[3 * i + a];
         ri[a] = (N[3 * i + a] - Nm[a]) * ws;
         for (int k = 0; k < 2; k++) {
           double v = 0;
@@ -150,96 +166,89 @@ static int fit_one(int n, const double *N, const double *rho, const double *sig,
         }
         for (int k = 0; k < m; k++) Jqi[a * m + k] = -Jp[k * 3 + a] * ws;
       }
-      double A[4] = {0, 0, 0, 0}, *Bi = B + 2 * m * i, *gdi = gd + 2 * i;
-      for (int k = 0; k < 2; k++) {
-        gdi[k] = 0;
-        for (int a = 0; a < 3; a++) gdi[k] += Jdi[a * 2 + k] * ri[a];
-        for (int l = 0; l < 2; l++) for (int a = 0; a < 3; a++) A[k * 2 + l] += Jdi[a * 2 + k] * Jdi[a * 2 + l];
-        for (int l = 0; l < m; l++) {
-          double v = 0;
-          for (int a = 0; a < 3; a++) v += Jdi[a * 2 + k] * Jqi[a * m + l];
-          Bi[k * m + l] = v;
+      double A[4] = {0, 0, 0, 0}, *Ai = Ainv + 4 * i;
+      for (int k = 0; k < 2; k++) for (int l = k; l < 2; l++)
+        for (int a = 0; a < 3; a++) A[k * 2 + l] += Jdi[a * 2 + k] * Jdi[a * 2 + l];
+      double rdet = 1.0 / (A[0] * A[3] - A[1] * A[1]);
+      Ai[0] = A[3] * rdet; Ai[1] = Ai[2] = -A[1] * rdet; Ai[3] = A[0] * rdet;
+      /* the Schur complement of a direction's 2x2 block is rank one: with nv a normal to the
+       * columns of Jd_i, I - Jd A^-1 Jd^T = nv nv^T / |nv|^2, so H += q q^T / |nv|^2 and
+       * g += q (nv . r) / |nv|^2, q = Jq_i^T nv */
+      double nv[3] = {Jdi[2] * Jdi[5] - Jdi[4] * Jdi[3], Jdi[4] * Jdi[1] - Jdi[0] * Jdi[5],
+                      Jdi[0] * Jdi[3] - Jdi[2] * Jdi[1]};
+      double rn2 = 1.0 / (nv[0] * nv[0] + nv[1] * nv[1] + nv[2] * nv[2]);
+      double q[FIT_M], s = (nv[0] * ri[0] + nv[1] * ri[1] + nv[2] * ri[2]) * rn2;
+      memset(q, 0, sizeof q);
+      for (int c = 0; c < 3; c++)  /* over the non-zeros of each output row */
+        for (int ka = 0; ka < fit_jp_count[c]; ka++) {
+          int a = fit_jp_cols[c][ka];
+          q[a] += nv[c] * Jqi[c * m + a];
         }
-      }
-      double det = A[0] * A[3] - A[1] * A[2], *Ai = Ainv + 4 * i;
-      Ai[0] = A[3] / det; Ai[1] = -A[1] / det; Ai[2] = -A[2] / det; Ai[3] = A[0] / det;
-      double AB[2 * FIT_M], Ag[2];
-      for (int k = 0; k < 2; k++) {
-        Ag[k] = Ai[k * 2] * gdi[0] + Ai[k * 2 + 1] * gdi[1];
-        for (int l = 0; l < m; l++) AB[k * m + l] = Ai[k * 2] * Bi[l] + Ai[k * 2 + 1] * Bi[m + l];
-      }
       for (int a = 0; a < m; a++) {
-        double ga = 0;
-        for (int c = 0; c < 3; c++) ga += Jqi[c * m + a] * ri[c];
-        g[a] += ga - (Bi[a] * Ag[0] + Bi[m + a] * Ag[1]);
-        for (int b = a; b < m; b++)  /* H is symmetric: the upper triangle, mirrored below */
-          H[a * m + b] -= Bi[a] * AB[b] + Bi[m + a] * AB[m + b];
+        double qa = q[a] * rn2;
+        g[a] += q[a] * s;
+        for (int b = a; b < m; b++) H[a * m + b] += qa * q[b];  /* the upper triangle, mirrored below */
       }
-      for (int c = 0; c < 3; c++)  /* + Jq^T Jq over the non-zeros of each output row */
-        for (int ka = 0; ka < fit_jp_count[c]; ka++)
-          for (int kb = ka; kb < fit_jp_count[c]; kb++) {
-            int a = fit_jp_cols[c][ka], b = fit_jp_cols[c][kb];
-            double h = Jqi[c * m + a] * Jqi[c * m + b];
-            if (a <= b) H[a * m + b] += h; else H[b * m + a] += h;
-          }
     }
     for (int a = 0; a < m; a++) for (int b = 0; b < a; b++) H[a * m + b] = H[b * m + a];
     for (int a = 0; a < m; a++) {
       if (it == 1 && !(H[a * m + a] > 1e-300)) return 3;
       dH[a] = sqrt(H[a * m + a] > 1e-300 ? H[a * m + a] : 1e-300);
     }
-    double new_cost;
-    double rdH[FIT_M];
+    double new_cost, rdH[FIT_M], Hsc[FIT_M * FIT_M], decrement = 0, step = 0;
     for (int a = 0; a < m; a++) rdH[a] = 1.0 / dH[a];
+    for (int a = 0; a < m; a++) for (int b = 0; b <= a; b++) Hsc[a * m + b] = H[a * m + b] * (rdH[a] * rdH[b]);
+    if (!fit_damped_step(Hsc, 0.0, g, rdH, m, Hs, dp)) return 2;
+    for (int a = 0; a < m; a++) {
+      decrement -= g[a] * dp[a];
+      double sa = fabs(dp[a]) * dH[a];
+      if (sa > step) step = sa;
+    }
+    /* a Gauss-Newton step below 1e-6 of every parameter's standard deviation, or with its
+     * decrement at round-off level, is the last: taken without the cost test, which a step that
+     * small can fail on round-off alone (and did, with several damped retries per fit) */
+    int last = step < 1e-6 || decrement <= 1e-12 * (cost > 1 ? cost : 1);
     for (;;) {  /* Levenberg-Marquardt: damp until the cost does not rise */
-      for (int a = 0; a < m; a++) {
-        for (int b = 0; b < m; b++) Hs[a * m + b] = H[a * m + b] * (rdH[a] * rdH[b]) + (a == b ? lam : 0);
-        dp[a] = -g[a] * rdH[a];
-      }
-      if (!fit_cholesky(Hs, m)) return 2;
-      fit_chol_solve(Hs, m, dp);
-      for (int a = 0; a < m; a++) { dp[a] *= rdH[a]; p_new[a] = p[a] + dp[a]; }
-      for (int i = 0; i < n; i++) {
-        double *Bi = B + 2 * m * i, *Ai = Ainv + 4 * i, *Ei = E + 6 * i, v[2], dd[2], s = 0;
-        for (int k = 0; k < 2; k++) {
-          v[k] = gd[2 * i + k];
-          for (int l = 0; l < m; l++) v[k] += Bi[k * m + l] * dp[l];
+      if (lam > 0 && !last && !fit_damped_step(Hsc, lam, g, rdH, m, Hs, dp)) return 2;
+      for (int a = 0; a < m; a++) p_new[a] = p[a] + dp[a];
+      for (int i = 0; i < n; i++) {  /* each direction's step: -A^-1 Jd^T (r + Jq dp) */
+        double *Jdi = Jd + 6 * i, *Jqi = Jq + 3 * m * i, *ri = r + 3 * i, *Ai = Ainv + 4 * i, *Ei = E + 6 * i;
+        double y[3], v[2];
+        for (int c = 0; c < 3; c++) {
+          y[c] = ri[c];
+          for (int ka = 0; ka < fit_jp_count[c]; ka++) y[c] += Jqi[c * m + fit_jp_cols[c][ka]] * dp[fit_jp_cols[c][ka]];
         }
-        dd[0] = -(Ai[0] * v[0] + Ai[1] * v[1]);
-        dd[1] = -(Ai[2] * v[0] + Ai[3] * v[1]);
-        for (int a = 0; a < 3; a++) {
-          u_new[3 * i + a] = u[3 * i + a] + Ei[a * 2] * dd[0] + Ei[a * 2 + 1] * dd[1];
-          s += u_new[3 * i + a] * u_new[3 * i + a];
-        }
-        s = sqrt(s);
-        for (int a = 0; a < 3; a++) u_new[3 * i + a] /= s;
+        for (int k = 0; k < 2; k++) v[k] = Jdi[k] * y[0] + Jdi[2 + k] * y[1] + Jdi[4 + k] * y[2];
+        double dd0 = -(Ai[0] * v[0] + Ai[1] * v[1]), dd1 = -(Ai[2] * v[0] + Ai[3] * v[1]);
+        for (int a = 0; a < 3; a++) u_new[3 * i + a] = u[3 * i + a] + Ei[a * 2] * dd0 + Ei[a * 2 + 1] * dd1;
+        fit_normalise(u_new + 3 * i);
       }
-      new_cost = fit_cost(n, N, rho, sig, aux, p_new, u_new, Nm, Ju, Jp, iw, w);
-      if (new_cost <= cost * (1 + 1e-12) || lam > 1e8) {
+      new_cost = fit_cost(n, N, rho, wsig, aux, p_new, u_new, Nm, Ju, Jp, iw, w);
+      if (last || new_cost <= cost * (1 + 1e-12) || lam > 1e8) {
         lam = lam > 1e-6 ? lam / 10 : 0.0;
         break;
       }
       lam = 10 * lam > 1e-3 ? 10 * lam : 1e-3;
     }
-    double decrement = 0, step = 0;
+    decrement = step = 0;
     for (int a = 0; a < m; a++) {
       decrement -= g[a] * dp[a];
-      double sa = fabs(dp[a]) * sqrt(H[a * m + a]);
+      double sa = fabs(dp[a]) * dH[a];
       if (sa > step) step = sa;
     }
     memcpy(p, p_new, sizeof(double) * m);
     memcpy(u, u_new, sizeof(double) * 3 * n);
     double big = cost > 1e-30 ? cost : 1e-30;
-    done = fabs(cost - new_cost) <= tol * big || step < 1e-6 || decrement <= 1e-12 * (cost > 1 ? cost : 1);
+    done = last || fabs(cost - new_cost) <= tol * big || step < 1e-6 || decrement <= 1e-12 * (cost > 1 ? cost : 1);
     cost = new_cost;
   }
-  *iters = it - 1;
   *cost_out = cost;
-  /* covariance from the last linearisation: inv(H scaled) / outer(dH) */
-  for (int a = 0; a < m; a++) for (int b = 0; b < m; b++) Hs[a * m + b] = H[a * m + b] / (dH[a] * dH[b]);
-  if (!fit_cholesky(Hs, m)) return 2;
-  fit_chol_inverse(Hs, m, cov);
-  for (int a = 0; a < m; a++) for (int b = 0; b < m; b++) cov[a * m + b] /= dH[a] * dH[b];
+  if (cov) {  /* covariance from the last linearisation: inv(H scaled) / outer(dH) */
+    for (int a = 0; a < m; a++) for (int b = 0; b < m; b++) Hs[a * m + b] = H[a * m + b] / (dH[a] * dH[b]);
+    if (!fit_cholesky(Hs, m)) return 2;
+    fit_chol_inverse(Hs, m, cov);
+    for (int a = 0; a < m; a++) for (int b = 0; b < m; b++) cov[a * m + b] /= dH[a] * dH[b];
+  }
   return done ? 0 : 1;
 }
 
@@ -254,13 +263,13 @@ CASADI_SYMBOL_EXPORT int MODEL_FIT(int n_sets, int n, const double *N, const dou
   {
     casadi_int *iw = malloc(sizeof(casadi_int) * (sz_iw + 1));
     double *w = malloc(sizeof(double) * (sz_w + 1));
-    double *buf = malloc(sizeof(double) * (size_t) n * (6 + 3 * FIT_M + 4 + 2 * FIT_M + 2 + 6 + 3 + 3));
+    double *buf = malloc(sizeof(double) * (size_t) n * (6 + 3 * FIT_M + 4 + 6 + 3 + 3 + 3));
     if (!iw || !w || !buf) failed++;
     else {
 #pragma omp for schedule(static)
       for (int s = 0; s < n_sets; s++)
         status[s] = fit_one(n, N + 3 * n * s, rho + n * s, sig + 3 * n * s, aux + FIT_NAUX * n * s, p0 + FIT_M * s,
-                            max_iter, tol, p + FIT_M * s, cov + FIT_M * FIT_M * s, u + 3 * n * s, cost + s, iters + s,
+                            max_iter, tol, p + FIT_M * s, cov ? cov + FIT_M * FIT_M * s : NULL, u + 3 * n * s, cost + s, iters + s,
                             buf, iw, w);
     }
     free(iw); free(w); free(buf);

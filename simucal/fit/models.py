@@ -71,7 +71,8 @@ def _bind_fit(lib, name):
     f = getattr(ctypes.CDLL(str(lib)), f"simucal_{name}_fit")
     d = np.ctypeslib.ndpointer(dtype=float, flags="C_CONTIGUOUS")
     i = np.ctypeslib.ndpointer(dtype=np.intc, flags="C_CONTIGUOUS")
-    f.argtypes = [ctypes.c_int, ctypes.c_int, d, d, d, d, d, ctypes.c_int, ctypes.c_double, d, d, d, d, i, i]
+    f.argtypes = [ctypes.c_int, ctypes.c_int, d, d, d, d, d, ctypes.c_int, ctypes.c_double, d, ctypes.c_void_p, d, d,
+                  i, i]  # cov: an address or None (no covariance)
     f.restype = ctypes.c_int
     return f
 
@@ -108,19 +109,22 @@ class GeneratedModel:
             return np.zeros(tuple(shape or ()) + (len(self.aux),))
         return aux.array(self.aux, shape)
 
-    def fit_compiled(self, N, rho, sig, aux, p0, max_iter=200, tol=1e-12):
+    def fit_compiled(self, N, rho, sig, aux, p0, max_iter=200, tol=1e-12, covariance=True):
         """The whole exact fit in one compiled call (derive/templates/exact_fit.c) for a batch of
         data sets: N, sig (S, n, 3), rho (S, n), aux (S, n, naux), p0 (S, m). Returns p (S, m),
-        cov (S, m, m), u (S, n, 3), cost (S,), iterations (S,), status (S,); None without a compiler."""
+        cov (S, m, m) (None where covariance=False), u (S, n, 3), cost (S,), iterations (S,), status (S,);
+        None without a compiler."""
         if self._fit is None:
             return None
         S, n, _ = N.shape
         m = len(self.params)
         c = lambda a: np.ascontiguousarray(a, dtype=float)
         N, rho, sig, aux, p0 = c(N), c(rho), c(sig), c(aux), c(p0)
-        p, cov, u = np.empty((S, m)), np.empty((S, m, m)), np.empty((S, n, 3))
+        p, u = np.empty((S, m)), np.empty((S, n, 3))
+        cov = np.empty((S, m, m)) if covariance else None
         cost, iters, status = np.empty(S), np.empty(S, np.intc), np.empty(S, np.intc)
-        self._fit(S, n, N, rho, sig, aux, p0, max_iter, tol, p, cov, u, cost, iters, status)
+        self._fit(S, n, N, rho, sig, aux, p0, max_iter, tol, p, None if cov is None else cov.ctypes.data, u, cost, iters,
+                  status)
         return p, cov, u, cost, iters, status
 
     def output(self, u, p, aux: AuxInputs | None = None):

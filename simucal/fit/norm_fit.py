@@ -321,6 +321,29 @@ def fit_exact(model, obs: Observations, p0=None, max_iter=200, tol=1e-12, prior=
     return _finish(model, obs, p, u, np.linalg.inv(H / np.outer(dH, dH)) / np.outer(dH, dH), H, cost, it)
 
 
+def _damped_steps(Hs, gs, dH, lam):
+    """-(Hs + lam I)^-1 gs / dH per set (the scaled Levenberg-Marquardt system); NaN rows where singular."""
+    m = Hs.shape[-1]
+    A = Hs + lam[:, None, None] * np.eye(m)
+    try:
+        return -np.linalg.solve(A, gs[..., None])[..., 0] / dH
+    except np.linalg.LinAlgError:  # find the singular sets one by one
+        out = np.full(gs.shape, np.nan)
+        for j in range(len(A)):
+            try:
+                out[j] = -np.linalg.solve(A[j], gs[j]) / dH[j]
+            except np.linalg.LinAlgError:
+                pass
+        return out
+
+
+def _negligible(dp, g, diag, cost):
+    """A step below 1e-6 of every parameter's standard deviation, or a Gauss-Newton decrement at
+    round-off level (derive/templates/exact_fit.c tests the same)."""
+    decrement = -np.einsum("sa,sa->s", g, dp)
+    return (np.max(np.abs(dp) * np.sqrt(np.maximum(diag, 0)), axis=1) < 1e-6) | (decrement <= 1e-12 * np.maximum(cost, 1.0))
+
+
 def fit_batch(model, N, rho, sig, p0, aux=None, max_iter=200, tol=1e-12, prior=None):
     """The Levenberg-Marquardt loop of fit_exact for S data sets at once, numpy vectorised over
     the sets (the compiled whole fit does the same steps in C): N, sig (S, n, 3), rho (S, n),
@@ -361,42 +384,40 @@ def fit_batch(model, N, rho, sig, p0, aux=None, max_iter=200, tol=1e-12, prior=N
             status[idx[dead]], active[idx[dead]] = 3, False
         dH = np.sqrt(np.maximum(diag, 1e-300))  # Jacobi scaling: terms of very different size stay conditioned
         Hs, gs = H / (dH[:, :, None] * dH[:, None, :]), g / dH
+        gn = _damped_steps(Hs, gs, dH, np.zeros(len(idx)))
+        singular = active[idx] & np.isnan(gn[:, 0])
+        status[idx[singular]], active[idx[singular]] = 2, False
+        # a negligible Gauss-Newton step is the last: taken without the cost test, which a step that
+        # small can fail on round-off alone (as derive/templates/exact_fit.c)
+        last = active[idx] & _negligible(gn, g, diag, cost[idx])
         need = active[idx].copy()  # Levenberg-Marquardt: damp each set until its cost does not rise
-        dp = np.zeros((len(idx), m))
+        dp = np.where(need[:, None], gn, 0.0)
         p_new, u_new, new_cost = p[I].copy(), u[I].copy(), cost[idx].copy()
         while need.any():
             k = np.nonzero(need)[0]
-            K, IK = (slice(None), I) if len(k) == len(idx) else (k, idx[k])
-            try:
-                dp[K] = -np.linalg.solve(Hs[K] + lam[idx[k], None, None] * np.eye(m), gs[K][..., None])[..., 0] / dH[K]
-            except np.linalg.LinAlgError:  # find the singular sets one by one
-                for j in k:
-                    try:
-                        dp[j] = -np.linalg.solve(Hs[j] + lam[idx[j]] * np.eye(m), gs[j]) / dH[j]
-                    except np.linalg.LinAlgError:
-                        status[idx[j]], active[idx[j]], need[j] = 2, False, False
+            damped = k[(lam[idx[k]] > 0) & ~last[k]]
+            if len(damped):
+                dp[damped] = _damped_steps(Hs[damped], gs[damped], dH[damped], lam[idx[damped]])
+                bad = damped[np.isnan(dp[damped, 0])]
+                status[idx[bad]], active[idx[bad]], need[bad] = 2, False, False
                 k = np.nonzero(need)[0]
                 if not len(k):
                     break
-                K, IK = k, idx[k]
+            K, IK = (slice(None), I) if len(k) == len(idx) else (k, idx[k])
             dd = -(Ainv[K] @ (gd[K] + (Bm[K] @ dp[K][:, None, :, None])[..., 0])[..., None])[..., 0]
             pk = p[IK] + dp[K]
             v = u[IK] + (E[K] @ dd[..., None])[..., 0]
             uk = v / np.linalg.norm(v, axis=2, keepdims=True)
             ck = _costs(model, N[IK], rho3[IK], sig[IK], aux, pk, uk, held, held_val, held_w)
-            ok = (ck <= cost[idx[k]] * (1 + 1e-12)) | (lam[idx[k]] > 1e8)
+            ok = last[k] | (ck <= cost[idx[k]] * (1 + 1e-12)) | (lam[idx[k]] > 1e8)
             acc, rej = k[ok], k[~ok]
             p_new[acc], u_new[acc], new_cost[acc] = pk[ok], uk[ok], ck[ok]
             lam[idx[acc]] = np.where(lam[idx[acc]] > 1e-6, lam[idx[acc]] / 10, 0.0)
             lam[idx[rej]] = np.maximum(1e-3, 10 * lam[idx[rej]])
             need[acc] = False
         go = active[idx]
-        # converged: the cost stalls, or the step is below 1e-6 of each parameter's standard
-        # deviation, or the Gauss-Newton decrement is at round-off level
-        decrement = -np.einsum("sa,sa->s", g, dp)
-        done = ((np.abs(cost[idx] - new_cost) <= tol * np.maximum(cost[idx], 1e-30))
-                | (np.max(np.abs(dp) * np.sqrt(np.maximum(diag, 0)), axis=1) < 1e-6)
-                | (decrement <= 1e-12 * np.maximum(cost[idx], 1.0)))
+        # converged: the cost stalls, or the step taken is negligible (as above)
+        done = last | (np.abs(cost[idx] - new_cost) <= tol * np.maximum(cost[idx], 1e-30)) | _negligible(dp, g, diag, cost[idx])
         p[idx[go]], u[idx[go]], cost[idx[go]] = p_new[go], u_new[go], new_cost[go]
         fin = go & done
         status[idx[fin]], active[idx[fin]] = 0, False
