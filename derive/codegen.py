@@ -155,26 +155,41 @@ def model_module(model: ErrorModel, source: str | None = None) -> tuple[str, dic
     return "\n\n".join(parts), entry
 
 
-def casadi_function(model: ErrorModel) -> ca.Function:
-    """The exact per-row model and its Jacobians as a CasADi SX function."""
+_CASADI_OPS = {"sin": ca.sin, "cos": ca.cos, "sqrt": ca.sqrt, "Abs": ca.fabs, "sign": ca.sign,
+               "exp": ca.exp, "log": ca.log, "tanh": ca.tanh}
+
+
+def _casadi_exprs(symbols, exprs, values):
+    """SymPy expressions in `symbols` as CasADi SX of `values` (one per symbol)."""
+    return ca.vertcat(*[sp.lambdify(list(symbols), e, modules=[_CASADI_OPS])(*values) for e in exprs])
+
+
+def casadi_functions(model: ErrorModel) -> list[ca.Function]:
+    """The exact per-row model and its Jacobians, and the paper's linear start (one row of the
+    norm regressors, the back-substitution p(K)), as CasADi SX functions."""
     u = ca.SX.sym("u", 3)
     p = ca.SX.sym("p", len(model.params))
     aux = ca.SX.sym("aux", len(model.aux))
-    mapping = {"sin": ca.sin, "cos": ca.cos, "sqrt": ca.sqrt, "Abs": ca.fabs, "sign": ca.sign,
-               "exp": ca.exp, "log": ca.log, "tanh": ca.tanh}
-    syms = list(model.inputs) + list(model.params) + list(model.aux)
-    vals = [u[i] for i in range(3)] + [p[i] for i in range(p.shape[0])] + [aux[i] for i in range(aux.shape[0])]
-    out = model.output()
-    N = ca.vertcat(*[sp.lambdify(syms, e, modules=[mapping])(*vals) for e in out])
-    return ca.Function(f"simucal_{model.name}", [u, p, aux],
-                       [N, ca.densify(ca.jacobian(N, u)), ca.densify(ca.jacobian(N, p))],
-                       ["u", "p", "aux"], ["N", "N_u", "N_p"])
+    split = lambda x: [x[i] for i in range(x.shape[0])]
+    N = _casadi_exprs(list(model.inputs) + list(model.params) + list(model.aux), model.output(),
+                      split(u) + split(p) + split(aux))
+    reg = derive_norm_regression(model)
+    N_row, K = ca.SX.sym("N", 3), ca.SX.sym("K", len(reg.K))
+    psi = _casadi_exprs(list(N_out) + list(model.aux), reg.psi, split(N_row) + split(aux))
+    p_of_K = _casadi_exprs(reg.K, [reg.p_of_K[s] for s in model.params], split(K))
+    name = f"simucal_{model.name}"
+    return [ca.Function(name, [u, p, aux], [N, ca.densify(ca.jacobian(N, u)), ca.densify(ca.jacobian(N, p))],
+                        ["u", "p", "aux"], ["N", "N_u", "N_p"]),
+            ca.Function(f"{name}_regressors", [N_row, aux], [ca.densify(psi)], ["N", "aux"], ["psi"]),
+            ca.Function(f"{name}_params_of_K", [K], [ca.densify(p_of_K)], ["K"], ["p"])]
 
 
 def c_source(model: ErrorModel) -> str:
-    """CasADi C of the per-row model, then the whole exact fit (templates/exact_fit.c) bound to it."""
+    """CasADi C of the per-row model and the linear start, then the whole exact fit
+    (templates/exact_fit.c) bound to them."""
     cg = ca.CodeGenerator(f"{model.name}.c", {"with_header": False})
-    cg.add(casadi_function(model))
+    for f in casadi_functions(model):
+        cg.add(f)
     head = HEADER.format(what=f"model {model.name}, sha256 {model.sha256()}", **_versions())
     name = f"simucal_{model.name}"
     m = len(model.params)
@@ -182,6 +197,8 @@ def c_source(model: ErrorModel) -> str:
     cols = [[k for k in range(m) if Jp[a, k] != 0] for a in range(3)]
     bind = (f"\n#define MODEL_M {m}\n#define MODEL_NAUX {len(model.aux)}\n"
             f"#define MODEL_EVAL {name}\n#define MODEL_WORK {name}_work\n#define MODEL_FIT {name}_fit\n"
+            f"#define MODEL_REGRESSORS {name}_regressors\n#define MODEL_REGRESSORS_WORK {name}_regressors_work\n"
+            f"#define MODEL_PARAMS_OF_K {name}_params_of_K\n#define MODEL_PARAMS_OF_K_WORK {name}_params_of_K_work\n"
             f"#define MODEL_JP_COUNT {{{', '.join(str(len(c)) for c in cols)}}}\n"
             "#define MODEL_JP_COLS {" + ", ".join("{" + ", ".join(map(str, c + [0] * (m - len(c)))) + "}"
                                                 for c in cols) + "}\n")
@@ -212,6 +229,29 @@ def table_module() -> str:
                                                   table.up_in_b().jacobian(table.TABLE_FIT_PARAMS))],
                        "Vertical in b at commanded angles (rad) and its Jacobian wrt x = table errors + theta_4."),
     ])
+
+
+def table_c_source() -> str:
+    """CasADi C of the table's kinematics that the Monte Carlo simulates with (specific_force_k,
+    outer_axis_k), and their batch loops (templates/table_batch.c). The four table errors are
+    the same for every row of a batch: the functions take their cosines and sines, which the
+    batch computes once, and the three angle errors per row."""
+    fixed = table.TABLE_ERRORS[:4]
+    trig = [f(e) for e in fixed for f in (sp.cos, sp.sin)]
+    trig_syms = [sp.Symbol(f"{f.__name__}_{e}") for e in fixed for f in (sp.cos, sp.sin)]
+    g, a, b = (ca.SX.sym(n) for n in ("gamma", "alpha", "beta"))
+    t, d = ca.SX.sym("table_trig", len(trig)), ca.SX.sym("angle_errors", 3)
+    values = [t[i] for i in range(len(trig))] + [d[i] for i in range(3)]
+    cg = ca.CodeGenerator("table.c", {"with_header": False})
+    for name, expr, angles in (("specific_force_k", table.specific_force_k(), [g, a, b]),
+                               ("outer_axis_k", table.outer_axis_k(), [a, b])):
+        expr = expr.subs(dict(zip(trig, trig_syms)))
+        assert not expr.free_symbols & set(fixed), f"{name}: a table error outside cos/sin"
+        symbols = list(table.ANGLES[3 - len(angles):]) + trig_syms + list(table.TABLE_ERRORS[4:])
+        cg.add(ca.Function(f"simucal_{name}", [*angles, t, d], [_casadi_exprs(symbols, expr, angles + values)]))
+    head = HEADER.format(what="derive.table", **_versions())
+    template = (Path(__file__).parent / "templates" / "table_batch.c").read_text()
+    return "/*\n" + head.replace("# ", " * ").replace("#", " *") + " */\n" + cg.dump() + "\n" + template
 
 
 def effects_module() -> str:
@@ -318,6 +358,7 @@ def generate(models) -> dict:
         files[f"{model.name}.c"] = c_source(model)
         manifest["models"][model.name] = entry
     files["table.py"] = table_module()
+    files["table.c"] = table_c_source()
     acc = next(m for m in models if m.name == "acc_baseline")
     gyro = next(m for m in models if m.name == "gyro_baseline")
     files["unify.py"] = unify_module(acc, gyro)

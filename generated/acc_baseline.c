@@ -23,10 +23,13 @@
 
 /* Add prefix to internal symbols */
 #define casadi_f0 CASADI_PREFIX(f0)
+#define casadi_f1 CASADI_PREFIX(f1)
+#define casadi_f2 CASADI_PREFIX(f2)
 #define casadi_s0 CASADI_PREFIX(s0)
 #define casadi_s1 CASADI_PREFIX(s1)
 #define casadi_s2 CASADI_PREFIX(s2)
 #define casadi_s3 CASADI_PREFIX(s3)
+#define casadi_sq CASADI_PREFIX(sq)
 
 /* Symbol visibility in DLLs */
 #ifndef CASADI_SYMBOL_EXPORT
@@ -42,6 +45,8 @@
     #define CASADI_SYMBOL_EXPORT
   #endif
 #endif
+
+casadi_real casadi_sq(casadi_real x) { return x*x;}
 
 /* Configuration this file was compiled with */
 CASADI_SYMBOL_EXPORT void acc_baseline_casadi_version(int* major, int* minor, int* patch) {
@@ -213,6 +218,227 @@ CASADI_SYMBOL_EXPORT int simucal_acc_baseline_work_bytes(casadi_int *sz_arg, cas
   return 0;
 }
 
+/* simucal_acc_baseline_regressors:(N[3],aux[3])->(psi[9]) */
+static int casadi_f1(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem) {
+  casadi_real a0, a1, a2, a3, a4;
+  a0=arg[0]? arg[0][0] : 0;
+  a1=casadi_sq(a0);
+  if (res[0]!=0) res[0][0]=a1;
+  a1=arg[0]? arg[0][1] : 0;
+  a2=casadi_sq(a1);
+  if (res[0]!=0) res[0][1]=a2;
+  a2=arg[0]? arg[0][2] : 0;
+  a3=casadi_sq(a2);
+  if (res[0]!=0) res[0][2]=a3;
+  a3=-2.;
+  a4=(a3*a0);
+  a4=(a4*a1);
+  if (res[0]!=0) res[0][3]=a4;
+  a4=(a3*a0);
+  a4=(a4*a2);
+  if (res[0]!=0) res[0][4]=a4;
+  a4=(a3*a1);
+  a4=(a4*a2);
+  if (res[0]!=0) res[0][5]=a4;
+  a0=(a3*a0);
+  if (res[0]!=0) res[0][6]=a0;
+  a1=(a3*a1);
+  if (res[0]!=0) res[0][7]=a1;
+  a3=(a3*a2);
+  if (res[0]!=0) res[0][8]=a3;
+  return 0;
+}
+
+CASADI_SYMBOL_EXPORT int simucal_acc_baseline_regressors(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem){
+  return casadi_f1(arg, res, iw, w, mem);
+}
+
+CASADI_SYMBOL_EXPORT int simucal_acc_baseline_regressors_checkout(void) {
+  return 0;
+}
+
+CASADI_SYMBOL_EXPORT void simucal_acc_baseline_regressors_release(int mem) {
+}
+
+CASADI_SYMBOL_EXPORT void simucal_acc_baseline_regressors_incref(void) {
+}
+
+CASADI_SYMBOL_EXPORT void simucal_acc_baseline_regressors_decref(void) {
+}
+
+CASADI_SYMBOL_EXPORT casadi_int simucal_acc_baseline_regressors_n_in(void) { return 2;}
+
+CASADI_SYMBOL_EXPORT casadi_int simucal_acc_baseline_regressors_n_out(void) { return 1;}
+
+CASADI_SYMBOL_EXPORT casadi_real simucal_acc_baseline_regressors_default_in(casadi_int i) {
+  switch (i) {
+    default: return 0;
+  }
+}
+
+CASADI_SYMBOL_EXPORT const char* simucal_acc_baseline_regressors_name_in(casadi_int i) {
+  switch (i) {
+    case 0: return "N";
+    case 1: return "aux";
+    default: return 0;
+  }
+}
+
+CASADI_SYMBOL_EXPORT const char* simucal_acc_baseline_regressors_name_out(casadi_int i) {
+  switch (i) {
+    case 0: return "psi";
+    default: return 0;
+  }
+}
+
+CASADI_SYMBOL_EXPORT const casadi_int* simucal_acc_baseline_regressors_sparsity_in(casadi_int i) {
+  switch (i) {
+    case 0: return casadi_s0;
+    case 1: return casadi_s0;
+    default: return 0;
+  }
+}
+
+CASADI_SYMBOL_EXPORT const casadi_int* simucal_acc_baseline_regressors_sparsity_out(casadi_int i) {
+  switch (i) {
+    case 0: return casadi_s1;
+    default: return 0;
+  }
+}
+
+CASADI_SYMBOL_EXPORT int simucal_acc_baseline_regressors_work(casadi_int *sz_arg, casadi_int* sz_res, casadi_int *sz_iw, casadi_int *sz_w) {
+  if (sz_arg) *sz_arg = 2;
+  if (sz_res) *sz_res = 1;
+  if (sz_iw) *sz_iw = 0;
+  if (sz_w) *sz_w = 0;
+  return 0;
+}
+
+CASADI_SYMBOL_EXPORT int simucal_acc_baseline_regressors_work_bytes(casadi_int *sz_arg, casadi_int* sz_res, casadi_int *sz_iw, casadi_int *sz_w) {
+  if (sz_arg) *sz_arg = 2*sizeof(const casadi_real*);
+  if (sz_res) *sz_res = 1*sizeof(casadi_real*);
+  if (sz_iw) *sz_iw = 0*sizeof(casadi_int);
+  if (sz_w) *sz_w = 0*sizeof(casadi_real);
+  return 0;
+}
+
+/* simucal_acc_baseline_params_of_K:(K[9])->(p[9]) */
+static int casadi_f2(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem) {
+  casadi_real a0, a1, a2, a3, a4;
+  a0=-1.;
+  a1=arg[0]? arg[0][0] : 0;
+  a2=sqrt(a1);
+  a2=(1./a2);
+  a2=(a0+a2);
+  if (res[0]!=0) res[0][0]=a2;
+  a2=arg[0]? arg[0][1] : 0;
+  a3=sqrt(a2);
+  a3=(1./a3);
+  a3=(a0+a3);
+  if (res[0]!=0) res[0][1]=a3;
+  a3=arg[0]? arg[0][2] : 0;
+  a4=sqrt(a3);
+  a4=(1./a4);
+  a0=(a0+a4);
+  if (res[0]!=0) res[0][2]=a0;
+  a0=arg[0]? arg[0][3] : 0;
+  a4=sqrt(a1);
+  a4=(a4*a2);
+  a0=(a0/a4);
+  if (res[0]!=0) res[0][3]=a0;
+  a0=arg[0]? arg[0][4] : 0;
+  a4=sqrt(a1);
+  a4=(a4*a3);
+  a0=(a0/a4);
+  if (res[0]!=0) res[0][4]=a0;
+  a0=arg[0]? arg[0][5] : 0;
+  a4=sqrt(a2);
+  a4=(a4*a3);
+  a0=(a0/a4);
+  if (res[0]!=0) res[0][5]=a0;
+  a0=arg[0]? arg[0][6] : 0;
+  a0=(a0/a1);
+  if (res[0]!=0) res[0][6]=a0;
+  a0=arg[0]? arg[0][7] : 0;
+  a0=(a0/a2);
+  if (res[0]!=0) res[0][7]=a0;
+  a0=arg[0]? arg[0][8] : 0;
+  a0=(a0/a3);
+  if (res[0]!=0) res[0][8]=a0;
+  return 0;
+}
+
+CASADI_SYMBOL_EXPORT int simucal_acc_baseline_params_of_K(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem){
+  return casadi_f2(arg, res, iw, w, mem);
+}
+
+CASADI_SYMBOL_EXPORT int simucal_acc_baseline_params_of_K_checkout(void) {
+  return 0;
+}
+
+CASADI_SYMBOL_EXPORT void simucal_acc_baseline_params_of_K_release(int mem) {
+}
+
+CASADI_SYMBOL_EXPORT void simucal_acc_baseline_params_of_K_incref(void) {
+}
+
+CASADI_SYMBOL_EXPORT void simucal_acc_baseline_params_of_K_decref(void) {
+}
+
+CASADI_SYMBOL_EXPORT casadi_int simucal_acc_baseline_params_of_K_n_in(void) { return 1;}
+
+CASADI_SYMBOL_EXPORT casadi_int simucal_acc_baseline_params_of_K_n_out(void) { return 1;}
+
+CASADI_SYMBOL_EXPORT casadi_real simucal_acc_baseline_params_of_K_default_in(casadi_int i) {
+  switch (i) {
+    default: return 0;
+  }
+}
+
+CASADI_SYMBOL_EXPORT const char* simucal_acc_baseline_params_of_K_name_in(casadi_int i) {
+  switch (i) {
+    case 0: return "K";
+    default: return 0;
+  }
+}
+
+CASADI_SYMBOL_EXPORT const char* simucal_acc_baseline_params_of_K_name_out(casadi_int i) {
+  switch (i) {
+    case 0: return "p";
+    default: return 0;
+  }
+}
+
+CASADI_SYMBOL_EXPORT const casadi_int* simucal_acc_baseline_params_of_K_sparsity_in(casadi_int i) {
+  switch (i) {
+    case 0: return casadi_s1;
+    default: return 0;
+  }
+}
+
+CASADI_SYMBOL_EXPORT const casadi_int* simucal_acc_baseline_params_of_K_sparsity_out(casadi_int i) {
+  switch (i) {
+    case 0: return casadi_s1;
+    default: return 0;
+  }
+}
+
+CASADI_SYMBOL_EXPORT int simucal_acc_baseline_params_of_K_work(casadi_int *sz_arg, casadi_int* sz_res, casadi_int *sz_iw, casadi_int *sz_w) {
+  if (sz_arg) *sz_arg = 1;
+  if (sz_res) *sz_res = 1;
+  if (sz_iw) *sz_iw = 0;
+  if (sz_w) *sz_w = 0;
+  return 0;
+}
+
+CASADI_SYMBOL_EXPORT int simucal_acc_baseline_params_of_K_work_bytes(casadi_int *sz_arg, casadi_int* sz_res, casadi_int *sz_iw, casadi_int *sz_w) {
+  if (sz_arg) *sz_arg = 1*sizeof(const casadi_real*);
+  if (sz_res) *sz_res = 1*sizeof(casadi_real*);
+  if (sz_iw) *sz_iw = 0*sizeof(casadi_int);
+  if (sz_w) *sz_w = 0*sizeof(casadi_real);
+  return 0;
+}
+
 
 
 #define MODEL_M 9
@@ -220,6 +446,10 @@ CASADI_SYMBOL_EXPORT int simucal_acc_baseline_work_bytes(casadi_int *sz_arg, cas
 #define MODEL_EVAL simucal_acc_baseline
 #define MODEL_WORK simucal_acc_baseline_work
 #define MODEL_FIT simucal_acc_baseline_fit
+#define MODEL_REGRESSORS simucal_acc_baseline_regressors
+#define MODEL_REGRESSORS_WORK simucal_acc_baseline_regressors_work
+#define MODEL_PARAMS_OF_K simucal_acc_baseline_params_of_K
+#define MODEL_PARAMS_OF_K_WORK simucal_acc_baseline_params_of_K_work
 #define MODEL_JP_COUNT {2, 3, 4}
 #define MODEL_JP_COLS {{0, 6, 0, 0, 0, 0, 0, 0, 0}, {1, 3, 7, 0, 0, 0, 0, 0, 0}, {2, 4, 5, 8, 0, 0, 0, 0, 0}}
 /* The whole exact norm fit of MODEL in one call (simucal.fit.norm_fit.fit_exact, written in C).
@@ -232,11 +462,16 @@ CASADI_SYMBOL_EXPORT int simucal_acc_baseline_work_bytes(casadi_int *sz_arg, cas
  * numbers). h and its Jacobians come from the CasADi function above (dense outputs).
  *
  * Arrays are C-contiguous: N, sig, u (n_sets, n, 3); rho (n_sets, n); aux (n_sets, n, NAUX);
- * p0, p (n_sets, M); cov (n_sets, M, M), or NULL where only the estimates are wanted. status per set: 0 converged, 1 not converged,
+ * p0, p (n_sets, M); cov (n_sets, M, M) and cost (n_sets), or NULL where only the estimates are wanted. status per set: 0 converged, 1 not converged,
  * 2 singular (the plan leaves a combination unobservable), 3 a parameter without any input.
  */
 #include <stdlib.h>
 #include <string.h>
+#ifdef _OPENMP
+#include <omp.h>
+#else
+static int omp_get_max_threads(void) { return 1; }
+#endif
 
 #define FIT_M MODEL_M
 #define FIT_NAUX MODEL_NAUX
@@ -299,6 +534,47 @@ static void fit_chol_inverse(const double *L, int k, double *inv) {
       for (int l = b; l < k; l++) s += Li[l * k + a] * Li[l * k + b];
       inv[a * k + b] = inv[b * k + a] = s;
     }
+}
+
+/* The paper's linear fit as the start (dong2018 eq. 7-8 and 11-12): least squares of
+ * psi(N_i) . K = rho_i^2 over the rows (normal equations, Jacobi-scaled: the columns differ by
+ * orders of magnitude in deg/h), then the exact back-substitution p(K). Where it fails (singular,
+ * or p(K) not finite) the start is p = 0, as montecarlo.fit_trials does in numpy. */
+static void fit_start(int n, const double *N, const double *rho, const double *aux, double *p0, casadi_int *iw,
+                      double *w) {
+  const int m = FIT_M;
+  double A[FIT_M * FIT_M], b[FIT_M], psi[FIT_M], d[FIT_M], K[FIT_M];
+  memset(A, 0, sizeof A);
+  memset(b, 0, sizeof b);
+  for (int i = 0; i < n; i++) {
+    const double *arg[2] = {N + 3 * i, aux + i * FIT_NAUX};
+    double *res[1] = {psi};
+    MODEL_REGRESSORS(arg, res, iw, w, 0);
+    double r2 = rho[i] * rho[i];
+    for (int a = 0; a < m; a++) {
+      b[a] += psi[a] * r2;
+      for (int c = 0; c <= a; c++) A[a * m + c] += psi[a] * psi[c];
+    }
+  }
+  int ok = 1;
+  for (int a = 0; a < m; a++) {
+    ok = ok && A[a * m + a] > 0;
+    d[a] = ok ? 1.0 / sqrt(A[a * m + a]) : 0;
+  }
+  for (int a = 0; a < m; a++) {
+    for (int c = 0; c <= a; c++) A[a * m + c] *= d[a] * d[c];
+    K[a] = b[a] * d[a];
+  }
+  ok = ok && fit_cholesky(A, m);
+  if (ok) {
+    fit_chol_solve(A, m, K);
+    for (int a = 0; a < m; a++) K[a] *= d[a];
+    const double *arg[1] = {K};
+    double *res[1] = {p0};
+    MODEL_PARAMS_OF_K(arg, res, iw, w, 0);
+    for (int a = 0; a < m; a++) ok = ok && fabs(p0[a]) < HUGE_VAL;
+  }
+  if (!ok) memset(p0, 0, sizeof(double) * m);
 }
 
 static void fit_tangent(const double *u, double *E) {
@@ -368,13 +644,15 @@ static int fit_one(int n, const double *N, const double *rho, const double *sig,
     for (int a = 0; a < 3; a++) u[3 * i + a] = (adj[a * 3] * y[0] + adj[a * 3 + 1] * y[1] + adj[a * 3 + 2] * y[2]) * det;
     fit_normalise(u + 3 * i);
   }
-  double cost = fit_cost(n, N, rho, wsig, aux, p, u, Nm, Ju, Jp, iw, w), lam = 0;
+  /* the cost at the current point: summed where each iteration forms the residuals */
+  double cost = max_iter > 0 ? 0 : fit_cost(n, N, rho, wsig, aux, p, u, Nm, Ju, Jp, iw, w), lam = 0;
   int done = 0;
   *iters = 0;
   for (int it = 1; it <= max_iter && !done; it++) {
     *iters = it;
     memset(H, 0, sizeof H);
     memset(g, 0, sizeof g);
+    cost = 0;
     for (int i = 0; i < n; i++) {  /* residual, Jacobian blocks, Schur complement */
       double x[3] = {rho[i] * u[3 * i], rho[i] * u[3 * i + 1], rho[i] * u[3 * i + 2]};
       fit_eval(x, p, aux + i * FIT_NAUX, Nm, Ju, Jp, iw, w);
@@ -390,6 +668,7 @@ static int fit_one(int n, const double *N, const double *rho, const double *sig,
         }
         for (int k = 0; k < m; k++) Jqi[a * m + k] = -Jp[k * 3 + a] * ws;
       }
+      cost += ri[0] * ri[0] + ri[1] * ri[1] + ri[2] * ri[2];
       double A[4] = {0, 0, 0, 0}, *Ai = Ainv + 4 * i;
       for (int k = 0; k < 2; k++) for (int l = k; l < 2; l++)
         for (int a = 0; a < 3; a++) A[k * 2 + l] += Jdi[a * 2 + k] * Jdi[a * 2 + l];
@@ -447,7 +726,8 @@ static int fit_one(int n, const double *N, const double *rho, const double *sig,
         for (int a = 0; a < 3; a++) u_new[3 * i + a] = u[3 * i + a] + Ei[a * 2] * dd0 + Ei[a * 2 + 1] * dd1;
         fit_normalise(u_new + 3 * i);
       }
-      new_cost = fit_cost(n, N, rho, wsig, aux, p_new, u_new, Nm, Ju, Jp, iw, w);
+      /* the last step's cost only where the caller wants it */
+      new_cost = last && !cost_out ? cost : fit_cost(n, N, rho, wsig, aux, p_new, u_new, Nm, Ju, Jp, iw, w);
       if (last || new_cost <= cost * (1 + 1e-12) || lam > 1e8) {
         lam = lam > 1e-6 ? lam / 10 : 0.0;
         break;
@@ -466,7 +746,7 @@ static int fit_one(int n, const double *N, const double *rho, const double *sig,
     done = last || fabs(cost - new_cost) <= tol * big || step < 1e-6 || decrement <= 1e-12 * (cost > 1 ? cost : 1);
     cost = new_cost;
   }
-  *cost_out = cost;
+  if (cost_out) *cost_out = cost;
   if (cov) {  /* covariance from the last linearisation: inv(H scaled) / outer(dH) */
     for (int a = 0; a < m; a++) for (int b = 0; b < m; b++) Hs[a * m + b] = H[a * m + b] / (dH[a] * dH[b]);
     if (!fit_cholesky(Hs, m)) return 2;
@@ -476,14 +756,23 @@ static int fit_one(int n, const double *N, const double *rho, const double *sig,
   return done ? 0 : 1;
 }
 
+/* p0 NULL: each set starts from the paper's linear fit (fit_start). n_threads: the OpenMP team
+ * (1 where the caller runs batches on threads of its own; 0: OpenMP's default). */
 CASADI_SYMBOL_EXPORT int MODEL_FIT(int n_sets, int n, const double *N, const double *rho, const double *sig,
                                    const double *aux, const double *p0, int max_iter, double tol, double *p,
-                                   double *cov, double *u, double *cost, int *iters, int *status) {
-  casadi_int sz_arg, sz_res, sz_iw, sz_w;
+                                   double *cov, double *u, double *cost, int *iters, int *status, int n_threads) {
+  casadi_int sz_arg, sz_res, sz_iw, sz_w, sz[4];
   MODEL_WORK(&sz_arg, &sz_res, &sz_iw, &sz_w);
+  MODEL_REGRESSORS_WORK(&sz[0], &sz[1], &sz[2], &sz[3]);
+  if (sz[2] > sz_iw) sz_iw = sz[2];
+  if (sz[3] > sz_w) sz_w = sz[3];
+  MODEL_PARAMS_OF_K_WORK(&sz[0], &sz[1], &sz[2], &sz[3]);
+  if (sz[2] > sz_iw) sz_iw = sz[2];
+  if (sz[3] > sz_w) sz_w = sz[3];
   int failed = 0;
+  (void) n_threads;
   /* sets are independent: one work area per thread (OpenMP where the compiler has it) */
-#pragma omp parallel reduction(+:failed)
+#pragma omp parallel reduction(+:failed) num_threads(n_threads > 0 ? n_threads : omp_get_max_threads())
   {
     casadi_int *iw = malloc(sizeof(casadi_int) * (sz_iw + 1));
     double *w = malloc(sizeof(double) * (sz_w + 1));
@@ -491,10 +780,13 @@ CASADI_SYMBOL_EXPORT int MODEL_FIT(int n_sets, int n, const double *N, const dou
     if (!iw || !w || !buf) failed++;
     else {
 #pragma omp for schedule(static)
-      for (int s = 0; s < n_sets; s++)
-        status[s] = fit_one(n, N + 3 * n * s, rho + n * s, sig + 3 * n * s, aux + FIT_NAUX * n * s, p0 + FIT_M * s,
-                            max_iter, tol, p + FIT_M * s, cov ? cov + FIT_M * FIT_M * s : NULL, u + 3 * n * s, cost + s, iters + s,
-                            buf, iw, w);
+      for (int s = 0; s < n_sets; s++) {
+        double start[FIT_M];
+        if (!p0) fit_start(n, N + 3 * n * s, rho + n * s, aux + FIT_NAUX * n * s, start, iw, w);
+        status[s] = fit_one(n, N + 3 * n * s, rho + n * s, sig + 3 * n * s, aux + FIT_NAUX * n * s,
+                            p0 ? p0 + FIT_M * s : start, max_iter, tol, p + FIT_M * s,
+                            cov ? cov + FIT_M * FIT_M * s : NULL, u + 3 * n * s, cost ? cost + s : NULL, iters + s, buf, iw, w);
+      }
     }
     free(iw); free(w); free(buf);
   }

@@ -1,6 +1,7 @@
 """Run independent tasks in order, on one process or on Dask (dask.distributed).
 
-scheduler: None or "local" runs them here, one after the other; "processes" starts a
+scheduler: None or "local" runs them here, one after the other, or on `threads` threads (for
+tasks whose work is in numpy and compiled calls, which release the GIL); "processes" starts a
 LocalCluster with one single-threaded worker per core; anything else is the address of a
 running scheduler (a real cluster). Results come back in the order of the tasks, so a
 sweep gives the same numbers on any scheduler (each task carries its own seed).
@@ -10,10 +11,15 @@ from __future__ import annotations
 import os
 
 
-def map_tasks(fn, tasks: list, scheduler=None, progress=None) -> list:
+def map_tasks(fn, tasks: list, scheduler=None, progress=None, threads: int = 1) -> list:
     """[fn(*t) for t in tasks] on the scheduler; progress wraps an iterable (e.g. tqdm)."""
     if scheduler in (None, "local"):
-        return [fn(*t) for t in (progress(tasks) if progress else tasks)]
+        if threads <= 1:
+            return [fn(*t) for t in (progress(tasks) if progress else tasks)]
+        from concurrent.futures import ThreadPoolExecutor
+        with ThreadPoolExecutor(threads) as pool:
+            futures = [pool.submit(fn, *t) for t in tasks]
+            return [f.result() for f in (progress(futures) if progress else futures)]
     from dask.distributed import Client, LocalCluster, as_completed
     if scheduler == "processes":
         cluster = LocalCluster(n_workers=os.cpu_count() or 2, threads_per_worker=1, processes=True,

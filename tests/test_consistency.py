@@ -5,6 +5,8 @@ import shutil
 
 import numpy as np
 import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
 from simucal.generated import table
 
 from simucal.calibrate import calibrate
@@ -141,3 +143,24 @@ def test_lever_arms_the_model_lacks_inflate_the_unification_and_adding_them_fixe
 def test_paper_unification_refused_for_other_models(paper_set):
     with pytest.raises(CalibrationError, match="derived for the baseline models"):
         calibrate(paper_set[0], "linear", acc_model="acc_extended")
+
+
+@settings(max_examples=60, deadline=None)
+@given(seed=st.integers(0, 2**32 - 1), kind=st.sampled_from(["random", "near rotation", "reflection", "rank 2"]))
+def test_nearest_rotation_is_the_svd_solution(seed, kind):
+    """rotations.nearest_rotation (Newton-Schulz where it settles, else the SVD) is Markley's
+    U diag(1, 1, det(U V^T)) V^T for any B: general, near a rotation, improper, rank-deficient."""
+    from simucal.fit.rotations import nearest_rotation
+    rng = np.random.default_rng(seed)
+    B = rng.normal(size=(50, 3, 3))
+    if kind != "random":
+        Q = np.linalg.qr(B)[0]
+        Q[np.linalg.det(Q) < 0] *= -1
+        B = {"near rotation": Q * rng.uniform(0.1, 10) + rng.normal(0, 1e-3, B.shape), "reflection": -Q,
+             "rank 2": Q @ np.diag([3.0, 1.0, 0.0])}[kind]
+    U, _, Vt = np.linalg.svd(B)
+    D = np.broadcast_to(np.eye(3), U.shape).copy()
+    D[..., 2, 2] = np.linalg.det(U @ Vt)
+    R = nearest_rotation(B)
+    assert np.allclose(R, U @ D @ Vt, rtol=0, atol=1e-12)
+    assert np.allclose(R.swapaxes(1, 2) @ R, np.eye(3), atol=1e-13) and np.all(np.linalg.det(R) > 0)

@@ -132,14 +132,20 @@ def test_compiled_whole_fit_matches_the_python_solver(tmp_path, name, sensor):
         assert np.all(np.abs(a.vector(c.params) - b.vector(py.params)) < 1e-5 * np.sqrt(np.diag(b.cov)))
         assert np.allclose(a.cov, b.cov, rtol=1e-8, atol=0) and a.chi2 == pytest.approx(b.chi2, rel=1e-8)
     n = len(sets[0].N)
-    batch = c.fit_compiled(np.array([o.N for o in sets]), np.array([o.rho for o in sets]),
-                           np.array([np.broadcast_to(o.sigma, (n, 3)) for o in sets]),
-                           np.array([c.aux_array(o.aux, (n,)) for o in sets]),
-                           np.zeros((3, len(c.params))))
+    batch_args = lambda sets: (np.array([o.N for o in sets]), np.array([o.rho for o in sets]),
+                               np.array([np.broadcast_to(o.sigma, (n, 3)) for o in sets]),
+                               np.array([c.aux_array(o.aux, (n,)) for o in sets]))
+    batch = c.fit_compiled(*batch_args(sets), np.zeros((3, len(c.params))))
     assert np.all(batch[5] == 0)
     for k, obs in enumerate(sets):  # another start (zeros): the same optimum, to 1e-5 of each std
         ref = fit_exact(py, obs)
         assert np.all(np.abs(batch[0][k] - ref.vector(py.params)) < 1e-5 * np.sqrt(np.diag(ref.cov)))
+    # the paper's linear start computed in the same call (p0 None), the estimates alone, one thread
+    alone = c.fit_compiled(*batch_args(sets), None, covariance=False, threads=1)
+    assert alone[1] is None and alone[3] is None and np.all(alone[5] == 0)
+    for k, obs in enumerate(sets):
+        ref = fit_exact(py, obs)
+        assert np.all(np.abs(alone[0][k] - ref.vector(py.params)) < 1e-5 * np.sqrt(np.diag(ref.cov)))
 
 
 def test_numpy_batch_equals_one_set_at_a_time(tmp_path):

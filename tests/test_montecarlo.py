@@ -72,3 +72,43 @@ def test_batch_calibration_keeps_the_good_sets(tmp_path):
     a = json.loads((tmp_path / "cal-local" / "u1.json").read_text())
     b = json.loads((tmp_path / "cal-processes" / "u1.json").read_text())
     assert a["acc"]["params"] == b["acc"]["params"]
+
+
+def test_compiled_and_numpy_paths_give_the_same_trials(monkeypatch):
+    """The compiled route (table kinematics, the fits' linear start and LM in C) and the numpy one
+    (SIMUCAL_NO_COMPILE) simulate from the same draws and reach the same estimates."""
+    from simucal.fit import catalog
+    from simucal.turntable import kinematics
+    from simucal.turntable.montecarlo import chunk_of_trials
+    compiled = chunk_of_trials(Scenario(), 300, 3, 0)
+    monkeypatch.setenv("SIMUCAL_NO_COMPILE", "1")
+    for cached in (catalog.load, kinematics.compiled):
+        cached.cache_clear()
+    try:
+        assert kinematics.compiled() is None
+        plain = chunk_of_trials(Scenario(), 300, 3, 0)
+    finally:
+        monkeypatch.delenv("SIMUCAL_NO_COMPILE")
+        for cached in (catalog.load, kinematics.compiled):
+            cached.cache_clear()
+    assert compiled["failed"] == plain["failed"] == []
+    for key in ("acc", "gyro", "phi"):  # both stop within 1e-6 std of the optimum
+        spread = np.std(plain[key], axis=0)
+        assert np.all(np.abs(compiled[key] - plain[key]) < 1e-5 * spread), key
+
+
+def test_table_kinematics_compiled_equals_the_numpy_module():
+    """generated/table.c (its cos/sin of the table errors taken once per batch) against generated/table.py."""
+    from simucal.generated import table
+
+    from simucal.turntable import kinematics
+    if kinematics.compiled() is None:  # SIMUCAL_NO_COMPILE: the numpy module is the only route
+        return
+    rng = np.random.default_rng(4)
+    g, a, b = rng.uniform(-np.pi, np.pi, (3, 200))
+    table_err, angle_err = rng.normal(0, 0.01, 4), rng.normal(0, 0.01, (200, 3))
+    e = kinematics.errors(table_err, angle_err)
+    assert np.allclose(kinematics.specific_force_k(g, a, b, table_err, angle_err),
+                       table.specific_force_k(g, a, b, e), rtol=0, atol=1e-14)
+    assert np.allclose(kinematics.outer_axis_k(a, b, table_err, angle_err), table.outer_axis_k(a, b, e),
+                       rtol=0, atol=1e-14)

@@ -8,11 +8,16 @@
  * numbers). h and its Jacobians come from the CasADi function above (dense outputs).
  *
  * Arrays are C-contiguous: N, sig, u (n_sets, n, 3); rho (n_sets, n); aux (n_sets, n, NAUX);
- * p0, p (n_sets, M); cov (n_sets, M, M), or NULL where only the estimates are wanted. status per set: 0 converged, 1 not converged,
+ * p0, p (n_sets, M); cov (n_sets, M, M) and cost (n_sets), or NULL where only the estimates are wanted. status per set: 0 converged, 1 not converged,
  * 2 singular (the plan leaves a combination unobservable), 3 a parameter without any input.
  */
 #include <stdlib.h>
 #include <string.h>
+#ifdef _OPENMP
+#include <omp.h>
+#else
+static int omp_get_max_threads(void) { return 1; }
+#endif
 
 #define FIT_M MODEL_M
 #define FIT_NAUX MODEL_NAUX
@@ -75,6 +80,47 @@ static void fit_chol_inverse(const double *L, int k, double *inv) {
       for (int l = b; l < k; l++) s += Li[l * k + a] * Li[l * k + b];
       inv[a * k + b] = inv[b * k + a] = s;
     }
+}
+
+/* The paper's linear fit as the start (dong2018 eq. 7-8 and 11-12): least squares of
+ * psi(N_i) . K = rho_i^2 over the rows (normal equations, Jacobi-scaled: the columns differ by
+ * orders of magnitude in deg/h), then the exact back-substitution p(K). Where it fails (singular,
+ * or p(K) not finite) the start is p = 0, as montecarlo.fit_trials does in numpy. */
+static void fit_start(int n, const double *N, const double *rho, const double *aux, double *p0, casadi_int *iw,
+                      double *w) {
+  const int m = FIT_M;
+  double A[FIT_M * FIT_M], b[FIT_M], psi[FIT_M], d[FIT_M], K[FIT_M];
+  memset(A, 0, sizeof A);
+  memset(b, 0, sizeof b);
+  for (int i = 0; i < n; i++) {
+    const double *arg[2] = {N + 3 * i, aux + i * FIT_NAUX};
+    double *res[1] = {psi};
+    MODEL_REGRESSORS(arg, res, iw, w, 0);
+    double r2 = rho[i] * rho[i];
+    for (int a = 0; a < m; a++) {
+      b[a] += psi[a] * r2;
+      for (int c = 0; c <= a; c++) A[a * m + c] += psi[a] * psi[c];
+    }
+  }
+  int ok = 1;
+  for (int a = 0; a < m; a++) {
+    ok = ok && A[a * m + a] > 0;
+    d[a] = ok ? 1.0 / sqrt(A[a * m + a]) : 0;
+  }
+  for (int a = 0; a < m; a++) {
+    for (int c = 0; c <= a; c++) A[a * m + c] *= d[a] * d[c];
+    K[a] = b[a] * d[a];
+  }
+  ok = ok && fit_cholesky(A, m);
+  if (ok) {
+    fit_chol_solve(A, m, K);
+    for (int a = 0; a < m; a++) K[a] *= d[a];
+    const double *arg[1] = {K};
+    double *res[1] = {p0};
+    MODEL_PARAMS_OF_K(arg, res, iw, w, 0);
+    for (int a = 0; a < m; a++) ok = ok && fabs(p0[a]) < HUGE_VAL;
+  }
+  if (!ok) memset(p0, 0, sizeof(double) * m);
 }
 
 static void fit_tangent(const double *u, double *E) {
@@ -144,13 +190,15 @@ static int fit_one(int n, const double *N, const double *rho, const double *sig,
     for (int a = 0; a < 3; a++) u[3 * i + a] = (adj[a * 3] * y[0] + adj[a * 3 + 1] * y[1] + adj[a * 3 + 2] * y[2]) * det;
     fit_normalise(u + 3 * i);
   }
-  double cost = fit_cost(n, N, rho, wsig, aux, p, u, Nm, Ju, Jp, iw, w), lam = 0;
+  /* the cost at the current point: summed where each iteration forms the residuals */
+  double cost = max_iter > 0 ? 0 : fit_cost(n, N, rho, wsig, aux, p, u, Nm, Ju, Jp, iw, w), lam = 0;
   int done = 0;
   *iters = 0;
   for (int it = 1; it <= max_iter && !done; it++) {
     *iters = it;
     memset(H, 0, sizeof H);
     memset(g, 0, sizeof g);
+    cost = 0;
     for (int i = 0; i < n; i++) {  /* residual, Jacobian blocks, Schur complement */
       double x[3] = {rho[i] * u[3 * i], rho[i] * u[3 * i + 1], rho[i] * u[3 * i + 2]};
       fit_eval(x, p, aux + i * FIT_NAUX, Nm, Ju, Jp, iw, w);
@@ -166,6 +214,7 @@ static int fit_one(int n, const double *N, const double *rho, const double *sig,
         }
         for (int k = 0; k < m; k++) Jqi[a * m + k] = -Jp[k * 3 + a] * ws;
       }
+      cost += ri[0] * ri[0] + ri[1] * ri[1] + ri[2] * ri[2];
       double A[4] = {0, 0, 0, 0}, *Ai = Ainv + 4 * i;
       for (int k = 0; k < 2; k++) for (int l = k; l < 2; l++)
         for (int a = 0; a < 3; a++) A[k * 2 + l] += Jdi[a * 2 + k] * Jdi[a * 2 + l];
@@ -223,7 +272,8 @@ static int fit_one(int n, const double *N, const double *rho, const double *sig,
         for (int a = 0; a < 3; a++) u_new[3 * i + a] = u[3 * i + a] + Ei[a * 2] * dd0 + Ei[a * 2 + 1] * dd1;
         fit_normalise(u_new + 3 * i);
       }
-      new_cost = fit_cost(n, N, rho, wsig, aux, p_new, u_new, Nm, Ju, Jp, iw, w);
+      /* the last step's cost only where the caller wants it */
+      new_cost = last && !cost_out ? cost : fit_cost(n, N, rho, wsig, aux, p_new, u_new, Nm, Ju, Jp, iw, w);
       if (last || new_cost <= cost * (1 + 1e-12) || lam > 1e8) {
         lam = lam > 1e-6 ? lam / 10 : 0.0;
         break;
@@ -242,7 +292,7 @@ static int fit_one(int n, const double *N, const double *rho, const double *sig,
     done = last || fabs(cost - new_cost) <= tol * big || step < 1e-6 || decrement <= 1e-12 * (cost > 1 ? cost : 1);
     cost = new_cost;
   }
-  *cost_out = cost;
+  if (cost_out) *cost_out = cost;
   if (cov) {  /* covariance from the last linearisation: inv(H scaled) / outer(dH) */
     for (int a = 0; a < m; a++) for (int b = 0; b < m; b++) Hs[a * m + b] = H[a * m + b] / (dH[a] * dH[b]);
     if (!fit_cholesky(Hs, m)) return 2;
@@ -252,14 +302,23 @@ static int fit_one(int n, const double *N, const double *rho, const double *sig,
   return done ? 0 : 1;
 }
 
+/* p0 NULL: each set starts from the paper's linear fit (fit_start). n_threads: the OpenMP team
+ * (1 where the caller runs batches on threads of its own; 0: OpenMP's default). */
 CASADI_SYMBOL_EXPORT int MODEL_FIT(int n_sets, int n, const double *N, const double *rho, const double *sig,
                                    const double *aux, const double *p0, int max_iter, double tol, double *p,
-                                   double *cov, double *u, double *cost, int *iters, int *status) {
-  casadi_int sz_arg, sz_res, sz_iw, sz_w;
+                                   double *cov, double *u, double *cost, int *iters, int *status, int n_threads) {
+  casadi_int sz_arg, sz_res, sz_iw, sz_w, sz[4];
   MODEL_WORK(&sz_arg, &sz_res, &sz_iw, &sz_w);
+  MODEL_REGRESSORS_WORK(&sz[0], &sz[1], &sz[2], &sz[3]);
+  if (sz[2] > sz_iw) sz_iw = sz[2];
+  if (sz[3] > sz_w) sz_w = sz[3];
+  MODEL_PARAMS_OF_K_WORK(&sz[0], &sz[1], &sz[2], &sz[3]);
+  if (sz[2] > sz_iw) sz_iw = sz[2];
+  if (sz[3] > sz_w) sz_w = sz[3];
   int failed = 0;
+  (void) n_threads;
   /* sets are independent: one work area per thread (OpenMP where the compiler has it) */
-#pragma omp parallel reduction(+:failed)
+#pragma omp parallel reduction(+:failed) num_threads(n_threads > 0 ? n_threads : omp_get_max_threads())
   {
     casadi_int *iw = malloc(sizeof(casadi_int) * (sz_iw + 1));
     double *w = malloc(sizeof(double) * (sz_w + 1));
@@ -267,10 +326,13 @@ CASADI_SYMBOL_EXPORT int MODEL_FIT(int n_sets, int n, const double *N, const dou
     if (!iw || !w || !buf) failed++;
     else {
 #pragma omp for schedule(static)
-      for (int s = 0; s < n_sets; s++)
-        status[s] = fit_one(n, N + 3 * n * s, rho + n * s, sig + 3 * n * s, aux + FIT_NAUX * n * s, p0 + FIT_M * s,
-                            max_iter, tol, p + FIT_M * s, cov ? cov + FIT_M * FIT_M * s : NULL, u + 3 * n * s, cost + s, iters + s,
-                            buf, iw, w);
+      for (int s = 0; s < n_sets; s++) {
+        double start[FIT_M];
+        if (!p0) fit_start(n, N + 3 * n * s, rho + n * s, aux + FIT_NAUX * n * s, start, iw, w);
+        status[s] = fit_one(n, N + 3 * n * s, rho + n * s, sig + 3 * n * s, aux + FIT_NAUX * n * s,
+                            p0 ? p0 + FIT_M * s : start, max_iter, tol, p + FIT_M * s,
+                            cov ? cov + FIT_M * FIT_M * s : NULL, u + 3 * n * s, cost ? cost + s : NULL, iters + s, buf, iw, w);
+      }
     }
     free(iw); free(w); free(buf);
   }

@@ -9,6 +9,7 @@ import json
 import os
 import shutil
 import subprocess
+import threading
 import warnings
 from pathlib import Path
 
@@ -36,11 +37,13 @@ def cache_dir() -> Path:
     return Path(root)
 
 
-CFLAGS = ("-O3", "-shared", "-fPIC")  # no -march=native: a cache may be shared by machines of other CPUs
+CFLAGS = ("-O3", "-fno-math-errno", "-shared", "-fPIC")  # no -march=native: a cache may be shared by machines of other CPUs
 
 
 def compile_c(name: str, source: str) -> Path | None:
-    """Build the CasADi C of a model into the cache; None where no compiler works."""
+    """Build generated C (a model's, the table's) into the cache; None where no compiler works.
+    Processes and threads may build the same library at once: each writes its own files and
+    renames them into place."""
     if os.environ.get("SIMUCAL_NO_COMPILE"):
         return None
     cc = shutil.which(os.environ.get("CC", "cc")) or shutil.which("gcc")
@@ -51,17 +54,20 @@ def compile_c(name: str, source: str) -> Path | None:
     if lib.is_file():
         return lib
     lib.parent.mkdir(parents=True, exist_ok=True)
-    src = lib.with_suffix(".c")
+    tag = f"{os.getpid()}-{threading.get_ident()}"
+    src = lib.with_suffix(f".{tag}.c")
     src.write_text(source)
-    tmp = lib.with_suffix(f".{os.getpid()}.tmp")
+    tmp = lib.with_suffix(f".{tag}.tmp")
     base = [cc, *CFLAGS, str(src), "-o", str(tmp), "-lm"]
     res = subprocess.run(base + ["-fopenmp"], capture_output=True, text=True)  # batches over the cores
     if res.returncode != 0:
         res = subprocess.run(base, capture_output=True, text=True)
     if res.returncode != 0:
         warnings.warn(f"compiling {name}.c failed with {cc}; using the numpy module instead:\n{res.stderr[-500:]}")
+        src.unlink()
         return None
     tmp.replace(lib)
+    src.replace(lib.with_suffix(".c"))  # kept beside the library: what it was built from
     return lib
 
 
@@ -71,8 +77,9 @@ def _bind_fit(lib, name):
     f = getattr(ctypes.CDLL(str(lib)), f"simucal_{name}_fit")
     d = np.ctypeslib.ndpointer(dtype=float, flags="C_CONTIGUOUS")
     i = np.ctypeslib.ndpointer(dtype=np.intc, flags="C_CONTIGUOUS")
-    f.argtypes = [ctypes.c_int, ctypes.c_int, d, d, d, d, d, ctypes.c_int, ctypes.c_double, d, ctypes.c_void_p, d, d,
-                  i, i]  # cov: an address or None (no covariance)
+    v = ctypes.c_void_p  # p0, cov, cost: an address or None (start from the paper's linear fit; not wanted)
+    f.argtypes = [ctypes.c_int, ctypes.c_int, d, d, d, d, v, ctypes.c_int, ctypes.c_double, d, v, d, v, i, i,
+                  ctypes.c_int]
     f.restype = ctypes.c_int
     return f
 
@@ -90,17 +97,24 @@ class GeneratedModel:
         self.meanings = getattr(self.module, "MEANINGS", ("",) * len(self.params))
         self.source = getattr(self.module, "SOURCE", "built-in")
         self.aux = self.module.AUX
-        self._c = self._fit = None
+        self._lib = self._fit = None
         if compiled and c_source is not None:
-            lib = compile_c(name, c_source)
-            if lib is not None:
-                import casadi as ca
-                self._c = ca.external(f"simucal_{name}", str(lib))
-                self._fit = _bind_fit(lib, name) if f"simucal_{name}_fit" in c_source else None
+            self._lib = compile_c(name, c_source)
+            if self._lib is not None:
+                self._fit = _bind_fit(self._lib, name) if f"simucal_{name}_fit" in c_source else None
 
     @property
     def backend(self) -> str:
-        return "casadi-c" if self._c is not None else "numpy"
+        return "casadi-c" if self._lib is not None else "numpy"
+
+    @functools.cached_property
+    def _c(self):
+        """The per-row model as a CasADi function of the compiled library: loaded on first use, as
+        importing CasADi costs a command ~60 ms that the whole compiled fit does not need."""
+        if self._lib is None:
+            return None
+        import casadi as ca
+        return ca.external(f"simucal_{self.name}", str(self._lib))
 
     def aux_array(self, aux: AuxInputs | None, shape=None) -> np.ndarray:
         """The auxiliary inputs in this model's order (AUX), (*shape, naux), as its functions take them.
@@ -109,22 +123,26 @@ class GeneratedModel:
             return np.zeros(tuple(shape or ()) + (len(self.aux),))
         return aux.array(self.aux, shape)
 
-    def fit_compiled(self, N, rho, sig, aux, p0, max_iter=200, tol=1e-12, covariance=True):
+    def fit_compiled(self, N, rho, sig, aux, p0=None, max_iter=200, tol=1e-12, covariance=True, threads=0):
         """The whole exact fit in one compiled call (derive/templates/exact_fit.c) for a batch of
-        data sets: N, sig (S, n, 3), rho (S, n), aux (S, n, naux), p0 (S, m). Returns p (S, m),
-        cov (S, m, m) (None where covariance=False), u (S, n, 3), cost (S,), iterations (S,), status (S,);
-        None without a compiler."""
+        data sets: N, sig (S, n, 3), rho (S, n), aux (S, n, naux), p0 (S, m) or None (each set
+        starts from the paper's linear fit, computed in the same call). threads: the OpenMP team
+        (0 its default; 1 where the caller runs batches on threads of its own). Returns p (S, m),
+        cov (S, m, m), u (S, n, 3), cost (S,), iterations (S,), status (S,), with cov and cost None
+        where covariance=False (the estimates alone); None without a compiler."""
         if self._fit is None:
             return None
         S, n, _ = N.shape
         m = len(self.params)
         c = lambda a: np.ascontiguousarray(a, dtype=float)
-        N, rho, sig, aux, p0 = c(N), c(rho), c(sig), c(aux), c(p0)
+        N, rho, sig, aux = c(N), c(rho), c(sig), c(aux)
+        p0 = None if p0 is None else c(p0)
         p, u = np.empty((S, m)), np.empty((S, n, 3))
-        cov = np.empty((S, m, m)) if covariance else None
-        cost, iters, status = np.empty(S), np.empty(S, np.intc), np.empty(S, np.intc)
-        self._fit(S, n, N, rho, sig, aux, p0, max_iter, tol, p, None if cov is None else cov.ctypes.data, u, cost, iters,
-                  status)
+        cov, cost = (np.empty((S, m, m)), np.empty(S)) if covariance else (None, None)
+        iters, status = np.empty(S, np.intc), np.empty(S, np.intc)
+        address = lambda a: None if a is None else a.ctypes.data
+        self._fit(S, n, N, rho, sig, aux, address(p0), max_iter, tol, p, address(cov), u, address(cost), iters, status,
+                  threads)
         return p, cov, u, cost, iters, status
 
     def output(self, u, p, aux: AuxInputs | None = None):
@@ -140,7 +158,7 @@ class GeneratedModel:
         A = self.aux_array(aux, u.shape[:-1])
         if p.ndim > 1:  # one p per set: broadcast it over the set's rows
             p = p[..., None, :]
-        if self._c is None or u.ndim > 2 or p.ndim > 1:
+        if u.ndim > 2 or p.ndim > 1 or self._c is None:  # batches: numpy (CasADi not even loaded)
             N = self.module.output(u, p, A)
             Ju, Jp = self.module.output_jacobians(u, p, A)
             return N, Ju, Jp

@@ -47,9 +47,39 @@ def log_so3(R):
 
 
 def wahba(u_b, u_d, w):
-    """The rotation C (b -> d) minimising sum w_i |u_d,i - C u_b,i|^2 (SVD; Markley 1988), for
-    pairs (n, 3) or batches of them (..., n, 3) with weights (..., n)."""
-    U, _, Vt = np.linalg.svd((w[..., None] * u_d).swapaxes(-1, -2) @ u_b)
-    D = np.broadcast_to(np.eye(3), U.shape).copy()
-    D[..., 2, 2] = np.linalg.det(U @ Vt)
-    return U @ D @ Vt
+    """The rotation C (b -> d) minimising sum w_i |u_d,i - C u_b,i|^2 (Markley 1988: from the SVD
+    of B = sum w_i u_d,i u_b,i^T), for pairs (n, 3) or batches of them (..., n, 3) with weights
+    (..., n)."""
+    return nearest_rotation((w[..., None] * u_d).swapaxes(-1, -2) @ u_b)
+
+
+def nearest_rotation(B, max_iter=30):
+    """The proper rotation nearest B (..., 3, 3) in the Frobenius norm: U diag(1, 1, det(U V^T)) V^T
+    from B's SVD. Where det(B) > 0 that is B's orthogonal polar factor, which the Newton-Schulz
+    iteration X <- X (3I - X^T X) / 2 reaches in a few matrix products (B scaled by sqrt(3)/|B|_F:
+    every singular value in (0, sqrt(3)], and all at 1 for well-spread directions); batched 3x3
+    products cost a twentieth of a batched SVD. Matrices it does not settle (near-singular B, or
+    det(B) <= 0) go to the SVD."""
+    B = np.asarray(B, float)
+    X = B * (np.sqrt(3.0) / np.linalg.norm(B, axis=(-2, -1), keepdims=True))
+    eye = np.eye(3)
+    for _ in range(max_iter):
+        E = np.ascontiguousarray(X.swapaxes(-1, -2)) @ X - eye  # a contiguous X^T: matmul's fast path
+        err = np.abs(E).reshape(E.shape[:-2] + (9,)).max(axis=-1)
+        X = X @ (eye - 0.5 * E)
+        if np.all(err < 1e-13):  # quadratic: the step just taken ends at round-off
+            break
+    bad = ~(err < 1e-13) | ~(_det3(X) > 0)
+    if np.any(bad):
+        U, _, Vt = np.linalg.svd(B[bad])
+        D = np.broadcast_to(eye, U.shape).copy()
+        D[..., 2, 2] = np.linalg.det(U @ Vt)
+        X[bad] = U @ D @ Vt
+    return X
+
+
+def _det3(A):
+    """Determinants of 3x3 matrices (..., 3, 3) by cofactors (LAPACK's per-matrix call costs more)."""
+    return (A[..., 0, 0] * (A[..., 1, 1] * A[..., 2, 2] - A[..., 1, 2] * A[..., 2, 1])
+            - A[..., 0, 1] * (A[..., 1, 0] * A[..., 2, 2] - A[..., 1, 2] * A[..., 2, 0])
+            + A[..., 0, 2] * (A[..., 1, 0] * A[..., 2, 1] - A[..., 1, 1] * A[..., 2, 0]))

@@ -2,7 +2,7 @@
 
 Trials are simulated as arrays with a trial axis (simulate.Scenario's settings, one
 averaged row per position): random angular position errors per trial and position,
-exact rotations (generated/table.py), white noise on each mean output. A rate run's
+exact rotations (kinematics.py: the compiled generated/table.c), white noise on each mean output. A rate run's
 mean over one whole revolution is the mean of K = 12 equally spaced outer angles,
 exact for every model term of degree below 12 in the input (a trigonometric
 polynomial in gamma of that degree averages exactly), where simulate() samples 720.
@@ -18,6 +18,7 @@ profiled out. A trial whose fit does not converge is counted in `failed` and lis
 """
 from __future__ import annotations
 
+import os
 import time
 
 import numpy as np
@@ -28,7 +29,7 @@ from simucal.fit.norm_fit import fit_batch
 from simucal.fit.rotations import wahba
 from simucal.generated import table
 from simucal.io import units
-from simucal.turntable import plans
+from simucal.turntable import kinematics, plans
 from simucal.turntable.simulate import Scenario
 
 K_REV = 12  # outer-angle samples per revolution (module doc)
@@ -45,18 +46,17 @@ def _plan(sc):
 
 def _affine(model, p):
     """Is the model's output affine in its input (dN/du the same at two inputs)?"""
-    u = np.array([[0.3, -0.5, 0.8], [-0.9, 0.2, 0.1]]) * 1e3
-    Ju = model.jacobians(u, p)[1]
+    u = np.array([[[0.3, -0.5, 0.8], [-0.9, 0.2, 0.1]]]) * 1e3
+    Ju = model.jacobians(u, p[None])[1][0]  # as a batch of one set: the numpy module, no CasADi to import
     return bool(np.allclose(Ju[0], Ju[1], rtol=0, atol=1e-12 * max(np.abs(Ju).max(), 1.0)))
 
 
-def _errors(sc, rng, shape, position_error=True):
-    e = np.zeros(shape + (7,))
-    e[..., 0:2] = sc.tilt_rad
-    e[..., 2:4] = sc.nonperp_rad
-    e[..., 4:7] = np.array(sc.zero_rad)
+def _angle_errors(sc, rng, shape, position_error=True):
+    """(d_gamma, d_alpha, d_beta) per position (*shape, 3), rad: the zero-position error plus a
+    uniform angular position error."""
+    e = np.broadcast_to(np.array(sc.zero_rad, float), shape + (3,))
     if position_error:
-        e[..., 4:7] += rng.uniform(-1, 1, shape + (3,)) * sc.position_error_rad
+        e = e + rng.uniform(-1, 1, shape + (3,)) * sc.position_error_rad
     return e
 
 
@@ -73,16 +73,17 @@ def simulate_batch(sc: Scenario, trials: int, rng, noise=True):
     w_ie_n = table.earth_rate_n(w_e, lat)
     up = np.array([0, 0, 1.0])
     T, Ps, Pr = trials, len(static), len(rates)
-    f_s = table.specific_force_k(static[:, 0], static[:, 1], static[:, 2], _errors(sc, rng, (T, Ps), noise)) @ C_b_k
-    tilt_n = table.C_k_n(0.0, 0.0, 0.0, np.r_[sc.tilt_rad, np.zeros(5)])[:, 2]
-    w_n = w_ie_n + (rates[:, 2] * 3600.0)[:, None] * tilt_n  # (Pr, 3)
-    err_r = _errors(sc, rng, (T, Pr), noise)
+    table_err = np.r_[sc.tilt_rad, sc.nonperp_rad]  # shared by every row; the angle errors per row
+    f_s = kinematics.specific_force_k(static[:, 0], static[:, 1], static[:, 2], table_err,
+                                      _angle_errors(sc, rng, (T, Ps), noise)) @ C_b_k
+    tilt = table.C_k_n(0.0, 0.0, 0.0, np.r_[sc.tilt_rad, np.zeros(5)])
+    w_n = w_ie_n + (rates[:, 2] * 3600.0)[:, None] * tilt[:, 2]  # (Pr, 3)
+    err_r = _angle_errors(sc, rng, (T, Pr), noise)
     w2 = (np.radians(rates[:, 2]) ** 2 / units.DEFAULT_GRAVITY)[None, :]
     if _affine(am, p_a) and _affine(gm, p_g):
         # over a revolution a vector v fixed in n averages, in k, to the outer axis times v's component
         # along the tilted outer axis (derive/table.py outer_axis_k)
-        axis_k = table.outer_axis_k(np.radians(rates[:, 0]), np.radians(rates[:, 1]), err_r)  # (T, Pr, 3)
-        tilt = table.C_k_n(0.0, 0.0, 0.0, np.r_[sc.tilt_rad, np.zeros(5)])
+        axis_k = kinematics.outer_axis_k(np.radians(rates[:, 0]), np.radians(rates[:, 1]), table_err, err_r)
         f_k = axis_k * tilt[2, 2]
         f_r, f_d = f_k @ C_b_k, f_k @ C_d_k
         w_d = (axis_k * (w_n @ tilt)[:, 2][:, None]) @ C_d_k
@@ -91,7 +92,8 @@ def simulate_batch(sc: Scenario, trials: int, rng, noise=True):
     else:  # nonlinear terms: the mean of K samples, exact below degree K
         gam = np.arange(K_REV) * 2 * np.pi / K_REV
         Cr = table.C_k_n(gam[None, None, :], np.radians(rates[:, 0])[None, :, None],
-                         np.radians(rates[:, 1])[None, :, None], err_r[:, :, None, :])  # (T, Pr, K, 3, 3)
+                         np.radians(rates[:, 1])[None, :, None],
+                         kinematics.errors(table_err, err_r)[:, :, None, :])  # (T, Pr, K, 3, 3)
         f_r = np.einsum("ji,tpqkj,k->tpqi", C_b_k, Cr, up)
         w_d = np.einsum("ji,tpqkj,pk->tpqi", C_d_k, Cr, w_n)
         f_d = np.einsum("ji,tpqkj,k->tpqi", C_d_k, Cr, up)
@@ -107,31 +109,33 @@ def simulate_batch(sc: Scenario, trials: int, rng, noise=True):
             "truth": {"acc": p_a, "gyro": p_g, "C_b_d": C_d_k.T @ C_b_k}, "models": (am, gm)}
 
 
-def fit_trials(model, N, rho, sigma):
-    """Exact fits of a batch (T, n, 3): (p (T, m), cov (T, m, m), u (T, n, 3), ok (T,)): one compiled
-    call where there is one (no effects added), else norm_fit.fit_batch (numpy, vectorised over
-    the trials). The start: the paper's linear fit of the base model, vectorised, effects at 0."""
+def fit_trials(model, N, rho, sigma, covariance=True, threads=0):
+    """Exact fits of a batch (T, n, 3): (p (T, m), cov (T, m, m) or None, u (T, n, 3), ok (T,)): one compiled
+    call where there is one (no effects added; `threads` its OpenMP team), else norm_fit.fit_batch (numpy,
+    vectorised over the trials). The start: the paper's linear fit of the base model (in the compiled
+    call, or vectorised here), effects at 0."""
     T, n, _ = N.shape
     m = len(model.params)
     base = model.base
     rho_b = np.broadcast_to(rho, (T, n))
     sig = np.full((T, n, 3), float(sigma))
+    out = None if model.effects else base.fit_compiled(N, rho_b, sig, np.zeros((T, n, len(base.aux))),
+                                                       covariance=covariance, threads=threads)
+    if out is not None:
+        p, cov, u, _, _, status = out
+        return p, cov, u, status == 0
     Psi = base.norm_regressors(N)
     PsiT = Psi.swapaxes(1, 2)
     K = np.linalg.solve(PsiT @ Psi, PsiT @ (rho_b ** 2)[..., None])[..., 0]  # matmul: einsum does not use BLAS here
     with np.errstate(invalid="ignore", divide="ignore"):  # a hopeless start fails its trial, counted
         p0 = np.c_[base.params_of_K(K), np.zeros((T, m - len(base.params)))]
-    out = base.fit_compiled(N, rho_b, sig, np.zeros((T, n, len(base.aux))), p0) if not model.effects else None
-    if out is not None:
-        p, cov, u, _, _, status = out
-        return p, cov, u, status == 0
     bad = ~np.all(np.isfinite(p0), axis=1)
     p0[bad] = 0.0
     with np.errstate(invalid="ignore", divide="ignore", over="ignore"):
         p, u, _, H, _, status = fit_batch(model, N, rho_b, sig, p0)
     ok = status == 0
-    cov = np.full((T, m, m), np.nan)
-    if ok.any():
+    cov = np.full((T, m, m), np.nan) if covariance else None
+    if covariance and ok.any():
         cov[ok] = np.linalg.inv(H[ok])
     return p, cov, u, ok
 
@@ -150,8 +154,9 @@ def chunk_of_trials(sc: Scenario, size: int, seed: int, k: int) -> dict:
     rng = np.random.default_rng([seed, k])
     am, gm = AugmentedModel(sc.acc_model, tuple(sc.acc_effects)), AugmentedModel(sc.gyro_model, tuple(sc.gyro_effects))
     sim = simulate_batch(sc, size, rng)
-    pa, _, _, ok_a = fit_trials(am, sim["acc"], 1.0, sc.acc_noise_g)
-    pg, _, ug, ok_g = fit_trials(gm, sim["gyro"], sim["rho_gyro"], sc.gyro_noise_dph)
+    # one thread per batch: batches run side by side (run's thread pool, or Dask's workers)
+    pa, _, _, ok_a = fit_trials(am, sim["acc"], 1.0, sc.acc_noise_g, covariance=False, threads=1)
+    pg, _, ug, ok_g = fit_trials(gm, sim["gyro"], sim["rho_gyro"], sc.gyro_noise_dph, covariance=False, threads=1)
     ok = ok_a & ok_g
     C = _unify_batch(am, pa[ok], sim["acc_rate"][ok], ug[ok], sim["rate_sign"])
     R = C.swapaxes(1, 2) @ sim["truth"]["C_b_d"]  # C^T C_true: the error rotation
@@ -161,12 +166,14 @@ def chunk_of_trials(sc: Scenario, size: int, seed: int, k: int) -> dict:
 
 def run(sc: Scenario, trials: int, seed: int = 0, chunk: int = 2500, progress=None, scheduler=None) -> dict:
     """The Monte Carlo result (module doc) as a dict ready for JSON. Batches of `chunk` trials
-    run on the scheduler (sweeps.map_tasks), each with its own seed: the same numbers on any."""
+    run on the scheduler (sweeps.map_tasks; here on one thread per core), each with its own seed:
+    the same numbers on any."""
     from simucal.sweeps import map_tasks
     am, gm = AugmentedModel(sc.acc_model, tuple(sc.acc_effects)), AugmentedModel(sc.gyro_model, tuple(sc.gyro_effects))
+    kinematics.compiled()  # built (or found) once, before the threads
     t0 = time.perf_counter()
     tasks = [(sc, min(chunk, trials - k0), seed, k) for k, k0 in enumerate(range(0, trials, chunk))]
-    parts = map_tasks(chunk_of_trials, tasks, scheduler, progress)
+    parts = map_tasks(chunk_of_trials, tasks, scheduler, progress, threads=os.cpu_count() or 1)
     est = {s: [p[s] for p in parts] for s in ("acc", "gyro")}
     phi_err = [p["phi"] for p in parts]
     failed = [k * chunk + i for k, p in enumerate(parts) for i in p["failed"]]
