@@ -4,7 +4,8 @@
   (min of repeats), the same fit by fit_exact with the compiled call, and the numpy path;
 - the cost of fit_exact against N (12 ... 10^5 rows), which must stay linear;
 - Monte Carlo of the paper scenario (simulate + exact fits + unification), trials per second,
-  compiled and numpy (SIMUCAL_NO_COMPILE=1 in a subprocess);
+  compiled and numpy (SIMUCAL_NO_COMPILE=1 in a subprocess); `simucal montecarlo --trials
+  200000` as a whole process, with the range of std/CRLB over its 18 parameters;
 - whole processes: `simucal calibrate` on a raw turntable set (86 segments at 100 Hz), on the
   imu_tk Xsens stream, `simucal field-drift` (3 x 300 s at 100 Hz), `simucal --help`;
 - compiling one model's C.
@@ -83,6 +84,10 @@ def run(json_path=None, echo=print) -> dict:
         env = {**os.environ, "SIMUCAL_NO_COMPILE": "1"}
         fig["montecarlo_trials_per_s_numpy"] = float(subprocess.run([sys.executable, "-c", code], env=env, check=True,
                                                                     capture_output=True, text=True).stdout.split()[-1])
+        fig["cli_montecarlo_200k_trials_s"] = process(["simucal", "montecarlo", "--trials", "200000", "-o",
+                                                      str(tmp / "mc.json")])
+        ratios = [v["std_over_crlb"] for v in json.loads((tmp / "mc.json").read_text())["parameters"].values()]
+        fig["montecarlo_200k_std_over_crlb_min"], fig["montecarlo_200k_std_over_crlb_max"] = min(ratios), max(ratios)
         write(tmp / "raw", Scenario(rate_hz=100.0), 1)
         fig["rows_raw_turntable"] = len(io.read(tmp / "raw").samples["t_s"])
         fig["cli_calibrate_raw_turntable_s"] = process(["simucal", "calibrate", str(tmp / "raw"), "-o", str(tmp / "c.json")])

@@ -32,17 +32,19 @@ static int fit_eval(const double *u, const double *p, const double *aux, double 
   return MODEL_EVAL(arg, res, iw, w, 0);
 }
 
-/* Cholesky of the SPD matrix A (k x k, row-major) in place (lower); 0 if not positive definite. */
+/* Cholesky of the SPD matrix A (k x k, row-major) in place (lower), its diagonal holding the
+ * reciprocals 1/L_jj (products in the substitutions, not divisions); 0 if not positive definite. */
 static int fit_cholesky(double *A, int k) {
   for (int j = 0; j < k; j++) {
     double s = A[j * k + j];
     for (int l = 0; l < j; l++) s -= A[j * k + l] * A[j * k + l];
     if (!(s > 0)) return 0;
-    A[j * k + j] = sqrt(s);
+    double r = 1.0 / sqrt(s);
+    A[j * k + j] = r;
     for (int i = j + 1; i < k; i++) {
       double t = A[i * k + j];
       for (int l = 0; l < j; l++) t -= A[i * k + l] * A[j * k + l];
-      A[i * k + j] = t / A[j * k + j];
+      A[i * k + j] = t * r;
     }
   }
   return 1;
@@ -52,26 +54,26 @@ static void fit_chol_solve(const double *L, int k, double *x) {
   for (int i = 0; i < k; i++) {
     double s = x[i];
     for (int l = 0; l < i; l++) s -= L[i * k + l] * x[l];
-    x[i] = s / L[i * k + i];
+    x[i] = s * L[i * k + i];
   }
   for (int i = k - 1; i >= 0; i--) {
     double s = x[i];
     for (int l = i + 1; l < k; l++) s -= L[l * k + i] * x[l];
-    x[i] = s / L[i * k + i];
+    x[i] = s * L[i * k + i];
   }
 }
 
-/* A^-1 = L^-T L^-1 from the Cholesky factor L (row-major, lower) into inv (k x k, row-major, full):
- * the triangular inverse by forward substitution, then the product over its non-zeros. */
+/* A^-1 = L^-T L^-1 from fit_cholesky's factor into inv (k x k, row-major, full): the triangular
+ * inverse by forward substitution, then the product over its non-zeros. */
 static void fit_chol_inverse(const double *L, int k, double *inv) {
   double Li[FIT_M * FIT_M];
   memset(Li, 0, sizeof(double) * k * k);
   for (int j = 0; j < k; j++) {
-    Li[j * k + j] = 1.0 / L[j * k + j];
+    Li[j * k + j] = L[j * k + j];
     for (int i = j + 1; i < k; i++) {
       double s = 0;
       for (int l = j; l < i; l++) s -= L[i * k + l] * Li[l * k + j];
-      Li[i * k + j] = s / L[i * k + i];
+      Li[i * k + j] = s * L[i * k + i];
     }
   }
   for (int a = 0; a < k; a++)

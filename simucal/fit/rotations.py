@@ -50,7 +50,7 @@ def wahba(u_b, u_d, w):
     """The rotation C (b -> d) minimising sum w_i |u_d,i - C u_b,i|^2 (Markley 1988: from the SVD
     of B = sum w_i u_d,i u_b,i^T), for pairs (n, 3) or batches of them (..., n, 3) with weights
     (..., n)."""
-    return nearest_rotation((w[..., None] * u_d).swapaxes(-1, -2) @ u_b)
+    return nearest_rotation(np.ascontiguousarray((w[..., None] * u_d).swapaxes(-1, -2)) @ u_b)  # matmul's fast path
 
 
 def nearest_rotation(B, max_iter=30):
@@ -78,8 +78,19 @@ def nearest_rotation(B, max_iter=30):
     return X
 
 
+def adjugate3(A):
+    """Adjugates of 3x3 matrices (..., 3, 3) by cofactors, elementwise over the batch: A adj(A) =
+    det(A) I. Batched LAPACK calls (inv, det) cost more per 3x3 matrix than this arithmetic."""
+    a = [[A[..., i, j] for j in range(3)] for i in range(3)]
+    out = np.empty(np.shape(A))
+    for i in range(3):
+        for j in range(3):  # adj[i, j] = cofactor of a[j, i]
+            r, c = [k for k in range(3) if k != j], [k for k in range(3) if k != i]
+            out[..., i, j] = (-1) ** (i + j) * (a[r[0]][c[0]] * a[r[1]][c[1]] - a[r[0]][c[1]] * a[r[1]][c[0]])
+    return out
+
+
 def _det3(A):
-    """Determinants of 3x3 matrices (..., 3, 3) by cofactors (LAPACK's per-matrix call costs more)."""
-    return (A[..., 0, 0] * (A[..., 1, 1] * A[..., 2, 2] - A[..., 1, 2] * A[..., 2, 1])
-            - A[..., 0, 1] * (A[..., 1, 0] * A[..., 2, 2] - A[..., 1, 2] * A[..., 2, 0])
-            + A[..., 0, 2] * (A[..., 1, 0] * A[..., 2, 1] - A[..., 1, 1] * A[..., 2, 0]))
+    """Determinants of 3x3 matrices (..., 3, 3), from the first row's cofactors."""
+    adj = adjugate3(A)
+    return A[..., 0, 0] * adj[..., 0, 0] + A[..., 0, 1] * adj[..., 1, 0] + A[..., 0, 2] * adj[..., 2, 0]

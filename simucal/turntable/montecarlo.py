@@ -26,7 +26,7 @@ import numpy as np
 from simucal.fit.augmented import AugmentedModel
 from simucal.fit.aux_inputs import AuxInputs, specific_force
 from simucal.fit.norm_fit import fit_batch
-from simucal.fit.rotations import wahba
+from simucal.fit.rotations import adjugate3, wahba
 from simucal.generated import table
 from simucal.io import units
 from simucal.turntable import kinematics, plans
@@ -143,8 +143,11 @@ def fit_trials(model, N, rho, sigma, covariance=True, threads=0):
 def _unify_batch(am, p_a, N_ar, u_g, sign):
     """C_b^d per trial from the rate runs' mean specific force (b) and rate (d): Wahba, batched."""
     M, b = am.matrix_and_bias(p_a)  # (T, 3, 3), (T, 3): the affine inverse, exact for affine models
-    f = (N_ar - b[:, None]) @ np.linalg.inv(M).swapaxes(1, 2)  # one inverse per trial, not per run
-    u_b = f / np.linalg.norm(f, axis=2, keepdims=True)
+    # M^-1 = adj(M) / det(M): the direction alone is wanted, so adj(M) with det's sign
+    adj = adjugate3(M)
+    det = np.sum(M[:, 0, :] * adj[:, :, 0], axis=1)
+    f = (N_ar - b[:, None]) @ np.ascontiguousarray((adj * np.sign(det)[:, None, None]).swapaxes(1, 2))
+    u_b = f / np.sqrt(np.sum(f * f, axis=2, keepdims=True))
     return wahba(u_b, u_g * sign[None, :, None], np.ones(u_b.shape[:2]))
 
 
