@@ -630,7 +630,7 @@ static int fit_one(int n, const double *N, const double *rho, const double *sig,
                    double *buf, casadi_int *iw, double *w) {
   const int m = FIT_M;
   double *Jd = buf, *Jq = Jd + 6 * n, *Ainv = Jq + 3 * m * n, *E = Ainv + 4 * n, *r = E + 6 * n;
-  double *u_new = r + 3 * n, *wsig = u_new + 3 * n;
+  double *u_new = r + 3 * n, *wsig = u_new + 3 * n, *Qt = wsig + 3 * n, *Wt = Qt + FIT_M * n;
   double H[FIT_M * FIT_M], Hs[FIT_M * FIT_M], g[FIT_M], dH[FIT_M], dp[FIT_M], p_new[FIT_M];
   double Nm[3], Ju[9], Jp[3 * FIT_M];
   memcpy(p, p0, sizeof(double) * m);
@@ -654,7 +654,6 @@ static int fit_one(int n, const double *N, const double *rho, const double *sig,
   *iters = 0;
   for (int it = 1; it <= max_iter && !done; it++) {
     *iters = it;
-    memset(H, 0, sizeof H);
     memset(g, 0, sizeof g);
     cost = 0;
     for (int i = 0; i < n; i++) {  /* residual, Jacobian blocks, Schur complement */
@@ -692,12 +691,24 @@ static int fit_one(int n, const double *N, const double *rho, const double *sig,
           q[a] += nv[c] * Jqi[c * m + a];
         }
       for (int a = 0; a < m; a++) {
-        double qa = q[a] * rn2;
         g[a] += q[a] * s;
-        for (int b = a; b < m; b++) H[a * m + b] += qa * q[b];  /* the upper triangle, mirrored below */
+        Qt[a * n + i] = q[a];
+        Wt[a * n + i] = q[a] * rn2;
       }
     }
-    for (int a = 0; a < m; a++) for (int b = 0; b < a; b++) H[a * m + b] = H[b * m + a];
+    /* H = sum_i q_i q_i^T / |nv_i|^2: dot products over the rows, four partial sums (independent
+     * chains), the upper triangle mirrored below */
+    for (int a = 0; a < m; a++)
+      for (int b = a; b < m; b++) {
+        const double *wa = Wt + a * n, *qb = Qt + b * n;
+        double h0 = 0, h1 = 0, h2 = 0, h3 = 0;
+        int i = 0;
+        for (; i + 3 < n; i += 4) {
+          h0 += wa[i] * qb[i]; h1 += wa[i + 1] * qb[i + 1]; h2 += wa[i + 2] * qb[i + 2]; h3 += wa[i + 3] * qb[i + 3];
+        }
+        for (; i < n; i++) h0 += wa[i] * qb[i];
+        H[a * m + b] = H[b * m + a] = (h0 + h1) + (h2 + h3);
+      }
     for (int a = 0; a < m; a++) {
       if (it == 1 && !(H[a * m + a] > 1e-300)) return 3;
       dH[a] = sqrt(H[a * m + a] > 1e-300 ? H[a * m + a] : 1e-300);
@@ -780,7 +791,7 @@ CASADI_SYMBOL_EXPORT int MODEL_FIT(int n_sets, int n, const double *N, const dou
   {
     casadi_int *iw = malloc(sizeof(casadi_int) * (sz_iw + 1));
     double *w = malloc(sizeof(double) * (sz_w + 1));
-    double *buf = malloc(sizeof(double) * (size_t) n * (6 + 3 * FIT_M + 4 + 6 + 3 + 3 + 3));
+    double *buf = malloc(sizeof(double) * (size_t) n * (6 + 3 * FIT_M + 4 + 6 + 3 + 3 + 3 + 2 * FIT_M));
     if (!iw || !w || !buf) failed++;
     else {
 #pragma omp for schedule(static)

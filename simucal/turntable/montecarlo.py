@@ -192,11 +192,12 @@ def run(sc: Scenario, trials: int, seed: int = 0, chunk: int = 2500, progress=No
         _, cov0, _, ok0 = fit_trials(model, N, rho, sig)
         crlb = np.sqrt(np.diag(cov0[0])) if ok0[0] else np.full(len(model.params), np.nan)
         e = np.concatenate(est[sensor])
+        mean = e.mean(axis=0)
+        std = e.std(axis=0, ddof=1) if len(e) > 1 else np.full(len(model.params), np.nan)
         for j, name in enumerate(model.params):
-            std = float(e[:, j].std(ddof=1)) if len(e) > 1 else float("nan")
             out["parameters"][f"{sensor}.{name}"] = {
-                "truth": float(ref["truth"][sensor][j]), "mean": float(e[:, j].mean()), "std": std,
-                "crlb": float(crlb[j]), "std_over_crlb": std / float(crlb[j])}
+                "truth": float(ref["truth"][sensor][j]), "mean": float(mean[j]), "std": float(std[j]),
+                "crlb": float(crlb[j]), "std_over_crlb": float(std[j] / crlb[j])}
     phi = np.concatenate(phi_err)
     out["unification"] = {"C_b_d_error_rms_rad": np.sqrt(np.mean(phi ** 2, axis=0)).tolist(),
                           "method": "rate-run means (Wahba)"}
