@@ -341,7 +341,8 @@ def _negligible(dp, g, diag, cost):
     """A step below 1e-6 of every parameter's standard deviation, or a Gauss-Newton decrement at
     round-off level (derive/templates/exact_fit.c tests the same)."""
     decrement = -np.einsum("sa,sa->s", g, dp)
-    return (np.max(np.abs(dp) * np.sqrt(np.maximum(diag, 0)), axis=1) < 1e-6) | (decrement <= 1e-12 * np.maximum(cost, 1.0))
+    step = np.max(np.abs(dp) * np.sqrt(np.maximum(diag, 0)), axis=1)
+    return (step < 1e-6) | (decrement <= 1e-12 * np.maximum(cost, 1.0))
 
 
 def fit_batch(model, N, rho, sig, p0, aux=None, max_iter=200, tol=1e-12, prior=None):

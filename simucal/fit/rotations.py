@@ -69,7 +69,7 @@ def nearest_rotation(B, max_iter=30):
         X = X @ (eye - 0.5 * E)
         if np.all(err < 1e-13):  # quadratic: the step just taken ends at round-off
             break
-    bad = ~(err < 1e-13) | ~(_det3(X) > 0)
+    bad = ~(err < 1e-13) | ~(det3(X) > 0)
     if np.any(bad):
         U, _, Vt = np.linalg.svd(B[bad])
         D = np.broadcast_to(eye, U.shape).copy()
@@ -90,7 +90,7 @@ def adjugate3(A):
     return out
 
 
-def _det3(A):
+def det3(A):
     """Determinants of 3x3 matrices (..., 3, 3), from the first row's cofactors."""
     adj = adjugate3(A)
     return A[..., 0, 0] * adj[..., 0, 0] + A[..., 0, 1] * adj[..., 1, 0] + A[..., 0, 2] * adj[..., 2, 0]

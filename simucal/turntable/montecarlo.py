@@ -2,15 +2,18 @@
 
 Trials are simulated as arrays with a trial axis (simulate.Scenario's settings, one
 averaged row per position): random angular position errors per trial and position,
-exact rotations (kinematics.py: the compiled generated/table.c), white noise on each mean output. A rate run's
-mean over one whole revolution is the mean of K = 12 equally spaced outer angles,
-exact for every model term of degree below 12 in the input (a trigonometric
-polynomial in gamma of that degree averages exactly), where simulate() samples 720.
+exact rotations (kinematics.py, compiled from generated/table.c), white noise on each
+mean output. A rate run's mean over one whole revolution is the mean of K = 12 equally
+spaced outer angles, exact for every model term of degree below 12 in the input (a
+trigonometric polynomial in gamma of that degree averages exactly), where simulate()
+samples 720; for affine models it is the outer axis in k, in closed form.
 
 Each batch of trials is fitted by one call of the compiled whole fit per sensor
-(derive/templates/exact_fit.c), or without a compiler (or with effects added) by the same
-Levenberg-Marquardt in numpy vectorised over the trials (norm_fit.fit_batch). The start is the paper's linear fit (eq. 8/12), vectorised. C_b^d
-follows from the rate runs' means (unification.py, Wahba by batched SVD).
+(derive/templates/exact_fit.c, the paper's linear start (eq. 8/12) included), or without
+a compiler (or with effects added) by the same Levenberg-Marquardt in numpy vectorised
+over the trials (norm_fit.fit_batch) from the same start. C_b^d follows from the rate
+runs' means (unification.py; Wahba by rotations.nearest_rotation, batched). Batches run
+on one thread per core, each with its own random stream.
 
 The Cramer-Rao bound is the covariance of the exact fit of a noise-free trial with the
 stated noise: the inverse Fisher information from the generated Jacobian, directions
@@ -26,7 +29,7 @@ import numpy as np
 from simucal.fit.augmented import AugmentedModel
 from simucal.fit.aux_inputs import AuxInputs, specific_force
 from simucal.fit.norm_fit import fit_batch
-from simucal.fit.rotations import adjugate3, wahba
+from simucal.fit.rotations import adjugate3, det3, wahba
 from simucal.generated import table
 from simucal.io import units
 from simucal.turntable import kinematics, plans
@@ -144,9 +147,8 @@ def _unify_batch(am, p_a, N_ar, u_g, sign):
     """C_b^d per trial from the rate runs' mean specific force (b) and rate (d): Wahba, batched."""
     M, b = am.matrix_and_bias(p_a)  # (T, 3, 3), (T, 3): the affine inverse, exact for affine models
     # M^-1 = adj(M) / det(M): the direction alone is wanted, so adj(M) with det's sign
-    adj = adjugate3(M)
-    det = np.sum(M[:, 0, :] * adj[:, :, 0], axis=1)
-    f = (N_ar - b[:, None]) @ np.ascontiguousarray((adj * np.sign(det)[:, None, None]).swapaxes(1, 2))
+    adj = adjugate3(M) * np.sign(det3(M))[:, None, None]
+    f = (N_ar - b[:, None]) @ np.ascontiguousarray(adj.swapaxes(1, 2))
     u_b = f / np.sqrt(np.sum(f * f, axis=2, keepdims=True))
     return wahba(u_b, u_g * sign[None, :, None], np.ones(u_b.shape[:2]))
 
