@@ -604,6 +604,18 @@ static int fit_damped_step(const double *Hsc, double lam, const double *g, const
   return 1;
 }
 
+/* The Gauss-Newton decrement -g . dp and the step's largest component in standard deviations
+ * (|dp_a| sqrt(H_aa)): what the convergence tests read. */
+static void fit_step_size(const double *g, const double *dp, const double *dH, int m, double *decrement,
+                          double *step) {
+  *decrement = *step = 0;
+  for (int a = 0; a < m; a++) {
+    *decrement -= g[a] * dp[a];
+    double sa = fabs(dp[a]) * dH[a];
+    if (sa > *step) *step = sa;
+  }
+}
+
 static double fit_cost(int n, const double *N, const double *rho, const double *wsig, const double *aux,
                        const double *p, const double *u, double *Nm, double *Ju, double *Jp, casadi_int *iw, double *w) {
   double c = 0;
@@ -638,7 +650,7 @@ static int fit_one(int n, const double *N, const double *rho, const double *sig,
     fit_eval(z, p, aux + i * FIT_NAUX, Nm, Ju, Jp, iw, w);
     for (int a = 0; a < 3; a++) for (int b = 0; b < 3; b++) M3[a * 3 + b] = Ju[b * 3 + a];
     double y[3] = {N[3 * i] - Nm[0], N[3 * i + 1] - Nm[1], N[3 * i + 2] - Nm[2]};
-    /* the adjugate solves up to the determinant's factor, which the normalisation removes */
+    /* adj y = det M^-1 y: times det, a positive factor det^2 that the normalisation removes */
     double adj[9] = {M3[4] * M3[8] - M3[5] * M3[7], M3[2] * M3[7] - M3[1] * M3[8], M3[1] * M3[5] - M3[2] * M3[4],
                      M3[5] * M3[6] - M3[3] * M3[8], M3[0] * M3[8] - M3[2] * M3[6], M3[2] * M3[3] - M3[0] * M3[5],
                      M3[3] * M3[7] - M3[4] * M3[6], M3[1] * M3[6] - M3[0] * M3[7], M3[0] * M3[4] - M3[1] * M3[3]};
@@ -711,15 +723,11 @@ static int fit_one(int n, const double *N, const double *rho, const double *sig,
       if (it == 1 && !(H[a * m + a] > 1e-300)) return 3;
       dH[a] = sqrt(H[a * m + a] > 1e-300 ? H[a * m + a] : 1e-300);
     }
-    double new_cost, rdH[FIT_M], Hsc[FIT_M * FIT_M], decrement = 0, step = 0;
+    double new_cost, rdH[FIT_M], Hsc[FIT_M * FIT_M], decrement, step;
     for (int a = 0; a < m; a++) rdH[a] = 1.0 / dH[a];
     for (int a = 0; a < m; a++) for (int b = 0; b <= a; b++) Hsc[a * m + b] = H[a * m + b] * (rdH[a] * rdH[b]);
     if (!fit_damped_step(Hsc, 0.0, g, rdH, m, Hs, dp)) return 2;
-    for (int a = 0; a < m; a++) {
-      decrement -= g[a] * dp[a];
-      double sa = fabs(dp[a]) * dH[a];
-      if (sa > step) step = sa;
-    }
+    fit_step_size(g, dp, dH, m, &decrement, &step);
     /* a Gauss-Newton step below 1e-6 of every parameter's standard deviation, or with its
      * decrement at round-off level, is the last: taken without the cost test, which a step that
      * small can fail on round-off alone (and did, with several damped retries per fit) */
@@ -747,12 +755,7 @@ static int fit_one(int n, const double *N, const double *rho, const double *sig,
       }
       lam = 10 * lam > 1e-3 ? 10 * lam : 1e-3;
     }
-    decrement = step = 0;
-    for (int a = 0; a < m; a++) {
-      decrement -= g[a] * dp[a];
-      double sa = fabs(dp[a]) * dH[a];
-      if (sa > step) step = sa;
-    }
+    fit_step_size(g, dp, dH, m, &decrement, &step);
     memcpy(p, p_new, sizeof(double) * m);
     memcpy(u, u_new, sizeof(double) * 3 * n);
     double big = cost > 1e-30 ? cost : 1e-30;
