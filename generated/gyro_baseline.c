@@ -484,7 +484,7 @@ static const int fit_jp_cols[3][FIT_M] = MODEL_JP_COLS;
 static int fit_eval(const double *u, const double *p, const double *aux, double *Nm, double *Ju, double *Jp,
                     casadi_int *iw, double *w) {
   const double *arg[3] = {u, p, aux};
-  double *res[3] = {Nm, Ju, Jp};  /* Ju (3x3), Jp (3xM): column-major, dense */
+  double *res[3] = {Nm, Ju, Jp};  /* Ju (3x3), Jp (3xM): column-major, dense; NULL: not wanted */
   return MODEL_EVAL(arg, res, iw, w, 0);
 }
 
@@ -619,11 +619,11 @@ static void fit_step_size(const double *g, const double *dp, const double *dH, i
 }
 
 static double fit_cost(int n, const double *N, const double *rho, const double *wsig, const double *aux,
-                       const double *p, const double *u, double *Nm, double *Ju, double *Jp, casadi_int *iw, double *w) {
-  double c = 0;
+                       const double *p, const double *u, casadi_int *iw, double *w) {
+  double c = 0, Nm[3];
   for (int i = 0; i < n; i++) {
     double x[3] = {rho[i] * u[3 * i], rho[i] * u[3 * i + 1], rho[i] * u[3 * i + 2]};
-    fit_eval(x, p, aux + i * FIT_NAUX, Nm, Ju, Jp, iw, w);
+    fit_eval(x, p, aux + i * FIT_NAUX, Nm, NULL, NULL, iw, w);  /* the output alone: no Jacobians stored */
     for (int c3 = 0; c3 < 3; c3++) {
       double r = (N[3 * i + c3] - Nm[c3]) * wsig[3 * i + c3];
       c += r * r;
@@ -647,21 +647,28 @@ static int fit_one(int n, const double *N, const double *rho, const double *sig,
   double Nm[3], Ju[9], Jp[3 * FIT_M];
   memcpy(p, p0, sizeof(double) * m);
   for (int k = 0; k < 3 * n; k++) wsig[k] = 1.0 / sig[k];  /* one division per component, products after */
+  double adj[9], det = 0, b0[3];
   for (int i = 0; i < n; i++) {  /* initial directions: M u = N - b at u = 0 */
-    double z[3] = {0, 0, 0}, M3[9];
-    fit_eval(z, p, aux + i * FIT_NAUX, Nm, Ju, Jp, iw, w);
-    for (int a = 0; a < 3; a++) for (int b = 0; b < 3; b++) M3[a * 3 + b] = Ju[b * 3 + a];
-    double y[3] = {N[3 * i] - Nm[0], N[3 * i + 1] - Nm[1], N[3 * i + 2] - Nm[2]};
+    /* M and b depend on p and the row's auxiliary inputs alone: recomputed where these change */
+    if (i == 0 || memcmp(aux + i * FIT_NAUX, aux + (i - 1) * FIT_NAUX, sizeof(double) * FIT_NAUX)) {
+      double z[3] = {0, 0, 0}, M3[9];
+      fit_eval(z, p, aux + i * FIT_NAUX, Nm, Ju, Jp, iw, w);
+      for (int a = 0; a < 3; a++) for (int c = 0; c < 3; c++) M3[a * 3 + c] = Ju[c * 3 + a];
+      adj[0] = M3[4] * M3[8] - M3[5] * M3[7]; adj[1] = M3[2] * M3[7] - M3[1] * M3[8];
+      adj[2] = M3[1] * M3[5] - M3[2] * M3[4]; adj[3] = M3[5] * M3[6] - M3[3] * M3[8];
+      adj[4] = M3[0] * M3[8] - M3[2] * M3[6]; adj[5] = M3[2] * M3[3] - M3[0] * M3[5];
+      adj[6] = M3[3] * M3[7] - M3[4] * M3[6]; adj[7] = M3[1] * M3[6] - M3[0] * M3[7];
+      adj[8] = M3[0] * M3[4] - M3[1] * M3[3];
+      det = M3[0] * adj[0] + M3[1] * adj[3] + M3[2] * adj[6];
+      memcpy(b0, Nm, sizeof b0);
+    }
+    double y[3] = {N[3 * i] - b0[0], N[3 * i + 1] - b0[1], N[3 * i + 2] - b0[2]};
     /* adj y = det M^-1 y: times det, a positive factor det^2 that the normalisation removes */
-    double adj[9] = {M3[4] * M3[8] - M3[5] * M3[7], M3[2] * M3[7] - M3[1] * M3[8], M3[1] * M3[5] - M3[2] * M3[4],
-                     M3[5] * M3[6] - M3[3] * M3[8], M3[0] * M3[8] - M3[2] * M3[6], M3[2] * M3[3] - M3[0] * M3[5],
-                     M3[3] * M3[7] - M3[4] * M3[6], M3[1] * M3[6] - M3[0] * M3[7], M3[0] * M3[4] - M3[1] * M3[3]};
-    double det = M3[0] * adj[0] + M3[1] * adj[3] + M3[2] * adj[6];
     for (int a = 0; a < 3; a++) u[3 * i + a] = (adj[a * 3] * y[0] + adj[a * 3 + 1] * y[1] + adj[a * 3 + 2] * y[2]) * det;
     fit_normalise(u + 3 * i);
   }
   /* the cost at the current point: summed where each iteration forms the residuals */
-  double cost = max_iter > 0 ? 0 : fit_cost(n, N, rho, wsig, aux, p, u, Nm, Ju, Jp, iw, w), lam = 0;
+  double cost = max_iter > 0 ? 0 : fit_cost(n, N, rho, wsig, aux, p, u, iw, w), lam = 0;
   int done = 0;
   *iters = 0;
   for (int it = 1; it <= max_iter && !done; it++) {
@@ -681,7 +688,10 @@ static int fit_one(int n, const double *N, const double *rho, const double *sig,
           for (int b = 0; b < 3; b++) v += Ju[b * 3 + a] * Ei[b * 2 + k];
           Jdi[a * 2 + k] = -v * rho[i] * ws;
         }
-        for (int k = 0; k < m; k++) Jqi[a * m + k] = -Jp[k * 3 + a] * ws;
+        for (int ka = 0; ka < fit_jp_count[a]; ka++) {  /* read at these non-zeros only */
+          int k = fit_jp_cols[a][ka];
+          Jqi[a * m + k] = -Jp[k * 3 + a] * ws;
+        }
       }
       cost += ri[0] * ri[0] + ri[1] * ri[1] + ri[2] * ri[2];
       double A[4] = {0, 0, 0, 0}, *Ai = Ainv + 4 * i;
@@ -750,7 +760,7 @@ static int fit_one(int n, const double *N, const double *rho, const double *sig,
         fit_normalise(u_new + 3 * i);
       }
       /* the last step's cost only where the caller wants it */
-      new_cost = last && !cost_out ? cost : fit_cost(n, N, rho, wsig, aux, p_new, u_new, Nm, Ju, Jp, iw, w);
+      new_cost = last && !cost_out ? cost : fit_cost(n, N, rho, wsig, aux, p_new, u_new, iw, w);
       if (last || new_cost <= cost * (1 + 1e-12) || lam > 1e8) {
         lam = lam > 1e-6 ? lam / 10 : 0.0;
         break;
