@@ -343,8 +343,9 @@ CASADI_SYMBOL_EXPORT int MODEL_FIT(int n_sets, int n, const double *N, const dou
   if (sz[3] > sz_w) sz_w = sz[3];
   int failed = 0;
   (void) n_threads;
-  /* sets are independent: one work area per thread (OpenMP where the compiler has it) */
-#pragma omp parallel reduction(+:failed) num_threads(n_threads > 0 ? n_threads : omp_get_max_threads())
+  /* sets are independent: one work area per thread (OpenMP where the compiler has it; one set runs
+   * here, as starting a team costs more than the fit) */
+#pragma omp parallel reduction(+:failed) num_threads(n_threads > 0 ? n_threads : omp_get_max_threads()) if (n_sets > 1)
   {
     casadi_int *iw = malloc(sizeof(casadi_int) * (sz_iw + 1));
     double *w = malloc(sizeof(double) * (sz_w + 1));
