@@ -54,15 +54,6 @@ def _affine(model, p):
     return bool(np.allclose(Ju[0], Ju[1], rtol=0, atol=1e-12 * max(np.abs(Ju).max(), 1.0)))
 
 
-def _angle_errors(sc, rng, shape, position_error=True):
-    """(d_gamma, d_alpha, d_beta) per position (*shape, 3), rad: the zero-position error plus a
-    uniform angular position error."""
-    e = np.broadcast_to(np.array(sc.zero_rad, float), shape + (3,))
-    if position_error:
-        e = e + rng.uniform(-1, 1, shape + (3,)) * sc.position_error_rad
-    return e
-
-
 def simulate_batch(sc: Scenario, trials: int, rng, noise=True):
     """Mean outputs of `trials` simulated tests: acc at the static positions (T, Ps, 3) in g,
     gyro (T, Pr, 3) in deg/h and acc (T, Pr, 3) over the rate runs, with the plan's rates."""
@@ -76,12 +67,12 @@ def simulate_batch(sc: Scenario, trials: int, rng, noise=True):
     w_ie_n = table.earth_rate_n(w_e, lat)
     up = np.array([0, 0, 1.0])
     T, Ps, Pr = trials, len(static), len(rates)
-    table_err = np.r_[sc.tilt_rad, sc.nonperp_rad]  # shared by every row; the angle errors per row
+    table_err = sc.table_errors_rad()  # shared by every row; the angle errors per row
     f_s = kinematics.specific_force_k(static[:, 0], static[:, 1], static[:, 2], table_err,
-                                      _angle_errors(sc, rng, (T, Ps), noise)) @ C_b_k
+                                      sc.angle_errors_rad(rng, (T, Ps), noise)) @ C_b_k
     tilt = table.C_k_n(0.0, 0.0, 0.0, np.r_[sc.tilt_rad, np.zeros(5)])
     w_n = w_ie_n + (rates[:, 2] * 3600.0)[:, None] * tilt[:, 2]  # (Pr, 3)
-    err_r = _angle_errors(sc, rng, (T, Pr), noise)
+    err_r = sc.angle_errors_rad(rng, (T, Pr), noise)
     w2 = (np.radians(rates[:, 2]) ** 2 / units.DEFAULT_GRAVITY)[None, :]
     if _affine(am, p_a) and _affine(gm, p_g):
         # over a revolution a vector v fixed in n averages, in k, to the outer axis times v's component

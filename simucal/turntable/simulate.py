@@ -18,7 +18,7 @@ from simucal.fit.augmented import AugmentedModel
 from simucal.fit.aux_inputs import DEFAULT_ZERO, AuxInputs, specific_force
 from simucal.generated import table
 from simucal.io import units
-from simucal.turntable import plans
+from simucal.turntable import kinematics, plans
 
 ARCMIN = np.radians(1 / 60)
 ARCSEC = np.radians(1 / 3600)
@@ -61,6 +61,18 @@ class Scenario:
     columns: dict = field(default_factory=dict)  # auxiliary columns {name: (low, high)}: uniform, one value per segment
     shuffle: bool = False             # visit the positions in random order (separates time from direction)
     state_noise: bool = True          # write acc_noise_g / gyro_noise_dph into meta.json
+
+    def table_errors_rad(self) -> np.ndarray:
+        """(tilt_x, tilt_y, nonperp_om, nonperp_mi), rad: the same at every position."""
+        return np.r_[self.tilt_rad, self.nonperp_rad]
+
+    def angle_errors_rad(self, rng, shape, position_error=True) -> np.ndarray:
+        """(d_gamma, d_alpha, d_beta) per position (*shape, 3), rad: the zero-position error plus,
+        where position_error, a uniform angular position error drawn from rng."""
+        e = np.broadcast_to(np.array(self.zero_rad, float), tuple(shape) + (3,))
+        if position_error:
+            e = e + rng.uniform(-1, 1, tuple(shape) + (3,)) * self.position_error_rad
+        return e
 
 
 def _pairs(items, what):
@@ -145,12 +157,7 @@ def simulate(sc: Scenario, seed: int = 0):
     t0 = 0.0
 
     def table_errors(n):
-        pos = rng.uniform(-1, 1, (n, 3)) * sc.position_error_rad
-        e = np.zeros((n, 7))
-        e[:, 0:2] = sc.tilt_rad
-        e[:, 2:4] = sc.nonperp_rad
-        e[:, 4:7] = np.array(sc.zero_rad) + pos
-        return e
+        return kinematics.errors(sc.table_errors_rad(), sc.angle_errors_rad(rng, (n,)))
 
     for ang, err in zip(static, table_errors(len(static))):
         C = table.C_k_n(*np.radians(ang), err)
