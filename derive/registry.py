@@ -35,7 +35,7 @@ def load_model_file(path) -> list[ErrorModel]:
     mod = importlib.util.module_from_spec(spec)
     spec.loader.exec_module(mod)
     models = getattr(mod, "MODELS", None)
-    if not models or not all(isinstance(m, ErrorModel) for m in models):
+    if not isinstance(models, (list, tuple)) or not models or not all(isinstance(m, ErrorModel) for m in models):
         raise ValueError(f"{path}: must define MODELS = [ErrorModel, ...] "
                          "(e.g. ACC_BASELINE.with_terms('my_model', [acc_quadratic('z')]))")
     return list(models)

@@ -23,6 +23,7 @@ from pathlib import Path
 import numpy as np
 
 from simucal import io
+from simucal.io import outputs
 from simucal.fit.catalog import load
 from simucal.fit.models import compile_c, generated_dir
 from simucal.fit.norm_fit import Observations, fit_exact
@@ -111,6 +112,6 @@ def run(json_path=None, echo=print) -> dict:
         else:
             echo(f"| {k} | {v * 1e3:.3g} ms |" if k.endswith("_s") and not k.endswith("per_s") else f"| {k} | {v:.4g} |")
     if json_path:
-        Path(json_path).write_text(json.dumps({k: ({str(n): s for n, s in v.items()} if isinstance(v, dict) else v)
+        outputs.write_text(json_path, json.dumps({k: ({str(n): s for n, s in v.items()} if isinstance(v, dict) else v)
                                                for k, v in fig.items()}, indent=1) + "\n")
     return fig

@@ -30,11 +30,17 @@ def calibrate(folder, method="exact", acc_model="acc_baseline", gyro_model="gyro
         auto = "auto" in add
         acc_model, gyro_model, ids = resolve_add([a for a in add if a != "auto"], acc_model, gyro_model)
         if ms.segments is None:  # one continuous stream: a hand-placed session
-            return calibrate_handheld(ms, AugmentedModel(acc_model, tuple(e for e in ids if e.startswith("acc."))),
-                                      detect, gyro_effects=tuple(e for e in ids if e.startswith("gyro.")), auto=auto)
-        return calibrate_table(ms, method, acc_model, gyro_model, ids, acc_noise_g, gyro_noise_dph, auto)
+            result = calibrate_handheld(ms, AugmentedModel(acc_model, tuple(e for e in ids if e.startswith("acc."))),
+                                        detect, gyro_effects=tuple(e for e in ids if e.startswith("gyro.")),
+                                        auto=auto)
+        else:
+            result = calibrate_table(ms, method, acc_model, gyro_model, ids, acc_noise_g, gyro_noise_dph, auto)
+        notes = calibration.scale_notes(result, ms.meta)
     except CalibrationError as e:
         raise e.naming(ms.path) from None
+    if notes:
+        result["warnings"] = result.get("warnings", []) + notes
+    return result
 
 
 def calibrate_to_file(folder, output, kwargs: dict):

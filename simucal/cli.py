@@ -1,6 +1,7 @@
 """The `simucal` command."""
 from __future__ import annotations
 
+import math
 import os
 import sys
 import warnings
@@ -39,11 +40,80 @@ def _fail(e):
     sys.exit(2)
 
 
+class _Refused(click.ClickException):
+    """A refusal while the options are read: one line and exit 2, as _fail."""
+    exit_code = 2
+
+    def show(self, file=None):
+        click.echo(f"error: {self.message}", err=True)
+
+
+class Number(click.ParamType):
+    """A finite number in a range: NaN, infinities and values outside it are refused, naming the
+    option, the value and the range (click's FloatRange lets NaN through)."""
+    name = "number"
+
+    def __init__(self, low=None, high=None, low_open=False, integer=False, what=""):
+        self.low, self.high, self.low_open, self.integer, self.what = low, high, low_open, integer, what
+
+    def convert(self, value, param, ctx):
+        if isinstance(value, (int, float)) and not isinstance(value, bool):
+            v = float(value)  # a default
+        else:
+            try:
+                v = float(str(value).strip())
+            except ValueError:
+                raise _Refused(f"{self._name(param)} {self._shown(value)}: not a number") from None
+        if not math.isfinite(v):
+            raise _Refused(f"{self._name(param)} {self._shown(value)}: must be a finite number")
+        if self.integer and v != round(v):
+            raise _Refused(f"{self._name(param)} {value}: must be a whole number")
+        below = self.low is not None and (v <= self.low if self.low_open else v < self.low)
+        if below or (self.high is not None and v > self.high):
+            lo = None if self.low is None else f"{'>' if self.low_open else '>='} {self.low:g}"
+            hi = None if self.high is None else f"<= {self.high:g}"
+            raise _Refused(f"{self._name(param)} {value}: must be " + " and ".join(x for x in (lo, hi) if x)
+                           + (f" ({self.what})" if self.what else ""))
+        return int(round(v)) if self.integer else v
+
+    @staticmethod
+    def _shown(value):
+        return value if str(value).isprintable() and str(value).strip() else repr(value)
+
+    @staticmethod
+    def _name(param):
+        return max(param.opts, key=len) if param is not None and param.opts else "value"
+
+
+_MODEL_FILE_RUNS = ("A model file is Python: like any plugin, its code runs when it is derived (once, in a child "
+                    "process with a time limit; never again once in the cache), so use only files you trust.")
+POSITIVE = Number(0.0, low_open=True)
+SEED = Number(0, 2 ** 32 - 1, integer=True, what="numpy's seeds")
+NOISE_G = Number(0.0, 1.0, low_open=True, what="the std of one row, g")
+NOISE_DPH = Number(0.0, 1e6, low_open=True, what="the std of one row, deg/h")
+LATITUDE = Number(-90.0, 90.0, what="degrees")
+SIM_RATE_HZ = Number(0.0, 2000.0, low_open=True, what="the simulator writes raw rows up to 2 kHz")
+MAX_TRIALS = 10_000_000  # ~1.4 GB of estimates, about two minutes compiled
+
+_FORCE = click.option("--force", is_flag=True,
+                      help="Replace a measurement set already in the output folder (never one of the inputs).")
+
+
+def _guard(inputs=(), files=(), sets=(), folders=(), force=False):
+    """Refuse outputs that would write into or over an input, or replace a measurement set
+    without --force (io/outputs.py); before any work, so nothing is lost."""
+    from simucal.io.outputs import OutputError, check
+    try:
+        check(inputs, files, sets, folders, force)
+    except OutputError as e:
+        _fail(e)
+
+
 @main.command()
 @click.option("--check", is_flag=True, help="Fail if generated/ differs from what derive writes now.")
 @click.option("--model", "model_files", multiple=True, type=click.Path(exists=True, dir_okay=False),
               help="A Python file defining MODELS = [ErrorModel, ...]: derived into the cache "
-                   "(not generated/), then usable by name from any folder.")
+                   "(not generated/), then usable by name from any folder. " + _MODEL_FILE_RUNS)
 def derive(check, model_files):
     """Derive the built-in models and (re)write generated/; or derive your own model file."""
     from simucal import derive_cmd
@@ -70,12 +140,14 @@ def derive(check, model_files):
 @click.argument("out_dir", type=click.Path(file_okay=False))
 @click.option("--scenario", type=click.Choice(["paper", "field"]), default="paper", show_default=True,
               help="Preset: 'paper' is dong2018 section 4 (turntable); 'field' is ruan2019 (three positions, no table).")
-@click.option("--heading-error-deg", type=float, default=None, help="field: the north reference's error, uniform +- this.")
-@click.option("--seed", type=int, default=0, show_default=True)
+@click.option("--heading-error-deg", type=Number(0.0, 180.0), default=None,
+              help="field: the north reference's error, uniform +- this.")
+@click.option("--seed", type=SEED, default=0, show_default=True)
 @click.option("--plan", default=None,
               help="table1, dodecahedron20, fibonacci24, fibonacci48, or a CSV of outer_deg,middle_deg,inner_deg.")
-@click.option("--rate-hz", type=float, default=None, help="Write raw samples at this rate instead of one row per position.")
-@click.option("--position-error-arcmin", type=float, default=None, help="Uniform +- angular position error.")
+@click.option("--rate-hz", type=SIM_RATE_HZ, default=None,
+              help="Write raw samples at this rate (Hz, up to 2000) instead of one row per position.")
+@click.option("--position-error-arcmin", type=Number(0.0, 10800.0), default=None, help="Uniform +- angular position error.")
 @click.option("--acc-model", default=None, help="Generated model for the truth (may hold terms calibration lacks).")
 @click.option("--gyro-model", default=None, help="Generated gyro model for the truth.")
 @click.option("--acc-unit", type=click.Choice(["g", "m/s^2", "pulse/s"]), default=None)
@@ -84,17 +156,20 @@ def derive(check, model_files):
               help="Plant a candidate effect in the truth, in the unit its term declares, e.g. "
                    "acc.quadratic.z=6e-5 or gyro.g_sensitivity.xz=0.3 (repeatable).")
 @click.option("--effect-file", default=None, type=click.Path(dir_okay=False),
-              help="A model file of your own terms (MODELS = [...]); its models become the truth models.")
+              help="A model file of your own terms (MODELS = [...]); its models become the truth models. "
+                   + _MODEL_FILE_RUNS)
 @click.option("--set", "sets", multiple=True, metavar="NAME=VALUE",
               help="With --effect-file: the true value of one of its parameters (repeatable).")
 @click.option("--column", "columns", multiple=True, metavar="NAME=LOW:HIGH",
               help="Write an auxiliary column, one value per segment drawn uniformly in [LOW, HIGH], e.g. "
                    "supply_v=4.5:5.5 (one your --effect-file terms read) or temp_c=20:40; repeatable.")
 @click.option("--no-noise-stated", is_flag=True, help="Leave acc_noise_g / gyro_noise_dph out of meta.json.")
+@_FORCE
 def simulate(out_dir, scenario, heading_error_deg, seed, plan, rate_hz, position_error_arcmin, acc_model, gyro_model,
-             acc_unit, gyro_unit, effects, effect_file, sets, columns, no_noise_stated):
+             acc_unit, gyro_unit, effects, effect_file, sets, columns, no_noise_stated, force):
     """Simulate a test; write a measurement set and truth.json."""
     from simucal.turntable.simulate import ARCMIN, SCENARIOS, plant, write
+    _guard([plan if plan and Path(plan).exists() else None, effect_file], sets=[out_dir], force=force)
     if scenario == "field":
         from simucal.field.simulate import FieldScenario, write_field
         fs = FieldScenario()
@@ -121,16 +196,10 @@ def simulate(out_dir, scenario, heading_error_deg, seed, plan, rate_hz, position
     click.echo(f"wrote {out_dir} (scenario {scenario}, seed {seed})")
 
 
-def _check_out(*paths):
-    """Refuse output paths whose folder does not exist, before any work (nothing is written)."""
-    for p in paths:
-        if p and not Path(p).resolve().parent.is_dir():
-            _fail(f"{p}: the folder {Path(p).parent} does not exist; create it or choose another path")
-
-
 _ADD_HELP = ("Effect id to add, e.g. acc.quadratic.z (exact ids; unknown ones are refused), or a model file "
              "(MODELS = [...]) with your own SymPy terms, derived into the cache (repeatable). calibrate also takes "
-             "'auto': the library effects a failing model needs, chosen one at a time by the same test as diagnose.")
+             "'auto': the library effects a failing model needs, chosen one at a time by the same test as diagnose. "
+             + _MODEL_FILE_RUNS)
 
 
 def _sensor_lines(result):
@@ -176,6 +245,8 @@ def _sensor_lines(result):
                    f"to determine them, " + "; ".join(sorted({v["to_determine"] for v in und.values()})))
     for sensor, why in result.get("not_calibrated", {}).items():
         yield f"{sensor}: NOT CALIBRATED: {why}"
+    for line in result.get("warnings", []):
+        yield f"WARNING: {line}"
 
 
 @main.command()
@@ -186,12 +257,13 @@ def _sensor_lines(result):
 @click.option("--acc-model", default="acc_baseline", show_default=True)
 @click.option("--gyro-model", default="gyro_baseline", show_default=True)
 @click.option("--add", "add", multiple=True, help=_ADD_HELP)
-@click.option("--acc-noise-g", type=float, default=None, help="Noise of one acc row (g), where the data cannot give it.")
-@click.option("--gyro-noise-dph", type=float, default=None, help="Noise of one gyro row (deg/h).")
-@click.option("--init-rest-s", type=float, default=None, help="Stream: length of the initial rest (default: found from the data).")
-@click.option("--threshold-factor", type=float, default=6.0, show_default=True, help="Stream: static threshold, times the rest's variance.")
-@click.option("--window-s", type=float, default=1.0, show_default=True, help="Stream: moving-variance window.")
-@click.option("--min-static-s", type=float, default=1.0, show_default=True, help="Stream: shortest static interval.")
+@click.option("--acc-noise-g", type=NOISE_G, default=None, help="Noise of one acc row (g), where the data cannot give it.")
+@click.option("--gyro-noise-dph", type=NOISE_DPH, default=None, help="Noise of one gyro row (deg/h).")
+@click.option("--init-rest-s", type=POSITIVE, default=None, help="Stream: length of the initial rest (default: found from the data).")
+@click.option("--threshold-factor", type=Number(1.0, 1e6, low_open=True), default=6.0, show_default=True,
+              help="Stream: static threshold, times the rest's variance.")
+@click.option("--window-s", type=POSITIVE, default=1.0, show_default=True, help="Stream: moving-variance window.")
+@click.option("--min-static-s", type=POSITIVE, default=1.0, show_default=True, help="Stream: shortest static interval.")
 @click.option("--scheduler", default="local", show_default=True,
               help="Several sets: local, processes (a Dask LocalCluster) or a Dask scheduler's address.")
 def calibrate(data_dirs, output, method, acc_model, gyro_model, add, acc_noise_g, gyro_noise_dph, init_rest_s,
@@ -204,8 +276,9 @@ def calibrate(data_dirs, output, method, acc_model, gyro_model, add, acc_noise_g
     from simucal.handheld.static_detect import DetectSettings
     kwargs = dict(method=method, acc_model=acc_model, gyro_model=gyro_model,
                   detect=DetectSettings(window_s, threshold_factor, min_static_s, init_rest_s), add=add, acc_noise_g=acc_noise_g, gyro_noise_dph=gyro_noise_dph)
+    inputs = list(data_dirs) + [a for a in add if a.endswith(".py")]
     if len(data_dirs) == 1:
-        _check_out(output)
+        _guard(inputs, files=[output])
         result, error = calibrate_to_file(Path(data_dirs[0]), output, kwargs)
         if error:
             _fail(error)
@@ -223,9 +296,9 @@ def calibrate(data_dirs, output, method, acc_model, gyro_model, add, acc_noise_g
     if len(set(names)) < len(names):
         _fail(f"two sets share a folder name ({sorted(n for n in names if names.count(n) > 1)[0]}): their files "
               "would collide; calibrate them separately")
-    _check_out(out)
-    out.mkdir(exist_ok=True)
     tasks = [(Path(d), out / f"{n}.json", kwargs) for d, n in zip(data_dirs, names)]
+    _guard(inputs, files=[path for _, path, _ in tasks], folders=[out])
+    out.mkdir(exist_ok=True)
     done = map_tasks(calibrate_to_file, tasks, scheduler,
                      progress=lambda it: tqdm(it, desc="calibrate", unit="set", leave=False, disable=not sys.stderr.isatty()))
     failed = 0
@@ -246,12 +319,13 @@ def calibrate(data_dirs, output, method, acc_model, gyro_model, add, acc_noise_g
 @click.argument("calibration_file", type=click.Path(exists=True, dir_okay=False))
 @click.argument("data_dir", type=click.Path(exists=True, file_okay=False))
 @click.option("-o", "--out-dir", required=True, type=click.Path(file_okay=False))
-def apply_cmd(calibration_file, data_dir, out_dir):
+@_FORCE
+def apply_cmd(calibration_file, data_dir, out_dir, force):
     """Apply a calibration to raw data: a measurement set in g and deg/h, frame b."""
     from simucal import io
     from simucal.fit.apply import apply
     from simucal.io import calibration
-    _check_out(out_dir)
+    _guard([calibration_file, data_dir], sets=[out_dir], force=force)
     try:
         cal = calibration.read(calibration_file)
         meta, samples, segments = apply(cal, Path(data_dir), calibration_file)
@@ -264,7 +338,7 @@ def apply_cmd(calibration_file, data_dir, out_dir):
 
 @main.command()
 @click.option("-o", "--output", type=click.Path(dir_okay=False), default="audit.md", show_default=True)
-@click.option("--seeds", type=int, default=20, show_default=True,
+@click.option("--seeds", type=Number(0, 10000, integer=True), default=20, show_default=True,
               help="Simulated tests per setting for the Monte Carlo of the paper's claims (0: skip it).")
 def audit(output, seeds):
     """Check the paper's printed equations (4)-(27), Table 1 and 2, term by term at the section-4
@@ -272,19 +346,23 @@ def audit(output, seeds):
     from tqdm import tqdm
 
     from simucal.report.paper_claims import full_audit
-    _check_out(output)
+    from simucal.io import outputs
+    _guard(files=[output])
     report = full_audit(seeds, progress=lambda items: tqdm(items, desc="audit", leave=False))
-    Path(output).write_text(report.markdown())
+    outputs.write_text(output, report.markdown())
     click.echo(f"wrote {output}: {report.summary()}")
 
 
 @main.command()
 @click.option("-o", "--out-dir", type=click.Path(file_okay=False), default="out", show_default=True)
-@click.option("--seed", type=int, default=0, show_default=True)
-def demo(out_dir, seed):
+@click.option("--seed", type=SEED, default=0, show_default=True)
+@_FORCE
+def demo(out_dir, seed, force):
     """The main job end to end on built-in simulated data: a hidden effect found, added,
     calibrated with and applied; then dong2018's methods, the audit and the diagnosis."""
     from simucal import demo as demo_mod
+    out = Path(out_dir)  # its sets may be replaced where an earlier demo wrote them (its demo.json)
+    _guard(sets=[out] + [out / d for d in demo_mod.SETS], force=force or (out / demo_mod.MARKER).is_file())
     try:
         demo_mod.run(out_dir, seed, click.echo)
     except RuntimeError as e:
@@ -307,14 +385,19 @@ def _added_lines(result):
                     yield f"    {k} = {row['after']:.4g} +- {row['std_after']:.2g}{err}"
 
 
+def _shape_model_path(output, sensor):
+    return Path(output).with_name(f"{Path(output).stem}_{sensor}_model.py")
+
+
 def _write_shape_models(result, output):
     """Each sensor's found term as a ready model file beside the diagnosis; returns the paths."""
+    from simucal.io import outputs
     paths = []
     for s in ("acc", "gyro"):
         shape = result.get(s, {}).get("shape")
         if shape and not shape.get("catalog_id"):
-            path = Path(output).with_name(f"{Path(output).stem}_{s}_model.py")
-            path.write_text(shape["model_file"])
+            path = _shape_model_path(output, s)
+            outputs.write_text(path, shape["model_file"])
             shape["model_file_path"] = str(path)
             paths.append(path)
     return paths
@@ -327,25 +410,26 @@ def _write_shape_models(result, output):
 @click.option("--add", "add", multiple=True, help=_ADD_HELP)
 @click.option("--acc-model", default="acc_baseline", show_default=True)
 @click.option("--gyro-model", default="gyro_baseline", show_default=True)
-@click.option("--acc-noise-g", type=float, default=None, help="Stated noise of one acc row (g), when the data cannot give it.")
-@click.option("--gyro-noise-dph", type=float, default=None, help="Stated noise of one gyro row (deg/h).")
+@click.option("--acc-noise-g", type=NOISE_G, default=None, help="Stated noise of one acc row (g), when the data cannot give it.")
+@click.option("--gyro-noise-dph", type=NOISE_DPH, default=None, help="Stated noise of one gyro row (deg/h).")
 def diagnose(data_dir, output, html_path, add, acc_model, gyro_model, acc_noise_g, gyro_noise_dph):
     """Compare model and measurements; rank the candidate missing effects."""
     import json
 
     from simucal.diagnose import diagnose as diagnose_set
     from simucal.errors import CalibrationError
-    from simucal.io import MeasurementSetError
-    _check_out(output, html_path)
+    from simucal.io import MeasurementSetError, outputs
+    _guard([data_dir] + [a for a in add if a.endswith(".py")],
+           files=[output, html_path, _shape_model_path(output, "acc"), _shape_model_path(output, "gyro")])
     try:
         result = diagnose_set(Path(data_dir), add, acc_model, gyro_model, acc_noise_g, gyro_noise_dph)
     except (MeasurementSetError, CalibrationError, KeyError, FileNotFoundError, ValueError) as e:
         _fail(e)
     models = _write_shape_models(result, output)
-    Path(output).write_text(json.dumps(result, indent=1, default=float) + "\n")
+    outputs.write_text(output, json.dumps(result, indent=1, default=float) + "\n")
     if html_path:
         from simucal.report.html import render
-        Path(html_path).write_text(render(result))
+        outputs.write_text(html_path, render(result))
     for line in result["verdict"].split(" | "):
         click.echo(line)
     for line in _added_lines(result):
@@ -359,8 +443,8 @@ def diagnose(data_dir, output, html_path, add, acc_model, gyro_model, acc_noise_
 @click.option("--scenario", type=click.Choice(["paper"]), default="paper", show_default=True,
               help="dong2018 section 4 (simulate's defaults).")
 @click.option("--plan", default=None, help="table1 (default), dodecahedron20, fibonacci24, fibonacci48 or plan.csv.")
-@click.option("--trials", type=int, default=10000, show_default=True)
-@click.option("--seed", type=int, default=0, show_default=True)
+@click.option("--trials", type=Number(2, MAX_TRIALS, integer=True), default=10000, show_default=True)
+@click.option("--seed", type=SEED, default=0, show_default=True)
 @click.option("--effect", "effects", multiple=True, metavar="ID=VALUE",
               help="Plant a candidate effect in the truth and fit it (repeatable; slower: fit_exact per trial).")
 @click.option("-o", "--output", type=click.Path(dir_okay=False), default="montecarlo.json", show_default=True)
@@ -374,10 +458,12 @@ def montecarlo(scenario, plan, trials, seed, effects, output, scheduler):
     from tqdm import tqdm
 
     from simucal.turntable.montecarlo import run
+    from simucal.io import outputs
     from simucal.turntable.simulate import SCENARIOS, plant
-    _check_out(output)
-    if trials < 2:
-        _fail(f"--trials {trials}: at least 2 trials are needed for a std")
+    _guard([plan if plan and Path(plan).exists() else None], files=[output])
+    if effects and trials > MAX_TRIALS // 10:  # their fits run in numpy, ~10x slower
+        _fail(f"--trials {trials}: with --effect at most {MAX_TRIALS // 10} (about two minutes); split the run "
+              "over seeds")
     sc = SCENARIOS[scenario]()
     if plan:
         sc.plan = plan
@@ -388,7 +474,7 @@ def montecarlo(scenario, plan, trials, seed, effects, output, scheduler):
                                               disable=not sys.stderr.isatty()))
     except (ValueError, KeyError, FileNotFoundError) as e:
         _fail(e)
-    Path(output).write_text(json.dumps(result, indent=1) + "\n")
+    outputs.write_text(output, json.dumps(result, indent=1) + "\n")
     click.echo(f"{trials} trials in {result['seconds']:.2f} s ({result['trials_per_s']:.0f}/s, {result['backend']}, "
                f"scheduler {scheduler}); "
                f"{result['failed']} failed")
@@ -404,17 +490,20 @@ def montecarlo(scenario, plan, trials, seed, effects, output, scheduler):
               help="Score a plan: table1, dodecahedron20, fibonacci24, fibonacci48 or a CSV (outer_deg,middle_deg,inner_deg).")
 @click.option("--model", "model_name", default="acc_baseline", show_default=True, help="Generated model (acc or gyro).")
 @click.option("--add", "add", multiple=True, help="Candidate effect ids to add to the model (repeatable).")
-@click.option("--positions", type=int, default=None, help="Design a plan with this many positions.")
+@click.option("--positions", type=Number(1, 1000, integer=True), default=None, help="Design a plan with this many positions.")
 @click.option("--criterion", type=click.Choice(["D", "A"]), default="D", show_default=True)
-@click.option("--rate-dps", type=float, default=10.0, show_default=True, help="Gyro models: the outer-axis rate of the rate runs.")
+@click.option("--rate-dps", type=Number(-3600.0, 3600.0), default=10.0, show_default=True,
+              help="Gyro models: the outer-axis rate of the rate runs.")
 @click.option("--rates", default=None, metavar="R1,R2,...", help="Gyro design: rates (deg/s) to choose from, e.g. 5,10,20.")
 @click.option("--table", "kind", type=click.Choice(["three-axis", "hand"]), default="three-axis", show_default=True,
               help="Design for a three-axis table (angles) or hand-placed poses (gravity directions in the unit).")
-@click.option("--sigma", type=float, default=None, help="Noise of one position's mean (default: section 4's, 1e-5 g or 0.01 deg/h).")
+@click.option("--sigma", type=POSITIVE, default=None,
+              help="Noise of one position's mean (default: section 4's, 1e-5 g or 0.01 deg/h).")
 @click.option("--separate", "pair", default=None, metavar="ID1,ID2",
               help="With --score: the positions to add so that these two candidate effects are told apart.")
 @click.option("--sizes", default=None, metavar="Q1,Q2", help="With --separate: the effects' sizes, in their units.")
-@click.option("--power", "target", type=float, default=0.9, show_default=True, help="With --separate: the power to reach.")
+@click.option("--power", "target", type=Number(0.0, 1.0, low_open=True), default=0.9, show_default=True,
+              help="With --separate: the power to reach.")
 @click.option("-o", "--output", type=click.Path(dir_okay=False), default=None,
               help="Design: the plan CSV (a JSON sidecar with its scores beside it); score: the JSON.")
 def plan(score_plan, model_name, add, positions, criterion, rate_dps, rates, kind, sigma, pair, sizes, target, output):
@@ -429,8 +518,12 @@ def plan(score_plan, model_name, add, positions, criterion, rate_dps, rates, kin
     from simucal.turntable.plan_design import design, directions_k, plan_rows, score
     if (score_plan is None) == (positions is None):
         _fail("give --score PLAN to score a plan, or --positions N to design one")
+    from simucal.io import outputs
     if output:
-        _check_out(output)
+        _guard([score_plan if score_plan and Path(score_plan).exists() else None],
+               files=[output] + ([str(Path(output).with_suffix(".json"))] if positions is not None else []))
+    elif positions is not None:
+        _guard(files=["plan.csv", "plan.json"])
     try:
         model = AugmentedModel(model_name, tuple(add))
         gyro = model.sensor == "gyro"
@@ -498,12 +591,12 @@ def plan(score_plan, model_name, add, positions, criterion, rate_dps, rates, kin
         else:
             rows = plan_rows(u, np.asarray(rho) / 3600.0 if gyro else None)
             cols = "outer_deg,middle_deg,inner_deg" + (",outer_rate_dps" if gyro else "")
-        out.write_text(cols + "\n" + "".join(",".join(f"{x:.6f}" for x in r) + "\n" for r in rows))
+        outputs.write_text(out, cols + "\n" + "".join(",".join(f"{x:.6f}" for x in r) + "\n" for r in rows))
         result["rows"] = rows
-        out.with_suffix(".json").write_text(json.dumps(result, indent=1) + "\n")
+        outputs.write_text(out.with_suffix(".json"), json.dumps(result, indent=1) + "\n")
         click.echo(f"wrote {out} and {out.with_suffix('.json')}")
     elif output:
-        Path(output).write_text(json.dumps(result, indent=1) + "\n")
+        outputs.write_text(output, json.dumps(result, indent=1) + "\n")
         click.echo(f"wrote {output}")
 
 
@@ -513,7 +606,7 @@ def bench(json_path):
     """Measure the speed figures (fits, Monte Carlo, whole commands) on this machine."""
     from simucal.bench import run
     if json_path:
-        _check_out(json_path)
+        _guard(files=[json_path])
     run(json_path, click.echo)
 
 
@@ -521,7 +614,7 @@ def bench(json_path):
 @click.argument("data_dir", type=click.Path(exists=True, file_okay=False))
 @click.option("-o", "--output", type=click.Path(dir_okay=False), default="drift.json", show_default=True)
 @click.option("--plot", type=click.Path(dir_okay=False), default=None, help="PNG of each position's filter estimate (paper Fig. 4).")
-@click.option("--heading-accuracy-deg", type=float, default=5.0, show_default=True,
+@click.option("--heading-accuracy-deg", type=Number(0.0, 180.0), default=5.0, show_default=True,
               help="Stated accuracy of the north reference; its effect enters the uncertainty.")
 def field_drift(data_dir, output, plot, heading_accuracy_deg):
     """Three-position field calibration of gyro constant drift (ruan2019)."""
@@ -530,12 +623,13 @@ def field_drift(data_dir, output, plot, heading_accuracy_deg):
     from simucal.errors import CalibrationError
     from simucal.field.drift import field_drift as run
     from simucal.field.drift import plot_history
-    from simucal.io import MeasurementSetError
+    from simucal.io import MeasurementSetError, outputs
+    _guard([data_dir], files=[output, plot])
     try:
         result, hist = run(Path(data_dir), heading_accuracy_deg=heading_accuracy_deg)
     except (MeasurementSetError, CalibrationError) as e:
         _fail(e)
-    Path(output).write_text(json.dumps(result, indent=2) + "\n")
+    outputs.write_text(output, json.dumps(result, indent=2) + "\n")
     if plot:
         plot_history(hist, plot)
     d, s = result["gyro_drift_dph"], result["std_dph"]
@@ -547,20 +641,23 @@ def field_drift(data_dir, output, plot, heading_accuracy_deg):
 @click.argument("fmt", type=click.Choice(["imu_tk", "imucal-ferraris", "imucal-annotated", "csv"]))
 @click.argument("sources", nargs=-1, required=True, type=click.Path(exists=True, dir_okay=False))
 @click.option("-o", "--out-dir", required=True, type=click.Path(file_okay=False))
-@click.option("--latitude-deg", type=float, default=None, help="Site latitude (the spec needs it with gyro data).")
-@click.option("--acc-counts-per-g", type=float, default=None, help="imu_tk: nominal accelerometer LSB per g.")
-@click.option("--gyro-counts-per-dps", type=float, default=None, help="imu_tk: nominal gyro LSB per deg/s.")
-@click.option("--gravity-mps2", type=float, default=None)
-@click.option("--rate-hz", type=float, default=None, help="Sample rate where the file has no time column.")
+@click.option("--latitude-deg", type=LATITUDE, default=None, help="Site latitude (the spec needs it with gyro data).")
+@click.option("--acc-counts-per-g", type=POSITIVE, default=None, help="imu_tk: nominal accelerometer LSB per g.")
+@click.option("--gyro-counts-per-dps", type=POSITIVE, default=None, help="imu_tk: nominal gyro LSB per deg/s.")
+@click.option("--gravity-mps2", type=Number(9.7, 9.9, what="m/s^2 on Earth"), default=None)
+@click.option("--rate-hz", type=Number(0.0, 1e6, low_open=True), default=None,
+              help="Sample rate where the file has no time column.")
 @click.option("--columns", default=None, help="csv: map, e.g. 't_s=time,ax=acc_x,ay=acc_y,az=acc_z,gx=gyr_x,gy=gyr_y,gz=gyr_z'.")
 @click.option("--acc-unit", default=None)
 @click.option("--gyro-unit", default=None)
-@click.option("--turn-deg", type=float, default=-360.0, show_default=True,
+@click.option("--turn-deg", type=Number(-3600.0, 3600.0), default=-360.0, show_default=True,
               help="Ferraris: the protocol's turn angle (imucal's default -360, clockwise).")
+@_FORCE
 def import_cmd(fmt, sources, out_dir, latitude_deg, acc_counts_per_g, gyro_counts_per_dps, gravity_mps2, rate_hz,
-               columns, acc_unit, gyro_unit, turn_deg):
+               columns, acc_unit, gyro_unit, turn_deg, force):
     """Write a measurement set from another tool's recording."""
     from simucal.io import importers as im
+    _guard(sources, sets=[out_dir], force=force)
     try:
         if fmt == "imu_tk":
             if len(sources) != 2 or not acc_counts_per_g or not gyro_counts_per_dps:

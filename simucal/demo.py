@@ -17,12 +17,14 @@ from simucal import derive_cmd, io
 from simucal.calibrate import calibrate
 from simucal.diagnose import diagnose
 from simucal.fit.apply import apply
-from simucal.io import calibration
+from simucal.io import calibration, outputs
 from simucal.report import markdown as report
 from simucal.report.html import render
 from simucal.turntable.simulate import SCENARIOS, write
 
 HIDDEN = {"acc.quadratic.z": 2e-4}  # g/g^2: a z accelerometer second-order nonlinearity
+SETS = ("loop", "loop_applied", "paper")  # the measurement sets it writes under its folder
+MARKER = "demo.json"  # written last: the folder is a demo's, and a later demo may replace its sets
 
 
 def _rest_error(cal, folder):
@@ -44,8 +46,8 @@ def loop(out: Path, seed: int, echo) -> dict:
     echo(f"2 calibrate (baseline model): acc chi2 {base['acc']['chi2']:.1f} on {base['acc']['dof']} dof, "
          f"p = {base['acc']['p_value']:.2g}; advice: add {base['acc']['advice']}")
     diag = diagnose(data)
-    (out / "loop_diagnosis.json").write_text(json.dumps(diag, indent=1, default=float) + "\n")
-    (out / "loop_diagnosis.html").write_text(render(diag))
+    outputs.write_text(out / "loop_diagnosis.json", json.dumps(diag, indent=1, default=float) + "\n")
+    outputs.write_text(out / "loop_diagnosis.html", render(diag))
     found = [c["id"] for c in diag["acc"]["candidates"] if c.get("significant")][:1]
     echo(f"3 diagnose: {diag['acc']['verdict']}")
     if not found:
@@ -80,15 +82,15 @@ def paper(out: Path, seed: int, echo) -> None:
         calibration.write(out / f"calibration_{method}.json", results[method])
     echo("calibrate: " + ", ".join(f"calibration_{m}.json" for m in results))
     audit_report = full_audit(seeds=8)
-    (out / "audit.md").write_text(audit_report.markdown())
+    outputs.write_text(out / "audit.md", audit_report.markdown())
     echo(f"audit: {out / 'audit.md'}: {audit_report.summary()}")
     truth = json.loads((out / "paper" / "truth.json").read_text())
     text = report.compare_table(results, truth)
-    (out / "report.md").write_text(text)
+    outputs.write_text(out / "report.md", text)
     echo(text)
     diag = diagnose(out / "paper")
-    (out / "diagnosis.json").write_text(json.dumps(diag, indent=1, default=float) + "\n")
-    (out / "diagnosis.html").write_text(render(diag))
+    outputs.write_text(out / "diagnosis.json", json.dumps(diag, indent=1, default=float) + "\n")
+    outputs.write_text(out / "diagnosis.html", render(diag))
     echo(f"diagnose: {out / 'diagnosis.html'}: {diag['verdict']}")
 
 
@@ -103,4 +105,5 @@ def run(out_dir, seed, echo) -> dict:
     result = loop(out, seed, echo)
     echo("== dong2018 section 4: exact, linear and multi-position methods ==")
     paper(out, seed, echo)
+    outputs.write_text(out / MARKER, json.dumps(result, indent=1) + "\n")
     return result

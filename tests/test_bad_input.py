@@ -5,6 +5,7 @@ command line, and a property test of the readers on random bytes, CSV shapes and
 """
 import csv
 import json
+import os
 import shutil
 from pathlib import Path
 
@@ -350,3 +351,224 @@ def test_a_settling_table_is_no_glitch(raw_table, tmp_path):
     _put_rows(d, rows)
     r = CliRunner().invoke(main, ["calibrate", str(d), "-o", str(tmp_path / "c.json")])
     assert r.exit_code == 0, r.output
+
+
+# --- issue 24: options, calibration files, model files, importers, columns --------------------
+
+@pytest.mark.parametrize("args,named", [
+    (["calibrate", "{table}", "--acc-noise-g", "-1"], "--acc-noise-g -1"),
+    (["calibrate", "{table}", "--acc-noise-g", "nan"], "finite"),
+    (["calibrate", "{table}", "--gyro-noise-dph", "inf"], "finite"),
+    (["calibrate", "{stream}", "--window-s", "0"], "--window-s 0"),
+    (["calibrate", "{stream}", "--threshold-factor", "-2"], "--threshold-factor"),
+    (["diagnose", "{table}", "--acc-noise-g", "0"], "--acc-noise-g 0"),
+    (["field-drift", "{table}", "--heading-accuracy-deg", "-5"], "--heading-accuracy-deg -5"),
+    (["simulate", "{tmp}/s", "--position-error-arcmin", "nan"], "finite"),
+    (["simulate", "{tmp}/s", "--rate-hz", "1e6"], "2000"),
+    (["simulate", "{tmp}/s", "--seed", "-3"], "--seed"),
+    (["montecarlo", "--trials", "1000000000000", "-o", "{tmp}/m.json"], "--trials"),
+    (["montecarlo", "--trials", "2000000", "--effect", "acc.quadratic.z=1e-4", "-o", "{tmp}/m.json"], "--effect"),
+    (["plan", "--score", "table1", "--sigma", "0"], "--sigma 0"),
+    (["plan", "--score", "table1", "--power", "1.5"], "--power"),
+    (["import", "imu_tk", "{table}/samples.csv", "{table}/samples.csv", "-o", "{tmp}/o", "--acc-counts-per-g", "-5",
+      "--gyro-counts-per-dps", "100"], "--acc-counts-per-g -5"),
+    (["import", "csv", "{table}/samples.csv", "-o", "{tmp}/o", "--latitude-deg", "95"], "--latitude-deg 95"),
+    (["simulate", "{tmp}/s", "--column", "supply_v=5:4"], "LOW <= HIGH"),
+])
+def test_option_values_out_of_range_are_refused(sets, tmp_path, args, named):
+    """Every numeric option: a range and finiteness, checked before any work; nothing is written."""
+    args = [a.format(table=sets / "table", stream=sets / "stream", tmp=tmp_path) for a in args]
+    run_refused(args, named)
+    assert not [p for p in tmp_path.iterdir()]
+
+
+@settings(max_examples=30, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture])
+@given(value=st.one_of(st.floats(allow_nan=True, allow_infinity=True), st.text(max_size=6)))
+def test_noise_option_any_value(sets, tmp_path, value):
+    """Any value of a numeric option: a calibration with a finite chi-square, or a one-line refusal."""
+    out = tmp_path / "c.json"
+    r = CliRunner().invoke(main, ["calibrate", str(sets / "table"), "-o", str(out), "--acc-noise-g", str(value)])
+    assert r.exit_code in (0, 2), (value, r.output)
+    if r.exit_code == 2:
+        assert len(r.stderr.strip().splitlines()) == 1 and r.stderr.startswith("error: ")
+    else:
+        cal = json.loads(out.read_text())
+        assert np.isfinite(cal["acc"]["chi2"]) and 0 < float(value) <= 1
+        out.unlink()
+
+
+@pytest.fixture(scope="module")
+def table_cal(sets, tmp_path_factory):
+    path = tmp_path_factory.mktemp("cal") / "cal.json"
+    r = CliRunner().invoke(main, ["calibrate", str(sets / "table"), "-o", str(path)])
+    assert r.exit_code == 0, r.output
+    return json.loads(path.read_text())
+
+
+def _edited(cal, edit):
+    cal = json.loads(json.dumps(cal))
+    edit(cal)
+    return cal
+
+
+@pytest.mark.parametrize("edit,named", [
+    (lambda c: c["acc"]["params"].update(dK_x=float("nan")), "acc.params.dK_x"),
+    (lambda c: c["acc"]["params"].update(b_z=1e30), "acc.params.b_z"),
+    (lambda c: c["gyro"].update(C_b_model=(2 * np.array(c["gyro"]["C_b_model"])).tolist()), "proper rotation"),
+    (lambda c: c.pop("layout"), "lacks 'layout'"),
+    (lambda c: c["acc"].update(M=[[1, 0], [0, 1]]), "shape [2, 2]"),
+    (lambda c: c["acc"].update(bias="zero"), "acc.bias"),
+    (lambda c: c["gyro"]["M"][2].__setitem__(2, -1.0), "reversed axis"),
+    (lambda c: c["acc"]["M"][0].__setitem__(0, 3.0), "scale factors outside"),
+    (lambda c: c["acc"]["effects"].update({"acc.warp.q": {"value": 1.0}}), "acc.warp.q"),
+    (lambda c: c["acc"].pop("bias"), "lacks 'bias'"),
+])
+def test_hand_edited_calibration_is_refused_naming_the_entry(sets, tmp_path, table_cal, edit, named):
+    path = tmp_path / "edited.json"
+    path.write_text(json.dumps(_edited(table_cal, edit)))
+    run_refused(["apply", path, sets / "table", "-o", tmp_path / "out"], "edited.json", named, out=tmp_path / "out")
+
+
+@settings(max_examples=40, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture])
+@given(data=st.data())
+def test_any_numeric_edit_of_a_calibration_applies_finite_or_is_refused(sets, tmp_path, table_cal, data):
+    """Replace one number of the file by anything: apply writes finite inputs or refuses in one line."""
+    cal = json.loads(json.dumps(table_cal))
+    sensor = data.draw(st.sampled_from(["acc", "gyro"]))
+    key = data.draw(st.sampled_from(["M", "bias", "params", "C_b_model"] if sensor == "gyro" else ["M", "bias", "params"]))
+    value = data.draw(st.one_of(st.floats(allow_nan=True, allow_infinity=True), st.sampled_from([0.0, -1.0, 1e30])))
+    block = cal[sensor]
+    if key == "params":
+        block["params"][data.draw(st.sampled_from(sorted(block["params"])))] = value
+    elif key == "bias":
+        block["bias"][data.draw(st.integers(0, 2))] = value
+    else:
+        block[key][data.draw(st.integers(0, 2))][data.draw(st.integers(0, 2))] = value
+    path, out = tmp_path / "c.json", tmp_path / "out"
+    path.write_text(json.dumps(cal))
+    shutil.rmtree(out, ignore_errors=True)
+    r = CliRunner().invoke(main, ["apply", str(path), str(sets / "table"), "-o", str(out)])
+    assert r.exit_code in (0, 2), r.output
+    if r.exit_code == 0:
+        ms = io.read(out)
+        assert all(np.all(np.isfinite(ms.samples[c])) for c in io.SAMPLE_COLS)
+    else:
+        assert len(r.stderr.strip().splitlines()) == 1
+
+
+def test_reversed_axis_in_a_stream_is_refused(sets, tmp_path):
+    d = _copy(sets, "stream", tmp_path)
+    rows = _rows(d)
+    j = rows[0].index("az")
+    for row in rows[1:]:
+        row[j] = repr(-float(row[j]))
+    _put_rows(d, rows)
+    run_refused(["calibrate", d, "-o", tmp_path / "c.json"], "negative on", "sign", out=tmp_path / "c.json")
+
+
+def test_a_wrong_nominal_scale_is_named(sets, tmp_path):
+    d = _copy(sets, "stream", tmp_path)
+    meta = json.loads((d / "meta.json").read_text())
+    _meta(d, acc_counts_per_g=[v / 0.65 for v in meta["acc_counts_per_g"]])
+    r = CliRunner().invoke(main, ["calibrate", str(d), "-o", str(tmp_path / "c.json")])
+    assert r.exit_code == 0, r.output
+    assert "WARNING: acc: scale factors" in r.output and "acc_counts_per_g" in r.output
+    assert json.loads((tmp_path / "c.json").read_text())["warnings"]
+
+
+@pytest.mark.parametrize("header,named", [
+    (["segment", "t_s", "acc_x", "acc_y", "acc_z", "gx", "gy", "gz"], "acc_x, acc_y, acc_z look like acc data"),
+    (["segment", "t_s", "ax", "ay", "az", "gx", "gy", "ax"], "column ax appears 2 times"),
+])
+def test_sensor_columns_under_other_names_or_twice(sets, tmp_path, header, named):
+    d = _copy(sets, "table", tmp_path)
+    rows = _rows(d)
+    _put_rows(d, [header] + rows[1:])
+    run_refused(["calibrate", d, "-o", tmp_path / "c.json"], "samples.csv", named)
+
+
+def test_angles_in_radians_are_named(sets, tmp_path):
+    d = _copy(sets, "table", tmp_path)
+    rows = list(csv.reader(open(d / "segments.csv")))
+    for row in rows[1:]:
+        for j in range(2, 6):
+            row[j] = repr(np.radians(float(row[j]))) if row[j] else ""
+    csv.writer(open(d / "segments.csv", "w", newline="")).writerows(rows)
+    run_refused(["calibrate", d, "-o", tmp_path / "c.json"], "radians")
+
+
+@pytest.mark.parametrize("name", ["meta.json", "samples.csv", "segments.csv"])
+def test_a_folder_named_like_a_set_file(sets, tmp_path, name):
+    d = _copy(sets, "table", tmp_path)
+    (d / name).unlink()
+    (d / name).mkdir()
+    run_refused(["calibrate", d, "-o", tmp_path / "c.json"], name, "is a folder")
+
+
+def test_noise_of_zero_in_meta_is_named(sets, tmp_path):
+    d = _copy(sets, "table", tmp_path)
+    _meta(d, acc_noise_g=0)
+    run_refused(["calibrate", d, "-o", tmp_path / "c.json"], "acc_noise_g", "> 0")
+
+
+@pytest.mark.parametrize("text,named", [
+    ("import sympy as sp\nMODELS = [\n", "line 2: syntax error"),
+    ("x = 1\nraise RuntimeError('boom')\n", "line 2: RuntimeError: boom"),
+    ("from simucal.derive.models.baseline import ACC_BASELINE\nfrom simucal.derive.models.effects import acc_quadratic"
+     "\nMODELS = [ACC_BASELINE.with_terms('../../evil', [acc_quadratic('z')])]\n", "must be a Python identifier"),
+    ("MODELS = 3\n", "must define MODELS"),
+])
+def test_a_broken_model_file_is_the_users_error(sets, tmp_path, monkeypatch, text, named):
+    monkeypatch.setenv("SIMUCAL_CACHE", str(tmp_path / "cache"))
+    f = tmp_path / "mine.py"
+    f.write_text(text)
+    run_refused(["calibrate", sets / "table", "-o", tmp_path / "c.json", "--add", f], "mine.py", named)
+
+
+def test_a_model_file_that_never_ends_is_stopped(sets, tmp_path, monkeypatch):
+    monkeypatch.setenv("SIMUCAL_CACHE", str(tmp_path / "cache"))
+    monkeypatch.setenv("SIMUCAL_DERIVE_TIMEOUT_S", "3")
+    f = tmp_path / "loop.py"
+    f.write_text("while True:\n    pass\n")
+    run_refused(["derive", "--model", f], "loop.py", "more than 3 s", "SIMUCAL_DERIVE_TIMEOUT_S")
+
+
+def test_a_model_file_runs_in_a_child_and_never_again(sets, tmp_path, monkeypatch):
+    """Its code runs once, in another process (a side effect there leaves this one alone), and a cached
+    file is loaded without running it."""
+    monkeypatch.setenv("SIMUCAL_CACHE", str(tmp_path / "cache"))
+    f, marks = tmp_path / "mine.py", tmp_path / "ran.txt"
+    f.write_text("import os\nfrom simucal.derive.models.baseline import ACC_BASELINE\n"
+                 "from simucal.derive.models.effects import acc_quadratic\n"
+                 f"open({str(marks)!r}, 'a').write(str(os.getpid()) + '\\n')\n"
+                 "MODELS = [ACC_BASELINE.with_terms('acc_runs_once', [acc_quadratic('z')])]\n")
+    for _ in range(2):
+        r = CliRunner().invoke(main, ["derive", "--model", str(f)])
+        assert r.exit_code == 0, r.output
+    pids = marks.read_text().split()
+    assert len(pids) == 1 and int(pids[0]) != os.getpid()
+
+
+@pytest.mark.parametrize("sections,named", [
+    ('{"x_p": {"start": 0, "end": 99999}}', "outside the recording"),
+    ('{"x_p": ', "not valid JSON"),
+    ('{"x_p": {"begin": 0}}', "needs whole-number"),
+    ('[1, 2]', "must map each section label"),
+])
+def test_ferraris_section_list_errors(tmp_path, sections, named):
+    src = tmp_path / "s.csv"
+    src.write_text("acc_x,acc_y,acc_z,gyr_x,gyr_y,gyr_z\n" + "0,0,9.81,0,0,0\n" * 20)
+    (tmp_path / "l.json").write_text(sections)
+    run_refused(["import", "imucal-ferraris", src, tmp_path / "l.json", "-o", tmp_path / "o", "--latitude-deg", "45"],
+                "l.json", named, out=tmp_path / "o")
+
+
+@pytest.mark.parametrize("text,named", [
+    ("acc_x,acc_y,gyr_x,gyr_y,gyr_z\n0,0,0,0,0\n", "no columns ['acc_z']"),
+    ("part,samples,acc_x,acc_y,acc_z,gyr_x,gyr_y,gyr_z\nx_p,0,1,2\n", "row ends before"),
+])
+def test_importer_files_missing_columns(tmp_path, text, named):
+    src = tmp_path / "a.csv"
+    src.write_text(text)
+    fmt = "imucal-annotated" if text.startswith("part") else "imucal-ferraris"
+    run_refused(["import", fmt, src, "-o", tmp_path / "o", "--latitude-deg", "45"], "a.csv", named, out=tmp_path / "o")

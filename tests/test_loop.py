@@ -149,7 +149,7 @@ def test_apply_inverts_the_nonlinear_model_exactly(tmp_path):
 @pytest.mark.parametrize("args,msg", [
     (["simulate", "{d}/x", "--effect", "quadratic=1"], "unknown effect"),
     (["simulate", "{d}/x", "--effect", "acc.quadratic.z"], "NAME=VALUE"),
-    (["simulate", "{d}/x", "--rate-hz", "0"], "must be positive"),
+    (["simulate", "{d}/x", "--rate-hz", "0"], "--rate-hz 0: must be > 0"),
     (["diagnose", "{set}", "--add", "ACC.QUADRATIC.Z", "-o", "{d}/d.json"], "did you mean acc.quadratic.z"),
     (["calibrate", "{set}", "--add", "quadratic", "-o", "{d}/c.json"], "unknown effect"),
     (["calibrate", "{set}", "-o", "{d}/missing/c.json"], "does not exist"),

@@ -57,6 +57,8 @@ class ErrorModel:
     extends: str | None = field(default=None)
 
     def __post_init__(self):
+        if not self.name.isidentifier():  # it names files and C symbols
+            raise ValueError(f"model name {self.name!r} must be a Python identifier (letters, digits, _), e.g. acc_mine")
         if self.sensor not in INPUTS:
             raise ValueError(f"model {self.name}: sensor must be 'acc' or 'gyro'")
         names = [t.name for t in self.terms]

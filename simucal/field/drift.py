@@ -18,6 +18,7 @@ three body drifts with their covariance. Frames: NUE navigation, FUR body.
 from __future__ import annotations
 
 import hashlib
+from pathlib import Path
 
 import numpy as np
 
@@ -26,7 +27,7 @@ from simucal.errors import CalibrationError
 from simucal.fit.noise import white_noise_var
 from simucal.fit.rotations import exp_so3
 from simucal.generated import field as gen
-from simucal.io import units
+from simucal.io import outputs, units
 
 DPH = np.radians(1 / 3600)  # rad/s per deg/h
 AXIS_NAMES = ("x (forward)", "y (up)", "z (right)")
@@ -234,5 +235,6 @@ def plot_history(hist, path):
         ax.legend(fontsize=7, loc="upper right")
     np.atleast_1d(axs)[-1].set_xlabel("time at the position (s)")
     fig.tight_layout()
-    fig.savefig(path, dpi=90)
+    with outputs.replacing(path) as tmp:
+        fig.savefig(tmp, dpi=90, format=Path(path).suffix.lstrip(".") or "png")
     plt.close(fig)

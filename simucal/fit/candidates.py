@@ -190,15 +190,21 @@ def verdict(sensor, base, cands, where="DIR", shape=None, command="diagnose") ->
     head = f"{sensor}: the model does not explain the data ({_fmt_test(base)}; {rms}{floor})"
     sig = [c for c in cands if c.get("significant")]
     text = head + "."
+    generic = shape and not shape.get("catalog_id")
+    if generic:  # it explains more than every library effect (shape_if_unexplained): lead with it
+        text += (f" Most likely missing: a term {shape['text']} (rms {shape['residual_rms_after']:.3g} {unit} "
+                 "without it), not in the library; a model file with this term is written beside the report: add "
+                 "it with --add FILE.")
     if sig:
         c = sig[0]
         after = c.get("residual_rms_after")
         more = (f" With it the residual rms would be {after:.3g} {unit}, still above the floor: more is missing "
                 "(see the other candidates)." if after and base.get("noise_floor") and after > 2 * base["noise_floor"]
                 else "")
-        text += (f" Most likely missing: {c['id']} ({c['meaning']}), estimate {c['estimate']:.3g} "
-                 f"+- {c['std']:.2g} {c['unit']}, LR {c['statistic']:.1f}, p = {c['p_value']:.2g}. "
-                 f"Add it: simucal {command} {where} --add {c['id']}.{more}")
+        text += (f" {'The best library effect, explaining less' if generic else 'Most likely missing'}: {c['id']} "
+                 f"({c['meaning']}), estimate {c['estimate']:.3g} +- {c['std']:.2g} {c['unit']}, LR "
+                 f"{c['statistic']:.1f}, p = {c['p_value']:.2g}."
+                 + ("" if generic else f" Add it: simucal {command} {where} --add {c['id']}.{more}"))
     elif not shape:
         text += (" No candidate explains it; the missing effect is not in the library (or the plan cannot "
                  "separate it).")
@@ -206,8 +212,4 @@ def verdict(sensor, base, cands, where="DIR", shape=None, command="diagnose") ->
         text += (f" The residual looks like a term {shape['text']} (rms {shape['residual_rms_after']:.3g} {unit} "
                  f"without it): that is the library's {shape['catalog_id']}, too weak alone to pass the gate over "
                  f"every candidate; try it: simucal {command} {where} --add {shape['catalog_id']}.")
-    elif shape:
-        text += (f" {'Beyond the library' if sig else 'Not in the library'}: the residual looks like a term "
-                 f"{shape['text']} (rms {shape['residual_rms_after']:.3g} {unit} without it); a model file with "
-                 "this term is written beside the report: add it with --add FILE.")
     return text

@@ -18,10 +18,13 @@ import hashlib
 import importlib.util
 import json
 import os
-import tempfile
+import subprocess
+import sys
+import traceback
 from pathlib import Path
 
 from simucal.fit.models import GeneratedModel, cache_dir, load_builtin, manifest
+from simucal.io import outputs
 
 
 def models_dir() -> Path:
@@ -43,15 +46,24 @@ def _index() -> dict:
 
 def _write_atomic(path: Path, text: str):
     path.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=".tmp-")
-    with os.fdopen(fd, "w") as fh:
-        fh.write(text)
-    os.replace(tmp, path)
+    outputs.write_text(path, text)
+
+
+class ModelFileError(ValueError):
+    """A user's model file that cannot be derived: its file and line named, never a simucal bug."""
+
+
+def derive_timeout_s() -> float:
+    return float(os.environ.get("SIMUCAL_DERIVE_TIMEOUT_S", "120"))
 
 
 def derive_model_file(path) -> tuple[list[str], bool]:
     """Derive a user's model file into the cache (if not there yet) and index its models.
-    Returns (model names, whether SymPy had to derive them)."""
+    Returns (model names, whether SymPy had to derive them).
+
+    A model file is Python: its code runs when it is derived, as any plugin's does. It runs
+    once, in a child process with a time limit (SIMUCAL_DERIVE_TIMEOUT_S, default 120 s);
+    afterwards the cache is keyed by the file's bytes and the file is never run again."""
     path = Path(path).resolve()
     if not path.is_file():
         raise FileNotFoundError(f"{path}: no such model file")
@@ -59,21 +71,21 @@ def derive_model_file(path) -> tuple[list[str], bool]:
     folder = models_dir() / key
     derived = False
     if not (folder / "manifest.json").is_file():
-        from simucal.derive import codegen
-        from simucal.derive.registry import load_model_file
-        models = load_model_file(path)
-        builtin = set(manifest()["models"])
-        clash = [m.name for m in models if m.name in builtin]
-        if clash:
-            raise ValueError(f"{path}: model names {clash} are built-in models; give your model another name")
-        entries = {}
-        for m in models:
-            text, entry = codegen.model_module(m, source=str(path))
-            _write_atomic(folder / f"{m.name}.py", text)
-            _write_atomic(folder / f"{m.name}.c", codegen.c_source(m))
-            entries[m.name] = entry
-        _write_atomic(folder / "manifest.json",
-                      json.dumps({"source": str(path), "models": entries}, indent=2, sort_keys=True) + "\n")
+        limit = derive_timeout_s()
+        if sys.stderr.isatty():  # a few seconds of silence otherwise
+            print(f"deriving {path} with SymPy (its code runs once, in a child process, at most {limit:g} s)",
+                  file=sys.stderr)
+        try:
+            child = subprocess.run([sys.executable, "-m", "simucal.fit.catalog", str(path), str(folder)],
+                                   capture_output=True, text=True, timeout=limit)
+        except subprocess.TimeoutExpired:
+            raise ModelFileError(f"{path}: deriving it took more than {limit:g} s (a loop that never ends?); "
+                                 "fix the file, or allow more time with SIMUCAL_DERIVE_TIMEOUT_S") from None
+        if child.returncode:
+            lines = [x for x in child.stderr.splitlines() if x.strip()]
+            raise ModelFileError(lines[-1] if child.returncode == 2 and lines else
+                                 f"{path}: deriving it failed (exit {child.returncode}): "
+                                 + (lines[-1] if lines else "no message"))
         derived = True
     names = sorted(json.loads((folder / "manifest.json").read_text())["models"])
     index = _index()
@@ -81,6 +93,48 @@ def derive_model_file(path) -> tuple[list[str], bool]:
     _write_atomic(models_dir() / "index.json", json.dumps(index, indent=2, sort_keys=True) + "\n")
     load.cache_clear()
     return names, derived
+
+
+def _derive_into(path: Path, folder: Path) -> None:
+    """The child's work: run the model file, derive its models, write them into the cache folder
+    (the manifest last, so a folder without one is never taken for a derived model)."""
+    from simucal.derive import codegen
+    from simucal.derive.registry import load_model_file
+    models = load_model_file(path)
+    builtin = set(manifest()["models"])
+    clash = [m.name for m in models if m.name in builtin]
+    if clash:
+        raise ValueError(f"{path}: model names {clash} are built-in models; give your model another name")
+    entries = {}
+    for m in models:
+        text, entry = codegen.model_module(m, source=str(path))
+        _write_atomic(folder / f"{m.name}.py", text)
+        _write_atomic(folder / f"{m.name}.c", codegen.c_source(m))
+        entries[m.name] = entry
+    _write_atomic(folder / "manifest.json",
+                  json.dumps({"source": str(path), "models": entries}, indent=2, sort_keys=True) + "\n")
+
+
+def _where_in(path: Path, e: BaseException) -> str:
+    """'FILE, line N' of the deepest frame of the traceback inside the user's file."""
+    if isinstance(e, SyntaxError) and e.filename and Path(e.filename).resolve() == path:
+        return f"{path}, line {e.lineno}"
+    lines = [fr.lineno for fr in traceback.extract_tb(e.__traceback__) if Path(fr.filename).resolve() == path]
+    return f"{path}, line {lines[-1]}" if lines else str(path)
+
+
+def _child_main(argv) -> int:
+    path, folder = Path(argv[0]).resolve(), Path(argv[1])
+    try:
+        _derive_into(path, folder)
+    except SyntaxError as e:
+        print(f"{_where_in(path, e)}: syntax error: {e.msg}", file=sys.stderr)
+        return 2
+    except Exception as e:  # the user's code raised: name its file and line, and the message
+        own = str(e).startswith(str(path))  # simucal's own checks of the file name it already
+        print(str(e) if own else f"{_where_in(path, e)}: {type(e).__name__}: {e}", file=sys.stderr)
+        return 2
+    return 0
 
 
 @functools.lru_cache(maxsize=None)
@@ -103,3 +157,7 @@ def _load_user_model(name: str, compiled: bool = True) -> GeneratedModel:
     module = importlib.util.module_from_spec(spec)
     spec.loader.exec_module(module)
     return GeneratedModel(name, module, (folder / f"{name}.c").read_text(), compiled)
+
+
+if __name__ == "__main__":  # the child of derive_model_file
+    sys.exit(_child_main(sys.argv[1:]))

@@ -9,12 +9,13 @@ import csv
 import io as _io
 import json
 import math
+import re
 from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
 
-from simucal.io import units
+from simucal.io import outputs, units
 
 FORMAT = "simucal.measurements/1"
 SAMPLE_COLS = ("ax", "ay", "az", "gx", "gy", "gz")
@@ -117,8 +118,14 @@ def _csv_header_check(path, text):
                                                    "(convert it, or use simucal import csv)")
 
 
+def _not_a_folder(path: Path) -> Path:
+    if path.is_dir():
+        raise MeasurementSetError(path, None, f"is a folder; {path.name} must be a file (see the spec)")
+    return path
+
+
 def read_meta(folder: Path) -> dict:
-    path = folder / "meta.json"
+    path = _not_a_folder(folder / "meta.json")
     if not path.is_file():
         raise MeasurementSetError(path, None, "missing: a measurement set needs meta.json")
     try:
@@ -134,7 +141,7 @@ def read_meta(folder: Path) -> dict:
 
 
 def read_segments(folder: Path) -> list[Segment] | None:
-    path = folder / "segments.csv"
+    path = _not_a_folder(folder / "segments.csv")
     if not path.is_file():
         return None
     out, seen = [], set()
@@ -168,11 +175,23 @@ def read_segments(folder: Path) -> list[Segment] | None:
                                rate, vals["heading_ref_deg"]))
     if not out:
         raise MeasurementSetError(path, None, "no segments")
+    _angles_in_degrees(path, out)
     return out
 
 
+def _angles_in_degrees(path, segments):
+    """Refuse table angles that look like radians: no turntable plan of four or more positions keeps
+    every angle within +-2 pi degrees, while a plan in radians always does."""
+    angles = np.array([a for s in segments for a in (s.outer_deg, s.middle_deg, s.inner_deg) if a is not None])
+    positions = sum(any(a is not None for a in (s.outer_deg, s.middle_deg, s.inner_deg)) for s in segments)
+    if positions >= 4 and 0.5 < np.abs(angles).max() <= 2 * np.pi + 1e-6:
+        raise MeasurementSetError(path, None, f"every table angle lies within +-{np.abs(angles).max():.4g}: they "
+                                              "look like radians, but outer_deg, middle_deg and inner_deg are degrees "
+                                              "(and outer_rate_dps deg/s): convert them")
+
+
 def read_samples(folder: Path, segments) -> dict:
-    path = folder / "samples.csv"
+    path = _not_a_folder(folder / "samples.csv")
     if not path.is_file():
         raise MeasurementSetError(path, None, "missing: a measurement set needs samples.csv")
     data, text = _read_checked(path)
@@ -183,6 +202,12 @@ def read_samples(folder: Path, segments) -> dict:
             header = [h.strip() for h in next(reader)]
         except StopIteration:
             raise MeasurementSetError(path, 1, "empty file") from None
+        dup = [c for c in dict.fromkeys(header) if header.count(c) > 1]
+        if dup:
+            where = [i + 1 for i, c in enumerate(header) if c == dup[0]]
+            raise MeasurementSetError(path, 1, f"column {dup[0]} appears {len(where)} times (columns "
+                                               f"{', '.join(map(str, where))}): which one is the data? keep one")
+        _sensor_like_columns(path, header)
         if "t_s" not in header:
             raise MeasurementSetError(path, 1, "header lacks column t_s")
         for group in (("ax", "ay", "az"), ("gx", "gy", "gz")):
@@ -222,6 +247,21 @@ def read_samples(folder: Path, segments) -> dict:
     if not data["t_s"]:
         raise MeasurementSetError(path, None, "no samples")
     return _check_samples({c: np.asarray(v, float) for c, v in data.items()}, path, segments)
+
+
+_LOOKS_LIKE = {"acc": re.compile(r"^(acc|accel|accelerometer|a|f)[ _.-]?(x|y|z)(_.*)?$", re.I),
+               "gyro": re.compile(r"^(gyr|gyro|gyroscope|g|w|omega|rate)[ _.-]?(x|y|z)(_.*)?$", re.I)}
+
+
+def _sensor_like_columns(path, header):
+    """Refuse sensor data under names the spec does not use (acc_x, gyro_z, ...): read as spec
+    columns they would be lost silently (a gyro-only calibration of a unit with accelerometers)."""
+    for sensor, names in (("acc", SAMPLE_COLS[:3]), ("gyro", SAMPLE_COLS[3:])):
+        alike = [c for c in header if c not in SAMPLE_COLS and _LOOKS_LIKE[sensor].match(c)]
+        if alike:
+            raise MeasurementSetError(path, 1, f"columns {', '.join(alike)} look like {sensor} data, but the spec "
+                                               f"names them {', '.join(names)}: rename them (or use simucal import "
+                                               "csv --columns)")
 
 
 def _fast_numeric(data: bytes, ncols):
@@ -296,12 +336,13 @@ def _fmt(v):
 
 
 def write(folder, meta: dict, samples: dict, segments: list[Segment] | None = None, extra_files=None):
-    """Write a measurement set; extra_files: {name: json-able} (e.g. truth.json)."""
+    """Write a measurement set; extra_files: {name: json-able} (e.g. truth.json). Each file by a
+    temporary name and a rename (io/outputs.py); the caller has checked the folder with outputs.check."""
     folder = Path(folder)
     folder.mkdir(parents=True, exist_ok=True)
-    (folder / "meta.json").write_text(json.dumps({"format": FORMAT, **meta}, indent=2) + "\n")
+    outputs.write_text(folder / "meta.json", json.dumps({"format": FORMAT, **meta}, indent=2) + "\n")
     if segments is not None:
-        with (folder / "segments.csv").open("w", newline="") as fh:
+        with outputs.replacing(folder / "segments.csv") as tmp, tmp.open("w", newline="") as fh:
             w = csv.writer(fh)
             has_ref = any(s.heading_ref_deg is not None for s in segments)
             w.writerow(SEGMENT_COLS + (("heading_ref_deg",) if has_ref else ()))
@@ -309,14 +350,16 @@ def write(folder, meta: dict, samples: dict, segments: list[Segment] | None = No
                 row = [s.segment, s.kind, _fmt(s.outer_deg), _fmt(s.middle_deg), _fmt(s.inner_deg),
                        _fmt(s.outer_rate_dps) if s.kind == "rate" else ""]
                 w.writerow(row + ([_fmt(s.heading_ref_deg)] if has_ref else []))
+    elif (folder / "segments.csv").is_file():  # a stream replacing a segmented set (--force): no stale segments
+        (folder / "segments.csv").unlink()
     cols = [c for c in ("segment", "t_s", *SAMPLE_COLS, "temp_c") if c in samples]
     cols += [c for c in samples if c not in cols]  # auxiliary inputs (supply_v, ...)
     n = len(samples["t_s"])
-    with (folder / "samples.csv").open("w", newline="") as fh:
+    with outputs.replacing(folder / "samples.csv") as tmp, tmp.open("w", newline="") as fh:
         w = csv.writer(fh)
         w.writerow(cols)
         arrays = [np.asarray(samples[c]) for c in cols]
         for i in range(n):
             w.writerow([str(int(a[i])) if c == "segment" else repr(float(a[i])) for c, a in zip(cols, arrays)])
     for name, obj in (extra_files or {}).items():
-        (folder / name).write_text(json.dumps(obj, indent=2) + "\n")
+        outputs.write_text(folder / name, json.dumps(obj, indent=2) + "\n")

@@ -11,6 +11,7 @@ Every error names the original file and line.
 from __future__ import annotations
 
 import csv
+import io as _io
 import math
 from pathlib import Path
 
@@ -24,10 +25,18 @@ class ImportError_(ValueError):
     pass
 
 
+def _text(path) -> str:
+    """A source file's text; binary files and other encodings refused, naming the line."""
+    try:
+        return io.read_text(Path(path))
+    except io.MeasurementSetError as e:
+        raise ImportError_(str(e)) from None
+
+
 def _read_numeric(path, ncols=None, skip_header=False):
     path = Path(path)
     rows = []
-    with path.open() as fh:
+    with _io.StringIO(_text(path)) as fh:
         for line_no, line in enumerate(fh, start=1):
             if skip_header and line_no == 1:
                 continue
@@ -99,26 +108,44 @@ def parse_columns(text: str) -> dict:
     return out
 
 
-def import_csv(path, out, columns: dict, acc_unit, gyro_unit, rate_hz=None, latitude_deg=None, scales=None):
-    """columns: {spec column: source column name}, e.g. {"ax": "acc_x", ...};
-    without a t_s column, time is row / rate_hz."""
+def _read_columns(path, columns: dict, strings=()) -> dict:
+    """{key: array} of a CSV's named columns ({key: source column}); `strings` are keys kept as text.
+    Every error names the file, the line and the column."""
     path = Path(path)
-    with path.open(newline="") as fh:
+    with _io.StringIO(_text(path), newline="") as fh:
         reader = csv.DictReader(fh)
-        missing = [src for src in columns.values() if src not in (reader.fieldnames or [])]
+        header = reader.fieldnames or []
+        missing = [src for src in columns.values() if src not in header]
         if missing:
-            raise ImportError_(f"{path}, line 1: no columns {missing}; the header has {reader.fieldnames}")
+            raise ImportError_(f"{path}, line 1: no columns {missing}; the header has {header}")
+        dup = sorted({c for c in header if header.count(c) > 1} & set(columns.values()))
+        if dup:
+            raise ImportError_(f"{path}, line 1: column {dup[0]} appears more than once; which one is the data?")
         data = {k: [] for k in columns}
         for line_no, row in enumerate(reader, start=2):
             for k, src in columns.items():
+                if row[src] is None:
+                    raise ImportError_(f"{path}, line {line_no}: the row ends before column {src}")
+                if k in strings:
+                    data[k].append(row[src])
+                    continue
                 try:
                     v = float(row[src])
-                except (TypeError, ValueError):
+                except ValueError:
                     raise ImportError_(f"{path}, line {line_no}: column {src}: {row[src]!r} is not a number") from None
                 if not math.isfinite(v):
                     raise ImportError_(f"{path}, line {line_no}: column {src} is not finite")
                 data[k].append(v)
-    samples = {k: np.array(v) for k, v in data.items()}
+    if not data or not next(iter(data.values())):
+        raise ImportError_(f"{path}: no data rows")
+    return {k: np.array(v) for k, v in data.items()}
+
+
+def import_csv(path, out, columns: dict, acc_unit, gyro_unit, rate_hz=None, latitude_deg=None, scales=None):
+    """columns: {spec column: source column name}, e.g. {"ax": "acc_x", ...};
+    without a t_s column, time is row / rate_hz."""
+    path = Path(path)
+    samples = _read_columns(path, columns)
     n = len(next(iter(samples.values())))
     if "t_s" not in samples:
         if not rate_hz:
@@ -130,9 +157,11 @@ def import_csv(path, out, columns: dict, acc_unit, gyro_unit, rate_hz=None, lati
     return meta
 
 
+FERRARIS_COLUMNS = {"ax": "acc_x", "ay": "acc_y", "az": "acc_z", "gx": "gyr_x", "gy": "gyr_y", "gz": "gyr_z"}
+
+
 def import_ferraris(path, out, rate_hz, latitude_deg):
-    cols = {"ax": "acc_x", "ay": "acc_y", "az": "acc_z", "gx": "gyr_x", "gy": "gyr_y", "gz": "gyr_z"}
-    return import_csv(path, out, cols, "m/s^2", "deg/s", rate_hz, latitude_deg, {"gravity_mps2": 9.81})
+    return import_csv(path, out, FERRARIS_COLUMNS, "m/s^2", "deg/s", rate_hz, latitude_deg, {"gravity_mps2": 9.81})
 
 
 # Ferraris poses as the middle/inner angles that put f^k along the labelled axis:
@@ -170,17 +199,32 @@ def _ferraris_set(out, sections, data, t, units_meta, latitude_deg, turn_deg, so
     return meta
 
 
+def _read_sections(path, n_rows) -> dict:
+    """imucal's section list {label: {start, end}} (0-based rows, end exclusive), checked against the
+    recording's rows."""
+    import json
+    try:
+        sections = json.loads(_text(path))
+    except json.JSONDecodeError as e:
+        raise ImportError_(f"{path}, line {e.lineno}: not valid JSON: {e.msg}") from None
+    if not isinstance(sections, dict) or not sections:
+        raise ImportError_(f"{path}: must map each section label to {{\"start\": row, \"end\": row}}")
+    for label, s in sections.items():
+        ends = [s.get(k) if isinstance(s, dict) else None for k in ("start", "end")]
+        if not all(isinstance(x, int) and not isinstance(x, bool) for x in ends):
+            raise ImportError_(f"{path}: section {label!r} needs whole-number \"start\" and \"end\" rows, got {s!r}")
+        if not 0 <= ends[0] < ends[1] <= n_rows:
+            raise ImportError_(f"{path}: section {label!r} spans rows {ends[0]}..{ends[1]}, outside the recording's "
+                               f"{n_rows} rows (0-based, end exclusive): is it the section list of this session?")
+    return sections
+
+
 def import_ferraris_sections(csv_path, json_path, out, rate_hz, latitude_deg, turn_deg=-360.0):
     """imucal's session CSV with its section list (0-based rows, end exclusive)."""
-    import json
-    sections = json.loads(Path(json_path).read_text())
-    with Path(csv_path).open(newline="") as fh:
-        reader = csv.DictReader(fh)
-        cols = {"ax": "acc_x", "ay": "acc_y", "az": "acc_z", "gx": "gyr_x", "gy": "gyr_y", "gz": "gyr_z"}
-        rows = [[float(r[c]) for c in cols.values()] for r in reader]
-    arr = np.array(rows)
-    data = {k: arr[:, j] for j, k in enumerate(cols)}
-    t = np.arange(len(arr)) / rate_hz
+    data = _read_columns(csv_path, FERRARIS_COLUMNS)
+    n = len(data["ax"])
+    sections = _read_sections(json_path, n)
+    t = np.arange(n) / rate_hz
     order = sorted(sections.items(), key=lambda kv: kv[1]["start"])
     secs = [(label, np.arange(s["start"], s["end"])) for label, s in order]
     return _ferraris_set(out, secs, data, t, {"acc_unit": "m/s^2", "gyro_unit": "deg/s", "gravity_mps2": 9.81},
@@ -192,20 +236,11 @@ def import_imucal_annotated(csv_path, out, rate_hz, acc_counts_per_g, gyro_count
     """imucal's annotated session: sections already cut, sorted by label; `samples`
     gives the recording order."""
     path = Path(csv_path)
-    labels, idx, vals = [], [], []
-    with path.open(newline="") as fh:
-        reader = csv.DictReader(fh)
-        for line_no, r in enumerate(reader, start=2):
-            try:
-                idx.append(int(r["samples"]))
-                vals.append([float(r[c]) for c in ("acc_x", "acc_y", "acc_z", "gyr_x", "gyr_y", "gyr_z")])
-            except (KeyError, TypeError, ValueError):
-                raise ImportError_(f"{path}, line {line_no}: expected part,samples,acc_x..gyr_z numbers") from None
-            labels.append(r["part"])
-    order = np.argsort(idx)
-    labels, arr = np.array(labels)[order], np.array(vals)[order]
-    t = np.array(idx)[order] / rate_hz
-    data = {k: arr[:, j] for j, k in enumerate(("ax", "ay", "az", "gx", "gy", "gz"))}
+    cols = _read_columns(path, {"part": "part", "samples": "samples", **FERRARIS_COLUMNS}, strings=("part",))
+    order = np.argsort(cols["samples"], kind="stable")
+    labels = cols["part"][order]
+    t = cols["samples"][order] / rate_hz
+    data = {k: cols[k][order] for k in FERRARIS_COLUMNS}
     change = np.r_[0, np.nonzero(labels[1:] != labels[:-1])[0] + 1, len(labels)]
     secs = [(labels[a], np.arange(a, b)) for a, b in zip(change[:-1], change[1:])]
     units_meta = {"acc_unit": "counts", "gyro_unit": "counts", "acc_counts_per_g": [acc_counts_per_g] * 3,

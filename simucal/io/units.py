@@ -4,6 +4,8 @@ Calibrations work in g (accelerometers) and deg/h (gyros). Pulse and count
 outputs are divided by the nominal scale factors of meta.json. Note
 1 arcsec/s = 1 deg/h, so gyro pulse/s / (pulses per arcsec) is deg/h.
 """
+import math
+
 import numpy as np
 
 ACC_UNITS = ("g", "m/s^2", "pulse/s", "counts")
@@ -24,8 +26,15 @@ def check_meta(meta, path, error):
         skey = SCALE_KEY.get((sensor, meta[key]))
         if skey:
             v = meta.get(skey)
-            if not (isinstance(v, list) and len(v) == 3 and all(isinstance(x, (int, float)) and x > 0 for x in v)):
+            if not (isinstance(v, list) and len(v) == 3
+                    and all(isinstance(x, (int, float)) and 0 < x < math.inf for x in v)):
                 raise error(path, None, f'{key} is {meta[key]!r}, so "{skey}" must be three positive numbers')
+    for key, unit, hi in (("acc_noise_g", "g", 1.0), ("gyro_noise_dph", "deg/h", 1e6)):
+        v = meta.get(key)
+        if v is not None and not (isinstance(v, (int, float)) and not isinstance(v, bool) and 0 < v <= hi):
+            raise error(path, None, f'"{key}" is {v!r}, but it is the std of one row\'s output ({unit}): a number '
+                                    f'> 0 and <= {hi:g}; leave the key out where the noise is not known (it is then '
+                                    'estimated from the data)')
     lat = meta.get("latitude_deg")
     if lat is not None and not (isinstance(lat, (int, float)) and -90 <= lat <= 90):
         raise error(path, None, f'"latitude_deg" must be a number in -90..90, got {lat!r}')

@@ -9,6 +9,8 @@ revolutions; their mean outputs are averaged over the exact rotation.
 """
 from __future__ import annotations
 
+import math
+
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -102,6 +104,9 @@ def plant(sc: Scenario, effects=(), effect_file=None, sets=(), columns=()):
         except ValueError:
             raise ValueError(f"--column {item!r}: write NAME=LOW:HIGH with a new column name and two numbers, "
                              "e.g. supply_v=4.8:5.2") from None
+        if not (math.isfinite(low) and math.isfinite(high) and low <= high):
+            raise ValueError(f"--column {item!r}: LOW:HIGH must be finite numbers with LOW <= HIGH, e.g. "
+                             f"{name.strip()}=4.8:5.2")
         sc.columns[name.strip()] = (low, high)
     from simucal.fit.augmented import check_effect
     for eid, val in _pairs(effects, "--effect").items():
@@ -182,8 +187,8 @@ def simulate(sc: Scenario, seed: int = 0):
     meta = {"latitude_deg": sc.latitude_deg, "gravity_mps2": units.DEFAULT_GRAVITY,
             "earth_rate_dph": w_e, "acc_unit": sc.acc_unit, "gyro_unit": sc.gyro_unit,
             "description": f"simucal simulate, seed {seed}"}
-    if sc.state_noise:
-        meta.update(acc_noise_g=sc.acc_noise_g, gyro_noise_dph=sc.gyro_noise_dph)
+    if sc.state_noise:  # a noise-free set states none (the spec's noise is a std > 0)
+        meta.update({k: v for k, v in (("acc_noise_g", sc.acc_noise_g), ("gyro_noise_dph", sc.gyro_noise_dph)) if v > 0})
     if sc.acc_unit == "pulse/s":
         meta["acc_pulses_per_g"] = list(sc.acc_pulses_per_g)
     if sc.gyro_unit == "pulse/s":
