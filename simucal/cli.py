@@ -243,6 +243,15 @@ def _sensor_lines(result):
                    + (f" (std alone {max(alone):.2g})" if alone else "")
                    + f": held at {first['held_at']:g} +- {first['prior_std']:g} (\"determined\": false in the file); "
                    f"to determine them, " + "; ".join(sorted({v["to_determine"] for v in und.values()})))
+    for s in ("acc", "gyro"):
+        poor = (result.get(s) or {}).get("poorly_determined") or {}
+        if poor:
+            unit = {k: "" if u == "1" else f" {u}" for k, u in (result[s].get("param_units") or {}).items()}
+            yield (f"{s}: POORLY DETERMINED by this plan: " + ", ".join(
+                f"{k} (std {v['std']:.2g}{unit.get(k, '')}, {v['inflation']:.0f}x an uncorrelated design's)"
+                for k, v in sorted(poor.items(), key=lambda kv: -kv[1]["inflation"]))
+                + "; they are nearly confounded with other parameters: add positions with other input directions "
+                "(simucal plan --score PLAN shows the correlations)")
     for sensor, why in result.get("not_calibrated", {}).items():
         yield f"{sensor}: NOT CALIBRATED: {why}"
     for line in result.get("warnings", []):

@@ -572,3 +572,19 @@ def test_importer_files_missing_columns(tmp_path, text, named):
     src.write_text(text)
     fmt = "imucal-annotated" if text.startswith("part") else "imucal-ferraris"
     run_refused(["import", fmt, src, "-o", tmp_path / "o", "--latitude-deg", "45"], "a.csv", named, out=tmp_path / "o")
+
+
+def test_a_plan_on_one_great_circle_names_what_it_cannot_determine(tmp_path):
+    """Gravity directions on one great circle (the inner axis turned alone, middle at 0): the fit runs,
+    and the console names the parameters the plan confounds (issue 24); a good plan names none."""
+    plan = tmp_path / "circle.csv"
+    plan.write_text("outer_deg,middle_deg,inner_deg\n" + "".join(f"0,0,{a}\n" for a in range(0, 360, 30)))
+    write(tmp_path / "circle", Scenario(plan=str(plan)), 1)
+    write(tmp_path / "good", Scenario(), 1)
+    for name, named in (("circle", True), ("good", False)):
+        r = CliRunner().invoke(main, ["calibrate", str(tmp_path / name), "-o", str(tmp_path / f"{name}.json")])
+        assert r.exit_code == 0, r.output
+        poor = json.loads((tmp_path / f"{name}.json").read_text())["acc"].get("poorly_determined", {})
+        assert ("acc: POORLY DETERMINED" in r.output) == named and bool(poor) == named
+        if named:
+            assert poor["b_y"]["inflation"] > 100

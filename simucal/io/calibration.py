@@ -85,12 +85,34 @@ def sensor_block(model, fit, M, bias, base: dict | None = None, C_b_model=None) 
              "param_units": dict(zip(model.params, model.param_units)),
              "residual_rms": fit.residual_rms, "residual_unit": model.unit,
              "chi2": fit.chi2, "dof": fit.dof, "p_value": fit.p_value}
+    poor = poorly_determined(model.params, fit)
+    if poor:
+        block["poorly_determined"] = poor
     if C_b_model is not None:
         block["C_b_model"] = np.asarray(C_b_model).tolist()
     if base is not None:
         block.update(p_value=base["p_value"], test=base["test"], noise=base["noise"],
                      lack_of_fit=base["lack_of_fit"])
     return block
+
+
+POOR_INFLATION = 10.0  # good plans give 1-2 (Table 1, fibonacci48, a hand-placed session)
+
+
+def poorly_determined(names, fit) -> dict:
+    """Parameters whose std the plan inflates more than POOR_INFLATION times by their correlation with
+    the others: sqrt of the variance inflation factor, VIF_j = (R^-1)_jj for the correlation matrix R
+    of the fit's covariance (1 for a parameter the plan separates from all others). A near-singular
+    plan (gravity directions on one great circle) gives thousands. Parameters held by a prior are
+    listed as undetermined instead."""
+    cov = np.asarray(fit.cov, float)
+    d = np.sqrt(np.diag(cov))
+    if cov.shape != (len(names), len(names)) or not np.all(d > 0):
+        return {}
+    lam, V = np.linalg.eigh(cov / np.outer(d, d))
+    inflation = np.sqrt((V ** 2 / np.maximum(lam, 1e-300)).sum(axis=1))
+    return {n: {"std": float(fit.std[n]), "inflation": float(k)} for n, k in zip(names, inflation)
+            if k > POOR_INFLATION and n not in fit.undetermined}
 
 
 def affine_block(sensor: str, M, bias, std: dict, residual_rms: float, model: str, **extra) -> dict:
