@@ -20,6 +20,9 @@ class _Commands(click.Group):
             return super().invoke(ctx)
         except (click.exceptions.Exit, click.exceptions.Abort, click.ClickException, KeyboardInterrupt):
             raise
+        except BrokenPipeError:  # the reader went away (| head): not an error of ours or the user's
+            sys.stdout = open(os.devnull, "w")
+            sys.exit(141)
         except Exception as e:
             if os.environ.get("SIMUCAL_DEBUG"):
                 raise
@@ -213,11 +216,19 @@ def _sensor_lines(result):
                 else f"p = {b['p_value']:.3g} ({b.get('test', '')})" if b.get("p_value") is not None
                 else "no test (" + b.get("test", "no noise estimate") + ")")
         eff = "".join(f"; {e} = {v['value']:.4g} +- {v['std']:.2g} {v['unit']}" for e, v in b.get("effects", {}).items())
-        yield f"{s}: residual rms {b['residual_rms']:.3g} {unit}; {test}{eff}"
+        cv = b.get("cross_validation")
+        held = (f"; |u| - rho {cv['in_sample_rms']:.3g} {cv['unit']} rms on the fit's rows, {cv['held_out_rms']:.3g} "
+                f"on rows left out ({cv['rows']} positions, one at a time)" if cv and cv.get("held_out_rms") else "")
+        yield f"{s}: residual rms {b['residual_rms']:.3g} {unit}; {test}{eff}{held}"
+        if b.get("model_choice"):
+            yield (f"{s}: T chosen by the moves left out one at a time: " + ", ".join(
+                f"{k} {v['held_out_rms_deg']:.3g} deg" for k, v in b["model_choice"].items())
+                + f" rms; {b['gyro_model']} taken (a richer model only where it predicts the left-out moves better, "
+                  "p < 0.01)")
         if "auto" in b:
-            yield (f"{s}: --add auto chose " + ", ".join(x["id"] for x in b["auto"]) + " (one at a time, each passing "
-                   "the candidate test)" if b["auto"] else f"{s}: --add auto chose nothing (the model passes, or no "
-                   "library effect passes the candidate test)")
+            yield (f"{s}: --add auto chose " + (", ".join(x["id"] for x in b["auto"]) + " (one at a time, each passing "
+                   "the candidate test and predicting left-out rows better)" if b["auto"] else "nothing")
+                   + (f"; {b['auto_stopped']}" if b.get("auto_stopped") else ""))
         if b.get("p_value") is not None and b["p_value"] < 1e-3:
             what = b.get("advice")
             stds = ("stds are inflated by sqrt(chi2/dof) (std_raw keeps the unscaled ones)" if "std_raw" in b else
@@ -241,7 +252,8 @@ def _sensor_lines(result):
             first = next(iter(und.values()))
             yield (f"{s}: {', '.join(und)} not determined by these data"
                    + (f" (std alone {max(alone):.2g})" if alone else "")
-                   + f": held at {first['held_at']:g} +- {first['prior_std']:g} (\"determined\": false in the file); "
+                   + f": estimated under a soft prior {first['held_at']:g} +- {first['prior_std']:g} (a prior, not a "
+                   "measurement: the estimate may leave it; \"determined\": false in the file); "
                    f"to determine them, " + "; ".join(sorted({v["to_determine"] for v in und.values()})))
     for s in ("acc", "gyro"):
         poor = (result.get(s) or {}).get("poorly_determined") or {}

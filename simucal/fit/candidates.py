@@ -22,6 +22,7 @@ import numpy as np
 
 from simucal.errors import CalibrationError
 from simucal.fit.augmented import AugmentedModel, effect_ids
+from simucal.fit.cross_validation import leave_one_out, paired_improvement
 from simucal.fit.aux_inputs import SENSOR_AUX
 from simucal.fit.distributions import chi2_sf, f_sf
 from simucal.fit.lack_of_fit import describe_shape, fit_with_noise, lack_of_fit
@@ -115,7 +116,8 @@ def test_model(model, obs: Observations, p0=None) -> tuple[Fit, Observations, di
     n, m = len(obs.N), len(model.params)
     lof = lack_of_fit(model, obs, fit)
     block = {"residual_rms": fit.residual_rms, "residual_unit": model.unit, "dof": fit.dof, "model": fit.model,
-             "noise": noise, "lack_of_fit": lof, "chi2": fit.chi2}
+             "noise": noise, "lack_of_fit": lof, "chi2": fit.chi2,
+             "cross_validation": leave_one_out(model, obs, fit)}
     if fit.chi2 is not None:
         noise_std = float(np.sqrt(np.mean(obs.sigma ** 2)))
         # expected residual rms if the model is right: chi2 has n - m dof over 3n components
@@ -132,23 +134,47 @@ def test_model(model, obs: Observations, p0=None) -> tuple[Fit, Observations, di
     return fit, obs, block
 
 
-def forward_selection(model: AugmentedModel, obs: Observations, max_terms=6) -> tuple[AugmentedModel, list]:
+AUTO_TRIES = 3  # candidates passing the gate whose held-out errors are tried, strongest first
+
+
+def forward_selection(model: AugmentedModel, obs: Observations, max_terms=6) -> tuple[AugmentedModel, list, str]:
     """`--add auto`: the library effects that explain a failing model, chosen one at a time.
-    While the model fails its test (test_model), the strongest candidate that passes
-    rank_candidates' Bonferroni gate is added and the model tested again. Returns the model
-    with them and the steps (id, its estimate when chosen, the test's p-value after)."""
+    While the model fails its test (test_model), a candidate is added only when it passes
+    rank_candidates' Bonferroni gate and also predicts the rows left out better than the model
+    without it (cross_validation.paired_improvement, one-sided p < ALPHA); the strongest of up to
+    AUTO_TRIES such candidates is taken and the model tested again. Where a term outside the
+    library (lack_of_fit.describe_shape) explains more of the misfit than any library effect, it
+    stops and says so instead of chaining effects that only absorb that misfit.
+    Returns the model, the steps (id, estimate, the test's p and the held-out rms after) and why
+    it stopped."""
     steps = []
     fit, obs2, base = test_model(model, obs)
-    while len(steps) < max_terms and base["p_value"] is not None and base["p_value"] < ALPHA:
-        sig = [c for c in rank_candidates(model, obs2, fit, True) if c.get("significant")]
+    while base["p_value"] is not None and base["p_value"] < ALPHA:
+        if len(steps) == max_terms:
+            return model, steps, f"stopped at {max_terms} effects with the model still failing"
+        cands = rank_candidates(model, obs2, fit, True)
+        shape = shape_if_unexplained(model, obs2, fit, base, cands)
+        if shape and not shape.get("catalog_id"):
+            return model, steps, (f"a term outside the library explains more than any library effect: {shape['text']}; "
+                                  "simucal diagnose writes it as a model file for --add FILE")
+        sig = [c for c in cands if c.get("significant")][:AUTO_TRIES]
         if not sig:
-            break
-        model = AugmentedModel(model.base, model.effects + (sig[0]["id"],))
-        fit, obs2, base = test_model(model, obs)
-        steps.append({"id": sig[0]["id"], "estimate": sig[0]["estimate"], "std": sig[0]["std"],
-                      "unit": sig[0]["unit"], "p_value_after": base["p_value"],
-                      "residual_rms_after": fit.residual_rms})
-    return model, steps
+            return model, steps, "no library effect passes the candidate gate; the model still fails"
+        for c in sig:
+            trial = AugmentedModel(model.base, model.effects + (c["id"],))
+            f1, o1, b1 = test_model(trial, obs)
+            p_cv = paired_improvement(base["cross_validation"], b1["cross_validation"])
+            if p_cv is None or p_cv < ALPHA:
+                break
+        else:
+            return model, steps, (f"the candidates passing the gate ({', '.join(c['id'] for c in sig)}) do not predict "
+                                  "the positions left out better (it would only fit the misfit); the model still fails")
+        model, fit, obs2, base = trial, f1, o1, b1
+        cv = base["cross_validation"]
+        steps.append({"id": c["id"], "estimate": c["estimate"], "std": c["std"], "unit": c["unit"],
+                      "p_value_after": base["p_value"], "residual_rms_after": fit.residual_rms,
+                      "held_out_rms_after": cv["held_out_rms"] if cv else None, "p_held_out_better": p_cv})
+    return model, steps, "the model passes its test" if steps else "the model passes its test: nothing added"
 
 
 def shape_if_unexplained(model, obs, fit, base, cands) -> dict | None:

@@ -33,6 +33,12 @@ class Observations:
     aux: AuxInputs = field(default_factory=AuxInputs)  # temp_c, t_s, f_x.. or w2, a user's columns: per row
     labels: list = field(default_factory=list)  # segment ids, for messages
 
+    def take(self, rows) -> "Observations":
+        """The observations of the given rows (indices)."""
+        rows = np.asarray(rows)
+        return Observations(self.N[rows], self.rho[rows], None if self.sigma is None else self.sigma[rows],
+                            self.aux.take(rows), [self.labels[i] for i in rows] if self.labels else [])
+
 
 @dataclass
 class Fit:

@@ -80,6 +80,7 @@ class GyroFit:
 
 UNSEEN_STD = 0.05  # an entry of T (near I) whose std from the moves alone is above this is not determined
 PRIOR_T = 0.05     # such an entry is held at nominal with this std: 5 % scale, 50 mrad misalignment
+FIXED_STD = 1e-9   # an entry a simpler gyro model leaves out (GYRO_MODELS): at nominal
 PRIOR_MISALIGNMENT_RAD = 0.01  # accelerometer misalignments the poses cannot see: held at 0 with this std
 
 
@@ -164,29 +165,38 @@ def move_residuals(T, mv: Moves, g_dirs, jac=True, db=None, p=None):
     return r, -np.matmul(skew(pred), dphi)
 
 
-def fit_gyro_moves(mv: Moves, g_dirs, x0, bias_std, max_iter=30, step_tol=1e-3, offset=0.0, held=()) -> GyroFit:
+def _prior(mv: Moves, n, bias_std, held=(), fixed=()):
+    """The prior rows and their targets for x = [vec(T), db, p]: the rest read b_rest = b + sum_j
+    p_j e_j phi_j(rest), so db + that sum = 0 +- bias_std; entries `held` of vec(T) at nominal (I)
+    with std PRIOR_T (a soft prior), entries `fixed` at nominal (a simpler model: FIXED_STD)."""
+    E = np.zeros((3, n - 12))
+    if mv.n_terms:
+        E[list(mv.phi_axes), np.arange(n - 12)] = mv.phi_rest
+    prior = np.c_[np.zeros((3, 9)), np.eye(3), E] / bias_std[:, None]
+    target = np.zeros(3)
+    for idx, std in ((list(held), PRIOR_T), (list(fixed), FIXED_STD)):
+        if idx:
+            rows = np.zeros((len(idx), n))
+            rows[np.arange(len(idx)), idx] = 1.0 / std
+            prior = np.vstack([prior, rows])
+            target = np.r_[target, np.eye(3).ravel()[idx] / std]
+    return prior, target
+
+
+def fit_gyro_moves(mv: Moves, g_dirs, x0, bias_std, max_iter=30, step_tol=1e-3, offset=0.0, held=(),
+                   fixed=()) -> GyroFit:
     """Gauss-Newton on x = [vec(T), db, p] from x0, the rest's bias entering as a prior
     with its standard error bias_std (deg/s): the moves inform the bias too. The
     direction noise sigma_r is the moves' residual rms (re-estimated each step).
-    offset is added to the residuals (a coarse level's defect, see fit_gyro). held: entries k
-    of vec(T) the moves do not determine, held at nominal (I) by a prior of std PRIOR_T.
+    offset is added to the residuals (a coarse level's defect, see fit_gyro). held, fixed: entries
+    of vec(T) near nominal by a prior (_prior).
 
     Converged when no step exceeds step_tol of its parameter's std: that step is
     taken and only the residual recomputed, the Jacobian of the point before serving
     the covariance (it differs by ~step_tol)."""
     x = np.array(x0, float)
     n = len(x)
-    # the prior: the rest read b_rest = b + sum_j p_j e_j phi_j(rest), so db + that sum = 0 +- bias_std
-    E = np.zeros((3, n - 12))
-    if mv.n_terms:
-        E[list(mv.phi_axes), np.arange(n - 12)] = mv.phi_rest
-    prior = np.c_[np.zeros((3, 9)), np.eye(3), E] / bias_std[:, None]
-    target = np.zeros(3)
-    if len(held):
-        rows = np.zeros((len(held), n))
-        rows[np.arange(len(held)), list(held)] = 1.0 / PRIOR_T
-        prior = np.vstack([prior, rows])
-        target = np.r_[target, np.eye(3).ravel()[list(held)] / PRIOR_T]
+    prior, target = _prior(mv, n, bias_std, held, fixed)
 
     def evaluate(x, jac=True):
         r, J = move_residuals(x[:9].reshape(3, 3), mv, g_dirs, jac, db=x[9:12], p=x[12:])
@@ -221,19 +231,71 @@ def fit_gyro_moves(mv: Moves, g_dirs, x0, bias_std, max_iter=30, step_tol=1e-3, 
     return GyroFit(x[:9].reshape(3, 3), x[9:12], x[12:], r, np.linalg.pinv(A.T @ A), it, converged)
 
 
-def fit_gyro(mv: Moves, g_dirs, bias_std, x0=None, held=()) -> GyroFit:
+def fit_gyro(mv: Moves, g_dirs, bias_std, x0=None, held=(), fixed=()) -> GyroFit:
     """Coarse to fine; only the full-resolution fixed point is reported. Moves in blocks
     of 16 samples get near it; blocks of 4, with their defect against the full
     resolution at that point added (defect correction), get close enough that one
     full-resolution Jacobian usually suffices."""
     x = np.r_[np.ravel(np.eye(3)), np.zeros(3 + mv.n_terms)] if x0 is None else x0
-    f = fit_gyro_moves(decimate(mv, 16), g_dirs, x, bias_std, held=held)
+    f = fit_gyro_moves(decimate(mv, 16), g_dirs, x, bias_std, held=held, fixed=fixed)
     x = np.r_[f.T.ravel(), f.db, f.p]
     mv4 = decimate(mv, 4)
     defect = (move_residuals(f.T, mv, g_dirs, jac=False, db=f.db, p=f.p)[0]
               - move_residuals(f.T, mv4, g_dirs, jac=False, db=f.db, p=f.p)[0])
-    f = fit_gyro_moves(mv4, g_dirs, x, bias_std, offset=defect, held=held)
-    return fit_gyro_moves(mv, g_dirs, np.r_[f.T.ravel(), f.db, f.p], bias_std, held=held)
+    f = fit_gyro_moves(mv4, g_dirs, x, bias_std, offset=defect, held=held, fixed=fixed)
+    return fit_gyro_moves(mv, g_dirs, np.r_[f.T.ravel(), f.db, f.p], bias_std, held=held, fixed=fixed)
+
+
+GYRO_MODELS = {"nominal": None, "scale": (1, 2, 3, 5, 6, 7), "full": ()}  # entries of vec(T) fixed at nominal
+GYRO_MODEL_TEXT = {
+    "nominal": "nominal scale factors (T = I; std null: not estimated), bias from the initial rest: the moves do not "
+               "support more (model_choice)",
+    "scale": "scale factors only (T diagonal; off-diagonal std null: not estimated), bias from the initial rest refined "
+             "by the moves: the moves do not support a full matrix (model_choice)",
+    "full": "full 3x3 M (scale, misalignment, triad rotation), bias from the initial rest, effects over the moves"}
+
+
+def held_out_moves(mv: Moves, g_dirs, f: GyroFit, bias_std, held=(), fixed=()) -> np.ndarray:
+    """Each move's gravity-direction residual (rad, ~ the angle) predicted by the fit without that
+    move: the leave-one-out identity of the Gauss-Newton step at the optimum, r_(k) = (I - H_kk)^-1 r_k
+    with H_kk = A_k (A^T A)^-1 A_k^T the move's block of the hat matrix (the prior rows stay in A)."""
+    r, J = move_residuals(f.T, mv, g_dirs, db=f.db, p=f.p)
+    n = J.shape[-1]
+    prior = _prior(mv, n, bias_std, held, fixed)[0]
+    s_r = max(float(np.sqrt(np.mean(r ** 2))), 1e-12)
+    B = np.linalg.pinv(np.vstack([J.reshape(-1, n) / s_r, prior]).T @ np.vstack([J.reshape(-1, n) / s_r, prior]))
+    H = np.einsum("mai,ij,mbj->mab", J / s_r, B, J / s_r)
+    return np.linalg.norm(np.linalg.solve(np.eye(3) - H, r[..., None])[..., 0], axis=1)
+
+
+def _rms_deg(angles_rad):
+    return float(np.degrees(np.sqrt(np.mean(np.asarray(angles_rad) ** 2))))
+
+
+def choose_gyro_model(mv: Moves, g_dirs, bias_std, f_full: GyroFit, held=()) -> tuple[str, GyroFit, dict]:
+    """The gyro's T by what the moves support, judged on moves left out (issue: a full matrix from
+    few moves can be worse than the nominal one): nominal (T = I, the rest's bias), scale factors
+    only, or the full 3x3. A richer model is taken only where it predicts the left-out moves better
+    than the simpler one (cross_validation.paired_improvement, p < ALPHA), so the chosen model's
+    held-out error is never significantly above the nominal's. Returns (name, its fit, the table)."""
+    from simucal.fit.cross_validation import paired_improvement
+    nominal = GyroFit(np.eye(3), np.zeros(3), f_full.p * 0, move_residuals(np.eye(3), mv, g_dirs, jac=False,
+                      db=np.zeros(3), p=f_full.p * 0)[0], np.zeros_like(f_full.cov), 0, True)
+    fits = {"nominal": (nominal, np.linalg.norm(nominal.r, axis=1))}
+    x0 = np.r_[f_full.T.ravel(), f_full.db, f_full.p]
+    held_diag = [k for k in held if k not in GYRO_MODELS["scale"]]
+    scale = fit_gyro(mv, g_dirs, bias_std, x0, held=held_diag, fixed=GYRO_MODELS["scale"])
+    fits["scale"] = (scale, held_out_moves(mv, g_dirs, scale, bias_std, held_diag, GYRO_MODELS["scale"]))
+    fits["full"] = (f_full, held_out_moves(mv, g_dirs, f_full, bias_std, held=held))
+    chosen, table = "nominal", {}
+    for name, (fit, held_out) in fits.items():
+        table[name] = {"held_out_rms_deg": _rms_deg(held_out), "in_sample_rms_deg": _rms_deg(np.linalg.norm(fit.r, axis=1))}
+        if name != "nominal":
+            p = paired_improvement({"held_out": fits[chosen][1]}, {"held_out": held_out})
+            table[name].update(compared_with=chosen, p_better=p)
+            if p is not None and p < ALPHA and fit.converged:
+                chosen = name
+    return chosen, fits[chosen][0], table
 
 
 def decimate(mv: Moves, k: int) -> Moves:
@@ -537,7 +599,7 @@ def calibrate_handheld(ms, acc_model="acc_baseline", detect=None, pose_window_s=
     obs, det, am, fa, tau = acc_from_poses(ms, acc_model, detect, pose_window_s)
     acc_chosen = None
     if auto:  # the library effects the failing poses need (candidates.forward_selection)
-        am2, acc_chosen = forward_selection(am, obs)
+        am2, acc_chosen, acc_stopped = forward_selection(am, obs)
         if acc_chosen:
             obs, det, am, fa, tau = acc_from_poses(ms, am2, detect, pose_window_s)
     M_a, b_a = am.matrix_and_bias(fa.vector(am.params))
@@ -547,7 +609,7 @@ def calibrate_handheld(ms, acc_model="acc_baseline", detect=None, pose_window_s=
     result["acc"] = calibration.sensor_block(am, fa, M_a, b_a)
     result["acc"]["undetermined"] = fa.undetermined
     if auto:
-        result["acc"]["auto"] = acc_chosen
+        result["acc"]["auto"], result["acc"]["auto_stopped"] = acc_chosen, acc_stopped
     result["acc"].update(model_error_std_g=tau, note=None if tau == 0 else (
         "the model does not explain the poses down to their own noise (see chi2, p_value before "
         "the extra variance: simucal diagnose); each pose got an extra variance tau^2 so that "
@@ -594,6 +656,11 @@ def calibrate_handheld(ms, acc_model="acc_baseline", detect=None, pose_window_s=
                                 "held_at": float(np.eye(3).ravel()[k]), "prior_std": PRIOR_T,
                                 "to_determine": f"turn about the {'xyz'[k % 3]} axis by at least 90 deg between two poses"}
                             for n, k in zip(names, unseen)}
+        gyro_model, f, choice = choose_gyro_model(mv, gm.g_dirs, gm.bias_std, f, unseen)
+        fixed = [] if gyro_model == "full" else list(range(9)) if gyro_model == "nominal" else list(GYRO_MODELS["scale"])
+        if gyro_model != "full":
+            undetermined = {k: v for k, v in undetermined.items() if "xyz".index(k[2]) * 4 not in fixed
+                            and "xyz".index(k[2]) == "xyz".index(k[3])}
         T, r, cov = f.T, f.r, f.cov
         chi2, dof, p_value = chi2_test(f, move_covariances(gm, f, gyro_noise_dps(ms, gm)), gm.bias_std, mv)
         if undetermined and dead and p_value is not None and p_value < 1e-6:
@@ -602,14 +669,14 @@ def calibrate_handheld(ms, acc_model="acc_baseline", detect=None, pose_window_s=
                                    f"holding {list(undetermined)} at nominal leaves the moves unexplained (chi2 "
                                    f"{chi2:.3g} on {dof} dof): a dead or unconnected channel?")
         bias = gm.bias + f.db
-        bias_std = np.sqrt(np.diag(cov)[9:12])
+        bias_std = gm.bias_std if gyro_model == "nominal" else np.sqrt(np.diag(cov)[9:12])
+        std_T = [[None if 3 * i + j in fixed else float(np.sqrt(cov[3 * i + j, 3 * i + j])) for j in range(3)]
+                 for i in range(3)]
         M_g = np.linalg.inv(T)
         units.check_scale("gyro", M_g, ms.path / "samples.csv")
         result["gyro"] = calibration.affine_block(
-            "gyro", M_g, bias * 3600, {"T": np.sqrt(np.diag(cov)[:9]).reshape(3, 3).tolist(),
-                                       "bias": (bias_std * 3600).tolist()},
-            float(np.sqrt(np.mean(np.sum(r ** 2, 1)))),
-            "full 3x3 M (scale, misalignment, triad rotation), bias from the initial rest, effects over the moves",
+            "gyro", M_g, bias * 3600, {"T": std_T, "bias": (bias_std * 3600).tolist()},
+            float(np.sqrt(np.mean(np.sum(r ** 2, 1)))), GYRO_MODEL_TEXT[gyro_model],
             residual_unit="gravity direction (unit vector), per move", effects=effects,
             T=T.tolist(), T_note="T = M^-1: the rate in b is T (output - bias - effects)",
             moves=[{"from_pose": int(a), "to_pose": int(b), "t_s": list(span), "residual": ri.tolist()}
@@ -618,6 +685,7 @@ def calibrate_handheld(ms, acc_model="acc_baseline", detect=None, pose_window_s=
             moves_opposite_sense=gm.flipped, iterations=f.iterations, chi2=chi2, dof=dof, p_value=p_value,
             test="chi-square of the moves against the rests' white noise (simucal diagnose shows them)",
             std_note="stds scale with the moves' own residual scatter, so they include any misfit",
-            undetermined=undetermined, **({"auto": chosen or []} if auto else {}))
+            undetermined=undetermined, gyro_model=gyro_model, model_choice=choice,
+            **({"auto": chosen or []} if auto else {}))
     result["residual_rms"] = {s: result[s]["residual_rms"] for s in ("acc", "gyro") if s in result}
     return result

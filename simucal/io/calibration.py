@@ -92,7 +92,7 @@ def sensor_block(model, fit, M, bias, base: dict | None = None, C_b_model=None) 
         block["C_b_model"] = np.asarray(C_b_model).tolist()
     if base is not None:
         block.update(p_value=base["p_value"], test=base["test"], noise=base["noise"],
-                     lack_of_fit=base["lack_of_fit"])
+                     lack_of_fit=base["lack_of_fit"], cross_validation=base.get("cross_validation"))
     return block
 
 

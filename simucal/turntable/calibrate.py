@@ -336,7 +336,8 @@ def _exact_sensor(model, obs, method, where):
         shape = shape_if_unexplained(model, obs2, fit, base, cands)
         base["verdict"] = verdict(model.sensor, base, cands, where, shape, command="calibrate")
         sig = [c for c in cands if c.get("significant")]
-        advice = sig[0]["id"] if sig else ("a term " + shape["text"] if shape else None)
+        generic = shape and not shape.get("catalog_id")  # it beats every library effect: the verdict leads with it
+        advice = "a term " + shape["text"] if generic else sig[0]["id"] if sig else None
     else:
         base["verdict"] = verdict(model.sensor, base, [], where)
     return fit, base, advice, obs2
@@ -385,9 +386,9 @@ def calibrate_table(ms, method, acc_model, gyro_model, ids, acc_noise_g=None, gy
     chosen = {}
     if auto:
         if acc_obs is not None:
-            am, chosen["acc"] = forward_selection(am, acc_obs)
+            am, *chosen["acc"] = forward_selection(am, acc_obs)
         if gyro_obs is not None:
-            gm, chosen["gyro"] = forward_selection(gm, gyro_obs)
+            gm, *chosen["gyro"] = forward_selection(gm, gyro_obs)
     fa = fg = None
     if acc_obs is not None:
         fa, base_a, advice_a, acc_obs = _exact_sensor(am, acc_obs, method, str(ms.path))
@@ -437,7 +438,7 @@ def calibrate_table(ms, method, acc_model, gyro_model, ids, acc_noise_g=None, gy
         if s in result:
             calibration.inflate_if_failing(result[s])
             if s in chosen:
-                result[s]["auto"] = chosen[s]
+                result[s]["auto"], result[s]["auto_stopped"] = chosen[s]
     if ms.has_gyro and "gyro" not in result:  # the data hold a gyro, the plan determines none of it
         n_rate = sum(s.kind == "rate" for s in ms.segments)
         result["not_calibrated"] = {"gyro": (

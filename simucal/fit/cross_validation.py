@@ -1,0 +1,73 @@
+"""Judge a norm fit on rows it did not see: leave-one-position-out prediction error.
+
+On its own rows a model with more terms always fits better; on a row left out it does
+only if the terms are real. For each row i the exact fit is made without it (started
+from the full fit's parameters), and row i's output N_i is inverted by that fit,
+u_i = h^-1(N_i; p_(i)). The norm observation (dong2018 eq. 2: |u| is known, 1 g at
+rest, |w_T + w_e sin L| in a rate run) is then the prediction: the held-out error is
+|u_i| - rho_i, in the input's unit (g or deg/h). The same quantity at the full fit's
+parameters is the in-sample error it is compared with.
+
+Used by the model test (candidates.test_model) for every calibration and diagnosis,
+and by `--add auto`, which adds an effect only when it lowers the held-out errors by
+more than chance (paired_improvement).
+"""
+from __future__ import annotations
+
+import numpy as np
+
+from simucal.errors import CalibrationError
+from simucal.fit.apply import model_function, solve_inputs
+from simucal.fit.distributions import f_sf
+from simucal.fit.norm_fit import Fit, Observations, fit_exact
+
+
+def _norm_error(model, p, obs: Observations, rows) -> np.ndarray:
+    """|h^-1(N_i; p)| - rho_i for the given rows."""
+    M, bias = model.matrix_and_bias(p)
+    u = solve_inputs(model_function(model, p), M, bias, obs.N[rows], obs.aux.take(rows), model.sensor,
+                     "cross-validation")
+    return np.linalg.norm(u, axis=1) - obs.rho[rows]
+
+
+def leave_one_out(model, obs: Observations, fit: Fit) -> dict | None:
+    """Held-out and in-sample norm errors per row, or None where a row cannot be left out (fewer rows
+    than parameters + 1). Rows whose refit fails are counted, not hidden."""
+    n, m = len(obs.N), len(model.params)
+    if n < m + 2:
+        return None
+    p = fit.vector(model.params)
+    held, failed = np.full(n, np.nan), []
+    for i in range(n):
+        keep = np.r_[0:i, i + 1:n]
+        try:
+            fi = fit_exact(model, obs.take(keep), p0=p)
+            held[i] = _norm_error(model, fi.vector(model.params), obs, [i])[0]
+        except (CalibrationError, np.linalg.LinAlgError):
+            failed.append(obs.labels[i] if obs.labels else i)
+    inside = _norm_error(model, p, obs, np.arange(n))
+    ok = np.isfinite(held)
+    return {"rows": n, "failed": failed, "unit": model.unit,
+            "held_out": held.tolist(), "in_sample": inside.tolist(),
+            "held_out_rms": float(np.sqrt(np.mean(held[ok] ** 2))) if ok.any() else None,
+            "in_sample_rms": float(np.sqrt(np.mean(inside ** 2))),
+            "what": "leave one position out: |u_i| - rho_i of the left-out row, inverted by the fit without it"}
+
+
+def paired_improvement(before: dict, after: dict) -> float | None:
+    """One-sided p-value that `after` predicts the left-out rows better than `before`: the paired
+    differences of squared held-out errors, d_i = e0_i^2 - e1_i^2, by a t test (t^2 ~ F(1, n-1)).
+    None where either lacks held-out errors."""
+    if not before or not after:
+        return None
+    e0, e1 = np.asarray(before["held_out"]), np.asarray(after["held_out"])
+    ok = np.isfinite(e0) & np.isfinite(e1)
+    d = e0[ok] ** 2 - e1[ok] ** 2
+    if len(d) < 3:
+        return None
+    sd = d.std(ddof=1)
+    if sd == 0:
+        return 0.0 if d.mean() > 0 else 1.0
+    t = d.mean() / (sd / np.sqrt(len(d)))
+    p_two = float(f_sf(t * t, 1, len(d) - 1))
+    return p_two / 2 if t > 0 else 1 - p_two / 2
