@@ -223,8 +223,7 @@ def _sensor_lines(result):
         if b.get("model_choice"):
             yield (f"{s}: T chosen by the moves left out one at a time: " + ", ".join(
                 f"{k} {v['held_out_rms_deg']:.3g} deg" for k, v in b["model_choice"].items())
-                + f" rms; {b['gyro_model']} taken (a richer model only where it predicts the left-out moves better, "
-                  "p < 0.01)")
+                + f" rms; {b['gyro_model']} taken (the best predictor of the moves left out)")
         if "auto" in b:
             yield (f"{s}: --add auto chose " + (", ".join(x["id"] for x in b["auto"]) + " (one at a time, each passing "
                    "the candidate test and predicting left-out rows better)" if b["auto"] else "nothing")
