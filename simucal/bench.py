@@ -22,7 +22,7 @@ from pathlib import Path
 
 import numpy as np
 
-from simucal import io
+from simucal import io, progress
 from simucal.io import outputs
 from simucal.fit.catalog import load
 from simucal.fit.models import compile_c, generated_dir
@@ -58,6 +58,7 @@ def run(json_path=None, echo=print) -> dict:
     fig = {}
     with tempfile.TemporaryDirectory() as tmp:
         tmp = Path(tmp)
+        progress.status("bench: one exact fit, N = 12 (compiled and numpy)")
         write(tmp / "t1", Scenario(unify_positions=False), 3)
         obs, _ = segment_observations(io.read(tmp / "t1"), "acc")
         c, py = load("acc_baseline"), load("acc_baseline", compiled=False)
@@ -68,6 +69,7 @@ def run(json_path=None, echo=print) -> dict:
             fig["fit_exact_acc_n12_compiled_call_s"] = best(lambda: c.fit_compiled(*args))
             fig["fit_exact_acc_n12_s"] = best(lambda: fit_exact(c, obs))
         fig["fit_exact_acc_n12_numpy_s"] = best(lambda: fit_exact(py, obs), inner=5)
+        progress.status("bench: fit_exact against N = 12 ... 100,000 rows")
         scaling = {}
         rng = np.random.default_rng(0)
         for N in (12, 100, 1000, 10000, 100000):
@@ -77,6 +79,7 @@ def run(json_path=None, echo=print) -> dict:
             o = Observations(c.output(u, p) + rng.normal(0, 1e-5, (N, 3)), np.ones(N), np.full((N, 3), 1e-5))
             scaling[N] = best(lambda: fit_exact(c, o), repeats=3, inner=1)
         fig["fit_exact_scaling_s"] = scaling
+        progress.status("bench: the Monte Carlo, 100,000 trials compiled, 20,000 in numpy")
         montecarlo.run(Scenario(), 2000, 0)  # warm: compiled libraries loaded
         mc = montecarlo.run(Scenario(), 100000, 1)
         fig["montecarlo_trials_per_s"] = mc["trials_per_s"]
@@ -85,10 +88,12 @@ def run(json_path=None, echo=print) -> dict:
         env = {**os.environ, "SIMUCAL_NO_COMPILE": "1"}
         fig["montecarlo_trials_per_s_numpy"] = float(subprocess.run([sys.executable, "-c", code], env=env, check=True,
                                                                     capture_output=True, text=True).stdout.split()[-1])
+        progress.status("bench: simucal montecarlo --trials 200000, three whole processes")
         fig["cli_montecarlo_200k_trials_s"] = process(["simucal", "montecarlo", "--trials", "200000", "-o",
                                                       str(tmp / "mc.json")])
         ratios = [v["std_over_crlb"] for v in json.loads((tmp / "mc.json").read_text())["parameters"].values()]
         fig["montecarlo_200k_std_over_crlb_min"], fig["montecarlo_200k_std_over_crlb_max"] = min(ratios), max(ratios)
+        progress.status("bench: simucal calibrate and field-drift as whole processes")
         write(tmp / "raw", Scenario(rate_hz=100.0), 1)
         fig["rows_raw_turntable"] = len(io.read(tmp / "raw").samples["t_s"])
         fig["cli_calibrate_raw_turntable_s"] = process(["simucal", "calibrate", str(tmp / "raw"), "-o", str(tmp / "c.json")])
@@ -100,6 +105,7 @@ def run(json_path=None, echo=print) -> dict:
         subprocess.run(["simucal", "simulate", str(tmp / "field"), "--scenario", "field"], check=True, capture_output=True)
         fig["cli_field_drift_s"] = process(["simucal", "field-drift", str(tmp / "field"), "-o", str(tmp / "d.json")])
         fig["cli_help_s"] = process(["simucal", "--help"])
+        progress.status("bench: one model compiled afresh")
         src = (generated_dir() / "acc_baseline.c").read_text() + f"\n/* {time.time()} */\n"  # a fresh build
         t = time.perf_counter()
         compile_c("bench_acc_baseline", src)

@@ -306,8 +306,7 @@ def calibrate(data_dirs, output, method, acc_model, gyro_model, add, acc_noise_g
             click.echo(line)
         click.echo(f"wrote {output} (method {result['method']})")
         return
-    from tqdm import tqdm
-
+    from simucal import progress
     from simucal.sweeps import map_tasks
     out = Path(output)
     names = [Path(d).resolve().name for d in data_dirs]
@@ -320,7 +319,7 @@ def calibrate(data_dirs, output, method, acc_model, gyro_model, add, acc_noise_g
     _guard(inputs, files=[path for _, path, _ in tasks], folders=[out])
     out.mkdir(exist_ok=True)
     done = map_tasks(calibrate_to_file, tasks, scheduler,
-                     progress=lambda it: tqdm(it, desc="calibrate", unit="set", leave=False, disable=not sys.stderr.isatty()))
+                     progress=progress.bar("calibrate", "set"))
     failed = 0
     for (d, path, _), (result, error) in zip(tasks, done):
         if error:
@@ -363,12 +362,11 @@ def apply_cmd(calibration_file, data_dir, out_dir, force):
 def audit(output, seeds):
     """Check the paper's printed equations (4)-(27), Table 1 and 2, term by term at the section-4
     values, and its numeric claims (abstract, Tables 3 and 4) against a Monte Carlo."""
-    from tqdm import tqdm
-
-    from simucal.report.paper_claims import full_audit
+    from simucal import progress
     from simucal.io import outputs
+    from simucal.report.paper_claims import full_audit
     _guard(files=[output])
-    report = full_audit(seeds, progress=lambda items: tqdm(items, desc="audit", leave=False))
+    report = full_audit(seeds, progress=progress.bar("audit", "item"))
     outputs.write_text(output, report.markdown())
     click.echo(f"wrote {output}: {report.summary()}")
 
@@ -475,10 +473,9 @@ def montecarlo(scenario, plan, trials, seed, effects, output, scheduler):
     """Monte Carlo of a scenario: simulate, exact fits, unification; std against the Cramer-Rao bound."""
     import json
 
-    from tqdm import tqdm
-
-    from simucal.turntable.montecarlo import run
+    from simucal import progress
     from simucal.io import outputs
+    from simucal.turntable.montecarlo import run
     from simucal.turntable.simulate import SCENARIOS, plant
     _guard([plan if plan and Path(plan).exists() else None], files=[output])
     if effects and trials > MAX_TRIALS // 10:  # their fits run in numpy, ~10x slower
@@ -490,8 +487,7 @@ def montecarlo(scenario, plan, trials, seed, effects, output, scheduler):
     try:
         plant(sc, effects)
         result = run(sc, trials, seed, scheduler=scheduler,
-                     progress=lambda it: tqdm(it, desc="montecarlo", unit="batch", leave=False,
-                                              disable=not sys.stderr.isatty()))
+                     progress=progress.bar("montecarlo", "batch"))
     except (ValueError, KeyError, FileNotFoundError) as e:
         _fail(e)
     outputs.write_text(output, json.dumps(result, indent=1) + "\n")

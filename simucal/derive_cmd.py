@@ -6,6 +6,7 @@ import difflib
 import time
 from pathlib import Path
 
+from simucal import progress
 from simucal.fit.models import generated_dir
 
 
@@ -16,6 +17,7 @@ def run(check: bool = False, out_dir: Path | None = None) -> tuple[list[str], fl
     from simucal.derive.registry import BUILTIN
 
     t0 = time.perf_counter()
+    progress.status(f"deriving the {len(BUILTIN)} built-in models with SymPy and generating their code (seconds)")
     out_dir = out_dir or generated_dir()
     files = codegen.generate(list(BUILTIN))
     if check:

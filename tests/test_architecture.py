@@ -14,7 +14,7 @@ ROOT = Path(simucal.__file__).parent
 # Lower layers first; a module may import from its own layer's package and from lower layers.
 # The three methods sit side by side and never import each other.
 LAYERS = [
-    {"simucal.errors", "simucal.sweeps", "simucal.generated"},
+    {"simucal.errors", "simucal.sweeps", "simucal.progress", "simucal.generated"},
     {"simucal.io"},
     {"simucal.fit"},
     {"simucal.turntable", "simucal.handheld", "simucal.field"},

@@ -20,6 +20,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from simucal import progress
 from simucal.errors import CalibrationError
 from simucal.fit.augmented import AugmentedModel, effect_ids
 from simucal.fit.cross_validation import leave_one_out, paired_improvement
@@ -41,7 +42,7 @@ def rank_candidates(model: AugmentedModel, obs: Observations, fit: Fit, base_fai
     u = fit.directions * obs.rho[:, None]
     ids = [e for e in effect_ids(model.sensor) if e not in model.effects]
     cols, out = {}, []
-    for eid in ids:
+    for eid in progress.steps(ids, f"{model.sensor} candidates", "effect"):
         axis, pname, unit, meaning = (getattr(EFFECTS[eid], k) for k in ("axis", "parameter", "unit", "meaning"))
         phi = np.broadcast_to(EFFECTS[eid].phi(u, obs.aux.array(SENSOR_AUX[model.sensor], (len(u),)))[0][..., 0],
                               (len(u),))

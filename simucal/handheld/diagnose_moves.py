@@ -28,6 +28,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from simucal import progress
 from simucal.fit.augmented import check_effect, effect_ids
 from simucal.fit.aux_inputs import FORCE
 from simucal.fit.candidates import gate_candidates, verdict
@@ -71,7 +72,7 @@ def rank_move_candidates(gm, base: GyroFit, inputs, base_fails, alpha):
     _, J0 = move_residuals(base.T, gm.mv, gm.g_dirs, db=base.db)
     Q, _ = np.linalg.qr(J0.reshape(-1, 12))
     out = []
-    for eid in effect_ids("gyro"):
+    for eid in progress.steps(effect_ids("gyro"), "gyro candidates over the moves", "effect"):
         pname, unit, meaning = EFFECTS[eid].parameter, EFFECTS[eid].unit, EFFECTS[eid].meaning
         family, ax = eid.split(".")[1], eid.split(".")[2]
         entry = {"effect": f"gyro.{family}", "axis": ax, "id": eid, "parameter": pname, "unit": unit,

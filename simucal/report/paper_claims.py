@@ -141,7 +141,10 @@ def full_audit(seeds=20, progress=None):
     """derive.audit's report with the term-by-term check at the section-4 values and, for seeds > 0,
     the claims' Monte Carlo (progress: wraps an iterable, e.g. tqdm)."""
     from simucal.derive.audit import run_audit
+    from simucal.progress import status
+    status("audit: the paper's equations 4-27 and Table 1 against the derivation, term by term")
     rep = run_audit(progress=progress, values=section4_values())
     if seeds > 0:
+        status(f"audit: the numeric claims against a Monte Carlo of {seeds} simulated tests per setting")
         rep.claims = claims(seeds, progress)
     return rep
