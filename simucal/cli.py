@@ -200,9 +200,9 @@ def simulate(out_dir, scenario, heading_error_deg, seed, plan, rate_hz, position
 
 
 _ADD_HELP = ("Effect id to add, e.g. acc.quadratic.z (exact ids; unknown ones are refused), or a model file "
-             "(MODELS = [...]) with your own SymPy terms, derived into the cache (repeatable). calibrate also takes "
-             "'auto': the library effects a failing model needs, chosen one at a time by the same test as diagnose. "
-             + _MODEL_FILE_RUNS)
+             "(MODELS = [...]) with your own SymPy terms, derived into the cache (repeatable). " + _MODEL_FILE_RUNS)
+_ADD_AUTO_HELP = (_ADD_HELP + " Also 'auto': the library effects a failing model needs, chosen one at a time by the "
+                  "same test as diagnose, each also predicting left-out positions better.")
 
 
 def _sensor_lines(result):
@@ -276,7 +276,7 @@ def _sensor_lines(result):
 @click.option("--method", type=click.Choice(["exact", "linear", "multiposition"]), default="exact", show_default=True)
 @click.option("--acc-model", default="acc_baseline", show_default=True)
 @click.option("--gyro-model", default="gyro_baseline", show_default=True)
-@click.option("--add", "add", multiple=True, help=_ADD_HELP)
+@click.option("--add", "add", multiple=True, help=_ADD_AUTO_HELP)
 @click.option("--acc-noise-g", type=NOISE_G, default=None, help="Noise of one acc row (g), where the data cannot give it.")
 @click.option("--gyro-noise-dph", type=NOISE_DPH, default=None, help="Noise of one gyro row (deg/h).")
 @click.option("--init-rest-s", type=POSITIVE, default=None, help="Stream: length of the initial rest (default: found from the data).")
@@ -337,7 +337,8 @@ def calibrate(data_dirs, output, method, acc_model, gyro_model, add, acc_noise_g
 @main.command("apply")
 @click.argument("calibration_file", type=click.Path(exists=True, dir_okay=False))
 @click.argument("data_dir", type=click.Path(exists=True, file_okay=False))
-@click.option("-o", "--out-dir", required=True, type=click.Path(file_okay=False))
+@click.option("-o", "--output", "--out-dir", "out_dir", required=True, type=click.Path(file_okay=False),
+              help="The output folder (a measurement set).")
 @_FORCE
 def apply_cmd(calibration_file, data_dir, out_dir, force):
     """Apply a calibration to raw data: a measurement set in g and deg/h, frame b."""
@@ -372,7 +373,7 @@ def audit(output, seeds):
 
 
 @main.command()
-@click.option("-o", "--out-dir", type=click.Path(file_okay=False), default="out", show_default=True)
+@click.option("-o", "--output", "--out-dir", "out_dir", type=click.Path(file_okay=False), default="out", show_default=True)
 @click.option("--seed", type=SEED, default=0, show_default=True)
 @_FORCE
 def demo(out_dir, seed, force):
@@ -437,6 +438,9 @@ def diagnose(data_dir, output, html_path, add, acc_model, gyro_model, acc_noise_
     from simucal.diagnose import diagnose as diagnose_set
     from simucal.errors import CalibrationError
     from simucal.io import MeasurementSetError, outputs
+    if "auto" in add:
+        _fail(f"--add auto is calibrate's: diagnose already ranks every candidate; run simucal calibrate {data_dir} "
+              "--add auto")
     _guard([data_dir] + [a for a in add if a.endswith(".py")],
            files=[output, html_path, _shape_model_path(output, "acc"), _shape_model_path(output, "gyro")])
     try:
@@ -656,7 +660,8 @@ def field_drift(data_dir, output, plot, heading_accuracy_deg):
 @main.command("import")
 @click.argument("fmt", type=click.Choice(["imu_tk", "imucal-ferraris", "imucal-annotated", "csv"]))
 @click.argument("sources", nargs=-1, required=True, type=click.Path(exists=True, dir_okay=False))
-@click.option("-o", "--out-dir", required=True, type=click.Path(file_okay=False))
+@click.option("-o", "--output", "--out-dir", "out_dir", required=True, type=click.Path(file_okay=False),
+              help="The output folder (a measurement set).")
 @click.option("--latitude-deg", type=LATITUDE, default=None, help="Site latitude (the spec needs it with gyro data).")
 @click.option("--acc-counts-per-g", type=POSITIVE, default=None, help="imu_tk: nominal accelerometer LSB per g.")
 @click.option("--gyro-counts-per-dps", type=POSITIVE, default=None, help="imu_tk: nominal gyro LSB per deg/s.")

@@ -27,11 +27,11 @@ def check_effect(eid: str, sensor: str | None = None):
         near = ([low[eid.lower()]] if eid.lower() in low else
                 [k for k in EFFECTS if eid and eid.lower() in k] or difflib.get_close_matches(eid, list(EFFECTS), 5))
         fam = sorted({".".join(k.split(".")[:2]) for k in EFFECTS})
-        raise KeyError(f"unknown effect {eid!r}" + (f"; did you mean {', '.join(near[:9])}?" if near else "")
+        raise KeyError(f"unknown effect {eid!r}" + (f"; did you mean {', '.join(near[:9])}?" if near else ".")
                        + f" Ids are <sensor>.<family>.<axis>, families {fam}, axes x, y, z (and pairs xy, ...). "
-                       "A term of your own: a model file (--add my_model.py)")
+                       "A term of your own: a model file (--add my_model.py).")
     if sensor is not None and EFFECTS[eid].sensor != sensor:
-        raise KeyError(f"effect {eid} is for the {EFFECTS[eid].sensor}, not the {sensor}")
+        raise KeyError(f"effect {eid} is for the {EFFECTS[eid].sensor}, not the {sensor}.")
 
 
 class AugmentedModel:

@@ -69,7 +69,8 @@ def _check_inputs(model, obs: Observations):
     if n < m:
         raise CalibrationError(
             f"{n} {model.sensor} positions for {m} parameters of {model.name}: the norm gives one "
-            f"equation per position, so at least {m} positions are needed")
+            f"equation per position, so at least {m} positions are needed (where the inputs are known, as a "
+            "table's commanded angles or the Ferraris poses give them, --method multiposition needs only 4)")
     check_not_coplanar(obs.N, model.sensor)
 
 

@@ -67,7 +67,7 @@ def read_csv(path) -> list:
     """A user's plan: CSV with columns outer_deg, middle_deg, inner_deg."""
     path = Path(path)
     if not path.is_file():
-        raise ValueError(f"--plan {path}: no such file; a plan is one of {sorted(PLANS)} or a CSV file with "
+        raise ValueError(f"plan {path}: no such file; a plan is one of {sorted(PLANS)} or a CSV file with "
                          "columns outer_deg, middle_deg, inner_deg")
     out = []
     with path.open(newline="") as fh:
