@@ -212,14 +212,17 @@ def _sensor_lines(result):
         if not b:
             continue
         unit = b.get("residual_unit", b.get("bias_unit"))
-        test = (f"chi2 {b['chi2']:.1f}, dof {b['dof']}, p = {b['p_value']:.3g}" if b.get("chi2") is not None
-                else f"p = {b['p_value']:.3g} ({b.get('test', '')})" if b.get("p_value") is not None
+        rows = f" over {b['rows']}" if b.get("rows") else ""
+        test = (f"chi2 {b['chi2']:.1f}, dof {b['dof']}{rows}, p = {b['p_value']:.3g}" if b.get("chi2") is not None
+                else f"p = {b['p_value']:.3g} ({b.get('test', '')}{rows})" if b.get("p_value") is not None
                 else "no test (" + b.get("test", "no noise estimate") + ")")
         eff = "".join(f"; {e} = {v['value']:.4g} +- {v['std']:.2g} {v['unit']}" for e, v in b.get("effects", {}).items())
         cv = b.get("cross_validation")
         held = (f"; |u| - rho {cv['in_sample_rms']:.3g} {cv['unit']} rms on the fit's rows, {cv['held_out_rms']:.3g} "
-                f"on rows left out ({cv['rows']} positions, one at a time)" if cv and cv.get("held_out_rms") else "")
+                f"on rows left out ({cv['rows']} rows, one at a time)" if cv and cv.get("held_out_rms") else "")
         yield f"{s}: residual rms {b['residual_rms']:.3g} {unit}; {test}{eff}{held}"
+        if (b.get("noise") or {}).get("text"):
+            yield f"{s}: noise {b['noise']['text']}"
         if b.get("model_choice"):
             yield (f"{s}: T chosen by the moves left out one at a time: " + ", ".join(
                 f"{k} {v['held_out_rms_deg']:.3g} deg" for k, v in b["model_choice"].items())
@@ -240,6 +243,8 @@ def _sensor_lines(result):
     if u and "std_rad" in u:
         yield (f"frames: C_b^d by {u['method'].replace('_', ' ')} ({u['pairs']} pairs), std "
                f"{max(u['std_rad']):.2g} rad, residual {u['direction_residual_rms_rad']:.2g} rad rms"
+               + "".join(f"; noise of the {k.replace('_', ' ')}: {v['text']}" for k, v in u.get("noise", {}).items()
+                         if k != "table_angles")
                + (f"; cross-check: {u['cross_check']['note']}" if "cross_check" in u else "")
                + (f"; {u['note']}" if u.get("note") else ""))
     for line in result.get("consistency", {}).get("lines", []):
@@ -701,6 +706,32 @@ def import_cmd(fmt, sources, out_dir, latitude_deg, acc_counts_per_g, gyro_count
     except im.ImportError_ as e:
         _fail(e)
     click.echo(f"wrote {out_dir}")
+
+
+@main.command()
+@click.argument("calibration_file", type=click.Path(exists=True, dir_okay=False))
+@click.argument("data_dir", type=click.Path(exists=True, file_okay=False))
+@click.option("-o", "--output", type=click.Path(dir_okay=False), default="validation.json", show_default=True)
+@click.option("--html", "html_path", type=click.Path(dir_okay=False), default=None, help="Also write a page with a plot.")
+def validate(calibration_file, data_dir, output, html_path):
+    """Apply a calibration to an independent set: the error before (nominal) and after, against the noise floor."""
+    import json
+
+    from simucal.errors import CalibrationError
+    from simucal.io import MeasurementSetError, outputs
+    from simucal.validate import html_page, lines
+    from simucal.validate import validate as run
+    _guard([calibration_file, data_dir], files=[output, html_path])
+    try:
+        report = run(calibration_file, data_dir)
+    except (MeasurementSetError, CalibrationError, ValueError) as e:
+        _fail(e)
+    outputs.write_text(output, json.dumps(report, indent=1) + "\n")
+    if html_path:
+        outputs.write_text(html_path, html_page(report))
+    for line in lines(report):
+        click.echo(line)
+    click.echo(f"wrote {output}" + (f" and {html_path}" if html_path else ""))
 
 
 if __name__ == "__main__":

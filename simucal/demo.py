@@ -3,7 +3,8 @@
 The loop: simulate a turntable test with a hidden effect (written only to
 truth.json), calibrate with the baseline model (it fails, and says what to
 add), diagnose (which effect is missing), calibrate with it, apply both
-calibrations to the raw outputs, and show the error falling. Then dong2018's
+calibrations to the raw outputs, and show the error falling; then validate both on
+another recording of the same unit (a set they were not made from). Then dong2018's
 section 4 test by the three methods, the audit, and the diagnosis report.
 """
 from __future__ import annotations
@@ -23,7 +24,7 @@ from simucal.report.html import render
 from simucal.turntable.simulate import SCENARIOS, write
 
 HIDDEN = {"acc.quadratic.z": 2e-4}  # g/g^2: a z accelerometer second-order nonlinearity
-SETS = ("loop", "loop_applied", "paper")  # the measurement sets it writes under its folder
+SETS = ("loop", "loop_applied", "loop_other", "paper")  # the measurement sets it writes under its folder
 MARKER = "demo.json"  # written last: the folder is a demo's, and a later demo may replace its sets
 
 
@@ -69,7 +70,28 @@ def loop(out: Path, seed: int, echo) -> dict:
     echo(f"   {'':28} {'baseline':>11} {'with ' + found[0]:>24}")
     for label, a, b in rows:
         echo(f"   {label:28} {a:11.3g} {b:24.3g}")
-    return {"found": found[0], "rest_error_before": err0, "rest_error_after": err1}
+    other = _validate(out, sc, seed, echo)
+    return {"found": found[0], "rest_error_before": err0, "rest_error_after": err1, "validation": other}
+
+
+def _validate(out: Path, sc, seed: int, echo) -> dict:
+    """Step 6: both calibrations on another recording of the same unit (the Table 1 plan, raw rows)."""
+    from simucal.validate import html_page, validate
+    sc.plan, sc.rate_hz, sc.static_s = "table1", 20.0, 5.0
+    write(out / "loop_other", sc, seed + 1)
+    reps = {name: validate(out / f"loop_calibration_{name}.json", out / "loop_other") for name in ("baseline", "added")}
+    for name, rep in reps.items():
+        outputs.write_text(out / f"loop_validation_{name}.json", json.dumps(rep, indent=1) + "\n")
+        outputs.write_text(out / f"loop_validation_{name}.html", html_page(rep))
+    echo(f"6 validate on {out / 'loop_other'} (the same unit, another plan, raw rows; data neither fit saw):")
+    echo(f"   {'':56} {'nominal':>9} {'baseline':>9} {'added':>9} {'floor':>9}")
+    for i, c in enumerate(reps["baseline"]["checks"]["acc"]):
+        a = reps["added"]["checks"]["acc"][i]
+        fl = "-" if c["floor_rms"] is None else f"{c['floor_rms']:.3g}"
+        echo(f"   {c['what'].split(',')[0][:56]:56} {c['before_rms']:9.3g} {c['after_rms']:9.3g} {a['after_rms']:9.3g} {fl:>9}  "
+             f"{c['unit']}")
+    echo("   verdict: " + "; ".join(f"{n} {r['verdict']['acc']}" for n, r in reps.items()))
+    return {n: r["checks"]["acc"][0]["after_rms"] for n, r in reps.items()}
 
 
 def paper(out: Path, seed: int, echo) -> None:
@@ -101,7 +123,7 @@ def run(out_dir, seed, echo) -> dict:
     if stale:
         raise RuntimeError(diff + "generated/ is stale; run `simucal derive`. Differs: " + ", ".join(stale))
     echo(f"derive: generated/ matches the derivation ({secs:.1f} s)")
-    echo("== the loop: a hidden effect found, added, calibrated with, applied ==")
+    echo("== the loop: a hidden effect found, added, calibrated with, applied, validated ==")
     result = loop(out, seed, echo)
     echo("== dong2018 section 4: exact, linear and multi-position methods ==")
     paper(out, seed, echo)

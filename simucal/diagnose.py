@@ -16,17 +16,11 @@ import numpy as np
 from simucal import io
 from simucal.errors import CalibrationError
 from simucal.fit.augmented import AugmentedModel
-from simucal.fit.candidates import (
-    ALPHA,
-    rank_candidates,
-    shape_if_unexplained,
-    test_model,
-    verdict,
-)
+from simucal.fit.candidates import ALPHA, test_model, verdict
 from simucal.fit.lack_of_fit import model_file_text
 from simucal.fit.norm_fit import Fit, Observations
 from simucal.turntable.calibrate import check_rate_sense, segment_observations
-from simucal.turntable.plan_design import TableAdvice
+from simucal.turntable.model_test import ROWS, test_and_rank
 
 
 def residual_table(fit: Fit, obs: Observations, segs) -> list[dict]:
@@ -57,29 +51,17 @@ def diagnose_sensor(ms, sensor, base_model, add=(), stated=None, truth=None, bef
     if ms.segments is None:  # a stream: its static poses, as the hand-placed calibration finds them
         from simucal.handheld.calibrate import pose_observations
         obs, det, poses = pose_observations(ms)
-        segs = [io.Segment(i, "static", None, None, None, 0.0) for i in range(len(poses))]
-    else:  # accelerometers: the rate runs too, where lever arms show
-        obs, segs = segment_observations(ms, sensor, kinds={"static", "rate"} if sensor == "acc" else None, stated=stated)
+        segs = None
+    else:  # the one model test's rows, calibrate's too (turntable/model_test.py)
+        obs, segs = segment_observations(ms, sensor, ROWS[sensor], stated)
         if sensor == "gyro":
             check_rate_sense(ms, obs, segs)
-    if not segs:
-        return None
+        if not segs:
+            return None
     model = AugmentedModel(base_model, tuple(add))
-    fit, obs, base = test_model(model, obs)
-    cands = rank_candidates(model, obs, fit, base["p_value"] is not None and base["p_value"] < ALPHA,
-                            advisor=TableAdvice() if ms.segments is not None else None)
-    table_info = None
-    if sensor == "acc" and ms.segments is not None:  # the table, from the static positions' directions
-        idx = [i for i, s in enumerate(segs) if s.kind == "static" and s.middle_deg is not None
-               and s.inner_deg is not None]
-        if len(idx) >= 6:
-            from simucal.turntable.table_fit import table_candidates
-            ang = [[segs[i].outer_deg or 0.0, segs[i].middle_deg, segs[i].inner_deg] for i in idx]
-            tc, table_info = table_candidates(fit.directions[idx], ang, ALPHA)
-            cands = sorted([c for c in cands + tc if c["separable"]],
-                           key=lambda c: (c["p_value"] if c["p_value"] is not None else 2.0, -c["statistic"])) + \
-                [c for c in cands + tc if not c["separable"]]
-    shape = shape_if_unexplained(model, obs, fit, base, cands)
+    fit, obs, base, cands, shape, table_info = test_and_rank(model, obs, segs)
+    if segs is None:
+        segs = [io.Segment(i, "static", None, None, None, 0.0) for i in range(len(poses))]
     out = {"baseline": base, "candidates": cands, "verdict": verdict(sensor, base, cands, str(ms.path), shape),
            "params": fit.params, "std": fit.std, "param_units": dict(zip(model.params, model.param_units)),
            "residuals": residual_table(fit, obs, segs)}

@@ -19,7 +19,7 @@ LAYERS = [
     {"simucal.fit"},
     {"simucal.turntable", "simucal.handheld", "simucal.field"},
     {"simucal.report"},
-    {"simucal.calibrate", "simucal.diagnose", "simucal.bench", "simucal.derive_cmd"},
+    {"simucal.calibrate", "simucal.diagnose", "simucal.validate", "simucal.bench", "simucal.derive_cmd"},
     {"simucal.demo"},
     {"simucal.cli"},
 ]

@@ -5,7 +5,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 from scipy import special
 
-from simucal.fit.distributions import chi2_isf, chi2_sf, f_sf
+from simucal.fit.distributions import chi2_isf, chi2_sf, chi2_sf_estimated, f_sf, t_isf
 
 
 @settings(max_examples=300, deadline=None)
@@ -32,6 +32,17 @@ def _close(got, ref):
 @pytest.mark.parametrize("p,k", [(1e-3, 3), (0.01 / 40, 1), (0.5, 10), (1e-9, 25)])
 def test_chi2_isf(p, k):
     assert chi2_isf(p, k) == pytest.approx(special.chdtri(k, p), rel=1e-9)
+
+
+@pytest.mark.parametrize("p,nu", [(1e-3, 5), (0.025, 1), (1.4e-7, 12.5), (0.1, 300)])
+def test_t_isf(p, nu):
+    assert t_isf(p, nu) == pytest.approx(special.stdtrit(nu, 1 - p), rel=1e-9)
+    assert t_isf(p, np.inf) == pytest.approx(-special.ndtri(p), rel=1e-9)
+
+
+def test_chi2_sf_estimated_is_f_for_estimated_covariances():
+    assert chi2_sf_estimated(9.0, 3, np.inf) == pytest.approx(special.chdtrc(3, 9.0), rel=1e-12)
+    assert chi2_sf_estimated(9.0, 3, 7.5) == pytest.approx(special.fdtrc(3, 7.5, 3.0), rel=1e-9)
 
 
 def test_tiny_tails_stay_positive():

@@ -34,10 +34,14 @@ def test_planted_effect_found_and_carried_by_calibrate(eid, tmp_path):
     truth = write(tmp_path, sc, 1)
     assert truth[sensor]["effects"] == {eid: PLANTED[eid]}
     base = calibrate(tmp_path)
-    if not eid.startswith("acc.size_effect"):  # calibrate fits the static positions, where lever arms do not act
-        assert base[sensor]["p_value"] < 1e-3 and base[sensor]["std_raw"]  # fails, stds inflated
-        assert base[sensor]["advice"]
-    top = [c for c in diagnose(tmp_path)[sensor]["candidates"] if c.get("significant")][0]
+    assert base[sensor]["p_value"] < 1e-3 and base[sensor]["std_raw"]  # fails, stds inflated
+    diag = diagnose(tmp_path)[sensor]
+    # one model test (turntable/model_test.py): calibrate and diagnose fit the same rows, report the
+    # same statistic and read their advice from the same ranking
+    assert base[sensor]["rows"] == diag["baseline"]["rows"] and base[sensor]["dof"] == diag["baseline"]["dof"]
+    assert base[sensor]["p_value"] == pytest.approx(diag["baseline"]["p_value"], rel=1e-9, abs=1e-300)
+    top = [c for c in diag["candidates"] if c.get("significant")][0]
+    assert base[sensor]["advice"] == top["id"]
     # the planted effect, or a twin this plan cannot tell from it
     assert top["id"] == eid or eid in top.get("note", ""), (top["id"], top.get("note"))
     cal = calibrate(tmp_path, add=(eid,))

@@ -138,7 +138,7 @@ def test_model(model, obs: Observations, p0=None) -> tuple[Fit, Observations, di
 AUTO_TRIES = 3  # candidates passing the gate whose held-out errors are tried, strongest first
 
 
-def forward_selection(model: AugmentedModel, obs: Observations, max_terms=6) -> tuple[AugmentedModel, list, str]:
+def forward_selection(model: AugmentedModel, obs: Observations, rank=None, max_terms=6) -> tuple[AugmentedModel, list, str]:
     """`--add auto`: the library effects that explain a failing model, chosen one at a time.
     While the model fails its test (test_model), a candidate is added only when it passes
     rank_candidates' Bonferroni gate and also predicts the rows left out better than the model
@@ -146,6 +146,9 @@ def forward_selection(model: AugmentedModel, obs: Observations, max_terms=6) -> 
     AUTO_TRIES such candidates is taken and the model tested again. Where a term outside the
     library (lack_of_fit.describe_shape) explains more of the misfit than any library effect, it
     stops and says so instead of chaining effects that only absorb that misfit.
+    rank(model, obs, fit, base) -> (candidates, shape): the ranking the caller's diagnosis uses
+    (turntable/model_test.rank); default rank_candidates and shape_if_unexplained. Only library
+    effects are added (a table's own terms in the ranking are not).
     Returns the model, the steps (id, estimate, the test's p and the held-out rms after) and why
     it stopped."""
     steps = []
@@ -153,12 +156,11 @@ def forward_selection(model: AugmentedModel, obs: Observations, max_terms=6) -> 
     while base["p_value"] is not None and base["p_value"] < ALPHA:
         if len(steps) == max_terms:
             return model, steps, f"stopped at {max_terms} effects with the model still failing"
-        cands = rank_candidates(model, obs2, fit, True)
-        shape = shape_if_unexplained(model, obs2, fit, base, cands)
+        cands, shape = rank(model, obs2, fit, base) if rank else _rank(model, obs2, fit, base)
         if shape and not shape.get("catalog_id"):
             return model, steps, (f"a term outside the library explains more than any library effect: {shape['text']}; "
                                   "simucal diagnose writes it as a model file for --add FILE")
-        sig = [c for c in cands if c.get("significant")][:AUTO_TRIES]
+        sig = [c for c in cands if c.get("significant") and c["id"] in EFFECTS][:AUTO_TRIES]
         if not sig:
             return model, steps, "no library effect passes the candidate gate; the model still fails"
         for c in sig:
@@ -176,6 +178,11 @@ def forward_selection(model: AugmentedModel, obs: Observations, max_terms=6) -> 
                       "p_value_after": base["p_value"], "residual_rms_after": fit.residual_rms,
                       "held_out_rms_after": cv["held_out_rms"] if cv else None, "p_held_out_better": p_cv})
     return model, steps, "the model passes its test" if steps else "the model passes its test: nothing added"
+
+
+def _rank(model, obs, fit, base):
+    cands = rank_candidates(model, obs, fit, True)
+    return cands, shape_if_unexplained(model, obs, fit, base, cands)
 
 
 def shape_if_unexplained(model, obs, fit, base, cands) -> dict | None:
@@ -196,13 +203,14 @@ def shape_if_unexplained(model, obs, fit, base, cands) -> dict | None:
 
 
 def _fmt_test(base):
+    rows = f" over {base['rows']}" if base.get("rows") else ""
     if base["chi2"] is not None and not base["noise"].get("rows_estimated"):
-        return f"chi2 {base['chi2']:.1f} on {base['dof']} dof, p = {base['p_value']:.2g}"
+        return f"chi2 {base['chi2']:.1f} on {base['dof']} dof{rows}, p = {base['p_value']:.2g}"
     lof = base["lack_of_fit"]
     t = f"lack-of-fit F {lof['F']:.3g} on ({lof['q']}, {lof['dof']}) dof" if lof.get("F") is not None else "no F test"
     if base["chi2"] is not None:
         t = f"chi2 {base['chi2']:.1f} on {base['dof']} dof with the noise partly estimated, " + t
-    return t + (f", p = {base['p_value']:.2g}" if base["p_value"] is not None else "")
+    return t + rows + (f", p = {base['p_value']:.2g}" if base["p_value"] is not None else "")
 
 
 def verdict(sensor, base, cands, where="DIR", shape=None, command="diagnose") -> str:

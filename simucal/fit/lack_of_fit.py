@@ -21,6 +21,7 @@
 from __future__ import annotations
 
 import itertools
+import math
 from dataclasses import dataclass, replace
 
 import numpy as np
@@ -128,7 +129,7 @@ def fit_with_noise(model, obs: Observations, p0=None) -> tuple[Fit, Observations
         s = float(np.sqrt(np.sum(fit.residuals ** 2) / fit.dof)) if fit.dof > 0 else None
         return fit, obs, {"source": "none in the data and none stated: one std for all rows, estimated from the fit "
                                "(so no chi-square test; the lack-of-fit F test decides)",
-                     "estimated_std": s, "rows_estimated": int(len(obs.N))}
+                     "estimated_std": s, "dof": int(fit.dof), "rows_estimated": int(len(obs.N))}
     s_u = float(np.median(sig[known]))
     for _ in range(8):
         full = np.where(known[:, None], sig, s_u)
@@ -146,7 +147,21 @@ def fit_with_noise(model, obs: Observations, p0=None) -> tuple[Fit, Observations
     fit.p_value = float(chi2_sf(fit.chi2, fit.dof)) if fit.dof > 0 else None
     return fit, replace(obs, sigma=np.where(known[:, None], sig, s_u)), {"source": f"{int(known.sum())} rows from their scatter or the stated noise; {int((~known).sum())} "
                            "rows (one averaged row, no stated noise) from a variance component estimated from the fit",
-                 "estimated_std": s_u, "rows_estimated": int((~known).sum())}
+                 "estimated_std": s_u, "dof": share, "rows_estimated": int((~known).sum())}
+
+
+def with_estimated_sigma(obs: Observations, noise: dict) -> Observations:
+    """The observations with every row's std: where fit_with_noise estimated one std for all
+    rows (sigma None, so that the test stays the F test), that std."""
+    if obs.sigma is not None or noise.get("estimated_std") is None:
+        return obs
+    return replace(obs, sigma=np.full(obs.N.shape, noise["estimated_std"]))
+
+
+def noise_dof(noise: dict) -> float:
+    """The degrees of freedom of the noise a fit used: inf where every row's was known (scatter
+    or stated), else its variance component's."""
+    return float(noise["dof"]) if noise.get("rows_estimated") else math.inf
 
 
 def _perp_basis(model, obs, fit, terms):

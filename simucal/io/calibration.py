@@ -62,8 +62,11 @@ def input_sha256(folder) -> str:
     return h.hexdigest()
 
 
+SERIAL = "unit_serial"  # meta.json's optional serial number of the unit (README: the spec's extension)
+
+
 def layout(ms) -> dict:
-    out = {k: ms.meta[k] for k in LAYOUT_KEYS if k in ms.meta}
+    out = {k: ms.meta[k] for k in LAYOUT_KEYS + (SERIAL,) if k in ms.meta}
     out["sensors"] = [s for s, has in (("acc", ms.has_acc), ("gyro", ms.has_gyro)) if has]
     return out
 
@@ -92,7 +95,8 @@ def sensor_block(model, fit, M, bias, base: dict | None = None, C_b_model=None) 
         block["C_b_model"] = np.asarray(C_b_model).tolist()
     if base is not None:
         block.update(p_value=base["p_value"], test=base["test"], noise=base["noise"],
-                     lack_of_fit=base["lack_of_fit"], cross_validation=base.get("cross_validation"))
+                     lack_of_fit=base["lack_of_fit"], cross_validation=base.get("cross_validation"),
+                     **({"rows": base["rows"]} if base.get("rows") else {}))
     return block
 
 
@@ -268,6 +272,9 @@ def scale_notes(cal: dict, meta: dict) -> list[str]:
 def check_layout(cal: dict, ms, where) -> None:
     """Refuse data of another unit, nominal scale or sensor set than the calibration's."""
     mine, theirs = cal["layout"], layout(ms)
+    if SERIAL in mine and SERIAL in theirs and str(mine[SERIAL]) != str(theirs[SERIAL]):
+        raise CalibrationFileError(f"{ms.path}: unit_serial is {theirs[SERIAL]!r}, but {where} was made for unit "
+                                   f"{mine[SERIAL]!r}: calibrate this unit's own data")
     for s in theirs["sensors"]:
         if s not in mine["sensors"] or s not in cal:
             raise CalibrationFileError(f"{ms.path}: has {s} data, but {where} calibrates no {s}")

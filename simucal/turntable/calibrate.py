@@ -21,20 +21,15 @@ from simucal.errors import CalibrationError
 from simucal.fit import aux_inputs
 from simucal.fit.augmented import AugmentedModel
 from simucal.fit.aux_inputs import AuxInputs, column_means
-from simucal.fit.candidates import (
-    ALPHA,
-    forward_selection,
-    rank_candidates,
-    shape_if_unexplained,
-    test_model,
-    verdict,
-)
+from simucal.fit.candidates import forward_selection, verdict
+from simucal.fit.lack_of_fit import noise_dof, with_estimated_sigma
 from simucal.fit.noise import white_noise_var
 from simucal.fit.norm_fit import Observations, fit_linear
 from simucal.generated import table
 from simucal.io import calibration, units
 from simucal.io.sensor_checks import saturated_rows
 from simucal.turntable.consistency import latitude, mirror_error, mirror_test
+from simucal.turntable.model_test import ROWS, fails, rank, test_and_rank
 from simucal.turntable.unification import Unifier, unify, unify_paper
 
 METHODS = ("exact", "linear", "multiposition")
@@ -150,30 +145,39 @@ def specific_force(ms, segs) -> dict:
     return {}
 
 
-def _find(segs, **want):
+def table_accuracy_rad(ms):
+    """meta.json's table_accuracy_arcsec (the std of each commanded angle's position error) in rad,
+    or None where not stated (the unification then estimates it from the static pairs)."""
+    v = ms.meta.get("table_accuracy_arcsec")
+    if v is None:
+        return None
+    if isinstance(v, bool) or not isinstance(v, (int, float)) or not np.isfinite(v) or v < 0:
+        raise ValueError(f"{ms.path / 'meta.json'}: table_accuracy_arcsec is {v!r}; it must be a number >= 0 (the std "
+                         "of each commanded angle's position error, arcsec)")
+    return float(np.radians(v / 3600.0))
+
+
+def _find(segs, kind, **want):
+    """The index of the first segment of this kind at the angles want, or None."""
     for i, s in enumerate(segs):
-        if all(getattr(s, k) is not None and abs(getattr(s, k) - v) < 1e-6 for k, v in want.items()):
+        if s.kind == kind and all(getattr(s, k) is not None and abs(getattr(s, k) - v) < 1e-6 for k, v in want.items()):
             return i
     return None
 
 
-def _rate_run_acc_means(ms, gyro_segs, acc_obs):
+def _rate_run_acc_means(ms, gyro_segs, acc_noise_g):
     """The rate runs' mean accelerometer outputs (Unifier's acc_means), or None without any.
-    Rows without a stated or measurable noise get the static positions' median noise."""
+    Their sigma is NaN where neither their scatter nor a statement gives it (the unification
+    then estimates it from the rate-run pairs)."""
     if not ms.has_acc:
         return None
-    obs, segs = segment_observations(ms, "acc", {"rate"})
+    obs, segs = segment_observations(ms, "acc", {"rate"}, acc_noise_g)
     at = {s.segment: i for i, s in enumerate(segs)}
     rows = [j for j, s in enumerate(gyro_segs) if s.segment in at]
     if len(rows) < 2:
         return None
     k = [at[gyro_segs[j].segment] for j in rows]
-    sig = obs.sigma[k]
-    if np.isnan(sig).any():
-        sig = np.where(np.isnan(sig), np.nanmedian(acc_obs.sigma) if acc_obs.sigma is not None else np.nan, sig)
-    if np.isnan(sig).any():
-        return None
-    return np.array(rows), obs.N[k], sig, obs.aux.take(k)
+    return np.array(rows), obs.N[k], obs.sigma[k], obs.aux.take(k)
 
 
 def handedness(ms, fa, acc_obs, acc_segs, fg, gyro_segs) -> list[str]:
@@ -203,14 +207,16 @@ def handedness(ms, fa, acc_obs, acc_segs, fg, gyro_segs) -> list[str]:
     return []
 
 
-def _latitude_check(ms, fa, acc_segs, gm, fg, C_b_d):
-    """consistency.latitude at the static positions that have gyro data."""
+def _latitude_check(ms, fa, acc_segs, gm, fg, C_b_d, gyro_noise_dph=None):
+    """consistency.latitude at the static positions that have gyro data; their noise from their
+    scatter, else the stated one (gyro_noise_dph, else meta's), else estimated by the latitude
+    fit itself."""
     rows = [i for i, s in enumerate(acc_segs) if s.kind == "static"]
     if not rows:
         return {"verdict": "not checked: no static positions"}
     gyro = ms.gyro_dph()
     raw = ms.raw("gyro")
-    stated = ms.meta.get("gyro_noise_dph")
+    stated = ms.meta.get("gyro_noise_dph") if gyro_noise_dph is None else gyro_noise_dph
     N, sig, groups = [], [], []
     for i in rows:
         r = ms.samples["segment"] == acc_segs[i].segment
@@ -220,10 +226,8 @@ def _latitude_check(ms, fa, acc_segs, gm, fg, C_b_d):
         sig.append(sd)
         groups.append(r)
     sig = np.array(sig)
-    if np.isnan(sig).all():
-        return {"verdict": "not checked: one gyro row per static position and no gyro_noise_dph"}
-    return latitude(ms, gm, fg, C_b_d, fa.directions[rows],
-                    (np.array(N), np.where(np.isnan(sig), np.nanmax(sig), sig), AuxInputs(column_means(ms.samples, groups))))
+    sig = None if np.isnan(sig).all() else np.where(np.isnan(sig), np.nanmax(sig), sig)
+    return latitude(ms, gm, fg, C_b_d, fa.directions[rows], (np.array(N), sig, AuxInputs(column_means(ms.samples, groups))))
 
 
 def _commanded_up_k(segs):
@@ -321,26 +325,34 @@ def _affine_fit(f, N, sensor):
             "std": {"M": np.sqrt(np.outer(s2, np.diag(cov)[:3])).tolist(), "bias": np.sqrt(s2 * cov[3, 3]).tolist()}}
 
 
-def _exact_sensor(model, obs, method, where):
-    """Fit and test one sensor. Returns (fit, test block or None for the linear method, the
-    effect to add when the model fails or None, the observations with the noise used)."""
+def _exact_sensor(model, obs, segs, method, where):
+    """Fit and test one sensor by the one model test (model_test.py). Returns (fit, test block or
+    None for the linear method, the effect to add when the model fails or None, the observations
+    with the noise used)."""
     if method == "linear":
         if model.effects:
             raise CalibrationError("--add needs --method exact: the paper's linear regression exists for "
                                    "derived models only (or derive a model file with the term and use it)")
         return fit_linear(model, obs), None, None, obs
-    fit, obs2, base = test_model(model, obs)
+    fit, obs2, base, cands, shape, _ = test_and_rank(model, obs, segs, only_if_failing=True)
+    base["noise"]["text"] = _noise_text(base["noise"], obs2, model.unit)
+    base["verdict"] = verdict(model.sensor, base, cands, where, shape, command="calibrate")
     advice = None
-    if base["p_value"] is not None and base["p_value"] < ALPHA:
-        cands = rank_candidates(model, obs2, fit, True)
-        shape = shape_if_unexplained(model, obs2, fit, base, cands)
-        base["verdict"] = verdict(model.sensor, base, cands, where, shape, command="calibrate")
+    if fails(base):
         sig = [c for c in cands if c.get("significant")]
         generic = shape and not shape.get("catalog_id")  # it beats every library effect: the verdict leads with it
         advice = "a term " + shape["text"] if generic else sig[0]["id"] if sig else None
-    else:
-        base["verdict"] = verdict(model.sensor, base, [], where)
-    return fit, base, advice, obs2
+    return fit, base, advice, with_estimated_sigma(obs2, base["noise"])
+
+
+def _noise_text(noise, obs, unit):
+    """Which noise a fit used and where it came from, in words."""
+    if not noise.get("rows_estimated"):
+        return f"{np.median(obs.sigma):.2g} {unit} per row (median), from {noise['source']}"
+    est = f"{noise['estimated_std']:.2g} {unit} per row estimated from the fit's residuals ({noise['dof']:.3g} dof)"
+    n_known = len(obs.N) - noise["rows_estimated"]
+    return est + (f" for {noise['rows_estimated']} rows; {n_known} from their scatter or the stated noise" if n_known
+                  else ": none in the data or stated")
 
 
 def calibrate_table(ms, method, acc_model, gyro_model, ids, acc_noise_g=None, gyro_noise_dph=None,
@@ -352,20 +364,20 @@ def calibrate_table(ms, method, acc_model, gyro_model, ids, acc_noise_g=None, gy
     if auto and method != "exact":
         raise CalibrationError("--add auto needs --method exact (the effects are chosen by the exact fit's test)")
     acc_obs = acc_segs = gyro_obs = gyro_segs = None
-    lever_arms = any(e.startswith("acc.size_effect.") for e in ids)  # seen only under rotation
+    # the paper's linear regression (eq. 8) and the multi-position method take static positions only
+    rows = ROWS if method == "exact" else {**ROWS, "acc": {"static"}}
     if ms.has_acc:
-        acc_obs, acc_segs = segment_observations(ms, "acc", {"static", "rate"} if lever_arms else None, acc_noise_g)
+        acc_obs, acc_segs = segment_observations(ms, "acc", rows["acc"], acc_noise_g)
     if ms.has_gyro:
-        gyro_obs, gyro_segs = segment_observations(ms, "gyro", stated=gyro_noise_dph)
+        gyro_obs, gyro_segs = segment_observations(ms, "gyro", rows["gyro"], gyro_noise_dph)
         if not gyro_segs:
             gyro_obs = None
     check_rate_sense(ms, gyro_obs, gyro_segs)
     result = calibration.header(method, ms)
     kind = {s.segment: s.kind for s in ms.segments}
-    fitted = {"acc": {"static", "rate"} if lever_arms else {"static"}, "gyro": {"rate"}}
     excluded = [{"sensor": sensor, "segment": k, "samples": n, "reason": "saturated samples"}
                 for sensor, present in (("acc", ms.has_acc), ("gyro", ms.has_gyro)) if present
-                for k, n in saturated_segments(ms, sensor).items() if kind.get(k) in fitted[sensor]]
+                for k, n in saturated_segments(ms, sensor).items() if kind.get(k) in rows[sensor]]
     if excluded:
         result["excluded_segments"] = excluded
     if method == "multiposition":
@@ -386,24 +398,24 @@ def calibrate_table(ms, method, acc_model, gyro_model, ids, acc_noise_g=None, gy
     chosen = {}
     if auto:
         if acc_obs is not None:
-            am, *chosen["acc"] = forward_selection(am, acc_obs)
+            am, *chosen["acc"] = forward_selection(am, acc_obs, lambda *a: rank(*a, acc_segs)[:2])
         if gyro_obs is not None:
-            gm, *chosen["gyro"] = forward_selection(gm, gyro_obs)
+            gm, *chosen["gyro"] = forward_selection(gm, gyro_obs, lambda *a: rank(*a, gyro_segs)[:2])
     fa = fg = None
     if acc_obs is not None:
-        fa, base_a, advice_a, acc_obs = _exact_sensor(am, acc_obs, method, str(ms.path))
+        fa, base_a, advice_a, acc_obs = _exact_sensor(am, acc_obs, acc_segs, method, str(ms.path))
         M, b = am.matrix_and_bias(fa.vector(am.params))
         units.check_scale("acc", M, am.name)
         result["acc"] = calibration.sensor_block(am, fa, M, b, base_a)
         result["acc"]["advice"] = advice_a
     if gyro_obs is not None:
-        fg, base_g, advice_g, gyro_obs = _exact_sensor(gm, gyro_obs, method, str(ms.path))
+        fg, base_g, advice_g, gyro_obs = _exact_sensor(gm, gyro_obs, gyro_segs, method, str(ms.path))
         M_d, b_g = gm.matrix_and_bias(fg.vector(gm.params))
     if method == "exact":
         result["consistency"] = {"lines": handedness(ms, fa, acc_obs, acc_segs, fg, gyro_segs)}
     if gyro_obs is not None:
         no_angles = any(s.middle_deg is None or s.inner_deg is None for s in (acc_segs or []) + gyro_segs)
-        acc_means = _rate_run_acc_means(ms, gyro_segs, acc_obs) if fa is not None and method == "exact" else None
+        acc_means = _rate_run_acc_means(ms, gyro_segs, acc_noise_g) if fa is not None and method == "exact" else None
         if fa is None or (no_angles and acc_means is None):
             why = ("no accelerometer data" if fa is None else "the rate runs have no accelerometer data and "
                    "segments.csv gives no middle/inner angles to pair them with static positions")
@@ -414,9 +426,10 @@ def calibrate_table(ms, method, acc_model, gyro_model, ids, acc_noise_g=None, gy
         else:
             std_M = None
             if method == "exact":
-                un = Unifier(am, fa, acc_obs, gm, fg, gyro_obs, acc_means)
-                C_b_d, M_b, std_M, info = unify(un, acc_segs, gyro_segs, _find)
-                result["consistency"]["latitude"] = _latitude_check(ms, fa, acc_segs, gm, fg, C_b_d)
+                un = Unifier(am, fa, acc_obs, gm, fg, gyro_obs, acc_means, noise_dof(base_a["noise"]),
+                             noise_dof(base_g["noise"]))
+                C_b_d, M_b, std_M, info = unify(un, acc_segs, gyro_segs, _find, table_accuracy_rad(ms))
+                result["consistency"]["latitude"] = _latitude_check(ms, fa, acc_segs, gm, fg, C_b_d, gyro_noise_dph)
                 result["consistency"]["lines"].append("latitude: " + result["consistency"]["latitude"]["verdict"])
             else:
                 if (am.name, gm.name) != ("acc_baseline", "gyro_baseline"):

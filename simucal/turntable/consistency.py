@@ -13,18 +13,23 @@ latitude is right. So, after the fits:
   specific force (up) is w_ie sin L, estimated with the gyro bias from the static
   positions alone. Where the gyros resolve it (a std of L below 10 deg), a latitude
   that differs from meta.json's by more than max(5 sigma, 3 deg) is refused,
-  stating the measured one.
+  stating the measured one; where the positions' noise is unknown, the fit's own
+  residuals give it (n - 4 dof) and 5 sigma becomes the t quantile of the same tail.
 """
 from __future__ import annotations
+
+import math
 
 import numpy as np
 
 from simucal.errors import CalibrationError
 from simucal.fit.apply import model_function, solve_inputs
 from simucal.fit.aux_inputs import specific_force
+from simucal.fit.distributions import chi2_sf, t_isf
 from simucal.fit.rotations import log_so3, wahba
 from simucal.io import units
 
+FIVE_SIGMA_TAIL = float(chi2_sf(25.0, 1)) / 2  # the normal tail beyond 5 sigma, one side
 GROSS_RAD = 0.05  # a direction residual no table (1 deg errors give 0.017 rad) or noise explains
 
 
@@ -64,7 +69,7 @@ def latitude(ms, gm, fg, C_b_d, u_b, static_gyro):
     """The latitude the gyros measure at rest, against meta.json's; refuses a mismatch.
 
     u_b: (n, 3) unit specific force (up) in b at static positions; static_gyro: (N (n, 3)
-    deg/h, sigma (n, 3), AuxInputs) of their gyro outputs. With w_i the calibrated rate in d
+    deg/h, sigma (n, 3) or None where unknown, AuxInputs) of their gyro outputs. With w_i the calibrated rate in d
     and up_i = C_b^d u_b,i, the Earth rate's vertical component gives, per position,
         up_i . w_i = up_i . db + w_ie sin L,
     solved by weighted least squares for sin L and a bias correction db, so a bias that a
@@ -82,14 +87,21 @@ def latitude(ms, gm, fg, C_b_d, u_b, static_gyro):
     if n < 6 or np.linalg.matrix_rank(X / w_e, tol=1e-3) < 4:
         return {"verdict": f"not checked: {n} static positions, which do not separate the gyro bias from the Earth "
                            "rate's vertical component (it needs at least 6, not all on one cone)"}
-    sd = np.sqrt(np.einsum("ni,ni->n", up_d ** 2, sig ** 2))
+    sd = np.sqrt(np.einsum("ni,ni->n", up_d ** 2, sig ** 2)) if sig is not None else np.ones(n)
     coef, *_ = np.linalg.lstsq(X / sd[:, None], np.einsum("ni,ni->n", up_d, w_d) / sd, rcond=None)
     r = (np.einsum("ni,ni->n", up_d, w_d) - X @ coef) / sd
     chi2 = float(r @ r)
-    cov = np.linalg.inv((X / sd[:, None]).T @ (X / sd[:, None])) * max(1.0, chi2 / (n - 4))
+    # unknown noise: the residuals' variance component, with n - 4 dof
+    cov = np.linalg.inv((X / sd[:, None]).T @ (X / sd[:, None])) * (chi2 / (n - 4) if sig is None else
+                                                                  max(1.0, chi2 / (n - 4)))
     s_L, std_s = float(coef[3]), float(np.sqrt(cov[3, 3]))
+    noise_dof = n - 4 if sig is None else math.inf
     out = {"meta_deg": L_meta, "positions": n, "sin_L_measured": s_L, "sin_L_std": std_s,
-           "chi2": chi2, "dof": n - 4}
+           "chi2": None if sig is None else chi2, "dof": n - 4,
+           "noise": ({"std_dph": float(np.sqrt(chi2 / (n - 4))), "dof": n - 4,
+                      "source": "one gyro row per static position and no gyro_noise_dph: estimated from this fit's "
+                                "residuals"} if sig is None else
+                     {"std_dph": float(np.median(sig)), "source": "each position's scatter or the stated noise"})}
     if abs(s_L) > 1 + 5 * std_s:
         raise CalibrationError(
             f"{ms.path}: at rest the gyros measure a vertical rate of {s_L * w_e:.3g} deg/h, more than the "
@@ -101,11 +113,13 @@ def latitude(ms, gm, fg, C_b_d, u_b, static_gyro):
         out["verdict"] = (f"not checked: the gyros do not resolve the Earth rate's vertical component (latitude "
                           f"std {std_L:.3g} deg)")
         return out
-    if abs(L - L_meta) > max(5 * std_L, 3.0):
+    if abs(L - L_meta) > max(t_isf(FIVE_SIGMA_TAIL, noise_dof) * std_L, 3.0):
         raise CalibrationError(
             f"{ms.path / 'meta.json'}: latitude_deg is {L_meta:g}, but the gyros measure {L:.2f} +- {std_L:.2g} deg "
             f"(the Earth rate's component along gravity at {n} static positions): fix latitude_deg (north "
             "positive); if it is right, the gyro model lacks an effect of that size at rest (g-sensitivity: "
             "--add gyro.g_sensitivity.*)")
-    out["verdict"] = f"agrees: measured {L:.2f} +- {std_L:.2g} deg, meta.json {L_meta:g} deg"
+    out["verdict"] = (f"agrees: measured {L:.2f} +- {std_L:.2g} deg, meta.json {L_meta:g} deg"
+                      + (f" (gyro noise at rest {out['noise']['std_dph']:.2g} deg/h, from this fit's residuals, "
+                         f"{n - 4} dof)" if sig is None else ""))
     return out

@@ -24,13 +24,14 @@ and the gyro matrix in b, M_b = M_d(p_g) C, follows by the chain rule.
 """
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 
 import numpy as np
 
 from simucal.errors import CalibrationError
 from simucal.fit.apply import model_function, solve_inputs
-from simucal.fit.distributions import chi2_isf, chi2_sf
+from simucal.fit.distributions import chi2_sf_estimated
 from simucal.fit.norm_fit import full_covariance, tangent_basis
 from simucal.fit.rotations import log_so3, skew, wahba
 from simucal.generated import table
@@ -38,16 +39,18 @@ from simucal.generated import unify as eq
 from simucal.io import units
 from simucal.turntable.consistency import GROSS_RAD, mirror_error, mirror_test
 
-CHI2_3DOF_P1E3 = float(chi2_isf(1e-3, 3))  # the chi-square quantile, 3 dof, p = 1e-3
+ARCMIN_RAD = math.radians(1 / 60)  # a start for an estimated table accuracy
 
 
 @dataclass
-class Inputs:
-    """The stacked input vector z: its covariance and where each part starts."""
-    cov: np.ndarray
-    acc: int        # first index of [p_a, t_a]
-    acc_means: int  # first index of the rate runs' mean accelerometer outputs
-    gyro: int       # first index of [p_g, t_g]
+class Part:
+    """One block of the inputs z: its covariance for a variance factor of 1, the factor, and the
+    factor's degrees of freedom (inf where the noise is known; a variance component's else)."""
+    index: slice
+    unit_cov: np.ndarray
+    var: float = 1.0
+    dof: float = math.inf
+    estimated: bool = False  # var from the pairs' scatter (Unifier.solve), not from the fits or a statement
 
 
 def _misfit_scale(fit):
@@ -62,24 +65,47 @@ def wahba_sensitivity(u_b, D_b, u_d, D_d, w, C):
     """d phi / dz (3, nz) from du_b/dz (n, 3, nz) and du_d/dz (n, 3, nz) (module doc)."""
     A = np.einsum("n,nij->ij", w, np.eye(3) - np.einsum("ni,nj->nij", u_b, u_b))
     dv = np.einsum("ji,njz->niz", C, D_d) - D_b
-    rhs = np.einsum("n,nij,njz->iz", w, skew(u_b), dv)
+    rhs = np.tensordot(w, skew(u_b) @ dv, axes=1)
     return np.linalg.solve(A, rhs)
 
 
 class Unifier:
     """Both fits and their covariances, for any pairing of directions."""
 
-    def __init__(self, am, fa, obs_a, gm, fg, obs_g, acc_means=None):
+    def __init__(self, am, fa, obs_a, gm, fg, obs_g, acc_means=None, dof_acc=math.inf, dof_gyro=math.inf):
         """acc_means: (rows, N (n_r, 3) g, sigma (n_r, 3), AuxInputs) of the rate runs that have
-        accelerometer data (rows: their index in the gyro fit), or None where none has."""
+        accelerometer data (rows: their index in the gyro fit), or None where none has; sigma NaN
+        where neither their scatter nor a statement gives it: their variance component is then
+        estimated from the rate-run pairs (unify). dof_acc, dof_gyro: the degrees of freedom of
+        each fit's noise (lack_of_fit.noise_dof)."""
         self.am, self.fa, self.obs_a, self.gm, self.fg, self.obs_g = am, fa, obs_a, gm, fg, obs_g
         self.acc_means = acc_means
-        cov_a = full_covariance(am, obs_a, fa) * _misfit_scale(fa)
-        cov_g = full_covariance(gm, obs_g, fg) * _misfit_scale(fg)
-        sig_m = np.zeros((0, 3)) if acc_means is None else acc_means[2]
-        self.z = Inputs(_block_diag(cov_a, np.diag(sig_m.ravel() ** 2), cov_g),
-                        0, len(cov_a), len(cov_a) + sig_m.size)
-        self.nz = len(self.z.cov)
+        self.parts: dict[str, Part] = {}
+        self.add_part("acc", full_covariance(am, obs_a, fa) * _misfit_scale(fa), dof=dof_acc)
+        if acc_means is not None:
+            sig_m = acc_means[2]
+            if np.isnan(sig_m).any():  # one component for all of them (a set averages its rate runs alike)
+                self.add_part("acc_means", np.eye(sig_m.size), float(np.median(obs_a.sigma ** 2)), None)
+            else:
+                self.add_part("acc_means", np.diag(sig_m.ravel() ** 2))
+        self.add_part("gyro", full_covariance(gm, obs_g, fg) * _misfit_scale(fg), dof=dof_gyro)
+
+    def add_part(self, name, unit_cov, var=1.0, dof=math.inf):
+        """Append a block to z; dof None: its variance factor is to be estimated (solve), var its start."""
+        k = self.nz
+        self.parts[name] = Part(slice(k, k + len(unit_cov)), unit_cov, var, math.inf if dof is None else dof,
+                                dof is None)
+
+    @property
+    def nz(self):
+        return max((p.index.stop for p in self.parts.values()), default=0)
+
+    @property
+    def cov(self):
+        out = np.zeros((self.nz, self.nz))
+        for p in self.parts.values():
+            out[p.index, p.index] = p.var * p.unit_cov
+        return out
 
     def _directions(self, fit, model, start, rows):
         """Fitted unit directions of `rows` and their derivative wrt z (via the tangent steps)."""
@@ -91,10 +117,10 @@ class Unifier:
         return fit.directions[rows], D
 
     def gyro_directions(self, rows):
-        return self._directions(self.fg, self.gm, self.z.gyro, rows)
+        return self._directions(self.fg, self.gm, self.parts["gyro"].index.start, rows)
 
     def acc_directions(self, rows):
-        return self._directions(self.fa, self.am, self.z.acc, rows)
+        return self._directions(self.fa, self.am, self.parts["acc"].index.start, rows)
 
     def acc_mean_directions(self):
         """The rate runs' mean specific force, calibrated: unit u_b and du_b/dz. At the solution
@@ -106,26 +132,80 @@ class Unifier:
         _, Ju, Jp = self.am.jacobians(f, p, aux)
         Jinv = np.linalg.inv(Ju)
         m, n = len(p), len(N)
+        acc, means = self.parts["acc"].index.start, self.parts["acc_means"].index.start
         df = np.zeros((n, 3, self.nz))
-        df[:, :, self.z.acc:self.z.acc + m] = -np.einsum("nij,njk->nik", Jinv, Jp)
+        df[:, :, acc:acc + m] = -np.einsum("nij,njk->nik", Jinv, Jp)
         for i in range(n):
-            df[i, :, self.z.acc_means + 3 * i:self.z.acc_means + 3 * i + 3] = Jinv[i]
+            df[i, :, means + 3 * i:means + 3 * i + 3] = Jinv[i]
         r = np.linalg.norm(f, axis=1)
         u = f / r[:, None]
         P = (np.eye(3) - np.einsum("ni,nj->nij", u, u)) / r[:, None, None]
         return u, np.einsum("nij,njz->niz", P, df)
 
-    def solve(self, u_b, D_b, u_d, D_d, w) -> dict:
-        """C_b^d, d phi/dz, the pairs' residual rms (rad) and chi-square (2 dof per pair, 3 for C)."""
-        C = wahba(u_b, u_d, w)
-        J_phi = wahba_sensitivity(u_b, D_b, u_d, D_d, w, C)
-        resid = u_d - u_b @ C.T
-        chi2 = 0.0
-        for i in range(len(u_b)):  # each pair's residual covariance, first order
-            Ji = D_d[i] - C @ D_b[i] + C @ skew(u_b[i]) @ J_phi
-            S = Ji @ self.z.cov @ Ji.T
-            chi2 += float(resid[i] @ np.linalg.pinv(S, rcond=1e-10, hermitian=True) @ resid[i])
-        return {"pairs": len(u_b), "C": C, "u_b": u_b, "u_d": u_d, "J_phi": J_phi, "chi2": chi2, "dof": 2 * len(u_b) - 3,
+    def _by_part(self, J, unit=()):
+        """{part: J_k cov_k J_k^T} for J (..., r, nz): what each part contributes to J cov J^T
+        (for the parts named in unit, at a variance factor of 1)."""
+        return {name: (1.0 if name in unit else p.var)
+                * (J[..., p.index] @ p.unit_cov @ np.swapaxes(J[..., p.index], -1, -2))
+                for name, p in self.parts.items()}
+
+    def _dof(self, S_inv, by_part, rank):
+        """Satterthwaite's degrees of freedom of J cov J^T as estimated (each part's share
+        tr(S^-1 S_k) / rank over that part's dof): inf where every noise is known."""
+        share = {k: float(np.einsum("...ab,...ba->...", S_inv, S).sum()) / rank for k, S in by_part.items()}
+        s = sum(a * a / self.parts[k].dof for k, a in share.items())
+        return 1.0 / s if s > 0 else math.inf
+
+    def _pairs_chi2(self, resid, by_part):
+        """sum_i r_i^T S_i^+ r_i, S_i the pair residual's covariance, and the S_i^+."""
+        S = sum(by_part.values())
+        S_inv = np.linalg.pinv(S, rcond=1e-10, hermitian=True)
+        return float(np.sum(resid * (S_inv @ resid[..., None])[..., 0])), S_inv
+
+    def _estimate_var(self, name, resid, J, dof):
+        """The variance factor of part `name` that brings the pairs' chi-square to its dof
+        (REML-like: the residuals' scatter beyond what the other parts explain); 0 where those
+        explain it all. Bisection on its logarithm (chi2 falls as it grows)."""
+        unit = self._by_part(J, unit=(name,))
+
+        def chi2(v):
+            return self._pairs_chi2(resid, {k: v * S if k == name else S for k, S in unit.items()})[0]
+
+        hi = self.parts[name].var or 1e-12
+        if chi2(0.0) <= dof:
+            return 0.0
+        while chi2(hi) > dof:
+            hi *= 4
+        lo = hi / 4
+        while chi2(lo) < dof and lo > 1e-300:
+            lo /= 4
+        for _ in range(60):
+            mid = math.sqrt(lo * hi)
+            lo, hi = (mid, hi) if chi2(mid) > dof else (lo, mid)
+        return math.sqrt(lo * hi)
+
+    def solve(self, u_b, D_b, u_d, D_d, estimate=None) -> dict:
+        """C_b^d, d phi/dz, the pairs' residual rms (rad) and chi-square (2 dof per pair, 3 for C),
+        each pair weighted by the inverse of its directions' variance (both sides, from z).
+        estimate: the part whose variance factor the pairs' scatter gives (_estimate_var), with
+        its share of their degrees of freedom."""
+        dof = 2 * len(u_b) - 3
+        for _ in range(2 if estimate else 1):  # the weights follow the estimated part
+            cov = self.cov
+            w = 2.0 / (np.sum((D_b @ cov) * D_b, axis=(1, 2)) + np.sum((D_d @ cov) * D_d, axis=(1, 2)))
+            C = wahba(u_b, u_d, w)
+            J_phi = wahba_sensitivity(u_b, D_b, u_d, D_d, w, C)
+            resid = u_d - u_b @ C.T
+            J = D_d - C @ D_b + C @ skew(u_b) @ J_phi
+            if estimate and dof > 0:
+                self.parts[estimate].var = self._estimate_var(estimate, resid, J, dof)
+            by_part = self._by_part(J)
+        chi2, S_inv = self._pairs_chi2(resid, by_part)
+        if estimate:  # its share of the pairs' 2n residual directions
+            share = float(np.einsum("nab,nba->", S_inv, by_part[estimate])) / (2 * len(u_b))
+            self.parts[estimate].dof = max(dof * share, 1.0)
+        return {"pairs": len(u_b), "C": C, "u_b": u_b, "u_d": u_d, "J_phi": J_phi, "chi2": chi2, "dof": dof,
+                "noise_dof": self._dof(S_inv, by_part, 2 * len(u_b)),
                 "residual_rms_rad": float(np.sqrt(np.mean(np.sum(resid ** 2, axis=1)))),
                 "rank": int(np.linalg.matrix_rank(u_b, tol=1e-3))}
 
@@ -136,15 +216,24 @@ class Unifier:
         M_d, _ = self.gm.matrix_and_bias(p)
         d_skew = -np.einsum("abk,kz->abz", _LEVI_CIVITA, J_phi)  # d [phi x] / dz
         J = np.einsum("ia,abz->ibz", M_d @ C, d_skew)
+        gyro = self.parts["gyro"].index.start
         for k in range(len(p)):  # dM_d/dp by central differences (M_d is linear in p for the built-in models)
             e = np.zeros(len(p))
             e[k] = 1e-6
-            J[:, :, self.z.gyro + k] += (self.gm.matrix_and_bias(p + e)[0] - self.gm.matrix_and_bias(p - e)[0]) / 2e-6 @ C
+            J[:, :, gyro + k] += (self.gm.matrix_and_bias(p + e)[0] - self.gm.matrix_and_bias(p - e)[0]) / 2e-6 @ C
         J = J.reshape(9, self.nz)
         return M_d @ C, self.covariance(J)
 
     def covariance(self, J):
-        return J @ self.z.cov @ J.T
+        return J @ self.cov @ J.T
+
+    def quadratic_form(self, d, J):
+        """d^T (J cov J^T)^+ d for a difference d with d d/dz = J, its covariance and the
+        p-value: chi-square, or F where the covariance is estimated (Satterthwaite's dof)."""
+        cov_d = self.covariance(J)
+        S_inv = np.linalg.pinv(cov_d, rcond=1e-12, hermitian=True)
+        z2 = float(d @ S_inv @ d)
+        return z2, cov_d, chi2_sf_estimated(z2, len(d), self._dof(S_inv, self._by_part(J), len(d)))
 
 
 _LEVI_CIVITA = np.zeros((3, 3, 3))
@@ -152,26 +241,27 @@ _LEVI_CIVITA[0, 1, 2] = _LEVI_CIVITA[1, 2, 0] = _LEVI_CIVITA[2, 0, 1] = 1
 _LEVI_CIVITA[0, 2, 1] = _LEVI_CIVITA[2, 1, 0] = _LEVI_CIVITA[1, 0, 2] = -1
 
 
-def _block_diag(*blocks):
-    out = np.zeros((sum(len(b) for b in blocks),) * 2)
-    k = 0
-    for b in blocks:
-        out[k:k + len(b), k:k + len(b)] = b
-        k += len(b)
-    return out
+def vertical_k(middle_rad, inner_rad):
+    """The table vertical (outer axis) in k at commanded middle/inner angles (n, 3), and its
+    derivative with respect to those two angles (n, 3, 2): how a position error moves it."""
+    def up(da, db):
+        return table.C_k_n(0.0, middle_rad + da, inner_rad + db, np.zeros(7))[:, 2, :]
+    h = 1e-6
+    return up(0, 0), np.stack([(up(h, 0) - up(-h, 0)) / (2 * h), (up(0, h) - up(0, -h)) / (2 * h)], axis=-1)
 
 
-def pair_weights(sig_b, sig_d):
-    """1 / (direction variance of b + of d) per pair, from each side's per-axis std (unitless)."""
-    return 1.0 / (np.mean(sig_b ** 2, axis=1) + np.mean(sig_d ** 2, axis=1))
-
-
-def unify(un: Unifier, acc_segs, gyro_segs, find):
+def unify(un: Unifier, acc_segs, gyro_segs, find, table_std_rad=None):
     """C_b^d by the rate runs' means (or, without accelerometer data in the rate runs, by static
     pairs), its std, the gyro M in b with its std, and the other pairing as a cross-check.
-    find(segs, **angles) -> index of the static segment at those angles, or None."""
+    find(segs, kind, **angles) -> index of the first segment of that kind at those angles, or None.
+    table_std_rad: the std of each commanded middle/inner angle's position error, which the static
+    pairs carry (meta's table_accuracy_arcsec); None: estimated from the static pairs' scatter."""
     rate_sign = np.sign([s.outer_rate_dps for s in gyro_segs])
-    sig_d = un.obs_g.sigma / un.obs_g.rho[:, None] if un.obs_g.sigma is not None else np.ones((len(gyro_segs), 3))
+    pairs = [(i, j) for j, s in enumerate(gyro_segs)
+             if (i := find(acc_segs, "static", middle_deg=s.middle_deg, inner_deg=s.inner_deg)) is not None]
+    if len(pairs) >= 2:  # each pair: the static position's and the rate run's own errors, so twice the variance
+        un.add_part("table", 2 * np.eye(2 * len(pairs)), *((table_std_rad ** 2, math.inf) if table_std_rad is not None
+                                                            else (ARCMIN_RAD ** 2, None)))
     out = {}
     if un.acc_means is not None:
         rows = un.acc_means[0]
@@ -179,17 +269,19 @@ def unify(un: Unifier, acc_segs, gyro_segs, find):
         u_d, D_d = un.gyro_directions(rows)
         sign = rate_sign[rows]
         u_d, D_d = u_d * sign[:, None], D_d * sign[:, None, None]  # the axis is +up for a positive rate
-        w = pair_weights(un.acc_means[2], sig_d[rows])
-        out["rate_run_means"] = un.solve(u_b, D_b, u_d, D_d, w)
-    pairs = [(i, j) for j, s in enumerate(gyro_segs)
-             if (i := find(acc_segs, middle_deg=s.middle_deg, inner_deg=s.inner_deg)) is not None]
+        out["rate_run_means"] = un.solve(u_b, D_b, u_d, D_d, "acc_means" if un.parts["acc_means"].estimated else None)
     if len(pairs) >= 2:
         ia, ig = np.array(pairs).T
         u_b, D_b = un.acc_directions(ia)
+        up_k, dup_k = vertical_k(np.radians([acc_segs[i].middle_deg for i in ia]),
+                                 np.radians([acc_segs[i].inner_deg for i in ia]))
+        C_k_b = wahba(up_k, u_b, np.ones(len(ia)))
+        t = un.parts["table"].index.start
+        for n in range(len(ia)):  # du_b / d(the pair's middle and inner angle errors), tangent to u_b
+            D_b[n, :, t + 2 * n:t + 2 * n + 2] = (np.eye(3) - np.outer(u_b[n], u_b[n])) @ C_k_b @ dup_k[n]
         u_d, D_d = un.gyro_directions(ig)
         u_d, D_d = u_d * rate_sign[ig, None], D_d * rate_sign[ig, None, None]
-        sig_b = un.obs_a.sigma[ia] if un.obs_a.sigma is not None else np.ones((len(ia), 3))
-        out["static_pairs"] = un.solve(u_b, D_b, u_d, D_d, pair_weights(sig_b, sig_d[ig]))
+        out["static_pairs"] = un.solve(u_b, D_b, u_d, D_d, "table" if un.parts["table"].estimated else None)
     usable = {k: v for k, v in out.items() if v["rank"] >= 2}
     if not usable:
         raise CalibrationError("frame unification needs at least two rate runs about distinct axes, with the "
@@ -217,7 +309,7 @@ def unify(un: Unifier, acc_segs, gyro_segs, find):
             "runs are whole revolutions and that segments.csv matches the data")
     C, J_phi = best["C"], best["J_phi"]
     M_b, cov_M = un.gyro_matrix_in_b(C, J_phi)
-    p_pairs = chi2_sf(best["chi2"], best["dof"]) if best["dof"] > 0 else 1.0
+    p_pairs = chi2_sf_estimated(best["chi2"], best["dof"], best["noise_dof"]) if best["dof"] > 0 else 1.0
     inflate = max(1.0, best["chi2"] / best["dof"]) if p_pairs < 1e-3 else 1.0
     if inflate > 1:  # the pairs disagree beyond their noise: the stds take the misfit in
         cov_M = cov_M * inflate
@@ -225,32 +317,69 @@ def unify(un: Unifier, acc_segs, gyro_segs, find):
                   f"{np.sqrt(inflate):.3g}" + ("; lever arms the accelerometer model lacks? (--add acc.size_effect.*)"
                                                if method == "rate_run_means" else ""))
         fallback = f"{fallback}; {misfit}" if fallback else misfit
+    noise = _estimated_noise(un)
+    means = noise.get("acc_rate_run_means")
+    if means and means["p_value_vs_static"] < 1e-3:
+        scatter = (f"the rate runs' accelerometer means scatter {means['std_g'] / means['static_std_g']:.3g} times "
+                   f"as much as the static positions (F test p = {means['p_value_vs_static']:.2g}): lever arms the "
+                   "accelerometer model lacks (--add acc.size_effect.*), or vibration under rotation")
+        fallback = f"{fallback}; {scatter}" if fallback else scatter
     info = {"method": method, "pairs": best["pairs"], "C_b_d": C.tolist(),
             "std_rad": np.sqrt(inflate * np.diag(un.covariance(J_phi))).tolist(),
             "std_note": "std of the small rotation phi with C_b_d = C (I + [phi x]), about b's x, y, z",
             "direction_residual_rms_rad": best["residual_rms_rad"], "chi2": best["chi2"], "dof": best["dof"],
-            **({"note": fallback} if fallback else {})}
+            "noise": noise, **({"note": fallback} if fallback else {})}
     if method == "rate_run_means" and "static_pairs" in usable:
         two = usable["static_pairs"]
         d = log_so3(C.T @ two["C"])
-        cov_d = un.covariance(two["J_phi"] - J_phi)
-        z2 = float(d @ np.linalg.pinv(cov_d, rcond=1e-12, hermitian=True) @ d)
-        agree = z2 < CHI2_3DOF_P1E3
+        z2, cov_d, p = un.quadratic_form(d, two["J_phi"] - J_phi)
+        agree = p >= 1e-3
+        table_text = noise["table_angles"]["text"]
         info["cross_check"] = {
             "method": "static_pairs", "pairs": two["pairs"], "difference_rad": d.tolist(),
-            "difference_std_rad": np.sqrt(np.diag(cov_d)).tolist(), "mahalanobis2": z2, "agree": bool(agree),
-            "note": ("the two pairings agree within their noise" if agree else
-                     f"the static pairs differ by {np.degrees(np.linalg.norm(d)) * 60:.2g} arcmin "
-                     f"({np.sqrt(z2):.1f} sigma): the table's angle errors at the paired positions (which the "
-                     "rate-run means do not see), or rate runs that are not whole revolutions, or lever arms "
-                     "that the accelerometer model lacks (--add acc.size_effect.*)")}
+            "difference_std_rad": np.sqrt(np.diag(cov_d)).tolist(), "mahalanobis2": z2, "p_value": p,
+            "agree": bool(agree),
+            "note": (f"the two pairings agree within their noise and the table's angle errors ({table_text})"
+                     if agree else
+                     f"the static pairs differ by {np.degrees(np.linalg.norm(d)) * 60:.2g} arcmin (p = {p:.2g}) beyond "
+                     f"their noise and the table's angle errors ({table_text}): rate runs that are not whole "
+                     "revolutions, or lever arms that the accelerometer model lacks (--add acc.size_effect.*), or "
+                     "a table less accurate than stated")}
     return C, M_b, np.sqrt(np.diag(cov_M)).reshape(3, 3), info
+
+
+def _estimated_noise(un: Unifier) -> dict:
+    """What the unification estimated itself, and where from: the rate runs' accelerometer means
+    (from the rate-run pairs' scatter, tested against the static positions' noise by an F test)
+    and the table's angle errors (stated, or from the static pairs' scatter)."""
+    out = {}
+    means = un.parts.get("acc_means")
+    if means is not None and means.estimated:
+        static = float(np.median(un.obs_a.sigma ** 2))
+        std = math.sqrt(means.var)
+        out["acc_rate_run_means"] = {
+            "std_g": std, "dof": means.dof, "static_std_g": math.sqrt(static), "static_dof": un.parts["acc"].dof,
+            "p_value_vs_static": chi2_sf_estimated(means.var / static * means.dof, means.dof, un.parts["acc"].dof),
+            "source": "one averaged row per rate run and no acc_noise_g: a variance component estimated from the "
+                      "rate-run pairs' scatter",
+            "text": f"{std:.2g} g per rate run's mean, from the rate-run pairs' scatter ({means.dof:.3g} dof)"}
+    table_part = un.parts.get("table")
+    if table_part is not None:
+        std = math.sqrt(table_part.var)
+        stated = not table_part.estimated
+        out["table_angles"] = {
+            "std_rad": std, "dof": None if stated else table_part.dof,
+            "source": "stated (meta.json table_accuracy_arcsec)" if stated else
+                      "estimated from the static pairs' scatter (no table_accuracy_arcsec in meta.json)",
+            "text": f"{np.degrees(std) * 3600:.3g} arcsec per angle, " + (
+                "stated" if stated else f"from the static pairs' scatter, {table_part.dof:.3g} dof")}
+    return out
 
 
 def unify_paper(acc_obs, acc_segs, gyro_obs, gyro_segs, p_acc, p_gyro, meta, find):
     """dong2018 eq. 25-27 (derived, generated/unify.py) at the Table 2 positions (--method linear)."""
-    ia = [find(acc_segs, middle_deg=a, outer_deg=g, inner_deg=0.0) for a, g in eq.TABLE2]
-    ig = [find(gyro_segs, middle_deg=a, inner_deg=0.0) for a in eq.GYRO_ALPHAS]
+    ia = [find(acc_segs, "static", middle_deg=a, outer_deg=g, inner_deg=0.0) for a, g in eq.TABLE2]
+    ig = [find(gyro_segs, "rate", middle_deg=a, inner_deg=0.0) for a in eq.GYRO_ALPHAS]
     if None in ia or None in ig:
         raise CalibrationError(f"the paper's frame unification needs the Table 2 static positions "
                                f"(alpha, gamma) = {eq.TABLE2} deg with beta = 0, and rate runs at alpha = "

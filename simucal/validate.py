@@ -1,0 +1,226 @@
+"""`simucal validate`: a calibration judged on an independent set, before and after.
+
+The promise of the loop is that the user watches the error fall; on the fit's own rows
+it always does. Here a calibration is applied (fit/apply.py) to a set it was not made
+from, and the error against what physics says the unit felt is compared with the same
+error at the nominal scale factors only (the raw outputs divided by meta.json's scales,
+no bias, no misalignment), and with the noise floor of that error:
+
+- every static segment or pose: |f| = 1 g (dong2018 eq. 2, the norm observation) and,
+  for gyros, |w| = the Earth rate;
+- turntable rate runs: |w| = |w_T + w_e sin L| (eq. 9's input norm);
+- a turntable set with commanded angles: the calibrated gravity directions against the
+  commanded table vertical, after the one rotation between unit and table that fits best
+  (Wahba): the direction error (rad). It carries the table's own angle errors;
+- a stream: each move's gravity direction after the move predicted by the integrated gyro
+  against the one the calibrated accelerometers measure (Tedaldi's cost; handheld/calibrate.py),
+  as an angle in deg. At nominal the gyro's bias is taken from the initial rest, as any user
+  would; both use the calibrated accelerometers' directions, so the check is the gyro's alone.
+
+The floor of each error is its noise: a segment's or pose's scatter over its rows (std of
+the mean), or the stated noise of one row; for moves, the same residual at the rests' noise
+is not known a priori, so moves have no floor. The floor is this set's noise alone: the
+calibration's own parameter uncertainty comes on top of it. A calibration whose error is above the
+nominal one's is said to be worse, loudly.
+"""
+from __future__ import annotations
+
+import numpy as np
+
+from simucal import io
+from simucal.errors import CalibrationError
+from simucal.fit.apply import apply
+from simucal.fit.noise import white_noise_var
+from simucal.fit.rotations import wahba
+from simucal.io import calibration, units
+from simucal.turntable.calibrate import table_accuracy_rad
+
+WORSE = 1.05  # after/before above this: the calibration makes the unit worse on these data
+AT_FLOOR = 2.0  # after below this many floors: the noise, nothing left to gain
+
+
+def _rms(x):
+    x = np.asarray(x, float)
+    return float(np.sqrt(np.mean(x ** 2))) if x.size else None
+
+
+def _segment_means(data, groups, stated):
+    """Mean of each group of rows (n, 3) and the std of each mean (n,) along the norm: the rows'
+    white noise (first differences, blind to a rate run's turning Earth rate) / sqrt(rows), or
+    the stated noise of one row where a group has a single row."""
+    means, sds = [], []
+    for rows in groups:
+        x = data[rows]
+        means.append(x.mean(0))
+        sds.append(np.sqrt(np.mean(white_noise_var(x, ddof=1)) / len(x)) if len(x) > 2 else
+                   (stated if stated is not None else np.nan))
+    return np.array(means), np.array(sds, float)
+
+
+def _norm_block(unit, before, after, floor_sd, what):
+    """Errors of a norm against its known value, before and after, with the floor."""
+    ok = np.isfinite(floor_sd)
+    return {"what": what, "unit": unit, "n": int(len(after)), "before_rms": _rms(before), "after_rms": _rms(after),
+            "floor_rms": _rms(floor_sd[ok]) if ok.all() and ok.any() else None}
+
+
+def _turntable(ms, f_before, f_after, w_before, w_after):
+    segs = ms.segments
+    seg_rows = {s.segment: ms.samples["segment"] == s.segment for s in segs}
+    lat = np.radians(ms.meta.get("latitude_deg", 0.0))
+    w_e = units.earth_rate_dph(ms.meta)
+    out = {}
+    static = [s for s in segs if s.kind == "static" and seg_rows[s.segment].any()]
+    if f_after is not None and static:
+        groups = [seg_rows[s.segment] for s in static]
+        sd = ms.meta.get("acc_noise_g")
+        (mb, _), (ma, fl) = _segment_means(f_before, groups, sd), _segment_means(f_after, groups, sd)
+        checks = [_norm_block("g", np.linalg.norm(mb, axis=1) - 1, np.linalg.norm(ma, axis=1) - 1, fl,
+                              "|f| - 1 g at each static segment")]
+        angled = [i for i, s in enumerate(static) if s.middle_deg is not None and s.inner_deg is not None]
+        if len(angled) >= 3:
+            from simucal.generated import table
+            s_ = [static[i] for i in angled]
+            C = table.C_k_n(np.radians([s.outer_deg or 0.0 for s in s_]), np.radians([s.middle_deg for s in s_]),
+                            np.radians([s.inner_deg for s in s_]), np.zeros(7))
+            up_k = C[:, 2, :]  # the navigation vertical (z up) in the table frame k: gravity's reaction
+            errs = []
+            for m in (mb[angled], ma[angled]):
+                d = m / np.linalg.norm(m, axis=1, keepdims=True)
+                R = wahba(up_k, d, np.ones(len(d)))
+                errs.append(np.linalg.norm(d - up_k @ R.T, axis=1))
+            # the table's angle errors move the direction too: two angles, each of its stated std
+            table_sd = (table_accuracy_rad(ms) or 0.0) * np.sqrt(2)
+            checks.append({"what": "gravity direction against the commanded table vertical, after the best "
+                                   "rotation between unit and table" + (
+                                       " (floor: noise and meta's table_accuracy_arcsec)" if table_sd else
+                                       " (floor: the noise alone; the table's angle errors add to it)"),
+                           "unit": "rad", "n": len(angled), "before_rms": _rms(errs[0]), "after_rms": _rms(errs[1]),
+                           "floor_rms": _rms(np.hypot(fl[angled], table_sd)) if np.all(np.isfinite(fl[angled]))
+                           else None})
+        out["acc"] = checks
+    if w_after is not None:
+        sd = ms.meta.get("gyro_noise_dph")
+        checks = []
+        rate = [s for s in segs if s.kind == "rate" and seg_rows[s.segment].any()]
+        for kind, chosen, truth in (("rate", rate, [abs(s.outer_rate_dps * 3600 + w_e * np.sin(lat)) for s in rate]),
+                                    ("static", static, [w_e] * len(static))):
+            if not chosen:
+                continue
+            groups = [seg_rows[s.segment] for s in chosen]
+            (mb, _), (ma, fl) = _segment_means(w_before, groups, sd), _segment_means(w_after, groups, sd)
+            what = ("|w| - |w_T + w_e sin L| at each rate run" if kind == "rate" else
+                    "|w| - w_e (the Earth rate) at each static segment")
+            checks.append(_norm_block("deg/h", np.linalg.norm(mb, axis=1) - truth, np.linalg.norm(ma, axis=1) - truth,
+                                      fl, what))
+        out["gyro"] = checks
+    return out
+
+
+def _stream(ms, f_before, f_after, w_before, w_after):
+    from simucal.handheld.calibrate import build_moves, move_residuals
+    from simucal.handheld.static_detect import detect_static
+    from simucal.io.sensor_checks import saturated_rows
+    t = ms.samples["t_s"]
+    det = detect_static(f_after, t)
+    rest = slice(det.starts[0] + det.window // 2, det.ends[0] - det.window // 2)
+    groups = [slice(a, b) for a, b in zip(det.starts, det.ends)]
+    (mb, _), (ma, fl) = _segment_means(f_before, groups, None), _segment_means(f_after, groups, None)
+    out = {"acc": [_norm_block("g", np.linalg.norm(mb, axis=1) - 1, np.linalg.norm(ma, axis=1) - 1, fl,
+                               f"|f| - 1 g at each of the {len(groups)} static poses")]}
+    if w_after is not None:
+        bad = saturated_rows(ms.raw("gyro"), ms.meta.get("full_scale", {}).get("gyro"))[0]
+        angles = []
+        g_dirs = ma / np.linalg.norm(ma, axis=1, keepdims=True)  # the calibrated accelerometers: the gyro's reference
+        for w, nominal in ((w_before, True), (w_after, False)):
+            w_dps = w / 3600.0
+            bias = w_dps[rest].mean(0) if nominal else np.zeros(3)  # nominal: the rest's bias, as a user would
+            mv, _ = build_moves(w_dps, t, det, bias, bad)
+            angles.append(np.degrees(np.linalg.norm(move_residuals(np.eye(3), mv, g_dirs, jac=False)[0], axis=1)))
+        out["gyro"] = [{"what": "gravity direction after each move: the integrated gyro against the calibrated "
+                                "accelerometers (at nominal, the gyro bias from the initial rest)", "unit": "deg",
+                        "n": int(len(angles[1])), "before_rms": _rms(angles[0]), "after_rms": _rms(angles[1]),
+                        "floor_rms": None}]
+    return out
+
+
+def _verdict(check) -> str:
+    b, a, fl = check["before_rms"], check["after_rms"], check["floor_rms"]
+    if a is None or b is None:
+        return "not measured"
+    if a > WORSE * b and (fl is None or a > AT_FLOOR * fl):
+        return "WORSE THAN NOMINAL"
+    if fl is not None and a <= AT_FLOOR * fl:
+        return "at the noise floor"
+    return "better" if a < b else "no better than nominal"
+
+
+def validate(cal_path, data_dir) -> dict:
+    """The report (module doc) of calibration file cal_path applied to the set data_dir."""
+    cal = calibration.read(cal_path)
+    ms = io.read(data_dir)
+    calibration.check_layout(cal, ms, cal_path)
+    _, samples, _ = apply(cal, data_dir, cal_path)
+    f_before = ms.acc_g() if ms.has_acc else None
+    w_before = ms.gyro_dph() if ms.has_gyro else None
+    f_after = np.column_stack([samples[c] for c in ("ax", "ay", "az")]) if ms.has_acc else None
+    w_after = np.column_stack([samples[c] for c in ("gx", "gy", "gz")]) if ms.has_gyro else None
+    if ms.segments is not None:
+        checks = _turntable(ms, f_before, f_after, w_before, w_after)
+    elif f_after is not None:
+        checks = _stream(ms, f_before, f_after, w_before, w_after)
+    else:
+        raise CalibrationError(f"{ms.path}: a stream without accelerometers has no reference to validate against")
+    for rows in checks.values():
+        for c in rows:
+            c["ratio_after_before"] = c["after_rms"] / c["before_rms"] if c["before_rms"] else None
+            c["verdict"] = _verdict(c)
+    verdicts = {s: ("WORSE THAN NOMINAL" if any(c["verdict"] == "WORSE THAN NOMINAL" for c in rows) else
+                    "at the noise floor" if all(c["verdict"] == "at the noise floor" for c in rows) else "better"
+                    if all(c["verdict"] in ("better", "at the noise floor") for c in rows) else "no better than nominal")
+                for s, rows in checks.items() if rows}
+    same = calibration.input_sha256(ms.path) == cal.get("input_sha256")
+    return {"format": "simucal.validation/1", "calibration": str(cal_path), "data": str(ms.path),
+            "independent": not same, "checks": checks, "verdict": verdicts,
+            "note": ("these are the data the calibration was made from: on its own rows a model always looks "
+                     "better; validate on another recording") if same else None}
+
+
+def lines(report):
+    """The console: one table row per check, then the verdict per sensor."""
+    if report["note"]:
+        yield f"NOTE: {report['note']}"
+    yield f"{'sensor':6} {'nominal':>10} {'calibrated':>10} {'floor':>9}  {'unit':8} check: verdict"
+    for s, rows in report["checks"].items():
+        for c in rows:
+            fl = "-" if c["floor_rms"] is None else f"{c['floor_rms']:.3g}"
+            yield (f"{s:6} {c['before_rms']:10.3g} {c['after_rms']:10.3g} {fl:>9}  {c['unit']:8} {c['what']} "
+                   f"(rms over {c['n']}): {c['verdict']}")
+    for s, v in report["verdict"].items():
+        yield f"{s}: {v}" + (": this calibration makes the unit worse on these data than its nominal scale "
+                             "factors; do not use it" if v == "WORSE THAN NOMINAL" else "")
+
+
+def html_page(report) -> str:
+    """A self-contained page: the table and bars of each check's error before and after."""
+    import html as _html
+
+    from simucal.report.html import _png, plt
+    rows = [(s, c) for s, cs in report["checks"].items() for c in cs]
+    fig, axs = plt.subplots(1, len(rows), figsize=(3.2 * len(rows), 3.0), squeeze=False)
+    for ax, (s, c) in zip(axs[0], rows):
+        ax.bar(["nominal", "calibrated"], [c["before_rms"], c["after_rms"]], color=["#999", "#2a7"])
+        if c["floor_rms"]:
+            ax.axhline(c["floor_rms"], color="k", ls="--", label="noise floor")
+            ax.legend(fontsize=7)
+        ax.set_title(f"{s}: {c['verdict']}", fontsize=8)
+        ax.set_ylabel(f"rms ({c['unit']})")
+    body = "".join(f"<tr><td>{s}</td><td>{_html.escape(c['what'])}</td><td>{c['before_rms']:.3g}</td>"
+                   f"<td>{c['after_rms']:.3g}</td><td>{'-' if c['floor_rms'] is None else format(c['floor_rms'], '.3g')}"
+                   f"</td><td>{c['unit']}</td><td>{c['verdict']}</td></tr>" for s, c in rows)
+    return (f"<!doctype html><meta charset=utf-8><title>simucal validate</title><h1>Validation of "
+            f"{_html.escape(report['calibration'])} on {_html.escape(report['data'])}</h1>"
+            + "".join(f"<p><b>{s}: {v}</b></p>" for s, v in report["verdict"].items())
+            + (f"<p>{_html.escape(report['note'])}</p>" if report["note"] else "")
+            + "<table border=1 cellpadding=4><tr><th>sensor</th><th>check</th><th>nominal</th><th>calibrated</th>"
+              f"<th>floor</th><th>unit</th><th>verdict</th></tr>{body}</table>" + _png(fig))

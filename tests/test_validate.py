@@ -1,0 +1,93 @@
+"""`simucal validate` (issue 23, item 4): a calibration applied to a set it was not made from, the error
+before (nominal scale factors) and after, against the noise floor."""
+import json
+import shutil
+
+import pytest
+from click.testing import CliRunner
+
+from simucal.cli import main
+from simucal.handheld.simulate import HandheldScenario, write_handheld
+from simucal.turntable.simulate import Scenario, plant, write
+
+
+def _run(*args):
+    return CliRunner().invoke(main, [str(a) for a in args])
+
+
+@pytest.fixture(scope="module")
+def table(tmp_path_factory):
+    """One unit (the paper's, with a z accelerometer nonlinearity): calibrated on a fibonacci48 set of
+    averaged rows, validated on a Table 1 set of raw rows recorded with other noise."""
+    root = tmp_path_factory.mktemp("validate")
+    for name, plan, seed, rate in (("cal", "fibonacci48", 1, None), ("val", "table1", 2, 20.0)):
+        sc = Scenario(plan=plan, rate_hz=rate)
+        plant(sc, ["acc.quadratic.z=2e-4"])
+        write(root / name, sc, seed)
+    for name, add in (("base", []), ("added", ["--add", "acc.quadratic.z"])):
+        assert _run("calibrate", root / "cal", "-o", root / f"{name}.json", *add).exit_code == 0
+    return root
+
+
+def _report(root, cal, data, out):
+    r = _run("validate", root / cal, root / data, "-o", out)
+    assert r.exit_code == 0, r.output
+    return json.loads(out.read_text()), r.output
+
+
+def test_the_error_falls_on_independent_data_and_falls_further_with_the_missing_effect(table, tmp_path):
+    base, _ = _report(table, "base.json", "val", tmp_path / "b.json")
+    added, out = _report(table, "added.json", "val", tmp_path / "a.json")
+    assert added["independent"] and added["note"] is None
+    for rep in (base, added):
+        for rows in rep["checks"].values():
+            assert all(c["after_rms"] < 0.1 * c["before_rms"] for c in rows)
+        assert rep["verdict"]["acc"] in ("better", "at the noise floor")
+    norm = lambda rep: rep["checks"]["acc"][0]["after_rms"]
+    assert norm(added) < 0.5 * norm(base)  # the effect the baseline lacks shows on data it never saw
+    assert "|f| - 1 g" in out and "nominal" in out
+
+
+def test_a_calibration_worse_than_nominal_is_said_loudly(table, tmp_path):
+    cal = json.loads((table / "added.json").read_text())
+    cal["acc"]["params"]["dK_x"] += 0.1  # a 10 % scale error
+    (tmp_path / "bad.json").write_text(json.dumps(cal))
+    rep, out = _report(table, tmp_path / "bad.json", "val", tmp_path / "r.json")
+    assert rep["verdict"]["acc"] == "WORSE THAN NOMINAL" and "do not use it" in out
+
+
+def test_its_own_data_are_flagged(table, tmp_path):
+    rep, out = _report(table, "added.json", "cal", tmp_path / "r.json")
+    assert not rep["independent"] and "NOTE" in out
+
+
+def test_another_units_set_is_refused(table, tmp_path):
+    write_handheld(tmp_path / "h", HandheldScenario(poses=10, rest_s=10.0), 3)
+    r = _run("validate", table / "added.json", tmp_path / "h", "-o", tmp_path / "r.json")
+    assert r.exit_code == 2 and len(r.stderr.strip().splitlines()) == 1 and "acc_unit" in r.stderr
+    assert not (tmp_path / "r.json").exists()
+
+
+def test_another_serial_is_refused(table, tmp_path):
+    """The optional meta key unit_serial: recorded in the calibration, a set of another serial refused."""
+    for name, serial in (("a", "SN-1"), ("b", "SN-2")):
+        shutil.copytree(table / "cal", tmp_path / name)
+        meta = json.loads((tmp_path / name / "meta.json").read_text())
+        (tmp_path / name / "meta.json").write_text(json.dumps({**meta, "unit_serial": serial}))
+    assert _run("calibrate", tmp_path / "a", "-o", tmp_path / "c.json").exit_code == 0
+    r = _run("validate", tmp_path / "c.json", tmp_path / "b", "-o", tmp_path / "r.json")
+    assert r.exit_code == 2 and "unit_serial is 'SN-2'" in r.stderr and len(r.stderr.strip().splitlines()) == 1
+    assert _run("validate", tmp_path / "c.json", tmp_path / "a", "-o", tmp_path / "r2.json").exit_code == 0
+
+
+def test_a_stream_validated_on_another_session_of_the_same_unit(tmp_path):
+    write_handheld(tmp_path / "a", HandheldScenario(poses=30, rest_s=10.0), 3)
+    write_handheld(tmp_path / "b", HandheldScenario(poses=10, rest_s=10.0), 3)  # same unit, other poses
+    assert _run("calibrate", tmp_path / "a", "-o", tmp_path / "c.json").exit_code == 0
+    r = _run("validate", tmp_path / "c.json", tmp_path / "b", "-o", tmp_path / "r.json", "--html", tmp_path / "r.html")
+    assert r.exit_code == 0, r.output
+    rep = json.loads((tmp_path / "r.json").read_text())
+    gyro = rep["checks"]["gyro"][0]
+    assert gyro["unit"] == "deg" and gyro["after_rms"] < 0.2 * gyro["before_rms"] and rep["independent"]
+    assert rep["verdict"]["acc"] in ("better", "at the noise floor")
+    assert (tmp_path / "r.html").read_text().count("data:image/png") == 1
