@@ -33,7 +33,7 @@ def main():
                 folder = Path(tmp) / f"a{arw}-h{herr}-{seed}"
                 truth = write_field(folder, sc, seed)
                 t = time.perf_counter()
-                r, _ = field_drift(folder, heading_accuracy_deg=max(herr, 0.1))
+                r = field_drift(folder, heading_accuracy_deg=max(herr, 0.1))
                 secs.append(time.perf_counter() - t)
                 errs.append(np.array(r["gyro_drift_dph"]) - truth["gyro_drift_dph"])
                 stds.append(r["std_dph"])

@@ -1,40 +1,43 @@
 """`simucal calibrate`: one measurement set in, one calibration file out.
 
-A set with segments.csv is a turntable test (turntable/calibrate.py: dong2018's
-exact, linear and multi-position methods); one without is a continuous stream, a
-hand-placed session (handheld/calibrate.py). Both return the calibration file's
-dict (io/calibration.py).
+The method comes from the registry (methods.py): the one named, or by default the
+first that takes the set's data (a turntable test: dong2018's exact method; a
+stream: the hand-placed session; a field set: ruan2019). Every method returns the
+calibration file's dict (io/calibration.py).
 """
 from __future__ import annotations
 
-from simucal import io
+from simucal import io, methods
 from simucal.errors import CalibrationError
-from simucal.fit.augmented import AugmentedModel, resolve_add
-from simucal.handheld.calibrate import calibrate_handheld
 from simucal.io import calibration
 from simucal.io.sensor_checks import stuck_channels
-from simucal.turntable.calibrate import METHODS, calibrate_table
 
 
-def calibrate(folder, method="exact", acc_model="acc_baseline", gyro_model="gyro_baseline", detect=None,
-              add=(), acc_noise_g=None, gyro_noise_dph=None) -> dict:
-    """Calibrate a measurement set. add: effect ids and model files (augmented.resolve_add), and
-    "auto": the library effects a failing model needs, chosen one at a time (each sensor's
-    block lists them under `auto`); acc_noise_g / gyro_noise_dph: the noise of one row where
-    the data cannot give it."""
-    if method not in METHODS:
-        raise CalibrationError(f"unknown method {method!r}; one of {METHODS}")
+def calibrate(folder, method="auto", acc_model="acc_baseline", gyro_model="gyro_baseline", detect=None,
+              add=(), acc_noise_g=None, gyro_noise_dph=None, heading_accuracy_deg=5.0) -> dict:
+    """Calibrate a measurement set. method: a name of methods.METHODS, or "auto" (the default for
+    the set's data). add: effect ids and model files (augmented.resolve_add), and "auto": the
+    library effects a failing model needs, chosen one at a time (each sensor's block lists them
+    under `auto`); acc_noise_g / gyro_noise_dph: the noise of one row where the data cannot give
+    it; detect: a stream's static detection settings; heading_accuracy_deg: a field set's north
+    reference. Options a method does not take are refused when set."""
+    if method not in ("auto",) + methods.NAMES:
+        raise CalibrationError(f"unknown method {method!r}; one of auto, {', '.join(methods.NAMES)}.")
     ms = io.read(folder)
     try:
+        m = methods.choose(method, ms)
         stuck_channels(ms)
-        auto = "auto" in add
-        acc_model, gyro_model, ids = resolve_add([a for a in add if a != "auto"], acc_model, gyro_model)
-        if ms.segments is None:  # one continuous stream: a hand-placed session
-            result = calibrate_handheld(ms, AugmentedModel(acc_model, tuple(e for e in ids if e.startswith("acc."))),
-                                        detect, gyro_effects=tuple(e for e in ids if e.startswith("gyro.")),
-                                        auto=auto)
-        else:
-            result = calibrate_table(ms, method, acc_model, gyro_model, ids, acc_noise_g, gyro_noise_dph, auto)
+        ids = tuple(a for a in add if a != "auto")
+        if "ids" in m.options:  # models and effects: imported only by the methods that fit them
+            from simucal.fit.augmented import resolve_add
+            acc_model, gyro_model, ids = resolve_add(ids, acc_model, gyro_model)
+        given = dict(acc_model=acc_model, gyro_model=gyro_model, ids=ids, auto="auto" in add, detect=detect,
+                     acc_noise_g=acc_noise_g, gyro_noise_dph=gyro_noise_dph, heading_accuracy_deg=heading_accuracy_deg)
+        unused = [k for k in ("ids", "auto", "acc_noise_g", "gyro_noise_dph") if given[k] and k not in m.options]
+        if unused:
+            flag = {"ids": "--add", "auto": "--add auto"}.get(unused[0], "--" + unused[0].replace("_", "-"))
+            raise CalibrationError(f"{flag} does not apply to method {m.name} ({m.summary}).")
+        result = m.run(ms, **{k: v for k, v in given.items() if k in m.options})
         notes = calibration.scale_notes(result, ms.meta)
     except CalibrationError as e:
         raise e.naming(ms.path) from None

@@ -9,6 +9,8 @@ from pathlib import Path
 
 import click
 
+from simucal import methods
+
 
 class _Commands(click.Group):
     """Every refusal is one line (_fail, exit 2). Anything else escaping a command is a bug:
@@ -199,6 +201,9 @@ def simulate(out_dir, scenario, heading_error_deg, seed, plan, rate_hz, position
     click.echo(f"wrote {out_dir} (scenario {scenario}, seed {seed})")
 
 
+HEADING_ACCURACY = click.option(
+    "--heading-accuracy-deg", type=Number(0.0, 180.0), default=5.0, show_default=True,
+    help="Field sets: the stated accuracy of the north reference; its effect enters the uncertainty.")
 _ADD_HELP = ("Effect id to add, e.g. acc.quadratic.z (exact ids; unknown ones are refused), or a model file "
              "(MODELS = [...]) with your own SymPy terms, derived into the cache (repeatable). " + _MODEL_FILE_RUNS)
 _ADD_AUTO_HELP = (_ADD_HELP + " Also 'auto': the library effects a failing model needs, chosen one at a time by the "
@@ -209,7 +214,11 @@ def _sensor_lines(result):
     """One line per sensor: the test, and when the model fails what to add."""
     for s in ("acc", "gyro"):
         b = result.get(s)
-        if not b:
+        if not b or b.get("nominal"):
+            continue
+        if b.get("residual_rms") is None:  # a method without a fit of its own rows (field: the drift alone)
+            yield (f"{s}: bias ({b['bias_unit']}, {b['description']}): " + ", ".join(
+                f"{a} {v:+.4g} +- {e:.2g}" for a, v, e in zip("xyz", b["bias"], b["std"]["bias"])))
             continue
         unit = b.get("residual_unit", b.get("bias_unit"))
         rows = f" over {b['rows']}" if b.get("rows") else ""
@@ -278,7 +287,9 @@ def _sensor_lines(result):
 @click.argument("data_dirs", nargs=-1, required=True, type=click.Path(exists=True, file_okay=False))
 @click.option("-o", "--output", type=click.Path(), default="calibration.json", show_default=True,
               help="The calibration file; with several sets, a folder that gets one <set>.json each.")
-@click.option("--method", type=click.Choice(["exact", "linear", "multiposition"]), default="exact", show_default=True)
+@click.option("--method", type=click.Choice(("auto",) + methods.NAMES), default="auto", show_default=True,
+              help="auto: the default for the set's data. " + " ".join(
+                  f"{m.name}: {m.summary} ({methods.DATA[m.data]})." for m in methods.METHODS.values()))
 @click.option("--acc-model", default="acc_baseline", show_default=True)
 @click.option("--gyro-model", default="gyro_baseline", show_default=True)
 @click.option("--add", "add", multiple=True, help=_ADD_AUTO_HELP)
@@ -289,18 +300,21 @@ def _sensor_lines(result):
               help="Stream: static threshold, times the rest's variance.")
 @click.option("--window-s", type=POSITIVE, default=1.0, show_default=True, help="Stream: moving-variance window.")
 @click.option("--min-static-s", type=POSITIVE, default=1.0, show_default=True, help="Stream: shortest static interval.")
+@HEADING_ACCURACY
 @click.option("--scheduler", default="local", show_default=True,
               help="Several sets: local, processes (a Dask LocalCluster) or a Dask scheduler's address.")
 def calibrate(data_dirs, output, method, acc_model, gyro_model, add, acc_noise_g, gyro_noise_dph, init_rest_s,
-              threshold_factor, window_s, min_static_s, scheduler):
+              threshold_factor, window_s, min_static_s, heading_accuracy_deg, scheduler):
     """Calibrate measurement sets; write calibration.json (one per set into a folder for several).
 
-    With segments.csv: a turntable test (dong2018). Without: a continuous stream
-    from a hand-placed session (static poses found from the data; Tedaldi)."""
+    With segments.csv and table angles: a turntable test (dong2018). Without segments.csv: a
+    continuous stream from a hand-placed session (static poses found from the data; Tedaldi).
+    With heading_ref_deg and no table angles: a field set (ruan2019's gyro drift)."""
     from simucal.calibrate import calibrate_to_file
     from simucal.handheld.static_detect import DetectSettings
     kwargs = dict(method=method, acc_model=acc_model, gyro_model=gyro_model,
-                  detect=DetectSettings(window_s, threshold_factor, min_static_s, init_rest_s), add=add, acc_noise_g=acc_noise_g, gyro_noise_dph=gyro_noise_dph)
+                  detect=DetectSettings(window_s, threshold_factor, min_static_s, init_rest_s), add=add,
+                  acc_noise_g=acc_noise_g, gyro_noise_dph=gyro_noise_dph, heading_accuracy_deg=heading_accuracy_deg)
     inputs = list(data_dirs) + [a for a in add if a.endswith(".py")]
     if len(data_dirs) == 1:
         _guard(inputs, files=[output])
@@ -637,28 +651,24 @@ def bench(json_path):
 
 @main.command("field-drift")
 @click.argument("data_dir", type=click.Path(exists=True, file_okay=False))
-@click.option("-o", "--output", type=click.Path(dir_okay=False), default="drift.json", show_default=True)
+@click.option("-o", "--output", type=click.Path(dir_okay=False), default="drift.json", show_default=True,
+              help="The calibration file (apply corrects the gyro drift with it).")
 @click.option("--plot", type=click.Path(dir_okay=False), default=None, help="PNG of each position's filter estimate (paper Fig. 4).")
-@click.option("--heading-accuracy-deg", type=Number(0.0, 180.0), default=5.0, show_default=True,
-              help="Stated accuracy of the north reference; its effect enters the uncertainty.")
+@HEADING_ACCURACY
 def field_drift(data_dir, output, plot, heading_accuracy_deg):
-    """Three-position field calibration of gyro constant drift (ruan2019)."""
-    import json
-
-    from simucal.errors import CalibrationError
-    from simucal.field.drift import field_drift as run
+    """Three-position field calibration of gyro constant drift (ruan2019): `calibrate --method field`, with the
+    paper's Fig. 4."""
+    from simucal.calibrate import calibrate_to_file
     from simucal.field.drift import plot_history
-    from simucal.io import MeasurementSetError, outputs
     _guard([data_dir], files=[output, plot])
-    try:
-        result, hist = run(Path(data_dir), heading_accuracy_deg=heading_accuracy_deg)
-    except (MeasurementSetError, CalibrationError) as e:
-        _fail(e)
-    outputs.write_text(output, json.dumps(result, indent=2) + "\n")
+    result, error = calibrate_to_file(Path(data_dir), output, dict(method="field",
+                                                                  heading_accuracy_deg=heading_accuracy_deg))
+    if error:
+        _fail(error)
     if plot:
-        plot_history(hist, plot)
-    d, s = result["gyro_drift_dph"], result["std_dph"]
-    click.echo("gyro drift (deg/h, body FUR): " + ", ".join(f"{a} {v:+.3f} +- {e:.3f}" for a, v, e in zip("xyz", d, s)))
+        plot_history(result["field"]["history"], plot)
+    for line in _sensor_lines(result):
+        click.echo(line)
     click.echo(f"wrote {output}" + (f" and {plot}" if plot else ""))
 
 

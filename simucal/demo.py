@@ -14,7 +14,7 @@ from pathlib import Path
 
 import numpy as np
 
-from simucal import derive_cmd, io
+from simucal import derive_cmd, io, methods
 from simucal.calibrate import calibrate
 from simucal.diagnose import diagnose
 from simucal.fit.apply import apply
@@ -99,7 +99,7 @@ def paper(out: Path, seed: int, echo) -> None:
     write(out / "paper", SCENARIOS["paper"](), seed)
     echo(f"simulate: {out / 'paper'} (dong2018 section 4 settings, seed {seed})")
     results = {}
-    for method in ("exact", "linear", "multiposition"):
+    for method in methods.for_data(methods.TURNTABLE):
         results[method] = calibrate(out / "paper", method)
         calibration.write(out / f"calibration_{method}.json", results[method])
     echo("calibrate: " + ", ".join(f"calibration_{m}.json" for m in results))

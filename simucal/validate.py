@@ -175,7 +175,8 @@ def validate(cal_path, data_dir) -> dict:
         for c in rows:
             c["ratio_after_before"] = c["after_rms"] / c["before_rms"] if c["before_rms"] else None
             c["verdict"] = _verdict(c)
-    verdicts = {s: ("WORSE THAN NOMINAL" if any(c["verdict"] == "WORSE THAN NOMINAL" for c in rows) else
+    verdicts = {s: ("not calibrated: kept at its nominal scale factors" if cal[s].get("nominal") else
+                    "WORSE THAN NOMINAL" if any(c["verdict"] == "WORSE THAN NOMINAL" for c in rows) else
                     "at the noise floor" if all(c["verdict"] == "at the noise floor" for c in rows) else "better"
                     if all(c["verdict"] in ("better", "at the noise floor") for c in rows) else "no better than nominal")
                 for s, rows in checks.items() if rows}

@@ -18,6 +18,7 @@ LAYERS = [
     {"simucal.io"},
     {"simucal.fit"},
     {"simucal.turntable", "simucal.handheld", "simucal.field"},
+    {"simucal.methods"},
     {"simucal.report"},
     {"simucal.calibrate", "simucal.diagnose", "simucal.validate", "simucal.bench", "simucal.derive_cmd"},
     {"simucal.demo"},
@@ -134,3 +135,20 @@ def test_readme_layout_table_names_every_module():
         files = {p.name for p in folder.glob("*.py")} - {"__init__.py"}
         missing += [f"{rel}/{f}" for f in sorted(files ^ named)]
     assert not missing, f"README's layout table and the tree differ on {missing}"
+
+
+def test_one_method_registry():
+    """Issue 25: every calibration method is named once (simucal/methods.py); the cli's --method, the demo and
+    the paper's claims read it, and no other module spells the list of methods."""
+    from click.testing import CliRunner
+
+    from simucal import methods
+    from simucal.cli import main
+    from simucal.report import paper_claims
+    assert paper_claims.METHODS == methods.for_data(methods.TURNTABLE) == ("exact", "linear", "multiposition")
+    help_text = CliRunner().invoke(main, ["calibrate", "--help"]).output
+    assert all(m in help_text for m in ("auto",) + methods.NAMES)
+    assert {m.data for m in methods.METHODS.values()} == set(methods.DATA)
+    spelled = [p.relative_to(ROOT) for p in ROOT.rglob("*.py") if p.name != "methods.py"
+               and "generated" not in p.parts and '"exact", "linear", "multiposition"' in p.read_text()]
+    assert not spelled, spelled

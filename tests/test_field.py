@@ -21,10 +21,11 @@ def test_observability_one_drift_per_position():
 @pytest.mark.parametrize("seed", range(4))
 def test_drifts_within_bound(tmp_path, seed):
     truth = write_field(tmp_path / "f", FieldScenario(heading_error_deg=5.0), seed)
-    r, hist = field_drift(tmp_path / "f")
+    r = field_drift(tmp_path / "f")
+    hist = r["history"]
     err = np.abs(np.array(r["gyro_drift_dph"]) - truth["gyro_drift_dph"])
     assert np.all(err <= np.maximum(0.06, 3 * np.array(r["std_dph"]))), (err, r["std_dph"])
-    assert len(hist) == 3 and all(len(h["eps_N"]) == 300 for h in hist)
+    assert len(hist) == 3 and all(len(h["eps_N_dph"]) == 300 for h in hist)
 
 
 @pytest.mark.parametrize("attitudes,hidden", [
@@ -55,3 +56,35 @@ def test_transition_matrix_matches_scipy():
     for dt in (0.01, 1.0, 30.0):
         ref = scipy.linalg.expm(F * dt)
         assert np.abs(expm(F * dt) - ref).max() <= 1e-12 * np.abs(ref).max()
+
+
+def test_field_calibration_is_a_calibration_file_that_apply_corrects_the_drift_with(tmp_path):
+    """Issue 25: the field method writes the one calibration format (methods.py registry, chosen by the
+    data), apply subtracts the drift, and a method that takes other data is refused naming the one to use."""
+    import json
+
+    from click.testing import CliRunner
+
+    from simucal.calibrate import calibrate
+    from simucal.cli import main
+    from simucal.io import calibration
+    truth = write_field(tmp_path / "f", FieldScenario(heading_error_deg=2.0), 3)
+    r = CliRunner().invoke(main, ["field-drift", str(tmp_path / "f"), "-o", str(tmp_path / "d.json")])
+    assert r.exit_code == 0, r.output
+    cal = calibration.read(tmp_path / "d.json")
+    assert cal["method"] == "field" and cal["acc"]["nominal"] and "acc" in cal["not_calibrated"]
+    assert np.allclose(cal["gyro"]["bias"], cal["field"]["gyro_drift_dph"]) and np.allclose(cal["gyro"]["M"], np.eye(3))
+    assert np.all(np.abs(np.array(cal["gyro"]["bias"]) - truth["gyro_drift_dph"]) < 4 * np.array(cal["gyro"]["std"]["bias"]))
+    assert calibrate(tmp_path / "f")["gyro"]["bias"] == cal["gyro"]["bias"]  # the default method for a field set
+    r = CliRunner().invoke(main, ["apply", str(tmp_path / "d.json"), str(tmp_path / "f"), "-o", str(tmp_path / "a")])
+    assert r.exit_code == 0, r.output
+    before, after = io.read(tmp_path / "f"), io.read(tmp_path / "a")
+    earth = before.meta["earth_rate_dph"] if "earth_rate_dph" in before.meta else 15.04107
+    excess = [[abs(np.linalg.norm(ms.gyro_dph()[ms.samples["segment"] == s.segment].mean(0)) - earth)
+               for s in ms.segments] for ms in (before, after)]
+    assert np.max(excess[1]) < 0.1 * np.max(excess[0]), excess  # |w| at rest is the Earth rate once the drift is gone
+    assert np.allclose(after.acc_g(), before.acc_g())  # accelerometers at nominal, unchanged
+    for method, words in (("exact", "use --method field"), ("handheld", "use --method field")):
+        r = CliRunner().invoke(main, ["calibrate", str(tmp_path / "f"), "--method", method, "-o", str(tmp_path / "x.json")])
+        assert r.exit_code == 2 and words in r.stderr and not (tmp_path / "x.json").exists()
+    json.loads((tmp_path / "d.json").read_text())["field"]["history"][0]["eps_N_dph"]  # Fig. 4 from the file

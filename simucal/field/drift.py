@@ -17,7 +17,6 @@ three body drifts with their covariance. Frames: NUE navigation, FUR body.
 """
 from __future__ import annotations
 
-import hashlib
 from pathlib import Path
 
 import numpy as np
@@ -27,7 +26,7 @@ from simucal.errors import CalibrationError
 from simucal.fit.noise import white_noise_var
 from simucal.fit.rotations import exp_so3
 from simucal.generated import field as gen
-from simucal.io import outputs, units
+from simucal.io import calibration, outputs, units
 
 DPH = np.radians(1 / 3600)  # rad/s per deg/h
 AXIS_NAMES = ("x (forward)", "y (up)", "z (right)")
@@ -180,8 +179,11 @@ def heading_term_dph(meta, accuracy_deg):
     return abs(float(worst)) / np.sqrt(3)
 
 
-def field_drift(folder, block_s=1.0, stages=2, heading_accuracy_deg=5.0) -> dict:
-    ms = io.read(folder)
+def field_drift(data, block_s=1.0, stages=2, heading_accuracy_deg=5.0) -> dict:
+    """The three body drifts of the set `data` (a folder or a MeasurementSet) with their stds, each
+    position's attitude and eps_N, and under history each position's filter estimate against time
+    (the paper's Fig. 4: plot_history)."""
+    ms = data if isinstance(data, io.MeasurementSet) else io.read(data)
     if not (ms.has_acc and ms.has_gyro):
         raise CalibrationError(f"{ms.path}: field calibration needs accelerometer and gyro columns")
     if ms.segments is None:
@@ -207,30 +209,51 @@ def field_drift(folder, block_s=1.0, stages=2, heading_accuracy_deg=5.0) -> dict
         rows.append(c_N)
         eps.append(est["eps_N"][-1])
         sds.append(float(np.hypot(est["std"][-1], heading_term_dph(ms.meta, heading_accuracy_deg))))
-        hist.append({"segment": s.segment, "t_s": est["t"], "eps_N": est["eps_N"], "std": est["std"]})
+        hist.append({"segment": s.segment, "t_s": est["t"].tolist(), "eps_N_dph": est["eps_N"].tolist(),
+                     "std_dph": est["std"].tolist()})
     if len(rows) < 3:
         raise CalibrationError(f"{ms.path}: {len(rows)} static positions; the three body drifts need three")
     drift, std = solve_drifts(rows, eps, sds)
-    h = hashlib.sha256(b"".join((ms.path / n).read_bytes() for n in ("meta.json", "segments.csv", "samples.csv")))
-    return {"format": "simucal.field-drift/1", "method": "ruan2019 three-position",
+    return {"method": "ruan2019 three-position",
             "gyro_drift_dph": drift.tolist(), "std_dph": std.tolist(), "positions": positions,
             "frames": {"navigation": "North-Up-East", "body": "Forward-Up-Right (x, y, z of the gyro axes)"},
             "heading_accuracy_deg": heading_accuracy_deg,
             "std_note": "filter std per position combined with the heading-reference term for the stated accuracy",
-            "input_sha256": h.hexdigest()}, hist
+            "history": hist}
+
+
+def field_calibration(ms, heading_accuracy_deg=5.0) -> dict:
+    """The calibration file (io/calibration.py) of field_drift, so that `apply` corrects the drift:
+    the gyro block holds it as its bias with M = I (ruan2019 estimates no scale factor or
+    misalignment), the accelerometers stay at their nominal scale factors (a block marked
+    nominal, and named under not_calibrated), the positions and the filter's figures under field."""
+    r = field_drift(ms, heading_accuracy_deg=heading_accuracy_deg)
+    cal = calibration.header("field", ms)
+    cal["gyro"] = calibration.affine_block("gyro", np.eye(3), r["gyro_drift_dph"], {"bias": r["std_dph"]}, None,
+                                           "ruan2019: constant drift only (M held at I)")
+    cal["acc"] = calibration.affine_block("acc", np.eye(3), np.zeros(3), {}, None,
+                                          "nominal scale factors (the field method calibrates no accelerometer)",
+                                          nominal=True)
+    cal["not_calibrated"] = {
+        "acc": "the field method calibrates the gyro constant drift only; apply keeps the accelerometers at their "
+               "nominal scale factors",
+        "gyro scale factors and misalignments": "held at nominal (M = I); ruan2019 estimates the constant drift only"}
+    cal["field"] = r
+    return cal
 
 
 def plot_history(hist, path):
-    """The paper's Fig. 4: each position's eps_N estimate with its 1-sigma bounds."""
+    """The paper's Fig. 4: each position's eps_N estimate with its 1-sigma bounds (field_drift's history)."""
     import matplotlib
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
     fig, axs = plt.subplots(len(hist), 1, figsize=(7, 2.4 * len(hist)), sharex=True)
     for ax, h in zip(np.atleast_1d(axs), hist):
-        ax.plot(h["t_s"], h["eps_N"], label="eps_N estimate")
-        ax.fill_between(h["t_s"], h["eps_N"] - h["std"], h["eps_N"] + h["std"], alpha=0.3, label="+-1 sigma")
+        t, eps, sd = (np.asarray(h[k], float) for k in ("t_s", "eps_N_dph", "std_dph"))
+        ax.plot(t, eps, label="eps_N estimate")
+        ax.fill_between(t, eps - sd, eps + sd, alpha=0.3, label="+-1 sigma")
         ax.set_ylabel("deg/h")
-        ax.set_ylim(h["eps_N"][-1] - 8 * max(h["std"][-1], 1e-3), h["eps_N"][-1] + 8 * max(h["std"][-1], 1e-3))
+        ax.set_ylim(eps[-1] - 8 * max(sd[-1], 1e-3), eps[-1] + 8 * max(sd[-1], 1e-3))
         ax.set_title(f"position {h['segment']}: north gyro drift", fontsize=9)
         ax.legend(fontsize=7, loc="upper right")
     np.atleast_1d(axs)[-1].set_xlabel("time at the position (s)")

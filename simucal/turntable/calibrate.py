@@ -32,7 +32,6 @@ from simucal.turntable.consistency import latitude, mirror_error, mirror_test
 from simucal.turntable.model_test import ROWS, fails, rank, test_and_rank
 from simucal.turntable.unification import Unifier, unify, unify_paper
 
-METHODS = ("exact", "linear", "multiposition")
 
 
 def _mean_and_sigma(x, stated, varying=False):
@@ -357,10 +356,8 @@ def _noise_text(noise, obs, unit):
 
 def calibrate_table(ms, method, acc_model, gyro_model, ids, acc_noise_g=None, gyro_noise_dph=None,
                     auto=False) -> dict:
-    """Calibrate a turntable set (segments.csv) by `method`, the models with the effect ids added
+    """Calibrate a turntable set (segments.csv) by `method` (exact, linear or multiposition: methods.py), the models with the effect ids added
     (auto: and the library effects that a failing model needs, candidates.forward_selection)."""
-    if method not in METHODS:
-        raise CalibrationError(f"unknown method {method!r}; one of {METHODS}")
     if auto and method != "exact":
         raise CalibrationError("--add auto needs --method exact (the effects are chosen by the exact fit's test)")
     acc_obs = acc_segs = gyro_obs = gyro_segs = None

@@ -1,0 +1,97 @@
+"""Every calibration method, named once: the data it takes, its options and its function.
+
+`simucal calibrate` (its dispatch and its --method choice), the demo and the paper's claims
+read this table. A new method is its own module, one entry here and a test.
+
+The data a set holds decide which methods apply (data_kind): a turntable test has
+segments.csv with commanded table angles; a stream has no segments.csv (a hand-placed
+session, static poses found from the data); a field set has segments.csv with a north
+reference (heading_ref_deg) and no table angles (ruan2019).
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Callable
+
+from simucal.errors import CalibrationError
+
+TURNTABLE, STREAM, FIELD = "turntable", "stream", "field"
+DATA = {TURNTABLE: "a turntable test (segments.csv with commanded table angles)",
+        STREAM: "a continuous stream (no segments.csv: a hand-placed session)",
+        FIELD: "a field set (segments.csv with heading_ref_deg, no table angles)"}
+
+
+@dataclass(frozen=True)
+class Method:
+    name: str
+    data: str                  # TURNTABLE, STREAM or FIELD
+    summary: str               # what it is, with its paper
+    options: tuple[str, ...]   # the keyword options its function takes (calibrate's names)
+    run: Callable              # run(ms, **options) -> the calibration file's dict (io/calibration.py)
+
+
+# The functions import their method when called: the cli reads the names at every start.
+def _table(name):
+    def run(ms, acc_model, gyro_model, ids, auto, acc_noise_g, gyro_noise_dph):
+        from simucal.turntable.calibrate import calibrate_table
+        return calibrate_table(ms, name, acc_model, gyro_model, ids, acc_noise_g, gyro_noise_dph, auto)
+    return run
+
+
+def _handheld(ms, acc_model, ids, auto, detect):
+    from simucal.fit.augmented import AugmentedModel
+    from simucal.handheld.calibrate import calibrate_handheld
+    return calibrate_handheld(ms, AugmentedModel(acc_model, tuple(e for e in ids if e.startswith("acc."))), detect,
+                              gyro_effects=tuple(e for e in ids if e.startswith("gyro.")), auto=auto)
+
+
+def _field(ms, heading_accuracy_deg):
+    from simucal.field.drift import field_calibration
+    return field_calibration(ms, heading_accuracy_deg)
+
+
+_TABLE_OPTIONS = ("acc_model", "gyro_model", "ids", "auto", "acc_noise_g", "gyro_noise_dph")
+METHODS = {m.name: m for m in (
+    Method("exact", TURNTABLE, "dong2018's norm observation by the exact fit of any model (eq. 6-12 without the "
+           "linearisation), frames unified by the rate runs' means", _TABLE_OPTIONS, _table("exact")),
+    Method("linear", TURNTABLE, "dong2018 as printed: the linear regression of eq. 8/12 and the unification of "
+           "eq. 25-27 (derived models only)", _TABLE_OPTIONS, _table("linear")),
+    Method("multiposition", TURNTABLE, "the traditional multi-position method (dong2018's 'previous method', "
+           "Tables 3 and 4): least squares on the commanded attitudes", _TABLE_OPTIONS, _table("multiposition")),
+    Method("handheld", STREAM, "Tedaldi: static poses found in the stream, the exact norm fit of the "
+           "accelerometers, the gyro from the gravity directions before and after each move",
+           ("acc_model", "ids", "auto", "detect"), _handheld),
+    Method("field", FIELD, "ruan2019: the gyro constant drift from three static positions with a north reference "
+           "(two-stage alignment, a Kalman filter per position, least squares)", ("heading_accuracy_deg",),
+           _field),
+)}
+NAMES = tuple(METHODS)
+
+
+def for_data(kind) -> tuple[str, ...]:
+    """The methods that take this kind of data, the default first."""
+    return tuple(m.name for m in METHODS.values() if m.data == kind)
+
+
+def data_kind(ms) -> str:
+    """TURNTABLE, STREAM or FIELD (module doc)."""
+    if ms.segments is None:
+        return STREAM
+    static = [s for s in ms.segments if s.kind == "static"]
+    no_table = all(s.middle_deg is None and s.inner_deg is None for s in static)
+    return FIELD if no_table and any(s.heading_ref_deg is not None for s in static) else TURNTABLE
+
+
+def choose(name, ms) -> Method:
+    """The method called `name` ("auto": the default for the set's data), refused where it does not
+    take these data, naming the methods that do."""
+    kind = data_kind(ms)
+    if name in (None, "auto"):
+        return METHODS[for_data(kind)[0]]
+    if name not in METHODS:
+        raise CalibrationError(f"unknown method {name!r}; one of {', '.join(NAMES)}.")
+    m = METHODS[name]
+    if m.data != kind:
+        raise CalibrationError(f"{ms.path}: is {DATA[kind]}, but method {name} takes {DATA[m.data]}: use --method "
+                               f"{' or --method '.join(for_data(kind))}.")
+    return m
