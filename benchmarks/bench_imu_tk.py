@@ -69,7 +69,7 @@ def main():
         import_imu_tk(DATA / "xsens_acc.mat", DATA / "xsens_gyro.mat", tmp, ACC_CPG, 6258 * np.pi / 180 / 1.0 * 1.0,
                       45.4, G)
         t0 = time.perf_counter()
-        ms = io.read(tmp)
+        ms = io.read_set(tmp)
         read_secs = time.perf_counter() - t0
         cal = calibrate(Path(tmp))
         secs = []

@@ -60,7 +60,7 @@ def run(json_path=None, echo=print) -> dict:
         tmp = Path(tmp)
         progress.status("bench: one exact fit, N = 12 (compiled and numpy)")
         write(tmp / "t1", Scenario(unify_positions=False), 3)
-        obs, _ = segment_observations(io.read(tmp / "t1"), "acc")
+        obs, _ = segment_observations(io.read_set(tmp / "t1"), "acc")
         c, py = load("acc_baseline"), load("acc_baseline", compiled=False)
         n = len(obs.N)
         args = (obs.N[None], obs.rho[None], np.broadcast_to(obs.sigma, (n, 3))[None],
@@ -95,7 +95,7 @@ def run(json_path=None, echo=print) -> dict:
         fig["montecarlo_200k_std_over_crlb_min"], fig["montecarlo_200k_std_over_crlb_max"] = min(ratios), max(ratios)
         progress.status("bench: simucal calibrate and field-drift as whole processes")
         write(tmp / "raw", Scenario(rate_hz=100.0), 1)
-        fig["rows_raw_turntable"] = len(io.read(tmp / "raw").samples["t_s"])
+        fig["rows_raw_turntable"] = len(io.read_set(tmp / "raw").samples["t_s"])
         fig["cli_calibrate_raw_turntable_s"] = process(["simucal", "calibrate", str(tmp / "raw"), "-o", str(tmp / "c.json")])
         if DATA.is_dir():
             subprocess.run(["simucal", "import", "imu_tk", str(DATA / "xsens_acc.mat"), str(DATA / "xsens_gyro.mat"),

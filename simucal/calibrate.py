@@ -23,7 +23,7 @@ def calibrate(folder, method="auto", acc_model="acc_baseline", gyro_model="gyro_
     reference. Options a method does not take are refused when set."""
     if method not in ("auto",) + methods.NAMES:
         raise CalibrationError(f"unknown method {method!r}; one of auto, {', '.join(methods.NAMES)}.")
-    ms = io.read(folder)
+    ms = io.read_set(folder)
     try:
         m = methods.choose(method, ms)
         stuck_channels(ms)
@@ -51,7 +51,7 @@ def calibrate_to_file(folder, output, kwargs: dict):
     One task of a batch (`simucal calibrate DIR1 DIR2 ... --scheduler`): a refusal loses no other set."""
     try:
         result = calibrate(folder, **kwargs)
-        calibration.write(output, result)
+        calibration.save(output, result)
         return result, None
     except (io.MeasurementSetError, CalibrationError, KeyError, FileNotFoundError, ValueError) as e:
         return None, str(e.args[0] if isinstance(e, KeyError) and e.args else e)

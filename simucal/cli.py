@@ -22,15 +22,27 @@ class _Commands(click.Group):
             return super().invoke(ctx)
         except (click.exceptions.Exit, click.exceptions.Abort, click.ClickException, KeyboardInterrupt):
             raise
+        except ValueError as e:  # CalibrationError and its kin: a refusal that reached the top
+            from simucal.errors import CalibrationError
+            from simucal.io import MeasurementSetError
+            if isinstance(e, (CalibrationError, MeasurementSetError)):
+                _fail(e)
+            if os.environ.get("SIMUCAL_DEBUG"):
+                raise
+            _internal(e)
         except BrokenPipeError:  # the reader went away (| head): not an error of ours or the user's
             sys.stdout = open(os.devnull, "w")
             sys.exit(141)
         except Exception as e:
             if os.environ.get("SIMUCAL_DEBUG"):
                 raise
-            click.echo(f"error: internal error ({type(e).__name__}: {e}); this is a bug in simucal: please report it "
-                       "with the command and the data (SIMUCAL_DEBUG=1 shows the traceback)", err=True)
-            sys.exit(3)
+            _internal(e)
+
+
+def _internal(e):
+    click.echo(f"error: internal error ({type(e).__name__}: {e}); this is a bug in simucal: please report it "
+               "with the command and the data (SIMUCAL_DEBUG=1 shows the traceback)", err=True)
+    sys.exit(3)
 
 
 @click.group(cls=_Commands)
@@ -232,6 +244,8 @@ def _sensor_lines(result):
         yield f"{s}: residual rms {b['residual_rms']:.3g} {unit}; {test}{eff}{held}"
         if (b.get("noise") or {}).get("text"):
             yield f"{s}: noise {b['noise']['text']}"
+        if b.get("noise_warning"):
+            yield f"{s}: WARNING: {b['noise_warning']}"
         if b.get("model_choice"):
             yield (f"{s}: T chosen by the moves left out one at a time: " + ", ".join(
                 f"{k} {v['held_out_rms_deg']:.3g} deg" for k, v in b["model_choice"].items())
@@ -326,6 +340,7 @@ def calibrate(data_dirs, output, method, acc_model, gyro_model, add, acc_noise_g
         click.echo(f"wrote {output} (method {result['method']})")
         return
     from simucal import progress
+    from simucal.errors import CalibrationError
     from simucal.sweeps import map_tasks
     out = Path(output)
     names = [Path(d).resolve().name for d in data_dirs]
@@ -336,9 +351,14 @@ def calibrate(data_dirs, output, method, acc_model, gyro_model, add, acc_noise_g
               "would collide; calibrate them separately")
     tasks = [(Path(d), out / f"{n}.json", kwargs) for d, n in zip(data_dirs, names)]
     _guard(inputs, files=[path for _, path, _ in tasks], folders=[out])
+    made = not out.exists()
     out.mkdir(exist_ok=True)
-    done = map_tasks(calibrate_to_file, tasks, scheduler,
-                     progress=progress.bar("calibrate", "set"))
+    try:
+        done = map_tasks(calibrate_to_file, tasks, scheduler, progress=progress.bar("calibrate", "set"))
+    except CalibrationError as e:  # no scheduler: leave nothing behind
+        if made:
+            out.rmdir()
+        _fail(e)
     failed = 0
     for (d, path, _), (result, error) in zip(tasks, done):
         if error:
@@ -366,11 +386,11 @@ def apply_cmd(calibration_file, data_dir, out_dir, force):
     from simucal.io import calibration
     _guard([calibration_file, data_dir], sets=[out_dir], force=force)
     try:
-        cal = calibration.read(calibration_file)
+        cal = calibration.load(calibration_file)
         meta, samples, segments = apply(cal, Path(data_dir), calibration_file)
     except (ValueError, KeyError) as e:  # MeasurementSetError, CalibrationError, CalibrationFileError
         _fail(e)
-    io.write(out_dir, meta, samples, segments)
+    io.write_set(out_dir, meta, samples, segments)
     click.echo(f"wrote {out_dir}: {len(samples['t_s'])} rows in g and deg/h (frame b), calibrated by "
                f"{calibration_file}")
 
@@ -555,6 +575,7 @@ def plan(score_plan, model_name, add, positions, criterion, rate_dps, rates, kin
     from simucal.fit.augmented import AugmentedModel
     from simucal.turntable import plans
     from simucal.turntable.plan_design import design, directions_k, plan_rows, score
+    from simucal.io.units import DPH_PER_DPS
     if (score_plan is None) == (positions is None):
         _fail("give --score PLAN to score a plan, or --positions N to design one")
     from simucal.io import outputs
@@ -571,13 +592,13 @@ def plan(score_plan, model_name, add, positions, criterion, rate_dps, rates, kin
         rate_list = [float(x) for x in rates.split(",")] if rates else [rate_dps]
         if gyro and not all(abs(x) > 0 for x in rate_list):
             raise ValueError(f"--rates {rates}: a rate run needs a non-zero rate (deg/s)")
-        rho = abs(rate_dps) * 3600.0 if gyro else 1.0
+        rho = abs(rate_dps) * DPH_PER_DPS if gyro else 1.0
         sigma = sigma if sigma is not None else (0.01 if gyro else 1e-5)
         if score_plan is not None:
             rows = plans.PLANS[score_plan]() if score_plan in plans.PLANS else plans.read_csv(score_plan)
             u, name = directions_k(rows), score_plan
         else:
-            u, rho = design(model, positions, np.abs(rate_list) * 3600.0 if gyro else 1.0, sigma, criterion)
+            u, rho = design(model, positions, np.abs(rate_list) * DPH_PER_DPS if gyro else 1.0, sigma, criterion)
             name = f"{criterion}-optimal, {positions} positions"
         result = {"plan": name, **score(model, u, rho, sigma)}
         if pair:
@@ -597,7 +618,7 @@ def plan(score_plan, model_name, add, positions, criterion, rate_dps, rates, kin
         _fail(e)
     unit = model.unit
     click.echo(f"{name}: {model.name}, noise {sigma:g} {unit} per position"
-               + (f", rate runs at {', '.join(f'{x:g}' for x in sorted(set(np.round(np.atleast_1d(rho) / 3600, 6))))} "
+               + (f", rate runs at {', '.join(f'{x:g}' for x in sorted(set(np.round(np.atleast_1d(rho) / DPH_PER_DPS, 6))))} "
                   "deg/s" if gyro else ""))
     click.echo(f"  D per position {result['D_per_position']:.6g}, A {result['A']:.4g}, "
                f"largest |correlation| {result['max_abs_correlation']:.2f}")
@@ -628,7 +649,7 @@ def plan(score_plan, model_name, add, positions, criterion, rate_dps, rates, kin
             rows = [(i + 1, *map(float, d)) for i, d in enumerate(u)]
             cols = "pose,f_x,f_y,f_z"
         else:
-            rows = plan_rows(u, np.asarray(rho) / 3600.0 if gyro else None)
+            rows = plan_rows(u, np.asarray(rho) / DPH_PER_DPS if gyro else None)
             cols = "outer_deg,middle_deg,inner_deg" + (",outer_rate_dps" if gyro else "")
         outputs.write_text(out, cols + "\n" + "".join(",".join(f"{x:.6f}" for x in r) + "\n" for r in rows))
         result["rows"] = rows

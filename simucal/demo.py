@@ -43,7 +43,7 @@ def loop(out: Path, seed: int, echo) -> dict:
     truth = write(data, sc, seed)
     echo(f"1 simulate: {data} (fibonacci48 plan; a hidden effect is in {data / 'truth.json'} only)")
     base = calibrate(data)
-    calibration.write(out / "loop_calibration_baseline.json", base)
+    calibration.save(out / "loop_calibration_baseline.json", base)
     echo(f"2 calibrate (baseline model): acc chi2 {base['acc']['chi2']:.1f} on {base['acc']['dof']} dof, "
          f"p = {base['acc']['p_value']:.2g}; advice: add {base['acc']['advice']}")
     diag = diagnose(data)
@@ -54,14 +54,14 @@ def loop(out: Path, seed: int, echo) -> dict:
     if not found:
         raise RuntimeError("the demo's hidden effect was not found: " + diag["acc"]["verdict"])
     fixed = calibrate(data, add=tuple(found))
-    calibration.write(out / "loop_calibration_added.json", fixed)
+    calibration.save(out / "loop_calibration_added.json", fixed)
     e = fixed["acc"]["effects"][found[0]]
     echo(f"4 calibrate --add {found[0]}: acc chi2 {fixed['acc']['chi2']:.1f} on {fixed['acc']['dof']} dof, "
          f"p = {fixed['acc']['p_value']:.2g}; {found[0]} = {e['value']:.4g} +- {e['std']:.2g} {e['unit']} "
          f"(truth {truth['acc']['params'][found[0]]:.4g})")
     err0, err1 = _rest_error(base, data), _rest_error(fixed, data)
     meta, samples, segments = apply(fixed, data)
-    io.write(out / "loop_applied", meta, samples, segments)
+    io.write_set(out / "loop_applied", meta, samples, segments)
     rows = [("|f| - 1 g at rest, rms (g)", err0, err1)]
     for k in ("dK_z", "b_z", "dK_x"):
         t = truth["acc"]["params"][k]
@@ -101,7 +101,7 @@ def paper(out: Path, seed: int, echo) -> None:
     results = {}
     for method in methods.for_data(methods.TURNTABLE):
         results[method] = calibrate(out / "paper", method)
-        calibration.write(out / f"calibration_{method}.json", results[method])
+        calibration.save(out / f"calibration_{method}.json", results[method])
     echo("calibrate: " + ", ".join(f"calibration_{m}.json" for m in results))
     audit_report = full_audit(seeds=8)
     outputs.write_text(out / "audit.md", audit_report.markdown())

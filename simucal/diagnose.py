@@ -105,7 +105,7 @@ def diagnose(folder, add=(), acc_model="acc_baseline", gyro_model="gyro_baseline
              acc_noise_g=None, gyro_noise_dph=None) -> dict:
     """add: effect ids and model files (fit/augmented.resolve_add)."""
     folder = Path(folder)
-    ms = io.read(folder)
+    ms = io.read_set(folder)
     try:
         return _diagnose(ms, folder, add, acc_model, gyro_model, acc_noise_g, gyro_noise_dph)
     except CalibrationError as e:

@@ -39,10 +39,10 @@ def _table(name):
 
 
 def _handheld(ms, acc_model, ids, auto, detect):
-    from simucal.fit.augmented import AugmentedModel
+    from simucal.fit.augmented import AugmentedModel, for_sensor
     from simucal.handheld.calibrate import calibrate_handheld
-    return calibrate_handheld(ms, AugmentedModel(acc_model, tuple(e for e in ids if e.startswith("acc."))), detect,
-                              gyro_effects=tuple(e for e in ids if e.startswith("gyro.")), auto=auto)
+    return calibrate_handheld(ms, AugmentedModel(acc_model, for_sensor(ids, "acc")), detect,
+                              gyro_effects=for_sensor(ids, "gyro"), auto=auto)
 
 
 def _field(ms, heading_accuracy_deg):

@@ -26,7 +26,12 @@ def map_tasks(fn, tasks: list, scheduler=None, progress=None, threads: int = 1) 
                                dashboard_address=None)
         client = Client(cluster)
     else:
-        cluster, client = None, Client(scheduler)
+        try:
+            cluster, client = None, Client(scheduler, timeout="10s")
+        except OSError as e:
+            from simucal.errors import CalibrationError
+            raise CalibrationError(f"--scheduler {scheduler}: no Dask scheduler answers there ({e}); start one "
+                                   "(dask scheduler), or use --scheduler local or processes.") from None
     try:
         futures = [client.submit(fn, *t, pure=False) for t in tasks]
         done = as_completed(futures)

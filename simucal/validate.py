@@ -103,7 +103,7 @@ def _turntable(ms, f_before, f_after, w_before, w_after):
         sd = ms.meta.get("gyro_noise_dph")
         checks = []
         rate = [s for s in segs if s.kind == "rate" and seg_rows[s.segment].any()]
-        for kind, chosen, truth in (("rate", rate, [abs(s.outer_rate_dps * 3600 + w_e * np.sin(lat)) for s in rate]),
+        for kind, chosen, truth in (("rate", rate, [abs(s.outer_rate_dps * units.DPH_PER_DPS + w_e * np.sin(lat)) for s in rate]),
                                     ("static", static, [w_e] * len(static))):
             if not chosen:
                 continue
@@ -133,7 +133,7 @@ def _stream(ms, f_before, f_after, w_before, w_after):
         angles = []
         g_dirs = ma / np.linalg.norm(ma, axis=1, keepdims=True)  # the calibrated accelerometers: the gyro's reference
         for w, nominal in ((w_before, True), (w_after, False)):
-            w_dps = w / 3600.0
+            w_dps = w / units.DPH_PER_DPS
             bias = w_dps[rest].mean(0) if nominal else np.zeros(3)  # nominal: the rest's bias, as a user would
             mv, _ = build_moves(w_dps, t, det, bias, bad)
             angles.append(np.degrees(np.linalg.norm(move_residuals(np.eye(3), mv, g_dirs, jac=False)[0], axis=1)))
@@ -157,8 +157,8 @@ def _verdict(check) -> str:
 
 def validate(cal_path, data_dir) -> dict:
     """The report (module doc) of calibration file cal_path applied to the set data_dir."""
-    cal = calibration.read(cal_path)
-    ms = io.read(data_dir)
+    cal = calibration.load(cal_path)
+    ms = io.read_set(data_dir)
     calibration.check_layout(cal, ms, cal_path)
     _, samples, _ = apply(cal, data_dir, cal_path)
     f_before = ms.acc_g() if ms.has_acc else None

@@ -112,9 +112,9 @@ from simucal.io import calibration
 tmp = Path({str(tmp_path)!r})
 write(tmp / "set", SCENARIOS["paper"](), seed=1)
 assert "sympy" not in sys.modules
-calibration.write(tmp / "cal.json", calibrate(tmp / "set"))
+calibration.save(tmp / "cal.json", calibrate(tmp / "set"))
 diagnose(tmp / "set")
-apply(calibration.read(tmp / "cal.json"), tmp / "set")
+apply(calibration.load(tmp / "cal.json"), tmp / "set")
 print(json.dumps(sorted(m for m in sys.modules if m.split(".")[0] == "sympy")))
 """
     res = subprocess.run([sys.executable, "-c", script], capture_output=True, text=True)

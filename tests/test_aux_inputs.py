@@ -34,7 +34,7 @@ def test_supply_voltage_term_simulated_found_calibrated_and_applied(tmp_path):
     code, out = _run("simulate", data, "--plan", "fibonacci48", "--effect-file", model, "--set", f"bV_z={TRUE_BV_Z}",
                      "--column", "supply_v=4.5:5.5", "--seed", 2)
     assert code == 0, out
-    ms = io.read(data)
+    ms = io.read_set(data)
     assert np.ptp(ms.samples["supply_v"]) > 0.5  # the reader keeps the column
 
     code, out = _run("calibrate", data, "-o", tmp_path / "base.json")  # the baseline lacks the term
@@ -57,7 +57,7 @@ def test_supply_voltage_term_simulated_found_calibrated_and_applied(tmp_path):
         assert acc["p_value"] > 1e-3
     code, out = _run("apply", tmp_path / "cal.json", data, "-o", tmp_path / "applied")
     assert code == 0, out
-    applied = io.read(tmp_path / "applied")
+    applied = io.read_set(tmp_path / "applied")
     assert np.array_equal(applied.samples["supply_v"], ms.samples["supply_v"])  # carried through
 
     # the same model on data without the column: refused, naming it
@@ -69,13 +69,13 @@ def test_supply_voltage_term_simulated_found_calibrated_and_applied(tmp_path):
 
 def test_reader_keeps_numeric_extra_columns_and_ignores_others(tmp_path):
     folder = tmp_path / "s"
-    io.write(folder, {"acc_unit": "g", "gyro_unit": "deg/h", "latitude_deg": 45.0},
+    io.write_set(folder, {"acc_unit": "g", "gyro_unit": "deg/h", "latitude_deg": 45.0},
              {"t_s": np.arange(5.0), "ax": np.zeros(5), "ay": np.zeros(5), "az": np.ones(5),
               "supply_v": np.linspace(4.9, 5.1, 5)})
     text = (folder / "samples.csv").read_text().splitlines()
     text = [text[0] + ",note"] + [row + (",ok" if i else ",a b") for i, row in enumerate(text[1:])]
     (folder / "samples.csv").write_text("\n".join(text) + "\n")
-    ms = io.read(folder)
+    ms = io.read_set(folder)
     assert np.allclose(ms.samples["supply_v"], np.linspace(4.9, 5.1, 5))
     assert "note" not in ms.samples
 

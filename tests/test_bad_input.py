@@ -259,7 +259,7 @@ def test_reader_gives_a_set_or_a_clean_error(tmp_path, samples, meta):
     (d / "samples.csv").write_bytes(samples)
     (d / "meta.json").write_bytes(meta)
     try:
-        ms = io.read(d)
+        ms = io.read_set(d)
     except io.MeasurementSetError as e:
         assert str(d) in str(e)
         return
@@ -422,6 +422,14 @@ def _edited(cal, edit):
     (lambda c: c["acc"]["M"][0].__setitem__(0, 3.0), "scale factors outside"),
     (lambda c: c["acc"]["effects"].update({"acc.warp.q": {"value": 1.0}}), "acc.warp.q"),
     (lambda c: c["acc"].pop("bias"), "lacks 'bias'"),
+    # parts that must tell one story: params against M, bias and C_b_model
+    (lambda c: c["acc"]["params"].update(b_x=16.5), "acc.bias disagrees with what acc.params give"),
+    (lambda c: c["gyro"]["params"].update(b_x=5e5), "gyro.bias disagrees"),
+    (lambda c: c["acc"]["params"].update(dK_x=0.45), "acc.M disagrees"),
+    (lambda c: c["acc"].update(M=(1.05 * np.array(c["acc"]["M"])).tolist()), "acc.M disagrees"),
+    (lambda c: c["gyro"].pop("C_b_model"), "no C_b_model"),
+    (lambda c: c["acc"]["params"].pop("dK_x"), "acc.params lacks 'dK_x'"),
+    (lambda c: c["acc"].update(model="gyro_baseline"), "acc.params lacks"),
 ])
 def test_hand_edited_calibration_is_refused_naming_the_entry(sets, tmp_path, table_cal, edit, named):
     path = tmp_path / "edited.json"
@@ -450,7 +458,7 @@ def test_any_numeric_edit_of_a_calibration_applies_finite_or_is_refused(sets, tm
     r = CliRunner().invoke(main, ["apply", str(path), str(sets / "table"), "-o", str(out)])
     assert r.exit_code in (0, 2), r.output
     if r.exit_code == 0:
-        ms = io.read(out)
+        ms = io.read_set(out)
         assert all(np.all(np.isfinite(ms.samples[c])) for c in io.SAMPLE_COLS)
     else:
         assert len(r.stderr.strip().splitlines()) == 1
@@ -588,3 +596,48 @@ def test_a_plan_on_one_great_circle_names_what_it_cannot_determine(tmp_path):
         assert ("acc: POORLY DETERMINED" in r.output) == named and bool(poor) == named
         if named:
             assert poor["b_y"]["inflation"] > 100
+
+
+def test_a_stream_calibration_whose_T_was_edited_is_refused(sets, tmp_path):
+    out = tmp_path / "c.json"
+    assert CliRunner().invoke(main, ["calibrate", str(sets / "stream"), "-o", str(out)]).exit_code == 0
+    cal = json.loads(out.read_text())
+    cal["gyro"]["T"] = (2 * np.array(cal["gyro"]["T"])).tolist()
+    out.write_text(json.dumps(cal))
+    run_refused(["apply", out, sets / "stream", "-o", tmp_path / "o"], "gyro.T is not the inverse", out=tmp_path / "o")
+
+
+@pytest.mark.parametrize("meta,named", [
+    ({"latitude_deg": True}, "latitude_deg"),
+    ({"full_scale": {"acc": 5}}, "full_scale"),
+    ({"full_scale": [0, 1]}, "full_scale"),
+    ({"full_scale": {"acc": [1, -1]}}, "lo < hi"),
+])
+def test_meta_values_of_the_wrong_shape_are_named(sets, tmp_path, meta, named):
+    shutil.copytree(sets / "table", tmp_path / "t")
+    m = json.loads((tmp_path / "t" / "meta.json").read_text())
+    (tmp_path / "t" / "meta.json").write_text(json.dumps({**m, **meta}))
+    for cmd in ("calibrate", "diagnose"):
+        run_refused([cmd, tmp_path / "t", "-o", tmp_path / "o.json"], "meta.json", named, out=tmp_path / "o.json")
+
+
+@pytest.mark.parametrize("args,named", [
+    (["simulate", "{tmp}/s", "--effect", "acc.quadratic.z=nan"], "finite"),
+    (["simulate", "{tmp}/s", "--effect", "acc.quadratic.z=1e300"], "finite"),
+    (["montecarlo", "--effect", "acc.quadratic.z=inf", "-o", "{tmp}/m.json"], "finite"),
+    (["simulate", "{tmp}/s", "--rate-hz", "1e-3"], "0 rows"),
+])
+def test_simulated_values_that_would_write_nonsense_are_refused(tmp_path, args, named):
+    run_refused([a.format(tmp=tmp_path) for a in args], named)
+    assert not list(tmp_path.iterdir())
+
+
+def test_a_stated_noise_far_above_the_scatter_is_named(sets, tmp_path):
+    r = CliRunner().invoke(main, ["calibrate", str(sets / "table"), "-o", str(tmp_path / "c.json"), "--acc-noise-g", "0.1"])
+    assert r.exit_code == 0 and "acc: WARNING: the residuals are" in r.output
+    assert "noise_warning" in json.loads((tmp_path / "c.json").read_text())["acc"]
+
+
+def test_an_unreachable_scheduler_is_one_line_and_writes_nothing(sets, tmp_path):
+    run_refused(["calibrate", sets / "table", sets / "acc_only", "-o", tmp_path / "out", "--scheduler",
+                 "tcp://127.0.0.1:1"], "no Dask scheduler answers", out=tmp_path / "out")

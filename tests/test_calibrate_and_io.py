@@ -43,7 +43,7 @@ def test_nan_cell_named_with_line(paper_set, tmp_path):
     lines[3] = ",".join(cells)
     (dst / "samples.csv").write_text("\n".join(lines) + "\n")
     with pytest.raises(io.MeasurementSetError, match=r"samples.csv, line 4: column ax: nan is not finite"):
-        io.read(dst)
+        io.read_set(dst)
 
 
 def test_unknown_unit_and_missing_latitude(paper_set, tmp_path):
@@ -51,11 +51,11 @@ def test_unknown_unit_and_missing_latitude(paper_set, tmp_path):
     meta = json.loads((dst / "meta.json").read_text())
     (dst / "meta.json").write_text(json.dumps({**meta, "acc_unit": "mg"}))
     with pytest.raises(io.MeasurementSetError, match="not a known unit"):
-        io.read(dst)
+        io.read_set(dst)
     meta.pop("latitude_deg")
     (dst / "meta.json").write_text(json.dumps(meta))
     with pytest.raises(io.MeasurementSetError, match="latitude_deg is required"):
-        io.read(dst)
+        io.read_set(dst)
 
 
 def test_empty_cell_named(paper_set, tmp_path):
@@ -64,7 +64,7 @@ def test_empty_cell_named(paper_set, tmp_path):
     lines[5] = lines[5].replace(lines[5].split(",")[4], "", 1)
     (dst / "samples.csv").write_text("\n".join(lines) + "\n")
     with pytest.raises(io.MeasurementSetError, match="line 6: column .* is empty"):
-        io.read(dst)
+        io.read_set(dst)
 
 
 def test_paper_unification_needs_table2(paper_set, tmp_path):
@@ -125,7 +125,7 @@ def test_not_converged_is_reported(paper_set):
     from simucal.fit.catalog import load
     from simucal.fit.norm_fit import fit_exact
     from simucal.turntable.calibrate import segment_observations
-    obs, _ = segment_observations(io.read(paper_set[0]), "acc")
+    obs, _ = segment_observations(io.read_set(paper_set[0]), "acc")
     with pytest.raises(CalibrationError, match="did not converge"):
         fit_exact(load("acc_baseline"), obs, p0=[0.3] * 9, max_iter=1)
 

@@ -240,7 +240,7 @@ def test_mixed_shuffled_set_without_noise_unifies_and_validates(tmp_path):
                   outer_rate_dps=(10.0, -10.0))
     truth = write(tmp_path / "raw", sc, 5)
     write(tmp_path / "other", Scenario(plan="table1", rate_hz=20.0, static_s=3.0, position_error_rad=20 * ARCMIN), 6)
-    ms = io.read(tmp_path / "raw")
+    ms = io.read_set(tmp_path / "raw")
     kinds = {s.segment: s.kind for s in ms.segments}
     parts = []
     for seg in np.unique(ms.samples["segment"]):
@@ -256,7 +256,7 @@ def test_mixed_shuffled_set_without_noise_unifies_and_validates(tmp_path):
             samples[k][m] = samples[k][srt]
     assert not np.all(np.diff(samples["segment"]) >= 0)
     meta = {k: v for k, v in ms.meta.items() if k not in ("acc_noise_g", "gyro_noise_dph")}
-    io.write(tmp_path / "mixed", meta, samples, ms.segments)
+    io.write_set(tmp_path / "mixed", meta, samples, ms.segments)
     cal = calibrate(tmp_path / "mixed")
     u = cal["unification"]
     assert u["method"] == "rate_run_means" and "rate-run pairs' scatter" in u["noise"]["acc_rate_run_means"]["text"]

@@ -42,7 +42,7 @@ def test_degenerate_geometry_refused(tmp_path, attitudes, hidden):
 def test_missing_heading_reference_refused(tmp_path):
     meta, samples, segments, _ = simulate_field(FieldScenario(duration_s=60), 0)
     segments[1].heading_ref_deg = None
-    io.write(tmp_path / "f", meta, samples, segments)
+    io.write_set(tmp_path / "f", meta, samples, segments)
     with pytest.raises(CalibrationError, match="segment 2 has no heading_ref_deg"):
         field_drift(tmp_path / "f")
 
@@ -71,14 +71,14 @@ def test_field_calibration_is_a_calibration_file_that_apply_corrects_the_drift_w
     truth = write_field(tmp_path / "f", FieldScenario(heading_error_deg=2.0), 3)
     r = CliRunner().invoke(main, ["field-drift", str(tmp_path / "f"), "-o", str(tmp_path / "d.json")])
     assert r.exit_code == 0, r.output
-    cal = calibration.read(tmp_path / "d.json")
+    cal = calibration.load(tmp_path / "d.json")
     assert cal["method"] == "field" and cal["acc"]["nominal"] and "acc" in cal["not_calibrated"]
     assert np.allclose(cal["gyro"]["bias"], cal["field"]["gyro_drift_dph"]) and np.allclose(cal["gyro"]["M"], np.eye(3))
     assert np.all(np.abs(np.array(cal["gyro"]["bias"]) - truth["gyro_drift_dph"]) < 4 * np.array(cal["gyro"]["std"]["bias"]))
     assert calibrate(tmp_path / "f")["gyro"]["bias"] == cal["gyro"]["bias"]  # the default method for a field set
     r = CliRunner().invoke(main, ["apply", str(tmp_path / "d.json"), str(tmp_path / "f"), "-o", str(tmp_path / "a")])
     assert r.exit_code == 0, r.output
-    before, after = io.read(tmp_path / "f"), io.read(tmp_path / "a")
+    before, after = io.read_set(tmp_path / "f"), io.read_set(tmp_path / "a")
     earth = before.meta["earth_rate_dph"] if "earth_rate_dph" in before.meta else 15.04107
     excess = [[abs(np.linalg.norm(ms.gyro_dph()[ms.samples["segment"] == s.segment].mean(0)) - earth)
                for s in ms.segments] for ms in (before, after)]

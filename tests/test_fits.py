@@ -126,7 +126,7 @@ def test_compiled_whole_fit_matches_the_python_solver(tmp_path, name, sensor):
     sets = []
     for seed in range(3):
         write(tmp_path / str(seed), Scenario(plan="fibonacci24"), seed)
-        sets.append(segment_observations(io.read(tmp_path / str(seed)), sensor)[0])
+        sets.append(segment_observations(io.read_set(tmp_path / str(seed)), sensor)[0])
     for obs in sets:  # both stop within 1e-6 std of the optimum (the convergence test): agree to 1e-5 std
         a, b = fit_exact(c, obs), fit_exact(py, obs)
         assert np.all(np.abs(a.vector(c.params) - b.vector(py.params)) < 1e-5 * np.sqrt(np.diag(b.cov)))
@@ -159,7 +159,7 @@ def test_numpy_batch_equals_one_set_at_a_time(tmp_path):
     sets = []
     for seed in range(3):
         write(tmp_path / str(seed), Scenario(), seed)
-        sets.append(segment_observations(io.read(tmp_path / str(seed)), "gyro")[0])
+        sets.append(segment_observations(io.read_set(tmp_path / str(seed)), "gyro")[0])
     n = len(sets[0].N)
     p, u, cost, H, it, status = fit_batch(py, np.array([o.N for o in sets]), np.array([o.rho for o in sets]),
                                           np.array([np.broadcast_to(o.sigma, (n, 3)) for o in sets]),

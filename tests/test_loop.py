@@ -62,7 +62,7 @@ def test_mixed_raw_and_averaged_rows_are_tested(tmp_path):
     variance component, the test stays on, and a bias drift is declared."""
     sc = Scenario(rate_hz=20.0, static_s=5.0, shuffle=True, acc_effects={"acc.bias_drift_time.y": 1e-7})
     write(tmp_path / "raw", sc, 2)
-    ms = io.read(tmp_path / "raw")
+    ms = io.read_set(tmp_path / "raw")
     kinds = {s.segment: s.kind for s in ms.segments}
     rows = {k: [] for k in ms.samples}
     for seg in np.unique(ms.samples["segment"]):
@@ -71,7 +71,7 @@ def test_mixed_raw_and_averaged_rows_are_tested(tmp_path):
             rows[k].append(v[m].mean(keepdims=True) if kinds[seg] == "rate" else v[m])
     samples = {k: np.concatenate(v) for k, v in rows.items()}
     meta = {k: v for k, v in ms.meta.items() if k not in ("acc_noise_g", "gyro_noise_dph")}
-    io.write(tmp_path / "mixed", meta, samples, ms.segments)
+    io.write_set(tmp_path / "mixed", meta, samples, ms.segments)
     d = diagnose(tmp_path / "mixed")
     assert d["acc"]["baseline"]["noise"]["rows_estimated"] > 0
     assert d["acc"]["baseline"]["p_value"] < 1e-3
@@ -120,11 +120,11 @@ def test_apply_brings_rest_to_one_g(tmp_path):
     sc = Scenario(acc_unit="pulse/s", acc_effects={"acc.quadratic.z": 2e-4}, plan="fibonacci48")
     write(tmp_path / "set", sc, 5)
     cal = calibrate(tmp_path / "set", add=("acc.quadratic.z",))
-    calibration.write(tmp_path / "cal.json", cal)
-    back = calibration.read(tmp_path / "cal.json")
+    calibration.save(tmp_path / "cal.json", cal)
+    back = calibration.load(tmp_path / "cal.json")
     meta, samples, segments = apply(back, tmp_path / "set")
-    io.write(tmp_path / "applied", meta, samples, segments)
-    ms = io.read(tmp_path / "applied")
+    io.write_set(tmp_path / "applied", meta, samples, segments)
+    ms = io.read_set(tmp_path / "applied")
     static = np.isin(ms.samples["segment"], [s.segment for s in ms.segments if s.kind == "static"])
     err = np.linalg.norm(ms.acc_g()[static], axis=1) - 1.0
     assert ms.meta["acc_unit"] == "g" and ms.meta["gyro_unit"] == "deg/h"
@@ -189,8 +189,8 @@ def test_stream_calibrate_carries_a_gyro_effect_and_applies(tmp_path):
     e = cal["gyro"]["effects"]["gyro.g_sensitivity.yz"]
     assert abs(e["value"] - 1000.0) < 3 * e["std"] and e["unit"] == "(deg/h)/g"
     assert base["gyro"]["p_value"] < 1e-3 < cal["gyro"]["p_value"] and cal["gyro"]["dof"] > 0
-    calibration.write(tmp_path / "c.json", cal)
-    meta, samples, _ = apply(calibration.read(tmp_path / "c.json"), tmp_path / "h")
+    calibration.save(tmp_path / "c.json", cal)
+    meta, samples, _ = apply(calibration.load(tmp_path / "c.json"), tmp_path / "h")
     assert meta["gyro_unit"] == "deg/h" and np.all(np.isfinite(samples["gx"]))
 
 

@@ -28,7 +28,7 @@ def test_batched_simulation_matches_the_simulator(tmp_path):
     sc = Scenario(position_error_rad=0.0, acc_effects={"acc.quadratic.z": 2e-4}, gyro_effects={"gyro.g_sensitivity.xz": 0.3})
     sc.acc_noise_g = sc.gyro_noise_dph = 0.0
     write(tmp_path, sc, 0)
-    ms = io.read(tmp_path)
+    ms = io.read_set(tmp_path)
     b = simulate_batch(sc, 1, np.random.default_rng(0), noise=False)
     acc, gyro = ms.acc_g(), ms.gyro_dph()
     static = [s.segment for s in ms.segments if s.kind == "static"]

@@ -119,7 +119,7 @@ def test_a_stream_written_with_force_over_a_segmented_set_leaves_no_stale_segmen
     target = work / "target"
     shutil.copytree(made / "set", target)
     write_handheld(target, HandheldScenario(poses=10, rest_s=5.0), 1)
-    assert not (target / "segments.csv").exists() and io.read(target).segments is None
+    assert not (target / "segments.csv").exists() and io.read_set(target).segments is None
 
 
 def test_demo_replaces_only_what_a_demo_wrote(tmp_path):

@@ -136,6 +136,6 @@ def test_separation_power_is_the_rate_observed(tmp_path):
     for seed in range(n):
         write(tmp_path / str(seed), Scenario(plan=str(csv), unify_positions=False, acc_effects={"acc.quadratic.z": 1e-4}),
               seed)
-        obs, _ = segment_observations(io.read(tmp_path / str(seed)), "acc")
+        obs, _ = segment_observations(io.read_set(tmp_path / str(seed)), "acc")
         rejected += (fit_exact(twin, obs).chi2 - fit_exact(truth, obs).chi2) > crit
     assert abs(rejected / n - predicted) < 3 * np.sqrt(predicted * (1 - predicted) / n) + 0.05, (rejected / n, predicted)

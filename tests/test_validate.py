@@ -3,10 +3,12 @@ before (nominal scale factors) and after, against the noise floor."""
 import json
 import shutil
 
+import numpy as np
 import pytest
 from click.testing import CliRunner
 
 from simucal.cli import main
+from simucal.fit.augmented import AugmentedModel
 from simucal.handheld.simulate import HandheldScenario, write_handheld
 from simucal.turntable.simulate import Scenario, plant, write
 
@@ -50,7 +52,10 @@ def test_the_error_falls_on_independent_data_and_falls_further_with_the_missing_
 
 def test_a_calibration_worse_than_nominal_is_said_loudly(table, tmp_path):
     cal = json.loads((table / "added.json").read_text())
-    cal["acc"]["params"]["dK_x"] += 0.1  # a 10 % scale error
+    cal["acc"]["params"]["dK_x"] += 0.1  # a 10 % scale error, M and bias made to agree (apply refuses a half edit)
+    model = AugmentedModel(cal["acc"]["model"], tuple(cal["acc"]["effects"]))
+    M, bias = model.matrix_and_bias(np.array([cal["acc"]["params"][k] for k in model.params]))
+    cal["acc"].update(M=M.tolist(), bias=bias.tolist())
     (tmp_path / "bad.json").write_text(json.dumps(cal))
     rep, out = _report(table, tmp_path / "bad.json", "val", tmp_path / "r.json")
     assert rep["verdict"]["acc"] == "WORSE THAN NOMINAL" and "do not use it" in out

@@ -28,7 +28,7 @@ from simucal.fit.rotations import exp_so3
 from simucal.generated import field as gen
 from simucal.io import calibration, outputs, units
 
-DPH = np.radians(1 / 3600)  # rad/s per deg/h
+DPH = units.ARCSEC_RAD  # rad/s per deg/h (1 deg/h = 1 arcsec/s)
 AXIS_NAMES = ("x (forward)", "y (up)", "z (right)")
 
 
@@ -124,7 +124,7 @@ def _noise(raw, dt_raw):
 def position_estimate(f_raw, w_raw, t, heading_rad, meta, block_s=1.0, stages=2):
     """Alignment and north-drift filter at one position; SI units in, dict out."""
     lat = np.radians(meta["latitude_deg"])
-    w_e = np.radians(units.earth_rate_dph(meta) / 3600)
+    w_e = units.earth_rate_dph(meta) * DPH
     dt_raw = float(np.median(np.diff(t)))
     per = max(int(round(block_s / dt_raw)), 1)
     k = len(t) // per
@@ -183,13 +183,13 @@ def field_drift(data, block_s=1.0, stages=2, heading_accuracy_deg=5.0) -> dict:
     """The three body drifts of the set `data` (a folder or a MeasurementSet) with their stds, each
     position's attitude and eps_N, and under history each position's filter estimate against time
     (the paper's Fig. 4: plot_history)."""
-    ms = data if isinstance(data, io.MeasurementSet) else io.read(data)
+    ms = data if isinstance(data, io.MeasurementSet) else io.read_set(data)
     if not (ms.has_acc and ms.has_gyro):
         raise CalibrationError(f"{ms.path}: field calibration needs accelerometer and gyro columns")
     if ms.segments is None:
         raise CalibrationError(f"{ms.path}: field calibration needs segments.csv with one static segment per position")
     f_all = ms.acc_g() * units.gravity(ms.meta)
-    w_all = np.radians(ms.gyro_dph() / 3600)
+    w_all = ms.gyro_dph() * DPH
     positions, rows, eps, sds, hist = [], [], [], [], []
     for s in ms.segments:
         if s.kind != "static":

@@ -36,7 +36,7 @@ class FieldScenario:
 def simulate_field(sc: FieldScenario, seed: int = 0):
     rng = np.random.default_rng(seed)
     lat = np.radians(sc.latitude_deg)
-    w_e = np.radians(units.DEFAULT_EARTH_RATE_DPH / 3600)
+    w_e = np.radians(units.DEFAULT_EARTH_RATE_DPH / units.DPH_PER_DPS)
     w_ie_n = gen.earth_rate_n(w_e, lat)
     drift = (np.array(sc.drift_dph) if sc.drift_dph is not None
              else rng.uniform(1, 10, 3) * rng.choice([-1, 1], 3))
@@ -50,7 +50,7 @@ def simulate_field(sc: FieldScenario, seed: int = 0):
         att = np.array([h, p, r]) + rng.uniform(-1, 1, 3) * sc.attitude_jitter_deg * np.array([1, 0.2, 1])
         C = gen.C_b_n(*np.radians(att))
         f_b = C.T @ np.array([0.0, sc.gravity_mps2, 0.0]) + acc_bias
-        w_b = C.T @ w_ie_n + np.radians(drift / 3600)
+        w_b = C.T @ w_ie_n + np.radians(drift / units.DPH_PER_DPS)
         f = f_b + rng.normal(0, sc.acc_noise_mps2, (n, 3))
         w = w_b + rng.normal(0, sigma_w, (n, 3))
         ref = att[0] + rng.uniform(-1, 1) * sc.heading_error_deg
@@ -74,5 +74,5 @@ def simulate_field(sc: FieldScenario, seed: int = 0):
 
 def write_field(folder, sc: FieldScenario, seed: int = 0):
     meta, samples, segments, truth = simulate_field(sc, seed)
-    io.write(folder, meta, samples, segments, {"truth.json": truth})
+    io.write_set(folder, meta, samples, segments, {"truth.json": truth})
     return truth

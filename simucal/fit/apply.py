@@ -44,10 +44,43 @@ def model_function(model: AugmentedModel, p, C=np.eye(3)):
     return h
 
 
+EDITED = 1e-9  # M and bias recomputed from params agree with the file's to round-off; anything more is an edit
+
+
+def _params(block, model):
+    return np.array([block["params"][k] for k in model.params], float)
+
+
 def _generated(block):
     model = AugmentedModel(block["model"], tuple(block["effects"]))
-    return model_function(model, np.array([block["params"][k] for k in model.params]),
-                          np.array(block.get("C_b_model", np.eye(3))))
+    return model_function(model, _params(block, model), np.array(block.get("C_b_model", np.eye(3)), float))
+
+
+def check_block(block, sensor, where) -> None:
+    """Refuse a block whose parts tell different stories: params against M, bias and C_b_model for
+    a generated model; T against M for a stream's gyro. A hand edit of one of them would otherwise
+    be used, or ignored, silently."""
+    if block["model"] == "affine":
+        if "T" in block and np.abs(np.asarray(block["T"], float) @ np.asarray(block["M"], float) - np.eye(3)).max() > 1e-6:
+            raise CalibrationError(f"{where}: {sensor}.T is not the inverse of {sensor}.M (T = M^-1): the file was "
+                                   "edited by hand; calibrate again")
+        return
+    model = AugmentedModel(block["model"], tuple(block["effects"]))
+    missing = [k for k in model.params if k not in block.get("params", {})]
+    if missing:
+        raise CalibrationError(f"{where}: {sensor}.params lacks {missing[0]!r}, a parameter of model {block['model']} "
+                               "(the file was edited, or names another sensor's model); calibrate again")
+    if "M_in_d" in block and "C_b_model" not in block:
+        raise CalibrationError(f"{where}: the {sensor} block has M in its own frame (M_in_d) but no C_b_model, the "
+                               "rotation that ties it to b: the file was edited by hand; calibrate again")
+    M_p, b_p = model.matrix_and_bias(_params(block, model))
+    for name, mine, theirs in (("M", M_p @ np.array(block.get("C_b_model", np.eye(3)), float), block["M"]),
+                               ("bias", b_p, block["bias"])):
+        diff = np.abs(mine - np.asarray(theirs, float)).max()
+        if diff > EDITED * max(1.0, np.abs(mine).max()):
+            raise CalibrationError(f"{where}: {sensor}.{name} disagrees with what {sensor}.params give (largest "
+                                   f"difference {diff:.3g}): the file was edited by hand; calibrate again rather "
+                                   "than edit a calibration")
 
 
 def solve_inputs(h, M, bias, N, aux: AuxInputs, sensor, where) -> np.ndarray:
@@ -77,8 +110,11 @@ def invert(block, sensor, N, aux: AuxInputs, where) -> np.ndarray:
 
 def apply(cal: dict, folder, where="the calibration"):
     """(meta, samples, segments) of the calibrated set."""
-    ms = io.read(folder)
+    ms = io.read_set(folder)
     calibration.check_layout(cal, ms, where)
+    for s in ("acc", "gyro"):
+        if s in cal:
+            check_block(cal[s], s, where)
     n = len(ms.samples["t_s"])
     aux = AuxInputs(columns_at(ms.samples, slice(None)))
     samples = {k: v for k, v in ms.samples.items() if k not in io.SAMPLE_COLS}  # the keys and auxiliary columns

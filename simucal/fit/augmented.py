@@ -19,6 +19,11 @@ def effect_ids(sensor: str) -> list[str]:
     return [k for k, v in EFFECTS.items() if v.sensor == sensor]
 
 
+def for_sensor(ids, sensor: str) -> tuple[str, ...]:
+    """The effect ids of one sensor (each library effect knows its own)."""
+    return tuple(e for e in ids if EFFECTS[e].sensor == sensor)
+
+
 def check_effect(eid: str, sensor: str | None = None):
     """Refuse anything but an exact effect id, naming the ids that come closest."""
     if eid not in EFFECTS:

@@ -31,6 +31,7 @@ from simucal.fit.norm_fit import Fit, Observations, dense_jacobian, fit_exact
 from simucal.generated.effects import EFFECTS, SEPARATE
 
 ALPHA = 0.01
+NOISE_TOO_LARGE = 1e-3  # P(chi2 below the value found): residuals this far under the stated noise
 
 
 def rank_candidates(model: AugmentedModel, obs: Observations, fit: Fit, base_fails: bool, advisor=None) -> list[dict]:
@@ -129,6 +130,12 @@ def test_model(model, obs: Observations, p0=None) -> tuple[Fit, Observations, di
                          test="chi-square (noise partly estimated) and lack-of-fit F, the smaller p doubled")
         else:
             block.update(p_value=fit.p_value, test="chi-square")
+            if fit.dof > 0 and 1.0 - chi2_sf(fit.chi2, fit.dof) < NOISE_TOO_LARGE:
+                block["noise_warning"] = (
+                    f"the residuals are {np.sqrt(fit.chi2 / fit.dof):.2g} times the noise used ({noise['source']}): "
+                    "a stated noise this much larger than the data's scatter leaves the test unable to fail and "
+                    "every std too large; check acc_noise_g / gyro_noise_dph (or the option), or leave them out to "
+                    "have the noise estimated from the fit")
     else:
         block.update(noise_floor=None, noise_std_of_mean=None, p_value=lof["p_value"],
                      test="lack-of-fit F (no noise in the data or stated)")

@@ -29,8 +29,9 @@ import numpy as np
 from simucal.fit.aux_inputs import DEFAULT_ZERO, FORCE, SENSOR_AUX, AuxInputs
 from simucal.fit.distributions import chi2_sf, f_sf
 from simucal.fit.norm_fit import Fit, Observations, dense_jacobian, fit_exact
+from simucal.io import units
 
-DPS = 3600.0  # deg/h per deg/s: gyro rates enter generic terms in deg/s (as in derive/models/effects.py)
+DPS = units.DPH_PER_DPS  # gyro rates enter generic terms in deg/s (as in derive/models/effects.py)
 
 
 @dataclass
@@ -59,7 +60,7 @@ class GenericTerm:
             return f"f_b[{FORCE.index(self.aux)}]"
         if self.aux:
             return self.aux if self.aux in DEFAULT_ZERO else f"column_input({self.aux!r})"
-        v = "f_b[{}]" if self.sensor == "acc" else "(omega_d[{}] / 3600)"
+        v = "f_b[{}]" if self.sensor == "acc" else "(omega_d[{}] / %g)" % DPS
         return " * ".join(v.format(i) + (f"**{e}" if e > 1 else "") for i, e in enumerate(self.exponents) if e)
 
     def unit(self) -> str:

@@ -464,7 +464,7 @@ def pose_directions(am, obs, fa):
 
 
 def prepare_moves(ms, det: Detection, g_dirs, dir_var) -> GyroMoves:
-    w = ms.gyro_dph() / 3600.0  # deg/s
+    w = ms.gyro_dph() / units.DPH_PER_DPS  # deg/s
     # the first static interval, trimmed by half a window: a centred window sees
     # the start of a move half a window late
     rest = slice(det.starts[0] + det.window // 2, det.ends[0] - det.window // 2)
@@ -482,8 +482,8 @@ def prepare_moves(ms, det: Detection, g_dirs, dir_var) -> GyroMoves:
 def gyro_noise_dps(ms, gm) -> np.ndarray:
     """White noise of one gyro sample (deg/s) from the initial rest: a moving gyro has at
     least its quantisation noise, even where the rest reads constant."""
-    rest = ms.gyro_dph()[gm.rest] / 3600.0
-    return np.sqrt(np.maximum(white_noise_var(rest), quantization_step(rest, ms.gyro_dph() / 3600.0) ** 2 / 12))
+    rest = ms.gyro_dph()[gm.rest] / units.DPH_PER_DPS
+    return np.sqrt(np.maximum(white_noise_var(rest), quantization_step(rest, ms.gyro_dph() / units.DPH_PER_DPS) ** 2 / 12))
 
 
 def move_covariances(gm, fit: GyroFit, sigma_g_dps):
@@ -570,11 +570,11 @@ def regressor_inputs(ms, gm, fit: GyroFit, acc_cal):
     for i, (a, b) in enumerate(mv.rows):
         idx[i, :b - a] = np.arange(a + 1, b + 1)
     rest = np.arange(gm.rest.start, gm.rest.stop)
-    w = ms.gyro_dph() / 3600.0 - gm.bias - fit.db
+    w = ms.gyro_dph() / units.DPH_PER_DPS - gm.bias - fit.db
     out = []
     for ix in (idx, rest):
         f = np.linalg.solve(M_a, (ms.acc_g()[ix] - b_a).reshape(-1, 3).T).T.reshape(ix.shape + (3,))
-        out.append((w[ix] @ fit.T.T * 3600.0, AuxInputs({**columns_at(ms.samples, ix), **specific_force(f)})))
+        out.append((w[ix] @ fit.T.T * units.DPH_PER_DPS, AuxInputs({**columns_at(ms.samples, ix), **specific_force(f)})))
     return out
 
 
@@ -583,8 +583,8 @@ def with_terms(mv: Moves, ids, inputs) -> Moves:
     (u, aux), (u0, aux0) = inputs
     mask = mv.dt > 0
     A, A0 = aux.array(SENSOR_AUX["gyro"], u.shape[:-1]), aux0.array(SENSOR_AUX["gyro"], u0.shape[:-1])
-    phi = np.array([EFFECTS[e].phi(u, A)[0][..., 0] * mask / 3600.0 for e in ids]).reshape(len(ids), *mask.shape)
-    phi_rest = np.array([np.mean(np.broadcast_to(EFFECTS[e].phi(u0, A0)[0][..., 0], u0.shape[:-1])) / 3600.0
+    phi = np.array([EFFECTS[e].phi(u, A)[0][..., 0] * mask / units.DPH_PER_DPS for e in ids]).reshape(len(ids), *mask.shape)
+    phi_rest = np.array([np.mean(np.broadcast_to(EFFECTS[e].phi(u0, A0)[0][..., 0], u0.shape[:-1])) / units.DPH_PER_DPS
                          for e in ids])
     return Moves(mv.y, mv.dt, mv.before, mv.after, mv.t_span, mv.rows, phi, tuple(EFFECTS[e].axis for e in ids),
                  phi_rest)
@@ -633,7 +633,7 @@ def calibrate_handheld(ms, acc_model="acc_baseline", detect=None, pose_window_s=
             gm.mv = with_terms(gm.mv, list(gyro_effects), inputs)
             f = fit_gyro(gm.mv, gm.g_dirs, gm.bias_std, np.r_[f.T.ravel(), f.db, np.zeros(len(gyro_effects))])
             std_p = np.sqrt(np.diag(f.cov)[12:])
-            effects = {e: {"value": float(v), "std": float(sd), "unit": EFFECTS[e].unit, "meaning": EFFECTS[e].meaning}
+            effects = {e: calibration.effect_entry(v, sd, EFFECTS[e].unit, EFFECTS[e].meaning)
                        for e, v, sd in zip(gyro_effects, f.p, std_p)}
         if not f.converged:
             raise CalibrationError(f"{ms.path}: the gyro fit over the moves did not converge in {f.iterations} "
@@ -678,7 +678,7 @@ def calibrate_handheld(ms, acc_model="acc_baseline", detect=None, pose_window_s=
         M_g = np.linalg.inv(T)
         units.check_scale("gyro", M_g, ms.path / "samples.csv")
         result["gyro"] = calibration.affine_block(
-            "gyro", M_g, bias * 3600, {"T": std_T, "bias": (bias_std * 3600).tolist()},
+            "gyro", M_g, bias * units.DPH_PER_DPS, {"T": std_T, "bias": (bias_std * units.DPH_PER_DPS).tolist()},
             float(np.sqrt(np.mean(np.sum(r ** 2, 1)))), GYRO_MODEL_TEXT[gyro_model],
             residual_unit="gravity direction (unit vector), per move", effects=effects,
             T=T.tolist(), T_note="T = M^-1: the rate in b is T (output - bias - effects)",

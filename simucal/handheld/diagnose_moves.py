@@ -48,6 +48,7 @@ from simucal.handheld.calibrate import (
     regressor_inputs,
     with_terms,
 )
+from simucal.io.units import DPH_PER_DPS
 
 
 def _param_names(n_terms_names):
@@ -133,8 +134,8 @@ def diagnose_moves(ms, obs, det, am, fa, add=(), truth=None, alpha=0.01):
         fit = fit_gyro_moves(mv, gm.g_dirs, np.r_[base.T.ravel(), base.db, np.zeros(len(add))], gm.bias_std)
         names = _param_names(EFFECTS[e].parameter for e in add)
         S = move_covariances(gm, fit, sigma_g)
-    vec = lambda f: np.r_[f.T.ravel(), (gm.bias + f.db) * 3600, f.p]
-    std = lambda f: np.sqrt(np.diag(f.cov)) * np.r_[np.ones(9), np.full(3, 3600.0), np.ones(len(f.p))]
+    vec = lambda f: np.r_[f.T.ravel(), (gm.bias + f.db) * DPH_PER_DPS, f.p]
+    std = lambda f: np.sqrt(np.diag(f.cov)) * np.r_[np.ones(9), np.full(3, DPH_PER_DPS), np.ones(len(f.p))]
     out = {"baseline": block, "candidates": cands, "misfit_shares": shares,
            "verdict": verdict("gyro (moves)", block, cands, str(ms.path)) + (_shares_text(shares, ms.path) if shares else ""),
            "params": dict(zip(names, vec(fit).tolist())), "std": dict(zip(names, std(fit).tolist())),
@@ -175,7 +176,7 @@ def _with_truth(comp, truth):
     if "T" in g:
         known.update({f"T_{a}{b}": g["T"][i][j] for i, a in enumerate("xyz") for j, b in enumerate("xyz")})
     if "bias_dps" in g:
-        known.update({f"b_{a}": 3600.0 * g["bias_dps"][i] for i, a in enumerate("xyz")})
+        known.update({f"b_{a}": DPH_PER_DPS * g["bias_dps"][i] for i, a in enumerate("xyz")})
     known.update(g.get("params", {}))
     for k, row in comp.items():
         if k in known:

@@ -19,6 +19,7 @@ from simucal.fit.aux_inputs import SENSOR_AUX, AuxInputs, specific_force
 from simucal.fit.rotations import exp_so3, log_so3
 from simucal.generated.effects import EFFECTS
 from simucal.generated.moves import rotation_matrix
+from simucal.io.units import DPH_PER_DPS
 
 
 @dataclass
@@ -103,7 +104,7 @@ def simulate_handheld(sc: HandheldScenario, seed=0):
         if effect.sensor != "gyro":
             raise ValueError(f"{eid}: only gyro effects can be planted in a hand-placed session")
         aux = AuxInputs({"t_s": np.arange(n) * dt, **specific_force(f)}).array(SENSOR_AUX["gyro"], (n,))
-        out_dps[:, effect.axis] += value * effect.phi(w * 3600.0, aux)[0][:, 0] / 3600.0
+        out_dps[:, effect.axis] += value * effect.phi(w * DPH_PER_DPS, aux)[0][:, 0] / DPH_PER_DPS
     gyro = sc.offset_counts + sc.gyro_counts_per_dps * (out_dps + rng.normal(0, sc.gyro_noise_dps, (n, 3)))
     lo = sc.offset_counts - sc.full_scale_dps * sc.gyro_counts_per_dps
     hi = sc.offset_counts + sc.full_scale_dps * sc.gyro_counts_per_dps
@@ -125,5 +126,5 @@ def simulate_handheld(sc: HandheldScenario, seed=0):
 
 def write_handheld(folder, sc: HandheldScenario, seed=0):
     meta, samples, truth = simulate_handheld(sc, seed)
-    io.write(folder, meta, samples, None, {"truth.json": truth})
+    io.write_set(folder, meta, samples, None, {"truth.json": truth})
     return truth

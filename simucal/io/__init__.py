@@ -168,6 +168,11 @@ def read_segments(folder: Path) -> list[Segment] | None:
             for col in ("outer_deg", "middle_deg", "inner_deg", "outer_rate_dps", "heading_ref_deg"):
                 text = _cell(row, col, path, line, required=False)
                 vals[col] = None if text is None else _number(text, path, line, col)
+            for col, limit, what in (("heading_ref_deg", 360.0, "an azimuth in degrees, -360..360"),
+                                     ("outer_rate_dps", 2000.0, "deg/s, |rate| <= 2000: no table turns faster")):
+                if vals[col] is not None and abs(vals[col]) > limit:
+                    raise MeasurementSetError(path, line, f"{col} is {vals[col]:g}, but it is {what}; check the "
+                                                          "column's unit (degrees and deg/s)")
             rate = vals["outer_rate_dps"] or 0.0
             if kind == "rate" and rate == 0.0:
                 raise MeasurementSetError(path, line, "a rate segment needs a non-zero outer_rate_dps")
@@ -318,7 +323,7 @@ def _check_samples(out, path, segments):
     return out
 
 
-def read(folder) -> MeasurementSet:
+def read_set(folder) -> MeasurementSet:
     folder = Path(folder)
     if not folder.is_dir():
         raise MeasurementSetError(folder, None, "not a folder (a measurement set is a folder)")
@@ -335,7 +340,7 @@ def _fmt(v):
     return "" if v is None else repr(float(v))
 
 
-def write(folder, meta: dict, samples: dict, segments: list[Segment] | None = None, extra_files=None):
+def write_set(folder, meta: dict, samples: dict, segments: list[Segment] | None = None, extra_files=None):
     """Write a measurement set; extra_files: {name: json-able} (e.g. truth.json). Each file by a
     temporary name and a rename (io/outputs.py); the caller has checked the folder with outputs.check."""
     folder = Path(folder)

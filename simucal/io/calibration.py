@@ -77,9 +77,14 @@ def header(method: str, ms) -> dict:
             "units": {"acc": "g", "gyro": "deg/h", "angles": "rad"}}
 
 
+def effect_entry(value, std, unit, meaning) -> dict:
+    """One added effect in a sensor block's `effects`."""
+    return {"value": float(value), "std": float(std), "unit": unit, "meaning": meaning}
+
+
 def sensor_block(model, fit, M, bias, base: dict | None = None, C_b_model=None) -> dict:
     """The block of one sensor from a norm fit of `model` (an AugmentedModel)."""
-    effects = {e: {"value": fit.params[e], "std": fit.std[e], "unit": u, "meaning": m}
+    effects = {e: effect_entry(fit.params[e], fit.std[e], u, m)
                for e, u, m in zip(model.effects, model.param_units[len(model.base.params):],
                                   model.meanings[len(model.base.params):])}
     block = {"model": model.base.name, "model_source": model.base.source, "effects": effects,
@@ -96,7 +101,7 @@ def sensor_block(model, fit, M, bias, base: dict | None = None, C_b_model=None) 
     if base is not None:
         block.update(p_value=base["p_value"], test=base["test"], noise=base["noise"],
                      lack_of_fit=base["lack_of_fit"], cross_validation=base.get("cross_validation"),
-                     **({"rows": base["rows"]} if base.get("rows") else {}))
+                     **{k: base[k] for k in ("rows", "noise_warning") if base.get(k)})
     return block
 
 
@@ -143,14 +148,14 @@ def inflate_if_failing(block: dict, alpha: float = 1e-3) -> bool:
     return True
 
 
-def write(path, cal: dict) -> None:
+def save(path, cal: dict) -> None:
     path = Path(path)
     if not path.parent.is_dir():
         raise CalibrationFileError(f"{path}: the folder {path.parent} does not exist")
     outputs.write_text(path, json.dumps(cal, indent=2, default=float) + "\n")
 
 
-def read(path) -> dict:
+def load(path) -> dict:
     """A calibration file, checked before any of it is used (check_file)."""
     path = Path(path)
     try:

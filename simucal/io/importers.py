@@ -81,7 +81,7 @@ def import_imu_tk(acc_path, gyro_path, out, acc_counts_per_g, gyro_counts_per_dp
         extra["gravity_mps2"] = gravity_mps2
     meta = _meta("counts", "counts", latitude_deg, extra)
     samples = {"t_s": a[:, 0], "ax": a[:, 1], "ay": a[:, 2], "az": a[:, 3], "gx": g[:, 1], "gy": g[:, 2], "gz": g[:, 3]}
-    io.write(out, meta, samples)
+    io.write_set(out, meta, samples)
     return meta
 
 
@@ -153,7 +153,7 @@ def import_csv(path, out, columns: dict, acc_unit, gyro_unit, rate_hz=None, lati
         samples["t_s"] = np.arange(n) / rate_hz
     meta = _meta(acc_unit, gyro_unit, latitude_deg, dict(scales or {}, description=f"imported from {path.name}"))
     units.check_meta(meta, path, lambda p, line, rule: ImportError_(f"{p}: {rule}"))
-    io.write(out, meta, samples)
+    io.write_set(out, meta, samples)
     return meta
 
 
@@ -195,7 +195,7 @@ def _ferraris_set(out, sections, data, t, units_meta, latitude_deg, turn_deg, so
                  {k: v for k, v in units_meta.items() if k not in ("acc_unit", "gyro_unit")})
     meta["description"] = (f"imported from {source}: Ferraris protocol; static poses at their nominal orientation, "
                            f"each turn a rate segment at the protocol's {turn_deg:+.0f} deg over its duration")
-    io.write(out, meta, samples, segs)
+    io.write_set(out, meta, samples, segs)
     return meta
 
 

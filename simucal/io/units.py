@@ -12,6 +12,8 @@ ACC_UNITS = ("g", "m/s^2", "pulse/s", "counts")
 GYRO_UNITS = ("deg/h", "deg/s", "rad/s", "pulse/s", "counts")
 DEFAULT_GRAVITY = 9.80665
 DEFAULT_EARTH_RATE_DPH = 15.04107
+DPH_PER_DPS = 3600.0  # deg/h per deg/s (1 arcsec/s = 1 deg/h)
+ARCSEC_RAD = math.radians(1 / 3600)  # rad per arcsec
 SCALE_KEY = {("acc", "pulse/s"): "acc_pulses_per_g", ("acc", "counts"): "acc_counts_per_g",
              ("gyro", "pulse/s"): "gyro_pulses_per_arcsec", ("gyro", "counts"): "gyro_counts_per_dps"}
 
@@ -36,8 +38,17 @@ def check_meta(meta, path, error):
                                     f'> 0 and <= {hi:g}; leave the key out where the noise is not known (it is then '
                                     'estimated from the data)')
     lat = meta.get("latitude_deg")
-    if lat is not None and not (isinstance(lat, (int, float)) and -90 <= lat <= 90):
+    if lat is not None and not (isinstance(lat, (int, float)) and not isinstance(lat, bool) and -90 <= lat <= 90):
         raise error(path, None, f'"latitude_deg" must be a number in -90..90, got {lat!r}')
+    fs = meta.get("full_scale")
+    if fs is not None:
+        ok = isinstance(fs, dict) and all(
+            k in ("acc", "gyro") and isinstance(v, list) and len(v) == 2 and all(
+                isinstance(x, (int, float)) and not isinstance(x, bool) and math.isfinite(x) for x in v) and v[0] < v[1]
+            for k, v in fs.items())
+        if not ok:
+            raise error(path, None, f'"full_scale" is {fs!r}; write {{"acc": [lo, hi], "gyro": [lo, hi]}} with lo < hi '
+                                    'in the units of acc_unit and gyro_unit (either key may be left out)')
     for key, what, lo, hi, default in (("gravity_mps2", "local gravity's magnitude, m/s^2", 9.0, 10.5, DEFAULT_GRAVITY),
                                        ("earth_rate_dph", "the Earth's rotation rate, deg/h", 14.5, 15.5,
                                         DEFAULT_EARTH_RATE_DPH)):
@@ -69,12 +80,12 @@ def gyro_to_dph(raw, meta):
     if u == "deg/h":
         return raw
     if u == "deg/s":
-        return raw * 3600.0
+        return raw * DPH_PER_DPS
     if u == "rad/s":
-        return np.degrees(raw) * 3600.0
+        return np.degrees(raw) * DPH_PER_DPS
     if u == "pulse/s":
         return raw / np.asarray(meta["gyro_pulses_per_arcsec"], float)
-    return raw / np.asarray(meta["gyro_counts_per_dps"], float) * 3600.0
+    return raw / np.asarray(meta["gyro_counts_per_dps"], float) * DPH_PER_DPS
 
 
 def g_to_acc(f_g, meta):
@@ -92,20 +103,20 @@ def dph_to_gyro(w_dph, meta):
     if u == "deg/h":
         return w_dph
     if u == "deg/s":
-        return w_dph / 3600.0
+        return w_dph / DPH_PER_DPS
     if u == "rad/s":
-        return np.radians(w_dph / 3600.0)
+        return np.radians(w_dph / DPH_PER_DPS)
     if u == "pulse/s":
         return w_dph * np.asarray(meta["gyro_pulses_per_arcsec"], float)
-    return w_dph / 3600.0 * np.asarray(meta["gyro_counts_per_dps"], float)
+    return w_dph / DPH_PER_DPS * np.asarray(meta["gyro_counts_per_dps"], float)
 
 
 # Ratios between the units a recording may really use and the one its meta.json names.
 UNIT_MIXUPS = {"acc": {"m/s^2 labelled g": DEFAULT_GRAVITY, "g labelled m/s^2": 1 / DEFAULT_GRAVITY,
                    "mg labelled g": 1000.0},
-           "gyro": {"deg/s labelled deg/h": 1 / 3600.0, "deg/h labelled deg/s": 3600.0,
+           "gyro": {"deg/s labelled deg/h": 1 / DPH_PER_DPS, "deg/h labelled deg/s": DPH_PER_DPS,
                     "rad/s labelled deg/s": np.pi / 180, "deg/s labelled rad/s": 180 / np.pi,
-                    "rad/s labelled deg/h": np.pi / 180 / 3600, "deg/h labelled rad/s": 3600 * 180 / np.pi}}
+                    "rad/s labelled deg/h": np.pi / 180 / DPH_PER_DPS, "deg/h labelled rad/s": DPH_PER_DPS * 180 / np.pi}}
 
 
 def check_magnitude(sensor, measured_norm, expected_norm, where, meta=None):

@@ -44,7 +44,7 @@ def section4_values(sc: Scenario | None = None) -> dict:
     sc = sc or Scenario()
     return {"acc": dict(sc.acc_params), "gyro": dict(sc.gyro_params), "theta4": list(sc.theta4_rad),
             "lambda4": list(sc.lambda4_rad), "tilt": list(sc.tilt_rad), "nonperp": list(sc.nonperp_rad),
-            "zero": list(sc.zero_rad), "w_T_dph": sc.outer_rate_dps[0] * 3600.0,
+            "zero": list(sc.zero_rad), "w_T_dph": sc.outer_rate_dps[0] * units.DPH_PER_DPS,
             "w_e_dph": units.DEFAULT_EARTH_RATE_DPH, "latitude_deg": sc.latitude_deg}
 
 
@@ -57,7 +57,7 @@ def monte_carlo(sc: Scenario, seeds: int, methods=METHODS, progress=None):
             folder = Path(tmp) / str(seed)
             truth = report.entries(write(folder, sc, seed))
             for m in methods:
-                est[m].append(report.entries(calibrate_table(io.read(folder), m, "acc_baseline", "gyro_baseline", ())))
+                est[m].append(report.entries(calibrate_table(io.read_set(folder), m, "acc_baseline", "gyro_baseline", ())))
     return np.array(truth), {m: np.array(v) for m, v in est.items()}
 
 

@@ -19,7 +19,7 @@ import numpy as np
 from simucal import io
 from simucal.errors import CalibrationError
 from simucal.fit import aux_inputs
-from simucal.fit.augmented import AugmentedModel
+from simucal.fit.augmented import AugmentedModel, for_sensor
 from simucal.fit.aux_inputs import AuxInputs, column_means
 from simucal.fit.candidates import forward_selection, verdict
 from simucal.fit.lack_of_fit import noise_dof, with_estimated_sigma
@@ -84,7 +84,7 @@ def segment_observations(ms: io.MeasurementSet, sensor: str, kinds=None, stated=
         m, sd = _mean_and_sigma(data[rows], stated, varying=(s.kind == "rate"))  # the inputs turn in a rate run
         N.append(m)
         sig.append(sd)
-        rho.append(1.0 if sensor == "acc" else abs(s.outer_rate_dps * 3600.0 + w_e * np.sin(lat)))  # |input|
+        rho.append(1.0 if sensor == "acc" else abs(s.outer_rate_dps * units.DPH_PER_DPS + w_e * np.sin(lat)))  # |input|
         keep.append(s)
     aux = column_means(ms.samples, [ms.samples["segment"] == s.segment for s in keep])
     aux.update(specific_force(ms, keep) if sensor == "gyro" else {"w2": centripetal_scale(ms, keep)})
@@ -153,7 +153,7 @@ def table_accuracy_rad(ms):
     if isinstance(v, bool) or not isinstance(v, (int, float)) or not np.isfinite(v) or v < 0:
         raise ValueError(f"{ms.path / 'meta.json'}: table_accuracy_arcsec is {v!r}; it must be a number >= 0 (the std "
                          "of each commanded angle's position error, arcsec)")
-    return float(np.radians(v / 3600.0))
+    return float(v * units.ARCSEC_RAD)
 
 
 def _find(segs, kind, **want):
@@ -259,7 +259,7 @@ def check_rate_sense(ms, gyro_obs, gyro_segs):
             static |= ms.samples["segment"] == s.segment
     rest = np.median(ms.gyro_dph()[static], axis=0) if static.any() else np.zeros(3)  # robust to a glitch
     rate = np.array([s.outer_rate_dps for s in gyro_segs])
-    along = np.einsum("ni,ni->n", gyro_obs.N - rest, up) / 3600.0
+    along = np.einsum("ni,ni->n", gyro_obs.N - rest, up) / units.DPH_PER_DPS
     wrong = np.sign(along) != np.sign(rate)
     if not wrong.any():
         return
@@ -295,7 +295,7 @@ def multiposition(ms, acc_obs, acc_segs, gyro_obs, gyro_segs):
         out["acc"] = _affine_fit(up, acc_obs.N, "acc")
     if gyro_obs is not None:
         up, _ = _commanded_up_k(gyro_segs)
-        f = up * np.array([s.outer_rate_dps * 3600.0 + w_e * np.sin(lat) for s in gyro_segs])[:, None]
+        f = up * np.array([s.outer_rate_dps * units.DPH_PER_DPS + w_e * np.sin(lat) for s in gyro_segs])[:, None]
         N = gyro_obs.N
         statics = [s for s in ms.segments if s.kind == "static"]
         if statics:
@@ -390,8 +390,8 @@ def calibrate_table(ms, method, acc_model, gyro_model, ids, acc_noise_g=None, gy
         result["residual_rms"] = {s: result[s]["residual_rms"] for s in ("acc", "gyro") if s in result}
         return result
 
-    am = AugmentedModel(acc_model, tuple(e for e in ids if e.startswith("acc.")))
-    gm = AugmentedModel(gyro_model, tuple(e for e in ids if e.startswith("gyro.")))
+    am = AugmentedModel(acc_model, for_sensor(ids, "acc"))
+    gm = AugmentedModel(gyro_model, for_sensor(ids, "gyro"))
     chosen = {}
     if auto:
         if acc_obs is not None:

@@ -71,7 +71,7 @@ def simulate_batch(sc: Scenario, trials: int, rng, noise=True):
     f_s = kinematics.specific_force_k(static[:, 0], static[:, 1], static[:, 2], table_err,
                                       sc.angle_errors_rad(rng, (T, Ps), noise)) @ C_b_k
     tilt = table.C_k_n(0.0, 0.0, 0.0, np.r_[sc.tilt_rad, np.zeros(5)])
-    w_n = w_ie_n + (rates[:, 2] * 3600.0)[:, None] * tilt[:, 2]  # (Pr, 3)
+    w_n = w_ie_n + (rates[:, 2] * units.DPH_PER_DPS)[:, None] * tilt[:, 2]  # (Pr, 3)
     err_r = sc.angle_errors_rad(rng, (T, Pr), noise)
     w2 = (np.radians(rates[:, 2]) ** 2 / units.DEFAULT_GRAVITY)[None, :]
     if _affine(am, p_a) and _affine(gm, p_g):
@@ -98,7 +98,7 @@ def simulate_batch(sc: Scenario, trials: int, rng, noise=True):
         N_as = N_as + rng.normal(0, sc.acc_noise_g, N_as.shape)
         N_ar = N_ar + rng.normal(0, sc.acc_noise_g, N_ar.shape)
         N_g = N_g + rng.normal(0, sc.gyro_noise_dph, N_g.shape)
-    rho_g = np.abs(rates[:, 2] * 3600.0 + w_e * np.sin(lat))
+    rho_g = np.abs(rates[:, 2] * units.DPH_PER_DPS + w_e * np.sin(lat))
     return {"acc": N_as, "acc_rate": N_ar, "gyro": N_g, "rho_gyro": rho_g, "rate_sign": np.sign(rates[:, 2]),
             "truth": {"acc": p_a, "gyro": p_g, "C_b_d": C_d_k.T @ C_b_k}, "models": (am, gm)}
 

@@ -20,10 +20,11 @@ from simucal.fit.augmented import AugmentedModel
 from simucal.fit.aux_inputs import DEFAULT_ZERO, AuxInputs, specific_force
 from simucal.generated import table
 from simucal.io import units
+from simucal.io.calibration import PARAM_LIMIT
 from simucal.turntable import kinematics, plans
 
 ARCMIN = np.radians(1 / 60)
-ARCSEC = np.radians(1 / 3600)
+ARCSEC = units.ARCSEC_RAD
 
 
 @dataclass
@@ -88,6 +89,9 @@ def _pairs(items, what):
             out[name.strip()] = float(val)
         except ValueError:
             raise ValueError(f"{what} {item!r}: write NAME=VALUE with a number, e.g. acc.quadratic.z=6e-5") from None
+        if not abs(out[name.strip()]) <= PARAM_LIMIT:  # NaN fails this too
+            raise ValueError(f"{what} {item!r}: the value must be finite and at most {PARAM_LIMIT:g} in size (in "
+                             "the unit its term declares), as a calibration file's parameters")
     return out
 
 
@@ -109,9 +113,10 @@ def plant(sc: Scenario, effects=(), effect_file=None, sets=(), columns=()):
                              f"{name.strip()}=4.8:5.2")
         sc.columns[name.strip()] = (low, high)
     from simucal.fit.augmented import check_effect
+    from simucal.generated.effects import EFFECTS
     for eid, val in _pairs(effects, "--effect").items():
         check_effect(eid)
-        (sc.acc_effects if eid.startswith("acc.") else sc.gyro_effects)[eid] = val
+        (sc.acc_effects if EFFECTS[eid].sensor == "acc" else sc.gyro_effects)[eid] = val
     values = _pairs(sets, "--set")
     if values and not effect_file:
         raise ValueError("--set needs --effect-file: the model file that defines those parameters")
@@ -177,7 +182,7 @@ def simulate(sc: Scenario, seed: int = 0):
         k = 720  # exact average over one revolution by sampling gamma finely
         gam = np.radians(g0 + np.sign(rate) * np.arange(k) * 360.0 / k)
         C = table.C_k_n(gam, *np.radians([a, b]), err)
-        w_n = w_ie_n + rate * 3600.0 * tilt_n
+        w_n = w_ie_n + rate * units.DPH_PER_DPS * tilt_n
         f_b = np.einsum("ji,nkj,k->ni", C_b_k, C, np.array([0, 0, 1.0]))
         w_d = np.einsum("ji,nkj,k->ni", C_d_k, C, w_n)
         f_d = np.einsum("ji,nkj,k->ni", C_d_k, C, np.array([0, 0, 1.0]))
@@ -205,6 +210,9 @@ def simulate(sc: Scenario, seed: int = 0):
                            np.array([t0 + dur / 2]))
         else:
             n = int(round(dur * sc.rate_hz))
+            if n < 3:  # raw rows are for a segment's scatter; fewer is an averaged row, written as such
+                raise ValueError(f"--rate-hz {sc.rate_hz:g}: a {dur:g} s segment would get {n} rows; use at least "
+                                 f"{3 / dur:.3g} Hz, or leave --rate-hz out for one averaged row per segment")
             idx = np.arange(n) * len(f_b) // n
             f, w, fd, t = f_b[idx], w_d[idx], f_d[idx], t0 + np.arange(n) / sc.rate_hz
         col = {name: np.full(len(t), v[k]) for name, v in values.items()}
@@ -246,5 +254,5 @@ def simulate(sc: Scenario, seed: int = 0):
 
 def write(folder, sc: Scenario, seed: int = 0):
     meta, samples, segments, truth = simulate(sc, seed)
-    io.write(folder, meta, samples, segments, {"truth.json": truth})
+    io.write_set(folder, meta, samples, segments, {"truth.json": truth})
     return truth

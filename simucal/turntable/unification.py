@@ -371,7 +371,7 @@ def _estimated_noise(un: Unifier) -> dict:
             "std_rad": std, "dof": None if stated else table_part.dof,
             "source": "stated (meta.json table_accuracy_arcsec)" if stated else
                       "estimated from the static pairs' scatter (no table_accuracy_arcsec in meta.json)",
-            "text": f"{np.degrees(std) * 3600:.3g} arcsec per angle, " + (
+            "text": f"{std / units.ARCSEC_RAD:.3g} arcsec per angle, " + (
                 "stated" if stated else f"from the static pairs' scatter, {table_part.dof:.3g} dof")}
     return out
 
@@ -385,7 +385,7 @@ def unify_paper(acc_obs, acc_segs, gyro_obs, gyro_segs, p_acc, p_gyro, meta, fin
                                f"(alpha, gamma) = {eq.TABLE2} deg with beta = 0, and rate runs at alpha = "
                                f"{eq.GYRO_ALPHAS} deg, beta = 0; use --method exact, which needs none")
     x = eq.acc_table2(acc_obs.N[ia].reshape(12), p_acc)
-    w_T = gyro_segs[ig[0]].outer_rate_dps * 3600.0
+    w_T = gyro_segs[ig[0]].outer_rate_dps * units.DPH_PER_DPS
     lam = eq.gyro_mounting(gyro_obs.N[ig].reshape(6), p_gyro, w_T, units.earth_rate_dph(meta),
                               np.radians(meta["latitude_deg"]))
     C_b_d = table.mounting(lam).T @ table.mounting(x[:3])
