@@ -22,27 +22,19 @@ class _Commands(click.Group):
             return super().invoke(ctx)
         except (click.exceptions.Exit, click.exceptions.Abort, click.ClickException, KeyboardInterrupt):
             raise
-        except ValueError as e:  # CalibrationError and its kin: a refusal that reached the top
-            from simucal.errors import CalibrationError
-            from simucal.io import MeasurementSetError
-            if isinstance(e, (CalibrationError, MeasurementSetError)):
-                _fail(e)
-            if os.environ.get("SIMUCAL_DEBUG"):
-                raise
-            _internal(e)
         except BrokenPipeError:  # the reader went away (| head): not an error of ours or the user's
             sys.stdout = open(os.devnull, "w")
             sys.exit(141)
         except Exception as e:
+            from simucal.errors import CalibrationError
+            from simucal.io import MeasurementSetError
+            if isinstance(e, (CalibrationError, MeasurementSetError)):  # a refusal that reached the top
+                _fail(e)
             if os.environ.get("SIMUCAL_DEBUG"):
                 raise
-            _internal(e)
-
-
-def _internal(e):
-    click.echo(f"error: internal error ({type(e).__name__}: {e}); this is a bug in simucal: please report it "
-               "with the command and the data (SIMUCAL_DEBUG=1 shows the traceback)", err=True)
-    sys.exit(3)
+            click.echo(f"error: internal error ({type(e).__name__}: {e}); this is a bug in simucal: please report it "
+                       "with the command and the data (SIMUCAL_DEBUG=1 shows the traceback)", err=True)
+            sys.exit(3)
 
 
 @click.group(cls=_Commands)

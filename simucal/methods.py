@@ -89,7 +89,7 @@ def choose(name, ms) -> Method:
     if name in (None, "auto"):
         return METHODS[for_data(kind)[0]]
     if name not in METHODS:
-        raise CalibrationError(f"unknown method {name!r}; one of {', '.join(NAMES)}.")
+        raise CalibrationError(f"unknown method {name!r}; one of auto, {', '.join(NAMES)}.")
     m = METHODS[name]
     if m.data != kind:
         raise CalibrationError(f"{ms.path}: is {DATA[kind]}, but method {name} takes {DATA[m.data]}: use --method "
