@@ -217,6 +217,11 @@ _ADD_AUTO_HELP = (_ADD_HELP + " Also 'auto': the library effects a failing model
 def _sensor_lines(result):
     """One line per sensor: the test, and when the model fails what to add."""
     for s in ("acc", "gyro"):
+        out = [x["segment"] for x in result.get("excluded_segments", []) if x["sensor"] == s]
+        if out:
+            yield (f"{s}: {len(out)} segments left out, their samples clipped (at full_scale or repeating the rail): "
+                   f"{out[:10]}{' ...' if len(out) > 10 else ''}")
+    for s in ("acc", "gyro"):
         b = result.get(s)
         if not b or b.get("nominal"):
             continue
@@ -238,6 +243,12 @@ def _sensor_lines(result):
             yield f"{s}: noise {b['noise']['text']}"
         if b.get("noise_warning"):
             yield f"{s}: WARNING: {b['noise_warning']}"
+        if b.get("saturation"):
+            yield (f"{s}: saturated (clipped) samples: " + ", ".join(
+                f"{x['count']} on {x['axis']} from line {x['first_row'] + 2} of samples.csv" for x in b["saturation"]))
+        if b.get("moves_skipped"):
+            why = sorted({m["reason"] for m in b["moves_skipped"]})
+            yield f"{s}: {len(b['moves_skipped'])} of {b['moves_used'] + len(b['moves_skipped'])} moves left out ({'; '.join(why)})"
         if b.get("model_choice"):
             yield (f"{s}: T chosen by the moves left out one at a time: " + ", ".join(
                 f"{k} {v['held_out_rms_deg']:.3g} deg" for k, v in b["model_choice"].items())
@@ -252,6 +263,7 @@ def _sensor_lines(result):
                     b["std_note"] if b.get("std_note") else f"stds include a model-error std {b['model_error_std_g']:.2g} g per pose"
                     if b.get("model_error_std_g") else "stds assume the model is right")
             yield (f"{s}: THE MODEL FAILS (p = {b['p_value']:.2g} < 1e-3): "
+                   + ("the stated noise may be too small (the warning above); " if b.get("noise_too_small") else "")
                    + (f"diagnose would add {what}; " if what else
                       f"see simucal diagnose {result['input']} for what is missing; ") + stds)
     u = result.get("unification")
@@ -483,7 +495,7 @@ def diagnose(data_dir, output, html_path, add, acc_model, gyro_model, acc_noise_
     if html_path:
         from simucal.report.html import render
         outputs.write_text(html_path, render(result))
-    for line in result["verdict"].split(" | "):
+    for line in result["verdict"].split(" | ") + result.get("notes", []):
         click.echo(line)
     for line in _added_lines(result):
         click.echo(line)
@@ -541,7 +553,7 @@ def montecarlo(scenario, plan, trials, seed, effects, output, scheduler):
               help="Score a plan: table1, dodecahedron20, fibonacci24, fibonacci48 or a CSV (outer_deg,middle_deg,inner_deg).")
 @click.option("--model", "model_name", default="acc_baseline", show_default=True, help="Generated model (acc or gyro).")
 @click.option("--add", "add", multiple=True, help="Candidate effect ids to add to the model (repeatable).")
-@click.option("--positions", type=Number(1, 1000, integer=True), default=None, help="Design a plan with this many positions.")
+@click.option("--positions", type=Number(1, 300, integer=True), default=None, help="Design a plan with this many positions.")
 @click.option("--criterion", type=click.Choice(["D", "A"]), default="D", show_default=True)
 @click.option("--rate-dps", type=Number(-3600.0, 3600.0), default=10.0, show_default=True,
               help="Gyro models: the outer-axis rate of the rate runs.")
@@ -567,6 +579,7 @@ def plan(score_plan, model_name, add, positions, criterion, rate_dps, rates, kin
     from simucal.fit.augmented import AugmentedModel
     from simucal.turntable import plans
     from simucal.turntable.plan_design import design, directions_k, plan_rows, score
+    from simucal.io.calibration import PARAM_LIMIT
     from simucal.io.units import DPH_PER_DPS
     if (score_plan is None) == (positions is None):
         _fail("give --score PLAN to score a plan, or --positions N to design one")
@@ -579,7 +592,7 @@ def plan(score_plan, model_name, add, positions, criterion, rate_dps, rates, kin
     try:
         model = AugmentedModel(model_name, tuple(add))
         gyro = model.sensor == "gyro"
-        if gyro and not rate_dps > 0:
+        if gyro and rate_dps == 0:
             raise ValueError(f"--rate-dps {rate_dps}: a rate run needs a non-zero rate (deg/s)")
         rate_list = [float(x) for x in rates.split(",")] if rates else [rate_dps]
         if gyro and not all(abs(x) > 0 for x in rate_list):
@@ -602,6 +615,11 @@ def plan(score_plan, model_name, add, positions, criterion, rate_dps, rates, kin
             q = [float(x) for x in sizes.split(",")]
             if len(ids) != 2 or len(q) != 2:
                 raise ValueError("--separate ID1,ID2 and --sizes Q1,Q2: two of each")
+            if ids[0] == ids[1]:
+                raise ValueError(f"--separate {pair}: an effect cannot be told from itself; name two different effects")
+            if not all(np.isfinite(x) and 0 < abs(x) <= PARAM_LIMIT for x in q):
+                raise ValueError(f"--sizes {sizes}: each size must be a finite, non-zero number (the effect's expected "
+                                 f"value, in its unit) of at most {PARAM_LIMIT:g}")
             for e in ids:
                 check_effect(e, model.sensor)
             rates = (np.array([0.5, 1.0, 2.0]) * rho) if gyro else ()
@@ -722,9 +740,12 @@ def import_cmd(fmt, sources, out_dir, latitude_deg, acc_counts_per_g, gyro_count
             im.import_imucal_annotated(sources[0], out_dir, rate_hz or 204.8, acc_counts_per_g or 2048.0,
                                        gyro_counts_per_dps or 16.4, latitude_deg, turn_deg)
         else:
-            if not columns or not acc_unit or not gyro_unit:
-                raise im.ImportError_("csv needs --columns, --acc-unit and --gyro-unit")
+            if not columns:
+                raise im.ImportError_("csv needs --columns (and --acc-unit, --gyro-unit for the triads it maps)")
             cmap = im.parse_columns(columns)
+            for triad, unit, option in (("ax", acc_unit, "--acc-unit"), ("gx", gyro_unit, "--gyro-unit")):
+                if triad in cmap and not unit:
+                    raise im.ImportError_(f"csv: --columns maps {triad}, so give {option}")
             im.import_csv(sources[0], out_dir, cmap, acc_unit, gyro_unit, rate_hz, latitude_deg)
     except im.ImportError_ as e:
         _fail(e)
@@ -755,6 +776,35 @@ def validate(calibration_file, data_dir, output, html_path):
     for line in lines(report):
         click.echo(line)
     click.echo(f"wrote {output}" + (f" and {html_path}" if html_path else ""))
+
+
+@main.command()
+@click.argument("data_dir", type=click.Path(exists=True, file_okay=False))
+@click.option("-o", "--output", type=click.Path(dir_okay=False), default="noise.json", show_default=True)
+@click.option("--html", "html_path", type=click.Path(dir_okay=False), default=None,
+              help="Also write a page with the Allan deviation plot.")
+@click.option("--kalibr", "kalibr_path", type=click.Path(dir_okay=False), default=None,
+              help="Also write Kalibr's imu.yaml (noise densities and random walks, SI).")
+def noise(data_dir, output, html_path, kalibr_path):
+    """Allan deviation of a still recording and its IEEE 952 noise terms (ARW, bias instability, ...)."""
+    import json
+
+    from simucal import allan, io
+    from simucal.errors import CalibrationError
+    from simucal.io import MeasurementSetError, outputs
+    _guard([data_dir], files=[output, html_path, kalibr_path])
+    try:
+        report = allan.characterise(io.read_set(data_dir))
+    except (MeasurementSetError, CalibrationError) as e:
+        _fail(e)
+    outputs.write_text(output, json.dumps(report, indent=1) + "\n")
+    if html_path:
+        outputs.write_text(html_path, allan.html_page(report))
+    if kalibr_path:
+        outputs.write_text(kalibr_path, allan.kalibr_yaml(report))
+    for line in allan.lines(report):
+        click.echo(line)
+    click.echo(f"wrote {output}" + "".join(f" and {p}" for p in (html_path, kalibr_path) if p))
 
 
 if __name__ == "__main__":

@@ -19,7 +19,7 @@ from simucal.fit.augmented import AugmentedModel
 from simucal.fit.candidates import ALPHA, test_model, verdict
 from simucal.fit.lack_of_fit import model_file_text
 from simucal.fit.norm_fit import Fit, Observations
-from simucal.turntable.calibrate import check_rate_sense, segment_observations
+from simucal.turntable.calibrate import check_rate_sense, handedness_verdict, mirrored, segment_observations
 from simucal.turntable.model_test import ROWS, test_and_rank
 
 
@@ -69,6 +69,8 @@ def diagnose_sensor(ms, sensor, base_model, add=(), stated=None, truth=None, bef
         out["shape"] = {**shape, "model_file": model_file_text(base_model, add, shape, sensor)}
     if table_info is not None:
         out["table"] = table_info
+    if ms.segments is not None:
+        out["mirror"] = mirrored(fit, segs, sensor == "gyro")  # judged over both triads in _diagnose
     before_model = before_model or model.base.name
     if add or before_model != base_model:
         f0, _, b0 = test_model(AugmentedModel(before_model), obs)
@@ -130,7 +132,12 @@ def _diagnose(ms, folder, add, acc_model, gyro_model, acc_noise_g, gyro_noise_dp
         block = diagnose_sensor(ms, sensor, model, mine, stated, truth, before[sensor], mine + files)
         if block is not None:
             result[sensor] = block
-    if ms.segments is None:
+    if ms.segments is not None:  # a reflected triad, as calibrate refuses it
+        notes = handedness_verdict(ms, {("accelerometer" if s == "acc" else s): result[s].pop("mirror")
+                                        for s in ("acc", "gyro") if s in result})
+        if notes:
+            result["notes"] = notes
+    else:
         result["stream"] = stream_summary(ms)
     sensors = [s for s in ("acc", "gyro") if s in result]
     if not sensors:

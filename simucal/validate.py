@@ -37,6 +37,7 @@ from simucal.turntable.calibrate import table_accuracy_rad
 
 WORSE = 1.05  # after/before above this: the calibration makes the unit worse on these data
 AT_FLOOR = 2.0  # after below this many floors: the noise, nothing left to gain
+FAR_OFF = 10.0  # a row this many floors (and medians) off is named
 
 
 def _rms(x):
@@ -57,11 +58,24 @@ def _segment_means(data, groups, stated):
     return np.array(means), np.array(sds, float)
 
 
-def _norm_block(unit, before, after, floor_sd, what):
-    """Errors of a norm against its known value, before and after, with the floor."""
+def _norm_block(unit, before, after, floor_sd, what, labels):
+    """Errors of a norm against its known value, before and after, with the floor; labels name
+    the rows (segments or poses) for the ones far off (_far_off)."""
     ok = np.isfinite(floor_sd)
     return {"what": what, "unit": unit, "n": int(len(after)), "before_rms": _rms(before), "after_rms": _rms(after),
-            "floor_rms": _rms(floor_sd[ok]) if ok.all() and ok.any() else None}
+            "floor_rms": _rms(floor_sd[ok]) if ok.all() and ok.any() else None,
+            "far_off": _far_off(after, floor_sd, labels)}
+
+
+def _far_off(after, floor_sd, labels, k=FAR_OFF):
+    """The rows whose calibrated error is k floors and k times the median error or more: a few
+    rows far off, where the rest agree, are mislabelled or disturbed, not a model's failing."""
+    e = np.abs(np.asarray(after, float))
+    fl = np.broadcast_to(np.asarray(floor_sd, float), e.shape)
+    if len(e) < 4 or not np.all(np.isfinite(fl)):
+        return []
+    far = (e > k * fl) & (e > k * np.median(e))
+    return [labels[i] for i in np.nonzero(far)[0]] if far.sum() <= len(e) // 4 else []
 
 
 def _turntable(ms, f_before, f_after, w_before, w_after):
@@ -75,8 +89,9 @@ def _turntable(ms, f_before, f_after, w_before, w_after):
         groups = [seg_rows[s.segment] for s in static]
         sd = ms.meta.get("acc_noise_g")
         (mb, _), (ma, fl) = _segment_means(f_before, groups, sd), _segment_means(f_after, groups, sd)
+        labels = [f"segment {s.segment}" for s in static]
         checks = [_norm_block("g", np.linalg.norm(mb, axis=1) - 1, np.linalg.norm(ma, axis=1) - 1, fl,
-                              "|f| - 1 g at each static segment")]
+                              "|f| - 1 g at each static segment", labels)]
         angled = [i for i, s in enumerate(static) if s.middle_deg is not None and s.inner_deg is not None]
         if len(angled) >= 3:
             from simucal.generated import table
@@ -91,13 +106,15 @@ def _turntable(ms, f_before, f_after, w_before, w_after):
                 errs.append(np.linalg.norm(d - up_k @ R.T, axis=1))
             # the table's angle errors move the direction too: two angles, each of its stated std
             table_sd = (table_accuracy_rad(ms) or 0.0) * np.sqrt(2)
+            floor = np.hypot(fl[angled], table_sd)
             checks.append({"what": "gravity direction against the commanded table vertical, after the best "
                                    "rotation between unit and table" + (
                                        " (floor: noise and meta's table_accuracy_arcsec)" if table_sd else
                                        " (floor: the noise alone; the table's angle errors add to it)"),
                            "unit": "rad", "n": len(angled), "before_rms": _rms(errs[0]), "after_rms": _rms(errs[1]),
-                           "floor_rms": _rms(np.hypot(fl[angled], table_sd)) if np.all(np.isfinite(fl[angled]))
-                           else None})
+                           "floor_rms": _rms(floor) if np.all(np.isfinite(floor)) else None,
+                           "far_off": _far_off(errs[1], floor, [labels[i] for i in angled]),
+                           "far_off_hint": "check their commanded angles in segments.csv"})
         out["acc"] = checks
     if w_after is not None:
         sd = ms.meta.get("gyro_noise_dph")
@@ -112,7 +129,7 @@ def _turntable(ms, f_before, f_after, w_before, w_after):
             what = ("|w| - |w_T + w_e sin L| at each rate run" if kind == "rate" else
                     "|w| - w_e (the Earth rate) at each static segment")
             checks.append(_norm_block("deg/h", np.linalg.norm(mb, axis=1) - truth, np.linalg.norm(ma, axis=1) - truth,
-                                      fl, what))
+                                      fl, what, [f"segment {s.segment}" for s in chosen]))
         out["gyro"] = checks
     return out
 
@@ -127,9 +144,10 @@ def _stream(ms, f_before, f_after, w_before, w_after):
     groups = [slice(a, b) for a, b in zip(det.starts, det.ends)]
     (mb, _), (ma, fl) = _segment_means(f_before, groups, None), _segment_means(f_after, groups, None)
     out = {"acc": [_norm_block("g", np.linalg.norm(mb, axis=1) - 1, np.linalg.norm(ma, axis=1) - 1, fl,
-                               f"|f| - 1 g at each of the {len(groups)} static poses")]}
+                               f"|f| - 1 g at each of the {len(groups)} static poses",
+                               [f"pose at {t[a]:.1f} s" for a in det.starts])]}
     if w_after is not None:
-        bad = saturated_rows(ms.raw("gyro"), ms.meta.get("full_scale", {}).get("gyro"))[0]
+        bad = saturated_rows(ms, "gyro")[0]
         angles = []
         g_dirs = ma / np.linalg.norm(ma, axis=1, keepdims=True)  # the calibrated accelerometers: the gyro's reference
         for w, nominal in ((w_before, True), (w_after, False)):
@@ -152,7 +170,7 @@ def _verdict(check) -> str:
         return "WORSE THAN NOMINAL"
     if fl is not None and a <= AT_FLOOR * fl:
         return "at the noise floor"
-    return "better" if a < b else "no better than nominal"
+    return "better" if a * WORSE < b else "no better than nominal"
 
 
 def validate(cal_path, data_dir) -> dict:
@@ -180,6 +198,10 @@ def validate(cal_path, data_dir) -> dict:
                     "at the noise floor" if all(c["verdict"] == "at the noise floor" for c in rows) else "better"
                     if all(c["verdict"] in ("better", "at the noise floor") for c in rows) else "no better than nominal")
                 for s, rows in checks.items() if rows}
+    for s, rows in checks.items():
+        far = sorted({x for c in rows for x in c.get("far_off") or []})
+        if far and s in verdicts:
+            verdicts[s] += f"; but {', '.join(far)} FAR OFF where the rest agree (mislabelled or disturbed)"
     same = calibration.input_sha256(ms.path) == cal.get("input_sha256")
     return {"format": "simucal.validation/1", "calibration": str(cal_path), "data": str(ms.path),
             "independent": not same, "checks": checks, "verdict": verdicts,
@@ -197,9 +219,12 @@ def lines(report):
             fl = "-" if c["floor_rms"] is None else f"{c['floor_rms']:.3g}"
             yield (f"{s:6} {c['before_rms']:10.3g} {c['after_rms']:10.3g} {fl:>9}  {c['unit']:8} {c['what']} "
                    f"(rms over {c['n']}): {c['verdict']}")
+            if c.get("far_off"):
+                yield (f"{s}: FAR OFF where the rest agree: {', '.join(c['far_off'])} ({FAR_OFF:g} floors or more); "
+                       + c.get("far_off_hint", "check those rows of the recording"))
     for s, v in report["verdict"].items():
         yield f"{s}: {v}" + (": this calibration makes the unit worse on these data than its nominal scale "
-                             "factors; do not use it" if v == "WORSE THAN NOMINAL" else "")
+                             "factors; do not use it" if v.startswith("WORSE THAN NOMINAL") else "")
 
 
 def html_page(report) -> str:

@@ -20,7 +20,7 @@ LAYERS = [
     {"simucal.turntable", "simucal.handheld", "simucal.field"},
     {"simucal.methods"},
     {"simucal.report"},
-    {"simucal.calibrate", "simucal.diagnose", "simucal.validate", "simucal.bench", "simucal.derive_cmd"},
+    {"simucal.calibrate", "simucal.diagnose", "simucal.validate", "simucal.allan", "simucal.bench", "simucal.derive_cmd"},
     {"simucal.demo"},
     {"simucal.cli"},
 ]

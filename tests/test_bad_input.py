@@ -464,14 +464,21 @@ def test_any_numeric_edit_of_a_calibration_applies_finite_or_is_refused(sets, tm
         assert len(r.stderr.strip().splitlines()) == 1
 
 
-def test_reversed_axis_in_a_stream_is_refused(sets, tmp_path):
+@pytest.mark.parametrize("command", ["calibrate", "diagnose"])
+@pytest.mark.parametrize("fault, named", [(("az",), "az reversed"), (("gx",), "gx reversed"),
+                                          (("ay",), "ay reversed"), (("gx", "gy"), "gx and gy swapped")])
+def test_a_reversed_or_swapped_column_in_a_stream_is_named(sets, tmp_path, command, fault, named):
+    """The norm fits cannot see a reflected triad; the moves can (handheld.calibrate.WIRING_FAULTS)."""
     d = _copy(sets, "stream", tmp_path)
     rows = _rows(d)
-    j = rows[0].index("az")
+    j = [rows[0].index(c) for c in fault]
     for row in rows[1:]:
-        row[j] = repr(-float(row[j]))
+        if len(j) == 1:
+            row[j[0]] = repr(65536.0 - float(row[j[0]]))  # unsigned 16-bit counts, reversed
+        else:
+            row[j[0]], row[j[1]] = row[j[1]], row[j[0]]
     _put_rows(d, rows)
-    run_refused(["calibrate", d, "-o", tmp_path / "c.json"], "negative on", "sign", out=tmp_path / "c.json")
+    run_refused([command, d, "-o", tmp_path / "c.json"], named, "samples.csv", out=tmp_path / "c.json")
 
 
 def test_a_wrong_nominal_scale_is_named(sets, tmp_path):
@@ -641,3 +648,161 @@ def test_a_stated_noise_far_above_the_scatter_is_named(sets, tmp_path):
 def test_an_unreachable_scheduler_is_one_line_and_writes_nothing(sets, tmp_path):
     run_refused(["calibrate", sets / "table", sets / "acc_only", "-o", tmp_path / "out", "--scheduler",
                  "tcp://127.0.0.1:1"], "no Dask scheduler answers", out=tmp_path / "out")
+
+
+# --- issue 24, second corpus: silent-wrong and unclear cases ----------------------------------
+
+def test_a_stated_noise_far_below_the_scatter_is_named_before_any_effect(sets, tmp_path):
+    """acc_noise_g 1e4 times too small: the misfit has no structure, so the noise is named first,
+    and --add auto adds nothing (no effect predicts the rows left out better)."""
+    out = tmp_path / "c.json"
+    r = CliRunner().invoke(main, ["calibrate", str(sets / "table"), "-o", str(out), "--acc-noise-g", "1e-9",
+                                  "--add", "auto"])
+    assert r.exit_code == 0, r.output
+    assert "stated noise is likely too small" in r.output and "the stated noise may be too small" in r.output
+    acc = json.loads(out.read_text())["acc"]
+    assert acc["noise_too_small"] and acc["auto"] == []
+
+
+def test_diagnose_names_a_stated_noise_far_above_the_scatter(sets, tmp_path):
+    r = CliRunner().invoke(main, ["diagnose", str(sets / "table"), "-o", str(tmp_path / "d.json"),
+                                  "--acc-noise-g", "0.1"])
+    assert r.exit_code == 0 and "WARNING: the residuals are" in r.output
+
+
+def test_diagnose_refuses_a_reversed_accelerometer_axis_on_a_table(sets, tmp_path):
+    d = _copy(sets, "table", tmp_path)
+    rows = _rows(d)
+    j = rows[0].index("ay")
+    for row in rows[1:]:
+        row[j] = repr(-float(row[j]))
+    _put_rows(d, rows)
+    run_refused(["diagnose", d, "-o", tmp_path / "d.json"], "reversing the accelerometer's y axis")
+
+
+@pytest.mark.parametrize("column, named", [("ax", "column ax does not follow gravity")])
+def test_a_dead_accelerometer_axis_on_a_table_is_named(sets, tmp_path, column, named):
+    d = _copy(sets, "table", tmp_path)
+    rows = _rows(d)
+    j = rows[0].index(column)
+    rng = np.random.default_rng(0)
+    for row in rows[1:]:
+        row[j] = repr(float(rng.normal(0.0, 1.0)))
+    _put_rows(d, rows)
+    run_refused(["calibrate", d, "-o", tmp_path / "c.json"], named)
+
+
+@pytest.mark.parametrize("name, column, value, where, named", [
+    ("raw", "ay", "-10400.0", lambda i, n, row: row[0] == "3", ("column ay holds -10400", "segment 3")),
+    ("stream", "az", "36000", lambda i, n, row: i > n // 2, ("column az holds 36000", "while ax and ay vary")),
+])
+def test_a_channel_stuck_for_part_of_the_recording_is_named(sets, raw_table, tmp_path, name, column, value, where,
+                                                             named):
+    d = Path(shutil.copytree(raw_table if name == "raw" else sets / name, tmp_path / "d"))
+    rows = _rows(d)
+    j = rows[0].index(column)
+    for i, row in enumerate(rows[1:], start=1):
+        if where(i, len(rows), row):
+            row[j] = value
+    _put_rows(d, rows)
+    run_refused(["calibrate", d, "-o", tmp_path / "c.json"], *named)
+
+
+def test_a_stream_timed_in_milliseconds_is_named(sets, tmp_path):
+    d = _copy(sets, "stream", tmp_path)
+    rows = _rows(d)
+    for row in rows[1:]:
+        row[0] = repr(float(row[0]) * 1000)
+    _put_rows(d, rows)
+    run_refused(["calibrate", d, "-o", tmp_path / "c.json"], "milliseconds")
+
+
+def test_a_gyro_clipped_inside_full_scale_is_found_and_its_moves_left_out(sets, tmp_path):
+    """The amplifier clips at +-40 deg/s while full_scale states the register's rails: the pile-up
+    at the clip level is found (sensor_checks.repeat_is_clipping) and the moves through it left out."""
+    d = _copy(sets, "stream", tmp_path)
+    rows = _rows(d)
+    j = rows[0].index("gy")
+    for row in rows[1:]:
+        row[j] = repr(min(max(float(row[j]), 32768 - 656), 32768 + 656))
+    _put_rows(d, rows)
+    r = CliRunner().invoke(main, ["calibrate", str(d), "-o", str(tmp_path / "c.json")])
+    assert r.exit_code == 0, r.output
+    assert "saturated (clipped) samples" in r.output and "moves left out" in r.output
+    assert json.loads((tmp_path / "c.json").read_text())["gyro"]["saturation"][0]["axis"] == "y"
+
+
+def test_clipped_segments_leaving_too_few_are_named(raw_table, tmp_path):
+    """A range of 0.5 g: every segment with an axis past it clips there and is left out."""
+    d = Path(shutil.copytree(raw_table, tmp_path / "t"))
+    rows = _rows(d)
+    cols = [rows[0].index(c) for c in ("ax", "ay", "az")]
+    rail = 0.5 * max(abs(float(r[j])) for r in rows[1:] for j in cols)
+    for r in rows[1:]:
+        for j in cols:
+            r[j] = repr(min(max(float(r[j]), -rail), rail))
+    _put_rows(d, rows)
+    _meta(d, full_scale={"acc": [-rail, rail]})
+    run_refused(["calibrate", d, "-o", tmp_path / "c.json"], "hold clipped samples", "left out")
+
+
+def test_a_full_scale_the_data_exceed_is_named(raw_table, tmp_path):
+    d = Path(shutil.copytree(raw_table, tmp_path / "t"))
+    _meta(d, full_scale={"acc": [-1.0, 1.0]})
+    run_refused(["calibrate", d, "-o", tmp_path / "c.json"], "outside full_scale", "meta.json")
+
+
+def test_rates_in_radians_per_second_name_the_rates_not_the_unit(sets, tmp_path):
+    d = _copy(sets, "table", tmp_path)
+    seg = list(csv.reader(open(d / "segments.csv")))
+    for r in seg[1:]:
+        if r[1] == "rate":
+            r[5] = repr(float(np.radians(float(r[5]))))
+    csv.writer(open(d / "segments.csv", "w", newline="")).writerows(seg)
+    run_refused(["calibrate", d, "-o", tmp_path / "c.json"], "outer_rate_dps in segments.csv that is off")
+
+
+@pytest.mark.parametrize("args, named", [
+    (["--separate", "acc.quadratic.z,acc.quadratic.z", "--sizes", "1e-4,1e-4"], "cannot be told from itself"),
+    (["--separate", "acc.quadratic.z,acc.scale_asymmetry.z", "--sizes", "nan,1e-4"], "finite, non-zero"),
+    (["--separate", "acc.quadratic.z,acc.scale_asymmetry.z", "--sizes", "0,0"], "finite, non-zero"),
+])
+def test_plan_separation_needs_two_effects_of_real_sizes(tmp_path, args, named):
+    run_refused(["plan", "--score", "table1", *args, "-o", tmp_path / "s.json"], named, out=tmp_path / "s.json")
+
+
+@pytest.mark.parametrize("body, named", [("nan,0,0\n", "must be finite"), ("", "has no positions"),
+                                         ("0,0,0\n" * 12, "unobservable")])
+def test_a_plan_file_of_nonsense_positions_is_named(tmp_path, body, named):
+    p = tmp_path / "p.csv"
+    p.write_text("outer_deg,middle_deg,inner_deg\n" + body)
+    run_refused(["plan", "--score", p, "-o", tmp_path / "s.json"], named, out=tmp_path / "s.json")
+
+
+def test_ferraris_overlapping_sections_and_a_zero_turn_are_refused(tmp_path):
+    src = tmp_path / "s.csv"
+    src.write_text("acc_x,acc_y,acc_z,gyr_x,gyr_y,gyr_z\n" + "0,0,9.81,0,0,0\n" * 40)
+    (tmp_path / "l.json").write_text('{"x_p": {"start": 0, "end": 20}, "x_a": {"start": 10, "end": 30}}')
+    base = ["import", "imucal-ferraris", src, tmp_path / "l.json", "-o", tmp_path / "o", "--latitude-deg", "45"]
+    run_refused(base, "overlap", out=tmp_path / "o")
+    (tmp_path / "l.json").write_text('{"x_p": {"start": 0, "end": 20}, "x_rot": {"start": 20, "end": 40}}')
+    run_refused(base + ["--turn-deg", "0"], "--turn-deg 0", out=tmp_path / "o")
+
+
+def test_csv_import_maps_each_source_column_once_and_needs_no_gyro_arguments_without_gyros(tmp_path):
+    src = tmp_path / "x.csv"
+    src.write_text("t,a1,a2,a3\n" + "".join(f"{i * 0.01},0,0,1\n" for i in range(30)))
+    run_refused(["import", "csv", src, "-o", tmp_path / "o", "--columns", "t_s=t,ax=a1,ay=a1,az=a3",
+                 "--acc-unit", "g"], "mapped to both ax and ay", out=tmp_path / "o")
+    r = CliRunner().invoke(main, ["import", "csv", str(src), "-o", str(tmp_path / "o"), "--columns",
+                                  "t_s=t,ax=a1,ay=a2,az=a3", "--acc-unit", "g"])
+    assert r.exit_code == 0, r.output
+    ms = io.read_set(tmp_path / "o")
+    assert ms.has_acc and not ms.has_gyro
+
+
+def test_a_model_file_that_exits_is_the_users_error(sets, tmp_path, monkeypatch):
+    monkeypatch.setenv("SIMUCAL_CACHE", str(tmp_path / "cache"))
+    m = tmp_path / "m.py"
+    m.write_text("import sys\nsys.exit(0)\n")
+    run_refused(["calibrate", sets / "table", "-o", tmp_path / "c.json", "--add", m], "m.py", "ended the process")

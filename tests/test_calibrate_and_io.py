@@ -1,4 +1,5 @@
 """Calibration of simulated sets, spec refusals, the CLI and the audit."""
+import csv
 import json
 import shutil
 
@@ -176,6 +177,12 @@ def test_saturated_segment_left_out_and_reported(tmp_path):
     meta = json.loads((tmp_path / "s" / "meta.json").read_text())
     meta["full_scale"] = {"acc": [-0.98, 0.98]}  # clips the positions nearest an axis
     (tmp_path / "s" / "meta.json").write_text(json.dumps(meta))
+    rows = list(csv.reader(open(tmp_path / "s" / "samples.csv")))
+    cols = [rows[0].index(c) for c in ("ax", "ay", "az")]
+    for row in rows[1:]:  # the sensor stops at its rails
+        for j in cols:
+            row[j] = repr(min(max(float(row[j]), -0.98), 0.98))
+    csv.writer(open(tmp_path / "s" / "samples.csv", "w", newline="")).writerows(rows)
     try:
         r = calibrate(tmp_path / "s", "exact")
     except CalibrationError as e:  # too few left is also an honest answer

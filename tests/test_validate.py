@@ -96,3 +96,21 @@ def test_a_stream_validated_on_another_session_of_the_same_unit(tmp_path):
     assert gyro["unit"] == "deg" and gyro["after_rms"] < 0.2 * gyro["before_rms"] and rep["independent"]
     assert rep["verdict"]["acc"] in ("better", "at the noise floor")
     assert (tmp_path / "r.html").read_text().count("data:image/png") == 1
+
+
+def test_mislabelled_positions_are_named_and_not_called_better(table, tmp_path):
+    """Two static segments' commanded angles swapped in the validation set: the two segments are
+    named (the rest agree), in the check and in the sensor's verdict."""
+    import csv
+    d = shutil.copytree(table / "val", tmp_path / "val")
+    seg = list(csv.reader(open(d / "segments.csv")))
+    static = [i for i, r in enumerate(seg) if i and r[1] == "static"]  # Table 1's 13 and 14: 90 deg apart
+    a, b = (next(i for i in static if [float(x) for x in seg[i][3:5]] == v) for v in ([0.0, 0.0], [90.0, 0.0]))
+    seg[a][3:5], seg[b][3:5] = seg[b][3:5], seg[a][3:5]
+    csv.writer(open(d / "segments.csv", "w", newline="")).writerows(seg)
+    shutil.copy(table / "added.json", tmp_path)
+    rep, out = _report(tmp_path, "added.json", "val", tmp_path / "v.json")
+    direction = next(c for c in rep["checks"]["acc"] if c["unit"] == "rad")
+    assert "FAR OFF" in rep["verdict"]["acc"]
+    assert set(direction["far_off"]) == {f"segment {seg[a][0]}", f"segment {seg[b][0]}"}
+    assert "FAR OFF" in out

@@ -42,6 +42,9 @@ class Term:
         if not self.name.isidentifier():
             raise ValueError(f"term name {self.name!r} must be a Python identifier")
         object.__setattr__(self, "regressor", sp.sympify(self.regressor))
+        if self.regressor.has(sp.nan, sp.zoo, sp.oo, -sp.oo):
+            raise ValueError(f"term {self.name}: the regressor {self.regressor} is not finite (nan or infinity); "
+                             "write a finite expression of the inputs")
 
     @property
     def symbol(self) -> sp.Symbol:

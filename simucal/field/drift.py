@@ -213,7 +213,14 @@ def field_drift(data, block_s=1.0, stages=2, heading_accuracy_deg=5.0) -> dict:
                      "std_dph": est["std"].tolist()})
     if len(rows) < 3:
         raise CalibrationError(f"{ms.path}: {len(rows)} static positions; the three body drifts need three")
-    drift, std = solve_drifts(rows, eps, sds)
+    try:
+        drift, std = solve_drifts(rows, eps, sds)
+    except CalibrationError as e:
+        heads = [p["heading_ref_deg"] for p in positions]
+        if max(abs(h) for h in heads) <= 2 * np.pi:  # every heading within one turn in radians
+            raise CalibrationError(f"{e}; the headings ({', '.join(f'{h:.3g}' for h in heads)}) are all within 2 pi: written in radians? "
+                                   "heading_ref_deg is in degrees") from None
+        raise
     return {"method": "ruan2019 three-position",
             "gyro_drift_dph": drift.tolist(), "std_dph": std.tolist(), "positions": positions,
             "frames": {"navigation": "North-Up-East", "body": "Forward-Up-Right (x, y, z of the gyro axes)"},

@@ -32,6 +32,7 @@ from simucal.generated.effects import EFFECTS, SEPARATE
 
 ALPHA = 0.01
 NOISE_TOO_LARGE = 1e-3  # P(chi2 below the value found): residuals this far under the stated noise
+NOISE_TOO_SMALL = 10.0  # residual rms / stated noise above which a misfit with no structure is the noise's
 
 
 def rank_candidates(model: AugmentedModel, obs: Observations, fit: Fit, base_fails: bool, advisor=None) -> list[dict]:
@@ -136,6 +137,14 @@ def test_model(model, obs: Observations, p0=None) -> tuple[Fit, Observations, di
                     "a stated noise this much larger than the data's scatter leaves the test unable to fail and "
                     "every std too large; check acc_noise_g / gyro_noise_dph (or the option), or leave them out to "
                     "have the noise estimated from the fit")
+            elif fit.dof > 0 and fit.chi2 > NOISE_TOO_SMALL ** 2 * fit.dof and (lof.get("p_value") or 0.0) >= ALPHA:
+                block["noise_too_small"] = True
+                block["noise_warning"] = (
+                    f"the residuals are {np.sqrt(fit.chi2 / fit.dof):.3g} times the noise used ({noise['source']}), yet "
+                    f"the generic terms find no structure in them (lack-of-fit p = {lof['p_value']:.2g}): the stated "
+                    "noise is likely too small (else an effect outside the library and the generic terms is "
+                    "missing), and an effect ranked against it may only absorb scatter; check acc_noise_g / "
+                    "gyro_noise_dph (or the option), or leave them out to have the noise estimated")
     else:
         block.update(noise_floor=None, noise_std_of_mean=None, p_value=lof["p_value"],
                      test="lack-of-fit F (no noise in the data or stated)")
@@ -226,12 +235,13 @@ def verdict(sensor, base, cands, where="DIR", shape=None, command="diagnose") ->
     if base["p_value"] is None:
         return (f"{sensor}: too few degrees of freedom for any test (no noise in the data or stated, and the "
                 f"lack-of-fit test needs 4 dof); {rms}; state the noise (--{sensor}-noise-...) or add positions")
+    warning = f" WARNING: {base['noise_warning']}." if base.get("noise_warning") else ""
     if base["p_value"] >= ALPHA:
-        return f"{sensor}: the model explains the data down to the noise ({_fmt_test(base)}; {rms})"
+        return f"{sensor}: the model explains the data down to the noise ({_fmt_test(base)}; {rms}).{warning}"
     floor = f" against a noise floor {base['noise_floor']:.3g} {unit}" if base.get("noise_floor") else ""
     head = f"{sensor}: the model does not explain the data ({_fmt_test(base)}; {rms}{floor})"
     sig = [c for c in cands if c.get("significant")]
-    text = head + "."
+    text = head + "." + warning
     generic = shape and not shape.get("catalog_id")
     if generic:  # it explains more than every library effect (shape_if_unexplained): lead with it
         text += (f" Most likely missing: a term {shape['text']} (rms {shape['residual_rms_after']:.3g} {unit} "

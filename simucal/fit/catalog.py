@@ -86,6 +86,9 @@ def derive_model_file(path) -> tuple[list[str], bool]:
             raise ModelFileError(lines[-1] if child.returncode == 2 and lines else
                                  f"{path}: deriving it failed (exit {child.returncode}): "
                                  + (lines[-1] if lines else "no message"))
+        if not (folder / "manifest.json").is_file():  # the file ended the child itself (sys.exit, os._exit)
+            raise ModelFileError(f"{path}: running it ended the process before any model was derived (sys.exit or "
+                                 "os._exit in the file?); a model file defines MODELS and returns")
         derived = True
     names = sorted(json.loads((folder / "manifest.json").read_text())["models"])
     index = _index()

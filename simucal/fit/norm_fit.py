@@ -312,6 +312,9 @@ def fit_exact(model, obs: Observations, p0=None, max_iter=200, tol=1e-12, prior=
         dead = [model.params[j] for j in np.nonzero(np.diag(H) <= 1e-300)[0]]
         raise CalibrationError(f"the {model.sensor} data give no input for {dead}: these parameters are not "
                                "seen at all by these positions (leave them out, or add positions that excite them)")
+    if status == 2 and not np.all(np.isfinite(H)):
+        raise CalibrationError(f"the exact {model.sensor} fit diverged (its information matrix is not finite): check "
+                               "the data for clipped samples, outliers, a stuck channel or a wrong unit")
     if status == 2:
         raise CalibrationError(f"the {model.sensor} plan leaves these parameter combinations unobservable: "
                                f"{unobservable(H, model.params)}; add positions that change them")

@@ -319,9 +319,31 @@ def decimate(mv: Moves, k: int) -> Moves:
                  None if mv.phi is None else block_means(mv.phi), mv.phi_axes, mv.phi_rest)
 
 
+def _wiring_faults() -> dict:
+    """{fault: W}: the recorded gyro rates times W turn gravity as the recorded accelerometers
+    see it. A gyro column reversed is W = D_k (diag with -1 at k), two gyro columns swapped the
+    permutation P; an accelerometer column reversed or two swapped reflect the gravity
+    directions instead, D R D = R(-D w), so W = -D_k or -P."""
+    out = {}
+    for k, a in enumerate("xyz"):
+        D = np.diag([-1.0 if j == k else 1.0 for j in range(3)])
+        out[f"g{a} reversed, the gyro's {a} column with its sign flipped"] = D
+        out[f"a{a} reversed, the accelerometer's {a} column with its sign flipped"] = -D
+    for i, j in ((0, 1), (0, 2), (1, 2)):
+        P = np.eye(3)[[j if k == i else i if k == j else k for k in range(3)]]
+        ai, aj = "xyz"[i], "xyz"[j]
+        out[f"g{ai} and g{aj} swapped, the gyro's columns"] = P
+        out[f"a{ai} and a{aj} swapped, the accelerometer's columns"] = -P
+    return out
+
+
+WIRING_FAULTS = _wiring_faults()
+
+
 def check_rotation_sense(mv: Moves, g_dirs, T0):
-    """Refuse a gyro whose rotations turn gravity the wrong way (sign, axes, rate), or by a
-    unit mix-up's factor (units.UNIT_MIXUPS: deg/s read as rad/s, ...)."""
+    """Refuse a gyro whose rotations turn gravity the wrong way (sign, axes, rate), by a
+    unit mix-up's factor (units.UNIT_MIXUPS: deg/s read as rad/s, ...), or only once a column
+    is reversed or two are swapped (WIRING_FAULTS): the norm fits cannot see those."""
     r_pos, _ = move_residuals(T0, mv, g_dirs, jac=False)
     r_neg, _ = move_residuals(-T0, mv, g_dirs, jac=False)
     good, bad = np.linalg.norm(r_pos, axis=1), np.linalg.norm(r_neg, axis=1)
@@ -331,6 +353,13 @@ def check_rotation_sense(mv: Moves, g_dirs, T0):
             raise CalibrationError(
                 f"the gyro's rates are {ratio:.4g} times the rotations that turn gravity between the poses: the ratio "
                 f"matches {name}; check gyro_unit and the nominal scale factors in meta.json")
+    wiring = min(((name, np.median(np.linalg.norm(move_residuals(T0 @ W, mv, g_dirs, jac=False)[0], axis=1)))
+                  for name, W in WIRING_FAULTS.items()), key=lambda kv: kv[1])
+    if wiring[1] < 0.3 * np.median(good) and wiring[1] < 0.3 * np.median(bad):
+        raise CalibrationError(
+            f"the gyro's rotations turn gravity between the poses as the accelerometers see it only with {wiring[0]} "
+            f": median move error {np.degrees(wiring[1]):.2g} deg, against {np.degrees(np.median(good)):.2g} deg as "
+            "recorded; fix that column in samples.csv (or the wiring, or the column mapping) and calibrate again")
     flipped = bad < 0.5 * good
     if flipped.mean() > 0.5:
         raise CalibrationError(
@@ -469,8 +498,7 @@ def prepare_moves(ms, det: Detection, g_dirs, dir_var) -> GyroMoves:
     # the start of a move half a window late
     rest = slice(det.starts[0] + det.window // 2, det.ends[0] - det.window // 2)
     bias = w[rest].mean(0)
-    raw = ms.raw("gyro")
-    bad, sat = saturated_rows(raw, ms.meta.get("full_scale", {}).get("gyro"))
+    bad, sat = saturated_rows(ms, "gyro")
     mv, skipped = build_moves(w, ms.samples["t_s"], det, bias, bad)
     flipped = check_rotation_sense(decimate(mv, 4), g_dirs, np.eye(3))  # a sign question: coarse moves suffice
     # a rest quieter than one LSB averages to within about q/sqrt(12), not s/sqrt(n)

@@ -63,7 +63,14 @@ def detect_static(acc, t, settings: DetectSettings = DetectSettings(), rest_fact
         raise CalibrationError(f"the stream has {len(t)} row{'s' * (len(t) != 1)}: a hand-placed session is one "
                                "continuous recording, an initial rest and then poses joined by moves")
     window_s, factor, min_s, init_rest_s = settings.window_s, settings.factor, settings.min_s, settings.init_rest_s
-    dt = float(np.median(np.diff(t)))
+    dt, length = float(np.median(np.diff(t))), float(t[-1] - t[0])
+    if dt >= 0.5:
+        raise CalibrationError(f"t_s steps by {dt:g} s (median): {1 / dt:.2g} Hz is too slow to follow a move between "
+                               "poses; if t_s is in milliseconds, write it in seconds (the spec's unit)")
+    for name, value, part in (("--window-s", window_s, 4), ("--min-static-s", min_s, 4), ("--init-rest-s", init_rest_s, 2)):
+        if value is not None and value > length / part:
+            raise CalibrationError(f"{name} {value:g}: longer than 1/{part} of the stream ({length:.1f} s), which "
+                                   "leaves no room for the poses and moves; give seconds")
     w = max(int(round(window_s / dt)) | 1, 3)
     mv = np.linalg.norm(moving_variance(acc, w), axis=1)
     if init_rest_s is not None:

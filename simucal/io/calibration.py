@@ -36,7 +36,7 @@ from pathlib import Path
 import numpy as np
 
 from simucal.errors import CalibrationError
-from simucal.io import outputs
+from simucal.io import outputs, units
 
 FORMAT = "simucal.calibration/2"
 FORMULA = {
@@ -101,7 +101,7 @@ def sensor_block(model, fit, M, bias, base: dict | None = None, C_b_model=None) 
     if base is not None:
         block.update(p_value=base["p_value"], test=base["test"], noise=base["noise"],
                      lack_of_fit=base["lack_of_fit"], cross_validation=base.get("cross_validation"),
-                     **{k: base[k] for k in ("rows", "noise_warning") if base.get(k)})
+                     **{k: base[k] for k in ("rows", "noise_warning", "noise_too_small") if base.get(k)})
     return block
 
 
@@ -177,6 +177,16 @@ PARAM_LIMIT = 1e6             # any other parameter, in its unit
 BIAS_LIMIT = {"acc": 16.0, "gyro": 7.2e6}  # 16 g; 2000 deg/s in deg/h
 
 
+def bias_limit(layout, sensor) -> float:
+    """BIAS_LIMIT, or for raw counts the span of an unsigned 16-bit register at the nominal scale
+    (the bias then holds the register's zero offset too)."""
+    per = layout.get(f"{sensor}_counts_per_{'g' if sensor == 'acc' else 'dps'}")
+    if layout.get(f"{sensor}_unit") != "counts" or not per:
+        return BIAS_LIMIT[sensor]
+    span = 2.0 ** 16 / min(per) * (1.0 if sensor == "acc" else units.DPH_PER_DPS)
+    return max(BIAS_LIMIT[sensor], span)
+
+
 def _matrix(path, where, value, shape):
     try:
         a = np.array(value, dtype=float)
@@ -216,9 +226,10 @@ def check_file(path, cal: dict) -> None:
             raise CalibrationFileError(f"{path}: {s}.M has diagonal {np.round(diag, 4).tolist()} (det "
                                        f"{np.linalg.det(M):.3g}): scale factors outside {SCALE_RANGE} of nominal "
                                        "are not a calibration of this unit")
-        if np.any(np.abs(bias) > BIAS_LIMIT[s]):
+        limit = bias_limit(lay, s)
+        if np.any(np.abs(bias) > limit):
             raise CalibrationFileError(f"{path}: {s}.bias {bias.tolist()} is beyond any sensor's range "
-                                       f"(|bias| <= {BIAS_LIMIT[s]:g} {'g' if s == 'acc' else 'deg/h'})")
+                                       f"(|bias| <= {limit:.3g} {'g' if s == 'acc' else 'deg/h'})")
         if "C_b_model" in block:
             C = _matrix(path, f"{s}.C_b_model", block["C_b_model"], (3, 3))
             if np.abs(C.T @ C - np.eye(3)).max() > 1e-6 or np.linalg.det(C) < 0:

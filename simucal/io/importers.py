@@ -57,12 +57,13 @@ def _read_numeric(path, ncols=None, skip_header=False):
     return np.array(rows)
 
 
-def _meta(acc_unit, gyro_unit, latitude_deg, extra):
+def _meta(acc_unit, gyro_unit, latitude_deg, extra, has_gyro=True):
     meta = {"acc_unit": acc_unit, "gyro_unit": gyro_unit, **extra}
-    if latitude_deg is None:
+    if latitude_deg is None and has_gyro:
         raise ImportError_("give --latitude-deg: the spec needs the latitude when gyro data are present "
                            "(where the Earth rate is below the gyro noise any nearby value will do)")
-    meta["latitude_deg"] = latitude_deg
+    if latitude_deg is not None:
+        meta["latitude_deg"] = latitude_deg
     return meta
 
 
@@ -97,6 +98,9 @@ def parse_columns(text: str) -> dict:
             raise ImportError_(f"--columns: {spec!r} is not a spec column; use {', '.join(allowed)}")
         if spec in out:
             raise ImportError_(f"--columns: {spec} is mapped twice")
+        if src in out.values():
+            raise ImportError_(f"--columns: source column {src!r} is mapped to both "
+                               f"{[k for k, v in out.items() if v == src][0]} and {spec}: each axis needs its own column")
         out[spec] = src
     for group in (("ax", "ay", "az"), ("gx", "gy", "gz")):
         got = [c for c in group if c in out]
@@ -151,7 +155,9 @@ def import_csv(path, out, columns: dict, acc_unit, gyro_unit, rate_hz=None, lati
         if not rate_hz:
             raise ImportError_(f"{path}: no time column mapped; give --rate-hz")
         samples["t_s"] = np.arange(n) / rate_hz
-    meta = _meta(acc_unit, gyro_unit, latitude_deg, dict(scales or {}, description=f"imported from {path.name}"))
+    has_gyro = "gx" in columns
+    meta = _meta(acc_unit or "g", gyro_unit or "deg/h", latitude_deg,  # the spec names both units; one is unused
+                 dict(scales or {}, description=f"imported from {path.name}"), has_gyro)
     units.check_meta(meta, path, lambda p, line, rule: ImportError_(f"{p}: {rule}"))
     io.write_set(out, meta, samples)
     return meta
@@ -175,6 +181,9 @@ def _ferraris_set(out, sections, data, t, units_meta, latitude_deg, turn_deg, so
     """sections: [(label, row indices)] in recording order. Static poses become static
     segments at their nominal orientation; each 360 deg turn a rate segment about the
     vertical (the pose's axis) at the protocol's mean rate turn_deg / duration."""
+    if abs(turn_deg) < 1.0:
+        raise ImportError_(f"--turn-deg {turn_deg:g}: the Ferraris turns need their angle (imucal's protocol turns "
+                           "-360 deg); a turn of 0 deg carries no rate to calibrate the gyros with")
     segs, keep_rows, seg_col = [], [], []
     for sid, (label, rows) in enumerate(sections, start=1):
         if label in FERRARIS_POSES:
@@ -226,6 +235,10 @@ def import_ferraris_sections(csv_path, json_path, out, rate_hz, latitude_deg, tu
     sections = _read_sections(json_path, n)
     t = np.arange(n) / rate_hz
     order = sorted(sections.items(), key=lambda kv: kv[1]["start"])
+    for (la, a), (lb, b) in zip(order[:-1], order[1:]):
+        if b["start"] < a["end"]:
+            raise ImportError_(f"{json_path}: sections {la!r} (rows {a['start']}..{a['end']}) and {lb!r} (rows "
+                               f"{b['start']}..{b['end']}) overlap: a row belongs to one pose or turn; fix the rows")
     secs = [(label, np.arange(s["start"], s["end"])) for label, s in order]
     return _ferraris_set(out, secs, data, t, {"acc_unit": "m/s^2", "gyro_unit": "deg/s", "gravity_mps2": 9.81},
                          latitude_deg, turn_deg, Path(csv_path).name)

@@ -8,33 +8,61 @@ import numpy as np
 from simucal.errors import CalibrationError
 
 
-def saturated_rows(raw, full_scale=None, min_run=3):
-    """Rows at or beyond full scale; without it, rows equal to a column's extreme
-    in a run of min_run or more (a clipped sensor repeats its rail; two equal
-    extremes of quantised noise are common, three are not)."""
+def saturated_rows(ms, sensor, min_run=3):
+    """Rows of one sensor's raw outputs that are clipped: at or beyond meta.json's full_scale,
+    or equal to a column's extreme in a run of min_run or more (a clipped sensor repeats its
+    rail; two equal extremes of quantised noise are common, three are not). Raw counts without
+    full_scale: any such run (their rails are the data's own). Otherwise a repeated extreme
+    counts only where it piles up (repeat_is_clipping): an amplifier or a range setting can clip
+    below the rails meta.json gives, and a unit in g or deg/s states none."""
+    raw = ms.raw(sensor)
+    full_scale = ms.meta.get("full_scale", {}).get(sensor)
+    any_repeat = full_scale is None and ms.meta.get(f"{sensor}_unit") == "counts"
     bad = np.zeros(len(raw), bool)
     report = []
     for j in range(raw.shape[1]):
         col = raw[:, j]
+        hit = np.zeros(len(col), bool)
         if full_scale is not None:
-            hit = (col <= full_scale[0]) | (col >= full_scale[1])
-        else:
-            hit = np.zeros(len(col), bool)
-            for ext in (col.min(), col.max()):
-                eq = (col == ext).astype(int)
-                edges = np.diff(np.r_[0, eq, 0])
-                for a, b in zip(np.nonzero(edges == 1)[0], np.nonzero(edges == -1)[0]):
-                    if b - a >= min_run:
-                        hit[a:b] = True
+            hit |= (col <= full_scale[0]) | (col >= full_scale[1])
+            outside = np.mean((col < full_scale[0]) | (col > full_scale[1]))
+            if outside > 0.05:  # a clipped sensor stops at its rails; it cannot read past them
+                raise CalibrationError(
+                    f"{ms.path / 'meta.json'}: {100 * outside:.0f} % of the {sensor} {'xyz'[j]} samples lie outside "
+                    f"full_scale {list(full_scale)}, which no sensor can read: full_scale does not match these data "
+                    f"(signed against unsigned counts, or another {sensor}_unit?); correct it or leave it out")
+        for ext in (col.min(), col.max()):
+            runs = _runs(col == ext, min_run)
+            if runs and (any_repeat or repeat_is_clipping(col, ext, runs)):
+                for a, b in runs:
+                    hit[a:b] = True
         if hit.any():
             report.append({"axis": "xyz"[j], "count": int(hit.sum()), "first_row": int(np.argmax(hit))})
         bad |= hit
     return bad, report
 
 
+def _runs(mask, min_run):
+    """[(start, stop)] of the runs of True at least min_run long."""
+    edges = np.diff(np.r_[0, mask.astype(int), 0])
+    return [(a, b) for a, b in zip(np.nonzero(edges == 1)[0], np.nonzero(edges == -1)[0]) if b - a >= min_run]
+
+
+def repeat_is_clipping(col, ext, runs) -> bool:
+    """A signal clipped at ext reaches it in several separate runs (several moves or poses hit
+    the rail) and piles up there: more rows at ext than at the next value inward. Noise at rest
+    thins out toward its extreme instead."""
+    inner = col[col < ext] if ext == col.max() else col[col > ext]
+    if len(runs) < 2 or not len(inner):
+        return False
+    nxt = inner.max() if ext == col.max() else inner.min()
+    return int(np.sum(col == ext)) > int(np.sum(col == nxt))
+
 
 def stuck_channels(ms):
-    """Refuse a column that holds one value in every row: no sensor reads that, even at rest."""
+    """Refuse a column that holds one value in every row (no sensor reads that, even at rest),
+    or over part of the recording (_stuck_part), and an accelerometer axis blind to gravity
+    (_dead_axis)."""
     fs = ms.meta.get("full_scale", {})
     for c in ("ax", "ay", "az", "gx", "gy", "gz"):
         v = ms.samples.get(c)
@@ -44,3 +72,71 @@ def stuck_channels(ms):
             raise CalibrationError(f"{ms.path / 'samples.csv'}: column {c} holds {v[0]:g} in every row: a stuck "
                                    + ("(at the rail) " if at_rail else "") + "or unconnected channel; check the "
                                    "wiring or the column mapping")
+    _stuck_part(ms)
+    _dead_axis(ms)
+
+
+def _stuck_part(ms, min_rows=20):
+    """Refuse a column frozen over part of the recording while its triad's other columns move:
+    in a turntable set over a whole segment (where the same column is not frozen in most other
+    segments, so it is no quiet, coarsely quantised channel); in a stream over a quarter of the
+    rows or more."""
+    for sensor, cols in (("acc", ("ax", "ay", "az")), ("gyro", ("gx", "gy", "gz"))):
+        if not all(c in ms.samples for c in cols):
+            continue
+        X = np.column_stack([ms.samples[c] for c in cols])
+        groups = ([(s.segment, ms.samples["segment"] == s.segment) for s in ms.segments] if ms.segments is not None
+                  else [(None, _runs_mask(X, j, max(min_rows, len(X) // 4))) for j in range(3)])
+        clipped = saturated_rows(ms, sensor)[0]  # frozen at a rail is clipping, left out where it is met
+        frozen = [(seg, rows, j) for seg, rows in groups if rows.sum() >= min_rows for j in range(3)
+                  if np.ptp(X[rows, j]) == 0 and not clipped[rows].all()
+                  and np.ptp(np.delete(X[rows], j, axis=1), axis=0).min() > 0]
+        for seg, rows, j in frozen:
+            if ms.segments is not None and sum(f[2] == j for f in frozen) > len(groups) / 2:
+                continue  # frozen nearly everywhere: a quiet channel, quantised coarser than its noise
+            first = int(np.argmax(rows)) + 2
+            where = f"segment {seg}" if seg is not None else f"{int(rows.sum())} rows from line {first}"
+            raise CalibrationError(f"{ms.path / 'samples.csv'}: column {cols[j]} holds {X[rows, j][0]:g} in every row "
+                                   f"of {where} while {' and '.join(c for k, c in enumerate(cols) if k != j)} vary: "
+                                   "a channel stuck for that part (a dropout or a frozen value); cut or repair those rows")
+
+
+def _runs_mask(X, j, min_len):
+    """Rows of the longest run over which column j holds one value, if min_len or longer."""
+    change = np.r_[True, X[1:, j] != X[:-1, j], True]
+    starts = np.nonzero(change)[0]
+    lengths = np.diff(starts)
+    k = int(np.argmax(lengths))
+    mask = np.zeros(len(X), bool)
+    if lengths[k] >= min_len:
+        mask[starts[k]:starts[k] + lengths[k]] = True
+    return mask
+
+
+def _dead_axis(ms, live_g=0.5, dead_ratio=0.05, spread=0.2):
+    """Refuse an accelerometer axis whose static means do not follow gravity while the others
+    do (they span live_g or more): a dead channel, or a column holding another signal. Only
+    where the commanded angles turn gravity out of every plane (its directions in the table
+    frame spread by `spread` or more across their flattest direction), so that every axis of the
+    unit, however mounted, must see it change."""
+    if ms.segments is None or not all(c in ms.samples for c in ("ax", "ay", "az")):
+        return
+    segs = [s for s in ms.segments if s.kind == "static" and s.middle_deg is not None and s.inner_deg is not None]
+    if len(segs) < 4:
+        return
+    from simucal.generated import table
+    up_k = table.C_k_n(0.0, np.radians([s.middle_deg for s in segs]), np.radians([s.inner_deg for s in segs]),
+                       np.zeros(7))[:, 2, :]
+    if np.sqrt(max(np.linalg.eigvalsh(np.cov(up_k.T))[0], 0.0)) < spread:
+        return
+    static = [ms.samples["segment"] == s.segment for s in segs]
+    f = ms.acc_g()
+    span = np.ptp(np.array([f[r].mean(0) for r in static if r.any()]), axis=0)
+    for j in range(3):
+        others = np.delete(span, j)
+        if others.min() > live_g and span[j] < dead_ratio * others.min():
+            raise CalibrationError(
+                f"{ms.path / 'samples.csv'}: column a{'xyz'[j]} does not follow gravity: its static means span "
+                f"{span[j]:.2g} g over the {len(static)} positions, where the other axes' span {others.min():.2g} g "
+                "or more: a dead or unconnected channel, or the column holds another signal; check the wiring and "
+                "the column order")

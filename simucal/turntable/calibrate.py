@@ -86,22 +86,46 @@ def segment_observations(ms: io.MeasurementSet, sensor: str, kinds=None, stated=
         sig.append(sd)
         rho.append(1.0 if sensor == "acc" else abs(s.outer_rate_dps * units.DPH_PER_DPS + w_e * np.sin(lat)))  # |input|
         keep.append(s)
+    dropped = [s.segment for s in segs if s.segment in clipped]
+    need = len(AugmentedModel(f"{sensor}_baseline").params)
+    if dropped and len(keep) < need and (keep or sensor == "acc"):  # no gyro at all: not calibrated, said so
+        raise CalibrationError(
+            f"{ms.path / 'samples.csv'}: {len(dropped)} of {len(segs)} {sensor} segments hold clipped samples (at or "
+            f"beyond full_scale, or repeating the rail: segments {dropped[:8]}{' ...' if len(dropped) > 8 else ''}) "
+            f"and are left out, leaving {len(keep)}, too few for the {need} parameters of {sensor}_baseline; record "
+            "them within the sensor's range, or correct full_scale in meta.json if the rails are wrong")
     aux = column_means(ms.samples, [ms.samples["segment"] == s.segment for s in keep])
     aux.update(specific_force(ms, keep) if sensor == "gyro" else {"w2": centripetal_scale(ms, keep)})
     obs = Observations(np.array(N).reshape(-1, 3), np.array(rho), np.array(sig).reshape(-1, 3), AuxInputs(aux),
                        [s.segment for s in keep])
     if keep:
-        units.check_magnitude(sensor, np.linalg.norm(obs.N, axis=1), obs.rho, ms.path / "samples.csv", ms.meta)
+        try:
+            units.check_magnitude(sensor, np.linalg.norm(obs.N, axis=1), obs.rho, ms.path / "samples.csv", ms.meta)
+        except CalibrationError as e:
+            raise CalibrationError(f"{e}{_rates_not_units(ms) if sensor == 'gyro' else ''}") from None
     return obs, keep
 
 
+def _rates_not_units(ms) -> str:
+    """Where the static segments read the Earth rate in gyro_unit (a gyro that resolves it), the
+    unit is right and the commanded rates are what is off: say so."""
+    if "Ferraris" in ms.meta.get("description", ""):
+        return ("; this set was imported from a Ferraris session, whose commanded rate is the turn angle over the "
+                "turn's duration: check the import's --rate-hz (the sample rate) and --turn-deg")
+    static = np.isin(ms.samples["segment"], [s.segment for s in ms.segments if s.kind == "static"])
+    if not static.any():
+        return ""
+    w = float(np.median(np.linalg.norm(ms.gyro_dph()[static], axis=1)))
+    w_e = units.earth_rate_dph(ms.meta)
+    if not 0.5 * w_e < w < 2 * w_e:
+        return ""
+    return (f"; but the static segments read the Earth rate ({w:.3g} deg/h against {w_e:.4g}) in that unit, so it "
+            "is outer_rate_dps in segments.csv that is off: it is deg/s (not rad/s, not deg/h)")
+
+
 def saturated_segments(ms, sensor) -> dict:
-    """{segment: number of its samples at a rail} of one sensor: with full_scale in meta.json,
-    or for raw counts the rails the data repeat (io/sensor_checks.saturated_rows)."""
-    fs = ms.meta.get("full_scale", {}).get(sensor)
-    if fs is None and ms.meta.get(f"{sensor}_unit") != "counts":
-        return {}
-    bad = saturated_rows(ms.raw(sensor), fs)[0]
+    """{segment: number of its samples clipped} of one sensor (io/sensor_checks.saturated_rows)."""
+    bad = saturated_rows(ms, sensor)[0]
     seg, n = np.unique(ms.samples["segment"][bad], return_counts=True)
     return dict(zip(seg.tolist(), n.tolist()))
 
@@ -183,19 +207,28 @@ def handedness(ms, fa, acc_obs, acc_segs, fg, gyro_segs) -> list[str]:
     """Each triad's fitted directions against the commanded table vertical (consistency.py):
     refuses a reflected triad; where both are reflected, the table's angles follow another
     convention than the spec's, which the exact method does not need (a note)."""
-    found = {}
-    for sensor, fit, segs, sign in (("accelerometer", fa, acc_segs, None), ("gyro", fg, gyro_segs, True)):
-        if fit is None or fit.directions is None:
-            continue
-        rows = [i for i, s in enumerate(segs) if s.middle_deg is not None and s.inner_deg is not None
-                and (sign or s.kind == "static")]
-        if len(rows) < 3:
-            continue
-        up_k, _ = _commanded_up_k([segs[i] for i in rows])
-        u = fit.directions[rows] * (np.sign([segs[i].outer_rate_dps for i in rows])[:, None] if sign else 1.0)
-        axis, resid, r = mirror_test(up_k, u)
-        if axis is not None:
-            found[sensor] = (axis, resid, r)
+    return handedness_verdict(ms, {"accelerometer": mirrored(fa, acc_segs, False), "gyro": mirrored(fg, gyro_segs, True)})
+
+
+def mirrored(fit, segs, rate_sign: bool):
+    """consistency.mirror_test of one triad's fitted directions against the commanded vertical:
+    (axis, residual, r) where the triad is a mirror image, else None. rate_sign: the directions
+    are rate runs', signed by their commanded rate."""
+    if fit is None or fit.directions is None:
+        return None
+    rows = [i for i, s in enumerate(segs) if s.middle_deg is not None and s.inner_deg is not None
+            and (rate_sign or s.kind == "static")]
+    if len(rows) < 3:
+        return None
+    up_k, _ = _commanded_up_k([segs[i] for i in rows])
+    u = fit.directions[rows] * (np.sign([segs[i].outer_rate_dps for i in rows])[:, None] if rate_sign else 1.0)
+    axis, resid, r = mirror_test(up_k, u)
+    return None if axis is None else (axis, resid, r)
+
+
+def handedness_verdict(ms, found: dict) -> list[str]:
+    """found: {triad: mirrored(...)}. One reflected triad is refused; two are a note."""
+    found = {k: v for k, v in found.items() if v is not None}
     if len(found) == 1:
         (sensor, (axis, resid, r)), = found.items()
         raise mirror_error(f"{ms.path}: the {sensor} directions against the commanded table vertical",

@@ -53,8 +53,12 @@ def score(model: AugmentedModel, u, rho, sigma) -> dict:
         raise CalibrationError(f"{n} positions for {m} parameters of {model.name}: the norm gives one equation per "
                                f"position, so a plan needs at least {m}")
     H = information(model, u, rho, sigma)
-    w = np.linalg.eigvalsh(H / np.outer(np.sqrt(np.diag(H)), np.sqrt(np.diag(H))))
-    if w[0] < 1e-10 * w[-1]:
+    d = np.sqrt(np.abs(np.diag(H)))
+    singular = not (np.all(np.isfinite(H)) and np.all(d > 0))  # a parameter the plan never moves
+    if not singular:
+        w = np.linalg.eigvalsh(H / np.outer(d, d))
+        singular = w[0] < 1e-10 * w[-1]
+    if singular:
         raise CalibrationError(f"the plan leaves a combination of {model.name}'s parameters unobservable (the "
                                "information is singular): add positions with other input directions")
     cov = np.linalg.inv(H)

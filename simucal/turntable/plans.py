@@ -7,6 +7,7 @@ for frame unification. Generated plans: spherical Fibonacci sets.
 from __future__ import annotations
 
 import csv
+import math
 from pathlib import Path
 
 import numpy as np
@@ -77,9 +78,14 @@ def read_csv(path) -> list:
             raise ValueError(f"{path}, line 1: plan needs columns {sorted(need)}")
         for line, row in enumerate(reader, start=2):
             try:
-                out.append(tuple(float(row[c]) for c in ("outer_deg", "middle_deg", "inner_deg")))
+                angles = tuple(float(row[c]) for c in ("outer_deg", "middle_deg", "inner_deg"))
             except (TypeError, ValueError):
                 raise ValueError(f"{path}, line {line}: angles must be numbers") from None
+            if not all(math.isfinite(a) and abs(a) <= 3600 for a in angles):
+                raise ValueError(f"{path}, line {line}: angles {angles} must be finite, in degrees (|angle| <= 3600)")
+            out.append(angles)
+    if not out:
+        raise ValueError(f"{path}: the plan has no positions; give one row per position under the header")
     return out
 
 

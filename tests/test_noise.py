@@ -1,0 +1,107 @@
+"""`simucal noise` (issue 26, item 3): the Allan deviation against allantools, the IEEE 952 terms
+recovered from simulated noise of known size, Kalibr's imu.yaml in SI, and refusals."""
+import json
+
+import allantools
+import numpy as np
+import pytest
+from click.testing import CliRunner
+
+from simucal.allan import allan_variance, taus
+from simucal.cli import main
+from simucal.turntable.simulate import Scenario, write
+
+DT = 0.01
+ARW_DEG_SQRT_H = 0.1     # gyro white noise N = 6 (deg/h) sqrt(s)
+VRW_G_SQRT_S = 50e-6     # accelerometer white noise, 50 ug/sqrt(Hz)
+RRW_DPH_SQRT_S = 5 / 60  # gyro rate random walk, 5 deg/h/sqrt(h)
+
+
+def _run(*args):
+    return CliRunner().invoke(main, [str(a) for a in args])
+
+
+def _still(folder, seconds=1800.0, rrw=RRW_DPH_SQRT_S, seed=0, move=False):
+    """A still stream: white noise and a rate random walk on the gyro (deg/h), white noise on the
+    accelerometers (g); `move`: the unit tips over half-way."""
+    rng = np.random.default_rng(seed)
+    n = int(seconds / DT)
+    w = (ARW_DEG_SQRT_H * 60 / np.sqrt(DT) * rng.standard_normal((n, 3))
+         + np.cumsum(rrw * np.sqrt(DT) * rng.standard_normal((n, 3)), axis=0) + [1.0, 2.0, 3.0])
+    f = VRW_G_SQRT_S / np.sqrt(DT) * rng.standard_normal((n, 3)) + [0.0, 0.0, 1.0]
+    if move:
+        f[n // 2:] = f[n // 2:, [2, 1, 0]]
+    folder.mkdir()
+    with open(folder / "samples.csv", "w") as fh:
+        fh.write("t_s,ax,ay,az,gx,gy,gz\n")
+        np.savetxt(fh, np.column_stack([np.arange(n) * DT, f, w]), delimiter=",", fmt="%.10g")
+    (folder / "meta.json").write_text(json.dumps({"format": "simucal.measurements/1", "acc_unit": "g",
+                                                  "gyro_unit": "deg/h", "latitude_deg": 45.0}))
+    return folder
+
+
+def test_the_allan_deviation_agrees_with_allantools():
+    rng = np.random.default_rng(1)
+    y = rng.standard_normal(20000) + 0.01 * np.cumsum(rng.standard_normal(20000))
+    m = taus(len(y), DT)
+    avar, _ = allan_variance([y], DT, m)
+    _, adev, _, _ = allantools.oadev(y, rate=1 / DT, data_type="freq", taus=m * DT)
+    assert len(adev) == len(m)
+    np.testing.assert_allclose(np.sqrt(avar), adev, rtol=1e-12)
+
+
+def test_pooling_stretches_is_one_sum_over_them():
+    """Two stretches pooled give the sums of squares of each, over the counts of both."""
+    rng = np.random.default_rng(2)
+    a, b = rng.standard_normal(3000), rng.standard_normal(5000)
+    m = np.array([1, 4, 16])
+    both, n = allan_variance([a, b], DT, m)
+    va, na = allan_variance([a], DT, m)
+    vb, nb = allan_variance([b], DT, m)
+    np.testing.assert_allclose(both, (va * na + vb * nb) / (na + nb), rtol=1e-12)
+
+
+def test_white_noise_is_recovered_and_kalibr_gets_it_in_si(tmp_path):
+    d = _still(tmp_path / "still")
+    r = _run("noise", d, "-o", tmp_path / "n.json", "--html", tmp_path / "n.html", "--kalibr", tmp_path / "imu.yaml")
+    assert r.exit_code == 0, r.output
+    rep = json.loads((tmp_path / "n.json").read_text())
+    for a in "xyz":
+        arw = rep["gyro"]["axes"][a]["sheet"]["N"]
+        vrw = rep["acc"]["axes"][a]["sheet"]["N"]
+        assert arw["unit"] == "deg/sqrt(h)" and abs(arw["value"] - ARW_DEG_SQRT_H) < 3 * arw["std"] + 0.01 * ARW_DEG_SQRT_H
+        assert vrw["unit"] == "ug/sqrt(Hz)" and abs(vrw["value"] - 1e6 * VRW_G_SQRT_S) < 0.02 * 1e6 * VRW_G_SQRT_S
+    yaml = dict(line.split(": ") for line in (tmp_path / "imu.yaml").read_text().splitlines() if not line[0] == "#")
+    assert float(yaml["gyroscope_noise_density"]) == pytest.approx(ARW_DEG_SQRT_H / 60 * np.pi / 180, rel=0.02)
+    assert float(yaml["accelerometer_noise_density"]) == pytest.approx(VRW_G_SQRT_S * 9.80665, rel=0.02)
+    assert float(yaml["update_rate"]) == pytest.approx(1 / DT)
+    assert float(yaml["gyroscope_random_walk"]) > 0 and float(yaml["accelerometer_random_walk"]) > 0
+    assert "<img src=\"data:image/png;base64," in (tmp_path / "n.html").read_text()
+
+
+def test_a_rate_random_walk_raises_the_long_taus(tmp_path):
+    """With a rate random walk the fitted K (or the bound Kalibr gets) grows; without, it is small."""
+    got = {}
+    for name, rrw in (("walk", 10 * RRW_DPH_SQRT_S), ("white", 0.0)):
+        d = _still(tmp_path / name, seconds=1200.0, rrw=rrw, seed=3)
+        assert _run("noise", d, "-o", tmp_path / f"{name}.json", "--kalibr", tmp_path / f"{name}.yaml").exit_code == 0
+        yaml = dict(x.split(": ") for x in (tmp_path / f"{name}.yaml").read_text().splitlines() if x[0] != "#")
+        got[name] = float(yaml["gyroscope_random_walk"])
+    assert got["walk"] > 5 * got["white"]
+
+
+def test_the_static_segments_of_a_raw_turntable_set_are_pooled(tmp_path):
+    write(tmp_path / "t", Scenario(rate_hz=20.0, static_s=20.0), 1)
+    r = _run("noise", tmp_path / "t", "-o", tmp_path / "n.json")
+    assert r.exit_code == 0, r.output
+    assert "static segments, pooled" in r.output
+
+
+@pytest.mark.parametrize("setup, named", [
+    (lambda p: _still(p / "m", seconds=60.0, move=True), "moves during the recording"),
+    (lambda p: (write(p / "m", Scenario(), 1), p / "m")[1], "not their averages"),
+])
+def test_what_has_no_allan_deviation_is_refused(tmp_path, setup, named):
+    d = setup(tmp_path)
+    r = _run("noise", d, "-o", tmp_path / "n.json")
+    assert r.exit_code == 2 and named in r.output and not (tmp_path / "n.json").exists()
