@@ -221,7 +221,6 @@ def _sensor_lines(result):
         if out:
             yield (f"{s}: {len(out)} segments left out, their samples clipped (at full_scale or repeating the rail): "
                    f"{out[:10]}{' ...' if len(out) > 10 else ''}")
-    for s in ("acc", "gyro"):
         b = result.get(s)
         if not b or b.get("nominal"):
             continue

@@ -34,6 +34,7 @@ from simucal.fit.noise import white_noise_var
 from simucal.fit.rotations import wahba
 from simucal.io import calibration, units
 from simucal.turntable.calibrate import table_accuracy_rad
+from simucal.turntable.plan_design import directions_k
 
 WORSE = 1.05  # after/before above this: the calibration makes the unit worse on these data
 AT_FLOOR = 2.0  # after below this many floors: the noise, nothing left to gain
@@ -94,11 +95,8 @@ def _turntable(ms, f_before, f_after, w_before, w_after):
                               "|f| - 1 g at each static segment", labels)]
         angled = [i for i, s in enumerate(static) if s.middle_deg is not None and s.inner_deg is not None]
         if len(angled) >= 3:
-            from simucal.generated import table
-            s_ = [static[i] for i in angled]
-            C = table.C_k_n(np.radians([s.outer_deg or 0.0 for s in s_]), np.radians([s.middle_deg for s in s_]),
-                            np.radians([s.inner_deg for s in s_]), np.zeros(7))
-            up_k = C[:, 2, :]  # the navigation vertical (z up) in the table frame k: gravity's reaction
+            # the navigation vertical (z up) in the table frame k: gravity's reaction
+            up_k = directions_k([(s.outer_deg or 0.0, s.middle_deg, s.inner_deg) for s in (static[i] for i in angled)])
             errs = []
             for m in (mb[angled], ma[angled]):
                 d = m / np.linalg.norm(m, axis=1, keepdims=True)
@@ -177,8 +175,7 @@ def validate(cal_path, data_dir) -> dict:
     """The report (module doc) of calibration file cal_path applied to the set data_dir."""
     cal = calibration.load(cal_path)
     ms = io.read_set(data_dir)
-    calibration.check_layout(cal, ms, cal_path)
-    _, samples, _ = apply(cal, data_dir, cal_path)
+    _, samples, _ = apply(cal, ms, cal_path)  # checks the layout
     f_before = ms.acc_g() if ms.has_acc else None
     w_before = ms.gyro_dph() if ms.has_gyro else None
     f_after = np.column_stack([samples[c] for c in ("ax", "ay", "az")]) if ms.has_acc else None

@@ -40,10 +40,17 @@ def _still(folder, seconds=1800.0, rrw=RRW_DPH_SQRT_S, seed=0, move=False):
     return folder
 
 
+def _with_gap(folder):
+    """Lose 100 samples mid-recording (a logger's dropout)."""
+    lines = (folder / "samples.csv").read_text().splitlines(keepends=True)
+    (folder / "samples.csv").write_text("".join(lines[:3000] + lines[3100:]))
+    return folder
+
+
 def test_the_allan_deviation_agrees_with_allantools():
     rng = np.random.default_rng(1)
     y = rng.standard_normal(20000) + 0.01 * np.cumsum(rng.standard_normal(20000))
-    m = taus(len(y), DT)
+    m = taus(len(y))
     avar, _ = allan_variance([y], DT, m)
     _, adev, _, _ = allantools.oadev(y, rate=1 / DT, data_type="freq", taus=m * DT)
     assert len(adev) == len(m)
@@ -100,6 +107,7 @@ def test_the_static_segments_of_a_raw_turntable_set_are_pooled(tmp_path):
 @pytest.mark.parametrize("setup, named", [
     (lambda p: _still(p / "m", seconds=60.0, move=True), "moves during the recording"),
     (lambda p: (write(p / "m", Scenario(), 1), p / "m")[1], "not their averages"),
+    (lambda p: _with_gap(_still(p / "m", seconds=60.0)), "has gaps"),
 ])
 def test_what_has_no_allan_deviation_is_refused(tmp_path, setup, named):
     d = setup(tmp_path)

@@ -108,9 +108,9 @@ def invert(block, sensor, N, aux: AuxInputs, where) -> np.ndarray:
     return solve_inputs(h, np.array(block["M"]), np.array(block["bias"]), N, aux, sensor, where)
 
 
-def apply(cal: dict, folder, where="the calibration"):
-    """(meta, samples, segments) of the calibrated set."""
-    ms = io.read_set(folder)
+def apply(cal: dict, data, where="the calibration"):
+    """(meta, samples, segments) of the calibrated set; data: its folder or the set already read."""
+    ms = data if isinstance(data, io.MeasurementSet) else io.read_set(data)
     calibration.check_layout(cal, ms, where)
     for s in ("acc", "gyro"):
         if s in cal:

@@ -61,8 +61,7 @@ def repeat_is_clipping(col, ext, runs) -> bool:
 
 def stuck_channels(ms):
     """Refuse a column that holds one value in every row (no sensor reads that, even at rest),
-    or over part of the recording (_stuck_part), and an accelerometer axis blind to gravity
-    (_dead_axis)."""
+    or over part of the recording (_stuck_part)."""
     fs = ms.meta.get("full_scale", {})
     for c in ("ax", "ay", "az", "gx", "gy", "gz"):
         v = ms.samples.get(c)
@@ -73,7 +72,6 @@ def stuck_channels(ms):
                                    + ("(at the rail) " if at_rail else "") + "or unconnected channel; check the "
                                    "wiring or the column mapping")
     _stuck_part(ms)
-    _dead_axis(ms)
 
 
 def _stuck_part(ms, min_rows=20):
@@ -112,31 +110,3 @@ def _runs_mask(X, j, min_len):
         mask[starts[k]:starts[k] + lengths[k]] = True
     return mask
 
-
-def _dead_axis(ms, live_g=0.5, dead_ratio=0.05, spread=0.2):
-    """Refuse an accelerometer axis whose static means do not follow gravity while the others
-    do (they span live_g or more): a dead channel, or a column holding another signal. Only
-    where the commanded angles turn gravity out of every plane (its directions in the table
-    frame spread by `spread` or more across their flattest direction), so that every axis of the
-    unit, however mounted, must see it change."""
-    if ms.segments is None or not all(c in ms.samples for c in ("ax", "ay", "az")):
-        return
-    segs = [s for s in ms.segments if s.kind == "static" and s.middle_deg is not None and s.inner_deg is not None]
-    if len(segs) < 4:
-        return
-    from simucal.generated import table
-    up_k = table.C_k_n(0.0, np.radians([s.middle_deg for s in segs]), np.radians([s.inner_deg for s in segs]),
-                       np.zeros(7))[:, 2, :]
-    if np.sqrt(max(np.linalg.eigvalsh(np.cov(up_k.T))[0], 0.0)) < spread:
-        return
-    static = [ms.samples["segment"] == s.segment for s in segs]
-    f = ms.acc_g()
-    span = np.ptp(np.array([f[r].mean(0) for r in static if r.any()]), axis=0)
-    for j in range(3):
-        others = np.delete(span, j)
-        if others.min() > live_g and span[j] < dead_ratio * others.min():
-            raise CalibrationError(
-                f"{ms.path / 'samples.csv'}: column a{'xyz'[j]} does not follow gravity: its static means span "
-                f"{span[j]:.2g} g over the {len(static)} positions, where the other axes' span {others.min():.2g} g "
-                "or more: a dead or unconnected channel, or the column holds another signal; check the wiring and "
-                "the column order")

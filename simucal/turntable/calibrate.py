@@ -98,12 +98,38 @@ def segment_observations(ms: io.MeasurementSet, sensor: str, kinds=None, stated=
     aux.update(specific_force(ms, keep) if sensor == "gyro" else {"w2": centripetal_scale(ms, keep)})
     obs = Observations(np.array(N).reshape(-1, 3), np.array(rho), np.array(sig).reshape(-1, 3), AuxInputs(aux),
                        [s.segment for s in keep])
+    if sensor == "acc":
+        check_axes_follow_gravity(ms, obs, keep)
     if keep:
         try:
             units.check_magnitude(sensor, np.linalg.norm(obs.N, axis=1), obs.rho, ms.path / "samples.csv", ms.meta)
         except CalibrationError as e:
             raise CalibrationError(f"{e}{_rates_not_units(ms) if sensor == 'gyro' else ''}") from None
     return obs, keep
+
+
+def check_axes_follow_gravity(ms, obs, segs, live_g=0.5, dead_ratio=0.05, spread=0.2):
+    """Refuse an accelerometer axis whose static means do not follow gravity while the others
+    do (they span live_g or more): a dead channel, or a column holding another signal. Only
+    where the commanded angles turn gravity out of every plane (its directions in the table
+    frame spread by `spread` or more across their flattest direction), so that every axis of the
+    unit, however mounted, must see it change."""
+    rows = [i for i, s in enumerate(segs) if s.kind == "static" and s.middle_deg is not None
+            and s.inner_deg is not None]
+    if len(rows) < 4:
+        return
+    up_k, _ = _commanded_up_k([segs[i] for i in rows])
+    if np.sqrt(max(np.linalg.eigvalsh(np.cov(up_k.T))[0], 0.0)) < spread:
+        return
+    span = np.ptp(obs.N[rows], axis=0)
+    for j in range(3):
+        others = np.delete(span, j)
+        if others.min() > live_g and span[j] < dead_ratio * others.min():
+            raise CalibrationError(
+                f"{ms.path / 'samples.csv'}: column a{'xyz'[j]} does not follow gravity: its static means span "
+                f"{span[j]:.2g} g over the {len(rows)} positions, where the other axes' span {others.min():.2g} g "
+                "or more: a dead or unconnected channel, or the column holds another signal; check the wiring and "
+                "the column order")
 
 
 def _rates_not_units(ms) -> str:
@@ -171,13 +197,8 @@ def specific_force(ms, segs) -> dict:
 def table_accuracy_rad(ms):
     """meta.json's table_accuracy_arcsec (the std of each commanded angle's position error) in rad,
     or None where not stated (the unification then estimates it from the static pairs)."""
-    v = ms.meta.get("table_accuracy_arcsec")
-    if v is None:
-        return None
-    if isinstance(v, bool) or not isinstance(v, (int, float)) or not np.isfinite(v) or v < 0:
-        raise ValueError(f"{ms.path / 'meta.json'}: table_accuracy_arcsec is {v!r}; it must be a number >= 0 (the std "
-                         "of each commanded angle's position error, arcsec)")
-    return float(v * units.ARCSEC_RAD)
+    v = ms.meta.get("table_accuracy_arcsec")  # checked when the set is read (units.check_meta)
+    return None if v is None else float(v * units.ARCSEC_RAD)
 
 
 def _find(segs, kind, **want):
@@ -188,19 +209,19 @@ def _find(segs, kind, **want):
     return None
 
 
-def _rate_run_acc_means(ms, gyro_segs, acc_noise_g):
-    """The rate runs' mean accelerometer outputs (Unifier's acc_means), or None without any.
-    Their sigma is NaN where neither their scatter nor a statement gives it (the unification
-    then estimates it from the rate-run pairs)."""
-    if not ms.has_acc:
+def _rate_run_acc_means(acc_obs, acc_segs, gyro_segs):
+    """The rate runs' mean accelerometer outputs (Unifier's acc_means), or None without any, taken
+    from the accelerometers' observations as segment_observations gave them (before a fit fills
+    their sigma): NaN where neither their scatter nor a statement gives it (the unification then
+    estimates it from the rate-run pairs)."""
+    if acc_obs is None:
         return None
-    obs, segs = segment_observations(ms, "acc", {"rate"}, acc_noise_g)
-    at = {s.segment: i for i, s in enumerate(segs)}
+    at = {s.segment: i for i, s in enumerate(acc_segs) if s.kind == "rate"}
     rows = [j for j, s in enumerate(gyro_segs) if s.segment in at]
     if len(rows) < 2:
         return None
     k = [at[gyro_segs[j].segment] for j in rows]
-    return np.array(rows), obs.N[k], obs.sigma[k], obs.aux.take(k)
+    return np.array(rows), acc_obs.N[k], acc_obs.sigma[k], acc_obs.aux.take(k)
 
 
 def handedness(ms, fa, acc_obs, acc_segs, fg, gyro_segs) -> list[str]:
@@ -432,6 +453,7 @@ def calibrate_table(ms, method, acc_model, gyro_model, ids, acc_noise_g=None, gy
         if gyro_obs is not None:
             gm, *chosen["gyro"] = forward_selection(gm, gyro_obs, lambda *a: rank(*a, gyro_segs)[:2])
     fa = fg = None
+    acc_read = acc_obs  # as read: _exact_sensor returns them with each row's sigma filled in
     if acc_obs is not None:
         fa, base_a, advice_a, acc_obs = _exact_sensor(am, acc_obs, acc_segs, method, str(ms.path))
         M, b = am.matrix_and_bias(fa.vector(am.params))
@@ -445,7 +467,7 @@ def calibrate_table(ms, method, acc_model, gyro_model, ids, acc_noise_g=None, gy
         result["consistency"] = {"lines": handedness(ms, fa, acc_obs, acc_segs, fg, gyro_segs)}
     if gyro_obs is not None:
         no_angles = any(s.middle_deg is None or s.inner_deg is None for s in (acc_segs or []) + gyro_segs)
-        acc_means = _rate_run_acc_means(ms, gyro_segs, acc_noise_g) if fa is not None and method == "exact" else None
+        acc_means = _rate_run_acc_means(acc_read, acc_segs, gyro_segs) if fa is not None and method == "exact" else None
         if fa is None or (no_angles and acc_means is None):
             why = ("no accelerometer data" if fa is None else "the rate runs have no accelerometer data and "
                    "segments.csv gives no middle/inner angles to pair them with static positions")
