@@ -70,14 +70,16 @@ class AuxInput:
 
 AUX_INPUTS = {a.name: a for a in (
     AuxInput("temp_c", "degC", "sensor temperature"),
+    AuxInput("dtemp_c", "degC", "sensor temperature from the calibration's reference, temp_c - T_ref (the calibration "
+             "file's t_ref_c)", "temperature from its reference"),
     AuxInput("t_s", "s", "time"),
     AuxInput("f_x", "g", "specific force along x of b", "specific force"),
     AuxInput("f_y", "g", "specific force along y of b", "specific force"),
     AuxInput("f_z", "g", "specific force along z of b", "specific force"),
     AuxInput("w2", "1/m", "centripetal scale w_T^2 / g of the outer-axis rate (0 at rest)", "table rate"),
 )}
-SENSOR_AUX = {"acc": ("temp_c", "t_s", "w2"), "gyro": ("temp_c", "t_s", "f_x", "f_y", "f_z")}
-temp_c, t_s, w2 = (AUX_INPUTS[n].symbol for n in ("temp_c", "t_s", "w2"))
+SENSOR_AUX = {"acc": ("temp_c", "dtemp_c", "t_s", "w2"), "gyro": ("temp_c", "dtemp_c", "t_s", "f_x", "f_y", "f_z")}
+temp_c, dtemp_c, t_s, w2 = (AUX_INPUTS[n].symbol for n in ("temp_c", "dtemp_c", "t_s", "w2"))
 _COLUMN_INPUTS: dict[str, AuxInput] = {}
 
 

@@ -29,6 +29,7 @@
 #define casadi_s1 CASADI_PREFIX(s1)
 #define casadi_s2 CASADI_PREFIX(s2)
 #define casadi_s3 CASADI_PREFIX(s3)
+#define casadi_s4 CASADI_PREFIX(s4)
 #define casadi_sq CASADI_PREFIX(sq)
 
 /* Symbol visibility in DLLs */
@@ -59,10 +60,11 @@ CASADI_SYMBOL_EXPORT int acc_baseline_casadi_real_size(void) { return (int) size
 
 static const casadi_int casadi_s0[3] = {3, 1, 1};
 static const casadi_int casadi_s1[3] = {9, 1, 1};
-static const casadi_int casadi_s2[3] = {3, 3, 1};
-static const casadi_int casadi_s3[3] = {3, 9, 1};
+static const casadi_int casadi_s2[3] = {4, 1, 1};
+static const casadi_int casadi_s3[3] = {3, 3, 1};
+static const casadi_int casadi_s4[3] = {3, 9, 1};
 
-/* simucal_acc_baseline:(u[3],p[9],aux[3])->(N[3],N_u[3x3],N_p[3x9]) */
+/* simucal_acc_baseline:(u[3],p[9],aux[4])->(N[3],N_u[3x3],N_p[3x9]) */
 static int casadi_f0(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem) {
   casadi_real a00, a01, a02, a03, a04, a05, a06, a07, a08, a09, a10;
   a00=arg[1]? arg[1][6] : 0;
@@ -188,7 +190,7 @@ CASADI_SYMBOL_EXPORT const casadi_int* simucal_acc_baseline_sparsity_in(casadi_i
   switch (i) {
     case 0: return casadi_s0;
     case 1: return casadi_s1;
-    case 2: return casadi_s0;
+    case 2: return casadi_s2;
     default: return 0;
   }
 }
@@ -196,8 +198,8 @@ CASADI_SYMBOL_EXPORT const casadi_int* simucal_acc_baseline_sparsity_in(casadi_i
 CASADI_SYMBOL_EXPORT const casadi_int* simucal_acc_baseline_sparsity_out(casadi_int i) {
   switch (i) {
     case 0: return casadi_s0;
-    case 1: return casadi_s2;
-    case 2: return casadi_s3;
+    case 1: return casadi_s3;
+    case 2: return casadi_s4;
     default: return 0;
   }
 }
@@ -218,7 +220,7 @@ CASADI_SYMBOL_EXPORT int simucal_acc_baseline_work_bytes(casadi_int *sz_arg, cas
   return 0;
 }
 
-/* simucal_acc_baseline_regressors:(N[3],aux[3])->(psi[9]) */
+/* simucal_acc_baseline_regressors:(N[3],aux[4])->(psi[9]) */
 static int casadi_f1(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem) {
   casadi_real a0, a1, a2, a3, a4;
   a0=arg[0]? arg[0][0] : 0;
@@ -294,7 +296,7 @@ CASADI_SYMBOL_EXPORT const char* simucal_acc_baseline_regressors_name_out(casadi
 CASADI_SYMBOL_EXPORT const casadi_int* simucal_acc_baseline_regressors_sparsity_in(casadi_int i) {
   switch (i) {
     case 0: return casadi_s0;
-    case 1: return casadi_s0;
+    case 1: return casadi_s2;
     default: return 0;
   }
 }
@@ -442,7 +444,7 @@ CASADI_SYMBOL_EXPORT int simucal_acc_baseline_params_of_K_work_bytes(casadi_int 
 
 
 #define MODEL_M 9
-#define MODEL_NAUX 3
+#define MODEL_NAUX 4
 #define MODEL_EVAL simucal_acc_baseline
 #define MODEL_WORK simucal_acc_baseline_work
 #define MODEL_FIT simucal_acc_baseline_fit

@@ -17,18 +17,19 @@ class Effect(NamedTuple):
     phi: Callable  # phi(u, aux) -> (phi, dphi/du)
 
 
-AUX = {'acc': ('temp_c', 't_s', 'w2'), 'gyro': ('temp_c', 't_s', 'f_x', 'f_y', 'f_z')}  # the aux argument of each sensor's phi, by name (derive/frames.py)
+AUX = {'acc': ('temp_c', 'dtemp_c', 't_s', 'w2'), 'gyro': ('temp_c', 'dtemp_c', 't_s', 'f_x', 'f_y', 'f_z')}  # the aux argument of each sensor's phi, by name (derive/frames.py)
 
 
-def phi_acc_bias_drift_time_x(u, aux=numpy.zeros(3)):
+def phi_acc_bias_drift_time_x(u, aux=numpy.zeros(4)):
     """acc.bias_drift_time.x: phi = t_s and dphi/du."""
     f_x = u[..., 0]
     f_y = u[..., 1]
     f_z = u[..., 2]
     temp_c = aux[..., 0]
-    t_s = aux[..., 1]
-    w2 = aux[..., 2]
-    shape = numpy.broadcast_shapes(numpy.shape(f_x), numpy.shape(f_y), numpy.shape(f_z), numpy.shape(temp_c), numpy.shape(t_s), numpy.shape(w2), )
+    dtemp_c = aux[..., 1]
+    t_s = aux[..., 2]
+    w2 = aux[..., 3]
+    shape = numpy.broadcast_shapes(numpy.shape(f_x), numpy.shape(f_y), numpy.shape(f_z), numpy.shape(temp_c), numpy.shape(dtemp_c), numpy.shape(t_s), numpy.shape(w2), )
     out0 = numpy.empty(shape + (1,))
     out0[..., 0] = t_s
     out1 = numpy.empty(shape + (3,))
@@ -38,15 +39,16 @@ def phi_acc_bias_drift_time_x(u, aux=numpy.zeros(3)):
     return out0, out1
 
 
-def phi_acc_bias_drift_time_y(u, aux=numpy.zeros(3)):
+def phi_acc_bias_drift_time_y(u, aux=numpy.zeros(4)):
     """acc.bias_drift_time.y: phi = t_s and dphi/du."""
     f_x = u[..., 0]
     f_y = u[..., 1]
     f_z = u[..., 2]
     temp_c = aux[..., 0]
-    t_s = aux[..., 1]
-    w2 = aux[..., 2]
-    shape = numpy.broadcast_shapes(numpy.shape(f_x), numpy.shape(f_y), numpy.shape(f_z), numpy.shape(temp_c), numpy.shape(t_s), numpy.shape(w2), )
+    dtemp_c = aux[..., 1]
+    t_s = aux[..., 2]
+    w2 = aux[..., 3]
+    shape = numpy.broadcast_shapes(numpy.shape(f_x), numpy.shape(f_y), numpy.shape(f_z), numpy.shape(temp_c), numpy.shape(dtemp_c), numpy.shape(t_s), numpy.shape(w2), )
     out0 = numpy.empty(shape + (1,))
     out0[..., 0] = t_s
     out1 = numpy.empty(shape + (3,))
@@ -56,15 +58,16 @@ def phi_acc_bias_drift_time_y(u, aux=numpy.zeros(3)):
     return out0, out1
 
 
-def phi_acc_bias_drift_time_z(u, aux=numpy.zeros(3)):
+def phi_acc_bias_drift_time_z(u, aux=numpy.zeros(4)):
     """acc.bias_drift_time.z: phi = t_s and dphi/du."""
     f_x = u[..., 0]
     f_y = u[..., 1]
     f_z = u[..., 2]
     temp_c = aux[..., 0]
-    t_s = aux[..., 1]
-    w2 = aux[..., 2]
-    shape = numpy.broadcast_shapes(numpy.shape(f_x), numpy.shape(f_y), numpy.shape(f_z), numpy.shape(temp_c), numpy.shape(t_s), numpy.shape(w2), )
+    dtemp_c = aux[..., 1]
+    t_s = aux[..., 2]
+    w2 = aux[..., 3]
+    shape = numpy.broadcast_shapes(numpy.shape(f_x), numpy.shape(f_y), numpy.shape(f_z), numpy.shape(temp_c), numpy.shape(dtemp_c), numpy.shape(t_s), numpy.shape(w2), )
     out0 = numpy.empty(shape + (1,))
     out0[..., 0] = t_s
     out1 = numpy.empty(shape + (3,))
@@ -74,15 +77,187 @@ def phi_acc_bias_drift_time_z(u, aux=numpy.zeros(3)):
     return out0, out1
 
 
-def phi_acc_cross_coupling_xy(u, aux=numpy.zeros(3)):
+def phi_acc_bias_temperature_x(u, aux=numpy.zeros(4)):
+    """acc.bias_temperature.x: phi = dtemp_c and dphi/du."""
+    f_x = u[..., 0]
+    f_y = u[..., 1]
+    f_z = u[..., 2]
+    temp_c = aux[..., 0]
+    dtemp_c = aux[..., 1]
+    t_s = aux[..., 2]
+    w2 = aux[..., 3]
+    shape = numpy.broadcast_shapes(numpy.shape(f_x), numpy.shape(f_y), numpy.shape(f_z), numpy.shape(temp_c), numpy.shape(dtemp_c), numpy.shape(t_s), numpy.shape(w2), )
+    out0 = numpy.empty(shape + (1,))
+    out0[..., 0] = dtemp_c
+    out1 = numpy.empty(shape + (3,))
+    out1[..., 0] = 0
+    out1[..., 1] = 0
+    out1[..., 2] = 0
+    return out0, out1
+
+
+def phi_acc_bias_temperature_y(u, aux=numpy.zeros(4)):
+    """acc.bias_temperature.y: phi = dtemp_c and dphi/du."""
+    f_x = u[..., 0]
+    f_y = u[..., 1]
+    f_z = u[..., 2]
+    temp_c = aux[..., 0]
+    dtemp_c = aux[..., 1]
+    t_s = aux[..., 2]
+    w2 = aux[..., 3]
+    shape = numpy.broadcast_shapes(numpy.shape(f_x), numpy.shape(f_y), numpy.shape(f_z), numpy.shape(temp_c), numpy.shape(dtemp_c), numpy.shape(t_s), numpy.shape(w2), )
+    out0 = numpy.empty(shape + (1,))
+    out0[..., 0] = dtemp_c
+    out1 = numpy.empty(shape + (3,))
+    out1[..., 0] = 0
+    out1[..., 1] = 0
+    out1[..., 2] = 0
+    return out0, out1
+
+
+def phi_acc_bias_temperature_z(u, aux=numpy.zeros(4)):
+    """acc.bias_temperature.z: phi = dtemp_c and dphi/du."""
+    f_x = u[..., 0]
+    f_y = u[..., 1]
+    f_z = u[..., 2]
+    temp_c = aux[..., 0]
+    dtemp_c = aux[..., 1]
+    t_s = aux[..., 2]
+    w2 = aux[..., 3]
+    shape = numpy.broadcast_shapes(numpy.shape(f_x), numpy.shape(f_y), numpy.shape(f_z), numpy.shape(temp_c), numpy.shape(dtemp_c), numpy.shape(t_s), numpy.shape(w2), )
+    out0 = numpy.empty(shape + (1,))
+    out0[..., 0] = dtemp_c
+    out1 = numpy.empty(shape + (3,))
+    out1[..., 0] = 0
+    out1[..., 1] = 0
+    out1[..., 2] = 0
+    return out0, out1
+
+
+def phi_acc_bias_temperature2_x(u, aux=numpy.zeros(4)):
+    """acc.bias_temperature2.x: phi = dtemp_c**2 and dphi/du."""
+    f_x = u[..., 0]
+    f_y = u[..., 1]
+    f_z = u[..., 2]
+    temp_c = aux[..., 0]
+    dtemp_c = aux[..., 1]
+    t_s = aux[..., 2]
+    w2 = aux[..., 3]
+    shape = numpy.broadcast_shapes(numpy.shape(f_x), numpy.shape(f_y), numpy.shape(f_z), numpy.shape(temp_c), numpy.shape(dtemp_c), numpy.shape(t_s), numpy.shape(w2), )
+    out0 = numpy.empty(shape + (1,))
+    out0[..., 0] = dtemp_c**2
+    out1 = numpy.empty(shape + (3,))
+    out1[..., 0] = 0
+    out1[..., 1] = 0
+    out1[..., 2] = 0
+    return out0, out1
+
+
+def phi_acc_bias_temperature2_y(u, aux=numpy.zeros(4)):
+    """acc.bias_temperature2.y: phi = dtemp_c**2 and dphi/du."""
+    f_x = u[..., 0]
+    f_y = u[..., 1]
+    f_z = u[..., 2]
+    temp_c = aux[..., 0]
+    dtemp_c = aux[..., 1]
+    t_s = aux[..., 2]
+    w2 = aux[..., 3]
+    shape = numpy.broadcast_shapes(numpy.shape(f_x), numpy.shape(f_y), numpy.shape(f_z), numpy.shape(temp_c), numpy.shape(dtemp_c), numpy.shape(t_s), numpy.shape(w2), )
+    out0 = numpy.empty(shape + (1,))
+    out0[..., 0] = dtemp_c**2
+    out1 = numpy.empty(shape + (3,))
+    out1[..., 0] = 0
+    out1[..., 1] = 0
+    out1[..., 2] = 0
+    return out0, out1
+
+
+def phi_acc_bias_temperature2_z(u, aux=numpy.zeros(4)):
+    """acc.bias_temperature2.z: phi = dtemp_c**2 and dphi/du."""
+    f_x = u[..., 0]
+    f_y = u[..., 1]
+    f_z = u[..., 2]
+    temp_c = aux[..., 0]
+    dtemp_c = aux[..., 1]
+    t_s = aux[..., 2]
+    w2 = aux[..., 3]
+    shape = numpy.broadcast_shapes(numpy.shape(f_x), numpy.shape(f_y), numpy.shape(f_z), numpy.shape(temp_c), numpy.shape(dtemp_c), numpy.shape(t_s), numpy.shape(w2), )
+    out0 = numpy.empty(shape + (1,))
+    out0[..., 0] = dtemp_c**2
+    out1 = numpy.empty(shape + (3,))
+    out1[..., 0] = 0
+    out1[..., 1] = 0
+    out1[..., 2] = 0
+    return out0, out1
+
+
+def phi_acc_bias_temperature3_x(u, aux=numpy.zeros(4)):
+    """acc.bias_temperature3.x: phi = dtemp_c**3 and dphi/du."""
+    f_x = u[..., 0]
+    f_y = u[..., 1]
+    f_z = u[..., 2]
+    temp_c = aux[..., 0]
+    dtemp_c = aux[..., 1]
+    t_s = aux[..., 2]
+    w2 = aux[..., 3]
+    shape = numpy.broadcast_shapes(numpy.shape(f_x), numpy.shape(f_y), numpy.shape(f_z), numpy.shape(temp_c), numpy.shape(dtemp_c), numpy.shape(t_s), numpy.shape(w2), )
+    out0 = numpy.empty(shape + (1,))
+    out0[..., 0] = dtemp_c**3
+    out1 = numpy.empty(shape + (3,))
+    out1[..., 0] = 0
+    out1[..., 1] = 0
+    out1[..., 2] = 0
+    return out0, out1
+
+
+def phi_acc_bias_temperature3_y(u, aux=numpy.zeros(4)):
+    """acc.bias_temperature3.y: phi = dtemp_c**3 and dphi/du."""
+    f_x = u[..., 0]
+    f_y = u[..., 1]
+    f_z = u[..., 2]
+    temp_c = aux[..., 0]
+    dtemp_c = aux[..., 1]
+    t_s = aux[..., 2]
+    w2 = aux[..., 3]
+    shape = numpy.broadcast_shapes(numpy.shape(f_x), numpy.shape(f_y), numpy.shape(f_z), numpy.shape(temp_c), numpy.shape(dtemp_c), numpy.shape(t_s), numpy.shape(w2), )
+    out0 = numpy.empty(shape + (1,))
+    out0[..., 0] = dtemp_c**3
+    out1 = numpy.empty(shape + (3,))
+    out1[..., 0] = 0
+    out1[..., 1] = 0
+    out1[..., 2] = 0
+    return out0, out1
+
+
+def phi_acc_bias_temperature3_z(u, aux=numpy.zeros(4)):
+    """acc.bias_temperature3.z: phi = dtemp_c**3 and dphi/du."""
+    f_x = u[..., 0]
+    f_y = u[..., 1]
+    f_z = u[..., 2]
+    temp_c = aux[..., 0]
+    dtemp_c = aux[..., 1]
+    t_s = aux[..., 2]
+    w2 = aux[..., 3]
+    shape = numpy.broadcast_shapes(numpy.shape(f_x), numpy.shape(f_y), numpy.shape(f_z), numpy.shape(temp_c), numpy.shape(dtemp_c), numpy.shape(t_s), numpy.shape(w2), )
+    out0 = numpy.empty(shape + (1,))
+    out0[..., 0] = dtemp_c**3
+    out1 = numpy.empty(shape + (3,))
+    out1[..., 0] = 0
+    out1[..., 1] = 0
+    out1[..., 2] = 0
+    return out0, out1
+
+
+def phi_acc_cross_coupling_xy(u, aux=numpy.zeros(4)):
     """acc.cross_coupling.xy: phi = f_x*f_y and dphi/du."""
     f_x = u[..., 0]
     f_y = u[..., 1]
     f_z = u[..., 2]
     temp_c = aux[..., 0]
-    t_s = aux[..., 1]
-    w2 = aux[..., 2]
-    shape = numpy.broadcast_shapes(numpy.shape(f_x), numpy.shape(f_y), numpy.shape(f_z), numpy.shape(temp_c), numpy.shape(t_s), numpy.shape(w2), )
+    dtemp_c = aux[..., 1]
+    t_s = aux[..., 2]
+    w2 = aux[..., 3]
+    shape = numpy.broadcast_shapes(numpy.shape(f_x), numpy.shape(f_y), numpy.shape(f_z), numpy.shape(temp_c), numpy.shape(dtemp_c), numpy.shape(t_s), numpy.shape(w2), )
     out0 = numpy.empty(shape + (1,))
     out0[..., 0] = f_x*f_y
     out1 = numpy.empty(shape + (3,))
@@ -92,15 +267,16 @@ def phi_acc_cross_coupling_xy(u, aux=numpy.zeros(3)):
     return out0, out1
 
 
-def phi_acc_cross_coupling_xz(u, aux=numpy.zeros(3)):
+def phi_acc_cross_coupling_xz(u, aux=numpy.zeros(4)):
     """acc.cross_coupling.xz: phi = f_x*f_z and dphi/du."""
     f_x = u[..., 0]
     f_y = u[..., 1]
     f_z = u[..., 2]
     temp_c = aux[..., 0]
-    t_s = aux[..., 1]
-    w2 = aux[..., 2]
-    shape = numpy.broadcast_shapes(numpy.shape(f_x), numpy.shape(f_y), numpy.shape(f_z), numpy.shape(temp_c), numpy.shape(t_s), numpy.shape(w2), )
+    dtemp_c = aux[..., 1]
+    t_s = aux[..., 2]
+    w2 = aux[..., 3]
+    shape = numpy.broadcast_shapes(numpy.shape(f_x), numpy.shape(f_y), numpy.shape(f_z), numpy.shape(temp_c), numpy.shape(dtemp_c), numpy.shape(t_s), numpy.shape(w2), )
     out0 = numpy.empty(shape + (1,))
     out0[..., 0] = f_x*f_z
     out1 = numpy.empty(shape + (3,))
@@ -110,15 +286,16 @@ def phi_acc_cross_coupling_xz(u, aux=numpy.zeros(3)):
     return out0, out1
 
 
-def phi_acc_cross_coupling_yx(u, aux=numpy.zeros(3)):
+def phi_acc_cross_coupling_yx(u, aux=numpy.zeros(4)):
     """acc.cross_coupling.yx: phi = f_x*f_y and dphi/du."""
     f_x = u[..., 0]
     f_y = u[..., 1]
     f_z = u[..., 2]
     temp_c = aux[..., 0]
-    t_s = aux[..., 1]
-    w2 = aux[..., 2]
-    shape = numpy.broadcast_shapes(numpy.shape(f_x), numpy.shape(f_y), numpy.shape(f_z), numpy.shape(temp_c), numpy.shape(t_s), numpy.shape(w2), )
+    dtemp_c = aux[..., 1]
+    t_s = aux[..., 2]
+    w2 = aux[..., 3]
+    shape = numpy.broadcast_shapes(numpy.shape(f_x), numpy.shape(f_y), numpy.shape(f_z), numpy.shape(temp_c), numpy.shape(dtemp_c), numpy.shape(t_s), numpy.shape(w2), )
     out0 = numpy.empty(shape + (1,))
     out0[..., 0] = f_x*f_y
     out1 = numpy.empty(shape + (3,))
@@ -128,15 +305,16 @@ def phi_acc_cross_coupling_yx(u, aux=numpy.zeros(3)):
     return out0, out1
 
 
-def phi_acc_cross_coupling_yz(u, aux=numpy.zeros(3)):
+def phi_acc_cross_coupling_yz(u, aux=numpy.zeros(4)):
     """acc.cross_coupling.yz: phi = f_y*f_z and dphi/du."""
     f_x = u[..., 0]
     f_y = u[..., 1]
     f_z = u[..., 2]
     temp_c = aux[..., 0]
-    t_s = aux[..., 1]
-    w2 = aux[..., 2]
-    shape = numpy.broadcast_shapes(numpy.shape(f_x), numpy.shape(f_y), numpy.shape(f_z), numpy.shape(temp_c), numpy.shape(t_s), numpy.shape(w2), )
+    dtemp_c = aux[..., 1]
+    t_s = aux[..., 2]
+    w2 = aux[..., 3]
+    shape = numpy.broadcast_shapes(numpy.shape(f_x), numpy.shape(f_y), numpy.shape(f_z), numpy.shape(temp_c), numpy.shape(dtemp_c), numpy.shape(t_s), numpy.shape(w2), )
     out0 = numpy.empty(shape + (1,))
     out0[..., 0] = f_y*f_z
     out1 = numpy.empty(shape + (3,))
@@ -146,15 +324,16 @@ def phi_acc_cross_coupling_yz(u, aux=numpy.zeros(3)):
     return out0, out1
 
 
-def phi_acc_cross_coupling_zx(u, aux=numpy.zeros(3)):
+def phi_acc_cross_coupling_zx(u, aux=numpy.zeros(4)):
     """acc.cross_coupling.zx: phi = f_x*f_z and dphi/du."""
     f_x = u[..., 0]
     f_y = u[..., 1]
     f_z = u[..., 2]
     temp_c = aux[..., 0]
-    t_s = aux[..., 1]
-    w2 = aux[..., 2]
-    shape = numpy.broadcast_shapes(numpy.shape(f_x), numpy.shape(f_y), numpy.shape(f_z), numpy.shape(temp_c), numpy.shape(t_s), numpy.shape(w2), )
+    dtemp_c = aux[..., 1]
+    t_s = aux[..., 2]
+    w2 = aux[..., 3]
+    shape = numpy.broadcast_shapes(numpy.shape(f_x), numpy.shape(f_y), numpy.shape(f_z), numpy.shape(temp_c), numpy.shape(dtemp_c), numpy.shape(t_s), numpy.shape(w2), )
     out0 = numpy.empty(shape + (1,))
     out0[..., 0] = f_x*f_z
     out1 = numpy.empty(shape + (3,))
@@ -164,15 +343,16 @@ def phi_acc_cross_coupling_zx(u, aux=numpy.zeros(3)):
     return out0, out1
 
 
-def phi_acc_cross_coupling_zy(u, aux=numpy.zeros(3)):
+def phi_acc_cross_coupling_zy(u, aux=numpy.zeros(4)):
     """acc.cross_coupling.zy: phi = f_y*f_z and dphi/du."""
     f_x = u[..., 0]
     f_y = u[..., 1]
     f_z = u[..., 2]
     temp_c = aux[..., 0]
-    t_s = aux[..., 1]
-    w2 = aux[..., 2]
-    shape = numpy.broadcast_shapes(numpy.shape(f_x), numpy.shape(f_y), numpy.shape(f_z), numpy.shape(temp_c), numpy.shape(t_s), numpy.shape(w2), )
+    dtemp_c = aux[..., 1]
+    t_s = aux[..., 2]
+    w2 = aux[..., 3]
+    shape = numpy.broadcast_shapes(numpy.shape(f_x), numpy.shape(f_y), numpy.shape(f_z), numpy.shape(temp_c), numpy.shape(dtemp_c), numpy.shape(t_s), numpy.shape(w2), )
     out0 = numpy.empty(shape + (1,))
     out0[..., 0] = f_y*f_z
     out1 = numpy.empty(shape + (3,))
@@ -182,15 +362,16 @@ def phi_acc_cross_coupling_zy(u, aux=numpy.zeros(3)):
     return out0, out1
 
 
-def phi_acc_quadratic_x(u, aux=numpy.zeros(3)):
+def phi_acc_quadratic_x(u, aux=numpy.zeros(4)):
     """acc.quadratic.x: phi = f_x**2 and dphi/du."""
     f_x = u[..., 0]
     f_y = u[..., 1]
     f_z = u[..., 2]
     temp_c = aux[..., 0]
-    t_s = aux[..., 1]
-    w2 = aux[..., 2]
-    shape = numpy.broadcast_shapes(numpy.shape(f_x), numpy.shape(f_y), numpy.shape(f_z), numpy.shape(temp_c), numpy.shape(t_s), numpy.shape(w2), )
+    dtemp_c = aux[..., 1]
+    t_s = aux[..., 2]
+    w2 = aux[..., 3]
+    shape = numpy.broadcast_shapes(numpy.shape(f_x), numpy.shape(f_y), numpy.shape(f_z), numpy.shape(temp_c), numpy.shape(dtemp_c), numpy.shape(t_s), numpy.shape(w2), )
     out0 = numpy.empty(shape + (1,))
     out0[..., 0] = f_x**2
     out1 = numpy.empty(shape + (3,))
@@ -200,15 +381,16 @@ def phi_acc_quadratic_x(u, aux=numpy.zeros(3)):
     return out0, out1
 
 
-def phi_acc_quadratic_y(u, aux=numpy.zeros(3)):
+def phi_acc_quadratic_y(u, aux=numpy.zeros(4)):
     """acc.quadratic.y: phi = f_y**2 and dphi/du."""
     f_x = u[..., 0]
     f_y = u[..., 1]
     f_z = u[..., 2]
     temp_c = aux[..., 0]
-    t_s = aux[..., 1]
-    w2 = aux[..., 2]
-    shape = numpy.broadcast_shapes(numpy.shape(f_x), numpy.shape(f_y), numpy.shape(f_z), numpy.shape(temp_c), numpy.shape(t_s), numpy.shape(w2), )
+    dtemp_c = aux[..., 1]
+    t_s = aux[..., 2]
+    w2 = aux[..., 3]
+    shape = numpy.broadcast_shapes(numpy.shape(f_x), numpy.shape(f_y), numpy.shape(f_z), numpy.shape(temp_c), numpy.shape(dtemp_c), numpy.shape(t_s), numpy.shape(w2), )
     out0 = numpy.empty(shape + (1,))
     out0[..., 0] = f_y**2
     out1 = numpy.empty(shape + (3,))
@@ -218,15 +400,16 @@ def phi_acc_quadratic_y(u, aux=numpy.zeros(3)):
     return out0, out1
 
 
-def phi_acc_quadratic_z(u, aux=numpy.zeros(3)):
+def phi_acc_quadratic_z(u, aux=numpy.zeros(4)):
     """acc.quadratic.z: phi = f_z**2 and dphi/du."""
     f_x = u[..., 0]
     f_y = u[..., 1]
     f_z = u[..., 2]
     temp_c = aux[..., 0]
-    t_s = aux[..., 1]
-    w2 = aux[..., 2]
-    shape = numpy.broadcast_shapes(numpy.shape(f_x), numpy.shape(f_y), numpy.shape(f_z), numpy.shape(temp_c), numpy.shape(t_s), numpy.shape(w2), )
+    dtemp_c = aux[..., 1]
+    t_s = aux[..., 2]
+    w2 = aux[..., 3]
+    shape = numpy.broadcast_shapes(numpy.shape(f_x), numpy.shape(f_y), numpy.shape(f_z), numpy.shape(temp_c), numpy.shape(dtemp_c), numpy.shape(t_s), numpy.shape(w2), )
     out0 = numpy.empty(shape + (1,))
     out0[..., 0] = f_z**2
     out1 = numpy.empty(shape + (3,))
@@ -236,15 +419,16 @@ def phi_acc_quadratic_z(u, aux=numpy.zeros(3)):
     return out0, out1
 
 
-def phi_acc_scale_asymmetry_x(u, aux=numpy.zeros(3)):
+def phi_acc_scale_asymmetry_x(u, aux=numpy.zeros(4)):
     """acc.scale_asymmetry.x: phi = Abs(f_x) and dphi/du."""
     f_x = u[..., 0]
     f_y = u[..., 1]
     f_z = u[..., 2]
     temp_c = aux[..., 0]
-    t_s = aux[..., 1]
-    w2 = aux[..., 2]
-    shape = numpy.broadcast_shapes(numpy.shape(f_x), numpy.shape(f_y), numpy.shape(f_z), numpy.shape(temp_c), numpy.shape(t_s), numpy.shape(w2), )
+    dtemp_c = aux[..., 1]
+    t_s = aux[..., 2]
+    w2 = aux[..., 3]
+    shape = numpy.broadcast_shapes(numpy.shape(f_x), numpy.shape(f_y), numpy.shape(f_z), numpy.shape(temp_c), numpy.shape(dtemp_c), numpy.shape(t_s), numpy.shape(w2), )
     out0 = numpy.empty(shape + (1,))
     out0[..., 0] = abs(f_x)
     out1 = numpy.empty(shape + (3,))
@@ -254,15 +438,16 @@ def phi_acc_scale_asymmetry_x(u, aux=numpy.zeros(3)):
     return out0, out1
 
 
-def phi_acc_scale_asymmetry_y(u, aux=numpy.zeros(3)):
+def phi_acc_scale_asymmetry_y(u, aux=numpy.zeros(4)):
     """acc.scale_asymmetry.y: phi = Abs(f_y) and dphi/du."""
     f_x = u[..., 0]
     f_y = u[..., 1]
     f_z = u[..., 2]
     temp_c = aux[..., 0]
-    t_s = aux[..., 1]
-    w2 = aux[..., 2]
-    shape = numpy.broadcast_shapes(numpy.shape(f_x), numpy.shape(f_y), numpy.shape(f_z), numpy.shape(temp_c), numpy.shape(t_s), numpy.shape(w2), )
+    dtemp_c = aux[..., 1]
+    t_s = aux[..., 2]
+    w2 = aux[..., 3]
+    shape = numpy.broadcast_shapes(numpy.shape(f_x), numpy.shape(f_y), numpy.shape(f_z), numpy.shape(temp_c), numpy.shape(dtemp_c), numpy.shape(t_s), numpy.shape(w2), )
     out0 = numpy.empty(shape + (1,))
     out0[..., 0] = abs(f_y)
     out1 = numpy.empty(shape + (3,))
@@ -272,15 +457,16 @@ def phi_acc_scale_asymmetry_y(u, aux=numpy.zeros(3)):
     return out0, out1
 
 
-def phi_acc_scale_asymmetry_z(u, aux=numpy.zeros(3)):
+def phi_acc_scale_asymmetry_z(u, aux=numpy.zeros(4)):
     """acc.scale_asymmetry.z: phi = Abs(f_z) and dphi/du."""
     f_x = u[..., 0]
     f_y = u[..., 1]
     f_z = u[..., 2]
     temp_c = aux[..., 0]
-    t_s = aux[..., 1]
-    w2 = aux[..., 2]
-    shape = numpy.broadcast_shapes(numpy.shape(f_x), numpy.shape(f_y), numpy.shape(f_z), numpy.shape(temp_c), numpy.shape(t_s), numpy.shape(w2), )
+    dtemp_c = aux[..., 1]
+    t_s = aux[..., 2]
+    w2 = aux[..., 3]
+    shape = numpy.broadcast_shapes(numpy.shape(f_x), numpy.shape(f_y), numpy.shape(f_z), numpy.shape(temp_c), numpy.shape(dtemp_c), numpy.shape(t_s), numpy.shape(w2), )
     out0 = numpy.empty(shape + (1,))
     out0[..., 0] = abs(f_z)
     out1 = numpy.empty(shape + (3,))
@@ -290,15 +476,133 @@ def phi_acc_scale_asymmetry_z(u, aux=numpy.zeros(3)):
     return out0, out1
 
 
-def phi_acc_size_effect_xx(u, aux=numpy.zeros(3)):
+def phi_acc_scale_temperature_x(u, aux=numpy.zeros(4)):
+    """acc.scale_temperature.x: phi = dtemp_c*f_x and dphi/du."""
+    f_x = u[..., 0]
+    f_y = u[..., 1]
+    f_z = u[..., 2]
+    temp_c = aux[..., 0]
+    dtemp_c = aux[..., 1]
+    t_s = aux[..., 2]
+    w2 = aux[..., 3]
+    shape = numpy.broadcast_shapes(numpy.shape(f_x), numpy.shape(f_y), numpy.shape(f_z), numpy.shape(temp_c), numpy.shape(dtemp_c), numpy.shape(t_s), numpy.shape(w2), )
+    out0 = numpy.empty(shape + (1,))
+    out0[..., 0] = dtemp_c*f_x
+    out1 = numpy.empty(shape + (3,))
+    out1[..., 0] = dtemp_c
+    out1[..., 1] = 0
+    out1[..., 2] = 0
+    return out0, out1
+
+
+def phi_acc_scale_temperature_y(u, aux=numpy.zeros(4)):
+    """acc.scale_temperature.y: phi = dtemp_c*f_y and dphi/du."""
+    f_x = u[..., 0]
+    f_y = u[..., 1]
+    f_z = u[..., 2]
+    temp_c = aux[..., 0]
+    dtemp_c = aux[..., 1]
+    t_s = aux[..., 2]
+    w2 = aux[..., 3]
+    shape = numpy.broadcast_shapes(numpy.shape(f_x), numpy.shape(f_y), numpy.shape(f_z), numpy.shape(temp_c), numpy.shape(dtemp_c), numpy.shape(t_s), numpy.shape(w2), )
+    out0 = numpy.empty(shape + (1,))
+    out0[..., 0] = dtemp_c*f_y
+    out1 = numpy.empty(shape + (3,))
+    out1[..., 0] = 0
+    out1[..., 1] = dtemp_c
+    out1[..., 2] = 0
+    return out0, out1
+
+
+def phi_acc_scale_temperature_z(u, aux=numpy.zeros(4)):
+    """acc.scale_temperature.z: phi = dtemp_c*f_z and dphi/du."""
+    f_x = u[..., 0]
+    f_y = u[..., 1]
+    f_z = u[..., 2]
+    temp_c = aux[..., 0]
+    dtemp_c = aux[..., 1]
+    t_s = aux[..., 2]
+    w2 = aux[..., 3]
+    shape = numpy.broadcast_shapes(numpy.shape(f_x), numpy.shape(f_y), numpy.shape(f_z), numpy.shape(temp_c), numpy.shape(dtemp_c), numpy.shape(t_s), numpy.shape(w2), )
+    out0 = numpy.empty(shape + (1,))
+    out0[..., 0] = dtemp_c*f_z
+    out1 = numpy.empty(shape + (3,))
+    out1[..., 0] = 0
+    out1[..., 1] = 0
+    out1[..., 2] = dtemp_c
+    return out0, out1
+
+
+def phi_acc_scale_temperature2_x(u, aux=numpy.zeros(4)):
+    """acc.scale_temperature2.x: phi = dtemp_c**2*f_x and dphi/du."""
+    f_x = u[..., 0]
+    f_y = u[..., 1]
+    f_z = u[..., 2]
+    temp_c = aux[..., 0]
+    dtemp_c = aux[..., 1]
+    t_s = aux[..., 2]
+    w2 = aux[..., 3]
+    _c0 = dtemp_c**2
+    shape = numpy.broadcast_shapes(numpy.shape(f_x), numpy.shape(f_y), numpy.shape(f_z), numpy.shape(temp_c), numpy.shape(dtemp_c), numpy.shape(t_s), numpy.shape(w2), )
+    out0 = numpy.empty(shape + (1,))
+    out0[..., 0] = _c0*f_x
+    out1 = numpy.empty(shape + (3,))
+    out1[..., 0] = _c0
+    out1[..., 1] = 0
+    out1[..., 2] = 0
+    return out0, out1
+
+
+def phi_acc_scale_temperature2_y(u, aux=numpy.zeros(4)):
+    """acc.scale_temperature2.y: phi = dtemp_c**2*f_y and dphi/du."""
+    f_x = u[..., 0]
+    f_y = u[..., 1]
+    f_z = u[..., 2]
+    temp_c = aux[..., 0]
+    dtemp_c = aux[..., 1]
+    t_s = aux[..., 2]
+    w2 = aux[..., 3]
+    _c0 = dtemp_c**2
+    shape = numpy.broadcast_shapes(numpy.shape(f_x), numpy.shape(f_y), numpy.shape(f_z), numpy.shape(temp_c), numpy.shape(dtemp_c), numpy.shape(t_s), numpy.shape(w2), )
+    out0 = numpy.empty(shape + (1,))
+    out0[..., 0] = _c0*f_y
+    out1 = numpy.empty(shape + (3,))
+    out1[..., 0] = 0
+    out1[..., 1] = _c0
+    out1[..., 2] = 0
+    return out0, out1
+
+
+def phi_acc_scale_temperature2_z(u, aux=numpy.zeros(4)):
+    """acc.scale_temperature2.z: phi = dtemp_c**2*f_z and dphi/du."""
+    f_x = u[..., 0]
+    f_y = u[..., 1]
+    f_z = u[..., 2]
+    temp_c = aux[..., 0]
+    dtemp_c = aux[..., 1]
+    t_s = aux[..., 2]
+    w2 = aux[..., 3]
+    _c0 = dtemp_c**2
+    shape = numpy.broadcast_shapes(numpy.shape(f_x), numpy.shape(f_y), numpy.shape(f_z), numpy.shape(temp_c), numpy.shape(dtemp_c), numpy.shape(t_s), numpy.shape(w2), )
+    out0 = numpy.empty(shape + (1,))
+    out0[..., 0] = _c0*f_z
+    out1 = numpy.empty(shape + (3,))
+    out1[..., 0] = 0
+    out1[..., 1] = 0
+    out1[..., 2] = _c0
+    return out0, out1
+
+
+def phi_acc_size_effect_xx(u, aux=numpy.zeros(4)):
     """acc.size_effect.xx: phi = w2*(f_x**2 - 1) and dphi/du."""
     f_x = u[..., 0]
     f_y = u[..., 1]
     f_z = u[..., 2]
     temp_c = aux[..., 0]
-    t_s = aux[..., 1]
-    w2 = aux[..., 2]
-    shape = numpy.broadcast_shapes(numpy.shape(f_x), numpy.shape(f_y), numpy.shape(f_z), numpy.shape(temp_c), numpy.shape(t_s), numpy.shape(w2), )
+    dtemp_c = aux[..., 1]
+    t_s = aux[..., 2]
+    w2 = aux[..., 3]
+    shape = numpy.broadcast_shapes(numpy.shape(f_x), numpy.shape(f_y), numpy.shape(f_z), numpy.shape(temp_c), numpy.shape(dtemp_c), numpy.shape(t_s), numpy.shape(w2), )
     out0 = numpy.empty(shape + (1,))
     out0[..., 0] = w2*(f_x**2 - 1)
     out1 = numpy.empty(shape + (3,))
@@ -308,16 +612,17 @@ def phi_acc_size_effect_xx(u, aux=numpy.zeros(3)):
     return out0, out1
 
 
-def phi_acc_size_effect_xy(u, aux=numpy.zeros(3)):
+def phi_acc_size_effect_xy(u, aux=numpy.zeros(4)):
     """acc.size_effect.xy: phi = f_x*f_y*w2 and dphi/du."""
     f_x = u[..., 0]
     f_y = u[..., 1]
     f_z = u[..., 2]
     temp_c = aux[..., 0]
-    t_s = aux[..., 1]
-    w2 = aux[..., 2]
+    dtemp_c = aux[..., 1]
+    t_s = aux[..., 2]
+    w2 = aux[..., 3]
     _c0 = f_y*w2
-    shape = numpy.broadcast_shapes(numpy.shape(f_x), numpy.shape(f_y), numpy.shape(f_z), numpy.shape(temp_c), numpy.shape(t_s), numpy.shape(w2), )
+    shape = numpy.broadcast_shapes(numpy.shape(f_x), numpy.shape(f_y), numpy.shape(f_z), numpy.shape(temp_c), numpy.shape(dtemp_c), numpy.shape(t_s), numpy.shape(w2), )
     out0 = numpy.empty(shape + (1,))
     out0[..., 0] = _c0*f_x
     out1 = numpy.empty(shape + (3,))
@@ -327,16 +632,17 @@ def phi_acc_size_effect_xy(u, aux=numpy.zeros(3)):
     return out0, out1
 
 
-def phi_acc_size_effect_xz(u, aux=numpy.zeros(3)):
+def phi_acc_size_effect_xz(u, aux=numpy.zeros(4)):
     """acc.size_effect.xz: phi = f_x*f_z*w2 and dphi/du."""
     f_x = u[..., 0]
     f_y = u[..., 1]
     f_z = u[..., 2]
     temp_c = aux[..., 0]
-    t_s = aux[..., 1]
-    w2 = aux[..., 2]
+    dtemp_c = aux[..., 1]
+    t_s = aux[..., 2]
+    w2 = aux[..., 3]
     _c0 = f_z*w2
-    shape = numpy.broadcast_shapes(numpy.shape(f_x), numpy.shape(f_y), numpy.shape(f_z), numpy.shape(temp_c), numpy.shape(t_s), numpy.shape(w2), )
+    shape = numpy.broadcast_shapes(numpy.shape(f_x), numpy.shape(f_y), numpy.shape(f_z), numpy.shape(temp_c), numpy.shape(dtemp_c), numpy.shape(t_s), numpy.shape(w2), )
     out0 = numpy.empty(shape + (1,))
     out0[..., 0] = _c0*f_x
     out1 = numpy.empty(shape + (3,))
@@ -346,16 +652,17 @@ def phi_acc_size_effect_xz(u, aux=numpy.zeros(3)):
     return out0, out1
 
 
-def phi_acc_size_effect_yx(u, aux=numpy.zeros(3)):
+def phi_acc_size_effect_yx(u, aux=numpy.zeros(4)):
     """acc.size_effect.yx: phi = f_x*f_y*w2 and dphi/du."""
     f_x = u[..., 0]
     f_y = u[..., 1]
     f_z = u[..., 2]
     temp_c = aux[..., 0]
-    t_s = aux[..., 1]
-    w2 = aux[..., 2]
+    dtemp_c = aux[..., 1]
+    t_s = aux[..., 2]
+    w2 = aux[..., 3]
     _c0 = f_y*w2
-    shape = numpy.broadcast_shapes(numpy.shape(f_x), numpy.shape(f_y), numpy.shape(f_z), numpy.shape(temp_c), numpy.shape(t_s), numpy.shape(w2), )
+    shape = numpy.broadcast_shapes(numpy.shape(f_x), numpy.shape(f_y), numpy.shape(f_z), numpy.shape(temp_c), numpy.shape(dtemp_c), numpy.shape(t_s), numpy.shape(w2), )
     out0 = numpy.empty(shape + (1,))
     out0[..., 0] = _c0*f_x
     out1 = numpy.empty(shape + (3,))
@@ -365,15 +672,16 @@ def phi_acc_size_effect_yx(u, aux=numpy.zeros(3)):
     return out0, out1
 
 
-def phi_acc_size_effect_yy(u, aux=numpy.zeros(3)):
+def phi_acc_size_effect_yy(u, aux=numpy.zeros(4)):
     """acc.size_effect.yy: phi = w2*(f_y**2 - 1) and dphi/du."""
     f_x = u[..., 0]
     f_y = u[..., 1]
     f_z = u[..., 2]
     temp_c = aux[..., 0]
-    t_s = aux[..., 1]
-    w2 = aux[..., 2]
-    shape = numpy.broadcast_shapes(numpy.shape(f_x), numpy.shape(f_y), numpy.shape(f_z), numpy.shape(temp_c), numpy.shape(t_s), numpy.shape(w2), )
+    dtemp_c = aux[..., 1]
+    t_s = aux[..., 2]
+    w2 = aux[..., 3]
+    shape = numpy.broadcast_shapes(numpy.shape(f_x), numpy.shape(f_y), numpy.shape(f_z), numpy.shape(temp_c), numpy.shape(dtemp_c), numpy.shape(t_s), numpy.shape(w2), )
     out0 = numpy.empty(shape + (1,))
     out0[..., 0] = w2*(f_y**2 - 1)
     out1 = numpy.empty(shape + (3,))
@@ -383,16 +691,17 @@ def phi_acc_size_effect_yy(u, aux=numpy.zeros(3)):
     return out0, out1
 
 
-def phi_acc_size_effect_yz(u, aux=numpy.zeros(3)):
+def phi_acc_size_effect_yz(u, aux=numpy.zeros(4)):
     """acc.size_effect.yz: phi = f_y*f_z*w2 and dphi/du."""
     f_x = u[..., 0]
     f_y = u[..., 1]
     f_z = u[..., 2]
     temp_c = aux[..., 0]
-    t_s = aux[..., 1]
-    w2 = aux[..., 2]
+    dtemp_c = aux[..., 1]
+    t_s = aux[..., 2]
+    w2 = aux[..., 3]
     _c0 = f_z*w2
-    shape = numpy.broadcast_shapes(numpy.shape(f_x), numpy.shape(f_y), numpy.shape(f_z), numpy.shape(temp_c), numpy.shape(t_s), numpy.shape(w2), )
+    shape = numpy.broadcast_shapes(numpy.shape(f_x), numpy.shape(f_y), numpy.shape(f_z), numpy.shape(temp_c), numpy.shape(dtemp_c), numpy.shape(t_s), numpy.shape(w2), )
     out0 = numpy.empty(shape + (1,))
     out0[..., 0] = _c0*f_y
     out1 = numpy.empty(shape + (3,))
@@ -402,16 +711,17 @@ def phi_acc_size_effect_yz(u, aux=numpy.zeros(3)):
     return out0, out1
 
 
-def phi_acc_size_effect_zx(u, aux=numpy.zeros(3)):
+def phi_acc_size_effect_zx(u, aux=numpy.zeros(4)):
     """acc.size_effect.zx: phi = f_x*f_z*w2 and dphi/du."""
     f_x = u[..., 0]
     f_y = u[..., 1]
     f_z = u[..., 2]
     temp_c = aux[..., 0]
-    t_s = aux[..., 1]
-    w2 = aux[..., 2]
+    dtemp_c = aux[..., 1]
+    t_s = aux[..., 2]
+    w2 = aux[..., 3]
     _c0 = f_z*w2
-    shape = numpy.broadcast_shapes(numpy.shape(f_x), numpy.shape(f_y), numpy.shape(f_z), numpy.shape(temp_c), numpy.shape(t_s), numpy.shape(w2), )
+    shape = numpy.broadcast_shapes(numpy.shape(f_x), numpy.shape(f_y), numpy.shape(f_z), numpy.shape(temp_c), numpy.shape(dtemp_c), numpy.shape(t_s), numpy.shape(w2), )
     out0 = numpy.empty(shape + (1,))
     out0[..., 0] = _c0*f_x
     out1 = numpy.empty(shape + (3,))
@@ -421,16 +731,17 @@ def phi_acc_size_effect_zx(u, aux=numpy.zeros(3)):
     return out0, out1
 
 
-def phi_acc_size_effect_zy(u, aux=numpy.zeros(3)):
+def phi_acc_size_effect_zy(u, aux=numpy.zeros(4)):
     """acc.size_effect.zy: phi = f_y*f_z*w2 and dphi/du."""
     f_x = u[..., 0]
     f_y = u[..., 1]
     f_z = u[..., 2]
     temp_c = aux[..., 0]
-    t_s = aux[..., 1]
-    w2 = aux[..., 2]
+    dtemp_c = aux[..., 1]
+    t_s = aux[..., 2]
+    w2 = aux[..., 3]
     _c0 = f_z*w2
-    shape = numpy.broadcast_shapes(numpy.shape(f_x), numpy.shape(f_y), numpy.shape(f_z), numpy.shape(temp_c), numpy.shape(t_s), numpy.shape(w2), )
+    shape = numpy.broadcast_shapes(numpy.shape(f_x), numpy.shape(f_y), numpy.shape(f_z), numpy.shape(temp_c), numpy.shape(dtemp_c), numpy.shape(t_s), numpy.shape(w2), )
     out0 = numpy.empty(shape + (1,))
     out0[..., 0] = _c0*f_y
     out1 = numpy.empty(shape + (3,))
@@ -440,15 +751,16 @@ def phi_acc_size_effect_zy(u, aux=numpy.zeros(3)):
     return out0, out1
 
 
-def phi_acc_size_effect_zz(u, aux=numpy.zeros(3)):
+def phi_acc_size_effect_zz(u, aux=numpy.zeros(4)):
     """acc.size_effect.zz: phi = w2*(f_z**2 - 1) and dphi/du."""
     f_x = u[..., 0]
     f_y = u[..., 1]
     f_z = u[..., 2]
     temp_c = aux[..., 0]
-    t_s = aux[..., 1]
-    w2 = aux[..., 2]
-    shape = numpy.broadcast_shapes(numpy.shape(f_x), numpy.shape(f_y), numpy.shape(f_z), numpy.shape(temp_c), numpy.shape(t_s), numpy.shape(w2), )
+    dtemp_c = aux[..., 1]
+    t_s = aux[..., 2]
+    w2 = aux[..., 3]
+    shape = numpy.broadcast_shapes(numpy.shape(f_x), numpy.shape(f_y), numpy.shape(f_z), numpy.shape(temp_c), numpy.shape(dtemp_c), numpy.shape(t_s), numpy.shape(w2), )
     out0 = numpy.empty(shape + (1,))
     out0[..., 0] = w2*(f_z**2 - 1)
     out1 = numpy.empty(shape + (3,))
@@ -458,17 +770,18 @@ def phi_acc_size_effect_zz(u, aux=numpy.zeros(3)):
     return out0, out1
 
 
-def phi_gyro_bias_drift_time_x(u, aux=numpy.zeros(5)):
+def phi_gyro_bias_drift_time_x(u, aux=numpy.zeros(6)):
     """gyro.bias_drift_time.x: phi = t_s and dphi/du."""
     w_x = u[..., 0]
     w_y = u[..., 1]
     w_z = u[..., 2]
     temp_c = aux[..., 0]
-    t_s = aux[..., 1]
-    f_x = aux[..., 2]
-    f_y = aux[..., 3]
-    f_z = aux[..., 4]
-    shape = numpy.broadcast_shapes(numpy.shape(w_x), numpy.shape(w_y), numpy.shape(w_z), numpy.shape(temp_c), numpy.shape(t_s), numpy.shape(f_x), numpy.shape(f_y), numpy.shape(f_z), )
+    dtemp_c = aux[..., 1]
+    t_s = aux[..., 2]
+    f_x = aux[..., 3]
+    f_y = aux[..., 4]
+    f_z = aux[..., 5]
+    shape = numpy.broadcast_shapes(numpy.shape(w_x), numpy.shape(w_y), numpy.shape(w_z), numpy.shape(temp_c), numpy.shape(dtemp_c), numpy.shape(t_s), numpy.shape(f_x), numpy.shape(f_y), numpy.shape(f_z), )
     out0 = numpy.empty(shape + (1,))
     out0[..., 0] = t_s
     out1 = numpy.empty(shape + (3,))
@@ -478,17 +791,18 @@ def phi_gyro_bias_drift_time_x(u, aux=numpy.zeros(5)):
     return out0, out1
 
 
-def phi_gyro_bias_drift_time_y(u, aux=numpy.zeros(5)):
+def phi_gyro_bias_drift_time_y(u, aux=numpy.zeros(6)):
     """gyro.bias_drift_time.y: phi = t_s and dphi/du."""
     w_x = u[..., 0]
     w_y = u[..., 1]
     w_z = u[..., 2]
     temp_c = aux[..., 0]
-    t_s = aux[..., 1]
-    f_x = aux[..., 2]
-    f_y = aux[..., 3]
-    f_z = aux[..., 4]
-    shape = numpy.broadcast_shapes(numpy.shape(w_x), numpy.shape(w_y), numpy.shape(w_z), numpy.shape(temp_c), numpy.shape(t_s), numpy.shape(f_x), numpy.shape(f_y), numpy.shape(f_z), )
+    dtemp_c = aux[..., 1]
+    t_s = aux[..., 2]
+    f_x = aux[..., 3]
+    f_y = aux[..., 4]
+    f_z = aux[..., 5]
+    shape = numpy.broadcast_shapes(numpy.shape(w_x), numpy.shape(w_y), numpy.shape(w_z), numpy.shape(temp_c), numpy.shape(dtemp_c), numpy.shape(t_s), numpy.shape(f_x), numpy.shape(f_y), numpy.shape(f_z), )
     out0 = numpy.empty(shape + (1,))
     out0[..., 0] = t_s
     out1 = numpy.empty(shape + (3,))
@@ -498,17 +812,18 @@ def phi_gyro_bias_drift_time_y(u, aux=numpy.zeros(5)):
     return out0, out1
 
 
-def phi_gyro_bias_drift_time_z(u, aux=numpy.zeros(5)):
+def phi_gyro_bias_drift_time_z(u, aux=numpy.zeros(6)):
     """gyro.bias_drift_time.z: phi = t_s and dphi/du."""
     w_x = u[..., 0]
     w_y = u[..., 1]
     w_z = u[..., 2]
     temp_c = aux[..., 0]
-    t_s = aux[..., 1]
-    f_x = aux[..., 2]
-    f_y = aux[..., 3]
-    f_z = aux[..., 4]
-    shape = numpy.broadcast_shapes(numpy.shape(w_x), numpy.shape(w_y), numpy.shape(w_z), numpy.shape(temp_c), numpy.shape(t_s), numpy.shape(f_x), numpy.shape(f_y), numpy.shape(f_z), )
+    dtemp_c = aux[..., 1]
+    t_s = aux[..., 2]
+    f_x = aux[..., 3]
+    f_y = aux[..., 4]
+    f_z = aux[..., 5]
+    shape = numpy.broadcast_shapes(numpy.shape(w_x), numpy.shape(w_y), numpy.shape(w_z), numpy.shape(temp_c), numpy.shape(dtemp_c), numpy.shape(t_s), numpy.shape(f_x), numpy.shape(f_y), numpy.shape(f_z), )
     out0 = numpy.empty(shape + (1,))
     out0[..., 0] = t_s
     out1 = numpy.empty(shape + (3,))
@@ -518,19 +833,20 @@ def phi_gyro_bias_drift_time_z(u, aux=numpy.zeros(5)):
     return out0, out1
 
 
-def phi_gyro_bias_temperature_x(u, aux=numpy.zeros(5)):
-    """gyro.bias_temperature.x: phi = temp_c and dphi/du."""
+def phi_gyro_bias_temperature_x(u, aux=numpy.zeros(6)):
+    """gyro.bias_temperature.x: phi = dtemp_c and dphi/du."""
     w_x = u[..., 0]
     w_y = u[..., 1]
     w_z = u[..., 2]
     temp_c = aux[..., 0]
-    t_s = aux[..., 1]
-    f_x = aux[..., 2]
-    f_y = aux[..., 3]
-    f_z = aux[..., 4]
-    shape = numpy.broadcast_shapes(numpy.shape(w_x), numpy.shape(w_y), numpy.shape(w_z), numpy.shape(temp_c), numpy.shape(t_s), numpy.shape(f_x), numpy.shape(f_y), numpy.shape(f_z), )
+    dtemp_c = aux[..., 1]
+    t_s = aux[..., 2]
+    f_x = aux[..., 3]
+    f_y = aux[..., 4]
+    f_z = aux[..., 5]
+    shape = numpy.broadcast_shapes(numpy.shape(w_x), numpy.shape(w_y), numpy.shape(w_z), numpy.shape(temp_c), numpy.shape(dtemp_c), numpy.shape(t_s), numpy.shape(f_x), numpy.shape(f_y), numpy.shape(f_z), )
     out0 = numpy.empty(shape + (1,))
-    out0[..., 0] = temp_c
+    out0[..., 0] = dtemp_c
     out1 = numpy.empty(shape + (3,))
     out1[..., 0] = 0
     out1[..., 1] = 0
@@ -538,19 +854,20 @@ def phi_gyro_bias_temperature_x(u, aux=numpy.zeros(5)):
     return out0, out1
 
 
-def phi_gyro_bias_temperature_y(u, aux=numpy.zeros(5)):
-    """gyro.bias_temperature.y: phi = temp_c and dphi/du."""
+def phi_gyro_bias_temperature_y(u, aux=numpy.zeros(6)):
+    """gyro.bias_temperature.y: phi = dtemp_c and dphi/du."""
     w_x = u[..., 0]
     w_y = u[..., 1]
     w_z = u[..., 2]
     temp_c = aux[..., 0]
-    t_s = aux[..., 1]
-    f_x = aux[..., 2]
-    f_y = aux[..., 3]
-    f_z = aux[..., 4]
-    shape = numpy.broadcast_shapes(numpy.shape(w_x), numpy.shape(w_y), numpy.shape(w_z), numpy.shape(temp_c), numpy.shape(t_s), numpy.shape(f_x), numpy.shape(f_y), numpy.shape(f_z), )
+    dtemp_c = aux[..., 1]
+    t_s = aux[..., 2]
+    f_x = aux[..., 3]
+    f_y = aux[..., 4]
+    f_z = aux[..., 5]
+    shape = numpy.broadcast_shapes(numpy.shape(w_x), numpy.shape(w_y), numpy.shape(w_z), numpy.shape(temp_c), numpy.shape(dtemp_c), numpy.shape(t_s), numpy.shape(f_x), numpy.shape(f_y), numpy.shape(f_z), )
     out0 = numpy.empty(shape + (1,))
-    out0[..., 0] = temp_c
+    out0[..., 0] = dtemp_c
     out1 = numpy.empty(shape + (3,))
     out1[..., 0] = 0
     out1[..., 1] = 0
@@ -558,19 +875,20 @@ def phi_gyro_bias_temperature_y(u, aux=numpy.zeros(5)):
     return out0, out1
 
 
-def phi_gyro_bias_temperature_z(u, aux=numpy.zeros(5)):
-    """gyro.bias_temperature.z: phi = temp_c and dphi/du."""
+def phi_gyro_bias_temperature_z(u, aux=numpy.zeros(6)):
+    """gyro.bias_temperature.z: phi = dtemp_c and dphi/du."""
     w_x = u[..., 0]
     w_y = u[..., 1]
     w_z = u[..., 2]
     temp_c = aux[..., 0]
-    t_s = aux[..., 1]
-    f_x = aux[..., 2]
-    f_y = aux[..., 3]
-    f_z = aux[..., 4]
-    shape = numpy.broadcast_shapes(numpy.shape(w_x), numpy.shape(w_y), numpy.shape(w_z), numpy.shape(temp_c), numpy.shape(t_s), numpy.shape(f_x), numpy.shape(f_y), numpy.shape(f_z), )
+    dtemp_c = aux[..., 1]
+    t_s = aux[..., 2]
+    f_x = aux[..., 3]
+    f_y = aux[..., 4]
+    f_z = aux[..., 5]
+    shape = numpy.broadcast_shapes(numpy.shape(w_x), numpy.shape(w_y), numpy.shape(w_z), numpy.shape(temp_c), numpy.shape(dtemp_c), numpy.shape(t_s), numpy.shape(f_x), numpy.shape(f_y), numpy.shape(f_z), )
     out0 = numpy.empty(shape + (1,))
-    out0[..., 0] = temp_c
+    out0[..., 0] = dtemp_c
     out1 = numpy.empty(shape + (3,))
     out1[..., 0] = 0
     out1[..., 1] = 0
@@ -578,17 +896,144 @@ def phi_gyro_bias_temperature_z(u, aux=numpy.zeros(5)):
     return out0, out1
 
 
-def phi_gyro_g_sensitivity_xx(u, aux=numpy.zeros(5)):
+def phi_gyro_bias_temperature2_x(u, aux=numpy.zeros(6)):
+    """gyro.bias_temperature2.x: phi = dtemp_c**2 and dphi/du."""
+    w_x = u[..., 0]
+    w_y = u[..., 1]
+    w_z = u[..., 2]
+    temp_c = aux[..., 0]
+    dtemp_c = aux[..., 1]
+    t_s = aux[..., 2]
+    f_x = aux[..., 3]
+    f_y = aux[..., 4]
+    f_z = aux[..., 5]
+    shape = numpy.broadcast_shapes(numpy.shape(w_x), numpy.shape(w_y), numpy.shape(w_z), numpy.shape(temp_c), numpy.shape(dtemp_c), numpy.shape(t_s), numpy.shape(f_x), numpy.shape(f_y), numpy.shape(f_z), )
+    out0 = numpy.empty(shape + (1,))
+    out0[..., 0] = dtemp_c**2
+    out1 = numpy.empty(shape + (3,))
+    out1[..., 0] = 0
+    out1[..., 1] = 0
+    out1[..., 2] = 0
+    return out0, out1
+
+
+def phi_gyro_bias_temperature2_y(u, aux=numpy.zeros(6)):
+    """gyro.bias_temperature2.y: phi = dtemp_c**2 and dphi/du."""
+    w_x = u[..., 0]
+    w_y = u[..., 1]
+    w_z = u[..., 2]
+    temp_c = aux[..., 0]
+    dtemp_c = aux[..., 1]
+    t_s = aux[..., 2]
+    f_x = aux[..., 3]
+    f_y = aux[..., 4]
+    f_z = aux[..., 5]
+    shape = numpy.broadcast_shapes(numpy.shape(w_x), numpy.shape(w_y), numpy.shape(w_z), numpy.shape(temp_c), numpy.shape(dtemp_c), numpy.shape(t_s), numpy.shape(f_x), numpy.shape(f_y), numpy.shape(f_z), )
+    out0 = numpy.empty(shape + (1,))
+    out0[..., 0] = dtemp_c**2
+    out1 = numpy.empty(shape + (3,))
+    out1[..., 0] = 0
+    out1[..., 1] = 0
+    out1[..., 2] = 0
+    return out0, out1
+
+
+def phi_gyro_bias_temperature2_z(u, aux=numpy.zeros(6)):
+    """gyro.bias_temperature2.z: phi = dtemp_c**2 and dphi/du."""
+    w_x = u[..., 0]
+    w_y = u[..., 1]
+    w_z = u[..., 2]
+    temp_c = aux[..., 0]
+    dtemp_c = aux[..., 1]
+    t_s = aux[..., 2]
+    f_x = aux[..., 3]
+    f_y = aux[..., 4]
+    f_z = aux[..., 5]
+    shape = numpy.broadcast_shapes(numpy.shape(w_x), numpy.shape(w_y), numpy.shape(w_z), numpy.shape(temp_c), numpy.shape(dtemp_c), numpy.shape(t_s), numpy.shape(f_x), numpy.shape(f_y), numpy.shape(f_z), )
+    out0 = numpy.empty(shape + (1,))
+    out0[..., 0] = dtemp_c**2
+    out1 = numpy.empty(shape + (3,))
+    out1[..., 0] = 0
+    out1[..., 1] = 0
+    out1[..., 2] = 0
+    return out0, out1
+
+
+def phi_gyro_bias_temperature3_x(u, aux=numpy.zeros(6)):
+    """gyro.bias_temperature3.x: phi = dtemp_c**3 and dphi/du."""
+    w_x = u[..., 0]
+    w_y = u[..., 1]
+    w_z = u[..., 2]
+    temp_c = aux[..., 0]
+    dtemp_c = aux[..., 1]
+    t_s = aux[..., 2]
+    f_x = aux[..., 3]
+    f_y = aux[..., 4]
+    f_z = aux[..., 5]
+    shape = numpy.broadcast_shapes(numpy.shape(w_x), numpy.shape(w_y), numpy.shape(w_z), numpy.shape(temp_c), numpy.shape(dtemp_c), numpy.shape(t_s), numpy.shape(f_x), numpy.shape(f_y), numpy.shape(f_z), )
+    out0 = numpy.empty(shape + (1,))
+    out0[..., 0] = dtemp_c**3
+    out1 = numpy.empty(shape + (3,))
+    out1[..., 0] = 0
+    out1[..., 1] = 0
+    out1[..., 2] = 0
+    return out0, out1
+
+
+def phi_gyro_bias_temperature3_y(u, aux=numpy.zeros(6)):
+    """gyro.bias_temperature3.y: phi = dtemp_c**3 and dphi/du."""
+    w_x = u[..., 0]
+    w_y = u[..., 1]
+    w_z = u[..., 2]
+    temp_c = aux[..., 0]
+    dtemp_c = aux[..., 1]
+    t_s = aux[..., 2]
+    f_x = aux[..., 3]
+    f_y = aux[..., 4]
+    f_z = aux[..., 5]
+    shape = numpy.broadcast_shapes(numpy.shape(w_x), numpy.shape(w_y), numpy.shape(w_z), numpy.shape(temp_c), numpy.shape(dtemp_c), numpy.shape(t_s), numpy.shape(f_x), numpy.shape(f_y), numpy.shape(f_z), )
+    out0 = numpy.empty(shape + (1,))
+    out0[..., 0] = dtemp_c**3
+    out1 = numpy.empty(shape + (3,))
+    out1[..., 0] = 0
+    out1[..., 1] = 0
+    out1[..., 2] = 0
+    return out0, out1
+
+
+def phi_gyro_bias_temperature3_z(u, aux=numpy.zeros(6)):
+    """gyro.bias_temperature3.z: phi = dtemp_c**3 and dphi/du."""
+    w_x = u[..., 0]
+    w_y = u[..., 1]
+    w_z = u[..., 2]
+    temp_c = aux[..., 0]
+    dtemp_c = aux[..., 1]
+    t_s = aux[..., 2]
+    f_x = aux[..., 3]
+    f_y = aux[..., 4]
+    f_z = aux[..., 5]
+    shape = numpy.broadcast_shapes(numpy.shape(w_x), numpy.shape(w_y), numpy.shape(w_z), numpy.shape(temp_c), numpy.shape(dtemp_c), numpy.shape(t_s), numpy.shape(f_x), numpy.shape(f_y), numpy.shape(f_z), )
+    out0 = numpy.empty(shape + (1,))
+    out0[..., 0] = dtemp_c**3
+    out1 = numpy.empty(shape + (3,))
+    out1[..., 0] = 0
+    out1[..., 1] = 0
+    out1[..., 2] = 0
+    return out0, out1
+
+
+def phi_gyro_g_sensitivity_xx(u, aux=numpy.zeros(6)):
     """gyro.g_sensitivity.xx: phi = f_x and dphi/du."""
     w_x = u[..., 0]
     w_y = u[..., 1]
     w_z = u[..., 2]
     temp_c = aux[..., 0]
-    t_s = aux[..., 1]
-    f_x = aux[..., 2]
-    f_y = aux[..., 3]
-    f_z = aux[..., 4]
-    shape = numpy.broadcast_shapes(numpy.shape(w_x), numpy.shape(w_y), numpy.shape(w_z), numpy.shape(temp_c), numpy.shape(t_s), numpy.shape(f_x), numpy.shape(f_y), numpy.shape(f_z), )
+    dtemp_c = aux[..., 1]
+    t_s = aux[..., 2]
+    f_x = aux[..., 3]
+    f_y = aux[..., 4]
+    f_z = aux[..., 5]
+    shape = numpy.broadcast_shapes(numpy.shape(w_x), numpy.shape(w_y), numpy.shape(w_z), numpy.shape(temp_c), numpy.shape(dtemp_c), numpy.shape(t_s), numpy.shape(f_x), numpy.shape(f_y), numpy.shape(f_z), )
     out0 = numpy.empty(shape + (1,))
     out0[..., 0] = f_x
     out1 = numpy.empty(shape + (3,))
@@ -598,17 +1043,18 @@ def phi_gyro_g_sensitivity_xx(u, aux=numpy.zeros(5)):
     return out0, out1
 
 
-def phi_gyro_g_sensitivity_xy(u, aux=numpy.zeros(5)):
+def phi_gyro_g_sensitivity_xy(u, aux=numpy.zeros(6)):
     """gyro.g_sensitivity.xy: phi = f_y and dphi/du."""
     w_x = u[..., 0]
     w_y = u[..., 1]
     w_z = u[..., 2]
     temp_c = aux[..., 0]
-    t_s = aux[..., 1]
-    f_x = aux[..., 2]
-    f_y = aux[..., 3]
-    f_z = aux[..., 4]
-    shape = numpy.broadcast_shapes(numpy.shape(w_x), numpy.shape(w_y), numpy.shape(w_z), numpy.shape(temp_c), numpy.shape(t_s), numpy.shape(f_x), numpy.shape(f_y), numpy.shape(f_z), )
+    dtemp_c = aux[..., 1]
+    t_s = aux[..., 2]
+    f_x = aux[..., 3]
+    f_y = aux[..., 4]
+    f_z = aux[..., 5]
+    shape = numpy.broadcast_shapes(numpy.shape(w_x), numpy.shape(w_y), numpy.shape(w_z), numpy.shape(temp_c), numpy.shape(dtemp_c), numpy.shape(t_s), numpy.shape(f_x), numpy.shape(f_y), numpy.shape(f_z), )
     out0 = numpy.empty(shape + (1,))
     out0[..., 0] = f_y
     out1 = numpy.empty(shape + (3,))
@@ -618,17 +1064,18 @@ def phi_gyro_g_sensitivity_xy(u, aux=numpy.zeros(5)):
     return out0, out1
 
 
-def phi_gyro_g_sensitivity_xz(u, aux=numpy.zeros(5)):
+def phi_gyro_g_sensitivity_xz(u, aux=numpy.zeros(6)):
     """gyro.g_sensitivity.xz: phi = f_z and dphi/du."""
     w_x = u[..., 0]
     w_y = u[..., 1]
     w_z = u[..., 2]
     temp_c = aux[..., 0]
-    t_s = aux[..., 1]
-    f_x = aux[..., 2]
-    f_y = aux[..., 3]
-    f_z = aux[..., 4]
-    shape = numpy.broadcast_shapes(numpy.shape(w_x), numpy.shape(w_y), numpy.shape(w_z), numpy.shape(temp_c), numpy.shape(t_s), numpy.shape(f_x), numpy.shape(f_y), numpy.shape(f_z), )
+    dtemp_c = aux[..., 1]
+    t_s = aux[..., 2]
+    f_x = aux[..., 3]
+    f_y = aux[..., 4]
+    f_z = aux[..., 5]
+    shape = numpy.broadcast_shapes(numpy.shape(w_x), numpy.shape(w_y), numpy.shape(w_z), numpy.shape(temp_c), numpy.shape(dtemp_c), numpy.shape(t_s), numpy.shape(f_x), numpy.shape(f_y), numpy.shape(f_z), )
     out0 = numpy.empty(shape + (1,))
     out0[..., 0] = f_z
     out1 = numpy.empty(shape + (3,))
@@ -638,17 +1085,18 @@ def phi_gyro_g_sensitivity_xz(u, aux=numpy.zeros(5)):
     return out0, out1
 
 
-def phi_gyro_g_sensitivity_yx(u, aux=numpy.zeros(5)):
+def phi_gyro_g_sensitivity_yx(u, aux=numpy.zeros(6)):
     """gyro.g_sensitivity.yx: phi = f_x and dphi/du."""
     w_x = u[..., 0]
     w_y = u[..., 1]
     w_z = u[..., 2]
     temp_c = aux[..., 0]
-    t_s = aux[..., 1]
-    f_x = aux[..., 2]
-    f_y = aux[..., 3]
-    f_z = aux[..., 4]
-    shape = numpy.broadcast_shapes(numpy.shape(w_x), numpy.shape(w_y), numpy.shape(w_z), numpy.shape(temp_c), numpy.shape(t_s), numpy.shape(f_x), numpy.shape(f_y), numpy.shape(f_z), )
+    dtemp_c = aux[..., 1]
+    t_s = aux[..., 2]
+    f_x = aux[..., 3]
+    f_y = aux[..., 4]
+    f_z = aux[..., 5]
+    shape = numpy.broadcast_shapes(numpy.shape(w_x), numpy.shape(w_y), numpy.shape(w_z), numpy.shape(temp_c), numpy.shape(dtemp_c), numpy.shape(t_s), numpy.shape(f_x), numpy.shape(f_y), numpy.shape(f_z), )
     out0 = numpy.empty(shape + (1,))
     out0[..., 0] = f_x
     out1 = numpy.empty(shape + (3,))
@@ -658,17 +1106,18 @@ def phi_gyro_g_sensitivity_yx(u, aux=numpy.zeros(5)):
     return out0, out1
 
 
-def phi_gyro_g_sensitivity_yy(u, aux=numpy.zeros(5)):
+def phi_gyro_g_sensitivity_yy(u, aux=numpy.zeros(6)):
     """gyro.g_sensitivity.yy: phi = f_y and dphi/du."""
     w_x = u[..., 0]
     w_y = u[..., 1]
     w_z = u[..., 2]
     temp_c = aux[..., 0]
-    t_s = aux[..., 1]
-    f_x = aux[..., 2]
-    f_y = aux[..., 3]
-    f_z = aux[..., 4]
-    shape = numpy.broadcast_shapes(numpy.shape(w_x), numpy.shape(w_y), numpy.shape(w_z), numpy.shape(temp_c), numpy.shape(t_s), numpy.shape(f_x), numpy.shape(f_y), numpy.shape(f_z), )
+    dtemp_c = aux[..., 1]
+    t_s = aux[..., 2]
+    f_x = aux[..., 3]
+    f_y = aux[..., 4]
+    f_z = aux[..., 5]
+    shape = numpy.broadcast_shapes(numpy.shape(w_x), numpy.shape(w_y), numpy.shape(w_z), numpy.shape(temp_c), numpy.shape(dtemp_c), numpy.shape(t_s), numpy.shape(f_x), numpy.shape(f_y), numpy.shape(f_z), )
     out0 = numpy.empty(shape + (1,))
     out0[..., 0] = f_y
     out1 = numpy.empty(shape + (3,))
@@ -678,17 +1127,18 @@ def phi_gyro_g_sensitivity_yy(u, aux=numpy.zeros(5)):
     return out0, out1
 
 
-def phi_gyro_g_sensitivity_yz(u, aux=numpy.zeros(5)):
+def phi_gyro_g_sensitivity_yz(u, aux=numpy.zeros(6)):
     """gyro.g_sensitivity.yz: phi = f_z and dphi/du."""
     w_x = u[..., 0]
     w_y = u[..., 1]
     w_z = u[..., 2]
     temp_c = aux[..., 0]
-    t_s = aux[..., 1]
-    f_x = aux[..., 2]
-    f_y = aux[..., 3]
-    f_z = aux[..., 4]
-    shape = numpy.broadcast_shapes(numpy.shape(w_x), numpy.shape(w_y), numpy.shape(w_z), numpy.shape(temp_c), numpy.shape(t_s), numpy.shape(f_x), numpy.shape(f_y), numpy.shape(f_z), )
+    dtemp_c = aux[..., 1]
+    t_s = aux[..., 2]
+    f_x = aux[..., 3]
+    f_y = aux[..., 4]
+    f_z = aux[..., 5]
+    shape = numpy.broadcast_shapes(numpy.shape(w_x), numpy.shape(w_y), numpy.shape(w_z), numpy.shape(temp_c), numpy.shape(dtemp_c), numpy.shape(t_s), numpy.shape(f_x), numpy.shape(f_y), numpy.shape(f_z), )
     out0 = numpy.empty(shape + (1,))
     out0[..., 0] = f_z
     out1 = numpy.empty(shape + (3,))
@@ -698,17 +1148,18 @@ def phi_gyro_g_sensitivity_yz(u, aux=numpy.zeros(5)):
     return out0, out1
 
 
-def phi_gyro_g_sensitivity_zx(u, aux=numpy.zeros(5)):
+def phi_gyro_g_sensitivity_zx(u, aux=numpy.zeros(6)):
     """gyro.g_sensitivity.zx: phi = f_x and dphi/du."""
     w_x = u[..., 0]
     w_y = u[..., 1]
     w_z = u[..., 2]
     temp_c = aux[..., 0]
-    t_s = aux[..., 1]
-    f_x = aux[..., 2]
-    f_y = aux[..., 3]
-    f_z = aux[..., 4]
-    shape = numpy.broadcast_shapes(numpy.shape(w_x), numpy.shape(w_y), numpy.shape(w_z), numpy.shape(temp_c), numpy.shape(t_s), numpy.shape(f_x), numpy.shape(f_y), numpy.shape(f_z), )
+    dtemp_c = aux[..., 1]
+    t_s = aux[..., 2]
+    f_x = aux[..., 3]
+    f_y = aux[..., 4]
+    f_z = aux[..., 5]
+    shape = numpy.broadcast_shapes(numpy.shape(w_x), numpy.shape(w_y), numpy.shape(w_z), numpy.shape(temp_c), numpy.shape(dtemp_c), numpy.shape(t_s), numpy.shape(f_x), numpy.shape(f_y), numpy.shape(f_z), )
     out0 = numpy.empty(shape + (1,))
     out0[..., 0] = f_x
     out1 = numpy.empty(shape + (3,))
@@ -718,17 +1169,18 @@ def phi_gyro_g_sensitivity_zx(u, aux=numpy.zeros(5)):
     return out0, out1
 
 
-def phi_gyro_g_sensitivity_zy(u, aux=numpy.zeros(5)):
+def phi_gyro_g_sensitivity_zy(u, aux=numpy.zeros(6)):
     """gyro.g_sensitivity.zy: phi = f_y and dphi/du."""
     w_x = u[..., 0]
     w_y = u[..., 1]
     w_z = u[..., 2]
     temp_c = aux[..., 0]
-    t_s = aux[..., 1]
-    f_x = aux[..., 2]
-    f_y = aux[..., 3]
-    f_z = aux[..., 4]
-    shape = numpy.broadcast_shapes(numpy.shape(w_x), numpy.shape(w_y), numpy.shape(w_z), numpy.shape(temp_c), numpy.shape(t_s), numpy.shape(f_x), numpy.shape(f_y), numpy.shape(f_z), )
+    dtemp_c = aux[..., 1]
+    t_s = aux[..., 2]
+    f_x = aux[..., 3]
+    f_y = aux[..., 4]
+    f_z = aux[..., 5]
+    shape = numpy.broadcast_shapes(numpy.shape(w_x), numpy.shape(w_y), numpy.shape(w_z), numpy.shape(temp_c), numpy.shape(dtemp_c), numpy.shape(t_s), numpy.shape(f_x), numpy.shape(f_y), numpy.shape(f_z), )
     out0 = numpy.empty(shape + (1,))
     out0[..., 0] = f_y
     out1 = numpy.empty(shape + (3,))
@@ -738,17 +1190,18 @@ def phi_gyro_g_sensitivity_zy(u, aux=numpy.zeros(5)):
     return out0, out1
 
 
-def phi_gyro_g_sensitivity_zz(u, aux=numpy.zeros(5)):
+def phi_gyro_g_sensitivity_zz(u, aux=numpy.zeros(6)):
     """gyro.g_sensitivity.zz: phi = f_z and dphi/du."""
     w_x = u[..., 0]
     w_y = u[..., 1]
     w_z = u[..., 2]
     temp_c = aux[..., 0]
-    t_s = aux[..., 1]
-    f_x = aux[..., 2]
-    f_y = aux[..., 3]
-    f_z = aux[..., 4]
-    shape = numpy.broadcast_shapes(numpy.shape(w_x), numpy.shape(w_y), numpy.shape(w_z), numpy.shape(temp_c), numpy.shape(t_s), numpy.shape(f_x), numpy.shape(f_y), numpy.shape(f_z), )
+    dtemp_c = aux[..., 1]
+    t_s = aux[..., 2]
+    f_x = aux[..., 3]
+    f_y = aux[..., 4]
+    f_z = aux[..., 5]
+    shape = numpy.broadcast_shapes(numpy.shape(w_x), numpy.shape(w_y), numpy.shape(w_z), numpy.shape(temp_c), numpy.shape(dtemp_c), numpy.shape(t_s), numpy.shape(f_x), numpy.shape(f_y), numpy.shape(f_z), )
     out0 = numpy.empty(shape + (1,))
     out0[..., 0] = f_z
     out1 = numpy.empty(shape + (3,))
@@ -758,17 +1211,18 @@ def phi_gyro_g_sensitivity_zz(u, aux=numpy.zeros(5)):
     return out0, out1
 
 
-def phi_gyro_quadratic_x(u, aux=numpy.zeros(5)):
+def phi_gyro_quadratic_x(u, aux=numpy.zeros(6)):
     """gyro.quadratic.x: phi = 7.71604938271605e-8*w_x**2 and dphi/du."""
     w_x = u[..., 0]
     w_y = u[..., 1]
     w_z = u[..., 2]
     temp_c = aux[..., 0]
-    t_s = aux[..., 1]
-    f_x = aux[..., 2]
-    f_y = aux[..., 3]
-    f_z = aux[..., 4]
-    shape = numpy.broadcast_shapes(numpy.shape(w_x), numpy.shape(w_y), numpy.shape(w_z), numpy.shape(temp_c), numpy.shape(t_s), numpy.shape(f_x), numpy.shape(f_y), numpy.shape(f_z), )
+    dtemp_c = aux[..., 1]
+    t_s = aux[..., 2]
+    f_x = aux[..., 3]
+    f_y = aux[..., 4]
+    f_z = aux[..., 5]
+    shape = numpy.broadcast_shapes(numpy.shape(w_x), numpy.shape(w_y), numpy.shape(w_z), numpy.shape(temp_c), numpy.shape(dtemp_c), numpy.shape(t_s), numpy.shape(f_x), numpy.shape(f_y), numpy.shape(f_z), )
     out0 = numpy.empty(shape + (1,))
     out0[..., 0] = 7.71604938271605e-8*w_x**2
     out1 = numpy.empty(shape + (3,))
@@ -778,17 +1232,18 @@ def phi_gyro_quadratic_x(u, aux=numpy.zeros(5)):
     return out0, out1
 
 
-def phi_gyro_quadratic_y(u, aux=numpy.zeros(5)):
+def phi_gyro_quadratic_y(u, aux=numpy.zeros(6)):
     """gyro.quadratic.y: phi = 7.71604938271605e-8*w_y**2 and dphi/du."""
     w_x = u[..., 0]
     w_y = u[..., 1]
     w_z = u[..., 2]
     temp_c = aux[..., 0]
-    t_s = aux[..., 1]
-    f_x = aux[..., 2]
-    f_y = aux[..., 3]
-    f_z = aux[..., 4]
-    shape = numpy.broadcast_shapes(numpy.shape(w_x), numpy.shape(w_y), numpy.shape(w_z), numpy.shape(temp_c), numpy.shape(t_s), numpy.shape(f_x), numpy.shape(f_y), numpy.shape(f_z), )
+    dtemp_c = aux[..., 1]
+    t_s = aux[..., 2]
+    f_x = aux[..., 3]
+    f_y = aux[..., 4]
+    f_z = aux[..., 5]
+    shape = numpy.broadcast_shapes(numpy.shape(w_x), numpy.shape(w_y), numpy.shape(w_z), numpy.shape(temp_c), numpy.shape(dtemp_c), numpy.shape(t_s), numpy.shape(f_x), numpy.shape(f_y), numpy.shape(f_z), )
     out0 = numpy.empty(shape + (1,))
     out0[..., 0] = 7.71604938271605e-8*w_y**2
     out1 = numpy.empty(shape + (3,))
@@ -798,17 +1253,18 @@ def phi_gyro_quadratic_y(u, aux=numpy.zeros(5)):
     return out0, out1
 
 
-def phi_gyro_quadratic_z(u, aux=numpy.zeros(5)):
+def phi_gyro_quadratic_z(u, aux=numpy.zeros(6)):
     """gyro.quadratic.z: phi = 7.71604938271605e-8*w_z**2 and dphi/du."""
     w_x = u[..., 0]
     w_y = u[..., 1]
     w_z = u[..., 2]
     temp_c = aux[..., 0]
-    t_s = aux[..., 1]
-    f_x = aux[..., 2]
-    f_y = aux[..., 3]
-    f_z = aux[..., 4]
-    shape = numpy.broadcast_shapes(numpy.shape(w_x), numpy.shape(w_y), numpy.shape(w_z), numpy.shape(temp_c), numpy.shape(t_s), numpy.shape(f_x), numpy.shape(f_y), numpy.shape(f_z), )
+    dtemp_c = aux[..., 1]
+    t_s = aux[..., 2]
+    f_x = aux[..., 3]
+    f_y = aux[..., 4]
+    f_z = aux[..., 5]
+    shape = numpy.broadcast_shapes(numpy.shape(w_x), numpy.shape(w_y), numpy.shape(w_z), numpy.shape(temp_c), numpy.shape(dtemp_c), numpy.shape(t_s), numpy.shape(f_x), numpy.shape(f_y), numpy.shape(f_z), )
     out0 = numpy.empty(shape + (1,))
     out0[..., 0] = 7.71604938271605e-8*w_z**2
     out1 = numpy.empty(shape + (3,))
@@ -818,17 +1274,18 @@ def phi_gyro_quadratic_z(u, aux=numpy.zeros(5)):
     return out0, out1
 
 
-def phi_gyro_scale_asymmetry_x(u, aux=numpy.zeros(5)):
+def phi_gyro_scale_asymmetry_x(u, aux=numpy.zeros(6)):
     """gyro.scale_asymmetry.x: phi = Abs(w_x) and dphi/du."""
     w_x = u[..., 0]
     w_y = u[..., 1]
     w_z = u[..., 2]
     temp_c = aux[..., 0]
-    t_s = aux[..., 1]
-    f_x = aux[..., 2]
-    f_y = aux[..., 3]
-    f_z = aux[..., 4]
-    shape = numpy.broadcast_shapes(numpy.shape(w_x), numpy.shape(w_y), numpy.shape(w_z), numpy.shape(temp_c), numpy.shape(t_s), numpy.shape(f_x), numpy.shape(f_y), numpy.shape(f_z), )
+    dtemp_c = aux[..., 1]
+    t_s = aux[..., 2]
+    f_x = aux[..., 3]
+    f_y = aux[..., 4]
+    f_z = aux[..., 5]
+    shape = numpy.broadcast_shapes(numpy.shape(w_x), numpy.shape(w_y), numpy.shape(w_z), numpy.shape(temp_c), numpy.shape(dtemp_c), numpy.shape(t_s), numpy.shape(f_x), numpy.shape(f_y), numpy.shape(f_z), )
     out0 = numpy.empty(shape + (1,))
     out0[..., 0] = abs(w_x)
     out1 = numpy.empty(shape + (3,))
@@ -838,17 +1295,18 @@ def phi_gyro_scale_asymmetry_x(u, aux=numpy.zeros(5)):
     return out0, out1
 
 
-def phi_gyro_scale_asymmetry_y(u, aux=numpy.zeros(5)):
+def phi_gyro_scale_asymmetry_y(u, aux=numpy.zeros(6)):
     """gyro.scale_asymmetry.y: phi = Abs(w_y) and dphi/du."""
     w_x = u[..., 0]
     w_y = u[..., 1]
     w_z = u[..., 2]
     temp_c = aux[..., 0]
-    t_s = aux[..., 1]
-    f_x = aux[..., 2]
-    f_y = aux[..., 3]
-    f_z = aux[..., 4]
-    shape = numpy.broadcast_shapes(numpy.shape(w_x), numpy.shape(w_y), numpy.shape(w_z), numpy.shape(temp_c), numpy.shape(t_s), numpy.shape(f_x), numpy.shape(f_y), numpy.shape(f_z), )
+    dtemp_c = aux[..., 1]
+    t_s = aux[..., 2]
+    f_x = aux[..., 3]
+    f_y = aux[..., 4]
+    f_z = aux[..., 5]
+    shape = numpy.broadcast_shapes(numpy.shape(w_x), numpy.shape(w_y), numpy.shape(w_z), numpy.shape(temp_c), numpy.shape(dtemp_c), numpy.shape(t_s), numpy.shape(f_x), numpy.shape(f_y), numpy.shape(f_z), )
     out0 = numpy.empty(shape + (1,))
     out0[..., 0] = abs(w_y)
     out1 = numpy.empty(shape + (3,))
@@ -858,17 +1316,18 @@ def phi_gyro_scale_asymmetry_y(u, aux=numpy.zeros(5)):
     return out0, out1
 
 
-def phi_gyro_scale_asymmetry_z(u, aux=numpy.zeros(5)):
+def phi_gyro_scale_asymmetry_z(u, aux=numpy.zeros(6)):
     """gyro.scale_asymmetry.z: phi = Abs(w_z) and dphi/du."""
     w_x = u[..., 0]
     w_y = u[..., 1]
     w_z = u[..., 2]
     temp_c = aux[..., 0]
-    t_s = aux[..., 1]
-    f_x = aux[..., 2]
-    f_y = aux[..., 3]
-    f_z = aux[..., 4]
-    shape = numpy.broadcast_shapes(numpy.shape(w_x), numpy.shape(w_y), numpy.shape(w_z), numpy.shape(temp_c), numpy.shape(t_s), numpy.shape(f_x), numpy.shape(f_y), numpy.shape(f_z), )
+    dtemp_c = aux[..., 1]
+    t_s = aux[..., 2]
+    f_x = aux[..., 3]
+    f_y = aux[..., 4]
+    f_z = aux[..., 5]
+    shape = numpy.broadcast_shapes(numpy.shape(w_x), numpy.shape(w_y), numpy.shape(w_z), numpy.shape(temp_c), numpy.shape(dtemp_c), numpy.shape(t_s), numpy.shape(f_x), numpy.shape(f_y), numpy.shape(f_z), )
     out0 = numpy.empty(shape + (1,))
     out0[..., 0] = abs(w_z)
     out1 = numpy.empty(shape + (3,))
@@ -878,10 +1337,148 @@ def phi_gyro_scale_asymmetry_z(u, aux=numpy.zeros(5)):
     return out0, out1
 
 
+def phi_gyro_scale_temperature_x(u, aux=numpy.zeros(6)):
+    """gyro.scale_temperature.x: phi = dtemp_c*w_x and dphi/du."""
+    w_x = u[..., 0]
+    w_y = u[..., 1]
+    w_z = u[..., 2]
+    temp_c = aux[..., 0]
+    dtemp_c = aux[..., 1]
+    t_s = aux[..., 2]
+    f_x = aux[..., 3]
+    f_y = aux[..., 4]
+    f_z = aux[..., 5]
+    shape = numpy.broadcast_shapes(numpy.shape(w_x), numpy.shape(w_y), numpy.shape(w_z), numpy.shape(temp_c), numpy.shape(dtemp_c), numpy.shape(t_s), numpy.shape(f_x), numpy.shape(f_y), numpy.shape(f_z), )
+    out0 = numpy.empty(shape + (1,))
+    out0[..., 0] = dtemp_c*w_x
+    out1 = numpy.empty(shape + (3,))
+    out1[..., 0] = dtemp_c
+    out1[..., 1] = 0
+    out1[..., 2] = 0
+    return out0, out1
+
+
+def phi_gyro_scale_temperature_y(u, aux=numpy.zeros(6)):
+    """gyro.scale_temperature.y: phi = dtemp_c*w_y and dphi/du."""
+    w_x = u[..., 0]
+    w_y = u[..., 1]
+    w_z = u[..., 2]
+    temp_c = aux[..., 0]
+    dtemp_c = aux[..., 1]
+    t_s = aux[..., 2]
+    f_x = aux[..., 3]
+    f_y = aux[..., 4]
+    f_z = aux[..., 5]
+    shape = numpy.broadcast_shapes(numpy.shape(w_x), numpy.shape(w_y), numpy.shape(w_z), numpy.shape(temp_c), numpy.shape(dtemp_c), numpy.shape(t_s), numpy.shape(f_x), numpy.shape(f_y), numpy.shape(f_z), )
+    out0 = numpy.empty(shape + (1,))
+    out0[..., 0] = dtemp_c*w_y
+    out1 = numpy.empty(shape + (3,))
+    out1[..., 0] = 0
+    out1[..., 1] = dtemp_c
+    out1[..., 2] = 0
+    return out0, out1
+
+
+def phi_gyro_scale_temperature_z(u, aux=numpy.zeros(6)):
+    """gyro.scale_temperature.z: phi = dtemp_c*w_z and dphi/du."""
+    w_x = u[..., 0]
+    w_y = u[..., 1]
+    w_z = u[..., 2]
+    temp_c = aux[..., 0]
+    dtemp_c = aux[..., 1]
+    t_s = aux[..., 2]
+    f_x = aux[..., 3]
+    f_y = aux[..., 4]
+    f_z = aux[..., 5]
+    shape = numpy.broadcast_shapes(numpy.shape(w_x), numpy.shape(w_y), numpy.shape(w_z), numpy.shape(temp_c), numpy.shape(dtemp_c), numpy.shape(t_s), numpy.shape(f_x), numpy.shape(f_y), numpy.shape(f_z), )
+    out0 = numpy.empty(shape + (1,))
+    out0[..., 0] = dtemp_c*w_z
+    out1 = numpy.empty(shape + (3,))
+    out1[..., 0] = 0
+    out1[..., 1] = 0
+    out1[..., 2] = dtemp_c
+    return out0, out1
+
+
+def phi_gyro_scale_temperature2_x(u, aux=numpy.zeros(6)):
+    """gyro.scale_temperature2.x: phi = dtemp_c**2*w_x and dphi/du."""
+    w_x = u[..., 0]
+    w_y = u[..., 1]
+    w_z = u[..., 2]
+    temp_c = aux[..., 0]
+    dtemp_c = aux[..., 1]
+    t_s = aux[..., 2]
+    f_x = aux[..., 3]
+    f_y = aux[..., 4]
+    f_z = aux[..., 5]
+    _c0 = dtemp_c**2
+    shape = numpy.broadcast_shapes(numpy.shape(w_x), numpy.shape(w_y), numpy.shape(w_z), numpy.shape(temp_c), numpy.shape(dtemp_c), numpy.shape(t_s), numpy.shape(f_x), numpy.shape(f_y), numpy.shape(f_z), )
+    out0 = numpy.empty(shape + (1,))
+    out0[..., 0] = _c0*w_x
+    out1 = numpy.empty(shape + (3,))
+    out1[..., 0] = _c0
+    out1[..., 1] = 0
+    out1[..., 2] = 0
+    return out0, out1
+
+
+def phi_gyro_scale_temperature2_y(u, aux=numpy.zeros(6)):
+    """gyro.scale_temperature2.y: phi = dtemp_c**2*w_y and dphi/du."""
+    w_x = u[..., 0]
+    w_y = u[..., 1]
+    w_z = u[..., 2]
+    temp_c = aux[..., 0]
+    dtemp_c = aux[..., 1]
+    t_s = aux[..., 2]
+    f_x = aux[..., 3]
+    f_y = aux[..., 4]
+    f_z = aux[..., 5]
+    _c0 = dtemp_c**2
+    shape = numpy.broadcast_shapes(numpy.shape(w_x), numpy.shape(w_y), numpy.shape(w_z), numpy.shape(temp_c), numpy.shape(dtemp_c), numpy.shape(t_s), numpy.shape(f_x), numpy.shape(f_y), numpy.shape(f_z), )
+    out0 = numpy.empty(shape + (1,))
+    out0[..., 0] = _c0*w_y
+    out1 = numpy.empty(shape + (3,))
+    out1[..., 0] = 0
+    out1[..., 1] = _c0
+    out1[..., 2] = 0
+    return out0, out1
+
+
+def phi_gyro_scale_temperature2_z(u, aux=numpy.zeros(6)):
+    """gyro.scale_temperature2.z: phi = dtemp_c**2*w_z and dphi/du."""
+    w_x = u[..., 0]
+    w_y = u[..., 1]
+    w_z = u[..., 2]
+    temp_c = aux[..., 0]
+    dtemp_c = aux[..., 1]
+    t_s = aux[..., 2]
+    f_x = aux[..., 3]
+    f_y = aux[..., 4]
+    f_z = aux[..., 5]
+    _c0 = dtemp_c**2
+    shape = numpy.broadcast_shapes(numpy.shape(w_x), numpy.shape(w_y), numpy.shape(w_z), numpy.shape(temp_c), numpy.shape(dtemp_c), numpy.shape(t_s), numpy.shape(f_x), numpy.shape(f_y), numpy.shape(f_z), )
+    out0 = numpy.empty(shape + (1,))
+    out0[..., 0] = _c0*w_z
+    out1 = numpy.empty(shape + (3,))
+    out1[..., 0] = 0
+    out1[..., 1] = 0
+    out1[..., 2] = _c0
+    return out0, out1
+
+
 EFFECTS = {
     'acc.bias_drift_time.x': Effect('acc', 0, 'bt_x', 'g/s', 'x accelerometer bias drifting linearly in time', phi_acc_bias_drift_time_x),
     'acc.bias_drift_time.y': Effect('acc', 1, 'bt_y', 'g/s', 'y accelerometer bias drifting linearly in time', phi_acc_bias_drift_time_y),
     'acc.bias_drift_time.z': Effect('acc', 2, 'bt_z', 'g/s', 'z accelerometer bias drifting linearly in time', phi_acc_bias_drift_time_z),
+    'acc.bias_temperature.x': Effect('acc', 0, 'bT_x', 'g/degC', 'x accelerometer bias changing linearly with temperature (from T_ref)', phi_acc_bias_temperature_x),
+    'acc.bias_temperature.y': Effect('acc', 1, 'bT_y', 'g/degC', 'y accelerometer bias changing linearly with temperature (from T_ref)', phi_acc_bias_temperature_y),
+    'acc.bias_temperature.z': Effect('acc', 2, 'bT_z', 'g/degC', 'z accelerometer bias changing linearly with temperature (from T_ref)', phi_acc_bias_temperature_z),
+    'acc.bias_temperature2.x': Effect('acc', 0, 'bT2_x', 'g/degC^2', 'x accelerometer bias changing quadratically with temperature (from T_ref)', phi_acc_bias_temperature2_x),
+    'acc.bias_temperature2.y': Effect('acc', 1, 'bT2_y', 'g/degC^2', 'y accelerometer bias changing quadratically with temperature (from T_ref)', phi_acc_bias_temperature2_y),
+    'acc.bias_temperature2.z': Effect('acc', 2, 'bT2_z', 'g/degC^2', 'z accelerometer bias changing quadratically with temperature (from T_ref)', phi_acc_bias_temperature2_z),
+    'acc.bias_temperature3.x': Effect('acc', 0, 'bT3_x', 'g/degC^3', 'x accelerometer bias changing cubically with temperature (from T_ref)', phi_acc_bias_temperature3_x),
+    'acc.bias_temperature3.y': Effect('acc', 1, 'bT3_y', 'g/degC^3', 'y accelerometer bias changing cubically with temperature (from T_ref)', phi_acc_bias_temperature3_y),
+    'acc.bias_temperature3.z': Effect('acc', 2, 'bT3_z', 'g/degC^3', 'z accelerometer bias changing cubically with temperature (from T_ref)', phi_acc_bias_temperature3_z),
     'acc.cross_coupling.xy': Effect('acc', 0, 'Kc_xy', 'g/g^2', 'x accelerometer output proportional to f_x f_y (cross-axis coupling)', phi_acc_cross_coupling_xy),
     'acc.cross_coupling.xz': Effect('acc', 0, 'Kc_xz', 'g/g^2', 'x accelerometer output proportional to f_x f_z (cross-axis coupling)', phi_acc_cross_coupling_xz),
     'acc.cross_coupling.yx': Effect('acc', 1, 'Kc_yx', 'g/g^2', 'y accelerometer output proportional to f_y f_x (cross-axis coupling)', phi_acc_cross_coupling_yx),
@@ -894,6 +1491,12 @@ EFFECTS = {
     'acc.scale_asymmetry.x': Effect('acc', 0, 'Ka_x', '1', 'x accelerometer scale factor differs for positive and negative inputs', phi_acc_scale_asymmetry_x),
     'acc.scale_asymmetry.y': Effect('acc', 1, 'Ka_y', '1', 'y accelerometer scale factor differs for positive and negative inputs', phi_acc_scale_asymmetry_y),
     'acc.scale_asymmetry.z': Effect('acc', 2, 'Ka_z', '1', 'z accelerometer scale factor differs for positive and negative inputs', phi_acc_scale_asymmetry_z),
+    'acc.scale_temperature.x': Effect('acc', 0, 'kT_x', '1/degC', 'x accelerometer scale factor changing linearly with temperature (from T_ref)', phi_acc_scale_temperature_x),
+    'acc.scale_temperature.y': Effect('acc', 1, 'kT_y', '1/degC', 'y accelerometer scale factor changing linearly with temperature (from T_ref)', phi_acc_scale_temperature_y),
+    'acc.scale_temperature.z': Effect('acc', 2, 'kT_z', '1/degC', 'z accelerometer scale factor changing linearly with temperature (from T_ref)', phi_acc_scale_temperature_z),
+    'acc.scale_temperature2.x': Effect('acc', 0, 'kT2_x', '1/degC^2', 'x accelerometer scale factor changing quadratically with temperature (from T_ref)', phi_acc_scale_temperature2_x),
+    'acc.scale_temperature2.y': Effect('acc', 1, 'kT2_y', '1/degC^2', 'y accelerometer scale factor changing quadratically with temperature (from T_ref)', phi_acc_scale_temperature2_y),
+    'acc.scale_temperature2.z': Effect('acc', 2, 'kT2_z', '1/degC^2', 'z accelerometer scale factor changing quadratically with temperature (from T_ref)', phi_acc_scale_temperature2_z),
     'acc.size_effect.xx': Effect('acc', 0, 'r_xx', 'm', 'x accelerometer x lever arm (size effect under rotation)', phi_acc_size_effect_xx),
     'acc.size_effect.xy': Effect('acc', 0, 'r_xy', 'm', 'x accelerometer y lever arm (size effect under rotation)', phi_acc_size_effect_xy),
     'acc.size_effect.xz': Effect('acc', 0, 'r_xz', 'm', 'x accelerometer z lever arm (size effect under rotation)', phi_acc_size_effect_xz),
@@ -906,9 +1509,15 @@ EFFECTS = {
     'gyro.bias_drift_time.x': Effect('gyro', 0, 'btg_x', '(deg/h)/s', 'x gyro bias drifting linearly in time', phi_gyro_bias_drift_time_x),
     'gyro.bias_drift_time.y': Effect('gyro', 1, 'btg_y', '(deg/h)/s', 'y gyro bias drifting linearly in time', phi_gyro_bias_drift_time_y),
     'gyro.bias_drift_time.z': Effect('gyro', 2, 'btg_z', '(deg/h)/s', 'z gyro bias drifting linearly in time', phi_gyro_bias_drift_time_z),
-    'gyro.bias_temperature.x': Effect('gyro', 0, 'bT_x', '(deg/h)/degC', 'x gyro bias changing with temperature', phi_gyro_bias_temperature_x),
-    'gyro.bias_temperature.y': Effect('gyro', 1, 'bT_y', '(deg/h)/degC', 'y gyro bias changing with temperature', phi_gyro_bias_temperature_y),
-    'gyro.bias_temperature.z': Effect('gyro', 2, 'bT_z', '(deg/h)/degC', 'z gyro bias changing with temperature', phi_gyro_bias_temperature_z),
+    'gyro.bias_temperature.x': Effect('gyro', 0, 'bTg_x', '(deg/h)/degC', 'x gyro bias changing linearly with temperature (from T_ref)', phi_gyro_bias_temperature_x),
+    'gyro.bias_temperature.y': Effect('gyro', 1, 'bTg_y', '(deg/h)/degC', 'y gyro bias changing linearly with temperature (from T_ref)', phi_gyro_bias_temperature_y),
+    'gyro.bias_temperature.z': Effect('gyro', 2, 'bTg_z', '(deg/h)/degC', 'z gyro bias changing linearly with temperature (from T_ref)', phi_gyro_bias_temperature_z),
+    'gyro.bias_temperature2.x': Effect('gyro', 0, 'bT2g_x', '(deg/h)/degC^2', 'x gyro bias changing quadratically with temperature (from T_ref)', phi_gyro_bias_temperature2_x),
+    'gyro.bias_temperature2.y': Effect('gyro', 1, 'bT2g_y', '(deg/h)/degC^2', 'y gyro bias changing quadratically with temperature (from T_ref)', phi_gyro_bias_temperature2_y),
+    'gyro.bias_temperature2.z': Effect('gyro', 2, 'bT2g_z', '(deg/h)/degC^2', 'z gyro bias changing quadratically with temperature (from T_ref)', phi_gyro_bias_temperature2_z),
+    'gyro.bias_temperature3.x': Effect('gyro', 0, 'bT3g_x', '(deg/h)/degC^3', 'x gyro bias changing cubically with temperature (from T_ref)', phi_gyro_bias_temperature3_x),
+    'gyro.bias_temperature3.y': Effect('gyro', 1, 'bT3g_y', '(deg/h)/degC^3', 'y gyro bias changing cubically with temperature (from T_ref)', phi_gyro_bias_temperature3_y),
+    'gyro.bias_temperature3.z': Effect('gyro', 2, 'bT3g_z', '(deg/h)/degC^3', 'z gyro bias changing cubically with temperature (from T_ref)', phi_gyro_bias_temperature3_z),
     'gyro.g_sensitivity.xx': Effect('gyro', 0, 'G_xx', '(deg/h)/g', 'x gyro output proportional to the specific force along x (g-sensitivity)', phi_gyro_g_sensitivity_xx),
     'gyro.g_sensitivity.xy': Effect('gyro', 0, 'G_xy', '(deg/h)/g', 'x gyro output proportional to the specific force along y (g-sensitivity)', phi_gyro_g_sensitivity_xy),
     'gyro.g_sensitivity.xz': Effect('gyro', 0, 'G_xz', '(deg/h)/g', 'x gyro output proportional to the specific force along z (g-sensitivity)', phi_gyro_g_sensitivity_xz),
@@ -924,11 +1533,17 @@ EFFECTS = {
     'gyro.scale_asymmetry.x': Effect('gyro', 0, 'Kag_x', '1', 'x gyro scale factor differs for positive and negative rates', phi_gyro_scale_asymmetry_x),
     'gyro.scale_asymmetry.y': Effect('gyro', 1, 'Kag_y', '1', 'y gyro scale factor differs for positive and negative rates', phi_gyro_scale_asymmetry_y),
     'gyro.scale_asymmetry.z': Effect('gyro', 2, 'Kag_z', '1', 'z gyro scale factor differs for positive and negative rates', phi_gyro_scale_asymmetry_z),
+    'gyro.scale_temperature.x': Effect('gyro', 0, 'kTg_x', '1/degC', 'x gyro scale factor changing linearly with temperature (from T_ref)', phi_gyro_scale_temperature_x),
+    'gyro.scale_temperature.y': Effect('gyro', 1, 'kTg_y', '1/degC', 'y gyro scale factor changing linearly with temperature (from T_ref)', phi_gyro_scale_temperature_y),
+    'gyro.scale_temperature.z': Effect('gyro', 2, 'kTg_z', '1/degC', 'z gyro scale factor changing linearly with temperature (from T_ref)', phi_gyro_scale_temperature_z),
+    'gyro.scale_temperature2.x': Effect('gyro', 0, 'kT2g_x', '1/degC^2', 'x gyro scale factor changing quadratically with temperature (from T_ref)', phi_gyro_scale_temperature2_x),
+    'gyro.scale_temperature2.y': Effect('gyro', 1, 'kT2g_y', '1/degC^2', 'y gyro scale factor changing quadratically with temperature (from T_ref)', phi_gyro_scale_temperature2_y),
+    'gyro.scale_temperature2.z': Effect('gyro', 2, 'kT2g_z', '1/degC^2', 'z gyro scale factor changing quadratically with temperature (from T_ref)', phi_gyro_scale_temperature2_z),
 }
 
 
 # family: what a turntable plan needs to tell it from the baseline (derive/models/effects.py)
-SEPARATE = {'quadratic': 'static positions at several levels and both signs of the input on that axis (e.g. --plan fibonacci48); for gyros rate runs at several rates (e.g. 5, 10, 20 deg/s)', 'scale_asymmetry': 'inputs of both signs on that axis (for gyros, rate runs of both signs)', 'cross_coupling': 'static positions where both axes carry input at once (e.g. --plan fibonacci48)', 'bias_drift_time': 'positions revisited at the start and the end of the test', 'bias_temperature': 'a temperature sweep across the positions (a temp_c column)', 'size_effect': 'rate runs with the accelerometers recorded during them, at several attitudes and rates', 'g_sensitivity': 'rate runs of both signs at each attitude: the specific force keeps its direction while the rate flips, which separates G f from the scale and misalignment'}
+SEPARATE = {'quadratic': 'static positions at several levels and both signs of the input on that axis (e.g. --plan fibonacci48); for gyros rate runs at several rates (e.g. 5, 10, 20 deg/s)', 'scale_asymmetry': 'inputs of both signs on that axis (for gyros, rate runs of both signs)', 'cross_coupling': 'static positions where both axes carry input at once (e.g. --plan fibonacci48)', 'bias_drift_time': 'positions revisited at the start and the end of the test', 'bias_temperature': 'a temperature sweep across the positions (a temp_c column)', 'bias_temperature2': 'a temperature sweep across the positions at three or more temperatures', 'bias_temperature3': 'a temperature sweep across the positions at four or more temperatures', 'scale_temperature': 'inputs of both signs on that axis at several temperatures (a temp_c column)', 'scale_temperature2': 'inputs of both signs on that axis at three or more temperatures', 'size_effect': 'rate runs with the accelerometers recorded during them, at several attitudes and rates', 'g_sensitivity': 'rate runs of both signs at each attitude: the specific force keeps its direction while the rate flips, which separates G f from the scale and misalignment'}
 
 # gyro family: what a hand-placed session's moves need
-SEPARATE_MOVES = {'quadratic': 'moves at several rates, fast and slow, about that axis', 'scale_asymmetry': 'moves turning both ways about that axis', 'bias_drift_time': 'moves spread over a longer session', 'bias_temperature': 'a temp_c column, with the temperature changing over the session', 'g_sensitivity': 'moves made with that axis at several attitudes to gravity'}
+SEPARATE_MOVES = {'quadratic': 'moves at several rates, fast and slow, about that axis', 'scale_asymmetry': 'moves turning both ways about that axis', 'bias_drift_time': 'moves spread over a longer session', 'bias_temperature': 'a temp_c column, with the temperature changing over the session', 'bias_temperature2': 'a temp_c column, with the temperature spanning a wide range over the session', 'bias_temperature3': 'a temp_c column, with the temperature spanning a wide range over the session', 'scale_temperature': 'moves about that axis at several temperatures (a temp_c column)', 'scale_temperature2': 'moves about that axis at three or more temperatures', 'g_sensitivity': 'moves made with that axis at several attitudes to gravity'}

@@ -3,9 +3,13 @@
 The method comes from the registry (methods.py): the one named, or by default the
 first that takes the set's data (a turntable test: dong2018's exact method; a
 stream: the hand-placed session; a field set: ruan2019). Every method returns the
-calibration file's dict (io/calibration.py).
+calibration file's dict (io/calibration.py). `calibrate_thermal` calibrates one unit at
+several temperature plateaus, each by its method, and fits every parameter as a
+polynomial in temperature (fit/thermal.py).
 """
 from __future__ import annotations
+
+import numpy as np
 
 from simucal import io, methods
 from simucal.errors import CalibrationError
@@ -14,14 +18,16 @@ from simucal.io.sensor_checks import stuck_channels
 
 
 def calibrate(folder, method="auto", acc_model="acc_baseline", gyro_model="gyro_baseline", detect=None,
-              add=(), acc_noise_g=None, gyro_noise_dph=None, heading_accuracy_deg=5.0) -> dict:
+              add=(), acc_noise_g=None, gyro_noise_dph=None, heading_accuracy_deg=5.0, t_ref_c=None) -> dict:
     """Calibrate a measurement set. method: a name of methods.METHODS, or "auto" (the default for
     the set's data). add: effect ids and model files (augmented.resolve_add), and "auto": the
     library effects a failing model needs, chosen one at a time (each sensor's block lists them
     under `auto`); acc_noise_g / gyro_noise_dph: the noise of one row where the data cannot give
     it; detect: a stream's static detection settings; heading_accuracy_deg: a field set's north
-    reference. Options a method does not take are refused when set."""
-    ms = io.read_set(folder)
+    reference; t_ref_c: T_ref of temperature terms (default the mean of temp_c). Options a method
+    does not take are refused when set."""
+    ms = io.read_set(folder) if not isinstance(folder, io.MeasurementSet) else folder
+    ms.temperature_ref_c = t_ref_c
     try:
         m = methods.choose(method, ms)
         stuck_channels(ms)
@@ -53,3 +59,97 @@ def calibrate_to_file(folder, output, kwargs: dict):
         return result, None
     except (io.MeasurementSetError, CalibrationError, KeyError, FileNotFoundError, ValueError) as e:
         return None, str(e.args[0] if isinstance(e, KeyError) and e.args else e)
+
+
+PLAUSIBLE_C = (-60.0, 150.0)  # beyond any unit's operating range: a column in another unit (K, degF) or broken
+PLATEAU_SPREAD_C = 2.0  # a plateau's temp_c wider than this (peak to peak) is a sweep, not a plateau
+
+
+def _plateau(folder):
+    """A plateau's set and its temperature (the mean of temp_c), refused without a plausible temp_c."""
+    ms = io.read_set(folder)
+    if "temp_c" not in ms.samples:
+        raise CalibrationError(f"{ms.path / 'samples.csv'}: no temp_c column, so no plateau temperature: a thermal "
+                               "calibration needs the unit's temperature on every row")
+    T = ms.samples["temp_c"]
+    if T.min() < PLAUSIBLE_C[0] or T.max() > PLAUSIBLE_C[1]:
+        raise CalibrationError(f"{ms.path / 'samples.csv'}: temp_c runs {T.min():.4g} to {T.max():.4g}, outside any "
+                               f"unit's range {PLAUSIBLE_C} degC: is the column in kelvin or degF?")
+    return ms, float(T.mean())
+
+
+def _thermal_block(blocks, T_k, t_ref_c, degree, sensor, plateaus):
+    """One sensor's block: every parameter's polynomial, the block at T_ref (params = c_0)."""
+    from simucal.fit.augmented import AugmentedModel
+    from simucal.fit.thermal import fit_polynomial
+    first = blocks[0]
+    if "params" not in first:
+        raise CalibrationError(f"{sensor}: method {first.get('description', first['model'])} writes no model "
+                               "parameters to follow over temperature; use --method exact (a turntable) or handheld")
+    for b, p in zip(blocks, plateaus):
+        if (b["model"], list(b["effects"]), list(b["params"])) != (first["model"], list(first["effects"]),
+                                                                  list(first["params"])):
+            raise CalibrationError(f"{p}: the {sensor} model ({b['model']} + {list(b['effects'])}) differs from the "
+                                   f"first plateau's ({first['model']} + {list(first['effects'])}): a thermal "
+                                   "calibration needs one model at every plateau (name its effects with --add)")
+    names = list(first["params"])
+    fits = {n: fit_polynomial(T_k, [b["params"][n] for b in blocks], [b["std"][n] for b in blocks], t_ref_c, degree)
+            for n in names}
+    for n, f in fits.items():
+        f.update(per_plateau=[b["params"][n] for b in blocks], per_plateau_std=[b["std"][n] for b in blocks])
+    p0 = np.array([fits[n]["coefficients"][0] for n in names])
+    nearest = blocks[int(np.argmin(np.abs(np.asarray(T_k) - t_ref_c)))]
+    model = AugmentedModel(first["model"], calibration.library_effects(first))
+    M, bias = model.matrix_and_bias(p0)
+    C = np.asarray(nearest.get("C_b_model", np.eye(3)), float)
+    block = {k: first[k] for k in ("model", "model_source", "bias_unit", "param_units") if k in first}
+    block.update(effects={e: {**first["effects"][e], "value": fits[e]["coefficients"][0], "std": fits[e]["std"][0]}
+                          for e in first["effects"]},
+                 params={n: fits[n]["coefficients"][0] for n in names}, std={n: fits[n]["std"][0] for n in names},
+                 M=(M @ C).tolist(), bias=np.asarray(bias).tolist(),
+                 thermal={"t_ref_c": t_ref_c, "plateaus_c": list(T_k), "parameters": fits},
+                 plateaus=[{"input": p, "temp_c": t, "p_value": b.get("p_value"), "residual_rms": b.get("residual_rms"),
+                            "residual_unit": b.get("residual_unit")} for p, t, b in zip(plateaus, T_k, blocks)])
+    if "C_b_model" in first:
+        block["C_b_model"] = C.tolist()
+        block["M_in_d"] = M.tolist()
+    return block
+
+
+def calibrate_thermal(folders, degree=None, t_ref_c=None, **kwargs) -> dict:
+    """One unit at two or more temperature plateaus (one set each, its temperature the mean of its
+    temp_c): each plateau calibrated alone by calibrate(**kwargs), then every parameter of the
+    model a polynomial in (T - T_ref) (fit/thermal.py; degree None: chosen by the data).
+    T_ref: t_ref_c, else the mean of the plateaus' temperatures. The file holds the unit at
+    T_ref and, per sensor, `thermal` (the polynomials) that apply evaluates at each row's temp_c."""
+    if len(folders) < 2:
+        raise CalibrationError("--thermal needs two or more plateaus (one set each): one plateau shows no "
+                               "temperature dependence; calibrate it without --thermal")
+    if degree is not None and not 0 <= degree <= min(3, len(folders) - 1):
+        raise CalibrationError(f"--thermal-degree {degree}: between 0 and {min(3, len(folders) - 1)} "
+                               f"({len(folders)} plateaus fit at most degree {len(folders) - 1})")
+    sets = [_plateau(f) for f in folders]
+    T_k = [t for _, t in sets]
+    if max(T_k) - min(T_k) < PLATEAU_SPREAD_C:
+        raise CalibrationError(f"the plateaus' temperatures {[round(t, 2) for t in T_k]} degC span "
+                               f"{max(T_k) - min(T_k):.2g} degC: too little to see a temperature dependence (the "
+                               f"plateaus should differ by more than {PLATEAU_SPREAD_C:g} degC)")
+    t_ref = float(np.mean(T_k)) if t_ref_c is None else float(t_ref_c)
+    cals = []
+    for ms, t in sets:
+        cals.append(calibrate(ms, t_ref_c=t, **kwargs))  # each plateau at its own temperature
+        calibration.check_layout(cals[0], ms, f"the first plateau ({sets[0][0].path})")
+    plateaus = [str(ms.path) for ms, _ in sets]
+    result = {k: v for k, v in cals[0].items() if k not in ("acc", "gyro", "warnings")}
+    result.update(method=f"thermal ({cals[0]['method']} per plateau)", input=plateaus,
+                  input_sha256=[c["input_sha256"] for c in cals], t_ref_c=t_ref,
+                  temperature_range_c=[min(T_k), max(T_k)])
+    for s in cals[0]["layout"]["sensors"]:
+        result[s] = _thermal_block([c[s] for c in cals], T_k, t_ref, degree, s, plateaus)
+    spread = [f"{ms.path}: temp_c spans {np.ptp(ms.samples['temp_c']):.3g} degC, more than a plateau's "
+              f"{PLATEAU_SPREAD_C:g} degC (its parameters are taken at its mean {t:.4g} degC)"
+              for ms, t in sets if np.ptp(ms.samples["temp_c"]) > PLATEAU_SPREAD_C]
+    warnings = spread + [w for c in cals for w in c.get("warnings", [])]
+    if warnings:
+        result["warnings"] = warnings
+    return result

@@ -224,6 +224,9 @@ def _sensor_lines(result):
         b = result.get(s)
         if not b or b.get("nominal"):
             continue
+        if "thermal" in b:
+            yield from _thermal_lines(s, b)
+            continue
         if b.get("residual_rms") is None:  # a method without a fit of its own rows (field: the drift alone)
             yield (f"{s}: bias ({b['bias_unit']}, {b['description']}): " + ", ".join(
                 f"{a} {v:+.4g} +- {e:.2g}" for a, v, e in zip("xyz", b["bias"], b["std"]["bias"])))
@@ -300,10 +303,33 @@ def _sensor_lines(result):
         yield f"WARNING: {line}"
 
 
+def _thermal_lines(s, b):
+    """A thermal block: the plateaus' tests, then every parameter that follows temperature."""
+    th = b["thermal"]
+    yield (f"{s}: {len(th['plateaus_c'])} plateaus at " + ", ".join(f"{t:.4g}" for t in th["plateaus_c"])
+           + f" degC, T_ref {th['t_ref_c']:.4g} degC; per plateau p = "
+           + ", ".join("-" if x["p_value"] is None else f"{x['p_value']:.3g}" for x in b["plateaus"]))
+    moving = {n: f for n, f in th["parameters"].items() if f["degree"] > 0}
+    for n, f in moving.items():
+        unit = b.get("param_units", {}).get(n, "")
+        terms = " ".join((f"{c:.4g}" if not k else f"{'+' if c >= 0 else '-'} {abs(c):.4g}")
+                         + (f" dT^{k}" if k > 1 else " dT" if k else "") for k, c in enumerate(f["coefficients"]))
+        yield f"{s}: {n} = {terms} ({unit}; dT = T - T_ref in degC; degree {f['degree']} chosen by the data)"
+    yield (f"{s}: {len(th['parameters']) - len(moving)} of {len(th['parameters'])} parameters constant over the "
+           "plateaus (a temperature dependence below their noise)")
+
+
 @main.command()
 @click.argument("data_dirs", nargs=-1, required=True, type=click.Path(exists=True, file_okay=False))
 @click.option("-o", "--output", type=click.Path(), default="calibration.json", show_default=True,
-              help="The calibration file; with several sets, a folder that gets one <set>.json each.")
+              help="The calibration file; with several sets, a folder that gets one <set>.json each (with "
+                   "--thermal: one file).")
+@click.option("--thermal", is_flag=True, help="The sets are one unit at several temperature plateaus (temp_c): every "
+              "parameter a polynomial in T - T_ref, applied at each row's temp_c.")
+@click.option("--thermal-degree", type=click.IntRange(0, 3), default=None,
+              help="--thermal: the polynomials' degree (default: chosen by the data per parameter).")
+@click.option("--t-ref-c", type=Number(-60.0, 150.0), default=None,
+              help="T_ref of temperature terms, degC (default: the mean of temp_c; --thermal: of the plateaus).")
 @click.option("--method", type=click.Choice(("auto",) + methods.NAMES), default="auto", show_default=True,
               help="auto: the default for the set's data. " + " ".join(
                   f"{m.name}: {m.summary} ({methods.DATA[m.data]})." for m in methods.METHODS.values()))
@@ -320,8 +346,8 @@ def _sensor_lines(result):
 @HEADING_ACCURACY
 @click.option("--scheduler", default="local", show_default=True,
               help="Several sets: local, processes (a Dask LocalCluster) or a Dask scheduler's address.")
-def calibrate(data_dirs, output, method, acc_model, gyro_model, add, acc_noise_g, gyro_noise_dph, init_rest_s,
-              threshold_factor, window_s, min_static_s, heading_accuracy_deg, scheduler):
+def calibrate(data_dirs, output, thermal, thermal_degree, t_ref_c, method, acc_model, gyro_model, add, acc_noise_g,
+              gyro_noise_dph, init_rest_s, threshold_factor, window_s, min_static_s, heading_accuracy_deg, scheduler):
     """Calibrate measurement sets; write calibration.json (one per set into a folder for several).
 
     With segments.csv and table angles: a turntable test (dong2018). Without segments.csv: a
@@ -333,6 +359,9 @@ def calibrate(data_dirs, output, method, acc_model, gyro_model, add, acc_noise_g
                   detect=DetectSettings(window_s, threshold_factor, min_static_s, init_rest_s), add=add,
                   acc_noise_g=acc_noise_g, gyro_noise_dph=gyro_noise_dph, heading_accuracy_deg=heading_accuracy_deg)
     inputs = list(data_dirs) + [a for a in add if a.endswith(".py")]
+    if thermal or thermal_degree is not None:
+        return _calibrate_thermal(data_dirs, output, thermal_degree, t_ref_c, kwargs, inputs)
+    kwargs["t_ref_c"] = t_ref_c
     if len(data_dirs) == 1:
         _guard(inputs, files=[output])
         result, error = calibrate_to_file(Path(data_dirs[0]), output, kwargs)
@@ -376,6 +405,22 @@ def calibrate(data_dirs, output, method, acc_model, gyro_model, add, acc_noise_g
         sys.exit(2)
 
 
+def _calibrate_thermal(data_dirs, output, degree, t_ref_c, kwargs, inputs):
+    from simucal.calibrate import calibrate_thermal
+    from simucal.errors import CalibrationError
+    from simucal.io import calibration
+    _guard(inputs, files=[output])
+    try:
+        result = calibrate_thermal([Path(d) for d in data_dirs], degree, t_ref_c, **kwargs)
+        calibration.save(output, result)
+    except (ValueError, KeyError, CalibrationError) as e:
+        _fail(e)
+    for line in _sensor_lines(result):
+        click.echo(line)
+    click.echo(f"wrote {output} (method {result['method']}; calibrated from {result['temperature_range_c'][0]:.4g} to "
+               f"{result['temperature_range_c'][1]:.4g} degC)")
+
+
 @main.command("apply")
 @click.argument("calibration_file", type=click.Path(exists=True, dir_okay=False))
 @click.argument("data_dir", type=click.Path(exists=True, file_okay=False))
@@ -394,6 +439,8 @@ def apply_cmd(calibration_file, data_dir, out_dir, force):
     except (ValueError, KeyError) as e:  # MeasurementSetError, CalibrationError, CalibrationFileError
         _fail(e)
     io.write_set(out_dir, meta, samples, segments)
+    for line in meta.get("warnings", []):
+        click.echo(f"WARNING: {line}")
     click.echo(f"wrote {out_dir}: {len(samples['t_s'])} rows in g and deg/h (frame b), calibrated by "
                f"{calibration_file}")
 

@@ -4,8 +4,11 @@ The loop: simulate a turntable test with a hidden effect (written only to
 truth.json), calibrate with the baseline model (it fails, and says what to
 add), diagnose (which effect is missing), calibrate with it, apply both
 calibrations to the raw outputs, and show the error falling; then validate both on
-another recording of the same unit (a set they were not made from). Then dong2018's
-section 4 test by the three methods, the audit, and the diagnosis report.
+another recording of the same unit (a set they were not made from). Then the same
+unit over temperature (three plateaus, `calibrate --thermal`, validated between them
+against one plateau's calibration) and the noise of a still recording (Allan
+deviation, IEEE 952 terms); then dong2018's section 4 test by the three methods, the
+audit, and the diagnosis report.
 """
 from __future__ import annotations
 
@@ -21,10 +24,11 @@ from simucal.fit.apply import apply
 from simucal.io import calibration, outputs
 from simucal.report import markdown as report
 from simucal.report.html import render
-from simucal.turntable.simulate import SCENARIOS, write
+from simucal.turntable.simulate import SCENARIOS, plant, write
 
 HIDDEN = {"acc.quadratic.z": 2e-4}  # g/g^2: a z accelerometer second-order nonlinearity
-SETS = ("loop", "loop_applied", "loop_other", "paper")  # the measurement sets it writes under its folder
+SETS = ("loop", "loop_applied", "loop_other", "thermal_0", "thermal_25", "thermal_50", "thermal_35", "still",
+        "paper")  # the measurement sets it writes under its folder
 MARKER = "demo.json"  # written last: the folder is a demo's, and a later demo may replace its sets
 
 
@@ -94,6 +98,52 @@ def _validate(out: Path, sc, seed: int, echo) -> dict:
     return {n: r["checks"]["acc"][0]["after_rms"] for n, r in reps.items()}
 
 
+THERMAL = {"acc.bias_temperature.x": 1e-5, "acc.scale_temperature.z": 1e-5, "gyro.bias_temperature.z": 0.01}
+
+
+def thermal(out: Path, seed: int, echo) -> dict:
+    """The unit over temperature: plateaus at 0, 25 and 50 degC calibrated with --thermal, and both it
+    and the 25 degC plateau's calibration validated at 35 degC on another plan."""
+    from simucal.calibrate import calibrate_thermal
+    from simucal.validate import validate
+
+    def plateau(T, k, plan="fibonacci48"):
+        sc = SCENARIOS["paper"]()
+        sc.plan, sc.temp_c, sc.t_ref_c = plan, (T, T), 25.0
+        plant(sc, [f"{e}={v}" for e, v in THERMAL.items()])
+        write(out / f"thermal_{T}", sc, seed + k)
+        return out / f"thermal_{T}"
+    sets = [plateau(T, k) for k, T in enumerate((0, 25, 50))]
+    cal = calibrate_thermal(sets)
+    calibration.save(out / "thermal_calibration.json", cal)
+    calibration.save(out / "thermal_calibration_25.json", calibrate(sets[1]))
+    moving = [f"{s}.{n} degree {f['degree']}" for s in ("acc", "gyro")
+              for n, f in cal[s]["thermal"]["parameters"].items() if f["degree"]]
+    echo(f"7 calibrate --thermal {' '.join(p.name for p in sets)}: T_ref {cal['t_ref_c']:.3g} degC; following "
+         f"temperature: {', '.join(moving)} (planted: {', '.join(THERMAL)})")
+    other = plateau(35, 7, "table1")
+    reps = {n: validate(out / f"thermal_calibration{n}.json", other) for n in ("", "_25")}
+    echo(f"   validate at 35 degC ({other}): {'':2} {'thermal':>9} {'25 degC only':>13} {'floor':>9}")
+    for s in ("acc", "gyro"):
+        a, b = reps[""]["checks"][s][0], reps["_25"]["checks"][s][0]
+        echo(f"   {a['what'][:40]:40} {a['after_rms']:9.3g} {b['after_rms']:13.3g} {a['floor_rms']:9.3g} {a['unit']}")
+    return {s: (reps[""]["checks"][s][0]["after_rms"], reps["_25"]["checks"][s][0]["after_rms"]) for s in ("acc", "gyro")}
+
+
+def noise(out: Path, seed: int, echo) -> None:
+    """The noise of a still recording: Allan deviation and the IEEE 952 terms, with the plot."""
+    from simucal.allan import characterise, html_page
+    from simucal.handheld.simulate import write_still
+    write_still(out / "still", seconds=600.0, seed=seed)
+    rep = characterise(io.read_set(out / "still"))
+    outputs.write_text(out / "noise.json", json.dumps(rep, indent=1) + "\n")
+    outputs.write_text(out / "noise.html", html_page(rep))
+    g, a = rep["gyro"]["axes"]["x"]["sheet"]["N"], rep["acc"]["axes"]["x"]["sheet"]["N"]
+    echo(f"8 noise of a still recording ({out / 'still'}, 10 min at 100 Hz): x gyro ARW {g['value']:.3g} +- "
+         f"{g['std']:.2g} {g['unit']} (simulated 0.1), x acc VRW {a['value']:.3g} +- {a['std']:.2g} {a['unit']} "
+         f"(simulated 50); Allan plot {out / 'noise.html'}")
+
+
 def paper(out: Path, seed: int, echo) -> None:
     from simucal.report.paper_claims import full_audit
     write(out / "paper", SCENARIOS["paper"](), seed)
@@ -125,6 +175,9 @@ def run(out_dir, seed, echo) -> dict:
     echo(f"derive: generated/ matches the derivation ({secs:.1f} s)")
     echo("== the loop: a hidden effect found, added, calibrated with, applied, validated ==")
     result = loop(out, seed, echo)
+    echo("== the same unit over temperature, and its noise ==")
+    result["thermal"] = thermal(out, seed, echo)
+    noise(out, seed, echo)
     echo("== dong2018 section 4: exact, linear and multi-position methods ==")
     paper(out, seed, echo)
     outputs.write_text(out / MARKER, json.dumps(result, indent=1) + "\n")

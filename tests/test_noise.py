@@ -9,6 +9,7 @@ from click.testing import CliRunner
 
 from simucal.allan import allan_variance, taus
 from simucal.cli import main
+from simucal.handheld.simulate import write_still
 from simucal.turntable.simulate import Scenario, write
 
 DT = 0.01
@@ -22,22 +23,7 @@ def _run(*args):
 
 
 def _still(folder, seconds=1800.0, rrw=RRW_DPH_SQRT_S, seed=0, move=False):
-    """A still stream: white noise and a rate random walk on the gyro (deg/h), white noise on the
-    accelerometers (g); `move`: the unit tips over half-way."""
-    rng = np.random.default_rng(seed)
-    n = int(seconds / DT)
-    w = (ARW_DEG_SQRT_H * 60 / np.sqrt(DT) * rng.standard_normal((n, 3))
-         + np.cumsum(rrw * np.sqrt(DT) * rng.standard_normal((n, 3)), axis=0) + [1.0, 2.0, 3.0])
-    f = VRW_G_SQRT_S / np.sqrt(DT) * rng.standard_normal((n, 3)) + [0.0, 0.0, 1.0]
-    if move:
-        f[n // 2:] = f[n // 2:, [2, 1, 0]]
-    folder.mkdir()
-    with open(folder / "samples.csv", "w") as fh:
-        fh.write("t_s,ax,ay,az,gx,gy,gz\n")
-        np.savetxt(fh, np.column_stack([np.arange(n) * DT, f, w]), delimiter=",", fmt="%.10g")
-    (folder / "meta.json").write_text(json.dumps({"format": "simucal.measurements/1", "acc_unit": "g",
-                                                  "gyro_unit": "deg/h", "latitude_deg": 45.0}))
-    return folder
+    return write_still(folder, seconds, DT, ARW_DEG_SQRT_H, rrw, VRW_G_SQRT_S, seed, move)
 
 
 def _with_gap(folder):

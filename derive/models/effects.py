@@ -7,7 +7,7 @@ generates their regressors and derivatives (generated/effects.py) so that
 """
 import sympy as sp
 
-from ..frames import AXES, f_b, omega_d, t_s, temp_c, w2
+from ..frames import AXES, dtemp_c, f_b, omega_d, t_s, w2
 from . import Term
 
 DPS = 3600.0  # deg/h per deg/s: gyro rates enter nonlinear terms in deg/s to keep coefficients O(1)
@@ -64,8 +64,31 @@ def gyro_g_sensitivity(axis, other):
                 f"{axis} gyro output proportional to the specific force along {other} (g-sensitivity)")
 
 
-def gyro_bias_temperature(axis):
-    return Term(f"bT_{axis}", axis, temp_c, "(deg/h)/degC", f"{axis} gyro bias changing with temperature")
+ORDINAL = {1: "linearly", 2: "quadratically", 3: "cubically"}
+UNIT = {"acc": "g", "gyro": "deg/h"}
+
+
+def bias_temperature(sensor, axis, degree):
+    """Bias b(T) = b + sum_k bT_k (T - T_ref)^k (IEEE 1293 / IEEE 952 thermal models; PX4 and
+    ArduPilot fit the same polynomial): this term is the degree-k one. T_ref is the calibration's
+    reference temperature (t_ref_c in its file), so the baseline bias is the bias at T_ref."""
+    tag = "" if degree == 1 else str(degree)
+    unit = f"{UNIT[sensor]}/degC" + (f"^{degree}" if degree > 1 else "")
+    return Term(f"bT{tag}{'g' if sensor == 'gyro' else ''}_{axis}", axis, dtemp_c ** degree,
+                unit if sensor == "acc" else f"({UNIT[sensor]})/degC" + (f"^{degree}" if degree > 1 else ""),
+                f"{axis} {'accelerometer' if sensor == 'acc' else 'gyro'} bias changing {ORDINAL[degree]} "
+                "with temperature (from T_ref)")
+
+
+def scale_temperature(sensor, axis, degree):
+    """Scale factor K(T) = K (1 + sum_k kT_k (T - T_ref)^k): the term kT_k u_axis (T - T_ref)^k,
+    u the axis's own input (g, or deg/h so that kT_k is per degC^k, dimensionless otherwise)."""
+    u = _f(axis) if sensor == "acc" else _w(axis)
+    tag = "" if degree == 1 else str(degree)
+    return Term(f"kT{tag}{'g' if sensor == 'gyro' else ''}_{axis}", axis, u * dtemp_c ** degree,
+                "1/degC" + (f"^{degree}" if degree > 1 else ""),
+                f"{axis} {'accelerometer' if sensor == 'acc' else 'gyro'} scale factor changing {ORDINAL[degree]} "
+                "with temperature (from T_ref)")
 
 
 def gyro_bias_drift_time(axis):
@@ -84,10 +107,14 @@ def _catalog():
             out[f"acc.size_effect.{a}{o}"] = acc_size_effect(a, o)
         out[f"gyro.quadratic.{a}"] = gyro_quadratic(a)
         out[f"gyro.scale_asymmetry.{a}"] = gyro_scale_asymmetry(a)
-        out[f"gyro.bias_temperature.{a}"] = gyro_bias_temperature(a)
         out[f"gyro.bias_drift_time.{a}"] = gyro_bias_drift_time(a)
         for o in AXES:
             out[f"gyro.g_sensitivity.{a}{o}"] = gyro_g_sensitivity(a, o)
+        for sensor in ("acc", "gyro"):
+            for k, tag in ((1, ""), (2, "2"), (3, "3")):
+                out[f"{sensor}.bias_temperature{tag}.{a}"] = bias_temperature(sensor, a, k)
+            for k, tag in ((1, ""), (2, "2")):
+                out[f"{sensor}.scale_temperature{tag}.{a}"] = scale_temperature(sensor, a, k)
     return dict(sorted(out.items()))
 
 
@@ -100,6 +127,10 @@ SEPARATE = {  # what a turntable plan needs for each family to be told apart fro
     "cross_coupling": "static positions where both axes carry input at once (e.g. --plan fibonacci48)",
     "bias_drift_time": "positions revisited at the start and the end of the test",
     "bias_temperature": "a temperature sweep across the positions (a temp_c column)",
+    "bias_temperature2": "a temperature sweep across the positions at three or more temperatures",
+    "bias_temperature3": "a temperature sweep across the positions at four or more temperatures",
+    "scale_temperature": "inputs of both signs on that axis at several temperatures (a temp_c column)",
+    "scale_temperature2": "inputs of both signs on that axis at three or more temperatures",
     "size_effect": "rate runs with the accelerometers recorded during them, at several attitudes and rates",
     "g_sensitivity": "rate runs of both signs at each attitude: the specific force keeps its direction while the "
                      "rate flips, which separates G f from the scale and misalignment",
@@ -110,6 +141,10 @@ SEPARATE_MOVES = {  # what a hand-placed session's moves need, per gyro family
     "scale_asymmetry": "moves turning both ways about that axis",
     "bias_drift_time": "moves spread over a longer session",
     "bias_temperature": "a temp_c column, with the temperature changing over the session",
+    "bias_temperature2": "a temp_c column, with the temperature spanning a wide range over the session",
+    "bias_temperature3": "a temp_c column, with the temperature spanning a wide range over the session",
+    "scale_temperature": "moves about that axis at several temperatures (a temp_c column)",
+    "scale_temperature2": "moves about that axis at three or more temperatures",
     "g_sensitivity": "moves made with that axis at several attitudes to gravity",
 }
 

@@ -16,6 +16,7 @@ from simucal import io
 from simucal.errors import CalibrationError
 from simucal.fit.augmented import AugmentedModel
 from simucal.fit.aux_inputs import SENSOR_AUX, AuxInputs, columns_at, specific_force
+from simucal.fit.thermal import params_at
 from simucal.generated.effects import EFFECTS
 from simucal.io import calibration, units
 
@@ -23,7 +24,7 @@ from simucal.io import calibration, units
 def _affine_effects(block):
     """h(u) = M u + bias + sum_j p_j phi_j(u) e_axis(j), for blocks without a generated model."""
     M, bias = np.array(block["M"]), np.array(block["bias"])
-    effects = [(EFFECTS[e], v["value"]) for e, v in block["effects"].items()]
+    effects = [(EFFECTS[e], block["effects"][e]["value"]) for e in calibration.library_effects(block)]
 
     def h(u, aux: AuxInputs):
         N = u @ M.T + bias
@@ -51,9 +52,22 @@ def _params(block, model):
     return np.array([block["params"][k] for k in model.params], float)
 
 
-def _generated(block):
-    model = AugmentedModel(block["model"], tuple(block["effects"]))
-    return model_function(model, _params(block, model), np.array(block.get("C_b_model", np.eye(3)), float))
+def thermal_function(model: AugmentedModel, P, C=np.eye(3)):
+    """h(u_b) with parameters P (n, m), one row's each (a thermal calibration at each row's temp_c):
+    every row a batch of one, so the model's batched form takes it."""
+    def h(u_b, aux: AuxInputs):
+        one = AuxInputs({k: (np.asarray(v)[:, None] if np.ndim(v) else v) for k, v in aux.values.items()})
+        N, Ju, _ = model.jacobians((u_b @ C.T)[:, None, :], P, one)
+        return N[:, 0], Ju[:, 0] @ C
+    return h
+
+
+def _generated(block, temp_c):
+    model = AugmentedModel(block["model"], calibration.library_effects(block))
+    C = np.array(block.get("C_b_model", np.eye(3)), float)
+    if "thermal" in block:
+        return thermal_function(model, params_at(block["thermal"], model.params, temp_c), C)
+    return model_function(model, _params(block, model), C)
 
 
 def check_block(block, sensor, where) -> None:
@@ -65,7 +79,7 @@ def check_block(block, sensor, where) -> None:
             raise CalibrationError(f"{where}: {sensor}.T is not the inverse of {sensor}.M (T = M^-1): the file was "
                                    "edited by hand; calibrate again")
         return
-    model = AugmentedModel(block["model"], tuple(block["effects"]))
+    model = AugmentedModel(block["model"], calibration.library_effects(block))
     missing = [k for k in model.params if k not in block.get("params", {})]
     if missing:
         raise CalibrationError(f"{where}: {sensor}.params lacks {missing[0]!r}, a parameter of model {block['model']} "
@@ -102,9 +116,10 @@ def solve_inputs(h, M, bias, N, aux: AuxInputs, sensor, where) -> np.ndarray:
                            "calibrated model can produce")
 
 
-def invert(block, sensor, N, aux: AuxInputs, where) -> np.ndarray:
-    """u_b with h(u_b) = N for a calibration block, every row (n, 3)."""
-    h = _affine_effects(block) if block["model"] == "affine" else _generated(block)
+def invert(block, sensor, N, aux: AuxInputs, where, temp_c=None) -> np.ndarray:
+    """u_b with h(u_b) = N for a calibration block, every row (n, 3); temp_c (n,): each row's
+    temperature, for a thermal block."""
+    h = _affine_effects(block) if block["model"] == "affine" else _generated(block, temp_c)
     return solve_inputs(h, np.array(block["M"]), np.array(block["bias"]), N, aux, sensor, where)
 
 
@@ -116,23 +131,47 @@ def apply(cal: dict, data, where="the calibration"):
         if s in cal:
             check_block(cal[s], s, where)
     n = len(ms.samples["t_s"])
-    aux = AuxInputs(columns_at(ms.samples, slice(None)))
+    aux = AuxInputs(columns_at(ms.samples, slice(None), t_ref_c=cal.get("t_ref_c")))
+    temp_c, warnings = temperatures(cal, ms)
     samples = {k: v for k, v in ms.samples.items() if k not in io.SAMPLE_COLS}  # the keys and auxiliary columns
     f_b = None
     if ms.has_acc:
         rate = {s.segment: s.outer_rate_dps for s in (ms.segments or [])}
         w2 = (np.radians([rate.get(s, 0.0) for s in ms.samples["segment"]]) ** 2 / units.gravity(ms.meta)
               if "segment" in ms.samples else np.zeros(n))
-        f_b = invert(cal["acc"], "acc", ms.acc_g(), aux.with_values(w2=w2), ms.path / "samples.csv")
+        f_b = invert(cal["acc"], "acc", ms.acc_g(), aux.with_values(w2=w2), ms.path / "samples.csv", temp_c)
         samples.update(ax=f_b[:, 0], ay=f_b[:, 1], az=f_b[:, 2])
     if ms.has_gyro:
         C = np.array(cal["gyro"].get("C_b_model", np.eye(3)))
         f_model = f_b @ C.T if f_b is not None else np.zeros((n, 3))
         w_b = invert(cal["gyro"], "gyro", ms.gyro_dph(), aux.with_values(**specific_force(f_model)),
-                     ms.path / "samples.csv")
+                     ms.path / "samples.csv", temp_c)
         samples.update(gx=w_b[:, 0], gy=w_b[:, 1], gz=w_b[:, 2])
     meta = {k: v for k, v in ms.meta.items() if k not in calibration.LAYOUT_KEYS + ("full_scale", "format")}
     meta.update(acc_unit="g", gyro_unit="deg/h",
                 description=f"{ms.meta.get('description', '')} | calibrated by simucal apply "
                             f"({cal['method']}, from {cal['input']})".strip(" |"))
+    if warnings:
+        meta["warnings"] = warnings  # the spec keeps unknown keys: the warning travels with the data
     return meta, samples, ms.segments
+
+
+def temperatures(cal: dict, ms) -> tuple[np.ndarray | None, list[str]]:
+    """Each row's temp_c where a block of cal follows temperature (thermal, or terms in dtemp_c), and
+    a warning naming the rows outside the calibrated temperature_range_c (the polynomials are
+    extrapolated there). A thermal calibration refuses data without temp_c."""
+    thermal = [s for s in ("acc", "gyro") if "thermal" in cal.get(s, {})]
+    if "temp_c" not in ms.samples:
+        if thermal:
+            raise CalibrationError(f"{ms.path / 'samples.csv'}: no temp_c column, but the calibration follows "
+                                   f"temperature ({', '.join(thermal)}): it needs each row's temperature")
+        return None, []
+    temp = ms.samples["temp_c"]
+    lo, hi = cal.get("temperature_range_c", (-np.inf, np.inf))
+    out = np.nonzero((temp < lo - 1.0) | (temp > hi + 1.0))[0]  # 1 degC: a plateau's own scatter
+    if not len(out) or not (thermal or any("temperature" in e for s in ("acc", "gyro")
+                                           for e in cal.get(s, {}).get("effects", {}))):
+        return temp, []
+    return temp, [f"{len(out)} of {len(temp)} rows (from line {out[0] + 2} of samples.csv) have temp_c "
+                  f"{temp[out].min():.4g} to {temp[out].max():.4g} degC, outside the calibrated {lo:.4g} to "
+                  f"{hi:.4g} degC: their temperature terms are extrapolated"]

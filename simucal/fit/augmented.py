@@ -53,6 +53,14 @@ class AugmentedModel:
         self.aux = self.base.aux
         self._m = len(self.base.params)
 
+    @property
+    def model_file_terms(self) -> tuple[str, ...]:
+        """The parameters a user's model file adds to its sensor's baseline (none for built-in models)."""
+        if self.base.source == "built-in":
+            return ()
+        baseline = set(load(f"{self.sensor}_baseline").params)
+        return tuple(n for n in self.base.params if n not in baseline)
+
     def _terms(self, u, aux: AuxInputs | None):
         if not self.effects:
             return

@@ -1,6 +1,8 @@
 """The auxiliary inputs of error-model terms, carried by name (derive/frames.py AUX_INPUTS).
 
-Names are the models' symbols: temp_c (degC) and t_s (s), f_x f_y f_z (the specific
+Names are the models' symbols: temp_c (degC), dtemp_c = temp_c - T_ref (degC; T_ref is
+carried as the scalar t_ref_c, the calibration's reference temperature, so that dtemp_c
+follows temp_c wherever rows are taken) and t_s (s), f_x f_y f_z (the specific
 force in b, g, that gyro terms see), w2 (w_T^2 / g, 1/m, that accelerometer terms see
 under outer-axis rate), and any samples.csv column a user's term names (e.g. supply_v).
 A generated model takes them as one array in its own order (its AUX); `array` builds it.
@@ -20,6 +22,7 @@ from simucal.io import SAMPLE_COLS
 DEFAULT_ZERO = set(SENSOR_AUX["acc"]) | set(SENSOR_AUX["gyro"])  # built-in inputs: 0 where the data have none
 NOT_AUX_COLUMNS = ("segment",) + SAMPLE_COLS  # samples.csv's key and outputs
 FORCE = ("f_x", "f_y", "f_z")  # the specific force in b, as gyro terms read it
+T_REF = "t_ref_c"  # not an input: the reference temperature T_ref (degC) that dtemp_c is taken from
 
 
 @dataclass(frozen=True)
@@ -37,13 +40,22 @@ class AuxInputs:
             raise CalibrationError(
                 f"the model's terms read the auxiliary input(s) {missing}, which these data lack: add "
                 f"{' and '.join(missing)} column(s) to samples.csv (a value per row), or drop the terms that use them")
+        values = self.values
+        if "dtemp_c" in names and "dtemp_c" not in values and "temp_c" in values:
+            if T_REF not in values:  # a programming error: every reader of temp_c states its reference
+                raise RuntimeError("temp_c without its reference t_ref_c (aux_inputs.T_REF)")
+            values = {**values, "dtemp_c": np.asarray(values["temp_c"], float) - values[T_REF]}
         if shape is None:
-            shape = np.broadcast_shapes(*(np.shape(v) for v in self.values.values()))
+            shape = np.broadcast_shapes(*(np.shape(v) for k, v in values.items() if k != T_REF))
         out = np.zeros(tuple(shape) + (len(names),))
         for j, n in enumerate(names):
-            if n in self.values:
-                out[..., j] = self.values[n]
+            if n in values:
+                out[..., j] = values[n]
         return out
+
+    def column(self, name, n) -> np.ndarray:
+        """One input (dtemp_c included) as n values."""
+        return self.array((name,), (n,))[:, 0]
 
     def take(self, idx) -> AuxInputs:
         """The rows idx of every per-row input (scalars stay)."""
@@ -62,12 +74,21 @@ def specific_force(f_b_g) -> dict:
     return {name: f[..., j] for j, name in enumerate(FORCE)}
 
 
-def column_means(samples: dict, groups) -> dict:
+def _with_reference(out: dict, t_ref_c) -> dict:
+    """out with T_ref where it has temp_c (None: 0 degC, as files without t_ref_c meant)."""
+    if "temp_c" in out:
+        out[T_REF] = 0.0 if t_ref_c is None else float(t_ref_c)
+    return out
+
+
+def column_means(samples: dict, groups, *, t_ref_c) -> dict:
     """Each auxiliary samples.csv column (t_s, temp_c, a user's supply_v, ...: every column
-    but the keys and outputs) averaged over each group of rows (boolean masks or index arrays)."""
-    return {c: np.array([np.mean(v[g]) for g in groups]) for c, v in samples.items() if c not in NOT_AUX_COLUMNS}
+    but the keys and outputs) averaged over each group of rows (boolean masks or index arrays),
+    with T_ref (t_ref_c, degC) for dtemp_c."""
+    return _with_reference({c: np.array([np.mean(v[g]) for g in groups]) for c, v in samples.items()
+                            if c not in NOT_AUX_COLUMNS}, t_ref_c)
 
 
-def columns_at(samples: dict, idx) -> dict:
-    """Each auxiliary samples.csv column at the rows idx (any shape of indices)."""
-    return {c: np.asarray(v)[idx] for c, v in samples.items() if c not in NOT_AUX_COLUMNS}
+def columns_at(samples: dict, idx, *, t_ref_c) -> dict:
+    """Each auxiliary samples.csv column at the rows idx (any shape of indices), with T_ref."""
+    return _with_reference({c: np.asarray(v)[idx] for c, v in samples.items() if c not in NOT_AUX_COLUMNS}, t_ref_c)

@@ -9,7 +9,8 @@
   switches the test off.
 - lack_of_fit: an F test of the model against the model plus a generic
   flexible basis (monomials of the input of degree 2 and 3 on each output
-  axis, time, temperature, and for gyros the specific force). It needs no
+  axis, time, temperature, each axis's input times temperature (a scale factor
+  drifting with temperature), and for gyros the specific force). It needs no
   noise level: F = (|P_G r|^2 / q) / ((|r|^2 - |P_G r|^2) / (dof - q)), with
   P_G the projection on the basis columns made orthogonal to the model's
   Jacobian (the per-position direction unknowns included), linearised at the
@@ -26,7 +27,7 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
-from simucal.fit.aux_inputs import DEFAULT_ZERO, FORCE, SENSOR_AUX, AuxInputs
+from simucal.fit.aux_inputs import DEFAULT_ZERO, FORCE, SENSOR_AUX, T_REF, AuxInputs
 from simucal.fit.distributions import chi2_sf, f_sf
 from simucal.fit.norm_fit import Fit, Observations, dense_jacobian, fit_exact
 from simucal.io import units
@@ -38,8 +39,14 @@ DPS = units.DPH_PER_DPS  # gyro rates enter generic terms in deg/s (as in derive
 class GenericTerm:
     axis: int          # output axis
     exponents: tuple   # powers of the three input components (empty for aux terms)
-    aux: str | None    # an auxiliary input's name (t_s, temp_c, w2, f_x.., a user's column), else None
+    aux: str | None    # an auxiliary input's name (t_s, dtemp_c, w2, f_x.., a user's column), else None
     sensor: str
+    # exponents and aux both set: the input (in its own unit, g or deg/h) times the auxiliary input,
+    # a scale factor that drifts with it (u_x dtemp_c: the x scale factor linear in temperature)
+
+    @property
+    def is_scale(self) -> bool:
+        return bool(self.aux) and bool(self.exponents)
 
     @property
     def degree(self) -> int:
@@ -49,13 +56,19 @@ class GenericTerm:
         return ("f_x", "f_y", "f_z")[i] if self.sensor == "acc" else ("w_x", "w_y", "w_z")[i]
 
     def text(self) -> str:
-        """The regressor as a reader writes it: f_x^3, w_z^2 (deg/s), t_s."""
+        """The regressor as a reader writes it: f_x^3, w_z^2 (deg/s), t_s, w_z dtemp_c."""
+        if self.is_scale:
+            return f"{self.symbol(self.exponents.index(1))} {self.aux}"
         if self.aux:
             return self.aux
         return " ".join(self.symbol(i) + (f"^{e}" if e > 1 else "") for i, e in enumerate(self.exponents) if e)
 
     def sympy(self) -> str:
         """The regressor as SymPy source for a model file (derive.frames symbols)."""
+        if self.is_scale:
+            i = self.exponents.index(1)
+            aux = self.aux if self.aux in DEFAULT_ZERO else f"column_input({self.aux!r})"
+            return f"{'f_b' if self.sensor == 'acc' else 'omega_d'}[{i}] * {aux}"
         if self.aux in FORCE:
             return f"f_b[{FORCE.index(self.aux)}]"
         if self.aux:
@@ -65,27 +78,37 @@ class GenericTerm:
 
     def unit(self) -> str:
         out = "g" if self.sensor == "acc" else "deg/h"
+        if self.is_scale:
+            return "1/degC" if self.aux == "dtemp_c" else f"1 per unit of {self.aux}"
         if self.aux:
-            return {"t_s": f"{out}/s", "temp_c": f"{out}/degC", "w2": "m"}.get(
+            return {"t_s": f"{out}/s", "dtemp_c": f"{out}/degC", "w2": "m"}.get(
                 self.aux, f"({out})/g" if self.aux in FORCE else f"{out} per unit of {self.aux}")
         return f"{out}/g^{self.degree}" if self.sensor == "acc" else f"({out})/(deg/s)^{self.degree}"
 
     def name(self) -> str:
         a = "xyz"[self.axis]
+        if self.is_scale:
+            return f"k_{a}_{self.aux.replace('_', '')}"
         if self.aux:
             return f"c_{a}_{self.aux.replace('_', '')}"
         return f"c_{a}_" + "".join("xyz"[i] * e for i, e in enumerate(self.exponents))
 
     def parity(self) -> str:
+        if self.is_scale:
+            return "a scale factor " + ("linear in temperature (from T_ref)" if self.aux == "dtemp_c" else
+                                        f"linear in {self.aux}")
         if self.aux:
-            return {"t_s": "linear in time", "temp_c": "linear in temperature", "w2": "with the centripetal scale"}.get(
+            return {"t_s": "linear in time", "dtemp_c": "linear in temperature (from T_ref)",
+                    "w2": "with the centripetal scale"}.get(
                 self.aux, "proportional to the specific force" if self.aux in FORCE else f"linear in {self.aux}")
         parts = [f"{'odd' if e % 2 else 'even'} in {self.symbol(i)}" for i, e in enumerate(self.exponents) if e]
         return ", ".join(parts) + f", {('second', 'third')[self.degree - 2]} degree"
 
     def values(self, u, obs: Observations) -> np.ndarray:
+        if self.is_scale:
+            return u[:, self.exponents.index(1)] * obs.aux.column(self.aux, len(u))
         if self.aux:
-            return np.broadcast_to(np.asarray(obs.aux.get(self.aux), float), (len(u),)).copy()
+            return obs.aux.column(self.aux, len(u))
         x = u if self.sensor == "acc" else u / DPS
         return np.prod([x[:, i] ** e for i, e in enumerate(self.exponents)], axis=0)
 
@@ -94,6 +117,8 @@ def catalog_id(term: GenericTerm) -> str | None:
     """The candidate effect (generated/effects.py) with this very regressor, if there is one:
     compared on random inputs, so the catalog's own forms need no second description here."""
     from simucal.generated.effects import EFFECTS
+    if term.aux and term.aux not in SENSOR_AUX[term.sensor]:
+        return None  # a user's column: no library effect reads it
     rng = np.random.default_rng(0)
     u = rng.normal(size=(6, 3)) * (1.0 if term.sensor == "acc" else DPS)
     aux = AuxInputs({name: rng.normal(size=6) for name in SENSOR_AUX[term.sensor]})
@@ -111,10 +136,13 @@ def generic_terms(sensor: str, obs: Observations) -> list[GenericTerm]:
     """Pure powers first, so that a tie (monomials are dependent on a sphere) names the simplest."""
     mono = [e for d in (2, 3) for e in itertools.product(range(d + 1), repeat=3) if sum(e) == d]
     mono.sort(key=lambda e: (sum(e), -max(e)))
-    names = list(SENSOR_AUX[sensor]) + sorted(set(obs.aux.values) - DEFAULT_ZERO)  # then a user's columns
-    aux = [x for x in names if np.ptp(np.atleast_1d(obs.aux.get(x))) > 0]  # inputs that vary over the positions
+    # temp_c only through dtemp_c (the same column from T_ref); then a user's columns
+    names = [x for x in SENSOR_AUX[sensor] if x != "temp_c"] + sorted(set(obs.aux.values) - DEFAULT_ZERO - {T_REF})
+    aux = [x for x in names if np.ptp(obs.aux.column(x, len(obs.N))) > 0]  # inputs that vary over the positions
+    unit = [tuple(int(i == a) for i in range(3)) for a in range(3)]
     return [GenericTerm(a, e, None, sensor) for e in mono for a in range(3)] + \
-        [GenericTerm(a, (), x, sensor) for x in aux for a in range(3)]
+        [GenericTerm(a, (), x, sensor) for x in aux for a in range(3)] + \
+        [GenericTerm(a, unit[a], "dtemp_c", sensor) for a in range(3) if "dtemp_c" in aux]
 
 
 def fit_with_noise(model, obs: Observations, p0=None) -> tuple[Fit, Observations, dict]:
@@ -196,7 +224,8 @@ def lack_of_fit(model, obs: Observations, fit: Fit) -> dict:
     ss = float(r @ r)
     F = (ss1 / q) / max((ss - ss1) / (dof - q), 1e-300)
     return {"test": "lack-of-fit F test against a generic basis (monomials of the input of degree 2-3 per axis, "
-                    "time, temperature" + (", specific force" if model.sensor == "gyro" else "") + ")",
+                    "time, temperature, input x temperature" + (", specific force" if model.sensor == "gyro" else "")
+                    + ")",
             "F": float(F), "q": q, "dof": int(dof - q), "p_value": float(f_sf(F, q, dof - q))}
 
 
@@ -248,7 +277,7 @@ def model_file_text(base_model: str, effect_ids, shape: dict, sensor: str) -> st
     return (f'"""A model with the term simucal diagnose found: {shape["text"]}.\n\n'
             f"Use it: simucal calibrate DIR --add THIS_FILE (or diagnose --add THIS_FILE).\n"
             '"""\n'
-            "from simucal.derive.frames import column_input, f_b, omega_d, t_s, temp_c, w2  # noqa: F401\n"
+            "from simucal.derive.frames import column_input, dtemp_c, f_b, omega_d, t_s, temp_c, w2  # noqa: F401\n"
             "from simucal.derive.models import Term\n"
             "from simucal.derive.models.effects import CANDIDATES  # noqa: F401\n"
             f"from {src} import {const[base_model]}\n\n"

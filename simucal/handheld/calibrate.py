@@ -440,7 +440,7 @@ def pose_observations(ms, detect=None, pose_window_s=1.0):
     rail_poses(ms, poses)
     N = np.array([acc[a:b].mean(0) for a, b in poses])
     sig = np.array([acc[a:b].std(0, ddof=1) / np.sqrt(b - a) for a, b in poses])
-    aux = AuxInputs(column_means(ms.samples, [slice(a, b) for a, b in poses]))
+    aux = AuxInputs(column_means(ms.samples, [slice(a, b) for a, b in poses], t_ref_c=ms.t_ref_c))
     obs = Observations(N, np.ones(len(N)), np.maximum(sig, 1e-12), aux, list(range(len(poses))))
     return obs, det, poses
 
@@ -549,7 +549,7 @@ def misfit_shares(gm, base: GyroFit, sigma_g, inputs, chi0, dof0, alpha=0.01, ma
     (chi2 - dof); `unexplained` is what the chosen effects leave of that excess."""
     excess0 = max(chi0 - dof0, 1e-300)
     chosen, steps, chi_prev, fit = [], [], chi0, base
-    left = effect_ids("gyro")
+    left = [e for e in effect_ids("gyro") if has_input(e, inputs)]
     while len(chosen) < max_terms:
         # rank the candidates on moves in blocks of 4 samples with their defect against full
         # resolution at the current fit (as fit_gyro does), then refit the best at full resolution
@@ -587,6 +587,13 @@ def misfit_shares(gm, base: GyroFit, sigma_g, inputs, chi0, dof0, alpha=0.01, ma
             "unexplained": float(max(chi_prev - (steps[-1]["dof_after"] if steps else dof0), 0.0) / excess0)}
 
 
+def has_input(eid, inputs) -> bool:
+    """Whether effect eid's regressor is anywhere nonzero at the inputs (regressor_inputs): a temperature
+    term has none in a recording without temp_c, and is then not worth integrating along the moves."""
+    effect = EFFECTS[eid]
+    return any(np.any(effect.phi(u, aux.array(SENSOR_AUX["gyro"], u.shape[:-1]))[0]) for u, aux in inputs)
+
+
 def regressor_inputs(ms, gm, fit: GyroFit, acc_cal):
     """Inputs of the candidate regressors, (u deg/h, AuxInputs), at every move sample (m, L) and
     at every sample of the initial rest (n,): the calibrated rate, the calibrated specific
@@ -602,7 +609,7 @@ def regressor_inputs(ms, gm, fit: GyroFit, acc_cal):
     out = []
     for ix in (idx, rest):
         f = np.linalg.solve(M_a, (ms.acc_g()[ix] - b_a).reshape(-1, 3).T).T.reshape(ix.shape + (3,))
-        out.append((w[ix] @ fit.T.T * units.DPH_PER_DPS, AuxInputs({**columns_at(ms.samples, ix), **specific_force(f)})))
+        out.append((w[ix] @ fit.T.T * units.DPH_PER_DPS, AuxInputs({**columns_at(ms.samples, ix, t_ref_c=ms.t_ref_c), **specific_force(f)})))
     return out
 
 

@@ -40,6 +40,7 @@ from simucal.handheld.calibrate import (
     fit_gyro,
     fit_gyro_moves,
     gyro_noise_dps,
+    has_input,
     misfit_shares,
     move_covariances,
     move_residuals,
@@ -78,10 +79,13 @@ def rank_move_candidates(gm, base: GyroFit, inputs, base_fails, alpha):
         family, ax = eid.split(".")[1], eid.split(".")[2]
         entry = {"effect": f"gyro.{family}", "axis": ax, "id": eid, "parameter": pname, "unit": unit,
                  "meaning": meaning}
-        mv = with_terms(gm.mv, [eid], inputs)
-        col = move_residuals(base.T, mv, gm.g_dirs, db=base.db, p=np.zeros(1))[1][..., 12].ravel()
-        norm_col = float(np.linalg.norm(col))
-        perp = float(np.linalg.norm(col - Q @ (Q.T @ col)))
+        if not has_input(eid, inputs):
+            norm_col = 0.0  # no input for it (a temperature term without temp_c): no move to integrate
+        else:
+            mv = with_terms(gm.mv, [eid], inputs)
+            col = move_residuals(base.T, mv, gm.g_dirs, db=base.db, p=np.zeros(1))[1][..., 12].ravel()
+            norm_col = float(np.linalg.norm(col))
+        perp = float(np.linalg.norm(col - Q @ (Q.T @ col))) if norm_col else 0.0
         if norm_col == 0 or perp < 1e-3 * norm_col:
             why = ("no input for it in these data" if norm_col == 0 else
                    f"collinear with T and the bias ({100 * perp / norm_col:.2g} % of its signature is separable)")

@@ -7,6 +7,7 @@ full scale; accelerometer in g through acc M_a (lower triangular, b frame),
 gyro through a full M_g (so omega is in b). Translational acceleration during
 moves and the Earth rate are left out. Gyro effects of generated/effects.py
 can be planted (gyro_effects), evaluated at the true rate and specific force.
+`write_still`: a unit at rest (the stream `simucal noise` characterises).
 """
 from __future__ import annotations
 
@@ -128,3 +129,22 @@ def write_handheld(folder, sc: HandheldScenario, seed=0):
     meta, samples, truth = simulate_handheld(sc, seed)
     io.write_set(folder, meta, samples, None, {"truth.json": truth})
     return truth
+
+
+def write_still(folder, seconds=1800.0, dt=0.01, arw_deg_sqrt_h=0.1, rrw_dph_sqrt_s=5 / 60, vrw_g_sqrt_s=50e-6,
+                seed=0, move=False):
+    """A still stream in g and deg/h: white noise (angle random walk arw_deg_sqrt_h, velocity random
+    walk vrw_g_sqrt_s) and a gyro rate random walk rrw_dph_sqrt_s (deg/h per sqrt(s)), the unit level
+    (f = +1 g on z); `move`: it tips over half-way (a recording `simucal noise` refuses)."""
+    rng = np.random.default_rng(seed)
+    n = int(seconds / dt)
+    w = (arw_deg_sqrt_h * 60 / np.sqrt(dt) * rng.standard_normal((n, 3))
+         + np.cumsum(rrw_dph_sqrt_s * np.sqrt(dt) * rng.standard_normal((n, 3)), axis=0) + [1.0, 2.0, 3.0])
+    f = vrw_g_sqrt_s / np.sqrt(dt) * rng.standard_normal((n, 3)) + [0.0, 0.0, 1.0]
+    if move:
+        f[n // 2:] = f[n // 2:, [2, 1, 0]]
+    samples = {"t_s": np.arange(n) * dt, **{c: f[:, j] for j, c in enumerate(("ax", "ay", "az"))},
+               **{c: w[:, j] for j, c in enumerate(("gx", "gy", "gz"))}}
+    io.write_set(folder, {"acc_unit": "g", "gyro_unit": "deg/h", "latitude_deg": 45.0,
+                          "description": f"simucal still stream, seed {seed}"}, samples, None)
+    return folder

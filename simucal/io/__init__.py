@@ -47,6 +47,15 @@ class MeasurementSet:
     meta: dict
     samples: dict                     # column -> float array (segment as int array)
     segments: list[Segment] | None    # None: one continuous stream
+    temperature_ref_c: float | None = None  # T_ref chosen by the user (calibrate --t-ref-c); None: t_ref_c's default
+
+    @property
+    def t_ref_c(self) -> float | None:
+        """T_ref of temperature terms (degC): the user's, else the mean of temp_c over every row; None
+        without a temp_c column. Calibrations write it (t_ref_c) and apply reads it back."""
+        if self.temperature_ref_c is not None:
+            return float(self.temperature_ref_c)
+        return float(np.mean(self.samples["temp_c"])) if "temp_c" in self.samples else None
 
     @property
     def has_acc(self):

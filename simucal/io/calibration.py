@@ -11,6 +11,9 @@ offset / counts_per_g, in g). Top level:
     formula     how an output relates to its input (below), per sensor
     acc, gyro   one block each (absent when the data had none)
     unification C_b^d and how it was found (turntable gyro)
+    t_ref_c, temperature_range_c   where the data have temp_c: the reference
+                temperature T_ref of temperature terms (they read temp_c - T_ref,
+                so bias and M are the unit's at T_ref) and the range calibrated
 
 Each sensor block:
 
@@ -72,14 +75,32 @@ def layout(ms) -> dict:
 
 
 def header(method: str, ms) -> dict:
-    return {"format": FORMAT, "method": method, "input": str(ms.path), "input_sha256": input_sha256(ms.path),
-            "layout": layout(ms), "formula": {s: FORMULA[s] for s in layout(ms)["sensors"]},
-            "units": {"acc": "g", "gyro": "deg/h", "angles": "rad"}}
+    out = {"format": FORMAT, "method": method, "input": str(ms.path), "input_sha256": input_sha256(ms.path),
+           "layout": layout(ms), "formula": {s: FORMULA[s] for s in layout(ms)["sensors"]},
+           "units": {"acc": "g", "gyro": "deg/h", "angles": "rad"}}
+    if ms.t_ref_c is not None:  # temperature terms read dtemp_c = temp_c - t_ref_c; apply takes it from here
+        temp = ms.samples["temp_c"]
+        out.update(t_ref_c=ms.t_ref_c, temperature_range_c=[float(np.min(temp)), float(np.max(temp))])
+    return out
 
 
-def effect_entry(value, std, unit, meaning) -> dict:
-    """One added effect in a sensor block's `effects`."""
-    return {"value": float(value), "std": float(std), "unit": unit, "meaning": meaning}
+def effect_entry(value, std, unit, meaning, term_of=None) -> dict:
+    """One added effect in a sensor block's `effects`: a library effect (by its id), or a term of a
+    user's model file beyond the baseline (by its parameter name, term_of the model's name)."""
+    return {"value": float(value), "std": float(std), "unit": unit, "meaning": meaning,
+            **({"term_of": term_of} if term_of else {})}
+
+
+def library_effects(block) -> tuple[str, ...]:
+    """The library effect ids a block's model adds (its `effects` less a model file's own terms)."""
+    return tuple(e for e, v in block["effects"].items() if not (isinstance(v, dict) and v.get("term_of")))
+
+
+def _user_terms(model, fit) -> dict:
+    """A user's model file's terms beyond its sensor's baseline, as effect entries."""
+    return {n: effect_entry(fit.params[n], fit.std[n], u, m, model.base.name)
+            for n, u, m in zip(model.base.params, model.base.param_units, model.base.meanings)
+            if n in model.model_file_terms}
 
 
 def sensor_block(model, fit, M, bias, base: dict | None = None, C_b_model=None) -> dict:
@@ -87,6 +108,7 @@ def sensor_block(model, fit, M, bias, base: dict | None = None, C_b_model=None) 
     effects = {e: effect_entry(fit.params[e], fit.std[e], u, m)
                for e, u, m in zip(model.effects, model.param_units[len(model.base.params):],
                                   model.meanings[len(model.base.params):])}
+    effects.update(_user_terms(model, fit))
     block = {"model": model.base.name, "model_source": model.base.source, "effects": effects,
              "M": np.asarray(M).tolist(), "bias": np.asarray(bias).tolist(),
              "bias_unit": model.unit, "params": dict(fit.params), "std": dict(fit.std),
@@ -248,7 +270,7 @@ def check_file(path, cal: dict) -> None:
         if not isinstance(block["effects"], dict):
             raise CalibrationFileError(f"{path}: {s}.effects must be an object {{id: {{value, ...}}}}")
         for e, entry in block["effects"].items():
-            if e not in EFFECTS:
+            if e not in EFFECTS and not (isinstance(entry, dict) and entry.get("term_of") == block["model"]):
                 raise CalibrationFileError(f"{path}: {s}.effects names {e!r}, which is no library effect "
                                            "(simucal diagnose lists them)")
             v = entry.get("value") if isinstance(entry, dict) else None

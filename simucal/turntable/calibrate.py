@@ -94,7 +94,7 @@ def segment_observations(ms: io.MeasurementSet, sensor: str, kinds=None, stated=
             f"beyond full_scale, or repeating the rail: segments {dropped[:8]}{' ...' if len(dropped) > 8 else ''}) "
             f"and are left out, leaving {len(keep)}, too few for the {need} parameters of {sensor}_baseline; record "
             "them within the sensor's range, or correct full_scale in meta.json if the rails are wrong")
-    aux = column_means(ms.samples, [ms.samples["segment"] == s.segment for s in keep])
+    aux = column_means(ms.samples, [ms.samples["segment"] == s.segment for s in keep], t_ref_c=ms.t_ref_c)
     aux.update(specific_force(ms, keep) if sensor == "gyro" else {"w2": centripetal_scale(ms, keep)})
     obs = Observations(np.array(N).reshape(-1, 3), np.array(rho), np.array(sig).reshape(-1, 3), AuxInputs(aux),
                        [s.segment for s in keep])
@@ -280,7 +280,7 @@ def _latitude_check(ms, fa, acc_segs, gm, fg, C_b_d, gyro_noise_dph=None):
         groups.append(r)
     sig = np.array(sig)
     sig = None if np.isnan(sig).all() else np.where(np.isnan(sig), np.nanmax(sig), sig)
-    return latitude(ms, gm, fg, C_b_d, fa.directions[rows], (np.array(N), sig, AuxInputs(column_means(ms.samples, groups))))
+    return latitude(ms, gm, fg, C_b_d, fa.directions[rows], (np.array(N), sig, AuxInputs(column_means(ms.samples, groups, t_ref_c=ms.t_ref_c))))
 
 
 def _commanded_up_k(segs):

@@ -17,7 +17,7 @@ import numpy as np
 
 from simucal import io
 from simucal.fit.augmented import AugmentedModel
-from simucal.fit.aux_inputs import DEFAULT_ZERO, AuxInputs, specific_force
+from simucal.fit.aux_inputs import DEFAULT_ZERO, T_REF, AuxInputs, specific_force
 from simucal.generated import table
 from simucal.io import units
 from simucal.io.calibration import PARAM_LIMIT
@@ -61,6 +61,7 @@ class Scenario:
     acc_effects: dict = field(default_factory=dict)
     gyro_effects: dict = field(default_factory=dict)
     temp_c: tuple | None = None       # (first, last): a linear sweep over the segments; None: no temp_c column
+    t_ref_c: float | None = None      # T_ref of the unit's temperature terms; None: the data's mean temp_c
     columns: dict = field(default_factory=dict)  # auxiliary columns {name: (low, high)}: uniform, one value per segment
     shuffle: bool = False             # visit the positions in random order (separates time from direction)
     state_noise: bool = True          # write acc_noise_g / gyro_noise_dph into meta.json
@@ -204,6 +205,9 @@ def simulate(sc: Scenario, seed: int = 0):
     if sc.temp_c:
         values["temp_c"] = np.linspace(*sc.temp_c, len(segments))
     columns = {name: [] for name in values}  # auxiliary columns written
+    rows_per = [1 if sc.rate_hz is None else int(round(dur * sc.rate_hz)) for *_, dur in rows]
+    t_ref_c = None if "temp_c" not in values else sc.t_ref_c if sc.t_ref_c is not None else \
+        float(np.average(values["temp_c"], weights=rows_per))  # as MeasurementSet.t_ref_c
     for k, (seg, (f_b, w_d, f_d, dur)) in enumerate(zip(segments, rows)):
         if sc.rate_hz is None:
             f, w, fd, t = (f_b.mean(0, keepdims=True), w_d.mean(0, keepdims=True), f_d.mean(0, keepdims=True),
@@ -216,7 +220,7 @@ def simulate(sc: Scenario, seed: int = 0):
             idx = np.arange(n) * len(f_b) // n
             f, w, fd, t = f_b[idx], w_d[idx], f_d[idx], t0 + np.arange(n) / sc.rate_hz
         col = {name: np.full(len(t), v[k]) for name, v in values.items()}
-        aux = AuxInputs({"t_s": t, **col})
+        aux = AuxInputs({"t_s": t, **col, **({} if t_ref_c is None else {T_REF: t_ref_c})})
         w2 = np.radians(seg.outer_rate_dps) ** 2 / units.DEFAULT_GRAVITY  # centripetal scale, 1/m
         acc_out.append(acc.output(f, p_acc, aux.with_values(w2=w2)) + rng.normal(0, sc.acc_noise_g, f.shape))
         gyro_out.append(gyro.output(w, p_gyro, aux.with_values(**specific_force(fd)))
@@ -249,6 +253,8 @@ def simulate(sc: Scenario, seed: int = 0):
                   "zero_rad": list(sc.zero_rad), "position_error_rad": sc.position_error_rad},
         "seed": seed,
     }
+    if t_ref_c is not None:
+        truth["t_ref_c"] = t_ref_c  # the bias and M above are at this temperature
     return meta, samples, segments, truth
 
 
