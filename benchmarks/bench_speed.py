@@ -1,5 +1,5 @@
 """Benchmark: the speed figures of issue 14 (simucal/bench.py, also `simucal bench`).
-Usage: python3 benchmarks/bench_speed.py [--json OUT]
+Usage: python3 benchmarks/bench_speed.py [--json OUT] [--before OLD.json]
 """
 import argparse
 
@@ -8,4 +8,6 @@ from simucal.bench import run
 if __name__ == "__main__":
     ap = argparse.ArgumentParser()
     ap.add_argument("--json", default=None)
-    run(ap.parse_args().json)
+    ap.add_argument("--before", default=None)
+    args = ap.parse_args()
+    run(args.json, before=args.before)

@@ -30,13 +30,10 @@ import numpy as np
 from scipy.optimize import nnls
 
 from simucal.errors import CalibrationError
+from simucal.fit.noise import COLUMNS, TERMS
 from simucal.io import units
 
 MIN_CLUSTERS = 9  # the longest tau keeps this many independent clusters (relative error <= 25 %)
-TERMS = ("Q", "N", "B", "K", "R")
-# each term's column in sigma^2(tau): IEEE 952 Table C.1
-COLUMNS = {"Q": lambda t: 3.0 / t ** 2, "N": lambda t: 1.0 / t, "B": lambda t: np.full_like(t, 2 * np.log(2) / np.pi),
-           "K": lambda t: t / 3.0, "R": lambda t: t ** 2 / 2.0}
 G0 = units.DEFAULT_GRAVITY  # m/s^2 per g: Kalibr's SI, not the site's gravity
 RAD_PER_DEG = np.pi / 180.0
 
@@ -50,9 +47,9 @@ SHEET = {"gyro": {"Q": ("quantisation", 1.0, "arcsec"), "N": ("angle random walk
                  "R": ("acceleration ramp", 1e6, "ug/s")}}
 
 
-def taus(n_longest: int, per_decade=10) -> np.ndarray:
-    """Cluster sizes m (log-spaced, distinct) from 1 to n_longest / MIN_CLUSTERS."""
-    top = max(n_longest // MIN_CLUSTERS, 1)
+def taus(n_longest: int, per_decade=10, m_max=None) -> np.ndarray:
+    """Cluster sizes m (log-spaced, distinct) from 1 to n_longest / MIN_CLUSTERS, or to m_max."""
+    top = max(n_longest // MIN_CLUSTERS if m_max is None else int(m_max), 1)
     return np.unique(np.floor(np.logspace(0, np.log10(top), max(int(per_decade * np.log10(top)) + 1, 1))).astype(int))
 
 
@@ -131,16 +128,29 @@ def check_still(ms, dt):
                                f"by {np.max(tilt):.2g} g): the Allan deviation needs a still unit; record it at rest")
 
 
-def characterise(ms) -> dict:
+def _cluster_sizes(stretches, dt, tau_max_s, where) -> np.ndarray:
+    """taus(), up to tau_max_s where asked; refused where the longest stretch is too short for it."""
+    n = max(len(s) for s in stretches)
+    if tau_max_s is None:
+        return taus(n)
+    if n < MIN_CLUSTERS * tau_max_s / dt:
+        raise CalibrationError(f"{where}: the longest still stretch is {n * dt:.4g} s; a tau of {tau_max_s:g} s needs "
+                               f"{MIN_CLUSTERS} clusters of it ({MIN_CLUSTERS * tau_max_s:.4g} s): record longer, or ask "
+                               f"for --tau-max-s {n * dt / MIN_CLUSTERS:.3g} at most")
+    return taus(n, m_max=tau_max_s / dt)
+
+
+def characterise(ms, tau_max_s=None) -> dict:
     """The report of `simucal noise` (module doc): per sensor and axis, the Allan deviation with its
-    68 % interval and the fitted terms in the sensor's units and a data sheet's."""
+    68 % interval and the fitted terms in the sensor's units and a data sheet's; tau up to tau_max_s
+    (default a ninth of the longest still stretch)."""
     out = {"format": "simucal.noise/1", "data": str(ms.path)}
     for sensor, has in (("acc", ms.has_acc), ("gyro", ms.has_gyro)):
         if not has:
             continue
         stretches, dt, where = still_stretches(ms, sensor)
         check_still(ms, dt)
-        m = taus(max(len(s) for s in stretches))
+        m = _cluster_sizes(stretches, dt, tau_max_s, ms.path / "samples.csv")
         tau = m * dt
         block = {"unit": "deg/h" if sensor == "gyro" else "g", "tau_s": tau.tolist(), "rate_hz": 1.0 / dt,
                  "rows": where, "axes": {}}

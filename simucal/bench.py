@@ -7,10 +7,15 @@
   compiled and numpy (SIMUCAL_NO_COMPILE=1 in a subprocess); `simucal montecarlo --trials
   200000` as a whole process, with the range of std/CRLB over its 18 parameters;
 - whole processes: `simucal calibrate` on a raw turntable set (86 segments at 100 Hz), on the
-  imu_tk Xsens stream, `simucal field-drift` (3 x 300 s at 100 Hz), `simucal --help`;
+  imu_tk Xsens stream, `simucal diagnose` of the Xsens stream, `simucal validate` of the raw
+  set, `simucal noise` on 2 h at 100 Hz (720,000 rows x 6), `simucal calibrate --thermal` on 3
+  plateaus, `simucal montecarlo --effect acc.quadratic.z=1e-4` (trials per second of the whole
+  process), `simucal field-drift` (3 x 300 s at 100 Hz), `simucal --help`;
 - compiling one model's C.
-Run by `simucal bench [--json OUT]` or `python3 benchmarks/bench_speed.py [--json OUT]`; the
-imu_tk Xsens figure needs shared/data beside the repository. Benchmarks print; tests never time.
+Run by `simucal bench [--json OUT] [--before OLD.json]` or `python3 benchmarks/bench_speed.py`;
+--before prints a previous run's figures beside these (benchmarks/bench_*.json hold earlier
+runs). The imu_tk Xsens figures need shared/data beside the repository. Benchmarks print;
+tests never time.
 """
 import json
 import os
@@ -53,8 +58,56 @@ def process(args, repeats=3):
     return min(out)
 
 
-def run(json_path=None, echo=print) -> dict:
-    """Every figure, printed as a table (and written as JSON to json_path)."""
+def _new_commands(tmp, fig):
+    """validate's neighbours of issue 26: noise on 2 h at 100 Hz, a thermal calibration of 3 plateaus,
+    and the Monte Carlo with an effect as a whole process."""
+    from simucal.handheld.simulate import write_still
+    from simucal.turntable.simulate import plant
+    progress.status("bench: simucal noise (2 h at 100 Hz), calibrate --thermal (3 plateaus), montecarlo --effect")
+    write_still(tmp / "still", seconds=7200.0, dt=0.01)
+    fig["cli_noise_2h_100hz_s"] = process(["simucal", "noise", str(tmp / "still"), "-o", str(tmp / "n.json")])
+    plateaus = []
+    for T, seed in ((0.0, 1), (25.0, 2), (50.0, 3)):
+        sc = Scenario(plan="fibonacci48", temp_c=(T, T), t_ref_c=25.0, rate_hz=20.0)
+        plant(sc, ["acc.bias_temperature.x=1e-5", "gyro.bias_temperature.z=0.01"])
+        write(tmp / f"p{T:g}", sc, seed)
+        plateaus.append(str(tmp / f"p{T:g}"))
+    fig["rows_thermal_plateau"] = len(io.read_set(plateaus[0]).samples["t_s"])
+    fig["cli_calibrate_thermal_3_plateaus_s"] = process(["simucal", "calibrate", *plateaus, "--thermal", "-o",
+                                                         str(tmp / "th.json")])
+    trials = 20000
+    fig["cli_montecarlo_effect_trials_per_s"] = trials / process(
+        ["simucal", "montecarlo", "--effect", "acc.quadratic.z=1e-4", "--trials", str(trials), "-o",
+         str(tmp / "mce.json")], repeats=1)
+
+
+def _cell(k, v) -> str:
+    if v is None:
+        return "-"
+    return f"{v * 1e3:.3g} ms" if k.endswith("_s") and not k.endswith("per_s") else f"{v:.4g}"
+
+
+def _table(fig, before, echo):
+    """The figures, a previous run's beside them where given."""
+    old = {}
+    if before:
+        old = json.loads(Path(before).read_text())
+        echo(f"| figure | before ({Path(before).name}) | now |\n|---|---|---|")
+    else:
+        echo("| figure | value |\n|---|---|")
+    for k, v in fig.items():
+        if isinstance(v, dict):
+            for n, s in v.items():
+                was = old.get(k, {}).get(str(n))
+                now = f"{s * 1e3:.3g} ms ({s / n * 1e6:.3g} us per row)"
+                echo(f"| {k}, N = {n} | {_cell(k, was)} | {now} |" if before else f"| {k}, N = {n} | {now} |")
+        else:
+            echo(f"| {k} | {_cell(k, old.get(k))} | {_cell(k, v)} |" if before else f"| {k} | {_cell(k, v)} |")
+
+
+def run(json_path=None, echo=print, before=None) -> dict:
+    """Every figure, printed as a table (and written as JSON to json_path); before: a previous run's
+    JSON, printed beside."""
     fig = {}
     with tempfile.TemporaryDirectory() as tmp:
         tmp = Path(tmp)
@@ -102,6 +155,10 @@ def run(json_path=None, echo=print) -> dict:
                             "-o", str(tmp / "xsens"), "--acc-counts-per-g", "4096", "--gyro-counts-per-dps",
                             str(6258 * np.pi / 180), "--latitude-deg", "45.4"], check=True, capture_output=True)
             fig["cli_calibrate_xsens_s"] = process(["simucal", "calibrate", str(tmp / "xsens"), "-o", str(tmp / "x.json")])
+            fig["cli_diagnose_xsens_s"] = process(["simucal", "diagnose", str(tmp / "xsens"), "-o", str(tmp / "xd.json")])
+        fig["cli_validate_raw_turntable_s"] = process(["simucal", "validate", str(tmp / "c.json"), str(tmp / "raw"), "-o",
+                                                       str(tmp / "v.json")])
+        _new_commands(tmp, fig)
         subprocess.run(["simucal", "simulate", str(tmp / "field"), "--scenario", "field"], check=True, capture_output=True)
         fig["cli_field_drift_s"] = process(["simucal", "field-drift", str(tmp / "field"), "-o", str(tmp / "d.json")])
         fig["cli_help_s"] = process(["simucal", "--help"])
@@ -110,13 +167,7 @@ def run(json_path=None, echo=print) -> dict:
         t = time.perf_counter()
         compile_c("bench_acc_baseline", src)
         fig["derive_compile_one_model_s"] = time.perf_counter() - t
-    echo("| figure | value |\n|---|---|")
-    for k, v in fig.items():
-        if isinstance(v, dict):
-            for n, s in v.items():
-                echo(f"| {k}, N = {n} | {s * 1e3:.3g} ms ({s / n * 1e6:.3g} us per row) |")
-        else:
-            echo(f"| {k} | {v * 1e3:.3g} ms |" if k.endswith("_s") and not k.endswith("per_s") else f"| {k} | {v:.4g} |")
+    _table(fig, before, echo)
     if json_path:
         outputs.write_text(json_path, json.dumps({k: ({str(n): s for n, s in v.items()} if isinstance(v, dict) else v)
                                                for k, v in fig.items()}, indent=1) + "\n")

@@ -18,14 +18,16 @@ from simucal.io.sensor_checks import stuck_channels
 
 
 def calibrate(folder, method="auto", acc_model="acc_baseline", gyro_model="gyro_baseline", detect=None,
-              add=(), acc_noise_g=None, gyro_noise_dph=None, heading_accuracy_deg=5.0, t_ref_c=None) -> dict:
+              add=(), acc_noise_g=None, gyro_noise_dph=None, heading_accuracy_deg=5.0, t_ref_c=None,
+              noise=None) -> dict:
     """Calibrate a measurement set. method: a name of methods.METHODS, or "auto" (the default for
     the set's data). add: effect ids and model files (augmented.resolve_add), and "auto": the
     library effects a failing model needs, chosen one at a time (each sensor's block lists them
     under `auto`); acc_noise_g / gyro_noise_dph: the noise of one row where the data cannot give
     it; detect: a stream's static detection settings; heading_accuracy_deg: a field set's north
-    reference; t_ref_c: T_ref of temperature terms (default the mean of temp_c). Options a method
-    does not take are refused when set."""
+    reference; t_ref_c: T_ref of temperature terms (default the mean of temp_c); noise: a noise.json of
+    `simucal noise`, whose Allan curve gives each segment's noise at its length. Options a method does
+    not take are refused when set."""
     ms = io.read_set(folder) if not isinstance(folder, io.MeasurementSet) else folder
     ms.temperature_ref_c = t_ref_c
     try:
@@ -35,11 +37,18 @@ def calibrate(folder, method="auto", acc_model="acc_baseline", gyro_model="gyro_
         if "ids" in m.options:  # models and effects: imported only by the methods that fit them
             from simucal.fit.augmented import resolve_add
             acc_model, gyro_model, ids = resolve_add(ids, acc_model, gyro_model)
+        curves = None
+        if noise is not None:
+            from simucal.fit.noise import load_curves
+            curves = load_curves(noise)
         given = dict(acc_model=acc_model, gyro_model=gyro_model, ids=ids, auto="auto" in add, detect=detect,
-                     acc_noise_g=acc_noise_g, gyro_noise_dph=gyro_noise_dph, heading_accuracy_deg=heading_accuracy_deg)
-        unused = [k for k in ("ids", "auto", "acc_noise_g", "gyro_noise_dph") if given[k] and k not in m.options]
+                     acc_noise_g=acc_noise_g, gyro_noise_dph=gyro_noise_dph, heading_accuracy_deg=heading_accuracy_deg,
+                     noise_curves=curves)
+        unused = [k for k in ("ids", "auto", "acc_noise_g", "gyro_noise_dph", "noise_curves")
+                  if given[k] and k not in m.options]
         if unused:
-            flag = {"ids": "--add", "auto": "--add auto"}.get(unused[0], "--" + unused[0].replace("_", "-"))
+            flag = {"ids": "--add", "auto": "--add auto", "noise_curves": "--noise"}.get(
+                unused[0], "--" + unused[0].replace("_", "-"))
             raise CalibrationError(f"{flag} does not apply to method {m.name} ({m.summary}).")
         result = m.run(ms, **{k: v for k, v in given.items() if k in m.options})
         notes = calibration.scale_notes(result, ms.meta)

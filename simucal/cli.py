@@ -328,6 +328,8 @@ def _thermal_lines(s, b):
               "parameter a polynomial in T - T_ref, applied at each row's temp_c.")
 @click.option("--thermal-degree", type=click.IntRange(0, 3), default=None,
               help="--thermal: the polynomials' degree (default: chosen by the data per parameter).")
+@click.option("--html", "html_out", type=click.Path(dir_okay=False), default=None,
+              help="--thermal: a page with each parameter against temperature and its fitted polynomial.")
 @click.option("--t-ref-c", type=Number(-60.0, 150.0), default=None,
               help="T_ref of temperature terms, degC (default: the mean of temp_c; --thermal: of the plateaus).")
 @click.option("--method", type=click.Choice(("auto",) + methods.NAMES), default="auto", show_default=True,
@@ -338,6 +340,9 @@ def _thermal_lines(s, b):
 @click.option("--add", "add", multiple=True, help=_ADD_AUTO_HELP)
 @click.option("--acc-noise-g", type=NOISE_G, default=None, help="Noise of one acc row (g), where the data cannot give it.")
 @click.option("--gyro-noise-dph", type=NOISE_DPH, default=None, help="Noise of one gyro row (deg/h).")
+@click.option("--noise", "noise_file", type=click.Path(exists=True, dir_okay=False), default=None,
+              help="A noise.json of simucal noise: each segment's noise from its Allan curve at the segment's length "
+                   "(averaged rows: meta.json's average_s).")
 @click.option("--init-rest-s", type=POSITIVE, default=None, help="Stream: length of the initial rest (default: found from the data).")
 @click.option("--threshold-factor", type=Number(1.0, 1e6, low_open=True), default=6.0, show_default=True,
               help="Stream: static threshold, times the rest's variance.")
@@ -346,8 +351,8 @@ def _thermal_lines(s, b):
 @HEADING_ACCURACY
 @click.option("--scheduler", default="local", show_default=True,
               help="Several sets: local, processes (a Dask LocalCluster) or a Dask scheduler's address.")
-def calibrate(data_dirs, output, thermal, thermal_degree, t_ref_c, method, acc_model, gyro_model, add, acc_noise_g,
-              gyro_noise_dph, init_rest_s, threshold_factor, window_s, min_static_s, heading_accuracy_deg, scheduler):
+def calibrate(data_dirs, output, thermal, thermal_degree, html_out, t_ref_c, method, acc_model, gyro_model, add, acc_noise_g,
+              gyro_noise_dph, noise_file, init_rest_s, threshold_factor, window_s, min_static_s, heading_accuracy_deg, scheduler):
     """Calibrate measurement sets; write calibration.json (one per set into a folder for several).
 
     With segments.csv and table angles: a turntable test (dong2018). Without segments.csv: a
@@ -357,10 +362,13 @@ def calibrate(data_dirs, output, thermal, thermal_degree, t_ref_c, method, acc_m
     from simucal.handheld.static_detect import DetectSettings
     kwargs = dict(method=method, acc_model=acc_model, gyro_model=gyro_model,
                   detect=DetectSettings(window_s, threshold_factor, min_static_s, init_rest_s), add=add,
-                  acc_noise_g=acc_noise_g, gyro_noise_dph=gyro_noise_dph, heading_accuracy_deg=heading_accuracy_deg)
-    inputs = list(data_dirs) + [a for a in add if a.endswith(".py")]
+                  acc_noise_g=acc_noise_g, gyro_noise_dph=gyro_noise_dph, heading_accuracy_deg=heading_accuracy_deg,
+                  noise=noise_file)
+    inputs = list(data_dirs) + [a for a in add if a.endswith(".py")] + ([noise_file] if noise_file else [])
     if thermal or thermal_degree is not None:
-        return _calibrate_thermal(data_dirs, output, thermal_degree, t_ref_c, kwargs, inputs)
+        return _calibrate_thermal(data_dirs, output, thermal_degree, t_ref_c, kwargs, inputs, html_out)
+    if html_out:
+        _fail("--html: a page of a thermal calibration (with --thermal); for one set use simucal diagnose --html")
     kwargs["t_ref_c"] = t_ref_c
     if len(data_dirs) == 1:
         _guard(inputs, files=[output])
@@ -405,11 +413,11 @@ def calibrate(data_dirs, output, thermal, thermal_degree, t_ref_c, method, acc_m
         sys.exit(2)
 
 
-def _calibrate_thermal(data_dirs, output, degree, t_ref_c, kwargs, inputs):
+def _calibrate_thermal(data_dirs, output, degree, t_ref_c, kwargs, inputs, html_out):
     from simucal.calibrate import calibrate_thermal
     from simucal.errors import CalibrationError
-    from simucal.io import calibration
-    _guard(inputs, files=[output])
+    from simucal.io import calibration, outputs
+    _guard(inputs, files=[output] + ([html_out] if html_out else []))
     try:
         result = calibrate_thermal([Path(d) for d in data_dirs], degree, t_ref_c, **kwargs)
         calibration.save(output, result)
@@ -417,6 +425,10 @@ def _calibrate_thermal(data_dirs, output, degree, t_ref_c, kwargs, inputs):
         _fail(e)
     for line in _sensor_lines(result):
         click.echo(line)
+    if html_out:
+        from simucal.report.thermal_html import thermal_page
+        outputs.write_text(html_out, thermal_page(result))
+        click.echo(f"wrote {html_out}")
     click.echo(f"wrote {output} (method {result['method']}; calibrated from {result['temperature_range_c'][0]:.4g} to "
                f"{result['temperature_range_c'][1]:.4g} degC)")
 
@@ -718,12 +730,14 @@ def plan(score_plan, model_name, add, positions, criterion, rate_dps, rates, kin
 
 @main.command()
 @click.option("--json", "json_path", type=click.Path(dir_okay=False), default=None, help="Also write the figures as JSON.")
-def bench(json_path):
+@click.option("--before", type=click.Path(exists=True, dir_okay=False), default=None,
+              help="A previous run's --json (e.g. benchmarks/bench_4a889b5.json), printed beside this run's figures.")
+def bench(json_path, before):
     """Measure the speed figures (fits, Monte Carlo, whole commands) on this machine."""
     from simucal.bench import run
     if json_path:
-        _guard(files=[json_path])
-    run(json_path, click.echo)
+        _guard([before] if before else [], files=[json_path])
+    run(json_path, click.echo, before)
 
 
 @main.command("field-drift")
@@ -831,7 +845,9 @@ def validate(calibration_file, data_dir, output, html_path):
               help="Also write a page with the Allan deviation plot.")
 @click.option("--kalibr", "kalibr_path", type=click.Path(dir_okay=False), default=None,
               help="Also write Kalibr's imu.yaml (noise densities and random walks, SI).")
-def noise(data_dir, output, html_path, kalibr_path):
+@click.option("--tau-max-s", type=POSITIVE, default=None,
+              help="The longest tau (s); default a ninth of the longest still stretch.")
+def noise(data_dir, output, html_path, kalibr_path, tau_max_s):
     """Allan deviation of a still recording and its IEEE 952 noise terms (ARW, bias instability, ...)."""
     import json
 
@@ -840,7 +856,7 @@ def noise(data_dir, output, html_path, kalibr_path):
     from simucal.io import MeasurementSetError, outputs
     _guard([data_dir], files=[output, html_path, kalibr_path])
     try:
-        report = allan.characterise(io.read_set(data_dir))
+        report = allan.characterise(io.read_set(data_dir), tau_max_s)
     except (MeasurementSetError, CalibrationError) as e:
         _fail(e)
     outputs.write_text(output, json.dumps(report, indent=1) + "\n")

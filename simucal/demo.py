@@ -116,6 +116,8 @@ def thermal(out: Path, seed: int, echo) -> dict:
     sets = [plateau(T, k) for k, T in enumerate((0, 25, 50))]
     cal = calibrate_thermal(sets)
     calibration.save(out / "thermal_calibration.json", cal)
+    from simucal.report.thermal_html import thermal_page
+    outputs.write_text(out / "thermal.html", thermal_page(cal))
     calibration.save(out / "thermal_calibration_25.json", calibrate(sets[1]))
     moving = [f"{s}.{n} degree {f['degree']}" for s in ("acc", "gyro")
               for n, f in cal[s]["thermal"]["parameters"].items() if f["degree"]]

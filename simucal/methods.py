@@ -32,9 +32,9 @@ class Method:
 
 # The functions import their method when called: the cli reads the names at every start.
 def _table(name):
-    def run(ms, acc_model, gyro_model, ids, auto, acc_noise_g, gyro_noise_dph):
+    def run(ms, acc_model, gyro_model, ids, auto, acc_noise_g, gyro_noise_dph, noise_curves):
         from simucal.turntable.calibrate import calibrate_table
-        return calibrate_table(ms, name, acc_model, gyro_model, ids, acc_noise_g, gyro_noise_dph, auto)
+        return calibrate_table(ms, name, acc_model, gyro_model, ids, acc_noise_g, gyro_noise_dph, auto, noise_curves)
     return run
 
 
@@ -50,7 +50,7 @@ def _field(ms, heading_accuracy_deg):
     return field_calibration(ms, heading_accuracy_deg)
 
 
-_TABLE_OPTIONS = ("acc_model", "gyro_model", "ids", "auto", "acc_noise_g", "gyro_noise_dph")
+_TABLE_OPTIONS = ("acc_model", "gyro_model", "ids", "auto", "acc_noise_g", "gyro_noise_dph", "noise_curves")
 METHODS = {m.name: m for m in (
     Method("exact", TURNTABLE, "dong2018's norm observation by the exact fit of any model (eq. 6-12 without the "
            "linearisation), frames unified by the rate runs' means", _TABLE_OPTIONS, _table("exact")),

@@ -99,3 +99,38 @@ def test_what_has_no_allan_deviation_is_refused(tmp_path, setup, named):
     d = setup(tmp_path)
     r = _run("noise", d, "-o", tmp_path / "n.json")
     assert r.exit_code == 2 and named in r.output and not (tmp_path / "n.json").exists()
+
+
+def test_calibrate_takes_each_segments_noise_from_the_allan_curve(tmp_path):
+    """calibrate --noise: an averaged row's noise is the Allan curve at the seconds it averages (meta's
+    average_s, a compatible extension of the spec), not white noise alone; refused without average_s."""
+    from simucal.fit.noise import load_curves
+    # white noise only, sized so that a 10 s mean has the simulator's per-row noise (1e-5 g, 0.01 deg/h)
+    write_still(tmp_path / "still", 600.0, DT, 0.01 / 60 * np.sqrt(10), 0.0, 1e-5 * np.sqrt(10), seed=1)
+    assert _run("noise", tmp_path / "still", "-o", tmp_path / "n.json").exit_code == 0
+    write(tmp_path / "set", Scenario(plan="fibonacci48", state_noise=False), 3)
+    r = _run("calibrate", tmp_path / "set", "--noise", tmp_path / "n.json", "-o", tmp_path / "c.json")
+    assert r.exit_code == 2 and "average_s" in r.output and not (tmp_path / "c.json").exists()
+    meta = json.loads((tmp_path / "set" / "meta.json").read_text())
+    (tmp_path / "set" / "meta.json").write_text(json.dumps({**meta, "average_s": 10.0}))
+    r = _run("calibrate", tmp_path / "set", "--noise", tmp_path / "n.json", "-o", tmp_path / "c.json")
+    assert r.exit_code == 0, r.output
+    cal = json.loads((tmp_path / "c.json").read_text())
+    for s, per_row in (("acc", 1e-5), ("gyro", 0.01)):
+        assert cal[s]["chi2"] is not None and cal[s]["p_value"] > 1e-3  # a chi-square test, not the F test
+        assert "Allan curve" in cal[s]["noise"]["text"] and f"{per_row:.2g}" in cal[s]["noise"]["text"]
+    # with a rate random walk a long mean is noisier than white noise over sqrt(n) says
+    write_still(tmp_path / "walk", 1800.0, DT, ARW_DEG_SQRT_H, RRW_DPH_SQRT_S, VRW_G_SQRT_S, seed=2)
+    assert _run("noise", tmp_path / "walk", "-o", tmp_path / "w.json").exit_code == 0
+    curve = load_curves(tmp_path / "w.json")["gyro"]
+    white = ARW_DEG_SQRT_H * 60 / np.sqrt(600.0)  # a 10-minute mean
+    assert np.all(curve(600.0) > 2 * white) and np.allclose(curve(0.1), ARW_DEG_SQRT_H * 60 / np.sqrt(0.1), rtol=0.1)
+
+
+def test_a_recording_too_short_for_the_tau_asked_is_refused(tmp_path):
+    d = _still(tmp_path / "still", seconds=60.0)
+    r = _run("noise", d, "-o", tmp_path / "n.json", "--tau-max-s", 10)
+    assert r.exit_code == 2 and "--tau-max-s 6.67 at most" in r.output and not (tmp_path / "n.json").exists()
+    r = _run("noise", d, "-o", tmp_path / "n.json", "--tau-max-s", 2)
+    assert r.exit_code == 0, r.output
+    assert max(json.loads((tmp_path / "n.json").read_text())["gyro"]["tau_s"]) <= 2.0 + 1e-9

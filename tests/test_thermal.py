@@ -30,7 +30,8 @@ def _set(folder, T, seed, plan="fibonacci48", rate_hz=None):
 def plateaus(tmp_path_factory):
     root = tmp_path_factory.mktemp("thermal")
     sets = [_set(root / f"p{T}", T, seed, rate_hz=20) for T, seed in ((0.0, 1), (25.0, 2), (50.0, 3))]
-    code, out = _run("calibrate", *sets, "--thermal", "--t-ref-c", T_REF, "-o", root / "cal.json")
+    code, out = _run("calibrate", *sets, "--thermal", "--t-ref-c", T_REF, "-o", root / "cal.json", "--html",
+                     root / "t.html")
     assert code == 0, out
     return root, sets, out
 
@@ -43,6 +44,9 @@ def _run(*args):
 def test_polynomials_recovered_within_three_std(plateaus):
     root, sets, out = plateaus
     assert "b_x = " in out and "degree 2 chosen by the data" in out
+    page = (root / "t.html").read_text()
+    assert page.count("<img") >= 4  # b_x, dK_z, gyro b_z and dK_x against temperature
+    assert "T_ref 25 degC" in page
     cal = json.loads((root / "cal.json").read_text())
     assert cal["t_ref_c"] == T_REF and cal["temperature_range_c"] == [0.0, 50.0]
     truth = json.loads((sets[1] / "truth.json").read_text())  # the unit at 25 degC = T_REF
@@ -171,3 +175,26 @@ def test_readme_gyro_model_file_example(tmp_path, monkeypatch):
     g = json.loads((tmp_path / "c.json").read_text())["gyro"]
     for name, value in (("kT3_z", 1e-9), ("Gt_xz", 0.01)):
         assert abs(g["effects"][name]["value"] - value) < 4 * g["effects"][name]["std"]
+
+
+def test_a_g_sensitivity_drifting_with_temperature_is_described_and_written(tmp_path, monkeypatch):
+    """Outside the library: a gyro g-sensitivity changing with temperature. diagnose's generic basis
+    (specific force times temperature) describes it, names its twin, and its model file passes."""
+    from simucal.fit.lack_of_fit import catalog_id, generic_terms
+    monkeypatch.setenv("SIMUCAL_CACHE", str(tmp_path / "cache"))
+    (tmp_path / "gt.py").write_text(
+        "from simucal.derive.frames import dtemp_c, f_b\nfrom simucal.derive.models import Term\n"
+        "from simucal.derive.models.baseline import GYRO_BASELINE\nMODELS = [GYRO_BASELINE.with_terms('gyro_gt', "
+        "[Term('Gt_xz', 'x', f_b[2] * dtemp_c, '(deg/h)/g/degC', 'x g-sensitivity drifting')])]\n")
+    code, out = _run("simulate", tmp_path / "s", "--plan", "fibonacci48", "--column", "temp_c=10:40", "--effect-file",
+                     tmp_path / "gt.py", "--set", "Gt_xz=0.01")
+    assert code == 0, out
+    code, out = _run("diagnose", tmp_path / "s", "-o", tmp_path / "d.json")
+    assert code == 0, out
+    shape = json.loads((tmp_path / "d.json").read_text())["gyro"]["shape"]
+    found = {f"{shape['regressor']} on {shape['axis']}"} | set(shape["indistinguishable_here"])
+    assert "f_z dtemp_c on x" in found and shape["unit"] == "(deg/h)/g/degC" and shape["catalog_id"] is None
+    assert abs(abs(shape["estimate"]) - 0.01) < 0.002
+    code, out = _run("calibrate", tmp_path / "s", "--add", tmp_path / "d_gyro_model.py", "-o", tmp_path / "c.json")
+    assert code == 0, out
+    assert json.loads((tmp_path / "c.json").read_text())["gyro"]["p_value"] > 1e-3

@@ -10,7 +10,7 @@
 - lack_of_fit: an F test of the model against the model plus a generic
   flexible basis (monomials of the input of degree 2 and 3 on each output
   axis, time, temperature, each axis's input times temperature (a scale factor
-  drifting with temperature), and for gyros the specific force). It needs no
+  drifting with temperature), and for gyros the specific force, alone and times temperature). It needs no
   noise level: F = (|P_G r|^2 / q) / ((|r|^2 - |P_G r|^2) / (dof - q)), with
   P_G the projection on the basis columns made orthogonal to the model's
   Jacobian (the per-position direction unknowns included), linearised at the
@@ -43,6 +43,7 @@ class GenericTerm:
     sensor: str
     # exponents and aux both set: the input (in its own unit, g or deg/h) times the auxiliary input,
     # a scale factor that drifts with it (u_x dtemp_c: the x scale factor linear in temperature)
+    times: str | None = None  # an aux term times this input too (f_x dtemp_c: a g-sensitivity drifting)
 
     @property
     def is_scale(self) -> bool:
@@ -60,7 +61,7 @@ class GenericTerm:
         if self.is_scale:
             return f"{self.symbol(self.exponents.index(1))} {self.aux}"
         if self.aux:
-            return self.aux
+            return self.aux + (f" {self.times}" if self.times else "")
         return " ".join(self.symbol(i) + (f"^{e}" if e > 1 else "") for i, e in enumerate(self.exponents) if e)
 
     def sympy(self) -> str:
@@ -69,6 +70,8 @@ class GenericTerm:
             i = self.exponents.index(1)
             aux = self.aux if self.aux in DEFAULT_ZERO else f"column_input({self.aux!r})"
             return f"{'f_b' if self.sensor == 'acc' else 'omega_d'}[{i}] * {aux}"
+        if self.times:
+            return f"{replace(self, times=None).sympy()} * {self.times}"
         if self.aux in FORCE:
             return f"f_b[{FORCE.index(self.aux)}]"
         if self.aux:
@@ -80,6 +83,8 @@ class GenericTerm:
         out = "g" if self.sensor == "acc" else "deg/h"
         if self.is_scale:
             return "1/degC" if self.aux == "dtemp_c" else f"1 per unit of {self.aux}"
+        if self.times:
+            return f"{replace(self, times=None).unit()}/degC"
         if self.aux:
             return {"t_s": f"{out}/s", "dtemp_c": f"{out}/degC", "w2": "m"}.get(
                 self.aux, f"({out})/g" if self.aux in FORCE else f"{out} per unit of {self.aux}")
@@ -90,13 +95,15 @@ class GenericTerm:
         if self.is_scale:
             return f"k_{a}_{self.aux.replace('_', '')}"
         if self.aux:
-            return f"c_{a}_{self.aux.replace('_', '')}"
+            return f"c_{a}_{self.aux.replace('_', '')}" + (f"_{self.times.replace('_', '')}" if self.times else "")
         return f"c_{a}_" + "".join("xyz"[i] * e for i, e in enumerate(self.exponents))
 
     def parity(self) -> str:
         if self.is_scale:
             return "a scale factor " + ("linear in temperature (from T_ref)" if self.aux == "dtemp_c" else
                                         f"linear in {self.aux}")
+        if self.times:
+            return f"{replace(self, times=None).parity()}, changing linearly with temperature (from T_ref)"
         if self.aux:
             return {"t_s": "linear in time", "dtemp_c": "linear in temperature (from T_ref)",
                     "w2": "with the centripetal scale"}.get(
@@ -108,7 +115,7 @@ class GenericTerm:
         if self.is_scale:
             return u[:, self.exponents.index(1)] * obs.aux.column(self.aux, len(u))
         if self.aux:
-            return obs.aux.column(self.aux, len(u))
+            return obs.aux.column(self.aux, len(u)) * (obs.aux.column(self.times, len(u)) if self.times else 1.0)
         x = u if self.sensor == "acc" else u / DPS
         return np.prod([x[:, i] ** e for i, e in enumerate(self.exponents)], axis=0)
 
@@ -142,7 +149,8 @@ def generic_terms(sensor: str, obs: Observations) -> list[GenericTerm]:
     unit = [tuple(int(i == a) for i in range(3)) for a in range(3)]
     return [GenericTerm(a, e, None, sensor) for e in mono for a in range(3)] + \
         [GenericTerm(a, (), x, sensor) for x in aux for a in range(3)] + \
-        [GenericTerm(a, unit[a], "dtemp_c", sensor) for a in range(3) if "dtemp_c" in aux]
+        [GenericTerm(a, unit[a], "dtemp_c", sensor) for a in range(3) if "dtemp_c" in aux] + \
+        [GenericTerm(a, (), x, sensor, "dtemp_c") for x in aux if x in FORCE for a in range(3) if "dtemp_c" in aux]
 
 
 def fit_with_noise(model, obs: Observations, p0=None) -> tuple[Fit, Observations, dict]:
@@ -151,7 +159,7 @@ def fit_with_noise(model, obs: Observations, p0=None) -> tuple[Fit, Observations
     sig = None if obs.sigma is None else np.asarray(obs.sigma, float)
     known = np.zeros(len(obs.N), bool) if sig is None else np.all(np.isfinite(sig), axis=1)
     if known.all():
-        return fit_exact(model, obs, p0), obs, {"source": "each segment's scatter or the stated noise"}
+        return fit_exact(model, obs, p0), obs, {"source": obs.sigma_source}
     if not known.any():
         obs = replace(obs, sigma=None)
         fit = fit_exact(model, obs, p0)

@@ -84,6 +84,9 @@ def _bind_fit(lib, name):
     return f
 
 
+NUMPY_ROWS = 256  # above this many rows jacobians() evaluates the numpy module
+
+
 class GeneratedModel:
     """An error model from generated/ (or a user's model from the cache): N(u, p), its
     Jacobians, the norm regression. `module` is the generated numpy module, `c_source`
@@ -158,7 +161,9 @@ class GeneratedModel:
         A = self.aux_array(aux, u.shape[:-1])
         if p.ndim > 1:  # one p per set: broadcast it over the set's rows
             p = p[..., None, :]
-        if u.ndim > 2 or p.ndim > 1 or self._c is None:  # batches: numpy (CasADi not even loaded)
+        # batches and many rows: the numpy module (vectorised; CasADi's map returns DM matrices whose
+        # conversion costs ~17x the numpy evaluation at 66,000 rows); CasADi for a few rows
+        if u.ndim > 2 or p.ndim > 1 or self._c is None or len(u) > NUMPY_ROWS:
             N = self.module.output(u, p, A)
             Ju, Jp = self.module.output_jacobians(u, p, A)
             return N, Ju, Jp

@@ -1,5 +1,13 @@
-"""White-noise level from the data itself."""
+"""White-noise level from the data itself, and the noise of a mean from an Allan curve."""
 import numpy as np
+
+from simucal.errors import CalibrationError
+
+TERMS = ("Q", "N", "B", "K", "R")
+# each IEEE 952 term's column in sigma^2(tau) (Table C.1): quantisation, angle/velocity random walk,
+# bias instability, rate random walk, rate ramp
+COLUMNS = {"Q": lambda t: 3.0 / t ** 2, "N": lambda t: 1.0 / t, "B": lambda t: np.full_like(t, 2 * np.log(2) / np.pi),
+           "K": lambda t: t / 3.0, "R": lambda t: t ** 2 / 2.0}
 
 
 def white_noise_var(x, ddof=0):
@@ -22,3 +30,28 @@ def quantization_step(x, whole=None):
             d = np.diff(np.unique(np.asarray(whole, float)[:, j]))
         steps.append(float(d[d > 0].min()) if np.any(d > 0) else 0.0)
     return np.array(steps)
+
+
+def load_curves(path) -> dict:
+    """{sensor: curve} from a noise.json of `simucal noise`: curve(tau_s) is the std of a tau-long mean
+    per axis (3,), from the fitted IEEE 952 terms, sigma(tau) = sqrt(sum_k term_k^2 column_k(tau)) in
+    g or deg/h: what `calibrate --noise` takes as the noise of each segment's mean."""
+    import json
+    from pathlib import Path
+    try:
+        rep = json.loads(Path(path).read_text())
+    except (OSError, UnicodeDecodeError, json.JSONDecodeError) as e:
+        raise CalibrationError(f"{path}: not a readable noise report ({e})") from None
+    if not isinstance(rep, dict) or rep.get("format") != "simucal.noise/1":
+        raise CalibrationError(f"{path}: not a report of simucal noise (format simucal.noise/1); write one with "
+                               "simucal noise STILL_RECORDING -o noise.json")
+    out = {}
+    for sensor in ("acc", "gyro"):
+        if sensor in rep:
+            terms = [rep[sensor]["axes"][a]["terms"] for a in "xyz"]
+
+            def curve(tau_s, terms=terms):
+                t = np.atleast_1d(np.asarray(tau_s, float))
+                return np.sqrt(np.array([sum(ax[k] ** 2 * COLUMNS[k](t) for k in TERMS) for ax in terms])).T.squeeze()
+            out[sensor] = curve
+    return out

@@ -16,7 +16,7 @@ optionally the standard deviation of each mean.
 """
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 
@@ -32,12 +32,13 @@ class Observations:
     sigma: np.ndarray | None = None  # (n, 3) std of each mean, or None (unknown)
     aux: AuxInputs = field(default_factory=AuxInputs)  # temp_c, t_s, f_x.. or w2, a user's columns: per row
     labels: list = field(default_factory=list)  # segment ids, for messages
+    sigma_source: str = "each segment's scatter or the stated noise"  # where sigma came from, in words
 
     def take(self, rows) -> "Observations":
         """The observations of the given rows (indices)."""
         rows = np.asarray(rows)
-        return Observations(self.N[rows], self.rho[rows], None if self.sigma is None else self.sigma[rows],
-                            self.aux.take(rows), [self.labels[i] for i in rows] if self.labels else [])
+        return replace(self, N=self.N[rows], rho=self.rho[rows], sigma=None if self.sigma is None else self.sigma[rows],
+                       aux=self.aux.take(rows), labels=[self.labels[i] for i in rows] if self.labels else [])
 
 
 @dataclass

@@ -37,6 +37,10 @@ def check_meta(meta, path, error):
             raise error(path, None, f'"{key}" is {v!r}, but it is the std of one row\'s output ({unit}): a number '
                                     f'> 0 and <= {hi:g}; leave the key out where the noise is not known (it is then '
                                     'estimated from the data)')
+    v = meta.get("average_s")
+    if v is not None and (isinstance(v, bool) or not isinstance(v, (int, float)) or not 0 < v < math.inf):
+        raise error(path, None, f"average_s is {v!r}; it must be a number > 0 (the seconds each averaged row "
+                                "averages)")
     v = meta.get("table_accuracy_arcsec")
     if v is not None and (isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v) or v < 0):
         raise error(path, None, f"table_accuracy_arcsec is {v!r}; it must be a number >= 0 (the std of each commanded "

@@ -56,11 +56,27 @@ def _mean_and_sigma(x, stated, varying=False):
     return x.mean(0), np.full(3, np.nan if stated is None else stated / np.sqrt(n))
 
 
-def segment_observations(ms: io.MeasurementSet, sensor: str, kinds=None, stated=None):
+def segment_duration_s(ms, rows, where) -> float:
+    """The seconds a segment's mean covers: its rows' span and one step; an averaged row's meta
+    average_s (the spec's optional key), which the Allan curve needs."""
+    t = ms.samples["t_s"][rows]
+    if len(t) >= 2:
+        return float(t[-1] - t[0] + np.median(np.diff(t)))
+    if "average_s" not in ms.meta:
+        raise CalibrationError(f"{ms.path / 'meta.json'}: --noise takes each row's noise from the Allan curve at the "
+                               f"seconds it averages, but segment {where} is one averaged row and meta.json states no "
+                               "average_s: add \"average_s\": SECONDS (or leave --noise out)")
+    return float(ms.meta["average_s"])
+
+
+def segment_observations(ms: io.MeasurementSet, sensor: str, kinds=None, stated=None, curve=None):
     """(Observations, segments) for 'acc' (by default the static segments; with kinds
     {"static", "rate"} the rate runs too, whose centripetal scale w2 lets lever arms show)
     or 'gyro' (rate segments). stated: the noise of one row (g or deg/h) where the data
-    cannot give it; default meta's acc_noise_g / gyro_noise_dph."""
+    cannot give it; default meta's acc_noise_g / gyro_noise_dph. curve: the std of a mean
+    over tau seconds (allan.load_curves, `calibrate --noise`), which then gives every
+    segment's noise at its length: with bias instability a long mean is noisier than its
+    rows' scatter over sqrt(n) says."""
     if ms.segments is None:
         raise CalibrationError(f"{ms.path}: no segments.csv: this is a continuous stream (use calibrate, "
                                "which detects its static poses)")
@@ -82,6 +98,8 @@ def segment_observations(ms: io.MeasurementSet, sensor: str, kinds=None, stated=
             continue
         refuse_outliers(ms, raw, rows, sensor, s.segment)
         m, sd = _mean_and_sigma(data[rows], stated, varying=(s.kind == "rate"))  # the inputs turn in a rate run
+        if curve is not None:
+            sd = curve(segment_duration_s(ms, rows, s.segment))
         N.append(m)
         sig.append(sd)
         rho.append(1.0 if sensor == "acc" else abs(s.outer_rate_dps * units.DPH_PER_DPS + w_e * np.sin(lat)))  # |input|
@@ -98,6 +116,8 @@ def segment_observations(ms: io.MeasurementSet, sensor: str, kinds=None, stated=
     aux.update(specific_force(ms, keep) if sensor == "gyro" else {"w2": centripetal_scale(ms, keep)})
     obs = Observations(np.array(N).reshape(-1, 3), np.array(rho), np.array(sig).reshape(-1, 3), AuxInputs(aux),
                        [s.segment for s in keep])
+    if curve is not None:
+        obs.sigma_source = "the Allan curve of --noise at each segment's length"
     if sensor == "acc":
         check_axes_follow_gravity(ms, obs, keep)
     if keep:
@@ -409,18 +429,20 @@ def _noise_text(noise, obs, unit):
 
 
 def calibrate_table(ms, method, acc_model, gyro_model, ids, acc_noise_g=None, gyro_noise_dph=None,
-                    auto=False) -> dict:
+                    auto=False, noise_curves=None) -> dict:
     """Calibrate a turntable set (segments.csv) by `method` (exact, linear or multiposition: methods.py), the models with the effect ids added
-    (auto: and the library effects that a failing model needs, candidates.forward_selection)."""
+    (auto: and the library effects that a failing model needs, candidates.forward_selection); noise_curves:
+    {sensor: std of a mean over tau s} (`calibrate --noise`, segment_observations)."""
+    curves = noise_curves or {}
     if auto and method != "exact":
         raise CalibrationError("--add auto needs --method exact (the effects are chosen by the exact fit's test)")
     acc_obs = acc_segs = gyro_obs = gyro_segs = None
     # the paper's linear regression (eq. 8) and the multi-position method take static positions only
     rows = ROWS if method == "exact" else {**ROWS, "acc": {"static"}}
     if ms.has_acc:
-        acc_obs, acc_segs = segment_observations(ms, "acc", rows["acc"], acc_noise_g)
+        acc_obs, acc_segs = segment_observations(ms, "acc", rows["acc"], acc_noise_g, curves.get("acc"))
     if ms.has_gyro:
-        gyro_obs, gyro_segs = segment_observations(ms, "gyro", rows["gyro"], gyro_noise_dph)
+        gyro_obs, gyro_segs = segment_observations(ms, "gyro", rows["gyro"], gyro_noise_dph, curves.get("gyro"))
         if not gyro_segs:
             gyro_obs = None
     check_rate_sense(ms, gyro_obs, gyro_segs)
