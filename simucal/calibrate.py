@@ -29,6 +29,9 @@ def calibrate(folder, method="auto", acc_model="acc_baseline", gyro_model="gyro_
     `simucal noise`, whose Allan curve gives each segment's noise at its length. Options a method does
     not take are refused when set."""
     ms = io.read_set(folder) if not isinstance(folder, io.MeasurementSet) else folder
+    if t_ref_c is not None and "temp_c" not in ms.samples:
+        raise CalibrationError(f"{ms.path / 'samples.csv'}: --t-ref-c {t_ref_c:g}, but there is no temp_c column for "
+                               "temperature terms to take it from: leave --t-ref-c out")
     ms.temperature_ref_c = t_ref_c
     try:
         m = methods.choose(method, ms)
@@ -92,9 +95,12 @@ def _thermal_block(blocks, T_k, t_ref_c, degree, sensor, plateaus):
     from simucal.fit.augmented import AugmentedModel
     from simucal.fit.thermal import fit_polynomial
     first = blocks[0]
-    if "params" not in first:
-        raise CalibrationError(f"{sensor}: method {first.get('description', first['model'])} writes no model "
-                               "parameters to follow over temperature; use --method exact (a turntable) or handheld")
+    for b, p in zip(blocks, plateaus):
+        if b.get("nominal") or "params" not in b:
+            raise CalibrationError(f"{p}: its {sensor} block has no model parameters to follow over temperature ("
+                                   + ("left at nominal: " + str(b.get("why", b.get("description", ""))) if b.get("nominal")
+                                      else f"method {b.get('description', b['model'])}; use --method exact or handheld")
+                                   + ")")
     for b, p in zip(blocks, plateaus):
         if (b["model"], list(b["effects"]), list(b["params"])) != (first["model"], list(first["effects"]),
                                                                   list(first["params"])):
@@ -137,6 +143,11 @@ def calibrate_thermal(folders, degree=None, t_ref_c=None, **kwargs) -> dict:
     if degree is not None and not 0 <= degree <= min(3, len(folders) - 1):
         raise CalibrationError(f"--thermal-degree {degree}: between 0 and {min(3, len(folders) - 1)} "
                                f"({len(folders)} plateaus fit at most degree {len(folders) - 1})")
+    temperature = [e for e in kwargs.get("add", ()) if "_temperature" in e]
+    if temperature:
+        raise CalibrationError(f"--thermal with --add {temperature[0]}: every parameter already follows temperature "
+                               "as a polynomial over the plateaus; a temperature effect within each plateau would "
+                               "count it twice: leave it out")
     sets = [_plateau(f) for f in folders]
     T_k = [t for _, t in sets]
     if max(T_k) - min(T_k) < PLATEAU_SPREAD_C:

@@ -421,7 +421,7 @@ def _calibrate_thermal(data_dirs, output, degree, t_ref_c, kwargs, inputs, html_
     try:
         result = calibrate_thermal([Path(d) for d in data_dirs], degree, t_ref_c, **kwargs)
         calibration.save(output, result)
-    except (ValueError, KeyError, CalibrationError) as e:
+    except (ValueError, KeyError, CalibrationError, FileNotFoundError) as e:
         _fail(e)
     for line in _sensor_lines(result):
         click.echo(line)

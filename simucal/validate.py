@@ -199,7 +199,8 @@ def validate(cal_path, data_dir) -> dict:
         far = sorted({x for c in rows for x in c.get("far_off") or []})
         if far and s in verdicts:
             verdicts[s] += f"; but {', '.join(far)} FAR OFF where the rest agree (mislabelled or disturbed)"
-    same = calibration.input_sha256(ms.path) == cal.get("input_sha256")
+    made_from = cal.get("input_sha256")  # a thermal calibration's: one per plateau
+    same = calibration.input_sha256(ms.path) in (made_from if isinstance(made_from, list) else [made_from])
     return {"format": "simucal.validation/1", "calibration": str(cal_path), "data": str(ms.path),
             "independent": not same, "checks": checks, "verdict": verdicts,
             "note": ("these are the data the calibration was made from: on its own rows a model always looks "

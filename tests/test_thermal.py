@@ -198,3 +198,24 @@ def test_a_g_sensitivity_drifting_with_temperature_is_described_and_written(tmp_
     code, out = _run("calibrate", tmp_path / "s", "--add", tmp_path / "d_gyro_model.py", "-o", tmp_path / "c.json")
     assert code == 0, out
     assert json.loads((tmp_path / "c.json").read_text())["gyro"]["p_value"] > 1e-3
+
+
+def test_review_findings_refused_or_right(plateaus, tmp_path):
+    """A temperature effect added within each plateau (it would count the temperature twice), a model file
+    that does not exist, --t-ref-c without temp_c and a hand-edited thermal section are refused in one
+    line; validate knows a plateau of a thermal calibration as its own data."""
+    root, sets, _ = plateaus
+    code, out = _run("calibrate", *sets, "--thermal", "--add", "acc.bias_temperature.x", "-o", tmp_path / "c.json")
+    assert code == 2 and "count it twice" in out
+    code, out = _run("calibrate", *sets, "--thermal", "--add", tmp_path / "none.py", "-o", tmp_path / "c.json")
+    assert code == 2 and "internal error" not in out and out.count("\n") == 1
+    write(tmp_path / "notemp", Scenario(plan="fibonacci48"), 5)
+    code, out = _run("calibrate", tmp_path / "notemp", "--t-ref-c", 20, "-o", tmp_path / "c.json")
+    assert code == 2 and "no temp_c column" in out
+    cal = json.loads((root / "cal.json").read_text())
+    cal["acc"]["thermal"]["parameters"]["b_x"]["coefficients"][0] += 1e-3
+    (tmp_path / "edited.json").write_text(json.dumps(cal))
+    code, out = _run("apply", tmp_path / "edited.json", sets[0], "-o", tmp_path / "out")
+    assert code == 2 and "edited by hand" in out
+    code, out = _run("validate", root / "cal.json", sets[0], "-o", tmp_path / "v.json")
+    assert code == 0 and not json.loads((tmp_path / "v.json").read_text())["independent"]

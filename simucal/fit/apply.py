@@ -54,9 +54,12 @@ def _params(block, model):
 
 def thermal_function(model: AugmentedModel, P, C=np.eye(3)):
     """h(u_b) with parameters P (n, m), one row's each (a thermal calibration at each row's temp_c):
-    every row a batch of one, so the model's batched form takes it."""
+    every row a batch of one, so the model's batched form takes it. dtemp_c is 0: the parameters
+    follow temperature themselves (a model file's terms in dtemp_c were fitted within each plateau,
+    around its own temperature)."""
     def h(u_b, aux: AuxInputs):
-        one = AuxInputs({k: (np.asarray(v)[:, None] if np.ndim(v) else v) for k, v in aux.values.items()})
+        one = AuxInputs({k: (np.asarray(v)[:, None] if np.ndim(v) else v)
+                         for k, v in aux.with_values(dtemp_c=0.0).values.items()})
         N, Ju, _ = model.jacobians((u_b @ C.T)[:, None, :], P, one)
         return N[:, 0], Ju[:, 0] @ C
     return h
@@ -87,6 +90,8 @@ def check_block(block, sensor, where) -> None:
     if "M_in_d" in block and "C_b_model" not in block:
         raise CalibrationError(f"{where}: the {sensor} block has M in its own frame (M_in_d) but no C_b_model, the "
                                "rotation that ties it to b: the file was edited by hand; calibrate again")
+    if "thermal" in block:
+        _check_thermal(block, sensor, model.params, where)
     M_p, b_p = model.matrix_and_bias(_params(block, model))
     for name, mine, theirs in (("M", M_p @ np.array(block.get("C_b_model", np.eye(3)), float), block["M"]),
                                ("bias", b_p, block["bias"])):
@@ -95,6 +100,22 @@ def check_block(block, sensor, where) -> None:
             raise CalibrationError(f"{where}: {sensor}.{name} disagrees with what {sensor}.params give (largest "
                                    f"difference {diff:.3g}): the file was edited by hand; calibrate again rather "
                                    "than edit a calibration")
+
+
+def _check_thermal(block, sensor, names, where) -> None:
+    """A thermal section with a finite polynomial for every parameter, c_0 the parameter itself."""
+    th = block["thermal"]
+    ok = isinstance(th, dict) and isinstance(th.get("t_ref_c"), (int, float)) and isinstance(th.get("parameters"), dict)
+    for n in names if ok else ():
+        c = th["parameters"].get(n, {}).get("coefficients") if isinstance(th["parameters"].get(n), dict) else None
+        good = isinstance(c, list) and 0 < len(c) <= 4 and all(isinstance(x, (int, float)) and np.isfinite(x) for x in c)
+        if not good or abs(c[0] - block["params"][n]) > EDITED * max(1.0, abs(c[0])):
+            ok = False
+            break
+    if not ok:
+        raise CalibrationError(f"{where}: {sensor}.thermal lacks a polynomial for a parameter, holds non-numbers, or "
+                               "disagrees with params (c_0 is the parameter at T_ref): the file was edited by hand; "
+                               "calibrate again")
 
 
 def solve_inputs(h, M, bias, N, aux: AuxInputs, sensor, where) -> np.ndarray:
