@@ -262,7 +262,8 @@ def effects_module() -> str:
              '"""Candidate effects (derive/models/effects.py): each adds p * phi(u, aux) to one axis."""\n'
              "from typing import Callable, NamedTuple\n\nimport numpy\n",
              "class Effect(NamedTuple):\n    sensor: str\n    axis: int  # the output axis it adds to, 0 1 2\n"
-             "    parameter: str\n    unit: str\n    meaning: str\n    phi: Callable  # phi(u, aux) -> (phi, dphi/du)\n",
+             "    parameter: str\n    unit: str\n    meaning: str\n    phi: Callable  # phi(u, aux) -> (phi, dphi/du)\n"
+             "    reads: tuple = ()  # the auxiliary inputs its regressor reads (temp_c, dtemp_c, t_s, ...)\n",
              f"AUX = {SENSOR_AUX!r}  # the aux argument of each sensor's phi, by name (derive/frames.py)\n"]
     table_rows = []
     for eid, term in CANDIDATES.items():
@@ -274,8 +275,9 @@ def effects_module() -> str:
         aux = _aux_arg(AUX_INPUTS[n].symbol for n in SENSOR_AUX[sensor])
         parts.append(numpy_function(f"phi_{fname}", [("u", u)] + aux,
                                     [((1,), phi), ((3,), dphi.T)], f"{eid}: phi = {term.regressor} and dphi/du."))
+        reads = tuple(n for n in SENSOR_AUX[sensor] if AUX_INPUTS[n].symbol in term.regressor.free_symbols)
         table_rows.append(f"    {eid!r}: Effect({sensor!r}, {'xyz'.index(term.axis)}, {term.name!r}, {term.unit!r}, "
-                          f"{term.meaning!r}, phi_{fname}),")
+                          f"{term.meaning!r}, phi_{fname}, {reads!r}),")
     parts.append("EFFECTS = {\n" + "\n".join(table_rows) + "\n}\n")
     parts.append("# family: what a turntable plan needs to tell it from the baseline (derive/models/effects.py)\n"
                  f"SEPARATE = {SEPARATE!r}\n\n# gyro family: what a hand-placed session's moves need\n"

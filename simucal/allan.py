@@ -30,7 +30,7 @@ import numpy as np
 from scipy.optimize import nnls
 
 from simucal.errors import CalibrationError
-from simucal.fit.noise import COLUMNS, TERMS
+from simucal.fit.noise import COLUMNS, TERMS, allan_deviation
 from simucal.io import units
 
 MIN_CLUSTERS = 9  # the longest tau keeps this many independent clusters (relative error <= 25 %)
@@ -231,7 +231,7 @@ def html_page(report) -> str:
             t, s, r = (np.array(axd[k]) for k in ("tau_s", "adev", "rel_err"))
             ax.fill_between(t, s * (1 - r), s * (1 + r), color=color, alpha=0.2)
             ax.loglog(t, s, "o", ms=3, color=color, label=f"{a}")
-            fit = np.sqrt(sum(axd["terms"][k] ** 2 * COLUMNS[k](t) for k in TERMS))
+            fit = allan_deviation(axd["terms"], t)
             ax.loglog(t, fit, "-", color=color, lw=1)
         ax.set(xlabel="tau (s)", ylabel=f"Allan deviation ({b['unit']})",
                title=f"{sensor}: points with their 68 % interval, lines the IEEE 952 fit")

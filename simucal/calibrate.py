@@ -101,7 +101,6 @@ def _thermal_block(blocks, T_k, t_ref_c, degree, sensor, plateaus):
                                    + ("left at nominal: " + str(b.get("why", b.get("description", ""))) if b.get("nominal")
                                       else f"method {b.get('description', b['model'])}; use --method exact or handheld")
                                    + ")")
-    for b, p in zip(blocks, plateaus):
         if (b["model"], list(b["effects"]), list(b["params"])) != (first["model"], list(first["effects"]),
                                                                   list(first["params"])):
             raise CalibrationError(f"{p}: the {sensor} model ({b['model']} + {list(b['effects'])}) differs from the "
@@ -143,7 +142,9 @@ def calibrate_thermal(folders, degree=None, t_ref_c=None, **kwargs) -> dict:
     if degree is not None and not 0 <= degree <= min(3, len(folders) - 1):
         raise CalibrationError(f"--thermal-degree {degree}: between 0 and {min(3, len(folders) - 1)} "
                                f"({len(folders)} plateaus fit at most degree {len(folders) - 1})")
-    temperature = [e for e in kwargs.get("add", ()) if "_temperature" in e]
+    from simucal.fit.augmented import follows_temperature
+    from simucal.generated.effects import EFFECTS
+    temperature = [e for e in kwargs.get("add", ()) if e in EFFECTS and follows_temperature(e)]
     if temperature:
         raise CalibrationError(f"--thermal with --add {temperature[0]}: every parameter already follows temperature "
                                "as a polynomial over the plateaus; a temperature effect within each plateau would "

@@ -14,7 +14,7 @@ import numpy as np
 
 from simucal import io
 from simucal.errors import CalibrationError
-from simucal.fit.augmented import AugmentedModel
+from simucal.fit.augmented import AugmentedModel, follows_temperature
 from simucal.fit.aux_inputs import SENSOR_AUX, AuxInputs, columns_at, specific_force
 from simucal.fit.thermal import params_at
 from simucal.generated.effects import EFFECTS
@@ -190,8 +190,8 @@ def temperatures(cal: dict, ms) -> tuple[np.ndarray | None, list[str]]:
     temp = ms.samples["temp_c"]
     lo, hi = cal.get("temperature_range_c", (-np.inf, np.inf))
     out = np.nonzero((temp < lo - 1.0) | (temp > hi + 1.0))[0]  # 1 degC: a plateau's own scatter
-    if not len(out) or not (thermal or any("temperature" in e for s in ("acc", "gyro")
-                                           for e in cal.get(s, {}).get("effects", {}))):
+    if not len(out) or not (thermal or any(follows_temperature(e) for s in ("acc", "gyro") if s in cal
+                                           for e in calibration.library_effects(cal[s]))):
         return temp, []
     return temp, [f"{len(out)} of {len(temp)} rows (from line {out[0] + 2} of samples.csv) have temp_c "
                   f"{temp[out].min():.4g} to {temp[out].max():.4g} degC, outside the calibrated {lo:.4g} to "

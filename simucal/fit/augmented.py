@@ -24,6 +24,11 @@ def for_sensor(ids, sensor: str) -> tuple[str, ...]:
     return tuple(e for e in ids if EFFECTS[e].sensor == sensor)
 
 
+def follows_temperature(eid: str) -> bool:
+    """Whether a library effect's regressor reads the temperature (temp_c or dtemp_c)."""
+    return bool({"temp_c", "dtemp_c"} & set(EFFECTS[eid].reads))
+
+
 def check_effect(eid: str, sensor: str | None = None):
     """Refuse anything but an exact effect id, naming the ids that come closest."""
     if eid not in EFFECTS:

@@ -52,6 +52,12 @@ def load_curves(path) -> dict:
 
             def curve(tau_s, terms=terms):
                 t = np.atleast_1d(np.asarray(tau_s, float))
-                return np.sqrt(np.array([sum(ax[k] ** 2 * COLUMNS[k](t) for k in TERMS) for ax in terms])).T.squeeze()
+                return np.array([allan_deviation(ax, t) for ax in terms]).T.squeeze()
             out[sensor] = curve
     return out
+
+
+def allan_deviation(terms: dict, tau_s) -> np.ndarray:
+    """sigma(tau) of the IEEE 952 terms {Q, N, B, K, R} (in a sensor's unit times s^a), at tau_s."""
+    t = np.asarray(tau_s, float)
+    return np.sqrt(sum(terms[k] ** 2 * COLUMNS[k](t) for k in TERMS))

@@ -53,9 +53,11 @@ class MeasurementSet:
     def t_ref_c(self) -> float | None:
         """T_ref of temperature terms (degC): the user's, else the mean of temp_c over every row; None
         without a temp_c column. Calibrations write it (t_ref_c) and apply reads it back."""
+        if "temp_c" not in self.samples:
+            return None
         if self.temperature_ref_c is not None:
             return float(self.temperature_ref_c)
-        return float(np.mean(self.samples["temp_c"])) if "temp_c" in self.samples else None
+        return float(np.mean(self.samples["temp_c"]))
 
     @property
     def has_acc(self):

@@ -78,7 +78,7 @@ def header(method: str, ms) -> dict:
     out = {"format": FORMAT, "method": method, "input": str(ms.path), "input_sha256": input_sha256(ms.path),
            "layout": layout(ms), "formula": {s: FORMULA[s] for s in layout(ms)["sensors"]},
            "units": {"acc": "g", "gyro": "deg/h", "angles": "rad"}}
-    if ms.t_ref_c is not None and "temp_c" in ms.samples:  # temperature terms read dtemp_c = temp_c - t_ref_c; apply takes it from here
+    if ms.t_ref_c is not None:  # temperature terms read dtemp_c = temp_c - t_ref_c; apply takes it from here
         temp = ms.samples["temp_c"]
         out.update(t_ref_c=ms.t_ref_c, temperature_range_c=[float(np.min(temp)), float(np.max(temp))])
     return out
