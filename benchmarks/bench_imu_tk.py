@@ -21,7 +21,8 @@ import numpy as np
 from simucal import io
 from simucal.calibrate import calibrate
 from simucal.fit.rotations import exp_so3
-from simucal.handheld.calibrate import acc_from_poses, calibrate_handheld
+from simucal.handheld.calibrate import calibrate_handheld
+from simucal.handheld.poses import acc_from_poses
 from simucal.handheld.diagnose_moves import diagnose_moves
 from simucal.io.importers import import_imu_tk
 from simucal.report.markdown import header

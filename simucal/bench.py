@@ -12,7 +12,7 @@
   plateaus, `simucal montecarlo --effect acc.quadratic.z=1e-4` (trials per second of the whole
   process), `simucal field-drift` (3 x 300 s at 100 Hz), `simucal --help`;
 - compiling one model's C.
-Run by `simucal bench [--json OUT] [--before OLD.json]` or `python3 benchmarks/bench_speed.py`;
+Run by `simucal bench [-o OUT.json] [--before OLD.json]` or `python3 benchmarks/bench_speed.py`;
 --before prints a previous run's figures beside these (benchmarks/bench_*.json hold earlier
 runs). The imu_tk Xsens figures need shared/data beside the repository. Benchmarks print;
 tests never time.
@@ -33,7 +33,7 @@ from simucal.fit.catalog import load
 from simucal.fit.models import compile_c, generated_dir
 from simucal.fit.norm_fit import Observations, fit_exact
 from simucal.turntable import montecarlo
-from simucal.turntable.calibrate import segment_observations
+from simucal.turntable.observations import segment_observations
 from simucal.turntable.simulate import Scenario, write
 
 DATA = Path(__file__).resolve().parents[2] / "shared" / "data" / "imu_tk-xsens"  # beside a source checkout

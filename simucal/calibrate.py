@@ -14,12 +14,14 @@ import numpy as np
 from simucal import io, methods
 from simucal.errors import CalibrationError
 from simucal.io import calibration
+from simucal.io.calibration import Calibration, SensorBlock
+from simucal.io.calibration_checks import check_layout, scale_notes
 from simucal.io.sensor_checks import stuck_channels
 
 
 def calibrate(folder, method="auto", acc_model="acc_baseline", gyro_model="gyro_baseline", detect=None,
               add=(), acc_noise_g=None, gyro_noise_dph=None, heading_accuracy_deg=5.0, t_ref_c=None,
-              noise=None) -> dict:
+              noise=None) -> Calibration:
     """Calibrate a measurement set. method: a name of methods.METHODS, or "auto" (the default for
     the set's data). add: effect ids and model files (augmented.resolve_add), and "auto": the
     library effects a failing model needs, chosen one at a time (each sensor's block lists them
@@ -53,12 +55,10 @@ def calibrate(folder, method="auto", acc_model="acc_baseline", gyro_model="gyro_
             flag = {"ids": "--add", "auto": "--add auto", "noise_curves": "--noise"}.get(
                 unused[0], "--" + unused[0].replace("_", "-"))
             raise CalibrationError(f"{flag} does not apply to method {m.name} ({m.summary}).")
-        result = m.run(ms, **{k: v for k, v in given.items() if k in m.options})
-        notes = calibration.scale_notes(result, ms.meta)
+        result = m.call(ms, **given)
+        result.warnings += scale_notes(result, ms.meta)
     except CalibrationError as e:
         raise e.naming(ms.path) from None
-    if notes:
-        result["warnings"] = result.get("warnings", []) + notes
     return result
 
 
@@ -90,47 +90,51 @@ def _plateau(folder):
     return ms, float(T.mean())
 
 
-def _thermal_block(blocks, T_k, t_ref_c, degree, sensor, plateaus):
-    """One sensor's block: every parameter's polynomial, the block at T_ref (params = c_0)."""
-    from simucal.fit.augmented import AugmentedModel
-    from simucal.fit.thermal import fit_polynomial
+def _same_model(blocks, sensor, plateaus) -> None:
+    """Refuse plateaus whose blocks cannot be followed over temperature: no model parameters (nominal,
+    or an affine method), or another model than the first plateau's."""
     first = blocks[0]
     for b, p in zip(blocks, plateaus):
-        if b.get("nominal") or "params" not in b:
+        if b.nominal or not b.params:
             raise CalibrationError(f"{p}: its {sensor} block has no model parameters to follow over temperature ("
-                                   + ("left at nominal: " + str(b.get("why", b.get("description", ""))) if b.get("nominal")
-                                      else f"method {b.get('description', b['model'])}; use --method exact or handheld")
+                                   + (f"left at nominal: {b.description}" if b.nominal
+                                      else f"method {b.description or b.model}; use --method exact or handheld")
                                    + ")")
-        if (b["model"], list(b["effects"]), list(b["params"])) != (first["model"], list(first["effects"]),
-                                                                  list(first["params"])):
-            raise CalibrationError(f"{p}: the {sensor} model ({b['model']} + {list(b['effects'])}) differs from the "
-                                   f"first plateau's ({first['model']} + {list(first['effects'])}): a thermal "
+        if (b.model, list(b.effects), list(b.params)) != (first.model, list(first.effects), list(first.params)):
+            raise CalibrationError(f"{p}: the {sensor} model ({b.model} + {list(b.effects)}) differs from the "
+                                   f"first plateau's ({first.model} + {list(first.effects)}): a thermal "
                                    "calibration needs one model at every plateau (name its effects with --add)")
-    names = list(first["params"])
-    fits = {n: fit_polynomial(T_k, [b["params"][n] for b in blocks], [b["std"][n] for b in blocks], t_ref_c, degree)
+
+
+def _thermal_block(blocks: list[SensorBlock], T_k, t_ref_c, degree, sensor, plateaus) -> SensorBlock:
+    """One sensor's block: every parameter's polynomial, the block at T_ref (params = c_0)."""
+    from dataclasses import replace
+
+    from simucal.fit.augmented import AugmentedModel
+    from simucal.fit.thermal import fit_polynomial
+    _same_model(blocks, sensor, plateaus)
+    first = blocks[0]
+    names = list(first.params)
+    fits = {n: fit_polynomial(T_k, [b.params[n] for b in blocks], [b.std[n] for b in blocks], t_ref_c, degree)
             for n in names}
     for n, f in fits.items():
-        f.update(per_plateau=[b["params"][n] for b in blocks], per_plateau_std=[b["std"][n] for b in blocks])
+        f.update(per_plateau=[b.params[n] for b in blocks], per_plateau_std=[b.std[n] for b in blocks])
     p0 = np.array([fits[n]["coefficients"][0] for n in names])
     nearest = blocks[int(np.argmin(np.abs(np.asarray(T_k) - t_ref_c)))]
-    model = AugmentedModel(first["model"], calibration.library_effects(first))
-    M, bias = model.matrix_and_bias(p0)
-    C = np.asarray(nearest.get("C_b_model", np.eye(3)), float)
-    block = {k: first[k] for k in ("model", "model_source", "bias_unit", "param_units") if k in first}
-    block.update(effects={e: {**first["effects"][e], "value": fits[e]["coefficients"][0], "std": fits[e]["std"][0]}
-                          for e in first["effects"]},
-                 params={n: fits[n]["coefficients"][0] for n in names}, std={n: fits[n]["std"][0] for n in names},
-                 M=(M @ C).tolist(), bias=np.asarray(bias).tolist(),
-                 thermal={"t_ref_c": t_ref_c, "plateaus_c": list(T_k), "parameters": fits},
-                 plateaus=[{"input": p, "temp_c": t, "p_value": b.get("p_value"), "residual_rms": b.get("residual_rms"),
-                            "residual_unit": b.get("residual_unit")} for p, t, b in zip(plateaus, T_k, blocks)])
-    if "C_b_model" in first:
-        block["C_b_model"] = C.tolist()
-        block["M_in_d"] = M.tolist()
-    return block
+    M, bias = AugmentedModel(first.model, first.library_effects()).matrix_and_bias(p0)
+    details = {"plateaus": [{"input": p, "temp_c": t, "p_value": b.p_value, "residual_rms": b.residual_rms,
+                             "residual_unit": b.residual_unit} for p, t, b in zip(plateaus, T_k, blocks)]}
+    if first.C_b_model is not None:
+        details["M_in_d"] = M.tolist()
+    return replace(first, effects={e: replace(v, value=fits[e]["coefficients"][0], std=fits[e]["std"][0])
+                                   for e, v in first.effects.items()},
+                   params={n: fits[n]["coefficients"][0] for n in names}, std={n: fits[n]["std"][0] for n in names},
+                   M=M @ nearest.C, bias=bias, C_b_model=None if first.C_b_model is None else nearest.C,
+                   residual_rms=None, chi2=None, dof=None, p_value=None,
+                   thermal={"t_ref_c": t_ref_c, "plateaus_c": list(T_k), "parameters": fits}, details=details)
 
 
-def calibrate_thermal(folders, degree=None, t_ref_c=None, **kwargs) -> dict:
+def calibrate_thermal(folders, degree=None, t_ref_c=None, **kwargs) -> Calibration:
     """One unit at two or more temperature plateaus (one set each, its temperature the mean of its
     temp_c): each plateau calibrated alone by calibrate(**kwargs), then every parameter of the
     model a polynomial in (T - T_ref) (fit/thermal.py; degree None: chosen by the data).
@@ -159,18 +163,16 @@ def calibrate_thermal(folders, degree=None, t_ref_c=None, **kwargs) -> dict:
     cals = []
     for ms, t in sets:
         cals.append(calibrate(ms, t_ref_c=t, **kwargs))  # each plateau at its own temperature
-        calibration.check_layout(cals[0], ms, f"the first plateau ({sets[0][0].path})")
+        check_layout(cals[0], ms, f"the first plateau ({sets[0][0].path})")
     plateaus = [str(ms.path) for ms, _ in sets]
-    result = {k: v for k, v in cals[0].items() if k not in ("acc", "gyro", "warnings")}
-    result.update(method=f"thermal ({cals[0]['method']} per plateau)", input=plateaus,
-                  input_sha256=[c["input_sha256"] for c in cals], t_ref_c=t_ref,
-                  temperature_range_c=[min(T_k), max(T_k)])
-    for s in cals[0]["layout"]["sensors"]:
-        result[s] = _thermal_block([c[s] for c in cals], T_k, t_ref, degree, s, plateaus)
-    spread = [f"{ms.path}: temp_c spans {np.ptp(ms.samples['temp_c']):.3g} degC, more than a plateau's "
-              f"{PLATEAU_SPREAD_C:g} degC (its parameters are taken at its mean {t:.4g} degC)"
-              for ms, t in sets if np.ptp(ms.samples["temp_c"]) > PLATEAU_SPREAD_C]
-    warnings = spread + [w for c in cals for w in c.get("warnings", [])]
-    if warnings:
-        result["warnings"] = warnings
+    first = cals[0]
+    result = Calibration(f"thermal ({first.method} per plateau)", plateaus, [c.input_sha256 for c in cals],
+                         first.layout, t_ref_c=t_ref, temperature_range_c=[min(T_k), max(T_k)],
+                         unification=first.unification, not_calibrated=first.not_calibrated)
+    for s in first.sensors:
+        setattr(result, s, _thermal_block([getattr(c, s) for c in cals], T_k, t_ref, degree, s, plateaus))
+    result.warnings = [f"{ms.path}: temp_c spans {np.ptp(ms.samples['temp_c']):.3g} degC, more than a plateau's "
+                       f"{PLATEAU_SPREAD_C:g} degC (its parameters are taken at its mean {t:.4g} degC)"
+                       for ms, t in sets if np.ptp(ms.samples["temp_c"]) > PLATEAU_SPREAD_C]
+    result.warnings += [w for c in cals for w in c.warnings]
     return result

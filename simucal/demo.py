@@ -48,8 +48,8 @@ def loop(out: Path, seed: int, echo) -> dict:
     echo(f"1 simulate: {data} (fibonacci48 plan; a hidden effect is in {data / 'truth.json'} only)")
     base = calibrate(data)
     calibration.save(out / "loop_calibration_baseline.json", base)
-    echo(f"2 calibrate (baseline model): acc chi2 {base['acc']['chi2']:.1f} on {base['acc']['dof']} dof, "
-         f"p = {base['acc']['p_value']:.2g}; advice: add {base['acc']['advice']}")
+    echo(f"2 calibrate (baseline model): acc chi2 {base.acc.chi2:.1f} on {base.acc.dof} dof, "
+         f"p = {base.acc.p_value:.2g}; advice: add {base.acc.details['advice']}")
     diag = diagnose(data)
     outputs.write_text(out / "loop_diagnosis.json", json.dumps(diag, indent=1, default=float) + "\n")
     outputs.write_text(out / "loop_diagnosis.html", render(diag))
@@ -59,9 +59,9 @@ def loop(out: Path, seed: int, echo) -> dict:
         raise RuntimeError("the demo's hidden effect was not found: " + diag["acc"]["verdict"])
     fixed = calibrate(data, add=tuple(found))
     calibration.save(out / "loop_calibration_added.json", fixed)
-    e = fixed["acc"]["effects"][found[0]]
-    echo(f"4 calibrate --add {found[0]}: acc chi2 {fixed['acc']['chi2']:.1f} on {fixed['acc']['dof']} dof, "
-         f"p = {fixed['acc']['p_value']:.2g}; {found[0]} = {e['value']:.4g} +- {e['std']:.2g} {e['unit']} "
+    e = fixed.acc.effects[found[0]]
+    echo(f"4 calibrate --add {found[0]}: acc chi2 {fixed.acc.chi2:.1f} on {fixed.acc.dof} dof, "
+         f"p = {fixed.acc.p_value:.2g}; {found[0]} = {e.value:.4g} +- {e.std:.2g} {e.unit} "
          f"(truth {truth['acc']['params'][found[0]]:.4g})")
     err0, err1 = _rest_error(base, data), _rest_error(fixed, data)
     meta, samples, segments = apply(fixed, data)
@@ -69,7 +69,7 @@ def loop(out: Path, seed: int, echo) -> dict:
     rows = [("|f| - 1 g at rest, rms (g)", err0, err1)]
     for k in ("dK_z", "b_z", "dK_x"):
         t = truth["acc"]["params"][k]
-        rows.append((f"{k} error", base["acc"]["params"][k] - t, fixed["acc"]["params"][k] - t))
+        rows.append((f"{k} error", base.acc.params[k] - t, fixed.acc.params[k] - t))
     echo(f"5 apply: {out / 'loop_applied'}; the error falls (noise of one row {sc.acc_noise_g:.1g} g):")
     echo(f"   {'':28} {'baseline':>11} {'with ' + found[0]:>24}")
     for label, a, b in rows:
@@ -120,8 +120,8 @@ def thermal(out: Path, seed: int, echo) -> dict:
     outputs.write_text(out / "thermal.html", thermal_page(cal))
     calibration.save(out / "thermal_calibration_25.json", calibrate(sets[1]))
     moving = [f"{s}.{n} degree {f['degree']}" for s in ("acc", "gyro")
-              for n, f in cal[s]["thermal"]["parameters"].items() if f["degree"]]
-    echo(f"7 calibrate --thermal {' '.join(p.name for p in sets)}: T_ref {cal['t_ref_c']:.3g} degC; following "
+              for n, f in getattr(cal, s).thermal["parameters"].items() if f["degree"]]
+    echo(f"7 calibrate --thermal {' '.join(p.name for p in sets)}: T_ref {cal.t_ref_c:.3g} degC; following "
          f"temperature: {', '.join(moving)} (planted: {', '.join(THERMAL)})")
     other = plateau(35, 7, "table1")
     reps = {n: validate(out / f"thermal_calibration{n}.json", other) for n in ("", "_25")}

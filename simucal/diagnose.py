@@ -19,7 +19,8 @@ from simucal.fit.augmented import AugmentedModel
 from simucal.fit.candidates import ALPHA, test_model, verdict
 from simucal.fit.lack_of_fit import model_file_text
 from simucal.fit.norm_fit import Fit, Observations
-from simucal.turntable.calibrate import check_rate_sense, handedness_verdict, mirrored, segment_observations
+from simucal.turntable.consistency import handedness_verdict, mirrored
+from simucal.turntable.observations import check_rate_sense, segment_observations
 from simucal.turntable.model_test import ROWS, test_and_rank
 
 
@@ -44,12 +45,12 @@ def diagnose_sensor(ms, sensor, base_model, add=(), stated=None, truth=None, bef
         if base_model != "gyro_baseline":
             raise CalibrationError(f"{ms.path}: on a stream the gyro is fit as a full T and a bias over the moves, so "
                                    f"the model {base_model} does not apply; add effects with --add gyro.<effect>.<axis>")
-        from simucal.handheld.calibrate import acc_from_poses
+        from simucal.handheld.poses import acc_from_poses
         from simucal.handheld.diagnose_moves import diagnose_moves
         obs, det, am, fa, _ = acc_from_poses(ms)
         return diagnose_moves(ms, obs, det, am, fa, tuple(add), truth, ALPHA)
     if ms.segments is None:  # a stream: its static poses, as the hand-placed calibration finds them
-        from simucal.handheld.calibrate import pose_observations
+        from simucal.handheld.poses import pose_observations
         obs, det, poses = pose_observations(ms)
         segs = None
     else:  # the one model test's rows, calibrate's too (turntable/model_test.py)
@@ -93,7 +94,7 @@ def stream_summary(ms, max_points=4000):
     """A continuous stream for the report: |f| over time (decimated), calibrated by the
     hand-placed accelerometer fit, and the static intervals found (the gyro's moves are in
     the gyro block, diagnose_moves)."""
-    from simucal.handheld.calibrate import acc_from_poses
+    from simucal.handheld.poses import acc_from_poses
     _, det, am, fa, _ = acc_from_poses(ms)
     t = ms.samples["t_s"]
     step = max(len(t) // max_points, 1)

@@ -27,7 +27,11 @@ class Method:
     data: str                  # TURNTABLE, STREAM or FIELD
     summary: str               # what it is, with its paper
     options: tuple[str, ...]   # the keyword options its function takes (calibrate's names)
-    run: Callable              # run(ms, **options) -> the calibration file's dict (io/calibration.py)
+    run: Callable              # run(ms, **options) -> io.calibration.Calibration
+
+    def call(self, ms, **given):
+        """run(ms) with the options given that this method takes, the others at their DEFAULTS."""
+        return self.run(ms, **{k: v for k, v in {**DEFAULTS, **given}.items() if k in self.options})
 
 
 # The functions import their method when called: the cli reads the names at every start.
@@ -36,6 +40,11 @@ def _table(name):
         from simucal.turntable.calibrate import calibrate_table
         return calibrate_table(ms, name, acc_model, gyro_model, ids, acc_noise_g, gyro_noise_dph, auto, noise_curves)
     return run
+
+
+def _multiposition(ms, acc_model, gyro_model, ids, acc_noise_g, gyro_noise_dph, noise_curves):
+    from simucal.turntable.multiposition import calibrate_multiposition
+    return calibrate_multiposition(ms, acc_model, gyro_model, ids, acc_noise_g, gyro_noise_dph, noise_curves)
 
 
 def _handheld(ms, acc_model, ids, auto, detect):
@@ -50,6 +59,8 @@ def _field(ms, heading_accuracy_deg):
     return field_calibration(ms, heading_accuracy_deg)
 
 
+DEFAULTS = dict(acc_model="acc_baseline", gyro_model="gyro_baseline", ids=(), auto=False, detect=None, acc_noise_g=None,
+                gyro_noise_dph=None, noise_curves=None, heading_accuracy_deg=5.0)  # every option, as calibrate's
 _TABLE_OPTIONS = ("acc_model", "gyro_model", "ids", "auto", "acc_noise_g", "gyro_noise_dph", "noise_curves")
 METHODS = {m.name: m for m in (
     Method("exact", TURNTABLE, "dong2018's norm observation by the exact fit of any model (eq. 6-12 without the "
@@ -57,7 +68,8 @@ METHODS = {m.name: m for m in (
     Method("linear", TURNTABLE, "dong2018 as printed: the linear regression of eq. 8/12 and the unification of "
            "eq. 25-27 (derived models only)", _TABLE_OPTIONS, _table("linear")),
     Method("multiposition", TURNTABLE, "the traditional multi-position method (dong2018's 'previous method', "
-           "Tables 3 and 4): least squares on the commanded attitudes", _TABLE_OPTIONS, _table("multiposition")),
+           "Tables 3 and 4): least squares on the commanded attitudes",
+           tuple(o for o in _TABLE_OPTIONS if o != "auto"), _multiposition),
     Method("handheld", STREAM, "Tedaldi: static poses found in the stream, the exact norm fit of the "
            "accelerometers, the gyro from the gravity directions before and after each move",
            ("acc_model", "ids", "auto", "detect"), _handheld),

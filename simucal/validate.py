@@ -33,7 +33,7 @@ from simucal.fit.apply import apply
 from simucal.fit.noise import white_noise_var
 from simucal.fit.rotations import wahba
 from simucal.io import calibration, units
-from simucal.turntable.calibrate import table_accuracy_rad
+from simucal.turntable.observations import table_accuracy_rad
 from simucal.turntable.plan_design import directions_k
 
 WORSE = 1.05  # after/before above this: the calibration makes the unit worse on these data
@@ -133,7 +133,7 @@ def _turntable(ms, f_before, f_after, w_before, w_after):
 
 
 def _stream(ms, f_before, f_after, w_before, w_after):
-    from simucal.handheld.calibrate import build_moves, move_residuals
+    from simucal.handheld.moves import build_moves, move_residuals
     from simucal.handheld.static_detect import detect_static
     from simucal.io.sensor_checks import saturated_rows
     t = ms.samples["t_s"]
@@ -190,7 +190,7 @@ def validate(cal_path, data_dir) -> dict:
         for c in rows:
             c["ratio_after_before"] = c["after_rms"] / c["before_rms"] if c["before_rms"] else None
             c["verdict"] = _verdict(c)
-    verdicts = {s: ("not calibrated: kept at its nominal scale factors" if cal[s].get("nominal") else
+    verdicts = {s: ("not calibrated: kept at its nominal scale factors" if getattr(cal, s).nominal else
                     "WORSE THAN NOMINAL" if any(c["verdict"] == "WORSE THAN NOMINAL" for c in rows) else
                     "at the noise floor" if all(c["verdict"] == "at the noise floor" for c in rows) else "better"
                     if all(c["verdict"] in ("better", "at the noise floor") for c in rows) else "no better than nominal")
@@ -199,7 +199,7 @@ def validate(cal_path, data_dir) -> dict:
         far = sorted({x for c in rows for x in c.get("far_off") or []})
         if far and s in verdicts:
             verdicts[s] += f"; but {', '.join(far)} FAR OFF where the rest agree (mislabelled or disturbed)"
-    made_from = cal.get("input_sha256")  # a thermal calibration's: one per plateau
+    made_from = cal.input_sha256  # a thermal calibration's: one per plateau
     same = calibration.input_sha256(ms.path) in (made_from if isinstance(made_from, list) else [made_from])
     return {"format": "simucal.validation/1", "calibration": str(cal_path), "data": str(ms.path),
             "independent": not same, "checks": checks, "verdict": verdicts,

@@ -152,3 +152,40 @@ def test_one_method_registry():
     spelled = [p.relative_to(ROOT) for p in ROOT.rglob("*.py") if p.name != "methods.py"
                and "generated" not in p.parts and '"exact", "linear", "multiposition"' in p.read_text()]
     assert not spelled, spelled
+
+
+UNITLESS = {"--seed", "--seeds", "--trials", "--positions", "--power", "--thermal-degree", "--threshold-factor"}
+UNIT_SUFFIXES = ("-deg", "-s", "-hz", "-dps", "-dph", "-g", "-c", "-arcmin", "-mps2", "-per-g", "-per-dps")
+OLD_NAMES = {"--out-dir": "-o/--output", "--json": "-o/--output", "--sigma": "--acc-noise-g/--gyro-noise-dph",
+             "--rates": "--rates-dps", "--heading-error-deg": "--heading-accuracy-deg"}  # accepted, never shown first
+
+
+def test_one_command_grammar():
+    """Issue 25: `simucal VERB INPUT... -o OUTPUT [options]`. Every command that writes takes -o/--output;
+    a number carries its unit in its name (or is a count); one name per quantity (the old names are
+    aliases at most); every --help renders and names only options the command has."""
+    import re
+
+    import click
+    from click.testing import CliRunner
+
+    from simucal.cli import main
+    for name, cmd in main.commands.items():
+        out = CliRunner().invoke(main, [name, "--help"], terminal_width=200)
+        assert out.exit_code == 0, (name, out.output)
+        options = [p for p in cmd.params if isinstance(p, click.Option)]
+        if name != "derive":  # derive writes generated/ itself
+            assert any({"-o", "--output"} <= set(p.opts) for p in options), f"{name} has no -o/--output"
+            assert "-o, --output" in out.output, name
+        for p in options:
+            first = next(o for o in p.opts if o.startswith("--"))
+            assert first not in OLD_NAMES, f"{name} {first}: named {OLD_NAMES[first]} everywhere else"
+            number = isinstance(p.type, (click.types.FloatParamType, click.types.IntParamType)) or (
+                type(p.type).__name__ == "Number")
+            if number and not p.is_flag:
+                assert first in UNITLESS or first.endswith(UNIT_SUFFIXES), f"{name} {first}: a number without its unit"
+        text = " ".join(filter(None, [cmd.help] + [p.help for p in options]))
+        for verb, opt in re.findall(r"(?:(\b[a-z][a-z-]*) )?(?<![\w-])(--[a-z][a-z0-9-]*)", text):
+            other = main.commands.get(verb, cmd)  # "calibrate --method field": another command's option
+            known = {o for p in other.params if isinstance(p, click.Option) for o in p.opts} | {"--help"}
+            assert opt in known, f"{name} --help mentions {verb} {opt}, which {other.name} does not take"

@@ -368,7 +368,7 @@ def test_a_settling_table_is_no_glitch(raw_table, tmp_path):
     (["simulate", "{tmp}/s", "--seed", "-3"], "--seed"),
     (["montecarlo", "--trials", "1000000000000", "-o", "{tmp}/m.json"], "--trials"),
     (["montecarlo", "--trials", "2000000", "--effect", "acc.quadratic.z=1e-4", "-o", "{tmp}/m.json"], "--effect"),
-    (["plan", "--score", "table1", "--sigma", "0"], "--sigma 0"),
+    (["plan", "--score", "table1", "--acc-noise-g", "0"], "--acc-noise-g 0"),
     (["plan", "--score", "table1", "--power", "1.5"], "--power"),
     (["import", "imu_tk", "{table}/samples.csv", "{table}/samples.csv", "-o", "{tmp}/o", "--acc-counts-per-g", "-5",
       "--gyro-counts-per-dps", "100"], "--acc-counts-per-g -5"),
@@ -468,7 +468,7 @@ def test_any_numeric_edit_of_a_calibration_applies_finite_or_is_refused(sets, tm
 @pytest.mark.parametrize("fault, named", [(("az",), "az reversed"), (("gx",), "gx reversed"),
                                           (("ay",), "ay reversed"), (("gx", "gy"), "gx and gy swapped")])
 def test_a_reversed_or_swapped_column_in_a_stream_is_named(sets, tmp_path, command, fault, named):
-    """The norm fits cannot see a reflected triad; the moves can (handheld.calibrate.WIRING_FAULTS)."""
+    """The norm fits cannot see a reflected triad; the moves can (handheld.moves.WIRING_FAULTS)."""
     d = _copy(sets, "stream", tmp_path)
     rows = _rows(d)
     j = [rows[0].index(c) for c in fault]

@@ -15,7 +15,7 @@ from simucal.errors import CalibrationError
 
 def test_exact_within_3_sigma_of_truth(paper_set):
     folder, truth = paper_set
-    r = calibrate(folder, "exact")
+    r = calibrate(folder, "exact").to_json()
     for sensor in ("acc", "gyro"):
         for name, est in r[sensor]["params"].items():
             err = est - truth[sensor]["params"][name]
@@ -26,7 +26,7 @@ def test_exact_within_3_sigma_of_truth(paper_set):
 def test_norm_beats_multiposition_on_gyro_bias(paper_set):
     folder, truth = paper_set
     tb = np.array(truth["gyro"]["bias"])
-    err = {m: np.abs(np.array(calibrate(folder, m)["gyro"]["bias"]) - tb).max() for m in ("exact", "multiposition")}
+    err = {m: np.abs(np.array(calibrate(folder, m).to_json()["gyro"]["bias"]) - tb).max() for m in ("exact", "multiposition")}
     assert err["exact"] < err["multiposition"] / 10
 
 
@@ -116,16 +116,16 @@ def test_raw_samples_within_3_sigma(tmp_path):
     from simucal.turntable.simulate import Scenario, write
     truth = write(tmp_path / "raw", Scenario(rate_hz=20.0, static_s=5.0, acc_unit="m/s^2", gyro_unit="rad/s"), seed=5)
     r = calibrate(tmp_path / "raw", "exact")
-    for sensor in ("acc", "gyro"):
-        for name, est in r[sensor]["params"].items():
-            assert abs(est - truth[sensor]["params"][name]) < 3 * r[sensor]["std"][name], (sensor, name)
-        assert r[sensor]["p_value"] > 1e-3
+    for sensor, block in r.blocks():
+        for name, est in block.params.items():
+            assert abs(est - truth[sensor]["params"][name]) < 3 * block.std[name], (sensor, name)
+        assert block.p_value > 1e-3
 
 
 def test_not_converged_is_reported(paper_set):
     from simucal.fit.catalog import load
     from simucal.fit.norm_fit import fit_exact
-    from simucal.turntable.calibrate import segment_observations
+    from simucal.turntable.observations import segment_observations
     obs, _ = segment_observations(io.read_set(paper_set[0]), "acc")
     with pytest.raises(CalibrationError, match="did not converge"):
         fit_exact(load("acc_baseline"), obs, p0=[0.3] * 9, max_iter=1)
@@ -151,7 +151,7 @@ def test_user_model_file_goes_to_the_cache_not_the_package(tmp_path, monkeypatch
     m = load("acc_mine")
     assert m.params[-1] == "K2_x" and m.source == str(model_file.resolve())
     result = calibrate(paper_set[0], "exact", acc_model="acc_mine")
-    assert result["acc"]["model"] == "acc_mine" and "K2_x" in result["acc"]["params"]
+    assert result.acc.model == "acc_mine" and "K2_x" in result.acc.params
 
 
 def test_unit_mixup_named(paper_set, tmp_path):
@@ -188,4 +188,5 @@ def test_saturated_segment_left_out_and_reported(tmp_path):
     except CalibrationError as e:  # too few left is also an honest answer
         assert "positions" in str(e)
         return
-    assert r["excluded_segments"] and all(e["reason"] == "saturated samples" for e in r["excluded_segments"])
+    excluded = r.details["excluded_segments"]
+    assert excluded and all(e["reason"] == "saturated samples" for e in excluded)

@@ -27,7 +27,7 @@ def test_unification_at_noise_level_whatever_the_table_errors(tmp_path, plan, po
     (1e-5) the static pairing (1e-4 with 1', 7e-3 with 1 deg) cannot reach."""
     sc = Scenario(plan=plan, position_error_rad=position_error)
     truth = write(tmp_path, sc, 4)
-    cal = calibrate(tmp_path)
+    cal = calibrate(tmp_path).to_json()
     u = cal["unification"]
     assert u["method"] == "rate_run_means"
     phi = log_so3(np.array(u["C_b_d"]).T @ _truth_C_b_d(sc))
@@ -46,7 +46,7 @@ def test_unification_std_matches_scatter(tmp_path):
     sc = Scenario(position_error_rad=30 * ARCMIN)
     for seed in range(8):
         write(tmp_path / str(seed), sc, seed)
-        u = calibrate(tmp_path / str(seed))["unification"]
+        u = calibrate(tmp_path / str(seed)).to_json()["unification"]
         z.append(log_so3(np.array(u["C_b_d"]).T @ _truth_C_b_d(sc)) / np.array(u["std_rad"]))
     assert 0.6 < np.std(z) < 1.5, np.std(z)
 
@@ -54,7 +54,7 @@ def test_unification_std_matches_scatter(tmp_path):
 def test_cross_check_agrees_on_a_perfect_table(tmp_path):
     sc = Scenario(position_error_rad=0.0, tilt_rad=(0, 0), nonperp_rad=(0, 0), zero_rad=(0, 0, 0))
     write(tmp_path, sc, 5)
-    assert calibrate(tmp_path)["unification"]["cross_check"]["agree"]
+    assert calibrate(tmp_path).to_json()["unification"]["cross_check"]["agree"]
 
 
 def _edit(src, dst, column=None, meta=None, blank_angles=False):
@@ -88,7 +88,7 @@ def test_reversed_axis_refused_and_named(paper_set, tmp_path, column, named):
 def test_opposite_handedness_refused_without_table_angles(paper_set, tmp_path):
     """Without commanded angles the frames are still tied (rate-run means), and a triad reversed
     against the other is refused."""
-    ok = calibrate(_edit(paper_set[0], tmp_path / "ok", blank_angles=True))
+    ok = calibrate(_edit(paper_set[0], tmp_path / "ok", blank_angles=True)).to_json()
     assert ok["unification"]["method"] == "rate_run_means"
     with pytest.raises(CalibrationError, match="reversing the gyro's .*x axis"):
         calibrate(_edit(paper_set[0], tmp_path / "x", "ax", blank_angles=True))
@@ -98,13 +98,13 @@ def test_opposite_handedness_refused_without_table_angles(paper_set, tmp_path):
 def test_wrong_latitude_refused_with_the_measured_one(paper_set, tmp_path, latitude):
     with pytest.raises(CalibrationError, match=r"latitude_deg is .*gyros measure 4[45]\.\d\d"):
         calibrate(_edit(paper_set[0], tmp_path / "x", meta={"latitude_deg": latitude}))
-    lat = calibrate(paper_set[0])["consistency"]["latitude"]
+    lat = calibrate(paper_set[0]).to_json()["consistency"]["latitude"]
     assert abs(lat["measured_deg"] - 45.0) < 4 * lat["std_deg"] and lat["verdict"].startswith("agrees")
 
 
 def test_latitude_not_checked_where_gyros_cannot_resolve_the_earth_rate(tmp_path):
     write(tmp_path, Scenario(gyro_noise_dph=200.0), 1)
-    lat = calibrate(tmp_path)["consistency"]["latitude"]
+    lat = calibrate(tmp_path).to_json()["consistency"]["latitude"]
     assert lat["verdict"].startswith("not checked"), lat
 
 
@@ -119,7 +119,7 @@ def test_paper_linear_method_unifies_at_table2_carrying_the_table_errors(paper_s
     the rate-run means are ten times closer."""
     errors = {}
     for method in ("linear", "exact"):
-        cal = calibrate(paper_set[0], method)
+        cal = calibrate(paper_set[0], method).to_json()
         errors[method] = np.abs(np.array(cal["gyro"]["M"]) - np.array(paper_set[1]["gyro"]["M"])).max()
     assert cal["unification"]["method"] == "rate_run_means"
     assert errors["linear"] < 1e-3 and errors["exact"] < errors["linear"] / 10, errors
@@ -132,12 +132,12 @@ def test_lever_arms_the_model_lacks_inflate_the_unification_and_adding_them_fixe
     sc = Scenario(acc_effects={"acc.size_effect.xx": 0.05})
     truth = write(tmp_path, sc, 3)
     for add, misfit in (((), True), (("acc.size_effect.xx",), False)):
-        cal = calibrate(tmp_path, add=add)
+        cal = calibrate(tmp_path, add=add).to_json()
         u = cal["unification"]
         assert ("pairs misfit" in u.get("note", "")) == misfit, u.get("note")
         err = np.array(cal["gyro"]["M"]) - np.array(truth["gyro"]["M"])
         assert np.all(np.abs(err) < 3 * np.array(cal["gyro"]["std_M"]))
-    assert "acc.size_effect" in calibrate(tmp_path)["unification"]["note"]
+    assert "acc.size_effect" in calibrate(tmp_path).to_json()["unification"]["note"]
 
 
 def test_paper_unification_refused_for_other_models(paper_set):
@@ -167,7 +167,7 @@ def test_nearest_rotation_is_the_svd_solution(seed, kind):
 
 
 def _errors(folder, sc, truth, **kw):
-    cal = calibrate(folder, **kw)
+    cal = calibrate(folder, **kw).to_json()
     u = cal["unification"]
     phi = log_so3(np.array(u["C_b_d"]).T @ _truth_C_b_d(sc))
     err_M = np.array(cal["gyro"]["M"]) - np.array(truth["gyro"]["M"])
@@ -197,7 +197,7 @@ def test_latitude_checked_with_the_noise_given_on_the_command_line(tmp_path):
     neither: checked with the noise its own residuals give."""
     write(tmp_path, Scenario(state_noise=False), 2)
     for kw, words in (({"gyro_noise_dph": 0.01}, "agrees"), ({}, "from this fit's residuals")):
-        lat = calibrate(tmp_path, **kw)["consistency"]["latitude"]
+        lat = calibrate(tmp_path, **kw).to_json()["consistency"]["latitude"]
         assert lat["verdict"].startswith("agrees") and words in lat["verdict"] + "agrees", lat
 
 
@@ -214,7 +214,7 @@ def test_cross_check_false_alarm_rate_nominal_over_seeds(tmp_path):
             m = json.loads((write_set / "meta.json").read_text())
             m["table_accuracy_arcsec"] = np.degrees(error) * 3600 / np.sqrt(3)
             (write_set / "meta.json").write_text(json.dumps(m))
-        cc = calibrate(folder)["unification"]["cross_check"]
+        cc = calibrate(folder).to_json()["unification"]["cross_check"]
         alarms += not cc["agree"]
         p.append(cc["p_value"])
     assert alarms <= 1, (alarms, p)
@@ -257,7 +257,7 @@ def test_mixed_shuffled_set_without_noise_unifies_and_validates(tmp_path):
     assert not np.all(np.diff(samples["segment"]) >= 0)
     meta = {k: v for k, v in ms.meta.items() if k not in ("acc_noise_g", "gyro_noise_dph")}
     io.write_set(tmp_path / "mixed", meta, samples, ms.segments)
-    cal = calibrate(tmp_path / "mixed")
+    cal = calibrate(tmp_path / "mixed").to_json()
     u = cal["unification"]
     assert u["method"] == "rate_run_means" and "rate-run pairs' scatter" in u["noise"]["acc_rate_run_means"]["text"]
     assert u["cross_check"]["agree"], u["cross_check"]

@@ -44,7 +44,7 @@ def test_held_out_error_beside_the_in_sample_one(tmp_path):
     plant(sc, ["acc.quadratic.z=2e-4"])
     write(tmp_path / "s", sc, 4)
     base, added = calibrate(tmp_path / "s"), calibrate(tmp_path / "s", add=("acc.quadratic.z",))
-    cv0, cv1 = base["acc"]["cross_validation"], added["acc"]["cross_validation"]
+    cv0, cv1 = base.acc.details["cross_validation"], added.acc.details["cross_validation"]
     assert cv0["rows"] == cv1["rows"] >= 48 and not cv0["failed"]
     assert cv1["held_out_rms"] < 0.5 * cv0["held_out_rms"]
     assert cv1["in_sample_rms"] <= cv1["held_out_rms"] < 1.5 * cv1["in_sample_rms"]
@@ -71,8 +71,8 @@ def test_auto_never_chains_library_effects_onto_an_effect_outside_it(tmp_path, m
     sc = Scenario(plan="fibonacci48")
     plant(sc, effect_file=str(tmp_path / "m.py"), sets=[f"{name}={value}"], columns=column)
     write(tmp_path / "s", sc, 2)
-    base = calibrate(tmp_path / "s")
-    auto = calibrate(tmp_path / "s", add=("auto",))
+    base = calibrate(tmp_path / "s").to_json()
+    auto = calibrate(tmp_path / "s", add=("auto",)).to_json()
     assert base[sensor]["p_value"] < 1e-3  # the model fails: something is missing
     assert auto[sensor]["auto"] == []
     assert "library" in auto[sensor]["auto_stopped"] or "predict" in auto[sensor]["auto_stopped"]
@@ -90,8 +90,8 @@ def test_auto_adds_a_temperature_effect_of_the_library(tmp_path, sensor, eid, va
     sc = Scenario(plan="fibonacci48")
     plant(sc, [f"{eid}={value}"], columns=["temp_c=20:40"])
     write(tmp_path / "s", sc, 2)
-    base = calibrate(tmp_path / "s")
-    auto = calibrate(tmp_path / "s", add=("auto",))
+    base = calibrate(tmp_path / "s").to_json()
+    auto = calibrate(tmp_path / "s", add=("auto",)).to_json()
     assert base[sensor]["p_value"] < 1e-3
     assert [a["id"] for a in auto[sensor]["auto"]] == [eid]
     e = auto[sensor]["effects"][eid]
@@ -134,7 +134,7 @@ def test_a_gyro_model_the_moves_cannot_support_is_not_taken(tmp_path):
     sc = HandheldScenario(poses=10, rest_s=10.0, clip_moves=3,
                           gyro_effects={"gyro.g_sensitivity.xz": 3000.0, "gyro.g_sensitivity.yz": -3000.0})
     write_handheld(tmp_path / "h", sc, 2)
-    g = calibrate(tmp_path / "h")["gyro"]
+    g = calibrate(tmp_path / "h").to_json()["gyro"]
     table = g["model_choice"]
     assert g["moves_used"] <= 7 and g["gyro_model"] != "full"
     assert table["full"]["held_out_rms_deg"] > table["nominal"]["held_out_rms_deg"]

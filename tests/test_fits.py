@@ -116,7 +116,7 @@ def test_compiled_whole_fit_matches_the_python_solver(tmp_path, name, sensor):
     from simucal import io
     from simucal.fit.catalog import load
     from simucal.fit.norm_fit import fit_exact
-    from simucal.turntable.calibrate import segment_observations
+    from simucal.turntable.observations import segment_observations
     from simucal.turntable.simulate import Scenario, write
     c, py = load(name), load(name, compiled=False)
     if os.environ.get("SIMUCAL_NO_COMPILE"):  # the fallback by request: no compiled fit, the Python one
@@ -153,7 +153,7 @@ def test_numpy_batch_equals_one_set_at_a_time(tmp_path):
     from simucal import io
     from simucal.fit.catalog import load
     from simucal.fit.norm_fit import fit_batch, fit_exact
-    from simucal.turntable.calibrate import segment_observations
+    from simucal.turntable.observations import segment_observations
     from simucal.turntable.simulate import Scenario, write
     py = load("gyro_baseline", compiled=False)
     sets = []

@@ -112,7 +112,7 @@ def test_move_integration_and_its_jacobian():
     from simucal.generated import moves
 
     from simucal.fit.rotations import exp_so3
-    from simucal.handheld.calibrate import (
+    from simucal.handheld.moves import (
         Moves,
         move_residuals,
         prefix_products,

@@ -15,7 +15,7 @@ DATA = Path(__file__).resolve().parents[2] / "shared" / "data"
 @pytest.mark.parametrize("seed", [1, 2])
 def test_simulated_session_within_3_sigma(tmp_path, seed):
     truth = write_handheld(tmp_path / "h", HandheldScenario(clip_moves=2), seed)
-    r = calibrate(tmp_path / "h")
+    r = calibrate(tmp_path / "h").to_json()
     assert r["static_detection"]["count"] == 31
     acc_b_err = np.array(r["acc"]["bias"]) - truth["acc"]["bias"]
     std_b = np.array([r["acc"]["std"][k] for k in ("b_x", "b_y", "b_z")])
@@ -37,7 +37,7 @@ def test_clean_sessions_moves_chi2_per_dof_is_one(tmp_path):
     ratios = []
     for seed in range(20):
         write_handheld(tmp_path / str(seed), HandheldScenario(), seed)
-        g = calibrate(tmp_path / str(seed))["gyro"]
+        g = calibrate(tmp_path / str(seed)).to_json()["gyro"]
         ratios.append(g["chi2"] / g["dof"])
     assert abs(np.mean(ratios) - 1.0) < 0.05, (np.mean(ratios), ratios)
 
@@ -58,7 +58,7 @@ def test_refusals(tmp_path, settings, message):
 def test_imu_tk_xsens_unattended(tmp_path):
     import_imu_tk(DATA / "imu_tk-xsens" / "xsens_acc.mat", DATA / "imu_tk-xsens" / "xsens_gyro.mat", tmp_path / "x",
                   4096.0, 6258 * np.pi / 180, 45.4, 9.81744)
-    r = calibrate(tmp_path / "x")
+    r = calibrate(tmp_path / "x").to_json()
     assert 36 <= r["static_detection"]["count"] <= 40  # about 38 intervals, found unattended
     assert r["gyro"]["moves_used"] >= 35
     # the nominal 1/6258 (rad/s)/count is 24 % off; the fit finds imu_tk's scale to 0.1 %
@@ -84,7 +84,7 @@ def test_diagnose_real_stream_says_honestly_what_it_finds(tmp_path):
     assert s["steps"] and s["steps"][-1]["residual_rms_after"] < 1.5 * g["baseline"]["noise_floor"]
     assert all(x["id"].startswith("gyro.") for x in s["steps"]) and s["unexplained"] < 0.05
     assert " ".join(f"--add {e}" for e in s["effects"]) in g["verdict"]
-    r = calibrate(tmp_path / "x", add=tuple(s["effects"]))
+    r = calibrate(tmp_path / "x", add=tuple(s["effects"])).to_json()
     assert r["gyro"]["chi2"] == pytest.approx(s["steps"][-1]["chi2_after"], rel=1e-6)
     assert r["gyro"]["chi2"] < 0.05 * g["baseline"]["chi2"]
 
@@ -117,8 +117,8 @@ def test_stream_effect_found_first_and_carried_by_calibrate(tmp_path, eid, value
     write_handheld(tmp_path / "s", HandheldScenario(gyro_effects={eid: value}), 3)
     top = diagnose(tmp_path / "s")["gyro"]["candidates"][0]
     assert top["id"] == eid and top["significant"]
-    e = calibrate(tmp_path / "s", add=(eid,))["gyro"]["effects"][eid]
-    assert abs(e["value"] - value) < 3 * e["std"]
+    e = calibrate(tmp_path / "s", add=(eid,)).gyro.effects[eid]
+    assert abs(e.value - value) < 3 * e.std
 
 
 def test_ferraris_sessions(tmp_path):
@@ -127,26 +127,27 @@ def test_ferraris_sessions(tmp_path):
     import_ferraris_sections(d / "example_ferraris_session.csv", d / "example_ferraris_session_list.json",
                              tmp_path / "ex", 102.4, 49.6)
     r = calibrate(tmp_path / "ex", "multiposition")
-    assert np.allclose(np.diag(r["gyro"]["M"]), 1, atol=0.05) and np.allclose(np.diag(r["acc"]["M"]), 1, atol=0.05)
+    assert np.allclose(np.diag(r.gyro.M), 1, atol=0.05) and np.allclose(np.diag(r.acc.M), 1, atol=0.05)
     # imucal's annotated session turns +360 deg where imucal assumes -360: caught, not fitted into -I
     import_imucal_annotated(d / "annotated_session.csv", tmp_path / "an", 204.8, 2048.0, 16.4, 49.6)
     with pytest.raises(CalibrationError, match="turns opposite to the commanded rate in 3 of 3"):
         calibrate(tmp_path / "an", "multiposition")
     import_imucal_annotated(d / "annotated_session.csv", tmp_path / "an2", 204.8, 2048.0, 16.4, 49.6, turn_deg=360.0)
-    assert np.all(np.diag(calibrate(tmp_path / "an2", "multiposition")["gyro"]["M"]) > 0.9)
+    assert np.all(np.diag(calibrate(tmp_path / "an2", "multiposition").gyro.M) > 0.9)
 
 
 def test_stream_without_initial_rest_takes_its_threshold_from_the_quietest_stretch(tmp_path):
     write_handheld(tmp_path / "h", HandheldScenario(rest_s=0.5), 1)
     r = calibrate(tmp_path / "h")
-    assert "quietest 3 s" in r["static_detection"]["threshold_from"] and r["static_detection"]["count"] >= 28
+    det = r.details["static_detection"]
+    assert "quietest 3 s" in det["threshold_from"] and det["count"] >= 28
 
 
 def test_too_few_turns_about_one_axis_calibrates_what_the_moves_determine(tmp_path):
     """Moves that never turn about z: the accelerometer and the rest of T within 3 sigma, T's z column
     held at nominal by the stated prior and named undetermined (with the move that would determine it)."""
     truth = write_handheld(tmp_path / "h", HandheldScenario(weak_axis=2), 3)
-    r = calibrate(tmp_path / "h")
+    r = calibrate(tmp_path / "h").to_json()
     und = r["gyro"]["undetermined"]
     assert sorted(und) == ["T_xz", "T_yz", "T_zz"]
     assert all(not v["determined"] and v["std_moves_alone"] > 0.05 and "about the z axis" in v["to_determine"]
@@ -166,13 +167,13 @@ def test_ferraris_stream_without_its_section_list_gives_what_it_can(tmp_path):
     from simucal.io.importers import import_ferraris
     import_ferraris(DATA / "imucal-ferraris" / "example_ferraris_session.csv", tmp_path / "f", 102.4, 49.6)
     r = calibrate(tmp_path / "f")
-    assert sorted(r["acc"]["undetermined"]) == ["theta_yx", "theta_zx", "theta_zy"]
-    assert np.allclose(np.diag(r["acc"]["M"]), 1, atol=0.05)  # as the section-list calibration finds
-    assert all(r["acc"]["std"][k] < 1e-2 for k in ("dK_x", "dK_y", "dK_z", "b_x", "b_y", "b_z"))
+    assert sorted(r.acc.details["undetermined"]) == ["theta_yx", "theta_zx", "theta_zy"]
+    assert np.allclose(np.diag(r.acc.M), 1, atol=0.05)  # as the section-list calibration finds
+    assert all(r.acc.std[k] < 1e-2 for k in ("dK_x", "dK_y", "dK_z", "b_x", "b_y", "b_z"))
 
 
 def test_gyro_fit_that_does_not_converge_is_refused(tmp_path, monkeypatch):
-    from simucal.handheld import calibrate as handheld
+    from simucal.handheld import moves as handheld
     write_handheld(tmp_path / "h", HandheldScenario(), 0)
     real = handheld.fit_gyro_moves
     monkeypatch.setattr(handheld, "fit_gyro_moves", lambda *a, **k: real(*a, **{**k, "max_iter": 1, "step_tol": 1e-12}))

@@ -33,22 +33,22 @@ def test_planted_effect_found_and_carried_by_calibrate(eid, tmp_path):
     getattr(sc, f"{sensor}_effects")[eid] = PLANTED[eid]
     truth = write(tmp_path, sc, 1)
     assert truth[sensor]["effects"] == {eid: PLANTED[eid]}
-    base = calibrate(tmp_path)
-    assert base[sensor]["p_value"] < 1e-3 and base[sensor]["std_raw"]  # fails, stds inflated
+    base = getattr(calibrate(tmp_path), sensor)
+    assert base.p_value < 1e-3 and base.details["std_raw"]  # fails, stds inflated
     diag = diagnose(tmp_path)[sensor]
     # one model test (turntable/model_test.py): calibrate and diagnose fit the same rows, report the
     # same statistic and read their advice from the same ranking
-    assert base[sensor]["rows"] == diag["baseline"]["rows"] and base[sensor]["dof"] == diag["baseline"]["dof"]
-    assert base[sensor]["p_value"] == pytest.approx(diag["baseline"]["p_value"], rel=1e-9, abs=1e-300)
+    assert base.details["rows"] == diag["baseline"]["rows"] and base.dof == diag["baseline"]["dof"]
+    assert base.p_value == pytest.approx(diag["baseline"]["p_value"], rel=1e-9, abs=1e-300)
     top = [c for c in diag["candidates"] if c.get("significant")][0]
-    assert base[sensor]["advice"] == top["id"]
+    assert base.details["advice"] == top["id"]
     # the planted effect, or a twin this plan cannot tell from it
     assert top["id"] == eid or eid in top.get("note", ""), (top["id"], top.get("note"))
-    cal = calibrate(tmp_path, add=(eid,))
-    e = cal[sensor]["effects"][eid]
-    assert abs(e["value"] - PLANTED[eid]) < 3 * e["std"]
-    assert cal[sensor]["p_value"] > 1e-3 and "std_raw" not in cal[sensor]
-    assert e["unit"] and e["meaning"]
+    cal = getattr(calibrate(tmp_path, add=(eid,)), sensor)
+    e = cal.effects[eid]
+    assert abs(e.value - PLANTED[eid]) < 3 * e.std
+    assert cal.p_value > 1e-3 and "std_raw" not in cal.details
+    assert e.unit and e.meaning
 
 
 def _strip_noise(folder):
@@ -142,9 +142,10 @@ def test_apply_inverts_the_nonlinear_model_exactly(tmp_path):
     p = np.r_[np.random.default_rng(0).normal(size=9) * 1e-3, 3e-3, -2e-3]
     u = np.random.default_rng(1).normal(size=(50, 3))
     M, b = m.matrix_and_bias(p)
-    block = {"model": "acc_baseline", "effects": {e: {"value": v} for e, v in zip(m.effects, p[9:])},
-             "params": dict(zip(m.params, p)), "M": M.tolist(), "bias": b.tolist()}
     from simucal.fit.apply import invert
+    from simucal.io.calibration import EffectValue, SensorBlock
+    block = SensorBlock("acc_baseline", M, b, "g", {e: EffectValue(v, 0.0, "", "") for e, v in zip(m.effects, p[9:])},
+                        params=dict(zip(m.params, p)))
     from simucal.fit.aux_inputs import AuxInputs
     got = invert(block, "acc", m.output(u, p), AuxInputs(), "test")
     assert np.max(np.abs(got - u)) < 1e-12
@@ -184,11 +185,11 @@ def test_stream_calibrate_carries_a_gyro_effect_and_applies(tmp_path):
     G_yz = 1000 (deg/h)/g), reports the moves' chi-square, and apply reads the stream back."""
     from simucal.handheld.simulate import HandheldScenario, write_handheld
     write_handheld(tmp_path / "h", HandheldScenario(gyro_effects={"gyro.g_sensitivity.yz": 1000.0}), 1)
-    base = calibrate(tmp_path / "h")
+    base = calibrate(tmp_path / "h").to_json()
     cal = calibrate(tmp_path / "h", add=("gyro.g_sensitivity.yz",))
-    e = cal["gyro"]["effects"]["gyro.g_sensitivity.yz"]
-    assert abs(e["value"] - 1000.0) < 3 * e["std"] and e["unit"] == "(deg/h)/g"
-    assert base["gyro"]["p_value"] < 1e-3 < cal["gyro"]["p_value"] and cal["gyro"]["dof"] > 0
+    e = cal.gyro.effects["gyro.g_sensitivity.yz"]
+    assert abs(e.value - 1000.0) < 3 * e.std and e.unit == "(deg/h)/g"
+    assert base["gyro"]["p_value"] < 1e-3 < cal.gyro.p_value and cal.gyro.dof > 0
     calibration.save(tmp_path / "c.json", cal)
     meta, samples, _ = apply(calibration.load(tmp_path / "c.json"), tmp_path / "h")
     assert meta["gyro_unit"] == "deg/h" and np.all(np.isfinite(samples["gx"]))
@@ -201,11 +202,11 @@ def test_add_auto_chooses_the_planted_effects_and_nothing_on_clean_data(tmp_path
     sc.acc_effects["acc.quadratic.z"] = 2e-4
     sc.gyro_effects["gyro.bias_temperature.z"] = 0.02
     write(tmp_path / "s", sc, 2)
-    r = calibrate(tmp_path / "s", add=("auto",))
+    r = calibrate(tmp_path / "s", add=("auto",)).to_json()
     for sensor, eid, value in (("acc", "acc.quadratic.z", 2e-4), ("gyro", "gyro.bias_temperature.z", 0.02)):
         assert [x["id"] for x in r[sensor]["auto"]] == [eid]
         e = r[sensor]["effects"][eid]
         assert abs(e["value"] - value) < 3 * e["std"] and r[sensor]["p_value"] > 1e-3
     write(tmp_path / "clean", rich(), 2)
-    r = calibrate(tmp_path / "clean", add=("auto",))
+    r = calibrate(tmp_path / "clean", add=("auto",)).to_json()
     assert r["acc"]["auto"] == [] and r["gyro"]["auto"] == [] and not r["acc"]["effects"]

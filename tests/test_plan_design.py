@@ -83,7 +83,7 @@ def test_designed_plan_file_runs_a_test(tmp_path):
     written as gravity directions."""
     from simucal.turntable.simulate import Scenario, write
     r = CliRunner().invoke(main, ["plan", "--positions", "12", "--model", "gyro_baseline", "--add", "gyro.quadratic.x",
-                                  "--rates", "5,10,20", "-o", str(tmp_path / "g.csv")])
+                                  "--rates-dps", "5,10,20", "-o", str(tmp_path / "g.csv")])
     assert r.exit_code == 0, r.output
     lines = (tmp_path / "g.csv").read_text().splitlines()
     assert lines[0] == "outer_deg,middle_deg,inner_deg,outer_rate_dps" and len(lines) == 13
@@ -122,7 +122,7 @@ def test_separation_power_is_the_rate_observed(tmp_path):
     beyond the 1-dof critical value)."""
     from simucal import io
     from simucal.fit.distributions import chi2_isf
-    from simucal.turntable.calibrate import segment_observations
+    from simucal.turntable.observations import segment_observations
     from simucal.turntable.plan_design import separate
     from simucal.turntable.simulate import Scenario, write
     u = directions_k(plans.TABLE1)

@@ -229,23 +229,23 @@ def field_drift(data, block_s=1.0, stages=2, heading_accuracy_deg=5.0) -> dict:
             "history": hist}
 
 
-def field_calibration(ms, heading_accuracy_deg=5.0) -> dict:
-    """The calibration file (io/calibration.py) of field_drift, so that `apply` corrects the drift:
+def field_calibration(ms, heading_accuracy_deg=5.0) -> calibration.Calibration:
+    """The calibration (io/calibration.py) of field_drift, so that `apply` corrects the drift:
     the gyro block holds it as its bias with M = I (ruan2019 estimates no scale factor or
     misalignment), the accelerometers stay at their nominal scale factors (a block marked
     nominal, and named under not_calibrated), the positions and the filter's figures under field."""
     r = field_drift(ms, heading_accuracy_deg=heading_accuracy_deg)
     cal = calibration.header("field", ms)
-    cal["gyro"] = calibration.affine_block("gyro", np.eye(3), r["gyro_drift_dph"], {"bias": r["std_dph"]}, None,
-                                           "ruan2019: constant drift only (M held at I)")
-    cal["acc"] = calibration.affine_block("acc", np.eye(3), np.zeros(3), {}, None,
-                                          "nominal scale factors (the field method calibrates no accelerometer)",
-                                          nominal=True)
-    cal["not_calibrated"] = {
+    cal.gyro = calibration.affine_block("gyro", np.eye(3), r["gyro_drift_dph"], {"bias": r["std_dph"]}, None,
+                                        "ruan2019: constant drift only (M held at I)")
+    cal.acc = calibration.affine_block("acc", np.eye(3), np.zeros(3), {}, None,
+                                       "nominal scale factors (the field method calibrates no accelerometer)",
+                                       nominal=True)
+    cal.not_calibrated = {
         "acc": "the field method calibrates the gyro constant drift only; apply keeps the accelerometers at their "
                "nominal scale factors",
         "gyro scale factors and misalignments": "held at nominal (M = I); ruan2019 estimates the constant drift only"}
-    cal["field"] = r
+    cal.details["field"] = r
     return cal
 
 

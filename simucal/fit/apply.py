@@ -18,13 +18,15 @@ from simucal.fit.augmented import AugmentedModel, follows_temperature
 from simucal.fit.aux_inputs import SENSOR_AUX, AuxInputs, columns_at, specific_force
 from simucal.fit.thermal import params_at
 from simucal.generated.effects import EFFECTS
-from simucal.io import calibration, units
+from simucal.io import units
+from simucal.io.calibration import Calibration, SensorBlock
+from simucal.io.calibration_checks import LAYOUT_KEYS, check_layout
 
 
-def _affine_effects(block):
+def _affine_effects(block: SensorBlock):
     """h(u) = M u + bias + sum_j p_j phi_j(u) e_axis(j), for blocks without a generated model."""
-    M, bias = np.array(block["M"]), np.array(block["bias"])
-    effects = [(EFFECTS[e], block["effects"][e]["value"]) for e in calibration.library_effects(block)]
+    M, bias = block.M, block.bias
+    effects = [(EFFECTS[e], block.effects[e].value) for e in block.library_effects()]
 
     def h(u, aux: AuxInputs):
         N = u @ M.T + bias
@@ -48,8 +50,8 @@ def model_function(model: AugmentedModel, p, C=np.eye(3)):
 EDITED = 1e-9  # M and bias recomputed from params agree with the file's to round-off; anything more is an edit
 
 
-def _params(block, model):
-    return np.array([block["params"][k] for k in model.params], float)
+def _params(block: SensorBlock, model):
+    return np.array([block.params[k] for k in model.params], float)
 
 
 def thermal_function(model: AugmentedModel, P, C=np.eye(3)):
@@ -65,51 +67,50 @@ def thermal_function(model: AugmentedModel, P, C=np.eye(3)):
     return h
 
 
-def _generated(block, temp_c):
-    model = AugmentedModel(block["model"], calibration.library_effects(block))
-    C = np.array(block.get("C_b_model", np.eye(3)), float)
-    if "thermal" in block:
-        return thermal_function(model, params_at(block["thermal"], model.params, temp_c), C)
-    return model_function(model, _params(block, model), C)
+def _generated(block: SensorBlock, temp_c):
+    model = AugmentedModel(block.model, block.library_effects())
+    if block.thermal is not None:
+        return thermal_function(model, params_at(block.thermal, model.params, temp_c), block.C)
+    return model_function(model, _params(block, model), block.C)
 
 
-def check_block(block, sensor, where) -> None:
+def check_block(block: SensorBlock, sensor, where) -> None:
     """Refuse a block whose parts tell different stories: params against M, bias and C_b_model for
     a generated model; T against M for a stream's gyro. A hand edit of one of them would otherwise
     be used, or ignored, silently."""
-    if block["model"] == "affine":
-        if "T" in block and np.abs(np.asarray(block["T"], float) @ np.asarray(block["M"], float) - np.eye(3)).max() > 1e-6:
+    if block.model == "affine":
+        T = block.details.get("T")
+        if T is not None and np.abs(np.asarray(T, float) @ block.M - np.eye(3)).max() > 1e-6:
             raise CalibrationError(f"{where}: {sensor}.T is not the inverse of {sensor}.M (T = M^-1): the file was "
                                    "edited by hand; calibrate again")
         return
-    model = AugmentedModel(block["model"], calibration.library_effects(block))
-    missing = [k for k in model.params if k not in block.get("params", {})]
+    model = AugmentedModel(block.model, block.library_effects())
+    missing = [k for k in model.params if k not in block.params]
     if missing:
-        raise CalibrationError(f"{where}: {sensor}.params lacks {missing[0]!r}, a parameter of model {block['model']} "
+        raise CalibrationError(f"{where}: {sensor}.params lacks {missing[0]!r}, a parameter of model {block.model} "
                                "(the file was edited, or names another sensor's model); calibrate again")
-    if "M_in_d" in block and "C_b_model" not in block:
+    if "M_in_d" in block.details and block.C_b_model is None:
         raise CalibrationError(f"{where}: the {sensor} block has M in its own frame (M_in_d) but no C_b_model, the "
                                "rotation that ties it to b: the file was edited by hand; calibrate again")
-    if "thermal" in block:
+    if block.thermal is not None:
         _check_thermal(block, sensor, model.params, where)
     M_p, b_p = model.matrix_and_bias(_params(block, model))
-    for name, mine, theirs in (("M", M_p @ np.array(block.get("C_b_model", np.eye(3)), float), block["M"]),
-                               ("bias", b_p, block["bias"])):
-        diff = np.abs(mine - np.asarray(theirs, float)).max()
+    for name, mine, theirs in (("M", M_p @ block.C, block.M), ("bias", b_p, block.bias)):
+        diff = np.abs(mine - theirs).max()
         if diff > EDITED * max(1.0, np.abs(mine).max()):
             raise CalibrationError(f"{where}: {sensor}.{name} disagrees with what {sensor}.params give (largest "
                                    f"difference {diff:.3g}): the file was edited by hand; calibrate again rather "
                                    "than edit a calibration")
 
 
-def _check_thermal(block, sensor, names, where) -> None:
+def _check_thermal(block: SensorBlock, sensor, names, where) -> None:
     """A thermal section with a finite polynomial for every parameter, c_0 the parameter itself."""
-    th = block["thermal"]
+    th = block.thermal
     ok = isinstance(th, dict) and isinstance(th.get("t_ref_c"), (int, float)) and isinstance(th.get("parameters"), dict)
     for n in names if ok else ():
         c = th["parameters"].get(n, {}).get("coefficients") if isinstance(th["parameters"].get(n), dict) else None
         good = isinstance(c, list) and 0 < len(c) <= 4 and all(isinstance(x, (int, float)) and np.isfinite(x) for x in c)
-        if not good or abs(c[0] - block["params"][n]) > EDITED * max(1.0, abs(c[0])):
+        if not good or abs(c[0] - block.params[n]) > EDITED * max(1.0, abs(c[0])):
             ok = False
             break
     if not ok:
@@ -137,22 +138,21 @@ def solve_inputs(h, M, bias, N, aux: AuxInputs, sensor, where) -> np.ndarray:
                            "calibrated model can produce")
 
 
-def invert(block, sensor, N, aux: AuxInputs, where, temp_c=None) -> np.ndarray:
+def invert(block: SensorBlock, sensor, N, aux: AuxInputs, where, temp_c=None) -> np.ndarray:
     """u_b with h(u_b) = N for a calibration block, every row (n, 3); temp_c (n,): each row's
     temperature, for a thermal block."""
-    h = _affine_effects(block) if block["model"] == "affine" else _generated(block, temp_c)
-    return solve_inputs(h, np.array(block["M"]), np.array(block["bias"]), N, aux, sensor, where)
+    h = _affine_effects(block) if block.model == "affine" else _generated(block, temp_c)
+    return solve_inputs(h, block.M, block.bias, N, aux, sensor, where)
 
 
-def apply(cal: dict, data, where="the calibration"):
+def apply(cal: Calibration, data, where="the calibration"):
     """(meta, samples, segments) of the calibrated set; data: its folder or the set already read."""
     ms = data if isinstance(data, io.MeasurementSet) else io.read_set(data)
-    calibration.check_layout(cal, ms, where)
-    for s in ("acc", "gyro"):
-        if s in cal:
-            check_block(cal[s], s, where)
+    check_layout(cal, ms, where)
+    for s, block in cal.blocks():
+        check_block(block, s, where)
     n = len(ms.samples["t_s"])
-    aux = AuxInputs(columns_at(ms.samples, slice(None), t_ref_c=cal.get("t_ref_c")))
+    aux = AuxInputs(columns_at(ms.samples, slice(None), t_ref_c=cal.t_ref_c))
     temp_c, warnings = temperatures(cal, ms)
     samples = {k: v for k, v in ms.samples.items() if k not in io.SAMPLE_COLS}  # the keys and auxiliary columns
     f_b = None
@@ -160,38 +160,37 @@ def apply(cal: dict, data, where="the calibration"):
         rate = {s.segment: s.outer_rate_dps for s in (ms.segments or [])}
         w2 = (np.radians([rate.get(s, 0.0) for s in ms.samples["segment"]]) ** 2 / units.gravity(ms.meta)
               if "segment" in ms.samples else np.zeros(n))
-        f_b = invert(cal["acc"], "acc", ms.acc_g(), aux.with_values(w2=w2), ms.path / "samples.csv", temp_c)
+        f_b = invert(cal.acc, "acc", ms.acc_g(), aux.with_values(w2=w2), ms.path / "samples.csv", temp_c)
         samples.update(ax=f_b[:, 0], ay=f_b[:, 1], az=f_b[:, 2])
     if ms.has_gyro:
-        C = np.array(cal["gyro"].get("C_b_model", np.eye(3)))
-        f_model = f_b @ C.T if f_b is not None else np.zeros((n, 3))
-        w_b = invert(cal["gyro"], "gyro", ms.gyro_dph(), aux.with_values(**specific_force(f_model)),
+        f_model = f_b @ cal.gyro.C.T if f_b is not None else np.zeros((n, 3))
+        w_b = invert(cal.gyro, "gyro", ms.gyro_dph(), aux.with_values(**specific_force(f_model)),
                      ms.path / "samples.csv", temp_c)
         samples.update(gx=w_b[:, 0], gy=w_b[:, 1], gz=w_b[:, 2])
-    meta = {k: v for k, v in ms.meta.items() if k not in calibration.LAYOUT_KEYS + ("full_scale", "format")}
+    meta = {k: v for k, v in ms.meta.items() if k not in LAYOUT_KEYS + ("full_scale", "format")}
     meta.update(acc_unit="g", gyro_unit="deg/h",
                 description=f"{ms.meta.get('description', '')} | calibrated by simucal apply "
-                            f"({cal['method']}, from {cal['input']})".strip(" |"))
+                            f"({cal.method}, from {cal.input})".strip(" |"))
     if warnings:
         meta["warnings"] = warnings  # the spec keeps unknown keys: the warning travels with the data
     return meta, samples, ms.segments
 
 
-def temperatures(cal: dict, ms) -> tuple[np.ndarray | None, list[str]]:
+def temperatures(cal: Calibration, ms) -> tuple[np.ndarray | None, list[str]]:
     """Each row's temp_c where a block of cal follows temperature (thermal, or terms in dtemp_c), and
     a warning naming the rows outside the calibrated temperature_range_c (the polynomials are
     extrapolated there). A thermal calibration refuses data without temp_c."""
-    thermal = [s for s in ("acc", "gyro") if "thermal" in cal.get(s, {})]
+    thermal = [s for s, block in cal.blocks() if block.thermal is not None]
     if "temp_c" not in ms.samples:
         if thermal:
             raise CalibrationError(f"{ms.path / 'samples.csv'}: no temp_c column, but the calibration follows "
                                    f"temperature ({', '.join(thermal)}): it needs each row's temperature")
         return None, []
     temp = ms.samples["temp_c"]
-    lo, hi = cal.get("temperature_range_c", (-np.inf, np.inf))
+    lo, hi = cal.temperature_range_c or (-np.inf, np.inf)
     out = np.nonzero((temp < lo - 1.0) | (temp > hi + 1.0))[0]  # 1 degC: a plateau's own scatter
-    if not len(out) or not (thermal or any(follows_temperature(e) for s in ("acc", "gyro") if s in cal
-                                           for e in calibration.library_effects(cal[s]))):
+    if not len(out) or not (thermal or any(follows_temperature(e) for _, block in cal.blocks()
+                                           for e in block.library_effects())):
         return temp, []
     return temp, [f"{len(out)} of {len(temp)} rows (from line {out[0] + 2} of samples.csv) have temp_c "
                   f"{temp[out].min():.4g} to {temp[out].max():.4g} degC, outside the calibrated {lo:.4g} to "

@@ -35,20 +35,17 @@ from simucal.fit.candidates import gate_candidates, verdict
 from simucal.fit.distributions import chi2_sf
 from simucal.generated.effects import EFFECTS, SEPARATE_MOVES
 from simucal.handheld.calibrate import (
-    GyroFit,
     chi2_test,
-    fit_gyro,
-    fit_gyro_moves,
     gyro_noise_dps,
     has_input,
     misfit_shares,
     move_covariances,
-    move_residuals,
     pose_directions,
     prepare_moves,
     regressor_inputs,
     with_terms,
 )
+from simucal.handheld.moves import GyroFit, fit_gyro, fit_gyro_moves, move_residuals
 from simucal.io.units import DPH_PER_DPS
 
 

@@ -17,7 +17,6 @@ import numpy as np
 from simucal import io, methods
 from simucal.io import units
 from simucal.report import markdown as report
-from simucal.turntable.calibrate import calibrate_table
 from simucal.turntable.simulate import ARCMIN, ARCSEC, Scenario, write
 
 # Table 3 as printed (norm observation, previous method), in report.ENTRIES order.
@@ -48,16 +47,16 @@ def section4_values(sc: Scenario | None = None) -> dict:
             "w_e_dph": units.DEFAULT_EARTH_RATE_DPH, "latitude_deg": sc.latitude_deg}
 
 
-def monte_carlo(sc: Scenario, seeds: int, methods=METHODS, progress=None):
+def monte_carlo(sc: Scenario, seeds: int, names=METHODS, progress=None):
     """(truth entries, {method: (seeds, entries) array}) over simulated tests of scenario sc."""
-    est = {m: [] for m in methods}
+    est = {m: [] for m in names}
     truth = None
     with tempfile.TemporaryDirectory() as tmp:
         for seed in (progress(range(seeds)) if progress else range(seeds)):
             folder = Path(tmp) / str(seed)
             truth = report.entries(write(folder, sc, seed))
-            for m in methods:
-                est[m].append(report.entries(calibrate_table(io.read_set(folder), m, "acc_baseline", "gyro_baseline", ())))
+            for m in names:
+                est[m].append(report.entries(methods.METHODS[m].call(io.read_set(folder))))
     return np.array(truth), {m: np.array(v) for m, v in est.items()}
 
 

@@ -7,6 +7,8 @@ import html
 
 import numpy as np
 
+from simucal.io.calibration import Calibration
+
 from simucal.fit.thermal import evaluate
 from simucal.report.html import _png, plt
 
@@ -30,16 +32,15 @@ def _figure(sensor, name, f, unit, t_ref_c, T_k):
     return _png(fig)
 
 
-def thermal_page(cal: dict) -> str:
+def thermal_page(cal: Calibration) -> str:
     parts = ["<!doctype html><meta charset=utf-8><title>simucal thermal calibration</title>",
-             f"<h1>Thermal calibration</h1><p>{html.escape(cal['method'])}; T_ref {cal['t_ref_c']:.4g} degC; "
-             f"calibrated from {cal['temperature_range_c'][0]:.4g} to {cal['temperature_range_c'][1]:.4g} degC "
+             f"<h1>Thermal calibration</h1><p>{html.escape(cal.method)}; T_ref {cal.t_ref_c:.4g} degC; "
+             f"calibrated from {cal.temperature_range_c[0]:.4g} to {cal.temperature_range_c[1]:.4g} degC "
              "(grey; outside it the polynomials are extrapolated and apply warns).</p>"]
-    for s in ("acc", "gyro"):
-        b = cal.get(s)
-        if not b or "thermal" not in b:
+    for s, b in cal.blocks():
+        if b.thermal is None:
             continue
-        th, units = b["thermal"], b.get("param_units", {})
+        th, units = b.thermal, b.param_units
         parts.append(f"<h2>{s}</h2>")
         parts += [_figure(s, n, f, units.get(n, ""), th["t_ref_c"], th["plateaus_c"])
                   for n, f in th["parameters"].items() if f["degree"] > 0]

@@ -27,7 +27,9 @@ from simucal.fit.apply import model_function, solve_inputs
 from simucal.fit.aux_inputs import specific_force
 from simucal.fit.distributions import chi2_sf, t_isf
 from simucal.fit.rotations import log_so3, wahba
+from simucal.fit.aux_inputs import AuxInputs, column_means
 from simucal.io import units
+from simucal.turntable.observations import commanded_up_k, mean_and_sigma, refuse_outliers
 
 FIVE_SIGMA_TAIL = float(chi2_sf(25.0, 1)) / 2  # the normal tail beyond 5 sigma, one side
 GROSS_RAD = 0.05  # a direction residual no table (1 deg errors give 0.017 rad) or noise explains
@@ -123,3 +125,62 @@ def latitude(ms, gm, fg, C_b_d, u_b, static_gyro):
                       + (f" (gyro noise at rest {out['noise']['std_dph']:.2g} deg/h, from this fit's residuals, "
                          f"{n - 4} dof)" if sig is None else ""))
     return out
+
+
+def handedness(ms, fa, acc_obs, acc_segs, fg, gyro_segs) -> list[str]:
+    """Each triad's fitted directions against the commanded table vertical (consistency.py):
+    refuses a reflected triad; where both are reflected, the table's angles follow another
+    convention than the spec's, which the exact method does not need (a note)."""
+    return handedness_verdict(ms, {"accelerometer": mirrored(fa, acc_segs, False), "gyro": mirrored(fg, gyro_segs, True)})
+
+
+def mirrored(fit, segs, rate_sign: bool):
+    """consistency.mirror_test of one triad's fitted directions against the commanded vertical:
+    (axis, residual, r) where the triad is a mirror image, else None. rate_sign: the directions
+    are rate runs', signed by their commanded rate."""
+    if fit is None or fit.directions is None:
+        return None
+    rows = [i for i, s in enumerate(segs) if s.middle_deg is not None and s.inner_deg is not None
+            and (rate_sign or s.kind == "static")]
+    if len(rows) < 3:
+        return None
+    up_k, _ = commanded_up_k([segs[i] for i in rows])
+    u = fit.directions[rows] * (np.sign([segs[i].outer_rate_dps for i in rows])[:, None] if rate_sign else 1.0)
+    axis, resid, r = mirror_test(up_k, u)
+    return None if axis is None else (axis, resid, r)
+
+
+def handedness_verdict(ms, found: dict) -> list[str]:
+    """found: {triad: mirrored(...)}. One reflected triad is refused; two are a note."""
+    found = {k: v for k, v in found.items() if v is not None}
+    if len(found) == 1:
+        (sensor, (axis, resid, r)), = found.items()
+        raise mirror_error(f"{ms.path}: the {sensor} directions against the commanded table vertical",
+                           f"the {sensor}'s", axis, resid, r)
+    if len(found) == 2:
+        return ["handedness: both triads are mirror images of the commanded table geometry, so the table's angles "
+                "follow another sign convention than the spec's (segments.csv); the exact method does not use them"]
+    return []
+
+
+def latitude_check(ms, fa, acc_segs, gm, fg, C_b_d, gyro_noise_dph=None):
+    """consistency.latitude at the static positions that have gyro data; their noise from their
+    scatter, else the stated one (gyro_noise_dph, else meta's), else estimated by the latitude
+    fit itself."""
+    rows = [i for i, s in enumerate(acc_segs) if s.kind == "static"]
+    if not rows:
+        return {"verdict": "not checked: no static positions"}
+    gyro = ms.gyro_dph()
+    raw = ms.raw("gyro")
+    stated = ms.meta.get("gyro_noise_dph") if gyro_noise_dph is None else gyro_noise_dph
+    N, sig, groups = [], [], []
+    for i in rows:
+        r = ms.samples["segment"] == acc_segs[i].segment
+        refuse_outliers(ms, raw, r, "gyro", acc_segs[i].segment)
+        m, sd = mean_and_sigma(gyro[r], stated)
+        N.append(m)
+        sig.append(sd)
+        groups.append(r)
+    sig = np.array(sig)
+    sig = None if np.isnan(sig).all() else np.where(np.isnan(sig), np.nanmax(sig), sig)
+    return latitude(ms, gm, fg, C_b_d, fa.directions[rows], (np.array(N), sig, AuxInputs(column_means(ms.samples, groups, t_ref_c=ms.t_ref_c))))

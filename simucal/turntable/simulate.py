@@ -20,7 +20,7 @@ from simucal.fit.augmented import AugmentedModel
 from simucal.fit.aux_inputs import DEFAULT_ZERO, T_REF, AuxInputs, specific_force
 from simucal.generated import table
 from simucal.io import units
-from simucal.io.calibration import PARAM_LIMIT
+from simucal.io.calibration_checks import PARAM_LIMIT
 from simucal.turntable import kinematics, plans
 
 ARCMIN = np.radians(1 / 60)
@@ -140,58 +140,46 @@ def plant(sc: Scenario, effects=(), effect_file=None, sets=(), columns=()):
 SCENARIOS = {"paper": Scenario}
 
 
-def simulate(sc: Scenario, seed: int = 0):
-    """Return (meta, samples, segments, truth) of one simulated test."""
-    if sc.rate_hz is not None and not sc.rate_hz > 0:
-        raise ValueError(f"--rate-hz {sc.rate_hz}: the sample rate must be positive")
-    rng = np.random.default_rng(seed)
-    acc = AugmentedModel(sc.acc_model, tuple(sc.acc_effects))
-    gyro = AugmentedModel(sc.gyro_model, tuple(sc.gyro_effects))
-    p_acc = np.array([{**sc.acc_params, **sc.acc_effects}.get(k, 0.0) for k in acc.params])
-    p_gyro = np.array([{**sc.gyro_params, **sc.gyro_effects}.get(k, 0.0) for k in gyro.params])
+def _segments(sc: Scenario, rng):
+    """The plan's segments and, per segment, the true inputs (f_b, w_d, f_d) along it with its duration:
+    static positions at the table's errors, and rate runs about the outer axis sampled over a revolution."""
     C_b_k = table.mounting(np.array(sc.theta4_rad))
     C_d_k = table.mounting(np.array(sc.lambda4_rad))
-    lat = np.radians(sc.latitude_deg)
-    w_e = units.DEFAULT_EARTH_RATE_DPH
-    w_ie_n = table.earth_rate_n(w_e, lat)
-
+    w_ie_n = table.earth_rate_n(units.DEFAULT_EARTH_RATE_DPH, np.radians(sc.latitude_deg))
     plan = plans.PLANS[sc.plan]() if sc.plan in plans.PLANS else plans.read_csv(sc.plan)
     static = list(plan) + (plans.TABLE2 if sc.unify_positions else [])
     rates = [(0.0, a, b, r) for r in sc.outer_rate_dps for (_, a, b) in plan]
     if sc.unify_positions:
         rates += [(0.0, a, 0.0, r) for r in sc.outer_rate_dps for a in (0.0, 90.0)]
-
     if sc.shuffle:
         static = [static[i] for i in rng.permutation(len(static))]
         rates = [rates[i] for i in rng.permutation(len(rates))]
     segments, rows = [], []
-    t0 = 0.0
 
     def table_errors(n):
         return kinematics.errors(sc.table_errors_rad(), sc.angle_errors_rad(rng, (n,)))
 
+    up = np.array([0, 0, 1.0])
     for ang, err in zip(static, table_errors(len(static))):
         C = table.C_k_n(*np.radians(ang), err)
-        f_b = C_b_k.T @ C.T @ np.array([0, 0, 1.0])
-        w_d = C_d_k.T @ C.T @ w_ie_n
-        f_d = C_d_k.T @ C.T @ np.array([0, 0, 1.0])
         segments.append(io.Segment(len(segments) + 1, "static", *ang, 0.0))
-        rows.append((f_b[None], w_d[None], f_d[None], sc.static_s))
+        rows.append(((C_b_k.T @ C.T @ up)[None], (C_d_k.T @ C.T @ w_ie_n)[None], (C_d_k.T @ C.T @ up)[None],
+                     sc.static_s))
     tilt_n = table.C_k_n(0.0, 0.0, 0.0, np.r_[sc.tilt_rad, np.zeros(5)])[:, 2]
     for (g0, a, b, rate), err in zip(rates, table_errors(len(rates))):
-        period = 360.0 / abs(rate)
         k = 720  # exact average over one revolution by sampling gamma finely
         gam = np.radians(g0 + np.sign(rate) * np.arange(k) * 360.0 / k)
         C = table.C_k_n(gam, *np.radians([a, b]), err)
         w_n = w_ie_n + rate * units.DPH_PER_DPS * tilt_n
-        f_b = np.einsum("ji,nkj,k->ni", C_b_k, C, np.array([0, 0, 1.0]))
-        w_d = np.einsum("ji,nkj,k->ni", C_d_k, C, w_n)
-        f_d = np.einsum("ji,nkj,k->ni", C_d_k, C, np.array([0, 0, 1.0]))
         segments.append(io.Segment(len(segments) + 1, "rate", None, a, b, rate))
-        rows.append((f_b, w_d, f_d, period))
+        rows.append((np.einsum("ji,nkj,k->ni", C_b_k, C, up), np.einsum("ji,nkj,k->ni", C_d_k, C, w_n),
+                     np.einsum("ji,nkj,k->ni", C_d_k, C, up), 360.0 / abs(rate)))
+    return segments, rows
 
+
+def _meta(sc: Scenario, seed) -> dict:
     meta = {"latitude_deg": sc.latitude_deg, "gravity_mps2": units.DEFAULT_GRAVITY,
-            "earth_rate_dph": w_e, "acc_unit": sc.acc_unit, "gyro_unit": sc.gyro_unit,
+            "earth_rate_dph": units.DEFAULT_EARTH_RATE_DPH, "acc_unit": sc.acc_unit, "gyro_unit": sc.gyro_unit,
             "description": f"simucal simulate, seed {seed}"}
     if sc.state_noise:  # a noise-free set states none (the spec's noise is a std > 0)
         meta.update({k: v for k, v in (("acc_noise_g", sc.acc_noise_g), ("gyro_noise_dph", sc.gyro_noise_dph)) if v > 0})
@@ -199,7 +187,12 @@ def simulate(sc: Scenario, seed: int = 0):
         meta["acc_pulses_per_g"] = list(sc.acc_pulses_per_g)
     if sc.gyro_unit == "pulse/s":
         meta["gyro_pulses_per_arcsec"] = list(sc.gyro_pulses_per_arcsec)
+    return meta
 
+
+def _samples(sc: Scenario, rng, segments, rows, acc, p_acc, gyro, p_gyro, meta):
+    """samples.csv's columns (raw rows at sc.rate_hz, else one averaged row per segment) of the
+    models' outputs with noise, and T_ref of temperature terms (None without temp_c)."""
     seg_ids, times, acc_out, gyro_out = [], [], [], []
     values = {name: rng.uniform(*ends, len(segments)) for name, ends in sc.columns.items()}
     if sc.temp_c:
@@ -208,12 +201,13 @@ def simulate(sc: Scenario, seed: int = 0):
     rows_per = [1 if sc.rate_hz is None else int(round(dur * sc.rate_hz)) for *_, dur in rows]
     t_ref_c = None if "temp_c" not in values else sc.t_ref_c if sc.t_ref_c is not None else \
         float(np.average(values["temp_c"], weights=rows_per))  # as MeasurementSet.t_ref_c
+    t0 = 0.0
     for k, (seg, (f_b, w_d, f_d, dur)) in enumerate(zip(segments, rows)):
         if sc.rate_hz is None:
             f, w, fd, t = (f_b.mean(0, keepdims=True), w_d.mean(0, keepdims=True), f_d.mean(0, keepdims=True),
                            np.array([t0 + dur / 2]))
         else:
-            n = int(round(dur * sc.rate_hz))
+            n = rows_per[k]
             if n < 3:  # raw rows are for a segment's scatter; fewer is an averaged row, written as such
                 raise ValueError(f"--rate-hz {sc.rate_hz:g}: a {dur:g} s segment would get {n} rows; use at least "
                                  f"{3 / dur:.3g} Hz, or leave --rate-hz out for one averaged row per segment")
@@ -237,10 +231,24 @@ def simulate(sc: Scenario, seed: int = 0):
     for j, c in enumerate("xyz"):
         samples["a" + c] = N_a[:, j]
         samples["g" + c] = N_g[:, j]
+    return samples, t_ref_c
 
+
+def simulate(sc: Scenario, seed: int = 0):
+    """Return (meta, samples, segments, truth) of one simulated test."""
+    if sc.rate_hz is not None and not sc.rate_hz > 0:
+        raise ValueError(f"--rate-hz {sc.rate_hz}: the sample rate must be positive")
+    rng = np.random.default_rng(seed)
+    acc = AugmentedModel(sc.acc_model, tuple(sc.acc_effects))
+    gyro = AugmentedModel(sc.gyro_model, tuple(sc.gyro_effects))
+    p_acc = np.array([{**sc.acc_params, **sc.acc_effects}.get(k, 0.0) for k in acc.params])
+    p_gyro = np.array([{**sc.gyro_params, **sc.gyro_effects}.get(k, 0.0) for k in gyro.params])
+    segments, rows = _segments(sc, rng)
+    meta = _meta(sc, seed)
+    samples, t_ref_c = _samples(sc, rng, segments, rows, acc, p_acc, gyro, p_gyro, meta)
     M_a, b_a = acc.matrix_and_bias(p_acc)
     M_g_d, b_g = gyro.matrix_and_bias(p_gyro)
-    C_b_d = C_d_k.T @ C_b_k
+    C_b_d = table.mounting(np.array(sc.lambda4_rad)).T @ table.mounting(np.array(sc.theta4_rad))
     truth = {
         "acc": {"model": acc.name, "params": dict(zip(acc.params, p_acc.tolist())), "effects": dict(sc.acc_effects),
                 "M": M_a.tolist(), "bias": b_a.tolist(), "bias_unit": "g"},

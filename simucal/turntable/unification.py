@@ -32,7 +32,8 @@ import numpy as np
 from simucal.errors import CalibrationError
 from simucal.fit.apply import model_function, solve_inputs
 from simucal.fit.distributions import chi2_sf_estimated
-from simucal.fit.norm_fit import full_covariance, tangent_basis
+from simucal.fit.gauss_newton import tangent_basis
+from simucal.fit.norm_fit import full_covariance
 from simucal.fit.rotations import log_so3, skew, wahba
 from simucal.generated import table
 from simucal.generated import unify as eq

@@ -1,0 +1,233 @@
+"""The commands that fit a model: calibrate (one set, several, or thermal plateaus), field-drift, diagnose."""
+from __future__ import annotations
+
+import sys
+from pathlib import Path
+
+import click
+
+from simucal import methods
+from simucal.cli.common import MODEL_FILE_RUNS, NOISE_DPH, NOISE_G, POSITIVE, Number, fail, guard, main
+
+
+HEADING_ACCURACY = click.option(
+    "--heading-accuracy-deg", type=Number(0.0, 180.0), default=5.0, show_default=True,
+    help="Field sets: the stated accuracy of the north reference; its effect enters the uncertainty.")
+_ADD_HELP = ("Effect id to add, e.g. acc.quadratic.z (exact ids; unknown ones are refused), or a model file "
+             "(MODELS = [...]) with your own SymPy terms, derived into the cache (repeatable). " + MODEL_FILE_RUNS)
+_ADD_AUTO_HELP = (_ADD_HELP + " Also 'auto': the library effects a failing model needs, chosen one at a time by the "
+                  "same test as diagnose, each also predicting left-out positions better.")
+
+
+
+@main.command()
+@click.argument("data_dirs", nargs=-1, required=True, type=click.Path(exists=True, file_okay=False))
+@click.option("-o", "--output", type=click.Path(), default="calibration.json", show_default=True,
+              help="The calibration file; with several sets, a folder that gets one <set>.json each (with "
+                   "--thermal: one file).")
+@click.option("--thermal", is_flag=True, help="The sets are one unit at several temperature plateaus (temp_c): every "
+              "parameter a polynomial in T - T_ref, applied at each row's temp_c.")
+@click.option("--thermal-degree", type=click.IntRange(0, 3), default=None,
+              help="--thermal: the polynomials' degree (default: chosen by the data per parameter).")
+@click.option("--html", "html_out", type=click.Path(dir_okay=False), default=None,
+              help="--thermal: a page with each parameter against temperature and its fitted polynomial.")
+@click.option("--t-ref-c", type=Number(-60.0, 150.0), default=None,
+              help="T_ref of temperature terms, degC (default: the mean of temp_c; --thermal: of the plateaus).")
+@click.option("--method", type=click.Choice(("auto",) + methods.NAMES), default="auto", show_default=True,
+              help="auto: the default for the set's data. " + " ".join(
+                  f"{m.name}: {m.summary} ({methods.DATA[m.data]})." for m in methods.METHODS.values()))
+@click.option("--acc-model", default="acc_baseline", show_default=True)
+@click.option("--gyro-model", default="gyro_baseline", show_default=True)
+@click.option("--add", "add", multiple=True, help=_ADD_AUTO_HELP)
+@click.option("--acc-noise-g", type=NOISE_G, default=None, help="Noise of one acc row (g), where the data cannot give it.")
+@click.option("--gyro-noise-dph", type=NOISE_DPH, default=None, help="Noise of one gyro row (deg/h).")
+@click.option("--noise", "noise_file", type=click.Path(exists=True, dir_okay=False), default=None,
+              help="A noise.json of simucal noise: each segment's noise from its Allan curve at the segment's length "
+                   "(averaged rows: meta.json's average_s).")
+@click.option("--init-rest-s", type=POSITIVE, default=None, help="Stream: length of the initial rest (default: found from the data).")
+@click.option("--threshold-factor", type=Number(1.0, 1e6, low_open=True), default=6.0, show_default=True,
+              help="Stream: static threshold, times the rest's variance.")
+@click.option("--window-s", type=POSITIVE, default=1.0, show_default=True, help="Stream: moving-variance window.")
+@click.option("--min-static-s", type=POSITIVE, default=1.0, show_default=True, help="Stream: shortest static interval.")
+@HEADING_ACCURACY
+@click.option("--scheduler", default="local", show_default=True,
+              help="Several sets: local, processes (a Dask LocalCluster) or a Dask scheduler's address.")
+def calibrate(data_dirs, output, thermal, thermal_degree, html_out, t_ref_c, method, acc_model, gyro_model, add, acc_noise_g,
+              gyro_noise_dph, noise_file, init_rest_s, threshold_factor, window_s, min_static_s, heading_accuracy_deg, scheduler):
+    """Calibrate measurement sets; write calibration.json (one per set into a folder for several).
+
+    With segments.csv and table angles: a turntable test (dong2018). Without segments.csv: a
+    continuous stream from a hand-placed session (static poses found from the data; Tedaldi).
+    With heading_ref_deg and no table angles: a field set (ruan2019's gyro drift)."""
+    from simucal.calibrate import calibrate_to_file
+    from simucal.handheld.static_detect import DetectSettings
+    kwargs = dict(method=method, acc_model=acc_model, gyro_model=gyro_model,
+                  detect=DetectSettings(window_s, threshold_factor, min_static_s, init_rest_s), add=add,
+                  acc_noise_g=acc_noise_g, gyro_noise_dph=gyro_noise_dph, heading_accuracy_deg=heading_accuracy_deg,
+                  noise=noise_file)
+    inputs = list(data_dirs) + [a for a in add if a.endswith(".py")] + ([noise_file] if noise_file else [])
+    if thermal or thermal_degree is not None:
+        return _calibrate_thermal(data_dirs, output, thermal_degree, t_ref_c, kwargs, inputs, html_out)
+    if html_out:
+        fail("--html: a page of a thermal calibration (with --thermal); for one set use simucal diagnose --html")
+    kwargs["t_ref_c"] = t_ref_c
+    if len(data_dirs) == 1:
+        guard(inputs, files=[output])
+        result, error = calibrate_to_file(Path(data_dirs[0]), output, kwargs)
+        if error:
+            fail(error)
+        from simucal.report.console import calibration_lines
+        for line in calibration_lines(result):
+            click.echo(line)
+        click.echo(f"wrote {output} (method {result.method})")
+        return
+    from simucal import progress
+    from simucal.errors import CalibrationError
+    from simucal.sweeps import map_tasks
+    out = Path(output)
+    names = [Path(d).resolve().name for d in data_dirs]
+    if out.suffix == ".json" or (out.exists() and not out.is_dir()):
+        fail(f"-o {output}: with {len(data_dirs)} sets, -o names a folder (one <set>.json each)")
+    if len(set(names)) < len(names):
+        fail(f"two sets share a folder name ({sorted(n for n in names if names.count(n) > 1)[0]}): their files "
+              "would collide; calibrate them separately")
+    tasks = [(Path(d), out / f"{n}.json", kwargs) for d, n in zip(data_dirs, names)]
+    guard(inputs, files=[path for _, path, _ in tasks], folders=[out])
+    made = not out.exists()
+    out.mkdir(exist_ok=True)
+    try:
+        done = map_tasks(calibrate_to_file, tasks, scheduler, progress=progress.bar("calibrate", "set"))
+    except CalibrationError as e:  # no scheduler: leave nothing behind
+        if made:
+            out.rmdir()
+        fail(e)
+    failed = 0
+    for (d, path, _), (result, error) in zip(tasks, done):
+        if error:
+            failed += 1
+            click.echo(f"{d}: error: {error}", err=True)
+        else:
+            tests = ", ".join(f"{k} p = {b.p_value:.3g}" for k, b in result.blocks() if b.p_value is not None)
+            click.echo(f"{d}: wrote {path}" + (f" ({tests})" if tests else ""))
+    click.echo(f"{len(tasks) - failed} of {len(tasks)} sets calibrated into {out}")
+    if failed:
+        sys.exit(2)
+
+
+def _calibrate_thermal(data_dirs, output, degree, t_ref_c, kwargs, inputs, html_out):
+    from simucal.calibrate import calibrate_thermal
+    from simucal.errors import CalibrationError
+    from simucal.io import calibration, outputs
+    guard(inputs, files=[output] + ([html_out] if html_out else []))
+    try:
+        result = calibrate_thermal([Path(d) for d in data_dirs], degree, t_ref_c, **kwargs)
+        calibration.save(output, result)
+    except (ValueError, KeyError, CalibrationError, FileNotFoundError) as e:
+        fail(e)
+    from simucal.report.console import calibration_lines
+    for line in calibration_lines(result):
+        click.echo(line)
+    if html_out:
+        from simucal.report.thermal_html import thermal_page
+        outputs.write_text(html_out, thermal_page(result))
+        click.echo(f"wrote {html_out}")
+    lo, hi = result.temperature_range_c
+    click.echo(f"wrote {output} (method {result.method}; calibrated from {lo:.4g} to {hi:.4g} degC)")
+
+
+@main.command("field-drift")
+@click.argument("data_dir", type=click.Path(exists=True, file_okay=False))
+@click.option("-o", "--output", type=click.Path(dir_okay=False), default="drift.json", show_default=True,
+              help="The calibration file (apply corrects the gyro drift with it).")
+@click.option("--plot", type=click.Path(dir_okay=False), default=None, help="PNG of each position's filter estimate (paper Fig. 4).")
+@HEADING_ACCURACY
+def field_drift(data_dir, output, plot, heading_accuracy_deg):
+    """Three-position field calibration of gyro constant drift (ruan2019): `calibrate --method field`, with the
+    paper's Fig. 4."""
+    from simucal.calibrate import calibrate_to_file
+    from simucal.field.drift import plot_history
+    guard([data_dir], files=[output, plot])
+    result, error = calibrate_to_file(Path(data_dir), output, dict(method="field",
+                                                                  heading_accuracy_deg=heading_accuracy_deg))
+    if error:
+        fail(error)
+    if plot:
+        plot_history(result.details["field"]["history"], plot)
+    from simucal.report.console import calibration_lines
+    for line in calibration_lines(result):
+        click.echo(line)
+    click.echo(f"wrote {output}" + (f" and {plot}" if plot else ""))
+
+
+def _added_lines(result):
+    """diagnose --add: the residual and p before and after, per sensor, with units."""
+    for s in ("acc", "gyro"):
+        a = result.get(s, {}).get("added")
+        if a:
+            u = a.get("residual_unit", "")
+            p0, p1 = a["p_value_before"], a["p_value_after"]
+            fmt = lambda p: "n/a" if p is None else f"{p:.3g}"
+            yield (f"{s} with {', '.join(a['effects'])}: residual rms {a['residual_rms_before']:.3g} -> "
+                   f"{a['residual_rms_after']:.3g} {u}, p {fmt(p0)} -> {fmt(p1)}")
+            for k, row in a["params"].items():
+                if row["before"] is None:
+                    err = f", truth {row['truth']:.4g}" if "truth" in row else ""
+                    yield f"    {k} = {row['after']:.4g} +- {row['std_after']:.2g}{err}"
+
+
+def _shape_model_path(output, sensor):
+    return Path(output).with_name(f"{Path(output).stem}_{sensor}_model.py")
+
+
+def _write_shape_models(result, output):
+    """Each sensor's found term as a ready model file beside the diagnosis; returns the paths."""
+    from simucal.io import outputs
+    paths = []
+    for s in ("acc", "gyro"):
+        shape = result.get(s, {}).get("shape")
+        if shape and not shape.get("catalog_id"):
+            path = _shape_model_path(output, s)
+            outputs.write_text(path, shape["model_file"])
+            shape["model_file_path"] = str(path)
+            paths.append(path)
+    return paths
+
+
+@main.command()
+@click.argument("data_dir", type=click.Path(exists=True, file_okay=False))
+@click.option("-o", "--output", type=click.Path(dir_okay=False), default="diagnosis.json", show_default=True)
+@click.option("--html", "html_path", type=click.Path(dir_okay=False), default=None, help="Also write a self-contained HTML report.")
+@click.option("--add", "add", multiple=True, help=_ADD_HELP)
+@click.option("--acc-model", default="acc_baseline", show_default=True)
+@click.option("--gyro-model", default="gyro_baseline", show_default=True)
+@click.option("--acc-noise-g", type=NOISE_G, default=None, help="Stated noise of one acc row (g), when the data cannot give it.")
+@click.option("--gyro-noise-dph", type=NOISE_DPH, default=None, help="Stated noise of one gyro row (deg/h).")
+def diagnose(data_dir, output, html_path, add, acc_model, gyro_model, acc_noise_g, gyro_noise_dph):
+    """Compare model and measurements; rank the candidate missing effects."""
+    import json
+
+    from simucal.diagnose import diagnose as diagnose_set
+    from simucal.errors import CalibrationError
+    from simucal.io import MeasurementSetError, outputs
+    if "auto" in add:
+        fail(f"--add auto is calibrate's: diagnose already ranks every candidate; run simucal calibrate {data_dir} "
+              "--add auto")
+    guard([data_dir] + [a for a in add if a.endswith(".py")],
+           files=[output, html_path, _shape_model_path(output, "acc"), _shape_model_path(output, "gyro")])
+    try:
+        result = diagnose_set(Path(data_dir), add, acc_model, gyro_model, acc_noise_g, gyro_noise_dph)
+    except (MeasurementSetError, CalibrationError, KeyError, FileNotFoundError, ValueError) as e:
+        fail(e)
+    models = _write_shape_models(result, output)
+    outputs.write_text(output, json.dumps(result, indent=1, default=float) + "\n")
+    if html_path:
+        from simucal.report.html import render
+        outputs.write_text(html_path, render(result))
+    for line in result["verdict"].split(" | ") + result.get("notes", []):
+        click.echo(line)
+    for line in _added_lines(result):
+        click.echo(line)
+    for m in models:
+        click.echo(f"wrote {m}: the found term as a model file; try: simucal diagnose {data_dir} --add {m}")
+    click.echo(f"wrote {output}" + (f" and {html_path}" if html_path else ""))
+

@@ -1,0 +1,116 @@
+"""What every command shares: the group whose refusals are one line, finite numbers in a range,
+the output guard (no output into or over an input)."""
+from __future__ import annotations
+
+import math
+import os
+import sys
+import warnings
+
+import click
+
+
+class _Commands(click.Group):
+    """Every refusal is one line (fail, exit 2). Anything else escaping a command is a bug:
+    one line too, exit 3, and the traceback with SIMUCAL_DEBUG=1."""
+
+    def invoke(self, ctx):
+        warnings.simplefilter("ignore", RuntimeWarning)  # numpy's, printed before a clear error otherwise
+        try:
+            return super().invoke(ctx)
+        except (click.exceptions.Exit, click.exceptions.Abort, click.ClickException, KeyboardInterrupt):
+            raise
+        except BrokenPipeError:  # the reader went away (| head): not an error of ours or the user's
+            sys.stdout = open(os.devnull, "w")
+            sys.exit(141)
+        except Exception as e:
+            from simucal.errors import CalibrationError
+            from simucal.io import MeasurementSetError
+            if isinstance(e, (CalibrationError, MeasurementSetError)):  # a refusal that reached the top
+                fail(e)
+            if os.environ.get("SIMUCAL_DEBUG"):
+                raise
+            click.echo(f"error: internal error ({type(e).__name__}: {e}); this is a bug in simucal: please report it "
+                       "with the command and the data (SIMUCAL_DEBUG=1 shows the traceback)", err=True)
+            sys.exit(3)
+
+
+@click.group(cls=_Commands)
+@click.version_option(package_name="simucal")
+def main():
+    """Strapdown IMU calibration: derive, simulate, calibrate, audit."""
+
+
+def fail(e):
+    """One line on stderr, exit 2: the refusal of bad input (nothing is written)."""
+    click.echo(f"error: {e.args[0] if isinstance(e, KeyError) and e.args else e}", err=True)
+    sys.exit(2)
+
+
+class _Refused(click.ClickException):
+    """A refusal while the options are read: one line and exit 2, as fail."""
+    exit_code = 2
+
+    def show(self, file=None):
+        click.echo(f"error: {self.message}", err=True)
+
+
+class Number(click.ParamType):
+    """A finite number in a range: NaN, infinities and values outside it are refused, naming the
+    option, the value and the range (click's FloatRange lets NaN through)."""
+    name = "number"
+
+    def __init__(self, low=None, high=None, low_open=False, integer=False, what=""):
+        self.low, self.high, self.low_open, self.integer, self.what = low, high, low_open, integer, what
+
+    def convert(self, value, param, ctx):
+        if isinstance(value, (int, float)) and not isinstance(value, bool):
+            v = float(value)  # a default
+        else:
+            try:
+                v = float(str(value).strip())
+            except ValueError:
+                raise _Refused(f"{self._name(param)} {self._shown(value)}: not a number") from None
+        if not math.isfinite(v):
+            raise _Refused(f"{self._name(param)} {self._shown(value)}: must be a finite number")
+        if self.integer and v != round(v):
+            raise _Refused(f"{self._name(param)} {value}: must be a whole number")
+        below = self.low is not None and (v <= self.low if self.low_open else v < self.low)
+        if below or (self.high is not None and v > self.high):
+            lo = None if self.low is None else f"{'>' if self.low_open else '>='} {self.low:g}"
+            hi = None if self.high is None else f"<= {self.high:g}"
+            raise _Refused(f"{self._name(param)} {value}: must be " + " and ".join(x for x in (lo, hi) if x)
+                           + (f" ({self.what})" if self.what else ""))
+        return int(round(v)) if self.integer else v
+
+    @staticmethod
+    def _shown(value):
+        return value if str(value).isprintable() and str(value).strip() else repr(value)
+
+    @staticmethod
+    def _name(param):
+        return max(param.opts, key=len) if param is not None and param.opts else "value"
+
+
+
+MODEL_FILE_RUNS = ("A model file is Python: like any plugin, its code runs when it is derived (once, in a child "
+                    "process with a time limit; never again once in the cache), so use only files you trust.")
+POSITIVE = Number(0.0, low_open=True)
+SEED = Number(0, 2 ** 32 - 1, integer=True, what="numpy's seeds")
+NOISE_G = Number(0.0, 1.0, low_open=True, what="the std of one row, g")
+NOISE_DPH = Number(0.0, 1e6, low_open=True, what="the std of one row, deg/h")
+LATITUDE = Number(-90.0, 90.0, what="degrees")
+SIM_RATE_HZ = Number(0.0, 2000.0, low_open=True, what="the simulator writes raw rows up to 2 kHz")
+MAX_TRIALS = 10_000_000  # ~1.4 GB of estimates, about two minutes compiled
+FORCE = click.option("--force", is_flag=True,
+                      help="Replace a measurement set already in the output folder (never one of the inputs).")
+
+
+def guard(inputs=(), files=(), sets=(), folders=(), force=False):
+    """Refuse outputs that would write into or over an input, or replace a measurement set
+    without --force (io/outputs.py); before any work, so nothing is lost."""
+    from simucal.io.outputs import OutputError, check
+    try:
+        check(inputs, files, sets, folders, force)
+    except OutputError as e:
+        fail(e)

@@ -1,0 +1,291 @@
+"""The tools: derive, audit, demo, montecarlo, plan, bench."""
+from __future__ import annotations
+
+import sys
+from pathlib import Path
+
+import click
+
+from simucal.cli.common import FORCE, MAX_TRIALS, MODEL_FILE_RUNS, NOISE_DPH, NOISE_G, SEED, Number, fail, guard, main
+
+
+@main.command()
+@click.option("--check", is_flag=True, help="Fail if generated/ differs from what derive writes now.")
+@click.option("--model", "model_files", multiple=True, type=click.Path(exists=True, dir_okay=False),
+              help="A Python file defining MODELS = [ErrorModel, ...]: derived into the cache "
+                   "(not generated/), then usable by name from any folder. " + MODEL_FILE_RUNS)
+def derive(check, model_files):
+    """Derive the built-in models and (re)write generated/; or derive your own model file."""
+    from simucal import derive_cmd
+    if model_files:
+        from simucal.fit.catalog import derive_model_file
+        for f in model_files:
+            try:
+                names, _ = derive_model_file(f)
+            except (FileNotFoundError, ValueError, SyntaxError) as e:
+                fail(e)
+            click.echo(f"derived {', '.join(names)} from {f} into the cache")
+        return
+    stale, secs, diff = derive_cmd.run(check=check)
+    if check:
+        if stale:
+            click.echo(diff + "generated/ is stale; run `simucal derive`. Differs: " + ", ".join(stale), err=True)
+            sys.exit(1)
+        click.echo(f"generated/ is up to date ({secs:.1f} s)")
+    else:
+        click.echo(f"wrote {derive_cmd.generated_dir()} ({secs:.1f} s)")
+
+
+@main.command()
+@click.option("-o", "--output", type=click.Path(dir_okay=False), default="audit.md", show_default=True)
+@click.option("--seeds", type=Number(0, 10000, integer=True), default=20, show_default=True,
+              help="Simulated tests per setting for the Monte Carlo of the paper's claims (0: skip it).")
+def audit(output, seeds):
+    """Check the paper's printed equations (4)-(27), Table 1 and 2, term by term at the section-4
+    values, and its numeric claims (abstract, Tables 3 and 4) against a Monte Carlo."""
+    from simucal import progress
+    from simucal.io import outputs
+    from simucal.report.paper_claims import full_audit
+    guard(files=[output])
+    report = full_audit(seeds, progress=progress.bar("audit", "item"))
+    outputs.write_text(output, report.markdown())
+    click.echo(f"wrote {output}: {report.summary()}")
+
+
+@main.command()
+@click.option("-o", "--output", "--out-dir", "out_dir", type=click.Path(file_okay=False), default="out", show_default=True)
+@click.option("--seed", type=SEED, default=0, show_default=True)
+@FORCE
+def demo(out_dir, seed, force):
+    """The main job end to end on built-in simulated data: a hidden effect found, added,
+    calibrated with and applied; then dong2018's methods, the audit and the diagnosis."""
+    from simucal import demo as demo_mod
+    out = Path(out_dir)  # its sets may be replaced where an earlier demo wrote them (its demo.json)
+    guard(sets=[out] + [out / d for d in demo_mod.SETS], force=force or (out / demo_mod.MARKER).is_file())
+    try:
+        demo_mod.run(out_dir, seed, click.echo)
+    except RuntimeError as e:
+        fail(e)
+
+
+@main.command()
+@click.option("--scenario", type=click.Choice(["paper"]), default="paper", show_default=True,
+              help="dong2018 section 4 (simulate's defaults).")
+@click.option("--plan", default=None, help="table1 (default), dodecahedron20, fibonacci24, fibonacci48 or plan.csv.")
+@click.option("--trials", type=Number(2, MAX_TRIALS, integer=True), default=10000, show_default=True)
+@click.option("--seed", type=SEED, default=0, show_default=True)
+@click.option("--effect", "effects", multiple=True, metavar="ID=VALUE",
+              help="Plant a candidate effect in the truth and fit it (repeatable; slower: fit_exact per trial).")
+@click.option("-o", "--output", type=click.Path(dir_okay=False), default="montecarlo.json", show_default=True)
+@click.option("--scheduler", default="local", show_default=True,
+              help="local (this process), processes (a Dask LocalCluster, one worker per core) or a Dask "
+                   "scheduler's address: the same numbers on any.")
+def montecarlo(scenario, plan, trials, seed, effects, output, scheduler):
+    """Monte Carlo of a scenario: simulate, exact fits, unification; std against the Cramer-Rao bound."""
+    import json
+
+    from simucal import progress
+    from simucal.io import outputs
+    from simucal.turntable.montecarlo import run
+    from simucal.turntable.simulate import SCENARIOS, plant
+    guard([plan if plan and Path(plan).exists() else None], files=[output])
+    if effects and trials > MAX_TRIALS // 10:  # their fits run in numpy, ~10x slower
+        fail(f"--trials {trials}: with --effect at most {MAX_TRIALS // 10} (about two minutes); split the run "
+              "over seeds")
+    sc = SCENARIOS[scenario]()
+    if plan:
+        sc.plan = plan
+    try:
+        plant(sc, effects)
+        result = run(sc, trials, seed, scheduler=scheduler,
+                     progress=progress.bar("montecarlo", "batch"))
+    except (ValueError, KeyError, FileNotFoundError) as e:
+        fail(e)
+    outputs.write_text(output, json.dumps(result, indent=1) + "\n")
+    click.echo(f"{trials} trials in {result['seconds']:.2f} s ({result['trials_per_s']:.0f}/s, {result['backend']}, "
+               f"scheduler {scheduler}); "
+               f"{result['failed']} failed")
+    click.echo(f"{'parameter':18} {'truth':>12} {'mean':>12} {'std':>10} {'CRLB':>10} {'std/CRLB':>9}")
+    for name, v in result["parameters"].items():
+        click.echo(f"{name:18} {v['truth']:12.5g} {v['mean']:12.5g} {v['std']:10.3g} {v['crlb']:10.3g} "
+                   f"{v['std_over_crlb']:9.3f}")
+    click.echo(f"wrote {output}")
+
+
+def _plan_scores(model, score_plan, positions, criterion, rate_dps, rates, sigma):
+    """(plan name, its directions u in k, rho, the score) of the plan scored or designed."""
+    import numpy as np
+
+    from simucal.io.units import DPH_PER_DPS
+    from simucal.turntable import plans
+    from simucal.turntable.plan_design import design, directions_k, score
+    gyro = model.sensor == "gyro"
+    if gyro and rate_dps == 0:
+        raise ValueError(f"--rate-dps {rate_dps}: a rate run needs a non-zero rate (deg/s)")
+    rate_list = [float(x) for x in rates.split(",")] if rates else [rate_dps]
+    if gyro and not all(abs(x) > 0 for x in rate_list):
+        raise ValueError(f"--rates-dps {rates}: a rate run needs a non-zero rate (deg/s)")
+    rho = abs(rate_dps) * DPH_PER_DPS if gyro else 1.0
+    if score_plan is not None:
+        rows = plans.PLANS[score_plan]() if score_plan in plans.PLANS else plans.read_csv(score_plan)
+        u, name = directions_k(rows), score_plan
+    else:
+        u, rho = design(model, positions, np.abs(rate_list) * DPH_PER_DPS if gyro else 1.0, sigma, criterion)
+        name = f"{criterion}-optimal, {positions} positions"
+    return name, u, rho, {"plan": name, **score(model, u, rho, sigma)}
+
+
+def _separation(model, pair, sizes, score_plan, u, rho, sigma, target):
+    """plan --separate: the positions to add so that two candidate effects are told apart."""
+    import numpy as np
+
+    from simucal.fit.augmented import check_effect
+    from simucal.io.calibration_checks import PARAM_LIMIT
+    from simucal.turntable.plan_design import separate
+    if score_plan is None or not sizes:
+        raise ValueError("--separate needs --score PLAN (the plan you have) and --sizes Q1,Q2")
+    ids = [x.strip() for x in pair.split(",")]
+    q = [float(x) for x in sizes.split(",")]
+    if len(ids) != 2 or len(q) != 2:
+        raise ValueError("--separate ID1,ID2 and --sizes Q1,Q2: two of each")
+    if ids[0] == ids[1]:
+        raise ValueError(f"--separate {pair}: an effect cannot be told from itself; name two different effects")
+    if not all(np.isfinite(x) and 0 < abs(x) <= PARAM_LIMIT for x in q):
+        raise ValueError(f"--sizes {sizes}: each size must be a finite, non-zero number (the effect's expected "
+                         f"value, in its unit) of at most {PARAM_LIMIT:g}")
+    for e in ids:
+        check_effect(e, model.sensor)
+    rates = (np.array([0.5, 1.0, 2.0]) * rho) if model.sensor == "gyro" else ()
+    return separate(model.base, ids[0], ids[1], u, rho, sigma, q, rates, target)
+
+
+def _separation_lines(sep):
+    import numpy as np
+
+    from simucal.generated.effects import SEPARATE
+    from simucal.turntable.plan_design import plan_rows
+    a, b = sep["effects"]
+    yield (f"separate {a} from {b}: on this plan the expected likelihood ratios are "
+           f"{sep['start']['noncentrality'][0]:.3g} and {sep['start']['noncentrality'][1]:.3g} "
+           f"(power {sep['start']['power'][0]:.2f}, {sep['start']['power'][1]:.2f} at alpha {sep['alpha']})")
+    if sep["added"]:
+        yield (f"  {len(sep['added'])} added positions give {sep['noncentrality'][0]:.3g} and "
+               f"{sep['noncentrality'][1]:.3g} (power {sep['power'][0]:.2f}, {sep['power'][1]:.2f}): "
+               + ("the target is reached" if sep["reached"] else f"short of {sep['target_power']}"))
+        for x in plan_rows(np.array([d["direction_k"] for d in sep["added"]]))[:48]:
+            yield f"    outer {x[0]:8.3f}  middle {x[1]:9.4f}  inner {x[2]:9.4f} deg"
+    elif sep["reached"]:
+        yield "  the plan already tells them apart at the target power"
+    if not sep["reached"]:
+        hints = sorted({SEPARATE[e.split(".")[1]] for e in (a, b)})
+        yield ("  no positions on the sphere separate them" + (" further" if sep["added"] else "")
+               + ": they differ in what the plan cannot vary by direction; " + "; ".join(hints))
+
+
+def _write_design(result, model, u, rho, kind, output):
+    """The designed plan's CSV (three-axis angles, or hand poses as gravity directions) and its JSON."""
+    import json
+
+    import numpy as np
+
+    from simucal.io import outputs
+    from simucal.io.units import DPH_PER_DPS
+    from simucal.turntable.plan_design import plan_rows
+    gyro = model.sensor == "gyro"
+    out = Path(output or "plan.csv")
+    if kind == "hand":  # a pose is where gravity (or the turn axis) points in the unit's own axes
+        rows = [(i + 1, *map(float, d)) for i, d in enumerate(u)]
+        cols = "pose,f_x,f_y,f_z"
+    else:
+        rows = plan_rows(u, np.asarray(rho) / DPH_PER_DPS if gyro else None)
+        cols = "outer_deg,middle_deg,inner_deg" + (",outer_rate_dps" if gyro else "")
+    outputs.write_text(out, cols + "\n" + "".join(",".join(f"{x:.6f}" for x in r) + "\n" for r in rows))
+    result["rows"] = rows
+    outputs.write_text(out.with_suffix(".json"), json.dumps(result, indent=1) + "\n")
+    return out
+
+
+@main.command()
+@click.option("--score", "score_plan", default=None, metavar="PLAN",
+              help="Score a plan: table1, dodecahedron20, fibonacci24, fibonacci48 or a CSV (outer_deg,middle_deg,inner_deg).")
+@click.option("--model", "model_name", default="acc_baseline", show_default=True, help="Generated model (acc or gyro).")
+@click.option("--add", "add", multiple=True, help="Candidate effect ids to add to the model (repeatable).")
+@click.option("--positions", type=Number(1, 300, integer=True), default=None, help="Design a plan with this many positions.")
+@click.option("--criterion", type=click.Choice(["D", "A"]), default="D", show_default=True)
+@click.option("--rate-dps", type=Number(-3600.0, 3600.0), default=10.0, show_default=True,
+              help="Gyro models: the outer-axis rate of the rate runs.")
+@click.option("--rates-dps", "rates", default=None, metavar="R1,R2,...",
+              help="Gyro design: rates (deg/s) to choose from, e.g. 5,10,20.")
+@click.option("--table", "kind", type=click.Choice(["three-axis", "hand"]), default="three-axis", show_default=True,
+              help="Design for a three-axis table (angles) or hand-placed poses (gravity directions in the unit).")
+@click.option("--acc-noise-g", type=NOISE_G, default=None,
+              help="Accelerometer models: the noise of one position's mean, g (default: section 4's 1e-5).")
+@click.option("--gyro-noise-dph", type=NOISE_DPH, default=None,
+              help="Gyro models: the noise of one position's mean, deg/h (default: section 4's 0.01).")
+@click.option("--separate", "pair", default=None, metavar="ID1,ID2",
+              help="With --score: the positions to add so that these two candidate effects are told apart.")
+@click.option("--sizes", default=None, metavar="Q1,Q2", help="With --separate: the effects' sizes, in their units.")
+@click.option("--power", "target", type=Number(0.0, 1.0, low_open=True), default=0.9, show_default=True,
+              help="With --separate: the power to reach.")
+@click.option("-o", "--output", type=click.Path(dir_okay=False), default=None,
+              help="Design: the plan CSV (a JSON sidecar with its scores beside it); score: the JSON.")
+def plan(score_plan, model_name, add, positions, criterion, rate_dps, rates, kind, acc_noise_g, gyro_noise_dph, pair,
+         sizes, target, output):
+    """Score a test plan (Fisher information, CRLB, correlations, D and A criteria) or design one."""
+    import json
+
+    import numpy as np
+
+    from simucal.errors import CalibrationError
+    from simucal.fit.augmented import AugmentedModel
+    from simucal.io import outputs
+    from simucal.io.units import DPH_PER_DPS
+    if (score_plan is None) == (positions is None):
+        fail("give --score PLAN to score a plan, or --positions N to design one")
+    if output:
+        guard([score_plan if score_plan and Path(score_plan).exists() else None],
+              files=[output] + ([str(Path(output).with_suffix(".json"))] if positions is not None else []))
+    elif positions is not None:
+        guard(files=["plan.csv", "plan.json"])
+    try:
+        model = AugmentedModel(model_name, tuple(add))
+        gyro = model.sensor == "gyro"
+        wrong = acc_noise_g if gyro else gyro_noise_dph
+        if wrong is not None:
+            raise ValueError(f"{'--acc-noise-g' if gyro else '--gyro-noise-dph'} {wrong:g}: model {model.name} is a "
+                             f"{model.sensor} model; give {'--gyro-noise-dph' if gyro else '--acc-noise-g'}")
+        sigma = (gyro_noise_dph or 0.01) if gyro else (acc_noise_g or 1e-5)
+        name, u, rho, result = _plan_scores(model, score_plan, positions, criterion, rate_dps, rates, sigma)
+        if pair:
+            result["separation"] = _separation(model, pair, sizes, score_plan, u, rho, sigma, target)
+    except (ValueError, KeyError, CalibrationError, FileNotFoundError) as e:
+        fail(e)
+    click.echo(f"{name}: {model.name}, noise {sigma:g} {model.unit} per position"
+               + (f", rate runs at {', '.join(f'{x:g}' for x in sorted(set(np.round(np.atleast_1d(rho) / DPH_PER_DPS, 6))))} "
+                  "deg/s" if gyro else ""))
+    click.echo(f"  D per position {result['D_per_position']:.6g}, A {result['A']:.4g}, "
+               f"largest |correlation| {result['max_abs_correlation']:.2f}")
+    for k, v in result["crlb"].items():
+        click.echo(f"  {k:16} CRLB {v:.3g} {result['units'][k]}")
+    for line in _separation_lines(result["separation"]) if pair else ():
+        click.echo(line)
+    if positions is not None:
+        out = _write_design(result, model, u, rho, kind, output)
+        click.echo(f"wrote {out} and {out.with_suffix('.json')}")
+    elif output:
+        outputs.write_text(output, json.dumps(result, indent=1) + "\n")
+        click.echo(f"wrote {output}")
+
+
+@main.command()
+@click.option("-o", "--output", "--json", "json_path", type=click.Path(dir_okay=False), default=None,
+              help="Also write the figures as JSON.")
+@click.option("--before", type=click.Path(exists=True, dir_okay=False), default=None,
+              help="A previous run's -o (e.g. benchmarks/bench_4a889b5.json), printed beside this run's figures.")
+def bench(json_path, before):
+    """Measure the speed figures (fits, Monte Carlo, whole commands) on this machine."""
+    from simucal.bench import run
+    if json_path:
+        guard([before] if before else [], files=[json_path])
+    run(json_path, click.echo, before)
+

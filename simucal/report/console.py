@@ -1,0 +1,126 @@
+"""A calibration on the console: one line per fact, the failures loud (`simucal calibrate`,
+`simucal field-drift`)."""
+from __future__ import annotations
+
+from simucal.io.calibration import Calibration, SensorBlock
+
+FAILS_BELOW = 1e-3  # the p-value under which a block's model is said to fail
+
+
+def calibration_lines(cal: Calibration):
+    """Per sensor its test and effects (and what to add when the model fails), then the frames'
+    unification, the consistency checks, what the plan leaves undetermined, and the warnings."""
+    for s in ("acc", "gyro"):
+        out = [x["segment"] for x in cal.details.get("excluded_segments", []) if x["sensor"] == s]
+        if out:
+            yield (f"{s}: {len(out)} segments left out, their samples clipped (at full_scale or repeating the rail): "
+                   f"{out[:10]}{' ...' if len(out) > 10 else ''}")
+        b = getattr(cal, s)
+        if b is None or b.nominal:
+            continue
+        if b.thermal is not None:
+            yield from _thermal_lines(s, b)
+        elif b.residual_rms is None:  # a method without a fit of its own rows (field: the drift alone)
+            yield (f"{s}: bias ({b.bias_unit}, {b.description}): " + ", ".join(
+                f"{a} {v:+.4g} +- {e:.2g}" for a, v, e in zip("xyz", b.bias, b.std["bias"])))
+        else:
+            yield from _fit_lines(s, b, cal.input)
+    u = cal.unification
+    if u and "std_rad" in u:
+        yield (f"frames: C_b^d by {u['method'].replace('_', ' ')} ({u['pairs']} pairs), std "
+               f"{max(u['std_rad']):.2g} rad, residual {u['direction_residual_rms_rad']:.2g} rad rms"
+               + "".join(f"; noise of the {k.replace('_', ' ')}: {v['text']}" for k, v in u.get("noise", {}).items()
+                         if k != "table_angles")
+               + (f"; cross-check: {u['cross_check']['note']}" if "cross_check" in u else "")
+               + (f"; {u['note']}" if u.get("note") else ""))
+    yield from cal.details.get("consistency", {}).get("lines", [])
+    for s, b in cal.blocks():
+        yield from _determination_lines(s, b)
+    for sensor, why in cal.not_calibrated.items():
+        yield f"{sensor}: NOT CALIBRATED: {why}"
+    for line in cal.warnings:
+        yield f"WARNING: {line}"
+
+
+def _test_text(b: SensorBlock) -> str:
+    d = b.details
+    rows = f" over {d['rows']}" if d.get("rows") else ""
+    if b.chi2 is not None:
+        return f"chi2 {b.chi2:.1f}, dof {b.dof}{rows}, p = {b.p_value:.3g}"
+    if b.p_value is not None:
+        return f"p = {b.p_value:.3g} ({d.get('test', '')}{rows})"
+    return "no test (" + d.get("test", "no noise estimate") + ")"
+
+
+def _fit_lines(s, b: SensorBlock, source):
+    """A fitted block: residual and test, effects, held-out error, noise, and what a failure means."""
+    d = b.details
+    eff = "".join(f"; {e} = {v.value:.4g} +- {v.std:.2g} {v.unit}" for e, v in b.effects.items())
+    cv = d.get("cross_validation")
+    held = (f"; |u| - rho {cv['in_sample_rms']:.3g} {cv['unit']} rms on the fit's rows, {cv['held_out_rms']:.3g} "
+            f"on rows left out ({cv['rows']} rows, one at a time)" if cv and cv.get("held_out_rms") else "")
+    yield f"{s}: residual rms {b.residual_rms:.3g} {b.residual_unit or b.bias_unit}; {_test_text(b)}{eff}{held}"
+    if (d.get("noise") or {}).get("text"):
+        yield f"{s}: noise {d['noise']['text']}"
+    if d.get("noise_warning"):
+        yield f"{s}: WARNING: {d['noise_warning']}"
+    if d.get("saturation"):
+        yield (f"{s}: saturated (clipped) samples: " + ", ".join(
+            f"{x['count']} on {x['axis']} from line {x['first_row'] + 2} of samples.csv" for x in d["saturation"]))
+    if d.get("moves_skipped"):
+        why = sorted({m["reason"] for m in d["moves_skipped"]})
+        yield f"{s}: {len(d['moves_skipped'])} of {d['moves_used'] + len(d['moves_skipped'])} moves left out ({'; '.join(why)})"
+    if d.get("model_choice"):
+        yield (f"{s}: T chosen by the moves left out one at a time: " + ", ".join(
+            f"{k} {v['held_out_rms_deg']:.3g} deg" for k, v in d["model_choice"].items())
+            + f" rms; {d['gyro_model']} taken (the best predictor of the moves left out)")
+    if "auto" in d:
+        yield (f"{s}: --add auto chose " + (", ".join(x["id"] for x in d["auto"]) + " (one at a time, each passing "
+               "the candidate test and predicting left-out rows better)" if d["auto"] else "nothing")
+               + (f"; {d['auto_stopped']}" if d.get("auto_stopped") else ""))
+    if b.p_value is not None and b.p_value < FAILS_BELOW:
+        what = d.get("advice")
+        stds = ("stds are inflated by sqrt(chi2/dof) (std_raw keeps the unscaled ones)" if "std_raw" in d else
+                d["std_note"] if d.get("std_note") else f"stds include a model-error std {d['model_error_std_g']:.2g} g "
+                "per pose" if d.get("model_error_std_g") else "stds assume the model is right")
+        yield (f"{s}: THE MODEL FAILS (p = {b.p_value:.2g} < {FAILS_BELOW:g}): "
+               + ("the stated noise may be too small (the warning above); " if d.get("noise_too_small") else "")
+               + (f"diagnose would add {what}; " if what else f"see simucal diagnose {source} for what is missing; ")
+               + stds)
+
+
+def _determination_lines(s, b: SensorBlock):
+    """Parameters the data do not determine (held under a prior) or determine poorly (confounded)."""
+    und = b.details.get("undetermined") or {}
+    if und:
+        alone = [v["std_moves_alone"] for v in und.values() if "std_moves_alone" in v]
+        first = next(iter(und.values()))
+        yield (f"{s}: {', '.join(und)} not determined by these data"
+               + (f" (std alone {max(alone):.2g})" if alone else "")
+               + f": estimated under a soft prior {first['held_at']:g} +- {first['prior_std']:g} (a prior, not a "
+               "measurement: the estimate may leave it; \"determined\": false in the file); "
+               "to determine them, " + "; ".join(sorted({v["to_determine"] for v in und.values()})))
+    poor = b.details.get("poorly_determined") or {}
+    if poor:
+        unit = {k: "" if u == "1" else f" {u}" for k, u in b.param_units.items()}
+        yield (f"{s}: POORLY DETERMINED by this plan: " + ", ".join(
+            f"{k} (std {v['std']:.2g}{unit.get(k, '')}, {v['inflation']:.0f}x an uncorrelated design's)"
+            for k, v in sorted(poor.items(), key=lambda kv: -kv[1]["inflation"]))
+            + "; they are nearly confounded with other parameters: add positions with other input directions "
+            "(simucal plan --score PLAN shows the correlations)")
+
+
+def _thermal_lines(s, b: SensorBlock):
+    """A thermal block: the plateaus' tests, then every parameter that follows temperature."""
+    th = b.thermal
+    yield (f"{s}: {len(th['plateaus_c'])} plateaus at " + ", ".join(f"{t:.4g}" for t in th["plateaus_c"])
+           + f" degC, T_ref {th['t_ref_c']:.4g} degC; per plateau p = "
+           + ", ".join("-" if x["p_value"] is None else f"{x['p_value']:.3g}" for x in b.details["plateaus"]))
+    moving = {n: f for n, f in th["parameters"].items() if f["degree"] > 0}
+    for n, f in moving.items():
+        terms = " ".join((f"{c:.4g}" if not k else f"{'+' if c >= 0 else '-'} {abs(c):.4g}")
+                         + (f" dT^{k}" if k > 1 else " dT" if k else "") for k, c in enumerate(f["coefficients"]))
+        yield (f"{s}: {n} = {terms} ({b.param_units.get(n, '')}; dT = T - T_ref in degC; degree {f['degree']} "
+               "chosen by the data)")
+    yield (f"{s}: {len(th['parameters']) - len(moving)} of {len(th['parameters'])} parameters constant over the "
+           "plateaus (a temperature dependence below their noise)")

@@ -1,0 +1,280 @@
+"""A turntable set's segments as observations of the norm fit: each segment's mean and the std of
+that mean (from its rows' scatter, the stated noise or the Allan curve of `calibrate --noise`),
+its input's norm and auxiliary inputs, with the checks of the rows behind them (clipped
+samples, glitches, a dead accelerometer axis, gyro rates in the wrong unit)."""
+from __future__ import annotations
+
+import numpy as np
+
+from simucal import io
+from simucal.errors import CalibrationError
+from simucal.fit import aux_inputs
+from simucal.fit.augmented import AugmentedModel
+from simucal.fit.aux_inputs import AuxInputs, column_means
+from simucal.fit.noise import white_noise_var
+from simucal.fit.norm_fit import Observations
+from simucal.generated import table
+from simucal.io import calibration, units
+from simucal.io.sensor_checks import saturated_rows
+
+
+def mean_and_sigma(x, stated, varying=False):
+    """Mean of a segment's rows and the std of that mean.
+
+    Several rows: from their scatter, with the lag-1 autocorrelation taken
+    into account (effective sample count). For a rate run (varying=True) the
+    rows hold a deterministic signal, the horizontal Earth rate turning in
+    the body, so the noise comes from first differences, which remove it.
+    One row: the stated noise, if any, else NaN (lack_of_fit.fit_with_noise then
+    estimates a variance component for such rows).
+    """
+    n = len(x)
+    if n >= 3 and varying:
+        return x.mean(0), np.sqrt(white_noise_var(x, ddof=1) / n)
+    if n >= 3:
+        d = x - x.mean(0)
+        var = d.var(0, ddof=1)
+        r1 = np.clip(np.sum(d[1:] * d[:-1], 0) / np.maximum(np.sum(d * d, 0), 1e-300), -0.9, 0.99)
+        n_eff = n * (1 - r1) / (1 + r1)
+        return x.mean(0), np.sqrt(var / np.maximum(n_eff, 1.0))
+    return x.mean(0), np.full(3, np.nan if stated is None else stated / np.sqrt(n))
+
+
+def segment_duration_s(ms, rows, where) -> float:
+    """The seconds a segment's mean covers: its rows' span and one step; an averaged row's meta
+    average_s (the spec's optional key), which the Allan curve needs."""
+    t = ms.samples["t_s"][rows]
+    if len(t) >= 2:
+        return float(t[-1] - t[0] + np.median(np.diff(t)))
+    if "average_s" not in ms.meta:
+        raise CalibrationError(f"{ms.path / 'meta.json'}: --noise takes each row's noise from the Allan curve at the "
+                               f"seconds it averages, but segment {where} is one averaged row and meta.json states no "
+                               "average_s: add \"average_s\": SECONDS (or leave --noise out)")
+    return float(ms.meta["average_s"])
+
+
+def segment_observations(ms: io.MeasurementSet, sensor: str, kinds=None, stated=None, curve=None):
+    """(Observations, segments) for 'acc' (by default the static segments; with kinds
+    {"static", "rate"} the rate runs too, whose centripetal scale w2 lets lever arms show)
+    or 'gyro' (rate segments). stated: the noise of one row (g or deg/h) where the data
+    cannot give it; default meta's acc_noise_g / gyro_noise_dph. curve: the std of a mean
+    over tau seconds (allan.load_curves, `calibrate --noise`), which then gives every
+    segment's noise at its length: with bias instability a long mean is noisier than its
+    rows' scatter over sqrt(n) says."""
+    if ms.segments is None:
+        raise CalibrationError(f"{ms.path}: no segments.csv: this is a continuous stream (use calibrate, "
+                               "which detects its static poses)")
+    kinds = kinds or ({"static"} if sensor == "acc" else {"rate"})
+    segs = [s for s in ms.segments if s.kind in kinds]
+    data = ms.acc_g() if sensor == "acc" else ms.gyro_dph()
+    if stated is None:
+        stated = ms.meta.get("acc_noise_g" if sensor == "acc" else "gyro_noise_dph")
+    lat = np.radians(ms.meta.get("latitude_deg", 0.0))
+    w_e = units.earth_rate_dph(ms.meta)
+    N, sig, rho, keep = [], [], [], []
+    raw = ms.raw(sensor)
+    clipped = saturated_segments(ms, sensor)
+    for s in segs:
+        rows = ms.samples["segment"] == s.segment
+        if not rows.any():
+            raise CalibrationError(f"{ms.path / 'samples.csv'}: segment {s.segment} has no samples")
+        if s.segment in clipped:  # before the glitch test: a clipped sample is no glitch
+            continue
+        refuse_outliers(ms, raw, rows, sensor, s.segment)
+        m, sd = mean_and_sigma(data[rows], stated, varying=(s.kind == "rate"))  # the inputs turn in a rate run
+        if curve is not None:
+            sd = curve(segment_duration_s(ms, rows, s.segment))
+        N.append(m)
+        sig.append(sd)
+        rho.append(1.0 if sensor == "acc" else abs(s.outer_rate_dps * units.DPH_PER_DPS + w_e * np.sin(lat)))  # |input|
+        keep.append(s)
+    dropped = [s.segment for s in segs if s.segment in clipped]
+    need = len(AugmentedModel(f"{sensor}_baseline").params)
+    if dropped and len(keep) < need and (keep or sensor == "acc"):  # no gyro at all: not calibrated, said so
+        raise CalibrationError(
+            f"{ms.path / 'samples.csv'}: {len(dropped)} of {len(segs)} {sensor} segments hold clipped samples (at or "
+            f"beyond full_scale, or repeating the rail: segments {dropped[:8]}{' ...' if len(dropped) > 8 else ''}) "
+            f"and are left out, leaving {len(keep)}, too few for the {need} parameters of {sensor}_baseline; record "
+            "them within the sensor's range, or correct full_scale in meta.json if the rails are wrong")
+    aux = column_means(ms.samples, [ms.samples["segment"] == s.segment for s in keep], t_ref_c=ms.t_ref_c)
+    aux.update(specific_force(ms, keep) if sensor == "gyro" else {"w2": centripetal_scale(ms, keep)})
+    obs = Observations(np.array(N).reshape(-1, 3), np.array(rho), np.array(sig).reshape(-1, 3), AuxInputs(aux),
+                       [s.segment for s in keep])
+    if curve is not None:
+        obs.sigma_source = "the Allan curve of --noise at each segment's length"
+    if sensor == "acc":
+        check_axes_follow_gravity(ms, obs, keep)
+    if keep:
+        try:
+            units.check_magnitude(sensor, np.linalg.norm(obs.N, axis=1), obs.rho, ms.path / "samples.csv", ms.meta)
+        except CalibrationError as e:
+            raise CalibrationError(f"{e}{_rates_not_units(ms) if sensor == 'gyro' else ''}") from None
+    return obs, keep
+
+
+def check_axes_follow_gravity(ms, obs, segs, live_g=0.5, dead_ratio=0.05, spread=0.2):
+    """Refuse an accelerometer axis whose static means do not follow gravity while the others
+    do (they span live_g or more): a dead channel, or a column holding another signal. Only
+    where the commanded angles turn gravity out of every plane (its directions in the table
+    frame spread by `spread` or more across their flattest direction), so that every axis of the
+    unit, however mounted, must see it change."""
+    rows = [i for i, s in enumerate(segs) if s.kind == "static" and s.middle_deg is not None
+            and s.inner_deg is not None]
+    if len(rows) < 4:
+        return
+    up_k, _ = commanded_up_k([segs[i] for i in rows])
+    if np.sqrt(max(np.linalg.eigvalsh(np.cov(up_k.T))[0], 0.0)) < spread:
+        return
+    span = np.ptp(obs.N[rows], axis=0)
+    for j in range(3):
+        others = np.delete(span, j)
+        if others.min() > live_g and span[j] < dead_ratio * others.min():
+            raise CalibrationError(
+                f"{ms.path / 'samples.csv'}: column a{'xyz'[j]} does not follow gravity: its static means span "
+                f"{span[j]:.2g} g over the {len(rows)} positions, where the other axes' span {others.min():.2g} g "
+                "or more: a dead or unconnected channel, or the column holds another signal; check the wiring and "
+                "the column order")
+
+
+def _rates_not_units(ms) -> str:
+    """Where the static segments read the Earth rate in gyro_unit (a gyro that resolves it), the
+    unit is right and the commanded rates are what is off: say so."""
+    if "Ferraris" in ms.meta.get("description", ""):
+        return ("; this set was imported from a Ferraris session, whose commanded rate is the turn angle over the "
+                "turn's duration: check the import's --rate-hz (the sample rate) and --turn-deg")
+    static = np.isin(ms.samples["segment"], [s.segment for s in ms.segments if s.kind == "static"])
+    if not static.any():
+        return ""
+    w = float(np.median(np.linalg.norm(ms.gyro_dph()[static], axis=1)))
+    w_e = units.earth_rate_dph(ms.meta)
+    if not 0.5 * w_e < w < 2 * w_e:
+        return ""
+    return (f"; but the static segments read the Earth rate ({w:.3g} deg/h against {w_e:.4g}) in that unit, so it "
+            "is outer_rate_dps in segments.csv that is off: it is deg/s (not rad/s, not deg/h)")
+
+
+def saturated_segments(ms, sensor) -> dict:
+    """{segment: number of its samples clipped} of one sensor (io/sensor_checks.saturated_rows)."""
+    bad = saturated_rows(ms, sensor)[0]
+    seg, n = np.unique(ms.samples["segment"][bad], return_counts=True)
+    return dict(zip(seg.tolist(), n.tolist()))
+
+
+def refuse_outliers(ms, raw, rows, sensor, segment, k=100.0):
+    """Refuse a gross glitch: an isolated sample k robust spreads (1.4826 MAD, floored at 1e-9 of
+    the median) from its segment's median, whose neighbours are normal, would carry the segment's
+    mean with it. A smooth excursion (a table settling) spans its neighbours and is not a glitch."""
+    x = raw[rows]
+    if len(x) < 10:
+        return
+    med = np.median(x, axis=0)
+    spread = np.maximum(1.4826 * np.median(np.abs(x - med), axis=0), 1e-9 * np.maximum(np.abs(med), 1.0))
+    dev = np.abs(x - med) / spread
+    calm = np.pad(dev, ((1, 1), (0, 0)), constant_values=0.0) < k / 10  # the neighbours are normal
+    bad = (dev > k) & calm[:-2] & calm[2:]
+    if bad.any():
+        i, j = np.argwhere(bad)[0]
+        line = 2 + int(np.nonzero(rows)[0][i])
+        col = ("ax", "ay", "az", "gx", "gy", "gz")[j + (0 if sensor == "acc" else 3)]
+        raise CalibrationError(f"{ms.path / 'samples.csv'}, line {line}: {col} = {x[i, j]:g} is a glitch in segment "
+                               f"{segment} (its median {med[j]:g}, spread {spread[j]:.3g}): remove or repair that row")
+
+
+def centripetal_scale(ms, segs):
+    """w2 = w_T^2 / g (1/m) of each segment: 0 at rest, the outer-axis rate's under rotation."""
+    return np.array([np.radians(s.outer_rate_dps) ** 2 / units.gravity(ms.meta) for s in segs])
+
+
+def specific_force(ms, segs) -> dict:
+    """The specific force (g) each segment's gyro saw, for g-sensitivity terms (f_x, f_y, f_z):
+    the accelerometer mean where there is one, else the commanded vertical, else none."""
+    if not segs:
+        return {}
+    if ms.has_acc:
+        acc = ms.acc_g()
+        return aux_inputs.specific_force([acc[ms.samples["segment"] == s.segment].mean(0) for s in segs])
+    if all(s.middle_deg is not None and s.inner_deg is not None for s in segs):
+        return aux_inputs.specific_force(commanded_up_k(segs)[0])
+    return {}
+
+
+def table_accuracy_rad(ms):
+    """meta.json's table_accuracy_arcsec (the std of each commanded angle's position error) in rad,
+    or None where not stated (the unification then estimates it from the static pairs)."""
+    v = ms.meta.get("table_accuracy_arcsec")  # checked when the set is read (units.check_meta)
+    return None if v is None else float(v * units.ARCSEC_RAD)
+
+
+def commanded_up_k(segs):
+    """Unit vertical (outer axis) in k at each segment's commanded middle/inner angles."""
+    if any(s.middle_deg is None or s.inner_deg is None for s in segs):
+        raise CalibrationError("this method needs commanded middle and inner angles in segments.csv")
+    C = table.C_k_n(0.0, np.radians([s.middle_deg for s in segs]), np.radians([s.inner_deg for s in segs]),
+                    np.zeros(7))
+    return C[:, 2, :], C
+
+
+def read_observations(ms, method, rows, acc_noise_g=None, gyro_noise_dph=None, noise_curves=None):
+    """A turntable method's start: the calibration's header (io/calibration.py) naming the segments
+    left out for clipped samples, and (acc_obs, acc_segs, gyro_obs, gyro_segs) of the segment
+    kinds rows[sensor] (None for a sensor the set lacks, or a gyro without usable rate runs);
+    the gyro's rate runs checked to turn the commanded way."""
+    curves = noise_curves or {}
+    acc_obs = acc_segs = gyro_obs = gyro_segs = None
+    if ms.has_acc:
+        acc_obs, acc_segs = segment_observations(ms, "acc", rows["acc"], acc_noise_g, curves.get("acc"))
+    if ms.has_gyro:
+        gyro_obs, gyro_segs = segment_observations(ms, "gyro", rows["gyro"], gyro_noise_dph, curves.get("gyro"))
+        if not gyro_segs:
+            gyro_obs = None
+    check_rate_sense(ms, gyro_obs, gyro_segs)
+    cal = calibration.header(method, ms)
+    kind = {s.segment: s.kind for s in ms.segments}
+    excluded = [{"sensor": sensor, "segment": k, "samples": n, "reason": "saturated samples"}
+                for sensor, present in (("acc", ms.has_acc), ("gyro", ms.has_gyro)) if present
+                for k, n in saturated_segments(ms, sensor).items() if kind.get(k) in rows[sensor]]
+    if excluded:
+        cal.details["excluded_segments"] = excluded
+    return cal, (acc_obs, acc_segs, gyro_obs, gyro_segs)
+
+
+def check_rate_sense(ms, gyro_obs, gyro_segs):
+    """Refuse rate runs whose gyro output turns opposite to the commanded rate.
+
+    The mean output along the commanded axis, less the static outputs' mean,
+    must have the sign of outer_rate_dps; a reversed turn (or a gyro of the
+    opposite sign convention) would otherwise be fitted into a matrix near -I.
+    """
+    if gyro_obs is None or not gyro_segs:
+        return
+    keep = [i for i, s in enumerate(gyro_segs) if s.middle_deg is not None and s.inner_deg is not None]
+    if not keep:
+        return  # no commanded axis to compare with
+    gyro_segs = [gyro_segs[i] for i in keep]
+    gyro_obs = Observations(gyro_obs.N[keep], gyro_obs.rho[keep])
+    up, _ = commanded_up_k(gyro_segs)
+    static = ms.samples["segment"] == -1
+    for s in ms.segments:
+        if s.kind == "static":
+            static |= ms.samples["segment"] == s.segment
+    rest = np.median(ms.gyro_dph()[static], axis=0) if static.any() else np.zeros(3)  # robust to a glitch
+    rate = np.array([s.outer_rate_dps for s in gyro_segs])
+    along = np.einsum("ni,ni->n", gyro_obs.N - rest, up) / units.DPH_PER_DPS
+    wrong = np.sign(along) != np.sign(rate)
+    if not wrong.any():
+        return
+    for k in range(3):  # some runs reversed, some not: one axis of the triad reversed?
+        D = np.diag([-1.0 if j == k else 1.0 for j in range(3)])
+        if wrong.sum() < len(rate) and np.all(np.sign(np.einsum("ni,ni->n", (gyro_obs.N - rest) @ D, up)) == np.sign(rate)):
+            raise CalibrationError(
+                f"{ms.path}: the gyro {'xyz'[k]} output has the wrong sign: {int(wrong.sum())} of {len(rate)} rate runs "
+                f"turn opposite to the commanded rate, and all agree once gyro {'xyz'[k]} is reversed (a left-handed "
+                f"triad, the axis wired or declared with its sign reversed); fix the sign of g{'xyz'[k]} in samples.csv "
+                "(or the wiring) and calibrate again")
+    detail = ", ".join([f"segment {s.segment}: commanded {r:+.1f} deg/s, measured {a:+.1f} deg/s"
+                        for s, r, a, w in zip(gyro_segs, rate, along, wrong) if w][:4])
+    raise CalibrationError(
+        f"the gyro turns opposite to the commanded rate in {int(wrong.sum())} of {len(rate)} rate segments "
+        f"({detail}{', ...' if wrong.sum() > 4 else ''}): the rotation was made the other way (or the gyro's sign "
+        "convention or axes differ); not fitted, since it would give a gyro matrix near -I. Check the protocol's "
+        "rotation sense (for imucal's Ferraris: import with --turn-deg 360 if the turns were counter-clockwise)")
