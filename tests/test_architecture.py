@@ -189,3 +189,17 @@ def test_one_command_grammar():
             other = main.commands.get(verb, cmd)  # "calibrate --method field": another command's option
             known = {o for p in other.params if isinstance(p, click.Option) for o in p.opts} | {"--help"}
             assert opt in known, f"{name} --help mentions {verb} {opt}, which {other.name} does not take"
+
+
+def test_files_and_functions_stay_short():
+    """Issue 25: no hand-written file over 450 lines, no function over 70 (generated/ is written by derive)."""
+    long_files, long_functions = [], []
+    for p in list(ROOT.rglob("*.py")) + list((ROOT.parent / "derive").rglob("*.py")):
+        if "generated" in p.parts:
+            continue
+        text = p.read_text()
+        if len(text.splitlines()) > 450:
+            long_files.append(p.name)
+        long_functions += [f"{p.name}:{n.name} ({n.end_lineno - n.lineno + 1})" for n in ast.walk(ast.parse(text))
+                           if isinstance(n, (ast.FunctionDef, ast.AsyncFunctionDef)) and n.end_lineno - n.lineno >= 70]
+    assert not long_files and not long_functions, (long_files, long_functions)

@@ -51,15 +51,9 @@ def _random_rotation(rng):
     return rotation_matrix(q / np.linalg.norm(q))
 
 
-def simulate_handheld(sc: HandheldScenario, seed=0):
-    rng = np.random.default_rng(seed)
-    M_a = np.eye(3) + np.tril(rng.uniform(-0.01, 0.01, (3, 3)))
-    b_a = rng.uniform(-0.05, 0.05, 3)
-    M_g = np.eye(3) + rng.uniform(-0.01, 0.01, (3, 3)) + np.diag(rng.uniform(-0.03, 0.03, 3))
-    b_g = rng.uniform(-2, 2, 3)
-    if sc.dead_gyro_axis is not None:
-        M_g[sc.dead_gyro_axis] = 0.0
-    dt = 1 / sc.rate_hz
+def _motion(sc: HandheldScenario, rng):
+    """The true specific force f (g) and rate w (deg/s) of the session, sample by sample: an initial
+    rest, then poses joined by minimum-jerk moves (some whirled beyond full scale: their indices)."""
     if sc.coplanar_poses:
         Rs = [exp_so3(np.array([a, 0.0, 0.0])) for a in np.r_[0.0, rng.uniform(-np.pi, np.pi, sc.poses)]]
     else:
@@ -95,7 +89,20 @@ def simulate_handheld(sc: HandheldScenario, seed=0):
         w_list.append(np.degrees(ds[:, None] * v))
         Rs[i + 1] = Rs[i] @ exp_so3(v)  # the pose the move really reaches
         hold(Rs[i + 1], sc.pose_s)
-    f, w = np.vstack(f_list), np.vstack(w_list)
+    return np.vstack(f_list), np.vstack(w_list), clip
+
+
+def simulate_handheld(sc: HandheldScenario, seed=0):
+    """(meta, samples, truth) of a simulated hand-placed session in counts."""
+    rng = np.random.default_rng(seed)
+    M_a = np.eye(3) + np.tril(rng.uniform(-0.01, 0.01, (3, 3)))
+    b_a = rng.uniform(-0.05, 0.05, 3)
+    M_g = np.eye(3) + rng.uniform(-0.01, 0.01, (3, 3)) + np.diag(rng.uniform(-0.03, 0.03, 3))
+    b_g = rng.uniform(-2, 2, 3)
+    if sc.dead_gyro_axis is not None:
+        M_g[sc.dead_gyro_axis] = 0.0
+    dt = 1 / sc.rate_hz
+    f, w, clip = _motion(sc, rng)
     n = len(f)
     acc = sc.offset_counts + sc.acc_counts_per_g * (f @ M_a.T + b_a + rng.normal(0, sc.acc_noise_g, (n, 3)))
     gsign = -1.0 if sc.flip_gyro else 1.0

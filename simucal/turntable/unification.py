@@ -251,12 +251,8 @@ def vertical_k(middle_rad, inner_rad):
     return up(0, 0), np.stack([(up(h, 0) - up(-h, 0)) / (2 * h), (up(0, h) - up(0, -h)) / (2 * h)], axis=-1)
 
 
-def unify(un: Unifier, acc_segs, gyro_segs, find, table_std_rad=None):
-    """C_b^d by the rate runs' means (or, without accelerometer data in the rate runs, by static
-    pairs), its std, the gyro M in b with its std, and the other pairing as a cross-check.
-    find(segs, kind, **angles) -> index of the first segment of that kind at those angles, or None.
-    table_std_rad: the std of each commanded middle/inner angle's position error, which the static
-    pairs carry (meta's table_accuracy_arcsec); None: estimated from the static pairs' scatter."""
+def _pairings(un: Unifier, acc_segs, gyro_segs, find, table_std_rad) -> dict:
+    """{pairing: un.solve's answer} for the rate runs' means and the static pairs, where the data have them."""
     rate_sign = np.sign([s.outer_rate_dps for s in gyro_segs])
     pairs = [(i, j) for j, s in enumerate(gyro_segs)
              if (i := find(acc_segs, "static", middle_deg=s.middle_deg, inner_deg=s.inner_deg)) is not None]
@@ -283,7 +279,13 @@ def unify(un: Unifier, acc_segs, gyro_segs, find, table_std_rad=None):
         u_d, D_d = un.gyro_directions(ig)
         u_d, D_d = u_d * rate_sign[ig, None], D_d * rate_sign[ig, None, None]
         out["static_pairs"] = un.solve(u_b, D_b, u_d, D_d, "table" if un.parts["table"].estimated else None)
-    usable = {k: v for k, v in out.items() if v["rank"] >= 2}
+    return out
+
+
+def _choose(usable: dict):
+    """(the pairing that ties the frames, a note or None): the rate runs' means, unless they disagree
+    grossly where the static pairs agree; refused where the one chosen disagrees grossly (a mirrored
+    triad is named)."""
     if not usable:
         raise CalibrationError("frame unification needs at least two rate runs about distinct axes, with the "
                                "accelerometers recorded during them, or each with a static position at the same "
@@ -308,6 +310,18 @@ def unify(un: Unifier, acc_segs, gyro_segs, find, table_std_rad=None):
             f"the gyro frame cannot be tied to the accelerometer frame: the {method.replace('_', ' ')} leave a "
             f"direction residual of {resid:.2g} rad, which no table error or noise explains; check that the rate "
             "runs are whole revolutions and that segments.csv matches the data")
+    return method, fallback
+
+
+def unify(un: Unifier, acc_segs, gyro_segs, find, table_std_rad=None):
+    """C_b^d by the rate runs' means (or, without accelerometer data in the rate runs, by static
+    pairs), its std, the gyro M in b with its std, and the other pairing as a cross-check.
+    find(segs, kind, **angles) -> index of the first segment of that kind at those angles, or None.
+    table_std_rad: the std of each commanded middle/inner angle's position error, which the static
+    pairs carry (meta's table_accuracy_arcsec); None: estimated from the static pairs' scatter."""
+    usable = {k: v for k, v in _pairings(un, acc_segs, gyro_segs, find, table_std_rad).items() if v["rank"] >= 2}
+    method, fallback = _choose(usable)
+    best = usable[method]
     C, J_phi = best["C"], best["J_phi"]
     M_b, cov_M = un.gyro_matrix_in_b(C, J_phi)
     p_pairs = chi2_sf_estimated(best["chi2"], best["dof"], best["noise_dof"]) if best["dof"] > 0 else 1.0
@@ -331,22 +345,25 @@ def unify(un: Unifier, acc_segs, gyro_segs, find, table_std_rad=None):
             "direction_residual_rms_rad": best["residual_rms_rad"], "chi2": best["chi2"], "dof": best["dof"],
             "noise": noise, **({"note": fallback} if fallback else {})}
     if method == "rate_run_means" and "static_pairs" in usable:
-        two = usable["static_pairs"]
-        d = log_so3(C.T @ two["C"])
-        z2, cov_d, p = un.quadratic_form(d, two["J_phi"] - J_phi)
-        agree = p >= 1e-3
-        table_text = noise["table_angles"]["text"]
-        info["cross_check"] = {
-            "method": "static_pairs", "pairs": two["pairs"], "difference_rad": d.tolist(),
-            "difference_std_rad": np.sqrt(np.diag(cov_d)).tolist(), "mahalanobis2": z2, "p_value": p,
-            "agree": bool(agree),
-            "note": (f"the two pairings agree within their noise and the table's angle errors ({table_text})"
-                     if agree else
-                     f"the static pairs differ by {np.degrees(np.linalg.norm(d)) * 60:.2g} arcmin (p = {p:.2g}) beyond "
-                     f"their noise and the table's angle errors ({table_text}): rate runs that are not whole "
-                     "revolutions, or lever arms that the accelerometer model lacks (--add acc.size_effect.*), or "
-                     "a table less accurate than stated")}
+        info["cross_check"] = _cross_check(un, C, J_phi, usable["static_pairs"], noise["table_angles"]["text"])
     return C, M_b, np.sqrt(np.diag(cov_M)).reshape(3, 3), info
+
+
+def _cross_check(un: Unifier, C, J_phi, two, table_text) -> dict:
+    """The static pairs' C_b^d against the rate runs' means': their difference and its Mahalanobis test."""
+    d = log_so3(C.T @ two["C"])
+    z2, cov_d, p = un.quadratic_form(d, two["J_phi"] - J_phi)
+    agree = p >= 1e-3
+    return {
+        "method": "static_pairs", "pairs": two["pairs"], "difference_rad": d.tolist(),
+        "difference_std_rad": np.sqrt(np.diag(cov_d)).tolist(), "mahalanobis2": z2, "p_value": p,
+        "agree": bool(agree),
+        "note": (f"the two pairings agree within their noise and the table's angle errors ({table_text})"
+                 if agree else
+                 f"the static pairs differ by {np.degrees(np.linalg.norm(d)) * 60:.2g} arcmin (p = {p:.2g}) beyond "
+                 f"their noise and the table's angle errors ({table_text}): rate runs that are not whole "
+                 "revolutions, or lever arms that the accelerometer model lacks (--add acc.size_effect.*), or "
+                 "a table less accurate than stated")}
 
 
 def _estimated_noise(un: Unifier) -> dict:
