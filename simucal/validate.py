@@ -88,7 +88,7 @@ def _turntable(ms, f_before, f_after, w_before, w_after):
     static = [s for s in segs if s.kind == "static" and seg_rows[s.segment].any()]
     if f_after is not None and static:
         groups = [seg_rows[s.segment] for s in static]
-        sd = ms.meta.get("acc_noise_g")
+        sd = units.stated_noise(ms.meta, "acc")
         (mb, _), (ma, fl) = _segment_means(f_before, groups, sd), _segment_means(f_after, groups, sd)
         labels = [f"segment {s.segment}" for s in static]
         checks = [_norm_block("g", np.linalg.norm(mb, axis=1) - 1, np.linalg.norm(ma, axis=1) - 1, fl,
@@ -115,7 +115,7 @@ def _turntable(ms, f_before, f_after, w_before, w_after):
                            "far_off_hint": "check their commanded angles in segments.csv"})
         out["acc"] = checks
     if w_after is not None:
-        sd = ms.meta.get("gyro_noise_dph")
+        sd = units.stated_noise(ms.meta, "gyro")
         checks = []
         rate = [s for s in segs if s.kind == "rate" and seg_rows[s.segment].any()]
         for kind, chosen, truth in (("rate", rate, [abs(s.outer_rate_dps * units.DPH_PER_DPS + w_e * np.sin(lat)) for s in rate]),

@@ -105,12 +105,16 @@ def gate_candidates(out, base_fails, alpha=ALPHA):
     """The Bonferroni gate over one family of tests: a separable candidate is significant only
     when the baseline fails and its p-value beats alpha / (number tested). Returns the
     tested candidates, strongest first, then the ones that could not be tested."""
-    tested = [e for e in out if e["separable"]]
+    tested = sorted([e for e in out if e["separable"]], key=lambda e: -e["statistic"])
     for e in tested:
         e["significant"] = bool(base_fails and e["p_value"] is not None and e["p_value"] < alpha / len(tested))
-    return sorted(tested, key=lambda e: -e["statistic"]) + [e for e in out if not e["separable"]]
-
-
+    sig = [e for e in tested if e["significant"]]
+    for e in sig[1:]:  # each alone beats the gate; the strongest is the one to add, and the others say why not them
+        e["note"] = ((e.get("note") or "") + ("; " if e.get("note") else "") +
+                     f"significant alone, but {sig[0]['id']} explains more (LR {sig[0]['statistic']:.1f} against "
+                     f"{e['statistic']:.1f}), and one effect often makes its neighbours look significant: add "
+                     f"{sig[0]['id']}, then see whether this one is still needed")
+    return tested + [e for e in out if not e["separable"]]
 
 
 def test_model(model, obs: Observations, p0=None) -> tuple[Fit, Observations, dict]:
@@ -201,14 +205,18 @@ def _rank(model, obs, fit, base):
     return cands, shape_if_unexplained(model, obs, fit, base, cands)
 
 
+MIN_SHARE = 0.5  # a generic term named as the missing one must explain at least half the misfit
+
+
 def shape_if_unexplained(model, obs, fit, base, cands) -> dict | None:
-    """The generic term's description when the model fails and no candidate explains the
-    misfit as well (no significant candidate, or the generic term's likelihood ratio is
-    more than 1.5 times the best candidate's)."""
+    """The generic term's description when the model fails, the term explains at least MIN_SHARE of
+    the misfit (less is no single term: several effects, or one outside the generic basis), and no
+    candidate explains the misfit as well (no significant candidate, or the generic term's
+    likelihood ratio is more than 1.5 times the best candidate's)."""
     if base["p_value"] is None or base["p_value"] >= ALPHA:
         return None
     shape = describe_shape(model, obs, fit)
-    if shape is None:
+    if shape is None or shape["share_of_misfit"] < MIN_SHARE:
         return None
     sig = [c for c in cands if c.get("significant")]
     if sig:

@@ -14,6 +14,9 @@ DEFAULT_GRAVITY = 9.80665
 DEFAULT_EARTH_RATE_DPH = 15.04107
 DPH_PER_DPS = 3600.0  # deg/h per deg/s (1 arcsec/s = 1 deg/h)
 ARCSEC_RAD = math.radians(1 / 3600)  # rad per arcsec
+# meta.json's stated noise of one row's output, per sensor: its key, unit and largest plausible value
+NOISE_KEY = {"acc": "acc_noise_g", "gyro": "gyro_noise_dph"}
+NOISE_UNIT = {"acc": ("g", 1.0), "gyro": ("deg/h", 1e6)}
 SCALE_KEY = {("acc", "pulse/s"): "acc_pulses_per_g", ("acc", "counts"): "acc_counts_per_g",
              ("gyro", "pulse/s"): "gyro_pulses_per_arcsec", ("gyro", "counts"): "gyro_counts_per_dps"}
 
@@ -31,7 +34,8 @@ def check_meta(meta, path, error):
             if not (isinstance(v, list) and len(v) == 3
                     and all(isinstance(x, (int, float)) and 0 < x < math.inf for x in v)):
                 raise error(path, None, f'{key} is {meta[key]!r}, so "{skey}" must be three positive numbers')
-    for key, unit, hi in (("acc_noise_g", "g", 1.0), ("gyro_noise_dph", "deg/h", 1e6)):
+    for sensor, key in NOISE_KEY.items():
+        unit, hi = NOISE_UNIT[sensor]
         v = meta.get(key)
         if v is not None and not (isinstance(v, (int, float)) and not isinstance(v, bool) and 0 < v <= hi):
             raise error(path, None, f'"{key}" is {v!r}, but it is the std of one row\'s output ({unit}): a number '
@@ -64,6 +68,11 @@ def check_meta(meta, path, error):
         if v is not None and not (isinstance(v, (int, float)) and not isinstance(v, bool) and lo <= v <= hi):
             raise error(path, None, f'"{key}" is {v!r}, but it is {what} ({default} by default, {lo}..{hi} '
                                     'anywhere on the Earth): fix the value, or leave the key out for the default')
+
+
+def stated_noise(meta, sensor):
+    """meta.json's noise of one row of `sensor` (g or deg/h), or None where it is not stated."""
+    return meta.get(NOISE_KEY[sensor])
 
 
 def gravity(meta):

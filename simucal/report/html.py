@@ -71,11 +71,14 @@ def residual_figures(sensor, block, unit):
     d = np.array([x["direction"] for x in rows])
     lon, lat = np.arctan2(d[:, 1], d[:, 0]), np.arcsin(np.clip(d[:, 2], -1, 1))
     lim = max(np.max(np.abs(r)), 1e-300)
-    fig, axs = plt.subplots(1, 3, figsize=(12, 3.2), subplot_kw={"projection": "mollweide"})
+    fig, axs = plt.subplots(1, 3, figsize=(13, 3.4), subplot_kw={"projection": "mollweide"})
     for j, ax in enumerate(axs):
         sc = ax.scatter(lon, lat, c=r[:, j], cmap="coolwarm", vmin=-lim, vmax=lim, s=60, edgecolors="k")
-        ax.set_title(f"{sensor} {AXES[j]} residual vs input direction", fontsize=9)
+        ax.set_title(f"{sensor} {AXES[j]} residual vs input direction", fontsize=9, pad=12)
+        ax.set_xticks(np.radians([-90, 0, 90]), ["-90", "0", "90 deg"], fontsize=6)  # three labels each: no overlap
+        ax.set_yticks(np.radians([-60, 0, 60]), ["-60", "0", "60 deg"], fontsize=6)
         ax.tick_params(labelsize=6)
+    fig.subplots_adjust(wspace=0.25)
     fig.colorbar(sc, ax=axs, shrink=0.7, label=ylab)
     figs.append(_png(fig))
     rate = np.array([x["outer_rate_dps"] for x in rows])
@@ -137,6 +140,8 @@ def _table(rows, cols):
 def _fmt(v):
     if v is None:
         return ""
+    if isinstance(v, bool):
+        return "yes" if v else ""
     if isinstance(v, float):
         return f"{v:.4g}"
     return str(v)
@@ -157,12 +162,43 @@ def stream_figures(stream):
     return figs
 
 
+def next_command(diag: dict, sensor: str) -> str:
+    """What to type next for one sensor: calibrate as is, with the effect found, or with the model
+    file of the term found; empty where nothing found explains the misfit."""
+    b, where = diag[sensor], diag["input"]
+    if b["baseline"]["p_value"] is None or b["baseline"]["p_value"] >= diag["alpha"]:
+        return f"simucal calibrate {where} -o calibration.json"
+    shape = b.get("shape") or {}
+    if shape.get("model_file_path"):
+        return f"simucal calibrate {where} --add {shape['model_file_path']} -o calibration.json"
+    sig = [c for c in b["candidates"] if c.get("significant")]
+    add = sig[0]["id"] if sig else shape.get("catalog_id")
+    return f"simucal calibrate {where} --add {add} -o calibration.json" if add else ""
+
+
+def _summary(diag: dict) -> list[str]:
+    """The page's head: per sensor the verdict and the command to type next."""
+    out = []
+    for s in ("acc", "gyro"):
+        if s not in diag:
+            continue
+        b = diag[s]
+        ok = b["baseline"]["p_value"] is None or b["baseline"]["p_value"] >= diag["alpha"]
+        cmd = next_command(diag, s)
+        out.append(f"<p class='{'ok' if ok else 'bad'}'><b>{html.escape(b['verdict'])}</b></p>"
+                   + (f"<p class='next'>Next: <code>{html.escape(cmd)}</code></p>" if cmd else
+                      "<p class='next'>Next: nothing found explains the misfit; the plots below show where it is.</p>"))
+    return out
+
+
 def render(diag: dict) -> str:
     units = {"acc": "g", "gyro": "deg/h"}
     parts = ["<!doctype html><html><head><meta charset='utf-8'><title>simucal diagnosis</title><style>",
              "body{font-family:sans-serif;max-width:1250px;margin:auto} table{border-collapse:collapse;font-size:12px}",
-             "td,th{border:1px solid #ccc;padding:2px 6px} .bad{color:#b00} .ok{color:#070} img{max-width:100%}",
+             "td,th{border:1px solid #ccc;padding:2px 6px;white-space:nowrap} td:last-child{white-space:normal}",
+             ".bad{color:#b00} .ok{color:#070} img{max-width:100%} .next{background:#f4f4f4;padding:6px}",
              "</style></head><body>", f"<h1>Diagnosis of {html.escape(diag['input'])}</h1>"]
+    parts += _summary(diag)
     if "stream" in diag:
         parts.append("<h2>stream</h2>")
         parts += stream_figures(diag["stream"])
@@ -170,8 +206,7 @@ def render(diag: dict) -> str:
         if s not in diag:
             continue
         b = diag[s]
-        ok = b["baseline"]["p_value"] is None or b["baseline"]["p_value"] >= diag["alpha"]
-        parts.append(f"<h2>{s}</h2><p class='{'ok' if ok else 'bad'}'><b>{html.escape(b['verdict'])}</b></p>")
+        parts.append(f"<h2>{s}: the evidence</h2><p>{html.escape(b['verdict'])}</p>")
         parts += residual_figures(s, b, units[s])
         if b.get("moves_skipped"):  # a stream's gyro: the moves left out, and why
             parts.append(_table(b["moves_skipped"], ["from_pose", "to_pose", "t_s", "reason"]))

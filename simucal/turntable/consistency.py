@@ -172,7 +172,7 @@ def latitude_check(ms, fa, acc_segs, gm, fg, C_b_d, gyro_noise_dph=None):
         return {"verdict": "not checked: no static positions"}
     gyro = ms.gyro_dph()
     raw = ms.raw("gyro")
-    stated = ms.meta.get("gyro_noise_dph") if gyro_noise_dph is None else gyro_noise_dph
+    stated = units.stated_noise(ms.meta, "gyro") if gyro_noise_dph is None else gyro_noise_dph
     N, sig, groups = [], [], []
     for i in rows:
         r = ms.samples["segment"] == acc_segs[i].segment

@@ -68,7 +68,7 @@ def segment_observations(ms: io.MeasurementSet, sensor: str, kinds=None, stated=
     segs = [s for s in ms.segments if s.kind in kinds]
     data = ms.acc_g() if sensor == "acc" else ms.gyro_dph()
     if stated is None:
-        stated = ms.meta.get("acc_noise_g" if sensor == "acc" else "gyro_noise_dph")
+        stated = units.stated_noise(ms.meta, sensor)
     lat = np.radians(ms.meta.get("latitude_deg", 0.0))
     w_e = units.earth_rate_dph(ms.meta)
     N, sig, rho, keep = [], [], [], []

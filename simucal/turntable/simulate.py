@@ -182,7 +182,7 @@ def _meta(sc: Scenario, seed) -> dict:
             "earth_rate_dph": units.DEFAULT_EARTH_RATE_DPH, "acc_unit": sc.acc_unit, "gyro_unit": sc.gyro_unit,
             "description": f"simucal simulate, seed {seed}"}
     if sc.state_noise:  # a noise-free set states none (the spec's noise is a std > 0)
-        meta.update({k: v for k, v in (("acc_noise_g", sc.acc_noise_g), ("gyro_noise_dph", sc.gyro_noise_dph)) if v > 0})
+        meta.update({units.NOISE_KEY[s]: v for s, v in (("acc", sc.acc_noise_g), ("gyro", sc.gyro_noise_dph)) if v > 0})
     if sc.acc_unit == "pulse/s":
         meta["acc_pulses_per_g"] = list(sc.acc_pulses_per_g)
     if sc.gyro_unit == "pulse/s":
