@@ -30,10 +30,9 @@ import numpy as np
 from simucal import io
 from simucal.errors import CalibrationError
 from simucal.fit.apply import apply
-from simucal.fit.noise import white_noise_var
 from simucal.fit.rotations import wahba
 from simucal.io import calibration, units
-from simucal.turntable.observations import table_accuracy_rad
+from simucal.turntable.observations import mean_and_sigma, table_accuracy_rad
 from simucal.turntable.plan_design import directions_k
 
 WORSE = 1.05  # after/before above this: the calibration makes the unit worse on these data
@@ -47,16 +46,11 @@ def _rms(x):
 
 
 def _segment_means(data, groups, stated):
-    """Mean of each group of rows (n, 3) and the std of each mean (n,) along the norm: the rows'
-    white noise (first differences, blind to a rate run's turning Earth rate) / sqrt(rows), or
-    the stated noise of one row where a group has a single row."""
-    means, sds = [], []
-    for rows in groups:
-        x = data[rows]
-        means.append(x.mean(0))
-        sds.append(np.sqrt(np.mean(white_noise_var(x, ddof=1)) / len(x)) if len(x) > 2 else
-                   (stated if stated is not None else np.nan))
-    return np.array(means), np.array(sds, float)
+    """Mean of each group of rows (n, 3) and the std of each mean (n,) along the norm, the rms over
+    the axes of observations.mean_and_sigma's (first differences, blind to a rate run's turning
+    Earth rate; the stated noise of one row where a group has fewer than three)."""
+    out = [mean_and_sigma(data[rows], stated, varying=True) for rows in groups]
+    return np.array([m for m, _ in out]), np.array([np.sqrt(np.mean(sd ** 2)) for _, sd in out], float)
 
 
 def _norm_block(unit, before, after, floor_sd, what, labels):
