@@ -632,6 +632,7 @@ def test_meta_values_of_the_wrong_shape_are_named(sets, tmp_path, meta, named):
     (["simulate", "{tmp}/s", "--effect", "acc.quadratic.z=nan"], "finite"),
     (["simulate", "{tmp}/s", "--effect", "acc.quadratic.z=1e300"], "finite"),
     (["montecarlo", "--effect", "acc.quadratic.z=inf", "-o", "{tmp}/m.json"], "finite"),
+    (["montecarlo", "--effect", "acc.bias_drift_time.x=1e-6", "-o", "{tmp}/m.json"], "never vary"),
     (["simulate", "{tmp}/s", "--rate-hz", "1e-3"], "0 rows"),
 ])
 def test_simulated_values_that_would_write_nonsense_are_refused(tmp_path, args, named):

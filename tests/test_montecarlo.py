@@ -2,6 +2,7 @@
 import json
 
 import numpy as np
+import pytest
 from click.testing import CliRunner
 
 from simucal.cli import main
@@ -74,19 +75,25 @@ def test_batch_calibration_keeps_the_good_sets(tmp_path):
     assert a["acc"]["params"] == b["acc"]["params"]
 
 
-def test_compiled_and_numpy_paths_give_the_same_trials(monkeypatch):
-    """The compiled route (table kinematics, the fits' linear start and LM in C) and the numpy one
+@pytest.mark.parametrize("effects", [{}, {"acc.quadratic.z": 1e-4}])
+def test_compiled_and_numpy_paths_give_the_same_trials(monkeypatch, effects):
+    """The compiled route (table kinematics, the fits' linear start and LM in C; with an effect, the
+    augmented model derived into the cache, augmented.compiled_form) and the numpy one
     (SIMUCAL_NO_COMPILE) simulate from the same draws and reach the same estimates."""
-    from simucal.fit import catalog
+    from simucal.fit import augmented, catalog
     from simucal.turntable import kinematics
     from simucal.turntable.montecarlo import chunk_of_trials
-    compiled = chunk_of_trials(Scenario(), 300, 3, 0)
+    sc = Scenario(acc_effects=effects)
+    if effects:
+        derived = augmented.compiled_form(augmented.AugmentedModel("acc_baseline", tuple(effects)))
+        assert derived is not None and derived.backend == "casadi-c" and len(derived.params) == 10
+    compiled = chunk_of_trials(sc, 300, 3, 0)
     monkeypatch.setenv("SIMUCAL_NO_COMPILE", "1")
     for cached in (catalog.load, kinematics.compiled):
         cached.cache_clear()
     try:
         assert kinematics.compiled() is None
-        plain = chunk_of_trials(Scenario(), 300, 3, 0)
+        plain = chunk_of_trials(sc, 300, 3, 0)
     finally:
         monkeypatch.delenv("SIMUCAL_NO_COMPILE")
         for cached in (catalog.load, kinematics.compiled):

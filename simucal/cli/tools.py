@@ -102,7 +102,8 @@ def montecarlo(scenario, plan, trials, seed, effects, output, scheduler):
     except (ValueError, KeyError, FileNotFoundError) as e:
         fail(e)
     outputs.write_text(output, json.dumps(result, indent=1) + "\n")
-    click.echo(f"{trials} trials in {result['seconds']:.2f} s ({result['trials_per_s']:.0f}/s, {result['backend']}, "
+    backend = "; ".join(f"{s} {b}" for s, b in result["backend"].items())
+    click.echo(f"{trials} trials in {result['seconds']:.2f} s ({result['trials_per_s']:.0f}/s; {backend}; "
                f"scheduler {scheduler}); "
                f"{result['failed']} failed")
     click.echo(f"{'parameter':18} {'truth':>12} {'mean':>12} {'std':>10} {'CRLB':>10} {'std/CRLB':>9}")

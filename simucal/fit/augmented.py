@@ -7,6 +7,8 @@ the exact solver on the derived model, with no re-derivation at run time.
 """
 from __future__ import annotations
 
+import functools
+
 import numpy as np
 
 from simucal.fit.aux_inputs import SENSOR_AUX, AuxInputs
@@ -108,6 +110,39 @@ class AugmentedModel:
 
     def params_of_K(self, K, first_order=False):
         return self.base.params_of_K(K, first_order)
+
+
+def compiled_form(model: AugmentedModel) -> GeneratedModel | None:
+    """The augmented model derived as one model (a built-in base with the effects' terms), so that
+    its whole fit runs compiled, as the base's does: derived once, with SymPy in a child process,
+    from a model file simucal writes into the cache (catalog.derive_model_file), then loaded from
+    there. None without effects, for a user's base model, or without a compiler (the numpy fit of
+    the AugmentedModel is then the same numbers). Its parameters are the base's and then one per
+    effect, in the AugmentedModel's order (checked)."""
+    from simucal.fit.models import compiler
+    if not model.effects or model.base.source != "built-in" or compiler() is None:
+        return None
+    derived = _derived(model.base.name, model.effects)
+    if tuple(derived.params[:model._m]) != tuple(model.base.params) or len(derived.params) != len(model.params):
+        return None
+    return derived if derived._fit is not None else None
+
+
+@functools.lru_cache(maxsize=None)
+def _derived(base: str, effects: tuple) -> GeneratedModel:
+    """compiled_form's model, derived (or found in the cache) once per process."""
+    from simucal.fit.models import cache_dir
+    name = "_with_".join([base] + [e.replace(".", "_") for e in effects])  # CasADi: no "__"
+    path = cache_dir() / "augmented" / f"{name}.py"
+    if not path.is_file():
+        from simucal.io import outputs
+        path.parent.mkdir(parents=True, exist_ok=True)
+        outputs.write_text(path, "from simucal.derive.models.effects import CANDIDATES\n"
+                                 "from simucal.derive.registry import BUILTIN\n"
+                                 f"BASE = next(m for m in BUILTIN if m.name == {base!r})\n"
+                                 f"MODELS = [BASE.with_terms({name!r}, [CANDIDATES[e] for e in {list(effects)!r}])]\n")
+    derive_model_file(path)
+    return load(name)
 
 
 def resolve_add(add, acc_model: str, gyro_model: str) -> tuple[str, str, tuple[str, ...]]:

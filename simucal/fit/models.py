@@ -40,13 +40,18 @@ def cache_dir() -> Path:
 CFLAGS = ("-O3", "-fno-math-errno", "-shared", "-fPIC")  # no -march=native: a cache may be shared by machines of other CPUs
 
 
+def compiler() -> str | None:
+    """The C compiler builds use, or None (none found, or SIMUCAL_NO_COMPILE set)."""
+    if os.environ.get("SIMUCAL_NO_COMPILE"):
+        return None
+    return shutil.which(os.environ.get("CC", "cc")) or shutil.which("gcc")
+
+
 def compile_c(name: str, source: str) -> Path | None:
     """Build generated C (a model's, the table's) into the cache; None where no compiler works.
     Processes and threads may build the same library at once: each writes its own files and
     renames them into place."""
-    if os.environ.get("SIMUCAL_NO_COMPILE"):
-        return None
-    cc = shutil.which(os.environ.get("CC", "cc")) or shutil.which("gcc")
+    cc = compiler()
     if cc is None:
         return None
     digest = hashlib.sha256((" ".join(CFLAGS) + "\n" + source).encode()).hexdigest()[:16]  # flags change the build

@@ -3,10 +3,10 @@
 Trials are simulated as arrays with a trial axis (simulate.Scenario's settings, one
 averaged row per position): random angular position errors per trial and position,
 exact rotations (kinematics.py, compiled from generated/table.c), white noise on each
-mean output. A rate run's mean over one whole revolution is the mean of K = 12 equally
-spaced outer angles, exact for every model term of degree below 12 in the input (a
-trigonometric polynomial in gamma of that degree averages exactly), where simulate()
-samples 720; for affine models it is the outer axis in k, in closed form.
+mean output. A rate run's mean over one whole revolution is the mean of K equally
+spaced outer angles, exact for every model term of degree below K in the input (a
+trigonometric polynomial in gamma of that degree averages exactly): K = 4 where that equals
+24 samples (terms up to cubic), else 12, where simulate() samples 720; for affine models it is the outer axis in k, in closed form.
 
 Each batch of trials is fitted by one call of the compiled whole fit per sensor
 (derive/templates/exact_fit.c, the paper's linear start (eq. 8/12) included), or without
@@ -26,16 +26,17 @@ import time
 
 import numpy as np
 
-from simucal.fit.augmented import AugmentedModel
+from simucal.fit.augmented import AugmentedModel, compiled_form
 from simucal.fit.aux_inputs import AuxInputs, specific_force
 from simucal.fit.norm_fit import fit_batch
 from simucal.fit.rotations import adjugate3, det3, wahba
 from simucal.generated import table
+from simucal.generated.effects import EFFECTS
 from simucal.io import units
 from simucal.turntable import kinematics, plans
 from simucal.turntable.simulate import Scenario
 
-K_REV = 12  # outer-angle samples per revolution (module doc)
+K_REV = (4, 12)  # outer-angle samples per revolution: the fewer where exact, else the more (module doc)
 
 
 def _plan(sc):
@@ -54,9 +55,10 @@ def _affine(model, p):
     return bool(np.allclose(Ju[0], Ju[1], rtol=0, atol=1e-12 * max(np.abs(Ju).max(), 1.0)))
 
 
-def simulate_batch(sc: Scenario, trials: int, rng, noise=True):
+def simulate_batch(sc: Scenario, trials: int, rng, noise=True, k_rev=K_REV[-1]):
     """Mean outputs of `trials` simulated tests: acc at the static positions (T, Ps, 3) in g,
-    gyro (T, Pr, 3) in deg/h and acc (T, Pr, 3) over the rate runs, with the plan's rates."""
+    gyro (T, Pr, 3) in deg/h and acc (T, Pr, 3) over the rate runs, with the plan's rates and the
+    rate runs' mean specific force in the gyro frame (T, Pr, 3), the g-sensitivity terms' input."""
     static, rates = _plan(sc)
     am, gm = AugmentedModel(sc.acc_model, tuple(sc.acc_effects)), AugmentedModel(sc.gyro_model, tuple(sc.gyro_effects))
     p_a = np.array([{**sc.acc_params, **sc.acc_effects}.get(k, 0.0) for k in am.params])
@@ -65,7 +67,6 @@ def simulate_batch(sc: Scenario, trials: int, rng, noise=True):
     lat = np.radians(sc.latitude_deg)
     w_e = units.DEFAULT_EARTH_RATE_DPH
     w_ie_n = table.earth_rate_n(w_e, lat)
-    up = np.array([0, 0, 1.0])
     T, Ps, Pr = trials, len(static), len(rates)
     table_err = sc.table_errors_rad()  # shared by every row; the angle errors per row
     f_s = kinematics.specific_force_k(static[:, 0], static[:, 1], static[:, 2], table_err,
@@ -74,25 +75,25 @@ def simulate_batch(sc: Scenario, trials: int, rng, noise=True):
     w_n = w_ie_n + (rates[:, 2] * units.DPH_PER_DPS)[:, None] * tilt[:, 2]  # (Pr, 3)
     err_r = sc.angle_errors_rad(rng, (T, Pr), noise)
     w2 = (np.radians(rates[:, 2]) ** 2 / units.DEFAULT_GRAVITY)[None, :]
-    if _affine(am, p_a) and _affine(gm, p_g):
-        # over a revolution a vector v fixed in n averages, in k, to the outer axis times v's component
-        # along the tilted outer axis (derive/table.py outer_axis_k)
-        axis_k = kinematics.outer_axis_k(np.radians(rates[:, 0]), np.radians(rates[:, 1]), table_err, err_r)
-        f_k = axis_k * tilt[2, 2]
-        f_r, f_d = f_k @ C_b_k, f_k @ C_d_k
-        w_d = (axis_k * (w_n @ tilt)[:, 2][:, None]) @ C_d_k
-        N_ar = am.output(f_r, p_a, AuxInputs({"w2": w2}))
-        N_g = gm.output(w_d, p_g, AuxInputs(specific_force(f_d)))
-    else:  # nonlinear terms: the mean of K samples, exact below degree K
-        gam = np.arange(K_REV) * 2 * np.pi / K_REV
-        Cr = table.C_k_n(gam[None, None, :], np.radians(rates[:, 0])[None, :, None],
-                         np.radians(rates[:, 1])[None, :, None],
-                         kinematics.errors(table_err, err_r)[:, :, None, :])  # (T, Pr, K, 3, 3)
-        f_r = np.einsum("ji,tpqkj,k->tpqi", C_b_k, Cr, up)
-        w_d = np.einsum("ji,tpqkj,pk->tpqi", C_d_k, Cr, w_n)
-        f_d = np.einsum("ji,tpqkj,k->tpqi", C_d_k, Cr, up)
-        N_ar = am.output(f_r, p_a, AuxInputs({"w2": w2[..., None]})).mean(2)
-        N_g = gm.output(w_d, p_g, AuxInputs(specific_force(f_d))).mean(2)
+    # over a revolution a vector v fixed in n averages, in k, to the outer axis times v's component
+    # along the tilted outer axis (derive/table.py outer_axis_k): the means an affine model needs
+    axis_k = kinematics.outer_axis_k(np.radians(rates[:, 0]), np.radians(rates[:, 1]), table_err, err_r)
+    f_k = axis_k * tilt[2, 2]
+    f_r, f_d = f_k @ C_b_k, f_k @ C_d_k
+    w_d = (axis_k * (w_n @ tilt)[:, 2][:, None]) @ C_d_k
+    nonlinear_a, nonlinear_g = not _affine(am, p_a), not _affine(gm, p_g)
+    if nonlinear_a or nonlinear_g:  # a nonlinear model's mean: of K samples, exact below degree K
+        gam = np.arange(k_rev) * 2 * np.pi / k_rev
+        angles = gam[None, None, :], np.radians(rates[:, 0])[None, :, None], np.radians(rates[:, 1])[None, :, None]
+        err_k = np.broadcast_to(err_r[:, :, None, :], (T, Pr, k_rev, 3))
+        up_k = kinematics.specific_force_k(*angles, table_err, err_k)  # (T, Pr, K, 3): the vertical in k
+    if nonlinear_g:  # the Earth rate and the table's rate turn in k too: the whole rotation
+        Cr = table.C_k_n(*angles, kinematics.errors(table_err, err_k))  # (T, Pr, K, 3, 3)
+    N_ar = (am.output(up_k @ C_b_k, p_a, AuxInputs({"w2": w2[..., None]})).mean(2) if nonlinear_a else
+            am.output(f_r, p_a, AuxInputs({"w2": w2})))
+    N_g = (gm.output((w_n[None, :, None, None, :] @ Cr)[..., 0, :] @ C_d_k, p_g,
+                     AuxInputs(specific_force(up_k @ C_d_k))).mean(2) if nonlinear_g else
+           gm.output(w_d, p_g, AuxInputs(specific_force(f_d))))
     N_as = am.output(f_s, p_a)
     if noise:
         N_as = N_as + rng.normal(0, sc.acc_noise_g, N_as.shape)
@@ -100,33 +101,44 @@ def simulate_batch(sc: Scenario, trials: int, rng, noise=True):
         N_g = N_g + rng.normal(0, sc.gyro_noise_dph, N_g.shape)
     rho_g = np.abs(rates[:, 2] * units.DPH_PER_DPS + w_e * np.sin(lat))
     return {"acc": N_as, "acc_rate": N_ar, "gyro": N_g, "rho_gyro": rho_g, "rate_sign": np.sign(rates[:, 2]),
+            "f_gyro": f_d.mean(0),  # (Pr, 3): the trials' angle errors move it by arcseconds
             "truth": {"acc": p_a, "gyro": p_g, "C_b_d": C_d_k.T @ C_b_k}, "models": (am, gm)}
 
 
-def fit_trials(model, N, rho, sigma, covariance=True, threads=0):
-    """Exact fits of a batch (T, n, 3): (p (T, m), cov (T, m, m) or None, u (T, n, 3), ok (T,)): one compiled
-    call where there is one (no effects added; `threads` its OpenMP team), else norm_fit.fit_batch (numpy,
-    vectorised over the trials). The start: the paper's linear fit of the base model (in the compiled
-    call, or vectorised here), effects at 0."""
+def _base_start(model, N, rho_b):
+    """The start of every trial: the paper's linear fit of the base model (vectorised), effects at 0;
+    0 where it is not finite (a hopeless start fails its trial, counted)."""
+    base = model.base
+    Psi = base.norm_regressors(N)
+    PsiT = Psi.swapaxes(1, 2)
+    K = np.linalg.solve(PsiT @ Psi, PsiT @ (rho_b ** 2)[..., None])[..., 0]  # matmul: einsum does not use BLAS here
+    with np.errstate(invalid="ignore", divide="ignore"):
+        p0 = np.c_[base.params_of_K(K), np.zeros((len(N), len(model.params) - len(base.params)))]
+    p0[~np.all(np.isfinite(p0), axis=1)] = 0.0
+    return p0
+
+
+def fit_trials(model, N, rho, sigma, aux=None, covariance=True, threads=0):
+    """Exact fits of a batch (T, n, 3): (p (T, m), cov (T, m, m) or None, u (T, n, 3), ok (T,)). One compiled
+    call where there is one (the base model's, or with effects the augmented model derived into the cache,
+    augmented.compiled_form; `threads` its OpenMP team), else norm_fit.fit_batch (numpy, vectorised over
+    the trials). aux: the rows' auxiliary inputs, shared by the trials (the rate runs' specific force, a
+    g-sensitivity's input). The start: the paper's linear fit of the base model (in the compiled call for a
+    base model, else _base_start), effects at 0."""
     T, n, _ = N.shape
     m = len(model.params)
     base = model.base
     rho_b = np.broadcast_to(rho, (T, n))
     sig = np.full((T, n, 3), float(sigma))
-    out = None if model.effects else base.fit_compiled(N, rho_b, sig, np.zeros((T, n, len(base.aux))),
-                                                       covariance=covariance, threads=threads)
+    compiled = compiled_form(model) if model.effects else base
+    p0 = _base_start(model, N, rho_b) if model.effects or compiled is None or compiled._fit is None else None
+    out = None if compiled is None else compiled.fit_compiled(N, rho_b, sig, compiled.aux_array(aux, (T, n)), p0,
+                                                              covariance=covariance, threads=threads)
     if out is not None:
         p, cov, u, _, _, status = out
         return p, cov, u, status == 0
-    Psi = base.norm_regressors(N)
-    PsiT = Psi.swapaxes(1, 2)
-    K = np.linalg.solve(PsiT @ Psi, PsiT @ (rho_b ** 2)[..., None])[..., 0]  # matmul: einsum does not use BLAS here
-    with np.errstate(invalid="ignore", divide="ignore"):  # a hopeless start fails its trial, counted
-        p0 = np.c_[base.params_of_K(K), np.zeros((T, m - len(base.params)))]
-    bad = ~np.all(np.isfinite(p0), axis=1)
-    p0[bad] = 0.0
     with np.errstate(invalid="ignore", divide="ignore", over="ignore"):
-        p, u, _, H, _, status = fit_batch(model, N, rho_b, sig, p0)
+        p, u, _, H, _, status = fit_batch(model, N, rho_b, sig, p0, aux)
     ok = status == 0
     cov = np.full((T, m, m), np.nan) if covariance else None
     if covariance and ok.any():
@@ -144,15 +156,25 @@ def _unify_batch(am, p_a, N_ar, u_g, sign):
     return wahba(u_b, u_g * sign[None, :, None], np.ones(u_b.shape[:2]))
 
 
-def chunk_of_trials(sc: Scenario, size: int, seed: int, k: int) -> dict:
+def revolution_samples(sc: Scenario) -> int:
+    """The fewer of K_REV where the noise-free rate-run means equal those of 24 samples (every term of
+    degree below it in the input: the library's quadratic and cross-coupling terms), else the more."""
+    exact = simulate_batch(sc, 1, np.random.default_rng(0), noise=False, k_rev=24)
+    few = simulate_batch(sc, 1, np.random.default_rng(0), noise=False, k_rev=K_REV[0])
+    same = all(np.abs(few[k] - exact[k]).max() <= 1e-12 * max(np.abs(exact[k]).max(), 1.0) for k in ("acc_rate", "gyro"))
+    return K_REV[0] if same else K_REV[-1]
+
+
+def chunk_of_trials(sc: Scenario, size: int, seed: int, k: int, k_rev: int = K_REV[-1]) -> dict:
     """One batch of trials with its own random stream (seed, k): the estimates of the trials whose
     fits converged, the error rotation of C_b^d, and the indices (within the batch) of the others."""
     rng = np.random.default_rng([seed, k])
     am, gm = AugmentedModel(sc.acc_model, tuple(sc.acc_effects)), AugmentedModel(sc.gyro_model, tuple(sc.gyro_effects))
-    sim = simulate_batch(sc, size, rng)
+    sim = simulate_batch(sc, size, rng, k_rev=k_rev)
     # one thread per batch: batches run side by side (run's thread pool, or Dask's workers)
     pa, _, _, ok_a = fit_trials(am, sim["acc"], 1.0, sc.acc_noise_g, covariance=False, threads=1)
-    pg, _, ug, ok_g = fit_trials(gm, sim["gyro"], sim["rho_gyro"], sc.gyro_noise_dph, covariance=False, threads=1)
+    pg, _, ug, ok_g = fit_trials(gm, sim["gyro"], sim["rho_gyro"], sc.gyro_noise_dph,
+                                 AuxInputs(specific_force(sim["f_gyro"])), covariance=False, threads=1)
     ok = ok_a & ok_g
     C = _unify_batch(am, pa[ok], sim["acc_rate"][ok], ug[ok], sim["rate_sign"])
     R = C.swapaxes(1, 2) @ sim["truth"]["C_b_d"]  # C^T C_true: the error rotation
@@ -166,9 +188,18 @@ def run(sc: Scenario, trials: int, seed: int = 0, chunk: int = 2500, progress=No
     the same numbers on any."""
     from simucal.sweeps import map_tasks
     am, gm = AugmentedModel(sc.acc_model, tuple(sc.acc_effects)), AugmentedModel(sc.gyro_model, tuple(sc.gyro_effects))
+    for m in (am, gm):
+        unseen = [e for e in m.effects if set(EFFECTS[e].reads) - {"f_x", "f_y", "f_z"}]  # the gyro's input only
+        if unseen:
+            raise ValueError(f"--effect {unseen[0]}: its regressor reads {', '.join(EFFECTS[unseen[0]].reads)}, which "
+                             "the Monte Carlo's averaged positions never vary (no time, temperature or lever arm "
+                             "rows are fitted), so no fit can see it; simulate a set (simucal simulate --effect) and "
+                             "calibrate it instead")
+    compiled = {s: compiled_form(m) if m.effects else m.base for s, m in (("acc", am), ("gyro", gm))}  # derived once
     kinematics.compiled()  # built (or found) once, before the threads
     t0 = time.perf_counter()
-    tasks = [(sc, min(chunk, trials - k0), seed, k) for k, k0 in enumerate(range(0, trials, chunk))]
+    k_rev = revolution_samples(sc)
+    tasks = [(sc, min(chunk, trials - k0), seed, k, k_rev) for k, k0 in enumerate(range(0, trials, chunk))]
     parts = map_tasks(chunk_of_trials, tasks, scheduler, progress, threads=os.cpu_count() or 1)
     est = {s: [p[s] for p in parts] for s in ("acc", "gyro")}
     phi_err = [p["phi"] for p in parts]
@@ -178,11 +209,13 @@ def run(sc: Scenario, trials: int, seed: int = 0, chunk: int = 2500, progress=No
     out = {"format": "simucal.montecarlo/1", "scenario": "paper", "trials": trials, "failed": len(failed),
            "failed_trials": failed[:1000], "seed": seed, "seconds": secs, "trials_per_s": trials / secs,
            "scheduler": scheduler or "local",
-           "backend": "compiled (one call per batch)" if am.base._fit is not None and not am.effects else
-           "numpy (norm_fit.fit_batch, vectorised over the trials)", "parameters": {}}
-    for sensor, model, N, rho, sig in (("acc", am, ref["acc"], 1.0, sc.acc_noise_g),
-                                       ("gyro", gm, ref["gyro"], ref["rho_gyro"], sc.gyro_noise_dph)):
-        _, cov0, _, ok0 = fit_trials(model, N, rho, sig)
+           "backend": {s: f"compiled {m.name} (one call per batch)" if m is not None and m._fit is not None else
+                       "numpy (norm_fit.fit_batch, vectorised over the trials)" for s, m in compiled.items()},
+           "parameters": {}}
+    for sensor, model, N, rho, sig, aux in (
+            ("acc", am, ref["acc"], 1.0, sc.acc_noise_g, None),
+            ("gyro", gm, ref["gyro"], ref["rho_gyro"], sc.gyro_noise_dph, AuxInputs(specific_force(ref["f_gyro"])))):
+        _, cov0, _, ok0 = fit_trials(model, N, rho, sig, aux)
         crlb = np.sqrt(np.diag(cov0[0])) if ok0[0] else np.full(len(model.params), np.nan)
         e = np.concatenate(est[sensor])
         mean = e.mean(axis=0)
