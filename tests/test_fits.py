@@ -149,7 +149,7 @@ def test_compiled_whole_fit_matches_the_python_solver(tmp_path, name, sensor):
 
 
 def test_numpy_batch_equals_one_set_at_a_time(tmp_path):
-    """norm_fit.fit_batch on several sets at once gives each set's fit_exact (the numpy path)."""
+    """gauss_newton.fit_batch on several sets at once gives each set's fit_exact (the numpy path)."""
     from simucal import io
     from simucal.fit.catalog import load
     from simucal.fit.norm_fit import fit_batch, fit_exact

@@ -9,9 +9,10 @@ trigonometric polynomial in gamma of that degree averages exactly): K = 4 where 
 24 samples (terms up to cubic), else 12, where simulate() samples 720; for affine models it is the outer axis in k, in closed form.
 
 Each batch of trials is fitted by one call of the compiled whole fit per sensor
-(derive/templates/exact_fit.c, the paper's linear start (eq. 8/12) included), or without
-a compiler (or with effects added) by the same Levenberg-Marquardt in numpy vectorised
-over the trials (norm_fit.fit_batch) from the same start. C_b^d follows from the rate
+(derive/templates/exact_fit.c, the paper's linear start (eq. 8/12) included; with effects
+added, of the augmented model derived into the cache once, augmented.compiled_form, started
+from the base model's linear fit), or without a compiler by the same Levenberg-Marquardt in
+numpy vectorised over the trials (gauss_newton.fit_batch) from the same start. C_b^d follows from the rate
 runs' means (unification.py; Wahba by rotations.nearest_rotation, batched). Batches run
 on one thread per core, each with its own random stream.
 
@@ -121,7 +122,7 @@ def _base_start(model, N, rho_b):
 def fit_trials(model, N, rho, sigma, aux=None, covariance=True, threads=0):
     """Exact fits of a batch (T, n, 3): (p (T, m), cov (T, m, m) or None, u (T, n, 3), ok (T,)). One compiled
     call where there is one (the base model's, or with effects the augmented model derived into the cache,
-    augmented.compiled_form; `threads` its OpenMP team), else norm_fit.fit_batch (numpy, vectorised over
+    augmented.compiled_form; `threads` its OpenMP team), else gauss_newton.fit_batch (numpy, vectorised over
     the trials). aux: the rows' auxiliary inputs, shared by the trials (the rate runs' specific force, a
     g-sensitivity's input). The start: the paper's linear fit of the base model (in the compiled call for a
     base model, else _base_start), effects at 0."""
@@ -210,7 +211,7 @@ def run(sc: Scenario, trials: int, seed: int = 0, chunk: int = 2500, progress=No
            "failed_trials": failed[:1000], "seed": seed, "seconds": secs, "trials_per_s": trials / secs,
            "scheduler": scheduler or "local",
            "backend": {s: f"compiled {m.name} (one call per batch)" if m is not None and m._fit is not None else
-                       "numpy (norm_fit.fit_batch, vectorised over the trials)" for s, m in compiled.items()},
+                       "numpy (gauss_newton.fit_batch, vectorised over the trials)" for s, m in compiled.items()},
            "parameters": {}}
     for sensor, model, N, rho, sig, aux in (
             ("acc", am, ref["acc"], 1.0, sc.acc_noise_g, None),
