@@ -41,7 +41,8 @@ def test_every_method_returns_the_typed_calibration_and_its_json_reads_back_the_
         calibration.save(tmp_path / f"{name}.json", cal)
         back = calibration.load(tmp_path / f"{name}.json")
         assert _as_written(back) == written, name
-        assert set(written["formula"]) == set(cal.sensors) and written["residual_rms"].keys() == dict(cal.blocks()).keys()
+        assert set(written["formula"]) == set(cal.sensors)
+        assert all(written[s]["chi2"] is None or isinstance(written[s]["chi2"], float) for s in cal.sensors)
 
 
 def test_what_a_method_reports_beyond_the_fields_travels_as_details(every_method):
@@ -73,3 +74,41 @@ def test_any_block_round_trips(M, bias, value, std, p, term_of, extra):
     assert _as_written(back) == written
     assert np.array_equal(back.acc.M, np.reshape(M, (3, 3))) and back.acc.p_value == p
     assert back.acc.library_effects() == (() if term_of else ("acc.quadratic.z",))
+
+
+@pytest.mark.parametrize("edit,exit_code,words", [
+    (lambda d: d["acc"].pop("bias_unit"), 0, ""),  # not needed to apply: read as the sensor's unit
+    (lambda d: d.pop("input_sha256"), 0, ""),
+    (lambda d: d.pop("method"), 0, ""),
+    (lambda d: (d["layout"].__setitem__("sensors", ["gyro"]), d["acc"].__setitem__("M", "x")), 2, "calibrates no acc"),
+    (lambda d: d["acc"].__setitem__("thermal", None), 2, "acc.thermal must be an object"),
+    (lambda d: d["acc"].__setitem__("model", None), 2, "is not a model's name"),
+    (lambda d: d["acc"].__setitem__("model", "acc_nowhere"), 2, "no model 'acc_nowhere'"),
+    (lambda d: d["acc"].__setitem__("param_units", [1, 2]), 2, "acc.param_units must be an object"),
+])
+def test_a_hand_edited_file_is_read_or_refused_in_one_line(paper_set, tmp_path, edit, exit_code, words):
+    """Issue 25's review: the typed object never turns an edited file into an internal error."""
+    from click.testing import CliRunner
+
+    from simucal.cli import main
+    d = _as_written(calibrate(paper_set[0]))
+    edit(d)
+    (tmp_path / "c.json").write_text(json.dumps(d))
+    r = CliRunner().invoke(main, ["apply", str(tmp_path / "c.json"), str(paper_set[0]), "-o", str(tmp_path / "out")])
+    assert r.exit_code == exit_code and words in r.output, r.output
+
+
+def test_multiposition_without_rate_runs_says_the_gyro_is_not_calibrated(paper_set, tmp_path):
+    """A set whose rate runs are gone: the file names the gyro under not_calibrated (before, it named a gyro
+    block it did not have), and apply refuses the data's gyro in one line."""
+    from simucal import io
+    from simucal.fit.apply import apply
+    ms = io.read_set(paper_set[0])
+    keep = [s for s in ms.segments if s.kind == "static"]
+    rows = np.isin(ms.samples["segment"], [s.segment for s in keep])
+    io.write_set(tmp_path / "s", ms.meta, {k: v[rows] for k, v in ms.samples.items()}, keep)
+    cal = calibrate(tmp_path / "s", "multiposition")
+    assert cal.gyro is None and "gyro" in cal.not_calibrated and cal.sensors == ["acc"]
+    calibration.save(tmp_path / "c.json", cal)
+    with pytest.raises(calibration.CalibrationFileError, match="calibrates no gyro"):
+        apply(calibration.load(tmp_path / "c.json"), tmp_path / "s")

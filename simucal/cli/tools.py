@@ -6,7 +6,19 @@ from pathlib import Path
 
 import click
 
-from simucal.cli.common import FORCE, MAX_TRIALS, MODEL_FILE_RUNS, NOISE_DPH, NOISE_G, SEED, Number, fail, guard, main
+from simucal.cli.common import (
+    FORCE,
+    MAX_TRIALS,
+    MODEL_FILE_RUNS,
+    NOISE_DPH,
+    NOISE_G,
+    POSITIVE,
+    SEED,
+    Number,
+    fail,
+    guard,
+    main,
+)
 
 
 @main.command()
@@ -215,7 +227,7 @@ def _write_design(result, model, u, rho, kind, output):
 @click.option("--criterion", type=click.Choice(["D", "A"]), default="D", show_default=True)
 @click.option("--rate-dps", type=Number(-3600.0, 3600.0), default=10.0, show_default=True,
               help="Gyro models: the outer-axis rate of the rate runs.")
-@click.option("--rates-dps", "rates", default=None, metavar="R1,R2,...",
+@click.option("--rates-dps", "--rates", "rates", default=None, metavar="R1,R2,...",
               help="Gyro design: rates (deg/s) to choose from, e.g. 5,10,20.")
 @click.option("--table", "kind", type=click.Choice(["three-axis", "hand"]), default="three-axis", show_default=True,
               help="Design for a three-axis table (angles) or hand-placed poses (gravity directions in the unit).")
@@ -223,6 +235,8 @@ def _write_design(result, model, u, rho, kind, output):
               help="Accelerometer models: the noise of one position's mean, g (default: section 4's 1e-5).")
 @click.option("--gyro-noise-dph", type=NOISE_DPH, default=None,
               help="Gyro models: the noise of one position's mean, deg/h (default: section 4's 0.01).")
+@click.option("--sigma", type=POSITIVE, default=None, hidden=True,
+              help="The old name: the model's --acc-noise-g or --gyro-noise-dph.")
 @click.option("--separate", "pair", default=None, metavar="ID1,ID2",
               help="With --score: the positions to add so that these two candidate effects are told apart.")
 @click.option("--sizes", default=None, metavar="Q1,Q2", help="With --separate: the effects' sizes, in their units.")
@@ -230,8 +244,8 @@ def _write_design(result, model, u, rho, kind, output):
               help="With --separate: the power to reach.")
 @click.option("-o", "--output", type=click.Path(dir_okay=False), default=None,
               help="Design: the plan CSV (a JSON sidecar with its scores beside it); score: the JSON.")
-def plan(score_plan, model_name, add, positions, criterion, rate_dps, rates, kind, acc_noise_g, gyro_noise_dph, pair,
-         sizes, target, output):
+def plan(score_plan, model_name, add, positions, criterion, rate_dps, rates, kind, acc_noise_g, gyro_noise_dph, sigma,
+         pair, sizes, target, output):
     """Score a test plan (Fisher information, CRLB, correlations, D and A criteria) or design one."""
     import json
 
@@ -255,7 +269,7 @@ def plan(score_plan, model_name, add, positions, criterion, rate_dps, rates, kin
         if wrong is not None:
             raise ValueError(f"{'--acc-noise-g' if gyro else '--gyro-noise-dph'} {wrong:g}: model {model.name} is a "
                              f"{model.sensor} model; give {'--gyro-noise-dph' if gyro else '--acc-noise-g'}")
-        sigma = (gyro_noise_dph or 0.01) if gyro else (acc_noise_g or 1e-5)
+        sigma = sigma or ((gyro_noise_dph or 0.01) if gyro else (acc_noise_g or 1e-5))
         name, u, rho, result = _plan_scores(model, score_plan, positions, criterion, rate_dps, rates, sigma)
         if pair:
             result["separation"] = _separation(model, pair, sizes, score_plan, u, rho, sigma, target)

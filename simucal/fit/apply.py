@@ -84,7 +84,10 @@ def check_block(block: SensorBlock, sensor, where) -> None:
             raise CalibrationError(f"{where}: {sensor}.T is not the inverse of {sensor}.M (T = M^-1): the file was "
                                    "edited by hand; calibrate again")
         return
-    model = AugmentedModel(block.model, block.library_effects())
+    try:
+        model = AugmentedModel(block.model, block.library_effects())
+    except KeyError as e:  # a model this machine has not derived (another's cache), or an edit
+        raise CalibrationError(f"{where}: {sensor}.model {block.model!r}: {e.args[0]}") from None
     missing = [k for k in model.params if k not in block.params]
     if missing:
         raise CalibrationError(f"{where}: {sensor}.params lacks {missing[0]!r}, a parameter of model {block.model} "

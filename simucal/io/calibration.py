@@ -120,6 +120,8 @@ class SensorBlock:
         """The library effect ids the model adds (its effects less a model file's own terms)."""
         return tuple(e for e, v in self.effects.items() if not v.term_of)
 
+    ALWAYS = ("residual_rms", "residual_unit", "chi2", "dof", "p_value")  # written as null where there is no test
+
     def to_json(self) -> dict:
         out = {}
         for f in fields(self):
@@ -131,15 +133,19 @@ class SensorBlock:
             elif f.name == "nominal":
                 if v:
                     out["nominal"] = True
-            elif v is not None:
+            elif f.name in ("params", "param_units"):
+                if v:  # an affine block has none
+                    out[f.name] = dict(v)
+            elif v is not None or f.name in self.ALWAYS:
                 out[f.name] = _plain(v)
         return out
 
     @classmethod
-    def from_json(cls, d: dict) -> SensorBlock:
+    def from_json(cls, d: dict, sensor: str) -> SensorBlock:
         names = {f.name for f in fields(cls)} - {"details", "effects"}
-        return cls(**{k: v for k, v in d.items() if k in names},
-                   effects={e: EffectValue.from_json(x) for e, x in d.get("effects", {}).items()},
+        given = {k: v for k, v in d.items() if k in names}
+        given.setdefault("bias_unit", UNITS[sensor])  # files written before it was a field may lack it
+        return cls(**given, effects={e: EffectValue.from_json(x) for e, x in d.get("effects", {}).items()},
                    details={k: v for k, v in d.items() if k not in names and k != "effects"})
 
 
@@ -149,7 +155,7 @@ class Calibration:
     (consistency, unification's checks, static_detection, field, excluded_segments, ...)."""
     method: str
     input: str | list[str]
-    input_sha256: str | list[str]
+    input_sha256: str | list[str] | None  # None: a hand-edited file without it
     layout: dict
     acc: SensorBlock | None = None
     gyro: SensorBlock | None = None
@@ -182,7 +188,9 @@ class Calibration:
                "units": UNITS}
         for s, b in self.blocks():
             out[s] = b.to_json()
-        out["residual_rms"] = {s: b.residual_rms for s, b in self.blocks()}
+        residual = {s: b.residual_rms for s, b in self.blocks() if b.residual_rms is not None}
+        if residual:
+            out["residual_rms"] = residual
         for k in ("t_ref_c", "temperature_range_c", "unification"):
             if getattr(self, k) is not None:
                 out[k] = getattr(self, k)
@@ -195,10 +203,14 @@ class Calibration:
 
     @classmethod
     def from_json(cls, d: dict) -> Calibration:
+        """The file's dict (checked by calibration_checks.check_file) as the object; a block the layout
+        does not name is left out (check_layout then refuses data that have that sensor)."""
         derived = {"formula", "units", "residual_rms"}  # written from the layout and the blocks
         names = {f.name for f in fields(cls)} - {"details", "acc", "gyro"}
-        return cls(**{k: v for k, v in d.items() if k in names},
-                   **{s: SensorBlock.from_json(d[s]) for s in SENSORS if isinstance(d.get(s), dict)},
+        given = {k: v for k, v in d.items() if k in names}
+        for k, default in (("method", "unknown"), ("input", ""), ("input_sha256", None)):  # hand-edited files
+            given.setdefault(k, default)
+        return cls(**given, **{s: SensorBlock.from_json(d[s], s) for s in d["layout"]["sensors"]},
                    details={k: v for k, v in d.items() if k not in names | derived | set(SENSORS)})
 
 
@@ -312,4 +324,8 @@ def load(path) -> Calibration:
         raise CalibrationFileError(f"{path}: format {fmt!r}, expected {FORMAT!r}"
                                    + ("; calibrate the data again with this version" if fmt else ""))
     check_file(path, d)
-    return Calibration.from_json(d)
+    try:
+        return Calibration.from_json(d)
+    except (TypeError, ValueError, KeyError, AttributeError) as e:  # a hand edit the checks did not foresee
+        raise CalibrationFileError(f"{path}: not a calibration file this version can read ({type(e).__name__}: "
+                                   f"{e}); calibrate again rather than edit a calibration") from None

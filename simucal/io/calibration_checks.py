@@ -69,6 +69,12 @@ def check_file(path, cal: dict) -> None:
         for k in ("model", "M", "bias", "effects"):
             if k not in block:
                 raise CalibrationFileError(f"{path}: the {s} block lacks {k!r}")
+        if not isinstance(block["model"], str):
+            raise CalibrationFileError(f"{path}: {s}.model = {block['model']!r} is not a model's name")
+        for k in ("thermal", "params", "std", "param_units"):
+            if k in block and not isinstance(block[k], dict):
+                raise CalibrationFileError(f"{path}: {s}.{k} must be an object {{name: ...}}, not {block[k]!r}: the "
+                                           "file was edited by hand; calibrate again")
         M = _matrix(path, f"{s}.M", block["M"], (3, 3))
         bias = _matrix(path, f"{s}.bias", block["bias"], (3,))
         diag = np.diag(M)

@@ -83,7 +83,7 @@ def _fit_lines(s, b: SensorBlock, source):
         stds = ("stds are inflated by sqrt(chi2/dof) (std_raw keeps the unscaled ones)" if "std_raw" in d else
                 d["std_note"] if d.get("std_note") else f"stds include a model-error std {d['model_error_std_g']:.2g} g "
                 "per pose" if d.get("model_error_std_g") else "stds assume the model is right")
-        yield (f"{s}: THE MODEL FAILS (p = {b.p_value:.2g} < {FAILS_BELOW:g}): "
+        yield (f"{s}: THE MODEL FAILS (p = {b.p_value:.2g} < {FAILS_BELOW:.0e}): ".replace("e-0", "e-")
                + ("the stated noise may be too small (the warning above); " if d.get("noise_too_small") else "")
                + (f"diagnose would add {what}; " if what else f"see simucal diagnose {source} for what is missing; ")
                + stds)

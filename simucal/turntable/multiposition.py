@@ -68,4 +68,7 @@ def calibrate_multiposition(ms, acc_model="acc_baseline", gyro_model="gyro_basel
     for sensor, r in multiposition(ms, *obs).items():
         setattr(cal, sensor, calibration.affine_block(sensor, r["M"], r["bias"], r["std"], r["residual_rms"],
                                                       "linear y = M f + b on commanded inputs"))
+    if ms.has_gyro and cal.gyro is None:
+        cal.drop_sensor("gyro", "no usable rate runs in segments.csv: the multi-position gyro regression needs "
+                                "rate runs about several axes")
     return cal
