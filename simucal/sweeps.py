@@ -27,10 +27,12 @@ def map_tasks(fn, tasks: list, scheduler=None, progress=None, threads: int = 1) 
         client = Client(cluster)
     else:
         try:
-            cluster, client = None, Client(scheduler, timeout="10s")
+            wait_s = float(os.environ.get("SIMUCAL_SCHEDULER_TIMEOUT_S", "10"))  # a slow network: more
+            cluster, client = None, Client(scheduler, timeout=f"{wait_s:g}s")
         except OSError as e:
             from simucal.errors import CalibrationError
-            raise CalibrationError(f"--scheduler {scheduler}: no Dask scheduler answers there ({e}); start one "
+            raise CalibrationError(f"--scheduler {scheduler}: no Dask scheduler answers there within {wait_s:g} s "
+                                   f"(SIMUCAL_SCHEDULER_TIMEOUT_S; {e}); start one "
                                    "(dask scheduler), or use --scheduler local or processes.") from None
     try:
         futures = [client.submit(fn, *t, pure=False) for t in tasks]

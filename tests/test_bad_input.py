@@ -646,7 +646,8 @@ def test_a_stated_noise_far_above_the_scatter_is_named(sets, tmp_path):
     assert "noise_warning" in json.loads((tmp_path / "c.json").read_text())["acc"]
 
 
-def test_an_unreachable_scheduler_is_one_line_and_writes_nothing(sets, tmp_path):
+def test_an_unreachable_scheduler_is_one_line_and_writes_nothing(sets, tmp_path, monkeypatch):
+    monkeypatch.setenv("SIMUCAL_SCHEDULER_TIMEOUT_S", "1")  # the wait is not what is tested
     run_refused(["calibrate", sets / "table", sets / "acc_only", "-o", tmp_path / "out", "--scheduler",
                  "tcp://127.0.0.1:1"], "no Dask scheduler answers", out=tmp_path / "out")
 

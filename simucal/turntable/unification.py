@@ -101,13 +101,6 @@ class Unifier:
     def nz(self):
         return max((p.index.stop for p in self.parts.values()), default=0)
 
-    @property
-    def cov(self):
-        out = np.zeros((self.nz, self.nz))
-        for p in self.parts.values():
-            out[p.index, p.index] = p.var * p.unit_cov
-        return out
-
     def _directions(self, fit, model, start, rows):
         """Fitted unit directions of `rows` and their derivative wrt z (via the tangent steps)."""
         m = len(model.params)
@@ -142,6 +135,11 @@ class Unifier:
         u = f / r[:, None]
         P = (np.eye(3) - np.einsum("ni,nj->nij", u, u)) / r[:, None, None]
         return u, np.einsum("nij,njz->niz", P, df)
+
+    def _variance(self, D):
+        """tr(D cov D^T) per row of D (n, 3, nz), part by part (cov is block-diagonal over them)."""
+        return sum(p.var * np.sum((D[..., p.index] @ p.unit_cov) * D[..., p.index], axis=(1, 2))
+                   for p in self.parts.values())
 
     def _by_part(self, J, unit=()):
         """{part: J_k cov_k J_k^T} for J (..., r, nz): what each part contributes to J cov J^T
@@ -192,8 +190,7 @@ class Unifier:
         its share of their degrees of freedom."""
         dof = 2 * len(u_b) - 3
         for _ in range(2 if estimate else 1):  # the weights follow the estimated part
-            cov = self.cov
-            w = 2.0 / (np.sum((D_b @ cov) * D_b, axis=(1, 2)) + np.sum((D_d @ cov) * D_d, axis=(1, 2)))
+            w = 2.0 / (self._variance(D_b) + self._variance(D_d))
             C = wahba(u_b, u_d, w)
             J_phi = wahba_sensitivity(u_b, D_b, u_d, D_d, w, C)
             resid = u_d - u_b @ C.T
@@ -226,7 +223,8 @@ class Unifier:
         return M_d @ C, self.covariance(J)
 
     def covariance(self, J):
-        return J @ self.cov @ J.T
+        """J cov J^T, the parts' contributions summed (cov is block-diagonal over them)."""
+        return sum(self._by_part(J).values())
 
     def quadratic_form(self, d, J):
         """d^T (J cov J^T)^+ d for a difference d with d d/dz = J, its covariance and the
