@@ -105,6 +105,20 @@ def _table(fig, before, echo):
             echo(f"| {k} | {_cell(k, old.get(k))} | {_cell(k, v)} |" if before else f"| {k} | {_cell(k, v)} |")
 
 
+def _scaling(c) -> dict:
+    """fit_exact's time against N = 12 ... 100,000 rows (it must stay linear)."""
+    progress.status("bench: fit_exact against N = 12 ... 100,000 rows")
+    scaling = {}
+    rng = np.random.default_rng(0)
+    for N in (12, 100, 1000, 10000, 100000):
+        u = rng.normal(size=(N, 3))
+        u /= np.linalg.norm(u, axis=1, keepdims=True)
+        p = np.array([2e-3, 8e-3, 6e-3, 1e-4, 1e-4, 1e-4, 8e-4, -1e-3, -3.2e-3])
+        o = Observations(c.output(u, p) + rng.normal(0, 1e-5, (N, 3)), np.ones(N), np.full((N, 3), 1e-5))
+        scaling[N] = best(lambda: fit_exact(c, o), repeats=3, inner=1)
+    return scaling
+
+
 def run(json_path=None, echo=print, before=None) -> dict:
     """Every figure, printed as a table (and written as JSON to json_path); before: a previous run's
     JSON, printed beside."""
@@ -122,16 +136,7 @@ def run(json_path=None, echo=print, before=None) -> dict:
             fig["fit_exact_acc_n12_compiled_call_s"] = best(lambda: c.fit_compiled(*args))
             fig["fit_exact_acc_n12_s"] = best(lambda: fit_exact(c, obs))
         fig["fit_exact_acc_n12_numpy_s"] = best(lambda: fit_exact(py, obs), inner=5)
-        progress.status("bench: fit_exact against N = 12 ... 100,000 rows")
-        scaling = {}
-        rng = np.random.default_rng(0)
-        for N in (12, 100, 1000, 10000, 100000):
-            u = rng.normal(size=(N, 3))
-            u /= np.linalg.norm(u, axis=1, keepdims=True)
-            p = np.array([2e-3, 8e-3, 6e-3, 1e-4, 1e-4, 1e-4, 8e-4, -1e-3, -3.2e-3])
-            o = Observations(c.output(u, p) + rng.normal(0, 1e-5, (N, 3)), np.ones(N), np.full((N, 3), 1e-5))
-            scaling[N] = best(lambda: fit_exact(c, o), repeats=3, inner=1)
-        fig["fit_exact_scaling_s"] = scaling
+        fig["fit_exact_scaling_s"] = _scaling(c)
         progress.status("bench: the Monte Carlo, 100,000 trials compiled, 20,000 in numpy")
         montecarlo.run(Scenario(), 2000, 0)  # warm: compiled libraries loaded
         mc = montecarlo.run(Scenario(), 100000, 1)
@@ -150,6 +155,10 @@ def run(json_path=None, echo=print, before=None) -> dict:
         write(tmp / "raw", Scenario(rate_hz=100.0), 1)
         fig["rows_raw_turntable"] = len(io.read_set(tmp / "raw").samples["t_s"])
         fig["cli_calibrate_raw_turntable_s"] = process(["simucal", "calibrate", str(tmp / "raw"), "-o", str(tmp / "c.json")])
+        write(tmp / "raw300k", Scenario(rate_hz=452.0), 1)  # issue 27's 300,000 rows
+        fig["rows_raw_turntable_300k"] = len(io.read_set(tmp / "raw300k").samples["t_s"])
+        fig["cli_calibrate_raw_turntable_300k_s"] = process(["simucal", "calibrate", str(tmp / "raw300k"), "-o",
+                                                             str(tmp / "c3.json")])
         if DATA.is_dir():
             subprocess.run(["simucal", "import", "imu_tk", str(DATA / "xsens_acc.mat"), str(DATA / "xsens_gyro.mat"),
                             "-o", str(tmp / "xsens"), "--acc-counts-per-g", "4096", "--gyro-counts-per-dps",
@@ -159,7 +168,8 @@ def run(json_path=None, echo=print, before=None) -> dict:
         fig["cli_validate_raw_turntable_s"] = process(["simucal", "validate", str(tmp / "c.json"), str(tmp / "raw"), "-o",
                                                        str(tmp / "v.json")])
         _new_commands(tmp, fig)
-        subprocess.run(["simucal", "simulate", str(tmp / "field"), "--scenario", "field"], check=True, capture_output=True)
+        subprocess.run(["simucal", "simulate", "-o", str(tmp / "field"), "--scenario", "field"], check=True,
+                       capture_output=True)
         fig["cli_field_drift_s"] = process(["simucal", "field-drift", str(tmp / "field"), "-o", str(tmp / "d.json")])
         fig["cli_help_s"] = process(["simucal", "--help"])
         progress.status("bench: one model compiled afresh")

@@ -72,12 +72,24 @@ class MeasurementSet:
         return np.column_stack([self.samples[c] for c in (SAMPLE_COLS[:3] if sensor == "acc" else SAMPLE_COLS[3:])])
 
     def acc_g(self):
-        """Accelerometer outputs in g (n, 3)."""
-        return units.acc_to_g(self.raw("acc"), self.meta)
+        """Accelerometer outputs in g (n, 3), read-only."""
+        return self._converted("acc", units.acc_to_g)
 
     def gyro_dph(self):
-        """Gyro outputs in deg/h (n, 3)."""
-        return units.gyro_to_dph(self.raw("gyro"), self.meta)
+        """Gyro outputs in deg/h (n, 3), read-only."""
+        return self._converted("gyro", units.gyro_to_dph)
+
+    def _converted(self, sensor, to_unit):
+        """to_unit(raw(sensor)), formed once per set of columns and meta.json (the methods ask many times;
+        at 300,000 rows each conversion costs milliseconds)."""
+        cols = SAMPLE_COLS[:3] if sensor == "acc" else SAMPLE_COLS[3:]
+        key = (tuple(id(self.samples[c]) for c in cols), json.dumps(self.meta, sort_keys=True, default=str))
+        cache = self.__dict__.setdefault("_cache", {})
+        if cache.get(sensor, (None,))[0] != key:
+            out = to_unit(self.raw(sensor), self.meta)
+            out.flags.writeable = False
+            cache[sensor] = (key, out)
+        return cache[sensor][1]
 
 
 def _number(text, path, line, col):
