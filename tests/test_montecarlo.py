@@ -119,3 +119,11 @@ def test_table_kinematics_compiled_equals_the_numpy_module():
                        table.specific_force_k(g, a, b, e), rtol=0, atol=1e-14)
     assert np.allclose(kinematics.outer_axis_k(a, b, table_err, angle_err), table.outer_axis_k(a, b, e),
                        rtol=0, atol=1e-14)
+
+
+def test_an_effect_the_plan_cannot_see_is_refused_before_any_trial():
+    """G_xz on the paper's plan (one rate): the noise-free trial's fit fails, so the run says what the
+    plan lacks instead of counting thousands of failed trials with a CRLB of nan."""
+    sc = Scenario(gyro_effects={"gyro.g_sensitivity.xz": 0.3})
+    with pytest.raises(ValueError, match="unobservable.*rate runs of both signs"):
+        run(sc, 100, 0)

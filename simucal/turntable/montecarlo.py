@@ -32,7 +32,7 @@ from simucal.fit.aux_inputs import AuxInputs, specific_force
 from simucal.fit.norm_fit import fit_batch
 from simucal.fit.rotations import adjugate3, det3, wahba
 from simucal.generated import table
-from simucal.generated.effects import EFFECTS
+from simucal.generated.effects import EFFECTS, SEPARATE
 from simucal.io import units
 from simucal.turntable import kinematics, plans
 from simucal.turntable.simulate import Scenario
@@ -183,12 +183,11 @@ def chunk_of_trials(sc: Scenario, size: int, seed: int, k: int, k_rev: int = K_R
     return {"acc": pa[ok], "gyro": pg[ok], "phi": phi, "failed": np.nonzero(~ok)[0].tolist()}
 
 
-def run(sc: Scenario, trials: int, seed: int = 0, chunk: int = 2500, progress=None, scheduler=None) -> dict:
-    """The Monte Carlo result (module doc) as a dict ready for JSON. Batches of `chunk` trials
-    run on the scheduler (sweeps.map_tasks; here on one thread per core), each with its own seed:
-    the same numbers on any."""
-    from simucal.sweeps import map_tasks
-    am, gm = AugmentedModel(sc.acc_model, tuple(sc.acc_effects)), AugmentedModel(sc.gyro_model, tuple(sc.gyro_effects))
+def _reference(sc: Scenario, am, gm):
+    """(the noise-free trial, {sensor: the CRLB of each parameter}): the exact fit of a noise-free
+    trial with the stated noise. Effects no trial can determine are refused before any trial: those
+    whose regressor reads what the averaged positions never vary, and those the plan leaves
+    unobservable (that trial's fit fails)."""
     for m in (am, gm):
         unseen = [e for e in m.effects if set(EFFECTS[e].reads) - {"f_x", "f_y", "f_z"}]  # the gyro's input only
         if unseen:
@@ -196,36 +195,52 @@ def run(sc: Scenario, trials: int, seed: int = 0, chunk: int = 2500, progress=No
                              "the Monte Carlo's averaged positions never vary (no time, temperature or lever arm "
                              "rows are fitted), so no fit can see it; simulate a set (simucal simulate --effect) and "
                              "calibrate it instead")
+    ref = simulate_batch(sc, 1, np.random.default_rng(0), noise=False)
+    crlb = {}
+    for sensor, model, N, rho, sig, aux in (
+            ("acc", am, ref["acc"], 1.0, sc.acc_noise_g, None),
+            ("gyro", gm, ref["gyro"], ref["rho_gyro"], sc.gyro_noise_dph, AuxInputs(specific_force(ref["f_gyro"])))):
+        _, cov0, _, ok0 = fit_trials(model, N, rho, sig, aux)
+        if not ok0[0]:
+            raise ValueError(f"plan {sc.plan}: a noise-free trial's {sensor} fit of {model.name} fails, so the plan "
+                             f"leaves a combination of its parameters unobservable (simucal plan --score {sc.plan} "
+                             f"--model {model.base.name}" + "".join(f" --add {e}" for e in model.effects)
+                             + " names it)" + "".join(f"; to see {e}: {SEPARATE[e.split('.')[1]]}" for e in model.effects)
+                             + f" (this scenario's rate runs: {', '.join(f'{r:g}' for r in sc.outer_rate_dps)} deg/s)")
+        crlb[sensor] = np.sqrt(np.diag(cov0[0]))
+    return ref, crlb
+
+
+def run(sc: Scenario, trials: int, seed: int = 0, chunk: int = 2500, progress=None, scheduler=None) -> dict:
+    """The Monte Carlo result (module doc) as a dict ready for JSON. Batches of `chunk` trials
+    run on the scheduler (sweeps.map_tasks; here on one thread per core), each with its own seed:
+    the same numbers on any."""
+    from simucal.sweeps import map_tasks
+    am, gm = AugmentedModel(sc.acc_model, tuple(sc.acc_effects)), AugmentedModel(sc.gyro_model, tuple(sc.gyro_effects))
     compiled = {s: compiled_form(m) if m.effects else m.base for s, m in (("acc", am), ("gyro", gm))}  # derived once
+    ref, crlb = _reference(sc, am, gm)
     kinematics.compiled()  # built (or found) once, before the threads
-    t0 = time.perf_counter()
     k_rev = revolution_samples(sc)
+    t0 = time.perf_counter()
     tasks = [(sc, min(chunk, trials - k0), seed, k, k_rev) for k, k0 in enumerate(range(0, trials, chunk))]
     parts = map_tasks(chunk_of_trials, tasks, scheduler, progress, threads=os.cpu_count() or 1)
-    est = {s: [p[s] for p in parts] for s in ("acc", "gyro")}
-    phi_err = [p["phi"] for p in parts]
     failed = [k * chunk + i for k, p in enumerate(parts) for i in p["failed"]]
     secs = time.perf_counter() - t0
-    ref = simulate_batch(sc, 1, np.random.default_rng(0), noise=False)  # the CRLB at the truth
     out = {"format": "simucal.montecarlo/1", "scenario": "paper", "trials": trials, "failed": len(failed),
            "failed_trials": failed[:1000], "seed": seed, "seconds": secs, "trials_per_s": trials / secs,
            "scheduler": scheduler or "local",
            "backend": {s: f"compiled {m.name} (one call per batch)" if m is not None and m._fit is not None else
                        "numpy (gauss_newton.fit_batch, vectorised over the trials)" for s, m in compiled.items()},
            "parameters": {}}
-    for sensor, model, N, rho, sig, aux in (
-            ("acc", am, ref["acc"], 1.0, sc.acc_noise_g, None),
-            ("gyro", gm, ref["gyro"], ref["rho_gyro"], sc.gyro_noise_dph, AuxInputs(specific_force(ref["f_gyro"])))):
-        _, cov0, _, ok0 = fit_trials(model, N, rho, sig, aux)
-        crlb = np.sqrt(np.diag(cov0[0])) if ok0[0] else np.full(len(model.params), np.nan)
-        e = np.concatenate(est[sensor])
+    for sensor, model in (("acc", am), ("gyro", gm)):
+        e = np.concatenate([p[sensor] for p in parts])
         mean = e.mean(axis=0)
         std = e.std(axis=0, ddof=1) if len(e) > 1 else np.full(len(model.params), np.nan)
         for j, name in enumerate(model.params):
             out["parameters"][f"{sensor}.{name}"] = {
                 "truth": float(ref["truth"][sensor][j]), "mean": float(mean[j]), "std": float(std[j]),
-                "crlb": float(crlb[j]), "std_over_crlb": float(std[j] / crlb[j])}
-    phi = np.concatenate(phi_err)
+                "crlb": float(crlb[sensor][j]), "std_over_crlb": float(std[j] / crlb[sensor][j])}
+    phi = np.concatenate([p["phi"] for p in parts])
     out["unification"] = {"C_b_d_error_rms_rad": np.sqrt(np.mean(phi ** 2, axis=0)).tolist(),
                           "method": "rate-run means (Wahba)"}
     return out
