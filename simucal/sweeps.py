@@ -29,7 +29,7 @@ def map_tasks(fn, tasks: list, scheduler=None, progress=None, threads: int = 1) 
         try:
             wait_s = float(os.environ.get("SIMUCAL_SCHEDULER_TIMEOUT_S", "10"))  # a slow network: more
             cluster, client = None, Client(scheduler, timeout=f"{wait_s:g}s")
-        except OSError as e:
+        except (OSError, MemoryError, ValueError, TypeError) as e:  # nothing there, or a server that is not Dask
             from simucal.errors import CalibrationError
             raise CalibrationError(f"--scheduler {scheduler}: no Dask scheduler answers there within {wait_s:g} s "
                                    f"(SIMUCAL_SCHEDULER_TIMEOUT_S; {e}); start one "

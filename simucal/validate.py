@@ -13,7 +13,7 @@ no bias, no misalignment), and with the noise floor of that error:
   commanded table vertical, after the one rotation between unit and table that fits best
   (Wahba): the direction error (rad). It carries the table's own angle errors;
 - a stream: each move's gravity direction after the move predicted by the integrated gyro
-  against the one the calibrated accelerometers measure (Tedaldi's cost; handheld/calibrate.py),
+  against the one the calibrated accelerometers measure (Tedaldi's cost; handheld/moves.py),
   as an angle in deg. At nominal the gyro's bias is taken from the initial rest, as any user
   would; both use the calibrated accelerometers' directions, so the check is the gyro's alone.
 

@@ -35,7 +35,11 @@ def quantization_step(x, whole=None):
 def load_curves(path) -> dict:
     """{sensor: curve} from a noise.json of `simucal noise`: curve(tau_s) is the std of a tau-long mean
     per axis (3,), from the fitted IEEE 952 terms, sigma(tau) = sqrt(sum_k term_k^2 column_k(tau)) in
-    g or deg/h: what `calibrate --noise` takes as the noise of each segment's mean."""
+    g or deg/h: what `calibrate --noise` takes as the noise of each segment's mean. Beyond the longest
+    tau measured (curve.tau_max_s) a short record's terms of long averages (bias instability, random
+    walk, ramp) are fitted from its last few taus, often by chance: there the curve goes on as white
+    noise, sigma(tau_max) sqrt(tau_max / tau), but for the long terms measured MEASURED stds from 0,
+    which follow their own law; calibrate says so."""
     import json
     from pathlib import Path
     try:
@@ -48,13 +52,31 @@ def load_curves(path) -> dict:
     out = {}
     for sensor in ("acc", "gyro"):
         if sensor in rep:
-            terms = [rep[sensor]["axes"][a]["terms"] for a in "xyz"]
+            axes = [rep[sensor]["axes"][a] for a in "xyz"]
+            tau_max = float(max(rep[sensor]["tau_s"]))
 
-            def curve(tau_s, terms=terms):
+            def curve(tau_s, axes=axes, tau_max=tau_max):
                 t = np.atleast_1d(np.asarray(tau_s, float))
-                return np.array([allan_deviation(ax, t) for ax in terms]).T.squeeze()
+                at = np.minimum(t, tau_max)
+                var = []
+                for ax in axes:
+                    kept = {k: v if k in _measured_long(ax) else 0.0 for k, v in ax["terms"].items()}
+                    var.append(allan_deviation(ax["terms"], at) ** 2 * at / t
+                               + allan_deviation(kept, t) ** 2 - allan_deviation(kept, at) ** 2 * at / t)
+                return np.sqrt(np.array(var).T).squeeze()
+            curve.tau_max_s = tau_max
             out[sensor] = curve
     return out
+
+
+LONG_TERMS = ("B", "K", "R")  # the terms of long averages
+MEASURED = 10.0  # a long-average term carried past the last tau only where it is this many stds from 0
+
+
+def _measured_long(axis: dict) -> set:
+    """The long-average terms of one axis of a noise report that stand MEASURED stds from zero."""
+    sheet = axis.get("sheet", {})
+    return {k for k in LONG_TERMS if sheet.get(k, {}).get("std") and sheet[k]["value"] >= MEASURED * sheet[k]["std"]}
 
 
 def allan_deviation(terms: dict, tau_s) -> np.ndarray:

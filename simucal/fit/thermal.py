@@ -49,7 +49,8 @@ def fit_polynomial(T_c, values, std, t_ref_c: float, degree: int | None = None) 
         d = degree
         c, cov, chi2 = _wls(dT, y, s, d)
     dof = len(dT) - d - 1
-    return {"degree": d, "coefficients": c.tolist(), "std": np.sqrt(np.diag(cov)).tolist(), "chi2": chi2,
+    return {"degree": d, "degree_from": "the data" if degree is None else "--thermal-degree",
+            "coefficients": c.tolist(), "std": np.sqrt(np.diag(cov)).tolist(), "chi2": chi2,
             "dof": dof, "p_value": float(chi2_sf(chi2, dof)) if dof > 0 else None}
 
 

@@ -120,7 +120,12 @@ def _thermal_lines(s, b: SensorBlock):
     for n, f in moving.items():
         terms = " ".join((f"{c:.4g}" if not k else f"{'+' if c >= 0 else '-'} {abs(c):.4g}")
                          + (f" dT^{k}" if k > 1 else " dT" if k else "") for k, c in enumerate(f["coefficients"]))
+        chosen = f.get("degree_from", "the data")
         yield (f"{s}: {n} = {terms} ({b.param_units.get(n, '')}; dT = T - T_ref in degC; degree {f['degree']} "
-               "chosen by the data)")
+               + ("chosen by the data)" if chosen == "the data" else f"from {chosen})"))
     yield (f"{s}: {len(th['parameters']) - len(moving)} of {len(th['parameters'])} parameters constant over the "
            "plateaus (a temperature dependence below their noise)")
+    exact = [n for n, f in th["parameters"].items() if f["dof"] == 0]
+    if exact:
+        yield (f"{s}: {len(exact)} polynomials pass through every plateau (degree = plateaus - 1): no plateau is left "
+               "to test them; give fewer degrees or more plateaus")

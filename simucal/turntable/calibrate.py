@@ -58,7 +58,13 @@ def _exact_sensor(model, obs, segs, method, where):
             raise CalibrationError("--add needs --method exact: the paper's linear regression exists for "
                                    "derived models only (or derive a model file with the term and use it)")
         return fit_linear(model, obs), None, None, obs
-    fit, obs2, base, cands, shape, _ = test_and_rank(model, obs, segs, only_if_failing=True)
+    try:
+        fit, obs2, base, cands, shape, _ = test_and_rank(model, obs, segs, only_if_failing=True)
+    except CalibrationError as e:
+        if "did not converge" not in str(e):
+            raise
+        raise CalibrationError(f"{e}; or calibrate by the commanded attitudes alone, which needs no iteration "
+                               "(--method multiposition: the Ferraris and multi-position protocols' method)") from None
     base["noise"]["text"] = _noise_text(base["noise"], obs2, model.unit)
     base["verdict"] = verdict(model.sensor, base, cands, where, shape, command="calibrate")
     advice = None

@@ -71,7 +71,7 @@ def segment_observations(ms: io.MeasurementSet, sensor: str, kinds=None, stated=
         stated = units.stated_noise(ms.meta, sensor)
     lat = np.radians(ms.meta.get("latitude_deg", 0.0))
     w_e = units.earth_rate_dph(ms.meta)
-    N, sig, rho, keep = [], [], [], []
+    N, sig, rho, keep, longest = [], [], [], [], 0.0
     raw = ms.raw(sensor)
     clipped = saturated_segments(ms, sensor)
     for s in segs:
@@ -83,7 +83,8 @@ def segment_observations(ms: io.MeasurementSet, sensor: str, kinds=None, stated=
         refuse_outliers(ms, raw, rows, sensor, s.segment)
         m, sd = mean_and_sigma(data[rows], stated, varying=(s.kind == "rate"))  # the inputs turn in a rate run
         if curve is not None:
-            sd = curve(segment_duration_s(ms, rows, s.segment))
+            tau = segment_duration_s(ms, rows, s.segment)
+            sd, longest = curve(tau), max(longest, tau)
         N.append(m)
         sig.append(sd)
         rho.append(1.0 if sensor == "acc" else abs(s.outer_rate_dps * units.DPH_PER_DPS + w_e * np.sin(lat)))  # |input|
@@ -101,7 +102,10 @@ def segment_observations(ms: io.MeasurementSet, sensor: str, kinds=None, stated=
     obs = Observations(np.array(N).reshape(-1, 3), np.array(rho), np.array(sig).reshape(-1, 3), AuxInputs(aux),
                        [s.segment for s in keep])
     if curve is not None:
-        obs.sigma_source = "the Allan curve of --noise at each segment's length"
+        obs.sigma_source = "the Allan curve of --noise at each segment's length" + (
+            f" (it was measured to {curve.tau_max_s:.3g} s; the segments average up to {longest:.3g} s, so beyond "
+            "it their noise is its white part: record a still stretch 9 times a segment's length to measure "
+            "it)" if longest > curve.tau_max_s else "")
     if sensor == "acc":
         check_axes_follow_gravity(ms, obs, keep)
     if keep:
