@@ -71,7 +71,7 @@ def audit(output, seeds):
 def demo(out_dir, seed, force):
     """The main job end to end on built-in simulated data: a hidden effect found, added,
     calibrated with, applied and validated on another recording; the unit over temperature
-    (--thermal) and the Allan deviation of a still recording; then dong2018's methods, the audit
+    (calibrate --thermal) and the Allan deviation of a still recording; then dong2018's methods, the audit
     and the diagnosis."""
     from simucal import demo as demo_mod
     out = Path(out_dir)  # its sets may be replaced where an earlier demo wrote them (its demo.json)
