@@ -10,6 +10,14 @@ from simucal.turntable.simulate import Scenario, write
 
 
 @pytest.fixture(scope="session")
+def audit_report():
+    """The paper's audit with the section-4 term-by-term check (SymPy, seconds): shared by its tests."""
+    from simucal.derive.audit import run_audit
+    from simucal.report.paper_claims import section4_values
+    return run_audit(values=section4_values())
+
+
+@pytest.fixture(scope="session")
 def paper_set(tmp_path_factory):
     """The paper scenario, one seed, shared by the calibration tests."""
     folder = tmp_path_factory.mktemp("paper")

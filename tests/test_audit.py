@@ -4,16 +4,15 @@ import math
 
 import pytest
 
-from simucal.report.paper_claims import claims, section4_values
+from simucal.report.paper_claims import claims
 
 VERDICTS = ("agrees", "OCR damage", "error in the paper", "neglected", "claim not supported", "reproducible",
             "not reproducible")
 
 
 @pytest.fixture(scope="module")
-def terms():
-    from simucal.derive.audit import run_audit
-    return run_audit(values=section4_values()).terms
+def terms(audit_report):
+    return audit_report.terms
 
 
 def test_every_row_has_terms_sizes_and_a_verdict(terms):

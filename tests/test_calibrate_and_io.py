@@ -93,9 +93,8 @@ def test_cli_simulate_calibrate(tmp_path):
     assert res.exit_code != 0
 
 
-def test_audit_covers_eq5_to_27_and_table1():
-    from simucal.derive.audit import run_audit
-    rep = run_audit()
+def test_audit_covers_eq5_to_27_and_table1(audit_report):
+    rep = audit_report
     covered = set()
     for f in rep.findings:
         label = f.eq.split()[0]
