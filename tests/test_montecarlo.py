@@ -127,3 +127,19 @@ def test_an_effect_the_plan_cannot_see_is_refused_before_any_trial():
     sc = Scenario(gyro_effects={"gyro.g_sensitivity.xz": 0.3})
     with pytest.raises(ValueError, match="unobservable.*rate runs of both signs"):
         run(sc, 100, 0)
+
+
+def test_an_effect_runs_in_numpy_where_the_cache_cannot_take_its_compiled_form(monkeypatch):
+    """A read-only cache (or a failed derivation): said once, and the same Monte Carlo in numpy."""
+    from simucal.fit import augmented
+
+    def read_only(*args):
+        raise OSError(30, "Read-only file system")
+    augmented._derived.cache_clear()
+    monkeypatch.setattr(augmented, "_derive", read_only)
+    try:
+        with pytest.warns(UserWarning, match="could not be derived into the cache"):
+            r = run(Scenario(acc_effects={"acc.quadratic.z": 1e-4}), 300, 0)
+    finally:
+        augmented._derived.cache_clear()
+    assert "numpy" in r["backend"]["acc"] and r["failed"] == 0

@@ -8,6 +8,8 @@ the exact solver on the derived model, with no re-derivation at run time.
 from __future__ import annotations
 
 import functools
+import hashlib
+import warnings
 
 import numpy as np
 
@@ -123,16 +125,29 @@ def compiled_form(model: AugmentedModel) -> GeneratedModel | None:
     if not model.effects or model.base.source != "built-in" or compiler() is None:
         return None
     derived = _derived(model.base.name, model.effects)
-    if tuple(derived.params[:model._m]) != tuple(model.base.params) or len(derived.params) != len(model.params):
+    if derived is None or tuple(derived.params[:model._m]) != tuple(model.base.params) \
+            or len(derived.params) != len(model.params):
         return None
     return derived if derived._fit is not None else None
 
 
 @functools.lru_cache(maxsize=None)
-def _derived(base: str, effects: tuple) -> GeneratedModel:
-    """compiled_form's model, derived (or found in the cache) once per process."""
+def _derived(base: str, effects: tuple) -> GeneratedModel | None:
+    """compiled_form's model, derived (or found in the cache) once per process; None (said once) where
+    the cache cannot take it (read-only) or the derivation fails: the numpy fit gives the same numbers."""
+    try:
+        return _derive(base, effects)
+    except (OSError, ValueError, KeyError) as e:
+        warnings.warn(f"the compiled form of {base} + {', '.join(effects)} could not be derived into the cache "
+                      f"({e}); its fits run in numpy")
+        return None
+
+
+def _derive(base: str, effects: tuple) -> GeneratedModel:
     from simucal.fit.models import cache_dir
     name = "_with_".join([base] + [e.replace(".", "_") for e in effects])  # CasADi: no "__"
+    if len(name) > 80:  # many effects: a file name the file system takes
+        name = f"{base}_with_{hashlib.sha256(name.encode()).hexdigest()[:16]}"
     path = cache_dir() / "augmented" / f"{name}.py"
     if not path.is_file():
         from simucal.io import outputs

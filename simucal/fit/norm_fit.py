@@ -243,10 +243,10 @@ def fit_exact(model, obs: Observations, p0=None, max_iter=200, tol=1e-12, prior=
     if p0 is None and getattr(model, "effects", ()):  # baseline + effects: start from the baseline's fit
         base = fit_exact(model.base, obs, max_iter=max_iter)
         p0 = np.r_[base.vector(model.base.params), np.zeros(m - len(model.base.params))]
-    if p0 is None and not prior:  # the compiled fit from the paper's linear start, in the same call
-        compiled = _fit_compiled(model, obs, None, max_iter, tol)
-        if compiled is not None:
-            return compiled
+    if p0 is None and not prior:
+        fast = _fit_from_linear_start(model, obs, max_iter, tol)
+        if fast is not None:
+            return fast
     if p0 is None:  # the better of the paper's linear fit and the exact ellipsoid
         starts = []
         try:
@@ -310,6 +310,26 @@ def _finish(model, obs, p, u, cov, H, cost, it) -> Fit:
     return Fit(model.name, "exact", dict(zip(model.params, p)),
                dict(zip(model.params, np.sqrt(np.diag(cov)))), cov, res_phys,
                float(np.sqrt(np.mean(res_phys ** 2))), chi2, dof, p_value, it, u)
+
+
+FAST_CHI2 = 100.0  # a fit from the linear start alone is kept where chi2 <= this times its dof
+
+
+def _fit_from_linear_start(model, obs, max_iter, tol) -> Fit | None:
+    """The compiled fit from the paper's linear start (computed in the same call), kept where it
+    converges to a fit the noise roughly explains (chi2 <= FAST_CHI2 dof; a failing model's misfit
+    gives tens). Raw outputs with a large offset can leave that start far off (or not finite, then
+    the call starts from 0) and the fit at a spurious point (chi2 1e6 dof): then None, and fit_exact
+    tries its other starts."""
+    if obs.sigma is None:
+        return None
+    try:
+        fit = _fit_compiled(model, obs, None, max_iter, tol)
+    except CalibrationError:  # _finish found the spurious point unobservable: the other starts may not
+        return None
+    if fit is None or fit.chi2 is None or fit.dof <= 0 or not fit.chi2 <= FAST_CHI2 * fit.dof:
+        return None
+    return fit
 
 
 def _fit_compiled(model, obs, p0, max_iter, tol) -> Fit | None:
