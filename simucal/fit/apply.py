@@ -54,17 +54,23 @@ def _params(block: SensorBlock, model):
     return np.array([block.params[k] for k in model.params], float)
 
 
-def thermal_function(model: AugmentedModel, P, C=np.eye(3)):
-    """h(u_b) with parameters P (n, m), one row's each (a thermal calibration at each row's temp_c):
-    every row a batch of one, so the model's batched form takes it. dtemp_c is 0: the parameters
-    follow temperature themselves (a model file's terms in dtemp_c were fitted within each plateau,
-    around its own temperature)."""
+def rowwise_function(model: AugmentedModel, P, C=np.eye(3), fixed=None):
+    """h(u_b) with parameters P (n, m), one row's each (a thermal calibration at each row's temp_c, a
+    leave-one-out refit per row): every row a batch of one, so the model's batched form takes it.
+    fixed: auxiliary inputs held at a value for every row."""
     def h(u_b, aux: AuxInputs):
         one = AuxInputs({k: (np.asarray(v)[:, None] if np.ndim(v) else v)
-                         for k, v in aux.with_values(dtemp_c=0.0).values.items()})
+                         for k, v in aux.with_values(**(fixed or {})).values.items()})
         N, Ju, _ = model.jacobians((u_b @ C.T)[:, None, :], P, one)
         return N[:, 0], Ju[:, 0] @ C
     return h
+
+
+def thermal_function(model: AugmentedModel, P, C=np.eye(3)):
+    """rowwise_function at each row's parameters of a thermal calibration, with dtemp_c 0: the
+    parameters follow temperature themselves (a model file's terms in dtemp_c were fitted within
+    each plateau, around its own temperature)."""
+    return rowwise_function(model, P, C, {"dtemp_c": 0.0})
 
 
 def _generated(block: SensorBlock, temp_c):
