@@ -140,3 +140,27 @@ def test_a_gyro_model_the_moves_cannot_support_is_not_taken(tmp_path):
     assert table["full"]["held_out_rms_deg"] > table["nominal"]["held_out_rms_deg"]
     assert table[g["gyro_model"]]["held_out_rms_deg"] <= table["nominal"]["held_out_rms_deg"]
     assert "not estimated" in g["description"] and np.array(g["std"]["T"], dtype=object)[0, 1] is None
+
+
+@pytest.mark.parametrize("effects", [(), ("acc.bias_temperature.x",)])
+def test_leave_one_out_at_once_equals_one_refit_per_row(tmp_path, effects):
+    """The refits run side by side (one compiled call, or fit_batch with each set's own rows' temperatures)
+    and give what fit_exact without the row gives."""
+    from simucal import io
+    from simucal.fit.augmented import AugmentedModel
+    from simucal.fit.cross_validation import _norm_error, leave_one_out
+    from simucal.fit.norm_fit import fit_exact
+    from simucal.turntable.observations import segment_observations
+    sc = Scenario(plan="fibonacci24", temp_c=(10.0, 40.0))
+    plant(sc, ["acc.bias_temperature.x=2e-5"])
+    write(tmp_path / "s", sc, 2)
+    obs, _ = segment_observations(io.read_set(tmp_path / "s"), "acc")
+    model = AugmentedModel("acc_baseline", effects)
+    fit = fit_exact(model, obs)
+    cv = leave_one_out(model, obs, fit)
+    assert cv["failed"] == []
+    p = fit.vector(model.params)
+    for i in (0, 7, len(obs.N) - 1):
+        keep = np.r_[0:i, i + 1:len(obs.N)]
+        one = fit_exact(model, obs.take(keep), p0=p).vector(model.params)
+        assert cv["held_out"][i] == pytest.approx(_norm_error(model, one, obs, [i])[0], rel=1e-6, abs=1e-12)

@@ -19,6 +19,7 @@ import numpy as np
 from simucal.errors import CalibrationError
 from simucal.fit.apply import model_function, rowwise_function, solve_inputs
 from simucal.fit.distributions import f_sf
+from simucal.fit.gauss_newton import fit_batch
 from simucal.fit.norm_fit import Fit, Observations, fit_exact
 
 
@@ -30,34 +31,35 @@ def _norm_error(model, p, obs: Observations, rows) -> np.ndarray:
     return np.linalg.norm(u, axis=1) - obs.rho[rows]
 
 
-def _refits_compiled(model, obs: Observations, p) -> np.ndarray | None:
-    """The n fits without one row each, (n, m), in one call of the model's compiled fit (the sets side
-    by side, each started at the full fit's p); NaN rows where a refit did not converge cleanly (the
-    loop of leave_one_out then refits them one by one). None without a compiled fit."""
-    target = getattr(model, "base", model) if not getattr(model, "effects", ()) else None
-    if target is None or getattr(target, "_fit", None) is None:
-        return None
+def _refits(model, obs: Observations, p) -> np.ndarray:
+    """The n fits without one row each, (n, m), all at once, each started at the full fit's p: one call
+    of the model's compiled fit, else gauss_newton.fit_batch vectorised over the n sets (each set its
+    own rows' auxiliary inputs); NaN rows where a refit did not converge cleanly (leave_one_out then
+    refits them one by one, as fit_exact)."""
     n = len(obs.N)
     keep = np.array([np.r_[0:i, i + 1:n] for i in range(n)])  # (n, n - 1): set i lacks row i
-    sig = np.broadcast_to(obs.sigma if obs.sigma is not None else 1.0, (n, 3))
-    p_all, _, _, _, _, status = target.fit_compiled(obs.N[keep], obs.rho[keep], sig[keep],
-                                                    target.aux_array(obs.aux.take(keep), keep.shape),
-                                                    np.tile(p, (n, 1)), covariance=False)
+    sig = np.broadcast_to(obs.sigma if obs.sigma is not None else 1.0, (n, 3))[keep]
+    aux, p0 = obs.aux.take(keep), np.tile(p, (n, 1))
+    target = getattr(model, "base", model) if not getattr(model, "effects", ()) else None
+    if target is not None and getattr(target, "_fit", None) is not None:
+        p_all, _, _, _, _, status = target.fit_compiled(obs.N[keep], obs.rho[keep], sig,
+                                                        target.aux_array(aux, keep.shape), p0, covariance=False)
+    else:
+        with np.errstate(invalid="ignore", divide="ignore", over="ignore"):
+            p_all, _, _, _, _, status = fit_batch(model, obs.N[keep], obs.rho[keep], sig, p0, aux)
     p_all[status != 0] = np.nan
     return p_all
 
 
 def leave_one_out(model, obs: Observations, fit: Fit) -> dict | None:
     """Held-out and in-sample norm errors per row, or None where a row cannot be left out (fewer rows
-    than parameters + 1). Rows whose refit fails are counted, not hidden. The refits run in one
-    compiled call where the model has one, else one fit_exact per row; each left-out row is inverted
-    by its refit's parameters, all rows at once."""
+    than parameters + 1). Rows whose refit fails are counted, not hidden. The refits run at once
+    (_refits), and each left-out row is inverted by its refit's parameters, all rows at once."""
     n, m = len(obs.N), len(model.params)
     if n < m + 2:
         return None
     p = fit.vector(model.params)
-    P = _refits_compiled(model, obs, p)
-    P = np.full((n, m), np.nan) if P is None else P
+    P = _refits(model, obs, p)
     failed = []
     for i in np.nonzero(~np.all(np.isfinite(P), axis=1))[0]:
         try:

@@ -13,6 +13,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from simucal.fit.aux_inputs import AuxInputs
+
 
 def directions(model, N, p, aux):
     """The start directions: u = (M^-1 (N - b)) normalised, for one set or a batch (leading axes)."""
@@ -117,7 +119,7 @@ class _Prior:
 
 def fit_batch(model, N, rho, sig, p0, aux=None, max_iter=200, tol=1e-12, prior=None):
     """The Levenberg-Marquardt loop of fit_exact for S sets (module doc): N, sig (S, n, 3), rho (S, n), p0 (S, m);
-    aux shared by the sets, per row; prior {parameter: (value, std)}. Returns p (S, m), u (S, n, 3), cost
+    aux per row, shared by the sets (arrays (n,)) or each set's (arrays (S, n)); prior {parameter: (value, std)}. Returns p (S, m), u (S, n, 3), cost
     without the prior (S,), the last H (S, m, m), the iterations (S,) and a status (S,): 0 converged,
     1 not, 2 singular, 3 a parameter without any input (as derive/templates/exact_fit.c)."""
     S, n, _ = N.shape
@@ -138,7 +140,7 @@ def fit_batch(model, N, rho, sig, p0, aux=None, max_iter=200, tol=1e-12, prior=N
             break
         iters[idx] = it
         I = slice(None) if len(idx) == S else idx  # a view where every set is active: no copies
-        r, H, g, Ainv, Bm, gd, E = schur(*row_blocks(model, N[I], rho[I], sig[I], p[I], u[I], aux))
+        r, H, g, Ainv, Bm, gd, E = schur(*row_blocks(model, N[I], rho[I], sig[I], p[I], u[I], _sets(aux, I)))
         pr.add(H, g, p[idx])
         H_last[idx] = H
         diag = np.einsum("sii->si", H)
@@ -171,7 +173,7 @@ def fit_batch(model, N, rho, sig, p0, aux=None, max_iter=200, tol=1e-12, prior=N
             pk = p[IK] + dp[K]
             v = u[IK] + (E[K] @ dd[..., None])[..., 0]
             uk = v / np.linalg.norm(v, axis=2, keepdims=True)
-            ck = _costs(model, N[IK], rho3[IK], sig[IK], aux, pk, uk, pr)
+            ck = _costs(model, N[IK], rho3[IK], sig[IK], _sets(aux, IK), pk, uk, pr)
             ok = last[k] | (ck <= cost[idx[k]] * (1 + 1e-12)) | (lam[idx[k]] > 1e8)
             acc, rej = k[ok], k[~ok]
             p_new[acc], u_new[acc], new_cost[acc] = pk[ok], uk[ok], ck[ok]
@@ -185,6 +187,13 @@ def fit_batch(model, N, rho, sig, p0, aux=None, max_iter=200, tol=1e-12, prior=N
         fin = go & done
         status[idx[fin]], active[idx[fin]] = 0, False
     return p, u, cost - pr.cost(p), H_last, iters, status
+
+
+def _sets(aux, idx):
+    """aux of the sets idx: each set's inputs (S, n) taken along the sets; per-row ones (n,) are shared."""
+    if aux is None or isinstance(idx, slice):
+        return aux
+    return AuxInputs({k: (np.asarray(v)[idx] if np.ndim(v) >= 2 else v) for k, v in aux.values.items()})
 
 
 def _costs(model, N, rho3, sig, aux, p, u, pr: _Prior):
