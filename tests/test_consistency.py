@@ -271,3 +271,15 @@ def test_mixed_shuffled_set_without_noise_unifies_and_validates(tmp_path):
     rep = json.loads((tmp_path / "v.json").read_text())
     assert rep["independent"] and set(rep["verdict"]) == {"acc", "gyro"}
     assert all(v in ("better", "at the noise floor") for v in rep["verdict"].values()), rep["verdict"]
+
+
+def test_a_failing_accelerometer_model_is_named_before_lever_arms(tmp_path):
+    """The demo's unit (a z quadratic the baseline lacks): the rate runs' pairs misfit because the
+    accelerometer model fails, and the frames' note says that first (a new user read the lever-arm hint
+    as the cause); with the effect added the note is gone."""
+    from simucal.turntable.simulate import Scenario, write
+    write(tmp_path, Scenario(plan="fibonacci48", acc_effects={"acc.quadratic.z": 2e-4}), 0)
+    base = calibrate(tmp_path)
+    assert base.acc.p_value < 1e-3 and "the accelerometer model fails its own test" in base.unification["note"]
+    fixed = calibrate(tmp_path, add=("acc.quadratic.z",))
+    assert "fails its own test" not in (fixed.unification.get("note") or "")

@@ -335,20 +335,24 @@ def unify(un: Unifier, acc_segs, gyro_segs, find, table_std_rad=None):
     best = usable[method]
     C, J_phi = best["C"], best["J_phi"]
     M_b, cov_M = un.gyro_matrix_in_b(C, J_phi)
+    # a failing accelerometer model misplaces the rate runs' directions itself: name it before lever arms
+    acc_fails = un.fa.p_value is not None and un.fa.p_value < 1e-3
+    why = ("the accelerometer model fails its own test (the acc lines above say what it lacks; add that first), "
+           "else lever arms it lacks (--add acc.size_effect.*)" if acc_fails else
+           "lever arms the accelerometer model lacks (--add acc.size_effect.*)")
     p_pairs = chi2_sf_estimated(best["chi2"], best["dof"], best["noise_dof"]) if best["dof"] > 0 else 1.0
     inflate = max(1.0, best["chi2"] / best["dof"]) if p_pairs < 1e-3 else 1.0
     if inflate > 1:  # the pairs disagree beyond their noise: the stds take the misfit in
         cov_M = cov_M * inflate
         misfit = (f"the {best['pairs']} pairs misfit (chi2 {best['chi2']:.4g} on {best['dof']} dof): stds inflated by "
-                  f"{np.sqrt(inflate):.3g}" + ("; lever arms the accelerometer model lacks? (--add acc.size_effect.*)"
-                                               if method == "rate_run_means" else ""))
+                  f"{np.sqrt(inflate):.3g}" + (f"; {why}?" if method == "rate_run_means" else ""))
         fallback = f"{fallback}; {misfit}" if fallback else misfit
     noise = _estimated_noise(un)
     means = noise.get("acc_rate_run_means")
     if means and means["p_value_vs_static"] < 1e-3:
         scatter = (f"the rate runs' accelerometer means scatter {means['std_g'] / means['static_std_g']:.3g} times "
-                   f"as much as the static positions (F test p = {means['p_value_vs_static']:.2g}): lever arms the "
-                   "accelerometer model lacks (--add acc.size_effect.*), or vibration under rotation")
+                   f"as much as the static positions (F test p = {means['p_value_vs_static']:.2g}): {why}, or "
+                   "vibration under rotation")
         fallback = f"{fallback}; {scatter}" if fallback else scatter
     info = {"method": method, "pairs": best["pairs"], "C_b_d": C.tolist(),
             "std_rad": np.sqrt(inflate * np.diag(un.covariance(J_phi))).tolist(),
