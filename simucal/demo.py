@@ -94,7 +94,8 @@ def _validate(out: Path, sc, seed: int, echo) -> dict:
         fl = "-" if c["floor_rms"] is None else f"{c['floor_rms']:.3g}"
         echo(f"   {c['what'].split(',')[0][:56]:56} {c['before_rms']:9.3g} {c['after_rms']:9.3g} {a['after_rms']:9.3g} {fl:>9}  "
              f"{c['unit']}")
-    echo("   verdict: " + "; ".join(f"{n} {r['verdict']['acc']}" for n, r in reps.items()))
+    echo("   verdict against the nominal scale factors: "
+         + "; ".join(f"{n} {r['verdict']['acc']}" for n, r in reps.items()))
     return {n: r["checks"]["acc"][0]["after_rms"] for n, r in reps.items()}
 
 
