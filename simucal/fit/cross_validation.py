@@ -23,10 +23,11 @@ from simucal.fit.gauss_newton import fit_batch
 from simucal.fit.norm_fit import Fit, Observations, fit_exact
 
 
-def _norm_error(model, p, obs: Observations, rows) -> np.ndarray:
-    """|h^-1(N_i; p)| - rho_i for the given rows."""
+def _norm_error(model, p, obs: Observations, rows, h=None) -> np.ndarray:
+    """|h^-1(N_i)| - rho_i for the given rows; h: the model at p (default), or another function of the
+    rows (each left-out row's refit), Newton started from the model at p."""
     M, bias = model.matrix_and_bias(p)
-    u = solve_inputs(model_function(model, p), M, bias, obs.N[rows], obs.aux.take(rows), model.sensor,
+    u = solve_inputs(h or model_function(model, p), M, bias, obs.N[rows], obs.aux.take(rows), model.sensor,
                      "cross-validation")
     return np.linalg.norm(u, axis=1) - obs.rho[rows]
 
@@ -69,11 +70,8 @@ def leave_one_out(model, obs: Observations, fit: Fit) -> dict | None:
     held = np.full(n, np.nan)
     ok = np.all(np.isfinite(P), axis=1)
     if ok.any():
-        M, bias = model.matrix_and_bias(p)  # the full fit's: the Newton start for every refit
         rows = np.nonzero(ok)[0]
-        u = solve_inputs(rowwise_function(model, P[rows]), M, bias, obs.N[rows], obs.aux.take(rows), model.sensor,
-                         "cross-validation")
-        held[rows] = np.linalg.norm(u, axis=1) - obs.rho[rows]
+        held[rows] = _norm_error(model, p, obs, rows, rowwise_function(model, P[rows]))
     inside = _norm_error(model, p, obs, np.arange(n))
     ok = np.isfinite(held)
     return {"rows": n, "failed": failed, "unit": model.unit,

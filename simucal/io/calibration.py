@@ -55,6 +55,7 @@ FORMULA = {
             "w_b: angular rate in b, deg/h; g-sensitivity terms take the specific force in the model's frame, g",
 }
 UNITS = {"acc": "g", "gyro": "deg/h", "angles": "rad"}
+FAILS_BELOW = 1e-3  # a block's model fails its test below this p-value (stds inflated, said loudly)
 SENSORS = ("acc", "gyro")
 
 
@@ -282,14 +283,14 @@ def poorly_determined(names, fit) -> dict:
 def affine_block(sensor: str, M, bias, std: dict, residual_rms: float | None, description: str,
                  residual_unit=None, effects=None, nominal=False, **details) -> SensorBlock:
     """The block of a method without a generated model: output = M u_b + bias (+ effects)."""
-    unit = "g" if sensor == "acc" else "deg/h"
+    unit = UNITS[sensor]
     return SensorBlock("affine", M, bias, unit, effects or {}, std=std, residual_rms=residual_rms,
                        residual_unit=residual_unit or unit, description=description, nominal=nominal,
                        chi2=details.pop("chi2", None), dof=details.pop("dof", None),
                        p_value=details.pop("p_value", None), details=details)
 
 
-def inflate_if_failing(block: SensorBlock, alpha: float = 1e-3) -> bool:
+def inflate_if_failing(block: SensorBlock, alpha: float = FAILS_BELOW) -> bool:
     """When the model fails (p < alpha), scale every std by sqrt(chi2/dof), the misfit the
     noise does not explain, and keep the unscaled ones as std_raw. Returns whether it failed."""
     p, chi2, dof = block.p_value, block.chi2, block.dof

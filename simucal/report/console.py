@@ -2,9 +2,7 @@
 `simucal field-drift`)."""
 from __future__ import annotations
 
-from simucal.io.calibration import Calibration, SensorBlock
-
-FAILS_BELOW = 1e-3  # the p-value under which a block's model is said to fail
+from simucal.io.calibration import FAILS_BELOW, Calibration, SensorBlock
 
 
 def calibration_lines(cal: Calibration):
