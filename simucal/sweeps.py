@@ -17,7 +17,10 @@ def map_tasks(fn, tasks: list, scheduler=None, progress=None, threads: int = 1) 
         if threads <= 1:
             return [fn(*t) for t in (progress(tasks) if progress else tasks)]
         from concurrent.futures import ThreadPoolExecutor
-        with ThreadPoolExecutor(threads) as pool:
+
+        from threadpoolctl import threadpool_limits
+        # one BLAS thread each: BLAS's own threads would spin against the tasks' (a third of the speed)
+        with threadpool_limits(1, "blas"), ThreadPoolExecutor(threads) as pool:
             futures = [pool.submit(fn, *t) for t in tasks]
             return [f.result() for f in (progress(futures) if progress else futures)]
     from dask.distributed import Client, LocalCluster, as_completed

@@ -75,11 +75,11 @@ def _far_off(after, floor_sd, labels, k=FAR_OFF):
 
 def _turntable(ms, f_before, f_after, w_before, w_after):
     segs = ms.segments
-    seg_rows = {s.segment: ms.samples["segment"] == s.segment for s in segs}
+    seg_rows = {s.segment: ms.rows(s.segment) for s in segs}
     lat = np.radians(ms.meta.get("latitude_deg", 0.0))
     w_e = units.earth_rate_dph(ms.meta)
     out = {}
-    static = [s for s in segs if s.kind == "static" and seg_rows[s.segment].any()]
+    static = [s for s in segs if s.kind == "static" and seg_rows[s.segment].size]
     if f_after is not None and static:
         groups = [seg_rows[s.segment] for s in static]
         sd = units.stated_noise(ms.meta, "acc")
@@ -111,7 +111,7 @@ def _turntable(ms, f_before, f_after, w_before, w_after):
     if w_after is not None:
         sd = units.stated_noise(ms.meta, "gyro")
         checks = []
-        rate = [s for s in segs if s.kind == "rate" and seg_rows[s.segment].any()]
+        rate = [s for s in segs if s.kind == "rate" and seg_rows[s.segment].size]
         for kind, chosen, truth in (("rate", rate, [abs(s.outer_rate_dps * units.DPH_PER_DPS + w_e * np.sin(lat)) for s in rate]),
                                     ("static", static, [w_e] * len(static))):
             if not chosen:
@@ -194,7 +194,7 @@ def validate(cal_path, data_dir) -> dict:
         if far and s in verdicts:
             verdicts[s] += f"; but {', '.join(far)} FAR OFF where the rest agree (mislabelled or disturbed)"
     made_from = cal.input_sha256  # a thermal calibration's: one per plateau
-    same = calibration.input_sha256(ms.path) in (made_from if isinstance(made_from, list) else [made_from])
+    same = ms.sha256 in (made_from if isinstance(made_from, list) else [made_from])
     return {"format": "simucal.validation/1", "calibration": str(cal_path), "data": str(ms.path),
             "independent": not same, "checks": checks, "verdict": verdicts,
             "note": ("these are the data the calibration was made from: on its own rows a model always looks "

@@ -189,3 +189,32 @@ def test_saturated_segment_left_out_and_reported(tmp_path):
         return
     excluded = r.details["excluded_segments"]
     assert excluded and all(e["reason"] == "saturated samples" for e in excluded)
+
+
+def test_a_sets_hash_and_segment_rows_are_of_the_files_as_read(tmp_path):
+    """read_set hashes the bytes it parsed (a byte-order mark included: the file's bytes) into the
+    calibration's input_sha256, and groups a segment's rows wherever they lie in the file."""
+    import hashlib
+    from simucal.turntable.simulate import Scenario, write
+    d = tmp_path / "d"
+    write(d, Scenario(rate_hz=2.0), seed=1)
+    header, *rows = (d / "samples.csv").read_text().splitlines(keepends=True)
+    col = header.split(",").index("segment")
+    by_segment = {}
+    for r in rows:
+        by_segment.setdefault(r.split(",")[col], []).append(r)
+    # the segments' rows dealt in turn: each segment's rows in order, none of them contiguous
+    dealt = [r for k in range(max(map(len, by_segment.values()))) for g in by_segment.values() if k < len(g)
+             for r in [g[k]]]
+    (d / "samples.csv").write_bytes(b"\xef\xbb\xbf" + (header + "".join(dealt)).encode())
+    ms = io.read_set(d)
+    h = hashlib.sha256()
+    for name in ("meta.json", "segments.csv", "samples.csv"):
+        h.update(name.encode() + b"\0" + (d / name).read_bytes())
+    assert ms.sha256 == h.hexdigest()
+    seg = ms.samples["segment"]
+    assert len(seg) > 2 * len(ms.segments) and not np.all(np.diff(seg) >= 0)
+    for s in ms.segments:
+        assert np.array_equal(ms.rows(s.segment), np.nonzero(seg == s.segment)[0])
+    assert ms.rows(10 ** 6).size == 0
+    assert calibrate(ms, method="exact").input_sha256 == ms.sha256

@@ -4,6 +4,8 @@ import json
 import numpy as np
 import pytest
 from click.testing import CliRunner
+from hypothesis import given, settings
+from hypothesis import strategies as st
 
 from simucal.cli import main
 from simucal.turntable.montecarlo import run, simulate_batch
@@ -119,6 +121,40 @@ def test_table_kinematics_compiled_equals_the_numpy_module():
                        table.specific_force_k(g, a, b, e), rtol=0, atol=1e-14)
     assert np.allclose(kinematics.outer_axis_k(a, b, table_err, angle_err), table.outer_axis_k(a, b, e),
                        rtol=0, atol=1e-14)
+
+
+@settings(max_examples=30, deadline=None)
+@given(st.integers(1, 24), st.integers(0, 2 ** 31))
+def test_the_turning_vertical_equals_the_kinematics_at_every_outer_angle(k_rev, seed):
+    """specific_force_turning_k (one evaluation turned about the outer axis by Rodrigues' formula)
+    against the table's kinematics evaluated at each of the k_rev outer angles, with table errors."""
+    from simucal.turntable import kinematics
+    rng = np.random.default_rng(seed)
+    a, b = rng.uniform(-np.pi, np.pi, (2, 5))
+    table_err, angle_err = rng.normal(0, 0.01, 4), rng.normal(0, 0.01, (3, 5, 3))
+    turned = kinematics.specific_force_turning_k(k_rev, a, b, table_err, angle_err,
+                                                 kinematics.outer_axis_k(a, b, table_err, angle_err))
+    gam = np.arange(k_rev) * 2 * np.pi / k_rev
+    each = kinematics.specific_force_k(gam[:, None, None], a, b, table_err,
+                                       np.broadcast_to(angle_err, (k_rev, 3, 5, 3)))
+    assert turned.shape == each.shape == (k_rev, 3, 5, 3)
+    assert np.abs(turned - each).max() < 1e-14
+
+
+def test_a_revolution_is_sampled_at_the_fewest_outer_angles_that_average_it_exactly():
+    """A quadratic term averages exactly over 3 outer angles; a gyro's sign-dependent scale on an axis
+    whose input changes sign as the table turns (x in the paper's plan) over none of few: it gets 12.
+    The chosen count's rate-run means equal 24's."""
+    from simucal.turntable.montecarlo import revolution_samples
+    from simucal.turntable.simulate import plant
+    quadratic, asymmetric = Scenario(), Scenario()
+    plant(quadratic, ["acc.quadratic.z=1e-3"])
+    plant(asymmetric, ["gyro.scale_asymmetry.x=1e-3"])
+    assert revolution_samples(quadratic) == 3 and revolution_samples(asymmetric) == 12
+    few, many = (simulate_batch(quadratic, 4, np.random.default_rng(1), k_rev=k) for k in (3, 24))
+    assert np.abs(few["acc_rate"] - many["acc_rate"]).max() < 1e-14
+    kinked = [simulate_batch(asymmetric, 8, np.random.default_rng(0), k_rev=k)["gyro"] for k in (4, 24)]
+    assert np.abs(kinked[0] - kinked[1]).max() > 1e-9 * np.abs(kinked[1]).max()  # 4 angles miss the kink
 
 
 def test_an_effect_the_plan_cannot_see_is_refused_before_any_trial():

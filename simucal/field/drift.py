@@ -197,7 +197,7 @@ def field_drift(data, block_s=1.0, stages=2, heading_accuracy_deg=5.0) -> dict:
         if s.heading_ref_deg is None:
             raise CalibrationError(f"{ms.path / 'segments.csv'}: segment {s.segment} has no heading_ref_deg; "
                                    "field calibration needs the north reference's heading at each position")
-        sel = ms.samples["segment"] == s.segment
+        sel = ms.rows(s.segment)
         est = position_estimate(f_all[sel], w_all[sel], ms.samples["t_s"][sel], np.radians(s.heading_ref_deg),
                                 ms.meta, block_s, stages)
         c_N = est["c_N"]

@@ -6,6 +6,7 @@ MeasurementSetError naming the file, the line and the rule.
 from __future__ import annotations
 
 import csv
+import hashlib
 import io as _io
 import json
 import math
@@ -48,6 +49,7 @@ class MeasurementSet:
     samples: dict                     # column -> float array (segment as int array)
     segments: list[Segment] | None    # None: one continuous stream
     temperature_ref_c: float | None = None  # T_ref chosen by the user (calibrate --t-ref-c); None: t_ref_c's default
+    sha256: str | None = None         # of the files as read (files_sha256): a calibration's input_sha256
 
     @property
     def t_ref_c(self) -> float | None:
@@ -68,28 +70,42 @@ class MeasurementSet:
         return "gx" in self.samples
 
     def raw(self, sensor: str) -> np.ndarray:
-        """The outputs of 'acc' (ax ay az) or 'gyro' (gx gy gz) as recorded, in their own unit (n, 3)."""
-        return np.column_stack([self.samples[c] for c in (SAMPLE_COLS[:3] if sensor == "acc" else SAMPLE_COLS[3:])])
+        """The outputs of 'acc' (ax ay az) or 'gyro' (gx gy gz) as recorded, in their own unit (n, 3),
+        read-only."""
+        cols = SAMPLE_COLS[:3] if sensor == "acc" else SAMPLE_COLS[3:]
+        return self._once(("raw", sensor), cols, lambda: np.column_stack([self.samples[c] for c in cols]))
 
     def acc_g(self):
         """Accelerometer outputs in g (n, 3), read-only."""
-        return self._converted("acc", units.acc_to_g)
+        return self._once(("g", "acc"), SAMPLE_COLS[:3], lambda: units.acc_to_g(self.raw("acc"), self.meta))
 
     def gyro_dph(self):
         """Gyro outputs in deg/h (n, 3), read-only."""
-        return self._converted("gyro", units.gyro_to_dph)
+        return self._once(("g", "gyro"), SAMPLE_COLS[3:], lambda: units.gyro_to_dph(self.raw("gyro"), self.meta))
 
-    def _converted(self, sensor, to_unit):
-        """to_unit(raw(sensor)), formed once per set of columns and meta.json (the methods ask many times;
-        at 300,000 rows each conversion costs milliseconds)."""
-        cols = SAMPLE_COLS[:3] if sensor == "acc" else SAMPLE_COLS[3:]
+    def rows(self, segment: int) -> np.ndarray:
+        """The indices (ascending) of one segment's rows; empty if it has none."""
+        groups = self._once("rows", ("segment",), lambda: group_rows(self.samples["segment"]))
+        return groups.get(segment, np.zeros(0, int))
+
+    def _once(self, name, cols, make):
+        """make(), formed once per set of columns and meta.json (the methods ask many times; at 300,000
+        rows each costs milliseconds). Arrays are made read-only: callers share them."""
         key = (tuple(id(self.samples[c]) for c in cols), json.dumps(self.meta, sort_keys=True, default=str))
         cache = self.__dict__.setdefault("_cache", {})
-        if cache.get(sensor, (None,))[0] != key:
-            out = to_unit(self.raw(sensor), self.meta)
-            out.flags.writeable = False
-            cache[sensor] = (key, out)
-        return cache[sensor][1]
+        if cache.get(name, (None,))[0] != key:
+            out = make()
+            for a in (out.values() if isinstance(out, dict) else [out]):
+                a.flags.writeable = False
+            cache[name] = (key, out)
+        return cache[name][1]
+
+
+def group_rows(segment_ids: np.ndarray) -> dict[int, np.ndarray]:
+    """{segment id: the indices (ascending) of its rows}, found by one stable sort."""
+    order = np.argsort(segment_ids, kind="stable")
+    ids, start = np.unique(segment_ids[order], return_index=True)
+    return dict(zip(ids.tolist(), np.split(order, start[1:])))
 
 
 def _number(text, path, line, col):
@@ -114,21 +130,37 @@ def _cell(row, col, path, line, required=True):
 def read_text(path: Path) -> str:
     """A file's text: UTF-8 (a byte-order mark is dropped); binary files and other encodings
     are refused, naming the line."""
-    return _read_checked(path)[1]
+    return _decoded(path, _body(path, path.read_bytes()))
 
 
-def _read_checked(path: Path) -> tuple[bytes, str]:
-    """(bytes without a byte-order mark, text) of a UTF-8 file; see read_text."""
-    data = path.read_bytes()
+def _body(path: Path, data: bytes) -> memoryview:
+    """A text file's bytes without a byte-order mark (a view: a large file is not copied); binary
+    files are refused."""
     if b"\0" in data[:65536]:
         raise MeasurementSetError(path, None, "a binary file, not text (the spec's files are UTF-8 CSV and JSON)")
+    return memoryview(data)[3:] if data.startswith(b"\xef\xbb\xbf") else memoryview(data)
+
+
+def _decoded(path: Path, body: memoryview) -> str:
     try:
-        data = data[3:] if data.startswith(b"\xef\xbb\xbf") else data
-        return data, data.decode("utf-8")
+        return str(body, "utf-8")
     except UnicodeDecodeError as e:
-        line = data[:e.start].count(b"\n") + 1
-        raise MeasurementSetError(path, line, f"not UTF-8 text (byte 0x{data[e.start]:02x}): save the file as "
+        line = bytes(body[:e.start]).count(b"\n") + 1
+        raise MeasurementSetError(path, line, f"not UTF-8 text (byte 0x{body[e.start]:02x}): save the file as "
                                               "UTF-8") from None
+
+
+def files_sha256(folder: Path, samples_csv: bytes) -> str:
+    """SHA-256 over meta.json, segments.csv and samples.csv (each its name, a NUL and its bytes):
+    what a calibration records as input_sha256 and validate compares. samples_csv: that file's
+    bytes as read (hashed once, not read again)."""
+    h = hashlib.sha256()
+    for name in ("meta.json", "segments.csv"):
+        if (folder / name).is_file():
+            h.update(name.encode() + b"\0" + (folder / name).read_bytes())
+    h.update(b"samples.csv\0")
+    h.update(samples_csv)
+    return h.hexdigest()
 
 
 def _csv_header_check(path, text):
@@ -218,63 +250,78 @@ def _angles_in_degrees(path, segments):
                                               "(and outer_rate_dps deg/s): convert them")
 
 
-def read_samples(folder: Path, segments) -> dict:
+def read_samples(folder: Path, segments) -> tuple[dict, bytes]:
+    """(column -> array, the file's bytes). The header is checked line by line; the numbers are
+    parsed by pyarrow, and only where that finds anything unusual by the careful reader, which
+    names the line."""
     path = _not_a_folder(folder / "samples.csv")
     if not path.is_file():
         raise MeasurementSetError(path, None, "missing: a measurement set needs samples.csv")
-    data, text = _read_checked(path)
-    _csv_header_check(path, text)
-    with _io.StringIO(text, newline="") as fh:
+    raw = path.read_bytes()
+    body = _body(path, raw)
+    end = bytes(body[:65536]).find(b"\n")
+    header_text = _decoded(path, body[:end] if end >= 0 else body)
+    _csv_header_check(path, header_text)
+    header = [h.strip() for h in next(csv.reader([header_text]), [])]
+    if not any(header):
+        raise MeasurementSetError(path, 1, "empty file")
+    cols, others = _sample_columns(path, header, segments)
+    fast = _fast_numeric(body, header, cols + others)
+    if fast is not None:
+        return _check_samples(fast, path, segments), raw
+    with _io.StringIO(_decoded(path, body), newline="") as fh:
         reader = csv.reader(fh)
-        try:
-            header = [h.strip() for h in next(reader)]
-        except StopIteration:
-            raise MeasurementSetError(path, 1, "empty file") from None
-        dup = [c for c in dict.fromkeys(header) if header.count(c) > 1]
-        if dup:
-            where = [i + 1 for i, c in enumerate(header) if c == dup[0]]
-            raise MeasurementSetError(path, 1, f"column {dup[0]} appears {len(where)} times (columns "
-                                               f"{', '.join(map(str, where))}): which one is the data? keep one")
-        _sensor_like_columns(path, header)
-        if "t_s" not in header:
-            raise MeasurementSetError(path, 1, "header lacks column t_s")
-        for group in (("ax", "ay", "az"), ("gx", "gy", "gz")):
-            present = [c for c in group if c in header]
-            if present and len(present) != 3:
-                raise MeasurementSetError(path, 1, f"columns {group} must all be present or all absent")
-        if "ax" not in header and "gx" not in header:
-            raise MeasurementSetError(path, 1, "neither accelerometer (ax ay az) nor gyro (gx gy gz) columns")
-        if segments is not None and "segment" not in header:
-            raise MeasurementSetError(path, 1, "segments.csv exists, so samples.csv needs a segment column")
-        cols = [c for c in header if c in ("segment", "t_s", "temp_c") + SAMPLE_COLS]
-        # further numeric columns are auxiliary inputs a user's error model may read (supply_v, ...);
-        # a column holding anything else (a note, a label) is left out, as before
-        others = [c for c in dict.fromkeys(header) if c.isidentifier() and c not in cols]
-        idx = {c: header.index(c) for c in cols + others}
-        fast = _fast_numeric(data, len(header))
-        if fast is not None:  # pyarrow's parser; on any doubt the careful one below names the line
-            out = {c: fast[:, idx[c]] for c in cols + others}
-            return _check_samples(out, path, segments)
-        data = {c: [] for c in cols + others}
-        for line, row in enumerate(reader, start=2):
-            if not row or all(not x.strip() for x in row):
-                continue
-            if len(row) != len(header):
-                raise MeasurementSetError(path, line, f"{len(row)} cells, header has {len(header)}")
-            for c in cols:
-                text = row[idx[c]].strip()
-                if text == "":
-                    raise MeasurementSetError(path, line, f"column {c} is empty (empty cells are errors)")
-                data[c].append(_number(text, path, line, c))
-            for c in list(others):
-                try:
-                    data[c].append(_number(row[idx[c]].strip(), path, line, c))
-                except MeasurementSetError:
-                    others.remove(c)
-                    del data[c]
+        next(reader)
+        return _check_samples(_careful(reader, path, header, cols, others), path, segments), raw
+
+
+def _sample_columns(path, header, segments) -> tuple[list, list]:
+    """(the spec's columns present, further numeric columns: auxiliary inputs a user's error model
+    may read, such as supply_v; a column holding anything else, a note or a label, is left out),
+    with the header's rules checked."""
+    dup = [c for c in dict.fromkeys(header) if header.count(c) > 1]
+    if dup:
+        where = [i + 1 for i, c in enumerate(header) if c == dup[0]]
+        raise MeasurementSetError(path, 1, f"column {dup[0]} appears {len(where)} times (columns "
+                                           f"{', '.join(map(str, where))}): which one is the data? keep one")
+    _sensor_like_columns(path, header)
+    if "t_s" not in header:
+        raise MeasurementSetError(path, 1, "header lacks column t_s")
+    for group in (("ax", "ay", "az"), ("gx", "gy", "gz")):
+        present = [c for c in group if c in header]
+        if present and len(present) != 3:
+            raise MeasurementSetError(path, 1, f"columns {group} must all be present or all absent")
+    if "ax" not in header and "gx" not in header:
+        raise MeasurementSetError(path, 1, "neither accelerometer (ax ay az) nor gyro (gx gy gz) columns")
+    if segments is not None and "segment" not in header:
+        raise MeasurementSetError(path, 1, "segments.csv exists, so samples.csv needs a segment column")
+    cols = [c for c in header if c in ("segment", "t_s", "temp_c") + SAMPLE_COLS]
+    return cols, [c for c in dict.fromkeys(header) if c.isidentifier() and c not in cols]
+
+
+def _careful(reader, path, header, cols, others) -> dict:
+    """The rows one by one, naming the line and the column of any cell that is not a number."""
+    idx = {c: header.index(c) for c in cols + others}
+    data = {c: [] for c in cols + others}
+    for line, row in enumerate(reader, start=2):
+        if not row or all(not x.strip() for x in row):
+            continue
+        if len(row) != len(header):
+            raise MeasurementSetError(path, line, f"{len(row)} cells, header has {len(header)}")
+        for c in cols:
+            text = row[idx[c]].strip()
+            if text == "":
+                raise MeasurementSetError(path, line, f"column {c} is empty (empty cells are errors)")
+            data[c].append(_number(text, path, line, c))
+        for c in list(others):
+            try:
+                data[c].append(_number(row[idx[c]].strip(), path, line, c))
+            except MeasurementSetError:
+                others.remove(c)
+                del data[c]
     if not data["t_s"]:
         raise MeasurementSetError(path, None, "no samples")
-    return _check_samples({c: np.asarray(v, float) for c, v in data.items()}, path, segments)
+    return {c: np.asarray(v, float) for c, v in data.items()}
 
 
 _LOOKS_LIKE = {"acc": re.compile(r"^(acc|accel|accelerometer|a|f)[ _.-]?(x|y|z)(_.*)?$", re.I),
@@ -292,25 +339,27 @@ def _sensor_like_columns(path, header):
                                                "csv --columns)")
 
 
-def _fast_numeric(data: bytes, ncols):
-    """All cells as floats via pyarrow's C++ CSV reader (multithreaded), or None if anything is
-    unusual (a cell that is not a number, an empty cell, a ragged row): the careful reader then
-    names the line and the column."""
+def _fast_numeric(body, header, names) -> dict | None:
+    """The named columns as contiguous float arrays via pyarrow's C++ CSV reader (multithreaded),
+    or None if anything is unusual (a cell that is not a number, an empty cell, a ragged row, a
+    NaN): the careful reader then names the line and the column."""
     import pyarrow as pa
     import pyarrow.csv as pa_csv
     try:
-        table = pa_csv.read_csv(pa.py_buffer(data))
+        table = pa_csv.read_csv(pa.py_buffer(body))
     except (pa.ArrowException, ValueError):
         return None
-    if table.num_rows == 0 or table.num_columns != ncols:
+    if table.num_rows == 0 or table.num_columns != len(header):
         return None
-    cols = []
-    for col in table.columns:
+    out = {}
+    for c in names:
+        col = table.column(header.index(c))
         if col.null_count or not (pa.types.is_integer(col.type) or pa.types.is_floating(col.type)):
             return None
-        cols.append(col.to_numpy())
-    arr = np.column_stack(cols).astype(float, copy=False)
-    return arr if np.all(np.isfinite(arr)) else None
+        out[c] = np.ascontiguousarray(col.to_numpy(), float)
+        if not np.all(np.isfinite(out[c])):
+            return None
+    return out
 
 
 def _check_samples(out, path, segments):
@@ -331,18 +380,15 @@ def _check_samples(out, path, segments):
         if np.any(seg != np.round(seg)):
             raise MeasurementSetError(path, None, "segment ids must be integers")
         out["segment"] = seg.astype(int)
-        if segments is not None:
-            known = {s.segment for s in segments}
-            unknown = sorted(set(out["segment"].tolist()) - known)
-            if unknown:
-                line = 2 + int(np.argmax(np.isin(out["segment"], unknown)))
-                raise MeasurementSetError(path, line, f"segment {unknown[0]} is not in segments.csv")
-        for s in np.unique(out["segment"]):
-            t = out["t_s"][out["segment"] == s]
-            bad = np.nonzero(np.diff(t) <= 0)[0]
+        groups = group_rows(out["segment"])
+        unknown = sorted(set(groups) - {s.segment for s in segments}) if segments is not None else []
+        if unknown:
+            raise MeasurementSetError(path, 2 + int(groups[unknown[0]][0]),
+                                      f"segment {unknown[0]} is not in segments.csv")
+        for s, rows in groups.items():
+            bad = np.nonzero(np.diff(out["t_s"][rows]) <= 0)[0]
             if bad.size:
-                line = 2 + int(np.nonzero(out["segment"] == s)[0][bad[0] + 1])
-                raise MeasurementSetError(path, line, f"t_s must increase within segment {s}")
+                raise MeasurementSetError(path, 2 + int(rows[bad[0] + 1]), f"t_s must increase within segment {s}")
     return out
 
 
@@ -352,11 +398,11 @@ def read_set(folder) -> MeasurementSet:
         raise MeasurementSetError(folder, None, "not a folder (a measurement set is a folder)")
     meta = read_meta(folder)
     segments = read_segments(folder)
-    samples = read_samples(folder, segments)
+    samples, samples_csv = read_samples(folder, segments)
     if "gx" in samples and "latitude_deg" not in meta:
         raise MeasurementSetError(folder / "meta.json", None,
                                   "latitude_deg is required when gyro data are present")
-    return MeasurementSet(folder, meta, samples, segments)
+    return MeasurementSet(folder, meta, samples, segments, sha256=files_sha256(folder, samples_csv))
 
 
 def _fmt(v):

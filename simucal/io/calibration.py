@@ -37,7 +37,6 @@ The checks of a file read from disk are in calibration_checks.py.
 """
 from __future__ import annotations
 
-import hashlib
 import json
 from dataclasses import dataclass, field, fields
 from pathlib import Path
@@ -215,18 +214,9 @@ class Calibration:
                    details={k: v for k, v in d.items() if k not in names | derived | set(SENSORS)})
 
 
-def input_sha256(folder) -> str:
-    h = hashlib.sha256()
-    for name in ("meta.json", "segments.csv", "samples.csv"):
-        p = Path(folder) / name
-        if p.is_file():
-            h.update(name.encode() + b"\0" + p.read_bytes())
-    return h.hexdigest()
-
-
 def header(method: str, ms) -> Calibration:
     """A calibration of set ms by `method`, its blocks still to fill."""
-    cal = Calibration(method, str(ms.path), input_sha256(ms.path), layout(ms))
+    cal = Calibration(method, str(ms.path), ms.sha256, layout(ms))
     if ms.t_ref_c is not None:  # temperature terms read dtemp_c = temp_c - t_ref_c; apply takes it from here
         temp = ms.samples["temp_c"]
         cal.t_ref_c, cal.temperature_range_c = ms.t_ref_c, [float(np.min(temp)), float(np.max(temp))]

@@ -43,9 +43,14 @@ def saturated_rows(ms, sensor, min_run=3):
 
 
 def _runs(mask, min_run):
-    """[(start, stop)] of the runs of True at least min_run long."""
-    edges = np.diff(np.r_[0, mask.astype(int), 0])
-    return [(a, b) for a, b in zip(np.nonzero(edges == 1)[0], np.nonzero(edges == -1)[0]) if b - a >= min_run]
+    """[(start, stop)] of the runs of True at least min_run long (found among the True rows only:
+    an extreme value is rare)."""
+    idx = np.flatnonzero(mask)
+    if len(idx) < min_run:
+        return []
+    gaps = np.flatnonzero(np.diff(idx) != 1)
+    starts, stops = np.r_[idx[0], idx[gaps + 1]], np.r_[idx[gaps] + 1, idx[-1] + 1]
+    return [(int(a), int(b)) for a, b in zip(starts, stops) if b - a >= min_run]
 
 
 def repeat_is_clipping(col, ext, runs) -> bool:
@@ -82,31 +87,37 @@ def _stuck_part(ms, min_rows=20):
     for sensor, cols in (("acc", ("ax", "ay", "az")), ("gyro", ("gx", "gy", "gz"))):
         if not all(c in ms.samples for c in cols):
             continue
-        X = np.column_stack([ms.samples[c] for c in cols])
-        groups = ([(s.segment, ms.samples["segment"] == s.segment) for s in ms.segments] if ms.segments is not None
-                  else [(None, _runs_mask(X, j, max(min_rows, len(X) // 4))) for j in range(3)])
+        X = ms.raw(sensor)
+        groups = ([(s.segment, ms.rows(s.segment)) for s in ms.segments] if ms.segments is not None
+                  else [(None, _longest_run(X, j, max(min_rows, len(X) // 4))) for j in range(3)])
         clipped = saturated_rows(ms, sensor)[0]  # frozen at a rail is clipping, left out where it is met
-        frozen = [(seg, rows, j) for seg, rows in groups if rows.sum() >= min_rows for j in range(3)
-                  if np.ptp(X[rows, j]) == 0 and not clipped[rows].all()
-                  and np.ptp(np.delete(X[rows], j, axis=1), axis=0).min() > 0]
+        long = [(seg, rows) for seg, rows in groups if len(rows) >= min_rows]
+        frozen = [(seg, rows, j) for (seg, rows), span in zip(long, _spans(X, [rows for _, rows in long]))
+                  for j in range(3) if span[j] == 0 and np.delete(span, j).min() > 0 and not clipped[rows].all()]
         for seg, rows, j in frozen:
             if ms.segments is not None and sum(f[2] == j for f in frozen) > len(groups) / 2:
                 continue  # frozen nearly everywhere: a quiet channel, quantised coarser than its noise
-            first = int(np.argmax(rows)) + 2
-            where = f"segment {seg}" if seg is not None else f"{int(rows.sum())} rows from line {first}"
+            where = f"segment {seg}" if seg is not None else f"{len(rows)} rows from line {int(rows[0]) + 2}"
             raise CalibrationError(f"{ms.path / 'samples.csv'}: column {cols[j]} holds {X[rows, j][0]:g} in every row "
                                    f"of {where} while {' and '.join(c for k, c in enumerate(cols) if k != j)} vary: "
                                    "a channel stuck for that part (a dropout or a frozen value); cut or repair those rows")
 
 
-def _runs_mask(X, j, min_len):
-    """Rows of the longest run over which column j holds one value, if min_len or longer."""
+def _spans(X, groups) -> np.ndarray:
+    """Each group's (non-empty row indices) peak-to-peak of every column, (len(groups), 3): one
+    reduceat over the rows in group order, not a reduction per group."""
+    if not groups:
+        return np.zeros((0, X.shape[1]))
+    starts = np.cumsum([0] + [len(g) for g in groups[:-1]])
+    Xg = X[np.concatenate(groups)]
+    return np.maximum.reduceat(Xg, starts, axis=0) - np.minimum.reduceat(Xg, starts, axis=0)
+
+
+def _longest_run(X, j, min_len) -> np.ndarray:
+    """The rows (indices) of the longest run over which column j holds one value, if min_len or
+    longer; else none."""
     change = np.r_[True, X[1:, j] != X[:-1, j], True]
     starts = np.nonzero(change)[0]
     lengths = np.diff(starts)
     k = int(np.argmax(lengths))
-    mask = np.zeros(len(X), bool)
-    if lengths[k] >= min_len:
-        mask[starts[k]:starts[k] + lengths[k]] = True
-    return mask
-
+    return np.arange(starts[k], starts[k] + lengths[k]) if lengths[k] >= min_len else np.zeros(0, int)

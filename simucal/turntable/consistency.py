@@ -175,7 +175,7 @@ def latitude_check(ms, fa, acc_segs, gm, fg, C_b_d, gyro_noise_dph=None):
     stated = units.stated_noise(ms.meta, "gyro") if gyro_noise_dph is None else gyro_noise_dph
     N, sig, groups = [], [], []
     for i in rows:
-        r = ms.samples["segment"] == acc_segs[i].segment
+        r = ms.rows(acc_segs[i].segment)
         refuse_outliers(ms, raw, r, "gyro", acc_segs[i].segment)
         m, sd = mean_and_sigma(gyro[r], stated)
         N.append(m)

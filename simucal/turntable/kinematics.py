@@ -66,3 +66,15 @@ def outer_axis_k(alpha, beta, table_err, angle_err) -> np.ndarray:
     if lib.simucal_outer_axis_k_batch(len(e), a, b, np.asarray(table_err, float), e, out):
         raise MemoryError("simucal_outer_axis_k_batch: no memory for its work area")
     return out.reshape(shape + (3,))
+
+
+def specific_force_turning_k(k_rev, alpha, beta, table_err, angle_err, axis_k) -> np.ndarray:
+    """f^k at rest at k_rev equally spaced outer angles 0, 2 pi / k_rev, ... (k_rev, ..., 3): f^k at
+    the first, then turned about the outer axis in k (axis_k, outer_axis_k's) by Rodrigues' formula,
+    one evaluation of the kinematics instead of k_rev. Exact: C_k_n = tilt Rz(gamma) gimbals, so a
+    turn of the outer gimbal by d turns the vertical in k by -d about that axis."""
+    v = specific_force_k(0.0, alpha, beta, table_err, angle_err)
+    along = np.sum(axis_k * v, axis=-1, keepdims=True) * axis_k
+    across, side = v - along, np.cross(axis_k, v)
+    d = (np.arange(k_rev) * 2 * np.pi / k_rev).reshape((-1,) + (1,) * v.ndim)
+    return along + np.cos(d) * across - np.sin(d) * side

@@ -5,8 +5,10 @@ averaged row per position): random angular position errors per trial and positio
 exact rotations (kinematics.py, compiled from generated/table.c), white noise on each
 mean output. A rate run's mean over one whole revolution is the mean of K equally
 spaced outer angles, exact for every model term of degree below K in the input (a
-trigonometric polynomial in gamma of that degree averages exactly): K = 4 where that equals
-24 samples (terms up to cubic), else 12, where simulate() samples 720; for affine models it is the outer axis in k, in closed form.
+trigonometric polynomial in gamma of that degree averages exactly): the fewest of 3 and 4 whose
+means equal 24 samples' (terms up to quadratic or cubic), else 12, where simulate() samples 720;
+for affine models it is the outer axis in k, in closed form. The K verticals are one evaluation of
+the kinematics turned about the outer axis (kinematics.specific_force_turning_k).
 
 Each batch of trials is fitted by one call of the compiled whole fit per sensor
 (derive/templates/exact_fit.c, the paper's linear start (eq. 8/12) included; with effects
@@ -37,7 +39,7 @@ from simucal.io import units
 from simucal.turntable import kinematics, plans
 from simucal.turntable.simulate import Scenario
 
-K_REV = (4, 12)  # outer-angle samples per revolution: the fewer where exact, else the more (module doc)
+K_REV = (3, 4, 12)  # outer-angle samples per revolution: the fewest where exact, else the most (module doc)
 
 
 def _plan(sc):
@@ -56,6 +58,11 @@ def _affine(model, p):
     return bool(np.allclose(Ju[0], Ju[1], rtol=0, atol=1e-12 * max(np.abs(Ju).max(), 1.0)))
 
 
+def _times(X, C):
+    """X (..., 3) @ C as one matrix product: numpy's batched @ loops over tiny products, ten times slower."""
+    return (X.reshape(-1, 3) @ C).reshape(X.shape)
+
+
 def simulate_batch(sc: Scenario, trials: int, rng, noise=True, k_rev=K_REV[-1]):
     """Mean outputs of `trials` simulated tests: acc at the static positions (T, Ps, 3) in g,
     gyro (T, Pr, 3) in deg/h and acc (T, Pr, 3) over the rate runs, with the plan's rates and the
@@ -70,8 +77,8 @@ def simulate_batch(sc: Scenario, trials: int, rng, noise=True, k_rev=K_REV[-1]):
     w_ie_n = table.earth_rate_n(w_e, lat)
     T, Ps, Pr = trials, len(static), len(rates)
     table_err = sc.table_errors_rad()  # shared by every row; the angle errors per row
-    f_s = kinematics.specific_force_k(static[:, 0], static[:, 1], static[:, 2], table_err,
-                                      sc.angle_errors_rad(rng, (T, Ps), noise)) @ C_b_k
+    f_s = _times(kinematics.specific_force_k(static[:, 0], static[:, 1], static[:, 2], table_err,
+                                             sc.angle_errors_rad(rng, (T, Ps), noise)), C_b_k)
     tilt = table.C_k_n(0.0, 0.0, 0.0, np.r_[sc.tilt_rad, np.zeros(5)])
     w_n = w_ie_n + (rates[:, 2] * units.DPH_PER_DPS)[:, None] * tilt[:, 2]  # (Pr, 3)
     err_r = sc.angle_errors_rad(rng, (T, Pr), noise)
@@ -80,20 +87,21 @@ def simulate_batch(sc: Scenario, trials: int, rng, noise=True, k_rev=K_REV[-1]):
     # along the tilted outer axis (derive/table.py outer_axis_k): the means an affine model needs
     axis_k = kinematics.outer_axis_k(np.radians(rates[:, 0]), np.radians(rates[:, 1]), table_err, err_r)
     f_k = axis_k * tilt[2, 2]
-    f_r, f_d = f_k @ C_b_k, f_k @ C_d_k
-    w_d = (axis_k * (w_n @ tilt)[:, 2][:, None]) @ C_d_k
+    f_r, f_d = _times(f_k, C_b_k), _times(f_k, C_d_k)
+    w_d = _times(axis_k * (w_n @ tilt)[:, 2][:, None], C_d_k)
     nonlinear_a, nonlinear_g = not _affine(am, p_a), not _affine(gm, p_g)
     if nonlinear_a or nonlinear_g:  # a nonlinear model's mean: of K samples, exact below degree K
-        gam = np.arange(k_rev) * 2 * np.pi / k_rev
-        angles = gam[None, None, :], np.radians(rates[:, 0])[None, :, None], np.radians(rates[:, 1])[None, :, None]
-        err_k = np.broadcast_to(err_r[:, :, None, :], (T, Pr, k_rev, 3))
-        up_k = kinematics.specific_force_k(*angles, table_err, err_k)  # (T, Pr, K, 3): the vertical in k
+        # the K samples lead (K, T, Pr, ...): a mean over the leading axis adds contiguous blocks
+        up_k = kinematics.specific_force_turning_k(k_rev, np.radians(rates[:, 0]), np.radians(rates[:, 1]),
+                                                   table_err, err_r, axis_k)  # (K, T, Pr, 3): the vertical in k
     if nonlinear_g:  # the Earth rate and the table's rate turn in k too: the whole rotation
-        Cr = table.C_k_n(*angles, kinematics.errors(table_err, err_k))  # (T, Pr, K, 3, 3)
-    N_ar = (am.output(up_k @ C_b_k, p_a, AuxInputs({"w2": w2[..., None]})).mean(2) if nonlinear_a else
+        gam = np.arange(k_rev) * 2 * np.pi / k_rev
+        Cr = table.C_k_n(gam[:, None, None], np.radians(rates[:, 0]), np.radians(rates[:, 1]),
+                         kinematics.errors(table_err, np.broadcast_to(err_r, (k_rev, T, Pr, 3))))  # (K, T, Pr, 3, 3)
+    N_ar = (am.output(_times(up_k, C_b_k), p_a, AuxInputs({"w2": w2})).mean(0) if nonlinear_a else
             am.output(f_r, p_a, AuxInputs({"w2": w2})))
-    N_g = (gm.output((w_n[None, :, None, None, :] @ Cr)[..., 0, :] @ C_d_k, p_g,
-                     AuxInputs(specific_force(up_k @ C_d_k))).mean(2) if nonlinear_g else
+    N_g = (gm.output(_times(np.einsum("pi,ktpij->ktpj", w_n, Cr), C_d_k), p_g,
+                     AuxInputs(specific_force(_times(up_k, C_d_k)))).mean(0) if nonlinear_g else
            gm.output(w_d, p_g, AuxInputs(specific_force(f_d))))
     N_as = am.output(f_s, p_a)
     if noise:
@@ -158,14 +166,17 @@ def _unify_batch(am, p_a, N_ar, u_g, sign):
 
 
 def revolution_samples(sc: Scenario) -> int:
-    """The fewer of K_REV where the rate-run means of 8 trials, with their angle errors, equal those of
-    24 samples (every term of degree below it in the input: the library's quadratic and
-    cross-coupling terms; not a sign-dependent scale, whose kink the angle errors move), else the more.
-    The same random draws for both, so the noise cancels in the comparison."""
+    """The fewest of K_REV where the rate-run means of 8 trials, with their angle errors, equal those of
+    24 samples (every term of degree below it in the input: 3 for the library's quadratic and
+    cross-coupling terms, 4 for cubic ones; not a sign-dependent scale, whose kink the angle errors
+    move), else the most. The same random draws for each, so the noise cancels in the comparison."""
     exact = simulate_batch(sc, 8, np.random.default_rng(0), k_rev=24)
-    few = simulate_batch(sc, 8, np.random.default_rng(0), k_rev=K_REV[0])
-    same = all(np.abs(few[k] - exact[k]).max() <= 1e-12 * max(np.abs(exact[k]).max(), 1.0) for k in ("acc_rate", "gyro"))
-    return K_REV[0] if same else K_REV[-1]
+    for k_rev in K_REV[:-1]:
+        few = simulate_batch(sc, 8, np.random.default_rng(0), k_rev=k_rev)
+        if all(np.abs(few[k] - exact[k]).max() <= 1e-12 * max(np.abs(exact[k]).max(), 1.0)
+               for k in ("acc_rate", "gyro")):
+            return k_rev
+    return K_REV[-1]
 
 
 def chunk_of_trials(sc: Scenario, size: int, seed: int, k: int, k_rev: int = K_REV[-1]) -> dict:

@@ -34,7 +34,7 @@ def multiposition(ms, acc_obs, acc_segs, gyro_obs, gyro_segs):
                             np.radians([s.middle_deg for s in statics]), np.radians([s.inner_deg for s in statics]),
                             np.zeros(7))
             gyro = ms.gyro_dph()
-            Ns = np.array([gyro[ms.samples["segment"] == s.segment].mean(0) for s in statics])
+            Ns = np.array([gyro[ms.rows(s.segment)].mean(0) for s in statics])
             f = np.vstack([f, np.einsum("nji,j->ni", C, w_ie_n)])
             N = np.vstack([N, Ns])
         out["gyro"] = _affine_fit(f, N, "gyro")

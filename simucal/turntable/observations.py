@@ -75,8 +75,8 @@ def segment_observations(ms: io.MeasurementSet, sensor: str, kinds=None, stated=
     raw = ms.raw(sensor)
     clipped = saturated_segments(ms, sensor)
     for s in segs:
-        rows = ms.samples["segment"] == s.segment
-        if not rows.any():
+        rows = ms.rows(s.segment)
+        if not rows.size:
             raise CalibrationError(f"{ms.path / 'samples.csv'}: segment {s.segment} has no samples")
         if s.segment in clipped:  # before the glitch test: a clipped sample is no glitch
             continue
@@ -97,7 +97,7 @@ def segment_observations(ms: io.MeasurementSet, sensor: str, kinds=None, stated=
             f"beyond full_scale, or repeating the rail: segments {dropped[:8]}{' ...' if len(dropped) > 8 else ''}) "
             f"and are left out, leaving {len(keep)}, too few for the {need} parameters of {sensor}_baseline; record "
             "them within the sensor's range, or correct full_scale in meta.json if the rails are wrong")
-    aux = column_means(ms.samples, [ms.samples["segment"] == s.segment for s in keep], t_ref_c=ms.t_ref_c)
+    aux = column_means(ms.samples, [ms.rows(s.segment) for s in keep], t_ref_c=ms.t_ref_c)
     aux.update(specific_force(ms, keep) if sensor == "gyro" else {"w2": centripetal_scale(ms, keep)})
     obs = Observations(np.array(N).reshape(-1, 3), np.array(rho), np.array(sig).reshape(-1, 3), AuxInputs(aux),
                        [s.segment for s in keep])
@@ -168,19 +168,23 @@ def refuse_outliers(ms, raw, rows, sensor, segment, k=100.0):
     """Refuse a gross glitch: an isolated sample k robust spreads (1.4826 MAD, floored at 1e-9 of
     the median) from its segment's median, whose neighbours are normal, would carry the segment's
     mean with it. A smooth excursion (a table settling) spans its neighbours and is not a glitch."""
-    x = raw[rows]
-    if len(x) < 10:
+    if len(rows) < 10:
         return
-    med = np.median(x, axis=0)
-    spread = np.maximum(1.4826 * np.median(np.abs(x - med), axis=0), 1e-9 * np.maximum(np.abs(med), 1.0))
-    dev = np.abs(x - med) / spread
-    calm = np.pad(dev, ((1, 1), (0, 0)), constant_values=0.0) < k / 10  # the neighbours are normal
-    bad = (dev > k) & calm[:-2] & calm[2:]
+    x = np.ascontiguousarray(raw[rows].T)  # (3, n): a median along contiguous rows is twice as fast
+    med = np.median(x, axis=1)
+    dev = np.abs(x - med[:, None])
+    spread = np.maximum(1.4826 * np.median(dev, axis=1), 1e-9 * np.maximum(np.abs(med), 1.0))
+    dev /= spread[:, None]
+    calm = dev < k / 10
+    bad = dev > k
+    bad[:, 1:] &= calm[:, :-1]  # its neighbours are normal
+    bad[:, :-1] &= calm[:, 1:]
     if bad.any():
-        i, j = np.argwhere(bad)[0]
-        line = 2 + int(np.nonzero(rows)[0][i])
+        i = int(bad.any(axis=0).argmax())
+        j = int(bad[:, i].argmax())
+        line = 2 + int(rows[i])
         col = ("ax", "ay", "az", "gx", "gy", "gz")[j + (0 if sensor == "acc" else 3)]
-        raise CalibrationError(f"{ms.path / 'samples.csv'}, line {line}: {col} = {x[i, j]:g} is a glitch in segment "
+        raise CalibrationError(f"{ms.path / 'samples.csv'}, line {line}: {col} = {x[j, i]:g} is a glitch in segment "
                                f"{segment} (its median {med[j]:g}, spread {spread[j]:.3g}): remove or repair that row")
 
 
@@ -196,7 +200,7 @@ def specific_force(ms, segs) -> dict:
         return {}
     if ms.has_acc:
         acc = ms.acc_g()
-        return aux_inputs.specific_force([acc[ms.samples["segment"] == s.segment].mean(0) for s in segs])
+        return aux_inputs.specific_force([acc[ms.rows(s.segment)].mean(0) for s in segs])
     if all(s.middle_deg is not None and s.inner_deg is not None for s in segs):
         return aux_inputs.specific_force(commanded_up_k(segs)[0])
     return {}
@@ -257,11 +261,8 @@ def check_rate_sense(ms, gyro_obs, gyro_segs):
     gyro_segs = [gyro_segs[i] for i in keep]
     gyro_obs = Observations(gyro_obs.N[keep], gyro_obs.rho[keep])
     up, _ = commanded_up_k(gyro_segs)
-    static = ms.samples["segment"] == -1
-    for s in ms.segments:
-        if s.kind == "static":
-            static |= ms.samples["segment"] == s.segment
-    rest = np.median(ms.gyro_dph()[static], axis=0) if static.any() else np.zeros(3)  # robust to a glitch
+    static = np.concatenate([ms.rows(s.segment) for s in ms.segments if s.kind == "static"] + [np.zeros(0, int)])
+    rest = np.median(ms.gyro_dph()[static], axis=0) if static.size else np.zeros(3)  # robust to a glitch
     rate = np.array([s.outer_rate_dps for s in gyro_segs])
     along = np.einsum("ni,ni->n", gyro_obs.N - rest, up) / units.DPH_PER_DPS
     wrong = np.sign(along) != np.sign(rate)
