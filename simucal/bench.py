@@ -7,7 +7,7 @@
   compiled and numpy (SIMUCAL_NO_COMPILE=1 in a subprocess); `simucal montecarlo --trials
   200000` as a whole process, with the range of std/CRLB over its 18 parameters;
 - whole processes: `simucal calibrate` on a raw turntable set (86 segments at 100 Hz), on the
-  imu_tk Xsens stream, `simucal diagnose` of the Xsens stream, `simucal validate` of the raw
+  imu_tk Xsens stream, `simucal diagnose` of the Xsens stream (and with --html), `simucal validate` of the raw
   set, `simucal noise` on 2 h at 100 Hz (720,000 rows x 6), `simucal calibrate --thermal` on 3
   plateaus, `simucal montecarlo --effect acc.quadratic.z=1e-4` (trials per second in process and
   of whole processes of 20,000 and 200,000 trials, with std/CRLB; the cost of a process of 100),
@@ -194,6 +194,8 @@ def run(json_path=None, echo=print, before=None) -> dict:
                             str(6258 * np.pi / 180), "--latitude-deg", "45.4"], check=True, capture_output=True)
             fig["cli_calibrate_xsens_s"] = process([SIMUCAL, "calibrate", str(tmp / "xsens"), "-o", str(tmp / "x.json")])
             fig["cli_diagnose_xsens_s"] = process([SIMUCAL, "diagnose", str(tmp / "xsens"), "-o", str(tmp / "xd.json")])
+            fig["cli_diagnose_xsens_html_s"] = process([SIMUCAL, "diagnose", str(tmp / "xsens"), "-o",
+                                                        str(tmp / "xd.json"), "--html", str(tmp / "xd.html")])
         fig["cli_validate_raw_turntable_s"] = process([SIMUCAL, "validate", str(tmp / "c.json"), str(tmp / "raw"), "-o",
                                                        str(tmp / "v.json")])
         _new_commands(tmp, fig)

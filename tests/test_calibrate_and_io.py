@@ -218,3 +218,24 @@ def test_a_sets_hash_and_segment_rows_are_of_the_files_as_read(tmp_path):
         assert np.array_equal(ms.rows(s.segment), np.nonzero(seg == s.segment)[0])
     assert ms.rows(10 ** 6).size == 0
     assert calibrate(ms, method="exact").input_sha256 == ms.sha256
+
+
+@pytest.mark.parametrize("case", ["header over 64 KiB", "carriage returns alone", "not UTF-8 in a label column"])
+def test_unusual_samples_files_read_as_csv_reads_them(tmp_path, case):
+    """The fast reader takes a plain header line alone: a header longer than 64 KiB or lines ended by
+    carriage returns alone are read as before, and a byte that is not UTF-8 is refused with its line
+    even in a column no model reads."""
+    from simucal.turntable.simulate import Scenario, write
+    d = tmp_path / "s"
+    write(d, Scenario(rate_hz=2.0), seed=1)
+    header, body = (d / "samples.csv").read_bytes().replace(b"\r\n", b"\n").split(b"\n", 1)
+    rows = body.splitlines()
+    data = {"header over 64 KiB": header + b"," + b"x" * 70000 + b"\n" + b"".join(r + b",1\n" for r in rows),
+            "carriage returns alone": (header + b"\n" + body).replace(b"\n", b"\r"),
+            "not UTF-8 in a label column": header + b",my note\n" + b"".join(r + b",caf\xe9\n" for r in rows)}[case]
+    (d / "samples.csv").write_bytes(data)
+    if case == "not UTF-8 in a label column":
+        with pytest.raises(io.MeasurementSetError, match="line 2: not UTF-8"):
+            io.read_set(d)
+    else:
+        assert len(io.read_set(d).samples["t_s"]) == len(rows)

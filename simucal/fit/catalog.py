@@ -32,9 +32,9 @@ def models_dir() -> Path:
 
 
 def _key(path: Path) -> str:
-    from importlib.metadata import version
+    from simucal import __version__  # not importlib.metadata's lookup: 7 ms a process
     h = hashlib.sha256(path.read_bytes())
-    h.update(version("simucal").encode())
+    h.update(__version__.encode())
     h.update(json.dumps(manifest()["versions"], sort_keys=True).encode())
     return h.hexdigest()[:20]
 

@@ -251,20 +251,19 @@ def _angles_in_degrees(path, segments):
 
 
 def read_samples(folder: Path, segments) -> tuple[dict, bytes]:
-    """(column -> array, the file's bytes). The header is checked line by line; the numbers are
-    parsed by pyarrow, and only where that finds anything unusual by the careful reader, which
-    names the line."""
+    """(column -> array, the file's bytes). The numbers are parsed by pyarrow, and only where that
+    finds anything unusual by the careful reader, which names the line; the whole file is checked
+    to be UTF-8 either way (an ASCII file, the usual one, is UTF-8 without decoding it)."""
     path = _not_a_folder(folder / "samples.csv")
     if not path.is_file():
         raise MeasurementSetError(path, None, "missing: a measurement set needs samples.csv")
     raw = path.read_bytes()
     body = _body(path, raw)
-    end = bytes(body[:65536]).find(b"\n")
-    header_text = _decoded(path, body[:end] if end >= 0 else body)
-    _csv_header_check(path, header_text)
-    header = [h.strip() for h in next(csv.reader([header_text]), [])]
-    if not any(header):
+    if not len(body):
         raise MeasurementSetError(path, 1, "empty file")
+    if not raw.isascii():
+        _decoded(path, body)  # names the line of a byte that is not UTF-8
+    header = _header(path, body)
     cols, others = _sample_columns(path, header, segments)
     fast = _fast_numeric(body, header, cols + others)
     if fast is not None:
@@ -273,6 +272,21 @@ def read_samples(folder: Path, segments) -> tuple[dict, bytes]:
         reader = csv.reader(fh)
         next(reader)
         return _check_samples(_careful(reader, path, header, cols, others), path, segments), raw
+
+
+def _header(path, body) -> list[str]:
+    """The header's cells. A plain first line (no quotes, ended by a newline within 64 KiB) is read
+    alone; any other through csv over the whole text, as the careful reader reads it."""
+    first = bytes(body[:65536])
+    end = first.find(b"\n")
+    if end >= 0 and b'"' not in first[:end]:
+        text = _decoded(path, memoryview(first)[:end])
+        _csv_header_check(path, text)
+        return [h.strip() for h in next(csv.reader([text]), [])]
+    text = _decoded(path, body)
+    _csv_header_check(path, text)
+    with _io.StringIO(text, newline="") as fh:
+        return [h.strip() for h in next(csv.reader(fh), [])]
 
 
 def _sample_columns(path, header, segments) -> tuple[list, list]:
