@@ -51,18 +51,17 @@ def best(f, repeats=7, inner=20):
     return min(out)
 
 
-# this interpreter's console script: a version manager's shim found first on PATH (pyenv's bash
-# script costs 50 ms a call) is not simucal's time
+# this interpreter's console script, whatever PATH holds first (a version manager's shim is not simucal's time)
 SIMUCAL = str(Path(sys.executable).with_name("simucal")) if Path(sys.executable).with_name("simucal").is_file() \
     else "simucal"
 
 
-def process(args, repeats=3):
+def process(args, repeats=3, cached=True):
     """The best wall time of a whole process, its modules' bytecode cached as an installed package
     has it: where PYTHONDONTWRITEBYTECODE is set, in a prefix in the cache (else every process
-    compiles every module again, 50-60 ms)."""
+    compiles every module again, 50-60 ms). cached=False: the environment as it is."""
     env = dict(os.environ)
-    if env.pop("PYTHONDONTWRITEBYTECODE", None):
+    if cached and env.pop("PYTHONDONTWRITEBYTECODE", None):
         env.setdefault("PYTHONPYCACHEPREFIX", str(cache_dir() / "pycache"))
     out = []
     for _ in range(repeats + 1):  # the first writes the bytecode
@@ -203,6 +202,10 @@ def run(json_path=None, echo=print, before=None) -> dict:
                        capture_output=True)
         fig["cli_field_drift_s"] = process([SIMUCAL, "field-drift", str(tmp / "field"), "-o", str(tmp / "d.json")])
         fig["cli_help_s"] = process([SIMUCAL, "--help"])
+        # as runs before 3dc5994 measured a process: this environment's bytecode setting (none cached here)
+        fig["cli_help_as_before_s"] = process(["simucal", "--help"], cached=False)
+        fig["cli_calibrate_raw_turntable_300k_as_before_s"] = process(
+            ["simucal", "calibrate", str(tmp / "raw300k"), "-o", str(tmp / "c3.json")], cached=False)
         progress.status("bench: one model compiled afresh")
         src = (generated_dir() / "acc_baseline.c").read_text() + f"\n/* {time.time()} */\n"  # a fresh build
         t = time.perf_counter()
