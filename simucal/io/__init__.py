@@ -6,10 +6,8 @@ MeasurementSetError naming the file, the line and the rule.
 from __future__ import annotations
 
 import csv
-import hashlib
 import io as _io
 import json
-import math
 import re
 from dataclasses import dataclass
 from pathlib import Path
@@ -17,18 +15,13 @@ from pathlib import Path
 import numpy as np
 
 from simucal.io import outputs, units
+from simucal.io.text_files import (MeasurementSetError, body_of, cell, check_delimiter, decoded, files_sha256,
+                                     not_a_folder, number, read_text)
 
 FORMAT = "simucal.measurements/1"
 SAMPLE_COLS = ("ax", "ay", "az", "gx", "gy", "gz")
 SEGMENT_COLS = ("segment", "kind", "outer_deg", "middle_deg", "inner_deg", "outer_rate_dps")
 PLAUSIBLE = 1e12  # no output, time or temperature of a real unit is this large (counts and pulse/s included)
-
-
-class MeasurementSetError(ValueError):
-    def __init__(self, path, line, rule):
-        where = f"{path}" + (f", line {line}" if line else "")
-        super().__init__(f"{where}: {rule}")
-        self.path, self.line, self.rule = path, line, rule
 
 
 @dataclass
@@ -108,79 +101,8 @@ def group_rows(segment_ids: np.ndarray) -> dict[int, np.ndarray]:
     return dict(zip(ids.tolist(), np.split(order, start[1:])))
 
 
-def _number(text, path, line, col):
-    try:
-        v = float(text)
-    except ValueError:
-        raise MeasurementSetError(path, line, f"column {col}: {text!r} is not a number") from None
-    if not math.isfinite(v):
-        raise MeasurementSetError(path, line, f"column {col}: {text} is not finite (NaN and infinities are errors)")
-    return v
-
-
-def _cell(row, col, path, line, required=True):
-    text = (row.get(col) or "").strip()
-    if text == "":
-        if required:
-            raise MeasurementSetError(path, line, f"column {col} is empty (empty cells are errors)")
-        return None
-    return text
-
-
-def read_text(path: Path) -> str:
-    """A file's text: UTF-8 (a byte-order mark is dropped); binary files and other encodings
-    are refused, naming the line."""
-    return _decoded(path, _body(path, path.read_bytes()))
-
-
-def _body(path: Path, data: bytes) -> memoryview:
-    """A text file's bytes without a byte-order mark (a view: a large file is not copied); binary
-    files are refused."""
-    if b"\0" in data[:65536]:
-        raise MeasurementSetError(path, None, "a binary file, not text (the spec's files are UTF-8 CSV and JSON)")
-    return memoryview(data)[3:] if data.startswith(b"\xef\xbb\xbf") else memoryview(data)
-
-
-def _decoded(path: Path, body: memoryview) -> str:
-    try:
-        return str(body, "utf-8")
-    except UnicodeDecodeError as e:
-        line = bytes(body[:e.start]).count(b"\n") + 1
-        raise MeasurementSetError(path, line, f"not UTF-8 text (byte 0x{body[e.start]:02x}): save the file as "
-                                              "UTF-8") from None
-
-
-def files_sha256(folder: Path, samples_csv: bytes) -> str:
-    """SHA-256 over meta.json, segments.csv and samples.csv (each its name, a NUL and its bytes):
-    what a calibration records as input_sha256 and validate compares. samples_csv: that file's
-    bytes as read (hashed once, not read again)."""
-    h = hashlib.sha256()
-    for name in ("meta.json", "segments.csv"):
-        if (folder / name).is_file():
-            h.update(name.encode() + b"\0" + (folder / name).read_bytes())
-    h.update(b"samples.csv\0")
-    h.update(samples_csv)
-    return h.hexdigest()
-
-
-def _csv_header_check(path, text):
-    """The spec's CSV is comma-separated: name another delimiter instead of a missing column."""
-    first = text[:text.find("\n")] if "\n" in text else text
-    if "," not in first:
-        for sep, name in (("\t", "tabs"), (";", "semicolons"), ("|", "bars")):
-            if sep in first:
-                raise MeasurementSetError(path, 1, f"the columns are separated by {name}; the spec's CSV uses commas "
-                                                   "(convert it, or use simucal import csv)")
-
-
-def _not_a_folder(path: Path) -> Path:
-    if path.is_dir():
-        raise MeasurementSetError(path, None, f"is a folder; {path.name} must be a file (see the spec)")
-    return path
-
-
 def read_meta(folder: Path) -> dict:
-    path = _not_a_folder(folder / "meta.json")
+    path = not_a_folder(folder / "meta.json")
     if not path.is_file():
         raise MeasurementSetError(path, None, "missing: a measurement set needs meta.json")
     try:
@@ -196,19 +118,19 @@ def read_meta(folder: Path) -> dict:
 
 
 def read_segments(folder: Path) -> list[Segment] | None:
-    path = _not_a_folder(folder / "segments.csv")
+    path = not_a_folder(folder / "segments.csv")
     if not path.is_file():
         return None
     out, seen = [], set()
     text = read_text(path)
-    _csv_header_check(path, text)
+    check_delimiter(path, text)
     with _io.StringIO(text, newline="") as fh:
         reader = csv.DictReader(fh)
         missing = [c for c in ("segment", "kind") if c not in (reader.fieldnames or [])]
         if missing:
             raise MeasurementSetError(path, 1, f"header lacks columns {missing}")
         for line, row in enumerate(reader, start=2):
-            sid = _cell(row, "segment", path, line)
+            sid = cell(row, "segment", path, line)
             try:
                 sid = int(sid)
             except ValueError:
@@ -216,13 +138,13 @@ def read_segments(folder: Path) -> list[Segment] | None:
             if sid in seen:
                 raise MeasurementSetError(path, line, f"segment {sid} appears twice (ids must be unique)")
             seen.add(sid)
-            kind = _cell(row, "kind", path, line)
+            kind = cell(row, "kind", path, line)
             if kind not in ("static", "rate"):
                 raise MeasurementSetError(path, line, f"kind must be 'static' or 'rate', got {kind!r}")
             vals = {}
             for col in ("outer_deg", "middle_deg", "inner_deg", "outer_rate_dps", "heading_ref_deg"):
-                text = _cell(row, col, path, line, required=False)
-                vals[col] = None if text is None else _number(text, path, line, col)
+                text = cell(row, col, path, line, required=False)
+                vals[col] = None if text is None else number(text, path, line, col)
             for col, limit, what in (("heading_ref_deg", 360.0, "an azimuth in degrees, -360..360"),
                                      ("outer_rate_dps", 2000.0, "deg/s, |rate| <= 2000: no table turns faster")):
                 if vals[col] is not None and abs(vals[col]) > limit:
@@ -254,21 +176,21 @@ def read_samples(folder: Path, segments) -> tuple[dict, bytes]:
     """(column -> array, the file's bytes). The numbers are parsed by pyarrow, and only where that
     finds anything unusual by the careful reader, which names the line; the whole file is checked
     to be UTF-8 either way (an ASCII file, the usual one, is UTF-8 without decoding it)."""
-    path = _not_a_folder(folder / "samples.csv")
+    path = not_a_folder(folder / "samples.csv")
     if not path.is_file():
         raise MeasurementSetError(path, None, "missing: a measurement set needs samples.csv")
     raw = path.read_bytes()
-    body = _body(path, raw)
+    body = body_of(path, raw)
     if not len(body):
         raise MeasurementSetError(path, 1, "empty file")
     if not raw.isascii():
-        _decoded(path, body)  # names the line of a byte that is not UTF-8
+        decoded(path, body)  # names the line of a byte that is not UTF-8
     header = _header(path, body)
     cols, others = _sample_columns(path, header, segments)
     fast = _fast_numeric(body, header, cols + others)
     if fast is not None:
         return _check_samples(fast, path, segments), raw
-    with _io.StringIO(_decoded(path, body), newline="") as fh:
+    with _io.StringIO(decoded(path, body), newline="") as fh:
         reader = csv.reader(fh)
         next(reader)
         return _check_samples(_careful(reader, path, header, cols, others), path, segments), raw
@@ -280,11 +202,11 @@ def _header(path, body) -> list[str]:
     first = bytes(body[:65536])
     end = first.find(b"\n")
     if end >= 0 and b'"' not in first[:end]:
-        text = _decoded(path, memoryview(first)[:end])
-        _csv_header_check(path, text)
+        text = decoded(path, memoryview(first)[:end])
+        check_delimiter(path, text)
         return [h.strip() for h in next(csv.reader([text]), [])]
-    text = _decoded(path, body)
-    _csv_header_check(path, text)
+    text = decoded(path, body)
+    check_delimiter(path, text)
     with _io.StringIO(text, newline="") as fh:
         return [h.strip() for h in next(csv.reader(fh), [])]
 
@@ -326,10 +248,10 @@ def _careful(reader, path, header, cols, others) -> dict:
             text = row[idx[c]].strip()
             if text == "":
                 raise MeasurementSetError(path, line, f"column {c} is empty (empty cells are errors)")
-            data[c].append(_number(text, path, line, c))
+            data[c].append(number(text, path, line, c))
         for c in list(others):
             try:
-                data[c].append(_number(row[idx[c]].strip(), path, line, c))
+                data[c].append(number(row[idx[c]].strip(), path, line, c))
             except MeasurementSetError:
                 others.remove(c)
                 del data[c]
