@@ -94,7 +94,8 @@ def _new_commands(tmp, fig):
 def _montecarlo_effect(tmp, fig):
     """The Monte Carlo with acc.quadratic.z=1e-4: in process, and as whole processes of 100 trials
     (what the process costs before its trials: start-up, the reference fit, the check of the
-    revolution's samples), 20,000 (issue 27's figure) and 200,000 (std/CRLB over them)."""
+    revolution's samples), 20,000 (issue 27's figure) and 200,000 (std/CRLB over them); with a
+    user's model file (a cubic term) in process."""
     from simucal.turntable.simulate import plant
     sc = Scenario()
     plant(sc, ["acc.quadratic.z=1e-4"])
@@ -107,6 +108,18 @@ def _montecarlo_effect(tmp, fig):
     ratios = [v["std_over_crlb"] for v in json.loads((tmp / "mce.json").read_text())["parameters"].values()]
     fig["montecarlo_effect_200k_std_over_crlb_min"], fig["montecarlo_effect_200k_std_over_crlb_max"] = \
         min(ratios), max(ratios)
+    (tmp / "cubic.py").write_text(CUBIC_MODEL_FILE)
+    sc = Scenario()
+    plant(sc, effect_file=str(tmp / "cubic.py"), sets=["K3_x=1e-3"])
+    montecarlo.run(sc, 2500, 0)
+    fig["montecarlo_model_file_trials_per_s"] = montecarlo.run(sc, 100000, 1)["trials_per_s"]
+
+
+CUBIC_MODEL_FILE = """from simucal.derive.frames import f_b
+from simucal.derive.models import Term
+from simucal.derive.models.baseline import ACC_BASELINE
+MODELS = [ACC_BASELINE.with_terms("acc_cubic_bench", [Term("K3_x", "x", f_b[0] ** 3, "g/g^3", "x cubic")])]
+"""  # a user's model file: the Monte Carlo's truth and fitted model
 
 
 def _cell(k, v) -> str:

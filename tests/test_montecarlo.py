@@ -179,3 +179,33 @@ def test_an_effect_runs_in_numpy_where_the_cache_cannot_take_its_compiled_form(m
     finally:
         augmented._derived.cache_clear()
     assert "numpy" in r["backend"]["acc"] and r["failed"] == 0
+
+
+MODEL_FILE = """from simucal.derive.frames import column_input, f_b
+from simucal.derive.models import Term
+from simucal.derive.models.baseline import ACC_BASELINE
+MODELS = [ACC_BASELINE.with_terms("acc_{name}_mc", [Term("{param}", "x", {term}, "{unit}", "a term of the test's")])]
+"""
+
+
+def test_a_users_model_file_runs_compiled_with_std_at_the_bound(tmp_path):
+    """--effect-file: the user's model is the truth and the fitted model, through the compiled fit
+    (issue 27: any library effect or user model file); its term's std meets its CRLB and its mean the
+    truth. A term reading a column the averaged positions never vary is refused, naming the column."""
+    (tmp_path / "cubic.py").write_text(MODEL_FILE.format(name="cubic", param="K3_x", term="f_b[0] ** 3",
+                                                          unit="g/g^3"))
+    out = tmp_path / "mc.json"
+    r = CliRunner().invoke(main, ["montecarlo", "--effect-file", str(tmp_path / "cubic.py"), "--set", "K3_x=1e-3",
+                                  "--trials", "4000", "--seed", "3", "-o", str(out)])
+    assert r.exit_code == 0, r.output
+    res = json.loads(out.read_text())
+    assert res["backend"]["acc"] == "compiled acc_cubic_mc (one call per batch)" and res["failed"] == 0
+    k3 = res["parameters"]["acc.K3_x"]
+    assert k3["truth"] == 1e-3 and abs(k3["mean"] - k3["truth"]) < 4 * k3["std"] / np.sqrt(4000)
+    assert 0.93 < k3["std_over_crlb"] < 1.07, k3
+    (tmp_path / "supply.py").write_text(MODEL_FILE.format(name="supply", param="bV_x", unit="g/V",
+                                                           term='column_input("supply_v", "V", "supply")'))
+    r = CliRunner().invoke(main, ["montecarlo", "--effect-file", str(tmp_path / "supply.py"), "--set", "bV_x=1e-4",
+                                  "--trials", "100", "-o", str(tmp_path / "mc2.json")])
+    assert r.exit_code == 2 and "reads supply_v" in r.output and "--column supply_v" in r.output, r.output
+    assert not (tmp_path / "mc2.json").exists()

@@ -102,6 +102,11 @@ NOISE_DPH = Number(0.0, 1e6, low_open=True, what="the std of one row, deg/h")
 LATITUDE = Number(-90.0, 90.0, what="degrees")
 SIM_RATE_HZ = Number(0.0, 2000.0, low_open=True, what="the simulator writes raw rows up to 2 kHz")
 MAX_TRIALS = 10_000_000  # ~1.4 GB of estimates, about two minutes compiled
+EFFECT_FILE = click.option(
+    "--effect-file", default=None, type=click.Path(dir_okay=False),
+    help="A model file of your own terms (MODELS = [...]); its models become the truth models. " + MODEL_FILE_RUNS)
+SETS = click.option("--set", "sets", multiple=True, metavar="NAME=VALUE",
+                    help="With --effect-file: the true value of one of its parameters (repeatable).")
 FORCE = click.option("--force", is_flag=True,
                       help="Replace a measurement set already in the output folder (never one of the inputs).")
 

@@ -6,9 +6,10 @@ from pathlib import Path
 import click
 
 from simucal.cli.common import (
+    EFFECT_FILE,
     FORCE,
     LATITUDE,
-    MODEL_FILE_RUNS,
+    SETS,
     POSITIVE,
     SEED,
     SIM_RATE_HZ,
@@ -40,11 +41,8 @@ from simucal.cli.common import (
 @click.option("--effect", "effects", multiple=True, metavar="ID=VALUE",
               help="Plant a candidate effect in the truth, in the unit its term declares, e.g. "
                    "acc.quadratic.z=6e-5 or gyro.g_sensitivity.xz=0.3 (repeatable).")
-@click.option("--effect-file", default=None, type=click.Path(dir_okay=False),
-              help="A model file of your own terms (MODELS = [...]); its models become the truth models. "
-                   + MODEL_FILE_RUNS)
-@click.option("--set", "sets", multiple=True, metavar="NAME=VALUE",
-              help="With --effect-file: the true value of one of its parameters (repeatable).")
+@EFFECT_FILE
+@SETS
 @click.option("--column", "columns", multiple=True, metavar="NAME=LOW:HIGH",
               help="Write an auxiliary column, one value per segment drawn uniformly in [LOW, HIGH], e.g. "
                    "supply_v=4.5:5.5 (one your --effect-file terms read) or temp_c=20:40; repeatable.")

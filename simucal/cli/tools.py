@@ -7,6 +7,7 @@ from pathlib import Path
 import click
 
 from simucal.cli.common import (
+    EFFECT_FILE,
     FORCE,
     MAX_TRIALS,
     MODEL_FILE_RUNS,
@@ -14,6 +15,7 @@ from simucal.cli.common import (
     NOISE_G,
     POSITIVE,
     SEED,
+    SETS,
     Number,
     fail,
     guard,
@@ -91,11 +93,13 @@ def demo(out_dir, seed, force):
 @click.option("--effect", "effects", multiple=True, metavar="ID=VALUE",
               help="Plant a candidate effect in the truth and fit it (repeatable; the augmented model is derived "
                    "and compiled into the cache once, then runs at about two thirds of the base's speed).")
+@EFFECT_FILE
+@SETS
 @click.option("-o", "--output", type=click.Path(dir_okay=False), default="montecarlo.json", show_default=True)
 @click.option("--scheduler", default="local", show_default=True,
               help="local (this process), processes (a Dask LocalCluster, one worker per core) or a Dask "
                    "scheduler's address: the same numbers on any.")
-def montecarlo(scenario, plan, trials, seed, effects, output, scheduler):
+def montecarlo(scenario, plan, trials, seed, effects, effect_file, sets, output, scheduler):
     """Monte Carlo of a scenario: simulate, exact fits, unification; std against the Cramer-Rao bound."""
     import json
 
@@ -103,15 +107,15 @@ def montecarlo(scenario, plan, trials, seed, effects, output, scheduler):
     from simucal.io import outputs
     from simucal.turntable.montecarlo import run
     from simucal.turntable.simulate import SCENARIOS, plant
-    guard([plan if plan and Path(plan).exists() else None], files=[output])
-    if effects and trials > MAX_TRIALS // 10:  # without a compiler their fits run in numpy, ~10x slower
-        fail(f"--trials {trials}: with --effect at most {MAX_TRIALS // 10} (about two minutes); split the run "
-              "over seeds")
+    guard([plan if plan and Path(plan).exists() else None, effect_file], files=[output])
+    if (effects or effect_file) and trials > MAX_TRIALS // 10:  # without a compiler, numpy: ~10x slower
+        fail(f"--trials {trials}: with --effect or --effect-file at most {MAX_TRIALS // 10} (about two minutes); "
+             "split the run over seeds")
     sc = SCENARIOS[scenario]()
     if plan:
         sc.plan = plan
     try:
-        plant(sc, effects)
+        plant(sc, effects, effect_file, sets, writes_columns=False)  # its averaged rows have no columns
         result = run(sc, trials, seed, scheduler=scheduler,
                      progress=progress.bar("montecarlo", "batch"))
     except (ValueError, KeyError, FileNotFoundError) as e:

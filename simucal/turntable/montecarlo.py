@@ -30,7 +30,7 @@ import time
 import numpy as np
 
 from simucal.fit.augmented import AugmentedModel, compiled_form
-from simucal.fit.aux_inputs import AuxInputs, specific_force
+from simucal.fit.aux_inputs import FORCE, AuxInputs, specific_force
 from simucal.fit.norm_fit import fit_batch
 from simucal.fit.rotations import adjugate3, det3, wahba
 from simucal.generated import table
@@ -196,6 +196,20 @@ def chunk_of_trials(sc: Scenario, size: int, seed: int, k: int, k_rev: int = K_R
     return {"acc": pa[ok], "gyro": pg[ok], "phi": phi, "failed": np.nonzero(~ok)[0].tolist()}
 
 
+UNSEEN = ("the Monte Carlo's averaged positions never vary (no time, temperature, lever-arm or column rows are "
+          "fitted), so no fit can see it; simulate a set")
+
+
+def _reads_beyond_input(model) -> list[str]:
+    """The auxiliary inputs a model's output changes with, beyond the specific force that its gyro
+    terms read: each set in turn to 1 at a random input, every parameter at 1."""
+    u, p = np.random.default_rng(0).normal(size=(1, 3)), np.ones(len(model.params))
+    one = np.eye(len(model.aux))[:, None, :]  # each input alone at 1, the others at 0
+    zero = model.module.output(u, p, np.zeros((1, len(model.aux))))
+    return [a for a, A in zip(model.aux, one) if a not in FORCE
+            and not np.allclose(model.module.output(u, p, A), zero, rtol=0, atol=1e-12)]
+
+
 def _reference(sc: Scenario, am, gm):
     """(the noise-free trial, {sensor: the CRLB of each parameter}): the exact fit of a noise-free
     trial with the stated noise. Effects no trial can determine are refused before any trial: those
@@ -205,9 +219,12 @@ def _reference(sc: Scenario, am, gm):
         unseen = [e for e in m.effects if set(EFFECTS[e].reads) - {"f_x", "f_y", "f_z"}]  # the gyro's input only
         if unseen:
             raise ValueError(f"--effect {unseen[0]}: its regressor reads {', '.join(EFFECTS[unseen[0]].reads)}, which "
-                             "the Monte Carlo's averaged positions never vary (no time, temperature or lever arm "
-                             "rows are fitted), so no fit can see it; simulate a set (simucal simulate --effect) and "
-                             "calibrate it instead")
+                             f"{UNSEEN} (simucal simulate --effect) and calibrate it instead")
+        read = _reads_beyond_input(m.base)
+        if read:
+            raise ValueError(f"model {m.base.name} ({m.base.source}) reads {', '.join(read)}, which {UNSEEN} "
+                             f"(simucal simulate --effect-file FILE --column {read[0]}=LOW:HIGH) and calibrate it "
+                             "instead")
     ref = simulate_batch(sc, 1, np.random.default_rng(0), noise=False)
     crlb = {}
     for sensor, model, N, rho, sig, aux in (

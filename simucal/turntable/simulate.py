@@ -96,10 +96,11 @@ def _pairs(items, what):
     return out
 
 
-def plant(sc: Scenario, effects=(), effect_file=None, sets=(), columns=()):
+def plant(sc: Scenario, effects=(), effect_file=None, sets=(), columns=(), writes_columns=True):
     """Put effects into the truth: candidate ids (--effect ID=VALUE) and a model file's terms
     (--effect-file FILE --set NAME=VALUE), with the auxiliary columns they read
-    (--column NAME=LOW:HIGH). Unknown ids or names are refused."""
+    (--column NAME=LOW:HIGH). Unknown ids or names are refused, and, where a set is written
+    (writes_columns), a model file's column with no values."""
     for item in columns:
         name, eq, ends = item.partition("=")
         try:
@@ -132,7 +133,7 @@ def plant(sc: Scenario, effects=(), effect_file=None, sets=(), columns=()):
         if unknown:
             raise ValueError(f"--set {unknown}: not parameters of {effect_file}; its parameters are {sorted(known)}")
         reads = (set(load(sc.acc_model).aux) | set(load(sc.gyro_model).aux)) - DEFAULT_ZERO - set(sc.columns)
-        if reads:
+        if reads and writes_columns:
             raise ValueError(f"{effect_file} reads the column(s) {sorted(reads)}: give their values with "
                              f"--column {sorted(reads)[0]}=LOW:HIGH")
 
