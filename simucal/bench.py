@@ -10,9 +10,11 @@
   imu_tk Xsens stream, `simucal diagnose` of the Xsens stream (and with --html), `simucal validate` of the raw
   set, `simucal noise` on 2 h at 100 Hz (720,000 rows x 6), `simucal calibrate --thermal` on 3
   plateaus, `simucal montecarlo --effect acc.quadratic.z=1e-4` (trials per second in process and
-  of whole processes of 20,000 and 200,000 trials, with std/CRLB; the cost of a process of 100),
-  `simucal field-drift` (3 x 300 s at 100 Hz), `simucal --help`. Whole processes run the console
-  script beside this interpreter, with bytecode cached (bench.process);
+  of whole processes of 20,000 and 200,000 trials, with std/CRLB; the cost of a process of 100;
+  with a user's model file in process), `simucal field-drift` (3 x 300 s at 100 Hz), `simucal
+  --help`. Whole processes run the console script beside this interpreter, with bytecode cached
+  (bench.process), but for `--help` and the 300,100-row calibrate also measured without that cache
+  (*_as_before_s: as runs before 3dc5994 measured them);
 - compiling one model's C.
 Run by `simucal bench [-o OUT.json] [--before OLD.json]` or `python3 benchmarks/bench_speed.py`;
 --before prints a previous run's figures beside these (benchmarks/bench_*.json hold earlier
@@ -59,7 +61,8 @@ SIMUCAL = str(Path(sys.executable).with_name("simucal")) if Path(sys.executable)
 def process(args, repeats=3, cached=True):
     """The best wall time of a whole process, its modules' bytecode cached as an installed package
     has it: where PYTHONDONTWRITEBYTECODE is set, in a prefix in the cache (else every process
-    compiles every module again, 50-60 ms). cached=False: the environment as it is."""
+    compiles every module it imports again: the *_as_before_s figures measure it). cached=False:
+    the environment as it is."""
     env = dict(os.environ)
     if cached and env.pop("PYTHONDONTWRITEBYTECODE", None):
         env.setdefault("PYTHONPYCACHEPREFIX", str(cache_dir() / "pycache"))

@@ -8,9 +8,7 @@ sweep gives the same numbers on any scheduler (each task carries its own seed).
 """
 from __future__ import annotations
 
-import contextlib
 import ctypes
-import ctypes.util
 import os
 
 
@@ -23,7 +21,7 @@ def map_tasks(fn, tasks: list, scheduler=None, progress=None, threads: int = 1) 
 
         from threadpoolctl import threadpool_limits
         # one BLAS thread each: BLAS's own threads would spin against the tasks' (a third of the speed)
-        with threadpool_limits(1, "blas"), _freed_memory_kept(), ThreadPoolExecutor(threads) as pool:
+        with threadpool_limits(1, "blas"), ThreadPoolExecutor(threads) as pool:
             futures = [pool.submit(fn, *t) for t in tasks]
             return [f.result() for f in (progress(futures) if progress else futures)]
     from dask.distributed import Client, LocalCluster, as_completed
@@ -52,24 +50,19 @@ def map_tasks(fn, tasks: list, scheduler=None, progress=None, threads: int = 1) 
             cluster.close()
 
 
-@contextlib.contextmanager
-def _freed_memory_kept():
-    """glibc keeps freed blocks for reuse while the tasks run (M_MMAP_THRESHOLD 32 MiB, its maximum;
-    M_TRIM_THRESHOLD 512 MiB), then its defaults (128 KiB) again: else every batch's temporaries of a
-    few MiB are mapped afresh and page-faulted in on every allocation, a tenth of a Monte Carlo's time
-    on two threads. Nothing where the C library is not glibc."""
+
+def keep_freed_memory():
+    """Ask glibc to keep freed blocks for reuse (M_MMAP_THRESHOLD 32 MiB, its maximum; M_TRIM_THRESHOLD
+    512 MiB) for the rest of the process: else every batch's temporaries of a few MiB are mapped afresh
+    and page-faulted in at each allocation, a tenth of a Monte Carlo's time on two threads. For a
+    process simucal owns (the command line): it is not undone (glibc's self-adjusting thresholds
+    cannot be restored), so a library caller keeps its own. Nothing where the C library has no
+    mallopt (macOS, Windows, musl)."""
     try:
-        mallopt = getattr(ctypes.CDLL(ctypes.util.find_library("c") or "libc.so.6"), "mallopt", None)
-    except OSError:
+        mallopt = getattr(ctypes.CDLL(None), "mallopt", None)
+    except (OSError, TypeError):  # Windows: no process-wide C library handle
         mallopt = None
-    if mallopt is None:
-        yield
-        return
-    m_trim, m_mmap = -1, -3  # malloc.h's M_TRIM_THRESHOLD, M_MMAP_THRESHOLD
-    mallopt(m_mmap, 32 << 20)
-    mallopt(m_trim, 512 << 20)
-    try:
-        yield
-    finally:
-        mallopt(m_mmap, 128 << 10)
-        mallopt(m_trim, 128 << 10)
+    if mallopt is not None:
+        m_trim, m_mmap = -1, -3  # malloc.h's M_TRIM_THRESHOLD, M_MMAP_THRESHOLD
+        mallopt(m_mmap, 32 << 20)
+        mallopt(m_trim, 512 << 20)

@@ -209,3 +209,24 @@ def test_a_users_model_file_runs_compiled_with_std_at_the_bound(tmp_path):
                                   "--trials", "100", "-o", str(tmp_path / "mc2.json")])
     assert r.exit_code == 2 and "reads supply_v" in r.output and "--column supply_v" in r.output, r.output
     assert not (tmp_path / "mc2.json").exists()
+
+
+def test_a_model_file_is_refused_only_for_inputs_the_averaged_positions_never_vary(tmp_path):
+    """A term in temperature times time is refused naming both inputs (a product, which moving one
+    input from zero would miss) and the simulate command that gives them; a gyro term in the specific
+    force, which the Monte Carlo supplies, runs, seen by rate runs of both signs (--rates-dps)."""
+    header = ("from simucal.derive.frames import dtemp_c, f_b, t_s\nfrom simucal.derive.models import Term\n"
+              "from simucal.derive.models.baseline import ACC_BASELINE, GYRO_BASELINE\n")
+    (tmp_path / "drift.py").write_text(header + 'MODELS = [ACC_BASELINE.with_terms("acc_drift_mc", [Term("c_x", "x", '
+                                       'dtemp_c * t_s, "g/(degC s)", "a drift growing with temperature")])]\n')
+    r = CliRunner().invoke(main, ["montecarlo", "--effect-file", str(tmp_path / "drift.py"), "--set", "c_x=1e-6",
+                                  "--trials", "100", "-o", str(tmp_path / "a.json")])
+    assert r.exit_code == 2 and "reads dtemp_c, t_s" in r.output, r.output
+    assert "--column temp_c=LOW:HIGH" in r.output and "--column t_s" not in r.output
+    (tmp_path / "gsens.py").write_text(header + 'MODELS = [GYRO_BASELINE.with_terms("gyro_gsens_mc", [Term("G_xz", '
+                                       '"x", f_b[2], "(deg/h)/g", "x rate from the z specific force")])]\n')
+    r = CliRunner().invoke(main, ["montecarlo", "--effect-file", str(tmp_path / "gsens.py"), "--set", "G_xz=0.3",
+                                  "--rates-dps", "10,-10", "--trials", "3000", "-o", str(tmp_path / "g.json")])
+    assert r.exit_code == 0, r.output
+    g = json.loads((tmp_path / "g.json").read_text())["parameters"]["gyro.G_xz"]
+    assert g["truth"] == 0.3 and 0.9 < g["std_over_crlb"] < 1.1, g

@@ -102,9 +102,22 @@ NOISE_DPH = Number(0.0, 1e6, low_open=True, what="the std of one row, deg/h")
 LATITUDE = Number(-90.0, 90.0, what="degrees")
 SIM_RATE_HZ = Number(0.0, 2000.0, low_open=True, what="the simulator writes raw rows up to 2 kHz")
 MAX_TRIALS = 10_000_000  # ~1.4 GB of estimates, about two minutes compiled
+def rates_dps(text: str) -> list[float]:
+    """--rates-dps R1,R2,...: outer-axis rates of rate runs in deg/s, each finite, non-zero and within
+    the spec's 2000 deg/s."""
+    try:
+        rates = [float(x) for x in text.split(",")]
+    except ValueError:
+        raise ValueError(f"--rates-dps {text}: write rates in deg/s separated by commas, e.g. 10,-10") from None
+    if not all(0 < abs(r) <= 2000 for r in rates):  # NaN fails too
+        raise ValueError(f"--rates-dps {text}: a rate run needs a non-zero rate within 2000 deg/s")
+    return rates
+
+
 EFFECT_FILE = click.option(
     "--effect-file", default=None, type=click.Path(dir_okay=False),
-    help="A model file of your own terms (MODELS = [...]); its models become the truth models. " + MODEL_FILE_RUNS)
+    help="A model file of your own terms (MODELS = [...]); its models become the truth models (in montecarlo "
+         "the fitted ones too). " + MODEL_FILE_RUNS)
 SETS = click.option("--set", "sets", multiple=True, metavar="NAME=VALUE",
                     help="With --effect-file: the true value of one of its parameters (repeatable).")
 FORCE = click.option("--force", is_flag=True,

@@ -20,6 +20,7 @@ from simucal.cli.common import (
     fail,
     guard,
     main,
+    rates_dps,
 )
 
 
@@ -95,19 +96,24 @@ def demo(out_dir, seed, force):
                    "and compiled into the cache once, then runs at about two thirds of the base's speed).")
 @EFFECT_FILE
 @SETS
+@click.option("--rates-dps", "rates", default=None, metavar="R1,R2,...",
+              help="The rate runs' outer-axis rates in deg/s at each attitude (default the paper's 10); rates of "
+                   "both signs, e.g. 10,-10, let g-sensitivity terms show.")
 @click.option("-o", "--output", type=click.Path(dir_okay=False), default="montecarlo.json", show_default=True)
 @click.option("--scheduler", default="local", show_default=True,
               help="local (this process), processes (a Dask LocalCluster, one worker per core) or a Dask "
                    "scheduler's address: the same numbers on any.")
-def montecarlo(scenario, plan, trials, seed, effects, effect_file, sets, output, scheduler):
+def montecarlo(scenario, plan, trials, seed, effects, effect_file, sets, rates, output, scheduler):
     """Monte Carlo of a scenario: simulate, exact fits, unification; std against the Cramer-Rao bound."""
     import json
 
     from simucal import progress
     from simucal.io import outputs
     from simucal.turntable.montecarlo import run
+    from simucal.sweeps import keep_freed_memory
     from simucal.turntable.simulate import SCENARIOS, plant
     guard([plan if plan and Path(plan).exists() else None, effect_file], files=[output])
+    keep_freed_memory()  # this process is the command's
     if (effects or effect_file) and trials > MAX_TRIALS // 10:  # without a compiler, numpy: ~10x slower
         fail(f"--trials {trials}: with --effect or --effect-file at most {MAX_TRIALS // 10} (about two minutes); "
              "split the run over seeds")
@@ -115,6 +121,8 @@ def montecarlo(scenario, plan, trials, seed, effects, effect_file, sets, output,
     if plan:
         sc.plan = plan
     try:
+        if rates:
+            sc.outer_rate_dps = tuple(rates_dps(rates))
         plant(sc, effects, effect_file, sets, writes_columns=False)  # its averaged rows have no columns
         result = run(sc, trials, seed, scheduler=scheduler,
                      progress=progress.bar("montecarlo", "batch"))
@@ -142,9 +150,7 @@ def _plan_scores(model, score_plan, positions, criterion, rate_dps, rates, sigma
     gyro = model.sensor == "gyro"
     if gyro and rate_dps == 0:
         raise ValueError(f"--rate-dps {rate_dps}: a rate run needs a non-zero rate (deg/s)")
-    rate_list = [float(x) for x in rates.split(",")] if rates else [rate_dps]
-    if gyro and not all(abs(x) > 0 for x in rate_list):
-        raise ValueError(f"--rates-dps {rates}: a rate run needs a non-zero rate (deg/s)")
+    rate_list = rates_dps(rates) if rates else [rate_dps]
     rho = abs(rate_dps) * DPH_PER_DPS if gyro else 1.0
     if score_plan is not None:
         rows = plans.PLANS[score_plan]() if score_plan in plans.PLANS else plans.read_csv(score_plan)

@@ -202,12 +202,22 @@ UNSEEN = ("the Monte Carlo's averaged positions never vary (no time, temperature
 
 def _reads_beyond_input(model) -> list[str]:
     """The auxiliary inputs a model's output changes with, beyond the specific force that its gyro
-    terms read: each set in turn to 1 at a random input, every parameter at 1."""
-    u, p = np.random.default_rng(0).normal(size=(1, 3)), np.ones(len(model.params))
-    one = np.eye(len(model.aux))[:, None, :]  # each input alone at 1, the others at 0
-    zero = model.module.output(u, p, np.zeros((1, len(model.aux))))
-    return [a for a, A in zip(model.aux, one) if a not in FORCE
-            and not np.allclose(model.module.output(u, p, A), zero, rtol=0, atol=1e-12)]
+    terms read: each changed in turn from a random point where every input is non-zero (a product
+    of two inputs shows too), every parameter at 1."""
+    rng = np.random.default_rng(0)
+    u, p = rng.normal(size=(1, 3)), np.ones(len(model.params))
+    at = rng.uniform(0.5, 1.5, (1, len(model.aux)))
+    A = at + np.eye(len(model.aux))[:, None, :]  # A[j]: input j moved by 1
+    at = model.module.output(u, p, at)
+    return [a for a, Aj in zip(model.aux, A) if a not in FORCE
+            and not np.allclose(model.module.output(u, p, Aj), at, rtol=0, atol=1e-12)]
+
+
+def _simulate_instead(read) -> str:
+    """The simulate command that gives inputs the Monte Carlo cannot: a user's column and the
+    temperature by --column; time and the centripetal w2 come with every simulated set."""
+    columns = sorted({"temp_c" if a == "dtemp_c" else a for a in read} - {"t_s", "w2"})
+    return ("simucal simulate --effect-file FILE" + "".join(f" --column {c}=LOW:HIGH" for c in columns))
 
 
 def _reference(sc: Scenario, am, gm):
@@ -223,8 +233,7 @@ def _reference(sc: Scenario, am, gm):
         read = _reads_beyond_input(m.base)
         if read:
             raise ValueError(f"model {m.base.name} ({m.base.source}) reads {', '.join(read)}, which {UNSEEN} "
-                             f"(simucal simulate --effect-file FILE --column {read[0]}=LOW:HIGH) and calibrate it "
-                             "instead")
+                             f"({_simulate_instead(read)}) and calibrate it instead")
     ref = simulate_batch(sc, 1, np.random.default_rng(0), noise=False)
     crlb = {}
     for sensor, model, N, rho, sig, aux in (
@@ -236,7 +245,8 @@ def _reference(sc: Scenario, am, gm):
                              f"leaves a combination of its parameters unobservable (simucal plan --score {sc.plan} "
                              f"--model {model.base.name}" + "".join(f" --add {e}" for e in model.effects)
                              + " names it)" + "".join(f"; to see {e}: {SEPARATE[e.split('.')[1]]}" for e in model.effects)
-                             + f" (this scenario's rate runs: {', '.join(f'{r:g}' for r in sc.outer_rate_dps)} deg/s)")
+                             + f" (this scenario's rate runs: {', '.join(f'{r:g}' for r in sc.outer_rate_dps)} deg/s; "
+                             "montecarlo --plan and --rates-dps, e.g. 10,-10, change them)")
         crlb[sensor] = np.sqrt(np.diag(cov0[0]))
     return ref, crlb
 
