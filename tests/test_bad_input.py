@@ -808,3 +808,16 @@ def test_a_model_file_that_exits_is_the_users_error(sets, tmp_path, monkeypatch)
     m = tmp_path / "m.py"
     m.write_text("import sys\nsys.exit(0)\n")
     run_refused(["calibrate", sets / "table", "-o", tmp_path / "c.json", "--add", m], "m.py", "ended the process")
+
+
+@pytest.mark.parametrize("args,expect", [
+    (["validate", "nosuch.json", "nosuch_dir"], ("'nosuch.json' does not exist", "simucal validate --help")),
+    (["calibrate", "--method", "bogus", "x"], ("'bogus' is not one of", "simucal calibrate --help")),
+    (["no-such-command"], ("No such command", "simucal --help")),
+    (["montecarlo", "--effect", "acc.quadratic.z=1e-4", "--effect", "acc.quadratic.z=2e-4"], ("given twice",)),
+    (["montecarlo", "--rates-dps", "10,abc"], ("--rates-dps 10,abc", "e.g. 10,-10")),
+])
+def test_a_usage_error_is_one_line_naming_the_help(tmp_path, args, expect):
+    """click's own refusals (a missing file, a bad choice, an unknown command) are one line, as
+    simucal's are, naming the help to read; a value given twice is refused, not the last one kept."""
+    run_refused(args + ["-o", str(tmp_path / "o.json")] if args[0] == "montecarlo" else args, *expect)

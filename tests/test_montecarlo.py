@@ -230,3 +230,13 @@ def test_a_model_file_is_refused_only_for_inputs_the_averaged_positions_never_va
     assert r.exit_code == 0, r.output
     g = json.loads((tmp_path / "g.json").read_text())["parameters"]["gyro.G_xz"]
     assert g["truth"] == 0.3 and 0.9 < g["std_over_crlb"] < 1.1, g
+
+
+def test_an_effect_is_reported_under_its_own_id(tmp_path):
+    """The effect's estimate is keyed acc.quadratic.z, the id the user typed (not acc.acc.quadratic.z)."""
+    out = tmp_path / "mc.json"
+    r = CliRunner().invoke(main, ["montecarlo", "--effect", "acc.quadratic.z=1e-4", "--trials", "200", "-o", str(out)])
+    assert r.exit_code == 0, r.output
+    keys = json.loads(out.read_text())["parameters"]
+    assert "acc.quadratic.z" in keys and not any(k.startswith(("acc.acc.", "gyro.gyro.")) for k in keys)
+    assert "acc.quadratic.z " in r.output

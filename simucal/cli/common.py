@@ -18,6 +18,10 @@ class _Commands(click.Group):
         warnings.simplefilter("ignore", RuntimeWarning)  # numpy's, printed before a clear error otherwise
         try:
             return super().invoke(ctx)
+        except click.UsageError as e:  # a missing file, a bad choice: one line, not click's usage block
+            where = " ".join(["simucal"] + (e.ctx.command_path.split()[1:] if e.ctx is not None else []))
+            click.echo(f"error: {e.format_message()} (see {where} --help)", err=True)
+            sys.exit(2)
         except (click.exceptions.Exit, click.exceptions.Abort, click.ClickException, KeyboardInterrupt):
             raise
         except BrokenPipeError:  # the reader went away (| head): not an error of ours or the user's

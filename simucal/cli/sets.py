@@ -36,8 +36,12 @@ from simucal.cli.common import (
 @click.option("--position-error-arcmin", type=Number(0.0, 10800.0), default=None, help="Uniform +- angular position error.")
 @click.option("--acc-model", default=None, help="Generated model for the truth (may hold terms calibration lacks).")
 @click.option("--gyro-model", default=None, help="Generated gyro model for the truth.")
-@click.option("--acc-unit", type=click.Choice(["g", "m/s^2", "pulse/s"]), default=None)
-@click.option("--gyro-unit", type=click.Choice(["deg/h", "deg/s", "rad/s", "pulse/s"]), default=None)
+@click.option("--acc-unit", type=click.Choice(["g", "m/s^2", "pulse/s"]), default=None,
+              help="The accelerometer outputs' unit in samples.csv (default pulse/s, the paper's pulse counts; the field "
+                   "scenario writes m/s^2).")
+@click.option("--gyro-unit", type=click.Choice(["deg/h", "deg/s", "rad/s", "pulse/s"]), default=None,
+              help="The gyro outputs' unit in samples.csv (default pulse/s, the paper's pulse counts; the field scenario "
+                   "writes deg/s).")
 @click.option("--effect", "effects", multiple=True, metavar="ID=VALUE",
               help="Plant a candidate effect in the truth, in the unit its term declares, e.g. "
                    "acc.quadratic.z=6e-5 or gyro.g_sensitivity.xz=0.3 (repeatable).")

@@ -84,12 +84,16 @@ def _pairs(items, what):
     out = {}
     for item in items:
         name, eq, val = item.partition("=")
+        example = "acc.quadratic.z=6e-5" if what == "--effect" else "K3_x=1e-3"
+        if name.strip() in out:
+            raise ValueError(f"{what} {name.strip()} is given twice ({out[name.strip()]:g} and {val.strip()}): "
+                             "give each once")
         try:
             if not eq or not name.strip():
                 raise ValueError
             out[name.strip()] = float(val)
         except ValueError:
-            raise ValueError(f"{what} {item!r}: write NAME=VALUE with a number, e.g. acc.quadratic.z=6e-5") from None
+            raise ValueError(f"{what} {item!r}: write NAME=VALUE with a number, e.g. {example}") from None
         if not abs(out[name.strip()]) <= PARAM_LIMIT:  # NaN fails this too
             raise ValueError(f"{what} {item!r}: the value must be finite and at most {PARAM_LIMIT:g} in size (in "
                              "the unit its term declares), as a calibration file's parameters")
