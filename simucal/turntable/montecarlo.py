@@ -34,7 +34,7 @@ from simucal.fit.aux_inputs import FORCE, AuxInputs, specific_force
 from simucal.fit.norm_fit import fit_batch
 from simucal.fit.rotations import adjugate3, det3, wahba
 from simucal.generated import table
-from simucal.generated.effects import EFFECTS, SEPARATE
+from simucal.generated.effects import AUX as SENSOR_AUX, SEPARATE
 from simucal.io import units
 from simucal.turntable import kinematics, plans
 from simucal.turntable.simulate import Scenario
@@ -201,23 +201,26 @@ UNSEEN = ("the Monte Carlo's averaged positions never vary (no time, temperature
 
 
 def _reads_beyond_input(model) -> list[str]:
-    """The auxiliary inputs a model's output changes with, beyond the specific force that its gyro
-    terms read: each changed in turn from a random point where every input is non-zero (a product
-    of two inputs shows too), every parameter at 1."""
+    """The auxiliary inputs a model's output (its effects' included) changes with, beyond the specific
+    force that gyro terms read: each changed in turn from a random point where every input is non-zero
+    (a product of two inputs shows too), every parameter at 1."""
     rng = np.random.default_rng(0)
     u, p = rng.normal(size=(1, 3)), np.ones(len(model.params))
-    at = rng.uniform(0.5, 1.5, (1, len(model.aux)))
-    A = at + np.eye(len(model.aux))[:, None, :]  # A[j]: input j moved by 1
-    at = model.module.output(u, p, at)
-    return [a for a, Aj in zip(model.aux, A) if a not in FORCE
-            and not np.allclose(model.module.output(u, p, Aj), at, rtol=0, atol=1e-12)]
+    names = list(dict.fromkeys(model.aux + SENSOR_AUX[model.sensor]))
+    at = dict(zip(names, rng.uniform(0.5, 1.5, len(names))))  # dtemp_c given: no T_ref needed
+    N = model.output(u, p, AuxInputs(at))
+    return [a for a in names if a not in FORCE and not np.allclose(
+        model.output(u, p, AuxInputs({**at, a: at[a] + 1.0})), N, rtol=0, atol=1e-12)]
 
 
-def _simulate_instead(read) -> str:
-    """The simulate command that gives inputs the Monte Carlo cannot: a user's column and the
-    temperature by --column; time and the centripetal w2 come with every simulated set."""
+def _simulate_instead(model, read) -> str:
+    """The simulate command that gives the inputs the Monte Carlo cannot: the model's effects and
+    file, a user's column and the temperature by --column; time and the centripetal w2 come with
+    every simulated set."""
     columns = sorted({"temp_c" if a == "dtemp_c" else a for a in read} - {"t_s", "w2"})
-    return ("simucal simulate --effect-file FILE" + "".join(f" --column {c}=LOW:HIGH" for c in columns))
+    return " ".join(["simucal simulate"] + ([f"--effect-file {model.base.source}"] if model.base.source != "built-in"
+                                            else []) + [f"--effect {e}=VALUE" for e in model.effects]
+                    + [f"--column {c}=LOW:HIGH" for c in columns])
 
 
 def _reference(sc: Scenario, am, gm):
@@ -226,14 +229,10 @@ def _reference(sc: Scenario, am, gm):
     whose regressor reads what the averaged positions never vary, and those the plan leaves
     unobservable (that trial's fit fails)."""
     for m in (am, gm):
-        unseen = [e for e in m.effects if set(EFFECTS[e].reads) - {"f_x", "f_y", "f_z"}]  # the gyro's input only
-        if unseen:
-            raise ValueError(f"--effect {unseen[0]}: its regressor reads {', '.join(EFFECTS[unseen[0]].reads)}, which "
-                             f"{UNSEEN} (simucal simulate --effect) and calibrate it instead")
-        read = _reads_beyond_input(m.base)
+        read = _reads_beyond_input(m)
         if read:
-            raise ValueError(f"model {m.base.name} ({m.base.source}) reads {', '.join(read)}, which {UNSEEN} "
-                             f"({_simulate_instead(read)}) and calibrate it instead")
+            raise ValueError(f"model {m.name} reads {', '.join(read)}, which {UNSEEN} ({_simulate_instead(m, read)}) "
+                             "and calibrate it instead")
     ref = simulate_batch(sc, 1, np.random.default_rng(0), noise=False)
     crlb = {}
     for sensor, model, N, rho, sig, aux in (
