@@ -4,7 +4,7 @@ import tempfile
 import pytest
 
 # user models derived by the tests go to a cache of their own, never the user's
-os.environ.setdefault("SIMUCAL_CACHE", tempfile.mkdtemp(prefix="simucal-test-cache-"))
+os.environ["SIMUCAL_CACHE"] = tempfile.mkdtemp(prefix="simucal-test-cache-")
 
 from simucal.turntable.simulate import Scenario, write
 
