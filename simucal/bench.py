@@ -33,8 +33,9 @@ import numpy as np
 
 from simucal import io, progress
 from simucal.io import outputs
+from simucal.fit.cache import own_folder
 from simucal.fit.catalog import load
-from simucal.fit.models import cache_dir, compile_c, generated_dir
+from simucal.fit.models import compile_c, generated_dir
 from simucal.fit.norm_fit import Observations, fit_exact
 from simucal.turntable import montecarlo
 from simucal.turntable.observations import segment_observations
@@ -65,7 +66,7 @@ def process(args, repeats=3, cached=True):
     the environment as it is."""
     env = dict(os.environ)
     if cached and env.pop("PYTHONDONTWRITEBYTECODE", None):
-        env.setdefault("PYTHONPYCACHEPREFIX", str(cache_dir() / "pycache"))
+        env.setdefault("PYTHONPYCACHEPREFIX", str(own_folder("pycache")))  # the user's alone: bytecode is code
     out = []
     for _ in range(repeats + 1):  # the first writes the bytecode
         t = time.perf_counter()

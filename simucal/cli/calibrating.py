@@ -7,7 +7,7 @@ from pathlib import Path
 import click
 
 from simucal import methods
-from simucal.cli.common import MODEL_FILE_RUNS, NOISE_DPH, NOISE_G, POSITIVE, Number, fail, guard, main
+from simucal.cli.common import MODEL_FILE_RUNS, NOISE_DPH, NOISE_G, POSITIVE, SCHEDULER_TRUST, Number, fail, guard, main
 
 
 HEADING_ACCURACY = click.option(
@@ -51,7 +51,8 @@ _ADD_AUTO_HELP = (_ADD_HELP + " Also 'auto': the library effects a failing model
 @click.option("--min-static-s", type=POSITIVE, default=1.0, show_default=True, help="Stream: shortest static interval.")
 @HEADING_ACCURACY
 @click.option("--scheduler", default="local", show_default=True,
-              help="Several sets: local, processes (a Dask LocalCluster) or a Dask scheduler's address.")
+              help="Several sets: local, processes (a Dask LocalCluster on 127.0.0.1) or a Dask scheduler's address. "
+                   + SCHEDULER_TRUST)
 def calibrate(data_dirs, output, thermal, thermal_degree, html_out, t_ref_c, method, acc_model, gyro_model, add, acc_noise_g,
               gyro_noise_dph, noise_file, init_rest_s, threshold_factor, window_s, min_static_s, heading_accuracy_deg, scheduler):
     """Calibrate measurement sets; write calibration.json (one per set into a folder for several).
