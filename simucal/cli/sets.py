@@ -50,10 +50,20 @@ from simucal.cli.common import (
 @click.option("--column", "columns", multiple=True, metavar="NAME=LOW:HIGH",
               help="Write an auxiliary column, one value per segment drawn uniformly in [LOW, HIGH], e.g. "
                    "supply_v=4.5:5.5 (one your --effect-file terms read) or temp_c=20:40; repeatable.")
+@click.option("--temperature-c", default=None, metavar="T|T0:T1",
+              help="Write temp_c: one plateau at T degC, or a ramp from T0 to T1 degC over the segments; the unit's "
+                   "temperature effects (--effect ...bias_temperature..., scale_temperature...) act from --t-ref-c.")
+@click.option("--t-ref-c", type=Number(-60.0, 150.0), default=25.0, show_default=True,
+              help="With --temperature-c: the unit's T_ref, degC, the temperature at which its parameters are the "
+                   "truth's (fixed, so that a plateau away from it shows the planted temperature effects).")
+@click.option("--temperature-wander-c", type=Number(0.0, 10.0), default=0.0, show_default=True,
+              help="With --temperature-c: each segment's temperature off the plateau or ramp by a uniform draw "
+                   "within +- this, degC (a chamber's wander).")
 @click.option("--no-noise-stated", is_flag=True, help="Leave acc_noise_g / gyro_noise_dph out of meta.json.")
 @FORCE
 def simulate(out_dir, output, scenario, heading_error_deg, seed, plan, rate_hz, position_error_arcmin, acc_model, gyro_model,
-             acc_unit, gyro_unit, effects, effect_file, sets, columns, no_noise_stated, force):
+             acc_unit, gyro_unit, effects, effect_file, sets, columns, temperature_c, t_ref_c, temperature_wander_c,
+             no_noise_stated, force):
     """Simulate a test; write a measurement set and truth.json (simucal simulate -o FOLDER [options])."""
     if out_dir and output and Path(out_dir) != Path(output):
         fail(f"two output folders ({out_dir} and -o {output}): give one")
@@ -81,11 +91,30 @@ def simulate(out_dir, output, scenario, heading_error_deg, seed, plan, rate_hz, 
         sc.position_error_rad = position_error_arcmin * ARCMIN
     sc.state_noise = not no_noise_stated
     try:
+        _temperature(sc, temperature_c, t_ref_c, temperature_wander_c, columns)
         plant(sc, effects, effect_file, sets, columns)
         write(out_dir, sc, seed)
     except (ValueError, KeyError, FileNotFoundError, SyntaxError) as e:
         fail(e)
     click.echo(f"wrote {out_dir} (scenario {scenario}, seed {seed})")
+
+
+def _temperature(sc, text, t_ref_c, wander_c, columns):
+    """--temperature-c T or T0:T1 (with T_ref and the wander) into the scenario."""
+    if text is None:
+        if wander_c:
+            raise ValueError("--temperature-wander-c needs --temperature-c (the plateau or ramp it wanders about)")
+        return
+    if any(c.partition("=")[0].strip() == "temp_c" for c in columns):
+        raise ValueError("--temperature-c and --column temp_c=...: give one")
+    try:
+        ends = [float(x) for x in text.split(":")]
+        if len(ends) not in (1, 2) or not all(-60.0 <= x <= 150.0 for x in ends):
+            raise ValueError
+    except ValueError:
+        raise ValueError(f"--temperature-c {text!r}: one temperature (a plateau, e.g. 40) or two (a ramp, e.g. 5:45), "
+                         "degC, within -60..150") from None
+    sc.temp_c, sc.t_ref_c, sc.temp_wander_c = (ends[0], ends[-1]), t_ref_c, wander_c
 
 
 @main.command("import")

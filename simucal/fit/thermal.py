@@ -64,3 +64,82 @@ def params_at(thermal: dict, names, temp_c) -> np.ndarray:
     section (its t_ref_c and per-parameter coefficients)."""
     dT = np.asarray(temp_c, float) - thermal["t_ref_c"]
     return np.stack([evaluate(thermal["parameters"][k]["coefficients"], dT) for k in names], axis=-1)
+
+
+class ThermalModel:
+    """A sensor model whose every parameter is a polynomial in (T - T_ref) inside the model, each row at
+    its own temperature (the row's dtemp_c):
+
+        N_i = h(u_i, p(T_i)),   p_j(T) = c_j0 + sum_{k=1..d_j} c_jk (T - T_ref)^k
+
+    (IEEE 1293's thermal model, PX4's and ArduPilot's polynomials, for every parameter of h, the
+    misalignments included). Its parameters are the base's c_j0 (the unit at T_ref, in the base's
+    order) and then c_jk named `<name>.T<k>`, in the base's parameter unit per degC^k. Rows of any
+    set of temperatures (plateaus, a ramp) are fitted at once by the exact norm fit (norm_fit), since
+    output, jacobians and matrix_and_bias take per-row parameters through the base's generated module.
+    No `effects` attribute: the fits treat it as a model of its own (no compiled base fit)."""
+
+    def __init__(self, base, degrees):
+        self.base, self.degrees = base, tuple(int(d) for d in degrees)
+        self.sensor, self.unit, self.aux = base.sensor, base.unit, base.aux
+        m = len(base.params)
+        self.terms = [(j, 0) for j in range(m)] + [(j, k) for k in range(1, MAX_DEGREE + 1)
+                                                   for j in range(m) if self.degrees[j] >= k]
+        self.params = tuple(base.params[j] if not k else f"{base.params[j]}.T{k}" for j, k in self.terms)
+        self.param_units = tuple(base.param_units[j] + (f"/degC^{k}" if k > 1 else "/degC" if k else "")
+                                 for j, k in self.terms)
+        self.name = base.name + "@T" + "".join(map(str, self.degrees))
+        self._j = np.array([j for j, _ in self.terms])
+        self._k = np.array([k for _, k in self.terms])
+
+    def _powers(self, aux, shape):
+        """(..., n, MAX_DEGREE + 1): each row's (T - T_ref)^k."""
+        from simucal.fit.aux_inputs import AuxInputs
+        dT = (aux or AuxInputs()).array(("dtemp_c",), shape)[..., 0]
+        return dT[..., None] ** np.arange(MAX_DEGREE + 1)
+
+    def per_row(self, p, aux, shape):
+        """The base's parameters at each row's temperature, (..., n, m), for coefficients p (..., m_ext)."""
+        p = np.asarray(p, float)
+        C = np.zeros(p.shape[:-1] + (len(self.base.params), MAX_DEGREE + 1))
+        C[..., self._j, self._k] = p
+        V = self._powers(aux, shape)
+        return np.einsum("...jk,...nk->...nj", C, V)
+
+    def _rows(self, u, P, aux):
+        """N, dN/du, dN/dp of the base with one parameter vector per row."""
+        base = getattr(self.base, "base", self.base)  # an AugmentedModel's generated model
+        m0 = len(base.params)
+        A = base.aux_array(aux, u.shape[:-1])
+        N = base.module.output(u, P[..., :m0], A)
+        Ju, Jp = base.module.output_jacobians(u, P[..., :m0], A)
+        if base is not self.base and self.base.effects:
+            cols = []
+            for q, (axis, phi, dphi) in zip(np.moveaxis(P[..., m0:], -1, 0), self.base._terms(u, aux)):
+                N[..., axis] += q * phi
+                Ju[..., axis, :] += q[..., None] * dphi
+                col = np.zeros(u.shape)
+                col[..., axis] = phi
+                cols.append(col)
+            Jp = np.concatenate([Jp, np.stack(cols, axis=-1)], axis=-1)
+        return N, Ju, Jp
+
+    def output(self, u, p, aux=None):
+        u = np.asarray(u, float)
+        return self._rows(u, self.per_row(p, aux, u.shape[:-1]), aux)[0]
+
+    def jacobians(self, u, p, aux=None):
+        """N, dN/du and dN/dc: the base's dN/dp_j times each row's (T - T_ref)^k."""
+        u = np.asarray(u, float)
+        N, Ju, Jp = self._rows(u, self.per_row(p, aux, u.shape[:-1]), aux)
+        V = self._powers(aux, u.shape[:-1])
+        return N, Ju, Jp[..., self._j] * V[..., None, self._k]
+
+    def matrix_and_bias(self, p, aux=None):
+        """M and the bias at each row's temperature (at T_ref where aux holds no temperature)."""
+        p = np.asarray(p, float)
+        if p.ndim == 3 and p.shape[1] == 1:  # gauss_newton.directions: one p per set, broadcast over rows
+            p = p[:, 0]
+        if aux is None or ("temp_c" not in aux.values and "dtemp_c" not in aux.values):
+            return self.base.matrix_and_bias(p[..., :len(self.base.params)])
+        return self.base.matrix_and_bias(self.per_row(p, aux, None), aux)

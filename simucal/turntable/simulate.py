@@ -62,6 +62,7 @@ class Scenario:
     gyro_effects: dict = field(default_factory=dict)
     temp_c: tuple | None = None       # (first, last): a linear sweep over the segments; None: no temp_c column
     t_ref_c: float | None = None      # T_ref of the unit's temperature terms; None: the data's mean temp_c
+    temp_wander_c: float = 0.0        # each segment's temp_c off the sweep by a uniform draw within +- this
     columns: dict = field(default_factory=dict)  # auxiliary columns {name: (low, high)}: uniform, one value per segment
     shuffle: bool = False             # visit the positions in random order (separates time from direction)
     state_noise: bool = True          # write acc_noise_g / gyro_noise_dph into meta.json
@@ -202,6 +203,8 @@ def _samples(sc: Scenario, rng, segments, rows, acc, p_acc, gyro, p_gyro, meta):
     values = {name: rng.uniform(*ends, len(segments)) for name, ends in sc.columns.items()}
     if sc.temp_c:
         values["temp_c"] = np.linspace(*sc.temp_c, len(segments))
+        if sc.temp_wander_c:  # a chamber's or a self-heating unit's wander (drawn only then: other seeds unchanged)
+            values["temp_c"] = values["temp_c"] + rng.uniform(-sc.temp_wander_c, sc.temp_wander_c, len(segments))
     columns = {name: [] for name in values}  # auxiliary columns written
     rows_per = [1 if sc.rate_hz is None else int(round(dur * sc.rate_hz)) for *_, dur in rows]
     t_ref_c = None if "temp_c" not in values else sc.t_ref_c if sc.t_ref_c is not None else \

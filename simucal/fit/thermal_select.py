@@ -1,0 +1,183 @@
+"""One thermal fit of every row at its own temperature, and each parameter's degree chosen by the data.
+
+The rows of all plateaus (or of one ramp) are fitted at once with every parameter a polynomial in
+(T - T_ref) (thermal.ThermalModel; the exact norm fit, norm_fit.fit_exact). Degrees per parameter:
+
+1. every parameter at the top degree the data can test: the distinct temperatures (clusters of rows
+   within SPREAD_C of each other: plateaus, or bands of a ramp) less one, at most MAX_DEGREE;
+2. backward elimination by the model's own test: the highest coefficient of the parameter whose Wald
+   statistic (c / std)^2 is weakest is dropped while its chi^2(1) tail is above ALPHA (the model
+   test's level), and the model refitted;
+3. prediction of a group left out (a plateau, a band of a ramp): each parameter's top coefficient is
+   also dropped where the model without it predicts the left-out groups' rows no worse (their
+   chi^2 summed over the folds), wherever every fold still holds the distinct temperatures the
+   degrees need (three plateaus cannot test a quadratic this way: 2 would be left).
+
+Each group's rows are then tested under the joint model (chi^2 over the group with its share of the
+degrees of freedom: its rows less their leverage on the parameters).
+"""
+from __future__ import annotations
+
+import numpy as np
+
+from simucal.errors import CalibrationError
+from simucal.fit.distributions import chi2_sf
+from simucal.fit.gauss_newton import directions
+from simucal.fit.norm_fit import fit_exact, jacobian_blocks
+from simucal.fit.thermal import MAX_DEGREE, ThermalModel
+
+ALPHA = 1e-3      # a coefficient stays where its Wald test rejects 0 at the model test's level
+SPREAD_C = 2.0    # rows within this of a cluster's first temperature are one temperature (a plateau's wander)
+RAMP_BANDS = 4    # a ramp is left out in this many equal bands of its temperature range
+
+
+def clusters(T, spread=SPREAD_C) -> np.ndarray:
+    """Each temperature's cluster (0, 1, ...): sorted, a new cluster where a temperature lies more
+    than `spread` above its cluster's first. Their number is the distinct temperatures."""
+    T = np.asarray(T, float)
+    order = np.argsort(T)
+    out, k, start = np.empty(len(T), int), -1, -np.inf
+    for i in order:
+        if T[i] - start > spread:
+            k, start = k + 1, T[i]
+        out[i] = k
+    return out
+
+
+def top_degree(n_distinct: int) -> int:
+    return max(0, min(MAX_DEGREE, n_distinct - 1))
+
+
+def _start(model, prev=None, fit=None):
+    """Start values for model: the previous fit's coefficients where it had them, else 0."""
+    if prev is None:
+        return None
+    old = dict(zip(prev.params, fit.vector(prev.params)))
+    return np.array([old.get(n, 0.0) for n in model.params])
+
+
+def fit_degrees(base, obs, degrees, prev=None, prev_fit=None, p0=None):
+    """(model, fit) of base with the given degrees, started from a previous fit or p0."""
+    model = ThermalModel(base, degrees)
+    if prev is not None:
+        start = _start(model, prev, prev_fit)
+    elif isinstance(p0, dict):
+        start = np.array([p0.get(n, 0.0) for n in model.params])
+    else:
+        start = np.zeros(len(model.params)) if p0 is None else p0
+    return model, fit_exact(model, obs, start)
+
+
+def _weakest(model, fit):
+    """(parameter index, its top coefficient's chi^2(1) tail) of the weakest top coefficient, or None."""
+    best = None
+    for j, d in enumerate(model.degrees):
+        if d:
+            name = f"{model.base.params[j]}.T{d}"
+            p = chi2_sf((fit.params[name] / max(fit.std[name], 1e-300)) ** 2, 1)
+            if best is None or p > best[1]:
+                best = (j, p)
+    return best
+
+
+def predict_chi2(model, obs, p) -> np.ndarray:
+    """Each row's chi^2 under parameters p, its direction taken from the output (M^-1 (N - b))."""
+    u = directions(model, obs.N, p, obs.aux)
+    r = (obs.N - model.output(obs.rho[:, None] * u, p, obs.aux)) / obs.sigma
+    return np.sum(r ** 2, axis=1)
+
+
+def held_out(base, obs, groups, degrees, p0) -> float | None:
+    """The left-out groups' rows' chi^2 summed over the folds (each group predicted by the fit
+    without it), or None where a fold lacks the distinct temperatures the degrees need."""
+    T = obs.aux.column("temp_c", len(obs.N))
+    total = 0.0
+    for g in np.unique(groups):
+        keep = groups != g
+        if len(np.unique(clusters(T[keep]))) - 1 < max(degrees):
+            return None
+        try:
+            model, fit = fit_degrees(base, obs.take(np.nonzero(keep)[0]), degrees, p0=p0)
+        except CalibrationError:
+            return None
+        total += float(np.sum(predict_chi2(model, obs.take(np.nonzero(~keep)[0]), fit.vector(model.params))))
+    return total
+
+
+def select(base, obs, groups, forced=None, p0=None):
+    """(model, fit, how each degree was chosen, obs with every row's sigma) for one sensor: module doc. groups: each row's plateau
+    or band; forced: one degree for every parameter; p0: start values by name. Rows without a known
+    sigma take one estimated from the top-degree fit (lack_of_fit.fit_with_noise)."""
+    m = len(base.params)
+    T = obs.aux.column("temp_c", len(obs.N))
+    top = top_degree(len(np.unique(clusters(T))))
+    if obs.sigma is None or not np.all(np.isfinite(obs.sigma)):
+        from simucal.fit.lack_of_fit import fit_with_noise, with_estimated_sigma
+        model = ThermalModel(base, [top] * m)
+        _, obs, noise = fit_with_noise(model, obs, np.array([(p0 or {}).get(n, 0.0) for n in model.params]))
+        obs = with_estimated_sigma(obs, noise)
+    if forced is not None:
+        if forced > top:
+            raise CalibrationError(f"--thermal-degree {forced}: the {base.sensor} rows hold "
+                                   f"{top + 1} distinct temperatures (more than {SPREAD_C:g} degC apart), which "
+                                   f"test a degree of at most {top}: give more plateaus or a wider ramp, or a lower degree")
+        model, fit = fit_degrees(base, obs, [forced] * m, p0=p0)
+        return model, fit, {"from": "--thermal-degree", "dropped": [], "top": top}, obs
+    model, fit = fit_degrees(base, obs, [top] * m, p0=p0)
+    dropped = []
+    while True:
+        weak = _weakest(model, fit)
+        if weak is None or weak[1] < ALPHA:
+            break
+        deg = list(model.degrees)
+        dropped.append({"parameter": base.params[weak[0]], "degree": deg[weak[0]], "by": "model test",
+                        "p_value": float(weak[1])})
+        deg[weak[0]] -= 1
+        model, fit = fit_degrees(base, obs, deg, model, fit)
+    model, fit = _by_prediction(base, obs, groups, model, fit, dropped)
+    return model, fit, {"from": "the data", "dropped": dropped, "top": top}, obs
+
+
+def _by_prediction(base, obs, groups, model, fit, dropped):
+    """Step 3 of the module doc: a top coefficient dropped where the groups left out are predicted no
+    worse without it."""
+    if len(np.unique(groups)) < 3:
+        return model, fit
+    p_now = fit.vector(model.params)
+    now = held_out(base, obs, groups, model.degrees, p_now)
+    if now is None:
+        return model, fit
+    for j in np.argsort([-1 if not d else abs(fit.params[f"{base.params[j]}.T{d}"] / fit.std[f"{base.params[j]}.T{d}"])
+                         for j, d in enumerate(model.degrees)]):
+        d = model.degrees[j]
+        if not d:
+            continue
+        deg = list(model.degrees)
+        deg[j] -= 1
+        trial = ThermalModel(base, deg)
+        without = held_out(base, obs, groups, deg, _start(trial, model, fit))
+        if without is not None and without <= now:
+            dropped.append({"parameter": base.params[j], "degree": d, "by": "groups left out",
+                            "held_out_chi2": [without, now]})
+            model, fit = fit_degrees(base, obs, deg, model, fit)
+            now = without
+    return model, fit
+
+
+def group_tests(model, obs, fit, groups) -> list[dict]:
+    """Each group's rows tested under the joint fit: chi^2 over its rows, dof = its rows less their
+    leverage on the parameters (the directions profiled out; the leverages sum to the parameters)."""
+    r, Jq, Jd, _ = jacobian_blocks(model, obs, fit.vector(model.params), fit.directions, obs.sigma)
+    JdT = Jd.swapaxes(-1, -2)
+    Jt = Jq - Jd @ np.linalg.solve(JdT @ Jd, JdT @ Jq)  # the row's Jacobian with its direction profiled out
+    Hinv = np.linalg.pinv(np.einsum("iam,ian->mn", Jt, Jt))
+    lev = np.einsum("iam,mn,ian->i", Jt, Hinv, Jt)
+    chi = np.sum(r ** 2, axis=1)
+    out = []
+    for g in np.unique(groups):
+        k = groups == g
+        dof = float(np.sum(k) - np.sum(lev[k]))
+        c = float(np.sum(chi[k]))
+        out.append({"rows": int(np.sum(k)), "chi2": c, "dof": dof,
+                    "p_value": float(chi2_sf(c, dof)) if dof > 0 else None})
+    return out
