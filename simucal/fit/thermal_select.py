@@ -5,13 +5,17 @@ The rows of all plateaus (or of one ramp) are fitted at once with every paramete
 
 1. every parameter at the top degree the data can test: the distinct temperatures (clusters of rows
    within SPREAD_C of each other: plateaus, or bands of a ramp) less one, at most MAX_DEGREE;
+   (where the rows are fewer than SATURATED_ROWS per coefficient, or that fit does not converge, the
+   coefficients are added one at a time from constants instead, each while its chi^2 drop is beyond
+   ALPHA's tail of chi^2(1));
 2. backward elimination by the model's own test: the highest coefficient of the parameter whose Wald
    statistic (c / std)^2 is weakest is dropped while its chi^2(1) tail is above ALPHA (the model
    test's level), and the model refitted;
-3. prediction of a group left out (a plateau, a band of a ramp): each parameter's top coefficient is
-   also dropped where the model without it predicts the left-out groups' rows no worse (their
-   chi^2 summed over the folds), wherever every fold still holds the distinct temperatures the
-   degrees need (three plateaus cannot test a quadratic this way: 2 would be left).
+3. prediction of a group left out (an inner plateau, an inner band of a ramp: interpolation): each
+   parameter's top coefficient is also dropped where the model without it predicts the left-out
+   groups' rows no worse (their chi^2 summed over the folds), wherever every fold still holds the
+   distinct temperatures the degrees need (three plateaus cannot test a quadratic this way: 2 would
+   be left).
 
 Each group's rows are then tested under the joint model (chi^2 over the group with its share of the
 degrees of freedom: its rows less their leverage on the parameters).
@@ -29,6 +33,7 @@ from simucal.fit.thermal import MAX_DEGREE, ThermalModel
 ALPHA = 1e-3      # a coefficient stays where its Wald test rejects 0 at the model test's level
 SPREAD_C = 2.0    # rows within this of a cluster's first temperature are one temperature (a plateau's wander)
 RAMP_BANDS = 4    # a ramp is left out in this many equal bands of its temperature range
+SATURATED_ROWS = 2  # every coefficient at once where the rows are at least this many per coefficient
 
 
 def clusters(T, spread=SPREAD_C) -> np.ndarray:
@@ -80,6 +85,13 @@ def _weakest(model, fit):
     return best
 
 
+def inner_groups(groups, T) -> list:
+    """The groups whose mean temperature is neither the lowest nor the highest."""
+    ids = np.unique(groups)
+    means = [np.mean(T[groups == g]) for g in ids]
+    return [g for g, t in zip(ids, means) if min(means) < t < max(means)]
+
+
 def predict_chi2(model, obs, p) -> np.ndarray:
     """Each row's chi^2 under parameters p, its direction taken from the output (M^-1 (N - b))."""
     u = directions(model, obs.N, p, obs.aux)
@@ -88,11 +100,13 @@ def predict_chi2(model, obs, p) -> np.ndarray:
 
 
 def held_out(base, obs, groups, degrees, p0) -> float | None:
-    """The left-out groups' rows' chi^2 summed over the folds (each group predicted by the fit
-    without it), or None where a fold lacks the distinct temperatures the degrees need."""
+    """The left-out groups' rows' chi^2 summed over the folds (each inner group predicted by the fit
+    without it: interpolation, as the calibration will be used; an end group left out is an
+    extrapolation that a subset's confounded coefficients can throw anywhere), or None where a fold
+    lacks the distinct temperatures the degrees need."""
     T = obs.aux.column("temp_c", len(obs.N))
     total = 0.0
-    for g in np.unique(groups):
+    for g in inner_groups(groups, T):
         keep = groups != g
         if len(np.unique(clusters(T[keep]))) - 1 < max(degrees):
             return None
@@ -123,8 +137,13 @@ def select(base, obs, groups, forced=None, p0=None):
                                    f"test a degree of at most {top}: give more plateaus or a wider ramp, or a lower degree")
         model, fit = fit_degrees(base, obs, [forced] * m, p0=p0)
         return model, fit, {"from": "--thermal-degree", "dropped": [], "top": top}, obs
-    model, fit = fit_degrees(base, obs, [top] * m, p0=p0)
     dropped = []
+    try:
+        if len(obs.N) < SATURATED_ROWS * m * (top + 1):
+            raise CalibrationError("too few rows for every coefficient at once")
+        model, fit = fit_degrees(base, obs, [top] * m, p0=p0)
+    except CalibrationError:  # every coefficient at once is more than the rows determine: add them one by one
+        model, fit = _forward(base, obs, top, p0, dropped)
     while True:
         weak = _weakest(model, fit)
         if weak is None or weak[1] < ALPHA:
@@ -136,6 +155,30 @@ def select(base, obs, groups, forced=None, p0=None):
         model, fit = fit_degrees(base, obs, deg, model, fit)
     model, fit = _by_prediction(base, obs, groups, model, fit, dropped)
     return model, fit, {"from": "the data", "dropped": dropped, "top": top}, obs
+
+
+def _forward(base, obs, top, p0, added):
+    """Forward selection from constants: the coefficient whose addition lowers chi^2 most is added while
+    that drop is beyond ALPHA's tail of chi^2(1) (where the rows cannot hold every coefficient at once)."""
+    model, fit = fit_degrees(base, obs, [0] * len(base.params), p0=p0)
+    while True:
+        best = None
+        for j, d in enumerate(model.degrees):
+            if d < top:
+                deg = list(model.degrees)
+                deg[j] += 1
+                try:
+                    trial = fit_degrees(base, obs, deg, model, fit)
+                except CalibrationError:
+                    continue
+                if best is None or trial[1].chi2 < best[1].chi2:
+                    best = trial
+        if best is None or chi2_sf(max(fit.chi2 - best[1].chi2, 0.0), 1) >= ALPHA:
+            return model, fit
+        j = int(np.argmax(np.array(best[0].degrees) != np.array(model.degrees)))
+        added.append({"parameter": base.params[j], "degree": best[0].degrees[j], "by": "model test (added)",
+                      "p_value": float(chi2_sf(max(fit.chi2 - best[1].chi2, 0.0), 1))})
+        model, fit = best
 
 
 def _by_prediction(base, obs, groups, model, fit, dropped):

@@ -136,8 +136,8 @@ def _thermal_lines(s, b: SensorBlock):
         chosen = f.get("degree_from", "the data")
         yield (f"{s}: {n} = {terms} ({b.param_units.get(n, '')}; dT = T - T_ref in degC; degree {f['degree']} "
                + ("chosen by the data)" if chosen == "the data" else f"from {chosen})"))
-    yield (f"{s}: {len(th['parameters']) - len(moving)} of {len(th['parameters'])} parameters constant over the "
-           "plateaus (a temperature dependence below their noise)")
+    yield (f"{s}: {len(th['parameters']) - len(moving)} of {len(th['parameters'])} parameters constant over "
+           "temperature (a temperature dependence below their noise)")
     exact = [n for n, f in th["parameters"].items() if f.get("dof") == 0]
     if exact:
         yield (f"{s}: {len(exact)} polynomials pass through every plateau (degree = plateaus - 1): no plateau is left "
