@@ -13,6 +13,7 @@ import numpy as np
 
 from simucal import io, methods
 from simucal.errors import CalibrationError
+from simucal.fit.thermal import SPREAD_C
 from simucal.io import calibration
 from simucal.io.calibration import Calibration, SensorBlock
 from simucal.io.calibration_checks import check_layout, scale_notes
@@ -74,8 +75,10 @@ def calibrate_to_file(folder, output, kwargs: dict):
         return None, str(e.args[0] if isinstance(e, KeyError) and e.args else e)
 
 
-PLAUSIBLE_C = (-60.0, 150.0)  # beyond any unit's operating range: a column in another unit (K, degF) or broken
-PLATEAU_SPREAD_C = 2.0  # a plateau's temp_c wider than this (peak to peak) is a sweep, not a plateau
+# the widest rated range of IMUs (-55..125 degC, military grade): beyond it a column in another unit (kelvin
+# always; degF where a plateau is above 51.7 degC, 125 degF, as a hot plateau is) or a broken one
+PLAUSIBLE_C = (-55.0, 125.0)
+PLATEAU_SPREAD_C = SPREAD_C  # temperatures within this are one (a plateau's wander); plateaus or a ramp must span more
 
 
 def _plateau(folder):
@@ -86,8 +89,9 @@ def _plateau(folder):
                                "calibration needs the unit's temperature on every row")
     T = ms.samples["temp_c"]
     if T.min() < PLAUSIBLE_C[0] or T.max() > PLAUSIBLE_C[1]:
-        raise CalibrationError(f"{ms.path / 'samples.csv'}: temp_c runs {T.min():.4g} to {T.max():.4g}, outside any "
-                               f"unit's range {PLAUSIBLE_C} degC: is the column in kelvin or degF?")
+        raise CalibrationError(f"{ms.path / 'samples.csv'}: temp_c runs {T.min():.4g} to {T.max():.4g}, outside an "
+                               f"IMU's rated {PLAUSIBLE_C[0]:g}..{PLAUSIBLE_C[1]:g} degC: is the column in kelvin "
+                               "(subtract 273.15) or degF (C = (F - 32) / 1.8)? temp_c is degC")
     return ms, float(T.mean())
 
 

@@ -53,7 +53,7 @@ from simucal.cli.common import (
 @click.option("--temperature-c", default=None, metavar="T|T0:T1",
               help="Write temp_c: one plateau at T degC, or a ramp from T0 to T1 degC over the segments; the unit's "
                    "temperature effects (--effect ...bias_temperature..., scale_temperature...) act from --t-ref-c.")
-@click.option("--t-ref-c", type=Number(-60.0, 150.0), default=25.0, show_default=True,
+@click.option("--t-ref-c", type=Number(-55.0, 125.0), default=25.0, show_default=True,
               help="With --temperature-c: the unit's T_ref, degC, the temperature at which its parameters are the "
                    "truth's (fixed, so that a plateau away from it shows the planted temperature effects).")
 @click.option("--temperature-wander-c", type=Number(0.0, 10.0), default=0.0, show_default=True,
@@ -109,11 +109,11 @@ def _temperature(sc, text, t_ref_c, wander_c, columns):
         raise ValueError("--temperature-c and --column temp_c=...: give one")
     try:
         ends = [float(x) for x in text.split(":")]
-        if len(ends) not in (1, 2) or not all(-60.0 <= x <= 150.0 for x in ends):
+        if len(ends) not in (1, 2) or not all(-55.0 <= x <= 125.0 for x in ends):
             raise ValueError
     except ValueError:
         raise ValueError(f"--temperature-c {text!r}: one temperature (a plateau, e.g. 40) or two (a ramp, e.g. 5:45), "
-                         "degC, within -60..150") from None
+                         "degC, within -55..125 (an IMU's rated range)") from None
     sc.temp_c, sc.t_ref_c, sc.temp_wander_c = (ends[0], ends[-1]), t_ref_c, wander_c
 
 

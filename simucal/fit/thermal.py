@@ -1,26 +1,45 @@
-"""Every parameter of a sensor model as a polynomial in temperature (a thermal calibration).
-
-One unit calibrated at K temperature plateaus gives, per parameter, K estimates p_k with
-stds s_k at the plateaus' mean temperatures T_k. Each parameter is fitted as
+"""Every parameter of a sensor model as a polynomial in temperature (a thermal calibration):
 
     p(T) = c_0 + c_1 (T - T_ref) + ... + c_d (T - T_ref)^d
 
-by weighted least squares (weights 1 / s_k^2), as PX4's and ArduPilot's thermal calibrations
-fit their third-order polynomials per parameter (IEEE 1293 writes the same model). The degree
-is chosen by the data: starting from a constant, a degree is added while it lowers chi^2
-significantly (chi^2 drop above its 1 % tail of chi^2(1), the coefficient's t-test with known
-stds), at most K - 1 and MAX_DEGREE; `degree` forces one. c_0 is the parameter at T_ref, so a
-calibration file's params, M and bias are the unit's at T_ref, and apply evaluates p(T) at
-each row's temp_c.
+(IEEE 1293's thermal model; PX4 and ArduPilot fit third-order polynomials per parameter the same
+way). c_0 is the parameter at T_ref, so a calibration file's params, M and bias are the unit's at
+T_ref, and apply evaluates p(T) at each row's temp_c (params_at).
+
+- ThermalModel: the polynomials inside the model, every row at its own temperature: a turntable
+  unit's rows over plateaus or a ramp fitted at once (thermal_select.py chooses the degrees).
+- fit_polynomial: one parameter's polynomial through per-plateau estimates p_k +- s_k at their
+  temperatures by weighted least squares, its degree added while the chi^2 drop is beyond its 1 %
+  tail of chi^2(1) (for methods without a row-level fit: a stream's plateaus).
+Degrees never exceed MAX_DEGREE nor the distinct temperatures (clusters within SPREAD_C) less one.
 """
 from __future__ import annotations
 
 import numpy as np
 
+from simucal.errors import CalibrationError
 from simucal.fit.distributions import chi2_sf
 
 MAX_DEGREE = 3
+SPREAD_C = 2.0  # temperatures within this of each other are one temperature (a plateau's wander)
 ALPHA = 0.01
+
+
+def clusters(T, spread=SPREAD_C) -> np.ndarray:
+    """Each temperature's cluster (0, 1, ...): sorted, a new cluster where a temperature lies more
+    than `spread` above its cluster's first. Their number is the distinct temperatures."""
+    T = np.asarray(T, float)
+    out, k, start = np.empty(len(T), int), -1, -np.inf
+    for i in np.argsort(T):
+        if T[i] - start > spread:
+            k, start = k + 1, T[i]
+        out[i] = k
+    return out
+
+
+def top_degree(T) -> int:
+    """The highest degree temperatures T can test: their distinct values less one, at most MAX_DEGREE."""
+    return max(0, min(MAX_DEGREE, len(np.unique(clusters(T))) - 1))
 
 
 def _wls(dT, y, s, d):
@@ -37,7 +56,11 @@ def fit_polynomial(T_c, values, std, t_ref_c: float, degree: int | None = None) 
     degree None: chosen by the sequential chi^2 test (module doc)."""
     dT = np.asarray(T_c, float) - t_ref_c
     y, s = np.asarray(values, float), np.maximum(np.asarray(std, float), 1e-300)
-    top = min(MAX_DEGREE, len(dT) - 1)
+    top = top_degree(T_c)
+    if degree is not None and degree > top:
+        raise CalibrationError(f"--thermal-degree {degree}: the plateaus hold {top + 1} distinct temperatures (more "
+                               f"than {SPREAD_C:g} degC apart), which test at most degree {top}: give more plateaus, "
+                               "or a lower degree")
     if degree is None:
         d, (c, cov, chi2) = 0, _wls(dT, y, s, 0)
         while d < top:

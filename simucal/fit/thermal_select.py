@@ -28,29 +28,11 @@ from simucal.errors import CalibrationError
 from simucal.fit.distributions import chi2_sf
 from simucal.fit.gauss_newton import directions
 from simucal.fit.norm_fit import fit_exact, jacobian_blocks
-from simucal.fit.thermal import MAX_DEGREE, ThermalModel
+from simucal.fit.thermal import SPREAD_C, ThermalModel, clusters, top_degree
 
 ALPHA = 1e-3      # a coefficient stays where its Wald test rejects 0 at the model test's level
-SPREAD_C = 2.0    # rows within this of a cluster's first temperature are one temperature (a plateau's wander)
 RAMP_BANDS = 4    # a ramp is left out in this many equal bands of its temperature range
 SATURATED_ROWS = 2  # every coefficient at once where the rows are at least this many per coefficient
-
-
-def clusters(T, spread=SPREAD_C) -> np.ndarray:
-    """Each temperature's cluster (0, 1, ...): sorted, a new cluster where a temperature lies more
-    than `spread` above its cluster's first. Their number is the distinct temperatures."""
-    T = np.asarray(T, float)
-    order = np.argsort(T)
-    out, k, start = np.empty(len(T), int), -1, -np.inf
-    for i in order:
-        if T[i] - start > spread:
-            k, start = k + 1, T[i]
-        out[i] = k
-    return out
-
-
-def top_degree(n_distinct: int) -> int:
-    return max(0, min(MAX_DEGREE, n_distinct - 1))
 
 
 def _start(model, prev=None, fit=None):
@@ -124,7 +106,7 @@ def select(base, obs, groups, forced=None, p0=None):
     sigma take one estimated from the top-degree fit (lack_of_fit.fit_with_noise)."""
     m = len(base.params)
     T = obs.aux.column("temp_c", len(obs.N))
-    top = top_degree(len(np.unique(clusters(T))))
+    top = top_degree(T)
     if obs.sigma is None or not np.all(np.isfinite(obs.sigma)):
         from simucal.fit.lack_of_fit import fit_with_noise, with_estimated_sigma
         model = ThermalModel(base, [top] * m)
@@ -132,9 +114,9 @@ def select(base, obs, groups, forced=None, p0=None):
         obs = with_estimated_sigma(obs, noise)
     if forced is not None:
         if forced > top:
-            raise CalibrationError(f"--thermal-degree {forced}: the {base.sensor} rows hold "
-                                   f"{top + 1} distinct temperatures (more than {SPREAD_C:g} degC apart), which "
-                                   f"test a degree of at most {top}: give more plateaus or a wider ramp, or a lower degree")
+            raise CalibrationError(f"--thermal-degree {forced}: the {base.sensor} rows hold {top + 1} distinct "
+                                   f"temperatures (more than {SPREAD_C:g} degC apart), which test at most degree "
+                                   f"{top}: give more plateaus or a wider ramp, or a lower degree")
         model, fit = fit_degrees(base, obs, [forced] * m, p0=p0)
         return model, fit, {"from": "--thermal-degree", "dropped": [], "top": top}, obs
     dropped = []
