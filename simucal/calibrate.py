@@ -13,7 +13,7 @@ import numpy as np
 
 from simucal import io, methods
 from simucal.errors import CalibrationError
-from simucal.fit.thermal import SPREAD_C
+from simucal.fit.thermal import PLAUSIBLE_C, SPREAD_C
 from simucal.io import calibration
 from simucal.io.calibration import Calibration, SensorBlock
 from simucal.io.calibration_checks import check_layout, scale_notes
@@ -75,9 +75,6 @@ def calibrate_to_file(folder, output, kwargs: dict):
         return None, str(e.args[0] if isinstance(e, KeyError) and e.args else e)
 
 
-# the widest rated range of IMUs (-55..125 degC, military grade): beyond it a column in another unit (kelvin
-# always; degF where a plateau is above 51.7 degC, 125 degF, as a hot plateau is) or a broken one
-PLAUSIBLE_C = (-55.0, 125.0)
 PLATEAU_SPREAD_C = SPREAD_C  # temperatures within this are one (a plateau's wander); plateaus or a ramp must span more
 
 

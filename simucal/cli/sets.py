@@ -70,7 +70,7 @@ def simulate(out_dir, output, scenario, heading_error_deg, seed, plan, rate_hz, 
     out_dir = output or out_dir
     if not out_dir:
         fail("no output folder: give -o FOLDER")
-    from simucal.turntable.simulate import ARCMIN, SCENARIOS, plant, write
+    from simucal.turntable.simulate import ARCMIN, SCENARIOS, at_temperature, plant, write
     guard([plan if plan and Path(plan).exists() else None, effect_file], sets=[out_dir], force=force)
     if scenario == "field":
         from simucal.field.simulate import FieldScenario, write_field
@@ -91,30 +91,12 @@ def simulate(out_dir, output, scenario, heading_error_deg, seed, plan, rate_hz, 
         sc.position_error_rad = position_error_arcmin * ARCMIN
     sc.state_noise = not no_noise_stated
     try:
-        _temperature(sc, temperature_c, t_ref_c, temperature_wander_c, columns)
+        at_temperature(sc, temperature_c, t_ref_c, temperature_wander_c, columns)
         plant(sc, effects, effect_file, sets, columns)
         write(out_dir, sc, seed)
     except (ValueError, KeyError, FileNotFoundError, SyntaxError) as e:
         fail(e)
     click.echo(f"wrote {out_dir} (scenario {scenario}, seed {seed})")
-
-
-def _temperature(sc, text, t_ref_c, wander_c, columns):
-    """--temperature-c T or T0:T1 (with T_ref and the wander) into the scenario."""
-    if text is None:
-        if wander_c:
-            raise ValueError("--temperature-wander-c needs --temperature-c (the plateau or ramp it wanders about)")
-        return
-    if any(c.partition("=")[0].strip() == "temp_c" for c in columns):
-        raise ValueError("--temperature-c and --column temp_c=...: give one")
-    try:
-        ends = [float(x) for x in text.split(":")]
-        if len(ends) not in (1, 2) or not all(-55.0 <= x <= 125.0 for x in ends):
-            raise ValueError
-    except ValueError:
-        raise ValueError(f"--temperature-c {text!r}: one temperature (a plateau, e.g. 40) or two (a ramp, e.g. 5:45), "
-                         "degC, within -55..125 (an IMU's rated range)") from None
-    sc.temp_c, sc.t_ref_c, sc.temp_wander_c = (ends[0], ends[-1]), t_ref_c, wander_c
 
 
 @main.command("import")

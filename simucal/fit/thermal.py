@@ -22,6 +22,9 @@ from simucal.fit.distributions import chi2_sf
 
 MAX_DEGREE = 3
 SPREAD_C = 2.0  # temperatures within this of each other are one temperature (a plateau's wander)
+# an IMU's widest rated range (military grade), degC: beyond it a temp_c column is in another unit (kelvin
+# always; degF where a plateau is above 51.7 degC, 125 degF, as a hot plateau is) or broken
+PLAUSIBLE_C = (-55.0, 125.0)
 ALPHA = 0.01
 
 
