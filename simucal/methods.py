@@ -70,7 +70,7 @@ METHODS = {m.name: m for m in (
            "eq. 25-27 (derived models only)", _TABLE_OPTIONS, _table("linear")),
     Method("multiposition", TURNTABLE, "the traditional multi-position method (dong2018's 'previous method', "
            "Tables 3 and 4): least squares on the commanded attitudes",
-           tuple(o for o in _TABLE_OPTIONS if o != "auto"), _multiposition),
+           tuple(o for o in _TABLE_OPTIONS if o not in ("auto", "rank")), _multiposition),
     Method("handheld", STREAM, "Tedaldi: static poses found in the stream, the exact norm fit of the "
            "accelerometers, the gyro from the gravity directions before and after each move",
            ("acc_model", "ids", "auto", "detect"), _handheld),
