@@ -177,7 +177,10 @@ def _joint_block(obs, groups, first: SensorBlock, degree, labels, t_ref_c, plate
                     params={n: fit.params[n] for n in base.params}, std={n: fit.std[n] for n in base.params},
                     M=M @ first.C, bias=bias, residual_rms=fit.residual_rms, chi2=fit.chi2, dof=fit.dof,
                     p_value=fit.p_value, thermal=thermal, details=details)
-    calibration.inflate_if_failing(block)
+    if calibration.inflate_if_failing(block) and fit.dof:  # the coefficients' stds too (covariance kept unscaled)
+        k = float(np.sqrt(max(fit.chi2 / fit.dof, 1.0)))
+        for f in fits.values():
+            f["std"] = [e * k for e in f["std"]]
     return block
 
 
