@@ -25,13 +25,17 @@ _ADD_AUTO_HELP = (_ADD_HELP + " Also 'auto': the library effects a failing model
 @click.option("-o", "--output", type=click.Path(), default="calibration.json", show_default=True,
               help="The calibration file; with several sets, a folder that gets one <set>.json each (with "
                    "--thermal: one file).")
-@click.option("--thermal", is_flag=True, help="The sets are one unit at several temperature plateaus (temp_c): every "
-              "parameter a polynomial in T - T_ref, applied at each row's temp_c.")
+@click.option("--thermal", is_flag=True, help="The sets are one unit at several temperature plateaus, or one set whose "
+              "temperature ramps (temp_c, degC): one fit of every row at its own temperature, every parameter a "
+              "polynomial in T - T_ref, applied at each row's temp_c.")
 @click.option("--thermal-degree", type=click.IntRange(0, 3), default=None,
-              help="--thermal: the polynomials' degree (default: chosen by the data per parameter).")
+              help="--thermal: one degree for every parameter's polynomial, at most the distinct temperatures "
+                   "(2 degC apart) less one (default: chosen per parameter by the model test and by plateaus or "
+                   "bands of a ramp left out).")
 @click.option("--html", "html_out", type=click.Path(dir_okay=False), default=None,
-              help="--thermal: a page with each parameter against temperature and its fitted polynomial.")
-@click.option("--t-ref-c", type=Number(-60.0, 150.0), default=None,
+              help="--thermal: a page opening with each sensor's verdict, then each parameter against temperature "
+                   "with its polynomial.")
+@click.option("--t-ref-c", type=Number(-55.0, 125.0), default=None,
               help="T_ref of temperature terms, degC (default: the mean of temp_c; --thermal: of the plateaus).")
 @click.option("--method", type=click.Choice(("auto",) + methods.NAMES), default="auto", show_default=True,
               help="auto: the default for the set's data. " + " ".join(

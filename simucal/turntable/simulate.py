@@ -18,6 +18,7 @@ import numpy as np
 from simucal import io
 from simucal.fit.augmented import AugmentedModel
 from simucal.fit.aux_inputs import DEFAULT_ZERO, T_REF, AuxInputs, specific_force
+from simucal.fit.thermal import PLAUSIBLE_C
 from simucal.generated import table
 from simucal.io import units
 from simucal.io.calibration_checks import PARAM_LIMIT
@@ -62,6 +63,7 @@ class Scenario:
     gyro_effects: dict = field(default_factory=dict)
     temp_c: tuple | None = None       # (first, last): a linear sweep over the segments; None: no temp_c column
     t_ref_c: float | None = None      # T_ref of the unit's temperature terms; None: the data's mean temp_c
+    temp_wander_c: float = 0.0        # each segment's temp_c off the sweep by a uniform draw within +- this
     columns: dict = field(default_factory=dict)  # auxiliary columns {name: (low, high)}: uniform, one value per segment
     shuffle: bool = False             # visit the positions in random order (separates time from direction)
     state_noise: bool = True          # write acc_noise_g / gyro_noise_dph into meta.json
@@ -98,6 +100,26 @@ def _pairs(items, what):
             raise ValueError(f"{what} {item!r}: the value must be finite and at most {PARAM_LIMIT:g} in size (in "
                              "the unit its term declares), as a calibration file's parameters")
     return out
+
+
+def at_temperature(sc: Scenario, text, t_ref_c=25.0, wander_c=0.0, columns=()):
+    """`simulate --temperature-c T` (a plateau) or `T0:T1` (a ramp over the segments), with the unit's
+    T_ref (--t-ref-c: its parameters are the truth's there) and a wander (--temperature-wander-c),
+    into the scenario; refused in one line where the text is not one or two temperatures."""
+    if text is None:
+        if wander_c:
+            raise ValueError("--temperature-wander-c needs --temperature-c (the plateau or ramp it wanders about)")
+        return
+    if any(c.partition("=")[0].strip() == "temp_c" for c in columns):
+        raise ValueError("--temperature-c and --column temp_c=...: give one")
+    try:
+        ends = [float(x) for x in str(text).split(":")]
+        if len(ends) not in (1, 2) or not all(PLAUSIBLE_C[0] <= x <= PLAUSIBLE_C[1] for x in ends):
+            raise ValueError
+    except ValueError:
+        raise ValueError(f"--temperature-c {text!r}: one temperature (a plateau, e.g. 40) or two (a ramp, e.g. 5:45), "
+                         f"degC, within {PLAUSIBLE_C[0]:g}..{PLAUSIBLE_C[1]:g} (an IMU's rated range)") from None
+    sc.temp_c, sc.t_ref_c, sc.temp_wander_c = (ends[0], ends[-1]), float(t_ref_c), float(wander_c)
 
 
 def plant(sc: Scenario, effects=(), effect_file=None, sets=(), columns=(), writes_columns=True):
@@ -202,6 +224,8 @@ def _samples(sc: Scenario, rng, segments, rows, acc, p_acc, gyro, p_gyro, meta):
     values = {name: rng.uniform(*ends, len(segments)) for name, ends in sc.columns.items()}
     if sc.temp_c:
         values["temp_c"] = np.linspace(*sc.temp_c, len(segments))
+        if sc.temp_wander_c:  # a chamber's or a self-heating unit's wander (drawn only then: other seeds unchanged)
+            values["temp_c"] = values["temp_c"] + rng.uniform(-sc.temp_wander_c, sc.temp_wander_c, len(segments))
     columns = {name: [] for name in values}  # auxiliary columns written
     rows_per = [1 if sc.rate_hz is None else int(round(dur * sc.rate_hz)) for *_, dur in rows]
     t_ref_c = None if "temp_c" not in values else sc.t_ref_c if sc.t_ref_c is not None else \
