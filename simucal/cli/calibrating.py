@@ -35,6 +35,14 @@ _ADD_AUTO_HELP = (_ADD_HELP + " Also 'auto': the library effects a failing model
 @click.option("--html", "html_out", type=click.Path(dir_okay=False), default=None,
               help="--thermal: a page opening with each sensor's verdict, then each parameter against temperature "
                    "with its polynomial.")
+@click.option("--px4", type=click.Path(dir_okay=False), default=None,
+              help="--thermal: also PX4's thermal compensation (TC_A0_*, TC_G0_*: bias polynomials X0..X3 in m/s^2 and "
+                   "rad/s, TREF, TMIN, TMAX), a QGroundControl .params file. The data's sensor axes are taken as PX4's "
+                   "sensor axes (sensor_accel, sensor_gyro); scale-factor and misalignment drift are not expressible "
+                   "(warned).")
+@click.option("--ardupilot", type=click.Path(dir_okay=False), default=None,
+              help="--thermal: also ArduPilot's INS_TCAL1_* (bias polynomials about 35 degC, TMIN, TMAX), a .param "
+                   "file (NAME,VALUE). The data's sensor axes are taken as ArduPilot's IMU axes; as --px4.")
 @click.option("--t-ref-c", type=Number(-55.0, 125.0), default=None,
               help="T_ref of temperature terms, degC (default: the mean of temp_c; --thermal: of the plateaus).")
 @click.option("--method", type=click.Choice(("auto",) + methods.NAMES), default="auto", show_default=True,
@@ -57,8 +65,9 @@ _ADD_AUTO_HELP = (_ADD_HELP + " Also 'auto': the library effects a failing model
 @click.option("--scheduler", default="local", show_default=True,
               help="Several sets: local, processes (a Dask LocalCluster on 127.0.0.1) or a Dask scheduler's address. "
                    + SCHEDULER_TRUST)
-def calibrate(data_dirs, output, thermal, thermal_degree, html_out, t_ref_c, method, acc_model, gyro_model, add, acc_noise_g,
-              gyro_noise_dph, noise_file, init_rest_s, threshold_factor, window_s, min_static_s, heading_accuracy_deg, scheduler):
+def calibrate(data_dirs, output, thermal, thermal_degree, html_out, px4, ardupilot, t_ref_c, method, acc_model,
+              gyro_model, add, acc_noise_g, gyro_noise_dph, noise_file, init_rest_s, threshold_factor, window_s,
+              min_static_s, heading_accuracy_deg, scheduler):
     """Calibrate measurement sets; write calibration.json (one per set into a folder for several).
 
     With segments.csv and table angles: a turntable test (dong2018). Without segments.csv: a
@@ -72,7 +81,10 @@ def calibrate(data_dirs, output, thermal, thermal_degree, html_out, t_ref_c, met
                   noise=noise_file)
     inputs = list(data_dirs) + [a for a in add if a.endswith(".py")] + ([noise_file] if noise_file else [])
     if thermal or thermal_degree is not None:
-        return _calibrate_thermal(data_dirs, output, thermal_degree, t_ref_c, kwargs, inputs, html_out)
+        return _calibrate_thermal(data_dirs, output, thermal_degree, t_ref_c, kwargs, inputs, html_out,
+                                  (px4, ardupilot))
+    if px4 or ardupilot:
+        fail("--px4/--ardupilot: an autopilot's thermal compensation is made from plateaus or a ramp with --thermal")
     if html_out:
         fail("--html: a page of a thermal calibration (with --thermal); for one set use simucal diagnose --html")
     kwargs["t_ref_c"] = t_ref_c
@@ -119,13 +131,14 @@ def calibrate(data_dirs, output, thermal, thermal_degree, html_out, t_ref_c, met
         sys.exit(2)
 
 
-def _calibrate_thermal(data_dirs, output, degree, t_ref_c, kwargs, inputs, html_out):
+def _calibrate_thermal(data_dirs, output, degree, t_ref_c, kwargs, inputs, html_out, autopilot_out=(None, None)):
     from simucal.calibrate import calibrate_thermal
     from simucal.errors import CalibrationError
-    from simucal.io import calibration, outputs
-    guard(inputs, files=[output] + ([html_out] if html_out else []))
+    from simucal.io import autopilot, calibration, outputs
+    guard(inputs, files=[output] + ([html_out] if html_out else []) + [f for f in autopilot_out if f])
     try:
         result = calibrate_thermal([Path(d) for d in data_dirs], degree, t_ref_c, **kwargs)
+        exported = _autopilot_files(result, data_dirs, *autopilot_out)
         calibration.save(output, result)
     except (ValueError, KeyError, CalibrationError, FileNotFoundError) as e:
         fail(e)
@@ -136,8 +149,17 @@ def _calibrate_thermal(data_dirs, output, degree, t_ref_c, kwargs, inputs, html_
         from simucal.report.thermal_html import thermal_page
         outputs.write_text(html_out, thermal_page(result))
         click.echo(f"wrote {html_out}")
+    for line in autopilot.write(exported):
+        click.echo(line)
     lo, hi = result.temperature_range_c
     click.echo(f"wrote {output} (method {result.method}; calibrated from {lo:.4g} to {hi:.4g} degC)")
+
+
+def _autopilot_files(result, data_dirs, px4, ardupilot):
+    """--px4/--ardupilot: the files' texts, made before anything is written (a refusal leaves nothing behind)."""
+    from simucal import io
+    from simucal.io import autopilot
+    return autopilot.texts(result, io.read_meta(Path(data_dirs[0])), px4, ardupilot) if px4 or ardupilot else []
 
 
 @main.command("field-drift")
