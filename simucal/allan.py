@@ -242,11 +242,11 @@ def kalibr_yaml(report) -> str:
 
 def _term_text(t, html=False) -> str:
     """One term: value +- std where seen, else "not seen" and its bound, or the length it needs."""
-    pm, lt = (" &plusmn; ", "&lt;") if html else (" +- ", "<")
+    pm, lt, unit = (" &plusmn; ", "&lt;", "") if html else (" +- ", "<", " " + t["unit"])
     if t["status"] == "seen":
-        return f"{t['value']:.3g}{pm}{t['std']:.2g}"
+        return f"{t['value']:.3g}{pm}{t['std']:.2g}{unit}"
     if t["status"] == "not seen":
-        return f"not seen ({lt} {t['bound_95']:.2g}, 95 %)"
+        return f"not seen ({lt} {t['bound_95']:.2g}{unit}, 95 %)"
     return f"record too short (needs {t['needs_s']:.3g} s)"
 
 
@@ -263,7 +263,7 @@ def lines(report):
             if "stuck" in ax:
                 yield f"  {a}: {ax['stuck']}"
                 continue
-            yield f"  {a}: " + ", ".join(f"{t['name']} {_term_text(t)} {t['unit']}" for t in ax["sheet"].values())
+            yield f"  {a}: " + ", ".join(f"{t['name']} {_term_text(t)}" for t in ax["sheet"].values())
 
 
 def html_page(report) -> str:

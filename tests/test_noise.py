@@ -229,7 +229,7 @@ def test_a_term_not_seen_has_its_bound_everywhere(tmp_path):
     assert ax["sheet"]["N"]["status"] == "seen"
     for t in ("Q", "B", "K", "R"):
         assert ax["sheet"][t]["status"] == "not seen" and ax["sheet"][t]["bound_95"] > 0 and ax["terms"][t] == 0
-    assert f"rate random walk not seen (< {ax['sheet']['K']['bound_95']:.2g}, 95 %)" in r.output
+    assert f"rate random walk not seen (< {ax['sheet']['K']['bound_95']:.2g} deg/h/sqrt(h), 95 %)" in r.output
     assert "not seen (&lt;" in (tmp_path / "n.html").read_text()
     yaml = dict(x.split(": ") for x in (tmp_path / "k.yaml").read_text().splitlines() if x[0] != "#")
     rep = json.loads((tmp_path / "n.json").read_text())
