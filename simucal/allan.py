@@ -150,7 +150,8 @@ def _stuck(y, unit) -> str | None:
 
 def axis_report(sensor, y, dt, m, mats, unit) -> dict:
     """One axis of the report: its Allan deviation, the model's 68 % interval, the terms seen and
-    the bounds of those not seen (module doc)."""
+    the bounds of those not seen (module doc); "fit": the final model's chi2, dof and its terms'
+    squares (x, std) in the fitted units (Q^2, N^2, ... of `terms`), below zero where noise puts them."""
     stuck = _stuck(y, unit)
     tau = m * dt
     avar, _ = allan_variance(y, dt, m)
@@ -172,7 +173,7 @@ def axis_report(sensor, y, dt, m, mats, unit) -> dict:
         sheet[k] = entry
     return {"adev": np.sqrt(avar).tolist(), "rel_err": (np.sqrt(np.diag(fit["cov"])) / (2 * model)).tolist(),
             "tau_s": tau.tolist(), "terms": terms, "bounds": fit["bounds"], "sheet": sheet,
-            "fit": {"chi2": fit["chi2"], "dof": fit["dof"]}}
+            "fit": {"chi2": fit["chi2"], "dof": fit["dof"], "squares": fit["squares"]}}
 
 
 def characterise(ms, tau_max_s=None) -> dict:
@@ -216,6 +217,8 @@ def kalibr_missing(report) -> list[str]:
         for a, ax in report[sensor]["axes"].items():
             if "stuck" in ax:
                 missing.append(f"{key}_* ({sensor} {a} is {ax['stuck'].split(':')[0]})")
+            elif ax["sheet"]["N"]["status"] != "seen":
+                missing.append(f"{key}_noise_density ({sensor} {a} shows no white noise)")
             elif _random_walk_or_bound(ax) is None:
                 missing.append(f"{key}_random_walk ({sensor} {a}: the record is too short to bound it, it needs "
                                f"{ax['sheet']['K']['needs_s']:.3g} s)")

@@ -229,6 +229,8 @@ def test_a_term_not_seen_has_its_bound_everywhere(tmp_path):
     assert ax["sheet"]["N"]["status"] == "seen"
     for t in ("Q", "B", "K", "R"):
         assert ax["sheet"][t]["status"] == "not seen" and ax["sheet"][t]["bound_95"] > 0 and ax["terms"][t] == 0
+    x_k, std_k = ax["fit"]["squares"]["K"]  # the walk stays in the model: its bound is its fit's
+    assert ax["bounds"]["K"] == pytest.approx(np.sqrt(max(x_k, 0.0) + 1.645 * std_k), rel=1e-12)
     assert f"rate random walk not seen (< {ax['sheet']['K']['bound_95']:.2g} deg/h/sqrt(h), 95 %)" in r.output
     assert "not seen (&lt;" in (tmp_path / "n.html").read_text()
     yaml = dict(x.split(": ") for x in (tmp_path / "k.yaml").read_text().splitlines() if x[0] != "#")

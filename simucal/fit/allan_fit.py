@@ -87,7 +87,8 @@ def start(tau, v) -> dict:
 def select(tau, v, mats) -> dict:
     """The terms the curve shows (module doc): {"terms": {t: (value, std) or None},
     "bounds": {t: 95 % bound} (a term in neither is one the grid is too short to test: it needs
-    "needs_taus"), "chi2", "dof", "cov" (of the Allan variance under the model)}."""
+    "needs_taus"), "squares": {t: (x, std)} of the final model's terms, seen or not, "chi2", "dof",
+    "cov" (of the Allan variance under the model)}."""
     fit = Fit(tau, v, mats)
     terms = [t for t in BASE if len(tau) >= TERMS_NEEDING[t]]
     sol, chi2, cov = fit.iterate(terms, start(tau, v))
@@ -113,5 +114,5 @@ def select(tau, v, mats) -> dict:
             out[t] = None
             if t in terms:
                 bounds[t] = float(np.sqrt(max(x, 0.0) + UPPER_95 * s))
-    return {"terms": out, "bounds": bounds, "needs_taus": len(terms) + 1 + MIN_TAUS,
+    return {"terms": out, "bounds": bounds, "needs_taus": len(terms) + 1 + MIN_TAUS, "squares": sol,
             "chi2": chi2, "dof": len(tau) - len(terms), "cov": cov}
