@@ -1,4 +1,5 @@
-"""`simucal noise`: Allan deviation of a static recording and the IEEE 952 noise terms (issue 26, item 3).
+"""`simucal noise`: Allan deviation of a static recording and the IEEE 952 noise terms (issue 26, item 3;
+issue 38, item 1: the terms the data show).
 
 Overlapping Allan variance of a rate y sampled every dt (IEEE 952-1997, Annex C, eq. C.2, with
 overlapping clusters as allantools' oadev computes it): with theta the integrated output
@@ -20,8 +21,8 @@ fitted by generalised least squares with the estimates' covariance, exact for wh
 random walk and quantisation at the record's length and rate (simucal.fit.allan_cov), and a term
 is reported only where the data show it (simucal.fit.allan_fit: why GLS, the test, the bound);
 otherwise it is "not seen" with the 95 % upper bound the record allows, or, where the record has
-too few taus to test it, "too short" with the length it needs. The 68 % interval drawn around
-each point is that covariance's, at the fitted model. A channel that never changes (stuck or
+too few taus to test it, "too short" with the length it needs. The 68 % band drawn around the
+fitted curve (rel_err in the report) is that covariance's, at the fitted model. A channel that never changes (stuck or
 dead) is named, with no terms: its Allan deviation of 0 is not a perfect sensor.
 
 Units: gyro rates in deg/h, accelerometer outputs in g, tau in s; each term also in the units a
