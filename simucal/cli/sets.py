@@ -204,7 +204,8 @@ def validate(calibration_file, data_dir, output, html_path):
 @click.option("--html", "html_path", type=click.Path(dir_okay=False), default=None,
               help="Also write a page with the Allan deviation plot.")
 @click.option("--kalibr", "kalibr_path", type=click.Path(dir_okay=False), default=None,
-              help="Also write Kalibr's imu.yaml (noise densities and random walks, SI).")
+              help="Also write Kalibr's imu.yaml (noise densities and random walks, SI); refused unless both sensors "
+                   "give them.")
 @click.option("--tau-max-s", type=POSITIVE, default=None,
               help="The longest tau (s); default a ninth of the longest still stretch.")
 def noise(data_dir, output, html_path, kalibr_path, tau_max_s):
@@ -217,13 +218,14 @@ def noise(data_dir, output, html_path, kalibr_path, tau_max_s):
     guard([data_dir], files=[output, html_path, kalibr_path])
     try:
         report = allan.characterise(io.read_set(data_dir), tau_max_s)
+        yaml = allan.kalibr_yaml(report) if kalibr_path else None  # refused before anything is written
     except (MeasurementSetError, CalibrationError) as e:
         fail(e)
     outputs.write_text(output, json.dumps(report, indent=1) + "\n")
     if html_path:
         outputs.write_text(html_path, allan.html_page(report))
     if kalibr_path:
-        outputs.write_text(kalibr_path, allan.kalibr_yaml(report))
+        outputs.write_text(kalibr_path, yaml)
     for line in allan.lines(report):
         click.echo(line)
     click.echo(f"wrote {output}" + "".join(f" and {p}" for p in (html_path, kalibr_path) if p))

@@ -53,6 +53,10 @@ def load_curves(path) -> dict:
     for sensor in ("acc", "gyro"):
         if sensor in rep:
             axes = [rep[sensor]["axes"][a] for a in "xyz"]
+            stuck = [f"{sensor} {a}" for a, ax in zip("xyz", axes) if "stuck" in ax]
+            if stuck:
+                raise CalibrationError(f"{path}: {', '.join(stuck)} stuck or dead in the still recording (no noise "
+                                       "terms): its noise cannot stand for the unit's; record it again or drop --noise")
             tau_max = float(max(rep[sensor]["tau_s"]))
 
             def curve(tau_s, axes=axes, tau_max=tau_max):
