@@ -34,6 +34,7 @@ class Observations:
     aux: AuxInputs = field(default_factory=AuxInputs)  # temp_c, t_s, f_x.. or w2, a user's columns: per row
     labels: list = field(default_factory=list)  # segment ids, for messages
     sigma_source: str = "each segment's scatter or the stated noise"  # where sigma came from, in words
+    sigma_stated: bool = True      # whether a stated noise (meta, an option, an Allan curve) gave any sigma
 
     def take(self, rows) -> "Observations":
         """The observations of the given rows (indices)."""

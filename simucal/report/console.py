@@ -62,6 +62,8 @@ def _fit_lines(s, b: SensorBlock, source):
         yield f"{s}: noise {d['noise']['text']}"
     if d.get("noise_warning"):
         yield f"{s}: WARNING: {d['noise_warning']}"
+    if d.get("tilt_note"):
+        yield f"{s}: {d['tilt_note']}"
     if d.get("saturation"):
         yield (f"{s}: saturated (clipped) samples: " + ", ".join(
             f"{x['count']} on {x['axis']} from line {x['first_row'] + 2} of samples.csv" for x in d["saturation"]))

@@ -139,6 +139,7 @@ def segment_observations(ms: io.MeasurementSet, sensor: str, kinds=None, stated=
     aux.update(specific_force(ms, keep) if sensor == "gyro" else {"w2": centripetal_scale(ms, keep)})
     obs = Observations(np.array(N).reshape(-1, 3), np.array(rho), np.array(sig).reshape(-1, 3), AuxInputs(aux),
                        [s.segment for s in keep])
+    obs.sigma_stated = curve is not None or (stated is not None and any(len(ms.rows(s.segment)) < 3 for s in keep))
     if curve is not None:
         obs.sigma_source = "the Allan curve of --noise at each segment's length" + (
             f" (it was measured to {curve.tau_max_s:.3g} s; the segments average up to {longest:.3g} s, so beyond "

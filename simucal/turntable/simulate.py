@@ -65,6 +65,7 @@ class Scenario:
     columns: dict = field(default_factory=dict)  # auxiliary columns {name: (low, high)}: uniform, one value per segment
     shuffle: bool = False             # visit the positions in random order (separates time from direction)
     state_noise: bool = True          # write acc_noise_g / gyro_noise_dph into meta.json
+    tilt_stated_arcsec: float | None = None  # write table_tilt_arcsec (the levelling's std per axis) into meta.json
 
     def table_errors_rad(self) -> np.ndarray:
         """(tilt_x, tilt_y, nonperp_om, nonperp_mi), rad: the same at every position."""
@@ -191,6 +192,8 @@ def _meta(sc: Scenario, seed) -> dict:
             "description": f"simucal simulate, seed {seed}"}
     if sc.state_noise:  # a noise-free set states none (the spec's noise is a std > 0)
         meta.update({units.NOISE_KEY[s]: v for s, v in (("acc", sc.acc_noise_g), ("gyro", sc.gyro_noise_dph)) if v > 0})
+    if sc.tilt_stated_arcsec is not None:
+        meta["table_tilt_arcsec"] = sc.tilt_stated_arcsec
     if sc.acc_unit == "pulse/s":
         meta["acc_pulses_per_g"] = list(sc.acc_pulses_per_g)
     if sc.gyro_unit == "pulse/s":
