@@ -43,6 +43,9 @@ def calibration_lines(cal: Calibration):
 def _test_text(b: SensorBlock) -> str:
     d = b.details
     rows = f" over {d['rows']}" if d.get("rows") else ""
+    if b.chi2 is not None and b.p_value is None:  # as many rows as parameters: the fit passes through them all
+        return (f"chi2 {b.chi2:.2g}, dof {b.dof}{rows}: no test possible (as many rows as parameters; add positions "
+                "or poses to test the model)")
     if b.chi2 is not None:
         return f"chi2 {b.chi2:.1f}, dof {b.dof}{rows}, p = {b.p_value:.3g}"
     if b.p_value is not None:
