@@ -44,6 +44,10 @@ _ADD_AUTO_HELP = (_ADD_HELP + " Also 'auto': the library effects a failing model
 @click.option("--noise", "noise_file", type=click.Path(exists=True, dir_okay=False), default=None,
               help="A noise.json of simucal noise: each segment's noise from its Allan curve at the segment's length "
                    "(averaged rows: meta.json's average_s).")
+@click.option("--timestamps", type=click.Choice(("auto", "nominal", "recorded")), default="auto", show_default=True,
+              help="Stream: integrate on the recorded t_s, or on the sensor's clock (nominal: evenly spaced at the mean "
+                   "step, for a logger's arrival times); auto: nominal where the stamps jitter yet stay within 2 median "
+                   "steps of an even clock.")
 @click.option("--init-rest-s", type=POSITIVE, default=None, help="Stream: length of the initial rest (default: found from the data).")
 @click.option("--threshold-factor", type=Number(1.0, 1e6, low_open=True), default=6.0, show_default=True,
               help="Stream: static threshold, times the rest's variance.")
@@ -53,7 +57,7 @@ _ADD_AUTO_HELP = (_ADD_HELP + " Also 'auto': the library effects a failing model
 @click.option("--scheduler", default="local", show_default=True,
               help="Several sets: local, processes (a Dask LocalCluster) or a Dask scheduler's address.")
 def calibrate(data_dirs, output, thermal, thermal_degree, html_out, t_ref_c, method, acc_model, gyro_model, add, acc_noise_g,
-              gyro_noise_dph, noise_file, init_rest_s, threshold_factor, window_s, min_static_s, heading_accuracy_deg, scheduler):
+              gyro_noise_dph, noise_file, timestamps, init_rest_s, threshold_factor, window_s, min_static_s, heading_accuracy_deg, scheduler):
     """Calibrate measurement sets; write calibration.json (one per set into a folder for several).
 
     With segments.csv and table angles: a turntable test (dong2018). Without segments.csv: a
@@ -64,7 +68,7 @@ def calibrate(data_dirs, output, thermal, thermal_degree, html_out, t_ref_c, met
     kwargs = dict(method=method, acc_model=acc_model, gyro_model=gyro_model,
                   detect=DetectSettings(window_s, threshold_factor, min_static_s, init_rest_s), add=add,
                   acc_noise_g=acc_noise_g, gyro_noise_dph=gyro_noise_dph, heading_accuracy_deg=heading_accuracy_deg,
-                  noise=noise_file)
+                  noise=noise_file, timestamps=timestamps)
     inputs = list(data_dirs) + [a for a in add if a.endswith(".py")] + ([noise_file] if noise_file else [])
     if thermal or thermal_degree is not None:
         return _calibrate_thermal(data_dirs, output, thermal_degree, t_ref_c, kwargs, inputs, html_out)

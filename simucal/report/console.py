@@ -8,6 +8,9 @@ from simucal.io.calibration import FAILS_BELOW, Calibration, SensorBlock
 def calibration_lines(cal: Calibration):
     """Per sensor its test and effects (and what to add when the model fails), then the frames'
     unification, the consistency checks, what the plan leaves undetermined, and the warnings."""
+    stamps = cal.details.get("timestamps")
+    if stamps and (stamps["irregular"] or not stamps["chosen_by"].startswith("auto")):
+        yield stamps["text"]
     for s in ("acc", "gyro"):
         out = [x["segment"] for x in cal.details.get("excluded_segments", []) if x["sensor"] == s]
         if out:
