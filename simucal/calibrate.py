@@ -18,11 +18,12 @@ from simucal.io import calibration
 from simucal.io.calibration import Calibration, SensorBlock
 from simucal.io.calibration_checks import check_layout, scale_notes
 from simucal.io.sensor_checks import stuck_channels
+from simucal.io.timestamps import with_timestamps
 
 
 def calibrate(folder, method="auto", acc_model="acc_baseline", gyro_model="gyro_baseline", detect=None,
               add=(), acc_noise_g=None, gyro_noise_dph=None, heading_accuracy_deg=5.0, t_ref_c=None,
-              noise=None, rank=True) -> Calibration:
+              noise=None, rank=True, timestamps="auto") -> Calibration:
     """Calibrate a measurement set. method: a name of methods.METHODS, or "auto" (the default for
     the set's data). add: effect ids and model files (augmented.resolve_add), and "auto": the
     library effects a failing model needs, chosen one at a time (each sensor's block lists them
@@ -30,9 +31,15 @@ def calibrate(folder, method="auto", acc_model="acc_baseline", gyro_model="gyro_
     it; detect: a stream's static detection settings; heading_accuracy_deg: a field set's north
     reference; t_ref_c: T_ref of temperature terms (default the mean of temp_c); noise: a noise.json of
     `simucal noise`, whose Allan curve gives each segment's noise at its length; rank: a failing model's
-    candidates ranked (turntable; a thermal calibration's plateau needs none). Options a method does
-    not take are refused when set."""
+    candidates ranked (turntable; a thermal calibration's plateau needs none); timestamps: a
+    stream's time stamps as recorded, evenly spaced at their mean step (nominal: the sensor's clock
+    behind a logger's arrival times), or auto (io/timestamps.py). Options a method does not take are
+    refused when set."""
     ms = io.read_set(folder) if not isinstance(folder, io.MeasurementSet) else folder
+    try:
+        ms, stamps = with_timestamps(ms, timestamps)
+    except CalibrationError as e:
+        raise e.naming(ms.path) from None
     if t_ref_c is not None and "temp_c" not in ms.samples:
         raise CalibrationError(f"{ms.path / 'samples.csv'}: --t-ref-c {t_ref_c:g}, but there is no temp_c column for "
                                "temperature terms to take it from: leave --t-ref-c out")
@@ -59,6 +66,8 @@ def calibrate(folder, method="auto", acc_model="acc_baseline", gyro_model="gyro_
             raise CalibrationError(f"{flag} does not apply to method {m.name} ({m.summary}).")
         result = m.call(ms, **given)
         result.warnings += scale_notes(result, ms.meta)
+        if stamps:
+            result.details["timestamps"] = stamps
     except CalibrationError as e:
         raise e.naming(ms.path) from None
     return result

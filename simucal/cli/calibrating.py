@@ -10,6 +10,11 @@ from simucal import methods
 from simucal.cli.common import MODEL_FILE_RUNS, NOISE_DPH, NOISE_G, POSITIVE, SCHEDULER_TRUST, Number, fail, guard, main
 
 
+TIMESTAMPS = click.option(
+    "--timestamps", type=click.Choice(("auto", "nominal", "recorded")), default="auto", show_default=True,
+    help="Stream: integrate on the recorded t_s, or on the sensor's clock (nominal: evenly spaced at the mean step, "
+         "for a logger's arrival times); auto: nominal where the stamps jitter yet stay within 2 median steps of an "
+         "even clock.")
 HEADING_ACCURACY = click.option(
     "--heading-accuracy-deg", type=Number(0.0, 180.0), default=5.0, show_default=True,
     help="Field sets: the stated accuracy of the north reference; its effect enters the uncertainty.")
@@ -56,6 +61,7 @@ _ADD_AUTO_HELP = (_ADD_HELP + " Also 'auto': the library effects a failing model
 @click.option("--noise", "noise_file", type=click.Path(exists=True, dir_okay=False), default=None,
               help="A noise.json of simucal noise: each segment's noise from its Allan curve at the segment's length "
                    "(averaged rows: meta.json's average_s).")
+@TIMESTAMPS
 @click.option("--init-rest-s", type=POSITIVE, default=None, help="Stream: length of the initial rest (default: found from the data).")
 @click.option("--threshold-factor", type=Number(1.0, 1e6, low_open=True), default=6.0, show_default=True,
               help="Stream: static threshold, times the rest's variance.")
@@ -66,8 +72,8 @@ _ADD_AUTO_HELP = (_ADD_HELP + " Also 'auto': the library effects a failing model
               help="Several sets: local, processes (a Dask LocalCluster on 127.0.0.1) or a Dask scheduler's address. "
                    + SCHEDULER_TRUST)
 def calibrate(data_dirs, output, thermal, thermal_degree, html_out, px4, ardupilot, t_ref_c, method, acc_model,
-              gyro_model, add, acc_noise_g, gyro_noise_dph, noise_file, init_rest_s, threshold_factor, window_s,
-              min_static_s, heading_accuracy_deg, scheduler):
+              gyro_model, add, acc_noise_g, gyro_noise_dph, noise_file, timestamps, init_rest_s, threshold_factor,
+              window_s, min_static_s, heading_accuracy_deg, scheduler):
     """Calibrate measurement sets; write calibration.json (one per set into a folder for several).
 
     With segments.csv and table angles: a turntable test (dong2018). Without segments.csv: a
@@ -78,7 +84,7 @@ def calibrate(data_dirs, output, thermal, thermal_degree, html_out, px4, ardupil
     kwargs = dict(method=method, acc_model=acc_model, gyro_model=gyro_model,
                   detect=DetectSettings(window_s, threshold_factor, min_static_s, init_rest_s), add=add,
                   acc_noise_g=acc_noise_g, gyro_noise_dph=gyro_noise_dph, heading_accuracy_deg=heading_accuracy_deg,
-                  noise=noise_file)
+                  noise=noise_file, timestamps=timestamps)
     inputs = list(data_dirs) + [a for a in add if a.endswith(".py")] + ([noise_file] if noise_file else [])
     if thermal or thermal_degree is not None:
         return _calibrate_thermal(data_dirs, output, thermal_degree, t_ref_c, kwargs, inputs, html_out,
@@ -229,7 +235,8 @@ def _write_shape_models(result, output):
 @click.option("--gyro-model", default="gyro_baseline", show_default=True)
 @click.option("--acc-noise-g", type=NOISE_G, default=None, help="Stated noise of one acc row (g), when the data cannot give it.")
 @click.option("--gyro-noise-dph", type=NOISE_DPH, default=None, help="Stated noise of one gyro row (deg/h).")
-def diagnose(data_dir, output, html_path, add, acc_model, gyro_model, acc_noise_g, gyro_noise_dph):
+@TIMESTAMPS
+def diagnose(data_dir, output, html_path, add, acc_model, gyro_model, acc_noise_g, gyro_noise_dph, timestamps):
     """Compare model and measurements; rank the candidate missing effects."""
     import json
 
@@ -242,7 +249,7 @@ def diagnose(data_dir, output, html_path, add, acc_model, gyro_model, acc_noise_
     guard([data_dir] + [a for a in add if a.endswith(".py")],
            files=[output, html_path, _shape_model_path(output, "acc"), _shape_model_path(output, "gyro")])
     try:
-        result = diagnose_set(Path(data_dir), add, acc_model, gyro_model, acc_noise_g, gyro_noise_dph)
+        result = diagnose_set(Path(data_dir), add, acc_model, gyro_model, acc_noise_g, gyro_noise_dph, timestamps)
     except (MeasurementSetError, CalibrationError, KeyError, FileNotFoundError, ValueError) as e:
         fail(e)
     models = _write_shape_models(result, output)

@@ -8,6 +8,9 @@ from simucal.io.calibration import FAILS_BELOW, Calibration, SensorBlock
 def calibration_lines(cal: Calibration):
     """Per sensor its test and effects (and what to add when the model fails), then the frames'
     unification, the consistency checks, what the plan leaves undetermined, and the warnings."""
+    stamps = cal.details.get("timestamps")
+    if stamps and (stamps["irregular"] or not stamps["chosen_by"].startswith("auto")):
+        yield stamps["text"]
     for s in ("acc", "gyro"):
         out = [x["segment"] for x in cal.details.get("excluded_segments", []) if x["sensor"] == s]
         if out:
@@ -43,6 +46,9 @@ def calibration_lines(cal: Calibration):
 def _test_text(b: SensorBlock) -> str:
     d = b.details
     rows = f" over {d['rows']}" if d.get("rows") else ""
+    if b.chi2 is not None and b.p_value is None:  # as many rows as parameters: the fit passes through them all
+        return (f"chi2 {b.chi2:.2g}, dof {b.dof}{rows}: no test possible (as many rows as parameters; add positions "
+                "or poses to test the model)")
     if b.chi2 is not None:
         return f"chi2 {b.chi2:.1f}, dof {b.dof}{rows}, p = {b.p_value:.3g}"
     if b.p_value is not None:
@@ -62,6 +68,8 @@ def _fit_lines(s, b: SensorBlock, source):
         yield f"{s}: noise {d['noise']['text']}"
     if d.get("noise_warning"):
         yield f"{s}: WARNING: {d['noise_warning']}"
+    if d.get("tilt_note"):
+        yield f"{s}: {d['tilt_note']}"
     if d.get("saturation"):
         yield (f"{s}: saturated (clipped) samples: " + ", ".join(
             f"{x['count']} on {x['axis']} from line {x['first_row'] + 2} of samples.csv" for x in d["saturation"]))

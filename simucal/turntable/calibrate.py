@@ -23,6 +23,7 @@ from simucal.io import calibration, units
 from simucal.turntable.consistency import handedness, latitude_check
 from simucal.turntable.model_test import ROWS, fails, rank, test_and_rank
 from simucal.turntable.observations import read_observations, table_accuracy_rad
+from simucal.turntable.tilt import add_tilt
 from simucal.turntable.unification import Unifier, unify, unify_paper
 
 
@@ -165,6 +166,9 @@ def calibrate_table(ms, method, acc_model, gyro_model, ids, acc_noise_g=None, gy
         acc = (am, fa, acc_obs, acc_segs, base_a if fa is not None else None,
                _rate_run_acc_means(acc_read, acc_segs, gyro_segs) if fa is not None and method == "exact" else None)
         cal.gyro = _gyro_block(ms, method, cal, acc, (gm, fg, gyro_obs, gyro_segs, base_g), gyro_noise_dph)
+        if method == "exact":
+            add_tilt(cal.gyro, gm, fg, gyro_obs, gyro_segs, ms.meta, lambda p: gm.matrix_and_bias(p)[0],
+                     cal.unification and np.array(cal.unification["C_b_d"]))
         cal.gyro.details["advice"] = advice_g
     for s, block in cal.blocks():
         calibration.inflate_if_failing(block)
