@@ -24,8 +24,7 @@ G = 9.81
 
 def ours(folder):
     r = calibrate(folder, "multiposition")
-    return (np.array(r["acc"]["M"]), np.array(r["acc"]["bias"]) * G,
-            np.array(r["gyro"]["M"]), np.array(r["gyro"]["bias"]) / 3600)
+    return r.acc.M, r.acc.bias * G, r.gyro.M, r.gyro.bias / 3600
 
 
 def theirs(session):

@@ -310,10 +310,12 @@ def plan(score_plan, model_name, add, positions, criterion, rate_dps, rates, kin
               help="Also write the figures as JSON.")
 @click.option("--before", type=click.Path(exists=True, dir_okay=False), default=None,
               help="A previous run's -o (e.g. benchmarks/bench_4a889b5.json), printed beside this run's figures.")
-def bench(json_path, before):
+@click.option("--quick", is_flag=True,
+              help="Run every step at a size of seconds (a check that the bench runs; its figures measure nothing).")
+def bench(json_path, before, quick):
     """Measure the speed figures (fits, Monte Carlo, whole commands) on this machine."""
     from simucal.bench import run
     if json_path:
         guard([before] if before else [], files=[json_path])
-    run(json_path, click.echo, before)
+    run(json_path, click.echo, before, "quick" if quick else "full")
 
