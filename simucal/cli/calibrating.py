@@ -111,6 +111,8 @@ def calibrate(data_dirs, output, thermal, thermal_degree, html_out, t_ref_c, met
             click.echo(f"{d}: wrote {path}" + (f" ({tests})" if tests else ""))
     click.echo(f"{len(tasks) - failed} of {len(tasks)} sets calibrated into {out}")
     if failed:
+        from simucal.io import outputs
+        outputs.commit()  # the good sets' files are kept: each refused one is named above
         sys.exit(2)
 
 
@@ -118,7 +120,7 @@ def _calibrate_thermal(data_dirs, output, degree, t_ref_c, kwargs, inputs, html_
     from simucal.calibrate import calibrate_thermal
     from simucal.errors import CalibrationError
     from simucal.io import calibration, outputs
-    guard(inputs, files=[output] + ([html_out] if html_out else []))
+    guard(inputs, files={"-o": output, "--html": html_out})
     try:
         result = calibrate_thermal([Path(d) for d in data_dirs], degree, t_ref_c, **kwargs)
         calibration.save(output, result)
@@ -146,7 +148,7 @@ def field_drift(data_dir, output, plot, heading_accuracy_deg):
     paper's Fig. 4."""
     from simucal.calibrate import calibrate_to_file
     from simucal.field.drift import plot_history
-    guard([data_dir], files=[output, plot])
+    guard([data_dir], files={"-o": output, "--plot": plot})
     result, error = calibrate_to_file(Path(data_dir), output, dict(method="field",
                                                                   heading_accuracy_deg=heading_accuracy_deg))
     if error:
@@ -213,7 +215,8 @@ def diagnose(data_dir, output, html_path, add, acc_model, gyro_model, acc_noise_
         fail(f"--add auto is calibrate's: diagnose already ranks every candidate; run simucal calibrate {data_dir} "
               "--add auto")
     guard([data_dir] + [a for a in add if a.endswith(".py")],
-           files=[output, html_path, _shape_model_path(output, "acc"), _shape_model_path(output, "gyro")])
+           files={"-o": output, "--html": html_path, "the acc model file it may write": _shape_model_path(output, "acc"),
+                  "the gyro model file it may write": _shape_model_path(output, "gyro")})
     try:
         result = diagnose_set(Path(data_dir), add, acc_model, gyro_model, acc_noise_g, gyro_noise_dph)
     except (MeasurementSetError, CalibrationError, KeyError, FileNotFoundError, ValueError) as e:

@@ -16,8 +16,10 @@ class _Commands(click.Group):
 
     def invoke(self, ctx):
         warnings.simplefilter("ignore", RuntimeWarning)  # numpy's, printed before a clear error otherwise
+        from simucal.io.outputs import all_or_nothing
         try:
-            return super().invoke(ctx)
+            with all_or_nothing():  # a command's outputs (those its guard names) all written, or none
+                return super().invoke(ctx)
         except click.UsageError as e:  # a missing file, a bad choice: one line, not click's usage block
             where = " ".join(["simucal"] + (e.ctx.command_path.split()[1:] if e.ctx is not None else []))
             click.echo(f"error: {e.format_message()} (see {where} --help)", err=True)
@@ -128,11 +130,15 @@ FORCE = click.option("--force", is_flag=True,
                       help="Replace a measurement set already in the output folder (never one of the inputs).")
 
 
-def guard(inputs=(), files=(), sets=(), folders=(), force=False):
-    """Refuse outputs that would write into or over an input, or replace a measurement set
-    without --force (io/outputs.py); before any work, so nothing is lost."""
-    from simucal.io.outputs import OutputError, check
+def guard(inputs=(), files=(), sets=(), folders=(), force=False, together=True):
+    """Refuse outputs that would write into or over an input, or over each other, or where nothing
+    can be written, or replace a measurement set without --force (io/outputs.py); before any work,
+    so nothing is lost. together: the outputs are written all or none, when the command ends (the
+    demo, which reads what it wrote, writes each at once)."""
+    from simucal.io import outputs
     try:
-        check(inputs, files, sets, folders, force)
-    except OutputError as e:
+        outputs.check(inputs, files, sets, folders, force)
+    except outputs.OutputError as e:
         fail(e)
+    if together:
+        outputs.hold(files.values() if isinstance(files, dict) else files, list(sets) + list(folders))

@@ -174,7 +174,7 @@ def validate(calibration_file, data_dir, output, html_path):
     from simucal.io import MeasurementSetError, outputs
     from simucal.validate import html_page, lines
     from simucal.validate import validate as run
-    guard([calibration_file, data_dir], files=[output, html_path])
+    guard([calibration_file, data_dir], files={"-o": output, "--html": html_path})
     try:
         report = run(calibration_file, data_dir)
     except (MeasurementSetError, CalibrationError, ValueError) as e:
@@ -203,7 +203,7 @@ def noise(data_dir, output, html_path, kalibr_path, tau_max_s):
     from simucal import allan, io
     from simucal.errors import CalibrationError
     from simucal.io import MeasurementSetError, outputs
-    guard([data_dir], files=[output, html_path, kalibr_path])
+    guard([data_dir], files={"-o": output, "--html": html_path, "--kalibr": kalibr_path})
     try:
         report = allan.characterise(io.read_set(data_dir), tau_max_s)
     except (MeasurementSetError, CalibrationError) as e:

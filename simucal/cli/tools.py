@@ -78,7 +78,8 @@ def demo(out_dir, seed, force):
     and the diagnosis."""
     from simucal import demo as demo_mod
     out = Path(out_dir)  # its sets may be replaced where an earlier demo wrote them (its demo.json)
-    guard(sets=[out] + [out / d for d in demo_mod.SETS], force=force or (out / demo_mod.MARKER).is_file())
+    guard(sets=[out] + [out / d for d in demo_mod.SETS], force=force or (out / demo_mod.MARKER).is_file(),
+          together=False)  # it reads the sets it writes
     try:
         demo_mod.run(out_dir, seed, click.echo)
     except RuntimeError as e:
@@ -112,7 +113,7 @@ def montecarlo(scenario, plan, trials, seed, effects, effect_file, sets, rates, 
     from simucal.turntable.montecarlo import run
     from simucal.sweeps import keep_freed_memory
     from simucal.turntable.simulate import SCENARIOS, plant
-    guard([plan if plan and Path(plan).exists() else None, effect_file], files=[output])
+    guard([plan if plan and Path(plan).exists() else None, effect_file], files={"-o": output})
     keep_freed_memory()  # this process is the command's
     if (effects or effect_file) and trials > MAX_TRIALS // 10:  # without a compiler, numpy: ~10x slower
         fail(f"--trials {trials}: with --effect or --effect-file at most {MAX_TRIALS // 10} (about two minutes); "
@@ -272,7 +273,8 @@ def plan(score_plan, model_name, add, positions, criterion, rate_dps, rates, kin
         fail("give --score PLAN to score a plan, or --positions N to design one")
     if output:
         guard([score_plan if score_plan and Path(score_plan).exists() else None],
-              files=[output] + ([str(Path(output).with_suffix(".json"))] if positions is not None else []))
+              files={"-o": output, **({"the plan's JSON sidecar": str(Path(output).with_suffix(".json"))}
+                                      if positions is not None else {})})
     elif positions is not None:
         guard(files=["plan.csv", "plan.json"])
     try:
