@@ -130,6 +130,17 @@ FORCE = click.option("--force", is_flag=True,
                       help="Replace a measurement set already in the output folder (never one of the inputs).")
 
 
+def refuse_unused(options: dict) -> None:
+    """Refuse an option given on the command line that this run will not use, naming what it
+    applies to ({parameter name: what}); an option left at its default passes."""
+    from click.core import ParameterSource
+    ctx = click.get_current_context()
+    for name, where in options.items():
+        if ctx.get_parameter_source(name) not in (None, ParameterSource.DEFAULT):
+            param = next(p for p in ctx.command.params if p.name == name)
+            fail(f"{max(param.opts, key=len)}: applies to {where}, which this run is not; leave it out")
+
+
 def guard(inputs=(), files=(), sets=(), folders=(), force=False, together=True):
     """Refuse outputs that would write into or over an input, or over each other, or where nothing
     can be written, or replace a measurement set without --force (io/outputs.py); before any work,

@@ -61,6 +61,16 @@ def simulate(out_dir, output, scenario, heading_error_deg, seed, plan, rate_hz, 
     if not out_dir:
         fail("no output folder: give -o FOLDER")
     from simucal.turntable.simulate import ARCMIN, SCENARIOS, plant, write
+    table_only = {"--plan": plan, "--position-error-arcmin": position_error_arcmin, "--acc-model": acc_model,
+                  "--gyro-model": gyro_model, "--acc-unit": acc_unit, "--gyro-unit": gyro_unit, "--effect": effects,
+                  "--effect-file": effect_file, "--set": sets, "--column": columns, "--no-noise-stated": no_noise_stated}
+    given = [k for k, v in table_only.items() if v not in (None, False, ())]
+    if scenario == "field" and given:
+        fail(f"{', '.join(given)}: a turntable test's (--scenario paper); the field scenario takes --seed, --rate-hz "
+             "and --heading-accuracy-deg")
+    if scenario != "field" and heading_error_deg is not None:
+        fail(f"--heading-accuracy-deg {heading_error_deg:g}: the field scenario's north reference (--scenario field); "
+             f"a {scenario} test has a turntable")
     guard([plan if plan and Path(plan).exists() else None, effect_file], sets=[out_dir], force=force)
     if scenario == "field":
         from simucal.field.simulate import FieldScenario, write_field

@@ -21,6 +21,7 @@ from simucal.cli.common import (
     guard,
     main,
     rates_dps,
+    refuse_unused,
 )
 
 
@@ -271,6 +272,9 @@ def plan(score_plan, model_name, add, positions, criterion, rate_dps, rates, kin
     from simucal.io.units import DPH_PER_DPS
     if (score_plan is None) == (positions is None):
         fail("give --score PLAN to score a plan, or --positions N to design one")
+    design = "a design (--positions N)"
+    refuse_unused({**({"criterion": design, "rates": design, "kind": design} if score_plan is not None else {}),
+                   **({"sizes": "--separate ID1,ID2", "target": "--separate ID1,ID2"} if not pair else {})})
     if output:
         guard([score_plan if score_plan and Path(score_plan).exists() else None],
               files={"-o": output, **({"the plan's JSON sidecar": str(Path(output).with_suffix(".json"))}
@@ -285,6 +289,10 @@ def plan(score_plan, model_name, add, positions, criterion, rate_dps, rates, kin
             raise ValueError(f"{'--acc-noise-g' if gyro else '--gyro-noise-dph'} {wrong:g}: model {model.name} is a "
                              f"{model.sensor} model; give {'--gyro-noise-dph' if gyro else '--acc-noise-g'}")
         sigma = sigma or ((gyro_noise_dph or 0.01) if gyro else (acc_noise_g or 1e-5))
+        if not gyro:
+            refuse_unused({"rate_dps": "gyro models (rate runs)", "rates": "gyro models (rate runs)"})
+        elif rates:
+            refuse_unused({"rate_dps": "a score, or a design without --rates-dps (its rates)"})
         name, u, rho, result = _plan_scores(model, score_plan, positions, criterion, rate_dps, rates, sigma)
         if pair:
             result["separation"] = _separation(model, pair, sizes, score_plan, u, rho, sigma, target)
