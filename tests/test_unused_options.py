@@ -3,15 +3,11 @@
 --plot with a name that is not an image failed after the work)."""
 import json
 import pytest
-from click.testing import CliRunner
-
-from simucal.cli import main
+from cli_helpers import refused as _refused
+from cli_helpers import run as _run
 from simucal.handheld.simulate import write_still
 from simucal.turntable.simulate import Scenario, write
 
-
-def _run(*args):
-    return CliRunner().invoke(main, [str(a) for a in args])
 
 
 @pytest.fixture(scope="module")
@@ -24,13 +20,6 @@ def made(tmp_path_factory):
     (root / "m.py").write_text("MODELS = []\n")
     return root
 
-
-def _refused(r, *words):
-    assert r.exit_code == 2, (r.exit_code, r.output)
-    lines = [x for x in r.stderr.splitlines() if x.strip()]
-    assert len(lines) == 1 and lines[0].startswith("error: "), r.stderr
-    for w in words:
-        assert w in lines[0], (w, lines[0])
 
 
 @pytest.mark.parametrize("args,words", [
