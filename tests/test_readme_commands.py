@@ -22,8 +22,11 @@ def _blocks(text):
     """The README's fenced code blocks, as text."""
     blocks, current = [], None
     for line in text.splitlines():
-        if line.startswith("```"):
-            current = [] if current is None else blocks.append("\n".join(current))
+        if line.startswith("```") and current is None:
+            current = []
+        elif line.startswith("```"):
+            blocks.append("\n".join(current))
+            current = None
         elif current is not None:
             current.append(line)
     return blocks
