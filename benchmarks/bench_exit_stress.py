@@ -95,7 +95,7 @@ def main():
                 ends[name, rc] += 1
                 if rc != code:
                     wrong.setdefault((name, rc), last)
-    print(f"| case | runs | exit {'/'.join(['expected', 'other'])} | killed by a signal |\n|---|---|---|---|")
+    print("| case | runs | exit expected/other | killed by a signal |\n|---|---|---|---|")
     for name, (code, _) in chosen.items():
         runs = sum(n for (k, _), n in ends.items() if k == name)
         signal = sum(n for (k, rc), n in ends.items() if k == name and rc < 0)
