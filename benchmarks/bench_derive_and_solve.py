@@ -4,7 +4,9 @@ Prints a table. Goal (issue 2): under 10 s to derive and regenerate one model.
 Solve times compare the generated exact solver (compiled CasADi C and the
 numpy fallback), the paper's linear method, and scipy.optimize.least_squares
 on the same exact problem.
+Usage: python3 benchmarks/bench_derive_and_solve.py [--quick] (--quick: one model derived, solves timed twice)
 """
+import argparse
 import time
 
 import numpy as np
@@ -27,9 +29,9 @@ def best(f, reps):
     return min(ts)
 
 
-def main():
+def main(quick=False):
     print("| step | model | seconds |\n|---|---|---|")
-    for model in (ACC_BASELINE, GYRO_BASELINE, ACC_EXTENDED):
+    for model in (ACC_BASELINE,) if quick else (ACC_BASELINE, GYRO_BASELINE, ACC_EXTENDED):
         t = time.perf_counter()
         codegen.model_module(model)
         codegen.c_source(model)
@@ -63,10 +65,12 @@ def main():
             ("scipy least_squares, same exact problem", scipy_fit)]
     print("\n| solve (12 positions, acc_baseline) | ms per fit |\n|---|---|")
     for name, f in rows:
-        print(f"| {name} | {best(f, 20) * 1e3:.2f} |")
+        print(f"| {name} | {best(f, 2 if quick else 20) * 1e3:.2f} |")
     print(f"\nexact vs scipy: largest parameter difference {np.max(np.abs(ex - ref)):.2e} "
           f"(noise 1e-5 g, parameter std ~ {np.sqrt(np.diag(fit_exact(c, obs).cov)).max():.1e})")
 
 
 if __name__ == "__main__":
-    main()
+    ap = argparse.ArgumentParser()
+    ap.add_argument("--quick", action="store_true", help="one model derived, each solve timed twice")
+    main(ap.parse_args().quick)

@@ -6,7 +6,7 @@ calibrates them by the multi-position method, which for these poses is the
 Ferraris method. imucal (optional: pip install -e '.[bench]') runs on the same
 files as its own docs show. imucal's model: raw = K R x + b (+ K_ga a for the
 gyro), so K R is compared with simucal's M; biases in m/s^2 and deg/s.
-Usage: python3 benchmarks/bench_imucal.py
+Usage: python3 benchmarks/bench_imucal.py (two sessions of seconds: no size to choose)
 """
 import tempfile
 from pathlib import Path
@@ -24,8 +24,7 @@ G = 9.81
 
 def ours(folder):
     r = calibrate(folder, "multiposition")
-    return (np.array(r["acc"]["M"]), np.array(r["acc"]["bias"]) * G,
-            np.array(r["gyro"]["M"]), np.array(r["gyro"]["bias"]) / 3600)
+    return r.acc.M, r.acc.bias * G, r.gyro.M, r.gyro.bias / 3600
 
 
 def theirs(session):

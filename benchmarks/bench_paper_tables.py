@@ -36,8 +36,8 @@ def run(sc, seeds, tmp, label):
             secs[m] += time.perf_counter() - t
             est[m].append(report.entries(r))
             if m == "exact":
-                std_pred.append([r["acc"]["std"][k] for k in r["acc"]["params"]] + [r["gyro"]["std"][k] for k in r["gyro"]["params"]])
-                raw = [r["acc"]["params"][k] for k in r["acc"]["params"]] + [r["gyro"]["params"][k] for k in r["gyro"]["params"]]
+                std_pred.append([b.std[k] for b in (r.acc, r.gyro) for k in b.params])
+                raw = [b.params[k] for b in (r.acc, r.gyro) for k in b.params]
                 est.setdefault("exact_params", []).append(raw)
     return truth, {m: np.array(v) for m, v in est.items()}, np.array(std_pred), {m: s / seeds for m, s in secs.items()}
 

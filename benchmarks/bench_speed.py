@@ -1,5 +1,5 @@
 """Benchmark: the speed figures of issue 14 (simucal/bench.py, also `simucal bench`).
-Usage: python3 benchmarks/bench_speed.py [--json OUT] [--before OLD.json]
+Usage: python3 benchmarks/bench_speed.py [--json OUT] [--before OLD.json] [--quick]
 """
 import argparse
 
@@ -9,5 +9,6 @@ if __name__ == "__main__":
     ap = argparse.ArgumentParser()
     ap.add_argument("--json", default=None)
     ap.add_argument("--before", default=None)
+    ap.add_argument("--quick", action="store_true", help="every step at a size of seconds (its figures measure nothing)")
     args = ap.parse_args()
-    run(args.json, before=args.before)
+    run(args.json, before=args.before, size="quick" if args.quick else "full")

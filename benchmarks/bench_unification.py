@@ -30,14 +30,14 @@ def main(seeds: int):
                 folder = Path(tmp) / f"{plan}-{arcmin}-{seed}"
                 truth = np.array(write(folder, Scenario(plan=plan, position_error_rad=arcmin * ARCMIN), seed)["gyro"]["M"])
                 cal = calibrate(folder)
-                M = np.array(cal["gyro"]["M"])
+                M = cal.gyro.M
                 e_rate.append(np.abs(M - truth).max())
-                z.append(((M - truth) / np.array(cal["gyro"]["std_M"])).ravel())
-                u = cal["unification"]
-                M_static = np.array(cal["gyro"]["M_in_d"]) @ np.array(u["C_b_d"]) @ exp_so3(
+                z.append(((M - truth) / np.array(cal.gyro.details["std_M"])).ravel())
+                u = cal.unification
+                M_static = np.array(cal.gyro.details["M_in_d"]) @ np.array(u["C_b_d"]) @ exp_so3(
                     np.array(u["cross_check"]["difference_rad"]))
                 e_static.append(np.abs(M_static - truth).max())
-                e_paper.append(np.abs(np.array(calibrate(folder, "linear")["gyro"]["M"]) - truth).max())
+                e_paper.append(np.abs(calibrate(folder, "linear").gyro.M - truth).max())
             print(f"| {plan} | {arcmin:g}' | {np.median(e_rate):.2g} | {np.median(e_static):.2g} | "
                   f"{np.median(e_paper):.2g} | {np.sqrt(np.mean(np.square(z))):.2f} |")
 

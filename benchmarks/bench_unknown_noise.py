@@ -24,11 +24,11 @@ from simucal.turntable.simulate import ARCMIN, Scenario, write
 def run(folder, sc, seed):
     truth = write(folder, sc, seed)
     cal = calibrate(folder)
-    u = cal["unification"]
+    u = cal.unification
     C_true = table.mounting(np.array(sc.lambda4_rad)).T @ table.mounting(np.array(sc.theta4_rad))
     phi = log_so3(np.array(u["C_b_d"]).T @ C_true)
-    err_M = np.array(cal["gyro"]["M"]) - np.array(truth["gyro"]["M"])
-    z = np.r_[(err_M / np.array(cal["gyro"]["std_M"])).ravel(), phi / np.array(u["std_rad"])]
+    err_M = cal.gyro.M - np.array(truth["gyro"]["M"])
+    z = np.r_[(err_M / np.array(cal.gyro.details["std_M"])).ravel(), phi / np.array(u["std_rad"])]
     cc = u.get("cross_check", {})
     return np.linalg.norm(phi), np.abs(err_M).max(), z, u["method"], not cc.get("agree", True), cc.get("p_value", 1.0)
 

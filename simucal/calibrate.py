@@ -22,14 +22,14 @@ from simucal.io.timestamps import with_timestamps
 
 
 def calibrate(folder, method="auto", acc_model="acc_baseline", gyro_model="gyro_baseline", detect=None,
-              add=(), acc_noise_g=None, gyro_noise_dph=None, heading_accuracy_deg=5.0, t_ref_c=None,
+              add=(), acc_noise_g=None, gyro_noise_dph=None, heading_accuracy_deg=None, t_ref_c=None,
               noise=None, rank=True, timestamps="auto") -> Calibration:
     """Calibrate a measurement set. method: a name of methods.METHODS, or "auto" (the default for
     the set's data). add: effect ids and model files (augmented.resolve_add), and "auto": the
     library effects a failing model needs, chosen one at a time (each sensor's block lists them
     under `auto`); acc_noise_g / gyro_noise_dph: the noise of one row where the data cannot give
     it; detect: a stream's static detection settings; heading_accuracy_deg: a field set's north
-    reference; t_ref_c: T_ref of temperature terms (default the mean of temp_c); noise: a noise.json of
+    reference (None: methods.DEFAULTS' 5 deg); t_ref_c: T_ref of temperature terms (default the mean of temp_c); noise: a noise.json of
     `simucal noise`, whose Allan curve gives each segment's noise at its length; rank: a failing model's
     candidates ranked (turntable; a thermal calibration's plateau needs none); timestamps: a
     stream's time stamps as recorded, evenly spaced at their mean step (nominal: the sensor's clock
@@ -55,15 +55,22 @@ def calibrate(folder, method="auto", acc_model="acc_baseline", gyro_model="gyro_
         if noise is not None:
             from simucal.fit.noise import load_curves
             curves = load_curves(noise)
+            for sensor, stated, flag in (("acc", acc_noise_g, "--acc-noise-g"), ("gyro", gyro_noise_dph, "--gyro-noise-dph")):
+                if stated is not None and curves.get(sensor) is not None:
+                    raise CalibrationError(f"--noise {noise} gives the {sensor} noise of every segment, and {flag} "
+                                           f"{stated:g} one row's: give one of them")
         given = dict(acc_model=acc_model, gyro_model=gyro_model, ids=ids, auto="auto" in add, detect=detect,
                      acc_noise_g=acc_noise_g, gyro_noise_dph=gyro_noise_dph, heading_accuracy_deg=heading_accuracy_deg,
                      noise_curves=curves, rank=rank)
-        unused = [k for k in ("ids", "auto", "acc_noise_g", "gyro_noise_dph", "noise_curves")
-                  if given[k] and k not in m.options]
+        unused = [k for k in ("ids", "auto", "acc_noise_g", "gyro_noise_dph", "noise_curves", "detect",
+                              "heading_accuracy_deg") if given[k] not in (None, False, ()) and k not in m.options]
         if unused:
-            flag = {"ids": "--add", "auto": "--add auto", "noise_curves": "--noise"}.get(
+            flag = {"ids": "--add", "auto": "--add auto", "noise_curves": "--noise",
+                    "detect": "--init-rest-s, --threshold-factor, --window-s and --min-static-s (a stream's)"}.get(
                 unused[0], "--" + unused[0].replace("_", "-"))
-            raise CalibrationError(f"{flag} does not apply to method {m.name} ({m.summary}).")
+            takes = [x.name for x in methods.METHODS.values() if unused[0] in x.options]
+            raise CalibrationError(f"{flag} does not apply to method {m.name} ({m.summary}); it applies to method "
+                                   f"{' or '.join(takes)} ({' or '.join(sorted({methods.DATA[methods.METHODS[t].data] for t in takes}))}).")
         result = m.call(ms, **given)
         result.warnings += scale_notes(result, ms.meta)
         if stamps:

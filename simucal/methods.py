@@ -30,7 +30,9 @@ class Method:
     run: Callable              # run(ms, **options) -> io.calibration.Calibration
 
     def call(self, ms, **given):
-        """run(ms) with the options given that this method takes, the others at their DEFAULTS."""
+        """run(ms) with the options given that this method takes, the others (and those given as None)
+        at their DEFAULTS."""
+        given = {k: v for k, v in given.items() if v is not None}
         return self.run(ms, **{k: v for k, v in {**DEFAULTS, **given}.items() if k in self.options})
 
 

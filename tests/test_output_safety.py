@@ -7,9 +7,8 @@ import shutil
 from pathlib import Path
 
 import pytest
-from click.testing import CliRunner
-
-from simucal.cli import main
+from cli_helpers import refused as _refused
+from cli_helpers import run as _run
 from simucal.io import outputs
 from simucal.turntable.simulate import Scenario, write
 
@@ -17,9 +16,6 @@ from simucal.turntable.simulate import Scenario, write
 def _digest(folder):
     return {p.name: hashlib.sha256(p.read_bytes()).hexdigest() for p in sorted(Path(folder).iterdir()) if p.is_file()}
 
-
-def _run(*args):
-    return CliRunner().invoke(main, [str(a) for a in args])
 
 
 @pytest.fixture(scope="module")
@@ -36,13 +32,6 @@ def work(made, tmp_path):
     shutil.copy(made / "cal.json", tmp_path / "cal.json")
     return tmp_path
 
-
-def _refused(r, *words):
-    assert r.exit_code == 2, (r.exit_code, r.output)
-    lines = [x for x in r.stderr.splitlines() if x.strip()]
-    assert len(lines) == 1 and lines[0].startswith("error: "), r.stderr
-    for w in words:
-        assert w in lines[0], (w, lines[0])
 
 
 @pytest.mark.parametrize("args,words", [

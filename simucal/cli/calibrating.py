@@ -7,7 +7,8 @@ from pathlib import Path
 import click
 
 from simucal import methods
-from simucal.cli.common import MODEL_FILE_RUNS, NOISE_DPH, NOISE_G, POSITIVE, SCHEDULER_TRUST, Number, fail, guard, main
+from simucal.cli.common import (MODEL_FILE_RUNS, NOISE_DPH, NOISE_G, POSITIVE, SCHEDULER_TRUST, Number, fail, guard, main,
+                                refuse_unused)
 
 
 TIMESTAMPS = click.option(
@@ -15,14 +16,13 @@ TIMESTAMPS = click.option(
     help="Stream: integrate on the recorded t_s, or on the sensor's clock (nominal: evenly spaced at the mean step, "
          "for a logger's arrival times); auto: nominal where the stamps jitter yet stay within 2 median steps of an "
          "even clock.")
-HEADING_ACCURACY = click.option(
-    "--heading-accuracy-deg", type=Number(0.0, 180.0), default=5.0, show_default=True,
-    help="Field sets: the stated accuracy of the north reference; its effect enters the uncertainty.")
+_HEADING_HELP = "Field sets: the stated accuracy of the north reference (deg); its effect enters the uncertainty."
+HEADING_ACCURACY = click.option("--heading-accuracy-deg", type=Number(0.0, 180.0), default=5.0, show_default=True,
+                                help=_HEADING_HELP)
 _ADD_HELP = ("Effect id to add, e.g. acc.quadratic.z (exact ids; unknown ones are refused), or a model file "
              "(MODELS = [...]) with your own SymPy terms, derived into the cache (repeatable). " + MODEL_FILE_RUNS)
 _ADD_AUTO_HELP = (_ADD_HELP + " Also 'auto': the library effects a failing model needs, chosen one at a time by the "
                   "same test as diagnose, each also predicting left-out positions better.")
-
 
 
 @main.command()
@@ -63,11 +63,11 @@ _ADD_AUTO_HELP = (_ADD_HELP + " Also 'auto': the library effects a failing model
                    "(averaged rows: meta.json's average_s).")
 @TIMESTAMPS
 @click.option("--init-rest-s", type=POSITIVE, default=None, help="Stream: length of the initial rest (default: found from the data).")
-@click.option("--threshold-factor", type=Number(1.0, 1e6, low_open=True), default=6.0, show_default=True,
-              help="Stream: static threshold, times the rest's variance.")
-@click.option("--window-s", type=POSITIVE, default=1.0, show_default=True, help="Stream: moving-variance window.")
-@click.option("--min-static-s", type=POSITIVE, default=1.0, show_default=True, help="Stream: shortest static interval.")
-@HEADING_ACCURACY
+@click.option("--threshold-factor", type=Number(1.0, 1e6, low_open=True), default=None,
+              help="Stream: static threshold, times the rest's variance (default 6).")
+@click.option("--window-s", type=POSITIVE, default=None, help="Stream: moving-variance window, s (default 1).")
+@click.option("--min-static-s", type=POSITIVE, default=None, help="Stream: shortest static interval, s (default 1).")
+@click.option("--heading-accuracy-deg", type=Number(0.0, 180.0), default=None, help=_HEADING_HELP[:-1] + " (default 5).")
 @click.option("--scheduler", default="local", show_default=True,
               help="Several sets: local, processes (a Dask LocalCluster on 127.0.0.1) or a Dask scheduler's address. "
                    + SCHEDULER_TRUST)
@@ -81,11 +81,15 @@ def calibrate(data_dirs, output, thermal, thermal_degree, html_out, px4, ardupil
     With heading_ref_deg and no table angles: a field set (ruan2019's gyro drift)."""
     from simucal.calibrate import calibrate_to_file
     from simucal.handheld.static_detect import DetectSettings
-    kwargs = dict(method=method, acc_model=acc_model, gyro_model=gyro_model,
-                  detect=DetectSettings(window_s, threshold_factor, min_static_s, init_rest_s), add=add,
+    stream = dict(window_s=window_s, factor=threshold_factor, min_s=min_static_s, init_rest_s=init_rest_s)
+    detect = DetectSettings(**{k: v for k, v in stream.items() if v is not None}) if any(
+        v is not None for v in stream.values()) else None  # given only where set: other data refuse them
+    kwargs = dict(method=method, acc_model=acc_model, gyro_model=gyro_model, detect=detect, add=add,
                   acc_noise_g=acc_noise_g, gyro_noise_dph=gyro_noise_dph, heading_accuracy_deg=heading_accuracy_deg,
                   noise=noise_file, timestamps=timestamps)
     inputs = list(data_dirs) + [a for a in add if a.endswith(".py")] + ([noise_file] if noise_file else [])
+    if len(data_dirs) == 1 or thermal or thermal_degree is not None:
+        refuse_unused({"scheduler": "several sets calibrated one by one (not one set, nor --thermal's plateaus)"})
     if thermal or thermal_degree is not None:
         return _calibrate_thermal(data_dirs, output, thermal_degree, t_ref_c, kwargs, inputs, html_out,
                                   (px4, ardupilot))
@@ -134,6 +138,8 @@ def calibrate(data_dirs, output, thermal, thermal_degree, html_out, px4, ardupil
             click.echo(f"{d}: wrote {path}" + (f" ({tests})" if tests else ""))
     click.echo(f"{len(tasks) - failed} of {len(tasks)} sets calibrated into {out}")
     if failed:
+        from simucal.io import outputs
+        outputs.commit()  # the good sets' files are kept: each refused one is named above
         sys.exit(2)
 
 
@@ -141,7 +147,7 @@ def _calibrate_thermal(data_dirs, output, degree, t_ref_c, kwargs, inputs, html_
     from simucal.calibrate import calibrate_thermal
     from simucal.errors import CalibrationError
     from simucal.io import autopilot, calibration, outputs
-    guard(inputs, files=[output] + ([html_out] if html_out else []) + [f for f in autopilot_out if f])
+    guard(inputs, files={"-o": output, "--html": html_out, "--px4": autopilot_out[0], "--ardupilot": autopilot_out[1]})
     try:
         result = calibrate_thermal([Path(d) for d in data_dirs], degree, t_ref_c, **kwargs)
         exported = _autopilot_files(result, data_dirs, *autopilot_out)
@@ -178,8 +184,10 @@ def field_drift(data_dir, output, plot, heading_accuracy_deg):
     """Three-position field calibration of gyro constant drift (ruan2019): `calibrate --method field`, with the
     paper's Fig. 4."""
     from simucal.calibrate import calibrate_to_file
-    from simucal.field.drift import plot_history
-    guard([data_dir], files=[output, plot])
+    from simucal.field.drift import plot_formats, plot_history
+    if plot and Path(plot).suffix.lower().lstrip(".") not in plot_formats():
+        fail(f"--plot {plot}: not an image file name; end it in .png (or {', '.join('.' + f for f in plot_formats())})")
+    guard([data_dir], files={"-o": output, "--plot": plot})
     result, error = calibrate_to_file(Path(data_dir), output, dict(method="field",
                                                                   heading_accuracy_deg=heading_accuracy_deg))
     if error:
@@ -247,7 +255,8 @@ def diagnose(data_dir, output, html_path, add, acc_model, gyro_model, acc_noise_
         fail(f"--add auto is calibrate's: diagnose already ranks every candidate; run simucal calibrate {data_dir} "
               "--add auto")
     guard([data_dir] + [a for a in add if a.endswith(".py")],
-           files=[output, html_path, _shape_model_path(output, "acc"), _shape_model_path(output, "gyro")])
+           files={"-o": output, "--html": html_path, "the acc model file it may write": _shape_model_path(output, "acc"),
+                  "the gyro model file it may write": _shape_model_path(output, "gyro")})
     try:
         result = diagnose_set(Path(data_dir), add, acc_model, gyro_model, acc_noise_g, gyro_noise_dph, timestamps)
     except (MeasurementSetError, CalibrationError, KeyError, FileNotFoundError, ValueError) as e:

@@ -17,8 +17,10 @@ class _Commands(click.Group):
     def invoke(self, ctx):
         warnings.simplefilter("ignore", RuntimeWarning)  # numpy's, printed before a clear error otherwise
         warnings.formatwarning = _one_line
+        from simucal.io.outputs import all_or_nothing
         try:
-            return super().invoke(ctx)
+            with all_or_nothing():  # a command's outputs (those its guard names) all written, or none
+                return super().invoke(ctx)
         except click.UsageError as e:  # a missing file, a bad choice: one line, not click's usage block
             where = " ".join(["simucal"] + (e.ctx.command_path.split()[1:] if e.ctx is not None else []))
             click.echo(f"error: {e.format_message()} (see {where} --help)", err=True)
@@ -140,11 +142,26 @@ FORCE = click.option("--force", is_flag=True,
                       help="Replace a measurement set already in the output folder (never one of the inputs).")
 
 
-def guard(inputs=(), files=(), sets=(), folders=(), force=False):
-    """Refuse outputs that would write into or over an input, or replace a measurement set
-    without --force (io/outputs.py); before any work, so nothing is lost."""
-    from simucal.io.outputs import OutputError, check
+def refuse_unused(options: dict) -> None:
+    """Refuse an option given on the command line that this run will not use, naming what it
+    applies to ({parameter name: what}); an option left at its default passes."""
+    from click.core import ParameterSource
+    ctx = click.get_current_context()
+    for name, where in options.items():
+        if ctx.get_parameter_source(name) not in (None, ParameterSource.DEFAULT):
+            param = next(p for p in ctx.command.params if p.name == name)
+            fail(f"{max(param.opts, key=len)}: applies to {where}, which this run is not; leave it out")
+
+
+def guard(inputs=(), files=(), sets=(), folders=(), force=False, together=True):
+    """Refuse outputs that would write into or over an input, or over each other, or where nothing
+    can be written, or replace a measurement set without --force (io/outputs.py); before any work,
+    so nothing is lost. together: the outputs are written all or none, when the command ends (the
+    demo, which reads what it wrote, writes each at once)."""
+    from simucal.io import outputs
     try:
-        check(inputs, files, sets, folders, force)
-    except OutputError as e:
+        outputs.check(inputs, files, sets, folders, force)
+    except outputs.OutputError as e:
         fail(e)
+    if together:
+        outputs.hold(files.values() if isinstance(files, dict) else files, list(sets) + list(folders))

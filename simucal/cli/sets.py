@@ -17,6 +17,7 @@ from simucal.cli.common import (
     fail,
     guard,
     main,
+    refuse_unused,
 )
 
 
@@ -71,6 +72,20 @@ def simulate(out_dir, output, scenario, heading_error_deg, seed, plan, rate_hz, 
     if not out_dir:
         fail("no output folder: give -o FOLDER")
     from simucal.turntable.simulate import ARCMIN, SCENARIOS, at_temperature, plant, write
+    table_only = {"--plan": plan, "--position-error-arcmin": position_error_arcmin, "--acc-model": acc_model,
+                  "--gyro-model": gyro_model, "--acc-unit": acc_unit, "--gyro-unit": gyro_unit, "--effect": effects,
+                  "--effect-file": effect_file, "--set": sets, "--column": columns, "--no-noise-stated": no_noise_stated,
+                  "--temperature-c": temperature_c}
+    given = [k for k, v in table_only.items() if v not in (None, False, ())]
+    if scenario == "field":
+        at_a_temperature = "a turntable test at a temperature (--temperature-c)"
+        refuse_unused({"t_ref_c": at_a_temperature, "temperature_wander_c": at_a_temperature})
+    if scenario == "field" and given:
+        fail(f"{', '.join(given)}: a turntable test's (--scenario paper); the field scenario takes --seed, --rate-hz "
+             "and --heading-accuracy-deg")
+    if scenario != "field" and heading_error_deg is not None:
+        fail(f"--heading-accuracy-deg {heading_error_deg:g}: the field scenario's north reference (--scenario field); "
+             f"a {scenario} test has a turntable")
     guard([plan if plan and Path(plan).exists() else None, effect_file], sets=[out_dir], force=force)
     if scenario == "field":
         from simucal.field.simulate import FieldScenario, write_field
@@ -185,7 +200,7 @@ def validate(calibration_file, data_dir, output, html_path):
     from simucal.io import MeasurementSetError, outputs
     from simucal.validate import html_page, lines
     from simucal.validate import validate as run
-    guard([calibration_file, data_dir], files=[output, html_path])
+    guard([calibration_file, data_dir], files={"-o": output, "--html": html_path})
     try:
         report = run(calibration_file, data_dir)
     except (MeasurementSetError, CalibrationError, ValueError) as e:
@@ -215,7 +230,7 @@ def noise(data_dir, output, html_path, kalibr_path, tau_max_s):
     from simucal import allan, io
     from simucal.errors import CalibrationError
     from simucal.io import MeasurementSetError, outputs
-    guard([data_dir], files=[output, html_path, kalibr_path])
+    guard([data_dir], files={"-o": output, "--html": html_path, "--kalibr": kalibr_path})
     try:
         report = allan.characterise(io.read_set(data_dir), tau_max_s)
         yaml = allan.kalibr_yaml(report) if kalibr_path else None  # refused before anything is written

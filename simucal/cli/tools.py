@@ -22,6 +22,7 @@ from simucal.cli.common import (
     guard,
     main,
     rates_dps,
+    refuse_unused,
 )
 
 
@@ -79,7 +80,8 @@ def demo(out_dir, seed, force):
     and the diagnosis."""
     from simucal import demo as demo_mod
     out = Path(out_dir)  # its sets may be replaced where an earlier demo wrote them (its demo.json)
-    guard(sets=[out] + [out / d for d in demo_mod.SETS], force=force or (out / demo_mod.MARKER).is_file())
+    guard(sets=[out] + [out / d for d in demo_mod.SETS], force=force or (out / demo_mod.MARKER).is_file(),
+          together=False)  # it reads the sets it writes
     try:
         demo_mod.run(out_dir, seed, click.echo)
     except RuntimeError as e:
@@ -113,7 +115,7 @@ def montecarlo(scenario, plan, trials, seed, effects, effect_file, sets, rates, 
     from simucal.turntable.montecarlo import run
     from simucal.sweeps import keep_freed_memory
     from simucal.turntable.simulate import SCENARIOS, plant
-    guard([plan if plan and Path(plan).exists() else None, effect_file], files=[output])
+    guard([plan if plan and Path(plan).exists() else None, effect_file], files={"-o": output})
     keep_freed_memory()  # this process is the command's
     if (effects or effect_file) and trials > MAX_TRIALS // 10:  # without a compiler, numpy: ~10x slower
         fail(f"--trials {trials}: with --effect or --effect-file at most {MAX_TRIALS // 10} (about two minutes); "
@@ -271,9 +273,13 @@ def plan(score_plan, model_name, add, positions, criterion, rate_dps, rates, kin
     from simucal.io.units import DPH_PER_DPS
     if (score_plan is None) == (positions is None):
         fail("give --score PLAN to score a plan, or --positions N to design one")
+    design = "a design (--positions N)"
+    refuse_unused({**({"criterion": design, "rates": design, "kind": design} if score_plan is not None else {}),
+                   **({"sizes": "--separate ID1,ID2", "target": "--separate ID1,ID2"} if not pair else {})})
     if output:
         guard([score_plan if score_plan and Path(score_plan).exists() else None],
-              files=[output] + ([str(Path(output).with_suffix(".json"))] if positions is not None else []))
+              files={"-o": output, **({"the plan's JSON sidecar": str(Path(output).with_suffix(".json"))}
+                                      if positions is not None else {})})
     elif positions is not None:
         guard(files=["plan.csv", "plan.json"])
     try:
@@ -284,6 +290,10 @@ def plan(score_plan, model_name, add, positions, criterion, rate_dps, rates, kin
             raise ValueError(f"{'--acc-noise-g' if gyro else '--gyro-noise-dph'} {wrong:g}: model {model.name} is a "
                              f"{model.sensor} model; give {'--gyro-noise-dph' if gyro else '--acc-noise-g'}")
         sigma = sigma or ((gyro_noise_dph or 0.01) if gyro else (acc_noise_g or 1e-5))
+        if not gyro:
+            refuse_unused({"rate_dps": "gyro models (rate runs)", "rates": "gyro models (rate runs)"})
+        elif rates:
+            refuse_unused({"rate_dps": "a score, or a design without --rates-dps (its rates)"})
         name, u, rho, result = _plan_scores(model, score_plan, positions, criterion, rate_dps, rates, sigma)
         if pair:
             result["separation"] = _separation(model, pair, sizes, score_plan, u, rho, sigma, target)
@@ -311,10 +321,12 @@ def plan(score_plan, model_name, add, positions, criterion, rate_dps, rates, kin
               help="Also write the figures as JSON.")
 @click.option("--before", type=click.Path(exists=True, dir_okay=False), default=None,
               help="A previous run's -o (e.g. benchmarks/bench_4a889b5.json), printed beside this run's figures.")
-def bench(json_path, before):
+@click.option("--quick", is_flag=True,
+              help="Run every step at a size of seconds (a check that the bench runs; its figures measure nothing).")
+def bench(json_path, before, quick):
     """Measure the speed figures (fits, Monte Carlo, whole commands) on this machine."""
     from simucal.bench import run
     if json_path:
         guard([before] if before else [], files=[json_path])
-    run(json_path, click.echo, before)
+    run(json_path, click.echo, before, "quick" if quick else "full")
 

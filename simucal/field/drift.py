@@ -249,6 +249,12 @@ def field_calibration(ms, heading_accuracy_deg=5.0) -> calibration.Calibration:
     return cal
 
 
+def plot_formats() -> list[str]:
+    """The file name endings plot_history can write (matplotlib's: png, pdf, svg, ...)."""
+    from matplotlib.backend_bases import FigureCanvasBase
+    return sorted(FigureCanvasBase.get_supported_filetypes())
+
+
 def plot_history(hist, path):
     """The paper's Fig. 4: each position's eps_N estimate with its 1-sigma bounds (field_drift's history)."""
     import matplotlib
