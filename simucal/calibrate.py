@@ -35,6 +35,10 @@ def calibrate(folder, method="auto", acc_model="acc_baseline", gyro_model="gyro_
         raise CalibrationError(f"{ms.path / 'samples.csv'}: --t-ref-c {t_ref_c:g}, but there is no temp_c column for "
                                "temperature terms to take it from: leave --t-ref-c out")
     ms.temperature_ref_c = t_ref_c
+    curves = None
+    if noise is not None:  # the file checked before any work, its refusal naming it alone
+        from simucal.fit.noise import load_curves
+        curves = load_curves(noise)
     try:
         m = methods.choose(method, ms)
         stuck_channels(ms)
@@ -42,10 +46,6 @@ def calibrate(folder, method="auto", acc_model="acc_baseline", gyro_model="gyro_
         if "ids" in m.options:  # models and effects: imported only by the methods that fit them
             from simucal.fit.augmented import resolve_add
             acc_model, gyro_model, ids = resolve_add(ids, acc_model, gyro_model)
-        curves = None
-        if noise is not None:
-            from simucal.fit.noise import load_curves
-            curves = load_curves(noise)
         given = dict(acc_model=acc_model, gyro_model=gyro_model, ids=ids, auto="auto" in add, detect=detect,
                      acc_noise_g=acc_noise_g, gyro_noise_dph=gyro_noise_dph, heading_accuracy_deg=heading_accuracy_deg,
                      noise_curves=curves)
