@@ -169,7 +169,8 @@ def calibrate_thermal(folders, degree=None, t_ref_c=None, **kwargs) -> Calibrati
     result = Calibration(f"thermal ({first.method} per plateau)", plateaus, [c.input_sha256 for c in cals],
                          first.layout, t_ref_c=t_ref, temperature_range_c=[min(T_k), max(T_k)],
                          unification=first.unification, not_calibrated=first.not_calibrated,
-                         details=dict(first.details))  # the first plateau's checks (consistency, ...)
+                         details=dict(first.details),  # the first plateau's checks (consistency, ...)
+                         samples_sha256=[d for c in cals for d in c.samples_sha256 or []])
     for s in first.sensors:
         setattr(result, s, _thermal_block([getattr(c, s) for c in cals], T_k, t_ref, degree, s, plateaus))
     result.warnings = [f"{ms.path}: temp_c spans {np.ptp(ms.samples['temp_c']):.3g} degC, more than a plateau's "

@@ -90,3 +90,67 @@ def test_a_noise_file_that_is_a_folder_or_not_json_is_named(raw, tmp_path):
     (tmp_path / "deep.json").write_text("[" * 100_000 + "]" * 100_000)
     for path, what in ((tmp_path / "deep.json", "not a readable noise report"),):
         refused(_run("calibrate", raw / "raw", "--noise", path, "-o", tmp_path / "c.json"), str(path), what)
+
+
+def _meta(folder, **kw):
+    m = json.loads((folder / "meta.json").read_text())
+    (folder / "meta.json").write_text(json.dumps({**m, **kw}))
+
+
+def test_validate_knows_its_own_rows_by_their_samples(raw, tmp_path):
+    """Issue 39: adding average_s to meta.json (which calibrate --noise asks for) hid that the rows were
+    the calibration's own. The calibration records a digest of each segment's samples: an edit of
+    meta.json, segments.csv or the number format does not hide them, a few of its segments copied into
+    another set show, and a file without the digests (an older one) still compares the files."""
+    import shutil
+
+    from simucal.io import read_set
+    cal = tmp_path / "cal.json"
+    assert _run("calibrate", raw / "raw", "-o", cal).exit_code == 0
+    own = "these are the data the calibration was made from"
+    edited = tmp_path / "edited"
+    shutil.copytree(raw / "raw", edited)
+    _meta(edited, average_s=10.0, notes="edited")
+    lines = (edited / "samples.csv").read_text().splitlines()
+    (edited / "samples.csv").write_text("\r\n".join(lines) + "\r\n")  # another line ending: the same numbers
+    r = _run("validate", cal, edited, "-o", tmp_path / "v.json")
+    assert r.exit_code == 0 and own in r.output, r.output
+    assert json.loads((tmp_path / "v.json").read_text())["independent"] is False
+    # another recording of the same unit is independent; with three of the calibration's segments in it, not
+    write(tmp_path / "other", Scenario(plan="table1", rate_hz=20.0), 4)
+    r = _run("validate", cal, tmp_path / "other", "-o", tmp_path / "v2.json")
+    assert r.exit_code == 0 and "NOTE" not in r.output, r.output
+    mixed, ours = tmp_path / "mixed", read_set(raw / "raw")
+    shutil.copytree(tmp_path / "other", mixed)
+    header, *body = (mixed / "samples.csv").read_text().splitlines()
+    col = header.split(",").index("segment")
+    keep = {s.segment for s in ours.segments[:3]}
+    mine = [ln for ln in (raw / "raw" / "samples.csv").read_text().splitlines()[1:] if int(ln.split(",")[col]) in keep]
+    (mixed / "samples.csv").write_text("\n".join([header] + mine + [ln for ln in body if int(ln.split(",")[col])
+                                                                      not in keep]) + "\n")
+    r = _run("validate", cal, mixed, "-o", tmp_path / "v3.json")
+    assert r.exit_code == 0 and f"3 of the {len(ours.segments)} segments" in r.output, r.output
+    # an older file, without the digests: the files' hash still finds the unedited set, and only it
+    old = json.loads(cal.read_text())
+    del old["samples_sha256"]
+    (tmp_path / "old.json").write_text(json.dumps(old))
+    assert own in _run("validate", tmp_path / "old.json", raw / "raw", "-o", tmp_path / "v4.json").output
+    assert own not in _run("validate", tmp_path / "old.json", tmp_path / "other", "-o", tmp_path / "v5.json").output
+
+
+@pytest.mark.parametrize("entry, value", [("std", -1e-6), ("std", "1e-6"), ("std_raw", float("nan")),
+                                          ("samples_sha256", 7)])
+def test_a_calibration_with_a_std_that_is_none_is_refused(raw, tmp_path, entry, value):
+    cal = tmp_path / "cal.json"
+    assert _run("calibrate", raw / "raw", "-o", cal).exit_code == 0
+    d = json.loads(cal.read_text())
+    if entry == "samples_sha256":
+        d[entry], name = value, "samples_sha256"
+    else:
+        block = d["acc"].setdefault(entry, dict(d["acc"]["std"]))
+        block[next(iter(block))] = value
+        name = f"acc.{entry}.{next(iter(block))}"
+    (tmp_path / "bad.json").write_text(json.dumps(d))
+    for cmd in (["validate", tmp_path / "bad.json", raw / "raw"], ["apply", tmp_path / "bad.json", raw / "raw"]):
+        refused(_run(*cmd, "-o", tmp_path / "out"), "bad.json", name, "calibrate again")
+    assert not (tmp_path / "out").exists()

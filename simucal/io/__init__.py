@@ -7,6 +7,7 @@ from __future__ import annotations
 
 import csv
 import io as _io
+import hashlib
 import json
 import re
 from dataclasses import dataclass
@@ -80,6 +81,16 @@ class MeasurementSet:
         """The indices (ascending) of one segment's rows; empty if it has none."""
         groups = self._once("rows", ("segment",), lambda: group_rows(self.samples["segment"]))
         return groups.get(segment, np.zeros(0, int))
+
+    def sample_digests(self) -> list[str]:
+        """Per segment (a stream: one for the whole), the first 16 hex digits of the SHA-256 of its sensor
+        outputs' numbers (float64, the columns of ax..gz present, row by row): the samples themselves,
+        whatever meta.json, segments.csv, t_s or the number format say. A calibration records them
+        (samples_sha256) and validate finds its own rows by them."""
+        cols = [c for c in ("ax", "ay", "az", "gx", "gy", "gz") if c in self.samples]
+        x = np.column_stack([self.samples[c] for c in cols]).astype("<f8")
+        parts = [x] if self.segments is None else [x[self.rows(s.segment)] for s in self.segments]
+        return [hashlib.sha256(np.ascontiguousarray(p).tobytes()).hexdigest()[:16] for p in parts if len(p)]
 
     def _once(self, name, cols, make):
         """make(), formed once per set of columns and meta.json (the methods ask many times; at 300,000

@@ -6,6 +6,8 @@ nominal scale factors of the data's meta.json (so for `counts` a raw ADC offset 
 `bias` as offset / counts_per_g, in g). Top level:
 
     format, method, input, input_sha256 (lists for a thermal calibration: one per plateau)
+    samples_sha256  a digest of each segment's sensor outputs (MeasurementSet.sample_digests):
+                validate finds the calibration's own rows by them, whatever else was edited
     layout      the data's units and nominal scale factors; apply refuses data
                 with another layout (another sensor or unit)
     formula     how an output relates to its input (below), per sensor
@@ -166,6 +168,7 @@ class Calibration:
     warnings: list[str] = field(default_factory=list)
     details: dict = field(default_factory=dict)
     format: str = FORMAT
+    samples_sha256: list[str] | None = None  # MeasurementSet.sample_digests of the data; None: an older file
 
     @property
     def sensors(self) -> list[str]:
@@ -191,7 +194,7 @@ class Calibration:
         residual = {s: b.residual_rms for s, b in self.blocks() if b.residual_rms is not None}
         if residual:
             out["residual_rms"] = residual
-        for k in ("t_ref_c", "temperature_range_c", "unification"):
+        for k in ("samples_sha256", "t_ref_c", "temperature_range_c", "unification"):
             if getattr(self, k) is not None:
                 out[k] = getattr(self, k)
         if self.not_calibrated:
@@ -216,7 +219,7 @@ class Calibration:
 
 def header(method: str, ms) -> Calibration:
     """A calibration of set ms by `method`, its blocks still to fill."""
-    cal = Calibration(method, str(ms.path), ms.sha256, layout(ms))
+    cal = Calibration(method, str(ms.path), ms.sha256, layout(ms), samples_sha256=ms.sample_digests())
     if ms.t_ref_c is not None:  # temperature terms read dtemp_c = temp_c - t_ref_c; apply takes it from here
         temp = ms.samples["temp_c"]
         cal.t_ref_c, cal.temperature_range_c = ms.t_ref_c, [float(np.min(temp)), float(np.max(temp))]
