@@ -154,3 +154,125 @@ def test_a_calibration_with_a_std_that_is_none_is_refused(raw, tmp_path, entry, 
     for cmd in (["validate", tmp_path / "bad.json", raw / "raw"], ["apply", tmp_path / "bad.json", raw / "raw"]):
         refused(_run(*cmd, "-o", tmp_path / "out"), "bad.json", name, "calibrate again")
     assert not (tmp_path / "out").exists()
+
+
+@pytest.fixture(scope="module")
+def avg(tmp_path_factory):
+    """An averaged turntable set (one row per position) and its calibration."""
+    root = tmp_path_factory.mktemp("avg")
+    write(root / "set", Scenario(plan="table1"), 5)
+    assert _run("calibrate", root / "set", "-o", root / "cal.json").exit_code == 0
+    return root
+
+
+def _csv_edit(folder, name, edit):
+    lines = (folder / name).read_text().splitlines()
+    (folder / name).write_text(edit(lines))
+
+
+def _cell(lines, row, col, value):
+    cells = lines[row].split(",")
+    cells[col] = value
+    lines[row] = ",".join(cells)
+    return "\n".join(lines) + "\n"
+
+
+def _deep(path):
+    path.write_text('{"a":' * 100_000 + "1" + "}" * 100_000)
+
+
+def _loop(path):
+    path.unlink()
+    other = path.with_name("other_" + path.name)
+    path.symlink_to(other.name)
+    other.symlink_to(path.name)
+
+
+DAMAGE = {  # what breaks a set that still looks like one, and what the refusal says
+    "a static segment turning": (lambda d: _csv_edit(d, "segments.csv", lambda ln: _cell(ln, 1, 5, "5")),
+                                 "segments.csv, line 2: a static segment with outer_rate_dps 5"),
+    "a column twice in segments.csv": (lambda d: _csv_edit(d, "segments.csv", lambda ln: "\n".join(
+        [ln[0] + ",middle_deg"] + [r + ",45" for r in ln[1:]]) + "\n"), "column middle_deg appears 2 times"),
+    "a column twice in samples.csv": (lambda d: _csv_edit(d, "samples.csv", lambda ln: "\n".join(
+        [ln[0] + ",ax"] + [r + ",1" for r in ln[1:]]) + "\n"), "column ax appears 2 times"),
+    "samples.csv cut mid-number": (lambda d: (d / "samples.csv").write_text((d / "samples.csv").read_text()
+                                                                             .rstrip()[:-3]), "no line end"),
+    "segments.csv cut mid-number": (lambda d: (d / "segments.csv").write_text((d / "segments.csv").read_text()
+                                                                               .rstrip()[:-3]), "no line end"),
+    "a 10 MB single line": (lambda d: (d / "samples.csv").write_text("1" * 10_000_000 + "\n"), "not readable as CSV"),
+    "a 10 MB cell": (lambda d: _csv_edit(d, "samples.csv", lambda ln: _cell(ln, 1, 2, "1" * 10_000_000)),
+                     "line 2: not readable as CSV"),
+    "meta.json 100,000 deep": (lambda d: _deep(d / "meta.json"), "nested too deep"),
+    "meta.json a 5000-digit number": (lambda d: (d / "meta.json").write_text("1" * 5000), "not readable JSON"),
+    "meta.json a symlink loop": (lambda d: _loop(d / "meta.json"), "symbolic link that leads nowhere"),
+    "samples.csv a folder": (lambda d: ((d / "samples.csv").unlink(), (d / "samples.csv").mkdir()), "is a folder"),
+}
+
+
+@pytest.mark.parametrize("case", sorted(DAMAGE))
+def test_data_that_look_valid_and_are_not_are_refused(avg, tmp_path, case):
+    import shutil
+    damage, expect = DAMAGE[case]
+    d = tmp_path / "set"
+    shutil.copytree(avg / "set", d)
+    damage(d)
+    for cmd in (["calibrate", d, "-o", tmp_path / "c.json"], ["validate", avg / "cal.json", d, "-o", tmp_path / "v.json"]):
+        line = refused(_run(*cmd), expect)
+        assert len(line) < 2000  # a 10 MB value is not echoed whole
+    assert not (tmp_path / "c.json").exists() and not (tmp_path / "v.json").exists()
+
+
+def test_a_file_argument_that_is_a_folder_a_loop_or_too_deep_is_named(avg, tmp_path):
+    (tmp_path / "folder.json").mkdir()
+    (tmp_path / "loop.json").write_text("")
+    _loop(tmp_path / "loop.json")
+    _deep(tmp_path / "deep.json")
+    for cal, expect in (("folder.json", "is a directory"), ("loop.json", "symbolic link that leads nowhere"),
+                        ("deep.json", "nested too deep")):
+        for cmd in ("apply", "validate"):
+            refused(_run(cmd, tmp_path / cal, avg / "set", "-o", tmp_path / "out"), cal, expect)
+    (tmp_path / "set_loop").symlink_to("set_loop")
+    refused(_run("calibrate", tmp_path / "set_loop", "-o", tmp_path / "c.json"), "symbolic link that leads nowhere")
+    (tmp_path / "model.py").mkdir()
+    refused(_run("calibrate", avg / "set", "--add", tmp_path / "model.py", "-o", tmp_path / "c.json"),
+            "a folder, where a model file")
+    refused(_run("montecarlo", "--effect-file", tmp_path / "loop.json", "--trials", 100, "-o", tmp_path / "m.json"),
+            "symbolic link that leads nowhere")
+
+
+def test_inputs_in_one_plane_are_refused_by_the_multiposition_method_too(tmp_path):
+    """Rate runs all about axes of one plane leave the gyro's M along its normal to the Earth rate of the
+    statics (10 deg/h against 36,000): the multi-position regression gave M_yy 0.94 (truth 1.0) without a
+    word. Refused, naming the plane's normal, as the norm methods refuse one."""
+    import shutil
+    plan = ["outer_deg,middle_deg,inner_deg"] + [f"0,0,{b}" for b in range(0, 360, 30)]
+    (tmp_path / "plan.csv").write_text("\n".join(plan) + "\n")
+    assert _run("simulate", "-o", tmp_path / "s", "--plan", tmp_path / "plan.csv", "--seed", 1).exit_code == 0
+    from simucal.io import read_set
+    off = [s.segment for s in read_set(tmp_path / "s").segments if s.kind == "rate" and s.middle_deg != 0.0]
+    assert off  # the simulator's run about another axis: left out, the rate runs are coplanar
+    shutil.copytree(tmp_path / "s", tmp_path / "cop")
+    for name in ("segments.csv", "samples.csv"):
+        _csv_edit(tmp_path / "cop", name, lambda ln: "\n".join(r for r in ln if r.split(",")[0] not in
+                                                                 {str(k) for k in off}) + "\n")
+    refused(_run("calibrate", tmp_path / "cop", "--method", "multiposition", "-o", tmp_path / "c.json"),
+            "gyro input directions lie in one plane", "[-0.0, 1.0, 0.0]")
+    assert _run("calibrate", tmp_path / "s", "--method", "multiposition", "-o", tmp_path / "c.json").exit_code == 0
+
+
+def test_a_term_in_the_model_file_and_in_the_library_is_named(tmp_path):
+    """A model file's own z quadratic beside the library's acc.quadratic.z: montecarlo blamed the plan
+    (a noise-free trial failing); now both say the same term is there twice, naming it."""
+    (tmp_path / "quad.py").write_text(
+        "from simucal.derive.frames import f_b\nfrom simucal.derive.models import Term\n"
+        "from simucal.derive.models.baseline import ACC_BASELINE\n"
+        'MODELS = [ACC_BASELINE.with_terms("acc_twice_mc", [Term("Kq_z", "z", 2 * f_b[2] ** 2, "g/g^2", "mine")])]\n')
+    expect = ("acc.quadratic.z", "Kq_z", "the same term")
+    refused(_run("montecarlo", "--effect-file", tmp_path / "quad.py", "--set", "Kq_z=1e-4", "--effect",
+                 "acc.quadratic.z=1e-4", "--trials", 100, "-o", tmp_path / "m.json"), *expect)
+    write(tmp_path / "set", Scenario(plan="fibonacci48"), 1)
+    refused(_run("calibrate", tmp_path / "set", "--add", tmp_path / "quad.py", "--add", "acc.quadratic.z", "-o",
+                 tmp_path / "c.json"), *expect)
+    r = _run("montecarlo", "--effect-file", tmp_path / "quad.py", "--set", "Kq_z=1e-4", "--effect",
+             "acc.quadratic.x=1e-4", "--trials", 100, "-o", tmp_path / "m.json")
+    assert r.exit_code == 0, r.output  # another axis's quadratic is another term

@@ -7,7 +7,7 @@ from pathlib import Path
 import click
 
 from simucal import methods
-from simucal.cli.common import MODEL_FILE_RUNS, NOISE_DPH, NOISE_G, POSITIVE, Number, fail, guard, main
+from simucal.cli.common import MODEL_FILE_RUNS, NOISE_DPH, NOISE_G, POSITIVE, InputPath, Number, fail, guard, main
 
 
 HEADING_ACCURACY = click.option(
@@ -21,7 +21,7 @@ _ADD_AUTO_HELP = (_ADD_HELP + " Also 'auto': the library effects a failing model
 
 
 @main.command()
-@click.argument("data_dirs", nargs=-1, required=True, type=click.Path(exists=True, file_okay=False))
+@click.argument("data_dirs", nargs=-1, required=True, type=InputPath(exists=True, file_okay=False))
 @click.option("-o", "--output", type=click.Path(), default="calibration.json", show_default=True,
               help="The calibration file; with several sets, a folder that gets one <set>.json each (with "
                    "--thermal: one file).")
@@ -41,7 +41,7 @@ _ADD_AUTO_HELP = (_ADD_HELP + " Also 'auto': the library effects a failing model
 @click.option("--add", "add", multiple=True, help=_ADD_AUTO_HELP)
 @click.option("--acc-noise-g", type=NOISE_G, default=None, help="Noise of one acc row (g), where the data cannot give it.")
 @click.option("--gyro-noise-dph", type=NOISE_DPH, default=None, help="Noise of one gyro row (deg/h).")
-@click.option("--noise", "noise_file", type=click.Path(exists=True, dir_okay=False), default=None,
+@click.option("--noise", "noise_file", type=InputPath(exists=True, dir_okay=False), default=None,
               help="A noise.json of simucal noise: each segment's noise from its Allan curve at the segment's length "
                    "(averaged rows: meta.json's average_s).")
 @click.option("--init-rest-s", type=POSITIVE, default=None, help="Stream: length of the initial rest (default: found from the data).")
@@ -136,7 +136,7 @@ def _calibrate_thermal(data_dirs, output, degree, t_ref_c, kwargs, inputs, html_
 
 
 @main.command("field-drift")
-@click.argument("data_dir", type=click.Path(exists=True, file_okay=False))
+@click.argument("data_dir", type=InputPath(exists=True, file_okay=False))
 @click.option("-o", "--output", type=click.Path(dir_okay=False), default="drift.json", show_default=True,
               help="The calibration file (apply corrects the gyro drift with it).")
 @click.option("--plot", type=click.Path(dir_okay=False), default=None, help="PNG of each position's filter estimate (paper Fig. 4).")
@@ -194,7 +194,7 @@ def _write_shape_models(result, output):
 
 
 @main.command()
-@click.argument("data_dir", type=click.Path(exists=True, file_okay=False))
+@click.argument("data_dir", type=InputPath(exists=True, file_okay=False))
 @click.option("-o", "--output", type=click.Path(dir_okay=False), default="diagnosis.json", show_default=True)
 @click.option("--html", "html_path", type=click.Path(dir_okay=False), default=None, help="Also write a self-contained HTML report.")
 @click.option("--add", "add", multiple=True, help=_ADD_HELP)

@@ -64,7 +64,12 @@ def derive_model_file(path) -> tuple[list[str], bool]:
     A model file is Python: its code runs when it is derived, as any plugin's does. It runs
     once, in a child process with a time limit (SIMUCAL_DERIVE_TIMEOUT_S, default 120 s);
     afterwards the cache is keyed by the file's bytes and the file is never run again."""
+    if Path(path).is_symlink() and not Path(path).exists():  # resolve() would raise on a loop
+        raise FileNotFoundError(f"{path}: a symbolic link that leads nowhere (a loop of links, or its target is "
+                                "missing): give the model file itself")
     path = Path(path).resolve()
+    if path.is_dir():
+        raise FileNotFoundError(f"{path}: a folder, where a model file (Python with MODELS = [...]) is expected")
     if not path.is_file():
         raise FileNotFoundError(f"{path}: no such model file")
     key = _key(path)

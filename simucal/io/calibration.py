@@ -311,8 +311,11 @@ def load(path) -> Calibration:
     path = Path(path)
     try:
         d = json.loads(path.read_text())
-    except (OSError, UnicodeDecodeError, json.JSONDecodeError) as e:
-        raise CalibrationFileError(f"{path}: not a readable calibration file ({e})") from None
+    except (OSError, UnicodeDecodeError, ValueError) as e:  # ValueError: bad JSON, or a number of 5000 digits
+        raise CalibrationFileError(f"{path}: not a readable calibration file ({str(e)[:120]})") from None
+    except RecursionError:
+        raise CalibrationFileError(f"{path}: not a calibration file: nested too deep to read (objects within each "
+                                   "other thousands of levels down); calibrate again") from None
     fmt = d.get("format") if isinstance(d, dict) else None
     if fmt != FORMAT:
         raise CalibrationFileError(f"{path}: format {fmt!r}, expected {FORMAT!r}"

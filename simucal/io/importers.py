@@ -212,10 +212,14 @@ def _read_sections(path, n_rows) -> dict:
     """imucal's section list {label: {start, end}} (0-based rows, end exclusive), checked against the
     recording's rows."""
     import json
+    text = _text(path)
     try:
-        sections = json.loads(_text(path))
+        sections = json.loads(text)
     except json.JSONDecodeError as e:
         raise ImportError_(f"{path}, line {e.lineno}: not valid JSON: {e.msg}") from None
+    except (ValueError, RecursionError) as e:  # a number of 5000 digits; arrays thousands of levels deep
+        raise ImportError_(f"{path}: not a section list ({type(e).__name__}: nested too deep or a number too "
+                           "long to read)") from None
     if not isinstance(sections, dict) or not sections:
         raise ImportError_(f"{path}: must map each section label to {{\"start\": row, \"end\": row}}")
     for label, s in sections.items():
