@@ -18,7 +18,7 @@ def _run(*args):
 
 def refused(r, *expect):
     """Exit 2, one line on stderr holding each of expect, no internal error."""
-    lines = [x for x in r.stderr.splitlines() if x.strip()]
+    lines = [x for x in r.stderr.splitlines() if x.strip() and not x.startswith("deriving ")]  # said with its limit
     assert r.exit_code == 2 and isinstance(r.exception, SystemExit), (r.exit_code, r.output, r.exception)
     assert len(lines) == 1 and "internal error" not in lines[0], r.stderr
     for e in expect:
@@ -276,3 +276,23 @@ def test_a_term_in_the_model_file_and_in_the_library_is_named(tmp_path):
     r = _run("montecarlo", "--effect-file", tmp_path / "quad.py", "--set", "Kq_z=1e-4", "--effect",
              "acc.quadratic.x=1e-4", "--trials", 100, "-o", tmp_path / "m.json")
     assert r.exit_code == 0, r.output  # another axis's quadratic is another term
+
+
+def test_a_model_file_that_never_returns_is_said_at_once_and_stopped_at_its_limit(tmp_path, monkeypatch):
+    """A model file in an endless loop waited 120 s in silence: what runs and its limit are said at once,
+    its seconds every Wait.EVERY_S off a terminal, and at the limit the child is killed and refused."""
+    import time
+
+    from simucal import progress
+    write(tmp_path / "set", Scenario(), 1)
+    (tmp_path / "hang.py").write_text("while True:\n    pass\n")
+    monkeypatch.setenv("SIMUCAL_DERIVE_TIMEOUT_S", "3")
+    monkeypatch.setattr(progress.Wait, "EVERY_S", 1.0)
+    start = time.monotonic()
+    r = _run("calibrate", tmp_path / "set", "--add", tmp_path / "hang.py", "-o", tmp_path / "c.json")
+    took = time.monotonic() - start
+    refused(r, "hang.py", "more than 3 s", "SIMUCAL_DERIVE_TIMEOUT_S")
+    said = r.stderr.splitlines()
+    assert said[0].startswith(f"deriving {tmp_path / 'hang.py'}") and "at most 3 s" in said[0], said
+    assert sum("so far, at most 3 s" in x for x in said) >= 1, said  # progress while it runs
+    assert took < 15, took  # stopped at its limit, not left running

@@ -20,6 +20,7 @@ import json
 import os
 import subprocess
 import sys
+import time
 import traceback
 from pathlib import Path
 
@@ -76,16 +77,7 @@ def derive_model_file(path) -> tuple[list[str], bool]:
     folder = models_dir() / key
     derived = False
     if not (folder / "manifest.json").is_file():
-        limit = derive_timeout_s()
-        if sys.stderr.isatty():  # a few seconds of silence otherwise
-            print(f"deriving {path} with SymPy (its code runs once, in a child process, at most {limit:g} s)",
-                  file=sys.stderr)
-        try:
-            child = subprocess.run([sys.executable, "-m", "simucal.fit.catalog", str(path), str(folder)],
-                                   capture_output=True, text=True, timeout=limit)
-        except subprocess.TimeoutExpired:
-            raise ModelFileError(f"{path}: deriving it took more than {limit:g} s (a loop that never ends?); "
-                                 "fix the file, or allow more time with SIMUCAL_DERIVE_TIMEOUT_S") from None
+        child = _run_child(path, folder, derive_timeout_s())
         if child.returncode:
             lines = [x for x in child.stderr.splitlines() if x.strip()]
             raise ModelFileError(lines[-1] if child.returncode == 2 and lines else
@@ -101,6 +93,33 @@ def derive_model_file(path) -> tuple[list[str], bool]:
     _write_atomic(models_dir() / "index.json", json.dumps(index, indent=2, sort_keys=True) + "\n")
     load.cache_clear()
     return names, derived
+
+
+def _run_child(path: Path, folder: Path, limit: float) -> subprocess.CompletedProcess:
+    """Run the model file and derive it in a child process, said at once with its limit and followed
+    by its seconds (progress.Wait); killed, and refused, at the limit."""
+    from simucal.progress import Wait
+    wait = Wait(f"deriving {path} with SymPy: its code runs once, in a child process, for at most {limit:g} s "
+                "(SIMUCAL_DERIVE_TIMEOUT_S)", limit, f"deriving {path.name}")
+    start = time.monotonic()
+    try:
+        with subprocess.Popen([sys.executable, "-m", "simucal.fit.catalog", str(path), str(folder)],
+                              stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True) as child:
+            while True:
+                left = limit - (time.monotonic() - start)
+                try:
+                    out, err = child.communicate(timeout=max(min(wait.step_s, left), 0.01))
+                    return subprocess.CompletedProcess(child.args, child.returncode, out, err)
+                except subprocess.TimeoutExpired:
+                    if left <= wait.step_s:
+                        child.kill()
+                        child.communicate()
+                        raise ModelFileError(f"{path}: deriving it took more than {limit:g} s (a loop that never "
+                                             "ends?); fix the file, or allow more time with "
+                                             "SIMUCAL_DERIVE_TIMEOUT_S") from None
+                    wait.tick(time.monotonic() - start)
+    finally:
+        wait.close()
 
 
 def _derive_into(path: Path, folder: Path) -> None:
