@@ -63,7 +63,7 @@ def diagnose_sensor(ms, sensor, base_model, add=(), stated=None, truth=None, bef
     fit, obs, base, cands, shape, table_info = test_and_rank(model, obs, segs)
     if segs is None:
         segs = [io.Segment(i, "static", None, None, None, 0.0) for i in range(len(poses))]
-    out = {"baseline": base, "candidates": cands, "verdict": verdict(sensor, base, cands, str(ms.path), shape),
+    out = {"baseline": base, "candidates": cands, "verdict": verdict(sensor, base, cands, str(ms.path), shape, None),
            "params": fit.params, "std": fit.std, "param_units": dict(zip(model.params, model.param_units)),
            "residuals": residual_table(fit, obs, segs)}
     if shape:

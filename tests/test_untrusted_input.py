@@ -296,3 +296,49 @@ def test_a_model_file_that_never_returns_is_said_at_once_and_stopped_at_its_limi
     assert said[0].startswith(f"deriving {tmp_path / 'hang.py'}") and "at most 3 s" in said[0], said
     assert sum("so far, at most 3 s" in x for x in said) >= 1, said  # progress while it runs
     assert took < 15, took  # stopped at its limit, not left running
+
+
+def test_the_diagnosis_next_command_keeps_every_add_and_agrees_with_the_verdicts(tmp_path):
+    """Issue 39: the page's Next dropped the --add that made the model pass, its verdict said another
+    command, and the gyro's Next omitted the accelerometer's --add. One next command for the set now
+    holds every --add (the ones diagnose ran with and what each failing verdict adds), on the console
+    and the page, and running it makes both models pass."""
+    import html as _html
+    write(tmp_path / "two", Scenario(plan="fibonacci48", acc_effects={"acc.quadratic.z": 2e-4},
+                                     gyro_effects={"gyro.scale_asymmetry.z": 1e-4}), 1)
+    r = _run("diagnose", tmp_path / "two", "-o", tmp_path / "d.json", "--html", tmp_path / "d.html")
+    assert r.exit_code == 0, r.output
+    d = json.loads((tmp_path / "d.json").read_text())
+    cmd = f"simucal calibrate {tmp_path / 'two'} --add acc.quadratic.z --add gyro.scale_asymmetry.z -o calibration.json"
+    assert f"next: {cmd}" in r.output
+    assert f"Next: <code>{_html.escape(cmd)}</code>" in (tmp_path / "d.html").read_text()
+    for s, eid in (("acc", "acc.quadratic.z"), ("gyro", "gyro.scale_asymmetry.z")):
+        assert f"Add it: --add {eid}." in d[s]["verdict"]  # the verdict's effect is the one in next
+    # run with one --add: the passing model keeps it, the failing one adds its own
+    r = _run("diagnose", tmp_path / "two", "--add", "acc.quadratic.z", "-o", tmp_path / "d2.json")
+    assert "explains the data" in json.loads((tmp_path / "d2.json").read_text())["acc"]["verdict"]
+    assert f"next: {cmd}" in r.output, r.output
+    r = _run(*cmd.split()[1:-2], "-o", tmp_path / "c.json")  # the next command, as printed
+    cal = json.loads((tmp_path / "c.json").read_text())
+    assert r.exit_code == 0 and cal["acc"]["verdict"] == cal["gyro"]["verdict"] == "passes", r.output
+
+
+def test_every_calibration_block_has_its_verdict_and_a_batch_says_a_failing_model(tmp_path):
+    """The README listed a verdict key that no file had; a batch's summary line hid a failing model."""
+    from simucal.io import calibration
+    write(tmp_path / "bad", Scenario(plan="fibonacci48", acc_effects={"acc.quadratic.z": 2e-4}), 1)
+    write(tmp_path / "good", Scenario(plan="fibonacci48"), 2)
+    r = _run("calibrate", tmp_path / "bad", tmp_path / "good", "-o", tmp_path / "many")
+    assert r.exit_code == 0, r.output
+    line = next(x for x in r.output.splitlines() if "wrote" in x and "bad.json" in x)
+    assert "acc p = " in line and "THE MODEL FAILS" in line.split("gyro")[0], line
+    assert "FAILS" not in next(x for x in r.output.splitlines() if "wrote" in x and "good.json" in x)
+    for name, acc in (("bad", "fails"), ("good", "passes")):
+        d = json.loads((tmp_path / "many" / f"{name}.json").read_text())
+        assert (d["acc"]["verdict"], d["gyro"]["verdict"]) == (acc, "passes")
+        assert (d["acc"]["p_value"] < 1e-3) == (acc == "fails")
+        again = calibration.load(tmp_path / "many" / f"{name}.json").to_json()
+        assert again["acc"]["verdict"] == acc and "verdict" not in calibration.load(
+            tmp_path / "many" / f"{name}.json").acc.details  # derived, not carried twice
+    r = _run("calibrate", tmp_path / "good", "--method", "multiposition", "-o", tmp_path / "mp.json")
+    assert json.loads((tmp_path / "mp.json").read_text())["acc"]["verdict"] == "untested"

@@ -107,7 +107,8 @@ def calibrate(data_dirs, output, thermal, thermal_degree, html_out, t_ref_c, met
             failed += 1
             click.echo(f"{d}: error: {error}", err=True)
         else:
-            tests = ", ".join(f"{k} p = {b.p_value:.3g}" for k, b in result.blocks() if b.p_value is not None)
+            tests = ", ".join(f"{k} p = {b.p_value:.3g}" + (": THE MODEL FAILS" if b.verdict == "fails" else "")
+                              for k, b in result.blocks() if b.p_value is not None)
             click.echo(f"{d}: wrote {path}" + (f" ({tests})" if tests else ""))
     click.echo(f"{len(tasks) - failed} of {len(tasks)} sets calibrated into {out}")
     if failed:
@@ -227,6 +228,9 @@ def diagnose(data_dir, output, html_path, add, acc_model, gyro_model, acc_noise_
         click.echo(line)
     for line in _added_lines(result):
         click.echo(line)
+    from simucal.report.console import next_command
+    cmd, notes = next_command(result)
+    click.echo(f"next: {cmd}" + "".join(f" ({n})" for n in notes))
     for m in models:
         click.echo(f"wrote {m}: the found term as a model file; try: simucal diagnose {data_dir} --add {m}")
     click.echo(f"wrote {output}" + (f" and {html_path}" if html_path else ""))

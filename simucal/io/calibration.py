@@ -30,8 +30,9 @@ Each sensor block (`SensorBlock`):
     C_b_model    the rotation from b to the model's own frame (gyro: C_b^d), so
                  output = h(C_b_model u_b, p)
     thermal      a thermal calibration's polynomials (fit/thermal.py)
-    residual_rms, residual_unit, chi2, dof, p_value, and what the method reports
-                 (test, noise, verdict, cross_validation, auto, ...)
+    residual_rms, residual_unit, chi2, dof, p_value, verdict (passes, fails, untested
+                 or nominal: SensorBlock.verdict), and what the method reports
+                 (test, noise, cross_validation, auto, ...)
 
 Direction: the calibration maps input to output (the sensor model). `apply`
 inverts it: u_b = C_b_model^T h^-1(output), Newton per sample for nonlinear terms.
@@ -87,7 +88,7 @@ def _plain(x):
 @dataclass(eq=False)
 class SensorBlock:
     """One sensor's calibration (module doc). details: what the method reports about its fit,
-    written beside the fields (test, noise, verdict, auto, moves, ...)."""
+    written beside the fields (test, noise, auto, moves, ...)."""
     model: str                 # a generated model's name, or "affine"
     M: np.ndarray              # (3, 3), frame b
     bias: np.ndarray           # (3,), bias_unit
@@ -124,6 +125,17 @@ class SensorBlock:
 
     ALWAYS = ("residual_rms", "residual_unit", "chi2", "dof", "p_value")  # written as null where there is no test
 
+    @property
+    def verdict(self) -> str:
+        """The model test's verdict, written as the block's `verdict`: "passes", "fails" (p below
+        FAILS_BELOW: the console says THE MODEL FAILS), "untested" (no test: an affine method without a
+        noise estimate) or "nominal" (not calibrated, kept at the nominal scale factors)."""
+        if self.nominal:
+            return "nominal"
+        if self.p_value is None:
+            return "untested"
+        return "fails" if self.p_value < FAILS_BELOW else "passes"
+
     def to_json(self) -> dict:
         out = {}
         for f in fields(self):
@@ -140,6 +152,7 @@ class SensorBlock:
                     out[f.name] = dict(v)
             elif v is not None or f.name in self.ALWAYS:
                 out[f.name] = _plain(v)
+        out["verdict"] = self.verdict
         return out
 
     @classmethod
@@ -148,7 +161,7 @@ class SensorBlock:
         given = {k: v for k, v in d.items() if k in names}
         given.setdefault("bias_unit", UNITS[sensor])  # files written before it was a field may lack it
         return cls(**given, effects={e: EffectValue.from_json(x) for e, x in d.get("effects", {}).items()},
-                   details={k: v for k, v in d.items() if k not in names and k != "effects"})
+                   details={k: v for k, v in d.items() if k not in names and k not in ("effects", "verdict")})
 
 
 @dataclass(eq=False)
