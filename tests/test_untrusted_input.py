@@ -342,3 +342,18 @@ def test_every_calibration_block_has_its_verdict_and_a_batch_says_a_failing_mode
             tmp_path / "many" / f"{name}.json").acc.details  # derived, not carried twice
     r = _run("calibrate", tmp_path / "good", "--method", "multiposition", "-o", tmp_path / "mp.json")
     assert json.loads((tmp_path / "mp.json").read_text())["acc"]["verdict"] == "untested"
+
+
+def test_a_noise_file_far_above_averaged_rows_is_refused_by_their_residuals(raw, tmp_path):
+    """One averaged row per segment and no stated noise: nothing of the data's own to compare a noise
+    file with before the fit, so the fit's residuals judge it. A file 1e4 times too large made every
+    model pass with a warning and stds 1e4 too large; refused, naming the file."""
+    write(tmp_path / "avg", Scenario(plan="table1", state_noise=False), 5)
+    _meta(tmp_path / "avg", average_s=10.0)
+    d = json.loads((raw / "n.json").read_text())
+    for ax in d["acc"]["axes"].values():
+        ax["terms"] = {k: v * 1e4 for k, v in ax["terms"].items()}
+    (tmp_path / "big.json").write_text(json.dumps(d))
+    refused(_run("calibrate", tmp_path / "avg", "--noise", tmp_path / "big.json", "-o", tmp_path / "c.json"),
+            "big.json", "acc residuals are", "times its noise")
+    assert not (tmp_path / "c.json").exists()

@@ -106,6 +106,7 @@ def segment_observations(ms: io.MeasurementSet, sensor: str, kinds=None, stated=
     obs = Observations(np.array(N).reshape(-1, 3), np.array(rho), np.array(sig).reshape(-1, 3), AuxInputs(aux),
                        [s.segment for s in keep])
     if curve is not None:
+        obs.noise_file = curve.source  # _exact_sensor refuses it where the residuals show it far too large
         obs.sigma_source = "the Allan curve of --noise at each segment's length" + (
             f" (it was measured to {curve.tau_max_s:.3g} s; the segments average up to {longest:.3g} s, so beyond "
             "it their noise is its white part: record a still stretch 9 times a segment's length to measure "
