@@ -357,3 +357,23 @@ def test_a_noise_file_far_above_averaged_rows_is_refused_by_their_residuals(raw,
     refused(_run("calibrate", tmp_path / "avg", "--noise", tmp_path / "big.json", "-o", tmp_path / "c.json"),
             "big.json", "acc residuals are", "times its noise")
     assert not (tmp_path / "c.json").exists()
+
+
+def test_an_imported_recording_cut_mid_number_and_a_damaged_truth_json(avg, tmp_path):
+    """A recording to import cut short mid-number (no line end) is refused as a set's CSV is; a
+    truth.json beside a set, read by diagnose for scoring only, is left out where it is damaged (nested
+    100,000 deep, or of another shape) instead of ending in an internal error."""
+    import shutil
+    from pathlib import Path
+    src = Path(__file__).resolve().parents[2] / "shared" / "data" / "imucal-ferraris" / "example_ferraris_session.csv"
+    (tmp_path / "cut.csv").write_bytes(src.read_bytes().rstrip(b"\n")[:-3])
+    refused(_run("import", "imucal-ferraris", tmp_path / "cut.csv", "-o", tmp_path / "imp", "--latitude-deg", 45),
+            "cut.csv, line", "no line end")
+    assert not (tmp_path / "imp").exists()
+    d = tmp_path / "set"
+    shutil.copytree(avg / "set", d)
+    for damaged in ("[" * 100_000 + "]" * 100_000, '{"acc": [1], "gyro": {"params": {"x": "a"}, "T": 5}}'):
+        (d / "truth.json").write_text(damaged)
+        r = _run("diagnose", d, "--add", "acc.quadratic.z", "-o", tmp_path / "d.json")
+        assert r.exit_code == 0, r.output
+        assert "truth" not in json.loads((tmp_path / "d.json").read_text())["acc"]["added"]["params"]["acc.quadratic.z"]

@@ -91,11 +91,12 @@ def not_a_folder(path: Path) -> Path:
     return path
 
 
-def ends_with_a_line_end(path: Path, body) -> None:
+def ends_with_a_line_end(path: Path, body, line=None) -> None:
     """Refuse a CSV whose last line has no line end: a recording cut short while it was written (the
-    last number may have lost digits) reads as a valid one. Every writer the spec knows ends each line."""
+    last number may have lost digits) reads as a valid one. Every writer the spec knows ends each line.
+    line: the last line's number, where body is only the file's end."""
     if len(body) and bytes(body[-1:]) not in (b"\n", b"\r"):
-        line = bytes(body).count(b"\n") + 1
+        line = line or bytes(body).count(b"\n") + 1
         last = bytes(body[-40:]).decode("utf-8", "replace").rsplit("\n", 1)[-1]
         raise MeasurementSetError(path, line, f"the last line has no line end (it ends ...{last[-24:]!r}): the "
                                               "file may be cut short mid-number; if the line is whole, end it with "
