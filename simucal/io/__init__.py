@@ -85,13 +85,20 @@ class MeasurementSet:
 
     def sample_digests(self) -> list[str]:
         """Per segment (a stream: one for the whole), the first 16 hex digits of the SHA-256 of its sensor
-        outputs' numbers (float64, the columns of ax..gz present, row by row): the samples themselves,
+        outputs' numbers (float64, the columns of ax..gz present, one after the other): the samples themselves,
         whatever meta.json, segments.csv, t_s or the number format say. A calibration records them
         (samples_sha256) and validate finds its own rows by them."""
-        cols = [c for c in ("ax", "ay", "az", "gx", "gy", "gz") if c in self.samples]
-        x = np.column_stack([self.samples[c] for c in cols]).astype("<f8")
-        parts = [x] if self.segments is None else [x[self.rows(s.segment)] for s in self.segments]
-        return [hashlib.sha256(np.ascontiguousarray(p).tobytes()).hexdigest()[:16] for p in parts if len(p)]
+        cols = [np.asarray(self.samples[c], "<f8") for c in ("ax", "ay", "az", "gx", "gy", "gz") if c in self.samples]
+        out = []
+        for rows in [slice(None)] if self.segments is None else [self.rows(s.segment) for s in self.segments]:
+            if not isinstance(rows, slice) and len(rows) and rows[-1] - rows[0] + 1 == len(rows):
+                rows = slice(rows[0], rows[-1] + 1)  # a segment's rows in one run, as recorded: a view, no copy
+            h = hashlib.sha256()
+            for c in cols:  # column by column
+                h.update(np.ascontiguousarray(c[rows]).data)
+            if len(cols[0][rows]):
+                out.append(h.hexdigest()[:16])
+        return out
 
     def _once(self, name, cols, make):
         """make(), formed once per set of columns and meta.json (the methods ask many times; at 300,000
