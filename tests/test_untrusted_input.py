@@ -53,6 +53,7 @@ EDITS = {  # what a hand edit or a damaged copy does to a noise.json, and the en
     "a sensor as a list": (lambda d: d.update(acc=[1, 2]), "acc is a list"),
     "a damaged sheet": (lambda d: d["acc"]["axes"]["x"].update(sheet={"B": "x"}), None),
 }
+TWICE = '"terms": {"N": 1.0, '  # json.dumps cannot write a key twice: the test edits the text
 
 
 @pytest.mark.parametrize("case", sorted(EDITS))
@@ -88,7 +89,9 @@ def test_a_noise_file_not_the_datas_own_size_is_refused(raw, tmp_path, factor):
 
 def test_a_noise_file_that_is_a_folder_or_not_json_is_named(raw, tmp_path):
     (tmp_path / "deep.json").write_text("[" * 100_000 + "]" * 100_000)
-    for path, what in ((tmp_path / "deep.json", "not a readable noise report"),):
+    (tmp_path / "twice.json").write_text((raw / "n.json").read_text().replace('"terms": {', TWICE, 1))
+    for path, what in ((tmp_path / "deep.json", "not a readable noise report"),
+                       (tmp_path / "twice.json", "key 'N' appears twice")):
         refused(_run("calibrate", raw / "raw", "--noise", path, "-o", tmp_path / "c.json"), str(path), what)
 
 
@@ -205,6 +208,8 @@ DAMAGE = {  # what breaks a set that still looks like one, and what the refusal 
     "meta.json 100,000 deep": (lambda d: _deep(d / "meta.json"), "nested too deep"),
     "meta.json a 5000-digit number": (lambda d: (d / "meta.json").write_text("1" * 5000), "not readable JSON"),
     "meta.json a symlink loop": (lambda d: _loop(d / "meta.json"), "symbolic link that leads nowhere"),
+    "meta.json a key twice": (lambda d: (d / "meta.json").write_text((d / "meta.json").read_text().replace(
+        "{", '{"latitude_deg": 10, ', 1)), "key 'latitude_deg' appears twice"),
     "samples.csv a folder": (lambda d: ((d / "samples.csv").unlink(), (d / "samples.csv").mkdir()), "is a folder"),
 }
 
@@ -227,8 +232,9 @@ def test_a_file_argument_that_is_a_folder_a_loop_or_too_deep_is_named(avg, tmp_p
     (tmp_path / "loop.json").write_text("")
     _loop(tmp_path / "loop.json")
     _deep(tmp_path / "deep.json")
+    (tmp_path / "twice.json").write_text((avg / "cal.json").read_text().replace("{", '{"method": "x", ', 1))
     for cal, expect in (("folder.json", "is a directory"), ("loop.json", "symbolic link that leads nowhere"),
-                        ("deep.json", "nested too deep")):
+                        ("deep.json", "nested too deep"), ("twice.json", "key 'method' appears twice")):
         for cmd in ("apply", "validate"):
             refused(_run(cmd, tmp_path / cal, avg / "set", "-o", tmp_path / "out"), cal, expect)
     (tmp_path / "set_loop").symlink_to("set_loop")

@@ -43,13 +43,15 @@ def read_report(path) -> dict:
     import json
     from pathlib import Path
 
+    from simucal.io.text_files import unique_keys
+
     def bad(entry, what):
         return CalibrationError(f"{path}: {entry} {what}; {REWRITE}")
     p = Path(path)
     if p.is_dir():
         raise CalibrationError(f"{path}: a folder, where a noise.json of simucal noise is expected")
     try:
-        rep = json.loads(p.read_text())
+        rep = json.loads(p.read_text(), object_pairs_hook=unique_keys)  # a term twice: which one is meant?
     except (OSError, UnicodeDecodeError, ValueError, RecursionError) as e:  # ValueError: JSON's, a 5000-digit int
         raise CalibrationError(f"{path}: not a readable noise report ({type(e).__name__}: "
                                f"{str(e)[:120] or 'nested too deep'}); {REWRITE}") from None

@@ -16,9 +16,9 @@ from pathlib import Path
 import numpy as np
 
 from simucal.io import outputs, units
-from simucal.io.text_files import (MeasurementSetError, body_of, cell, check_delimiter, csv_refusal, decoded,
-                                     ends_with_a_line_end, files_sha256, no_repeated_columns, not_a_folder, number,
-                                     read_text)
+from simucal.io.text_files import (MeasurementSetError, RepeatedKey, body_of, cell, check_delimiter, csv_refusal,
+                                     decoded, ends_with_a_line_end, files_sha256, no_repeated_columns, not_a_folder,
+                                     number, read_text, unique_keys)
 
 FORMAT = "simucal.measurements/1"
 SAMPLE_COLS = ("ax", "ay", "az", "gx", "gy", "gz")
@@ -126,9 +126,11 @@ def read_meta(folder: Path) -> dict:
         raise MeasurementSetError(path, None, "missing: a measurement set needs meta.json")
     text = read_text(path)
     try:
-        meta = json.loads(text)
+        meta = json.loads(text, object_pairs_hook=unique_keys)
     except json.JSONDecodeError as e:
         raise MeasurementSetError(path, e.lineno, f"not valid JSON: {e.msg}") from None
+    except RepeatedKey as e:
+        raise MeasurementSetError(path, None, str(e)) from None
     except ValueError as e:  # a number of thousands of digits
         raise MeasurementSetError(path, None, f"not readable JSON ({str(e)[:80]})") from None
     except RecursionError:

@@ -48,6 +48,7 @@ import numpy as np
 
 from simucal.io import outputs
 from simucal.io.calibration_checks import CalibrationFileError, check_file, layout
+from simucal.io.text_files import unique_keys
 
 FORMAT = "simucal.calibration/2"
 FORMULA = {
@@ -323,8 +324,8 @@ def load(path) -> Calibration:
     """A calibration file, checked before any of it is used (calibration_checks.check_file)."""
     path = Path(path)
     try:
-        d = json.loads(path.read_text())
-    except (OSError, UnicodeDecodeError, ValueError) as e:  # ValueError: bad JSON, or a number of 5000 digits
+        d = json.loads(path.read_text(), object_pairs_hook=unique_keys)
+    except (OSError, UnicodeDecodeError, ValueError) as e:  # bad JSON, a key twice, a number of 5000 digits
         raise CalibrationFileError(f"{path}: not a readable calibration file ({str(e)[:120]})") from None
     except RecursionError:
         raise CalibrationFileError(f"{path}: not a calibration file: nested too deep to read (objects within each "

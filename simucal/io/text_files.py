@@ -103,6 +103,21 @@ def ends_with_a_line_end(path: Path, body, line=None) -> None:
                                               "a newline")
 
 
+class RepeatedKey(ValueError):
+    """A JSON object that names a key twice."""
+
+
+def unique_keys(pairs) -> dict:
+    """json's object_pairs_hook: an object that names a key twice is refused (json keeps the last one
+    silently; which value was meant cannot be told)."""
+    seen = set()
+    for k, _ in pairs:
+        if k in seen:
+            raise RepeatedKey(f"key {k[:40]!r} appears twice in one object: which value is meant? keep one")
+        seen.add(k)
+    return dict(pairs)
+
+
 def csv_refusal(path: Path, line, e) -> MeasurementSetError:
     """csv's own error (a cell beyond its field limit of 131072 characters, a quote left open) as the
     spec's refusal naming the line."""
