@@ -57,6 +57,8 @@ def calibrate(folder, method="auto", acc_model="acc_baseline", gyro_model="gyro_
             raise CalibrationError(f"{flag} does not apply to method {m.name} ({m.summary}).")
         result = m.call(ms, **given)
         result.warnings += scale_notes(result, ms.meta)
+        result.warnings += [f"{noise}: holds no {s} curve, so the {s} noise is the data's own (--noise covers the "
+                            f"{' and '.join(curves)} only)" for s, _ in result.blocks() if curves and s not in curves]
     except CalibrationError as e:
         raise e.naming(ms.path) from None
     return result

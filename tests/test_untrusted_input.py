@@ -383,3 +383,13 @@ def test_an_imported_recording_cut_mid_number_and_a_damaged_truth_json(avg, tmp_
         r = _run("diagnose", d, "--add", "acc.quadratic.z", "-o", tmp_path / "d.json")
         assert r.exit_code == 0, r.output
         assert "truth" not in json.loads((tmp_path / "d.json").read_text())["acc"]["added"]["params"]["acc.quadratic.z"]
+
+
+def test_a_noise_file_without_a_sensor_says_whose_noise_is_used(raw, tmp_path):
+    d = json.loads((raw / "n.json").read_text())
+    del d["gyro"]
+    (tmp_path / "acc_only.json").write_text(json.dumps(d))
+    r = _run("calibrate", raw / "raw", "--noise", tmp_path / "acc_only.json", "-o", tmp_path / "c.json")
+    assert r.exit_code == 0, r.output
+    assert "acc_only.json: holds no gyro curve, so the gyro noise is the data's own" in r.output
+    assert any("holds no gyro curve" in w for w in json.loads((tmp_path / "c.json").read_text())["warnings"])
