@@ -1,4 +1,5 @@
-"""`simucal noise`: Allan deviation of a static recording and the IEEE 952 noise terms (issue 26, item 3).
+"""`simucal noise`: Allan deviation of a static recording and the IEEE 952 noise terms (issue 26, item 3;
+issue 38, item 1: the terms the data show).
 
 Overlapping Allan variance of a rate y sampled every dt (IEEE 952-1997, Annex C, eq. C.2, with
 overlapping clusters as allantools' oadev computes it): with theta the integrated output
@@ -11,15 +12,18 @@ squares and their counts add. Computed with cumulative sums, one pass per tau (v
 tests check it against allantools.oadev to 1e-12. Tau runs over about 10 values per decade, up to
 a ninth of the longest stretch, where the clusters still number 9 or more.
 
-Confidence: the relative error of sigma(tau) is 1 / sqrt(2 (K - 1)), K = N / m independent
-clusters (IEEE 952 eq. C.5); sigma +- that fraction is the 68 % interval drawn and used as weight.
-
 The terms (IEEE 952 Table C.1): sigma^2(tau) = 3 Q^2 / tau^2 + N^2 / tau + (2 ln 2 / pi) B^2
-+ K^2 tau / 3 + R^2 tau^2 / 2, linear in the squares, fitted by weighted non-negative least squares
-(scipy.optimize.nnls; weight 1 / (2 rel. error sigma^2)). Q: quantisation, N: angle (velocity)
-random walk, B: bias instability (the flat floor's coefficient, 0.664 B), K: rate random walk, R:
-rate ramp. A term the curve does not show is 0; its std comes from the weighted fit's covariance
-of the terms that are not zero (the std of N from that of N^2: N^2 +- s gives N +- s / (2 N)).
++ K^2 tau / 3 + R^2 tau^2 / 2, linear in the squares. Q: quantisation, N: angle (velocity) random
+walk, B: bias instability (the flat floor's coefficient, 0.664 B), K: rate random walk, R: rate
+ramp. Neighbouring overlapping estimates share most of their data: fitted as independent points
+every term looked significant (issue 38: 3-18 sigma for terms that were not there). So they are
+fitted by generalised least squares with the estimates' covariance, exact for white noise,
+random walk and quantisation at the record's length and rate (simucal.fit.allan_cov), and a term
+is reported only where the data show it (simucal.fit.allan_fit: why GLS, the test, the bound);
+otherwise it is "not seen" with the 95 % upper bound the record allows, or, where the record has
+too few taus to test it, "too short" with the length it needs. The 68 % band drawn around the
+fitted curve (rel_err in the report) is that covariance's, at the fitted model. A channel that never changes (stuck or
+dead) is named, with no terms: its Allan deviation of 0 is not a perfect sensor.
 
 Units: gyro rates in deg/h, accelerometer outputs in g, tau in s; each term also in the units a
 data sheet uses (deg/sqrt(h), ug/sqrt(Hz), deg/h, ...), and for Kalibr's imu.yaml in SI.
@@ -27,10 +31,10 @@ data sheet uses (deg/sqrt(h), ug/sqrt(Hz), deg/h, ...), and for Kalibr's imu.yam
 from __future__ import annotations
 
 import numpy as np
-from scipy.optimize import nnls
 
 from simucal.errors import CalibrationError
-from simucal.fit.noise import COLUMNS, TERMS, allan_deviation
+from simucal.fit import allan_cov, allan_fit
+from simucal.fit.noise import TERMS, allan_deviation
 from simucal.io import units
 
 MIN_CLUSTERS = 9  # the longest tau keeps this many independent clusters (relative error <= 25 %)
@@ -70,27 +74,6 @@ def allan_variance(stretches, dt: float, m_values) -> tuple[np.ndarray, np.ndarr
         return sums / (2 * tau ** 2 * counts), counts
 
 
-def fit_terms(tau, adev, rel_err) -> dict:
-    """The IEEE 952 terms (module doc) fitted to one Allan deviation curve: {term: (value, std)}
-    in sigma's unit times s^a."""
-    A = np.column_stack([COLUMNS[k](tau) for k in TERMS])
-    w = 1.0 / (2 * rel_err * adev ** 2)  # sigma^2's relative error is twice sigma's
-    coef, _ = nnls(A * w[:, None], adev ** 2 * w)
-    on = coef > 0
-    cov = np.zeros((len(TERMS), len(TERMS)))
-    if on.any():
-        Aw = A[:, on] * w[:, None]
-        resid = (A @ coef - adev ** 2) * w
-        dof = max(len(tau) - int(on.sum()), 1)
-        scale = max(float(resid @ resid) / dof, 1.0)  # the curve's points are correlated: never below 1
-        cov[np.ix_(on, on)] = np.linalg.pinv(Aw.T @ Aw) * scale
-    out = {}
-    for j, k in enumerate(TERMS):
-        value = float(np.sqrt(coef[j]))
-        out[k] = (value, float(np.sqrt(cov[j, j]) / (2 * value)) if value > 0 else None)
-    return out
-
-
 def still_stretches(ms, sensor) -> tuple[list[np.ndarray], float, str]:
     """(stretches (rows, 3), dt, where): the whole stream, or each static segment of a raw
     turntable set (three rows or more), in deg/h or g."""
@@ -128,22 +111,76 @@ def check_still(ms, dt):
                                f"by {np.max(tilt):.2g} g): the Allan deviation needs a still unit; record it at rest")
 
 
+def _seconds_for(n_taus: int, dt: float) -> float:
+    """The shortest still stretch (s) whose default grid holds n_taus taus."""
+    top = n_taus
+    while len(taus(MIN_CLUSTERS * top)) < n_taus:
+        top += 1
+    return MIN_CLUSTERS * top * dt
+
+
 def _cluster_sizes(stretches, dt, tau_max_s, where) -> np.ndarray:
-    """taus(), up to tau_max_s where asked; refused where the longest stretch is too short for it."""
+    """taus(), up to tau_max_s where asked; refused where the longest stretch is too short for it,
+    or where the grid would hold fewer taus than the white noise's fit needs."""
     n = max(len(s) for s in stretches)
+    need = allan_fit.TERMS_NEEDING["N"]
+    if len(taus(n)) < need:
+        raise CalibrationError(f"{where}: the longest still stretch is {n * dt:.4g} s ({n} rows), too short for an "
+                               f"Allan fit: its {need} taus need {_seconds_for(need, dt):.4g} s; record longer")
     if tau_max_s is None:
         return taus(n)
     if n < MIN_CLUSTERS * tau_max_s / dt:
         raise CalibrationError(f"{where}: the longest still stretch is {n * dt:.4g} s; a tau of {tau_max_s:g} s needs "
                                f"{MIN_CLUSTERS} clusters of it ({MIN_CLUSTERS * tau_max_s:.4g} s): record longer, or ask "
                                f"for --tau-max-s {n * dt / MIN_CLUSTERS:.3g} at most")
+    if len(taus(n, m_max=tau_max_s / dt)) < need:
+        lowest = next(m for m in range(need, n) if len(taus(n, m_max=m)) >= need) * dt
+        raise CalibrationError(f"{where}: --tau-max-s {tau_max_s:g} leaves fewer than the {need} taus (multiples of "
+                               f"the {dt:.4g} s sample step) the fit needs: ask for --tau-max-s {lowest:.4g} at least")
     return taus(n, m_max=tau_max_s / dt)
+
+
+def _stuck(y, unit) -> str | None:
+    """Why a channel has no noise to characterise: its value never changes (to 1e-12 of itself)."""
+    values = np.concatenate(y)
+    if np.ptp(values) <= 1e-12 * np.max(np.abs(values)):
+        return (f"stuck or dead: constant at {values[0]:.6g} {unit} over all {len(values)} rows (a real sensor's "
+                "output always has noise); no noise terms")
+    return None
+
+
+def axis_report(sensor, y, dt, m, mats, unit) -> dict:
+    """One axis of the report: its Allan deviation, the model's 68 % interval, the terms seen and
+    the bounds of those not seen (module doc); "fit": the final model's chi2, dof and its terms'
+    squares (x, std) in the fitted units (Q^2, N^2, ... of `terms`), below zero where noise puts them."""
+    stuck = _stuck(y, unit)
+    tau = m * dt
+    avar, _ = allan_variance(y, dt, m)
+    if stuck:
+        return {"stuck": stuck, "adev": np.sqrt(avar).tolist(), "tau_s": tau.tolist()}
+    fit = allan_fit.select(tau, avar, mats)
+    terms = {k: (v[0] if v else 0.0) for k, v in fit["terms"].items()}
+    model = allan_deviation(terms, tau) ** 2
+    sheet = {}
+    for k in TERMS:
+        name, factor, unit_k = SHEET[sensor][k]
+        entry = {"name": name, "unit": unit_k, "value": terms[k] * factor, "std": None}
+        if fit["terms"][k]:
+            entry.update(status="seen", std=fit["terms"][k][1] * factor)
+        elif k in fit["bounds"]:
+            entry.update(status="not seen", bound_95=fit["bounds"][k] * factor)
+        else:
+            entry.update(status="too short", needs_s=_seconds_for(fit["needs_taus"], dt))
+        sheet[k] = entry
+    return {"adev": np.sqrt(avar).tolist(), "rel_err": (np.sqrt(np.diag(fit["cov"])) / (2 * model)).tolist(),
+            "tau_s": tau.tolist(), "terms": terms, "bounds": fit["bounds"], "sheet": sheet,
+            "fit": {"chi2": fit["chi2"], "dof": fit["dof"], "squares": fit["squares"]}}
 
 
 def characterise(ms, tau_max_s=None) -> dict:
     """The report of `simucal noise` (module doc): per sensor and axis, the Allan deviation with its
-    68 % interval and the fitted terms in the sensor's units and a data sheet's; tau up to tau_max_s
-    (default a ninth of the longest still stretch)."""
+    68 % interval and the terms seen (value, std) or not (95 % bound) in the sensor's units and a
+    data sheet's; tau up to tau_max_s (default a ninth of the longest still stretch)."""
     out = {"format": "simucal.noise/1", "data": str(ms.path)}
     for sensor, has in (("acc", ms.has_acc), ("gyro", ms.has_gyro)):
         if not has:
@@ -151,68 +188,86 @@ def characterise(ms, tau_max_s=None) -> dict:
         stretches, dt, where = still_stretches(ms, sensor)
         check_still(ms, dt)
         m = _cluster_sizes(stretches, dt, tau_max_s, ms.path / "samples.csv")
-        tau = m * dt
-        block = {"unit": "deg/h" if sensor == "gyro" else "g", "tau_s": tau.tolist(), "rate_hz": 1.0 / dt,
-                 "rows": where, "axes": {}}
-        for j, a in enumerate("xyz"):
-            avar, counts = allan_variance([s[:, j] for s in stretches], dt, m)
-            ok = np.isfinite(avar) & (counts > 0)
-            adev = np.sqrt(avar[ok])
-            rel = 1.0 / np.sqrt(2 * np.maximum(counts[ok] / m[ok] - 1, 1))
-            terms = fit_terms(tau[ok], adev, rel)
-            sheet = {k: {"name": SHEET[sensor][k][0], "value": v * SHEET[sensor][k][1],
-                         "std": None if e is None else e * SHEET[sensor][k][1], "unit": SHEET[sensor][k][2]}
-                     for k, (v, e) in terms.items()}
-            block["axes"][a] = {"adev": adev.tolist(), "rel_err": rel.tolist(), "tau_s": tau[ok].tolist(),
-                                "terms": {k: v for k, (v, _) in terms.items()}, "sheet": sheet}
-        out[sensor] = block
+        unit = "deg/h" if sensor == "gyro" else "g"
+        mats = allan_cov.basis(m, dt, [len(s) for s in stretches])
+        out[sensor] = {"unit": unit, "tau_s": (m * dt).tolist(), "rate_hz": 1.0 / dt, "rows": where,
+                       "axes": {a: axis_report(sensor, [s[:, j] for s in stretches], dt, m, mats, unit)
+                                for j, a in enumerate("xyz")}}
     if "acc" not in out and "gyro" not in out:
         raise CalibrationError(f"{ms.path}: no sensor columns to characterise")
     return out
 
 
-def _random_walk_or_bound(axis) -> float:
-    """K, or where the curve shows none (a record too short for it) the largest K it allows:
-    K^2 tau / 3 <= sigma^2 at the longest tau. Kalibr needs a random walk above zero."""
-    if axis["terms"]["K"] > 0:
-        return axis["terms"]["K"]
-    t, s = axis["tau_s"][-1], axis["adev"][-1]
-    return float(np.sqrt(3 * s ** 2 / t))
+KALIBR = (("acc", "accelerometer", G0), ("gyro", "gyroscope", RAD_PER_DEG / units.DPH_PER_DPS))
+
+
+def _random_walk_or_bound(axis) -> float | None:
+    """K where seen, else its 95 % bound (Kalibr needs a random walk above zero); None where the
+    record is too short to say."""
+    k = axis["sheet"]["K"]
+    return axis["terms"]["K"] if k["status"] == "seen" else axis["bounds"].get("K")
+
+
+def kalibr_missing(report) -> list[str]:
+    """What Kalibr's imu.yaml would lack (it requires both sensors' densities and random walks)."""
+    missing = []
+    for sensor, key, _ in KALIBR:
+        if sensor not in report:
+            missing.append(f"{key}_noise_density and {key}_random_walk (the recording has no {sensor} columns)")
+            continue
+        for a, ax in report[sensor]["axes"].items():
+            if "stuck" in ax:
+                missing.append(f"{key}_* ({sensor} {a} is {ax['stuck'].split(':')[0]})")
+            elif ax["sheet"]["N"]["status"] != "seen":
+                missing.append(f"{key}_noise_density ({sensor} {a} shows no white noise)")
+            elif _random_walk_or_bound(ax) is None:
+                missing.append(f"{key}_random_walk ({sensor} {a}: the record is too short to bound it, it needs "
+                               f"{ax['sheet']['K']['needs_s']:.3g} s)")
+    return missing
 
 
 def kalibr_yaml(report) -> str:
-    """Kalibr's imu.yaml (continuous-time densities in SI, the largest over the three axes)."""
-    lines = ["# written by simucal noise from " + report["data"],
-             "# white noise N and random walk K of the Allan fit; a random walk the record is too short to",
-             "# show is given as the largest value its longest tau allows"]
-    rate = None
-    for sensor, key, to_si in (("acc", "accelerometer", G0), ("gyro", "gyroscope", RAD_PER_DEG / units.DPH_PER_DPS)):
-        if sensor not in report:
-            continue
+    """Kalibr's imu.yaml (continuous-time densities in SI, the largest over the three axes); refused
+    where incomplete (kalibr_missing)."""
+    missing = kalibr_missing(report)
+    if missing:
+        raise CalibrationError(f"{report['data']}: Kalibr's imu.yaml would lack " + "; ".join(missing)
+                               + ": record both sensors, still, long enough")
+    out = ["# written by simucal noise from " + report["data"],
+           "# white noise N and random walk K of the Allan fit; a random walk the record does not show",
+           "# is given as its 95 % upper bound"]
+    for sensor, key, to_si in KALIBR:
         ax = report[sensor]["axes"].values()
-        lines.append(f"{key}_noise_density: {max(a['terms']['N'] for a in ax) * to_si:.6e}")
-        lines.append(f"{key}_random_walk: {max(_random_walk_or_bound(a) for a in ax) * to_si:.6e}")
-        rate = report[sensor]["rate_hz"]
-    lines.append(f"rostopic: /imu0\nupdate_rate: {rate:.6g}")
-    return "\n".join(lines) + "\n"
+        out.append(f"{key}_noise_density: {max(a['terms']['N'] for a in ax) * to_si:.6e}")
+        out.append(f"{key}_random_walk: {max(_random_walk_or_bound(a) for a in ax) * to_si:.6e}")
+    out.append(f"rostopic: /imu0\nupdate_rate: {report['gyro']['rate_hz']:.6g}")
+    return "\n".join(out) + "\n"
+
+
+def _term_text(t, html=False) -> str:
+    """One term: value +- std where seen, else "not seen" and its bound, or the length it needs."""
+    pm, lt, unit = (" &plusmn; ", "&lt;", "") if html else (" +- ", "<", " " + t["unit"])
+    if t["status"] == "seen":
+        return f"{t['value']:.3g}{pm}{t['std']:.2g}{unit}"
+    if t["status"] == "not seen":
+        return f"not seen ({lt} {t['bound_95']:.2g}{unit}, 95 %)"
+    return f"record too short (needs {t['needs_s']:.3g} s)"
 
 
 def lines(report):
-    """The console: each axis's terms in a data sheet's units."""
+    """The console: each axis's terms in a data sheet's units, seen or not."""
     for sensor in ("acc", "gyro"):
         if sensor not in report:
             continue
         b = report[sensor]
         yield (f"{sensor}: Allan deviation over {b['rows']}, {b['rate_hz']:.4g} Hz, tau {b['tau_s'][0]:.3g} to "
-               f"{b['tau_s'][-1]:.3g} s")
+               f"{b['tau_s'][-1]:.3g} s; terms fitted with the estimates' covariance, reported where beyond "
+               f"{allan_fit.SEEN:g} std")
         for a, ax in b["axes"].items():
-            yield f"  {a}: " + ", ".join(
-                f"{t['name']} {t['value']:.3g}" + (f" +- {t['std']:.2g}" if t["std"] else "") + f" {t['unit']}"
-                for t in ax["sheet"].values() if t["value"] > 0)
-
-
-def _cell(term) -> str:
-    return f"{term['value']:.3g}" + (f" &plusmn; {term['std']:.2g}" if term["std"] else "")
+            if "stuck" in ax:
+                yield f"  {a}: {ax['stuck']}"
+                continue
+            yield f"  {a}: " + ", ".join(f"{t['name']} {_term_text(t)}" for t in ax["sheet"].values())
 
 
 def html_page(report) -> str:
@@ -228,19 +283,23 @@ def html_page(report) -> str:
         b = report[sensor]
         fig, ax = plt.subplots(figsize=(6.5, 4.2))
         for (a, axd), color in zip(b["axes"].items(), ("C0", "C1", "C2")):
+            if "stuck" in axd:
+                continue
             t, s, r = (np.array(axd[k]) for k in ("tau_s", "adev", "rel_err"))
-            ax.fill_between(t, s * (1 - r), s * (1 + r), color=color, alpha=0.2)
-            ax.loglog(t, s, "o", ms=3, color=color, label=f"{a}")
             fit = allan_deviation(axd["terms"], t)
+            ax.fill_between(t, fit * (1 - r), fit * (1 + r), color=color, alpha=0.2)
+            ax.loglog(t, s, "o", ms=3, color=color, label=f"{a}")
             ax.loglog(t, fit, "-", color=color, lw=1)
         ax.set(xlabel="tau (s)", ylabel=f"Allan deviation ({b['unit']})",
-               title=f"{sensor}: points with their 68 % interval, lines the IEEE 952 fit")
+               title=f"{sensor}: points, the fit of the terms seen and its 68 % band")
         ax.legend(fontsize=8)
         ax.grid(True, which="both", alpha=0.3)
-        rows = "".join(f"<tr><td>{a}</td>" + "".join(f"<td>{_cell(t)}</td>" for t in axd["sheet"].values()) + "</tr>"
+        head = "".join(f"<th>{name} ({_html.escape(unit)})</th>" for name, _, unit in SHEET[sensor].values())
+        rows = "".join(f"<tr><td>{a}</td>" + (f"<td colspan=5>{_html.escape(axd['stuck'])}</td>" if "stuck" in axd else
+                       "".join(f"<td>{_term_text(t, html=True)}</td>" for t in axd["sheet"].values())) + "</tr>"
                        for a, axd in b["axes"].items())
-        head = "".join(f"<th>{t['name']} ({_html.escape(t['unit'])})</th>" for t in
-                       next(iter(b["axes"].values()))["sheet"].values())
         parts.append(f"<h2>{sensor}</h2>{_png(fig)}<table border=1 cellpadding=4><tr><th>axis</th>{head}</tr>"
-                     f"{rows}</table>")
+                     f"{rows}</table><p>Terms fitted by generalised least squares with the covariance of the "
+                     f"overlapping estimates; a term is shown where beyond {allan_fit.SEEN:g} std, otherwise "
+                     "with its 95 % upper bound.</p>")
     return "".join(parts)

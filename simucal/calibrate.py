@@ -13,24 +13,33 @@ import numpy as np
 
 from simucal import io, methods
 from simucal.errors import CalibrationError
+from simucal.fit.thermal import PLAUSIBLE_C, SPREAD_C
 from simucal.io import calibration
 from simucal.io.calibration import Calibration, SensorBlock
 from simucal.io.calibration_checks import check_layout, scale_notes
 from simucal.io.sensor_checks import stuck_channels
+from simucal.io.timestamps import with_timestamps
 
 
 def calibrate(folder, method="auto", acc_model="acc_baseline", gyro_model="gyro_baseline", detect=None,
               add=(), acc_noise_g=None, gyro_noise_dph=None, heading_accuracy_deg=5.0, t_ref_c=None,
-              noise=None) -> Calibration:
+              noise=None, rank=True, timestamps="auto") -> Calibration:
     """Calibrate a measurement set. method: a name of methods.METHODS, or "auto" (the default for
     the set's data). add: effect ids and model files (augmented.resolve_add), and "auto": the
     library effects a failing model needs, chosen one at a time (each sensor's block lists them
     under `auto`); acc_noise_g / gyro_noise_dph: the noise of one row where the data cannot give
     it; detect: a stream's static detection settings; heading_accuracy_deg: a field set's north
     reference; t_ref_c: T_ref of temperature terms (default the mean of temp_c); noise: a noise.json of
-    `simucal noise`, whose Allan curve gives each segment's noise at its length. Options a method does
-    not take are refused when set."""
+    `simucal noise`, whose Allan curve gives each segment's noise at its length; rank: a failing model's
+    candidates ranked (turntable; a thermal calibration's plateau needs none); timestamps: a
+    stream's time stamps as recorded, evenly spaced at their mean step (nominal: the sensor's clock
+    behind a logger's arrival times), or auto (io/timestamps.py). Options a method does not take are
+    refused when set."""
     ms = io.read_set(folder) if not isinstance(folder, io.MeasurementSet) else folder
+    try:
+        ms, stamps = with_timestamps(ms, timestamps)
+    except CalibrationError as e:
+        raise e.naming(ms.path) from None
     if t_ref_c is not None and "temp_c" not in ms.samples:
         raise CalibrationError(f"{ms.path / 'samples.csv'}: --t-ref-c {t_ref_c:g}, but there is no temp_c column for "
                                "temperature terms to take it from: leave --t-ref-c out")
@@ -48,7 +57,7 @@ def calibrate(folder, method="auto", acc_model="acc_baseline", gyro_model="gyro_
             acc_model, gyro_model, ids = resolve_add(ids, acc_model, gyro_model)
         given = dict(acc_model=acc_model, gyro_model=gyro_model, ids=ids, auto="auto" in add, detect=detect,
                      acc_noise_g=acc_noise_g, gyro_noise_dph=gyro_noise_dph, heading_accuracy_deg=heading_accuracy_deg,
-                     noise_curves=curves)
+                     noise_curves=curves, rank=rank)
         unused = [k for k in ("ids", "auto", "acc_noise_g", "gyro_noise_dph", "noise_curves")
                   if given[k] and k not in m.options]
         if unused:
@@ -59,6 +68,8 @@ def calibrate(folder, method="auto", acc_model="acc_baseline", gyro_model="gyro_
         result.warnings += scale_notes(result, ms.meta)
         result.warnings += [f"{noise}: holds no {s} curve, so the {s} noise is the data's own (--noise covers the "
                             f"{' and '.join(curves)} only)" for s, _ in result.blocks() if curves and s not in curves]
+        if stamps:
+            result.details["timestamps"] = stamps
     except CalibrationError as e:
         raise e.naming(ms.path) from None
     return result
@@ -75,8 +86,7 @@ def calibrate_to_file(folder, output, kwargs: dict):
         return None, str(e.args[0] if isinstance(e, KeyError) and e.args else e)
 
 
-PLAUSIBLE_C = (-60.0, 150.0)  # beyond any unit's operating range: a column in another unit (K, degF) or broken
-PLATEAU_SPREAD_C = 2.0  # a plateau's temp_c wider than this (peak to peak) is a sweep, not a plateau
+PLATEAU_SPREAD_C = SPREAD_C  # temperatures within this are one (a plateau's wander); plateaus or a ramp must span more
 
 
 def _plateau(folder):
@@ -87,8 +97,9 @@ def _plateau(folder):
                                "calibration needs the unit's temperature on every row")
     T = ms.samples["temp_c"]
     if T.min() < PLAUSIBLE_C[0] or T.max() > PLAUSIBLE_C[1]:
-        raise CalibrationError(f"{ms.path / 'samples.csv'}: temp_c runs {T.min():.4g} to {T.max():.4g}, outside any "
-                               f"unit's range {PLAUSIBLE_C} degC: is the column in kelvin or degF?")
+        raise CalibrationError(f"{ms.path / 'samples.csv'}: temp_c runs {T.min():.4g} to {T.max():.4g}, outside an "
+                               f"IMU's rated {PLAUSIBLE_C[0]:g}..{PLAUSIBLE_C[1]:g} degC: is the column in kelvin "
+                               "(subtract 273.15) or degF (C = (F - 32) / 1.8)? temp_c is degC")
     return ms, float(T.mean())
 
 
@@ -136,47 +147,149 @@ def _thermal_block(blocks: list[SensorBlock], T_k, t_ref_c, degree, sensor, plat
                    thermal={"t_ref_c": t_ref_c, "plateaus_c": list(T_k), "parameters": fits}, details=details)
 
 
-def calibrate_thermal(folders, degree=None, t_ref_c=None, **kwargs) -> Calibration:
-    """One unit at two or more temperature plateaus (one set each, its temperature the mean of its
-    temp_c): each plateau calibrated alone by calibrate(**kwargs), then every parameter of the
-    model a polynomial in (T - T_ref) (fit/thermal.py; degree None: chosen by the data).
-    T_ref: t_ref_c, else the mean of the plateaus' temperatures. The file holds the unit at
-    T_ref and, per sensor, `thermal` (the polynomials) that apply evaluates at each row's temp_c."""
-    if len(folders) < 2:
-        raise CalibrationError("--thermal needs two or more plateaus (one set each): one plateau shows no "
-                               "temperature dependence; calibrate it without --thermal")
-    if degree is not None and not 0 <= degree <= min(3, len(folders) - 1):
-        raise CalibrationError(f"--thermal-degree {degree}: between 0 and {min(3, len(folders) - 1)} "
-                               f"({len(folders)} plateaus fit at most degree {len(folders) - 1})")
+def _own_fits(base, obs, groups) -> list:
+    """Each plateau fitted alone by the model without temperature terms: the evidence beside the joint
+    fit (its test, and its parameters at the plateau's temperature)."""
+    from simucal.fit.lack_of_fit import fit_with_noise
+    return [fit_with_noise(base, obs.take(np.nonzero(groups == g)[0]))[0] for g in np.unique(groups)]
+
+
+def _joint_block(obs, groups, first: SensorBlock, degree, labels, t_ref_c, plateaus: bool) -> SensorBlock:
+    """One sensor's block from the joint fit of every row at its own temperature (fit/thermal_select.py):
+    the block at T_ref (params = c_0), every parameter's polynomial, each group's test under the joint
+    model beside its own fit's (plateaus; a ramp's bands have none)."""
+    from dataclasses import replace
+
+    from simucal.fit.augmented import AugmentedModel
+    from simucal.fit.thermal_select import group_tests, select
+    base = AugmentedModel(first.model, first.library_effects())
+    model, fit, how, obs = select(base, obs, groups, degree, dict(first.params))
+    own = _own_fits(base, obs, groups) if plateaus else None
+    fits = {}
+    for j, n in enumerate(base.params):
+        names = [n] + [f"{n}.T{k}" for k in range(1, model.degrees[j] + 1)]
+        fits[n] = {"degree": model.degrees[j], "degree_from": how["from"],
+                   "coefficients": [fit.params[x] for x in names], "std": [fit.std[x] for x in names]}
+        if own:
+            fits[n].update(per_plateau=[f.params[n] for f in own], per_plateau_std=[f.std[n] for f in own])
+    M, bias = base.matrix_and_bias(fit.vector(base.params))
+    T = obs.aux.column("temp_c", len(obs.N))
+    T_g = [float(np.mean(T[groups == g])) for g in np.unique(groups)]
+    details = {"groups": [{"input": lab, "temp_c": t, "own_p_value": f.p_value if f else None, **test}
+                          for lab, t, f, test in zip(labels, T_g, own or [None] * len(T_g),
+                                                     group_tests(model, obs, fit, groups))],
+               "plateaus": plateaus}
+    if first.C_b_model is not None:
+        details["M_in_d"] = M.tolist()
+    thermal = {"t_ref_c": t_ref_c, "plateaus_c": T_g, "temperature_range_c": [float(T.min()), float(T.max())],
+               "fit": "joint: every row at its own temp_c", "parameters": fits, "dropped": how["dropped"],
+               "covariance": {"names": list(model.params), "matrix": fit.cov.tolist()}}
+    block = replace(first, effects={e: replace(v, value=fit.params[e], std=fit.std[e]) for e, v in first.effects.items()},
+                    params={n: fit.params[n] for n in base.params}, std={n: fit.std[n] for n in base.params},
+                    M=M @ first.C, bias=bias, residual_rms=fit.residual_rms, chi2=fit.chi2, dof=fit.dof,
+                    p_value=fit.p_value, thermal=thermal, details=details)
+    if calibration.inflate_if_failing(block) and fit.dof:  # the coefficients' stds too (covariance kept unscaled)
+        k = float(np.sqrt(max(fit.chi2 / fit.dof, 1.0)))
+        for f in fits.values():
+            f["std"] = [e * k for e in f["std"]]
+    return block
+
+
+def _refuse_thermal_options(folders, degree, kwargs):
+    if degree is not None and not 0 <= degree <= 3:
+        raise CalibrationError(f"--thermal-degree {degree}: between 0 and 3")
     from simucal.fit.augmented import follows_temperature
     from simucal.generated.effects import EFFECTS
     temperature = [e for e in kwargs.get("add", ()) if e in EFFECTS and follows_temperature(e)]
     if temperature:
         raise CalibrationError(f"--thermal with --add {temperature[0]}: every parameter already follows temperature "
-                               "as a polynomial over the plateaus; a temperature effect within each plateau would "
-                               "count it twice: leave it out")
-    sets = [_plateau(f) for f in folders]
+                               "as a polynomial inside the model; a temperature effect added to it would count it "
+                               "twice: leave it out")
+
+
+def _temperatures(sets, t_ref_c):
+    """T_ref and the plateaus' temperatures, refused where they cannot show a temperature dependence."""
     T_k = [t for _, t in sets]
-    if max(T_k) - min(T_k) < PLATEAU_SPREAD_C:
+    if len(sets) == 1:
+        T = sets[0][0].samples["temp_c"]
+        if np.ptp(T) < PLATEAU_SPREAD_C:
+            raise CalibrationError(f"{sets[0][0].path / 'samples.csv'}: one set whose temp_c spans "
+                                   f"{np.ptp(T):.2g} degC: a ramp of under {PLATEAU_SPREAD_C:g} degC shows no "
+                                   "temperature dependence; record a wider ramp, or give two or more plateaus")
+    elif max(T_k) - min(T_k) < PLATEAU_SPREAD_C:
         raise CalibrationError(f"the plateaus' temperatures {[round(t, 2) for t in T_k]} degC span "
                                f"{max(T_k) - min(T_k):.2g} degC: too little to see a temperature dependence (the "
                                f"plateaus should differ by more than {PLATEAU_SPREAD_C:g} degC)")
-    t_ref = float(np.mean(T_k)) if t_ref_c is None else float(t_ref_c)
-    cals = []
-    for ms, t in sets:
-        cals.append(calibrate(ms, t_ref_c=t, **kwargs))  # each plateau at its own temperature
-        check_layout(cals[0], ms, f"the first plateau ({sets[0][0].path})")
+    return float(np.mean(T_k)) if t_ref_c is None else float(t_ref_c)
+
+
+def calibrate_thermal(folders, degree=None, t_ref_c=None, **kwargs) -> Calibration:
+    """One unit at two or more temperature plateaus (one set each), or one set whose temperature
+    ramps. A turntable unit (method exact) is fitted once, every row at its own temp_c, with every
+    parameter of the model a polynomial in (T - T_ref) inside the model, each parameter's degree
+    chosen by the model test and by the groups (plateaus, bands of a ramp) left out
+    (fit/thermal_select.py); each plateau is also calibrated alone as evidence. Other methods fit
+    each plateau alone and then each parameter's polynomial over the plateaus (fit/thermal.py).
+    T_ref: t_ref_c, else the mean of the plateaus' temperatures. The file holds the unit at T_ref
+    and, per sensor, `thermal` (the polynomials) that apply evaluates at each row's temp_c."""
+    if not folders:
+        raise CalibrationError("--thermal needs a set whose temperature ramps, or two or more plateaus")
+    _refuse_thermal_options(folders, degree, kwargs)
+    from threadpoolctl import threadpool_limits
+    # one BLAS thread: the QRs and solves here are small, and OpenBLAS's threads spinning against each other
+    # (or against another process) made one run 0.66-7.7 s (issue 37)
+    with threadpool_limits(1, "blas"):
+        return _calibrate_thermal(folders, degree, t_ref_c, kwargs)
+
+
+def _calibrate_thermal(folders, degree, t_ref_c, kwargs) -> Calibration:
+    sets = [_plateau(f) for f in folders]
+    t_ref = _temperatures(sets, t_ref_c)
+    T_k = [t for _, t in sets]
+    near = int(np.argmin(np.abs(np.asarray(T_k) - t_ref)))
+    # the plateau nearest T_ref by its method: the gyro frame (C_b^d), the checks, the model's shape
+    cal = calibrate(sets[near][0], t_ref_c=T_k[near], rank=False, **kwargs)
+    for ms, _ in sets:
+        check_layout(cal, ms, f"the plateau nearest T_ref ({sets[near][0].path})")
     plateaus = [str(ms.path) for ms, _ in sets]
-    first = cals[0]
-    result = Calibration(f"thermal ({first.method} per plateau)", plateaus, [c.input_sha256 for c in cals],
-                         first.layout, t_ref_c=t_ref, temperature_range_c=[min(T_k), max(T_k)],
-                         unification=first.unification, not_calibrated=first.not_calibrated,
-                         details=dict(first.details),  # the first plateau's checks (consistency, ...)
-                         samples_sha256=[d for c in cals for d in c.samples_sha256 or []])
-    for s in first.sensors:
-        setattr(result, s, _thermal_block([getattr(c, s) for c in cals], T_k, t_ref, degree, s, plateaus))
-    result.warnings = [f"{ms.path}: temp_c spans {np.ptp(ms.samples['temp_c']):.3g} degC, more than a plateau's "
-                       f"{PLATEAU_SPREAD_C:g} degC (its parameters are taken at its mean {t:.4g} degC)"
-                       for ms, t in sets if np.ptp(ms.samples["temp_c"]) > PLATEAU_SPREAD_C]
-    result.warnings += [w for c in cals for w in c.warnings]
+    T_all = np.concatenate([ms.samples["temp_c"] for ms, _ in sets])
+    result = Calibration(f"thermal ({cal.method}, every row at its own temperature)", plateaus,
+                         [ms.sha256 for ms, _ in sets], cal.layout, t_ref_c=t_ref,
+                         temperature_range_c=[float(T_all.min()), float(T_all.max())],
+                         unification=cal.unification, not_calibrated=cal.not_calibrated,
+                         details=dict(cal.details),  # that plateau's checks (consistency, ...)
+                         samples_sha256=[d for ms, _ in sets for d in ms.sample_digests()])
+    if cal.method == "exact":
+        _joint(result, sets, cal, degree, t_ref, kwargs)
+    else:
+        if len(sets) < 2:
+            raise CalibrationError(f"--thermal on one set needs a turntable set (method exact, whose rows are fitted "
+                                   f"at their own temperature); method {cal.method} fits each plateau alone: give "
+                                   "two or more plateaus")
+        cals = [cal if k == near else calibrate(ms, t_ref_c=t, **kwargs) for k, (ms, t) in enumerate(sets)]
+        for s in cal.sensors:
+            setattr(result, s, _thermal_block([getattr(c, s) for c in cals], T_k, t_ref, degree, s, plateaus))
+        result.warnings += [w for c in cals for w in c.warnings]
+        return result
+    result.warnings += cal.warnings
     return result
+
+
+def _joint(result, sets, cal, degree, t_ref, kwargs):
+    """The sensors' blocks of a turntable unit by the joint fit (_joint_block)."""
+    from simucal.turntable.thermal import joint_observations, ramp_bands
+    curves = None
+    if kwargs.get("noise") is not None:
+        from simucal.fit.noise import load_curves
+        curves = load_curves(kwargs["noise"])
+    obs = joint_observations([ms for ms, _ in sets], t_ref, kwargs.get("acc_noise_g"), kwargs.get("gyro_noise_dph"),
+                             curves)
+    for s in cal.sensors:
+        if s not in obs:
+            continue
+        o, groups = obs[s]
+        labels = [str(ms.path) for ms, _ in sets]
+        if len(sets) == 1:
+            groups = ramp_bands(o.aux.column("temp_c", len(o.N)))
+            labels = [f"{sets[0][0].path}, band {g + 1}" for g in np.unique(groups)]
+        setattr(result, s, _joint_block(o, groups, getattr(cal, s), degree, labels, t_ref, len(sets) > 1))

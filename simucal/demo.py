@@ -5,8 +5,8 @@ truth.json), calibrate with the baseline model (it fails, and says what to
 add), diagnose (which effect is missing), calibrate with it, apply both
 calibrations to the raw outputs, and show the error falling; then validate both on
 another recording of the same unit (a set they were not made from). Then the same
-unit over temperature (three plateaus, `calibrate --thermal`, validated between them
-against one plateau's calibration) and the noise of a still recording (Allan
+unit over temperature (three wandering plateaus simulated as `simulate --temperature-c` does,
+`calibrate --thermal`, validated between them against one plateau's calibration) and the noise of a still recording (Allan
 deviation, IEEE 952 terms); then dong2018's section 4 test by the three methods, the
 audit, and the diagnosis report.
 """
@@ -99,33 +99,39 @@ def _validate(out: Path, sc, seed: int, echo) -> dict:
     return {n: r["checks"]["acc"][0]["after_rms"] for n, r in reps.items()}
 
 
-THERMAL = {"acc.bias_temperature.x": 1e-5, "acc.scale_temperature.z": 1e-5, "gyro.bias_temperature.z": 0.01}
+THERMAL = {"acc.bias_temperature.x": 1e-5, "acc.bias_temperature2.x": 1e-7, "acc.scale_temperature.z": 1e-5,
+           "gyro.bias_temperature.z": 0.01, "gyro.scale_temperature.x": 2e-6}
 
 
 def thermal(out: Path, seed: int, echo) -> dict:
-    """The unit over temperature: plateaus at 0, 25 and 50 degC calibrated with --thermal, and both it
-    and the 25 degC plateau's calibration validated at 35 degC on another plan."""
+    """The unit over temperature: plateaus at 0, 25 and 50 degC that wander +-0.3 degC, simulated as
+    `simulate --temperature-c T --t-ref-c 25 --temperature-wander-c 0.3` does and calibrated with
+    --thermal (one fit, every row at its own temperature); it and the 25 degC plateau's calibration
+    validated at 35 degC on another plan; the page with the verdicts and the validation."""
     from simucal.calibrate import calibrate_thermal
+    from simucal.report.thermal_html import thermal_page
+    from simucal.turntable.simulate import at_temperature
     from simucal.validate import validate
 
     def plateau(T, k, plan="fibonacci48"):
         sc = SCENARIOS["paper"]()
-        sc.plan, sc.temp_c, sc.t_ref_c = plan, (T, T), 25.0
+        sc.plan = plan
+        at_temperature(sc, str(T), t_ref_c=25.0, wander_c=0.3)
         plant(sc, [f"{e}={v}" for e, v in THERMAL.items()])
         write(out / f"thermal_{T}", sc, seed + k)
         return out / f"thermal_{T}"
     sets = [plateau(T, k) for k, T in enumerate((0, 25, 50))]
-    cal = calibrate_thermal(sets)
+    cal = calibrate_thermal(sets, t_ref_c=25.0)
     calibration.save(out / "thermal_calibration.json", cal)
-    from simucal.report.thermal_html import thermal_page
-    outputs.write_text(out / "thermal.html", thermal_page(cal))
     calibration.save(out / "thermal_calibration_25.json", calibrate(sets[1]))
     moving = [f"{s}.{n} degree {f['degree']}" for s in ("acc", "gyro")
               for n, f in getattr(cal, s).thermal["parameters"].items() if f["degree"]]
-    echo(f"7 calibrate --thermal {' '.join(p.name for p in sets)}: T_ref {cal.t_ref_c:.3g} degC; following "
-         f"temperature: {', '.join(moving)} (planted: {', '.join(THERMAL)})")
+    echo(f"7 simulate --temperature-c T --t-ref-c 25 --temperature-wander-c 0.3 (T = 0, 25, 50); calibrate "
+         f"{' '.join(p.name for p in sets)} --thermal: joint test acc p = {cal.acc.p_value:.2g}, gyro p = "
+         f"{cal.gyro.p_value:.2g}; following temperature: {', '.join(moving)} (planted: {', '.join(THERMAL)})")
     other = plateau(35, 7, "table1")
     reps = {n: validate(out / f"thermal_calibration{n}.json", other) for n in ("", "_25")}
+    outputs.write_text(out / "thermal.html", thermal_page(cal, [reps[""]]))
     echo(f"   validate at 35 degC ({other}): {'':2} {'thermal':>9} {'25 degC only':>13} {'floor':>9}")
     for s in ("acc", "gyro"):
         a, b = reps[""]["checks"][s][0], reps["_25"]["checks"][s][0]

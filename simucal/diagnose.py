@@ -19,6 +19,7 @@ from simucal.fit.augmented import AugmentedModel
 from simucal.fit.candidates import ALPHA, test_model, verdict
 from simucal.fit.lack_of_fit import model_file_text
 from simucal.fit.norm_fit import Fit, Observations
+from simucal.io.timestamps import with_timestamps
 from simucal.turntable.consistency import handedness_verdict, mirrored
 from simucal.turntable.observations import check_rate_sense, segment_observations
 from simucal.turntable.model_test import ROWS, test_and_rank
@@ -130,12 +131,19 @@ def scoring_truth(path) -> dict | None:
 
 
 def diagnose(folder, add=(), acc_model="acc_baseline", gyro_model="gyro_baseline",
-             acc_noise_g=None, gyro_noise_dph=None) -> dict:
-    """add: effect ids and model files (fit/augmented.resolve_add)."""
+             acc_noise_g=None, gyro_noise_dph=None, timestamps="auto") -> dict:
+    """add: effect ids and model files (fit/augmented.resolve_add); timestamps: a stream's time
+    stamps as calibrate takes them (io/timestamps.py)."""
     folder = Path(folder)
     ms = io.read_set(folder)
     try:
-        return _diagnose(ms, folder, add, acc_model, gyro_model, acc_noise_g, gyro_noise_dph)
+        ms, stamps = with_timestamps(ms, timestamps)
+        result = _diagnose(ms, folder, add, acc_model, gyro_model, acc_noise_g, gyro_noise_dph)
+        if stamps:
+            result["timestamps"] = stamps
+            if stamps["irregular"] or timestamps != "auto":
+                result["notes"] = [stamps["text"]] + result.get("notes", [])
+        return result
     except CalibrationError as e:
         raise e.naming(ms.path) from None
 

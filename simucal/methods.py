@@ -36,9 +36,10 @@ class Method:
 
 # The functions import their method when called: the cli reads the names at every start.
 def _table(name):
-    def run(ms, acc_model, gyro_model, ids, auto, acc_noise_g, gyro_noise_dph, noise_curves):
+    def run(ms, acc_model, gyro_model, ids, auto, acc_noise_g, gyro_noise_dph, noise_curves, rank):
         from simucal.turntable.calibrate import calibrate_table
-        return calibrate_table(ms, name, acc_model, gyro_model, ids, acc_noise_g, gyro_noise_dph, auto, noise_curves)
+        return calibrate_table(ms, name, acc_model, gyro_model, ids, acc_noise_g, gyro_noise_dph, auto, noise_curves,
+                               rank)
     return run
 
 
@@ -60,8 +61,8 @@ def _field(ms, heading_accuracy_deg):
 
 
 DEFAULTS = dict(acc_model="acc_baseline", gyro_model="gyro_baseline", ids=(), auto=False, detect=None, acc_noise_g=None,
-                gyro_noise_dph=None, noise_curves=None, heading_accuracy_deg=5.0)  # every option, as calibrate's
-_TABLE_OPTIONS = ("acc_model", "gyro_model", "ids", "auto", "acc_noise_g", "gyro_noise_dph", "noise_curves")
+                gyro_noise_dph=None, noise_curves=None, heading_accuracy_deg=5.0, rank=True)  # every option, as calibrate's
+_TABLE_OPTIONS = ("acc_model", "gyro_model", "ids", "auto", "acc_noise_g", "gyro_noise_dph", "noise_curves", "rank")
 METHODS = {m.name: m for m in (
     Method("exact", TURNTABLE, "dong2018's norm observation by the exact fit of any model (eq. 6-12 without the "
            "linearisation), frames unified by the rate runs' means", _TABLE_OPTIONS, _table("exact")),
@@ -69,7 +70,7 @@ METHODS = {m.name: m for m in (
            "eq. 25-27 (derived models only)", _TABLE_OPTIONS, _table("linear")),
     Method("multiposition", TURNTABLE, "the traditional multi-position method (dong2018's 'previous method', "
            "Tables 3 and 4): least squares on the commanded attitudes",
-           tuple(o for o in _TABLE_OPTIONS if o != "auto"), _multiposition),
+           tuple(o for o in _TABLE_OPTIONS if o not in ("auto", "rank")), _multiposition),
     Method("handheld", STREAM, "Tedaldi: static poses found in the stream, the exact norm fit of the "
            "accelerometers, the gyro from the gravity directions before and after each move",
            ("acc_model", "ids", "auto", "detect"), _handheld),

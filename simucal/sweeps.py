@@ -5,6 +5,11 @@ tasks whose work is in numpy and compiled calls, which release the GIL); "proces
 LocalCluster with one single-threaded worker per core; anything else is the address of a
 running scheduler (a real cluster). Results come back in the order of the tasks, so a
 sweep gives the same numbers on any scheduler (each task carries its own seed).
+
+A scheduler's address must be a cluster the user trusts: the tasks go there and the results
+come back as pickles, which run code where they are loaded. tcp:// neither encrypts nor
+authenticates; tls:// uses the credentials of Dask's own configuration (distributed.comm.tls).
+The LocalCluster listens on 127.0.0.1 only, its workers too.
 """
 from __future__ import annotations
 
@@ -27,17 +32,10 @@ def map_tasks(fn, tasks: list, scheduler=None, progress=None, threads: int = 1) 
     from dask.distributed import Client, LocalCluster, as_completed
     if scheduler == "processes":
         cluster = LocalCluster(n_workers=os.cpu_count() or 2, threads_per_worker=1, processes=True,
-                               dashboard_address=None)
+                               host="127.0.0.1", dashboard_address=None)  # Dask's default today: said, not assumed
         client = Client(cluster)
     else:
-        try:
-            wait_s = float(os.environ.get("SIMUCAL_SCHEDULER_TIMEOUT_S", "10"))  # a slow network: more
-            cluster, client = None, Client(scheduler, timeout=f"{wait_s:g}s")
-        except (OSError, MemoryError, ValueError, TypeError) as e:  # nothing there, or a server that is not Dask
-            from simucal.errors import CalibrationError
-            raise CalibrationError(f"--scheduler {scheduler}: no Dask scheduler answers there within {wait_s:g} s "
-                                   f"(SIMUCAL_SCHEDULER_TIMEOUT_S; {e}); start one "
-                                   "(dask scheduler), or use --scheduler local or processes.") from None
+        cluster, client = None, _client(scheduler)
     try:
         futures = [client.submit(fn, *t, pure=False) for t in tasks]
         done = as_completed(futures)
@@ -49,6 +47,28 @@ def map_tasks(fn, tasks: list, scheduler=None, progress=None, threads: int = 1) 
         if cluster is not None:
             cluster.close()
 
+
+def _client(address: str):
+    """A Client of the scheduler at address, with the security of Dask's own configuration (or its
+    security loader); a one-line refusal where none answers, or tls:// has no credentials."""
+    import dask.config
+    from dask.distributed import Client
+    from distributed.security import Security
+
+    from simucal.errors import CalibrationError
+    if address.startswith("tls://") and not dask.config.get("distributed.client.security-loader", None):
+        security = Security()
+        if not (security.tls_ca_file and security.tls_client_cert):
+            raise CalibrationError(f"--scheduler {address}: Dask's configuration names no TLS credentials for a "
+                                   "client; set distributed.comm.tls.ca-file, .client.cert and .client.key (in "
+                                   "~/.config/dask/distributed.yaml, or DASK_DISTRIBUTED__COMM__TLS__CA_FILE and so on)")
+    wait_s = float(os.environ.get("SIMUCAL_SCHEDULER_TIMEOUT_S", "10"))  # a slow network: more
+    try:
+        return Client(address, timeout=f"{wait_s:g}s")
+    except (OSError, MemoryError, ValueError, TypeError) as e:  # nothing there, or a server that is not Dask
+        raise CalibrationError(f"--scheduler {address}: no Dask scheduler answers there within {wait_s:g} s "
+                               f"(SIMUCAL_SCHEDULER_TIMEOUT_S; {e}); start one "
+                               "(dask scheduler), or use --scheduler local or processes.") from None
 
 
 def keep_freed_memory():

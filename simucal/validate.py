@@ -17,11 +17,14 @@ no bias, no misalignment), and with the noise floor of that error:
   as an angle in deg. At nominal the gyro's bias is taken from the initial rest, as any user
   would; both use the calibrated accelerometers' directions, so the check is the gyro's alone.
 
-The floor of each error is its noise: a segment's or pose's scatter over its rows (std of
-the mean), or the stated noise of one row; for moves, the same residual at the rests' noise
-is not known a priori, so moves have no floor. The floor is this set's noise alone: the
-calibration's own parameter uncertainty comes on top of it. A calibration whose error is above the
-nominal one's is said to be worse, loudly.
+The floor of each norm error is its whole uncertainty: the noise (a segment's or pose's scatter
+over its rows, std of the mean, or the stated noise of one row) and the calibration's own: its
+parameters' covariance (a thermal calibration's coefficients', at each segment's temperature)
+propagated to the calibrated norm, d|u|/dp = (u/|u|)' (dh/du)^-1 dh/dp, added in quadrature
+(`calibration_sd`; a file without a covariance adds nothing, and the check says so). For moves,
+the same residual at the rests' noise is not known a priori, so moves have no floor. A calibration
+whose error is above the nominal one's is said to be worse, loudly; rows outside a calibration's
+temperature range are named (apply's warning).
 """
 from __future__ import annotations
 
@@ -73,7 +76,64 @@ def _far_off(after, floor_sd, labels, k=FAR_OFF):
     return [labels[i] for i in np.nonzero(far)[0]] if far.sum() <= len(e) // 4 else []
 
 
-def _turntable(ms, f_before, f_after, w_before, w_after):
+def _block_model(block, t_ref_c):
+    """(model, p, covariance) of a block for the propagation, or None without a covariance."""
+    from simucal.fit.augmented import AugmentedModel
+    if block.model == "affine":
+        return None
+    model = AugmentedModel(block.model, block.library_effects())
+    th = block.thermal
+    cov = th.get("covariance") if th else block.details.get("covariance")
+    if not cov:
+        return None
+    if th:
+        from simucal.fit.thermal import ThermalModel
+        model = ThermalModel(model, [th["parameters"][n]["degree"] for n in model.params])
+        p = np.array([th["parameters"][n.split(".T")[0]]["coefficients"][int(n.split(".T")[1]) if ".T" in n else 0]
+                      for n in model.params])
+    else:
+        p = np.array([block.params[n] for n in model.params])
+    if list(cov["names"]) != list(model.params):
+        return None
+    raw = block.details.get("std_raw")  # a failing model's stds inflated by its misfit: the covariance too
+    k2 = (block.std[model.params[0]] / raw[model.params[0]]) ** 2 if raw and raw.get(model.params[0]) else 1.0
+    return model, p, np.asarray(cov["matrix"], float) * k2
+
+
+def calibration_sd(cal, sensor, u_b, aux_values: dict) -> np.ndarray | None:
+    """The std of the calibrated norm |u| at each row (segment means u_b (n, 3) in b, with their
+    auxiliary inputs: temp_c, f_x..) from the calibration's covariance (module doc); None where the
+    file holds none."""
+    from simucal.fit.aux_inputs import T_REF, AuxInputs
+    block = getattr(cal, sensor)
+    found = _block_model(block, cal.t_ref_c)
+    if found is None:
+        return None
+    model, p, cov = found
+    t_ref = block.thermal["t_ref_c"] if block.thermal else cal.t_ref_c
+    values = dict(aux_values)
+    if "temp_c" in values:
+        values[T_REF] = 0.0 if t_ref is None else t_ref
+    u = u_b @ block.C.T
+    _, Ju, Jp = model.jacobians(u, p, AuxInputs(values))
+    du = -np.linalg.solve(Ju, Jp)  # (n, 3, m): the calibrated input's change per parameter
+    g = np.einsum("ni,nim->nm", u / np.linalg.norm(u, axis=1, keepdims=True), du)
+    return np.sqrt(np.maximum(np.einsum("nm,mk,nk->n", g, cov, g), 0.0))
+
+
+def _with_calibration(floor_sd, cal, sensor, means, groups, ms, f_means=None):
+    """The noise floor per row and the calibration's std added in quadrature (None: the noise alone)."""
+    aux = {}
+    if "temp_c" in ms.samples:
+        aux["temp_c"] = np.array([np.mean(ms.samples["temp_c"][g]) for g in groups])
+    if f_means is not None:
+        from simucal.fit.aux_inputs import specific_force
+        aux.update(specific_force(f_means @ getattr(cal, sensor).C.T))
+    sd = calibration_sd(cal, sensor, means, aux)
+    return floor_sd if sd is None else np.hypot(floor_sd, sd), sd is not None
+
+
+def _turntable(ms, f_before, f_after, w_before, w_after, cal):
     segs = ms.segments
     seg_rows = {s.segment: ms.rows(s.segment) for s in segs}
     lat = np.radians(ms.meta.get("latitude_deg", 0.0))
@@ -85,8 +145,9 @@ def _turntable(ms, f_before, f_after, w_before, w_after):
         sd = units.stated_noise(ms.meta, "acc")
         (mb, _), (ma, fl) = _segment_means(f_before, groups, sd), _segment_means(f_after, groups, sd)
         labels = [f"segment {s.segment}" for s in static]
-        checks = [_norm_block("g", np.linalg.norm(mb, axis=1) - 1, np.linalg.norm(ma, axis=1) - 1, fl,
-                              "|f| - 1 g at each static segment", labels)]
+        whole, with_cal = _with_calibration(fl, cal, "acc", ma, groups, ms)
+        checks = [_norm_block("g", np.linalg.norm(mb, axis=1) - 1, np.linalg.norm(ma, axis=1) - 1, whole,
+                              "|f| - 1 g at each static segment" + _FLOOR[with_cal], labels)]
         angled = [i for i, s in enumerate(static) if s.middle_deg is not None and s.inner_deg is not None]
         if len(angled) >= 3:
             # the navigation vertical (z up) in the table frame k: gravity's reaction
@@ -118,15 +179,21 @@ def _turntable(ms, f_before, f_after, w_before, w_after):
                 continue
             groups = [seg_rows[s.segment] for s in chosen]
             (mb, _), (ma, fl) = _segment_means(w_before, groups, sd), _segment_means(w_after, groups, sd)
+            f_means = None if f_after is None else np.array([f_after[g].mean(0) for g in groups])
+            whole, with_cal = _with_calibration(fl, cal, "gyro", ma, groups, ms, f_means)
             what = ("|w| - |w_T + w_e sin L| at each rate run" if kind == "rate" else
                     "|w| - w_e (the Earth rate) at each static segment")
             checks.append(_norm_block("deg/h", np.linalg.norm(mb, axis=1) - truth, np.linalg.norm(ma, axis=1) - truth,
-                                      fl, what, [f"segment {s.segment}" for s in chosen]))
+                                      whole, what + _FLOOR[with_cal], [f"segment {s.segment}" for s in chosen]))
         out["gyro"] = checks
     return out
 
 
-def _stream(ms, f_before, f_after, w_before, w_after):
+_FLOOR = {True: " (floor: the noise and the calibration's own uncertainty)",
+          False: " (floor: the noise alone; the file holds no covariance of its parameters)"}
+
+
+def _stream(ms, f_before, f_after, w_before, w_after, cal):
     from simucal.handheld.moves import build_moves, move_residuals
     from simucal.handheld.static_detect import detect_static
     from simucal.io.sensor_checks import saturated_rows
@@ -135,8 +202,9 @@ def _stream(ms, f_before, f_after, w_before, w_after):
     rest = slice(det.starts[0] + det.window // 2, det.ends[0] - det.window // 2)
     groups = [slice(a, b) for a, b in zip(det.starts, det.ends)]
     (mb, _), (ma, fl) = _segment_means(f_before, groups, None), _segment_means(f_after, groups, None)
-    out = {"acc": [_norm_block("g", np.linalg.norm(mb, axis=1) - 1, np.linalg.norm(ma, axis=1) - 1, fl,
-                               f"|f| - 1 g at each of the {len(groups)} static poses",
+    whole, with_cal = _with_calibration(fl, cal, "acc", ma, [np.arange(a, b) for a, b in zip(det.starts, det.ends)], ms)
+    out = {"acc": [_norm_block("g", np.linalg.norm(mb, axis=1) - 1, np.linalg.norm(ma, axis=1) - 1, whole,
+                               f"|f| - 1 g at each of the {len(groups)} static poses" + _FLOOR[with_cal],
                                [f"pose at {t[a]:.1f} s" for a in det.starts])]}
     if w_after is not None:
         bad = saturated_rows(ms, "gyro")[0]
@@ -169,15 +237,15 @@ def validate(cal_path, data_dir) -> dict:
     """The report (module doc) of calibration file cal_path applied to the set data_dir."""
     cal = calibration.load(cal_path)
     ms = io.read_set(data_dir)
-    _, samples, _ = apply(cal, ms, cal_path)  # checks the layout
+    meta, samples, _ = apply(cal, ms, cal_path)  # checks the layout
     f_before = ms.acc_g() if ms.has_acc else None
     w_before = ms.gyro_dph() if ms.has_gyro else None
     f_after = np.column_stack([samples[c] for c in ("ax", "ay", "az")]) if ms.has_acc else None
     w_after = np.column_stack([samples[c] for c in ("gx", "gy", "gz")]) if ms.has_gyro else None
     if ms.segments is not None:
-        checks = _turntable(ms, f_before, f_after, w_before, w_after)
+        checks = _turntable(ms, f_before, f_after, w_before, w_after, cal)
     elif f_after is not None:
-        checks = _stream(ms, f_before, f_after, w_before, w_after)
+        checks = _stream(ms, f_before, f_after, w_before, w_after, cal)
     else:
         raise CalibrationError(f"{ms.path}: a stream without accelerometers has no reference to validate against")
     for rows in checks.values():
@@ -195,7 +263,9 @@ def validate(cal_path, data_dir) -> dict:
             verdicts[s] += f"; but {', '.join(far)} FAR OFF where the rest agree (mislabelled or disturbed)"
     own = own_rows(cal, ms)
     return {"format": "simucal.validation/1", "calibration": str(cal_path), "data": str(ms.path),
-            "independent": not own, "checks": checks, "verdict": verdicts, "note": own or None}
+            "independent": not own, "checks": checks, "verdict": verdicts,
+            "warnings": list(meta.get("warnings", [])),  # apply's: rows outside the calibrated temperature range
+            "note": own or None}
 
 
 def own_rows(cal, ms) -> str:
@@ -228,6 +298,8 @@ def lines(report):
             if c.get("far_off"):
                 yield (f"{s}: FAR OFF where the rest agree: {', '.join(c['far_off'])} ({FAR_OFF:g} floors or more); "
                        + c.get("far_off_hint", "check those rows of the recording"))
+    for w in report.get("warnings", []):
+        yield f"WARNING: {report['data']}: {w}"
     for s, v in report["verdict"].items():
         yield f"{s}: {v}" + (": this calibration makes the unit worse on these data than its nominal scale "
                              "factors; do not use it" if v.startswith("WORSE THAN NOMINAL") else "")

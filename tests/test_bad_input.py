@@ -821,3 +821,21 @@ def test_a_usage_error_is_one_line_naming_the_help(tmp_path, args, expect):
     """click's own refusals (a missing file, a bad choice, an unknown command) are one line, as
     simucal's are, naming the help to read; a value given twice is refused, not the last one kept."""
     run_refused(args + ["-o", str(tmp_path / "o.json")] if args[0] == "montecarlo" else args, *expect)
+
+
+def test_import_csv_reads_a_loggers_whitespace_text(tmp_path):
+    """Whitespace-separated text with a '#' header line (as many loggers write), '#' comments and blank
+    lines within: read as the CSV with the same numbers; a short row is named by its line."""
+    from simucal import io
+    src = tmp_path / "log.txt"
+    src.write_text("# t ax ay az gx gy gz\n0.00  0.01 0.02 1.0  0.1 0.2 0.3\n0.01\t0.02 0.03 0.9 0.4 0.5 0.6\n"
+                   "# paused\n\n0.02 0.03 0.04 0.8 0.7 0.8 0.9\n")
+    args = ["import", "csv", str(src), "--columns", "t_s=t,ax=ax,ay=ay,az=az,gx=gx,gy=gy,gz=gz", "--acc-unit", "g",
+            "--gyro-unit", "deg/s", "--latitude-deg", "45"]
+    r = CliRunner().invoke(main, args + ["-o", str(tmp_path / "o")])
+    assert r.exit_code == 0, r.output
+    s = io.read_set(tmp_path / "o").samples
+    assert s["t_s"].tolist() == [0.0, 0.01, 0.02] and s["gz"].tolist() == [0.3, 0.6, 0.9]
+    src.write_text(src.read_text() + "0.03 0.03 0.04 0.8 0.7\n")
+    r = CliRunner().invoke(main, args + ["-o", str(tmp_path / "o2")])
+    assert r.exit_code != 0 and "log.txt, line 7: the row ends before column" in r.output + (r.stderr or "")

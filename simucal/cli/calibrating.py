@@ -7,9 +7,15 @@ from pathlib import Path
 import click
 
 from simucal import methods
-from simucal.cli.common import MODEL_FILE_RUNS, NOISE_DPH, NOISE_G, POSITIVE, InputPath, Number, fail, guard, main
+from simucal.cli.common import (MODEL_FILE_RUNS, NOISE_DPH, NOISE_G, POSITIVE, SCHEDULER_TRUST, InputPath, Number, fail,
+                                guard, main)
 
 
+TIMESTAMPS = click.option(
+    "--timestamps", type=click.Choice(("auto", "nominal", "recorded")), default="auto", show_default=True,
+    help="Stream: integrate on the recorded t_s, or on the sensor's clock (nominal: evenly spaced at the mean step, "
+         "for a logger's arrival times); auto: nominal where the stamps jitter yet stay within 2 median steps of an "
+         "even clock.")
 HEADING_ACCURACY = click.option(
     "--heading-accuracy-deg", type=Number(0.0, 180.0), default=5.0, show_default=True,
     help="Field sets: the stated accuracy of the north reference; its effect enters the uncertainty.")
@@ -25,13 +31,25 @@ _ADD_AUTO_HELP = (_ADD_HELP + " Also 'auto': the library effects a failing model
 @click.option("-o", "--output", type=click.Path(), default="calibration.json", show_default=True,
               help="The calibration file; with several sets, a folder that gets one <set>.json each (with "
                    "--thermal: one file).")
-@click.option("--thermal", is_flag=True, help="The sets are one unit at several temperature plateaus (temp_c): every "
-              "parameter a polynomial in T - T_ref, applied at each row's temp_c.")
+@click.option("--thermal", is_flag=True, help="The sets are one unit at several temperature plateaus, or one set whose "
+              "temperature ramps (temp_c, degC): one fit of every row at its own temperature, every parameter a "
+              "polynomial in T - T_ref, applied at each row's temp_c.")
 @click.option("--thermal-degree", type=click.IntRange(0, 3), default=None,
-              help="--thermal: the polynomials' degree (default: chosen by the data per parameter).")
+              help="--thermal: one degree for every parameter's polynomial, at most the distinct temperatures "
+                   "(2 degC apart) less one (default: chosen per parameter by the model test and by plateaus or "
+                   "bands of a ramp left out).")
 @click.option("--html", "html_out", type=click.Path(dir_okay=False), default=None,
-              help="--thermal: a page with each parameter against temperature and its fitted polynomial.")
-@click.option("--t-ref-c", type=Number(-60.0, 150.0), default=None,
+              help="--thermal: a page opening with each sensor's verdict, then each parameter against temperature "
+                   "with its polynomial.")
+@click.option("--px4", type=click.Path(dir_okay=False), default=None,
+              help="--thermal: also PX4's thermal compensation (TC_A0_*, TC_G0_*: bias polynomials X0..X3 in m/s^2 and "
+                   "rad/s, TREF, TMIN, TMAX), a QGroundControl .params file. The data's sensor axes are taken as PX4's "
+                   "sensor axes (sensor_accel, sensor_gyro); scale-factor and misalignment drift are not expressible "
+                   "(warned).")
+@click.option("--ardupilot", type=click.Path(dir_okay=False), default=None,
+              help="--thermal: also ArduPilot's INS_TCAL1_* (bias polynomials about 35 degC, TMIN, TMAX), a .param "
+                   "file (NAME,VALUE). The data's sensor axes are taken as ArduPilot's IMU axes; as --px4.")
+@click.option("--t-ref-c", type=Number(-55.0, 125.0), default=None,
               help="T_ref of temperature terms, degC (default: the mean of temp_c; --thermal: of the plateaus).")
 @click.option("--method", type=click.Choice(("auto",) + methods.NAMES), default="auto", show_default=True,
               help="auto: the default for the set's data. " + " ".join(
@@ -44,6 +62,7 @@ _ADD_AUTO_HELP = (_ADD_HELP + " Also 'auto': the library effects a failing model
 @click.option("--noise", "noise_file", type=InputPath(exists=True, dir_okay=False), default=None,
               help="A noise.json of simucal noise: each segment's noise from its Allan curve at the segment's length "
                    "(averaged rows: meta.json's average_s).")
+@TIMESTAMPS
 @click.option("--init-rest-s", type=POSITIVE, default=None, help="Stream: length of the initial rest (default: found from the data).")
 @click.option("--threshold-factor", type=Number(1.0, 1e6, low_open=True), default=6.0, show_default=True,
               help="Stream: static threshold, times the rest's variance.")
@@ -51,9 +70,11 @@ _ADD_AUTO_HELP = (_ADD_HELP + " Also 'auto': the library effects a failing model
 @click.option("--min-static-s", type=POSITIVE, default=1.0, show_default=True, help="Stream: shortest static interval.")
 @HEADING_ACCURACY
 @click.option("--scheduler", default="local", show_default=True,
-              help="Several sets: local, processes (a Dask LocalCluster) or a Dask scheduler's address.")
-def calibrate(data_dirs, output, thermal, thermal_degree, html_out, t_ref_c, method, acc_model, gyro_model, add, acc_noise_g,
-              gyro_noise_dph, noise_file, init_rest_s, threshold_factor, window_s, min_static_s, heading_accuracy_deg, scheduler):
+              help="Several sets: local, processes (a Dask LocalCluster on 127.0.0.1) or a Dask scheduler's address. "
+                   + SCHEDULER_TRUST)
+def calibrate(data_dirs, output, thermal, thermal_degree, html_out, px4, ardupilot, t_ref_c, method, acc_model,
+              gyro_model, add, acc_noise_g, gyro_noise_dph, noise_file, timestamps, init_rest_s, threshold_factor,
+              window_s, min_static_s, heading_accuracy_deg, scheduler):
     """Calibrate measurement sets; write calibration.json (one per set into a folder for several).
 
     With segments.csv and table angles: a turntable test (dong2018). Without segments.csv: a
@@ -64,10 +85,13 @@ def calibrate(data_dirs, output, thermal, thermal_degree, html_out, t_ref_c, met
     kwargs = dict(method=method, acc_model=acc_model, gyro_model=gyro_model,
                   detect=DetectSettings(window_s, threshold_factor, min_static_s, init_rest_s), add=add,
                   acc_noise_g=acc_noise_g, gyro_noise_dph=gyro_noise_dph, heading_accuracy_deg=heading_accuracy_deg,
-                  noise=noise_file)
+                  noise=noise_file, timestamps=timestamps)
     inputs = list(data_dirs) + [a for a in add if a.endswith(".py")] + ([noise_file] if noise_file else [])
     if thermal or thermal_degree is not None:
-        return _calibrate_thermal(data_dirs, output, thermal_degree, t_ref_c, kwargs, inputs, html_out)
+        return _calibrate_thermal(data_dirs, output, thermal_degree, t_ref_c, kwargs, inputs, html_out,
+                                  (px4, ardupilot))
+    if px4 or ardupilot:
+        fail("--px4/--ardupilot: an autopilot's thermal compensation is made from plateaus or a ramp with --thermal")
     if html_out:
         fail("--html: a page of a thermal calibration (with --thermal); for one set use simucal diagnose --html")
     kwargs["t_ref_c"] = t_ref_c
@@ -115,13 +139,14 @@ def calibrate(data_dirs, output, thermal, thermal_degree, html_out, t_ref_c, met
         sys.exit(2)
 
 
-def _calibrate_thermal(data_dirs, output, degree, t_ref_c, kwargs, inputs, html_out):
+def _calibrate_thermal(data_dirs, output, degree, t_ref_c, kwargs, inputs, html_out, autopilot_out=(None, None)):
     from simucal.calibrate import calibrate_thermal
     from simucal.errors import CalibrationError
-    from simucal.io import calibration, outputs
-    guard(inputs, files=[output] + ([html_out] if html_out else []))
+    from simucal.io import autopilot, calibration, outputs
+    guard(inputs, files=[output] + ([html_out] if html_out else []) + [f for f in autopilot_out if f])
     try:
         result = calibrate_thermal([Path(d) for d in data_dirs], degree, t_ref_c, **kwargs)
+        exported = _autopilot_files(result, data_dirs, *autopilot_out)
         calibration.save(output, result)
     except (ValueError, KeyError, CalibrationError, FileNotFoundError) as e:
         fail(e)
@@ -132,8 +157,17 @@ def _calibrate_thermal(data_dirs, output, degree, t_ref_c, kwargs, inputs, html_
         from simucal.report.thermal_html import thermal_page
         outputs.write_text(html_out, thermal_page(result))
         click.echo(f"wrote {html_out}")
+    for line in autopilot.write(exported):
+        click.echo(line)
     lo, hi = result.temperature_range_c
     click.echo(f"wrote {output} (method {result.method}; calibrated from {lo:.4g} to {hi:.4g} degC)")
+
+
+def _autopilot_files(result, data_dirs, px4, ardupilot):
+    """--px4/--ardupilot: the files' texts, made before anything is written (a refusal leaves nothing behind)."""
+    from simucal import io
+    from simucal.io import autopilot
+    return autopilot.texts(result, io.read_meta(Path(data_dirs[0])), px4, ardupilot) if px4 or ardupilot else []
 
 
 @main.command("field-drift")
@@ -203,7 +237,8 @@ def _write_shape_models(result, output):
 @click.option("--gyro-model", default="gyro_baseline", show_default=True)
 @click.option("--acc-noise-g", type=NOISE_G, default=None, help="Stated noise of one acc row (g), when the data cannot give it.")
 @click.option("--gyro-noise-dph", type=NOISE_DPH, default=None, help="Stated noise of one gyro row (deg/h).")
-def diagnose(data_dir, output, html_path, add, acc_model, gyro_model, acc_noise_g, gyro_noise_dph):
+@TIMESTAMPS
+def diagnose(data_dir, output, html_path, add, acc_model, gyro_model, acc_noise_g, gyro_noise_dph, timestamps):
     """Compare model and measurements; rank the candidate missing effects."""
     import json
 
@@ -216,7 +251,7 @@ def diagnose(data_dir, output, html_path, add, acc_model, gyro_model, acc_noise_
     guard([data_dir] + [a for a in add if a.endswith(".py")],
            files=[output, html_path, _shape_model_path(output, "acc"), _shape_model_path(output, "gyro")])
     try:
-        result = diagnose_set(Path(data_dir), add, acc_model, gyro_model, acc_noise_g, gyro_noise_dph)
+        result = diagnose_set(Path(data_dir), add, acc_model, gyro_model, acc_noise_g, gyro_noise_dph, timestamps)
     except (MeasurementSetError, CalibrationError, KeyError, FileNotFoundError, ValueError) as e:
         fail(e)
     models = _write_shape_models(result, output)

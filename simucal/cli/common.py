@@ -16,6 +16,7 @@ class _Commands(click.Group):
 
     def invoke(self, ctx):
         warnings.simplefilter("ignore", RuntimeWarning)  # numpy's, printed before a clear error otherwise
+        warnings.formatwarning = _one_line
         try:
             return super().invoke(ctx)
         except click.UsageError as e:  # a missing file, a bad choice: one line, not click's usage block
@@ -37,6 +38,15 @@ class _Commands(click.Group):
             click.echo(f"error: internal error ({type(e).__name__}: {_short(str(e))}); this is a bug in simucal: please report it "
                        "with the command and the data (SIMUCAL_DEBUG=1 shows the traceback)", err=True)
             sys.exit(3)
+
+
+def _one_line(message, category, filename, lineno, line=None, _python=warnings.formatwarning):
+    """A warning of the cache (a library not loaded, or rebuilt) is one line, as a refusal is;
+    any other as Python prints it."""
+    from simucal.fit.cache import CacheWarning
+    if issubclass(category, CacheWarning):
+        return f"warning: {message}\n"
+    return _python(message, category, filename, lineno, line)
 
 
 @click.group(cls=_Commands)
@@ -120,6 +130,8 @@ class Number(click.ParamType):
 
 MODEL_FILE_RUNS = ("A model file is Python: like any plugin, its code runs when it is derived (once, in a child "
                     "process with a time limit; never again once in the cache), so use only files you trust.")
+SCHEDULER_TRUST = ("An address must be a cluster you trust: tasks and results travel as pickles, which run code; "
+                   "tls://ADDRESS uses the TLS credentials of Dask's configuration.")
 POSITIVE = Number(0.0, low_open=True)
 SEED = Number(0, 2 ** 32 - 1, integer=True, what="numpy's seeds")
 NOISE_G = Number(0.0, 1.0, low_open=True, what="the std of one row, g")

@@ -51,17 +51,27 @@ from simucal.cli.common import (
 @click.option("--column", "columns", multiple=True, metavar="NAME=LOW:HIGH",
               help="Write an auxiliary column, one value per segment drawn uniformly in [LOW, HIGH], e.g. "
                    "supply_v=4.5:5.5 (one your --effect-file terms read) or temp_c=20:40; repeatable.")
+@click.option("--temperature-c", default=None, metavar="T|T0:T1",
+              help="Write temp_c: one plateau at T degC, or a ramp from T0 to T1 degC over the segments; the unit's "
+                   "temperature effects (--effect ...bias_temperature..., scale_temperature...) act from --t-ref-c.")
+@click.option("--t-ref-c", type=Number(-55.0, 125.0), default=25.0, show_default=True,
+              help="With --temperature-c: the unit's T_ref, degC, the temperature at which its parameters are the "
+                   "truth's (fixed, so that a plateau away from it shows the planted temperature effects).")
+@click.option("--temperature-wander-c", type=Number(0.0, 10.0), default=0.0, show_default=True,
+              help="With --temperature-c: each segment's temperature off the plateau or ramp by a uniform draw "
+                   "within +- this, degC (a chamber's wander).")
 @click.option("--no-noise-stated", is_flag=True, help="Leave acc_noise_g / gyro_noise_dph out of meta.json.")
 @FORCE
 def simulate(out_dir, output, scenario, heading_error_deg, seed, plan, rate_hz, position_error_arcmin, acc_model, gyro_model,
-             acc_unit, gyro_unit, effects, effect_file, sets, columns, no_noise_stated, force):
+             acc_unit, gyro_unit, effects, effect_file, sets, columns, temperature_c, t_ref_c, temperature_wander_c,
+             no_noise_stated, force):
     """Simulate a test; write a measurement set and truth.json (simucal simulate -o FOLDER [options])."""
     if out_dir and output and Path(out_dir) != Path(output):
         fail(f"two output folders ({out_dir} and -o {output}): give one")
     out_dir = output or out_dir
     if not out_dir:
         fail("no output folder: give -o FOLDER")
-    from simucal.turntable.simulate import ARCMIN, SCENARIOS, plant, write
+    from simucal.turntable.simulate import ARCMIN, SCENARIOS, at_temperature, plant, write
     guard([plan if plan and Path(plan).exists() else None, effect_file], sets=[out_dir], force=force)
     if scenario == "field":
         from simucal.field.simulate import FieldScenario, write_field
@@ -82,6 +92,7 @@ def simulate(out_dir, output, scenario, heading_error_deg, seed, plan, rate_hz, 
         sc.position_error_rad = position_error_arcmin * ARCMIN
     sc.state_noise = not no_noise_stated
     try:
+        at_temperature(sc, temperature_c, t_ref_c, temperature_wander_c, columns)
         plant(sc, effects, effect_file, sets, columns)
         write(out_dir, sc, seed)
     except (ValueError, KeyError, FileNotFoundError, SyntaxError) as e:
@@ -194,7 +205,8 @@ def validate(calibration_file, data_dir, output, html_path):
 @click.option("--html", "html_path", type=click.Path(dir_okay=False), default=None,
               help="Also write a page with the Allan deviation plot.")
 @click.option("--kalibr", "kalibr_path", type=click.Path(dir_okay=False), default=None,
-              help="Also write Kalibr's imu.yaml (noise densities and random walks, SI).")
+              help="Also write Kalibr's imu.yaml (noise densities and random walks, SI); refused unless both sensors "
+                   "give them.")
 @click.option("--tau-max-s", type=POSITIVE, default=None,
               help="The longest tau (s); default a ninth of the longest still stretch.")
 def noise(data_dir, output, html_path, kalibr_path, tau_max_s):
@@ -207,13 +219,14 @@ def noise(data_dir, output, html_path, kalibr_path, tau_max_s):
     guard([data_dir], files=[output, html_path, kalibr_path])
     try:
         report = allan.characterise(io.read_set(data_dir), tau_max_s)
+        yaml = allan.kalibr_yaml(report) if kalibr_path else None  # refused before anything is written
     except (MeasurementSetError, CalibrationError) as e:
         fail(e)
     outputs.write_text(output, json.dumps(report, indent=1) + "\n")
     if html_path:
         outputs.write_text(html_path, allan.html_page(report))
     if kalibr_path:
-        outputs.write_text(kalibr_path, allan.kalibr_yaml(report))
+        outputs.write_text(kalibr_path, yaml)
     for line in allan.lines(report):
         click.echo(line)
     click.echo(f"wrote {output}" + "".join(f" and {p}" for p in (html_path, kalibr_path) if p))

@@ -14,6 +14,7 @@ from simucal.cli.common import (
     NOISE_DPH,
     NOISE_G,
     POSITIVE,
+    SCHEDULER_TRUST,
     SEED,
     SETS,
     InputPath,
@@ -102,8 +103,8 @@ def demo(out_dir, seed, force):
                    "both signs, e.g. 10,-10, let g-sensitivity terms show.")
 @click.option("-o", "--output", type=click.Path(dir_okay=False), default="montecarlo.json", show_default=True)
 @click.option("--scheduler", default="local", show_default=True,
-              help="local (this process), processes (a Dask LocalCluster, one worker per core) or a Dask "
-                   "scheduler's address: the same numbers on any.")
+              help="local (this process), processes (a Dask LocalCluster on 127.0.0.1, one worker per core) or a "
+                   "Dask scheduler's address: the same numbers on any. " + SCHEDULER_TRUST)
 def montecarlo(scenario, plan, trials, seed, effects, effect_file, sets, rates, output, scheduler):
     """Monte Carlo of a scenario: simulate, exact fits, unification; std against the Cramer-Rao bound."""
     import json

@@ -167,18 +167,21 @@ def _derived(base: str, effects: tuple) -> GeneratedModel | None:
 
 
 def _derive(base: str, effects: tuple) -> GeneratedModel:
-    from simucal.fit.models import cache_dir
+    """The model file is written by simucal here, into the user's own cache (UntrustedCache where
+    that is not the user's alone), and written again wherever it holds other bytes: a model file is
+    run when it is derived, and simucal runs only files it wrote or the user named."""
+    from simucal.fit.cache import own_folder
     name = "_with_".join([base] + [e.replace(".", "_") for e in effects])  # CasADi: no "__"
     if len(name) > 80:  # many effects: a file name the file system takes
         name = f"{base}_with_{hashlib.sha256(name.encode()).hexdigest()[:16]}"
-    path = cache_dir() / "augmented" / f"{name}.py"
-    if not path.is_file():
+    text = ("from simucal.derive.models.effects import CANDIDATES\n"
+            "from simucal.derive.registry import BUILTIN\n"
+            f"BASE = next(m for m in BUILTIN if m.name == {base!r})\n"
+            f"MODELS = [BASE.with_terms({name!r}, [CANDIDATES[e] for e in {list(effects)!r}])]\n")
+    path = own_folder("augmented") / f"{name}.py"
+    if not path.is_file() or path.read_text() != text:
         from simucal.io import outputs
-        path.parent.mkdir(parents=True, exist_ok=True)
-        outputs.write_text(path, "from simucal.derive.models.effects import CANDIDATES\n"
-                                 "from simucal.derive.registry import BUILTIN\n"
-                                 f"BASE = next(m for m in BUILTIN if m.name == {base!r})\n"
-                                 f"MODELS = [BASE.with_terms({name!r}, [CANDIDATES[e] for e in {list(effects)!r}])]\n")
+        outputs.write_text(path, text, mode=0o644)
     derive_model_file(path)
     return load(name)
 

@@ -135,7 +135,8 @@ def test_model(model, obs: Observations, p0=None) -> tuple[Fit, Observations, di
                          test="chi-square (noise partly estimated) and lack-of-fit F, the smaller p doubled")
         else:
             block.update(p_value=fit.p_value, test="chi-square")
-            if fit.dof > 0 and 1.0 - chi2_sf(fit.chi2, fit.dof) < NOISE_TOO_LARGE:
+            # the advice is to check a stated noise: where the data's own scatter gave every sigma it cannot help
+            if obs.sigma_stated and fit.dof > 0 and 1.0 - chi2_sf(fit.chi2, fit.dof) < NOISE_TOO_LARGE:
                 block["noise_warning"] = (
                     f"the residuals are {np.sqrt(fit.chi2 / fit.dof):.2g} times the noise used ({noise['source']}): "
                     "a stated noise this much larger than the data's scatter leaves the test unable to fail and "

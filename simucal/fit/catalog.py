@@ -9,27 +9,30 @@ SymPy by the same codegen as the built-in models, into
 where <key> hashes the file's bytes and the simucal version, so an edited file
 is derived afresh and an unchanged one is loaded without SymPy. An index
 (<cache>/models/index.json) maps each model name to its key, so
-`--acc-model NAME` finds a model derived earlier from any folder.
+`--acc-model NAME` finds a model derived earlier from any folder. A derived model is code
+(a Python module, C): it is loaded only from a cache that is the user's alone, or from the
+trusted cache (simucal.fit.cache), and never by a bytecode file beside it.
 """
 from __future__ import annotations
 
 import functools
 import hashlib
-import importlib.util
 import json
 import os
 import subprocess
 import sys
 import time
 import traceback
+import types
 from pathlib import Path
 
-from simucal.fit.models import GeneratedModel, cache_dir, load_builtin, manifest
+from simucal.fit import cache
+from simucal.fit.models import GeneratedModel, load_builtin, manifest
 from simucal.io import outputs
 
 
 def models_dir() -> Path:
-    return cache_dir() / "models"
+    return cache.cache_dir() / "models"
 
 
 def _key(path: Path) -> str:
@@ -40,14 +43,21 @@ def _key(path: Path) -> str:
     return h.hexdigest()[:20]
 
 
-def _index() -> dict:
-    p = models_dir() / "index.json"
-    return json.loads(p.read_text()) if p.is_file() else {}
+def _index(own: bool = False) -> dict:
+    """Model name -> {key, source}: the trusted cache's index overlaid by the user's (own: the
+    user's alone), each checked (UntrustedCache where another user could have written it)."""
+    index = {}
+    for root, shared in reversed(cache.roots()[:1] if own else cache.roots()):
+        p = root / "models" / "index.json"
+        if p.is_file():
+            cache.check(p, root, shared)
+            index.update(json.loads(p.read_text()))
+    return index
 
 
 def _write_atomic(path: Path, text: str):
-    path.parent.mkdir(parents=True, exist_ok=True)
-    outputs.write_text(path, text)
+    """Into a folder cache.own_folder made: never writable by group or others."""
+    outputs.write_text(path, text, mode=0o644)
 
 
 class ModelFileError(ValueError):
@@ -74,21 +84,23 @@ def derive_model_file(path) -> tuple[list[str], bool]:
     if not path.is_file():
         raise FileNotFoundError(f"{path}: no such model file")
     key = _key(path)
-    folder = models_dir() / key
-    derived = False
-    if not (folder / "manifest.json").is_file():
+    cache.own_folder("models")  # the user's alone, or UntrustedCache: the fix named
+    found = cache.locate(f"models/{key}/manifest.json")
+    derived = found is None
+    if derived:
+        folder = cache.own_folder(f"models/{key}")
+        found = folder / "manifest.json"
         child = _run_child(path, folder, derive_timeout_s())
         if child.returncode:
             lines = [x for x in child.stderr.splitlines() if x.strip()]
             raise ModelFileError(lines[-1] if child.returncode == 2 and lines else
                                  f"{path}: deriving it failed (exit {child.returncode}): "
                                  + (lines[-1] if lines else "no message"))
-        if not (folder / "manifest.json").is_file():  # the file ended the child itself (sys.exit, os._exit)
+        if not found.is_file():  # the file ended the child itself (sys.exit, os._exit)
             raise ModelFileError(f"{path}: running it ended the process before any model was derived (sys.exit or "
                                  "os._exit in the file?); a model file defines MODELS and returns")
-        derived = True
-    names = sorted(json.loads((folder / "manifest.json").read_text())["models"])
-    index = _index()
+    names = sorted(json.loads(found.read_text())["models"])
+    index = _index(own=True)
     index.update({n: {"key": key, "source": str(path)} for n in names})
     _write_atomic(models_dir() / "index.json", json.dumps(index, indent=2, sort_keys=True) + "\n")
     load.cache_clear()
@@ -175,15 +187,16 @@ def _load_user_model(name: str, compiled: bool = True) -> GeneratedModel:
     if entry is None:
         raise KeyError(f"no model {name!r}: built-in models are {sorted(manifest()['models'])}; a model of your "
                        "own is derived from its file first (`--add FILE`, or `simucal derive --model FILE`)")
-    folder = models_dir() / entry["key"]
-    py = folder / f"{name}.py"
-    if not py.is_file():
-        raise KeyError(f"model {name!r} was derived from {entry['source']} but its cache {folder} is gone; "
-                       f"derive it again: simucal derive --model {entry['source']}")
-    spec = importlib.util.spec_from_file_location(f"simucal_user_model_{name}_{entry['key']}", py)
-    module = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(module)
-    return GeneratedModel(name, module, (folder / f"{name}.c").read_text(), compiled)
+    py, c = (cache.locate(f"models/{entry['key']}/{name}.{ext}") for ext in ("py", "c"))
+    if py is None or c is None:
+        raise KeyError(f"model {name!r} was derived from {entry['source']} but its cache {models_dir() / entry['key']} "
+                       f"is gone; derive it again: simucal derive --model {entry['source']}")
+    # compiled from the checked source here: an import would also load a bytecode file from a __pycache__
+    # folder beside it, which the umask may have left writable by the group
+    module = types.ModuleType(f"simucal_user_model_{name}_{entry['key']}")
+    module.__file__ = str(py)
+    exec(compile(py.read_bytes(), str(py), "exec"), module.__dict__)
+    return GeneratedModel(name, module, c.read_text(), compiled)
 
 
 if __name__ == "__main__":  # the child of derive_model_file

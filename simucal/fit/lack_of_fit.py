@@ -216,6 +216,19 @@ def _perp_basis(model, obs, fit, terms):
     return r, G, G - Q @ (Q.T @ G), sig
 
 
+def _left_singular(A):
+    """(U, S) of A's thin SVD; where LAPACK's divide and conquer does not converge (it can fail on
+    nearly repeated columns, finite as they are), from the eigenvectors of A^T A."""
+    try:
+        U, S, _ = np.linalg.svd(A, full_matrices=False)
+        return U, S
+    except np.linalg.LinAlgError:
+        w, V = np.linalg.eigh(A.T @ A)
+        order = np.argsort(w)[::-1]
+        S = np.sqrt(np.maximum(w[order], 0.0))
+        return A @ V[:, order] / np.maximum(S, 1e-300), S
+
+
 def lack_of_fit(model, obs: Observations, fit: Fit) -> dict:
     """F test of the model against model + generic basis (see module doc)."""
     terms = generic_terms(model.sensor, obs)
@@ -226,7 +239,7 @@ def lack_of_fit(model, obs: Observations, fit: Fit) -> dict:
     if not keep.any() or dof < 4:
         return {"test": "lack-of-fit F test", "p_value": None, "q": 0, "dof": dof,
                 "note": "too few degrees of freedom for a lack-of-fit test (need 4 or more)"}
-    U, S, _ = np.linalg.svd(Gp[:, keep] / np.linalg.norm(Gp[:, keep], axis=0), full_matrices=False)
+    U, S = _left_singular(Gp[:, keep] / np.linalg.norm(Gp[:, keep], axis=0))
     q = int(min(np.sum(S > 1e-6 * S[0]), dof - max(3, dof // 3)))
     ss1 = float(np.sum((U[:, :q].T @ r) ** 2))
     ss = float(r @ r)

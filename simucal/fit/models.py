@@ -15,7 +15,9 @@ from pathlib import Path
 
 import numpy as np
 
+from simucal.fit import cache
 from simucal.fit.aux_inputs import AuxInputs
+from simucal.io import outputs
 
 
 class StaleGeneratedCode(RuntimeError):
@@ -31,12 +33,6 @@ def manifest() -> dict:
     return json.loads((generated_dir() / "manifest.json").read_text())
 
 
-def cache_dir() -> Path:
-    root = os.environ.get("SIMUCAL_CACHE") or os.path.join(
-        os.environ.get("XDG_CACHE_HOME") or os.path.expanduser("~/.cache"), "simucal")
-    return Path(root)
-
-
 CFLAGS = ("-O3", "-fno-math-errno", "-shared", "-fPIC")  # no -march=native: a cache may be shared by machines of other CPUs
 
 
@@ -48,31 +44,40 @@ def compiler() -> str | None:
 
 
 def compile_c(name: str, source: str) -> Path | None:
-    """Build generated C (a model's, the table's) into the cache; None where no compiler works.
-    Processes and threads may build the same library at once: each writes its own files and
-    renames them into place."""
+    """Build generated C (a model's, the table's) into the user's cache, or take an earlier build
+    (the user's cache, then SIMUCAL_TRUSTED_CACHE) whose bytes still have the sha256 recorded at
+    its build; None where no compiler works or the cache is not the user's alone (said in one
+    line: the numpy module runs). Processes and threads may build the same library at once: each
+    compiles from its stdin (the same bytes, whatever the file names) into a file of its own and
+    renames it into place."""
     cc = compiler()
     if cc is None:
         return None
     digest = hashlib.sha256((" ".join(CFLAGS) + "\n" + source).encode()).hexdigest()[:16]  # flags change the build
-    lib = cache_dir() / f"{name}-{digest}.so"
-    if lib.is_file():
+    try:
+        lib, changed = cache.library(f"{name}-{digest}.so")
+        folder = cache.own_folder() if lib is None else None
+    except cache.UntrustedCache as e:
+        warnings.warn(f"{e}; the numpy module runs instead", cache.CacheWarning)
+        return None
+    if lib is not None:
         return lib
-    lib.parent.mkdir(parents=True, exist_ok=True)
-    tag = f"{os.getpid()}-{threading.get_ident()}"
-    src = lib.with_suffix(f".{tag}.c")
-    src.write_text(source)
-    tmp = lib.with_suffix(f".{tag}.tmp")
-    base = [cc, *CFLAGS, str(src), "-o", str(tmp), "-lm"]
-    res = subprocess.run(base + ["-fopenmp"], capture_output=True, text=True)  # batches over the cores
+    if changed:
+        warnings.warn(changed, cache.CacheWarning)
+    lib = folder / f"{name}-{digest}.so"
+    tmp = lib.with_suffix(f".{os.getpid()}-{threading.get_ident()}.tmp")
+    base = [cc, *CFLAGS, "-x", "c", "-", "-o", str(tmp), "-lm"]
+    res = subprocess.run(base + ["-fopenmp"], input=source, capture_output=True, text=True)  # batches over the cores
     if res.returncode != 0:
-        res = subprocess.run(base, capture_output=True, text=True)
+        res = subprocess.run(base, input=source, capture_output=True, text=True)
     if res.returncode != 0:
         warnings.warn(f"compiling {name}.c failed with {cc}; using the numpy module instead:\n{res.stderr[-500:]}")
-        src.unlink()
+        tmp.unlink(missing_ok=True)
         return None
+    os.chmod(tmp, 0o755)  # cc's mode less the umask: a umask of 002 would leave it writable by the group
     tmp.replace(lib)
-    src.replace(lib.with_suffix(".c"))  # kept beside the library: what it was built from
+    cache.record(lib)
+    outputs.write_text(lib.with_suffix(".c"), source, mode=0o644)  # kept beside the library: what it was built from
     return lib
 
 

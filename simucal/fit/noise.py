@@ -73,6 +73,8 @@ def read_report(path) -> dict:
         for a in "xyz":
             if not isinstance(axes, dict) or not isinstance(axes.get(a), dict):
                 raise bad(f"{sensor}.axes.{a}", "is missing (every axis x, y, z needs its terms)")
+            if "stuck" in axes[a]:  # a dead channel in the recording: load_curves names it
+                continue
             terms = axes[a].get("terms")
             if not isinstance(terms, dict) or set(terms) != set(TERMS):
                 raise bad(f"{sensor}.axes.{a}.terms", f"must hold exactly the terms {', '.join(TERMS)}")
@@ -103,6 +105,10 @@ def load_curves(path) -> dict:
     for sensor in ("acc", "gyro"):
         if sensor in rep:
             axes = [rep[sensor]["axes"][a] for a in "xyz"]
+            stuck = [f"{sensor} {a}" for a, ax in zip("xyz", axes) if "stuck" in ax]
+            if stuck:
+                raise CalibrationError(f"{path}: {', '.join(stuck)} stuck or dead in the still recording (no noise "
+                                       "terms): its noise cannot stand for the unit's; record it again or drop --noise")
             tau_max = float(max(rep[sensor]["tau_s"]))
 
             def curve(tau_s, axes=axes, tau_max=tau_max):

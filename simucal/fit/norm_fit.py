@@ -34,6 +34,7 @@ class Observations:
     aux: AuxInputs = field(default_factory=AuxInputs)  # temp_c, t_s, f_x.. or w2, a user's columns: per row
     labels: list = field(default_factory=list)  # segment ids, for messages
     sigma_source: str = "each segment's scatter or the stated noise"  # where sigma came from, in words
+    sigma_stated: bool = True      # whether a stated noise (meta, an option, an Allan curve) gave any sigma
 
     def take(self, rows) -> "Observations":
         """The observations of the given rows (indices)."""
@@ -219,8 +220,9 @@ def ellipsoid_start(model, obs: Observations):
     N = obs.N / obs.rho[:, None]  # unit norm for every row
     x, y, z = N.T
     D = np.column_stack([x * x, y * y, z * z, 2 * x * y, 2 * x * z, 2 * y * z, 2 * x, 2 * y, 2 * z, np.ones(len(N))])
-    if len(N) < 10:
+    if len(N) < 9:  # nine rows fix the quadric (ten coefficients up to scale): as many as the parameters
         return None
+    D = np.vstack([D, np.zeros((max(10 - len(N), 0), 10))])  # nine rows: the SVD's tenth vector is the null one
     v = np.linalg.svd(D, full_matrices=False)[2][-1]  # (N x 10): linear in N
     Q = np.array([[v[0], v[3], v[4]], [v[3], v[1], v[5]], [v[4], v[5], v[2]]])
     try:

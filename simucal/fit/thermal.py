@@ -1,26 +1,48 @@
-"""Every parameter of a sensor model as a polynomial in temperature (a thermal calibration).
-
-One unit calibrated at K temperature plateaus gives, per parameter, K estimates p_k with
-stds s_k at the plateaus' mean temperatures T_k. Each parameter is fitted as
+"""Every parameter of a sensor model as a polynomial in temperature (a thermal calibration):
 
     p(T) = c_0 + c_1 (T - T_ref) + ... + c_d (T - T_ref)^d
 
-by weighted least squares (weights 1 / s_k^2), as PX4's and ArduPilot's thermal calibrations
-fit their third-order polynomials per parameter (IEEE 1293 writes the same model). The degree
-is chosen by the data: starting from a constant, a degree is added while it lowers chi^2
-significantly (chi^2 drop above its 1 % tail of chi^2(1), the coefficient's t-test with known
-stds), at most K - 1 and MAX_DEGREE; `degree` forces one. c_0 is the parameter at T_ref, so a
-calibration file's params, M and bias are the unit's at T_ref, and apply evaluates p(T) at
-each row's temp_c.
+(IEEE 1293's thermal model; PX4 and ArduPilot fit third-order polynomials per parameter the same
+way). c_0 is the parameter at T_ref, so a calibration file's params, M and bias are the unit's at
+T_ref, and apply evaluates p(T) at each row's temp_c (params_at).
+
+- ThermalModel: the polynomials inside the model, every row at its own temperature: a turntable
+  unit's rows over plateaus or a ramp fitted at once (thermal_select.py chooses the degrees).
+- fit_polynomial: one parameter's polynomial through per-plateau estimates p_k +- s_k at their
+  temperatures by weighted least squares, its degree added while the chi^2 drop is beyond its 1 %
+  tail of chi^2(1) (for methods without a row-level fit: a stream's plateaus).
+Degrees never exceed MAX_DEGREE nor the distinct temperatures (clusters within SPREAD_C) less one.
 """
 from __future__ import annotations
 
 import numpy as np
 
+from simucal.errors import CalibrationError
 from simucal.fit.distributions import chi2_sf
 
 MAX_DEGREE = 3
+SPREAD_C = 2.0  # temperatures within this of each other are one temperature (a plateau's wander)
+# an IMU's widest rated range (military grade), degC: beyond it a temp_c column is in another unit (kelvin
+# always; degF where a plateau is above 51.7 degC, 125 degF, as a hot plateau is) or broken
+PLAUSIBLE_C = (-55.0, 125.0)
 ALPHA = 0.01
+
+
+def clusters(T, spread=SPREAD_C) -> np.ndarray:
+    """Each temperature's cluster (0, 1, ...): sorted, a new cluster where a temperature lies more
+    than `spread` above its cluster's first. Their number is the distinct temperatures."""
+    T = np.asarray(T, float)
+    out, k, start = np.empty(len(T), int), -1, -np.inf
+    for i in np.argsort(T):
+        if T[i] - start > spread:
+            k, start = k + 1, T[i]
+        out[i] = k
+    return out
+
+
+def top_degree(T) -> int:
+    """The highest degree temperatures T can test: their distinct values less one, at most MAX_DEGREE."""
+    return max(0, min(MAX_DEGREE, len(np.unique(clusters(T))) - 1))
 
 
 def _wls(dT, y, s, d):
@@ -37,7 +59,11 @@ def fit_polynomial(T_c, values, std, t_ref_c: float, degree: int | None = None) 
     degree None: chosen by the sequential chi^2 test (module doc)."""
     dT = np.asarray(T_c, float) - t_ref_c
     y, s = np.asarray(values, float), np.maximum(np.asarray(std, float), 1e-300)
-    top = min(MAX_DEGREE, len(dT) - 1)
+    top = top_degree(T_c)
+    if degree is not None and degree > top:
+        raise CalibrationError(f"--thermal-degree {degree}: the plateaus hold {top + 1} distinct temperatures (more "
+                               f"than {SPREAD_C:g} degC apart), which test at most degree {top}: give more plateaus, "
+                               "or a lower degree")
     if degree is None:
         d, (c, cov, chi2) = 0, _wls(dT, y, s, 0)
         while d < top:
@@ -64,3 +90,82 @@ def params_at(thermal: dict, names, temp_c) -> np.ndarray:
     section (its t_ref_c and per-parameter coefficients)."""
     dT = np.asarray(temp_c, float) - thermal["t_ref_c"]
     return np.stack([evaluate(thermal["parameters"][k]["coefficients"], dT) for k in names], axis=-1)
+
+
+class ThermalModel:
+    """A sensor model whose every parameter is a polynomial in (T - T_ref) inside the model, each row at
+    its own temperature (the row's dtemp_c):
+
+        N_i = h(u_i, p(T_i)),   p_j(T) = c_j0 + sum_{k=1..d_j} c_jk (T - T_ref)^k
+
+    (IEEE 1293's thermal model, PX4's and ArduPilot's polynomials, for every parameter of h, the
+    misalignments included). Its parameters are the base's c_j0 (the unit at T_ref, in the base's
+    order) and then c_jk named `<name>.T<k>`, in the base's parameter unit per degC^k. Rows of any
+    set of temperatures (plateaus, a ramp) are fitted at once by the exact norm fit (norm_fit), since
+    output, jacobians and matrix_and_bias take per-row parameters through the base's generated module.
+    No `effects` attribute: the fits treat it as a model of its own (no compiled base fit)."""
+
+    def __init__(self, base, degrees):
+        self.base, self.degrees = base, tuple(int(d) for d in degrees)
+        self.sensor, self.unit, self.aux = base.sensor, base.unit, base.aux
+        m = len(base.params)
+        self.terms = [(j, 0) for j in range(m)] + [(j, k) for k in range(1, MAX_DEGREE + 1)
+                                                   for j in range(m) if self.degrees[j] >= k]
+        self.params = tuple(base.params[j] if not k else f"{base.params[j]}.T{k}" for j, k in self.terms)
+        self.param_units = tuple(base.param_units[j] + (f"/degC^{k}" if k > 1 else "/degC" if k else "")
+                                 for j, k in self.terms)
+        self.name = base.name + "@T" + "".join(map(str, self.degrees))
+        self._j = np.array([j for j, _ in self.terms])
+        self._k = np.array([k for _, k in self.terms])
+
+    def _powers(self, aux, shape):
+        """(..., n, MAX_DEGREE + 1): each row's (T - T_ref)^k."""
+        from simucal.fit.aux_inputs import AuxInputs
+        dT = (aux or AuxInputs()).array(("dtemp_c",), shape)[..., 0]
+        return dT[..., None] ** np.arange(MAX_DEGREE + 1)
+
+    def per_row(self, p, aux, shape):
+        """The base's parameters at each row's temperature, (..., n, m), for coefficients p (..., m_ext)."""
+        p = np.asarray(p, float)
+        C = np.zeros(p.shape[:-1] + (len(self.base.params), MAX_DEGREE + 1))
+        C[..., self._j, self._k] = p
+        V = self._powers(aux, shape)
+        return np.einsum("...jk,...nk->...nj", C, V)
+
+    def _rows(self, u, P, aux):
+        """N, dN/du, dN/dp of the base with one parameter vector per row."""
+        base = getattr(self.base, "base", self.base)  # an AugmentedModel's generated model
+        m0 = len(base.params)
+        A = base.aux_array(aux, u.shape[:-1])
+        N = base.module.output(u, P[..., :m0], A)
+        Ju, Jp = base.module.output_jacobians(u, P[..., :m0], A)
+        if base is not self.base and self.base.effects:
+            cols = []
+            for q, (axis, phi, dphi) in zip(np.moveaxis(P[..., m0:], -1, 0), self.base._terms(u, aux)):
+                N[..., axis] += q * phi
+                Ju[..., axis, :] += q[..., None] * dphi
+                col = np.zeros(u.shape)
+                col[..., axis] = phi
+                cols.append(col)
+            Jp = np.concatenate([Jp, np.stack(cols, axis=-1)], axis=-1)
+        return N, Ju, Jp
+
+    def output(self, u, p, aux=None):
+        u = np.asarray(u, float)
+        return self._rows(u, self.per_row(p, aux, u.shape[:-1]), aux)[0]
+
+    def jacobians(self, u, p, aux=None):
+        """N, dN/du and dN/dc: the base's dN/dp_j times each row's (T - T_ref)^k."""
+        u = np.asarray(u, float)
+        N, Ju, Jp = self._rows(u, self.per_row(p, aux, u.shape[:-1]), aux)
+        V = self._powers(aux, u.shape[:-1])
+        return N, Ju, Jp[..., self._j] * V[..., None, self._k]
+
+    def matrix_and_bias(self, p, aux=None):
+        """M and the bias at each row's temperature (at T_ref where aux holds no temperature)."""
+        p = np.asarray(p, float)
+        if p.ndim == 3 and p.shape[1] == 1:  # gauss_newton.directions: one p per set, broadcast over rows
+            p = p[:, 0]
+        if aux is None or ("temp_c" not in aux.values and "dtemp_c" not in aux.values):
+            return self.base.matrix_and_bias(p[..., :len(self.base.params)])
+        return self.base.matrix_and_bias(self.per_row(p, aux, None), aux)

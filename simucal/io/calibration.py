@@ -32,7 +32,9 @@ Each sensor block (`SensorBlock`):
     thermal      a thermal calibration's polynomials (fit/thermal.py)
     residual_rms, residual_unit, chi2, dof, p_value, verdict (passes, fails, untested
                  or nominal: SensorBlock.verdict), and what the method reports
-                 (test, noise, cross_validation, auto, ...)
+                 (test, noise, cross_validation, auto, ...; a norm fit's
+                 `covariance` {names, matrix} of its parameters, unscaled by a misfit,
+                 which validate propagates into its floors)
 
 Direction: the calibration maps input to output (the sensor model). `apply`
 inverts it: u_b = C_b_model^T h^-1(output), Newton per sample for nonlinear terms.
@@ -257,6 +259,7 @@ def sensor_block(model, fit, M, bias, base: dict | None = None, C_b_model=None) 
     block = SensorBlock(model.base.name, M, bias, model.unit, effects, model.base.source, dict(fit.params),
                         dict(fit.std), dict(zip(model.params, model.param_units)), C_b_model, fit.residual_rms,
                         model.unit, fit.chi2, fit.dof, fit.p_value)
+    block.details["covariance"] = {"names": list(model.params), "matrix": np.asarray(fit.cov).tolist()}
     poor = poorly_determined(model.params, fit)
     if poor:
         block.details["poorly_determined"] = poor

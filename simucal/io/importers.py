@@ -117,34 +117,48 @@ def parse_columns(text: str) -> dict:
     return out
 
 
+def _table_rows(path):
+    """(header, [(line number, {column: cell})]) of a CSV, or of whitespace-separated text whose header
+    line starts with '#' (as many loggers write: `# t ax ay az gx gy gz`); later '#' lines and blank
+    lines of such text are comments. A short row's missing cells are None."""
+    text = _text(path)
+    lines = text.splitlines()
+    first = next((i for i, ln in enumerate(lines) if ln.strip()), None)
+    if first is None or not lines[first].lstrip().startswith("#") or "," in lines[first]:
+        reader = csv.DictReader(_io.StringIO(text, newline=""))
+        return reader.fieldnames or [], ((n, row) for n, row in enumerate(reader, start=2))
+    header = lines[first].lstrip()[1:].split()
+    rows = ((i + 1, dict(zip(header, ln.split() + [None] * (len(header) - len(ln.split())))))
+            for i, ln in enumerate(lines) if i > first and ln.strip() and not ln.lstrip().startswith("#"))
+    return header, rows
+
+
 def _read_columns(path, columns: dict, strings=()) -> dict:
     """{key: array} of a CSV's named columns ({key: source column}); `strings` are keys kept as text.
     Every error names the file, the line and the column."""
     path = Path(path)
-    with _io.StringIO(_text(path), newline="") as fh:
-        reader = csv.DictReader(fh)
-        header = reader.fieldnames or []
-        missing = [src for src in columns.values() if src not in header]
-        if missing:
-            raise ImportError_(f"{path}, line 1: no columns {missing}; the header has {header}")
-        dup = sorted({c for c in header if header.count(c) > 1} & set(columns.values()))
-        if dup:
-            raise ImportError_(f"{path}, line 1: column {dup[0]} appears more than once; which one is the data?")
-        data = {k: [] for k in columns}
-        for line_no, row in enumerate(reader, start=2):
-            for k, src in columns.items():
-                if row[src] is None:
-                    raise ImportError_(f"{path}, line {line_no}: the row ends before column {src}")
-                if k in strings:
-                    data[k].append(row[src])
-                    continue
-                try:
-                    v = float(row[src])
-                except ValueError:
-                    raise ImportError_(f"{path}, line {line_no}: column {src}: {row[src]!r} is not a number") from None
-                if not math.isfinite(v):
-                    raise ImportError_(f"{path}, line {line_no}: column {src} is not finite")
-                data[k].append(v)
+    header, rows = _table_rows(path)
+    missing = [src for src in columns.values() if src not in header]
+    if missing:
+        raise ImportError_(f"{path}, line 1: no columns {missing}; the header has {header}")
+    dup = sorted({c for c in header if header.count(c) > 1} & set(columns.values()))
+    if dup:
+        raise ImportError_(f"{path}, line 1: column {dup[0]} appears more than once; which one is the data?")
+    data = {k: [] for k in columns}
+    for line_no, row in rows:
+        for k, src in columns.items():
+            if row[src] is None:
+                raise ImportError_(f"{path}, line {line_no}: the row ends before column {src}")
+            if k in strings:
+                data[k].append(row[src])
+                continue
+            try:
+                v = float(row[src])
+            except ValueError:
+                raise ImportError_(f"{path}, line {line_no}: column {src}: {row[src]!r} is not a number") from None
+            if not math.isfinite(v):
+                raise ImportError_(f"{path}, line {line_no}: column {src} is not finite")
+            data[k].append(v)
     if not data or not next(iter(data.values())):
         raise ImportError_(f"{path}: no data rows")
     return {k: np.array(v) for k, v in data.items()}

@@ -68,15 +68,15 @@ os.umask(_UMASK)
 
 
 @contextlib.contextmanager
-def replacing(path):
+def replacing(path, mode: int = 0o666):
     """A temporary path beside `path` (same suffix) for a writer; renamed to `path` when the
-    block ends, removed if it raises."""
+    block ends, removed if it raises. mode: the file's, less the umask's bits."""
     path = Path(path)
     fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.stem}.", suffix=f".tmp{path.suffix}")
     os.close(fd)
     try:
         yield Path(tmp)
-        os.chmod(tmp, 0o666 & ~_UMASK)  # mkstemp makes 0600; a written file gets the user's usual mode
+        os.chmod(tmp, mode & ~_UMASK)  # mkstemp makes 0600; a written file gets the user's usual mode
         os.replace(tmp, path)
     except BaseException:
         with contextlib.suppress(FileNotFoundError):
@@ -84,7 +84,7 @@ def replacing(path):
         raise
 
 
-def write_text(path, text: str) -> None:
-    """Write a text file by a temporary name and a rename."""
-    with replacing(path) as tmp:
+def write_text(path, text: str, mode: int = 0o666) -> None:
+    """Write a text file by a temporary name and a rename (mode: as replacing's)."""
+    with replacing(path, mode) as tmp:
         tmp.write_text(text)

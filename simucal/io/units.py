@@ -45,10 +45,11 @@ def check_meta(meta, path, error):
     if v is not None and (isinstance(v, bool) or not isinstance(v, (int, float)) or not 0 < v < math.inf):
         raise error(path, None, f"average_s is {v!r}; it must be a number > 0 (the seconds each averaged row "
                                 "averages)")
-    v = meta.get("table_accuracy_arcsec")
-    if v is not None and (isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v) or v < 0):
-        raise error(path, None, f"table_accuracy_arcsec is {v!r}; it must be a number >= 0 (the std of each commanded "
-                                "angle's position error, arcsec)")
+    for key, what in (("table_accuracy_arcsec", "the std of each commanded angle's position error"),
+                      ("table_tilt_arcsec", "the std of the outer axis's tilt about each horizontal axis")):
+        v = meta.get(key)
+        if v is not None and (isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v) or v < 0):
+            raise error(path, None, f"{key} is {v!r}; it must be a number >= 0 ({what}, arcsec)")
     lat = meta.get("latitude_deg")
     if lat is not None and not (isinstance(lat, (int, float)) and not isinstance(lat, bool) and -90 <= lat <= 90):
         raise error(path, None, f'"latitude_deg" must be a number in -90..90, got {lat!r}')

@@ -8,6 +8,9 @@ from simucal.io.calibration import FAILS_BELOW, Calibration, SensorBlock
 def calibration_lines(cal: Calibration):
     """Per sensor its test and effects (and what to add when the model fails), then the frames'
     unification, the consistency checks, what the plan leaves undetermined, and the warnings."""
+    stamps = cal.details.get("timestamps")
+    if stamps and (stamps["irregular"] or not stamps["chosen_by"].startswith("auto")):
+        yield stamps["text"]
     for s in ("acc", "gyro"):
         out = [x["segment"] for x in cal.details.get("excluded_segments", []) if x["sensor"] == s]
         if out:
@@ -43,6 +46,9 @@ def calibration_lines(cal: Calibration):
 def _test_text(b: SensorBlock) -> str:
     d = b.details
     rows = f" over {d['rows']}" if d.get("rows") else ""
+    if b.chi2 is not None and b.p_value is None:  # as many rows as parameters: the fit passes through them all
+        return (f"chi2 {b.chi2:.2g}, dof {b.dof}{rows}: no test possible (as many rows as parameters; add positions "
+                "or poses to test the model)")
     if b.chi2 is not None:
         return f"chi2 {b.chi2:.1f}, dof {b.dof}{rows}, p = {b.p_value:.3g}"
     if b.p_value is not None:
@@ -62,6 +68,8 @@ def _fit_lines(s, b: SensorBlock, source):
         yield f"{s}: noise {d['noise']['text']}"
     if d.get("noise_warning"):
         yield f"{s}: WARNING: {d['noise_warning']}"
+    if d.get("tilt_note"):
+        yield f"{s}: {d['tilt_note']}"
     if d.get("saturation"):
         yield (f"{s}: saturated (clipped) samples: " + ", ".join(
             f"{x['count']} on {x['axis']} from line {x['first_row'] + 2} of samples.csv" for x in d["saturation"]))
@@ -108,12 +116,27 @@ def _determination_lines(s, b: SensorBlock):
             "(simucal plan --score PLAN shows the correlations)")
 
 
+def _p(x) -> str:
+    return "-" if x is None else f"{x:.2g}"
+
+
 def _thermal_lines(s, b: SensorBlock):
-    """A thermal block: the plateaus' tests, then every parameter that follows temperature."""
+    """A thermal block: the joint model test (whole fit and each plateau or band, beside each plateau
+    alone), then every parameter that follows temperature."""
     th = b.thermal
-    yield (f"{s}: {len(th['plateaus_c'])} plateaus at " + ", ".join(f"{t:.4g}" for t in th["plateaus_c"])
-           + f" degC, T_ref {th['t_ref_c']:.4g} degC; per plateau p = "
-           + ", ".join("-" if x["p_value"] is None else f"{x['p_value']:.3g}" for x in b.details["plateaus"]))
+    groups = b.details.get("groups")
+    where = (f"{len(th['plateaus_c'])} " + ("plateaus" if b.details.get("plateaus", True) else "bands of a ramp")
+             + " at " + ", ".join(f"{t:.4g}" for t in th["plateaus_c"]) + f" degC, T_ref {th['t_ref_c']:.4g} degC")
+    if groups is None:  # each plateau alone, then the polynomials (a method without a row-level fit)
+        yield (f"{s}: {where}; per plateau p = " + ", ".join(_p(x["p_value"]) for x in b.details["plateaus"]))
+    else:
+        fails = b.p_value is not None and b.p_value < FAILS_BELOW
+        yield (f"{s}: one model, every row at its own temperature ({where}): chi2 {b.chi2:.4g} / {b.dof} dof, "
+               f"p = {_p(b.p_value)}" + ("; THE MODEL FAILS" if fails else ""))
+        yield (f"{s}: under it each {'plateau' if b.details.get('plateaus') else 'band'} p = "
+               + ", ".join(_p(g["p_value"]) for g in groups)
+               + ("; each plateau alone, at one temperature, p = " + ", ".join(_p(g["own_p_value"]) for g in groups)
+                  if b.details.get("plateaus") else ""))
     moving = {n: f for n, f in th["parameters"].items() if f["degree"] > 0}
     for n, f in moving.items():
         terms = " ".join((f"{c:.4g}" if not k else f"{'+' if c >= 0 else '-'} {abs(c):.4g}")
@@ -121,9 +144,9 @@ def _thermal_lines(s, b: SensorBlock):
         chosen = f.get("degree_from", "the data")
         yield (f"{s}: {n} = {terms} ({b.param_units.get(n, '')}; dT = T - T_ref in degC; degree {f['degree']} "
                + ("chosen by the data)" if chosen == "the data" else f"from {chosen})"))
-    yield (f"{s}: {len(th['parameters']) - len(moving)} of {len(th['parameters'])} parameters constant over the "
-           "plateaus (a temperature dependence below their noise)")
-    exact = [n for n, f in th["parameters"].items() if f["dof"] == 0]
+    yield (f"{s}: {len(th['parameters']) - len(moving)} of {len(th['parameters'])} parameters constant over "
+           "temperature (a temperature dependence below their noise)")
+    exact = [n for n, f in th["parameters"].items() if f.get("dof") == 0]
     if exact:
         yield (f"{s}: {len(exact)} polynomials pass through every plateau (degree = plateaus - 1): no plateau is left "
                "to test them; give fewer degrees or more plateaus")

@@ -1,49 +1,91 @@
-"""The page of a thermal calibration (`calibrate --thermal --html`): each parameter that follows
-temperature against the plateaus' temperatures, its estimates with their stds and the fitted
-polynomial with its 68 % band, then a table of every parameter."""
+"""The page of a thermal calibration (`calibrate --thermal --html`): first a verdict per sensor (the one
+model's test over every row at its own temperature, each plateau or band under it beside each plateau
+alone, and the validation where one is given), then each parameter that follows temperature with its
+polynomial and 68 % band (from the coefficients' covariance) beside each plateau's own estimate, then a
+table of every parameter."""
 from __future__ import annotations
 
 import html
 
 import numpy as np
 
-from simucal.io.calibration import Calibration
-
 from simucal.fit.thermal import evaluate
+from simucal.io.calibration import FAILS_BELOW, Calibration
 from simucal.report.html import _png, plt
 
 
-def _figure(sensor, name, f, unit, t_ref_c, T_k):
-    T = np.asarray(T_k, float)
-    grid = np.linspace(T.min() - 5, T.max() + 5, 200)
-    cov_diag = np.asarray(f["std"]) ** 2  # the band from the coefficients' stds (their covariance is near-diagonal
-    dT = grid - t_ref_c                   # around T_ref, the plateaus' mean)
-    band = np.sqrt(sum(v * dT ** (2 * k) for k, v in enumerate(cov_diag)))
-    y = evaluate(f["coefficients"], dT)
+def _band(th, name, f, dT):
+    """The polynomial's std at dT: its coefficients' covariance where the file holds it (else their stds)."""
+    V = np.vander(dT, len(f["coefficients"]), increasing=True)
+    cov = th.get("covariance")
+    names = [name] + [f"{name}.T{k}" for k in range(1, len(f["coefficients"]))]
+    if cov and all(n in cov["names"] for n in names):
+        idx = [cov["names"].index(n) for n in names]
+        C = np.asarray(cov["matrix"])[np.ix_(idx, idx)]
+    else:
+        C = np.diag(np.asarray(f["std"]) ** 2)
+    return np.sqrt(np.maximum(np.einsum("ik,kl,il->i", V, C, V), 0.0))
+
+
+def _figure(sensor, name, f, unit, th):
+    T = np.asarray(th["plateaus_c"], float)
+    lo, hi = th.get("temperature_range_c", [T.min(), T.max()])
+    grid = np.linspace(lo - 5, hi + 5, 200)
+    dT = grid - th["t_ref_c"]
+    y, band = evaluate(f["coefficients"], dT), _band(th, name, f, dT)
     fig, ax = plt.subplots(figsize=(5.2, 3.2))
     ax.fill_between(grid, y - band, y + band, alpha=0.25, label="fit, 68 %")
     ax.plot(grid, y, "-", lw=1)
-    ax.errorbar(T, f["per_plateau"], yerr=f["per_plateau_std"], fmt="o", ms=4, capsize=3, label="plateaus")
-    ax.axvspan(T.min(), T.max(), color="0.9", zorder=0)
-    ax.set(xlabel="temperature (degC)", ylabel=f"{name} ({unit})",
-           title=f"{sensor} {name}: degree {f['degree']}" + (f", chi2 {f['chi2']:.1f} on {f['dof']} dof"
-                                                             if f["dof"] > 0 else ""))
+    if "per_plateau" in f:
+        ax.errorbar(T, f["per_plateau"], yerr=f["per_plateau_std"], fmt="o", ms=4, capsize=3,
+                    label="each plateau alone")
+    ax.axvspan(lo, hi, color="0.9", zorder=0)
+    ax.set(xlabel="temperature (degC)", ylabel=f"{name} ({unit})", title=f"{sensor} {name}: degree {f['degree']}")
     ax.legend(fontsize=7)
     return _png(fig)
 
 
-def thermal_page(cal: Calibration) -> str:
+def _p(x):
+    return "-" if x is None else f"{x:.2g}"
+
+
+def verdict_lines(sensor, b, validations=()) -> list[str]:
+    """The sensor's verdict in words: the joint test, each group under it (and alone), each validation."""
+    groups = b.details.get("groups")
+    if groups is None:  # each plateau alone, then the polynomials
+        return [f"{sensor}: each plateau fitted alone, p = " + ", ".join(_p(x["p_value"]) for x in b.details["plateaus"])]
+    failing = [g for g in groups if g["p_value"] is not None and g["p_value"] < FAILS_BELOW]
+    passes = b.p_value is not None and b.p_value >= FAILS_BELOW and not failing
+    out = [f"{sensor}: {'PASSES' if passes else 'FAILS'}: the one model over every row at its own temperature, "
+           f"chi2 {b.chi2:.4g} on {b.dof} dof, p = {_p(b.p_value)}; each "
+           + ("plateau" if b.details.get("plateaus") else "band") + " under it p = "
+           + ", ".join(_p(g["p_value"]) for g in groups)
+           + ("; each plateau alone (at one temperature) p = " + ", ".join(_p(g["own_p_value"]) for g in groups)
+              if b.details.get("plateaus") else "")]
+    for v in validations:
+        for c in v["checks"].get(sensor, [])[:1]:
+            fl = "" if c["floor_rms"] is None else f", floor {c['floor_rms']:.3g}"
+            out.append(f"{sensor}: validated on {v['data']}: {c['what'].split(' (')[0]} {c['after_rms']:.3g} "
+                       f"{c['unit']} rms{fl}: {c['verdict']}")
+    return out
+
+
+def thermal_page(cal: Calibration, validations=()) -> str:
+    """The page; validations: `simucal validate` reports of this calibration, shown in the verdicts."""
+    lo, hi = cal.temperature_range_c
     parts = ["<!doctype html><meta charset=utf-8><title>simucal thermal calibration</title>",
              f"<h1>Thermal calibration</h1><p>{html.escape(cal.method)}; T_ref {cal.t_ref_c:.4g} degC; "
-             f"calibrated from {cal.temperature_range_c[0]:.4g} to {cal.temperature_range_c[1]:.4g} degC "
-             "(grey; outside it the polynomials are extrapolated and apply warns).</p>"]
+             f"calibrated from {lo:.4g} to {hi:.4g} degC (grey; outside it the polynomials are extrapolated and "
+             "apply and validate warn).</p><h2>Verdict</h2><ul>"]
+    parts += [f"<li>{html.escape(line)}</li>" for s, b in cal.blocks() if b.thermal is not None
+              for line in verdict_lines(s, b, validations)]
+    parts.append("</ul>")
     for s, b in cal.blocks():
         if b.thermal is None:
             continue
         th, units = b.thermal, b.param_units
         parts.append(f"<h2>{s}</h2>")
-        parts += [_figure(s, n, f, units.get(n, ""), th["t_ref_c"], th["plateaus_c"])
-                  for n, f in th["parameters"].items() if f["degree"] > 0]
+        parts += [_figure(s, n, f, units.get(n, ""), th) for n, f in th["parameters"].items() if f["degree"] > 0]
         rows = "".join(
             f"<tr><td>{html.escape(n)}</td><td>{html.escape(units.get(n, ''))}</td><td>{f['degree']}</td>"
             + "".join(f"<td>{c:.4g} &plusmn; {e:.2g}</td>" for c, e in zip(f["coefficients"], f["std"]))

@@ -23,6 +23,7 @@ from simucal.io import calibration, units
 from simucal.turntable.consistency import handedness, latitude_check
 from simucal.turntable.model_test import ROWS, fails, rank, test_and_rank
 from simucal.turntable.observations import read_observations, table_accuracy_rad
+from simucal.turntable.tilt import add_tilt
 from simucal.turntable.unification import Unifier, unify, unify_paper
 
 
@@ -49,17 +50,18 @@ def _rate_run_acc_means(acc_obs, acc_segs, gyro_segs):
     return np.array(rows), acc_obs.N[k], acc_obs.sigma[k], acc_obs.aux.take(k)
 
 
-def _exact_sensor(model, obs, segs, method, where):
+def _exact_sensor(model, obs, segs, method, where, ranked=True):
     """Fit and test one sensor by the one model test (model_test.py). Returns (fit, test block or
     None for the linear method, the effect to add when the model fails or None, the observations
-    with the noise used)."""
+    with the noise used). ranked False: no candidates ranked where the model fails (a thermal
+    calibration's plateau, whose temperature terms are fitted elsewhere)."""
     if method == "linear":
         if model.effects:
             raise CalibrationError("--add needs --method exact: the paper's linear regression exists for "
                                    "derived models only (or derive a model file with the term and use it)")
         return fit_linear(model, obs), None, None, obs
     try:
-        fit, obs2, base, cands, shape, _ = test_and_rank(model, obs, segs, only_if_failing=True)
+        fit, obs2, base, cands, shape, _ = test_and_rank(model, obs, segs, only_if_failing=True, ranked=ranked)
     except CalibrationError as e:
         if "did not converge" not in str(e):
             raise
@@ -135,11 +137,11 @@ def _gyro_block(ms, method, cal, acc, gyro, gyro_noise_dph) -> calibration.Senso
 
 
 def calibrate_table(ms, method, acc_model, gyro_model, ids, acc_noise_g=None, gyro_noise_dph=None,
-                    auto=False, noise_curves=None) -> calibration.Calibration:
+                    auto=False, noise_curves=None, ranked=True) -> calibration.Calibration:
     """Calibrate a turntable set (segments.csv) by `method` (exact or linear: methods.py), the models with
     the effect ids added (auto: and the library effects that a failing model needs,
     candidates.forward_selection); noise_curves: {sensor: std of a mean over tau s} (`calibrate --noise`,
-    segment_observations)."""
+    segment_observations); ranked: candidates ranked where a model fails (_exact_sensor)."""
     if auto and method != "exact":
         raise CalibrationError("--add auto needs --method exact (the effects are chosen by the exact fit's test)")
     # the paper's linear regression (eq. 8) takes static positions only
@@ -157,19 +159,22 @@ def calibrate_table(ms, method, acc_model, gyro_model, ids, acc_noise_g=None, gy
     fa = fg = None
     acc_read = acc_obs  # as read: _exact_sensor returns them with each row's sigma filled in
     if acc_obs is not None:
-        fa, base_a, advice_a, acc_obs = _exact_sensor(am, acc_obs, acc_segs, method, str(ms.path))
+        fa, base_a, advice_a, acc_obs = _exact_sensor(am, acc_obs, acc_segs, method, str(ms.path), ranked)
         M, b = am.matrix_and_bias(fa.vector(am.params))
         units.check_scale("acc", M, am.name)
         cal.acc = calibration.sensor_block(am, fa, M, b, base_a)
         cal.acc.details["advice"] = advice_a
     if gyro_obs is not None:
-        fg, base_g, advice_g, gyro_obs = _exact_sensor(gm, gyro_obs, gyro_segs, method, str(ms.path))
+        fg, base_g, advice_g, gyro_obs = _exact_sensor(gm, gyro_obs, gyro_segs, method, str(ms.path), ranked)
     if method == "exact":
         cal.details["consistency"] = {"lines": handedness(ms, fa, acc_obs, acc_segs, fg, gyro_segs)}
     if gyro_obs is not None:
         acc = (am, fa, acc_obs, acc_segs, base_a if fa is not None else None,
                _rate_run_acc_means(acc_read, acc_segs, gyro_segs) if fa is not None and method == "exact" else None)
         cal.gyro = _gyro_block(ms, method, cal, acc, (gm, fg, gyro_obs, gyro_segs, base_g), gyro_noise_dph)
+        if method == "exact":
+            add_tilt(cal.gyro, gm, fg, gyro_obs, gyro_segs, ms.meta, lambda p: gm.matrix_and_bias(p)[0],
+                     cal.unification and np.array(cal.unification["C_b_d"]))
         cal.gyro.details["advice"] = advice_g
     for s, block in cal.blocks():
         calibration.inflate_if_failing(block)

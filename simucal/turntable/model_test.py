@@ -26,14 +26,14 @@ def rows_text(segs) -> str:
     return " and ".join(f"{n[k]} {name}" for k, name in (("static", "static positions"), ("rate", "rate runs")) if n[k])
 
 
-def test_and_rank(model, obs, segs=None, only_if_failing=False):
+def test_and_rank(model, obs, segs=None, only_if_failing=False, ranked=True):
     """The fit, the observations with the noise used, the test block (with `rows`), and rank's
-    three (no candidates where only_if_failing and the model passes). segs: the turntable
+    three (no candidates where only_if_failing and the model passes, or ranked is False). segs: the turntable
     segments of obs's rows; None for a stream's static poses (no plan to grow, no table angles)."""
     fit, obs, base = test_model(model, obs)
     if segs is not None:
         base["rows"] = rows_text(segs)
-    if only_if_failing and not fails(base):
+    if (only_if_failing and not fails(base)) or not ranked:
         return fit, obs, base, [], None, None
     return (fit, obs, base, *rank(model, obs, fit, base, segs))
 

@@ -18,26 +18,63 @@ from simucal.io import calibration, units
 from simucal.io.sensor_checks import saturated_rows
 
 
-def mean_and_sigma(x, stated, varying=False):
+def mean_and_sigma(x, stated, varying=False, angle_rad=None):
     """Mean of a segment's rows and the std of that mean.
 
-    Several rows: from their scatter, with the lag-1 autocorrelation taken
-    into account (effective sample count). For a rate run (varying=True) the
-    rows hold a deterministic signal, the horizontal Earth rate turning in
-    the body, so the noise comes from first differences, which remove it.
-    One row: the stated noise, if any, else NaN (lack_of_fit.fit_with_noise then
-    estimates a variance component for such rows).
+    Several rows: from their scatter, with the lag-1 autocorrelation taken into account
+    (effective sample count). A rate run (varying=True) holds a deterministic signal, its
+    inputs turning in the body at the outer angle: given each row's outer angle (angle_rad),
+    the rows are fitted by a constant and the angle's first HARMONICS (turning_mean), whose
+    constant is the mean over whole revolutions whatever the rows span and whose residuals
+    are the noise; without the angles, first differences, which remove a signal that
+    changes little from row to row. One row: the stated noise, if any, else NaN
+    (lack_of_fit.fit_with_noise then estimates a variance component for such rows).
     """
     n = len(x)
+    if varying and angle_rad is not None and n > 2 * (2 * HARMONICS + 1):
+        return turning_mean(x, angle_rad)
     if n >= 3 and varying:
         return x.mean(0), np.sqrt(white_noise_var(x, ddof=1) / n)
     if n >= 3:
-        d = x - x.mean(0)
-        var = d.var(0, ddof=1)
-        r1 = np.clip(np.sum(d[1:] * d[:-1], 0) / np.maximum(np.sum(d * d, 0), 1e-300), -0.9, 0.99)
-        n_eff = n * (1 - r1) / (1 + r1)
-        return x.mean(0), np.sqrt(var / np.maximum(n_eff, 1.0))
+        return x.mean(0), np.sqrt(x.var(0, ddof=1) / _effective_count(x - x.mean(0)))
     return x.mean(0), np.full(3, np.nan if stated is None else stated / np.sqrt(n))
+
+
+HARMONICS = 3  # of the outer angle in a rate run: the turning inputs, and their squares and cubes in a model
+
+
+def turning_mean(x, angle_rad):
+    """(mean over whole revolutions, its std) of a rate run's rows x (n, 3) at outer angles angle_rad
+    (n,): least squares on [1, cos k a, sin k a] (k = 1..HARMONICS). Every input of the run turns
+    with the outer angle, so a model's output there is a sum of these harmonics, and the constant is
+    its average over a revolution (what the norm fit takes) even where the rows span a revolution
+    only in part (a sample count that is not a whole number per revolution); its variance is the
+    residuals' (n - 2 HARMONICS - 1 dof) times (X^T X)^-1_00, for correlated noise times
+    (1 + r1) / (1 - r1) (lag-1 autocorrelation r1 of the residuals)."""
+    a = np.asarray(angle_rad, float)
+    k = np.arange(1, HARMONICS + 1)
+    X = np.column_stack([np.ones_like(a), np.cos(np.outer(a, k)), np.sin(np.outer(a, k))])
+    coef, *_ = np.linalg.lstsq(X, x, rcond=None)
+    res = x - X @ coef
+    var = np.sum(res ** 2, 0) / (len(a) - X.shape[1])
+    c00 = np.linalg.inv(X.T @ X)[0, 0]
+    return coef[0], np.sqrt(var * c00 * len(a) / _effective_count(res))
+
+
+def _effective_count(d):
+    """n (1 - r1) / (1 + r1) of rows d (n, 3) about their mean, per axis: the count of independent
+    rows that gives their mean the same variance under lag-1 autocorrelation r1."""
+    r1 = np.clip(np.sum(d[1:] * d[:-1], 0) / np.maximum(np.sum(d * d, 0), 1e-300), -0.9, 0.99)
+    return np.maximum(len(d) * (1 - r1) / (1 + r1), 1.0)
+
+
+def outer_angle_rad(ms, rows, segment):
+    """A rate run's outer angle at each row (rad, from its first row's), from t_s and outer_rate_dps;
+    None for a static segment."""
+    if segment.kind != "rate" or not segment.outer_rate_dps:
+        return None
+    t = ms.samples["t_s"][rows]
+    return np.radians(segment.outer_rate_dps * (t - t[0]))
 
 
 def segment_duration_s(ms, rows, where) -> float:
@@ -81,7 +118,8 @@ def segment_observations(ms: io.MeasurementSet, sensor: str, kinds=None, stated=
         if s.segment in clipped:  # before the glitch test: a clipped sample is no glitch
             continue
         refuse_outliers(ms, raw, rows, sensor, s.segment)
-        m, sd = mean_and_sigma(data[rows], stated, varying=(s.kind == "rate"))  # the inputs turn in a rate run
+        m, sd = mean_and_sigma(data[rows], stated, varying=(s.kind == "rate"),  # the inputs turn in a rate run
+                               angle_rad=outer_angle_rad(ms, rows, s))
         if curve is not None:
             tau = segment_duration_s(ms, rows, s.segment)
             sd, longest = curve(tau), max(longest, tau)
@@ -105,6 +143,7 @@ def segment_observations(ms: io.MeasurementSet, sensor: str, kinds=None, stated=
     aux.update(specific_force(ms, keep) if sensor == "gyro" else {"w2": centripetal_scale(ms, keep)})
     obs = Observations(np.array(N).reshape(-1, 3), np.array(rho), np.array(sig).reshape(-1, 3), AuxInputs(aux),
                        [s.segment for s in keep])
+    obs.sigma_stated = curve is not None or (stated is not None and any(len(ms.rows(s.segment)) < 3 for s in keep))
     if curve is not None:
         obs.noise_file = curve.source  # _exact_sensor refuses it where the residuals show it far too large
         obs.sigma_source = "the Allan curve of --noise at each segment's length" + (

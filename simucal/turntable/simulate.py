@@ -18,6 +18,7 @@ import numpy as np
 from simucal import io
 from simucal.fit.augmented import AugmentedModel
 from simucal.fit.aux_inputs import DEFAULT_ZERO, T_REF, AuxInputs, specific_force
+from simucal.fit.thermal import PLAUSIBLE_C
 from simucal.generated import table
 from simucal.io import units
 from simucal.io.calibration_checks import PARAM_LIMIT
@@ -62,9 +63,11 @@ class Scenario:
     gyro_effects: dict = field(default_factory=dict)
     temp_c: tuple | None = None       # (first, last): a linear sweep over the segments; None: no temp_c column
     t_ref_c: float | None = None      # T_ref of the unit's temperature terms; None: the data's mean temp_c
+    temp_wander_c: float = 0.0        # each segment's temp_c off the sweep by a uniform draw within +- this
     columns: dict = field(default_factory=dict)  # auxiliary columns {name: (low, high)}: uniform, one value per segment
     shuffle: bool = False             # visit the positions in random order (separates time from direction)
     state_noise: bool = True          # write acc_noise_g / gyro_noise_dph into meta.json
+    tilt_stated_arcsec: float | None = None  # write table_tilt_arcsec (the levelling's std per axis) into meta.json
 
     def table_errors_rad(self) -> np.ndarray:
         """(tilt_x, tilt_y, nonperp_om, nonperp_mi), rad: the same at every position."""
@@ -98,6 +101,26 @@ def _pairs(items, what):
             raise ValueError(f"{what} {item!r}: the value must be finite and at most {PARAM_LIMIT:g} in size (in "
                              "the unit its term declares), as a calibration file's parameters")
     return out
+
+
+def at_temperature(sc: Scenario, text, t_ref_c=25.0, wander_c=0.0, columns=()):
+    """`simulate --temperature-c T` (a plateau) or `T0:T1` (a ramp over the segments), with the unit's
+    T_ref (--t-ref-c: its parameters are the truth's there) and a wander (--temperature-wander-c),
+    into the scenario; refused in one line where the text is not one or two temperatures."""
+    if text is None:
+        if wander_c:
+            raise ValueError("--temperature-wander-c needs --temperature-c (the plateau or ramp it wanders about)")
+        return
+    if any(c.partition("=")[0].strip() == "temp_c" for c in columns):
+        raise ValueError("--temperature-c and --column temp_c=...: give one")
+    try:
+        ends = [float(x) for x in str(text).split(":")]
+        if len(ends) not in (1, 2) or not all(PLAUSIBLE_C[0] <= x <= PLAUSIBLE_C[1] for x in ends):
+            raise ValueError
+    except ValueError:
+        raise ValueError(f"--temperature-c {text!r}: one temperature (a plateau, e.g. 40) or two (a ramp, e.g. 5:45), "
+                         f"degC, within {PLAUSIBLE_C[0]:g}..{PLAUSIBLE_C[1]:g} (an IMU's rated range)") from None
+    sc.temp_c, sc.t_ref_c, sc.temp_wander_c = (ends[0], ends[-1]), float(t_ref_c), float(wander_c)
 
 
 def plant(sc: Scenario, effects=(), effect_file=None, sets=(), columns=(), writes_columns=True):
@@ -143,11 +166,13 @@ def plant(sc: Scenario, effects=(), effect_file=None, sets=(), columns=(), write
 
 
 SCENARIOS = {"paper": Scenario}
+AVERAGE_POINTS = 720  # an averaged rate run: the mean of its inputs at this many outer angles over the revolution
 
 
 def _segments(sc: Scenario, rng):
-    """The plan's segments and, per segment, the true inputs (f_b, w_d, f_d) along it with its duration:
-    static positions at the table's errors, and rate runs about the outer axis sampled over a revolution."""
+    """The plan's segments and, per segment, (inputs, duration): inputs(t) the true (f_b, w_d, f_d)
+    at the times t (s, (n,)) from the segment's start: static positions at the table's errors, rate
+    runs about the outer axis turning continuously (the outer angle at t is rate * t)."""
     C_b_k = table.mounting(np.array(sc.theta4_rad))
     C_d_k = table.mounting(np.array(sc.lambda4_rad))
     w_ie_n = table.earth_rate_n(units.DEFAULT_EARTH_RATE_DPH, np.radians(sc.latitude_deg))
@@ -164,21 +189,22 @@ def _segments(sc: Scenario, rng):
     def table_errors(n):
         return kinematics.errors(sc.table_errors_rad(), sc.angle_errors_rad(rng, (n,)))
 
+    def sensed(C, w_n):  # the inputs (f_b, w_d, f_d) at table attitudes C (n, 3, 3) under the rate w_n
+        return (np.einsum("ji,nkj,k->ni", C_b_k, C, up), np.einsum("ji,nkj,k->ni", C_d_k, C, w_n),
+                np.einsum("ji,nkj,k->ni", C_d_k, C, up))
+
     up = np.array([0, 0, 1.0])
     for ang, err in zip(static, table_errors(len(static))):
-        C = table.C_k_n(*np.radians(ang), err)
+        at_rest = sensed(table.C_k_n(*np.radians(ang), err)[None], w_ie_n)
         segments.append(io.Segment(len(segments) + 1, "static", *ang, 0.0))
-        rows.append(((C_b_k.T @ C.T @ up)[None], (C_d_k.T @ C.T @ w_ie_n)[None], (C_d_k.T @ C.T @ up)[None],
-                     sc.static_s))
+        rows.append((lambda t, v=at_rest: tuple(np.repeat(x, len(t), 0) for x in v), sc.static_s))
     tilt_n = table.C_k_n(0.0, 0.0, 0.0, np.r_[sc.tilt_rad, np.zeros(5)])[:, 2]
     for (g0, a, b, rate), err in zip(rates, table_errors(len(rates))):
-        k = 720  # exact average over one revolution by sampling gamma finely
-        gam = np.radians(g0 + np.sign(rate) * np.arange(k) * 360.0 / k)
-        C = table.C_k_n(gam, *np.radians([a, b]), err)
-        w_n = w_ie_n + rate * units.DPH_PER_DPS * tilt_n
+        def turning(t, g0=g0, a=a, b=b, rate=rate, err=err):
+            C = table.C_k_n(np.radians(g0 + rate * np.asarray(t)), *np.radians([a, b]), err)
+            return sensed(C, w_ie_n + rate * units.DPH_PER_DPS * tilt_n)
         segments.append(io.Segment(len(segments) + 1, "rate", None, a, b, rate))
-        rows.append((np.einsum("ji,nkj,k->ni", C_b_k, C, up), np.einsum("ji,nkj,k->ni", C_d_k, C, w_n),
-                     np.einsum("ji,nkj,k->ni", C_d_k, C, up), 360.0 / abs(rate)))
+        rows.append((turning, 360.0 / abs(rate)))
     return segments, rows
 
 
@@ -188,6 +214,8 @@ def _meta(sc: Scenario, seed) -> dict:
             "description": f"simucal simulate, seed {seed}"}
     if sc.state_noise:  # a noise-free set states none (the spec's noise is a std > 0)
         meta.update({units.NOISE_KEY[s]: v for s, v in (("acc", sc.acc_noise_g), ("gyro", sc.gyro_noise_dph)) if v > 0})
+    if sc.tilt_stated_arcsec is not None:
+        meta["table_tilt_arcsec"] = sc.tilt_stated_arcsec
     if sc.acc_unit == "pulse/s":
         meta["acc_pulses_per_g"] = list(sc.acc_pulses_per_g)
     if sc.gyro_unit == "pulse/s":
@@ -202,22 +230,24 @@ def _samples(sc: Scenario, rng, segments, rows, acc, p_acc, gyro, p_gyro, meta):
     values = {name: rng.uniform(*ends, len(segments)) for name, ends in sc.columns.items()}
     if sc.temp_c:
         values["temp_c"] = np.linspace(*sc.temp_c, len(segments))
+        if sc.temp_wander_c:  # a chamber's or a self-heating unit's wander (drawn only then: other seeds unchanged)
+            values["temp_c"] = values["temp_c"] + rng.uniform(-sc.temp_wander_c, sc.temp_wander_c, len(segments))
     columns = {name: [] for name in values}  # auxiliary columns written
-    rows_per = [1 if sc.rate_hz is None else int(round(dur * sc.rate_hz)) for *_, dur in rows]
+    rows_per = [1 if sc.rate_hz is None else int(round(dur * sc.rate_hz)) for _, dur in rows]
     t_ref_c = None if "temp_c" not in values else sc.t_ref_c if sc.t_ref_c is not None else \
         float(np.average(values["temp_c"], weights=rows_per))  # as MeasurementSet.t_ref_c
     t0 = 0.0
-    for k, (seg, (f_b, w_d, f_d, dur)) in enumerate(zip(segments, rows)):
-        if sc.rate_hz is None:
-            f, w, fd, t = (f_b.mean(0, keepdims=True), w_d.mean(0, keepdims=True), f_d.mean(0, keepdims=True),
-                           np.array([t0 + dur / 2]))
+    for k, (seg, (inputs, dur)) in enumerate(zip(segments, rows)):
+        if sc.rate_hz is None:  # the mean over one revolution: exact for the inputs' harmonics below AVERAGE_POINTS
+            f, w, fd = (x.mean(0, keepdims=True) for x in inputs(np.arange(AVERAGE_POINTS) * dur / AVERAGE_POINTS))
+            t = np.array([t0 + dur / 2])
         else:
             n = rows_per[k]
             if n < 3:  # raw rows are for a segment's scatter; fewer is an averaged row, written as such
                 raise ValueError(f"--rate-hz {sc.rate_hz:g}: a {dur:g} s segment would get {n} rows; use at least "
                                  f"{3 / dur:.3g} Hz, or leave --rate-hz out for one averaged row per segment")
-            idx = np.arange(n) * len(f_b) // n
-            f, w, fd, t = f_b[idx], w_d[idx], f_d[idx], t0 + np.arange(n) / sc.rate_hz
+            f, w, fd = inputs(np.arange(n) / sc.rate_hz)  # each row at its own instant (a point sample)
+            t = t0 + np.arange(n) / sc.rate_hz
         col = {name: np.full(len(t), v[k]) for name, v in values.items()}
         aux = AuxInputs({"t_s": t, **col, **({} if t_ref_c is None else {T_REF: t_ref_c})})
         w2 = np.radians(seg.outer_rate_dps) ** 2 / units.DEFAULT_GRAVITY  # centripetal scale, 1/m

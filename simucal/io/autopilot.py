@@ -1,0 +1,215 @@
+"""A thermal calibration's bias polynomials as an autopilot's thermal compensation: PX4's TC_A0_*/TC_G0_*
+(a QGroundControl .params file) and ArduPilot's INS_TCAL1_* (a Mission Planner .param file).
+
+The narrow interface is `BiasPolynomial`: per sensor, per axis, the bias b(T) = sum_k c_k (T - T_ref)^k
+in the autopilot's units (m/s^2, rad/s), with T_ref and the calibrated range, and the sensor's other
+parameters that follow temperature (the autopilots correct an offset only). `bias_polynomials` builds
+it from a calibration's `thermal` blocks; nothing else here reads the calibration.
+
+The sign: simucal's model is output = M u + b(T) (io/calibration.py), so the offset an autopilot
+subtracts from its raw reading is b(T) itself.
+
+PX4 (src/modules/temperature_compensation/TemperatureCompensation.cpp,
+`TemperatureCompensation::calc_thermal_offsets_3D`): dT = T - TREF with T clamped to [TMIN, TMAX],
+offset_i = X0_i + X1_i dT + X2_i dT^2 + X3_i dT^3 (float32), m/s^2 and rad/s, subtracted from the raw
+sensor_accel/sensor_gyro reading before the calibration's offset, scale and rotation to the body frame
+(src/lib/sensor_calibration/Accelerometer.hpp, `Correct`: _rotation * ((data - _thermal_offset - _offset)
+.emult(_scale))). So X_k = c_k with TREF = T_ref. PX4 applies a set only to the sensor whose device id is
+TC_A0_ID / TC_G0_ID, which the data do not know: the user sets it (the file says so).
+
+ArduPilot (libraries/AP_InertialSensor/AP_InertialSensor_tempcal.cpp, `TCal::correct_sensor` and
+`TCal::polynomial_eval`): v -= P(T - 35) and v += P(T_cal - 35), T and T_cal (the temperature of the
+ordinary calibration, INS_ACC1_CALTEMP / INS_GYR1_CALTEMP) clamped to [TMIN, TMAX], P(x) = (ACC1 x +
+ACC2 x^2 + ACC3 x^3) * 1e-6 (SCALE_FACTOR), fixed reference TEMP_REFERENCE = 35 degC, applied after the
+sensor's own orientation and before the offsets, scales and board orientation
+(AP_InertialSensor_Backend.cpp, `_rotate_and_correct_accel`). So the polynomial is re-expanded about
+35 degC and its constant dropped: ArduPilot corrects b(T) - b(T_cal), the ordinary calibration holds b(T_cal).
+
+Frame: the export assumes the data's sensor axes are the autopilot's sensor axes (PX4's sensor_accel and
+sensor_gyro, ArduPilot's IMU after its sensor orientation), i.e. the data were recorded from the
+autopilot's own topics; the autopilot rotates to its body frame (FRD) after the correction.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+from math import comb, radians
+
+import numpy as np
+
+from simucal.errors import CalibrationError
+from simucal.io import outputs, units
+
+BIAS = ("b_x", "b_y", "b_z")
+MAX_DEGREE = 3  # both autopilots: a cubic
+RAD_S_PER_DPH = radians(1.0) / units.DPH_PER_DPS
+SI_UNIT = {"acc": "m/s^2", "gyro": "rad/s"}
+ARDUPILOT_T_REF_C = 35.0     # AP_InertialSensor_tempcal.cpp, TEMP_REFERENCE
+ARDUPILOT_SCALE = 1.0e6      # AP_InertialSensor_tempcal.cpp, SCALE_FACTOR
+PX4_REAL32, PX4_INT32 = 9, 6  # MAV_PARAM_TYPE of a QGroundControl .params line
+
+
+@dataclass(frozen=True)
+class BiasPolynomial:
+    """One sensor's bias over temperature in the autopilot's units: coefficients[i, k] of (T - t_ref_c)^k on
+    axis i (x, y, z), in m/s^2 (acc) or rad/s (gyro) per degC^k; the calibrated range; `others`: the
+    sensor's other parameters that follow temperature, each 'name (change over the range)'."""
+    sensor: str
+    coefficients: np.ndarray
+    t_ref_c: float
+    t_min_c: float
+    t_max_c: float
+    others: tuple[str, ...] = ()
+
+
+def gravity_mps2(meta: dict) -> float:
+    """The m/s^2 of simucal's g: meta.json's gravity for data in m/s^2 (they were divided by it), else the
+    standard 9.80665 m/s^2 by which the autopilots' drivers turn a g into m/s^2."""
+    return units.gravity(meta) if meta.get("acc_unit") == "m/s^2" else units.DEFAULT_GRAVITY
+
+
+def _change(coefficients, t_ref_c, lo, hi) -> float:
+    """Peak-to-peak change of a polynomial over [lo, hi]."""
+    return float(np.ptp(np.polynomial.polynomial.polyval(np.linspace(lo, hi, 201) - t_ref_c, coefficients)))
+
+
+def _unit(unit: str) -> str:
+    return "" if unit == "1" else f" {unit}"
+
+
+def bias_polynomials(cal, g_mps2: float) -> list[BiasPolynomial]:
+    """The narrow interface from a thermal calibration (its blocks' `thermal`: t_ref_c and per parameter
+    `coefficients` in (T - T_ref), the parameter's unit per degC^k; the file's temperature_range_c).
+    Refused in one line: no thermal block, a bias not named b_x, b_y, b_z or not in g / deg/h."""
+    out = []
+    for sensor, block in cal.blocks():
+        if not block.thermal:
+            raise CalibrationError(f"{sensor}: no temperature polynomials (a calibration of one temperature): "
+                                   "an autopilot's thermal compensation needs calibrate --thermal")
+        fits, t_ref = block.thermal["parameters"], float(block.thermal["t_ref_c"])
+        missing = [b for b in BIAS if b not in fits]
+        if missing:
+            raise CalibrationError(f"{sensor}: the model has no bias parameter {missing[0]} (has {list(fits)}): the "
+                                   "export reads the bias as b_x, b_y, b_z")
+        unit = block.param_units.get("b_x", block.bias_unit)
+        if unit not in ("g", "deg/h"):
+            raise CalibrationError(f"{sensor}: bias in {unit!r}; the export converts g or deg/h only")
+        per = g_mps2 if unit == "g" else RAD_S_PER_DPH
+        width = max(len(fits[b]["coefficients"]) for b in BIAS)
+        coefficients = np.zeros((3, width))
+        for i, b in enumerate(BIAS):
+            c = np.asarray(fits[b]["coefficients"], float)
+            coefficients[i, :len(c)] = c * per
+        lo, hi = (float(t) for t in cal.temperature_range_c)
+        others = tuple(f"{sensor} {n} (changes by {_change(f['coefficients'], t_ref, lo, hi):.3g}"
+                       f"{_unit(block.param_units.get(n, '1'))} from {lo:g} to {hi:g} degC)"
+                       for n, f in fits.items() if n not in BIAS and any(f["coefficients"][1:]))
+        out.append(BiasPolynomial(sensor, coefficients, t_ref, lo, hi, others))
+    return out
+
+
+def about(coefficients: np.ndarray, shift_c: float) -> np.ndarray:
+    """The same polynomials in (T - T_new), shift_c = T_new - T_ref: c'_j = sum_k c_k C(k, j) shift^(k-j)."""
+    c = np.asarray(coefficients, float)
+    d = c.shape[-1]
+    B = np.array([[comb(k, j) * shift_c ** (k - j) if k >= j else 0.0 for k in range(d)] for j in range(d)])
+    return c @ B.T
+
+
+def _checked(polys: list[BiasPolynomial], autopilot: str) -> list[str]:
+    """Refuse a bias of degree above 3 (naming it); the warnings for what the autopilot cannot express."""
+    for p in polys:
+        for i, c in enumerate(p.coefficients):
+            if np.any(c[MAX_DEGREE + 1:]):
+                raise CalibrationError(f"{p.sensor} {BIAS[i]}: a polynomial of degree {np.flatnonzero(c)[-1]} in "
+                                       f"temperature; {autopilot} takes degree {MAX_DEGREE} at most: calibrate "
+                                       f"with --thermal-degree {MAX_DEGREE}")
+    return [f"{autopilot} corrects the bias only, not {o}" for p in polys for o in p.others]
+
+
+def _cubic(p: BiasPolynomial) -> np.ndarray:
+    """(3, 4): the coefficients of degree 0..3 (a lower degree padded with zeros)."""
+    c = np.zeros((3, 4))
+    n = min(p.coefficients.shape[1], 4)
+    c[:, :n] = p.coefficients[:, :n]
+    return c
+
+
+def px4_parameters(polys: list[BiasPolynomial]) -> tuple[list[tuple[str, float, int]], list[str]]:
+    """[(name, value, MAV_PARAM_TYPE)] of PX4's TC_A0_* / TC_G0_* (module doc), and the warnings."""
+    warnings = _checked(polys, "PX4")
+    rows = []
+    for p in polys:
+        letter = "A" if p.sensor == "acc" else "G"
+        c = _cubic(p)
+        rows.append((f"TC_{letter}_ENABLE", 1, PX4_INT32))
+        rows += [(f"TC_{letter}0_{k}", v, PX4_REAL32) for k, v in
+                 (("TREF", p.t_ref_c), ("TMIN", p.t_min_c), ("TMAX", p.t_max_c))]
+        rows += [(f"TC_{letter}0_X{k}_{i}", float(c[i, k]), PX4_REAL32) for i in range(3) for k in range(4)]
+    return rows, warnings
+
+
+def ardupilot_parameters(polys: list[BiasPolynomial]) -> tuple[list[tuple[str, float]], list[str]]:
+    """[(name, value)] of ArduPilot's INS_TCAL1_* (module doc), and the warnings."""
+    warnings = _checked(polys, "ArduPilot")
+    lo, hi = max(p.t_min_c for p in polys), min(p.t_max_c for p in polys)
+    rows = [("INS_TCAL1_ENABLE", 1), ("INS_TCAL1_TMIN", lo), ("INS_TCAL1_TMAX", hi)]
+    by_sensor = {p.sensor: p for p in polys}
+    for sensor, name in (("acc", "ACC"), ("gyro", "GYR")):
+        p = by_sensor.get(sensor)  # one enable for both: a sensor not calibrated gets zeros, not stale values
+        c = np.zeros((3, 4)) if p is None else about(_cubic(p), ARDUPILOT_T_REF_C - p.t_ref_c) * ARDUPILOT_SCALE
+        warnings += [] if p else [f"no {sensor} calibration: INS_TCAL1_{name}* set to 0 (no correction)"]
+        rows += [(f"INS_TCAL1_{name}{k}_{'XYZ'[i]}", float(c[i, k])) for k in range(1, 4) for i in range(3)]
+    return rows, warnings
+
+
+def _number(v) -> str:
+    """Nine significant digits: every float32 (what both autopilots store) read back exactly."""
+    return str(v) if isinstance(v, int) else f"{v:.9g}"
+
+
+def _header(polys, source, warnings, notes) -> list[str]:
+    lines = [f"# from simucal calibrate --thermal: {source}",
+             "# the data's sensor axes taken as the autopilot's sensor axes (before its rotation to the body frame)"]
+    lines += [f"# {p.sensor}: bias polynomial in {SI_UNIT[p.sensor]}, calibrated {p.t_min_c:g} to {p.t_max_c:g} degC"
+              for p in polys]
+    return lines + [f"# {n}" for n in notes] + [f"# WARNING: {w}" for w in warnings]
+
+
+PX4_NOTE = ("set TC_A0_ID and TC_G0_ID to the sensor's device id (CAL_ACC0_ID, CAL_GYRO0_ID): PX4 applies the "
+            "set only to that sensor; then reboot and redo the ordinary accelerometer and gyro calibration")
+ARDUPILOT_NOTE = ("the constant bias is the ordinary calibration's (offsets at INS_ACC1_CALTEMP and INS_GYR1_CALTEMP):"
+                  " redo it after loading; these polynomials correct the change from that temperature")
+
+
+def px4_text(polys: list[BiasPolynomial], source: str) -> tuple[str, list[str]]:
+    """A QGroundControl .params file (tab-separated: vehicle id, component id, name, value, type) and the
+    warnings."""
+    rows, warnings = px4_parameters(polys)
+    lines = ["# Onboard parameters for Vehicle 1", "#"] + _header(polys, source, warnings, [PX4_NOTE])
+    lines += ["#", "# Vehicle-Id Component-Id Name Value Type"]
+    lines += [f"1\t1\t{n}\t{_number(v)}\t{t}" for n, v, t in rows]
+    return "\n".join(lines) + "\n", warnings
+
+
+def ardupilot_text(polys: list[BiasPolynomial], source: str) -> tuple[str, list[str]]:
+    """A Mission Planner .param file (NAME,VALUE lines, # comments) and the warnings."""
+    rows, warnings = ardupilot_parameters(polys)
+    lines = _header(polys, source, warnings, [ARDUPILOT_NOTE]) + [f"{n},{_number(v)}" for n, v in rows]
+    return "\n".join(lines) + "\n", warnings
+
+
+def texts(cal, meta: dict, px4: str | None = None, ardupilot: str | None = None) -> list[tuple]:
+    """[(path, text, warnings, note)] of the files asked for; meta: the data's meta.json (gravity_mps2)."""
+    polys = bias_polynomials(cal, gravity_mps2(meta))
+    source = ", ".join(cal.input) if isinstance(cal.input, list) else str(cal.input)
+    return [(path, *maker(polys, source), note) for path, maker, note in
+            ((px4, px4_text, PX4_NOTE), (ardupilot, ardupilot_text, ARDUPILOT_NOTE)) if path]
+
+
+def write(made: list[tuple]) -> list[str]:
+    """Write texts()'s files; the console's lines (each warning, then what was written and what to do)."""
+    lines = []
+    for path, text, warnings, note in made:
+        outputs.write_text(path, text)
+        lines += [f"WARNING: {w}" for w in warnings] + [f"wrote {path}: {note}"]
+    return lines

@@ -1,0 +1,44 @@
+"""A turntable unit over temperature: the rows of every plateau (or of one ramp) as one set of
+observations, each at its own temperature, for the joint thermal fit (fit/thermal_select.py)."""
+from __future__ import annotations
+
+import numpy as np
+
+from simucal.fit.aux_inputs import T_REF, AuxInputs
+from simucal.fit.norm_fit import Observations
+from simucal.fit.thermal_select import RAMP_BANDS
+from simucal.turntable.model_test import ROWS
+from simucal.turntable.observations import read_observations
+
+
+def _concatenate(parts: list[Observations], t_ref_c: float) -> Observations:
+    """Observations of several sets as one (aux columns that every set has; dtemp_c from t_ref_c)."""
+    keys = set.intersection(*(set(o.aux.values) for o in parts)) - {T_REF}
+    aux = {k: np.concatenate([np.broadcast_to(o.aux.values[k], len(o.N)) for o in parts]) for k in keys}
+    aux[T_REF] = t_ref_c
+    sig = None if any(o.sigma is None for o in parts) else np.concatenate([o.sigma for o in parts])
+    return Observations(np.concatenate([o.N for o in parts]), np.concatenate([o.rho for o in parts]), sig,
+                        AuxInputs(aux), [lab for o in parts for lab in o.labels], parts[0].sigma_source)
+
+
+def joint_observations(sets, t_ref_c, acc_noise_g=None, gyro_noise_dph=None, noise_curves=None) -> dict:
+    """{sensor: (observations of every set's rows, each row's set index)} for the sensors the sets hold."""
+    per = {"acc": [], "gyro": []}
+    for ms in sets:
+        ms.temperature_ref_c = t_ref_c
+        _, (acc, _, gyro, _) = read_observations(ms, "exact", ROWS, acc_noise_g, gyro_noise_dph, noise_curves)
+        per["acc"].append(acc)
+        per["gyro"].append(gyro)
+    out = {}
+    for s, parts in per.items():
+        if parts and all(o is not None for o in parts):
+            groups = np.concatenate([np.full(len(o.N), k) for k, o in enumerate(parts)])
+            out[s] = (_concatenate(parts, t_ref_c), groups)
+    return out
+
+
+def ramp_bands(temp_c, bands=RAMP_BANDS) -> np.ndarray:
+    """Each row's band of a ramp's temperature range (equal widths): the groups left out in turn."""
+    T = np.asarray(temp_c, float)
+    edges = np.linspace(T.min(), T.max(), bands + 1)[1:-1]
+    return np.searchsorted(edges, T)

@@ -1,0 +1,93 @@
+"""Real loggers' sessions (issue 38, item 3): as many poses as parameters, and a logger's time stamps."""
+import json
+
+import numpy as np
+from click.testing import CliRunner
+
+from simucal.cli import main
+from simucal.handheld.simulate import HandheldScenario, write_handheld
+from simucal.turntable.simulate import Scenario, write
+
+
+def test_as_many_poses_as_parameters_calibrates_and_says_no_test(tmp_path):
+    """Nine poses (the rest and eight) for the accelerometer's nine parameters: 0 dof. The fit passes
+    through every pose (the ellipsoid start from nine rows), the console says no test is possible, and
+    the biases (8 g of raw offset) come within 4 std of truth."""
+    truth = write_handheld(tmp_path / "s", HandheldScenario(poses=8), 1)
+    r = CliRunner().invoke(main, ["calibrate", str(tmp_path / "s"), "-o", str(tmp_path / "c.json")])
+    assert r.exit_code == 0, r.output
+    assert "acc: residual rms" in r.output and "dof 0: no test possible" in r.output
+    acc = json.loads((tmp_path / "c.json").read_text())["acc"]
+    assert acc["dof"] == 0 and acc["p_value"] is None
+    z = [(acc["params"][f"b_{a}"] - b) / acc["std"][f"b_{a}"] for a, b in zip("xyz", truth["acc"]["bias"])]
+    assert np.max(np.abs(z)) < 4, z
+
+
+def test_zero_dof_turntable_gyro_says_no_test(tmp_path):
+    """Nine positions and nine rate runs: the gyro's block has 0 dof; calibrate writes it and says so."""
+    from simucal.turntable import plans
+    plan = tmp_path / "p9.csv"
+    plan.write_text("outer_deg,middle_deg,inner_deg\n" + "".join(
+        f"{a},{b},{c}\n" for a, b, c in plans.PLANS["fibonacci24"]()[:9]))
+    write(tmp_path / "t", Scenario(plan=str(plan), unify_positions=False), 1)
+    r = CliRunner().invoke(main, ["calibrate", str(tmp_path / "t"), "-o", str(tmp_path / "c.json")])
+    assert r.exit_code == 0, r.output
+    assert "gyro: residual rms" in r.output and "dof 0" in r.output and "no test possible" in r.output
+
+
+def _logger_stamps(n, step_s=0.01, late_s=0.00024, wrap_s=0.005):
+    """A logger's arrival times of a sensor clocked every step_s: a latency that grows by late_s per
+    sample and is paid back (a catch-up step) when it reaches wrap_s: median step 10.24 ms, mean 10.00."""
+    i = np.arange(n)
+    return i * step_s + (i * late_s) % wrap_s
+
+
+def _logged_session(tmp_path, stamps):
+    from simucal import io
+    write_handheld(tmp_path / "true", HandheldScenario(poses=20, move_s=0.6, peak_rate_dps=190.0, gyro_noise_dps=0.005,
+                                                       acc_noise_g=2e-4), 3)
+    ms = io.read_set(tmp_path / "true")
+    io.write_set(tmp_path / "logged", ms.meta, {**ms.samples, "t_s": stamps(len(ms.samples["t_s"]))})
+    return tmp_path / "logged"
+
+
+def _gyro_chi2(tmp_path, folder, *options):
+    out = tmp_path / f"c{len(options)}.json"
+    r = CliRunner().invoke(main, ["calibrate", str(folder), "-o", str(out), *options])
+    assert r.exit_code == 0, r.output
+    cal = json.loads(out.read_text())
+    return cal["gyro"]["chi2"] / cal["gyro"]["dof"], cal, r.output
+
+
+def test_a_loggers_arrival_times_are_named_and_integrated_on_the_sensors_clock(tmp_path):
+    """Quick moves (0.6 s, 190 deg/s) stamped by a logger: as recorded the moves misfit (chi2/dof ~4.5);
+    auto finds the stamps irregular, within half a step of an even clock, and integrates on it: the
+    misfit falls 3x or more, to a passing test; the console and the file name the statistics."""
+    folder = _logged_session(tmp_path, _logger_stamps)
+    recorded, _, _ = _gyro_chi2(tmp_path, folder, "--timestamps", "recorded")
+    auto, cal, text = _gyro_chi2(tmp_path, folder)
+    st = cal["timestamps"]
+    assert st["irregular"] and st["regular_clock"] and st["used"] == "nominal"
+    assert abs(st["median_step_ms"] - 10.24) < 0.01 and abs(st["mean_step_ms"] - 10.0) < 0.01
+    assert st["catch_up_steps"] > 0 and abs(st["catch_up_median_ms"] - 5.24) < 0.1
+    assert "time stamps: irregular: median step 10.24 ms, mean 10 ms" in text and "catch-up steps" in text
+    assert recorded > 3 * auto and cal["gyro"]["p_value"] > 0.01, (recorded, auto)
+
+
+def test_stamps_that_lose_samples_are_kept(tmp_path):
+    """Regular stamps are left alone; stamps with 20 samples lost stray 10 steps from an even clock:
+    auto keeps them as recorded and says why; nominal on a turntable set is refused in one line."""
+    from simucal.io.timestamps import statistics
+    t = np.arange(5000) * 0.01
+    assert not statistics(t)["irregular"]
+    lost = np.delete(_logger_stamps(5000), np.arange(2000, 2020))
+    st = statistics(lost)
+    assert st["irregular"] and not st["regular_clock"] and st["off_even_clock_steps"] > 5
+    folder = _logged_session(tmp_path, lambda n: np.r_[_logger_stamps(n // 2), 0.2 + _logger_stamps(n - n // 2)
+                                                        + (n // 2) * 0.01])
+    _, cal, text = _gyro_chi2(tmp_path, folder)
+    assert cal["timestamps"]["used"] == "recorded" and "so they are kept" in text
+    write(tmp_path / "table", Scenario(), 1)
+    r = CliRunner().invoke(main, ["calibrate", str(tmp_path / "table"), "-o", str(tmp_path / "t.json"),
+                                  "--timestamps", "nominal"])
+    assert r.exit_code != 0 and "--timestamps nominal" in r.output + (r.stderr or "")
