@@ -44,6 +44,10 @@ def calibrate(folder, method="auto", acc_model="acc_baseline", gyro_model="gyro_
         raise CalibrationError(f"{ms.path / 'samples.csv'}: --t-ref-c {t_ref_c:g}, but there is no temp_c column for "
                                "temperature terms to take it from: leave --t-ref-c out")
     ms.temperature_ref_c = t_ref_c
+    curves = None
+    if noise is not None:  # the file checked before any work, its refusal naming it alone
+        from simucal.fit.noise import load_curves
+        curves = load_curves(noise)
     try:
         m = methods.choose(method, ms)
         stuck_channels(ms)
@@ -51,14 +55,10 @@ def calibrate(folder, method="auto", acc_model="acc_baseline", gyro_model="gyro_
         if "ids" in m.options:  # models and effects: imported only by the methods that fit them
             from simucal.fit.augmented import resolve_add
             acc_model, gyro_model, ids = resolve_add(ids, acc_model, gyro_model)
-        curves = None
-        if noise is not None:
-            from simucal.fit.noise import load_curves
-            curves = load_curves(noise)
-            for sensor, stated, flag in (("acc", acc_noise_g, "--acc-noise-g"), ("gyro", gyro_noise_dph, "--gyro-noise-dph")):
-                if stated is not None and curves.get(sensor) is not None:
-                    raise CalibrationError(f"--noise {noise} gives the {sensor} noise of every segment, and {flag} "
-                                           f"{stated:g} one row's: give one of them")
+        for sensor, stated, flag in (("acc", acc_noise_g, "--acc-noise-g"), ("gyro", gyro_noise_dph, "--gyro-noise-dph")):
+            if stated is not None and curves and curves.get(sensor) is not None:
+                raise CalibrationError(f"--noise {noise} gives the {sensor} noise of every segment, and {flag} "
+                                       f"{stated:g} one row's: give one of them")
         given = dict(acc_model=acc_model, gyro_model=gyro_model, ids=ids, auto="auto" in add, detect=detect,
                      acc_noise_g=acc_noise_g, gyro_noise_dph=gyro_noise_dph, heading_accuracy_deg=heading_accuracy_deg,
                      noise_curves=curves, rank=rank)
@@ -73,6 +73,8 @@ def calibrate(folder, method="auto", acc_model="acc_baseline", gyro_model="gyro_
                                    f"{' or '.join(takes)} ({' or '.join(sorted({methods.DATA[methods.METHODS[t].data] for t in takes}))}).")
         result = m.call(ms, **given)
         result.warnings += scale_notes(result, ms.meta)
+        result.warnings += [f"{noise}: holds no {s} curve, so the {s} noise is the data's own (--noise covers the "
+                            f"{' and '.join(curves)} only)" for s, _ in result.blocks() if curves and s not in curves]
         if stamps:
             result.details["timestamps"] = stamps
     except CalibrationError as e:
@@ -262,7 +264,8 @@ def _calibrate_thermal(folders, degree, t_ref_c, kwargs) -> Calibration:
                          [ms.sha256 for ms, _ in sets], cal.layout, t_ref_c=t_ref,
                          temperature_range_c=[float(T_all.min()), float(T_all.max())],
                          unification=cal.unification, not_calibrated=cal.not_calibrated,
-                         details=dict(cal.details))  # that plateau's checks (consistency, ...)
+                         details=dict(cal.details),  # that plateau's checks (consistency, ...)
+                         samples_sha256=[d for ms, _ in sets for d in ms.sample_digests()])
     if cal.method == "exact":
         _joint(result, sets, cal, degree, t_ref, kwargs)
     else:

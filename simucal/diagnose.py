@@ -64,7 +64,7 @@ def diagnose_sensor(ms, sensor, base_model, add=(), stated=None, truth=None, bef
     fit, obs, base, cands, shape, table_info = test_and_rank(model, obs, segs)
     if segs is None:
         segs = [io.Segment(i, "static", None, None, None, 0.0) for i in range(len(poses))]
-    out = {"baseline": base, "candidates": cands, "verdict": verdict(sensor, base, cands, str(ms.path), shape),
+    out = {"baseline": base, "candidates": cands, "verdict": verdict(sensor, base, cands, str(ms.path), shape, None),
            "params": fit.params, "std": fit.std, "param_units": dict(zip(model.params, model.param_units)),
            "residuals": residual_table(fit, obs, segs)}
     if shape:
@@ -105,6 +105,31 @@ def stream_summary(ms, max_points=4000):
             "static_detection": det.as_dict(t)}
 
 
+def scoring_truth(path) -> dict | None:
+    """A simulator's truth.json beside the set, read for scoring only (the errors of --add's parameters):
+    {sensor: {params: {name: number}, T: 3x3, bias_dps: 3}} with whatever is not of that shape left
+    out, and None where it is missing or unreadable (deep, damaged, not JSON): it is never an input."""
+    try:
+        d = json.loads(Path(path).read_text()) if Path(path).is_file() else None
+    except (OSError, UnicodeDecodeError, ValueError, RecursionError):
+        return None
+    number = lambda x: isinstance(x, (int, float)) and not isinstance(x, bool) and np.isfinite(x)
+    out = {}
+    for sensor, block in (d.items() if isinstance(d, dict) else ()):
+        if sensor not in ("acc", "gyro") or not isinstance(block, dict):
+            continue
+        params = block.get("params")
+        out[sensor] = {"params": {k: v for k, v in params.items() if number(v)} if isinstance(params, dict) else {}}
+        for key, shape in (("T", (3, 3)), ("bias_dps", (3,))):
+            try:
+                a = np.asarray(block[key], float)
+                if a.shape == shape and np.all(np.isfinite(a)):
+                    out[sensor][key] = a.tolist()
+            except (KeyError, TypeError, ValueError):
+                continue
+    return out
+
+
 def diagnose(folder, add=(), acc_model="acc_baseline", gyro_model="gyro_baseline",
              acc_noise_g=None, gyro_noise_dph=None, timestamps="auto") -> dict:
     """add: effect ids and model files (fit/augmented.resolve_add); timestamps: a stream's time
@@ -129,8 +154,7 @@ def _diagnose(ms, folder, add, acc_model, gyro_model, acc_noise_g, gyro_noise_dp
     stuck_channels(ms)
     before = {"acc": acc_model, "gyro": gyro_model}
     acc_model, gyro_model, ids = resolve_add(add, acc_model, gyro_model)
-    truth_path = folder / "truth.json"
-    truth = json.loads(truth_path.read_text()) if truth_path.is_file() else None  # scoring only
+    truth = scoring_truth(folder / "truth.json")
     result = {"format": "simucal.diagnosis/1", "input": str(folder), "alpha": ALPHA}
     for sensor, model, stated, has in (("acc", acc_model, acc_noise_g, ms.has_acc),
                                        ("gyro", gyro_model, gyro_noise_dph, ms.has_gyro)):

@@ -261,13 +261,28 @@ def validate(cal_path, data_dir) -> dict:
         far = sorted({x for c in rows for x in c.get("far_off") or []})
         if far and s in verdicts:
             verdicts[s] += f"; but {', '.join(far)} FAR OFF where the rest agree (mislabelled or disturbed)"
-    made_from = cal.input_sha256  # a thermal calibration's: one per plateau
-    same = ms.sha256 in (made_from if isinstance(made_from, list) else [made_from])
+    own = own_rows(cal, ms)
     return {"format": "simucal.validation/1", "calibration": str(cal_path), "data": str(ms.path),
-            "independent": not same, "checks": checks, "verdict": verdicts,
+            "independent": not own, "checks": checks, "verdict": verdicts,
             "warnings": list(meta.get("warnings", [])),  # apply's: rows outside the calibrated temperature range
-            "note": ("these are the data the calibration was made from: on its own rows a model always looks "
-                     "better; validate on another recording") if same else None}
+            "note": own or None}
+
+
+def own_rows(cal, ms) -> str:
+    """What of set ms the calibration was made from, said ("" if nothing): its samples' digests against
+    the calibration's samples_sha256 (per segment: an edit of meta.json, segments.csv or the number
+    format does not hide them, and a few of its segments copied into another set show), else, for a
+    file written before them, the files' input_sha256 (one per plateau for a thermal calibration)."""
+    made_from = cal.input_sha256 if isinstance(cal.input_sha256, list) else [cal.input_sha256]
+    mine = ms.sample_digests()
+    shared = sum(d in set(cal.samples_sha256 or ()) for d in mine)
+    if ms.sha256 in made_from or (mine and shared == len(mine)):
+        return ("these are the data the calibration was made from: on its own rows a model always looks better; "
+                "validate on another recording")
+    if shared:
+        return (f"{shared} of the {len(mine)} segments of these data are rows the calibration was made from (the "
+                "same samples): on its own rows a model always looks better; validate on another recording")
+    return ""
 
 
 def lines(report):

@@ -7,8 +7,8 @@ from pathlib import Path
 import click
 
 from simucal import methods
-from simucal.cli.common import (MODEL_FILE_RUNS, NOISE_DPH, NOISE_G, POSITIVE, SCHEDULER_TRUST, Number, fail, guard, main,
-                                refuse_unused)
+from simucal.cli.common import (MODEL_FILE_RUNS, NOISE_DPH, NOISE_G, POSITIVE, SCHEDULER_TRUST, InputPath, Number, fail,
+                                guard, main, refuse_unused)
 
 
 TIMESTAMPS = click.option(
@@ -26,7 +26,7 @@ _ADD_AUTO_HELP = (_ADD_HELP + " Also 'auto': the library effects a failing model
 
 
 @main.command()
-@click.argument("data_dirs", nargs=-1, required=True, type=click.Path(exists=True, file_okay=False))
+@click.argument("data_dirs", nargs=-1, required=True, type=InputPath(exists=True, file_okay=False))
 @click.option("-o", "--output", type=click.Path(), default="calibration.json", show_default=True,
               help="The calibration file; with several sets, a folder that gets one <set>.json each (with "
                    "--thermal: one file).")
@@ -58,7 +58,7 @@ _ADD_AUTO_HELP = (_ADD_HELP + " Also 'auto': the library effects a failing model
 @click.option("--add", "add", multiple=True, help=_ADD_AUTO_HELP)
 @click.option("--acc-noise-g", type=NOISE_G, default=None, help="Noise of one acc row (g), where the data cannot give it.")
 @click.option("--gyro-noise-dph", type=NOISE_DPH, default=None, help="Noise of one gyro row (deg/h).")
-@click.option("--noise", "noise_file", type=click.Path(exists=True, dir_okay=False), default=None,
+@click.option("--noise", "noise_file", type=InputPath(exists=True, dir_okay=False), default=None,
               help="A noise.json of simucal noise: each segment's noise from its Allan curve at the segment's length "
                    "(averaged rows: meta.json's average_s).")
 @TIMESTAMPS
@@ -108,7 +108,13 @@ def calibrate(data_dirs, output, thermal, thermal_degree, html_out, px4, ardupil
             click.echo(line)
         click.echo(f"wrote {output} (method {result.method})")
         return
+    _calibrate_batch(data_dirs, output, kwargs, inputs, scheduler)
+
+
+def _calibrate_batch(data_dirs, output, kwargs, inputs, scheduler):
+    """Several sets, one by one (on a scheduler): one <set>.json each into the folder -o."""
     from simucal import progress
+    from simucal.calibrate import calibrate_to_file
     from simucal.errors import CalibrationError
     from simucal.sweeps import map_tasks
     out = Path(output)
@@ -134,7 +140,8 @@ def calibrate(data_dirs, output, thermal, thermal_degree, html_out, px4, ardupil
             failed += 1
             click.echo(f"{d}: error: {error}", err=True)
         else:
-            tests = ", ".join(f"{k} p = {b.p_value:.3g}" for k, b in result.blocks() if b.p_value is not None)
+            tests = ", ".join(f"{k} p = {b.p_value:.3g}" + (": THE MODEL FAILS" if b.verdict == "fails" else "")
+                              for k, b in result.blocks() if b.p_value is not None)
             click.echo(f"{d}: wrote {path}" + (f" ({tests})" if tests else ""))
     click.echo(f"{len(tasks) - failed} of {len(tasks)} sets calibrated into {out}")
     if failed:
@@ -175,7 +182,7 @@ def _autopilot_files(result, data_dirs, px4, ardupilot):
 
 
 @main.command("field-drift")
-@click.argument("data_dir", type=click.Path(exists=True, file_okay=False))
+@click.argument("data_dir", type=InputPath(exists=True, file_okay=False))
 @click.option("-o", "--output", type=click.Path(dir_okay=False), default="drift.json", show_default=True,
               help="The calibration file (apply corrects the gyro drift with it).")
 @click.option("--plot", type=click.Path(dir_okay=False), default=None, help="PNG of each position's filter estimate (paper Fig. 4).")
@@ -235,7 +242,7 @@ def _write_shape_models(result, output):
 
 
 @main.command()
-@click.argument("data_dir", type=click.Path(exists=True, file_okay=False))
+@click.argument("data_dir", type=InputPath(exists=True, file_okay=False))
 @click.option("-o", "--output", type=click.Path(dir_okay=False), default="diagnosis.json", show_default=True)
 @click.option("--html", "html_path", type=click.Path(dir_okay=False), default=None, help="Also write a self-contained HTML report.")
 @click.option("--add", "add", multiple=True, help=_ADD_HELP)
@@ -270,6 +277,9 @@ def diagnose(data_dir, output, html_path, add, acc_model, gyro_model, acc_noise_
         click.echo(line)
     for line in _added_lines(result):
         click.echo(line)
+    from simucal.report.console import next_command
+    cmd, notes = next_command(result)
+    click.echo(f"next: {cmd}" + "".join(f" ({n})" for n in notes))
     for m in models:
         click.echo(f"wrote {m}: the found term as a model file; try: simucal diagnose {data_dir} --add {m}")
     click.echo(f"wrote {output}" + (f" and {html_path}" if html_path else ""))

@@ -37,7 +37,7 @@ class _Commands(click.Group):
                 fail(e)
             if os.environ.get("SIMUCAL_DEBUG"):
                 raise
-            click.echo(f"error: internal error ({type(e).__name__}: {e}); this is a bug in simucal: please report it "
+            click.echo(f"error: internal error ({type(e).__name__}: {_short(str(e))}); this is a bug in simucal: please report it "
                        "with the command and the data (SIMUCAL_DEBUG=1 shows the traceback)", err=True)
             sys.exit(3)
 
@@ -59,8 +59,18 @@ def main():
 
 def fail(e):
     """One line on stderr, exit 2: the refusal of bad input (nothing is written)."""
-    click.echo(f"error: {e.args[0] if isinstance(e, KeyError) and e.args else e}", err=True)
+    click.echo(f"error: {_short(str(e.args[0] if isinstance(e, KeyError) and e.args else e))}", err=True)
     sys.exit(2)
+
+
+LONGEST = 1500  # characters of a message: one that quotes a 10 MB cell or line is cut in its middle
+
+
+def _short(text: str) -> str:
+    """text of at most about LONGEST characters: a value quoted from hostile input is cut."""
+    if len(text) <= LONGEST:
+        return text
+    return f"{text[:LONGEST - 300]} ... ({len(text) - LONGEST:,} characters left out) ... {text[-300:]}"
 
 
 class _Refused(click.ClickException):
@@ -69,6 +79,17 @@ class _Refused(click.ClickException):
 
     def show(self, file=None):
         click.echo(f"error: {self.message}", err=True)
+
+
+class InputPath(click.Path):
+    """click.Path for an input that must exist, saying so where it is a symbolic link that leads nowhere
+    (a loop of links, or a missing target), which click calls a file that does not exist."""
+
+    def convert(self, value, param, ctx):
+        if isinstance(value, (str, os.PathLike)) and os.path.islink(value) and not os.path.exists(value):
+            self.fail(f"{os.fspath(value)!r} is a symbolic link that leads nowhere (a loop of links, or its target is "
+                      "missing): give the file or folder itself", param, ctx)
+        return super().convert(value, param, ctx)
 
 
 class Number(click.ParamType):
@@ -133,7 +154,7 @@ def rates_dps(text: str) -> list[float]:
 
 
 EFFECT_FILE = click.option(
-    "--effect-file", default=None, type=click.Path(dir_okay=False),
+    "--effect-file", default=None, type=InputPath(exists=True, dir_okay=False),
     help="A model file of your own terms (MODELS = [...]); its models become the truth models (in montecarlo "
          "the fitted ones too). " + MODEL_FILE_RUNS)
 SETS = click.option("--set", "sets", multiple=True, metavar="NAME=VALUE",

@@ -13,6 +13,7 @@ from simucal.cli.common import (
     POSITIVE,
     SEED,
     SIM_RATE_HZ,
+    InputPath,
     Number,
     fail,
     guard,
@@ -116,7 +117,7 @@ def simulate(out_dir, output, scenario, heading_error_deg, seed, plan, rate_hz, 
 
 @main.command("import")
 @click.argument("fmt", type=click.Choice(["imu_tk", "imucal-ferraris", "imucal-annotated", "csv"]))
-@click.argument("sources", nargs=-1, required=True, type=click.Path(exists=True, dir_okay=False))
+@click.argument("sources", nargs=-1, required=True, type=InputPath(exists=True, dir_okay=False))
 @click.option("-o", "--output", "--out-dir", "out_dir", required=True, type=click.Path(file_okay=False),
               help="The output folder (a measurement set).")
 @click.option("--latitude-deg", type=LATITUDE, default=None, help="Site latitude (the spec needs it with gyro data).")
@@ -164,8 +165,8 @@ def import_cmd(fmt, sources, out_dir, latitude_deg, acc_counts_per_g, gyro_count
 
 
 @main.command("apply")
-@click.argument("calibration_file", type=click.Path(exists=True, dir_okay=False))
-@click.argument("data_dir", type=click.Path(exists=True, file_okay=False))
+@click.argument("calibration_file", type=InputPath(exists=True, dir_okay=False))
+@click.argument("data_dir", type=InputPath(exists=True, file_okay=False))
 @click.option("-o", "--output", "--out-dir", "out_dir", required=True, type=click.Path(file_okay=False),
               help="The output folder (a measurement set).")
 @FORCE
@@ -188,8 +189,8 @@ def apply_cmd(calibration_file, data_dir, out_dir, force):
 
 
 @main.command()
-@click.argument("calibration_file", type=click.Path(exists=True, dir_okay=False))
-@click.argument("data_dir", type=click.Path(exists=True, file_okay=False))
+@click.argument("calibration_file", type=InputPath(exists=True, dir_okay=False))
+@click.argument("data_dir", type=InputPath(exists=True, file_okay=False))
 @click.option("-o", "--output", type=click.Path(dir_okay=False), default="validation.json", show_default=True)
 @click.option("--html", "html_path", type=click.Path(dir_okay=False), default=None, help="Also write a page with a plot.")
 def validate(calibration_file, data_dir, output, html_path):
@@ -214,7 +215,7 @@ def validate(calibration_file, data_dir, output, html_path):
 
 
 @main.command()
-@click.argument("data_dir", type=click.Path(exists=True, file_okay=False))
+@click.argument("data_dir", type=InputPath(exists=True, file_okay=False))
 @click.option("-o", "--output", type=click.Path(dir_okay=False), default="noise.json", show_default=True)
 @click.option("--html", "html_path", type=click.Path(dir_okay=False), default=None,
               help="Also write a page with the Allan deviation plot.")

@@ -17,6 +17,7 @@ from simucal.cli.common import (
     SCHEDULER_TRUST,
     SEED,
     SETS,
+    InputPath,
     Number,
     fail,
     guard,
@@ -28,7 +29,7 @@ from simucal.cli.common import (
 
 @main.command()
 @click.option("--check", is_flag=True, help="Fail if generated/ differs from what derive writes now.")
-@click.option("--model", "model_files", multiple=True, type=click.Path(exists=True, dir_okay=False),
+@click.option("--model", "model_files", multiple=True, type=InputPath(exists=True, dir_okay=False),
               help="A Python file defining MODELS = [ErrorModel, ...]: derived into the cache "
                    "(not generated/), then usable by name from any folder. " + MODEL_FILE_RUNS)
 def derive(check, model_files):
@@ -319,7 +320,7 @@ def plan(score_plan, model_name, add, positions, criterion, rate_dps, rates, kin
 @main.command()
 @click.option("-o", "--output", "--json", "json_path", type=click.Path(dir_okay=False), default=None,
               help="Also write the figures as JSON.")
-@click.option("--before", type=click.Path(exists=True, dir_okay=False), default=None,
+@click.option("--before", type=InputPath(exists=True, dir_okay=False), default=None,
               help="A previous run's -o (e.g. benchmarks/bench_4a889b5.json), printed beside this run's figures.")
 @click.option("--quick", is_flag=True,
               help="Run every step at a size of seconds (a check that the bench runs; its figures measure nothing).")

@@ -13,6 +13,7 @@ import warnings
 
 import numpy as np
 
+from simucal.errors import CalibrationError
 from simucal.fit.aux_inputs import SENSOR_AUX, AuxInputs
 from simucal.fit.catalog import derive_model_file, load
 from simucal.fit.models import GeneratedModel
@@ -61,6 +62,28 @@ class AugmentedModel:
         self.meanings = tuple(self.base.meanings) + tuple(EFFECTS[e].meaning for e in self.effects)
         self.aux = self.base.aux
         self._m = len(self.base.params)
+        if self.effects and self.base.source != "built-in":
+            self._check_no_term_twice()
+
+    def _check_no_term_twice(self, rows=48):
+        """Refuse a library effect that is one of the model file's own terms (their regressors agree at
+        random inputs up to a factor): the fit cannot tell the two apart, and would blame the plan."""
+        rng = np.random.default_rng(0)
+        u = rng.normal(size=(rows, 3))
+        u *= (1.0 if self.sensor == "acc" else 1e4) / np.linalg.norm(u, axis=1, keepdims=True)
+        names = set(self.base.aux) | set(SENSOR_AUX[self.sensor])
+        _, _, Jp = self.jacobians(u, np.zeros(len(self.params)), AuxInputs({n: rng.uniform(-1, 1, rows)
+                                                                             for n in names}))
+        cols = Jp.reshape(-1, Jp.shape[-1])
+        cols = cols / np.maximum(np.linalg.norm(cols, axis=0), 1e-300)
+        own = [self.params.index(n) for n in self.model_file_terms]
+        for k, e in enumerate(self.effects, start=self._m):
+            same = [self.params[i] for i in own if abs(cols[:, i] @ cols[:, k]) > 1 - 1e-9]
+            if same:
+                raise CalibrationError(
+                    f"the library effect {e} and the term {same[0]} of model {self.base.name} (your model file) "
+                    f"are the same term: no data can tell them apart; keep one (leave {e} out of --add/--effect, "
+                    f"or {same[0]} out of the model file)")
 
     @property
     def model_file_terms(self) -> tuple[str, ...]:

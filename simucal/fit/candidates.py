@@ -238,6 +238,12 @@ def _fmt_test(base):
     return t + rows + (f", p = {base['p_value']:.2g}" if base["p_value"] is not None else "")
 
 
+def _add_it(command, where, eid) -> str:
+    """The command that adds one effect; with command None the option alone (the diagnosis prints one
+    command with every --add after the verdicts: report/html.next_command)."""
+    return f"simucal {command} {where} --add {eid}" if command else f"--add {eid}"
+
+
 def verdict(sensor, base, cands, where="DIR", shape=None, command="diagnose") -> str:
     unit = base.get("residual_unit", "")
     rms = f"residual rms {base['residual_rms']:.3g} {unit}".rstrip()
@@ -265,12 +271,12 @@ def verdict(sensor, base, cands, where="DIR", shape=None, command="diagnose") ->
         text += (f" {'The best library effect, explaining less' if generic else 'Most likely missing'}: {c['id']} "
                  f"({c['meaning']}), estimate {c['estimate']:.3g} +- {c['std']:.2g} {c['unit']}, LR "
                  f"{c['statistic']:.1f}, p = {c['p_value']:.2g}."
-                 + ("" if generic else f" Add it: simucal {command} {where} --add {c['id']}.{more}"))
+                 + ("" if generic else f" Add it: {_add_it(command, where, c['id'])}.{more}"))
     elif not shape:
         text += (" No candidate explains it; the missing effect is not in the library (or the plan cannot "
                  "separate it).")
     if shape and shape.get("catalog_id"):
         text += (f" The residual looks like a term {shape['text']} (rms {shape['residual_rms_after']:.3g} {unit} "
                  f"without it): that is the library's {shape['catalog_id']}, too weak alone to pass the gate over "
-                 f"every candidate; try it: simucal {command} {where} --add {shape['catalog_id']}.")
+                 f"every candidate; try it: {_add_it(command, where, shape['catalog_id'])}.")
     return text

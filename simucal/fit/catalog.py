@@ -21,6 +21,7 @@ import json
 import os
 import subprocess
 import sys
+import time
 import traceback
 import types
 from pathlib import Path
@@ -74,7 +75,12 @@ def derive_model_file(path) -> tuple[list[str], bool]:
     A model file is Python: its code runs when it is derived, as any plugin's does. It runs
     once, in a child process with a time limit (SIMUCAL_DERIVE_TIMEOUT_S, default 120 s);
     afterwards the cache is keyed by the file's bytes and the file is never run again."""
+    if Path(path).is_symlink() and not Path(path).exists():  # resolve() would raise on a loop
+        raise FileNotFoundError(f"{path}: a symbolic link that leads nowhere (a loop of links, or its target is "
+                                "missing): give the model file itself")
     path = Path(path).resolve()
+    if path.is_dir():
+        raise FileNotFoundError(f"{path}: a folder, where a model file (Python with MODELS = [...]) is expected")
     if not path.is_file():
         raise FileNotFoundError(f"{path}: no such model file")
     key = _key(path)
@@ -84,16 +90,7 @@ def derive_model_file(path) -> tuple[list[str], bool]:
     if derived:
         folder = cache.own_folder(f"models/{key}")
         found = folder / "manifest.json"
-        limit = derive_timeout_s()
-        if sys.stderr.isatty():  # a few seconds of silence otherwise
-            print(f"deriving {path} with SymPy (its code runs once, in a child process, at most {limit:g} s)",
-                  file=sys.stderr)
-        try:
-            child = subprocess.run([sys.executable, "-m", "simucal.fit.catalog", str(path), str(folder)],
-                                   capture_output=True, text=True, timeout=limit)
-        except subprocess.TimeoutExpired:
-            raise ModelFileError(f"{path}: deriving it took more than {limit:g} s (a loop that never ends?); "
-                                 "fix the file, or allow more time with SIMUCAL_DERIVE_TIMEOUT_S") from None
+        child = _run_child(path, folder, derive_timeout_s())
         if child.returncode:
             lines = [x for x in child.stderr.splitlines() if x.strip()]
             raise ModelFileError(lines[-1] if child.returncode == 2 and lines else
@@ -108,6 +105,33 @@ def derive_model_file(path) -> tuple[list[str], bool]:
     _write_atomic(models_dir() / "index.json", json.dumps(index, indent=2, sort_keys=True) + "\n")
     load.cache_clear()
     return names, derived
+
+
+def _run_child(path: Path, folder: Path, limit: float) -> subprocess.CompletedProcess:
+    """Run the model file and derive it in a child process, said at once with its limit and followed
+    by its seconds (progress.Wait); killed, and refused, at the limit."""
+    from simucal.progress import Wait
+    wait = Wait(f"deriving {path} with SymPy: its code runs once, in a child process, for at most {limit:g} s "
+                "(SIMUCAL_DERIVE_TIMEOUT_S)", limit, f"deriving {path.name}")
+    start = time.monotonic()
+    try:
+        with subprocess.Popen([sys.executable, "-m", "simucal.fit.catalog", str(path), str(folder)],
+                              stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True) as child:
+            while True:
+                left = limit - (time.monotonic() - start)
+                try:
+                    out, err = child.communicate(timeout=max(min(wait.step_s, left), 0.01))
+                    return subprocess.CompletedProcess(child.args, child.returncode, out, err)
+                except subprocess.TimeoutExpired:
+                    if left <= wait.step_s:
+                        child.kill()
+                        child.communicate()
+                        raise ModelFileError(f"{path}: deriving it took more than {limit:g} s (a loop that never "
+                                             "ends?); fix the file, or allow more time with "
+                                             "SIMUCAL_DERIVE_TIMEOUT_S") from None
+                    wait.tick(time.monotonic() - start)
+    finally:
+        wait.close()
 
 
 def _derive_into(path: Path, folder: Path) -> None:

@@ -32,23 +32,75 @@ def quantization_step(x, whole=None):
     return np.array(steps)
 
 
-def load_curves(path) -> dict:
-    """{sensor: curve} from a noise.json of `simucal noise`: curve(tau_s) is the std of a tau-long mean
-    per axis (3,), from the fitted IEEE 952 terms, sigma(tau) = sqrt(sum_k term_k^2 column_k(tau)) in
-    g or deg/h: what `calibrate --noise` takes as the noise of each segment's mean. Beyond the longest
-    tau measured (curve.tau_max_s) a short record's terms of long averages (bias instability, random
-    walk, ramp) are fitted from its last few taus, often by chance: there the curve goes on as white
-    noise, sigma(tau_max) sqrt(tau_max / tau), but for the long terms measured MEASURED stds from 0,
-    which follow their own law; calibrate says so."""
+UNITS = {"acc": "g", "gyro": "deg/h"}  # the unit of a report's terms, as `simucal noise` writes them
+REWRITE = "write it again with simucal noise STILL_RECORDING -o noise.json"
+
+
+def read_report(path) -> dict:
+    """A noise.json of `simucal noise`, checked entry by entry before any number is used: per sensor its
+    unit (g, deg/h), its tau_s (finite, positive) and per axis x, y, z the five terms Q N B K R, each a
+    finite number >= 0, not all zero. Refused in one line naming the file, the entry and the fix."""
     import json
     from pathlib import Path
+
+    from simucal.io.text_files import unique_keys
+
+    def bad(entry, what):
+        return CalibrationError(f"{path}: {entry} {what}; {REWRITE}")
+    p = Path(path)
+    if p.is_dir():
+        raise CalibrationError(f"{path}: a folder, where a noise.json of simucal noise is expected")
     try:
-        rep = json.loads(Path(path).read_text())
-    except (OSError, UnicodeDecodeError, json.JSONDecodeError) as e:
-        raise CalibrationError(f"{path}: not a readable noise report ({e})") from None
+        rep = json.loads(p.read_text(), object_pairs_hook=unique_keys)  # a term twice: which one is meant?
+    except (OSError, UnicodeDecodeError, ValueError, RecursionError) as e:  # ValueError: JSON's, a 5000-digit int
+        raise CalibrationError(f"{path}: not a readable noise report ({type(e).__name__}: "
+                               f"{str(e)[:120] or 'nested too deep'}); {REWRITE}") from None
     if not isinstance(rep, dict) or rep.get("format") != "simucal.noise/1":
-        raise CalibrationError(f"{path}: not a report of simucal noise (format simucal.noise/1); write one with "
-                               "simucal noise STILL_RECORDING -o noise.json")
+        raise CalibrationError(f"{path}: not a report of simucal noise (format simucal.noise/1); {REWRITE}")
+    if not any(s in rep for s in UNITS):
+        raise bad("the report", "holds neither acc nor gyro")
+    for sensor in (s for s in UNITS if s in rep):
+        block = rep[sensor]
+        if not isinstance(block, dict):
+            raise bad(sensor, f"is a {type(block).__name__}, not an object with unit, tau_s and axes")
+        if block.get("unit") != UNITS[sensor]:
+            raise bad(f"{sensor}.unit", f"is {block.get('unit')!r}, not {UNITS[sensor]!r} (the terms must be in "
+                      f"{UNITS[sensor]}, as simucal noise writes them)")
+        tau = block.get("tau_s")
+        if not isinstance(tau, list) or not tau or not all(_number(t) and t > 0 for t in tau):
+            raise bad(f"{sensor}.tau_s", "is not a list of positive numbers (seconds)")
+        axes = block.get("axes")
+        for a in "xyz":
+            if not isinstance(axes, dict) or not isinstance(axes.get(a), dict):
+                raise bad(f"{sensor}.axes.{a}", "is missing (every axis x, y, z needs its terms)")
+            if "stuck" in axes[a]:  # a dead channel in the recording: load_curves names it
+                continue
+            terms = axes[a].get("terms")
+            if not isinstance(terms, dict) or set(terms) != set(TERMS):
+                raise bad(f"{sensor}.axes.{a}.terms", f"must hold exactly the terms {', '.join(TERMS)}")
+            for k in TERMS:
+                if not _number(terms[k]) or terms[k] < 0:
+                    raise bad(f"{sensor}.axes.{a}.terms.{k}", f"is {terms[k]!r}: a term is a finite number >= 0 "
+                              f"(in {UNITS[sensor]} times s^a)")
+            if not any(terms.values()):
+                raise bad(f"{sensor}.axes.{a}.terms", "are all zero: a sensor without noise is no measurement")
+    return rep
+
+
+def _number(x) -> bool:
+    """A finite JSON number (not a string, a bool, NaN or infinity)."""
+    return isinstance(x, (int, float)) and not isinstance(x, bool) and bool(np.isfinite(x))
+
+
+def load_curves(path) -> dict:
+    """{sensor: curve} from a noise.json of `simucal noise` (read_report): curve(tau_s) is the std of a
+    tau-long mean per axis (3,), from the fitted IEEE 952 terms, sigma(tau) = sqrt(sum_k term_k^2
+    column_k(tau)) in g or deg/h: what `calibrate --noise` takes as the noise of each segment's mean.
+    Beyond the longest tau measured (curve.tau_max_s) a short record's terms of long averages (bias
+    instability, random walk, ramp) are fitted from its last few taus, often by chance: there the curve
+    goes on as white noise, sigma(tau_max) sqrt(tau_max / tau), but for the long terms measured MEASURED
+    stds from 0, which follow their own law; calibrate says so. curve.source names the file."""
+    rep = read_report(path)
     out = {}
     for sensor in ("acc", "gyro"):
         if sensor in rep:
@@ -69,6 +121,7 @@ def load_curves(path) -> dict:
                                + allan_deviation(kept, t) ** 2 - allan_deviation(kept, at) ** 2 * at / t)
                 return np.sqrt(np.array(var).T).squeeze()
             curve.tau_max_s = tau_max
+            curve.source = str(path)
             out[sensor] = curve
     return out
 
@@ -79,8 +132,10 @@ MEASURED = 10.0  # a long-average term carried past the last tau only where it i
 
 def _measured_long(axis: dict) -> set:
     """The long-average terms of one axis of a noise report that stand MEASURED stds from zero."""
-    sheet = axis.get("sheet", {})
-    return {k for k in LONG_TERMS if sheet.get(k, {}).get("std") and sheet[k]["value"] >= MEASURED * sheet[k]["std"]}
+    sheet = axis.get("sheet") if isinstance(axis.get("sheet"), dict) else {}
+    rows = {k: sheet[k] for k in LONG_TERMS if isinstance(sheet.get(k), dict)}  # a damaged sheet measures nothing
+    return {k for k, r in rows.items() if _number(r.get("std")) and _number(r.get("value")) and r["std"] > 0
+            and r["value"] >= MEASURED * r["std"]}
 
 
 def allan_deviation(terms: dict, tau_s) -> np.ndarray:

@@ -77,7 +77,7 @@ def _check_inputs(model, obs: Observations):
     check_not_coplanar(obs.N, model.sensor)
 
 
-def check_not_coplanar(N, sensor, where=""):
+def check_not_coplanar(N, sensor, where="", axes="the output axes"):
     """Refuse outputs whose input directions all lie in one plane (a great or a small circle):
     the scale, misalignment and bias along its normal cannot be told apart by the norm. Outputs
     are an affine image of the inputs, so the plane shows in their own covariance; the fit's
@@ -90,7 +90,7 @@ def check_not_coplanar(N, sensor, where=""):
         raise CalibrationError(
             f"{where}the {len(N)} {sensor} input directions lie in one plane (spread across it "
             f"{np.sqrt(max(spread[0], 0)):.2g} against {np.sqrt(spread[-1]):.2g} along it; normal "
-            f"{np.round(normal[:, 0], 2).tolist()} in the output axes): the scale, misalignment and bias along that "
+            f"{np.round(normal[:, 0], 2).tolist()} in {axes}): the scale, misalignment and bias along that "
             "normal are unobservable; add positions tilted out of that plane")
 
 

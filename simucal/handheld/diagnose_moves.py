@@ -138,7 +138,7 @@ def diagnose_moves(ms, obs, det, am, fa, add=(), truth=None, alpha=0.01):
     vec = lambda f: np.r_[f.T.ravel(), (gm.bias + f.db) * DPH_PER_DPS, f.p]
     std = lambda f: np.sqrt(np.diag(f.cov)) * np.r_[np.ones(9), np.full(3, DPH_PER_DPS), np.ones(len(f.p))]
     out = {"baseline": block, "candidates": cands, "misfit_shares": shares,
-           "verdict": verdict("gyro (moves)", block, cands, str(ms.path)) + (_shares_text(shares, ms.path) if shares else ""),
+           "verdict": verdict("gyro (moves)", block, cands, str(ms.path), command=None) + (_shares_text(shares, ms.path) if shares else ""),
            "params": dict(zip(names, vec(fit).tolist())), "std": dict(zip(names, std(fit).tolist())),
            "param_units": {"T": "1 (deg/s of rate per deg/s of output)", "b": "deg/h"},
            "residuals": move_rows(gm, fit, S, columns), "residual_unit": "gravity direction (unit vector), per move",
@@ -166,7 +166,7 @@ def _shares_text(shares, where) -> str:
         return ""
     return (f" Together, {', '.join(x['id'] for x in s)} ({len(s)} effects, chosen one by one) explain "
             f"{100 * (1 - shares['unexplained']):.1f} % of the misfit (chi2 {s[-1]['chi2_after']:.1f} on "
-            f"{s[-1]['dof_after']} dof, residual rms {s[-1]['residual_rms_after']:.3g}): simucal calibrate {where} "
+            f"{s[-1]['dof_after']} dof, residual rms {s[-1]['residual_rms_after']:.3g}): add them, "
             + " ".join(f"--add {x['id']}" for x in s) + ".")
 
 

@@ -7,6 +7,7 @@ from __future__ import annotations
 
 import csv
 import io as _io
+import hashlib
 import json
 import re
 from dataclasses import dataclass
@@ -15,8 +16,9 @@ from pathlib import Path
 import numpy as np
 
 from simucal.io import outputs, units
-from simucal.io.text_files import (MeasurementSetError, body_of, cell, check_delimiter, decoded, files_sha256,
-                                     not_a_folder, number, read_text)
+from simucal.io.text_files import (MeasurementSetError, RepeatedKey, body_of, cell, check_delimiter, csv_refusal,
+                                     decoded, ends_with_a_line_end, files_sha256, no_repeated_columns, not_a_folder,
+                                     number, read_text, unique_keys)
 
 FORMAT = "simucal.measurements/1"
 SAMPLE_COLS = ("ax", "ay", "az", "gx", "gy", "gz")
@@ -81,6 +83,23 @@ class MeasurementSet:
         groups = self._once("rows", ("segment",), lambda: group_rows(self.samples["segment"]))
         return groups.get(segment, np.zeros(0, int))
 
+    def sample_digests(self) -> list[str]:
+        """Per segment (a stream: one for the whole), the first 16 hex digits of the SHA-256 of its sensor
+        outputs' numbers (float64, the columns of ax..gz present, one after the other): the samples themselves,
+        whatever meta.json, segments.csv, t_s or the number format say. A calibration records them
+        (samples_sha256) and validate finds its own rows by them."""
+        cols = [np.asarray(self.samples[c], "<f8") for c in ("ax", "ay", "az", "gx", "gy", "gz") if c in self.samples]
+        out = []
+        for rows in [slice(None)] if self.segments is None else [self.rows(s.segment) for s in self.segments]:
+            if not isinstance(rows, slice) and len(rows) and rows[-1] - rows[0] + 1 == len(rows):
+                rows = slice(rows[0], rows[-1] + 1)  # a segment's rows in one run, as recorded: a view, no copy
+            h = hashlib.sha256()
+            for c in cols:  # column by column
+                h.update(np.ascontiguousarray(c[rows]).data)
+            if len(cols[0][rows]):
+                out.append(h.hexdigest()[:16])
+        return out
+
     def _once(self, name, cols, make):
         """make(), formed once per set of columns and meta.json (the methods ask many times; at 300,000
         rows each costs milliseconds). Arrays are made read-only: callers share them."""
@@ -105,10 +124,19 @@ def read_meta(folder: Path) -> dict:
     path = not_a_folder(folder / "meta.json")
     if not path.is_file():
         raise MeasurementSetError(path, None, "missing: a measurement set needs meta.json")
+    text = read_text(path)
     try:
-        meta = json.loads(read_text(path))
+        meta = json.loads(text, object_pairs_hook=unique_keys)
     except json.JSONDecodeError as e:
         raise MeasurementSetError(path, e.lineno, f"not valid JSON: {e.msg}") from None
+    except RepeatedKey as e:
+        raise MeasurementSetError(path, None, str(e)) from None
+    except ValueError as e:  # a number of thousands of digits
+        raise MeasurementSetError(path, None, f"not readable JSON ({str(e)[:80]})") from None
+    except RecursionError:
+        raise MeasurementSetError(path, None, "nested too deep to read (arrays or objects within each other "
+                                              "thousands of levels down): meta.json is one flat object of the "
+                                              "spec's keys") from None
     if not isinstance(meta, dict):
         raise MeasurementSetError(path, None, "must hold a JSON object ({...})")
     if meta.get("format") != FORMAT:
@@ -121,40 +149,54 @@ def read_segments(folder: Path) -> list[Segment] | None:
     path = not_a_folder(folder / "segments.csv")
     if not path.is_file():
         return None
-    out, seen = [], set()
     text = read_text(path)
     check_delimiter(path, text)
+    ends_with_a_line_end(path, text.encode())
     with _io.StringIO(text, newline="") as fh:
         reader = csv.DictReader(fh)
-        missing = [c for c in ("segment", "kind") if c not in (reader.fieldnames or [])]
-        if missing:
-            raise MeasurementSetError(path, 1, f"header lacks columns {missing}")
-        for line, row in enumerate(reader, start=2):
-            sid = cell(row, "segment", path, line)
-            try:
-                sid = int(sid)
-            except ValueError:
-                raise MeasurementSetError(path, line, f"segment {sid!r} is not an integer") from None
-            if sid in seen:
-                raise MeasurementSetError(path, line, f"segment {sid} appears twice (ids must be unique)")
-            seen.add(sid)
-            kind = cell(row, "kind", path, line)
-            if kind not in ("static", "rate"):
-                raise MeasurementSetError(path, line, f"kind must be 'static' or 'rate', got {kind!r}")
-            vals = {}
-            for col in ("outer_deg", "middle_deg", "inner_deg", "outer_rate_dps", "heading_ref_deg"):
-                text = cell(row, col, path, line, required=False)
-                vals[col] = None if text is None else number(text, path, line, col)
-            for col, limit, what in (("heading_ref_deg", 360.0, "an azimuth in degrees, -360..360"),
-                                     ("outer_rate_dps", 2000.0, "deg/s, |rate| <= 2000: no table turns faster")):
-                if vals[col] is not None and abs(vals[col]) > limit:
-                    raise MeasurementSetError(path, line, f"{col} is {vals[col]:g}, but it is {what}; check the "
-                                                          "column's unit (degrees and deg/s)")
-            rate = vals["outer_rate_dps"] or 0.0
-            if kind == "rate" and rate == 0.0:
-                raise MeasurementSetError(path, line, "a rate segment needs a non-zero outer_rate_dps")
-            out.append(Segment(sid, kind, vals["outer_deg"], vals["middle_deg"], vals["inner_deg"],
-                               rate, vals["heading_ref_deg"]))
+        try:
+            return _segment_rows(path, reader)
+        except csv.Error as e:
+            raise csv_refusal(path, reader.line_num or 1, e) from None
+
+
+def _segment_rows(path, reader) -> list[Segment]:
+    """segments.csv's rows, each checked against the spec."""
+    out, seen = [], set()
+    no_repeated_columns(path, [h.strip() for h in reader.fieldnames or []])
+    missing = [c for c in ("segment", "kind") if c not in (reader.fieldnames or [])]
+    if missing:
+        raise MeasurementSetError(path, 1, f"header lacks columns {missing}")
+    for line, row in enumerate(reader, start=2):
+        sid = cell(row, "segment", path, line)
+        try:
+            sid = int(sid)
+        except ValueError:
+            raise MeasurementSetError(path, line, f"segment {sid!r} is not an integer") from None
+        if sid in seen:
+            raise MeasurementSetError(path, line, f"segment {sid} appears twice (ids must be unique)")
+        seen.add(sid)
+        kind = cell(row, "kind", path, line)
+        if kind not in ("static", "rate"):
+            raise MeasurementSetError(path, line, f"kind must be 'static' or 'rate', got {kind!r}")
+        vals = {}
+        for col in ("outer_deg", "middle_deg", "inner_deg", "outer_rate_dps", "heading_ref_deg"):
+            text = cell(row, col, path, line, required=False)
+            vals[col] = None if text is None else number(text, path, line, col)
+        for col, limit, what in (("heading_ref_deg", 360.0, "an azimuth in degrees, -360..360"),
+                                 ("outer_rate_dps", 2000.0, "deg/s, |rate| <= 2000: no table turns faster")):
+            if vals[col] is not None and abs(vals[col]) > limit:
+                raise MeasurementSetError(path, line, f"{col} is {vals[col]:g}, but it is {what}; check the "
+                                                      "column's unit (degrees and deg/s)")
+        rate = vals["outer_rate_dps"] or 0.0
+        if kind == "rate" and rate == 0.0:
+            raise MeasurementSetError(path, line, "a rate segment needs a non-zero outer_rate_dps")
+        if kind == "static" and rate != 0.0:
+            raise MeasurementSetError(path, line, f"a static segment with outer_rate_dps {rate:g}: static means "
+                                                  "the table at rest (rate blank or 0); if it turned, make its "
+                                                  "kind rate, else clear its rate")
+        out.append(Segment(sid, kind, vals["outer_deg"], vals["middle_deg"], vals["inner_deg"],
+                           rate, vals["heading_ref_deg"]))
     if not out:
         raise MeasurementSetError(path, None, "no segments")
     _angles_in_degrees(path, out)
@@ -185,6 +227,7 @@ def read_samples(folder: Path, segments) -> tuple[dict, bytes]:
         raise MeasurementSetError(path, 1, "empty file")
     if not raw.isascii():
         decoded(path, body)  # names the line of a byte that is not UTF-8
+    ends_with_a_line_end(path, body)
     header = _header(path, body)
     cols, others = _sample_columns(path, header, segments)
     fast = _fast_numeric(body, header, cols + others)
@@ -192,8 +235,11 @@ def read_samples(folder: Path, segments) -> tuple[dict, bytes]:
         return _check_samples(fast, path, segments), raw
     with _io.StringIO(decoded(path, body), newline="") as fh:
         reader = csv.reader(fh)
-        next(reader)
-        return _check_samples(_careful(reader, path, header, cols, others), path, segments), raw
+        try:
+            next(reader)
+            return _check_samples(_careful(reader, path, header, cols, others), path, segments), raw
+        except csv.Error as e:
+            raise csv_refusal(path, reader.line_num, e) from None
 
 
 def _header(path, body) -> list[str]:
@@ -208,18 +254,17 @@ def _header(path, body) -> list[str]:
     text = decoded(path, body)
     check_delimiter(path, text)
     with _io.StringIO(text, newline="") as fh:
-        return [h.strip() for h in next(csv.reader(fh), [])]
+        try:
+            return [h.strip() for h in next(csv.reader(fh), [])]
+        except csv.Error as e:
+            raise csv_refusal(path, 1, e) from None
 
 
 def _sample_columns(path, header, segments) -> tuple[list, list]:
     """(the spec's columns present, further numeric columns: auxiliary inputs a user's error model
     may read, such as supply_v; a column holding anything else, a note or a label, is left out),
     with the header's rules checked."""
-    dup = [c for c in dict.fromkeys(header) if header.count(c) > 1]
-    if dup:
-        where = [i + 1 for i, c in enumerate(header) if c == dup[0]]
-        raise MeasurementSetError(path, 1, f"column {dup[0]} appears {len(where)} times (columns "
-                                           f"{', '.join(map(str, where))}): which one is the data? keep one")
+    no_repeated_columns(path, header)
     _sensor_like_columns(path, header)
     if "t_s" not in header:
         raise MeasurementSetError(path, 1, "header lacks column t_s")

@@ -6,6 +6,8 @@ nominal scale factors of the data's meta.json (so for `counts` a raw ADC offset 
 `bias` as offset / counts_per_g, in g). Top level:
 
     format, method, input, input_sha256 (lists for a thermal calibration: one per plateau)
+    samples_sha256  a digest of each segment's sensor outputs (MeasurementSet.sample_digests):
+                validate finds the calibration's own rows by them, whatever else was edited
     layout      the data's units and nominal scale factors; apply refuses data
                 with another layout (another sensor or unit)
     formula     how an output relates to its input (below), per sensor
@@ -28,8 +30,9 @@ Each sensor block (`SensorBlock`):
     C_b_model    the rotation from b to the model's own frame (gyro: C_b^d), so
                  output = h(C_b_model u_b, p)
     thermal      a thermal calibration's polynomials (fit/thermal.py)
-    residual_rms, residual_unit, chi2, dof, p_value, and what the method reports
-                 (test, noise, verdict, cross_validation, auto, ...; a norm fit's
+    residual_rms, residual_unit, chi2, dof, p_value, verdict (passes, fails, untested
+                 or nominal: SensorBlock.verdict), and what the method reports
+                 (test, noise, cross_validation, auto, ...; a norm fit's
                  `covariance` {names, matrix} of its parameters, unscaled by a misfit,
                  which validate propagates into its floors)
 
@@ -47,6 +50,7 @@ import numpy as np
 
 from simucal.io import outputs
 from simucal.io.calibration_checks import CalibrationFileError, check_file, layout
+from simucal.io.text_files import unique_keys
 
 FORMAT = "simucal.calibration/2"
 FORMULA = {
@@ -87,7 +91,7 @@ def _plain(x):
 @dataclass(eq=False)
 class SensorBlock:
     """One sensor's calibration (module doc). details: what the method reports about its fit,
-    written beside the fields (test, noise, verdict, auto, moves, ...)."""
+    written beside the fields (test, noise, auto, moves, ...)."""
     model: str                 # a generated model's name, or "affine"
     M: np.ndarray              # (3, 3), frame b
     bias: np.ndarray           # (3,), bias_unit
@@ -124,6 +128,17 @@ class SensorBlock:
 
     ALWAYS = ("residual_rms", "residual_unit", "chi2", "dof", "p_value")  # written as null where there is no test
 
+    @property
+    def verdict(self) -> str:
+        """The model test's verdict, written as the block's `verdict`: "passes", "fails" (p below
+        FAILS_BELOW: the console says THE MODEL FAILS), "untested" (no test: an affine method without a
+        noise estimate) or "nominal" (not calibrated, kept at the nominal scale factors)."""
+        if self.nominal:
+            return "nominal"
+        if self.p_value is None:
+            return "untested"
+        return "fails" if self.p_value < FAILS_BELOW else "passes"
+
     def to_json(self) -> dict:
         out = {}
         for f in fields(self):
@@ -140,6 +155,7 @@ class SensorBlock:
                     out[f.name] = dict(v)
             elif v is not None or f.name in self.ALWAYS:
                 out[f.name] = _plain(v)
+        out["verdict"] = self.verdict
         return out
 
     @classmethod
@@ -148,7 +164,7 @@ class SensorBlock:
         given = {k: v for k, v in d.items() if k in names}
         given.setdefault("bias_unit", UNITS[sensor])  # files written before it was a field may lack it
         return cls(**given, effects={e: EffectValue.from_json(x) for e, x in d.get("effects", {}).items()},
-                   details={k: v for k, v in d.items() if k not in names and k != "effects"})
+                   details={k: v for k, v in d.items() if k not in names and k not in ("effects", "verdict")})
 
 
 @dataclass(eq=False)
@@ -168,6 +184,7 @@ class Calibration:
     warnings: list[str] = field(default_factory=list)
     details: dict = field(default_factory=dict)
     format: str = FORMAT
+    samples_sha256: list[str] | None = None  # MeasurementSet.sample_digests of the data; None: an older file
 
     @property
     def sensors(self) -> list[str]:
@@ -193,7 +210,7 @@ class Calibration:
         residual = {s: b.residual_rms for s, b in self.blocks() if b.residual_rms is not None}
         if residual:
             out["residual_rms"] = residual
-        for k in ("t_ref_c", "temperature_range_c", "unification"):
+        for k in ("samples_sha256", "t_ref_c", "temperature_range_c", "unification"):
             if getattr(self, k) is not None:
                 out[k] = getattr(self, k)
         if self.not_calibrated:
@@ -218,7 +235,7 @@ class Calibration:
 
 def header(method: str, ms) -> Calibration:
     """A calibration of set ms by `method`, its blocks still to fill."""
-    cal = Calibration(method, str(ms.path), ms.sha256, layout(ms))
+    cal = Calibration(method, str(ms.path), ms.sha256, layout(ms), samples_sha256=ms.sample_digests())
     if ms.t_ref_c is not None:  # temperature terms read dtemp_c = temp_c - t_ref_c; apply takes it from here
         temp = ms.samples["temp_c"]
         cal.t_ref_c, cal.temperature_range_c = ms.t_ref_c, [float(np.min(temp)), float(np.max(temp))]
@@ -310,9 +327,12 @@ def load(path) -> Calibration:
     """A calibration file, checked before any of it is used (calibration_checks.check_file)."""
     path = Path(path)
     try:
-        d = json.loads(path.read_text())
-    except (OSError, UnicodeDecodeError, json.JSONDecodeError) as e:
-        raise CalibrationFileError(f"{path}: not a readable calibration file ({e})") from None
+        d = json.loads(path.read_text(), object_pairs_hook=unique_keys)
+    except (OSError, UnicodeDecodeError, ValueError) as e:  # bad JSON, a key twice, a number of 5000 digits
+        raise CalibrationFileError(f"{path}: not a readable calibration file ({str(e)[:120]})") from None
+    except RecursionError:
+        raise CalibrationFileError(f"{path}: not a calibration file: nested too deep to read (objects within each "
+                                   "other thousands of levels down); calibrate again") from None
     fmt = d.get("format") if isinstance(d, dict) else None
     if fmt != FORMAT:
         raise CalibrationFileError(f"{path}: format {fmt!r}, expected {FORMAT!r}"

@@ -62,6 +62,10 @@ def check_file(path, cal: dict) -> None:
     if not isinstance(lay, dict) or not isinstance(lay.get("sensors"), list):
         raise CalibrationFileError(f"{path}: lacks 'layout' (the data's units and sensors, written by simucal "
                                    "calibrate): it was not written by this version, or was edited; calibrate again")
+    digests = cal.get("samples_sha256")
+    if digests is not None and not (isinstance(digests, list) and all(isinstance(d, str) for d in digests)):
+        raise CalibrationFileError(f"{path}: samples_sha256 must be a list of digests (strings), written by simucal "
+                                   "calibrate: the file was edited by hand; calibrate again")
     for s in lay["sensors"]:
         block = cal.get(s)
         if s not in ("acc", "gyro") or not isinstance(block, dict):
@@ -104,6 +108,7 @@ def check_file(path, cal: dict) -> None:
             if not isinstance(v, (int, float)) or not np.isfinite(v) or abs(v) > limit:
                 raise CalibrationFileError(f"{path}: {s}.params.{name} = {v!r} is not a plausible value (finite, "
                                            f"|value| <= {limit:g}{'' if unit == '1' else ' ' + unit})")
+        _check_stds(path, s, block)
         if not isinstance(block["effects"], dict):
             raise CalibrationFileError(f"{path}: {s}.effects must be an object {{id: {{value, ...}}}}")
         for e, entry in block["effects"].items():
@@ -113,6 +118,24 @@ def check_file(path, cal: dict) -> None:
             v = entry.get("value") if isinstance(entry, dict) else None
             if not isinstance(v, (int, float)) or not np.isfinite(v) or abs(v) > PARAM_LIMIT:
                 raise CalibrationFileError(f"{path}: {s}.effects.{e}.value = {v!r} is not a plausible value")
+
+
+def _check_stds(path, sensor, block) -> None:
+    """A std (or each entry of a matrix's) is null (not estimated) or a finite number >= 0: a negative or NaN one is no uncertainty, and
+    apply, validate and the reports would carry it on."""
+    entries = [(f"{k}.{n}", v) for k in ("std", "std_raw") if isinstance(block.get(k), dict) for n, v in block[k].items()]
+    entries += [(f"effects.{e}.std", d.get("std")) for e, d in block["effects"].items() if isinstance(d, dict)] \
+        if isinstance(block.get("effects"), dict) else []
+    for where, v in entries:
+        if not all(x is None or (isinstance(x, (int, float)) and not isinstance(x, bool) and np.isfinite(x) and x >= 0)
+                   for x in _flat(v)):
+            raise CalibrationFileError(f"{path}: {sensor}.{where} = {v!r} is no standard deviation (null or a finite "
+                                       "number >= 0): the file was edited or damaged; calibrate again")
+
+
+def _flat(v) -> list:
+    """The entries of a nested list (a matrix's stds), a scalar as one."""
+    return [x for e in v for x in _flat(e)] if isinstance(v, list) else [v]
 
 
 SCALE_NOTE = 0.1  # a scale factor this far from 1 after the nominal ones: the nominal is likely wrong

@@ -19,16 +19,21 @@ import numpy as np
 
 from simucal import io
 from simucal.io import units
+from simucal.io.text_files import ends_with_a_line_end
 
 
 class ImportError_(ValueError):
     pass
 
 
-def _text(path) -> str:
-    """A source file's text; binary files and other encodings refused, naming the line."""
+def _text(path, lines=True) -> str:
+    """A source file's text; binary files and other encodings refused, naming the line, and (lines: a
+    recording of lines) one whose last line has no line end: it may have been cut mid-number."""
     try:
-        return io.read_text(Path(path))
+        text = io.read_text(Path(path))
+        if lines:
+            ends_with_a_line_end(Path(path), text[-64:].encode(), text.count("\n") + 1)
+        return text
     except io.MeasurementSetError as e:
         raise ImportError_(str(e)) from None
 
@@ -226,10 +231,14 @@ def _read_sections(path, n_rows) -> dict:
     """imucal's section list {label: {start, end}} (0-based rows, end exclusive), checked against the
     recording's rows."""
     import json
+    text = _text(path, lines=False)
     try:
-        sections = json.loads(_text(path))
+        sections = json.loads(text)
     except json.JSONDecodeError as e:
         raise ImportError_(f"{path}, line {e.lineno}: not valid JSON: {e.msg}") from None
+    except (ValueError, RecursionError) as e:  # a number of 5000 digits; arrays thousands of levels deep
+        raise ImportError_(f"{path}: not a section list ({type(e).__name__}: nested too deep or a number too "
+                           "long to read)") from None
     if not isinstance(sections, dict) or not sections:
         raise ImportError_(f"{path}: must map each section label to {{\"start\": row, \"end\": row}}")
     for label, s in sections.items():

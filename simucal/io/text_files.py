@@ -81,6 +81,56 @@ def check_delimiter(path, text):
 
 
 def not_a_folder(path: Path) -> Path:
+    """path, refused where it is a folder or a symbolic link that leads nowhere (a loop, or a missing
+    target), which would otherwise read as a file that is missing."""
     if path.is_dir():
         raise MeasurementSetError(path, None, f"is a folder; {path.name} must be a file (see the spec)")
+    if path.is_symlink() and not path.exists():
+        raise MeasurementSetError(path, None, f"is a symbolic link that leads nowhere (a loop of links, or its "
+                                              f"target is missing); put the file itself there")
     return path
+
+
+def ends_with_a_line_end(path: Path, body, line=None) -> None:
+    """Refuse a CSV whose last line has no line end: a recording cut short while it was written (the
+    last number may have lost digits) reads as a valid one. Every writer the spec knows ends each line.
+    line: the last line's number, where body is only the file's end."""
+    if len(body) and bytes(body[-1:]) not in (b"\n", b"\r"):
+        line = line or bytes(body).count(b"\n") + 1
+        last = bytes(body[-40:]).decode("utf-8", "replace").rsplit("\n", 1)[-1]
+        raise MeasurementSetError(path, line, f"the last line has no line end (it ends ...{last[-24:]!r}): the "
+                                              "file may be cut short mid-number; if the line is whole, end it with "
+                                              "a newline")
+
+
+class RepeatedKey(ValueError):
+    """A JSON object that names a key twice."""
+
+
+def unique_keys(pairs) -> dict:
+    """json's object_pairs_hook: an object that names a key twice is refused (json keeps the last one
+    silently; which value was meant cannot be told)."""
+    seen = set()
+    for k, _ in pairs:
+        if k in seen:
+            raise RepeatedKey(f"key {k[:40]!r} appears twice in one object: which value is meant? keep one")
+        seen.add(k)
+    return dict(pairs)
+
+
+def csv_refusal(path: Path, line, e) -> MeasurementSetError:
+    """csv's own error (a cell beyond its field limit of 131072 characters, a quote left open) as the
+    spec's refusal naming the line."""
+    return MeasurementSetError(path, line or None, f"not readable as CSV ({str(e)[:80]}): a cell that long, or "
+                                                   "a quote left open, holds no number; check the file")
+
+
+def no_repeated_columns(path: Path, header: list) -> None:
+    """Refuse a header that names a column twice: which of them is the data cannot be told."""
+    dup = [c for c in dict.fromkeys(header) if header.count(c) > 1]
+    if dup:
+        where = [i + 1 for i, c in enumerate(header) if c == dup[0]]
+        more = f" and {len(dup) - 1} more names" if len(dup) > 1 else ""
+        raise MeasurementSetError(path, 1, f"column {dup[0][:40]} appears {len(where)} times (columns "
+                                           f"{', '.join(map(str, where[:5]))}{', ...' if len(where) > 5 else ''})"
+                                           f"{more}: which one is the data? keep one")

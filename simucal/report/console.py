@@ -1,5 +1,5 @@
 """A calibration on the console: one line per fact, the failures loud (`simucal calibrate`,
-`simucal field-drift`)."""
+`simucal field-drift`); a diagnosis's one next command (`simucal diagnose`, its page)."""
 from __future__ import annotations
 
 from simucal.io.calibration import FAILS_BELOW, Calibration, SensorBlock
@@ -150,3 +150,41 @@ def _thermal_lines(s, b: SensorBlock):
     if exact:
         yield (f"{s}: {len(exact)} polynomials pass through every plateau (degree = plateaus - 1): no plateau is left "
                "to test them; give fewer degrees or more plateaus")
+
+
+def to_add(diag: dict, sensor: str) -> tuple[list[str] | None, str]:
+    """(what the verdict adds for one sensor, why): [] where its model passes (or was not tested: the
+    why says so), the verdict's effects where it fails (the found term's model file when it beats
+    every library effect and was written, the effects chosen together on a stream's moves, else the
+    strongest significant effect or the library's match of the found term), None where nothing
+    found explains the misfit."""
+    b = diag[sensor]
+    p = b["baseline"]["p_value"]
+    if p is None:
+        return [], f"{sensor}: no test (too few degrees of freedom): state the noise or add positions"
+    if p >= diag["alpha"]:
+        return [], ""
+    shape = b.get("shape") or {}
+    steps = (b.get("misfit_shares") or {}).get("steps")
+    sig = [c["id"] for c in b["candidates"] if c.get("significant")]
+    found = ([shape["model_file_path"]] if shape.get("model_file_path") else [x["id"] for x in steps] if steps
+             else sig[:1] or ([shape["catalog_id"]] if shape.get("catalog_id") else None))
+    return found, "" if found else f"{sensor}: nothing found explains the misfit; the plots below show where it is"
+
+
+def next_command(diag: dict) -> tuple[str, list[str]]:
+    """(the one calibrate command for the set, the notes beside it): every --add the diagnosis was
+    run with (both sensors' effects and model files) and, for each sensor whose model fails, what
+    its verdict adds; so the command that made a model pass keeps its --add, and the gyro's keeps
+    the accelerometer's."""
+    adds, notes = [], []
+    for s in ("acc", "gyro"):
+        if s in diag:
+            adds += (diag[s].get("added") or {}).get("effects", [])
+    for s in ("acc", "gyro"):
+        if s in diag:
+            found, why = to_add(diag, s)
+            adds += found or []
+            notes += [why] if why else []
+    options = "".join(f" --add {a}" for a in dict.fromkeys(adds))
+    return f"simucal calibrate {diag['input']}{options} -o calibration.json", notes

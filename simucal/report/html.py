@@ -17,6 +17,8 @@ matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 
+from simucal.report.console import next_command  # noqa: E402
+
 AXES = "xyz"
 
 
@@ -162,32 +164,18 @@ def stream_figures(stream):
     return figs
 
 
-def next_command(diag: dict, sensor: str) -> str:
-    """What to type next for one sensor: calibrate as is, with the effect found, or with the model
-    file of the term found; empty where nothing found explains the misfit."""
-    b, where = diag[sensor], diag["input"]
-    if b["baseline"]["p_value"] is None or b["baseline"]["p_value"] >= diag["alpha"]:
-        return f"simucal calibrate {where} -o calibration.json"
-    shape = b.get("shape") or {}
-    if shape.get("model_file_path"):
-        return f"simucal calibrate {where} --add {shape['model_file_path']} -o calibration.json"
-    sig = [c for c in b["candidates"] if c.get("significant")]
-    add = sig[0]["id"] if sig else shape.get("catalog_id")
-    return f"simucal calibrate {where} --add {add} -o calibration.json" if add else ""
-
-
 def _summary(diag: dict) -> list[str]:
-    """The page's head: per sensor the verdict and the command to type next."""
+    """The page's head: per sensor the verdict, then the one command to type next."""
     out = []
     for s in ("acc", "gyro"):
         if s not in diag:
             continue
         b = diag[s]
         ok = b["baseline"]["p_value"] is None or b["baseline"]["p_value"] >= diag["alpha"]
-        cmd = next_command(diag, s)
-        out.append(f"<p class='{'ok' if ok else 'bad'}'><b>{html.escape(b['verdict'])}</b></p>"
-                   + (f"<p class='next'>Next: <code>{html.escape(cmd)}</code></p>" if cmd else
-                      "<p class='next'>Next: nothing found explains the misfit; the plots below show where it is.</p>"))
+        out.append(f"<p class='{'ok' if ok else 'bad'}'><b>{html.escape(b['verdict'])}</b></p>")
+    cmd, notes = next_command(diag)
+    out.append(f"<p class='next'>Next: <code>{html.escape(cmd)}</code>"
+               + "".join(f"<br>{html.escape(n)}" for n in notes) + "</p>")
     return out
 
 

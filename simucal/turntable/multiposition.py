@@ -6,6 +6,7 @@ from __future__ import annotations
 import numpy as np
 
 from simucal.errors import CalibrationError
+from simucal.fit.norm_fit import check_not_coplanar
 from simucal.generated import table
 from simucal.io import calibration, units
 from simucal.turntable.observations import commanded_up_k
@@ -42,6 +43,10 @@ def multiposition(ms, acc_obs, acc_segs, gyro_obs, gyro_segs):
 
 
 def _affine_fit(f, N, sensor):
+    """y = M f + b by least squares, refused where the inputs f do not span three dimensions: inputs in
+    one plane (a gyro's rate runs all about axes of one plane, the Earth rate alone out of it) leave M
+    along its normal to the noise, a confident wrong answer rather than a rank deficiency."""
+    check_not_coplanar(f, sensor, "the multi-position regression: ", "the table frame")
     X = np.column_stack([f, np.ones(len(f))])
     if len(f) < 5 or np.linalg.matrix_rank(X) < 4:
         raise CalibrationError(f"the multi-position {sensor} regression is rank deficient: input directions "

@@ -127,6 +127,10 @@ def segment_observations(ms: io.MeasurementSet, sensor: str, kinds=None, stated=
         sig.append(sd)
         rho.append(1.0 if sensor == "acc" else abs(s.outer_rate_dps * units.DPH_PER_DPS + w_e * np.sin(lat)))  # |input|
         keep.append(s)
+    if curve is not None:
+        still = [ms.rows(s.segment) for s in ms.segments if s.kind == "static"]  # as simucal noise pools them
+        check_curve_scale(ms, sensor, data, still if any(len(r) >= 3 for r in still) else
+                          [ms.rows(s.segment) for s in keep], curve)
     dropped = [s.segment for s in segs if s.segment in clipped]
     need = len(AugmentedModel(f"{sensor}_baseline").params)
     if dropped and len(keep) < need and (keep or sensor == "acc"):  # no gyro at all: not calibrated, said so
@@ -141,6 +145,7 @@ def segment_observations(ms: io.MeasurementSet, sensor: str, kinds=None, stated=
                        [s.segment for s in keep])
     obs.sigma_stated = curve is not None or (stated is not None and any(len(ms.rows(s.segment)) < 3 for s in keep))
     if curve is not None:
+        obs.noise_file = curve.source  # _exact_sensor refuses it where the residuals show it far too large
         obs.sigma_source = "the Allan curve of --noise at each segment's length" + (
             f" (it was measured to {curve.tau_max_s:.3g} s; the segments average up to {longest:.3g} s, so beyond "
             "it their noise is its white part: record a still stretch 9 times a segment's length to measure "
@@ -153,6 +158,41 @@ def segment_observations(ms: io.MeasurementSet, sensor: str, kinds=None, stated=
         except CalibrationError as e:
             raise CalibrationError(f"{e}{_rates_not_units(ms) if sensor == 'gyro' else ''}") from None
     return obs, keep
+
+
+CURVE_FACTOR = 10.0  # a noise file's row noise this many times the data's own (or a tenth): another unit or unit
+
+
+def check_curve_scale(ms, sensor, data, rows, curve):
+    """Refuse a noise file (`calibrate --noise`) whose noise of one row is not the data's own: per axis
+    the Allan curve at a row's length against the rows' own white noise (first differences, the median
+    over the segments of 3 rows or more: the static ones where there are, as simucal noise pools), and for one-row segments against meta.json's stated noise
+    where it is given. A file CURVE_FACTOR times too large makes every model pass (a silent wrong
+    answer); one too small fails every model, blaming it."""
+    own, tau = [], []
+    for r in (r for r in rows if len(r) >= 3):
+        own.append(np.sqrt(white_noise_var(data[r])))
+        tau.append(float(np.median(np.diff(ms.samples["t_s"][r]))))
+    stated = units.stated_noise(ms.meta, sensor)
+    if own:
+        own, at = np.median(own, axis=0), float(np.median(tau))
+        what = f"the rows' own noise (first differences of {len(tau)} segments' rows, {at:.3g} s each)"
+    elif stated is not None and "average_s" in ms.meta:
+        own, at = np.full(3, float(stated)), float(ms.meta["average_s"])
+        what = f"meta.json's stated noise of one row ({at:.3g} s averaged)"
+    else:
+        return  # one averaged row per segment and no stated noise: nothing of the data's own to compare with
+    if not (np.isfinite(at) and at > 0):
+        return
+    file = np.atleast_1d(curve(at))
+    unit = units.NOISE_UNIT[sensor][0]
+    for k in range(3):
+        if own[k] > 0 and not 1 / CURVE_FACTOR <= file[k] / own[k] <= CURVE_FACTOR:
+            raise CalibrationError(
+                f"{curve.source}: its {sensor} {'xyz'[k]} noise over {at:.3g} s is {file[k]:.3g} {unit}, "
+                f"{file[k] / own[k]:.3g} times {what}, {own[k]:.3g} {unit}: the report is of another unit, "
+                f"another output unit or another rate; measure this unit's still recording with simucal noise "
+                "(or leave --noise out)")
 
 
 def check_axes_follow_gravity(ms, obs, segs, live_g=0.5, dead_ratio=0.05, spread=0.2):
