@@ -205,6 +205,22 @@ def _rank(model, obs, fit, base):
     return cands, shape_if_unexplained(model, obs, fit, base, cands)
 
 
+def advice_text(cands, shape) -> str | None:
+    """What a failing model lacks, as calibrate names it: the generic term where it beats every library
+    effect (the verdict leads with it), else the strongest significant candidate, else None."""
+    sig = [c for c in cands if c.get("significant")]
+    return "a term " + shape["text"] if shape and not shape.get("catalog_id") else sig[0]["id"] if sig else None
+
+
+def advice(model: AugmentedModel, obs: Observations) -> str | None:
+    """advice_text of the one model test and ranking (diagnose's for a stream's poses), None where the
+    model passes."""
+    fit, obs2, base = test_model(model, obs)
+    if base["p_value"] is None or base["p_value"] >= ALPHA:
+        return None
+    return advice_text(*_rank(model, obs2, fit, base))
+
+
 MIN_SHARE = 0.5  # a generic term named as the missing one must explain at least half the misfit
 
 

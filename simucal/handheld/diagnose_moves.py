@@ -119,8 +119,7 @@ def diagnose_moves(ms, obs, det, am, fa, add=(), truth=None, alpha=0.01):
              "noise_floor": floor, "noise_std_of_mean": None, "chi2": chi2, "p_value": p,
              "test": "chi-square against the white noise of the rests (gyro) and of the pose means (acc)",
              "gyro_white_noise_dps": sigma_g.tolist()}
-    acc_cal = am.matrix_and_bias(fa.vector(am.params))
-    inputs = regressor_inputs(ms, gm, base, acc_cal)
+    inputs = regressor_inputs(ms, gm, base, (am, fa.vector(am.params)))
     inside = gm.mv.dt > 0
     columns = {k: np.sum(np.where(inside, v, 0.0), 1) / np.maximum(inside.sum(1), 1)
                for k, v in inputs[0][1].values.items() if k not in FORCE}

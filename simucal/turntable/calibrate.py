@@ -16,7 +16,7 @@ import numpy as np
 
 from simucal.errors import CalibrationError
 from simucal.fit.augmented import AugmentedModel, for_sensor
-from simucal.fit.candidates import forward_selection, verdict
+from simucal.fit.candidates import advice_text, forward_selection, verdict
 from simucal.fit.lack_of_fit import noise_dof, with_estimated_sigma
 from simucal.fit.norm_fit import fit_linear
 from simucal.io import calibration, units
@@ -67,11 +67,7 @@ def _exact_sensor(model, obs, segs, method, where):
                                "(--method multiposition: the Ferraris and multi-position protocols' method)") from None
     base["noise"]["text"] = _noise_text(base["noise"], obs2, model.unit)
     base["verdict"] = verdict(model.sensor, base, cands, where, shape, command="calibrate")
-    advice = None
-    if fails(base):
-        sig = [c for c in cands if c.get("significant")]
-        generic = shape and not shape.get("catalog_id")  # it beats every library effect: the verdict leads with it
-        advice = "a term " + shape["text"] if generic else sig[0]["id"] if sig else None
+    advice = advice_text(cands, shape) if fails(base) else None
     return fit, base, advice, with_estimated_sigma(obs2, base["noise"])
 
 

@@ -23,7 +23,7 @@ import math
 import numpy as np
 
 from simucal.errors import CalibrationError
-from simucal.fit.apply import model_function, solve_inputs
+from simucal.fit.apply import model_inputs
 from simucal.fit.aux_inputs import specific_force
 from simucal.fit.distributions import chi2_sf, t_isf
 from simucal.fit.rotations import log_so3, wahba
@@ -80,10 +80,8 @@ def latitude(ms, gm, fg, C_b_d, u_b, static_gyro):
     L_meta = float(ms.meta["latitude_deg"])
     N, sig, aux = static_gyro
     p = fg.vector(gm.params)
-    M_d, b_d = gm.matrix_and_bias(p)
     up_d = u_b @ C_b_d.T
-    w_d = solve_inputs(model_function(gm, p), M_d, b_d, N, aux.with_values(**specific_force(up_d)), "gyro",
-                       ms.path / "samples.csv")
+    w_d = model_inputs(gm, p, N, aux.with_values(**specific_force(up_d)), ms.path / "samples.csv")
     X = np.column_stack([up_d, np.full(len(up_d), w_e)])
     n = len(X)
     if n < 6 or np.linalg.matrix_rank(X / w_e, tol=1e-3) < 4:
