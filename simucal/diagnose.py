@@ -23,7 +23,7 @@ from simucal.fit.lack_of_fit import model_file_text
 from simucal.fit.norm_fit import Fit, Observations
 from simucal.turntable.consistency import handedness_verdict, mirrored
 from simucal.turntable.observations import check_rate_sense, segment_observations
-from simucal.turntable.model_test import ROWS, test_and_rank
+from simucal.turntable.model_test import ROWS, test_and_rank, with_static_rows
 
 
 def residual_table(fit: Fit, obs: Observations, segs) -> list[dict]:
@@ -109,6 +109,23 @@ def stream_summary(ms, max_points=4000):
             "static_detection": det.as_dict(t)}
 
 
+def _with_static_gyro_rows(ms, block, settings) -> None:
+    """The gyro's test over its static rows too, as calibrate's (model_test.with_static_rows): they need
+    the accelerometers' up and C_b^d, so calibrate's exact method gives them; where it refuses the set,
+    the rate runs' test stands (calibrate says why)."""
+    from simucal.turntable.calibrate import calibrate_table
+    try:
+        gyro = calibrate_table(ms, "exact", *settings).gyro
+    except CalibrationError:
+        return
+    if gyro is None or "static_rows" not in gyro.details:
+        return
+    st = gyro.details["static_rows"]
+    with_static_rows(block["baseline"], st)
+    block["verdict"] = verdict("gyro", block["baseline"], block["candidates"], str(ms.path), block.get("shape")) + (
+        f" At rest: {st['verdict']}." if st.get("p_value", 1.0) < ALPHA else "")
+
+
 def diagnose(folder, add=(), acc_model="acc_baseline", gyro_model="gyro_baseline",
              acc_noise_g=None, gyro_noise_dph=None) -> dict:
     """add: effect ids and model files (fit/augmented.resolve_add)."""
@@ -139,6 +156,8 @@ def _diagnose(ms, folder, add, acc_model, gyro_model, acc_noise_g, gyro_noise_dp
                                 AugmentedModel(acc_model, tuple(a for a in ids if a.startswith("acc."))))
         if block is not None:
             result[sensor] = block
+    if ms.segments is not None and "gyro" in result and "acc" in result:
+        _with_static_gyro_rows(ms, result["gyro"], (acc_model, gyro_model, ids, acc_noise_g, gyro_noise_dph))
     if ms.segments is not None:  # a reflected triad, as calibrate refuses it
         notes = handedness_verdict(ms, {("accelerometer" if s == "acc" else s): result[s].pop("mirror")
                                         for s in ("acc", "gyro") if s in result})

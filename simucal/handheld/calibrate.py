@@ -277,10 +277,11 @@ def _gyro_block(ms, det, am, obs, fa, acc_cal, gyro_effects, auto) -> SensorBloc
         raise CalibrationError(f"{ms.path}: gyro output {', '.join(dead)} hardly changes during the moves, and "
                                f"holding {list(undetermined)} at nominal leaves the moves unexplained (chi2 "
                                f"{chi2:.3g} on {dof} dof): a dead or unconnected channel?")
-    advice = None
+    to_add = None
     if p_value is not None and p_value < ALPHA and not effects:  # the effects diagnose would add (misfit_shares)
         sigma_g = gyro_noise_dps(ms, gm)
-        advice = ", ".join(misfit_shares(gm, f, sigma_g, regressor_inputs(ms, gm, f, acc_cal), chi2, dof, max_terms=1)["effects"])
+        shares = misfit_shares(gm, f, sigma_g, regressor_inputs(ms, gm, f, acc_cal), chi2, dof, max_terms=1)
+        to_add = shares["effects"][0] if shares["effects"] else None
     bias_std = gm.bias_std if gyro_model == "nominal" else np.sqrt(np.diag(f.cov)[9:12])
     std_T = [[None if 3 * i + j in fixed else float(np.sqrt(f.cov[3 * i + j, 3 * i + j])) for j in range(3)]
              for i in range(3)]
@@ -298,7 +299,7 @@ def _gyro_block(ms, det, am, obs, fa, acc_cal, gyro_effects, auto) -> SensorBloc
         moves_opposite_sense=gm.flipped, iterations=f.iterations, chi2=chi2, dof=dof, p_value=p_value,
         test="chi-square of the moves against the rests' white noise (simucal diagnose shows them)",
         std_note="stds scale with the moves' own residual scatter, so they include any misfit",
-        undetermined=undetermined, gyro_model=gyro_model, model_choice=choice, advice=advice or None,
+        undetermined=undetermined, gyro_model=gyro_model, model_choice=choice, advice=to_add,
         **({"auto": chosen or []} if auto else {}))
 
 

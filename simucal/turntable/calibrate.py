@@ -98,7 +98,7 @@ def _gyro_block(ms, method, cal, acc, gyro, gyro_noise_dph) -> calibration.Senso
         block.details.update(frame="d (the gyro parameter frame)",
                              note=f"M is in the gyro frame d, not in b: {why}, so the frames cannot be tied")
         return block
-    std_M = static = None
+    std_M = None
     if method == "exact":
         un = Unifier(am, fa, acc_obs, gm, fg, gyro_obs, acc_means, noise_dof(base_a["noise"]),
                      noise_dof(base_g["noise"]))
@@ -107,7 +107,8 @@ def _gyro_block(ms, method, cal, acc, gyro, gyro_noise_dph) -> calibration.Senso
         consistency["latitude"] = latitude_check(ms, fa, acc_segs, gm, fg, C_b_d, gyro_noise_dph)
         consistency["lines"].append("latitude: " + consistency["latitude"]["verdict"])
         rows, static_gyro = static_gyro_rows(ms, acc_segs, gyro_noise_dph)
-        static = static_gyro_test(ms, gm, fg, fa.directions[rows], C_b_d, static_gyro) if rows else None
+        if rows:  # the gyro's test covers its rows at rest too
+            with_static_rows(base_g, static_gyro_test(ms, gm, fg, fa.directions[rows], C_b_d, static_gyro))
     else:
         if (am.name, gm.name) != ("acc_baseline", "gyro_baseline"):
             raise CalibrationError(f"the paper's frame unification (eq. 25-27) is derived for the baseline "
@@ -122,8 +123,8 @@ def _gyro_block(ms, method, cal, acc, gyro, gyro_noise_dph) -> calibration.Senso
     block.details["M_in_d"] = np.asarray(M_d).tolist()
     if std_M is not None:
         block.details["std_M"] = std_M.tolist()
-    if static is not None:
-        with_static_rows(block, static, base_g["test"])
+    if "static_rows" in base_g:
+        block.chi2, block.dof, block.details["static_rows"] = base_g["chi2"], base_g["dof"], base_g["static_rows"]
     cal.unification = info
     return block
 

@@ -115,18 +115,17 @@ def static_gyro_test(ms, gm, fg, u_b, C_b_d, static_gyro) -> dict:
                            "shows in rate-run means only as its vertical part, which a g-sensitivity absorbs)"))}
 
 
-def with_static_rows(block, st: dict, base_test: str) -> None:
-    """The gyro block's model test over its rate runs and its static rows together: one chi-square where
-    the rate runs' noise is known (base_test 'chi-square'), else the smaller of the two p-values doubled."""
-    block.details["static_rows"] = st
+def with_static_rows(base: dict, st: dict) -> None:
+    """A gyro's test block (test_model's) over its rate runs and its static rows together: one chi-square
+    where the rate runs' noise is known (test 'chi-square'), else the smaller of the two p-values doubled.
+    calibrate and diagnose both call it, so they report the same test."""
+    base["static_rows"] = st
     if "chi2" not in st:
         return
-    block.details["rows"] = (f"{block.details.get('rows') or 'the rate runs'} and {st['positions']} static "
-                             f"positions ({st['what']})")
-    if block.chi2 is not None and base_test == "chi-square":
-        block.chi2, block.dof = block.chi2 + st["chi2"], block.dof + st["dof"]
-        block.p_value = float(chi2_sf(block.chi2, block.dof))
-        block.details["test"] = "chi-square over the rate runs and the static rows"
-    elif block.p_value is not None:
-        block.p_value = min(1.0, 2 * min(block.p_value, st["p_value"]))
-        block.details["test"] = f"{base_test} (rate runs) and the static rows' chi-square, the smaller p doubled"
+    base["rows"] = f"{base.get('rows') or 'the rate runs'} and {st['positions']} static positions ({st['what']})"
+    if base["chi2"] is not None and base["test"] == "chi-square":
+        base["chi2"], base["dof"] = base["chi2"] + st["chi2"], base["dof"] + st["dof"]
+        base.update(p_value=float(chi2_sf(base["chi2"], base["dof"])), test="chi-square over the rate runs and the static rows")
+    elif base["p_value"] is not None:
+        base.update(p_value=min(1.0, 2 * min(base["p_value"], st["p_value"])),
+                    test=f"{base['test']} (rate runs) and the static rows' chi-square, the smaller p doubled")
