@@ -123,7 +123,7 @@ def _gyro_block(ms, method, cal, acc, gyro, gyro_noise_dph) -> calibration.Senso
     block.details["M_in_d"] = np.asarray(M_d).tolist()
     if std_M is not None:
         block.details["std_M"] = std_M.tolist()
-    if "static_rows" in base_g:
+    if base_g is not None and "static_rows" in base_g:
         block.chi2, block.dof, block.details["static_rows"] = base_g["chi2"], base_g["dof"], base_g["static_rows"]
     cal.unification = info
     return block
