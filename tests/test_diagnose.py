@@ -52,6 +52,11 @@ def test_hidden_effect_found_added_and_explained(tmp_path, eid, size, settings):
     assert d["candidates"][0]["id"] == first["id"]
     assert abs(first["estimate"] - size) < 4 * first["std"]
     after = diagnose(tmp_path / "set", add=[first["id"]])[sensor]
+    if first["id"] != eid and after["baseline"]["p_value"] <= 0.01:
+        # twins in the rate runs (g_sensitivity.zx and .xz on fibonacci24) that the gyro's rows at rest,
+        # in its test since issue 38, tell apart: the wrong one fails there, the planted one passes
+        assert after["baseline"]["static_rows"]["p_value"] < 1e-6
+        after = diagnose(tmp_path / "set", add=[eid])[sensor]
     assert after["baseline"]["p_value"] > 0.01
     assert after["baseline"]["residual_rms"] < 1.2 * after["baseline"]["noise_floor"]
     err_after, err_before = base_errors(after, truth, sensor)
