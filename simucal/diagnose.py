@@ -15,14 +15,16 @@ import numpy as np
 
 from simucal import io
 from simucal.errors import CalibrationError
+from simucal.fit.apply import model_inputs
 from simucal.fit.augmented import AugmentedModel
+from simucal.fit.aux_inputs import AuxInputs, columns_at
 from simucal.fit.candidates import ALPHA, test_model, verdict
 from simucal.fit.lack_of_fit import model_file_text
 from simucal.fit.norm_fit import Fit, Observations
 from simucal.io.timestamps import with_timestamps
 from simucal.turntable.consistency import handedness_verdict, mirrored
 from simucal.turntable.observations import check_rate_sense, segment_observations
-from simucal.turntable.model_test import ROWS, test_and_rank
+from simucal.turntable.model_test import ROWS, test_and_rank, with_static_rows
 
 
 def residual_table(fit: Fit, obs: Observations, segs) -> list[dict]:
@@ -38,17 +40,19 @@ def residual_table(fit: Fit, obs: Observations, segs) -> list[dict]:
     return rows
 
 
-def diagnose_sensor(ms, sensor, base_model, add=(), stated=None, truth=None, before_model=None, added=()):
+def diagnose_sensor(ms, sensor, base_model, add=(), stated=None, truth=None, before_model=None, added=(),
+                    acc_model="acc_baseline"):
     """One sensor's block. add: effect ids; before_model: the model to compare with when
     something was added (default base_model without the ids); added: what the user added
-    (ids and model files), for the report."""
+    (ids and model files), for the report; acc_model: on a stream, the accelerometer model (its
+    effects too) whose pose directions the gyro's moves are judged against."""
     if ms.segments is None and sensor == "gyro":  # a stream: the gyro against its moves
         if base_model != "gyro_baseline":
             raise CalibrationError(f"{ms.path}: on a stream the gyro is fit as a full T and a bias over the moves, so "
                                    f"the model {base_model} does not apply; add effects with --add gyro.<effect>.<axis>")
         from simucal.handheld.poses import acc_from_poses
         from simucal.handheld.diagnose_moves import diagnose_moves
-        obs, det, am, fa, _ = acc_from_poses(ms)
+        obs, det, am, fa, _ = acc_from_poses(ms, acc_model)
         return diagnose_moves(ms, obs, det, am, fa, tuple(add), truth, ALPHA)
     if ms.segments is None:  # a stream: its static poses, as the hand-placed calibration finds them
         from simucal.handheld.poses import pose_observations
@@ -99,8 +103,9 @@ def stream_summary(ms, max_points=4000):
     _, det, am, fa, _ = acc_from_poses(ms)
     t = ms.samples["t_s"]
     step = max(len(t) // max_points, 1)
-    M, b = am.matrix_and_bias(fa.vector(am.params))
-    f = np.linalg.solve(M, (ms.acc_g()[::step] - b).T).T  # calibrated specific force, g
+    rows = np.arange(0, len(t), step)
+    f = model_inputs(am, fa.vector(am.params), ms.acc_g()[rows],  # calibrated specific force, g
+                     AuxInputs(columns_at(ms.samples, rows, t_ref_c=ms.t_ref_c)), ms.path / "samples.csv")
     return {"t_s": t[::step].tolist(), "acc_norm_g": np.linalg.norm(f, axis=1).tolist(),
             "static_detection": det.as_dict(t)}
 
@@ -128,6 +133,23 @@ def scoring_truth(path) -> dict | None:
             except (KeyError, TypeError, ValueError):
                 continue
     return out
+
+
+def _with_static_gyro_rows(ms, block, settings) -> None:
+    """The gyro's test over its static rows too, as calibrate's (model_test.with_static_rows): they need
+    the accelerometers' up and C_b^d, so calibrate's exact method gives them; where it refuses the set,
+    the rate runs' test stands (calibrate says why)."""
+    from simucal.turntable.calibrate import calibrate_table
+    try:
+        gyro = calibrate_table(ms, "exact", *settings).gyro
+    except CalibrationError:
+        return
+    if gyro is None or "static_rows" not in gyro.details:
+        return
+    st = gyro.details["static_rows"]
+    with_static_rows(block["baseline"], st)
+    block["verdict"] = verdict("gyro", block["baseline"], block["candidates"], str(ms.path), block.get("shape")) + (
+        f" At rest: {st['verdict']}." if st.get("p_value", 1.0) < ALPHA else "")
 
 
 def diagnose(folder, add=(), acc_model="acc_baseline", gyro_model="gyro_baseline",
@@ -162,9 +184,12 @@ def _diagnose(ms, folder, add, acc_model, gyro_model, acc_noise_g, gyro_noise_dp
             continue
         mine = tuple(a for a in ids if a.startswith(sensor + "."))
         files = tuple(a for a in add if a.endswith(".py")) if model != before[sensor] else ()
-        block = diagnose_sensor(ms, sensor, model, mine, stated, truth, before[sensor], mine + files)
+        block = diagnose_sensor(ms, sensor, model, mine, stated, truth, before[sensor], mine + files,
+                                AugmentedModel(acc_model, tuple(a for a in ids if a.startswith("acc."))))
         if block is not None:
             result[sensor] = block
+    if ms.segments is not None and "gyro" in result and "acc" in result:
+        _with_static_gyro_rows(ms, result["gyro"], (acc_model, gyro_model, ids, acc_noise_g, gyro_noise_dph))
     if ms.segments is not None:  # a reflected triad, as calibrate refuses it
         notes = handedness_verdict(ms, {("accelerometer" if s == "acc" else s): result[s].pop("mirror")
                                         for s in ("acc", "gyro") if s in result})

@@ -188,3 +188,43 @@ def test_stream_with_no_long_enough_static_interval_is_refused(tmp_path):
     ms = io.read_set(tmp_path / "h")
     with pytest.raises(CalibrationError, match="no static interval of at least 15 s found"):
         detect_static(ms.acc_g(), ms.samples["t_s"], DetectSettings(min_s=15.0))
+
+
+def _direction_error_rad(tmp_path, acc_effects, add):
+    """rms angle between the poses' gravity directions the moves are judged against and the truth,
+    and the gyro block (a session with acc_effects planted, calibrated with add)."""
+    from simucal import io
+    from simucal.fit.augmented import AugmentedModel
+    from simucal.handheld.calibrate import pose_directions
+    from simucal.handheld.poses import acc_from_poses
+    folder = tmp_path / str(len(acc_effects))
+    truth = write_handheld(folder, HandheldScenario(acc_effects=acc_effects), 1)
+    ms = io.read_set(folder)
+    obs, _, am, fa, _ = acc_from_poses(ms, AugmentedModel("acc_baseline", add))
+    u = pose_directions(am, obs, fa)[0]
+    true = np.array(truth["pose_directions_b"])
+    assert len(u) == len(true)
+    err = np.arccos(np.clip(np.sum(u * true, axis=1), -1, 1))
+    return float(np.sqrt(np.mean(err ** 2))), calibrate(folder, add=add).gyro
+
+
+def test_moves_judged_against_the_whole_accelerometer_model(tmp_path):
+    """Issue 38, item 6: an accelerometer effect added (acc.quadratic.z, planted) must enter the poses'
+    gravity directions the gyro's moves are judged against (the exact fit's directions, not
+    M^-1 (N - b)): with the affine inverse they were 1.1e-3 rad off (clean 1.4e-4) and the moves'
+    chi2 470 on 51 dof; now both are at the clean session's level and the gyro passes."""
+    clean, g0 = _direction_error_rad(tmp_path, {}, ())
+    added, g1 = _direction_error_rad(tmp_path, {"acc.quadratic.z": 5e-3}, ("acc.quadratic.z",))
+    assert added < 1.5 * clean < 5e-4, (added, clean)
+    assert g1.p_value > 0.01 and g1.chi2 < 1.2 * g0.chi2, (g1.chi2, g0.chi2)
+
+
+def test_stream_calibrate_names_what_diagnose_would_add(tmp_path):
+    """On a stream a failing model's block carries `advice` (the effect diagnose would add), as on a
+    turntable: the poses' from the one model test's ranking, the moves' from their forward selection."""
+    write_handheld(tmp_path / "q", HandheldScenario(acc_effects={"acc.quadratic.z": 5e-3}), 1)
+    assert calibrate(tmp_path / "q").acc.details["advice"] == "acc.quadratic.z"
+    write_handheld(tmp_path / "g", HandheldScenario(gyro_effects={"gyro.g_sensitivity.yz": 1000.0}), 1)
+    cal = calibrate(tmp_path / "g")
+    assert cal.gyro.p_value < 1e-3 and cal.gyro.details["advice"] == "gyro.g_sensitivity.yz"
+    assert cal.acc.details.get("advice") is None  # the accelerometer passes: nothing to add

@@ -28,6 +28,7 @@ from simucal.fit.aux_inputs import SENSOR_AUX
 from simucal.fit.distributions import chi2_sf, f_sf
 from simucal.fit.lack_of_fit import describe_shape, fit_with_noise, lack_of_fit
 from simucal.fit.norm_fit import Fit, Observations, dense_jacobian, fit_exact
+from simucal.fit.twins import separating_plan, twins, twins_note
 from simucal.generated.effects import EFFECTS, SEPARATE
 
 ALPHA = 0.01
@@ -90,13 +91,16 @@ def rank_candidates(model: AugmentedModel, obs: Observations, fit: Fit, base_fai
             entry["note"] = (f"nearly collinear with the baseline: {100 * visible:.2g} % of its signature is separable, "
                              f"so it is weakly seen; to see it: {SEPARATE[family]}")
         out.append(entry)
+    r = (fit.residuals / sig).ravel()
+    s2 = 1.0 if fit.chi2 is not None else float(r @ r) / max(fit.dof, 1)  # unknown noise: the residuals' variance
     advised = False
     for e in sorted(out, key=lambda e: -e.get("statistic", -1.0)):
-        twins = [o for o in cols if o != e["id"] and abs(cols[o] @ cols[e["id"]]) > 0.99] if e["separable"] else []
-        if twins:
-            e["note"] = "cannot be told apart from " + ", ".join(twins) + " by this plan"
+        tw = twins(e["id"], cols, r, s2) if e["separable"] else []
+        if tw:
+            e["twins"] = tw
+            e["note"] = twins_note(tw, separating_plan(e["id"], tw[0]))
             if advisor is not None and base_fails and not advised and e["p_value"] is not None and e["p_value"] < ALPHA:
-                e["note"] += "; " + advisor.separate(model, e, twins[0], fit, obs, sig)
+                e["note"] += "; " + advisor.separate(model, e, tw[0], fit, obs, sig)
                 advised = True  # the strongest pair only: the one the verdict rests on
     return gate_candidates(out, base_fails)
 
@@ -204,6 +208,22 @@ def forward_selection(model: AugmentedModel, obs: Observations, rank=None, max_t
 def _rank(model, obs, fit, base):
     cands = rank_candidates(model, obs, fit, True)
     return cands, shape_if_unexplained(model, obs, fit, base, cands)
+
+
+def advice_text(cands, shape) -> str | None:
+    """What a failing model lacks, as calibrate names it: the generic term where it beats every library
+    effect (the verdict leads with it), else the strongest significant candidate, else None."""
+    sig = [c for c in cands if c.get("significant")]
+    return "a term " + shape["text"] if shape and not shape.get("catalog_id") else sig[0]["id"] if sig else None
+
+
+def advice(model: AugmentedModel, obs: Observations) -> str | None:
+    """advice_text of the one model test and ranking (diagnose's for a stream's poses), None where the
+    model passes."""
+    fit, obs2, base = test_model(model, obs)
+    if base["p_value"] is None or base["p_value"] >= ALPHA:
+        return None
+    return advice_text(*_rank(model, obs2, fit, base))
 
 
 MIN_SHARE = 0.5  # a generic term named as the missing one must explain at least half the misfit

@@ -17,7 +17,9 @@ from simucal.fit.aux_inputs import AuxInputs
 
 
 def directions(model, N, p, aux):
-    """The start directions: u = (M^-1 (N - b)) normalised, for one set or a batch (leading axes)."""
+    """The start directions: u = (M^-1 (N - b)) normalised, for one set or a batch (leading axes). A start
+    only (the fit then solves for the directions of the whole model): an output turned back into an
+    input for use inverts the whole model (fit.directions, apply.model_inputs)."""
     M, b = model.matrix_and_bias(p, aux)
     u = np.linalg.solve(M, (N - b)[..., None])[..., 0]
     return u / np.linalg.norm(u, axis=-1, keepdims=True)

@@ -30,6 +30,7 @@ import numpy as np
 from simucal.fit.aux_inputs import DEFAULT_ZERO, FORCE, SENSOR_AUX, T_REF, AuxInputs
 from simucal.fit.distributions import chi2_sf, f_sf
 from simucal.fit.norm_fit import Fit, Observations, dense_jacobian, fit_exact
+from simucal.fit.twins import twins
 from simucal.io import units
 
 DPS = units.DPH_PER_DPS  # gyro rates enter generic terms in deg/s (as in derive/models/effects.py)
@@ -266,16 +267,16 @@ def describe_shape(model, obs: Observations, fit: Fit) -> dict | None:
             best = k
     t = terms[best]
     coef = float(proj[best] / n2[best])
-    cos = np.where(ok, (Gp.T @ Gp[:, best]) / np.sqrt(np.where(ok, n2, 1.0) * n2[best]), 0.0)
-    twins = [terms[k].text() + f" on {'xyz'[terms[k].axis]}" for k in range(len(terms))
-             if k != best and ok[k] and abs(cos[k]) > 0.99]
+    s2 = 1.0 if fit.chi2 is not None else float(r @ r) / max(fit.dof, 1)  # unknown noise: the residuals' variance
+    cols = {k: Gp[:, k] / np.sqrt(n2[k]) for k in range(len(terms)) if ok[k]}
+    alike = [terms[k].text() + f" on {'xyz'[terms[k].axis]}" for k in twins(best, cols, r, s2)]
     after = (fit.residuals / sig).ravel() - coef * Gp[:, best]
     rms_after = float(np.sqrt(np.mean((after.reshape(-1, 3) * sig) ** 2)))
     unit = "g" if model.sensor == "acc" else "deg/h"
     return {"axis": "xyz"[t.axis], "regressor": t.text(), "catalog_id": catalog_id(t), "degree": t.degree, "parity": t.parity(),
             "estimate": coef, "unit": t.unit(), "parameter": t.name(), "sympy": t.sympy(),
             "share_of_misfit": float(lr[best] / max(r @ r, 1e-300)), "residual_rms_after": rms_after,
-            "indistinguishable_here": twins[:6],
+            "indistinguishable_here": alike[:6],
             "points": {"regressor": t.values(fit.directions * obs.rho[:, None], obs).tolist(),
                        "residual": fit.residuals[:, t.axis].tolist(),
                        # the part of the term the model cannot absorb: what the residual should show

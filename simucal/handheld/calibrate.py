@@ -16,11 +16,12 @@ import numpy as np
 
 from simucal.errors import CalibrationError
 from simucal.fit.augmented import effect_ids
+from simucal.fit.apply import model_inputs
 from simucal.fit.aux_inputs import SENSOR_AUX, AuxInputs, columns_at, specific_force
-from simucal.fit.candidates import ALPHA, forward_selection
+from simucal.fit.candidates import ALPHA, advice, forward_selection
 from simucal.fit.distributions import chi2_sf, f_sf
 from simucal.fit.noise import quantization_step, white_noise_var
-from simucal.fit.norm_fit import full_covariance, initial_directions
+from simucal.fit.norm_fit import full_covariance
 from simucal.fit.rotations import skew
 from simucal.generated.effects import EFFECTS
 from simucal.handheld.static_detect import Detection
@@ -66,11 +67,12 @@ def pose_directions(am, obs, fa):
     tangent components (n,), from the accelerometer fit's full covariance: the pose's own noise
     and the accelerometer parameters' uncertainty, which the poses share. The noise alone is
     about 2/3 of it on a 30-pose session; counting only it left the moves' chi2/dof at 1.14
-    on clean simulated sessions."""
+    on clean simulated sessions. The directions are the exact fit's own, of the whole model (its
+    effects too), which that covariance describes."""
     C = full_covariance(am, obs, fa)
     m = len(am.params)
     tangent = np.diagonal(C[m:, m:]).reshape(-1, 2).sum(1) / 2
-    return initial_directions(am, obs, fa.vector(am.params)), tangent
+    return fa.directions, tangent
 
 
 def prepare_moves(ms, det: Detection, g_dirs, dir_var) -> GyroMoves:
@@ -178,8 +180,9 @@ def has_input(eid, inputs) -> bool:
 def regressor_inputs(ms, gm, fit: GyroFit, acc_cal):
     """Inputs of the candidate regressors, (u deg/h, AuxInputs), at every move sample (m, L) and
     at every sample of the initial rest (n,): the calibrated rate, the calibrated specific
-    force and the samples' auxiliary columns (t_s, temp_c, ...)."""
-    M_a, b_a = acc_cal
+    force (acc_cal: the accelerometer's model and parameters, inverted whole) and the samples'
+    auxiliary columns (t_s, temp_c, ...)."""
+    am, p_a = acc_cal
     mv = gm.mv
     m, L = mv.dt.shape
     idx = np.zeros((m, L), int)
@@ -189,8 +192,10 @@ def regressor_inputs(ms, gm, fit: GyroFit, acc_cal):
     w = ms.gyro_dph() / units.DPH_PER_DPS - gm.bias - fit.db
     out = []
     for ix in (idx, rest):
-        f = np.linalg.solve(M_a, (ms.acc_g()[ix] - b_a).reshape(-1, 3).T).T.reshape(ix.shape + (3,))
-        out.append((w[ix] @ fit.T.T * units.DPH_PER_DPS, AuxInputs({**columns_at(ms.samples, ix, t_ref_c=ms.t_ref_c), **specific_force(f)})))
+        columns = columns_at(ms.samples, ix, t_ref_c=ms.t_ref_c)
+        flat = AuxInputs({k: np.ravel(v) if np.ndim(v) else v for k, v in columns.items()})
+        f = model_inputs(am, p_a, ms.acc_g()[ix].reshape(-1, 3), flat, ms.path / "samples.csv").reshape(ix.shape + (3,))
+        out.append((w[ix] @ fit.T.T * units.DPH_PER_DPS, AuxInputs({**columns, **specific_force(f)})))
     return out
 
 
@@ -272,6 +277,11 @@ def _gyro_block(ms, det, am, obs, fa, acc_cal, gyro_effects, auto) -> SensorBloc
         raise CalibrationError(f"{ms.path}: gyro output {', '.join(dead)} hardly changes during the moves, and "
                                f"holding {list(undetermined)} at nominal leaves the moves unexplained (chi2 "
                                f"{chi2:.3g} on {dof} dof): a dead or unconnected channel?")
+    to_add = None
+    if p_value is not None and p_value < ALPHA and not effects:  # the effects diagnose would add (misfit_shares)
+        sigma_g = gyro_noise_dps(ms, gm)
+        shares = misfit_shares(gm, f, sigma_g, regressor_inputs(ms, gm, f, acc_cal), chi2, dof, max_terms=1)
+        to_add = shares["effects"][0] if shares["effects"] else None
     bias_std = gm.bias_std if gyro_model == "nominal" else np.sqrt(np.diag(f.cov)[9:12])
     std_T = [[None if 3 * i + j in fixed else float(np.sqrt(f.cov[3 * i + j, 3 * i + j])) for j in range(3)]
              for i in range(3)]
@@ -289,7 +299,7 @@ def _gyro_block(ms, det, am, obs, fa, acc_cal, gyro_effects, auto) -> SensorBloc
         moves_opposite_sense=gm.flipped, iterations=f.iterations, chi2=chi2, dof=dof, p_value=p_value,
         test="chi-square of the moves against the rests' white noise (simucal diagnose shows them)",
         std_note="stds scale with the moves' own residual scatter, so they include any misfit",
-        undetermined=undetermined, gyro_model=gyro_model, model_choice=choice,
+        undetermined=undetermined, gyro_model=gyro_model, model_choice=choice, advice=to_add,
         **({"auto": chosen or []} if auto else {}))
 
 
@@ -316,6 +326,8 @@ def calibrate_handheld(ms, acc_model="acc_baseline", detect=None, pose_window_s=
         "chi2/dof = 1, and the stds include it"))
     if auto:
         cal.acc.details.update(auto=acc_chosen, auto_stopped=acc_stopped)
+    if cal.acc.p_value is not None and cal.acc.p_value < ALPHA and not fa.undetermined:
+        cal.acc.details["advice"] = advice(am, obs)  # what diagnose names for the poses (its fit has no prior)
     if ms.has_gyro:
-        cal.gyro = _gyro_block(ms, det, am, obs, fa, (M_a, b_a), gyro_effects, auto)
+        cal.gyro = _gyro_block(ms, det, am, obs, fa, (am, fa.vector(am.params)), gyro_effects, auto)
     return cal

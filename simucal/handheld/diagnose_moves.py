@@ -33,6 +33,7 @@ from simucal.fit.augmented import check_effect, effect_ids
 from simucal.fit.aux_inputs import FORCE
 from simucal.fit.candidates import gate_candidates, verdict
 from simucal.fit.distributions import chi2_sf
+from simucal.fit.twins import separating_plan, twins, twins_note
 from simucal.generated.effects import EFFECTS, SEPARATE_MOVES
 from simucal.handheld.calibrate import (
     chi2_test,
@@ -70,7 +71,7 @@ def rank_move_candidates(gm, base: GyroFit, inputs, base_fails, alpha):
     m = len(base.r)
     _, J0 = move_residuals(base.T, gm.mv, gm.g_dirs, db=base.db)
     Q, _ = np.linalg.qr(J0.reshape(-1, 12))
-    out = []
+    out, cols = [], {}
     for eid in progress.steps(effect_ids("gyro"), "gyro candidates over the moves", "effect"):
         pname, unit, meaning = EFFECTS[eid].parameter, EFFECTS[eid].unit, EFFECTS[eid].meaning
         family, ax = eid.split(".")[1], eid.split(".")[2]
@@ -89,6 +90,7 @@ def rank_move_candidates(gm, base: GyroFit, inputs, base_fails, alpha):
             entry.update(separable=False, note=f"{why}; to see it: {SEPARATE_MOVES[family]}")
             out.append(entry)
             continue
+        cols[eid] = (col - Q @ (Q.T @ col)) / perp
         f1 = fit_gyro_moves(mv, gm.g_dirs, np.r_[x0, 0.0], gm.bias_std)
         if not f1.converged:
             entry.update(separable=False, note=f"the fit with it did not converge in {f1.iterations} steps")
@@ -103,6 +105,11 @@ def rank_move_candidates(gm, base: GyroFit, inputs, base_fails, alpha):
             entry["note"] = (f"nearly collinear with T and the bias: {100 * perp / norm_col:.2g} % of its signature "
                              f"is separable; to see it: {SEPARATE_MOVES[family]}")
         out.append(entry)
+    for e in out:  # twins judged by the data (fit/twins.py): the noise profiled out as in the LR, s2 = rss / 2m
+        tw = twins(e["id"], cols, base.r.ravel(), rss0 / (2 * m)) if e.get("separable") else []
+        if tw:
+            e.update(twins=tw, note=(e["note"] + "; " if e.get("note") else "")
+                     + twins_note(tw, separating_plan(e["id"], tw[0], moves=True)))
     return gate_candidates(out, base_fails, alpha)
 
 
@@ -119,8 +126,7 @@ def diagnose_moves(ms, obs, det, am, fa, add=(), truth=None, alpha=0.01):
              "noise_floor": floor, "noise_std_of_mean": None, "chi2": chi2, "p_value": p,
              "test": "chi-square against the white noise of the rests (gyro) and of the pose means (acc)",
              "gyro_white_noise_dps": sigma_g.tolist()}
-    acc_cal = am.matrix_and_bias(fa.vector(am.params))
-    inputs = regressor_inputs(ms, gm, base, acc_cal)
+    inputs = regressor_inputs(ms, gm, base, (am, fa.vector(am.params)))
     inside = gm.mv.dt > 0
     columns = {k: np.sum(np.where(inside, v, 0.0), 1) / np.maximum(inside.sum(1), 1)
                for k, v in inputs[0][1].values.items() if k not in FORCE}

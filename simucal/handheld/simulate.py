@@ -6,7 +6,8 @@ s'(t) theta k. Outputs: counts = nominal * (M f + b) + noise, clipped at the
 full scale; accelerometer in g through acc M_a (lower triangular, b frame),
 gyro through a full M_g (so omega is in b). Translational acceleration during
 moves and the Earth rate are left out. Gyro effects of generated/effects.py
-can be planted (gyro_effects), evaluated at the true rate and specific force.
+can be planted (gyro_effects), evaluated at the true rate and specific force, and accelerometer
+effects (acc_effects) at the true specific force.
 `write_still`: a unit at rest (the stream `simucal noise` characterises).
 """
 from __future__ import annotations
@@ -40,6 +41,7 @@ class HandheldScenario:
     clip_moves: int = 0          # this many moves peak beyond full scale
     flip_gyro: bool = False      # gyro sign reversed (a wrong convention)
     gyro_effects: dict = field(default_factory=dict)  # planted candidate effects: {effect id: value in its unit}
+    acc_effects: dict = field(default_factory=dict)   # the same for the accelerometer (e.g. acc.quadratic.z, g/g^2)
     coplanar_poses: bool = False  # every pose turned about body x only: gravity directions in one plane
     dead_gyro_axis: int = None    # this gyro output does not respond to rate (a dead channel)
     weak_axis: int = None         # the moves turn about axes perpendicular to this body axis, never about it
@@ -53,16 +55,18 @@ def _random_rotation(rng):
 
 def _motion(sc: HandheldScenario, rng):
     """The true specific force f (g) and rate w (deg/s) of the session, sample by sample: an initial
-    rest, then poses joined by minimum-jerk moves (some whirled beyond full scale: their indices)."""
+    rest, then poses joined by minimum-jerk moves (some whirled beyond full scale: their indices), and
+    each rest's and pose's gravity direction in b."""
     if sc.coplanar_poses:
         Rs = [exp_so3(np.array([a, 0.0, 0.0])) for a in np.r_[0.0, rng.uniform(-np.pi, np.pi, sc.poses)]]
     else:
         Rs = [np.eye(3)] + [_random_rotation(rng) for _ in range(sc.poses)]
-    f_list, w_list = [], []
+    f_list, w_list, held = [], [], []
 
     def hold(R, secs):
         n = int(round(secs * sc.rate_hz))
-        f_list.append(np.tile(R.T @ np.array([0, 0, 1.0]), (n, 1)))
+        held.append(R.T @ np.array([0, 0, 1.0]))
+        f_list.append(np.tile(held[-1], (n, 1)))
         w_list.append(np.zeros((n, 3)))
 
     hold(Rs[0], sc.rest_s)
@@ -89,7 +93,7 @@ def _motion(sc: HandheldScenario, rng):
         w_list.append(np.degrees(ds[:, None] * v))
         Rs[i + 1] = Rs[i] @ exp_so3(v)  # the pose the move really reaches
         hold(Rs[i + 1], sc.pose_s)
-    return np.vstack(f_list), np.vstack(w_list), clip
+    return np.vstack(f_list), np.vstack(w_list), clip, np.array(held)
 
 
 def simulate_handheld(sc: HandheldScenario, seed=0):
@@ -102,17 +106,20 @@ def simulate_handheld(sc: HandheldScenario, seed=0):
     if sc.dead_gyro_axis is not None:
         M_g[sc.dead_gyro_axis] = 0.0
     dt = 1 / sc.rate_hz
-    f, w, clip = _motion(sc, rng)
+    f, w, clip, pose_f = _motion(sc, rng)
     n = len(f)
-    acc = sc.offset_counts + sc.acc_counts_per_g * (f @ M_a.T + b_a + rng.normal(0, sc.acc_noise_g, (n, 3)))
+    out_g = f @ M_a.T + b_a
     gsign = -1.0 if sc.flip_gyro else 1.0
     out_dps = gsign * (w @ M_g.T) + b_g
-    for eid, value in sc.gyro_effects.items():
-        effect = EFFECTS[eid]
-        if effect.sensor != "gyro":
-            raise ValueError(f"{eid}: only gyro effects can be planted in a hand-placed session")
-        aux = AuxInputs({"t_s": np.arange(n) * dt, **specific_force(f)}).array(SENSOR_AUX["gyro"], (n,))
-        out_dps[:, effect.axis] += value * effect.phi(w * DPH_PER_DPS, aux)[0][:, 0] / DPH_PER_DPS
+    for sensor, planted, out, u, scale in (("acc", sc.acc_effects, out_g, f, 1.0),
+                                          ("gyro", sc.gyro_effects, out_dps, w * DPH_PER_DPS, DPH_PER_DPS)):
+        aux = AuxInputs({"t_s": np.arange(n) * dt, **specific_force(f)}).array(SENSOR_AUX[sensor], (n,))
+        for eid, value in planted.items():
+            effect = EFFECTS[eid]
+            if effect.sensor != sensor:
+                raise ValueError(f"{eid}: not a {sensor} effect (plant it under {effect.sensor}_effects)")
+            out[:, effect.axis] += value * effect.phi(u, aux)[0][:, 0] / scale
+    acc = sc.offset_counts + sc.acc_counts_per_g * (out_g + rng.normal(0, sc.acc_noise_g, (n, 3)))
     gyro = sc.offset_counts + sc.gyro_counts_per_dps * (out_dps + rng.normal(0, sc.gyro_noise_dps, (n, 3)))
     lo = sc.offset_counts - sc.full_scale_dps * sc.gyro_counts_per_dps
     hi = sc.offset_counts + sc.full_scale_dps * sc.gyro_counts_per_dps
@@ -122,11 +129,12 @@ def simulate_handheld(sc: HandheldScenario, seed=0):
             "acc_counts_per_g": [sc.acc_counts_per_g] * 3, "gyro_counts_per_dps": [sc.gyro_counts_per_dps] * 3,
             "full_scale": {"gyro": [lo, hi]}, "description": "simucal hand-placed session simulation"}
     # output = M f + bias with outputs in physical units: counts / nominal, offset in the bias
-    truth = {"acc": {"M": M_a.tolist(), "bias": (b_a + sc.offset_counts / sc.acc_counts_per_g).tolist()},
+    truth = {"acc": {"M": M_a.tolist(), "bias": (b_a + sc.offset_counts / sc.acc_counts_per_g).tolist(),
+                     "params": {EFFECTS[e].parameter: v for e, v in sc.acc_effects.items()}},
              "gyro": {"M": M_g.tolist(), "T": None if sc.dead_gyro_axis is not None else np.linalg.inv(M_g).tolist(),
                       "bias_dps": (b_g + sc.offset_counts / sc.gyro_counts_per_dps).tolist(),
                       "params": {EFFECTS[e].parameter: v for e, v in sc.gyro_effects.items()}},
-             "clipped_moves": sorted(clip), "seed": seed}
+             "clipped_moves": sorted(clip), "pose_directions_b": pose_f.tolist(), "seed": seed}
     samples = {"t_s": np.arange(n) * dt, "ax": acc[:, 0], "ay": acc[:, 1], "az": acc[:, 2],
                "gx": gyro[:, 0], "gy": gyro[:, 1], "gz": gyro[:, 2]}
     return meta, samples, truth

@@ -66,6 +66,8 @@ def _fit_lines(s, b: SensorBlock, source):
     yield f"{s}: residual rms {b.residual_rms:.3g} {b.residual_unit or b.bias_unit}; {_test_text(b)}{eff}{held}"
     if (d.get("noise") or {}).get("text"):
         yield f"{s}: noise {d['noise']['text']}"
+    if (d.get("static_rows") or {}).get("p_value") is not None:  # the gyro's rows at rest, in its model test
+        yield f"{s}: at rest: {d['static_rows']['verdict']}"
     if d.get("noise_warning"):
         yield f"{s}: WARNING: {d['noise_warning']}"
     if d.get("tilt_note"):
@@ -91,7 +93,9 @@ def _fit_lines(s, b: SensorBlock, source):
                 "per pose" if d.get("model_error_std_g") else "stds assume the model is right")
         yield (f"{s}: THE MODEL FAILS (p = {b.p_value:.2g} < {FAILS_BELOW:.0e}): ".replace("e-0", "e-")
                + ("the stated noise may be too small (the warning above); " if d.get("noise_too_small") else "")
-               + (f"diagnose would add {what}; " if what else f"see simucal diagnose {source} for what is missing; ")
+               + (f"diagnose would add {what}; " if what else "the rows at rest misfit (above) by a term the rate runs "
+                  "cannot see; " if (d.get("static_rows") or {}).get("p_value", 1.0) < FAILS_BELOW else
+                  f"see simucal diagnose {source} for what is missing; ")
                + stds)
 
 

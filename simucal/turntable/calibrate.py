@@ -16,12 +16,12 @@ import numpy as np
 
 from simucal.errors import CalibrationError
 from simucal.fit.augmented import AugmentedModel, for_sensor
-from simucal.fit.candidates import forward_selection, verdict
+from simucal.fit.candidates import ALPHA, advice_text, forward_selection, verdict
 from simucal.fit.lack_of_fit import noise_dof, with_estimated_sigma
 from simucal.fit.norm_fit import fit_linear
 from simucal.io import calibration, units
-from simucal.turntable.consistency import handedness, latitude_check
-from simucal.turntable.model_test import ROWS, fails, rank, test_and_rank
+from simucal.turntable.consistency import handedness, latitude_check, static_gyro_rows
+from simucal.turntable.model_test import ROWS, fails, rank, static_gyro_test, test_and_rank, with_static_rows
 from simucal.turntable.observations import read_observations, table_accuracy_rad
 from simucal.turntable.tilt import add_tilt
 from simucal.turntable.unification import Unifier, unify, unify_paper
@@ -75,11 +75,7 @@ def _exact_sensor(model, obs, segs, method, where, ranked=True):
             "noise (or leave --noise out)")
     base["noise"]["text"] = _noise_text(base["noise"], obs2, model.unit)
     base["verdict"] = verdict(model.sensor, base, cands, where, shape, command="calibrate")
-    advice = None
-    if fails(base):
-        sig = [c for c in cands if c.get("significant")]
-        generic = shape and not shape.get("catalog_id")  # it beats every library effect: the verdict leads with it
-        advice = "a term " + shape["text"] if generic else sig[0]["id"] if sig else None
+    advice = advice_text(cands, shape) if fails(base) else None
     return fit, base, advice, with_estimated_sigma(obs2, base["noise"])
 
 
@@ -118,6 +114,9 @@ def _gyro_block(ms, method, cal, acc, gyro, gyro_noise_dph) -> calibration.Senso
         consistency = cal.details["consistency"]
         consistency["latitude"] = latitude_check(ms, fa, acc_segs, gm, fg, C_b_d, gyro_noise_dph)
         consistency["lines"].append("latitude: " + consistency["latitude"]["verdict"])
+        rows, static_gyro = static_gyro_rows(ms, acc_segs, gyro_noise_dph)
+        if rows:  # the gyro's test covers its rows at rest too
+            with_static_rows(base_g, static_gyro_test(ms, gm, fg, fa.directions[rows], C_b_d, static_gyro))
     else:
         if (am.name, gm.name) != ("acc_baseline", "gyro_baseline"):
             raise CalibrationError(f"the paper's frame unification (eq. 25-27) is derived for the baseline "
@@ -132,6 +131,8 @@ def _gyro_block(ms, method, cal, acc, gyro, gyro_noise_dph) -> calibration.Senso
     block.details["M_in_d"] = np.asarray(M_d).tolist()
     if std_M is not None:
         block.details["std_M"] = std_M.tolist()
+    if base_g is not None and "static_rows" in base_g:
+        block.chi2, block.dof, block.details["static_rows"] = base_g["chi2"], base_g["dof"], base_g["static_rows"]
     cal.unification = info
     return block
 
@@ -180,6 +181,9 @@ def calibrate_table(ms, method, acc_model, gyro_model, ids, acc_noise_g=None, gy
         calibration.inflate_if_failing(block)
         if s in chosen:
             block.details["auto"], block.details["auto_stopped"] = chosen[s]
+            if (block.details.get("static_rows") or {}).get("p_value", 1.0) < ALPHA:  # auto weighs the rate runs only
+                block.details["auto_stopped"] += " over the rate runs; the static rows still misfit (no library effect" \
+                                                 " describes a term the rate runs cannot see)"
     if ms.has_gyro and cal.gyro is None:  # the data hold a gyro, the plan determines none of it
         n_rate = sum(s.kind == "rate" for s in ms.segments)
         cal.drop_sensor("gyro", (f"no usable rate runs ({n_rate} in segments.csv, all saturated)" if n_rate else

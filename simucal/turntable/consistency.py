@@ -23,7 +23,7 @@ import math
 import numpy as np
 
 from simucal.errors import CalibrationError
-from simucal.fit.apply import model_function, solve_inputs
+from simucal.fit.apply import model_inputs
 from simucal.fit.aux_inputs import specific_force
 from simucal.fit.distributions import chi2_sf, t_isf
 from simucal.fit.rotations import log_so3, wahba
@@ -80,10 +80,8 @@ def latitude(ms, gm, fg, C_b_d, u_b, static_gyro):
     L_meta = float(ms.meta["latitude_deg"])
     N, sig, aux = static_gyro
     p = fg.vector(gm.params)
-    M_d, b_d = gm.matrix_and_bias(p)
     up_d = u_b @ C_b_d.T
-    w_d = solve_inputs(model_function(gm, p), M_d, b_d, N, aux.with_values(**specific_force(up_d)), "gyro",
-                       ms.path / "samples.csv")
+    w_d = model_inputs(gm, p, N, aux.with_values(**specific_force(up_d)), ms.path / "samples.csv")
     X = np.column_stack([up_d, np.full(len(up_d), w_e)])
     n = len(X)
     if n < 6 or np.linalg.matrix_rank(X / w_e, tol=1e-3) < 4:
@@ -167,9 +165,18 @@ def latitude_check(ms, fa, acc_segs, gm, fg, C_b_d, gyro_noise_dph=None):
     """consistency.latitude at the static positions that have gyro data; their noise from their
     scatter, else the stated one (gyro_noise_dph, else meta's), else estimated by the latitude
     fit itself."""
-    rows = [i for i, s in enumerate(acc_segs) if s.kind == "static"]
+    rows, static_gyro = static_gyro_rows(ms, acc_segs, gyro_noise_dph)
     if not rows:
         return {"verdict": "not checked: no static positions"}
+    return latitude(ms, gm, fg, C_b_d, fa.directions[rows], static_gyro)
+
+
+def static_gyro_rows(ms, acc_segs, gyro_noise_dph=None):
+    """The accelerometer's static rows (indices into acc_segs) and the gyro there: (N (n, 3) deg/h,
+    sigma (n, 3) or None where no row's noise is known, AuxInputs)."""
+    rows = [i for i, s in enumerate(acc_segs) if s.kind == "static"]
+    if not rows:
+        return rows, None
     gyro = ms.gyro_dph()
     raw = ms.raw("gyro")
     stated = units.stated_noise(ms.meta, "gyro") if gyro_noise_dph is None else gyro_noise_dph
@@ -183,4 +190,4 @@ def latitude_check(ms, fa, acc_segs, gm, fg, C_b_d, gyro_noise_dph=None):
         groups.append(r)
     sig = np.array(sig)
     sig = None if np.isnan(sig).all() else np.where(np.isnan(sig), np.nanmax(sig), sig)
-    return latitude(ms, gm, fg, C_b_d, fa.directions[rows], (np.array(N), sig, AuxInputs(column_means(ms.samples, groups, t_ref_c=ms.t_ref_c))))
+    return rows, (np.array(N), sig, AuxInputs(column_means(ms.samples, groups, t_ref_c=ms.t_ref_c)))

@@ -13,7 +13,13 @@ from __future__ import annotations
 
 from collections import Counter
 
+import numpy as np
+
+from simucal.fit.apply import model_inputs
+from simucal.fit.aux_inputs import specific_force
 from simucal.fit.candidates import ALPHA, rank_candidates, shape_if_unexplained, test_model
+from simucal.fit.distributions import chi2_sf
+from simucal.io import units
 from simucal.turntable.plan_design import TableAdvice
 
 ROWS = {"acc": {"static", "rate"}, "gyro": {"rate"}}  # the segment kinds each sensor's test fits
@@ -59,3 +65,67 @@ def rank(model, obs, fit, base, segs=None):
                            key=lambda c: (c["p_value"] if c["p_value"] is not None else 2.0, -c["statistic"])) + \
                 [c for c in both if not c["separable"]]
     return cands, shape_if_unexplained(model, obs, fit, base, cands), table_info
+
+
+def static_gyro_test(ms, gm, fg, u_b, C_b_d, static_gyro) -> dict:
+    """The gyro's static rows as part of its model test (issue 38, item 4). At rest a gyro reads the
+    Earth rate plus its bias: the fitted model (rate runs only) inverted whole at each static
+    position, w = h^-1(N), must show the Earth rate's vertical component w_e sin L along the
+    accelerometers' up (u_b in d through C_b^d) and its horizontal magnitude w_e cos L (the
+    azimuth needs a heading the table does not give). Each residual's variance: the row's own noise
+    through M^-1, plus the rate-run fit's parameter covariance (shared by all rows, numerical
+    Jacobian). chi2 = e^T S^-1 e on len(e) dof (the rows are predictions: no parameter is fitted to
+    them). A bias that follows a fixed direction in the local frame (the magnetic field's) shows in
+    rate-run means only as its vertical part, which a g-sensitivity absorbs; the static rows see
+    the rest."""
+    N, sig, aux = static_gyro
+    if sig is None:
+        return {"verdict": "not tested: no noise for the static gyro rows (raw rows or a stated gyro_noise_dph)"}
+    w_e, L = units.earth_rate_dph(ms.meta), np.radians(float(ms.meta["latitude_deg"]))
+    up_d = u_b @ C_b_d.T
+    aux_f = aux.with_values(**specific_force(up_d))
+    p = fg.vector(gm.params)
+    A = np.linalg.inv(gm.matrix_and_bias(p)[0])
+    horizontal = w_e * np.cos(L) > 20 * float(np.median(sig))  # its magnitude is Gaussian only well above noise
+
+    def residuals(q):
+        w = model_inputs(gm, q, N, aux_f, ms.path / "samples.csv")
+        v = np.sum(w * up_d, axis=1)
+        h = w - v[:, None] * up_d
+        e = [v - w_e * np.sin(L)] + ([np.linalg.norm(h, axis=1) - w_e * np.cos(L)] if horizontal else [])
+        return np.concatenate(e), [up_d] + ([h / np.linalg.norm(h, axis=1, keepdims=True)] if horizontal else [])
+
+    e, dirs = residuals(p)
+    var = np.concatenate([np.sum((d @ A) ** 2 * sig ** 2, axis=1) for d in dirs])  # (d^T M^-1) diag(sig^2) (.)^T
+    step = np.maximum(np.sqrt(np.diag(fg.cov)), 1e-12) * 1e-3
+    J = np.column_stack([(residuals(p + s * k)[0] - residuals(p - s * k)[0]) / (2 * s)
+                         for s, k in zip(step, np.eye(len(p)))])
+    S = np.diag(var) + J @ fg.cov @ J.T
+    chi2 = float(e @ np.linalg.solve(S, e))
+    n, dof = len(N), len(e)
+    p_value = float(chi2_sf(chi2, dof))
+    what = "the Earth rate's vertical component" + (" and horizontal magnitude" if horizontal else "")
+    return {"chi2": chi2, "dof": dof, "p_value": p_value, "positions": n, "what": what,
+            "residual_rms_dph": float(np.sqrt(np.mean(e ** 2))), "noise_rms_dph": float(np.sqrt(np.mean(var))),
+            "verdict": (f"{n} static positions ({what} at rest, predicted by the rate runs' fit): chi2 {chi2:.1f} on "
+                        f"{dof} dof, p = {p_value:.2g}; residual rms {np.sqrt(np.mean(e ** 2)):.3g} deg/h against "
+                        f"{np.sqrt(np.mean(var)):.3g} noise"
+                        + ("" if p_value >= ALPHA else ": the model misfits at rest what the rate runs cannot see "
+                           "(e.g. a bias that follows a fixed direction in the local frame, as a magnetic field, "
+                           "shows in rate-run means only as its vertical part, which a g-sensitivity absorbs)"))}
+
+
+def with_static_rows(base: dict, st: dict) -> None:
+    """A gyro's test block (test_model's) over its rate runs and its static rows together: one chi-square
+    where the rate runs' noise is known (test 'chi-square'), else the smaller of the two p-values doubled.
+    calibrate and diagnose both call it, so they report the same test."""
+    base["static_rows"] = st
+    if "chi2" not in st:
+        return
+    base["rows"] = f"{base.get('rows') or 'the rate runs'} and {st['positions']} static positions ({st['what']})"
+    if base["chi2"] is not None and base["test"] == "chi-square":
+        base["chi2"], base["dof"] = base["chi2"] + st["chi2"], base["dof"] + st["dof"]
+        base.update(p_value=float(chi2_sf(base["chi2"], base["dof"])), test="chi-square over the rate runs and the static rows")
+    elif base["p_value"] is not None:
+        base.update(p_value=min(1.0, 2 * min(base["p_value"], st["p_value"])),
+                    test=f"{base['test']} (rate runs) and the static rows' chi-square, the smaller p doubled")

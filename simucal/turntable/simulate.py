@@ -61,6 +61,9 @@ class Scenario:
     # Effects in the truth that a calibration model may lack: {effect id: value}.
     acc_effects: dict = field(default_factory=dict)
     gyro_effects: dict = field(default_factory=dict)
+    # a gyro bias fixed in the local frame n (ENU, deg/h; e.g. one following the magnetic field): it turns
+    # with the unit, so it is no library effect; rate-run means see only its vertical part
+    gyro_bias_local_dph: tuple = (0.0, 0.0, 0.0)
     temp_c: tuple | None = None       # (first, last): a linear sweep over the segments; None: no temp_c column
     t_ref_c: float | None = None      # T_ref of the unit's temperature terms; None: the data's mean temp_c
     temp_wander_c: float = 0.0        # each segment's temp_c off the sweep by a uniform draw within +- this
@@ -175,7 +178,8 @@ def _segments(sc: Scenario, rng):
     runs about the outer axis turning continuously (the outer angle at t is rate * t)."""
     C_b_k = table.mounting(np.array(sc.theta4_rad))
     C_d_k = table.mounting(np.array(sc.lambda4_rad))
-    w_ie_n = table.earth_rate_n(units.DEFAULT_EARTH_RATE_DPH, np.radians(sc.latitude_deg))
+    w_ie_n = table.earth_rate_n(units.DEFAULT_EARTH_RATE_DPH, np.radians(sc.latitude_deg)) + np.array(
+        sc.gyro_bias_local_dph, float)  # what the gyro reads at rest
     plan = plans.PLANS[sc.plan]() if sc.plan in plans.PLANS else plans.read_csv(sc.plan)
     static = list(plan) + (plans.TABLE2 if sc.unify_positions else [])
     rates = [(0.0, a, b, r) for r in sc.outer_rate_dps for (_, a, b) in plan]

@@ -30,7 +30,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from simucal.errors import CalibrationError
-from simucal.fit.apply import model_function, solve_inputs
+from simucal.fit.apply import model_inputs
 from simucal.fit.distributions import chi2_sf_estimated
 from simucal.fit.gauss_newton import tangent_basis
 from simucal.fit.norm_fit import full_covariance
@@ -137,8 +137,7 @@ class Unifier:
         of h(f, p) = N: df = (dh/df)^-1 (dN - dh/dp dp)."""
         _, N, _, aux = self.acc_means
         p = self.fa.vector(self.am.params)
-        M, b = self.am.matrix_and_bias(p)
-        f = solve_inputs(model_function(self.am, p), M, b, N, aux, "acc", "the rate runs")
+        f = model_inputs(self.am, p, N, aux, "the rate runs")
         _, Ju, Jp = self.am.jacobians(f, p, aux)
         Jinv = np.linalg.inv(Ju)
         m, n = len(p), len(N)
