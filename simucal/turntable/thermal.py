@@ -22,18 +22,21 @@ def _concatenate(parts: list[Observations], t_ref_c: float) -> Observations:
 
 
 def joint_observations(sets, t_ref_c, acc_noise_g=None, gyro_noise_dph=None, noise_curves=None) -> dict:
-    """{sensor: (observations of every set's rows, each row's set index)} for the sensors the sets hold."""
-    per = {"acc": [], "gyro": []}
+    """{sensor: (observations of every set's rows, each row's set index, each row's segment)} for the
+    sensors the sets hold."""
+    per, segs = {"acc": [], "gyro": []}, {"acc": [], "gyro": []}
     for ms in sets:
         ms.temperature_ref_c = t_ref_c
-        _, (acc, _, gyro, _) = read_observations(ms, "exact", ROWS, acc_noise_g, gyro_noise_dph, noise_curves)
-        per["acc"].append(acc)
-        per["gyro"].append(gyro)
+        _, (acc, acc_segs, gyro, gyro_segs) = read_observations(ms, "exact", ROWS, acc_noise_g, gyro_noise_dph,
+                                                                 noise_curves)
+        for s, o, sg in (("acc", acc, acc_segs), ("gyro", gyro, gyro_segs)):
+            per[s].append(o)
+            segs[s] += sg or []
     out = {}
     for s, parts in per.items():
         if parts and all(o is not None for o in parts):
             groups = np.concatenate([np.full(len(o.N), k) for k, o in enumerate(parts)])
-            out[s] = (_concatenate(parts, t_ref_c), groups)
+            out[s] = (_concatenate(parts, t_ref_c), groups, segs[s])
     return out
 
 
