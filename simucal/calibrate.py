@@ -281,7 +281,7 @@ def _calibrate_thermal(folders, degree, t_ref_c, kwargs) -> Calibration:
 
 def _joint(result, sets, cal, degree, t_ref, kwargs):
     """The sensors' blocks of a turntable unit by the joint fit (_joint_block)."""
-    from simucal.turntable.thermal import joint_observations, ramp_bands
+    from simucal.turntable.thermal import axes_following_temperature, joint_observations, ramp_bands
     curves = None
     if kwargs.get("noise") is not None:
         from simucal.fit.noise import load_curves
@@ -296,5 +296,10 @@ def _joint(result, sets, cal, degree, t_ref, kwargs):
         if len(sets) == 1:
             groups = ramp_bands(o.aux.column("temp_c", len(o.N)))
             labels = [f"{sets[0][0].path}, band {g + 1}" for g in np.unique(groups)]
+            result.warnings += [f"{s}: the {a} input follows the ramp's temperature (R^2 {r2:.2f} of a line in T over "
+                                f"the {len(o.N)} rows): its bias curvature and its scale factor's drift look alike "
+                                f"there and are not told apart; record the plan in an order whose directions do not "
+                                f"follow the temperature (shuffled), or at plateaus"
+                                for a, r2 in axes_following_temperature(o).items()]
         setattr(result, s, _joint_block(o, groups, getattr(cal, s), degree, labels, t_ref, len(sets) > 1,
                                         (segs, sets[0][0].meta) if s == "gyro" else None))

@@ -18,7 +18,7 @@ ARCSEC_RAD = math.radians(1 / 3600)  # rad per arcsec
 # meta.json's stated noise of one row's output, per sensor: its key, unit and largest plausible value
 # a column named as a temperature in another unit than the spec's temp_c (degC): temp_f, TempF, temp_degF,
 # temperature (K), temp_kelvin, ... Its name is the only sound cue: below 125 degF (51.7 degC) degF values
-# lie inside an IMU's rated degC range, and a unit's thermal slopes vary more than the factor 1.8
+# lie inside an IMU's rated degC range, and a unit's thermal slopes are its own (no scale for the factor 1.8)
 _TEMP_OTHER_UNIT = re.compile(r"^(tmp|temp|temperature)[ _.\-(\[]*(deg|°)?[ _]?(?P<unit>f|k|fahrenheit|kelvin)[)\]]?$",
                               re.I)
 
