@@ -8,6 +8,12 @@ the largest |c| / std of a coefficient the truth lacks, the largest |c - truth| 
 one, and validate's first check (the norm) over its floor per sensor.
 
     python3 benchmarks/bench_thermal.py FIRST_SEED END_SEED
+
+With --ramp, per seed instead: one ramp 5 to 45 degC (no wander) of the same unit on fibonacci48 in its
+own order and with its positions shuffled, each calibrated with --thermal and validated at 30 degC on
+the Table 1 plan: the joint tests' p, validate's norm check over its floor, and the ramp's warnings.
+
+    python3 benchmarks/bench_thermal.py FIRST_SEED END_SEED --ramp
 """
 import json
 import subprocess
@@ -59,19 +65,47 @@ def one_seed(root: Path, seed: int, truth: dict) -> str:
                     lacking.append(abs(c) / e)
                 elif t is not None:
                     planted.append(abs(c - t) / e if e else float("inf"))
-    tests = {s: f"p {cal[s]['p_value']:.2g}, plateaus >= {min(g['p_value'] for g in cal[s]['groups']):.2g}"
-             for s in ("acc", "gyro")}
-    floor = {s: round(v["checks"][s][0]["after_rms"] / v["checks"][s][0]["floor_rms"], 2) for s in ("acc", "gyro")}
-    return (f"seed {seed}: {tests}; lacking max {max(lacking):.2f} std; planted max {max(planted):.2f} std; "
-            f"at 40 degC x floor {floor}")
+    floor = [v["checks"][s][0]["after_rms"] / v["checks"][s][0]["floor_rms"] for s in ("acc", "gyro")]
+    cells = [seed] + [f"{x:.2g}" for s in ("acc", "gyro") for x in (cal[s]["p_value"],
+                                                                     min(g["p_value"] for g in cal[s]["groups"]))]
+    return "| " + " | ".join(map(str, cells + [f"{max(lacking):.2f}", f"{max(planted):.2f}",
+                                                f"{floor[0]:.2f}", f"{floor[1]:.2f}"])) + " |"
+
+
+def ramp_seed(root: Path, seed: int) -> str:
+    """--ramp (module doc)."""
+    import numpy as np
+
+    from simucal.turntable.plans import fibonacci
+    positions = list(fibonacci(48))
+    (root / "shuffled.csv").write_text("outer_deg,middle_deg,inner_deg\n" + "".join(
+        ",".join(map(str, positions[i])) + "\n" for i in np.random.default_rng(seed).permutation(len(positions))))
+    sim = ("--rate-hz", 20, "--t-ref-c", 25, *EFFECTS)
+    run("simulate", "-o", root / "c30", "--plan", "table1", "--seed", 1000 * seed + 6, "--temperature-c", 30, *sim)
+    out = []
+    for name, plan in (("in order", "fibonacci48"), ("shuffled", root / "shuffled.csv")):
+        ramp, r, v = root / f"ramp {name}", root / f"r {name}.json", root / f"v {name}.json"
+        run("simulate", "-o", ramp, "--plan", plan, "--seed", 1000 * seed + 5, "--temperature-c", "5:45", *sim)
+        run("calibrate", ramp, "--thermal", "-o", r)
+        run("validate", r, root / "c30", "-o", v)
+        cal, v = json.loads(r.read_text()), json.loads(v.read_text())
+        floor = {s: round(v["checks"][s][0]["after_rms"] / v["checks"][s][0]["floor_rms"], 2) for s in ("acc", "gyro")}
+        p = {s: float(f"{cal[s]['p_value']:.2g}") for s in ("acc", "gyro")}
+        warned = [w.split(" input")[0] for w in cal.get("warnings", []) if "follows the ramp's temperature" in w]
+        out.append(f"{name}: p {p}, at 30 degC x floor {floor}, warned {warned}")
+    return f"| ramp seed {seed}: " + "; ".join(out) + " |"
 
 
 def main():
     first, end = (int(a) for a in sys.argv[1:3])
     truth = _truth()
+    if "--ramp" not in sys.argv:
+        print("| seed | acc p | acc lowest plateau p | gyro p | gyro lowest plateau p | max std of a coefficient the "
+              "truth lacks | max std off of a planted one | acc at 40 degC x floor | gyro at 40 degC x floor |\n"
+              + "|---" * 9 + "|")
     for seed in range(first, end):
         with tempfile.TemporaryDirectory() as tmp:
-            print(one_seed(Path(tmp), seed, truth), flush=True)
+            print(ramp_seed(Path(tmp), seed) if "--ramp" in sys.argv else one_seed(Path(tmp), seed, truth), flush=True)
 
 
 if __name__ == "__main__":

@@ -14,7 +14,7 @@ import numpy as np
 from simucal import io, methods
 from simucal.errors import CalibrationError
 from simucal.fit.thermal import PLAUSIBLE_C, SPREAD_C
-from simucal.io import calibration
+from simucal.io import calibration, units
 from simucal.io.calibration import Calibration, SensorBlock
 from simucal.io.calibration_checks import check_layout, scale_notes
 from simucal.io.sensor_checks import stuck_channels
@@ -100,8 +100,11 @@ def _plateau(folder):
     """A plateau's set and its temperature (the mean of temp_c), refused without a plausible temp_c."""
     ms = io.read_set(folder)
     if "temp_c" not in ms.samples:
+        other = {c: units.temperature_unit_in_name(c) for c in ms.samples}
+        named = [f"{c} (named as {u})" for c, u in other.items() if u]
         raise CalibrationError(f"{ms.path / 'samples.csv'}: no temp_c column, so no plateau temperature: a thermal "
-                               "calibration needs the unit's temperature on every row")
+                               "calibration needs the unit's temperature on every row" + (
+                                   f"; it has {', '.join(named)}: convert it to degC as column temp_c" if named else ""))
     T = ms.samples["temp_c"]
     if T.min() < PLAUSIBLE_C[0] or T.max() > PLAUSIBLE_C[1]:
         raise CalibrationError(f"{ms.path / 'samples.csv'}: temp_c runs {T.min():.4g} to {T.max():.4g}, outside an "
@@ -161,10 +164,11 @@ def _own_fits(base, obs, groups) -> list:
     return [fit_with_noise(base, obs.take(np.nonzero(groups == g)[0]))[0] for g in np.unique(groups)]
 
 
-def _joint_block(obs, groups, first: SensorBlock, degree, labels, t_ref_c, plateaus: bool) -> SensorBlock:
+def _joint_block(obs, groups, first: SensorBlock, degree, labels, t_ref_c, plateaus: bool, tilt=None) -> SensorBlock:
     """One sensor's block from the joint fit of every row at its own temperature (fit/thermal_select.py):
     the block at T_ref (params = c_0), every parameter's polynomial, each group's test under the joint
-    model beside its own fit's (plateaus; a ramp's bands have none)."""
+    model beside its own fit's (plateaus; a ramp's bands have none); tilt: the gyro's (rate runs, meta)
+    for the outer axis's tilt in its stds (turntable/tilt.py)."""
     from dataclasses import replace
 
     from simucal.fit.augmented import AugmentedModel
@@ -195,6 +199,9 @@ def _joint_block(obs, groups, first: SensorBlock, degree, labels, t_ref_c, plate
                     params={n: fit.params[n] for n in base.params}, std={n: fit.std[n] for n in base.params},
                     M=M @ first.C, bias=bias, residual_rms=fit.residual_rms, chi2=fit.chi2, dof=fit.dof,
                     p_value=fit.p_value, thermal=thermal, details=details)
+    if tilt is not None:
+        from simucal.turntable.tilt import add_tilt_thermal
+        add_tilt_thermal(block, model, fit, obs, *tilt)
     if calibration.inflate_if_failing(block) and fit.dof:  # the coefficients' stds too (covariance kept unscaled)
         k = float(np.sqrt(max(fit.chi2 / fit.dof, 1.0)))
         for f in fits.values():
@@ -284,7 +291,7 @@ def _calibrate_thermal(folders, degree, t_ref_c, kwargs) -> Calibration:
 
 def _joint(result, sets, cal, degree, t_ref, kwargs):
     """The sensors' blocks of a turntable unit by the joint fit (_joint_block)."""
-    from simucal.turntable.thermal import joint_observations, ramp_bands
+    from simucal.turntable.thermal import axes_following_temperature, joint_observations, ramp_bands
     curves = None
     if kwargs.get("noise") is not None:
         from simucal.fit.noise import load_curves
@@ -294,9 +301,15 @@ def _joint(result, sets, cal, degree, t_ref, kwargs):
     for s in cal.sensors:
         if s not in obs:
             continue
-        o, groups = obs[s]
+        o, groups, segs = obs[s]
         labels = [str(ms.path) for ms, _ in sets]
         if len(sets) == 1:
             groups = ramp_bands(o.aux.column("temp_c", len(o.N)))
             labels = [f"{sets[0][0].path}, band {g + 1}" for g in np.unique(groups)]
-        setattr(result, s, _joint_block(o, groups, getattr(cal, s), degree, labels, t_ref, len(sets) > 1))
+            result.warnings += [f"{s}: the {a} input follows the ramp's temperature (R^2 {r2:.2f} of a line in T over "
+                                f"the {len(o.N)} rows): its bias curvature and its scale factor's drift look alike "
+                                f"there and are not told apart; record the plan in an order whose directions do not "
+                                f"follow the temperature (shuffled), or at plateaus"
+                                for a, r2 in axes_following_temperature(o).items()]
+        setattr(result, s, _joint_block(o, groups, getattr(cal, s), degree, labels, t_ref, len(sets) > 1,
+                                        (segs, sets[0][0].meta) if s == "gyro" else None))

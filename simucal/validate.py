@@ -35,7 +35,7 @@ from simucal.errors import CalibrationError
 from simucal.fit.apply import apply
 from simucal.fit.rotations import wahba
 from simucal.io import calibration, units
-from simucal.turntable.observations import mean_and_sigma, table_accuracy_rad
+from simucal.turntable.observations import mean_and_sigma, outer_angle_rad, table_accuracy_rad
 from simucal.turntable.plan_design import directions_k
 
 WORSE = 1.05  # after/before above this: the calibration makes the unit worse on these data
@@ -48,11 +48,15 @@ def _rms(x):
     return float(np.sqrt(np.mean(x ** 2))) if x.size else None
 
 
-def _segment_means(data, groups, stated):
+def _segment_means(data, groups, stated, angles=None):
     """Mean of each group of rows (n, 3) and the std of each mean (n,) along the norm, the rms over
-    the axes of observations.mean_and_sigma's (first differences, blind to a rate run's turning
-    Earth rate; the stated noise of one row where a group has fewer than three)."""
-    out = [mean_and_sigma(data[rows], stated, varying=True) for rows in groups]
+    the axes of observations.mean_and_sigma's: a rate run's (angles: each row's outer angle) as the
+    calibration takes it, the constant of its outer angle's harmonics and their residuals' scatter
+    (first differences would count the turning Earth rate as noise: at 20 Hz 3x it, a floor 3-5x too
+    high), a static group's from first differences (blind to a slow drift); the stated noise of one
+    row where a group has fewer than three."""
+    out = [mean_and_sigma(data[rows], stated, varying=True, angle_rad=None if angles is None else a)
+           for rows, a in zip(groups, angles or [None] * len(groups))]
     return np.array([m for m, _ in out]), np.array([np.sqrt(np.mean(sd ** 2)) for _, sd in out], float)
 
 
@@ -178,7 +182,8 @@ def _turntable(ms, f_before, f_after, w_before, w_after, cal):
             if not chosen:
                 continue
             groups = [seg_rows[s.segment] for s in chosen]
-            (mb, _), (ma, fl) = _segment_means(w_before, groups, sd), _segment_means(w_after, groups, sd)
+            angles = [outer_angle_rad(ms, seg_rows[s.segment], s) for s in chosen]
+            (mb, _), (ma, fl) = _segment_means(w_before, groups, sd, angles), _segment_means(w_after, groups, sd, angles)
             f_means = None if f_after is None else np.array([f_after[g].mean(0) for g in groups])
             whole, with_cal = _with_calibration(fl, cal, "gyro", ma, groups, ms, f_means)
             what = ("|w| - |w_T + w_e sin L| at each rate run" if kind == "rate" else

@@ -168,6 +168,10 @@ def import_csv(path, out, columns: dict, acc_unit, gyro_unit, rate_hz=None, lati
     """columns: {spec column: source column name}, e.g. {"ax": "acc_x", ...};
     without a t_s column, time is row / rate_hz."""
     path = Path(path)
+    named = units.temperature_unit_in_name(columns.get("temp_c", ""))
+    if named:
+        raise ImportError_(f"{path}: column {columns['temp_c']} is named as {named}, but temp_c is degC: convert it "
+                           "first (" + ("C = K - 273.15" if named == "kelvin" else "C = (F - 32) / 1.8") + ")")
     samples = _read_columns(path, columns)
     n = len(next(iter(samples.values())))
     if "t_s" not in samples:

@@ -5,6 +5,7 @@ outputs are divided by the nominal scale factors of meta.json. Note
 1 arcsec/s = 1 deg/h, so gyro pulse/s / (pulses per arcsec) is deg/h.
 """
 import math
+import re
 
 import numpy as np
 
@@ -15,6 +16,19 @@ DEFAULT_EARTH_RATE_DPH = 15.04107
 DPH_PER_DPS = 3600.0  # deg/h per deg/s (1 arcsec/s = 1 deg/h)
 ARCSEC_RAD = math.radians(1 / 3600)  # rad per arcsec
 # meta.json's stated noise of one row's output, per sensor: its key, unit and largest plausible value
+# a column named as a temperature in another unit than the spec's temp_c (degC): temp_f, TempF, temp_degF,
+# temperature (K), temp_kelvin, ... Its name is the only sound cue: below 125 degF (51.7 degC) degF values
+# lie inside an IMU's rated degC range, and a unit's thermal slopes are its own (no scale for the factor 1.8)
+_TEMP_OTHER_UNIT = re.compile(r"^(tmp|temp|temperature)[ _.\-(\[]*(deg|°)?[ _]?(?P<unit>f|k|fahrenheit|kelvin)[)\]]?$",
+                              re.I)
+
+
+def temperature_unit_in_name(name: str) -> str | None:
+    """'degF' or 'kelvin' where a column's name says its temperature is in that unit, else None."""
+    m = _TEMP_OTHER_UNIT.match(name.strip())
+    return None if m is None else "kelvin" if m["unit"].lower() in ("k", "kelvin") else "degF"
+
+
 NOISE_KEY = {"acc": "acc_noise_g", "gyro": "gyro_noise_dph"}
 NOISE_UNIT = {"acc": ("g", 1.0), "gyro": ("deg/h", 1e6)}
 SCALE_KEY = {("acc", "pulse/s"): "acc_pulses_per_g", ("acc", "counts"): "acc_counts_per_g",

@@ -34,12 +34,12 @@ def earth_rate_sensitivity(model, fit, obs, segs, meta) -> np.ndarray:
     return (moved.vector(model.params) - fit.vector(model.params)) / step
 
 
-def add_tilt(block, model, fit, obs, segs, meta, M_of_p, C_b_d=None):
-    """Add the tilt's effect to a gyro block's stds (and std_M) where table_tilt_arcsec is stated,
-    else write a note where a well-levelled table's tilt would move a parameter by NOTE_ABOVE std."""
+def _tilt(block, model, fit, obs, segs, meta, std):
+    """The tilt's effect on each parameter where meta.json states table_tilt_arcsec (recorded in the
+    block's details), else None after the note where a well-levelled table's tilt would move a
+    parameter by NOTE_ABOVE std (std: the parameters' own)."""
     per_arcsec = earth_rate_sensitivity(model, fit, obs, segs, meta)
     stated = meta.get("table_tilt_arcsec")
-    std = np.array([block.std[k] for k in model.params])
     if stated is None:
         worst = float(np.max(np.abs(per_arcsec) * WELL_LEVELLED_ARCSEC / std))
         if worst > NOTE_ABOVE:
@@ -48,8 +48,19 @@ def add_tilt(block, model, fit, obs, segs, meta, M_of_p, C_b_d=None):
                 f"{WELL_LEVELLED_ARCSEC:g} arcsec toward north would move every scale factor alike by up to "
                 f"{worst:.2g} std, unseen by the norm with one sense of rotation; state the table's levelling to "
                 "have it in the stds")
+        return None
+    block.details["table_tilt"] = {"stated_arcsec": float(stated),
+                                   "per_arcsec": dict(zip(model.params, per_arcsec.tolist())),
+                                   "note": "the stds include the outer axis's tilt (meta.json table_tilt_arcsec)"}
+    return per_arcsec * float(stated)
+
+
+def add_tilt(block, model, fit, obs, segs, meta, M_of_p, C_b_d=None):
+    """Add the tilt's effect to a gyro block's stds (and std_M) where table_tilt_arcsec is stated,
+    else write a note where a well-levelled table's tilt would move a parameter by NOTE_ABOVE std."""
+    sys = _tilt(block, model, fit, obs, segs, meta, np.array([block.std[k] for k in model.params]))
+    if sys is None:
         return
-    sys = per_arcsec * float(stated)
     block.std = {k: float(np.hypot(s, d)) for (k, s), d in zip(block.std.items(), sys)}
     p = fit.vector(model.params)
     dM = M_of_p(p + sys) - M_of_p(p)
@@ -57,6 +68,21 @@ def add_tilt(block, model, fit, obs, segs, meta, M_of_p, C_b_d=None):
         dM = dM @ C_b_d
     if block.details.get("std_M") is not None:
         block.details["std_M"] = np.hypot(np.array(block.details["std_M"]), dM).tolist()
-    block.details["table_tilt"] = {"stated_arcsec": float(stated),
-                                   "per_arcsec": dict(zip(model.params, per_arcsec.tolist())),
-                                   "note": "the stds include the outer axis's tilt (meta.json table_tilt_arcsec)"}
+
+
+def add_tilt_thermal(block, model, fit, obs, segs, meta):
+    """add_tilt for the joint thermal fit (model: a ThermalModel): the tilt is the same at every
+    temperature, so it moves the scale factors' constant terms c_0 alike. Stated, its effect s (per
+    coefficient) joins every coefficient's std in quadrature and s s^T their covariance (which
+    validate's floor propagates); unstated, the note."""
+    sys = _tilt(block, model, fit, obs, segs, meta, np.array([fit.std[k] for k in model.params]))
+    if sys is None:
+        return
+    th = block.thermal
+    for name, d in zip(model.params, sys):
+        base, _, k = name.partition(".T")
+        f = th["parameters"][base]
+        f["std"][int(k or 0)] = float(np.hypot(f["std"][int(k or 0)], d))
+    block.std = {n: th["parameters"][n]["std"][0] for n in block.std}
+    block.effects = {e: replace(v, std=block.std[e]) for e, v in block.effects.items()}
+    th["covariance"]["matrix"] = (np.asarray(th["covariance"]["matrix"]) + np.outer(sys, sys)).tolist()
