@@ -13,6 +13,7 @@ from click.testing import CliRunner
 
 import simucal
 from simucal.cli import main
+from simucal.errors import CalibrationError
 from simucal.handheld.simulate import HandheldScenario, write_handheld
 from simucal.io import MeasurementSetError
 from simucal.turntable.simulate import Scenario, simulate, write
@@ -140,6 +141,22 @@ def test_readme_example_runs(tmp_path):
     assert res.returncode == 0, res.stderr[-2000:]
     assert "acc.dK_x" not in res.stdout and "dK_x" in res.stdout and "'acc':" in res.stdout
     assert json.loads((tmp_path / "cal.json").read_text())["format"] == "simucal.calibration/2"
+
+
+def test_apply_refuses_leaving_out_an_input_the_model_reads():
+    raw, samples, segments, meta, _ = _recording(4, {"acc.bias_drift_time.z": 2e-7})
+    cal = simucal.calibrate(_set(raw, samples, segments, meta, "run"), add=["acc.bias_drift_time.z"])
+    with pytest.raises(CalibrationError, match="drifting in time: give each row's t_s="):
+        cal.apply(raw)
+    drift = cal.acc.effects["acc.bias_drift_time.z"].value
+    late = cal.apply(raw, t_s=samples["t_s"] + 1000.0)[:, 2] - cal.apply(raw, t_s=samples["t_s"])[:, 2]
+    assert abs(drift - 2e-7) < 2e-8  # planted, found
+    np.testing.assert_allclose(late, -1000.0 * drift / cal.acc.M[2, 2], rtol=1e-2)  # z: the drift taken out
+
+
+def test_python_m_simucal_runs_the_command_line():
+    res = subprocess.run([sys.executable, "-m", "simucal", "--help"], capture_output=True, text=True)
+    assert res.returncode == 0 and "calibrate" in res.stdout and "Usage: simucal" in res.stdout, res.stderr
 
 
 def test_import_stays_light():

@@ -23,6 +23,7 @@ LAYERS = [
     {"simucal.calibrate", "simucal.diagnose", "simucal.validate", "simucal.allan", "simucal.bench", "simucal.derive_cmd"},
     {"simucal.demo", "simucal.api"},
     {"simucal.cli"},
+    {"simucal.__main__"},
 ]
 DERIVES = {"simucal.derive_cmd", "simucal.fit.catalog", "simucal.report.paper_claims"}  # SymPy on purpose
 

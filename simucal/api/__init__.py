@@ -13,12 +13,13 @@ import os
 from dataclasses import dataclass, replace
 from typing import Any, NamedTuple, Sequence, Union
 
-from simucal import calibrate as _calibrate
 from simucal import io
-from simucal import validate as _validate
+from simucal.calibrate import calibrate as _calibrate_set
+from simucal.calibrate import calibrate_thermal as _calibrate_thermal
 from simucal.api.calibration import Calibration, Parameter
 from simucal.api.sets import MeasurementSet
 from simucal.io import calibration as _file
+from simucal.validate import validate as _validate_report
 
 Data = Union[str, os.PathLike, io.MeasurementSet]
 
@@ -86,11 +87,11 @@ def calibrate(data: Data | Sequence[str | os.PathLike], **options: Any) -> Calib
     """
     if isinstance(data, (list, tuple)):
         options.pop("thermal", None)
-        return Calibration.of(_calibrate.calibrate_thermal(list(data), **options))
+        return Calibration.of(_calibrate_thermal(list(data), **options))
     options.pop("thermal", None)
     # a copy: calibrate records the user's T_ref on the set it is given, which is the caller's
     ms = replace(data) if isinstance(data, io.MeasurementSet) else io.read_set(data)
-    return Calibration.of(_calibrate.calibrate(ms, **options))
+    return Calibration.of(_calibrate_set(ms, **options))
 
 
 class Check(NamedTuple):
@@ -146,7 +147,7 @@ def validate(cal: Calibration | str | os.PathLike, data: Data) -> Validation:
     >>> v.verdict  # doctest: +SKIP
     {'acc': 'at the noise floor', 'gyro': 'at the noise floor'}
     """
-    report = _validate.validate(cal, data)
+    report = _validate_report(cal, data)
     checks = [Check(s, c["what"], c["unit"], c["n"], c["before_rms"], c["after_rms"], c["floor_rms"], c["verdict"])
               for s, rows in report["checks"].items() for c in rows]
     return Validation(dict(report["verdict"]), checks, bool(report["independent"]), list(report["warnings"]), report)

@@ -142,7 +142,7 @@ class Calibration(calibration.Calibration):
         _, out, _ = fit_apply.apply(self, ms, "this calibration")
         back = {"acc": given["acc_unit"] if given["acc_unit"] in PHYSICAL["acc"] else "g",
                 "gyro": given["gyro_unit"] if given["gyro_unit"] in PHYSICAL["gyro"] else "deg/h"}
-        result = {}
+        result: dict[str, np.ndarray] = {}
         for s, cols, to in (("acc", SAMPLE_COLS[:3], units.g_to_acc), ("gyro", SAMPLE_COLS[3:], units.dph_to_gyro)):
             if cols[0] in out:
                 u = np.column_stack([out[c] for c in cols])

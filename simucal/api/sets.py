@@ -85,9 +85,9 @@ class MeasurementSet(io.MeasurementSet):
         >>> ms.has_gyro, ms.has_acc
         (True, False)
         """
-        return arrays.from_arrays(acc, gyro, acc_unit=acc_unit, gyro_unit=gyro_unit, rate_hz=rate_hz, t_s=t_s,
+        return cls.of(arrays.from_arrays(acc, gyro, acc_unit=acc_unit, gyro_unit=gyro_unit, rate_hz=rate_hz, t_s=t_s,
                                   temp_c=temp_c, segment=segment, segments=segments, columns=columns, meta=meta,
-                                  name=name, cls=cls)
+                                  name=name, cls=cls))
 
     @classmethod
     def from_dataframe(cls, df: Any, *, acc_unit: str, gyro_unit: str, columns: Mapping[str, str] | None = None,
@@ -125,8 +125,8 @@ class MeasurementSet(io.MeasurementSet):
         >>> len(ms.samples["t_s"])
         10
         """
-        return arrays.from_dataframe(df, acc_unit=acc_unit, gyro_unit=gyro_unit, columns=columns, rate_hz=rate_hz,
-                                     t_s=t_s, segments=segments, meta=meta, name=name, cls=cls)
+        return cls.of(arrays.from_dataframe(df, acc_unit=acc_unit, gyro_unit=gyro_unit, columns=columns, rate_hz=rate_hz,
+                                     t_s=t_s, segments=segments, meta=meta, name=name, cls=cls))
 
     def to_arrays(self) -> dict[str, np.ndarray]:
         """The samples by column (ax ... gz as recorded, t_s, temp_c, segment, ...), as arrays.
