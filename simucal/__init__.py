@@ -5,3 +5,19 @@ calibrates, audits. It imports the generated modules (simucal.generated) and
 never SymPy on the hot path.
 """
 __version__ = "0.1.0"
+
+# The Python API (simucal/api/), imported on first use so that `import simucal` and the command
+# line's start stay light: simucal.read_set, simucal.calibrate, ... (README, "Python API").
+_API = ("read_set", "calibrate", "validate", "save", "load", "MeasurementSet", "Calibration", "Parameter",
+        "Validation", "Check")
+TYPE_CHECKING = False  # typing's constant without importing typing (2 ms); type checkers read it as True
+if TYPE_CHECKING:
+    from simucal.api import (Calibration, Check, MeasurementSet, Parameter, Validation, calibrate, load,  # noqa: F401
+                             read_set, save, validate)
+
+
+def __getattr__(name):
+    if name in _API:
+        from simucal import api
+        return getattr(api, name)
+    raise AttributeError(f"module 'simucal' has no attribute {name!r}")

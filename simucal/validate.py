@@ -239,10 +239,13 @@ def _verdict(check) -> str:
 
 
 def validate(cal_path, data_dir) -> dict:
-    """The report (module doc) of calibration file cal_path applied to the set data_dir."""
-    cal = calibration.load(cal_path)
-    ms = io.read_set(data_dir)
-    meta, samples, _ = apply(cal, ms, cal_path)  # checks the layout
+    """The report (module doc) of calibration file cal_path (or a Calibration) applied to the set data_dir
+    (or a MeasurementSet)."""
+    given = isinstance(cal_path, calibration.Calibration)
+    cal = cal_path if given else calibration.load(cal_path)
+    ms = data_dir if isinstance(data_dir, io.MeasurementSet) else io.read_set(data_dir)
+    where = f"the calibration of {cal.input}" if given else cal_path
+    meta, samples, _ = apply(cal, ms, where)  # checks the layout
     f_before = ms.acc_g() if ms.has_acc else None
     w_before = ms.gyro_dph() if ms.has_gyro else None
     f_after = np.column_stack([samples[c] for c in ("ax", "ay", "az")]) if ms.has_acc else None
@@ -267,7 +270,7 @@ def validate(cal_path, data_dir) -> dict:
         if far and s in verdicts:
             verdicts[s] += f"; but {', '.join(far)} FAR OFF where the rest agree (mislabelled or disturbed)"
     own = own_rows(cal, ms)
-    return {"format": "simucal.validation/1", "calibration": str(cal_path), "data": str(ms.path),
+    return {"format": "simucal.validation/1", "calibration": str(where), "data": str(ms.path),
             "independent": not own, "checks": checks, "verdict": verdicts,
             "warnings": list(meta.get("warnings", [])),  # apply's: rows outside the calibrated temperature range
             "note": own or None}

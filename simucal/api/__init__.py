@@ -1,0 +1,180 @@
+"""The public Python API (issue 40, item 1): `import simucal` and call
+
+    read_set, MeasurementSet.from_arrays / .from_dataframe, calibrate -> Calibration,
+    Calibration.apply / .parameters, validate -> Validation, save, load
+
+on folders, numpy arrays or (with simucal[pandas]) DataFrames. A thin layer over the commands'
+own functions (calibrate.py, validate.py, fit/apply.py, io/): the API and the command line write
+the same files. Tables are lists of NamedTuple rows; ``pandas.DataFrame(rows)`` makes a frame.
+"""
+from __future__ import annotations
+
+import os
+from dataclasses import dataclass, replace
+from typing import Any, NamedTuple, Sequence, Union
+
+from simucal import io
+from simucal.calibrate import calibrate as _calibrate_set
+from simucal.calibrate import calibrate_thermal as _calibrate_thermal
+from simucal.api.calibration import Calibration, Parameter
+from simucal.api.sets import MeasurementSet
+from simucal.io import calibration as _file
+from simucal.validate import validate as _validate_report
+
+Data = Union[str, os.PathLike, io.MeasurementSet]
+
+__all__ = ["read_set", "calibrate", "validate", "save", "load", "MeasurementSet", "Calibration", "Parameter",
+           "Validation", "Check"]
+
+
+def read_set(path: str | os.PathLike) -> MeasurementSet:
+    """Read a measurement set (a folder: meta.json, samples.csv, segments.csv), checked by the spec.
+
+    Parameters
+    ----------
+    path : str or os.PathLike
+        The set's folder.
+
+    Returns
+    -------
+    MeasurementSet
+
+    Raises
+    ------
+    simucal.io.MeasurementSetError
+        A rule of the spec broken, naming the file, the line and the rule.
+
+    Examples
+    --------
+    >>> import simucal
+    >>> ms = simucal.read_set("set")  # doctest: +SKIP
+    >>> ms.segments is None  # a stream: a hand-placed session  # doctest: +SKIP
+    False
+    """
+    return MeasurementSet.of(io.read_set(path))
+
+
+def calibrate(data: Data | Sequence[str | os.PathLike], **options: Any) -> Calibration:
+    """Calibrate a unit from one measurement set (or, with ``thermal=True``, from plateaus).
+
+    Parameters
+    ----------
+    data : str, os.PathLike or MeasurementSet, or a list of folders
+        The set; a list of folders (plateaus, or one set whose temperature ramps) is a thermal
+        calibration (`simucal calibrate --thermal`).
+    **options
+        The command's options by their Python names: ``method`` ("auto", "exact", "linear",
+        "multiposition", "handheld", "field"), ``add`` (effect ids, model files, "auto"),
+        ``acc_model``, ``gyro_model``, ``acc_noise_g``, ``gyro_noise_dph``, ``t_ref_c`` (degC),
+        ``noise`` (a noise.json), ``detect``, ``heading_accuracy_deg``; with a list,
+        ``degree`` (the thermal polynomials', default chosen by the data).
+
+    Returns
+    -------
+    Calibration
+
+    Raises
+    ------
+    simucal.errors.CalibrationError, simucal.io.MeasurementSetError
+        One line naming the set and the fix.
+
+    Examples
+    --------
+    >>> import simucal
+    >>> cal = simucal.calibrate("set", add=["acc.quadratic.z"])  # doctest: +SKIP
+    >>> cal.acc.effects["acc.quadratic.z"].value  # doctest: +SKIP
+    0.000198...
+    """
+    if isinstance(data, (list, tuple)):
+        options.pop("thermal", None)
+        return Calibration.of(_calibrate_thermal(list(data), **options))
+    options.pop("thermal", None)
+    # a copy: calibrate records the user's T_ref on the set it is given, which is the caller's
+    ms = replace(data) if isinstance(data, io.MeasurementSet) else io.read_set(data)
+    return Calibration.of(_calibrate_set(ms, **options))
+
+
+class Check(NamedTuple):
+    """One row of `Validation.checks`: an error of the calibrated outputs against physics."""
+    sensor: str
+    what: str
+    unit: str
+    n: int
+    nominal_rms: float | None     # at the nominal scale factors only
+    calibrated_rms: float | None  # after the calibration
+    floor_rms: float | None       # the noise and the calibration's own uncertainty (None: not known)
+    verdict: str
+
+
+@dataclass
+class Validation:
+    """A calibration judged on a set (ideally one it was not made from).
+
+    Attributes
+    ----------
+    verdict : dict
+        Per sensor: "at the noise floor", "better", "no better than nominal", "WORSE THAN NOMINAL".
+    checks : list of Check
+        Each check's error at nominal, after the calibration and its floor.
+    independent : bool
+        False where the data are the calibration's own (a model always looks better there).
+    warnings : list of str
+    report : dict
+        What `simucal validate -o` writes (``simucal.validation/1``).
+    """
+    verdict: dict[str, str]
+    checks: list[Check]
+    independent: bool
+    warnings: list[str]
+    report: dict
+
+
+def validate(cal: Calibration | str | os.PathLike, data: Data) -> Validation:
+    """Apply a calibration to an independent set and compare with nominal and the noise floor.
+
+    Parameters
+    ----------
+    cal : Calibration or a calibration file's path
+    data : str, os.PathLike or MeasurementSet
+
+    Returns
+    -------
+    Validation
+
+    Examples
+    --------
+    >>> v = simucal.validate(cal, "other_set")  # doctest: +SKIP
+    >>> v.verdict  # doctest: +SKIP
+    {'acc': 'at the noise floor', 'gyro': 'at the noise floor'}
+    """
+    report = _validate_report(cal, data)
+    checks = [Check(s, c["what"], c["unit"], c["n"], c["before_rms"], c["after_rms"], c["floor_rms"], c["verdict"])
+              for s, rows in report["checks"].items() for c in rows]
+    return Validation(dict(report["verdict"]), checks, bool(report["independent"]), list(report["warnings"]), report)
+
+
+def save(path: str | os.PathLike, cal: Calibration) -> None:
+    """Write a calibration file (``simucal.calibration/2``), as `simucal calibrate -o` does.
+
+    Examples
+    --------
+    >>> simucal.save("calibration.json", cal)  # doctest: +SKIP
+    """
+    _file.save(path, cal)
+
+
+def load(path: str | os.PathLike) -> Calibration:
+    """Read a calibration file, checked before any of it is used.
+
+    Examples
+    --------
+    >>> cal = simucal.load("calibration.json")  # doctest: +SKIP
+    """
+    return Calibration.of(_file.load(path))
+
+
+# Importing the modules simucal.calibrate and simucal.validate bound those names on the package to
+# the modules; the API's functions take them back (`simucal.calibrate(...)` is the function).
+import simucal as _package  # noqa: E402
+
+_package.calibrate, _package.validate = calibrate, validate  # type: ignore[assignment]

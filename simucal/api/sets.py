@@ -1,0 +1,142 @@
+"""`simucal.MeasurementSet`: the measurement set (simucal.io) with constructors from arrays and
+DataFrames, so data held in Python need no folder."""
+from __future__ import annotations
+
+from dataclasses import fields
+from typing import Any, Mapping, Sequence
+
+import numpy as np
+
+from simucal import io
+from simucal.io import arrays
+
+
+class MeasurementSet(io.MeasurementSet):
+    """One recording of one unit (spec: shared/spec/measurement-set.md): meta.json's keys, the
+    samples by column, and the segments (None: one continuous stream, a hand-placed session).
+
+    Build one with `simucal.read_set` (a folder), `MeasurementSet.from_arrays` or
+    `MeasurementSet.from_dataframe`; every function of the API takes it where it takes a folder.
+
+    Examples
+    --------
+    >>> import numpy as np, simucal
+    >>> acc = np.tile([0.0, 0.0, 1.0], (100, 1))
+    >>> ms = simucal.MeasurementSet.from_arrays(acc, None, acc_unit="g", gyro_unit="deg/h", rate_hz=100.0)
+    >>> ms.acc_g().shape
+    (100, 3)
+    """
+
+    @classmethod
+    def of(cls, ms: io.MeasurementSet) -> MeasurementSet:
+        """The same set as this class (its arrays shared, not copied)."""
+        return ms if isinstance(ms, cls) else cls(**{f.name: getattr(ms, f.name) for f in fields(ms)})
+
+    @classmethod
+    def from_arrays(cls, acc: Any = None, gyro: Any = None, *, acc_unit: str, gyro_unit: str,
+                    rate_hz: float | None = None, t_s: Any = None, temp_c: Any = None, segment: Any = None,
+                    segments: Sequence[io.Segment | Mapping[str, Any]] | None = None,
+                    columns: Mapping[str, Any] | None = None, meta: Mapping[str, Any] | None = None,
+                    name: str = "arrays") -> MeasurementSet:
+        """A set from numpy arrays of raw outputs, checked by the spec's rules.
+
+        Parameters
+        ----------
+        acc, gyro : array_like of shape (n, 3), optional
+            The accelerometer and gyro outputs as recorded, columns x y z; at least one.
+        acc_unit, gyro_unit : str
+            Their units: acc ``g``, ``m/s^2``, ``pulse/s`` or ``counts``; gyro ``deg/h``, ``deg/s``,
+            ``rad/s``, ``pulse/s`` or ``counts`` (pulse/s and counts need their nominal scale
+            factors in `meta`, e.g. ``acc_counts_per_g``).
+        rate_hz : float, optional
+            Evenly sampled from 0 s at this rate (Hz); or give `t_s`.
+        t_s : array_like of shape (n,), optional
+            Each row's time (s), increasing through a stream.
+        temp_c : array_like of shape (n,), optional
+            Each row's temperature (degC), for temperature terms and thermal calibrations.
+        segment, segments : optional
+            A turntable test or field set: each row's segment id (n,) and the table of
+            segments.csv (`simucal.io.Segment` or mappings with its columns: segment, kind,
+            outer_deg, middle_deg, inner_deg, outer_rate_dps, heading_ref_deg). Without them the
+            rows are one stream (a hand-placed session).
+        columns : mapping, optional
+            Further per-row inputs a user's model reads (e.g. ``{"supply_v": v}``).
+        meta : mapping, optional
+            meta.json's other keys: ``latitude_deg`` (required with gyro data), scale factors,
+            ``acc_noise_g``, ``gyro_noise_dph``, ``unit_serial``, ``description``.
+        name : str
+            What errors and the calibration's ``input`` call the set.
+
+        Returns
+        -------
+        MeasurementSet
+
+        Raises
+        ------
+        simucal.io.MeasurementSetError
+            A rule broken, naming the argument, the row and the fix.
+
+        Examples
+        --------
+        >>> import numpy as np, simucal
+        >>> gyro = np.zeros((50, 3))
+        >>> ms = simucal.MeasurementSet.from_arrays(None, gyro, acc_unit="g", gyro_unit="deg/s", t_s=np.arange(50) / 10,
+        ...                                         meta={"latitude_deg": 45.0})
+        >>> ms.has_gyro, ms.has_acc
+        (True, False)
+        """
+        return cls.of(arrays.from_arrays(acc, gyro, acc_unit=acc_unit, gyro_unit=gyro_unit, rate_hz=rate_hz, t_s=t_s,
+                                  temp_c=temp_c, segment=segment, segments=segments, columns=columns, meta=meta,
+                                  name=name, cls=cls))
+
+    @classmethod
+    def from_dataframe(cls, df: Any, *, acc_unit: str, gyro_unit: str, columns: Mapping[str, str] | None = None,
+                       rate_hz: float | None = None, t_s: Any = None,
+                       segments: Sequence[io.Segment | Mapping[str, Any]] | None = None,
+                       meta: Mapping[str, Any] | None = None, name: str = "dataframe") -> MeasurementSet:
+        """A set from a pandas DataFrame (pandas: ``pip install simucal[pandas]``).
+
+        Parameters
+        ----------
+        df : pandas.DataFrame
+            One row per sample.
+        acc_unit, gyro_unit : str
+            As in `from_arrays`.
+        columns : mapping, optional
+            ``{spec name: the frame's column}`` for columns not named as the spec names them
+            (ax ay az gx gy gz, t_s, temp_c, segment), e.g. ``{"ax": "acc_x"}``.
+        rate_hz, t_s : optional
+            The times, where the frame has no t_s column (or to override it).
+        segments : optional
+            The segments' table (as in `from_arrays`); each row's id from the segment column.
+        meta, name :
+            As in `from_arrays`.
+
+        Returns
+        -------
+        MeasurementSet
+
+        Examples
+        --------
+        >>> import pandas as pd, simucal
+        >>> df = pd.DataFrame({"acc_x": [0.0] * 10, "acc_y": [0.0] * 10, "acc_z": [1.0] * 10})
+        >>> ms = simucal.MeasurementSet.from_dataframe(df, columns={"ax": "acc_x", "ay": "acc_y", "az": "acc_z"},
+        ...                                            acc_unit="g", gyro_unit="deg/h", rate_hz=100.0)
+        >>> len(ms.samples["t_s"])
+        10
+        """
+        return cls.of(arrays.from_dataframe(df, acc_unit=acc_unit, gyro_unit=gyro_unit, columns=columns, rate_hz=rate_hz,
+                                     t_s=t_s, segments=segments, meta=meta, name=name, cls=cls))
+
+    def to_arrays(self) -> dict[str, np.ndarray]:
+        """The samples by column (ax ... gz as recorded, t_s, temp_c, segment, ...), as arrays.
+
+        Examples
+        --------
+        >>> import numpy as np, simucal
+        >>> ms = simucal.MeasurementSet.from_arrays(np.tile([0, 0, 1.0], (5, 1)), None, acc_unit="g",
+        ...                                         gyro_unit="deg/h", rate_hz=1.0)
+        >>> sorted(ms.to_arrays())
+        ['ax', 'ay', 'az', 't_s']
+        """
+        return {k: np.asarray(v) for k, v in self.samples.items()}

@@ -1,0 +1,168 @@
+"""Issue 40, item 1: the public Python API as a notebook user meets it (numpy arrays, a DataFrame),
+the same files as the command line, and the README's example run as written."""
+import json
+import os
+import re
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+from click.testing import CliRunner
+
+import simucal
+from simucal.cli import main
+from simucal.errors import CalibrationError
+from simucal.handheld.simulate import HandheldScenario, write_handheld
+from simucal.io import MeasurementSetError
+from simucal.turntable.simulate import Scenario, simulate, write
+
+ROOT = Path(__file__).resolve().parents[1]
+RAW = ("ax", "ay", "az", "gx", "gy", "gz")
+KEYS = ("latitude_deg", "acc_pulses_per_g", "gyro_pulses_per_arcsec")
+
+
+def _recording(seed, effects=None):
+    """One turntable test of the dong2018 unit (the same unit at every seed) as arrays: raw pulse/s."""
+    meta, samples, segments, truth = simulate(Scenario(acc_effects=effects or {}), seed)
+    return np.column_stack([samples[c] for c in RAW]), samples, segments, meta, truth
+
+
+def _set(raw, samples, segments, meta, name):
+    return simucal.MeasurementSet.from_arrays(raw[:, :3], raw[:, 3:], acc_unit="pulse/s", gyro_unit="pulse/s",
+                                              t_s=samples["t_s"], segment=samples["segment"], segments=segments,
+                                              meta={k: meta[k] for k in KEYS}, name=name)
+
+
+def _static_norm_error_g(f_g, samples, segments):
+    static = {s.segment for s in segments if s.kind == "static"}
+    rows = np.isin(samples["segment"], list(static))
+    return np.linalg.norm(f_g[rows], axis=1) - 1.0
+
+
+def test_notebook_flow_on_numpy_arrays():
+    raw, samples, segments, meta, truth = _recording(1, {"acc.quadratic.z": 2e-4})
+    ms = _set(raw, samples, segments, meta, "lab_run_1")
+    cal = simucal.calibrate(ms, add=["acc.quadratic.z"])
+    assert isinstance(cal, simucal.Calibration) and ms.temperature_ref_c is None  # the caller's set untouched
+    table = {(r.sensor, r.name): r for r in cal.parameters()}
+    for name in ("dK_x", "dK_y", "dK_z", "b_z"):  # the truth within 5 std of each estimate
+        r = table[("acc", name)]
+        assert abs(r.value - truth["acc"]["params"][name]) < 5 * r.std, r
+    q = table[("acc", "acc.quadratic.z")]
+    assert abs(q.value - 2e-4) < 5 * q.std and q.unit and q.meaning
+    raw2, samples2, segments2, meta2, _ = _recording(2, {"acc.quadratic.z": 2e-4})
+    out = cal.apply(raw2)  # pulse/s in: g and deg/h out
+    assert out.shape == raw2.shape and isinstance(out, np.ndarray)
+    nominal = raw2[:, :3] / np.asarray(meta2["acc_pulses_per_g"])
+    before = _static_norm_error_g(nominal, samples2, segments2)
+    after = _static_norm_error_g(out[:, :3], samples2, segments2)
+    assert np.sqrt(np.mean(after ** 2)) < 3e-5 < 0.1 * np.sqrt(np.mean(before ** 2))
+    # the caller's units: the same data in m/s^2 come back in m/s^2; one sensor as (n, 3)
+    acc_mps2 = cal.apply(nominal * 9.80665, acc_unit="m/s^2", sensor="acc")
+    np.testing.assert_allclose(acc_mps2, out[:, :3] * 9.80665, rtol=1e-9)
+    v = simucal.validate(cal, _set(raw2, samples2, segments2, meta2, "lab_run_2"))
+    assert v.independent and set(v.verdict) == {"acc", "gyro"}
+    assert v.verdict["acc"] in ("at the noise floor", "better"), v.verdict
+    acc_norm = next(c for c in v.checks if c.sensor == "acc" and c.unit == "g")
+    assert acc_norm.calibrated_rms < 0.1 * acc_norm.nominal_rms
+    assert not simucal.validate(cal, ms).independent  # its own data, told by the arrays' hash
+
+
+def test_notebook_flow_on_dataframes():
+    import pandas as pd  # the test extra holds it; the API itself works without it (test above)
+    names = {c: f"{'acc' if c[0] == 'a' else 'gyr'}_{c[1]}" for c in RAW}
+
+    def frame(seed):
+        raw, samples, segments, meta, _ = _recording(seed)
+        df = pd.DataFrame(raw, columns=[names[c] for c in RAW])
+        return df.assign(time=samples["t_s"], seg=samples["segment"]), segments, meta
+
+    df, segments, meta = frame(1)
+    cols = {**names, "t_s": "time", "segment": "seg"}
+    ms = simucal.MeasurementSet.from_dataframe(df, columns=cols, acc_unit="pulse/s", gyro_unit="pulse/s",
+                                               segments=segments, meta={k: meta[k] for k in KEYS})
+    cal = simucal.calibrate(ms)
+    params = pd.DataFrame(cal.parameters())
+    assert list(params.columns) == ["name", "sensor", "value", "std", "unit", "meaning"]
+    assert (params["std"] > 0).all() and len(params) == 18
+    df2, segments2, meta2 = frame(2)
+    out = cal.apply(df2, columns=names)
+    assert isinstance(out, pd.DataFrame) and list(out.columns) == list(df2.columns)
+    assert (out["time"] == df2["time"]).all() and not np.allclose(out[names["az"]], df2[names["az"]])
+    ms2 = simucal.MeasurementSet.from_dataframe(df2, columns=cols, acc_unit="pulse/s", gyro_unit="pulse/s",
+                                                segments=segments2, meta={k: meta2[k] for k in KEYS})
+    v = simucal.validate(cal, ms2)
+    assert v.independent and "WORSE" not in " ".join(v.verdict.values())
+    checks = pd.DataFrame(v.checks)
+    assert (checks["calibrated_rms"] <= checks["nominal_rms"]).all()
+
+
+def test_api_and_cli_write_identical_calibration_files(tmp_path):
+    write(tmp_path / "table", Scenario(), seed=3)
+    write_handheld(tmp_path / "stream", HandheldScenario(poses=20), seed=3)
+    for name, add in (("table", ["acc.quadratic.z"]), ("stream", [])):
+        data = str(tmp_path / name)
+        res = CliRunner().invoke(main, ["calibrate", data, "-o", str(tmp_path / f"{name}_cli.json")]
+                                 + [x for a in add for x in ("--add", a)])
+        assert res.exit_code == 0, res.output
+        simucal.save(tmp_path / f"{name}_api.json", simucal.calibrate(data, add=add))
+        cli, api = ((tmp_path / f"{name}_{k}.json").read_text() for k in ("cli", "api"))
+        assert cli == api, name
+        assert simucal.load(tmp_path / f"{name}_api.json").to_json() == json.loads(api)
+
+
+def test_refusals_name_the_argument_and_the_fix():
+    acc = np.tile([0.0, 0.0, 1.0], (10, 1))
+    with pytest.raises(MeasurementSetError, match="rate_hz= .* or as t_s="):
+        simucal.MeasurementSet.from_arrays(acc, None, acc_unit="g", gyro_unit="deg/h")
+    bad = acc.copy()
+    bad[4, 1] = np.nan
+    with pytest.raises(MeasurementSetError, match="row 4, column ay: nan is not finite"):
+        simucal.MeasurementSet.from_arrays(bad, None, acc_unit="g", gyro_unit="deg/h", rate_hz=10.0)
+    with pytest.raises(MeasurementSetError, match="latitude_deg is required"):
+        simucal.MeasurementSet.from_arrays(acc, acc, acc_unit="g", gyro_unit="deg/h", rate_hz=10.0)
+    with pytest.raises(MeasurementSetError, match="row 3: t_s must increase"):
+        simucal.MeasurementSet.from_arrays(acc, None, acc_unit="g", gyro_unit="deg/h", t_s=[0, 1, 2, 2, 3, 4, 5, 6, 7, 8])
+    with pytest.raises(MeasurementSetError, match=r"shape \(10, 2\), expected \(10, 3\)"):
+        simucal.MeasurementSet.from_arrays(acc, acc[:, :2], acc_unit="g", gyro_unit="deg/h", rate_hz=1.0,
+                                           meta={"latitude_deg": 45.0})
+
+
+def test_readme_example_runs(tmp_path):
+    text = (ROOT / "README.md").read_text()
+    section = text.split("## Python API", 1)[1].split("\n## ", 1)[0]
+    setup = re.search(r"After `(simucal simulate [^`]+)`", section).group(1)
+    code = re.search(r"```python\n(.*?)```", section, re.S).group(1)
+    env = {**os.environ, "PATH": f"{Path(sys.executable).parent}{os.pathsep}{os.environ['PATH']}"}
+    subprocess.run(setup, shell=True, cwd=tmp_path, env=env, check=True, capture_output=True)
+    res = subprocess.run([sys.executable, "-c", code], cwd=tmp_path, capture_output=True, text=True)
+    assert res.returncode == 0, res.stderr[-2000:]
+    assert "acc.dK_x" not in res.stdout and "dK_x" in res.stdout and "'acc':" in res.stdout
+    assert json.loads((tmp_path / "cal.json").read_text())["format"] == "simucal.calibration/2"
+
+
+def test_apply_refuses_leaving_out_an_input_the_model_reads():
+    raw, samples, segments, meta, _ = _recording(4, {"acc.bias_drift_time.z": 2e-7})
+    cal = simucal.calibrate(_set(raw, samples, segments, meta, "run"), add=["acc.bias_drift_time.z"])
+    with pytest.raises(CalibrationError, match="drifting in time: give each row's t_s="):
+        cal.apply(raw)
+    drift = cal.acc.effects["acc.bias_drift_time.z"].value
+    late = cal.apply(raw, t_s=samples["t_s"] + 1000.0)[:, 2] - cal.apply(raw, t_s=samples["t_s"])[:, 2]
+    assert abs(drift - 2e-7) < 2e-8  # planted, found
+    np.testing.assert_allclose(late, -1000.0 * drift / cal.acc.M[2, 2], rtol=1e-2)  # z: the drift taken out
+
+
+def test_python_m_simucal_runs_the_command_line():
+    res = subprocess.run([sys.executable, "-m", "simucal", "--help"], capture_output=True, text=True)
+    assert res.returncode == 0 and "calibrate" in res.stdout and "Usage: simucal" in res.stdout, res.stderr
+
+
+def test_import_stays_light():
+    """`import simucal` loads no API (numpy, the methods) until a name of it is used."""
+    code = ("import sys, simucal; assert 'numpy' not in sys.modules and 'simucal.api' not in sys.modules; "
+            "simucal.read_set; assert 'simucal.api' in sys.modules; import simucal.calibrate; "
+            "assert callable(simucal.calibrate) and callable(simucal.validate)")
+    res = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True)
+    assert res.returncode == 0, res.stderr[-1000:]
