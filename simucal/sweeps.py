@@ -10,6 +10,7 @@ A scheduler's address must be a cluster the user trusts: the tasks go there and 
 come back as pickles, which run code where they are loaded. tcp:// neither encrypts nor
 authenticates; tls:// uses the credentials of Dask's own configuration (distributed.comm.tls).
 The LocalCluster listens on 127.0.0.1 only, its workers too.
+Dask is an extra (`pip install 'simucal[dask]'`): only the schedulers other than local import it.
 """
 from __future__ import annotations
 
@@ -29,7 +30,7 @@ def map_tasks(fn, tasks: list, scheduler=None, progress=None, threads: int = 1) 
         with threadpool_limits(1, "blas"), ThreadPoolExecutor(threads) as pool:
             futures = [pool.submit(fn, *t) for t in tasks]
             return [f.result() for f in (progress(futures) if progress else futures)]
-    from dask.distributed import Client, LocalCluster, as_completed
+    Client, LocalCluster, as_completed = _distributed("Client", "LocalCluster", "as_completed")
     if scheduler == "processes":
         cluster = LocalCluster(n_workers=os.cpu_count() or 2, threads_per_worker=1, processes=True,
                                host="127.0.0.1", dashboard_address=None)  # Dask's default today: said, not assumed
@@ -48,12 +49,22 @@ def map_tasks(fn, tasks: list, scheduler=None, progress=None, threads: int = 1) 
             cluster.close()
 
 
+def _distributed(*names: str) -> tuple:
+    """The named objects of dask.distributed, or a one-line refusal naming the extra that brings Dask."""
+    try:
+        import dask.distributed
+    except ImportError:
+        from simucal.errors import CalibrationError
+        raise CalibrationError("--scheduler processes or a scheduler's address runs on Dask, which is not "
+                               "installed: pip install 'simucal[dask]', or use --scheduler local") from None
+    return tuple(getattr(dask.distributed, n) for n in names)
+
+
 def _client(address: str):
     """A Client of the scheduler at address, with the security of Dask's own configuration (or its
     security loader); a one-line refusal where none answers, or tls:// has no credentials."""
+    Client, Security = _distributed("Client", "Security")
     import dask.config
-    from dask.distributed import Client
-    from distributed.security import Security
 
     from simucal.errors import CalibrationError
     if address.startswith("tls://") and not dask.config.get("distributed.client.security-loader", None):
