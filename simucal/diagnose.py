@@ -148,7 +148,8 @@ def _with_static_gyro_rows(ms, block, settings) -> None:
         return
     st = gyro.details["static_rows"]
     with_static_rows(block["baseline"], st)
-    block["verdict"] = verdict("gyro", block["baseline"], block["candidates"], str(ms.path), block.get("shape")) + (
+    block["verdict"] = verdict("gyro", block["baseline"], block["candidates"], str(ms.path), block.get("shape"),
+                                None) + (
         f" At rest: {st['verdict']}." if st.get("p_value", 1.0) < ALPHA else "")
 
 
