@@ -309,14 +309,17 @@ def twin_fits(model, obs: Observations, fit: Fit, shape: dict) -> list[dict]:
     idx = [label[x] for x in [f"{shape['regressor']} on {shape['axis']}"] + shape["indistinguishable_here"] if x in label]
     J, _ = dense_jacobian(model, obs, fit)
     m = len(model.params)
-    scale = np.median(np.diag(fit.cov) / np.maximum(np.diag(np.linalg.pinv(J.T @ J))[:m], 1e-300))
+    Jp = np.linalg.pinv(J)
+    cov_J = (Jp @ Jp.T)[:m, :m]  # (J^T J)^+
+    scale = np.median(np.diag(fit.cov) / np.maximum(np.diag(cov_J), 1e-300))  # as fit.cov (full_covariance)
     p = fit.vector(model.params)
     out = []
     for k in idx:
-        t, c = terms[k], float(proj[k] / n2[k])
-        dp = c * (np.linalg.pinv(J) @ G[:, k])[:m]  # min |r + J dp - c G|: J^T r = 0 at the fit
-        Ja = np.column_stack([J, -G[:, k]])
-        cov = np.linalg.pinv(Ja.T @ Ja)[np.r_[:m, -1]][:, np.r_[:m, -1]] * scale
+        t, c, h = terms[k], float(proj[k] / n2[k]), (Jp @ G[:, k])[:m]
+        # min |r + J dp - c G|, J^T r = 0 at the fit: dp = c J^+ G; [J, -G]'s covariance by its Schur
+        # complement, var c = 1 / |G off J's span|^2
+        cov = np.block([[cov_J + np.outer(h, h) / n2[k], h[:, None] / n2[k]], [h[None, :] / n2[k], 1 / n2[k]]]) * scale
+        dp = c * h
 
         def column(u, aux, t=t):
             col = np.zeros((len(u), 3))
