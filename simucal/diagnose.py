@@ -19,7 +19,7 @@ from simucal.fit.apply import model_inputs
 from simucal.fit.augmented import AugmentedModel
 from simucal.fit.aux_inputs import AuxInputs, columns_at
 from simucal.fit.candidates import ALPHA, test_model, verdict
-from simucal.fit.lack_of_fit import model_file_text
+from simucal.fit.lack_of_fit import model_file_text, twin_fits
 from simucal.fit.norm_fit import Fit, Observations
 from simucal.io.timestamps import with_timestamps
 from simucal.turntable.consistency import handedness_verdict, mirrored
@@ -73,6 +73,9 @@ def diagnose_sensor(ms, sensor, base_model, add=(), stated=None, truth=None, bef
            "residuals": residual_table(fit, obs, segs)}
     if shape:
         out["shape"] = {**shape, "model_file": model_file_text(base_model, add, shape, sensor)}
+        if sensor == "gyro" and shape["indistinguishable_here"] and ms.segments is not None:  # judged at rest later
+            out["twin_fits"] = [{**tf, "shape": {**tf["shape"], "model_file": model_file_text(
+                base_model, add, tf["shape"], sensor)}} for tf in twin_fits(model, obs, fit, shape)]
     if table_info is not None:
         out["table"] = table_info
     if ms.segments is not None:
@@ -138,19 +141,40 @@ def scoring_truth(path) -> dict | None:
 def _with_static_gyro_rows(ms, block, settings) -> None:
     """The gyro's test over its static rows too, as calibrate's (model_test.with_static_rows): they need
     the accelerometers' up and C_b^d, so calibrate's exact method gives them; where it refuses the set,
-    the rate runs' test stands (calibrate says why)."""
+    the rate runs' test stands (calibrate says why). Where the rate runs cannot tell the found term
+    from its twins, the static rows choose among them (_choose_twin)."""
     from simucal.turntable.calibrate import calibrate_table
+    fits, judged = block.pop("twin_fits", []), []
+    probe = (lambda test: judged.extend((tf, test(tf)) for tf in fits)) if fits else None
     try:
-        gyro = calibrate_table(ms, "exact", *settings).gyro
+        gyro = calibrate_table(ms, "exact", *settings, static_probe=probe).gyro
     except CalibrationError:
         return
     if gyro is None or "static_rows" not in gyro.details:
         return
     st = gyro.details["static_rows"]
     with_static_rows(block["baseline"], st)
+    chose = _choose_twin(block, judged)
     block["verdict"] = verdict("gyro", block["baseline"], block["candidates"], str(ms.path), block.get("shape"),
                                 None) + (
-        f" At rest: {st['verdict']}." if st.get("p_value", 1.0) < ALPHA else "")
+        f" At rest: {st['verdict']}." if st.get("p_value", 1.0) < ALPHA else "") + chose
+
+
+def _choose_twin(block, judged) -> str:
+    """Of the found term and its twins (which the rate runs cannot tell apart), the one whose fit
+    predicts the static rows best (lowest chi-square, all on the same rows) becomes the shape and its
+    model file, the others its twins; returns the verdict's sentence on the choice ('' if none made)."""
+    judged = [(tf, st) for tf, st in judged if "chi2" in st]
+    if len(judged) < 2:
+        return ""
+    tf, st = min(judged, key=lambda j: j[1]["chi2"])
+    label = lambda s: f"{s['regressor']} on {s['axis']}"
+    at_rest = {label(t["shape"]): {k: s[k] for k in ("chi2", "dof", "p_value")} for t, s in judged}
+    block["shape"] = {**tf["shape"], "static_rows": at_rest}
+    others = "; ".join(f"{k}: chi2 {v['chi2']:.1f}" for k, v in at_rest.items() if k != label(tf["shape"]))
+    said = (f" The rate runs cannot tell {label(tf['shape'])} from its twins; the static rows chose it (chi2 "
+            f"{st['chi2']:.1f} on {st['dof']} dof, p = {st['p_value']:.2g}, against {others})")
+    return said + ("." if st["p_value"] >= ALPHA else ", though none of them passes at rest.")
 
 
 def diagnose(folder, add=(), acc_model="acc_baseline", gyro_model="gyro_baseline",

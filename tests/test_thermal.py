@@ -321,7 +321,8 @@ def test_readme_gyro_model_file_example(tmp_path, monkeypatch):
 
 def test_a_g_sensitivity_drifting_with_temperature_is_described_and_written(tmp_path, monkeypatch):
     """Outside the library: a gyro g-sensitivity changing with temperature. diagnose's generic basis
-    (specific force times temperature) describes it, names its twin, and its model file passes."""
+    (specific force times temperature) describes it, names its twin, the static rows choose between
+    them, and the chosen model file passes."""
     from simucal.fit.lack_of_fit import catalog_id, generic_terms
     monkeypatch.setenv("SIMUCAL_CACHE", str(tmp_path / "cache"))
     (tmp_path / "gt.py").write_text(
@@ -333,9 +334,14 @@ def test_a_g_sensitivity_drifting_with_temperature_is_described_and_written(tmp_
     assert code == 0, out
     code, out = _run("diagnose", tmp_path / "s", "-o", tmp_path / "d.json")
     assert code == 0, out
-    shape = json.loads((tmp_path / "d.json").read_text())["gyro"]["shape"]
+    gyro = json.loads((tmp_path / "d.json").read_text())["gyro"]
+    shape = gyro["shape"]
     found = {f"{shape['regressor']} on {shape['axis']}"} | set(shape["indistinguishable_here"])
     assert "f_z dtemp_c on x" in found and shape["unit"] == "(deg/h)/g/degC" and shape["catalog_id"] is None
+    # the rate runs cannot tell the twins apart; the static rows can, and choose the truth
+    at_rest = shape["static_rows"]
+    assert set(at_rest) == found and min(at_rest, key=lambda k: at_rest[k]["chi2"]) == "f_z dtemp_c on x"
+    assert f"{shape['regressor']} on {shape['axis']}" == "f_z dtemp_c on x" and "static rows chose it" in gyro["verdict"]
     assert abs(abs(shape["estimate"]) - 0.01) < 0.002
     code, out = _run("calibrate", tmp_path / "s", "--add", tmp_path / "d_gyro_model.py", "-o", tmp_path / "c.json")
     assert code == 0, out

@@ -251,32 +251,44 @@ def lack_of_fit(model, obs: Observations, fit: Fit) -> dict:
             "F": float(F), "q": q, "dof": int(dof - q), "p_value": float(f_sf(F, q, dof - q))}
 
 
-def describe_shape(model, obs: Observations, fit: Fit) -> dict | None:
-    """The one generic term that explains most of the misfit, with its estimate."""
+def _basis_at(model, obs, fit):
+    """The generic terms, the whitened residual, their columns (plain and off the model's span) and
+    what each alone explains: (terms, r, G, Gp, sig, n2, ok, proj, lr)."""
     terms = generic_terms(model.sensor, obs)
     r, G, Gp, sig = _perp_basis(model, obs, fit, terms)
     n2 = np.sum(Gp ** 2, axis=0)
     ok = n2 > 1e-12 * np.maximum(np.sum(G ** 2, axis=0), 1e-300)
-    if not ok.any():
-        return None
     proj = np.where(ok, Gp.T @ r, 0.0)
     lr = np.where(ok, proj ** 2 / np.where(ok, n2, 1.0), 0.0)
+    return terms, r, G, Gp, sig, n2, ok, proj, lr
+
+
+def describe_shape(model, obs: Observations, fit: Fit) -> dict | None:
+    """The one generic term that explains most of the misfit, with its estimate."""
+    terms, r, _, Gp, sig, n2, ok, _, lr = b = _basis_at(model, obs, fit)
+    if not ok.any():
+        return None
     best = 0
     for k in range(1, len(terms)):  # the first of near ties (simplest form) stays
         if lr[k] > 1.01 * lr[best]:
             best = k
-    t = terms[best]
-    coef = float(proj[best] / n2[best])
     s2 = 1.0 if fit.chi2 is not None else float(r @ r) / max(fit.dof, 1)  # unknown noise: the residuals' variance
     cols = {k: Gp[:, k] / np.sqrt(n2[k]) for k in range(len(terms)) if ok[k]}
-    alike = [terms[k].text() + f" on {'xyz'[terms[k].axis]}" for k in twins(best, cols, r, s2)]
+    return _shape_of(best, twins(best, cols, r, s2), b, model, obs, fit)
+
+
+def _shape_of(best, alike, b, model, obs, fit) -> dict:
+    """The shape block of generic term `best` (an index into _basis_at's terms); alike: its twins' indices."""
+    terms, r, _, Gp, sig, n2, _, proj, lr = b
+    t = terms[best]
+    coef = float(proj[best] / n2[best])
     after = (fit.residuals / sig).ravel() - coef * Gp[:, best]
     rms_after = float(np.sqrt(np.mean((after.reshape(-1, 3) * sig) ** 2)))
     unit = "g" if model.sensor == "acc" else "deg/h"
     return {"axis": "xyz"[t.axis], "regressor": t.text(), "catalog_id": catalog_id(t), "degree": t.degree, "parity": t.parity(),
             "estimate": coef, "unit": t.unit(), "parameter": t.name(), "sympy": t.sympy(),
             "share_of_misfit": float(lr[best] / max(r @ r, 1e-300)), "residual_rms_after": rms_after,
-            "indistinguishable_here": alike[:6],
+            "indistinguishable_here": [f"{terms[k].text()} on {'xyz'[terms[k].axis]}" for k in alike][:6],
             "points": {"regressor": t.values(fit.directions * obs.rho[:, None], obs).tolist(),
                        "residual": fit.residuals[:, t.axis].tolist(),
                        # the part of the term the model cannot absorb: what the residual should show
@@ -284,6 +296,38 @@ def describe_shape(model, obs: Observations, fit: Fit) -> dict | None:
             "text": (f"on the {'xyz'[t.axis]} axis, about {coef:.2g} * {t.text()} {unit}"
                      + (" (rates in deg/s)" if model.sensor == "gyro" and not t.aux else "")
                      + f": {t.parity()}; it explains {100 * lr[best] / max(r @ r, 1e-300):.0f} % of the misfit")}
+
+
+def twin_fits(model, obs: Observations, fit: Fit, shape: dict) -> list[dict]:
+    """The found term and each of its twins (shape['indistinguishable_here']) fitted with the model,
+    linearised at the model's fit (one Gauss-Newton step, exact for a linear term): each's shape
+    block (the others its twins), its values as a function column(u, aux) -> (n, 3) per unit
+    coefficient, and the parameters [the model's..., the term's] with their covariance, so that
+    rows the rate runs did not fit (the gyro's static rows) can judge between them."""
+    terms, r, G, Gp, sig, n2, ok, proj, lr = b = _basis_at(model, obs, fit)
+    label = {f"{t.text()} on {'xyz'[t.axis]}": k for k, t in enumerate(terms) if ok[k]}
+    idx = [label[x] for x in [f"{shape['regressor']} on {shape['axis']}"] + shape["indistinguishable_here"] if x in label]
+    J, _ = dense_jacobian(model, obs, fit)
+    m = len(model.params)
+    Jp = np.linalg.pinv(J)
+    cov_J = (Jp @ Jp.T)[:m, :m]  # (J^T J)^+
+    scale = np.median(np.diag(fit.cov) / np.maximum(np.diag(cov_J), 1e-300))  # as fit.cov (full_covariance)
+    p = fit.vector(model.params)
+    out = []
+    for k in idx:
+        t, c, h = terms[k], float(proj[k] / n2[k]), (Jp @ G[:, k])[:m]
+        # min |r + J dp - c G|, J^T r = 0 at the fit: dp = c J^+ G; [J, -G]'s covariance by its Schur
+        # complement, var c = 1 / |G off J's span|^2
+        cov = np.block([[cov_J + np.outer(h, h) / n2[k], h[:, None] / n2[k]], [h[None, :] / n2[k], 1 / n2[k]]]) * scale
+        dp = c * h
+
+        def column(u, aux, t=t):
+            col = np.zeros((len(u), 3))
+            col[:, t.axis] = t.values(u, Observations(u, np.ones(len(u)), None, aux))
+            return col
+        out.append({"shape": _shape_of(k, [j for j in idx if j != k], b, model, obs, fit), "column": column,
+                    "params": np.r_[p + dp, c], "cov": cov})
+    return out
 
 
 def model_file_text(base_model: str, effect_ids, shape: dict, sensor: str) -> str:

@@ -89,7 +89,7 @@ def _noise_text(noise, obs, unit):
                   else ": none in the data or stated")
 
 
-def _gyro_block(ms, method, cal, acc, gyro, gyro_noise_dph) -> calibration.SensorBlock:
+def _gyro_block(ms, method, cal, acc, gyro, gyro_noise_dph, static_probe=None) -> calibration.SensorBlock:
     """The gyro's block with M in b: the frame d tied to b by the exact unification (any model) or the
     paper's eq. 25-27 (linear, baseline models); in d where nothing ties them (no accelerometers, or
     rate runs without accelerometer data or table angles). Sets cal.unification and, for the exact
@@ -117,6 +117,8 @@ def _gyro_block(ms, method, cal, acc, gyro, gyro_noise_dph) -> calibration.Senso
         rows, static_gyro = static_gyro_rows(ms, acc_segs, gyro_noise_dph)
         if rows:  # the gyro's test covers its rows at rest too
             with_static_rows(base_g, static_gyro_test(ms, gm, fg, fa.directions[rows], C_b_d, static_gyro))
+            if static_probe:  # diagnose: the same rows with a term added (its twins judged at rest)
+                static_probe(lambda term: static_gyro_test(ms, gm, fg, fa.directions[rows], C_b_d, static_gyro, term))
     else:
         if (am.name, gm.name) != ("acc_baseline", "gyro_baseline"):
             raise CalibrationError(f"the paper's frame unification (eq. 25-27) is derived for the baseline "
@@ -138,11 +140,12 @@ def _gyro_block(ms, method, cal, acc, gyro, gyro_noise_dph) -> calibration.Senso
 
 
 def calibrate_table(ms, method, acc_model, gyro_model, ids, acc_noise_g=None, gyro_noise_dph=None,
-                    auto=False, noise_curves=None, ranked=True) -> calibration.Calibration:
+                    auto=False, noise_curves=None, ranked=True, static_probe=None) -> calibration.Calibration:
     """Calibrate a turntable set (segments.csv) by `method` (exact or linear: methods.py), the models with
     the effect ids added (auto: and the library effects that a failing model needs,
     candidates.forward_selection); noise_curves: {sensor: std of a mean over tau s} (`calibrate --noise`,
-    segment_observations); ranked: candidates ranked where a model fails (_exact_sensor)."""
+    segment_observations); ranked: candidates ranked where a model fails (_exact_sensor); static_probe:
+    called with the gyro's static-row test as a function of an added term (diagnose's twins)."""
     if auto and method != "exact":
         raise CalibrationError("--add auto needs --method exact (the effects are chosen by the exact fit's test)")
     # the paper's linear regression (eq. 8) takes static positions only
@@ -172,7 +175,8 @@ def calibrate_table(ms, method, acc_model, gyro_model, ids, acc_noise_g=None, gy
     if gyro_obs is not None:
         acc = (am, fa, acc_obs, acc_segs, base_a if fa is not None else None,
                _rate_run_acc_means(acc_read, acc_segs, gyro_segs) if fa is not None and method == "exact" else None)
-        cal.gyro = _gyro_block(ms, method, cal, acc, (gm, fg, gyro_obs, gyro_segs, base_g), gyro_noise_dph)
+        cal.gyro = _gyro_block(ms, method, cal, acc, (gm, fg, gyro_obs, gyro_segs, base_g), gyro_noise_dph,
+                               static_probe)
         if method == "exact":
             add_tilt(cal.gyro, gm, fg, gyro_obs, gyro_segs, ms.meta, lambda p: gm.matrix_and_bias(p)[0],
                      cal.unification and np.array(cal.unification["C_b_d"]))

@@ -67,7 +67,7 @@ def rank(model, obs, fit, base, segs=None):
     return cands, shape_if_unexplained(model, obs, fit, base, cands), table_info
 
 
-def static_gyro_test(ms, gm, fg, u_b, C_b_d, static_gyro) -> dict:
+def static_gyro_test(ms, gm, fg, u_b, C_b_d, static_gyro, term=None) -> dict:
     """The gyro's static rows as part of its model test (issue 38, item 4). At rest a gyro reads the
     Earth rate plus its bias: the fitted model (rate runs only) inverted whole at each static
     position, w = h^-1(N), must show the Earth rate's vertical component w_e sin L along the
@@ -77,19 +77,23 @@ def static_gyro_test(ms, gm, fg, u_b, C_b_d, static_gyro) -> dict:
     Jacobian). chi2 = e^T S^-1 e on len(e) dof (the rows are predictions: no parameter is fitted to
     them). A bias that follows a fixed direction in the local frame (the magnetic field's) shows in
     rate-run means only as its vertical part, which a g-sensitivity absorbs; the static rows see
-    the rest."""
+    the rest. term: a generic term the rate runs were fitted with (lack_of_fit.twin_fits: its column,
+    the parameters with its coefficient last, their covariance), added to the model here."""
     N, sig, aux = static_gyro
     if sig is None:
         return {"verdict": "not tested: no noise for the static gyro rows (raw rows or a stated gyro_noise_dph)"}
     w_e, L = units.earth_rate_dph(ms.meta), np.radians(float(ms.meta["latitude_deg"]))
     up_d = u_b @ C_b_d.T
     aux_f = aux.with_values(**specific_force(up_d))
-    p = fg.vector(gm.params)
-    A = np.linalg.inv(gm.matrix_and_bias(p)[0])
+    p, cov = (fg.vector(gm.params), fg.cov) if term is None else (term["params"], term["cov"])
+    m = len(gm.params)
+    A = np.linalg.inv(gm.matrix_and_bias(p[:m])[0])
+    if term is not None:  # the term's values at the rates the model alone reads (at rest they hardly differ)
+        col = term["column"](model_inputs(gm, p[:m], N, aux_f, ms.path / "samples.csv"), aux_f)
     horizontal = w_e * np.cos(L) > 20 * float(np.median(sig))  # its magnitude is Gaussian only well above noise
 
     def residuals(q):
-        w = model_inputs(gm, q, N, aux_f, ms.path / "samples.csv")
+        w = model_inputs(gm, q[:m], N - (q[m] * col if term is not None else 0.0), aux_f, ms.path / "samples.csv")
         v = np.sum(w * up_d, axis=1)
         h = w - v[:, None] * up_d
         e = [v - w_e * np.sin(L)] + ([np.linalg.norm(h, axis=1) - w_e * np.cos(L)] if horizontal else [])
@@ -97,10 +101,10 @@ def static_gyro_test(ms, gm, fg, u_b, C_b_d, static_gyro) -> dict:
 
     e, dirs = residuals(p)
     var = np.concatenate([np.sum((d @ A) ** 2 * sig ** 2, axis=1) for d in dirs])  # (d^T M^-1) diag(sig^2) (.)^T
-    step = np.maximum(np.sqrt(np.diag(fg.cov)), 1e-12) * 1e-3
+    step = np.maximum(np.sqrt(np.diag(cov)), 1e-12) * 1e-3
     J = np.column_stack([(residuals(p + s * k)[0] - residuals(p - s * k)[0]) / (2 * s)
                          for s, k in zip(step, np.eye(len(p)))])
-    S = np.diag(var) + J @ fg.cov @ J.T
+    S = np.diag(var) + J @ cov @ J.T
     chi2 = float(e @ np.linalg.solve(S, e))
     n, dof = len(N), len(e)
     p_value = float(chi2_sf(chi2, dof))
