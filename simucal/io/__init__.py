@@ -342,10 +342,21 @@ def _fast_numeric(body, header, names) -> dict | None:
         col = table.column(header.index(c))
         if col.null_count or not (pa.types.is_integer(col.type) or pa.types.is_floating(col.type)):
             return None
-        out[c] = np.ascontiguousarray(col.to_numpy(), float)
+        out[c] = _column_floats(col)
         if not np.all(np.isfinite(out[c])):
             return None
     return out
+
+
+def _column_floats(col) -> np.ndarray:
+    """A numeric Arrow column without nulls as float64, read from its chunks' data buffers: pyarrow's
+    to_numpy imports pandas where it is installed (0.25 s of a 1 s command)."""
+    import pyarrow as pa
+    kind = "f" if pa.types.is_floating(col.type) else "i" if pa.types.is_signed_integer(col.type) else "u"
+    dtype = np.dtype(f"{kind}{col.type.bit_width // 8}")
+    parts = [np.frombuffer(ch.buffers()[1], dtype=dtype, count=len(ch), offset=ch.offset * dtype.itemsize)
+             for ch in col.chunks]
+    return np.concatenate(parts).astype(float) if parts else np.zeros(0)
 
 
 def _check_samples(out, path, segments):
