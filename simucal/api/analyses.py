@@ -41,7 +41,10 @@ class Diagnosis:
         Every candidate effect, the separable ones by p-value first (a table: simucal/api/tables.py).
     next_command : str
         The one `simucal calibrate` command the verdict leads to.
+    next_notes : list of str
+        What the next command leaves open (e.g. a failing model with nothing in the library to add).
     notes : list of str
+        The data's own (a reflected triad, irregular time stamps).
     model_files : dict
         Per sensor, a found term that is no library effect, as a model file's text (``--add FILE``).
     report : dict
@@ -50,6 +53,7 @@ class Diagnosis:
     verdict: dict[str, str]
     candidates: Any
     next_command: str
+    next_notes: list[str]
     notes: list[str]
     model_files: dict[str, str]
     report: dict
@@ -97,8 +101,8 @@ def diagnose(data: Data, *, add: Sequence[str] = (), acc_model: str = "acc_basel
     cmd, notes = next_command(report)
     files = {s: report[s]["shape"]["model_file"] for s in sensors
              if report[s].get("shape") and not report[s]["shape"].get("catalog_id")}
-    return Diagnosis({s: report[s]["verdict"] for s in sensors}, table(rows, Candidate), cmd,
-                     list(report.get("notes", [])) + notes, files, report)
+    return Diagnosis({s: report[s]["verdict"] for s in sensors}, table(rows, Candidate), cmd, notes,
+                     list(report.get("notes", [])), files, report)
 
 
 def shape_model_path(output: str | os.PathLike, sensor: str) -> Path:
