@@ -33,8 +33,12 @@ def _span(v) -> str:
     return ":".join(repr(float(x)) for x in v) if isinstance(v, (tuple, list)) else str(v)
 
 
-def _refuse_unused(scenario: str, given: dict) -> None:
+def _refuse_unused(scenario: str, table_options: dict, effects, heading_accuracy_deg) -> None:
     """An option the scenario would not use is refused, naming it (Python name and the command's)."""
+    if scenario != "field" and heading_accuracy_deg is not None:
+        raise ValueError(f"heading_accuracy_deg (--heading-accuracy-deg) {heading_accuracy_deg:g}: the field "
+                         f"scenario's north reference (--scenario field); a {scenario} test has none")
+    given = {} if scenario == "paper" else {**table_options, "effects": effects if scenario == "field" else None}
     unused = [f"{k} ({TABLE_ONLY.get(k, '--effect')})" for k, v in given.items()
               if v is not None and v is not False and not (isinstance(v, (tuple, list, dict)) and not v)]
     if unused:
@@ -89,7 +93,6 @@ def simulate(scenario: str = "paper", *, seed: int = 0, rate_hz: float | None = 
     ------
     ValueError
         An option the scenario does not use, or a malformed value, named.
-
     Examples
     --------
     >>> import simucal
@@ -103,24 +106,19 @@ def simulate(scenario: str = "paper", *, seed: int = 0, rate_hz: float | None = 
                          gyro_model=gyro_model, acc_unit=acc_unit, gyro_unit=gyro_unit, effect_file=effect_file,
                          sets=sets, columns=columns, temperature_c=temperature_c, t_ref_c=t_ref_c,
                          temperature_wander_c=temperature_wander_c, noise_stated=not noise_stated)
-    if scenario != "field" and heading_accuracy_deg is not None:
-        raise ValueError(f"heading_accuracy_deg (--heading-accuracy-deg) {heading_accuracy_deg:g}: the field "
-                         f"scenario's north reference (--scenario field); a {scenario} test has none")
-    if scenario != "paper":
-        _refuse_unused(scenario, {**table_options, "effects": effects if scenario == "field" else None})
-    name = Path(f"simulated_{scenario}_seed{seed}")  # what errors and the next command call it
-    if scenario == "field":
-        from simucal.field.simulate import FieldScenario, simulate_field
-        fs = FieldScenario(**{k: v for k, v in (("heading_error_deg", heading_accuracy_deg), ("rate_hz", rate_hz))
-                              if v is not None})
-        meta, samples, segments, truth = simulate_field(fs, seed)
-    elif scenario == "handheld":
-        meta, samples, segments, truth = _handheld(seed, rate_hz, effects)
-    else:
-        meta, samples, segments, truth = _turntable(seed, rate_hz, {**table_options, "effects": effects})
-    ms = MeasurementSet(name, meta, samples, segments)
+    _refuse_unused(scenario, table_options, effects, heading_accuracy_deg)
+    meta, samples, segments, truth = (_field(seed, rate_hz, heading_accuracy_deg) if scenario == "field" else
+                                      _handheld(seed, rate_hz, effects) if scenario == "handheld" else
+                                      _turntable(seed, rate_hz, {**table_options, "effects": effects}))
+    ms = MeasurementSet(Path(f"simulated_{scenario}_seed{seed}"), meta, samples, segments)  # the name errors say
     ms.truth = truth
     return ms
+
+
+def _field(seed, rate_hz, heading_accuracy_deg):
+    from simucal.field.simulate import FieldScenario, simulate_field
+    return simulate_field(FieldScenario(**{k: v for k, v in (("heading_error_deg", heading_accuracy_deg),
+                                                              ("rate_hz", rate_hz)) if v is not None}), seed)
 
 
 def _handheld(seed, rate_hz, effects):

@@ -66,7 +66,7 @@ _ADD_AUTO_HELP = (_ADD_HELP + " Also 'auto': the library effects a failing model
               help="A noise.json of simucal noise: each segment's noise from its Allan curve at the segment's length "
                    "(averaged rows: meta.json's average_s).")
 @TIMESTAMPS
-@click.option("--init-rest-s", type=POSITIVE, default=None, help="Stream: length of the initial rest (default: found from the data).")
+@click.option("--init-rest-s", type=POSITIVE, default=None, help="Stream: length of the initial rest, s (default: found from the data).")
 @click.option("--threshold-factor", type=Number(1.0, 1e6, low_open=True), default=None,
               help="Stream: static threshold, times the rest's variance (default 6).")
 @click.option("--window-s", type=POSITIVE, default=None, help="Stream: moving-variance window, s (default 1).")
@@ -201,11 +201,11 @@ def field_drift(data_dir, output, html_path, plot, heading_accuracy_deg):
     paper's Fig. 4."""
     from simucal import api
     from simucal.field.drift import plot_formats, plot_history
-    if plot:
-        click.echo("warning: --plot is deprecated: --html PAGE writes Fig. 4 in a page with the calibration", err=True)
     if plot and Path(plot).suffix.lower().lstrip(".") not in plot_formats():
         fail(f"--plot {plot}: not an image file name; end it in .png (or {', '.join('.' + f for f in plot_formats())})")
     guard([data_dir], files={"-o": output, "--html": html_path, "--plot": plot})
+    if plot:  # after the refusals, which are one line
+        click.echo("warning: --plot is deprecated: --html PAGE writes Fig. 4 in a page with the calibration", err=True)
     try:
         result = api.calibrate(data_dir, method="field", heading_accuracy_deg=heading_accuracy_deg)
     except (ValueError, KeyError, FileNotFoundError) as e:  # MeasurementSetError, CalibrationError

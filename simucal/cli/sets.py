@@ -12,6 +12,7 @@ from simucal.cli.common import (
     SETS,
     POSITIVE,
     SEED,
+    SEED_HELP,
     SIM_RATE_HZ,
     InputPath,
     Number,
@@ -40,7 +41,7 @@ ANNOTATED_HZ, ANNOTATED_ACC, ANNOTATED_GYRO = 204.8, 2048.0, 16.4  # imucal's an
 @click.option("--heading-accuracy-deg", "--heading-error-deg", "heading_error_deg", type=Number(0.0, 180.0), default=None,
               show_default="5", help="field: the north reference's accuracy, deg; its error is drawn uniform +- this.")
 @click.option("--seed", type=SEED, default=0, show_default=True,
-              help="numpy's seed: the same seed, the same recording (the unit is the same at every seed).")
+              help=SEED_HELP + " The unit is the same at every seed.")
 @click.option("--plan", default=None, show_default="table1",
               help="table1, dodecahedron20, fibonacci24, fibonacci48, or a CSV of outer_deg,middle_deg,inner_deg.")
 @click.option("--rate-hz", type=SIM_RATE_HZ, default=None,
@@ -124,7 +125,7 @@ def simulate(out_dir, output, scenario, heading_error_deg, seed, plan, rate_hz, 
 @click.option("--gyro-unit", type=click.Choice(GYRO_UNITS), default=None,
               help="csv: the gyro columns' unit (pulse/s and counts need their nominal scale factors).")
 @click.option("--turn-deg", type=Number(-3600.0, 3600.0), default=-360.0, show_default=True,
-              help="Ferraris: the protocol's turn angle (imucal's default -360, clockwise).")
+              help="Ferraris: the protocol's turn angle, deg (imucal's default -360, clockwise).")
 @FORCE
 def import_cmd(fmt, sources, out_dir, latitude_deg, acc_counts_per_g, gyro_counts_per_dps, gravity_mps2, rate_hz,
                columns, acc_unit, gyro_unit, turn_deg, force):
