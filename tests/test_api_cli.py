@@ -98,3 +98,25 @@ def test_simulate_refuses_what_a_scenario_does_not_use():
         simucal.simulate(heading_accuracy_deg=3.0)
     with pytest.raises(ValueError, match="scenario 'bench'"):
         simucal.simulate("bench")
+
+
+def test_command_line_constants_are_the_api_s():
+    """The command line writes a few names itself so that it starts without numpy: they are the library's."""
+    from simucal.api import simulation
+    from simucal.cli import sets as cli_sets
+    from simucal.io import units
+    assert cli_sets.SCENARIOS == simulation.SCENARIOS
+    assert (cli_sets.ACC_UNITS, cli_sets.GYRO_UNITS) == (units.ACC_UNITS, units.GYRO_UNITS)
+    assert cli_sets.DEFAULT_GRAVITY == units.DEFAULT_GRAVITY
+
+
+def test_deprecated_names_warn_and_do_the_same(sets, tmp_path):
+    new = _cli("plan", "--score", "table1", "--model", "gyro_baseline", "--rates-dps", "20")
+    old = _cli("plan", "--score", "table1", "--model", "gyro_baseline", "--rate-dps", "20")
+    assert old.stdout == new.stdout and "CRLB" in new.stdout and "rate runs at 20 deg/s" in new.stdout
+    assert "--rate-dps is deprecated" in old.stderr and not new.stderr
+    r = _cli("field-drift", sets / "cli" / "field", "-o", tmp_path / "d.json", "--plot", tmp_path / "f.png",
+             "--html", tmp_path / "f.html")
+    assert "--plot is deprecated" in r.stderr and (tmp_path / "f.png").stat().st_size > 1000
+    page = (tmp_path / "f.html").read_text()
+    assert page.count("<svg") == 1 and "north gyro drift" in page and "gyro" in page
