@@ -1,6 +1,7 @@
 """Issue 40 items 1 and 4: the command line is the API plus printing, so both write the same files
 (simulate, validate, diagnose, noise; calibrate in test_api.py); the rest of the API (simulate,
 diagnose, noise, tables) as a notebook user meets it, with only the documented names."""
+import inspect
 import sys
 
 import numpy as np
@@ -101,10 +102,28 @@ def test_simulate_refuses_what_a_scenario_does_not_use():
 
 
 def test_command_line_constants_are_the_api_s():
-    """The command line writes a few names itself so that it starts without numpy: they are the library's."""
+    """The command line writes a few names and defaults itself so that it starts without numpy: they are
+    the library's."""
+    from simucal import methods
     from simucal.api import simulation
+    from simucal.cli import main
     from simucal.cli import sets as cli_sets
+    from simucal.field.simulate import FieldScenario
+    from simucal.handheld.static_detect import DetectSettings
     from simucal.io import units
+    from simucal.turntable.simulate import ARCMIN, Scenario, at_temperature
+    shown = {(c, p.name): getattr(p, "show_default", None) for c, cmd in main.commands.items() for p in cmd.params}
+    detect = DetectSettings()
+    for name, value in (("threshold_factor", detect.factor), ("window_s", detect.window_s),
+                        ("min_static_s", detect.min_s), ("heading_accuracy_deg", methods.DEFAULTS["heading_accuracy_deg"])):
+        assert float(shown[("calibrate", name)]) == value, name
+    assert float(shown[("simulate", "heading_error_deg")]) == FieldScenario().heading_error_deg
+    table, temperature = Scenario(), inspect.signature(at_temperature).parameters
+    assert (shown[("simulate", "plan")], shown[("simulate", "acc_model")], shown[("simulate", "gyro_model")]) == (
+        table.plan, table.acc_model, table.gyro_model)
+    assert float(shown[("simulate", "position_error_arcmin")]) * ARCMIN == pytest.approx(table.position_error_rad)
+    assert float(shown[("simulate", "t_ref_c")]) == temperature["t_ref_c"].default
+    assert float(shown[("simulate", "temperature_wander_c")]) == temperature["wander_c"].default
     assert cli_sets.SCENARIOS == simulation.SCENARIOS
     assert (cli_sets.ACC_UNITS, cli_sets.GYRO_UNITS) == (units.ACC_UNITS, units.GYRO_UNITS)
     assert cli_sets.DEFAULT_GRAVITY == units.DEFAULT_GRAVITY
@@ -120,3 +139,19 @@ def test_deprecated_names_warn_and_do_the_same(sets, tmp_path):
     assert "--plot is deprecated" in r.stderr and (tmp_path / "f.png").stat().st_size > 1000
     page = (tmp_path / "f.html").read_text()
     assert page.count("<svg") == 1 and "north gyro drift" in page and "gyro" in page
+
+
+def test_thermal_calibration_and_its_page_the_same(tmp_path):
+    """calibrate --thermal -o --html is simucal.calibrate([plateaus]) and save (.json, .html)."""
+    plateaus = []
+    for t in (0, 25, 50):
+        plateaus.append(tmp_path / f"p{t}")
+        simucal.simulate(seed=t, temperature_c=float(t), temperature_wander_c=0.3).write(plateaus[-1])
+    _cli("calibrate", *plateaus, "--thermal", "-o", tmp_path / "cli.json", "--html", tmp_path / "cli.html")
+    cal = simucal.calibrate([str(p) for p in plateaus])
+    simucal.save(tmp_path / "api.json", cal)
+    simucal.save(tmp_path / "api.html", cal)
+    for ext in ("json", "html"):
+        assert (tmp_path / f"cli.{ext}").read_bytes() == (tmp_path / f"api.{ext}").read_bytes(), ext
+    with pytest.raises(ValueError, match="a thermal calibration's"):
+        simucal.save(tmp_path / "one.html", simucal.calibrate(str(plateaus[0])))

@@ -158,14 +158,15 @@ def validate(cal: Calibration | str | os.PathLike, data: Data) -> Validation:
     report = _validate_report(cal, data)
     checks = [Check(s, c["what"], c["unit"], c["n"], c["before_rms"], c["after_rms"], c["floor_rms"], c["verdict"])
               for s, rows in report["checks"].items() for c in rows]
-    return Validation(dict(report["verdict"]), table(checks, Check), bool(report["independent"]),
+    return Validation(dict(report["verdict"]), table(checks, Check._fields), bool(report["independent"]),
                       list(report["warnings"]), report)
 
 
 def save(path: str | os.PathLike, result: Calibration | Validation | Diagnosis | Noise) -> None:
     """Write a result as its command writes it: a calibration file (``simucal.calibration/2``, as
-    `simucal calibrate -o`), or the report of `simucal validate`, `diagnose` or `noise` (``-o``; a
-    path ending in .html: the page of ``--html``).
+    `simucal calibrate -o`), or the report of `simucal validate`, `diagnose` or `noise` (``-o``); a
+    path ending in .html: the page of ``--html`` (a calibration's: a thermal one's, as `calibrate
+    --thermal --html`).
 
     A diagnosis also writes each found term's model file beside it (<stem>_<sensor>_model.py).
 
@@ -175,20 +176,26 @@ def save(path: str | os.PathLike, result: Calibration | Validation | Diagnosis |
     >>> simucal.save("validation.html", simucal.validate(cal, "other"))  # doctest: +SKIP
     """
     from simucal.io import outputs
-    if isinstance(result, _file.Calibration):
-        return _file.save(path, result)
-    if not isinstance(result, (Validation, Diagnosis, Noise)):
+    if not isinstance(result, (_file.Calibration, Validation, Diagnosis, Noise)):
         raise TypeError(f"save: a Calibration, Validation, Diagnosis or Noise, not {type(result).__name__}")
     if Path(path).suffix.lower() in (".html", ".htm"):
         return outputs.write_text(path, _page(result))
+    if isinstance(result, _file.Calibration):
+        return _file.save(path, result)
     if isinstance(result, Diagnosis):
         save_diagnosis(path, result)
         return None
     return outputs.write_text(path, json.dumps(result.report, indent=1) + "\n")
 
 
-def _page(result: Validation | Diagnosis | Noise) -> str:
+def _page(result: _file.Calibration | Validation | Diagnosis | Noise) -> str:
     """The self-contained HTML page of a result (the commands' --html)."""
+    if isinstance(result, _file.Calibration):
+        if not any(b.thermal is not None for _, b in result.blocks()):
+            raise ValueError("a page is a thermal calibration's (calibrate([plateaus...])): save this calibration "
+                             "as .json; for one set's page use simucal.diagnose or simucal.validate")
+        from simucal.report.thermal_html import thermal_page
+        return thermal_page(result)
     if isinstance(result, Validation):
         from simucal.validate import html_page
         return html_page(result.report)

@@ -101,7 +101,7 @@ def diagnose(data: Data, *, add: Sequence[str] = (), acc_model: str = "acc_basel
     cmd, notes = next_command(report)
     files = {s: report[s]["shape"]["model_file"] for s in sensors
              if report[s].get("shape") and not report[s]["shape"].get("catalog_id")}
-    return Diagnosis({s: report[s]["verdict"] for s in sensors}, table(rows, Candidate), cmd, notes,
+    return Diagnosis({s: report[s]["verdict"] for s in sensors}, table(rows, Candidate._fields), cmd, notes,
                      list(report.get("notes", [])), files, report)
 
 
@@ -185,4 +185,4 @@ def noise(data: Data, *, tau_max_s: float | None = None) -> Noise:
                  t["unit"])
             for s in ("acc", "gyro") if s in report for a, axis in report[s]["axes"].items()
             for k, t in axis.get("sheet", {}).items()]
-    return Noise(table(rows, Term), report)
+    return Noise(table(rows, Term._fields), report)

@@ -87,7 +87,7 @@ class Calibration(calibration.Calibration):
         >>> p.set_index(["sensor", "name"]).loc[("acc", "dK_z"), ["value", "std", "unit"]]  # doctest: +SKIP
         """
         return table([r for s, b in self.blocks() for r in (_model_rows(s, b) if b.params else _affine_rows(s, b))],
-                      Parameter)
+                      Parameter._fields)
 
     def apply(self, x: Any, *, acc_unit: str | None = None, gyro_unit: str | None = None, temp_c: Any = None,
               t_s: Any = None, sensor: str | None = None, columns: dict[str, str] | None = None,

@@ -146,7 +146,8 @@ def _turntable(seed, rate_hz, o):
     sc.state_noise = not o["noise_stated"]
     columns = _strings(o["columns"], _span)
     temperature = None if o["temperature_c"] is None else _span(o["temperature_c"])
-    at_temperature(sc, temperature, 25.0 if o["t_ref_c"] is None else o["t_ref_c"], o["temperature_wander_c"] or 0.0,
-                   columns)
+    at_temperature(sc, temperature, columns=columns, **{k: v for k, v in (("t_ref_c", o["t_ref_c"]),
+                                                                        ("wander_c", o["temperature_wander_c"]))
+                                                     if v is not None})
     plant(sc, _strings(o["effects"]), o["effect_file"], _strings(o["sets"]), columns)
     return simulate_table(sc, seed)

@@ -5,14 +5,14 @@ from __future__ import annotations
 from typing import Any, NamedTuple, Sequence
 
 
-def table(rows: Sequence[NamedTuple], row_type: type) -> Any:
-    """rows as a DataFrame with row_type's columns (also when there are none), or the list itself
-    without pandas."""
+def table(rows: Sequence[NamedTuple], columns: Sequence[str]) -> Any:
+    """rows as a DataFrame with these columns (the rows' fields; also when there are no rows), or the
+    list itself without pandas."""
     try:
         import pandas as pd
     except ImportError:  # pandas is an extra: the rows are the table
         return list(rows)
-    return pd.DataFrame(list(rows), columns=list(row_type._fields))
+    return pd.DataFrame(list(rows), columns=list(columns))
 
 
 def rows(t: Any) -> list:

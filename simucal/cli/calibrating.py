@@ -67,11 +67,12 @@ _ADD_AUTO_HELP = (_ADD_HELP + " Also 'auto': the library effects a failing model
                    "(averaged rows: meta.json's average_s).")
 @TIMESTAMPS
 @click.option("--init-rest-s", type=POSITIVE, default=None, help="Stream: length of the initial rest, s (default: found from the data).")
-@click.option("--threshold-factor", type=Number(1.0, 1e6, low_open=True), default=None,
-              help="Stream: static threshold, times the rest's variance (default 6).")
-@click.option("--window-s", type=POSITIVE, default=None, help="Stream: moving-variance window, s (default 1).")
-@click.option("--min-static-s", type=POSITIVE, default=None, help="Stream: shortest static interval, s (default 1).")
-@click.option("--heading-accuracy-deg", type=Number(0.0, 180.0), default=None, help=_HEADING_HELP[:-1] + " (default 5).")
+@click.option("--threshold-factor", type=Number(1.0, 1e6, low_open=True), default=None, show_default="6",
+              help="Stream: static threshold, times the rest's variance.")
+@click.option("--window-s", type=POSITIVE, default=None, show_default="1", help="Stream: moving-variance window, s.")
+@click.option("--min-static-s", type=POSITIVE, default=None, show_default="1",
+              help="Stream: shortest static interval, s.")
+@click.option("--heading-accuracy-deg", type=Number(0.0, 180.0), default=None, show_default="5", help=_HEADING_HELP)
 @click.option("--scheduler", default="local", show_default=True,
               help="Several sets: local, processes (a Dask LocalCluster on 127.0.0.1) or a Dask scheduler's address. "
                    + SCHEDULER_TRUST)
@@ -157,22 +158,20 @@ def _calibrate_batch(data_dirs, output, kwargs, inputs, scheduler):
 
 
 def _calibrate_thermal(data_dirs, output, degree, t_ref_c, kwargs, inputs, html_out, autopilot_out=(None, None)):
-    from simucal.calibrate import calibrate_thermal
-    from simucal.errors import CalibrationError
-    from simucal.io import autopilot, calibration, outputs
+    from simucal import api
+    from simucal.io import autopilot
     guard(inputs, files={"-o": output, "--html": html_out, "--px4": autopilot_out[0], "--ardupilot": autopilot_out[1]})
     try:
-        result = calibrate_thermal([Path(d) for d in data_dirs], degree, t_ref_c, **kwargs)
+        result = api.calibrate([Path(d) for d in data_dirs], degree=degree, t_ref_c=t_ref_c, **kwargs)
         exported = _autopilot_files(result, data_dirs, *autopilot_out)
-        calibration.save(output, result)
-    except (ValueError, KeyError, CalibrationError, FileNotFoundError) as e:
+    except (ValueError, KeyError, FileNotFoundError) as e:  # CalibrationError, MeasurementSetError
         fail(e)
+    api.save(output, result)
     from simucal.report.console import calibration_lines
     for line in calibration_lines(result):
         click.echo(line)
     if html_out:
-        from simucal.report.thermal_html import thermal_page
-        outputs.write_text(html_out, thermal_page(result))
+        api.save(html_out, result)
         click.echo(f"wrote {html_out}")
     for line in autopilot.write(exported):
         click.echo(line)
