@@ -155,3 +155,15 @@ def test_thermal_calibration_and_its_page_the_same(tmp_path):
         assert (tmp_path / f"cli.{ext}").read_bytes() == (tmp_path / f"api.{ext}").read_bytes(), ext
     with pytest.raises(ValueError, match="a thermal calibration's"):
         simucal.save(tmp_path / "one.html", simucal.calibrate(str(plateaus[0])))
+
+
+def test_docstring_examples_run(tmp_path, monkeypatch):
+    """The API's examples that need no files run as written (the others are marked to skip)."""
+    import doctest
+    import importlib
+    monkeypatch.chdir(tmp_path)
+    for name in ("simucal.api", "simucal.api.sets", "simucal.api.calibration", "simucal.api.simulation",
+                 "simucal.api.analyses", "simucal.api.tables"):
+        result = doctest.testmod(importlib.import_module(name), optionflags=doctest.ELLIPSIS)
+        assert result.failed == 0, name
+    assert result.attempted > 0

@@ -153,7 +153,12 @@ class Noise:
 
     def kalibr_yaml(self) -> str:
         """Kalibr's imu.yaml (noise densities and random walks, SI), as `simucal noise --kalibr` writes it;
-        refused (CalibrationError) unless both sensors give them."""
+        refused (CalibrationError) unless both sensors give them.
+
+        Examples
+        --------
+        >>> open("imu.yaml", "w").write(simucal.noise("still").kalibr_yaml())  # doctest: +SKIP
+        """
         from simucal import allan
         return allan.kalibr_yaml(self.report)
 

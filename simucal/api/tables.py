@@ -16,7 +16,26 @@ def table(rows: Sequence[NamedTuple], columns: Sequence[str]) -> Any:
 
 
 def rows(t: Any) -> list:
-    """A table's rows as NamedTuples, whichever type `table` gave (DataFrame.itertuples names them)."""
+    """A table's rows as NamedTuples, whichever type the API gave (``simucal.table_rows``): for code that
+    runs with pandas and without.
+
+    Parameters
+    ----------
+    t : pandas.DataFrame or list of NamedTuple
+        A table of the API (``Calibration.parameters()``, ``Validation.checks``, ...).
+
+    Returns
+    -------
+    list of NamedTuple
+        One per row, its fields by the table's columns.
+
+    Examples
+    --------
+    >>> import simucal
+    >>> p = simucal.table_rows(simucal.calibrate(simucal.simulate(seed=1)).parameters())
+    >>> p[0].sensor, p[0].name, p[0].unit
+    ('acc', 'dK_x', '1')
+    """
     if hasattr(t, "itertuples"):
         return list(t.itertuples(index=False))
     return list(t)
