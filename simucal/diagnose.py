@@ -179,10 +179,11 @@ def _choose_twin(block, judged) -> str:
 
 def diagnose(folder, add=(), acc_model="acc_baseline", gyro_model="gyro_baseline",
              acc_noise_g=None, gyro_noise_dph=None, timestamps="auto") -> dict:
-    """add: effect ids and model files (fit/augmented.resolve_add); timestamps: a stream's time
+    """folder: a set's folder, or the set (io.MeasurementSet: its truth.json beside it, if any, scores);
+    add: effect ids and model files (fit/augmented.resolve_add); timestamps: a stream's time
     stamps as calibrate takes them (io/timestamps.py)."""
-    folder = Path(folder)
-    ms = io.read_set(folder)
+    ms = folder if isinstance(folder, io.MeasurementSet) else io.read_set(folder)
+    folder = Path(ms.path)
     try:
         ms, stamps = with_timestamps(ms, timestamps)
         result = _diagnose(ms, folder, add, acc_model, gyro_model, acc_noise_g, gyro_noise_dph)

@@ -41,11 +41,13 @@ def _static_norm_error_g(f_g, samples, segments):
     return np.linalg.norm(f_g[rows], axis=1) - 1.0
 
 
-def test_notebook_flow_on_numpy_arrays():
+def test_notebook_flow_on_numpy_arrays(monkeypatch):
+    monkeypatch.setitem(sys.modules, "pandas", None)  # numpy alone: pandas cannot be imported, tables are rows
     raw, samples, segments, meta, truth = _recording(1, {"acc.quadratic.z": 2e-4})
     ms = _set(raw, samples, segments, meta, "lab_run_1")
     cal = simucal.calibrate(ms, add=["acc.quadratic.z"])
     assert isinstance(cal, simucal.Calibration) and ms.temperature_ref_c is None  # the caller's set untouched
+    assert isinstance(cal.parameters(), list) and isinstance(cal.parameters()[0], simucal.Parameter)
     table = {(r.sensor, r.name): r for r in cal.parameters()}
     for name in ("dK_x", "dK_y", "dK_z", "b_z"):  # the truth within 5 std of each estimate
         r = table[("acc", name)]
@@ -84,8 +86,8 @@ def test_notebook_flow_on_dataframes():
     ms = simucal.MeasurementSet.from_dataframe(df, columns=cols, acc_unit="pulse/s", gyro_unit="pulse/s",
                                                segments=segments, meta={k: meta[k] for k in KEYS})
     cal = simucal.calibrate(ms)
-    params = pd.DataFrame(cal.parameters())
-    assert list(params.columns) == ["name", "sensor", "value", "std", "unit", "meaning"]
+    params = cal.parameters()  # a DataFrame, pandas being installed
+    assert isinstance(params, pd.DataFrame) and list(params.columns) == ["name", "sensor", "value", "std", "unit", "meaning"]
     assert (params["std"] > 0).all() and len(params) == 18
     df2, segments2, meta2 = frame(2)
     out = cal.apply(df2, columns=names)
@@ -95,7 +97,8 @@ def test_notebook_flow_on_dataframes():
                                                 segments=segments2, meta={k: meta2[k] for k in KEYS})
     v = simucal.validate(cal, ms2)
     assert v.independent and "WORSE" not in " ".join(v.verdict.values())
-    checks = pd.DataFrame(v.checks)
+    checks = v.checks
+    assert isinstance(checks, pd.DataFrame)
     assert (checks["calibrated_rms"] <= checks["nominal_rms"]).all()
 
 

@@ -163,10 +163,33 @@ OLD_NAMES = {"--out-dir": "-o/--output", "--json": "-o/--output", "--sigma": "--
              "--rates": "--rates-dps", "--heading-error-deg": "--heading-accuracy-deg"}  # accepted, never shown first
 
 
+UNIT_WORDS = {"-per-dps": r"per deg/s", "-per-g": r"per g\b", "-deg": r"\bdeg\b", "-s": r"\bs\b", "-hz": r"\bHz\b",
+              "-dps": r"deg/s", "-dph": r"deg/h", "-g": r"\bg\b", "-c": r"degC", "-arcmin": r"arcmin",
+              "-mps2": r"m/s\^2"}  # how a help text names the unit its option's name carries
+CLOSED_SETS = ("-unit", "--scenario", "--method", "--criterion", "--timestamps", "--table")  # values from a closed set
+
+
+def _option_rules(name, p, first):
+    """Issue 40 item 5, on one shown option: help present; the unit its name carries named in the help;
+    a closed set of values a click.Choice; a default shown."""
+    import re
+
+    import click
+    assert p.help and p.help.strip(), f"{name} {first}: no help"
+    suffix = next((u for u in UNIT_WORDS if first.endswith(u)), None)
+    if suffix and first not in UNITLESS:
+        assert re.search(UNIT_WORDS[suffix], p.help), f"{name} {first}: its help does not name its unit"
+    if first.endswith(CLOSED_SETS):
+        assert isinstance(p.type, click.Choice), f"{name} {first}: a closed set of values, not a click.Choice"
+    if not p.is_flag and not p.multiple and not p.required and p.default is not None:
+        assert p.show_default, f"{name} {first}: its default {p.default!r} is not shown"
+
+
 def test_one_command_grammar():
     """Issue 25: `simucal VERB INPUT... -o OUTPUT [options]`. Every command that writes takes -o/--output;
     a number carries its unit in its name (or is a count); one name per quantity (the old names are
-    aliases at most); every --help renders and names only options the command has."""
+    aliases at most); every --help renders and names only options the command has. Issue 40 item 5:
+    every option's help, units, choices and defaults (_option_rules); a hidden option is an old name."""
     import re
 
     import click
@@ -181,9 +204,11 @@ def test_one_command_grammar():
             assert any({"-o", "--output"} <= set(p.opts) for p in options), f"{name} has no -o/--output"
             assert "-o, --output" in out.output, name
         for p in options:
-            if p.hidden:  # an old name, accepted and never shown
-                continue
             first = next(o for o in p.opts if o.startswith("--"))
+            if p.hidden:  # an old name, accepted and never shown, and its help says so
+                assert p.help and p.help.startswith(("Deprecated", "The old name")), f"{name} {first}: hidden, not old"
+                continue
+            _option_rules(name, p, first)
             assert first not in OLD_NAMES, f"{name} {first}: named {OLD_NAMES[first]} everywhere else"
             number = isinstance(p.type, (click.types.FloatParamType, click.types.IntParamType)) or (
                 type(p.type).__name__ == "Number")

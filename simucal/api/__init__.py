@@ -1,19 +1,27 @@
 """The public Python API (issue 40, item 1): `import simucal` and call
 
-    read_set, MeasurementSet.from_arrays / .from_dataframe, calibrate -> Calibration,
-    Calibration.apply / .parameters, validate -> Validation, save, load
+    read_set, MeasurementSet.from_arrays / .from_dataframe / .write, simulate, calibrate -> Calibration,
+    Calibration.apply / .parameters, validate -> Validation, diagnose -> Diagnosis, noise -> Noise,
+    save, load
 
-on folders, numpy arrays or (with simucal[pandas]) DataFrames. A thin layer over the commands'
-own functions (calibrate.py, validate.py, fit/apply.py, io/): the API and the command line write
-the same files. Tables are lists of NamedTuple rows; ``pandas.DataFrame(rows)`` makes a frame.
+on folders, numpy arrays or (with simucal[pandas]) DataFrames. A layer over the commands' own
+functions (calibrate.py, validate.py, diagnose.py, allan.py, fit/apply.py, io/); the command line
+calls it, so both write the same files. A table is a pandas DataFrame where pandas is installed,
+else a list of NamedTuple rows (api/tables.py).
 """
 from __future__ import annotations
 
+import json
 import os
 from dataclasses import dataclass, replace
+from pathlib import Path
 from typing import Any, NamedTuple, Sequence, Union
 
 from simucal import io
+from simucal.api.analyses import Candidate, Diagnosis, Noise, Term, diagnose, noise, save_diagnosis
+from simucal.api.simulation import simulate
+from simucal.api.tables import rows as table_rows
+from simucal.api.tables import table
 from simucal.calibrate import calibrate as _calibrate_set
 from simucal.calibrate import calibrate_thermal as _calibrate_thermal
 from simucal.api.calibration import Calibration, Parameter
@@ -23,8 +31,8 @@ from simucal.validate import validate as _validate_report
 
 Data = Union[str, os.PathLike, io.MeasurementSet]
 
-__all__ = ["read_set", "calibrate", "validate", "save", "load", "MeasurementSet", "Calibration", "Parameter",
-           "Validation", "Check"]
+__all__ = ["read_set", "simulate", "calibrate", "validate", "diagnose", "noise", "save", "load", "table_rows",
+           "MeasurementSet", "Calibration", "Parameter", "Validation", "Check", "Diagnosis", "Candidate", "Noise", "Term"]
 
 
 def read_set(path: str | os.PathLike) -> MeasurementSet:
@@ -114,8 +122,8 @@ class Validation:
     ----------
     verdict : dict
         Per sensor: "at the noise floor", "better", "no better than nominal", "WORSE THAN NOMINAL".
-    checks : list of Check
-        Each check's error at nominal, after the calibration and its floor.
+    checks : DataFrame or list of Check
+        Each check's error at nominal, after the calibration and its floor (a table).
     independent : bool
         False where the data are the calibration's own (a model always looks better there).
     warnings : list of str
@@ -123,7 +131,7 @@ class Validation:
         What `simucal validate -o` writes (``simucal.validation/1``).
     """
     verdict: dict[str, str]
-    checks: list[Check]
+    checks: Any
     independent: bool
     warnings: list[str]
     report: dict
@@ -150,17 +158,52 @@ def validate(cal: Calibration | str | os.PathLike, data: Data) -> Validation:
     report = _validate_report(cal, data)
     checks = [Check(s, c["what"], c["unit"], c["n"], c["before_rms"], c["after_rms"], c["floor_rms"], c["verdict"])
               for s, rows in report["checks"].items() for c in rows]
-    return Validation(dict(report["verdict"]), checks, bool(report["independent"]), list(report["warnings"]), report)
+    return Validation(dict(report["verdict"]), table(checks, Check._fields), bool(report["independent"]),
+                      list(report["warnings"]), report)
 
 
-def save(path: str | os.PathLike, cal: Calibration) -> None:
-    """Write a calibration file (``simucal.calibration/2``), as `simucal calibrate -o` does.
+def save(path: str | os.PathLike, result: Calibration | Validation | Diagnosis | Noise) -> None:
+    """Write a result as its command writes it: a calibration file (``simucal.calibration/2``, as
+    `simucal calibrate -o`), or the report of `simucal validate`, `diagnose` or `noise` (``-o``); a
+    path ending in .html: the page of ``--html`` (a calibration's: a thermal one's, as `calibrate
+    --thermal --html`).
+
+    A diagnosis also writes each found term's model file beside it (<stem>_<sensor>_model.py).
 
     Examples
     --------
     >>> simucal.save("calibration.json", cal)  # doctest: +SKIP
+    >>> simucal.save("validation.html", simucal.validate(cal, "other"))  # doctest: +SKIP
     """
-    _file.save(path, cal)
+    from simucal.io import outputs
+    if not isinstance(result, (_file.Calibration, Validation, Diagnosis, Noise)):
+        raise TypeError(f"save: a Calibration, Validation, Diagnosis or Noise, not {type(result).__name__}")
+    if Path(path).suffix.lower() in (".html", ".htm"):
+        return outputs.write_text(path, _page(result))
+    if isinstance(result, _file.Calibration):
+        return _file.save(path, result)
+    if isinstance(result, Diagnosis):
+        save_diagnosis(path, result)
+        return None
+    return outputs.write_text(path, json.dumps(result.report, indent=1) + "\n")
+
+
+def _page(result: _file.Calibration | Validation | Diagnosis | Noise) -> str:
+    """The self-contained HTML page of a result (the commands' --html)."""
+    if isinstance(result, _file.Calibration):
+        if not any(b.thermal is not None for _, b in result.blocks()):
+            raise ValueError("a page is a thermal calibration's (calibrate([plateaus...])): save this calibration "
+                             "as .json; for one set's page use simucal.diagnose or simucal.validate")
+        from simucal.report.thermal_html import thermal_page
+        return thermal_page(result)
+    if isinstance(result, Validation):
+        from simucal.validate import html_page
+        return html_page(result.report)
+    if isinstance(result, Diagnosis):
+        from simucal.report.html import render
+        return render(result.report)
+    from simucal import allan
+    return allan.html_page(result.report)
 
 
 def load(path: str | os.PathLike) -> Calibration:
@@ -173,8 +216,9 @@ def load(path: str | os.PathLike) -> Calibration:
     return Calibration.of(_file.load(path))
 
 
-# Importing the modules simucal.calibrate and simucal.validate bound those names on the package to
+# Importing the modules simucal.calibrate, .validate and .diagnose bound those names on the package to
 # the modules; the API's functions take them back (`simucal.calibrate(...)` is the function).
 import simucal as _package  # noqa: E402
+import simucal.diagnose  # noqa: E402,F401 (imported here, so that no later import binds the module's name)
 
-_package.calibrate, _package.validate = calibrate, validate  # type: ignore[assignment]
+_package.calibrate, _package.validate, _package.diagnose = calibrate, validate, diagnose  # type: ignore[assignment]

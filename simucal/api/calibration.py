@@ -7,6 +7,7 @@ from typing import Any, NamedTuple
 
 import numpy as np
 
+from simucal.api.tables import table
 from simucal.errors import CalibrationError
 from simucal.fit import apply as fit_apply
 from simucal.fit.augmented import AugmentedModel
@@ -69,24 +70,24 @@ class Calibration(calibration.Calibration):
         """The same calibration as this class (its fields shared, not copied)."""
         return cal if isinstance(cal, cls) else cls(**{f.name: getattr(cal, f.name) for f in fields(cal)})
 
-    def parameters(self) -> list[Parameter]:
+    def parameters(self) -> Any:
         """Every parameter of every sensor's model as a table: a list of `Parameter` rows.
 
         Returns
         -------
-        list of Parameter
-            ``(name, sensor, value, std, unit, meaning)`` per parameter; an affine model (the
-            multi-position method, a stream's gyro) gives M's entries and the bias. std is the
-            file's (inflated by the misfit where the model fails its test). For a DataFrame:
-            ``pandas.DataFrame(cal.parameters())``.
+        pandas.DataFrame or list of Parameter
+            ``(name, sensor, value, std, unit, meaning)`` per parameter: a DataFrame where pandas
+            is installed, else a list of `Parameter` rows. An affine model (the multi-position
+            method, a stream's gyro) gives M's entries and the bias. std is the file's (inflated by
+            the misfit where the model fails its test).
 
         Examples
         --------
-        >>> rows = cal.parameters()  # doctest: +SKIP
-        >>> rows[0].name, rows[0].unit  # doctest: +SKIP
-        ('ka_x', '1')
+        >>> p = cal.parameters()  # doctest: +SKIP
+        >>> p.set_index(["sensor", "name"]).loc[("acc", "dK_z"), ["value", "std", "unit"]]  # doctest: +SKIP
         """
-        return [r for s, b in self.blocks() for r in (_model_rows(s, b) if b.params else _affine_rows(s, b))]
+        return table([r for s, b in self.blocks() for r in (_model_rows(s, b) if b.params else _affine_rows(s, b))],
+                      Parameter._fields)
 
     def apply(self, x: Any, *, acc_unit: str | None = None, gyro_unit: str | None = None, temp_c: Any = None,
               t_s: Any = None, sensor: str | None = None, columns: dict[str, str] | None = None,

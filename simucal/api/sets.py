@@ -2,7 +2,9 @@
 DataFrames, so data held in Python need no folder."""
 from __future__ import annotations
 
+import os
 from dataclasses import fields
+from pathlib import Path
 from typing import Any, Mapping, Sequence
 
 import numpy as np
@@ -26,6 +28,8 @@ class MeasurementSet(io.MeasurementSet):
     >>> ms.acc_g().shape
     (100, 3)
     """
+
+    truth: dict | None = None  # a simulated set's truth (truth.json), else None
 
     @classmethod
     def of(cls, ms: io.MeasurementSet) -> MeasurementSet:
@@ -140,3 +144,24 @@ class MeasurementSet(io.MeasurementSet):
         ['ax', 'ay', 'az', 't_s']
         """
         return {k: np.asarray(v) for k, v in self.samples.items()}
+
+    def write(self, folder: str | os.PathLike, *, force: bool = False) -> None:
+        """Write the set as a folder (meta.json, samples.csv, segments.csv; a simulated set's truth.json),
+        as `simucal simulate` and `simucal import` write one.
+
+        Parameters
+        ----------
+        folder : str or os.PathLike
+            Created where absent; one that already holds a measurement set is refused unless `force`.
+        force : bool
+            Replace a measurement set already in `folder`.
+
+        Examples
+        --------
+        >>> import simucal
+        >>> simucal.simulate(seed=1).write("set")  # doctest: +SKIP
+        """
+        from simucal.io import outputs
+        outputs.check(sets=[folder], force=force)
+        io.write_set(Path(folder), {k: v for k, v in self.meta.items() if k != "format"}, self.samples, self.segments,
+                     {"truth.json": self.truth} if self.truth is not None else None)

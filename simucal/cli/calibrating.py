@@ -19,6 +19,10 @@ TIMESTAMPS = click.option(
 _HEADING_HELP = "Field sets: the stated accuracy of the north reference (deg); its effect enters the uncertainty."
 HEADING_ACCURACY = click.option("--heading-accuracy-deg", type=Number(0.0, 180.0), default=5.0, show_default=True,
                                 help=_HEADING_HELP)
+_MODEL_HELP = ("The {} model fitted: a built-in (derive/models/) or one derived from your model file "
+               "(simucal derive --model FILE).")
+ACC_MODEL = click.option("--acc-model", default="acc_baseline", show_default=True, help=_MODEL_HELP.format("accelerometer"))
+GYRO_MODEL = click.option("--gyro-model", default="gyro_baseline", show_default=True, help=_MODEL_HELP.format("gyro"))
 _ADD_HELP = ("Effect id to add, e.g. acc.quadratic.z (exact ids; unknown ones are refused), or a model file "
              "(MODELS = [...]) with your own SymPy terms, derived into the cache (repeatable). " + MODEL_FILE_RUNS)
 _ADD_AUTO_HELP = (_ADD_HELP + " Also 'auto': the library effects a failing model needs, chosen one at a time by the "
@@ -53,8 +57,8 @@ _ADD_AUTO_HELP = (_ADD_HELP + " Also 'auto': the library effects a failing model
 @click.option("--method", type=click.Choice(("auto",) + methods.NAMES), default="auto", show_default=True,
               help="auto: the default for the set's data. " + " ".join(
                   f"{m.name}: {m.summary} ({methods.DATA[m.data]})." for m in methods.METHODS.values()))
-@click.option("--acc-model", default="acc_baseline", show_default=True)
-@click.option("--gyro-model", default="gyro_baseline", show_default=True)
+@ACC_MODEL
+@GYRO_MODEL
 @click.option("--add", "add", multiple=True, help=_ADD_AUTO_HELP)
 @click.option("--acc-noise-g", type=NOISE_G, default=None, help="Noise of one acc row (g), where the data cannot give it.")
 @click.option("--gyro-noise-dph", type=NOISE_DPH, default=None, help="Noise of one gyro row (deg/h).")
@@ -62,12 +66,13 @@ _ADD_AUTO_HELP = (_ADD_HELP + " Also 'auto': the library effects a failing model
               help="A noise.json of simucal noise: each segment's noise from its Allan curve at the segment's length "
                    "(averaged rows: meta.json's average_s).")
 @TIMESTAMPS
-@click.option("--init-rest-s", type=POSITIVE, default=None, help="Stream: length of the initial rest (default: found from the data).")
-@click.option("--threshold-factor", type=Number(1.0, 1e6, low_open=True), default=None,
-              help="Stream: static threshold, times the rest's variance (default 6).")
-@click.option("--window-s", type=POSITIVE, default=None, help="Stream: moving-variance window, s (default 1).")
-@click.option("--min-static-s", type=POSITIVE, default=None, help="Stream: shortest static interval, s (default 1).")
-@click.option("--heading-accuracy-deg", type=Number(0.0, 180.0), default=None, help=_HEADING_HELP[:-1] + " (default 5).")
+@click.option("--init-rest-s", type=POSITIVE, default=None, help="Stream: length of the initial rest, s (default: found from the data).")
+@click.option("--threshold-factor", type=Number(1.0, 1e6, low_open=True), default=None, show_default="6",
+              help="Stream: static threshold, times the rest's variance.")
+@click.option("--window-s", type=POSITIVE, default=None, show_default="1", help="Stream: moving-variance window, s.")
+@click.option("--min-static-s", type=POSITIVE, default=None, show_default="1",
+              help="Stream: shortest static interval, s.")
+@click.option("--heading-accuracy-deg", type=Number(0.0, 180.0), default=None, show_default="5", help=_HEADING_HELP)
 @click.option("--scheduler", default="local", show_default=True,
               help="Several sets: local, processes (a Dask LocalCluster on 127.0.0.1) or a Dask scheduler's address. "
                    + SCHEDULER_TRUST)
@@ -79,7 +84,6 @@ def calibrate(data_dirs, output, thermal, thermal_degree, html_out, px4, ardupil
     With segments.csv and table angles: a turntable test (dong2018). Without segments.csv: a
     continuous stream from a hand-placed session (static poses found from the data; Tedaldi).
     With heading_ref_deg and no table angles: a field set (ruan2019's gyro drift)."""
-    from simucal.calibrate import calibrate_to_file
     from simucal.handheld.static_detect import DetectSettings
     stream = dict(window_s=window_s, factor=threshold_factor, min_s=min_static_s, init_rest_s=init_rest_s)
     detect = DetectSettings(**{k: v for k, v in stream.items() if v is not None}) if any(
@@ -99,10 +103,13 @@ def calibrate(data_dirs, output, thermal, thermal_degree, html_out, px4, ardupil
         fail("--html: a page of a thermal calibration (with --thermal); for one set use simucal diagnose --html")
     kwargs["t_ref_c"] = t_ref_c
     if len(data_dirs) == 1:
+        from simucal import api
         guard(inputs, files=[output])
-        result, error = calibrate_to_file(Path(data_dirs[0]), output, kwargs)
-        if error:
-            fail(error)
+        try:
+            result = api.calibrate(data_dirs[0], **kwargs)
+        except (ValueError, KeyError, FileNotFoundError) as e:  # MeasurementSetError, CalibrationError
+            fail(e)
+        api.save(output, result)
         from simucal.report.console import calibration_lines
         for line in calibration_lines(result):
             click.echo(line)
@@ -151,22 +158,20 @@ def _calibrate_batch(data_dirs, output, kwargs, inputs, scheduler):
 
 
 def _calibrate_thermal(data_dirs, output, degree, t_ref_c, kwargs, inputs, html_out, autopilot_out=(None, None)):
-    from simucal.calibrate import calibrate_thermal
-    from simucal.errors import CalibrationError
-    from simucal.io import autopilot, calibration, outputs
+    from simucal import api
+    from simucal.io import autopilot
     guard(inputs, files={"-o": output, "--html": html_out, "--px4": autopilot_out[0], "--ardupilot": autopilot_out[1]})
     try:
-        result = calibrate_thermal([Path(d) for d in data_dirs], degree, t_ref_c, **kwargs)
+        result = api.calibrate([Path(d) for d in data_dirs], degree=degree, t_ref_c=t_ref_c, **kwargs)
         exported = _autopilot_files(result, data_dirs, *autopilot_out)
-        calibration.save(output, result)
-    except (ValueError, KeyError, CalibrationError, FileNotFoundError) as e:
+    except (ValueError, KeyError, FileNotFoundError) as e:  # CalibrationError, MeasurementSetError
         fail(e)
+    api.save(output, result)
     from simucal.report.console import calibration_lines
     for line in calibration_lines(result):
         click.echo(line)
     if html_out:
-        from simucal.report.thermal_html import thermal_page
-        outputs.write_text(html_out, thermal_page(result))
+        api.save(html_out, result)
         click.echo(f"wrote {html_out}")
     for line in autopilot.write(exported):
         click.echo(line)
@@ -185,26 +190,36 @@ def _autopilot_files(result, data_dirs, px4, ardupilot):
 @click.argument("data_dir", type=InputPath(exists=True, file_okay=False))
 @click.option("-o", "--output", type=click.Path(dir_okay=False), default="drift.json", show_default=True,
               help="The calibration file (apply corrects the gyro drift with it).")
-@click.option("--plot", type=click.Path(dir_okay=False), default=None, help="PNG of each position's filter estimate (paper Fig. 4).")
+@click.option("--html", "html_path", type=click.Path(dir_okay=False), default=None,
+              help="Also write a page: the calibration and each position's filter estimate (paper Fig. 4).")
+@click.option("--plot", type=click.Path(dir_okay=False), default=None, hidden=True,
+              help="Deprecated (warns): Fig. 4 alone as an image file (.png, .svg, ...); --html writes it in a page.")
 @HEADING_ACCURACY
-def field_drift(data_dir, output, plot, heading_accuracy_deg):
+def field_drift(data_dir, output, html_path, plot, heading_accuracy_deg):
     """Three-position field calibration of gyro constant drift (ruan2019): `calibrate --method field`, with the
     paper's Fig. 4."""
-    from simucal.calibrate import calibrate_to_file
+    from simucal import api
     from simucal.field.drift import plot_formats, plot_history
     if plot and Path(plot).suffix.lower().lstrip(".") not in plot_formats():
         fail(f"--plot {plot}: not an image file name; end it in .png (or {', '.join('.' + f for f in plot_formats())})")
-    guard([data_dir], files={"-o": output, "--plot": plot})
-    result, error = calibrate_to_file(Path(data_dir), output, dict(method="field",
-                                                                  heading_accuracy_deg=heading_accuracy_deg))
-    if error:
-        fail(error)
+    guard([data_dir], files={"-o": output, "--html": html_path, "--plot": plot})
+    if plot:  # after the refusals, which are one line
+        click.echo("warning: --plot is deprecated: --html PAGE writes Fig. 4 in a page with the calibration", err=True)
+    try:
+        result = api.calibrate(data_dir, method="field", heading_accuracy_deg=heading_accuracy_deg)
+    except (ValueError, KeyError, FileNotFoundError) as e:  # MeasurementSetError, CalibrationError
+        fail(e)
+    api.save(output, result)
+    if html_path:
+        from simucal.io import outputs
+        from simucal.report.field_html import field_page
+        outputs.write_text(html_path, field_page(result))
     if plot:
         plot_history(result.details["field"]["history"], plot)
     from simucal.report.console import calibration_lines
     for line in calibration_lines(result):
         click.echo(line)
-    click.echo(f"wrote {output}" + (f" and {plot}" if plot else ""))
+    click.echo(f"wrote {output}" + "".join(f" and {p}" for p in (html_path, plot) if p))
 
 
 def _added_lines(result):
@@ -223,64 +238,43 @@ def _added_lines(result):
                     yield f"    {k} = {row['after']:.4g} +- {row['std_after']:.2g}{err}"
 
 
-def _shape_model_path(output, sensor):
-    return Path(output).with_name(f"{Path(output).stem}_{sensor}_model.py")
-
-
-def _write_shape_models(result, output):
-    """Each sensor's found term as a ready model file beside the diagnosis; returns the paths."""
-    from simucal.io import outputs
-    paths = []
-    for s in ("acc", "gyro"):
-        shape = result.get(s, {}).get("shape")
-        if shape and not shape.get("catalog_id"):
-            path = _shape_model_path(output, s)
-            outputs.write_text(path, shape["model_file"])
-            shape["model_file_path"] = str(path)
-            paths.append(path)
-    return paths
-
-
 @main.command()
 @click.argument("data_dir", type=InputPath(exists=True, file_okay=False))
-@click.option("-o", "--output", type=click.Path(dir_okay=False), default="diagnosis.json", show_default=True)
+@click.option("-o", "--output", type=click.Path(dir_okay=False), default="diagnosis.json", show_default=True,
+              help="The diagnosis (simucal.diagnosis/1): each sensor's model test, the ranked candidates, the verdict; "
+                   "a found term that is no library effect also as <stem>_<sensor>_model.py beside it.")
 @click.option("--html", "html_path", type=click.Path(dir_okay=False), default=None, help="Also write a self-contained HTML report.")
 @click.option("--add", "add", multiple=True, help=_ADD_HELP)
-@click.option("--acc-model", default="acc_baseline", show_default=True)
-@click.option("--gyro-model", default="gyro_baseline", show_default=True)
+@ACC_MODEL
+@GYRO_MODEL
 @click.option("--acc-noise-g", type=NOISE_G, default=None, help="Stated noise of one acc row (g), when the data cannot give it.")
 @click.option("--gyro-noise-dph", type=NOISE_DPH, default=None, help="Stated noise of one gyro row (deg/h).")
 @TIMESTAMPS
 def diagnose(data_dir, output, html_path, add, acc_model, gyro_model, acc_noise_g, gyro_noise_dph, timestamps):
-    """Compare model and measurements; rank the candidate missing effects."""
-    import json
-
-    from simucal.diagnose import diagnose as diagnose_set
-    from simucal.errors import CalibrationError
-    from simucal.io import MeasurementSetError, outputs
+    """Compare model and measurements; rank the candidate missing effects. The Python API's simucal.diagnose(DATA)."""
+    from simucal import api
+    from simucal.api.analyses import shape_model_path
     if "auto" in add:
         fail(f"--add auto is calibrate's: diagnose already ranks every candidate; run simucal calibrate {data_dir} "
               "--add auto")
     guard([data_dir] + [a for a in add if a.endswith(".py")],
-           files={"-o": output, "--html": html_path, "the acc model file it may write": _shape_model_path(output, "acc"),
-                  "the gyro model file it may write": _shape_model_path(output, "gyro")})
+           files={"-o": output, "--html": html_path, "the acc model file it may write": shape_model_path(output, "acc"),
+                  "the gyro model file it may write": shape_model_path(output, "gyro")})
     try:
-        result = diagnose_set(Path(data_dir), add, acc_model, gyro_model, acc_noise_g, gyro_noise_dph, timestamps)
-    except (MeasurementSetError, CalibrationError, KeyError, FileNotFoundError, ValueError) as e:
+        result = api.diagnose(data_dir, add=add, acc_model=acc_model, gyro_model=gyro_model, acc_noise_g=acc_noise_g,
+                              gyro_noise_dph=gyro_noise_dph, timestamps=timestamps)
+    except (ValueError, KeyError, FileNotFoundError) as e:  # MeasurementSetError, CalibrationError
         fail(e)
-    models = _write_shape_models(result, output)
-    outputs.write_text(output, json.dumps(result, indent=1, default=float) + "\n")
-    if html_path:
-        from simucal.report.html import render
-        outputs.write_text(html_path, render(result))
-    for line in result["verdict"].split(" | ") + result.get("notes", []):
+    for path in (output, html_path):
+        if path:
+            api.save(path, result)
+    report = result.report
+    for line in report["verdict"].split(" | ") + report.get("notes", []):
         click.echo(line)
-    for line in _added_lines(result):
+    for line in _added_lines(report):
         click.echo(line)
-    from simucal.report.console import next_command
-    cmd, notes = next_command(result)
-    click.echo(f"next: {cmd}" + "".join(f" ({n})" for n in notes))
-    for m in models:
-        click.echo(f"wrote {m}: the found term as a model file; try: simucal diagnose {data_dir} --add {m}")
+    click.echo(f"next: {result.next_command}" + "".join(f" ({n})" for n in result.next_notes))
+    for s in result.model_files:
+        click.echo(f"wrote {shape_model_path(output, s)}: the found term as a model file; try: simucal diagnose "
+                   f"{data_dir} --add {shape_model_path(output, s)}")
     click.echo(f"wrote {output}" + (f" and {html_path}" if html_path else ""))
-

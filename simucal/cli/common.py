@@ -136,6 +136,7 @@ SCHEDULER_TRUST = ("An address must be a cluster you trust: tasks and results tr
                    "tls://ADDRESS uses the TLS credentials of Dask's configuration.")
 POSITIVE = Number(0.0, low_open=True)
 SEED = Number(0, 2 ** 32 - 1, integer=True, what="numpy's seeds")
+SEED_HELP = "numpy's seed of the simulated noise and errors: the same seed, the same numbers."
 NOISE_G = Number(0.0, 1.0, low_open=True, what="the std of one row, g")
 NOISE_DPH = Number(0.0, 1e6, low_open=True, what="the std of one row, deg/h")
 LATITUDE = Number(-90.0, 90.0, what="degrees")

@@ -12,32 +12,46 @@ from simucal.cli.common import (
     SETS,
     POSITIVE,
     SEED,
+    SEED_HELP,
     SIM_RATE_HZ,
     InputPath,
     Number,
     fail,
     guard,
     main,
-    refuse_unused,
 )
+
+# io/units.py's names, written here so that the command line starts without numpy (tests/test_api.py holds them equal)
+SCENARIOS = ("paper", "field", "handheld")  # api/simulation.py's
+ACC_UNITS = ("g", "m/s^2", "pulse/s", "counts")
+GYRO_UNITS = ("deg/h", "deg/s", "rad/s", "pulse/s", "counts")
+DEFAULT_GRAVITY = 9.80665
+
+FERRARIS_HZ = 102.4  # imucal's Ferraris recordings' rate, where the file has no time column
+ANNOTATED_HZ, ANNOTATED_ACC, ANNOTATED_GYRO = 204.8, 2048.0, 16.4  # imucal's annotated sessions: Hz, counts/g, counts/(deg/s)
 
 
 @main.command()
 @click.argument("out_dir", required=False, type=click.Path(file_okay=False))
 @click.option("-o", "--output", type=click.Path(file_okay=False), default=None,
               help="The output folder (a measurement set and truth.json); may also be given as the argument.")
-@click.option("--scenario", type=click.Choice(["paper", "field"]), default="paper", show_default=True,
-              help="Preset: 'paper' is dong2018 section 4 (turntable); 'field' is ruan2019 (three positions, no table).")
+@click.option("--scenario", type=click.Choice(SCENARIOS), default="paper", show_default=True,
+              help="Preset: 'paper' is dong2018 section 4 (turntable); 'field' is ruan2019 (three positions, no table); "
+                   "'handheld' a hand-placed session (a stream in counts, 30 poses held 5 s between moves).")
 @click.option("--heading-accuracy-deg", "--heading-error-deg", "heading_error_deg", type=Number(0.0, 180.0), default=None,
-              help="field: the north reference's accuracy; its error is drawn uniform +- this.")
-@click.option("--seed", type=SEED, default=0, show_default=True)
-@click.option("--plan", default=None,
+              show_default="5", help="field: the north reference's accuracy, deg; its error is drawn uniform +- this.")
+@click.option("--seed", type=SEED, default=0, show_default=True,
+              help=SEED_HELP + " The unit is the same at every seed.")
+@click.option("--plan", default=None, show_default="table1",
               help="table1, dodecahedron20, fibonacci24, fibonacci48, or a CSV of outer_deg,middle_deg,inner_deg.")
 @click.option("--rate-hz", type=SIM_RATE_HZ, default=None,
-              help="Write raw samples at this rate (Hz, up to 2000) instead of one row per position.")
-@click.option("--position-error-arcmin", type=Number(0.0, 10800.0), default=None, help="Uniform +- angular position error.")
-@click.option("--acc-model", default=None, help="Generated model for the truth (may hold terms calibration lacks).")
-@click.option("--gyro-model", default=None, help="Generated gyro model for the truth.")
+              help="Write raw samples at this rate (Hz, up to 2000) instead of one row per position (field, "
+                   "handheld: their rate, default 100 Hz).")
+@click.option("--position-error-arcmin", type=Number(0.0, 10800.0), default=None, show_default="1",
+              help="Uniform +- angular position error of each table axis at each position, arcmin.")
+@click.option("--acc-model", default=None, show_default="acc_baseline",
+              help="Generated accelerometer model for the truth (may hold terms calibration lacks).")
+@click.option("--gyro-model", default=None, show_default="gyro_baseline", help="Generated gyro model for the truth.")
 @click.option("--acc-unit", type=click.Choice(["g", "m/s^2", "pulse/s"]), default=None,
               help="The accelerometer outputs' unit in samples.csv (default pulse/s, the paper's pulse counts; the field "
                    "scenario writes m/s^2).")
@@ -46,7 +60,7 @@ from simucal.cli.common import (
                    "writes deg/s).")
 @click.option("--effect", "effects", multiple=True, metavar="ID=VALUE",
               help="Plant a candidate effect in the truth, in the unit its term declares, e.g. "
-                   "acc.quadratic.z=6e-5 or gyro.g_sensitivity.xz=0.3 (repeatable).")
+                   "acc.quadratic.z=6e-5 or gyro.g_sensitivity.xz=0.3 (repeatable; paper and handheld).")
 @EFFECT_FILE
 @SETS
 @click.option("--column", "columns", multiple=True, metavar="NAME=LOW:HIGH",
@@ -55,10 +69,10 @@ from simucal.cli.common import (
 @click.option("--temperature-c", default=None, metavar="T|T0:T1",
               help="Write temp_c: one plateau at T degC, or a ramp from T0 to T1 degC over the segments; the unit's "
                    "temperature effects (--effect ...bias_temperature..., scale_temperature...) act from --t-ref-c.")
-@click.option("--t-ref-c", type=Number(-55.0, 125.0), default=25.0, show_default=True,
+@click.option("--t-ref-c", type=Number(-55.0, 125.0), default=None, show_default="25",
               help="With --temperature-c: the unit's T_ref, degC, the temperature at which its parameters are the "
                    "truth's (fixed, so that a plateau away from it shows the planted temperature effects).")
-@click.option("--temperature-wander-c", type=Number(0.0, 10.0), default=0.0, show_default=True,
+@click.option("--temperature-wander-c", type=Number(0.0, 10.0), default=None, show_default="0",
               help="With --temperature-c: each segment's temperature off the plateau or ramp by a uniform draw "
                    "within +- this, degC (a chamber's wander).")
 @click.option("--no-noise-stated", is_flag=True, help="Leave acc_noise_g / gyro_noise_dph out of meta.json.")
@@ -66,53 +80,25 @@ from simucal.cli.common import (
 def simulate(out_dir, output, scenario, heading_error_deg, seed, plan, rate_hz, position_error_arcmin, acc_model, gyro_model,
              acc_unit, gyro_unit, effects, effect_file, sets, columns, temperature_c, t_ref_c, temperature_wander_c,
              no_noise_stated, force):
-    """Simulate a test; write a measurement set and truth.json (simucal simulate -o FOLDER [options])."""
+    """Simulate a test; write a measurement set and truth.json (simucal simulate -o FOLDER [options]).
+    The Python API's simucal.simulate(...).write(FOLDER)."""
+    from simucal import api
     if out_dir and output and Path(out_dir) != Path(output):
         fail(f"two output folders ({out_dir} and -o {output}): give one")
     out_dir = output or out_dir
     if not out_dir:
         fail("no output folder: give -o FOLDER")
-    from simucal.turntable.simulate import ARCMIN, SCENARIOS, at_temperature, plant, write
-    table_only = {"--plan": plan, "--position-error-arcmin": position_error_arcmin, "--acc-model": acc_model,
-                  "--gyro-model": gyro_model, "--acc-unit": acc_unit, "--gyro-unit": gyro_unit, "--effect": effects,
-                  "--effect-file": effect_file, "--set": sets, "--column": columns, "--no-noise-stated": no_noise_stated,
-                  "--temperature-c": temperature_c}
-    given = [k for k, v in table_only.items() if v not in (None, False, ())]
-    if scenario == "field":
-        at_a_temperature = "a turntable test at a temperature (--temperature-c)"
-        refuse_unused({"t_ref_c": at_a_temperature, "temperature_wander_c": at_a_temperature})
-    if scenario == "field" and given:
-        fail(f"{', '.join(given)}: a turntable test's (--scenario paper); the field scenario takes --seed, --rate-hz "
-             "and --heading-accuracy-deg")
-    if scenario != "field" and heading_error_deg is not None:
-        fail(f"--heading-accuracy-deg {heading_error_deg:g}: the field scenario's north reference (--scenario field); "
-             f"a {scenario} test has a turntable")
     guard([plan if plan and Path(plan).exists() else None, effect_file], sets=[out_dir], force=force)
-    if scenario == "field":
-        from simucal.field.simulate import FieldScenario, write_field
-        fs = FieldScenario()
-        if heading_error_deg is not None:
-            fs.heading_error_deg = heading_error_deg
-        if rate_hz is not None:
-            fs.rate_hz = rate_hz
-        write_field(out_dir, fs, seed)
-        click.echo(f"wrote {out_dir} (field scenario, seed {seed})")
-        return
-    sc = SCENARIOS[scenario]()
-    for key, val in (("plan", plan), ("rate_hz", rate_hz), ("acc_model", acc_model), ("gyro_model", gyro_model),
-                     ("acc_unit", acc_unit), ("gyro_unit", gyro_unit)):
-        if val is not None:
-            setattr(sc, key, val)
-    if position_error_arcmin is not None:
-        sc.position_error_rad = position_error_arcmin * ARCMIN
-    sc.state_noise = not no_noise_stated
     try:
-        at_temperature(sc, temperature_c, t_ref_c, temperature_wander_c, columns)
-        plant(sc, effects, effect_file, sets, columns)
-        write(out_dir, sc, seed)
+        ms = api.simulate(scenario, seed=seed, rate_hz=rate_hz, plan=plan, effects=effects,
+                          position_error_arcmin=position_error_arcmin, acc_model=acc_model, gyro_model=gyro_model,
+                          acc_unit=acc_unit, gyro_unit=gyro_unit, effect_file=effect_file, sets=sets, columns=columns,
+                          temperature_c=temperature_c, t_ref_c=t_ref_c, temperature_wander_c=temperature_wander_c,
+                          noise_stated=not no_noise_stated, heading_accuracy_deg=heading_error_deg)
     except (ValueError, KeyError, FileNotFoundError, SyntaxError) as e:
         fail(e)
-    click.echo(f"wrote {out_dir} (scenario {scenario}, seed {seed})")
+    ms.write(out_dir, force=force)
+    click.echo(f"wrote {out_dir} ({scenario} scenario, seed {seed})")
 
 
 @main.command("import")
@@ -120,17 +106,26 @@ def simulate(out_dir, output, scenario, heading_error_deg, seed, plan, rate_hz, 
 @click.argument("sources", nargs=-1, required=True, type=InputPath(exists=True, dir_okay=False))
 @click.option("-o", "--output", "--out-dir", "out_dir", required=True, type=click.Path(file_okay=False),
               help="The output folder (a measurement set).")
-@click.option("--latitude-deg", type=LATITUDE, default=None, help="Site latitude (the spec needs it with gyro data).")
-@click.option("--acc-counts-per-g", type=POSITIVE, default=None, help="imu_tk: nominal accelerometer LSB per g.")
-@click.option("--gyro-counts-per-dps", type=POSITIVE, default=None, help="imu_tk: nominal gyro LSB per deg/s.")
-@click.option("--gravity-mps2", type=Number(9.7, 9.9, what="m/s^2 on Earth"), default=None)
+@click.option("--latitude-deg", type=LATITUDE, default=None,
+              help="Site latitude, deg (the spec needs it with gyro data).")
+@click.option("--acc-counts-per-g", type=POSITIVE, default=None, show_default=f"imucal-annotated {ANNOTATED_ACC:g}",
+              help="Nominal accelerometer counts (LSB) per g: imu_tk (required), imucal-annotated.")
+@click.option("--gyro-counts-per-dps", type=POSITIVE, default=None, show_default=f"imucal-annotated {ANNOTATED_GYRO:g}",
+              help="Nominal gyro counts (LSB) per deg/s: imu_tk (required), imucal-annotated.")
+@click.option("--gravity-mps2", type=Number(9.7, 9.9, what="m/s^2 on Earth"), default=None,
+              show_default=f"{DEFAULT_GRAVITY:g}",
+              help="imu_tk: local gravity, m/s^2, written to meta.json (g where a unit is m/s^2).")
 @click.option("--rate-hz", type=Number(0.0, 1e6, low_open=True), default=None,
-              help="Sample rate where the file has no time column.")
-@click.option("--columns", default=None, help="csv: map, e.g. 't_s=time,ax=acc_x,ay=acc_y,az=acc_z,gx=gyr_x,gy=gyr_y,gz=gyr_z'.")
-@click.option("--acc-unit", default=None)
-@click.option("--gyro-unit", default=None)
+              show_default=f"imucal-ferraris {FERRARIS_HZ:g}, imucal-annotated {ANNOTATED_HZ:g}",
+              help="Sample rate, Hz, where the file has no time column.")
+@click.option("--columns", default=None, metavar="NAME=COLUMN,...",
+              help="csv: map, e.g. 't_s=time,ax=acc_x,ay=acc_y,az=acc_z,gx=gyr_x,gy=gyr_y,gz=gyr_z'.")
+@click.option("--acc-unit", type=click.Choice(ACC_UNITS), default=None,
+              help="csv: the accelerometer columns' unit (pulse/s and counts need their nominal scale factors).")
+@click.option("--gyro-unit", type=click.Choice(GYRO_UNITS), default=None,
+              help="csv: the gyro columns' unit (pulse/s and counts need their nominal scale factors).")
 @click.option("--turn-deg", type=Number(-3600.0, 3600.0), default=-360.0, show_default=True,
-              help="Ferraris: the protocol's turn angle (imucal's default -360, clockwise).")
+              help="Ferraris: the protocol's turn angle, deg (imucal's default -360, clockwise).")
 @FORCE
 def import_cmd(fmt, sources, out_dir, latitude_deg, acc_counts_per_g, gyro_counts_per_dps, gravity_mps2, rate_hz,
                columns, acc_unit, gyro_unit, turn_deg, force):
@@ -145,12 +140,12 @@ def import_cmd(fmt, sources, out_dir, latitude_deg, acc_counts_per_g, gyro_count
                              gravity_mps2)
         elif fmt == "imucal-ferraris":
             if len(sources) == 2:  # with the section list: poses and turns as segments
-                im.import_ferraris_sections(sources[0], sources[1], out_dir, rate_hz or 102.4, latitude_deg, turn_deg)
+                im.import_ferraris_sections(sources[0], sources[1], out_dir, rate_hz or FERRARIS_HZ, latitude_deg, turn_deg)
             else:  # a continuous stream: poses found by static detection
-                im.import_ferraris(sources[0], out_dir, rate_hz or 102.4, latitude_deg)
+                im.import_ferraris(sources[0], out_dir, rate_hz or FERRARIS_HZ, latitude_deg)
         elif fmt == "imucal-annotated":
-            im.import_imucal_annotated(sources[0], out_dir, rate_hz or 204.8, acc_counts_per_g or 2048.0,
-                                       gyro_counts_per_dps or 16.4, latitude_deg, turn_deg)
+            im.import_imucal_annotated(sources[0], out_dir, rate_hz or ANNOTATED_HZ, acc_counts_per_g or ANNOTATED_ACC,
+                                       gyro_counts_per_dps or ANNOTATED_GYRO, latitude_deg, turn_deg)
         else:
             if not columns:
                 raise im.ImportError_("csv needs --columns (and --acc-unit, --gyro-unit for the triads it maps)")
@@ -191,58 +186,59 @@ def apply_cmd(calibration_file, data_dir, out_dir, force):
 @main.command()
 @click.argument("calibration_file", type=InputPath(exists=True, dir_okay=False))
 @click.argument("data_dir", type=InputPath(exists=True, file_okay=False))
-@click.option("-o", "--output", type=click.Path(dir_okay=False), default="validation.json", show_default=True)
+@click.option("-o", "--output", type=click.Path(dir_okay=False), default="validation.json", show_default=True,
+              help="The report (simucal.validation/1): each check's error at nominal, calibrated and its floor.")
 @click.option("--html", "html_path", type=click.Path(dir_okay=False), default=None, help="Also write a page with a plot.")
 def validate(calibration_file, data_dir, output, html_path):
-    """Apply a calibration to an independent set: the error before (nominal) and after, against the noise floor."""
-    import json
-
-    from simucal.errors import CalibrationError
-    from simucal.io import MeasurementSetError, outputs
-    from simucal.validate import html_page, lines
-    from simucal.validate import validate as run
+    """Apply a calibration to an independent set: the error before (nominal) and after, against the noise floor.
+    The Python API's simucal.validate(CAL, DATA)."""
+    from simucal import api
+    from simucal.validate import lines
     guard([calibration_file, data_dir], files={"-o": output, "--html": html_path})
     try:
-        report = run(calibration_file, data_dir)
-    except (MeasurementSetError, CalibrationError, ValueError) as e:
+        result = api.validate(calibration_file, data_dir)
+    except ValueError as e:  # MeasurementSetError, CalibrationError, CalibrationFileError
         fail(e)
-    outputs.write_text(output, json.dumps(report, indent=1) + "\n")
-    if html_path:
-        outputs.write_text(html_path, html_page(report))
-    for line in lines(report):
+    _save(result, output, html_path)
+    for line in lines(result.report):
         click.echo(line)
     click.echo(f"wrote {output}" + (f" and {html_path}" if html_path else ""))
 
 
+def _save(result, *paths):
+    """The result's report and page (api.save), where a path is given."""
+    from simucal import api
+    for path in paths:
+        if path:
+            api.save(path, result)
+
+
 @main.command()
 @click.argument("data_dir", type=InputPath(exists=True, file_okay=False))
-@click.option("-o", "--output", type=click.Path(dir_okay=False), default="noise.json", show_default=True)
+@click.option("-o", "--output", type=click.Path(dir_okay=False), default="noise.json", show_default=True,
+              help="The report (simucal.noise/1): per axis the Allan deviation and the IEEE 952 terms.")
 @click.option("--html", "html_path", type=click.Path(dir_okay=False), default=None,
               help="Also write a page with the Allan deviation plot.")
 @click.option("--kalibr", "kalibr_path", type=click.Path(dir_okay=False), default=None,
               help="Also write Kalibr's imu.yaml (noise densities and random walks, SI); refused unless both sensors "
                    "give them.")
-@click.option("--tau-max-s", type=POSITIVE, default=None,
-              help="The longest tau (s); default a ninth of the longest still stretch.")
+@click.option("--tau-max-s", type=POSITIVE, default=None, show_default="a ninth of the longest still stretch",
+              help="The longest tau, s.")
 def noise(data_dir, output, html_path, kalibr_path, tau_max_s):
-    """Allan deviation of a still recording and its IEEE 952 noise terms (ARW, bias instability, ...)."""
-    import json
-
-    from simucal import allan, io
+    """Allan deviation of a still recording and its IEEE 952 noise terms (ARW, bias instability, ...).
+    The Python API's simucal.noise(DATA)."""
+    from simucal import allan, api
     from simucal.errors import CalibrationError
     from simucal.io import MeasurementSetError, outputs
     guard([data_dir], files={"-o": output, "--html": html_path, "--kalibr": kalibr_path})
     try:
-        report = allan.characterise(io.read_set(data_dir), tau_max_s)
-        yaml = allan.kalibr_yaml(report) if kalibr_path else None  # refused before anything is written
+        result = api.noise(data_dir, tau_max_s=tau_max_s)
+        yaml = result.kalibr_yaml() if kalibr_path else None  # refused before anything is written
     except (MeasurementSetError, CalibrationError) as e:
         fail(e)
-    outputs.write_text(output, json.dumps(report, indent=1) + "\n")
-    if html_path:
-        outputs.write_text(html_path, allan.html_page(report))
+    _save(result, output, html_path)
     if kalibr_path:
         outputs.write_text(kalibr_path, yaml)
-    for line in allan.lines(report):
+    for line in allan.lines(result.report):
         click.echo(line)
     click.echo(f"wrote {output}" + "".join(f" and {p}" for p in (html_path, kalibr_path) if p))
-

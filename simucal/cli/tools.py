@@ -16,6 +16,7 @@ from simucal.cli.common import (
     POSITIVE,
     SCHEDULER_TRUST,
     SEED,
+    SEED_HELP,
     SETS,
     InputPath,
     Number,
@@ -55,7 +56,8 @@ def derive(check, model_files):
 
 
 @main.command()
-@click.option("-o", "--output", type=click.Path(dir_okay=False), default="audit.md", show_default=True)
+@click.option("-o", "--output", type=click.Path(dir_okay=False), default="audit.md", show_default=True,
+              help="The audit, Markdown: each equation, table and claim with its verdict.")
 @click.option("--seeds", type=Number(0, 10000, integer=True), default=20, show_default=True,
               help="Simulated tests per setting for the Monte Carlo of the paper's claims (0: skip it).")
 def audit(output, seeds):
@@ -71,8 +73,9 @@ def audit(output, seeds):
 
 
 @main.command()
-@click.option("-o", "--output", "--out-dir", "out_dir", type=click.Path(file_okay=False), default="out", show_default=True)
-@click.option("--seed", type=SEED, default=0, show_default=True)
+@click.option("-o", "--output", "--out-dir", "out_dir", type=click.Path(file_okay=False), default="out", show_default=True,
+              help="The folder of everything the demo writes (its sets, calibrations, reports and pages).")
+@click.option("--seed", type=SEED, default=0, show_default=True, help=SEED_HELP)
 @FORCE
 def demo(out_dir, seed, force):
     """The main job end to end on built-in simulated data: a hidden effect found, added,
@@ -93,8 +96,10 @@ def demo(out_dir, seed, force):
 @click.option("--scenario", type=click.Choice(["paper"]), default="paper", show_default=True,
               help="dong2018 section 4 (simulate's defaults).")
 @click.option("--plan", default=None, help="table1 (default), dodecahedron20, fibonacci24, fibonacci48 or plan.csv.")
-@click.option("--trials", type=Number(2, MAX_TRIALS, integer=True), default=10000, show_default=True)
-@click.option("--seed", type=SEED, default=0, show_default=True)
+@click.option("--trials", type=Number(2, MAX_TRIALS, integer=True), default=10000, show_default=True,
+              help="Simulated tests, each fitted: the stds are over these (their own uncertainty about 1/sqrt(2 "
+                   "trials)).")
+@click.option("--seed", type=SEED, default=0, show_default=True, help=SEED_HELP)
 @click.option("--effect", "effects", multiple=True, metavar="ID=VALUE",
               help="Plant a candidate effect in the truth and fit it (repeatable; the augmented model is derived "
                    "and compiled into the cache once, then runs at about two thirds of the base's speed).")
@@ -103,7 +108,8 @@ def demo(out_dir, seed, force):
 @click.option("--rates-dps", "rates", default=None, metavar="R1,R2,...",
               help="The rate runs' outer-axis rates in deg/s at each attitude (default the paper's 10); rates of "
                    "both signs, e.g. 10,-10, let g-sensitivity terms show.")
-@click.option("-o", "--output", type=click.Path(dir_okay=False), default="montecarlo.json", show_default=True)
+@click.option("-o", "--output", type=click.Path(dir_okay=False), default="montecarlo.json", show_default=True,
+              help="The result: each parameter's truth, mean, std and CRLB.")
 @click.option("--scheduler", default="local", show_default=True,
               help="local (this process), processes (a Dask LocalCluster on 127.0.0.1, one worker per core) or a "
                    "Dask scheduler's address: the same numbers on any. " + SCHEDULER_TRUST)
@@ -144,7 +150,10 @@ def montecarlo(scenario, plan, trials, seed, effects, effect_file, sets, rates, 
     click.echo(f"wrote {output}")
 
 
-def _plan_scores(model, score_plan, positions, criterion, rate_dps, rates, sigma):
+PAPER_RATE_DPS = 10.0  # dong2018 section 4's rate runs
+
+
+def _plan_scores(model, score_plan, positions, criterion, rates, sigma):
     """(plan name, its directions u in k, rho, the score) of the plan scored or designed."""
     import numpy as np
 
@@ -152,10 +161,11 @@ def _plan_scores(model, score_plan, positions, criterion, rate_dps, rates, sigma
     from simucal.turntable import plans
     from simucal.turntable.plan_design import design, directions_k, score
     gyro = model.sensor == "gyro"
-    if gyro and rate_dps == 0:
-        raise ValueError(f"--rate-dps {rate_dps}: a rate run needs a non-zero rate (deg/s)")
-    rate_list = rates_dps(rates) if rates else [rate_dps]
-    rho = abs(rate_dps) * DPH_PER_DPS if gyro else 1.0
+    rate_list = rates_dps(rates) if rates else [PAPER_RATE_DPS]
+    if gyro and score_plan is not None and len(rate_list) > 1:
+        raise ValueError(f"--rates-dps {rates}: a score takes one rate (its rate runs'); a design (--positions N) "
+                         "chooses among several")
+    rho = abs(rate_list[0]) * DPH_PER_DPS if gyro else 1.0
     if score_plan is not None:
         rows = plans.PLANS[score_plan]() if score_plan in plans.PLANS else plans.read_csv(score_plan)
         u, name = directions_k(rows), score_plan
@@ -238,14 +248,20 @@ def _write_design(result, model, u, rho, kind, output):
 @main.command()
 @click.option("--score", "score_plan", default=None, metavar="PLAN",
               help="Score a plan: table1, dodecahedron20, fibonacci24, fibonacci48 or a CSV (outer_deg,middle_deg,inner_deg).")
-@click.option("--model", "model_name", default="acc_baseline", show_default=True, help="Generated model (acc or gyro).")
-@click.option("--add", "add", multiple=True, help="Candidate effect ids to add to the model (repeatable).")
+@click.option("--model", "model_name", default="acc_baseline", show_default=True,
+              help="The model scored: a built-in (acc_baseline, gyro_baseline, ...) or one derived from your model file "
+                   "(simucal derive --model FILE).")
+@click.option("--add", "add", multiple=True, help="Candidate effect ids to add to the model, e.g. acc.quadratic.z "
+              "(repeatable).")
 @click.option("--positions", type=Number(1, 300, integer=True), default=None, help="Design a plan with this many positions.")
-@click.option("--criterion", type=click.Choice(["D", "A"]), default="D", show_default=True)
-@click.option("--rate-dps", type=Number(-3600.0, 3600.0), default=10.0, show_default=True,
-              help="Gyro models: the outer-axis rate of the rate runs.")
-@click.option("--rates-dps", "--rates", "rates", default=None, metavar="R1,R2,...",
-              help="Gyro design: rates (deg/s) to choose from, e.g. 5,10,20.")
+@click.option("--criterion", type=click.Choice(["D", "A"]), default="D", show_default=True,
+              help="Design: D maximises the Fisher information's determinant (all parameters together), A minimises "
+                   "the sum of the parameters' CRLB variances.")
+@click.option("--rates-dps", "--rates", "rates", default=None, metavar="R1,R2,...", show_default=f"{PAPER_RATE_DPS:g}",
+              help="Gyro models: the outer-axis rate of the rate runs, deg/s (a score: one; a design: rates to choose "
+                   "from, e.g. 5,10,20).")
+@click.option("--rate-dps", type=Number(-3600.0, 3600.0), default=None, hidden=True,
+              help="Deprecated (warns): one rate, deg/s; --rates-dps R takes it.")
 @click.option("--table", "kind", type=click.Choice(["three-axis", "hand"]), default="three-axis", show_default=True,
               help="Design for a three-axis table (angles) or hand-placed poses (gravity directions in the unit).")
 @click.option("--acc-noise-g", type=NOISE_G, default=None,
@@ -274,8 +290,10 @@ def plan(score_plan, model_name, add, positions, criterion, rate_dps, rates, kin
     from simucal.io.units import DPH_PER_DPS
     if (score_plan is None) == (positions is None):
         fail("give --score PLAN to score a plan, or --positions N to design one")
+    if rate_dps is not None and rates:
+        fail(f"--rate-dps {rate_dps:g} and --rates-dps {rates}: give one (--rates-dps)")
     design = "a design (--positions N)"
-    refuse_unused({**({"criterion": design, "rates": design, "kind": design} if score_plan is not None else {}),
+    refuse_unused({**({"criterion": design, "kind": design} if score_plan is not None else {}),
                    **({"sizes": "--separate ID1,ID2", "target": "--separate ID1,ID2"} if not pair else {})})
     if output:
         guard([score_plan if score_plan and Path(score_plan).exists() else None],
@@ -293,13 +311,14 @@ def plan(score_plan, model_name, add, positions, criterion, rate_dps, rates, kin
         sigma = sigma or ((gyro_noise_dph or 0.01) if gyro else (acc_noise_g or 1e-5))
         if not gyro:
             refuse_unused({"rate_dps": "gyro models (rate runs)", "rates": "gyro models (rate runs)"})
-        elif rates:
-            refuse_unused({"rate_dps": "a score, or a design without --rates-dps (its rates)"})
-        name, u, rho, result = _plan_scores(model, score_plan, positions, criterion, rate_dps, rates, sigma)
+        name, u, rho, result = _plan_scores(model, score_plan, positions, criterion,
+                                            rates or (None if rate_dps is None else repr(rate_dps)), sigma)
         if pair:
             result["separation"] = _separation(model, pair, sizes, score_plan, u, rho, sigma, target)
     except (ValueError, KeyError, CalibrationError, FileNotFoundError) as e:
         fail(e)
+    if rate_dps is not None:  # after the refusals, which are one line
+        click.echo("warning: --rate-dps is deprecated: --rates-dps R takes one rate (deg/s) as it takes several", err=True)
     click.echo(f"{name}: {model.name}, noise {sigma:g} {model.unit} per position"
                + (f", rate runs at {', '.join(f'{x:g}' for x in sorted(set(np.round(np.atleast_1d(rho) / DPH_PER_DPS, 6))))} "
                   "deg/s" if gyro else ""))

@@ -1,0 +1,193 @@
+"""`simucal.diagnose` -> Diagnosis and `simucal.noise` -> Noise: the reports of `simucal diagnose` and
+`simucal noise` with their verdicts and tables as attributes (tables: simucal/api/tables.py)."""
+from __future__ import annotations
+
+import json
+import os
+from dataclasses import dataclass, replace
+from pathlib import Path
+from typing import Any, NamedTuple, Sequence, Union
+
+from simucal import io
+from simucal.api.tables import table
+
+Data = Union[str, os.PathLike, io.MeasurementSet]
+
+
+class Candidate(NamedTuple):
+    """One row of `Diagnosis.candidates`: an effect the model lacks, tested by adding it (a
+    likelihood-ratio test, Bonferroni-gated over its sensor's candidates)."""
+    sensor: str
+    id: str               # the effect id calibrate --add takes
+    estimate: float | None  # its value fitted beside the model, in `unit`
+    std: float | None
+    unit: str
+    statistic: float | None  # the likelihood ratio (or F) of adding it
+    p_value: float | None
+    significant: bool     # beats the gate where the model fails: the one to add
+    separable: bool       # False: these data cannot see it (note says which data can)
+    note: str
+
+
+@dataclass
+class Diagnosis:
+    """Where a model fails on a set and which missing effect explains it.
+
+    Attributes
+    ----------
+    verdict : dict
+        Per sensor, the verdict sentence (the model passes, or fails and what to add).
+    candidates : DataFrame or list of Candidate
+        Every candidate effect, the separable ones by p-value first (a table: simucal/api/tables.py).
+    next_command : str
+        The one `simucal calibrate` command the verdict leads to.
+    next_notes : list of str
+        What the next command leaves open (e.g. a failing model with nothing in the library to add).
+    notes : list of str
+        The data's own (a reflected triad, irregular time stamps).
+    model_files : dict
+        Per sensor, a found term that is no library effect, as a model file's text (``--add FILE``).
+    report : dict
+        What `simucal diagnose -o` writes (``simucal.diagnosis/1``).
+    """
+    verdict: dict[str, str]
+    candidates: Any
+    next_command: str
+    next_notes: list[str]
+    notes: list[str]
+    model_files: dict[str, str]
+    report: dict
+
+
+def diagnose(data: Data, *, add: Sequence[str] = (), acc_model: str = "acc_baseline", gyro_model: str = "gyro_baseline",
+             acc_noise_g: float | None = None, gyro_noise_dph: float | None = None,
+             timestamps: str = "auto") -> Diagnosis:
+    """Test the model on a set and rank the candidate missing effects.
+
+    Parameters
+    ----------
+    data : str, os.PathLike or MeasurementSet
+        A turntable test, a field set or a hand-placed session.
+    add : list of str
+        Effect ids or model files already in the model (as `calibrate`'s `add`; not "auto").
+    acc_model, gyro_model : str
+        The models tested (default the baselines).
+    acc_noise_g, gyro_noise_dph : float, optional
+        The noise of one row (g, deg/h) where the data's meta.json states none.
+    timestamps : {"auto", "nominal", "recorded"}
+        A stream's time stamps, as `calibrate` takes them.
+
+    Returns
+    -------
+    Diagnosis
+
+    Examples
+    --------
+    >>> import simucal
+    >>> d = simucal.diagnose(simucal.simulate(seed=1, effects={"acc.quadratic.z": 2e-4}))  # doctest: +SKIP
+    >>> d.next_command  # doctest: +SKIP
+    'simucal calibrate ... --add acc.quadratic.z -o calibration.json'
+    """
+    from simucal.diagnose import diagnose as run
+    from simucal.report.console import next_command
+    if "auto" in add:
+        raise ValueError("add 'auto' is calibrate's: diagnose already ranks every candidate")
+    ms = replace(data) if isinstance(data, io.MeasurementSet) else io.read_set(data)
+    report = run(ms, add, acc_model, gyro_model, acc_noise_g, gyro_noise_dph, timestamps)
+    sensors = [s for s in ("acc", "gyro") if s in report]
+    rows = [Candidate(c["id"].split(".")[0], c["id"], c.get("estimate"), c.get("std"), c.get("unit", ""),
+                      c.get("statistic"), c.get("p_value"), bool(c.get("significant")), bool(c["separable"]),
+                      c.get("note") or "") for c in report["candidates"]]
+    cmd, notes = next_command(report)
+    files = {s: report[s]["shape"]["model_file"] for s in sensors
+             if report[s].get("shape") and not report[s]["shape"].get("catalog_id")}
+    return Diagnosis({s: report[s]["verdict"] for s in sensors}, table(rows, Candidate._fields), cmd, notes,
+                     list(report.get("notes", [])), files, report)
+
+
+def shape_model_path(output: str | os.PathLike, sensor: str) -> Path:
+    """Where a diagnosis written to `output` puts a sensor's found term (<stem>_<sensor>_model.py)."""
+    return Path(output).with_name(f"{Path(output).stem}_{sensor}_model.py")
+
+
+def save_diagnosis(path: str | os.PathLike, d: Diagnosis) -> list[Path]:
+    """The diagnosis file and, beside it, each found term's model file (named in the file); returns those."""
+    from simucal.io import outputs
+    written = []
+    for s, text in d.model_files.items():
+        written.append(shape_model_path(path, s))
+        outputs.write_text(written[-1], text)
+        d.report[s]["shape"]["model_file_path"] = str(written[-1])
+    outputs.write_text(path, json.dumps(d.report, indent=1, default=float) + "\n")
+    return written
+
+
+class Term(NamedTuple):
+    """One row of `Noise.terms`: an IEEE 952 term of one axis, in a data sheet's unit."""
+    sensor: str
+    axis: str
+    term: str             # Q, N, B, K, R (the fit's letters)
+    name: str             # what a data sheet calls it (angle random walk, bias instability, ...)
+    status: str           # "seen", "not seen" (bound_95 holds its bound), "too short" (needs_s)
+    value: float | None
+    std: float | None
+    bound_95: float | None
+    needs_s: float | None  # the recording length that would show it (s)
+    unit: str
+
+
+@dataclass
+class Noise:
+    """The noise of a still recording: Allan deviation and its IEEE 952 terms.
+
+    Attributes
+    ----------
+    terms : DataFrame or list of Term
+        Every sensor's, axis's and term's value (seen) or bound (not seen), in a data sheet's units.
+    report : dict
+        What `simucal noise -o` writes (``simucal.noise/1``): also each axis's Allan deviation
+        (``report[sensor]["axes"][axis]["adev"]`` at ``report[sensor]["tau_s"]``).
+    """
+    terms: Any
+    report: dict
+
+    def kalibr_yaml(self) -> str:
+        """Kalibr's imu.yaml (noise densities and random walks, SI), as `simucal noise --kalibr` writes it;
+        refused (CalibrationError) unless both sensors give them.
+
+        Examples
+        --------
+        >>> open("imu.yaml", "w").write(simucal.noise("still").kalibr_yaml())  # doctest: +SKIP
+        """
+        from simucal import allan
+        return allan.kalibr_yaml(self.report)
+
+
+def noise(data: Data, *, tau_max_s: float | None = None) -> Noise:
+    """Allan deviation of a still recording and its IEEE 952 terms (quantisation, white noise, bias
+    instability, random walk, ramp).
+
+    Parameters
+    ----------
+    data : str, os.PathLike or MeasurementSet
+        A still stream, or a set whose static segments are pooled.
+    tau_max_s : float, optional
+        The longest tau (s); default a ninth of the longest still stretch.
+
+    Returns
+    -------
+    Noise
+
+    Examples
+    --------
+    >>> import simucal
+    >>> n = simucal.noise("still")  # doctest: +SKIP
+    >>> n.terms[n.terms.name == "angle random walk"]  # doctest: +SKIP
+    """
+    from simucal import allan
+    report = allan.characterise(data if isinstance(data, io.MeasurementSet) else io.read_set(data), tau_max_s)
+    rows = [Term(s, a, k, t["name"], t["status"], t["value"] if t["status"] == "seen" else None, t.get("std"), t.get("bound_95"), t.get("needs_s"),
+                 t["unit"])
+            for s in ("acc", "gyro") if s in report for a, axis in report[s]["axes"].items()
+            for k, t in axis.get("sheet", {}).items()]
+    return Noise(table(rows, Term._fields), report)

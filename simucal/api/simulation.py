@@ -1,0 +1,153 @@
+"""`simucal.simulate`: a simulated recording as a MeasurementSet (`simucal simulate` writes it): a
+turntable test (dong2018 section 4), a field set (ruan2019) or a hand-placed session (Tedaldi)."""
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Any, Mapping, Sequence, Union
+
+from simucal.api.sets import MeasurementSet
+
+Pairs = Union[Mapping[str, float], Sequence[str]]  # {name: value} or the command's "NAME=VALUE" strings
+SCENARIOS = ("paper", "field", "handheld")
+# the turntable test's options, by their Python names, with the command's spelling (refusals name both)
+TABLE_ONLY = {"plan": "--plan", "position_error_arcmin": "--position-error-arcmin", "acc_model": "--acc-model",
+              "gyro_model": "--gyro-model", "acc_unit": "--acc-unit", "gyro_unit": "--gyro-unit",
+              "effect_file": "--effect-file", "sets": "--set", "columns": "--column",
+              "temperature_c": "--temperature-c", "t_ref_c": "--t-ref-c",
+              "temperature_wander_c": "--temperature-wander-c", "noise_stated": "--no-noise-stated"}
+TAKES = {"paper": "--seed, --rate-hz and the turntable's options", "field": "--seed, --rate-hz and --heading-accuracy-deg",
+         "handheld": "--seed, --rate-hz and --effect"}
+
+
+def _strings(pairs: Pairs | None, fmt=repr) -> list[str]:
+    """{name: value} as the command's NAME=VALUE strings (repr: the float read back is the same)."""
+    if pairs is None:
+        return []
+    if isinstance(pairs, Mapping):
+        return [f"{k}={fmt(v)}" for k, v in pairs.items()]
+    return [str(p) for p in pairs]
+
+
+def _span(v) -> str:
+    """A column's (low, high) or a temperature's T or (T0, T1) as the command writes it (LOW:HIGH)."""
+    return ":".join(repr(float(x)) for x in v) if isinstance(v, (tuple, list)) else str(v)
+
+
+def _refuse_unused(scenario: str, table_options: dict, effects, heading_accuracy_deg) -> None:
+    """An option the scenario would not use is refused, naming it (Python name and the command's)."""
+    if scenario != "field" and heading_accuracy_deg is not None:
+        raise ValueError(f"heading_accuracy_deg (--heading-accuracy-deg) {heading_accuracy_deg:g}: the field "
+                         f"scenario's north reference (--scenario field); a {scenario} test has none")
+    given = {} if scenario == "paper" else {**table_options, "effects": effects if scenario == "field" else None}
+    unused = [f"{k} ({TABLE_ONLY.get(k, '--effect')})" for k, v in given.items()
+              if v is not None and v is not False and not (isinstance(v, (tuple, list, dict)) and not v)]
+    if unused:
+        raise ValueError(f"{', '.join(unused)}: a turntable test's (--scenario paper); the {scenario} scenario takes "
+                         + TAKES[scenario])
+
+
+def simulate(scenario: str = "paper", *, seed: int = 0, rate_hz: float | None = None, plan: str | None = None,
+             effects: Pairs | None = None, position_error_arcmin: float | None = None, acc_model: str | None = None,
+             gyro_model: str | None = None, acc_unit: str | None = None, gyro_unit: str | None = None,
+             effect_file: str | None = None, sets: Pairs | None = None, columns: Mapping[str, Any] | Sequence[str] | None = None,
+             temperature_c: Any = None, t_ref_c: float | None = None, temperature_wander_c: float | None = None,
+             noise_stated: bool = True, heading_accuracy_deg: float | None = None) -> MeasurementSet:
+    """Simulate a recording of a unit whose truth is known.
+
+    Parameters
+    ----------
+    scenario : {"paper", "field", "handheld"}
+        "paper": a turntable test, dong2018 section 4 (raw pulse/s); "field": ruan2019's three
+        positions without a table; "handheld": a hand-placed session (a stream in counts, poses held
+        between moves).
+    seed : int
+        numpy's seed (the same seed, the same recording; the unit is the same at every seed).
+    rate_hz : float, optional
+        Raw samples at this rate (Hz, up to 2000); turntable default: one averaged row per position;
+        field 100 Hz; hand-placed 100 Hz.
+    plan : str, optional
+        Turntable: "table1" (default), "dodecahedron20", "fibonacci24", "fibonacci48" or a CSV of
+        outer_deg,middle_deg,inner_deg.
+    effects : dict or list of str, optional
+        Effects planted in the truth, ``{effect id: value in its term's unit}`` (or "ID=VALUE"),
+        e.g. ``{"acc.quadratic.z": 2e-4}``; turntable and hand-placed.
+    position_error_arcmin, acc_model, gyro_model, acc_unit, gyro_unit, effect_file, sets, columns :
+        Turntable: as `simucal simulate`'s options (``sets``: a model file's true parameters,
+        ``{name: value}``; ``columns``: ``{name: (low, high)}``, one value per segment).
+    temperature_c : float or (float, float), optional
+        Turntable: temp_c, a plateau at T degC or a ramp (T0, T1) over the segments.
+    t_ref_c, temperature_wander_c : float, optional
+        With `temperature_c`: the unit's T_ref (degC, default 25) and each segment's wander (+- degC,
+        default 0).
+    noise_stated : bool
+        Turntable: write acc_noise_g / gyro_noise_dph into meta.json (default True).
+    heading_accuracy_deg : float, optional
+        Field: the north reference's accuracy, deg (its error drawn uniform +- this; default 5).
+
+    Returns
+    -------
+    MeasurementSet
+        The recording, with ``.truth`` (what truth.json holds); ``.write(folder)`` writes both.
+
+    Raises
+    ------
+    ValueError
+        An option the scenario does not use, or a malformed value, named.
+    Examples
+    --------
+    >>> import simucal
+    >>> ms = simucal.simulate(seed=1, effects={"acc.quadratic.z": 2e-4})
+    >>> ms.truth["acc"]["effects"]
+    {'acc.quadratic.z': 0.0002}
+    """
+    if scenario not in SCENARIOS:
+        raise ValueError(f"scenario {scenario!r}: one of {', '.join(SCENARIOS)}")
+    table_options = dict(plan=plan, position_error_arcmin=position_error_arcmin, acc_model=acc_model,
+                         gyro_model=gyro_model, acc_unit=acc_unit, gyro_unit=gyro_unit, effect_file=effect_file,
+                         sets=sets, columns=columns, temperature_c=temperature_c, t_ref_c=t_ref_c,
+                         temperature_wander_c=temperature_wander_c, noise_stated=not noise_stated)
+    _refuse_unused(scenario, table_options, effects, heading_accuracy_deg)
+    meta, samples, segments, truth = (_field(seed, rate_hz, heading_accuracy_deg) if scenario == "field" else
+                                      _handheld(seed, rate_hz, effects) if scenario == "handheld" else
+                                      _turntable(seed, rate_hz, {**table_options, "effects": effects}))
+    ms = MeasurementSet(Path(f"simulated_{scenario}_seed{seed}"), meta, samples, segments)  # the name errors say
+    ms.truth = truth
+    return ms
+
+
+def _field(seed, rate_hz, heading_accuracy_deg):
+    from simucal.field.simulate import FieldScenario, simulate_field
+    return simulate_field(FieldScenario(**{k: v for k, v in (("heading_error_deg", heading_accuracy_deg),
+                                                              ("rate_hz", rate_hz)) if v is not None}), seed)
+
+
+def _handheld(seed, rate_hz, effects):
+    from simucal.handheld.simulate import HandheldScenario, simulate_handheld
+    from simucal.turntable.simulate import Scenario, plant
+    sc = Scenario()  # the effects parsed and checked as a turntable test's are
+    plant(sc, _strings(effects))
+    hs = HandheldScenario(acc_effects=sc.acc_effects, gyro_effects=sc.gyro_effects,
+                          **({"rate_hz": rate_hz} if rate_hz is not None else {}))
+    meta, samples, truth = simulate_handheld(hs, seed)
+    return meta, samples, None, truth
+
+
+def _turntable(seed, rate_hz, o):
+    from simucal.turntable.simulate import ARCMIN, Scenario, at_temperature, plant
+    from simucal.turntable.simulate import simulate as simulate_table
+    sc = Scenario()
+    for key in ("plan", "acc_model", "gyro_model", "acc_unit", "gyro_unit"):
+        if o[key] is not None:
+            setattr(sc, key, o[key])
+    if rate_hz is not None:
+        sc.rate_hz = rate_hz
+    if o["position_error_arcmin"] is not None:
+        sc.position_error_rad = o["position_error_arcmin"] * ARCMIN
+    sc.state_noise = not o["noise_stated"]
+    columns = _strings(o["columns"], _span)
+    temperature = None if o["temperature_c"] is None else _span(o["temperature_c"])
+    at_temperature(sc, temperature, columns=columns, **{k: v for k, v in (("t_ref_c", o["t_ref_c"]),
+                                                                        ("wander_c", o["temperature_wander_c"]))
+                                                     if v is not None})
+    plant(sc, _strings(o["effects"]), o["effect_file"], _strings(o["sets"]), columns)
+    return simulate_table(sc, seed)

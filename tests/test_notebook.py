@@ -1,0 +1,65 @@
+"""Issue 40's Done-when, as a notebook user does it with only the documented API (README, "Python API"):
+calibrate a DataFrame, apply the calibration to another DataFrame in the user's own units (temp_c taken
+from the frame where the model follows temperature), validate, read the parameter table."""
+import numpy as np
+import pytest
+
+import simucal
+
+EFFECT, SIZE_G_PER_C = "acc.bias_temperature.z", 5e-5  # a z bias that follows temperature, g/degC
+G = 9.80665
+
+
+def _frame(seed, ramp_c):
+    """A raw recording (pulse/s) of one unit over a temperature ramp, as a DataFrame and its set."""
+    import pandas as pd
+    ms = simucal.simulate(seed=seed, rate_hz=20.0, temperature_c=ramp_c, effects={EFFECT: SIZE_G_PER_C})
+    return pd.DataFrame(ms.to_arrays()), ms
+
+
+@pytest.fixture(scope="module")
+def notebook():
+    df, ms = _frame(1, (10.0, 40.0))
+    cal = simucal.calibrate(simucal.MeasurementSet.from_dataframe(df, acc_unit="pulse/s", gyro_unit="pulse/s",
+                                                                  segments=ms.segments, meta=ms.meta), add=[EFFECT])
+    df2, ms2 = _frame(2, (15.0, 35.0))
+    return cal, df2, ms2
+
+
+def test_parameter_table_holds_the_truth(notebook):
+    cal, _, _ = notebook
+    params = cal.parameters().set_index(["sensor", "name"])
+    row = params.loc[("acc", EFFECT)]
+    assert row["unit"] == "g/degC" and "temperature" in row["meaning"]
+    assert abs(row["value"] - SIZE_G_PER_C) < 5 * row["std"], row
+    assert (params["std"] > 0).all() and params["value"].notna().all()
+
+
+def test_apply_to_a_frame_in_the_user_s_units_with_its_temperature(notebook):
+    cal, df2, ms2 = notebook
+    scale_acc = np.asarray(ms2.meta["acc_pulses_per_g"])  # the user's frame: nominal m/s^2 and deg/s
+    scale_gyro = np.asarray(ms2.meta["gyro_pulses_per_arcsec"]) * 3600.0  # pulse/s per deg/s
+    mine = df2.copy()
+    mine[["ax", "ay", "az"]] = df2[["ax", "ay", "az"]].to_numpy() / scale_acc * G
+    mine[["gx", "gy", "gz"]] = df2[["gx", "gy", "gz"]].to_numpy() / scale_gyro
+    out = cal.apply(mine, acc_unit="m/s^2", gyro_unit="deg/s")
+    assert type(out) is type(mine) and list(out.columns) == list(mine.columns) and len(out) == len(mine)
+    assert (out["t_s"] == mine["t_s"]).all() and (out["temp_c"] == mine["temp_c"]).all()
+    raw = df2[["ax", "ay", "az", "gx", "gy", "gz"]].to_numpy()
+    ref = cal.apply(raw, acc_unit="pulse/s", gyro_unit="pulse/s", temp_c=df2["temp_c"].to_numpy())  # g, deg/h
+    np.testing.assert_allclose(out[["ax", "ay", "az"]].to_numpy(), ref[:, :3] * G, rtol=1e-9, atol=1e-12)
+    np.testing.assert_allclose(out[["gx", "gy", "gz"]].to_numpy(), ref[:, 3:] / 3600.0, rtol=1e-9, atol=1e-12)
+    warmer = cal.apply(mine.assign(temp_c=mine["temp_c"] + 10.0), acc_unit="m/s^2", gyro_unit="deg/s")
+    shift_g = (warmer["az"] - out["az"]).to_numpy() / G  # the model's bias taken out at each row's temp_c
+    found = cal.acc.effects[EFFECT].value
+    np.testing.assert_allclose(shift_g, -10.0 * found / cal.acc.M[2, 2], rtol=1e-6)
+    with pytest.raises(simucal.errors.CalibrationError, match="temp_c"):
+        cal.apply(mine.drop(columns="temp_c"), acc_unit="m/s^2", gyro_unit="deg/s")
+
+
+def test_validate_on_the_other_recording(notebook):
+    cal, _, ms2 = notebook
+    v = simucal.validate(cal, ms2)
+    assert v.independent and v.verdict["acc"] in ("at the noise floor", "better"), v.verdict
+    acc = v.checks[v.checks.sensor == "acc"]
+    assert (acc.calibrated_rms < acc.nominal_rms).all()
