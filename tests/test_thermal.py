@@ -110,30 +110,39 @@ def test_applied_between_plateaus_on_another_plan_reaches_the_floor(plateaus):
 
 
 def test_a_ramp_calibrated_with_thermal_reaches_the_floor_at_a_constant_temperature(tmp_path):
-    """On a ramp the plan's order matters: fibonacci48 in order turns its rate runs from +z to -z as the
-    unit heats, and the gyro's b_z curvature cannot be told from dK_z's drift (the ramp's own rows fit,
-    another plan's miss: README, Temperature): said; the same positions shuffled reach the floor."""
+    """On a ramp the plan's order matters to the rate runs: fibonacci48 in order turns them from +z to -z as
+    the unit heats, so there the gyro's b_z curvature and dK_z's drift act alike (README, Temperature). The
+    gyro's static rows (|w| = the Earth rate at rest) see the bias at every temperature they reach and the
+    scale factors barely, and tell the two apart: the ramp in the plan's own order and the same positions
+    shuffled both reach the floor on another plan at 30 degC, and the gyro is warned only without them."""
+    from simucal.io import read_set
     from simucal.turntable.plans import fibonacci
-    ordered = _sim(tmp_path / "ordered", "5:45", 5, wander=0.0)
-    code, out = _run("calibrate", ordered, "--thermal", "-o", tmp_path / "o.json")
-    assert code == 0 and "WARNING: gyro: the z input follows the ramp's temperature" in out, out
+    from simucal.turntable.thermal import joint_observations, ramp_warnings
     plan = tmp_path / "shuffled.csv"
     positions = list(fibonacci(48))
     plan.write_text("outer_deg,middle_deg,inner_deg\n" + "".join(
         ",".join(map(str, positions[i])) + "\n" for i in np.random.default_rng(0).permutation(len(positions))))
-    ramp = _sim(tmp_path / "ramp", "5:45", 5, plan=plan, wander=0.0)
-    code, out = _run("calibrate", ramp, "--thermal", "-o", tmp_path / "r.json")
-    assert code == 0, out
-    assert "4 bands of a ramp" in out and "follows the ramp's temperature" not in out
-    cal = json.loads((tmp_path / "r.json").read_text())
-    assert cal["acc"]["p_value"] > 1e-3 and cal["gyro"]["p_value"] > 1e-3
     still = _sim(tmp_path / "c30", 30, 6, plan="table1", wander=0.0)
-    code, out = _run("validate", tmp_path / "r.json", still, "-o", tmp_path / "v.json")
-    assert code == 0, out
-    v = json.loads((tmp_path / "v.json").read_text())
-    for s in ("acc", "gyro"):
-        c = v["checks"][s][0]
-        assert c["after_rms"] < 1.5 * c["floor_rms"], (s, c)
+    for name, p in (("ordered", "fibonacci48"), ("shuffled", plan)):
+        ramp = _sim(tmp_path / name, "5:45", 5, plan=p, wander=0.0)
+        code, out = _run("calibrate", ramp, "--thermal", "-o", tmp_path / f"{name}.json")
+        assert code == 0, out
+        assert "4 bands of a ramp" in out and "follows the ramp's temperature" not in out, out
+        cal = json.loads((tmp_path / f"{name}.json").read_text())
+        assert cal["acc"]["p_value"] > 1e-3 and cal["gyro"]["p_value"] > 1e-3, name
+        assert "static positions" in cal["gyro"]["thermal"]["rows"] and "static positions" in out
+        code, out = _run("validate", tmp_path / f"{name}.json", still, "-o", tmp_path / f"v_{name}.json")
+        assert code == 0, out
+        v = json.loads((tmp_path / f"v_{name}.json").read_text())
+        for s in ("acc", "gyro"):
+            c = v["checks"][s][0]
+            assert c["after_rms"] < 1.5 * c["floor_rms"], (name, s, c)
+    # the rate runs alone (a gyro whose static rows are too noisy to see the Earth rate) are warned
+    o, _, segs = joint_observations([read_set(tmp_path / "ordered")], 25.0)["gyro"]
+    rate = [i for i, sg in enumerate(segs) if sg.kind == "rate"]
+    assert len(rate) < len(segs) and ramp_warnings("gyro", o, segs) == []
+    warned = ramp_warnings("gyro", o.take(rate), [segs[i] for i in rate])
+    assert len(warned) == 1 and warned[0].startswith("gyro: the z input follows the ramp's temperature"), warned
 
 
 def test_simulate_at_a_temperature_plants_from_the_units_t_ref(tmp_path):
@@ -202,9 +211,16 @@ def test_validate_and_apply_name_rows_outside_the_range_and_refuse_without_temp_
     root, sets, _ = plateaus
     hot = _sim(tmp_path / "hot", 70, 9, wander=0.0)
     code, out = _run("validate", root / "cal.json", hot, "-o", tmp_path / "v.json")
-    lo, hi = json.loads((root / "cal.json").read_text())["temperature_range_c"]
-    assert code == 0 and "WARNING" in out and f"outside the calibrated {lo:.4g} to {hi:.4g} degC" in out
-    assert json.loads((tmp_path / "v.json").read_text())["warnings"]
+    cal = json.loads((root / "cal.json").read_text())
+    for s in ("acc", "gyro"):
+        lo, hi = cal[s]["thermal"]["temperature_range_c"]
+        assert code == 0 and "WARNING" in out and f"outside the {s}'s calibrated {lo:.4g} to {hi:.4g}" in out
+    assert len(json.loads((tmp_path / "v.json").read_text())["warnings"]) == 2
+    # each sensor's own range: a gyro whose rows reached 30..60 degC only is extrapolated at 25 degC, the acc not
+    cal["gyro"]["thermal"]["temperature_range_c"] = [30.0, 60.0]
+    (tmp_path / "narrow.json").write_text(json.dumps(cal))
+    code, out = _run("validate", tmp_path / "narrow.json", sets[1], "-o", tmp_path / "v2.json")
+    assert code == 0 and "outside the gyro's calibrated 30 to 60 degC" in out and "outside the acc's" not in out, out
     code, out = _run("apply", root / "cal.json", hot, "-o", tmp_path / "out")
     assert code == 0 and "WARNING" in out and "extrapolated" in out
     cold = tmp_path / "notemp"
