@@ -105,6 +105,7 @@ def _plateau(folder):
         raise CalibrationError(f"{ms.path / 'samples.csv'}: no temp_c column, so no plateau temperature: a thermal "
                                "calibration needs the unit's temperature on every row" + (
                                    f"; it has {', '.join(named)}: convert it to degC as column temp_c" if named else ""))
+    units.refuse_temperature_unit(ms.meta, ms.samples, ms.path, CalibrationError)
     T = ms.samples["temp_c"]
     if T.min() < PLAUSIBLE_C[0] or T.max() > PLAUSIBLE_C[1]:
         raise CalibrationError(f"{ms.path / 'samples.csv'}: temp_c runs {T.min():.4g} to {T.max():.4g}, outside an "

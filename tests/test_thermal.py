@@ -223,6 +223,10 @@ def test_validate_and_apply_name_rows_outside_the_range_and_refuse_without_temp_
     assert code == 0 and "outside the gyro's calibrated 30 to 60 degC" in out and "outside the acc's" not in out, out
     code, out = _run("apply", root / "cal.json", hot, "-o", tmp_path / "out")
     assert code == 0 and "WARNING" in out and "extrapolated" in out
+    meta = json.loads((hot / "meta.json").read_text())
+    (hot / "meta.json").write_text(json.dumps({**meta, "temperature_units": "Fahrenheit"}))
+    code, out = _run("validate", root / "cal.json", hot, "-o", tmp_path / "v3.json")
+    assert code == 2 and "temperature_units = 'Fahrenheit' (degF)" in out and out.count("\n") == 1, out
     cold = tmp_path / "notemp"
     write(cold, Scenario(plan="fibonacci48"), 5)
     code, out = _run("apply", root / "cal.json", cold, "-o", tmp_path / "out2")
@@ -253,6 +257,11 @@ def test_bad_input_refused_in_one_line(plateaus, tmp_path):
     head, body = samples.read_text().split("\n", 1)
     samples.write_text(head.replace("temp_c", "temp_degF") + "\n" + body)
     bad["named"] = ([sets[0], "named"], [], "temp_degF (named as degF): convert it to degC as column temp_c")
+    for name, key, value in (("stated", "temp_unit", "°F"), ("setpoint", "chamber_temp_f", 104.2)):
+        write(tmp_path / name, Scenario(plan="fibonacci48", temp_c=(104.0, 104.0), t_ref_c=104.0), 6)  # 40 degC in degF
+        meta = json.loads((tmp_path / name / "meta.json").read_text())  # the recording's own word for its unit
+        (tmp_path / name / "meta.json").write_text(json.dumps({**meta, key: value}))
+        bad[name] = ([sets[0], name], [], "temp_c seems to be in degF, but temp_c is degC: convert it (C = (F - 32)")
     _sim(tmp_path / "same", 25.5, 6)
     bad["close"] = ([sets[0], sets[1], "same"], ["--thermal-degree", 3], "test at most degree 1")  # -10, 25, 25.5
     bad["two"] = ([sets[0], sets[2]], ["--thermal-degree", 2], "test at most degree 1")
@@ -261,6 +270,19 @@ def test_bad_input_refused_in_one_line(plateaus, tmp_path):
                          "--thermal", *extra, "-o", tmp_path / "c.json")
         assert code == 2 and message in out and out.count("\n") == 1, (name, out)
         assert not (tmp_path / "c.json").exists()
+
+
+def test_temperature_unit_evidence_is_the_recordings_own_word():
+    """degF between 32 and 125 lies inside degC's plausible range: only what the recording says tells them
+    apart (a stated unit, or a number named in degF that is temp_c's own value rather than its conversion)."""
+    from simucal.io.units import temperature_unit_evidence
+    T = {"temp_c": np.full(5, 40.0)}
+    assert temperature_unit_evidence({"chamber_temp_f": 104.0}, T) is None  # 104 degF is 40 degC: consistent
+    assert temperature_unit_evidence({"temp_unit": "degC", "ambient_temp_f": 70.0}, T) is None
+    assert "named as degF" in temperature_unit_evidence({"chamber_temp_f": 40.5}, T)
+    assert "(kelvin)" in temperature_unit_evidence({"temperature_unit": "K"}, T)
+    assert "column temp_F" in temperature_unit_evidence({}, {**T, "temp_F": np.full(5, 40.1)})
+    assert temperature_unit_evidence({}, {**T, "temp_F": np.full(5, 104.0)}) is None
 
 
 def test_import_refuses_a_temperature_named_in_another_unit(tmp_path):

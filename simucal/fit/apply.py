@@ -206,10 +206,11 @@ def temperatures(cal: Calibration, ms) -> tuple[np.ndarray | None, list[str]]:
                                    f"temperature ({', '.join(thermal)}): it needs each row's temperature")
         return None, []
     temp, warnings = ms.samples["temp_c"], []
-    for s, block in cal.blocks():
-        if not getattr(ms, f"has_{s}") or not (block.thermal is not None or any(
-                follows_temperature(e) for e in block.library_effects())):
-            continue
+    follows = [(s, block) for s, block in cal.blocks() if getattr(ms, f"has_{s}") and (
+        block.thermal is not None or any(follows_temperature(e) for e in block.library_effects()))]
+    if follows:
+        units.refuse_temperature_unit(ms.meta, ms.samples, ms.path, CalibrationError)
+    for s, block in follows:
         lo, hi = (block.thermal or {}).get("temperature_range_c") or cal.temperature_range_c or (-np.inf, np.inf)
         out = np.nonzero((temp < lo - 1.0) | (temp > hi + 1.0))[0]  # 1 degC: a plateau's own scatter
         if len(out):
