@@ -9,11 +9,13 @@ one, and validate's first check (the norm) over its floor per sensor.
 
     python3 benchmarks/bench_thermal.py FIRST_SEED END_SEED
 
-With --ramp, per seed instead: one ramp 5 to 45 degC (no wander) of the same unit on fibonacci48 in its
-own order and with its positions shuffled, each calibrated with --thermal and validated at 30 degC on
-the Table 1 plan: the joint tests' p, validate's norm check over its floor, and the ramp's warnings.
+With --ramp, per seed instead: one ramp 5 to 45 degC of the same unit on fibonacci48 in its own order
+and with its positions shuffled, each calibrated with --thermal and validated at 30 degC on the Table 1
+plan: the joint tests' p, validate's norm check over its floor, the ramp's warnings, and the rows the
+gyro was fitted with and their temperature range. --wander W: every segment's temperature (the ramp's
+and the check's) moved by a uniform draw within +-W degC (default 0).
 
-    python3 benchmarks/bench_thermal.py FIRST_SEED END_SEED --ramp
+    python3 benchmarks/bench_thermal.py FIRST_SEED END_SEED --ramp [--wander 0.3]
 """
 import json
 import subprocess
@@ -72,7 +74,7 @@ def one_seed(root: Path, seed: int, truth: dict) -> str:
                                                 f"{floor[0]:.2f}", f"{floor[1]:.2f}"])) + " |"
 
 
-def ramp_seed(root: Path, seed: int) -> str:
+def ramp_seed(root: Path, seed: int, wander: float) -> str:
     """--ramp (module doc)."""
     import numpy as np
 
@@ -80,7 +82,7 @@ def ramp_seed(root: Path, seed: int) -> str:
     positions = list(fibonacci(48))
     (root / "shuffled.csv").write_text("outer_deg,middle_deg,inner_deg\n" + "".join(
         ",".join(map(str, positions[i])) + "\n" for i in np.random.default_rng(seed).permutation(len(positions))))
-    sim = ("--rate-hz", 20, "--t-ref-c", 25, *EFFECTS)
+    sim = ("--rate-hz", 20, "--t-ref-c", 25, "--temperature-wander-c", wander, *EFFECTS)
     run("simulate", "-o", root / "c30", "--plan", "table1", "--seed", 1000 * seed + 6, "--temperature-c", 30, *sim)
     out = []
     for name, plan in (("in order", "fibonacci48"), ("shuffled", root / "shuffled.csv")):
@@ -92,12 +94,15 @@ def ramp_seed(root: Path, seed: int) -> str:
         floor = {s: round(v["checks"][s][0]["after_rms"] / v["checks"][s][0]["floor_rms"], 2) for s in ("acc", "gyro")}
         p = {s: float(f"{cal[s]['p_value']:.2g}") for s in ("acc", "gyro")}
         warned = [w.split(" input")[0] for w in cal.get("warnings", []) if "follows the ramp's temperature" in w]
-        out.append(f"{name}: p {p}, at 30 degC x floor {floor}, warned {warned}")
+        g = cal["gyro"]["thermal"]
+        out.append(f"{name}: p {p}, at 30 degC x floor {floor}, warned {warned}, gyro rows {g['rows']} at "
+                   f"{g['temperature_range_c'][0]:.3g}..{g['temperature_range_c'][1]:.3g} degC")
     return f"| ramp seed {seed}: " + "; ".join(out) + " |"
 
 
 def main():
     first, end = (int(a) for a in sys.argv[1:3])
+    wander = float(sys.argv[sys.argv.index("--wander") + 1]) if "--wander" in sys.argv else 0.0
     truth = _truth()
     if "--ramp" not in sys.argv:
         print("| seed | acc p | acc lowest plateau p | gyro p | gyro lowest plateau p | max std of a coefficient the "
@@ -105,7 +110,8 @@ def main():
               + "|---" * 9 + "|")
     for seed in range(first, end):
         with tempfile.TemporaryDirectory() as tmp:
-            print(ramp_seed(Path(tmp), seed) if "--ramp" in sys.argv else one_seed(Path(tmp), seed, truth), flush=True)
+            print(ramp_seed(Path(tmp), seed, wander) if "--ramp" in sys.argv else one_seed(Path(tmp), seed, truth),
+                  flush=True)
 
 
 if __name__ == "__main__":

@@ -105,6 +105,7 @@ def _plateau(folder):
         raise CalibrationError(f"{ms.path / 'samples.csv'}: no temp_c column, so no plateau temperature: a thermal "
                                "calibration needs the unit's temperature on every row" + (
                                    f"; it has {', '.join(named)}: convert it to degC as column temp_c" if named else ""))
+    units.refuse_temperature_unit(ms.meta, ms.samples, ms.path, CalibrationError)
     T = ms.samples["temp_c"]
     if T.min() < PLAUSIBLE_C[0] or T.max() > PLAUSIBLE_C[1]:
         raise CalibrationError(f"{ms.path / 'samples.csv'}: temp_c runs {T.min():.4g} to {T.max():.4g}, outside an "
@@ -164,15 +165,17 @@ def _own_fits(base, obs, groups) -> list:
     return [fit_with_noise(base, obs.take(np.nonzero(groups == g)[0]))[0] for g in np.unique(groups)]
 
 
-def _joint_block(obs, groups, first: SensorBlock, degree, labels, t_ref_c, plateaus: bool, tilt=None) -> SensorBlock:
+def _joint_block(obs, groups, first: SensorBlock, degree, labels, t_ref_c, plateaus: bool, segs,
+                 meta=None) -> SensorBlock:
     """One sensor's block from the joint fit of every row at its own temperature (fit/thermal_select.py):
     the block at T_ref (params = c_0), every parameter's polynomial, each group's test under the joint
-    model beside its own fit's (plateaus; a ramp's bands have none); tilt: the gyro's (rate runs, meta)
-    for the outer axis's tilt in its stds (turntable/tilt.py)."""
+    model beside its own fit's (plateaus; a ramp's bands have none); segs: the rows' segments; meta: the
+    gyro's, for the outer axis's tilt in its stds (turntable/tilt.py)."""
     from dataclasses import replace
 
     from simucal.fit.augmented import AugmentedModel
     from simucal.fit.thermal_select import group_tests, select
+    from simucal.turntable.model_test import rows_text
     base = AugmentedModel(first.model, first.library_effects())
     model, fit, how, obs = select(base, obs, groups, degree, dict(first.params))
     own = _own_fits(base, obs, groups) if plateaus else None
@@ -193,15 +196,15 @@ def _joint_block(obs, groups, first: SensorBlock, degree, labels, t_ref_c, plate
     if first.C_b_model is not None:
         details["M_in_d"] = M.tolist()
     thermal = {"t_ref_c": t_ref_c, "plateaus_c": T_g, "temperature_range_c": [float(T.min()), float(T.max())],
-               "fit": "joint: every row at its own temp_c", "parameters": fits, "dropped": how["dropped"],
+               "fit": "joint: every row at its own temp_c", "rows": rows_text(segs), "parameters": fits, "dropped": how["dropped"],
                "covariance": {"names": list(model.params), "matrix": fit.cov.tolist()}}
     block = replace(first, effects={e: replace(v, value=fit.params[e], std=fit.std[e]) for e, v in first.effects.items()},
                     params={n: fit.params[n] for n in base.params}, std={n: fit.std[n] for n in base.params},
                     M=M @ first.C, bias=bias, residual_rms=fit.residual_rms, chi2=fit.chi2, dof=fit.dof,
                     p_value=fit.p_value, thermal=thermal, details=details)
-    if tilt is not None:
+    if meta is not None:
         from simucal.turntable.tilt import add_tilt_thermal
-        add_tilt_thermal(block, model, fit, obs, *tilt)
+        add_tilt_thermal(block, model, fit, obs, segs, meta)
     if calibration.inflate_if_failing(block) and fit.dof:  # the coefficients' stds too (covariance kept unscaled)
         k = float(np.sqrt(max(fit.chi2 / fit.dof, 1.0)))
         for f in fits.values():
@@ -291,7 +294,7 @@ def _calibrate_thermal(folders, degree, t_ref_c, kwargs) -> Calibration:
 
 def _joint(result, sets, cal, degree, t_ref, kwargs):
     """The sensors' blocks of a turntable unit by the joint fit (_joint_block)."""
-    from simucal.turntable.thermal import axes_following_temperature, joint_observations, ramp_bands
+    from simucal.turntable.thermal import joint_observations, ramp_bands, ramp_warnings
     curves = None
     if kwargs.get("noise") is not None:
         from simucal.fit.noise import load_curves
@@ -306,10 +309,6 @@ def _joint(result, sets, cal, degree, t_ref, kwargs):
         if len(sets) == 1:
             groups = ramp_bands(o.aux.column("temp_c", len(o.N)))
             labels = [f"{sets[0][0].path}, band {g + 1}" for g in np.unique(groups)]
-            result.warnings += [f"{s}: the {a} input follows the ramp's temperature (R^2 {r2:.2f} of a line in T over "
-                                f"the {len(o.N)} rows): its bias curvature and its scale factor's drift look alike "
-                                f"there and are not told apart; record the plan in an order whose directions do not "
-                                f"follow the temperature (shuffled), or at plateaus"
-                                for a, r2 in axes_following_temperature(o).items()]
-        setattr(result, s, _joint_block(o, groups, getattr(cal, s), degree, labels, t_ref, len(sets) > 1,
-                                        (segs, sets[0][0].meta) if s == "gyro" else None))
+            result.warnings += ramp_warnings(s, o, segs)
+        setattr(result, s, _joint_block(o, groups, getattr(cal, s), degree, labels, t_ref, len(sets) > 1, segs,
+                                        sets[0][0].meta if s == "gyro" else None))

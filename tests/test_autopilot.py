@@ -128,6 +128,19 @@ def test_px4_round_trip_by_hand(tmp_path, meta, g_mps2):
     assert values["TC_A0_X1_0"] == pytest.approx(2e-6 * g_mps2, rel=1e-8)  # the sign: output = M u + b, b added
 
 
+def test_each_sensors_own_range(tmp_path):
+    """A block's own temperature_range_c (its rows': a ramp's gyro may cover part of it) is its TMIN/TMAX in
+    PX4's file; ArduPilot's one INS_TCAL1_TMIN/TMAX per IMU is where both sensors were calibrated."""
+    cal = _hand_built()
+    cal.gyro.thermal["temperature_range_c"] = [5.0, 45.0]
+    px4, ardupilot = tmp_path / "tc.params", tmp_path / "tcal.param"
+    autopilot.write(autopilot.texts(cal, {"acc_unit": "g"}, px4=str(px4), ardupilot=str(ardupilot)))
+    values, _ = _read_px4(px4)
+    assert (values["TC_A0_TMIN"], values["TC_A0_TMAX"], values["TC_G0_TMIN"], values["TC_G0_TMAX"]) == (LO, HI, 5, 45)
+    values = _read_ardupilot(ardupilot)
+    assert (values["INS_TCAL1_TMIN"], values["INS_TCAL1_TMAX"]) == (5, 45)
+
+
 def test_ardupilot_round_trip_by_hand(tmp_path):
     """INS_TCAL1_*: the polynomial re-expanded about ArduPilot's 35 degC without its constant; what ArduPilot
     subtracts is simucal's b(T) - b(T_cal) for an ordinary calibration at any T_cal in the range."""

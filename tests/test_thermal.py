@@ -110,30 +110,39 @@ def test_applied_between_plateaus_on_another_plan_reaches_the_floor(plateaus):
 
 
 def test_a_ramp_calibrated_with_thermal_reaches_the_floor_at_a_constant_temperature(tmp_path):
-    """On a ramp the plan's order matters: fibonacci48 in order turns its rate runs from +z to -z as the
-    unit heats, and the gyro's b_z curvature cannot be told from dK_z's drift (the ramp's own rows fit,
-    another plan's miss: README, Temperature): said; the same positions shuffled reach the floor."""
+    """On a ramp the plan's order matters to the rate runs: fibonacci48 in order turns them from +z to -z as
+    the unit heats, so there the gyro's b_z curvature and dK_z's drift act alike (README, Temperature). The
+    gyro's static rows (|w| = the Earth rate at rest) see the bias at every temperature they reach and the
+    scale factors barely, and tell the two apart: the ramp in the plan's own order and the same positions
+    shuffled both reach the floor on another plan at 30 degC, and the gyro is warned only without them."""
+    from simucal.io import read_set
     from simucal.turntable.plans import fibonacci
-    ordered = _sim(tmp_path / "ordered", "5:45", 5, wander=0.0)
-    code, out = _run("calibrate", ordered, "--thermal", "-o", tmp_path / "o.json")
-    assert code == 0 and "WARNING: gyro: the z input follows the ramp's temperature" in out, out
+    from simucal.turntable.thermal import joint_observations, ramp_warnings
     plan = tmp_path / "shuffled.csv"
     positions = list(fibonacci(48))
     plan.write_text("outer_deg,middle_deg,inner_deg\n" + "".join(
         ",".join(map(str, positions[i])) + "\n" for i in np.random.default_rng(0).permutation(len(positions))))
-    ramp = _sim(tmp_path / "ramp", "5:45", 5, plan=plan, wander=0.0)
-    code, out = _run("calibrate", ramp, "--thermal", "-o", tmp_path / "r.json")
-    assert code == 0, out
-    assert "4 bands of a ramp" in out and "follows the ramp's temperature" not in out
-    cal = json.loads((tmp_path / "r.json").read_text())
-    assert cal["acc"]["p_value"] > 1e-3 and cal["gyro"]["p_value"] > 1e-3
     still = _sim(tmp_path / "c30", 30, 6, plan="table1", wander=0.0)
-    code, out = _run("validate", tmp_path / "r.json", still, "-o", tmp_path / "v.json")
-    assert code == 0, out
-    v = json.loads((tmp_path / "v.json").read_text())
-    for s in ("acc", "gyro"):
-        c = v["checks"][s][0]
-        assert c["after_rms"] < 1.5 * c["floor_rms"], (s, c)
+    for name, p in (("ordered", "fibonacci48"), ("shuffled", plan)):
+        ramp = _sim(tmp_path / name, "5:45", 5, plan=p, wander=0.0)
+        code, out = _run("calibrate", ramp, "--thermal", "-o", tmp_path / f"{name}.json")
+        assert code == 0, out
+        assert "4 bands of a ramp" in out and "follows the ramp's temperature" not in out, out
+        cal = json.loads((tmp_path / f"{name}.json").read_text())
+        assert cal["acc"]["p_value"] > 1e-3 and cal["gyro"]["p_value"] > 1e-3, name
+        assert "static positions" in cal["gyro"]["thermal"]["rows"] and "static positions" in out
+        code, out = _run("validate", tmp_path / f"{name}.json", still, "-o", tmp_path / f"v_{name}.json")
+        assert code == 0, out
+        v = json.loads((tmp_path / f"v_{name}.json").read_text())
+        for s in ("acc", "gyro"):
+            c = v["checks"][s][0]
+            assert c["after_rms"] < 1.5 * c["floor_rms"], (name, s, c)
+    # the rate runs alone (a gyro whose static rows are too noisy to see the Earth rate) are warned
+    o, _, segs = joint_observations([read_set(tmp_path / "ordered")], 25.0)["gyro"]
+    rate = [i for i, sg in enumerate(segs) if sg.kind == "rate"]
+    assert len(rate) < len(segs) and ramp_warnings("gyro", o, segs) == []
+    warned = ramp_warnings("gyro", o.take(rate), [segs[i] for i in rate])
+    assert len(warned) == 1 and warned[0].startswith("gyro: the z input follows the ramp's temperature"), warned
 
 
 def test_simulate_at_a_temperature_plants_from_the_units_t_ref(tmp_path):
@@ -202,11 +211,22 @@ def test_validate_and_apply_name_rows_outside_the_range_and_refuse_without_temp_
     root, sets, _ = plateaus
     hot = _sim(tmp_path / "hot", 70, 9, wander=0.0)
     code, out = _run("validate", root / "cal.json", hot, "-o", tmp_path / "v.json")
-    lo, hi = json.loads((root / "cal.json").read_text())["temperature_range_c"]
-    assert code == 0 and "WARNING" in out and f"outside the calibrated {lo:.4g} to {hi:.4g} degC" in out
-    assert json.loads((tmp_path / "v.json").read_text())["warnings"]
+    cal = json.loads((root / "cal.json").read_text())
+    for s in ("acc", "gyro"):
+        lo, hi = cal[s]["thermal"]["temperature_range_c"]
+        assert code == 0 and "WARNING" in out and f"outside the {s}'s calibrated {lo:.4g} to {hi:.4g}" in out
+    assert len(json.loads((tmp_path / "v.json").read_text())["warnings"]) == 2
+    # each sensor's own range: a gyro whose rows reached 30..60 degC only is extrapolated at 25 degC, the acc not
+    cal["gyro"]["thermal"]["temperature_range_c"] = [30.0, 60.0]
+    (tmp_path / "narrow.json").write_text(json.dumps(cal))
+    code, out = _run("validate", tmp_path / "narrow.json", sets[1], "-o", tmp_path / "v2.json")
+    assert code == 0 and "outside the gyro's calibrated 30 to 60 degC" in out and "outside the acc's" not in out, out
     code, out = _run("apply", root / "cal.json", hot, "-o", tmp_path / "out")
     assert code == 0 and "WARNING" in out and "extrapolated" in out
+    meta = json.loads((hot / "meta.json").read_text())
+    (hot / "meta.json").write_text(json.dumps({**meta, "temperature_units": "Fahrenheit"}))
+    code, out = _run("validate", root / "cal.json", hot, "-o", tmp_path / "v3.json")
+    assert code == 2 and "temperature_units = 'Fahrenheit' (degF)" in out and out.count("\n") == 1, out
     cold = tmp_path / "notemp"
     write(cold, Scenario(plan="fibonacci48"), 5)
     code, out = _run("apply", root / "cal.json", cold, "-o", tmp_path / "out2")
@@ -237,6 +257,11 @@ def test_bad_input_refused_in_one_line(plateaus, tmp_path):
     head, body = samples.read_text().split("\n", 1)
     samples.write_text(head.replace("temp_c", "temp_degF") + "\n" + body)
     bad["named"] = ([sets[0], "named"], [], "temp_degF (named as degF): convert it to degC as column temp_c")
+    for name, key, value in (("stated", "temp_unit", "°F"), ("setpoint", "chamber_temp_f", 104.2)):
+        write(tmp_path / name, Scenario(plan="fibonacci48", temp_c=(104.0, 104.0), t_ref_c=104.0), 6)  # 40 degC in degF
+        meta = json.loads((tmp_path / name / "meta.json").read_text())  # the recording's own word for its unit
+        (tmp_path / name / "meta.json").write_text(json.dumps({**meta, key: value}))
+        bad[name] = ([sets[0], name], [], "temp_c seems to be in degF, but temp_c is degC: convert it (C = (F - 32)")
     _sim(tmp_path / "same", 25.5, 6)
     bad["close"] = ([sets[0], sets[1], "same"], ["--thermal-degree", 3], "test at most degree 1")  # -10, 25, 25.5
     bad["two"] = ([sets[0], sets[2]], ["--thermal-degree", 2], "test at most degree 1")
@@ -245,6 +270,19 @@ def test_bad_input_refused_in_one_line(plateaus, tmp_path):
                          "--thermal", *extra, "-o", tmp_path / "c.json")
         assert code == 2 and message in out and out.count("\n") == 1, (name, out)
         assert not (tmp_path / "c.json").exists()
+
+
+def test_temperature_unit_evidence_is_the_recordings_own_word():
+    """degF between 32 and 125 lies inside degC's plausible range: only what the recording says tells them
+    apart (a stated unit, or a number named in degF that is temp_c's own value rather than its conversion)."""
+    from simucal.io.units import temperature_unit_evidence
+    T = {"temp_c": np.full(5, 40.0)}
+    assert temperature_unit_evidence({"chamber_temp_f": 104.0}, T) is None  # 104 degF is 40 degC: consistent
+    assert temperature_unit_evidence({"temp_unit": "degC", "ambient_temp_f": 70.0}, T) is None
+    assert "named as degF" in temperature_unit_evidence({"chamber_temp_f": 40.5}, T)
+    assert "(kelvin)" in temperature_unit_evidence({"temperature_unit": "K"}, T)
+    assert "column temp_F" in temperature_unit_evidence({}, {**T, "temp_F": np.full(5, 40.1)})
+    assert temperature_unit_evidence({}, {**T, "temp_F": np.full(5, 104.0)}) is None
 
 
 def test_import_refuses_a_temperature_named_in_another_unit(tmp_path):

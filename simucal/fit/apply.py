@@ -195,20 +195,26 @@ def apply(cal: Calibration, data, where="the calibration"):
 
 def temperatures(cal: Calibration, ms) -> tuple[np.ndarray | None, list[str]]:
     """Each row's temp_c where a block of cal follows temperature (thermal, or terms in dtemp_c), and
-    a warning naming the rows outside the calibrated temperature_range_c (the polynomials are
-    extrapolated there). A thermal calibration refuses data without temp_c."""
+    per such sensor a warning naming the rows outside its calibrated range (the polynomials are
+    extrapolated there): a thermal block's own `temperature_range_c` (the temperatures its rows reached:
+    a ramp's gyro rate runs may cover part of it), else the file's. A thermal calibration refuses data
+    without temp_c."""
     thermal = [s for s, block in cal.blocks() if block.thermal is not None]
     if "temp_c" not in ms.samples:
         if thermal:
             raise CalibrationError(f"{ms.path / 'samples.csv'}: no temp_c column, but the calibration follows "
                                    f"temperature ({', '.join(thermal)}): it needs each row's temperature")
         return None, []
-    temp = ms.samples["temp_c"]
-    lo, hi = cal.temperature_range_c or (-np.inf, np.inf)
-    out = np.nonzero((temp < lo - 1.0) | (temp > hi + 1.0))[0]  # 1 degC: a plateau's own scatter
-    if not len(out) or not (thermal or any(follows_temperature(e) for _, block in cal.blocks()
-                                           for e in block.library_effects())):
-        return temp, []
-    return temp, [f"{len(out)} of {len(temp)} rows (from line {out[0] + 2} of samples.csv) have temp_c "
-                  f"{temp[out].min():.4g} to {temp[out].max():.4g} degC, outside the calibrated {lo:.4g} to "
-                  f"{hi:.4g} degC: their temperature terms are extrapolated"]
+    temp, warnings = ms.samples["temp_c"], []
+    follows = [(s, block) for s, block in cal.blocks() if getattr(ms, f"has_{s}") and (
+        block.thermal is not None or any(follows_temperature(e) for e in block.library_effects()))]
+    if follows:
+        units.refuse_temperature_unit(ms.meta, ms.samples, ms.path, CalibrationError)
+    for s, block in follows:
+        lo, hi = (block.thermal or {}).get("temperature_range_c") or cal.temperature_range_c or (-np.inf, np.inf)
+        out = np.nonzero((temp < lo - 1.0) | (temp > hi + 1.0))[0]  # 1 degC: a plateau's own scatter
+        if len(out):
+            warnings.append(f"{s}: {len(out)} of {len(temp)} rows (from line {out[0] + 2} of samples.csv) have temp_c "
+                            f"{temp[out].min():.4g} to {temp[out].max():.4g} degC, outside the {s}'s calibrated {lo:.4g} "
+                            f"to {hi:.4g} degC: their temperature terms are extrapolated")
+    return temp, warnings

@@ -78,7 +78,8 @@ def _unit(unit: str) -> str:
 
 def bias_polynomials(cal, g_mps2: float) -> list[BiasPolynomial]:
     """The narrow interface from a thermal calibration (its blocks' `thermal`: t_ref_c and per parameter
-    `coefficients` in (T - T_ref), the parameter's unit per degC^k; the file's temperature_range_c).
+    `coefficients` in (T - T_ref), the parameter's unit per degC^k; the block's own temperature_range_c, its
+    rows', else the file's: TMIN/TMAX per sensor).
     Refused in one line: no thermal block, a bias not named b_x, b_y, b_z or not in g / deg/h."""
     out = []
     for sensor, block in cal.blocks():
@@ -99,7 +100,7 @@ def bias_polynomials(cal, g_mps2: float) -> list[BiasPolynomial]:
         for i, b in enumerate(BIAS):
             c = np.asarray(fits[b]["coefficients"], float)
             coefficients[i, :len(c)] = c * per
-        lo, hi = (float(t) for t in cal.temperature_range_c)
+        lo, hi = (float(t) for t in block.thermal.get("temperature_range_c") or cal.temperature_range_c)  # the sensor's
         others = tuple(f"{sensor} {n} (changes by {_change(f['coefficients'], t_ref, lo, hi):.3g}"
                        f"{_unit(block.param_units.get(n, '1'))} from {lo:g} to {hi:g} degC)"
                        for n, f in fits.items() if n not in BIAS and any(f["coefficients"][1:]))

@@ -19,14 +19,59 @@ ARCSEC_RAD = math.radians(1 / 3600)  # rad per arcsec
 # a column named as a temperature in another unit than the spec's temp_c (degC): temp_f, TempF, temp_degF,
 # temperature (K), temp_kelvin, ... Its name is the only sound cue: below 125 degF (51.7 degC) degF values
 # lie inside an IMU's rated degC range, and a unit's thermal slopes are its own (no scale for the factor 1.8)
-_TEMP_OTHER_UNIT = re.compile(r"^(tmp|temp|temperature)[ _.\-(\[]*(deg|°)?[ _]?(?P<unit>f|k|fahrenheit|kelvin)[)\]]?$",
-                              re.I)
+# (searched: a meta.json key may say what it measures first, chamber_temp_f)
+_TEMP_NAMED = re.compile(r"(tmp|temp|temperature)[ _.\-(\[]*(deg|°)?[ _]?(?P<unit>f|k|fahrenheit|kelvin)[)\]]?$", re.I)
 
 
-def temperature_unit_in_name(name: str) -> str | None:
-    """'degF' or 'kelvin' where a column's name says its temperature is in that unit, else None."""
-    m = _TEMP_OTHER_UNIT.match(name.strip())
+def temperature_unit_in_name(name: str, anywhere=False) -> str | None:
+    """'degF' or 'kelvin' where a column's name says its temperature is in that unit, else None;
+    anywhere: the name may begin with other words (a meta.json key)."""
+    m = (_TEMP_NAMED.search if anywhere else _TEMP_NAMED.match)(name.strip())
     return None if m is None else "kelvin" if m["unit"].lower() in ("k", "kelvin") else "degF"
+
+
+_TEMP_UNIT_KEY = re.compile(r"^(tmp|temp|temperature)[ _.\-]*(c[ _.\-]*)?units?$", re.I)  # temp_unit, temp_c_unit
+TO_C = {"degF": (lambda v: (v - 32.0) / 1.8, "C = (F - 32) / 1.8"), "kelvin": (lambda v: v - 273.15, "C = K - 273.15")}
+
+
+def _unit_word(text) -> str | None:
+    """'degF', 'kelvin' or 'degC' for a unit's spelling (F, degF, °F, fahrenheit, K, kelvin, C, ...)."""
+    w = re.sub(r"[\s_°]|deg(rees?)?", "", str(text).lower())
+    return {"f": "degF", "fahrenheit": "degF", "k": "kelvin", "kelvin": "kelvin", "c": "degC",
+            "celsius": "degC"}.get(w)
+
+
+def temperature_unit_evidence(meta: dict, samples: dict) -> str | None:
+    """Where a recording itself says that its temp_c is not in degC, the evidence in words, else None:
+    a meta.json key stating the temperature's unit (temp_unit, temperature_units, temp_c_unit) as degF or
+    kelvin, or a meta.json number or samples.csv column named as a temperature in degF or kelvin
+    (chamber_temp_f, setpoint_temp_K, temp_degF) whose values are temp_c's own rather than their
+    conversion to degC. Nothing else in a recording tells degF between 32 and 125 from degC (README)."""
+    T = np.asarray(samples["temp_c"], float)
+    for key, v in meta.items():
+        unit = _unit_word(v) if _TEMP_UNIT_KEY.match(key) else None
+        if unit in TO_C:
+            return f"meta.json states {key} = {v!r} ({unit})"
+    named = [(f"meta.json's {k}", temperature_unit_in_name(k, True), np.asarray(v, float)) for k, v in meta.items()
+             if isinstance(v, (int, float)) and not isinstance(v, bool)]
+    named += [(f"samples.csv's column {c}", temperature_unit_in_name(c, True), np.asarray(v, float))
+              for c, v in samples.items() if c != "temp_c"]
+
+    def near(x):  # a column row by row; a number (a setpoint) to the nearest row
+        return float(np.median(np.abs(x - T))) if x.ndim else float(np.min(np.abs(x - T)))
+    for where, unit, v in named:
+        if unit and near(v) < min(near(TO_C[unit][0](v)), 2.0):  # its own values, within a plateau's wander
+            return f"{where} (named as {unit}) holds temp_c's own values, not their conversion to degC"
+    return None
+
+
+def refuse_temperature_unit(meta: dict, samples: dict, path, error) -> None:
+    """Raise error naming the evidence where the recording says its temp_c is in degF or kelvin."""
+    said = temperature_unit_evidence(meta, samples) if "temp_c" in samples else None
+    if said:
+        unit = "kelvin" if "kelvin" in said else "degF"
+        raise error(f"{path}: {said}: temp_c seems to be in {unit}, but temp_c is degC: convert it "
+                    f"({TO_C[unit][1]}), or correct meta.json")
 
 
 NOISE_KEY = {"acc": "acc_noise_g", "gyro": "gyro_noise_dph"}

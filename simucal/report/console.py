@@ -130,7 +130,8 @@ def _thermal_lines(s, b: SensorBlock):
     th = b.thermal
     groups = b.details.get("groups")
     where = (f"{len(th['plateaus_c'])} " + ("plateaus" if b.details.get("plateaus", True) else "bands of a ramp")
-             + " at " + ", ".join(f"{t:.4g}" for t in th["plateaus_c"]) + f" degC, T_ref {th['t_ref_c']:.4g} degC")
+             + " at " + ", ".join(f"{t:.4g}" for t in th["plateaus_c"]) + f" degC, T_ref {th['t_ref_c']:.4g} degC"
+             + (f"; {th['rows']}" if th.get("rows") else ""))
     if groups is None:  # each plateau alone, then the polynomials (a method without a row-level fit)
         yield (f"{s}: {where}; per plateau p = " + ", ".join(_p(x["p_value"]) for x in b.details["plateaus"]))
     else:

@@ -27,7 +27,8 @@ def earth_rate_sensitivity(model, fit, obs, segs, meta) -> np.ndarray:
     the same Earth rate along the axis to runs of either sense); a linear step."""
     lat = np.radians(meta.get("latitude_deg", 0.0))
     w_e = units.earth_rate_dph(meta)
-    sense = np.sign([s.outer_rate_dps * units.DPH_PER_DPS + w_e * np.sin(lat) for s in segs])
+    sense = np.sign([s.outer_rate_dps * units.DPH_PER_DPS + w_e * np.sin(lat) if s.kind == "rate" else 0.0
+                     for s in segs])  # a static row's input is the whole Earth rate, whatever the axis's tilt
     step = 1e3  # arcsec: far above round-off, still linear (a relative change of 1e-5 of the norm)
     shift = sense * w_e * np.cos(lat) * units.ARCSEC_RAD * step
     moved = fit_exact(model, replace(obs, rho=obs.rho + shift), fit.vector(model.params))
