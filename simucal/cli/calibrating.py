@@ -166,7 +166,7 @@ def _calibrate_thermal(data_dirs, output, degree, t_ref_c, kwargs, inputs, html_
         click.echo(line)
     if html_out:
         from simucal.report.thermal_html import thermal_page
-        outputs.write_text(html_out, thermal_page(result))
+        outputs.write_text(html_out, thermal_page(result, cal_path=output))
         click.echo(f"wrote {html_out}")
     for line in autopilot.write(exported):
         click.echo(line)
