@@ -319,15 +319,16 @@ def html_page(report) -> str:
             continue
         b = report[sensor]
         fig, ax = plt.subplots(figsize=(6.5, 4.2))
+        _, scale, adev_unit = SHEET[sensor]["B"]  # the bias instability's unit: the table's (ug, deg/h)
         for (a, axd), color in zip(b["axes"].items(), ("C0", "C1", "C2")):
             if "stuck" in axd:
                 continue
-            t, s, r = (np.array(axd[k]) for k in ("tau_s", "adev", "rel_err"))
-            fit = allan_deviation(axd["terms"], t)
+            t, r = np.array(axd["tau_s"]), np.array(axd["rel_err"])
+            s, fit = np.array(axd["adev"]) * scale, allan_deviation(axd["terms"], t) * scale
             ax.fill_between(t, fit * (1 - r), fit * (1 + r), color=color, alpha=0.2)
             ax.loglog(t, s, "o", ms=3, color=color, label=f"{a}")
             ax.loglog(t, fit, "-", color=color, lw=1)
-        ax.set(xlabel="tau (s)", ylabel=f"Allan deviation ({b['unit']})",
+        ax.set(xlabel="tau (s)", ylabel=f"Allan deviation ({adev_unit})",
                title=f"{sensor}: points, the fit of the terms seen and its 68 % band")
         ax.legend(fontsize=8)
         ax.grid(True, which="both", alpha=0.3)

@@ -123,6 +123,7 @@ def test_the_noise_page_one_unit_system_and_the_consoles_verdicts(pages):
     units = re.findall(r"<th>[^<(]+\(([^)]+\)?)\)</th>", acc)
     assert len(units) == 5 and all(u.startswith("ug") for u in units), units
     assert "m/s" not in acc and "not seen (&lt;" in acc
+    assert [f.axes[0].get_ylabel() for f in pages["noise"][2]] == ["Allan deviation (ug)", "Allan deviation (deg/h)"]
     cells = re.findall(r"<td>([^<]*)</td>", page)  # every term: value +- std, or not seen with its bound
     assert all(re.fullmatch(r"[xyz]|\S+ &plusmn; \S+|not seen \(&lt; \S+, 95 %\)|record too short.*", c) for c in cells), cells
     report = json.loads((pages["out"] / "noise.json").read_text())

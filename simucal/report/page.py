@@ -54,11 +54,12 @@ def wrapped(text: str, width: int) -> str:
 def log_bars(ax, labels, values, floor=None, unit=""):
     """Bars on a log scale (a calibrated error 1e-3 of the nominal one stays visible), each with its value,
     and the floor as a dashed line."""
-    shown = [max(v, 1e-300) for v in values]
+    positive = [v for v in [*values, floor] if v and v > 0] or [1.0]
+    low, top = min(positive) / 5, max(positive) * 8  # room above the tallest bar for its value
+    shown = [max(v, low) for v in values]  # a zero at the axis's foot, its value written
     ax.bar(labels, shown, color=["#999", "#2a7", "#27a"][:len(values)])
     ax.set_yscale("log")
-    top, low = max(shown + [floor or 0]), min(shown + ([floor] if floor else []))
-    ax.set_ylim(low / 5, top * 8)  # room above the tallest bar for its value
+    ax.set_ylim(low, top)
     for k, v in enumerate(values):
         ax.annotate(f"{v:.2g}", (k, shown[k]), xytext=(0, 2), textcoords="offset points", ha="center", va="bottom",
                     fontsize=8)
