@@ -46,7 +46,7 @@ RAD_PER_DEG = np.pi / 180.0
 SHEET = {"gyro": {"Q": ("quantisation", 1.0, "arcsec"), "N": ("angle random walk", 1 / 60.0, "deg/sqrt(h)"),
                   "B": ("bias instability", 1.0, "deg/h"), "K": ("rate random walk", 60.0, "deg/h/sqrt(h)"),
                   "R": ("rate ramp", 3600.0, "deg/h/h")},
-         "acc": {"Q": ("quantisation", G0, "m/s"), "N": ("velocity random walk", 1e6, "ug/sqrt(Hz)"),
+         "acc": {"Q": ("quantisation", 1e6, "ug*s"), "N": ("velocity random walk", 1e6, "ug/sqrt(Hz)"),
                  "B": ("bias instability", 1e6, "ug"), "K": ("acceleration random walk", 1e6, "ug/sqrt(s)"),
                  "R": ("acceleration ramp", 1e6, "ug/s")}}
 
@@ -268,29 +268,67 @@ def lines(report):
                 yield f"  {a}: {ax['stuck']}"
                 continue
             yield f"  {a}: " + ", ".join(f"{t['name']} {_term_text(t)}" for t in ax["sheet"].values())
+    for _, text in verdicts(report):
+        yield text
+    yield "next: " + next_step(report)[0]
+
+
+def _axes_of(axes, status, k) -> list[str]:
+    return [a for a, ax in axes.items() if "stuck" not in ax and ax["sheet"][k]["status"] == status]
+
+
+def verdicts(report) -> list[tuple[bool, str]]:
+    """Per sensor (ok, the verdict): an axis stuck, else the white noise, the terms seen beyond it and
+    those not seen (each with its 95 % bound in the table) or the record too short to tell."""
+    out = []
+    for sensor in ("acc", "gyro"):
+        if sensor not in report:
+            continue
+        axes = report[sensor]["axes"]
+        stuck = [f"{a} {ax['stuck']}" for a, ax in axes.items() if "stuck" in ax]
+        n = [axes[a]["sheet"]["N"] for a in _axes_of(axes, "seen", "N")]
+        text = (f"{sensor}: {SHEET[sensor]['N'][0]} " + (f"{min(t['value'] for t in n):.3g} to {max(t['value'] for t in n):.3g} "
+                f"{n[0]['unit']}" if n else "not seen") + " on " + ", ".join(_axes_of(axes, "seen", "N") or ["no axis"]))
+        for status, say in (("seen", "seen beyond it"), ("not seen", "not seen (95 % bounds below)"),
+                            ("too short", "the record too short to tell")):
+            terms = [f"{SHEET[sensor][k][0]} ({', '.join(_axes_of(axes, status, k))})" for k in SHEET[sensor]
+                     if k != "N" and _axes_of(axes, status, k)]
+            text += f"; {say}: {', '.join(terms)}" if terms else ""
+        out.append((not stuck and len(n) == len(axes), text + "".join(f"; STUCK: {x}" for x in stuck)))
+    return out
+
+
+def next_step(report) -> tuple[str, list[str]]:
+    """(the command after `simucal noise`, why): Kalibr's imu.yaml where the record gives it, else what to record."""
+    missing = kalibr_missing(report)
+    if not missing:
+        return f"simucal noise {report['data']} -o noise.json --kalibr imu.yaml", []
+    return ("simucal noise LONGER_STILL_RECORDING -o noise.json --html noise.html",
+            ["Kalibr's imu.yaml would lack " + "; ".join(missing)])
 
 
 def html_page(report) -> str:
-    """A self-contained page: each sensor's Allan deviation with its interval and the fitted terms."""
+    """A self-contained page: the verdicts and the next step (as the console prints them), then each
+    sensor's Allan deviation with its interval and the fitted terms, in one unit system per table."""
     import html as _html
 
-    from simucal.report.html import _png, plt
-    parts = [f"<!doctype html><meta charset=utf-8><title>simucal noise</title><h1>Noise of "
-             f"{_html.escape(report['data'])}</h1>"]
+    from simucal.report.page import page, plt, png
+    parts = []
     for sensor in ("acc", "gyro"):
         if sensor not in report:
             continue
         b = report[sensor]
         fig, ax = plt.subplots(figsize=(6.5, 4.2))
+        _, scale, adev_unit = SHEET[sensor]["B"]  # the bias instability's unit: the table's (ug, deg/h)
         for (a, axd), color in zip(b["axes"].items(), ("C0", "C1", "C2")):
             if "stuck" in axd:
                 continue
-            t, s, r = (np.array(axd[k]) for k in ("tau_s", "adev", "rel_err"))
-            fit = allan_deviation(axd["terms"], t)
+            t, r = np.array(axd["tau_s"]), np.array(axd["rel_err"])
+            s, fit = np.array(axd["adev"]) * scale, allan_deviation(axd["terms"], t) * scale
             ax.fill_between(t, fit * (1 - r), fit * (1 + r), color=color, alpha=0.2)
             ax.loglog(t, s, "o", ms=3, color=color, label=f"{a}")
             ax.loglog(t, fit, "-", color=color, lw=1)
-        ax.set(xlabel="tau (s)", ylabel=f"Allan deviation ({b['unit']})",
+        ax.set(xlabel="tau (s)", ylabel=f"Allan deviation ({adev_unit})",
                title=f"{sensor}: points, the fit of the terms seen and its 68 % band")
         ax.legend(fontsize=8)
         ax.grid(True, which="both", alpha=0.3)
@@ -298,8 +336,9 @@ def html_page(report) -> str:
         rows = "".join(f"<tr><td>{a}</td>" + (f"<td colspan=5>{_html.escape(axd['stuck'])}</td>" if "stuck" in axd else
                        "".join(f"<td>{_term_text(t, html=True)}</td>" for t in axd["sheet"].values())) + "</tr>"
                        for a, axd in b["axes"].items())
-        parts.append(f"<h2>{sensor}</h2>{_png(fig)}<table border=1 cellpadding=4><tr><th>axis</th>{head}</tr>"
+        parts.append(f"<h2>{sensor}</h2>{png(fig)}<table><tr><th>axis</th>{head}</tr>"
                      f"{rows}</table><p>Terms fitted by generalised least squares with the covariance of the "
                      f"overlapping estimates; a term is shown where beyond {allan_fit.SEEN:g} std, otherwise "
                      "with its 95 % upper bound.</p>")
-    return "".join(parts)
+    cmd, notes = next_step(report)
+    return page("simucal noise", f"Noise of {report['data']}", verdicts(report), cmd, notes, parts)

@@ -131,7 +131,7 @@ def thermal(out: Path, seed: int, echo) -> dict:
          f"{cal.gyro.p_value:.2g}; following temperature: {', '.join(moving)} (planted: {', '.join(THERMAL)})")
     other = plateau(35, 7, "table1")
     reps = {n: validate(out / f"thermal_calibration{n}.json", other) for n in ("", "_25")}
-    outputs.write_text(out / "thermal.html", thermal_page(cal, [reps[""]]))
+    outputs.write_text(out / "thermal.html", thermal_page(cal, [reps[""]], str(out / "thermal_calibration.json")))
     echo(f"   validate at 35 degC ({other}): {'':2} {'thermal':>9} {'25 degC only':>13} {'floor':>9}")
     for s in ("acc", "gyro"):
         a, b = reps[""]["checks"][s][0], reps["_25"]["checks"][s][0]

@@ -35,6 +35,7 @@ from simucal.errors import CalibrationError
 from simucal.fit.apply import apply
 from simucal.fit.rotations import wahba
 from simucal.io import calibration, units
+from simucal.report.console import validation_next
 from simucal.turntable.observations import mean_and_sigma, outer_angle_rad, table_accuracy_rad
 from simucal.turntable.plan_design import directions_k
 
@@ -311,28 +312,30 @@ def lines(report):
     for s, v in report["verdict"].items():
         yield f"{s}: {v}" + (": this calibration makes the unit worse on these data than its nominal scale "
                              "factors; do not use it" if v.startswith("WORSE THAN NOMINAL") else "")
+    yield "next: " + validation_next(report)[0]
 
 
 def html_page(report) -> str:
-    """A self-contained page: the table and bars of each check's error before and after."""
+    """A self-contained page: the verdicts and the next command (report/console.py's, as the console
+    prints them), each check's error at nominal and calibrated on a log scale with its floor, the table."""
     import html as _html
 
-    from simucal.report.html import _png, plt
+    from simucal.report.page import log_bars, page, plt, png, wrapped
     rows = [(s, c) for s, cs in report["checks"].items() for c in cs]
-    fig, axs = plt.subplots(1, len(rows), figsize=(3.2 * len(rows), 3.0), squeeze=False)
-    for ax, (s, c) in zip(axs[0], rows):
-        ax.bar(["nominal", "calibrated"], [c["before_rms"], c["after_rms"]], color=["#999", "#2a7"])
-        if c["floor_rms"]:
-            ax.axhline(c["floor_rms"], color="k", ls="--", label="noise floor")
-            ax.legend(fontsize=7)
-        ax.set_title(f"{s}: {c['verdict']}", fontsize=8)
-        ax.set_ylabel(f"rms ({c['unit']})")
+    cols = min(len(rows), 4)
+    fig, axs = plt.subplots((len(rows) + cols - 1) // cols, cols, figsize=(3.1 * cols, 3.4 * ((len(rows) + cols - 1) // cols)),
+                            squeeze=False, layout="constrained")
+    for ax, (s, c) in zip(axs.flat, rows):
+        log_bars(ax, ["nominal", "calibrated"], [c["before_rms"], c["after_rms"]], c["floor_rms"], c["unit"])
+        ax.set_title(wrapped(f"{s}: {c['what'].split(' (')[0]}: {c['verdict']}", 34), fontsize=8)
+    for ax in axs.flat[len(rows):]:
+        ax.set_visible(False)
     body = "".join(f"<tr><td>{s}</td><td>{_html.escape(c['what'])}</td><td>{c['before_rms']:.3g}</td>"
                    f"<td>{c['after_rms']:.3g}</td><td>{'-' if c['floor_rms'] is None else format(c['floor_rms'], '.3g')}"
                    f"</td><td>{c['unit']}</td><td>{c['verdict']}</td></tr>" for s, c in rows)
-    return (f"<!doctype html><meta charset=utf-8><title>simucal validate</title><h1>Validation of "
-            f"{_html.escape(report['calibration'])} on {_html.escape(report['data'])}</h1>"
-            + "".join(f"<p><b>{s}: {v}</b></p>" for s, v in report["verdict"].items())
-            + (f"<p>{_html.escape(report['note'])}</p>" if report["note"] else "")
-            + "<table border=1 cellpadding=4><tr><th>sensor</th><th>check</th><th>nominal</th><th>calibrated</th>"
-              f"<th>floor</th><th>unit</th><th>verdict</th></tr>{body}</table>" + _png(fig))
+    cmd, notes = validation_next(report)
+    verdicts = [(not v.startswith(("WORSE", "no better")), f"{s}: {v}") for s, v in report["verdict"].items()]
+    return page("simucal validate", f"Validation of {report['calibration']} on {report['data']}", verdicts, cmd,
+                notes + [f"WARNING: {w}" for w in report.get("warnings", [])],
+                [png(fig), "<table><tr><th>sensor</th><th>check</th><th>nominal</th><th>calibrated</th>"
+                 f"<th>floor</th><th>unit</th><th>verdict</th></tr>{body}</table>"])

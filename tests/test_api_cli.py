@@ -150,7 +150,7 @@ def test_thermal_calibration_and_its_page_the_same(tmp_path):
     _cli("calibrate", *plateaus, "--thermal", "-o", tmp_path / "cli.json", "--html", tmp_path / "cli.html")
     cal = simucal.calibrate([str(p) for p in plateaus])
     simucal.save(tmp_path / "api.json", cal)
-    simucal.save(tmp_path / "api.html", cal)
+    simucal.save(tmp_path / "api.html", cal, calibration_path=tmp_path / "cli.json")
     for ext in ("json", "html"):
         assert (tmp_path / f"cli.{ext}").read_bytes() == (tmp_path / f"api.{ext}").read_bytes(), ext
     with pytest.raises(ValueError, match="a thermal calibration's"):

@@ -249,7 +249,8 @@ def test_a_stuck_channel_is_named_and_kalibr_refused(tmp_path):
     (d / "samples.csv").write_text("\n".join([lines[0]] + [",".join(r) for r in rows]) + "\n")
     r = _run("noise", d, "-o", tmp_path / "n.json", "--html", tmp_path / "n.html")
     assert r.exit_code == 0, r.output
-    assert "z: stuck or dead: constant at 3 deg/h" in r.output and "quantisation" not in r.output.split("z: stuck")[1]
+    assert "z: stuck or dead: constant at 3 deg/h" in r.output and "quantisation" not in r.output.split("z: stuck")[1].splitlines()[0]
+    assert "; STUCK: z stuck or dead" in r.output  # and the gyro's verdict says so
     gz = json.loads((tmp_path / "n.json").read_text())["gyro"]["axes"]["z"]
     assert "stuck" in gz and "terms" not in gz
     r = _run("noise", d, "-o", tmp_path / "m.json", "--kalibr", tmp_path / "k.yaml")

@@ -236,7 +236,7 @@ def test_validate_and_apply_name_rows_outside_the_range_and_refuse_without_temp_
 def test_the_thermal_page_opens_with_a_verdict_per_sensor(plateaus):
     root, _, _ = plateaus
     page = (root / "t.html").read_text()
-    assert page.index("Verdict") < page.index("<img")
+    assert page.index("class='verdict") < page.index("class='next'>Next: <code>simucal ") < page.index("<img")
     assert page.count("PASSES: the one model over every row") == 2
     assert page.count("<img") >= 5  # acc b_x, b_y, dK_z; gyro b_z, dK_x against temperature
     assert "T_ref 25 degC" in page

@@ -162,13 +162,15 @@ def validate(cal: Calibration | str | os.PathLike, data: Data) -> Validation:
                       list(report["warnings"]), report)
 
 
-def save(path: str | os.PathLike, result: Calibration | Validation | Diagnosis | Noise) -> None:
+def save(path: str | os.PathLike, result: Calibration | Validation | Diagnosis | Noise,
+         calibration_path: str | os.PathLike = "thermal_calibration.json") -> None:
     """Write a result as its command writes it: a calibration file (``simucal.calibration/2``, as
     `simucal calibrate -o`), or the report of `simucal validate`, `diagnose` or `noise` (``-o``); a
     path ending in .html: the page of ``--html`` (a calibration's: a thermal one's, as `calibrate
     --thermal --html`).
 
     A diagnosis also writes each found term's model file beside it (<stem>_<sensor>_model.py).
+    calibration_path: where the calibration file is, for a thermal page's next command.
 
     Examples
     --------
@@ -179,7 +181,7 @@ def save(path: str | os.PathLike, result: Calibration | Validation | Diagnosis |
     if not isinstance(result, (_file.Calibration, Validation, Diagnosis, Noise)):
         raise TypeError(f"save: a Calibration, Validation, Diagnosis or Noise, not {type(result).__name__}")
     if Path(path).suffix.lower() in (".html", ".htm"):
-        return outputs.write_text(path, _page(result))
+        return outputs.write_text(path, _page(result, str(calibration_path)))
     if isinstance(result, _file.Calibration):
         return _file.save(path, result)
     if isinstance(result, Diagnosis):
@@ -188,14 +190,14 @@ def save(path: str | os.PathLike, result: Calibration | Validation | Diagnosis |
     return outputs.write_text(path, json.dumps(result.report, indent=1) + "\n")
 
 
-def _page(result: _file.Calibration | Validation | Diagnosis | Noise) -> str:
+def _page(result: _file.Calibration | Validation | Diagnosis | Noise, calibration_path: str) -> str:
     """The self-contained HTML page of a result (the commands' --html)."""
     if isinstance(result, _file.Calibration):
         if not any(b.thermal is not None for _, b in result.blocks()):
             raise ValueError("a page is a thermal calibration's (calibrate([plateaus...])): save this calibration "
                              "as .json; for one set's page use simucal.diagnose or simucal.validate")
         from simucal.report.thermal_html import thermal_page
-        return thermal_page(result)
+        return thermal_page(result, cal_path=calibration_path)
     if isinstance(result, Validation):
         from simucal.validate import html_page
         return html_page(result.report)

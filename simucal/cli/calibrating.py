@@ -171,7 +171,7 @@ def _calibrate_thermal(data_dirs, output, degree, t_ref_c, kwargs, inputs, html_
     for line in calibration_lines(result):
         click.echo(line)
     if html_out:
-        api.save(html_out, result)
+        api.save(html_out, result, calibration_path=output)
         click.echo(f"wrote {html_out}")
     for line in autopilot.write(exported):
         click.echo(line)

@@ -193,3 +193,16 @@ def next_command(diag: dict) -> tuple[str, list[str]]:
             notes += [why] if why else []
     options = "".join(f" --add {a}" for a in dict.fromkeys(adds))
     return f"simucal calibrate {diag['input']}{options} -o calibration.json", notes
+
+
+def validation_next(report: dict) -> tuple[str, list[str]]:
+    """(the command after `simucal validate`, why): another recording where these are the calibration's
+    own rows, a diagnosis of these data where a sensor is no better than nominal, else apply."""
+    cal, data = report["calibration"], report["data"]
+    if report["note"]:
+        return f"simucal validate {cal} OTHER_RECORDING -o validation.json --html validation.html", [report["note"]]
+    bad = [s for s, v in report["verdict"].items() if not v.startswith(("better", "at the noise floor", "not calibrated"))]
+    if bad:
+        return (f"simucal diagnose {data} -o diagnosis.json --html diagnosis.html",
+                [f"{', '.join(bad)}: the calibration does not hold on these data; the diagnosis shows what its model lacks"])
+    return f"simucal apply {cal} {data} -o calibrated", []

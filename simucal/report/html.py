@@ -7,26 +7,14 @@ effects' test statistics; before/after bars when effects were added.
 """
 from __future__ import annotations
 
-import base64
 import html
-import io as _io
 
-import matplotlib
+import numpy as np
 
-matplotlib.use("Agg")
-import matplotlib.pyplot as plt  # noqa: E402
-import numpy as np  # noqa: E402
-
-from simucal.report.console import next_command  # noqa: E402
+from simucal.report.console import next_command
+from simucal.report.page import folded, page, plt, png
 
 AXES = "xyz"
-
-
-def _png(fig) -> str:
-    buf = _io.BytesIO()
-    fig.savefig(buf, format="png", dpi=90, bbox_inches="tight")
-    plt.close(fig)
-    return f'<img src="data:image/png;base64,{base64.b64encode(buf.getvalue()).decode()}">'
 
 
 def _res(rows, key="normalized"):
@@ -43,7 +31,7 @@ def shape_figure(sensor, shape, unit):
             label=f"{shape['estimate']:.2g} * {shape['regressor']}, less what the model absorbs")
     ax.set(xlabel=shape["regressor"], ylabel=f"residual ({unit})", title=f"{sensor}: the shape of the misfit")
     ax.legend(fontsize=8)
-    return f"<p>{html.escape(shape['text'])}</p>" + _png(fig)
+    return f"<p>{html.escape(shape['text'])}</p>" + png(fig)
 
 
 ROW_KEYS = {"segment", "kind", "outer_rate_dps", "t_s", "direction", "residual", "sigma", "normalized", "from_pose",
@@ -69,20 +57,21 @@ def residual_figures(sensor, block, unit):
         ax.axhspan(-2, 2, color="0.9", zorder=0, label="+-2 sigma")
     ax.set(xlabel="time (s)", ylabel=ylab, title=f"{sensor}: residual against time")
     ax.legend(fontsize=8, ncol=4)
-    figs.append(_png(fig))
+    figs.append(png(fig))
     d = np.array([x["direction"] for x in rows])
     lon, lat = np.arctan2(d[:, 1], d[:, 0]), np.arcsin(np.clip(d[:, 2], -1, 1))
     lim = max(np.max(np.abs(r)), 1e-300)
-    fig, axs = plt.subplots(1, 3, figsize=(13, 3.4), subplot_kw={"projection": "mollweide"})
+    fig, axs = plt.subplots(1, 3, figsize=(13, 3.6), subplot_kw={"projection": "mollweide"})
     for j, ax in enumerate(axs):
         sc = ax.scatter(lon, lat, c=r[:, j], cmap="coolwarm", vmin=-lim, vmax=lim, s=60, edgecolors="k")
-        ax.set_title(f"{sensor} {AXES[j]} residual vs input direction", fontsize=9, pad=12)
-        ax.set_xticks(np.radians([-90, 0, 90]), ["-90", "0", "90 deg"], fontsize=6)  # three labels each: no overlap
-        ax.set_yticks(np.radians([-60, 0, 60]), ["-60", "0", "60 deg"], fontsize=6)
-        ax.tick_params(labelsize=6)
+        ax.set_title(f"{sensor} {AXES[j]} residual vs input direction", pad=12)
+        ax.set_xticks(np.radians([-90, 0, 90]), [])  # the grid only: a label inside the map sits under the markers
+        ax.set_yticks(np.radians([-60, 0, 60]), ["-60", "0", "60 deg"])  # outside the map, at its left edge
+        ax.set_xlabel("longitude from +x, grid every 90 deg")
+        ax.grid(True, lw=0.5, alpha=0.5)
     fig.subplots_adjust(wspace=0.25)
     fig.colorbar(sc, ax=axs, shrink=0.7, label=ylab)
-    figs.append(_png(fig))
+    figs.append(png(fig))
     rate = np.array([x["outer_rate_dps"] for x in rows])
     if sensor == "gyro" and len(set(rate)) > 1:
         fig, ax = plt.subplots(figsize=(6, 3))
@@ -90,7 +79,7 @@ def residual_figures(sensor, block, unit):
             ax.plot(rate, r[:, j], "o", label=AXES[j])
         ax.set(xlabel="outer-axis rate (deg/s)", ylabel=ylab, title="gyro: residual against rate sign and size")
         ax.legend(fontsize=8)
-        figs.append(_png(fig))
+        figs.append(png(fig))
     for name, label in _varying_inputs(rows):  # temperature, a user's column (supply_v, ...)
         x = [row[name] for row in rows]
         fig, ax = plt.subplots(figsize=(6, 3))
@@ -98,7 +87,7 @@ def residual_figures(sensor, block, unit):
             ax.plot(x, r[:, j], "o", label=AXES[j])
         ax.set(xlabel=label, ylabel=ylab, title=f"{sensor}: residual against {label}")
         ax.legend(fontsize=8)
-        figs.append(_png(fig))
+        figs.append(png(fig))
     return figs
 
 
@@ -114,7 +103,7 @@ def candidate_figure(sensor, block, n_tested):
     ax.axvline(thr, color="k", ls="--", lw=1, label=f"significance threshold ({thr:.1f})")
     ax.set(xlabel="likelihood-ratio statistic", title=f"{sensor}: which effect is missing (red: significant)")
     ax.legend(fontsize=8)
-    return _png(fig)
+    return png(fig)
 
 
 def before_after_figure(sensor, block):
@@ -130,7 +119,7 @@ def before_after_figure(sensor, block):
     ax.set_xticks(x, [f"{sensor} {c}" for c in AXES])
     ax.set(ylabel="residual rms", title="residual before and after adding")
     ax.legend(fontsize=8)
-    return _png(fig)
+    return png(fig)
 
 
 def _table(rows, cols):
@@ -160,33 +149,40 @@ def stream_figures(stream):
     ax.set(xlabel="time (s)", ylabel="calibrated |f| (g)", ylim=(0.5, 1.5), title=f"stream: {det['count']} static intervals "
            f"(threshold {det['threshold']:.3g}, window {det['window']} samples, min {det['min_samples']} samples)")
     ax.legend(fontsize=8)
-    figs.append(_png(fig))
+    figs.append(png(fig))
     return figs
 
 
-def _summary(diag: dict) -> list[str]:
-    """The page's head: per sensor the verdict, then the one command to type next."""
-    out = []
-    for s in ("acc", "gyro"):
-        if s not in diag:
-            continue
-        b = diag[s]
-        ok = b["baseline"]["p_value"] is None or b["baseline"]["p_value"] >= diag["alpha"]
-        out.append(f"<p class='{'ok' if ok else 'bad'}'><b>{html.escape(b['verdict'])}</b></p>")
-    cmd, notes = next_command(diag)
-    out.append(f"<p class='next'>Next: <code>{html.escape(cmd)}</code>"
-               + "".join(f"<br>{html.escape(n)}" for n in notes) + "</p>")
+def _verdicts(diag: dict) -> list[tuple[bool, str]]:
+    """Per sensor (ok, its verdict): the diagnosis's own, as the console prints it."""
+    return [(diag[s]["baseline"]["p_value"] is None or diag[s]["baseline"]["p_value"] >= diag["alpha"], diag[s]["verdict"])
+            for s in ("acc", "gyro") if s in diag]
+
+
+CANDIDATE_COLS = ["id", "estimate", "std", "unit", "statistic", "p_value", "delta_aic", "residual_rms_after",
+                  "significant", "note"]
+SHOWN = 8  # candidates shown unfolded (the significant ones always)
+
+
+def candidate_tables(cands) -> list[str]:
+    """The candidates that say something, then folded away: the rest tested (none significant), and those
+    these data have no input for (one line each, their notes alike)."""
+    tested = [c for c in cands if c["separable"]]
+    shown = [c for k, c in enumerate(tested) if k < SHOWN or c.get("significant")]
+    rest = [c for c in tested if c not in shown]
+    blind = [c for c in cands if not c["separable"]]
+    out = [_table(shown, CANDIDATE_COLS)]
+    if rest:
+        out.append(folded(f"{len(rest)} more effects tested, none significant", _table(rest, CANDIDATE_COLS)))
+    if blind:
+        out.append(folded(f"{len(blind)} effects these data cannot test (no input for them)",
+                          _table(blind, ["id", "unit", "meaning", "note"])))
     return out
 
 
 def render(diag: dict) -> str:
     units = {"acc": "g", "gyro": "deg/h"}
-    parts = ["<!doctype html><html><head><meta charset='utf-8'><title>simucal diagnosis</title><style>",
-             "body{font-family:sans-serif;max-width:1250px;margin:auto} table{border-collapse:collapse;font-size:12px}",
-             "td,th{border:1px solid #ccc;padding:2px 6px;white-space:nowrap} td:last-child{white-space:normal}",
-             ".bad{color:#b00} .ok{color:#070} img{max-width:100%} .next{background:#f4f4f4;padding:6px}",
-             "</style></head><body>", f"<h1>Diagnosis of {html.escape(diag['input'])}</h1>"]
-    parts += _summary(diag)
+    parts = []
     if "stream" in diag:
         parts.append("<h2>stream</h2>")
         parts += stream_figures(diag["stream"])
@@ -194,7 +190,7 @@ def render(diag: dict) -> str:
         if s not in diag:
             continue
         b = diag[s]
-        parts.append(f"<h2>{s}: the evidence</h2><p>{html.escape(b['verdict'])}</p>")
+        parts.append(f"<h2>{s}: the evidence</h2>")
         parts += residual_figures(s, b, units[s])
         if b.get("moves_skipped"):  # a stream's gyro: the moves left out, and why
             parts.append(_table(b["moves_skipped"], ["from_pose", "to_pose", "t_s", "reason"]))
@@ -202,12 +198,11 @@ def render(diag: dict) -> str:
             parts.append(shape_figure(s, b["shape"], units[s]))
         tested = [c for c in b["candidates"] if c["separable"]]
         parts.append(candidate_figure(s, b, len(tested)))
-        parts.append(_table(b["candidates"], ["id", "estimate", "std", "unit", "statistic", "p_value", "delta_aic",
-                                              "residual_rms_after", "significant", "note"]))
+        parts += candidate_tables(b["candidates"])
         if "added" in b:
             parts.append(before_after_figure(s, b))
             rows = [{"parameter": k, **v} for k, v in b["added"]["params"].items()]
             parts.append(_table(rows, ["parameter", "before", "std_before", "after", "std_after", "truth",
                                        "error_before", "error_after"]))
-    parts.append("</body></html>")
-    return "\n".join(parts)
+    cmd, notes = next_command(diag)
+    return page("simucal diagnosis", f"Diagnosis of {diag['input']}", _verdicts(diag), cmd, notes, parts)

@@ -11,7 +11,7 @@ import numpy as np
 
 from simucal.fit.thermal import evaluate
 from simucal.io.calibration import FAILS_BELOW, Calibration
-from simucal.report.html import _png, plt
+from simucal.report.page import page, plt, png
 
 
 def _band(th, name, f, dT):
@@ -42,7 +42,7 @@ def _figure(sensor, name, f, unit, th):
     ax.axvspan(lo, hi, color="0.9", zorder=0)
     ax.set(xlabel="temperature (degC)", ylabel=f"{name} ({unit})", title=f"{sensor} {name}: degree {f['degree']}")
     ax.legend(fontsize=7)
-    return _png(fig)
+    return png(fig)
 
 
 def _p(x):
@@ -70,26 +70,47 @@ def verdict_lines(sensor, b, validations=()) -> list[str]:
     return out
 
 
-def thermal_page(cal: Calibration, validations=()) -> str:
-    """The page; validations: `simucal validate` reports of this calibration, shown in the verdicts."""
+def thermal_next(cal: Calibration, cal_path: str, validations=()) -> tuple[str, list[str]]:
+    """(the command after a thermal calibration, why): validate on a set it was not made from, at another
+    temperature; where a validation is given and holds, apply; where a sensor fails, diagnose a plateau."""
+    fails = [s for s, b in cal.blocks() if b.thermal is not None and b.p_value is not None and b.p_value < FAILS_BELOW]
+    if fails:
+        return (f"simucal diagnose {cal.input[0] if isinstance(cal.input, list) else cal.input} -o diagnosis.json "
+                "--html diagnosis.html", [f"{', '.join(fails)}: the one model fails; the diagnosis of a plateau shows "
+                                          "what it lacks"])
+    held = [v for v in validations if all(c["verdict"] in ("better", "at the noise floor")
+                                          for cs in v["checks"].values() for c in cs)]
+    if held:
+        return f"simucal apply {cal_path} {held[0]['data']} -o calibrated", []
+    return (f"simucal validate {cal_path} OTHER_SET -o validation.json --html validation.html",
+            ["OTHER_SET: a recording of the same unit at a temperature between the plateaus, which the fit did not see"]
+            if not validations else ["the validation above does not hold: see its checks"])
+
+
+def _table(b) -> str:
+    """Every parameter with its unit and polynomial (a constant says so, not degree 0)."""
+    rows = "".join(
+        f"<tr><td>{html.escape(n)}</td><td>{html.escape(b.param_units.get(n, ''))}</td>"
+        f"<td>{f['degree'] or 'constant'}</td>"
+        + "".join(f"<td>{c:.4g} &plusmn; {e:.2g}</td>" for c, e in zip(f["coefficients"], f["std"]))
+        + "</tr>" for n, f in b.thermal["parameters"].items())
+    return ("<table><tr><th>parameter</th><th>unit</th><th>degree</th>"
+            "<th colspan=4>c_0 (at T_ref), c_1, ... per degC^k</th></tr>" + rows + "</table>")
+
+
+def thermal_page(cal: Calibration, validations=(), cal_path="thermal_calibration.json") -> str:
+    """The page; validations: `simucal validate` reports of this calibration, shown in the verdicts; cal_path:
+    the file it is saved in (for the next command)."""
     lo, hi = cal.temperature_range_c
-    parts = ["<!doctype html><meta charset=utf-8><title>simucal thermal calibration</title>",
-             f"<h1>Thermal calibration</h1><p>{html.escape(cal.method)}; T_ref {cal.t_ref_c:.4g} degC; "
-             f"calibrated from {lo:.4g} to {hi:.4g} degC (grey; outside it the polynomials are extrapolated and "
-             "apply and validate warn).</p><h2>Verdict</h2><ul>"]
-    parts += [f"<li>{html.escape(line)}</li>" for s, b in cal.blocks() if b.thermal is not None
-              for line in verdict_lines(s, b, validations)]
-    parts.append("</ul>")
+    verdicts = [(not any(w in line for w in ("FAILS", "WORSE", "no better")), line)
+                for s, b in cal.blocks() if b.thermal is not None for line in verdict_lines(s, b, validations)]
+    parts = [f"<p>{html.escape(cal.method)}; T_ref {cal.t_ref_c:.4g} degC; calibrated from {lo:.4g} to {hi:.4g} degC "
+             "(grey; outside it the polynomials are extrapolated and apply and validate warn).</p>"]
     for s, b in cal.blocks():
-        if b.thermal is None:
-            continue
-        th, units = b.thermal, b.param_units
-        parts.append(f"<h2>{s}</h2>")
-        parts += [_figure(s, n, f, units.get(n, ""), th) for n, f in th["parameters"].items() if f["degree"] > 0]
-        rows = "".join(
-            f"<tr><td>{html.escape(n)}</td><td>{html.escape(units.get(n, ''))}</td><td>{f['degree']}</td>"
-            + "".join(f"<td>{c:.4g} &plusmn; {e:.2g}</td>" for c, e in zip(f["coefficients"], f["std"]))
-            + "</tr>" for n, f in th["parameters"].items())
-        parts.append("<table border=1 cellpadding=4><tr><th>parameter</th><th>unit</th><th>degree</th>"
-                     "<th colspan=4>c_0 (at T_ref), c_1, ... per degC^k</th></tr>" + rows + "</table>")
-    return "".join(parts)
+        if b.thermal is not None:
+            parts.append(f"<h2>{s}</h2>")
+            parts += [_figure(s, n, f, b.param_units.get(n, ""), b.thermal)
+                      for n, f in b.thermal["parameters"].items() if f["degree"] > 0]
+            parts.append(_table(b))
+    cmd, notes = thermal_next(cal, cal_path, validations)
+    return page("simucal thermal calibration", "Thermal calibration", verdicts, cmd, notes, parts)

@@ -1,0 +1,133 @@
+"""Issue 40 item 4: every page read at a glance. Each page the commands write (diagnosis of a turntable
+set, with an effect added, and of a stream; validation; thermal; noise), built from the demo's data:
+no text of any figure overlaps another or sits on a marker, nothing shrinks below 8 px in a 1280 px
+window (tests/page_layout.py says why without a browser), every page opens with a verdict per sensor
+and the next command, in one stylesheet; the validation's bars on a log scale with their floor; the
+diagnosis's rows that say nothing folded away; the noise table in one unit system."""
+from __future__ import annotations
+
+import html
+import json
+import re
+
+import matplotlib.pyplot as plt
+import pytest
+from page_layout import figure_problems, figures_checked, html_problems
+
+from simucal import allan, demo
+from simucal.diagnose import diagnose
+from simucal.handheld.simulate import HandheldScenario, write_handheld
+from simucal.io import calibration
+from simucal.report import page as page_module
+from simucal.report.console import validation_next
+from simucal.report.html import render
+from simucal.report.thermal_html import thermal_page
+from simucal.turntable.simulate import SCENARIOS, write
+from simucal.validate import html_page, lines, validate
+
+
+@pytest.fixture(scope="module")
+def pages(tmp_path_factory):
+    """{name: (html, figure problems, figures)} of every kind of page, and "out": their data's folder. The
+    demo's unit over temperature, its noise, its hidden effect on the Table 1 plan, a hand-placed stream."""
+    out = tmp_path_factory.mktemp("pages")
+    demo.thermal(out, 0, lambda _: None)
+    demo.noise(out, 0, lambda _: None)
+    sc = SCENARIOS["paper"]()
+    sc.plan, sc.rate_hz, sc.static_s, sc.acc_effects = "table1", 20.0, 5.0, dict(demo.HIDDEN)
+    write(out / "loop", sc, 0)
+    write_handheld(out / "stream", HandheldScenario(poses=14, rest_s=10.0), 1)
+    thermal_cal = out / "thermal_calibration.json"
+    (out / "validation.json").write_text(json.dumps(validate(out / "thermal_calibration_25.json", out / "thermal_35")))
+    build = {
+        "diagnosis": lambda: render(diagnose(out / "loop")),
+        "diagnosis --add": lambda: render(diagnose(out / "loop", add=tuple(demo.HIDDEN))),
+        "diagnosis of a stream": lambda: render(diagnose(out / "stream")),
+        "validation": lambda: html_page(json.loads((out / "validation.json").read_text())),
+        "thermal": lambda: thermal_page(calibration.load(thermal_cal), [validate(thermal_cal, out / "thermal_35")],
+                                        str(thermal_cal)),
+        "noise": lambda: allan.html_page(json.loads((out / "noise.json").read_text())),
+    }
+    made = {"out": out}
+    for name, f in build.items():
+        with figures_checked() as (problems, figures):
+            made[name] = (f(), problems, figures)
+    return made
+
+
+def test_no_text_overlaps_on_any_page(pages):
+    made = {k: v for k, v in pages.items() if k != "out"}
+    found = [f"{name}: {p}" for name, (page, problems, _) in made.items() for p in problems + html_problems(page)]
+    assert not found, "\n".join(found)
+    assert all(figs for _, _, figs in made.values())  # every page was checked through its figures
+
+
+def test_the_check_finds_what_it_looks_for():
+    """Two labels on one spot, a label on a marker, text too small: each found (the test above can fail)."""
+    fig, ax = plt.subplots(figsize=(4, 3))
+    ax.scatter([0.5], [0.5], s=60)
+    ax.text(0.5, 0.5, "on the marker", transform=ax.transAxes)
+    ax.text(0.1, 0.9, "one label", transform=ax.transAxes)
+    ax.text(0.1, 0.9, "another", transform=ax.transAxes)
+    ax.set_xlabel("tiny", fontsize=4)
+    found = figure_problems(fig, 90)
+    plt.close(fig)
+    assert any("'one label' overlaps 'another'" in p for p in found)
+    assert any("'on the marker' under a marker" in p for p in found)
+    assert any("below 8 px" in p for p in found)
+    assert html_problems("<h1>x</h1><p class='verdict ok'>acc</p><h2>acc</h2>") == [
+        "the page does not open with the verdicts and the next command (before its first section)"]
+
+
+def test_every_page_in_one_stylesheet_opens_with_verdicts_and_next(pages):
+    for name, (page, _, _) in ((k, v) for k, v in pages.items() if k != "out"):
+        head = page.split("<h2", 1)[0]
+        assert page.count(page_module.STYLE) == 1, name
+        sensors = re.findall(r"<p class='verdict (?:ok|bad)'><b>(acc|gyro)", head)
+        assert set(sensors) == {"acc", "gyro"}, (name, sensors)
+        assert re.search(r"<p class='next'>Next: <code>simucal \w+ ", head), name
+
+
+def test_validation_bars_on_a_log_scale_with_the_floor(pages):
+    _, _, (fig,) = pages["validation"]
+    drawn = [ax for ax in fig.axes if ax.get_visible()]
+    assert drawn and all(ax.get_yscale() == "log" for ax in drawn)
+    floors = [t.get_text() for ax in drawn for t in ax.texts if t.get_text().startswith("floor ")]
+    assert len(floors) == len(drawn)  # every check of the demo's set has a floor
+    for ax in drawn:  # the calibrated bar (1e-3 of the nominal one and less) is inside the axis, not below it
+        lo, hi = ax.get_ylim()
+        assert all(lo < p.get_height() < hi for p in ax.patches)
+
+
+def test_validation_console_and_page_say_the_same(pages):
+    page = pages["validation"][0]
+    rep = json.loads((pages["out"] / "validation.json").read_text())
+    cmd = validation_next(rep)[0]
+    assert f"next: {cmd}" in list(lines(rep)) and f"Next: <code>{cmd}</code>" in page
+    for s, v in rep["verdict"].items():
+        assert f"<b>{s}: {v}</b>" in page
+
+
+def test_the_diagnosis_folds_the_rows_that_say_nothing(pages):
+    for name in ("diagnosis", "diagnosis of a stream"):
+        page = pages[name][0]
+        open_part = re.sub(r"<details>.*?</details>", "", page, flags=re.S)
+        assert "no input for it in these data" in page and "no input for it" not in open_part, name
+        rows = open_part.count("<tr>")
+        assert rows < page.count("<tr>") / 2, (name, rows, page.count("<tr>"))
+
+
+def test_the_noise_page_one_unit_system_and_the_consoles_verdicts(pages):
+    page = pages["noise"][0]
+    acc = page.split("<h2>acc</h2>", 1)[1].split("</table>", 1)[0]
+    units = re.findall(r"<th>[^<(]+\(([^)]+\)?)\)</th>", acc)
+    assert len(units) == 5 and all(u.startswith("ug") for u in units), units
+    assert "m/s" not in acc and "not seen (&lt;" in acc
+    assert [f.axes[0].get_ylabel() for f in pages["noise"][2]] == ["Allan deviation (ug)", "Allan deviation (deg/h)"]
+    cells = re.findall(r"<td>([^<]*)</td>", page)  # every term: value +- std, or not seen with its bound
+    assert all(re.fullmatch(r"[xyz]|\S+ &plusmn; \S+|not seen \(&lt; \S+, 95 %\)|record too short.*", c) for c in cells), cells
+    report = json.loads((pages["out"] / "noise.json").read_text())
+    console = list(allan.lines(report))
+    assert len(allan.verdicts(report)) == 2
+    for _, text in allan.verdicts(report):
+        assert text in console and f"<b>{html.escape(text)}</b>" in page
