@@ -405,3 +405,20 @@ def test_review_findings_refused_or_right(plateaus, tmp_path):
     assert code == 2 and "edited by hand" in out
     code, out = _run("validate", root / "cal.json", sets[0], "-o", tmp_path / "v.json")
     assert code == 0 and not json.loads((tmp_path / "v.json").read_text())["independent"]
+
+
+def test_a_linear_bias_through_plateaus_symmetric_about_t_ref_stays(tmp_path):
+    """At 0, 25 and 50 degC the outer plateaus predict the middle one as well without a linear bias
+    term as with it: the term must stay, since the model without it fails its test (a tutorial found it)."""
+    sets = []
+    for T in (0, 25, 50):
+        sets.append(tmp_path / f"p{T}")
+        code, out = _run("simulate", "-o", sets[-1], "--seed", T, "--temperature-c", T,
+                         "--t-ref-c", T_REF, "--effect", "acc.bias_temperature.x=1e-5")
+        assert code == 0, out
+    code, out = _run("calibrate", *sets, "--thermal", "--t-ref-c", T_REF, "-o", tmp_path / "cal.json")
+    assert code == 0, out
+    acc = json.loads((tmp_path / "cal.json").read_text())["acc"]
+    c = acc["thermal"]["parameters"]["b_x"]
+    assert c["degree"] >= 1 and abs(c["coefficients"][1] - 1e-5) < 4 * c["std"][1], c
+    assert acc["p_value"] > 1e-3 and "MODEL FAILS" not in out

@@ -22,7 +22,9 @@ The rows of all plateaus (or of one ramp) are fitted at once with every paramete
    distinct temperatures the degrees need (three plateaus cannot test a quadratic this way: 2 would
    be left) and the model predicts them (their chi^2 within its ALPHA tail over their rows: a ramp in
    the plan's order leaves out a band of positions the rest cannot predict, held-out chi^2 1752 on
-   about 50 rows in one bench seed, where dropping the gyro's true b_x curvature "predicted better").
+   about 50 rows in one bench seed, where dropping the gyro's true b_x curvature "predicted better"),
+   and never where the model without it fails its test and with it passes (as in step 2: at plateaus
+   0, 25 and 50 degC the outer two predict the middle one as well without a linear bias term as with it).
 
 Each group's rows are then tested under the joint model (chi^2 over the group with its share of the
 degrees of freedom: its rows less their leverage on the parameters).
@@ -198,11 +200,14 @@ def _by_prediction(base, obs, groups, model, fit, dropped):
         deg[j] -= 1
         trial = ThermalModel(base, deg)
         without = held_out(base, obs, groups, deg, _start(trial, model, fit))
-        if without is not None and without <= now:
-            dropped.append({"parameter": base.params[j], "degree": d, "by": "groups left out",
-                            "held_out_chi2": [without, now]})
-            model, fit = fit_degrees(base, obs, deg, model, fit)
-            now = without
+        if without is None or without > now:
+            continue
+        trial_model, trial_fit = fit_degrees(base, obs, deg, model, fit)
+        if _fails(trial_fit) and not _fails(fit):  # step 2's rule: the model test needs it, it stays (a slope
+            continue                               # through plateaus symmetric about T_ref predicts the middle one)
+        dropped.append({"parameter": base.params[j], "degree": d, "by": "groups left out",
+                        "held_out_chi2": [without, now]})
+        model, fit, now = trial_model, trial_fit, without
     return model, fit
 
 
