@@ -17,6 +17,7 @@ from simucal import io
 from simucal.calibrate import calibrate as _calibrate_set
 from simucal.calibrate import calibrate_thermal as _calibrate_thermal
 from simucal.api.calibration import Calibration, Parameter
+from simucal.api.lot import lot
 from simucal.api.sets import MeasurementSet
 from simucal.io import calibration as _file
 from simucal.validate import validate as _validate_report
@@ -24,7 +25,7 @@ from simucal.validate import validate as _validate_report
 Data = Union[str, os.PathLike, io.MeasurementSet]
 
 __all__ = ["read_set", "calibrate", "validate", "save", "load", "MeasurementSet", "Calibration", "Parameter",
-           "Validation", "Check"]
+           "Validation", "Check", "lot"]
 
 
 def read_set(path: str | os.PathLike) -> MeasurementSet:
