@@ -83,7 +83,8 @@ def rules(report, plants, n):
     """The outlier and drift rules on this lot: planted found, false alarms, z tails, drift tests."""
     g = report["groups"][0]
     flagged = {u["file"]: u["outliers"] for u in report["units"] if u["outliers"]}
-    names = [f"unit{i:04d}.json" for i in range(n)]
+    # each unit's file in the lot: its second recording where it has one (the last calibration counts)
+    names = [f"unit{i:04d}_b.json" if f"unit{i:04d}_b.json" in g["units"] else f"unit{i:04d}.json" for i in range(n)]
     print(f"\noutlier rule: {g['outlier_rule']}\n")
     print("| planted unit | parameter | offset (spread of units) | z | flagged |")
     print("|---|---|---|---|---|")
@@ -99,10 +100,16 @@ def rules(report, plants, n):
           f"{len(clean) * lot_report.OUTLIER_P:.2g}); their {z.size} |z|: > 2 in {np.mean(np.abs(z) > 2):.2%}, "
           f"> 3 in {np.mean(np.abs(z) > 3):.2%} (a normal's 4.55 %, 0.27 %)")
     print("\n| drift | sensor | chi2 / dof | p | verdict |\n|---|---|---|---|---|")
-    for d in report["drift"]:
+    planted_drift, rest = report["drift"][:1], report["drift"][1:]
+    for d in planted_drift:
         for s, v in d["sensors"].items():
-            print(f"| {d['earlier']} -> {d['later']} | {s} | {v['chi2'] / v['dof']:.3g} | {v['p_value']:.2g} | "
-                  f"{v['verdict']} |")
+            print(f"| {d['earlier']} -> {d['later']} (gyro b_z moved) | {s} | {v['chi2'] / v['dof']:.3g} | "
+                  f"{v['p_value']:.2g} | {v['verdict']} |")
+    for s in ("acc", "gyro"):
+        v = [d["sensors"][s] for d in rest]
+        mean = np.mean([x["chi2"] / x["dof"] for x in v])
+        print(f"| {len(v)} units recorded again, nothing moved | {s} | mean {mean:.3g} | lowest "
+              f"{min(x['p_value'] for x in v):.2g} | {sum(x['verdict'] == 'drifted' for x in v)} drifted |")
     return np.array([r["stds"] for r in g["parameters"]]).T, [r["name"] for r in g["parameters"]]
 
 
