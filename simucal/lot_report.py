@@ -1,8 +1,8 @@
 """`simucal lot CAL_FOLDER`: the units of a production lot side by side, from their calibration files.
 
-Per parameter (every parameter of each block's model, effects included, named `sensor.param`) the
-lot's robust centre (the median) and spread (1.4826 x the median absolute deviation, the std of a
-normal lot), and the spread of the units themselves with the calibrations' own noise taken out:
+Per parameter (every parameter of each block's model, effects included, or an affine block's M and bias;
+named `sensor.param`) the lot's robust centre (the median) and spread (1.4826 x the median absolute
+deviation, the std of a normal lot), and the spread of the units themselves with the calibrations' own noise taken out:
 tau, at which the z below have the median |z| of a normal (`_z`).
 
 Outliers: a unit's parameter is judged in its own std combined with the lot's spread of units,
@@ -65,15 +65,30 @@ def _group_key(cal: Calibration) -> str:
         ", ".join(units)
 
 
-def _parameters(cal: Calibration) -> dict:
-    """{sensor.param: (value, std, unit)} of every block's parameters that carry a std."""
+def _finite(x) -> bool:
+    return isinstance(x, (int, float)) and not isinstance(x, bool) and bool(np.isfinite(x))
+
+
+def block_parameters(b) -> dict:
+    """{param: (value, std, unit)} of a block's parameters that carry a std: its model's, or for an affine
+    block (multiposition, handheld) the entries of M (M_xy: output x per input y) and bias (b_x)."""
+    if b.params:
+        return {n: (float(v), float(b.std[n]), b.param_units.get(n, "")) for n, v in b.params.items()
+                if _finite(b.std.get(n))}
+    M, bias = np.asarray(b.std.get("M", np.nan), float), np.asarray(b.std.get("bias", np.nan), float)
     out = {}
-    for s, b in cal.blocks():
-        for n, v in b.params.items():
-            std = b.std.get(n)
-            if isinstance(std, (int, float)) and std is not None and np.isfinite(std):
-                out[f"{s}.{n}"] = (float(v), float(std), b.param_units.get(n, ""))
+    if M.shape == (3, 3):
+        out.update({f"M_{r}{c}": (float(b.M[i, j]), float(M[i, j]), "1") for i, r in enumerate("xyz")
+                    for j, c in enumerate("xyz") if _finite(float(M[i, j]))})
+    if bias.shape == (3,):
+        out.update({f"b_{a}": (float(b.bias[i]), float(bias[i]), b.bias_unit) for i, a in enumerate("xyz")
+                    if _finite(float(bias[i]))})
     return out
+
+
+def _parameters(cal: Calibration) -> dict:
+    """{sensor.param: (value, std, unit)} of every block (block_parameters)."""
+    return {f"{s}.{n}": v for s, b in cal.blocks() for n, v in block_parameters(b).items()}
 
 
 def _z(x, s, steps: int = 24):
@@ -172,13 +187,13 @@ def _outside(value, std, lim) -> str | None:
     return None
 
 
-def _cov(block, names):
+def _cov(block, params, names):
     """The covariance of the named parameters: the file's (unscaled by a misfit), else their stds squared."""
     cov = block.details.get("covariance")
     if cov and all(n in cov["names"] for n in names):
         i = [cov["names"].index(n) for n in names]
         return np.asarray(cov["matrix"], float)[np.ix_(i, i)]
-    return np.diag([float(block.std[n]) ** 2 for n in names])
+    return np.diag([params[n][1] ** 2 for n in names])
 
 
 def drift(name1, cal1: Calibration, name2, cal2: Calibration) -> dict:
@@ -186,13 +201,14 @@ def drift(name1, cal1: Calibration, name2, cal2: Calibration) -> dict:
     sensors, rows = {}, []
     for s, b2 in cal2.blocks():
         b1 = getattr(cal1, s)
-        names = [n for n in b2.params if b1 is not None and n in b1.params and n in b1.std and n in b2.std]
+        p1, p2 = (block_parameters(b1) if b1 is not None else {}), block_parameters(b2)
+        names = [n for n in p2 if n in p1]
         if not names:
             continue
-        d = np.array([b2.params[n] - b1.params[n] for n in names])
-        C = _cov(b1, names) + _cov(b2, names)
+        d = np.array([p2[n][0] - p1[n][0] for n in names])
+        C = _cov(b1, p1, names) + _cov(b2, p2, names)
         std = np.sqrt(np.diag(C))
-        rows += [{"name": f"{s}.{n}", "unit": b2.param_units.get(n, ""), "drift": float(d[j]), "std": float(std[j]),
+        rows += [{"name": f"{s}.{n}", "unit": p2[n][2], "drift": float(d[j]), "std": float(std[j]),
                   "z": float(d[j] / std[j])} for j, n in enumerate(names)]
         chi2 = float(d @ np.linalg.lstsq(C, d, rcond=None)[0])
         p = chi2_sf(chi2, len(names))
@@ -258,6 +274,8 @@ def verdict_lines(report) -> list[str]:
            + (f" ({len(report['groups'])} groups of method and model, each its own distribution)"
               if len(report["groups"]) > 1 else "")]
     out += [f"{u['file']} {u['status'].upper()}: " + "; ".join(u["why"]) for u in by["fails"] + by["flagged"]]
+    out += [f"no outlier test for {g['key']}: {g['outlier_rule']}" for g in report["groups"]
+            if g["z_threshold"] is None]
     if report["superseded"]:
         out.append("calibrated again, so left out of the distributions: " + ", ".join(report["superseded"]))
     out += [f"not a calibration: {o['file']} ({o['why']})" for o in report["not_calibrations"]]

@@ -25,6 +25,7 @@ def lot(tmp_path_factory):
     r = run("calibrate", *sets, "-o", cals)
     assert r.exit_code == 0, r.output
     assert run("calibrate", sets[-1], "--method", "linear", "-o", cals / "zz_linear.json").exit_code == 0
+    assert run("calibrate", sets[-2], "--method", "multiposition", "-o", cals / "zz_mp.json").exit_code == 0
     (cals / "notes.txt").write_text("the operator's notes\n")
     limits = root / "limits.json"
     limits.write_text(json.dumps({"format": "simucal.limits/1",
@@ -41,7 +42,7 @@ def test_the_lot_report_finds_what_was_planted(lot):
     assert units[bad]["status"] == "fails" and any("acc.b_x" in w and "above its max" in w for w in units[bad]["why"])
     assert [o["name"] for o in units[bad]["outliers"]] == ["acc.b_x"]
     # the other units of the lot: none flagged (the rule's chance 1e-3 each), every model test passes
-    others = [u for u in report["units"] if u["file"] not in (bad, "zz_linear.json")]
+    others = [u for u in report["units"] if u["file"] not in (bad, "zz_linear.json", "zz_mp.json")]
     assert others and all(not u["outliers"] and not u["outside_limits"] for u in others)
     drift = {d["later"]: d for d in report["drift"]}
     assert set(drift) == {"unit0000_b.json", "unit0001_b.json"}  # the linear one is another group: no drift
@@ -50,11 +51,13 @@ def test_the_lot_report_finds_what_was_planted(lot):
     assert abs(z["gyro.b_z"]) > 5 and max(abs(v) for k, v in z.items() if k != "gyro.b_z") < 4
     assert all(v["verdict"] == "no drift seen" for v in drift["unit0001_b.json"]["sensors"].values())
     assert units["unit0000_b.json"]["status"] == "flagged" and "unit0000.json" in report["superseded"]
-    assert [g["units"] for g in report["groups"]][1] == ["zz_linear.json"]
+    assert [g["units"] for g in report["groups"]][1:] == [["zz_linear.json"], ["zz_mp.json"]]
     assert report["groups"][1]["outlier_rule"].startswith("not tested: 1 units")
+    mp = {p["name"]: p for p in report["groups"][2]["parameters"]}  # an affine block: M's entries and the bias
+    assert len(mp) == 24 and mp["acc.M_xx"]["stds"][0] > 0 and mp["gyro.b_z"]["unit"] == "deg/h"
     assert [o["file"] for o in report["not_calibrations"]] == ["notes.txt"]
     assert out.splitlines()[0] == report["verdict"][0]
-    assert re.match(rf"{N - 1} of {N + 1} units pass, 1 fail, 1 flagged \(2 groups", report["verdict"][0])
+    assert re.match(rf"{N} of {N + 2} units pass, 1 fail, 1 flagged \(3 groups", report["verdict"][0])
     assert "notes.txt" in out and f"next: {report['next']}" in out
 
 
@@ -63,7 +66,7 @@ def test_the_page_opens_with_the_verdict_and_the_next_command(lot):
     page = (root / "lot.html").read_text()
     first = page.index("<h2>Verdict</h2>")
     assert page.index("<img") > page.index("Next: <code>") > first and report["verdict"][0] in page[first:first + 300]
-    assert page.count("<img") == 4  # acc and gyro of each group (the exact and the linear method)
+    assert page.count("<img") == 6  # acc and gyro of each group (the exact, linear and multi-position methods)
 
 
 def test_the_python_api_gives_the_report(lot):
