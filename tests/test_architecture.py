@@ -20,7 +20,8 @@ LAYERS = [
     {"simucal.turntable", "simucal.handheld", "simucal.field"},
     {"simucal.methods"},
     {"simucal.report"},
-    {"simucal.calibrate", "simucal.diagnose", "simucal.validate", "simucal.allan", "simucal.bench", "simucal.derive_cmd"},
+    {"simucal.calibrate", "simucal.diagnose", "simucal.validate", "simucal.allan", "simucal.bench", "simucal.derive_cmd",
+     "simucal.lot_report"},
     {"simucal.demo", "simucal.api"},
     {"simucal.cli"},
     {"simucal.__main__"},  # python -m simucal

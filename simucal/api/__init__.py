@@ -25,6 +25,7 @@ from simucal.api.tables import table
 from simucal.calibrate import calibrate as _calibrate_set
 from simucal.calibrate import calibrate_thermal as _calibrate_thermal
 from simucal.api.calibration import Calibration, Parameter
+from simucal.api.lot import lot
 from simucal.api.sets import MeasurementSet
 from simucal.io import calibration as _file
 from simucal.validate import validate as _validate_report
@@ -32,7 +33,8 @@ from simucal.validate import validate as _validate_report
 Data = Union[str, os.PathLike, io.MeasurementSet]
 
 __all__ = ["read_set", "simulate", "calibrate", "validate", "diagnose", "noise", "save", "load", "table_rows",
-           "MeasurementSet", "Calibration", "Parameter", "Validation", "Check", "Diagnosis", "Candidate", "Noise", "Term"]
+           "MeasurementSet", "Calibration", "Parameter", "Validation", "Check", "Diagnosis", "Candidate", "Noise", "Term",
+           "lot"]
 
 
 def read_set(path: str | os.PathLike) -> MeasurementSet:

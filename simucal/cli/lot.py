@@ -1,0 +1,43 @@
+"""The lot command: the calibrations of many units side by side (simucal/lot_report.py)."""
+from __future__ import annotations
+
+import click
+
+from simucal.cli.common import InputPath, fail, guard, main
+
+
+@main.command()
+@click.argument("cal_folder", type=InputPath(exists=True, file_okay=False))
+@click.option("-o", "--output", type=click.Path(dir_okay=False), default="lot.json", show_default=True,
+              help="The lot report: each parameter's distribution, outliers, limits, model tests, drift.")
+@click.option("--html", "html_path", type=click.Path(dir_okay=False), default=None,
+              help="Also write a page opening with the lot's verdict, then each parameter's spread over the units.")
+@click.option("--limits", "limits_path", type=InputPath(exists=True, dir_okay=False), default=None,
+              help="A limits.json of spec limits per parameter ({\"format\": \"simucal.limits/1\", \"limits\": "
+                   "{\"acc.b_x\": {\"min\": -0.005, \"max\": 0.005, \"unit\": \"g\"}}}, each in the unit the "
+                   "calibrations give; default: none).")
+def lot(cal_folder, output, html_path, limits_path):
+    """A lot of units from their calibration files (calibrate DIR1 DIR2 ... -o CAL_FOLDER): which pass, which fail
+    and why (model test, spec limits), outliers, each parameter's spread, drift between calibrations of one unit."""
+    import json
+
+    from simucal.errors import CalibrationError
+    from simucal.io import outputs
+    from simucal.lot_report import lot as run
+    guard([cal_folder] + ([limits_path] if limits_path else []), files={"-o": output, "--html": html_path})
+    try:
+        report = run(cal_folder, limits_path)
+    except (CalibrationError, OSError) as e:
+        fail(e)
+    outputs.write_text(output, json.dumps(report, indent=1) + "\n")
+    if html_path:
+        from simucal.report.lot_html import lot_page
+        outputs.write_text(html_path, lot_page(report))
+    for line in report["verdict"]:
+        click.echo(line)
+    for d in report["drift"]:
+        click.echo(f"{d['serial']}: {d['earlier']} -> {d['later']}: " + ", ".join(
+            f"{s} {v['verdict']} (chi2 {v['chi2']:.3g} on {v['dof']}, p = {v['p_value']:.2g})"
+            for s, v in d["sensors"].items()))
+    click.echo(f"next: {report['next']}")
+    click.echo(f"wrote {output}" + (f" and {html_path}" if html_path else ""))

@@ -1,0 +1,307 @@
+"""`simucal lot CAL_FOLDER`: the units of a production lot side by side, from their calibration files.
+
+Per parameter (every parameter of each block's model, effects included, or an affine block's M and bias;
+named `sensor.param`) the lot's robust centre (the median) and spread (1.4826 x the median absolute
+deviation, the std of a normal lot), and the spread of the units themselves with the calibrations' own noise taken out:
+tau, at which the z below have the median |z| of a normal (`_z`).
+
+Outliers: a unit's parameter is judged in its own std combined with the lot's spread of units,
+z = (x - median) / sqrt(tau^2 + std^2); a unit is flagged where any of its K parameters has |z| above
+the threshold at which a unit of a normal lot would be flagged with chance OUTLIER_P (`threshold`:
+simulated lots with this lot's units, stds and spreads; a median and MAD of few units scatter, so the
+threshold rises as the lot shrinks; benchmarks/bench_lot.py measures the rate and the power).
+Spec limits (limits.json, `read_limits`), each block's model test, and the drift between two
+calibrations of one `unit_serial` by one method and model (later minus earlier in file-name order,
+its std from both covariances: d^T (C_1 + C_2)^-1 d is chi^2 on the parameters' count where nothing
+drifted). Units are grouped by method, model (with its effects), thermal or not, and units of the
+data: each group's distribution is its own (a lot of mixed files is grouped, never refused); a unit
+calibrated more than once enters it with its last calibration.
+"""
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import numpy as np
+
+from simucal.errors import CalibrationError
+from simucal.fit.distributions import chi2_isf, chi2_sf
+from simucal.io.calibration import FAILS_BELOW, Calibration, load
+from simucal.io.calibration_checks import SERIAL, CalibrationFileError
+from simucal.io.text_files import unique_keys
+
+FORMAT = "simucal.lot/1"
+LIMITS_FORMAT = "simucal.limits/1"
+OUTLIER_P = 1e-3   # the chance that a unit of a normal lot is flagged at all (over its K parameters)
+MAD_TO_STD = 1.4826  # the median absolute deviation of a normal sample, times this, is its std
+MIN_UNITS = 20     # fewer units: no outlier test (said in the report): a median and MAD of 6 scatter too much
+SIMULATED_UNITS = 50_000  # units of normal lots simulated for the threshold: its 1e-3 tail holds 50
+DRIFT_P = 1e-3     # a drift whose joint chi^2 has a smaller p is reported as drifted (the model test's level)
+
+
+def read_folder(folder) -> tuple[list[tuple[str, Calibration]], list[dict]]:
+    """The calibrations of a folder, by file name, and every other file in it named with why."""
+    folder = Path(folder)
+    cals, others = [], []
+    for p in sorted(folder.iterdir()):
+        if p.is_dir():
+            others.append({"file": p.name, "why": "a folder, not a calibration file"})
+            continue
+        try:
+            cals.append((p.name, load(p)))
+        except CalibrationFileError as e:
+            others.append({"file": p.name, "why": str(e)})
+    if not cals:
+        raise CalibrationError(f"{folder}: holds no calibration file ({len(others)} other files); calibrate the lot "
+                               "first: simucal calibrate DIR1 DIR2 ... -o FOLDER")
+    return cals, others
+
+
+def _group_key(cal: Calibration) -> str:
+    units = [f"{s} {cal.layout.get(s + '_unit')}" for s in cal.sensors]
+    models = [b.model + "".join(f" + {e}" for e in sorted(b.effects)) + (" (thermal)" if b.thermal else "")
+              for _, b in cal.blocks()]
+    return f"{cal.method}: " + ", ".join(f"{s} {m}" for (s, _), m in zip(cal.blocks(), models)) + "; " + \
+        ", ".join(units)
+
+
+def _finite(x) -> bool:
+    return isinstance(x, (int, float)) and not isinstance(x, bool) and bool(np.isfinite(x))
+
+
+def block_parameters(b) -> dict:
+    """{param: (value, std, unit)} of a block's parameters that carry a std: its model's, or for an affine
+    block (multiposition, handheld) the entries of M (M_xy: output x per input y) and bias (b_x)."""
+    if b.params:
+        return {n: (float(v), float(b.std[n]), b.param_units.get(n, "")) for n, v in b.params.items()
+                if _finite(b.std.get(n))}
+    M, bias = np.asarray(b.std.get("M", np.nan), float), np.asarray(b.std.get("bias", np.nan), float)
+    out = {}
+    if M.shape == (3, 3):
+        out.update({f"M_{r}{c}": (float(b.M[i, j]), float(M[i, j]), "1") for i, r in enumerate("xyz")
+                    for j, c in enumerate("xyz") if _finite(float(M[i, j]))})
+    if bias.shape == (3,):
+        out.update({f"b_{a}": (float(b.bias[i]), float(bias[i]), b.bias_unit) for i, a in enumerate("xyz")
+                    if _finite(float(bias[i]))})
+    return out
+
+
+def _parameters(cal: Calibration) -> dict:
+    """{sensor.param: (value, std, unit)} of every block (block_parameters)."""
+    return {f"{s}.{n}": v for s, b in cal.blocks() for n, v in block_parameters(b).items()}
+
+
+def _z(x, s, steps: int = 24):
+    """z of each unit (axis -2) for each parameter (axis -1) of one lot or a stack of lots, the median,
+    the spread and tau: the spread of units at which the z's median |z| is a normal's (0.6745), found
+    by bisection (0 where the stds alone explain the scatter). Consistent where the units' stds differ,
+    as max(spread^2 - median(std^2), 0) is not (a lot with stds 0.05 to 2 times tau: 9 % flagged at a
+    chance of 5 %)."""
+    centre = np.median(x, axis=-2, keepdims=True)
+    dev = np.abs(x - centre)
+    spread = MAD_TO_STD * np.median(dev, axis=-2, keepdims=True)
+    lo, hi = np.zeros_like(spread), MAD_TO_STD * dev.max(axis=-2, keepdims=True) + 1e-300
+    for _ in range(steps):  # the median |z| falls as tau grows
+        mid = 0.5 * (lo + hi)
+        wide = np.median(dev / np.sqrt(mid ** 2 + s ** 2), axis=-2, keepdims=True) > 1 / MAD_TO_STD
+        lo, hi = np.where(wide, mid, lo), np.where(wide, hi, mid)
+    tau = np.where(np.median(dev / s, axis=-2, keepdims=True) > 1 / MAD_TO_STD, 0.5 * (lo + hi), 0.0)
+    return (x - centre) / np.sqrt(tau ** 2 + s ** 2), centre, spread, tau
+
+
+def threshold(tau, s, p=OUTLIER_P, units=SIMULATED_UNITS, seed=0) -> float:
+    """The |z| a unit of a normal lot exceeds in any of its parameters with chance p: the 1 - p quantile
+    of each unit's largest |z| over `units` simulated units in lots like this one (its units' stds s
+    (n, k), its spreads of units tau (k,)); a median and MAD from few units scatter, so it is above
+    the normal's (4.03 for 18 parameters) the fewer units there are. Seeded: one lot, one threshold."""
+    n, k = s.shape
+    rng = np.random.default_rng(seed)
+    lots = -(-units // n)
+    x = tau * rng.standard_normal((lots, n, k)) + s * rng.standard_normal((lots, n, k))
+    z = _z(x, np.broadcast_to(s, x.shape))[0]
+    return float(np.quantile(np.abs(z).max(axis=-1), 1.0 - p))
+
+
+def _group(names, cals) -> dict:
+    """One group's parameters (those every unit's file gives with a std): each one's distribution over
+    the units and its outliers, by the rule of the module doc."""
+    per_unit = [_parameters(c) for c in cals]
+    params = sorted(set.intersection(*(set(d) for d in per_unit)))
+    x = np.array([[d[p][0] for p in params] for d in per_unit]).reshape(len(cals), len(params))
+    s = np.array([[d[p][1] for p in params] for d in per_unit]).reshape(x.shape)
+    z, centre, spread, tau = _z(x, s)
+    tested = len(cals) >= MIN_UNITS and params
+    z_max = threshold(tau[0], s) if tested else None
+    rows = [{"name": p, "unit": per_unit[0][p][2], "centre": float(centre[0, j]), "spread": float(spread[0, j]),
+             "spread_of_units": float(tau[0, j]), "median_std": float(np.median(s[:, j])),
+             "values": x[:, j].tolist(), "stds": s[:, j].tolist(), "z": z[:, j].tolist(),
+             "outliers": [{"unit": names[i], "value": float(x[i, j]), "std": float(s[i, j]), "z": float(z[i, j])}
+                          for i in range(len(cals)) if tested and abs(z[i, j]) > z_max]}
+            for j, p in enumerate(params)]
+    rule = (f"|z| > {z_max:.3g} in any of {len(params)} parameters, z = (x - median) / sqrt(tau^2 + std^2): a unit "
+            f"of a normal lot is flagged with a chance of {OUTLIER_P:g}" if tested else
+            f"not tested: {len(cals)} units, fewer than {MIN_UNITS}")
+    left = sorted(set().union(*per_unit) - set(params))
+    return {"units": list(names), "parameters": rows, "outlier_rule": rule, "z_threshold": z_max,
+            **({"not_compared": left} if left else {})}
+
+
+def read_limits(path, known: dict) -> dict:
+    """limits.json: {"format": "simucal.limits/1", "limits": {"acc.b_x": {"min": -0.005, "max": 0.005,
+    "unit": "g"}, ...}}, min or max or both, in the unit the calibrations give that parameter (known:
+    {name: unit} of the lot). Anything else is refused in one line naming the file and the entry."""
+    def bad(where, why):
+        return CalibrationError(f"{path}: {where}: {why} (the format: {{\"format\": \"{LIMITS_FORMAT}\", \"limits\": "
+                                "{\"acc.b_x\": {\"min\": -0.005, \"max\": 0.005, \"unit\": \"g\"}}})")
+    try:
+        d = json.loads(Path(path).read_text(), object_pairs_hook=unique_keys)
+    except (OSError, UnicodeDecodeError, ValueError, RecursionError) as e:
+        raise CalibrationError(f"{path}: not a readable limits file ({str(e)[:120]})") from None
+    if not isinstance(d, dict) or d.get("format") != LIMITS_FORMAT or not isinstance(d.get("limits"), dict):
+        raise bad("top level", f"expected an object with format {LIMITS_FORMAT!r} and an object 'limits'")
+    out = {}
+    for name, lim in d["limits"].items():
+        where = f"limits.{name}"
+        if name not in known:
+            raise bad(where, "no calibration of the lot has this parameter; it has " + ", ".join(sorted(known)[:40]))
+        if not isinstance(lim, dict) or set(lim) - {"min", "max", "unit"} or not ({"min", "max"} & set(lim)):
+            raise bad(where, "expected an object with min, max or both, and unit")
+        if lim.get("unit") != known[name]:
+            raise bad(where, f"unit {lim.get('unit')!r}: the calibrations give {name} in {known[name]!r}; "
+                             "state that unit")
+        for k in ("min", "max"):
+            v = lim.get(k)
+            if k in lim and (isinstance(v, bool) or not isinstance(v, (int, float)) or not np.isfinite(v)):
+                raise bad(f"{where}.{k}", f"{v!r} is not a finite number")
+        if "min" in lim and "max" in lim and lim["min"] > lim["max"]:
+            raise bad(where, f"min {lim['min']} is above max {lim['max']}")
+        out[name] = {k: float(lim[k]) for k in ("min", "max") if k in lim} | {"unit": known[name]}
+    return out
+
+
+def _outside(value, std, lim) -> str | None:
+    """Why a value breaks its limits (with its distance in its own std), or None."""
+    for k, sign, word in (("min", -1, "below"), ("max", 1, "above")):
+        if k in lim and sign * (value - lim[k]) > 0:
+            return f"{value:.4g} {word} its {k} {lim[k]:.4g} {lim['unit']} ({abs(value - lim[k]) / std:.2g} std)"
+    return None
+
+
+def _cov(block, params, names):
+    """The covariance of the named parameters: the file's (unscaled by a misfit), else their stds squared."""
+    cov = block.details.get("covariance")
+    if cov and all(n in cov["names"] for n in names):
+        i = [cov["names"].index(n) for n in names]
+        return np.asarray(cov["matrix"], float)[np.ix_(i, i)]
+    return np.diag([params[n][1] ** 2 for n in names])
+
+
+def drift(name1, cal1: Calibration, name2, cal2: Calibration) -> dict:
+    """cal2 - cal1 per parameter with its std from both, and per sensor the joint chi^2 of no drift."""
+    sensors, rows = {}, []
+    for s, b2 in cal2.blocks():
+        b1 = getattr(cal1, s)
+        p1, p2 = (block_parameters(b1) if b1 is not None else {}), block_parameters(b2)
+        names = [n for n in p2 if n in p1]
+        if not names:
+            continue
+        d = np.array([p2[n][0] - p1[n][0] for n in names])
+        C = _cov(b1, p1, names) + _cov(b2, p2, names)
+        std = np.sqrt(np.diag(C))
+        rows += [{"name": f"{s}.{n}", "unit": p2[n][2], "drift": float(d[j]), "std": float(std[j]),
+                  "z": float(d[j] / std[j])} for j, n in enumerate(names)]
+        chi2 = float(d @ np.linalg.lstsq(C, d, rcond=None)[0])
+        p = chi2_sf(chi2, len(names))
+        sensors[s] = {"chi2": chi2, "dof": len(names), "p_value": p,
+                      "verdict": "drifted" if p < DRIFT_P else "no drift seen"}
+    serial = cal2.layout.get(SERIAL)
+    return {"serial": serial, "earlier": name1, "later": name2, "sensors": sensors, "parameters": rows}
+
+
+def _by_serial(cals):
+    """The calibration each unit enters the lot with (its last by file name), the earlier ones, and the
+    drift between each unit's consecutive calibrations."""
+    last, earlier, drifts = {}, [], []
+    for i, (name, cal) in enumerate(cals):
+        serial = cal.layout.get(SERIAL)  # one unit in one group: another method's calibration is no drift
+        key = (_group_key(cal), serial) if serial is not None else ("file", i)
+        if key in last:
+            drifts.append(drift(*last[key], name, cal))
+            earlier.append(last[key][0])
+        last[key] = (name, cal)
+    return sorted(last.values(), key=lambda nc: nc[0]), earlier, drifts
+
+
+def _drifted(d) -> list[str]:
+    return [s for s, v in d["sensors"].items() if v["verdict"] == "drifted"]
+
+
+def _unit(name, cal, group, limits, outliers, drifted) -> dict:
+    """One unit: its model tests, limits broken, outliers, and its status with the reasons."""
+    tests = {s: {"verdict": b.verdict, "p_value": b.p_value} for s, b in cal.blocks()}
+    fails = [f"{s} model test fails (p = {t['p_value']:.2g})" for s, t in tests.items() if t["verdict"] == "fails"]
+    fails += [f"{s} not calibrated ({why})" for s, why in cal.not_calibrated.items()]
+    fails += [f"{s} left at nominal" for s, t in tests.items() if t["verdict"] == "nominal"]
+    params = _parameters(cal)
+    broken = {n: _outside(params[n][0], params[n][1], lim) for n, lim in limits.items() if n in params}
+    fails += [f"{n} {why}" for n, why in broken.items() if why]
+    flags = [f"outlier: {o['name']} z = {o['z']:.3g}" for o in outliers]
+    flags += [f"drifted since {d['earlier']} ({', '.join(_drifted(d))} p = "
+              f"{min(v['p_value'] for v in d['sensors'].values()):.2g})" for d in drifted]
+    status = "fails" if fails else "flagged" if flags else "passes"
+    return {"file": name, "serial": cal.layout.get(SERIAL), "input": cal.input, "group": group, "tests": tests,
+            "outside_limits": {n: w for n, w in broken.items() if w}, "outliers": outliers, "status": status,
+            "why": fails + flags}
+
+
+def _next(units, folder) -> str:
+    """The command to run next: diagnose the first unit whose model fails, else validate the first unit
+    failed or flagged on another recording of it, else apply."""
+    for u in units:
+        if any(t["verdict"] == "fails" for t in u["tests"].values()):
+            return f"simucal diagnose {u['input']} -o diagnosis.json --html diagnosis.html"
+    for u in units:
+        if u["status"] != "passes":
+            return f"simucal validate {Path(folder) / u['file']} OTHER_RECORDING_OF_THE_UNIT -o v.json --html v.html"
+    return f"simucal apply {Path(folder) / units[0]['file']} DATA_OF_THAT_UNIT -o OUT (each unit its own file)"
+
+
+def verdict_lines(report) -> list[str]:
+    """The lot's verdict in words: how many pass, which fail and why, which are flagged."""
+    units = report["units"]
+    by = {s: [u for u in units if u["status"] == s] for s in ("passes", "fails", "flagged")}
+    out = [f"{len(by['passes'])} of {len(units)} units pass, {len(by['fails'])} fail, {len(by['flagged'])} flagged"
+           + (f" ({len(report['groups'])} groups of method and model, each its own distribution)"
+              if len(report["groups"]) > 1 else "")]
+    out += [f"{u['file']} {u['status'].upper()}: " + "; ".join(u["why"]) for u in by["fails"] + by["flagged"]]
+    out += [f"no outlier test for {g['key']}: {g['outlier_rule']}" for g in report["groups"]
+            if g["z_threshold"] is None]
+    if report["superseded"]:
+        out.append("calibrated again, so left out of the distributions: " + ", ".join(report["superseded"]))
+    out += [f"not a calibration: {o['file']} ({o['why']})" for o in report["not_calibrations"]]
+    return out
+
+
+def lot(folder, limits_path=None) -> dict:
+    """The lot report of the calibrations in folder (module doc); limits_path: a limits.json."""
+    cals, others = read_folder(folder)
+    latest, earlier, drifts = _by_serial(cals)
+    keys = [_group_key(c) for _, c in latest]
+    groups = [{"key": k, **_group([n for (n, _), kk in zip(latest, keys) if kk == k],
+                                  [c for (_, c), kk in zip(latest, keys) if kk == k])} for k in dict.fromkeys(keys)]
+    known = {p["name"]: p["unit"] for g in groups for p in g["parameters"]}
+    limits = read_limits(limits_path, known) if limits_path else {}
+    outliers = {}
+    for g in groups:
+        for p in g["parameters"]:
+            for o in p["outliers"]:
+                outliers.setdefault(o["unit"], []).append({"name": p["name"], "z": o["z"]})
+    units = [_unit(n, c, k, limits, outliers.get(n, []),
+                   [d for d in drifts if d["later"] == n and _drifted(d)])
+             for (n, c), k in zip(latest, keys)]
+    report = {"format": FORMAT, "folder": str(folder), "units": units, "groups": groups, "limits": limits,
+              "drift": drifts, "superseded": earlier, "not_calibrations": others, "outlier_p": OUTLIER_P,
+              "drift_p": DRIFT_P}
+    report["verdict"] = verdict_lines(report)
+    report["next"] = _next(units, folder)
+    return report

@@ -1,0 +1,79 @@
+"""The page of a lot (`simucal lot --html`): first the lot's verdict (how many units pass, which fail and
+why, which are flagged) and the next command, then per group and sensor each parameter over the units
+(each unit's value with its std, the lot's median, the band the outlier rule allows, the spec limits),
+the table of every parameter's distribution, the units and the drifts. Reads the report (simucal/lot_report.py)."""
+from __future__ import annotations
+
+import html
+
+import numpy as np
+
+from simucal.report.html import _png, plt
+
+
+def _figure(group, sensor, limits) -> str:
+    rows = [p for p in group["parameters"] if p["name"].startswith(sensor + ".")]
+    cols = 3
+    fig, axes = plt.subplots(-(-len(rows) // cols), cols, figsize=(11, 2.4 * -(-len(rows) // cols)), squeeze=False)
+    for ax, p in zip(axes.flat, rows):
+        x, s = np.asarray(p["values"]), np.asarray(p["stds"])
+        i = np.arange(len(x))
+        out = np.isin(group["units"], [o["unit"] for o in p["outliers"]])
+        ax.errorbar(i[~out], x[~out], yerr=s[~out], fmt="o", ms=2.5, lw=0.8, label="unit +- std")
+        if out.any():
+            ax.errorbar(i[out], x[out], yerr=s[out], fmt="o", ms=4, color="red", label="outlier")
+        ax.axhline(p["centre"], color="k", lw=0.8)
+        if group["z_threshold"] is not None:
+            half = group["z_threshold"] * np.sqrt(p["spread_of_units"] ** 2 + p["median_std"] ** 2)
+            ax.axhspan(p["centre"] - half, p["centre"] + half, color="0.9", zorder=0, label="outlier rule")
+        for k, v in limits.get(p["name"], {}).items():
+            if k in ("min", "max"):
+                ax.axhline(v, color="orange", ls="--", lw=1, label=f"spec {k}")
+        ax.set_title(f"{p['name']} ({p['unit']})", fontsize=8)
+        ax.tick_params(labelsize=7)
+    for ax in list(axes.flat)[len(rows):]:
+        ax.set_visible(False)
+    axes.flat[0].legend(fontsize=6)
+    fig.supxlabel("unit (file-name order)", fontsize=8)
+    fig.subplots_adjust(hspace=0.5, wspace=0.35)  # not tight_layout: it draws the figure twice
+    return _png(fig)
+
+
+def _table(head, rows) -> str:
+    return ("<table border=1 cellpadding=3><tr>" + "".join(f"<th>{h}</th>" for h in head) + "</tr>"
+            + "".join("<tr>" + "".join(f"<td>{html.escape(str(c))}</td>" for c in r) + "</tr>" for r in rows)
+            + "</table>")
+
+
+def _largest(drift, sensor) -> str:
+    r = max((r for r in drift["parameters"] if r["name"].startswith(sensor + ".")), key=lambda r: abs(r["z"]))
+    return f"{abs(r['z']):.3g} ({r['name']})"
+
+
+def lot_page(report: dict) -> str:
+    """The page (module doc) of a report of simucal.lot_report.lot."""
+    e = html.escape
+    parts = ["<!doctype html><meta charset=utf-8><title>simucal lot</title>",
+             f"<h1>Lot {e(report['folder'])}</h1><h2>Verdict</h2><ul>"]
+    parts += [f"<li>{e(line)}</li>" for line in report["verdict"]]
+    parts.append(f"</ul><p>Next: <code>{e(report['next'])}</code></p>")
+    for g in report["groups"]:
+        parts.append(f"<h2>{e(g['key'])}: {len(g['units'])} units</h2><p>Outliers: {e(g['outlier_rule'])}.</p>")
+        for sensor in dict.fromkeys(p["name"].split(".")[0] for p in g["parameters"]):
+            parts.append(f"<h3>{sensor}</h3>" + _figure(g, sensor, report["limits"]))
+        parts.append(_table(
+            ["parameter", "unit", "median", "spread (1.4826 MAD)", "spread of units", "median std", "outliers"],
+            [[p["name"], p["unit"], f"{p['centre']:.6g}", f"{p['spread']:.3g}", f"{p['spread_of_units']:.3g}",
+              f"{p['median_std']:.3g}", ", ".join(f"{o['unit']} (z {o['z']:.3g})" for o in p["outliers"])]
+             for p in g["parameters"]]))
+    parts.append("<h2>Units</h2>" + _table(
+        ["file", "serial", "status", "model tests", "why"],
+        [[u["file"], u["serial"] or "-", u["status"],
+          ", ".join(f"{s} {t['verdict']}" + (f" (p {t['p_value']:.2g})" if t["p_value"] is not None else "")
+                    for s, t in u["tests"].items()), "; ".join(u["why"])] for u in report["units"]]))
+    if report["drift"]:
+        parts.append("<h2>Drift between calibrations of one unit</h2>" + _table(
+            ["serial", "earlier", "later", "sensor", "chi2 / dof", "p", "verdict", "largest |drift| / std"],
+            [[d["serial"], d["earlier"], d["later"], s, f"{v['chi2']:.3g} / {v['dof']}", f"{v['p_value']:.2g}",
+              v["verdict"], _largest(d, s)] for d in report["drift"] for s, v in d["sensors"].items()]))
+    return "".join(parts)
