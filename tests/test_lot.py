@@ -8,7 +8,10 @@ import numpy as np
 import pytest
 
 from cli_helpers import refused, run
+from page_layout import figures_checked, html_problems
 from simucal import lot_report
+from simucal.report.lot_html import lot_page
+from simucal.report.page import STYLE
 from simucal.turntable.lot import SPREAD, write_lot
 
 N = 21  # lot_report.MIN_UNITS and one more
@@ -64,9 +67,14 @@ def test_the_lot_report_finds_what_was_planted(lot):
 def test_the_page_opens_with_the_verdict_and_the_next_command(lot):
     root, report, _ = lot
     page = (root / "lot.html").read_text()
-    first = page.index("<h2>Verdict</h2>")
-    assert page.index("<img") > page.index("Next: <code>") > first and report["verdict"][0] in page[first:first + 300]
+    first = page.index("<h1>")
+    assert page.index("<img") > page.index("Next: <code>") > first and report["verdict"][0] in page[first:first + 400]
+    assert "class='verdict bad'><b>" + report["verdict"][0] in page  # one unit fails: the lot's line says so
     assert page.count("<img") == 6  # acc and gyro of each group (the exact, linear and multi-position methods)
+    assert STYLE in page  # the pages' one stylesheet and font
+    with figures_checked() as (problems, figures):
+        lot_page(report)
+    assert len(figures) == 6 and not problems + html_problems(page), problems + html_problems(page)
 
 
 def test_the_python_api_gives_the_report(lot):

@@ -8,7 +8,7 @@ import html
 
 import numpy as np
 
-from simucal.report.html import _png, plt
+from simucal.report.page import page, plt, png
 
 
 def _figure(group, sensor, limits) -> str:
@@ -33,14 +33,14 @@ def _figure(group, sensor, limits) -> str:
         ax.tick_params(labelsize=7)
     for ax in list(axes.flat)[len(rows):]:
         ax.set_visible(False)
-    axes.flat[0].legend(fontsize=6)
+    axes.flat[0].legend(fontsize=7)
     fig.supxlabel("unit (file-name order)", fontsize=8)
     fig.subplots_adjust(hspace=0.5, wspace=0.35)  # not tight_layout: it draws the figure twice
-    return _png(fig)
+    return png(fig)
 
 
 def _table(head, rows) -> str:
-    return ("<table border=1 cellpadding=3><tr>" + "".join(f"<th>{h}</th>" for h in head) + "</tr>"
+    return ("<table><tr>" + "".join(f"<th>{h}</th>" for h in head) + "</tr>"
             + "".join("<tr>" + "".join(f"<td>{html.escape(str(c))}</td>" for c in r) + "</tr>" for r in rows)
             + "</table>")
 
@@ -51,12 +51,13 @@ def _largest(drift, sensor) -> str:
 
 
 def lot_page(report: dict) -> str:
-    """The page (module doc) of a report of simucal.lot_report.lot."""
+    """The page (module doc) of a report of simucal.lot_report.lot, in the pages' one shell (report/page.py):
+    the verdict's first line is the lot's, each further line a unit failing or flagged, or a note."""
     e = html.escape
-    parts = ["<!doctype html><meta charset=utf-8><title>simucal lot</title>",
-             f"<h1>Lot {e(report['folder'])}</h1><h2>Verdict</h2><ul>"]
-    parts += [f"<li>{e(line)}</li>" for line in report["verdict"]]
-    parts.append(f"</ul><p>Next: <code>{e(report['next'])}</code></p>")
+    first, *rest = report["verdict"]
+    failing = any(u["status"] != "passes" for u in report["units"])
+    verdicts = [(not failing, first)] + [(not (" FAILS: " in v or " FLAGGED: " in v), v) for v in rest]
+    parts = []
     for g in report["groups"]:
         parts.append(f"<h2>{e(g['key'])}: {len(g['units'])} units</h2><p>Outliers: {e(g['outlier_rule'])}.</p>")
         for sensor in dict.fromkeys(p["name"].split(".")[0] for p in g["parameters"]):
@@ -76,4 +77,4 @@ def lot_page(report: dict) -> str:
             ["serial", "earlier", "later", "sensor", "chi2 / dof", "p", "verdict", "largest |drift| / std"],
             [[d["serial"], d["earlier"], d["later"], s, f"{v['chi2']:.3g} / {v['dof']}", f"{v['p_value']:.2g}",
               v["verdict"], _largest(d, s)] for d in report["drift"] for s, v in d["sensors"].items()]))
-    return "".join(parts)
+    return page("simucal lot", f"Lot {report['folder']}", verdicts, report["next"], body=parts)
