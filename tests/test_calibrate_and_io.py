@@ -253,3 +253,32 @@ def test_reading_a_set_imports_no_pandas(paper_set):
             "if c in ms.samples)")
     r = subprocess.run([sys.executable, "-c", code, str(folder)], capture_output=True, text=True)
     assert r.returncode == 0, r.stderr
+
+
+@pytest.mark.parametrize("blank_at", [None, 0.25, 0.75])
+def test_samples_read_in_two_halves_are_the_careful_readers(tmp_path, monkeypatch, blank_at):
+    """csv_columns parses a large samples.csv in two halves on two threads, streamed into one (n, 3)
+    block per triad: the careful reader's numbers, row for row, with a blank line in either half
+    too; MeasurementSet.raw is that block (no copy)."""
+    from simucal.io import csv_columns
+    from simucal.turntable.simulate import Scenario, write
+    folder = tmp_path / "s"
+    write(folder, Scenario(rate_hz=5.0), seed=1)
+    if blank_at is not None:
+        lines = (folder / "samples.csv").read_text().splitlines(keepends=True)
+        at = int(len(lines) * blank_at)
+        (folder / "samples.csv").write_text("".join(lines[:at] + ["\n"] + lines[at:]))
+    monkeypatch.setattr(csv_columns, "SPLIT_BYTES", 1000)
+    pieces = []
+    monkeypatch.setattr(csv_columns, "_stream", lambda *a, _f=csv_columns._stream: pieces.append(a[4]) or _f(*a))
+    fast = io.read_set(folder)
+    assert len(pieces) == 2
+    monkeypatch.setattr(io, "read_columns", lambda *a: None)  # the careful reader, line by line
+    careful = io.read_set(folder)
+    assert fast.samples.keys() == careful.samples.keys()
+    for c, v in careful.samples.items():
+        assert fast.samples[c].dtype == v.dtype and np.array_equal(fast.samples[c], v), c
+    for sensor, c in (("acc", "ax"), ("gyro", "gx")):
+        assert np.shares_memory(fast.raw(sensor), fast.samples[c]) and not np.shares_memory(careful.raw(sensor),
+                                                                                            careful.samples[c])
+        assert np.array_equal(fast.raw(sensor), careful.raw(sensor))

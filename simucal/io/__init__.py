@@ -16,6 +16,7 @@ from pathlib import Path
 import numpy as np
 
 from simucal.io import outputs, units
+from simucal.io.csv_columns import read_columns, triad_block
 from simucal.io.text_files import (MeasurementSetError, RepeatedKey, body_of, cell, check_delimiter, csv_refusal,
                                      decoded, ends_with_a_line_end, files_sha256, no_repeated_columns, not_a_folder,
                                      number, read_text, unique_keys)
@@ -68,7 +69,7 @@ class MeasurementSet:
         """The outputs of 'acc' (ax ay az) or 'gyro' (gx gy gz) as recorded, in their own unit (n, 3),
         read-only."""
         cols = SAMPLE_COLS[:3] if sensor == "acc" else SAMPLE_COLS[3:]
-        return self._once(("raw", sensor), cols, lambda: np.column_stack([self.samples[c] for c in cols]))
+        return self._once(("raw", sensor), cols, lambda: _block_or_stack(self.samples, cols))
 
     def acc_g(self):
         """Accelerometer outputs in g (n, 3), read-only."""
@@ -80,7 +81,7 @@ class MeasurementSet:
 
     def rows(self, segment: int) -> np.ndarray:
         """The indices (ascending) of one segment's rows; empty if it has none."""
-        groups = self._once("rows", ("segment",), lambda: group_rows(self.samples["segment"]))
+        groups = self._once("rows", ("segment",), lambda: group_rows(self.samples["segment"]), meta=False)
         return groups.get(segment, np.zeros(0, int))
 
     def sample_digests(self) -> list[str]:
@@ -90,9 +91,8 @@ class MeasurementSet:
         (samples_sha256) and validate finds its own rows by them."""
         cols = [np.asarray(self.samples[c], "<f8") for c in ("ax", "ay", "az", "gx", "gy", "gz") if c in self.samples]
         out = []
-        for rows in [slice(None)] if self.segments is None else [self.rows(s.segment) for s in self.segments]:
-            if not isinstance(rows, slice) and len(rows) and rows[-1] - rows[0] + 1 == len(rows):
-                rows = slice(rows[0], rows[-1] + 1)  # a segment's rows in one run, as recorded: a view, no copy
+        for rows in [slice(None)] if self.segments is None else [run_or_rows(self.rows(s.segment))
+                                                                 for s in self.segments]:
             h = hashlib.sha256()
             for c in cols:  # column by column
                 h.update(np.ascontiguousarray(c[rows]).data)
@@ -100,21 +100,40 @@ class MeasurementSet:
                 out.append(h.hexdigest()[:16])
         return out
 
-    def _once(self, name, cols, make):
-        """make(), formed once per set of columns and meta.json (the methods ask many times; at 300,000
-        rows each costs milliseconds). Arrays are made read-only: callers share them."""
-        key = (tuple(id(self.samples[c]) for c in cols), json.dumps(self.meta, sort_keys=True, default=str))
+    def _once(self, name, cols, make, meta=True):
+        """make(), formed once per set of columns and (meta=True: it reads it) meta.json (the methods ask
+        many times; at 300,000 rows each costs milliseconds). Arrays are made read-only: callers share them."""
+        key = (tuple(id(self.samples[c]) for c in cols), json.dumps(self.meta, sort_keys=True, default=str) if meta
+               else None)
         cache = self.__dict__.setdefault("_cache", {})
         if cache.get(name, (None,))[0] != key:
             out = make()
-            for a in (out.values() if isinstance(out, dict) else [out]):
-                a.flags.writeable = False
+            for a in (out.values() if isinstance(out, dict) else out if isinstance(out, tuple) else [out]):
+                if isinstance(a, np.ndarray):
+                    a.flags.writeable = False
             cache[name] = (key, out)
         return cache[name][1]
 
 
+def _block_or_stack(samples, cols) -> np.ndarray:
+    """The (n, 3) outputs of one triad: the block read_samples formed its columns in (no copy), else
+    the columns stacked."""
+    block = triad_block(samples, cols)
+    return block if block is not None else np.column_stack([samples[c] for c in cols])
+
+
+def run_or_rows(rows):
+    """A segment's row indices as a slice where they are one run, as recorded (indexing then gives a
+    view, not a copy), else themselves."""
+    return slice(rows[0], rows[-1] + 1) if len(rows) and rows[-1] - rows[0] + 1 == len(rows) else rows
+
+
 def group_rows(segment_ids: np.ndarray) -> dict[int, np.ndarray]:
-    """{segment id: the indices (ascending) of its rows}, found by one stable sort."""
+    """{segment id: the indices (ascending) of its rows}, found by one stable sort; without one where
+    the ids never decrease (a set recorded segment by segment: its rows in runs, found in one pass)."""
+    if len(segment_ids) > 1 and np.all(segment_ids[1:] >= segment_ids[:-1]):
+        start = np.flatnonzero(segment_ids[1:] != segment_ids[:-1]) + 1
+        return dict(zip(segment_ids[np.r_[0, start]].tolist(), np.split(np.arange(len(segment_ids)), start)))
     order = np.argsort(segment_ids, kind="stable")
     ids, start = np.unique(segment_ids[order], return_index=True)
     return dict(zip(ids.tolist(), np.split(order, start[1:])))
@@ -230,7 +249,7 @@ def read_samples(folder: Path, segments) -> tuple[dict, bytes]:
     ends_with_a_line_end(path, body)
     header = _header(path, body)
     cols, others = _sample_columns(path, header, segments)
-    fast = _fast_numeric(body, header, cols + others)
+    fast = read_columns(body, header, cols, others)
     if fast is not None:
         return _check_samples(fast, path, segments), raw
     with _io.StringIO(decoded(path, body), newline="") as fh:
@@ -320,47 +339,10 @@ def _sensor_like_columns(path, header):
                                                "csv --columns)")
 
 
-def _fast_numeric(body, header, names) -> dict | None:
-    """The named columns as contiguous float arrays via pyarrow's C++ CSV reader, or None if
-    anything is unusual (a cell that is not a number, an empty cell, a ragged row, a NaN): the
-    careful reader then names the line and the column.
-
-    On this thread only: with use_threads the reader starts Arrow's CPU pool, whose std::threads are
-    still alive when the interpreter exits; about one exit in a hundred then ended in SIGABRT
-    ("terminate called without an active exception", issue 39; apache/arrow#34314). One thread reads 300,000 rows as
-    fast on this 2-core machine (0.08-0.18 s either way)."""
-    import pyarrow as pa
-    import pyarrow.csv as pa_csv
-    try:
-        table = pa_csv.read_csv(pa.py_buffer(body), read_options=pa_csv.ReadOptions(use_threads=False))
-    except (pa.ArrowException, ValueError):
-        return None
-    if table.num_rows == 0 or table.num_columns != len(header):
-        return None
-    out = {}
-    for c in names:
-        col = table.column(header.index(c))
-        if col.null_count or not (pa.types.is_integer(col.type) or pa.types.is_floating(col.type)):
-            return None
-        out[c] = _column_floats(col)
-        if not np.all(np.isfinite(out[c])):
-            return None
-    return out
-
-
-def _column_floats(col) -> np.ndarray:
-    """A numeric Arrow column without nulls as float64, read from its chunks' data buffers: pyarrow's
-    to_numpy imports pandas where it is installed (0.25 s of a 1 s command)."""
-    import pyarrow as pa
-    kind = "f" if pa.types.is_floating(col.type) else "i" if pa.types.is_signed_integer(col.type) else "u"
-    dtype = np.dtype(f"{kind}{col.type.bit_width // 8}")
-    parts = [np.frombuffer(ch.buffers()[1], dtype=dtype, count=len(ch), offset=ch.offset * dtype.itemsize)
-             for ch in col.chunks]
-    return np.concatenate(parts).astype(float) if parts else np.zeros(0)
-
-
 def _check_samples(out, path, segments):
     for c, v in out.items():
+        if len(v) and -PLAUSIBLE <= v.min() and v.max() <= PLAUSIBLE:
+            continue  # two reductions, no temporary array: the usual file
         big = np.nonzero(np.abs(v) > PLAUSIBLE)[0]
         if big.size:
             raise MeasurementSetError(path, 2 + int(big[0]), f"column {c}: {v[big[0]]:g} is not a plausible value "
@@ -382,10 +364,13 @@ def _check_samples(out, path, segments):
         if unknown:
             raise MeasurementSetError(path, 2 + int(groups[unknown[0]][0]),
                                       f"segment {unknown[0]} is not in segments.csv")
-        for s, rows in groups.items():
-            bad = np.nonzero(np.diff(out["t_s"][rows]) <= 0)[0]
-            if bad.size:
-                raise MeasurementSetError(path, 2 + int(rows[bad[0] + 1]), f"t_s must increase within segment {s}")
+        order = np.concatenate(list(groups.values()))  # the rows segment by segment, ascending ids
+        seg, t = (out["segment"], out["t_s"]) if np.all(order[1:] > order[:-1]) else \
+            (out["segment"][order], out["t_s"][order])  # a set recorded segment by segment needs no copy
+        bad = np.flatnonzero((t[1:] <= t[:-1]) & (seg[1:] == seg[:-1]))
+        if bad.size:
+            raise MeasurementSetError(path, 2 + int(order[bad[0] + 1]), f"t_s must increase within segment "
+                                                                        f"{seg[bad[0]]}")
     return out
 
 
