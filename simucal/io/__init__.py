@@ -10,6 +10,7 @@ import io as _io
 import hashlib
 import json
 import re
+from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -233,14 +234,21 @@ def _angles_in_degrees(path, segments):
                                               "(and outer_rate_dps deg/s): convert them")
 
 
-def read_samples(folder: Path, segments) -> tuple[dict, bytes]:
-    """(column -> array, the file's bytes). The numbers are parsed by pyarrow, and only where that
-    finds anything unusual by the careful reader, which names the line; the whole file is checked
-    to be UTF-8 either way (an ASCII file, the usual one, is UTF-8 without decoding it)."""
+def read_samples(folder: Path, segments) -> tuple[dict, str]:
+    """(column -> array, files_sha256 of the set's files as read: hashed on a thread of its own while
+    the numbers are parsed, as hashlib frees the GIL). The numbers are parsed by pyarrow, and only
+    where that finds anything unusual by the careful reader, which names the line; the whole file is
+    checked to be UTF-8 either way (an ASCII file, the usual one, is UTF-8 without decoding it)."""
     path = not_a_folder(folder / "samples.csv")
     if not path.is_file():
         raise MeasurementSetError(path, None, "missing: a measurement set needs samples.csv")
     raw = path.read_bytes()
+    with ThreadPoolExecutor(1) as pool:
+        sha256 = pool.submit(files_sha256, folder, raw)
+        return _parsed(path, raw, segments), sha256.result()
+
+
+def _parsed(path, raw, segments) -> dict:
     body = body_of(path, raw)
     if not len(body):
         raise MeasurementSetError(path, 1, "empty file")
@@ -251,12 +259,12 @@ def read_samples(folder: Path, segments) -> tuple[dict, bytes]:
     cols, others = _sample_columns(path, header, segments)
     fast = read_columns(body, header, cols, others)
     if fast is not None:
-        return _check_samples(fast, path, segments), raw
+        return _check_samples(fast, path, segments)
     with _io.StringIO(decoded(path, body), newline="") as fh:
         reader = csv.reader(fh)
         try:
             next(reader)
-            return _check_samples(_careful(reader, path, header, cols, others), path, segments), raw
+            return _check_samples(_careful(reader, path, header, cols, others), path, segments)
         except csv.Error as e:
             raise csv_refusal(path, reader.line_num, e) from None
 
@@ -380,11 +388,11 @@ def read_set(folder) -> MeasurementSet:
         raise MeasurementSetError(folder, None, "not a folder (a measurement set is a folder)")
     meta = read_meta(folder)
     segments = read_segments(folder)
-    samples, samples_csv = read_samples(folder, segments)
+    samples, sha256 = read_samples(folder, segments)
     if "gx" in samples and "latitude_deg" not in meta:
         raise MeasurementSetError(folder / "meta.json", None,
                                   "latitude_deg is required when gyro data are present")
-    return MeasurementSet(folder, meta, samples, segments, sha256=files_sha256(folder, samples_csv))
+    return MeasurementSet(folder, meta, samples, segments, sha256=sha256)
 
 
 def _fmt(v):
