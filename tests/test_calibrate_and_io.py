@@ -282,3 +282,32 @@ def test_samples_read_in_two_halves_are_the_careful_readers(tmp_path, monkeypatc
         assert np.shares_memory(fast.raw(sensor), fast.samples[c]) and not np.shares_memory(careful.raw(sensor),
                                                                                             careful.samples[c])
         assert np.array_equal(fast.raw(sensor), careful.raw(sensor))
+
+
+@pytest.mark.parametrize("shuffled", [False, True])
+def test_segment_rows_refused_by_line_in_file_order_or_not(tmp_path, shuffled):
+    """_check_samples finds a set's segments without a sort where the file holds them one after the
+    other, and by one where it does not: either way a time step backwards, an unknown segment id and
+    a fractional one are refused naming the file's line."""
+    from simucal.turntable.simulate import Scenario, write
+    folder = tmp_path / "s"
+    write(folder, Scenario(rate_hz=2.0), seed=1)
+    header, *rows = (folder / "samples.csv").read_text().splitlines()
+    if shuffled:  # the first segment's rows after the second's: ids no longer in order
+        first = [r for r in rows if r.split(",")[0] == rows[0].split(",")[0]]
+        rows = [r for r in rows if r not in first][:50] + first + [r for r in rows if r not in first][50:]
+    seg_col, t_col = header.split(",").index("segment"), header.split(",").index("t_s")
+
+    def refused(k, col, value, *words):
+        cells = rows[k].split(",")
+        cells[col] = value
+        (folder / "samples.csv").write_text("\n".join([header, *rows[:k], ",".join(cells), *rows[k + 1:]]) + "\n")
+        with pytest.raises(io.MeasurementSetError) as e:
+            io.read_set(folder)
+        assert all(w in str(e.value) for w in words), str(e.value)
+    k = 60  # within the 50 rows moved ahead (shuffled), or the first segment
+    assert rows[k].split(",")[0] == rows[k + 1].split(",")[0]
+    refused(k + 1, t_col, rows[k].split(",")[t_col], f"line {k + 3}", "t_s must increase within segment")
+    refused(k, seg_col, "999", f"line {k + 2}", "segment 999 is not in segments.csv")
+    refused(len(rows) - 1, seg_col, "999", f"line {len(rows) + 1}", "segment 999 is not")  # ids still in order
+    refused(k, seg_col, "1.5", "segment ids must be integers")

@@ -363,23 +363,33 @@ def _check_samples(out, path, segments):
                                                    f"{out['t_s'][i - 1]:g} s (rows repeated, or files joined out of "
                                                    "order?)")
     if "segment" in out:
-        seg = out["segment"]
-        if np.any(seg != np.round(seg)):
+        seg = out["segment"].astype(int)
+        if not np.array_equal(seg, out["segment"]):
             raise MeasurementSetError(path, None, "segment ids must be integers")
-        out["segment"] = seg.astype(int)
-        groups = group_rows(out["segment"])
+        out["segment"] = seg  # the float column freed at once: reading holds the file's bytes still
+        if len(seg) > 1 and np.all(seg[1:] >= seg[:-1]):  # recorded segment by segment: no sort, no copies
+            first = np.r_[0, np.flatnonzero(seg[1:] != seg[:-1]) + 1]
+            groups = dict(zip(seg[first].tolist(), first[:, None]))  # each segment's first row
+            seg_t = (seg, out["t_s"], None)
+        else:
+            groups = group_rows(seg)
+            order = np.concatenate(list(groups.values()))  # the rows segment by segment, ascending ids
+            seg_t = (seg[order], out["t_s"][order], order)
         unknown = sorted(set(groups) - {s.segment for s in segments}) if segments is not None else []
         if unknown:
             raise MeasurementSetError(path, 2 + int(groups[unknown[0]][0]),
                                       f"segment {unknown[0]} is not in segments.csv")
-        order = np.concatenate(list(groups.values()))  # the rows segment by segment, ascending ids
-        seg, t = (out["segment"], out["t_s"]) if np.all(order[1:] > order[:-1]) else \
-            (out["segment"][order], out["t_s"][order])  # a set recorded segment by segment needs no copy
-        bad = np.flatnonzero((t[1:] <= t[:-1]) & (seg[1:] == seg[:-1]))
-        if bad.size:
-            raise MeasurementSetError(path, 2 + int(order[bad[0] + 1]), f"t_s must increase within segment "
-                                                                        f"{seg[bad[0]]}")
+        _time_runs_forward(path, *seg_t)
     return out
+
+
+def _time_runs_forward(path, seg, t, order):
+    """Refuse a row whose t_s does not follow its segment's row before (seg, t: the rows segment by
+    segment; order: their rows in the file, None where they are in the file's order)."""
+    bad = np.flatnonzero((t[1:] <= t[:-1]) & (seg[1:] == seg[:-1]))
+    if bad.size:
+        row = bad[0] + 1 if order is None else order[bad[0] + 1]
+        raise MeasurementSetError(path, 2 + int(row), f"t_s must increase within segment {seg[bad[0]]}")
 
 
 def read_set(folder) -> MeasurementSet:
