@@ -3,10 +3,11 @@ triad (ax ay az, gx gy gz) one (n, 3) float64 block whose columns the samples di
 outputs formed once: MeasurementSet.raw returns the block), every other column one float64 array.
 
 The spec's columns are parsed as float64 from the start (type inference and a conversion cost
-2.8x the parse), a file of more than SPLIT_BYTES in two halves on two Python threads (pyarrow
-frees the GIL while it parses). Each half on its own thread with use_threads=False: Arrow's own
-CPU pool left std::threads alive at exit, about one exit in a hundred a SIGABRT (issue 39;
-apache/arrow#34314), while these threads are joined before the function returns."""
+2.8x the parse), the file in pieces of PIECE_BYTES cut at line ends, two at a time on two Python
+threads (pyarrow frees the GIL while it parses), each piece's table copied out and dropped. Each
+piece with use_threads=False: Arrow's own CPU pool left std::threads alive at exit, about one
+exit in a hundred a SIGABRT (issue 39; apache/arrow#34314), while these threads are joined
+before the function returns."""
 from __future__ import annotations
 
 from concurrent.futures import ThreadPoolExecutor
@@ -14,21 +15,21 @@ from concurrent.futures import ThreadPoolExecutor
 import numpy as np
 
 TRIADS = (("ax", "ay", "az"), ("gx", "gy", "gz"))
-SPLIT_BYTES = 4 << 20  # below this one thread reads as fast as two start
+PIECE_BYTES = 8 << 20  # parsed two at a time: the tables held at once are two pieces', not the file's
 
 
 def read_columns(body: memoryview, header: list[str], spec_cols: list[str], others: list[str]) -> dict | None:
     """{column: float64 array} of spec_cols and others, or None if anything is unusual (a cell that is
     not a number, an empty cell, a ragged row, a NaN or an infinity): the careful reader then names
-    the line and the column. A column of others holding text also gives None, as before. The file is
-    streamed batch by batch into arrays sized by its line count: no table of the whole file is held."""
+    the line and the column. A column of others holding text also gives None, as before. The pieces
+    go into arrays sized by the file's line count: no table of the whole file is held."""
     names = spec_cols + others
     pieces = _pieces(body)
     counts = [lines - skip for _, skip, lines in pieces]
     out = _allocate(names, sum(counts))
     starts = np.cumsum([0] + counts[:-1]).tolist()
     with ThreadPoolExecutor(2) as pool:
-        rows = list(pool.map(lambda k: _stream(*pieces[k][:2], header, spec_cols, out, starts[k], counts[k]),
+        rows = list(pool.map(lambda k: _parse_into(*pieces[k][:2], header, spec_cols, out, starts[k], counts[k]),
                              range(len(pieces))))
     if None in rows or sum(rows) == 0:
         return None
@@ -40,42 +41,47 @@ def read_columns(body: memoryview, header: list[str], spec_cols: list[str], othe
     return out
 
 
-def _stream(buf, skip_rows, header, spec_cols, out, start, count) -> int | None:
-    """One piece's batches copied into out[c][start:start + count]: the rows it held, or None where
-    pyarrow refuses it, a column is not numbers without gaps, or it holds more rows than lines."""
+def _parse_into(buf, skip_rows, header, spec_cols, out, start, count) -> int | None:
+    """One piece parsed and copied into out[c][start:start + count]: the rows it held, or None where
+    pyarrow refuses it, a column is not numbers without gaps, or it holds more rows than lines. By
+    read_csv on this thread: pyarrow's streaming reader (open_csv) starts threads of Arrow's pool
+    even with use_threads=False, alive at exit (the SIGABRT above)."""
     import pyarrow as pa
     import pyarrow.csv as pa_csv
-    row = start
     try:
-        reader = pa_csv.open_csv(
+        table = pa_csv.read_csv(
             buf, read_options=pa_csv.ReadOptions(use_threads=False, column_names=header, skip_rows=skip_rows),
             convert_options=pa_csv.ConvertOptions(column_types={c: pa.float64() for c in spec_cols}),
             memory_pool=pa.system_memory_pool())
-        for batch in reader:
-            n = batch.num_rows
-            if row + n > start + count:
-                return None
-            for c, v in out.items():
-                col = batch.column(header.index(c))
-                if col.null_count or not (pa.types.is_integer(col.type) or pa.types.is_floating(col.type)):
-                    return None
-                np.copyto(v[row:row + n], _numbers(col))
-            row += n
     except (pa.ArrowException, ValueError):
         return None
-    return row - start
+    if table.num_rows > count:
+        return None
+    for c, v in out.items():
+        col = table.column(header.index(c))
+        if col.null_count or not (pa.types.is_integer(col.type) or pa.types.is_floating(col.type)):
+            return None
+        row = start
+        for chunk in col.chunks:
+            np.copyto(v[row:row + len(chunk)], _numbers(chunk))
+            row += len(chunk)
+    return table.num_rows
 
 
 def _pieces(body) -> list:
-    """(bytes, rows to skip, lines) of each half: the first keeps the header line, the second starts
-    after a line end. One piece where the file is small or holds a quote (a quoted cell may hold a
-    line end, so no split is safe there)."""
+    """(bytes, rows to skip, lines) of each piece of about PIECE_BYTES, each cut after a line end (the
+    first keeps the header line). One piece where the file holds a quote (a quoted cell may hold a
+    line end, so no cut is safe there)."""
     import pyarrow as pa
     raw, at = body.obj, len(body.obj) - len(body)  # the file's bytes, and where body starts (after a BOM)
-    cuts = [0, len(body)]
-    if len(body) >= SPLIT_BYTES and raw.find(b'"', at) < 0:
-        end = raw.find(b"\n", at + len(body) // 2, at + len(body) // 2 + (1 << 20))
-        cuts = cuts if end < 0 else [0, end + 1 - at, len(body)]
+    cuts = [0]
+    if raw.find(b'"', at) < 0:
+        for k in range(1, len(body) // PIECE_BYTES + 1):
+            end = raw.find(b"\n", at + max(k * PIECE_BYTES, cuts[-1]))
+            if end < 0 or end + 1 - at >= len(body):
+                break
+            cuts.append(end + 1 - at)
+    cuts.append(len(body))
     buf = pa.py_buffer(body)
     return [(buf.slice(a, b - a), int(a == 0), raw.count(b"\n", at + a, at + b) + (raw[at + b - 1] != 10))
             for a, b in zip(cuts, cuts[1:])]
