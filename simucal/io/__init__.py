@@ -245,7 +245,10 @@ def read_samples(folder: Path, segments) -> tuple[dict, str]:
     raw = path.read_bytes()
     with ThreadPoolExecutor(1) as pool:
         sha256 = pool.submit(files_sha256, folder, raw)
-        return _parsed(path, raw, segments), sha256.result()
+        samples = _parsed(path, raw, segments)
+        sha256 = sha256.result()
+    del raw  # the file's bytes freed before the checks' temporaries: the peak of reading is the bytes and the arrays
+    return _check_samples(samples, path, segments), sha256
 
 
 def _parsed(path, raw, segments) -> dict:
@@ -259,12 +262,12 @@ def _parsed(path, raw, segments) -> dict:
     cols, others = _sample_columns(path, header, segments)
     fast = read_columns(body, header, cols, others)
     if fast is not None:
-        return _check_samples(fast, path, segments)
+        return fast
     with _io.StringIO(decoded(path, body), newline="") as fh:
         reader = csv.reader(fh)
         try:
             next(reader)
-            return _check_samples(_careful(reader, path, header, cols, others), path, segments)
+            return _careful(reader, path, header, cols, others)
         except csv.Error as e:
             raise csv_refusal(path, reader.line_num, e) from None
 

@@ -15,7 +15,7 @@ from concurrent.futures import ThreadPoolExecutor
 import numpy as np
 
 TRIADS = (("ax", "ay", "az"), ("gx", "gy", "gz"))
-PIECE_BYTES = 8 << 20  # parsed two at a time: the tables held at once are two pieces', not the file's
+PIECE_BYTES = 4 << 20  # parsed two at a time: the tables held at once are two pieces', not the file's
 
 
 def read_columns(body: memoryview, header: list[str], spec_cols: list[str], others: list[str]) -> dict | None:
