@@ -71,7 +71,9 @@ def calibrate(folder, method="auto", acc_model="acc_baseline", gyro_model="gyro_
             takes = [x.name for x in methods.METHODS.values() if unused[0] in x.options]
             raise CalibrationError(f"{flag} does not apply to method {m.name} ({m.summary}); it applies to method "
                                    f"{' or '.join(takes)} ({' or '.join(sorted({methods.DATA[methods.METHODS[t].data] for t in takes}))}).")
-        result = m.call(ms, **given)
+        from threadpoolctl import threadpool_limits
+        with threadpool_limits(1, "blas"):  # the fits' QRs and pseudo-inverses (up to 522 x 357) are small: on two
+            result = m.call(ms, **given)    # OpenBLAS threads each ran 1.1-60x slower here (raw41, both ways measured)
         result.warnings += scale_notes(result, ms.meta)
         result.warnings += [f"{noise}: holds no {s} curve, so the {s} noise is the data's own (--noise covers the "
                             f"{' and '.join(curves)} only)" for s, _ in result.blocks() if curves and s not in curves]

@@ -253,3 +253,61 @@ def test_reading_a_set_imports_no_pandas(paper_set):
             "if c in ms.samples)")
     r = subprocess.run([sys.executable, "-c", code, str(folder)], capture_output=True, text=True)
     assert r.returncode == 0, r.stderr
+
+
+@pytest.mark.parametrize("blank_at", [None, 0.25, 0.75])
+def test_samples_read_in_pieces_are_the_careful_readers(tmp_path, monkeypatch, blank_at):
+    """csv_columns parses a large samples.csv in pieces, two at a time on two threads, into one (n, 3)
+    block per triad: the careful reader's numbers, row for row, with a blank line in either half
+    too; MeasurementSet.raw is that block (no copy)."""
+    from simucal.io import csv_columns
+    from simucal.turntable.simulate import Scenario, write
+    folder = tmp_path / "s"
+    write(folder, Scenario(rate_hz=5.0), seed=1)
+    if blank_at is not None:
+        lines = (folder / "samples.csv").read_text().splitlines(keepends=True)
+        at = int(len(lines) * blank_at)
+        (folder / "samples.csv").write_text("".join(lines[:at] + ["\n"] + lines[at:]))
+    monkeypatch.setattr(csv_columns, "PIECE_BYTES", 100_000)
+    pieces = []
+    monkeypatch.setattr(csv_columns, "_parse_into", lambda *a, _f=csv_columns._parse_into: pieces.append(a) or _f(*a))
+    fast = io.read_set(folder)
+    assert len(pieces) >= 3
+    monkeypatch.setattr(io, "read_columns", lambda *a: None)  # the careful reader, line by line
+    careful = io.read_set(folder)
+    assert fast.samples.keys() == careful.samples.keys()
+    for c, v in careful.samples.items():
+        assert fast.samples[c].dtype == v.dtype and np.array_equal(fast.samples[c], v), c
+    for sensor, c in (("acc", "ax"), ("gyro", "gx")):
+        assert np.shares_memory(fast.raw(sensor), fast.samples[c]) and not np.shares_memory(careful.raw(sensor),
+                                                                                            careful.samples[c])
+        assert np.array_equal(fast.raw(sensor), careful.raw(sensor))
+
+
+@pytest.mark.parametrize("shuffled", [False, True])
+def test_segment_rows_refused_by_line_in_file_order_or_not(tmp_path, shuffled):
+    """_check_samples finds a set's segments without a sort where the file holds them one after the
+    other, and by one where it does not: either way a time step backwards, an unknown segment id and
+    a fractional one are refused naming the file's line."""
+    from simucal.turntable.simulate import Scenario, write
+    folder = tmp_path / "s"
+    write(folder, Scenario(rate_hz=2.0), seed=1)
+    header, *rows = (folder / "samples.csv").read_text().splitlines()
+    if shuffled:  # the first segment's rows after the second's: ids no longer in order
+        first = [r for r in rows if r.split(",")[0] == rows[0].split(",")[0]]
+        rows = [r for r in rows if r not in first][:50] + first + [r for r in rows if r not in first][50:]
+    seg_col, t_col = header.split(",").index("segment"), header.split(",").index("t_s")
+
+    def refused(k, col, value, *words):
+        cells = rows[k].split(",")
+        cells[col] = value
+        (folder / "samples.csv").write_text("\n".join([header, *rows[:k], ",".join(cells), *rows[k + 1:]]) + "\n")
+        with pytest.raises(io.MeasurementSetError) as e:
+            io.read_set(folder)
+        assert all(w in str(e.value) for w in words), str(e.value)
+    k = 60  # within the 50 rows moved ahead (shuffled), or the first segment
+    assert rows[k].split(",")[0] == rows[k + 1].split(",")[0]
+    refused(k + 1, t_col, rows[k].split(",")[t_col], f"line {k + 3}", "t_s must increase within segment")
+    refused(k, seg_col, "999", f"line {k + 2}", "segment 999 is not in segments.csv")
+    refused(len(rows) - 1, seg_col, "999", f"line {len(rows) + 1}", "segment 999 is not")  # ids still in order
+    refused(k, seg_col, "1.5", "segment ids must be integers")

@@ -10,12 +10,14 @@ import io as _io
 import hashlib
 import json
 import re
+from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
 
 from simucal.io import outputs, units
+from simucal.io.csv_columns import read_columns, triad_block
 from simucal.io.text_files import (MeasurementSetError, RepeatedKey, body_of, cell, check_delimiter, csv_refusal,
                                      decoded, ends_with_a_line_end, files_sha256, no_repeated_columns, not_a_folder,
                                      number, read_text, unique_keys)
@@ -68,7 +70,7 @@ class MeasurementSet:
         """The outputs of 'acc' (ax ay az) or 'gyro' (gx gy gz) as recorded, in their own unit (n, 3),
         read-only."""
         cols = SAMPLE_COLS[:3] if sensor == "acc" else SAMPLE_COLS[3:]
-        return self._once(("raw", sensor), cols, lambda: np.column_stack([self.samples[c] for c in cols]))
+        return self._once(("raw", sensor), cols, lambda: _block_or_stack(self.samples, cols))
 
     def acc_g(self):
         """Accelerometer outputs in g (n, 3), read-only."""
@@ -80,7 +82,7 @@ class MeasurementSet:
 
     def rows(self, segment: int) -> np.ndarray:
         """The indices (ascending) of one segment's rows; empty if it has none."""
-        groups = self._once("rows", ("segment",), lambda: group_rows(self.samples["segment"]))
+        groups = self._once("rows", ("segment",), lambda: group_rows(self.samples["segment"]), meta=False)
         return groups.get(segment, np.zeros(0, int))
 
     def sample_digests(self) -> list[str]:
@@ -90,9 +92,8 @@ class MeasurementSet:
         (samples_sha256) and validate finds its own rows by them."""
         cols = [np.asarray(self.samples[c], "<f8") for c in ("ax", "ay", "az", "gx", "gy", "gz") if c in self.samples]
         out = []
-        for rows in [slice(None)] if self.segments is None else [self.rows(s.segment) for s in self.segments]:
-            if not isinstance(rows, slice) and len(rows) and rows[-1] - rows[0] + 1 == len(rows):
-                rows = slice(rows[0], rows[-1] + 1)  # a segment's rows in one run, as recorded: a view, no copy
+        for rows in [slice(None)] if self.segments is None else [run_or_rows(self.rows(s.segment))
+                                                                 for s in self.segments]:
             h = hashlib.sha256()
             for c in cols:  # column by column
                 h.update(np.ascontiguousarray(c[rows]).data)
@@ -100,21 +101,40 @@ class MeasurementSet:
                 out.append(h.hexdigest()[:16])
         return out
 
-    def _once(self, name, cols, make):
-        """make(), formed once per set of columns and meta.json (the methods ask many times; at 300,000
-        rows each costs milliseconds). Arrays are made read-only: callers share them."""
-        key = (tuple(id(self.samples[c]) for c in cols), json.dumps(self.meta, sort_keys=True, default=str))
+    def _once(self, name, cols, make, meta=True):
+        """make(), formed once per set of columns and (meta=True: it reads it) meta.json (the methods ask
+        many times; at 300,000 rows each costs milliseconds). Arrays are made read-only: callers share them."""
+        key = (tuple(id(self.samples[c]) for c in cols), json.dumps(self.meta, sort_keys=True, default=str) if meta
+               else None)
         cache = self.__dict__.setdefault("_cache", {})
         if cache.get(name, (None,))[0] != key:
             out = make()
-            for a in (out.values() if isinstance(out, dict) else [out]):
-                a.flags.writeable = False
+            for a in (out.values() if isinstance(out, dict) else out if isinstance(out, tuple) else [out]):
+                if isinstance(a, np.ndarray):
+                    a.flags.writeable = False
             cache[name] = (key, out)
         return cache[name][1]
 
 
+def _block_or_stack(samples, cols) -> np.ndarray:
+    """The (n, 3) outputs of one triad: the block read_samples formed its columns in (no copy), else
+    the columns stacked."""
+    block = triad_block(samples, cols)
+    return block if block is not None else np.column_stack([samples[c] for c in cols])
+
+
+def run_or_rows(rows):
+    """A segment's row indices as a slice where they are one run, as recorded (indexing then gives a
+    view, not a copy), else themselves."""
+    return slice(rows[0], rows[-1] + 1) if len(rows) and rows[-1] - rows[0] + 1 == len(rows) else rows
+
+
 def group_rows(segment_ids: np.ndarray) -> dict[int, np.ndarray]:
-    """{segment id: the indices (ascending) of its rows}, found by one stable sort."""
+    """{segment id: the indices (ascending) of its rows}, found by one stable sort; without one where
+    the ids never decrease (a set recorded segment by segment: its rows in runs, found in one pass)."""
+    if len(segment_ids) > 1 and np.all(segment_ids[1:] >= segment_ids[:-1]):
+        start = np.flatnonzero(segment_ids[1:] != segment_ids[:-1]) + 1
+        return dict(zip(segment_ids[np.r_[0, start]].tolist(), np.split(np.arange(len(segment_ids)), start)))
     order = np.argsort(segment_ids, kind="stable")
     ids, start = np.unique(segment_ids[order], return_index=True)
     return dict(zip(ids.tolist(), np.split(order, start[1:])))
@@ -214,14 +234,24 @@ def _angles_in_degrees(path, segments):
                                               "(and outer_rate_dps deg/s): convert them")
 
 
-def read_samples(folder: Path, segments) -> tuple[dict, bytes]:
-    """(column -> array, the file's bytes). The numbers are parsed by pyarrow, and only where that
-    finds anything unusual by the careful reader, which names the line; the whole file is checked
-    to be UTF-8 either way (an ASCII file, the usual one, is UTF-8 without decoding it)."""
+def read_samples(folder: Path, segments) -> tuple[dict, str]:
+    """(column -> array, files_sha256 of the set's files as read: hashed on a thread of its own while
+    the numbers are parsed, as hashlib frees the GIL). The numbers are parsed by pyarrow, and only
+    where that finds anything unusual by the careful reader, which names the line; the whole file is
+    checked to be UTF-8 either way (an ASCII file, the usual one, is UTF-8 without decoding it)."""
     path = not_a_folder(folder / "samples.csv")
     if not path.is_file():
         raise MeasurementSetError(path, None, "missing: a measurement set needs samples.csv")
     raw = path.read_bytes()
+    with ThreadPoolExecutor(1) as pool:
+        sha256 = pool.submit(files_sha256, folder, raw)
+        samples = _parsed(path, raw, segments)
+        sha256 = sha256.result()
+    del raw  # the file's bytes freed before the checks' temporaries: the peak of reading is the bytes and the arrays
+    return _check_samples(samples, path, segments), sha256
+
+
+def _parsed(path, raw, segments) -> dict:
     body = body_of(path, raw)
     if not len(body):
         raise MeasurementSetError(path, 1, "empty file")
@@ -230,14 +260,14 @@ def read_samples(folder: Path, segments) -> tuple[dict, bytes]:
     ends_with_a_line_end(path, body)
     header = _header(path, body)
     cols, others = _sample_columns(path, header, segments)
-    fast = _fast_numeric(body, header, cols + others)
+    fast = read_columns(body, header, cols, others)
     if fast is not None:
-        return _check_samples(fast, path, segments), raw
+        return fast
     with _io.StringIO(decoded(path, body), newline="") as fh:
         reader = csv.reader(fh)
         try:
             next(reader)
-            return _check_samples(_careful(reader, path, header, cols, others), path, segments), raw
+            return _careful(reader, path, header, cols, others)
         except csv.Error as e:
             raise csv_refusal(path, reader.line_num, e) from None
 
@@ -320,47 +350,10 @@ def _sensor_like_columns(path, header):
                                                "csv --columns)")
 
 
-def _fast_numeric(body, header, names) -> dict | None:
-    """The named columns as contiguous float arrays via pyarrow's C++ CSV reader, or None if
-    anything is unusual (a cell that is not a number, an empty cell, a ragged row, a NaN): the
-    careful reader then names the line and the column.
-
-    On this thread only: with use_threads the reader starts Arrow's CPU pool, whose std::threads are
-    still alive when the interpreter exits; about one exit in a hundred then ended in SIGABRT
-    ("terminate called without an active exception", issue 39; apache/arrow#34314). One thread reads 300,000 rows as
-    fast on this 2-core machine (0.08-0.18 s either way)."""
-    import pyarrow as pa
-    import pyarrow.csv as pa_csv
-    try:
-        table = pa_csv.read_csv(pa.py_buffer(body), read_options=pa_csv.ReadOptions(use_threads=False))
-    except (pa.ArrowException, ValueError):
-        return None
-    if table.num_rows == 0 or table.num_columns != len(header):
-        return None
-    out = {}
-    for c in names:
-        col = table.column(header.index(c))
-        if col.null_count or not (pa.types.is_integer(col.type) or pa.types.is_floating(col.type)):
-            return None
-        out[c] = _column_floats(col)
-        if not np.all(np.isfinite(out[c])):
-            return None
-    return out
-
-
-def _column_floats(col) -> np.ndarray:
-    """A numeric Arrow column without nulls as float64, read from its chunks' data buffers: pyarrow's
-    to_numpy imports pandas where it is installed (0.25 s of a 1 s command)."""
-    import pyarrow as pa
-    kind = "f" if pa.types.is_floating(col.type) else "i" if pa.types.is_signed_integer(col.type) else "u"
-    dtype = np.dtype(f"{kind}{col.type.bit_width // 8}")
-    parts = [np.frombuffer(ch.buffers()[1], dtype=dtype, count=len(ch), offset=ch.offset * dtype.itemsize)
-             for ch in col.chunks]
-    return np.concatenate(parts).astype(float) if parts else np.zeros(0)
-
-
 def _check_samples(out, path, segments):
     for c, v in out.items():
+        if len(v) and -PLAUSIBLE <= v.min() and v.max() <= PLAUSIBLE:
+            continue  # two reductions, no temporary array: the usual file
         big = np.nonzero(np.abs(v) > PLAUSIBLE)[0]
         if big.size:
             raise MeasurementSetError(path, 2 + int(big[0]), f"column {c}: {v[big[0]]:g} is not a plausible value "
@@ -373,20 +366,33 @@ def _check_samples(out, path, segments):
                                                    f"{out['t_s'][i - 1]:g} s (rows repeated, or files joined out of "
                                                    "order?)")
     if "segment" in out:
-        seg = out["segment"]
-        if np.any(seg != np.round(seg)):
+        seg = out["segment"].astype(int)
+        if not np.array_equal(seg, out["segment"]):
             raise MeasurementSetError(path, None, "segment ids must be integers")
-        out["segment"] = seg.astype(int)
-        groups = group_rows(out["segment"])
+        out["segment"] = seg  # the float column freed at once: reading holds the file's bytes still
+        if len(seg) > 1 and np.all(seg[1:] >= seg[:-1]):  # recorded segment by segment: no sort, no copies
+            first = np.r_[0, np.flatnonzero(seg[1:] != seg[:-1]) + 1]
+            groups = dict(zip(seg[first].tolist(), first[:, None]))  # each segment's first row
+            seg_t = (seg, out["t_s"], None)
+        else:
+            groups = group_rows(seg)
+            order = np.concatenate(list(groups.values()))  # the rows segment by segment, ascending ids
+            seg_t = (seg[order], out["t_s"][order], order)
         unknown = sorted(set(groups) - {s.segment for s in segments}) if segments is not None else []
         if unknown:
             raise MeasurementSetError(path, 2 + int(groups[unknown[0]][0]),
                                       f"segment {unknown[0]} is not in segments.csv")
-        for s, rows in groups.items():
-            bad = np.nonzero(np.diff(out["t_s"][rows]) <= 0)[0]
-            if bad.size:
-                raise MeasurementSetError(path, 2 + int(rows[bad[0] + 1]), f"t_s must increase within segment {s}")
+        _time_runs_forward(path, *seg_t)
     return out
+
+
+def _time_runs_forward(path, seg, t, order):
+    """Refuse a row whose t_s does not follow its segment's row before (seg, t: the rows segment by
+    segment; order: their rows in the file, None where they are in the file's order)."""
+    bad = np.flatnonzero((t[1:] <= t[:-1]) & (seg[1:] == seg[:-1]))
+    if bad.size:
+        row = bad[0] + 1 if order is None else order[bad[0] + 1]
+        raise MeasurementSetError(path, 2 + int(row), f"t_s must increase within segment {seg[bad[0]]}")
 
 
 def read_set(folder) -> MeasurementSet:
@@ -395,11 +401,11 @@ def read_set(folder) -> MeasurementSet:
         raise MeasurementSetError(folder, None, "not a folder (a measurement set is a folder)")
     meta = read_meta(folder)
     segments = read_segments(folder)
-    samples, samples_csv = read_samples(folder, segments)
+    samples, sha256 = read_samples(folder, segments)
     if "gx" in samples and "latitude_deg" not in meta:
         raise MeasurementSetError(folder / "meta.json", None,
                                   "latitude_deg is required when gyro data are present")
-    return MeasurementSet(folder, meta, samples, segments, sha256=files_sha256(folder, samples_csv))
+    return MeasurementSet(folder, meta, samples, segments, sha256=sha256)
 
 
 def _fmt(v):

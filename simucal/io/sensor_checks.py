@@ -14,7 +14,14 @@ def saturated_rows(ms, sensor, min_run=3):
     rail; two equal extremes of quantised noise are common, three are not). Raw counts without
     full_scale: any such run (their rails are the data's own). Otherwise a repeated extreme
     counts only where it piles up (repeat_is_clipping): an amplifier or a range setting can clip
-    below the rails meta.json gives, and a unit in g or deg/s states none."""
+    below the rails meta.json gives, and a unit in g or deg/s states none. Found once per set and
+    sensor (a method's checks ask three times); the mask is read-only."""
+    cols = ("ax", "ay", "az") if sensor == "acc" else ("gx", "gy", "gz")
+    bad, report = ms._once(("saturated", sensor, min_run), cols, lambda: _saturated_rows(ms, sensor, min_run))
+    return bad, [dict(r) for r in report]
+
+
+def _saturated_rows(ms, sensor, min_run):
     raw = ms.raw(sensor)
     full_scale = ms.meta.get("full_scale", {}).get(sensor)
     any_repeat = full_scale is None and ms.meta.get(f"{sensor}_unit") == "counts"
@@ -105,9 +112,16 @@ def _stuck_part(ms, min_rows=20):
 
 def _spans(X, groups) -> np.ndarray:
     """Each group's (non-empty row indices) peak-to-peak of every column, (len(groups), 3): one
-    reduceat over the rows in group order, not a reduction per group."""
+    reduceat over the rows in group order, not a reduction per group; over X itself (no copy)
+    where every group is a run of rows, as a set recorded segment by segment has them."""
     if not groups:
         return np.zeros((0, X.shape[1]))
+    if all(g[-1] - g[0] + 1 == len(g) for g in groups):
+        lo, hi = min(g[0] for g in groups), max(g[-1] for g in groups) + 1
+        bounds = np.unique([b for g in groups for b in (g[0], g[-1] + 1) if b < hi])  # disjoint runs: each
+        pieces = np.searchsorted(bounds, [g[0] for g in groups])                     # starts a piece of its own
+        return (np.maximum.reduceat(X[lo:hi], bounds - lo, axis=0)
+                - np.minimum.reduceat(X[lo:hi], bounds - lo, axis=0))[pieces]
     starts = np.cumsum([0] + [len(g) for g in groups[:-1]])
     Xg = X[np.concatenate(groups)]
     return np.maximum.reduceat(Xg, starts, axis=0) - np.minimum.reduceat(Xg, starts, axis=0)

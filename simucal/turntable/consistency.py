@@ -28,7 +28,7 @@ from simucal.fit.aux_inputs import specific_force
 from simucal.fit.distributions import chi2_sf, t_isf
 from simucal.fit.rotations import log_so3, wahba
 from simucal.fit.aux_inputs import AuxInputs, column_means
-from simucal.io import units
+from simucal.io import run_or_rows, units
 from simucal.turntable.observations import commanded_up_k, mean_and_sigma, refuse_outliers
 
 FIVE_SIGMA_TAIL = float(chi2_sf(25.0, 1)) / 2  # the normal tail beyond 5 sigma, one side
@@ -173,7 +173,13 @@ def latitude_check(ms, fa, acc_segs, gm, fg, C_b_d, gyro_noise_dph=None):
 
 def static_gyro_rows(ms, acc_segs, gyro_noise_dph=None):
     """The accelerometer's static rows (indices into acc_segs) and the gyro there: (N (n, 3) deg/h,
-    sigma (n, 3) or None where no row's noise is known, AuxInputs)."""
+    sigma (n, 3) or None where no row's noise is known, AuxInputs). Formed once per set (calibrate
+    asks for the latitude check and again for the gyro's model test)."""
+    key = ("static_gyro_rows", tuple(s.segment for s in acc_segs), repr(gyro_noise_dph))
+    return ms._once(key, ("gx", "gy", "gz"), lambda: _static_gyro_rows(ms, acc_segs, gyro_noise_dph))
+
+
+def _static_gyro_rows(ms, acc_segs, gyro_noise_dph):
     rows = [i for i, s in enumerate(acc_segs) if s.kind == "static"]
     if not rows:
         return rows, None
@@ -184,7 +190,7 @@ def static_gyro_rows(ms, acc_segs, gyro_noise_dph=None):
     for i in rows:
         r = ms.rows(acc_segs[i].segment)
         refuse_outliers(ms, raw, r, "gyro", acc_segs[i].segment)
-        m, sd = mean_and_sigma(gyro[r], stated)
+        m, sd = mean_and_sigma(gyro[run_or_rows(r)], stated)
         N.append(m)
         sig.append(sd)
         groups.append(r)

@@ -1,0 +1,125 @@
+"""samples.csv's numbers by pyarrow's C++ CSV reader, straight into the arrays a set keeps: each
+triad (ax ay az, gx gy gz) one (n, 3) float64 block whose columns the samples dict views (the raw
+outputs formed once: MeasurementSet.raw returns the block), every other column one float64 array.
+
+The spec's columns are parsed as float64 from the start (type inference and a conversion cost
+2.8x the parse), the file in pieces of PIECE_BYTES cut at line ends, two at a time on two Python
+threads (pyarrow frees the GIL while it parses), each piece's table copied out and dropped. Each
+piece with use_threads=False: Arrow's own CPU pool left std::threads alive at exit, about one
+exit in a hundred a SIGABRT (issue 39; apache/arrow#34314), while these threads are joined
+before the function returns."""
+from __future__ import annotations
+
+from concurrent.futures import ThreadPoolExecutor
+
+import numpy as np
+
+TRIADS = (("ax", "ay", "az"), ("gx", "gy", "gz"))
+PIECE_BYTES = 4 << 20  # parsed two at a time: the tables held at once are two pieces', not the file's
+
+
+def read_columns(body: memoryview, header: list[str], spec_cols: list[str], others: list[str]) -> dict | None:
+    """{column: float64 array} of spec_cols and others, or None if anything is unusual (a cell that is
+    not a number, an empty cell, a ragged row, a NaN or an infinity): the careful reader then names
+    the line and the column. A column of others holding text also gives None, as before. The pieces
+    go into arrays sized by the file's line count: no table of the whole file is held."""
+    names = spec_cols + others
+    pieces = _pieces(body)
+    counts = [lines - skip for _, skip, lines in pieces]
+    out = _allocate(names, sum(counts))
+    starts = np.cumsum([0] + counts[:-1]).tolist()
+    with ThreadPoolExecutor(2) as pool:
+        rows = list(pool.map(lambda k: _parse_into(*pieces[k][:2], header, spec_cols, out, starts[k], counts[k]),
+                             range(len(pieces))))
+    if None in rows or sum(rows) == 0:
+        return None
+    if rows != counts:  # blank lines (the parser skips them): the pieces' rows moved together
+        out = {c: np.concatenate([v[a:a + r] for a, r in zip(starts, rows)]) for c, v in out.items()}
+        out = _triads_formed(out)
+    if not all(np.isfinite(v).all() for v in out.values()):
+        return None
+    return out
+
+
+def _parse_into(buf, skip_rows, header, spec_cols, out, start, count) -> int | None:
+    """One piece parsed and copied into out[c][start:start + count]: the rows it held, or None where
+    pyarrow refuses it, a column is not numbers without gaps, or it holds more rows than lines. By
+    read_csv on this thread: pyarrow's streaming reader (open_csv) starts threads of Arrow's pool
+    even with use_threads=False, alive at exit (the SIGABRT above)."""
+    import pyarrow as pa
+    import pyarrow.csv as pa_csv
+    try:
+        table = pa_csv.read_csv(
+            buf, read_options=pa_csv.ReadOptions(use_threads=False, column_names=header, skip_rows=skip_rows),
+            convert_options=pa_csv.ConvertOptions(column_types={c: pa.float64() for c in spec_cols}),
+            memory_pool=pa.system_memory_pool())
+    except (pa.ArrowException, ValueError):
+        return None
+    if table.num_rows > count:
+        return None
+    for c, v in out.items():
+        col = table.column(header.index(c))
+        if col.null_count or not (pa.types.is_integer(col.type) or pa.types.is_floating(col.type)):
+            return None
+        row = start
+        for chunk in col.chunks:
+            np.copyto(v[row:row + len(chunk)], _numbers(chunk))
+            row += len(chunk)
+    return table.num_rows
+
+
+def _pieces(body) -> list:
+    """(bytes, rows to skip, lines) of each piece of about PIECE_BYTES, each cut after a line end (the
+    first keeps the header line). One piece where the file holds a quote (a quoted cell may hold a
+    line end, so no cut is safe there)."""
+    import pyarrow as pa
+    raw, at = body.obj, len(body.obj) - len(body)  # the file's bytes, and where body starts (after a BOM)
+    cuts = [0]
+    if raw.find(b'"', at) < 0:
+        for k in range(1, len(body) // PIECE_BYTES + 1):
+            end = raw.find(b"\n", at + max(k * PIECE_BYTES, cuts[-1]))
+            if end < 0 or end + 1 - at >= len(body):
+                break
+            cuts.append(end + 1 - at)
+    cuts.append(len(body))
+    buf = pa.py_buffer(body)
+    return [(buf.slice(a, b - a), int(a == 0), raw.count(b"\n", at + a, at + b) + (raw[at + b - 1] != 10))
+            for a, b in zip(cuts, cuts[1:])]
+
+
+def _allocate(names, n) -> dict:
+    """The output arrays: a present triad's columns as views of one (n, 3) block."""
+    return _triads_formed({c: None for c in names}, n)
+
+
+def _triads_formed(columns, n=None) -> dict:
+    """columns (arrays, or None with n: to be filled), a triad's as views of one (n, 3) block."""
+    out = dict(columns)
+    for triad in TRIADS:
+        if all(c in out for c in triad):
+            block = np.empty((n, 3)) if n is not None else np.column_stack([out[c] for c in triad])
+            out.update({c: block[:, j] for j, c in enumerate(triad)})
+    return {c: np.empty(n) if v is None else v for c, v in out.items()}
+
+
+def _numbers(chunk) -> np.ndarray:
+    """A numeric Arrow array without nulls as numbers, a view of its data buffer: pyarrow's to_numpy
+    imports pandas where it is installed (0.25 s of a 1 s command)."""
+    import pyarrow as pa
+    kind = "f" if pa.types.is_floating(chunk.type) else "i" if pa.types.is_signed_integer(chunk.type) else "u"
+    dtype = np.dtype(f"{kind}{chunk.type.bit_width // 8}")
+    return np.frombuffer(chunk.buffers()[1], dtype=dtype, count=len(chunk), offset=chunk.offset * dtype.itemsize)
+
+
+def triad_block(samples: dict, cols) -> np.ndarray | None:
+    """The (n, 3) block whose columns samples[cols] are (as read_columns makes them), or None."""
+    base = samples[cols[0]].base
+    if not (isinstance(base, np.ndarray) and base.ndim == 2 and base.shape[1] == 3 and base.dtype == np.float64
+            and base.flags.c_contiguous):
+        return None
+    at = base.__array_interface__["data"][0]
+    for j, c in enumerate(cols):
+        v = samples[c]
+        if v.base is not base or v.shape != (len(base),) or v.__array_interface__["data"][0] != at + 8 * j:
+            return None
+    return base
