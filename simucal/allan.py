@@ -89,14 +89,24 @@ def still_stretches(ms, sensor) -> tuple[list[np.ndarray], float, str]:
         if not pieces:
             raise CalibrationError(f"{ms.path}: no static segment holds raw rows (3 or more): the Allan deviation "
                                    "needs the samples, not their averages")
-    dts = np.concatenate([np.diff(t[p]) for p in pieces])
+    dt = sample_step(np.concatenate([np.diff(t[p]) for p in pieces]), ms.path / "samples.csv")
+    return [data[p] for p in pieces], dt, where
+
+
+def sample_step(dts, path) -> float:
+    """The sample clock (s): the median step of t_s; refused where a step is a gap (lost samples)."""
     dt = float(np.median(dts))
     # a logger's timestamps jitter around the sample clock (taken as the median step); a gap is lost samples
     if dt <= 0 or np.max(np.abs(dts - dt)) > 0.5 * dt:
-        raise CalibrationError(f"{ms.path / 'samples.csv'}: t_s has gaps within the still stretches (steps "
+        raise CalibrationError(f"{path}: t_s has gaps within the still stretches (steps "
                                f"{dts.min():.4g} to {dts.max():.4g} s, median {dt:.4g}): the Allan deviation needs "
                                "every sample of a constant rate; cut the recording at the gaps")
-    return [data[p] for p in pieces], dt, where
+    return dt
+
+
+def second_rows(dt) -> int:
+    """Rows in one second: the means check_still compares."""
+    return max(int(round(1.0 / dt)), 1)
 
 
 def check_still(ms, dt):
@@ -104,10 +114,15 @@ def check_still(ms, dt):
     if ms.segments is not None or not ms.has_acc:
         return
     f = ms.acc_g()
-    k = max(int(round(1.0 / dt)), 1)
-    tilt = np.linalg.norm(f[: len(f) // k * k].reshape(-1, k, 3).mean(1) - f.mean(0), axis=1)
+    k = second_rows(dt)
+    refuse_moving(f[: len(f) // k * k].reshape(-1, k, 3).mean(1), f.mean(0), ms.path)
+
+
+def refuse_moving(f_1s_g, f_mean_g, where):
+    """check_still on the 1-s means of the specific force (rows, 3) and its mean over the record (g)."""
+    tilt = np.linalg.norm(f_1s_g - f_mean_g, axis=1)
     if len(tilt) > 1 and np.max(tilt) > 0.05:
-        raise CalibrationError(f"{ms.path}: the unit moves during the recording (its 1-s mean specific force turns "
+        raise CalibrationError(f"{where}: the unit moves during the recording (its 1-s mean specific force turns "
                                f"by {np.max(tilt):.2g} g): the Allan deviation needs a still unit; record it at rest")
 
 
@@ -119,10 +134,10 @@ def _seconds_for(n_taus: int, dt: float) -> float:
     return MIN_CLUSTERS * top * dt
 
 
-def _cluster_sizes(stretches, dt, tau_max_s, where) -> np.ndarray:
-    """taus(), up to tau_max_s where asked; refused where the longest stretch is too short for it,
-    or where the grid would hold fewer taus than the white noise's fit needs."""
-    n = max(len(s) for s in stretches)
+def cluster_sizes(lengths, dt, tau_max_s, where) -> np.ndarray:
+    """taus(), up to tau_max_s where asked, for still stretches of these lengths (rows); refused where
+    the longest is too short for it, or where the grid would hold fewer taus than the white noise's fit needs."""
+    n = max(lengths)
     need = allan_fit.TERMS_NEEDING["N"]
     if len(taus(n)) < need:
         raise CalibrationError(f"{where}: the longest still stretch is {n * dt:.4g} s ({n} rows), too short for an "
@@ -140,11 +155,11 @@ def _cluster_sizes(stretches, dt, tau_max_s, where) -> np.ndarray:
     return taus(n, m_max=tau_max_s / dt)
 
 
-def _stuck(y, unit) -> str | None:
-    """Why a channel has no noise to characterise: its value never changes (to 1e-12 of itself)."""
-    values = np.concatenate(y)
-    if np.ptp(values) <= 1e-12 * np.max(np.abs(values)):
-        return (f"stuck or dead: constant at {values[0]:.6g} {unit} over all {len(values)} rows (a real sensor's "
+def stuck(lo, hi, first, rows, unit) -> str | None:
+    """Why a channel has no noise to characterise: its value (from lo to hi, the first one `first`, over
+    `rows` rows) never changes (to 1e-12 of itself)."""
+    if hi - lo <= 1e-12 * max(abs(lo), abs(hi)):
+        return (f"stuck or dead: constant at {first:.6g} {unit} over all {rows} rows (a real sensor's "
                 "output always has noise); no noise terms")
     return None
 
@@ -153,11 +168,16 @@ def axis_report(sensor, y, dt, m, mats, unit) -> dict:
     """One axis of the report: its Allan deviation, the model's 68 % interval, the terms seen and
     the bounds of those not seen (module doc); "fit": the final model's chi2, dof and its terms'
     squares (x, std) in the fitted units (Q^2, N^2, ... of `terms`), below zero where noise puts them."""
-    stuck = _stuck(y, unit)
+    values = np.concatenate(y)
+    return axis_from_avar(sensor, allan_variance(y, dt, m)[0], stuck(values.min(), values.max(), values[0],
+                                                                      len(values), unit), dt, m, mats)
+
+
+def axis_from_avar(sensor, avar, stuck_why, dt, m, mats) -> dict:
+    """axis_report from the Allan variance at the cluster sizes m (read chunk by chunk: allan_stream)."""
     tau = m * dt
-    avar, _ = allan_variance(y, dt, m)
-    if stuck:
-        return {"stuck": stuck, "adev": np.sqrt(avar).tolist(), "tau_s": tau.tolist()}
+    if stuck_why:
+        return {"stuck": stuck_why, "adev": np.sqrt(avar).tolist(), "tau_s": tau.tolist()}
     fit = allan_fit.select(tau, avar, mats)
     terms = {k: (v[0] if v else 0.0) for k, v in fit["terms"].items()}
     model = allan_deviation(terms, tau) ** 2
@@ -187,15 +207,22 @@ def characterise(ms, tau_max_s=None) -> dict:
             continue
         stretches, dt, where = still_stretches(ms, sensor)
         check_still(ms, dt)
-        m = _cluster_sizes(stretches, dt, tau_max_s, ms.path / "samples.csv")
-        unit = "deg/h" if sensor == "gyro" else "g"
-        mats = allan_cov.basis(m, dt, [len(s) for s in stretches])
-        out[sensor] = {"unit": unit, "tau_s": (m * dt).tolist(), "rate_hz": 1.0 / dt, "rows": where,
-                       "axes": {a: axis_report(sensor, [s[:, j] for s in stretches], dt, m, mats, unit)
-                                for j, a in enumerate("xyz")}}
+        lengths = [len(s) for s in stretches]
+        m = cluster_sizes(lengths, dt, tau_max_s, ms.path / "samples.csv")
+        mats = allan_cov.basis(m, dt, lengths)
+        out[sensor] = sensor_report(sensor, dt, m, where, {a: axis_report(
+            sensor, [s[:, j] for s in stretches], dt, m, mats, UNIT[sensor]) for j, a in enumerate("xyz")})
     if "acc" not in out and "gyro" not in out:
         raise CalibrationError(f"{ms.path}: no sensor columns to characterise")
     return out
+
+
+UNIT = {"gyro": "deg/h", "acc": "g"}
+
+
+def sensor_report(sensor, dt, m, where, axes) -> dict:
+    """One sensor's block of the report, around its axes' (axis_report)."""
+    return {"unit": UNIT[sensor], "tau_s": (m * dt).tolist(), "rate_hz": 1.0 / dt, "rows": where, "axes": axes}
 
 
 KALIBR = (("acc", "accelerometer", G0), ("gyro", "gyroscope", RAD_PER_DEG / units.DPH_PER_DPS))

@@ -215,12 +215,16 @@ def _angles_in_degrees(path, segments):
 
 
 def read_samples(folder: Path, segments) -> tuple[dict, bytes]:
-    """(column -> array, the file's bytes). The numbers are parsed by pyarrow, and only where that
+    """(column -> array, the file's bytes) of samples.csv (samples.parquet: io/columnar.py). The numbers are parsed by pyarrow, and only where that
     finds anything unusual by the careful reader, which names the line; the whole file is checked
     to be UTF-8 either way (an ASCII file, the usual one, is UTF-8 without decoding it)."""
-    path = not_a_folder(folder / "samples.csv")
+    from simucal.io.columnar import is_parquet, read_parquet, samples_path
+    path = samples_path(folder)
+    if is_parquet(path):
+        return read_parquet(folder, segments)
+    path = not_a_folder(path)
     if not path.is_file():
-        raise MeasurementSetError(path, None, "missing: a measurement set needs samples.csv")
+        raise MeasurementSetError(path, None, "missing: a measurement set needs samples.csv (or samples.parquet)")
     raw = path.read_bytes()
     body = body_of(path, raw)
     if not len(body):
@@ -395,11 +399,13 @@ def read_set(folder) -> MeasurementSet:
         raise MeasurementSetError(folder, None, "not a folder (a measurement set is a folder)")
     meta = read_meta(folder)
     segments = read_segments(folder)
-    samples, samples_csv = read_samples(folder, segments)
+    samples, samples_bytes = read_samples(folder, segments)
     if "gx" in samples and "latitude_deg" not in meta:
         raise MeasurementSetError(folder / "meta.json", None,
                                   "latitude_deg is required when gyro data are present")
-    return MeasurementSet(folder, meta, samples, segments, sha256=files_sha256(folder, samples_csv))
+    from simucal.io.columnar import samples_path
+    return MeasurementSet(folder, meta, samples, segments,
+                          sha256=files_sha256(folder, samples_bytes, samples_path(folder).name))
 
 
 def _fmt(v):
@@ -432,5 +438,6 @@ def write_set(folder, meta: dict, samples: dict, segments: list[Segment] | None 
         arrays = [np.asarray(samples[c]) for c in cols]
         for i in range(n):
             w.writerow([str(int(a[i])) if c == "segment" else repr(float(a[i])) for c, a in zip(cols, arrays)])
+    (folder / "samples.parquet").unlink(missing_ok=True)  # a set replaced (--force): it would hold its samples twice
     for name, obj in (extra_files or {}).items():
         outputs.write_text(folder / name, json.dumps(obj, indent=2) + "\n")
