@@ -30,12 +30,17 @@ data sheet uses (deg/sqrt(h), ug/sqrt(Hz), deg/h, ...), and for Kalibr's imu.yam
 """
 from __future__ import annotations
 
+import contextlib
+import tempfile
+from pathlib import Path
+
 import numpy as np
 
+from simucal import io
 from simucal.errors import CalibrationError
-from simucal.fit import allan_cov, allan_fit
+from simucal.fit import allan_cov, allan_fit, allan_sums
 from simucal.fit.noise import TERMS, allan_deviation
-from simucal.io import units
+from simucal.io import MeasurementSetError, columnar, units
 
 MIN_CLUSTERS = 9  # the longest tau keeps this many independent clusters (relative error <= 25 %)
 G0 = units.DEFAULT_GRAVITY  # m/s^2 per g: Kalibr's SI, not the site's gravity
@@ -174,7 +179,7 @@ def axis_report(sensor, y, dt, m, mats, unit) -> dict:
 
 
 def axis_from_avar(sensor, avar, stuck_why, dt, m, mats) -> dict:
-    """axis_report from the Allan variance at the cluster sizes m (read chunk by chunk: allan_stream)."""
+    """axis_report from the Allan variance at the cluster sizes m (a stream read chunk by chunk: characterise_folder)."""
     tau = m * dt
     if stuck_why:
         return {"stuck": stuck_why, "adev": np.sqrt(avar).tolist(), "tau_s": tau.tolist()}
@@ -223,6 +228,49 @@ UNIT = {"gyro": "deg/h", "acc": "g"}
 def sensor_report(sensor, dt, m, where, axes) -> dict:
     """One sensor's block of the report, around its axes' (axis_report)."""
     return {"unit": UNIT[sensor], "tau_s": (m * dt).tolist(), "rate_hz": 1.0 / dt, "rows": where, "axes": axes}
+
+
+def _check_still_stream(kept, dt, where) -> None:
+    """check_still from the accelerometer's theta: the 1-s means are its differences."""
+    th = [kept.theta[c] for c in io.SAMPLE_COLS[:3]]
+    n, k = th[0].n - 1, second_rows(dt)
+    center = np.array([kept.center[c] for c in io.SAMPLE_COLS[:3]])
+    sums = np.column_stack([t.at(np.arange(0, n // k * k + 1, k)) for t in th])
+    whole = np.array([t.at(np.array([n]))[0] for t in th])
+    refuse_moving(np.diff(sums, axis=0) / k + center, whole / n + center, where)
+
+
+def characterise_folder(folder, tau_max_s=None, scheduler=None, size=allan_sums.CHUNK) -> dict:
+    """characterise() of the set in `folder`, a still stream read a chunk at a time (simucal.fit.allan_sums:
+    theta in parts of `size` values, the rows of one task, here or on Dask with `scheduler`); a
+    segmented set (a turntable test's static segments, short) is read whole."""
+    folder = Path(folder)
+    meta = io.read_meta(folder)
+    if io.read_segments(folder) is not None:
+        return characterise(io.read_set(folder), tau_max_s)
+    path = io.samples_path(folder)
+    cols, _ = columnar.columns_of(path, None)
+    sensors = [s for s, c in (("acc", "ax"), ("gyro", "gx")) if c in cols]
+    if "gyro" in sensors and "latitude_deg" not in meta:
+        raise MeasurementSetError(folder / "meta.json", None, "latitude_deg is required when gyro data are present")
+    spilled = scheduler not in (None, "local")
+    with (tempfile.TemporaryDirectory(prefix="simucal-noise-") if spilled else contextlib.nullcontext()) as spill:
+        kept, steps = allan_sums.read_pass(folder, meta, sensors, Path(spill) if spill else None, size)
+        dt = sample_step(steps, path)
+        del steps
+        n = kept.theta[next(iter(kept.theta))].n - 1
+        if "acc" in sensors:
+            _check_still_stream(kept, dt, folder)
+        out = {"format": "simucal.noise/1", "data": str(folder)}
+        for sensor in sensors:
+            m = cluster_sizes([n], dt, tau_max_s, path)
+            mats = allan_cov.basis(m, dt, [n])
+            cols = io.SAMPLE_COLS[:3] if sensor == "acc" else io.SAMPLE_COLS[3:]
+            avars = allan_sums.allan_variances([kept.theta[c] for c in cols], m, scheduler)
+            out[sensor] = sensor_report(sensor, dt, m, "the whole stream", {a: axis_from_avar(
+                sensor, avar, stuck(kept.lo[c], kept.hi[c], kept.first[c], n, UNIT[sensor]), dt, m, mats)
+                for a, c, avar in zip("xyz", cols, avars)})
+    return out
 
 
 KALIBR = (("acc", "accelerometer", G0), ("gyro", "gyroscope", RAD_PER_DEG / units.DPH_PER_DPS))

@@ -235,12 +235,12 @@ def noise(data_dir, output, html_path, kalibr_path, tau_max_s, scheduler):
     read a chunk at a time."""
     import json
 
-    from simucal import allan, allan_stream
+    from simucal import allan
     from simucal.errors import CalibrationError
     from simucal.io import MeasurementSetError, outputs
     guard([data_dir], files={"-o": output, "--html": html_path, "--kalibr": kalibr_path})
     try:
-        report = allan_stream.characterise(data_dir, tau_max_s, scheduler)
+        report = allan.characterise_folder(data_dir, tau_max_s, scheduler)
         yaml = allan.kalibr_yaml(report) if kalibr_path else None  # refused before anything is written
     except (MeasurementSetError, CalibrationError) as e:
         fail(e)
@@ -266,7 +266,7 @@ def convert(data_dir, output, to, force):
     """Copy a measurement set with its samples as samples.parquet or samples.csv, read and written a chunk at a time
     (every row checked as it is read); the input is never changed."""
     from simucal.io import MeasurementSetError, columnar
-    guard([data_dir], sets={"-o": output}, force=force)
+    guard([data_dir], sets=[output], force=force)
     try:
         path, rows = columnar.convert(data_dir, output, to)
     except MeasurementSetError as e:

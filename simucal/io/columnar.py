@@ -8,7 +8,7 @@ a break names the row (counted from 1 after the header) where samples.csv names 
 
 `chunks` reads either a few hundred thousand rows at a time, each chunk checked as the whole file
 would be, so that a long recording is never held as a table in memory (`simucal noise`,
-`simucal convert`); `read_parquet` reads the whole file for the commands that need every row.
+`simucal convert`); io.read_set reads either whole for the commands that need every row.
 """
 from __future__ import annotations
 
@@ -16,95 +16,34 @@ from pathlib import Path
 
 import numpy as np
 
-from simucal.io import MeasurementSetError, _check_samples, _header, _sample_columns, read_samples
-from simucal.io.text_files import body_of, not_a_folder
+from simucal.io import (MeasurementSetError, _check_samples, _header, _sample_columns, arrow_floats, at_row,
+                        parquet_columns, parquet_file, read_samples, samples_path)
+from simucal.io.text_files import body_of
 
 BLOCK_BYTES = 32 << 20  # CSV read this many bytes at a time (about 300,000 rows of a six-channel stream)
 BATCH_ROWS = 1 << 18    # parquet read this many rows at a time
 
 
-def samples_path(folder: Path) -> Path:
-    """The set's samples file: samples.csv, or samples.parquet where that is there instead."""
-    folder = Path(folder)
-    csv_path, parquet = folder / "samples.csv", folder / "samples.parquet"
-    if parquet.exists() or parquet.is_symlink():
-        if csv_path.exists():
-            raise MeasurementSetError(folder, None, "holds both samples.csv and samples.parquet: a set holds its "
-                                                    "samples once; remove one (simucal convert writes either)")
-        return not_a_folder(parquet)
-    return csv_path
-
-
-def is_parquet(path: Path) -> bool:
-    return Path(path).suffix == ".parquet"
-
-
-def _where(path, e: MeasurementSetError, before: int) -> MeasurementSetError:
-    """A chunk's refusal (its line counted in the chunk) moved to the file's line, or row of a parquet."""
-    if e.line is None:
-        return e
-    if is_parquet(path):
-        return MeasurementSetError(path, None, f"row {e.line - 1 + before}: {e.rule}")
-    return MeasurementSetError(path, e.line + before, e.rule)
-
-
-def _parquet_file(path):
-    import pyarrow as pa
-    import pyarrow.parquet as pq
-    try:
-        return pq.ParquetFile(path)
-    except (pa.ArrowException, OSError) as e:
-        raise MeasurementSetError(path, None, f"not a readable Parquet file ({str(e)[:120]}); write it with "
-                                              "simucal convert --to parquet") from None
-
-
-def _numeric(field) -> bool:
-    import pyarrow as pa
-    return pa.types.is_integer(field.type) or pa.types.is_floating(field.type)
-
-
 def columns_of(path, segments) -> tuple[list, list]:
     """(the spec's columns present, the other numeric columns) of samples.csv or samples.parquet, with
-    the header's rules checked; a spec column of a Parquet file must hold numbers."""
-    if not is_parquet(path):
-        if not path.is_file():
-            raise MeasurementSetError(path, None, "missing: a measurement set needs samples.csv (or samples.parquet)")
-        with open(path, "rb") as fh:
-            head = fh.read(65536)
-        body = body_of(path, head)
-        if not len(body):
-            raise MeasurementSetError(path, 1, "empty file")
-        return _sample_columns(path, _header(path, body), segments)
-    schema = _parquet_file(path).schema_arrow
-    cols, others = _sample_columns(path, list(schema.names), segments)
-    for c in cols:
-        if not _numeric(schema.field(c)):
-            raise MeasurementSetError(path, None, f"column {c} holds {schema.field(c).type}, not numbers: the spec's "
-                                                  "columns hold integers or floats")
-    return cols, [c for c in others if _numeric(schema.field(c))]
-
-
-def _floats(batch, names) -> dict | None:
-    """The batch's columns as float64 arrays; None where one holds a null or a value not finite."""
-    import pyarrow as pa
-
-    from simucal.io import _column_floats
-    out = {}
-    for c in names:
-        col = pa.chunked_array([batch.column(c)])
-        if col.null_count:
-            return None
-        out[c] = _column_floats(col)
-        if not np.all(np.isfinite(out[c])):
-            return None
-    return out
+    the header's rules checked."""
+    if path.suffix == ".parquet":
+        return parquet_columns(path, segments)
+    if not path.is_file():
+        raise MeasurementSetError(path, None, "missing: a measurement set needs samples.csv (or samples.parquet)")
+    with open(path, "rb") as fh:
+        head = fh.read(65536)
+    body = body_of(path, head)
+    if not len(body):
+        raise MeasurementSetError(path, 1, "empty file")
+    return _sample_columns(path, _header(path, body), segments)
 
 
 def _batches(path, names):
     """Record batches of the named columns (CSV: parsed as float64, one thread, see io._fast_numeric)."""
     import pyarrow as pa
-    if is_parquet(path):
-        yield from _parquet_file(path).iter_batches(batch_size=BATCH_ROWS, columns=names)
+    if path.suffix == ".parquet":
+        yield from parquet_file(path).iter_batches(batch_size=BATCH_ROWS, columns=names)
         return
     import pyarrow.csv as pa_csv
     reader = pa_csv.open_csv(path, read_options=pa_csv.ReadOptions(use_threads=False, block_size=BLOCK_BYTES),
@@ -115,11 +54,9 @@ def _batches(path, names):
 
 def _careful_refusal(path, folder, segments, detail):
     """A CSV the chunked reader cannot take: the careful reader names the line (it reads the whole
-    file once, as every command did before chunks); a Parquet file: its row is not known."""
-    if not is_parquet(path):
-        read_samples(Path(folder), segments)
-    return MeasurementSetError(path, None, f"holds a value that is not a finite number ({detail}): the spec's "
-                                           "columns hold numbers in every row")
+    file once, as every command did before chunks)."""
+    read_samples(Path(folder), segments)
+    return MeasurementSetError(path, None, f"not readable as the spec's CSV ({detail})")
 
 
 def chunks(folder, names, segments=None):
@@ -131,39 +68,21 @@ def chunks(folder, names, segments=None):
     before, last_t = 0, None
     try:
         for batch in _batches(path, names):
-            out = _floats(batch, names)
-            if out is None:
-                raise _careful_refusal(path, folder, segments, "a null, an empty cell, NaN or infinity")
             try:
-                out = _check_samples(out, path, segments)
+                out = _check_samples(arrow_floats(path, batch, names, before), path, segments)
+                if segments is None and last_t is not None and out["t_s"][0] <= last_t:
+                    raise MeasurementSetError(path, 2, f"t_s must increase through a stream: {out['t_s'][0]:g} s "
+                                                       f"follows {last_t:g} s")
             except MeasurementSetError as e:
-                raise _where(path, e, before) from None
-            if segments is None and last_t is not None and len(out["t_s"]) and out["t_s"][0] <= last_t:
-                raise _where(path, MeasurementSetError(path, 2, f"t_s must increase through a stream: "
-                                                                f"{out['t_s'][0]:g} s follows {last_t:g} s"), before)
-            before += len(out["t_s"])
-            last_t = out["t_s"][-1] if len(out["t_s"]) else last_t
+                if e.line is None and path.suffix == ".csv":  # a null or NaN: the careful reader names its line
+                    raise _careful_refusal(path, folder, segments, e.rule) from None
+                raise at_row(path, e, before) from None
+            before, last_t = before + len(out["t_s"]), out["t_s"][-1]
             yield out
-    except (pa.ArrowException, ValueError) as e:
-        if isinstance(e, MeasurementSetError):
-            raise
+    except pa.ArrowException as e:  # a CSV row that is not numbers, or ragged
         raise _careful_refusal(path, folder, segments, str(e).splitlines()[0][:120]) from None
     if before == 0:
         raise MeasurementSetError(path, None, "no samples")
-
-
-def read_parquet(folder: Path, segments) -> tuple[dict, bytes]:
-    """(column -> array, the file's bytes) of samples.parquet: read_samples for a Parquet file."""
-    path = samples_path(folder)
-    cols, others = columns_of(path, segments)
-    parts = list(chunks(folder, cols + others, segments))
-    samples = {c: np.concatenate([p[c] for p in parts]) for c in cols + others}
-    del parts
-    try:
-        samples = _check_samples(samples, path, segments)
-    except MeasurementSetError as e:
-        raise _where(path, e, 0) from None
-    return samples, path.read_bytes()
 
 
 def _table(chunk: dict, names):
@@ -182,7 +101,7 @@ def write_samples(path: Path, parts, names) -> int:
     from simucal.io import outputs
     rows = 0
     with outputs.replacing(path) as tmp, open(tmp, "wb") as fh:
-        if is_parquet(path):
+        if path.suffix == ".parquet":
             schema = pa.schema([(c, pa.int64() if c == "segment" else pa.float64()) for c in names])
             writer = pq.ParquetWriter(fh, schema)
         else:

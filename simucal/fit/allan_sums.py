@@ -1,4 +1,5 @@
-"""`simucal noise` of a long still recording, read a chunk at a time (issue 41, item 1).
+"""The overlapping Allan variance of a long still recording, read a chunk at a time (issue 41, item 1;
+`simucal noise`: simucal.allan.characterise_folder).
 
 The overlapping Allan variance (simucal.allan, IEEE 952-1997 Annex C eq. C.2) needs, per channel,
 only the integrated output theta_k = sum_{i<k} y_i: sigma^2(m dt) = sum_k (theta_{k+2m} -
@@ -9,27 +10,22 @@ row and channel); the table of the file is never held. theta is taken of y less 
 chunk's mean (the Allan variance does not see a constant, and theta then keeps the digits of the
 noise, not of a bias times the row count). Besides theta one pass keeps each channel's least,
 greatest and first value (a stuck channel), and the steps of t_s (the sample clock and its gaps,
-as allan.sample_step); the 1-s means of check_still are differences of the accelerometer's theta.
+as simucal.allan.sample_step); the 1-s means of check_still are differences of the accelerometer's theta.
 
 The sums over k run in blocks of BLOCK rows (the second differences stay in the processor's
 cache), and the rows in ranges of CHUNK, one task each (simucal.sweeps.map_tasks): here, or on
 Dask with --scheduler processes or a scheduler's address. On Dask theta is written to a temporary
 folder (TMPDIR; the workers read it, so a remote cluster needs it on a shared file system) a part
 at a time, and each task memory-maps the parts it reads: a recording larger than memory runs.
-The terms are then fitted exactly as for a set read whole (simucal.allan, simucal.fit.allan_fit).
+The terms are then fitted exactly as for a set read whole (simucal.fit.allan_fit).
 """
 from __future__ import annotations
 
-import contextlib
-import tempfile
 from pathlib import Path
 
 import numpy as np
 
-from simucal import allan, io
-from simucal.errors import CalibrationError
-from simucal.fit import allan_cov
-from simucal.io import SAMPLE_COLS, MeasurementSetError, columnar, units
+from simucal.io import SAMPLE_COLS, columnar, units
 from simucal.sweeps import map_tasks
 
 CHUNK = 1 << 20  # theta's parts (values; 8 MiB) and the rows of one task
@@ -183,48 +179,3 @@ def read_pass(folder, meta, sensors, spill, size=CHUNK) -> tuple[Pass, np.ndarra
             y.update({c: np.ascontiguousarray(conv[:, j]) for j, c in enumerate(cols)})
         kept.add(chunk["t_s"], y)
     return kept, kept.close()
-
-
-def _check_still(kept: Pass, dt, where) -> None:
-    """allan.check_still from the accelerometer's theta: the 1-s means are its differences."""
-    th = [kept.theta[c] for c in SAMPLE_COLS[:3]]
-    n, k = th[0].n - 1, allan.second_rows(dt)
-    center = np.array([kept.center[c] for c in SAMPLE_COLS[:3]])
-    sums = np.column_stack([t.at(np.arange(0, n // k * k + 1, k)) for t in th])
-    whole = np.array([t.at(np.array([n]))[0] for t in th])
-    allan.refuse_moving(np.diff(sums, axis=0) / k + center, whole / n + center, where)
-
-
-def characterise(folder, tau_max_s=None, scheduler=None, size=CHUNK) -> dict:
-    """allan.characterise of the set in `folder`, a still stream read a chunk at a time (module doc;
-    theta in parts of `size` values, the rows of one task); a segmented set (a turntable test's
-    static segments, short) is read whole."""
-    folder = Path(folder)
-    meta = io.read_meta(folder)
-    if io.read_segments(folder) is not None:
-        return allan.characterise(io.read_set(folder), tau_max_s)
-    path = columnar.samples_path(folder)
-    cols, _ = columnar.columns_of(path, None)
-    sensors = [s for s, c in (("acc", "ax"), ("gyro", "gx")) if c in cols]
-    if "gyro" in sensors and "latitude_deg" not in meta:
-        raise MeasurementSetError(folder / "meta.json", None, "latitude_deg is required when gyro data are present")
-    spilled = scheduler not in (None, "local")
-    with (tempfile.TemporaryDirectory(prefix="simucal-noise-") if spilled else contextlib.nullcontext()) as spill:
-        kept, steps = read_pass(folder, meta, sensors, Path(spill) if spill else None, size)
-        dt = allan.sample_step(steps, path)
-        del steps
-        n = kept.theta[next(iter(kept.theta))].n - 1
-        if "acc" in sensors:
-            _check_still(kept, dt, folder)
-        out = {"format": "simucal.noise/1", "data": str(folder)}
-        for sensor in sensors:
-            m = allan.cluster_sizes([n], dt, tau_max_s, path)
-            mats = allan_cov.basis(m, dt, [n])
-            cols = SAMPLE_COLS[:3] if sensor == "acc" else SAMPLE_COLS[3:]
-            avars = allan_variances([kept.theta[c] for c in cols], m, scheduler)
-            out[sensor] = allan.sensor_report(sensor, dt, m, "the whole stream", {a: allan.axis_from_avar(
-                sensor, avar, allan.stuck(kept.lo[c], kept.hi[c], kept.first[c], n, allan.UNIT[sensor]), dt, m, mats)
-                for a, c, avar in zip("xyz", cols, avars)})
-    if not sensors:
-        raise CalibrationError(f"{folder}: no sensor columns to characterise")
-    return out
