@@ -172,3 +172,18 @@ def test_parquet_refusals_name_the_row_and_column(still, tmp_path):
     (tmp_path / "huge" / "samples.csv").write_text("t_s,gx,gy,gz\n")
     refused(run("noise", tmp_path / "huge", "-o", tmp_path / "n.json"), "both samples.csv and samples.parquet")
     assert not (tmp_path / "n.json").exists()
+
+
+def test_convert_keeps_numeric_columns_and_leaves_notes_out(still, tmp_path, monkeypatch):
+    """As the whole-file reader does: a user's supply_v is kept, a column of notes left out."""
+    _small_reads(monkeypatch)
+    folder = tmp_path / "aux"
+    folder.mkdir()
+    (folder / "meta.json").write_bytes((still / "csv" / "meta.json").read_bytes())
+    lines = (still / "csv" / "samples.csv").read_text().splitlines()[:3001]
+    (folder / "samples.csv").write_text("\n".join([lines[0] + ",supply_v,note"] + [
+        f"{x},{5 + i * 1e-4!r},{'ok' if i % 2 else 'warm'}" for i, x in enumerate(lines[1:])]) + "\n")
+    assert run("convert", folder, "-o", tmp_path / "pq", "--to", "parquet").exit_code == 0
+    a, b = io.read_set(folder), io.read_set(tmp_path / "pq")
+    assert "note" not in a.samples and set(a.samples) == set(b.samples) and "supply_v" in b.samples
+    assert all(np.array_equal(a.samples[c], b.samples[c]) for c in a.samples)

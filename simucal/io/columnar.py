@@ -12,6 +12,7 @@ would be, so that a long recording is never held as a table in memory (`simucal 
 """
 from __future__ import annotations
 
+import itertools
 from pathlib import Path
 
 import numpy as np
@@ -39,15 +40,16 @@ def columns_of(path, segments) -> tuple[list, list]:
     return _sample_columns(path, _header(path, body), segments)
 
 
-def _batches(path, names):
-    """Record batches of the named columns (CSV: parsed as float64, one thread, see io._fast_numeric)."""
+def _batches(path, names, others):
+    """Record batches of the named columns and others (CSV: the named parsed as float64, the others'
+    types inferred; one thread, see io._fast_numeric)."""
     import pyarrow as pa
     if path.suffix == ".parquet":
-        yield from parquet_file(path).iter_batches(batch_size=BATCH_ROWS, columns=names)
+        yield from parquet_file(path).iter_batches(batch_size=BATCH_ROWS, columns=names + others)
         return
     import pyarrow.csv as pa_csv
     reader = pa_csv.open_csv(path, read_options=pa_csv.ReadOptions(use_threads=False, block_size=BLOCK_BYTES),
-                             convert_options=pa_csv.ConvertOptions(include_columns=names,
+                             convert_options=pa_csv.ConvertOptions(include_columns=names + others,
                                                                    column_types={c: pa.float64() for c in names}))
     yield from reader
 
@@ -59,17 +61,22 @@ def _careful_refusal(path, folder, segments, detail):
     return MeasurementSetError(path, None, f"not readable as the spec's CSV ({detail})")
 
 
-def chunks(folder, names, segments=None):
+def chunks(folder, names, segments=None, others=()):
     """The named columns (float64) of the set's samples file, a chunk at a time, each checked by the
     spec's rules (numbers, plausible, t_s increasing through a stream, also across chunks), a
-    break named by its line (samples.csv) or row (samples.parquet)."""
+    break named by its line (samples.csv) or row (samples.parquet); with them the columns `others`
+    that the first chunk holds as numbers (a column of notes is left out, as the whole-file reader
+    leaves it)."""
     import pyarrow as pa
     path = samples_path(folder)
-    before, last_t = 0, None
+    before, last_t, kept = 0, None, None
     try:
-        for batch in _batches(path, names):
+        for batch in _batches(path, list(names), list(others)):
+            if kept is None:
+                kept = [c for c in others if pa.types.is_integer(batch.schema.field(c).type)
+                        or pa.types.is_floating(batch.schema.field(c).type)]
             try:
-                out = _check_samples(arrow_floats(path, batch, names, before), path, segments)
+                out = _check_samples(arrow_floats(path, batch, list(names) + kept, before), path, segments)
                 if segments is None and last_t is not None and out["t_s"][0] <= last_t:
                     raise MeasurementSetError(path, 2, f"t_s must increase through a stream: {out['t_s'][0]:g} s "
                                                        f"follows {last_t:g} s")
@@ -125,14 +132,15 @@ def convert(folder, out, to: str) -> tuple[Path, int]:
     segments = read_segments(folder)
     source = samples_path(folder)
     cols, others = columns_of(source, segments)
-    names = cols + others
+    parts = chunks(folder, cols, segments, others)
+    first = next(parts)
     out.mkdir(parents=True, exist_ok=True)
     for name in ("meta.json", "segments.csv"):
         if (folder / name).is_file():
             with outputs.replacing(out / name) as tmp:
                 tmp.write_bytes((folder / name).read_bytes())
     target = out / f"samples.{to}"
-    rows = write_samples(target, chunks(folder, names, segments), names)
+    rows = write_samples(target, itertools.chain([first], parts), list(first))
     # a set replaced (--force): its other samples file, or a segments.csv the input lacks, would be stale
     for stale in [out / ("samples.csv" if to == "parquet" else "samples.parquet")] + [out / "segments.csv"] * (
             segments is None):
