@@ -30,12 +30,17 @@ data sheet uses (deg/sqrt(h), ug/sqrt(Hz), deg/h, ...), and for Kalibr's imu.yam
 """
 from __future__ import annotations
 
+import contextlib
+import tempfile
+from pathlib import Path
+
 import numpy as np
 
+from simucal import io
 from simucal.errors import CalibrationError
-from simucal.fit import allan_cov, allan_fit
+from simucal.fit import allan_cov, allan_fit, allan_sums
 from simucal.fit.noise import TERMS, allan_deviation
-from simucal.io import units
+from simucal.io import MeasurementSetError, columnar, units
 
 MIN_CLUSTERS = 9  # the longest tau keeps this many independent clusters (relative error <= 25 %)
 G0 = units.DEFAULT_GRAVITY  # m/s^2 per g: Kalibr's SI, not the site's gravity
@@ -89,14 +94,25 @@ def still_stretches(ms, sensor) -> tuple[list[np.ndarray], float, str]:
         if not pieces:
             raise CalibrationError(f"{ms.path}: no static segment holds raw rows (3 or more): the Allan deviation "
                                    "needs the samples, not their averages")
-    dts = np.concatenate([np.diff(t[p]) for p in pieces])
-    dt = float(np.median(dts))
-    # a logger's timestamps jitter around the sample clock (taken as the median step); a gap is lost samples
-    if dt <= 0 or np.max(np.abs(dts - dt)) > 0.5 * dt:
-        raise CalibrationError(f"{ms.path / 'samples.csv'}: t_s has gaps within the still stretches (steps "
-                               f"{dts.min():.4g} to {dts.max():.4g} s, median {dt:.4g}): the Allan deviation needs "
-                               "every sample of a constant rate; cut the recording at the gaps")
+    dt = sample_step(np.concatenate([np.diff(t[p]) for p in pieces]), ms.path / "samples.csv")
     return [data[p] for p in pieces], dt, where
+
+
+def sample_step(dts, path) -> float:
+    """The sample clock (s): the median step of t_s; refused where a step is a gap (lost samples)."""
+    lo, hi = float(dts.min()), float(dts.max())
+    dt = float(np.median(dts, overwrite_input=True))  # dts reordered in place: no copy of a long record's steps
+    # a logger's timestamps jitter around the sample clock (taken as the median step); a gap is lost samples
+    if dt <= 0 or max(hi - dt, dt - lo) > 0.5 * dt:
+        raise CalibrationError(f"{path}: t_s has gaps within the still stretches (steps "
+                               f"{lo:.4g} to {hi:.4g} s, median {dt:.4g}): the Allan deviation needs "
+                               "every sample of a constant rate; cut the recording at the gaps")
+    return dt
+
+
+def second_rows(dt) -> int:
+    """Rows in one second: the means check_still compares."""
+    return max(int(round(1.0 / dt)), 1)
 
 
 def check_still(ms, dt):
@@ -104,10 +120,15 @@ def check_still(ms, dt):
     if ms.segments is not None or not ms.has_acc:
         return
     f = ms.acc_g()
-    k = max(int(round(1.0 / dt)), 1)
-    tilt = np.linalg.norm(f[: len(f) // k * k].reshape(-1, k, 3).mean(1) - f.mean(0), axis=1)
+    k = second_rows(dt)
+    refuse_moving(f[: len(f) // k * k].reshape(-1, k, 3).mean(1), f.mean(0), ms.path)
+
+
+def refuse_moving(f_1s_g, f_mean_g, where):
+    """check_still on the 1-s means of the specific force (rows, 3) and its mean over the record (g)."""
+    tilt = np.linalg.norm(f_1s_g - f_mean_g, axis=1)
     if len(tilt) > 1 and np.max(tilt) > 0.05:
-        raise CalibrationError(f"{ms.path}: the unit moves during the recording (its 1-s mean specific force turns "
+        raise CalibrationError(f"{where}: the unit moves during the recording (its 1-s mean specific force turns "
                                f"by {np.max(tilt):.2g} g): the Allan deviation needs a still unit; record it at rest")
 
 
@@ -119,10 +140,10 @@ def _seconds_for(n_taus: int, dt: float) -> float:
     return MIN_CLUSTERS * top * dt
 
 
-def _cluster_sizes(stretches, dt, tau_max_s, where) -> np.ndarray:
-    """taus(), up to tau_max_s where asked; refused where the longest stretch is too short for it,
-    or where the grid would hold fewer taus than the white noise's fit needs."""
-    n = max(len(s) for s in stretches)
+def cluster_sizes(lengths, dt, tau_max_s, where) -> np.ndarray:
+    """taus(), up to tau_max_s where asked, for still stretches of these lengths (rows); refused where
+    the longest is too short for it, or where the grid would hold fewer taus than the white noise's fit needs."""
+    n = max(lengths)
     need = allan_fit.TERMS_NEEDING["N"]
     if len(taus(n)) < need:
         raise CalibrationError(f"{where}: the longest still stretch is {n * dt:.4g} s ({n} rows), too short for an "
@@ -140,11 +161,11 @@ def _cluster_sizes(stretches, dt, tau_max_s, where) -> np.ndarray:
     return taus(n, m_max=tau_max_s / dt)
 
 
-def _stuck(y, unit) -> str | None:
-    """Why a channel has no noise to characterise: its value never changes (to 1e-12 of itself)."""
-    values = np.concatenate(y)
-    if np.ptp(values) <= 1e-12 * np.max(np.abs(values)):
-        return (f"stuck or dead: constant at {values[0]:.6g} {unit} over all {len(values)} rows (a real sensor's "
+def stuck(lo, hi, first, rows, unit) -> str | None:
+    """Why a channel has no noise to characterise: its value (from lo to hi, the first one `first`, over
+    `rows` rows) never changes (to 1e-12 of itself)."""
+    if hi - lo <= 1e-12 * max(abs(lo), abs(hi)):
+        return (f"stuck or dead: constant at {first:.6g} {unit} over all {rows} rows (a real sensor's "
                 "output always has noise); no noise terms")
     return None
 
@@ -153,11 +174,16 @@ def axis_report(sensor, y, dt, m, mats, unit) -> dict:
     """One axis of the report: its Allan deviation, the model's 68 % interval, the terms seen and
     the bounds of those not seen (module doc); "fit": the final model's chi2, dof and its terms'
     squares (x, std) in the fitted units (Q^2, N^2, ... of `terms`), below zero where noise puts them."""
-    stuck = _stuck(y, unit)
+    values = np.concatenate(y)
+    return axis_from_avar(sensor, allan_variance(y, dt, m)[0], stuck(values.min(), values.max(), values[0],
+                                                                      len(values), unit), dt, m, mats)
+
+
+def axis_from_avar(sensor, avar, stuck_why, dt, m, mats) -> dict:
+    """axis_report from the Allan variance at the cluster sizes m (a stream read chunk by chunk: characterise_folder)."""
     tau = m * dt
-    avar, _ = allan_variance(y, dt, m)
-    if stuck:
-        return {"stuck": stuck, "adev": np.sqrt(avar).tolist(), "tau_s": tau.tolist()}
+    if stuck_why:
+        return {"stuck": stuck_why, "adev": np.sqrt(avar).tolist(), "tau_s": tau.tolist()}
     fit = allan_fit.select(tau, avar, mats)
     terms = {k: (v[0] if v else 0.0) for k, v in fit["terms"].items()}
     model = allan_deviation(terms, tau) ** 2
@@ -187,14 +213,64 @@ def characterise(ms, tau_max_s=None) -> dict:
             continue
         stretches, dt, where = still_stretches(ms, sensor)
         check_still(ms, dt)
-        m = _cluster_sizes(stretches, dt, tau_max_s, ms.path / "samples.csv")
-        unit = "deg/h" if sensor == "gyro" else "g"
-        mats = allan_cov.basis(m, dt, [len(s) for s in stretches])
-        out[sensor] = {"unit": unit, "tau_s": (m * dt).tolist(), "rate_hz": 1.0 / dt, "rows": where,
-                       "axes": {a: axis_report(sensor, [s[:, j] for s in stretches], dt, m, mats, unit)
-                                for j, a in enumerate("xyz")}}
+        lengths = [len(s) for s in stretches]
+        m = cluster_sizes(lengths, dt, tau_max_s, ms.path / "samples.csv")
+        mats = allan_cov.basis(m, dt, lengths)
+        out[sensor] = sensor_report(sensor, dt, m, where, {a: axis_report(
+            sensor, [s[:, j] for s in stretches], dt, m, mats, UNIT[sensor]) for j, a in enumerate("xyz")})
     if "acc" not in out and "gyro" not in out:
         raise CalibrationError(f"{ms.path}: no sensor columns to characterise")
+    return out
+
+
+UNIT = {"gyro": "deg/h", "acc": "g"}
+
+
+def sensor_report(sensor, dt, m, where, axes) -> dict:
+    """One sensor's block of the report, around its axes' (axis_report)."""
+    return {"unit": UNIT[sensor], "tau_s": (m * dt).tolist(), "rate_hz": 1.0 / dt, "rows": where, "axes": axes}
+
+
+def _check_still_stream(kept, dt, where) -> None:
+    """check_still from the accelerometer's theta: the 1-s means are its differences."""
+    th = [kept.theta[c] for c in io.SAMPLE_COLS[:3]]
+    n, k = th[0].n - 1, second_rows(dt)
+    center = np.array([kept.center[c] for c in io.SAMPLE_COLS[:3]])
+    sums = np.column_stack([t.at(np.arange(0, n // k * k + 1, k)) for t in th])
+    whole = np.array([t.at(np.array([n]))[0] for t in th])
+    refuse_moving(np.diff(sums, axis=0) / k + center, whole / n + center, where)
+
+
+def characterise_folder(folder, tau_max_s=None, scheduler=None, size=allan_sums.CHUNK) -> dict:
+    """characterise() of the set in `folder`, a still stream read a chunk at a time (simucal.fit.allan_sums:
+    theta in parts of `size` values, the rows of one task, here or on Dask with `scheduler`); a
+    segmented set (a turntable test's static segments, short) is read whole."""
+    folder = Path(folder)
+    meta = io.read_meta(folder)
+    if io.read_segments(folder) is not None:
+        return characterise(io.read_set(folder), tau_max_s)
+    path = io.samples_path(folder)
+    cols, _ = columnar.columns_of(path, None)
+    sensors = [s for s, c in (("acc", "ax"), ("gyro", "gx")) if c in cols]
+    if "gyro" in sensors and "latitude_deg" not in meta:
+        raise MeasurementSetError(folder / "meta.json", None, "latitude_deg is required when gyro data are present")
+    spilled = scheduler not in (None, "local")
+    with (tempfile.TemporaryDirectory(prefix="simucal-noise-") if spilled else contextlib.nullcontext()) as spill:
+        kept, steps = allan_sums.read_pass(folder, meta, sensors, Path(spill) if spill else None, size)
+        dt = sample_step(steps, path)
+        del steps
+        n = kept.theta[next(iter(kept.theta))].n - 1
+        if "acc" in sensors:
+            _check_still_stream(kept, dt, folder)
+        out = {"format": "simucal.noise/1", "data": str(folder)}
+        for sensor in sensors:
+            m = cluster_sizes([n], dt, tau_max_s, path)
+            mats = allan_cov.basis(m, dt, [n])
+            cols = io.SAMPLE_COLS[:3] if sensor == "acc" else io.SAMPLE_COLS[3:]
+            avars = allan_sums.allan_variances([kept.theta[c] for c in cols], m, scheduler)
+            out[sensor] = sensor_report(sensor, dt, m, "the whole stream", {a: axis_from_avar(
+                sensor, avar, stuck(kept.lo[c], kept.hi[c], kept.first[c], n, UNIT[sensor]), dt, m, mats)
+                for a, c, avar in zip("xyz", cols, avars)})
     return out
 
 

@@ -163,7 +163,7 @@ class Noise:
         return allan.kalibr_yaml(self.report)
 
 
-def noise(data: Data, *, tau_max_s: float | None = None) -> Noise:
+def noise(data: Data, *, tau_max_s: float | None = None, scheduler: str | None = None) -> Noise:
     """Allan deviation of a still recording and its IEEE 952 terms (quantisation, white noise, bias
     instability, random walk, ramp).
 
@@ -173,6 +173,10 @@ def noise(data: Data, *, tau_max_s: float | None = None) -> Noise:
         A still stream, or a set whose static segments are pooled.
     tau_max_s : float, optional
         The longest tau (s); default a ninth of the longest still stretch.
+    scheduler : str, optional
+        For a folder holding a stream, which is read a chunk at a time: where the sums over its rows run
+        (None or "local": here; "processes": a Dask LocalCluster; or a Dask scheduler's address), as
+        `simucal noise --scheduler`.
 
     Returns
     -------
@@ -185,7 +189,8 @@ def noise(data: Data, *, tau_max_s: float | None = None) -> Noise:
     >>> n.terms[n.terms.name == "angle random walk"]  # doctest: +SKIP
     """
     from simucal import allan
-    report = allan.characterise(data if isinstance(data, io.MeasurementSet) else io.read_set(data), tau_max_s)
+    report = (allan.characterise(data, tau_max_s) if isinstance(data, io.MeasurementSet)
+              else allan.characterise_folder(data, tau_max_s, scheduler))
     rows = [Term(s, a, k, t["name"], t["status"], t["value"] if t["status"] == "seen" else None, t.get("std"), t.get("bound_95"), t.get("needs_s"),
                  t["unit"])
             for s in ("acc", "gyro") if s in report for a, axis in report[s]["axes"].items()

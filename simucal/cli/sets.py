@@ -1,4 +1,4 @@
-"""The commands that write or read measurement sets: simulate, import, apply, validate, noise."""
+"""The commands that write or read measurement sets: simulate, import, apply, validate, noise, convert."""
 from __future__ import annotations
 
 from pathlib import Path
@@ -14,6 +14,7 @@ from simucal.cli.common import (
     SEED,
     SEED_HELP,
     SIM_RATE_HZ,
+    SCHEDULER_TRUST,
     InputPath,
     Number,
     fail,
@@ -224,15 +225,20 @@ def _save(result, *paths):
                    "give them.")
 @click.option("--tau-max-s", type=POSITIVE, default=None, show_default="a ninth of the longest still stretch",
               help="The longest tau, s.")
-def noise(data_dir, output, html_path, kalibr_path, tau_max_s):
-    """Allan deviation of a still recording and its IEEE 952 noise terms (ARW, bias instability, ...).
-    The Python API's simucal.noise(DATA)."""
+@click.option("--scheduler", default="local", show_default=True,
+              help="Where the sums over a stream's rows run: local (this process, the recording's cumulative sums in "
+                   "memory, 48 bytes a row), processes (a Dask LocalCluster on 127.0.0.1; the sums on disk in TMPDIR, "
+                   "for a recording larger than memory) or a Dask scheduler's address (its workers must see TMPDIR): "
+                   "the same numbers on any. " + SCHEDULER_TRUST)
+def noise(data_dir, output, html_path, kalibr_path, tau_max_s, scheduler):
+    """Allan deviation of a still recording and its IEEE 952 noise terms (ARW, bias instability, ...); a stream is
+    read a chunk at a time. The Python API's simucal.noise(DATA)."""
     from simucal import allan, api
     from simucal.errors import CalibrationError
     from simucal.io import MeasurementSetError, outputs
     guard([data_dir], files={"-o": output, "--html": html_path, "--kalibr": kalibr_path})
     try:
-        result = api.noise(data_dir, tau_max_s=tau_max_s)
+        result = api.noise(data_dir, tau_max_s=tau_max_s, scheduler=scheduler)
         yaml = result.kalibr_yaml() if kalibr_path else None  # refused before anything is written
     except (MeasurementSetError, CalibrationError) as e:
         fail(e)
@@ -242,3 +248,22 @@ def noise(data_dir, output, html_path, kalibr_path, tau_max_s):
     for line in allan.lines(result.report):
         click.echo(line)
     click.echo(f"wrote {output}" + "".join(f" and {p}" for p in (html_path, kalibr_path) if p))
+
+
+@main.command()
+@click.argument("data_dir", type=InputPath(exists=True, file_okay=False))
+@click.option("-o", "--output", type=click.Path(file_okay=False), required=True,
+              help="The new set's folder (meta.json and segments.csv copied, the samples converted).")
+@click.option("--to", "to", type=click.Choice(["parquet", "csv"]), required=True,
+              help="The samples' format: samples.parquet (columnar, binary: smaller and faster to read) or samples.csv.")
+@FORCE
+def convert(data_dir, output, to, force):
+    """Copy a measurement set with its samples as samples.parquet or samples.csv, read and written a chunk at a time
+    (every row checked as it is read); the input is never changed."""
+    from simucal.io import MeasurementSetError, columnar
+    guard([data_dir], sets=[output], force=force)
+    try:
+        path, rows = columnar.convert(data_dir, output, to)
+    except MeasurementSetError as e:
+        fail(e)
+    click.echo(f"wrote {path}: {rows} rows")

@@ -18,7 +18,8 @@ import numpy as np
 
 from simucal.io import outputs, units
 from simucal.io.csv_columns import read_columns, triad_block
-from simucal.io.text_files import (MeasurementSetError, RepeatedKey, body_of, cell, check_delimiter, csv_refusal,
+from simucal.io.segments import Segment, read_segments
+from simucal.io.text_files import (MeasurementSetError, RepeatedKey, body_of, check_delimiter, csv_refusal,
                                      decoded, ends_with_a_line_end, files_sha256, no_repeated_columns, not_a_folder,
                                      number, read_text, unique_keys)
 
@@ -26,17 +27,6 @@ FORMAT = "simucal.measurements/1"
 SAMPLE_COLS = ("ax", "ay", "az", "gx", "gy", "gz")
 SEGMENT_COLS = ("segment", "kind", "outer_deg", "middle_deg", "inner_deg", "outer_rate_dps")
 PLAUSIBLE = 1e12  # no output, time or temperature of a real unit is this large (counts and pulse/s included)
-
-
-@dataclass
-class Segment:
-    segment: int
-    kind: str
-    outer_deg: float | None
-    middle_deg: float | None
-    inner_deg: float | None
-    outer_rate_dps: float
-    heading_ref_deg: float | None = None
 
 
 @dataclass
@@ -165,83 +155,17 @@ def read_meta(folder: Path) -> dict:
     return meta
 
 
-def read_segments(folder: Path) -> list[Segment] | None:
-    path = not_a_folder(folder / "segments.csv")
-    if not path.is_file():
-        return None
-    text = read_text(path)
-    check_delimiter(path, text)
-    ends_with_a_line_end(path, text.encode())
-    with _io.StringIO(text, newline="") as fh:
-        reader = csv.DictReader(fh)
-        try:
-            return _segment_rows(path, reader)
-        except csv.Error as e:
-            raise csv_refusal(path, reader.line_num or 1, e) from None
-
-
-def _segment_rows(path, reader) -> list[Segment]:
-    """segments.csv's rows, each checked against the spec."""
-    out, seen = [], set()
-    no_repeated_columns(path, [h.strip() for h in reader.fieldnames or []])
-    missing = [c for c in ("segment", "kind") if c not in (reader.fieldnames or [])]
-    if missing:
-        raise MeasurementSetError(path, 1, f"header lacks columns {missing}")
-    for line, row in enumerate(reader, start=2):
-        sid = cell(row, "segment", path, line)
-        try:
-            sid = int(sid)
-        except ValueError:
-            raise MeasurementSetError(path, line, f"segment {sid!r} is not an integer") from None
-        if sid in seen:
-            raise MeasurementSetError(path, line, f"segment {sid} appears twice (ids must be unique)")
-        seen.add(sid)
-        kind = cell(row, "kind", path, line)
-        if kind not in ("static", "rate"):
-            raise MeasurementSetError(path, line, f"kind must be 'static' or 'rate', got {kind!r}")
-        vals = {}
-        for col in ("outer_deg", "middle_deg", "inner_deg", "outer_rate_dps", "heading_ref_deg"):
-            text = cell(row, col, path, line, required=False)
-            vals[col] = None if text is None else number(text, path, line, col)
-        for col, limit, what in (("heading_ref_deg", 360.0, "an azimuth in degrees, -360..360"),
-                                 ("outer_rate_dps", 2000.0, "deg/s, |rate| <= 2000: no table turns faster")):
-            if vals[col] is not None and abs(vals[col]) > limit:
-                raise MeasurementSetError(path, line, f"{col} is {vals[col]:g}, but it is {what}; check the "
-                                                      "column's unit (degrees and deg/s)")
-        rate = vals["outer_rate_dps"] or 0.0
-        if kind == "rate" and rate == 0.0:
-            raise MeasurementSetError(path, line, "a rate segment needs a non-zero outer_rate_dps")
-        if kind == "static" and rate != 0.0:
-            raise MeasurementSetError(path, line, f"a static segment with outer_rate_dps {rate:g}: static means "
-                                                  "the table at rest (rate blank or 0); if it turned, make its "
-                                                  "kind rate, else clear its rate")
-        out.append(Segment(sid, kind, vals["outer_deg"], vals["middle_deg"], vals["inner_deg"],
-                           rate, vals["heading_ref_deg"]))
-    if not out:
-        raise MeasurementSetError(path, None, "no segments")
-    _angles_in_degrees(path, out)
-    return out
-
-
-def _angles_in_degrees(path, segments):
-    """Refuse table angles that look like radians: no turntable plan of four or more positions keeps
-    every angle within +-2 pi degrees, while a plan in radians always does."""
-    angles = np.array([a for s in segments for a in (s.outer_deg, s.middle_deg, s.inner_deg) if a is not None])
-    positions = sum(any(a is not None for a in (s.outer_deg, s.middle_deg, s.inner_deg)) for s in segments)
-    if positions >= 4 and 0.5 < np.abs(angles).max() <= 2 * np.pi + 1e-6:
-        raise MeasurementSetError(path, None, f"every table angle lies within +-{np.abs(angles).max():.4g}: they "
-                                              "look like radians, but outer_deg, middle_deg and inner_deg are degrees "
-                                              "(and outer_rate_dps deg/s): convert them")
-
-
 def read_samples(folder: Path, segments) -> tuple[dict, str]:
     """(column -> array, files_sha256 of the set's files as read: hashed on a thread of its own while
-    the numbers are parsed, as hashlib frees the GIL). The numbers are parsed by pyarrow, and only
+    the numbers are parsed, as hashlib frees the GIL) of samples.csv, or samples.parquet (_read_parquet). The numbers are parsed by pyarrow, and only
     where that finds anything unusual by the careful reader, which names the line; the whole file is
     checked to be UTF-8 either way (an ASCII file, the usual one, is UTF-8 without decoding it)."""
-    path = not_a_folder(folder / "samples.csv")
+    path = samples_path(folder)
+    if path.suffix == ".parquet":
+        return _read_parquet(folder, path, segments)
+    path = not_a_folder(path)
     if not path.is_file():
-        raise MeasurementSetError(path, None, "missing: a measurement set needs samples.csv")
+        raise MeasurementSetError(path, None, "missing: a measurement set needs samples.csv (or samples.parquet)")
     raw = path.read_bytes()
     with ThreadPoolExecutor(1) as pool:
         sha256 = pool.submit(files_sha256, folder, raw)
@@ -350,6 +274,92 @@ def _sensor_like_columns(path, header):
                                                "csv --columns)")
 
 
+def _column_floats(col) -> np.ndarray:
+    """A numeric Arrow column without nulls as float64, read from its chunks' data buffers: pyarrow's
+    to_numpy imports pandas where it is installed (0.25 s of a 1 s command)."""
+    import pyarrow as pa
+    kind = "f" if pa.types.is_floating(col.type) else "i" if pa.types.is_signed_integer(col.type) else "u"
+    dtype = np.dtype(f"{kind}{col.type.bit_width // 8}")
+    parts = [np.frombuffer(ch.buffers()[1], dtype=dtype, count=len(ch), offset=ch.offset * dtype.itemsize)
+             for ch in col.chunks]
+    return np.concatenate(parts).astype(float) if parts else np.zeros(0)
+
+
+def samples_path(folder: Path) -> Path:
+    """The set's samples file: samples.csv, or samples.parquet where that is there instead (a compatible
+    extension of the spec: docs/notes/samples-parquet.md)."""
+    csv_path, parquet = Path(folder) / "samples.csv", Path(folder) / "samples.parquet"
+    if parquet.exists() or parquet.is_symlink():
+        if csv_path.exists():
+            raise MeasurementSetError(folder, None, "holds both samples.csv and samples.parquet: a set holds its "
+                                                    "samples once; remove one (simucal convert writes either)")
+        return not_a_folder(parquet)
+    return csv_path
+
+
+def parquet_file(path):
+    import pyarrow as pa
+    import pyarrow.parquet as pq
+    try:
+        return pq.ParquetFile(path)
+    except (pa.ArrowException, OSError) as e:
+        raise MeasurementSetError(path, None, f"not a readable Parquet file ({str(e)[:120]}); write it with "
+                                              "simucal convert --to parquet") from None
+
+
+def parquet_columns(path, segments) -> tuple[list, list]:
+    """(the spec's columns, the other numeric columns) of samples.parquet, the header's rules checked;
+    a spec column must hold numbers (a column of anything else among the others is left out)."""
+    import pyarrow as pa
+    schema = parquet_file(path).schema_arrow
+    cols, others = _sample_columns(path, list(schema.names), segments)
+    numeric = {f.name for f in schema if pa.types.is_integer(f.type) or pa.types.is_floating(f.type)}
+    for c in cols:
+        if c not in numeric:
+            raise MeasurementSetError(path, None, f"column {c} holds {schema.field(c).type}, not numbers: the spec's "
+                                                  "columns hold integers or floats")
+    return cols, [c for c in others if c in numeric]
+
+
+def arrow_floats(path, data, names, before=0) -> dict:
+    """The named numeric columns of an Arrow table or record batch as float64 arrays; a null, NaN or
+    infinity refused naming its row (counted from 1; `before` rows came in earlier batches)."""
+    import pyarrow as pa
+    import pyarrow.compute as pc
+    out = {}
+    for c in names:
+        col = data.column(c)
+        col = col if isinstance(col, pa.ChunkedArray) else pa.chunked_array([col])
+        nulls = col.null_count
+        out[c] = _column_floats(pc.fill_null(col.cast(pa.float64()), float("nan")) if nulls else col)
+        bad = np.flatnonzero(~np.isfinite(out[c]))
+        if bad.size:
+            raise MeasurementSetError(path, None, f"row {before + int(bad[0]) + 1}, column {c}: "
+                                                  f"{'empty' if nulls else out[c][bad[0]]} is not a finite number "
+                                                  "(nulls, NaN and infinities are errors)")
+    return out
+
+
+def at_row(path, e: MeasurementSetError, before: int) -> MeasurementSetError:
+    """A refusal of rows read in batches (its line counted in the batch) at the file's line, or for
+    samples.parquet its row (counted from 1)."""
+    if e.line is None:
+        return e
+    if Path(path).suffix == ".parquet":
+        return MeasurementSetError(path, None, f"row {e.line - 1 + before}: {e.rule}")
+    return MeasurementSetError(path, e.line + before, e.rule)
+
+
+def _read_parquet(folder, path, segments) -> tuple[dict, str]:
+    """read_samples of samples.parquet: the same columns and rules, a break named by its row."""
+    cols, others = parquet_columns(path, segments)
+    try:
+        samples = arrow_floats(path, parquet_file(path).read(columns=cols + others), cols + others)
+        return _check_samples(samples, path, segments), files_sha256(folder, path.read_bytes(), path.name)
+    except MeasurementSetError as e:
+        raise at_row(path, e, 0) from None
+
+
 def _check_samples(out, path, segments):
     for c, v in out.items():
         if len(v) and -PLAUSIBLE <= v.min() and v.max() <= PLAUSIBLE:
@@ -438,5 +448,6 @@ def write_set(folder, meta: dict, samples: dict, segments: list[Segment] | None 
         arrays = [np.asarray(samples[c]) for c in cols]
         for i in range(n):
             w.writerow([str(int(a[i])) if c == "segment" else repr(float(a[i])) for c, a in zip(cols, arrays)])
+    (folder / "samples.parquet").unlink(missing_ok=True)  # a set replaced (--force): it would hold its samples twice
     for name, obj in (extra_files or {}).items():
         outputs.write_text(folder / name, json.dumps(obj, indent=2) + "\n")

@@ -21,7 +21,7 @@ import os
 import tempfile
 from pathlib import Path
 
-SET_FILES = ("meta.json", "segments.csv", "samples.csv")
+SET_FILES = ("meta.json", "segments.csv", "samples.csv", "samples.parquet")
 
 
 class OutputError(ValueError):

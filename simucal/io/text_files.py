@@ -57,15 +57,15 @@ def decoded(path: Path, body: memoryview) -> str:
                                               "UTF-8") from None
 
 
-def files_sha256(folder: Path, samples_csv: bytes) -> str:
+def files_sha256(folder: Path, samples_csv: bytes, samples_name="samples.csv") -> str:
     """SHA-256 over meta.json, segments.csv and samples.csv (each its name, a NUL and its bytes):
     what a calibration records as input_sha256 and validate compares. samples_csv: that file's
-    bytes as read (hashed once, not read again)."""
+    bytes as read (hashed once, not read again); samples_name: samples.parquet where the set holds that."""
     h = hashlib.sha256()
     for name in ("meta.json", "segments.csv"):
         if (folder / name).is_file():
             h.update(name.encode() + b"\0" + (folder / name).read_bytes())
-    h.update(b"samples.csv\0")
+    h.update(samples_name.encode() + b"\0")
     h.update(samples_csv)
     return h.hexdigest()
 
