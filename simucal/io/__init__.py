@@ -17,7 +17,7 @@ from pathlib import Path
 import numpy as np
 
 from simucal.io import outputs, units
-from simucal.io.csv_columns import read_columns, triad_block
+from simucal.io.csv_columns import arrow_floats, read_columns, triad_block
 from simucal.io.segments import Segment, read_segments
 from simucal.io.text_files import (MeasurementSetError, RepeatedKey, body_of, check_delimiter, csv_refusal,
                                      decoded, ends_with_a_line_end, files_sha256, no_repeated_columns, not_a_folder,
@@ -274,17 +274,6 @@ def _sensor_like_columns(path, header):
                                                "csv --columns)")
 
 
-def _column_floats(col) -> np.ndarray:
-    """A numeric Arrow column without nulls as float64, read from its chunks' data buffers: pyarrow's
-    to_numpy imports pandas where it is installed (0.25 s of a 1 s command)."""
-    import pyarrow as pa
-    kind = "f" if pa.types.is_floating(col.type) else "i" if pa.types.is_signed_integer(col.type) else "u"
-    dtype = np.dtype(f"{kind}{col.type.bit_width // 8}")
-    parts = [np.frombuffer(ch.buffers()[1], dtype=dtype, count=len(ch), offset=ch.offset * dtype.itemsize)
-             for ch in col.chunks]
-    return np.concatenate(parts).astype(float) if parts else np.zeros(0)
-
-
 def samples_path(folder: Path) -> Path:
     """The set's samples file: samples.csv, or samples.parquet where that is there instead (a compatible
     extension of the spec: docs/notes/samples-parquet.md)."""
@@ -319,25 +308,6 @@ def parquet_columns(path, segments) -> tuple[list, list]:
             raise MeasurementSetError(path, None, f"column {c} holds {schema.field(c).type}, not numbers: the spec's "
                                                   "columns hold integers or floats")
     return cols, [c for c in others if c in numeric]
-
-
-def arrow_floats(path, data, names, before=0) -> dict:
-    """The named numeric columns of an Arrow table or record batch as float64 arrays; a null, NaN or
-    infinity refused naming its row (counted from 1; `before` rows came in earlier batches)."""
-    import pyarrow as pa
-    import pyarrow.compute as pc
-    out = {}
-    for c in names:
-        col = data.column(c)
-        col = col if isinstance(col, pa.ChunkedArray) else pa.chunked_array([col])
-        nulls = col.null_count
-        out[c] = _column_floats(pc.fill_null(col.cast(pa.float64()), float("nan")) if nulls else col)
-        bad = np.flatnonzero(~np.isfinite(out[c]))
-        if bad.size:
-            raise MeasurementSetError(path, None, f"row {before + int(bad[0]) + 1}, column {c}: "
-                                                  f"{'empty' if nulls else out[c][bad[0]]} is not a finite number "
-                                                  "(nulls, NaN and infinities are errors)")
-    return out
 
 
 def at_row(path, e: MeasurementSetError, before: int) -> MeasurementSetError:
