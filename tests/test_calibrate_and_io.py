@@ -71,7 +71,7 @@ def test_empty_cell_named(paper_set, tmp_path):
 def test_paper_unification_needs_table2(paper_set, tmp_path):
     dst = _copy(paper_set[0], tmp_path)
     segs = (dst / "segments.csv").read_text().splitlines()
-    keep = [segs[0]] + [s for s in segs[1:] if not s.split(",")[3] in ("90.0",) or s.split(",")[1] == "rate"]
+    keep = [segs[0]] + [s for s in segs[1:] if s.split(",")[3] not in ("90.0",) or s.split(",")[1] == "rate"]
     kept_ids = {s.split(",")[0] for s in keep[1:]}
     (dst / "segments.csv").write_text("\n".join(keep) + "\n")
     rows = (dst / "samples.csv").read_text().splitlines()
