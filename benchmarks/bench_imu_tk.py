@@ -128,7 +128,7 @@ def misfit_table(ms, theirs):
     imu_tk's residual on the same moves (its own calibration, no effects)."""
     obs, det, am, fa, _ = acc_from_poses(ms)
     d = diagnose_moves(ms, obs, det, am, fa)
-    s, floor = d["misfit_shares"], d["baseline"]["noise_floor"]
+    s, floor = d["misfit_shares"], d["model_test"]["noise_floor"]
     print(f"\n### The moves' misfit, effect by effect (noise floor {floor:.3g}, imu_tk's residual {theirs:.4g})\n")
     print(header(["step", "effect added", "estimate", "chi2 / dof after", "share of the excess chi2",
                   "residual rms after", "x floor"]))

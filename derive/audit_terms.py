@@ -39,10 +39,6 @@ def _terms(expr):
     return list(sp.Add.make_args(sp.expand(expr)))
 
 
-def _same(a, b):
-    return sp.expand(a - b) == 0
-
-
 def _size(expr, positions, subs):
     """Largest |expr| over the positions, with subs (section-4 values) applied."""
     vals = [abs(float(sp.N(expr.subs(p).subs(subs)))) for p in positions]

@@ -65,11 +65,6 @@ def observability():
     return O.rank(), null
 
 
-def north_row():
-    """c_N^T: the north direction expressed in b (row N of C_b^n)."""
-    return C_b_n()[0, :]
-
-
 dpsi = sp.Symbol("dpsi", real=True)  # heading error of the external north reference, rad
 
 

@@ -18,9 +18,10 @@ from simucal.errors import CalibrationError
 from simucal.fit.apply import model_inputs
 from simucal.fit.augmented import AugmentedModel
 from simucal.fit.aux_inputs import AuxInputs, columns_at
-from simucal.fit.candidates import ALPHA, test_model, verdict
+from simucal.fit.candidates import test_model, verdict
 from simucal.fit.lack_of_fit import model_file_text, twin_fits
 from simucal.fit.norm_fit import Fit, Observations
+from simucal.fit.results import ALPHA, model_test_keys
 from simucal.io.timestamps import with_timestamps
 from simucal.turntable.consistency import handedness_verdict, mirrored
 from simucal.turntable.observations import check_rate_sense, segment_observations
@@ -53,7 +54,7 @@ def diagnose_sensor(ms, sensor, base_model, add=(), stated=None, truth=None, bef
         from simucal.handheld.poses import acc_from_poses
         from simucal.handheld.diagnose_moves import diagnose_moves
         obs, det, am, fa, _ = acc_from_poses(ms, acc_model)
-        return diagnose_moves(ms, obs, det, am, fa, tuple(add), truth, ALPHA)
+        return diagnose_moves(ms, obs, det, am, fa, tuple(add), truth)
     if ms.segments is None:  # a stream: its static poses, as the hand-placed calibration finds them
         from simucal.handheld.poses import pose_observations
         obs, det, poses = pose_observations(ms)
@@ -68,7 +69,7 @@ def diagnose_sensor(ms, sensor, base_model, add=(), stated=None, truth=None, bef
     fit, obs, base, cands, shape, table_info = test_and_rank(model, obs, segs)
     if segs is None:
         segs = [io.Segment(i, "static", None, None, None, 0.0) for i in range(len(poses))]
-    out = {"baseline": base, "candidates": cands, "verdict": verdict(sensor, base, cands, str(ms.path), shape, None),
+    out = {**model_test_keys(base), "candidates": cands, "verdict": verdict(sensor, base, cands, str(ms.path), shape, None),
            "params": fit.params, "std": fit.std, "param_units": dict(zip(model.params, model.param_units)),
            "residuals": residual_table(fit, obs, segs)}
     if shape:
@@ -153,9 +154,9 @@ def _with_static_gyro_rows(ms, block, settings) -> None:
     if gyro is None or "static_rows" not in gyro.details:
         return
     st = gyro.details["static_rows"]
-    with_static_rows(block["baseline"], st)
+    with_static_rows(block["model_test"], st)
     chose = _choose_twin(block, judged)
-    block["verdict"] = verdict("gyro", block["baseline"], block["candidates"], str(ms.path), block.get("shape"),
+    block["verdict"] = verdict("gyro", block["model_test"], block["candidates"], str(ms.path), block.get("shape"),
                                 None) + (
         f" At rest: {st['verdict']}." if st.get("p_value", 1.0) < ALPHA else "") + chose
 
@@ -226,9 +227,10 @@ def _diagnose(ms, folder, add, acc_model, gyro_model, acc_noise_g, gyro_noise_dp
     sensors = [s for s in ("acc", "gyro") if s in result]
     if not sensors:
         raise CalibrationError(f"{folder}: nothing to diagnose (no static or rate segments)")
-    worst = min(sensors, key=lambda s: result[s]["baseline"]["p_value"] if result[s]["baseline"]["p_value"] is not None else 1.0)
+    worst = min(sensors, key=lambda s: result[s]["model_test"]["p_value"] if result[s]["model_test"]["p_value"] is not None
+                else 1.0)
     result["sensor"] = worst
-    result["baseline"] = result[worst]["baseline"]
+    result.update(model_test_keys(result[worst]["model_test"]))
     result["candidates"] = sorted([c for s in sensors for c in result[s]["candidates"] if c["separable"]],
                                   key=lambda c: (c["p_value"] if c["p_value"] is not None else 2.0,
                                                  -c["statistic"])) + \

@@ -12,3 +12,7 @@ class CalibrationError(ValueError):
     def naming(self, path) -> "CalibrationError":
         """The same refusal, its message starting with the data's path where it does not name it."""
         return self if str(path) in str(self) else CalibrationError(f"{path}: {self}")
+
+
+class NotConverged(CalibrationError):
+    """An iterative fit stopped at its iteration limit: a caller may offer a method that needs no iteration."""

@@ -26,7 +26,7 @@ import numpy as np
 
 from simucal.errors import CalibrationError
 from simucal.fit.distributions import chi2_isf, chi2_sf
-from simucal.io.calibration import FAILS_BELOW, Calibration, load
+from simucal.io.calibration import ALPHA, Calibration, load
 from simucal.io.calibration_checks import SERIAL, CalibrationFileError
 from simucal.io.text_files import unique_keys
 

@@ -6,7 +6,7 @@ import pytest
 # user models derived by the tests go to a cache of their own, never the user's
 os.environ["SIMUCAL_CACHE"] = tempfile.mkdtemp(prefix="simucal-test-cache-")
 
-from simucal.turntable.simulate import Scenario, write
+from simucal.turntable.simulate import Scenario, write  # noqa: E402 (after the cache is set)
 
 
 @pytest.fixture(scope="session")

@@ -10,7 +10,7 @@ from click.testing import CliRunner
 from simucal import io
 from simucal.calibrate import calibrate
 from simucal.cli import main
-from simucal.errors import CalibrationError
+from simucal.errors import CalibrationError, NotConverged
 
 
 def test_exact_within_3_sigma_of_truth(paper_set):
@@ -71,7 +71,7 @@ def test_empty_cell_named(paper_set, tmp_path):
 def test_paper_unification_needs_table2(paper_set, tmp_path):
     dst = _copy(paper_set[0], tmp_path)
     segs = (dst / "segments.csv").read_text().splitlines()
-    keep = [segs[0]] + [s for s in segs[1:] if not s.split(",")[3] in ("90.0",) or s.split(",")[1] == "rate"]
+    keep = [segs[0]] + [s for s in segs[1:] if s.split(",")[3] not in ("90.0",) or s.split(",")[1] == "rate"]
     kept_ids = {s.split(",")[0] for s in keep[1:]}
     (dst / "segments.csv").write_text("\n".join(keep) + "\n")
     rows = (dst / "samples.csv").read_text().splitlines()
@@ -126,7 +126,7 @@ def test_not_converged_is_reported(paper_set):
     from simucal.fit.norm_fit import fit_exact
     from simucal.turntable.observations import segment_observations
     obs, _ = segment_observations(io.read_set(paper_set[0]), "acc")
-    with pytest.raises(CalibrationError, match="did not converge"):
+    with pytest.raises(NotConverged, match="did not converge"):  # its type, not its words, tells callers
         fit_exact(load("acc_baseline"), obs, p0=[0.3] * 9, max_iter=1)
 
 

@@ -45,7 +45,9 @@ def test_every_generated_function_equals_sympy(model):
         close(Ju[0], ev(out.jacobian(model.inputs)))
         close(Jp[0], ev(out.jacobian(model.params)))
         Nc, Juc, Jpc = gen_c.jacobians(u[None], p, aux)
-        close(Nc[0], N[0]); close(Juc[0], Ju[0]); close(Jpc[0], Jp[0])
+        close(Nc[0], N[0])
+        close(Juc[0], Ju[0])
+        close(Jpc[0], Jp[0])
         Nv = rng.normal(size=3)
         subsN = {**dict(zip(N_out, Nv)), **dict(zip(model.aux, aux_values))}
         close(gen_np.norm_regressors(Nv, aux), [float(c.evalf(30, subs=subsN)) for c in reg.psi])

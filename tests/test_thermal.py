@@ -361,7 +361,6 @@ def test_a_g_sensitivity_drifting_with_temperature_is_described_and_written(tmp_
     """Outside the library: a gyro g-sensitivity changing with temperature. diagnose's generic basis
     (specific force times temperature) describes it, names its twin, the static rows choose between
     them, and the chosen model file passes."""
-    from simucal.fit.lack_of_fit import catalog_id, generic_terms
     monkeypatch.setenv("SIMUCAL_CACHE", str(tmp_path / "cache"))
     (tmp_path / "gt.py").write_text(
         "from simucal.derive.frames import dtemp_c, f_b\nfrom simucal.derive.models import Term\n"

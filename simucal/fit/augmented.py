@@ -24,6 +24,13 @@ def effect_ids(sensor: str) -> list[str]:
     return [k for k, v in EFFECTS.items() if v.sensor == sensor]
 
 
+def regressor(eid: str, u, aux: AuxInputs) -> np.ndarray:
+    """Effect eid's regressor (generated/effects.py's phi) at inputs u (..., 3) and the auxiliary inputs
+    aux, shaped u.shape[:-1] (a term constant in u broadcast): the one place its values are read."""
+    effect, shape = EFFECTS[eid], np.shape(u)[:-1]
+    return np.broadcast_to(effect.phi(u, aux.array(SENSOR_AUX[effect.sensor], shape))[0][..., 0], shape)
+
+
 def for_sensor(ids, sensor: str) -> tuple[str, ...]:
     """The effect ids of one sensor (each library effect knows its own)."""
     return tuple(e for e in ids if EFFECTS[e].sensor == sensor)

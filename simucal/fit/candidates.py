@@ -5,12 +5,10 @@
   p-value for the verdict (the chi-square's where every row's noise is known, the F
   test's where none is, the smaller of the two, Bonferroni-doubled, where some is).
 - rank_candidates: every candidate effect of generated/effects.py fit as model +
-  candidate by the same exact solver, ranked by the likelihood ratio (chi-square
-  difference; an F ratio where the noise is unknown); gate_candidates applies the
-  Bonferroni gate: a candidate is significant only when the model fails and its
-  p-value beats alpha / (number tested). Candidates whose Jacobian column lies in the
-  span of the model's (or of another candidate's) are reported as not separable by
-  this plan, with what would separate them.
+  candidate by the same exact solver (NormProblem), ranked by fit/ranking.rank: the
+  likelihood ratio (chi-square difference; an F ratio where the noise is unknown), the
+  Bonferroni gate, the candidates this plan cannot separate and what would.
+- A model fails its test at p < ALPHA (fit/results.ModelTest.fails), everywhere.
 - shape: when no candidate explains the misfit, the generic term that does
   (lack_of_fit.describe_shape).
 - verdict: one paragraph for the user, with units and the command to run next.
@@ -20,105 +18,81 @@ from __future__ import annotations
 
 import numpy as np
 
-from simucal import progress
 from simucal.errors import CalibrationError
-from simucal.fit.augmented import AugmentedModel, effect_ids
+from simucal.fit.augmented import AugmentedModel, effect_ids, regressor
 from simucal.fit.cross_validation import leave_one_out, paired_improvement
-from simucal.fit.aux_inputs import SENSOR_AUX
 from simucal.fit.distributions import chi2_sf, f_sf
 from simucal.fit.lack_of_fit import describe_shape, fit_with_noise, lack_of_fit
 from simucal.fit.norm_fit import Fit, Observations, dense_jacobian, fit_exact
-from simucal.fit.twins import separating_plan, twins, twins_note
+from simucal.fit import ranking
+from simucal.fit.results import ALPHA, ModelTest, Selection
+from simucal.fit.twins import separating_plan
 from simucal.generated.effects import EFFECTS, SEPARATE
 
-ALPHA = 0.01
+HELD_OUT_ALPHA = 0.01  # --add auto: one-sided level of "predicts the rows left out better" (forward_selection)
 NOISE_TOO_LARGE = 1e-3  # P(chi2 below the value found): residuals this far under the stated noise
 NOISE_TOO_SMALL = 10.0  # residual rms / stated noise above which a misfit with no structure is the noise's
 
 
-def rank_candidates(model: AugmentedModel, obs: Observations, fit: Fit, base_fails: bool, advisor=None) -> list[dict]:
-    """advisor: where the data come from a plan that can grow (turntable/plan_design.TableAdvice),
-    the positions to add for a candidate this plan cannot see, and for the strongest pair of
-    candidates it cannot tell apart."""
-    J, sig = dense_jacobian(model, obs, fit)
-    Q, _ = np.linalg.qr(J)
-    u = fit.directions * obs.rho[:, None]
-    ids = [e for e in effect_ids(model.sensor) if e not in model.effects]
-    cols, out = {}, []
-    for eid in progress.steps(ids, f"{model.sensor} candidates", "effect"):
-        axis, pname, unit, meaning = (getattr(EFFECTS[eid], k) for k in ("axis", "parameter", "unit", "meaning"))
-        phi = np.broadcast_to(EFFECTS[eid].phi(u, obs.aux.array(SENSOR_AUX[model.sensor], (len(u),)))[0][..., 0],
-                              (len(u),))
-        col = np.zeros((len(u), 3))
-        col[:, axis] = phi
-        col = (col / sig).ravel()
-        perp = col - Q @ (Q.T @ col)
-        family, ax = eid.split(".")[1], eid.split(".")[2]
-        entry = {"effect": ".".join(eid.split(".")[:2]), "axis": ax, "id": eid, "parameter": pname,
-                 "unit": unit, "meaning": meaning}
-        norm_col = np.linalg.norm(col)
-        if norm_col == 0 or np.linalg.norm(perp) < 1e-3 * norm_col:
-            why = ("no input for it in these data" if norm_col == 0 else
-                   f"collinear with the baseline model ({100 * np.linalg.norm(perp) / norm_col:.2g} % of its "
-                   "signature is separable)")
-            note = f"{why}; to see it: {SEPARATE[family]}"
-            if advisor is not None and base_fails and norm_col > 0:  # advice only where a misfit needs explaining
-                note += advisor.reveal(model, eid, fit, obs, sig)
-            entry.update(separable=False, note=note)
-            out.append(entry)
-            continue
-        cols[eid] = perp / np.linalg.norm(perp)
-        aug = AugmentedModel(model.base, model.effects + (eid,))
+class NormProblem:
+    """The exact norm fit (turntable rows, a stream's poses) as a ranking Problem (fit/ranking.py): each
+    candidate's column is its regressor at the fitted directions, whitened by the rows' sigma."""
+    span = "the baseline model"
+
+    def __init__(self, model: AugmentedModel, obs: Observations, fit: Fit):
+        self.model, self.obs, self.fit = model, obs, fit
+        self.J, self.sig = dense_jacobian(model, obs, fit)
+        self.u = fit.directions * obs.rho[:, None]
+
+    def info(self, eid):
+        return EFFECTS[eid].parameter, EFFECTS[eid].unit, EFFECTS[eid].meaning
+
+    def basis(self):
+        return np.linalg.qr(self.J)[0]
+
+    def residual(self):
+        r = (self.fit.residuals / self.sig).ravel()
+        # unknown noise: the residuals' variance scales the likelihood ratios
+        return r, 1.0 if self.fit.chi2 is not None else float(r @ r) / max(self.fit.dof, 1)
+
+    def column(self, eid):
+        col = np.zeros((len(self.u), 3))
+        col[:, EFFECTS[eid].axis] = regressor(eid, self.u, self.obs.aux)
+        return (col / self.sig).ravel()
+
+    def to_see(self, eid):
+        return SEPARATE[eid.split(".")[1]]
+
+    def to_separate(self, eid, twin):
+        return separating_plan(eid, twin)
+
+    def fit_with(self, eid):
+        fit, model = self.fit, self.model
         try:
-            f1 = fit_exact(aug, obs, p0=np.r_[fit.vector(model.params), 0.0])
+            f1 = fit_exact(AugmentedModel(model.base, model.effects + (eid,)), self.obs,
+                           p0=np.r_[fit.vector(model.params), 0.0])
         except CalibrationError as e:
-            entry.update(separable=False, note=f"augmented fit failed: {e}")
-            out.append(entry)
-            continue
+            return f"augmented fit failed: {e}"
         if f1.chi2 is not None:
             stat = max(fit.chi2 - f1.chi2, 0.0)
-            p = float(chi2_sf(stat, 1))
-            daic = stat - 2.0
+            p, daic = float(chi2_sf(stat, 1)), stat - 2.0
         else:  # unknown noise: F test on the residual sums of squares
             rss0, rss1 = fit.residual_rms ** 2, f1.residual_rms ** 2
             stat = max((rss0 - rss1) / max(rss1 / max(f1.dof, 1), 1e-300), 0.0) if f1.dof > 0 else 0.0
-            p = float(f_sf(stat, 1, f1.dof)) if f1.dof > 0 else None
-            daic = None
-        entry.update(separable=True, estimate=f1.params[eid], std=f1.std[eid], statistic=float(stat),
-                     p_value=p, delta_aic=daic, residual_rms_after=f1.residual_rms)
-        visible = float(np.linalg.norm(perp) / norm_col)
-        if visible < 0.05:
-            entry["note"] = (f"nearly collinear with the baseline: {100 * visible:.2g} % of its signature is separable, "
-                             f"so it is weakly seen; to see it: {SEPARATE[family]}")
-        out.append(entry)
-    r = (fit.residuals / sig).ravel()
-    s2 = 1.0 if fit.chi2 is not None else float(r @ r) / max(fit.dof, 1)  # unknown noise: the residuals' variance
-    advised = False
-    for e in sorted(out, key=lambda e: -e.get("statistic", -1.0)):
-        tw = twins(e["id"], cols, r, s2) if e["separable"] else []
-        if tw:
-            e["twins"] = tw
-            e["note"] = twins_note(tw, separating_plan(e["id"], tw[0]))
-            if advisor is not None and base_fails and not advised and e["p_value"] is not None and e["p_value"] < ALPHA:
-                e["note"] += "; " + advisor.separate(model, e, tw[0], fit, obs, sig)
-                advised = True  # the strongest pair only: the one the verdict rests on
-    return gate_candidates(out, base_fails)
+            p, daic = (float(f_sf(stat, 1, f1.dof)) if f1.dof > 0 else None), None
+        return ranking.Trial(f1.params[eid], f1.std[eid], float(stat), p, daic, f1.residual_rms)
 
 
-def gate_candidates(out, base_fails, alpha=ALPHA):
-    """The Bonferroni gate over one family of tests: a separable candidate is significant only
-    when the baseline fails and its p-value beats alpha / (number tested). Returns the
-    tested candidates, strongest first, then the ones that could not be tested."""
-    tested = sorted([e for e in out if e["separable"]], key=lambda e: -e["statistic"])
-    for e in tested:
-        e["significant"] = bool(base_fails and e["p_value"] is not None and e["p_value"] < alpha / len(tested))
-    sig = [e for e in tested if e["significant"]]
-    for e in sig[1:]:  # each alone beats the gate; the strongest is the one to add, and the others say why not them
-        e["note"] = ((e.get("note") or "") + ("; " if e.get("note") else "") +
-                     f"significant alone, but {sig[0]['id']} explains more (LR {sig[0]['statistic']:.1f} against "
-                     f"{e['statistic']:.1f}), and one effect often makes its neighbours look significant: add "
-                     f"{sig[0]['id']}, then see whether this one is still needed")
-    return tested + [e for e in out if not e["separable"]]
+def rank_candidates(model: AugmentedModel, obs: Observations, fit: Fit, base_fails: bool, advisor=None) -> list[dict]:
+    """Every library effect not in the model, ranked beside it (fit/ranking.rank). advisor: where the
+    data come from a plan that can grow (turntable/plan_design.TableAdvice), the positions to add for
+    a candidate this plan cannot see, and for the strongest pair of candidates it cannot tell apart."""
+    problem = NormProblem(model, obs, fit)
+    hooks = {} if advisor is None else dict(
+        unseen=lambda eid: advisor.reveal(model, eid, fit, obs, problem.sig),
+        pair=lambda c, twin: advisor.separate(model, c, twin, fit, obs, problem.sig))
+    ids = [e for e in effect_ids(model.sensor) if e not in model.effects]
+    return [c.to_dict() for c in ranking.rank(problem, ids, base_fails, f"{model.sensor} candidates", **hooks)]
 
 
 def test_model(model, obs: Observations, p0=None) -> tuple[Fit, Observations, dict]:
@@ -163,46 +137,47 @@ def test_model(model, obs: Observations, p0=None) -> tuple[Fit, Observations, di
 AUTO_TRIES = 3  # candidates passing the gate whose held-out errors are tried, strongest first
 
 
-def forward_selection(model: AugmentedModel, obs: Observations, rank=None, max_terms=6) -> tuple[AugmentedModel, list, str]:
+def forward_selection(model: AugmentedModel, obs: Observations, rank=None, max_terms=6) -> Selection:
     """`--add auto`: the library effects that explain a failing model, chosen one at a time.
     While the model fails its test (test_model), a candidate is added only when it passes
     rank_candidates' Bonferroni gate and also predicts the rows left out better than the model
-    without it (cross_validation.paired_improvement, one-sided p < ALPHA); the strongest of up to
+    without it (cross_validation.paired_improvement, one-sided p < HELD_OUT_ALPHA); the strongest of up to
     AUTO_TRIES such candidates is taken and the model tested again. Where a term outside the
     library (lack_of_fit.describe_shape) explains more of the misfit than any library effect, it
     stops and says so instead of chaining effects that only absorb that misfit.
     rank(model, obs, fit, base) -> (candidates, shape): the ranking the caller's diagnosis uses
     (turntable/model_test.rank); default rank_candidates and shape_if_unexplained. Only library
     effects are added (a table's own terms in the ranking are not).
-    Returns the model, the steps (id, estimate, the test's p and the held-out rms after) and why
-    it stopped."""
+    Returns the Selection: the model, the steps (id, estimate, the test's p and the held-out rms
+    after) and why it stopped."""
     steps = []
     fit, obs2, base = test_model(model, obs)
-    while base["p_value"] is not None and base["p_value"] < ALPHA:
+    while ModelTest.of(base).fails:
         if len(steps) == max_terms:
-            return model, steps, f"stopped at {max_terms} effects with the model still failing"
+            return Selection(model, steps, f"stopped at {max_terms} effects with the model still failing")
         cands, shape = rank(model, obs2, fit, base) if rank else _rank(model, obs2, fit, base)
         if shape and not shape.get("catalog_id"):
-            return model, steps, (f"a term outside the library explains more than any library effect: {shape['text']}; "
-                                  "simucal diagnose writes it as a model file for --add FILE")
+            return Selection(model, steps, f"a term outside the library explains more than any library effect: "
+                             f"{shape['text']}; simucal diagnose writes it as a model file for --add FILE")
         sig = [c for c in cands if c.get("significant") and c["id"] in EFFECTS][:AUTO_TRIES]
         if not sig:
-            return model, steps, "no library effect passes the candidate gate; the model still fails"
+            return Selection(model, steps, "no library effect passes the candidate gate; the model still fails")
         for c in sig:
             trial = AugmentedModel(model.base, model.effects + (c["id"],))
             f1, o1, b1 = test_model(trial, obs)
             p_cv = paired_improvement(base["cross_validation"], b1["cross_validation"])
-            if p_cv is None or p_cv < ALPHA:
+            if p_cv is None or p_cv < HELD_OUT_ALPHA:
                 break
         else:
-            return model, steps, (f"the candidates passing the gate ({', '.join(c['id'] for c in sig)}) do not predict "
-                                  "the positions left out better (it would only fit the misfit); the model still fails")
+            return Selection(model, steps, f"the candidates passing the gate ({', '.join(c['id'] for c in sig)}) do "
+                             "not predict the positions left out better (it would only fit the misfit); the model "
+                             "still fails")
         model, fit, obs2, base = trial, f1, o1, b1
         cv = base["cross_validation"]
         steps.append({"id": c["id"], "estimate": c["estimate"], "std": c["std"], "unit": c["unit"],
                       "p_value_after": base["p_value"], "residual_rms_after": fit.residual_rms,
                       "held_out_rms_after": cv["held_out_rms"] if cv else None, "p_held_out_better": p_cv})
-    return model, steps, "the model passes its test" if steps else "the model passes its test: nothing added"
+    return Selection(model, steps, "the model passes its test" if steps else "the model passes its test: nothing added")
 
 
 def _rank(model, obs, fit, base):
@@ -221,7 +196,7 @@ def advice(model: AugmentedModel, obs: Observations) -> str | None:
     """advice_text of the one model test and ranking (diagnose's for a stream's poses), None where the
     model passes."""
     fit, obs2, base = test_model(model, obs)
-    if base["p_value"] is None or base["p_value"] >= ALPHA:
+    if not ModelTest.of(base).fails:
         return None
     return advice_text(*_rank(model, obs2, fit, base))
 
@@ -234,7 +209,7 @@ def shape_if_unexplained(model, obs, fit, base, cands) -> dict | None:
     the misfit (less is no single term: several effects, or one outside the generic basis), and no
     candidate explains the misfit as well (no significant candidate, or the generic term's
     likelihood ratio is more than 1.5 times the best candidate's)."""
-    if base["p_value"] is None or base["p_value"] >= ALPHA:
+    if not ModelTest.of(base).fails:
         return None
     shape = describe_shape(model, obs, fit)
     if shape is None or shape["share_of_misfit"] < MIN_SHARE:
@@ -271,7 +246,7 @@ def verdict(sensor, base, cands, where="DIR", shape=None, command="diagnose") ->
         return (f"{sensor}: too few degrees of freedom for any test (no noise in the data or stated, and the "
                 f"lack-of-fit test needs 4 dof); {rms}; state the noise (--{sensor}-noise-...) or add positions")
     warning = f" WARNING: {base['noise_warning']}." if base.get("noise_warning") else ""
-    if base["p_value"] >= ALPHA:
+    if not ModelTest.of(base).fails:
         return f"{sensor}: the model explains the data down to the noise ({_fmt_test(base)}; {rms}).{warning}"
     floor = f" against a noise floor {base['noise_floor']:.3g} {unit}" if base.get("noise_floor") else ""
     head = f"{sensor}: the model does not explain the data ({_fmt_test(base)}; {rms}{floor})"

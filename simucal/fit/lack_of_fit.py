@@ -27,6 +27,7 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
+from simucal.fit.augmented import regressor
 from simucal.fit.aux_inputs import DEFAULT_ZERO, FORCE, SENSOR_AUX, T_REF, AuxInputs
 from simucal.fit.distributions import chi2_sf, f_sf
 from simucal.fit.norm_fit import Fit, Observations, dense_jacobian, fit_exact
@@ -134,8 +135,7 @@ def catalog_id(term: GenericTerm) -> str | None:
     mine = term.values(u, obs)
     for eid, effect in EFFECTS.items():
         if effect.sensor == term.sensor and effect.axis == term.axis:
-            phi = np.broadcast_to(effect.phi(u, aux.array(SENSOR_AUX[term.sensor], (6,)))[0][..., 0], (6,))
-            if np.allclose(phi, mine, rtol=1e-9, atol=1e-12):
+            if np.allclose(regressor(eid, u, aux), mine, rtol=1e-9, atol=1e-12):
                 return eid
     return None
 

@@ -20,10 +20,11 @@ from dataclasses import dataclass, field, replace
 
 import numpy as np
 
-from simucal.errors import CalibrationError
+from simucal.errors import CalibrationError, NotConverged
 from simucal.fit.aux_inputs import AuxInputs
 from simucal.fit.distributions import chi2_sf
 from simucal.fit.gauss_newton import directions, fit_batch, row_blocks, schur
+from simucal.fit.results import ModelTest
 
 
 @dataclass
@@ -61,6 +62,11 @@ class Fit:
 
     def vector(self, names):
         return np.array([self.params[k] for k in names])
+
+    @property
+    def test(self) -> ModelTest:
+        """The fit's chi-square test (p None where the noise is unknown: test_model's F decides there)."""
+        return ModelTest(self.chi2, self.dof, self.p_value, "chi-square")
 
 
 def _check_inputs(model, obs: Observations):
@@ -281,7 +287,7 @@ def fit_exact(model, obs: Observations, p0=None, max_iter=200, tol=1e-12, prior=
     if status == 1:
         weak = unobservable(H, model.params, tol=1e-3)
         axis_only = np.all(np.max(np.abs(u), axis=1) > np.cos(np.radians(10)))
-        raise CalibrationError(
+        raise NotConverged(
             f"the exact {model.sensor} fit did not converge in {max_iter} iterations (cost {cost:.6g})"
             + (f"; the plan barely sees {weak}: add positions that change them" if weak else
                "; check the data for outliers or a wrong unit")

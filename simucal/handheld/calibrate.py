@@ -15,10 +15,11 @@ from dataclasses import dataclass
 import numpy as np
 
 from simucal.errors import CalibrationError
-from simucal.fit.augmented import effect_ids
+from simucal.fit.augmented import effect_ids, regressor
 from simucal.fit.apply import model_inputs
-from simucal.fit.aux_inputs import SENSOR_AUX, AuxInputs, columns_at, specific_force
-from simucal.fit.candidates import ALPHA, advice, forward_selection
+from simucal.fit.aux_inputs import AuxInputs, columns_at, specific_force
+from simucal.fit.candidates import advice, forward_selection
+from simucal.fit.results import ALPHA, ModelTest
 from simucal.fit.distributions import chi2_sf, f_sf
 from simucal.fit.noise import quantization_step, white_noise_var
 from simucal.fit.norm_fit import full_covariance
@@ -124,11 +125,12 @@ def chi2_test(fit: GyroFit, S, bias_std, mv: Moves):
     return chi2, dof, float(chi2_sf(chi2, dof)) if dof > 0 else None
 
 
-def misfit_shares(gm, base: GyroFit, sigma_g, inputs, chi0, dof0, alpha=0.01, max_terms=9) -> dict:
+def misfit_shares(gm, base: GyroFit, sigma_g, inputs, chi0, dof0, max_terms=9) -> dict:
     """How much of the moves' misfit the library explains, effect by effect: forward selection.
     Each step adds the candidate that lowers the chi-square most, kept while its F test against
     the remaining misfit, F = (chi2_before - chi2_after) / (chi2_after / dof_after), beats
-    alpha / (candidates left). share: its chi-square drop over the baseline's excess
+    ALPHA / (candidates left), ALPHA the model test's level (fit/results.py). share: its chi-square
+    drop over the baseline's excess
     (chi2 - dof); `unexplained` is what the chosen effects leave of that excess."""
     excess0 = max(chi0 - dof0, 1e-300)
     chosen, steps, chi_prev, fit = [], [], chi0, base
@@ -155,7 +157,7 @@ def misfit_shares(gm, base: GyroFit, sigma_g, inputs, chi0, dof0, alpha=0.01, ma
         chi2, dof, _ = chi2_test(f, move_covariances(gm, f, sigma_g), gm.bias_std, mv)
         F = (chi_prev - chi2) / max(chi2 / dof, 1e-300) if dof > 0 else 0.0
         p = float(f_sf(max(F, 0.0), 1, dof)) if dof > 0 else 1.0
-        if p >= alpha / len(left):
+        if p >= ALPHA / len(left):
             break
         k = len(chosen)
         steps.append({"id": eid, "estimate": float(f.p[k]), "std": float(np.sqrt(f.cov[12 + k, 12 + k])),
@@ -173,8 +175,7 @@ def misfit_shares(gm, base: GyroFit, sigma_g, inputs, chi0, dof0, alpha=0.01, ma
 def has_input(eid, inputs) -> bool:
     """Whether effect eid's regressor is anywhere nonzero at the inputs (regressor_inputs): a temperature
     term has none in a recording without temp_c, and is then not worth integrating along the moves."""
-    effect = EFFECTS[eid]
-    return any(np.any(effect.phi(u, aux.array(SENSOR_AUX["gyro"], u.shape[:-1]))[0]) for u, aux in inputs)
+    return any(np.any(regressor(eid, u, aux)) for u, aux in inputs)
 
 
 def regressor_inputs(ms, gm, fit: GyroFit, acc_cal):
@@ -203,10 +204,8 @@ def with_terms(mv: Moves, ids, inputs) -> Moves:
     """mv with the regressors of effects ids along the moves and their mean over the rest."""
     (u, aux), (u0, aux0) = inputs
     mask = mv.dt > 0
-    A, A0 = aux.array(SENSOR_AUX["gyro"], u.shape[:-1]), aux0.array(SENSOR_AUX["gyro"], u0.shape[:-1])
-    phi = np.array([EFFECTS[e].phi(u, A)[0][..., 0] * mask / units.DPH_PER_DPS for e in ids]).reshape(len(ids), *mask.shape)
-    phi_rest = np.array([np.mean(np.broadcast_to(EFFECTS[e].phi(u0, A0)[0][..., 0], u0.shape[:-1])) / units.DPH_PER_DPS
-                         for e in ids])
+    phi = np.array([regressor(e, u, aux) * mask / units.DPH_PER_DPS for e in ids]).reshape(len(ids), *mask.shape)
+    phi_rest = np.array([np.mean(regressor(e, u0, aux0)) / units.DPH_PER_DPS for e in ids])
     return Moves(mv.y, mv.dt, mv.before, mv.after, mv.t_span, mv.rows, phi, tuple(EFFECTS[e].axis for e in ids),
                  phi_rest)
 
@@ -219,7 +218,7 @@ def _gyro_fit(ms, gm: GyroMoves, acc_cal, gyro_effects, auto):
     if auto and f.converged:
         sigma_g = gyro_noise_dps(ms, gm)
         chi2, dof, p_value = chi2_test(f, move_covariances(gm, f, sigma_g), gm.bias_std, gm.mv)
-        if p_value is not None and p_value < ALPHA:
+        if ModelTest(chi2, dof, p_value).fails:
             shares = misfit_shares(gm, f, sigma_g, regressor_inputs(ms, gm, f, acc_cal), chi2, dof)
             chosen = shares["steps"]
             gyro_effects = tuple(dict.fromkeys(tuple(gyro_effects) + tuple(shares["effects"])))
@@ -278,7 +277,7 @@ def _gyro_block(ms, det, am, obs, fa, acc_cal, gyro_effects, auto) -> SensorBloc
                                f"holding {list(undetermined)} at nominal leaves the moves unexplained (chi2 "
                                f"{chi2:.3g} on {dof} dof): a dead or unconnected channel?")
     to_add = None
-    if p_value is not None and p_value < ALPHA and not effects:  # the effects diagnose would add (misfit_shares)
+    if ModelTest(chi2, dof, p_value).fails and not effects:  # the effects diagnose would add (misfit_shares)
         sigma_g = gyro_noise_dps(ms, gm)
         shares = misfit_shares(gm, f, sigma_g, regressor_inputs(ms, gm, f, acc_cal), chi2, dof, max_terms=1)
         to_add = shares["effects"][0] if shares["effects"] else None
@@ -312,9 +311,9 @@ def calibrate_handheld(ms, acc_model="acc_baseline", detect=None, pose_window_s=
     gyro_effects: candidate ids fit with T and the bias over the moves."""
     obs, det, am, fa, tau = acc_from_poses(ms, acc_model, detect, pose_window_s)
     if auto:  # the library effects the failing poses need (candidates.forward_selection)
-        am2, acc_chosen, acc_stopped = forward_selection(am, obs)
-        if acc_chosen:
-            obs, det, am, fa, tau = acc_from_poses(ms, am2, detect, pose_window_s)
+        acc_auto = forward_selection(am, obs)
+        if acc_auto.steps:
+            obs, det, am, fa, tau = acc_from_poses(ms, acc_auto.model, detect, pose_window_s)
     M_a, b_a = am.matrix_and_bias(fa.vector(am.params))
     units.check_scale("acc", M_a, ms.path / "samples.csv")
     cal = calibration.header("handheld (Tedaldi): exact norm fit + gyro moves", ms)
@@ -325,8 +324,8 @@ def calibrate_handheld(ms, acc_model="acc_baseline", detect=None, pose_window_s=
         "the extra variance: simucal diagnose); each pose got an extra variance tau^2 so that "
         "chi2/dof = 1, and the stds include it"))
     if auto:
-        cal.acc.details.update(auto=acc_chosen, auto_stopped=acc_stopped)
-    if cal.acc.p_value is not None and cal.acc.p_value < ALPHA and not fa.undetermined:
+        cal.acc.details.update(auto=acc_auto.steps, auto_stopped=acc_auto.stopped)
+    if cal.acc.verdict == "fails" and not fa.undetermined:
         cal.acc.details["advice"] = advice(am, obs)  # what diagnose names for the poses (its fit has no prior)
     if ms.has_gyro:
         cal.gyro = _gyro_block(ms, det, am, obs, fa, (am, fa.vector(am.params)), gyro_effects, auto)

@@ -22,18 +22,19 @@ included), time and temperature, enters the output model
 and is fit with T and the bias by the same Gauss-Newton (handheld.fit_gyro_moves).
 Ranked by the likelihood ratio with the noise variance profiled out,
 LR = 2m ln(RSS_0 / RSS_1) ~ chi2(1) (2m: the residuals' degrees of freedom),
-significant under the same Bonferroni gate as the poses (candidates.py).
+significant under the same Bonferroni gate as the poses (one ranking: fit/ranking.py).
 """
 from __future__ import annotations
 
 import numpy as np
 
-from simucal import progress
 from simucal.fit.augmented import check_effect, effect_ids
 from simucal.fit.aux_inputs import FORCE
-from simucal.fit.candidates import gate_candidates, verdict
+from simucal.fit.candidates import verdict
 from simucal.fit.distributions import chi2_sf
-from simucal.fit.twins import separating_plan, twins, twins_note
+from simucal.fit.ranking import Trial, rank
+from simucal.fit.results import ModelTest, model_test_keys
+from simucal.fit.twins import separating_plan
 from simucal.generated.effects import EFFECTS, SEPARATE_MOVES
 from simucal.handheld.calibrate import (
     chi2_test,
@@ -65,55 +66,56 @@ def move_rows(gm, fit: GyroFit, S, columns: dict):
             for i, (a, b, span, r, s) in enumerate(zip(mv.before, mv.after, mv.t_span, fit.r, sig))]
 
 
-def rank_move_candidates(gm, base: GyroFit, inputs, base_fails, alpha):
-    x0 = np.r_[base.T.ravel(), base.db]
-    rss0 = float(np.sum(base.r ** 2))
-    m = len(base.r)
-    _, J0 = move_residuals(base.T, gm.mv, gm.g_dirs, db=base.db)
-    Q, _ = np.linalg.qr(J0.reshape(-1, 12))
-    out, cols = [], {}
-    for eid in progress.steps(effect_ids("gyro"), "gyro candidates over the moves", "effect"):
-        pname, unit, meaning = EFFECTS[eid].parameter, EFFECTS[eid].unit, EFFECTS[eid].meaning
-        family, ax = eid.split(".")[1], eid.split(".")[2]
-        entry = {"effect": f"gyro.{family}", "axis": ax, "id": eid, "parameter": pname, "unit": unit,
-                 "meaning": meaning}
-        if not has_input(eid, inputs):
-            norm_col = 0.0  # no input for it (a temperature term without temp_c): no move to integrate
-        else:
-            mv = with_terms(gm.mv, [eid], inputs)
-            col = move_residuals(base.T, mv, gm.g_dirs, db=base.db, p=np.zeros(1))[1][..., 12].ravel()
-            norm_col = float(np.linalg.norm(col))
-        perp = float(np.linalg.norm(col - Q @ (Q.T @ col))) if norm_col else 0.0
-        if norm_col == 0 or perp < 1e-3 * norm_col:
-            why = ("no input for it in these data" if norm_col == 0 else
-                   f"collinear with T and the bias ({100 * perp / norm_col:.2g} % of its signature is separable)")
-            entry.update(separable=False, note=f"{why}; to see it: {SEPARATE_MOVES[family]}")
-            out.append(entry)
-            continue
-        cols[eid] = (col - Q @ (Q.T @ col)) / perp
-        f1 = fit_gyro_moves(mv, gm.g_dirs, np.r_[x0, 0.0], gm.bias_std)
+class MovesProblem:
+    """The gyro's fit over a stream's moves as a ranking Problem (fit/ranking.py): each candidate's column
+    is its regressor integrated along the moves (the gravity directions' residual per unit coefficient),
+    the statistic the likelihood ratio with the direction noise profiled out, 2 m log(rss0 / rss1)."""
+    span = "T and the bias"
+
+    def __init__(self, gm, base: GyroFit, inputs):
+        self.gm, self.base, self.inputs = gm, base, inputs
+        self.rss0, self.m = float(np.sum(base.r ** 2)), len(base.r)
+        self.mv = {}
+
+    def info(self, eid):
+        return EFFECTS[eid].parameter, EFFECTS[eid].unit, EFFECTS[eid].meaning
+
+    def basis(self):
+        _, J0 = move_residuals(self.base.T, self.gm.mv, self.gm.g_dirs, db=self.base.db)
+        return np.linalg.qr(J0.reshape(-1, 12))[0]
+
+    def residual(self):
+        return self.base.r.ravel(), self.rss0 / (2 * self.m)  # the noise profiled out as in the LR
+
+    def column(self, eid):
+        if not has_input(eid, self.inputs):  # a temperature term without temp_c: no move to integrate
+            return np.zeros(self.base.r.size)
+        self.mv[eid] = mv = with_terms(self.gm.mv, [eid], self.inputs)
+        return move_residuals(self.base.T, mv, self.gm.g_dirs, db=self.base.db, p=np.zeros(1))[1][..., 12].ravel()
+
+    def to_see(self, eid):
+        return SEPARATE_MOVES[eid.split(".")[1]]
+
+    def to_separate(self, eid, twin):
+        return separating_plan(eid, twin, moves=True)
+
+    def fit_with(self, eid):
+        base = self.base
+        f1 = fit_gyro_moves(self.mv[eid], self.gm.g_dirs, np.r_[base.T.ravel(), base.db, 0.0], self.gm.bias_std)
         if not f1.converged:
-            entry.update(separable=False, note=f"the fit with it did not converge in {f1.iterations} steps")
-            out.append(entry)
-            continue
-        rss1 = float(np.sum(f1.r ** 2))
-        stat = max(2 * m * np.log(rss0 / rss1), 0.0)
-        entry.update(separable=True, estimate=float(f1.p[0]), std=float(np.sqrt(f1.cov[12, 12])),
-                     statistic=float(stat), p_value=float(chi2_sf(stat, 1)), delta_aic=float(stat - 2.0),
-                     residual_rms_after=float(np.sqrt(np.mean(f1.r ** 2))))
-        if perp < 0.05 * norm_col:
-            entry["note"] = (f"nearly collinear with T and the bias: {100 * perp / norm_col:.2g} % of its signature "
-                             f"is separable; to see it: {SEPARATE_MOVES[family]}")
-        out.append(entry)
-    for e in out:  # twins judged by the data (fit/twins.py): the noise profiled out as in the LR, s2 = rss / 2m
-        tw = twins(e["id"], cols, base.r.ravel(), rss0 / (2 * m)) if e.get("separable") else []
-        if tw:
-            e.update(twins=tw, note=(e["note"] + "; " if e.get("note") else "")
-                     + twins_note(tw, separating_plan(e["id"], tw[0], moves=True)))
-    return gate_candidates(out, base_fails, alpha)
+            return f"the fit with it did not converge in {f1.iterations} steps"
+        stat = max(2 * self.m * np.log(self.rss0 / float(np.sum(f1.r ** 2))), 0.0)
+        return Trial(float(f1.p[0]), float(np.sqrt(f1.cov[12, 12])), float(stat), float(chi2_sf(stat, 1)),
+                     float(stat - 2.0), float(np.sqrt(np.mean(f1.r ** 2))))
 
 
-def diagnose_moves(ms, obs, det, am, fa, add=(), truth=None, alpha=0.01):
+def rank_move_candidates(gm, base: GyroFit, inputs, base_fails) -> list[dict]:
+    """Every library gyro effect ranked beside T and the bias over the moves (fit/ranking.rank)."""
+    problem = MovesProblem(gm, base, inputs)
+    return [c.to_dict() for c in rank(problem, effect_ids("gyro"), base_fails, "gyro candidates over the moves")]
+
+
+def diagnose_moves(ms, obs, det, am, fa, add=(), truth=None):
     """The gyro block of `simucal diagnose` for a stream (same keys as for a turntable set)."""
     gm = prepare_moves(ms, det, *pose_directions(am, obs, fa))
     base = fit_gyro(gm.mv, gm.g_dirs, gm.bias_std)
@@ -130,9 +132,10 @@ def diagnose_moves(ms, obs, det, am, fa, add=(), truth=None, alpha=0.01):
     inside = gm.mv.dt > 0
     columns = {k: np.sum(np.where(inside, v, 0.0), 1) / np.maximum(inside.sum(1), 1)
                for k, v in inputs[0][1].values.items() if k not in FORCE}
-    cands = rank_move_candidates(gm, base, inputs, p is not None and p < alpha, alpha)
-    shares = (misfit_shares(gm, base, sigma_g, inputs, chi2, dof, alpha)
-              if not add and p is not None and p < alpha and any(c.get("significant") for c in cands) else None)
+    fails = ModelTest(chi2, dof, p).fails
+    cands = rank_move_candidates(gm, base, inputs, fails)
+    shares = (misfit_shares(gm, base, sigma_g, inputs, chi2, dof)
+              if not add and fails and any(c.get("significant") for c in cands) else None)
     fit, names = base, _param_names([])
     if add:
         for e in add:
@@ -143,7 +146,7 @@ def diagnose_moves(ms, obs, det, am, fa, add=(), truth=None, alpha=0.01):
         S = move_covariances(gm, fit, sigma_g)
     vec = lambda f: np.r_[f.T.ravel(), (gm.bias + f.db) * DPH_PER_DPS, f.p]
     std = lambda f: np.sqrt(np.diag(f.cov)) * np.r_[np.ones(9), np.full(3, DPH_PER_DPS), np.ones(len(f.p))]
-    out = {"baseline": block, "candidates": cands, "misfit_shares": shares,
+    out = {**model_test_keys(block), "candidates": cands, "misfit_shares": shares,
            "verdict": verdict("gyro (moves)", block, cands, str(ms.path), command=None) + (_shares_text(shares, ms.path) if shares else ""),
            "params": dict(zip(names, vec(fit).tolist())), "std": dict(zip(names, std(fit).tolist())),
            "param_units": {"T": "1 (deg/s of rate per deg/s of output)", "b": "deg/h"},

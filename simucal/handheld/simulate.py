@@ -17,7 +17,8 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from simucal import io
-from simucal.fit.aux_inputs import SENSOR_AUX, AuxInputs, specific_force
+from simucal.fit.augmented import regressor
+from simucal.fit.aux_inputs import AuxInputs, specific_force
 from simucal.fit.rotations import exp_so3, log_so3
 from simucal.generated.effects import EFFECTS
 from simucal.generated.moves import rotation_matrix
@@ -113,12 +114,12 @@ def simulate_handheld(sc: HandheldScenario, seed=0):
     out_dps = gsign * (w @ M_g.T) + b_g
     for sensor, planted, out, u, scale in (("acc", sc.acc_effects, out_g, f, 1.0),
                                           ("gyro", sc.gyro_effects, out_dps, w * DPH_PER_DPS, DPH_PER_DPS)):
-        aux = AuxInputs({"t_s": np.arange(n) * dt, **specific_force(f)}).array(SENSOR_AUX[sensor], (n,))
+        aux = AuxInputs({"t_s": np.arange(n) * dt, **specific_force(f)})
         for eid, value in planted.items():
             effect = EFFECTS[eid]
             if effect.sensor != sensor:
                 raise ValueError(f"{eid}: not a {sensor} effect (plant it under {effect.sensor}_effects)")
-            out[:, effect.axis] += value * effect.phi(u, aux)[0][:, 0] / scale
+            out[:, effect.axis] += value * regressor(eid, u, aux) / scale
     acc = sc.offset_counts + sc.acc_counts_per_g * (out_g + rng.normal(0, sc.acc_noise_g, (n, 3)))
     gyro = sc.offset_counts + sc.gyro_counts_per_dps * (out_dps + rng.normal(0, sc.gyro_noise_dps, (n, 3)))
     lo = sc.offset_counts - sc.full_scale_dps * sc.gyro_counts_per_dps

@@ -86,8 +86,8 @@ def not_a_folder(path: Path) -> Path:
     if path.is_dir():
         raise MeasurementSetError(path, None, f"is a folder; {path.name} must be a file (see the spec)")
     if path.is_symlink() and not path.exists():
-        raise MeasurementSetError(path, None, f"is a symbolic link that leads nowhere (a loop of links, or its "
-                                              f"target is missing); put the file itself there")
+        raise MeasurementSetError(path, None, "is a symbolic link that leads nowhere (a loop of links, or its "
+                                              "target is missing); put the file itself there")
     return path
 
 

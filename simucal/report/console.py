@@ -2,7 +2,7 @@
 `simucal field-drift`); a diagnosis's one next command (`simucal diagnose`, its page)."""
 from __future__ import annotations
 
-from simucal.io.calibration import FAILS_BELOW, Calibration, SensorBlock
+from simucal.io.calibration import ALPHA, Calibration, SensorBlock
 
 
 def calibration_lines(cal: Calibration):
@@ -86,15 +86,15 @@ def _fit_lines(s, b: SensorBlock, source):
         yield (f"{s}: --add auto chose " + (", ".join(x["id"] for x in d["auto"]) + " (one at a time, each passing "
                "the candidate test and predicting left-out rows better)" if d["auto"] else "nothing")
                + (f"; {d['auto_stopped']}" if d.get("auto_stopped") else ""))
-    if b.p_value is not None and b.p_value < FAILS_BELOW:
+    if b.verdict == "fails":
         what = d.get("advice")
         stds = ("stds are inflated by sqrt(chi2/dof) (std_raw keeps the unscaled ones)" if "std_raw" in d else
                 d["std_note"] if d.get("std_note") else f"stds include a model-error std {d['model_error_std_g']:.2g} g "
                 "per pose" if d.get("model_error_std_g") else "stds assume the model is right")
-        yield (f"{s}: THE MODEL FAILS (p = {b.p_value:.2g} < {FAILS_BELOW:.0e}): ".replace("e-0", "e-")
+        yield (f"{s}: THE MODEL FAILS (p = {b.p_value:.2g} < {ALPHA:.0e}): ".replace("e-0", "e-")
                + ("the stated noise may be too small (the warning above); " if d.get("noise_too_small") else "")
                + (f"diagnose would add {what}; " if what else "the rows at rest misfit (above) by a term the rate runs "
-                  "cannot see; " if (d.get("static_rows") or {}).get("p_value", 1.0) < FAILS_BELOW else
+                  "cannot see; " if (d.get("static_rows") or {}).get("p_value", 1.0) < ALPHA else
                   f"see simucal diagnose {source} for what is missing; ")
                + stds)
 
@@ -135,7 +135,7 @@ def _thermal_lines(s, b: SensorBlock):
     if groups is None:  # each plateau alone, then the polynomials (a method without a row-level fit)
         yield (f"{s}: {where}; per plateau p = " + ", ".join(_p(x["p_value"]) for x in b.details["plateaus"]))
     else:
-        fails = b.p_value is not None and b.p_value < FAILS_BELOW
+        fails = b.verdict == "fails"
         yield (f"{s}: one model, every row at its own temperature ({where}): chi2 {b.chi2:.4g} / {b.dof} dof, "
                f"p = {_p(b.p_value)}" + ("; THE MODEL FAILS" if fails else ""))
         yield (f"{s}: under it each {'plateau' if b.details.get('plateaus') else 'band'} p = "
@@ -164,7 +164,7 @@ def to_add(diag: dict, sensor: str) -> tuple[list[str] | None, str]:
     strongest significant effect or the library's match of the found term), None where nothing
     found explains the misfit."""
     b = diag[sensor]
-    p = b["baseline"]["p_value"]
+    p = b["model_test"]["p_value"]
     if p is None:
         return [], f"{sensor}: no test (too few degrees of freedom): state the noise or add positions"
     if p >= diag["alpha"]:

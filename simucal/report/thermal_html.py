@@ -10,7 +10,7 @@ import html
 import numpy as np
 
 from simucal.fit.thermal import evaluate
-from simucal.io.calibration import FAILS_BELOW, Calibration
+from simucal.io.calibration import ALPHA, Calibration
 from simucal.report.page import page, plt, png
 
 
@@ -54,8 +54,8 @@ def verdict_lines(sensor, b, validations=()) -> list[str]:
     groups = b.details.get("groups")
     if groups is None:  # each plateau alone, then the polynomials
         return [f"{sensor}: each plateau fitted alone, p = " + ", ".join(_p(x["p_value"]) for x in b.details["plateaus"])]
-    failing = [g for g in groups if g["p_value"] is not None and g["p_value"] < FAILS_BELOW]
-    passes = b.p_value is not None and b.p_value >= FAILS_BELOW and not failing
+    failing = [g for g in groups if g["p_value"] is not None and g["p_value"] < ALPHA]
+    passes = b.p_value is not None and b.p_value >= ALPHA and not failing
     out = [f"{sensor}: {'PASSES' if passes else 'FAILS'}: the one model over every row at its own temperature, "
            f"chi2 {b.chi2:.4g} on {b.dof} dof, p = {_p(b.p_value)}; each "
            + ("plateau" if b.details.get("plateaus") else "band") + " under it p = "
@@ -73,7 +73,7 @@ def verdict_lines(sensor, b, validations=()) -> list[str]:
 def thermal_next(cal: Calibration, cal_path: str, validations=()) -> tuple[str, list[str]]:
     """(the command after a thermal calibration, why): validate on a set it was not made from, at another
     temperature; where a validation is given and holds, apply; where a sensor fails, diagnose a plateau."""
-    fails = [s for s, b in cal.blocks() if b.thermal is not None and b.p_value is not None and b.p_value < FAILS_BELOW]
+    fails = [s for s, b in cal.blocks() if b.thermal is not None and b.p_value is not None and b.p_value < ALPHA]
     if fails:
         return (f"simucal diagnose {cal.input[0] if isinstance(cal.input, list) else cal.input} -o diagnosis.json "
                 "--html diagnosis.html", [f"{', '.join(fails)}: the one model fails; the diagnosis of a plateau shows "

@@ -14,14 +14,15 @@ from __future__ import annotations
 
 import numpy as np
 
-from simucal.errors import CalibrationError
+from simucal.errors import CalibrationError, NotConverged
 from simucal.fit.augmented import AugmentedModel, for_sensor
-from simucal.fit.candidates import ALPHA, advice_text, forward_selection, verdict
+from simucal.fit.candidates import advice_text, forward_selection, verdict
+from simucal.fit.results import ALPHA, ModelTest
 from simucal.fit.lack_of_fit import noise_dof, with_estimated_sigma
 from simucal.fit.norm_fit import fit_linear
 from simucal.io import calibration, units
 from simucal.turntable.consistency import handedness, latitude_check, static_gyro_rows
-from simucal.turntable.model_test import ROWS, fails, rank, static_gyro_test, test_and_rank, with_static_rows
+from simucal.turntable.model_test import ROWS, rank, static_gyro_test, test_and_rank, with_static_rows
 from simucal.turntable.observations import read_observations, table_accuracy_rad
 from simucal.turntable.tilt import add_tilt
 from simucal.turntable.unification import Unifier, unify, unify_paper
@@ -62,9 +63,7 @@ def _exact_sensor(model, obs, segs, method, where, ranked=True):
         return fit_linear(model, obs), None, None, obs
     try:
         fit, obs2, base, cands, shape, _ = test_and_rank(model, obs, segs, only_if_failing=True, ranked=ranked)
-    except CalibrationError as e:
-        if "did not converge" not in str(e):
-            raise
+    except NotConverged as e:
         raise CalibrationError(f"{e}; or calibrate by the commanded attitudes alone, which needs no iteration "
                                "(--method multiposition: the Ferraris and multi-position protocols' method)") from None
     if getattr(obs, "noise_file", None) and base.get("noise_warning") and not base.get("noise_too_small"):
@@ -75,7 +74,7 @@ def _exact_sensor(model, obs, segs, method, where, ranked=True):
             "noise (or leave --noise out)")
     base["noise"]["text"] = _noise_text(base["noise"], obs2, model.unit)
     base["verdict"] = verdict(model.sensor, base, cands, where, shape, command="calibrate")
-    advice = advice_text(cands, shape) if fails(base) else None
+    advice = advice_text(cands, shape) if ModelTest.of(base).fails else None
     return fit, base, advice, with_estimated_sigma(obs2, base["noise"])
 
 
@@ -157,9 +156,11 @@ def calibrate_table(ms, method, acc_model, gyro_model, ids, acc_noise_g=None, gy
     chosen = {}
     if auto:
         if acc_obs is not None:
-            am, *chosen["acc"] = forward_selection(am, acc_obs, lambda *a: rank(*a, acc_segs)[:2])
+            chosen["acc"] = forward_selection(am, acc_obs, lambda *a: rank(*a, acc_segs)[:2])
+            am = chosen["acc"].model
         if gyro_obs is not None:
-            gm, *chosen["gyro"] = forward_selection(gm, gyro_obs, lambda *a: rank(*a, gyro_segs)[:2])
+            chosen["gyro"] = forward_selection(gm, gyro_obs, lambda *a: rank(*a, gyro_segs)[:2])
+            gm = chosen["gyro"].model
     fa = fg = None
     acc_read = acc_obs  # as read: _exact_sensor returns them with each row's sigma filled in
     if acc_obs is not None:
@@ -184,7 +185,7 @@ def calibrate_table(ms, method, acc_model, gyro_model, ids, acc_noise_g=None, gy
     for s, block in cal.blocks():
         calibration.inflate_if_failing(block)
         if s in chosen:
-            block.details["auto"], block.details["auto_stopped"] = chosen[s]
+            block.details["auto"], block.details["auto_stopped"] = chosen[s].steps, chosen[s].stopped
             if (block.details.get("static_rows") or {}).get("p_value", 1.0) < ALPHA:  # auto weighs the rate runs only
                 block.details["auto_stopped"] += " over the rate runs; the static rows still misfit (no library effect" \
                                                  " describes a term the rate runs cannot see)"

@@ -17,7 +17,8 @@ import numpy as np
 
 from simucal.fit.apply import model_inputs
 from simucal.fit.aux_inputs import specific_force
-from simucal.fit.candidates import ALPHA, rank_candidates, shape_if_unexplained, test_model
+from simucal.fit.candidates import rank_candidates, shape_if_unexplained, test_model
+from simucal.fit.results import ALPHA, ModelTest
 from simucal.fit.distributions import chi2_sf
 from simucal.io import units
 from simucal.turntable.plan_design import TableAdvice
@@ -39,19 +40,15 @@ def test_and_rank(model, obs, segs=None, only_if_failing=False, ranked=True):
     fit, obs, base = test_model(model, obs)
     if segs is not None:
         base["rows"] = rows_text(segs)
-    if (only_if_failing and not fails(base)) or not ranked:
+    if (only_if_failing and not ModelTest.of(base).fails) or not ranked:
         return fit, obs, base, [], None, None
     return (fit, obs, base, *rank(model, obs, fit, base, segs))
-
-
-def fails(base) -> bool:
-    return base["p_value"] is not None and base["p_value"] < ALPHA
 
 
 def rank(model, obs, fit, base, segs=None):
     """The ranked candidates, the generic shape where it explains more than they do (or None),
     and the table's fit (or None)."""
-    cands = rank_candidates(model, obs, fit, fails(base), advisor=TableAdvice() if segs is not None else None)
+    cands = rank_candidates(model, obs, fit, ModelTest.of(base).fails, advisor=TableAdvice() if segs is not None else None)
     table_info = None
     if segs is not None:
         idx = [i for i, s in enumerate(segs) if s.kind == "static" and s.middle_deg is not None
@@ -59,7 +56,7 @@ def rank(model, obs, fit, base, segs=None):
         if model.sensor == "acc" and len(idx) >= MIN_TABLE_POSITIONS:
             from simucal.turntable.table_fit import table_candidates
             ang = [[segs[i].outer_deg or 0.0, segs[i].middle_deg, segs[i].inner_deg] for i in idx]
-            tc, table_info = table_candidates(fit.directions[idx], ang, ALPHA)
+            tc, table_info = table_candidates(fit.directions[idx], ang)
             both = cands + tc
             cands = sorted([c for c in both if c["separable"]],
                            key=lambda c: (c["p_value"] if c["p_value"] is not None else 2.0, -c["statistic"])) + \

@@ -233,24 +233,25 @@ def separate(base, e1, e2, u, rho, sigma, sizes, rates_dph=(), target=0.9, alpha
 
 
 class TableAdvice:
-    """The positions to add to a turntable plan, for fit.candidates.rank_candidates: the
+    """The positions to add to a turntable plan, for fit.candidates.rank_candidates (fit/ranking.rank's unseen and pair): the
     fitted directions taken as the table's (a nominal mounting), 60 trial directions."""
 
     def reveal(self, model, eid, fit, obs, sig) -> str:
-        """Positions that make a candidate this plan cannot see separable (reveal), as a clause."""
+        """Positions that make a candidate this plan cannot see separable (reveal), as a clause ('' where
+        none do)."""
         adds, share = reveal(model, eid, fit.directions, obs.rho, float(np.median(sig)), grid=60)
         if share <= 1e-3:
             return ""
-        return ("; for this plan, adding positions at (outer, middle, inner) = "
+        return ("for this plan, adding positions at (outer, middle, inner) = "
                 + ", ".join(f"({g:.1f}, {a:.1f}, {b:.1f})" for g, a, b in plan_rows(adds))
                 + f" deg (nominal mounting) makes {100 * share:.2g} % of its signature separable")
 
     def separate(self, model, e, twin, fit, obs, sig) -> str:
         """The plan that would tell candidate e from its twin at its estimated size (separate,
         8 added positions at most), as one sentence."""
-        size = max(abs(e["estimate"]), 3 * e["std"])
+        size = max(abs(e.estimate), 3 * e.std)
         rates = np.unique(np.round(obs.rho, 6)) if model.sensor == "gyro" else ()
-        sep = separate(model.base, e["id"], twin, fit.directions, obs.rho, float(np.median(sig)), (size, size),
+        sep = separate(model.base, e.id, twin, fit.directions, obs.rho, float(np.median(sig)), (size, size),
                        rates, max_extra=8, grid=60)
         if not sep["added"]:
             return f"no added positions separate them: {SEPARATE[twin.split('.')[1]]}"
@@ -258,4 +259,4 @@ class TableAdvice:
         return (f"{len(rows)} positions added to this plan, (outer, middle, inner) = "
                 + ", ".join(f"({g:.1f}, {a:.1f}, {b:.1f})" for g, a, b in rows[:6]) + (" ..." if len(rows) > 6 else "")
                 + f" deg (nominal mounting), tell them apart with power {min(sep['power']):.2f} at the estimated "
-                f"size {size:.2g} (simucal plan --separate {e['id']},{twin} shows all)")
+                f"size {size:.2g} (simucal plan --separate {e.id},{twin} shows all)")

@@ -11,8 +11,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from simucal.fit.candidates import gate_candidates
 from simucal.fit.distributions import f_sf
+from simucal.fit.ranking import Trial, rank
 from simucal.generated import table
 
 PARAMS = table.TABLE_FIT_PARAMS
@@ -48,29 +48,48 @@ def fit_directions(u_meas, ang_rad, free, iters=20):
     return x, cov, rss, dof, res, A
 
 
-def table_candidates(u_meas, ang_deg, alpha=0.01):
-    """Candidate table errors ranked by an F test against the mounting-only fit."""
-    ang = np.radians(np.asarray(ang_deg, float))
-    x0, _, rss0, dof0, _, A0 = fit_directions(u_meas, ang, MOUNT)
-    Q, _ = np.linalg.qr(A0)
-    out = []
-    for cid, (pname, meaning) in CANDIDATES.items():
-        j = PARAMS.index(pname)
-        entry = {"effect": ".".join(cid.split(".")[:2]), "axis": cid.split(".")[2], "id": cid, "parameter": pname,
-                 "unit": "rad", "meaning": meaning, "test": "F on gravity directions (position errors as noise)"}
-        _, J = table.up_in_b(*ang.T, x0)
-        col = J[:, :, j].ravel()
-        perp = col - Q @ (Q.T @ col)
-        if np.linalg.norm(perp) < 1e-3 * np.linalg.norm(col):
-            entry.update(separable=False, note="collinear with the mounting angles theta_4 on this plan; "
-                         "to see it: positions at more outer-axis angles and both signs of the middle angle")
-            out.append(entry)
-            continue
-        x1, cov1, rss1, dof1, res1, _ = fit_directions(u_meas, ang, MOUNT + [j])
-        F = max((rss0 - rss1) / (rss1 / max(dof1, 1)), 0.0)
-        p = float(f_sf(F, 1, dof1)) if dof1 > 0 else None
-        entry.update(separable=True, estimate=float(x1[j]), std=float(np.sqrt(cov1[-1, -1])), statistic=float(F),
-                     p_value=p, delta_aic=None, residual_rms_after=float(np.sqrt(np.mean(res1 ** 2))))
-        out.append(entry)
+class DirectionsProblem:
+    """The static positions' gravity directions against the table with its mounting free, as a ranking
+    Problem (fit/ranking.py): each table error's column is its Jacobian, its test an F test against the
+    mounting-only fit (the position errors, unknown, as noise)."""
+    span = "the mounting angles theta_4"
+
+    def __init__(self, u_meas, ang_rad):
+        self.u_meas, self.ang = u_meas, ang_rad
+        self.x0, _, self.rss0, self.dof0, self.res0, A0 = fit_directions(u_meas, ang_rad, MOUNT)
+        self.J = table.up_in_b(*ang_rad.T, self.x0)[1]
+        self.Q = np.linalg.qr(A0)[0]
+
+    def info(self, cid):
+        return CANDIDATES[cid][0], "rad", CANDIDATES[cid][1]
+
+    def basis(self):
+        return self.Q
+
+    def residual(self):
+        return self.res0.ravel(), self.rss0 / max(self.dof0, 1)
+
+    def column(self, cid):
+        return self.J[:, :, PARAMS.index(CANDIDATES[cid][0])].ravel()
+
+    def to_see(self, cid):
+        return "positions at more outer-axis angles and both signs of the middle angle"
+
+    def to_separate(self, cid, twin):
+        return self.to_see(cid)
+
+    def fit_with(self, cid):
+        j = PARAMS.index(CANDIDATES[cid][0])
+        x1, cov1, rss1, dof1, res1, _ = fit_directions(self.u_meas, self.ang, MOUNT + [j])
+        F = max((self.rss0 - rss1) / (rss1 / max(dof1, 1)), 0.0)
+        return Trial(float(x1[j]), float(np.sqrt(cov1[-1, -1])), float(F),
+                     float(f_sf(F, 1, dof1)) if dof1 > 0 else None, None, float(np.sqrt(np.mean(res1 ** 2))))
+
+
+def table_candidates(u_meas, ang_deg):
+    """Candidate table errors ranked by an F test against the mounting-only fit (fit/ranking.rank)."""
+    problem = DirectionsProblem(u_meas, np.radians(np.asarray(ang_deg, float)))
     # an F test against the mounting-only fit: it needs no failing baseline to count
-    return gate_candidates(out, True, alpha), {"mounting_rad": x0[MOUNT].tolist(), "direction_residual_rms": float(np.sqrt(rss0 / (3 * len(u_meas))))}
+    cands = rank(problem, CANDIDATES, True, "table candidates", test="F on gravity directions (position errors as noise)")
+    return [c.to_dict() for c in cands], {"mounting_rad": problem.x0[MOUNT].tolist(),
+                                          "direction_residual_rms": float(np.sqrt(problem.rss0 / (3 * len(u_meas))))}

@@ -38,7 +38,6 @@ from simucal.fit.rotations import log_so3, skew, wahba
 from simucal.generated import table
 from simucal.generated import unify as eq
 from simucal.io import units
-from simucal.io.calibration import FAILS_BELOW
 from simucal.turntable.consistency import GROSS_RAD, mirror_error, mirror_test
 
 ARCMIN_RAD = math.radians(1 / 60)  # a start for an estimated table accuracy
@@ -57,8 +56,7 @@ class Part:
 
 def _misfit_scale(fit):
     """chi2/dof when the fit's model fails (as calibration.inflate_if_failing), else 1."""
-    from simucal.fit.candidates import ALPHA
-    if fit.p_value is not None and fit.p_value < ALPHA and fit.chi2 and fit.dof:
+    if fit.test.fails and fit.chi2 and fit.dof:
         return max(1.0, fit.chi2 / fit.dof)
     return 1.0
 
@@ -336,7 +334,7 @@ def unify(un: Unifier, acc_segs, gyro_segs, find, table_std_rad=None):
     C, J_phi = best["C"], best["J_phi"]
     M_b, cov_M = un.gyro_matrix_in_b(C, J_phi)
     # a failing accelerometer model misplaces the rate runs' directions itself: name it before lever arms
-    acc_fails = un.fa.p_value is not None and un.fa.p_value < FAILS_BELOW  # the console's THE MODEL FAILS
+    acc_fails = un.fa.test.fails  # the console's THE MODEL FAILS
     why = ("the accelerometer model fails its own test (the acc lines above say what it lacks; add that first), "
            "else lever arms it lacks (--add acc.size_effect.*)" if acc_fails else
            "lever arms the accelerometer model lacks (--add acc.size_effect.*)")

@@ -1,0 +1,106 @@
+"""The typed results of the model test, the candidate ranking and forward selection (issue 40, item 0).
+
+- ModelTest: a model's test (chi2, dof, p) and the one level at which a model fails, ALPHA
+  (io.calibration: the calibration file's `verdict` is defined by it). The advice, `--add auto`,
+  diagnose's verdict, the console's THE MODEL FAILS and the std inflation all ask ModelTest.fails.
+- Candidate: one effect tried beside the model, written once for every ranking (the library's on
+  the norm fit, the gyro's over a stream's moves, a table's own terms); to_dict() gives the keys the
+  diagnosis file has always held (spec/measurement-set.md).
+- Selection: what `--add auto`'s forward selection chose and why it stopped.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass, field, replace
+from typing import Any, Mapping
+
+from simucal.io.calibration import ALPHA
+
+__all__ = ["ALPHA", "Candidate", "ModelTest", "Selection", "model_test_keys"]
+
+
+@dataclass(frozen=True)
+class ModelTest:
+    """A model's test: chi2 on dof where the noise is known (None where only the lack-of-fit F
+    tests it), p its p-value (None: too few dof for any test), test in words."""
+    chi2: float | None
+    dof: int
+    p_value: float | None
+    test: str = ""
+
+    @property
+    def fails(self) -> bool:
+        """The model fails its test: p below ALPHA (no test, no failure)."""
+        return self.p_value is not None and self.p_value < ALPHA
+
+    @classmethod
+    def of(cls, block: Mapping[str, Any]) -> ModelTest:
+        """The test a block holds (fit.candidates.test_model's, the diagnosis file's `baseline`)."""
+        return cls(block.get("chi2"), int(block.get("dof") or 0), block.get("p_value"), block.get("test", ""))
+
+
+@dataclass(frozen=True)
+class Candidate:
+    """One effect tried beside the model. Not separable: note says why (no input for it in these
+    data, collinear with the model, its fit failed) and what would show it. Separable: its estimate
+    and std, the likelihood-ratio (or F) statistic and p-value, delta AIC where the noise is known,
+    the residual rms with it, whether it passes the gate (ranking.gate) and the candidates the data
+    cannot tell it from (fit/twins.py)."""
+    id: str
+    parameter: str
+    unit: str
+    meaning: str
+    separable: bool
+    note: str | None = None
+    estimate: float | None = None
+    std: float | None = None
+    statistic: float | None = None
+    p_value: float | None = None
+    delta_aic: float | None = None
+    residual_rms_after: float | None = None
+    significant: bool = False
+    twins: tuple[str, ...] = ()
+    test: str | None = None  # a ranking other than the model's likelihood ratio names its test
+
+    @property
+    def effect(self) -> str:
+        return ".".join(self.id.split(".")[:2])
+
+    @property
+    def axis(self) -> str:
+        return self.id.split(".")[2]
+
+    def with_note(self, text: str) -> Candidate:
+        """This candidate with text appended to its note (itself where text is empty)."""
+        if not text:
+            return self
+        return replace(self, note=(self.note + "; " if self.note else "") + text)
+
+    def to_dict(self) -> dict:
+        """The diagnosis file's candidate (spec/measurement-set.md): the keys a candidate of its kind
+        has always had."""
+        d = {"effect": self.effect, "axis": self.axis, "id": self.id, "parameter": self.parameter, "unit": self.unit,
+             "meaning": self.meaning, **({"test": self.test} if self.test else {}), "separable": self.separable}
+        if self.separable:
+            d.update(estimate=self.estimate, std=self.std, statistic=self.statistic, p_value=self.p_value,
+                     delta_aic=self.delta_aic, residual_rms_after=self.residual_rms_after, significant=self.significant)
+        if self.note is not None:
+            d["note"] = self.note
+        if self.twins:
+            d["twins"] = list(self.twins)
+        return d
+
+
+@dataclass(frozen=True)
+class Selection:
+    """`--add auto`: the model chosen, the steps (id, estimate, std, unit, the test's p, the residual and
+    held-out rms after, the held-out test's p) and why it stopped."""
+    model: Any
+    steps: list = field(default_factory=list)
+    stopped: str = ""
+
+
+
+def model_test_keys(test: dict) -> dict:
+    """A diagnosis block's model test under its name, `model_test` (the model diagnosed, --add's effects
+    included), and under `baseline`, the name the diagnosis file has always given it (kept for its readers)."""
+    return {"model_test": test, "baseline": test}

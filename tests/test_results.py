@@ -1,0 +1,127 @@
+"""The typed core (issue 40, item 0): one level at which a model fails, one candidate schema, the
+diagnosis's model test under its name and its old one, no write onto the caller's set (a fit that
+stops at its limit is told by its type: tests/test_calibrate_and_io.py)."""
+import json
+
+import numpy as np
+import pytest
+
+from simucal import io
+from simucal.calibrate import calibrate
+from simucal.diagnose import diagnose
+from simucal.fit.candidates import forward_selection
+from simucal.fit.ranking import Trial, gate, rank
+from simucal.fit.results import ALPHA, Candidate, ModelTest, Selection
+from simucal.io.calibration import SensorBlock, inflate_if_failing
+from simucal.report.console import calibration_lines
+from simucal.turntable.simulate import Scenario, plant, write
+
+
+@pytest.mark.parametrize("p", [ALPHA / 2, 2 * ALPHA, 5e-3, 0.5])
+def test_one_level_decides_fails_for_the_test_the_file_the_console_and_the_stds(p):
+    """Between 1e-3 and 0.01 the advice said 'add it' while the console was silent: now every reader asks
+    one level."""
+    fails = ModelTest(40.0, 20, p).fails
+    assert fails == (p < ALPHA)
+    block = SensorBlock("affine", np.eye(3), np.zeros(3), "g", std={"b_x": 1.0}, chi2=40.0, dof=20, p_value=p)
+    assert (block.verdict == "fails") == fails
+    assert inflate_if_failing(block) == fails and ("std_raw" in block.details) == fails
+    assert ModelTest.of({"chi2": 40.0, "dof": 20, "p_value": p}).fails == fails
+
+
+class _Line:
+    """A ranking Problem with known columns: the model spans e0, the residual lies along e1, so
+    candidate 'a.strong.x' (along e1) explains it, 'a.twin.x' (along e1 and a little e2) nearly as
+    well, 'a.none.x' has no input and 'a.span.x' lies in the model's span."""
+    span = "the line"
+    cols = {"a.strong.x": [0, 1, 0, 0], "a.twin.x": [0, 1, 0.05, 0], "a.none.x": [0, 0, 0, 0], "a.span.x": [2, 0, 0, 0]}
+
+    def info(self, cid):
+        return "k", "1", "a test effect"
+
+    def basis(self):
+        return np.eye(4)[:, :1]
+
+    def residual(self):
+        return np.array([0.0, 30.0, 0.0, 0.0]), 1.0
+
+    def column(self, cid):
+        return np.asarray(self.cols[cid], float)
+
+    def fit_with(self, cid):
+        stat = 900.0 if cid == "a.strong.x" else 899.0
+        return Trial(1.0, 0.1, stat, 1e-12, stat - 2, 0.5)
+
+    def to_see(self, cid):
+        return "another line"
+
+    def to_separate(self, cid, twin):
+        return "a third axis"
+
+
+def test_one_ranking_for_every_problem():
+    out = rank(_Line(), _Line.cols, True, "test")
+    by = {c.id: c for c in out}
+    assert [c.id for c in out[:2]] == ["a.strong.x", "a.twin.x"] and by["a.strong.x"].significant
+    assert by["a.strong.x"].twins == ("a.twin.x",) and "a third axis" in by["a.strong.x"].note
+    assert "significant alone, but a.strong.x explains more" in by["a.twin.x"].note
+    assert not by["a.none.x"].separable and by["a.none.x"].note.startswith("no input for it in these data")
+    assert not by["a.span.x"].separable and "collinear with the line" in by["a.span.x"].note
+    assert not any(c.significant for c in rank(_Line(), _Line.cols, False, "test"))  # the model passes: no gate
+
+
+def test_a_candidate_has_the_diagnosis_files_keys():
+    """spec/measurement-set.md's candidate: the same keys for a tested and an untested one as before the
+    schema was written once."""
+    tested = gate([Candidate("acc.quadratic.x", "k2_x", "1/g", "m", True, estimate=1.0, std=0.1, statistic=100.0,
+                             p_value=1e-20, delta_aic=98.0, residual_rms_after=1e-5)], True)[0].to_dict()
+    assert set(tested) == {"effect", "axis", "id", "parameter", "unit", "meaning", "separable", "estimate", "std",
+                           "statistic", "p_value", "delta_aic", "residual_rms_after", "significant"}
+    assert tested["effect"] == "acc.quadratic" and tested["axis"] == "x" and tested["significant"] is True
+    untested = Candidate("acc.quadratic.x", "k2_x", "1/g", "m", False, note="no input").to_dict()
+    assert set(untested) == {"effect", "axis", "id", "parameter", "unit", "meaning", "separable", "note"}
+    json.dumps([tested, untested])
+
+
+@pytest.fixture(scope="module")
+def failing_set(tmp_path_factory):
+    root = tmp_path_factory.mktemp("core")
+    sc = Scenario(plan="fibonacci48")
+    plant(sc, ["acc.quadratic.z=3e-4"])
+    write(root / "q", sc, 3)
+    return root / "q"
+
+
+def test_the_diagnosis_names_its_model_test_and_keeps_baseline(failing_set):
+    d = diagnose(failing_set)
+    assert d["acc"]["model_test"] is d["acc"]["baseline"] and d["model_test"] is d["baseline"]
+    assert d["alpha"] == ALPHA and ModelTest.of(d["acc"]["model_test"]).fails
+    saved = json.loads(json.dumps(d, default=float))
+    assert saved["acc"]["baseline"] == saved["acc"]["model_test"]
+
+
+def test_auto_and_the_console_agree_on_failing(failing_set):
+    """--add auto adds while the model fails; the console says THE MODEL FAILS exactly where the block's
+    verdict says fails, at the same level."""
+    cal = calibrate(failing_set, add=("auto",))
+    assert [s["id"] for s in cal.acc.details["auto"]] == ["acc.quadratic.z"]
+    assert cal.acc.verdict == "passes" and "THE MODEL FAILS" not in "\n".join(calibration_lines(cal))
+    base = calibrate(failing_set)
+    assert base.acc.verdict == "fails" and "acc: THE MODEL FAILS" in "\n".join(calibration_lines(base))
+    assert base.acc.details["advice"] == "acc.quadratic.z"
+
+
+def test_forward_selection_returns_a_selection(failing_set):
+    from simucal.fit.augmented import AugmentedModel
+    from simucal.turntable.observations import segment_observations
+    obs, _ = segment_observations(io.read_set(failing_set), "acc")
+    sel = forward_selection(AugmentedModel("acc_baseline"), obs)
+    assert isinstance(sel, Selection) and sel.model.effects == ("acc.quadratic.z",)
+    assert sel.stopped == "the model passes its test" and sel.steps[0]["p_value_after"] >= ALPHA
+
+
+def test_calibrate_leaves_the_callers_set_as_it_was(tmp_path):
+    write(tmp_path / "t", Scenario(plan="fibonacci48", temp_c=(20.0, 30.0)), 1)
+    ms = io.read_set(tmp_path / "t")
+    cal = calibrate(ms, t_ref_c=22.0)
+    assert ms.temperature_ref_c is None and cal.t_ref_c == 22.0
