@@ -154,7 +154,7 @@ def main():
             "acc.b_x": {"min": 0.0002, "max": 0.0014, "unit": "g"},
             "gyro.b_z": {"min": -0.08, "max": 0.04, "unit": "deg/h"}}}))
         report = speed(root, sets, limits)
-        print("\n" + "\n".join(report["verdict"][:1]) + f" (limits: acc.b_x and gyro.b_z at the design's +- 3 "
+        print("\n" + "\n".join(report["verdict"][:1]) + " (limits: acc.b_x and gyro.b_z at the design's +- 3 "
               "spreads of units)")
         stds, names = rules(report, plants, a.n)
     at_estimates(stds, names, a.seeds)

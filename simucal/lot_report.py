@@ -25,8 +25,8 @@ from pathlib import Path
 import numpy as np
 
 from simucal.errors import CalibrationError
-from simucal.fit.distributions import chi2_isf, chi2_sf
-from simucal.io.calibration import ALPHA, Calibration, load
+from simucal.fit.distributions import chi2_sf
+from simucal.io.calibration import Calibration, load
 from simucal.io.calibration_checks import SERIAL, CalibrationFileError
 from simucal.io.text_files import unique_keys
 
