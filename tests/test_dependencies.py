@@ -18,10 +18,11 @@ ROOT = Path(__file__).resolve().parent.parent
 
 
 def _requirements() -> dict[str, Requirement]:
-    """Every requirement of simucal[test] (the core, the dask and test extras), by lower-case name."""
+    """Every requirement of simucal[test] (the core, the test extra and the extras it names), by lower-case name."""
     project = tomllib.loads((ROOT / "pyproject.toml").read_text())["project"]
     extras = project["optional-dependencies"]
-    reqs = [Requirement(r) for r in project["dependencies"] + extras["dask"] + extras["test"]]
+    named = [e for r in map(Requirement, extras["test"]) if r.name == "simucal" for e in sorted(r.extras)]
+    reqs = [Requirement(r) for r in project["dependencies"] + extras["test"] + [x for e in named for x in extras[e]]]
     return {r.name.lower(): r for r in reqs if r.name != "simucal"}
 
 

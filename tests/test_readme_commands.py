@@ -1,5 +1,5 @@
-"""Every command the README shows runs (issue 39: 5 of its 8 benchmark commands crashed and no test
-ran benchmarks/). The README's code blocks are read here, not copied: a block whose commands hold
+"""Every command the README and the docs (docs/**/*.md) show runs (issue 39: 5 of its 8 benchmark commands
+crashed and no test ran benchmarks/). Their code blocks are read here, not copied: a block whose commands hold
 no placeholder runs as written, in order, in a fresh folder; the benchmarks run at a small size
 (their size options below), two at a time; a block of placeholders (DIR, [--option], a|b) is a
 reference, and each of its commands and options must exist."""
@@ -32,7 +32,8 @@ def _blocks(text):
     return blocks
 
 
-BLOCKS = _blocks((ROOT / "README.md").read_text())
+PAGES = [ROOT / "README.md", *sorted((ROOT / "docs").rglob("*.md"))]
+BLOCKS = [b for page in PAGES for b in _blocks(page.read_text())]
 # each benchmark at a size of seconds: its own size option (the script's docstring names it)
 SMALL = {"bench_derive_and_solve.py": ["--quick"], "bench_paper_tables.py": ["--seeds", "2"],
          "bench_unification.py": ["--seeds", "1"], "bench_unknown_noise.py": ["--seeds", "1"],

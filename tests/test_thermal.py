@@ -340,12 +340,12 @@ def test_generic_input_times_temperature_is_the_library_term():
         assert scale[0].unit() == "1/degC" and "dtemp_c" in scale[0].sympy()
 
 
-def test_readme_gyro_model_file_example(tmp_path, monkeypatch):
-    """The README's gyro model file (temperature terms from T_ref) plants, calibrates and is found."""
+def test_the_docs_gyro_model_file_example(tmp_path, monkeypatch):
+    """The docs' gyro model file (docs/own-model.md: temperature terms from T_ref) plants, calibrates and is found."""
     from pathlib import Path
     monkeypatch.setenv("SIMUCAL_CACHE", str(tmp_path / "cache"))
-    readme = (Path(__file__).parents[1] / "README.md").read_text()
-    text = readme.split("# my_gyro.py\n", 1)[1].split("```", 1)[0]
+    page = (Path(__file__).parents[1] / "docs" / "own-model.md").read_text()
+    text = page.split("# my_gyro.py\n", 1)[1].split("```", 1)[0]
     (tmp_path / "my_gyro.py").write_text(text)
     code, out = _run("simulate", tmp_path / "s", "--plan", "fibonacci48", "--column", "temp_c=10:40", "--effect-file",
                      tmp_path / "my_gyro.py", "--set", "kT3_z=1e-9", "--set", "Gt_xz=0.01")
