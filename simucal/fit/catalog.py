@@ -176,10 +176,19 @@ def _child_main(argv) -> int:
     return 0
 
 
-@functools.lru_cache(maxsize=None)
 def load(name: str, compiled: bool = True) -> GeneratedModel:
-    """A model by name: built-in (generated/) first, then the user models derived into the cache."""
+    """A model by name: built-in (generated/) first, then the user models derived into the cache. Kept
+    per cache folder: a model loaded from one cache is never handed out for another's name, whose checks
+    (cache.py) have not been made."""
+    return _load(name, compiled, str(cache.cache_dir()), os.environ.get("SIMUCAL_TRUSTED_CACHE"))
+
+
+@functools.lru_cache(maxsize=None)
+def _load(name: str, compiled: bool, cache_folder: str, trusted_folder: str | None) -> GeneratedModel:
     return load_builtin(name, compiled) or _load_user_model(name, compiled)
+
+
+load.cache_clear = _load.cache_clear  # type: ignore[attr-defined]  # callers that change a cache drop the kept ones
 
 
 def _load_user_model(name: str, compiled: bool = True) -> GeneratedModel:
