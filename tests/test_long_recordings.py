@@ -187,3 +187,39 @@ def test_convert_keeps_numeric_columns_and_leaves_notes_out(still, tmp_path, mon
     a, b = io.read_set(folder), io.read_set(tmp_path / "pq")
     assert "note" not in a.samples and set(a.samples) == set(b.samples) and "supply_v" in b.samples
     assert all(np.array_equal(a.samples[c], b.samples[c]) for c in a.samples)
+
+
+PEAK = """import sys, tracemalloc, pyarrow as pa
+from simucal.io import columnar
+columnar.BLOCK_BYTES, columnar.BATCH_ROWS = 100_000, 2000
+tracemalloc.start()
+if sys.argv[1] == "chunks":
+    for _ in columnar.chunks(sys.argv[2], ["t_s", "ax", "ay", "az", "gx", "gy", "gz"]):
+        pass
+else:
+    columnar.convert(sys.argv[2], sys.argv[3], sys.argv[1])
+print(tracemalloc.get_traced_memory()[1] + pa.default_memory_pool().max_memory())"""
+
+
+def _peak_bytes(*args) -> int:
+    """numpy's (tracemalloc) and Arrow's (its pool's) peak allocations of one run in a fresh process."""
+    import subprocess
+    import sys
+    out = subprocess.run([sys.executable, "-c", PEAK, *map(str, args)], capture_output=True, text=True, check=True)
+    return int(out.stdout)
+
+
+def test_memory_of_convert_and_of_parquet_reads_stays_bounded_as_the_record_grows(tmp_path):
+    """A record 4x as long peaks within a few batches of the short one's (convert both ways, and the
+    chunks `noise` reads from samples.parquet): no file held whole (Arrow's pre_buffer read all of
+    samples.parquet ahead, 1.1 GB of a 24 h record), while the data grow by 3x 7 columns of 8 bytes."""
+    peaks = {}
+    for seconds in (300.0, 1200.0):
+        folder = tmp_path / f"{seconds:g}"
+        write_still(folder / "csv", seconds=seconds, dt=0.01)
+        peaks[seconds] = (_peak_bytes("parquet", folder / "csv", folder / "pq"),
+                          _peak_bytes("csv", folder / "pq", folder / "back"),
+                          _peak_bytes("chunks", folder / "pq"))
+    grown = 3 * 100 * 300 * 7 * 8  # the bytes the longer record adds
+    for short, long in zip(peaks[300.0], peaks[1200.0]):
+        assert long - short < 0.15 * grown, (peaks, grown)

@@ -286,11 +286,11 @@ def samples_path(folder: Path) -> Path:
     return csv_path
 
 
-def parquet_file(path):
+def parquet_file(path, pre_buffer=True):
     import pyarrow as pa
     import pyarrow.parquet as pq
     try:
-        return pq.ParquetFile(path)
+        return pq.ParquetFile(path, pre_buffer=pre_buffer)
     except (pa.ArrowException, OSError) as e:
         raise MeasurementSetError(path, None, f"not a readable Parquet file ({str(e)[:120]}); write it with "
                                               "simucal convert --to parquet") from None
