@@ -35,8 +35,8 @@ OLD = ("import json, sys; from simucal import allan, io; "
 def still_chunks(rows, rate_hz, seed=0, chunk=1 << 20):
     """The recording a chunk at a time: gyro 0.1 deg/sqrt(h) white noise and a 0.5 deg/h/sqrt(h) rate
     random walk on biases of 1-3 deg/h, accelerometer 50 ug/sqrt(Hz) on [0, 0, 1] g. (A walk of 10
-    deg/h/sqrt(h) over 24 h makes the closed-form covariance of simucal.fit.allan_cov lose its
-    positive definiteness, an eigenvalue of its correlation at -0.09: the GLS fit refuses it.)"""
+    deg/h/sqrt(h) over 24 h once broke the positive definiteness of simucal.fit.allan_cov's covariance,
+    cancellation in its walk term, since evaluated without it: tests/test_noise.py checks that case.)"""
     rng, dt, walk = np.random.default_rng(seed), 1.0 / rate_hz, np.zeros(3)
     for k0 in range(0, rows, chunk):
         n = min(chunk, rows - k0)

@@ -185,10 +185,39 @@ def _brute_covariance(m, dt, lengths, x):
 @pytest.mark.parametrize("x", [{"Q": 0.3, "N": 2.0, "K": 0.7}, {"Q": 0.0, "N": 1.0, "K": 0.0},
                                {"Q": 0.0, "N": 0.0, "K": 1.0}, {"Q": 1.0, "N": 0.0, "K": 0.0}])
 def test_the_covariance_of_the_allan_variance_is_the_brute_force_sum(x):
-    """Closed form (pieces summed or integrated) against the explicit sum, two stretches pooled."""
+    """Closed form (pieces summed directly or by Euler-Maclaurin) against the explicit sum, two
+    stretches pooled: exact, to rounding."""
     m, dt, lengths = np.array([1, 2, 3, 5, 8, 13, 40]), 0.1, [400, 250]
     got = allan_cov.covariance(allan_cov.basis(m, dt, lengths), x)
-    np.testing.assert_allclose(got, _brute_covariance(m, dt, lengths, x), rtol=2e-3)
+    np.testing.assert_allclose(got, _brute_covariance(m, dt, lengths, x), rtol=1e-9)
+
+
+def test_a_day_at_200_hz_with_a_strong_walk_has_a_positive_definite_covariance():
+    """Issue 41: 24 h at 200 Hz, a random walk of 10 deg/h/sqrt(h) over a white noise of 0.1
+    deg/sqrt(h). The walk's filter correlation is exact at lags of the record's length (it was the
+    difference of cubics of 1e21 there: minus 5.9 as the smallest eigenvalue of the correlation),
+    and the covariance at the record's 60 taus is positive definite."""
+    m1, m2 = 3, 1_000_000
+    tri1 = np.minimum(np.arange(2 * m1 + 1), 2 * m1 - np.arange(2 * m1 + 1))
+    tri2 = np.minimum(np.arange(2 * m2 + 1), 2 * m2 - np.arange(2 * m2 + 1))
+    lags = np.array([-2 * m1 - 1, 0, 7, m2, 2 * m2 - 3, 2 * m2, 10 ** 7])
+    brute = [int(tri1[max(0, -h):][:len(tri2) - h] @ tri2[max(0, h):][:len(tri1) - max(0, -h)]) if h < len(tri2) else 0
+             for h in lags]
+    np.testing.assert_allclose(allan_cov._walk(lags.astype(float), float(m1), float(m2)), brute, rtol=1e-12, atol=1e-3)
+    dt, n = 1 / 200, 24 * 3600 * 200
+    mats = allan_cov.basis(taus(n), dt, [n])
+    cov = allan_cov.covariance(mats, {"N": (0.1 * 60) ** 2, "K": (10.0 / 60) ** 2})
+    d = np.sqrt(np.diag(cov))
+    assert np.linalg.eigvalsh(cov / np.outer(d, d))[0] > 0
+    np.linalg.cholesky(cov / np.outer(d, d))
+
+
+def test_a_covariance_not_positive_definite_is_refused_in_one_line():
+    """What rounding might still leave is a one-line refusal naming the cause, not exit 3."""
+    from simucal.errors import CalibrationError
+    from simucal.fit.allan_fit import gls
+    with pytest.raises(CalibrationError, match="not positive definite.*--tau-max-s"):
+        gls(np.ones(3), np.ones((3, 1)), np.array([[1.0, 2.0, 0.0], [2.0, 1.0, 0.0], [0.0, 0.0, 1.0]]))
 
 
 def test_absent_terms_are_not_reported_and_the_stds_are_right_over_seeds():

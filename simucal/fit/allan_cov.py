@@ -18,8 +18,10 @@ The sums are exact in closed form: phi_N is a sum of overlaps of integer interva
 linear in h), phi_K a four-fold convolution of boxcars (piecewise cubic, sums of binomials
 C(h + 3, 3)), n(h) an overlap count; their real extensions are polynomials between integer
 breakpoints, so each piece is summed directly where it is short and, where it is long (>= LONG),
-by 4-point Gauss-Legendre (exact to degree 7) plus the trapezoid's end terms, which leaves a
-relative error below 1 / (6 LONG^2). The quantisation filter has nine taps: its terms are
+by Euler-Maclaurin, exact for these degree-7 pieces: the integral plus the end terms up to B_6,
+from the piece's Chebyshev interpolant at 8 points (_euler_maclaurin_weights). The old form
+(Gauss-Legendre plus the trapezoid's ends, relative error 1 / (6 LONG^2)) broke the positive
+definiteness of the strongly correlated random-walk covariance (issue 41). The quantisation filter has nine taps: its terms are
 evaluated at those lags. A bias instability (flicker) or a ramp has no finite filter and is not
 carried: the covariance is that of white noise, random walk and quantisation.
 """
@@ -29,7 +31,26 @@ import numpy as np
 
 COMPONENTS = ("Q", "N", "K")
 LONG = 32  # pieces this long or longer are integrated, shorter ones summed
-_GL_X, _GL_W = np.polynomial.legendre.leggauss(4)
+_CHEB_T = np.cos(np.pi * (np.arange(8) + 0.5) / 8)  # Chebyshev nodes on [-1, 1]: the interpolant is exact to degree 7
+_BERNOULLI = ((1, 1.0 / 6.0 / 2.0), (3, -1.0 / 30.0 / 24.0), (5, 1.0 / 42.0 / 720.0))  # (2k - 1, B_2k / (2k)!)
+
+
+def _euler_maclaurin_weights(length):
+    """(P, 8) weights w with sum_{j=0}^{L-1} f(lo + j) = sum_i w_i f(lo + L (1 + t_i) / 2) for every
+    polynomial f of degree <= 7 (t_i = _CHEB_T): Euler-Maclaurin, int f + (f(lo) - f(hi)) / 2 +
+    sum_k B_2k / (2k)! (f^(2k-1)(hi) - f^(2k-1)(lo)), all read off the Chebyshev coefficients."""
+    cheb = np.polynomial.chebyshev
+    to_coef = np.linalg.inv(cheb.chebvander(_CHEB_T, 7))  # values at the nodes -> coefficients
+    eye = np.eye(8)
+    integral = np.array([cheb.chebval(1.0, cheb.chebint(e, lbnd=-1.0)) for e in eye]) @ to_coef
+    ends = (cheb.chebvander(-1.0, 7)[0] - cheb.chebvander(1.0, 7)[0]) / 2 @ to_coef
+    half = np.asarray(length, dtype=float)[:, None] / 2  # d/dh = d/dt / half
+    w = half * integral + ends
+    for order, coef in _BERNOULLI:
+        jump = np.array([cheb.chebval(1.0, cheb.chebder(e, order)) - cheb.chebval(-1.0, cheb.chebder(e, order))
+                         for e in eye]) @ to_coef
+        w = w + coef * jump / half ** order
+    return w
 
 
 def _overlap(a0, a1, b0, b1):
@@ -46,18 +67,30 @@ def _white(h, m1, m2):
 
 
 _SUBSETS = [(s1, s2, (-1.0) ** (s1 + s2)) for s1 in range(3) for s2 in range(3)]
-_SUBSET_COUNT = {0: 1.0, 1: 2.0, 2: 1.0}  # ways of taking s of the two equal boxes
+_SECOND_DIFFERENCE = ((0, 1.0), (1, -2.0), (2, 1.0))  # (s, (-1)^s C(2, s)): the two equal boxes' subsets
+
+
+def _ramp(y, m):
+    """(box_m^2 * step^2)(y) = sum_s (-1)^s C(2, s) C(y - s m + 3, 3) (zero below y - s m = -1).
+    Where all three terms are on (y >= 2 m - 1) their cubics cancel to the line m^2 (y - m + 2)
+    (the second difference of (u^3 - u) / 6, u = z + 2, is m^2 u at the centre): evaluated so, not
+    as the difference of three cubics of size y^3, which at y ~ 1e7 loses every digit (issue 41)."""
+    y = np.asarray(y, dtype=float)
+    on = y >= 2 * m - 1
+    y_low = np.where(on, 0.0, y)  # the cubics only where they are of the size of the result
+    cubic = 0.0
+    for s, weight in _SECOND_DIFFERENCE:
+        z = y_low - s * m
+        cubic = cubic + weight * np.where(z >= -1, (z + 1) * (z + 2) * (z + 3) / 6.0, 0.0)
+    return np.where(on, m * m * (y - m + 2), cubic)
 
 
 def _walk(h, m1, m2):
-    """sum_i tri1(i) tri2(i + h) of the triangles: (box_m1^2 * box_m2^2)(h + 2 m1 - 2), a sum over
-    the boxes' subsets S of (-1)^|S| C(z + 3, 3), z = h + 2 m1 - 2 - sum S (zero below z = -1)."""
-    out = 0.0
-    for s1, s2, sign in _SUBSETS:
-        z = h + 2 * m1 - 2 - s1 * m1 - s2 * m2
-        out = out + sign * _SUBSET_COUNT[s1] * _SUBSET_COUNT[s2] * np.where(
-            z >= -1, (z + 1) * (z + 2) * (z + 3) / 6.0, 0.0)
-    return out
+    """sum_i tri1(i) tri2(i + h) of the triangles: (box_m1^2 * box_m2^2)(h + 2 m1 - 2), the second
+    difference at the larger cluster size's step of the smaller one's _ramp (box^2 * step^2)."""
+    small, big = np.minimum(m1, m2), np.maximum(m1, m2)
+    x = h + 2 * m1 - 2
+    return sum(weight * _ramp(x - s * big, small) for s, weight in _SECOND_DIFFERENCE)
 
 
 def _pairs_weight(h, n1, n2):
@@ -100,13 +133,11 @@ def _smooth_sums(m1, m2, n1, n2, dt) -> dict:
     f = np.where(j < length[s, None], _products(lo[s, None] + j, *args), 0.0).sum(2)
     for i in range(3):
         total[i] += np.bincount(pair[s], f[i], len(m1))
-    # long pieces: the integral plus (f(lo) - f(hi)) / 2 (the trapezoid's ends: sum over [lo, hi))
+    # long pieces: Euler-Maclaurin over [lo, hi), exact for the degree-7 products
     g = np.nonzero(length >= LONG)[0]
     args = (m1[pair[g], None], m2[pair[g], None], n1[pair[g], None], n2[pair[g], None], dt)
-    half = length[g, None] / 2
-    x = np.column_stack([lo[g, None] + half * (1 + _GL_X), lo[g], hi[g]])
-    f = _products(x, *args)
-    f = (f[:, :, :4] * _GL_W).sum(2) * half[:, 0] + (f[:, :, 4] - f[:, :, 5]) / 2
+    f = _products(lo[g, None] + length[g, None] * (1 + _CHEB_T) / 2, *args)
+    f = (f * _euler_maclaurin_weights(length[g])).sum(2)
     for i in range(3):
         total[i] += np.bincount(pair[g], f[i], len(m1))
     return dict(zip(SMOOTH_KEYS, total))

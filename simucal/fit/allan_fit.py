@@ -25,6 +25,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from simucal.errors import CalibrationError
 from simucal.fit import allan_cov
 from simucal.fit.noise import COLUMNS, TERMS
 
@@ -38,10 +39,17 @@ ITERATIONS = 4    # covariance from the model, refit (converged to < 1e-3 of a s
 
 def gls(v, A, cov):
     """(x, cov_x, chi2) of v = A x with cov(v) = cov, whitened by the Cholesky factor of the
-    correlation (the variances span decades)."""
+    correlation (the variances span decades); refused in one line where rounding leaves that
+    correlation not positive definite (allan_cov is exact, so only at extreme grids)."""
     d = np.sqrt(np.diag(cov))
     corr = cov / np.outer(d, d) + 1e-12 * np.eye(len(d))
-    L = np.linalg.cholesky(corr)
+    try:
+        L = np.linalg.cholesky(corr)
+    except np.linalg.LinAlgError:
+        raise CalibrationError(
+            f"the covariance of the Allan variance at these {len(d)} taus is not positive definite in floating "
+            f"point (smallest eigenvalue of its correlation {np.linalg.eigvalsh(corr)[0]:.3g}): the taus are "
+            "too strongly correlated to weight; ask for a smaller --tau-max-s") from None
     Aw = np.linalg.solve(L, A / d[:, None])
     vw = np.linalg.solve(L, v / d)
     scale = np.linalg.norm(Aw, axis=0)
