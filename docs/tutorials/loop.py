@@ -42,7 +42,7 @@ simucal.save("calibration.json", cal)  # the file `simucal calibrate set --add .
 
 # 5. Both calibrations on the other recording, which neither fit saw: |f| - 1 g at every static segment.
 def norm_error_g(c):
-    check = next(k for k in simucal.validate(c, "other").checks if k.sensor == "acc" and k.unit == "g")
+    check = next(k for k in simucal.table_rows(simucal.validate(c, "other").checks) if k.sensor == "acc" and k.unit == "g")
     return check.nominal_rms, check.calibrated_rms, check.floor_rms
 
 
@@ -52,6 +52,7 @@ print(f"|f| - 1 g rms: nominal {nominal:.2g} g, baseline {before:.2g} g, with th
       f"(noise floor {floor:.2g} g)")
 assert after < before / 3 < nominal and after < 2 * floor
 
-# 6. The parameter table (a list of rows; pandas.DataFrame(rows) makes a frame).
-for p in cal.parameters()[:10]:
+# 6. The parameter table (a pandas DataFrame where pandas is installed, else a list of rows; table_rows
+#    gives rows either way).
+for p in simucal.table_rows(cal.parameters())[:10]:
     print(f"  {p.sensor:4} {p.name:16} {p.value:+.4g} +- {p.std:.2g} {p.unit}")

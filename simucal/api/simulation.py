@@ -93,6 +93,7 @@ def simulate(scenario: str = "paper", *, seed: int = 0, rate_hz: float | None = 
     ------
     ValueError
         An option the scenario does not use, or a malformed value, named.
+
     Examples
     --------
     >>> import simucal
