@@ -169,10 +169,10 @@ def save(path: str | os.PathLike, result: Calibration | Validation | Diagnosis |
     """Write a result as its command writes it: a calibration file (``simucal.calibration/2``, as
     `simucal calibrate -o`), or the report of `simucal validate`, `diagnose` or `noise` (``-o``); a
     path ending in .html: the page of ``--html`` (a calibration's: a thermal one's, as `calibrate
-    --thermal --html`).
+    --thermal --html`, or a field one's, as `field-drift --html`).
 
     A diagnosis also writes each found term's model file beside it (<stem>_<sensor>_model.py).
-    calibration_path: where the calibration file is, for a thermal page's next command.
+    calibration_path: where the calibration file is, for a thermal or field page's next command.
 
     Examples
     --------
@@ -195,9 +195,13 @@ def save(path: str | os.PathLike, result: Calibration | Validation | Diagnosis |
 def _page(result: _file.Calibration | Validation | Diagnosis | Noise, calibration_path: str) -> str:
     """The self-contained HTML page of a result (the commands' --html)."""
     if isinstance(result, _file.Calibration):
+        if result.method == "field":
+            from simucal.report.field_html import field_page
+            return field_page(result, calibration_path)
         if not any(b.thermal is not None for _, b in result.blocks()):
-            raise ValueError("a page is a thermal calibration's (calibrate([plateaus...])): save this calibration "
-                             "as .json; for one set's page use simucal.diagnose or simucal.validate")
+            raise ValueError("a page is a thermal or field calibration's (calibrate([plateaus...]) or method='field'): "
+                             "save this calibration as .json; for one set's page use simucal.diagnose or "
+                             "simucal.validate")
         from simucal.report.thermal_html import thermal_page
         return thermal_page(result, cal_path=calibration_path)
     if isinstance(result, Validation):
