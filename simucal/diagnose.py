@@ -17,10 +17,10 @@ from simucal import io, methods
 from simucal.errors import CalibrationError
 from simucal.fit.augmented import AugmentedModel
 from simucal.fit.candidates import test_model, verdict
-from simucal.fit.lack_of_fit import model_file_text
 from simucal.fit.norm_fit import Fit, Observations
 from simucal.fit.results import ALPHA, model_test_keys
 from simucal.io.timestamps import with_timestamps
+from simucal.report.model_files import model_file_text
 from simucal.turntable.model_test import test_and_rank
 
 
@@ -60,7 +60,10 @@ def diagnose_sensor(ms, sensor, base_model, add=(), stated=None, truth=None, bef
         out["shape"] = {**shape, "model_file": model_file_text(base_model, add, shape, sensor)}
     if table_info is not None:
         out["table"] = table_info
-    out.update(kind.sensor_extras(ms, sensor, model, obs, fit, segs, shape, base_model, add))
+    out.update(kind.sensor_extras(ms, sensor, model, obs, fit, segs, shape))
+    if "twin_fits" in out:  # the found term's twins, each with its model file (judged at rest by kind.finish_diagnosis)
+        out["twin_fits"] = [{**tf, "shape": {**tf["shape"], "model_file": model_file_text(
+            base_model, add, tf["shape"], sensor)}} for tf in out["twin_fits"]]
     before_model = before_model or model.base.name
     if add or before_model != base_model:
         f0, _, b0 = test_model(AugmentedModel(before_model), obs)

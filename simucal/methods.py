@@ -127,8 +127,8 @@ class Kind:
     #                            or None: the rows a sensor's model is tested on (diagnose)
     diagnose_gyro: Callable | None  # diagnose_gyro(ms, gyro_model, add, truth, acc_model) -> block: the gyro
     #                                 judged otherwise than by observations (None: by them)
-    sensor_extras: Callable    # sensor_extras(ms, sensor, model, obs, fit, segs, shape, base_model, add) -> dict:
-    #                            a diagnosis block's own keys
+    sensor_extras: Callable    # sensor_extras(ms, sensor, model, obs, fit, segs, shape) -> dict: a diagnosis
+    #                            block's own keys
     finish_diagnosis: Callable  # finish_diagnosis(ms, result, settings): the checks over both sensors, in place
     validation_checks: Callable  # (ms, f_before, f_after, w_before, w_after, cal) -> {sensor: [check]}
     still_rows: Callable       # still_rows(ms) -> ([row indices], where): the stretches `simucal noise` pools
@@ -140,9 +140,9 @@ def _table_observations(ms, sensor, stated):
     return observations(ms, sensor, stated)
 
 
-def _table_extras(ms, sensor, model, obs, fit, segs, shape, base_model, add):
+def _table_extras(ms, sensor, model, obs, fit, segs, shape):
     from simucal.turntable.diagnosis import sensor_extras
-    return sensor_extras(sensor, model, obs, fit, segs, shape, base_model, add)
+    return sensor_extras(sensor, model, obs, fit, segs, shape)
 
 
 def _table_finish(ms, result, settings):

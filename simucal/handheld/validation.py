@@ -27,8 +27,8 @@ def stream_checks(ms, f_before, f_after, w_before, w_after, cal) -> dict:
     (mb, _), (ma, fl) = segment_means(f_before, groups, None), segment_means(f_after, groups, None)
     whole, with_cal = with_calibration(fl, cal, "acc", ma, [np.arange(a, b) for a, b in zip(det.starts, det.ends)], ms)
     out = {"acc": [norm_block("g", np.linalg.norm(mb, axis=1) - 1, np.linalg.norm(ma, axis=1) - 1, whole,
-                               f"|f| - 1 g at each of the {len(groups)} static poses" + FLOOR[with_cal],
-                               [f"pose at {t[a]:.1f} s" for a in det.starts])]}
+                              f"|f| - 1 g at each of the {len(groups)} static poses" + FLOOR[with_cal],
+                              [f"pose at {t[a]:.1f} s" for a in det.starts])]}
     if w_after is not None:
         bad = saturated_rows(ms, "gyro")[0]
         angles = []

@@ -6,7 +6,7 @@ from __future__ import annotations
 
 from simucal.errors import CalibrationError
 from simucal.fit.candidates import verdict
-from simucal.fit.lack_of_fit import model_file_text, twin_fits
+from simucal.fit.lack_of_fit import twin_fits
 from simucal.fit.results import ALPHA
 from simucal.turntable.calibrate import calibrate_table
 from simucal.turntable.consistency import handedness_verdict, mirrored
@@ -23,14 +23,12 @@ def observations(ms, sensor, stated):
     return (obs, segs, segs) if segs else None
 
 
-def sensor_extras(sensor, model, obs, fit, segs, shape, base_model, add) -> dict:
+def sensor_extras(sensor, model, obs, fit, segs, shape) -> dict:
     """A block's keys for finish: the triad's mirror test, and a gyro term the rate runs cannot tell
-    from its twins fitted as each of them (judged at rest in finish; their model files as the shape's:
-    base_model with the ids add)."""
+    from its twins fitted as each of them (judged at rest in finish)."""
     out = {}
     if shape and sensor == "gyro" and shape["indistinguishable_here"]:
-        out["twin_fits"] = [{**tf, "shape": {**tf["shape"], "model_file": model_file_text(
-            base_model, add, tf["shape"], sensor)}} for tf in twin_fits(model, obs, fit, shape)]
+        out["twin_fits"] = twin_fits(model, obs, fit, shape)
     out["mirror"] = mirrored(fit, segs, sensor == "gyro")  # judged over both triads in finish
     return out
 

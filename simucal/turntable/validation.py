@@ -29,7 +29,7 @@ def table_checks(ms, f_before, f_after, w_before, w_after, cal) -> dict:
         labels = [f"segment {s.segment}" for s in static]
         whole, with_cal = with_calibration(fl, cal, "acc", ma, groups, ms)
         checks = [norm_block("g", np.linalg.norm(mb, axis=1) - 1, np.linalg.norm(ma, axis=1) - 1, whole,
-                              "|f| - 1 g at each static segment" + FLOOR[with_cal], labels)]
+                             "|f| - 1 g at each static segment" + FLOOR[with_cal], labels)]
         angled = [i for i, s in enumerate(static) if s.middle_deg is not None and s.inner_deg is not None]
         if len(angled) >= 3:
             # the navigation vertical (z up) in the table frame k: gravity's reaction
@@ -67,7 +67,7 @@ def table_checks(ms, f_before, f_after, w_before, w_after, cal) -> dict:
             what = ("|w| - |w_T + w_e sin L| at each rate run" if kind == "rate" else
                     "|w| - w_e (the Earth rate) at each static segment")
             checks.append(norm_block("deg/h", np.linalg.norm(mb, axis=1) - truth, np.linalg.norm(ma, axis=1) - truth,
-                                      whole, what + FLOOR[with_cal], [f"segment {s.segment}" for s in chosen]))
+                                     whole, what + FLOOR[with_cal], [f"segment {s.segment}" for s in chosen]))
         out["gyro"] = checks
     return out
 
