@@ -5,6 +5,8 @@ from pathlib import Path
 
 import click
 
+from simucal import methods
+
 from simucal.cli.common import (
     EFFECT_FILE,
     FORCE,
@@ -23,7 +25,7 @@ from simucal.cli.common import (
 )
 
 # io/units.py's names, written here so that the command line starts without numpy (tests/test_api.py holds them equal)
-SCENARIOS = ("paper", "field", "handheld")  # api/simulation.py's
+SCENARIOS = tuple(methods.SCENARIOS)  # a kind of data each (methods.KINDS: the command line reads it at start)
 ACC_UNITS = ("g", "m/s^2", "pulse/s", "counts")
 GYRO_UNITS = ("deg/h", "deg/s", "rad/s", "pulse/s", "counts")
 DEFAULT_GRAVITY = 9.80665
