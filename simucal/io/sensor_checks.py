@@ -27,7 +27,7 @@ def _saturated_rows(ms, sensor, min_run):
     any_repeat = full_scale is None and ms.meta.get(f"{sensor}_unit") == "counts"
     bad = np.zeros(len(raw), bool)
     report = []
-    for j in range(raw.shape[1]):
+    for j, extremes in enumerate(column_extremes(ms, sensor)):
         col = raw[:, j]
         hit = np.zeros(len(col), bool)
         if full_scale is not None:
@@ -38,7 +38,7 @@ def _saturated_rows(ms, sensor, min_run):
                     f"{ms.path / 'meta.json'}: {100 * outside:.0f} % of the {sensor} {'xyz'[j]} samples lie outside "
                     f"full_scale {list(full_scale)}, which no sensor can read: full_scale does not match these data "
                     f"(signed against unsigned counts, or another {sensor}_unit?); correct it or leave it out")
-        for ext in (col.min(), col.max()):
+        for ext in extremes:
             runs = _runs(col == ext, min_run)
             if runs and (any_repeat or repeat_is_clipping(col, ext, runs)):
                 for a, b in runs:
@@ -47,6 +47,16 @@ def _saturated_rows(ms, sensor, min_run):
             report.append({"axis": "xyz"[j], "count": int(hit.sum()), "first_row": int(np.argmax(hit))})
         bad |= hit
     return bad, report
+
+
+def column_extremes(ms, sensor) -> list[tuple]:
+    """(min, max) of each column of one sensor's raw outputs, found once per set and sensor (the
+    clipping and stuck checks both ask): a column at a time, as reducing the (n, 3) block along its
+    rows costs 65 ms at 1.6 million rows against 3.5 ms a column."""
+    cols = ("ax", "ay", "az") if sensor == "acc" else ("gx", "gy", "gz")
+    raw = ms.raw(sensor)
+    return ms._once(("extremes", sensor), cols, lambda: [(raw[:, j].min(), raw[:, j].max()) for j in range(3)],
+                    meta=False)
 
 
 def _runs(mask, min_run):
@@ -77,13 +87,24 @@ def stuck_channels(ms):
     fs = ms.meta.get("full_scale", {})
     for c in ("ax", "ay", "az", "gx", "gy", "gz"):
         v = ms.samples.get(c)
-        if v is not None and len(v) > 1 and np.all(v == v[0]):
+        if v is not None and len(v) > 1 and _one_value(ms, c):
             rail = fs.get("acc" if c[0] == "a" else "gyro")
             at_rail = (rail is not None and v[0] in rail) or v[0] in (0.0, 65535.0, 32767.0, -32768.0)
             raise CalibrationError(f"{ms.path / 'samples.csv'}: column {c} holds {v[0]:g} in every row: a stuck "
                                    + ("(at the rail) " if at_rail else "") + "or unconnected channel; check the "
                                    "wiring or the column mapping")
     _stuck_part(ms)
+
+
+def _one_value(ms, c) -> bool:
+    """Whether column c holds one value in every row: its least and its greatest are equal (the
+    samples are finite), from the extremes the clipping check uses too."""
+    sensor, triad = ("acc", ("ax", "ay", "az")) if c[0] == "a" else ("gyro", ("gx", "gy", "gz"))
+    if not all(t in ms.samples for t in triad):
+        v = ms.samples[c]
+        return bool(np.all(v == v[0]))
+    lo, hi = column_extremes(ms, sensor)[triad.index(c)]
+    return bool(lo == hi)
 
 
 def _stuck_part(ms, min_rows=20):
@@ -118,7 +139,7 @@ def _spans(X, groups) -> np.ndarray:
         return np.zeros((0, X.shape[1]))
     if all(g[-1] - g[0] + 1 == len(g) for g in groups):
         lo, hi = min(g[0] for g in groups), max(g[-1] for g in groups) + 1
-        bounds = np.unique([b for g in groups for b in (g[0], g[-1] + 1) if b < hi])  # disjoint runs: each
+        bounds = np.array(sorted({b for g in groups for b in (g[0], g[-1] + 1) if b < hi}))  # disjoint runs: each
         pieces = np.searchsorted(bounds, [g[0] for g in groups])                     # starts a piece of its own
         return (np.maximum.reduceat(X[lo:hi], bounds - lo, axis=0)
                 - np.minimum.reduceat(X[lo:hi], bounds - lo, axis=0))[pieces]

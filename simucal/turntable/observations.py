@@ -4,6 +4,8 @@ its input's norm and auxiliary inputs, with the checks of the rows behind them (
 samples, glitches, a dead accelerometer axis, gyro rates in the wrong unit)."""
 from __future__ import annotations
 
+from concurrent.futures import ThreadPoolExecutor
+
 import numpy as np
 
 from simucal import io
@@ -311,13 +313,17 @@ def read_observations(ms, method, rows, acc_noise_g=None, gyro_noise_dph=None, n
     kinds rows[sensor] (None for a sensor the set lacks, or a gyro without usable rate runs);
     the gyro's rate runs checked to turn the commanded way."""
     curves = noise_curves or {}
-    acc_obs = acc_segs = gyro_obs = gyro_segs = None
-    if ms.has_acc:
-        acc_obs, acc_segs = segment_observations(ms, "acc", rows["acc"], acc_noise_g, curves.get("acc"))
-    if ms.has_gyro:
-        gyro_obs, gyro_segs = segment_observations(ms, "gyro", rows["gyro"], gyro_noise_dph, curves.get("gyro"))
-        if not gyro_segs:
-            gyro_obs = None
+    stated = {"acc": acc_noise_g, "gyro": gyro_noise_dph}
+    sensors = [s for s, present in (("acc", ms.has_acc), ("gyro", ms.has_gyro)) if present]
+    if ms.segments and ms.has_acc:
+        ms.rows(ms.segments[0].segment), ms.acc_g()  # formed before the threads share them (the gyro's reads acc_g)
+    with ThreadPoolExecutor(2) as pool:  # the sensors' rows on both cores: numpy frees the GIL in its loops
+        jobs = [pool.submit(segment_observations, ms, s, rows[s], stated[s], curves.get(s)) for s in sensors]
+        found = {s: job.result() for s, job in zip(sensors, jobs)}  # the accelerometer's refusal first, as before
+    acc_obs, acc_segs = found.get("acc", (None, None))
+    gyro_obs, gyro_segs = found.get("gyro", (None, None))
+    if not gyro_segs:
+        gyro_obs = None
     check_rate_sense(ms, gyro_obs, gyro_segs)
     cal = calibration.header(method, ms)
     kind = {s.segment: s.kind for s in ms.segments}
