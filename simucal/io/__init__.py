@@ -79,8 +79,13 @@ class MeasurementSet:
         """Per segment (a stream: one for the whole), the first 16 hex digits of the SHA-256 of its sensor
         outputs' numbers (float64, the columns of ax..gz present, one after the other): the samples themselves,
         whatever meta.json, segments.csv, t_s or the number format say. A calibration records them
-        (samples_sha256) and validate finds its own rows by them."""
-        cols = [np.asarray(self.samples[c], "<f8") for c in ("ax", "ay", "az", "gx", "gy", "gz") if c in self.samples]
+        (samples_sha256) and validate finds its own rows by them. Found once per set (on a thread of
+        its own while a turntable method averages the segments: hashlib frees the GIL)."""
+        names = tuple(c for c in ("segment", *SAMPLE_COLS) if c in self.samples)
+        return list(self._once("digests", names, self._digests, meta=False))
+
+    def _digests(self) -> list[str]:
+        cols = [np.asarray(self.samples[c], "<f8") for c in SAMPLE_COLS if c in self.samples]
         out = []
         for rows in [slice(None)] if self.segments is None else [run_or_rows(self.rows(s.segment))
                                                                  for s in self.segments]:
