@@ -3,9 +3,13 @@ stuck channels. A clipped sample would pull a mean toward the rail; a stuck colu
 no sensor at all."""
 from __future__ import annotations
 
+from concurrent.futures import ThreadPoolExecutor, wait
+
 import numpy as np
 
 from simucal.errors import CalibrationError
+
+TRIADS = (("acc", ("ax", "ay", "az")), ("gyro", ("gx", "gy", "gz")))
 
 
 def saturated_rows(ms, sensor, min_run=3):
@@ -83,7 +87,14 @@ def repeat_is_clipping(col, ext, runs) -> bool:
 
 def stuck_channels(ms):
     """Refuse a column that holds one value in every row (no sensor reads that, even at rest),
-    or over part of the recording (_stuck_part)."""
+    or over part of the recording (_frozen). Each sensor's passes over its rows on a thread of its
+    own (numpy frees the GIL), the refusals in the order of one after the other."""
+    triads = [(s, cols) for s, cols in TRIADS if all(c in ms.samples for c in cols)]
+    if ms.segments:
+        ms.rows(ms.segments[0].segment)  # the rows grouped before the threads share them
+    with ThreadPoolExecutor(2) as pool:
+        jobs = [pool.submit(_frozen, ms, sensor, cols) for sensor, cols in triads]
+        wait(jobs)
     fs = ms.meta.get("full_scale", {})
     for c in ("ax", "ay", "az", "gx", "gy", "gz"):
         v = ms.samples.get(c)
@@ -93,7 +104,15 @@ def stuck_channels(ms):
             raise CalibrationError(f"{ms.path / 'samples.csv'}: column {c} holds {v[0]:g} in every row: a stuck "
                                    + ("(at the rail) " if at_rail else "") + "or unconnected channel; check the "
                                    "wiring or the column mapping")
-    _stuck_part(ms)
+    for (sensor, cols), job in zip(triads, jobs):
+        X, groups, frozen = job.result()  # a clipping refusal (full_scale) raised here, a sensor at a time
+        for seg, rows, j in frozen:
+            if ms.segments is not None and sum(f[2] == j for f in frozen) > len(groups) / 2:
+                continue  # frozen nearly everywhere: a quiet channel, quantised coarser than its noise
+            where = f"segment {seg}" if seg is not None else f"{len(rows)} rows from line {int(rows[0]) + 2}"
+            raise CalibrationError(f"{ms.path / 'samples.csv'}: column {cols[j]} holds {X[rows, j][0]:g} in every row "
+                                   f"of {where} while {' and '.join(c for k, c in enumerate(cols) if k != j)} vary: "
+                                   "a channel stuck for that part (a dropout or a frozen value); cut or repair those rows")
 
 
 def _one_value(ms, c) -> bool:
@@ -107,28 +126,20 @@ def _one_value(ms, c) -> bool:
     return bool(lo == hi)
 
 
-def _stuck_part(ms, min_rows=20):
-    """Refuse a column frozen over part of the recording while its triad's other columns move:
-    in a turntable set over a whole segment (where the same column is not frozen in most other
-    segments, so it is no quiet, coarsely quantised channel); in a stream over a quarter of the
-    rows or more."""
-    for sensor, cols in (("acc", ("ax", "ay", "az")), ("gyro", ("gx", "gy", "gz"))):
-        if not all(c in ms.samples for c in cols):
-            continue
-        X = ms.raw(sensor)
-        groups = ([(s.segment, ms.rows(s.segment)) for s in ms.segments] if ms.segments is not None
-                  else [(None, _longest_run(X, j, max(min_rows, len(X) // 4))) for j in range(3)])
-        clipped = saturated_rows(ms, sensor)[0]  # frozen at a rail is clipping, left out where it is met
-        long = [(seg, rows) for seg, rows in groups if len(rows) >= min_rows]
-        frozen = [(seg, rows, j) for (seg, rows), span in zip(long, _spans(X, [rows for _, rows in long]))
-                  for j in range(3) if span[j] == 0 and np.delete(span, j).min() > 0 and not clipped[rows].all()]
-        for seg, rows, j in frozen:
-            if ms.segments is not None and sum(f[2] == j for f in frozen) > len(groups) / 2:
-                continue  # frozen nearly everywhere: a quiet channel, quantised coarser than its noise
-            where = f"segment {seg}" if seg is not None else f"{len(rows)} rows from line {int(rows[0]) + 2}"
-            raise CalibrationError(f"{ms.path / 'samples.csv'}: column {cols[j]} holds {X[rows, j][0]:g} in every row "
-                                   f"of {where} while {' and '.join(c for k, c in enumerate(cols) if k != j)} vary: "
-                                   "a channel stuck for that part (a dropout or a frozen value); cut or repair those rows")
+def _frozen(ms, sensor, cols, min_rows=20):
+    """(raw outputs, groups, [(segment, rows, column)]) where one column of the triad is frozen over
+    part of the recording while the others move: in a turntable set over a whole segment (refused
+    where the same column is not frozen in most other segments, so it is no quiet, coarsely
+    quantised channel); in a stream over a quarter of the rows or more. Its column extremes found
+    first (stuck_channels reads them)."""
+    column_extremes(ms, sensor)
+    X = ms.raw(sensor)
+    groups = ([(s.segment, ms.rows(s.segment)) for s in ms.segments] if ms.segments is not None
+              else [(None, _longest_run(X, j, max(min_rows, len(X) // 4))) for j in range(3)])
+    clipped = saturated_rows(ms, sensor)[0]  # frozen at a rail is clipping, left out where it is met
+    long = [(seg, rows) for seg, rows in groups if len(rows) >= min_rows]
+    return X, groups, [(seg, rows, j) for (seg, rows), span in zip(long, _spans(X, [rows for _, rows in long]))
+                       for j in range(3) if span[j] == 0 and np.delete(span, j).min() > 0 and not clipped[rows].all()]
 
 
 def _spans(X, groups) -> np.ndarray:
