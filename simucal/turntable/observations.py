@@ -4,6 +4,7 @@ its input's norm and auxiliary inputs, with the checks of the rows behind them (
 samples, glitches, a dead accelerometer axis, gyro rates in the wrong unit)."""
 from __future__ import annotations
 
+import functools
 from concurrent.futures import ThreadPoolExecutor
 
 import numpy as np
@@ -96,14 +97,15 @@ def segment_duration_s(ms, rows, where) -> float:
     return float(ms.meta["average_s"])
 
 
-def segment_observations(ms: io.MeasurementSet, sensor: str, kinds=None, stated=None, curve=None):
+def segment_observations(ms: io.MeasurementSet, sensor: str, kinds=None, stated=None, curve=None, pool=None):
     """(Observations, segments) for 'acc' (by default the static segments; with kinds
     {"static", "rate"} the rate runs too, whose centripetal scale w2 lets lever arms show)
     or 'gyro' (rate segments). stated: the noise of one row (g or deg/h) where the data
     cannot give it; default meta's acc_noise_g / gyro_noise_dph. curve: the std of a mean
     over tau seconds (allan.load_curves, `calibrate --noise`), which then gives every
     segment's noise at its length: with bias instability a long mean is noisier than its
-    rows' scatter over sqrt(n) says."""
+    rows' scatter over sqrt(n) says. pool: the segments averaged on its threads (numpy frees the
+    GIL in its loops), the first refusal in the segments' order, as one after the other."""
     if ms.segments is None:
         raise CalibrationError(f"{ms.path}: no segments.csv: this is a continuous stream (use calibrate, "
                                "which detects its static poses)")
@@ -117,15 +119,11 @@ def segment_observations(ms: io.MeasurementSet, sensor: str, kinds=None, stated=
     N, sig, rho, keep, longest = [], [], [], [], 0.0
     raw = ms.raw(sensor)
     clipped = saturated_segments(ms, sensor)
-    for s in segs:
-        rows = ms.rows(s.segment)
-        if not rows.size:
-            raise CalibrationError(f"{ms.path / 'samples.csv'}: segment {s.segment} has no samples")
-        if s.segment in clipped:  # before the glitch test: a clipped sample is no glitch
+    averaged = functools.partial(_averaged, ms, sensor, raw, data, stated, clipped)
+    for s, done in zip(segs, (pool.map if pool else map)(averaged, segs)):
+        if done is None:
             continue
-        refuse_outliers(ms, raw, rows, sensor, s.segment)
-        m, sd = mean_and_sigma(data[run_or_rows(rows)], stated, varying=(s.kind == "rate"),  # the inputs turn
-                               angle_rad=outer_angle_rad(ms, rows, s))
+        rows, (m, sd) = done
         if curve is not None:
             tau = segment_duration_s(ms, rows, s.segment)
             sd, longest = curve(tau), max(longest, tau)
@@ -164,6 +162,19 @@ def segment_observations(ms: io.MeasurementSet, sensor: str, kinds=None, stated=
         except CalibrationError as e:
             raise CalibrationError(f"{e}{_rates_not_units(ms) if sensor == 'gyro' else ''}") from None
     return obs, keep
+
+
+def _averaged(ms, sensor, raw, data, stated, clipped, s):
+    """(rows, (mean, its std)) of segment s, its rows checked first; None where it holds clipped
+    samples (left out)."""
+    rows = ms.rows(s.segment)
+    if not rows.size:
+        raise CalibrationError(f"{ms.path / 'samples.csv'}: segment {s.segment} has no samples")
+    if s.segment in clipped:  # before the glitch test: a clipped sample is no glitch
+        return None
+    refuse_outliers(ms, raw, rows, sensor, s.segment)
+    return rows, mean_and_sigma(data[run_or_rows(rows)], stated, varying=(s.kind == "rate"),  # the inputs turn
+                                angle_rad=outer_angle_rad(ms, rows, s))
 
 
 CURVE_FACTOR = 10.0  # a noise file's row noise this many times the data's own (or a tenth): another unit or unit
@@ -327,12 +338,11 @@ def read_observations(ms, method, rows, acc_noise_g=None, gyro_noise_dph=None, n
     curves = noise_curves or {}
     stated = {"acc": acc_noise_g, "gyro": gyro_noise_dph}
     sensors = [s for s, present in (("acc", ms.has_acc), ("gyro", ms.has_gyro)) if present]
-    if ms.segments and ms.has_acc:
-        ms.rows(ms.segments[0].segment), ms.acc_g()  # formed before the threads share them (the gyro's reads acc_g)
-    with ThreadPoolExecutor(2) as pool:  # the sensors' rows on both cores: numpy frees the GIL in its loops
-        jobs = [pool.submit(segment_observations, ms, s, rows[s], stated[s], curves.get(s)) for s in sensors]
+    if ms.segments:
+        ms.rows(ms.segments[0].segment)  # formed before the threads share them
+    with ThreadPoolExecutor(2) as pool:  # the segments on both cores, the accelerometer's refusals first as before
         pool.submit(ms.sample_digests)  # the calibration's header asks below
-        found = {s: job.result() for s, job in zip(sensors, jobs)}  # the accelerometer's refusal first, as before
+        found = {s: segment_observations(ms, s, rows[s], stated[s], curves.get(s), pool) for s in sensors}
     acc_obs, acc_segs = found.get("acc", (None, None))
     gyro_obs, gyro_segs = found.get("gyro", (None, None))
     if not gyro_segs:
