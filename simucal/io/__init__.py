@@ -171,8 +171,10 @@ def read_samples(folder: Path, segments) -> tuple[dict, str]:
     path = not_a_folder(path)
     if not path.is_file():
         raise MeasurementSetError(path, None, "missing: a measurement set needs samples.csv (or samples.parquet)")
-    raw = path.read_bytes()
     with ThreadPoolExecutor(1) as pool:
+        raw = pool.submit(path.read_bytes)
+        import pyarrow.csv  # noqa: F401 (the parser, imported while the file is read: the read frees the GIL)
+        raw = raw.result()
         sha256 = pool.submit(files_sha256, folder, raw)
         samples = _parsed(path, raw, segments)
         sha256 = sha256.result()
