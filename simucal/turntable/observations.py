@@ -39,7 +39,8 @@ def mean_and_sigma(x, stated, varying=False, angle_rad=None):
     if n >= 3 and varying:
         return x.mean(0), np.sqrt(white_noise_var(x, ddof=1) / n)
     if n >= 3:
-        return x.mean(0), np.sqrt(x.var(0, ddof=1) / _effective_count(x - x.mean(0)))
+        mean = x.mean(0)
+        return mean, np.sqrt(x.var(0, ddof=1) / _effective_count(x - mean))
     return x.mean(0), np.full(3, np.nan if stated is None else stated / np.sqrt(n))
 
 
@@ -271,8 +272,10 @@ def refuse_outliers(ms, raw, rows, sensor, segment, k=100.0):
     dev = np.abs(x - med[:, None])
     spread = np.maximum(1.4826 * median_rows(dev), 1e-9 * np.maximum(np.abs(med), 1.0))
     dev /= spread[:, None]
-    calm = dev < k / 10
     bad = dev > k
+    if not bad.any():
+        return  # no sample that far out: the usual segment, its neighbours not looked at
+    calm = dev < k / 10
     bad[:, 1:] &= calm[:, :-1]  # its neighbours are normal
     bad[:, :-1] &= calm[:, 1:]
     if bad.any():
