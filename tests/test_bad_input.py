@@ -306,6 +306,20 @@ def test_single_glitch_named_with_its_line(raw_table, tmp_path, cmd):
     run_refused([cmd, d, "-o", tmp_path / "c.json"], f"line {i + 1}", "gy", "glitch")
 
 
+def test_the_accelerometers_glitch_is_named_before_the_gyros(raw_table, tmp_path):
+    """The two sensors' segments are averaged on two threads (turntable/observations.read_observations):
+    with a glitch in each, the accelerometer's is named, as when they were averaged one after the other."""
+    d = Path(shutil.copytree(raw_table, tmp_path / "t"))
+    rows = _rows(d)
+    kind = {r[0]: r[1] for r in csv.reader(open(d / "segments.csv"))}
+    i = next(k for k, r in enumerate(rows) if kind.get(r[0]) == "rate") + 40
+    j = max(k for k, r in enumerate(rows) if kind.get(r[0]) == "static") - 40
+    rows[i][rows[0].index("gy")] = "1e10"
+    rows[j][rows[0].index("ax")] = "1e10"
+    _put_rows(d, rows)
+    run_refused(["calibrate", d, "-o", tmp_path / "c.json"], f"line {j + 1}", "ax", "glitch")
+
+
 def test_dead_column_on_a_turntable_set(raw_table, tmp_path):
     d = Path(shutil.copytree(raw_table, tmp_path / "t"))
     rows = _rows(d)

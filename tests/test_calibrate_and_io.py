@@ -255,6 +255,37 @@ def test_reading_a_set_imports_no_pandas(paper_set):
     assert r.returncode == 0, r.stderr
 
 
+def test_calibrating_a_csv_set_imports_no_pandas_matplotlib_dask_or_scipy(paper_set, tmp_path):
+    """`simucal calibrate` of a samples.csv set imports what its path needs (issue 41: a whole process of
+    the 400 Hz set in about a second): pandas only for a DataFrame, matplotlib only for --html, dask only
+    for --scheduler, scipy nowhere on it."""
+    import subprocess
+    import sys
+    folder, _ = paper_set
+    code = ("import sys; from simucal.cli import main\ntry:\n    main(sys.argv[1:], prog_name='simucal')\n"
+            "except SystemExit as e:\n    assert not e.code, e.code\n"
+            "print(' '.join(sorted({m.split('.')[0] for m in sys.modules})))")
+    r = subprocess.run([sys.executable, "-c", code, "calibrate", str(folder), "-o", str(tmp_path / "c.json")],
+                       capture_output=True, text=True)
+    assert r.returncode == 0, r.stderr
+    imported = set(r.stdout.split("\n")[-2].split())
+    assert {"numpy", "simucal"} <= imported and (tmp_path / "c.json").is_file()
+    assert not imported & {"pandas", "matplotlib", "dask", "distributed", "scipy", "sympy"}, imported
+
+
+def test_median_rows_is_numpys_median():
+    """The glitch test's medians by one partition are np.median's numbers, bit for bit: odd and even
+    counts, ties, one row and three, a transposed view."""
+    from simucal.turntable.observations import median_rows
+    rng = np.random.default_rng(5)
+    for n in (1, 2, 3, 4, 11, 1000, 9041):
+        for k in (1, 3):
+            x = rng.normal(size=(k, n)) * 10 ** rng.uniform(-3, 6)
+            x[:, : n // 3] = np.round(x[:, : n // 3])  # ties
+            assert np.array_equal(median_rows(x), np.median(x, axis=1))
+            assert np.array_equal(median_rows(x.T.copy().T), np.median(x, axis=1))
+
+
 @pytest.mark.parametrize("blank_at", [None, 0.25, 0.75])
 def test_samples_read_in_pieces_are_the_careful_readers(tmp_path, monkeypatch, blank_at):
     """csv_columns parses a large samples.csv in pieces, two at a time on two threads, into one (n, 3)

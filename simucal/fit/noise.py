@@ -34,7 +34,8 @@ def mean_and_sigma(x, stated, varying=False, angle_rad=None):
     if n >= 3 and varying:
         return x.mean(0), np.sqrt(white_noise_var(x, ddof=1) / n)
     if n >= 3:
-        return x.mean(0), np.sqrt(x.var(0, ddof=1) / _effective_count(x - x.mean(0)))
+        mean = x.mean(0)
+        return mean, np.sqrt(x.var(0, ddof=1) / _effective_count(x - mean))
     return x.mean(0), np.full(3, np.nan if stated is None else stated / np.sqrt(n))
 
 

@@ -79,8 +79,13 @@ class MeasurementSet:
         """Per segment (a stream: one for the whole), the first 16 hex digits of the SHA-256 of its sensor
         outputs' numbers (float64, the columns of ax..gz present, one after the other): the samples themselves,
         whatever meta.json, segments.csv, t_s or the number format say. A calibration records them
-        (samples_sha256) and validate finds its own rows by them."""
-        cols = [np.asarray(self.samples[c], "<f8") for c in ("ax", "ay", "az", "gx", "gy", "gz") if c in self.samples]
+        (samples_sha256) and validate finds its own rows by them. Found once per set (on a thread of
+        its own while a turntable method averages the segments: hashlib frees the GIL)."""
+        names = tuple(c for c in ("segment", *SAMPLE_COLS) if c in self.samples)
+        return list(self._once("digests", names, self._digests, meta=False))
+
+    def _digests(self) -> list[str]:
+        cols = [np.asarray(self.samples[c], "<f8") for c in SAMPLE_COLS if c in self.samples]
         out = []
         for rows in [slice(None)] if self.segments is None else [run_or_rows(self.rows(s.segment))
                                                                  for s in self.segments]:
@@ -166,8 +171,10 @@ def read_samples(folder: Path, segments) -> tuple[dict, str]:
     path = not_a_folder(path)
     if not path.is_file():
         raise MeasurementSetError(path, None, "missing: a measurement set needs samples.csv (or samples.parquet)")
-    raw = path.read_bytes()
     with ThreadPoolExecutor(1) as pool:
+        raw = pool.submit(path.read_bytes)
+        import pyarrow.csv  # noqa: F401 (the parser, imported while the file is read: the read frees the GIL)
+        raw = raw.result()
         sha256 = pool.submit(files_sha256, folder, raw)
         samples = _parsed(path, raw, segments)
         sha256 = sha256.result()
@@ -331,9 +338,12 @@ def _read_parquet(folder, path, segments) -> tuple[dict, str]:
 
 
 def _check_samples(out, path, segments):
-    for c, v in out.items():
-        if len(v) and -PLAUSIBLE <= v.min() and v.max() <= PLAUSIBLE:
-            continue  # two reductions, no temporary array: the usual file
+    with ThreadPoolExecutor(2) as pool:  # two reductions a column, no temporary array: the usual file, on both cores
+        plausible = list(pool.map(lambda v: bool(len(v) and -PLAUSIBLE <= v.min() and v.max() <= PLAUSIBLE),
+                                  out.values()))
+    for (c, v), fine in zip(out.items(), plausible):
+        if fine:
+            continue
         big = np.nonzero(np.abs(v) > PLAUSIBLE)[0]
         if big.size:
             raise MeasurementSetError(path, 2 + int(big[0]), f"column {c}: {v[big[0]]:g} is not a plausible value "

@@ -19,6 +19,7 @@ latitude is right. So, after the fits:
 from __future__ import annotations
 
 import math
+from concurrent.futures import ThreadPoolExecutor
 
 import numpy as np
 
@@ -188,13 +189,16 @@ def _static_gyro_rows(ms, acc_segs, gyro_noise_dph):
     raw = ms.raw("gyro")
     stated = units.stated_noise(ms.meta, "gyro") if gyro_noise_dph is None else gyro_noise_dph
     N, sig, groups = [], [], []
-    for i in rows:
+
+    def averaged(i):  # a static segment's gyro rows checked, then their mean and its std
         r = ms.rows(acc_segs[i].segment)
         refuse_outliers(ms, raw, r, "gyro", acc_segs[i].segment)
-        m, sd = mean_and_sigma(gyro[run_or_rows(r)], stated)
-        N.append(m)
-        sig.append(sd)
-        groups.append(r)
+        return r, mean_and_sigma(gyro[run_or_rows(r)], stated)
+    with ThreadPoolExecutor(2) as pool:  # on both cores (numpy frees the GIL), the first refusal in order
+        for r, (m, sd) in pool.map(averaged, rows):
+            N.append(m)
+            sig.append(sd)
+            groups.append(r)
     sig = np.array(sig)
     sig = None if np.isnan(sig).all() else np.where(np.isnan(sig), np.nanmax(sig), sig)
     return rows, (np.array(N), sig, AuxInputs(column_means(ms.samples, groups, t_ref_c=ms.t_ref_c)))
