@@ -273,6 +273,25 @@ def test_calibrating_a_csv_set_imports_no_pandas_matplotlib_dask_or_scipy(paper_
     assert not imported & {"pandas", "matplotlib", "dask", "distributed", "scipy", "sympy"}, imported
 
 
+def test_the_reports_import_no_pandas(tmp_path):
+    """validate, diagnose and noise write their reports without the API's tables, which alone need pandas
+    (api/tables.TableOf builds one when it is read: 0.4 s of a process)."""
+    import subprocess
+    import sys
+    folder = tmp_path / "raw"  # raw rows: noise reads samples
+    subprocess.run([sys.executable, "-m", "simucal", "simulate", "-o", str(folder), "--rate-hz", "5"], check=True)
+    code = ("import sys; from simucal.cli import main\nfor args in (sys.argv[1:6], sys.argv[6:10], sys.argv[10:]):\n"
+            "    try:\n        main(args, prog_name='simucal')\n    except SystemExit as e:\n        assert not e.code, e.code\n"
+            "print('pandas' in sys.modules)")
+    cal = tmp_path / "c.json"
+    assert subprocess.run([sys.executable, "-m", "simucal", "calibrate", str(folder), "-o", str(cal)]).returncode == 0
+    r = subprocess.run([sys.executable, "-c", code, "validate", str(cal), str(folder), "-o", str(tmp_path / "v.json"),
+                        "diagnose", str(folder), "-o", str(tmp_path / "d.json"), "noise", str(folder), "-o",
+                        str(tmp_path / "n.json")], capture_output=True, text=True)
+    assert r.returncode == 0, r.stderr
+    assert r.stdout.split("\n")[-2] == "False" and all((tmp_path / f).is_file() for f in ("v.json", "d.json", "n.json"))
+
+
 def test_median_rows_is_numpys_median():
     """The glitch test's medians by one partition are np.median's numbers, bit for bit: odd and even
     counts, ties, one row and three, a transposed view."""

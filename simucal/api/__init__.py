@@ -21,7 +21,7 @@ from simucal import io
 from simucal.api.analyses import Candidate, Diagnosis, Noise, Term, diagnose, noise, save_diagnosis
 from simucal.api.simulation import simulate
 from simucal.api.tables import rows as table_rows
-from simucal.api.tables import table
+from simucal.api.tables import TableOf
 from simucal.calibrate import calibrate as _calibrate_set
 from simucal.calibrate import calibrate_thermal as _calibrate_thermal
 from simucal.api.calibration import Calibration, Parameter
@@ -127,6 +127,8 @@ class Validation:
         Per sensor: "at the noise floor", "better", "no better than nominal", "WORSE THAN NOMINAL".
     checks : DataFrame or list of Check
         Each check's error at nominal, after the calibration and its floor (a table).
+    check_rows : list of Check
+        The same rows as a list.
     independent : bool
         False where the data are the calibration's own (a model always looks better there).
     warnings : list of str
@@ -134,10 +136,11 @@ class Validation:
         What `simucal validate -o` writes (``simucal.validation/1``).
     """
     verdict: dict[str, str]
-    checks: Any
+    check_rows: list[Check]
     independent: bool
     warnings: list[str]
     report: dict
+    checks = TableOf("check_rows", Check._fields)
 
 
 def validate(cal: Calibration | str | os.PathLike, data: Data) -> Validation:
@@ -161,7 +164,7 @@ def validate(cal: Calibration | str | os.PathLike, data: Data) -> Validation:
     report = _validate_report(cal, data if isinstance(data, io.MeasurementSet) else folder_of(data))
     checks = [Check(s, c["what"], c["unit"], c["n"], c["before_rms"], c["after_rms"], c["floor_rms"], c["verdict"])
               for s, rows in report["checks"].items() for c in rows]
-    return Validation(dict(report["verdict"]), table(checks, Check._fields), bool(report["independent"]),
+    return Validation(dict(report["verdict"]), checks, bool(report["independent"]),
                       list(report["warnings"]), report)
 
 

@@ -6,11 +6,11 @@ import json
 import os
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any, NamedTuple, Sequence, Union
+from typing import NamedTuple, Sequence, Union
 
 from simucal import io
 from simucal.api.sets import as_set, folder_of
-from simucal.api.tables import table
+from simucal.api.tables import TableOf
 
 Data = Union[str, os.PathLike, io.MeasurementSet]
 
@@ -40,6 +40,8 @@ class Diagnosis:
         Per sensor, the verdict sentence (the model passes, or fails and what to add).
     candidates : DataFrame or list of Candidate
         Every candidate effect, the separable ones by p-value first (a table: simucal/api/tables.py).
+    candidate_rows : list of Candidate
+        The same rows as a list.
     next_command : str
         The one `simucal calibrate` command the verdict leads to.
     next_notes : list of str
@@ -52,12 +54,13 @@ class Diagnosis:
         What `simucal diagnose -o` writes (``simucal.diagnosis/1``).
     """
     verdict: dict[str, str]
-    candidates: Any
+    candidate_rows: list[Candidate]
     next_command: str
     next_notes: list[str]
     notes: list[str]
     model_files: dict[str, str]
     report: dict
+    candidates = TableOf("candidate_rows", Candidate._fields)
 
 
 def diagnose(data: Data, *, add: Sequence[str] = (), acc_model: str = "acc_baseline", gyro_model: str = "gyro_baseline",
@@ -101,7 +104,7 @@ def diagnose(data: Data, *, add: Sequence[str] = (), acc_model: str = "acc_basel
     cmd, notes = next_command(report)
     files = {s: report[s]["shape"]["model_file"] for s in sensors
              if report[s].get("shape") and not report[s]["shape"].get("catalog_id")}
-    return Diagnosis({s: report[s]["verdict"] for s in sensors}, table(rows, Candidate._fields), cmd, notes,
+    return Diagnosis({s: report[s]["verdict"] for s in sensors}, rows, cmd, notes,
                      list(report.get("notes", [])), files, report)
 
 
@@ -144,12 +147,15 @@ class Noise:
     ----------
     terms : DataFrame or list of Term
         Every sensor's, axis's and term's value (seen) or bound (not seen), in a data sheet's units.
+    term_rows : list of Term
+        The same rows as a list.
     report : dict
         What `simucal noise -o` writes (``simucal.noise/1``): also each axis's Allan deviation
         (``report[sensor]["axes"][axis]["adev"]`` at ``report[sensor]["tau_s"]``).
     """
-    terms: Any
+    term_rows: list[Term]
     report: dict
+    terms = TableOf("term_rows", Term._fields)
 
     def kalibr_yaml(self) -> str:
         """Kalibr's imu.yaml (noise densities and random walks, SI), as `simucal noise --kalibr` writes it;
@@ -195,4 +201,4 @@ def noise(data: Data, *, tau_max_s: float | None = None, scheduler: str | None =
                  t["unit"])
             for s in ("acc", "gyro") if s in report for a, axis in report[s]["axes"].items()
             for k, t in axis.get("sheet", {}).items()]
-    return Noise(table(rows, Term._fields), report)
+    return Noise(rows, report)
