@@ -42,6 +42,7 @@ def _shared_fixtures(item):
                 yield f"{item.module.__name__}.{name}" if fixture.scope == "module" else name
 
 
+@pytest.hookimpl(tryfirst=True)  # before pytest-xdist's, which reads the marks into each test's id
 def pytest_collection_modifyitems(config, items):
     """The suite runs on two processes with `--dist loadgroup` (README): each test goes to whichever process is
     free, so both finish together (with --dist loadfile a whole file went to one, and the run waited on the
