@@ -1,10 +1,15 @@
 import os
 import tempfile
+from pathlib import Path
 
 import pytest
 
 # user models derived by the tests go to a cache of their own, never the user's
 os.environ["SIMUCAL_CACHE"] = tempfile.mkdtemp(prefix="simucal-test-cache-")
+# one BLAS thread in each test process and the processes it starts (set before numpy loads OpenBLAS): the suite
+# runs on two processes (-n 2), so a BLAS's second thread finds no free core and spins (a planted-effect loop
+# test 5.6-8.0 s with one thread, 11.8-15.9 s with two, alone at load 1.5-3)
+os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
 
 from simucal.turntable.simulate import Scenario, write  # noqa: E402 (after the cache is set)
 
@@ -23,3 +28,37 @@ def paper_set(tmp_path_factory):
     folder = tmp_path_factory.mktemp("paper")
     truth = write(folder, Scenario(), seed=3)
     return folder, truth
+
+
+TESTS = Path(__file__).resolve().parent
+
+
+def _shared_fixtures(item):
+    """The fixtures of this suite that the item uses and that are built once for many tests: a module-scoped
+    one named by its module, a session-scoped one by its name alone (one value for the whole run)."""
+    for name in item.fixturenames:
+        for fixture in item._fixtureinfo.name2fixturedefs.get(name, ()):
+            if fixture.scope in ("module", "session") and Path(fixture.func.__code__.co_filename).parent == TESTS:
+                yield f"{item.module.__name__}.{name}" if fixture.scope == "module" else name
+
+
+@pytest.hookimpl(tryfirst=True)  # before pytest-xdist's, which reads the marks into each test's id
+def pytest_collection_modifyitems(config, items):
+    """The suite runs on two processes with `--dist loadgroup` (README): each test goes to whichever process is
+    free, so both finish together (with --dist loadfile a whole file went to one, and the run waited on the
+    last heavy file), except that the tests sharing a fixture built once for many (a module's or the session's,
+    and those linked to them through another such fixture) are one group, run on one process, so that no
+    such fixture is built twice."""
+    parent = {}
+
+    def root(key):
+        while parent.setdefault(key, key) != key:
+            key = parent[key]
+        return key
+    shared = {item: list(_shared_fixtures(item)) for item in items}
+    for keys in shared.values():
+        for key in keys[1:]:
+            parent[root(key)] = root(keys[0])
+    for item, keys in shared.items():
+        if keys:
+            item.add_marker(pytest.mark.xdist_group(root(keys[0])))

@@ -159,10 +159,18 @@ def test_noise_beyond_the_measured_taus_is_white_and_said(tmp_path):
     assert "beyond it their noise is its white part" in cal.acc.details["noise"]["source"]
 
 
-def _brute_covariance(m, dt, lengths, x):
-    """cov of the Allan variance estimates from the explicit linear maps of each component's noise
-    onto every second difference (allan_cov's module doc), summed over stretches."""
-    out = np.zeros((len(m), len(m)))
+# the taus (in samples), the sample interval (s) and two stretches' lengths of the brute-force check
+BRUTE_M, BRUTE_DT, BRUTE_LENGTHS = np.array([1, 2, 3, 5, 8, 13, 40]), 0.1, [400, 250]
+
+
+@pytest.fixture(scope="module")
+def brute_products():
+    """For every pair of taus (a <= b) summed over the stretches, the sums sum(P_i * P_j) of the
+    products P = map1 @ map2.T of each pair of components (white, walk, quantisation) of the noise's
+    explicit linear maps onto every second difference (allan_cov's module doc): the brute force's
+    matrix products once for every x (they do not depend on the noise's sizes)."""
+    m, dt, lengths = BRUTE_M, BRUTE_DT, BRUTE_LENGTHS
+    sums = np.zeros((len(m), len(m), 3, 3))
     for n in lengths:
         maps = []
         for mm in m:
@@ -174,22 +182,32 @@ def _brute_covariance(m, dt, lengths, x):
             for off, w in ((0, 1.0), (mm, -2.0), (2 * mm, 1.0)):
                 q[np.arange(len(k)), np.arange(len(k)) + off] = w
             maps.append((white, walk, q))
-        for a, (w1, k1, q1) in enumerate(maps):
-            for b, (w2, k2, q2) in enumerate(maps):
-                c = x["N"] / dt * w1 @ w2.T + x["K"] * dt * k1 @ k2.T + x["Q"] * q1 @ q2.T
-                out[a, b] += 2 * np.sum(c ** 2)
+        for a, m1 in enumerate(maps):
+            for b, m2 in enumerate(maps[a:], start=a):  # cov[b, a] = cov[a, b]
+                P = [u @ v.T for u, v in zip(m1, m2)]
+                sums[a, b] += [[np.sum(Pi * Pj) for Pj in P] for Pi in P]
+    return sums
+
+
+def _brute_covariance(products, x):
+    """cov of the Allan variance estimates from the explicit linear maps of each component's noise
+    onto every second difference, summed over stretches: 2 sum(c ** 2) with c = N/dt P_white +
+    K dt P_walk + Q P_q, expanded over the products' sums (brute_products)."""
+    m, dt, lengths = BRUTE_M, BRUTE_DT, BRUTE_LENGTHS
+    w = np.array([x["N"] / dt, x["K"] * dt, x["Q"]])
+    upper = 2 * np.einsum("i,abij,j->ab", w, products, w)
+    out = np.triu(upper) + np.triu(upper, 1).T
     total = np.array([sum(max(n - 2 * mm, 0) for n in lengths) for mm in m]) * (np.asarray(m) * dt) ** 2
     return out / (4 * np.outer(total, total))
 
 
 @pytest.mark.parametrize("x", [{"Q": 0.3, "N": 2.0, "K": 0.7}, {"Q": 0.0, "N": 1.0, "K": 0.0},
                                {"Q": 0.0, "N": 0.0, "K": 1.0}, {"Q": 1.0, "N": 0.0, "K": 0.0}])
-def test_the_covariance_of_the_allan_variance_is_the_brute_force_sum(x):
+def test_the_covariance_of_the_allan_variance_is_the_brute_force_sum(brute_products, x):
     """Closed form (pieces summed directly or by Euler-Maclaurin) against the explicit sum, two
     stretches pooled: exact, to rounding."""
-    m, dt, lengths = np.array([1, 2, 3, 5, 8, 13, 40]), 0.1, [400, 250]
-    got = allan_cov.covariance(allan_cov.basis(m, dt, lengths), x)
-    np.testing.assert_allclose(got, _brute_covariance(m, dt, lengths, x), rtol=1e-9)
+    got = allan_cov.covariance(allan_cov.basis(BRUTE_M, BRUTE_DT, BRUTE_LENGTHS), x)
+    np.testing.assert_allclose(got, _brute_covariance(brute_products, x), rtol=1e-9)
 
 
 def test_a_day_at_200_hz_with_a_strong_walk_has_a_positive_definite_covariance():
