@@ -10,7 +10,7 @@ from simucal.api.sets import MeasurementSet
 Pairs = Union[Mapping[str, float], Sequence[str]]  # {name: value} or the command's "NAME=VALUE" strings
 SCENARIOS = ("paper", "field", "handheld")
 # the turntable test's options, by their Python names, with the command's spelling (refusals name both)
-TABLE_ONLY = {"plan": "--plan", "position_error_arcmin": "--position-error-arcmin", "acc_model": "--acc-model",
+TABLE_ONLY = {"sequence": "--sequence", "plan": "--plan", "position_error_arcmin": "--position-error-arcmin", "acc_model": "--acc-model",
               "gyro_model": "--gyro-model", "acc_unit": "--acc-unit", "gyro_unit": "--gyro-unit",
               "effect_file": "--effect-file", "sets": "--set", "columns": "--column",
               "temperature_c": "--temperature-c", "t_ref_c": "--t-ref-c",
@@ -51,7 +51,8 @@ def simulate(scenario: str = "paper", *, seed: int = 0, rate_hz: float | None = 
              gyro_model: str | None = None, acc_unit: str | None = None, gyro_unit: str | None = None,
              effect_file: str | None = None, sets: Pairs | None = None, columns: Mapping[str, Any] | Sequence[str] | None = None,
              temperature_c: Any = None, t_ref_c: float | None = None, temperature_wander_c: float | None = None,
-             noise_stated: bool = True, heading_accuracy_deg: float | None = None) -> MeasurementSet:
+             noise_stated: bool = True, heading_accuracy_deg: float | None = None,
+             sequence: str | None = None) -> MeasurementSet:
     """Simulate a recording of a unit whose truth is known.
 
     Parameters
@@ -83,6 +84,10 @@ def simulate(scenario: str = "paper", *, seed: int = 0, rate_hz: float | None = 
         Turntable: write acc_noise_g / gyro_noise_dph into meta.json (default True).
     heading_accuracy_deg : float, optional
         Field: the north reference's accuracy, deg (its error drawn uniform +- this; default 5).
+    sequence : str, optional
+        Turntable: a continuous rotation sequence instead of a plan's positions, raw samples (default
+        100 Hz) while the table rests and turns: "psins19", "dong2018" or a sequence file
+        (turntable/sequence.py); the data of ``method="systematic"``.
 
     Returns
     -------
@@ -103,7 +108,7 @@ def simulate(scenario: str = "paper", *, seed: int = 0, rate_hz: float | None = 
     """
     if scenario not in SCENARIOS:
         raise ValueError(f"scenario {scenario!r}: one of {', '.join(SCENARIOS)}")
-    table_options = dict(plan=plan, position_error_arcmin=position_error_arcmin, acc_model=acc_model,
+    table_options = dict(sequence=sequence, plan=plan, position_error_arcmin=position_error_arcmin, acc_model=acc_model,
                          gyro_model=gyro_model, acc_unit=acc_unit, gyro_unit=gyro_unit, effect_file=effect_file,
                          sets=sets, columns=columns, temperature_c=temperature_c, t_ref_c=t_ref_c,
                          temperature_wander_c=temperature_wander_c, noise_stated=not noise_stated)
@@ -151,4 +156,10 @@ def _turntable(seed, rate_hz, o):
                                                                         ("wander_c", o["temperature_wander_c"]))
                                                      if v is not None})
     plant(sc, _strings(o["effects"]), o["effect_file"], _strings(o["sets"]), columns)
-    return simulate_table(sc, seed)
+    if o["sequence"] is None:
+        return simulate_table(sc, seed)
+    from simucal.turntable.sequence import simulate_sequence
+    if o["plan"] is not None or columns or temperature is not None:
+        raise ValueError("--sequence: the table turns through the sequence; --plan, --column and --temperature-c "
+                         "describe a plan's positions: leave them out")
+    return simulate_sequence(sc, o["sequence"], seed)
