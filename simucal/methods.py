@@ -6,7 +6,8 @@ read this table. A new method is its own module, one entry here and a test.
 The data a set holds decide which methods apply (data_kind): a turntable test has
 segments.csv with commanded table angles; a stream has no segments.csv (a hand-placed
 session, static poses found from the data); a field set has segments.csv with a north
-reference (heading_ref_deg) and no table angles (ruan2019).
+reference (heading_ref_deg) and no table angles (ruan2019); a sequence has segments.csv with move
+segments between its rests (the table turning, raw samples throughout: systematic calibration).
 """
 from __future__ import annotations
 
@@ -15,8 +16,9 @@ from typing import Callable
 
 from simucal.errors import CalibrationError
 
-TURNTABLE, STREAM, FIELD = "turntable", "stream", "field"
-DATA = {TURNTABLE: "a turntable test (segments.csv with commanded table angles)",
+TURNTABLE, STREAM, FIELD, SEQUENCE = "turntable", "stream", "field", "sequence"
+DATA = {SEQUENCE: "a rotation sequence (segments.csv with move segments between rests, raw samples)",
+        TURNTABLE: "a turntable test (segments.csv with commanded table angles)",
         STREAM: "a continuous stream (no segments.csv: a hand-placed session)",
         FIELD: "a field set (segments.csv with heading_ref_deg, no table angles)"}
 
@@ -57,6 +59,11 @@ def _handheld(ms, acc_model, ids, auto, detect):
                               gyro_effects=for_sensor(ids, "gyro"), auto=auto)
 
 
+def _systematic(ms, acc_model, gyro_model, ids):
+    from simucal.systematic.method import calibrate_systematic
+    return calibrate_systematic(ms, acc_model, gyro_model, ids)
+
+
 def _field(ms, heading_accuracy_deg):
     from simucal.field.drift import field_calibration
     return field_calibration(ms, heading_accuracy_deg)
@@ -79,6 +86,9 @@ METHODS = {m.name: m for m in (
     Method("field", FIELD, "ruan2019: the gyro constant drift from three static positions with a north reference "
            "(two-stage alignment, a Kalman filter per position, least squares)", ("heading_accuracy_deg",),
            _field),
+    Method("systematic", SEQUENCE, "systematic calibration: strapdown navigation through a rotation sequence, an "
+           "error-state Kalman filter (states derived from the error models) and RTS smoother on zero velocity at "
+           "rest", ("acc_model", "gyro_model", "ids"), _systematic),
 )}
 NAMES = tuple(METHODS)
 
@@ -92,6 +102,8 @@ def data_kind(ms) -> str:
     """TURNTABLE, STREAM or FIELD (module doc)."""
     if ms.segments is None:
         return STREAM
+    if any(s.kind == "move" for s in ms.segments):
+        return SEQUENCE
     static = [s for s in ms.segments if s.kind == "static"]
     no_table = all(s.middle_deg is None and s.inner_deg is None for s in static)
     return FIELD if no_table and any(s.heading_ref_deg is not None for s in static) else TURNTABLE

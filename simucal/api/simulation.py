@@ -51,8 +51,7 @@ def simulate(scenario: str = "paper", *, seed: int = 0, rate_hz: float | None = 
              gyro_model: str | None = None, acc_unit: str | None = None, gyro_unit: str | None = None,
              effect_file: str | None = None, sets: Pairs | None = None, columns: Mapping[str, Any] | Sequence[str] | None = None,
              temperature_c: Any = None, t_ref_c: float | None = None, temperature_wander_c: float | None = None,
-             noise_stated: bool = True, heading_accuracy_deg: float | None = None,
-             sequence: str | None = None) -> MeasurementSet:
+             noise_stated: bool = True, heading_accuracy_deg: float | None = None, sequence: str | None = None) -> MeasurementSet:
     """Simulate a recording of a unit whose truth is known.
 
     Parameters
@@ -66,9 +65,10 @@ def simulate(scenario: str = "paper", *, seed: int = 0, rate_hz: float | None = 
     rate_hz : float, optional
         Raw samples at this rate (Hz, up to 2000); turntable default: one averaged row per position;
         field 100 Hz; hand-placed 100 Hz.
-    plan : str, optional
-        Turntable: "table1" (default), "dodecahedron20", "fibonacci24", "fibonacci48" or a CSV of
-        outer_deg,middle_deg,inner_deg.
+    plan, sequence : str, optional
+        Turntable: a plan, "table1" (default), "dodecahedron20", "fibonacci24", "fibonacci48" or a CSV of
+        outer_deg,middle_deg,inner_deg; or a rotation sequence (raw samples, ``method="systematic"``'s
+        data), "psins19", "dong2018" or a CSV of axis,angle_deg,rate_dps,rest_s (turntable/sequence.py).
     effects : dict or list of str, optional
         Effects planted in the truth, ``{effect id: value in its term's unit}`` (or "ID=VALUE"),
         e.g. ``{"acc.quadratic.z": 2e-4}``; turntable and hand-placed.
@@ -84,10 +84,6 @@ def simulate(scenario: str = "paper", *, seed: int = 0, rate_hz: float | None = 
         Turntable: write acc_noise_g / gyro_noise_dph into meta.json (default True).
     heading_accuracy_deg : float, optional
         Field: the north reference's accuracy, deg (its error drawn uniform +- this; default 5).
-    sequence : str, optional
-        Turntable: a continuous rotation sequence instead of a plan's positions, raw samples (default
-        100 Hz) while the table rests and turns: "psins19", "dong2018" or a sequence file
-        (turntable/sequence.py); the data of ``method="systematic"``.
 
     Returns
     -------

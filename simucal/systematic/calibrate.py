@@ -15,12 +15,10 @@ import numpy as np
 from simucal.errors import CalibrationError
 from simucal.fit.augmented import AugmentedModel, for_sensor
 from simucal.fit.aux_inputs import AuxInputs
-from simucal.fit.distributions import chi2_sf
-from simucal.fit.norm_fit import Fit
 from simucal.generated import table
-from simucal.io import calibration, units
+from simucal.io import units
 from simucal.fit.rotations import exp_so3, log_so3
-from simucal.systematic.filter import RAD_S_PER_DPH, Navigator, Sensors, level, noise_matrix, smooth, system_matrix
+from simucal.systematic.filter import RAD_S_PER_DPH, Epoch, Sensors, kalman, level, nominal, smooth, transitions
 
 BLOCK_S = 1.0           # zero-velocity updates at rest every this many seconds
 ZUPT_STD_MPS = 1e-6     # the table at rest: its velocity is zero to this (m/s)
@@ -77,10 +75,10 @@ def _levelled(ms, sensors, first, rows):
 @dataclass
 class Result:
     """The filter's result: the sensors at the estimates, their covariance (the parameters' block of
-    the smoothed P at the start), the last pass's navigator, the noise found, the passes run."""
+    the smoothed P at the start), the last pass's epochs, the noise found, the passes run."""
     sensors: Sensors
     cov: np.ndarray
-    nav: Navigator
+    epochs: list
     prior_var: np.ndarray
     sigma: np.ndarray
     passes: int
@@ -103,18 +101,18 @@ def run_filter(ms, acc_model="acc_baseline", gyro_model="gyro_baseline", ids=(),
     q = np.r_[(sigma[:3] * RAD_S_PER_DPH) ** 2, (sigma[3:] * g0) ** 2] * dt  # spectral densities
     prior_var = np.r_[[PRIOR_ATTITUDE_RAD] * 3, [ZUPT_STD_MPS] * 3, _prior(acc), _prior(gyro),
                       [PRIOR_STD["rad"]] * 3] ** 2
+    steps = steps_of(ms, segments, block_s, dt)
     C_prior = C = _levelled(ms, sensors, segments[0], ms.rows(segments[0].segment))
     for k in range(1, max_passes + 1):
         x0 = np.r_[log_so3(C_prior @ C.T), np.zeros(3), sensors.vector()]  # the prior's mean as errors
-        nav = _one_pass(ms, segments, sensors, Navigator(C, np.zeros(3), np.diag(prior_var), x0, w_ie, g0),
-                        block_s, dt, q)
-        x_s, P_s = smooth(nav.epochs)
+        epochs = _one_pass(steps, sensors, C, x0, np.diag(prior_var), q, w_ie, g0)
+        x_s, P_s = smooth(epochs)
         step = np.abs(x_s[0][6:]) / np.sqrt(np.diag(P_s[0])[6:])
         C = exp_so3(x_s[0][:3]) @ C
         _move(sensors, sensors.vector() - x_s[0][6:])
         if step.max() < STEP_STD:
             break
-    return Result(sensors, P_s[0][6:, 6:], nav, prior_var, sigma, k, float(step.max()))
+    return Result(sensors, P_s[0][6:, 6:], epochs, prior_var, sigma, k, float(step.max()))
 
 
 def _move(sensors, p):
@@ -122,30 +120,57 @@ def _move(sensors, p):
     sensors.p_acc, sensors.p_gyro, sensors.eta = p[:na], p[na:na + ng], p[na + ng:]
 
 
-def _one_pass(ms, segments, sensors, nav, block_s, dt, q):
-    """One pass of the filter over the sequence: every rest's blocks updated by zero velocity."""
-    R = np.eye(3) * ZUPT_STD_MPS ** 2
-    N_a, N_g, t = ms.acc_g(), ms.gyro_dph(), ms.samples["t_s"]
+@dataclass
+class Steps:
+    """The filter's steps: the moves' samples and the rests' blocks (their means), each with its
+    outputs (g, deg/h), time (s, the middle), length dt (s) and whether a zero-velocity update ends it."""
+    N_a: np.ndarray
+    N_g: np.ndarray
+    t: np.ndarray
+    dt: np.ndarray
+    zupt: np.ndarray
+
+
+def steps_of(ms, segments, block_s, dt) -> Steps:
+    """The rows grouped into steps: every sample of a move, blocks of block_s at rest."""
+    starts, zupt = [], []
     for s in segments:
         rows = ms.rows(s.segment)
         if s.kind == "static":
             n_block = max(1, int(round(block_s / dt)))
-            for b in range(0, len(rows), n_block):
-                r = rows[b:b + n_block]
-                _propagate(nav, sensors, N_a[r].mean(0, keepdims=True), N_g[r].mean(0, keepdims=True),
-                           np.array([t[r].mean()]), len(r) * dt, q)
-                nav.zero_velocity(R, float(t[r[-1]]))
+            first = rows[::n_block]
+            zupt += [True] * len(first)
         else:
-            _propagate(nav, sensors, N_a[rows], N_g[rows], t[rows], dt, q)
-    return nav
+            first = rows
+            zupt += [False] * len(rows)
+        starts.append(first)
+    order = np.concatenate([ms.rows(s.segment) for s in segments])
+    start = np.concatenate(starts)
+    if not np.array_equal(order, np.arange(order[0], order[0] + len(order))):
+        raise CalibrationError(f"{ms.path / 'samples.csv'}: a sequence's rows must run segment after segment in "
+                               "time order, as recorded")
+    counts = np.diff(np.r_[start, order[-1] + 1])
+    mean = [np.add.reduceat(x[order[0]:order[-1] + 1], start - order[0], axis=0) / counts[:, None]
+            for x in (ms.acc_g(), ms.gyro_dph())]
+    t = np.add.reduceat(ms.samples["t_s"][order[0]:order[-1] + 1], start - order[0]) / counts
+    return Steps(mean[0], mean[1], t, counts * dt, np.asarray(zupt))
 
 
-def _propagate(nav, sensors, N_a, N_g, t, dt, q):
-    """Each row (a sample, or a block's mean at rest) through the mechanisation and the covariance."""
-    aux = AuxInputs({"t_s": t})
-    f_b, w_b = sensors.compensate(N_a, N_g, aux, aux)
+CHUNK = 4096  # steps whose transitions are built at once (memory: CHUNK n^2 doubles)
+
+
+def _one_pass(steps, sensors, C, x0, P0, q, w_ie, g0):
+    """One pass of the filter over the sequence about the nominal of sensors' estimates and C: the
+    epochs (the first the prior at the start)."""
+    R = np.eye(3) * ZUPT_STD_MPS ** 2
+    aux = AuxInputs({"t_s": steps.t})
+    f_b, w_b = sensors.compensate(steps.N_a, steps.N_g, aux, aux)
     D_a, D_g = sensors.sensitivities(f_b, w_b, aux, aux)
-    n = sensors.n
-    for k in range(len(t)):
-        F = system_matrix(nav.C, f_b[k], D_a[k], D_g[k], nav.w_ie, nav.g0)
-        nav.step(w_b[k] * RAD_S_PER_DPH * dt, f_b[k], dt, F, noise_matrix(nav.C, q, dt, n))
+    Cs, v_at = nominal(C, w_b * RAD_S_PER_DPH * steps.dt[:, None], f_b, steps.dt, steps.zupt, w_ie, g0)
+    epochs = [Epoch(np.eye(len(P0)), P0, P0, x0, x0)]
+    x, P, Phi_acc = x0, P0, np.eye(len(P0))
+    for a in range(0, len(Cs), CHUNK):
+        k = slice(a, a + CHUNK)
+        Phi, Q6 = transitions(Cs[k], f_b[k], D_a[k], D_g[k], steps.dt[k], q, w_ie, g0)
+        x, P, Phi_acc = kalman(x, P, Phi_acc, Phi, Q6, steps.zupt[k], v_at[k], R, steps.t[k], epochs)
+    return epochs

@@ -20,7 +20,7 @@ filter diverged. The passes repeat (calibrate.py) as an iterated extended Kalman
 """
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 
 import numpy as np
 
@@ -72,20 +72,6 @@ def _force(f_d):
     return {"f_x": f_d[:, 0], "f_y": f_d[:, 1], "f_z": f_d[:, 2]}
 
 
-def system_matrix(C, f_b, D_a, D_g, w_ie, g0):
-    """F (n, n) of d(x)/dt = F x at one instant: the derived navigation blocks and the models'
-    sensitivities (derive/systematic.error_state_model assembles the same symbolically)."""
-    na = D_a.shape[-1]
-    n = 6 + na + D_g.shape[-1]
-    F = np.zeros((n, n))
-    c = C.reshape(9)
-    F[:6, :6] = gen.nav_F(c, f_b, w_ie, g0)
-    B = gen.nav_B(c, g0)
-    F[:6, 6:6 + na] = B[:, 3:] @ D_a       # d[phi, dv]/dt from df_b = D_a dp_acc
-    F[:6, 6 + na:] = B[:, :3] @ D_g        # ... and from dw_b = D_g [dp_gyro, deta]
-    return F
-
-
 @dataclass
 class Epoch:
     """What the smoother needs of one update epoch: the transition Phi from the epoch before, the
@@ -100,54 +86,85 @@ class Epoch:
     t_s: float = 0.0
 
 
-@dataclass
-class Navigator:
-    """The nominal navigation solution, the error state's estimate x and covariance P, and the
-    filter's history (its first epoch the prior, at the start)."""
-    C: np.ndarray
-    v: np.ndarray
-    P: np.ndarray
-    x: np.ndarray
-    w_ie: np.ndarray      # rad/s, in n
-    g0: float             # m/s^2
-    Phi: np.ndarray = None
-    epochs: list = field(default_factory=list)
+def nominal(C0, dtheta_b, f_b, dt, zupt, w_ie, g0):
+    """The nominal navigation over the steps (module doc): the attitude at each step's start
+    (m, 3, 3), the velocity at each update (m, 3; the nominal velocity is reset to 0 after each)."""
+    m = len(dt)
+    Cs, v_at = np.empty((m, 3, 3)), np.zeros((m, 3))
+    half = exp_so3(0.5 * dtheta_b)
+    earth = exp_so3(-0.5 * w_ie[None] * dt[:, None])
+    up = np.array([0.0, 0.0, g0])
+    C, v = C0, np.zeros(3)
+    for k in range(m):
+        Cs[k] = C
+        e = earth[k]
+        C_mid = e @ C @ half[k]
+        f_n = C_mid @ f_b[k] * g0                          # the specific force at the middle of dt
+        v = v + (f_n - up - 2 * _cross(w_ie, v)) * dt[k]
+        C = e @ C_mid @ half[k]
+        if zupt[k]:
+            v_at[k], v = v, np.zeros(3)
+    return Cs, v_at
 
-    def __post_init__(self):
-        self.Phi = np.eye(len(self.P))
-        self.epochs.append(Epoch(self.Phi, self.P, self.P, self.x, self.x))
 
-    def step(self, dtheta_b, f_b, dt, F, Q):
-        """One propagation over dt (s): the mechanisation (module doc), x <- Phi x and
-        P <- Phi P Phi^T + Q with Phi = I + F dt + (F dt)^2 / 2 (F constant over dt)."""
-        half, earth = exp_so3(0.5 * dtheta_b), exp_so3(-0.5 * self.w_ie * dt)
-        f_n = earth @ self.C @ half @ f_b * self.g0       # the specific force at the middle of dt
-        self.v = self.v + (f_n - np.array([0.0, 0.0, self.g0]) - 2 * np.cross(self.w_ie, self.v)) * dt
-        self.C = earth @ earth @ self.C @ half @ half
-        Fdt = F * dt
-        Phi = np.eye(len(F)) + Fdt + 0.5 * Fdt @ Fdt
-        self.x = Phi @ self.x
-        self.P = Phi @ self.P @ Phi.T + Q
-        self.Phi = Phi @ self.Phi
+def _cross(a, b):
+    return np.array([a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0]])
 
-    def zero_velocity(self, R, t_s):
-        """The update by v = 0 (z = v_nominal = dv + noise, H = [0 I 0], R (3, 3)) in Joseph form, the
-        epoch recorded, then the nominal velocity reset to 0 (dv shifted by the same)."""
-        n = len(self.P)
-        H = np.zeros((3, n))
-        H[:, :6] = gen.H
-        P_pred, x_pred = self.P, self.x
-        nu = self.v - H @ x_pred                          # z - H x_pred
-        S = H @ P_pred @ H.T + R                          # innovation covariance
-        K = np.linalg.solve(S, H @ P_pred).T              # K = P H^T S^-1
-        x = x_pred + K @ nu
-        IKH = np.eye(n) - K @ H
-        self.P = IKH @ P_pred @ IKH.T + K @ R @ K.T       # Joseph form
-        x[3:6] -= self.v                                  # the reset: dv = v_nominal - v
-        self.v = np.zeros(3)
-        self.x = x
-        self.epochs.append(Epoch(self.Phi, P_pred, self.P, x_pred, x, nu, S, t_s))
-        self.Phi = np.eye(n)
+
+def system_matrices(Cs, f_b, D_a, D_g, w_ie, g0):
+    """F (m, n, n) of d(x)/dt = F x at m instants: the derived navigation blocks and the models'
+    sensitivities (derive/systematic.error_state_model assembles the same symbolically)."""
+    m, na = len(Cs), D_a.shape[-1]
+    n = 6 + na + D_g.shape[-1]
+    c = Cs.reshape(m, 9)
+    F = np.zeros((m, n, n))
+    F[:, :6, :6] = gen.nav_F(c, f_b, w_ie, g0)
+    B = gen.nav_B(c, g0)
+    F[:, :6, 6:6 + na] = B[:, :, 3:] @ D_a     # d[phi, dv]/dt from df_b = D_a dp_acc
+    F[:, :6, 6 + na:] = B[:, :, :3] @ D_g      # ... and from dw_b = D_g [dp_gyro, deta]
+    return F
+
+
+def transitions(Cs, f_b, D_a, D_g, dt, q, w_ie, g0):
+    """Phi (m, n, n) = I + F dt + (F dt)^2 / 2 of every step (F constant over it) and the noise's
+    Q (m, 6, 6) = G diag(q dt) G^T over it (it drives phi and dv only), vectorised."""
+    n = 6 + D_a.shape[-1] + D_g.shape[-1]
+    Fdt = system_matrices(Cs, f_b, D_a, D_g, w_ie, g0) * dt[:, None, None]
+    G = gen.nav_G(Cs.reshape(len(Cs), 9))
+    return np.eye(n) + Fdt + 0.5 * Fdt @ Fdt, (G * (q * dt[:, None])[:, None, :]) @ np.swapaxes(G, 1, 2)
+
+
+def kalman(x, P, Phi_acc, Phi, Q6, zupt, v_at, R, t_s, epochs):
+    """The filter over the steps: x <- Phi x, P <- Phi P Phi^T + Q, and at each update (zupt) the
+    zero-velocity update of `update`, recorded in epochs; Phi_acc the transition since the last.
+    Returns (x, P, Phi_acc) at the end."""
+    n = len(P)
+    for k in range(len(Phi)):
+        x = Phi[k] @ x
+        P = Phi[k] @ P @ Phi[k].T
+        P[:6, :6] += Q6[k]
+        Phi_acc = Phi[k] @ Phi_acc
+        if zupt[k]:
+            x, P = update(x, P, v_at[k], R, Phi_acc, t_s[k], epochs)
+            Phi_acc = np.eye(n)
+    return x, P, Phi_acc
+
+
+def update(x_pred, P_pred, v, R, Phi, t_s, epochs):
+    """The update by v = 0 (z = v_nominal = dv + noise, H = [0 I 0], R (3, 3)) in Joseph form, the
+    epoch recorded; then the nominal velocity's reset to 0 (dv shifted by the same)."""
+    n = len(P_pred)
+    H = np.zeros((3, n))
+    H[:, :6] = gen.H
+    nu = v - H @ x_pred                               # z - H x_pred
+    S = H @ P_pred @ H.T + R                          # innovation covariance
+    K = np.linalg.solve(S, H @ P_pred).T              # K = P H^T S^-1
+    x = x_pred + K @ nu
+    IKH = np.eye(n) - K @ H
+    P = IKH @ P_pred @ IKH.T + K @ R @ K.T            # Joseph form
+    x[3:6] -= v                                       # the reset: dv = v_nominal - v
+    epochs.append(Epoch(Phi, P_pred, P, x_pred, x, nu, S, t_s))
+    return x, P
 
 
 def smooth(epochs) -> tuple[np.ndarray, np.ndarray]:
@@ -172,13 +189,3 @@ def level(C, f_b):
     axis = np.cross(f_n / np.linalg.norm(f_n), [0.0, 0.0, 1.0])
     s = np.linalg.norm(axis)
     return C if s < 1e-15 else exp_so3(axis / s * np.arcsin(min(s, 1.0))) @ C
-
-
-def noise_matrix(C, q, dt, n):
-    """Q (n, n) over dt (s) of the white noise: q the spectral densities per axis, gyro ((rad/s)^2 s)
-    then accelerometer ((m/s^2)^2 s), through G (derive/systematic.py)."""
-    G = gen.nav_G(C.reshape(9))
-    Q = np.zeros((n, n))
-    Q[:6, :6] = (G * (q * dt)) @ G.T
-    return Q
-
