@@ -61,19 +61,30 @@ def navigation_blocks():
             rates.jacobian(noise), sp.Matrix(NAV_STATES[3:]).jacobian(sp.Matrix(NAV_STATES)))
 
 
-def frame_rate_sensitivity() -> sp.Matrix:
+def frame_rate_sensitivity(angles=eta, u=w_b) -> sp.Matrix:
     """d(C_b^d(eta) w_b)/d(eta) (3, 3): how the gyro's input moves with its frame's angles."""
-    return (mounting(*eta) * w_b).jacobian(eta)
+    return (mounting(*angles) * u).jacobian(angles)
+
+
+def sensor_params(model: ErrorModel) -> tuple:
+    """The model's parameters as the filter's symbols, named with the sensor (acc_b_x, gyro_b_x: the two
+    models share names)."""
+    return tuple(sp.Symbol(f"{model.sensor}_{p}", real=True) for p in model.params)
 
 
 def sensor_sensitivity(model: ErrorModel, u_b, frame=None) -> tuple[sp.Matrix, tuple]:
-    """D = -A^-1 J (module doc) of one model at the input u_b in b, and its parameters (the frame's
-    angles eta after the model's own where `frame` is given: the gyro, h(C_b^d(eta) u_b))."""
-    u_model = u_b if frame is None else mounting(*frame) * u_b
-    N = model.output().subs(dict(zip(model.inputs, u_model)), simultaneous=True)
-    params = tuple(model.params) + (() if frame is None else tuple(frame))
-    A, J = N.jacobian(u_b), N.jacobian(sp.Matrix(params))
-    return -A.LUsolve(J), params
+    """D = -A^-1 J (module doc) of one model at the input u_b in b, and its parameters (sensor_params;
+    the frame's angles eta after them where `frame` is given: the gyro, h(C_b^d(eta) u_b), whose A is
+    the model's dh/du times the rotation, inverted as its transpose)."""
+    named = dict(zip(model.params, sensor_params(model)))
+    N = model.output().subs(named, simultaneous=True)
+    u = sp.Matrix(model.inputs)
+    D_model = -N.jacobian(u).LUsolve(N.jacobian(sp.Matrix(sensor_params(model))))
+    if frame is None:
+        return D_model.subs(dict(zip(model.inputs, u_b)), simultaneous=True), sensor_params(model)
+    R = mounting(*frame)
+    D_model = D_model.subs(dict(zip(model.inputs, R * u_b)), simultaneous=True)
+    return sp.Matrix.hstack(R.T * D_model, -R.T * frame_rate_sensitivity(frame, u_b)), sensor_params(model) + tuple(frame)
 
 
 def error_state_model(acc: ErrorModel, gyro: ErrorModel):

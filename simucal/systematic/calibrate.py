@@ -106,13 +106,14 @@ def run_filter(ms, acc_model="acc_baseline", gyro_model="gyro_baseline", ids=(),
     for k in range(1, max_passes + 1):
         x0 = np.r_[log_so3(C_prior @ C.T), np.zeros(3), sensors.vector()]  # the prior's mean as errors
         epochs = _one_pass(steps, sensors, C, x0, np.diag(prior_var), q, w_ie, g0)
-        x_s, P_s = smooth(epochs)
-        step = np.abs(x_s[0][6:]) / np.sqrt(np.diag(P_s[0])[6:])
+        x_s, _ = smooth(epochs)  # the attitude at the start; the constants are the filter's at the end,
+        x, P = epochs[-1].x, epochs[-1].P  # equal in exact arithmetic, and free of the smoother's round-off
+        step = np.abs(x[6:]) / np.sqrt(np.diag(P)[6:])
         C = exp_so3(x_s[0][:3]) @ C
-        _move(sensors, sensors.vector() - x_s[0][6:])
+        _move(sensors, sensors.vector() - x[6:])
         if step.max() < STEP_STD:
             break
-    return Result(sensors, P_s[0][6:, 6:], epochs, prior_var, sigma, k, float(step.max()))
+    return Result(sensors, P[6:, 6:], epochs, prior_var, sigma, k, float(step.max()))
 
 
 def _move(sensors, p):

@@ -177,7 +177,8 @@ def smooth(epochs) -> tuple[np.ndarray, np.ndarray]:
     x_s[-1], P_s[-1] = epochs[-1].x, epochs[-1].P
     for k in range(m - 2, -1, -1):
         nxt = epochs[k + 1]
-        A = np.linalg.solve(nxt.P_pred, nxt.Phi @ epochs[k].P).T
+        d = np.sqrt(np.diag(nxt.P_pred))  # P_pred spans ~20 decades: solved as the correlation matrix
+        A = (np.linalg.solve(nxt.P_pred / np.outer(d, d), (nxt.Phi @ epochs[k].P) / d[:, None]) / d[:, None]).T
         x_s[k] = epochs[k].x + A @ (x_s[k + 1] - nxt.x_pred)
         P_s[k] = epochs[k].P + A @ (P_s[k + 1] - nxt.P_pred) @ A.T
     return x_s, P_s
