@@ -175,3 +175,11 @@ def test_stds_agree_with_the_scatter_over_seeds(short):
     rms = float(np.sqrt(np.mean(np.square(z))))
     assert 0.8 <= rms <= 1.25, rms
     assert np.abs(z).max() < 4.5, np.abs(z).max()  # no parameter off by more than 108 normal draws allow
+
+
+def test_a_move_segment_with_angles_or_a_rate_is_refused(tmp_path, short):
+    run("simulate", "--sequence", short, "-o", tmp_path / "s")
+    seg = tmp_path / "s" / "segments.csv"
+    seg.write_text(seg.read_text().replace("\n2,move,,,,\n", "\n2,move,,,,10\n"))
+    with pytest.raises(io.MeasurementSetError, match="line 3: a move segment has no commanded angles or rate"):
+        io.read_set(tmp_path / "s")
