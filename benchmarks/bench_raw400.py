@@ -60,14 +60,15 @@ def old_tree(rev: str, into: Path) -> Path:
     return into
 
 
-def measure(folder: Path, out: Path, pythonpath: str | None) -> tuple:
-    """(wall s, CPU s, peak resident MB) of one whole `simucal calibrate` process."""
+def measure(args: list, pythonpath: str | None, cwd: Path) -> tuple:
+    """(wall s, CPU s, peak resident MB) of one whole `simucal ARGS` process: this checkout's code,
+    or the code under pythonpath (run from cwd, since -m imports from the cwd first)."""
     import os
     env = {k: v for k, v in os.environ.items() if k != "PYTHONPATH"}
     if pythonpath:
         env["PYTHONPATH"] = pythonpath
-    r = subprocess.run([sys.executable, "-c", WRAP, *SIMUCAL, "calibrate", str(folder), "-o", str(out)], check=True,
-                       capture_output=True, text=True, env=env, cwd=folder)  # -m imports from the cwd first
+    r = subprocess.run([sys.executable, "-c", WRAP, *SIMUCAL, *map(str, args)], check=True, capture_output=True,
+                       text=True, env=env, cwd=cwd)
     wall, cpu, kb = r.stdout.split()
     return float(wall), float(cpu), int(kb) / 1024
 
@@ -87,7 +88,7 @@ def main():
         runs = {"old": [], "new": []}
         for k in range(a.repeats + 1):  # the first of each writes its bytecode: not counted
             for name, path in (("old", old), ("new", None)):
-                m = measure(folder, tmp / f"{name}.json", path)
+                m = measure(["calibrate", folder, "-o", tmp / f"{name}.json"], path, folder)
                 if k:
                     runs[name].append(m)
         same = json.loads((tmp / "old.json").read_text())["acc"]["params"].keys() == \

@@ -9,12 +9,13 @@ __version__ = "0.1.0"
 # The Python API (simucal/api/), imported on first use so that `import simucal` and the command
 # line's start stay light: simucal.read_set, simucal.calibrate, ... (README, "Python API").
 _API = ("read_set", "simulate", "calibrate", "validate", "diagnose", "noise", "save", "load", "table_rows",
-        "MeasurementSet", "Calibration", "Parameter", "Validation", "Check", "Diagnosis", "Candidate", "Noise", "Term")
+        "MeasurementSet", "Calibration", "Parameter", "Validation", "Check", "Diagnosis", "Candidate", "Noise", "Term",
+        "lot")
 TYPE_CHECKING = False  # typing's constant without importing typing (2 ms); type checkers read it as True
 if TYPE_CHECKING:
     from simucal.api import (Calibration, Candidate, Check, Diagnosis, MeasurementSet, Noise,  # noqa: F401
-                             Parameter, Term, Validation, calibrate, diagnose, load, noise, read_set, save, simulate,
-                             table_rows, validate)
+                             Parameter, Term, Validation, calibrate, diagnose, load, lot, noise, read_set, save,
+                             simulate, table_rows, validate)
 
 
 def __getattr__(name):
@@ -22,3 +23,7 @@ def __getattr__(name):
         from simucal import api
         return getattr(api, name)
     raise AttributeError(f"module 'simucal' has no attribute {name!r}")
+
+
+def __dir__():  # a notebook's completion lists the API
+    return sorted([*globals(), *_API])

@@ -36,7 +36,7 @@ from pathlib import Path
 
 import numpy as np
 
-from simucal import io
+from simucal import io, methods
 from simucal.errors import CalibrationError
 from simucal.fit import allan_cov, allan_fit, allan_sums
 from simucal.fit.noise import TERMS, allan_deviation
@@ -84,16 +84,7 @@ def still_stretches(ms, sensor) -> tuple[list[np.ndarray], float, str]:
     turntable set (three rows or more), in deg/h or g."""
     data = ms.gyro_dph() if sensor == "gyro" else ms.acc_g()
     t = ms.samples["t_s"]
-    if ms.segments is None:
-        pieces, where = [np.arange(len(t))], "the whole stream"
-    else:
-        seg = ms.samples["segment"]
-        pieces = [np.nonzero(seg == s.segment)[0] for s in ms.segments if s.kind == "static"]
-        pieces = [p for p in pieces if len(p) >= 3]
-        where = f"{len(pieces)} static segments, pooled"
-        if not pieces:
-            raise CalibrationError(f"{ms.path}: no static segment holds raw rows (3 or more): the Allan deviation "
-                                   "needs the samples, not their averages")
+    pieces, where = methods.kind_of(ms).still_rows(ms)
     dt = sample_step(np.concatenate([np.diff(t[p]) for p in pieces]), ms.path / "samples.csv")
     return [data[p] for p in pieces], dt, where
 
@@ -117,7 +108,7 @@ def second_rows(dt) -> int:
 
 def check_still(ms, dt):
     """Refuse a stream that moves: its 1-s mean specific force may wander by noise, not turn by 0.05 g."""
-    if ms.segments is not None or not ms.has_acc:
+    if not methods.kind_of(ms).still_whole or not ms.has_acc:
         return
     f = ms.acc_g()
     k = second_rows(dt)

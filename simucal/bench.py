@@ -113,23 +113,30 @@ def _new_commands(tmp, fig, n):
     """validate's neighbours of issue 26: noise on 2 h at 100 Hz, a thermal calibration of 3 plateaus,
     and the Monte Carlo with an effect as a whole process."""
     from simucal.handheld.simulate import write_still
-    from simucal.turntable.simulate import plant
     progress.status("bench: simucal noise (2 h at 100 Hz), calibrate --thermal (3 plateaus), montecarlo --effect")
     write_still(tmp / "still", seconds=n["still_s"], dt=0.01)
     fig["cli_noise_2h_100hz_s"] = process([*SIMUCAL, "noise", str(tmp / "still"), "-o", str(tmp / "n.json")])
-    plateaus = []
-    for T, seed in ((-10.0, 1), (25.0, 2), (60.0, 3)):  # issue 37's: wandering +-0.3 degC, biases quadratic
-        sc = Scenario(plan="fibonacci48", temp_c=(T, T), t_ref_c=25.0, rate_hz=n["thermal_rate_hz"], temp_wander_c=0.3)
-        plant(sc, ["acc.bias_temperature.x=2e-6", "acc.bias_temperature2.x=5e-8", "acc.scale_temperature.z=3e-6",
-                   "gyro.bias_temperature.z=2e-3", "gyro.bias_temperature2.z=2e-5", "gyro.scale_temperature.x=2e-6"])
-        write(tmp / f"p{T:g}", sc, seed)
-        plateaus.append(str(tmp / f"p{T:g}"))
+    plateaus = write_plateaus(tmp, n["thermal_rate_hz"])
     fig["rows_thermal_plateau"] = len(io.read_set(plateaus[0]).samples["t_s"])
     walls, cpus = process_times([*SIMUCAL, "calibrate", *plateaus, "--thermal", "-o", str(tmp / "th.json")],
                                 max(1, REPEATS[0] + 2))
     fig["cli_calibrate_thermal_3_plateaus_s"], fig["cli_calibrate_thermal_3_plateaus_worst_s"] = min(walls), max(walls)
     fig["cli_calibrate_thermal_3_plateaus_cpu_s"] = min(cpus)
     _montecarlo_effect(tmp, fig, n)
+
+
+def write_plateaus(folder: Path, rate_hz: float) -> list[str]:
+    """Issue 37's three plateaus (-10, 25, 60 degC, each wandering +-0.3 degC; biases quadratic and
+    scale factors linear in temperature) on the fibonacci48 plan at rate_hz: the sets' folders."""
+    from simucal.turntable.simulate import plant
+    plateaus = []
+    for T, seed in ((-10.0, 1), (25.0, 2), (60.0, 3)):
+        sc = Scenario(plan="fibonacci48", temp_c=(T, T), t_ref_c=25.0, rate_hz=rate_hz, temp_wander_c=0.3)
+        plant(sc, ["acc.bias_temperature.x=2e-6", "acc.bias_temperature2.x=5e-8", "acc.scale_temperature.z=3e-6",
+                   "gyro.bias_temperature.z=2e-3", "gyro.bias_temperature2.z=2e-5", "gyro.scale_temperature.x=2e-6"])
+        write(folder / f"p{T:g}", sc, seed)
+        plateaus.append(str(folder / f"p{T:g}"))
+    return plateaus
 
 
 def _montecarlo_effect(tmp, fig, n):

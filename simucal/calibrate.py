@@ -102,7 +102,7 @@ PLATEAU_SPREAD_C = SPREAD_C  # temperatures within this are one (a plateau's wan
 
 def _plateau(folder):
     """A plateau's set and its temperature (the mean of temp_c), refused without a plausible temp_c."""
-    ms = io.read_set(folder)
+    ms = folder if isinstance(folder, io.MeasurementSet) else io.read_set(folder)
     if "temp_c" not in ms.samples:
         other = {c: units.temperature_unit_in_name(c) for c in ms.samples}
         named = [f"{c} (named as {u})" for c, u in other.items() if u]

@@ -13,19 +13,15 @@ from pathlib import Path
 
 import numpy as np
 
-from simucal import io
+from simucal import io, methods
 from simucal.errors import CalibrationError
-from simucal.fit.apply import model_inputs
 from simucal.fit.augmented import AugmentedModel
-from simucal.fit.aux_inputs import AuxInputs, columns_at
 from simucal.fit.candidates import test_model, verdict
-from simucal.fit.lack_of_fit import model_file_text, twin_fits
 from simucal.fit.norm_fit import Fit, Observations
 from simucal.fit.results import ALPHA, model_test_keys
 from simucal.io.timestamps import with_timestamps
-from simucal.turntable.consistency import handedness_verdict, mirrored
-from simucal.turntable.observations import check_rate_sense, segment_observations
-from simucal.turntable.model_test import ROWS, test_and_rank, with_static_rows
+from simucal.report.model_files import model_file_text
+from simucal.turntable.model_test import test_and_rank
 
 
 def residual_table(fit: Fit, obs: Observations, segs) -> list[dict]:
@@ -42,45 +38,32 @@ def residual_table(fit: Fit, obs: Observations, segs) -> list[dict]:
 
 
 def diagnose_sensor(ms, sensor, base_model, add=(), stated=None, truth=None, before_model=None, added=(),
-                    acc_model="acc_baseline"):
+                    acc_model="acc_baseline", kind=None):
     """One sensor's block. add: effect ids; before_model: the model to compare with when
     something was added (default base_model without the ids); added: what the user added
     (ids and model files), for the report; acc_model: on a stream, the accelerometer model (its
-    effects too) whose pose directions the gyro's moves are judged against."""
-    if ms.segments is None and sensor == "gyro":  # a stream: the gyro against its moves
-        if base_model != "gyro_baseline":
-            raise CalibrationError(f"{ms.path}: on a stream the gyro is fit as a full T and a bias over the moves, so "
-                                   f"the model {base_model} does not apply; add effects with --add gyro.<effect>.<axis>")
-        from simucal.handheld.poses import acc_from_poses
-        from simucal.handheld.diagnose_moves import diagnose_moves
-        obs, det, am, fa, _ = acc_from_poses(ms, acc_model)
-        return diagnose_moves(ms, obs, det, am, fa, tuple(add), truth)
-    if ms.segments is None:  # a stream: its static poses, as the hand-placed calibration finds them
-        from simucal.handheld.poses import pose_observations
-        obs, det, poses = pose_observations(ms)
-        segs = None
-    else:  # the one model test's rows, calibrate's too (turntable/model_test.py)
-        obs, segs = segment_observations(ms, sensor, ROWS[sensor], stated)
-        if sensor == "gyro":
-            check_rate_sense(ms, obs, segs)
-        if not segs:
-            return None
+    effects too) whose pose directions the gyro's moves are judged against; kind: the set's entry
+    in methods.KINDS (default its own), which gives the rows and what else its data judge."""
+    kind = kind or methods.kind_of(ms)
+    if sensor == "gyro" and kind.diagnose_gyro is not None:  # judged its own way (a stream: against its moves)
+        return kind.diagnose_gyro(ms, base_model, tuple(add), truth, acc_model)
+    found = kind.observations(ms, sensor, stated)
+    if found is None:
+        return None
+    obs, segs, rows = found
     model = AugmentedModel(base_model, tuple(add))
     fit, obs, base, cands, shape, table_info = test_and_rank(model, obs, segs)
-    if segs is None:
-        segs = [io.Segment(i, "static", None, None, None, 0.0) for i in range(len(poses))]
     out = {**model_test_keys(base), "candidates": cands, "verdict": verdict(sensor, base, cands, str(ms.path), shape, None),
            "params": fit.params, "std": fit.std, "param_units": dict(zip(model.params, model.param_units)),
-           "residuals": residual_table(fit, obs, segs)}
+           "residuals": residual_table(fit, obs, rows)}
     if shape:
         out["shape"] = {**shape, "model_file": model_file_text(base_model, add, shape, sensor)}
-        if sensor == "gyro" and shape["indistinguishable_here"] and ms.segments is not None:  # judged at rest later
-            out["twin_fits"] = [{**tf, "shape": {**tf["shape"], "model_file": model_file_text(
-                base_model, add, tf["shape"], sensor)}} for tf in twin_fits(model, obs, fit, shape)]
     if table_info is not None:
         out["table"] = table_info
-    if ms.segments is not None:
-        out["mirror"] = mirrored(fit, segs, sensor == "gyro")  # judged over both triads in _diagnose
+    out.update(kind.sensor_extras(ms, sensor, model, obs, fit, segs, shape))
+    if "twin_fits" in out:  # the found term's twins, each with its model file (judged at rest by kind.finish_diagnosis)
+        out["twin_fits"] = [{**tf, "shape": {**tf["shape"], "model_file": model_file_text(
+            base_model, add, tf["shape"], sensor)}} for tf in out["twin_fits"]]
     before_model = before_model or model.base.name
     if add or before_model != base_model:
         f0, _, b0 = test_model(AugmentedModel(before_model), obs)
@@ -97,21 +80,6 @@ def diagnose_sensor(ms, sensor, base_model, add=(), stated=None, truth=None, bef
                         "p_value_before": b0["p_value"], "p_value_after": base["p_value"], "params": comp,
                         "residuals_before": residual_table(f0, obs, segs)}
     return out
-
-
-def stream_summary(ms, max_points=4000):
-    """A continuous stream for the report: |f| over time (decimated), calibrated by the
-    hand-placed accelerometer fit, and the static intervals found (the gyro's moves are in
-    the gyro block, diagnose_moves)."""
-    from simucal.handheld.poses import acc_from_poses
-    _, det, am, fa, _ = acc_from_poses(ms)
-    t = ms.samples["t_s"]
-    step = max(len(t) // max_points, 1)
-    rows = np.arange(0, len(t), step)
-    f = model_inputs(am, fa.vector(am.params), ms.acc_g()[rows],  # calibrated specific force, g
-                     AuxInputs(columns_at(ms.samples, rows, t_ref_c=ms.t_ref_c)), ms.path / "samples.csv")
-    return {"t_s": t[::step].tolist(), "acc_norm_g": np.linalg.norm(f, axis=1).tolist(),
-            "static_detection": det.as_dict(t)}
 
 
 def scoring_truth(path) -> dict | None:
@@ -137,45 +105,6 @@ def scoring_truth(path) -> dict | None:
             except (KeyError, TypeError, ValueError):
                 continue
     return out
-
-
-def _with_static_gyro_rows(ms, block, settings) -> None:
-    """The gyro's test over its static rows too, as calibrate's (model_test.with_static_rows): they need
-    the accelerometers' up and C_b^d, so calibrate's exact method gives them; where it refuses the set,
-    the rate runs' test stands (calibrate says why). Where the rate runs cannot tell the found term
-    from its twins, the static rows choose among them (_choose_twin)."""
-    from simucal.turntable.calibrate import calibrate_table
-    fits, judged = block.pop("twin_fits", []), []
-    probe = (lambda test: judged.extend((tf, test(tf)) for tf in fits)) if fits else None
-    try:
-        gyro = calibrate_table(ms, "exact", *settings, static_probe=probe).gyro
-    except CalibrationError:
-        return
-    if gyro is None or "static_rows" not in gyro.details:
-        return
-    st = gyro.details["static_rows"]
-    with_static_rows(block["model_test"], st)
-    chose = _choose_twin(block, judged)
-    block["verdict"] = verdict("gyro", block["model_test"], block["candidates"], str(ms.path), block.get("shape"),
-                                None) + (
-        f" At rest: {st['verdict']}." if st.get("p_value", 1.0) < ALPHA else "") + chose
-
-
-def _choose_twin(block, judged) -> str:
-    """Of the found term and its twins (which the rate runs cannot tell apart), the one whose fit
-    predicts the static rows best (lowest chi-square, all on the same rows) becomes the shape and its
-    model file, the others its twins; returns the verdict's sentence on the choice ('' if none made)."""
-    judged = [(tf, st) for tf, st in judged if "chi2" in st]
-    if len(judged) < 2:
-        return ""
-    tf, st = min(judged, key=lambda j: j[1]["chi2"])
-    label = lambda s: f"{s['regressor']} on {s['axis']}"
-    at_rest = {label(t["shape"]): {k: s[k] for k in ("chi2", "dof", "p_value")} for t, s in judged}
-    block["shape"] = {**tf["shape"], "static_rows": at_rest}
-    others = "; ".join(f"{k}: chi2 {v['chi2']:.1f}" for k, v in at_rest.items() if k != label(tf["shape"]))
-    said = (f" The rate runs cannot tell {label(tf['shape'])} from its twins; the static rows chose it (chi2 "
-            f"{st['chi2']:.1f} on {st['dof']} dof, p = {st['p_value']:.2g}, against {others})")
-    return said + ("." if st["p_value"] >= ALPHA else ", though none of them passes at rest.")
 
 
 def diagnose(folder, add=(), acc_model="acc_baseline", gyro_model="gyro_baseline",
@@ -204,6 +133,7 @@ def _diagnose(ms, folder, add, acc_model, gyro_model, acc_noise_g, gyro_noise_dp
     before = {"acc": acc_model, "gyro": gyro_model}
     acc_model, gyro_model, ids = resolve_add(add, acc_model, gyro_model)
     truth = scoring_truth(folder / "truth.json")
+    kind = methods.kind_of(ms)
     result = {"format": "simucal.diagnosis/1", "input": str(folder), "alpha": ALPHA}
     for sensor, model, stated, has in (("acc", acc_model, acc_noise_g, ms.has_acc),
                                        ("gyro", gyro_model, gyro_noise_dph, ms.has_gyro)):
@@ -212,18 +142,10 @@ def _diagnose(ms, folder, add, acc_model, gyro_model, acc_noise_g, gyro_noise_dp
         mine = tuple(a for a in ids if a.startswith(sensor + "."))
         files = tuple(a for a in add if a.endswith(".py")) if model != before[sensor] else ()
         block = diagnose_sensor(ms, sensor, model, mine, stated, truth, before[sensor], mine + files,
-                                AugmentedModel(acc_model, tuple(a for a in ids if a.startswith("acc."))))
+                                AugmentedModel(acc_model, tuple(a for a in ids if a.startswith("acc."))), kind)
         if block is not None:
             result[sensor] = block
-    if ms.segments is not None and "gyro" in result and "acc" in result:
-        _with_static_gyro_rows(ms, result["gyro"], (acc_model, gyro_model, ids, acc_noise_g, gyro_noise_dph))
-    if ms.segments is not None:  # a reflected triad, as calibrate refuses it
-        notes = handedness_verdict(ms, {("accelerometer" if s == "acc" else s): result[s].pop("mirror")
-                                        for s in ("acc", "gyro") if s in result})
-        if notes:
-            result["notes"] = notes
-    else:
-        result["stream"] = stream_summary(ms)
+    kind.finish_diagnosis(ms, result, (acc_model, gyro_model, ids, acc_noise_g, gyro_noise_dph))
     sensors = [s for s in ("acc", "gyro") if s in result]
     if not sensors:
         raise CalibrationError(f"{folder}: nothing to diagnose (no static or rate segments)")

@@ -3,11 +3,15 @@
 `simucal calibrate` (its dispatch and its --method choice), the demo and the paper's claims
 read this table. A new method is its own module, one entry here and a test.
 
-The data a set holds decide which methods apply (data_kind): a turntable test has
-segments.csv with commanded table angles; a stream has no segments.csv (a hand-placed
-session, static poses found from the data); a field set has segments.csv with a north
+The data a set holds decide which methods apply (data_kind, the one place that looks): a
+turntable test has segments.csv with commanded table angles; a stream has no segments.csv (a
+hand-placed session, static poses found from the data); a field set has segments.csv with a north
 reference (heading_ref_deg) and no table angles (ruan2019); a sequence has segments.csv with move
-segments between its rests (the table turning, raw samples throughout: systematic calibration).
+segments between its rests (the table turning, raw samples throughout: systematic calibration). Each kind of data is one entry of
+KINDS (`kind_of(ms)`), which supplies what the commands do differently with it: its simulator,
+its diagnosis (the observations each sensor's model is tested on, and the checks over the set), its
+validation checks and its still stretches for `simucal noise`. A new kind of data is its module(s)
+and one entry here.
 """
 from __future__ import annotations
 
@@ -99,7 +103,7 @@ def for_data(kind) -> tuple[str, ...]:
 
 
 def data_kind(ms) -> str:
-    """TURNTABLE, STREAM or FIELD (module doc)."""
+    """TURNTABLE, STREAM or FIELD (module doc): the one function that tells a set's kind."""
     if ms.segments is None:
         return STREAM
     if any(s.kind == "move" for s in ms.segments):
@@ -122,3 +126,145 @@ def choose(name, ms) -> Method:
         raise CalibrationError(f"{ms.path}: is {DATA[kind]}, but method {name} takes {DATA[m.data]}: use --method "
                                f"{' or --method '.join(for_data(kind))}.")
     return m
+
+
+@dataclass(frozen=True)
+class Kind:
+    """What the commands do with one kind of data (module doc). The functions import their modules
+    when called, as Method's do."""
+    name: str                  # TURNTABLE, STREAM or FIELD
+    scenario: str              # `simulate --scenario`'s name for it
+    simulate: Callable         # simulate(seed, rate_hz, options) -> (meta, samples, segments or None, truth)
+    observations: Callable     # observations(ms, sensor, stated) -> (Observations, segments or None, row segments)
+    #                            or None: the rows a sensor's model is tested on (diagnose)
+    diagnose_gyro: Callable | None  # diagnose_gyro(ms, gyro_model, add, truth, acc_model) -> block: the gyro
+    #                                 judged otherwise than by observations (None: by them)
+    sensor_extras: Callable    # sensor_extras(ms, sensor, model, obs, fit, segs, shape) -> dict: a diagnosis
+    #                            block's own keys
+    finish_diagnosis: Callable  # finish_diagnosis(ms, result, settings): the checks over both sensors, in place
+    validation_checks: Callable  # (ms, f_before, f_after, w_before, w_after, cal) -> {sensor: [check]}
+    still_rows: Callable       # still_rows(ms) -> ([row indices], where): the stretches `simucal noise` pools
+    still_whole: bool          # the whole recording must be still (noise refuses one that moves)
+
+
+def _table_observations(ms, sensor, stated):
+    from simucal.turntable.diagnosis import observations
+    return observations(ms, sensor, stated)
+
+
+def _table_extras(ms, sensor, model, obs, fit, segs, shape):
+    from simucal.turntable.diagnosis import sensor_extras
+    return sensor_extras(sensor, model, obs, fit, segs, shape)
+
+
+def _table_finish(ms, result, settings):
+    from simucal.turntable.diagnosis import finish
+    finish(ms, result, settings)
+
+
+def _table_checks(ms, f_before, f_after, w_before, w_after, cal):
+    from simucal.turntable.validation import table_checks
+    return table_checks(ms, f_before, f_after, w_before, w_after, cal)
+
+
+def _static_segments(ms):
+    """Each static segment's rows (three or more), pooled for noise."""
+    import numpy as np
+    seg = ms.samples["segment"]
+    pieces = [np.nonzero(seg == s.segment)[0] for s in ms.segments if s.kind == "static"]
+    pieces = [p for p in pieces if len(p) >= 3]
+    if not pieces:
+        raise CalibrationError(f"{ms.path}: no static segment holds raw rows (3 or more): the Allan deviation "
+                               "needs the samples, not their averages")
+    return pieces, f"{len(pieces)} static segments, pooled"
+
+
+def _stream_observations(ms, sensor, stated):
+    from simucal.handheld.diagnosis import observations
+    return observations(ms)
+
+
+def _stream_gyro(ms, gyro_model, add, truth, acc_model):
+    from simucal.handheld.diagnosis import diagnose_gyro
+    return diagnose_gyro(ms, gyro_model, add, truth, acc_model)
+
+
+def _stream_finish(ms, result, settings):
+    from simucal.handheld.diagnosis import stream_summary
+    result["stream"] = stream_summary(ms)
+
+
+def _whole_stream(ms):
+    import numpy as np
+    return [np.arange(len(ms.samples["t_s"]))], "the whole stream"
+
+
+def _no_extras(*_):
+    return {}
+
+
+def _stream_checks(ms, f_before, f_after, w_before, w_after, cal):
+    from simucal.handheld.validation import stream_checks
+    return stream_checks(ms, f_before, f_after, w_before, w_after, cal)
+
+
+def _simulate_table(seed, rate_hz, o):
+    """A turntable test from simulate's options (the command's values: effects, columns and sets as
+    NAME=VALUE strings, temperature as T or T0:T1)."""
+    from simucal.turntable.simulate import ARCMIN, Scenario, at_temperature, plant
+    from simucal.turntable.simulate import simulate as simulate_table
+    sc = Scenario()
+    for key in ("plan", "acc_model", "gyro_model", "acc_unit", "gyro_unit"):
+        if o[key] is not None:
+            setattr(sc, key, o[key])
+    if rate_hz is not None:
+        sc.rate_hz = rate_hz
+    if o["position_error_arcmin"] is not None:
+        sc.position_error_rad = o["position_error_arcmin"] * ARCMIN
+    sc.state_noise = o["state_noise"]
+    at_temperature(sc, o["temperature"], columns=o["columns"], **{k: o[key] for k, key in (
+        ("t_ref_c", "t_ref_c"), ("wander_c", "temperature_wander_c")) if o[key] is not None})
+    plant(sc, o["effects"], o["effect_file"], o["sets"], o["columns"])
+    if o.get("sequence") is None:
+        return simulate_table(sc, seed)
+    from simucal.turntable.sequence import simulate_sequence
+    if o["plan"] is not None or o["columns"] or o["temperature"] is not None:
+        raise ValueError("--sequence: the table turns through the sequence; --plan, --column and --temperature-c "
+                         "describe a plan's positions: leave them out")
+    return simulate_sequence(sc, o["sequence"], seed)
+
+
+def _simulate_stream(seed, rate_hz, o):
+    from simucal.handheld.simulate import HandheldScenario, simulate_handheld
+    from simucal.turntable.simulate import Scenario, plant
+    sc = Scenario()  # the effects parsed and checked as a turntable test's are
+    plant(sc, o["effects"])
+    hs = HandheldScenario(acc_effects=sc.acc_effects, gyro_effects=sc.gyro_effects,
+                          **({"rate_hz": rate_hz} if rate_hz is not None else {}))
+    meta, samples, truth = simulate_handheld(hs, seed)
+    return meta, samples, None, truth
+
+
+def _simulate_field(seed, rate_hz, o):
+    from simucal.field.simulate import FieldScenario, simulate_field
+    return simulate_field(FieldScenario(**{k: v for k, v in (("heading_error_deg", o["heading_accuracy_deg"]),
+                                                              ("rate_hz", rate_hz)) if v is not None}), seed)
+
+
+KINDS = {k.name: k for k in (
+    Kind(TURNTABLE, "paper", _simulate_table, _table_observations, None, _table_extras, _table_finish, _table_checks,
+         _static_segments, False),
+    Kind(FIELD, "field", _simulate_field, _table_observations, None, _table_extras, _table_finish, _table_checks,
+         _static_segments, False),  # its static segments, as a turntable test's
+    Kind(SEQUENCE, "sequence", lambda seed, rate_hz, o: _simulate_table(seed, rate_hz, {**o, "sequence": o.get(
+        "sequence") or "psins19"}), _table_observations, None, _table_extras, _table_finish, _table_checks,
+         _static_segments, False),  # its rests, as a turntable test's static positions
+    Kind(STREAM, "handheld", _simulate_stream, _stream_observations, _stream_gyro, _no_extras, _stream_finish,
+         _stream_checks, _whole_stream, True),
+)}
+SCENARIOS = {k.scenario: k for k in KINDS.values()}
+
+
+def kind_of(ms) -> Kind:
+    """The entry of the set's kind of data (data_kind)."""
+    return KINDS[data_kind(ms)]

@@ -21,211 +21,24 @@ The floor of each norm error is its whole uncertainty: the noise (a segment's or
 over its rows, std of the mean, or the stated noise of one row) and the calibration's own: its
 parameters' covariance (a thermal calibration's coefficients', at each segment's temperature)
 propagated to the calibrated norm, d|u|/dp = (u/|u|)' (dh/du)^-1 dh/dp, added in quadrature
-(`calibration_sd`; a file without a covariance adds nothing, and the check says so). For moves,
+(fit/validation.py's `calibration_sd`; a file without a covariance adds nothing, and the check says so). For moves,
 the same residual at the rests' noise is not known a priori, so moves have no floor. A calibration
 whose error is above the nominal one's is said to be worse, loudly; rows outside a calibration's
-temperature range are named (apply's warning).
+temperature range are named (apply's warning). The checks of each kind of data are its entry's in methods.KINDS
+(turntable/validation.py, handheld/validation.py).
 """
 from __future__ import annotations
 
 import numpy as np
 
-from simucal import io
-from simucal.errors import CalibrationError
+from simucal import io, methods
 from simucal.fit.apply import apply
-from simucal.fit.rotations import wahba
-from simucal.io import calibration, units
+from simucal.fit.validation import FAR_OFF
+from simucal.io import calibration
 from simucal.report.console import validation_next
-from simucal.turntable.observations import mean_and_sigma, outer_angle_rad, table_accuracy_rad
-from simucal.turntable.plan_design import directions_k
 
 WORSE = 1.05  # after/before above this: the calibration makes the unit worse on these data
 AT_FLOOR = 2.0  # after below this many floors: the noise, nothing left to gain
-FAR_OFF = 10.0  # a row this many floors (and medians) off is named
-
-
-def _rms(x):
-    x = np.asarray(x, float)
-    return float(np.sqrt(np.mean(x ** 2))) if x.size else None
-
-
-def _segment_means(data, groups, stated, angles=None):
-    """Mean of each group of rows (n, 3) and the std of each mean (n,) along the norm, the rms over
-    the axes of observations.mean_and_sigma's: a rate run's (angles: each row's outer angle) as the
-    calibration takes it, the constant of its outer angle's harmonics and their residuals' scatter
-    (first differences would count the turning Earth rate as noise: at 20 Hz 3x it, a floor 3-5x too
-    high), a static group's from first differences (blind to a slow drift); the stated noise of one
-    row where a group has fewer than three."""
-    out = [mean_and_sigma(data[rows], stated, varying=True, angle_rad=None if angles is None else a)
-           for rows, a in zip(groups, angles or [None] * len(groups))]
-    return np.array([m for m, _ in out]), np.array([np.sqrt(np.mean(sd ** 2)) for _, sd in out], float)
-
-
-def _norm_block(unit, before, after, floor_sd, what, labels):
-    """Errors of a norm against its known value, before and after, with the floor; labels name
-    the rows (segments or poses) for the ones far off (_far_off)."""
-    ok = np.isfinite(floor_sd)
-    return {"what": what, "unit": unit, "n": int(len(after)), "before_rms": _rms(before), "after_rms": _rms(after),
-            "floor_rms": _rms(floor_sd[ok]) if ok.all() and ok.any() else None,
-            "far_off": _far_off(after, floor_sd, labels)}
-
-
-def _far_off(after, floor_sd, labels, k=FAR_OFF):
-    """The rows whose calibrated error is k floors and k times the median error or more: a few
-    rows far off, where the rest agree, are mislabelled or disturbed, not a model's failing."""
-    e = np.abs(np.asarray(after, float))
-    fl = np.broadcast_to(np.asarray(floor_sd, float), e.shape)
-    if len(e) < 4 or not np.all(np.isfinite(fl)):
-        return []
-    far = (e > k * fl) & (e > k * np.median(e))
-    return [labels[i] for i in np.nonzero(far)[0]] if far.sum() <= len(e) // 4 else []
-
-
-def _block_model(block, t_ref_c):
-    """(model, p, covariance) of a block for the propagation, or None without a covariance."""
-    from simucal.fit.augmented import AugmentedModel
-    if block.model == "affine":
-        return None
-    model = AugmentedModel(block.model, block.library_effects())
-    th = block.thermal
-    cov = th.get("covariance") if th else block.details.get("covariance")
-    if not cov:
-        return None
-    if th:
-        from simucal.fit.thermal import ThermalModel
-        model = ThermalModel(model, [th["parameters"][n]["degree"] for n in model.params])
-        p = np.array([th["parameters"][n.split(".T")[0]]["coefficients"][int(n.split(".T")[1]) if ".T" in n else 0]
-                      for n in model.params])
-    else:
-        p = np.array([block.params[n] for n in model.params])
-    if list(cov["names"]) != list(model.params):
-        return None
-    raw = block.details.get("std_raw")  # a failing model's stds inflated by its misfit: the covariance too
-    k2 = (block.std[model.params[0]] / raw[model.params[0]]) ** 2 if raw and raw.get(model.params[0]) else 1.0
-    return model, p, np.asarray(cov["matrix"], float) * k2
-
-
-def calibration_sd(cal, sensor, u_b, aux_values: dict) -> np.ndarray | None:
-    """The std of the calibrated norm |u| at each row (segment means u_b (n, 3) in b, with their
-    auxiliary inputs: temp_c, f_x..) from the calibration's covariance (module doc); None where the
-    file holds none."""
-    from simucal.fit.aux_inputs import T_REF, AuxInputs
-    block = getattr(cal, sensor)
-    found = _block_model(block, cal.t_ref_c)
-    if found is None:
-        return None
-    model, p, cov = found
-    t_ref = block.thermal["t_ref_c"] if block.thermal else cal.t_ref_c
-    values = dict(aux_values)
-    if "temp_c" in values:
-        values[T_REF] = 0.0 if t_ref is None else t_ref
-    u = u_b @ block.C.T
-    _, Ju, Jp = model.jacobians(u, p, AuxInputs(values))
-    du = -np.linalg.solve(Ju, Jp)  # (n, 3, m): the calibrated input's change per parameter
-    g = np.einsum("ni,nim->nm", u / np.linalg.norm(u, axis=1, keepdims=True), du)
-    return np.sqrt(np.maximum(np.einsum("nm,mk,nk->n", g, cov, g), 0.0))
-
-
-def _with_calibration(floor_sd, cal, sensor, means, groups, ms, f_means=None):
-    """The noise floor per row and the calibration's std added in quadrature (None: the noise alone)."""
-    aux = {}
-    if "temp_c" in ms.samples:
-        aux["temp_c"] = np.array([np.mean(ms.samples["temp_c"][g]) for g in groups])
-    if f_means is not None:
-        from simucal.fit.aux_inputs import specific_force
-        aux.update(specific_force(f_means @ getattr(cal, sensor).C.T))
-    sd = calibration_sd(cal, sensor, means, aux)
-    return floor_sd if sd is None else np.hypot(floor_sd, sd), sd is not None
-
-
-def _turntable(ms, f_before, f_after, w_before, w_after, cal):
-    segs = ms.segments
-    seg_rows = {s.segment: ms.rows(s.segment) for s in segs}
-    lat = np.radians(ms.meta.get("latitude_deg", 0.0))
-    w_e = units.earth_rate_dph(ms.meta)
-    out = {}
-    static = [s for s in segs if s.kind == "static" and seg_rows[s.segment].size]
-    if f_after is not None and static:
-        groups = [seg_rows[s.segment] for s in static]
-        sd = units.stated_noise(ms.meta, "acc")
-        (mb, _), (ma, fl) = _segment_means(f_before, groups, sd), _segment_means(f_after, groups, sd)
-        labels = [f"segment {s.segment}" for s in static]
-        whole, with_cal = _with_calibration(fl, cal, "acc", ma, groups, ms)
-        checks = [_norm_block("g", np.linalg.norm(mb, axis=1) - 1, np.linalg.norm(ma, axis=1) - 1, whole,
-                              "|f| - 1 g at each static segment" + _FLOOR[with_cal], labels)]
-        angled = [i for i, s in enumerate(static) if s.middle_deg is not None and s.inner_deg is not None]
-        if len(angled) >= 3:
-            # the navigation vertical (z up) in the table frame k: gravity's reaction
-            up_k = directions_k([(s.outer_deg or 0.0, s.middle_deg, s.inner_deg) for s in (static[i] for i in angled)])
-            errs = []
-            for m in (mb[angled], ma[angled]):
-                d = m / np.linalg.norm(m, axis=1, keepdims=True)
-                R = wahba(up_k, d, np.ones(len(d)))
-                errs.append(np.linalg.norm(d - up_k @ R.T, axis=1))
-            # the table's angle errors move the direction too: two angles, each of its stated std
-            table_sd = (table_accuracy_rad(ms) or 0.0) * np.sqrt(2)
-            floor = np.hypot(fl[angled], table_sd)
-            checks.append({"what": "gravity direction against the commanded table vertical, after the best "
-                                   "rotation between unit and table" + (
-                                       " (floor: noise and meta's table_accuracy_arcsec)" if table_sd else
-                                       " (floor: the noise alone; the table's angle errors add to it)"),
-                           "unit": "rad", "n": len(angled), "before_rms": _rms(errs[0]), "after_rms": _rms(errs[1]),
-                           "floor_rms": _rms(floor) if np.all(np.isfinite(floor)) else None,
-                           "far_off": _far_off(errs[1], floor, [labels[i] for i in angled]),
-                           "far_off_hint": "check their commanded angles in segments.csv"})
-        out["acc"] = checks
-    if w_after is not None:
-        sd = units.stated_noise(ms.meta, "gyro")
-        checks = []
-        rate = [s for s in segs if s.kind == "rate" and seg_rows[s.segment].size]
-        for kind, chosen, truth in (("rate", rate, [abs(s.outer_rate_dps * units.DPH_PER_DPS + w_e * np.sin(lat)) for s in rate]),
-                                    ("static", static, [w_e] * len(static))):
-            if not chosen:
-                continue
-            groups = [seg_rows[s.segment] for s in chosen]
-            angles = [outer_angle_rad(ms, seg_rows[s.segment], s) for s in chosen]
-            (mb, _), (ma, fl) = _segment_means(w_before, groups, sd, angles), _segment_means(w_after, groups, sd, angles)
-            f_means = None if f_after is None else np.array([f_after[g].mean(0) for g in groups])
-            whole, with_cal = _with_calibration(fl, cal, "gyro", ma, groups, ms, f_means)
-            what = ("|w| - |w_T + w_e sin L| at each rate run" if kind == "rate" else
-                    "|w| - w_e (the Earth rate) at each static segment")
-            checks.append(_norm_block("deg/h", np.linalg.norm(mb, axis=1) - truth, np.linalg.norm(ma, axis=1) - truth,
-                                      whole, what + _FLOOR[with_cal], [f"segment {s.segment}" for s in chosen]))
-        out["gyro"] = checks
-    return out
-
-
-_FLOOR = {True: " (floor: the noise and the calibration's own uncertainty)",
-          False: " (floor: the noise alone; the file holds no covariance of its parameters)"}
-
-
-def _stream(ms, f_before, f_after, w_before, w_after, cal):
-    from simucal.handheld.moves import build_moves, move_residuals
-    from simucal.handheld.static_detect import detect_static
-    from simucal.io.sensor_checks import saturated_rows
-    t = ms.samples["t_s"]
-    det = detect_static(f_after, t)
-    rest = slice(det.starts[0] + det.window // 2, det.ends[0] - det.window // 2)
-    groups = [slice(a, b) for a, b in zip(det.starts, det.ends)]
-    (mb, _), (ma, fl) = _segment_means(f_before, groups, None), _segment_means(f_after, groups, None)
-    whole, with_cal = _with_calibration(fl, cal, "acc", ma, [np.arange(a, b) for a, b in zip(det.starts, det.ends)], ms)
-    out = {"acc": [_norm_block("g", np.linalg.norm(mb, axis=1) - 1, np.linalg.norm(ma, axis=1) - 1, whole,
-                               f"|f| - 1 g at each of the {len(groups)} static poses" + _FLOOR[with_cal],
-                               [f"pose at {t[a]:.1f} s" for a in det.starts])]}
-    if w_after is not None:
-        bad = saturated_rows(ms, "gyro")[0]
-        angles = []
-        g_dirs = ma / np.linalg.norm(ma, axis=1, keepdims=True)  # the calibrated accelerometers: the gyro's reference
-        for w, nominal in ((w_before, True), (w_after, False)):
-            w_dps = w / units.DPH_PER_DPS
-            bias = w_dps[rest].mean(0) if nominal else np.zeros(3)  # nominal: the rest's bias, as a user would
-            mv, _ = build_moves(w_dps, t, det, bias, bad)
-            angles.append(np.degrees(np.linalg.norm(move_residuals(np.eye(3), mv, g_dirs, jac=False)[0], axis=1)))
-        out["gyro"] = [{"what": "gravity direction after each move: the integrated gyro against the calibrated "
-                                "accelerometers (at nominal, the gyro bias from the initial rest)", "unit": "deg",
-                        "n": int(len(angles[1])), "before_rms": _rms(angles[0]), "after_rms": _rms(angles[1]),
-                        "floor_rms": None}]
-    return out
 
 
 def _verdict(check) -> str:
@@ -251,12 +64,7 @@ def validate(cal_path, data_dir) -> dict:
     w_before = ms.gyro_dph() if ms.has_gyro else None
     f_after = np.column_stack([samples[c] for c in ("ax", "ay", "az")]) if ms.has_acc else None
     w_after = np.column_stack([samples[c] for c in ("gx", "gy", "gz")]) if ms.has_gyro else None
-    if ms.segments is not None:
-        checks = _turntable(ms, f_before, f_after, w_before, w_after, cal)
-    elif f_after is not None:
-        checks = _stream(ms, f_before, f_after, w_before, w_after, cal)
-    else:
-        raise CalibrationError(f"{ms.path}: a stream without accelerometers has no reference to validate against")
+    checks = methods.kind_of(ms).validation_checks(ms, f_before, f_after, w_before, w_after, cal)
     for rows in checks.values():
         for c in rows:
             c["ratio_after_before"] = c["after_rms"] / c["before_rms"] if c["before_rms"] else None

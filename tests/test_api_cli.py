@@ -155,7 +155,11 @@ def test_deprecated_names_warn_and_do_the_same(sets, tmp_path):
              "--html", tmp_path / "f.html")
     assert "--plot is deprecated" in r.stderr and (tmp_path / "f.png").stat().st_size > 1000
     page = (tmp_path / "f.html").read_text()
-    assert page.count("<svg") == 1 and "north gyro drift" in page and "gyro" in page
+    assert page.count("data:image/png") == 1 and "north drift estimate (Fig. 4)" in page
+    # the page is simucal.save's of the API's field calibration
+    simucal.save(tmp_path / "api.html", simucal.calibrate(str(sets / "cli" / "field"), method="field"),
+                 calibration_path=tmp_path / "d.json")
+    _same_file(tmp_path / "f.html", tmp_path / "api.html")
 
 
 def test_thermal_calibration_and_its_page_the_same(tmp_path):
@@ -170,7 +174,7 @@ def test_thermal_calibration_and_its_page_the_same(tmp_path):
     simucal.save(tmp_path / "api.html", cal, calibration_path=tmp_path / "cli.json")
     for ext in ("json", "html"):
         _same_file(tmp_path / f"cli.{ext}", tmp_path / f"api.{ext}")
-    with pytest.raises(ValueError, match="a thermal calibration's"):
+    with pytest.raises(ValueError, match="a thermal or field calibration's"):
         simucal.save(tmp_path / "one.html", simucal.calibrate(str(plateaus[0])))
 
 

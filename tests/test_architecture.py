@@ -234,3 +234,30 @@ def test_files_and_functions_stay_short():
         long_functions += [f"{p.name}:{n.name} ({n.end_lineno - n.lineno + 1})" for n in ast.walk(ast.parse(text))
                            if isinstance(n, (ast.FunctionDef, ast.AsyncFunctionDef)) and n.end_lineno - n.lineno >= 70]
     assert not long_files and not long_functions, (long_files, long_functions)
+
+
+def test_a_sets_kind_is_told_once_and_its_entry_looked_up(monkeypatch):
+    """diagnose, validate, noise and simulate ask methods.KINDS for what a kind of data does: outside
+    data_kind only a refusal of a set without segments.csv (and io/, which reads it) tests for one, and a
+    kind added as one entry is the one the commands then use."""
+    import re
+
+    import numpy as np
+
+    from simucal import allan, methods
+    from simucal.api import MeasurementSet
+    refusals = {"methods.py": 1, "field/drift.py": 1, "turntable/observations.py": 1,
+                "api/__init__.py": 1}  # read_set's example shows a user the segments
+    found = {p.relative_to(ROOT).as_posix(): len(re.findall(r"segments is (not )?None", p.read_text()))
+             for p in ROOT.rglob("*.py") if "io" not in p.relative_to(ROOT).parts[:1]}
+    assert {k: n for k, n in found.items() if n} == refusals
+    assert set(methods.KINDS) == set(methods.DATA) >= {m.data for m in methods.METHODS.values()}
+    rows = np.arange(5, 45)
+    third = methods.Kind("third", "third", None, None, None, None, None, None,
+                         lambda ms: ([rows], "the third kind's still rows"), False)
+    monkeypatch.setitem(methods.KINDS, "third", third)
+    monkeypatch.setattr(methods, "data_kind", lambda ms: "third")
+    ms = MeasurementSet.from_arrays(np.tile([0.0, 0.0, 1.0], (50, 1)), None, acc_unit="g", gyro_unit="deg/h",
+                                    rate_hz=10.0)
+    stretches, dt, where = allan.still_stretches(ms, "acc")
+    assert where == "the third kind's still rows" and len(stretches[0]) == len(rows) and abs(dt - 0.1) < 1e-12

@@ -1,5 +1,5 @@
 """Issue 40 item 4: every page read at a glance. Each page the commands write (diagnosis of a turntable
-set, with an effect added, and of a stream; validation; thermal; noise), built from the demo's data:
+set, with an effect added, and of a stream; validation; thermal; noise; field drift), built from the demo's data:
 no text of any figure overlaps another or sits on a marker, nothing shrinks below 8 px in a 1280 px
 window (tests/page_layout.py says why without a browser), every page opens with a verdict per sensor
 and the next command, in one stylesheet; the validation's bars on a log scale with their floor; the
@@ -14,12 +14,13 @@ import matplotlib.pyplot as plt
 import pytest
 from page_layout import figure_problems, figures_checked, html_problems
 
-from simucal import allan, demo
+from simucal import allan, api, demo
 from simucal.diagnose import diagnose
 from simucal.handheld.simulate import HandheldScenario, write_handheld
 from simucal.io import calibration
 from simucal.report import page as page_module
 from simucal.report.console import validation_next
+from simucal.report.field_html import field_page
 from simucal.report.html import render
 from simucal.report.thermal_html import thermal_page
 from simucal.turntable.simulate import SCENARIOS, write
@@ -37,6 +38,7 @@ def pages(tmp_path_factory):
     sc.plan, sc.rate_hz, sc.static_s, sc.acc_effects = "table1", 20.0, 5.0, dict(demo.HIDDEN)
     write(out / "loop", sc, 0)
     write_handheld(out / "stream", HandheldScenario(poses=14, rest_s=10.0), 1)
+    api.simulate("field", seed=3).write(out / "field")
     thermal_cal = out / "thermal_calibration.json"
     (out / "validation.json").write_text(json.dumps(validate(out / "thermal_calibration_25.json", out / "thermal_35")))
     build = {
@@ -47,6 +49,7 @@ def pages(tmp_path_factory):
         "thermal": lambda: thermal_page(calibration.load(thermal_cal), [validate(thermal_cal, out / "thermal_35")],
                                         str(thermal_cal)),
         "noise": lambda: allan.html_page(json.loads((out / "noise.json").read_text())),
+        "field": lambda: field_page(api.calibrate(out / "field", method="field"), "field_calibration.json"),
     }
     made = {"out": out}
     for name, f in build.items():

@@ -4,7 +4,7 @@ import numpy as np
 import pytest
 
 from simucal.calibrate import calibrate
-from simucal.turntable.observations import turning_mean
+from simucal.fit.noise import turning_mean
 from simucal.turntable.simulate import ARCSEC, Scenario, write
 
 

@@ -187,10 +187,10 @@ def test_validate_floor_holds_the_calibrations_own_uncertainty(plateaus):
     """calibration_sd against draws of the coefficients from their covariance, inverted exactly."""
     from simucal.fit.aux_inputs import AuxInputs
     from simucal.io import calibration
-    from simucal.validate import _block_model, calibration_sd
+    from simucal.fit.validation import block_model, calibration_sd
     root, _, _ = plateaus
     cal = calibration.load(root / "cal.json")
-    model, p, cov = _block_model(cal.acc, cal.t_ref_c)
+    model, p, cov = block_model(cal.acc, cal.t_ref_c)
     rng = np.random.default_rng(0)
     u = np.repeat(rng.normal(size=(1, 3)), 5, axis=0)  # one direction at every temperature: only T differs
     u /= np.linalg.norm(u, axis=1, keepdims=True)

@@ -13,7 +13,7 @@ from __future__ import annotations
 
 import json
 import os
-from dataclasses import dataclass, replace
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, NamedTuple, Sequence, Union
 
@@ -26,7 +26,7 @@ from simucal.calibrate import calibrate as _calibrate_set
 from simucal.calibrate import calibrate_thermal as _calibrate_thermal
 from simucal.api.calibration import Calibration, Parameter
 from simucal.api.lot import lot
-from simucal.api.sets import MeasurementSet
+from simucal.api.sets import MeasurementSet, as_set, folder_of
 from simucal.io import calibration as _file
 from simucal.validate import validate as _validate_report
 
@@ -69,12 +69,13 @@ def calibrate(data: Data | Sequence[str | os.PathLike], **options: Any) -> Calib
 
     Parameters
     ----------
-    data : str, os.PathLike or MeasurementSet, or a list of folders
-        The set; a list of folders (plateaus, or one set whose temperature ramps) is a thermal
-        calibration (`simucal calibrate --thermal`).
+    data : str, os.PathLike or MeasurementSet, or a list of them
+        The set; a list (plateaus, or one set whose temperature ramps), or one set with
+        ``thermal=True``, is a thermal calibration (`simucal calibrate --thermal`).
     **options
         The command's options by their Python names: ``method`` ("auto", "exact", "linear",
-        "multiposition", "handheld", "field", "systematic"), ``add`` (effect ids, model files, "auto"),
+        "multiposition", "handheld", "field", "systematic"), ``add`` (effect ids, model files, "auto": a list,
+        or one string separated by commas),
         ``acc_model``, ``gyro_model``, ``acc_noise_g``, ``gyro_noise_dph``, ``t_ref_c`` (degC),
         ``noise`` (a noise.json), ``detect``, ``heading_accuracy_deg``; with a list,
         ``degree`` (the thermal polynomials', default chosen by the data).
@@ -95,13 +96,13 @@ def calibrate(data: Data | Sequence[str | os.PathLike], **options: Any) -> Calib
     >>> cal.acc.effects["acc.quadratic.z"].value  # doctest: +SKIP
     0.000198...
     """
-    if isinstance(data, (list, tuple)):
-        options.pop("thermal", None)
-        return Calibration.of(_calibrate_thermal(list(data), **options))
-    options.pop("thermal", None)
-    # a copy: calibrate records the user's T_ref on the set it is given, which is the caller's
-    ms = replace(data) if isinstance(data, io.MeasurementSet) else io.read_set(data)
-    return Calibration.of(_calibrate_set(ms, **options))
+    if isinstance(options.get("add"), str):  # "a,b" as on the command line, not its characters
+        options["add"] = [a.strip() for a in options["add"].split(",") if a.strip()]
+    thermal = options.pop("thermal", False)
+    if thermal or isinstance(data, (list, tuple)):
+        sets = list(data) if isinstance(data, (list, tuple)) else [data]
+        return Calibration.of(_calibrate_thermal([as_set(d) for d in sets], **options))
+    return Calibration.of(_calibrate_set(as_set(data), **options))
 
 
 class Check(NamedTuple):
@@ -157,7 +158,7 @@ def validate(cal: Calibration | str | os.PathLike, data: Data) -> Validation:
     >>> v.verdict  # doctest: +SKIP
     {'acc': 'at the noise floor', 'gyro': 'at the noise floor'}
     """
-    report = _validate_report(cal, data)
+    report = _validate_report(cal, data if isinstance(data, io.MeasurementSet) else folder_of(data))
     checks = [Check(s, c["what"], c["unit"], c["n"], c["before_rms"], c["after_rms"], c["floor_rms"], c["verdict"])
               for s, rows in report["checks"].items() for c in rows]
     return Validation(dict(report["verdict"]), table(checks, Check._fields), bool(report["independent"]),
@@ -169,10 +170,12 @@ def save(path: str | os.PathLike, result: Calibration | Validation | Diagnosis |
     """Write a result as its command writes it: a calibration file (``simucal.calibration/2``, as
     `simucal calibrate -o`), or the report of `simucal validate`, `diagnose` or `noise` (``-o``); a
     path ending in .html: the page of ``--html`` (a calibration's: a thermal one's, as `calibrate
-    --thermal --html`).
+    --thermal --html`, or a field one's, as `field-drift --html`).
 
     A diagnosis also writes each found term's model file beside it (<stem>_<sensor>_model.py).
-    calibration_path: where the calibration file is, for a thermal page's next command.
+    Refused (simucal.io.outputs.OutputError, one line) where path is inside or is one of the data the
+    result was made from, or a file of a measurement set (meta.json, samples.csv, ...).
+    calibration_path: where the calibration file is, for a thermal or field page's next command.
 
     Examples
     --------
@@ -182,6 +185,8 @@ def save(path: str | os.PathLike, result: Calibration | Validation | Diagnosis |
     from simucal.io import outputs
     if not isinstance(result, (_file.Calibration, Validation, Diagnosis, Noise)):
         raise TypeError(f"save: a Calibration, Validation, Diagnosis or Noise, not {type(result).__name__}")
+    # as every command: never into or over what the result was made from, nor over a set's own files
+    outputs.check(_inputs(result), files={str(path): path})
     if Path(path).suffix.lower() in (".html", ".htm"):
         return outputs.write_text(path, _page(result, str(calibration_path)))
     if isinstance(result, _file.Calibration):
@@ -192,12 +197,23 @@ def save(path: str | os.PathLike, result: Calibration | Validation | Diagnosis |
     return outputs.write_text(path, json.dumps(result.report, indent=1) + "\n")
 
 
+def _inputs(result: _file.Calibration | Validation | Diagnosis | Noise) -> list[str]:
+    """The folders and files a result was made from (as its report names them)."""
+    given = result.input if isinstance(result, _file.Calibration) else [
+        result.report.get(k) for k in ("input", "data", "calibration")]
+    return [p for p in (given if isinstance(given, list) else [given]) if isinstance(p, str) and Path(p).exists()]
+
+
 def _page(result: _file.Calibration | Validation | Diagnosis | Noise, calibration_path: str) -> str:
     """The self-contained HTML page of a result (the commands' --html)."""
     if isinstance(result, _file.Calibration):
+        if result.method == "field":
+            from simucal.report.field_html import field_page
+            return field_page(result, calibration_path)
         if not any(b.thermal is not None for _, b in result.blocks()):
-            raise ValueError("a page is a thermal calibration's (calibrate([plateaus...])): save this calibration "
-                             "as .json; for one set's page use simucal.diagnose or simucal.validate")
+            raise ValueError("a page is a thermal or field calibration's (calibrate([plateaus...]) or method='field'): "
+                             "save this calibration as .json; for one set's page use simucal.diagnose or "
+                             "simucal.validate")
         from simucal.report.thermal_html import thermal_page
         return thermal_page(result, cal_path=calibration_path)
     if isinstance(result, Validation):

@@ -4,11 +4,12 @@ from __future__ import annotations
 
 import json
 import os
-from dataclasses import dataclass, replace
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, NamedTuple, Sequence, Union
 
 from simucal import io
+from simucal.api.sets import as_set, folder_of
 from simucal.api.tables import table
 
 Data = Union[str, os.PathLike, io.MeasurementSet]
@@ -92,8 +93,7 @@ def diagnose(data: Data, *, add: Sequence[str] = (), acc_model: str = "acc_basel
     from simucal.report.console import next_command
     if "auto" in add:
         raise ValueError("add 'auto' is calibrate's: diagnose already ranks every candidate")
-    ms = replace(data) if isinstance(data, io.MeasurementSet) else io.read_set(data)
-    report = run(ms, add, acc_model, gyro_model, acc_noise_g, gyro_noise_dph, timestamps)
+    report = run(as_set(data), add, acc_model, gyro_model, acc_noise_g, gyro_noise_dph, timestamps)
     sensors = [s for s in ("acc", "gyro") if s in report]
     rows = [Candidate(c["id"].split(".")[0], c["id"], c.get("estimate"), c.get("std"), c.get("unit", ""),
                       c.get("statistic"), c.get("p_value"), bool(c.get("significant")), bool(c["separable"]),
@@ -190,7 +190,7 @@ def noise(data: Data, *, tau_max_s: float | None = None, scheduler: str | None =
     """
     from simucal import allan
     report = (allan.characterise(data, tau_max_s) if isinstance(data, io.MeasurementSet)
-              else allan.characterise_folder(data, tau_max_s, scheduler))
+              else allan.characterise_folder(folder_of(data), tau_max_s, scheduler))
     rows = [Term(s, a, k, t["name"], t["status"], t["value"] if t["status"] == "seen" else None, t.get("std"), t.get("bound_95"), t.get("needs_s"),
                  t["unit"])
             for s in ("acc", "gyro") if s in report for a, axis in report[s]["axes"].items()

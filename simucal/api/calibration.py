@@ -2,6 +2,7 @@
 arrays and DataFrames and `parameters` as a table."""
 from __future__ import annotations
 
+import warnings
 from dataclasses import fields
 from typing import Any, NamedTuple
 
@@ -11,6 +12,7 @@ from simucal.api.tables import table
 from simucal.errors import CalibrationError
 from simucal.fit import apply as fit_apply
 from simucal.fit.augmented import AugmentedModel
+from simucal.fit.thermal import PLAUSIBLE_C
 from simucal.generated.effects import EFFECTS
 from simucal.io import SAMPLE_COLS, arrays, calibration, units
 from simucal.io.calibration_checks import LAYOUT_KEYS
@@ -29,10 +31,19 @@ class Parameter(NamedTuple):
 
 
 def _model_rows(sensor, block) -> list[Parameter]:
+    """Each parameter at T_ref; for a thermal calibration also each coefficient of its polynomial
+    in (T - T_ref) (name.T1, name.T2, ...), in unit per degC^k."""
     model = AugmentedModel(block.model, block.library_effects())
-    return [Parameter(n, sensor, float(block.params[n]), float(block.std.get(n, np.nan)),
-                      block.param_units.get(n, u), m)
-            for n, u, m in zip(model.params, model.param_units, model.meanings)]
+    rows = []
+    for n, u, m in zip(model.params, model.param_units, model.meanings):
+        unit = block.param_units.get(n, u)
+        rows.append(Parameter(n, sensor, float(block.params[n]), float(block.std.get(n, np.nan)), unit,
+                              m + (f" (at T_ref = {block.thermal['t_ref_c']:.4g} degC)" if block.thermal else "")))
+        poly = (block.thermal or {}).get("parameters", {}).get(n, {})
+        for k, (c, e) in enumerate(zip(poly.get("coefficients", [])[1:], poly.get("std", [])[1:]), start=1):
+            rows.append(Parameter(f"{n}.T{k}", sensor, float(c), float(e), f"{unit}/degC" + (f"^{k}" if k > 1 else ""),
+                                  f"{m}: coefficient of (T - T_ref)^{k}"))
+    return rows
 
 
 def _affine_rows(sensor, block) -> list[Parameter]:
@@ -70,6 +81,10 @@ class Calibration(calibration.Calibration):
         """The same calibration as this class (its fields shared, not copied)."""
         return cal if isinstance(cal, cls) else cls(**{f.name: getattr(cal, f.name) for f in fields(cal)})
 
+    def __repr__(self) -> str:  # a notebook cell shows this: the file's every array is for parameters()
+        tested = ", ".join(f"{s} (p = {b.p_value:.2g})" if b.p_value is not None else s for s, b in self.blocks())
+        return f"<simucal.Calibration {self.method!r} of {self.input!r}: {tested or 'no sensor'}>"
+
     def parameters(self) -> Any:
         """Every parameter of every sensor's model as a table: a list of `Parameter` rows.
 
@@ -78,7 +93,9 @@ class Calibration(calibration.Calibration):
         pandas.DataFrame or list of Parameter
             ``(name, sensor, value, std, unit, meaning)`` per parameter: a DataFrame where pandas
             is installed, else a list of `Parameter` rows. An affine model (the multi-position
-            method, a stream's gyro) gives M's entries and the bias. std is the file's (inflated by
+            method, a stream's gyro) gives M's entries and the bias. A thermal calibration gives
+            each parameter at T_ref and below it each coefficient of its polynomial in (T - T_ref)
+            that the data hold (``b_x.T1`` in unit/degC, ``b_x.T2`` in unit/degC^2). std is the file's (inflated by
             the misfit where the model fails its test).
 
         Examples
@@ -109,7 +126,9 @@ class Calibration(calibration.Calibration):
         t_s : array_like of shape (n,), optional
             Each row's time (s), required where the model drifts in time.
         sensor : {"acc", "gyro"}, optional
-            Whose outputs an (n, 3) array holds, where the calibration has both.
+            Whose outputs an (n, 3) array holds, where the calibration has both; for a DataFrame,
+            the one sensor to apply (else every sensor of the calibration, whose columns must all
+            be there).
         columns : dict, optional
             For a DataFrame, its columns not named as the spec names them.
         gravity_mps2 : float
@@ -130,8 +149,7 @@ class Calibration(calibration.Calibration):
         if frame and temp_c is None and "temp_c" in x.columns:
             temp_c = x["temp_c"].to_numpy(float)
         _needs(self, temp_c, t_s)
-        given = {"acc_unit": acc_unit or self.layout.get("acc_unit", "g"),
-                 "gyro_unit": gyro_unit or self.layout.get("gyro_unit", "deg/h"), "gravity_mps2": gravity_mps2}
+        given = _given_units(self, acc_unit, gyro_unit, gravity_mps2)
         scales = {k: v for k, v in self.layout.items() if k in LAYOUT_KEYS}
         mine = {"acc_unit": "g", "gyro_unit": "deg/h", **scales, "gravity_mps2": gravity_mps2}
         # the caller's units to the calibration's own (its check refuses any other): exact for physical units
@@ -140,7 +158,9 @@ class Calibration(calibration.Calibration):
         ms = arrays.from_arrays(*raw, acc_unit=mine["acc_unit"], gyro_unit=mine["gyro_unit"], temp_c=temp_c,
                                 **({"t_s": t_s} if t_s is not None else {"rate_hz": 1.0}),
                                 meta={**scales, "latitude_deg": 0.0, "gravity_mps2": gravity_mps2}, name="x")
-        _, out, _ = fit_apply.apply(self, ms, "this calibration")
+        meta, out, _ = fit_apply.apply(self, ms, "this calibration")
+        for w in meta.get("warnings", []):  # rows outside the calibrated temperatures: said, as the command says it
+            warnings.warn(w.replace(" of samples.csv", " of x"), stacklevel=2)
         back = {"acc": given["acc_unit"] if given["acc_unit"] in PHYSICAL["acc"] else "g",
                 "gyro": given["gyro_unit"] if given["gyro_unit"] in PHYSICAL["gyro"] else "deg/h"}
         result: dict[str, np.ndarray] = {}
@@ -148,6 +168,7 @@ class Calibration(calibration.Calibration):
             if cols[0] in out:
                 u = np.column_stack([out[c] for c in cols])
                 result.update(zip(cols, to(u, {f"{s}_unit": back[s], "gravity_mps2": gravity_mps2}).T))
+        _plausible(result, back["acc"], given)
         if frame:
             df = x.copy()
             for c, v in result.items():
@@ -156,15 +177,38 @@ class Calibration(calibration.Calibration):
         return np.column_stack([result[c] for c in SAMPLE_COLS if c in result]).reshape(np.shape(x))
 
 
+def _plausible(result, acc_unit, given) -> None:
+    """A unit mix-up (pulse/s given as g) would come back silently absurd: refused as a set's is."""
+    if "ax" in result:
+        f = np.linalg.norm(np.column_stack([result[c] for c in SAMPLE_COLS[:3]]), axis=1)
+        units.check_magnitude("acc", f, 1.0 if acc_unit == "g" else given["gravity_mps2"],
+                              f"Calibration.apply(acc_unit={given['acc_unit']!r}): calibrated")
+
+
+def _given_units(cal, acc_unit, gyro_unit, gravity_mps2) -> dict:
+    """The caller's units (default the calibration's own), refused where simucal does not know one."""
+    given = {"acc_unit": acc_unit or cal.layout.get("acc_unit", "g"),
+             "gyro_unit": gyro_unit or cal.layout.get("gyro_unit", "deg/h"), "gravity_mps2": gravity_mps2}
+    for s, known in (("acc", units.ACC_UNITS), ("gyro", units.GYRO_UNITS)):
+        if given[f"{s}_unit"] not in known:
+            raise CalibrationError(f"{s}_unit={given[f'{s}_unit']!r}: not a unit simucal knows; one of {known}")
+    return given
+
+
 def _split(cal, x, frame, sensor, columns):
     """(acc, gyro, {spec name: the frame's column}) of x."""
     if frame:
         names = {c: c for c in SAMPLE_COLS} | dict(columns or {})
-        got = {s: x[[names[c] for c in cols]].to_numpy(float) if all(names[c] in x.columns for c in cols) else None
-               for s, cols in (("acc", SAMPLE_COLS[:3]), ("gyro", SAMPLE_COLS[3:]))}
-        if got["acc"] is None and got["gyro"] is None:
-            raise CalibrationError(f"the frame has neither ax ay az nor gx gy gz (columns: {list(x.columns)}): name "
-                                   "them with columns={'ax': ..., ...}")
+        wanted = [sensor] if sensor else cal.sensors
+        got = {}
+        for s, cols in (("acc", SAMPLE_COLS[:3]), ("gyro", SAMPLE_COLS[3:])):
+            missing = [names[c] for c in cols if names[c] not in x.columns]
+            if s in wanted and missing:  # a sensor left raw beside calibrated ones would pass unnoticed
+                raise CalibrationError(f"the frame lacks {', '.join(missing)} (the calibration's {s} reads "
+                                       f"{' '.join(names[c] for c in cols)}; its columns: {list(x.columns)}): name them "
+                                       "with columns={'" + cols[0] + "': ..., ...}" + ("" if sensor else
+                                       f", or apply one sensor with sensor='{'gyro' if s == 'acc' else 'acc'}'"))
+            got[s] = x[[names[c] for c in cols]].to_numpy(float) if s in wanted else None
         return got["acc"], got["gyro"], names
     a = np.asarray(x, float)
     if a.ndim != 2 or a.shape[1] not in (3, 6):
@@ -185,5 +229,11 @@ def _needs(cal, temp_c, t_s) -> None:
         reads.add("temp_c")
     if temp_c is None and reads & {"temp_c", "dtemp_c"}:
         raise CalibrationError("the calibration follows temperature: give each row's temp_c= (degC)")
+    if temp_c is not None and reads & {"temp_c", "dtemp_c"}:
+        T = np.asarray(temp_c, float)
+        if T.size and not (PLAUSIBLE_C[0] <= np.nanmin(T) and np.nanmax(T) <= PLAUSIBLE_C[1]):
+            raise CalibrationError(f"temp_c runs {np.nanmin(T):.4g} to {np.nanmax(T):.4g}, outside an IMU's rated "
+                                   f"{PLAUSIBLE_C[0]:g}..{PLAUSIBLE_C[1]:g} degC" + (
+                                       ": kelvin? give degC (C = K - 273.15)" if 250 <= np.nanmin(T) <= 400 else ""))
     if t_s is None and "t_s" in reads:
         raise CalibrationError("the calibration has a bias drifting in time: give each row's t_s= (s)")

@@ -3,7 +3,7 @@ DataFrames, so data held in Python need no folder."""
 from __future__ import annotations
 
 import os
-from dataclasses import fields
+from dataclasses import fields, replace
 from pathlib import Path
 from typing import Any, Mapping, Sequence
 
@@ -133,17 +133,19 @@ class MeasurementSet(io.MeasurementSet):
                                      t_s=t_s, segments=segments, meta=meta, name=name, cls=cls))
 
     def to_arrays(self) -> dict[str, np.ndarray]:
-        """The samples by column (ax ... gz as recorded, t_s, temp_c, segment, ...), as arrays.
+        """The samples by column as recorded, as arrays, in one order whatever made the set: t_s,
+        segment, ax ay az gx gy gz, temp_c, then any other column.
 
         Examples
         --------
         >>> import numpy as np, simucal
         >>> ms = simucal.MeasurementSet.from_arrays(np.tile([0, 0, 1.0], (5, 1)), None, acc_unit="g",
         ...                                         gyro_unit="deg/h", rate_hz=1.0)
-        >>> sorted(ms.to_arrays())
-        ['ax', 'ay', 'az', 't_s']
+        >>> list(ms.to_arrays())
+        ['t_s', 'ax', 'ay', 'az']
         """
-        return {k: np.asarray(v) for k, v in self.samples.items()}
+        first = [c for c in ("t_s", "segment", *io.SAMPLE_COLS, "temp_c") if c in self.samples]
+        return {k: np.asarray(self.samples[k]) for k in first + [c for c in self.samples if c not in first]}
 
     def write(self, folder: str | os.PathLike, *, force: bool = False) -> None:
         """Write the set as a folder (meta.json, samples.csv, segments.csv; a simulated set's truth.json),
@@ -165,3 +167,18 @@ class MeasurementSet(io.MeasurementSet):
         outputs.check(sets=[folder], force=force)
         io.write_set(Path(folder), {k: v for k, v in self.meta.items() if k != "format"}, self.samples, self.segments,
                      {"truth.json": self.truth} if self.truth is not None else None)
+
+
+def folder_of(data: Any) -> str | os.PathLike:
+    """data as a set's folder, or a one-line TypeError naming the constructor it needs."""
+    if isinstance(data, (str, os.PathLike)):
+        return data
+    how = "from_dataframe(df, ...)" if type(data).__name__ == "DataFrame" else "from_arrays(...)"
+    raise TypeError(f"a measurement set's folder or a simucal.MeasurementSet, not {type(data).__name__}; make one "
+                    f"with simucal.MeasurementSet.{how}")
+
+
+def as_set(data: Any) -> io.MeasurementSet:
+    """A folder read, or a copy of the caller's set (a calibration records the user's T_ref on the
+    set it is given, which stays the caller's)."""
+    return replace(data) if isinstance(data, io.MeasurementSet) else io.read_set(folder_of(data))

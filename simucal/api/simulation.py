@@ -5,10 +5,11 @@ from __future__ import annotations
 from pathlib import Path
 from typing import Any, Mapping, Sequence, Union
 
+from simucal import methods
 from simucal.api.sets import MeasurementSet
 
 Pairs = Union[Mapping[str, float], Sequence[str]]  # {name: value} or the command's "NAME=VALUE" strings
-SCENARIOS = ("paper", "field", "handheld")
+SCENARIOS = tuple(methods.SCENARIOS)  # paper, field, handheld: a kind of data each (methods.KINDS)
 # the turntable test's options, by their Python names, with the command's spelling (refusals name both)
 TABLE_ONLY = {"sequence": "--sequence", "plan": "--plan", "position_error_arcmin": "--position-error-arcmin", "acc_model": "--acc-model",
               "gyro_model": "--gyro-model", "acc_unit": "--acc-unit", "gyro_unit": "--gyro-unit",
@@ -67,8 +68,8 @@ def simulate(scenario: str = "paper", *, seed: int = 0, rate_hz: float | None = 
         field 100 Hz; hand-placed 100 Hz.
     plan, sequence : str, optional
         Turntable: a plan, "table1" (default), "dodecahedron20", "fibonacci24", "fibonacci48" or a CSV of
-        outer_deg,middle_deg,inner_deg; or a rotation sequence (raw samples, ``method="systematic"``'s
-        data), "psins19", "dong2018" or a CSV of axis,angle_deg,rate_dps,rest_s (turntable/sequence.py).
+        outer_deg,middle_deg,inner_deg; or a rotation sequence (``method="systematic"``'s raw data), "psins19",
+        "dong2018" or a CSV of axis,angle_deg,rate_dps,rest_s (turntable/sequence.py).
     effects : dict or list of str, optional
         Effects planted in the truth, ``{effect id: value in its term's unit}`` (or "ID=VALUE"),
         e.g. ``{"acc.quadratic.z": 2e-4}``; turntable and hand-placed.
@@ -109,53 +110,11 @@ def simulate(scenario: str = "paper", *, seed: int = 0, rate_hz: float | None = 
                          sets=sets, columns=columns, temperature_c=temperature_c, t_ref_c=t_ref_c,
                          temperature_wander_c=temperature_wander_c, noise_stated=not noise_stated)
     _refuse_unused(scenario, table_options, effects, heading_accuracy_deg)
-    meta, samples, segments, truth = (_field(seed, rate_hz, heading_accuracy_deg) if scenario == "field" else
-                                      _handheld(seed, rate_hz, effects) if scenario == "handheld" else
-                                      _turntable(seed, rate_hz, {**table_options, "effects": effects}))
+    options = {**table_options, "effects": _strings(effects), "sets": _strings(sets),  # the command's values
+               "columns": _strings(columns, _span), "temperature": None if temperature_c is None else _span(temperature_c), "state_noise": noise_stated,
+               "heading_accuracy_deg": heading_accuracy_deg}
+    meta, samples, segments, truth = methods.SCENARIOS[scenario].simulate(seed, rate_hz, options)
     ms = MeasurementSet(Path(f"simulated_{scenario}_seed{seed}"), meta, samples, segments)  # the name errors say
     ms.truth = truth
     return ms
 
-
-def _field(seed, rate_hz, heading_accuracy_deg):
-    from simucal.field.simulate import FieldScenario, simulate_field
-    return simulate_field(FieldScenario(**{k: v for k, v in (("heading_error_deg", heading_accuracy_deg),
-                                                              ("rate_hz", rate_hz)) if v is not None}), seed)
-
-
-def _handheld(seed, rate_hz, effects):
-    from simucal.handheld.simulate import HandheldScenario, simulate_handheld
-    from simucal.turntable.simulate import Scenario, plant
-    sc = Scenario()  # the effects parsed and checked as a turntable test's are
-    plant(sc, _strings(effects))
-    hs = HandheldScenario(acc_effects=sc.acc_effects, gyro_effects=sc.gyro_effects,
-                          **({"rate_hz": rate_hz} if rate_hz is not None else {}))
-    meta, samples, truth = simulate_handheld(hs, seed)
-    return meta, samples, None, truth
-
-
-def _turntable(seed, rate_hz, o):
-    from simucal.turntable.simulate import ARCMIN, Scenario, at_temperature, plant
-    from simucal.turntable.simulate import simulate as simulate_table
-    sc = Scenario()
-    for key in ("plan", "acc_model", "gyro_model", "acc_unit", "gyro_unit"):
-        if o[key] is not None:
-            setattr(sc, key, o[key])
-    if rate_hz is not None:
-        sc.rate_hz = rate_hz
-    if o["position_error_arcmin"] is not None:
-        sc.position_error_rad = o["position_error_arcmin"] * ARCMIN
-    sc.state_noise = not o["noise_stated"]
-    columns = _strings(o["columns"], _span)
-    temperature = None if o["temperature_c"] is None else _span(o["temperature_c"])
-    at_temperature(sc, temperature, columns=columns, **{k: v for k, v in (("t_ref_c", o["t_ref_c"]),
-                                                                        ("wander_c", o["temperature_wander_c"]))
-                                                     if v is not None})
-    plant(sc, _strings(o["effects"]), o["effect_file"], _strings(o["sets"]), columns)
-    if o["sequence"] is None:
-        return simulate_table(sc, seed)
-    from simucal.turntable.sequence import simulate_sequence
-    if o["plan"] is not None or columns or temperature is not None:
-        raise ValueError("--sequence: the table turns through the sequence; --plan, --column and --temperature-c "
-                         "describe a plan's positions: leave them out")
-    return simulate_sequence(sc, o["sequence"], seed)

@@ -211,9 +211,7 @@ def field_drift(data_dir, output, html_path, plot, heading_accuracy_deg):
         fail(e)
     api.save(output, result)
     if html_path:
-        from simucal.io import outputs
-        from simucal.report.field_html import field_page
-        outputs.write_text(html_path, field_page(result))
+        api.save(html_path, result, calibration_path=output)
     if plot:
         plot_history(result.details["field"]["history"], plot)
     from simucal.report.console import calibration_lines

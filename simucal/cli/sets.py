@@ -5,6 +5,8 @@ from pathlib import Path
 
 import click
 
+from simucal import methods
+
 from simucal.cli.common import (
     EFFECT_FILE,
     FORCE,
@@ -23,7 +25,7 @@ from simucal.cli.common import (
 )
 
 # io/units.py's names, written here so that the command line starts without numpy (tests/test_api.py holds them equal)
-SCENARIOS = ("paper", "field", "handheld")  # api/simulation.py's
+SCENARIOS = tuple(methods.SCENARIOS)  # a kind of data each (methods.KINDS: the command line reads it at start)
 ACC_UNITS = ("g", "m/s^2", "pulse/s", "counts")
 GYRO_UNITS = ("deg/h", "deg/s", "rad/s", "pulse/s", "counts")
 DEFAULT_GRAVITY = 9.80665
@@ -38,7 +40,8 @@ ANNOTATED_HZ, ANNOTATED_ACC, ANNOTATED_GYRO = 204.8, 2048.0, 16.4  # imucal's an
               help="The output folder (a measurement set and truth.json); may also be given as the argument.")
 @click.option("--scenario", type=click.Choice(SCENARIOS), default="paper", show_default=True,
               help="Preset: 'paper' is dong2018 section 4 (turntable); 'field' is ruan2019 (three positions, no table); "
-                   "'handheld' a hand-placed session (a stream in counts, 30 poses held 5 s between moves).")
+                   "'handheld' a hand-placed session (a stream in counts, 30 poses held 5 s between moves); "
+                   "'sequence' the turntable turning through psins19 (raw samples; --sequence for another).")
 @click.option("--heading-accuracy-deg", "--heading-error-deg", "heading_error_deg", type=Number(0.0, 180.0), default=None,
               show_default="5", help="field: the north reference's accuracy, deg; its error is drawn uniform +- this.")
 @click.option("--seed", type=SEED, default=0, show_default=True,

@@ -255,7 +255,7 @@ def plot_formats() -> list[str]:
     return sorted(FigureCanvasBase.get_supported_filetypes())
 
 
-def _history_figure(hist):
+def history_figure(hist):
     """The paper's Fig. 4: each position's eps_N estimate with its 1-sigma bounds (field_drift's history)."""
     import matplotlib
     matplotlib.use("Agg")
@@ -276,17 +276,7 @@ def _history_figure(hist):
 
 def plot_history(hist, path):
     """Fig. 4 as an image file (its format from path's ending)."""
-    fig, plt = _history_figure(hist)
+    fig, plt = history_figure(hist)
     with outputs.replacing(path) as tmp:
         fig.savefig(tmp, dpi=90, format=Path(path).suffix.lstrip(".") or "png")
     plt.close(fig)
-
-
-def history_svg(hist) -> str:
-    """Fig. 4 as SVG text, for a page (field-drift --html)."""
-    import io as text_io
-    fig, plt = _history_figure(hist)
-    buf = text_io.StringIO()
-    fig.savefig(buf, format="svg")
-    plt.close(fig)
-    return buf.getvalue()[buf.getvalue().index("<svg"):]  # the element alone, without the XML prologue

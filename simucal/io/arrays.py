@@ -50,7 +50,11 @@ def _times(n, rate_hz, t_s) -> np.ndarray:
 
 
 def _segment_table(segments) -> list[Segment]:
-    """Segments from Segment objects or mappings with segments.csv's columns."""
+    """Segments from Segment objects, mappings with segments.csv's columns, or a DataFrame of them
+    (as pandas reads segments.csv: an empty cell NaN, here None)."""
+    if hasattr(segments, "to_dict") and hasattr(segments, "columns"):
+        segments = [{k: None if isinstance(v, float) and v != v else v for k, v in row.items()}
+                    for row in segments.to_dict("records")]
     out = []
     for i, s in enumerate(segments):
         if isinstance(s, Segment):

@@ -112,7 +112,8 @@ def check(inputs=(), files=(), sets=(), folders=(), force=False) -> None:
                               "name")
     for s in [Path(s) for s in sets if s]:
         if s.is_dir() and holds_set(s) and not force:
-            raise OutputError(f"{s}: already holds a measurement set; choose a new folder (or --force to replace it)")
+            raise OutputError(f"{s}: already holds a measurement set; choose a new folder (or --force, force=True in "
+                              "Python, to replace it)")
     _writable([(f, f.parent) for f in files] + [(d, d) for d in sets + folders])
 
 

@@ -1,18 +1,25 @@
-"""field-drift --html: the calibration's console lines and the paper's Fig. 4 (ruan2019), one
-self-contained page."""
+"""field-drift --html: the page of a field calibration (ruan2019) in the shared shell (report/page.py):
+a verdict per sensor, the next command, the calibration's console lines, and the paper's Fig. 4."""
 from __future__ import annotations
 
 import html
 
-from simucal.field.drift import history_svg
+from simucal.field.drift import history_figure
 from simucal.report.console import calibration_lines
+from simucal.report.page import page, png
 
 
-def field_page(result) -> str:
-    """The page of a field calibration (`calibrate --method field`'s result with its filter history)."""
-    text = html.escape("\n".join(calibration_lines(result)))
-    return ("<!DOCTYPE html>\n<html><head><meta charset='utf-8'><title>simucal field drift</title>"
-            "<style>body{font-family:sans-serif;max-width:1000px;margin:1em auto}pre{white-space:pre-wrap}</style>"
-            f"</head><body><h1>Field gyro drift (ruan2019)</h1><pre>{text}</pre>"
-            "<h2>Each position's north drift estimate (Fig. 4)</h2>"
-            f"{history_svg(result.details['field']['history'])}</body></html>\n")
+def field_page(result, calibration_path: str) -> str:
+    """The page of a field calibration (`calibrate --method field`'s result with its filter history),
+    saved at calibration_path (for the next command)."""
+    lines = list(calibration_lines(result))
+    gyro = [t for t in lines if t.startswith("gyro: bias")]
+    acc = [t for t in lines if t.startswith("acc:")]
+    verdicts = [(True, t) for t in gyro] + [(False, t) for t in acc]
+    rest = html.escape("\n".join(t for t in lines if t not in gyro + acc))
+    fig, _ = history_figure(result.details["field"]["history"])
+    return page("simucal field drift", "Field gyro drift (ruan2019)", verdicts,
+                f"simucal apply {calibration_path} DATA_DIR -o calibrated",
+                ["DATA_DIR: a recording of the same unit to correct with the drift above"],
+                [f"<pre style='white-space:pre-wrap'>{rest}</pre>",
+                 "<h2>Each position's north drift estimate (Fig. 4)</h2>", png(fig)]) + "\n"

@@ -33,7 +33,7 @@ UNOBSERVABLE = 0.5      # a std above this fraction of its prior: the sequence d
 
 def rests_and_moves(ms):
     """The segments in recording order, refused in one line where the set is no sequence."""
-    if ms.segments is None or not any(s.kind == "move" for s in ms.segments):
+    if not any(s.kind == "move" for s in ms.segments or ()):
         raise CalibrationError(f"{ms.path}: systematic calibration needs a rotation sequence (segments.csv with "
                                "static and move segments, raw samples throughout): record one, or simulate it "
                                "with `simucal simulate --sequence psins19`")

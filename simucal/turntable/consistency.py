@@ -29,7 +29,8 @@ from simucal.fit.distributions import chi2_sf, t_isf
 from simucal.fit.rotations import log_so3, wahba
 from simucal.fit.aux_inputs import AuxInputs, column_means
 from simucal.io import run_or_rows, units
-from simucal.turntable.observations import commanded_up_k, mean_and_sigma, refuse_outliers
+from simucal.fit.noise import mean_and_sigma
+from simucal.turntable.observations import commanded_up_k, refuse_outliers
 
 FIVE_SIGMA_TAIL = float(chi2_sf(25.0, 1)) / 2  # the normal tail beyond 5 sigma, one side
 GROSS_RAD = 0.05  # a direction residual no table (1 deg errors give 0.017 rad) or noise explains

@@ -11,65 +11,11 @@ from simucal.errors import CalibrationError
 from simucal.fit import aux_inputs
 from simucal.fit.augmented import AugmentedModel
 from simucal.fit.aux_inputs import AuxInputs, column_means
-from simucal.fit.noise import white_noise_var
+from simucal.fit.noise import mean_and_sigma, white_noise_var
 from simucal.fit.norm_fit import Observations
 from simucal.generated import table
 from simucal.io import calibration, run_or_rows, units
 from simucal.io.sensor_checks import saturated_rows
-
-
-def mean_and_sigma(x, stated, varying=False, angle_rad=None):
-    """Mean of a segment's rows and the std of that mean.
-
-    Several rows: from their scatter, with the lag-1 autocorrelation taken into account
-    (effective sample count). A rate run (varying=True) holds a deterministic signal, its
-    inputs turning in the body at the outer angle: given each row's outer angle (angle_rad),
-    the rows are fitted by a constant and the angle's first HARMONICS (turning_mean), whose
-    constant is the mean over whole revolutions whatever the rows span and whose residuals
-    are the noise; without the angles, first differences, which remove a signal that
-    changes little from row to row. One row: the stated noise, if any, else NaN
-    (lack_of_fit.fit_with_noise then estimates a variance component for such rows).
-    """
-    n = len(x)
-    if varying and angle_rad is not None and n > 2 * (2 * HARMONICS + 1):
-        return turning_mean(x, angle_rad)
-    if n >= 3 and varying:
-        return x.mean(0), np.sqrt(white_noise_var(x, ddof=1) / n)
-    if n >= 3:
-        return x.mean(0), np.sqrt(x.var(0, ddof=1) / _effective_count(x - x.mean(0)))
-    return x.mean(0), np.full(3, np.nan if stated is None else stated / np.sqrt(n))
-
-
-HARMONICS = 3  # of the outer angle in a rate run: the turning inputs, and their squares and cubes in a model
-
-
-def turning_mean(x, angle_rad):
-    """(mean over whole revolutions, its std) of a rate run's rows x (n, 3) at outer angles angle_rad
-    (n,): least squares on [1, cos k a, sin k a] (k = 1..HARMONICS). Every input of the run turns
-    with the outer angle, so a model's output there is a sum of these harmonics, and the constant is
-    its average over a revolution (what the norm fit takes) even where the rows span a revolution
-    only in part (a sample count that is not a whole number per revolution); its variance is the
-    residuals' (n - 2 HARMONICS - 1 dof) times (X^T X)^-1_00, for correlated noise times
-    (1 + r1) / (1 - r1) (lag-1 autocorrelation r1 of the residuals)."""
-    a = np.asarray(angle_rad, float)
-    X = np.empty((len(a), 2 * HARMONICS + 1))
-    X[:, 0] = 1.0
-    z = zk = np.exp(1j * a)  # cos k a + i sin k a as powers of one exponential: 2 HARMONICS fewer trig passes
-    for k in range(1, HARMONICS + 1):
-        X[:, k], X[:, HARMONICS + k] = zk.real, zk.imag
-        zk = zk * z
-    G_inv = np.linalg.inv(X.T @ X)  # 7 x 7 and well conditioned (harmonics over most of a revolution or more):
-    coef = G_inv @ (X.T @ x)        # the normal equations, a tenth of lstsq's SVD of the n x 7 rows
-    res = x - X @ coef
-    var = np.sum(res ** 2, 0) / (len(a) - X.shape[1])
-    return coef[0], np.sqrt(var * G_inv[0, 0] * len(a) / _effective_count(res))
-
-
-def _effective_count(d):
-    """n (1 - r1) / (1 + r1) of rows d (n, 3) about their mean, per axis: the count of independent
-    rows that gives their mean the same variance under lag-1 autocorrelation r1."""
-    r1 = np.clip(np.sum(d[1:] * d[:-1], 0) / np.maximum(np.sum(d * d, 0), 1e-300), -0.9, 0.99)
-    return np.maximum(len(d) * (1 - r1) / (1 + r1), 1.0)
 
 
 def outer_angle_rad(ms, rows, segment):

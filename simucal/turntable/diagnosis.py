@@ -1,0 +1,85 @@
+"""`simucal diagnose` on a turntable test (or a field set: its static segments), what differs from a
+stream (the registry of kinds of data: methods.py): each sensor tested on the model test's rows
+(model_test.ROWS), a found gyro term judged against its twins at rest, the handedness over both
+triads, and the gyro's static rows against the Earth rate."""
+from __future__ import annotations
+
+from simucal.errors import CalibrationError
+from simucal.fit.candidates import verdict
+from simucal.fit.lack_of_fit import twin_fits
+from simucal.fit.results import ALPHA
+from simucal.turntable.calibrate import calibrate_table
+from simucal.turntable.consistency import handedness_verdict, mirrored
+from simucal.turntable.model_test import ROWS, with_static_rows
+from simucal.turntable.observations import check_rate_sense, segment_observations
+
+
+def observations(ms, sensor, stated):
+    """(Observations, segments, segments) of the one model test's rows, calibrate's too
+    (turntable/model_test.py), or None where the set has none for this sensor."""
+    obs, segs = segment_observations(ms, sensor, ROWS[sensor], stated)
+    if sensor == "gyro":
+        check_rate_sense(ms, obs, segs)
+    return (obs, segs, segs) if segs else None
+
+
+def sensor_extras(sensor, model, obs, fit, segs, shape) -> dict:
+    """A block's keys for finish: the triad's mirror test, and a gyro term the rate runs cannot tell
+    from its twins fitted as each of them (judged at rest in finish)."""
+    out = {}
+    if shape and sensor == "gyro" and shape["indistinguishable_here"]:
+        out["twin_fits"] = twin_fits(model, obs, fit, shape)
+    out["mirror"] = mirrored(fit, segs, sensor == "gyro")  # judged over both triads in finish
+    return out
+
+
+def finish(ms, result, settings) -> None:
+    """The gyro's static rows (with both triads) and a reflected triad, as calibrate refuses it, into
+    the diagnosis result; settings: calibrate_table's (acc_model, gyro_model, ids, acc_noise_g,
+    gyro_noise_dph)."""
+    if "gyro" in result and "acc" in result:
+        _with_static_gyro_rows(ms, result["gyro"], settings)
+    notes = handedness_verdict(ms, {("accelerometer" if s == "acc" else s): result[s].pop("mirror")
+                                    for s in ("acc", "gyro") if s in result})
+    if notes:
+        result["notes"] = notes
+
+
+def _with_static_gyro_rows(ms, block, settings) -> None:
+    """The gyro's test over its static rows too, as calibrate's (model_test.with_static_rows): they need
+    the accelerometers' up and C_b^d, so calibrate's exact method gives them; where it refuses the set,
+    the rate runs' test stands (calibrate says why). Where the rate runs cannot tell the found term
+    from its twins, the static rows choose among them (_choose_twin)."""
+    fits, judged = block.pop("twin_fits", []), []
+    probe = (lambda test: judged.extend((tf, test(tf)) for tf in fits)) if fits else None
+    try:
+        gyro = calibrate_table(ms, "exact", *settings, static_probe=probe).gyro
+    except CalibrationError:
+        return
+    if gyro is None or "static_rows" not in gyro.details:
+        return
+    st = gyro.details["static_rows"]
+    with_static_rows(block["model_test"], st)
+    chose = _choose_twin(block, judged)
+    block["verdict"] = verdict("gyro", block["model_test"], block["candidates"], str(ms.path), block.get("shape"),
+                                None) + (
+        f" At rest: {st['verdict']}." if st.get("p_value", 1.0) < ALPHA else "") + chose
+
+
+def _choose_twin(block, judged) -> str:
+    """Of the found term and its twins (which the rate runs cannot tell apart), the one whose fit
+    predicts the static rows best (lowest chi-square, all on the same rows) becomes the shape and its
+    model file, the others its twins; returns the verdict's sentence on the choice ('' if none made)."""
+    judged = [(tf, st) for tf, st in judged if "chi2" in st]
+    if len(judged) < 2:
+        return ""
+    tf, st = min(judged, key=lambda j: j[1]["chi2"])
+    label = lambda s: f"{s['regressor']} on {s['axis']}"
+    at_rest = {label(t["shape"]): {k: s[k] for k in ("chi2", "dof", "p_value")} for t, s in judged}
+    block["shape"] = {**tf["shape"], "static_rows": at_rest}
+    others = "; ".join(f"{k}: chi2 {v['chi2']:.1f}" for k, v in at_rest.items() if k != label(tf["shape"]))
+    said = (f" The rate runs cannot tell {label(tf['shape'])} from its twins; the static rows chose it (chi2 "
+            f"{st['chi2']:.1f} on {st['dof']} dof, p = {st['p_value']:.2g}, against {others})")
+    return said + ("." if st["p_value"] >= ALPHA else ", though none of them passes at rest.")
+
+

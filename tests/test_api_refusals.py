@@ -1,0 +1,103 @@
+"""The Python API holds the commands' standards (found by a new user's review): it never writes over
+its inputs, never leaves a sensor raw or a unit mix-up unsaid, refuses what it cannot use in one
+line, and gives the same table whatever made a set."""
+import numpy as np
+import pandas as pd
+import pytest
+
+import simucal
+from simucal.errors import CalibrationError
+from simucal.io.outputs import OutputError
+
+
+@pytest.fixture(scope="module")
+def made(tmp_path_factory):
+    """A raw turntable set (5 Hz) and its calibration; two other recordings of the same unit."""
+    root = tmp_path_factory.mktemp("api_refusals")
+    for name, seed in (("a", 1), ("b", 2)):
+        simucal.simulate(seed=seed, rate_hz=5.0).write(root / name)
+    return root, simucal.calibrate(str(root / "a"))
+
+
+def test_save_never_writes_over_data(made, tmp_path):
+    root, cal = made
+    meta = (root / "b" / "meta.json").read_bytes()
+    with pytest.raises(OutputError, match="would write over a file of the measurement set"):
+        simucal.save(root / "b" / "meta.json", cal)
+    with pytest.raises(OutputError, match="into the input"):
+        simucal.save(root / "a" / "cal.json", cal)  # inside the set it was made from
+    with pytest.raises(OutputError, match="into the input"):
+        simucal.save(root / "a" / "v.json", simucal.validate(cal, str(root / "a")))
+    assert (root / "b" / "meta.json").read_bytes() == meta
+    simucal.save(tmp_path / "cal.json", cal)
+    assert simucal.load(tmp_path / "cal.json").acc.params == cal.acc.params
+
+
+def test_a_frame_with_a_sensor_partly_missing_is_refused(made):
+    root, cal = made
+    df = pd.DataFrame(simucal.read_set(str(root / "b")).to_arrays())
+    with pytest.raises(CalibrationError, match="the frame lacks gz"):
+        cal.apply(df.drop(columns=["gz"]))
+    typo = df.rename(columns={"ax": "acc_x", "ay": "acc_y", "az": "acc_z"})
+    with pytest.raises(CalibrationError, match="the frame lacks ACC_X"):
+        cal.apply(typo, columns={"ax": "ACC_X", "ay": "acc_y", "az": "acc_z"})
+    only_acc = cal.apply(df.drop(columns=["gx", "gy", "gz"]), sensor="acc")  # one sensor, said so
+    both = cal.apply(df)
+    assert np.allclose(only_acc[["ax", "ay", "az"]], both[["ax", "ay", "az"]])
+    assert np.allclose(np.linalg.norm(both[["ax", "ay", "az"]].to_numpy(), axis=1).mean(), 1.0, atol=1e-3)
+
+
+def test_units_unknown_or_mixed_up_are_refused(made):
+    root, cal = made
+    raw = simucal.read_set(str(root / "b"))
+    x = np.column_stack([raw.samples[c] for c in ("ax", "ay", "az", "gx", "gy", "gz")])  # pulse/s, as recorded
+    with pytest.raises(CalibrationError, match=r"acc_unit='mg': not a unit simucal knows; one of \('g'"):
+        cal.apply(x, acc_unit="mg")
+    with pytest.raises(CalibrationError, match="gyro_unit='dps'"):
+        cal.apply(x, gyro_unit="dps")
+    with pytest.raises(CalibrationError, match=r"acc_unit='g'\): calibrated: the acc outputs are .* times the known"):
+        cal.apply(x, acc_unit="g")  # pulse/s said to be g
+
+
+def test_other_objects_are_refused_naming_the_constructor(made):
+    root, cal = made
+    df = pd.DataFrame(simucal.read_set(str(root / "b")).to_arrays())
+    for call in (lambda: simucal.calibrate(df), lambda: simucal.validate(cal, df), lambda: simucal.noise(df),
+                 lambda: simucal.diagnose(df)):
+        with pytest.raises(TypeError, match=r"not DataFrame; make one with simucal.MeasurementSet.from_dataframe"):
+            call()
+
+
+def test_one_column_order_and_segments_from_a_frame(made, tmp_path):
+    root, _ = made
+    sim = simucal.simulate(seed=2, rate_hz=5.0)
+    assert list(sim.to_arrays()) == list(simucal.read_set(str(root / "b")).to_arrays())[:len(sim.to_arrays())]
+    assert list(sim.to_arrays())[:8] == ["t_s", "segment", "ax", "ay", "az", "gx", "gy", "gz"]
+    ms = simucal.read_set(str(root / "b"))
+    back = simucal.MeasurementSet.from_dataframe(pd.DataFrame(ms.to_arrays()), acc_unit=ms.meta["acc_unit"],
+                                                 gyro_unit=ms.meta["gyro_unit"], meta=ms.meta,
+                                                 segments=pd.read_csv(root / "b" / "segments.csv"))
+    assert back.segments == ms.segments  # rate runs' empty outer_deg: None, as the reader has it
+
+
+def test_add_as_text_and_thermal_of_one_ramp():
+    sets = [simucal.simulate(seed=t, temperature_c=float(t), rate_hz=2.0, effects={"acc.bias_temperature.x": 1e-5})
+            for t in (0, 25, 50)]
+    cal = simucal.calibrate(sets)  # in-memory plateaus
+    rows = cal.parameters()
+    slope = rows[(rows.sensor == "acc") & (rows.name == "b_x.T1")].iloc[0]
+    assert slope.unit == "g/degC" and abs(slope.value - 1e-5) < 4 * slope['std'], slope
+    ramp = simucal.simulate(seed=3, temperature_c=(0.0, 50.0), rate_hz=2.0)
+    assert simucal.calibrate(ramp, thermal=True).acc.thermal is not None  # thermal=True is not ignored
+    assert "acc.quadratic.z" in simucal.calibrate(sets[1], add="acc.quadratic.z").acc.effects  # not its letters
+    th = simucal.calibrate(sets)
+    x = np.column_stack([sets[1].samples[c] for c in ("ax", "ay", "az", "gx", "gy", "gz")])
+    with pytest.raises(CalibrationError, match="kelvin"):
+        th.apply(x, temp_c=np.full(len(x), 298.0))
+    with pytest.warns(UserWarning, match="temp_c"):
+        th.apply(x, temp_c=np.full(len(x), 90.0))  # beyond the calibrated 0..50 degC: said
+
+
+def test_the_whole_api_is_listed():
+    assert {"lot", "calibrate", "MeasurementSet"} <= set(dir(simucal))
+    assert callable(simucal.lot)
