@@ -6,7 +6,8 @@ read this table. A new method is its own module, one entry here and a test.
 The data a set holds decide which methods apply (data_kind, the one place that looks): a
 turntable test has segments.csv with commanded table angles; a stream has no segments.csv (a
 hand-placed session, static poses found from the data); a field set has segments.csv with a north
-reference (heading_ref_deg) and no table angles (ruan2019). Each kind of data is one entry of
+reference (heading_ref_deg) and no table angles (ruan2019); a sequence has segments.csv with move
+segments between its rests (the table turning, raw samples throughout: systematic calibration). Each kind of data is one entry of
 KINDS (`kind_of(ms)`), which supplies what the commands do differently with it: its simulator,
 its diagnosis (the observations each sensor's model is tested on, and the checks over the set), its
 validation checks and its still stretches for `simucal noise`. A new kind of data is its module(s)
@@ -19,8 +20,9 @@ from typing import Callable
 
 from simucal.errors import CalibrationError
 
-TURNTABLE, STREAM, FIELD = "turntable", "stream", "field"
-DATA = {TURNTABLE: "a turntable test (segments.csv with commanded table angles)",
+TURNTABLE, STREAM, FIELD, SEQUENCE = "turntable", "stream", "field", "sequence"
+DATA = {SEQUENCE: "a rotation sequence (segments.csv with move segments between rests, raw samples)",
+        TURNTABLE: "a turntable test (segments.csv with commanded table angles)",
         STREAM: "a continuous stream (no segments.csv: a hand-placed session)",
         FIELD: "a field set (segments.csv with heading_ref_deg, no table angles)"}
 
@@ -61,6 +63,11 @@ def _handheld(ms, acc_model, ids, auto, detect):
                               gyro_effects=for_sensor(ids, "gyro"), auto=auto)
 
 
+def _systematic(ms, acc_model, gyro_model, ids):
+    from simucal.systematic.method import calibrate_systematic
+    return calibrate_systematic(ms, acc_model, gyro_model, ids)
+
+
 def _field(ms, heading_accuracy_deg):
     from simucal.field.drift import field_calibration
     return field_calibration(ms, heading_accuracy_deg)
@@ -83,6 +90,9 @@ METHODS = {m.name: m for m in (
     Method("field", FIELD, "ruan2019: the gyro constant drift from three static positions with a north reference "
            "(two-stage alignment, a Kalman filter per position, least squares)", ("heading_accuracy_deg",),
            _field),
+    Method("systematic", SEQUENCE, "systematic calibration: strapdown navigation through a rotation sequence, an "
+           "error-state Kalman filter (states derived from the error models) and RTS smoother on zero velocity at "
+           "rest", ("acc_model", "gyro_model", "ids"), _systematic),
 )}
 NAMES = tuple(METHODS)
 
@@ -96,6 +106,8 @@ def data_kind(ms) -> str:
     """TURNTABLE, STREAM or FIELD (module doc): the one function that tells a set's kind."""
     if ms.segments is None:
         return STREAM
+    if any(s.kind == "move" for s in ms.segments):
+        return SEQUENCE
     static = [s for s in ms.segments if s.kind == "static"]
     no_table = all(s.middle_deg is None and s.inner_deg is None for s in static)
     return FIELD if no_table and any(s.heading_ref_deg is not None for s in static) else TURNTABLE
@@ -213,7 +225,13 @@ def _simulate_table(seed, rate_hz, o):
     at_temperature(sc, o["temperature"], columns=o["columns"], **{k: o[key] for k, key in (
         ("t_ref_c", "t_ref_c"), ("wander_c", "temperature_wander_c")) if o[key] is not None})
     plant(sc, o["effects"], o["effect_file"], o["sets"], o["columns"])
-    return simulate_table(sc, seed)
+    if o.get("sequence") is None:
+        return simulate_table(sc, seed)
+    from simucal.turntable.sequence import simulate_sequence
+    if o["plan"] is not None or o["columns"] or o["temperature"] is not None:
+        raise ValueError("--sequence: the table turns through the sequence; --plan, --column and --temperature-c "
+                         "describe a plan's positions: leave them out")
+    return simulate_sequence(sc, o["sequence"], seed)
 
 
 def _simulate_stream(seed, rate_hz, o):
@@ -238,6 +256,9 @@ KINDS = {k.name: k for k in (
          _static_segments, False),
     Kind(FIELD, "field", _simulate_field, _table_observations, None, _table_extras, _table_finish, _table_checks,
          _static_segments, False),  # its static segments, as a turntable test's
+    Kind(SEQUENCE, "sequence", lambda seed, rate_hz, o: _simulate_table(seed, rate_hz, {**o, "sequence": o.get(
+        "sequence") or "psins19"}), _table_observations, None, _table_extras, _table_finish, _table_checks,
+         _static_segments, False),  # its rests, as a turntable test's static positions
     Kind(STREAM, "handheld", _simulate_stream, _stream_observations, _stream_gyro, _no_extras, _stream_finish,
          _stream_checks, _whole_stream, True),
 )}

@@ -12,12 +12,12 @@ import simucal
 
 ROOT = Path(simucal.__file__).parent
 # Lower layers first; a module may import from its own layer's package and from lower layers.
-# The three methods sit side by side and never import each other.
+# The methods sit side by side and never import each other.
 LAYERS = [
     {"simucal.errors", "simucal.sweeps", "simucal.progress", "simucal.generated"},
     {"simucal.io"},
     {"simucal.fit"},
-    {"simucal.turntable", "simucal.handheld", "simucal.field"},
+    {"simucal.turntable", "simucal.handheld", "simucal.field", "simucal.systematic"},
     {"simucal.methods"},
     {"simucal.report"},
     {"simucal.calibrate", "simucal.diagnose", "simucal.validate", "simucal.allan", "simucal.bench", "simucal.derive_cmd",

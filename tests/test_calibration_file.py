@@ -13,6 +13,8 @@ from simucal.field.simulate import FieldScenario, write_field
 from simucal.handheld.simulate import HandheldScenario, write_handheld
 from simucal.io import calibration
 from simucal.io.calibration import Calibration, EffectValue, SensorBlock
+from simucal.api import simulate
+from simucal.turntable.sequence import psins19
 
 
 @pytest.fixture(scope="module")
@@ -21,7 +23,11 @@ def every_method(paper_set, tmp_path_factory):
     tmp = tmp_path_factory.mktemp("methods")
     write_handheld(tmp / "h", HandheldScenario(), 0)
     write_field(tmp / "f", FieldScenario(), 0)
-    data = {methods.TURNTABLE: paper_set[0], methods.STREAM: tmp / "h", methods.FIELD: tmp / "f"}
+    (tmp / "seq.csv").write_text("axis,angle_deg,rate_dps,rest_s\n" + "".join(  # psins19 with 30 s rests
+        f"{s.axis},{s.angle_deg},{s.rate_dps},30\n" for s in psins19()))
+    simulate(sequence=tmp / "seq.csv").write(tmp / "q")
+    data = {methods.TURNTABLE: paper_set[0], methods.STREAM: tmp / "h", methods.FIELD: tmp / "f",
+            methods.SEQUENCE: tmp / "q"}
     return {m.name: calibrate(data[m.data], m.name) for m in methods.METHODS.values()}
 
 

@@ -74,7 +74,7 @@ def calibrate(data: Data | Sequence[str | os.PathLike], **options: Any) -> Calib
         ``thermal=True``, is a thermal calibration (`simucal calibrate --thermal`).
     **options
         The command's options by their Python names: ``method`` ("auto", "exact", "linear",
-        "multiposition", "handheld", "field"), ``add`` (effect ids, model files, "auto": a list,
+        "multiposition", "handheld", "field", "systematic"), ``add`` (effect ids, model files, "auto": a list,
         or one string separated by commas),
         ``acc_model``, ``gyro_model``, ``acc_noise_g``, ``gyro_noise_dph``, ``t_ref_c`` (degC),
         ``noise`` (a noise.json), ``detect``, ``heading_accuracy_deg``; with a list,

@@ -11,7 +11,7 @@ from simucal.api.sets import MeasurementSet
 Pairs = Union[Mapping[str, float], Sequence[str]]  # {name: value} or the command's "NAME=VALUE" strings
 SCENARIOS = tuple(methods.SCENARIOS)  # paper, field, handheld: a kind of data each (methods.KINDS)
 # the turntable test's options, by their Python names, with the command's spelling (refusals name both)
-TABLE_ONLY = {"plan": "--plan", "position_error_arcmin": "--position-error-arcmin", "acc_model": "--acc-model",
+TABLE_ONLY = {"sequence": "--sequence", "plan": "--plan", "position_error_arcmin": "--position-error-arcmin", "acc_model": "--acc-model",
               "gyro_model": "--gyro-model", "acc_unit": "--acc-unit", "gyro_unit": "--gyro-unit",
               "effect_file": "--effect-file", "sets": "--set", "columns": "--column",
               "temperature_c": "--temperature-c", "t_ref_c": "--t-ref-c",
@@ -52,7 +52,7 @@ def simulate(scenario: str = "paper", *, seed: int = 0, rate_hz: float | None = 
              gyro_model: str | None = None, acc_unit: str | None = None, gyro_unit: str | None = None,
              effect_file: str | None = None, sets: Pairs | None = None, columns: Mapping[str, Any] | Sequence[str] | None = None,
              temperature_c: Any = None, t_ref_c: float | None = None, temperature_wander_c: float | None = None,
-             noise_stated: bool = True, heading_accuracy_deg: float | None = None) -> MeasurementSet:
+             noise_stated: bool = True, heading_accuracy_deg: float | None = None, sequence: str | None = None) -> MeasurementSet:
     """Simulate a recording of a unit whose truth is known.
 
     Parameters
@@ -66,9 +66,10 @@ def simulate(scenario: str = "paper", *, seed: int = 0, rate_hz: float | None = 
     rate_hz : float, optional
         Raw samples at this rate (Hz, up to 2000); turntable default: one averaged row per position;
         field 100 Hz; hand-placed 100 Hz.
-    plan : str, optional
-        Turntable: "table1" (default), "dodecahedron20", "fibonacci24", "fibonacci48" or a CSV of
-        outer_deg,middle_deg,inner_deg.
+    plan, sequence : str, optional
+        Turntable: a plan, "table1" (default), "dodecahedron20", "fibonacci24", "fibonacci48" or a CSV of
+        outer_deg,middle_deg,inner_deg; or a rotation sequence (``method="systematic"``'s raw data), "psins19",
+        "dong2018" or a CSV of axis,angle_deg,rate_dps,rest_s (turntable/sequence.py).
     effects : dict or list of str, optional
         Effects planted in the truth, ``{effect id: value in its term's unit}`` (or "ID=VALUE"),
         e.g. ``{"acc.quadratic.z": 2e-4}``; turntable and hand-placed.
@@ -104,14 +105,13 @@ def simulate(scenario: str = "paper", *, seed: int = 0, rate_hz: float | None = 
     """
     if scenario not in SCENARIOS:
         raise ValueError(f"scenario {scenario!r}: one of {', '.join(SCENARIOS)}")
-    table_options = dict(plan=plan, position_error_arcmin=position_error_arcmin, acc_model=acc_model,
+    table_options = dict(sequence=sequence, plan=plan, position_error_arcmin=position_error_arcmin, acc_model=acc_model,
                          gyro_model=gyro_model, acc_unit=acc_unit, gyro_unit=gyro_unit, effect_file=effect_file,
                          sets=sets, columns=columns, temperature_c=temperature_c, t_ref_c=t_ref_c,
                          temperature_wander_c=temperature_wander_c, noise_stated=not noise_stated)
     _refuse_unused(scenario, table_options, effects, heading_accuracy_deg)
-    columns_given = _strings(columns, _span)  # the command's values, which every kind's simulator takes
-    options = {**table_options, "effects": _strings(effects), "sets": _strings(sets), "columns": columns_given,
-               "temperature": None if temperature_c is None else _span(temperature_c), "state_noise": noise_stated,
+    options = {**table_options, "effects": _strings(effects), "sets": _strings(sets),  # the command's values
+               "columns": _strings(columns, _span), "temperature": None if temperature_c is None else _span(temperature_c), "state_noise": noise_stated,
                "heading_accuracy_deg": heading_accuracy_deg}
     meta, samples, segments, truth = methods.SCENARIOS[scenario].simulate(seed, rate_hz, options)
     ms = MeasurementSet(Path(f"simulated_{scenario}_seed{seed}"), meta, samples, segments)  # the name errors say

@@ -40,13 +40,18 @@ ANNOTATED_HZ, ANNOTATED_ACC, ANNOTATED_GYRO = 204.8, 2048.0, 16.4  # imucal's an
               help="The output folder (a measurement set and truth.json); may also be given as the argument.")
 @click.option("--scenario", type=click.Choice(SCENARIOS), default="paper", show_default=True,
               help="Preset: 'paper' is dong2018 section 4 (turntable); 'field' is ruan2019 (three positions, no table); "
-                   "'handheld' a hand-placed session (a stream in counts, 30 poses held 5 s between moves).")
+                   "'handheld' a hand-placed session (a stream in counts, 30 poses held 5 s between moves); "
+                   "'sequence' the turntable turning through psins19 (raw samples; --sequence for another).")
 @click.option("--heading-accuracy-deg", "--heading-error-deg", "heading_error_deg", type=Number(0.0, 180.0), default=None,
               show_default="5", help="field: the north reference's accuracy, deg; its error is drawn uniform +- this.")
 @click.option("--seed", type=SEED, default=0, show_default=True,
               help=SEED_HELP + " The unit is the same at every seed.")
 @click.option("--plan", default=None, show_default="table1",
               help="table1, dodecahedron20, fibonacci24, fibonacci48, or a CSV of outer_deg,middle_deg,inner_deg.")
+@click.option("--sequence", default=None, metavar="NAME|FILE",
+              help="A continuous rotation sequence instead of --plan (raw samples, default 100 Hz, while the table "
+                   "rests and turns; for calibrate --method systematic): psins19, dong2018, or a CSV of "
+                   "axis,angle_deg,rate_dps,rest_s.")
 @click.option("--rate-hz", type=SIM_RATE_HZ, default=None,
               help="Write raw samples at this rate (Hz, up to 2000) instead of one row per position (field, "
                    "handheld: their rate, default 100 Hz).")
@@ -80,7 +85,7 @@ ANNOTATED_HZ, ANNOTATED_ACC, ANNOTATED_GYRO = 204.8, 2048.0, 16.4  # imucal's an
                    "within +- this, degC (a chamber's wander).")
 @click.option("--no-noise-stated", is_flag=True, help="Leave acc_noise_g / gyro_noise_dph out of meta.json.")
 @FORCE
-def simulate(out_dir, output, scenario, heading_error_deg, seed, plan, rate_hz, position_error_arcmin, acc_model, gyro_model,
+def simulate(out_dir, output, scenario, heading_error_deg, seed, plan, sequence, rate_hz, position_error_arcmin, acc_model, gyro_model,
              acc_unit, gyro_unit, effects, effect_file, sets, columns, temperature_c, t_ref_c, temperature_wander_c,
              no_noise_stated, force):
     """Simulate a test; write a measurement set and truth.json (simucal simulate -o FOLDER [options]).
@@ -91,13 +96,15 @@ def simulate(out_dir, output, scenario, heading_error_deg, seed, plan, rate_hz, 
     out_dir = output or out_dir
     if not out_dir:
         fail("no output folder: give -o FOLDER")
-    guard([plan if plan and Path(plan).exists() else None, effect_file], sets=[out_dir], force=force)
+    guard([p if p and Path(p).exists() else None for p in (plan, sequence)] + [effect_file], sets=[out_dir],
+          force=force)
     try:
         ms = api.simulate(scenario, seed=seed, rate_hz=rate_hz, plan=plan, effects=effects,
                           position_error_arcmin=position_error_arcmin, acc_model=acc_model, gyro_model=gyro_model,
                           acc_unit=acc_unit, gyro_unit=gyro_unit, effect_file=effect_file, sets=sets, columns=columns,
                           temperature_c=temperature_c, t_ref_c=t_ref_c, temperature_wander_c=temperature_wander_c,
-                          noise_stated=not no_noise_stated, heading_accuracy_deg=heading_error_deg)
+                          noise_stated=not no_noise_stated, heading_accuracy_deg=heading_error_deg,
+                          sequence=sequence)
     except (ValueError, KeyError, FileNotFoundError, SyntaxError) as e:
         fail(e)
     ms.write(out_dir, force=force)

@@ -15,6 +15,7 @@ from pathlib import Path
 import numpy as np
 
 from simucal.io import SAMPLE_COLS, MeasurementSet, MeasurementSetError, Segment, _check_samples, units
+from simucal.io.segments import KINDS
 
 KEYS = ("segment", "t_s", "temp_c") + SAMPLE_COLS  # the spec's columns, as a DataFrame may name them
 
@@ -65,8 +66,8 @@ def _segment_table(segments) -> list[Segment]:
         except (KeyError, TypeError, ValueError, AttributeError) as e:
             raise MeasurementSetError("segments", i + 1, f"{e!r}: each segment is a Segment or a mapping with "
                                                          "segment, kind and segments.csv's other columns") from None
-        if out[-1].kind not in ("static", "rate"):
-            raise MeasurementSetError("segments", i + 1, f"kind must be 'static' or 'rate', got {out[-1].kind!r}")
+        if out[-1].kind not in KINDS:
+            raise MeasurementSetError("segments", i + 1, f"kind must be one of {', '.join(KINDS)}, got {out[-1].kind!r}")
     return out
 
 

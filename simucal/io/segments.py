@@ -14,6 +14,9 @@ from simucal.io.text_files import (MeasurementSetError, cell, check_delimiter, c
                                      no_repeated_columns, not_a_folder, number, read_text)
 
 
+KINDS = ("static", "rate", "move")  # move: the table turning between two rests, any axis (a sequence's rows)
+
+
 @dataclass
 class Segment:
     segment: int
@@ -57,8 +60,8 @@ def _segment_rows(path, reader) -> list[Segment]:
             raise MeasurementSetError(path, line, f"segment {sid} appears twice (ids must be unique)")
         seen.add(sid)
         kind = cell(row, "kind", path, line)
-        if kind not in ("static", "rate"):
-            raise MeasurementSetError(path, line, f"kind must be 'static' or 'rate', got {kind!r}")
+        if kind not in KINDS:
+            raise MeasurementSetError(path, line, f"kind must be 'static', 'rate' or 'move', got {kind!r}")
         vals = {}
         for col in ("outer_deg", "middle_deg", "inner_deg", "outer_rate_dps", "heading_ref_deg"):
             text = cell(row, col, path, line, required=False)
@@ -71,6 +74,10 @@ def _segment_rows(path, reader) -> list[Segment]:
         rate = vals["outer_rate_dps"] or 0.0
         if kind == "rate" and rate == 0.0:
             raise MeasurementSetError(path, line, "a rate segment needs a non-zero outer_rate_dps")
+        if kind == "move" and (rate != 0.0 or any(vals[c] is not None for c in ("outer_deg", "middle_deg",
+                                                                                  "inner_deg"))):
+            raise MeasurementSetError(path, line, "a move segment has no commanded angles or rate (the table "
+                                                  "turning between rests): leave them blank")
         if kind == "static" and rate != 0.0:
             raise MeasurementSetError(path, line, f"a static segment with outer_rate_dps {rate:g}: static means "
                                                   "the table at rest (rate blank or 0); if it turned, make its "

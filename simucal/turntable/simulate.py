@@ -212,7 +212,8 @@ def _segments(sc: Scenario, rng):
     return segments, rows
 
 
-def _meta(sc: Scenario, seed) -> dict:
+def meta_of(sc: Scenario, seed) -> dict:
+    """meta.json of a simulated test."""
     meta = {"latitude_deg": sc.latitude_deg, "gravity_mps2": units.DEFAULT_GRAVITY,
             "earth_rate_dph": units.DEFAULT_EARTH_RATE_DPH, "acc_unit": sc.acc_unit, "gyro_unit": sc.gyro_unit,
             "description": f"simucal simulate, seed {seed}"}
@@ -273,33 +274,45 @@ def _samples(sc: Scenario, rng, segments, rows, acc, p_acc, gyro, p_gyro, meta):
     return samples, t_ref_c
 
 
-def simulate(sc: Scenario, seed: int = 0):
-    """Return (meta, samples, segments, truth) of one simulated test."""
-    if sc.rate_hz is not None and not sc.rate_hz > 0:
-        raise ValueError(f"--rate-hz {sc.rate_hz}: the sample rate must be positive")
-    rng = np.random.default_rng(seed)
+def models(sc: Scenario):
+    """(acc, p_acc, gyro, p_gyro): the unit's models, its baseline terms and planted effects, and their
+    true parameters."""
     acc = AugmentedModel(sc.acc_model, tuple(sc.acc_effects))
     gyro = AugmentedModel(sc.gyro_model, tuple(sc.gyro_effects))
     p_acc = np.array([{**sc.acc_params, **sc.acc_effects}.get(k, 0.0) for k in acc.params])
     p_gyro = np.array([{**sc.gyro_params, **sc.gyro_effects}.get(k, 0.0) for k in gyro.params])
-    segments, rows = _segments(sc, rng)
-    meta = _meta(sc, seed)
-    samples, t_ref_c = _samples(sc, rng, segments, rows, acc, p_acc, gyro, p_gyro, meta)
+    return acc, p_acc, gyro, p_gyro
+
+
+def truth_of(sc: Scenario, acc, p_acc, gyro, p_gyro, seed) -> dict:
+    """truth.json: every parameter of the unit and the table."""
     M_a, b_a = acc.matrix_and_bias(p_acc)
     M_g_d, b_g = gyro.matrix_and_bias(p_gyro)
     C_b_d = table.mounting(np.array(sc.lambda4_rad)).T @ table.mounting(np.array(sc.theta4_rad))
-    truth = {
+    return {
         "acc": {"model": acc.name, "params": dict(zip(acc.params, p_acc.tolist())), "effects": dict(sc.acc_effects),
                 "M": M_a.tolist(), "bias": b_a.tolist(), "bias_unit": "g"},
         "gyro": {"model": gyro.name, "params": dict(zip(gyro.params, p_gyro.tolist())),
                  "effects": dict(sc.gyro_effects),
                  "M": (M_g_d @ C_b_d).tolist(), "bias": b_g.tolist(), "bias_unit": "deg/h",
-                 "M_in_d": M_g_d.tolist()},
+                 "M_in_d": M_g_d.tolist(), "C_b_d": C_b_d.tolist()},
         "mounting": {"theta4_rad": list(sc.theta4_rad), "lambda4_rad": list(sc.lambda4_rad)},
         "table": {"tilt_rad": list(sc.tilt_rad), "nonperp_rad": list(sc.nonperp_rad),
                   "zero_rad": list(sc.zero_rad), "position_error_rad": sc.position_error_rad},
         "seed": seed,
     }
+
+
+def simulate(sc: Scenario, seed: int = 0):
+    """Return (meta, samples, segments, truth) of one simulated test."""
+    if sc.rate_hz is not None and not sc.rate_hz > 0:
+        raise ValueError(f"--rate-hz {sc.rate_hz}: the sample rate must be positive")
+    rng = np.random.default_rng(seed)
+    acc, p_acc, gyro, p_gyro = models(sc)
+    segments, rows = _segments(sc, rng)
+    meta = meta_of(sc, seed)
+    samples, t_ref_c = _samples(sc, rng, segments, rows, acc, p_acc, gyro, p_gyro, meta)
+    truth = truth_of(sc, acc, p_acc, gyro, p_gyro, seed)
     if t_ref_c is not None:
         truth["t_ref_c"] = t_ref_c  # the bias and M above are at this temperature
     return meta, samples, segments, truth

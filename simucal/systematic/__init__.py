@@ -1,0 +1,1 @@
+"""Systematic calibration: a Kalman filter over a continuous rotation sequence (method systematic)."""

@@ -1,0 +1,177 @@
+"""Systematic calibration (method `systematic`): a rotation sequence's raw samples through the
+strapdown navigation and the error-state Kalman filter + RTS smoother of filter.py, every parameter
+of the chosen models (and the gyro frame's three angles against b) with its std.
+
+The set is a sequence (`simucal simulate --sequence`): static segments (rests, with their commanded
+angles) and move segments between them, raw samples throughout. Only the first rest's commanded
+angles are used (the initial heading, refined by the filter); the others are not needed.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from simucal.errors import CalibrationError
+from simucal.fit.augmented import AugmentedModel, for_sensor
+from simucal.fit.aux_inputs import AuxInputs
+from simucal.generated import table
+from simucal.io import units
+from simucal.fit.rotations import exp_so3, log_so3
+from simucal.systematic.filter import RAD_S_PER_DPH, Epoch, Sensors, kalman, level, nominal, smooth, transitions
+
+BLOCK_S = 1.0           # zero-velocity updates at rest every this many seconds
+ZUPT_STD_MPS = 1e-6     # the table at rest: its velocity is zero to this (m/s)
+# prior stds by a parameter's unit: wide against any unit this tool calibrates (the data decide)
+PRIOR_STD = {"1": 1e-2, "rad": 1e-2, "g": 1e-2, "deg/h": 10.0}
+PRIOR_OTHER = 1e-2
+PRIOR_ATTITUDE_RAD = 1e-2
+MAX_PASSES = 4
+STEP_STD = 0.05         # a pass that moves no estimate by more than this many stds ends the iteration
+UNOBSERVABLE = 0.5      # a std above this fraction of its prior: the sequence did not see the parameter
+
+
+def rests_and_moves(ms):
+    """The segments in recording order, refused in one line where the set is no sequence."""
+    if not any(s.kind == "move" for s in ms.segments or ()):
+        raise CalibrationError(f"{ms.path}: systematic calibration needs a rotation sequence (segments.csv with "
+                               "static and move segments, raw samples throughout): record one, or simulate it "
+                               "with `simucal simulate --sequence psins19`")
+    if ms.meta.get("latitude_deg") is None:
+        raise CalibrationError(f"{ms.path / 'meta.json'}: latitude_deg is missing; the navigation needs the "
+                               "site's latitude (the Earth rate's direction): add \"latitude_deg\": <deg>")
+    order = np.argsort([ms.rows(s.segment)[0] if len(ms.rows(s.segment)) else np.inf for s in ms.segments])
+    segments = [ms.segments[i] for i in order if len(ms.rows(ms.segments[i].segment))]
+    if segments[0].kind != "static" or segments[0].outer_deg is None:
+        raise CalibrationError(f"{ms.path / 'segments.csv'}: the sequence must open with a rest at commanded "
+                               "angles (a static segment with outer_deg, middle_deg and inner_deg)")
+    return segments
+
+
+def white_noise(ms, segments, rows_of):
+    """Each axis's white-noise std per sample, gyro (deg/h) then accelerometer (g): the rests'
+    first differences (std / sqrt 2), the median over the rests."""
+    per_rest = []
+    for s in segments:
+        r = rows_of(s)
+        if s.kind == "static" and len(r) > 10:
+            d = np.diff(np.c_[ms.gyro_dph()[r], ms.acc_g()[r]], axis=0)
+            per_rest.append(d.std(axis=0) / np.sqrt(2))
+    return np.median(per_rest, axis=0)
+
+
+def _prior(model):
+    return [PRIOR_STD.get(u, PRIOR_OTHER) for u in model.param_units]
+
+
+def _levelled(ms, sensors, first, rows):
+    """The first rest's commanded attitude, levelled by the accelerometers (the prior's centre)."""
+    C0 = table.C_k_n(*np.radians([first.outer_deg, first.middle_deg, first.inner_deg]), np.zeros(7))
+    f_b, _ = sensors.compensate(ms.acc_g()[rows].mean(0, keepdims=True), ms.gyro_dph()[rows].mean(0, keepdims=True),
+                                AuxInputs(), AuxInputs())
+    return level(C0, f_b[0])
+
+
+@dataclass
+class Result:
+    """The filter's result: the sensors at the estimates, their covariance (the parameters' block of
+    the smoothed P at the start), the last pass's epochs, the noise found, the passes run."""
+    sensors: Sensors
+    cov: np.ndarray
+    epochs: list
+    prior_var: np.ndarray
+    sigma: np.ndarray
+    passes: int
+    step_std: float
+
+
+def run_filter(ms, acc_model="acc_baseline", gyro_model="gyro_baseline", ids=(), block_s=BLOCK_S,
+               max_passes=MAX_PASSES) -> Result:
+    """The filter and smoother over the whole sequence, pass after pass, each linearised about the
+    estimates of the one before (iterated extended Kalman smoother), until a pass moves no
+    estimate by more than STEP_STD of its std."""
+    segments = rests_and_moves(ms)
+    acc, gyro = AugmentedModel(acc_model, for_sensor(ids, "acc")), AugmentedModel(gyro_model, for_sensor(ids, "gyro"))
+    sensors = Sensors(acc, gyro, np.zeros(len(acc.params)), np.zeros(len(gyro.params)), np.zeros(3))
+    t = ms.samples["t_s"]
+    dt = float(np.median(np.diff(t[ms.rows(segments[0].segment)])))
+    g0, lat = units.gravity(ms.meta), np.radians(ms.meta["latitude_deg"])
+    w_ie = table.earth_rate_n(units.earth_rate_dph(ms.meta) * RAD_S_PER_DPH, lat)
+    sigma = white_noise(ms, segments, lambda s: ms.rows(s.segment))
+    q = np.r_[(sigma[:3] * RAD_S_PER_DPH) ** 2, (sigma[3:] * g0) ** 2] * dt  # spectral densities
+    prior_var = np.r_[[PRIOR_ATTITUDE_RAD] * 3, [ZUPT_STD_MPS] * 3, _prior(acc), _prior(gyro),
+                      [PRIOR_STD["rad"]] * 3] ** 2
+    steps = steps_of(ms, segments, block_s, dt)
+    C_prior = C = _levelled(ms, sensors, segments[0], ms.rows(segments[0].segment))
+    for k in range(1, max_passes + 1):
+        x0 = np.r_[log_so3(C_prior @ C.T), np.zeros(3), sensors.vector()]  # the prior's mean as errors
+        epochs = _one_pass(steps, sensors, C, x0, np.diag(prior_var), q, w_ie, g0)
+        x_s, _ = smooth(epochs)  # the attitude at the start; the constants are the filter's at the end,
+        x, P = epochs[-1].x, epochs[-1].P  # equal in exact arithmetic, and free of the smoother's round-off
+        step = np.abs(x[6:]) / np.sqrt(np.diag(P)[6:])
+        C = exp_so3(x_s[0][:3]) @ C
+        _move(sensors, sensors.vector() - x[6:])
+        if step.max() < STEP_STD:
+            break
+    return Result(sensors, P[6:, 6:], epochs, prior_var, sigma, k, float(step.max()))
+
+
+def _move(sensors, p):
+    na, ng = len(sensors.p_acc), len(sensors.p_gyro)
+    sensors.p_acc, sensors.p_gyro, sensors.eta = p[:na], p[na:na + ng], p[na + ng:]
+
+
+@dataclass
+class Steps:
+    """The filter's steps: the moves' samples and the rests' blocks (their means), each with its
+    outputs (g, deg/h), time (s, the middle), length dt (s) and whether a zero-velocity update ends it."""
+    N_a: np.ndarray
+    N_g: np.ndarray
+    t: np.ndarray
+    dt: np.ndarray
+    zupt: np.ndarray
+
+
+def steps_of(ms, segments, block_s, dt) -> Steps:
+    """The rows grouped into steps: every sample of a move, blocks of block_s at rest."""
+    starts, zupt = [], []
+    for s in segments:
+        rows = ms.rows(s.segment)
+        if s.kind == "static":
+            n_block = max(1, int(round(block_s / dt)))
+            first = rows[::n_block]
+            zupt += [True] * len(first)
+        else:
+            first = rows
+            zupt += [False] * len(rows)
+        starts.append(first)
+    order = np.concatenate([ms.rows(s.segment) for s in segments])
+    start = np.concatenate(starts)
+    if not np.array_equal(order, np.arange(order[0], order[0] + len(order))):
+        raise CalibrationError(f"{ms.path / 'samples.csv'}: a sequence's rows must run segment after segment in "
+                               "time order, as recorded")
+    counts = np.diff(np.r_[start, order[-1] + 1])
+    mean = [np.add.reduceat(x[order[0]:order[-1] + 1], start - order[0], axis=0) / counts[:, None]
+            for x in (ms.acc_g(), ms.gyro_dph())]
+    t = np.add.reduceat(ms.samples["t_s"][order[0]:order[-1] + 1], start - order[0]) / counts
+    return Steps(mean[0], mean[1], t, counts * dt, np.asarray(zupt))
+
+
+CHUNK = 4096  # steps whose transitions are built at once (memory: CHUNK n^2 doubles)
+
+
+def _one_pass(steps, sensors, C, x0, P0, q, w_ie, g0):
+    """One pass of the filter over the sequence about the nominal of sensors' estimates and C: the
+    epochs (the first the prior at the start)."""
+    R = np.eye(3) * ZUPT_STD_MPS ** 2
+    aux = AuxInputs({"t_s": steps.t})
+    f_b, w_b = sensors.compensate(steps.N_a, steps.N_g, aux, aux)
+    D_a, D_g = sensors.sensitivities(f_b, w_b, aux, aux)
+    Cs, v_at = nominal(C, w_b * RAD_S_PER_DPH * steps.dt[:, None], f_b, steps.dt, steps.zupt, w_ie, g0)
+    epochs = [Epoch(np.eye(len(P0)), P0, P0, x0, x0)]
+    x, P, Phi_acc = x0, P0, np.eye(len(P0))
+    for a in range(0, len(Cs), CHUNK):
+        k = slice(a, a + CHUNK)
+        Phi, Q6 = transitions(Cs[k], f_b[k], D_a[k], D_g[k], steps.dt[k], q, w_ie, g0)
+        x, P, Phi_acc = kalman(x, P, Phi_acc, Phi, Q6, steps.zupt[k], v_at[k], R, steps.t[k], epochs)
+    return epochs

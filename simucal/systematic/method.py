@@ -1,0 +1,69 @@
+"""The method `systematic` (methods.py): the filter's estimates as a calibration file, the model test
+on its innovations, and the refusal of a sequence that leaves a parameter unseen."""
+from __future__ import annotations
+
+import numpy as np
+
+from simucal.errors import CalibrationError
+from simucal.fit.distributions import chi2_sf
+from simucal.fit.norm_fit import Fit
+from simucal.generated import table
+from simucal.io import calibration
+from simucal.systematic.calibrate import UNOBSERVABLE, run_filter
+
+
+def innovation_test(epochs) -> dict:
+    """The model test on the zero-velocity innovations: NIS, the sum of nu^T S^-1 nu, against
+    chi-square with 3 dof per update (Bar-Shalom, Li & Kirubarajan 2001, sec. 5.4), and their
+    whiteness: each axis's lag-1 autocorrelation of the whitened innovations (L^-1 nu, S = L L^T),
+    about N(0, 1/m) for white ones."""
+    nu = np.array([np.linalg.solve(np.linalg.cholesky(e.S), e.nu) for e in epochs if e.nu is not None])
+    m = len(nu)
+    nis = float((nu ** 2).sum())
+    r1 = (nu[1:] * nu[:-1]).sum(0) / (nu ** 2).sum(0)
+    return {"nis": nis, "dof": 3 * m, "nis_per_update": nis / m, "p_value": chi2_sf(nis, 3 * m),
+            "lag1_autocorrelation": r1.tolist(), "lag1_z": (r1 * np.sqrt(m)).tolist(), "updates": m,
+            "innovations_whitened": nu}
+
+
+def unobserved(result) -> dict:
+    """{parameter: std / prior std} of those the sequence barely saw (the ratio above UNOBSERVABLE)."""
+    names = list(result.sensors.acc.params) + list(result.sensors.gyro.params) + ["eta_x", "eta_y", "eta_z"]
+    ratio = np.sqrt(np.diag(result.cov) / result.prior_var[6:])
+    return {n: float(r) for n, r in zip(names, ratio) if r > UNOBSERVABLE}
+
+
+def _fit(model, p, cov, test) -> Fit:
+    std = np.sqrt(np.diag(cov))
+    nu = test["innovations_whitened"]
+    return Fit(model.name, "systematic", dict(zip(model.params, p.tolist())), dict(zip(model.params, std.tolist())),
+               cov, nu, float(np.sqrt((nu ** 2).mean())), test["nis"], test["dof"], test["p_value"])
+
+
+def calibrate_systematic(ms, acc_model="acc_baseline", gyro_model="gyro_baseline", ids=()) -> calibration.Calibration:
+    """The calibration of a rotation sequence by the filter (calibrate.py), every parameter with its
+    std; refused where the sequence leaves a parameter unobserved."""
+    r = run_filter(ms, acc_model, gyro_model, ids)
+    poor = unobserved(r)
+    if poor:
+        worst = ", ".join(f"{k} (std {v:.2f} of its prior)" for k, v in poor.items())
+        raise CalibrationError(f"{ms.path}: the sequence leaves {worst} unobserved: turn the unit about each of its "
+                               "axes with each axis up and down (the built-in psins19 does)")
+    s, test = r.sensors, innovation_test(r.epochs)
+    na, ng = len(s.p_acc), len(s.p_gyro)
+    cal = calibration.header("systematic", ms)
+    M_a, b_a = s.acc.matrix_and_bias(s.p_acc)
+    cal.acc = calibration.sensor_block(s.acc, _fit(s.acc, s.p_acc, r.cov[:na, :na], test), M_a, b_a)
+    C_b_d = table.mounting(s.eta)
+    M_g, b_g = s.gyro.matrix_and_bias(s.p_gyro)
+    cal.gyro = calibration.sensor_block(s.gyro, _fit(s.gyro, s.p_gyro, r.cov[na:na + ng, na:na + ng], test),
+                                        M_g @ C_b_d, b_g, C_b_model=C_b_d)
+    for block in (cal.acc, cal.gyro):
+        block.residual_unit = "innovation std (whitened)"
+    cal.gyro.details["eta_rad"] = {"value": s.eta.tolist(), "std": np.sqrt(np.diag(r.cov)[na + ng:]).tolist(),
+                                   "meaning": "C_b^d = mounting(eta) (derive/systematic.py)"}
+    cal.details["systematic"] = {
+        "passes": r.passes, "last_step_std": r.step_std, "white_noise_per_sample": {
+            "gyro_dph": r.sigma[:3].tolist(), "acc_g": r.sigma[3:].tolist()},
+        "test": {k: v for k, v in test.items() if k != "innovations_whitened"}}
+    return cal

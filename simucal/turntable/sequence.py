@@ -1,0 +1,202 @@
+"""A continuous rotation sequence on the turntable: the data of systematic calibration.
+
+The table rests, turns one axis through an angle (a trapezoidal rate profile: accelerating at
+ACCEL_DPS2 to the step's rate, cruising, braking), rests, and so on; the IMU's raw outputs at every
+sample, moves included (`simucal simulate --sequence NAME|FILE`). The truth is the turntable
+simulator's (simulate.py: the same unit, error models, mounting, table errors and noise) and is
+written where it writes it. Each sample covers the interval (t - dt, t]: the gyro reads the mean
+rate over it (the rotation between the attitudes at its ends, as an integrating gyro's pulses do),
+the accelerometer the specific force at its middle. segments.csv marks each rest (`static`, with
+its commanded angles) and each move (`move`: the rows of the table turning; methods that need
+rests skip them).
+
+A sequence file is a CSV with the header axis,angle_deg,rate_dps,rest_s: one row per move, the
+table axis (outer, middle or inner), the angle turned (deg, signed), the cruising rate (deg/s) and
+the rest after it (s); the first rest, before any move, lasts the first row's rest_s.
+"""
+from __future__ import annotations
+
+import csv
+import math
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from simucal import io
+from simucal.fit.aux_inputs import AuxInputs, specific_force
+from simucal.generated import table
+from simucal.io import units
+from simucal.turntable import kinematics, plans
+from simucal.turntable.simulate import Scenario, meta_of, models, truth_of
+
+AXES = ("outer", "middle", "inner")
+ACCEL_DPS2 = 50.0     # the table's angular acceleration and braking, deg/s^2
+MAX_RATE_DPS = 400.0  # no three-axis test table turns faster (outer axis, loaded)
+MAX_REST_S = 36000.0
+DEFAULT_RATE_HZ = 100.0
+
+
+@dataclass(frozen=True)
+class Step:
+    """One move and the rest after it."""
+    axis: str          # outer, middle or inner
+    angle_deg: float   # signed
+    rate_dps: float    # cruising rate, > 0
+    rest_s: float      # the rest after the move
+
+
+def psins19(rest_s=100.0, rate_dps=10.0) -> list[Step]:
+    """19 positions, 18 turns of 90 deg (in the manner of PSINS' sysclbt demo and Ren et al. 2019's
+    sequence): the inner axis round twice (once level, once with the middle axis at 90 deg, so that
+    each body axis points up and down and turns about each horizontal axis), the middle axis
+    round, the outer axis round."""
+    turns = [("inner", 90.0)] * 4 + [("middle", 90.0)] * 4 + [("middle", 90.0)] + [("inner", 90.0)] * 4 \
+        + [("middle", -90.0)] + [("outer", 90.0)] * 4
+    return [Step(a, ang, rate_dps, rest_s) for a, ang in turns]
+
+
+def dong2018(rest_s=60.0, rate_dps=10.0) -> list[Step]:
+    """dong2018's Table 1 positions visited in order, each reached by turning the outer, middle and
+    inner axes in turn (a rest after the last of them), then back to the first."""
+    steps, at = [], np.zeros(3)
+    for pos in list(plans.TABLE1) + [plans.TABLE1[0]]:
+        moves = [(a, (float(x) - y + 180.0) % 360.0 - 180.0) for a, x, y in zip(AXES, pos, at)]
+        moves = [(a, d) for a, d in moves if abs(d) > 1e-9]
+        at = np.asarray(pos, float)
+        steps += [Step(a, d, rate_dps, rest_s if k == len(moves) - 1 else 1.0) for k, (a, d) in enumerate(moves)]
+    return steps
+
+
+SEQUENCES = {"psins19": psins19, "dong2018": dong2018}
+
+
+def read_sequence(path) -> list[Step]:
+    """A sequence file's steps (module doc), each row checked: refused in one line naming the file,
+    the line and the fix."""
+    path = Path(path)
+    if not path.is_file():
+        raise ValueError(f"--sequence {path}: neither a built-in sequence ({', '.join(SEQUENCES)}) nor a file")
+    with path.open(newline="") as fh:
+        rows = list(csv.reader(fh))
+    if not rows or [c.strip() for c in rows[0]] != ["axis", "angle_deg", "rate_dps", "rest_s"]:
+        raise ValueError(f"{path}, line 1: the header must be axis,angle_deg,rate_dps,rest_s")
+    steps = []
+    for line, row in enumerate(rows[1:], start=2):
+        steps.append(_step(path, line, row))
+    if not steps:
+        raise ValueError(f"{path}: no moves; write one row per move under the header")
+    return steps
+
+
+def _step(path, line, row) -> Step:
+    where = f"{path}, line {line}"
+    if len(row) != 4 or row[0].strip() not in AXES:
+        raise ValueError(f"{where}: write AXIS,ANGLE_DEG,RATE_DPS,REST_S with AXIS one of {', '.join(AXES)}")
+    try:
+        angle, rate, rest = (float(x) for x in row[1:])
+    except ValueError:
+        raise ValueError(f"{where}: angle_deg, rate_dps and rest_s must be numbers") from None
+    if not (math.isfinite(angle) and 0 < abs(angle) <= 3600):
+        raise ValueError(f"{where}: angle_deg {angle:g} must be non-zero and at most 3600 deg in size")
+    if not 0 < rate <= MAX_RATE_DPS:
+        raise ValueError(f"{where}: rate_dps {rate:g} is not a table's rate: give 0 < rate <= {MAX_RATE_DPS:g} deg/s")
+    if not 0 < rest <= MAX_REST_S:
+        raise ValueError(f"{where}: rest_s {rest:g} must be within 0 < rest_s <= {MAX_REST_S:g} s")
+    return Step(row[0].strip(), angle, rate, rest)
+
+
+def resolve(sequence) -> tuple[str, list[Step]]:
+    """(name, steps) of a built-in sequence's name or a sequence file."""
+    if isinstance(sequence, str) and sequence in SEQUENCES:
+        return sequence, SEQUENCES[sequence]()
+    return str(sequence), read_sequence(sequence)
+
+
+def move_angle(total_deg, rate_dps, t) -> tuple[np.ndarray, float]:
+    """The angle turned (deg) at the times t (s) from a move's start, and its duration (s):
+    a trapezoidal rate profile at ACCEL_DPS2 (a triangle where the move is too short to cruise)."""
+    a, d = ACCEL_DPS2, abs(total_deg)
+    v = min(rate_dps, math.sqrt(a * d))
+    t_acc = v / a
+    T = 2 * t_acc + (d - v * t_acc) / v
+    t = np.clip(np.asarray(t, float), 0.0, T)
+    up, down = np.minimum(t, t_acc), np.clip(t - (T - t_acc), 0.0, t_acc)
+    angle = 0.5 * a * up ** 2 + v * np.clip(t - t_acc, 0.0, T - 2 * t_acc) + v * down - 0.5 * a * down ** 2
+    return math.copysign(1.0, total_deg) * angle, T
+
+
+def _timeline(sc: Scenario, steps, rng, rate_hz):
+    """The segments, each sample's segment id, and the table's true angles (rad, (n + 1, 3)) at the
+    sample ends and (n, 3) at their middles (sample k covers (t_k - dt, t_k], t_0 = 0)."""
+    commanded = np.zeros(3)
+    reached = commanded + sc.angle_errors_rad(rng, (len(steps) + 1,))  # each rest's true angles (rad)
+    ends, middles, seg_ids, segments = [np.radians(commanded) + reached[0]], [], [], []
+    dt = 1.0 / rate_hz
+
+    def phase(kind, n, angles_at, angles):
+        segments.append(io.Segment(len(segments) + 1, kind, *(angles if kind == "static" else (None,) * 3), 0.0))
+        k = np.arange(1, n + 1) * dt
+        ends.extend(angles_at(k)), middles.extend(angles_at(k - dt / 2))
+        seg_ids.extend([segments[-1].segment] * n)
+
+    def at_rest(i):
+        return lambda t: np.repeat(np.radians(commanded)[None] + reached[i], len(t), 0)
+
+    phase("static", int(round(steps[0].rest_s * rate_hz)), at_rest(0), commanded.tolist())
+    for i, s in enumerate(steps):
+        j = AXES.index(s.axis)
+        start, goal = np.radians(commanded) + reached[i], None
+        commanded[j] += s.angle_deg
+        goal = np.radians(commanded) + reached[i + 1]
+        turn = math.degrees(goal[j] - start[j])
+        T = move_angle(turn, s.rate_dps, 0.0)[1]
+
+        def moving(t, start=start, goal=goal, j=j, turn=turn, rate=s.rate_dps, T=T):
+            frac = move_angle(turn, rate, t)[0] / turn  # every axis's error goes from start to goal with it
+            return start[None] + frac[:, None] * (goal - start)[None]
+        phase("move", int(math.ceil(T * rate_hz)), moving, None)
+        phase("static", int(round(s.rest_s * rate_hz)), at_rest(i + 1), ((commanded + 180) % 360 - 180).tolist())
+    return segments, np.asarray(seg_ids), np.asarray(ends), np.asarray(middles)
+
+
+def _rotation_vectors(R):
+    """log(R) of rotations (n, 3, 3) below 90 deg, vectorised."""
+    v = 0.5 * np.stack([R[:, 2, 1] - R[:, 1, 2], R[:, 0, 2] - R[:, 2, 0], R[:, 1, 0] - R[:, 0, 1]], -1)
+    s = np.linalg.norm(v, axis=-1, keepdims=True)
+    return v * np.where(s > 1e-12, np.arcsin(np.minimum(s, 1.0)) / np.where(s > 1e-12, s, 1.0), 1.0)
+
+
+def inputs(sc: Scenario, ends, middles, rate_hz):
+    """The true inputs per sample: f_b (g) at the middle, the mean w_d (deg/h) over the interval,
+    f_d (g, the gyro's g-sensitivity input)."""
+    err = kinematics.errors(sc.table_errors_rad(), np.zeros(3))
+    C_end = table.C_k_n(*ends.T, err)
+    C_mid = table.C_k_n(*middles.T, err)
+    C_b_k, C_d_k = table.mounting(np.array(sc.theta4_rad)), table.mounting(np.array(sc.lambda4_rad))
+    w_ie_n = table.earth_rate_n(units.DEFAULT_EARTH_RATE_DPH, np.radians(sc.latitude_deg))
+    turned = _rotation_vectors(np.swapaxes(C_end[:-1], 1, 2) @ C_end[1:])  # in k, rad per sample
+    w_k = np.degrees(turned) * rate_hz * 3600.0 + np.einsum("nji,j->ni", C_mid, w_ie_n)
+    up_k = C_mid[:, 2, :]  # C_n^k [0, 0, 1]
+    return up_k @ C_b_k, w_k @ C_d_k, up_k @ C_d_k
+
+
+def simulate_sequence(sc: Scenario, sequence, seed: int = 0):
+    """(meta, samples, segments, truth) of a sequence (module doc) at sc.rate_hz (default 100 Hz)."""
+    name, steps = resolve(sequence)
+    rate_hz = sc.rate_hz or DEFAULT_RATE_HZ
+    rng = np.random.default_rng(seed)
+    acc, p_acc, gyro, p_gyro = models(sc)
+    segments, seg_ids, ends, middles = _timeline(sc, steps, rng, rate_hz)
+    f_b, w_d, f_d = inputs(sc, ends, middles, rate_hz)
+    t = np.arange(1, len(seg_ids) + 1) / rate_hz
+    aux = AuxInputs({"t_s": t})
+    meta = meta_of(sc, seed)
+    N_a = acc.output(f_b, p_acc, aux) + rng.normal(0, sc.acc_noise_g, f_b.shape)
+    N_g = gyro.output(w_d, p_gyro, aux.with_values(**specific_force(f_d))) + rng.normal(0, sc.gyro_noise_dph, w_d.shape)
+    N_a, N_g = units.g_to_acc(N_a, meta), units.dph_to_gyro(N_g, meta)
+    samples = {"segment": seg_ids, "t_s": t, **{f"a{c}": N_a[:, j] for j, c in enumerate("xyz")},
+               **{f"g{c}": N_g[:, j] for j, c in enumerate("xyz")}}
+    truth = truth_of(sc, acc, p_acc, gyro, p_gyro, seed)
+    truth["sequence"] = {"name": name, "rate_hz": rate_hz, "steps": [vars(s) for s in steps]}
+    return meta, samples, segments, truth
