@@ -176,8 +176,22 @@ def forward_selection(model: AugmentedModel, obs: Observations, rank=None, max_t
         cv = base["cross_validation"]
         steps.append({"id": c["id"], "estimate": c["estimate"], "std": c["std"], "unit": c["unit"],
                       "p_value_after": base["p_value"], "residual_rms_after": fit.residual_rms,
-                      "held_out_rms_after": cv["held_out_rms"] if cv else None, "p_held_out_better": p_cv})
+                      "held_out_rms_after": cv["held_out_rms"] if cv else None, "p_held_out_better": p_cv,
+                      **_twin_choice(c, cands)})
     return Selection(model, steps, "the model passes its test" if steps else "the model passes its test: nothing added")
+
+
+def _twin_choice(c, cands) -> dict:
+    """Where the data cannot tell the chosen effect from a twin (fit/twins.py): the twins and why this
+    one was taken (the larger likelihood ratio only), for --add auto to say so rather than choose silently."""
+    if not c.get("twins"):
+        return {}
+    tw = next(x for x in cands if x["id"] == c["twins"][0])
+    return {"twins": list(c["twins"]), "twin_choice": (
+        f"{c['id']}, not its twin {tw['id']}, only for the larger likelihood ratio ({c['statistic']:.1f} against "
+        f"{tw['statistic']:.1f}): the data cannot tell them apart, so either may be the unit's; the positions that "
+        f"would: simucal plan --score PLAN --separate {c['id']},{tw['id']} --sizes {c['estimate']:.2g},"
+        f"{tw['estimate']:.2g}")}
 
 
 def _rank(model, obs, fit, base):

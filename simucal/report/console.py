@@ -86,6 +86,9 @@ def _fit_lines(s, b: SensorBlock, source):
         yield (f"{s}: --add auto chose " + (", ".join(x["id"] for x in d["auto"]) + " (one at a time, each passing "
                "the candidate test and predicting left-out rows better)" if d["auto"] else "nothing")
                + (f"; {d['auto_stopped']}" if d.get("auto_stopped") else ""))
+        for x in d["auto"]:
+            if x.get("twin_choice"):
+                yield f"{s}: --add auto chose {x['twin_choice']}"
     if b.verdict == "fails":
         what = d.get("advice")
         stds = ("stds are inflated by sqrt(chi2/dof) (std_raw keeps the unscaled ones)" if "std_raw" in d else
