@@ -100,6 +100,18 @@ def calibrate_to_file(folder, output, kwargs: dict):
 PLATEAU_SPREAD_C = SPREAD_C  # temperatures within this are one (a plateau's wander); plateaus or a ramp must span more
 
 
+def _refuse_repeated(sets):
+    """One plateau given twice (the same folder, or a copy of its samples) would count its rows twice and
+    fake the plateaus' agreement: refused, naming both paths."""
+    seen = {}
+    for ms in sets:
+        key = tuple(ms.sample_digests())
+        if key in seen:
+            raise CalibrationError(f"{seen[key]} and {ms.path}: the same samples (sha256 of the sensor outputs) given "
+                                   "twice as plateaus: give each temperature plateau once")
+        seen[key] = ms.path
+
+
 def _plateau(folder):
     """A plateau's set and its temperature (the mean of temp_c), refused without a plausible temp_c."""
     ms = folder if isinstance(folder, io.MeasurementSet) else io.read_set(folder)
@@ -265,6 +277,7 @@ def calibrate_thermal(folders, degree=None, t_ref_c=None, **kwargs) -> Calibrati
 
 def _calibrate_thermal(folders, degree, t_ref_c, kwargs) -> Calibration:
     sets = [_plateau(f) for f in folders]
+    _refuse_repeated([ms for ms, _ in sets])
     t_ref = _temperatures(sets, t_ref_c)
     T_k = [t for _, t in sets]
     near = int(np.argmin(np.abs(np.asarray(T_k) - t_ref)))

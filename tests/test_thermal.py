@@ -5,6 +5,7 @@ model test passes where each plateau alone fails, the planted polynomials come b
 lacks is beyond 3 std, and the calibration applied between plateaus or within the ramp is at the floor
 (validate's floor holding the calibration's own uncertainty); bad inputs refused in one line."""
 import json
+import shutil
 
 import numpy as np
 import pytest
@@ -265,6 +266,9 @@ def test_bad_input_refused_in_one_line(plateaus, tmp_path):
     _sim(tmp_path / "same", 25.5, 6)
     bad["close"] = ([sets[0], sets[1], "same"], ["--thermal-degree", 3], "test at most degree 1")  # -10, 25, 25.5
     bad["two"] = ([sets[0], sets[2]], ["--thermal-degree", 2], "test at most degree 1")
+    shutil.copytree(sets[1], tmp_path / "copy")  # a byte-identical copy of a plateau: its rows counted twice
+    bad["twice"] = ([sets[0], sets[1], sets[0]], [], f"{sets[0]} and {sets[0]}: the same samples")
+    bad["copy"] = ([sets[0], sets[1], "copy"], [], f"{sets[1]} and {tmp_path / 'copy'}: the same samples")
     for name, (folders, extra, message) in bad.items():
         code, out = _run("calibrate", *[f if not isinstance(f, str) else tmp_path / f for f in folders],
                          "--thermal", *extra, "-o", tmp_path / "c.json")
