@@ -209,6 +209,18 @@ def test_missing_plan_file(tmp_path):
     run_refused(["simulate", tmp_path / "s", "--plan", tmp_path / "nope.csv"], "nope.csv", "table1")
 
 
+@pytest.mark.parametrize("scenario", ["paper", "handheld"])
+def test_temperature_effect_without_a_temperature(tmp_path, scenario):
+    """Planted with temp_c at T_ref the effect is zero: the samples were those without it while truth.json
+    listed it planted; refused, saying how to give a temperature. With one it is planted."""
+    run_refused(["simulate", tmp_path / "s", "--scenario", scenario, "--effect", "gyro.bias_temperature.x=1e-3"],
+                "temp_c stays at T_ref", "--temperature-c T", out=tmp_path / "s")
+    if scenario == "paper":
+        r = CliRunner().invoke(main, ["simulate", "-o", str(tmp_path / "t"), "--effect", "gyro.bias_temperature.x=1e-3",
+                                      "--column", "temp_c=20:40"])
+        assert r.exit_code == 0 and (tmp_path / "t" / "truth.json").exists(), r.output
+
+
 @pytest.mark.parametrize("rate", ["0", "-5"])
 def test_rate_not_positive(tmp_path, rate):
     run_refused(["simulate", tmp_path / "s", "--rate-hz", rate], "rate", out=tmp_path / "s")

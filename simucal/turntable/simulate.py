@@ -148,6 +148,10 @@ def plant(sc: Scenario, effects=(), effect_file=None, sets=(), columns=(), write
     from simucal.generated.effects import EFFECTS
     for eid, val in _pairs(effects, "--effect").items():
         check_effect(eid)
+        if "dtemp_c" in EFFECTS[eid].reads and not sc.temp_c and "temp_c" not in sc.columns:
+            raise ValueError(f"--effect {eid}: without a temperature temp_c stays at T_ref, so the effect is zero and "
+                             "the samples are those without it; give one: --temperature-c T (a plateau) or T0:T1 (a "
+                             "ramp), degC (a turntable set)")
         (sc.acc_effects if EFFECTS[eid].sensor == "acc" else sc.gyro_effects)[eid] = val
     values = _pairs(sets, "--set")
     if values and not effect_file:
