@@ -52,6 +52,41 @@ def _verdict(check) -> str:
     return "better" if a * WORSE < b else "no better than nominal"
 
 
+REGISTER_BITS = (8, 10, 12, 14, 16, 18, 20, 24, 32)
+
+
+def nominal(ms, sensor) -> tuple[np.ndarray, str]:
+    """A sensor's outputs at the nominal scale factors (acc in g, gyro in deg/h) as a user reads them
+    without a calibration, and what was subtracted, said ('' where nothing). Raw counts carry the
+    register's zero (the spec's `counts`: an unsigned 16-bit ADC rests near 32768, 8 g at 4096
+    counts/g), which the calibration's bias absorbs but a nominal reading must not keep: meta.json's
+    {sensor}_offset_counts (x y z) where stated, else an unsigned register's mid-scale 2^(b-1) where
+    every row lies in [0, 2^b) and every axis's median within 2^(b-2) of it (b the narrowest of
+    REGISTER_BITS); a signed register's rows lie near 0 and keep no offset."""
+    out = ms.acc_g() if sensor == "acc" else ms.gyro_dph()
+    if ms.meta.get(f"{sensor}_unit") != "counts":
+        return out, ""
+    raw, key = ms.raw(sensor), f"{sensor}_offset_counts"
+    if key in ms.meta:
+        try:
+            off = np.asarray(ms.meta[key], float).reshape(-1)
+        except (TypeError, ValueError):
+            off = np.zeros(0)
+        if off.size not in (1, 3) or not np.all(np.isfinite(off)):
+            raise CalibrationError(f"{ms.path / 'meta.json'}: {key} {ms.meta[key]!r}: give the register's value at "
+                                   "zero input, one number or x y z, e.g. 32768")
+        how = f"meta.json's {key}"
+    else:
+        b = next((b for b in REGISTER_BITS if raw.max() < 2.0 ** b), None)
+        half = 2.0 ** (b - 1) if b else np.nan
+        if b is None or raw.min() < 0 or np.any(np.abs(np.median(raw, axis=0) - half) > half / 2):
+            return out, ""
+        off, how = np.array([half]), f"inferred: an unsigned {b}-bit register's mid-scale; state {key} in meta.json"
+    off = np.broadcast_to(off, (3,))
+    to_unit = units.acc_to_g if sensor == "acc" else units.gyro_to_dph
+    return out - to_unit(off[None], ms.meta)[0], f"{sensor}: the counts less {', '.join(f'{x:g}' for x in off)} ({how})"
+
+
 def validate(cal_path, data_dir) -> dict:
     """The report (module doc) of calibration file cal_path (or a Calibration) applied to the set data_dir
     (or a MeasurementSet)."""
@@ -60,8 +95,8 @@ def validate(cal_path, data_dir) -> dict:
     ms = data_dir if isinstance(data_dir, io.MeasurementSet) else io.read_set(data_dir)
     where = f"the calibration of {cal.input}" if given else cal_path
     meta, samples, _ = apply(cal, ms, where)  # checks the layout
-    f_before = ms.acc_g() if ms.has_acc else None
-    w_before = ms.gyro_dph() if ms.has_gyro else None
+    (f_before, said_a), (w_before, said_g) = (nominal(ms, s) if has else (None, "") for s, has in
+                                              (("acc", ms.has_acc), ("gyro", ms.has_gyro)))
     f_after = np.column_stack([samples[c] for c in ("ax", "ay", "az")]) if ms.has_acc else None
     w_after = np.column_stack([samples[c] for c in ("gx", "gy", "gz")]) if ms.has_gyro else None
     checks = methods.kind_of(ms).validation_checks(ms, f_before, f_after, w_before, w_after, cal)
@@ -82,7 +117,7 @@ def validate(cal_path, data_dir) -> dict:
     return {"format": "simucal.validation/1", "calibration": str(where), "data": str(ms.path),
             "independent": not own, "checks": checks, "verdict": verdicts,
             "warnings": list(meta.get("warnings", [])),  # apply's: rows outside the calibrated temperature range
-            "note": own or None}
+            "note": own or None, "nominal": [x for x in (said_a, said_g) if x]}
 
 
 def own_rows(cal, ms) -> str:
@@ -106,6 +141,8 @@ def lines(report):
     """The console: one table row per check, then the verdict per sensor."""
     if report["note"]:
         yield f"NOTE: {report['note']}"
+    for x in report.get("nominal", []):
+        yield f"nominal: {x}"
     yield f"{'sensor':6} {'nominal':>10} {'calibrated':>10} {'floor':>9}  {'unit':8} check: verdict"
     for s, rows in report["checks"].items():
         for c in rows:

@@ -96,6 +96,18 @@ def test_a_stream_validated_on_another_session_of_the_same_unit(tmp_path):
     assert gyro["unit"] == "deg" and gyro["after_rms"] < 0.2 * gyro["before_rms"] and rep["independent"]
     assert rep["verdict"]["acc"] in ("better", "at the noise floor")
     assert (tmp_path / "r.html").read_text().count("data:image/png") == 1
+    # nominal reads the counts less the register's zero: inferred mid-scale 32768 (was 7 g off per axis at 4096
+    # counts/g, "nominal 12.8 g"), or meta.json's acc_offset_counts; the unit's bias is within 0.05 g
+    acc = rep["checks"]["acc"][0]
+    assert acc["before_rms"] < 0.1 and "an unsigned 16-bit register's mid-scale" in rep["nominal"][0], rep["nominal"]
+    meta = json.loads((tmp_path / "b" / "meta.json").read_text())
+    for value, code in ((32768, 0), ("x", 2)):
+        (tmp_path / "b" / "meta.json").write_text(json.dumps({**meta, "acc_offset_counts": value}))
+        r = _run("validate", tmp_path / "c.json", tmp_path / "b", "-o", tmp_path / f"r{code}.json")
+        assert r.exit_code == code, r.output
+    assert "acc_offset_counts 'x'" in r.output and r.output.count("\n") == 1
+    stated = json.loads((tmp_path / "r0.json").read_text())
+    assert stated["checks"]["acc"][0]["before_rms"] == acc["before_rms"] and "meta.json's" in stated["nominal"][0]
 
 
 def test_mislabelled_positions_are_named_and_not_called_better(table, tmp_path):
