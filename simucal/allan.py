@@ -107,7 +107,8 @@ def second_rows(dt) -> int:
 
 
 def check_still(ms, dt):
-    """Refuse a stream that moves: its 1-s mean specific force may wander by noise, not turn by 0.05 g."""
+    """Refuse a stream that moves: its 1-s mean specific force may wander by noise, not move by 0.05 g (the
+    difference of two means: a raw register's zero cancels, where an angle would need it)."""
     if not methods.kind_of(ms).still_whole or not ms.has_acc:
         return
     f = ms.acc_g()
@@ -119,8 +120,9 @@ def refuse_moving(f_1s_g, f_mean_g, where):
     """check_still on the 1-s means of the specific force (rows, 3) and its mean over the record (g)."""
     tilt = np.linalg.norm(f_1s_g - f_mean_g, axis=1)
     if len(tilt) > 1 and np.max(tilt) > 0.05:
-        raise CalibrationError(f"{where}: the unit moves during the recording (its 1-s mean specific force turns "
-                               f"by {np.max(tilt):.2g} g): the Allan deviation needs a still unit; record it at rest")
+        raise CalibrationError(f"{where}: the unit moves during the recording (its 1-s mean specific force differs "
+                               f"from the record's mean by up to {np.max(tilt):.2g} g, where a still unit's wanders by "
+                               "the noise only): the Allan deviation needs a still unit; record it at rest")
 
 
 def _seconds_for(n_taus: int, dt: float) -> float:

@@ -88,15 +88,21 @@ def _validate(out: Path, sc, seed: int, echo) -> dict:
         outputs.write_text(out / f"loop_validation_{name}.json", json.dumps(rep, indent=1) + "\n")
         outputs.write_text(out / f"loop_validation_{name}.html", html_page(rep))
     echo(f"6 validate on {out / 'loop_other'} (the same unit, another plan, raw rows; data neither fit saw):")
-    echo(f"   {'':56} {'nominal':>9} {'baseline':>9} {'added':>9} {'floor':>9}")
-    for i, c in enumerate(reps["baseline"]["checks"]["acc"]):
-        a = reps["added"]["checks"]["acc"][i]
+    checks = reps["baseline"]["checks"]["acc"]
+    w = max(len(_label(c)) for c in checks)
+    echo(f"   {'':{w}} {'nominal':>9} {'baseline':>9} {'added':>9} {'floor':>9}")
+    for c, a in zip(checks, reps["added"]["checks"]["acc"]):
         fl = "-" if c["floor_rms"] is None else f"{c['floor_rms']:.3g}"
-        echo(f"   {c['what'].split(',')[0][:56]:56} {c['before_rms']:9.3g} {c['after_rms']:9.3g} {a['after_rms']:9.3g} {fl:>9}  "
+        echo(f"   {_label(c):{w}} {c['before_rms']:9.3g} {c['after_rms']:9.3g} {a['after_rms']:9.3g} {fl:>9}  "
              f"{c['unit']}")
     echo("   verdict against the nominal scale factors: "
          + "; ".join(f"{n} {r['verdict']['acc']}" for n, r in reps.items()))
     return {n: r["checks"]["acc"][0]["after_rms"] for n, r in reps.items()}
+
+
+def _label(check) -> str:
+    """A validation check's name for a table row, whole: its text up to the first comma or the floor's note."""
+    return check["what"].split(" (floor")[0].split(",")[0]
 
 
 THERMAL = {"acc.bias_temperature.x": 1e-5, "acc.bias_temperature2.x": 1e-7, "acc.scale_temperature.z": 1e-5,
@@ -132,10 +138,12 @@ def thermal(out: Path, seed: int, echo) -> dict:
     other = plateau(35, 7, "table1")
     reps = {n: validate(out / f"thermal_calibration{n}.json", other) for n in ("", "_25")}
     outputs.write_text(out / "thermal.html", thermal_page(cal, [reps[""]], str(out / "thermal_calibration.json")))
-    echo(f"   validate at 35 degC ({other}): {'':2} {'thermal':>9} {'25 degC only':>13} {'floor':>9}")
+    w = max(len(_label(reps[""]["checks"][s][0])) for s in ("acc", "gyro"))
+    echo(f"   validate at 35 degC ({other}):")
+    echo(f"   {'':{w}} {'thermal':>9} {'25 degC only':>13} {'floor':>9}")
     for s in ("acc", "gyro"):
         a, b = reps[""]["checks"][s][0], reps["_25"]["checks"][s][0]
-        echo(f"   {a['what'][:40]:40} {a['after_rms']:9.3g} {b['after_rms']:13.3g} {a['floor_rms']:9.3g} {a['unit']}")
+        echo(f"   {_label(a):{w}} {a['after_rms']:9.3g} {b['after_rms']:13.3g} {a['floor_rms']:9.3g} {a['unit']}")
     return {s: (reps[""]["checks"][s][0]["after_rms"], reps["_25"]["checks"][s][0]["after_rms"]) for s in ("acc", "gyro")}
 
 

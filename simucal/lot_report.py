@@ -29,6 +29,7 @@ from simucal.fit.distributions import chi2_sf
 from simucal.io.calibration import Calibration, load
 from simucal.io.calibration_checks import SERIAL, CalibrationFileError
 from simucal.io.text_files import unique_keys
+from simucal.report.console import n_units
 
 FORMAT = "simucal.lot/1"
 LIMITS_FORMAT = "simucal.limits/1"
@@ -140,7 +141,7 @@ def _group(names, cals) -> dict:
             for j, p in enumerate(params)]
     rule = (f"|z| > {z_max:.3g} in any of {len(params)} parameters, z = (x - median) / sqrt(tau^2 + std^2): a unit "
             f"of a normal lot is flagged with a chance of {OUTLIER_P:g}" if tested else
-            f"not tested: {len(cals)} units, fewer than {MIN_UNITS}")
+            f"not tested: {n_units(len(cals))}, fewer than {MIN_UNITS}")
     left = sorted(set().union(*per_unit) - set(params))
     return {"units": list(names), "parameters": rows, "outlier_rule": rule, "z_threshold": z_max,
             **({"not_compared": left} if left else {})}
@@ -270,7 +271,7 @@ def verdict_lines(report) -> list[str]:
     """The lot's verdict in words: how many pass, which fail and why, which are flagged."""
     units = report["units"]
     by = {s: [u for u in units if u["status"] == s] for s in ("passes", "fails", "flagged")}
-    out = [f"{len(by['passes'])} of {len(units)} units pass, {len(by['fails'])} fail, {len(by['flagged'])} flagged"
+    out = [f"{len(by['passes'])} of {n_units(len(units))} pass, {len(by['fails'])} fail, {len(by['flagged'])} flagged"
            + (f" ({len(report['groups'])} groups of method and model, each its own distribution)"
               if len(report["groups"]) > 1 else "")]
     out += [f"{u['file']} {u['status'].upper()}: " + "; ".join(u["why"]) for u in by["fails"] + by["flagged"]]

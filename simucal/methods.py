@@ -123,8 +123,10 @@ def choose(name, ms) -> Method:
         raise CalibrationError(f"unknown method {name!r}; one of auto, {', '.join(NAMES)}.")
     m = METHODS[name]
     if m.data != kind:
-        raise CalibrationError(f"{ms.path}: is {DATA[kind]}, but method {name} takes {DATA[m.data]}: use --method "
-                               f"{' or --method '.join(for_data(kind))}.")
+        first, *others = for_data(kind)  # the whole command: field-drift, which says method field, has no --method
+        raise CalibrationError(f"{ms.path}: is {DATA[kind]}, but method {name} takes {DATA[m.data]}: use simucal "
+                               f"calibrate {ms.path} --method {first}"
+                               + (f" (or --method {' or '.join(others)})" if others else "") + ".")
     return m
 
 

@@ -84,7 +84,8 @@ def test_field_calibration_is_a_calibration_file_that_apply_corrects_the_drift_w
                for s in ms.segments] for ms in (before, after)]
     assert np.max(excess[1]) < 0.1 * np.max(excess[0]), excess  # |w| at rest is the Earth rate once the drift is gone
     assert np.allclose(after.acc_g(), before.acc_g())  # accelerometers at nominal, unchanged
-    for method, words in (("exact", "use --method field"), ("handheld", "use --method field")):
+    for method, words in (("exact", f"use simucal calibrate {tmp_path / 'f'} --method field"),
+                          ("handheld", "--method field")):
         r = CliRunner().invoke(main, ["calibrate", str(tmp_path / "f"), "--method", method, "-o", str(tmp_path / "x.json")])
         assert r.exit_code == 2 and words in r.stderr and not (tmp_path / "x.json").exists()
     json.loads((tmp_path / "d.json").read_text())["field"]["history"][0]["eps_N_dph"]  # Fig. 4 from the file

@@ -2,6 +2,7 @@
 planted drift and one without, spec limits, a file that is no calibration and a unit of another method;
 the outlier rule's false-alarm rate and power over seeds; bad limits files refused in one line."""
 import json
+import shutil
 import re
 
 import numpy as np
@@ -129,3 +130,14 @@ def test_a_folder_without_calibrations_is_refused(tmp_path):
     (tmp_path / "cals" / "a.json").write_text("{}")
     refused(run("lot", tmp_path / "cals", "-o", tmp_path / "l.json"), "holds no calibration file",
             "simucal calibrate DIR1 DIR2 ... -o FOLDER")
+
+
+def test_a_lot_of_one_unit_says_unit(lot, tmp_path):
+    """A count of one is '1 unit' (the review read '1 units'): in the verdict, the outlier rule and the page."""
+    root = lot[0]
+    (tmp_path / "one").mkdir()
+    shutil.copy(root / "cals" / "zz_mp.json", tmp_path / "one" / "a.json")
+    r = run("lot", tmp_path / "one", "-o", tmp_path / "l.json", "--html", tmp_path / "l.html")
+    assert r.exit_code == 0, r.output
+    said = r.output + (tmp_path / "l.html").read_text() + (tmp_path / "l.json").read_text()
+    assert "1 unit" in said and "1 units" not in said, r.output

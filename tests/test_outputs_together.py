@@ -56,6 +56,19 @@ def test_two_outputs_on_one_path_are_refused_before_any_work(work, args, words):
     assert _tree(work) == before
 
 
+@pytest.mark.parametrize("args", [
+    ["validate", "{d}/cal.json", "{d}/set", "-o", "{d}/v.json"], ["diagnose", "{d}/set", "-o", "{d}/d.json"],
+    ["noise", "{d}/still", "-o", "{d}/n.json"], ["lot", "{d}/cals", "-o", "{d}/l.json"],
+    ["field-drift", "{d}/set", "-o", "{d}/f.json"], ["calibrate", "{d}/set", "--thermal", "-o", "{d}/th.json"]])
+def test_every_page_path_ends_in_html(work, args):
+    """--html v.png wrote HTML into a .png: every --html refuses a name not ending in .html or .htm."""
+    (work / "cals").mkdir()
+    shutil.copy(work / "cal.json", work / "cals" / "a.json")
+    before = _tree(work)
+    _refused(_run(*[a.format(d=work) for a in args], "--html", work / "v.png"), "a page is HTML", "v.html")
+    assert _tree(work) == before
+
+
 def test_a_set_beside_files_in_a_folder_made_for_them_is_allowed():
     outputs.check(files={"-o": "out/a.json"}, folders=["out"])  # batch calibrate: one <set>.json each
     outputs.check(sets=["out", "out/loop"])  # the demo: its sets inside its folder

@@ -32,7 +32,11 @@ def pages(tmp_path_factory):
     """{name: (html, figure problems, figures)} of every kind of page, and "out": their data's folder. The
     demo's unit over temperature, its noise, its hidden effect on the Table 1 plan, a hand-placed stream."""
     out = tmp_path_factory.mktemp("pages")
-    demo.thermal(out, 0, lambda _: None)
+    said = []
+    demo.thermal(out, 0, said.append)
+    rows = said[said.index(next(x for x in said if "validate at 35 degC" in x)) + 2:]  # the demo's table, whole
+    assert [r.strip().split("  ")[0] for r in rows[:2]] == [demo._label(c) for c in validate(
+        out / "thermal_calibration.json", out / "thermal_35")["checks"].values() for c in c[:1]], rows
     demo.noise(out, 0, lambda _: None)
     sc = SCENARIOS["paper"]()
     sc.plan, sc.rate_hz, sc.static_s, sc.acc_effects = "table1", 20.0, 5.0, dict(demo.HIDDEN)

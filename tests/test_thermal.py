@@ -223,7 +223,10 @@ def test_validate_and_apply_name_rows_outside_the_range_and_refuse_without_temp_
     code, out = _run("validate", tmp_path / "narrow.json", sets[1], "-o", tmp_path / "v2.json")
     assert code == 0 and "outside the gyro's calibrated 30 to 60 degC" in out and "outside the acc's" not in out, out
     code, out = _run("apply", root / "cal.json", hot, "-o", tmp_path / "out")
-    assert code == 0 and "WARNING" in out and "extrapolated" in out
+    assert code == 0 and "WARNING" in out and "extrapolated" in out and "kelvin" not in out
+    write(tmp_path / "kelvin", Scenario(plan="fibonacci48", temp_c=(298.15, 298.15), t_ref_c=298.15), 6)
+    code, out = _run("apply", root / "cal.json", tmp_path / "kelvin", "-o", tmp_path / "outK")
+    assert code == 0 and "extrapolated; temp_c looks like kelvin (273-400): convert to degC" in out, out
     meta = json.loads((hot / "meta.json").read_text())
     (hot / "meta.json").write_text(json.dumps({**meta, "temperature_units": "Fahrenheit"}))
     code, out = _run("validate", root / "cal.json", hot, "-o", tmp_path / "v3.json")

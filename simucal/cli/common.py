@@ -6,6 +6,7 @@ import math
 import os
 import sys
 import warnings
+from pathlib import Path
 
 import click
 
@@ -185,5 +186,8 @@ def guard(inputs=(), files=(), sets=(), folders=(), force=False, together=True):
         outputs.check(inputs, files, sets, folders, force)
     except outputs.OutputError as e:
         fail(e)
+    page = files.get("--html") if isinstance(files, dict) else None
+    if page and Path(page).suffix.lower() not in (".html", ".htm"):  # a browser opens a page by its name
+        fail(f"--html {page}: a page is HTML; end its name in .html (e.g. {Path(page).with_suffix('.html')})")
     if together:
         outputs.hold(files.values() if isinstance(files, dict) else files, list(sets) + list(folders))

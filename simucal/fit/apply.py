@@ -23,6 +23,8 @@ from simucal.io.calibration import Calibration, SensorBlock
 from simucal.io.calibration_checks import LAYOUT_KEYS, check_layout
 
 
+KELVIN_HINT = "; temp_c looks like kelvin (273-400): convert to degC (subtract 273.15)"  # every row 250-400
+
 def _affine_effects(block: SensorBlock):
     """h(u) = M u + bias + sum_j p_j phi_j(u) e_axis(j), for blocks without a generated model."""
     M, bias = block.M, block.bias
@@ -216,5 +218,6 @@ def temperatures(cal: Calibration, ms) -> tuple[np.ndarray | None, list[str]]:
         if len(out):
             warnings.append(f"{s}: {len(out)} of {len(temp)} rows (from line {out[0] + 2} of samples.csv) have temp_c "
                             f"{temp[out].min():.4g} to {temp[out].max():.4g} degC, outside the {s}'s calibrated {lo:.4g} "
-                            f"to {hi:.4g} degC: their temperature terms are extrapolated")
+                            f"to {hi:.4g} degC: their temperature terms are extrapolated" + KELVIN_HINT * bool(
+                                np.all((temp >= 250.0) & (temp <= 400.0))))
     return temp, warnings

@@ -219,5 +219,5 @@ def _refuse_ratio(sensor, r, where, what="outputs"):
     guess = min(UNIT_MIXUPS[sensor].items(), key=lambda kv: abs(np.log(r / kv[1])))
     likely = f"; the ratio matches {guess[0]}" if abs(np.log(r / guess[1])) < 0.2 else ""
     from simucal.errors import CalibrationError
-    raise CalibrationError(f"{where}: the {sensor} {what} are {r:.4g} times the known input (1 g at rest, or the "
-                           f"commanded rate): check {sensor}_unit and the nominal scale factors in meta.json{likely}")
+    known = "1 g at rest" if sensor == "acc" else "the commanded rate, or the Earth rate at rest"
+    raise CalibrationError(f"{where}: the {sensor} {what} are {r:.4g} times the known input ({known}): check {sensor}_unit and the nominal scale factors in meta.json{likely}")

@@ -5,6 +5,11 @@ from __future__ import annotations
 from simucal.io.calibration import ALPHA, Calibration, SensorBlock
 
 
+def n_units(n: int) -> str:
+    """'1 unit', '2 units': a count of units in words."""
+    return f"{n} unit" + "s" * (n != 1)
+
+
 def calibration_lines(cal: Calibration):
     """Per sensor its test and effects (and what to add when the model fails), then the frames'
     unification, the consistency checks, what the plan leaves undetermined, and the warnings."""

@@ -8,6 +8,7 @@ import html
 
 import numpy as np
 
+from simucal.report.console import n_units
 from simucal.report.page import page, plt, png
 
 
@@ -59,7 +60,7 @@ def lot_page(report: dict) -> str:
     verdicts = [(not failing, first)] + [(not (" FAILS: " in v or " FLAGGED: " in v), v) for v in rest]
     parts = []
     for g in report["groups"]:
-        parts.append(f"<h2>{e(g['key'])}: {len(g['units'])} units</h2><p>Outliers: {e(g['outlier_rule'])}.</p>")
+        parts.append(f"<h2>{e(g['key'])}: {n_units(len(g['units']))}</h2><p>Outliers: {e(g['outlier_rule'])}.</p>")
         for sensor in dict.fromkeys(p["name"].split(".")[0] for p in g["parameters"]):
             parts.append(f"<h3>{sensor}</h3>" + _figure(g, sensor, report["limits"]))
         parts.append(_table(
