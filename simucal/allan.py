@@ -323,8 +323,8 @@ def _term_text(t, html=False) -> str:
     return f"record too short (needs {t['needs_s']:.3g} s)"
 
 
-def lines(report):
-    """The console: each axis's terms in a data sheet's units, seen or not."""
+def lines(report, written=None):
+    """The console: each axis's terms in a data sheet's units, seen or not; written: next_step's."""
     for sensor in ("acc", "gyro"):
         if sensor not in report:
             continue
@@ -339,7 +339,7 @@ def lines(report):
             yield f"  {a}: " + ", ".join(f"{t['name']} {_term_text(t)}" for t in ax["sheet"].values())
     for _, text in verdicts(report):
         yield text
-    yield "next: " + next_step(report)[0]
+    yield "next: " + next_step(report, written)[0]
 
 
 def _axes_of(axes, status, k) -> list[str]:
@@ -367,9 +367,14 @@ def verdicts(report) -> list[tuple[bool, str]]:
     return out
 
 
-def next_step(report) -> tuple[str, list[str]]:
-    """(the command after `simucal noise`, why): Kalibr's imu.yaml where the record gives it, else what to record."""
+def next_step(report, written=None) -> tuple[str, list[str]]:
+    """(the command after `simucal noise`, why): Kalibr's imu.yaml where the record gives it, else what to record;
+    written ({"-o": noise.json, "--kalibr": imu.yaml}) once imu.yaml is written: a calibration weighed by the
+    noise curves (calibrate --noise), not the command just run."""
     missing = kalibr_missing(report)
+    if written and written.get("--kalibr"):
+        return (f"simucal calibrate TEST_SET --noise {written['-o']} -o calibration.json",
+                [f"{written['--kalibr']} is written: Kalibr reads it as its --imu file"])
     if not missing:
         return f"simucal noise {report['data']} -o noise.json --kalibr imu.yaml", []
     return ("simucal noise LONGER_STILL_RECORDING -o noise.json --html noise.html",

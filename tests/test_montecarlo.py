@@ -22,6 +22,12 @@ def test_std_matches_the_cramer_rao_bound(tmp_path):
         assert 0.94 < v["std_over_crlb"] < 1.06, (name, v)
         assert abs(v["mean"] - v["truth"]) < 4 * v["std"] / np.sqrt(3000), (name, v)
     assert max(out["unification"]["C_b_d_error_rms_rad"]) < 3e-5
+    from simucal.fit.catalog import load
+    for name, v in out["parameters"].items():  # each row's unit, on the console as in the file
+        sensor, p = name.split(".", 1)
+        m = load(f"{sensor}_baseline")
+        assert v["unit"] == m.param_units[m.params.index(p)]
+        assert any(x.split()[:2] == [name, v["unit"]] for x in r.output.splitlines()), name
 
 
 def test_batched_simulation_matches_the_simulator(tmp_path):

@@ -254,7 +254,7 @@ def noise(data_dir, output, html_path, kalibr_path, tau_max_s, scheduler):
     _save(result, output, html_path)
     if kalibr_path:
         outputs.write_text(kalibr_path, yaml)
-    for line in allan.lines(result.report):
+    for line in allan.lines(result.report, {"-o": output, "--kalibr": kalibr_path}):
         click.echo(line)
     click.echo(f"wrote {output}" + "".join(f" and {p}" for p in (html_path, kalibr_path) if p))
 

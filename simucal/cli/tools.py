@@ -143,9 +143,9 @@ def montecarlo(scenario, plan, trials, seed, effects, effect_file, sets, rates, 
     click.echo(f"{trials} trials in {result['seconds']:.2f} s ({result['trials_per_s']:.0f}/s; {backend}; "
                f"scheduler {scheduler}); "
                f"{result['failed']} failed")
-    click.echo(f"{'parameter':18} {'truth':>12} {'mean':>12} {'std':>10} {'CRLB':>10} {'std/CRLB':>9}")
+    click.echo(f"{'parameter':18} {'unit':8} {'truth':>12} {'mean':>12} {'std':>10} {'CRLB':>10} {'std/CRLB':>9}")
     for name, v in result["parameters"].items():
-        click.echo(f"{name:18} {v['truth']:12.5g} {v['mean']:12.5g} {v['std']:10.3g} {v['crlb']:10.3g} "
+        click.echo(f"{name:18} {v['unit']:8} {v['truth']:12.5g} {v['mean']:12.5g} {v['std']:10.3g} {v['crlb']:10.3g} "
                    f"{v['std_over_crlb']:9.3f}")
     click.echo(f"wrote {output}")
 

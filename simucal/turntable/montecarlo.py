@@ -287,7 +287,8 @@ def run(sc: Scenario, trials: int, seed: int = 0, chunk: int = 2500, progress=No
         std = e.std(axis=0, ddof=1) if len(e) > 1 else np.full(len(model.params), np.nan)
         for j, name in enumerate(model.params):
             out["parameters"][name if name.startswith(f"{sensor}.") else f"{sensor}.{name}"] = {  # effects: their id
-                "truth": float(ref["truth"][sensor][j]), "mean": float(mean[j]), "std": float(std[j]),
+                "unit": model.param_units[j], "truth": float(ref["truth"][sensor][j]), "mean": float(mean[j]),
+                "std": float(std[j]),
                 "crlb": float(crlb[sensor][j]), "std_over_crlb": float(std[j] / crlb[sensor][j])}
     phi = np.concatenate([p["phi"] for p in parts])
     out["unification"] = {"C_b_d_error_rms_rad": np.sqrt(np.mean(phi ** 2, axis=0)).tolist(),
