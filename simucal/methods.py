@@ -243,14 +243,15 @@ def _simulate_stream(seed, rate_hz, o):
     plant(sc, o["effects"])
     hs = HandheldScenario(acc_effects=sc.acc_effects, gyro_effects=sc.gyro_effects,
                           **({"rate_hz": rate_hz} if rate_hz is not None else {}))
-    meta, samples, truth = simulate_handheld(hs, seed)
+    meta, samples, truth = simulate_handheld(hs, seed, o["unit_seed"])
     return meta, samples, None, truth
 
 
 def _simulate_field(seed, rate_hz, o):
     from simucal.field.simulate import FieldScenario, simulate_field
     return simulate_field(FieldScenario(**{k: v for k, v in (("heading_error_deg", o["heading_accuracy_deg"]),
-                                                              ("rate_hz", rate_hz)) if v is not None}), seed)
+                                                              ("rate_hz", rate_hz)) if v is not None}), seed,
+                          o["unit_seed"])
 
 
 KINDS = {k.name: k for k in (

@@ -110,6 +110,26 @@ def test_a_stream_validated_on_another_session_of_the_same_unit(tmp_path):
     assert stated["checks"]["acc"][0]["before_rms"] == acc["before_rms"] and "meta.json's" in stated["nominal"][0]
 
 
+@pytest.mark.parametrize("scenario", ["handheld", "field"])
+def test_a_second_recording_of_one_drawn_unit(tmp_path, scenario):
+    """--seed drew the hand-placed and field unit too (validate on another seed said WORSE THAN NOMINAL):
+    --unit-seed keeps the unit and redraws the recording; --unit-seed equal to --seed is --seed alone."""
+    import simucal
+    a, b, same = (simucal.simulate(scenario, seed=s, unit_seed=u) for s, u in ((1, None), (2, 1), (1, 1)))
+    key = {"handheld": ("acc", "M"), "field": ("gyro_drift_dph",)}[scenario]
+    pick = lambda t: t[key[0]][key[1]] if len(key) > 1 else t[key[0]]  # noqa: E731
+    assert pick(a.truth) == pick(b.truth) != pick(simucal.simulate(scenario, seed=2).truth)
+    assert all(np.array_equal(a.samples[c], same.samples[c]) for c in a.samples)
+    assert not np.array_equal(a.samples["ax"][:100], b.samples["ax"][:100])
+    if scenario == "handheld":
+        for name, ms in (("a", a), ("b", b)):
+            ms.write(tmp_path / name)
+        assert _run("calibrate", tmp_path / "a", "-o", tmp_path / "c.json").exit_code == 0
+        assert _run("validate", tmp_path / "c.json", tmp_path / "b", "-o", tmp_path / "r.json").exit_code == 0
+        verdict = json.loads((tmp_path / "r.json").read_text())["verdict"]
+        assert verdict["acc"] in ("better", "at the noise floor") and verdict["gyro"] == "better", verdict
+
+
 def test_mislabelled_positions_are_named_and_not_called_better(table, tmp_path):
     """Two static segments' commanded angles swapped in the validation set: the two segments are
     named (the rest agree), in the check and in the sensor's verdict."""

@@ -34,8 +34,11 @@ def _span(v) -> str:
     return ":".join(repr(float(x)) for x in v) if isinstance(v, (tuple, list)) else str(v)
 
 
-def _refuse_unused(scenario: str, table_options: dict, effects, heading_accuracy_deg) -> None:
+def _refuse_unused(scenario: str, table_options: dict, effects, heading_accuracy_deg, unit_seed=None) -> None:
     """An option the scenario would not use is refused, naming it (Python name and the command's)."""
+    if scenario == "paper" and unit_seed is not None:
+        raise ValueError(f"unit_seed (--unit-seed) {unit_seed}: the turntable unit is the scenario's at every seed; "
+                         "the hand-placed and field scenarios draw theirs (--scenario handheld or field)")
     if scenario != "field" and heading_accuracy_deg is not None:
         raise ValueError(f"heading_accuracy_deg (--heading-accuracy-deg) {heading_accuracy_deg:g}: the field "
                          f"scenario's north reference (--scenario field); a {scenario} test has none")
@@ -52,7 +55,8 @@ def simulate(scenario: str = "paper", *, seed: int = 0, rate_hz: float | None = 
              gyro_model: str | None = None, acc_unit: str | None = None, gyro_unit: str | None = None,
              effect_file: str | None = None, sets: Pairs | None = None, columns: Mapping[str, Any] | Sequence[str] | None = None,
              temperature_c: Any = None, t_ref_c: float | None = None, temperature_wander_c: float | None = None,
-             noise_stated: bool = True, heading_accuracy_deg: float | None = None, sequence: str | None = None) -> MeasurementSet:
+             noise_stated: bool = True, heading_accuracy_deg: float | None = None, sequence: str | None = None,
+             unit_seed: int | None = None) -> MeasurementSet:
     """Simulate a recording of a unit whose truth is known.
 
     Parameters
@@ -61,8 +65,8 @@ def simulate(scenario: str = "paper", *, seed: int = 0, rate_hz: float | None = 
         "paper": a turntable test, dong2018 section 4 (raw pulse/s); "field": ruan2019's three
         positions without a table; "handheld": a hand-placed session (a stream in counts, poses held
         between moves).
-    seed : int
-        numpy's seed (the same seed, the same recording; the unit is the same at every seed).
+    seed, unit_seed : int
+        numpy's seeds: the recording's, and where the unit is drawn (hand-placed, field) the unit's (default seed).
     rate_hz : float, optional
         Raw samples at this rate (Hz, up to 2000); turntable default: one averaged row per position;
         field 100 Hz; hand-placed 100 Hz.
@@ -109,10 +113,10 @@ def simulate(scenario: str = "paper", *, seed: int = 0, rate_hz: float | None = 
                          gyro_model=gyro_model, acc_unit=acc_unit, gyro_unit=gyro_unit, effect_file=effect_file,
                          sets=sets, columns=columns, temperature_c=temperature_c, t_ref_c=t_ref_c,
                          temperature_wander_c=temperature_wander_c, noise_stated=not noise_stated)
-    _refuse_unused(scenario, table_options, effects, heading_accuracy_deg)
+    _refuse_unused(scenario, table_options, effects, heading_accuracy_deg, unit_seed)
     options = {**table_options, "effects": _strings(effects), "sets": _strings(sets),  # the command's values
                "columns": _strings(columns, _span), "temperature": None if temperature_c is None else _span(temperature_c), "state_noise": noise_stated,
-               "heading_accuracy_deg": heading_accuracy_deg}
+               "heading_accuracy_deg": heading_accuracy_deg, "unit_seed": unit_seed}
     meta, samples, segments, truth = methods.SCENARIOS[scenario].simulate(seed, rate_hz, options)
     ms = MeasurementSet(Path(f"simulated_{scenario}_seed{seed}"), meta, samples, segments)  # the name errors say
     ms.truth = truth

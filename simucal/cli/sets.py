@@ -45,7 +45,11 @@ ANNOTATED_HZ, ANNOTATED_ACC, ANNOTATED_GYRO = 204.8, 2048.0, 16.4  # imucal's an
 @click.option("--heading-accuracy-deg", "--heading-error-deg", "heading_error_deg", type=Number(0.0, 180.0), default=None,
               show_default="5", help="field: the north reference's accuracy, deg; its error is drawn uniform +- this.")
 @click.option("--seed", type=SEED, default=0, show_default=True,
-              help=SEED_HELP + " The unit is the same at every seed.")
+              help=SEED_HELP + " paper: the unit is the scenario's at every seed; handheld and field: the unit "
+                   "(its M and biases, the field's drift) is drawn from the seed too, unless --unit-seed is given.")
+@click.option("--unit-seed", type=SEED, default=None, show_default="--seed",
+              help="handheld and field: the seed the unit is drawn from, so that two --seed values with one "
+                   "--unit-seed are two recordings of one unit (calibrate one, validate on the other).")
 @click.option("--plan", default=None, show_default="table1",
               help="table1, dodecahedron20, fibonacci24, fibonacci48, or a CSV of outer_deg,middle_deg,inner_deg.")
 @click.option("--sequence", default=None, metavar="NAME|FILE",
@@ -85,7 +89,7 @@ ANNOTATED_HZ, ANNOTATED_ACC, ANNOTATED_GYRO = 204.8, 2048.0, 16.4  # imucal's an
                    "within +- this, degC (a chamber's wander).")
 @click.option("--no-noise-stated", is_flag=True, help="Leave acc_noise_g / gyro_noise_dph out of meta.json.")
 @FORCE
-def simulate(out_dir, output, scenario, heading_error_deg, seed, plan, sequence, rate_hz, position_error_arcmin, acc_model, gyro_model,
+def simulate(out_dir, output, scenario, heading_error_deg, seed, unit_seed, plan, sequence, rate_hz, position_error_arcmin, acc_model, gyro_model,
              acc_unit, gyro_unit, effects, effect_file, sets, columns, temperature_c, t_ref_c, temperature_wander_c,
              no_noise_stated, force):
     """Simulate a test; write a measurement set and truth.json (simucal simulate -o FOLDER [options]).
@@ -104,11 +108,12 @@ def simulate(out_dir, output, scenario, heading_error_deg, seed, plan, sequence,
                           acc_unit=acc_unit, gyro_unit=gyro_unit, effect_file=effect_file, sets=sets, columns=columns,
                           temperature_c=temperature_c, t_ref_c=t_ref_c, temperature_wander_c=temperature_wander_c,
                           noise_stated=not no_noise_stated, heading_accuracy_deg=heading_error_deg,
-                          sequence=sequence)
+                          sequence=sequence, unit_seed=unit_seed)
     except (ValueError, KeyError, FileNotFoundError, SyntaxError) as e:
         fail(e)
     ms.write(out_dir, force=force)
-    click.echo(f"wrote {out_dir} ({scenario} scenario, seed {seed})")
+    click.echo(f"wrote {out_dir} ({scenario} scenario, seed {seed}"
+               + (f", the unit of seed {unit_seed})" if unit_seed is not None else ")"))
 
 
 @main.command("import")

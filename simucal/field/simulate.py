@@ -33,14 +33,23 @@ class FieldScenario:
     gravity_mps2: float = 9.7966
 
 
-def simulate_field(sc: FieldScenario, seed: int = 0):
+def _unit(sc: FieldScenario, rng):
+    """The unit's own truth: its gyro drift (deg/h) and accelerometer bias (m/s^2)."""
+    drift = (np.array(sc.drift_dph) if sc.drift_dph is not None
+             else rng.uniform(1, 10, 3) * rng.choice([-1, 1], 3))
+    return drift, rng.uniform(-1, 1, 3) * sc.acc_bias_mps2
+
+
+def simulate_field(sc: FieldScenario, seed: int = 0, unit_seed: int | None = None):
+    """(meta, samples, segments, truth): the unit drawn from unit_seed (default seed), the attitudes, the
+    heading reference's error and the noise from seed (two seeds, one unit_seed: two recordings of one unit)."""
     rng = np.random.default_rng(seed)
     lat = np.radians(sc.latitude_deg)
     w_e = np.radians(units.DEFAULT_EARTH_RATE_DPH / units.DPH_PER_DPS)
     w_ie_n = gen.earth_rate_n(w_e, lat)
-    drift = (np.array(sc.drift_dph) if sc.drift_dph is not None
-             else rng.uniform(1, 10, 3) * rng.choice([-1, 1], 3))
-    acc_bias = rng.uniform(-1, 1, 3) * sc.acc_bias_mps2
+    drift, acc_bias = _unit(sc, rng)  # drawn in any case, so that unit_seed = seed is the recording of seed alone
+    if unit_seed is not None:
+        drift, acc_bias = _unit(sc, np.random.default_rng(unit_seed))
     n = int(round(sc.duration_s * sc.rate_hz))
     dt = 1 / sc.rate_hz
     sigma_w = np.radians(sc.arw_deg_per_sqrt_h / 60) / np.sqrt(dt)  # rad/s per sample
@@ -68,7 +77,8 @@ def simulate_field(sc: FieldScenario, seed: int = 0):
             "earth_rate_dph": units.DEFAULT_EARTH_RATE_DPH, "acc_unit": "m/s^2", "gyro_unit": "deg/s",
             "description": "simucal field simulation (ruan2019 three positions); body axes Forward-Up-Right"}
     truth = {"gyro_drift_dph": drift.tolist(), "acc_bias_mps2": acc_bias.tolist(), "positions": true_att,
-             "arw_deg_per_sqrt_h": sc.arw_deg_per_sqrt_h, "seed": seed}
+             "arw_deg_per_sqrt_h": sc.arw_deg_per_sqrt_h, "seed": seed,
+             "unit_seed": seed if unit_seed is None else unit_seed}
     return meta, samples, segments, truth
 
 

@@ -97,13 +97,21 @@ def _motion(sc: HandheldScenario, rng):
     return np.vstack(f_list), np.vstack(w_list), clip, np.array(held)
 
 
-def simulate_handheld(sc: HandheldScenario, seed=0):
-    """(meta, samples, truth) of a simulated hand-placed session in counts."""
-    rng = np.random.default_rng(seed)
+def _unit(rng):
+    """The unit's own truth: (M_a, b_a g, M_g, b_g deg/s)."""
     M_a = np.eye(3) + np.tril(rng.uniform(-0.01, 0.01, (3, 3)))
     b_a = rng.uniform(-0.05, 0.05, 3)
     M_g = np.eye(3) + rng.uniform(-0.01, 0.01, (3, 3)) + np.diag(rng.uniform(-0.03, 0.03, 3))
-    b_g = rng.uniform(-2, 2, 3)
+    return M_a, b_a, M_g, rng.uniform(-2, 2, 3)
+
+
+def simulate_handheld(sc: HandheldScenario, seed=0, unit_seed=None):
+    """(meta, samples, truth) of a simulated hand-placed session in counts: the unit drawn from unit_seed
+    (default seed), the poses, moves and noise from seed (two seeds, one unit_seed: two sessions of one unit)."""
+    rng = np.random.default_rng(seed)
+    M_a, b_a, M_g, b_g = _unit(rng)  # drawn in any case, so that unit_seed = seed is the recording of seed alone
+    if unit_seed is not None:
+        M_a, b_a, M_g, b_g = _unit(np.random.default_rng(unit_seed))
     if sc.dead_gyro_axis is not None:
         M_g[sc.dead_gyro_axis] = 0.0
     dt = 1 / sc.rate_hz
@@ -135,7 +143,8 @@ def simulate_handheld(sc: HandheldScenario, seed=0):
              "gyro": {"M": M_g.tolist(), "T": None if sc.dead_gyro_axis is not None else np.linalg.inv(M_g).tolist(),
                       "bias_dps": (b_g + sc.offset_counts / sc.gyro_counts_per_dps).tolist(),
                       "params": {EFFECTS[e].parameter: v for e, v in sc.gyro_effects.items()}},
-             "clipped_moves": sorted(clip), "pose_directions_b": pose_f.tolist(), "seed": seed}
+             "clipped_moves": sorted(clip), "pose_directions_b": pose_f.tolist(), "seed": seed,
+             "unit_seed": seed if unit_seed is None else unit_seed}
     samples = {"t_s": np.arange(n) * dt, "ax": acc[:, 0], "ay": acc[:, 1], "az": acc[:, 2],
                "gx": gyro[:, 0], "gy": gyro[:, 1], "gz": gyro[:, 2]}
     return meta, samples, truth
