@@ -50,6 +50,23 @@ def test_the_error_falls_on_independent_data_and_falls_further_with_the_missing_
     assert "|f| - 1 g" in out and "nominal" in out
 
 
+def test_the_direction_floor_holds_the_tables_stated_angle_errors(table, tmp_path):
+    """The gravity-direction check's floor left out the table's position errors (uniform +- 1 arcmin, std
+    34.6 arcsec): the calibrated error (~2e-4 rad) stood against a noise floor of ~7e-7 rad, never at the
+    floor. Where meta.json states table_accuracy_arcsec the floor holds it and the check reaches it; where
+    not, the check says how to state it."""
+    unstated, _ = _report(table, "added.json", "val", tmp_path / "u.json")
+    d = unstated["checks"]["acc"][1]
+    assert "table_accuracy_arcsec" in d["what"] and "state them" in d["what"] and d["floor_rms"] < 0.1 * d["after_rms"]
+    shutil.copytree(table / "val", tmp_path / "val")
+    meta = json.loads((tmp_path / "val" / "meta.json").read_text())
+    std_arcsec = np.degrees(Scenario().position_error_rad) * 3600 / np.sqrt(3)  # the simulated table's
+    (tmp_path / "val" / "meta.json").write_text(json.dumps({**meta, "table_accuracy_arcsec": std_arcsec}))
+    stated, _ = _report(tmp_path, table / "added.json", "val", tmp_path / "s.json")  # an absolute path joins as itself
+    d = stated["checks"]["acc"][1]
+    assert "meta.json's table_accuracy_arcsec" in d["what"] and d["verdict"] == "at the noise floor", d
+
+
 def test_a_calibration_worse_than_nominal_is_said_loudly(table, tmp_path):
     cal = json.loads((table / "added.json").read_text())
     cal["acc"]["params"]["dK_x"] += 0.1  # a 10 % scale error, M and bias made to agree (apply refuses a half edit)

@@ -71,6 +71,7 @@ class Scenario:
     shuffle: bool = False             # visit the positions in random order (separates time from direction)
     state_noise: bool = True          # write acc_noise_g / gyro_noise_dph into meta.json
     tilt_stated_arcsec: float | None = None  # write table_tilt_arcsec (the levelling's std per axis) into meta.json
+    accuracy_stated_arcsec: float | None = None  # write table_accuracy_arcsec (each angle's position error std)
 
     def table_errors_rad(self) -> np.ndarray:
         """(tilt_x, tilt_y, nonperp_om, nonperp_mi), rad: the same at every position."""
@@ -223,8 +224,9 @@ def meta_of(sc: Scenario, seed) -> dict:
             "description": f"simucal simulate, seed {seed}"}
     if sc.state_noise:  # a noise-free set states none (the spec's noise is a std > 0)
         meta.update({units.NOISE_KEY[s]: v for s, v in (("acc", sc.acc_noise_g), ("gyro", sc.gyro_noise_dph)) if v > 0})
-    if sc.tilt_stated_arcsec is not None:
-        meta["table_tilt_arcsec"] = sc.tilt_stated_arcsec
+    for key, v in (("table_tilt_arcsec", sc.tilt_stated_arcsec), ("table_accuracy_arcsec", sc.accuracy_stated_arcsec)):
+        if v is not None:
+            meta[key] = v
     if sc.acc_unit == "pulse/s":
         meta["acc_pulses_per_g"] = list(sc.acc_pulses_per_g)
     if sc.gyro_unit == "pulse/s":

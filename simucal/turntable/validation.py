@@ -39,13 +39,17 @@ def table_checks(ms, f_before, f_after, w_before, w_after, cal) -> dict:
                 d = m / np.linalg.norm(m, axis=1, keepdims=True)
                 R = wahba(up_k, d, np.ones(len(d)))
                 errs.append(np.linalg.norm(d - up_k @ R.T, axis=1))
-            # the table's angle errors move the direction too: two angles, each of its stated std
-            table_sd = (table_accuracy_rad(ms) or 0.0) * np.sqrt(2)
+            # the table's angle errors move the direction too: two angles, each of its stated std, and the outer
+            # axis's tilt about two horizontal axes (a constant tilt seen at several outer angles: no one rotation)
+            stated = [k for k in ("table_accuracy_arcsec", "table_tilt_arcsec") if ms.meta.get(k) is not None]
+            table_sd = np.hypot(table_accuracy_rad(ms) or 0.0,
+                                ms.meta.get("table_tilt_arcsec", 0.0) * units.ARCSEC_RAD) * np.sqrt(2)
             floor = np.hypot(fl[angled], table_sd)
             checks.append({"what": "gravity direction against the commanded table vertical, after the best "
                                    "rotation between unit and table" + (
-                                       " (floor: noise and meta's table_accuracy_arcsec)" if table_sd else
-                                       " (floor: the noise alone; the table's angle errors add to it)"),
+                                       f" (floor: the noise and meta.json's {' and '.join(stated)})" if stated else
+                                       " (floor: the noise alone; the table's angle errors add to it: state them "
+                                       "as meta.json's table_accuracy_arcsec and table_tilt_arcsec)"),
                            "unit": "rad", "n": len(angled), "before_rms": rms(errs[0]), "after_rms": rms(errs[1]),
                            "floor_rms": rms(floor) if np.all(np.isfinite(floor)) else None,
                            "far_off": far_off(errs[1], floor, [labels[i] for i in angled]),
