@@ -56,7 +56,7 @@ def test_the_lot_report_finds_what_was_planted(lot):
     assert all(v["verdict"] == "no drift seen" for v in drift["unit0001_b.json"]["sensors"].values())
     assert units["unit0000_b.json"]["status"] == "flagged" and "unit0000.json" in report["superseded"]
     assert [g["units"] for g in report["groups"]][1:] == [["zz_linear.json"], ["zz_mp.json"]]
-    assert report["groups"][1]["outlier_rule"].startswith("not tested: 1 units")
+    assert report["groups"][1]["outlier_rule"].startswith("not tested: 1 unit, fewer than")
     mp = {p["name"]: p for p in report["groups"][2]["parameters"]}  # an affine block: M's entries and the bias
     assert len(mp) == 24 and mp["acc.M_xx"]["stds"][0] > 0 and mp["gyro.b_z"]["unit"] == "deg/h"
     assert [o["file"] for o in report["not_calibrations"]] == ["notes.txt"]
