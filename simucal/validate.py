@@ -34,7 +34,8 @@ import numpy as np
 from simucal import io, methods
 from simucal.fit.apply import apply
 from simucal.fit.validation import FAR_OFF
-from simucal.io import calibration
+from simucal.errors import CalibrationError
+from simucal.io import calibration, units
 from simucal.report.console import validation_next
 
 WORSE = 1.05  # after/before above this: the calibration makes the unit worse on these data
