@@ -68,8 +68,7 @@ def simulate(scenario: str = "paper", *, seed: int = 0, rate_hz: float | None = 
     seed, unit_seed : int
         numpy's seeds: the recording's, and where the unit is drawn (hand-placed, field) the unit's (default seed).
     rate_hz : float, optional
-        Raw samples at this rate (Hz, up to 2000); turntable default: one averaged row per position;
-        field 100 Hz; hand-placed 100 Hz.
+        Raw samples at this rate (Hz, up to 2000); default: turntable one averaged row per position, else 100 Hz.
     plan, sequence : str, optional
         Turntable: a plan, "table1" (default), "dodecahedron20", "fibonacci24", "fibonacci48" or a CSV of
         outer_deg,middle_deg,inner_deg; or a rotation sequence (``method="systematic"``'s raw data), "psins19",
@@ -114,9 +113,9 @@ def simulate(scenario: str = "paper", *, seed: int = 0, rate_hz: float | None = 
                          sets=sets, columns=columns, temperature_c=temperature_c, t_ref_c=t_ref_c,
                          temperature_wander_c=temperature_wander_c, noise_stated=not noise_stated)
     _refuse_unused(scenario, table_options, effects, heading_accuracy_deg, unit_seed)
-    options = {**table_options, "effects": _strings(effects), "sets": _strings(sets),  # the command's values
-               "columns": _strings(columns, _span), "temperature": None if temperature_c is None else _span(temperature_c), "state_noise": noise_stated,
-               "heading_accuracy_deg": heading_accuracy_deg, "unit_seed": unit_seed}
+    options = {**table_options, "effects": _strings(effects), "sets": _strings(sets), "unit_seed": unit_seed,  # as the command's
+               "columns": _strings(columns, _span), "temperature": None if temperature_c is None else _span(temperature_c),
+               "state_noise": noise_stated, "heading_accuracy_deg": heading_accuracy_deg}
     meta, samples, segments, truth = methods.SCENARIOS[scenario].simulate(seed, rate_hz, options)
     ms = MeasurementSet(Path(f"simulated_{scenario}_seed{seed}"), meta, samples, segments)  # the name errors say
     ms.truth = truth
