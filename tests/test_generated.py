@@ -149,7 +149,7 @@ def test_move_integration_and_its_jacobian():
         close(J[..., j], (rp - rm) / 2e-6, rel=1e-6)
 
 
-GENERATED = ("table", "effects", "field", "moves", "unify")
+GENERATED = ("table", "effects", "field", "moves", "unify", "systematic")
 
 
 def _generated_functions():
