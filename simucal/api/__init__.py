@@ -202,9 +202,9 @@ def save(path: str | os.PathLike, result: Calibration | Validation | Diagnosis |
 
 def _inputs(result: _file.Calibration | Validation | Diagnosis | Noise) -> list[str]:
     """The folders and files a result was made from (as its report names them)."""
-    given = result.input if isinstance(result, _file.Calibration) else [
-        result.report.get(k) for k in ("input", "data", "calibration")]
-    return [p for p in (given if isinstance(given, list) else [given]) if isinstance(p, str) and Path(p).exists()]
+    given: list[Any] = ([result.input] if not isinstance(result.input, list) else list(result.input)) \
+        if isinstance(result, _file.Calibration) else [result.report.get(k) for k in ("input", "data", "calibration")]
+    return [str(p) for p in given if isinstance(p, str) and Path(p).exists()]
 
 
 def _page(result: _file.Calibration | Validation | Diagnosis | Noise, calibration_path: str) -> str:
