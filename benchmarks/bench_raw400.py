@@ -73,6 +73,19 @@ def measure(args: list, pythonpath: str | None, cwd: Path) -> tuple:
     return float(wall), float(cpu), int(kb) / 1024
 
 
+def alternate(args, old: str, cwd: Path, repeats: int) -> dict:
+    """{"before": [(wall, CPU, MB)], "now": [...]} of `simucal ARGS` ("{name}" in an argument replaced by
+    before/now), run by the code under old and by this checkout's, alternating: repeats runs each after
+    one that writes the bytecode (repeats 0: that one alone, a check that the command runs)."""
+    runs = {"before": [], "now": []}
+    for k in range(repeats + 1):
+        for name, path in (("before", old), ("now", None)):
+            m = measure([a.replace("{name}", name) if isinstance(a, str) else a for a in args], path, cwd)
+            if k or not repeats:
+                runs[name].append(m)
+    return runs
+
+
 def main():
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--rate-hz", type=float, default=400.0, help="the set's sample rate, Hz (default 400)")
@@ -85,21 +98,16 @@ def main():
         rows = sum(1 for _ in (folder / "samples.csv").open()) - 1
         mb = (folder / "samples.csv").stat().st_size / 2 ** 20
         old = str(old_tree(a.before, tmp / "old"))
-        runs = {"old": [], "new": []}
-        for k in range(a.repeats + 1):  # the first of each writes its bytecode: not counted
-            for name, path in (("old", old), ("new", None)):
-                m = measure(["calibrate", folder, "-o", tmp / f"{name}.json"], path, folder)
-                if k:
-                    runs[name].append(m)
-        same = json.loads((tmp / "old.json").read_text())["acc"]["params"].keys() == \
-            json.loads((tmp / "new.json").read_text())["acc"]["params"].keys()
+        runs = alternate(["calibrate", folder, "-o", str(tmp / "{name}.json")], old, folder, a.repeats)
+        same = json.loads((tmp / "before.json").read_text())["acc"]["params"].keys() == \
+            json.loads((tmp / "now.json").read_text())["acc"]["params"].keys()
     print(f"{rows:,} rows at {a.rate_hz:g} Hz, samples.csv {mb:.0f} MB; {a.repeats} runs each, alternating; "
           f"the same parameters fitted: {same}\n")
     print(f"| `simucal calibrate`, whole process | before ({a.before}) | now | goal |\n|---|---|---|---|")
     for i, (what, unit, goal) in enumerate((("wall", "s", "<= 1 s"), ("CPU (user + system)", "s", ""),
                                             ("peak resident memory", "MB", f"<= {3 * mb:.0f} MB (3x the file)"))):
         cells = []
-        for name in ("old", "new"):
+        for name in ("before", "now"):
             v = [m[i] for m in runs[name]]
             cells.append(f"{min(v):.3g}-{max(v):.3g} {unit}" + (f" ({max(v) / mb:.2g}x the file)" if i == 2 else ""))
         print(f"| {what} | {cells[0]} | {cells[1]} | {goal} |")

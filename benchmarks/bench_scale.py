@@ -28,24 +28,12 @@ import time
 from pathlib import Path
 
 from bench_long_noise import NAMES, still_chunks
-from bench_raw400 import ROOT, make_set, measure, old_tree
+from bench_raw400 import ROOT, alternate, make_set, measure, old_tree
 
 from simucal.bench import write_plateaus
 from simucal.io import columnar, outputs
 from simucal.report.markdown import header
 from simucal.turntable.lot import write_lot
-
-
-def alternate(args, old: str, cwd: Path, repeats: int) -> dict:
-    """{"before": [(wall, CPU, MB)], "now": [...]}: repeats runs each after one that writes bytecode
-    (repeats 0: that one alone, a check that the command runs)."""
-    runs = {"before": [], "now": []}
-    for k in range(repeats + 1):
-        for name, path in (("before", old), ("now", None)):
-            m = measure([a.replace("{name}", name) if isinstance(a, str) else a for a in args], path, cwd)
-            if k or not repeats:
-                runs[name].append(m)
-    return runs
 
 
 def span(values, unit, fmt=".3g") -> str:
