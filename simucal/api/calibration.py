@@ -12,7 +12,6 @@ from simucal.api.tables import table
 from simucal.errors import CalibrationError
 from simucal.fit import apply as fit_apply
 from simucal.fit.augmented import AugmentedModel
-from simucal.fit.thermal import PLAUSIBLE_C
 from simucal.generated.effects import EFFECTS
 from simucal.io import SAMPLE_COLS, arrays, calibration, units
 from simucal.io.calibration_checks import LAYOUT_KEYS
@@ -159,7 +158,7 @@ class Calibration(calibration.Calibration):
                                 **({"t_s": t_s} if t_s is not None else {"rate_hz": 1.0}),
                                 meta={**scales, "latitude_deg": 0.0, "gravity_mps2": gravity_mps2}, name="x")
         meta, out, _ = fit_apply.apply(self, ms, "this calibration")
-        for w in meta.get("warnings", []):  # rows outside the calibrated temperatures: said, as the command says it
+        for w in meta.get("warnings", []):  # rows outside the calibrated temperatures (kelvin named): as the command
             warnings.warn(w.replace(" of samples.csv", " of x"), stacklevel=2)
         back = {"acc": given["acc_unit"] if given["acc_unit"] in PHYSICAL["acc"] else "g",
                 "gyro": given["gyro_unit"] if given["gyro_unit"] in PHYSICAL["gyro"] else "deg/h"}
@@ -229,11 +228,5 @@ def _needs(cal, temp_c, t_s) -> None:
         reads.add("temp_c")
     if temp_c is None and reads & {"temp_c", "dtemp_c"}:
         raise CalibrationError("the calibration follows temperature: give each row's temp_c= (degC)")
-    if temp_c is not None and reads & {"temp_c", "dtemp_c"}:
-        T = np.asarray(temp_c, float)
-        if T.size and not (PLAUSIBLE_C[0] <= np.nanmin(T) and np.nanmax(T) <= PLAUSIBLE_C[1]):
-            raise CalibrationError(f"temp_c runs {np.nanmin(T):.4g} to {np.nanmax(T):.4g}, outside an IMU's rated "
-                                   f"{PLAUSIBLE_C[0]:g}..{PLAUSIBLE_C[1]:g} degC" + (
-                                       ": kelvin? give degC (C = K - 273.15)" if 250 <= np.nanmin(T) <= 400 else ""))
     if t_s is None and "t_s" in reads:
         raise CalibrationError("the calibration has a bias drifting in time: give each row's t_s= (s)")
