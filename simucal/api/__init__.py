@@ -26,7 +26,7 @@ from simucal.calibrate import calibrate as _calibrate_set
 from simucal.calibrate import calibrate_thermal as _calibrate_thermal
 from simucal.api.calibration import Calibration, Parameter
 from simucal.api.lot import lot
-from simucal.api.sets import MeasurementSet, as_set, folder_of
+from simucal.api.sets import MeasurementSet, as_set, effect_ids, folder_of
 from simucal.io import calibration as _file
 from simucal.validate import validate as _validate_report
 
@@ -75,7 +75,7 @@ def calibrate(data: Data | Sequence[str | os.PathLike], **options: Any) -> Calib
     **options
         The command's options by their Python names: ``method`` ("auto", "exact", "linear",
         "multiposition", "handheld", "field", "systematic"), ``add`` (effect ids, model files, "auto": a list,
-        or one string separated by commas),
+        or one as a string),
         ``acc_model``, ``gyro_model``, ``acc_noise_g``, ``gyro_noise_dph``, ``t_ref_c`` (degC),
         ``noise`` (a noise.json), ``detect``, ``heading_accuracy_deg``; with a list,
         ``degree`` (the thermal polynomials', default chosen by the data).
@@ -96,8 +96,8 @@ def calibrate(data: Data | Sequence[str | os.PathLike], **options: Any) -> Calib
     >>> cal.acc.effects["acc.quadratic.z"].value  # doctest: +SKIP
     0.000198...
     """
-    if isinstance(options.get("add"), str):  # "a,b" as on the command line, not its characters
-        options["add"] = [a.strip() for a in options["add"].split(",") if a.strip()]
+    if "add" in options:
+        options["add"] = effect_ids(options["add"])
     thermal = options.pop("thermal", False)
     if thermal or isinstance(data, (list, tuple)):
         sets = list(data) if isinstance(data, (list, tuple)) else [data]

@@ -9,7 +9,7 @@ from pathlib import Path
 from typing import NamedTuple, Sequence, Union
 
 from simucal import io
-from simucal.api.sets import as_set, folder_of
+from simucal.api.sets import as_set, effect_ids, folder_of
 from simucal.api.tables import TableOf
 
 Data = Union[str, os.PathLike, io.MeasurementSet]
@@ -63,7 +63,7 @@ class Diagnosis:
     candidates = TableOf("candidate_rows", Candidate._fields)
 
 
-def diagnose(data: Data, *, add: Sequence[str] = (), acc_model: str = "acc_baseline", gyro_model: str = "gyro_baseline",
+def diagnose(data: Data, *, add: str | Sequence[str] = (), acc_model: str = "acc_baseline", gyro_model: str = "gyro_baseline",
              acc_noise_g: float | None = None, gyro_noise_dph: float | None = None,
              timestamps: str = "auto") -> Diagnosis:
     """Test the model on a set and rank the candidate missing effects.
@@ -94,6 +94,7 @@ def diagnose(data: Data, *, add: Sequence[str] = (), acc_model: str = "acc_basel
     """
     from simucal.diagnose import diagnose as run
     from simucal.report.console import next_command
+    add = effect_ids(add)
     if "auto" in add:
         raise ValueError("add 'auto' is calibrate's: diagnose already ranks every candidate")
     report = run(as_set(data), add, acc_model, gyro_model, acc_noise_g, gyro_noise_dph, timestamps)

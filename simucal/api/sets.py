@@ -182,3 +182,8 @@ def as_set(data: Any) -> io.MeasurementSet:
     """A folder read, or a copy of the caller's set (a calibration records the user's T_ref on the
     set it is given, which stays the caller's)."""
     return replace(data) if isinstance(data, io.MeasurementSet) else io.read_set(folder_of(data))
+
+
+def effect_ids(add: str | Sequence[str]) -> tuple[str, ...]:
+    """add as the commands take it, one id or model file per item: a string is one (not its letters)."""
+    return (add,) if isinstance(add, str) else tuple(add)
