@@ -20,16 +20,15 @@ import numpy as np
 
 from simucal.errors import CalibrationError
 from simucal.fit.augmented import AugmentedModel, effect_ids, regressor
-from simucal.fit.cross_validation import leave_one_out, paired_improvement
+from simucal.fit.cross_validation import leave_one_out
 from simucal.fit.distributions import chi2_sf, f_sf
 from simucal.fit.lack_of_fit import describe_shape, fit_with_noise, lack_of_fit
 from simucal.fit.norm_fit import Fit, Observations, dense_jacobian, fit_exact
-from simucal.fit import ranking
+from simucal.fit import ranking, selection
 from simucal.fit.results import ALPHA, ModelTest, Selection
 from simucal.fit.twins import separating_plan
 from simucal.generated.effects import EFFECTS, SEPARATE
 
-HELD_OUT_ALPHA = 0.01  # --add auto: one-sided level of "predicts the rows left out better" (forward_selection)
 NOISE_TOO_LARGE = 1e-3  # P(chi2 below the value found): residuals this far under the stated noise
 NOISE_TOO_SMALL = 10.0  # residual rms / stated noise above which a misfit with no structure is the noise's
 
@@ -134,64 +133,40 @@ def test_model(model, obs: Observations, p0=None) -> tuple[Fit, Observations, di
     return fit, obs, block
 
 
-AUTO_TRIES = 3  # candidates passing the gate whose held-out errors are tried, strongest first
+class NormStep:
+    """A norm-fit model in `--add auto`'s forward selection (fit/selection.py): test_model's test and
+    leave-one-position-out errors. rank(model, obs, fit, base) -> (candidates, shape): the ranking the
+    caller's diagnosis uses (turntable/model_test.rank); default rank_candidates and
+    shape_if_unexplained. Only library effects are added (a table's own terms in the ranking are not)."""
+
+    def __init__(self, model: AugmentedModel, obs: Observations, rank=None):
+        self.model, self.obs, self._rank = model, obs, rank or _rank
+        self.effects = model.effects
+        self.fit, self.obs_used, self.base = test_model(model, obs)
+
+    def test(self):
+        return ModelTest.of(self.base)
+
+    def rank(self):
+        return self._rank(self.model, self.obs_used, self.fit, self.base)
+
+    def add(self, eid):
+        return NormStep(AugmentedModel(self.model.base, self.model.effects + (eid,)), self.obs, self._rank)
+
+    def held_out(self):
+        cv = self.base["cross_validation"]
+        return cv["held_out"] if cv else None
+
+    def after(self):
+        cv = self.base["cross_validation"]
+        return {"p_value_after": self.base["p_value"], "residual_rms_after": self.fit.residual_rms,
+                "held_out_rms_after": cv["held_out_rms"] if cv else None}
 
 
 def forward_selection(model: AugmentedModel, obs: Observations, rank=None, max_terms=6) -> Selection:
-    """`--add auto`: the library effects that explain a failing model, chosen one at a time.
-    While the model fails its test (test_model), a candidate is added only when it passes
-    rank_candidates' Bonferroni gate and also predicts the rows left out better than the model
-    without it (cross_validation.paired_improvement, one-sided p < HELD_OUT_ALPHA); the strongest of up to
-    AUTO_TRIES such candidates is taken and the model tested again. Where a term outside the
-    library (lack_of_fit.describe_shape) explains more of the misfit than any library effect, it
-    stops and says so instead of chaining effects that only absorb that misfit.
-    rank(model, obs, fit, base) -> (candidates, shape): the ranking the caller's diagnosis uses
-    (turntable/model_test.rank); default rank_candidates and shape_if_unexplained. Only library
-    effects are added (a table's own terms in the ranking are not).
-    Returns the Selection: the model, the steps (id, estimate, the test's p and the held-out rms
-    after) and why it stopped."""
-    steps = []
-    fit, obs2, base = test_model(model, obs)
-    while ModelTest.of(base).fails:
-        if len(steps) == max_terms:
-            return Selection(model, steps, f"stopped at {max_terms} effects with the model still failing")
-        cands, shape = rank(model, obs2, fit, base) if rank else _rank(model, obs2, fit, base)
-        if shape and not shape.get("catalog_id"):
-            return Selection(model, steps, f"a term outside the library explains more than any library effect: "
-                             f"{shape['text']}; simucal diagnose writes it as a model file for --add FILE")
-        sig = [c for c in cands if c.get("significant") and c["id"] in EFFECTS][:AUTO_TRIES]
-        if not sig:
-            return Selection(model, steps, "no library effect passes the candidate gate; the model still fails")
-        for c in sig:
-            trial = AugmentedModel(model.base, model.effects + (c["id"],))
-            f1, o1, b1 = test_model(trial, obs)
-            p_cv = paired_improvement(base["cross_validation"], b1["cross_validation"])
-            if p_cv is None or p_cv < HELD_OUT_ALPHA:
-                break
-        else:
-            return Selection(model, steps, f"the candidates passing the gate ({', '.join(c['id'] for c in sig)}) do "
-                             "not predict the positions left out better (it would only fit the misfit); the model "
-                             "still fails")
-        model, fit, obs2, base = trial, f1, o1, b1
-        cv = base["cross_validation"]
-        steps.append({"id": c["id"], "estimate": c["estimate"], "std": c["std"], "unit": c["unit"],
-                      "p_value_after": base["p_value"], "residual_rms_after": fit.residual_rms,
-                      "held_out_rms_after": cv["held_out_rms"] if cv else None, "p_held_out_better": p_cv,
-                      **_twin_choice(c, cands)})
-    return Selection(model, steps, "the model passes its test" if steps else "the model passes its test: nothing added")
-
-
-def _twin_choice(c, cands) -> dict:
-    """Where the data cannot tell the chosen effect from a twin (fit/twins.py): the twins and why this
-    one was taken (the larger likelihood ratio only), for --add auto to say so rather than choose silently."""
-    if not c.get("twins"):
-        return {}
-    tw = next(x for x in cands if x["id"] == c["twins"][0])
-    return {"twins": list(c["twins"]), "twin_choice": (
-        f"{c['id']}, not its twin {tw['id']}, only for the larger likelihood ratio ({c['statistic']:.1f} against "
-        f"{tw['statistic']:.1f}): the data cannot tell them apart, so either may be the unit's; the positions that "
-        f"would: simucal plan --score PLAN --separate {c['id']},{tw['id']} --sizes {c['estimate']:.2g},"
-        f"{tw['estimate']:.2g}")}
+    """`--add auto` on the norm fit (fit/selection.forward_selection from NormStep): the Selection with
+    its model the AugmentedModel chosen."""
+    return selection.forward_selection(NormStep(model, obs, rank), max_terms)
 
 
 def _rank(model, obs, fit, base):
