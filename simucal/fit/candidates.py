@@ -11,8 +11,8 @@
 - A model fails its test at p < ALPHA (fit/results.ModelTest.fails), everywhere.
 - shape: when no candidate explains the misfit, the generic term that does
   (lack_of_fit.describe_shape).
-- verdict: one paragraph for the user, with units and the command to run next.
-Used by calibrate, diagnose (turntable sets and streams' poses), diagnose_moves and table_fit.
+The verdict in words is report/verdicts.py's. Used by calibrate, diagnose (turntable sets and
+streams' poses), diagnose_moves and table_fit.
 """
 from __future__ import annotations
 
@@ -209,58 +209,3 @@ def shape_if_unexplained(model, obs, fit, base, cands) -> dict | None:
         if shape["share_of_misfit"] <= 1.5 * max(best_share, 0.0):
             return None
     return shape
-
-
-def _fmt_test(base):
-    rows = f" over {base['rows']}" if base.get("rows") else ""
-    if base["chi2"] is not None and not base["noise"].get("rows_estimated"):
-        return f"chi2 {base['chi2']:.1f} on {base['dof']} dof{rows}, p = {base['p_value']:.2g}"
-    lof = base["lack_of_fit"]
-    t = f"lack-of-fit F {lof['F']:.3g} on ({lof['q']}, {lof['dof']}) dof" if lof.get("F") is not None else "no F test"
-    if base["chi2"] is not None:
-        t = f"chi2 {base['chi2']:.1f} on {base['dof']} dof with the noise partly estimated, " + t
-    return t + rows + (f", p = {base['p_value']:.2g}" if base["p_value"] is not None else "")
-
-
-def _add_it(command, where, eid) -> str:
-    """The command that adds one effect; with command None the option alone (the diagnosis prints one
-    command with every --add after the verdicts: report/html.next_command)."""
-    return f"simucal {command} {where} --add {eid}" if command else f"--add {eid}"
-
-
-def verdict(sensor, base, cands, where="DIR", shape=None, command="diagnose") -> str:
-    unit = base.get("residual_unit", "")
-    rms = f"residual rms {base['residual_rms']:.3g} {unit}".rstrip()
-    if base["p_value"] is None:
-        return (f"{sensor}: too few degrees of freedom for any test (no noise in the data or stated, and the "
-                f"lack-of-fit test needs 4 dof); {rms}; state the noise (--{sensor}-noise-...) or add positions")
-    warning = f" WARNING: {base['noise_warning']}." if base.get("noise_warning") else ""
-    if not ModelTest.of(base).fails:
-        return f"{sensor}: the model explains the data down to the noise ({_fmt_test(base)}; {rms}).{warning}"
-    floor = f" against a noise floor {base['noise_floor']:.3g} {unit}" if base.get("noise_floor") else ""
-    head = f"{sensor}: the model does not explain the data ({_fmt_test(base)}; {rms}{floor})"
-    sig = [c for c in cands if c.get("significant")]
-    text = head + "." + warning
-    generic = shape and not shape.get("catalog_id")
-    if generic:  # it explains more than every library effect (shape_if_unexplained): lead with it
-        text += (f" Most likely missing: a term {shape['text']} (rms {shape['residual_rms_after']:.3g} {unit} "
-                 "without it), not in the library; a model file with this term is written beside the report: add "
-                 "it with --add FILE.")
-    if sig:
-        c = sig[0]
-        after = c.get("residual_rms_after")
-        more = (f" With it the residual rms would be {after:.3g} {unit}, still above the floor: more is missing "
-                "(see the other candidates)." if after and base.get("noise_floor") and after > 2 * base["noise_floor"]
-                else "")
-        text += (f" {'The best library effect, explaining less' if generic else 'Most likely missing'}: {c['id']} "
-                 f"({c['meaning']}), estimate {c['estimate']:.3g} +- {c['std']:.2g} {c['unit']}, LR "
-                 f"{c['statistic']:.1f}, p = {c['p_value']:.2g}."
-                 + ("" if generic else f" Add it: {_add_it(command, where, c['id'])}.{more}"))
-    elif not shape:
-        text += (" No candidate explains it; the missing effect is not in the library (or the plan cannot "
-                 "separate it).")
-    if shape and shape.get("catalog_id"):
-        text += (f" The residual looks like a term {shape['text']} (rms {shape['residual_rms_after']:.3g} {unit} "
-                 f"without it): that is the library's {shape['catalog_id']}, too weak alone to pass the gate over "
-                 f"every candidate; try it: {_add_it(command, where, shape['catalog_id'])}.")
-    return text

@@ -23,7 +23,6 @@ import numpy as np
 
 from simucal.fit.augmented import check_effect
 from simucal.fit.aux_inputs import FORCE
-from simucal.fit.candidates import verdict
 from simucal.fit.results import ModelTest, model_test_keys
 from simucal.generated.effects import EFFECTS
 from simucal.handheld.gyro_moves import (
@@ -87,7 +86,6 @@ def diagnose_moves(ms, obs, det, am, fa, add=(), truth=None):
     vec = lambda f: np.r_[f.T.ravel(), (gm.bias + f.db) * DPH_PER_DPS, f.p]
     std = lambda f: np.sqrt(np.diag(f.cov)) * np.r_[np.ones(9), np.full(3, DPH_PER_DPS), np.ones(len(f.p))]
     out = {**model_test_keys(block), "candidates": cands, "misfit_shares": shares,
-           "verdict": verdict("gyro (moves)", block, cands, str(ms.path), command=None) + (_shares_text(shares, ms.path) if shares else ""),
            "params": dict(zip(names, vec(fit).tolist())), "std": dict(zip(names, std(fit).tolist())),
            "param_units": {"T": "1 (deg/s of rate per deg/s of output)", "b": "deg/h"},
            "residuals": move_rows(gm, fit, S, columns), "residual_unit": "gravity direction (unit vector), per move",
@@ -106,20 +104,6 @@ def diagnose_moves(ms, obs, det, am, fa, add=(), truth=None):
                         "p_value_after": p1, "params": comp,
                         "residuals_before": move_rows(gm, base, move_covariances(gm, base, sigma_g), columns)}
     return out
-
-
-def _shares_text(shares, where) -> str:
-    """One sentence on what the chosen effects explain together, with the command to use them, and why
-    the selection stopped where the model still fails."""
-    s = shares["steps"]
-    if not s:
-        return ""
-    still = "" if s[-1]["p_value_after"] is None or not ModelTest(None, 0, s[-1]["p_value_after"]).fails else \
-        f" The selection stopped: {shares['stopped']}."
-    return (f" Together, {', '.join(x['id'] for x in s)} ({len(s)} effects, chosen one by one) explain "
-            f"{100 * (1 - shares['unexplained']):.1f} % of the misfit (chi2 {s[-1]['chi2_after']:.1f} on "
-            f"{s[-1]['dof_after']} dof, residual rms {s[-1]['residual_rms_after']:.3g}): add them, "
-            + " ".join(f"--add {x['id']}" for x in s) + "." + still)
 
 
 def _with_truth(comp, truth):
