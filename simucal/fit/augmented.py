@@ -31,6 +31,19 @@ def regressor(eid: str, u, aux: AuxInputs) -> np.ndarray:
     return np.broadcast_to(effect.phi(u, aux.array(SENSOR_AUX[effect.sensor], shape))[0][..., 0], shape)
 
 
+def effect_terms(effects, u, aux: AuxInputs | None):
+    """Each effect's (axis, phi (u.shape[:-1]), dphi/du (..., 3)) at inputs u: what an effect adds to a
+    model's output, p phi on its axis, and to its Jacobian in u (AugmentedModel, and apply's affine
+    blocks). Built-in auxiliary inputs only, 0 where aux lacks them."""
+    effects = tuple(effects)
+    if not effects:
+        return
+    A = (aux or AuxInputs()).array(SENSOR_AUX[EFFECTS[effects[0]].sensor], np.shape(u)[:-1])
+    for e in effects:
+        phi, dphi = EFFECTS[e].phi(u, A)
+        yield EFFECTS[e].axis, np.broadcast_to(phi[..., 0], np.shape(u)[:-1]), dphi
+
+
 def for_sensor(ids, sensor: str) -> tuple[str, ...]:
     """The effect ids of one sensor (each library effect knows its own)."""
     return tuple(e for e in ids if EFFECTS[e].sensor == sensor)
@@ -101,12 +114,7 @@ class AugmentedModel:
         return tuple(n for n in self.base.params if n not in baseline)
 
     def _terms(self, u, aux: AuxInputs | None):
-        if not self.effects:
-            return
-        A = (aux or AuxInputs()).array(SENSOR_AUX[self.sensor], np.shape(u)[:-1])  # built-in inputs only: 0 by default
-        for e in self.effects:
-            phi, dphi = EFFECTS[e].phi(u, A)
-            yield EFFECTS[e].axis, np.broadcast_to(phi[..., 0], np.shape(u)[:-1]), dphi
+        return effect_terms(self.effects, u, aux)
 
     def output(self, u, p, aux: AuxInputs | None = None):
         p = np.asarray(p, float)
