@@ -67,11 +67,26 @@ def test_sequence_set_marks_rests_and_moves(tmp_path, short):
     ("inner,90,5000,10", ["line 2", "rate_dps 5000"]),
     ("sideways,90,10,10", ["line 2", "outer, middle, inner"]),
     ("inner,90,10,-1", ["line 2", "rest_s"]),
+    ("inner,90,10,0.001", ["line 2", "rest_s 0.001", "shorter than one sample at 100 Hz"]),
 ])
 def test_impossible_sequence_files_refused(tmp_path, row, words):
     path = tmp_path / "bad.csv"
     path.write_text("axis,angle_deg,rate_dps,rest_s\n" + row + "\n")
     refused(run("simulate", "--sequence", path, "-o", tmp_path / "out"), str(path), *words)
+
+
+def test_a_rate_the_sample_rate_cannot_hold_refused(tmp_path):
+    path = _sequence_file(tmp_path / "fast.csv", psins19(rest_s=REST_S, rate_dps=400.0))
+    refused(run("simulate", "--sequence", path, "--rate-hz", "2", "-o", tmp_path / "out"), str(path), "line 2",
+            "200 deg per sample", "--rate-hz above 4.44444")
+
+
+def test_rests_too_short_for_the_noise_refused(tmp_path):
+    """Rests of 5 samples: the filter cannot take the white noise from them; refused in one line."""
+    path = _sequence_file(tmp_path / "brief.csv", psins19(rest_s=0.5))
+    run("simulate", "--sequence", path, "--rate-hz", "10", "-o", tmp_path / "s")
+    r = run("calibrate", tmp_path / "s", "--method", "systematic", "-o", tmp_path / "c.json")
+    refused(r, "segments.csv", "no rest holds more than 10 samples")
 
 
 def test_filter_model_equals_its_derivation():

@@ -58,6 +58,10 @@ def white_noise(ms, segments, rows_of):
         if s.kind == "static" and len(r) > 10:
             d = np.diff(np.c_[ms.gyro_dph()[r], ms.acc_g()[r]], axis=0)
             per_rest.append(d.std(axis=0) / np.sqrt(2))
+    if not per_rest:
+        raise CalibrationError(f"{ms.path / 'segments.csv'}: no rest holds more than 10 samples; the filter takes the "
+                               "white noise from the rests: rest at least 11 samples (the built-in sequences rest "
+                               "30-100 s)")
     return np.median(per_rest, axis=0)
 
 
