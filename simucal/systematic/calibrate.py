@@ -111,13 +111,12 @@ def run_filter(ms, acc_model="acc_baseline", gyro_model="gyro_baseline", ids=(),
     for k in range(1, max_passes + 1):
         x0 = np.r_[log_so3(C_prior @ C.T), np.zeros(3), sensors.vector()]  # the prior's mean as errors
         epochs = _one_pass(steps, sensors, C, x0, np.diag(prior_var), q, w_ie, g0)
-        x_s, _ = smooth(epochs, covariance=False)  # the attitude at the start; the constants are the filter's at the end,
-        x, P = epochs[-1].x, epochs[-1].P  # equal in exact arithmetic, and free of the smoother's round-off
-        step = np.abs(x[6:]) / np.sqrt(np.diag(P)[6:])
-        C = exp_so3(x_s[0][:3]) @ C
+        x, P = epochs[-1].x, epochs[-1].P  # the constants: the filter's at the end (the smoother's at the start
+        step = np.abs(x[6:]) / np.sqrt(np.diag(P)[6:])  # equal them in exact arithmetic)
         _move(sensors, sensors.vector() - x[6:])
-        if step.max() < STEP_STD:
+        if step.max() < STEP_STD or k == max_passes:
             break
+        C = exp_so3(smooth(epochs, covariance=False)[0][0][:3]) @ C  # the next pass's attitude at the start
     return Result(sensors, P[6:, 6:], epochs, prior_var, sigma, k, float(step.max()))
 
 
