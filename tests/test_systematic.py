@@ -203,3 +203,18 @@ def test_a_move_segment_with_angles_or_a_rate_is_refused(tmp_path, short):
     seg.write_text(seg.read_text().replace("\n2,move,,,,\n", "\n2,move,,,,10\n"))
     with pytest.raises(io.MeasurementSetError, match="line 3: a move segment has no commanded angles or rate"):
         io.read_set(tmp_path / "s")
+
+
+def test_a_table_rate_error_reaches_the_norm_method_alone():
+    """The comparison's poor table (benchmarks/bench_systematic.py): the rate runs' rate off by 1e-4
+    puts exact's gyro M off by about as much, while systematic never reads the table's rates."""
+    from pathlib import Path
+    from simucal.turntable.simulate import Scenario
+    from simucal.turntable.simulate import simulate as simulate_table
+    errors = []
+    for rate_error in (0.0, 1e-4):
+        meta, samples, segments, truth = simulate_table(Scenario(rate_error=rate_error), 0)
+        ms = io.MeasurementSet(Path("table1"), meta, samples, segments)
+        assert truth["table"]["rate_error"] == rate_error
+        errors.append(np.abs(simucal.calibrate(ms, method="exact").gyro.M - np.array(truth["gyro"]["M"])).max())
+    assert errors[0] < 2e-5 and 0.7e-4 < errors[1] < 1.3e-4, errors
