@@ -10,9 +10,10 @@ stretched to fill that many hours at 100 Hz, `simucal calibrate --method systema
 whole process (reading the set, every pass, writing the file): wall and CPU (user + sys; the wall
 of a shared machine is its load's). Part 3 (--compare-seeds): the same unit by exact and
 multiposition (table1 with its rate runs, 10 s per position at 100 Hz) and systematic (psins19, 30 s
-rests), tables of angle errors 1, 10 and 60 arcsec (uniform +- each, each axis, each position) and a
-poor one, 60 arcsec with its rate off by 10 or 100 ppm in the rate runs: per group (M, bias of each
-sensor) the rms error against the truth over the seeds, the rms stated std and the rms error / std.
+rests), tables of angle errors 1, 10 and 60 arcsec (uniform +- each, each axis, each position) and
+poor ones, 60 arcsec with its rate off by 10 or 100 ppm in the rate runs or with 600 arcsec of tilt
+and non-perpendicular axes: per group (M, bias of each sensor) the rms error against the truth
+over the seeds, the rms stated std and the rms error / std.
 """
 import argparse
 import os
@@ -29,7 +30,7 @@ import simucal
 from simucal.generated import table
 from simucal.io import MeasurementSet
 from simucal.systematic.calibrate import run_filter
-from simucal.turntable.sequence import psins19
+from simucal.turntable.sequence import psins19, simulate_sequence
 from simucal.turntable.simulate import ARCSEC, Scenario
 from simucal.turntable.simulate import simulate as simulate_table
 
@@ -84,7 +85,8 @@ def _children_cpu():
 
 GROUPS = {"acc M": ("acc", 1e6, "ppm"), "gyro M": ("gyro", 1e6, "ppm"), "acc bias": ("acc", 1e6, "ug"),
           "gyro bias": ("gyro", 1.0, "deg/h")}
-TABLES = [(1.0, 0.0), (10.0, 0.0), (60.0, 0.0), (60.0, 1e-5), (60.0, 1e-4)]  # (angle error arcsec, rate error)
+# (angle error arcsec, rate error, tilt and non-perpendicularity arcsec: 5 the simulator's default)
+TABLES = [(1.0, 0.0, 5.0), (10.0, 0.0, 5.0), (60.0, 0.0, 5.0), (60.0, 1e-5, 5.0), (60.0, 1e-4, 5.0), (60.0, 0.0, 600.0)]
 
 
 def _group_errors(cal, truth):
@@ -109,13 +111,19 @@ def _group_errors(cal, truth):
     return out
 
 
-def _plan_set(seed, arcsec, rate_error):
-    """Table 1 with its rate runs, 10 s per position at 100 Hz, the table's angle and rate errors."""
-    sc = Scenario(rate_hz=100.0, position_error_rad=arcsec * ARCSEC, rate_error=rate_error)
-    meta, samples, segments, truth = simulate_table(sc, seed)
-    ms = MeasurementSet(Path(f"table1_seed{seed}"), meta, samples, segments)
-    ms.truth = truth
-    return ms
+def _sets(seed, table_errors, sequence):
+    """The same unit on one table (TABLES' row): Table 1 with its rate runs (10 s per position at
+    100 Hz) and the sequence."""
+    arcsec, rate_error, geometry = table_errors
+    sc = Scenario(rate_hz=100.0, position_error_rad=arcsec * ARCSEC, rate_error=rate_error,
+                  tilt_rad=(geometry * ARCSEC,) * 2, nonperp_rad=(geometry * ARCSEC,) * 2)
+    sets = []
+    for name, (meta, samples, segments, truth) in (("table1", simulate_table(sc, seed)),
+                                                    ("psins19", simulate_sequence(sc, sequence, seed))):
+        ms = MeasurementSet(Path(f"{name}_seed{seed}"), meta, samples, segments)
+        ms.truth = truth
+        sets.append(ms)
+    return sets
 
 
 def comparison(seeds, folder):
@@ -124,13 +132,12 @@ def comparison(seeds, folder):
     entries, the rms of the stated stds and the rms of error / std."""
     path = sequence_file(folder / "psins19_30s.csv", 30.0)
     print(f"\n{seeds} seeds per cell; per group: rms error / rms std (rms of error / std)\n")
-    print("| angle error | rate error (ppm) | method | " + " | ".join(f"{g} ({u})" for g, (_, _, u) in GROUPS.items())
-          + " |\n|---|---|---|" + "---|" * len(GROUPS))
-    for arcsec, rate_error in TABLES:
+    print("| angle error | rate error (ppm) | tilt, non-perp. | method | " + " | ".join(f"{g} ({u})" for g, (_, _, u) in GROUPS.items())
+          + " |\n|---|---|---|---|" + "---|" * len(GROUPS))
+    for table_errors in TABLES:
         cells = {m: {g: [] for g in GROUPS} for m in ("exact", "multiposition", "systematic")}
         for seed in range(seeds):
-            plan = _plan_set(seed, arcsec, rate_error)
-            seq = simucal.simulate(seed=seed, sequence=path, position_error_arcmin=arcsec / 60)
+            plan, seq = _sets(seed, table_errors, path)
             for method, ms in (("exact", plan), ("multiposition", plan), ("systematic", seq)):
                 for g, e in _group_errors(simucal.calibrate(ms, method=method), ms.truth).items():
                     cells[method][g].append(e)
@@ -140,7 +147,8 @@ def comparison(seeds, folder):
                 err, std = (np.concatenate([e[i] for e in groups[g]]) for i in (0, 1))
                 rms = np.sqrt(np.mean(err ** 2))
                 row.append(f"{k * rms:.3g} / {k * np.sqrt(np.mean(std ** 2)):.3g} ({np.sqrt(np.mean((err / std) ** 2)):.2g})")
-            print(f"| {arcsec:g}\" | {1e6 * rate_error:g} | {method} | " + " | ".join(row) + " |")
+            print("| {:g}\" | {:g} | {:g}\" | ".format(table_errors[0], 1e6 * table_errors[1], table_errors[2])
+                  + f"{method} | " + " | ".join(row) + " |")
 
 
 def main():

@@ -9,7 +9,9 @@ unit does not move, so w_in^n = w_ie^n and there is no transport rate):
 with dtheta_k and f_k the compensated readings u_hat = h^-1(N; p_hat) (the gyro's turned into b by
 C_b^d(eta_hat)^T). The error state x = [phi, dv, p_acc, p_gyro, eta] (derive/systematic.py) is
 propagated sample by sample through the moves and a block of samples at a time at rest (the
-inputs are constant there), and updated by zero velocity at the end of each block at rest.
+inputs are constant there), and updated by zero velocity at the end of each block at rest; the
+steps between two updates are composed into one transition first (`compose`), so the filter's
+Python loop runs once per update, not once per sample.
 Open loop about a nominal solution (the parameters and initial attitude of the pass before): only
 the velocity is reset at each update (a known shift of dv), so the error state may move along
 directions the data barely see (a level error against a horizontal accelerometer bias at one
