@@ -305,11 +305,13 @@ def test_median_rows_is_numpys_median():
             assert np.array_equal(median_rows(x.T.copy().T), np.median(x, axis=1))
 
 
+@pytest.mark.parametrize("native", [True, False])
 @pytest.mark.parametrize("blank_at", [None, 0.25, 0.75])
-def test_samples_read_in_pieces_are_the_careful_readers(tmp_path, monkeypatch, blank_at):
+def test_samples_read_in_pieces_are_the_careful_readers(tmp_path, monkeypatch, blank_at, native):
     """csv_columns parses a large samples.csv in pieces, two at a time on two threads, into one (n, 3)
-    block per triad: the careful reader's numbers, row for row, with a blank line in either half
-    too; MeasurementSet.raw is that block (no copy)."""
+    block per triad, by csv_numbers.c (native; a blank line sends the file to pyarrow) or pyarrow (no
+    compiler): the careful reader's numbers, row for row, with a blank line in either half too;
+    MeasurementSet.raw is that block (no copy)."""
     from simucal.io import csv_columns
     from simucal.turntable.simulate import Scenario, write
     folder = tmp_path / "s"
@@ -319,10 +321,17 @@ def test_samples_read_in_pieces_are_the_careful_readers(tmp_path, monkeypatch, b
         at = int(len(lines) * blank_at)
         (folder / "samples.csv").write_text("".join(lines[:at] + ["\n"] + lines[at:]))
     monkeypatch.setattr(csv_columns, "PIECE_BYTES", 100_000)
-    pieces = []
-    monkeypatch.setattr(csv_columns, "_parse_into", lambda *a, _f=csv_columns._parse_into: pieces.append(a) or _f(*a))
+    if not native:
+        monkeypatch.setattr(csv_columns, "_native", lambda: None)
+    calls = {"native": [], "arrow": []}
+    monkeypatch.setattr(csv_columns, "_parse_native", lambda *a, _f=csv_columns._parse_native: calls["native"].append(
+        _f(*a)) or calls["native"][-1])
+    monkeypatch.setattr(csv_columns, "_parse_into", lambda *a, _f=csv_columns._parse_into: calls["arrow"].append(a)
+                        or _f(*a))
     fast = io.read_set(folder)
-    assert len(pieces) >= 3
+    assert len(calls["native"] if native else calls["arrow"]) >= 3
+    assert bool(calls["arrow"]) == (not native or blank_at is not None)  # the C parser stops at a blank line
+    assert -1 in calls["native"] if native and blank_at is not None else -1 not in calls["native"]
     monkeypatch.setattr(io, "read_columns", lambda *a: None)  # the careful reader, line by line
     careful = io.read_set(folder)
     assert fast.samples.keys() == careful.samples.keys()
@@ -334,6 +343,42 @@ def test_samples_read_in_pieces_are_the_careful_readers(tmp_path, monkeypatch, b
         assert np.array_equal(fast.raw(sensor), careful.raw(sensor))
 
 
+def test_the_c_parsers_numbers_are_pyarrows_and_floats_bit_for_bit(monkeypatch):
+    """csv_numbers.c rounds every decimal it takes as float() and pyarrow do (its fast path, 15 digits
+    by a power of ten up to 22, and strtod beyond), the sign of zero too, CRLF line ends too; a cell
+    it does not take (a space, NaN, a bare sign or point, an exponent without digits) stops it, and
+    pyarrow reads the file (the same numbers)."""
+    from simucal.io import csv_columns
+    rng = np.random.default_rng(7)
+    x = np.concatenate([rng.normal(size=2000) * 10.0 ** rng.integers(-30, 30, 2000), [0.0, -0.0, 5e-324, 1.7e308]])
+    cells = [repr(float(v)) for v in x] + [f"{v:.3f}" for v in x[:500]] + [f"{v:.20e}" for v in x[:500]] + [
+        "-0", "+1.5", "1.", ".5", "-.25", "007", "12345678901234567890123", "0.1234567890123456789012", "1e22",
+        "1e23", "123456789012345e-22", "9007199254740993", "2.2250738585072011e-308", "1E5", "1e+5"]
+    cells += [""] * (-len(cells) % 4)
+    cells = [c or "1" for c in cells]
+    text = "a,b,c,d\n" + "".join(",".join(cells[i:i + 4]) + ("\r\n" if i % 8 else "\n")
+                                 for i in range(0, len(cells), 4))
+    body, header = memoryview(text.encode()), ["a", "b", "c", "d"]
+    assert csv_columns._native() is not None  # a compiler: the suite runs where one is
+    seen = []
+    monkeypatch.setattr(csv_columns, "_parse_native", lambda *a, _f=csv_columns._parse_native: seen.append(_f(*a))
+                        or seen[-1])
+    native = csv_columns.read_columns(body, header, header, [])
+    assert seen == [len(cells) // 4]
+    want = np.array([float(c) for c in cells]).reshape(-1, 4)
+    for j, c in enumerate(header):
+        assert np.array_equal(native[c].view(np.int64), want[:, j].view(np.int64)), c
+    with monkeypatch.context() as m:
+        m.setattr(csv_columns, "_native", lambda: None)
+        arrow = csv_columns.read_columns(body, header, header, [])
+    assert all(np.array_equal(native[c].view(np.int64), arrow[c].view(np.int64)) for c in header)
+    for bad in (" 1", "1 ", "nan", "-", ".", "1e", "e5", "1,5"):
+        seen.clear()
+        odd = text.replace("\n1,", f"\n{bad},", 1) if "\n1," in text else text + f"{bad},1,1,1\n"
+        got = csv_columns.read_columns(memoryview(odd.encode()), header, header, [])
+        assert seen == [-1], bad
+        if bad == "1,5":
+            assert got is None  # a ragged row: the careful reader names its line
 @pytest.mark.parametrize("shuffled", [False, True])
 def test_segment_rows_refused_by_line_in_file_order_or_not(tmp_path, shuffled):
     """_check_samples finds a set's segments without a sort where the file holds them one after the

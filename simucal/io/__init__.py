@@ -16,7 +16,7 @@ from pathlib import Path
 
 import numpy as np
 
-from simucal.io import outputs, units
+from simucal.io import csv_columns, outputs, units
 from simucal.io.csv_columns import arrow_floats, read_columns, triad_block
 from simucal.io.segments import Segment, read_segments
 from simucal.io.text_files import (MeasurementSetError, RepeatedKey, body_of, check_delimiter, csv_refusal,
@@ -173,7 +173,7 @@ def read_samples(folder: Path, segments) -> tuple[dict, str]:
         raise MeasurementSetError(path, None, "missing: a measurement set needs samples.csv (or samples.parquet)")
     with ThreadPoolExecutor(1) as pool:
         raw = pool.submit(path.read_bytes)
-        import pyarrow.csv  # noqa: F401 (the parser, imported while the file is read: the read frees the GIL)
+        csv_columns.prepare()  # the parser loaded while the file is read (the read frees the GIL)
         raw = raw.result()
         sha256 = pool.submit(files_sha256, folder, raw)
         samples = _parsed(path, raw, segments)

@@ -1,0 +1,106 @@
+/* samples.csv's numbers, parsed straight into the arrays a set keeps (io/csv_columns.py): a piece
+   of the file, lines of k cells that are all plain decimal numbers, each correctly rounded to the
+   nearest double as pyarrow's parser and Python's float() round them. Anything else (a blank line,
+   a quote, a space, text, NaN, a line without its end) stops the parse: the caller then reads the
+   file by pyarrow, and the careful reader names the line. Written by hand, not derived. */
+#include <stdint.h>
+#include <stdlib.h>
+#include <string.h>
+
+static const double POW10[23] = {1e0, 1e1, 1e2, 1e3, 1e4, 1e5, 1e6, 1e7, 1e8, 1e9, 1e10, 1e11,
+                                 1e12, 1e13, 1e14, 1e15, 1e16, 1e17, 1e18, 1e19, 1e20, 1e21, 1e22};
+
+/* The number at *pp ending at a comma, a carriage return or a line end: 0 with *out and *pp past
+   it, or -1. A mantissa of at most 15 digits (below 2^53) times a power of ten up to 22 is one
+   exactly rounded product or quotient of two exact doubles (Clinger's fast path); any other goes to
+   strtod, which rounds correctly. */
+static int number(const char **pp, const char *end, double *out)
+{
+    const char *p = *pp, *start = p;
+    int neg = 0, digits = 0, frac = 0, any = 0, exp10 = 0;
+    uint64_t m = 0;
+    if (p < end && (*p == '-' || *p == '+'))
+        neg = *p++ == '-';
+    for (; p < end && (unsigned)(*p - '0') < 10; p++, any = 1) {
+        if (digits < 19) {
+            m = m * 10 + (uint64_t)(*p - '0');
+            digits += m != 0;
+        } else {
+            frac--;  /* a digit beyond 19: the value goes to strtod below */
+        }
+    }
+    if (p < end && *p == '.') {
+        for (p++; p < end && (unsigned)(*p - '0') < 10; p++, any = 1) {
+            if (digits < 19) {
+                m = m * 10 + (uint64_t)(*p - '0');
+                digits += m != 0;
+                frac++;
+            }
+        }
+    }
+    if (!any)
+        return -1;
+    if (p < end && (*p == 'e' || *p == 'E')) {
+        int eneg = 0, edigits = 0;
+        p++;
+        if (p < end && (*p == '-' || *p == '+'))
+            eneg = *p++ == '-';
+        for (; p < end && (unsigned)(*p - '0') < 10; p++, edigits++)
+            if (exp10 < 100000)
+                exp10 = exp10 * 10 + (*p - '0');
+        if (!edigits)
+            return -1;
+        exp10 = eneg ? -exp10 : exp10;
+    }
+    if (p >= end || (*p != ',' && *p != '\n' && *p != '\r'))
+        return -1;
+    exp10 -= frac;
+    if (digits <= 15 && exp10 >= -22 && exp10 <= 22) {
+        double v = (double)m;
+        v = exp10 < 0 ? v / POW10[-exp10] : v * POW10[exp10];
+        *out = neg ? -v : v;
+    } else {
+        char text[128];
+        size_t n = (size_t)(p - start);
+        if (n >= sizeof text)
+            return -1;
+        memcpy(text, start, n);
+        text[n] = 0;
+        *out = strtod(text, NULL);
+    }
+    *pp = p;
+    return 0;
+}
+
+/* Lines of text[0:len] (after the first line where skip is 1, the header) of k numbers each: cell j
+   of line i into cols[j][i * stride[j]]. Returns the lines read, or -1 at anything else, or where
+   the piece holds more than max_rows lines. */
+long simucal_csv_numbers(const char *text, long len, int skip, int k, double **cols, const long *stride,
+                         long max_rows)
+{
+    const char *p = text, *end = text + len;
+    long i = 0;
+    if (skip) {
+        p = memchr(text, '\n', (size_t)len);
+        if (p == NULL)
+            return -1;
+        p++;
+    }
+    for (; p < end; i++) {
+        if (i >= max_rows)
+            return -1;
+        for (int j = 0; j < k; j++) {
+            double v;
+            if (number(&p, end, &v) < 0)
+                return -1;
+            cols[j][i * stride[j]] = v;
+            if (j < k - 1 && *p++ != ',')
+                return -1;
+        }
+        if (*p == '\r')
+            p++;
+        if (p >= end || *p++ != '\n')
+            return -1;
+    }
+    return i;
+}
