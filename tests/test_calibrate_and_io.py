@@ -332,7 +332,7 @@ def test_samples_read_in_pieces_are_the_careful_readers(tmp_path, monkeypatch, b
     assert len(calls["native"] if native else calls["arrow"]) >= 3
     assert bool(calls["arrow"]) == (not native or blank_at is not None)  # the C parser stops at a blank line
     assert -1 in calls["native"] if native and blank_at is not None else -1 not in calls["native"]
-    monkeypatch.setattr(io, "read_columns", lambda *a: None)  # the careful reader, line by line
+    monkeypatch.setattr(io, "read_columns", lambda *a: (None, False))  # the careful reader, line by line
     careful = io.read_set(folder)
     assert fast.samples.keys() == careful.samples.keys()
     for c, v in careful.samples.items():
@@ -358,27 +358,29 @@ def test_the_c_parsers_numbers_are_pyarrows_and_floats_bit_for_bit(monkeypatch):
     cells = [c or "1" for c in cells]
     text = "a,b,c,d\n" + "".join(",".join(cells[i:i + 4]) + ("\r\n" if i % 8 else "\n")
                                  for i in range(0, len(cells), 4))
-    body, header = memoryview(text.encode()), ["a", "b", "c", "d"]
+    body, header, big = memoryview(text.encode()), ["a", "b", "c", "d"], np.finfo(float).max
     assert csv_columns._native() is not None  # a compiler: the suite runs where one is
     seen = []
     monkeypatch.setattr(csv_columns, "_parse_native", lambda *a, _f=csv_columns._parse_native: seen.append(_f(*a))
                         or seen[-1])
-    native = csv_columns.read_columns(body, header, header, [])
-    assert seen == [len(cells) // 4]
+    native, checked = csv_columns.read_columns(body, header, header, [], big)
+    assert seen == [len(cells) // 4] and checked
     want = np.array([float(c) for c in cells]).reshape(-1, 4)
     for j, c in enumerate(header):
         assert np.array_equal(native[c].view(np.int64), want[:, j].view(np.int64)), c
     with monkeypatch.context() as m:
         m.setattr(csv_columns, "_native", lambda: None)
-        arrow = csv_columns.read_columns(body, header, header, [])
-    assert all(np.array_equal(native[c].view(np.int64), arrow[c].view(np.int64)) for c in header)
-    for bad in (" 1", "1 ", "nan", "-", ".", "1e", "e5", "1,5"):
+        arrow, checked = csv_columns.read_columns(body, header, header, [], big)
+    assert not checked and all(np.array_equal(native[c].view(np.int64), arrow[c].view(np.int64)) for c in header)
+    for bad in (" 1", "1 ", "nan", "-", ".", "1e", "e5", "1,5", "1e400", "-2e308"):
         seen.clear()
-        odd = text.replace("\n1,", f"\n{bad},", 1) if "\n1," in text else text + f"{bad},1,1,1\n"
-        got = csv_columns.read_columns(memoryview(odd.encode()), header, header, [])
-        assert seen == [-1], bad
-        if bad == "1,5":
-            assert got is None  # a ragged row: the careful reader names its line
+        odd = text + f"{bad},1,1,1\n"
+        got, checked = csv_columns.read_columns(memoryview(odd.encode()), header, header, [], big)
+        assert seen == [-1] and not checked, bad
+        assert (got is None) == (bad not in (" 1", "1 ")), bad  # pyarrow takes spaces
+    seen.clear()
+    got, checked = csv_columns.read_columns(body, header, header, [], 1e12)  # beyond it: pyarrow, the caller checks
+    assert seen == [-1] and not checked and np.array_equal(got["a"], native["a"])
 @pytest.mark.parametrize("shuffled", [False, True])
 def test_segment_rows_refused_by_line_in_file_order_or_not(tmp_path, shuffled):
     """_check_samples finds a set's segments without a sort where the file holds them one after the

@@ -27,11 +27,15 @@ TRIADS = (("ax", "ay", "az"), ("gx", "gy", "gz"))
 PIECE_BYTES = 4 << 20  # parsed two at a time: the tables held at once are two pieces', not the file's
 
 
-def read_columns(body: memoryview, header: list[str], spec_cols: list[str], others: list[str]) -> dict | None:
-    """{column: float64 array} of spec_cols and others, or None if anything is unusual (a cell that is
-    not a number, an empty cell, a ragged row, a NaN or an infinity): the careful reader then names
-    the line and the column. A column of others holding text also gives None, as before. The pieces
-    go into arrays sized by the file's line count: no table of the whole file is held."""
+def read_columns(body: memoryview, header: list[str], spec_cols: list[str], others: list[str],
+                 bound: float) -> tuple[dict | None, bool]:
+    """({column: float64 array} of spec_cols and others, or None if anything is unusual (a cell that
+    is not a number, an empty cell, a ragged row, a NaN or an infinity): the careful reader then names
+    the line and the column; whether every number is known to lie within +-bound). A column of others
+    holding text also gives None, as before. The pieces go into arrays sized by the file's line count:
+    no table of the whole file is held. csv_numbers.c checks each number against bound as it parses it
+    (no further pass over the columns); pyarrow's numbers are checked to be finite here, and against
+    bound by the caller, which names the row."""
     names = spec_cols + others
     with ThreadPoolExecutor(2) as pool:
         pieces, quoted = _pieces(body, pool)
@@ -39,21 +43,22 @@ def read_columns(body: memoryview, header: list[str], spec_cols: list[str], othe
         out = _allocate(names, sum(counts))
         starts = np.cumsum([0] + counts[:-1]).tolist()
         native = _native() if not quoted and sorted(header) == sorted(names) else None
-        rows = list(pool.map(lambda k: _parse_native(native, body, pieces[k], header, out, starts[k], counts[k]),
-                             range(len(pieces)))) if native else None
-        if rows != counts:  # no compiler, or a cell it does not take: pyarrow reads the whole file
-            buf = _arrow_buffer(body)
-            rows = list(pool.map(lambda k: _parse_into(buf.slice(pieces[k][0], pieces[k][1] - pieces[k][0]),
-                                                       pieces[k][2], header, spec_cols, out, starts[k], counts[k]),
-                                 range(len(pieces))))
+        rows = list(pool.map(lambda k: _parse_native(native, body, pieces[k], header, out, starts[k], counts[k],
+                                                     bound), range(len(pieces)))) if native else None
+        if rows == counts and sum(counts):  # no rows: the careful reader says so
+            return out, True
+        buf = _arrow_buffer(body)  # no compiler, or a cell the C parser does not take: pyarrow reads the file
+        rows = list(pool.map(lambda k: _parse_into(buf.slice(pieces[k][0], pieces[k][1] - pieces[k][0]),
+                                                   pieces[k][2], header, spec_cols, out, starts[k], counts[k]),
+                             range(len(pieces))))
     if None in rows or sum(rows) == 0:
-        return None
+        return None, False
     if rows != counts:  # blank lines (the parser skips them): the pieces' rows moved together
         out = {c: np.concatenate([v[a:a + r] for a, r in zip(starts, rows)]) for c, v in out.items()}
         out = _triads_formed(out)
     if not all(np.isfinite(v).all() for v in out.values()):
-        return None
-    return out
+        return None, False
+    return out, False
 
 
 @functools.cache
@@ -65,7 +70,7 @@ def _native():
         return None
     f = ctypes.CDLL(str(lib)).simucal_csv_numbers  # ctypes frees the GIL while it runs
     f.argtypes = [ctypes.c_void_p, ctypes.c_long, ctypes.c_int, ctypes.c_int, ctypes.POINTER(ctypes.c_void_p),
-                  ctypes.POINTER(ctypes.c_long), ctypes.c_long]
+                  ctypes.POINTER(ctypes.c_long), ctypes.c_long, ctypes.c_double]
     f.restype = ctypes.c_long
     return f
 
@@ -76,14 +81,15 @@ def prepare():
         import pyarrow.csv  # noqa: F401
 
 
-def _parse_native(native, body, piece, header, out, start, count) -> int:
+def _parse_native(native, body, piece, header, out, start, count, bound) -> int:
     """One piece (a, b, skip, lines) parsed by csv_numbers.c into out[c][start:start + count] (every
-    column of the header wanted): the rows it held, or -1 where it stopped."""
+    column of the header wanted): the rows it held, or -1 where it stopped (or met a number beyond
+    +-bound)."""
     a, b, skip, _ = piece
     cols = [out[c][start:] for c in header]
     at = np.frombuffer(body, np.uint8).ctypes.data + a
     return native(at, b - a, skip, len(cols), (ctypes.c_void_p * len(cols))(*[v.ctypes.data for v in cols]),
-                  (ctypes.c_long * len(cols))(*[v.strides[0] // 8 for v in cols]), count)
+                  (ctypes.c_long * len(cols))(*[v.strides[0] // 8 for v in cols]), count, bound)
 
 
 def _arrow_buffer(body):

@@ -2,7 +2,9 @@
    of the file, lines of k cells that are all plain decimal numbers, each correctly rounded to the
    nearest double as pyarrow's parser and Python's float() round them. Anything else (a blank line,
    a quote, a space, text, NaN, a line without its end) stops the parse: the caller then reads the
-   file by pyarrow, and the careful reader names the line. Written by hand, not derived. */
+   file by pyarrow, and the careful reader names the line; so does a number beyond the bound (not
+   finite, or implausible), which the checks after pyarrow's parse then name. Written by hand, not
+   derived. */
 #include <stdint.h>
 #include <stdlib.h>
 #include <string.h>
@@ -72,11 +74,11 @@ static int number(const char **pp, const char *end, double *out)
     return 0;
 }
 
-/* Lines of text[0:len] (after the first line where skip is 1, the header) of k numbers each: cell j
-   of line i into cols[j][i * stride[j]]. Returns the lines read, or -1 at anything else, or where
-   the piece holds more than max_rows lines. */
+/* Lines of text[0:len] (after the first line where skip is 1, the header) of k numbers each, every
+   one within +-bound: cell j of line i into cols[j][i * stride[j]]. Returns the lines read, or -1 at
+   anything else, or where the piece holds more than max_rows lines. */
 long simucal_csv_numbers(const char *text, long len, int skip, int k, double **cols, const long *stride,
-                         long max_rows)
+                         long max_rows, double bound)
 {
     const char *p = text, *end = text + len;
     long i = 0;
@@ -91,7 +93,7 @@ long simucal_csv_numbers(const char *text, long len, int skip, int k, double **c
             return -1;
         for (int j = 0; j < k; j++) {
             double v;
-            if (number(&p, end, &v) < 0)
+            if (number(&p, end, &v) < 0 || !(v >= -bound && v <= bound))  /* NaN fails both */
                 return -1;
             cols[j][i * stride[j]] = v;
             if (j < k - 1 && *p++ != ',')
