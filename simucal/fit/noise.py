@@ -16,7 +16,7 @@ def white_noise_var(x, ddof=0):
     return np.var(np.diff(x, axis=0), axis=0, ddof=ddof) / 2
 
 
-def mean_and_sigma(x, stated, varying=False, angle_rad=None, basis=None):
+def mean_and_sigma(x, stated, varying=False, angle_rad=None):
     """Mean of a segment's rows and the std of that mean.
 
     Several rows: from their scatter, with the lag-1 autocorrelation taken into account
@@ -26,13 +26,11 @@ def mean_and_sigma(x, stated, varying=False, angle_rad=None, basis=None):
     constant is the mean over whole revolutions whatever the rows span and whose residuals
     are the noise; without the angles, first differences, which remove a signal that
     changes little from row to row. One row: the stated noise, if any, else NaN
-    (lack_of_fit.fit_with_noise then estimates a variance component for such rows). basis: a
-    function giving the angles' harmonics(angle_rad) in their place, formed once for the sensors of
-    one rate run (where it needs them).
+    (lack_of_fit.fit_with_noise then estimates a variance component for such rows).
     """
     n = len(x)
-    if varying and (angle_rad is not None or basis is not None) and n > 2 * (2 * HARMONICS + 1):
-        return turning_mean(x, angle_rad, basis)
+    if varying and angle_rad is not None and n > 2 * (2 * HARMONICS + 1):
+        return turning_mean(x, angle_rad)
     if n >= 3 and varying:
         return x.mean(0), np.sqrt(white_noise_var(x, ddof=1) / n)
     if n >= 3:
@@ -44,9 +42,14 @@ def mean_and_sigma(x, stated, varying=False, angle_rad=None, basis=None):
 HARMONICS = 3  # of the outer angle in a rate run: the turning inputs, and their squares and cubes in a model
 
 
-def harmonics(angle_rad):
-    """(X, (X^T X)^-1) of turning_mean's least squares at outer angles angle_rad (n,): X (n, 2 HARMONICS
-    + 1) holds 1, cos k a, sin k a (k = 1..HARMONICS)."""
+def turning_mean(x, angle_rad):
+    """(mean over whole revolutions, its std) of a rate run's rows x (n, 3) at outer angles angle_rad
+    (n,): least squares on [1, cos k a, sin k a] (k = 1..HARMONICS). Every input of the run turns
+    with the outer angle, so a model's output there is a sum of these harmonics, and the constant is
+    its average over a revolution (what the norm fit takes) even where the rows span a revolution
+    only in part (a sample count that is not a whole number per revolution); its variance is the
+    residuals' (n - 2 HARMONICS - 1 dof) times (X^T X)^-1_00, for correlated noise times
+    (1 + r1) / (1 - r1) (lag-1 autocorrelation r1 of the residuals)."""
     a = np.asarray(angle_rad, float)
     X = np.empty((len(a), 2 * HARMONICS + 1))
     X[:, 0] = 1.0
@@ -54,22 +57,11 @@ def harmonics(angle_rad):
     for k in range(1, HARMONICS + 1):
         X[:, k], X[:, HARMONICS + k] = zk.real, zk.imag
         zk = zk * z
-    return X, np.linalg.inv(X.T @ X)  # 7 x 7 and well conditioned (harmonics over most of a revolution or more)
-
-
-def turning_mean(x, angle_rad, basis=None):
-    """(mean over whole revolutions, its std) of a rate run's rows x (n, 3) at outer angles angle_rad
-    (n,) (or a function giving their harmonics, basis): least squares on [1, cos k a, sin k a] (k = 1..HARMONICS). Every
-    input of the run turns with the outer angle, so a model's output there is a sum of these
-    harmonics, and the constant is its average over a revolution (what the norm fit takes) even where
-    the rows span a revolution only in part (a sample count that is not a whole number per
-    revolution); its variance is the residuals' (n - 2 HARMONICS - 1 dof) times (X^T X)^-1_00, for
-    correlated noise times (1 + r1) / (1 - r1) (lag-1 autocorrelation r1 of the residuals)."""
-    X, G_inv = harmonics(angle_rad) if basis is None else basis()
-    coef = G_inv @ (X.T @ x)  # the normal equations, a tenth of lstsq's SVD of the n x 7 rows
+    G_inv = np.linalg.inv(X.T @ X)  # 7 x 7 and well conditioned (harmonics over most of a revolution or more):
+    coef = G_inv @ (X.T @ x)        # the normal equations, a tenth of lstsq's SVD of the n x 7 rows
     res = x - X @ coef
-    var = np.sum(res ** 2, 0) / (len(X) - X.shape[1])
-    return coef[0], np.sqrt(var * G_inv[0, 0] * len(X) / _effective_count(res))
+    var = np.sum(res ** 2, 0) / (len(a) - X.shape[1])
+    return coef[0], np.sqrt(var * G_inv[0, 0] * len(a) / _effective_count(res))
 
 
 def _effective_count(d):

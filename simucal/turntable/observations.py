@@ -14,7 +14,7 @@ from simucal.errors import CalibrationError
 from simucal.fit import aux_inputs
 from simucal.fit.augmented import AugmentedModel
 from simucal.fit.aux_inputs import AuxInputs, column_means
-from simucal.fit.noise import harmonics, mean_and_sigma, white_noise_var
+from simucal.fit.noise import mean_and_sigma, white_noise_var
 from simucal.fit.norm_fit import Observations
 from simucal.generated import table
 from simucal.io import calibration, run_or_rows, units
@@ -119,9 +119,8 @@ def _averaged(ms, sensor, raw, data, stated, clipped, s):
     if s.segment in clipped:  # before the glitch test: a clipped sample is no glitch
         return None
     refuse_outliers(ms, raw, rows, sensor, s.segment)
-    basis = None if s.kind != "rate" or not s.outer_rate_dps else lambda: ms._once(  # the accelerometers' and
-        ("harmonics", s.segment), ("t_s",), lambda: harmonics(outer_angle_rad(ms, rows, s)), meta=False)  # gyros
-    return rows, mean_and_sigma(data[run_or_rows(rows)], stated, varying=(s.kind == "rate"), basis=basis)  # turning
+    return rows, mean_and_sigma(data[run_or_rows(rows)], stated, varying=(s.kind == "rate"),  # the inputs turn
+                                angle_rad=outer_angle_rad(ms, rows, s))
 
 
 CURVE_FACTOR = 10.0  # a noise file's row noise this many times the data's own (or a tenth): another unit or unit
