@@ -337,10 +337,14 @@ def test_samples_read_in_pieces_are_the_careful_readers(tmp_path, monkeypatch, b
     assert fast.samples.keys() == careful.samples.keys()
     for c, v in careful.samples.items():
         assert fast.samples[c].dtype == v.dtype and np.array_equal(fast.samples[c], v), c
+    from simucal.io.sensor_checks import column_extremes
+    seeded = {k for k in fast.__dict__.get("_cache", {}) if k[0] == "extremes"}  # by the C parser, as it parsed
+    assert seeded == ({("extremes", "acc"), ("extremes", "gyro")} if native and blank_at is None else set())
     for sensor, c in (("acc", "ax"), ("gyro", "gx")):
         assert np.shares_memory(fast.raw(sensor), fast.samples[c]) and not np.shares_memory(careful.raw(sensor),
                                                                                             careful.samples[c])
         assert np.array_equal(fast.raw(sensor), careful.raw(sensor))
+        assert column_extremes(fast, sensor) == column_extremes(careful, sensor)  # the C parser's: no pass over them
 
 
 def test_the_c_parsers_numbers_are_pyarrows_and_floats_bit_for_bit(monkeypatch):
@@ -363,24 +367,31 @@ def test_the_c_parsers_numbers_are_pyarrows_and_floats_bit_for_bit(monkeypatch):
     seen = []
     monkeypatch.setattr(csv_columns, "_parse_native", lambda *a, _f=csv_columns._parse_native: seen.append(_f(*a))
                         or seen[-1])
-    native, checked = csv_columns.read_columns(body, header, header, [], big)
-    assert seen == [len(cells) // 4] and checked
+    native, extremes = csv_columns.read_columns(body, header, header, [], big)
+    assert seen == [len(cells) // 4] and extremes == {c: (native[c].min(), native[c].max()) for c in header}
     want = np.array([float(c) for c in cells]).reshape(-1, 4)
     for j, c in enumerate(header):
         assert np.array_equal(native[c].view(np.int64), want[:, j].view(np.int64)), c
     with monkeypatch.context() as m:
         m.setattr(csv_columns, "_native", lambda: None)
-        arrow, checked = csv_columns.read_columns(body, header, header, [], big)
-    assert not checked and all(np.array_equal(native[c].view(np.int64), arrow[c].view(np.int64)) for c in header)
+        arrow, extremes = csv_columns.read_columns(body, header, header, [], big)
+    assert extremes is None and all(np.array_equal(native[c].view(np.int64), arrow[c].view(np.int64)) for c in header)
     for bad in (" 1", "1 ", "nan", "-", ".", "1e", "e5", "1,5", "1e400", "-2e308"):
         seen.clear()
         odd = text + f"{bad},1,1,1\n"
-        got, checked = csv_columns.read_columns(memoryview(odd.encode()), header, header, [], big)
-        assert seen == [-1] and not checked, bad
+        got, extremes = csv_columns.read_columns(memoryview(odd.encode()), header, header, [], big)
+        assert seen == [-1] and extremes is None, bad
         assert (got is None) == (bad not in (" 1", "1 ")), bad  # pyarrow takes spaces
+    quoted = memoryview((text + '"x",1,1,1\n').encode())
+    for piece in (body, quoted, body[:1000], body[:0]):  # the line ends and quotes counted by C, then by numpy
+        counts = [csv_columns._line_ends(piece)]
+        with monkeypatch.context() as m:
+            m.setattr(csv_columns, "_native", lambda: None)
+            counts.append(csv_columns._line_ends(piece))
+        assert counts[0] == counts[1] == (bytes(piece).count(b"\n"), b'"' in bytes(piece))
     seen.clear()
-    got, checked = csv_columns.read_columns(body, header, header, [], 1e12)  # beyond it: pyarrow, the caller checks
-    assert seen == [-1] and not checked and np.array_equal(got["a"], native["a"])
+    got, extremes = csv_columns.read_columns(body, header, header, [], 1e12)  # beyond it: pyarrow, the caller checks
+    assert seen == [-1] and extremes is None and np.array_equal(got["a"], native["a"])
 @pytest.mark.parametrize("shuffled", [False, True])
 def test_segment_rows_refused_by_line_in_file_order_or_not(tmp_path, shuffled):
     """_check_samples finds a set's segments without a sort where the file holds them one after the

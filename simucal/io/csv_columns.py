@@ -28,51 +28,56 @@ PIECE_BYTES = 4 << 20  # parsed two at a time: the tables held at once are two p
 
 
 def read_columns(body: memoryview, header: list[str], spec_cols: list[str], others: list[str],
-                 bound: float) -> tuple[dict | None, bool]:
+                 bound: float) -> tuple[dict | None, dict | None]:
     """({column: float64 array} of spec_cols and others, or None if anything is unusual (a cell that
     is not a number, an empty cell, a ragged row, a NaN or an infinity): the careful reader then names
-    the line and the column; whether every number is known to lie within +-bound). A column of others
-    holding text also gives None, as before. The pieces go into arrays sized by the file's line count:
-    no table of the whole file is held. csv_numbers.c checks each number against bound as it parses it
-    (no further pass over the columns); pyarrow's numbers are checked to be finite here, and against
-    bound by the caller, which names the row."""
+    the line and the column; {column: (least, greatest)} where every number is known to lie within
+    +-bound, else None). A column of others holding text also gives None, as before. The pieces go
+    into arrays sized by the file's line count: no table of the whole file is held. csv_numbers.c
+    checks each number against bound and keeps each column's extremes as it parses it (no further
+    pass over the columns); pyarrow's numbers are checked to be finite here, and against bound by the
+    caller, which names the row."""
     names = spec_cols + others
     with ThreadPoolExecutor(2) as pool:
         pieces, quoted = _pieces(body, pool)
         counts = [lines - skip for _, _, skip, lines in pieces]
         out = _allocate(names, sum(counts))
         starts = np.cumsum([0] + counts[:-1]).tolist()
-        native = _native() if not quoted and sorted(header) == sorted(names) else None
+        native = _native()[0] if _native() and not quoted and sorted(header) == sorted(names) else None
+        extremes = np.tile([np.inf, -np.inf], (len(pieces), len(header)))  # each piece's (least, greatest) a column
         rows = list(pool.map(lambda k: _parse_native(native, body, pieces[k], header, out, starts[k], counts[k],
-                                                     bound), range(len(pieces)))) if native else None
+                                                     bound, extremes[k]), range(len(pieces)))) if native else None
         if rows == counts and sum(counts):  # no rows: the careful reader says so
-            return out, True
+            least, greatest = extremes[:, 0::2].min(0), extremes[:, 1::2].max(0)
+            return out, {c: (least[j], greatest[j]) for j, c in enumerate(header)}
         buf = _arrow_buffer(body)  # no compiler, or a cell the C parser does not take: pyarrow reads the file
         rows = list(pool.map(lambda k: _parse_into(buf.slice(pieces[k][0], pieces[k][1] - pieces[k][0]),
                                                    pieces[k][2], header, spec_cols, out, starts[k], counts[k]),
                              range(len(pieces))))
     if None in rows or sum(rows) == 0:
-        return None, False
+        return None, None
     if rows != counts:  # blank lines (the parser skips them): the pieces' rows moved together
         out = {c: np.concatenate([v[a:a + r] for a, r in zip(starts, rows)]) for c, v in out.items()}
         out = _triads_formed(out)
     if not all(np.isfinite(v).all() for v in out.values()):
-        return None, False
-    return out, False
+        return None, None
+    return out, None
 
 
 @functools.cache
 def _native():
-    """csv_numbers.c's parser, built into the cache at first use; None without a compiler."""
+    """csv_numbers.c's (parse, count lines), built into the cache at first use; None without a compiler."""
     from simucal.io.cache import compile_c
     lib = compile_c("csv_numbers", Path(__file__).with_name("csv_numbers.c").read_text(), "pyarrow's parser")
     if lib is None:
         return None
-    f = ctypes.CDLL(str(lib)).simucal_csv_numbers  # ctypes frees the GIL while it runs
-    f.argtypes = [ctypes.c_void_p, ctypes.c_long, ctypes.c_int, ctypes.c_int, ctypes.POINTER(ctypes.c_void_p),
-                  ctypes.POINTER(ctypes.c_long), ctypes.c_long, ctypes.c_double]
-    f.restype = ctypes.c_long
-    return f
+    lib = ctypes.CDLL(str(lib))  # ctypes frees the GIL while a function of it runs
+    parse, lines = lib.simucal_csv_numbers, lib.simucal_csv_lines
+    parse.argtypes = [ctypes.c_void_p, ctypes.c_long, ctypes.c_int, ctypes.c_int, ctypes.POINTER(ctypes.c_void_p),
+                      ctypes.POINTER(ctypes.c_long), ctypes.c_long, ctypes.c_double, ctypes.c_void_p]
+    lines.argtypes = [ctypes.c_void_p, ctypes.c_long, ctypes.POINTER(ctypes.c_int)]
+    parse.restype = lines.restype = ctypes.c_long
+    return parse, lines
 
 
 def prepare():
@@ -81,15 +86,16 @@ def prepare():
         import pyarrow.csv  # noqa: F401
 
 
-def _parse_native(native, body, piece, header, out, start, count, bound) -> int:
+def _parse_native(native, body, piece, header, out, start, count, bound, extremes) -> int:
     """One piece (a, b, skip, lines) parsed by csv_numbers.c into out[c][start:start + count] (every
-    column of the header wanted): the rows it held, or -1 where it stopped (or met a number beyond
-    +-bound)."""
+    column of the header wanted), each column's least and greatest into extremes (2 per column): the
+    rows it held, or -1 where it stopped (or met a number beyond +-bound)."""
     a, b, skip, _ = piece
     cols = [out[c][start:] for c in header]
     at = np.frombuffer(body, np.uint8).ctypes.data + a
     return native(at, b - a, skip, len(cols), (ctypes.c_void_p * len(cols))(*[v.ctypes.data for v in cols]),
-                  (ctypes.c_long * len(cols))(*[v.strides[0] // 8 for v in cols]), count, bound)
+                  (ctypes.c_long * len(cols))(*[v.strides[0] // 8 for v in cols]), count, bound,
+                  extremes.ctypes.data)
 
 
 def _arrow_buffer(body):
@@ -155,8 +161,11 @@ SCAN_BYTES = 1 << 18  # a piece scanned this many bytes at a time: the compariso
 
 
 def _line_ends(piece) -> tuple[int, bool]:
-    """(the line ends in piece, whether it holds a quote)."""
+    """(the line ends in piece, whether it holds a quote): by csv_numbers.c, else by numpy."""
     a = np.frombuffer(piece, np.uint8)
+    if _native():
+        quoted = ctypes.c_int(0)
+        return _native()[1](a.ctypes.data, len(a), ctypes.byref(quoted)), bool(quoted.value)
     lines, quoted = 0, False
     for i in range(0, len(a), SCAN_BYTES):
         part = a[i:i + SCAN_BYTES]
