@@ -159,7 +159,7 @@ def compiled_form(model: AugmentedModel) -> GeneratedModel | None:
     there. None without effects, for a user's base model, or without a compiler (the numpy fit of
     the AugmentedModel is then the same numbers). Its parameters are the base's and then one per
     effect, in the AugmentedModel's order (checked)."""
-    from simucal.fit.models import compiler
+    from simucal.io.cache import compiler
     if not model.effects or model.base.source != "built-in" or compiler() is None:
         return None
     derived = _derived(model.base.name, model.effects)
@@ -185,7 +185,7 @@ def _derive(base: str, effects: tuple) -> GeneratedModel:
     """The model file is written by simucal here, into the user's own cache (UntrustedCache where
     that is not the user's alone), and written again wherever it holds other bytes: a model file is
     run when it is derived, and simucal runs only files it wrote or the user named."""
-    from simucal.fit.cache import own_folder
+    from simucal.io.cache import own_folder
     name = "_with_".join([base] + [e.replace(".", "_") for e in effects])  # CasADi: no "__"
     if len(name) > 80:  # many effects: a file name the file system takes
         name = f"{base}_with_{hashlib.sha256(name.encode()).hexdigest()[:16]}"
