@@ -61,9 +61,9 @@ def test_noise_in_chunks_is_the_whole_file_path(still, monkeypatch, fmt):
     assert whole["gyro"]["axes"]["x"]["sheet"]["K"]["status"] == "seen"
 
 
-def test_noise_on_dask_is_the_same(still):
+def test_noise_on_dask_is_the_same(still, dask_cluster):
     here = allan.characterise_folder(still / "parquet", size=20_000)
-    on_dask = allan.characterise_folder(still / "parquet", scheduler="processes", size=20_000)
+    on_dask = allan.characterise_folder(still / "parquet", scheduler=dask_cluster, size=20_000)
     _same(here, on_dask, rtol=1e-12)
 
 

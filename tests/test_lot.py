@@ -11,7 +11,6 @@ import pytest
 from cli_helpers import refused, run
 from page_layout import figures_checked, html_problems
 from simucal import lot_report
-from simucal.report.lot_html import lot_page
 from simucal.report.page import STYLE
 from simucal.turntable.lot import SPREAD, write_lot
 
@@ -34,13 +33,14 @@ def lot(tmp_path_factory):
     limits = root / "limits.json"
     limits.write_text(json.dumps({"format": "simucal.limits/1",
                                   "limits": {"acc.b_x": {"max": LIMIT_MAX, "unit": "g"}}}))
-    r = run("lot", cals, "-o", root / "lot.json", "--html", root / "lot.html", "--limits", limits)
+    with figures_checked() as (problems, figures):  # the command's own page, its figures checked as it saves them
+        r = run("lot", cals, "-o", root / "lot.json", "--html", root / "lot.html", "--limits", limits)
     assert r.exit_code == 0, r.output
-    return root, json.loads((root / "lot.json").read_text()), r.output
+    return root, json.loads((root / "lot.json").read_text()), r.output, (problems, figures)
 
 
 def test_the_lot_report_finds_what_was_planted(lot):
-    root, report, out = lot
+    root, report, out, _ = lot
     units = {u["file"]: u for u in report["units"]}
     bad = f"unit{OUTLIER:04d}.json"
     assert units[bad]["status"] == "fails" and any("acc.b_x" in w and "above its max" in w for w in units[bad]["why"])
@@ -66,21 +66,19 @@ def test_the_lot_report_finds_what_was_planted(lot):
 
 
 def test_the_page_opens_with_the_verdict_and_the_next_command(lot):
-    root, report, _ = lot
+    root, report, _, (problems, figures) = lot
     page = (root / "lot.html").read_text()
     first = page.index("<h1>")
     assert page.index("<img") > page.index("Next: <code>") > first and report["verdict"][0] in page[first:first + 400]
     assert "class='verdict bad'><b>" + report["verdict"][0] in page  # one unit fails: the lot's line says so
     assert page.count("<img") == 6  # acc and gyro of each group (the exact, linear and multi-position methods)
     assert STYLE in page  # the pages' one stylesheet and font
-    with figures_checked() as (problems, figures):
-        lot_page(report)
     assert len(figures) == 6 and not problems + html_problems(page), problems + html_problems(page)
 
 
 def test_the_python_api_gives_the_report(lot):
     import simucal.api
-    root, report, _ = lot
+    root, report, _, _ = lot
     limits = root / "limits.json"
     assert json.loads(json.dumps(simucal.api.lot(report["folder"], limits))) == report
 

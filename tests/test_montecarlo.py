@@ -57,29 +57,29 @@ def test_failed_trials_are_counted_not_dropped():
     assert all(0 <= t < 50 for t in out["failed_trials"]) and len(set(out["failed_trials"])) == out["failed"]
 
 
-def test_dask_local_cluster_gives_the_same_numbers(tmp_path):
+def test_dask_local_cluster_gives_the_same_numbers(dask_cluster):
     """The same seeds on a LocalCluster of 2 workers: the same estimates, bit for bit."""
     here = run(Scenario(), 600, 5, chunk=200)
-    there = run(Scenario(), 600, 5, chunk=200, scheduler="processes")
-    assert there["scheduler"] == "processes"
+    there = run(Scenario(), 600, 5, chunk=200, scheduler=dask_cluster)
+    assert there["scheduler"] == dask_cluster
     for k, v in here["parameters"].items():
         assert there["parameters"][k]["mean"] == v["mean"] and there["parameters"][k]["std"] == v["std"], k
 
 
-def test_batch_calibration_keeps_the_good_sets(tmp_path):
+def test_batch_calibration_keeps_the_good_sets(tmp_path, dask_cluster):
     from simucal.turntable.simulate import write
     for i in (1, 2):
         write(tmp_path / f"u{i}", Scenario(), i)
     (tmp_path / "bad").mkdir()
     (tmp_path / "bad" / "meta.json").write_text("{")
-    for scheduler in ("local", "processes"):
-        out = tmp_path / f"cal-{scheduler}"
+    for name, scheduler in (("local", "local"), ("dask", dask_cluster)):
+        out = tmp_path / f"cal-{name}"
         r = CliRunner().invoke(main, ["calibrate", str(tmp_path / "u1"), str(tmp_path / "bad"), str(tmp_path / "u2"),
                                       "-o", str(out), "--scheduler", scheduler])
         assert r.exit_code == 2 and "bad/meta.json" in r.stderr and "2 of 3 sets" in r.output, r.output
         assert sorted(p.name for p in out.iterdir()) == ["u1.json", "u2.json"]
     a = json.loads((tmp_path / "cal-local" / "u1.json").read_text())
-    b = json.loads((tmp_path / "cal-processes" / "u1.json").read_text())
+    b = json.loads((tmp_path / "cal-dask" / "u1.json").read_text())
     assert a["acc"]["params"] == b["acc"]["params"]
 
 
