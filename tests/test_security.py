@@ -217,3 +217,25 @@ def test_a_user_model_in_the_trusted_cache_is_used_by_name_and_its_file_never_ru
     catalog.load.cache_clear()
     with pytest.raises(cache.UntrustedCache, match="SIMUCAL_TRUSTED_CACHE"):
         catalog.load("acc_lab")
+
+
+def _add_entries(worker, n):
+    from simucal.fit import catalog
+    for i in range(n):
+        catalog._add_to_index({f"m{worker}_{i}": {"key": f"k{worker}_{i}", "source": "test"}})
+
+
+def test_processes_adding_models_to_one_cache_lose_no_entry(tmp_path, monkeypatch):
+    """index.json is read, changed and written under a lock: four processes adding 40 entries each to one
+    cache at once (Dask workers deriving model files) keep all 160 (without the lock most were lost)."""
+    import multiprocessing
+    from simucal.io import cache
+    monkeypatch.setenv("SIMUCAL_CACHE", str(tmp_path / "cache"))  # the spawned processes inherit it
+    cache.own_folder("models")
+    procs = [multiprocessing.get_context("spawn").Process(target=_add_entries, args=(w, 40)) for w in range(4)]
+    for p in procs:
+        p.start()
+    for p in procs:
+        p.join(120)
+    assert [p.exitcode for p in procs] == [0] * 4
+    assert len(json.loads((tmp_path / "cache" / "models" / "index.json").read_text())) == 160

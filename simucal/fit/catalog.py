@@ -15,6 +15,7 @@ trusted cache (simucal.io.cache), and never by a bytecode file beside it.
 """
 from __future__ import annotations
 
+import fcntl
 import functools
 import hashlib
 import json
@@ -100,11 +101,23 @@ def derive_model_file(path) -> tuple[list[str], bool]:
             raise ModelFileError(f"{path}: running it ended the process before any model was derived (sys.exit or "
                                  "os._exit in the file?); a model file defines MODELS and returns")
     names = sorted(json.loads(found.read_text())["models"])
-    index = _index(own=True)
-    index.update({n: {"key": key, "source": str(path)} for n in names})
-    _write_atomic(models_dir() / "index.json", json.dumps(index, indent=2, sort_keys=True) + "\n")
+    _add_to_index({n: {"key": key, "source": str(path)} for n in names})
     load.cache_clear()
     return names, derived
+
+
+def _add_to_index(entries: dict) -> None:
+    """The user's index.json with entries added: read, changed and written by one process at a time (an
+    exclusive lock on models/index.lock), since two deriving at once (Dask workers sharing a cache) each
+    wrote back what it read and one lost the other's entry."""
+    fd = os.open(models_dir() / "index.lock", os.O_RDWR | os.O_CREAT, 0o600)
+    try:
+        fcntl.flock(fd, fcntl.LOCK_EX)
+        index = _index(own=True)
+        index.update(entries)
+        _write_atomic(models_dir() / "index.json", json.dumps(index, indent=2, sort_keys=True) + "\n")
+    finally:
+        os.close(fd)  # closing releases the lock
 
 
 def _run_child(path: Path, folder: Path, limit: float) -> subprocess.CompletedProcess:
