@@ -11,6 +11,8 @@
 - A model fails its test at p < ALPHA (fit/results.ModelTest.fails), everywhere.
 - shape: when no candidate explains the misfit, the generic term that does
   (lack_of_fit.describe_shape).
+- NormStep, forward_selection: the norm fit in `--add auto`'s one forward selection
+  (fit/selection.py).
 The verdict in words is report/verdicts.py's. Used by calibrate, diagnose (turntable sets and
 streams' poses), diagnose_moves and table_fit.
 """
