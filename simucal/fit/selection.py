@@ -69,15 +69,20 @@ def forward_selection(start: Step, max_terms: int = 6) -> Selection:
         sig = [c for c in cands if c.get("significant") and c["id"] in EFFECTS][:AUTO_TRIES]
         if not sig:
             return Selection(step.model, steps, "no library effect passes the candidate gate; the model still fails")
+        worse, refused = [], []
         for c in sig:
             trial = step.add(c["id"])
-            p_cv = None if isinstance(trial, str) else paired_improvement(step.held_out(), trial.held_out())
-            if not isinstance(trial, str) and (p_cv is None or p_cv < HELD_OUT_ALPHA):
+            if isinstance(trial, str):  # no fit with it: say so, not that it predicts worse
+                refused.append(trial)
+                continue
+            p_cv = paired_improvement(step.held_out(), trial.held_out())
+            if p_cv is None or p_cv < HELD_OUT_ALPHA:
                 break
+            worse.append(c["id"])
         else:
-            return Selection(step.model, steps, f"the candidates passing the gate ({', '.join(c['id'] for c in sig)}) do "
-                             "not predict the data left out better (they would only fit the misfit); the model "
-                             "still fails")
+            why = ([f"the candidates passing the gate ({', '.join(worse)}) do not predict the data left out better "
+                    "(they would only fit the misfit)"] if worse else []) + refused
+            return Selection(step.model, steps, "; ".join(why) + "; the model still fails")
         steps.append({"id": c["id"], "estimate": c["estimate"], "std": c["std"], "unit": c["unit"], **trial.after(),
                       "p_held_out_better": p_cv, **_twin_choice(c, cands, step)})
         step = trial
