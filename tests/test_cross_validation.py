@@ -164,3 +164,29 @@ def test_leave_one_out_at_once_equals_one_refit_per_row(tmp_path, effects):
         keep = np.r_[0:i, i + 1:len(obs.N)]
         one = fit_exact(model, obs.take(keep), p0=p).vector(model.params)
         assert cv["held_out"][i] == pytest.approx(_norm_error(model, one, obs, [i])[0], rel=1e-6, abs=1e-12)
+
+
+def test_auto_says_a_candidate_could_not_be_fitted_rather_than_that_it_predicts_worse():
+    """fit/selection.forward_selection over a Step whose one gated candidate has no fit (a moves fit that
+    does not converge: MovesStep.add's refusal): it stops and gives that reason, not the held-out one."""
+    from simucal.fit.results import ModelTest
+    from simucal.fit.selection import forward_selection
+
+    class Refusing:  # a model failing its test whose one gated candidate cannot be fitted
+        model, effects = (), ()
+
+        def test(self):
+            return ModelTest(100.0, 10, 1e-9)
+
+        def rank(self):
+            return [{"id": "gyro.quadratic.x", "significant": True}], None
+
+        def add(self, eid):
+            return f"the fit with {eid} did not converge in 50 steps"
+
+        def held_out(self):
+            return [1.0, 2.0, 3.0]
+
+    sel = forward_selection(Refusing())
+    assert sel.steps == [] and sel.stopped == ("the fit with gyro.quadratic.x did not converge in 50 steps; the model "
+                                               "still fails")

@@ -11,6 +11,8 @@
 - A model fails its test at p < ALPHA (fit/results.ModelTest.fails), everywhere.
 - shape: when no candidate explains the misfit, the generic term that does
   (lack_of_fit.describe_shape).
+- NormStep, forward_selection: the norm fit in `--add auto`'s one forward selection
+  (fit/selection.py).
 The verdict in words is report/verdicts.py's. Used by calibrate, diagnose (turntable sets and
 streams' poses), diagnose_moves and table_fit.
 """
@@ -137,10 +139,12 @@ class NormStep:
     """A norm-fit model in `--add auto`'s forward selection (fit/selection.py): test_model's test and
     leave-one-position-out errors. rank(model, obs, fit, base) -> (candidates, shape): the ranking the
     caller's diagnosis uses (turntable/model_test.rank); default rank_candidates and
-    shape_if_unexplained. Only library effects are added (a table's own terms in the ranking are not)."""
+    shape_if_unexplained. Only library effects are added (a table's own terms in the ranking are not).
+    table: the rows are a turntable's (twins are told apart by `simucal plan --separate`), not a
+    stream's poses (by the poses a user takes)."""
 
-    def __init__(self, model: AugmentedModel, obs: Observations, rank=None):
-        self.model, self.obs, self._rank = model, obs, rank or _rank
+    def __init__(self, model: AugmentedModel, obs: Observations, rank=None, table=True):
+        self.model, self.obs, self._rank, self.table = model, obs, rank or _rank, table
         self.effects = model.effects
         self.fit, self.obs_used, self.base = test_model(model, obs)
 
@@ -151,7 +155,7 @@ class NormStep:
         return self._rank(self.model, self.obs_used, self.fit, self.base)
 
     def add(self, eid):
-        return NormStep(AugmentedModel(self.model.base, self.model.effects + (eid,)), self.obs, self._rank)
+        return NormStep(AugmentedModel(self.model.base, self.model.effects + (eid,)), self.obs, self._rank, self.table)
 
     def held_out(self):
         cv = self.base["cross_validation"]
@@ -162,11 +166,17 @@ class NormStep:
         return {"p_value_after": self.base["p_value"], "residual_rms_after": self.fit.residual_rms,
                 "held_out_rms_after": cv["held_out_rms"] if cv else None}
 
+    def to_separate(self, chosen, twin):
+        if not self.table:
+            return "poses that would: " + separating_plan(chosen["id"], twin["id"])
+        return (f"the positions that would: simucal plan --score PLAN --separate {chosen['id']},{twin['id']} --sizes "
+                f"{chosen['estimate']:.2g},{twin['estimate']:.2g}")
 
-def forward_selection(model: AugmentedModel, obs: Observations, rank=None, max_terms=6) -> Selection:
+
+def forward_selection(model: AugmentedModel, obs: Observations, rank=None, max_terms=6, table=True) -> Selection:
     """`--add auto` on the norm fit (fit/selection.forward_selection from NormStep): the Selection with
     its model the AugmentedModel chosen."""
-    return selection.forward_selection(NormStep(model, obs, rank), max_terms)
+    return selection.forward_selection(NormStep(model, obs, rank, table), max_terms)
 
 
 def _rank(model, obs, fit, base):

@@ -48,6 +48,10 @@ class Step(Protocol):
     def after(self) -> dict:
         """What the step's record says of the model with the effect added (its test, residual rms, ...)."""
 
+    def to_separate(self, chosen: dict, twin: dict) -> str:
+        """What would tell the chosen candidate from its twin in this kind of data (a turntable's plan
+        command, a stream's poses or moves to make)."""
+
 
 def forward_selection(start: Step, max_terms: int = 6) -> Selection:
     """The steps from start while its model fails (module doc). Returns the Selection: the last Step's model,
@@ -65,29 +69,34 @@ def forward_selection(start: Step, max_terms: int = 6) -> Selection:
         sig = [c for c in cands if c.get("significant") and c["id"] in EFFECTS][:AUTO_TRIES]
         if not sig:
             return Selection(step.model, steps, "no library effect passes the candidate gate; the model still fails")
+        worse, refused = [], []
         for c in sig:
             trial = step.add(c["id"])
-            p_cv = None if isinstance(trial, str) else paired_improvement(step.held_out(), trial.held_out())
-            if not isinstance(trial, str) and (p_cv is None or p_cv < HELD_OUT_ALPHA):
+            if isinstance(trial, str):  # no fit with it: say so, not that it predicts worse
+                refused.append(trial)
+                continue
+            p_cv = paired_improvement(step.held_out(), trial.held_out())
+            if p_cv is None or p_cv < HELD_OUT_ALPHA:
                 break
+            worse.append(c["id"])
         else:
-            return Selection(step.model, steps, f"the candidates passing the gate ({', '.join(c['id'] for c in sig)}) do "
-                             "not predict the data left out better (they would only fit the misfit); the model "
-                             "still fails")
+            why = ([f"the candidates passing the gate ({', '.join(worse)}) do not predict the data left out better "
+                    "(they would only fit the misfit)"] if worse else []) + refused
+            return Selection(step.model, steps, "; ".join(why) + "; the model still fails")
         steps.append({"id": c["id"], "estimate": c["estimate"], "std": c["std"], "unit": c["unit"], **trial.after(),
-                      "p_held_out_better": p_cv, **_twin_choice(c, cands)})
+                      "p_held_out_better": p_cv, **_twin_choice(c, cands, step)})
         step = trial
     return Selection(step.model, steps, "the model passes its test" if steps else "the model passes its test: nothing added")
 
 
-def _twin_choice(c: dict, cands: list[dict]) -> dict:
-    """Where the data cannot tell the chosen effect from a twin (fit/twins.py): the twins and why this
-    one was taken (the larger likelihood ratio only), to say so rather than choose silently."""
+def _twin_choice(c: dict, cands: list[dict], step: Step) -> dict:
+    """Where the data cannot tell the chosen effect from a twin (fit/twins.py): the twins, why this
+    one was taken (the larger likelihood ratio only) and what would tell them apart (the step's kind
+    of data says), to say so rather than choose silently."""
     if not c.get("twins"):
         return {}
     tw = next(x for x in cands if x["id"] == c["twins"][0])
     return {"twins": list(c["twins"]), "twin_choice": (
         f"{c['id']}, not its twin {tw['id']}, only for the larger likelihood ratio ({c['statistic']:.1f} against "
-        f"{tw['statistic']:.1f}): the data cannot tell them apart, so either may be the unit's; the positions that "
-        f"would: simucal plan --score PLAN --separate {c['id']},{tw['id']} --sizes {c['estimate']:.2g},"
-        f"{tw['estimate']:.2g}")}
+        f"{tw['statistic']:.1f}): the data cannot tell them apart, so either may be the unit's; "
+        + step.to_separate(c, tw))}

@@ -132,7 +132,7 @@ def calibrate_handheld(ms, acc_model="acc_baseline", detect=None, pose_window_s=
     gyro_effects: candidate ids fit with T and the bias over the moves."""
     obs, det, am, fa, tau = acc_from_poses(ms, acc_model, detect, pose_window_s)
     if auto:  # the library effects the failing poses need (candidates.forward_selection)
-        acc_auto = forward_selection(am, obs)
+        acc_auto = forward_selection(am, obs, table=False)
         if acc_auto.steps:
             obs, det, am, fa, tau = acc_from_poses(ms, acc_auto.model, detect, pose_window_s)
     M_a, b_a = am.matrix_and_bias(fa.vector(am.params))

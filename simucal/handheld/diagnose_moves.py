@@ -1,4 +1,4 @@
-"""The gyro of a hand-placed session against its moves: noise floor, verdict, candidates.
+"""The gyro of a hand-placed session against its moves: noise floor, test, candidates.
 
 Noise floor, from the stream's own rests (handheld.gyro_noise_dps, move_covariances,
 chi2_test: calibrate reports the same test). The gyro's white noise (first

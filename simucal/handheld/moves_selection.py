@@ -120,6 +120,9 @@ class MovesStep:
             self._held_out = held_out_moves(self.mv, self.gm.g_dirs, self.fit, self.gm.bias_std).tolist()
         return self._held_out
 
+    def to_separate(self, chosen, twin):
+        return "moves that would: " + separating_plan(chosen["id"], twin["id"], moves=True)
+
     def after(self):
         return {"chi2_after": self.chi2, "dof_after": self.dof, "p_value_after": self.p_value,
                 "residual_rms_after": float(np.sqrt(np.mean(self.fit.r ** 2)))}

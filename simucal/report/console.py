@@ -89,7 +89,7 @@ def _fit_lines(s, b: SensorBlock, source):
             + f" rms; {d['gyro_model']} taken (the best predictor of the moves left out)")
     if "auto" in d:
         yield (f"{s}: --add auto chose " + (", ".join(x["id"] for x in d["auto"]) + " (one at a time, each passing "
-               "the candidate test and predicting left-out rows better)" if d["auto"] else "nothing")
+               "the candidate test and predicting the data left out better)" if d["auto"] else "nothing")
                + (f"; {d['auto_stopped']}" if d.get("auto_stopped") else ""))
         for x in d["auto"]:
             if x.get("twin_choice"):

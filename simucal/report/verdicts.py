@@ -82,7 +82,8 @@ def shares_text(shares) -> str:
         return ""
     still = "" if s[-1]["p_value_after"] is None or not ModelTest(None, 0, s[-1]["p_value_after"]).fails else \
         f" The selection stopped: {shares['stopped']}."
-    return (f" Together, {', '.join(x['id'] for x in s)} ({len(s)} effects, chosen one by one) explain "
-            f"{100 * (1 - shares['unexplained']):.1f} % of the misfit (chi2 {s[-1]['chi2_after']:.1f} on "
-            f"{s[-1]['dof_after']} dof, residual rms {s[-1]['residual_rms_after']:.3g}): add them, "
+    head = (f" Together, {', '.join(x['id'] for x in s)} ({len(s)} effects, chosen one by one) explain" if len(s) > 1
+            else f" Alone, {s[0]['id']} explains")
+    return (f"{head} {100 * (1 - shares['unexplained']):.1f} % of the misfit (chi2 {s[-1]['chi2_after']:.1f} on "
+            f"{s[-1]['dof_after']} dof, residual rms {s[-1]['residual_rms_after']:.3g}): add {'them' if len(s) > 1 else 'it'}, "
             + " ".join(f"--add {x['id']}" for x in s) + "." + still)
