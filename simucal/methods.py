@@ -63,9 +63,9 @@ def _handheld(ms, acc_model, ids, auto, detect):
                               gyro_effects=for_sensor(ids, "gyro"), auto=auto)
 
 
-def _systematic(ms, acc_model, gyro_model, ids):
+def _systematic(ms, acc_model, gyro_model, ids, auto):
     from simucal.systematic.method import calibrate_systematic
-    return calibrate_systematic(ms, acc_model, gyro_model, ids)
+    return calibrate_systematic(ms, acc_model, gyro_model, ids, auto)
 
 
 def _field(ms, heading_accuracy_deg):
@@ -92,7 +92,7 @@ METHODS = {m.name: m for m in (
            _field),
     Method("systematic", SEQUENCE, "systematic calibration: strapdown navigation through a rotation sequence, an "
            "error-state Kalman filter (states derived from the error models) and RTS smoother on zero velocity at "
-           "rest", ("acc_model", "gyro_model", "ids"), _systematic),
+           "rest", ("acc_model", "gyro_model", "ids", "auto"), _systematic),
 )}
 NAMES = tuple(METHODS)
 

@@ -83,6 +83,8 @@ class Result:
     sigma: np.ndarray
     passes: int
     step_std: float
+    C: np.ndarray | None = None  # C_b^n at the start about the estimates, and what another pass over the data
+    setting: tuple = ()          # needs, (steps, q, w_ie, g0): the innovations' candidates (innovations.py)
 
 
 def run_filter(ms, acc_model="acc_baseline", gyro_model="gyro_baseline", ids=(), block_s=BLOCK_S,
@@ -113,7 +115,7 @@ def run_filter(ms, acc_model="acc_baseline", gyro_model="gyro_baseline", ids=(),
         _move(sensors, sensors.vector() - x[6:])
         if step.max() < STEP_STD:
             break
-    return Result(sensors, P[6:, 6:], epochs, prior_var, sigma, k, float(step.max()))
+    return Result(sensors, P[6:, 6:], epochs, prior_var, sigma, k, float(step.max()), C, (steps, q, w_ie, g0))
 
 
 def _move(sensors, p):
