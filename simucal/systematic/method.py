@@ -11,13 +11,13 @@ from simucal.io import calibration
 from simucal.systematic.auto import select
 from simucal.systematic.calibrate import UNOBSERVABLE, run_filter
 from simucal.systematic.innovations import innovation_test
+from simucal.systematic.observability import names_and_units, std_ratios
 
 
 def unobserved(result) -> dict:
     """{parameter: std / prior std} of those the sequence barely saw (the ratio above UNOBSERVABLE)."""
-    names = list(result.sensors.acc.params) + list(result.sensors.gyro.params) + ["eta_x", "eta_y", "eta_z"]
-    ratio = np.sqrt(np.diag(result.cov) / result.prior_var[6:])
-    return {n: float(r) for n, r in zip(names, ratio) if r > UNOBSERVABLE}
+    names = [n for _, n, _ in names_and_units(result.sensors)]
+    return {n: float(r) for n, r in zip(names, std_ratios(result)) if r > UNOBSERVABLE}
 
 
 def _fit(model, p, cov, test) -> Fit:
