@@ -32,12 +32,12 @@ def std_ratios(result) -> np.ndarray:
 
 def observability(ms, acc_model="acc_baseline", gyro_model="gyro_baseline", ids=()) -> dict:
     """One pass of the filter over the sequence ms (module doc): {parameters: [{sensor, parameter, unit,
-    prior_std, std, ratio, observed}], unobserved: [parameter], updates, steps}."""
+    prior_std, std, ratio, observed}], unobserved: ["sensor parameter"], updates, steps}."""
     r = run_filter(ms, acc_model, gyro_model, ids, max_passes=1)
     ratio = std_ratios(r)
     rows = [{"sensor": s, "parameter": n, "unit": u, "prior_std": float(np.sqrt(pv)), "std": float(np.sqrt(v)),
              "ratio": float(q), "observed": bool(q <= UNOBSERVABLE)}
             for (s, n, u), pv, v, q in zip(names_and_units(r.sensors), r.prior_var[6:], np.diag(r.cov), ratio)]
-    return {"parameters": rows, "unobserved": [x["parameter"] for x in rows if not x["observed"]],
+    return {"parameters": rows, "unobserved": [f"{x['sensor']} {x['parameter']}" for x in rows if not x["observed"]],
             "threshold": UNOBSERVABLE, "updates": sum(e.nu is not None for e in r.epochs), "steps": len(r.setting[0].dt),
             "noise_per_sample": {"gyro_dph": r.sigma[:3].tolist(), "acc_g": r.sigma[3:].tolist()}}
