@@ -13,8 +13,9 @@ import timeit
 
 if __name__ == "__main__":
     os.environ["SIMUCAL_CACHE"] = tempfile.mkdtemp(prefix="simucal-bench-cache-")
-    from simucal.fit import cache
-    from simucal.fit.models import compile_c, generated_dir
+    from simucal.io import cache
+    from simucal.fit.models import generated_dir
+    from simucal.io.cache import compile_c
 
     lib = compile_c("acc_baseline", (generated_dir() / "acc_baseline.c").read_text())
 

@@ -123,7 +123,8 @@ def main(repeats=3):
 
 
 def misfit_table(ms, theirs):
-    """What the moves' misfit is made of: diagnose's forward selection over the library, each
+    """What the moves' misfit is made of: diagnose's forward selection over the library (--add auto's
+    one rule, fit/selection.py), each
     effect's estimate and the share of the baseline's excess chi-square it removes, beside
     imu_tk's residual on the same moves (its own calibration, no effects)."""
     obs, det, am, fa, _ = acc_from_poses(ms)
@@ -138,8 +139,7 @@ def misfit_table(ms, theirs):
         print(f"| {k} | {x['id']} | {x['estimate']:.0f} +- {x['std']:.0f} {x['unit']} | {x['chi2_after']:.0f} / "
               f"{x['dof_after']} | {100 * x['share']:.1f} % | {x['residual_rms_after']:.4g} | "
               f"{x['residual_rms_after'] / floor:.2f} |")
-    print(f"\nleft unexplained: {100 * s['unexplained']:.1f} % of the excess chi2 (no further library effect passes "
-          "the F test)")
+    print(f"\nleft unexplained: {100 * s['unexplained']:.1f} % of the excess chi2 ({s['stopped']})")
 
 
 if __name__ == "__main__":

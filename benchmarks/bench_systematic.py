@@ -1,17 +1,23 @@
 """Systematic calibration (issue 42): the filter's stds against its errors over seeds, and the
 whole process's time on a long sequence (docs/systematic.md).
 
-    python3 benchmarks/bench_systematic.py [--seeds 50] [--rest-s 30] [--speed-hours 1] [--compare-seeds 2]
+    python3 benchmarks/bench_systematic.py [--seeds 50] [--rest-s 30] [--speed-hours 1] [--compare-seeds 10]
 
 Part 1: psins19 with rests of --rest-s, seeds 0..N-1 of the default unit (simulate --sequence):
 rms of (estimate - truth) / std per parameter and over all, the largest |error / std|, the mean
 NIS per update (3 for a consistent filter). Part 2 (--speed-hours > 0): psins19 with its rests
 stretched to fill that many hours at 100 Hz, `simucal calibrate --method systematic` timed as a
-whole process (reading the set, every pass, writing the file). Part 3 (--compare-seeds): the same
-unit by exact and multiposition (table1, 10 s per position at 100 Hz) and systematic (psins19, 30 s
-rests) with table angle errors of 1, 10 and 60 arcsec: the largest error of M and bias per sensor.
+whole process (reading the set, every pass, writing the file): wall and CPU (user + sys; the wall
+of a shared machine is its load's). Part 3 (--compare-seeds): the same unit by exact and
+multiposition (table1 with its rate runs, 10 s per position at 100 Hz) and systematic (psins19, 30 s
+rests), tables of angle errors 1, 10 and 60 arcsec (uniform +- each, each axis, each position) and
+poor ones, 60 arcsec with its rate off by 10 or 100 ppm in the rate runs or with 600 arcsec of tilt
+and non-perpendicular axes: per group (M, bias of each sensor) the rms error against the truth
+over the seeds, the rms stated std and the rms error / std.
 """
 import argparse
+import os
+import resource
 import subprocess
 import sys
 import tempfile
@@ -21,8 +27,12 @@ from pathlib import Path
 import numpy as np
 
 import simucal
+from simucal.generated import table
+from simucal.io import MeasurementSet
 from simucal.systematic.calibrate import run_filter
-from simucal.turntable.sequence import psins19
+from simucal.turntable.sequence import psins19, simulate_sequence
+from simucal.turntable.simulate import ARCSEC, Scenario
+from simucal.turntable.simulate import simulate as simulate_table
 
 
 def sequence_file(path, rest_s):
@@ -57,35 +67,88 @@ def speed(hours, folder):
     rest_s = (hours * 3600.0 - moving_s) / (len(steps) + 1)
     path = sequence_file(folder / "long.csv", rest_s)
     simucal.simulate(sequence=path, seed=0).write(folder / "long")
-    t0 = time.perf_counter()
+    t0, cpu0 = time.perf_counter(), _children_cpu()
     r = subprocess.run([sys.executable, "-m", "simucal", "calibrate", str(folder / "long"), "--method", "systematic",
                         "-o", str(folder / "long.json")], capture_output=True, text=True)
-    wall = time.perf_counter() - t0
+    wall, cpu = time.perf_counter() - t0, _children_cpu() - cpu0
     assert r.returncode == 0, r.stderr
     rows = sum(1 for _ in open(folder / "long" / "samples.csv")) - 1
     print("\n| length | rows | rests | simucal calibrate --method systematic, whole process |\n|---|---|---|---|")
-    print(f"| {hours:g} h at 100 Hz | {rows} | {rest_s:.0f} s | {wall:.1f} s wall |")
+    print(f"| {hours:g} h at 100 Hz | {rows} | {rest_s:.0f} s | {wall:.1f} s wall, {cpu:.1f} s CPU, load "
+          f"{os.getloadavg()[0]:.1f} on {os.cpu_count()} cores |")
 
 
-def _errors(cal, truth):
-    """The largest |error| of M (ppm) and of the bias (ug, deg/h) of each sensor against the truth."""
-    return [f"{1e6 * np.abs(getattr(cal, s).M - np.array(truth[s]['M'])).max():.1f}" for s in ("acc", "gyro")] + [
-        f"{k * np.abs(getattr(cal, s).bias - np.array(truth[s]['bias'])).max():.3g}" for s, k in (("acc", 1e6), ("gyro", 1))]
+def _children_cpu():
+    u = resource.getrusage(resource.RUSAGE_CHILDREN)
+    return u.ru_utime + u.ru_stime
 
 
-def comparison(seeds, arcsecs, folder):
-    """exact, multiposition and systematic on the same unit (per-sample noise 1e-5 g, 0.01 deg/h at 100 Hz)
-    with the table's angular position errors uniform within +- each of arcsecs."""
+GROUPS = {"acc M": ("acc", 1e6, "ppm"), "gyro M": ("gyro", 1e6, "ppm"), "acc bias": ("acc", 1e6, "ug"),
+          "gyro bias": ("gyro", 1.0, "deg/h")}
+# (angle error arcsec, rate error, tilt and non-perpendicularity arcsec: 5 the simulator's default)
+TABLES = [(1.0, 0.0, 5.0), (10.0, 0.0, 5.0), (60.0, 0.0, 5.0), (60.0, 1e-5, 5.0), (60.0, 1e-4, 5.0), (60.0, 0.0, 600.0)]
+
+
+def _group_errors(cal, truth):
+    """{group: (errors, stds)} of one calibration against the truth, each in the frame the method
+    calibrates in: exact and systematic the models' parameters in b (scale factors and misalignments
+    for M), multiposition the entries of its affine M in the table's frame k (the truth's M_b C_b^k)."""
+    out = {}
+    for group, (s, _, _) in GROUPS.items():
+        block, t = getattr(cal, s), truth[s]
+        if block.params:
+            names = [k for k in block.params if (k.startswith("b_") == group.endswith("bias"))]
+            err = np.array([block.params[k] - t["params"][k] for k in names])
+            std = np.array([block.std[k] for k in names])
+        elif group.endswith("bias"):
+            err, std = block.bias - np.array(t["bias"]), np.array(block.std["bias"])
+        else:
+            mount = truth["mounting"]["theta4_rad" if s == "acc" else "lambda4_rad"]
+            M_d = np.array(t["M"] if s == "acc" else t["M_in_d"])
+            err = (block.M - M_d @ table.mounting(np.array(mount)).T).ravel()
+            std = np.array(block.std["M"]).ravel()
+        out[group] = (err, std)
+    return out
+
+
+def _sets(seed, table_errors, sequence):
+    """The same unit on one table (TABLES' row): Table 1 with its rate runs (10 s per position at
+    100 Hz) and the sequence."""
+    arcsec, rate_error, geometry = table_errors
+    sc = Scenario(rate_hz=100.0, position_error_rad=arcsec * ARCSEC, rate_error=rate_error,
+                  tilt_rad=(geometry * ARCSEC,) * 2, nonperp_rad=(geometry * ARCSEC,) * 2)
+    sets = []
+    for name, (meta, samples, segments, truth) in (("table1", simulate_table(sc, seed)),
+                                                    ("psins19", simulate_sequence(sc, sequence, seed))):
+        ms = MeasurementSet(Path(f"{name}_seed{seed}"), meta, samples, segments)
+        ms.truth = truth
+        sets.append(ms)
+    return sets
+
+
+def comparison(seeds, folder):
+    """exact, multiposition and systematic on the same unit (per-sample noise 1e-5 g, 0.01 deg/h at
+    100 Hz) under each table of TABLES: per group, the rms error over the seeds and the group's
+    entries, the rms of the stated stds and the rms of error / std."""
     path = sequence_file(folder / "psins19_30s.csv", 30.0)
-    print("\n| table error | method | seed | acc M err (ppm) | gyro M err (ppm) | acc bias err (ug) | gyro bias err "
-          "(deg/h) |\n|---|---|---|---|---|---|---|")
-    for arcsec in arcsecs:
+    print(f"\n{seeds} seeds per cell; per group: rms error / rms std (rms of error / std)\n")
+    print("| angle error | rate error (ppm) | tilt, non-perp. | method | " + " | ".join(f"{g} ({u})" for g, (_, _, u) in GROUPS.items())
+          + " |\n|---|---|---|---|" + "---|" * len(GROUPS))
+    for table_errors in TABLES:
+        cells = {m: {g: [] for g in GROUPS} for m in ("exact", "multiposition", "systematic")}
         for seed in range(seeds):
-            plan = simucal.simulate(seed=seed, rate_hz=100, position_error_arcmin=arcsec / 60)
-            seq = simucal.simulate(seed=seed, sequence=path, position_error_arcmin=arcsec / 60)
+            plan, seq = _sets(seed, table_errors, path)
             for method, ms in (("exact", plan), ("multiposition", plan), ("systematic", seq)):
-                cal = simucal.calibrate(ms, method=method)
-                print(f"| {arcsec:g}\" | {method} | {seed} | " + " | ".join(_errors(cal, ms.truth)) + " |")
+                for g, e in _group_errors(simucal.calibrate(ms, method=method), ms.truth).items():
+                    cells[method][g].append(e)
+        for method, groups in cells.items():
+            row = []
+            for g, (_, k, _) in GROUPS.items():
+                err, std = (np.concatenate([e[i] for e in groups[g]]) for i in (0, 1))
+                rms = np.sqrt(np.mean(err ** 2))
+                row.append(f"{k * rms:.3g} / {k * np.sqrt(np.mean(std ** 2)):.3g} ({np.sqrt(np.mean((err / std) ** 2)):.2g})")
+            print("| {:g}\" | {:g} | {:g}\" | ".format(table_errors[0], 1e6 * table_errors[1], table_errors[2])
+                  + f"{method} | " + " | ".join(row) + " |")
 
 
 def main():
@@ -93,7 +156,7 @@ def main():
     ap.add_argument("--seeds", type=int, default=50, help="seeds of part 1 (default 50)")
     ap.add_argument("--rest-s", type=float, default=30.0, help="part 1's rests, s (default 30)")
     ap.add_argument("--speed-hours", type=float, default=1.0, help="part 2's length, h; 0 leaves it out (default 1)")
-    ap.add_argument("--compare-seeds", type=int, default=2, help="part 3's seeds per table error (default 2; 0: none)")
+    ap.add_argument("--compare-seeds", type=int, default=10, help="part 3's seeds per table (default 10; 0: none)")
     a = ap.parse_args()
     with tempfile.TemporaryDirectory() as tmp:
         if a.seeds > 0:
@@ -101,7 +164,7 @@ def main():
         if a.speed_hours > 0:
             speed(a.speed_hours, Path(tmp))
         if a.compare_seeds > 0:
-            comparison(a.compare_seeds, (1.0, 10.0, 60.0), Path(tmp))
+            comparison(a.compare_seeds, Path(tmp))
 
 
 if __name__ == "__main__":

@@ -33,9 +33,9 @@ import numpy as np
 
 from simucal import io, progress
 from simucal.io import outputs
-from simucal.fit.cache import own_folder
+from simucal.io.cache import compile_c, own_folder
 from simucal.fit.catalog import load
-from simucal.fit.models import compile_c, generated_dir
+from simucal.fit.models import generated_dir
 from simucal.fit.norm_fit import Observations, fit_exact
 from simucal.turntable import montecarlo
 from simucal.turntable.observations import segment_observations

@@ -16,7 +16,8 @@ import numpy as np
 from simucal import io, methods
 from simucal.errors import CalibrationError
 from simucal.fit.augmented import AugmentedModel
-from simucal.fit.candidates import test_model, verdict
+from simucal.fit.candidates import test_model
+from simucal.report.verdicts import sensor_verdict
 from simucal.fit.norm_fit import Fit, Observations
 from simucal.fit.results import ALPHA, model_test_keys
 from simucal.io.timestamps import with_timestamps
@@ -53,7 +54,7 @@ def diagnose_sensor(ms, sensor, base_model, add=(), stated=None, truth=None, bef
     obs, segs, rows = found
     model = AugmentedModel(base_model, tuple(add))
     fit, obs, base, cands, shape, table_info = test_and_rank(model, obs, segs)
-    out = {**model_test_keys(base), "candidates": cands, "verdict": verdict(sensor, base, cands, str(ms.path), shape, None),
+    out = {**model_test_keys(base), "candidates": cands,
            "params": fit.params, "std": fit.std, "param_units": dict(zip(model.params, model.param_units)),
            "residuals": residual_table(fit, obs, rows)}
     if shape:
@@ -150,6 +151,8 @@ def _diagnose(ms, folder, add, acc_model, gyro_model, acc_noise_g, gyro_noise_dp
             result[sensor] = block
     kind.finish_diagnosis(ms, result, (acc_model, gyro_model, ids, acc_noise_g, gyro_noise_dph))
     sensors = [s for s in ("acc", "gyro") if s in result]
+    for s in sensors:
+        result[s]["verdict"] = sensor_verdict(result[s], s)
     if not sensors:
         raise CalibrationError(f"{folder}: nothing to diagnose (no static or rate segments)")
     worst = min(sensors, key=lambda s: result[s]["model_test"]["p_value"] if result[s]["model_test"]["p_value"] is not None

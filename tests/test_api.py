@@ -168,3 +168,15 @@ def test_import_stays_light():
             "assert callable(simucal.calibrate) and callable(simucal.validate)")
     res = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True)
     assert res.returncode == 0, res.stderr[-1000:]
+
+
+def test_a_diagnosis_of_a_set_in_memory_names_the_call_and_of_a_folder_the_command(tmp_path):
+    """A set that lives in memory has no folder for `simucal calibrate`: its next step is the Python call
+    (which, run, makes the model pass); a set read from a folder gets the command on that folder."""
+    ms = simucal.simulate(plan="fibonacci24", seed=1, effects={"acc.quadratic.z": 3e-4})
+    d = simucal.diagnose(ms)
+    assert d.next_command == "simucal.calibrate(data, add=['acc.quadratic.z'])"
+    assert simucal.calibrate(ms, add=["acc.quadratic.z"]).acc.p_value > 1e-3
+    ms.write(tmp_path / "s")
+    assert simucal.diagnose(tmp_path / "s").next_command == (
+        f"simucal calibrate {tmp_path / 's'} --add acc.quadratic.z -o calibration.json")

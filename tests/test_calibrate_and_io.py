@@ -305,11 +305,13 @@ def test_median_rows_is_numpys_median():
             assert np.array_equal(median_rows(x.T.copy().T), np.median(x, axis=1))
 
 
+@pytest.mark.parametrize("native", [True, False])
 @pytest.mark.parametrize("blank_at", [None, 0.25, 0.75])
-def test_samples_read_in_pieces_are_the_careful_readers(tmp_path, monkeypatch, blank_at):
+def test_samples_read_in_pieces_are_the_careful_readers(tmp_path, monkeypatch, blank_at, native):
     """csv_columns parses a large samples.csv in pieces, two at a time on two threads, into one (n, 3)
-    block per triad: the careful reader's numbers, row for row, with a blank line in either half
-    too; MeasurementSet.raw is that block (no copy)."""
+    block per triad, by csv_numbers.c (native; a blank line sends the file to pyarrow) or pyarrow (no
+    compiler): the careful reader's numbers, row for row, with a blank line in either half too;
+    MeasurementSet.raw is that block (no copy)."""
     from simucal.io import csv_columns
     from simucal.turntable.simulate import Scenario, write
     folder = tmp_path / "s"
@@ -319,21 +321,78 @@ def test_samples_read_in_pieces_are_the_careful_readers(tmp_path, monkeypatch, b
         at = int(len(lines) * blank_at)
         (folder / "samples.csv").write_text("".join(lines[:at] + ["\n"] + lines[at:]))
     monkeypatch.setattr(csv_columns, "PIECE_BYTES", 100_000)
-    pieces = []
-    monkeypatch.setattr(csv_columns, "_parse_into", lambda *a, _f=csv_columns._parse_into: pieces.append(a) or _f(*a))
+    if not native:
+        monkeypatch.setattr(csv_columns, "_native", lambda: None)
+    calls = {"native": [], "arrow": []}
+    monkeypatch.setattr(csv_columns, "_parse_native", lambda *a, _f=csv_columns._parse_native: calls["native"].append(
+        _f(*a)) or calls["native"][-1])
+    monkeypatch.setattr(csv_columns, "_parse_into", lambda *a, _f=csv_columns._parse_into: calls["arrow"].append(a)
+                        or _f(*a))
     fast = io.read_set(folder)
-    assert len(pieces) >= 3
-    monkeypatch.setattr(io, "read_columns", lambda *a: None)  # the careful reader, line by line
+    assert len(calls["native"] if native else calls["arrow"]) >= 3
+    assert bool(calls["arrow"]) == (not native or blank_at is not None)  # the C parser stops at a blank line
+    assert -1 in calls["native"] if native and blank_at is not None else -1 not in calls["native"]
+    monkeypatch.setattr(io, "read_columns", lambda *a: (None, False))  # the careful reader, line by line
     careful = io.read_set(folder)
     assert fast.samples.keys() == careful.samples.keys()
     for c, v in careful.samples.items():
         assert fast.samples[c].dtype == v.dtype and np.array_equal(fast.samples[c], v), c
+    from simucal.io.sensor_checks import column_extremes
+    seeded = {k for k in fast.__dict__.get("_cache", {}) if k[0] == "extremes"}  # by the C parser, as it parsed
+    assert seeded == ({("extremes", "acc"), ("extremes", "gyro")} if native and blank_at is None else set())
     for sensor, c in (("acc", "ax"), ("gyro", "gx")):
         assert np.shares_memory(fast.raw(sensor), fast.samples[c]) and not np.shares_memory(careful.raw(sensor),
                                                                                             careful.samples[c])
         assert np.array_equal(fast.raw(sensor), careful.raw(sensor))
+        assert column_extremes(fast, sensor) == column_extremes(careful, sensor)  # the C parser's: no pass over them
 
 
+def test_the_c_parsers_numbers_are_pyarrows_and_floats_bit_for_bit(monkeypatch):
+    """csv_numbers.c rounds every decimal it takes as float() and pyarrow do (its fast path, 15 digits
+    by a power of ten up to 22, and strtod beyond), the sign of zero too, CRLF line ends too; a cell
+    it does not take (a space, NaN, a bare sign or point, an exponent without digits) stops it, and
+    pyarrow reads the file (the same numbers)."""
+    from simucal.io import csv_columns
+    rng = np.random.default_rng(7)
+    x = np.concatenate([rng.normal(size=2000) * 10.0 ** rng.integers(-30, 30, 2000), [0.0, -0.0, 5e-324, 1.7e308]])
+    cells = [repr(float(v)) for v in x] + [f"{v:.3f}" for v in x[:500]] + [f"{v:.20e}" for v in x[:500]] + [
+        "-0", "+1.5", "1.", ".5", "-.25", "007", "12345678901234567890123", "0.1234567890123456789012", "1e22",
+        "1e23", "123456789012345e-22", "9007199254740993", "2.2250738585072011e-308", "1E5", "1e+5",
+        "00000000000000000001", "1234567890123456", "0.000000000000000000000000001", "1e-400", "4.9e-324", "-0.0e7"]
+    cells += [""] * (-len(cells) % 4)
+    cells = [c or "1" for c in cells]
+    text = "a,b,c,d\n" + "".join(",".join(cells[i:i + 4]) + ("\r\n" if i % 8 else "\n")
+                                 for i in range(0, len(cells), 4))
+    body, header, big = memoryview(text.encode()), ["a", "b", "c", "d"], np.finfo(float).max
+    assert csv_columns._native() is not None  # a compiler: the suite runs where one is
+    seen = []
+    monkeypatch.setattr(csv_columns, "_parse_native", lambda *a, _f=csv_columns._parse_native: seen.append(_f(*a))
+                        or seen[-1])
+    native, extremes = csv_columns.read_columns(body, header, header, [], big)
+    assert seen == [len(cells) // 4] and extremes == {c: (native[c].min(), native[c].max()) for c in header}
+    want = np.array([float(c) for c in cells]).reshape(-1, 4)
+    for j, c in enumerate(header):
+        assert np.array_equal(native[c].view(np.int64), want[:, j].view(np.int64)), c
+    with monkeypatch.context() as m:
+        m.setattr(csv_columns, "_native", lambda: None)
+        arrow, extremes = csv_columns.read_columns(body, header, header, [], big)
+    assert extremes is None and all(np.array_equal(native[c].view(np.int64), arrow[c].view(np.int64)) for c in header)
+    for bad in (" 1", "1 ", "nan", "-", ".", "1e", "e5", "1,5", "1e400", "-2e308"):
+        seen.clear()
+        odd = text + f"{bad},1,1,1\n"
+        got, extremes = csv_columns.read_columns(memoryview(odd.encode()), header, header, [], big)
+        assert seen == [-1] and extremes is None, bad
+        assert (got is None) == (bad not in (" 1", "1 ")), bad  # pyarrow takes spaces
+    quoted = memoryview((text + '"x",1,1,1\n').encode())
+    for piece in (body, quoted, body[:1000], body[:0]):  # the line ends and quotes counted by C, then by numpy
+        counts = [csv_columns._line_ends(piece)]
+        with monkeypatch.context() as m:
+            m.setattr(csv_columns, "_native", lambda: None)
+            counts.append(csv_columns._line_ends(piece))
+        assert counts[0] == counts[1] == (bytes(piece).count(b"\n"), b'"' in bytes(piece))
+    seen.clear()
+    got, extremes = csv_columns.read_columns(body, header, header, [], 1e12)  # beyond it: pyarrow, the caller checks
+    assert seen == [-1] and extremes is None and np.array_equal(got["a"], native["a"])
 @pytest.mark.parametrize("shuffled", [False, True])
 def test_segment_rows_refused_by_line_in_file_order_or_not(tmp_path, shuffled):
     """_check_samples finds a set's segments without a sort where the file holds them one after the

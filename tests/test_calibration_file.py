@@ -1,6 +1,8 @@
 """The calibration file as one typed object (issue 25): every method returns a Calibration, whose
 JSON is read back to the same object; apply and validate take it as loaded."""
 import json
+import types
+import typing
 
 import numpy as np
 import pytest
@@ -60,6 +62,24 @@ def test_what_a_method_reports_beyond_the_fields_travels_as_details(every_method
     field = every_method["field"]
     assert field.acc.nominal and "acc" in field.not_calibrated and field.details["field"]["gyro_drift_dph"]
     assert field.gyro.library_effects() == ()
+
+
+def test_every_key_a_method_writes_in_a_block_is_declared(every_method, tmp_path):
+    """SensorBlock.details is typed (io.calibration.SensorDetails): every method's blocks, --add auto's
+    and a hand-placed session's included, hold only declared keys, each of its declared type's kind."""
+    declared = typing.get_type_hints(calibration.SensorDetails)
+    kinds = {k: tuple(typing.get_origin(a) or a for a in (typing.get_args(t) if typing.get_origin(t) in
+                      (typing.Union, types.UnionType) else (t,))) for k, t in declared.items()}
+    cals = dict(every_method)
+    cals["exact --add auto"] = calibrate(every_method["exact"].input, add=("auto",))
+    for name, cal in cals.items():
+        for s, block in cal.blocks():
+            unknown = set(block.details) - set(declared)
+            assert not unknown, f"{name} {s}: {unknown} not in SensorDetails"
+            wrong = {k: type(v).__name__ for k, v in block.details.items() if not isinstance(v, kinds[k])}
+            assert not wrong, f"{name} {s}: {wrong} not of the declared types"
+    assert {"auto", "auto_stopped", "cross_validation"} <= set(cals["exact --add auto"].acc.details)
+    assert {"T", "moves", "gyro_model"} <= set(cals["handheld"].gyro.details)
 
 
 finite = st.floats(-1e3, 1e3, allow_nan=False)

@@ -79,14 +79,17 @@ def test_diagnose_real_stream_says_honestly_what_it_finds(tmp_path):
     assert g["baseline"]["p_value"] < 1e-6 and g["baseline"]["residual_rms"] > 3 * g["baseline"]["noise_floor"]
     assert len(g["residuals"]) == 37 and g["candidates"][0]["separable"]
     assert "more is missing" in g["verdict"] or "not in the library" in g["verdict"]
-    # together, the effects chosen one by one bring the moves within 1.5 x the floor, and calibrate carries them
+    # the effects chosen one by one by --add auto's one rule (fit/selection.py: the gate, then the moves
+    # left out predicted better) explain more than half the misfit; the rest is not the library's, and
+    # it says why it stopped; calibrate carries them
     s = g["misfit_shares"]
-    assert s["steps"] and s["steps"][-1]["residual_rms_after"] < 1.5 * g["baseline"]["noise_floor"]
-    assert all(x["id"].startswith("gyro.") for x in s["steps"]) and s["unexplained"] < 0.05
+    assert s["steps"] and all(x["id"].startswith("gyro.") and x["p_held_out_better"] < 0.01 for x in s["steps"])
+    assert s["unexplained"] < 0.5 and s["steps"][-1]["residual_rms_after"] > 1.5 * g["baseline"]["noise_floor"]
+    assert "left out" in s["stopped"] and s["stopped"] in g["verdict"]
     assert " ".join(f"--add {e}" for e in s["effects"]) in g["verdict"]
     r = calibrate(tmp_path / "x", add=tuple(s["effects"])).to_json()
     assert r["gyro"]["chi2"] == pytest.approx(s["steps"][-1]["chi2_after"], rel=1e-6)
-    assert r["gyro"]["chi2"] < 0.05 * g["baseline"]["chi2"]
+    assert r["gyro"]["chi2"] < 0.5 * g["baseline"]["chi2"]
 
 
 def test_diagnose_moves_clean_and_with_a_planted_g_sensitivity(tmp_path):
@@ -195,7 +198,7 @@ def _direction_error_rad(tmp_path, acc_effects, add):
     and the gyro block (a session with acc_effects planted, calibrated with add)."""
     from simucal import io
     from simucal.fit.augmented import AugmentedModel
-    from simucal.handheld.calibrate import pose_directions
+    from simucal.handheld.gyro_moves import pose_directions
     from simucal.handheld.poses import acc_from_poses
     folder = tmp_path / str(len(acc_effects))
     truth = write_handheld(folder, HandheldScenario(acc_effects=acc_effects), 1)

@@ -15,8 +15,10 @@ import pytest
 from click.testing import CliRunner
 
 from simucal.cli import main
-from simucal.fit import augmented, cache, catalog
-from simucal.fit.models import compile_c, compiler, generated_dir, load_builtin, manifest
+from simucal.fit import augmented, catalog
+from simucal.fit.models import generated_dir, load_builtin, manifest
+from simucal.io import cache
+from simucal.io.cache import compile_c, compiler
 from simucal.sweeps import map_tasks
 
 PLANT = '\n#include <stdio.h>\n__attribute__((constructor)) static void planted(void) {{ ' \

@@ -43,7 +43,8 @@ class Diagnosis:
     candidate_rows : list of Candidate
         The same rows as a list.
     next_command : str
-        The one `simucal calibrate` command the verdict leads to.
+        The calibration to run next: a `simucal calibrate` command on the set's folder, or for a set
+        in memory the `simucal.calibrate` call; with the effects the verdicts lead to.
     next_notes : list of str
         What the next command leaves open (e.g. a failing model with nothing in the library to add).
     notes : list of str
@@ -93,7 +94,7 @@ def diagnose(data: Data, *, add: str | Sequence[str] = (), acc_model: str = "acc
     'simucal calibrate ... --add acc.quadratic.z -o calibration.json'
     """
     from simucal.diagnose import diagnose as run
-    from simucal.report.console import next_command
+    from simucal.report.console import next_adds, next_command
     add = effect_ids(add)
     if "auto" in add:
         raise ValueError("add 'auto' is calibrate's: diagnose already ranks every candidate")
@@ -102,9 +103,14 @@ def diagnose(data: Data, *, add: str | Sequence[str] = (), acc_model: str = "acc
     rows = [Candidate(c["id"].split(".")[0], c["id"], c.get("estimate"), c.get("std"), c.get("unit", ""),
                       c.get("statistic"), c.get("p_value"), bool(c.get("significant")), bool(c["separable"]),
                       c.get("note") or "") for c in report["candidates"]]
-    cmd, notes = next_command(report)
     files = {s: report[s]["shape"]["model_file"] for s in sensors
              if report[s].get("shape") and not report[s]["shape"].get("catalog_id")}
+    if isinstance(data, io.MeasurementSet) and not (Path(data.path) / "meta.json").is_file():
+        adds, notes = next_adds(report)  # a set in memory: the next step is a call, not a command on a folder
+        cmd = f"simucal.calibrate(data, add={adds!r})" + (
+            " (a found term: write Diagnosis.model_files[sensor] to a file and add its path)" if files else "")
+    else:
+        cmd, notes = next_command(report)
     return Diagnosis({s: report[s]["verdict"] for s in sensors}, rows, cmd, notes,
                      list(report.get("notes", [])), files, report)
 

@@ -46,7 +46,7 @@ class _Commands(click.Group):
 def _one_line(message, category, filename, lineno, line=None, _python=warnings.formatwarning):
     """A warning of the cache (a library not loaded, or rebuilt) is one line, as a refusal is;
     any other as Python prints it."""
-    from simucal.fit.cache import CacheWarning
+    from simucal.io.cache import CacheWarning
     if issubclass(category, CacheWarning):
         return f"warning: {message}\n"
     return _python(message, category, filename, lineno, line)

@@ -14,10 +14,9 @@ import numpy as np
 
 from simucal import io
 from simucal.errors import CalibrationError
-from simucal.fit.augmented import AugmentedModel, follows_temperature
-from simucal.fit.aux_inputs import SENSOR_AUX, AuxInputs, columns_at, specific_force
+from simucal.fit.augmented import AugmentedModel, effect_terms, follows_temperature
+from simucal.fit.aux_inputs import AuxInputs, columns_at, specific_force
 from simucal.fit.thermal import params_at
-from simucal.generated.effects import EFFECTS
 from simucal.io import units
 from simucal.io.calibration import Calibration, SensorBlock
 from simucal.io.calibration_checks import LAYOUT_KEYS, check_layout
@@ -27,16 +26,15 @@ KELVIN_HINT = "; temp_c looks like kelvin (273-400): convert to degC (subtract 2
 
 def _affine_effects(block: SensorBlock):
     """h(u) = M u + bias + sum_j p_j phi_j(u) e_axis(j), for blocks without a generated model."""
-    M, bias = block.M, block.bias
-    effects = [(EFFECTS[e], block.effects[e].value) for e in block.library_effects()]
+    M, bias, ids = block.M, block.bias, block.library_effects()
+    values = [block.effects[e].value for e in ids]
 
     def h(u, aux: AuxInputs):
         N = u @ M.T + bias
         J = np.broadcast_to(M, u.shape + (3,)).copy()
-        for effect, p in effects:
-            phi, dphi = effect.phi(u, aux.array(SENSOR_AUX[effect.sensor], u.shape[:-1]))
-            N[:, effect.axis] += p * np.broadcast_to(phi[..., 0], len(u))
-            J[:, effect.axis, :] += p * np.broadcast_to(dphi, u.shape)
+        for p, (axis, phi, dphi) in zip(values, effect_terms(ids, u, aux)):
+            N[:, axis] += p * phi
+            J[:, axis, :] += p * np.broadcast_to(dphi, u.shape)
         return N, J
     return h
 

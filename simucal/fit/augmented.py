@@ -31,6 +31,19 @@ def regressor(eid: str, u, aux: AuxInputs) -> np.ndarray:
     return np.broadcast_to(effect.phi(u, aux.array(SENSOR_AUX[effect.sensor], shape))[0][..., 0], shape)
 
 
+def effect_terms(effects, u, aux: AuxInputs | None):
+    """Each effect's (axis, phi (u.shape[:-1]), dphi/du (..., 3)) at inputs u: what an effect adds to a
+    model's output, p phi on its axis, and to its Jacobian in u (AugmentedModel, and apply's affine
+    blocks). Built-in auxiliary inputs only, 0 where aux lacks them."""
+    effects = tuple(effects)
+    if not effects:
+        return
+    A = (aux or AuxInputs()).array(SENSOR_AUX[EFFECTS[effects[0]].sensor], np.shape(u)[:-1])
+    for e in effects:
+        phi, dphi = EFFECTS[e].phi(u, A)
+        yield EFFECTS[e].axis, np.broadcast_to(phi[..., 0], np.shape(u)[:-1]), dphi
+
+
 def for_sensor(ids, sensor: str) -> tuple[str, ...]:
     """The effect ids of one sensor (each library effect knows its own)."""
     return tuple(e for e in ids if EFFECTS[e].sensor == sensor)
@@ -101,12 +114,7 @@ class AugmentedModel:
         return tuple(n for n in self.base.params if n not in baseline)
 
     def _terms(self, u, aux: AuxInputs | None):
-        if not self.effects:
-            return
-        A = (aux or AuxInputs()).array(SENSOR_AUX[self.sensor], np.shape(u)[:-1])  # built-in inputs only: 0 by default
-        for e in self.effects:
-            phi, dphi = EFFECTS[e].phi(u, A)
-            yield EFFECTS[e].axis, np.broadcast_to(phi[..., 0], np.shape(u)[:-1]), dphi
+        return effect_terms(self.effects, u, aux)
 
     def output(self, u, p, aux: AuxInputs | None = None):
         p = np.asarray(p, float)
@@ -151,7 +159,7 @@ def compiled_form(model: AugmentedModel) -> GeneratedModel | None:
     there. None without effects, for a user's base model, or without a compiler (the numpy fit of
     the AugmentedModel is then the same numbers). Its parameters are the base's and then one per
     effect, in the AugmentedModel's order (checked)."""
-    from simucal.fit.models import compiler
+    from simucal.io.cache import compiler
     if not model.effects or model.base.source != "built-in" or compiler() is None:
         return None
     derived = _derived(model.base.name, model.effects)
@@ -177,7 +185,7 @@ def _derive(base: str, effects: tuple) -> GeneratedModel:
     """The model file is written by simucal here, into the user's own cache (UntrustedCache where
     that is not the user's alone), and written again wherever it holds other bytes: a model file is
     run when it is derived, and simucal runs only files it wrote or the user named."""
-    from simucal.fit.cache import own_folder
+    from simucal.io.cache import own_folder
     name = "_with_".join([base] + [e.replace(".", "_") for e in effects])  # CasADi: no "__"
     if len(name) > 80:  # many effects: a file name the file system takes
         name = f"{base}_with_{hashlib.sha256(name.encode()).hexdigest()[:16]}"

@@ -11,8 +11,8 @@
 - A model fails its test at p < ALPHA (fit/results.ModelTest.fails), everywhere.
 - shape: when no candidate explains the misfit, the generic term that does
   (lack_of_fit.describe_shape).
-- verdict: one paragraph for the user, with units and the command to run next.
-Used by calibrate, diagnose (turntable sets and streams' poses), diagnose_moves and table_fit.
+The verdict in words is report/verdicts.py's. Used by calibrate, diagnose (turntable sets and
+streams' poses), diagnose_moves and table_fit.
 """
 from __future__ import annotations
 
@@ -20,16 +20,15 @@ import numpy as np
 
 from simucal.errors import CalibrationError
 from simucal.fit.augmented import AugmentedModel, effect_ids, regressor
-from simucal.fit.cross_validation import leave_one_out, paired_improvement
+from simucal.fit.cross_validation import leave_one_out
 from simucal.fit.distributions import chi2_sf, f_sf
 from simucal.fit.lack_of_fit import describe_shape, fit_with_noise, lack_of_fit
 from simucal.fit.norm_fit import Fit, Observations, dense_jacobian, fit_exact
-from simucal.fit import ranking
+from simucal.fit import ranking, selection
 from simucal.fit.results import ALPHA, ModelTest, Selection
 from simucal.fit.twins import separating_plan
 from simucal.generated.effects import EFFECTS, SEPARATE
 
-HELD_OUT_ALPHA = 0.01  # --add auto: one-sided level of "predicts the rows left out better" (forward_selection)
 NOISE_TOO_LARGE = 1e-3  # P(chi2 below the value found): residuals this far under the stated noise
 NOISE_TOO_SMALL = 10.0  # residual rms / stated noise above which a misfit with no structure is the noise's
 
@@ -134,64 +133,40 @@ def test_model(model, obs: Observations, p0=None) -> tuple[Fit, Observations, di
     return fit, obs, block
 
 
-AUTO_TRIES = 3  # candidates passing the gate whose held-out errors are tried, strongest first
+class NormStep:
+    """A norm-fit model in `--add auto`'s forward selection (fit/selection.py): test_model's test and
+    leave-one-position-out errors. rank(model, obs, fit, base) -> (candidates, shape): the ranking the
+    caller's diagnosis uses (turntable/model_test.rank); default rank_candidates and
+    shape_if_unexplained. Only library effects are added (a table's own terms in the ranking are not)."""
+
+    def __init__(self, model: AugmentedModel, obs: Observations, rank=None):
+        self.model, self.obs, self._rank = model, obs, rank or _rank
+        self.effects = model.effects
+        self.fit, self.obs_used, self.base = test_model(model, obs)
+
+    def test(self):
+        return ModelTest.of(self.base)
+
+    def rank(self):
+        return self._rank(self.model, self.obs_used, self.fit, self.base)
+
+    def add(self, eid):
+        return NormStep(AugmentedModel(self.model.base, self.model.effects + (eid,)), self.obs, self._rank)
+
+    def held_out(self):
+        cv = self.base["cross_validation"]
+        return cv["held_out"] if cv else None
+
+    def after(self):
+        cv = self.base["cross_validation"]
+        return {"p_value_after": self.base["p_value"], "residual_rms_after": self.fit.residual_rms,
+                "held_out_rms_after": cv["held_out_rms"] if cv else None}
 
 
 def forward_selection(model: AugmentedModel, obs: Observations, rank=None, max_terms=6) -> Selection:
-    """`--add auto`: the library effects that explain a failing model, chosen one at a time.
-    While the model fails its test (test_model), a candidate is added only when it passes
-    rank_candidates' Bonferroni gate and also predicts the rows left out better than the model
-    without it (cross_validation.paired_improvement, one-sided p < HELD_OUT_ALPHA); the strongest of up to
-    AUTO_TRIES such candidates is taken and the model tested again. Where a term outside the
-    library (lack_of_fit.describe_shape) explains more of the misfit than any library effect, it
-    stops and says so instead of chaining effects that only absorb that misfit.
-    rank(model, obs, fit, base) -> (candidates, shape): the ranking the caller's diagnosis uses
-    (turntable/model_test.rank); default rank_candidates and shape_if_unexplained. Only library
-    effects are added (a table's own terms in the ranking are not).
-    Returns the Selection: the model, the steps (id, estimate, the test's p and the held-out rms
-    after) and why it stopped."""
-    steps = []
-    fit, obs2, base = test_model(model, obs)
-    while ModelTest.of(base).fails:
-        if len(steps) == max_terms:
-            return Selection(model, steps, f"stopped at {max_terms} effects with the model still failing")
-        cands, shape = rank(model, obs2, fit, base) if rank else _rank(model, obs2, fit, base)
-        if shape and not shape.get("catalog_id"):
-            return Selection(model, steps, f"a term outside the library explains more than any library effect: "
-                             f"{shape['text']}; simucal diagnose writes it as a model file for --add FILE")
-        sig = [c for c in cands if c.get("significant") and c["id"] in EFFECTS][:AUTO_TRIES]
-        if not sig:
-            return Selection(model, steps, "no library effect passes the candidate gate; the model still fails")
-        for c in sig:
-            trial = AugmentedModel(model.base, model.effects + (c["id"],))
-            f1, o1, b1 = test_model(trial, obs)
-            p_cv = paired_improvement(base["cross_validation"], b1["cross_validation"])
-            if p_cv is None or p_cv < HELD_OUT_ALPHA:
-                break
-        else:
-            return Selection(model, steps, f"the candidates passing the gate ({', '.join(c['id'] for c in sig)}) do "
-                             "not predict the positions left out better (it would only fit the misfit); the model "
-                             "still fails")
-        model, fit, obs2, base = trial, f1, o1, b1
-        cv = base["cross_validation"]
-        steps.append({"id": c["id"], "estimate": c["estimate"], "std": c["std"], "unit": c["unit"],
-                      "p_value_after": base["p_value"], "residual_rms_after": fit.residual_rms,
-                      "held_out_rms_after": cv["held_out_rms"] if cv else None, "p_held_out_better": p_cv,
-                      **_twin_choice(c, cands)})
-    return Selection(model, steps, "the model passes its test" if steps else "the model passes its test: nothing added")
-
-
-def _twin_choice(c, cands) -> dict:
-    """Where the data cannot tell the chosen effect from a twin (fit/twins.py): the twins and why this
-    one was taken (the larger likelihood ratio only), for --add auto to say so rather than choose silently."""
-    if not c.get("twins"):
-        return {}
-    tw = next(x for x in cands if x["id"] == c["twins"][0])
-    return {"twins": list(c["twins"]), "twin_choice": (
-        f"{c['id']}, not its twin {tw['id']}, only for the larger likelihood ratio ({c['statistic']:.1f} against "
-        f"{tw['statistic']:.1f}): the data cannot tell them apart, so either may be the unit's; the positions that "
-        f"would: simucal plan --score PLAN --separate {c['id']},{tw['id']} --sizes {c['estimate']:.2g},"
-        f"{tw['estimate']:.2g}")}
+    """`--add auto` on the norm fit (fit/selection.forward_selection from NormStep): the Selection with
+    its model the AugmentedModel chosen."""
+    return selection.forward_selection(NormStep(model, obs, rank), max_terms)
 
 
 def _rank(model, obs, fit, base):
@@ -234,58 +209,3 @@ def shape_if_unexplained(model, obs, fit, base, cands) -> dict | None:
         if shape["share_of_misfit"] <= 1.5 * max(best_share, 0.0):
             return None
     return shape
-
-
-def _fmt_test(base):
-    rows = f" over {base['rows']}" if base.get("rows") else ""
-    if base["chi2"] is not None and not base["noise"].get("rows_estimated"):
-        return f"chi2 {base['chi2']:.1f} on {base['dof']} dof{rows}, p = {base['p_value']:.2g}"
-    lof = base["lack_of_fit"]
-    t = f"lack-of-fit F {lof['F']:.3g} on ({lof['q']}, {lof['dof']}) dof" if lof.get("F") is not None else "no F test"
-    if base["chi2"] is not None:
-        t = f"chi2 {base['chi2']:.1f} on {base['dof']} dof with the noise partly estimated, " + t
-    return t + rows + (f", p = {base['p_value']:.2g}" if base["p_value"] is not None else "")
-
-
-def _add_it(command, where, eid) -> str:
-    """The command that adds one effect; with command None the option alone (the diagnosis prints one
-    command with every --add after the verdicts: report/html.next_command)."""
-    return f"simucal {command} {where} --add {eid}" if command else f"--add {eid}"
-
-
-def verdict(sensor, base, cands, where="DIR", shape=None, command="diagnose") -> str:
-    unit = base.get("residual_unit", "")
-    rms = f"residual rms {base['residual_rms']:.3g} {unit}".rstrip()
-    if base["p_value"] is None:
-        return (f"{sensor}: too few degrees of freedom for any test (no noise in the data or stated, and the "
-                f"lack-of-fit test needs 4 dof); {rms}; state the noise (--{sensor}-noise-...) or add positions")
-    warning = f" WARNING: {base['noise_warning']}." if base.get("noise_warning") else ""
-    if not ModelTest.of(base).fails:
-        return f"{sensor}: the model explains the data down to the noise ({_fmt_test(base)}; {rms}).{warning}"
-    floor = f" against a noise floor {base['noise_floor']:.3g} {unit}" if base.get("noise_floor") else ""
-    head = f"{sensor}: the model does not explain the data ({_fmt_test(base)}; {rms}{floor})"
-    sig = [c for c in cands if c.get("significant")]
-    text = head + "." + warning
-    generic = shape and not shape.get("catalog_id")
-    if generic:  # it explains more than every library effect (shape_if_unexplained): lead with it
-        text += (f" Most likely missing: a term {shape['text']} (rms {shape['residual_rms_after']:.3g} {unit} "
-                 "without it), not in the library; a model file with this term is written beside the report: add "
-                 "it with --add FILE.")
-    if sig:
-        c = sig[0]
-        after = c.get("residual_rms_after")
-        more = (f" With it the residual rms would be {after:.3g} {unit}, still above the floor: more is missing "
-                "(see the other candidates)." if after and base.get("noise_floor") and after > 2 * base["noise_floor"]
-                else "")
-        text += (f" {'The best library effect, explaining less' if generic else 'Most likely missing'}: {c['id']} "
-                 f"({c['meaning']}), estimate {c['estimate']:.3g} +- {c['std']:.2g} {c['unit']}, LR "
-                 f"{c['statistic']:.1f}, p = {c['p_value']:.2g}."
-                 + ("" if generic else f" Add it: {_add_it(command, where, c['id'])}.{more}"))
-    elif not shape:
-        text += (" No candidate explains it; the missing effect is not in the library (or the plan cannot "
-                 "separate it).")
-    if shape and shape.get("catalog_id"):
-        text += (f" The residual looks like a term {shape['text']} (rms {shape['residual_rms_after']:.3g} {unit} "
-                 f"without it): that is the library's {shape['catalog_id']}, too weak alone to pass the gate over "
-                 f"every candidate; try it: {_add_it(command, where, shape['catalog_id'])}.")
-    return text

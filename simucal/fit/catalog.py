@@ -11,7 +11,7 @@ is derived afresh and an unchanged one is loaded without SymPy. An index
 (<cache>/models/index.json) maps each model name to its key, so
 `--acc-model NAME` finds a model derived earlier from any folder. A derived model is code
 (a Python module, C): it is loaded only from a cache that is the user's alone, or from the
-trusted cache (simucal.fit.cache), and never by a bytecode file beside it.
+trusted cache (simucal.io.cache), and never by a bytecode file beside it.
 """
 from __future__ import annotations
 
@@ -26,7 +26,7 @@ import traceback
 import types
 from pathlib import Path
 
-from simucal.fit import cache
+from simucal.io import cache
 from simucal.fit.models import GeneratedModel, load_builtin, manifest
 from simucal.io import outputs
 

@@ -9,8 +9,9 @@ rest, |w_T + w_e sin L| in a rate run) is then the prediction: the held-out erro
 parameters is the in-sample error it is compared with.
 
 Used by the model test (candidates.test_model) for every calibration and diagnosis,
-and by `--add auto`, which adds an effect only when it lowers the held-out errors by
-more than chance (paired_improvement).
+and by `--add auto` (fit/selection.py), which adds an effect only when it lowers the held-out
+errors by more than chance (paired_improvement; a stream's moves give theirs by
+handheld/moves.held_out_moves).
 """
 from __future__ import annotations
 
@@ -81,13 +82,14 @@ def leave_one_out(model, obs: Observations, fit: Fit) -> dict | None:
             "what": "leave one position out: |u_i| - rho_i of the left-out row, inverted by the fit without it"}
 
 
-def paired_improvement(before: dict, after: dict) -> float | None:
-    """One-sided p-value that `after` predicts the left-out rows better than `before`: the paired
+def paired_improvement(before, after) -> float | None:
+    """One-sided p-value that the errors `after` predict the pieces left out better than `before`
+    (each a sequence of held-out errors, one per row or move, NaN where a refit failed): the paired
     differences of squared held-out errors, d_i = e0_i^2 - e1_i^2, by a t test (t^2 ~ F(1, n-1)).
-    None where either lacks held-out errors."""
-    if not before or not after:
+    None where either is None."""
+    if before is None or after is None:
         return None
-    e0, e1 = np.asarray(before["held_out"]), np.asarray(after["held_out"])
+    e0, e1 = np.asarray(before, float), np.asarray(after, float)
     ok = np.isfinite(e0) & np.isfinite(e1)
     d = e0[ok] ** 2 - e1[ok] ** 2
     if len(d) < 3:

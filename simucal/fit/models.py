@@ -3,21 +3,14 @@ compiler is found, else the SymPy-printed numpy module (same derivation)."""
 from __future__ import annotations
 
 import functools
-import hashlib
 import importlib
 import json
-import os
-import shutil
-import subprocess
-import threading
-import warnings
 from pathlib import Path
 
 import numpy as np
 
-from simucal.fit import cache
 from simucal.fit.aux_inputs import AuxInputs
-from simucal.io import outputs
+from simucal.io.cache import compile_c
 
 
 class StaleGeneratedCode(RuntimeError):
@@ -31,54 +24,6 @@ def generated_dir() -> Path:
 
 def manifest() -> dict:
     return json.loads((generated_dir() / "manifest.json").read_text())
-
-
-CFLAGS = ("-O3", "-fno-math-errno", "-shared", "-fPIC")  # no -march=native: a cache may be shared by machines of other CPUs
-
-
-def compiler() -> str | None:
-    """The C compiler builds use, or None (none found, or SIMUCAL_NO_COMPILE set)."""
-    if os.environ.get("SIMUCAL_NO_COMPILE"):
-        return None
-    return shutil.which(os.environ.get("CC", "cc")) or shutil.which("gcc")
-
-
-def compile_c(name: str, source: str) -> Path | None:
-    """Build generated C (a model's, the table's) into the user's cache, or take an earlier build
-    (the user's cache, then SIMUCAL_TRUSTED_CACHE) whose bytes still have the sha256 recorded at
-    its build; None where no compiler works or the cache is not the user's alone (said in one
-    line: the numpy module runs). Processes and threads may build the same library at once: each
-    compiles from its stdin (the same bytes, whatever the file names) into a file of its own and
-    renames it into place."""
-    cc = compiler()
-    if cc is None:
-        return None
-    digest = hashlib.sha256((" ".join(CFLAGS) + "\n" + source).encode()).hexdigest()[:16]  # flags change the build
-    try:
-        lib, changed = cache.library(f"{name}-{digest}.so")
-        folder = cache.own_folder() if lib is None else None
-    except cache.UntrustedCache as e:
-        warnings.warn(f"{e}; the numpy module runs instead", cache.CacheWarning)
-        return None
-    if lib is not None:
-        return lib
-    if changed:
-        warnings.warn(changed, cache.CacheWarning)
-    lib = folder / f"{name}-{digest}.so"
-    tmp = lib.with_suffix(f".{os.getpid()}-{threading.get_ident()}.tmp")
-    base = [cc, *CFLAGS, "-x", "c", "-", "-o", str(tmp), "-lm"]
-    res = subprocess.run(base + ["-fopenmp"], input=source, capture_output=True, text=True)  # batches over the cores
-    if res.returncode != 0:
-        res = subprocess.run(base, input=source, capture_output=True, text=True)
-    if res.returncode != 0:
-        warnings.warn(f"compiling {name}.c failed with {cc}; using the numpy module instead:\n{res.stderr[-500:]}")
-        tmp.unlink(missing_ok=True)
-        return None
-    os.chmod(tmp, 0o755)  # cc's mode less the umask: a umask of 002 would leave it writable by the group
-    tmp.replace(lib)
-    cache.record(lib)
-    outputs.write_text(lib.with_suffix(".c"), source, mode=0o644)  # kept beside the library: what it was built from
-    return lib
 
 
 def _bind_fit(lib, name):

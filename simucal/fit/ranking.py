@@ -1,8 +1,9 @@
 """One candidate ranking for every fit: a Problem says how its model sees an effect, rank() does the rest.
 
 A Problem (the turntable and stream poses' exact norm fit: fit.candidates.NormProblem; the gyro
-over a stream's moves: handheld/diagnose_moves.MovesProblem; a table's own terms:
-turntable/table_fit.DirectionsProblem; a sequence's filter innovations: systematic/innovations.InnovationsProblem) gives, at the model's fit, the whitened Jacobian of the
+over a stream's moves: handheld/moves_selection.MovesProblem; a table's own terms:
+turntable/table_fit.DirectionsProblem; a sequence's filter innovations: systematic/innovations.InnovationsProblem)
+gives, at the model's fit, the whitened Jacobian of the
 model (its span), the whitened residual and its variance scale s2 (1 where the noise is known),
 each candidate's whitened column, and the fit with one candidate added (its estimate, std and
 likelihood-ratio or F statistic). rank() then, for every problem alike:

@@ -15,39 +15,27 @@ order). chi2 = sum_i r_i^T S_i^+ r_i + |db / sigma_db|^2 on 2m + 3 - 12 dof test
 bias instability over a move, timing jitter and creep of the poses are effects
 the test is there to reveal.
 
-Candidates: every gyro effect of generated/effects.py, evaluated along each move
-at the calibrated rate (u, deg/h), the calibrated specific force (f, g, motion
-included), time and temperature, enters the output model
-    y = M omega + b + p phi e_axis,  so  omega = T (y - b - p phi e_axis),
-and is fit with T and the bias by the same Gauss-Newton (handheld.fit_gyro_moves).
-Ranked by the likelihood ratio with the noise variance profiled out,
-LR = 2m ln(RSS_0 / RSS_1) ~ chi2(1) (2m: the residuals' degrees of freedom),
-significant under the same Bonferroni gate as the poses (one ranking: fit/ranking.py).
+Candidates: ranked and chosen over the moves as handheld/moves_selection.py says.
 """
 from __future__ import annotations
 
 import numpy as np
 
-from simucal.fit.augmented import check_effect, effect_ids
+from simucal.fit.augmented import check_effect
 from simucal.fit.aux_inputs import FORCE
-from simucal.fit.candidates import verdict
-from simucal.fit.distributions import chi2_sf
-from simucal.fit.ranking import Trial, rank
 from simucal.fit.results import ModelTest, model_test_keys
-from simucal.fit.twins import separating_plan
-from simucal.generated.effects import EFFECTS, SEPARATE_MOVES
-from simucal.handheld.calibrate import (
+from simucal.generated.effects import EFFECTS
+from simucal.handheld.gyro_moves import (
     chi2_test,
     gyro_noise_dps,
-    has_input,
-    misfit_shares,
     move_covariances,
     pose_directions,
     prepare_moves,
     regressor_inputs,
     with_terms,
 )
-from simucal.handheld.moves import GyroFit, fit_gyro, fit_gyro_moves, move_residuals
+from simucal.handheld.moves import GyroFit, fit_gyro, fit_gyro_moves
+from simucal.handheld.moves_selection import rank_move_candidates, select_effects
 from simucal.io.units import DPH_PER_DPS
 
 
@@ -64,55 +52,6 @@ def move_rows(gm, fit: GyroFit, S, columns: dict):
              "direction": gm.g_dirs[a].tolist(), "residual": r.tolist(), "sigma": s.tolist(),
              "normalized": (r / s).tolist()}
             for i, (a, b, span, r, s) in enumerate(zip(mv.before, mv.after, mv.t_span, fit.r, sig))]
-
-
-class MovesProblem:
-    """The gyro's fit over a stream's moves as a ranking Problem (fit/ranking.py): each candidate's column
-    is its regressor integrated along the moves (the gravity directions' residual per unit coefficient),
-    the statistic the likelihood ratio with the direction noise profiled out, 2 m log(rss0 / rss1)."""
-    span = "T and the bias"
-
-    def __init__(self, gm, base: GyroFit, inputs):
-        self.gm, self.base, self.inputs = gm, base, inputs
-        self.rss0, self.m = float(np.sum(base.r ** 2)), len(base.r)
-        self.mv = {}
-
-    def info(self, eid):
-        return EFFECTS[eid].parameter, EFFECTS[eid].unit, EFFECTS[eid].meaning
-
-    def basis(self):
-        _, J0 = move_residuals(self.base.T, self.gm.mv, self.gm.g_dirs, db=self.base.db)
-        return np.linalg.qr(J0.reshape(-1, 12))[0]
-
-    def residual(self):
-        return self.base.r.ravel(), self.rss0 / (2 * self.m)  # the noise profiled out as in the LR
-
-    def column(self, eid):
-        if not has_input(eid, self.inputs):  # a temperature term without temp_c: no move to integrate
-            return np.zeros(self.base.r.size)
-        self.mv[eid] = mv = with_terms(self.gm.mv, [eid], self.inputs)
-        return move_residuals(self.base.T, mv, self.gm.g_dirs, db=self.base.db, p=np.zeros(1))[1][..., 12].ravel()
-
-    def to_see(self, eid):
-        return SEPARATE_MOVES[eid.split(".")[1]]
-
-    def to_separate(self, eid, twin):
-        return separating_plan(eid, twin, moves=True)
-
-    def fit_with(self, eid):
-        base = self.base
-        f1 = fit_gyro_moves(self.mv[eid], self.gm.g_dirs, np.r_[base.T.ravel(), base.db, 0.0], self.gm.bias_std)
-        if not f1.converged:
-            return f"the fit with it did not converge in {f1.iterations} steps"
-        stat = max(2 * self.m * np.log(self.rss0 / float(np.sum(f1.r ** 2))), 0.0)
-        return Trial(float(f1.p[0]), float(np.sqrt(f1.cov[12, 12])), float(stat), float(chi2_sf(stat, 1)),
-                     float(stat - 2.0), float(np.sqrt(np.mean(f1.r ** 2))))
-
-
-def rank_move_candidates(gm, base: GyroFit, inputs, base_fails) -> list[dict]:
-    """Every library gyro effect ranked beside T and the bias over the moves (fit/ranking.rank)."""
-    problem = MovesProblem(gm, base, inputs)
-    return [c.to_dict() for c in rank(problem, effect_ids("gyro"), base_fails, "gyro candidates over the moves")]
 
 
 def diagnose_moves(ms, obs, det, am, fa, add=(), truth=None):
@@ -134,7 +73,7 @@ def diagnose_moves(ms, obs, det, am, fa, add=(), truth=None):
                for k, v in inputs[0][1].values.items() if k not in FORCE}
     fails = ModelTest(chi2, dof, p).fails
     cands = rank_move_candidates(gm, base, inputs, fails)
-    shares = (misfit_shares(gm, base, sigma_g, inputs, chi2, dof)
+    shares = (select_effects(gm, base, sigma_g, inputs, cands)
               if not add and fails and any(c.get("significant") for c in cands) else None)
     fit, names = base, _param_names([])
     if add:
@@ -147,7 +86,6 @@ def diagnose_moves(ms, obs, det, am, fa, add=(), truth=None):
     vec = lambda f: np.r_[f.T.ravel(), (gm.bias + f.db) * DPH_PER_DPS, f.p]
     std = lambda f: np.sqrt(np.diag(f.cov)) * np.r_[np.ones(9), np.full(3, DPH_PER_DPS), np.ones(len(f.p))]
     out = {**model_test_keys(block), "candidates": cands, "misfit_shares": shares,
-           "verdict": verdict("gyro (moves)", block, cands, str(ms.path), command=None) + (_shares_text(shares, ms.path) if shares else ""),
            "params": dict(zip(names, vec(fit).tolist())), "std": dict(zip(names, std(fit).tolist())),
            "param_units": {"T": "1 (deg/s of rate per deg/s of output)", "b": "deg/h"},
            "residuals": move_rows(gm, fit, S, columns), "residual_unit": "gravity direction (unit vector), per move",
@@ -166,17 +104,6 @@ def diagnose_moves(ms, obs, det, am, fa, add=(), truth=None):
                         "p_value_after": p1, "params": comp,
                         "residuals_before": move_rows(gm, base, move_covariances(gm, base, sigma_g), columns)}
     return out
-
-
-def _shares_text(shares, where) -> str:
-    """One sentence on what the chosen effects explain together, with the command to use them."""
-    s = shares["steps"]
-    if not s:
-        return ""
-    return (f" Together, {', '.join(x['id'] for x in s)} ({len(s)} effects, chosen one by one) explain "
-            f"{100 * (1 - shares['unexplained']):.1f} % of the misfit (chi2 {s[-1]['chi2_after']:.1f} on "
-            f"{s[-1]['dof_after']} dof, residual rms {s[-1]['residual_rms_after']:.3g}): add them, "
-            + " ".join(f"--add {x['id']}" for x in s) + ".")
 
 
 def _with_truth(comp, truth):

@@ -268,8 +268,7 @@ def choose_gyro_model(mv: Moves, g_dirs, bias_std, f_full: GyroFit, held=()) -> 
     for name, (fit, held_out) in fits.items():
         table[name] = {"held_out_rms_deg": _rms_deg(held_out), "in_sample_rms_deg": _rms_deg(np.linalg.norm(fit.r, axis=1))}
         if name != "nominal":
-            table[name].update(compared_with=chosen, p_better=paired_improvement({"held_out": fits[chosen][1]},
-                                                                                  {"held_out": held_out}))
+            table[name].update(compared_with=chosen, p_better=paired_improvement(fits[chosen][1], held_out))
             if fit.converged and table[name]["held_out_rms_deg"] < RICHER_GAIN * table[chosen]["held_out_rms_deg"]:
                 chosen = name
     return chosen, fits[chosen][0], table

@@ -5,14 +5,15 @@ per-pose variance where the model does not explain the poses to their own noise.
 from __future__ import annotations
 
 from dataclasses import replace
+from typing import NamedTuple
 
 import numpy as np
 
 from simucal.errors import CalibrationError
 from simucal.fit.augmented import AugmentedModel
 from simucal.fit.aux_inputs import AuxInputs, column_means
-from simucal.fit.norm_fit import Observations, check_not_coplanar, fit_exact
-from simucal.handheld.static_detect import DetectSettings, detect_static
+from simucal.fit.norm_fit import Fit, Observations, check_not_coplanar, fit_exact
+from simucal.handheld.static_detect import DetectSettings, Detection, detect_static
 from simucal.io import units
 
 
@@ -96,8 +97,17 @@ def pose_observations(ms, detect=None, pose_window_s=1.0):
     return obs, det, poses
 
 
-def acc_from_poses(ms, acc_model="acc_baseline", detect=None, pose_window_s=1.0):
-    """The accelerometer from a stream's poses: (Observations, Detection, model, fit, tau)."""
+class Poses(NamedTuple):
+    """The accelerometer from a stream's poses (acc_from_poses)."""
+    obs: Observations      # one row per pose
+    det: Detection         # the static intervals found
+    model: AugmentedModel
+    fit: Fit
+    tau: float             # the poses' extra std (g) where the model does not explain them, else 0
+
+
+def acc_from_poses(ms, acc_model="acc_baseline", detect=None, pose_window_s=1.0) -> Poses:
+    """The accelerometer from a stream's poses."""
     if not ms.has_acc:
         raise CalibrationError(f"{ms.path}: a hand-placed session needs accelerometer data")
     obs, det, poses = pose_observations(ms, detect, pose_window_s)
@@ -114,6 +124,6 @@ def acc_from_poses(ms, acc_model="acc_baseline", detect=None, pose_window_s=1.0)
     fa.undetermined = {k: {"determined": False, "held_at": v, "prior_std": sd,
                            "to_determine": "add poses tilted between the sensor axes (e.g. 45 deg about each axis)"}
                        for k, (v, sd) in (prior or {}).items()}
-    return obs, det, am, fa, tau
+    return Poses(obs, det, am, fa, tau)
 
 

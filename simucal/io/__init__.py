@@ -16,7 +16,7 @@ from pathlib import Path
 
 import numpy as np
 
-from simucal.io import outputs, units
+from simucal.io import csv_columns, outputs, sensor_checks, units
 from simucal.io.csv_columns import arrow_floats, read_columns, triad_block
 from simucal.io.segments import Segment, read_segments
 from simucal.io.text_files import (MeasurementSetError, RepeatedKey, body_of, check_delimiter, csv_refusal,
@@ -160,11 +160,13 @@ def read_meta(folder: Path) -> dict:
     return meta
 
 
-def read_samples(folder: Path, segments) -> tuple[dict, str]:
+def read_samples(folder: Path, segments) -> tuple[dict, str, dict | None]:
     """(column -> array, files_sha256 of the set's files as read: hashed on a thread of its own while
-    the numbers are parsed, as hashlib frees the GIL) of samples.csv, or samples.parquet (_read_parquet). The numbers are parsed by pyarrow, and only
-    where that finds anything unusual by the careful reader, which names the line; the whole file is
-    checked to be UTF-8 either way (an ASCII file, the usual one, is UTF-8 without decoding it)."""
+    the numbers are parsed, as hashlib frees the GIL, each column's (least, greatest) where the parser
+    found them, else None) of samples.csv, or samples.parquet (_read_parquet). The numbers are parsed
+    by csv_columns (C or pyarrow), and only where that finds anything unusual by the careful reader,
+    which names the line; the whole file is checked to be UTF-8 either way (an ASCII file, the usual
+    one, is UTF-8 without decoding it)."""
     path = samples_path(folder)
     if path.suffix == ".parquet":
         return _read_parquet(folder, path, segments)
@@ -173,16 +175,18 @@ def read_samples(folder: Path, segments) -> tuple[dict, str]:
         raise MeasurementSetError(path, None, "missing: a measurement set needs samples.csv (or samples.parquet)")
     with ThreadPoolExecutor(1) as pool:
         raw = pool.submit(path.read_bytes)
-        import pyarrow.csv  # noqa: F401 (the parser, imported while the file is read: the read frees the GIL)
+        csv_columns.prepare()  # the parser loaded while the file is read (the read frees the GIL)
         raw = raw.result()
         sha256 = pool.submit(files_sha256, folder, raw)
-        samples = _parsed(path, raw, segments)
+        samples, extremes = _parsed(path, raw, segments)
         sha256 = sha256.result()
     del raw  # the file's bytes freed before the checks' temporaries: the peak of reading is the bytes and the arrays
-    return _check_samples(samples, path, segments), sha256
+    return _check_samples(samples, path, segments, extremes is not None), sha256, extremes
 
 
-def _parsed(path, raw, segments) -> dict:
+def _parsed(path, raw, segments) -> tuple[dict, dict | None]:
+    """(samples.csv's columns, {column: (least, greatest)} where their numbers are known to be within
+    +-PLAUSIBLE (read_columns), else None)."""
     body = body_of(path, raw)
     if not len(body):
         raise MeasurementSetError(path, 1, "empty file")
@@ -191,14 +195,14 @@ def _parsed(path, raw, segments) -> dict:
     ends_with_a_line_end(path, body)
     header = _header(path, body)
     cols, others = _sample_columns(path, header, segments)
-    fast = read_columns(body, header, cols, others)
+    fast, extremes = read_columns(body, header, cols, others, PLAUSIBLE)
     if fast is not None:
-        return fast
+        return fast, extremes
     with _io.StringIO(decoded(path, body), newline="") as fh:
         reader = csv.reader(fh)
         try:
             next(reader)
-            return _careful(reader, path, header, cols, others)
+            return _careful(reader, path, header, cols, others), None
         except csv.Error as e:
             raise csv_refusal(path, reader.line_num, e) from None
 
@@ -332,15 +336,20 @@ def _read_parquet(folder, path, segments) -> tuple[dict, str]:
     cols, others = parquet_columns(path, segments)
     try:
         samples = arrow_floats(path, parquet_file(path).read(columns=cols + others), cols + others)
-        return _check_samples(samples, path, segments), files_sha256(folder, path.read_bytes(), path.name)
+        return _check_samples(samples, path, segments), files_sha256(folder, path.read_bytes(), path.name), None
     except MeasurementSetError as e:
         raise at_row(path, e, 0) from None
 
 
-def _check_samples(out, path, segments):
-    with ThreadPoolExecutor(2) as pool:  # two reductions a column, no temporary array: the usual file, on both cores
-        plausible = list(pool.map(lambda v: bool(len(v) and -PLAUSIBLE <= v.min() and v.max() <= PLAUSIBLE),
-                                  out.values()))
+def _check_samples(out, path, segments, plausible=False):
+    """The samples' rules (plausible: every number is known to be within +-PLAUSIBLE, as read_columns
+    reports where its C parser checked them)."""
+    if plausible:
+        plausible = [len(v) > 0 for v in out.values()]
+    else:
+        with ThreadPoolExecutor(2) as pool:  # two reductions a column, no temporary: the usual file, on both cores
+            plausible = list(pool.map(lambda v: bool(len(v) and -PLAUSIBLE <= v.min() and v.max() <= PLAUSIBLE),
+                                      out.values()))
     for (c, v), fine in zip(out.items(), plausible):
         if fine:
             continue
@@ -391,11 +400,14 @@ def read_set(folder) -> MeasurementSet:
         raise MeasurementSetError(folder, None, "not a folder (a measurement set is a folder)")
     meta = read_meta(folder)
     segments = read_segments(folder)
-    samples, sha256 = read_samples(folder, segments)
+    samples, sha256, extremes = read_samples(folder, segments)
     if "gx" in samples and "latitude_deg" not in meta:
         raise MeasurementSetError(folder / "meta.json", None,
                                   "latitude_deg is required when gyro data are present")
-    return MeasurementSet(folder, meta, samples, segments, sha256=sha256)
+    ms = MeasurementSet(folder, meta, samples, segments, sha256=sha256)
+    if extremes is not None:
+        sensor_checks.known_extremes(ms, extremes)
+    return ms
 
 
 def _fmt(v):

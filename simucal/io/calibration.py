@@ -44,6 +44,7 @@ from __future__ import annotations
 
 import json
 from dataclasses import dataclass, field, fields
+from typing import Any, TypedDict
 from pathlib import Path
 
 import numpy as np
@@ -93,6 +94,52 @@ def _plain(x):
     return np.asarray(x).tolist() if isinstance(x, np.ndarray) else x
 
 
+class SensorDetails(TypedDict, total=False):
+    """What a method reports about one sensor's fit beside SensorBlock's fields, written at the block's
+    top level in the file. Every key a method writes is declared here (tests/test_calibration_file.py
+    checks each method's blocks against it); units as the block's."""
+    # the model test (sensor_block, from fit.candidates.test_model)
+    test: str                          # the test, in words
+    noise: dict[str, Any]              # the noise the test used and where it came from
+    lack_of_fit: dict[str, Any]        # the lack-of-fit F test (fit/lack_of_fit.py)
+    cross_validation: dict[str, Any] | None  # leave one position out (fit/cross_validation.py)
+    rows: str                          # the rows tested, where not all
+    noise_warning: str                 # a stated noise far from the data's scatter
+    noise_too_small: bool
+    covariance: dict[str, Any]         # {"names": [...], "matrix": [[...]]}: the parameters' covariance
+    poorly_determined: dict[str, Any]  # parameters whose std the plan inflates (poorly_determined)
+    std_raw: dict[str, Any]            # the stds before inflate_if_failing scaled them
+    std_note: str                      # how the stds were scaled, or what they include
+    advice: str | None                 # the effect (or generic term) a failing model most likely lacks
+    auto: list[dict[str, Any]]         # --add auto's steps (fit/selection.py)
+    auto_stopped: str                  # why it stopped
+    note: str | None                   # what else the method says of this block
+    # a turntable's gyro (turntable/calibrate.py, tilt.py) and a thermal calibration's
+    M_in_d: list[list[float]]          # M in the gyro's parameter frame d
+    std_M: list[list[float]]           # the std of each entry of M in b (unification and tilt included)
+    static_rows: dict[str, Any]        # the gyro's static rows against the Earth rate
+    frame: str                         # the frame M is in, where it is not b
+    tilt_note: str
+    table_tilt: dict[str, Any]         # the outer axis's tilt carried into the stds
+    plateaus: list[Any]                # a thermal calibration's plateaus
+    groups: list[dict[str, Any]]       # a joint thermal fit's groups, each tested under it
+    # a hand-placed session (handheld/calibrate.py)
+    T: list[list[float]]               # T = M^-1
+    T_note: str
+    moves: list[dict[str, Any]]        # each move's residual
+    moves_used: int
+    moves_skipped: list[Any]
+    saturation: list[Any]
+    moves_opposite_sense: list[Any]
+    iterations: int
+    undetermined: dict[str, Any]       # parameters the data leave at nominal, and why
+    gyro_model: str                    # nominal, scale or full: chosen by the moves left out
+    model_choice: dict[str, Any]
+    model_error_std_g: float           # the poses' extra variance
+    # systematic calibration (systematic/method.py)
+    eta_rad: dict[str, Any]            # the gyro frame's angles against b
+
+
 @dataclass(eq=False)
 class SensorBlock:
     """One sensor's calibration (module doc). details: what the method reports about its fit,
@@ -115,7 +162,7 @@ class SensorBlock:
     description: str | None = None   # a method without a generated model: what its affine model is
     thermal: dict | None = None
     nominal: bool = False            # left at the nominal scale factors (not calibrated)
-    details: dict = field(default_factory=dict)
+    details: SensorDetails = field(default_factory=SensorDetails)
 
     def __post_init__(self):
         self.M, self.bias = np.asarray(self.M, float), np.asarray(self.bias, float)

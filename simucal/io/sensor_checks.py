@@ -63,6 +63,14 @@ def column_extremes(ms, sensor) -> list[tuple]:
                     meta=False)
 
 
+def known_extremes(ms, extremes: dict) -> None:
+    """column_extremes' answer where the reader found it ({column: (least, greatest)}: csv_columns
+    keeps them as it parses), so that no pass over the columns repeats it."""
+    for sensor, cols in TRIADS:
+        if all(c in extremes and c in ms.samples for c in cols):
+            ms._once(("extremes", sensor), cols, lambda cols=cols: [extremes[c] for c in cols], meta=False)
+
+
 def _runs(mask, min_run):
     """[(start, stop)] of the runs of True at least min_run long (found among the True rows only:
     an extreme value is rare)."""

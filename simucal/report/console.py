@@ -188,10 +188,16 @@ def to_add(diag: dict, sensor: str) -> tuple[list[str] | None, str]:
 
 
 def next_command(diag: dict) -> tuple[str, list[str]]:
-    """(the one calibrate command for the set, the notes beside it): every --add the diagnosis was
-    run with (both sensors' effects and model files) and, for each sensor whose model fails, what
-    its verdict adds; so the command that made a model pass keeps its --add, and the gyro's keeps
-    the accelerometer's."""
+    """(the one calibrate command for the set, the notes beside it): next_adds as --add options."""
+    adds, notes = next_adds(diag)
+    return f"simucal calibrate {diag['input']}{''.join(f' --add {a}' for a in adds)} -o calibration.json", notes
+
+
+def next_adds(diag: dict) -> tuple[list[str], list[str]]:
+    """(what the next calibration adds, the notes beside it): every --add the diagnosis was run with
+    (both sensors' effects and model files) and, for each sensor whose model fails, what its verdict
+    adds; so the command that made a model pass keeps its --add, and the gyro's keeps the
+    accelerometer's."""
     adds, notes = [], []
     for s in ("acc", "gyro"):
         if s in diag:
@@ -201,8 +207,7 @@ def next_command(diag: dict) -> tuple[str, list[str]]:
             found, why = to_add(diag, s)
             adds += found or []
             notes += [why] if why else []
-    options = "".join(f" --add {a}" for a in dict.fromkeys(adds))
-    return f"simucal calibrate {diag['input']}{options} -o calibration.json", notes
+    return list(dict.fromkeys(adds)), notes
 
 
 def validation_next(report: dict) -> tuple[str, list[str]]:

@@ -18,7 +18,8 @@ from simucal.fit.aux_inputs import AuxInputs
 from simucal.generated import table
 from simucal.io import units
 from simucal.fit.rotations import exp_so3, log_so3
-from simucal.systematic.filter import RAD_S_PER_DPH, Epoch, Sensors, kalman, level, nominal, smooth, transitions
+from simucal.systematic.filter import (RAD_S_PER_DPH, Epoch, Sensors, compose, kalman, level, nominal, smooth,
+                                      transitions)
 
 BLOCK_S = 1.0           # zero-velocity updates at rest every this many seconds
 ZUPT_STD_MPS = 1e-6     # the table at rest: its velocity is zero to this (m/s)
@@ -57,6 +58,10 @@ def white_noise(ms, segments, rows_of):
         if s.kind == "static" and len(r) > 10:
             d = np.diff(np.c_[ms.gyro_dph()[r], ms.acc_g()[r]], axis=0)
             per_rest.append(d.std(axis=0) / np.sqrt(2))
+    if not per_rest:
+        raise CalibrationError(f"{ms.path / 'segments.csv'}: no rest holds more than 10 samples; the filter takes the "
+                               "white noise from the rests: rest at least 11 samples (the built-in sequences rest "
+                               "30-100 s)")
     return np.median(per_rest, axis=0)
 
 
@@ -108,13 +113,12 @@ def run_filter(ms, acc_model="acc_baseline", gyro_model="gyro_baseline", ids=(),
     for k in range(1, max_passes + 1):
         x0 = np.r_[log_so3(C_prior @ C.T), np.zeros(3), sensors.vector()]  # the prior's mean as errors
         epochs = _one_pass(steps, sensors, C, x0, np.diag(prior_var), q, w_ie, g0)
-        x_s, _ = smooth(epochs)  # the attitude at the start; the constants are the filter's at the end,
-        x, P = epochs[-1].x, epochs[-1].P  # equal in exact arithmetic, and free of the smoother's round-off
-        step = np.abs(x[6:]) / np.sqrt(np.diag(P)[6:])
-        C = exp_so3(x_s[0][:3]) @ C
+        x, P = epochs[-1].x, epochs[-1].P  # the constants: the filter's at the end (the smoother's at the start
+        step = np.abs(x[6:]) / np.sqrt(np.diag(P)[6:])  # equal them in exact arithmetic)
         _move(sensors, sensors.vector() - x[6:])
-        if step.max() < STEP_STD:
+        if step.max() < STEP_STD or k == max_passes:
             break
+        C = exp_so3(smooth(epochs, covariance=False)[0][0][:3]) @ C  # the next pass's attitude at the start
     return Result(sensors, P[6:, 6:], epochs, prior_var, sigma, k, float(step.max()), C, (steps, q, w_ie, g0))
 
 
@@ -159,21 +163,26 @@ def steps_of(ms, segments, block_s, dt) -> Steps:
     return Steps(mean[0], mean[1], t, counts * dt, np.asarray(zupt))
 
 
-CHUNK = 4096  # steps whose transitions are built at once (memory: CHUNK n^2 doubles)
+CHUNK = 4096  # steps whose transitions are built at once (memory: about 60 CHUNK doubles)
 
 
 def _one_pass(steps, sensors, C, x0, P0, q, w_ie, g0):
     """One pass of the filter over the sequence about the nominal of sensors' estimates and C: the
-    epochs (the first the prior at the start)."""
+    epochs (the first the prior at the start). The steps between two updates are composed into one
+    transition (filter.compose; the steps after the last update see no data and are left out)."""
     R = np.eye(3) * ZUPT_STD_MPS ** 2
     aux = AuxInputs({"t_s": steps.t})
     f_b, w_b = sensors.compensate(steps.N_a, steps.N_g, aux, aux)
     D_a, D_g = sensors.sensitivities(f_b, w_b, aux, aux)
     Cs, v_at = nominal(C, w_b * RAD_S_PER_DPH * steps.dt[:, None], f_b, steps.dt, steps.zupt, w_ie, g0)
     epochs = [Epoch(np.eye(len(P0)), P0, P0, x0, x0)]
-    x, P, Phi_acc = x0, P0, np.eye(len(P0))
-    for a in range(0, len(Cs), CHUNK):
-        k = slice(a, a + CHUNK)
-        Phi, Q6 = transitions(Cs[k], f_b[k], D_a[k], D_g[k], steps.dt[k], q, w_ie, g0)
-        x, P, Phi_acc = kalman(x, P, Phi_acc, Phi, Q6, steps.zupt[k], v_at[k], R, steps.t[k], epochs)
+    x, P = x0, P0
+    ends = np.flatnonzero(steps.zupt)
+    group = ends // CHUNK  # the intervals that end in one CHUNK of steps, together
+    for g in np.unique(group):
+        i = np.flatnonzero(group == g)
+        a, b = (ends[i[0] - 1] + 1 if i[0] else 0), ends[i[-1]] + 1
+        k = slice(a, b)
+        A, B, Q = compose(*transitions(Cs[k], f_b[k], D_a[k], D_g[k], steps.dt[k], q, w_ie, g0), ends[i] - a)
+        x, P = kalman(x, P, A, B, Q, v_at[ends[i]], R, steps.t[ends[i]], epochs)
     return epochs

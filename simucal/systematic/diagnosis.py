@@ -1,16 +1,15 @@
 """What diagnose does on a rotation sequence (its Kind entry in methods.py): the filter run once with
 the model, the model test on its innovations (NIS, whiteness), the candidates ranked on them
-(innovations.py), a verdict per sensor and, with --add, the filter without the effects beside.
+(innovations.py) per sensor and, with --add, the filter without the effects beside.
 
 One filter carries both sensors, so one test judges them together and the candidates of both are one
 family under one Bonferroni gate: the strongest is the one effect to add (one at a time, as --add auto
-does); the other sensor's verdict says so rather than naming a second effect at once.
+does); the other sensor's block says so (explained_by) rather than naming a second effect at once.
 """
 from __future__ import annotations
 
 import numpy as np
 
-from simucal.fit.candidates import verdict
 from simucal.fit.ranking import rank
 from simucal.fit.results import ModelTest, model_test_keys
 from simucal.systematic.calibrate import rests_and_moves, run_filter
@@ -97,12 +96,7 @@ def diagnose_sequence(ms, acc_model, gyro_model, ids, truth, before_models, adde
             other = best.id.split(".")[0]
             for c in block["candidates"]:
                 c["significant"] = False  # one effect at a time: the family's strongest is the other sensor's
-            block["explained_by"] = best.id
-            block["verdict"] = (f"{sensor}: the innovations fail their test, which the {other} shares (one filter); "
-                                f"{best.id} explains the misfit best: add it, then diagnose again to see whether the "
-                                f"{sensor} still lacks an effect.")
-        else:
-            block["verdict"] = verdict(sensor, base, block["candidates"], str(ms.path), None, None)
+            block["explained_by"] = {"id": best.id, "sensor": other}  # report/verdicts.py says so
         if before is not None:
             block["added"] = _added(sensor, r, before, base, truth, added)
         out[sensor] = block

@@ -9,7 +9,9 @@ unit does not move, so w_in^n = w_ie^n and there is no transport rate):
 with dtheta_k and f_k the compensated readings u_hat = h^-1(N; p_hat) (the gyro's turned into b by
 C_b^d(eta_hat)^T). The error state x = [phi, dv, p_acc, p_gyro, eta] (derive/systematic.py) is
 propagated sample by sample through the moves and a block of samples at a time at rest (the
-inputs are constant there), and updated by zero velocity at the end of each block at rest.
+inputs are constant there), and updated by zero velocity at the end of each block at rest; the
+steps between two updates are composed into one transition first (`compose`), so the filter's
+Python loop runs once per update, not once per sample.
 Open loop about a nominal solution (the parameters and initial attitude of the pass before): only
 the velocity is reset at each update (a known shift of dv), so the error state may move along
 directions the data barely see (a level error against a horizontal accelerometer bias at one
@@ -24,11 +26,12 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from simucal.fit.rotations import exp_so3
+from simucal.fit.rotations import exp_so3, skew
 from simucal.generated import systematic as gen
 from simucal.generated import table
 
 RAD_S_PER_DPH = np.pi / 180 / 3600
+CHUNK = 1024  # epochs whose smoother gains are solved at once (memory: 3 CHUNK n^2 doubles)
 
 
 @dataclass
@@ -75,7 +78,8 @@ def _force(f_d):
 @dataclass
 class Epoch:
     """What the smoother needs of one update epoch: the transition Phi from the epoch before, the
-    predicted and filtered covariances and states, the innovation and its covariance."""
+    predicted and filtered covariances and states (x before the velocity's reset: `update`), the
+    innovation and its covariance."""
     Phi: np.ndarray
     P_pred: np.ndarray
     P: np.ndarray
@@ -88,99 +92,142 @@ class Epoch:
 
 def nominal(C0, dtheta_b, f_b, dt, zupt, w_ie, g0):
     """The nominal navigation over the steps (module doc): the attitude at each step's start
-    (m, 3, 3), the velocity at each update (m, 3; the nominal velocity is reset to 0 after each)."""
+    (m, 3, 3), the velocity at each update (m, 3; the nominal velocity is reset to 0 after each).
+    Vectorised: the Earth's turn is about one axis (exp(-[w_ie T x]) to the time T), the body's a
+    prefix product, and the velocity between updates a linear recurrence (`compose`)."""
     m = len(dt)
-    Cs, v_at = np.empty((m, 3, 3)), np.zeros((m, 3))
     half = exp_so3(0.5 * dtheta_b)
-    earth = exp_so3(-0.5 * w_ie[None] * dt[:, None])
-    up = np.array([0.0, 0.0, g0])
-    C, v = C0, np.zeros(3)
-    for k in range(m):
-        Cs[k] = C
-        e = earth[k]
-        C_mid = e @ C @ half[k]
-        f_n = C_mid @ f_b[k] * g0                          # the specific force at the middle of dt
-        v = v + (f_n - up - 2 * _cross(w_ie, v)) * dt[k]
-        C = e @ C_mid @ half[k]
-        if zupt[k]:
-            v_at[k], v = v, np.zeros(3)
+    turn = np.empty((m, 3, 3))
+    turn[0], turn[1:] = np.eye(3), prefix_products(half @ half)[:-1]
+    T = np.cumsum(dt) - dt                                   # each step's start
+    Cs = exp_so3(-w_ie[None] * T[:, None]) @ C0 @ turn
+    C_mid = exp_so3(-0.5 * w_ie[None] * dt[:, None]) @ Cs @ half
+    f_n = np.einsum("kij,kj->ki", C_mid, f_b) * g0          # the specific force at the middle of dt
+    gain = np.eye(3) - 2 * skew(w_ie) * dt[:, None, None]   # v <- (I - 2 [w_ie x] dt) v + (f_n - g) dt
+    v_at = np.zeros((m, 3))
+    ends = np.flatnonzero(zupt)
+    v_at[ends] = compose(gain, ((f_n - [0.0, 0.0, g0]) * dt[:, None])[..., None], None, ends)[1][..., 0]
     return Cs, v_at
 
 
-def _cross(a, b):
-    return np.array([a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0]])
+def prefix_products(R):
+    """R_0 R_1 ... R_k for every k of R (m, a, a): a Hillis-Steele scan, log2(m) batched products."""
+    P, s = R.copy(), 1
+    while s < len(P):
+        P[s:] = P[:-s] @ P[s:]
+        s *= 2
+    return P
 
 
-def system_matrices(Cs, f_b, D_a, D_g, w_ie, g0):
-    """F (m, n, n) of d(x)/dt = F x at m instants: the derived navigation blocks and the models'
-    sensitivities (derive/systematic.error_state_model assembles the same symbolically)."""
-    m, na = len(Cs), D_a.shape[-1]
-    n = 6 + na + D_g.shape[-1]
-    c = Cs.reshape(m, 9)
-    F = np.zeros((m, n, n))
-    F[:, :6, :6] = gen.nav_F(c, f_b, w_ie, g0)
-    B = gen.nav_B(c, g0)
-    F[:, :6, 6:6 + na] = B[:, :, 3:] @ D_a     # d[phi, dv]/dt from df_b = D_a dp_acc
-    F[:, :6, 6 + na:] = B[:, :, :3] @ D_g      # ... and from dw_b = D_g [dp_gyro, deta]
-    return F
+def compose(A, B, Q, ends):
+    """The steps x <- A_k x + B_k (and P <- A_k P A_k^T + Q_k) composed over each interval of steps
+    that ends at an index of `ends` (the first starts at step 0): per interval (A, B, Q) of the whole,
+    A = A_j..A_i, B = sum_k A_j..A_k+1 B_k, Q = sum_k (A_j..A_k+1) Q_k (..)^T. A tree of pairs:
+    each interval padded with identities to a power of two and halved log2 times, batched."""
+    starts = np.r_[0, ends[:-1] + 1]
+    lengths = ends - starts + 1
+    sizes = 1 << np.ceil(np.log2(lengths)).astype(int)
+    out = [np.empty((len(ends),) + X.shape[1:]) if X is not None else None for X in (A, B, Q)]
+    for size in np.unique(sizes):
+        sel = np.flatnonzero(sizes == size)
+        idx = starts[sel, None] + np.arange(size)
+        pad = np.arange(size) >= lengths[sel, None]
+        a, b = A[np.where(pad, 0, idx)], B[np.where(pad, 0, idx)]
+        a[pad], b[pad] = np.eye(A.shape[-1]), 0.0
+        q = None if Q is None else np.where(pad[..., None, None], 0.0, Q[np.where(pad, 0, idx)])
+        while a.shape[1] > 1:  # (later, earlier) pairs: x -> a1 (a0 x + b0) + b1
+            a0, a1 = a[:, 0::2], a[:, 1::2]
+            b = a1 @ b[:, 0::2] + b[:, 1::2]
+            if q is not None:
+                q = a1 @ q[:, 0::2] @ np.swapaxes(a1, -1, -2) + q[:, 1::2]
+            a = a1 @ a0
+        for o, x in zip(out, (a, b, q)):
+            if o is not None:
+                o[sel] = x[:, 0]
+    return out
+
+
+def nav_blocks(Cs, f_b, D_a, D_g, w_ie, g0):
+    """F's rows of phi and dv at m instants, F_nn (m, 6, 6) and F_np (m, 6, n - 6), in
+    d[phi, dv]/dt = F_nn [phi, dv] + F_np [p_acc, p_gyro, eta] (the parameters' rows are zero): the
+    derived navigation blocks and the models' sensitivities (derive/systematic.error_state_model
+    assembles the same symbolically)."""
+    c = Cs.reshape(len(Cs), 9)
+    B = gen.nav_B(c, g0)  # d[phi, dv]/dt from dw_b = D_g [dp_gyro, deta] and df_b = D_a dp_acc
+    return gen.nav_F(c, f_b, w_ie, g0), np.concatenate([B[:, :, 3:] @ D_a, B[:, :, :3] @ D_g], axis=-1)
 
 
 def transitions(Cs, f_b, D_a, D_g, dt, q, w_ie, g0):
-    """Phi (m, n, n) = I + F dt + (F dt)^2 / 2 of every step (F constant over it) and the noise's
-    Q (m, 6, 6) = G diag(q dt) G^T over it (it drives phi and dv only), vectorised."""
-    n = 6 + D_a.shape[-1] + D_g.shape[-1]
-    Fdt = system_matrices(Cs, f_b, D_a, D_g, w_ie, g0) * dt[:, None, None]
+    """Phi = I + F dt + (F dt)^2 / 2 of every step (F constant over it) by its blocks, vectorised: the
+    parameters are constants, so Phi = [[A, B], [0, I]] with A = I + F_nn dt + (F_nn dt)^2 / 2 (m, 6, 6)
+    and B = F_np dt + F_nn dt F_np dt / 2 (m, 6, n - 6); and the noise's Q (m, 6, 6) = G diag(q dt) G^T
+    over the step (it drives phi and dv only)."""
+    F_nn, F_np = nav_blocks(Cs, f_b, D_a, D_g, w_ie, g0)
+    F_nn, F_np = F_nn * dt[:, None, None], F_np * dt[:, None, None]
     G = gen.nav_G(Cs.reshape(len(Cs), 9))
-    return np.eye(n) + Fdt + 0.5 * Fdt @ Fdt, (G * (q * dt[:, None])[:, None, :]) @ np.swapaxes(G, 1, 2)
+    return (np.eye(6) + F_nn + 0.5 * F_nn @ F_nn, F_np + 0.5 * F_nn @ F_np,
+            (G * (q * dt[:, None])[:, None, :]) @ np.swapaxes(G, 1, 2))
 
 
-def kalman(x, P, Phi_acc, Phi, Q6, zupt, v_at, R, t_s, epochs):
-    """The filter over the steps: x <- Phi x, P <- Phi P Phi^T + Q, and at each update (zupt) the
-    zero-velocity update of `update`, recorded in epochs; Phi_acc the transition since the last.
-    Returns (x, P, Phi_acc) at the end."""
+def kalman(x, P, A, B, Q, v_at, R, t_s, epochs):
+    """The filter over the intervals between updates, each one transition Phi = [[A, B], [0, I]]
+    (`compose`): x <- Phi x, P <- Phi P Phi^T + Q, then the zero-velocity update of `update`,
+    recorded in epochs. Returns (x, P) after the last."""
     n = len(P)
-    for k in range(len(Phi)):
+    Phi = np.broadcast_to(np.eye(n), (len(A), n, n)).copy()
+    Phi[:, :6, :6], Phi[:, :6, 6:] = A, B
+    for k in range(len(A)):
         x = Phi[k] @ x
         P = Phi[k] @ P @ Phi[k].T
-        P[:6, :6] += Q6[k]
-        Phi_acc = Phi[k] @ Phi_acc
-        if zupt[k]:
-            x, P = update(x, P, v_at[k], R, Phi_acc, t_s[k], epochs)
-            Phi_acc = np.eye(n)
-    return x, P, Phi_acc
+        P[:6, :6] += Q[k]
+        x, P = update(x, P, v_at[k], R, Phi[k], t_s[k], epochs)
+    return x, P
+
+
+DV = slice(3, 6)  # the states the update sees: H = [0 I 0] (gen.H), taken as this slice (tests hold them equal)
 
 
 def update(x_pred, P_pred, v, R, Phi, t_s, epochs):
     """The update by v = 0 (z = v_nominal = dv + noise, H = [0 I 0], R (3, 3)) in Joseph form, the
-    epoch recorded; then the nominal velocity's reset to 0 (dv shifted by the same)."""
-    n = len(P_pred)
-    H = np.zeros((3, n))
-    H[:, :6] = gen.H
-    nu = v - H @ x_pred                               # z - H x_pred
-    S = H @ P_pred @ H.T + R                          # innovation covariance
-    K = np.linalg.solve(S, H @ P_pred).T              # K = P H^T S^-1
+    epoch recorded; then the nominal velocity's reset to 0 (dv shifted by the same: the epoch keeps
+    the state before it, which x_pred of the next epoch is propagated from less the known shift, as
+    the smoother needs: x_k+1 = Phi (x_k - reset) + w, so x_k+1|N - x_k+1|k carries no reset)."""
+    nu = v - x_pred[DV]                               # z - H x_pred
+    HP = P_pred[DV]
+    S = HP[:, DV] + R                                 # innovation covariance H P H^T + R
+    K = np.linalg.solve(S, HP).T                      # K = P H^T S^-1
     x = x_pred + K @ nu
-    IKH = np.eye(n) - K @ H
-    P = IKH @ P_pred @ IKH.T + K @ R @ K.T            # Joseph form
-    x[3:6] -= v                                       # the reset: dv = v_nominal - v
+    X = P_pred - K @ HP                               # (I - K H) P
+    P = X - X[:, DV] @ K.T + K @ R @ K.T              # Joseph form: (I - K H) P (I - K H)^T + K R K^T
     epochs.append(Epoch(Phi, P_pred, P, x_pred, x, nu, S, t_s))
+    x = x.copy()
+    x[DV] -= v                                        # the reset: dv = v_nominal - v
     return x, P
 
 
-def smooth(epochs) -> tuple[np.ndarray, np.ndarray]:
-    """The RTS smoother over the epochs: (x_s (m, n), P_s (m, n, n)):
+def smooth(epochs, covariance=True) -> tuple[np.ndarray, np.ndarray | None]:
+    """The RTS smoother over the epochs: (x_s (m, n), P_s (m, n, n) or None unless covariance):
         A_k = P_k|k Phi_k+1^T P_k+1|k^-1
         x_k|N = x_k|k + A_k (x_k+1|N - x_k+1|k)
-        P_k|N = P_k|k + A_k (P_k+1|N - P_k+1|k) A_k^T"""
+        P_k|N = P_k|k + A_k (P_k+1|N - P_k+1|k) A_k^T
+    the gains A_k of CHUNK epochs solved at once, from the end back. (Bierman's modified
+    Bryson-Frazier form, free of P_k+1|k^-1, carries the information instead: from the wide prior it
+    left 0.4-0.6 std of round-off on the constants at the start where this leaves 0.002.)"""
     m, n = len(epochs), len(epochs[-1].P)
-    x_s, P_s = np.empty((m, n)), np.empty((m, n, n))
-    x_s[-1], P_s[-1] = epochs[-1].x, epochs[-1].P
-    for k in range(m - 2, -1, -1):
-        nxt = epochs[k + 1]
-        d = np.sqrt(np.diag(nxt.P_pred))  # P_pred spans ~20 decades: solved as the correlation matrix
-        A = (np.linalg.solve(nxt.P_pred / np.outer(d, d), (nxt.Phi @ epochs[k].P) / d[:, None]) / d[:, None]).T
-        x_s[k] = epochs[k].x + A @ (x_s[k + 1] - nxt.x_pred)
-        P_s[k] = epochs[k].P + A @ (P_s[k + 1] - nxt.P_pred) @ A.T
+    x_s, P_s = np.empty((m, n)), np.empty((m, n, n)) if covariance else None
+    x_s[-1] = epochs[-1].x
+    if covariance:
+        P_s[-1] = epochs[-1].P
+    for lo in range(max(0, m - 1 - CHUNK), -CHUNK, -CHUNK):
+        ks = range(max(lo, 0), min(lo + CHUNK, m - 1))
+        P_pred = np.array([epochs[k + 1].P_pred for k in ks])
+        d = np.sqrt(np.diagonal(P_pred, axis1=1, axis2=2))[:, :, None]  # P_pred spans ~20 decades:
+        PhiP = np.array([epochs[k + 1].Phi for k in ks]) @ np.array([epochs[k].P for k in ks])  # solved as
+        gains = np.swapaxes(np.linalg.solve(P_pred / d / np.swapaxes(d, 1, 2), PhiP / d) / d, 1, 2)  # correlations
+        for k, A in zip(reversed(ks), gains[::-1]):
+            x_s[k] = epochs[k].x + A @ (x_s[k + 1] - epochs[k + 1].x_pred)
+            if covariance:
+                P_s[k] = epochs[k].P + A @ (P_s[k + 1] - epochs[k + 1].P_pred) @ A.T
     return x_s, P_s
 
 

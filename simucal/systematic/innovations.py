@@ -41,7 +41,9 @@ def innovation_test(epochs) -> dict:
     chi-square with 3 dof per update (Bar-Shalom, Li & Kirubarajan 2001, sec. 5.4), and their
     whiteness: each axis's lag-1 autocorrelation of the whitened innovations (L^-1 nu, S = L L^T),
     about N(0, 1/m) for white ones."""
-    nu = np.array([np.linalg.solve(np.linalg.cholesky(e.S), e.nu) for e in epochs if e.nu is not None])
+    updates = [e for e in epochs if e.nu is not None]
+    L = np.linalg.cholesky(np.array([e.S for e in updates]))
+    nu = np.linalg.solve(L, np.array([e.nu for e in updates])[..., None])[..., 0]
     m = len(nu)
     nis = float((nu ** 2).sum())
     r1 = (nu[1:] * nu[:-1]).sum(0) / (nu ** 2).sum(0)

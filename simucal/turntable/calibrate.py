@@ -16,7 +16,7 @@ import numpy as np
 
 from simucal.errors import CalibrationError, NotConverged
 from simucal.fit.augmented import AugmentedModel, for_sensor
-from simucal.fit.candidates import advice_text, forward_selection, verdict
+from simucal.fit.candidates import advice_text, forward_selection
 from simucal.fit.results import ALPHA, ModelTest
 from simucal.fit.lack_of_fit import noise_dof, with_estimated_sigma
 from simucal.fit.norm_fit import fit_linear
@@ -73,7 +73,6 @@ def _exact_sensor(model, obs, segs, method, where, ranked=True):
             "or another rate, and would let every model pass; measure this unit's still recording with simucal "
             "noise (or leave --noise out)")
     base["noise"]["text"] = _noise_text(base["noise"], obs2, model.unit)
-    base["verdict"] = verdict(model.sensor, base, cands, where, shape, command="calibrate")
     advice = advice_text(cands, shape) if ModelTest.of(base).fails else None
     return fit, base, advice, with_estimated_sigma(obs2, base["noise"])
 

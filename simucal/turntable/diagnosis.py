@@ -5,7 +5,6 @@ triads, and the gyro's static rows against the Earth rate."""
 from __future__ import annotations
 
 from simucal.errors import CalibrationError
-from simucal.fit.candidates import verdict
 from simucal.fit.lack_of_fit import twin_fits
 from simucal.fit.results import ALPHA
 from simucal.turntable.calibrate import calibrate_table
@@ -61,9 +60,8 @@ def _with_static_gyro_rows(ms, block, settings) -> None:
     st = gyro.details["static_rows"]
     with_static_rows(block["model_test"], st)
     chose = _choose_twin(block, judged)
-    block["verdict"] = verdict("gyro", block["model_test"], block["candidates"], str(ms.path), block.get("shape"),
-                                None) + (
-        f" At rest: {st['verdict']}." if st.get("p_value", 1.0) < ALPHA else "") + chose
+    if chose:
+        block["twin_choice"] = chose  # report/verdicts.sensor_verdict appends it
 
 
 def _choose_twin(block, judged) -> str:

@@ -12,7 +12,8 @@ import functools
 
 import numpy as np
 
-from simucal.fit.models import compile_c, generated_dir
+from simucal.fit.models import generated_dir
+from simucal.io.cache import compile_c
 from simucal.generated import table
 
 

@@ -12,6 +12,7 @@ diagnose's verdict are read from the same list, so they name the same effect.
 from __future__ import annotations
 
 from collections import Counter
+from typing import NamedTuple
 
 import numpy as np
 
@@ -20,6 +21,7 @@ from simucal.fit.aux_inputs import specific_force
 from simucal.fit.candidates import rank_candidates, shape_if_unexplained, test_model
 from simucal.fit.results import ALPHA, ModelTest
 from simucal.fit.distributions import chi2_sf
+from simucal.fit.norm_fit import Fit, Observations
 from simucal.io import units
 from simucal.turntable.plan_design import TableAdvice
 
@@ -33,16 +35,26 @@ def rows_text(segs) -> str:
     return " and ".join(f"{n[k]} {name}" for k, name in (("static", "static positions"), ("rate", "rate runs")) if n[k])
 
 
-def test_and_rank(model, obs, segs=None, only_if_failing=False, ranked=True):
-    """The fit, the observations with the noise used, the test block (with `rows`), and rank's
-    three (no candidates where only_if_failing and the model passes, or ranked is False). segs: the turntable
-    segments of obs's rows; None for a stream's static poses (no plan to grow, no table angles)."""
+class Tested(NamedTuple):
+    """A model tested and its candidates ranked (test_and_rank)."""
+    fit: Fit
+    obs: Observations       # with the noise the test used
+    base: dict              # the test block (fit.candidates.test_model, with `rows`)
+    candidates: list        # ranked (results.Candidate.to_dict), [] where not ranked
+    shape: dict | None      # the generic term that explains the misfit better than any candidate
+    table: dict | None      # the table's own terms fitted (turntable/table_fit.py)
+
+
+def test_and_rank(model, obs, segs=None, only_if_failing=False, ranked=True) -> Tested:
+    """The model tested and, unless only_if_failing and it passes or ranked is False, its candidates
+    ranked (rank). segs: the turntable segments of obs's rows; None for a stream's static poses (no plan
+    to grow, no table angles)."""
     fit, obs, base = test_model(model, obs)
     if segs is not None:
         base["rows"] = rows_text(segs)
     if (only_if_failing and not ModelTest.of(base).fails) or not ranked:
-        return fit, obs, base, [], None, None
-    return (fit, obs, base, *rank(model, obs, fit, base, segs))
+        return Tested(fit, obs, base, [], None, None)
+    return Tested(fit, obs, base, *rank(model, obs, fit, base, segs))
 
 
 def rank(model, obs, fit, base, segs=None):

@@ -181,10 +181,32 @@ def inputs(sc: Scenario, ends, middles, rate_hz):
     return up_k @ C_b_k, w_k @ C_d_k, up_k @ C_d_k
 
 
+MAX_TURN_PER_SAMPLE_DEG = 90.0  # a sample's rotation is taken below this (_rotation_vectors)
+
+
+def sampled(name, steps, rate_hz):
+    """Refuse, in one line naming the row, a step that the sample rate cannot hold: a rest shorter
+    than one sample (no rows: the table never stops), a rate turning MAX_TURN_PER_SAMPLE_DEG or more
+    in one sample."""
+    if not rate_hz > 0:
+        raise ValueError(f"--rate-hz {rate_hz}: the sample rate must be positive")
+    for line, s in enumerate(steps, start=2):
+        where = f"{name}, line {line}" if name not in SEQUENCES else f"--sequence {name}"
+        if round(s.rest_s * rate_hz) < 1:
+            raise ValueError(f"{where}: rest_s {s.rest_s:g} is shorter than one sample at {rate_hz:g} Hz: rest at "
+                             f"least {1 / rate_hz:g} s (systematic calibration measures the noise on rests of over "
+                             "10 samples) or raise --rate-hz")
+        if s.rate_dps / rate_hz >= MAX_TURN_PER_SAMPLE_DEG:
+            raise ValueError(f"{where}: rate_dps {s.rate_dps:g} turns {s.rate_dps / rate_hz:g} deg per sample at "
+                             f"{rate_hz:g} Hz: give --rate-hz above {s.rate_dps / MAX_TURN_PER_SAMPLE_DEG:g} or a "
+                             "lower rate")
+
+
 def simulate_sequence(sc: Scenario, sequence, seed: int = 0):
     """(meta, samples, segments, truth) of a sequence (module doc) at sc.rate_hz (default 100 Hz)."""
     name, steps = resolve(sequence)
     rate_hz = sc.rate_hz or DEFAULT_RATE_HZ
+    sampled(name, steps, rate_hz)
     rng = np.random.default_rng(seed)
     acc, p_acc, gyro, p_gyro = models(sc)
     segments, seg_ids, ends, middles = _timeline(sc, steps, rng, rate_hz)

@@ -47,6 +47,7 @@ class Scenario:
     nonperp_rad: tuple = (5 * ARCSEC, 5 * ARCSEC)        # outer/middle, middle/inner
     zero_rad: tuple = (0.0, 5 * ARCSEC, 5 * ARCSEC)       # outer, middle, inner
     position_error_rad: float = 1 * ARCMIN               # uniform +- this, each axis, each position
+    rate_error: float = 0.0           # the rate runs' true rate off the commanded by this fraction (the table's rate accuracy)
     outer_rate_dps: tuple = (10.0,)
     acc_noise_g: float = 1e-5         # std of one row (one position mean when rate_hz is None)
     gyro_noise_dph: float = 0.01
@@ -209,7 +210,7 @@ def _segments(sc: Scenario, rng):
         rows.append((lambda t, v=at_rest: tuple(np.repeat(x, len(t), 0) for x in v), sc.static_s))
     tilt_n = table.C_k_n(0.0, 0.0, 0.0, np.r_[sc.tilt_rad, np.zeros(5)])[:, 2]
     for (g0, a, b, rate), err in zip(rates, table_errors(len(rates))):
-        def turning(t, g0=g0, a=a, b=b, rate=rate, err=err):
+        def turning(t, g0=g0, a=a, b=b, rate=rate * (1 + sc.rate_error), err=err):  # segments.csv: the commanded
             C = table.C_k_n(np.radians(g0 + rate * np.asarray(t)), *np.radians([a, b]), err)
             return sensed(C, w_ie_n + rate * units.DPH_PER_DPS * tilt_n)
         segments.append(io.Segment(len(segments) + 1, "rate", None, a, b, rate))
@@ -304,7 +305,8 @@ def truth_of(sc: Scenario, acc, p_acc, gyro, p_gyro, seed) -> dict:
                  "M_in_d": M_g_d.tolist(), "C_b_d": C_b_d.tolist()},
         "mounting": {"theta4_rad": list(sc.theta4_rad), "lambda4_rad": list(sc.lambda4_rad)},
         "table": {"tilt_rad": list(sc.tilt_rad), "nonperp_rad": list(sc.nonperp_rad),
-                  "zero_rad": list(sc.zero_rad), "position_error_rad": sc.position_error_rad},
+                  "zero_rad": list(sc.zero_rad), "position_error_rad": sc.position_error_rad,
+                  "rate_error": sc.rate_error},
         "seed": seed,
     }
 

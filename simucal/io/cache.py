@@ -12,9 +12,14 @@ from __future__ import annotations
 
 import hashlib
 import os
+import shutil
+import subprocess
+import threading
+import warnings
 from pathlib import Path
 
 from simucal.errors import CalibrationError
+from simucal.io.outputs import write_text
 
 SHARED_MODE = 0o022  # the group's and others' write bits: a file with either may have been written by another user
 
@@ -97,8 +102,7 @@ def sha256_of(path: Path) -> str:
 
 def record(lib: Path) -> None:
     """Write the library's sha256 beside it, at its build."""
-    from simucal.io import outputs
-    outputs.write_text(sidecar(lib), sha256_of(lib) + "\n", mode=0o644)
+    write_text(sidecar(lib), sha256_of(lib) + "\n", mode=0o644)
 
 
 def sidecar(lib: Path) -> Path:
@@ -123,3 +127,51 @@ def library(rel: str) -> tuple[Path | None, str | None]:
         why = (f"{lib} changed after its build (its sha256 is not the one recorded in {sidecar(lib).name}): "
                "not loaded, rebuilt")
     return None, why
+
+
+CFLAGS = ("-O3", "-fno-math-errno", "-shared", "-fPIC")  # no -march=native: a cache may be shared by machines of other CPUs
+
+
+def compiler() -> str | None:
+    """The C compiler builds use, or None (none found, or SIMUCAL_NO_COMPILE set)."""
+    if os.environ.get("SIMUCAL_NO_COMPILE"):
+        return None
+    return shutil.which(os.environ.get("CC", "cc")) or shutil.which("gcc")
+
+
+def compile_c(name: str, source: str, instead: str = "the numpy module") -> Path | None:
+    """Build C (a model's or the table's generated C, the CSV parser's) into the user's cache, or take
+    an earlier build (the user's cache, then SIMUCAL_TRUSTED_CACHE) whose bytes still have the sha256
+    recorded at its build; None where no compiler works or the cache is not the user's alone (said in
+    one line: `instead` runs). Processes and threads may build the same library at once: each
+    compiles from its stdin (the same bytes, whatever the file names) into a file of its own and
+    renames it into place."""
+    cc = compiler()
+    if cc is None:
+        return None
+    digest = hashlib.sha256((" ".join(CFLAGS) + "\n" + source).encode()).hexdigest()[:16]  # flags change the build
+    try:
+        lib, changed = library(f"{name}-{digest}.so")
+        folder = own_folder() if lib is None else None
+    except UntrustedCache as e:
+        warnings.warn(f"{e}; {instead} runs instead", CacheWarning)
+        return None
+    if lib is not None:
+        return lib
+    if changed:
+        warnings.warn(changed, CacheWarning)
+    lib = folder / f"{name}-{digest}.so"
+    tmp = lib.with_suffix(f".{os.getpid()}-{threading.get_ident()}.tmp")
+    base = [cc, *CFLAGS, "-x", "c", "-", "-o", str(tmp), "-lm"]
+    res = subprocess.run(base + ["-fopenmp"], input=source, capture_output=True, text=True)  # batches over the cores
+    if res.returncode != 0:
+        res = subprocess.run(base, input=source, capture_output=True, text=True)
+    if res.returncode != 0:
+        warnings.warn(f"compiling {name}.c failed with {cc}; using {instead} instead:\n{res.stderr[-500:]}")
+        tmp.unlink(missing_ok=True)
+        return None
+    os.chmod(tmp, 0o755)  # cc's mode less the umask: a umask of 002 would leave it writable by the group
+    tmp.replace(lib)
+    record(lib)
+    write_text(lib.with_suffix(".c"), source, mode=0o644)  # kept beside the library: what it was built from
+    return lib

@@ -1,0 +1,141 @@
+"""Candidate effects on a stream's gyro moves: the ranking Problem and the forward selection's Step.
+
+Candidates: every gyro effect of generated/effects.py, evaluated along each move at the
+calibrated rate (u, deg/h), the calibrated specific force (f, g, motion included), time and
+temperature, enters the output model
+    y = M omega + b + sum_j p_j phi_j e_axis(j),  so  omega = T (y - b - sum_j p_j phi_j e_axis(j)),
+and is fit with T, the bias and the effects already chosen by the same Gauss-Newton
+(moves.fit_gyro_moves). MovesProblem ranks them by the likelihood ratio with the noise variance
+profiled out, LR = 2m ln(RSS_0 / RSS_1) ~ chi2(1) (2m: the residuals' degrees of freedom), under
+the same Bonferroni gate as the poses (one ranking: fit/ranking.py). MovesStep puts the moves'
+fit into `--add auto`'s one forward selection (fit/selection.py): its test is the moves'
+chi-square (gyro_moves.chi2_test), its held-out errors each move's residual predicted without it
+(moves.held_out_moves). select_effects gives the diagnosis file's `misfit_shares`: what each
+chosen effect explains of the misfit.
+"""
+from __future__ import annotations
+
+import numpy as np
+
+from simucal.fit.augmented import effect_ids
+from simucal.fit.distributions import chi2_sf
+from simucal.fit.ranking import Trial, rank
+from simucal.fit.results import ModelTest
+from simucal.fit.selection import forward_selection
+from simucal.fit.twins import separating_plan
+from simucal.generated.effects import EFFECTS, SEPARATE_MOVES
+from simucal.handheld.gyro_moves import GyroMoves, chi2_test, has_input, move_covariances, with_terms
+from simucal.handheld.moves import GyroFit, decimate, fit_gyro_moves, held_out_moves, move_residuals
+
+
+class MovesProblem:
+    """The gyro's fit over a stream's moves, with the effects already chosen, as a ranking Problem
+    (fit/ranking.py): each candidate's column is its regressor integrated along the moves (the
+    gravity directions' residual per unit coefficient), the statistic the likelihood ratio with the
+    direction noise profiled out, 2 m log(rss0 / rss1)."""
+    span = "T and the bias"
+
+    def __init__(self, gm: GyroMoves, fit: GyroFit, inputs, effects=()):
+        self.gm, self.fit, self.inputs, self.effects = gm, fit, inputs, list(effects)
+        self.rss0, self.m, self.k = float(np.sum(fit.r ** 2)), len(fit.r), 12 + len(self.effects)
+        self.mv = {}
+        # each trial fits the moves in blocks of 4 samples (a quarter of the cost) with their defect
+        # against full resolution at this fit added (as fit_gyro's coarse levels): the composition
+        # error of the blocks (~1e-3 rad) then cancels where the candidate's coefficient is 0
+        mv0 = with_terms(gm.mv, self.effects, inputs) if self.effects else gm.mv
+        self.defect = (move_residuals(fit.T, mv0, gm.g_dirs, jac=False, db=fit.db, p=fit.p)[0]
+                       - move_residuals(fit.T, decimate(mv0, 4), gm.g_dirs, jac=False, db=fit.db, p=fit.p)[0])
+
+    def info(self, eid):
+        return EFFECTS[eid].parameter, EFFECTS[eid].unit, EFFECTS[eid].meaning
+
+    def basis(self):
+        mv = with_terms(self.gm.mv, self.effects, self.inputs) if self.effects else self.gm.mv
+        _, J0 = move_residuals(self.fit.T, mv, self.gm.g_dirs, db=self.fit.db, p=self.fit.p)
+        return np.linalg.qr(J0.reshape(-1, self.k))[0]
+
+    def residual(self):
+        return self.fit.r.ravel(), self.rss0 / (2 * self.m)  # the noise profiled out as in the LR
+
+    def column(self, eid):
+        if not has_input(eid, self.inputs):  # a temperature term without temp_c: no move to integrate
+            return np.zeros(self.fit.r.size)
+        self.mv[eid] = mv = with_terms(self.gm.mv, self.effects + [eid], self.inputs)
+        f = self.fit
+        return move_residuals(f.T, mv, self.gm.g_dirs, db=f.db, p=np.r_[f.p, 0.0])[1][..., self.k].ravel()
+
+    def to_see(self, eid):
+        return SEPARATE_MOVES[eid.split(".")[1]]
+
+    def to_separate(self, eid, twin):
+        return separating_plan(eid, twin, moves=True)
+
+    def fit_with(self, eid):
+        f = self.fit
+        f1 = fit_gyro_moves(decimate(self.mv[eid], 4), self.gm.g_dirs, np.r_[f.T.ravel(), f.db, f.p, 0.0],
+                            self.gm.bias_std, offset=self.defect)
+        if not f1.converged:
+            return f"the fit with it did not converge in {f1.iterations} steps"
+        stat = max(2 * self.m * np.log(self.rss0 / float(np.sum(f1.r ** 2))), 0.0)
+        k = self.k
+        return Trial(float(f1.p[-1]), float(np.sqrt(f1.cov[k, k])), float(stat), float(chi2_sf(stat, 1)),
+                     float(stat - 2.0), float(np.sqrt(np.mean(f1.r ** 2))))
+
+
+def rank_move_candidates(gm: GyroMoves, fit: GyroFit, inputs, base_fails, effects=()) -> list[dict]:
+    """Every library gyro effect not yet in the model, ranked beside T, the bias and effects over the
+    moves (fit/ranking.rank)."""
+    problem = MovesProblem(gm, fit, inputs, effects)
+    ids = [e for e in effect_ids("gyro") if e not in effects]
+    return [c.to_dict() for c in rank(problem, ids, base_fails, "gyro candidates over the moves")]
+
+
+class MovesStep:
+    """The moves' fit with some effects in `--add auto`'s forward selection (fit/selection.py)."""
+
+    def __init__(self, gm: GyroMoves, inputs, sigma_g, fit: GyroFit, effects=(), ranked=None):
+        self.gm, self.inputs, self.sigma_g, self.fit, self.ranked = gm, inputs, sigma_g, fit, ranked
+        self.effects = self.model = tuple(effects)
+        self.mv = with_terms(gm.mv, list(self.effects), inputs) if self.effects else gm.mv
+        self.chi2, self.dof, self.p_value = chi2_test(fit, move_covariances(gm, fit, sigma_g), gm.bias_std, self.mv)
+        self._held_out = None
+
+    def test(self):
+        return ModelTest(self.chi2, self.dof, self.p_value)
+
+    def rank(self):
+        if self.ranked is None:
+            self.ranked = rank_move_candidates(self.gm, self.fit, self.inputs, self.test().fails, self.effects)
+        return self.ranked, None
+
+    def add(self, eid):
+        f, mv = self.fit, with_terms(self.gm.mv, list(self.effects) + [eid], self.inputs)
+        f1 = fit_gyro_moves(mv, self.gm.g_dirs, np.r_[f.T.ravel(), f.db, f.p, 0.0], self.gm.bias_std)
+        if not f1.converged:
+            return f"the fit with {eid} did not converge in {f1.iterations} steps"
+        return MovesStep(self.gm, self.inputs, self.sigma_g, f1, self.effects + (eid,))
+
+    def held_out(self):
+        if self._held_out is None:  # asked once per candidate tried against this step
+            self._held_out = held_out_moves(self.mv, self.gm.g_dirs, self.fit, self.gm.bias_std).tolist()
+        return self._held_out
+
+    def after(self):
+        return {"chi2_after": self.chi2, "dof_after": self.dof, "p_value_after": self.p_value,
+                "residual_rms_after": float(np.sqrt(np.mean(self.fit.r ** 2)))}
+
+
+def select_effects(gm: GyroMoves, base: GyroFit, sigma_g, inputs, ranked=None, max_terms=9) -> dict:
+    """`--add auto` over the moves (fit/selection.forward_selection from the fit without effects), as
+    the diagnosis file's `misfit_shares`: each step's share, its chi-square drop over the baseline's
+    excess (chi2 - dof); `unexplained` what the chosen effects leave of that excess; `stopped` why.
+    ranked: the candidates already ranked at base (diagnose's), not ranked again."""
+    start = MovesStep(gm, inputs, sigma_g, base, ranked=ranked)
+    sel = forward_selection(start, max_terms)
+    excess0, prev = max(start.chi2 - start.dof, 1e-300), start.chi2
+    for s in sel.steps:
+        s["share"], prev = float((prev - s["chi2_after"]) / excess0), s["chi2_after"]
+    last_dof = sel.steps[-1]["dof_after"] if sel.steps else start.dof
+    return {"chi2": start.chi2, "dof": start.dof, "residual_rms": float(np.sqrt(np.mean(base.r ** 2))),
+            "steps": sel.steps, "effects": list(sel.model), "stopped": sel.stopped,
+            "unexplained": float(max(prev - last_dof, 0.0) / excess0)}
