@@ -136,9 +136,12 @@ def _diagnose(ms, folder, add, acc_model, gyro_model, acc_noise_g, gyro_noise_dp
     truth = scoring_truth(folder / "truth.json")
     kind = methods.kind_of(ms)
     result = {"format": "simucal.diagnosis/1", "input": str(folder), "alpha": ALPHA}
+    if kind.diagnose_both is not None:  # both sensors in one (a sequence's filter)
+        added = tuple(add) if add else ()
+        result.update(kind.diagnose_both(ms, acc_model, gyro_model, ids, truth, (before["acc"], before["gyro"]), added))
     for sensor, model, stated, has in (("acc", acc_model, acc_noise_g, ms.has_acc),
                                        ("gyro", gyro_model, gyro_noise_dph, ms.has_gyro)):
-        if not has:
+        if not has or kind.diagnose_both is not None:
             continue
         mine = tuple(a for a in ids if a.startswith(sensor + "."))
         files = tuple(a for a in add if a.endswith(".py")) if model != before[sensor] else ()

@@ -63,9 +63,9 @@ def _handheld(ms, acc_model, ids, auto, detect):
                               gyro_effects=for_sensor(ids, "gyro"), auto=auto)
 
 
-def _systematic(ms, acc_model, gyro_model, ids):
+def _systematic(ms, acc_model, gyro_model, ids, auto):
     from simucal.systematic.method import calibrate_systematic
-    return calibrate_systematic(ms, acc_model, gyro_model, ids)
+    return calibrate_systematic(ms, acc_model, gyro_model, ids, auto)
 
 
 def _field(ms, heading_accuracy_deg):
@@ -92,7 +92,7 @@ METHODS = {m.name: m for m in (
            _field),
     Method("systematic", SEQUENCE, "systematic calibration: strapdown navigation through a rotation sequence, an "
            "error-state Kalman filter (states derived from the error models) and RTS smoother on zero velocity at "
-           "rest", ("acc_model", "gyro_model", "ids"), _systematic),
+           "rest", ("acc_model", "gyro_model", "ids", "auto"), _systematic),
 )}
 NAMES = tuple(METHODS)
 
@@ -147,6 +147,9 @@ class Kind:
     validation_checks: Callable  # (ms, f_before, f_after, w_before, w_after, cal) -> {sensor: [check]}
     still_rows: Callable       # still_rows(ms) -> ([row indices], where): the stretches `simucal noise` pools
     still_whole: bool          # the whole recording must be still (noise refuses one that moves)
+    diagnose_both: Callable | None = None  # diagnose_both(ms, acc_model, gyro_model, ids, truth, before, added)
+    #                            -> {sensor: block}: both sensors judged together (a sequence: one filter), in
+    #                            place of observations and diagnose_gyro
 
 
 def _table_observations(ms, sensor, stated):
@@ -199,6 +202,11 @@ def _stream_finish(ms, result, settings):
 def _whole_stream(ms):
     import numpy as np
     return [np.arange(len(ms.samples["t_s"]))], "the whole stream"
+
+
+def _sequence_diagnosis(ms, acc_model, gyro_model, ids, truth, before, added):
+    from simucal.systematic.diagnosis import diagnose_sequence
+    return diagnose_sequence(ms, acc_model, gyro_model, ids, truth, before, added)
 
 
 def _no_extras(*_):
@@ -260,8 +268,8 @@ KINDS = {k.name: k for k in (
     Kind(FIELD, "field", _simulate_field, _table_observations, None, _table_extras, _table_finish, _table_checks,
          _static_segments, False),  # its static segments, as a turntable test's
     Kind(SEQUENCE, "sequence", lambda seed, rate_hz, o: _simulate_table(seed, rate_hz, {**o, "sequence": o.get(
-        "sequence") or "psins19"}), _table_observations, None, _table_extras, _table_finish, _table_checks,
-         _static_segments, False),  # its rests, as a turntable test's static positions
+        "sequence") or "psins19"}), _table_observations, None, _table_extras, _no_extras, _table_checks,
+         _static_segments, False, _sequence_diagnosis),  # its rests, as a turntable test's static positions
     Kind(STREAM, "handheld", _simulate_stream, _stream_observations, _stream_gyro, _no_extras, _stream_finish,
          _stream_checks, _whole_stream, True),
 )}

@@ -245,6 +245,59 @@ def _write_design(result, model, u, rho, kind, output):
     return out
 
 
+def _plan_sequence(sequence, model_name, add, score_plan, rates, acc_noise_g, gyro_noise_dph, output):
+    """plan --sequence: the filter's observability of each parameter over a rotation sequence
+    (systematic/observability.py, the default unit simulated at seed 0) beside the norm method's CRLB of
+    the same models on a plan (--score, default table1)."""
+    import json
+
+    import numpy as np
+
+    from simucal import api
+    from simucal.errors import CalibrationError
+    from simucal.fit.augmented import AugmentedModel, for_sensor
+    from simucal.io import outputs
+    from simucal.systematic.observability import observability
+    guard([sequence if Path(sequence).exists() else None, score_plan if score_plan and Path(score_plan).exists() else None],
+          files={"-o": output} if output else {})
+    plan_name = score_plan or "table1"
+    try:
+        models = {"acc": "acc_baseline", "gyro": "gyro_baseline", AugmentedModel(model_name).sensor: model_name}
+        ms = api.simulate(sequence=sequence, seed=0)
+        obs = observability(ms, models["acc"], models["gyro"], tuple(add))
+        n = obs["noise_per_sample"]
+        # the same unit held as long at each position as at each of the sequence's rests (its median)
+        rest_n = float(np.median([len(ms.rows(s.segment)) for s in ms.segments if s.kind == "static"]))
+        noise = {"acc": acc_noise_g or max(n["acc_g"]) / rest_n ** 0.5, "gyro": gyro_noise_dph or max(n["gyro_dph"])
+                 / rest_n ** 0.5}
+        crlb = {s: _plan_scores(AugmentedModel(models[s], for_sensor(add, s)), plan_name, None, "D", rates, noise[s])[3]
+                for s in ("acc", "gyro")}
+    except (ValueError, KeyError, CalibrationError, FileNotFoundError) as e:
+        fail(e)
+    click.echo(f"sequence {ms.truth['sequence']['name']}: {models['acc']} and {models['gyro']}"
+               + "".join(f" + {a}" for a in add) + f", one pass of the linearised filter ({obs['updates']} zero-velocity "
+               f"updates; the default unit simulated, noise {max(n['acc_g']):.2g} g and {max(n['gyro_dph']):.2g} deg/h per "
+               f"sample); beside it the norm method's CRLB on {plan_name}, noise {noise['acc']:.3g} g and {noise['gyro']:.3g} "
+               f"deg/h per position" + ("" if acc_noise_g and gyro_noise_dph else f" (held as long as a rest, {rest_n:g} "
+                                       "samples, unless stated)"))
+    click.echo(f"  {'parameter':18} {'unit':16} {'prior std':>10} {'sequence std':>13} {'of prior':>9} "
+               f"{'CRLB ' + plan_name:>16}")
+    for x in obs["parameters"]:
+        c = crlb[x["sensor"]]["crlb"].get(x["parameter"])
+        click.echo(f"  {x['sensor'] + ' ' + x['parameter']:18} {x['unit']:16} {x['prior_std']:10.3g} {x['std']:13.3g} "
+                   f"{x['ratio']:9.2g} {'' if c is None else format(c, '.3g'):>16}")
+    if obs["unobserved"]:
+        click.echo(f"UNOBSERVED on this sequence (std above {obs['threshold']:g} of its prior): "
+                   f"{', '.join(obs['unobserved'])}; calibrate --method systematic refuses it: turn the unit about each "
+                   "of its axes with each axis up and down (psins19 does)")
+    else:
+        click.echo(f"every parameter observed (the largest std {max(x['ratio'] for x in obs['parameters']):.2g} of its prior)")
+    if output:
+        outputs.write_text(output, json.dumps({"sequence": ms.truth["sequence"], "models": models, "add": list(add),
+                                               "observability": obs, "norm": crlb}, indent=1) + "\n")
+        click.echo(f"wrote {output}")
+
+
 @main.command()
 @click.option("--score", "score_plan", default=None, metavar="PLAN",
               help="Score a plan: table1, dodecahedron20, fibonacci24, fibonacci48 or a CSV (outer_deg,middle_deg,inner_deg).")
@@ -275,11 +328,20 @@ def _write_design(result, model, u, rho, kind, output):
 @click.option("--sizes", default=None, metavar="Q1,Q2", help="With --separate: the effects' sizes, in their units.")
 @click.option("--power", "target", type=Number(0.0, 1.0, low_open=True), default=0.9, show_default=True,
               help="With --separate: the power to reach.")
+@click.option("--sequence", default=None, metavar="NAME|FILE",
+              help="Systematic calibration: each parameter's std over a rotation sequence (psins19, dong2018 or a CSV "
+                   "axis,angle_deg,rate_dps,rest_s; one pass of the filter, the default unit at 100 Hz) beside the "
+                   "norm method's CRLB on --score PLAN (default table1).")
 @click.option("-o", "--output", type=click.Path(dir_okay=False), default=None,
-              help="Design: the plan CSV (a JSON sidecar with its scores beside it); score: the JSON.")
+              help="Design: the plan CSV (a JSON sidecar with its scores beside it); score or --sequence: the JSON.")
 def plan(score_plan, model_name, add, positions, criterion, rate_dps, rates, kind, acc_noise_g, gyro_noise_dph, sigma,
-         pair, sizes, target, output):
-    """Score a test plan (Fisher information, CRLB, correlations, D and A criteria) or design one."""
+         pair, sizes, target, sequence, output):
+    """Score a test plan (Fisher information, CRLB, correlations, D and A criteria) or design one; or a
+    rotation sequence's observability (--sequence)."""
+    if sequence is not None:
+        if positions is not None or pair:
+            fail("--sequence scores a rotation sequence; --positions and --separate design a plan's positions: give one")
+        return _plan_sequence(sequence, model_name, add, score_plan, rates, acc_noise_g, gyro_noise_dph, output)
     import json
 
     import numpy as np

@@ -2,7 +2,8 @@
 
 A Problem (the turntable and stream poses' exact norm fit: fit.candidates.NormProblem; the gyro
 over a stream's moves: handheld/moves_selection.MovesProblem; a table's own terms:
-turntable/table_fit.DirectionsProblem) gives, at the model's fit, the whitened Jacobian of the
+turntable/table_fit.DirectionsProblem; a sequence's filter innovations: systematic/innovations.InnovationsProblem)
+gives, at the model's fit, the whitened Jacobian of the
 model (its span), the whitened residual and its variance scale s2 (1 where the noise is known),
 each candidate's whitened column, and the fit with one candidate added (its estimate, std and
 likelihood-ratio or F statistic). rank() then, for every problem alike:

@@ -177,6 +177,8 @@ def to_add(diag: dict, sensor: str) -> tuple[list[str] | None, str]:
         return [], f"{sensor}: no test (too few degrees of freedom): state the noise or add positions"
     if p >= diag["alpha"]:
         return [], ""
+    if b.get("explained_by"):  # a test shared with the other sensor, whose effect explains it (a sequence's filter)
+        return [], ""
     shape = b.get("shape") or {}
     steps = (b.get("misfit_shares") or {}).get("steps")
     sig = [c["id"] for c in b["candidates"] if c.get("significant")]

@@ -11,6 +11,10 @@ def sensor_verdict(block: dict, sensor: str) -> str:
     """A diagnosis block's verdict: its model test and candidates (verdict), and what its kind of data
     added: the effects chosen one by one over a stream's moves (misfit_shares), a gyro's static rows
     where they misfit, and the choice among twins the static rows made."""
+    if block.get("explained_by"):  # a test shared with the other sensor (a sequence's filter), one effect at a time
+        by = block["explained_by"]
+        return (f"{sensor}: the innovations fail their test, which the {by['sensor']} shares (one filter); {by['id']} "
+                f"explains the misfit best: add it, then diagnose again to see whether the {sensor} still lacks an effect.")
     moves = "misfit_shares" in block
     text = verdict("gyro (moves)" if moves else sensor, block["model_test"], block["candidates"],
                    block.get("shape"))

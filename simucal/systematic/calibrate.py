@@ -88,6 +88,8 @@ class Result:
     sigma: np.ndarray
     passes: int
     step_std: float
+    C: np.ndarray | None = None  # C_b^n at the start about the estimates, and what another pass over the data
+    setting: tuple = ()          # needs, (steps, q, w_ie, g0): the innovations' candidates (innovations.py)
 
 
 def run_filter(ms, acc_model="acc_baseline", gyro_model="gyro_baseline", ids=(), block_s=BLOCK_S,
@@ -117,7 +119,7 @@ def run_filter(ms, acc_model="acc_baseline", gyro_model="gyro_baseline", ids=(),
         if step.max() < STEP_STD or k == max_passes:
             break
         C = exp_so3(smooth(epochs, covariance=False)[0][0][:3]) @ C  # the next pass's attitude at the start
-    return Result(sensors, P[6:, 6:], epochs, prior_var, sigma, k, float(step.max()))
+    return Result(sensors, P[6:, 6:], epochs, prior_var, sigma, k, float(step.max()), C, (steps, q, w_ie, g0))
 
 
 def _move(sensors, p):

@@ -5,34 +5,19 @@ from __future__ import annotations
 import numpy as np
 
 from simucal.errors import CalibrationError
-from simucal.fit.distributions import chi2_sf
 from simucal.fit.norm_fit import Fit
 from simucal.generated import table
 from simucal.io import calibration
+from simucal.systematic.auto import select
 from simucal.systematic.calibrate import UNOBSERVABLE, run_filter
-
-
-def innovation_test(epochs) -> dict:
-    """The model test on the zero-velocity innovations: NIS, the sum of nu^T S^-1 nu, against
-    chi-square with 3 dof per update (Bar-Shalom, Li & Kirubarajan 2001, sec. 5.4), and their
-    whiteness: each axis's lag-1 autocorrelation of the whitened innovations (L^-1 nu, S = L L^T),
-    about N(0, 1/m) for white ones."""
-    updates = [e for e in epochs if e.nu is not None]
-    L = np.linalg.cholesky(np.array([e.S for e in updates]))
-    nu = np.linalg.solve(L, np.array([e.nu for e in updates])[..., None])[..., 0]
-    m = len(nu)
-    nis = float((nu ** 2).sum())
-    r1 = (nu[1:] * nu[:-1]).sum(0) / (nu ** 2).sum(0)
-    return {"nis": nis, "dof": 3 * m, "nis_per_update": nis / m, "p_value": chi2_sf(nis, 3 * m),
-            "lag1_autocorrelation": r1.tolist(), "lag1_z": (r1 * np.sqrt(m)).tolist(), "updates": m,
-            "innovations_whitened": nu}
+from simucal.systematic.innovations import innovation_test
+from simucal.systematic.observability import names_and_units, std_ratios
 
 
 def unobserved(result) -> dict:
     """{parameter: std / prior std} of those the sequence barely saw (the ratio above UNOBSERVABLE)."""
-    names = list(result.sensors.acc.params) + list(result.sensors.gyro.params) + ["eta_x", "eta_y", "eta_z"]
-    ratio = np.sqrt(np.diag(result.cov) / result.prior_var[6:])
-    return {n: float(r) for n, r in zip(names, ratio) if r > UNOBSERVABLE}
+    names = [n for _, n, _ in names_and_units(result.sensors)]
+    return {n: float(r) for n, r in zip(names, std_ratios(result)) if r > UNOBSERVABLE}
 
 
 def _fit(model, p, cov, test) -> Fit:
@@ -42,10 +27,15 @@ def _fit(model, p, cov, test) -> Fit:
                cov, nu, float(np.sqrt((nu ** 2).mean())), test["nis"], test["dof"], test["p_value"])
 
 
-def calibrate_systematic(ms, acc_model="acc_baseline", gyro_model="gyro_baseline", ids=()) -> calibration.Calibration:
+def calibrate_systematic(ms, acc_model="acc_baseline", gyro_model="gyro_baseline", ids=(),
+                         auto=False) -> calibration.Calibration:
     """The calibration of a rotation sequence by the filter (calibrate.py), every parameter with its
-    std; refused where the sequence leaves a parameter unobserved."""
-    r = run_filter(ms, acc_model, gyro_model, ids)
+    std; refused where the sequence leaves a parameter unobserved. auto: and the library effects the
+    failing innovations need (auto.select)."""
+    if auto:
+        r, ids, chosen, stopped = select(ms, acc_model, gyro_model, ids)
+    else:
+        r = run_filter(ms, acc_model, gyro_model, ids)
     poor = unobserved(r)
     if poor:
         worst = ", ".join(f"{k} (std {v:.2f} of its prior)" for k, v in poor.items())
@@ -68,4 +58,7 @@ def calibrate_systematic(ms, acc_model="acc_baseline", gyro_model="gyro_baseline
         "passes": r.passes, "last_step_std": r.step_std, "white_noise_per_sample": {
             "gyro_dph": r.sigma[:3].tolist(), "acc_g": r.sigma[3:].tolist()},
         "test": {k: v for k, v in test.items() if k != "innovations_whitened"}}
+    if auto:  # one selection for both sensors (one test): each block lists its own effects, the reason in both
+        for sensor, block in (("acc", cal.acc), ("gyro", cal.gyro)):
+            block.details.update(auto=[x for x in chosen if x["id"].startswith(sensor + ".")], auto_stopped=stopped)
     return cal

@@ -1,0 +1,67 @@
+"""`--add auto` through the filter: the project's one forward selection (fit/selection.py) over the
+filter's steps. While the innovations' test fails, the candidates ranked on the innovations
+(innovations.py, the one ranking's Bonferroni gate) are tried strongest first: each is added to the
+filter's states and the filter run again, and it is kept where that filter predicts the updates
+better. The innovations are one-step-ahead predictions of the updates not yet seen, so each update's
+whitened innovation |L_k^-1 nu_k| is its held-out error (the paired test of cross_validation
+compares them with and without the effect).
+"""
+from __future__ import annotations
+
+import numpy as np
+
+from simucal.fit.ranking import rank
+from simucal.fit.results import ALPHA, ModelTest
+from simucal.fit.selection import forward_selection
+from simucal.systematic.calibrate import run_filter
+from simucal.systematic.innovations import InnovationsProblem, innovation_test, signatures
+
+MAX_TERMS = 4
+
+
+def ranked(result, test):
+    """The candidates (fit/results.Candidate) ranked on result's innovations, gated against its test."""
+    sig = signatures(result)
+    return rank(InnovationsProblem(sig), list(sig.B), test["p_value"] < ALPHA, "candidates on the innovations")
+
+
+def estimate(result, eid) -> tuple[float, float]:
+    """The filter's estimate of an effect's parameter and its std."""
+    s = result.sensors
+    k = (list(s.acc.params) + list(s.gyro.params)).index(eid)
+    return float(s.vector()[k]), float(result.cov[k, k] ** 0.5)
+
+
+class FilterStep:
+    """The filter with a model's effects as a Step of fit/selection.forward_selection (module doc);
+    its model is the filter's result (calibrate.Result)."""
+
+    def __init__(self, ms, acc_model, gyro_model, ids=()):
+        self.ms, self.models, self.effects = ms, (acc_model, gyro_model), tuple(ids)
+        self.model = run_filter(ms, acc_model, gyro_model, self.effects)
+        self.innovations = innovation_test(self.model.epochs)
+
+    def test(self) -> ModelTest:
+        t = self.innovations
+        return ModelTest(t["nis"], t["dof"], t["p_value"], "NIS of the zero-velocity innovations")
+
+    def rank(self):
+        return [c.to_dict() for c in ranked(self.model, self.innovations)], None
+
+    def add(self, eid):
+        return FilterStep(self.ms, *self.models, self.effects + (eid,))
+
+    def held_out(self):
+        return np.linalg.norm(self.innovations["innovations_whitened"], axis=1).tolist()
+
+    def after(self) -> dict:
+        value, std = estimate(self.model, self.effects[-1])
+        return {"nis_after": self.innovations["nis"], "p_value_after": self.innovations["p_value"],
+                "filter_estimate": value, "filter_std": std}
+
+
+def select(ms, acc_model, gyro_model, ids=(), max_terms=MAX_TERMS):
+    """(the filter's result with the effects chosen, the effect ids, the steps, why it stopped)."""
+    chosen = forward_selection(FilterStep(ms, acc_model, gyro_model, ids), max_terms)
+    s = chosen.model.sensors
+    return chosen.model, s.acc.effects + s.gyro.effects, chosen.steps, chosen.stopped

@@ -1,0 +1,166 @@
+"""The filter's innovations as the loop's evidence: the model test (NIS, whiteness) and the candidate
+effects scored on them, through the project's one ranking (fit/ranking.py).
+
+The zero-velocity innovations of a linear(ised) Kalman filter are its data whitened in time order
+(the innovations form of the likelihood, Schweppe 1965): with the parameters held at their estimates
+and only the navigation errors (phi, dv) filtered, the stacked innovations L_k^-1 nu_k (S_k = L_k L_k^T)
+are the whitened residual r of a least-squares problem in the parameters, and the sensitivity of
+those innovations to a parameter theta is its whitened column. It follows the filter's recursion
+(Willsky & Jones 1976, the generalised likelihood ratio's signature):
+
+    mu <- Phi_nn mu + Gamma_k        over each step (Gamma_k = d[phi, dv] / d theta over the step)
+    g_k = H mu,   mu <- mu - K_k g_k  at each update,      column = [L_k^-1 g_k]_k
+
+The model's own parameters (and the frame angles eta) give the basis, each library effect not in the
+model a candidate column; projecting the basis out of the residual leaves the innovations of the
+filter that estimates them (their squared norm is its NIS, less the prior's term), and a candidate's
+projected column is the signature that filter would see. A candidate's likelihood ratio is then
+(col . r)^2 / |col|^2 on 1 dof, its estimate and std the one Gauss-Newton step of the filter with
+its state added: the score test of adding it, which --add auto confirms by running that filter.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from simucal.fit.augmented import AugmentedModel, effect_ids, follows_temperature
+from simucal.fit.aux_inputs import AuxInputs
+from simucal.fit.distributions import chi2_sf
+from simucal.fit.ranking import Trial
+from simucal.generated import systematic as gen
+from simucal.generated.effects import EFFECTS, SEPARATE
+from simucal.systematic.calibrate import ZUPT_STD_MPS
+from simucal.systematic.filter import RAD_S_PER_DPH, Sensors, nominal
+
+CHUNK = 4096  # steps whose blocks are built at once
+
+
+def innovation_test(epochs) -> dict:
+    """The model test on the zero-velocity innovations: NIS, the sum of nu^T S^-1 nu, against
+    chi-square with 3 dof per update (Bar-Shalom, Li & Kirubarajan 2001, sec. 5.4), and their
+    whiteness: each axis's lag-1 autocorrelation of the whitened innovations (L^-1 nu, S = L L^T),
+    about N(0, 1/m) for white ones."""
+    updates = [e for e in epochs if e.nu is not None]
+    L = np.linalg.cholesky(np.array([e.S for e in updates]))
+    nu = np.linalg.solve(L, np.array([e.nu for e in updates])[..., None])[..., 0]
+    m = len(nu)
+    nis = float((nu ** 2).sum())
+    r1 = (nu[1:] * nu[:-1]).sum(0) / (nu ** 2).sum(0)
+    return {"nis": nis, "dof": 3 * m, "nis_per_update": nis / m, "p_value": chi2_sf(nis, 3 * m),
+            "lag1_autocorrelation": r1.tolist(), "lag1_z": (r1 * np.sqrt(m)).tolist(), "updates": m,
+            "innovations_whitened": nu}
+
+
+def candidate_ids(sensors) -> tuple[str, ...]:
+    """The library effects not in the models: the accelerometer's, then the gyro's. Those that read the
+    temperature are left out: a sequence holds no temp_c column (simulate --sequence writes none)."""
+    return tuple(e for s, model in (("acc", sensors.acc), ("gyro", sensors.gyro)) for e in effect_ids(s)
+                 if e not in model.effects and not follows_temperature(e))
+
+
+@dataclass
+class Signatures:
+    """The whitened least-squares view of the filter at its estimates (module doc): r (3m,) the
+    navigation-only filter's whitened innovations, A (3m, k) the model's parameters' columns (eta's
+    last), B {candidate id: (3m,)}, and per update its time (s) and innovation nu (m/s) with the std
+    of each axis."""
+    r: np.ndarray
+    A: np.ndarray
+    B: dict
+    t_s: np.ndarray
+    nu: np.ndarray
+    nu_std: np.ndarray
+
+
+def signatures(result, ids=None) -> Signatures:
+    """The signatures of the model's parameters and of the candidates ids (default candidate_ids) over
+    the last pass's steps, about the estimates of result (calibrate.run_filter's)."""
+    s = result.sensors
+    ids = candidate_ids(s) if ids is None else tuple(ids)
+    acc_c, gyro_c = (tuple(e for e in ids if EFFECTS[e].sensor == x) for x in ("acc", "gyro"))
+    big = Sensors(AugmentedModel(s.acc.base, s.acc.effects + acc_c), AugmentedModel(s.gyro.base, s.gyro.effects + gyro_c),
+                  np.r_[s.p_acc, np.zeros(len(acc_c))], np.r_[s.p_gyro, np.zeros(len(gyro_c))], s.eta)
+    steps, q, w_ie, g0 = result.setting
+    aux = AuxInputs({"t_s": steps.t})
+    f_b, w_b = big.compensate(steps.N_a, steps.N_g, aux, aux)
+    D_a, D_g = big.sensitivities(f_b, w_b, aux, aux)
+    Cs, v_at = nominal(result.C, w_b * RAD_S_PER_DPH * steps.dt[:, None], f_b, steps.dt, steps.zupt, w_ie, g0)
+    na, ng = len(s.p_acc), len(s.p_gyro)
+    own = list(range(na)) + [len(big.p_acc) + j for j in range(ng)] + list(range(D_a.shape[-1] + D_g.shape[-1] - 3,
+                                                                                  D_a.shape[-1] + D_g.shape[-1]))
+    cand = [na + j for j in range(len(acc_c))] + [len(big.p_acc) + ng + j for j in range(len(gyro_c))]
+    out = _navigation_pass(steps, Cs, v_at, f_b, D_a, D_g, q, w_ie, g0, result.prior_var[:6])
+    r, cols = out[0], out[1]
+    return Signatures(r, cols[:, own], {e: cols[:, k] for e, k in zip(acc_c + gyro_c, cand)}, steps.t[steps.zupt],
+                      out[2], out[3])
+
+
+def _navigation_pass(steps, Cs, v_at, f_b, D_a, D_g, q, w_ie, g0, P0_diag):
+    """The filter of phi and dv alone (the parameters held) with every column's signature carried
+    along (module doc): (r (3m,), columns (3m, k), nu (m, 3), its std (m, 3))."""
+    R = np.eye(3) * ZUPT_STD_MPS ** 2
+    x, P = np.zeros(6), np.diag(P0_diag)
+    mu = np.zeros((6, D_a.shape[-1] + D_g.shape[-1]))
+    r, cols, nus, sds = [], [], [], []
+    for a in range(0, len(Cs), CHUNK):
+        k = slice(a, a + CHUNK)
+        dt = steps.dt[k][:, None, None]
+        c = Cs[k].reshape(-1, 9)
+        F = gen.nav_F(c, f_b[k], w_ie, g0) * dt
+        B = gen.nav_B(c, g0)
+        Fp = np.concatenate([B[:, :, 3:] @ D_a[k], B[:, :, :3] @ D_g[k]], axis=-1) * dt
+        Phi, Gam = np.eye(6) + F + 0.5 * F @ F, Fp + 0.5 * F @ Fp
+        G = gen.nav_G(c)
+        Q = (G * (q * steps.dt[k][:, None])[:, None, :]) @ np.swapaxes(G, 1, 2)
+        for i, z in enumerate(steps.zupt[k]):
+            x, P, mu = Phi[i] @ x, Phi[i] @ P @ Phi[i].T + Q[i], Phi[i] @ mu + Gam[i]
+            if z:
+                S = P[3:, 3:] + R
+                L, nu = np.linalg.cholesky(S), v_at[a + i] - x[3:]
+                K = np.linalg.solve(S, P[3:]).T
+                r.append(np.linalg.solve(L, nu))
+                cols.append(np.linalg.solve(L, mu[3:]))
+                nus.append(nu)
+                sds.append(np.sqrt(np.diag(S)))
+                IKH = np.eye(6) - np.c_[np.zeros((6, 3)), K]
+                x, P, mu = x + K @ nu, IKH @ P @ IKH.T + K @ R @ K.T, mu - K @ mu[3:]
+                x[3:] -= v_at[a + i]
+    return np.concatenate(r), np.concatenate(cols), np.array(nus), np.array(sds)
+
+
+class InnovationsProblem:
+    """The filter's innovations as a ranking Problem (fit/ranking.py; module doc)."""
+    span = "the filter's states (the model's parameters and the frame angles)"
+
+    def __init__(self, sig: Signatures):
+        self.sig = sig
+        self.Q = np.linalg.qr(sig.A)[0]
+        self.r = sig.r - self.Q @ (self.Q.T @ sig.r)
+
+    def info(self, eid):
+        return EFFECTS[eid].parameter, EFFECTS[eid].unit, EFFECTS[eid].meaning
+
+    def basis(self):
+        return self.Q
+
+    def residual(self):
+        return self.r, 1.0  # the noise is known (the rests' white noise, the filter's S)
+
+    def column(self, eid):
+        return self.sig.B[eid]
+
+    def fit_with(self, eid):
+        col = self.sig.B[eid]
+        perp = col - self.Q @ (self.Q.T @ col)
+        n2, g = float(perp @ perp), float(perp @ self.r)
+        stat = g * g / n2
+        # the column is the innovations' sensitivity to the state's error (estimate - truth), at an estimate of 0
+        rms = float(np.sqrt(max(self.r @ self.r - stat, 0.0) / len(self.r)))
+        return Trial(-g / n2, 1 / np.sqrt(n2), stat, float(chi2_sf(stat, 1)), stat - 2.0, rms)
+
+    def to_see(self, eid):
+        return "a sequence whose rests and moves vary its input: " + SEPARATE[eid.split(".")[1]]
+
+    def to_separate(self, eid, twin):
+        return f"a sequence whose rests and moves give {eid} and {twin} different signatures"
