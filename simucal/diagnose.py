@@ -19,7 +19,7 @@ from simucal.fit.augmented import AugmentedModel
 from simucal.fit.candidates import test_model
 from simucal.report.verdicts import sensor_verdict
 from simucal.fit.norm_fit import Fit, Observations
-from simucal.fit.results import ALPHA, model_test_keys
+from simucal.fit.results import ALPHA, added_params, model_test_keys
 from simucal.io.timestamps import with_timestamps
 from simucal.report.model_files import model_file_text
 from simucal.turntable.model_test import test_and_rank
@@ -68,14 +68,8 @@ def diagnose_sensor(ms, sensor, base_model, add=(), stated=None, truth=None, bef
     before_model = before_model or model.base.name
     if add or before_model != base_model:
         f0, _, b0 = test_model(AugmentedModel(before_model), obs)
-        comp = {}
-        for k in model.params:
-            row = {"before": f0.params.get(k), "std_before": f0.std.get(k), "after": fit.params[k], "std_after": fit.std[k]}
-            if truth and k in truth.get(sensor, {}).get("params", {}):
-                t = truth[sensor]["params"][k]
-                row.update(truth=t, error_before=None if row["before"] is None else row["before"] - t,
-                           error_after=row["after"] - t)
-            comp[k] = row
+        comp = added_params({k: fit.params[k] for k in model.params}, fit.std, f0.params, f0.std,
+                            (truth or {}).get(sensor, {}).get("params"))
         out["added"] = {"effects": list(added or add), "residual_rms_before": f0.residual_rms,
                         "residual_rms_after": fit.residual_rms, "residual_unit": model.unit,
                         "p_value_before": b0["p_value"], "p_value_after": base["p_value"], "params": comp,

@@ -15,7 +15,7 @@ from typing import Any, Mapping
 
 from simucal.io.calibration import ALPHA
 
-__all__ = ["ALPHA", "Candidate", "ModelTest", "Selection", "model_test_keys"]
+__all__ = ["ALPHA", "Candidate", "ModelTest", "Selection", "added_params", "model_test_keys"]
 
 
 @dataclass(frozen=True)
@@ -104,3 +104,18 @@ def model_test_keys(test: dict) -> dict:
     """A diagnosis block's model test under its name, `model_test` (the model diagnosed, --add's effects
     included), and under `baseline`, the name the diagnosis file has always given it (kept for its readers)."""
     return {"model_test": test, "baseline": test}
+
+
+def added_params(after: Mapping[str, float], std_after: Mapping[str, float], before: Mapping[str, float],
+                 std_before: Mapping[str, float], truth: Mapping[str, float] | None = None) -> dict:
+    """The diagnosis file's `added.params` (diagnose --add, every kind of data): each parameter of the
+    model with the effects, its value and std without them (None for the effects' own) and, where a
+    simulator's truth knows it, the error of each."""
+    out = {}
+    for k, v in after.items():
+        row = {"before": before.get(k), "std_before": std_before.get(k), "after": v, "std_after": std_after[k]}
+        if truth and k in truth:
+            t = truth[k]
+            row.update(truth=t, error_before=None if row["before"] is None else row["before"] - t, error_after=v - t)
+        out[k] = row
+    return out

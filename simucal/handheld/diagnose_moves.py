@@ -23,7 +23,7 @@ import numpy as np
 
 from simucal.fit.augmented import check_effect
 from simucal.fit.aux_inputs import FORCE
-from simucal.fit.results import ModelTest, model_test_keys
+from simucal.fit.results import ModelTest, added_params, model_test_keys
 from simucal.generated.effects import EFFECTS
 from simucal.handheld.gyro_moves import (
     chi2_test,
@@ -92,13 +92,8 @@ def diagnose_moves(ms, obs, det, am, fa, add=(), truth=None):
            "moves_skipped": gm.skipped, "saturation": gm.saturation, "moves_opposite_sense": gm.flipped}
     if add:
         _, _, p1 = chi2_test(fit, S, gm.bias_std, mv)
-        v0, s0, v1, s1 = vec(base), std(base), vec(fit), std(fit)
-        comp = {}
-        for k, name in enumerate(names):
-            row = {"before": None if k >= len(v0) else float(v0[k]), "std_before": None if k >= len(v0) else float(s0[k]),
-                   "after": float(v1[k]), "std_after": float(s1[k])}
-            comp[name] = row
-        _with_truth(comp, truth)
+        comp = added_params(dict(zip(names, vec(fit).tolist())), dict(zip(names, std(fit).tolist())),
+                            dict(zip(names, vec(base).tolist())), dict(zip(names, std(base).tolist())), _known(truth))
         out["added"] = {"effects": list(add), "residual_rms_before": block["residual_rms"],
                         "residual_rms_after": float(np.sqrt(np.mean(fit.r ** 2))), "p_value_before": p,
                         "p_value_after": p1, "params": comp,
@@ -106,8 +101,8 @@ def diagnose_moves(ms, obs, det, am, fa, add=(), truth=None):
     return out
 
 
-def _with_truth(comp, truth):
-    """Errors against a simulated session's truth.json (T and the bias in deg/h), when present."""
+def _known(truth) -> dict:
+    """What a simulated session's truth.json knows of the moves' parameters (T and the bias in deg/h)."""
     g = (truth or {}).get("gyro", {})
     known = {}
     if "T" in g:
@@ -115,7 +110,4 @@ def _with_truth(comp, truth):
     if "bias_dps" in g:
         known.update({f"b_{a}": DPH_PER_DPS * g["bias_dps"][i] for i, a in enumerate("xyz")})
     known.update(g.get("params", {}))
-    for k, row in comp.items():
-        if k in known:
-            row.update(truth=known[k], error_before=None if row["before"] is None else row["before"] - known[k],
-                       error_after=row["after"] - known[k])
+    return known

@@ -42,7 +42,7 @@ class MovesProblem:
         # each trial fits the moves in blocks of 4 samples (a quarter of the cost) with their defect
         # against full resolution at this fit added (as fit_gyro's coarse levels): the composition
         # error of the blocks (~1e-3 rad) then cancels where the candidate's coefficient is 0
-        mv0 = with_terms(gm.mv, self.effects, inputs) if self.effects else gm.mv
+        self.mv0 = mv0 = with_terms(gm.mv, self.effects, inputs) if self.effects else gm.mv
         self.defect = (move_residuals(fit.T, mv0, gm.g_dirs, jac=False, db=fit.db, p=fit.p)[0]
                        - move_residuals(fit.T, decimate(mv0, 4), gm.g_dirs, jac=False, db=fit.db, p=fit.p)[0])
 
@@ -50,8 +50,7 @@ class MovesProblem:
         return EFFECTS[eid].parameter, EFFECTS[eid].unit, EFFECTS[eid].meaning
 
     def basis(self):
-        mv = with_terms(self.gm.mv, self.effects, self.inputs) if self.effects else self.gm.mv
-        _, J0 = move_residuals(self.fit.T, mv, self.gm.g_dirs, db=self.fit.db, p=self.fit.p)
+        _, J0 = move_residuals(self.fit.T, self.mv0, self.gm.g_dirs, db=self.fit.db, p=self.fit.p)
         return np.linalg.qr(J0.reshape(-1, self.k))[0]
 
     def residual(self):

@@ -10,19 +10,12 @@ from __future__ import annotations
 
 import numpy as np
 
-from simucal.fit.ranking import rank
-from simucal.fit.results import ALPHA, ModelTest
+from simucal.fit.results import ModelTest
 from simucal.fit.selection import forward_selection
 from simucal.systematic.calibrate import run_filter
-from simucal.systematic.innovations import InnovationsProblem, innovation_test, signatures
+from simucal.systematic.innovations import innovation_test, ranked
 
 MAX_TERMS = 4
-
-
-def ranked(result, test):
-    """The candidates (fit/results.Candidate) ranked on result's innovations, gated against its test."""
-    sig = signatures(result)
-    return rank(InnovationsProblem(sig), list(sig.B), test["p_value"] < ALPHA, "candidates on the innovations")
 
 
 def estimate(result, eid) -> tuple[float, float]:

@@ -10,10 +10,9 @@ from __future__ import annotations
 
 import numpy as np
 
-from simucal.fit.ranking import rank
-from simucal.fit.results import ModelTest, model_test_keys
+from simucal.fit.results import added_params, model_test_keys
 from simucal.systematic.calibrate import rests_and_moves, run_filter
-from simucal.systematic.innovations import InnovationsProblem, innovation_test, signatures
+from simucal.systematic.innovations import innovation_test, ranked
 
 UNIT = "innovation std (whitened)"
 
@@ -56,15 +55,8 @@ def _params(result, sensor) -> tuple[dict, dict, dict]:
 
 def _added(sensor, result, before, base, truth, added) -> dict:
     """diagnose --add: the filter without the effects beside the filter with them."""
-    after, std_after, _ = _params(result, sensor)
-    params0, std0, _ = _params(before["result"], sensor)
-    comp = {}
-    for k in after:
-        row = {"before": params0.get(k), "std_before": std0.get(k), "after": after[k], "std_after": std_after[k]}
-        if truth and k in truth.get(sensor, {}).get("params", {}):
-            t = truth[sensor]["params"][k]
-            row.update(truth=t, error_before=None if row["before"] is None else row["before"] - t, error_after=after[k] - t)
-        comp[k] = row
+    comp = added_params(*_params(result, sensor)[:2], *_params(before["result"], sensor)[:2],
+                        (truth or {}).get(sensor, {}).get("params"))
     b0 = before["test"]
     return {"effects": list(added), "residual_rms_before": b0["residual_rms"], "residual_rms_after": base["residual_rms"],
             "residual_unit": UNIT, "p_value_before": b0["p_value"], "p_value_after": base["p_value"], "params": comp,
@@ -77,9 +69,7 @@ def diagnose_sequence(ms, acc_model, gyro_model, ids, truth, before_models, adde
     r = run_filter(ms, acc_model, gyro_model, ids)
     test = innovation_test(r.epochs)
     base = model_test(test)
-    sig = signatures(r)
-    fails = ModelTest.of(base).fails
-    cands = rank(InnovationsProblem(sig), list(sig.B), fails, "candidates on the innovations")
+    cands = ranked(r, test)
     best = next((c for c in cands if c.significant), None)
     rows = innovation_rows(ms, r)
     before = None

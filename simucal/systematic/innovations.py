@@ -27,7 +27,8 @@ import numpy as np
 from simucal.fit.augmented import AugmentedModel, effect_ids, follows_temperature
 from simucal.fit.aux_inputs import AuxInputs
 from simucal.fit.distributions import chi2_sf
-from simucal.fit.ranking import Trial
+from simucal.fit.ranking import Trial, rank
+from simucal.fit.results import ModelTest
 from simucal.generated import systematic as gen
 from simucal.generated.effects import EFFECTS, SEPARATE
 from simucal.systematic.calibrate import ZUPT_STD_MPS
@@ -164,3 +165,11 @@ class InnovationsProblem:
 
     def to_separate(self, eid, twin):
         return f"a sequence whose rests and moves give {eid} and {twin} different signatures"
+
+
+def ranked(result, test) -> list:
+    """The candidates (fit/results.Candidate) ranked on result's innovations (fit/ranking.rank), gated
+    against its test (innovation_test): diagnose's and --add auto's one ranking on a sequence."""
+    sig = signatures(result)
+    return rank(InnovationsProblem(sig), list(sig.B), ModelTest(test["nis"], test["dof"], test["p_value"]).fails,
+                "candidates on the innovations")
