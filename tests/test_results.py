@@ -125,3 +125,17 @@ def test_calibrate_leaves_the_callers_set_as_it_was(tmp_path):
     ms = io.read_set(tmp_path / "t")
     cal = calibrate(ms, t_ref_c=22.0)
     assert ms.temperature_ref_c is None and cal.t_ref_c == 22.0
+
+
+def test_every_step_of_the_forward_selection_has_the_whole_protocol():
+    """fit/selection.forward_selection asks a Step for each of the Protocol's methods (to_separate only where
+    the chosen effect has a twin, so a missing one would fail late, on real data): every kind of data's
+    Step implements them all."""
+    from simucal.fit.candidates import NormStep
+    from simucal.fit.selection import Step
+    from simucal.handheld.moves_selection import MovesStep
+    from simucal.systematic.auto import FilterStep
+    wanted = {n for n in vars(Step) if not n.startswith("_") and callable(getattr(Step, n))}
+    assert {"test", "rank", "add", "held_out", "after", "to_separate"} <= wanted
+    for cls in (NormStep, MovesStep, FilterStep):
+        assert not wanted - set(dir(cls)), (cls.__name__, wanted - set(dir(cls)))

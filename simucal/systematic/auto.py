@@ -13,7 +13,7 @@ import numpy as np
 from simucal.fit.results import ModelTest
 from simucal.fit.selection import forward_selection
 from simucal.systematic.calibrate import run_filter
-from simucal.systematic.innovations import innovation_test, ranked
+from simucal.systematic.innovations import innovation_test, ranked, to_separate
 
 MAX_TERMS = 4
 
@@ -46,6 +46,9 @@ class FilterStep:
 
     def held_out(self):
         return np.linalg.norm(self.innovations["innovations_whitened"], axis=1).tolist()
+
+    def to_separate(self, chosen, twin):
+        return "what would tell them apart: " + to_separate(chosen["id"], twin["id"])
 
     def after(self) -> dict:
         value, std = estimate(self.model, self.effects[-1])

@@ -164,7 +164,7 @@ class InnovationsProblem:
         return "a sequence whose rests and moves vary its input: " + SEPARATE[eid.split(".")[1]]
 
     def to_separate(self, eid, twin):
-        return f"a sequence whose rests and moves give {eid} and {twin} different signatures"
+        return to_separate(eid, twin)
 
 
 def ranked(result, test) -> list:
@@ -173,3 +173,9 @@ def ranked(result, test) -> list:
     sig = signatures(result)
     return rank(InnovationsProblem(sig), list(sig.B), ModelTest(test["nis"], test["dof"], test["p_value"]).fails,
                 "candidates on the innovations")
+
+
+def to_separate(eid: str, twin: str) -> str:
+    """What a sequence must hold to tell two candidates apart on the innovations (the ranking's twins
+    and --add auto's twin choice)."""
+    return f"a sequence whose rests and moves give {eid} and {twin} different signatures"
