@@ -117,19 +117,22 @@ def row(what, runs, i, unit, goal):
 
 
 def lot(tmp: Path, n: int, old: str):
-    """A lot of n units on a Dask LocalCluster of 2 workers: units per second, before and now."""
+    """A lot of n units on a Dask LocalCluster of 2 workers: units per second of the calibration, before
+    and now (alternating, twice each), and of the lot report (now only: the command is new)."""
     from dask.distributed import LocalCluster
     sets = write_lot(tmp / "lot", n, seed=0)
-    rate = {}
+    cal = {"before": [], "now": []}
     with LocalCluster(n_workers=2, threads_per_worker=1, processes=True, host="127.0.0.1",
                       dashboard_address=None) as cluster:
-        for name, path in (("before", old), ("now", None)):
-            cal = measure(["calibrate", *sets, "-o", tmp / f"cals_{name}", "--scheduler", cluster.scheduler_address],
-                          path, tmp)[0]
-            rep = 0.0 if path else measure(["lot", tmp / "cals_now", "-o", tmp / "lot.json"], None, tmp)[0]
-            rate[name] = n / (cal + rep)
-    print(f"| a lot of {n} units, calibrate (+ lot now) on Dask, 2 workers | {rate['before']:.1f} units/s "
-          f"(calibrate only) | {rate['now']:.1f} units/s | | |", flush=True)
+        for k in range(2):
+            for name, path in (("before", old), ("now", None)):
+                out = tmp / f"cals_{name}{k}"
+                cal[name].append(n / measure(["calibrate", *sets, "-o", out, "--scheduler", cluster.scheduler_address],
+                                             path, tmp)[0])
+    report = n / measure(["lot", tmp / "cals_now0", "-o", tmp / "lot.json"], None, tmp)[0]
+    print(f"| a lot of {n} units, calibrate on Dask, 2 workers | {span(cal['before'], 'units/s')} | "
+          f"{span(cal['now'], 'units/s')} | | |", flush=True)
+    print(f"| the lot report of those {n} calibrations (simucal lot) | | {report:.3g} units/s | | |", flush=True)
 
 
 if __name__ == "__main__":

@@ -15,6 +15,7 @@ products dK * angle make is the change when dK is set to zero.
 """
 from __future__ import annotations
 
+import functools
 from dataclasses import dataclass
 
 import numpy as np
@@ -58,23 +59,38 @@ def section4_subs(values, sensor):
     return subs
 
 
+@functools.cache
+def _exact_outputs(sensor):
+    """(f, symbols): a sensor's exact outputs with every table error, inner angle zero, as one numpy function
+    f(alpha, gamma, *values of symbols). Derived and printed once: substituting the section-4 values into the
+    symbolic outputs for each variant took seconds per call."""
+    if sensor == "acc":
+        model, vector = ACC_BASELINE, table.C_b_k().T * table.C_k_n().T * UP
+    else:
+        model = GYRO_BASELINE
+        vector = table.C_d_k().T * table.C_k_n().T * (table.earth_rate_n() + w_T * table.outer_axis_n())
+    out = model.output().subs(dict(zip(model.inputs, vector)), simultaneous=True).subs({table.beta: 0})
+    symbols = sorted(out.free_symbols - {table.alpha, table.gamma}, key=str)
+    return sp.lambdify((table.alpha, table.gamma, *symbols), list(out), "numpy", cse=True), symbols
+
+
+def _exact(sensor, values, alpha, gamma):
+    """The sensor's exact outputs, (3,) or (3, n), at the section-4 values."""
+    f, symbols = _exact_outputs(sensor)
+    subs = section4_subs(values, sensor)
+    out = f(alpha, gamma, *(float(subs[s]) for s in symbols))
+    return np.array([np.broadcast_to(np.asarray(o, float), np.shape(gamma)) for o in out])
+
+
 def exact_static_acc(values, positions):
     """Exact accelerometer outputs (g) at (alpha, gamma), inner at zero, every table error."""
-    f_b = table.C_b_k().T * table.C_k_n().T * UP
-    out = ACC_BASELINE.output().subs(dict(zip(ACC_BASELINE.inputs, f_b)), simultaneous=True)
-    f = sp.lambdify((table.alpha, table.gamma), out.subs({table.beta: 0}).subs(section4_subs(values, "acc")), "numpy")
-    return [np.array(f(float(p[table.alpha]), float(p[table.gamma])), float).ravel() for p in positions]
+    return [_exact("acc", values, float(p[table.alpha]), float(p[table.gamma])) for p in positions]
 
 
 def exact_mean_gyro(values, alphas_deg, k=720):
     """Mean gyro outputs (deg/h) over one whole revolution of the outer axis at each middle angle."""
-    subs = section4_subs(values, "gyro")
-    rate_n = table.earth_rate_n() + w_T * table.outer_axis_n()
-    w_d = table.C_d_k().T * table.C_k_n().T * rate_n
-    out = GYRO_BASELINE.output().subs(dict(zip(GYRO_BASELINE.inputs, w_d)), simultaneous=True)
     gam = np.arange(k) * 2 * np.pi / k
-    fs = [sp.lambdify((table.alpha, table.gamma), e, "numpy") for e in out.subs({table.beta: 0}).subs(subs)]
-    return [np.array([np.broadcast_to(f(np.radians(a), gam), gam.shape).mean() for f in fs]) for a in alphas_deg]
+    return [_exact("gyro", values, np.radians(a), gam).mean(axis=1) for a in alphas_deg]
 
 
 def _row_terms(rep, eq, row, printed, derived, positions, subs, unit, printed_only_why, truncated=False):
