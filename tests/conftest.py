@@ -33,11 +33,12 @@ def paper_set(tmp_path_factory):
     return folder, truth
 
 
-@pytest.fixture(scope="session")
+@pytest.fixture(scope="module")
 def dask_cluster():
-    """The address of one Dask LocalCluster (2 single-threaded worker processes on 127.0.0.1) shared by the
-    tests that check a result on Dask, not the cluster's start: each start costs 1-1.5 s of CPU
-    (2 worker processes importing distributed). tests/test_security.py still starts one through
+    """The address of a Dask LocalCluster (2 single-threaded worker processes on 127.0.0.1) shared by a
+    module's tests that check a result on Dask, not the cluster's start: each start costs 1-1.5 s of CPU
+    (2 worker processes importing distributed). One a module, not one for the session: idle, its workers
+    took 14 s of CPU over a run of the suite. tests/test_security.py still starts one through
     `scheduler="processes"`, the path a user's --scheduler processes takes."""
     from distributed import LocalCluster
     with LocalCluster(n_workers=2, threads_per_worker=1, processes=True, host="127.0.0.1",

@@ -19,11 +19,10 @@ def close(a, b, rel=1e-12):
 
 
 def test_generated_is_fresh_and_reproducible():
+    """This process's derivation writes generated/'s bytes: fresh, and reproducible, since generated/ is
+    another process's derivation (`simucal derive`, with its own hash seed) of the same models."""
     stale, _, diff = derive_cmd.run(check=True)
     assert stale == [], diff
-    from simucal.derive import codegen
-    # same bytes twice: the check's derivation equals generated/, and so does a second one
-    assert codegen.stale(derive_cmd.generated_dir(), codegen.generate(BUILTIN)) == []
 
 
 @pytest.mark.parametrize("model", BUILTIN, ids=lambda m: m.name)
