@@ -42,6 +42,28 @@ def test_clean_sessions_moves_chi2_per_dof_is_one(tmp_path):
     assert abs(np.mean(ratios) - 1.0) < 0.05, (np.mean(ratios), ratios)
 
 
+def test_the_scale_model_is_fitted_over_its_own_entries(tmp_path, monkeypatch):
+    """The scale-only gyro model (T diagonal) converges in a few steps, its off-diagonal entries exactly
+    nominal and not estimated. Held at nominal by a prior of std 1e-9 instead, its system had a
+    condition number of 2e11 and it never converged (30 steps, the fit marked unconverged), so that
+    model_choice could never take it."""
+    from simucal.handheld import moves
+    fits, fit = [], moves.fit_gyro_moves
+
+    def recorded(mv, *args, **kwargs):
+        fits.append((fit(mv, *args, **kwargs), tuple(kwargs.get("fixed", ()))))
+        return fits[-1][0]
+    monkeypatch.setattr(moves, "fit_gyro_moves", recorded)
+    write_handheld(tmp_path / "h", HandheldScenario(gyro_effects={"gyro.g_sensitivity.zx": 500.0}), 3)
+    choice = calibrate(tmp_path / "h", add=("auto",)).to_json()["gyro"]["model_choice"]
+    scale = [f for f, fixed in fits if fixed == moves.GYRO_MODELS["scale"]]
+    assert len(scale) == 3 and all(f.converged and f.iterations <= 5 for f in scale), [f.iterations for f in scale]
+    off = list(moves.GYRO_MODELS["scale"])
+    assert np.array_equal(scale[-1].T.ravel()[off], np.zeros(6)) and not scale[-1].cov[off].any()
+    assert np.all(np.diag(scale[-1].cov)[[0, 4, 8]] > 0)
+    assert choice["full"]["held_out_rms_deg"] < choice["scale"]["held_out_rms_deg"] < choice["nominal"]["held_out_rms_deg"]
+
+
 @pytest.mark.parametrize("settings,message", [
     (dict(poses=6), "positions for 9 parameters"),
     (dict(clip_moves=14, poses=14), "every move between poses holds saturated"),

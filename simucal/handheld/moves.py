@@ -55,7 +55,6 @@ class GyroFit:
 
 UNSEEN_STD = 0.05  # an entry of T (near I) whose std from the moves alone is above this is not determined
 PRIOR_T = 0.05     # such an entry is held at nominal with this std: 5 % scale, 50 mrad misalignment
-FIXED_STD = 1e-9   # an entry a simpler gyro model leaves out (GYRO_MODELS): at nominal
 
 
 def build_moves(w, t, det: Detection, bias, bad):
@@ -139,22 +138,29 @@ def move_residuals(T, mv: Moves, g_dirs, jac=True, db=None, p=None):
     return r, -np.matmul(skew(pred), dphi)
 
 
-def _prior(mv: Moves, n, bias_std, held=(), fixed=()):
+def _prior(mv: Moves, n, bias_std, held=()):
     """The prior rows and their targets for x = [vec(T), db, p]: the rest read b_rest = b + sum_j
     p_j e_j phi_j(rest), so db + that sum = 0 +- bias_std; entries `held` of vec(T) at nominal (I)
-    with std PRIOR_T (a soft prior), entries `fixed` at nominal (a simpler model: FIXED_STD)."""
+    with std PRIOR_T (a soft prior)."""
     E = np.zeros((3, n - 12))
     if mv.n_terms:
         E[list(mv.phi_axes), np.arange(n - 12)] = mv.phi_rest
     prior = np.c_[np.zeros((3, 9)), np.eye(3), E] / bias_std[:, None]
     target = np.zeros(3)
-    for idx, std in ((list(held), PRIOR_T), (list(fixed), FIXED_STD)):
-        if idx:
-            rows = np.zeros((len(idx), n))
-            rows[np.arange(len(idx)), idx] = 1.0 / std
-            prior = np.vstack([prior, rows])
-            target = np.r_[target, np.eye(3).ravel()[idx] / std]
+    if held:
+        rows = np.zeros((len(held), n))
+        rows[np.arange(len(held)), list(held)] = 1.0 / PRIOR_T
+        prior = np.vstack([prior, rows])
+        target = np.r_[target, np.eye(3).ravel()[list(held)] / PRIOR_T]
     return prior, target
+
+
+def _free(n, fixed) -> np.ndarray:
+    """The entries of x = [vec(T), db, p] estimated: all but `fixed`, the entries of vec(T) a simpler gyro
+    model (GYRO_MODELS) leaves at nominal. Left out of the fit, not held by a prior: a prior of std 1e-9
+    made the scale model's system so ill-conditioned (cond 2e11) that its steps never converged, so
+    the scale model could never be chosen."""
+    return np.setdiff1d(np.arange(n), list(fixed))
 
 
 def fit_gyro_moves(mv: Moves, g_dirs, x0, bias_std, max_iter=30, step_tol=1e-3, offset=0.0, held=(),
@@ -173,7 +179,9 @@ def fit_gyro_moves(mv: Moves, g_dirs, x0, bias_std, max_iter=30, step_tol=1e-3, 
     of a 5 s calibrate with a Jacobian at every trial, 1.5 s without."""
     x = np.array(x0, float)
     n = len(x)
-    prior, target = _prior(mv, n, bias_std, held, fixed)
+    x[list(fixed)] = np.eye(3).ravel()[list(fixed)]
+    free = _free(n, fixed)
+    prior, target = _prior(mv, n, bias_std, held)
 
     def evaluate(x, jac=True):
         r, J = move_residuals(x[:9].reshape(3, 3), mv, g_dirs, jac, db=x[9:12], p=x[12:])
@@ -182,16 +190,17 @@ def fit_gyro_moves(mv: Moves, g_dirs, x0, bias_std, max_iter=30, step_tol=1e-3, 
     def whitened(x, r, s_r):  # the residuals and the prior's, each over its std
         return np.r_[r.ravel() / s_r, prior @ x - target]
 
-    def system(x, r, J, s_r):
-        return np.vstack([J.reshape(-1, n) / s_r, prior]), whitened(x, r, s_r)
+    def system(x, r, J, s_r):  # the rows over the free entries alone
+        return np.vstack([J.reshape(-1, n) / s_r, prior])[:, free], whitened(x, r, s_r)
 
     r, J = evaluate(x)
     converged = False
     for it in range(1, max_iter + 1):
         s_r = max(float(np.sqrt(np.mean(r ** 2))), 1e-12)
         A, e = system(x, r, J, s_r)
-        step = np.linalg.lstsq(A, -e, rcond=None)[0]
-        if np.all(np.abs(step) < step_tol * np.sqrt(np.diag(np.linalg.pinv(A.T @ A)))):
+        step = np.zeros(n)
+        step[free] = np.linalg.lstsq(A, -e, rcond=None)[0]
+        if np.all(np.abs(step[free]) < step_tol * np.sqrt(np.diag(np.linalg.pinv(A.T @ A)))):
             x = x + step
             r = evaluate(x, jac=False)[0]
             converged = True
@@ -208,7 +217,9 @@ def fit_gyro_moves(mv: Moves, g_dirs, x0, bias_std, max_iter=30, step_tol=1e-3, 
     # each residual joins two unit vectors, so it has 2 degrees of freedom, not 3
     s_r = float(np.sqrt(np.sum(r ** 2) / max(2 * len(r) - n, 1)))
     A = system(x, r, J, s_r)[0]
-    return GyroFit(x[:9].reshape(3, 3), x[9:12], x[12:], r, np.linalg.pinv(A.T @ A), it, converged)
+    cov = np.zeros((n, n))  # a fixed entry's row and column zero: not estimated
+    cov[np.ix_(free, free)] = np.linalg.pinv(A.T @ A)
+    return GyroFit(x[:9].reshape(3, 3), x[9:12], x[12:], r, cov, it, converged)
 
 
 def fit_gyro(mv: Moves, g_dirs, bias_std, x0=None, held=(), fixed=()) -> GyroFit:
@@ -242,10 +253,12 @@ def held_out_moves(mv: Moves, g_dirs, f: GyroFit, bias_std, held=(), fixed=()) -
     with H_kk = A_k (A^T A)^-1 A_k^T the move's block of the hat matrix (the prior rows stay in A)."""
     r, J = move_residuals(f.T, mv, g_dirs, db=f.db, p=f.p)
     n = J.shape[-1]
-    prior = _prior(mv, n, bias_std, held, fixed)[0]
+    free = _free(n, fixed)
+    J = J[..., free]
+    prior = _prior(mv, n, bias_std, held)[0][:, free]
     s_r = max(float(np.sqrt(np.mean(r ** 2))), 1e-12)
-    B = np.linalg.pinv(np.vstack([J.reshape(-1, n) / s_r, prior]).T @ np.vstack([J.reshape(-1, n) / s_r, prior]))
-    H = np.einsum("mai,ij,mbj->mab", J / s_r, B, J / s_r)
+    A = np.vstack([J.reshape(len(J) * 3, -1) / s_r, prior])
+    H = np.einsum("mai,ij,mbj->mab", J / s_r, np.linalg.pinv(A.T @ A), J / s_r)
     return np.linalg.norm(np.linalg.solve(np.eye(3) - H, r[..., None])[..., 0], axis=1)
 
 
