@@ -117,6 +117,31 @@ def move_residuals(T, mv: Moves, g_dirs, jac=True, db=None, p=None):
     """r (m, 3) and dr/d[vec(T), db, p] (m, 3, 12 + q) of Tedaldi's cost (derive/moves.py);
     omega = T (y - db - sum_j p_j e_j phi_j) in deg/s, y the outputs less the rest bias, db a
     correction to that bias, phi_j the regressor of an added effect on output axis j."""
+    if not jac:
+        return integrated(T, mv, g_dirs, db, p, jac=False).r, None
+    it = integrated(T, mv, g_dirs, db, p)
+    m = len(it.r)
+    cols = [it.Rt @ (it.W @ it.y.transpose(1, 2, 0)).reshape(m, 3, 9),  # sum_k W_k (x) y_k
+            -it.Rt @ it.W.sum(2).reshape(m, 3, 3) @ T]
+    dphi = np.concatenate(cols, axis=2) * np.radians(1.0)
+    return it.r, np.concatenate([-np.matmul(skew(it.pred), dphi)] + [
+        effect_column(it, T, phi, axis) for phi, axis in zip(mv.phi if mv.n_terms else (), mv.phi_axes)], axis=2)
+
+
+@dataclass
+class Integrated:
+    """The moves integrated at one point: the outputs y less the biases and effects (3, m, L), the
+    residuals r (m, 3), each move's R_i^T (m, 3, 3), the predicted gravity directions pred (m, 3), and
+    the integration's Jacobian W (m, 9, L) (None without the Jacobian)."""
+    y: np.ndarray
+    r: np.ndarray
+    Rt: np.ndarray
+    pred: np.ndarray
+    W: np.ndarray | None
+
+
+def integrated(T, mv: Moves, g_dirs, db=None, p=None, jac=True) -> Integrated:
+    """The moves integrated at (T, db, p) (move_residuals' first half)."""
     y = mv.y if db is None else mv.y - db[:, None, None] * (mv.dt > 0)
     if mv.n_terms:
         y = y - np.einsum("j,ja,jmk->amk", p, np.eye(3)[list(mv.phi_axes)], mv.phi)
@@ -125,17 +150,17 @@ def move_residuals(T, mv: Moves, g_dirs, jac=True, db=None, p=None):
     Q_end = total_products(Q) if not jac else prefix_products(Q)[..., -1]
     Rt = np.moveaxis(gen_moves.rotation_matrix(Q_end), -1, 0).swapaxes(1, 2)  # (m, 3, 3): R_i^T
     pred = np.einsum("mab,mb->ma", Rt, g_dirs[mv.before])
-    r = g_dirs[mv.after] - pred
-    if not jac:
-        return r, None
     m, L = mv.dt.shape
-    W = gen_moves.integration_jacobian(Q, v, mv.dt).reshape(9, m, L).transpose(1, 0, 2)  # (m, 9, L)
-    cols = [Rt @ (W @ y.transpose(1, 2, 0)).reshape(m, 3, 9),  # sum_k W_k (x) y_k
-            -Rt @ W.sum(2).reshape(m, 3, 3) @ T]
-    for j, axis in enumerate(mv.phi_axes):
-        cols.append(-Rt @ (W @ mv.phi[j][..., None]).reshape(m, 3, 3) @ T[:, axis:axis + 1])
-    dphi = np.concatenate(cols, axis=2) * np.radians(1.0)
-    return r, -np.matmul(skew(pred), dphi)
+    W = gen_moves.integration_jacobian(Q, v, mv.dt).reshape(9, m, L).transpose(1, 0, 2) if jac else None
+    return Integrated(y, g_dirs[mv.after] - pred, Rt, pred, W)
+
+
+def effect_column(it: Integrated, T, phi, axis) -> np.ndarray:
+    """dr/dp (m, 3, 1) of an effect with regressor phi (m, L) on output axis `axis`, at the point it was
+    integrated at: a candidate's column needs no integration of its own (the ranking's 33 columns each
+    cost a whole Jacobian)."""
+    d = -it.Rt @ (it.W @ phi[..., None]).reshape(len(it.r), 3, 3) @ T[:, axis:axis + 1] * np.radians(1.0)
+    return -np.matmul(skew(it.pred), d)
 
 
 def _prior(mv: Moves, n, bias_std, held=()):

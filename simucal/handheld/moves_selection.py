@@ -25,7 +25,8 @@ from simucal.fit.selection import forward_selection
 from simucal.fit.twins import separating_plan
 from simucal.generated.effects import EFFECTS, SEPARATE_MOVES
 from simucal.handheld.gyro_moves import GyroMoves, chi2_test, has_input, move_covariances, with_terms
-from simucal.handheld.moves import GyroFit, decimate, fit_gyro_moves, held_out_moves, move_residuals
+from simucal.handheld.moves import (GyroFit, decimate, effect_column, fit_gyro_moves, held_out_moves, integrated,
+                                    move_residuals)
 
 
 class MovesProblem:
@@ -38,7 +39,7 @@ class MovesProblem:
     def __init__(self, gm: GyroMoves, fit: GyroFit, inputs, effects=()):
         self.gm, self.fit, self.inputs, self.effects = gm, fit, inputs, list(effects)
         self.rss0, self.m, self.k = float(np.sum(fit.r ** 2)), len(fit.r), 12 + len(self.effects)
-        self.mv = {}
+        self.mv, self.at = {}, None  # the candidates' moves; the base fit's integration, shared by their columns
         # each trial fits the moves in blocks of 4 samples (a quarter of the cost) with their defect
         # against full resolution at this fit added (as fit_gyro's coarse levels): the composition
         # error of the blocks (~1e-3 rad) then cancels where the candidate's coefficient is 0
@@ -60,8 +61,9 @@ class MovesProblem:
         if not has_input(eid, self.inputs):  # a temperature term without temp_c: no move to integrate
             return np.zeros(self.fit.r.size)
         self.mv[eid] = mv = with_terms(self.gm.mv, self.effects + [eid], self.inputs)
-        f = self.fit
-        return move_residuals(f.T, mv, self.gm.g_dirs, db=f.db, p=np.r_[f.p, 0.0])[1][..., self.k].ravel()
+        if self.at is None:  # the candidate's coefficient is zero: the moves integrate as the base fit's
+            self.at = integrated(self.fit.T, self.mv0, self.gm.g_dirs, self.fit.db, self.fit.p)
+        return effect_column(self.at, self.fit.T, mv.phi[-1], mv.phi_axes[-1]).ravel()
 
     def to_see(self, eid):
         return SEPARATE_MOVES[eid.split(".")[1]]
