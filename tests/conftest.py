@@ -7,7 +7,8 @@ import pytest
 # user models derived by the tests go to a cache of their own, never the user's: one for the run, made by the
 # first process that loads this file (pytest-xdist's controller) and inherited by its workers, so that each
 # library and derived model is built once, as the processes of one user share ~/.cache/simucal
-os.environ.setdefault("SIMUCAL_TEST_CACHE", tempfile.mkdtemp(prefix="simucal-test-cache-"))
+if "SIMUCAL_TEST_CACHE" not in os.environ:
+    os.environ["SIMUCAL_TEST_CACHE"] = tempfile.mkdtemp(prefix="simucal-test-cache-")
 os.environ["SIMUCAL_CACHE"] = os.environ["SIMUCAL_TEST_CACHE"]
 # one BLAS thread in each test process and the processes it starts (set before numpy loads OpenBLAS): the suite
 # runs on two processes (-n 2), so a BLAS's second thread finds no free core and spins (a planted-effect loop

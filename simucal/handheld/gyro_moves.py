@@ -101,7 +101,10 @@ def chi2_test(fit: GyroFit, S, bias_std, mv: Moves):
     for j, axis in enumerate(mv.phi_axes):
         rest[axis] += fit.p[j] * mv.phi_rest[j]
     chi2 += float(np.sum((rest / bias_std) ** 2))
-    dof = 2 * len(fit.r) + 3 - 12 - len(fit.p)
+    # 2 per move, 3 for the rest's reading where the moves estimate the bias, less what they estimate: the
+    # entries with a variance (a simpler gyro model's fixed entries of T have none, nominal's bias neither)
+    estimated = np.diag(fit.cov) > 0
+    dof = 2 * len(fit.r) + 3 * bool(estimated[9:12].any()) - int(estimated.sum())
     return chi2, dof, float(chi2_sf(chi2, dof)) if dof > 0 else None
 
 

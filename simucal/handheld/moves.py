@@ -193,15 +193,15 @@ def fit_gyro_moves(mv: Moves, g_dirs, x0, bias_std, max_iter=30, step_tol=1e-3, 
     """Gauss-Newton on x = [vec(T), db, p] from x0, the rest's bias entering as a prior
     with its standard error bias_std (deg/s): the moves inform the bias too. The
     direction noise sigma_r is the moves' residual rms (re-estimated each step).
-    offset is added to the residuals (a coarse level's defect, see fit_gyro). held, fixed: entries
-    of vec(T) near nominal by a prior (_prior).
+    offset is added to the residuals (a coarse level's defect, see fit_gyro). held: entries of vec(T)
+    near nominal by a prior (_prior); fixed: entries at nominal, left out of the fit (_free).
 
     Converged when no step exceeds step_tol of its parameter's std: that step is
     taken and only the residual recomputed, the Jacobian of the point before serving
     the covariance (it differs by ~step_tol). Step halving tries the residuals alone, the
     Jacobian formed at the point taken: a nearly singular model (T's diagonal alone with six
-    g-sensitivities on imu_tk's Xsens session, cond 6e11) ran 30 steps of 14 trials each, 3.6 s
-    of a 5 s calibrate with a Jacobian at every trial, 1.5 s without."""
+    g-sensitivities on imu_tk's Xsens session, cond 6e11) ran 30 steps of 14 trials each: that
+    calibrate took 5.0 s with a Jacobian at every trial, 2.5 s without."""
     x = np.array(x0, float)
     n = len(x)
     x[list(fixed)] = np.eye(3).ravel()[list(fixed)]
@@ -240,7 +240,7 @@ def fit_gyro_moves(mv: Moves, g_dirs, x0, bias_std, max_iter=30, step_tol=1e-3, 
             lam /= 2
         x, r, J = (x_new, r_new, J_new) if J_new is not None else (x_new, *evaluate(x_new))
     # each residual joins two unit vectors, so it has 2 degrees of freedom, not 3
-    s_r = float(np.sqrt(np.sum(r ** 2) / max(2 * len(r) - n, 1)))
+    s_r = float(np.sqrt(np.sum(r ** 2) / max(2 * len(r) - len(free), 1)))
     A = system(x, r, J, s_r)[0]
     cov = np.zeros((n, n))  # a fixed entry's row and column zero: not estimated
     cov[np.ix_(free, free)] = np.linalg.pinv(A.T @ A)

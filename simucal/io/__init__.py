@@ -433,11 +433,14 @@ def write_set(folder, meta: dict, samples: dict, segments: list[Segment] | None 
         (folder / "segments.csv").unlink()
     cols = [c for c in ("segment", "t_s", *SAMPLE_COLS, "temp_c") if c in samples]
     cols += [c for c in samples if c not in cols]  # auxiliary inputs (supply_v, ...)
-    import pyarrow as pa  # Arrow's writer: each number the shortest text that reads back to it, as repr, 3x faster
+    import pyarrow as pa  # Arrow's writer: each number the shortest text that reads back to it, 3x faster
+    # than repr and csv.writer row by row
     import pyarrow.csv as pa_csv
     table = pa.table({c: np.asarray(samples[c], np.int64 if c == "segment" else np.float64) for c in cols})
     with outputs.replacing(folder / "samples.csv") as tmp, tmp.open("wb") as fh:
-        fh.write((",".join(cols) + "\n").encode())  # the header unquoted
+        header = _io.StringIO()
+        csv.writer(header, lineterminator="\n").writerow(cols)  # a name holding a comma or a quote quoted
+        fh.write(header.getvalue().encode())
         pa_csv.write_csv(table, fh, pa_csv.WriteOptions(include_header=False, batch_size=1 << 16))
     (folder / "samples.parquet").unlink(missing_ok=True)  # a set replaced (--force): it would hold its samples twice
     for name, obj in (extra_files or {}).items():
