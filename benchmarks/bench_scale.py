@@ -7,9 +7,9 @@ before issue 41) beside this checkout's, each figure's runs alternating between 
   (simucal.bench.write_plateaus): wall (goal <= 1 s) and its spread from run to run;
 - `simucal noise` of a still recording of --hours at 200 Hz (bench_long_noise.still_chunks, CSV):
   wall and peak memory (goals at 24 h: <= 60 s, <= 2 GB);
-- a lot of --lot units (simucal.turntable.lot.write_lot): `calibrate ... -o FOLDER --scheduler` on a
-  Dask LocalCluster of 2 single-threaded workers, then (now only: the command is new) `simucal lot`,
-  units per second;
+- a lot of --lot units (simucal.turntable.lot.write_lot): `calibrate ... -o FOLDER --scheduler processes`
+  (a Dask LocalCluster of one single-threaded worker a core, running the command's revision), then
+  (now only: the command is new) `simucal lot`, units per second;
 - with --suite, the README's test command in a fresh clone of each commit (../shared beside it),
   wall seconds (goal <= 120 s).
 
@@ -117,21 +117,20 @@ def row(what, runs, i, unit, goal):
 
 
 def lot(tmp: Path, n: int, old: str):
-    """A lot of n units on a Dask LocalCluster of 2 workers: units per second of the calibration, before
-    and now (alternating, twice each), and of the lot report (now only: the command is new)."""
-    from dask.distributed import LocalCluster
+    """A lot of n units on Dask: units per second of `calibrate ... --scheduler processes` (a LocalCluster of
+    one single-threaded worker a core, started by the command, its start counted), before and now
+    (alternating, twice each), and of the lot report (now only: the command is new). Each command starts
+    its own cluster, whose workers inherit its PYTHONPATH and so run its revision's code: a cluster
+    started here ran this checkout's code for both (sweeps sends the function by reference)."""
     sets = write_lot(tmp / "lot", n, seed=0)
     cal = {"before": [], "now": []}
-    with LocalCluster(n_workers=2, threads_per_worker=1, processes=True, host="127.0.0.1",
-                      dashboard_address=None) as cluster:
-        for k in range(2):
-            for name, path in (("before", old), ("now", None)):
-                out = tmp / f"cals_{name}{k}"
-                cal[name].append(n / measure(["calibrate", *sets, "-o", out, "--scheduler", cluster.scheduler_address],
-                                             path, tmp)[0])
+    for k in range(2):
+        for name, path in (("before", old), ("now", None)):
+            out = tmp / f"cals_{name}{k}"
+            cal[name].append(n / measure(["calibrate", *sets, "-o", out, "--scheduler", "processes"], path, tmp)[0])
     report = n / measure(["lot", tmp / "cals_now0", "-o", tmp / "lot.json"], None, tmp)[0]
-    print(f"| a lot of {n} units, calibrate on Dask, 2 workers | {span(cal['before'], 'units/s')} | "
-          f"{span(cal['now'], 'units/s')} | | |", flush=True)
+    print(f"| a lot of {n} units, calibrate on Dask ({os.cpu_count()} workers, their start counted) | "
+          f"{span(cal['before'], 'units/s')} | {span(cal['now'], 'units/s')} | | |", flush=True)
     print(f"| the lot report of those {n} calibrations (simucal lot) | | {report:.3g} units/s | | |", flush=True)
 
 
