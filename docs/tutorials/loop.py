@@ -42,7 +42,7 @@ simucal.save("calibration.json", cal)  # the file `simucal calibrate set --add .
 
 # 5. Both calibrations on the other recording, which neither fit saw: |f| - 1 g at every static segment.
 def norm_error_g(c):
-    check = next(k for k in simucal.table_rows(simucal.validate(c, "other").checks) if k.sensor == "acc" and k.unit == "g")
+    check = next(k for k in simucal.validate(c, "other").check_rows if k.sensor == "acc" and k.unit == "g")
     return check.nominal_rms, check.calibrated_rms, check.floor_rms
 
 

@@ -54,7 +54,7 @@ assert cal.acc.verdict == "passes" and abs(effect.value - 2e-4) < 3 * effect.std
 
 # 6. Both calibrations on the other recording, which neither saw: |f| - 1 g at each of its rests.
 def norm_error_g(c):
-    check = next(k for k in simucal.table_rows(simucal.validate(c, "other").checks) if k.sensor == "acc" and k.unit == "g")
+    check = next(k for k in simucal.validate(c, "other").check_rows if k.sensor == "acc" and k.unit == "g")
     return check.nominal_rms, check.calibrated_rms, check.floor_rms
 
 

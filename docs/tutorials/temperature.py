@@ -39,7 +39,7 @@ single = simucal.calibrate("plateau_25")  # what one plateau alone gives
 
 # 3. Both on the 35 degC recording: the thermal calibration reaches the floor, the 25 degC one does not.
 def norm_error(cal, sensor):
-    return next(c for c in simucal.table_rows(simucal.validate(cal, check).checks) if c.sensor == sensor)
+    return next(c for c in simucal.validate(cal, check).check_rows if c.sensor == sensor)
 
 
 for sensor in ("acc", "gyro"):

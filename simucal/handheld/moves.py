@@ -120,11 +120,16 @@ def move_residuals(T, mv: Moves, g_dirs, jac=True, db=None, p=None):
     if not jac:
         return integrated(T, mv, g_dirs, db, p, jac=False).r, None
     it = integrated(T, mv, g_dirs, db, p)
+    return it.r, jacobian(it, T, mv)
+
+
+def jacobian(it: Integrated, T, mv: Moves) -> np.ndarray:
+    """dr/d[vec(T), db, p] (m, 3, 12 + q) at the point the moves were integrated at."""
     m = len(it.r)
     cols = [it.Rt @ (it.W @ it.y.transpose(1, 2, 0)).reshape(m, 3, 9),  # sum_k W_k (x) y_k
             -it.Rt @ it.W.sum(2).reshape(m, 3, 3) @ T]
     dphi = np.concatenate(cols, axis=2) * np.radians(1.0)
-    return it.r, np.concatenate([-np.matmul(skew(it.pred), dphi)] + [
+    return np.concatenate([-np.matmul(skew(it.pred), dphi)] + [
         effect_column(it, T, phi, axis) for phi, axis in zip(mv.phi if mv.n_terms else (), mv.phi_axes)], axis=2)
 
 

@@ -15,6 +15,8 @@ chosen effect explains of the misfit.
 """
 from __future__ import annotations
 
+import functools
+
 import numpy as np
 
 from simucal.fit.augmented import effect_ids
@@ -26,7 +28,7 @@ from simucal.fit.twins import separating_plan
 from simucal.generated.effects import EFFECTS, SEPARATE_MOVES
 from simucal.handheld.gyro_moves import GyroMoves, chi2_test, has_input, move_covariances, with_terms
 from simucal.handheld.moves import (GyroFit, decimate, effect_column, fit_gyro_moves, held_out_moves, integrated,
-                                    move_residuals)
+                                    jacobian, move_residuals)
 
 
 class MovesProblem:
@@ -39,7 +41,7 @@ class MovesProblem:
     def __init__(self, gm: GyroMoves, fit: GyroFit, inputs, effects=()):
         self.gm, self.fit, self.inputs, self.effects = gm, fit, inputs, list(effects)
         self.rss0, self.m, self.k = float(np.sum(fit.r ** 2)), len(fit.r), 12 + len(self.effects)
-        self.mv, self.at = {}, None  # the candidates' moves; the base fit's integration, shared by their columns
+        self.mv = {}
         # each trial fits the moves in blocks of 4 samples (a quarter of the cost) with their defect
         # against full resolution at this fit added (as fit_gyro's coarse levels): the composition
         # error of the blocks (~1e-3 rad) then cancels where the candidate's coefficient is 0
@@ -50,9 +52,14 @@ class MovesProblem:
     def info(self, eid):
         return EFFECTS[eid].parameter, EFFECTS[eid].unit, EFFECTS[eid].meaning
 
+    @functools.cached_property
+    def at(self):
+        """The moves integrated at the base fit: its Jacobian and every candidate's column (whose coefficient
+        is zero there) come from this one integration."""
+        return integrated(self.fit.T, self.mv0, self.gm.g_dirs, self.fit.db, self.fit.p)
+
     def basis(self):
-        _, J0 = move_residuals(self.fit.T, self.mv0, self.gm.g_dirs, db=self.fit.db, p=self.fit.p)
-        return np.linalg.qr(J0.reshape(-1, self.k))[0]
+        return np.linalg.qr(jacobian(self.at, self.fit.T, self.mv0).reshape(-1, self.k))[0]
 
     def residual(self):
         return self.fit.r.ravel(), self.rss0 / (2 * self.m)  # the noise profiled out as in the LR
@@ -61,8 +68,6 @@ class MovesProblem:
         if not has_input(eid, self.inputs):  # a temperature term without temp_c: no move to integrate
             return np.zeros(self.fit.r.size)
         self.mv[eid] = mv = with_terms(self.gm.mv, self.effects + [eid], self.inputs)
-        if self.at is None:  # the candidate's coefficient is zero: the moves integrate as the base fit's
-            self.at = integrated(self.fit.T, self.mv0, self.gm.g_dirs, self.fit.db, self.fit.p)
         return effect_column(self.at, self.fit.T, mv.phi[-1], mv.phi_axes[-1]).ravel()
 
     def to_see(self, eid):
