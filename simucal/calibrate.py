@@ -9,7 +9,6 @@ polynomial in temperature (fit/thermal.py).
 """
 from __future__ import annotations
 
-import dataclasses
 
 import numpy as np
 
@@ -45,7 +44,7 @@ def calibrate(folder, method="auto", acc_model="acc_baseline", gyro_model="gyro_
     if t_ref_c is not None and "temp_c" not in ms.samples:
         raise CalibrationError(f"{ms.path / 'samples.csv'}: --t-ref-c {t_ref_c:g}, but there is no temp_c column for "
                                "temperature terms to take it from: leave --t-ref-c out")
-    ms = dataclasses.replace(ms, temperature_ref_c=t_ref_c)  # the caller's set keeps its own T_ref
+    ms = ms.copy(temperature_ref_c=t_ref_c)  # the caller's set keeps its own T_ref
     curves = None
     if noise is not None:  # the file checked before any work, its refusal naming it alone
         from simucal.fit.noise import load_curves

@@ -220,7 +220,8 @@ def test_a_sets_hash_and_segment_rows_are_of_the_files_as_read(tmp_path):
     assert calibrate(ms, method="exact").input_sha256 == ms.sha256
 
 
-@pytest.mark.parametrize("case", ["header over 64 KiB", "carriage returns alone", "not UTF-8 in a label column"])
+@pytest.mark.parametrize("case", ["header over 64 KiB", "carriage returns alone", "not UTF-8 in a label column",
+                                  "not UTF-8 in a number"])
 def test_unusual_samples_files_read_as_csv_reads_them(tmp_path, case):
     """The fast reader takes a plain header line alone: a header longer than 64 KiB or lines ended by
     carriage returns alone are read as before, and a byte that is not UTF-8 is refused with its line
@@ -232,10 +233,11 @@ def test_unusual_samples_files_read_as_csv_reads_them(tmp_path, case):
     rows = body.splitlines()
     data = {"header over 64 KiB": header + b"," + b"x" * 70000 + b"\n" + b"".join(r + b",1\n" for r in rows),
             "carriage returns alone": (header + b"\n" + body).replace(b"\n", b"\r"),
-            "not UTF-8 in a label column": header + b",my note\n" + b"".join(r + b",caf\xe9\n" for r in rows)}[case]
+            "not UTF-8 in a label column": header + b",my note\n" + b"".join(r + b",caf\xe9\n" for r in rows),
+            "not UTF-8 in a number": header + b"\n" + b"\n".join(rows[:5] + [rows[5] + b"\xb0"] + rows[6:]) + b"\n"}[case]
     (d / "samples.csv").write_bytes(data)
-    if case == "not UTF-8 in a label column":
-        with pytest.raises(io.MeasurementSetError, match="line 2: not UTF-8"):
+    if case.startswith("not UTF-8"):  # the C parser stops at the byte; the check after it names the line
+        with pytest.raises(io.MeasurementSetError, match=f"line {2 if 'label' in case else 7}: not UTF-8"):
             io.read_set(d)
     else:
         assert len(io.read_set(d).samples["t_s"]) == len(rows)

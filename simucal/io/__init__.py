@@ -6,6 +6,7 @@ MeasurementSetError naming the file, the line and the rule.
 from __future__ import annotations
 
 import csv
+import dataclasses
 import io as _io
 import hashlib
 import json
@@ -21,7 +22,7 @@ from simucal.io.csv_columns import arrow_floats, read_columns, triad_block
 from simucal.io.segments import Segment, read_segments
 from simucal.io.text_files import (MeasurementSetError, RepeatedKey, body_of, check_delimiter, csv_refusal,
                                      decoded, ends_with_a_line_end, files_sha256, no_repeated_columns, not_a_folder,
-                                     number, read_text, unique_keys)
+                                     careful_rows, is_ascii, mapped, read_text, unique_keys)
 
 FORMAT = "simucal.measurements/1"
 SAMPLE_COLS = ("ax", "ay", "az", "gx", "gy", "gz")
@@ -47,6 +48,13 @@ class MeasurementSet:
         if self.temperature_ref_c is not None:
             return float(self.temperature_ref_c)
         return float(np.mean(self.samples["temp_c"]))
+
+    def copy(self, **changes) -> MeasurementSet:
+        """dataclasses.replace keeping what _once found (its entries are keyed by the columns and meta.json
+        they were made from): a copy for its own T_ref keeps the reader's column extremes and row groups."""
+        out = dataclasses.replace(self, **changes)
+        out.__dict__["_cache"] = dict(self.__dict__.get("_cache", {}))
+        return out
 
     @property
     def has_acc(self):
@@ -173,14 +181,13 @@ def read_samples(folder: Path, segments) -> tuple[dict, str, dict | None]:
     path = not_a_folder(path)
     if not path.is_file():
         raise MeasurementSetError(path, None, "missing: a measurement set needs samples.csv (or samples.parquet)")
-    with ThreadPoolExecutor(1) as pool:
-        raw = pool.submit(path.read_bytes)
-        csv_columns.prepare()  # the parser loaded while the file is read (the read frees the GIL)
-        raw = raw.result()
+    with open(path, "rb") as fh, ThreadPoolExecutor(1) as pool:
+        raw = mapped(fh)
         sha256 = pool.submit(files_sha256, folder, raw)
+        csv_columns.prepare()
         samples, extremes = _parsed(path, raw, segments)
         sha256 = sha256.result()
-    del raw  # the file's bytes freed before the checks' temporaries: the peak of reading is the bytes and the arrays
+    del raw  # the file's pages let go before the checks' temporaries: the peak of reading is the file and the arrays
     return _check_samples(samples, path, segments, extremes is not None), sha256, extremes
 
 
@@ -190,19 +197,20 @@ def _parsed(path, raw, segments) -> tuple[dict, dict | None]:
     body = body_of(path, raw)
     if not len(body):
         raise MeasurementSetError(path, 1, "empty file")
-    if not raw.isascii():
-        decoded(path, body)  # names the line of a byte that is not UTF-8
     ends_with_a_line_end(path, body)
-    header = _header(path, body)
+    header = _header(path, body)  # its first line checked to be UTF-8
     cols, others = _sample_columns(path, header, segments)
     fast, extremes = read_columns(body, header, cols, others, PLAUSIBLE)
+    # where csv_numbers.c took every line (extremes given), it read ASCII digits, signs and commas alone
+    if extremes is None and not is_ascii(raw):
+        decoded(path, body)  # names the line of a byte that is not UTF-8
     if fast is not None:
         return fast, extremes
     with _io.StringIO(decoded(path, body), newline="") as fh:
         reader = csv.reader(fh)
         try:
             next(reader)
-            return _careful(reader, path, header, cols, others), None
+            return careful_rows(reader, path, header, cols, others), None
         except csv.Error as e:
             raise csv_refusal(path, reader.line_num, e) from None
 
@@ -243,31 +251,6 @@ def _sample_columns(path, header, segments) -> tuple[list, list]:
         raise MeasurementSetError(path, 1, "segments.csv exists, so samples.csv needs a segment column")
     cols = [c for c in header if c in ("segment", "t_s", "temp_c") + SAMPLE_COLS]
     return cols, [c for c in dict.fromkeys(header) if c.isidentifier() and c not in cols]
-
-
-def _careful(reader, path, header, cols, others) -> dict:
-    """The rows one by one, naming the line and the column of any cell that is not a number."""
-    idx = {c: header.index(c) for c in cols + others}
-    data = {c: [] for c in cols + others}
-    for line, row in enumerate(reader, start=2):
-        if not row or all(not x.strip() for x in row):
-            continue
-        if len(row) != len(header):
-            raise MeasurementSetError(path, line, f"{len(row)} cells, header has {len(header)}")
-        for c in cols:
-            text = row[idx[c]].strip()
-            if text == "":
-                raise MeasurementSetError(path, line, f"column {c} is empty (empty cells are errors)")
-            data[c].append(number(text, path, line, c))
-        for c in list(others):
-            try:
-                data[c].append(number(row[idx[c]].strip(), path, line, c))
-            except MeasurementSetError:
-                others.remove(c)
-                del data[c]
-    if not data["t_s"]:
-        raise MeasurementSetError(path, None, "no samples")
-    return {c: np.asarray(v, float) for c, v in data.items()}
 
 
 _LOOKS_LIKE = {"acc": re.compile(r"^(acc|accel|accelerometer|a|f)[ _.-]?(x|y|z)(_.*)?$", re.I),

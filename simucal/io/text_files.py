@@ -1,11 +1,16 @@
 """The spec's files as text (shared/spec/measurement-set.md): UTF-8 without binary bytes, commas
 between columns, finite numbers and non-empty cells, each break a MeasurementSetError naming the
-file and the line; and the SHA-256 of a set's files, which calibrations record."""
+file and the line; the SHA-256 of a set's files, which calibrations record; a file's bytes mapped
+for reading; and the careful reader of samples.csv, which names the line where the fast one stops."""
 from __future__ import annotations
 
 import hashlib
 import math
+import mmap
+import os
 from pathlib import Path
+
+import numpy as np
 
 
 class MeasurementSetError(ValueError):
@@ -45,7 +50,7 @@ def body_of(path: Path, data: bytes) -> memoryview:
     files are refused."""
     if b"\0" in data[:65536]:
         raise MeasurementSetError(path, None, "a binary file, not text (the spec's files are UTF-8 CSV and JSON)")
-    return memoryview(data)[3:] if data.startswith(b"\xef\xbb\xbf") else memoryview(data)
+    return memoryview(data)[3:] if data[:3] == b"\xef\xbb\xbf" else memoryview(data)  # data: bytes or an mmap
 
 
 def decoded(path: Path, body: memoryview) -> str:
@@ -134,3 +139,41 @@ def no_repeated_columns(path: Path, header: list) -> None:
         raise MeasurementSetError(path, 1, f"column {dup[0][:40]} appears {len(where)} times (columns "
                                            f"{', '.join(map(str, where[:5]))}{', ...' if len(where) > 5 else ''})"
                                            f"{more}: which one is the data? keep one")
+
+
+def mapped(fh) -> bytes | mmap.mmap:
+    """A file's bytes, mapped read-only where it has any: the parse and the hash read the page cache in
+    place, where read_bytes copied the 104 MB of the 400 Hz set into fresh pages first (0.1 s of system
+    time, 26,700 page faults against 1,700)."""
+    return mmap.mmap(fh.fileno(), 0, access=mmap.ACCESS_READ) if os.fstat(fh.fileno()).st_size else b""
+
+
+def is_ascii(raw) -> bool:
+    """Whether every byte is below 128 (bytes.isascii, which an mmap lacks): the usual file, UTF-8 without
+    decoding it."""
+    return raw.isascii() if isinstance(raw, bytes) else not len(raw) or int(np.frombuffer(raw, np.uint8).max()) < 128
+
+
+def careful_rows(reader, path, header, cols, others) -> dict:
+    """samples.csv's rows (a csv.reader after the header) one by one, naming the line and the column of any cell that is not a number."""
+    idx = {c: header.index(c) for c in cols + others}
+    data = {c: [] for c in cols + others}
+    for line, row in enumerate(reader, start=2):
+        if not row or all(not x.strip() for x in row):
+            continue
+        if len(row) != len(header):
+            raise MeasurementSetError(path, line, f"{len(row)} cells, header has {len(header)}")
+        for c in cols:
+            text = row[idx[c]].strip()
+            if text == "":
+                raise MeasurementSetError(path, line, f"column {c} is empty (empty cells are errors)")
+            data[c].append(number(text, path, line, c))
+        for c in list(others):
+            try:
+                data[c].append(number(row[idx[c]].strip(), path, line, c))
+            except MeasurementSetError:
+                others.remove(c)
+                del data[c]
+    if not data["t_s"]:
+        raise MeasurementSetError(path, None, "no samples")
+    return {c: np.asarray(v, float) for c, v in data.items()}
