@@ -13,7 +13,7 @@ the drift tests; then over SEEDS lots simulated at the level of the estimates (e
 truth drawn with the lot's spread plus its calibration's noise, the stds of this lot), the outlier rule's
 false-alarm rate per unit (its goal 1e-3) and its power on one planted unit per lot.
 
-    python3 benchmarks/bench_lot.py [N] [--seeds 100]
+    python3 benchmarks/bench_lot.py [N] [--seeds 100] [--workers 1,2]
 """
 import argparse
 import json
@@ -62,12 +62,12 @@ def timed(root, sets, limits, scheduler, label):
     return t_cal, t_lot, json.loads((root / f"lot_{label}.json").read_text())
 
 
-def speed(root, sets, limits):
+def speed(root, sets, limits, cluster_sizes):
     rows, report = [], None
     t_cal, t_lot, report = timed(root, sets, limits, "local", "local")
     rows.append(("local (one process, no Dask)", "-", t_cal, t_lot))
     from dask.distributed import LocalCluster
-    for workers in (1, 2):
+    for workers in cluster_sizes:
         with LocalCluster(n_workers=workers, threads_per_worker=1, processes=True, host="127.0.0.1",
                           dashboard_address=None) as cluster:
             t_cal, t_lot, _ = timed(root, sets, limits, cluster.scheduler_address, f"dask{workers}")
@@ -143,6 +143,7 @@ def main():
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     ap.add_argument("n", nargs="?", type=int, default=200, help="units in the lot (default 200)")
     ap.add_argument("--seeds", type=int, default=100, help="lots simulated at the level of the estimates (default 100)")
+    ap.add_argument("--workers", default="1,2", help="the LocalClusters' worker counts, comma-separated (default 1,2)")
     a = ap.parse_args()
     plants = planted(a.n)
     with tempfile.TemporaryDirectory() as tmp:
@@ -153,7 +154,7 @@ def main():
         limits.write_text(json.dumps({"format": lot_report.LIMITS_FORMAT, "limits": {
             "acc.b_x": {"min": 0.0002, "max": 0.0014, "unit": "g"},
             "gyro.b_z": {"min": -0.08, "max": 0.04, "unit": "deg/h"}}}))
-        report = speed(root, sets, limits)
+        report = speed(root, sets, limits, [int(w) for w in a.workers.split(",")])
         print("\n" + "\n".join(report["verdict"][:1]) + " (limits: acc.b_x and gyro.b_z at the design's +- 3 "
               "spreads of units)")
         stds, names = rules(report, plants, a.n)

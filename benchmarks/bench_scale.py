@@ -98,7 +98,7 @@ def main():
         r = alternate(["noise", still, "-o", str(tmp / "n_{name}.json")], old, tmp, min(a.repeats, 1))
         row(f"noise, {a.hours:g} h at 200 Hz (CSV), wall", r, 0, "s", 60.0 if full else None)
         row("the same, peak memory", r, 2, "MB", 2048.0 if full else None)
-        lot(tmp, a.lot, old)
+        lot(tmp, a.lot, old, 2 if a.repeats else 1)
         if a.suite:  # the goal holds at any size: the suite is the same
             walls = {rev: suite_seconds(rev, tmp) for rev in (a.before, "HEAD")}
             cells = [f"{walls[a.before]:.0f} s", f"{walls['HEAD']:.0f} s"]
@@ -116,15 +116,15 @@ def row(what, runs, i, unit, goal):
           f"{'' if goal is None else f'<= {goal:.3g} {unit}'} | {met} |", flush=True)
 
 
-def lot(tmp: Path, n: int, old: str):
+def lot(tmp: Path, n: int, old: str, runs: int):
     """A lot of n units on Dask: units per second of `calibrate ... --scheduler processes` (a LocalCluster of
     one single-threaded worker a core, started by the command, its start counted), before and now
-    (alternating, twice each), and of the lot report (now only: the command is new). Each command starts
+    (alternating, runs each: 1 where --repeats is 0, a check that the commands run), and of the lot report (now only: the command is new). Each command starts
     its own cluster, whose workers inherit its PYTHONPATH and so run its revision's code: a cluster
     started here ran this checkout's code for both (sweeps sends the function by reference)."""
     sets = write_lot(tmp / "lot", n, seed=0)
     cal = {"before": [], "now": []}
-    for k in range(2):
+    for k in range(runs):
         for name, path in (("before", old), ("now", None)):
             out = tmp / f"cals_{name}{k}"
             cal[name].append(n / measure(["calibrate", *sets, "-o", out, "--scheduler", "processes"], path, tmp)[0])
