@@ -14,7 +14,7 @@ from simucal.errors import CalibrationError
 from simucal.fit import aux_inputs
 from simucal.fit.augmented import AugmentedModel
 from simucal.fit.aux_inputs import AuxInputs, column_means
-from simucal.fit.noise import column_sums, mean_and_sigma, white_noise_var
+from simucal.fit.noise import axis_rows, mean_and_sigma, white_noise_var
 from simucal.fit.norm_fit import Observations
 from simucal.generated import table
 from simucal.io import calibration, run_or_rows, units
@@ -256,7 +256,8 @@ def specific_force(ms, segs) -> dict:
         return {}
     if ms.has_acc:
         acc = ms.acc_g()
-        return aux_inputs.specific_force([column_sums(acc[run_or_rows(r)]) / len(r) for r in map(ms.rows, (s.segment for s in segs))])
+        return aux_inputs.specific_force([axis_rows(acc[run_or_rows(r)]).sum(1) / len(r)
+                                          for r in map(ms.rows, (s.segment for s in segs))])
     if all(s.middle_deg is not None and s.inner_deg is not None for s in segs):
         return aux_inputs.specific_force(commanded_up_k(segs)[0])
     return {}
