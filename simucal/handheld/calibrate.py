@@ -28,7 +28,8 @@ from simucal.handheld.gyro_moves import (
     regressor_inputs,
     with_terms,
 )
-from simucal.handheld.moves import GYRO_MODEL_TEXT, GYRO_MODELS, PRIOR_T, UNSEEN_STD, GyroFit, choose_gyro_model, fit_gyro
+from simucal.handheld.moves import (GYRO_MODEL_TEXT, PRIOR_T, UNSEEN_STD, GyroFit, choose_gyro_model, fit_gyro,
+                                    fixed_entries)
 from simucal.handheld.moves_selection import rank_move_candidates, select_effects
 from simucal.io import calibration, units
 from simucal.io.calibration import Calibration, EffectValue, SensorBlock
@@ -87,7 +88,7 @@ def _gyro_block(ms, det, am, obs, fa, acc_cal, gyro_effects, auto) -> SensorBloc
     f, unseen, undetermined, dead = _hold_unseen(ms, gm, f)
     mv = gm.mv
     gyro_model, f, choice = choose_gyro_model(mv, gm.g_dirs, gm.bias_std, f, unseen)
-    fixed = [] if gyro_model == "full" else list(range(9)) if gyro_model == "nominal" else list(GYRO_MODELS["scale"])
+    fixed = fixed_entries(gyro_model)
     if gyro_model != "full":
         undetermined = {k: v for k, v in undetermined.items() if "xyz".index(k[2]) * 4 not in fixed
                         and "xyz".index(k[2]) == "xyz".index(k[3])}
@@ -99,7 +100,7 @@ def _gyro_block(ms, det, am, obs, fa, acc_cal, gyro_effects, auto) -> SensorBloc
                                f"{chi2:.3g} on {dof} dof): a dead or unconnected channel?")
     to_add = None
     if ModelTest(chi2, dof, p_value).fails and not effects:  # the strongest candidate, as diagnose names it
-        sig = [c["id"] for c in rank_move_candidates(gm, f, regressor_inputs(ms, gm, f, acc_cal), True)
+        sig = [c["id"] for c in rank_move_candidates(gm, f, regressor_inputs(ms, gm, f, acc_cal), True, fixed=fixed)
                if c.get("significant")]
         to_add = sig[0] if sig else None
     bias_std = gm.bias_std if gyro_model == "nominal" else np.sqrt(np.diag(f.cov)[9:12])

@@ -185,7 +185,7 @@ def _prior(mv: Moves, n, bias_std, held=()):
     return prior, target
 
 
-def _free(n, fixed) -> np.ndarray:
+def free_entries(n, fixed) -> np.ndarray:
     """The entries of x = [vec(T), db, p] estimated: all but `fixed`, the entries of vec(T) a simpler gyro
     model (GYRO_MODELS) leaves at nominal. Left out of the fit, not held by a prior: a prior of std 1e-9
     made the scale model's system so ill-conditioned (cond 2e11) that its steps never converged, so
@@ -199,7 +199,7 @@ def fit_gyro_moves(mv: Moves, g_dirs, x0, bias_std, max_iter=30, step_tol=1e-3, 
     with its standard error bias_std (deg/s): the moves inform the bias too. The
     direction noise sigma_r is the moves' residual rms (re-estimated each step).
     offset is added to the residuals (a coarse level's defect, see fit_gyro). held: entries of vec(T)
-    near nominal by a prior (_prior); fixed: entries at nominal, left out of the fit (_free).
+    near nominal by a prior (_prior); fixed: entries at nominal, left out of the fit (free_entries).
 
     Converged when no step exceeds step_tol of its parameter's std: that step is
     taken and only the residual recomputed, the Jacobian of the point before serving
@@ -209,8 +209,8 @@ def fit_gyro_moves(mv: Moves, g_dirs, x0, bias_std, max_iter=30, step_tol=1e-3, 
     calibrate took 5.0 s with a Jacobian at every trial, 2.5 s without."""
     x = np.array(x0, float)
     n = len(x)
-    x[list(fixed)] = np.eye(3).ravel()[list(fixed)]
-    free = _free(n, fixed)
+    x[list(fixed)] = np.r_[np.eye(3).ravel(), np.zeros(n - 9)][list(fixed)]  # nominal: T = I, the rest's bias
+    free = free_entries(n, fixed)
     prior, target = _prior(mv, n, bias_std, held)
 
     def evaluate(x, jac=True):
@@ -269,6 +269,12 @@ def fit_gyro(mv: Moves, g_dirs, bias_std, x0=None, held=(), fixed=()) -> GyroFit
 
 RICHER_GAIN = 0.98  # a richer gyro model must predict the moves left out 2 % better than the simpler one
 GYRO_MODELS = {"nominal": None, "scale": (1, 2, 3, 5, 6, 7), "full": ()}  # entries of vec(T) fixed at nominal
+
+
+def fixed_entries(gyro_model: str) -> tuple:
+    """The entries of x = [vec(T), db, p] a gyro model leaves unestimated: nominal's T and bias (the rest's),
+    scale's off-diagonal T, none of full's."""
+    return tuple(range(12)) if gyro_model == "nominal" else GYRO_MODELS[gyro_model]
 GYRO_MODEL_TEXT = {
     "nominal": "nominal scale factors (T = I; std null: not estimated), bias from the initial rest: the moves do not "
                "support more (model_choice)",
@@ -283,7 +289,7 @@ def held_out_moves(mv: Moves, g_dirs, f: GyroFit, bias_std, held=(), fixed=()) -
     with H_kk = A_k (A^T A)^-1 A_k^T the move's block of the hat matrix (the prior rows stay in A)."""
     r, J = move_residuals(f.T, mv, g_dirs, db=f.db, p=f.p)
     n = J.shape[-1]
-    free = _free(n, fixed)
+    free = free_entries(n, fixed)
     J = J[..., free]
     prior = _prior(mv, n, bias_std, held)[0][:, free]
     s_r = max(float(np.sqrt(np.mean(r ** 2))), 1e-12)

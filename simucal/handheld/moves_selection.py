@@ -27,8 +27,8 @@ from simucal.fit.selection import forward_selection
 from simucal.fit.twins import separating_plan
 from simucal.generated.effects import EFFECTS, SEPARATE_MOVES
 from simucal.handheld.gyro_moves import GyroMoves, chi2_test, has_input, move_covariances, with_terms
-from simucal.handheld.moves import (GyroFit, decimate, effect_column, fit_gyro_moves, held_out_moves, integrated,
-                                    jacobian, move_residuals)
+from simucal.handheld.moves import (GyroFit, decimate, effect_column, fit_gyro_moves, free_entries, held_out_moves,
+                                    integrated, jacobian, move_residuals)
 
 
 class MovesProblem:
@@ -38,9 +38,12 @@ class MovesProblem:
     direction noise profiled out, 2 m log(rss0 / rss1)."""
     span = "T and the bias"
 
-    def __init__(self, gm: GyroMoves, fit: GyroFit, inputs, effects=()):
+    def __init__(self, gm: GyroMoves, fit: GyroFit, inputs, effects=(), fixed=()):
+        """fixed: the entries the chosen gyro model leaves at nominal (moves.fixed_entries), left so in
+        each trial fit and out of the basis: a candidate is credited with what it explains alone."""
         self.gm, self.fit, self.inputs, self.effects = gm, fit, inputs, list(effects)
         self.rss0, self.m, self.k = float(np.sum(fit.r ** 2)), len(fit.r), 12 + len(self.effects)
+        self.fixed, self.free = tuple(fixed), free_entries(self.k, fixed)
         self.mv = {}
         # each trial fits the moves in blocks of 4 samples (a quarter of the cost) with their defect
         # against full resolution at this fit added (as fit_gyro's coarse levels): the composition
@@ -59,7 +62,7 @@ class MovesProblem:
         return integrated(self.fit.T, self.mv0, self.gm.g_dirs, self.fit.db, self.fit.p)
 
     def basis(self):
-        return np.linalg.qr(jacobian(self.at, self.fit.T, self.mv0).reshape(-1, self.k))[0]
+        return np.linalg.qr(jacobian(self.at, self.fit.T, self.mv0).reshape(-1, self.k)[:, self.free])[0]
 
     def residual(self):
         return self.fit.r.ravel(), self.rss0 / (2 * self.m)  # the noise profiled out as in the LR
@@ -79,7 +82,7 @@ class MovesProblem:
     def fit_with(self, eid):
         f = self.fit
         f1 = fit_gyro_moves(decimate(self.mv[eid], 4), self.gm.g_dirs, np.r_[f.T.ravel(), f.db, f.p, 0.0],
-                            self.gm.bias_std, offset=self.defect)
+                            self.gm.bias_std, offset=self.defect, fixed=self.fixed)
         if not f1.converged:
             return f"the fit with it did not converge in {f1.iterations} steps"
         stat = max(2 * self.m * np.log(self.rss0 / float(np.sum(f1.r ** 2))), 0.0)
@@ -88,10 +91,10 @@ class MovesProblem:
                      float(stat - 2.0), float(np.sqrt(np.mean(f1.r ** 2))))
 
 
-def rank_move_candidates(gm: GyroMoves, fit: GyroFit, inputs, base_fails, effects=()) -> list[dict]:
+def rank_move_candidates(gm: GyroMoves, fit: GyroFit, inputs, base_fails, effects=(), fixed=()) -> list[dict]:
     """Every library gyro effect not yet in the model, ranked beside T, the bias and effects over the
-    moves (fit/ranking.rank)."""
-    problem = MovesProblem(gm, fit, inputs, effects)
+    moves (fit/ranking.rank); fixed: the entries the fit's gyro model leaves at nominal."""
+    problem = MovesProblem(gm, fit, inputs, effects, fixed)
     ids = [e for e in effect_ids("gyro") if e not in effects]
     return [c.to_dict() for c in rank(problem, ids, base_fails, "gyro candidates over the moves")]
 
