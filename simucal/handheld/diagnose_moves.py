@@ -55,27 +55,16 @@ def move_rows(gm, fit: GyroFit, S, columns: dict):
 
 
 def diagnose_moves(ms, obs, det, am, fa, add=(), truth=None):
-    """The gyro block of `simucal diagnose` for a stream (same keys as for a turntable set)."""
+    """The gyro block of `simucal diagnose` for a stream (same keys as for a turntable set): its model test,
+    candidates and residuals those of the model with the effects `add`, as on a turntable set; "added"
+    compares it with the model without them."""
     gm = prepare_moves(ms, det, *pose_directions(am, obs, fa))
-    base = fit_gyro(gm.mv, gm.g_dirs, gm.bias_std)
+    base = fit = fit_gyro(gm.mv, gm.g_dirs, gm.bias_std)
     sigma_g = gyro_noise_dps(ms, gm)
-    S = move_covariances(gm, base, sigma_g)
-    chi2, dof, p = chi2_test(base, S, gm.bias_std, gm.mv)
-    floor = float(np.sqrt(np.einsum("mii->", S) / (3 * len(S)) * max(dof, 0) / (2 * len(S))))
-    block = {"residual_rms": float(np.sqrt(np.mean(base.r ** 2))), "residual_unit": "(gravity direction)",
-             "dof": dof, "model": "full 3x3 T + bias (moves)", "noise": {"source": "the rests' white noise"},
-             "noise_floor": floor, "noise_std_of_mean": None, "chi2": chi2, "p_value": p,
-             "test": "chi-square against the white noise of the rests (gyro) and of the pose means (acc)",
-             "gyro_white_noise_dps": sigma_g.tolist()}
+    S0 = S = move_covariances(gm, base, sigma_g)
+    p0 = chi2_test(base, S0, gm.bias_std, gm.mv)[2]
     inputs = regressor_inputs(ms, gm, base, (am, fa.vector(am.params)))
-    inside = gm.mv.dt > 0
-    columns = {k: np.sum(np.where(inside, v, 0.0), 1) / np.maximum(inside.sum(1), 1)
-               for k, v in inputs[0][1].values.items() if k not in FORCE}
-    fails = ModelTest(chi2, dof, p).fails
-    cands = rank_move_candidates(gm, base, inputs, fails)
-    shares = (select_effects(gm, base, sigma_g, inputs, cands)
-              if not add and fails and any(c.get("significant") for c in cands) else None)
-    fit, names = base, _param_names([])
+    mv, names = gm.mv, _param_names([])
     if add:
         for e in add:
             check_effect(e, "gyro")
@@ -83,6 +72,20 @@ def diagnose_moves(ms, obs, det, am, fa, add=(), truth=None):
         fit = fit_gyro_moves(mv, gm.g_dirs, np.r_[base.T.ravel(), base.db, np.zeros(len(add))], gm.bias_std)
         names = _param_names(EFFECTS[e].parameter for e in add)
         S = move_covariances(gm, fit, sigma_g)
+    chi2, dof, p = chi2_test(fit, S, gm.bias_std, mv)
+    floor = float(np.sqrt(np.einsum("mii->", S) / (3 * len(S)) * max(dof, 0) / (2 * len(S))))
+    block = {"residual_rms": float(np.sqrt(np.mean(fit.r ** 2))), "residual_unit": "(gravity direction)",
+             "dof": dof, "model": "full 3x3 T + bias" + "".join(f" + {e}" for e in add) + " (moves)",
+             "noise": {"source": "the rests' white noise"}, "noise_floor": floor, "noise_std_of_mean": None,
+             "chi2": chi2, "p_value": p, "gyro_white_noise_dps": sigma_g.tolist(),
+             "test": "chi-square against the white noise of the rests (gyro) and of the pose means (acc)"}
+    inside = gm.mv.dt > 0
+    columns = {k: np.sum(np.where(inside, v, 0.0), 1) / np.maximum(inside.sum(1), 1)
+               for k, v in inputs[0][1].values.items() if k not in FORCE}
+    fails = ModelTest(chi2, dof, p).fails
+    cands = rank_move_candidates(gm, fit, inputs, fails, tuple(add))
+    shares = (select_effects(gm, base, sigma_g, inputs, cands)
+              if not add and fails and any(c.get("significant") for c in cands) else None)
     vec = lambda f: np.r_[f.T.ravel(), (gm.bias + f.db) * DPH_PER_DPS, f.p]
     std = lambda f: np.sqrt(np.diag(f.cov)) * np.r_[np.ones(9), np.full(3, DPH_PER_DPS), np.ones(len(f.p))]
     out = {**model_test_keys(block), "candidates": cands, "misfit_shares": shares,
@@ -91,13 +94,11 @@ def diagnose_moves(ms, obs, det, am, fa, add=(), truth=None):
            "residuals": move_rows(gm, fit, S, columns), "residual_unit": "gravity direction (unit vector), per move",
            "moves_skipped": gm.skipped, "saturation": gm.saturation, "moves_opposite_sense": gm.flipped}
     if add:
-        _, _, p1 = chi2_test(fit, S, gm.bias_std, mv)
         comp = added_params(dict(zip(names, vec(fit).tolist())), dict(zip(names, std(fit).tolist())),
                             dict(zip(names, vec(base).tolist())), dict(zip(names, std(base).tolist())), _known(truth))
-        out["added"] = {"effects": list(add), "residual_rms_before": block["residual_rms"],
-                        "residual_rms_after": float(np.sqrt(np.mean(fit.r ** 2))), "p_value_before": p,
-                        "p_value_after": p1, "params": comp,
-                        "residuals_before": move_rows(gm, base, move_covariances(gm, base, sigma_g), columns)}
+        out["added"] = {"effects": list(add), "residual_rms_before": float(np.sqrt(np.mean(base.r ** 2))),
+                        "residual_rms_after": block["residual_rms"], "p_value_before": p0, "p_value_after": p,
+                        "params": comp, "residuals_before": move_rows(gm, base, S0, columns)}
     return out
 
 
