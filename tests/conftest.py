@@ -8,9 +8,9 @@ import pytest
 # user models derived by the tests go to a cache of their own, never the user's: one for the run, made by the
 # first process that loads this file (pytest-xdist's controller) and inherited by its workers, so that each
 # library and derived model is built once, as the processes of one user share ~/.cache/simucal
-MADE_CACHE = "SIMUCAL_TEST_CACHE" not in os.environ  # this process made it: it removes it when the run ends
-if MADE_CACHE:
-    os.environ["SIMUCAL_TEST_CACHE"] = tempfile.mkdtemp(prefix="simucal-test-cache-")
+MADE_CACHE = None  # the folder this process made: it removes it when the run ends
+if "SIMUCAL_TEST_CACHE" not in os.environ:
+    os.environ["SIMUCAL_TEST_CACHE"] = MADE_CACHE = tempfile.mkdtemp(prefix="simucal-test-cache-")
 os.environ["SIMUCAL_CACHE"] = os.environ["SIMUCAL_TEST_CACHE"]
 # one BLAS thread in each test process and the processes it starts (set before numpy loads OpenBLAS): the suite
 # runs on two processes (-n 2), so a BLAS's second thread finds no free core and spins (a planted-effect loop
@@ -23,7 +23,7 @@ from simucal.turntable.simulate import Scenario, write  # noqa: E402 (after the 
 def pytest_unconfigure(config):
     """The run's test cache removed by the process that made it (tens of MB of libraries a run)."""
     if MADE_CACHE:
-        shutil.rmtree(os.environ["SIMUCAL_TEST_CACHE"], ignore_errors=True)
+        shutil.rmtree(MADE_CACHE, ignore_errors=True)
 
 
 @pytest.fixture(scope="session")

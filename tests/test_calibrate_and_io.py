@@ -422,3 +422,19 @@ def test_segment_rows_refused_by_line_in_file_order_or_not(tmp_path, shuffled):
     refused(k, seg_col, "999", f"line {k + 2}", "segment 999 is not in segments.csv")
     refused(len(rows) - 1, seg_col, "999", f"line {len(rows) + 1}", "segment 999 is not")  # ids still in order
     refused(k, seg_col, "1.5", "segment ids must be integers")
+
+
+def test_a_copy_for_its_own_t_ref_takes_no_entry_found_at_the_other(tmp_path):
+    """MeasurementSet.copy keeps what the reader and the checks found where only T_ref changes, but no entry
+    that depends on T_ref: the gyro's static rows, found at the set's own T_ref (as diagnose finds them),
+    are found again for the copy's (calibrate --t-ref-c after it fitted temperature terms about the old one)."""
+    from simucal.turntable import consistency
+    from simucal.turntable.simulate import Scenario, write
+    write(tmp_path / "s", Scenario(rate_hz=2.0, temp_c=(20.0, 30.0)), seed=1)
+    ms = io.read_set(tmp_path / "s")
+    segs = [s for s in ms.segments if s.kind == "static"]
+    own = consistency.static_gyro_rows(ms, segs)[1][2].values["t_ref_c"]
+    copy = ms.copy(temperature_ref_c=0.0)
+    assert copy.raw("acc") is ms.raw("acc") and own == ms.t_ref_c != 0.0  # the reader's blocks kept
+    assert consistency.static_gyro_rows(copy, segs)[1][2].values["t_ref_c"] == 0.0
+    assert ms.copy(segments=None).__dict__.get("_cache") is None  # other changes: nothing kept

@@ -65,27 +65,38 @@ def test_the_scale_model_is_fitted_over_its_own_entries(tmp_path, monkeypatch):
     assert choice["full"]["held_out_rms_deg"] < choice["scale"]["held_out_rms_deg"] < choice["nominal"]["held_out_rms_deg"]
 
 
-def test_candidates_under_a_simpler_gyro_model_are_credited_with_their_own_share_alone(tmp_path, monkeypatch):
-    """Where a simpler gyro model is chosen (here scale, forced, on a unit whose T has misalignments of up to
-    9e-3) and fails, the candidates are ranked with T's off-diagonal entries held at nominal, as in the
-    model: with them freed in each trial fit, 18 of 33 candidates were significant at a statistic of ~360
-    (the misalignments' share), and the calibration advised adding gyro.g_sensitivity.yx, which the unit
-    does not have."""
+@pytest.mark.parametrize("model,planted,seed", [("scale", {}, 3), ("nominal", {"gyro.g_sensitivity.yz": 3000.0}, 1)])
+def test_candidates_under_a_simpler_gyro_model_are_credited_with_their_own_share_alone(tmp_path, monkeypatch, model,
+                                                                                       planted, seed):
+    """Where a simpler gyro model is chosen (forced here) and fails, the candidates are ranked with the entries
+    of T it leaves at nominal held so, as in the model. Scale, on a clean unit whose T has misalignments of up
+    to 9e-3: with them freed in each trial fit, 18 of 33 candidates were significant at a statistic of ~360
+    (the misalignments' share) and the calibration advised gyro.g_sensitivity.yx, which the unit does not
+    have. Nominal, with a g-sensitivity planted: the bias stays free under the rest's prior (fixed at the
+    rest's, it pinned the effect, which gravity moves there too, and gyro.scale_asymmetry.y was advised)."""
     from simucal.handheld import calibrate as handheld, moves
     ranked, choose = [], handheld.choose_gyro_model
     monkeypatch.setattr(handheld, "rank_move_candidates", lambda *a, **k: ranked.append(
         moves_selection.rank_move_candidates(*a, **k)) or ranked[-1])
 
-    def scale(mv, g_dirs, bias_std, f_full, held=()):
+    def forced(mv, g_dirs, bias_std, f_full, held=()):
+        table = choose(mv, g_dirs, bias_std, f_full, held)[2]
+        if model == "nominal":
+            r = moves.move_residuals(np.eye(3), mv, g_dirs, jac=False, db=np.zeros(3), p=f_full.p * 0)[0]
+            return model, moves.GyroFit(np.eye(3), np.zeros(3), f_full.p * 0, r, np.zeros_like(f_full.cov), 0, True), table
         x0 = np.r_[f_full.T.ravel(), f_full.db, f_full.p]
-        return "scale", moves.fit_gyro(mv, g_dirs, bias_std, x0, fixed=moves.GYRO_MODELS["scale"]), \
-            choose(mv, g_dirs, bias_std, f_full, held)[2]
-    monkeypatch.setattr(handheld, "choose_gyro_model", scale)
-    write_handheld(tmp_path / "h", HandheldScenario(), 3)
+        return model, moves.fit_gyro(mv, g_dirs, bias_std, x0, fixed=moves.GYRO_MODELS["scale"]), table
+    monkeypatch.setattr(handheld, "choose_gyro_model", forced)
+    write_handheld(tmp_path / "h", HandheldScenario(gyro_effects=planted), seed)
     gyro = calibrate(tmp_path / "h").to_json()["gyro"]
-    assert gyro["p_value"] < 1e-6 and gyro["gyro_model"].startswith("scale"), gyro["p_value"]
-    assert len(ranked) == 1 and not any(c.get("significant") for c in ranked[0]), ranked
-    assert max(c.get("statistic", 0.0) for c in ranked[0]) < 20 and gyro["advice"] is None
+    assert gyro["p_value"] < 1e-6 and gyro["gyro_model"].startswith(model) and len(ranked) == 1, gyro["p_value"]
+    if not planted:
+        assert not any(c.get("significant") for c in ranked[0]), ranked
+        assert max(c.get("statistic", 0.0) for c in ranked[0]) < 20 and gyro["advice"] is None
+    else:
+        (eid, value), = planted.items()
+        top = ranked[0][0]
+        assert gyro["advice"] == top["id"] == eid and abs(top["estimate"] - value) < 3 * top["std"], top
 
 
 @pytest.mark.parametrize("settings,message", [

@@ -93,8 +93,9 @@ def test_the_real_xsens_stream_in_chunks(tmp_path, monkeypatch):
 def test_memory_holds_theta_not_the_table(tmp_path, monkeypatch):
     """numpy's allocations (tracemalloc sees them) in reading and summing peak near theta's 8 bytes a
     row and channel plus the steps of t_s, below what reading the set whole takes: its arrays and the
-    file, which it maps whole (pages tracemalloc does not see) (the fit's covariance, the same on both
-    paths, grows with the taus, not the rows)."""
+    file, which it maps and parses whole, every page of it resident (tracemalloc does not see mapped
+    pages, so the file's size is added to its count) (the fit's covariance, the same on both paths,
+    grows with the taus, not the rows)."""
     write_still(tmp_path / "s", seconds=3000.0, dt=0.01)
     rows = 300_000
     _small_reads(monkeypatch)

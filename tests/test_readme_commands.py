@@ -88,7 +88,7 @@ def test_every_benchmark_in_the_readme_runs(command):
                        text=True, timeout=300)
     tail = (r.stdout + r.stderr)[-2000:]
     assert r.returncode == 0, tail
-    assert "| " in tail  # each prints its table
+    assert "| " in r.stdout, tail  # each prints its table (a Dask cluster's close may log to stderr after it)
 
 
 def test_the_readme_loop_runs_as_written(tmp_path, monkeypatch):

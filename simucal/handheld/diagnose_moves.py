@@ -79,6 +79,8 @@ def diagnose_moves(ms, obs, det, am, fa, add=(), truth=None):
              "noise": {"source": "the rests' white noise"}, "noise_floor": floor, "noise_std_of_mean": None,
              "chi2": chi2, "p_value": p, "gyro_white_noise_dps": sigma_g.tolist(),
              "test": "chi-square against the white noise of the rests (gyro) and of the pose means (acc)"}
+    if not fit.converged:  # the test is of the last step, not of a fitted model: said
+        block["note"] = f"the moves' fit with {', '.join(add)} did not converge in {fit.iterations} steps"
     inside = gm.mv.dt > 0
     columns = {k: np.sum(np.where(inside, v, 0.0), 1) / np.maximum(inside.sum(1), 1)
                for k, v in inputs[0][1].values.items() if k not in FORCE}
@@ -97,7 +99,8 @@ def diagnose_moves(ms, obs, det, am, fa, add=(), truth=None):
         comp = added_params(dict(zip(names, vec(fit).tolist())), dict(zip(names, std(fit).tolist())),
                             dict(zip(names, vec(base).tolist())), dict(zip(names, std(base).tolist())), _known(truth))
         out["added"] = {"effects": list(add), "residual_rms_before": float(np.sqrt(np.mean(base.r ** 2))),
-                        "residual_rms_after": block["residual_rms"], "p_value_before": p0, "p_value_after": p,
+                        "residual_rms_after": block["residual_rms"], "residual_unit": block["residual_unit"],
+                        "p_value_before": p0, "p_value_after": p,
                         "params": comp, "residuals_before": move_rows(gm, base, S0, columns)}
     return out
 

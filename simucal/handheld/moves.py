@@ -209,7 +209,7 @@ def fit_gyro_moves(mv: Moves, g_dirs, x0, bias_std, max_iter=30, step_tol=1e-3, 
     calibrate took 5.0 s with a Jacobian at every trial, 2.5 s without."""
     x = np.array(x0, float)
     n = len(x)
-    x[list(fixed)] = np.r_[np.eye(3).ravel(), np.zeros(n - 9)][list(fixed)]  # nominal: T = I, the rest's bias
+    x[list(fixed)] = np.eye(3).ravel()[list(fixed)]
     free = free_entries(n, fixed)
     prior, target = _prior(mv, n, bias_std, held)
 
@@ -272,9 +272,11 @@ GYRO_MODELS = {"nominal": None, "scale": (1, 2, 3, 5, 6, 7), "full": ()}  # entr
 
 
 def fixed_entries(gyro_model: str) -> tuple:
-    """The entries of x = [vec(T), db, p] a gyro model leaves unestimated: nominal's T and bias (the rest's),
-    scale's off-diagonal T, none of full's."""
-    return tuple(range(12)) if gyro_model == "nominal" else GYRO_MODELS[gyro_model]
+    """The entries of vec(T) a gyro model leaves at nominal: nominal's all, scale's off-diagonal ones,
+    none of full's. The bias stays free in a fit with effects, held by the rest's prior: an effect with a
+    value at the rest (a g-sensitivity: gravity is there) moves the rest's reading, and a bias fixed at it
+    pinned the effect (a planted g-sensitivity ranked below one the unit does not have)."""
+    return tuple(range(9)) if gyro_model == "nominal" else GYRO_MODELS[gyro_model]
 GYRO_MODEL_TEXT = {
     "nominal": "nominal scale factors (T = I; std null: not estimated), bias from the initial rest: the moves do not "
                "support more (model_choice)",

@@ -36,7 +36,7 @@ class MovesProblem:
     (fit/ranking.py): each candidate's column is its regressor integrated along the moves (the
     gravity directions' residual per unit coefficient), the statistic the likelihood ratio with the
     direction noise profiled out, 2 m log(rss0 / rss1)."""
-    span = "T and the bias"
+    span = "T's estimated entries and the bias"
 
     def __init__(self, gm: GyroMoves, fit: GyroFit, inputs, effects=(), fixed=()):
         """fixed: the entries the chosen gyro model leaves at nominal (moves.fixed_entries), left so in

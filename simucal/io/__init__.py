@@ -50,10 +50,11 @@ class MeasurementSet:
         return float(np.mean(self.samples["temp_c"]))
 
     def copy(self, **changes) -> MeasurementSet:
-        """dataclasses.replace keeping what _once found (its entries are keyed by the columns and meta.json
-        they were made from): a copy for its own T_ref keeps the reader's column extremes and row groups."""
+        """dataclasses.replace, keeping what _once found where only T_ref changes (an entry that depends on
+        T_ref has it in its key): a copy for its own T_ref keeps the reader's column extremes and row groups."""
         out = dataclasses.replace(self, **changes)
-        out.__dict__["_cache"] = dict(self.__dict__.get("_cache", {}))
+        if set(changes) <= {"temperature_ref_c"}:
+            out.__dict__["_cache"] = dict(self.__dict__.get("_cache", {}))
         return out
 
     @property

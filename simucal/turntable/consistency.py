@@ -177,7 +177,7 @@ def static_gyro_rows(ms, acc_segs, gyro_noise_dph=None):
     """The accelerometer's static rows (indices into acc_segs) and the gyro there: (N (n, 3) deg/h,
     sigma (n, 3) or None where no row's noise is known, AuxInputs). Formed once per set (calibrate
     asks for the latitude check and again for the gyro's model test)."""
-    key = ("static_gyro_rows", tuple(s.segment for s in acc_segs), repr(gyro_noise_dph))
+    key = ("static_gyro_rows", tuple(s.segment for s in acc_segs), repr(gyro_noise_dph), ms.t_ref_c)  # aux: dtemp_c
     return ms._once(key, ("gx", "gy", "gz"), lambda: _static_gyro_rows(ms, acc_segs, gyro_noise_dph))
 
 
