@@ -28,8 +28,8 @@ from simucal.handheld.gyro_moves import (
     regressor_inputs,
     with_terms,
 )
-from simucal.handheld.moves import (GYRO_MODEL_TEXT, PRIOR_T, UNSEEN_STD, GyroFit, choose_gyro_model, fit_gyro,
-                                    fixed_entries)
+from simucal.handheld.moves import (GYRO_MODEL_TEXT, GYRO_MODELS, PRIOR_T, UNSEEN_STD, GyroFit, choose_gyro_model,
+                                    fit_gyro)
 from simucal.handheld.moves_selection import rank_move_candidates, select_effects
 from simucal.io import calibration, units
 from simucal.io.calibration import Calibration, EffectValue, SensorBlock
@@ -88,7 +88,7 @@ def _gyro_block(ms, det, am, obs, fa, acc_cal, gyro_effects, auto) -> SensorBloc
     f, unseen, undetermined, dead = _hold_unseen(ms, gm, f)
     mv = gm.mv
     gyro_model, f, choice = choose_gyro_model(mv, gm.g_dirs, gm.bias_std, f, unseen)
-    fixed = fixed_entries(gyro_model)
+    fixed = GYRO_MODELS[gyro_model]
     if gyro_model != "full":
         undetermined = {k: v for k, v in undetermined.items() if "xyz".index(k[2]) * 4 not in fixed
                         and "xyz".index(k[2]) == "xyz".index(k[3])}

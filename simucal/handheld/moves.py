@@ -268,15 +268,7 @@ def fit_gyro(mv: Moves, g_dirs, bias_std, x0=None, held=(), fixed=()) -> GyroFit
 
 
 RICHER_GAIN = 0.98  # a richer gyro model must predict the moves left out 2 % better than the simpler one
-GYRO_MODELS = {"nominal": None, "scale": (1, 2, 3, 5, 6, 7), "full": ()}  # entries of vec(T) fixed at nominal
-
-
-def fixed_entries(gyro_model: str) -> tuple:
-    """The entries of vec(T) a gyro model leaves at nominal: nominal's all, scale's off-diagonal ones,
-    none of full's. The bias stays free in a fit with effects, held by the rest's prior: an effect with a
-    value at the rest (a g-sensitivity: gravity is there) moves the rest's reading, and a bias fixed at it
-    pinned the effect (a planted g-sensitivity ranked below one the unit does not have)."""
-    return tuple(range(9)) if gyro_model == "nominal" else GYRO_MODELS[gyro_model]
+GYRO_MODELS = {"nominal": tuple(range(9)), "scale": (1, 2, 3, 5, 6, 7), "full": ()}  # entries of vec(T) fixed at nominal
 GYRO_MODEL_TEXT = {
     "nominal": "nominal scale factors (T = I; std null: not estimated), bias from the initial rest: the moves do not "
                "support more (model_choice)",

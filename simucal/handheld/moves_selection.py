@@ -39,8 +39,10 @@ class MovesProblem:
     span = "T's estimated entries and the bias"
 
     def __init__(self, gm: GyroMoves, fit: GyroFit, inputs, effects=(), fixed=()):
-        """fixed: the entries the chosen gyro model leaves at nominal (moves.fixed_entries), left so in
-        each trial fit and out of the basis: a candidate is credited with what it explains alone."""
+        """fixed: the entries of vec(T) the chosen gyro model leaves at nominal (moves.GYRO_MODELS), left so
+        in each trial fit and out of the basis: a candidate is credited with what it explains alone. The
+        bias stays free, held by the rest's prior: an effect with a value at the rest (a g-sensitivity:
+        gravity is there) moves the rest's reading, and a bias fixed at it pinned the effect."""
         self.gm, self.fit, self.inputs, self.effects = gm, fit, inputs, list(effects)
         self.rss0, self.m, self.k = float(np.sum(fit.r ** 2)), len(fit.r), 12 + len(self.effects)
         self.fixed, self.free = tuple(fixed), free_entries(self.k, fixed)

@@ -160,7 +160,8 @@ def is_ascii(raw) -> bool:
 
 
 def careful_rows(reader, path, header, cols, others) -> dict:
-    """samples.csv's rows (a csv.reader after the header) one by one, naming the line and the column of any cell that is not a number."""
+    """samples.csv's rows (a csv.reader after the header) one by one, naming the line and the column of
+    any cell that is not a number."""
     idx = {c: header.index(c) for c in cols + others}
     data = {c: [] for c in cols + others}
     for line, row in enumerate(reader, start=2):
