@@ -79,6 +79,14 @@ class MeasurementSet:
         """Gyro outputs in deg/h (n, 3), read-only."""
         return self._once(("g", "gyro"), SAMPLE_COLS[3:], lambda: units.gyro_to_dph(self.raw("gyro"), self.meta))
 
+    def in_units(self, sensor: str, rows) -> np.ndarray:
+        """acc_g() or gyro_dph() of some rows alone (a slice or indices): the same numbers, without the whole
+        set converted where it is not (38 MB a sensor at 1.6 million rows, and as many page faults)."""
+        whole = self.__dict__.get("_cache", {}).get(("g", sensor))
+        if whole is not None:
+            return (self.acc_g() if sensor == "acc" else self.gyro_dph())[rows]
+        return (units.acc_to_g if sensor == "acc" else units.gyro_to_dph)(self.raw(sensor)[rows], self.meta)
+
     def rows(self, segment: int) -> np.ndarray:
         """The indices (ascending) of one segment's rows; empty if it has none."""
         groups = self._once("rows", ("segment",), lambda: group_rows(self.samples["segment"]), meta=False)

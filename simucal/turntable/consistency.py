@@ -19,7 +19,6 @@ latitude is right. So, after the fits:
 from __future__ import annotations
 
 import math
-from concurrent.futures import ThreadPoolExecutor
 
 import numpy as np
 
@@ -185,20 +184,16 @@ def _static_gyro_rows(ms, acc_segs, gyro_noise_dph):
     rows = [i for i, s in enumerate(acc_segs) if s.kind == "static"]
     if not rows:
         return rows, None
-    gyro = ms.gyro_dph()
     raw = ms.raw("gyro")
     stated = units.stated_noise(ms.meta, "gyro") if gyro_noise_dph is None else gyro_noise_dph
     N, sig, groups = [], [], []
-
-    def averaged(i):  # a static segment's gyro rows checked, then their mean and its std
-        r = ms.rows(acc_segs[i].segment)
+    for i in rows:  # a static segment's gyro rows checked, then their mean and its std (one thread: see
+        r = ms.rows(acc_segs[i].segment)  # segment_observations)
         refuse_outliers(ms, raw, r, "gyro", acc_segs[i].segment)
-        return r, mean_and_sigma(gyro[run_or_rows(r)], stated)
-    with ThreadPoolExecutor(2) as pool:  # on both cores (numpy frees the GIL), the first refusal in order
-        for r, (m, sd) in pool.map(averaged, rows):
-            N.append(m)
-            sig.append(sd)
-            groups.append(r)
+        m, sd = mean_and_sigma(ms.in_units("gyro", run_or_rows(r)), stated)
+        N.append(m)
+        sig.append(sd)
+        groups.append(r)
     sig = np.array(sig)
     sig = None if np.isnan(sig).all() else np.where(np.isnan(sig), np.nanmax(sig), sig)
     return rows, (np.array(N), sig, AuxInputs(column_means(ms.samples, groups, t_ref_c=ms.t_ref_c)))

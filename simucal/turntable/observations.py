@@ -43,21 +43,21 @@ def segment_duration_s(ms, rows, where) -> float:
     return float(ms.meta["average_s"])
 
 
-def segment_observations(ms: io.MeasurementSet, sensor: str, kinds=None, stated=None, curve=None, pool=None):
+def segment_observations(ms: io.MeasurementSet, sensor: str, kinds=None, stated=None, curve=None):
     """(Observations, segments) for 'acc' (by default the static segments; with kinds
     {"static", "rate"} the rate runs too, whose centripetal scale w2 lets lever arms show)
     or 'gyro' (rate segments). stated: the noise of one row (g or deg/h) where the data
     cannot give it; default meta's acc_noise_g / gyro_noise_dph. curve: the std of a mean
     over tau seconds (allan.load_curves, `calibrate --noise`), which then gives every
     segment's noise at its length: with bias instability a long mean is noisier than its
-    rows' scatter over sqrt(n) says. pool: the segments averaged on its threads (numpy frees the
-    GIL in its loops), the first refusal in the segments' order, as one after the other."""
+    rows' scatter over sqrt(n) says. The segments one after the other: on two threads a segment's
+    many short numpy calls wait on each other for the GIL (the 400 Hz set's 9,140-row segments took
+    0.24 s of wall and 0.2 s more CPU than in one thread, 20 Hz plateaus twice the time)."""
     if ms.segments is None:
         raise CalibrationError(f"{ms.path}: no segments.csv: this is a continuous stream (use calibrate, "
                                "which detects its static poses)")
     kinds = kinds or ({"static"} if sensor == "acc" else {"rate"})
     segs = [s for s in ms.segments if s.kind in kinds]
-    data = ms.acc_g() if sensor == "acc" else ms.gyro_dph()
     if stated is None:
         stated = units.stated_noise(ms.meta, sensor)
     lat = np.radians(ms.meta.get("latitude_deg", 0.0))
@@ -65,8 +65,8 @@ def segment_observations(ms: io.MeasurementSet, sensor: str, kinds=None, stated=
     N, sig, rho, keep, longest = [], [], [], [], 0.0
     raw = ms.raw(sensor)
     clipped = saturated_segments(ms, sensor)
-    averaged = functools.partial(_averaged, ms, sensor, raw, data, stated, clipped)
-    for s, done in zip(segs, (pool.map if pool else map)(averaged, segs)):
+    averaged = functools.partial(_averaged, ms, sensor, raw, stated, clipped)
+    for s, done in zip(segs, map(averaged, segs)):
         if done is None:
             continue
         rows, (m, sd) = done
@@ -79,7 +79,7 @@ def segment_observations(ms: io.MeasurementSet, sensor: str, kinds=None, stated=
         keep.append(s)
     if curve is not None:
         still = [ms.rows(s.segment) for s in ms.segments if s.kind == "static"]  # as simucal noise pools them
-        check_curve_scale(ms, sensor, data, still if any(len(r) >= 3 for r in still) else
+        check_curve_scale(ms, sensor, still if any(len(r) >= 3 for r in still) else
                           [ms.rows(s.segment) for s in keep], curve)
     dropped = [s.segment for s in segs if s.segment in clipped]
     need = len(AugmentedModel(f"{sensor}_baseline").params)
@@ -110,23 +110,23 @@ def segment_observations(ms: io.MeasurementSet, sensor: str, kinds=None, stated=
     return obs, keep
 
 
-def _averaged(ms, sensor, raw, data, stated, clipped, s):
+def _averaged(ms, sensor, raw, stated, clipped, s):
     """(rows, (mean, its std)) of segment s, its rows checked first; None where it holds clipped
-    samples (left out)."""
+    samples (left out). Its rows in g or deg/h alone, not the whole set's (ms.in_units)."""
     rows = ms.rows(s.segment)
     if not rows.size:
         raise CalibrationError(f"{ms.path / 'samples.csv'}: segment {s.segment} has no samples")
     if s.segment in clipped:  # before the glitch test: a clipped sample is no glitch
         return None
     refuse_outliers(ms, raw, rows, sensor, s.segment)
-    return rows, mean_and_sigma(data[run_or_rows(rows)], stated, varying=(s.kind == "rate"),  # the inputs turn
+    return rows, mean_and_sigma(ms.in_units(sensor, run_or_rows(rows)), stated, varying=(s.kind == "rate"),  # the inputs turn
                                 angle_rad=outer_angle_rad(ms, rows, s))
 
 
 CURVE_FACTOR = 10.0  # a noise file's row noise this many times the data's own (or a tenth): another unit or unit
 
 
-def check_curve_scale(ms, sensor, data, rows, curve):
+def check_curve_scale(ms, sensor, rows, curve):
     """Refuse a noise file (`calibrate --noise`) whose noise of one row is not the data's own: per axis
     the Allan curve at a row's length against the rows' own white noise (first differences, the median
     over the segments of 3 rows or more: the static ones where there are, as simucal noise pools), and for one-row segments against meta.json's stated noise
@@ -134,7 +134,7 @@ def check_curve_scale(ms, sensor, data, rows, curve):
     answer); one too small fails every model, blaming it."""
     own, tau = [], []
     for r in (r for r in rows if len(r) >= 3):
-        own.append(np.sqrt(white_noise_var(data[r])))
+        own.append(np.sqrt(white_noise_var(ms.in_units(sensor, r))))
         tau.append(float(np.median(np.diff(ms.samples["t_s"][r]))))
     stated = units.stated_noise(ms.meta, sensor)
     if own:
@@ -255,8 +255,7 @@ def specific_force(ms, segs) -> dict:
     if not segs:
         return {}
     if ms.has_acc:
-        acc = ms.acc_g()
-        return aux_inputs.specific_force([axis_rows(acc[run_or_rows(r)]).sum(1) / len(r)
+        return aux_inputs.specific_force([axis_rows(ms.in_units("acc", run_or_rows(r))).sum(1) / len(r)
                                           for r in map(ms.rows, (s.segment for s in segs))])
     if all(s.middle_deg is not None and s.inner_deg is not None for s in segs):
         return aux_inputs.specific_force(commanded_up_k(segs)[0])
@@ -288,10 +287,10 @@ def read_observations(ms, method, rows, acc_noise_g=None, gyro_noise_dph=None, n
     stated = {"acc": acc_noise_g, "gyro": gyro_noise_dph}
     sensors = [s for s, present in (("acc", ms.has_acc), ("gyro", ms.has_gyro)) if present]
     if ms.segments:
-        ms.rows(ms.segments[0].segment)  # formed before the threads share them
-    with ThreadPoolExecutor(2) as pool:  # the segments on both cores, the accelerometer's refusals first as before
+        ms.rows(ms.segments[0].segment)  # formed before the digests' thread shares them
+    with ThreadPoolExecutor(1) as pool:  # hashlib frees the GIL for its whole pass
         pool.submit(ms.sample_digests)  # the calibration's header asks below
-        found = {s: segment_observations(ms, s, rows[s], stated[s], curves.get(s), pool) for s in sensors}
+        found = {s: segment_observations(ms, s, rows[s], stated[s], curves.get(s)) for s in sensors}
     acc_obs, acc_segs = found.get("acc", (None, None))
     gyro_obs, gyro_segs = found.get("gyro", (None, None))
     if not gyro_segs:
@@ -323,9 +322,9 @@ def check_rate_sense(ms, gyro_obs, gyro_segs):
     gyro_obs = Observations(gyro_obs.N[keep], gyro_obs.rho[keep])
     up, _ = commanded_up_k(gyro_segs)
     static = np.concatenate([ms.rows(s.segment) for s in ms.segments if s.kind == "static"] + [np.zeros(0, int)])
-    gyro = ms.gyro_dph()  # the static rows' median a column at a time, partitioned where gathered: no (n, 3) copies
-    rest = np.array([median_rows(gyro[static, j][None], overwrite=True)[0] for j in range(3)]) if static.size \
-        else np.zeros(3)  # robust to a glitch
+    raw = ms.raw("gyro")  # the static rows' median a column at a time, partitioned where gathered: no (n, 3) copies;
+    rest = units.gyro_to_dph(np.array([median_rows(raw[static, j][None], overwrite=True)[0] for j in range(3)]),
+                             ms.meta) if static.size else np.zeros(3)  # in raw units (a unit's scale keeps the order)
     rate = np.array([s.outer_rate_dps for s in gyro_segs])
     along = np.einsum("ni,ni->n", gyro_obs.N - rest, up) / units.DPH_PER_DPS
     wrong = np.sign(along) != np.sign(rate)
