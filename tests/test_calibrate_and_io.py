@@ -349,6 +349,41 @@ def test_samples_read_in_pieces_are_the_careful_readers(tmp_path, monkeypatch, b
         assert column_extremes(fast, sensor) == column_extremes(careful, sensor)  # the C parser's: no pass over them
 
 
+def test_the_rows_at_each_extreme_are_counted_over_the_pieces_and_a_split_run_at_a_rail_is_found(tmp_path, monkeypatch):
+    """csv_numbers.c counts the rows at each column's least and greatest as it parses, summed over the pieces
+    that reach them; the clipping check scans for a run at an extreme only where that count allows one. A run
+    at the rail whose rows lie in two pieces, and a column whose extremes are single rows, are read alike by
+    the count and by the scan of every row."""
+    from simucal.io import csv_columns
+    from simucal.io.sensor_checks import saturated_rows
+    from simucal.turntable.simulate import Scenario, write
+    write(tmp_path / "s", Scenario(rate_hz=20.0), seed=2)
+    text = (tmp_path / "s" / "samples.csv").read_text().splitlines(keepends=True)
+    header = text[0].strip().split(",")
+    rows = np.array([[float(v) for v in line.split(",")] for line in text[1:]])
+    ax, n = header.index("ax"), len(rows)
+    rail = rows[:, ax].max() + 1000
+    for start in (n // 3 - 2, n // 2, 2 * n // 3):  # three runs of 4 (the first across the pieces' border)
+        rows[start:start + 4, ax] = rail
+    rows[10, header.index("gz")] = rows[:, header.index("gz")].min()  # two rows at its least, one piece apart
+    body = text[0] + "".join(",".join(repr(float(v)) if j != 0 else str(int(v)) for j, v in enumerate(r)) + "\n"
+                             for r in rows)
+    (tmp_path / "s" / "samples.csv").write_text(body)
+    monkeypatch.setattr(csv_columns, "PIECE_BYTES", len(body) // 3 + 7)  # the first run's rows in two pieces
+    _, extremes = csv_columns.read_columns(memoryview(body.encode()), header, header, [], 1e12)
+    for j, c in enumerate(header):
+        v = rows[:, j]
+        assert extremes[c] == (v.min(), v.max(), np.sum(v == v.min()), np.sum(v == v.max())), c
+    assert extremes["ax"][3] == 12 and extremes["gz"][2] >= 2
+    fast = io.read_set(tmp_path / "s")
+    monkeypatch.setattr(io, "read_columns", lambda *a: (None, False))  # no counts: every extreme scanned
+    careful = io.read_set(tmp_path / "s")
+    for sensor in ("acc", "gyro"):
+        assert np.array_equal(saturated_rows(fast, sensor)[0], saturated_rows(careful, sensor)[0])
+        assert saturated_rows(fast, sensor)[1] == saturated_rows(careful, sensor)[1]
+    assert saturated_rows(fast, "acc")[0].sum() == 12
+
+
 def test_the_c_parsers_numbers_are_pyarrows_and_floats_bit_for_bit(monkeypatch):
     """csv_numbers.c rounds every decimal it takes as float() and pyarrow do (its fast path, 15 digits
     by a power of ten up to 22, and strtod beyond), the sign of zero too, CRLF line ends too; a cell
@@ -371,7 +406,8 @@ def test_the_c_parsers_numbers_are_pyarrows_and_floats_bit_for_bit(monkeypatch):
     monkeypatch.setattr(csv_columns, "_parse_native", lambda *a, _f=csv_columns._parse_native: seen.append(_f(*a))
                         or seen[-1])
     native, extremes = csv_columns.read_columns(body, header, header, [], big)
-    assert seen == [len(cells) // 4] and extremes == {c: (native[c].min(), native[c].max()) for c in header}
+    assert seen == [len(cells) // 4] and extremes == {c: (v.min(), v.max(), np.sum(v == v.min()), np.sum(v == v.max()))
+                                                      for c, v in native.items()}
     want = np.array([float(c) for c in cells]).reshape(-1, 4)
     for j, c in enumerate(header):
         assert np.array_equal(native[c].view(np.int64), want[:, j].view(np.int64)), c

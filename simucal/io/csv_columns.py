@@ -31,8 +31,8 @@ def read_columns(body: memoryview, header: list[str], spec_cols: list[str], othe
                  bound: float) -> tuple[dict | None, dict | None]:
     """({column: float64 array} of spec_cols and others, or None if anything is unusual (a cell that
     is not a number, an empty cell, a ragged row, a NaN or an infinity): the careful reader then names
-    the line and the column; {column: (least, greatest)} where every number is known to lie within
-    +-bound, else None). A column of others holding text also gives None, as before. The pieces go
+    the line and the column; {column: (least, greatest, rows at the least, rows at the greatest)} where
+    every number is known to lie within +-bound, else None). A column of others holding text also gives None, as before. The pieces go
     into arrays sized by the file's line count: no table of the whole file is held. csv_numbers.c
     checks each number against bound and keeps each column's extremes as it parses it (no further
     pass over the columns); pyarrow's numbers are checked to be finite here, and against bound by the
@@ -44,12 +44,11 @@ def read_columns(body: memoryview, header: list[str], spec_cols: list[str], othe
         out = _allocate(names, sum(counts))
         starts = np.cumsum([0] + counts[:-1]).tolist()
         native = _native()[0] if _native() and not quoted and sorted(header) == sorted(names) else None
-        extremes = np.tile([np.inf, -np.inf], (len(pieces), len(header)))  # each piece's (least, greatest) a column
+        extremes = np.tile([np.inf, -np.inf, 0, 0], (len(pieces), len(header)))  # a piece's _merged, a column
         rows = list(pool.map(lambda k: _parse_native(native, body, pieces[k], header, out, starts[k], counts[k],
                                                      bound, extremes[k]), range(len(pieces)))) if native else None
         if rows == counts and sum(counts):  # no rows: the careful reader says so
-            least, greatest = extremes[:, 0::2].min(0), extremes[:, 1::2].max(0)
-            return out, {c: (least[j], greatest[j]) for j, c in enumerate(header)}
+            return out, {c: _merged(extremes[:, 4 * j:4 * j + 4]) for j, c in enumerate(header)}
         buf = _arrow_buffer(body)  # no compiler, or a cell the C parser does not take: pyarrow reads the file
         rows = list(pool.map(lambda k: _parse_into(buf.slice(pieces[k][0], pieces[k][1] - pieces[k][0]),
                                                    pieces[k][2], header, spec_cols, out, starts[k], counts[k]),
@@ -62,6 +61,12 @@ def read_columns(body: memoryview, header: list[str], spec_cols: list[str], othe
     if not all(np.isfinite(v).all() for v in out.values()):
         return None, None
     return out, None
+
+
+def _merged(pieces) -> tuple:
+    """A column's (least, greatest, rows at the least, rows at the greatest) from its pieces' own (k, 4)."""
+    least, greatest = pieces[:, 0].min(), pieces[:, 1].max()
+    return least, greatest, int(pieces[pieces[:, 0] == least, 2].sum()), int(pieces[pieces[:, 1] == greatest, 3].sum())
 
 
 @functools.cache
@@ -88,8 +93,8 @@ def prepare():
 
 def _parse_native(native, body, piece, header, out, start, count, bound, extremes) -> int:
     """One piece (a, b, skip, lines) parsed by csv_numbers.c into out[c][start:start + count] (every
-    column of the header wanted), each column's least and greatest into extremes (2 per column): the
-    rows it held, or -1 where it stopped (or met a number beyond +-bound)."""
+    column of the header wanted), each column's least, greatest and the rows at each into extremes (4
+    per column): the rows it held, or -1 where it stopped (or met a number beyond +-bound)."""
     a, b, skip, _ = piece
     cols = [out[c][start:] for c in header]
     at = np.frombuffer(body, np.uint8).ctypes.data + a

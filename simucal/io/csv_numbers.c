@@ -70,8 +70,10 @@ static int number(const char **pp, double *out)
 
 /* Lines of text[0:len] (after the first line where skip is 1, the header) of k numbers each, every
    one within +-bound: cell j of line i into cols[j][i * stride[j]], and the least and the greatest of
-   column j into extremes[2 j] and extremes[2 j + 1] (as given: +-inf, or a piece's before). Returns
-   the lines read, or -1 at anything else, or where the piece holds more than max_rows lines. */
+   column j into extremes[4 j] and extremes[4 j + 1] (as given: +-inf, or a piece's before), the rows
+   that hold each into extremes[4 j + 2] and extremes[4 j + 3] (the clipping check scans only for an
+   extreme held often enough to be a run). Returns the lines read, or -1 at anything else, or where
+   the piece holds more than max_rows lines. */
 long simucal_csv_numbers(const char *text, long len, int skip, int k, double **cols, const long *stride,
                          long max_rows, double bound, double *extremes)
 {
@@ -93,10 +95,17 @@ long simucal_csv_numbers(const char *text, long len, int skip, int k, double **c
             if (number(&p, &v) < 0 || !(v >= -bound && v <= bound))  /* NaN fails both */
                 return -1;
             cols[j][i * stride[j]] = v;
-            if (v < extremes[2 * j])
-                extremes[2 * j] = v;
-            if (v > extremes[2 * j + 1])
-                extremes[2 * j + 1] = v;
+            double *e = extremes + 4 * j;
+            if (v <= e[0]) {
+                if (v < e[0])
+                    e[0] = v, e[2] = 0;
+                e[2] += 1;
+            }
+            if (v >= e[1]) {
+                if (v > e[1])
+                    e[1] = v, e[3] = 0;
+                e[3] += 1;
+            }
             if (j < k - 1 && *p++ != ',')
                 return -1;
         }

@@ -29,6 +29,7 @@ def _saturated_rows(ms, sensor, min_run):
     any_repeat = full_scale is None and ms.meta.get(f"{sensor}_unit") == "counts"
     bad = np.zeros(len(raw), bool)
     report = []
+    held = _extreme_rows(ms, sensor) or [(min_run, min_run)] * 3
     for j, extremes in enumerate(column_extremes(ms, sensor)):
         col = raw[:, j]
         hit = np.zeros(len(col), bool)
@@ -40,7 +41,9 @@ def _saturated_rows(ms, sensor, min_run):
                     f"{ms.path / 'meta.json'}: {100 * outside:.0f} % of the {sensor} {'xyz'[j]} samples lie outside "
                     f"full_scale {list(full_scale)}, which no sensor can read: full_scale does not match these data "
                     f"(signed against unsigned counts, or another {sensor}_unit?); correct it or leave it out")
-        for ext in extremes:
+        for ext, n in zip(extremes, held[j]):
+            if n < min_run:
+                continue  # fewer rows at it than a run of min_run holds
             runs = _runs(col == ext, min_run)
             if runs and (any_repeat or repeat_is_clipping(col, ext, runs)):
                 for a, b in runs:
@@ -62,11 +65,19 @@ def column_extremes(ms, sensor) -> list[tuple]:
 
 
 def known_extremes(ms, extremes: dict) -> None:
-    """column_extremes' answer where the reader found it ({column: (least, greatest)}: csv_columns
-    keeps them as it parses), so that no pass over the columns repeats it."""
+    """column_extremes' answer where the reader found it ({column: (least, greatest, rows at the least,
+    rows at the greatest)}: csv_columns keeps them as it parses), so that no pass over the columns
+    repeats it, and the rows at each (_saturated_rows scans for a run only where there can be one)."""
     for sensor, cols in TRIADS:
         if all(c in extremes and c in ms.samples for c in cols):
-            ms._once(("extremes", sensor), cols, lambda cols=cols: [extremes[c] for c in cols], meta=False)
+            ms._once(("extremes", sensor), cols, lambda cols=cols: [extremes[c][:2] for c in cols], meta=False)
+            ms._once(("extreme_rows", sensor), cols, lambda cols=cols: [extremes[c][2:] for c in cols], meta=False)
+
+
+def _extreme_rows(ms, sensor):
+    """Per column, the rows at its (least, greatest) where the reader counted them (known_extremes), else None."""
+    cols = ("ax", "ay", "az") if sensor == "acc" else ("gx", "gy", "gz")
+    return ms._once(("extreme_rows", sensor), cols, lambda: None, meta=False)
 
 
 def _runs(mask, min_run):
