@@ -81,10 +81,7 @@ class MeasurementSet:
 
     def in_units(self, sensor: str, rows) -> np.ndarray:
         """acc_g() or gyro_dph() of some rows alone (a slice or indices): the same numbers, without the whole
-        set converted where it is not (38 MB a sensor at 1.6 million rows, and as many page faults)."""
-        whole = self.__dict__.get("_cache", {}).get(("g", sensor))
-        if whole is not None:
-            return (self.acc_g() if sensor == "acc" else self.gyro_dph())[rows]
+        set converted (38 MB a sensor at 1.6 million rows, and as many page faults): elementwise, the same bits."""
         return (units.acc_to_g if sensor == "acc" else units.gyro_to_dph)(self.raw(sensor)[rows], self.meta)
 
     def rows(self, segment: int) -> np.ndarray:
@@ -179,8 +176,8 @@ def read_meta(folder: Path) -> dict:
 
 def read_samples(folder: Path, segments) -> tuple[dict, str, dict | None]:
     """(column -> array, files_sha256 of the set's files as read: hashed on a thread of its own while
-    the numbers are parsed, as hashlib frees the GIL, each column's (least, greatest) where the parser
-    found them, else None) of samples.csv, or samples.parquet (_read_parquet). The numbers are parsed
+    the numbers are parsed, as hashlib frees the GIL, each column's (least, greatest, rows at the least,
+    rows at the greatest) where the parser found them, else None) of samples.csv, or samples.parquet (_read_parquet). The numbers are parsed
     by csv_columns (C or pyarrow), and only where that finds anything unusual by the careful reader,
     which names the line; the whole file is checked to be UTF-8 either way (an ASCII file, the usual
     one, is UTF-8 without decoding it)."""
@@ -201,8 +198,8 @@ def read_samples(folder: Path, segments) -> tuple[dict, str, dict | None]:
 
 
 def _parsed(path, raw, segments) -> tuple[dict, dict | None]:
-    """(samples.csv's columns, {column: (least, greatest)} where their numbers are known to be within
-    +-PLAUSIBLE (read_columns), else None)."""
+    """(samples.csv's columns, {column: (least, greatest, rows at each)} where their numbers are known to
+    be within +-PLAUSIBLE (read_columns), else None)."""
     body = body_of(path, raw)
     if not len(body):
         raise MeasurementSetError(path, 1, "empty file")

@@ -187,8 +187,9 @@ def _static_gyro_rows(ms, acc_segs, gyro_noise_dph):
     raw = ms.raw("gyro")
     stated = units.stated_noise(ms.meta, "gyro") if gyro_noise_dph is None else gyro_noise_dph
     N, sig, groups = [], [], []
-    for i in rows:  # a static segment's gyro rows checked, then their mean and its std (one thread: see
-        r = ms.rows(acc_segs[i].segment)  # segment_observations)
+    # each static segment's gyro rows checked, then their mean and its std, on one thread (segment_observations)
+    for i in rows:
+        r = ms.rows(acc_segs[i].segment)
         refuse_outliers(ms, raw, r, "gyro", acc_segs[i].segment)
         m, sd = mean_and_sigma(ms.in_units("gyro", run_or_rows(r)), stated)
         N.append(m)

@@ -189,10 +189,12 @@ class Unifier:
         lo = hi / 4
         while chi2(lo) < dof and lo > 1e-300:
             lo /= 4
-        while hi > lo * (1 + 1e-9):  # to 1e-9 of the factor (31 halvings of a factor of 4), far below its own std
-            mid = math.sqrt(lo * hi)
+        for _ in range(200):  # to 1e-9 of the factor (31 halvings of a factor of 4), far below its own std
+            if hi <= lo * (1 + 1e-9):
+                break
+            mid = math.sqrt(lo) * math.sqrt(hi)  # not sqrt(lo * hi): the product underflows to 0 below 1e-324
             lo, hi = (mid, hi) if chi2(mid) > dof else (lo, mid)
-        return math.sqrt(lo * hi)
+        return math.sqrt(lo) * math.sqrt(hi)
 
     def solve(self, u_b, D_b, u_d, D_d, estimate=None) -> dict:
         """C_b^d, d phi/dz, the pairs' residual rms (rad) and chi-square (2 dof per pair, 3 for C),
