@@ -9,7 +9,6 @@ polynomial in temperature (fit/thermal.py).
 """
 from __future__ import annotations
 
-
 import numpy as np
 
 from simucal import io, methods

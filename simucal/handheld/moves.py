@@ -268,7 +268,7 @@ def fit_gyro(mv: Moves, g_dirs, bias_std, x0=None, held=(), fixed=()) -> GyroFit
 
 
 RICHER_GAIN = 0.98  # a richer gyro model must predict the moves left out 2 % better than the simpler one
-GYRO_MODELS = {"nominal": tuple(range(9)), "scale": (1, 2, 3, 5, 6, 7), "full": ()}  # entries of vec(T) fixed at nominal
+GYRO_MODELS = {"nominal": tuple(range(9)), "scale": (1, 2, 3, 5, 6, 7), "full": ()}  # vec(T)'s entries at nominal
 GYRO_MODEL_TEXT = {
     "nominal": "nominal scale factors (T = I; std null: not estimated), bias from the initial rest: the moves do not "
                "support more (model_choice)",

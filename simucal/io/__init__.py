@@ -73,11 +73,11 @@ class MeasurementSet:
 
     def acc_g(self):
         """Accelerometer outputs in g (n, 3), read-only."""
-        return self._once(("g", "acc"), SAMPLE_COLS[:3], lambda: units.acc_to_g(self.raw("acc"), self.meta))
+        return self._once(("g", "acc"), SAMPLE_COLS[:3], lambda: self.in_units("acc", slice(None)))
 
     def gyro_dph(self):
         """Gyro outputs in deg/h (n, 3), read-only."""
-        return self._once(("g", "gyro"), SAMPLE_COLS[3:], lambda: units.gyro_to_dph(self.raw("gyro"), self.meta))
+        return self._once(("g", "gyro"), SAMPLE_COLS[3:], lambda: self.in_units("gyro", slice(None)))
 
     def in_units(self, sensor: str, rows) -> np.ndarray:
         """acc_g() or gyro_dph() of some rows alone (a slice or indices): the same numbers, without the whole
@@ -177,8 +177,8 @@ def read_meta(folder: Path) -> dict:
 def read_samples(folder: Path, segments) -> tuple[dict, str, dict | None]:
     """(column -> array, files_sha256 of the set's files as read: hashed on a thread of its own while
     the numbers are parsed, as hashlib frees the GIL, each column's (least, greatest, rows at the least,
-    rows at the greatest) where the parser found them, else None) of samples.csv, or samples.parquet (_read_parquet). The numbers are parsed
-    by csv_columns (C or pyarrow), and only where that finds anything unusual by the careful reader,
+    rows at the greatest) where the parser found them, else None) of samples.csv, or samples.parquet
+    (_read_parquet). The numbers are parsed by csv_columns (C or pyarrow), and only where that finds anything unusual by the careful reader,
     which names the line; the whole file is checked to be UTF-8 either way (an ASCII file, the usual
     one, is UTF-8 without decoding it)."""
     path = samples_path(folder)

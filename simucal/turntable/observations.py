@@ -119,8 +119,8 @@ def _averaged(ms, sensor, raw, stated, clipped, s):
     if s.segment in clipped:  # before the glitch test: a clipped sample is no glitch
         return None
     refuse_outliers(ms, raw, rows, sensor, s.segment)
-    return rows, mean_and_sigma(ms.in_units(sensor, run_or_rows(rows)), stated, varying=(s.kind == "rate"),  # the inputs turn
-                                angle_rad=outer_angle_rad(ms, rows, s))
+    return rows, mean_and_sigma(ms.in_units(sensor, run_or_rows(rows)), stated,
+                                varying=(s.kind == "rate"), angle_rad=outer_angle_rad(ms, rows, s))  # the inputs turn
 
 
 CURVE_FACTOR = 10.0  # a noise file's row noise this many times the data's own (or a tenth): another unit or unit
@@ -322,7 +322,7 @@ def check_rate_sense(ms, gyro_obs, gyro_segs):
     gyro_obs = Observations(gyro_obs.N[keep], gyro_obs.rho[keep])
     up, _ = commanded_up_k(gyro_segs)
     static = np.concatenate([ms.rows(s.segment) for s in ms.segments if s.kind == "static"] + [np.zeros(0, int)])
-    raw = ms.raw("gyro")  # the static rows' median a column at a time, partitioned where gathered: no (n, 3) copies;
+    raw = ms.raw("gyro")  # the static rows' median a column at a time, partitioned where gathered: no (n, 3) copies,
     rest = units.gyro_to_dph(np.array([median_rows(raw[static, j][None], overwrite=True)[0] for j in range(3)]),
                              ms.meta) if static.size else np.zeros(3)  # in raw units (a unit's scale keeps the order)
     rate = np.array([s.outer_rate_dps for s in gyro_segs])
