@@ -53,10 +53,15 @@ def make_set(folder: Path, rate_hz: float) -> Path:
 
 
 def old_tree(rev: str, into: Path) -> Path:
-    """The simucal/ package of commit rev, unpacked under into."""
-    archive = subprocess.run(["git", "-C", str(ROOT), "archive", rev, "simucal"], check=True, capture_output=True)
+    """The simucal package of commit rev, unpacked under into as pyproject.toml installs it: simucal/,
+    with the top-level generated/ and derive/ as simucal.generated and simucal.derive (so the earlier
+    code runs its own generated modules, not this checkout's)."""
+    archive = subprocess.run(["git", "-C", str(ROOT), "archive", rev, "simucal", "generated", "derive"], check=True,
+                             capture_output=True)
     with tarfile.open(fileobj=BytesIO(archive.stdout)) as tar:
         tar.extractall(into, filter="data")
+    for name in ("generated", "derive"):
+        (into / name).rename(into / "simucal" / name)
     return into
 
 
@@ -64,7 +69,8 @@ def measure(args: list, pythonpath: str | None, cwd: Path) -> tuple:
     """(wall s, CPU s, peak resident MB) of one whole `simucal ARGS` process: this checkout's code,
     or the code under pythonpath (run from cwd, since -m imports from the cwd first)."""
     import os
-    env = {k: v for k, v in os.environ.items() if k != "PYTHONPATH"}
+    # PYTHONDONTWRITEBYTECODE dropped: the runs after the first import the bytecode a user's installation has
+    env = {k: v for k, v in os.environ.items() if k not in ("PYTHONPATH", "PYTHONDONTWRITEBYTECODE")}
     if pythonpath:
         env["PYTHONPATH"] = pythonpath
     r = subprocess.run([sys.executable, "-c", WRAP, *SIMUCAL, *map(str, args)], check=True, capture_output=True,

@@ -34,6 +34,7 @@ class Method:
     summary: str               # what it is, with its paper
     options: tuple[str, ...]   # the keyword options its function takes (calibrate's names)
     run: Callable              # run(ms, **options) -> io.calibration.Calibration
+    any_plan: bool = True      # takes any plan of its kind of data (False: a protocol's own, Ferraris's six poses)
 
     def call(self, ms, **given):
         """run(ms) with the options given that this method takes, the others (and those given as None)
@@ -54,6 +55,14 @@ def _table(name):
 def _multiposition(ms, acc_model, gyro_model, ids, acc_noise_g, gyro_noise_dph, noise_curves):
     from simucal.turntable.multiposition import calibrate_multiposition
     return calibrate_multiposition(ms, acc_model, gyro_model, ids, acc_noise_g, gyro_noise_dph, noise_curves)
+
+
+def _ferraris(ms, acc_model, gyro_model, ids, acc_noise_g, gyro_noise_dph, noise_curves):
+    from simucal.turntable.ferraris import calibrate_ferraris
+    if ids or acc_model != "acc_baseline" or gyro_model != "gyro_baseline":
+        raise CalibrationError("the Ferraris method is the affine y = M f + b of six poses; --add and models need "
+                               "--method exact (nine or more positions)")
+    return calibrate_ferraris(ms, acc_noise_g, gyro_noise_dph, noise_curves)
 
 
 def _handheld(ms, acc_model, ids, auto, detect):
@@ -84,6 +93,10 @@ METHODS = {m.name: m for m in (
     Method("multiposition", TURNTABLE, "the traditional multi-position method (dong2018's 'previous method', "
            "Tables 3 and 4): least squares on the commanded attitudes",
            tuple(o for o in _TABLE_OPTIONS if o not in ("auto", "rank")), _multiposition),
+    Method("ferraris", TURNTABLE, "Ferraris et al. 1995 (imucal): six poses in opposite pairs, M from their "
+           "differences, each accelerometer bias from the pairs' norms (no attitude), the gyro from the turns; the "
+           "default for such a set", tuple(o for o in _TABLE_OPTIONS if o not in ("auto", "rank")), _ferraris,
+           any_plan=False),
     Method("handheld", STREAM, "Tedaldi: static poses found in the stream, the exact norm fit of the "
            "accelerometers, the gyro from the gravity directions before and after each move",
            ("acc_model", "ids", "auto", "detect"), _handheld),
@@ -118,6 +131,10 @@ def choose(name, ms) -> Method:
     take these data, naming the methods that do."""
     kind = data_kind(ms)
     if name in (None, "auto"):
+        if kind == TURNTABLE:
+            from simucal.turntable.ferraris import pose_pairs
+            if pose_pairs(ms.segments) is not None:  # six poses in opposite pairs: too few for the exact fit
+                return METHODS["ferraris"]
         return METHODS[for_data(kind)[0]]
     if name not in METHODS:
         raise CalibrationError(f"unknown method {name!r}; one of auto, {', '.join(NAMES)}.")

@@ -19,6 +19,51 @@ os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
 
 from simucal.turntable.simulate import Scenario, write  # noqa: E402 (after the cache is set)
 
+REPOSITORY = pytest.StashKey[dict]()
+
+
+ROOT = Path(__file__).resolve().parents[1]
+TOOL_CACHES = {".git", "__pycache__", ".pytest_cache", ".hypothesis", ".mypy_cache", ".ruff_cache"}
+
+
+def _repository_files() -> dict:
+    """{path: (size, mtime)} of every file in the repository's tree but the tools' caches (bytecode, git's,
+    pytest's, the linters') and virtual environments: what a test may neither write nor remove."""
+    files = {}
+    for folder, subfolders, names in os.walk(ROOT):
+        subfolders[:] = [d for d in subfolders if d not in TOOL_CACHES and not d.endswith(".egg-info")
+                         and not d.startswith(".venv")]
+        for name in names:
+            st = os.lstat(os.path.join(folder, name))
+            files[os.path.relpath(os.path.join(folder, name), ROOT)] = (st.st_size, st.st_mtime_ns)
+    return files
+
+
+def pytest_sessionstart(session):
+    if not hasattr(session.config, "workerinput"):  # the controller, once for the run
+        session.config.stash[REPOSITORY] = _repository_files()
+
+
+def pytest_sessionfinish(session, exitstatus):
+    """The guard of isolated tests (issue 52): the run fails where the repository's tree changed under it."""
+    before = session.config.stash.get(REPOSITORY, None)
+    if before is None:
+        return
+    after = _repository_files()
+    changed = sorted(p for p in before.keys() | after.keys() if before.get(p) != after.get(p))
+    if changed:
+        session.config.get_terminal_writer().line(
+            f"the tests wrote, changed or removed files in the repository's tree ({ROOT}): {', '.join(changed[:10])}"
+            f"{' ...' if len(changed) > 10 else ''}; a test writes only under its tmp_path", red=True)
+        session.exitstatus = pytest.ExitCode.TESTS_FAILED
+
+
+@pytest.fixture(autouse=True)
+def _a_working_folder_of_its_own(tmp_path_factory, monkeypatch):
+    """Every test starts in an empty folder of its own: none reads or writes the folder pytest was started in
+    (a fresh clone's README runs the demo into ./out before the tests)."""
+    monkeypatch.chdir(tmp_path_factory.mktemp("cwd"))
+
 
 def pytest_unconfigure(config):
     """The run's test cache removed by the process that made it (tens of MB of libraries a run)."""

@@ -133,6 +133,7 @@ def test_refusals_name_the_argument_and_the_fix():
                                            meta={"latitude_deg": 45.0})
 
 
+@pytest.mark.slow
 def test_the_docs_api_example_runs(tmp_path):
     section = (ROOT / "docs" / "api.md").read_text().split("\n## Reference", 1)[0]  # the page's example
     setup = re.search(r"After `(simucal simulate [^`]+)`", section).group(1)

@@ -66,6 +66,7 @@ def test_simulate_writes_the_same_sets(sets):
     assert simucal.read_set(sets / "api" / "field").segments is not None
 
 
+@pytest.mark.slow
 def test_validate_diagnose_noise_write_the_same_files(sets, tmp_path):
     data = sets / "cli"
     cal = tmp_path / "cal.json"
@@ -146,6 +147,7 @@ def test_command_line_constants_are_the_api_s():
     assert cli_sets.DEFAULT_GRAVITY == units.DEFAULT_GRAVITY
 
 
+@pytest.mark.slow
 def test_deprecated_names_warn_and_do_the_same(sets, tmp_path):
     new = _cli("plan", "--score", "table1", "--model", "gyro_baseline", "--rates-dps", "20")
     old = _cli("plan", "--score", "table1", "--model", "gyro_baseline", "--rate-dps", "20")

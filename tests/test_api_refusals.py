@@ -81,6 +81,7 @@ def test_one_column_order_and_segments_from_a_frame(made, tmp_path):
     assert back.segments == ms.segments  # rate runs' empty outer_deg: None, as the reader has it
 
 
+@pytest.mark.slow
 def test_add_as_text_and_thermal_of_one_ramp():
     sets = [simucal.simulate(seed=t, temperature_c=float(t), rate_hz=2.0, effects={"acc.bias_temperature.x": 1e-5})
             for t in (0, 25, 50)]
@@ -102,3 +103,22 @@ def test_add_as_text_and_thermal_of_one_ramp():
 def test_the_whole_api_is_listed():
     assert {"lot", "calibrate", "MeasurementSet"} <= set(dir(simucal))
     assert callable(simucal.lot)
+
+
+def test_a_frame_s_first_mistakes_are_named_with_the_column_row_and_option():
+    """Issue 53: a segment column without segments= (was silently a stream, then blamed on t_s); sensor
+    columns under other names (was "neither acc nor gyro given"); a string in a number column (was pandas'
+    "could not convert string to float", no column or row)."""
+    from simucal.io import MeasurementSetError
+    n = 8
+    df = pd.DataFrame({"ax": [0.0] * n, "ay": [0.0] * n, "az": [1.0] * n, "t_s": np.arange(n) * 0.01,
+                       "segment": [1] * n})
+    with pytest.raises(MeasurementSetError, match="'segment' gives each row a segment, but no segments="):
+        simucal.MeasurementSet.from_dataframe(df, acc_unit="g", gyro_unit="deg/h")
+    named = df.drop(columns="segment").rename(columns={"ax": "acc_x", "ay": "acc_y", "az": "acc_z"})
+    with pytest.raises(MeasurementSetError, match=r"no accelerometer or gyro columns among \['acc_x'.*columns=\{'ax'"):
+        simucal.MeasurementSet.from_dataframe(named, acc_unit="g", gyro_unit="deg/h")
+    typo = df.drop(columns="segment").astype({"az": object})
+    typo.loc[5, "az"] = "1.0g"
+    with pytest.raises(MeasurementSetError, match=r"column 'az', row 5: '1.0g' is not a number"):
+        simucal.MeasurementSet.from_dataframe(typo, acc_unit="g", gyro_unit="deg/h")

@@ -15,6 +15,7 @@ def terms(audit_report):
     return audit_report.terms
 
 
+@pytest.mark.slow
 def test_every_row_has_terms_sizes_and_a_verdict(terms):
     rows = {(t.eq, t.row) for t in terms}
     for eq, n in (("17", 3), ("21", 3), ("25-26", 5), ("27", 3), ("Table 2", 2)):

@@ -207,6 +207,7 @@ def _run(*args):
     return r.exit_code, r.output
 
 
+@pytest.mark.slow
 def test_calibrate_thermal_writes_both_files_end_to_end(plateaus):
     """Three simulated plateaus through calibrate --thermal --px4 --ardupilot: both files reproduce the
     calibration file's bias polynomials as each autopilot evaluates them; the planted scale-factor drift is

@@ -4,6 +4,7 @@ the model with it, calibrate, diagnose and apply carry it by name."""
 import json
 
 import numpy as np
+import pytest
 from click.testing import CliRunner
 
 from simucal import io
@@ -27,6 +28,7 @@ def _run(*args):
     return res.exit_code, res.output
 
 
+@pytest.mark.slow
 def test_supply_voltage_term_simulated_found_calibrated_and_applied(tmp_path):
     model = tmp_path / "supply.py"
     model.write_text(MODEL)

@@ -72,6 +72,7 @@ def _copy(sets, name, tmp_path):
 
 # --- files that are not text, or not the spec's CSV -------------------------------------------
 
+@pytest.mark.slow
 def test_binary_samples(sets, tmp_path):
     d = _copy(sets, "table", tmp_path)
     (d / "samples.csv").write_bytes(b"\x89PNG\r\n\x1a\n\x00\x00\x00\rIHDR" + bytes(range(256)))
@@ -566,6 +567,7 @@ def test_a_broken_model_file_is_the_users_error(sets, tmp_path, monkeypatch, tex
     run_refused(["calibrate", sets / "table", "-o", tmp_path / "c.json", "--add", f], "mine.py", named)
 
 
+@pytest.mark.slow
 def test_a_model_file_that_never_ends_is_stopped(sets, tmp_path, monkeypatch):
     monkeypatch.setenv("SIMUCAL_CACHE", str(tmp_path / "cache"))
     monkeypatch.setenv("SIMUCAL_DERIVE_TIMEOUT_S", "1")
@@ -574,6 +576,7 @@ def test_a_model_file_that_never_ends_is_stopped(sets, tmp_path, monkeypatch):
     run_refused(["derive", "--model", f], "loop.py", "more than 1 s", "SIMUCAL_DERIVE_TIMEOUT_S")
 
 
+@pytest.mark.slow
 def test_a_model_file_runs_in_a_child_and_never_again(sets, tmp_path, monkeypatch):
     """Its code runs once, in another process (a side effect there leaves this one alone), and a cached
     file is loaded without running it."""
@@ -654,6 +657,7 @@ def test_meta_values_of_the_wrong_shape_are_named(sets, tmp_path, meta, named):
         run_refused([cmd, tmp_path / "t", "-o", tmp_path / "o.json"], "meta.json", named, out=tmp_path / "o.json")
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("args,named", [
     (["simulate", "{tmp}/s", "--effect", "acc.quadratic.z=nan"], "finite"),
     (["simulate", "{tmp}/s", "--effect", "acc.quadratic.z=1e300"], "finite"),
@@ -672,6 +676,7 @@ def test_a_stated_noise_far_above_the_scatter_is_named(sets, tmp_path):
     assert "noise_warning" in json.loads((tmp_path / "c.json").read_text())["acc"]
 
 
+@pytest.mark.slow
 def test_an_unreachable_scheduler_is_one_line_and_writes_nothing(sets, tmp_path, monkeypatch):
     monkeypatch.setenv("SIMUCAL_SCHEDULER_TIMEOUT_S", "1")  # the wait is not what is tested
     run_refused(["calibrate", sets / "table", sets / "acc_only", "-o", tmp_path / "out", "--scheduler",

@@ -130,6 +130,7 @@ def test_not_converged_is_reported(paper_set):
         fit_exact(load("acc_baseline"), obs, p0=[0.3] * 9, max_iter=1)
 
 
+@pytest.mark.slow
 def test_user_model_file_goes_to_the_cache_not_the_package(tmp_path, monkeypatch, paper_set):
     """A user's model is derived into the cache, keyed by its file; generated/ stays as it was,
     the model works by name from any folder, and a second use needs no derivation."""
@@ -243,6 +244,7 @@ def test_unusual_samples_files_read_as_csv_reads_them(tmp_path, case):
         assert len(io.read_set(d).samples["t_s"]) == len(rows)
 
 
+@pytest.mark.slow
 def test_reading_a_set_imports_no_pandas(paper_set):
     """pyarrow's to_numpy imports pandas where it is installed (0.25 s of calibrate --thermal's 1 s):
     samples.csv's columns are read from Arrow's buffers instead, the same numbers."""
@@ -275,6 +277,7 @@ def test_calibrating_a_csv_set_imports_no_pandas_matplotlib_dask_or_scipy(paper_
     assert not imported & {"pandas", "matplotlib", "dask", "distributed", "scipy", "sympy", "casadi"}, imported
 
 
+@pytest.mark.slow
 def test_the_reports_import_no_pandas(tmp_path):
     """validate, diagnose and noise write their reports without the API's tables, which alone need pandas
     (api/tables.TableOf builds one when it is read: 0.4 s of a process)."""

@@ -3,6 +3,7 @@ JSON is read back to the same object; apply and validate take it as loaded."""
 import json
 import types
 import typing
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -15,6 +16,7 @@ from simucal.field.simulate import FieldScenario, write_field
 from simucal.handheld.simulate import HandheldScenario, write_handheld
 from simucal.io import calibration
 from simucal.io.calibration import Calibration, EffectValue, SensorBlock
+from simucal.io.importers import import_ferraris_sections
 from simucal.api import simulate
 from simucal.turntable.sequence import psins19
 
@@ -30,7 +32,10 @@ def every_method(paper_set, tmp_path_factory):
     simulate(sequence=tmp / "seq.csv").write(tmp / "q")
     data = {methods.TURNTABLE: paper_set[0], methods.STREAM: tmp / "h", methods.FIELD: tmp / "f",
             methods.SEQUENCE: tmp / "q"}
-    return {m.name: calibrate(data[m.data], m.name) for m in methods.METHODS.values()}
+    ferraris = Path(__file__).resolve().parents[2] / "shared" / "data" / "imucal-ferraris"  # a protocol's own plan
+    import_ferraris_sections(ferraris / "example_ferraris_session.csv", ferraris / "example_ferraris_session_list.json",
+                             tmp / "fe", 102.4, 49.6)
+    return {m.name: calibrate(data[m.data] if m.any_plan else tmp / "fe", m.name) for m in methods.METHODS.values()}
 
 
 def _as_written(cal: Calibration) -> dict:

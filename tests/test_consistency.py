@@ -141,6 +141,7 @@ def test_lever_arms_the_model_lacks_inflate_the_unification_and_adding_them_fixe
     assert "acc.size_effect" in calibrate(tmp_path).to_json()["unification"]["note"]
 
 
+@pytest.mark.slow
 def test_paper_unification_refused_for_other_models(paper_set):
     with pytest.raises(CalibrationError, match="derived for the baseline models"):
         calibrate(paper_set[0], "linear", acc_model="acc_extended")
@@ -202,6 +203,7 @@ def test_latitude_checked_with_the_noise_given_on_the_command_line(tmp_path):
         assert lat["verdict"].startswith("agrees") and words in lat["verdict"] + "agrees", lat
 
 
+@pytest.mark.slow
 def test_cross_check_false_alarm_rate_nominal_over_seeds(tmp_path):
     """Issue 23 item 2: clean sets with position errors from 0 to 1 deg, noise stated or not, table
     accuracy stated or estimated: the static-pair cross-check (alarm at p < 1e-3) stays quiet, and
@@ -286,6 +288,7 @@ def test_a_failing_accelerometer_model_is_named_before_lever_arms(tmp_path):
     assert "fails its own test" not in (fixed.unification.get("note") or "")
 
 
+@pytest.mark.slow
 def test_gyro_model_test_covers_the_static_rows(tmp_path):
     """Issue 38, item 4: a gyro bias fixed in the local frame (0.05 deg/h north and up, as one following
     the magnetic field) shows in rate-run means only as its vertical part, which --add auto absorbs by
@@ -302,6 +305,7 @@ def test_gyro_model_test_covers_the_static_rows(tmp_path):
     assert "static positions" in g.details["rows"] and "static rows still misfit" in g.details["auto_stopped"]
 
 
+@pytest.mark.slow
 def test_static_rows_pass_on_clean_sets(tmp_path):
     """On 20 clean sets (Table 1 with the Table 2 positions, averaged rows) the gyro's test over rate runs
     and static rows rejects at its rate: p below 0.05 on 0-20 % of them, and the static rows' chi2/dof

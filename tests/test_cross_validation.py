@@ -56,6 +56,7 @@ def _truth_bias_error(cal, folder, sensor):
     return np.abs(np.array(cal[sensor]["bias"]) - [truth[k] for k in ("b_x", "b_y", "b_z")]).max()
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("sensor,model_text,name,value,column", [
     ("acc", ACC_CUBIC, "K3_x", 3e-4, []),
     ("gyro", GYRO_SUPPLY, "bV_z", 0.2, ["supply_v=4.5:5.5"]),

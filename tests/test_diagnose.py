@@ -37,6 +37,7 @@ def base_errors(block, truth, sensor):
                   if k in t and "." not in k])
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("eid,size,settings", HIDDEN, ids=[h[0] for h in HIDDEN])
 def test_hidden_effect_found_added_and_explained(tmp_path, eid, size, settings):
     sensor = eid.split(".")[0]
@@ -70,6 +71,7 @@ def test_g_sensitivity_collinear_with_one_rate_sign(tmp_path):
     assert not c["separable"] and "both signs" in c["note"]
 
 
+@pytest.mark.slow
 def test_clean_sets_declare_nothing_beyond_nominal_rate(tmp_path):
     declared = 0
     seeds = 30
@@ -81,6 +83,7 @@ def test_clean_sets_declare_nothing_beyond_nominal_rate(tmp_path):
     assert declared <= 3, declared
 
 
+@pytest.mark.slow
 def test_cli_diagnose_writes_json_and_html(tmp_path):
     write(tmp_path / "s", Scenario(plan="fibonacci48", acc_effects={"acc.quadratic.z": 5e-5}), seed=2)
     res = CliRunner().invoke(main, ["diagnose", str(tmp_path / "s"), "-o", str(tmp_path / "d.json"),

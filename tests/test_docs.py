@@ -29,6 +29,7 @@ def site(tmp_path_factory):
     return out
 
 
+@pytest.mark.slow
 def test_the_site_builds_with_warnings_as_errors_and_opens_offline(site):
     pages = [p for p in site.rglob("*") if p.suffix in (".html", ".css", ".js")]
     assert len([p for p in pages if p.suffix == ".html"]) >= 10
@@ -65,6 +66,7 @@ def test_every_tutorial_has_its_page_in_the_index():
         assert f"```{{literalinclude}} {name}.py" in (DOCS / "tutorials" / f"{name}.md").read_text()
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("name", TUTORIALS)
 def test_the_tutorial_runs_and_its_claims_hold(tmp_path, name):
     """Each script asserts its page's claims; run as a reader would, in an empty folder."""

@@ -18,6 +18,7 @@ def close(a, b, rel=1e-12):
     assert np.all(np.abs(a - b) <= rel * np.maximum(np.abs(b), 1e-300) + rel * np.max(np.abs(b))), np.max(np.abs(a - b))
 
 
+@pytest.mark.slow
 def test_generated_is_fresh_and_reproducible():
     """This process's derivation writes generated/'s bytes: fresh, and reproducible, since generated/ is
     another process's derivation (`simucal derive`, with its own hash seed) of the same models."""
@@ -25,6 +26,7 @@ def test_generated_is_fresh_and_reproducible():
     assert stale == [], diff
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("model", BUILTIN, ids=lambda m: m.name)
 def test_every_generated_function_equals_sympy(model):
     gen_np = load(model.name, compiled=False)
@@ -81,6 +83,7 @@ def test_table_and_unify_modules_equal_sympy():
     close(unify.acc_table2(Na, p), [float(sol[s].evalf(30, subs=subs)) for s in U.ACC_UNIFY_UNKNOWNS])
 
 
+@pytest.mark.slow
 def test_moves_module_equals_its_derivation():
     """generated/moves.py against derive/moves.py; the closed-form J_r against the one derived
     by differentiating q(v), and against finite differences of exp; both finite at v = 0."""
@@ -173,10 +176,12 @@ def specs():
     return {(mod, fname): rest for mod, found in generated_specs().items() for fname, *rest in found}
 
 
+@pytest.mark.slow
 def test_every_other_generated_function_has_its_derivation(specs):
     assert set(specs) == set(_generated_functions())
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("mod,fname", _generated_functions())
 def test_every_other_generated_function_equals_sympy(specs, mod, fname):
     """table, unify, effects, field and moves: each function at random inputs against the SymPy

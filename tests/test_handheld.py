@@ -32,6 +32,7 @@ def test_simulated_session_within_3_sigma(tmp_path, seed):
     assert len(r["gyro"]["moves_skipped"]) == 2 and r["gyro"]["saturation"]  # clipped moves named, left out
 
 
+@pytest.mark.slow
 def test_clean_sessions_moves_chi2_per_dof_is_one(tmp_path):
     """The moves' noise floor is right: over 20 clean simulated sessions chi2/dof averages
     1.00 +- 0.05 (each session's std is about sqrt(2 / 51) = 0.2, so the mean's is 0.045)."""
@@ -112,6 +113,7 @@ def test_refusals(tmp_path, settings, message):
         calibrate(tmp_path / "h")
 
 
+@pytest.mark.slow
 def test_imu_tk_xsens_unattended(tmp_path):
     import_imu_tk(DATA / "imu_tk-xsens" / "xsens_acc.mat", DATA / "imu_tk-xsens" / "xsens_gyro.mat", tmp_path / "x",
                   4096.0, 6258 * np.pi / 180, 45.4, 9.81744)
@@ -123,6 +125,7 @@ def test_imu_tk_xsens_unattended(tmp_path):
     assert np.allclose(scale, [2.09295e-4, 2.09899e-4, 2.09483e-4], rtol=2e-3)
 
 
+@pytest.mark.slow
 def test_diagnose_real_stream_says_honestly_what_it_finds(tmp_path):
     from simucal.diagnose import diagnose
     import_imu_tk(DATA / "imu_tk-xsens" / "xsens_acc.mat", DATA / "imu_tk-xsens" / "xsens_gyro.mat", tmp_path / "x",
@@ -153,6 +156,7 @@ def test_diagnose_real_stream_says_honestly_what_it_finds(tmp_path):
     assert r["gyro"]["chi2"] < 0.5 * g["baseline"]["chi2"]
 
 
+@pytest.mark.slow
 def test_diagnose_moves_clean_and_with_a_planted_g_sensitivity(tmp_path):
     """A clean simulated session passes the moves' chi-square test with nothing declared missing; a
     planted y-gyro g-sensitivity (1000 (deg/h)/g along z) is found first, and adding it recovers its
@@ -299,6 +303,7 @@ def test_stream_calibrate_names_what_diagnose_would_add(tmp_path):
     assert cal.acc.details.get("advice") is None  # the accelerometer passes: nothing to add
 
 
+@pytest.mark.slow
 def test_xsens_moves_need_a_pair_the_one_at_a_time_rule_cannot_take(tmp_path):
     """docs/real-recordings.md: on imu_tk's Xsens session `--add auto` stops after two g-sensitivities,
     since neither of the next candidates (yz, yx) alone predicts the moves left out better at p < 0.01;

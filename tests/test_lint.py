@@ -5,6 +5,8 @@ import subprocess
 import sys
 from pathlib import Path
 
+import pytest
+
 ROOT = Path(__file__).resolve().parent.parent
 
 
@@ -12,16 +14,19 @@ def _run(*args):
     return subprocess.run([sys.executable, "-m", *args], cwd=ROOT, capture_output=True, text=True)
 
 
+@pytest.mark.slow
 def test_ruff_finds_nothing():
     r = _run("ruff", "check", "--no-cache", "--output-format", "concise", ".")
     assert r.returncode == 0, r.stdout + r.stderr
 
 
+@pytest.mark.slow
 def test_mypy_finds_nothing_in_the_public_api_and_the_typed_results():
     r = _run("mypy")
     assert r.returncode == 0, r.stdout + r.stderr
 
 
+@pytest.mark.slow
 def test_the_lint_catches_what_it_claims_to(tmp_path):
     """The rules bite: an unused import and a wrong type in a typed result are found (the configuration
     is read, not skipped)."""

@@ -51,6 +51,7 @@ def _same(a, b, rtol):
                         np.testing.assert_allclose(t[f], y["sheet"][k][f], rtol=100 * rtol, atol=1e-12)
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("fmt", ["csv", "parquet"])
 def test_noise_in_chunks_is_the_whole_file_path(still, monkeypatch, fmt):
     whole = allan.characterise(io.read_set(still / "csv"))
@@ -61,12 +62,14 @@ def test_noise_in_chunks_is_the_whole_file_path(still, monkeypatch, fmt):
     assert whole["gyro"]["axes"]["x"]["sheet"]["K"]["status"] == "seen"
 
 
+@pytest.mark.slow
 def test_noise_on_dask_is_the_same(still, dask_cluster):
     here = allan.characterise_folder(still / "parquet", size=20_000)
     on_dask = allan.characterise_folder(still / "parquet", scheduler=dask_cluster, size=20_000)
     _same(here, on_dask, rtol=1e-12)
 
 
+@pytest.mark.slow
 def test_the_real_xsens_stream_in_chunks(tmp_path, monkeypatch):
     """The real Xsens session (hand-placed, it moves: noise refuses it alike on both paths); its
     channels' Allan variances summed part by part are the whole arrays' to rounding."""
@@ -90,6 +93,7 @@ def test_the_real_xsens_stream_in_chunks(tmp_path, monkeypatch):
             assert (kept.lo[c], kept.hi[c], kept.first[c]) == (y[:, j].min(), y[:, j].max(), y[0, j])
 
 
+@pytest.mark.slow
 def test_memory_holds_theta_not_the_table(tmp_path, monkeypatch):
     """numpy's allocations (tracemalloc sees them) in reading and summing peak near theta's 8 bytes a
     row and channel plus the steps of t_s, below what reading the set whole takes: its arrays and the
@@ -212,6 +216,7 @@ def _peak_bytes(*args) -> int:
     return int(out.stdout)
 
 
+@pytest.mark.slow
 def test_memory_of_convert_and_of_parquet_reads_stays_bounded_as_the_record_grows(tmp_path):
     """A record 4x as long peaks within a few batches of the short one's (convert both ways, and the
     chunks `noise` reads from samples.parquet): no file held whole (Arrow's pre_buffer read all of

@@ -26,6 +26,7 @@ def rich(**kw):
     return Scenario(plan="fibonacci48", outer_rate_dps=(10.0, -10.0, 20.0), temp_c=(20.0, 40.0), shuffle=True, **kw)
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("eid", list(PLANTED))
 def test_planted_effect_found_and_carried_by_calibrate(eid, tmp_path):
     sensor = eid.split(".")[0]
@@ -78,6 +79,7 @@ def test_mixed_raw_and_averaged_rows_are_tested(tmp_path):
     assert [c["id"] for c in d["acc"]["candidates"] if c.get("significant")][0] == "acc.bias_drift_time.y"
 
 
+@pytest.mark.slow
 def test_averaged_set_without_noise_declared_failing(tmp_path):
     write(tmp_path / "bad", rich(state_noise=False, acc_effects={"acc.quadratic.z": 3e-4}), 4)
     write(tmp_path / "ok", rich(state_noise=False), 4)
@@ -94,6 +96,7 @@ MODELS = [ACC_BASELINE.with_terms("acc_cubic_truth", [Term("K3_x", "x", f_b[0] *
 """
 
 
+@pytest.mark.slow
 def test_effect_outside_the_library_described_and_added(tmp_path):
     (tmp_path / "cubic.py").write_text(CUBIC)
     r = CliRunner().invoke(main, ["simulate", str(tmp_path / "set"), "--plan", "fibonacci48",
@@ -195,6 +198,7 @@ def test_stream_calibrate_carries_a_gyro_effect_and_applies(tmp_path):
     assert meta["gyro_unit"] == "deg/h" and np.all(np.isfinite(samples["gx"]))
 
 
+@pytest.mark.slow
 def test_add_auto_chooses_the_planted_effects_and_nothing_on_clean_data(tmp_path):
     """calibrate --add auto: the library effects a failing model needs, one at a time; none where
     the model already passes."""

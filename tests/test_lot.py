@@ -39,6 +39,7 @@ def lot(tmp_path_factory):
     return root, json.loads((root / "lot.json").read_text()), r.output, (problems, figures)
 
 
+@pytest.mark.slow
 def test_the_lot_report_finds_what_was_planted(lot):
     root, report, out, _ = lot
     units = {u["file"]: u for u in report["units"]}
@@ -83,6 +84,7 @@ def test_the_python_api_gives_the_report(lot):
     assert json.loads(json.dumps(simucal.api.lot(report["folder"], limits))) == report
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("n", [lot_report.MIN_UNITS, 60])
 def test_the_outlier_rule_false_alarm_rate_and_power_over_seeds(n):
     """Lots of n units without outliers, each parameter's stds 0.05 to 2 times its spread of units (within
@@ -105,6 +107,7 @@ def test_the_outlier_rule_false_alarm_rate_and_power_over_seeds(n):
     assert found == lots
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("text,words", [
     ("{", ["not a readable limits file"]),
     ('{"format": "simucal.limits/1", "limits": {"acc.b_q": {"max": 1, "unit": "g"}}}', ["limits.acc.b_q", "acc.b_x"]),
@@ -130,6 +133,7 @@ def test_a_folder_without_calibrations_is_refused(tmp_path):
             "simucal calibrate DIR1 DIR2 ... -o FOLDER")
 
 
+@pytest.mark.slow
 def test_a_lot_of_one_unit_says_unit(lot, tmp_path):
     """A count of one is '1 unit' (the review read '1 units'): in the verdict, the outlier rule and the page."""
     root = lot[0]

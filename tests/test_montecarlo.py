@@ -57,6 +57,7 @@ def test_failed_trials_are_counted_not_dropped():
     assert all(0 <= t < 50 for t in out["failed_trials"]) and len(set(out["failed_trials"])) == out["failed"]
 
 
+@pytest.mark.slow
 def test_dask_local_cluster_gives_the_same_numbers(dask_cluster):
     """The same seeds on a LocalCluster of 2 workers: the same estimates, bit for bit."""
     here = run(Scenario(), 600, 5, chunk=200)
@@ -83,6 +84,7 @@ def test_batch_calibration_keeps_the_good_sets(tmp_path, dask_cluster):
     assert a["acc"]["params"] == b["acc"]["params"]
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("effects", [{}, {"acc.quadratic.z": 1e-4}])
 def test_compiled_and_numpy_paths_give_the_same_trials(monkeypatch, effects):
     """The compiled route (table kinematics, the fits' linear start and LM in C; with an effect, the
@@ -163,6 +165,7 @@ def test_a_revolution_is_sampled_at_the_fewest_outer_angles_that_average_it_exac
     assert np.abs(kinked[0] - kinked[1]).max() > 1e-9 * np.abs(kinked[1]).max()  # 4 angles miss the kink
 
 
+@pytest.mark.slow
 def test_an_effect_the_plan_cannot_see_is_refused_before_any_trial():
     """G_xz on the paper's plan (one rate): the noise-free trial's fit fails, so the run says what the
     plan lacks instead of counting thousands of failed trials with a CRLB of nan."""
@@ -194,6 +197,7 @@ MODELS = [ACC_BASELINE.with_terms("acc_{name}_mc", [Term("{param}", "x", {term},
 """
 
 
+@pytest.mark.slow
 def test_a_users_model_file_runs_compiled_with_std_at_the_bound(tmp_path):
     """--effect-file: the user's model is the truth and the fitted model, through the compiled fit
     (issue 27: any library effect or user model file); its term's std meets its CRLB and its mean the
@@ -217,6 +221,7 @@ def test_a_users_model_file_runs_compiled_with_std_at_the_bound(tmp_path):
     assert not (tmp_path / "mc2.json").exists()
 
 
+@pytest.mark.slow
 def test_a_model_file_is_refused_only_for_inputs_the_averaged_positions_never_vary(tmp_path):
     """A term in temperature times time is refused naming both inputs (a product, which moving one
     input from zero would miss) and the simulate command that gives them; a gyro term in the specific

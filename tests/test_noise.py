@@ -58,6 +58,7 @@ def test_pooling_stretches_is_one_sum_over_them():
     np.testing.assert_allclose(both, (va * na + vb * nb) / (na + nb), rtol=1e-12)
 
 
+@pytest.mark.slow
 def test_white_noise_is_recovered_and_kalibr_gets_it_in_si(tmp_path):
     d = _still(tmp_path / "still")
     r = _run("noise", d, "-o", tmp_path / "n.json", "--html", tmp_path / "n.html", "--kalibr", tmp_path / "imu.yaml")
@@ -107,6 +108,7 @@ def test_what_has_no_allan_deviation_is_refused(tmp_path, setup, named):
     assert r.exit_code == 2 and named in r.output and not (tmp_path / "n.json").exists()
 
 
+@pytest.mark.slow
 def test_calibrate_takes_each_segments_noise_from_the_allan_curve(tmp_path):
     """calibrate --noise: an averaged row's noise is the Allan curve at the seconds it averages (meta's
     average_s, a compatible extension of the spec), not white noise alone; refused without average_s."""
@@ -268,6 +270,7 @@ def test_absent_terms_are_not_reported_and_the_stds_are_right_over_seeds():
         assert 0.75 < np.sqrt(np.mean(np.square(z[t]))) < 1.33, (t, z[t])
 
 
+@pytest.mark.slow
 def test_a_term_not_seen_has_its_bound_everywhere(tmp_path):
     """White noise only: the random walk, quantisation, instability and ramp are "not seen" with a
     95 % bound in the JSON, the console and the page; the bound of the walk is what Kalibr gets."""

@@ -62,6 +62,7 @@ def pages(tmp_path_factory):
     return made
 
 
+@pytest.mark.slow
 def test_no_text_overlaps_on_any_page(pages):
     made = {k: v for k, v in pages.items() if k != "out"}
     found = [f"{name}: {p}" for name, (page, problems, _) in made.items() for p in problems + html_problems(page)]

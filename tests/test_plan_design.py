@@ -38,6 +38,7 @@ def test_information_is_the_exact_solvers_covariance_by_finite_differences():
     assert np.allclose(cov_fd, np.linalg.inv(H), rtol=1e-3, atol=1e-6 * np.abs(cov_fd).max())
 
 
+@pytest.mark.slow
 def test_designs_match_or_beat_table1_per_position():
     am = AugmentedModel("acc_baseline")
     t1 = score(am, directions_k(plans.TABLE1), 1.0, 1e-5)
@@ -77,6 +78,7 @@ def test_bad_input_one_line(tmp_path, args, named):
     assert r.exit_code == 2 and named in r.stderr and len(r.stderr.strip().splitlines()) == 1, r.stderr
 
 
+@pytest.mark.slow
 def test_designed_plan_file_runs_a_test(tmp_path):
     """A gyro plan choosing among three rates runs as a simulated test (for a quadratic the D-optimum
     takes the fastest: its signature varies with the direction too); a hand-placed design is
@@ -94,6 +96,7 @@ def test_designed_plan_file_runs_a_test(tmp_path):
     assert r.exit_code == 0 and lines[0] == "pose,f_x,f_y,f_z" and len(lines) == 13
 
 
+@pytest.mark.slow
 def test_separation_design_decides_an_inseparable_pair(tmp_path):
     """On Table 1, acc.quadratic.z and acc.scale_asymmetry.z cannot be told apart (noncentrality 0);
     the designed extra positions separate them, and a simulated test on the extended plan finds the
@@ -116,6 +119,7 @@ def test_separation_design_decides_an_inseparable_pair(tmp_path):
     assert twin.get("separable", True) and twin["statistic"] < top["statistic"]
 
 
+@pytest.mark.slow
 def test_separation_power_is_the_rate_observed(tmp_path):
     """The predicted power of telling acc.quadratic.z from acc.scale_asymmetry.z on a designed plan is
     the rate at which simulated tests reject the twin (chi2 of the twin's fit less the true one's

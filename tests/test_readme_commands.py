@@ -41,7 +41,7 @@ SMALL = {"bench_derive_and_solve.py": ["--quick"], "bench_paper_tables.py": ["--
          "bench_allan.py": ["--seeds", "1", "--hours", "0.25", "--rate-hz", "5"],
          "bench_stds_by_rate.py": ["--seeds", "1", "--rates", "20"], "bench_thermal.py": ["0", "1"],
          "bench_cache_checks.py": [], "bench_lot.py": ["6", "--seeds", "2", "--workers", "2"],
-         "bench_raw400.py": ["--rate-hz", "5", "--repeats", "1"],
+         "bench_raw400.py": ["--rate-hz", "5", "--repeats", "1"], "bench_compare.py": ["--quick", "--repeats", "1"],
          "bench_long_noise.py": ["--hours", "0.05", "--rate-hz", "50"],
          "bench_systematic.py": ["--seeds", "1", "--speed-hours", "0", "--compare-seeds", "0"],
          "bench_scale.py": ["--rate-hz", "5", "--repeats", "0", "--hours", "0.005", "--lot", "2", "--thermal-rate-hz", "1"]}
@@ -80,6 +80,7 @@ def test_the_readme_is_read():
     assert sorted(p.name for p in (ROOT / "benchmarks").glob("*.py")) == sorted(SMALL), "a benchmark the README lacks"
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("command", BENCHES)
 def test_every_benchmark_in_the_readme_runs(command):
     """Each its own test, so that the two processes of the suite share them out as they come free."""
@@ -91,6 +92,7 @@ def test_every_benchmark_in_the_readme_runs(command):
     assert "| " in r.stdout, tail  # each prints its table (a Dask cluster's close may log to stderr after it)
 
 
+@pytest.mark.slow
 def test_the_readme_loop_runs_as_written(tmp_path, monkeypatch):
     monkeypatch.chdir(tmp_path)
     for command in RUNNABLE:

@@ -46,6 +46,7 @@ def _load_elsewhere():
     return r.stdout.strip(), r.stderr
 
 
+@pytest.mark.slow
 def test_the_planted_library_runs_when_loaded_so_its_absence_below_means_something(built):
     lib, planted, marker = built
     import ctypes
@@ -53,12 +54,14 @@ def test_the_planted_library_runs_when_loaded_so_its_absence_below_means_somethi
     assert marker.read_text() == "planted code ran"
 
 
+@pytest.mark.slow
 def test_the_cache_is_made_for_its_user_alone(built):
     lib, _, _ = built
     assert lib.parent == cache.cache_dir() and os.stat(lib.parent).st_mode & 0o777 == 0o700
     assert (lib.parent / (lib.name + ".sha256")).read_text().strip() == cache.sha256_of(lib)
 
 
+@pytest.mark.slow
 def test_a_cache_writable_by_others_loads_nothing_from_it(built):
     """The issue's case: a cache of mode 777, a planted library and even its sha256 rewritten."""
     lib, planted, marker = built
@@ -70,6 +73,7 @@ def test_a_cache_writable_by_others_loads_nothing_from_it(built):
     assert f"{lib.parent} (mode 0777) is writable by group or others" in err and "chmod 700" in err
 
 
+@pytest.mark.slow
 def test_a_library_writable_by_others_is_not_loaded(built):
     lib, planted, marker = built
     lib.write_bytes(planted.read_bytes())
@@ -80,6 +84,7 @@ def test_a_library_writable_by_others_is_not_loaded(built):
     assert f"{lib} (mode 0777) is writable by group or others" in err and f"chmod go-w {lib}" in err
 
 
+@pytest.mark.slow
 def test_a_library_changed_after_its_build_is_rebuilt_not_run(built):
     lib, planted, marker = built
     genuine = cache.sha256_of(lib)
@@ -90,6 +95,7 @@ def test_a_library_changed_after_its_build_is_rebuilt_not_run(built):
     assert cache.sha256_of(lib) == genuine
 
 
+@pytest.mark.slow
 def test_a_cache_of_another_user_loads_nothing(built, monkeypatch):
     """Tests run as root, whose files these are: another user is played by the uid simucal sees."""
     lib, planted, marker = built
@@ -101,6 +107,7 @@ def test_a_cache_of_another_user_loads_nothing(built, monkeypatch):
     assert model.backend == "numpy" and not marker.exists()
 
 
+@pytest.mark.slow
 def test_the_warning_is_one_line_on_the_command_line(built, tmp_path):
     lib, _, _ = built
     os.chmod(lib.parent, 0o777)
@@ -118,6 +125,7 @@ def test_the_warning_is_one_line_on_the_command_line(built, tmp_path):
     assert _one_line(w.message, w.category, w.filename, w.lineno).count("\n") == 1
 
 
+@pytest.mark.slow
 def test_the_trusted_cache_is_read_only_and_checked(built, tmp_path, monkeypatch):
     """A lab's cache (SIMUCAL_TRUSTED_CACHE): loaded where it is root's or the user's and writable
     by neither group nor others, never written; refused otherwise."""
@@ -194,11 +202,13 @@ def _addresses(_):
     return worker.address, worker.scheduler.address
 
 
+@pytest.mark.slow
 def test_the_local_cluster_listens_on_localhost_alone():
     for worker, scheduler in map_tasks(_addresses, [(0,), (1,)], "processes"):
         assert worker.startswith("tcp://127.0.0.1:") and scheduler.startswith("tcp://127.0.0.1:"), (worker, scheduler)
 
 
+@pytest.mark.slow
 def test_a_user_model_in_the_trusted_cache_is_used_by_name_and_its_file_never_run_again(tmp_path, monkeypatch):
     f, marks = tmp_path / "mine.py", tmp_path / "ran.txt"
     f.write_text("from simucal.derive.models.baseline import ACC_BASELINE\n"
@@ -225,6 +235,7 @@ def _add_entries(worker, n):
         catalog._add_to_index({f"m{worker}_{i}": {"key": f"k{worker}_{i}", "source": "test"}})
 
 
+@pytest.mark.slow
 def test_processes_adding_models_to_one_cache_lose_no_entry(tmp_path, monkeypatch):
     """index.json is read, changed and written under a lock: four processes adding 40 entries each to one
     cache at once (Dask workers deriving model files) keep all 160 (without the lock most were lost)."""
@@ -239,3 +250,25 @@ def test_processes_adding_models_to_one_cache_lose_no_entry(tmp_path, monkeypatc
         p.join(120)
     assert [p.exitcode for p in procs] == [0] * 4
     assert len(json.loads((tmp_path / "cache" / "models" / "index.json").read_text())) == 160
+
+
+def test_a_cache_path_that_is_a_file_is_named_and_the_numpy_modules_run(tmp_path, paper_set):
+    """SIMUCAL_CACHE naming a file (issue 53): a warning naming the variable and the fix, the work done by the
+    uncompiled modules; was FileExistsError, 'a bug in simucal'."""
+    (tmp_path / "afile").write_text("")
+    r = subprocess.run([sys.executable, "-m", "simucal", "calibrate", str(paper_set[0]), "-o", str(tmp_path / "c.json")],
+                       capture_output=True, text=True, env={**os.environ, "SIMUCAL_CACHE": str(tmp_path / "afile")})
+    assert r.returncode == 0, r.stderr
+    assert "is a file, not a folder" in r.stderr and "set SIMUCAL_CACHE to a folder" in r.stderr
+
+
+def test_a_cache_inside_the_input_is_refused_and_nothing_written_there(tmp_path, monkeypatch):
+    """Compiled libraries are never written into a user's data (issue 53): a cache inside the set read."""
+    from cli_helpers import refused
+    from simucal.turntable.simulate import Scenario, write
+    write(tmp_path / "set", Scenario(), seed=1)
+    before = sorted(p.name for p in (tmp_path / "set").iterdir())
+    monkeypatch.setenv("SIMUCAL_CACHE", str(tmp_path / "set" / "cache"))
+    refused(CliRunner().invoke(main, ["calibrate", str(tmp_path / "set"), "-o", str(tmp_path / "c.json")]),
+            "SIMUCAL_CACHE=", "lies inside the input", "set SIMUCAL_CACHE to a folder outside it")
+    assert sorted(p.name for p in (tmp_path / "set").iterdir()) == before

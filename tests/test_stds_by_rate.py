@@ -22,6 +22,7 @@ def _z(tmp_path, sc, seeds):
     return {s: np.array(v) for s, v in out.items()}, cals
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("rate_hz, outer_dps", [(20.0, 7.0), (100.0, 10.0)])
 def test_stds_right_at_raw_rates(tmp_path, rate_hz, outer_dps):
     """Raw rows, noise not stated, the table's tilt drawn per seed and stated: rms(z) near 1 and no

@@ -89,6 +89,7 @@ def test_rests_too_short_for_the_noise_refused(tmp_path):
     refused(r, "segments.csv", "no rest holds more than 10 samples")
 
 
+@pytest.mark.slow
 def test_filter_model_equals_its_derivation():
     """F assembled at run time (generated navigation blocks, the models' generated Jacobians) equals
     derive/systematic.error_state_model's F at random values, for the baseline and extended models."""
@@ -153,6 +154,7 @@ def test_smoother_carries_the_constants_back(short):
     assert np.array_equal(smooth(r.epochs, covariance=False)[0], x_s)
 
 
+@pytest.mark.slow
 def test_planted_effect_fails_the_test_and_passes_once_added(short):
     ms = simucal.simulate(sequence=short, seed=7, effects={"acc.quadratic.z": 2e-4})
     plain = simucal.calibrate(ms, method="systematic")
@@ -182,6 +184,7 @@ def test_missing_latitude_refused(tmp_path, short):
 SEEDS = 6  # 108 errors over std; benchmarks/bench_systematic.py runs 50 (docs/systematic.md)
 
 
+@pytest.mark.slow
 def test_stds_agree_with_the_scatter_over_seeds(short):
     """The filter's stds against the errors over seeds: rms(error / std) within 0.8-1.25."""
     from simucal.systematic.calibrate import run_filter

@@ -34,6 +34,7 @@ def _ranked(ms):
     return test, rank(InnovationsProblem(sig), list(sig.B), test["p_value"] < 1e-3, "candidates")
 
 
+@pytest.mark.slow
 def test_diagnose_names_the_planted_effect_on_the_innovations(quadratic, tmp_path):
     r = run("diagnose", quadratic, "-o", tmp_path / "d.json", "--html", tmp_path / "d.html")
     assert r.exit_code == 0, r.output
@@ -51,6 +52,7 @@ def test_diagnose_names_the_planted_effect_on_the_innovations(quadratic, tmp_pat
     assert "acc.quadratic.z" in (tmp_path / "d.html").read_text()
 
 
+@pytest.mark.slow
 def test_diagnose_add_shows_the_fall_against_truth(quadratic, tmp_path):
     r = run("diagnose", quadratic, "--add", "acc.quadratic.z", "-o", tmp_path / "d.json")
     assert r.exit_code == 0, r.output
@@ -62,6 +64,7 @@ def test_diagnose_add_shows_the_fall_against_truth(quadratic, tmp_path):
     assert all(abs(v["error_after"]) < 3 * v["std_after"] for v in added["params"].values()), added["params"]
 
 
+@pytest.mark.slow
 def test_add_auto_through_the_filter(quadratic, tmp_path):
     r = run("calibrate", quadratic, "--add", "auto", "-o", tmp_path / "c.json")
     assert r.exit_code == 0, r.output
@@ -74,6 +77,7 @@ def test_add_auto_through_the_filter(quadratic, tmp_path):
     assert cal.acc.verdict == "passes" and cal.acc.details["auto_stopped"] == "the model passes its test"
 
 
+@pytest.mark.slow
 def test_a_planted_gyro_g_sensitivity_is_found(short):
     ms = simucal.simulate(sequence=short, seed=4, effects={"gyro.g_sensitivity.xz": 0.01})
     test, cands = _ranked(ms)
@@ -86,6 +90,7 @@ def test_a_planted_gyro_g_sensitivity_is_found(short):
 SEEDS = 3
 
 
+@pytest.mark.slow
 def test_clean_sequences_pass_and_the_candidates_stds_hold(short):
     """Where the model is right, no candidate passes the gate, and each candidate's estimate (truth 0)
     over its std scatters as N(0, 1) over the candidates and seeds."""

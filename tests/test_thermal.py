@@ -51,6 +51,7 @@ def plateaus(tmp_path_factory):
     return root, sets, out
 
 
+@pytest.mark.slow
 def test_joint_model_passes_where_each_wandering_plateau_alone_fails(plateaus):
     root, _, out = plateaus
     cal = json.loads((root / "cal.json").read_text())
@@ -110,6 +111,7 @@ def test_applied_between_plateaus_on_another_plan_reaches_the_floor(plateaus):
         assert one["after_rms"] > 3 * th["after_rms"], (s, one, th)  # one plateau: measurably worse
 
 
+@pytest.mark.slow
 def test_a_ramp_calibrated_with_thermal_reaches_the_floor_at_a_constant_temperature(tmp_path):
     """On a ramp the plan's order matters to the rate runs: fibonacci48 in order turns them from +z to -z as
     the unit heats, so there the gyro's b_z curvature and dK_z's drift act alike (README, Temperature). The
@@ -208,6 +210,7 @@ def test_validate_floor_holds_the_calibrations_own_uncertainty(plateaus):
     assert sd[0] > sd[2] and sd[4] > sd[2]  # least certain at the ends of the range, most near T_ref
 
 
+@pytest.mark.slow
 def test_validate_and_apply_name_rows_outside_the_range_and_refuse_without_temp_c(plateaus, tmp_path):
     root, sets, _ = plateaus
     hot = _sim(tmp_path / "hot", 70, 9, wander=0.0)
@@ -246,6 +249,7 @@ def test_the_thermal_page_opens_with_a_verdict_per_sensor(plateaus):
     assert "T_ref 25 degC" in page
 
 
+@pytest.mark.slow
 def test_bad_input_refused_in_one_line(plateaus, tmp_path):
     root, sets, _ = plateaus
     bad = {}
@@ -347,6 +351,7 @@ def test_generic_input_times_temperature_is_the_library_term():
         assert scale[0].unit() == "1/degC" and "dtemp_c" in scale[0].sympy()
 
 
+@pytest.mark.slow
 def test_the_docs_gyro_model_file_example(tmp_path, monkeypatch):
     """The docs' gyro model file (docs/own-model.md: temperature terms from T_ref) plants, calibrates and is found."""
     from pathlib import Path
@@ -364,6 +369,7 @@ def test_the_docs_gyro_model_file_example(tmp_path, monkeypatch):
         assert abs(g["effects"][name]["value"] - value) < 4 * g["effects"][name]["std"]
 
 
+@pytest.mark.slow
 def test_a_g_sensitivity_drifting_with_temperature_is_described_and_written(tmp_path, monkeypatch):
     """Outside the library: a gyro g-sensitivity changing with temperature. diagnose's generic basis
     (specific force times temperature) describes it, names its twin, the static rows choose between

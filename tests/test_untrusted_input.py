@@ -266,6 +266,7 @@ def test_inputs_in_one_plane_are_refused_by_the_multiposition_method_too(tmp_pat
     assert _run("calibrate", tmp_path / "s", "--method", "multiposition", "-o", tmp_path / "c.json").exit_code == 0
 
 
+@pytest.mark.slow
 def test_a_term_in_the_model_file_and_in_the_library_is_named(tmp_path):
     """A model file's own z quadratic beside the library's acc.quadratic.z: montecarlo blamed the plan
     (a noise-free trial failing); now both say the same term is there twice, naming it."""
@@ -284,6 +285,7 @@ def test_a_term_in_the_model_file_and_in_the_library_is_named(tmp_path):
     assert r.exit_code == 0, r.output  # another axis's quadratic is another term
 
 
+@pytest.mark.slow
 def test_a_model_file_that_never_returns_is_said_at_once_and_stopped_at_its_limit(tmp_path, monkeypatch):
     """A model file in an endless loop waited 120 s in silence: what runs and its limit are said at once,
     its seconds every Wait.EVERY_S off a terminal, and at the limit the child is killed and refused."""
@@ -304,6 +306,7 @@ def test_a_model_file_that_never_returns_is_said_at_once_and_stopped_at_its_limi
     assert took < 15, took  # stopped at its limit, not left running
 
 
+@pytest.mark.slow
 def test_the_diagnosis_next_command_keeps_every_add_and_agrees_with_the_verdicts(tmp_path):
     """Issue 39: the page's Next dropped the --add that made the model pass, its verdict said another
     command, and the gyro's Next omitted the accelerometer's --add. One next command for the set now

@@ -50,6 +50,7 @@ def test_an_option_the_run_would_not_use_is_refused(made, tmp_path, args, words)
     assert list(tmp_path.iterdir()) == []  # refused before any work: nothing written
 
 
+@pytest.mark.slow
 def test_the_options_a_run_uses_still_take_their_defaults(made, tmp_path):
     """The field set's heading accuracy, now refused elsewhere, is 5 deg where not given."""
     cals = []

@@ -102,6 +102,7 @@ def test_another_serial_is_refused(table, tmp_path):
     assert _run("validate", tmp_path / "c.json", tmp_path / "a", "-o", tmp_path / "r2.json").exit_code == 0
 
 
+@pytest.mark.slow
 def test_a_stream_validated_on_another_session_of_the_same_unit(tmp_path):
     write_handheld(tmp_path / "a", HandheldScenario(poses=30, rest_s=10.0), 3)
     write_handheld(tmp_path / "b", HandheldScenario(poses=10, rest_s=10.0), 3)  # same unit, other poses

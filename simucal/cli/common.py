@@ -181,9 +181,10 @@ def guard(inputs=(), files=(), sets=(), folders=(), force=False, together=True):
     can be written, or replace a measurement set without --force (io/outputs.py); before any work,
     so nothing is lost. together: the outputs are written all or none, when the command ends (the
     demo, which reads what it wrote, writes each at once)."""
-    from simucal.io import outputs
+    from simucal.io import cache, outputs
     try:
         outputs.check(inputs, files, sets, folders, force)
+        cache.check_outside(inputs)
     except outputs.OutputError as e:
         fail(e)
     page = files.get("--html") if isinstance(files, dict) else None

@@ -28,7 +28,6 @@ from simucal.fit.rotations import exp_so3
 from simucal.generated import field as gen
 from simucal.io import calibration, outputs, units
 
-RAD_S_PER_DPH = units.ARCSEC_RAD  # rad/s per deg/h (1 deg/h = 1 arcsec/s)
 AXIS_NAMES = ("x (forward)", "y (up)", "z (right)")
 
 
@@ -124,7 +123,7 @@ def _noise(raw, dt_raw):
 def position_estimate(f_raw, w_raw, t, heading_rad, meta, block_s=1.0, stages=2):
     """Alignment and north-drift filter at one position; SI units in, dict out."""
     lat = np.radians(meta["latitude_deg"])
-    w_e = units.earth_rate_dph(meta) * RAD_S_PER_DPH
+    w_e = units.earth_rate_dph(meta) * units.RAD_S_PER_DPH
     dt_raw = float(np.median(np.diff(t)))
     per = max(int(round(block_s / dt_raw)), 1)
     k = len(t) // per
@@ -138,7 +137,7 @@ def position_estimate(f_raw, w_raw, t, heading_rad, meta, block_s=1.0, stages=2)
     g_n = np.array([0.0, -g, 0.0])
     arw, vrw = _noise(w_raw, dt_raw), _noise(f_raw, dt_raw)
     P0 = [0.01 ** 2, 0.01 ** 2, 0.01 ** 2, np.radians(10) ** 2, 0.01 ** 2,
-          (20 * RAD_S_PER_DPH) ** 2, (20 * RAD_S_PER_DPH) ** 2, (20 * RAD_S_PER_DPH) ** 2]
+          (20 * units.RAD_S_PER_DPH) ** 2, (20 * units.RAD_S_PER_DPH) ** 2, (20 * units.RAD_S_PER_DPH) ** 2]
     kf = StaticFilter(g, lat, w_e, dt, k, max(arw, 1e-9), max(vrw, 1e-6), P0)
     C0 = coarse_attitude(f_b.mean(0), heading_rad)
     for _ in range(stages):  # two-stage alignment: correct the level at the start, twice
@@ -148,7 +147,7 @@ def position_estimate(f_raw, w_raw, t, heading_rad, meta, block_s=1.0, stages=2)
     # eps_N is the drift along the computed north, which turns slowly (up drift);
     # the estimate weighs the whole window, so project on the mean computed north.
     c_N = north.mean(0)
-    return {"C_b_n": C0, "c_N": c_N / np.linalg.norm(c_N), "eps_N": xs[:, 5] / RAD_S_PER_DPH, "std": kf.sd[:, 5] / RAD_S_PER_DPH,
+    return {"C_b_n": C0, "c_N": c_N / np.linalg.norm(c_N), "eps_N": xs[:, 5] / units.RAD_S_PER_DPH, "std": kf.sd[:, 5] / units.RAD_S_PER_DPH,
             "t": (np.arange(k) + 1) * dt, "arw_dpsh": arw * np.degrees(1) * 60, "vrw_mps_sqrth": vrw * 60}
 
 
@@ -189,7 +188,7 @@ def field_drift(data, block_s=1.0, stages=2, heading_accuracy_deg=5.0) -> dict:
     if ms.segments is None:
         raise CalibrationError(f"{ms.path}: field calibration needs segments.csv with one static segment per position")
     f_all = ms.acc_g() * units.gravity(ms.meta)
-    w_all = ms.gyro_dph() * RAD_S_PER_DPH
+    w_all = ms.gyro_dph() * units.RAD_S_PER_DPH
     positions, rows, eps, sds, hist = [], [], [], [], []
     for s in ms.segments:
         if s.kind != "static":

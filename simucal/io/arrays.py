@@ -133,15 +133,37 @@ def from_dataframe(df, *, acc_unit, gyro_unit, columns=None, rate_hz=None, t_s=N
     if missing:
         raise MeasurementSetError(name, None, f"no column {missing[0]!r} (columns: {list(df.columns)}): fix columns=")
 
+    if "segment" in cols and segments is None:
+        raise MeasurementSetError(name, None, f"the column {cols['segment']!r} gives each row a segment, but no segments= "
+                                              "table says what the segments are: give segments= (segments.csv's rows: "
+                                              "segment, kind, the table's angles) for a turntable test, or leave the "
+                                              "column out for a stream")
+    if not any(k in cols for k in SAMPLE_COLS):
+        raise MeasurementSetError(name, None, f"no accelerometer or gyro columns among {list(df.columns)}: name them ax ay "
+                                              "az gx gy gz, or map them with columns={'ax': 'acc_x', ...}")
+
+    def numbers(key):
+        """The column of spec name key as float64, refused at its first cell that is not a number."""
+        try:
+            return df[cols[key]].to_numpy(float)
+        except (TypeError, ValueError):
+            for row, cell in enumerate(df[cols[key]]):
+                try:
+                    float(cell)
+                except (TypeError, ValueError):
+                    raise MeasurementSetError(name, None, f"column {cols[key]!r}, row {row}: {cell!r} is not a "
+                                                          "number") from None
+            raise
+
     def get(keys):
         present = [k for k in keys if k in cols]
         if present and len(present) != len(keys):
             raise MeasurementSetError(name, None, f"columns {keys} must all be present or all absent (map them with "
                                                   "columns={'ax': ..., ...})")
-        return df[[cols[k] for k in keys]].to_numpy(float) if present else None
+        return np.column_stack([numbers(k) for k in keys]) if present else None
     if rate_hz is None and t_s is None and "t_s" in cols:
-        t_s = df[cols["t_s"]].to_numpy(float)
+        t_s = numbers("t_s")
     return from_arrays(get(SAMPLE_COLS[:3]), get(SAMPLE_COLS[3:]), acc_unit=acc_unit, gyro_unit=gyro_unit,
-                       rate_hz=rate_hz, t_s=t_s, temp_c=df[cols["temp_c"]].to_numpy(float) if "temp_c" in cols else None,
-                       segment=df[cols["segment"]].to_numpy(float) if segments is not None and "segment" in cols else None,
+                       rate_hz=rate_hz, t_s=t_s, temp_c=numbers("temp_c") if "temp_c" in cols else None,
+                       segment=numbers("segment") if segments is not None and "segment" in cols else None,
                        segments=segments, meta=meta, name=name, cls=cls)

@@ -32,7 +32,7 @@ autopilot's own topics; the autopilot rotates to its body frame (FRD) after the 
 from __future__ import annotations
 
 from dataclasses import dataclass
-from math import comb, radians
+from math import comb
 
 import numpy as np
 
@@ -41,7 +41,6 @@ from simucal.io import outputs, units
 
 BIAS = ("b_x", "b_y", "b_z")
 MAX_DEGREE = 3  # both autopilots: a cubic
-RAD_S_PER_DPH = radians(1.0) / units.DPH_PER_DPS
 SI_UNIT = {"acc": "m/s^2", "gyro": "rad/s"}
 ARDUPILOT_T_REF_C = 35.0     # AP_InertialSensor_tempcal.cpp, TEMP_REFERENCE
 ARDUPILOT_SCALE = 1.0e6      # AP_InertialSensor_tempcal.cpp, SCALE_FACTOR
@@ -94,7 +93,7 @@ def bias_polynomials(cal, g_mps2: float) -> list[BiasPolynomial]:
         unit = block.param_units.get("b_x", block.bias_unit)
         if unit not in ("g", "deg/h"):
             raise CalibrationError(f"{sensor}: bias in {unit!r}; the export converts g or deg/h only")
-        per = g_mps2 if unit == "g" else RAD_S_PER_DPH
+        per = g_mps2 if unit == "g" else units.RAD_S_PER_DPH
         width = max(len(fits[b]["coefficients"]) for b in BIAS)
         coefficients = np.zeros((3, width))
         for i, b in enumerate(BIAS):

@@ -19,7 +19,7 @@ import warnings
 from pathlib import Path
 
 from simucal.errors import CalibrationError
-from simucal.io.outputs import write_text
+from simucal.io.outputs import OutputError, write_text
 
 SHARED_MODE = 0o022  # the group's and others' write bits: a file with either may have been written by another user
 
@@ -37,6 +37,17 @@ def cache_dir() -> Path:
     root = os.environ.get("SIMUCAL_CACHE") or os.path.join(
         os.environ.get("XDG_CACHE_HOME") or os.path.expanduser("~/.cache"), "simucal")
     return Path(root)
+
+
+def check_outside(inputs) -> None:
+    """Refuse a cache inside an input (compiled libraries are written into it at first use): simucal never
+    writes into a user's data."""
+    cache = cache_dir().resolve()
+    for given in inputs:
+        if given and (cache == Path(given).resolve() or Path(given).resolve() in cache.parents):
+            raise OutputError(f"SIMUCAL_CACHE={cache_dir()} lies inside the input {given}: simucal would write its "
+                              "compiled libraries into your data; set SIMUCAL_CACHE to a folder outside it (or unset "
+                              "it for ~/.cache/simucal)")
 
 
 def trusted_cache_dir() -> Path | None:
@@ -76,11 +87,15 @@ def check(path: Path, root: Path, shared: bool = False) -> None:
 def own_folder(sub: str = "") -> Path:
     """The folder `sub` of the user's cache, made (mode 0700) where missing, and checked."""
     root = cache_dir()
-    root.parent.mkdir(parents=True, exist_ok=True)
     folder = root
-    for part in ("", *Path(sub).parts):
-        folder = folder / part
-        folder.mkdir(mode=0o700, exist_ok=True)
+    try:
+        root.parent.mkdir(parents=True, exist_ok=True)
+        for part in ("", *Path(sub).parts):
+            folder = folder / part
+            folder.mkdir(mode=0o700, exist_ok=True)
+    except (FileExistsError, NotADirectoryError):
+        raise UntrustedCache(f"{folder} is a file, not a folder: simucal's cache (SIMUCAL_CACHE, else "
+                             f"~/.cache/simucal) is {root}; set SIMUCAL_CACHE to a folder of your own") from None
     check(folder, root)
     return folder
 

@@ -138,6 +138,9 @@ class SensorDetails(TypedDict, total=False):
     model_error_std_g: float           # the poses' extra variance
     # systematic calibration (systematic/method.py)
     eta_rad: dict[str, Any]            # the gyro frame's angles against b
+    # a Ferraris session (turntable/ferraris.py)
+    placement_tilt_deg: float          # the hand placement's tilt (std per pose) the pairs' mismatch shows
+    pairs: list[list[int]]             # the segments of each pair of opposite poses, + then -
 
 
 @dataclass(eq=False)

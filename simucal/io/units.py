@@ -15,6 +15,7 @@ DEFAULT_GRAVITY = 9.80665
 DEFAULT_EARTH_RATE_DPH = 15.04107
 DPH_PER_DPS = 3600.0  # deg/h per deg/s (1 arcsec/s = 1 deg/h)
 ARCSEC_RAD = math.radians(1 / 3600)  # rad per arcsec
+RAD_S_PER_DPH = math.pi / 180 / DPH_PER_DPS  # rad/s per deg/h
 # meta.json's stated noise of one row's output, per sensor: its key, unit and largest plausible value
 # a column named as a temperature in another unit than the spec's temp_c (degC): temp_f, TempF, temp_degF,
 # temperature (K), temp_kelvin, ... Its name is the only sound cue: below 125 degF (51.7 degC) degF values

@@ -18,7 +18,7 @@ from simucal.fit.aux_inputs import AuxInputs
 from simucal.generated import table
 from simucal.io import units
 from simucal.fit.rotations import exp_so3, log_so3
-from simucal.systematic.filter import (RAD_S_PER_DPH, Epoch, Sensors, compose, kalman, level, nominal, smooth,
+from simucal.systematic.filter import (Epoch, Sensors, compose, kalman, level, nominal, smooth,
                                       transitions)
 
 BLOCK_S = 1.0           # zero-velocity updates at rest every this many seconds
@@ -103,9 +103,9 @@ def run_filter(ms, acc_model="acc_baseline", gyro_model="gyro_baseline", ids=(),
     t = ms.samples["t_s"]
     dt = float(np.median(np.diff(t[ms.rows(segments[0].segment)])))
     g0, lat = units.gravity(ms.meta), np.radians(ms.meta["latitude_deg"])
-    w_ie = table.earth_rate_n(units.earth_rate_dph(ms.meta) * RAD_S_PER_DPH, lat)
+    w_ie = table.earth_rate_n(units.earth_rate_dph(ms.meta) * units.RAD_S_PER_DPH, lat)
     sigma = white_noise(ms, segments, lambda s: ms.rows(s.segment))
-    q = np.r_[(sigma[:3] * RAD_S_PER_DPH) ** 2, (sigma[3:] * g0) ** 2] * dt  # spectral densities
+    q = np.r_[(sigma[:3] * units.RAD_S_PER_DPH) ** 2, (sigma[3:] * g0) ** 2] * dt  # spectral densities
     prior_var = np.r_[[PRIOR_ATTITUDE_RAD] * 3, [ZUPT_STD_MPS] * 3, _prior(acc), _prior(gyro),
                       [PRIOR_STD["rad"]] * 3] ** 2
     steps = steps_of(ms, segments, block_s, dt)
@@ -174,7 +174,7 @@ def _one_pass(steps, sensors, C, x0, P0, q, w_ie, g0):
     aux = AuxInputs({"t_s": steps.t})
     f_b, w_b = sensors.compensate(steps.N_a, steps.N_g, aux, aux)
     D_a, D_g = sensors.sensitivities(f_b, w_b, aux, aux)
-    Cs, v_at = nominal(C, w_b * RAD_S_PER_DPH * steps.dt[:, None], f_b, steps.dt, steps.zupt, w_ie, g0)
+    Cs, v_at = nominal(C, w_b * units.RAD_S_PER_DPH * steps.dt[:, None], f_b, steps.dt, steps.zupt, w_ie, g0)
     epochs = [Epoch(np.eye(len(P0)), P0, P0, x0, x0)]
     x, P = x0, P0
     ends = np.flatnonzero(steps.zupt)

@@ -30,7 +30,6 @@ from simucal.fit.rotations import exp_so3, skew
 from simucal.generated import systematic as gen
 from simucal.generated import table
 
-RAD_S_PER_DPH = np.pi / 180 / 3600
 CHUNK = 1024  # epochs whose smoother gains are solved at once (memory: 3 CHUNK n^2 doubles)
 
 

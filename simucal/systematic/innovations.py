@@ -31,8 +31,9 @@ from simucal.fit.ranking import Trial, rank
 from simucal.fit.results import ModelTest
 from simucal.generated import systematic as gen
 from simucal.generated.effects import EFFECTS, SEPARATE
+from simucal.io import units
 from simucal.systematic.calibrate import ZUPT_STD_MPS
-from simucal.systematic.filter import RAD_S_PER_DPH, Sensors, nominal
+from simucal.systematic.filter import Sensors, nominal
 
 CHUNK = 4096  # steps whose blocks are built at once
 
@@ -86,7 +87,7 @@ def signatures(result, ids=None) -> Signatures:
     aux = AuxInputs({"t_s": steps.t})
     f_b, w_b = big.compensate(steps.N_a, steps.N_g, aux, aux)
     D_a, D_g = big.sensitivities(f_b, w_b, aux, aux)
-    Cs, v_at = nominal(result.C, w_b * RAD_S_PER_DPH * steps.dt[:, None], f_b, steps.dt, steps.zupt, w_ie, g0)
+    Cs, v_at = nominal(result.C, w_b * units.RAD_S_PER_DPH * steps.dt[:, None], f_b, steps.dt, steps.zupt, w_ie, g0)
     na, ng = len(s.p_acc), len(s.p_gyro)
     own = list(range(na)) + [len(big.p_acc) + j for j in range(ng)] + list(range(D_a.shape[-1] + D_g.shape[-1] - 3,
                                                                                   D_a.shape[-1] + D_g.shape[-1]))

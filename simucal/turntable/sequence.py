@@ -176,7 +176,7 @@ def inputs(sc: Scenario, ends, middles, rate_hz):
     C_b_k, C_d_k = table.mounting(np.array(sc.theta4_rad)), table.mounting(np.array(sc.lambda4_rad))
     w_ie_n = table.earth_rate_n(units.DEFAULT_EARTH_RATE_DPH, np.radians(sc.latitude_deg))
     turned = _rotation_vectors(np.swapaxes(C_end[:-1], 1, 2) @ C_end[1:])  # in k, rad per sample
-    w_k = np.degrees(turned) * rate_hz * 3600.0 + np.einsum("nji,j->ni", C_mid, w_ie_n)
+    w_k = np.degrees(turned) * rate_hz * units.DPH_PER_DPS + np.einsum("nji,j->ni", C_mid, w_ie_n)
     up_k = C_mid[:, 2, :]  # C_n^k [0, 0, 1]
     return up_k @ C_b_k, w_k @ C_d_k, up_k @ C_d_k
 

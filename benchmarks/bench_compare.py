@@ -1,0 +1,108 @@
+"""The speed guard (issue 52): the headline commands run by an earlier revision's code and by this
+working tree's, side by side in one run, alternating, each a whole process; each figure's ratio
+now / before, and a verdict: a figure more than 10 % slower is to be fixed or explained in
+docs/benchmarks.md.
+
+The commands (docs/benchmarks.md, Speed): the Monte Carlo of dong2018's section 4 with and without an
+effect, calibrate and diagnose of imu_tk's Xsens session (shared/data), diagnose of a rich turntable
+set (fibonacci48: 102 segments), calibrate of a raw turntable set (fibonacci24 at 250 Hz: 304,000
+rows). The sets are written once by this checkout; the earlier code is REV's simucal/, generated/
+and derive/ from git, laid out as installed and run with PYTHONPATH. Each figure is the median of
+--repeats runs after one that warms the caches (bytecode, compiled models); its spread is printed
+beside it, so that a ratio inside the spread reads as noise.
+
+    python3 benchmarks/bench_compare.py [REV] [--repeats 3] [--quick] [--only TEXT]
+
+REV defaults to HEAD (the working tree's change against its commit). --quick: every command at a
+size of seconds (a check that the guard runs; its ratios measure little).
+"""
+import argparse
+import os
+import statistics
+import subprocess
+import tempfile
+from pathlib import Path
+
+from bench_raw400 import ROOT, alternate, old_tree
+
+from simucal.io.importers import import_imu_tk
+from simucal.report.markdown import header
+
+XSENS = ROOT.parent / "shared" / "data" / "imu_tk-xsens"
+SLOWER = 1.10  # the guard's threshold: now / before above it is a regression to fix or explain
+
+
+def sets(tmp: Path, quick: bool) -> dict:
+    """The measurement sets the commands read, written once by this checkout."""
+    out = {}
+    if XSENS.is_dir():
+        out["xsens"] = tmp / "xsens"
+        import_imu_tk(XSENS / "xsens_acc.mat", XSENS / "xsens_gyro.mat", out["xsens"], 4096.0, 6258 * 3.141592653589793
+                      / 180, 45.4, 9.81744)
+    for name, args in (("rich", ["--plan", "fibonacci24" if quick else "fibonacci48"]),
+                       ("raw", ["--plan", "fibonacci24", "--rate-hz", "20" if quick else "250"])):
+        out[name] = tmp / name
+        subprocess.run(["simucal", "simulate", "-o", str(out[name]), "--seed", "1", *args], check=True,
+                       capture_output=True)
+    return out
+
+
+def commands(s: dict, quick: bool) -> list:
+    """(figure, simucal arguments) of every headline command; {name} is before or now."""
+    trials = "20000" if quick else "200000"
+    rows = [(f"montecarlo --scenario paper --trials {trials} --effect acc.quadratic.z=1e-4",
+             ["montecarlo", "--scenario", "paper", "--trials", trials, "--effect", "acc.quadratic.z=1e-4"]),
+            (f"montecarlo --scenario paper --trials {trials}", ["montecarlo", "--scenario", "paper", "--trials", trials])]
+    if "xsens" in s:
+        rows += [("calibrate, imu_tk's Xsens session", ["calibrate", s["xsens"], "-o", "xs_{name}.json"]),
+                 ("diagnose, imu_tk's Xsens session", ["diagnose", s["xsens"], "-o", "xd_{name}.json"])]
+    rows += [(f"diagnose, a rich turntable set ({_segments(s['rich'])} segments)",
+              ["diagnose", s["rich"], "-o", "rd_{name}.json"]),
+             (f"calibrate, a raw turntable set ({_rows(s['raw']):,} rows)", ["calibrate", s["raw"], "-o", "rc_{name}.json"])]
+    return rows
+
+
+def _segments(folder: Path) -> int:
+    return sum(1 for _ in (folder / "segments.csv").open()) - 1
+
+
+def _rows(folder: Path) -> int:
+    return sum(1 for _ in (folder / "samples.csv").open()) - 1
+
+
+def main():
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("rev", nargs="?", default="HEAD", help="the earlier revision (default HEAD)")
+    ap.add_argument("--repeats", type=int, default=3, help="whole processes per code and command (default 3)")
+    ap.add_argument("--quick", action="store_true", help="every command at a size of seconds")
+    ap.add_argument("--only", default="", help="only the commands whose figure holds this text (e.g. Xsens)")
+    a = ap.parse_args()
+    now = subprocess.run(["git", "-C", str(ROOT), "describe", "--always", "--dirty"], capture_output=True,
+                         text=True).stdout.strip()
+    print(f"{os.cpu_count()} cores; load average before {os.getloadavg()[0]:.2f}; before = {a.rev}, now = {now}; "
+          f"median of {a.repeats} whole processes each, alternating\n")
+    print(header(["command", f"before ({a.rev}), wall s", "now, wall s", "now / before", "verdict"]), flush=True)
+    worst = 0.0
+    with tempfile.TemporaryDirectory(prefix="bench-compare-") as tmp:
+        tmp = Path(tmp)
+        old = str(old_tree(a.rev, tmp / "old"))
+        for what, args in commands(sets(tmp, a.quick), a.quick):
+            if a.only not in what:
+                continue
+            runs = alternate(args, old, tmp, a.repeats)
+            walls = {k: [m[0] for m in v] for k, v in runs.items()}
+            before, after = statistics.median(walls["before"]), statistics.median(walls["now"])
+            ratio = after / before
+            worst = max(worst, ratio)
+            verdict = "SLOWER: fix or explain" if ratio > SLOWER else "faster" if ratio < 1 / SLOWER else "same"
+            print(f"| {what} | {_cell(walls['before'])} | {_cell(walls['now'])} | {ratio:.2f} | {verdict} |",
+                  flush=True)
+    print(f"\nworst ratio {worst:.2f}; load average after {os.getloadavg()[0]:.2f}")
+
+
+def _cell(walls: list) -> str:
+    return f"{statistics.median(walls):.3g} ({min(walls):.3g}-{max(walls):.3g})"
+
+
+if __name__ == "__main__":
+    main()
