@@ -226,6 +226,23 @@ def _joint_block(obs, groups, first: SensorBlock, degree, labels, t_ref_c, plate
     return block
 
 
+def _still_warmup(folders, degree, kwargs):
+    """The set, where --thermal is given one stream that never moves (a board warming up, handheld/warmup.py);
+    else None. Options a warm-up cannot use are refused by name."""
+    if len(folders) != 1:
+        return None
+    from simucal.handheld.static_detect import still_throughout
+    ms = folders[0] if isinstance(folders[0], io.MeasurementSet) else io.read_set(folders[0])
+    if methods.data_kind(ms) != methods.STREAM or not ms.has_acc or len(ms.samples["t_s"]) < 20 \
+            or not still_throughout(ms.acc_g(), ms.samples["t_s"]):
+        return None
+    given = [o for o, v in (("--thermal-degree", degree), ("--add", kwargs.get("ids"))) if v]
+    if given:
+        raise CalibrationError(f"{given[0]}: a still warm-up's bias takes its degree from the data (0 to 3) and no "
+                               "effects; leave it out")
+    return ms
+
+
 def _refuse_thermal_options(folders, degree, kwargs):
     if degree is not None and not 0 <= degree <= 3:
         raise CalibrationError(f"--thermal-degree {degree}: between 0 and 3")
@@ -274,6 +291,10 @@ def calibrate_thermal(folders, degree=None, t_ref_c=None, **kwargs) -> Calibrati
 
 
 def _calibrate_thermal(folders, degree, t_ref_c, kwargs) -> Calibration:
+    warmup = _still_warmup(folders, degree, kwargs)
+    if warmup is not None:
+        from simucal.handheld.warmup import calibrate_warmup
+        return calibrate_warmup(warmup, t_ref_c)
     sets = [_plateau(f) for f in folders]
     _refuse_repeated([ms for ms, _ in sets])
     t_ref = _temperatures(sets, t_ref_c)

@@ -162,7 +162,7 @@ def test_one_method_registry():
     assert not spelled, spelled
 
 
-UNITLESS = {"--seed", "--seeds", "--unit-seed", "--trials", "--positions", "--power", "--thermal-degree", "--threshold-factor"}
+UNITLESS = {"--seed", "--seeds", "--instance", "--unit-seed", "--trials", "--positions", "--power", "--thermal-degree", "--threshold-factor"}
 UNIT_SUFFIXES = ("-deg", "-s", "-hz", "-dps", "-dph", "-g", "-c", "-arcmin", "-mps2", "-per-g", "-per-dps")
 OLD_NAMES = {"--out-dir": "-o/--output", "--json": "-o/--output", "--sigma": "--acc-noise-g/--gyro-noise-dph",
              "--rates": "--rates-dps", "--heading-error-deg": "--heading-accuracy-deg"}  # accepted, never shown first

@@ -117,8 +117,9 @@ def simulate(out_dir, output, scenario, heading_error_deg, seed, unit_seed, plan
 
 
 @main.command("import")
-@click.argument("fmt", type=click.Choice(["imu_tk", "imucal-ferraris", "imucal-annotated", "csv"]))
-@click.argument("sources", nargs=-1, required=True, type=InputPath(exists=True, dir_okay=False))
+@click.argument("fmt", type=click.Choice(["imu_tk", "imucal-ferraris", "imucal-annotated", "csv", "ulog", "dataflash",
+                                          "rosbag"]))
+@click.argument("sources", nargs=-1, required=True, type=InputPath(exists=True))
 @click.option("-o", "--output", "--out-dir", "out_dir", required=True, type=click.Path(file_okay=False),
               help="The output folder (a measurement set).")
 @click.option("--latitude-deg", type=LATITUDE, default=None,
@@ -141,14 +142,26 @@ def simulate(out_dir, output, scenario, heading_error_deg, seed, unit_seed, plan
               help="csv: the gyro columns' unit (pulse/s and counts need their nominal scale factors).")
 @click.option("--turn-deg", type=Number(-3600.0, 3600.0), default=-360.0, show_default=True,
               help="Ferraris: the protocol's turn angle, deg (imucal's default -360, clockwise).")
+@click.option("--instance", type=Number(0, 9, integer=True), default=0, show_default=True,
+              help="ulog, dataflash: the IMU's instance (PX4's multi_id, ArduPilot's IMU.I).")
+@click.option("--topic", default=None, help="rosbag: the sensor_msgs/Imu topic (default: the bag's only one).")
 @FORCE
 def import_cmd(fmt, sources, out_dir, latitude_deg, acc_counts_per_g, gyro_counts_per_dps, gravity_mps2, rate_hz,
-               columns, acc_unit, gyro_unit, turn_deg, force):
-    """Write a measurement set from another tool's recording."""
+               columns, acc_unit, gyro_unit, turn_deg, instance, topic, force):
+    """Write a measurement set from another tool's recording, or from a PX4 ULog, an ArduPilot DataFlash
+    log or a ROS 1 or ROS 2 bag (m/s^2 and rad/s as logged, the sensor frame and device ids in meta.json)."""
     from simucal.io import importers as im
     guard(sources, sets=[out_dir], force=force)
+    folders = [s for s in sources if Path(s).is_dir()]
+    if folders and fmt != "rosbag":
+        fail(f"{folders[0]}: is a folder; {fmt} reads files (a ROS 2 bag is a folder: import rosbag)")
     try:
-        if fmt == "imu_tk":
+        if fmt in ("ulog", "dataflash", "rosbag"):
+            from simucal.io.logs import import_log
+            if len(sources) != 1:
+                raise im.ImportError_(f"{fmt} reads one log: give one file (a ROS 2 bag: its folder)")
+            import_log(fmt, sources[0], out_dir, latitude_deg, int(instance), topic)
+        elif fmt == "imu_tk":
             if len(sources) != 2 or not acc_counts_per_g or not gyro_counts_per_dps:
                 raise im.ImportError_("imu_tk needs ACC_FILE GYRO_FILE, --acc-counts-per-g and --gyro-counts-per-dps")
             im.import_imu_tk(sources[0], sources[1], out_dir, acc_counts_per_g, gyro_counts_per_dps, latitude_deg,
@@ -229,7 +242,7 @@ def _save(result, *paths):
 
 
 @main.command()
-@click.argument("data_dir", type=InputPath(exists=True, file_okay=False))
+@click.argument("data_dir", type=InputPath(exists=True))
 @click.option("-o", "--output", type=click.Path(dir_okay=False), default="noise.json", show_default=True,
               help="The report (simucal.noise/1): per axis the Allan deviation and the IEEE 952 terms.")
 @click.option("--html", "html_path", type=click.Path(dir_okay=False), default=None,
@@ -244,17 +257,22 @@ def _save(result, *paths):
                    "memory, 48 bytes a row), processes (a Dask LocalCluster on 127.0.0.1; the sums on disk in TMPDIR, "
                    "for a recording larger than memory) or a Dask scheduler's address (its workers must see TMPDIR): "
                    "the same numbers on any. " + SCHEDULER_TRUST)
-def noise(data_dir, output, html_path, kalibr_path, tau_max_s, scheduler):
-    """Allan deviation of a still recording and its IEEE 952 noise terms (ARW, bias instability, ...); a stream is
-    read a chunk at a time. The Python API's simucal.noise(DATA)."""
+@click.option("--topic", default=None, help="DATA a ROS 1 bag or a ROS 2 bag's folder: its sensor_msgs/Imu topic "
+                                            "(default: the bag's only one), read as `simucal import rosbag` reads it.")
+def noise(data_dir, output, html_path, kalibr_path, tau_max_s, scheduler, topic):
+    """Allan deviation of a still recording (a measurement set, or a ROS bag) and its IEEE 952 noise terms (ARW,
+    bias instability, ...); a stream is read a chunk at a time. The Python API's simucal.noise(DATA)."""
     from simucal import allan, api
     from simucal.errors import CalibrationError
-    from simucal.io import MeasurementSetError, outputs
+    from simucal.io import MeasurementSetError, importers, logs, outputs
     guard([data_dir], files={"-o": output, "--html": html_path, "--kalibr": kalibr_path})
     try:
-        result = api.noise(data_dir, tau_max_s=tau_max_s, scheduler=scheduler)
+        data = data_dir
+        if logs.is_rosbag(data_dir) or topic:
+            data = logs.bag_as_set(data_dir, topic)
+        result = api.noise(data, tau_max_s=tau_max_s, scheduler=scheduler)
         yaml = result.kalibr_yaml() if kalibr_path else None  # refused before anything is written
-    except (MeasurementSetError, CalibrationError) as e:
+    except (MeasurementSetError, CalibrationError, importers.ImportError_) as e:
         fail(e)
     _save(result, output, html_path)
     if kalibr_path:

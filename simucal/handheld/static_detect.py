@@ -58,6 +58,22 @@ def moving_variance(x, w):
     return np.maximum((c2[hi] - c2[lo]) / cnt - mean ** 2, 0.0)
 
 
+def first_motion(mv, acc, w, rest_factor=20.0) -> int:
+    """The first row whose moving variance (norm, mv) exceeds rest_factor times the white-noise level that first
+    differences give over the first window (blind to slow motion and drift, so a stream that starts moving shows
+    a moving variance far above it); len(mv) where none does: still throughout."""
+    seed = float(np.linalg.norm(white_noise_var(acc[:w])))
+    above = np.nonzero(mv > rest_factor * max(seed, 1e-300))[0]
+    return int(above[0]) if above.size else len(mv)
+
+
+def still_throughout(acc, t, window_s=1.0, rest_factor=20.0) -> bool:
+    """Whether a stream never moves (first_motion finds no row), as detect_static judges its initial rest."""
+    dt = float(np.median(np.diff(t)))
+    w = max(int(round(window_s / dt)) | 1, 3)
+    return first_motion(np.linalg.norm(moving_variance(acc, w), axis=1), acc, w, rest_factor) >= len(t)
+
+
 def detect_static(acc, t, settings: DetectSettings = DetectSettings(), rest_factor=20.0) -> Detection:
     if len(t) < 20:
         raise CalibrationError(f"the stream has {len(t)} row{'s' * (len(t) != 1)}: a hand-placed session is one "
@@ -73,17 +89,14 @@ def detect_static(acc, t, settings: DetectSettings = DetectSettings(), rest_fact
                                    "leaves no room for the poses and moves; give seconds")
     w = max(int(round(window_s / dt)) | 1, 3)
     mv = np.linalg.norm(moving_variance(acc, w), axis=1)
-    if init_rest_s is not None:
-        init_end = int(np.searchsorted(t, t[0] + init_rest_s))
-    else:
-        # the noise level from first differences of the first window: blind to slow
-        # motion, so a stream that starts moving shows a moving variance far above it
-        seed = float(np.linalg.norm(white_noise_var(acc[:w])))
-        above = np.nonzero(mv > rest_factor * max(seed, 1e-300))[0]
-        init_end = int(above[0]) if above.size else len(mv)
+    init_end = int(np.searchsorted(t, t[0] + init_rest_s)) if init_rest_s is not None else first_motion(mv, acc, w,
+                                                                                                       rest_factor)
     if init_end >= len(mv) and init_rest_s is None:
         raise CalibrationError(f"no motion: the accelerometers stay still through the whole stream "
-                               f"({t[-1] - t[0]:.1f} s); a calibration needs the unit turned into many poses")
+                               f"({t[-1] - t[0]:.1f} s); a calibration needs the unit turned into many poses. Still data "
+                               "give the bias over temperature where temp_c rises (simucal calibrate SET --thermal: a "
+                               "warm-up, as PX4's and ArduPilot's thermal calibrations take it) and the noise terms "
+                               "(simucal noise SET)")
     needed = 3.0 if init_rest_s is None else 0.5  # a stated rest is the user's call
     rest = slice(0, init_end)
     if t[min(init_end, len(t) - 1)] - t[0] < needed:

@@ -134,14 +134,18 @@ def _cubic(p: BiasPolynomial) -> np.ndarray:
     return c
 
 
-def px4_parameters(polys: list[BiasPolynomial]) -> tuple[list[tuple[str, float, int]], list[str]]:
-    """[(name, value, MAV_PARAM_TYPE)] of PX4's TC_A0_* / TC_G0_* (module doc), and the warnings."""
+def px4_parameters(polys: list[BiasPolynomial], device_ids: dict | None = None
+                   ) -> tuple[list[tuple[str, float, int]], list[str]]:
+    """[(name, value, MAV_PARAM_TYPE)] of PX4's TC_A0_* / TC_G0_* (module doc), and the warnings; device_ids:
+    {sensor: the device id a log holds}, written as TC_A0_ID / TC_G0_ID."""
     warnings = _checked(polys, "PX4")
     rows = []
     for p in polys:
         letter = "A" if p.sensor == "acc" else "G"
         c = _cubic(p)
         rows.append((f"TC_{letter}_ENABLE", 1, PX4_INT32))
+        if (device_ids or {}).get(p.sensor) is not None:
+            rows.append((f"TC_{letter}0_ID", int(device_ids[p.sensor]), PX4_INT32))
         rows += [(f"TC_{letter}0_{k}", v, PX4_REAL32) for k, v in
                  (("TREF", p.t_ref_c), ("TMIN", p.t_min_c), ("TMAX", p.t_max_c))]
         rows += [(f"TC_{letter}0_X{k}_{i}", float(c[i, k]), PX4_REAL32) for i in range(3) for k in range(4)]
@@ -177,15 +181,21 @@ def _header(polys, source, warnings, notes) -> list[str]:
 
 PX4_NOTE = ("set TC_A0_ID and TC_G0_ID to the sensor's device id (CAL_ACC0_ID, CAL_GYRO0_ID): PX4 applies the "
             "set only to that sensor; then reboot and redo the ordinary accelerometer and gyro calibration")
+PX4_NOTE_IDS = ("TC_A0_ID and TC_G0_ID are the log's device ids (PX4 applies the set only to those sensors); reboot and "
+                "redo the ordinary accelerometer and gyro calibration")
+
+
+def px4_note(device_ids: dict | None) -> str:
+    return PX4_NOTE_IDS if device_ids and all(v is not None for v in device_ids.values()) else PX4_NOTE
 ARDUPILOT_NOTE = ("the constant bias is the ordinary calibration's (offsets at INS_ACC1_CALTEMP and INS_GYR1_CALTEMP):"
                   " redo it after loading; these polynomials correct the change from that temperature")
 
 
-def px4_text(polys: list[BiasPolynomial], source: str) -> tuple[str, list[str]]:
+def px4_text(polys: list[BiasPolynomial], source: str, device_ids: dict | None = None) -> tuple[str, list[str]]:
     """A QGroundControl .params file (tab-separated: vehicle id, component id, name, value, type) and the
     warnings."""
-    rows, warnings = px4_parameters(polys)
-    lines = ["# Onboard parameters for Vehicle 1", "#"] + _header(polys, source, warnings, [PX4_NOTE])
+    rows, warnings = px4_parameters(polys, device_ids)
+    lines = ["# Onboard parameters for Vehicle 1", "#"] + _header(polys, source, warnings, [px4_note(device_ids)])
     lines += ["#", "# Vehicle-Id Component-Id Name Value Type"]
     lines += [f"1\t1\t{n}\t{_number(v)}\t{t}" for n, v, t in rows]
     return "\n".join(lines) + "\n", warnings
@@ -202,8 +212,10 @@ def texts(cal, meta: dict, px4: str | None = None, ardupilot: str | None = None)
     """[(path, text, warnings, note)] of the files asked for; meta: the data's meta.json (gravity_mps2)."""
     polys = bias_polynomials(cal, gravity_mps2(meta))
     source = ", ".join(cal.input) if isinstance(cal.input, list) else str(cal.input)
-    return [(path, *maker(polys, source), note) for path, maker, note in
-            ((px4, px4_text, PX4_NOTE), (ardupilot, ardupilot_text, ARDUPILOT_NOTE)) if path]
+    log = meta.get("log") if isinstance(meta.get("log"), dict) else {}
+    ids = {p.sensor: log.get(f"{p.sensor}_device_id") for p in polys} if log else None
+    made = [(px4, *px4_text(polys, source, ids), px4_note(ids))] if px4 else []
+    return made + ([(ardupilot, *ardupilot_text(polys, source), ARDUPILOT_NOTE)] if ardupilot else [])
 
 
 def write(made: list[tuple]) -> list[str]:

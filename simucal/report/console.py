@@ -132,19 +132,28 @@ def _p(x) -> str:
     return "-" if x is None else f"{x:.2g}"
 
 
+def _where(th, b: SensorBlock) -> str:
+    """The plateaus' or a ramp's bands' temperatures and T_ref, in words."""
+    return (f"{len(th['plateaus_c'])} " + ("plateaus" if b.details.get("plateaus", True) else "bands of a ramp")
+            + " at " + ", ".join(f"{t:.4g}" for t in th["plateaus_c"]) + f" degC, T_ref {th['t_ref_c']:.4g} degC"
+            + (f"; {th['rows']}" if th.get("rows") else ""))
+
+
 def _thermal_lines(s, b: SensorBlock):
     """A thermal block: the joint model test (whole fit and each plateau or band, beside each plateau
     alone), then every parameter that follows temperature."""
     th = b.thermal
     groups = b.details.get("groups")
-    where = (f"{len(th['plateaus_c'])} " + ("plateaus" if b.details.get("plateaus", True) else "bands of a ramp")
-             + " at " + ", ".join(f"{t:.4g}" for t in th["plateaus_c"]) + f" degC, T_ref {th['t_ref_c']:.4g} degC"
-             + (f"; {th['rows']}" if th.get("rows") else ""))
-    if groups is None:  # each plateau alone, then the polynomials (a method without a row-level fit)
-        yield (f"{s}: {where}; per plateau p = " + ", ".join(_p(x["p_value"]) for x in b.details["plateaus"]))
+    if "warmup" in th:
+        yield (f"{s}: a still warm-up ({th['warmup']}, {th['temperature_range_c'][0]:.4g} to "
+               f"{th['temperature_range_c'][1]:.4g} degC, T_ref {th['t_ref_c']:.4g} degC): what is left against "
+               f"temperature, per axis p = " + ", ".join(_p(th["parameters"][f"b_{a}"]["p_value"]) for a in "xyz")
+               + ("; THE MODEL FAILS" if b.verdict == "fails" else ""))
+    elif groups is None:
+        yield (f"{s}: {_where(th, b)}; per plateau p = " + ", ".join(_p(x["p_value"]) for x in b.details["plateaus"]))
     else:
         fails = b.verdict == "fails"
-        yield (f"{s}: one model, every row at its own temperature ({where}): chi2 {b.chi2:.4g} / {b.dof} dof, "
+        yield (f"{s}: one model, every row at its own temperature ({_where(th, b)}): chi2 {b.chi2:.4g} / {b.dof} dof, "
                f"p = {_p(b.p_value)}" + ("; THE MODEL FAILS" if fails else ""))
         yield (f"{s}: under it each {'plateau' if b.details.get('plateaus') else 'band'} p = "
                + ", ".join(_p(g["p_value"]) for g in groups)

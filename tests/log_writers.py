@@ -1,0 +1,109 @@
+"""Test logs in the autopilots' and ROS's formats, written from simulated units with a planted truth:
+a ULog by its specification (docs.px4.io, "ULog File Format": a 16-byte header, then messages of a
+uint16 size and a uint8 type), a DataFlash .bin by ArduPilot's (FMT messages describing the others, each
+message 0xA3 0x95 and its type id) and ROS 1 and ROS 2 bags by rosbags' writers. pyulog, pymavlink and
+rosbags read them as they read a vehicle's logs (tests/test_logs.py)."""
+from __future__ import annotations
+
+import struct
+from pathlib import Path
+
+import numpy as np
+
+ULOG_MAGIC = b"ULog\x01\x12\x35"
+PX4_ACCEL = ("uint64_t timestamp", "uint64_t timestamp_sample", "uint32_t device_id", "float x", "float y", "float z",
+             "float temperature", "uint32_t error_count")
+PX4_GYRO = PX4_ACCEL
+
+
+def _ulog_message(kind: bytes, payload: bytes) -> bytes:
+    return struct.pack("<HB", len(payload), kind[0]) + payload
+
+
+def _ulog_key(kind: bytes, ctype: str, name: str, value: bytes) -> bytes:
+    key = f"{ctype} {name}".encode()
+    return _ulog_message(kind, struct.pack("<B", len(key)) + key + value)
+
+
+def write_ulog(path, accel: dict | None, gyro: dict | None, instance=0, params=None, truncate_bytes=0):
+    """A ULog with sensor_accel and sensor_gyro (PX4's fields; either None: left out) of multi instance
+    `instance`. Each a dict of numpy columns: t_us (timestamp and timestamp_sample), x, y, z (m/s^2 or rad/s),
+    temperature (degC, NaN where the driver has none), device_id. truncate_bytes: cut the file's end."""
+    out = bytearray(ULOG_MAGIC + b"\x01" + struct.pack("<Q", 0))
+    out += _ulog_message(b"B", bytes(16) + struct.pack("<3Q", 0, 0, 0))
+    topics = [(name, cols) for name, cols in (("sensor_accel", accel), ("sensor_gyro", gyro)) if cols is not None]
+    for name, _ in topics:
+        out += _ulog_message(b"F", (f"{name}:" + "".join(f"{f};" for f in PX4_ACCEL)).encode())
+    out += _ulog_key(b"I", "char[8]", "sys_name", b"PX4_SITL")
+    for name, value in (params or {}).items():
+        out += _ulog_key(b"P", "float" if isinstance(value, float) else "int32_t", name,
+                         struct.pack("<f" if isinstance(value, float) else "<i", value))
+    for msg_id, (name, _) in enumerate(topics):
+        out += _ulog_message(b"A", struct.pack("<BH", instance, msg_id) + name.encode())
+    rows = []
+    for msg_id, (_, c) in enumerate(topics):
+        for k in range(len(c["t_us"])):
+            payload = struct.pack("<HQQIffffI", msg_id, int(c["t_us"][k]), int(c["t_us"][k]), int(c["device_id"]),
+                                  c["x"][k], c["y"][k], c["z"][k], c["temperature"][k], 0)
+            rows.append((int(c["t_us"][k]), msg_id, _ulog_message(b"D", payload)))
+    rows.sort(key=lambda r: (r[0], r[1]))
+    out += b"".join(r[2] for r in rows)
+    Path(path).write_bytes(bytes(out[:len(out) - truncate_bytes]))
+
+
+DF_HEAD = b"\xa3\x95"
+DF_FMT = 128
+DF_TYPES = {"Q": 8, "B": 1, "f": 4, "N": 16, "I": 4, "Z": 64, "n": 4}
+
+
+def _df_fmt(type_id: int, name: str, fmt: str, columns: str) -> bytes:
+    length = 3 + sum(DF_TYPES[c] for c in fmt)
+    return DF_HEAD + struct.pack("<BBB4s16s64s", DF_FMT, type_id, length, name.encode(), fmt.encode(), columns.encode())
+
+
+def write_dataflash(path, imu: dict | None, instance=0, params=None, temperature=True, truncate_bytes=0):
+    """An ArduPilot DataFlash log: FMT, PARM messages (TimeUS, Name, Value) and IMU messages (TimeUS, I,
+    GyrX..Z rad/s, AccX..Z m/s^2 and, where temperature, T degC) of instance `instance`; imu a dict of numpy
+    columns t_us, acc (n, 3), gyro (n, 3), temperature (or None: no IMU messages)."""
+    imu_fmt, imu_cols = ("QBfffffff", "TimeUS,I,GyrX,GyrY,GyrZ,AccX,AccY,AccZ,T") if temperature \
+        else ("QBffffff", "TimeUS,I,GyrX,GyrY,GyrZ,AccX,AccY,AccZ")
+    out = bytearray(_df_fmt(DF_FMT, "FMT", "BBnNZ", "Type,Length,Name,Format,Columns"))
+    out += _df_fmt(64, "PARM", "QNf", "TimeUS,Name,Value")
+    out += _df_fmt(65, "IMU", imu_fmt, imu_cols)
+    for name, value in (params or {}).items():
+        out += DF_HEAD + struct.pack("<BQ16sf", 64, 0, name.encode(), float(value))
+    if imu is not None:
+        for k in range(len(imu["t_us"])):
+            values = [*imu["gyro"][k], *imu["acc"][k]] + ([imu["temperature"][k]] if temperature else [])
+            out += DF_HEAD + struct.pack("<BQB" + "f" * len(values), 65, int(imu["t_us"][k]), instance, *values)
+    Path(path).write_bytes(bytes(out[:len(out) - truncate_bytes]))
+
+
+def write_bag(path, t_s, acc_mps2, gyro_rads, topic="/imu", ros=1, msgtype="sensor_msgs/msg/Imu"):
+    """A ROS 1 bag (ros=1) or a ROS 2 bag folder (ros=2, sqlite3) of sensor_msgs/Imu on `topic`, stamped
+    t_s (the header's stamp, and the bag's time); msgtype another type to plant a wrong one."""
+    from rosbags.typesys import Stores, get_typestore
+    store = get_typestore(Stores.ROS1_NOETIC if ros == 1 else Stores.ROS2_HUMBLE)
+    T = store.types
+    has_seq = "seq" in T["std_msgs/msg/Header"].__dataclass_fields__
+    if ros == 1:
+        from rosbags.rosbag1 import Writer
+        writer, serialize = Writer(Path(path)), store.serialize_ros1
+    else:
+        from rosbags.rosbag2 import Writer
+        writer, serialize = Writer(Path(path), version=9), store.serialize_cdr
+    with writer as w:
+        con = w.add_connection(topic, msgtype, typestore=store)
+        for k, t in enumerate(t_s):
+            sec, nanosec = int(t // 1), int(round((t % 1) * 1e9))
+            header = T["std_msgs/msg/Header"](stamp=T["builtin_interfaces/msg/Time"](sec=sec, nanosec=nanosec),
+                                              frame_id="imu_link", **({"seq": k} if has_seq else {}))
+            if msgtype == "sensor_msgs/msg/Imu":
+                v3 = T["geometry_msgs/msg/Vector3"]
+                msg = T[msgtype](header=header, orientation=T["geometry_msgs/msg/Quaternion"](x=0.0, y=0.0, z=0.0, w=1.0),
+                                 orientation_covariance=np.zeros(9), angular_velocity=v3(*gyro_rads[k]),
+                                 angular_velocity_covariance=np.zeros(9), linear_acceleration=v3(*acc_mps2[k]),
+                                 linear_acceleration_covariance=np.zeros(9))
+            else:  # a Temperature message where an Imu is expected
+                msg = T[msgtype](header=header, temperature=25.0, variance=0.0)
+            w.write(con, int(round(t * 1e9)), serialize(msg, msgtype))

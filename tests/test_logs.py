@@ -1,0 +1,139 @@
+"""The logs MEMS users have (issue 50, simucal/io/logs.py): a PX4 ULog, an ArduPilot DataFlash log and ROS 1
+and ROS 2 bags, written here (tests/log_writers.py) from a still board warming up, read back as the logged
+samples; every broken-file case refused in one line with nothing written."""
+import json
+
+import numpy as np
+import pytest
+from click.testing import CliRunner
+from cli_helpers import refused
+from log_writers import write_bag, write_dataflash, write_ulog
+
+from simucal import io
+from simucal.cli import main
+
+G = 9.80665
+
+
+def still_board(seconds=20.0, acc_hz=200.0, gyro_hz=400.0, seed=0):
+    """A still board (z down, FRD: the accelerometer reads -g on z), its temperature rising; each sensor at
+    its own rate with a logger's jitter on its stamps. Columns as PX4 logs them: t_us, x y z, temperature."""
+    rng = np.random.default_rng(seed)
+
+    def topic(hz, truth, noise, device_id):
+        t_s = np.arange(0.0, seconds, 1 / hz) + 1.5 + rng.uniform(0, 0.2 / hz, int(round(seconds * hz)))
+        temp = 20.0 + 30.0 * (1 - np.exp(-t_s / 60.0))
+        xyz = truth(temp) + rng.normal(0, noise, (len(t_s), 3))
+        return {"t_us": np.round(t_s * 1e6), "x": xyz[:, 0], "y": xyz[:, 1], "z": xyz[:, 2],
+                "temperature": temp, "device_id": device_id}
+    acc = topic(acc_hz, lambda T: np.array([0.1, -0.2, -G]) + 1e-3 * np.outer(T - 35, [1, 2, -1]), 0.02, 1442826)
+    gyro = topic(gyro_hz, lambda T: np.array([0.01, -0.005, 0.002]) + 1e-4 * np.outer(T - 35, [1, -1, 2]), 0.003,
+                 2490378)
+    return acc, gyro
+
+
+def _import(*args):
+    return CliRunner().invoke(main, ["import", *map(str, args)])
+
+
+def test_a_ulog_becomes_a_stream_on_the_slower_sensors_clock(tmp_path):
+    acc, gyro = still_board()
+    write_ulog(tmp_path / "warm.ulg", acc, gyro)
+    r = _import("ulog", tmp_path / "warm.ulg", "-o", tmp_path / "set", "--latitude-deg", 47.4)
+    assert r.exit_code == 0, r.output
+    ms = io.read_set(tmp_path / "set")
+    log = ms.meta["log"]
+    assert log["acc_device_id"] == 1442826 and log["gyro_device_id"] == 2490378 and log["sensor_frame"].startswith("FRD")
+    assert "sensor_accel's samples" in log["clock"]["rows"] and log["clock"]["intervals_without_a_sample"][
+        "rows_left_out"] == 0
+    t_acc = acc["t_us"] * 1e-6
+    # the rows are the accelerometer's samples (float32 as logged); the gyro each row's bin mean
+    n = len(ms.samples["t_s"])
+    assert n == len(t_acc) - 1  # the first accel sample has no interval before it
+    np.testing.assert_allclose(ms.raw("acc"), np.column_stack([acc[k] for k in "xyz"])[1:], rtol=1e-6, atol=1e-6)
+    np.testing.assert_allclose(ms.samples["temp_c"], acc["temperature"][1:], atol=1e-5)
+    t_g = gyro["t_us"] * 1e-6
+    k = 100
+    inside = (t_g > t_acc[k]) & (t_g <= t_acc[k + 1])
+    np.testing.assert_allclose(ms.raw("gyro")[k], [gyro[a][inside].mean() for a in "xyz"], atol=1e-6)
+    assert inside.sum() in (1, 2, 3)
+
+
+def test_a_dataflash_log_keeps_its_imu_messages_and_device_ids(tmp_path):
+    acc, gyro = still_board(gyro_hz=200.0)
+    imu = {"t_us": acc["t_us"], "acc": np.column_stack([acc[k] for k in "xyz"]),
+           "gyro": np.column_stack([gyro[k] for k in "xyz"]), "temperature": acc["temperature"]}
+    write_dataflash(tmp_path / "warm.bin", imu, params={"INS_ACC_ID": 2753028, "INS_GYR_ID": 2752772,
+                                                       "AHRS_ORIENTATION": 0})
+    r = _import("dataflash", tmp_path / "warm.bin", "-o", tmp_path / "set", "--latitude-deg", 47.4)
+    assert r.exit_code == 0, r.output
+    ms = io.read_set(tmp_path / "set")
+    assert ms.meta["log"]["acc_device_id"] == 2753028 and ms.meta["log"]["gyro_device_id"] == 2752772
+    np.testing.assert_allclose(ms.raw("gyro"), imu["gyro"], atol=1e-6)
+    np.testing.assert_allclose(ms.samples["t_s"], (imu["t_us"] - imu["t_us"][0]) * 1e-6, atol=1e-9)
+
+
+@pytest.mark.parametrize("ros", [1, 2])
+def test_a_bag_gives_the_same_allan_terms_as_its_samples_in_csv(tmp_path, ros):
+    """`simucal noise BAG` and `simucal noise SET` of the same samples written as samples.csv: the same terms."""
+    rng = np.random.default_rng(ros)
+    t = np.arange(0, 600.0, 0.01)
+    acc = np.array([0.0, 0.0, G]) + rng.normal(0, 0.01, (len(t), 3))
+    gyro = rng.normal(0, 1e-3, (len(t), 3)) + np.cumsum(rng.normal(0, 2e-6, (len(t), 3)), axis=0)
+    bag = tmp_path / ("imu.bag" if ros == 1 else "imu_bag")
+    write_bag(bag, t + 1000.0, acc, gyro, ros=ros)
+    r = CliRunner().invoke(main, ["noise", str(bag), "-o", str(tmp_path / "bag.json")])
+    assert r.exit_code == 0, r.output
+    io.write_set(tmp_path / "csv", {"acc_unit": "m/s^2", "gyro_unit": "rad/s", "latitude_deg": 0.0},
+                 {"t_s": t, **{c: acc[:, j] for j, c in enumerate(("ax", "ay", "az"))},
+                  **{c: gyro[:, j] for j, c in enumerate(("gx", "gy", "gz"))}})
+    r = CliRunner().invoke(main, ["noise", str(tmp_path / "csv"), "-o", str(tmp_path / "csv.json")])
+    assert r.exit_code == 0, r.output
+    a, b = (json.loads((tmp_path / f).read_text()) for f in ("bag.json", "csv.json"))
+    for s in ("acc", "gyro"):
+        for axis in ("x", "y", "z"):
+            for key in ("terms", "bounds", "adev"):
+                ta, tb = a[s]["axes"][axis][key], b[s]["axes"][axis][key]
+                if isinstance(ta, dict):
+                    assert ta.keys() == tb.keys()
+                    ta, tb = [ta[k] or 0.0 for k in ta], [tb[k] or 0.0 for k in ta]
+                np.testing.assert_allclose(ta, tb, rtol=1e-6, err_msg=(s, axis, key))
+            assert a[s]["axes"][axis]["terms"]["N"] > 0
+
+
+def _refused_writing_nothing(tmp_path, *args_and_words):
+    *args, words = args_and_words
+    refused(_import(*args, "-o", tmp_path / "out", "--latitude-deg", 47.4), *words)
+    assert not (tmp_path / "out").exists()
+
+
+def test_broken_logs_are_refused_in_one_line_and_nothing_is_written(tmp_path):
+    acc, gyro = still_board(seconds=2.0)
+    write_ulog(tmp_path / "cut.ulg", acc, gyro, truncate_bytes=7)
+    _refused_writing_nothing(tmp_path, "ulog", tmp_path / "cut.ulg", ["cut.ulg", "cut short"])
+    write_ulog(tmp_path / "noacc.ulg", None, gyro)
+    _refused_writing_nothing(tmp_path, "ulog", tmp_path / "noacc.ulg", ["noacc.ulg", "no sensor_accel"])
+    write_ulog(tmp_path / "i1.ulg", acc, gyro, instance=1)
+    _refused_writing_nothing(tmp_path, "ulog", tmp_path / "i1.ulg", ["no sensor_accel instance 0", "--instance 1"])
+    (tmp_path / "not.ulg").write_bytes(b"hello, not a log\n" * 10)
+    _refused_writing_nothing(tmp_path, "ulog", tmp_path / "not.ulg", ["not.ulg", "not a ULog"])
+    imu = {"t_us": acc["t_us"], "acc": np.column_stack([acc[k] for k in "xyz"]),
+           "gyro": np.column_stack([acc[k] for k in "xyz"]), "temperature": acc["temperature"]}
+    write_dataflash(tmp_path / "cut.bin", imu, truncate_bytes=5)
+    _refused_writing_nothing(tmp_path, "dataflash", tmp_path / "cut.bin", ["cut.bin", "cut short"])
+    write_dataflash(tmp_path / "i2.bin", imu, instance=2)
+    _refused_writing_nothing(tmp_path, "dataflash", tmp_path / "i2.bin", ["no IMU messages of instance 0",
+                                                                          "--instance 2"])
+    write_dataflash(tmp_path / "none.bin", None)
+    _refused_writing_nothing(tmp_path, "dataflash", tmp_path / "none.bin", ["no IMU messages"])
+    t = np.arange(200) * 0.005
+    write_bag(tmp_path / "temp.bag", t, None, None, topic="/imu/temperature", msgtype="sensor_msgs/msg/Temperature")
+    _refused_writing_nothing(tmp_path, "rosbag", tmp_path / "temp.bag", ["no sensor_msgs/Imu topic",
+                                                                       "/imu/temperature"])
+    _refused_writing_nothing(tmp_path, "rosbag", tmp_path / "temp.bag", "--topic", "/imu/temperature",
+                             ["is sensor_msgs/msg/Temperature, not sensor_msgs/Imu"])
+    write_bag(tmp_path / "ok.bag", t, np.zeros((200, 3)), np.zeros((200, 3)))
+    _refused_writing_nothing(tmp_path, "rosbag", tmp_path / "ok.bag", "--topic", "/camera",
+                             ["no topic /camera in the bag", "/imu"])
+    (tmp_path / "cut.bag").write_bytes((tmp_path / "ok.bag").read_bytes()[:-300])
+    _refused_writing_nothing(tmp_path, "rosbag", tmp_path / "cut.bag", ["cut.bag"])

@@ -1,0 +1,96 @@
+"""A still board warming up (issue 50, simucal/handheld/warmup.py): each axis's bias over temperature with
+honest stds where the bias also wanders in time, a model test that holds its level, the autopilots' files
+with the log's device ids, and refusals that say what still data can give."""
+import numpy as np
+import pytest
+from click.testing import CliRunner
+from cli_helpers import refused
+
+import simucal
+
+from simucal.calibrate import calibrate
+from simucal.cli import main
+from simucal.errors import CalibrationError
+from simucal.handheld.warmup import calibrate_warmup
+from simucal.io.arrays import from_arrays
+
+T_REF = 37.5
+ACC_G = np.array([[2e-3, 4e-5, -2e-6, 1e-6], [-1e-3, -3e-5, 1e-6, 2e-6], [1.5e-3, 2e-5, 3e-6, -1.5e-6]])
+GYRO_DPH = np.array([[360.0, 5.0, -0.1, 0.04], [-180.0, -4.0, 0.08, 0.03], [90.0, 3.0, 0.05, -0.04]])
+
+
+def warmup(seed, seconds=1500.0, hz=50.0, wander=True):
+    """A still board (z down) warming from 15 to 58 degC: a cubic bias in (T - 37.5) on every axis, white
+    noise and (wander) a random walk of the bias in time, as a MEMS unit's."""
+    rng = np.random.default_rng(seed)
+    t = np.arange(0, seconds, 1 / hz)
+    T = 15 + 45 * (1 - np.exp(-t / 500.0)) + rng.normal(0, 0.02, len(t))
+    powers = (T - T_REF)[:, None] ** np.arange(4)
+    walk = (lambda step: np.cumsum(rng.normal(0, step, (len(t), 3)), axis=0)) if wander else (lambda step: 0.0)
+    acc = np.array([0, 0, -1.0]) + powers @ ACC_G.T + rng.normal(0, 2e-3, (len(t), 3)) + walk(2e-6)
+    gyro = powers @ GYRO_DPH.T + rng.normal(0, 180.0, (len(t), 3)) + walk(0.05)
+    return from_arrays(acc, gyro, acc_unit="g", gyro_unit="deg/h", t_s=t, temp_c=T, meta={"latitude_deg": 47.0})
+
+
+@pytest.mark.slow
+def test_the_bias_curves_stds_hold_over_seeds_though_the_bias_wanders():
+    """30 seeds: every coefficient's error / std has an rms within 0.75-1.3 (the gyro's full bias, the
+    accelerometer's change over temperature), the cubic found on every axis, the model test at its level."""
+    z = {"acc": [], "gyro": []}
+    fails = 0
+    for seed in range(30):
+        cal = calibrate_warmup(warmup(seed), t_ref_c=T_REF)
+        for sensor, truth in (("acc", ACC_G), ("gyro", GYRO_DPH)):
+            block = getattr(cal, sensor)
+            for i, a in enumerate("xyz"):
+                f = block.thermal["parameters"][f"b_{a}"]
+                assert f["degree"] == 3
+                first = 1 if sensor == "acc" else 0  # the accelerometer's constant is not seen (gravity)
+                z[sensor].append((np.array(f["coefficients"]) - truth[i])[first:] / np.array(f["std"])[first:])
+                fails += f["p_value"] < 1e-3
+    for sensor, values in z.items():
+        rms = np.sqrt(np.mean(np.square(values), axis=0))
+        assert np.all((rms > 0.75) & (rms < 1.3)), (sensor, rms)
+    assert fails <= 2  # of 180 tests at 1e-3
+
+
+def test_a_missing_cubic_fails_the_model_test_and_without_a_wander_the_stds_are_conservative():
+    cal = calibrate_warmup(warmup(1, wander=False), t_ref_c=T_REF)
+    for i, a in enumerate("xyz"):
+        f = cal.gyro.thermal["parameters"][f"b_{a}"]
+        z = (np.array(f["coefficients"]) - GYRO_DPH[i]) / np.array(f["std"])
+        assert np.all(np.abs(z) < 3) and f["p_value"] > 1e-3
+    ms = warmup(2, wander=False)
+    T = ms.samples["temp_c"]
+    ms.samples["gx"] = ms.samples["gx"] + 40.0 * np.sin((T - 15) / 6.0)  # no cubic follows this
+    assert calibrate_warmup(ms).gyro.thermal["parameters"]["b_x"]["p_value"] < 1e-3
+
+
+def test_the_px4_file_holds_the_logs_device_ids(tmp_path):
+    from log_writers import write_ulog
+    from test_logs import still_board
+    acc, gyro = still_board(seconds=300.0, acc_hz=50.0, gyro_hz=100.0)
+    write_ulog(tmp_path / "w.ulg", acc, gyro)
+    assert CliRunner().invoke(main, ["import", "ulog", str(tmp_path / "w.ulg"), "-o", str(tmp_path / "s"),
+                                     "--latitude-deg", "47"]).exit_code == 0
+    r = CliRunner().invoke(main, ["calibrate", str(tmp_path / "s"), "--thermal", "-o", str(tmp_path / "c.json"),
+                                  "--px4", str(tmp_path / "tc.params"), "--ardupilot", str(tmp_path / "tc.param")])
+    assert r.exit_code == 0, r.output
+    text = (tmp_path / "tc.params").read_text()
+    assert "TC_A0_ID\t1442826\t6" in text and "TC_G0_ID\t2490378\t6" in text
+    assert "INS_TCAL1_ENABLE,1" in (tmp_path / "tc.param").read_text()
+    assert "a still warm-up" in r.output and "scale factors and misalignments stay nominal" in r.output
+
+
+def test_still_data_say_what_they_can_give(tmp_path):
+    ms = warmup(3, seconds=120.0)
+    T = np.full(len(ms.samples["t_s"]), 25.0)
+    flat = simucal.MeasurementSet.from_arrays(ms.raw("acc"), ms.raw("gyro"), acc_unit="g", gyro_unit="deg/h",
+                                              t_s=ms.samples["t_s"], temp_c=T, meta={"latitude_deg": 47.0})
+    with pytest.raises(CalibrationError, match="spans 0 degC.*simucal noise"):
+        calibrate_warmup(flat)
+    flat.write(tmp_path / "still")
+    with pytest.raises(CalibrationError, match=r"no motion.*calibrate SET --thermal.*simucal noise"):
+        calibrate(tmp_path / "still")
+    refused(CliRunner().invoke(main, ["calibrate", str(tmp_path / "still"), "--thermal", "--thermal-degree", "2",
+                                      "-o", str(tmp_path / "c.json")]), "--thermal-degree", "takes its degree from the data")
