@@ -38,6 +38,7 @@ from simucal.errors import CalibrationError
 from simucal.io import calibration, units
 from simucal.report.console import validation_next
 
+WARMUP = "warm-up"  # a still board's warm-up calibration (handheld/warmup.py): validated on another warm-up
 WORSE = 1.05  # after/before above this: the calibration makes the unit worse on these data
 AT_FLOOR = 2.0  # after below this many floors: the noise, nothing left to gain
 
@@ -100,7 +101,11 @@ def validate(cal_path, data_dir) -> dict:
                                               (("acc", ms.has_acc), ("gyro", ms.has_gyro)))
     f_after = np.column_stack([samples[c] for c in ("ax", "ay", "az")]) if ms.has_acc else None
     w_after = np.column_stack([samples[c] for c in ("gx", "gy", "gz")]) if ms.has_gyro else None
-    checks = methods.kind_of(ms).validation_checks(ms, f_before, f_after, w_before, w_after, cal)
+    if cal.method.startswith(WARMUP):
+        from simucal.handheld.warmup import warmup_checks
+        checks = warmup_checks(ms, f_before, f_after, w_before, w_after, cal)
+    else:
+        checks = methods.kind_of(ms).validation_checks(ms, f_before, f_after, w_before, w_after, cal)
     for rows in checks.values():
         for c in rows:
             c["ratio_after_before"] = c["after_rms"] / c["before_rms"] if c["before_rms"] else None

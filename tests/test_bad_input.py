@@ -870,3 +870,38 @@ def test_import_csv_reads_a_loggers_whitespace_text(tmp_path):
     src.write_text(src.read_text() + "0.03 0.03 0.04 0.8 0.7\n")
     r = CliRunner().invoke(main, args + ["-o", str(tmp_path / "o2")])
     assert r.exit_code != 0 and "log.txt, line 7: the row ends before column" in r.output + (r.stderr or "")
+
+
+@pytest.mark.slow
+def test_diagnose_never_sends_a_user_to_a_refusal(tmp_path):
+    """Issue 53: a sequence that turns only the outer axis passes its model test, but calibrate refuses it
+    (parameters unobserved); diagnose's next line was `simucal calibrate SET`. Now it is a command that runs,
+    and it says why calibrate would refuse."""
+    import shlex
+
+    from simucal import api
+    seq = tmp_path / "outer.csv"
+    seq.write_text("axis,angle_deg,rate_dps,rest_s\n" + "outer,90,10,20\n" * 4 + "outer,-360,20,20\n")
+    api.simulate(sequence=seq).write(tmp_path / "oo")
+    d = api.diagnose(str(tmp_path / "oo"))
+    assert "unobserved" in " ".join(d.next_notes)
+    r = CliRunner().invoke(main, shlex.split(d.next_command)[1:])
+    assert r.exit_code == 0, (d.next_command, r.output)
+    refused_cli = CliRunner().invoke(main, ["calibrate", str(tmp_path / "oo"), "-o", str(tmp_path / "c.json")])
+    assert refused_cli.exit_code == 2 and "unobserved" in refused_cli.stderr
+
+
+def test_a_turntable_set_with_a_run_relabelled_move_names_the_segments_and_the_rule(tmp_path):
+    import csv
+
+    from simucal.turntable.simulate import Scenario, write
+    write(tmp_path / "t", Scenario(rate_hz=5.0), 1)
+    rows = list(csv.reader((tmp_path / "t" / "segments.csv").open()))
+    first = next(r for r in rows[1:] if r[1] == "rate")
+    first[1], first[2:6] = "move", ["", "", "", ""]
+    with (tmp_path / "t" / "segments.csv").open("w", newline="") as fh:
+        csv.writer(fh).writerows(rows)
+    r = CliRunner().invoke(main, ["calibrate", str(tmp_path / "t"), "--method", "systematic", "-o",
+                                  str(tmp_path / "c.json")])
+    assert r.exit_code == 2 and f"move segments (segment {first[0]})" in r.stderr
+    assert "a rotation sequence is rests (static) and the moves between them" in r.stderr

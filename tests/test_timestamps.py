@@ -94,3 +94,43 @@ def test_stamps_that_lose_samples_are_kept(tmp_path):
     r = CliRunner().invoke(main, ["calibrate", str(tmp_path / "table"), "-o", str(tmp_path / "t.json"),
                                   "--timestamps", "nominal"])
     assert r.exit_code != 0 and "--timestamps nominal" in r.output + (r.stderr or "")
+
+
+def test_a_gap_is_named_never_spread(tmp_path):
+    """Issue 53: a stream with an hour missing in the middle. --timestamps nominal would spread the hour over
+    every step: refused, naming where and how long; auto keeps the stamps, and the console and the file name
+    the gap (it was 'regular: step 10 ms' with no line, and the file's irregular false)."""
+    from cli_helpers import refused
+    from simucal import io
+    write_handheld(tmp_path / "true", HandheldScenario(), 3)
+    ms = io.read_set(tmp_path / "true")
+    t = ms.samples["t_s"].copy()
+    half = len(t) // 2
+    t[half:] += 3600.0
+    io.write_set(tmp_path / "gap", ms.meta, {**ms.samples, "t_s": t})
+    refused(CliRunner().invoke(main, ["calibrate", str(tmp_path / "gap"), "-o", str(tmp_path / "n.json"),
+                                      "--timestamps", "nominal"]),
+            "--timestamps nominal would spread", "1 gap in t_s (3600 s from t =", "samples missing")
+    assert not (tmp_path / "n.json").exists()
+    r = CliRunner().invoke(main, ["calibrate", str(tmp_path / "gap"), "-o", str(tmp_path / "a.json")])
+    assert r.exit_code == 0, r.output
+    assert "1 gap in t_s (3600 s from t =" in r.output and "no move is integrated across one" in r.output
+    st = json.loads((tmp_path / "a.json").read_text())["timestamps"]
+    assert st["used"] == "recorded" and len(st["gaps"]) == 1 and st["gaps"][0]["after_row"] == half - 1
+
+
+def test_a_sequence_with_samples_missing_in_a_move_is_refused_naming_the_segment(tmp_path):
+    """Issue 53: ten samples missing inside a move of a rotation sequence (was THE MODEL FAILS, chi2 6e9,
+    and diagnose sent the user after a missing effect)."""
+    from cli_helpers import refused
+    from simucal import api, io
+    api.simulate(scenario="sequence").write(tmp_path / "seq")
+    ms = io.read_set(tmp_path / "seq")
+    move = next(s.segment for s in ms.segments if s.kind == "move")
+    rows = ms.rows(move)
+    keep = np.ones(len(ms.samples["t_s"]), bool)
+    keep[rows[len(rows) // 2:len(rows) // 2 + 10]] = False
+    io.write_set(tmp_path / "cut", ms.meta, {k: v[keep] for k, v in ms.samples.items()}, ms.segments)
+    refused(CliRunner().invoke(main, ["calibrate", str(tmp_path / "cut"), "--method", "systematic", "-o",
+                                      str(tmp_path / "c.json")]),
+            "1 gap in t_s", "10 samples missing", f"the first in segment {move}", "cannot bridge missing samples")

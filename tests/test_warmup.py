@@ -94,3 +94,26 @@ def test_still_data_say_what_they_can_give(tmp_path):
         calibrate(tmp_path / "still")
     refused(CliRunner().invoke(main, ["calibrate", str(tmp_path / "still"), "--thermal", "--thermal-degree", "2",
                                       "-o", str(tmp_path / "c.json")]), "--thermal-degree", "takes its degree from the data")
+
+
+def test_validated_on_another_warm_up_of_the_unit(tmp_path):
+    """calibrate one warm-up, validate on another of the same unit: each axis's change over the warm-up falls
+    from the thermal curve's (mg, hundreds of deg/h) to near the block means' noise; on a moving stream the
+    check is refused by name."""
+    from simucal.validate import validate
+    simucal.MeasurementSet.of(warmup(0)).write(tmp_path / "a")
+    simucal.MeasurementSet.of(warmup(1)).write(tmp_path / "b")
+    r = CliRunner().invoke(main, ["calibrate", str(tmp_path / "a"), "--thermal", "-o", str(tmp_path / "c.json")])
+    assert r.exit_code == 0, r.output
+    report = validate(str(tmp_path / "c.json"), str(tmp_path / "b"))
+    acc, gyro = report["checks"]["acc"][0], report["checks"]["gyro"][0]
+    assert acc["after_rms"] < acc["before_rms"] / 10 and gyro["after_rms"] < 2 * gyro["floor_rms"]
+    assert report["verdict"]["gyro"] == "at the noise floor" and report["verdict"]["acc"] in ("better",
+                                                                                              "at the noise floor")
+    ms = warmup(2)
+    acc = ms.raw("acc").copy()
+    acc[len(acc) // 2:] = acc[len(acc) // 2:, ::-1]  # turned onto its side half way
+    simucal.MeasurementSet.from_arrays(acc, ms.raw("gyro"), acc_unit="g", gyro_unit="deg/h", t_s=ms.samples["t_s"],
+                                       temp_c=ms.samples["temp_c"], meta={"latitude_deg": 47.0}).write(tmp_path / "moving")
+    with pytest.raises(CalibrationError, match="validated on another still warm-up"):
+        validate(str(tmp_path / "c.json"), str(tmp_path / "moving"))

@@ -94,7 +94,7 @@ def diagnose(data: Data, *, add: str | Sequence[str] = (), acc_model: str = "acc
     'simucal calibrate ... --add acc.quadratic.z -o calibration.json'
     """
     from simucal.diagnose import diagnose as run
-    from simucal.report.console import next_adds, next_command
+    from simucal.report.console import calibrate_refusal, next_adds, next_command
     add = effect_ids(add)
     if "auto" in add:
         raise ValueError("add 'auto' is calibrate's: diagnose already ranks every candidate")
@@ -105,7 +105,10 @@ def diagnose(data: Data, *, add: str | Sequence[str] = (), acc_model: str = "acc
                       c.get("note") or "") for c in report["candidates"]]
     files = {s: report[s]["shape"]["model_file"] for s in sensors
              if report[s].get("shape") and not report[s]["shape"].get("catalog_id")}
-    if isinstance(data, io.MeasurementSet) and not (Path(data.path) / "meta.json").is_file():
+    refused = calibrate_refusal(report)
+    if refused is not None:
+        cmd, notes = refused
+    elif isinstance(data, io.MeasurementSet) and not (Path(data.path) / "meta.json").is_file():
         adds, notes = next_adds(report)  # a set in memory: the next step is a call, not a command on a folder
         cmd = f"simucal.calibrate(data, add={adds!r})" + (
             " (a found term: write Diagnosis.model_files[sensor] to a file and add its path)" if files else "")

@@ -119,10 +119,18 @@ class AugmentedModel:
     def output(self, u, p, aux: AuxInputs | None = None):
         p = np.asarray(p, float)
         N = self.base.output(u, p[..., :self._m], aux)
+        if self.effects:
+            N += self.effects_output(u, p, aux)
+        return N
+
+    def effects_output(self, u, p, aux: AuxInputs | None = None):
+        """The effects' share of the output: each effect's q phi(u) along its axis."""
+        p = np.asarray(p, float)
+        E = np.zeros(np.shape(u))
         batch = p.ndim > 1 and np.ndim(u) > 2  # one p per set: its effects broadcast over the set's rows
         for q, (axis, phi, _) in zip(np.moveaxis(p[..., self._m:], -1, 0), self._terms(u, aux)):
-            N[..., axis] += (q[..., None] if batch else q) * phi
-        return N
+            E[..., axis] += (q[..., None] if batch else q) * phi
+        return E
 
     def jacobians(self, u, p, aux: AuxInputs | None = None):
         """As GeneratedModel.jacobians, rows (n, 3) with one p, or a batch u (S, n, 3), p (S, m)."""

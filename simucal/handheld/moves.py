@@ -21,7 +21,7 @@ from simucal.errors import CalibrationError
 from simucal.fit.rotations import skew
 from simucal.generated import moves as gen_moves
 from simucal.handheld.static_detect import Detection
-from simucal.io import units
+from simucal.io import timestamps, units
 
 
 
@@ -59,7 +59,7 @@ PRIOR_T = 0.05     # such an entry is held at nominal with this std: 5 % scale, 
 
 def build_moves(w, t, det: Detection, bias, bad):
     """The moves between consecutive poses, leaving out (and naming) those with saturated
-    samples or a time gap (samples missing: more than 5 median steps), which no integration
+    samples or a time gap (samples missing: io/timestamps.gaps), which no integration
     can bridge. A move runs from the end of one static interval to the start of the next
     (imu_tk's convention). Integrating from the end of the pose's averaging window instead
     takes in the whole rest, whose g-sensitive bias (not in the baseline) then accrues: on
@@ -67,7 +67,8 @@ def build_moves(w, t, det: Detection, bias, bad):
     the detector's edges are quiet (a centred window ends a static interval early), so no
     rotation is lost at a move's start."""
     dt_all = np.diff(t)
-    gap = np.r_[False, dt_all > 5 * np.median(dt_all)]  # row k follows a gap
+    gap = np.zeros(len(t), bool)  # row k follows a gap
+    gap[[g["after_row"] + 1 for g in timestamps.gaps(t)]] = True
     idx, skipped = [], []
     for i in range(len(det.starts) - 1):
         a, b = det.ends[i] - 1, det.starts[i + 1]

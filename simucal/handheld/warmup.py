@@ -35,6 +35,7 @@ from simucal.fit.distributions import chi2_sf
 from simucal.io import calibration
 from simucal.io.calibration import SensorBlock
 
+METHOD = "warm-up (a still board over temperature)"  # validate.WARMUP starts it
 MAX_DEGREE = 3
 MAX_BLOCKS = 300  # the generalised least squares' n x n factorisations: 300 blocks, 1 ms each
 AIC_KEEP = 2.0  # Akaike: a coefficient is worth its degree of freedom where its chi2 exceeds 2
@@ -134,7 +135,7 @@ def calibrate_warmup(ms, t_ref_c=None) -> calibration.Calibration:
                                "bias's temperature dependence; cold-soak the board and log its warm-up, or run "
                                "simucal noise on these data for their noise terms")
     t_ref = (lo + hi) / 2 if t_ref_c is None else float(t_ref_c)
-    cal = calibration.header("warm-up (a still board over temperature)", ms)
+    cal = calibration.header(METHOD, ms)
     cal.t_ref_c, cal.temperature_range_c = t_ref, [lo, hi]
     for sensor, raw in (("acc", ms.acc_g() if ms.has_acc else None), ("gyro", ms.gyro_dph() if ms.has_gyro else None)):
         if raw is not None:
@@ -179,3 +180,32 @@ def _block(sensor, raw, T, t_s, t_ref, scale_c) -> SensorBlock:
                                 "note": "still data: " + ("the change over temperature only (gravity hides the "
                                                           "constant)" if sensor == "acc" else
                                                           "the bias with the Earth rate's share along each axis")})
+
+
+def warmup_checks(ms, f_before, f_after, w_before, w_after, cal) -> dict:
+    """`simucal validate` of a warm-up calibration on another warm-up (the same unit, a still stream over
+    temperature): per sensor, each axis's change over the warm-up (its block means less their median) at
+    nominal and calibrated, with the block means' white noise as the floor (first differences); for the
+    gyro also its rest output, whose floor is the Earth rate (its share along the axes stays in the
+    calibrated output, as in the autopilots'). The data must be still throughout."""
+    from simucal.fit.validation import rms
+    from simucal.handheld.static_detect import still_throughout
+    t = np.asarray(ms.samples["t_s"], float)
+    if not ms.has_acc or not still_throughout(ms.acc_g(), t):
+        raise CalibrationError(f"{ms.path}: a warm-up calibration is validated on another still warm-up of the unit "
+                               "(a stream that never moves, with temp_c); these data are not one")
+    out = {}
+    for sensor, before, after, unit in (("acc", f_before, f_after, "g"), ("gyro", w_before, w_after, "deg/h")):
+        if before is None or getattr(cal, sensor, None) is None:
+            continue
+        b, a = block_means(MAX_BLOCKS, before, after)
+        floor = float(np.sqrt(np.mean(np.diff(a, axis=0) ** 2) / 2))
+        out[sensor] = [{"what": "each axis's change over the warm-up (block means less their median)", "unit": unit,
+                        "n": int(a.size), "before_rms": rms(b - np.median(b, axis=0)),
+                        "after_rms": rms(a - np.median(a, axis=0)), "floor_rms": floor}]
+        if sensor == "gyro":
+            earth = float(ms.meta.get("earth_rate_dph", 15.04107))
+            out[sensor].append({"what": "the rest output (the bias; the Earth rate's share stays)", "unit": unit,
+                                "n": int(a.size), "before_rms": rms(b), "after_rms": rms(a),
+                                "floor_rms": float(np.hypot(earth / np.sqrt(3), floor))})
+    return out

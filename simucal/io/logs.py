@@ -178,22 +178,23 @@ def read_rosbag(path, topic: str | None = None) -> LogStream:
         if any(c.msgtype != "sensor_msgs/msg/Imu" for c in cons):
             raise ImportError_(f"{path}: topic {topic} is {cons[0].msgtype}, not sensor_msgs/Imu"
                                + (f"; the bag's Imu topics: {', '.join(imus)}" if imus else ""))
-        rows, frame = [], None
+        r, frame, k = np.empty((sum(c.msgcount for c in cons), 7)), None, 0  # 56 bytes a message
         for con, t_bag, raw in reader.messages(connections=cons):
             m = reader.deserialize(raw, con.msgtype)
             stamp = m.header.stamp.sec + m.header.stamp.nanosec * 1e-9
             frame = frame or m.header.frame_id
             a, w = m.linear_acceleration, m.angular_velocity
-            rows.append((stamp if stamp > 0 else t_bag * 1e-9, a.x, a.y, a.z, w.x, w.y, w.z))
+            r[k] = (stamp if stamp > 0 else t_bag * 1e-9, a.x, a.y, a.z, w.x, w.y, w.z)
+            k += 1
     except ImportError_:
         raise
     except Exception as e:  # a bag cut short fails in rosbags' reader or its storage
         raise ImportError_(f"{path}: the bag could not be read to its end ({e}): copy it again, or reindex it") from None
     finally:
         reader.close()
-    if not rows:
+    if not k:
         raise ImportError_(f"{path}: topic {topic} holds no messages")
-    r = np.array(rows, float)
+    r = r[:k]
     _increasing(r[:, 0], path)
     log = {"format": "rosbag", "file": path.name, "topic": topic, "sensor_frame": f"{frame or '(no frame_id)'} "
            "(the message's frame_id; FLU by REP 103)", "clock": "one Imu message holds both sensors at one stamp",

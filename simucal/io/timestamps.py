@@ -23,6 +23,28 @@ IRREGULAR = 0.05   # steps farther than this share of the median step from it: i
 IRREGULAR_SHARE = 0.01  # ... at least this share of the steps are
 CATCH_UP = 0.75    # a step shorter than this share of the median is a catch-up
 CLOCK_BOUND_STEPS = 2.0  # arrival times within this many median steps of an even clock: a regular clock
+GAP_STEPS = 5.0    # a step longer than this many median steps is a gap: samples missing, not jitter
+
+
+def gaps(t, rows=None) -> list[dict]:
+    """Every gap in the stamps t (a step over GAP_STEPS median steps): where it starts (s, and the row after
+    which it opens), how long it lasts and how many samples at the median step it lacks. rows: the rows'
+    numbers in the set, where t is a part of it."""
+    t = np.asarray(t, float)
+    if len(t) < 3:
+        return []
+    dt = np.diff(t)
+    med = float(np.median(dt))
+    rows = np.arange(len(t)) if rows is None else np.asarray(rows)
+    return [{"after_row": int(rows[k]), "start_s": float(t[k]), "length_s": float(dt[k]),
+             "samples_missing": int(round(dt[k] / med)) - 1} for k in np.nonzero(dt > GAP_STEPS * med)[0]]
+
+
+def gap_text(found: list[dict], most=3) -> str:
+    """The gaps in words: how many, then the first `most` (where, how long, samples missing)."""
+    return (f"{len(found)} gap{'s' * (len(found) != 1)} in t_s (" + "; ".join(
+        f"{g['length_s']:.4g} s from t = {g['start_s']:.6g} s, {g['samples_missing']} samples missing"
+        for g in found[:most]) + (" ..." if len(found) > most else "") + ")")
 
 
 def statistics(t) -> dict:
@@ -39,7 +61,7 @@ def statistics(t) -> dict:
             "catch_up_steps": int(catch.sum()),
             "catch_up_median_ms": 1e3 * float(np.median(dt[catch])) if catch.any() else None,
             "longest_step_ms": 1e3 * float(dt.max()), "off_even_clock_steps": off, "irregular": irregular,
-            "regular_clock": bool(off <= CLOCK_BOUND_STEPS)}
+            "regular_clock": bool(off <= CLOCK_BOUND_STEPS), "gaps": gaps(t)}
 
 
 def with_timestamps(ms, choice="auto"):
@@ -55,7 +77,12 @@ def with_timestamps(ms, choice="auto"):
                                    "stamps; this set has segments.csv (leave the option out)")
         return ms, None
     st = statistics(ms.samples["t_s"])
-    nominal = choice == "nominal" or (choice == "auto" and st["irregular"] and st["regular_clock"])
+    if choice == "nominal" and st["gaps"]:
+        from simucal.errors import CalibrationError
+        raise CalibrationError(f"{ms.path / 'samples.csv'}: --timestamps nominal would spread the stream's "
+                               f"{gap_text(st['gaps'])} over every step; leave the option out (the recorded stamps "
+                               "keep the gap where it is, and no move is integrated across one), or record without it")
+    nominal = choice == "nominal" or (choice == "auto" and st["irregular"] and st["regular_clock"] and not st["gaps"])
     st["used"] = "nominal" if nominal else "recorded"
     st["chosen_by"] = ("--timestamps " + choice) if choice != "auto" else (
         f"auto: the arrival times stay within {st['off_even_clock_steps']:.2g} median steps of an even clock (at most "
@@ -81,4 +108,5 @@ def describe(st) -> str:
     used = ("integrated on the sensor's clock (evenly spaced at the mean step; --timestamps nominal)"
             if st["used"] == "nominal" else "used as recorded" + (
                 " (--timestamps nominal would space them evenly at the mean step)" if st["irregular"] else ""))
-    return f"time stamps: {how}; {used}; {st['chosen_by']}"
+    gap = f"; {gap_text(st['gaps'])}: no move is integrated across one" if st.get("gaps") else ""
+    return f"time stamps: {how}{gap}; {used}; {st['chosen_by']}"

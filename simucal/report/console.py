@@ -14,7 +14,7 @@ def calibration_lines(cal: Calibration):
     """Per sensor its test and effects (and what to add when the model fails), then the frames'
     unification, the consistency checks, what the plan leaves undetermined, and the warnings."""
     stamps = cal.details.get("timestamps")
-    if stamps and (stamps["irregular"] or not stamps["chosen_by"].startswith("auto")):
+    if stamps and (stamps["irregular"] or stamps.get("gaps") or not stamps["chosen_by"].startswith("auto")):
         yield stamps["text"]
     for s in ("acc", "gyro"):
         out = [x["segment"] for x in cal.details.get("excluded_segments", []) if x["sensor"] == s]
@@ -197,9 +197,24 @@ def to_add(diag: dict, sensor: str) -> tuple[list[str] | None, str]:
 
 
 def next_command(diag: dict) -> tuple[str, list[str]]:
-    """(the one calibrate command for the set, the notes beside it): next_adds as --add options."""
+    """(the one calibrate command for the set, the notes beside it): next_adds as --add options; where
+    calibrate would refuse these data (a sequence that leaves a parameter unobserved), the plan that scores
+    a sequence before it is recorded, and why."""
+    refused = calibrate_refusal(diag)
+    if refused:
+        return refused
     adds, notes = next_adds(diag)
     return f"simucal calibrate {diag['input']}{''.join(f' --add {a}' for a in adds)} -o calibration.json", notes
+
+
+def calibrate_refusal(diag: dict) -> tuple[str, list[str]] | None:
+    """(the plan that scores a sequence, why) where calibrate would refuse the diagnosed data (a sequence that
+    leaves a parameter unobserved: systematic/method.refusal), else None."""
+    refused = next((diag[s]["calibrate_refuses"] for s in ("acc", "gyro") if s in diag
+                    and diag[s].get("calibrate_refuses")), None)
+    return None if refused is None else (
+        "simucal plan --sequence psins19 -o plan.json",
+        [f"{refused}; calibrate refuses these data: plan --sequence scores a sequence before it is recorded"])
 
 
 def next_adds(diag: dict) -> tuple[list[str], list[str]]:

@@ -16,7 +16,7 @@ from simucal.errors import CalibrationError
 from simucal.fit.augmented import AugmentedModel, for_sensor
 from simucal.fit.aux_inputs import AuxInputs
 from simucal.generated import table
-from simucal.io import units
+from simucal.io import timestamps, units
 from simucal.fit.rotations import exp_so3, log_so3
 from simucal.systematic.filter import (Epoch, Sensors, compose, kalman, level, nominal, smooth,
                                       transitions)
@@ -38,6 +38,16 @@ def rests_and_moves(ms):
         raise CalibrationError(f"{ms.path}: systematic calibration needs a rotation sequence (segments.csv with "
                                "static and move segments, raw samples throughout): record one, or simulate it "
                                "with `simucal simulate --sequence psins19`")
+    rates = [s.segment for s in ms.segments if s.kind == "rate"]
+    if rates:
+        moves = [s.segment for s in ms.segments if s.kind == "move"]
+        raise CalibrationError(
+            f"{ms.path / 'segments.csv'}: mixes a turntable test's rate runs (segment{'s' * (len(rates) > 1)} "
+            f"{', '.join(map(str, rates[:6]))}{' ...' if len(rates) > 6 else ''}) with move segments (segment"
+            f"{'s' * (len(moves) > 1)} {', '.join(map(str, moves[:6]))}{' ...' if len(moves) > 6 else ''}): a rotation "
+            "sequence is rests (static) and the moves between them, in recording order, raw samples throughout; a "
+            "turntable test is static positions and rate runs. If this is a turntable test, label those moves rate "
+            "(then calibrate takes --method exact); else record the sequence's turns as moves")
     if ms.meta.get("latitude_deg") is None:
         raise CalibrationError(f"{ms.path / 'meta.json'}: latitude_deg is missing; the navigation needs the "
                                "site's latitude (the Earth rate's direction): add \"latitude_deg\": <deg>")
@@ -156,6 +166,13 @@ def steps_of(ms, segments, block_s, dt) -> Steps:
     if not np.array_equal(order, np.arange(order[0], order[0] + len(order))):
         raise CalibrationError(f"{ms.path / 'samples.csv'}: a sequence's rows must run segment after segment in "
                                "time order, as recorded")
+    found = timestamps.gaps(ms.samples["t_s"][order], order)
+    if found:  # every step is one median step long here: a gap would be spread, and the turn in it lost
+        seg = ms.samples["segment"][found[0]["after_row"] + 1]
+        raise CalibrationError(f"{ms.path / 'samples.csv'}: {timestamps.gap_text(found)}, the first in segment "
+                               f"{int(seg)} (line {found[0]['after_row'] + 3}): the filter integrates every sample "
+                               "at the recorded rate and cannot bridge missing samples; record the sequence again, "
+                               "or cut it at the gap into sequences of their own")
     counts = np.diff(np.r_[start, order[-1] + 1])
     mean = [np.add.reduceat(x[order[0]:order[-1] + 1], start - order[0], axis=0) / counts[:, None]
             for x in (ms.acc_g(), ms.gyro_dph())]

@@ -13,6 +13,7 @@ import numpy as np
 from simucal.fit.results import added_params, model_test_keys
 from simucal.systematic.calibrate import rests_and_moves, run_filter
 from simucal.systematic.innovations import innovation_test, ranked
+from simucal.systematic.method import refusal
 
 UNIT = "innovation std (whitened)"
 
@@ -76,7 +77,7 @@ def diagnose_sequence(ms, acc_model, gyro_model, ids, truth, before_models, adde
     if added:
         r0 = run_filter(ms, *before_models)
         before = {"result": r0, "test": model_test(innovation_test(r0.epochs)), "rows": innovation_rows(ms, r0)}
-    out = {}
+    out, refused = {}, refusal(r, ms.path)
     for sensor in ("acc", "gyro"):
         own = [c.to_dict() for c in cands if c.id.startswith(sensor + ".")]
         params, std, units = _params(r, sensor)
@@ -89,5 +90,7 @@ def diagnose_sequence(ms, acc_model, gyro_model, ids, truth, before_models, adde
             block["explained_by"] = {"id": best.id, "sensor": other}  # report/verdicts.py says so
         if before is not None:
             block["added"] = _added(sensor, r, before, base, truth, added)
+        if refused:
+            block["calibrate_refuses"] = refused
         out[sensor] = block
     return out

@@ -20,6 +20,17 @@ def unobserved(result) -> dict:
     return {n: float(r) for n, r in zip(names, std_ratios(result)) if r > UNOBSERVABLE}
 
 
+def refusal(result, where) -> str | None:
+    """Why calibrate refuses the sequence (a parameter left unobserved), or None: calibrate and diagnose's
+    next line both ask here, so that the loop never sends a user to a refusal."""
+    poor = unobserved(result)
+    if not poor:
+        return None
+    worst = ", ".join(f"{k} (std {v:.2f} of its prior)" for k, v in poor.items())
+    return (f"{where}: the sequence leaves {worst} unobserved: turn the unit about each of its axes with each axis "
+            "up and down (the built-in psins19 does)")
+
+
 def _fit(model, p, cov, test) -> Fit:
     std = np.sqrt(np.diag(cov))
     nu = test["innovations_whitened"]
@@ -36,11 +47,9 @@ def calibrate_systematic(ms, acc_model="acc_baseline", gyro_model="gyro_baseline
         r, ids, chosen, stopped = select(ms, acc_model, gyro_model, ids)
     else:
         r = run_filter(ms, acc_model, gyro_model, ids)
-    poor = unobserved(r)
-    if poor:
-        worst = ", ".join(f"{k} (std {v:.2f} of its prior)" for k, v in poor.items())
-        raise CalibrationError(f"{ms.path}: the sequence leaves {worst} unobserved: turn the unit about each of its "
-                               "axes with each axis up and down (the built-in psins19 does)")
+    why = refusal(r, ms.path)
+    if why:
+        raise CalibrationError(why)
     s, test = r.sensors, innovation_test(r.epochs)
     na, ng = len(s.p_acc), len(s.p_gyro)
     cal = calibration.header("systematic", ms)

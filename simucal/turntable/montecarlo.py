@@ -164,9 +164,11 @@ def _unify_batch(am, p_a, N_ar, u_g, sign):
         # effects nonlinear in f: the whole model inverted (as fit/apply.solve_inputs and the unification of a
         # calibration; M^-1 (N - b) alone is off by them), by the chord method: Newton's step with the affine
         # part's M in place of the whole Jacobian, each pass gaining the effects' share of the slope (1e-4 for
-        # a quadratic of 1e-4 g/g^2). A Newton step's batched 3x3 solves and Jacobians cost 8x as much.
+        # a quadratic of 1e-4 g/g^2). A Newton step's batched 3x3 solves and Jacobians cost 8x as much. Where the
+        # base is affine (M f + b exactly) the step is f0 - M^-1 E(f) - f, the effects' share E alone evaluated.
+        f0, affine_base = f, _affine(am.base, p_a[0][:len(am.base.params)])
         for _ in range(50):
-            step = (N_ar - am.output(f, p_a)) @ inv_T
+            step = (f0 - am.effects_output(f, p_a) @ inv_T - f) if affine_base else (N_ar - am.output(f, p_a)) @ inv_T
             f = f + step
             if np.abs(step).max() <= 1e-13:
                 break
