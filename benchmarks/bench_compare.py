@@ -1,7 +1,7 @@
 """The speed guard (issue 52): the headline commands run by an earlier revision's code and by this
 working tree's, side by side in one run, alternating, each a whole process; each figure's ratio
-now / before, and a verdict: a figure more than 10 % slower is to be fixed or explained in
-docs/benchmarks.md.
+now / before (wall, and CPU: on two cores a command's second thread makes its wall time the noisier),
+and a verdict on the wall: a figure more than 10 % slower is to be fixed or explained in docs/benchmarks.md.
 
 The commands (docs/benchmarks.md, Speed): the Monte Carlo of dong2018's section 4 with and without an
 effect, calibrate and diagnose of imu_tk's Xsens session (shared/data), diagnose of a rich turntable
@@ -81,7 +81,8 @@ def main():
                          text=True).stdout.strip()
     print(f"{os.cpu_count()} cores; load average before {os.getloadavg()[0]:.2f}; before = {a.rev}, now = {now}; "
           f"median of {a.repeats} whole processes each, alternating\n")
-    print(header(["command", f"before ({a.rev}), wall s", "now, wall s", "now / before", "verdict"]), flush=True)
+    print(header(["command", f"before ({a.rev}), wall s", "now, wall s", "now / before", "CPU now / before",
+                  "verdict"]), flush=True)
     worst = 0.0
     with tempfile.TemporaryDirectory(prefix="bench-compare-") as tmp:
         tmp = Path(tmp)
@@ -91,12 +92,13 @@ def main():
                 continue
             runs = alternate(args, old, tmp, a.repeats)
             walls = {k: [m[0] for m in v] for k, v in runs.items()}
+            cpus = {k: statistics.median(m[1] for m in v) for k, v in runs.items()}
             before, after = statistics.median(walls["before"]), statistics.median(walls["now"])
             ratio = after / before
             worst = max(worst, ratio)
             verdict = "SLOWER: fix or explain" if ratio > SLOWER else "faster" if ratio < 1 / SLOWER else "same"
-            print(f"| {what} | {_cell(walls['before'])} | {_cell(walls['now'])} | {ratio:.2f} | {verdict} |",
-                  flush=True)
+            print(f"| {what} | {_cell(walls['before'])} | {_cell(walls['now'])} | {ratio:.2f} | "
+                  f"{cpus['now'] / cpus['before']:.2f} | {verdict} |", flush=True)
     print(f"\nworst ratio {worst:.2f}; load average after {os.getloadavg()[0]:.2f}")
 
 

@@ -114,7 +114,7 @@ def diagnose(folder, add=(), acc_model="acc_baseline", gyro_model="gyro_baseline
         result = _diagnose(ms, folder, add, acc_model, gyro_model, acc_noise_g, gyro_noise_dph)
         if stamps:
             result["timestamps"] = stamps
-            if stamps["irregular"] or timestamps != "auto":
+            if stamps["irregular"] or stamps.get("gaps") or timestamps != "auto":
                 result["notes"] = [stamps["text"]] + result.get("notes", [])
         return result
     except CalibrationError as e:

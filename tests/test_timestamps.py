@@ -134,3 +134,22 @@ def test_a_sequence_with_samples_missing_in_a_move_is_refused_naming_the_segment
     refused(CliRunner().invoke(main, ["calibrate", str(tmp_path / "cut"), "--method", "systematic", "-o",
                                       str(tmp_path / "c.json")]),
             "1 gap in t_s", "10 samples missing", f"the first in segment {move}", "cannot bridge missing samples")
+
+
+def test_a_gap_inside_a_turntable_segment_is_named(tmp_path):
+    """A raw turntable set with 40 samples missing inside one static segment: calibrated (a mean takes its rows
+    as they are), and the console, the file and diagnose's notes name the gap and its segment."""
+    from simucal import io
+    write(tmp_path / "t", Scenario(rate_hz=20.0), 1)
+    ms = io.read_set(tmp_path / "t")
+    seg = next(s.segment for s in ms.segments if s.kind == "static")
+    rows = ms.rows(seg)
+    keep = np.ones(len(ms.samples["t_s"]), bool)
+    keep[rows[10:50]] = False
+    io.write_set(tmp_path / "gap", ms.meta, {k: v[keep] for k, v in ms.samples.items()}, ms.segments)
+    r = CliRunner().invoke(main, ["calibrate", str(tmp_path / "gap"), "-o", str(tmp_path / "c.json")])
+    assert r.exit_code == 0, r.output
+    assert "1 gap in t_s" in r.output and "40 samples missing" in r.output and f"inside segment {seg}" in r.output
+    assert json.loads((tmp_path / "c.json").read_text())["timestamps"]["gaps"][0]["segment"] == seg
+    r = CliRunner().invoke(main, ["diagnose", str(tmp_path / "gap"), "-o", str(tmp_path / "d.json")])
+    assert r.exit_code == 0 and "40 samples missing" in json.dumps(json.loads((tmp_path / "d.json").read_text())["notes"])

@@ -75,7 +75,7 @@ def with_timestamps(ms, choice="auto"):
             from simucal.errors import CalibrationError
             raise CalibrationError(f"{ms.path / 'samples.csv'}: --timestamps nominal respaces a continuous stream's "
                                    "stamps; this set has segments.csv (leave the option out)")
-        return ms, None
+        return ms, segment_gaps(ms)
     st = statistics(ms.samples["t_s"])
     if choice == "nominal" and st["gaps"]:
         from simucal.errors import CalibrationError
@@ -96,6 +96,22 @@ def with_timestamps(ms, choice="auto"):
     t = ms.samples["t_s"]
     even = t[0] + (t[-1] - t[0]) / (len(t) - 1) * np.arange(len(t))
     return replace(ms, samples={**ms.samples, "t_s": even}), st
+
+
+def segment_gaps(ms) -> dict | None:
+    """The gaps inside the segments of a set with segments.csv (between segments the table moves and nothing
+    need be recorded), as the calibration's timestamps block, or None where there are none: named, never
+    spread (each segment's mean and a rate run's fit take its rows at their recorded stamps)."""
+    if ms.segments is None:
+        return None
+    found = [dict(g, segment=s.segment) for s in ms.segments
+             for g in gaps(ms.samples["t_s"][ms.rows(s.segment)], ms.rows(s.segment))]
+    if not found:
+        return None
+    return {"gaps": found, "used": "recorded", "irregular": False, "chosen_by": "the segments' stamps as recorded",
+            "text": f"time stamps: {gap_text(found)} inside segment{'s' * (len(found) > 1)} "
+                    f"{', '.join(str(g['segment']) for g in found[:6])}: each segment's rows are taken at their "
+                    "recorded stamps (nothing spread); check the recording there"}
 
 
 def describe(st) -> str:
