@@ -168,7 +168,7 @@ def paper(out: Path, seed: int, echo) -> None:
     write(out / "paper", SCENARIOS["paper"](), seed)
     echo(f"simulate: {out / 'paper'} (dong2018 section 4 settings, seed {seed})")
     results = {}
-    for method in methods.for_data(methods.TURNTABLE):
+    for method in methods.for_any_plan(methods.TURNTABLE):
         results[method] = calibrate(out / "paper", method)
         calibration.save(out / f"calibration_{method}.json", results[method])
     echo("calibrate: " + ", ".join(f"calibration_{m}.json" for m in results))

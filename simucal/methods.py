@@ -115,6 +115,12 @@ def for_data(kind) -> tuple[str, ...]:
     return tuple(m.name for m in METHODS.values() if m.data == kind)
 
 
+def for_any_plan(kind) -> tuple[str, ...]:
+    """The methods that take any plan of this kind of data (not a protocol's own, as Ferraris's six poses): the
+    paper's comparison and the demo run these on dong2018's plan."""
+    return tuple(m for m in for_data(kind) if METHODS[m].any_plan)
+
+
 def data_kind(ms) -> str:
     """TURNTABLE, STREAM or FIELD (module doc): the one function that tells a set's kind."""
     if ms.segments is None:

@@ -34,7 +34,7 @@ PAPER_T4 = {("dK_x^a", "linear"): [5.72e-5, 5.72e-5, 5.72e-5, 5.72e-5, 5.53e-5],
             ("b_y^g deg/h", "linear"): [3.5948e-3, 3.5805e-3, 3.4497e-3, 3.7272e-3, -4.2393e-3],
             ("b_y^g deg/h", "multiposition"): [-0.0392233, -0.0827004, -0.0932480, -3.5974274, -1.8023093]}
 LEVELS = [("1\"", ARCSEC), ("1'", ARCMIN), ("10'", 10 * ARCMIN), ("1 deg", 60 * ARCMIN), ("10 deg", 600 * ARCMIN)]
-METHODS = tuple(m for m in methods.for_data(methods.TURNTABLE) if methods.METHODS[m].any_plan)  # exact, linear, multiposition
+METHODS = methods.for_any_plan(methods.TURNTABLE)  # exact, linear, multiposition
 
 
 def section4_values(sc: Scenario | None = None) -> dict:
