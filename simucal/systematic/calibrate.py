@@ -27,7 +27,9 @@ ZUPT_STD_MPS = 1e-6     # the table at rest: its velocity is zero to this (m/s)
 PRIOR_STD = {"1": 1e-2, "rad": 1e-2, "g": 1e-2, "deg/h": 10.0}
 PRIOR_OTHER = 1e-2
 PRIOR_ATTITUDE_RAD = 1e-2
-MAX_PASSES = 4
+GRADE_DPH = 100.0       # a gyro bias at rest above this widens the priors in proportion (a MEMS unit's 0.5 deg/s: 18x)
+PRIOR_CAP = 0.1         # the widened priors of dimensionless, rad and g parameters stop here
+MAX_PASSES = 12
 STEP_STD = 0.05         # a pass that moves no estimate by more than this many stds ends the iteration
 UNOBSERVABLE = 0.5      # a std above this fraction of its prior: the sequence did not see the parameter
 
@@ -75,8 +77,27 @@ def white_noise(ms, segments, rows_of):
     return np.median(per_rest, axis=0)
 
 
-def _prior(model):
-    return [PRIOR_STD.get(u, PRIOR_OTHER) for u in model.param_units]
+def _prior(model, grade=1.0):
+    """Each parameter's prior std by its unit, widened by the unit's grade (start_from_rest) up to PRIOR_CAP
+    (deg/h priors: the grade's own scale)."""
+    return [PRIOR_STD["deg/h"] * grade if u == "deg/h" else min(PRIOR_STD.get(u, PRIOR_OTHER) * grade, PRIOR_CAP)
+            for u in model.param_units]
+
+
+def start_from_rest(ms, gyro, first, C):
+    """(the gyro's parameters at the start, the unit's grade): its biases from the first rest's mean rate less the
+    Earth rate along the levelled attitude C (C_b^n), the rest at their nominal; the grade max(1, the largest
+    bias / GRADE_DPH) scales the priors, so that a MEMS unit's 0.5 deg/s bias and 1e-2 scale errors start near
+    the data and inside the linearisation rather than 180 priors away (a navigation-grade unit: grade 1)."""
+    p = np.zeros(len(gyro.params))
+    names = [f"b_{a}" for a in "xyz"]
+    if not all(n in gyro.params for n in names):
+        return p, 1.0  # a user's model without the baseline's biases: start at nominal
+    w_ie_b = C.T @ table.earth_rate_n(units.earth_rate_dph(ms.meta), np.radians(ms.meta["latitude_deg"]))
+    b = ms.gyro_dph()[ms.rows(first.segment)].mean(0) - w_ie_b
+    for n, v in zip(names, b):
+        p[gyro.params.index(n)] = v
+    return p, max(1.0, float(np.abs(b).max()) / GRADE_DPH)
 
 
 def _levelled(ms, sensors, first, rows):
@@ -116,12 +137,14 @@ def run_filter(ms, acc_model="acc_baseline", gyro_model="gyro_baseline", ids=(),
     w_ie = table.earth_rate_n(units.earth_rate_dph(ms.meta) * units.RAD_S_PER_DPH, lat)
     sigma = white_noise(ms, segments, lambda s: ms.rows(s.segment))
     q = np.r_[(sigma[:3] * units.RAD_S_PER_DPH) ** 2, (sigma[3:] * g0) ** 2] * dt  # spectral densities
-    prior_var = np.r_[[PRIOR_ATTITUDE_RAD] * 3, [ZUPT_STD_MPS] * 3, _prior(acc), _prior(gyro),
-                      [PRIOR_STD["rad"]] * 3] ** 2
     steps = steps_of(ms, segments, block_s, dt)
     C_prior = C = _levelled(ms, sensors, segments[0], ms.rows(segments[0].segment))
+    sensors.p_gyro, grade = start_from_rest(ms, gyro, segments[0], C)
+    p_prior = sensors.vector()
+    prior_var = np.r_[[PRIOR_ATTITUDE_RAD] * 3, [ZUPT_STD_MPS] * 3, _prior(acc, grade), _prior(gyro, grade),
+                      [PRIOR_STD["rad"]] * 3] ** 2
     for k in range(1, max_passes + 1):
-        x0 = np.r_[log_so3(C_prior @ C.T), np.zeros(3), sensors.vector()]  # the prior's mean as errors
+        x0 = np.r_[log_so3(C_prior @ C.T), np.zeros(3), sensors.vector() - p_prior]  # the prior's mean as errors
         epochs = _one_pass(steps, sensors, C, x0, np.diag(prior_var), q, w_ie, g0)
         x, P = epochs[-1].x, epochs[-1].P  # the constants: the filter's at the end (the smoother's at the start
         step = np.abs(x[6:]) / np.sqrt(np.diag(P)[6:])  # equal them in exact arithmetic)
