@@ -112,6 +112,9 @@ def _shared_fixtures(item):
                 yield f"{item.module.__name__}.{name}" if fixture.scope == "module" else name
 
 
+SLOW_FIXTURES = {"audit_report", "site", "pages", "lot"}  # shared, and seconds to build: their tests are slow
+
+
 @pytest.hookimpl(tryfirst=True)  # before pytest-xdist's, which reads the marks into each test's id
 def pytest_collection_modifyitems(config, items):
     """The suite runs on two processes with `--dist loadgroup` (README): each test goes to whichever process is
@@ -132,3 +135,5 @@ def pytest_collection_modifyitems(config, items):
     for item, keys in shared.items():
         if keys:
             item.add_marker(pytest.mark.xdist_group(root(keys[0])))
+        if SLOW_FIXTURES & set(item.fixturenames):
+            item.add_marker(pytest.mark.slow)

@@ -73,6 +73,7 @@ def test_a_dataflash_log_keeps_its_imu_messages_and_device_ids(tmp_path):
     np.testing.assert_allclose(ms.samples["t_s"], (imu["t_us"] - imu["t_us"][0]) * 1e-6, atol=1e-9)
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("ros", [1, 2])
 def test_a_bag_gives_the_same_allan_terms_as_its_samples_in_csv(tmp_path, ros):
     """`simucal noise BAG` and `simucal noise SET` of the same samples written as samples.csv: the same terms."""

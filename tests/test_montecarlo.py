@@ -243,6 +243,7 @@ def test_a_model_file_is_refused_only_for_inputs_the_averaged_positions_never_va
     assert g["truth"] == 0.3 and 0.9 < g["std_over_crlb"] < 1.1, g
 
 
+@pytest.mark.slow
 def test_an_effect_is_reported_under_its_own_id(tmp_path):
     """The effect's estimate is keyed acc.quadratic.z, the id the user typed (not acc.acc.quadratic.z)."""
     out = tmp_path / "mc.json"
