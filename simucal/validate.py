@@ -89,12 +89,17 @@ def nominal(ms, sensor) -> tuple[np.ndarray, str]:
     return out - to_unit(off[None], ms.meta)[0], f"{sensor}: the counts less {', '.join(f'{x:g}' for x in off)} ({how})"
 
 
-def validate(cal_path, data_dir) -> dict:
+def validate(cal_path, data_dir, acc_noise_g=None, gyro_noise_dph=None) -> dict:
     """The report (module doc) of calibration file cal_path (or a Calibration) applied to the set data_dir
-    (or a MeasurementSet)."""
+    (or a MeasurementSet). acc_noise_g, gyro_noise_dph: the noise of one row where the data cannot give it
+    (averaged rows), as calibrate takes it: the floors of those rows' checks stand on it."""
     given = isinstance(cal_path, calibration.Calibration)
     cal = cal_path if given else calibration.load(cal_path)
     ms = data_dir if isinstance(data_dir, io.MeasurementSet) else io.read_set(data_dir)
+    stated = {k: v for k, v in (("acc_noise_g", acc_noise_g), ("gyro_noise_dph", gyro_noise_dph)) if v is not None}
+    if stated:
+        units.check_meta({**ms.meta, **stated}, ms.path, lambda p, line, rule: CalibrationError(f"{p}: {rule}"))
+        ms = ms.copy(meta={**ms.meta, **stated})
     where = f"the calibration of {cal.input}" if given else cal_path
     meta, samples, _ = apply(cal, ms, where)  # checks the layout
     (f_before, said_a), (w_before, said_g) = (nominal(ms, s) if has else (None, "") for s, has in

@@ -164,3 +164,31 @@ def test_mislabelled_positions_are_named_and_not_called_better(table, tmp_path):
     assert "FAR OFF" in rep["verdict"]["acc"]
     assert set(direction["far_off"]) == {f"segment {seg[a][0]}", f"segment {seg[b][0]}"}
     assert "FAR OFF" in out
+
+
+def test_averaged_rows_without_stated_noise_take_it_from_the_options(tmp_path):
+    """Issue 51: validate of averaged rows whose noise the set does not state had no floor (floor_rms null);
+    --acc-noise-g/--gyro-noise-dph give it, as calibrate takes them."""
+    import json
+
+    from click.testing import CliRunner
+
+    from simucal.cli import main
+    from simucal.turntable.simulate import Scenario, write
+    for name, seed in (("a", 1), ("b", 2)):
+        write(tmp_path / name, Scenario(), seed)
+        meta = json.loads((tmp_path / name / "meta.json").read_text())
+        for key in ("acc_noise_g", "gyro_noise_dph"):
+            meta.pop(key)
+        (tmp_path / name / "meta.json").write_text(json.dumps(meta))
+    noise = ["--acc-noise-g", "1e-5", "--gyro-noise-dph", "0.01"]
+    assert CliRunner().invoke(main, ["calibrate", str(tmp_path / "a"), "-o", str(tmp_path / "c.json"), *noise]).exit_code == 0
+    floors = {}
+    for tag, extra in (("none", []), ("stated", noise)):
+        r = CliRunner().invoke(main, ["validate", str(tmp_path / "c.json"), str(tmp_path / "b"), "-o",
+                                      str(tmp_path / f"{tag}.json"), *extra])
+        assert r.exit_code == 0, r.output
+        floors[tag] = [c["floor_rms"] for rows in json.loads((tmp_path / f"{tag}.json").read_text())["checks"].values()
+                       for c in rows if c["what"].startswith("|")]
+    assert all(f is None for f in floors["none"]) and all(f is not None and f > 0 for f in floors["stated"])
+    assert json.loads((tmp_path / "stated.json").read_text())["verdict"]["gyro"] == "at the noise floor"

@@ -143,13 +143,17 @@ class Validation:
     checks = TableOf("check_rows", Check._fields)
 
 
-def validate(cal: Calibration | str | os.PathLike, data: Data) -> Validation:
+def validate(cal: Calibration | str | os.PathLike, data: Data, *, acc_noise_g: float | None = None,
+             gyro_noise_dph: float | None = None) -> Validation:
     """Apply a calibration to an independent set and compare with nominal and the noise floor.
 
     Parameters
     ----------
     cal : Calibration or a calibration file's path
     data : str, os.PathLike or MeasurementSet
+    acc_noise_g, gyro_noise_dph : float, optional
+        The noise of one row (g, deg/h) where the data cannot give it (averaged rows), as `calibrate` takes it:
+        the floor of those rows' checks stands on it (without it, such rows have no floor).
 
     Returns
     -------
@@ -161,7 +165,8 @@ def validate(cal: Calibration | str | os.PathLike, data: Data) -> Validation:
     >>> v.verdict  # doctest: +SKIP
     {'acc': 'at the noise floor', 'gyro': 'at the noise floor'}
     """
-    report = _validate_report(cal, data if isinstance(data, io.MeasurementSet) else folder_of(data))
+    report = _validate_report(cal, data if isinstance(data, io.MeasurementSet) else folder_of(data), acc_noise_g,
+                              gyro_noise_dph)
     checks = [Check(s, c["what"], c["unit"], c["n"], c["before_rms"], c["after_rms"], c["floor_rms"], c["verdict"])
               for s, rows in report["checks"].items() for c in rows]
     return Validation(dict(report["verdict"]), checks, bool(report["independent"]),

@@ -11,6 +11,8 @@ from simucal.cli.common import (
     EFFECT_FILE,
     FORCE,
     LATITUDE,
+    NOISE_DPH,
+    NOISE_G,
     SETS,
     POSITIVE,
     SEED,
@@ -217,14 +219,17 @@ def apply_cmd(calibration_file, data_dir, out_dir, force):
 @click.option("-o", "--output", type=click.Path(dir_okay=False), default="validation.json", show_default=True,
               help="The report (simucal.validation/1): each check's error at nominal, calibrated and its floor.")
 @click.option("--html", "html_path", type=click.Path(dir_okay=False), default=None, help="Also write a page with a plot.")
-def validate(calibration_file, data_dir, output, html_path):
+@click.option("--acc-noise-g", type=NOISE_G, default=None,
+              help="Noise of one acc row (g), where the data cannot give it (averaged rows): the checks' floors.")
+@click.option("--gyro-noise-dph", type=NOISE_DPH, default=None, help="Noise of one gyro row (deg/h), likewise.")
+def validate(calibration_file, data_dir, output, html_path, acc_noise_g, gyro_noise_dph):
     """Apply a calibration to an independent set: the error before (nominal) and after, against the noise floor.
     The Python API's simucal.validate(CAL, DATA)."""
     from simucal import api
     from simucal.validate import lines
     guard([calibration_file, data_dir], files={"-o": output, "--html": html_path})
     try:
-        result = api.validate(calibration_file, data_dir)
+        result = api.validate(calibration_file, data_dir, acc_noise_g=acc_noise_g, gyro_noise_dph=gyro_noise_dph)
     except ValueError as e:  # MeasurementSetError, CalibrationError, CalibrationFileError
         fail(e)
     _save(result, output, html_path)
