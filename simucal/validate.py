@@ -54,6 +54,26 @@ def _verdict(check) -> str:
     return "better" if a * WORSE < b else "no better than nominal"
 
 
+TABLE_LIMITED = ("the gravity direction against the commanded angles is above its floor, which lacks the table's "
+                 "angle errors the set does not state (table_accuracy_arcsec, table_tilt_arcsec): the table, not the "
+                 "calibration")
+
+
+def _sensor_verdict(rows, nominal) -> str:
+    """A sensor's verdict from its checks. A check limited by the table (the gravity direction against commanded
+    angles whose errors the set does not state: its floor lacks them) does not pull a verdict below the floor
+    that the calibration's own checks reach (the report's verdict_notes say so); it still counts when it is
+    worse than nominal."""
+    if nominal:
+        return "not calibrated: kept at its nominal scale factors"
+    if any(c["verdict"] == "WORSE THAN NOMINAL" for c in rows):
+        return "WORSE THAN NOMINAL"
+    own = [c for c in rows if not c.get("limited_by_table")] or rows
+    if all(c["verdict"] == "at the noise floor" for c in own):
+        return "at the noise floor"
+    return "better" if all(c["verdict"] in ("better", "at the noise floor") for c in rows) else "no better than nominal"
+
+
 REGISTER_BITS = (8, 10, 12, 14, 16, 18, 20, 24, 32)
 
 
@@ -115,18 +135,16 @@ def validate(cal_path, data_dir, acc_noise_g=None, gyro_noise_dph=None) -> dict:
         for c in rows:
             c["ratio_after_before"] = c["after_rms"] / c["before_rms"] if c["before_rms"] else None
             c["verdict"] = _verdict(c)
-    verdicts = {s: ("not calibrated: kept at its nominal scale factors" if getattr(cal, s).nominal else
-                    "WORSE THAN NOMINAL" if any(c["verdict"] == "WORSE THAN NOMINAL" for c in rows) else
-                    "at the noise floor" if all(c["verdict"] == "at the noise floor" for c in rows) else "better"
-                    if all(c["verdict"] in ("better", "at the noise floor") for c in rows) else "no better than nominal")
-                for s, rows in checks.items() if rows}
+    verdicts = {s: _sensor_verdict(rows, getattr(cal, s).nominal) for s, rows in checks.items() if rows}
+    notes = {s: TABLE_LIMITED for s, rows in checks.items() if verdicts.get(s) == "at the noise floor" and any(
+        c.get("limited_by_table") and c["verdict"] != "at the noise floor" for c in rows)}
     for s, rows in checks.items():
         far = sorted({x for c in rows for x in c.get("far_off") or []})
         if far and s in verdicts:
             verdicts[s] += f"; but {', '.join(far)} FAR OFF where the rest agree (mislabelled or disturbed)"
     own = own_rows(cal, ms)
     return {"format": "simucal.validation/1", "calibration": str(where), "data": str(ms.path),
-            "independent": not own, "checks": checks, "verdict": verdicts,
+            "independent": not own, "checks": checks, "verdict": verdicts, "verdict_notes": notes,
             "warnings": list(meta.get("warnings", [])),  # apply's: rows outside the calibrated temperature range
             "note": own or None, "nominal": [x for x in (said_a, said_g) if x]}
 
@@ -167,7 +185,8 @@ def lines(report):
         yield f"WARNING: {report['data']}: {w}"
     for s, v in report["verdict"].items():
         yield f"{s}: {v}" + (": this calibration makes the unit worse on these data than its nominal scale "
-                             "factors; do not use it" if v.startswith("WORSE THAN NOMINAL") else "")
+                             "factors; do not use it" if v.startswith("WORSE THAN NOMINAL") else "") + (
+            f" ({report['verdict_notes'][s]})" if s in report.get("verdict_notes", {}) else "")
     yield "next: " + validation_next(report)[0]
 
 

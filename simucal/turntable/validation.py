@@ -53,7 +53,8 @@ def table_checks(ms, f_before, f_after, w_before, w_after, cal) -> dict:
                            "unit": "rad", "n": len(angled), "before_rms": rms(errs[0]), "after_rms": rms(errs[1]),
                            "floor_rms": rms(floor) if np.all(np.isfinite(floor)) else None,
                            "far_off": far_off(errs[1], floor, [labels[i] for i in angled]),
-                           "far_off_hint": "check their commanded angles in segments.csv"})
+                           "far_off_hint": "check their commanded angles in segments.csv",
+                           "limited_by_table": not stated})
         out["acc"] = checks
     if w_after is not None:
         sd = units.stated_noise(ms.meta, "gyro")
