@@ -236,10 +236,14 @@ def _still_warmup(folders, degree, kwargs):
     if methods.data_kind(ms) != methods.STREAM or not ms.has_acc or len(ms.samples["t_s"]) < 20 \
             or not still_throughout(ms.acc_g(), ms.samples["t_s"]):
         return None
-    given = [o for o, v in (("--thermal-degree", degree), ("--add", kwargs.get("ids"))) if v]
+    method = kwargs.get("method")
+    given = [o for o, v in (("--thermal-degree", degree), ("--add", kwargs.get("add")),
+                            ("--method", method not in (None, "auto") and method),
+                            ("--acc-noise-g", kwargs.get("acc_noise_g")), ("--gyro-noise-dph", kwargs.get("gyro_noise_dph")),
+                            ("--noise", kwargs.get("noise"))) if v]
     if given:
-        raise CalibrationError(f"{given[0]}: a still warm-up's bias takes its degree from the data (0 to 3) and no "
-                               "effects; leave it out")
+        raise CalibrationError(f"{given[0]}: a still warm-up's bias takes its degree from the data (0 to 3), its noise "
+                               "from the data and no effects or other method; leave it out")
     return ms
 
 

@@ -94,6 +94,8 @@ def test_still_data_say_what_they_can_give(tmp_path):
         calibrate(tmp_path / "still")
     refused(CliRunner().invoke(main, ["calibrate", str(tmp_path / "still"), "--thermal", "--thermal-degree", "2",
                                       "-o", str(tmp_path / "c.json")]), "--thermal-degree", "takes its degree from the data")
+    refused(CliRunner().invoke(main, ["calibrate", str(tmp_path / "still"), "--thermal", "--add", "acc.quadratic.z",
+                                      "-o", str(tmp_path / "c.json")]), "--add", "no effects")
 
 
 def test_validated_on_another_warm_up_of_the_unit(tmp_path):

@@ -62,7 +62,7 @@ def _read_numeric(path, ncols=None, skip_header=False):
     return np.array(rows)
 
 
-def _meta(acc_unit, gyro_unit, latitude_deg, extra, has_gyro=True):
+def import_meta(acc_unit, gyro_unit, latitude_deg, extra, has_gyro=True):
     meta = {"acc_unit": acc_unit, "gyro_unit": gyro_unit, **extra}
     if latitude_deg is None and has_gyro:
         raise ImportError_("give --latitude-deg: the spec needs the latitude when gyro data are present "
@@ -85,7 +85,7 @@ def import_imu_tk(acc_path, gyro_path, out, acc_counts_per_g, gyro_counts_per_dp
              "description": f"imported from imu_tk files {Path(acc_path).name}, {Path(gyro_path).name}"}
     if gravity_mps2:
         extra["gravity_mps2"] = gravity_mps2
-    meta = _meta("counts", "counts", latitude_deg, extra)
+    meta = import_meta("counts", "counts", latitude_deg, extra)
     samples = {"t_s": a[:, 0], "ax": a[:, 1], "ay": a[:, 2], "az": a[:, 3], "gx": g[:, 1], "gy": g[:, 2], "gz": g[:, 3]}
     io.write_set(out, meta, samples)
     return meta
@@ -179,7 +179,7 @@ def import_csv(path, out, columns: dict, acc_unit, gyro_unit, rate_hz=None, lati
             raise ImportError_(f"{path}: no time column mapped; give --rate-hz")
         samples["t_s"] = np.arange(n) / rate_hz
     has_gyro = "gx" in columns
-    meta = _meta(acc_unit or "g", gyro_unit or "deg/h", latitude_deg,  # the spec names both units; one is unused
+    meta = import_meta(acc_unit or "g", gyro_unit or "deg/h", latitude_deg,  # the spec names both units; one is unused
                  dict(scales or {}, description=f"imported from {path.name}"), has_gyro)
     units.check_meta(meta, path, lambda p, line, rule: ImportError_(f"{p}: {rule}"))
     io.write_set(out, meta, samples)
@@ -223,7 +223,7 @@ def _ferraris_set(out, sections, data, t, units_meta, latitude_deg, turn_deg, so
         seg_col.append(np.full(len(rows), sid))
     rows = np.concatenate(keep_rows)
     samples = {"segment": np.concatenate(seg_col), "t_s": t[rows], **{k: v[rows] for k, v in data.items()}}
-    meta = _meta(units_meta["acc_unit"], units_meta["gyro_unit"], latitude_deg,
+    meta = import_meta(units_meta["acc_unit"], units_meta["gyro_unit"], latitude_deg,
                  {k: v for k, v in units_meta.items() if k not in ("acc_unit", "gyro_unit")})
     meta["description"] = (f"imported from {source}: Ferraris protocol; static poses at their nominal orientation, "
                            f"each turn a rate segment at the protocol's {turn_deg:+.0f} deg over its duration")

@@ -25,7 +25,7 @@ from pathlib import Path
 import numpy as np
 
 from simucal import io
-from simucal.io.importers import ImportError_, _meta
+from simucal.io.importers import ImportError_, import_meta
 
 
 @dataclass
@@ -284,7 +284,7 @@ def import_log(fmt: str, path, out, latitude_deg, instance: int = 0, topic: str 
     if s.temp_c is not None and not np.all(np.isfinite(s.temp_c)):
         s.temp_c = None  # a driver without a temperature logs NaN: no column rather than a broken one
         s.log["temperature"] = None
-    meta = _meta("m/s^2", "rad/s", latitude_deg, {"log": s.log, "description": f"imported from {Path(path).name} "
+    meta = import_meta("m/s^2", "rad/s", latitude_deg, {"log": s.log, "description": f"imported from {Path(path).name} "
                                                   f"({fmt}): {s.log.get('topic') or 'instance ' + str(instance)}"})
     samples = {"t_s": s.t_s - s.t_s[0], "ax": s.acc_mps2[:, 0], "ay": s.acc_mps2[:, 1], "az": s.acc_mps2[:, 2],
                "gx": s.gyro_rads[:, 0], "gy": s.gyro_rads[:, 1], "gz": s.gyro_rads[:, 2]}

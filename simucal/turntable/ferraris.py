@@ -95,8 +95,7 @@ def acc_fit(y_plus, y_minus, U, sig_plus=None, sig_minus=None) -> dict:
         # Student's t with 6 dof, whose variance is 6/4
         tilt2 = max(0.0, 2 * (v_across - noise_across)) * 6 / 4
     cov_y = noise[..., None] * np.eye(3) + tilt2 * np.einsum("ik,jkl,ml->jim", M, P, M)[None]  # (2, 3, 3, 3)
-    J = _jacobian(lambda yp, yn: np.r_[np.ravel(acc_matrix_and_bias(yp, yn, U)[0]),
-                                       acc_matrix_and_bias(yp, yn, U)[1]], y_plus, y_minus)
+    J = _jacobian(lambda yp, yn: np.r_[tuple(np.ravel(x) for x in acc_matrix_and_bias(yp, yn, U))], y_plus, y_minus)
     cov = sum(J[:, k, j] @ cov_y[k, j] @ J[:, k, j].T for k in range(2) for j in range(3))
     std = np.sqrt(np.diag(cov))
     norm_error = np.r_[np.linalg.norm(f_plus, axis=1), np.linalg.norm(f_minus, axis=1)] - 1
