@@ -3,16 +3,21 @@ a PX4 ULog, calibrated by simucal (`import ulog`, `calibrate --thermal`) and by 
 on the same samples, each curve's error against the planted truth over seeds.
 
 The autopilots' tools are not vendored here (their code is theirs); their methods are run as their
-documentation and source describe them (docs/temperature.md): PX4's Tools/process_sensor_caldata.py takes
+documentation and source describe them (docs/temperature.md), and where a copy of a tool is given
+(--px4-tool FILE: PX4's Tools/process_sensor_caldata.py; --ardupilot-tool FILE: ArduPilot's
+Tools/scripts/tempcal_IMU.py) the tool itself runs too, on the same samples (the ULog, with a still
+barometer, which PX4's script needs; for ArduPilot the same samples as a DataFlash log of IMU
+messages), and its parameter file is read back: PX4's Tools/process_sensor_caldata.py takes
 a 31-sample median filter, means over 2,000 equal temperature bins and a cubic in (T - T_ref), T_ref the
 middle of the range, the accelerometer less its median reading; ArduPilot's Tools/scripts/tempcal_IMU.py a
 2 s moving mean and a cubic in (T - 35), its constant dropped. Errors: the rms over the temperature range
 of each axis's curve less the truth, the gyro's whole bias (simucal, PX4) and every sensor's change from
 35 degC (all three: ArduPilot keeps no constant, the accelerometer's is gravity's).
 
-    python3 benchmarks/bench_warmup.py [--seeds 5] [--minutes 30]
+    python3 benchmarks/bench_warmup.py [--seeds 5] [--minutes 30] [--px4-tool FILE] [--ardupilot-tool FILE]
 """
 import argparse
+import os
 import subprocess
 import sys
 import tempfile
@@ -23,7 +28,7 @@ import numpy as np
 from scipy.signal import medfilt
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tests"))
-from log_writers import write_ulog  # noqa: E402 (the suite's ULog writer, by the format's specification)
+from log_writers import write_dataflash, write_ulog  # noqa: E402 (the suite's writers, by the formats' specifications)
 
 from simucal.io import calibration  # noqa: E402
 from simucal.report.markdown import header  # noqa: E402
@@ -47,8 +52,38 @@ def log(path: Path, seed: int, minutes: float, hz=100.0):
                 "device_id": device_id}
     acc = topic(ACC + np.array([[0, 0, 0, 0], [0, 0, 0, 0], [-G, 0, 0, 0]]), 0.02, 2e-5, 1442826)
     gyro = topic(GYRO, 2e-3, 2e-7, 2490378)
-    write_ulog(path, acc, gyro)
+    baro = {"t_us": gyro["t_us"][::4], "pressure": np.full(len(gyro["t_us"][::4]), 1013.25),
+            "temperature": gyro["temperature"][::4], "device_id": 4653065}
+    write_ulog(path, acc, gyro, baro=baro)
+    # the same samples as ArduPilot logs them: one IMU message holds both sensors (at the gyro's stamps)
+    write_dataflash(path.with_suffix(".bin"), {"t_us": gyro["t_us"], "temperature": gyro["temperature"],
+                                               "acc": np.c_[acc["x"], acc["y"], acc["z"]],
+                                               "gyro": np.c_[gyro["x"], gyro["y"], gyro["z"]]})
     return acc, gyro
+
+
+def tool_params(cmd, cwd: Path, out: Path) -> dict:
+    """Run an autopilot's own script and read the parameter file it writes ({name: value})."""
+    subprocess.run(cmd, cwd=cwd, check=True, capture_output=True, env={**os.environ, "MPLBACKEND": "Agg"})
+    params = {}
+    for line in out.read_text().splitlines():
+        f = line.split()
+        if len(f) >= 2 and not line.startswith("#"):
+            name, value = (f[2], f[3]) if len(f) >= 5 else (f[0], f[1])  # QGC's .params, or NAME VALUE
+            params[name] = float(value)
+    return params
+
+
+def px4_tool_curve(params, sensor, i):
+    """A TC_* curve of PX4's own .params: (coefficients in T - T_ref, T_ref), in the log's units."""
+    p = f"TC_{'G' if sensor == 'gyro' else 'A'}0"
+    return np.array([params[f"{p}_X{k}_{i}"] for k in range(4)]), params[f"{p}_TREF"]
+
+
+def ardupilot_tool_curve(params, sensor, i):
+    """An INS_TCAL1_* curve of ArduPilot's own .parm: (coefficients in T - 35, 35), its constant 0."""
+    p = f"INS_TCAL1_{'GYR' if sensor == 'gyro' else 'ACC'}"
+    return np.r_[0.0, [params[f"{p}{k}_{'XYZ'[i]}"] * 1e-6 for k in (1, 2, 3)]], 35.0
 
 
 def px4(T, y, accel):
@@ -83,11 +118,16 @@ def main():
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--seeds", type=int, default=5)
     ap.add_argument("--minutes", type=float, default=30.0, help="the warm-up's length (default 30)")
+    ap.add_argument("--px4-tool", type=Path, help="a copy of PX4's Tools/process_sensor_caldata.py: run it too")
+    ap.add_argument("--ardupilot-tool", type=Path, help="a copy of ArduPilot's Tools/scripts/tempcal_IMU.py: run it too")
     a = ap.parse_args()
-    errors = {k: [] for k in ("gyro whole, simucal", "gyro whole, PX4", "gyro change, simucal", "gyro change, PX4",
-                              "gyro change, ArduPilot", "acc change, simucal", "acc change, PX4",
-                              "acc change, ArduPilot")}
-    times = {"simucal (import ulog + calibrate --thermal)": [], "PX4's method": [], "ArduPilot's method": []}
+    tools = ["simucal", "PX4", "ArduPilot"] + ["PX4's tool"] * bool(a.px4_tool) + ["ArduPilot's tool"] * bool(
+        a.ardupilot_tool)
+    errors = {f"{what}, {tool}": [] for what in ("gyro whole", "gyro change", "acc change") for tool in tools
+              if not (what == "gyro whole" and "ArduPilot" in tool)}
+    times = {"simucal (import ulog + calibrate --thermal)": [], "PX4's method": [], "ArduPilot's method": [],
+             **({"PX4's tool (process_sensor_caldata.py)": []} if a.px4_tool else {}),
+             **({"ArduPilot's tool (tempcal_IMU.py)": []} if a.ardupilot_tool else {})}
     with tempfile.TemporaryDirectory() as tmp:
         tmp = Path(tmp)
         for seed in range(a.seeds):
@@ -98,6 +138,18 @@ def main():
                 subprocess.run([sys.executable, "-m", "simucal", *cmd], check=True, capture_output=True)
             times["simucal (import ulog + calibrate --thermal)"].append(time.perf_counter() - t0)
             cal = calibration.load(tmp / f"c{seed}.json")
+            own = {}
+            if a.px4_tool:
+                t0 = time.perf_counter()
+                own["PX4's tool"] = (tool_params([sys.executable, str(a.px4_tool.resolve()), f"w{seed}.ulg"], tmp,
+                                                 tmp / f"w{seed}.ulg.params"), px4_tool_curve)
+                times["PX4's tool (process_sensor_caldata.py)"].append(time.perf_counter() - t0)
+            if a.ardupilot_tool:
+                t0 = time.perf_counter()
+                own["ArduPilot's tool"] = (tool_params(
+                    [sys.executable, str(a.ardupilot_tool.resolve()), "--no-graph", "--outfile", f"w{seed}.parm",
+                     f"w{seed}.bin"], tmp, tmp / f"w{seed}.parm"), ardupilot_tool_curve)
+                times["ArduPilot's tool (tempcal_IMU.py)"].append(time.perf_counter() - t0)
             for sensor, data, truth, per in (("gyro", gyro, GYRO, np.radians(1 / 3600)), ("acc", acc, ACC, G)):
                 T = data["temperature"]
                 grid = np.linspace(T.min(), T.max(), 200)
@@ -117,17 +169,21 @@ def main():
                     if sensor == "gyro":
                         errors["gyro whole, simucal"].append(ours - want)
                         errors["gyro whole, PX4"].append(px - want)
-                    for tool, v in (("simucal", ours), ("PX4", px), ("ArduPilot", curve(*dropped, grid))):
+                    curves = {"simucal": ours, "PX4": px, "ArduPilot": curve(*dropped, grid),
+                              **{tool: curve(*read(params, sensor, i), grid) for tool, (params, read) in own.items()}}
+                    if sensor == "gyro" and "PX4's tool" in curves:
+                        errors["gyro whole, PX4's tool"].append(curves["PX4's tool"] - want)
+                    for tool, v in curves.items():
                         errors[f"{sensor} change, {tool}"].append(change(v) - change(want))
     rms = {k: float(np.sqrt(np.mean(np.square(v)))) for k, v in errors.items()}
     print(f"{a.seeds} warm-ups of {a.minutes:g} min at 100 Hz, 15 -> 60 degC, a cubic bias on every axis, white noise "
           "and a random walk of the bias\n")
     print(header(["curve against the truth (rms over 15-60 degC, every axis and seed)", "simucal", "PX4's method",
-                  "ArduPilot's method", "simucal / best other"]))
+                  "ArduPilot's method"] + tools[3:] + ["simucal / best other"]))
     for what, unit, scale in (("gyro, whole bias", "rad/s", "gyro whole"), ("gyro, change from 35 degC", "rad/s",
                                                                            "gyro change"),
                               ("acc, change from 35 degC", "m/s^2", "acc change")):
-        cells = [rms.get(f"{scale}, {tool}") for tool in ("simucal", "PX4", "ArduPilot")]
+        cells = [rms.get(f"{scale}, {tool}") for tool in tools]
         others = [c for c in cells[1:] if c is not None]
         print(f"| {what} ({unit}) | " + " | ".join("-" if c is None else f"{c:.3g}" for c in cells)
               + f" | {cells[0] / min(others):.2f} |")

@@ -14,15 +14,17 @@ no bias, no misalignment), and with the noise floor of that error:
   (Wahba): the direction error (rad). It carries the table's own angle errors;
 - a stream: each move's gravity direction after the move predicted by the integrated gyro
   against the one the calibrated accelerometers measure (Tedaldi's cost; handheld/moves.py),
-  as an angle in deg. At nominal the gyro's bias is taken from the initial rest, as any user
-  would; both use the calibrated accelerometers' directions, so the check is the gyro's alone.
+  as an angle in deg, on the stream's clock as the calibration read its own. Both arms take the
+  gyro's bias from the session's initial rest (no calibration carries another power-up's turn-on
+  bias) and the calibrated accelerometers' directions, so the check is the gyro's T alone; its floor
+  is the gyro's white noise, the rest bias's error and the poses' directions with the accelerometer
+  calibration's uncertainty (handheld/validation.py).
 
 The floor of each norm error is its whole uncertainty: the noise (a segment's or pose's scatter
 over its rows, std of the mean, or the stated noise of one row) and the calibration's own: its
 parameters' covariance (a thermal calibration's coefficients', at each segment's temperature)
 propagated to the calibrated norm, d|u|/dp = (u/|u|)' (dh/du)^-1 dh/dp, added in quadrature
-(fit/validation.py's `calibration_sd`; a file without a covariance adds nothing, and the check says so). For moves,
-the same residual at the rests' noise is not known a priori, so moves have no floor. A calibration
+(fit/validation.py's `calibration_sd`; a file without a covariance adds nothing, and the check says so). A calibration
 whose error is above the nominal one's is said to be worse, loudly; rows outside a calibration's
 temperature range are named (apply's warning). The checks of each kind of data are its entry's in methods.KINDS
 (turntable/validation.py, handheld/validation.py).
@@ -36,6 +38,7 @@ from simucal.fit.apply import apply
 from simucal.fit.validation import FAR_OFF
 from simucal.errors import CalibrationError
 from simucal.io import calibration, units
+from simucal.io.timestamps import with_timestamps
 from simucal.report.console import validation_next
 
 WARMUP = "warm-up"  # a still board's warm-up calibration (handheld/warmup.py): validated on another warm-up
@@ -109,13 +112,19 @@ def nominal(ms, sensor) -> tuple[np.ndarray, str]:
     return out - to_unit(off[None], ms.meta)[0], f"{sensor}: the counts less {', '.join(f'{x:g}' for x in off)} ({how})"
 
 
-def validate(cal_path, data_dir, acc_noise_g=None, gyro_noise_dph=None) -> dict:
+def validate(cal_path, data_dir, acc_noise_g=None, gyro_noise_dph=None, timestamps=None) -> dict:
     """The report (module doc) of calibration file cal_path (or a Calibration) applied to the set data_dir
     (or a MeasurementSet). acc_noise_g, gyro_noise_dph: the noise of one row where the data cannot give it
-    (averaged rows), as calibrate takes it: the floors of those rows' checks stand on it."""
+    (averaged rows), as calibrate takes it: the floors of those rows' checks stand on it. timestamps: a
+    stream's stamps (io/timestamps.py: auto, recorded, nominal); None: as the calibration read its own
+    (nominal where it was told --timestamps nominal, else auto's rule, which it applied)."""
     given = isinstance(cal_path, calibration.Calibration)
     cal = cal_path if given else calibration.load(cal_path)
     ms = data_dir if isinstance(data_dir, io.MeasurementSet) else io.read_set(data_dir)
+    if timestamps is None:
+        timestamps = "nominal" if (cal.details.get("timestamps") or {}).get("chosen_by") == "--timestamps nominal" \
+            else "auto"
+    ms, stamps = with_timestamps(ms, timestamps)
     stated = {k: v for k, v in (("acc_noise_g", acc_noise_g), ("gyro_noise_dph", gyro_noise_dph)) if v is not None}
     if stated:
         units.check_meta({**ms.meta, **stated}, ms.path, lambda p, line, rule: CalibrationError(f"{p}: {rule}"))
@@ -146,7 +155,8 @@ def validate(cal_path, data_dir, acc_noise_g=None, gyro_noise_dph=None) -> dict:
     return {"format": "simucal.validation/1", "calibration": str(where), "data": str(ms.path),
             "independent": not own, "checks": checks, "verdict": verdicts, "verdict_notes": notes,
             "warnings": list(meta.get("warnings", [])),  # apply's: rows outside the calibrated temperature range
-            "note": own or None, "nominal": [x for x in (said_a, said_g) if x]}
+            "note": own or None, "nominal": [x for x in (said_a, said_g) if x],
+            **({"timestamps": stamps} if stamps and "chosen_by" in stamps else {})}  # a stream's clock
 
 
 def own_rows(cal, ms) -> str:
@@ -172,6 +182,8 @@ def lines(report):
         yield f"NOTE: {report['note']}"
     for x in report.get("nominal", []):
         yield f"nominal: {x}"
+    if report.get("timestamps"):
+        yield f"time stamps: {report['timestamps']['text']} ({report['timestamps']['chosen_by']})"
     yield f"{'sensor':6} {'nominal':>10} {'calibrated':>10} {'floor':>9}  {'unit':8} check: verdict"
     for s, rows in report["checks"].items():
         for c in rows:

@@ -143,9 +143,9 @@ def test_diagnose_real_stream_says_honestly_what_it_finds(tmp_path):
     # left out predicted better) explain more than half the misfit; the rest is not the library's, and
     # it says why it stopped; calibrate carries them
     s = g["misfit_shares"]
-    assert s["steps"] and all(x["id"].startswith("gyro.") and x["p_held_out_better"] < 0.01 for x in s["steps"])
-    assert s["unexplained"] < 0.5 and s["steps"][-1]["residual_rms_after"] > 1.5 * g["baseline"]["noise_floor"]
-    assert "left out" in s["stopped"] and s["stopped"] in g["verdict"]
+    assert s["steps"] and all(x["id"].startswith("gyro.") and x["p_held_out_better"] < 0.05 for x in s["steps"])
+    assert s["unexplained"] < 0.05 and s["steps"][-1]["residual_rms_after"] > 1.5 * g["baseline"]["noise_floor"]
+    assert "the model still fails" in s["stopped"] and s["stopped"] in g["verdict"]
     assert " ".join(f"--add {e}" for e in s["effects"]) in g["verdict"]
     # a chosen effect with a twin says what would tell them apart in a hand session (moves to make), not
     # a turntable's `simucal plan` (the twin sentence of the norm fit, which the moves' selection shares)
@@ -304,11 +304,10 @@ def test_stream_calibrate_names_what_diagnose_would_add(tmp_path):
 
 
 @pytest.mark.slow
-def test_xsens_moves_need_a_pair_the_one_at_a_time_rule_cannot_take(tmp_path):
-    """docs/real-recordings.md: on imu_tk's Xsens session `--add auto` stops after two g-sensitivities,
-    since neither of the next candidates (yz, yx) alone predicts the moves left out better at p < 0.01;
-    the two together do (and lower the held-out rms), so what is left is not shown to be outside the
-    library: one-at-a-time selection cannot take a pair."""
+def test_xsens_moves_take_the_g_sensitivities_one_at_a_time(tmp_path):
+    """docs/real-recordings.md: on imu_tk's Xsens session `--add auto` takes two g-sensitivities, then yz,
+    whose moves left out are predicted better at p between 0.01 (the held-out level before issue 51, where
+    the selection stopped) and 0.05 (now), then yx; the four together lower the held-out rms by a third."""
     from simucal import io
     from simucal.fit.cross_validation import paired_improvement
     from simucal.fit.selection import HELD_OUT_ALPHA
@@ -325,9 +324,9 @@ def test_xsens_moves_need_a_pair_the_one_at_a_time_rule_cannot_take(tmp_path):
     step = MovesStep(gm, regressor_inputs(ms, gm, f, (p.model, p.fit.vector(p.model.params))), gyro_noise_dps(ms, gm), f)
     two = step.add("gyro.g_sensitivity.xz").add("gyro.g_sensitivity.zy")
     rms = lambda s: float(np.sqrt(np.mean(np.square(s.held_out()))))
-    alone = [paired_improvement(two.held_out(), two.add(e).held_out())
-             for e in ("gyro.g_sensitivity.yz", "gyro.g_sensitivity.yx")]
-    pair = two.add("gyro.g_sensitivity.yz").add("gyro.g_sensitivity.yx")
-    assert min(alone) > HELD_OUT_ALPHA, alone
-    assert paired_improvement(two.held_out(), pair.held_out()) < HELD_OUT_ALPHA / 10
-    assert rms(pair) < 0.7 * rms(two)
+    three = two.add("gyro.g_sensitivity.yz")
+    p_yz = paired_improvement(two.held_out(), three.held_out())
+    assert 0.01 < p_yz < HELD_OUT_ALPHA, p_yz
+    four = three.add("gyro.g_sensitivity.yx")
+    assert paired_improvement(three.held_out(), four.held_out()) < HELD_OUT_ALPHA
+    assert rms(four) < 0.7 * rms(two)

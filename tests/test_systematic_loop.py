@@ -6,9 +6,8 @@ import numpy as np
 import pytest
 
 import simucal
-from simucal.fit.ranking import rank
 from simucal.systematic.calibrate import run_filter
-from simucal.systematic.innovations import InnovationsProblem, innovation_test, signatures
+from simucal.systematic.innovations import family_test, ranked
 from simucal.turntable.sequence import AXES, psins19
 from tests.cli_helpers import refused, run
 from tests.test_systematic import REST_S, _sequence_file  # psins19 with 30 s rests: every parameter seen
@@ -28,10 +27,8 @@ def quadratic(tmp_path_factory, short):
 
 
 def _ranked(ms):
-    r = run_filter(ms)
-    test = innovation_test(r.epochs)
-    sig = signatures(r)
-    return test, rank(InnovationsProblem(sig), list(sig.B), test["p_value"] < 1e-3, "candidates")
+    test, sig = family_test(run_filter(ms))
+    return test, ranked(test, sig)
 
 
 @pytest.mark.slow
@@ -40,6 +37,7 @@ def test_diagnose_names_the_planted_effect_on_the_innovations(quadratic, tmp_pat
     assert r.exit_code == 0, r.output
     d = json.loads((tmp_path / "d.json").read_text())
     assert d["acc"]["model_test"]["p_value"] < 1e-3 and d["acc"]["model_test"]["test"].startswith("NIS")
+    assert d["acc"]["model_test"]["targeted"]["strongest"] == "acc.quadratic.z"
     best = d["candidates"][0]
     assert best["id"] == "acc.quadratic.z" and best["significant"], best
     assert abs(best["estimate"] - 2e-4) < 3 * best["std"], best
@@ -124,3 +122,46 @@ def test_plan_sequence_names_what_a_sequence_leaves_unobserved(tmp_path):
     assert "acc dK_z" in line and "acc b_z" in line and "gyro phi_zx" in line  # z always up: its scale and bias one
     refused(run("plan", "--sequence", "psins19", "--positions", 5), "--sequence", "--positions")
     refused(run("plan", "--sequence", tmp_path / "none.csv"), "none.csv")
+
+
+FXFY = """from simucal.derive.frames import f_b
+from simucal.derive.models import Term
+from simucal.derive.models.baseline import ACC_BASELINE
+MODELS = [ACC_BASELINE.with_terms("acc_fxfy_truth", [Term("K_xy", "z", f_b[0] * f_b[1], "g/g^2", "z reads f_x f_y")])]
+"""
+
+
+@pytest.mark.slow
+def test_a_strong_effect_fails_the_model_where_the_omnibus_passes(short):
+    """Issue 51: an effect at about 12 of its stds adds ~150 to a NIS of thousands of dof, inside the omnibus's
+    tail; its targeted test (fit/family.py) fails the model, and calibrate advises it."""
+    ms = simucal.simulate(sequence=short, seed=5, effects={"acc.cross_coupling.xy": 3e-4})
+    cal = simucal.calibrate(ms, method="systematic")
+    t = cal.acc.details["targeted"]
+    assert cal.acc.details["omnibus_p_value"] > 1e-3 and cal.acc.verdict == "fails", t
+    assert t["strongest"] == "acc.cross_coupling.xy" and t["p_value"] < t["level"] and "verdict" in t
+    assert cal.acc.details["advice"] == cal.gyro.details["advice"] == "acc.cross_coupling.xy"
+    auto = simucal.calibrate(ms, method="systematic", add="auto")
+    assert list(auto.acc.effects) == ["acc.cross_coupling.xy"] and auto.acc.verdict == "passes"
+    e = auto.acc.effects["acc.cross_coupling.xy"]
+    assert abs(e.value - 3e-4) < 3 * e.std
+
+
+@pytest.mark.slow
+def test_an_effect_outside_the_library_is_said_so_on_a_sequence(short, tmp_path):
+    """Issue 51: acc z reading f_x f_y (no library effect has it). calibrate and diagnose say that no library
+    effect explains the misfit, advise no --add, and --add auto keeps nothing (the parameters as without it)."""
+    (tmp_path / "fxfy.py").write_text(FXFY)
+    ms = simucal.simulate(sequence=short, seed=3, effect_file=str(tmp_path / "fxfy.py"), sets={"K_xy": 1e-3})
+    cal = simucal.calibrate(ms, method="systematic")
+    assert cal.acc.verdict == "fails" and cal.acc.details["advice"].startswith("no library effect explains the misfit")
+    diag = simucal.diagnose(ms)
+    d = diag.report
+    assert not d["acc"].get("explained_by") and not d["gyro"].get("explained_by")
+    for sensor in ("acc", "gyro"):
+        assert "outside the library" in d[sensor]["verdict"] or "not in the library" in d[sensor]["verdict"], d[sensor]
+    assert "--add" not in diag.next_command
+    auto = simucal.calibrate(ms, method="systematic", add="auto")
+    assert not auto.acc.effects and not auto.gyro.effects, auto.acc.details["auto_stopped"]
+    for sensor in ("acc", "gyro"):
+        assert getattr(auto, sensor).params == getattr(cal, sensor).params

@@ -153,3 +153,33 @@ def test_a_gap_inside_a_turntable_segment_is_named(tmp_path):
     assert json.loads((tmp_path / "c.json").read_text())["timestamps"]["gaps"][0]["segment"] == seg
     r = CliRunner().invoke(main, ["diagnose", str(tmp_path / "gap"), "-o", str(tmp_path / "d.json")])
     assert r.exit_code == 0 and "40 samples missing" in json.dumps(json.loads((tmp_path / "d.json").read_text())["notes"])
+
+
+def test_validate_reads_a_loggers_stamps_as_the_calibration_did(tmp_path):
+    """Issue 51, item 4: a session calibrated on the sensor's clock, validated on another session of the same
+    unit whose stamps a logger wrote. validate reads them as the calibration did (the line says so), both arms
+    take this session's own rest bias, and the gyro's direction check has a floor: with the logger's stamps it
+    equals the check on the true stamps within that floor, and the calibrated gyro is at it."""
+    import simucal
+    from simucal import io
+    unit = HandheldScenario(poses=20, move_s=0.6, peak_rate_dps=190.0, gyro_noise_dps=0.005, acc_noise_g=2e-4)
+    cal = simucal.calibrate(_logged_session(tmp_path / "a", _logger_stamps))
+    assert cal.details["timestamps"]["used"] == "nominal"
+    from simucal.handheld.simulate import simulate_handheld
+    meta, samples, _ = simulate_handheld(unit, 8, unit_seed=3)  # the unit of _logged_session, another session
+    io.write_set(tmp_path / "b_true", meta, samples)
+    ms = io.read_set(tmp_path / "b_true")
+    io.write_set(tmp_path / "b_logged", ms.meta, {**ms.samples, "t_s": _logger_stamps(len(ms.samples["t_s"]))})
+    checks = {}
+    for name in ("b_true", "b_logged"):
+        v = simucal.validate(cal, tmp_path / name)
+        checks[name] = v.report["checks"]["gyro"][0]
+    true, logged = checks["b_true"], checks["b_logged"]
+    assert v.report["timestamps"]["used"] == "nominal"
+    assert true["floor_rms"] and abs(logged["after_rms"] - true["after_rms"]) < true["floor_rms"], (true, logged)
+    assert logged["verdict"] == "at the noise floor", logged
+    simucal.save(tmp_path / "c.json", cal)
+    r = CliRunner().invoke(main, ["validate", str(tmp_path / "c.json"), str(tmp_path / "b_logged"), "-o",
+                                  str(tmp_path / "v.json")])
+    assert r.exit_code == 0, r.output
+    assert "time stamps: irregular: median step 10.24 ms" in r.output and "a regular clock took them" in r.output

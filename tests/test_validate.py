@@ -145,7 +145,8 @@ def test_a_second_recording_of_one_drawn_unit(tmp_path, scenario):
         assert _run("calibrate", tmp_path / "a", "-o", tmp_path / "c.json").exit_code == 0
         assert _run("validate", tmp_path / "c.json", tmp_path / "b", "-o", tmp_path / "r.json").exit_code == 0
         verdict = json.loads((tmp_path / "r.json").read_text())["verdict"]
-        assert verdict["acc"] in ("better", "at the noise floor") and verdict["gyro"] == "better", verdict
+        # the gyro's direction check has a floor since issue 51 (the rest's noise, its bias's error, the poses')
+        assert verdict["acc"] in ("better", "at the noise floor") and verdict["gyro"] == "at the noise floor", verdict
 
 
 def test_mislabelled_positions_are_named_and_not_called_better(table, tmp_path):

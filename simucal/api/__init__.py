@@ -144,7 +144,7 @@ class Validation:
 
 
 def validate(cal: Calibration | str | os.PathLike, data: Data, *, acc_noise_g: float | None = None,
-             gyro_noise_dph: float | None = None) -> Validation:
+             gyro_noise_dph: float | None = None, timestamps: str | None = None) -> Validation:
     """Apply a calibration to an independent set and compare with nominal and the noise floor.
 
     Parameters
@@ -154,6 +154,8 @@ def validate(cal: Calibration | str | os.PathLike, data: Data, *, acc_noise_g: f
     acc_noise_g, gyro_noise_dph : float, optional
         The noise of one row (g, deg/h) where the data cannot give it (averaged rows), as `calibrate` takes it:
         the floor of those rows' checks stands on it (without it, such rows have no floor).
+    timestamps : {"auto", "recorded", "nominal"}, optional
+        A stream's time stamps, as `calibrate` takes them; default: as the calibration read its own.
 
     Returns
     -------
@@ -166,7 +168,7 @@ def validate(cal: Calibration | str | os.PathLike, data: Data, *, acc_noise_g: f
     {'acc': 'at the noise floor', 'gyro': 'at the noise floor'}
     """
     report = _validate_report(cal, data if isinstance(data, io.MeasurementSet) else folder_of(data), acc_noise_g,
-                              gyro_noise_dph)
+                              gyro_noise_dph, timestamps)
     checks = [Check(s, c["what"], c["unit"], c["n"], c["before_rms"], c["after_rms"], c["floor_rms"], c["verdict"])
               for s, rows in report["checks"].items() for c in rows]
     return Validation(dict(report["verdict"]), checks, bool(report["independent"]),

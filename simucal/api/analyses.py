@@ -17,7 +17,7 @@ Data = Union[str, os.PathLike, io.MeasurementSet]
 
 class Candidate(NamedTuple):
     """One row of `Diagnosis.candidates`: an effect the model lacks, tested by adding it (a
-    likelihood-ratio test, Bonferroni-gated over its sensor's candidates)."""
+    likelihood-ratio test, gated as part of the model test's family: fit/family.py)."""
     sensor: str
     id: str               # the effect id calibrate --add takes
     estimate: float | None  # its value fitted beside the model, in `unit`

@@ -222,14 +222,18 @@ def apply_cmd(calibration_file, data_dir, out_dir, force):
 @click.option("--acc-noise-g", type=NOISE_G, default=None,
               help="Noise of one acc row (g), where the data cannot give it (averaged rows): the checks' floors.")
 @click.option("--gyro-noise-dph", type=NOISE_DPH, default=None, help="Noise of one gyro row (deg/h), likewise.")
-def validate(calibration_file, data_dir, output, html_path, acc_noise_g, gyro_noise_dph):
+@click.option("--timestamps", type=click.Choice(("auto", "nominal", "recorded")), default=None,
+              help="Stream: the time stamps as calibrate takes them (its --timestamps); default: as the calibration "
+                   "read its own.")
+def validate(calibration_file, data_dir, output, html_path, acc_noise_g, gyro_noise_dph, timestamps):
     """Apply a calibration to an independent set: the error before (nominal) and after, against the noise floor.
     The Python API's simucal.validate(CAL, DATA)."""
     from simucal import api
     from simucal.validate import lines
     guard([calibration_file, data_dir], files={"-o": output, "--html": html_path})
     try:
-        result = api.validate(calibration_file, data_dir, acc_noise_g=acc_noise_g, gyro_noise_dph=gyro_noise_dph)
+        result = api.validate(calibration_file, data_dir, acc_noise_g=acc_noise_g, gyro_noise_dph=gyro_noise_dph,
+                              timestamps=timestamps)
     except ValueError as e:  # MeasurementSetError, CalibrationError, CalibrationFileError
         fail(e)
     _save(result, output, html_path)

@@ -3,11 +3,12 @@
 - test_model: the exact fit with the noise the data give (lack_of_fit.fit_with_noise),
   a chi-square test where the noise is known, the lack-of-fit F test always, and one
   p-value for the verdict (the chi-square's where every row's noise is known, the F
-  test's where none is, the smaller of the two, Bonferroni-doubled, where some is).
+  test's where none is, the smaller of the two, Bonferroni-doubled, where some is), made one
+  family with the targeted (score) tests of every library effect not in the model (fit/family.py).
 - rank_candidates: every candidate effect of generated/effects.py fit as model +
   candidate by the same exact solver (NormProblem), ranked by fit/ranking.rank: the
   likelihood ratio (chi-square difference; an F ratio where the noise is unknown), the
-  Bonferroni gate, the candidates this plan cannot separate and what would.
+  family's gate, the candidates this plan cannot separate and what would.
 - A model fails its test at p < ALPHA (fit/results.ModelTest.fails), everywhere.
 - shape: when no candidate explains the misfit, the generic term that does
   (lack_of_fit.describe_shape).
@@ -18,6 +19,8 @@ streams' poses), diagnose_moves and table_fit.
 """
 from __future__ import annotations
 
+import functools
+
 import numpy as np
 
 from simucal.errors import CalibrationError
@@ -26,7 +29,7 @@ from simucal.fit.cross_validation import leave_one_out
 from simucal.fit.distributions import chi2_sf, f_sf
 from simucal.fit.lack_of_fit import describe_shape, fit_with_noise, lack_of_fit
 from simucal.fit.norm_fit import Fit, Observations, dense_jacobian, fit_exact
-from simucal.fit import ranking, selection
+from simucal.fit import family, ranking, selection
 from simucal.fit.results import ALPHA, ModelTest, Selection
 from simucal.fit.twins import separating_plan
 from simucal.generated.effects import EFFECTS, SEPARATE
@@ -48,8 +51,24 @@ class NormProblem:
     def info(self, eid):
         return EFFECTS[eid].parameter, EFFECTS[eid].unit, EFFECTS[eid].meaning
 
+    @functools.cached_property
+    def Q(self):
+        """An orthonormal basis of J's span, block by block: each row's two direction columns (J's (3, 2)
+        blocks, orthonormalised row by row), then the parameters' columns with those projected out (the
+        exact fit's Schur complement, gauss_newton.py): a QR of (3n, m) for one of (3n, m + 2n)."""
+        n, m = len(self.u), len(self.model.params)
+        rows = self.J.reshape(n, 3, -1)
+        U = np.linalg.qr(rows[np.arange(n)[:, None, None], np.arange(3)[None, :, None],
+                              (m + 2 * np.arange(n))[:, None, None] + np.arange(2)])[0]  # (n, 3, 2)
+        A = rows[:, :, :m]
+        Qa = np.linalg.qr((A - U @ (U.transpose(0, 2, 1) @ A)).reshape(3 * n, m))[0]
+        Ud = np.zeros((3 * n, 2 * n))
+        for i in range(n):
+            Ud[3 * i:3 * i + 3, 2 * i:2 * i + 2] = U[i]
+        return np.hstack([Ud, Qa])
+
     def basis(self):
-        return np.linalg.qr(self.J)[0]
+        return self.Q
 
     def residual(self):
         r = (self.fit.residuals / self.sig).ravel()
@@ -88,7 +107,7 @@ def rank_candidates(model: AugmentedModel, obs: Observations, fit: Fit, base_fai
     """Every library effect not in the model, ranked beside it (fit/ranking.rank). advisor: where the
     data come from a plan that can grow (turntable/plan_design.TableAdvice), the positions to add for
     a candidate this plan cannot see, and for the strongest pair of candidates it cannot tell apart."""
-    problem = NormProblem(model, obs, fit)
+    problem = norm_problem(model, obs, fit)
     hooks = {} if advisor is None else dict(
         unseen=lambda eid: advisor.reveal(model, eid, fit, obs, problem.sig),
         pair=lambda c, twin: advisor.separate(model, c, twin, fit, obs, problem.sig))
@@ -132,7 +151,24 @@ def test_model(model, obs: Observations, p0=None) -> tuple[Fit, Observations, di
     else:
         block.update(noise_floor=None, noise_std_of_mean=None, p_value=lof["p_value"],
                      test="lack-of-fit F (no noise in the data or stated)")
+    family.fold(block, targeted(model, obs, fit))
     return fit, obs, block
+
+
+def targeted(model: AugmentedModel, obs: Observations, fit: Fit) -> dict | None:
+    """The targeted tests of the model test's family (fit/family.py) on the norm fit: every library
+    effect not in the model, by its score test at fit (None where there is none to test)."""
+    ids = [e for e in effect_ids(model.sensor) if e not in model.effects]
+    return family.targeted(norm_problem(model, obs, fit), ids, fit.dof) if ids and fit.dof > 0 else None
+
+
+def norm_problem(model: AugmentedModel, obs: Observations, fit: Fit) -> NormProblem:
+    """The fit's ranking Problem, built once per fit: the family's targeted tests and the ranking share
+    its Jacobian and basis (kept on the fit, for these model and observations)."""
+    p = fit.__dict__.get("_problem")
+    if p is None or p.model is not model or p.obs is not obs:
+        p = fit.__dict__["_problem"] = NormProblem(model, obs, fit)
+    return p
 
 
 class NormStep:
@@ -166,6 +202,9 @@ class NormStep:
         return {"p_value_after": self.base["p_value"], "residual_rms_after": self.fit.residual_rms,
                 "held_out_rms_after": cv["held_out_rms"] if cv else None}
 
+    def estimates(self):
+        return {k: (self.fit.params[k], self.fit.std[k]) for k in self.model.base.params}
+
     def to_separate(self, chosen, twin):
         if not self.table:
             return "poses that would: " + separating_plan(chosen["id"], twin["id"])
@@ -184,11 +223,15 @@ def _rank(model, obs, fit, base):
     return cands, shape_if_unexplained(model, obs, fit, base, cands)
 
 
-def advice_text(cands, shape) -> str | None:
+def advice_text(cands, shape, base) -> str | None:
     """What a failing model lacks, as calibrate names it: the generic term where it beats every library
-    effect (the verdict leads with it), else the strongest significant candidate, else None."""
+    effect (the verdict leads with it), else the strongest significant candidate unless it leaves the
+    model failing having explained little (family.outside_library: then that, in words), else None."""
     sig = [c for c in cands if c.get("significant")]
-    return "a term " + shape["text"] if shape and not shape.get("catalog_id") else sig[0]["id"] if sig else None
+    if shape and not shape.get("catalog_id"):
+        return "a term " + shape["text"]
+    outside = family.outside_library(base, cands)
+    return outside["text"] if outside else sig[0]["id"] if sig else None
 
 
 def advice(model: AugmentedModel, obs: Observations) -> str | None:
@@ -197,7 +240,7 @@ def advice(model: AugmentedModel, obs: Observations) -> str | None:
     fit, obs2, base = test_model(model, obs)
     if not ModelTest.of(base).fails:
         return None
-    return advice_text(*_rank(model, obs2, fit, base))
+    return advice_text(*_rank(model, obs2, fit, base), base)
 
 
 MIN_SHARE = 0.5  # a generic term named as the missing one must explain at least half the misfit

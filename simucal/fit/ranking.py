@@ -11,8 +11,9 @@ likelihood-ratio or F statistic). rank() then, for every problem alike:
   lies within 1e-3 of the model's span, and says what would show it;
 - fits the others, notes the nearly collinear ones (under 5 % of the signature separable);
 - names the twins the data cannot tell apart (fit/twins.py);
-- applies the Bonferroni gate (gate): a candidate is significant only where the model fails and its
-  p-value beats ALPHA / (number tested).
+- applies the gate (gate): a candidate is significant where its p-value beats its share of the model
+  test's family (fit/family.py: ALPHA / 2 over the number tested), whether or not the omnibus fails:
+  a candidate beyond it makes the model fail.
 """
 from __future__ import annotations
 
@@ -22,10 +23,10 @@ from typing import Callable, Protocol
 import numpy as np
 
 from simucal import progress
-from simucal.fit.results import ALPHA, Candidate
+from simucal.fit.family import COLLINEAR, candidate_level, separable
+from simucal.fit.results import Candidate
 from simucal.fit.twins import twins, twins_note
 
-COLLINEAR = 1e-3  # separable share of a column below which the plan cannot see the candidate at all
 WEAK = 0.05       # separable share below which it is seen only weakly (noted)
 
 
@@ -68,8 +69,8 @@ class Problem(Protocol):
 
 
 def rank(problem: Problem, ids, base_fails: bool, label: str, test: str | None = None,
-         unseen: Callable[[str], str] | None = None, pair: Callable[[Candidate, str], str] | None = None,
-         alpha: float = ALPHA) -> list[Candidate]:
+         unseen: Callable[[str], str] | None = None, pair: Callable[[Candidate, str], str] | None = None
+         ) -> list[Candidate]:
     """The candidates ids tried beside the problem's model, gated (module doc), strongest first, then
     the untested ones. unseen(cid): more to say about a candidate this plan cannot see (a turntable
     plan's positions); pair(candidate, twin): for the strongest candidate with a twin, how to tell
@@ -79,10 +80,7 @@ def rank(problem: Problem, ids, base_fails: bool, label: str, test: str | None =
     out, cols = [], {}
     for cid in progress.steps(list(ids), label, "effect"):
         c = Candidate(cid, *problem.info(cid), separable=False, test=test)
-        col = problem.column(cid)
-        norm_col = float(np.linalg.norm(col))
-        perp = col - Q @ (Q.T @ col)
-        share = float(np.linalg.norm(perp)) / norm_col if norm_col else 0.0
+        perp, share, norm_col = separable(Q, problem.column(cid))
         if share < COLLINEAR:
             why = ("no input for it in these data" if norm_col == 0 else
                    f"collinear with {problem.span} ({100 * share:.2g} % of its signature is separable)")
@@ -99,24 +97,24 @@ def rank(problem: Problem, ids, base_fails: bool, label: str, test: str | None =
             c = c.with_note(f"nearly collinear with {problem.span}: {100 * share:.2g} % of its signature is "
                             f"separable, so it is weakly seen; to see it: {problem.to_see(cid)}")
         out.append(c)
-    advised = False
+    advised, level = False, candidate_level(sum(c.separable for c in out))
     for k, c in sorted(enumerate(out), key=lambda kc: -_strength(kc[1])):
         tw = twins(c.id, cols, r, s2) if c.separable else []
         if tw:
             c = replace(c, twins=tuple(tw)).with_note(twins_note(tw, problem.to_separate(c.id, tw[0])))
-            if pair and base_fails and not advised and c.p_value is not None and c.p_value < alpha:
+            if pair and base_fails and not advised and c.p_value is not None and c.p_value < level:
                 c, advised = c.with_note(pair(c, tw[0])), True  # the strongest pair only: the verdict rests on it
             out[k] = c
-    return gate(out, base_fails, alpha)
+    return gate(out)
 
 
-def gate(out: list[Candidate], base_fails: bool, alpha: float = ALPHA) -> list[Candidate]:
-    """The Bonferroni gate over one family of tests: a separable candidate is significant only
-    when the model fails and its p-value beats alpha / (number tested). Returns the tested
+def gate(out: list[Candidate]) -> list[Candidate]:
+    """The candidates' part of the model test's family (fit/family.py): a separable candidate is
+    significant where its p-value beats family.candidate_level(number tested). Returns the tested
     candidates, strongest first, then the ones that could not be tested."""
     tested = sorted([c for c in out if c.separable], key=lambda c: -_strength(c))
-    tested = [replace(c, significant=bool(base_fails and c.p_value is not None and c.p_value < alpha / len(tested)))
-              for c in tested]
+    level = candidate_level(len(tested))
+    tested = [replace(c, significant=bool(c.p_value is not None and c.p_value < level)) for c in tested]
     sig = [c for c in tested if c.significant]
     if sig:  # each alone beats the gate; the strongest is the one to add, and the others say why not them
         best = sig[0]

@@ -77,10 +77,9 @@ def block_model(block, t_ref_c):
     return model, p, np.asarray(cov["matrix"], float) * k2
 
 
-def calibration_sd(cal, sensor, u_b, aux_values: dict) -> np.ndarray | None:
-    """The std of the calibrated norm |u| at each row (segment means u_b (n, 3) in b, with their
-    auxiliary inputs: temp_c, f_x..) from the calibration's covariance (module doc); None where the
-    file holds none."""
+def input_change(cal, sensor, u_b, aux_values: dict):
+    """(u (n, 3) the calibrated inputs at rows u_b (n, 3) in b, du (n, 3, m) their change per parameter,
+    the parameters' covariance, their names), or None where the file holds no covariance."""
     from simucal.fit.aux_inputs import T_REF, AuxInputs
     block = getattr(cal, sensor)
     found = block_model(block, cal.t_ref_c)
@@ -93,9 +92,33 @@ def calibration_sd(cal, sensor, u_b, aux_values: dict) -> np.ndarray | None:
         values[T_REF] = 0.0 if t_ref is None else t_ref
     u = u_b @ block.C.T
     _, Ju, Jp = model.jacobians(u, p, AuxInputs(values))
-    du = -np.linalg.solve(Ju, Jp)  # (n, 3, m): the calibrated input's change per parameter
+    return u, -np.linalg.solve(Ju, Jp), cov, list(model.params)
+
+
+def calibration_sd(cal, sensor, u_b, aux_values: dict) -> np.ndarray | None:
+    """The std of the calibrated norm |u| at each row (segment means u_b (n, 3) in b, with their
+    auxiliary inputs: temp_c, f_x..) from the calibration's covariance (module doc); None where the
+    file holds none."""
+    found = input_change(cal, sensor, u_b, aux_values)
+    if found is None:
+        return None
+    u, du, cov, _ = found
     g = np.einsum("ni,nim->nm", u / np.linalg.norm(u, axis=1, keepdims=True), du)
     return np.sqrt(np.maximum(np.einsum("nm,mk,nk->n", g, cov, g), 0.0))
+
+
+def direction_var(cal, sensor, u_b, aux_values: dict) -> np.ndarray | None:
+    """The variance of the calibrated direction u/|u| at each row, summed over its two components
+    across u (rad^2), from the calibration's covariance: d(u/|u|)/dp = (I - d d') (du/dp) / |u|.
+    None where the file holds none."""
+    found = input_change(cal, sensor, u_b, aux_values)
+    if found is None:
+        return None
+    u, du, cov, _ = found
+    n = np.linalg.norm(u, axis=1)
+    d = u / n[:, None]
+    G = (du - d[:, :, None] * np.einsum("ni,nim->nm", d, du)[:, None, :]) / n[:, None, None]
+    return np.maximum(np.einsum("nim,mk,nik->n", G, cov, G), 0.0)
 
 
 def with_calibration(floor_sd, cal, sensor, means, groups, ms, f_means=None):

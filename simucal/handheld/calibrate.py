@@ -11,11 +11,13 @@ a unit put by hand in many static poses.
 """
 from __future__ import annotations
 
+from dataclasses import replace
 
 import numpy as np
 
 from simucal.errors import CalibrationError
-from simucal.fit.candidates import advice, forward_selection
+from simucal.fit import family
+from simucal.fit.candidates import advice, advice_text, forward_selection, targeted
 from simucal.fit.results import ModelTest
 from simucal.generated.effects import EFFECTS
 from simucal.handheld.gyro_moves import (
@@ -30,7 +32,7 @@ from simucal.handheld.gyro_moves import (
 )
 from simucal.handheld.moves import (GYRO_MODEL_TEXT, GYRO_MODELS, PRIOR_T, UNSEEN_STD, GyroFit, choose_gyro_model,
                                     fit_gyro)
-from simucal.handheld.moves_selection import rank_move_candidates, select_effects
+from simucal.handheld.moves_selection import moves_family, rank_move_candidates, select_effects
 from simucal.io import calibration, units
 from simucal.io.calibration import Calibration, EffectValue, SensorBlock
 from simucal.handheld.poses import acc_from_poses
@@ -92,17 +94,16 @@ def _gyro_block(ms, det, am, obs, fa, acc_cal, gyro_effects, auto) -> SensorBloc
     if gyro_model != "full":
         undetermined = {k: v for k, v in undetermined.items() if "xyz".index(k[2]) * 4 not in fixed
                         and "xyz".index(k[2]) == "xyz".index(k[3])}
-    chi2, dof, p_value = chi2_test(f, move_covariances(gm, f, gyro_noise_dps(ms, gm)), gm.bias_std, mv)
+    chi2, dof, p_value = omnibus = chi2_test(f, move_covariances(gm, f, gyro_noise_dps(ms, gm)), gm.bias_std, mv)
     if undetermined and dead and p_value is not None and p_value < 1e-6:
         # a quiet output that the held nominal cannot explain: the channel does not respond
         raise CalibrationError(f"{ms.path}: gyro output {', '.join(dead)} hardly changes during the moves, and "
                                f"holding {list(undetermined)} at nominal leaves the moves unexplained (chi2 "
                                f"{chi2:.3g} on {dof} dof): a dead or unconnected channel?")
-    to_add = None
-    if ModelTest(chi2, dof, p_value).fails and not effects:  # the strongest candidate, as diagnose names it
-        sig = [c["id"] for c in rank_move_candidates(gm, f, regressor_inputs(ms, gm, f, acc_cal), True, fixed=fixed)
-               if c.get("significant")]
-        to_add = sig[0] if sig else None
+    to_add, inputs = None, regressor_inputs(ms, gm, f, acc_cal)
+    test, problem = moves_family(gm, f, inputs, omnibus, effects, fixed)
+    if ModelTest.of(test).fails and not effects:  # the strongest candidate, as diagnose names it
+        to_add = advice_text(rank_move_candidates(gm, f, inputs, True, fixed=fixed, problem=problem), None, test)
     bias_std = gm.bias_std if gyro_model == "nominal" else np.sqrt(np.diag(f.cov)[9:12])
     std_T = [[None if 3 * i + j in fixed else float(np.sqrt(f.cov[3 * i + j, 3 * i + j])) for j in range(3)]
              for i in range(3)]
@@ -117,8 +118,7 @@ def _gyro_block(ms, det, am, obs, fa, acc_cal, gyro_effects, auto) -> SensorBloc
         moves=[{"from_pose": int(a), "to_pose": int(b), "t_s": list(span), "residual": ri.tolist()}
                for a, b, span, ri in zip(mv.before, mv.after, mv.t_span, f.r)],
         moves_used=int(len(f.r)), moves_skipped=gm.skipped, saturation=gm.saturation,
-        moves_opposite_sense=gm.flipped, iterations=f.iterations, chi2=chi2, dof=dof, p_value=p_value,
-        test="chi-square of the moves against the rests' white noise (simucal diagnose shows them)",
+        moves_opposite_sense=gm.flipped, iterations=f.iterations, **test,
         std_note="stds scale with the moves' own residual scatter, so they include any misfit",
         undetermined=undetermined, gyro_model=gyro_model, model_choice=choice, advice=to_add,
         **({"auto": chosen["steps"], "auto_stopped": chosen["stopped"]} if chosen else {"auto": []} if auto else {}))
@@ -141,6 +141,11 @@ def calibrate_handheld(ms, acc_model="acc_baseline", detect=None, pose_window_s=
     cal = calibration.header("handheld (Tedaldi): exact norm fit + gyro moves", ms)
     cal.details["static_detection"] = {**det.as_dict(ms.samples["t_s"]), "pose_window_s": pose_window_s}
     cal.acc = calibration.sensor_block(am, fa, M_a, b_a)
+    # the poses' test made the model test's family (fit/family.py), each pose weighted as the fit weighs it
+    test = {"p_value": cal.acc.p_value, "test": "chi-square of the poses against their own noise"}
+    family.fold(test, targeted(am, replace(obs, sigma=np.hypot(obs.sigma, tau)), fa))
+    cal.acc.p_value = test.pop("p_value")
+    cal.acc.details.update(test)
     cal.acc.details.update(undetermined=fa.undetermined, model_error_std_g=tau, note=None if tau == 0 else (
         "the model does not explain the poses down to their own noise (see chi2, p_value before "
         "the extra variance: simucal diagnose); each pose got an extra variance tau^2 so that "

@@ -35,7 +35,7 @@ from simucal.handheld.gyro_moves import (
     with_terms,
 )
 from simucal.handheld.moves import GyroFit, fit_gyro, fit_gyro_moves
-from simucal.handheld.moves_selection import rank_move_candidates, select_effects
+from simucal.handheld.moves_selection import moves_family, rank_move_candidates, select_effects
 from simucal.io.units import DPH_PER_DPS
 
 
@@ -62,8 +62,8 @@ def diagnose_moves(ms, obs, det, am, fa, add=(), truth=None):
     base = fit = fit_gyro(gm.mv, gm.g_dirs, gm.bias_std)
     sigma_g = gyro_noise_dps(ms, gm)
     S0 = S = move_covariances(gm, base, sigma_g)
-    p0 = chi2_test(base, S0, gm.bias_std, gm.mv)[2]
     inputs = regressor_inputs(ms, gm, base, (am, fa.vector(am.params)))
+    test0, problem = moves_family(gm, base, inputs, chi2_test(base, S0, gm.bias_std, gm.mv))
     mv, names = gm.mv, _param_names([])
     if add:
         for e in add:
@@ -72,20 +72,21 @@ def diagnose_moves(ms, obs, det, am, fa, add=(), truth=None):
         fit = fit_gyro_moves(mv, gm.g_dirs, np.r_[base.T.ravel(), base.db, np.zeros(len(add))], gm.bias_std)
         names = _param_names(EFFECTS[e].parameter for e in add)
         S = move_covariances(gm, fit, sigma_g)
-    chi2, dof, p = chi2_test(fit, S, gm.bias_std, mv)
+    test, problem = (moves_family(gm, fit, inputs, chi2_test(fit, S, gm.bias_std, mv), tuple(add)) if add
+                     else (test0, problem))
+    chi2, dof, p = test["chi2"], test["dof"], test["p_value"]
     floor = float(np.sqrt(np.einsum("mii->", S) / (3 * len(S)) * max(dof, 0) / (2 * len(S))))
     block = {"residual_rms": float(np.sqrt(np.mean(fit.r ** 2))), "residual_unit": "(gravity direction)",
              "dof": dof, "model": "full 3x3 T + bias" + "".join(f" + {e}" for e in add) + " (moves)",
              "noise": {"source": "the rests' white noise"}, "noise_floor": floor, "noise_std_of_mean": None,
-             "chi2": chi2, "p_value": p, "gyro_white_noise_dps": sigma_g.tolist(),
-             "test": "chi-square against the white noise of the rests (gyro) and of the pose means (acc)"}
+             "gyro_white_noise_dps": sigma_g.tolist(), **test}
     if not fit.converged:  # the test is of the last step, not of a fitted model: said
         block["note"] = f"the moves' fit with {', '.join(add)} did not converge in {fit.iterations} steps"
     inside = gm.mv.dt > 0
     columns = {k: np.sum(np.where(inside, v, 0.0), 1) / np.maximum(inside.sum(1), 1)
                for k, v in inputs[0][1].values.items() if k not in FORCE}
     fails = ModelTest(chi2, dof, p).fails
-    cands = rank_move_candidates(gm, fit, inputs, fails, tuple(add))
+    cands = rank_move_candidates(gm, fit, inputs, fails, tuple(add), problem=problem)
     shares = (select_effects(gm, base, sigma_g, inputs, cands)
               if not add and fails and any(c.get("significant") for c in cands) else None)
     vec = lambda f: np.r_[f.T.ravel(), (gm.bias + f.db) * DPH_PER_DPS, f.p]
@@ -100,7 +101,7 @@ def diagnose_moves(ms, obs, det, am, fa, add=(), truth=None):
                             dict(zip(names, vec(base).tolist())), dict(zip(names, std(base).tolist())), _known(truth))
         out["added"] = {"effects": list(add), "residual_rms_before": float(np.sqrt(np.mean(base.r ** 2))),
                         "residual_rms_after": block["residual_rms"], "residual_unit": block["residual_unit"],
-                        "p_value_before": p0, "p_value_after": p,
+                        "p_value_before": test0["p_value"], "p_value_after": p,
                         "params": comp, "residuals_before": move_rows(gm, base, S0, columns)}
     return out
 

@@ -7,9 +7,10 @@ temperature, enters the output model
 and is fit with T, the bias and the effects already chosen by the same Gauss-Newton
 (moves.fit_gyro_moves). MovesProblem ranks them by the likelihood ratio with the noise variance
 profiled out, LR = 2m ln(RSS_0 / RSS_1) ~ chi2(1) (2m: the residuals' degrees of freedom), under
-the same Bonferroni gate as the poses (one ranking: fit/ranking.py). MovesStep puts the moves'
-fit into `--add auto`'s one forward selection (fit/selection.py): its test is the moves'
-chi-square (gyro_moves.chi2_test), its held-out errors each move's residual predicted without it
+the same gate as the poses (one ranking: fit/ranking.py). moves_family is the moves' model test:
+their chi-square (gyro_moves.chi2_test) with the candidates' score tests, one family (fit/family.py).
+MovesStep puts the moves' fit into `--add auto`'s one forward selection (fit/selection.py): its
+test is moves_family's, its held-out errors each move's residual predicted without it
 (moves.held_out_moves). select_effects gives the diagnosis file's `misfit_shares`: what each
 chosen effect explains of the misfit.
 """
@@ -19,6 +20,7 @@ import functools
 
 import numpy as np
 
+from simucal.fit import family
 from simucal.fit.augmented import effect_ids
 from simucal.fit.distributions import chi2_sf
 from simucal.fit.ranking import Trial, rank
@@ -69,7 +71,8 @@ class MovesProblem:
     def residual(self):
         return self.fit.r.ravel(), self.rss0 / (2 * self.m)  # the noise profiled out as in the LR
 
-    def column(self, eid):
+    @functools.cache
+    def column(self, eid):  # asked by the family's targeted tests and again by the ranking
         if not has_input(eid, self.inputs):  # a temperature term without temp_c: no move to integrate
             return np.zeros(self.fit.r.size)
         self.mv[eid] = mv = with_terms(self.gm.mv, self.effects + [eid], self.inputs)
@@ -93,12 +96,26 @@ class MovesProblem:
                      float(stat - 2.0), float(np.sqrt(np.mean(f1.r ** 2))))
 
 
-def rank_move_candidates(gm: GyroMoves, fit: GyroFit, inputs, base_fails, effects=(), fixed=()) -> list[dict]:
+def rank_move_candidates(gm: GyroMoves, fit: GyroFit, inputs, base_fails, effects=(), fixed=(),
+                         problem: MovesProblem | None = None) -> list[dict]:
     """Every library gyro effect not yet in the model, ranked beside T, the bias and effects over the
-    moves (fit/ranking.rank); fixed: the entries the fit's gyro model leaves at nominal."""
-    problem = MovesProblem(gm, fit, inputs, effects, fixed)
+    moves (fit/ranking.rank); fixed: the entries the fit's gyro model leaves at nominal. problem: the
+    MovesProblem of these arguments where one is at hand (moves_family's)."""
+    problem = problem or MovesProblem(gm, fit, inputs, effects, fixed)
     ids = [e for e in effect_ids("gyro") if e not in effects]
     return [c.to_dict() for c in rank(problem, ids, base_fails, "gyro candidates over the moves")]
+
+
+def moves_family(gm: GyroMoves, fit: GyroFit, inputs, omnibus: tuple, effects=(), fixed=()) -> tuple[dict, MovesProblem]:
+    """The moves' model test as one family (fit/family.py): omnibus (chi2, dof, p) the moves' chi-square
+    (gyro_moves.chi2_test), with the score test of every library gyro effect not in the model along the
+    moves (MovesProblem). Returns a test block (chi2, dof, p_value the family's, test, omnibus_p_value,
+    targeted) and the problem, for rank_move_candidates."""
+    block = dict(zip(("chi2", "dof", "p_value"), omnibus), test="chi-square of the moves against the rests' white noise")
+    ids = [e for e in effect_ids("gyro") if e not in effects]
+    problem = MovesProblem(gm, fit, inputs, effects, fixed)
+    family.fold(block, family.targeted(problem, ids) if ids else None)
+    return block, problem
 
 
 class MovesStep:
@@ -108,15 +125,26 @@ class MovesStep:
         self.gm, self.inputs, self.sigma_g, self.fit, self.ranked = gm, inputs, sigma_g, fit, ranked
         self.effects = self.model = tuple(effects)
         self.mv = with_terms(gm.mv, list(self.effects), inputs) if self.effects else gm.mv
-        self.chi2, self.dof, self.p_value = chi2_test(fit, move_covariances(gm, fit, sigma_g), gm.bias_std, self.mv)
+        self.chi2, self.dof, self.omnibus_p = chi2_test(fit, move_covariances(gm, fit, sigma_g), gm.bias_std, self.mv)
         self._held_out = None
+
+    @functools.cached_property
+    def family(self) -> tuple[dict, MovesProblem]:
+        """moves_family's test and problem, made when first asked: a trial step the selection turns
+        away is never tested."""
+        return moves_family(self.gm, self.fit, self.inputs, (self.chi2, self.dof, self.omnibus_p), self.effects)
+
+    @property
+    def p_value(self):
+        return self.family[0]["p_value"]
 
     def test(self):
         return ModelTest(self.chi2, self.dof, self.p_value)
 
     def rank(self):
         if self.ranked is None:
-            self.ranked = rank_move_candidates(self.gm, self.fit, self.inputs, self.test().fails, self.effects)
+            self.ranked = rank_move_candidates(self.gm, self.fit, self.inputs, self.test().fails, self.effects,
+                                               problem=self.family[1])
         return self.ranked, None
 
     def add(self, eid):
@@ -130,6 +158,11 @@ class MovesStep:
         if self._held_out is None:  # asked once per candidate tried against this step
             self._held_out = held_out_moves(self.mv, self.gm.g_dirs, self.fit, self.gm.bias_std).tolist()
         return self._held_out
+
+    def estimates(self):
+        std = np.sqrt(np.diag(self.fit.cov))
+        names = [f"T_{a}{b}" for a in "xyz" for b in "xyz"] + [f"b_{a}" for a in "xyz"]
+        return {k: (float(v), float(s)) for k, v, s in zip(names, np.r_[self.fit.T.ravel(), self.fit.db], std)}
 
     def to_separate(self, chosen, twin):
         return "moves that would: " + separating_plan(chosen["id"], twin["id"], moves=True)

@@ -100,6 +100,9 @@ class SensorDetails(TypedDict, total=False):
     checks each method's blocks against it); units as the block's."""
     # the model test (sensor_block, from fit.candidates.test_model)
     test: str                          # the test, in words
+    omnibus_p_value: float | None      # the omnibus's own p (fit/family.py; p_value is the family's)
+    omnibus_test: str | None           # the omnibus, in words
+    targeted: dict[str, Any]           # the library effects' targeted tests: tested, strongest, p_value, level
     noise: dict[str, Any]              # the noise the test used and where it came from
     lack_of_fit: dict[str, Any]        # the lack-of-fit F test (fit/lack_of_fit.py)
     cross_validation: dict[str, Any] | None  # leave one position out (fit/cross_validation.py)
@@ -322,7 +325,8 @@ def sensor_block(model, fit, M, bias, base: dict | None = None, C_b_model=None) 
         block.p_value = base["p_value"]
         block.details.update(test=base["test"], noise=base["noise"], lack_of_fit=base["lack_of_fit"],
                              cross_validation=base.get("cross_validation"),
-                             **{k: base[k] for k in ("rows", "noise_warning", "noise_too_small") if base.get(k)})
+                             **{k: base[k] for k in ("rows", "noise_warning", "noise_too_small") if base.get(k)},
+                             **{k: base[k] for k in ("omnibus_p_value", "omnibus_test", "targeted") if k in base})
     return block
 
 

@@ -2,6 +2,7 @@
 `simucal field-drift`); a diagnosis's one next command (`simucal diagnose`, its page)."""
 from __future__ import annotations
 
+from simucal.fit import family
 from simucal.io.calibration import ALPHA, Calibration, SensorBlock
 
 
@@ -101,7 +102,8 @@ def _fit_lines(s, b: SensorBlock, source):
                 "per pose" if d.get("model_error_std_g") else "stds assume the model is right")
         yield (f"{s}: THE MODEL FAILS (p = {b.p_value:.2g} < {ALPHA:.0e}): ".replace("e-0", "e-")
                + ("the stated noise may be too small (the warning above); " if d.get("noise_too_small") else "")
-               + (f"diagnose would add {what}; " if what else "the rows at rest misfit (above) by a term the rate runs "
+               + (f"{what}; " if what and what.startswith("no library effect") else
+                  f"diagnose would add {what}; " if what else "the rows at rest misfit (above) by a term the rate runs "
                   "cannot see; " if (d.get("static_rows") or {}).get("p_value", 1.0) < ALPHA else
                   f"see simucal diagnose {source} for what is missing; ")
                + stds)
@@ -190,6 +192,9 @@ def to_add(diag: dict, sensor: str) -> tuple[list[str] | None, str]:
         return [], ""
     shape = b.get("shape") or {}
     steps = (b.get("misfit_shares") or {}).get("steps")
+    outside = None if shape.get("model_file_path") or steps else family.outside_library(b["model_test"], b["candidates"])
+    if outside:
+        return None, f"{sensor}: {outside['text']}"
     sig = [c["id"] for c in b["candidates"] if c.get("significant")]
     found = ([shape["model_file_path"]] if shape.get("model_file_path") else [x["id"] for x in steps] if steps
              else sig[:1] or ([shape["catalog_id"]] if shape.get("catalog_id") else None))

@@ -4,6 +4,7 @@ the sentences). diagnose.py asks sensor_verdict of every block once its kind of 
 """
 from __future__ import annotations
 
+from simucal.fit import family
 from simucal.fit.results import ALPHA, ModelTest
 
 
@@ -58,7 +59,10 @@ def verdict(sensor, base, cands, shape=None) -> str:
         text += (f" Most likely missing: a term {shape['text']} (rms {shape['residual_rms_after']:.3g} {unit} "
                  "without it), not in the library; a model file with this term is written beside the report: add "
                  "it with --add FILE.")
-    if sig:
+    outside = None if generic else family.outside_library(base, cands)
+    if outside:
+        text += f" {outside['text'][0].upper()}{outside['text'][1:]}."
+    elif sig:
         c = sig[0]
         after = c.get("residual_rms_after")
         more = (f" With it the residual rms would be {after:.3g} {unit}, still above the floor: more is missing "

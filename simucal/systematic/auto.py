@@ -1,6 +1,6 @@
 """`--add auto` through the filter: the project's one forward selection (fit/selection.py) over the
 filter's steps. While the innovations' test fails, the candidates ranked on the innovations
-(innovations.py, the one ranking's Bonferroni gate) are tried strongest first: each is added to the
+(innovations.py, the one ranking's gate: fit/family.py) are tried strongest first: each is added to the
 filter's states and the filter run again, and it is kept where that filter predicts the updates
 better. The innovations are one-step-ahead predictions of the updates not yet seen, so each update's
 whitened innovation |L_k^-1 nu_k| is its held-out error (the paired test of cross_validation
@@ -13,7 +13,7 @@ import numpy as np
 from simucal.fit.results import ModelTest
 from simucal.fit.selection import forward_selection
 from simucal.systematic.calibrate import run_filter
-from simucal.systematic.innovations import innovation_test, ranked, to_separate
+from simucal.systematic.innovations import family_test, ranked, to_separate
 
 MAX_TERMS = 4
 
@@ -32,20 +32,28 @@ class FilterStep:
     def __init__(self, ms, acc_model, gyro_model, ids=()):
         self.ms, self.models, self.effects = ms, (acc_model, gyro_model), tuple(ids)
         self.model = run_filter(ms, acc_model, gyro_model, self.effects)
-        self.innovations = innovation_test(self.model.epochs)
+        self.innovations, self.signatures = family_test(self.model)
 
     def test(self) -> ModelTest:
         t = self.innovations
-        return ModelTest(t["nis"], t["dof"], t["p_value"], "NIS of the zero-velocity innovations")
+        return ModelTest(t["nis"], t["dof"], t["p_value"], t["test"])
 
     def rank(self):
-        return [c.to_dict() for c in ranked(self.model, self.innovations)], None
+        return [c.to_dict() for c in ranked(self.innovations, self.signatures)], None
 
     def add(self, eid):
         return FilterStep(self.ms, *self.models, self.effects + (eid,))
 
     def held_out(self):
         return np.linalg.norm(self.innovations["innovations_whitened"], axis=1).tolist()
+
+    def estimates(self):
+        s = self.model.sensors
+        names = [f"acc {k}" for k in s.acc.base.params] + [f"gyro {k}" for k in s.gyro.base.params]
+        na = len(s.p_acc)
+        idx = list(range(len(s.acc.base.params))) + [na + j for j in range(len(s.gyro.base.params))]
+        p, std = s.vector(), np.sqrt(np.diag(self.model.cov))
+        return {k: (float(p[i]), float(std[i])) for k, i in zip(names, idx)}
 
     def to_separate(self, chosen, twin):
         return "what would tell them apart: " + to_separate(chosen["id"], twin["id"])

@@ -3,8 +3,10 @@ the model, the model test on its innovations (NIS, whiteness), the candidates ra
 (innovations.py) per sensor and, with --add, the filter without the effects beside.
 
 One filter carries both sensors, so one test judges them together and the candidates of both are one
-family under one Bonferroni gate: the strongest is the one effect to add (one at a time, as --add auto
-does); the other sensor's block says so (explained_by) rather than naming a second effect at once.
+family under one gate (fit/family.py): the strongest is the one effect to add (one at a time, as --add
+auto does); the other sensor's block says so (explained_by) rather than naming a second effect at once,
+except where it would leave the model failing having explained little (family.outside_library): then
+both blocks say the misfit is most likely outside the library.
 """
 from __future__ import annotations
 
@@ -12,7 +14,8 @@ import numpy as np
 
 from simucal.fit.results import added_params, model_test_keys
 from simucal.systematic.calibrate import rests_and_moves, run_filter
-from simucal.systematic.innovations import innovation_test, ranked
+from simucal.fit import family
+from simucal.systematic.innovations import family_test, ranked
 from simucal.systematic.method import refusal
 
 UNIT = "innovation std (whitened)"
@@ -21,8 +24,8 @@ UNIT = "innovation std (whitened)"
 def model_test(test) -> dict:
     """The innovations' test as a diagnosis block's model test (the keys candidates.verdict reads)."""
     return {"chi2": test["nis"], "dof": test["dof"], "p_value": test["p_value"], "residual_unit": UNIT,
-            "residual_rms": float(np.sqrt(test["nis"] / test["dof"])), "noise_floor": 1.0,
-            "test": "NIS of the zero-velocity innovations (chi-square, 3 dof per update)",
+            "residual_rms": float(np.sqrt(test["nis"] / test["dof"])), "noise_floor": 1.0, "test": test["test"],
+            **{k: test[k] for k in ("omnibus_p_value", "omnibus_test", "targeted") if k in test},
             "rows": f"{test['updates']} zero-velocity updates",
             "noise": {"source": "the rests' white noise (first differences)", "rows_estimated": False},
             "whiteness": {"lag1_autocorrelation": test["lag1_autocorrelation"], "lag1_z": test["lag1_z"],
@@ -68,15 +71,17 @@ def diagnose_sequence(ms, acc_model, gyro_model, ids, truth, before_models, adde
     """{sensor: block} of both sensors (module doc). before_models: (acc, gyro) the models without
     --add; added: what the user added (ids and model files), for the report."""
     r = run_filter(ms, acc_model, gyro_model, ids)
-    test = innovation_test(r.epochs)
+    test, sig = family_test(r)
     base = model_test(test)
-    cands = ranked(r, test)
+    cands = ranked(test, sig)
     best = next((c for c in cands if c.significant), None)
+    if family.outside_library(base, [c.to_dict() for c in cands]):
+        best = None  # nothing to point the other sensor at: each block's verdict says the misfit is outside
     rows = innovation_rows(ms, r)
     before = None
     if added:
         r0 = run_filter(ms, *before_models)
-        before = {"result": r0, "test": model_test(innovation_test(r0.epochs)), "rows": innovation_rows(ms, r0)}
+        before = {"result": r0, "test": model_test(family_test(r0)[0]), "rows": innovation_rows(ms, r0)}
     out, refused = {}, refusal(r, ms.path)
     for sensor in ("acc", "gyro"):
         own = [c.to_dict() for c in cands if c.id.startswith(sensor + ".")]

@@ -1,5 +1,5 @@
-"""The filter's innovations as the loop's evidence: the model test (NIS, whiteness) and the candidate
-effects scored on them, through the project's one ranking (fit/ranking.py).
+"""The filter's innovations as the loop's evidence: the model test (NIS, whiteness, and the candidates'
+targeted tests with it: fit/family.py) and the candidate effects scored on them, through the project's one ranking (fit/ranking.py).
 
 The zero-velocity innovations of a linear(ised) Kalman filter are its data whitened in time order
 (the innovations form of the likelihood, Schweppe 1965): with the parameters held at their estimates
@@ -23,9 +23,11 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
+from scipy.ndimage import uniform_filter1d
 
 from simucal.fit.augmented import AugmentedModel, effect_ids, follows_temperature
 from simucal.fit.aux_inputs import AuxInputs
+from simucal.fit import family
 from simucal.fit.distributions import chi2_sf
 from simucal.fit.ranking import Trial, rank
 from simucal.fit.results import ModelTest
@@ -50,8 +52,19 @@ def innovation_test(epochs) -> dict:
     nis = float((nu ** 2).sum())
     r1 = (nu[1:] * nu[:-1]).sum(0) / (nu ** 2).sum(0)
     return {"nis": nis, "dof": 3 * m, "nis_per_update": nis / m, "p_value": chi2_sf(nis, 3 * m),
+            "test": "NIS of the zero-velocity innovations (chi-square, 3 dof per update)",
             "lag1_autocorrelation": r1.tolist(), "lag1_z": (r1 * np.sqrt(m)).tolist(), "updates": m,
             "innovations_whitened": nu}
+
+
+def family_test(result) -> tuple[dict, Signatures]:
+    """The sequence's model test (fit/family.py): the NIS (innovation_test) as the omnibus, with the
+    targeted test of every candidate on the innovations (InnovationsProblem's score tests, the
+    statistic its likelihood ratio already is). Returns the test and the signatures, which the
+    ranking reuses."""
+    test, sig = innovation_test(result.epochs), signatures(result)
+    family.fold(test, family.targeted(InnovationsProblem(sig), list(sig.B)))
+    return test, sig
 
 
 def candidate_ids(sensors) -> tuple[str, ...]:
@@ -86,7 +99,7 @@ def signatures(result, ids=None) -> Signatures:
     steps, q, w_ie, g0 = result.setting
     aux = AuxInputs({"t_s": steps.t})
     f_b, w_b = big.compensate(steps.N_a, steps.N_g, aux, aux)
-    D_a, D_g = big.sensitivities(f_b, w_b, aux, aux)
+    D_a, D_g = big.sensitivities(*smoothed((f_b, w_b), steps.dt), aux, aux)
     Cs, v_at = nominal(result.C, w_b * units.RAD_S_PER_DPH * steps.dt[:, None], f_b, steps.dt, steps.zupt, w_ie, g0)
     na, ng = len(s.p_acc), len(s.p_gyro)
     own = list(range(na)) + [len(big.p_acc) + j for j in range(ng)] + list(range(D_a.shape[-1] + D_g.shape[-1] - 3,
@@ -96,6 +109,20 @@ def signatures(result, ids=None) -> Signatures:
     r, cols = out[0], out[1]
     return Signatures(r, cols[:, own], {e: cols[:, k] for e, k in zip(acc_c + gyro_c, cand)}, steps.t[steps.zupt],
                       out[2], out[3])
+
+
+SMOOTH_S = 0.1  # the window over which the inputs of the columns are averaged (smoothed)
+
+
+def smoothed(inputs, dt):
+    """Each input (n, 3) averaged over SMOOTH_S about each step. A column's regressor evaluated at the
+    measured input carries that sample's noise, which the innovations carry too: for a term nonlinear
+    in it (w^2: 2 w n) the two correlate, and the score test reads the noise as the effect (a MEMS
+    gyro's 30 deg/h gave gyro.quadratic a chi-square of 9-16 on clean sequences). The table's
+    moves change the rate over seconds, so the average keeps the input and divides the noise's
+    variance by the window's samples."""
+    size = max(1, int(round(SMOOTH_S / float(np.median(dt))))) | 1
+    return tuple(uniform_filter1d(x, size, axis=0, mode="nearest") for x in inputs)
 
 
 def _navigation_pass(steps, Cs, v_at, f_b, D_a, D_g, q, w_ie, g0, P0_diag):
@@ -168,10 +195,9 @@ class InnovationsProblem:
         return to_separate(eid, twin)
 
 
-def ranked(result, test) -> list:
-    """The candidates (fit/results.Candidate) ranked on result's innovations (fit/ranking.rank), gated
-    against its test (innovation_test): diagnose's and --add auto's one ranking on a sequence."""
-    sig = signatures(result)
+def ranked(test, sig: Signatures) -> list:
+    """The candidates (fit/results.Candidate) ranked on the innovations (fit/ranking.rank), with the
+    signatures and test of family_test: diagnose's and --add auto's one ranking on a sequence."""
     return rank(InnovationsProblem(sig), list(sig.B), ModelTest(test["nis"], test["dof"], test["p_value"]).fails,
                 "candidates on the innovations")
 

@@ -10,7 +10,8 @@ from simucal.generated import table
 from simucal.io import calibration
 from simucal.systematic.auto import select
 from simucal.systematic.calibrate import UNOBSERVABLE, run_filter
-from simucal.systematic.innovations import innovation_test
+from simucal.fit.candidates import advice_text
+from simucal.systematic.innovations import family_test, ranked
 from simucal.systematic.observability import names_and_units, std_ratios
 
 
@@ -50,7 +51,7 @@ def calibrate_systematic(ms, acc_model="acc_baseline", gyro_model="gyro_baseline
     why = refusal(r, ms.path)
     if why:
         raise CalibrationError(why)
-    s, test = r.sensors, innovation_test(r.epochs)
+    (test, sig), s = family_test(r), r.sensors
     na, ng = len(s.p_acc), len(s.p_gyro)
     cal = calibration.header("systematic", ms)
     M_a, b_a = s.acc.matrix_and_bias(s.p_acc)
@@ -61,12 +62,18 @@ def calibrate_systematic(ms, acc_model="acc_baseline", gyro_model="gyro_baseline
                                         M_g @ C_b_d, b_g, C_b_model=C_b_d)
     for block in (cal.acc, cal.gyro):
         block.residual_unit = "innovation std (whitened)"
+        block.details.update({k: test[k] for k in ("test", "omnibus_p_value", "omnibus_test", "targeted") if k in test})
     cal.gyro.details["eta_rad"] = {"value": s.eta.tolist(), "std": np.sqrt(np.diag(r.cov)[na + ng:]).tolist(),
                                    "meaning": "C_b^d = mounting(eta) (derive/systematic.py)"}
     cal.details["systematic"] = {
         "passes": r.passes, "last_step_std": r.step_std, "white_noise_per_sample": {
             "gyro_dph": r.sigma[:3].tolist(), "acc_g": r.sigma[3:].tolist()},
         "test": {k: v for k, v in test.items() if k != "innovations_whitened"}}
+    if cal.acc.verdict == "fails":  # one test for both sensors: the one effect to add, as diagnose names it
+        cands = [c.to_dict() for c in ranked(test, sig)]
+        advice = advice_text(cands, None, {"chi2": test["nis"], "dof": test["dof"], "omnibus_test": test["omnibus_test"]})
+        for block in (cal.acc, cal.gyro):
+            block.details["advice"] = advice or "no library effect passes its targeted test: see simucal diagnose"
     if auto:  # one selection for both sensors (one test): each block lists its own effects, the reason in both
         for sensor, block in (("acc", cal.acc), ("gyro", cal.gyro)):
             block.details.update(auto=[x for x in chosen if x["id"].startswith(sensor + ".")], auto_stopped=stopped)

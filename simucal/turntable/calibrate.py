@@ -73,7 +73,7 @@ def _exact_sensor(model, obs, segs, method, where, ranked=True):
             "or another rate, and would let every model pass; measure this unit's still recording with simucal "
             "noise (or leave --noise out)")
     base["noise"]["text"] = _noise_text(base["noise"], obs2, model.unit)
-    advice = advice_text(cands, shape) if ModelTest.of(base).fails else None
+    advice = advice_text(cands, shape, base) if ModelTest.of(base).fails else None
     return fit, base, advice, with_estimated_sigma(obs2, base["noise"])
 
 

@@ -18,6 +18,7 @@ import numpy as np
 
 from simucal.fit.apply import model_inputs
 from simucal.fit.aux_inputs import specific_force
+from simucal.fit import family
 from simucal.fit.candidates import rank_candidates, shape_if_unexplained, test_model
 from simucal.fit.results import ALPHA, ModelTest
 from simucal.fit.distributions import chi2_sf
@@ -136,9 +137,13 @@ def with_static_rows(base: dict, st: dict) -> None:
     if "chi2" not in st:
         return
     base["rows"] = f"{base.get('rows') or 'the rate runs'} and {st['positions']} static positions ({st['what']})"
-    if base["chi2"] is not None and base["test"] == "chi-square":
+    p0, test0 = base["omnibus_p_value"], base["omnibus_test"]
+    if base["chi2"] is not None and test0 == "chi-square":
         base["chi2"], base["dof"] = base["chi2"] + st["chi2"], base["dof"] + st["dof"]
         base.update(p_value=float(chi2_sf(base["chi2"], base["dof"])), test="chi-square over the rate runs and the static rows")
-    elif base["p_value"] is not None:
-        base.update(p_value=min(1.0, 2 * min(base["p_value"], st["p_value"])),
-                    test=f"{base['test']} (rate runs) and the static rows' chi-square, the smaller p doubled")
+    elif p0 is not None:
+        base.update(p_value=min(1.0, 2 * min(p0, st["p_value"])),
+                    test=f"{test0} (rate runs) and the static rows' chi-square, the smaller p doubled")
+    else:
+        return
+    family.fold(base, base.get("targeted"))
