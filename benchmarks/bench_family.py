@@ -70,7 +70,8 @@ def main():
         added = [eid in getattr(simucal.calibrate(simucal.simulate(seed=s, effects={eid: 10 * std}, **sim),
                                                   add="auto", **cal_kw), sensor).effects for s in range(a.auto_seeds)]
         rows.append((kind, f"`--add auto` adds {eid} at 10 std", f"{10 * std:.3g}", None, float(np.mean(added))))
-        print(f"{kind}: {time.perf_counter() - t0:.0f} s", flush=True)
+        print(f"{kind}: {time.perf_counter() - t0:.0f} s; " + "; ".join(
+            f"{what}: {before} -> {after}" for k, what, _, before, after in rows if k == kind), flush=True)
     print(f"\n{a.seeds} seeds per row ({a.auto_seeds} for --add auto); ALPHA = {ALPHA:g}; before: the omnibus alone "
           "at ALPHA fails the model (its advice was asked only then); after: the family fails it and its advice "
           "names the effect\n")

@@ -245,7 +245,32 @@ def ellipsoid_start(model, obs: Observations):
 def fit_exact(model, obs: Observations, p0=None, max_iter=200, tol=1e-12, prior=None) -> Fit:
     """Maximum-likelihood norm-observation fit, exact model (see module doc). prior: {parameter:
     (value, std)} for parameters the data do not determine, held at value by a pseudo-observation
-    (the stds then say how well they are held; the chi2 excludes the prior)."""
+    (the stds then say how well they are held; the chi2 excludes the prior). A fit that converged to
+    a reversed column of M is turned upright (_upright)."""
+    fit = _fit_exact(model, obs, p0, max_iter, tol, prior)
+    p0_upright = _upright(model, fit)
+    return fit if p0_upright is None else _fit_exact(model, obs, p0_upright, max_iter, tol, prior)
+
+
+def _upright(model, fit: Fit):
+    """The norm |M^-1 (N - b)| cannot tell M from M S, S a diagonal of signs: a column reversed (a
+    reflection, which no row's norm sees). Where the fit's M has a diagonal entry of the sign opposite
+    the nominal's, the start that turns those columns back (M S, the same bias; M and b are linear in
+    p), else None. The same norms then come with the nominal handedness, so that a sensor wired
+    reversed shows where the data say so (the gyro's moves, the triads' handedness), not in the fit's
+    choice of twin: a clean hand-placed session (seed 29) converged to ay reversed and was refused as
+    a wiring fault."""
+    p = fit.vector(model.params)
+    M, _ = model.matrix_and_bias(p)
+    M0, _, A = _affine_columns(model)
+    S = np.where(np.sign(np.diag(M)) == np.sign(np.diag(M0)), 1.0, -1.0)
+    if np.all(S > 0) or np.asarray(M).ndim != 2:
+        return None
+    delta = np.linalg.lstsq(A, np.r_[(M * S - M).ravel(), np.zeros(3)], rcond=None)[0]
+    return p + delta
+
+
+def _fit_exact(model, obs: Observations, p0, max_iter, tol, prior) -> Fit:
     _check_inputs(model, obs)
     n, m = len(obs.N), len(model.params)
     if p0 is None and getattr(model, "effects", ()):  # baseline + effects: start from the baseline's fit
