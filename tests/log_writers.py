@@ -86,9 +86,10 @@ def write_dataflash(path, imu: dict | None, instance=0, params=None, temperature
     Path(path).write_bytes(bytes(out[:len(out) - truncate_bytes]))
 
 
-def write_bag(path, t_s, acc_mps2, gyro_rads, topic="/imu", ros=1, msgtype="sensor_msgs/msg/Imu"):
+def write_bag(path, t_s, acc_mps2, gyro_rads, topic="/imu", ros=1, msgtype="sensor_msgs/msg/Imu", frame_id=None):
     """A ROS 1 bag (ros=1) or a ROS 2 bag folder (ros=2, sqlite3) of sensor_msgs/Imu on `topic`, stamped
-    t_s (the header's stamp, and the bag's time); msgtype another type to plant a wrong one."""
+    t_s (the header's stamp, and the bag's time); msgtype another type to plant a wrong one; frame_id(k)
+    message k's frame_id (default imu_link)."""
     from rosbags.typesys import Stores, get_typestore
     store = get_typestore(Stores.ROS1_NOETIC if ros == 1 else Stores.ROS2_HUMBLE)
     T = store.types
@@ -104,7 +105,8 @@ def write_bag(path, t_s, acc_mps2, gyro_rads, topic="/imu", ros=1, msgtype="sens
         for k, t in enumerate(t_s):
             sec, nanosec = int(t // 1), int(round((t % 1) * 1e9))
             header = T["std_msgs/msg/Header"](stamp=T["builtin_interfaces/msg/Time"](sec=sec, nanosec=nanosec),
-                                              frame_id="imu_link", **({"seq": k} if has_seq else {}))
+                                              frame_id=frame_id(k) if frame_id else "imu_link",
+                                              **({"seq": k} if has_seq else {}))
             if msgtype == "sensor_msgs/msg/Imu":
                 v3 = T["geometry_msgs/msg/Vector3"]
                 msg = T[msgtype](header=header, orientation=T["geometry_msgs/msg/Quaternion"](x=0.0, y=0.0, z=0.0, w=1.0),

@@ -138,3 +138,21 @@ def test_broken_logs_are_refused_in_one_line_and_nothing_is_written(tmp_path):
                              ["no topic /camera in the bag", "/imu"])
     (tmp_path / "cut.bag").write_bytes((tmp_path / "ok.bag").read_bytes()[:-300])
     _refused_writing_nothing(tmp_path, "rosbag", tmp_path / "cut.bag", ["cut.bag"])
+
+
+@pytest.mark.parametrize("ros", [1, 2])
+def test_a_bag_read_as_records_equals_its_messages(tmp_path, ros):
+    """io/logs._imu_rows reads a topic whose messages share one length as one numpy record array at the fields'
+    offsets (ROS 1 packed, ROS 2 CDR-aligned): the rows equal the messages to the bit, with one frame_id
+    and, message by message, where the frame_id's length changes (and the stamps where a header's is 0)."""
+    from simucal.io.logs import read_rosbag
+    rng = np.random.default_rng(ros)
+    t = 1000.0 + np.arange(300) * 0.005
+    acc, gyro = rng.normal(0, 1, (300, 3)), rng.normal(0, 1, (300, 3))
+    for name, frames in (("one", None), ("mixed", lambda k: "imu" if k % 2 else "imu_link_x"), ("odd", lambda k: "i")):
+        bag = tmp_path / (f"{name}.bag" if ros == 1 else name)
+        write_bag(bag, t, acc, gyro, ros=ros, frame_id=frames)
+        s = read_rosbag(bag)
+        np.testing.assert_array_equal(s.acc_mps2, acc, err_msg=name)
+        np.testing.assert_array_equal(s.gyro_rads, gyro, err_msg=name)
+        np.testing.assert_allclose(s.t_s, t, rtol=0, atol=1e-9, err_msg=name)

@@ -178,14 +178,18 @@ def read_rosbag(path, topic: str | None = None) -> LogStream:
         if any(c.msgtype != "sensor_msgs/msg/Imu" for c in cons):
             raise ImportError_(f"{path}: topic {topic} is {cons[0].msgtype}, not sensor_msgs/Imu"
                                + (f"; the bag's Imu topics: {', '.join(imus)}" if imus else ""))
-        r, frame, k = np.empty((sum(c.msgcount for c in cons), 7)), None, 0  # 56 bytes a message
+        chunks, raws, frame = [], [], None
         for con, t_bag, raw in reader.messages(connections=cons):
-            m = reader.deserialize(raw, con.msgtype)
-            stamp = m.header.stamp.sec + m.header.stamp.nanosec * 1e-9
-            frame = frame or m.header.frame_id
-            a, w = m.linear_acceleration, m.angular_velocity
-            r[k] = (stamp if stamp > 0 else t_bag * 1e-9, a.x, a.y, a.z, w.x, w.y, w.z)
-            k += 1
+            raws.append((t_bag, raw))
+            if len(raws) == CHUNK_MESSAGES:
+                rows, frame = _imu_rows(reader, raws, con.msgtype)
+                chunks.append(rows)
+                raws = []
+        if raws:
+            rows, frame = _imu_rows(reader, raws, cons[0].msgtype)
+            chunks.append(rows)
+        r = np.concatenate(chunks) if chunks else np.empty((0, 7))
+        k = len(r)
     except ImportError_:
         raise
     except Exception as e:  # a bag cut short fails in rosbags' reader or its storage
@@ -200,6 +204,46 @@ def read_rosbag(path, topic: str | None = None) -> LogStream:
            "(the message's frame_id; FLU by REP 103)", "clock": "one Imu message holds both sensors at one stamp",
            "temperature": None}
     return LogStream(r[:, 0], r[:, 1:4], r[:, 4:7], None, log)
+
+
+def _imu_row(m, t_bag) -> tuple:
+    """(t s, a x y z, w x y z) of one deserialised Imu message: the header's stamp, the bag's receive
+    time where the stamp is 0."""
+    stamp = m.header.stamp.sec + m.header.stamp.nanosec * 1e-9
+    a, w = m.linear_acceleration, m.angular_velocity
+    return (stamp if stamp > 0 else t_bag * 1e-9, a.x, a.y, a.z, w.x, w.y, w.z)
+
+
+CHUNK_MESSAGES = 65536  # raw messages held at once (about 20 MB)
+
+
+def _imu_rows(reader, raws, msgtype) -> tuple[np.ndarray, str | None]:
+    """The rows (n, 7) of a chunk of a topic's raw Imu messages and the frame_id. Where every message has one
+    length (one frame_id), they are read as one numpy record array at the fields' offsets in the
+    serialisation (ROS 1: packed; ROS 2: CDR, each double aligned to 8 after the 4-byte header),
+    checked against rosbags' deserialisation of the first and last message; else, or where the check
+    fails, message by message (rosbags deserialises 60,000 messages a second; a 3 h bag at 200 Hz
+    took 62 s)."""
+    first = reader.deserialize(raws[0][1], msgtype) if raws else None
+    frame = first.header.frame_id if first is not None else None
+    if raws and len({len(raw) for _, raw in raws}) == 1:
+        L = len(frame.encode())
+        if reader.is2:  # CDR: 4-byte header; sec, nanosec, string (length with its NUL), doubles aligned to 8
+            stamp, doubles = 4, 4 + (-(-(12 + L + 1) // 8) * 8)
+        else:  # ROS 1: seq, secs, nsecs, string (length, chars), doubles packed
+            stamp, doubles = 4, 16 + L
+        buf = np.frombuffer(b"".join(raw for _, raw in raws), np.uint8).reshape(len(raws), -1)
+        f8 = lambda off: buf[:, off:off + 24].copy().view("<f8")  # noqa: E731 (3 doubles a row)
+        sec = buf[:, stamp:stamp + 4].copy().view("<u4" if not reader.is2 else "<i4")[:, 0].astype(float)
+        nsec = buf[:, stamp + 4:stamp + 8].copy().view("<u4")[:, 0] * 1e-9
+        t_bag = np.array([t for t, _ in raws], float) * 1e-9
+        t = np.where(sec + nsec > 0, sec + nsec, t_bag)
+        # orientation (4 doubles), its covariance (9), angular_velocity (3), its covariance (9), linear_acceleration
+        rows = np.column_stack([t, f8(doubles + 8 * 25), f8(doubles + 8 * 13)])
+        last = reader.deserialize(raws[-1][1], msgtype)
+        if all(np.allclose(rows[i], _imu_row(m, raws[i][0]), rtol=0, atol=0) for i, m in ((0, first), (-1, last))):
+            return rows, frame
+    return np.array([_imu_row(reader.deserialize(raw, msgtype), t) for t, raw in raws]).reshape(-1, 7), frame
 
 
 def _increasing(t, path):
