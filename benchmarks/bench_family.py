@@ -23,7 +23,8 @@ import simucal
 from simucal.fit.results import ALPHA
 from simucal.report.markdown import header
 
-# kind: (simulate's keywords, calibrate's keywords, the effect planted, its sensor)
+# kind: (simulate's keywords, calibrate's keywords, the effect planted, its sensor); a clean set's false alarm
+# counts the sensors of the kind's test (a turntable's two; a sequence's one filter fails both at once)
 KINDS = {
     "turntable": ({"plan": "fibonacci48"}, {}, "acc.cross_coupling.xy", "acc"),
     "poses": ({"scenario": "handheld"}, {}, "acc.cross_coupling.yz", "acc"),  # a hand-placed stream's poses
@@ -60,9 +61,11 @@ def main():
         sim, cal_kw, eid, sensor = KINDS[kind]
         t0 = time.perf_counter()
         std = effect_std(sim, cal_kw, eid, sensor)
+        tested = {"poses": ("acc",), "moves": ("gyro",)}.get(kind, ("acc", "gyro"))
         clean = np.array([[outcome(simucal.calibrate(simucal.simulate(seed=s, **sim), **cal_kw), x)[:2]
-                           for x in ("acc", "gyro")] for s in range(a.seeds)])  # (seeds, sensor, [family, omnibus])
-        rows.append((kind, "clean (either sensor fails)", "-", clean[:, :, 1].any(1).mean(), clean[:, :, 0].any(1).mean()))
+                           for x in tested] for s in range(a.seeds)])  # (seeds, sensor, [family, omnibus])
+        rows.append((kind, f"clean ({' or '.join(tested)} fails)", "-", clean[:, :, 1].any(1).mean(),
+                     clean[:, :, 0].any(1).mean()))
         for k in STRENGTHS:
             hit = np.array([outcome(simucal.calibrate(simucal.simulate(seed=s, effects={eid: k * std}, **sim), **cal_kw),
                                     sensor, eid) for s in range(a.seeds)])

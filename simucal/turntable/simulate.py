@@ -71,8 +71,13 @@ class Scenario:
     columns: dict = field(default_factory=dict)  # auxiliary columns {name: (low, high)}: uniform, one value per segment
     shuffle: bool = False             # visit the positions in random order (separates time from direction)
     state_noise: bool = True          # write acc_noise_g / gyro_noise_dph into meta.json
-    tilt_stated_arcsec: float | None = None  # write table_tilt_arcsec (the levelling's std per axis) into meta.json
-    accuracy_stated_arcsec: float | None = None  # write table_accuracy_arcsec (each angle's position error std)
+    # meta.json states the table simulated, as a lab's would (issue 51): table_tilt_arcsec, the levelling's std
+    # per axis (default the tilt's rms), and table_accuracy_arcsec, each angle's error std (default the position
+    # error's, position_error_rad / sqrt(3) for its uniform draw, with the axes' fixed zero offsets and
+    # non-perpendicularity, which turn the commanded attitude as much); state_table False: neither
+    state_table: bool = True
+    tilt_stated_arcsec: float | None = None
+    accuracy_stated_arcsec: float | None = None
 
     def table_errors_rad(self) -> np.ndarray:
         """(tilt_x, tilt_y, nonperp_om, nonperp_mi), rad: the same at every position."""
@@ -225,9 +230,12 @@ def meta_of(sc: Scenario, seed) -> dict:
             "description": f"simucal simulate, seed {seed}"}
     if sc.state_noise:  # a noise-free set states none (the spec's noise is a std > 0)
         meta.update({units.NOISE_KEY[s]: v for s, v in (("acc", sc.acc_noise_g), ("gyro", sc.gyro_noise_dph)) if v > 0})
-    for key, v in (("table_tilt_arcsec", sc.tilt_stated_arcsec), ("table_accuracy_arcsec", sc.accuracy_stated_arcsec)):
-        if v is not None:
-            meta[key] = v
+    if sc.state_table:
+        tilt = sc.tilt_stated_arcsec if sc.tilt_stated_arcsec is not None else \
+            float(np.sqrt(np.mean(np.square(sc.tilt_rad)))) / ARCSEC
+        accuracy = sc.accuracy_stated_arcsec if sc.accuracy_stated_arcsec is not None else float(np.sqrt(
+            sc.position_error_rad ** 2 / 3 + np.mean(np.square(np.r_[sc.zero_rad, sc.nonperp_rad])))) / ARCSEC
+        meta.update(table_tilt_arcsec=tilt, table_accuracy_arcsec=accuracy)
     if sc.acc_unit == "pulse/s":
         meta["acc_pulses_per_g"] = list(sc.acc_pulses_per_g)
     if sc.gyro_unit == "pulse/s":
