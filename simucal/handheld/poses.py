@@ -85,7 +85,8 @@ def pose_observations(ms, detect=None, pose_window_s=1.0):
     with the std of that mean from the scatter of its samples."""
     t = ms.samples["t_s"]
     acc = ms.acc_g()
-    det = detect_static(acc, t, detect or DetectSettings())
+    det = detect_static(acc, t, detect or DetectSettings(),
+                        gyro_dps=ms.gyro_dph() / units.DPH_PER_DPS if ms.has_gyro else None)
     dt = float(np.median(np.diff(t)))
     win = None if pose_window_s is None else max(int(round(pose_window_s / dt)), 2)
     poses = [(a, b if win is None else min(a + win, b)) for a, b in zip(det.starts, det.ends)]

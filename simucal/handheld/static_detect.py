@@ -2,7 +2,12 @@
 
 The norm of the per-axis accelerometer variance over a centred window is
 compared with `factor` times the same norm over the initial rest; runs below
-it, at least `min_s` long, are static poses. The initial rest is found from
+it, at least `min_s` long, are static poses. Where the gyro is given, a pose must
+also not turn: the gyro's mean over the window, less the rest's, within
+GYRO_STILL_DPS or 20 times its noise over the window, whichever is larger. A turn
+about the vertical leaves the accelerometers still (a clean simulated session took a
+42 deg/s turn for a pose, and its moves then failed their test), and any turn during a
+pose is lost to the moves, which are integrated between poses. The initial rest is found from
 the data: it lasts while the moving variance stays within `rest_factor` of
 the white-noise level that first differences give over the first window. Everything is reported so a user can
 check and override it.
@@ -38,6 +43,7 @@ class Detection:
     init_rest_end: int    # rows [0, init_rest_end) are the initial rest
     factor: float
     threshold_from: str = "the initial rest"  # or the quietest 3 s of a stream without one
+    gyro_threshold_dps: float | None = None  # on the gyro's windowed mean rate less the rest's (None: no gyro)
 
     def as_dict(self, t):
         d = asdict(self)
@@ -74,7 +80,12 @@ def still_throughout(acc, t, window_s=1.0, rest_factor=20.0) -> bool:
     return first_motion(np.linalg.norm(moving_variance(acc, w), axis=1), acc, w, rest_factor) >= len(t)
 
 
-def detect_static(acc, t, settings: DetectSettings = DetectSettings(), rest_factor=20.0) -> Detection:
+GYRO_STILL_DPS = 1.0  # a pose's windowed mean rate less the rest's may reach this (a hand's settling, bias drift)
+
+
+def detect_static(acc, t, settings: DetectSettings = DetectSettings(), rest_factor=20.0, gyro_dps=None) -> Detection:
+    """The static intervals (module doc) of accelerometer rows acc (n, 3) at times t; gyro_dps (n, 3) the gyro
+    in deg/s where the stream has one."""
     if len(t) < 20:
         raise CalibrationError(f"the stream has {len(t)} row{'s' * (len(t) != 1)}: a hand-placed session is one "
                                "continuous recording, an initial rest and then poses joined by moves")
@@ -114,6 +125,15 @@ def detect_static(acc, t, settings: DetectSettings = DetectSettings(), rest_fact
     q2 = np.maximum(np.var(acc[rest], axis=0), quantization_step(acc[rest], acc) ** 2 / 12)
     threshold = factor * float(np.linalg.norm(q2))
     still = mv < threshold
+    gyro_threshold = None
+    if gyro_dps is not None:
+        g = np.asarray(gyro_dps, float)
+        g_rest = g[rest]
+        noise = np.sqrt(np.sum(np.maximum(white_noise_var(g_rest), quantization_step(g_rest, g) ** 2 / 12)))
+        gyro_threshold = max(GYRO_STILL_DPS, 20 * float(noise) / np.sqrt(w))
+        c = np.vstack([np.zeros((1, 3)), np.cumsum(g - g_rest.mean(0), 0)])
+        lo, hi = np.clip(np.arange(len(g)) - w // 2, 0, len(g)), np.clip(np.arange(len(g)) + w // 2 + 1, 0, len(g))
+        still &= np.linalg.norm((c[hi] - c[lo]) / (hi - lo)[:, None], axis=1) < gyro_threshold
     edges = np.diff(np.r_[0, still.astype(int), 0])
     starts, ends = np.nonzero(edges == 1)[0], np.nonzero(edges == -1)[0]
     min_samples = int(round(min_s / dt))
@@ -124,4 +144,5 @@ def detect_static(acc, t, settings: DetectSettings = DetectSettings(), rest_fact
                                "--threshold-factor")
     source = ("the initial rest" if rest.start == 0 else
               f"the quietest 3 s ({t[rest.start]:.1f}-{t[rest.stop - 1]:.1f} s; the stream has no initial rest)")
-    return Detection(starts[keep].tolist(), ends[keep].tolist(), threshold, w, min_samples, init_end, factor, source)
+    return Detection(starts[keep].tolist(), ends[keep].tolist(), threshold, w, min_samples, init_end, factor, source,
+                     gyro_threshold)

@@ -34,7 +34,7 @@ def stream_checks(ms, f_before, f_after, w_before, w_after, cal) -> dict:
     if f_after is None:
         raise CalibrationError(f"{ms.path}: a stream without accelerometers has no reference to validate against")
     t = ms.samples["t_s"]
-    det = detect_static(f_after, t)
+    det = detect_static(f_after, t, gyro_dps=None if w_before is None else w_before / units.DPH_PER_DPS)
     rest = slice(det.starts[0] + det.window // 2, det.ends[0] - det.window // 2)
     groups = [slice(a, b) for a, b in zip(det.starts, det.ends)]
     (mb, _), (ma, fl) = segment_means(f_before, groups, None), segment_means(f_after, groups, None)
