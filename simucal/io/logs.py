@@ -178,18 +178,15 @@ def read_rosbag(path, topic: str | None = None) -> LogStream:
         if any(c.msgtype != "sensor_msgs/msg/Imu" for c in cons):
             raise ImportError_(f"{path}: topic {topic} is {cons[0].msgtype}, not sensor_msgs/Imu"
                                + (f"; the bag's Imu topics: {', '.join(imus)}" if imus else ""))
-        chunks, raws, frame = [], [], None
+        r, raws, frame, k = np.empty((sum(c.msgcount for c in cons), 7)), [], None, 0  # 56 bytes a message
         for con, t_bag, raw in reader.messages(connections=cons):
             raws.append((t_bag, raw))
             if len(raws) == CHUNK_MESSAGES:
-                rows, frame = _imu_rows(reader, raws, con.msgtype)
-                chunks.append(rows)
-                raws = []
+                (rows, frame), raws = _imu_rows(reader, raws, con.msgtype), []
+                r, k = _filled(r, k, rows)
         if raws:
             rows, frame = _imu_rows(reader, raws, cons[0].msgtype)
-            chunks.append(rows)
-        r = np.concatenate(chunks) if chunks else np.empty((0, 7))
-        k = len(r)
+            r, k = _filled(r, k, rows)
     except ImportError_:
         raise
     except Exception as e:  # a bag cut short fails in rosbags' reader or its storage
@@ -215,6 +212,14 @@ def _imu_row(m, t_bag) -> tuple:
 
 
 CHUNK_MESSAGES = 65536  # raw messages held at once (about 20 MB)
+
+
+def _filled(r, k, rows):
+    """rows written into r from row k (r grown where the bag held more messages than its index said)."""
+    if k + len(rows) > len(r):
+        r = np.concatenate([r[:k], np.empty((k + len(rows) - len(r[:k]), 7))])
+    r[k:k + len(rows)] = rows
+    return r, k + len(rows)
 
 
 def _imu_rows(reader, raws, msgtype) -> tuple[np.ndarray, str | None]:
