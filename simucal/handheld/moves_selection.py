@@ -48,7 +48,7 @@ class MovesProblem:
         self.gm, self.fit, self.inputs, self.effects = gm, fit, inputs, list(effects)
         self.rss0, self.m, self.k = float(np.sum(fit.r ** 2)), len(fit.r), 12 + len(self.effects)
         self.fixed, self.free = tuple(fixed), free_entries(self.k, fixed)
-        self.mv = {}
+        self.mv, self.columns = {}, {}
         # each trial fits the moves in blocks of 4 samples (a quarter of the cost) with their defect
         # against full resolution at this fit added (as fit_gyro's coarse levels): the composition
         # error of the blocks (~1e-3 rad) then cancels where the candidate's coefficient is 0
@@ -71,12 +71,14 @@ class MovesProblem:
     def residual(self):
         return self.fit.r.ravel(), self.rss0 / (2 * self.m)  # the noise profiled out as in the LR
 
-    @functools.cache
-    def column(self, eid):  # asked by the family's targeted tests and again by the ranking
-        if not has_input(eid, self.inputs):  # a temperature term without temp_c: no move to integrate
-            return np.zeros(self.fit.r.size)
-        self.mv[eid] = mv = with_terms(self.gm.mv, self.effects + [eid], self.inputs)
-        return effect_column(self.at, self.fit.T, mv.phi[-1], mv.phi_axes[-1]).ravel()
+    def column(self, eid):  # asked by the family's targeted tests and again by the ranking: kept per problem
+        if eid not in self.columns:
+            if not has_input(eid, self.inputs):  # a temperature term without temp_c: no move to integrate
+                self.columns[eid] = np.zeros(self.fit.r.size)
+            else:
+                self.mv[eid] = mv = with_terms(self.gm.mv, self.effects + [eid], self.inputs)
+                self.columns[eid] = effect_column(self.at, self.fit.T, mv.phi[-1], mv.phi_axes[-1]).ravel()
+        return self.columns[eid]
 
     def to_see(self, eid):
         return SEPARATE_MOVES[eid.split(".")[1]]
