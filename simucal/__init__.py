@@ -11,6 +11,9 @@ __version__ = "0.1.0"
 _API = ("read_set", "simulate", "calibrate", "validate", "diagnose", "noise", "save", "load", "table_rows",
         "MeasurementSet", "Calibration", "Parameter", "Validation", "Check", "Diagnosis", "Candidate", "Noise", "Term",
         "lot")
+__all__ = ["__version__", "read_set", "simulate", "calibrate", "validate", "diagnose", "noise", "save", "load",
+           "table_rows", "MeasurementSet", "Calibration", "Parameter", "Validation", "Check", "Diagnosis", "Candidate",
+           "Noise", "Term", "lot"]  # the public names (_API, spelt out for type checkers)
 TYPE_CHECKING = False  # typing's constant without importing typing (2 ms); type checkers read it as True
 if TYPE_CHECKING:
     from simucal.api import (Calibration, Candidate, Check, Diagnosis, MeasurementSet, Noise,  # noqa: F401

@@ -184,3 +184,11 @@ def test_a_diagnosis_of_a_set_in_memory_names_the_call_and_of_a_folder_the_comma
     ms.write(tmp_path / "s")
     assert simucal.diagnose(tmp_path / "s").next_command == (
         f"simucal calibrate {tmp_path / 's'} --add acc.quadratic.z -o calibration.json")
+
+
+def test_the_public_names_are_all_of_the_api():
+    """Issue 54: `import simucal` has __all__, the names the lazy API gives (a type checker's and `from simucal
+    import *`'s list)."""
+    import simucal
+    assert set(simucal.__all__) == {"__version__", *simucal._API}
+    assert all(getattr(simucal, n) is not None for n in simucal.__all__)
