@@ -344,7 +344,7 @@ def test_a_fit_that_converged_to_a_reversed_column_is_turned_upright():
     assert np.all(np.abs(np.diag(M) - 1) < 0.05), M
 
 
-def test_a_turn_about_the_vertical_is_no_pose():
+def test_a_turn_about_the_vertical_is_no_pose(tmp_path):
     """A turn about the vertical leaves the accelerometers still: the accelerometer-only detector (Tedaldi's)
     took a 42 deg/s turn of a clean simulated session (seed 29) for part of two poses, and the moves, integrated
     between poses, failed their test (chi2 1511 on 51 dof; 9 of 200 clean sessions failed so). The gyro now
@@ -353,6 +353,14 @@ def test_a_turn_about_the_vertical_is_no_pose():
     cal = api.calibrate(api.simulate("handheld", seed=29))
     assert cal.details["static_detection"]["gyro_threshold_dps"] >= 1.0
     assert cal.gyro.verdict == "passes" and cal.gyro.chi2 < 2 * cal.gyro.dof, (cal.gyro.chi2, cal.gyro.dof)
+    # a bias drifting 3 deg/s over the session is no turn (each interval against its own median): every pose
+    # is kept, and the drift is what the moves' test names
+    from simucal.handheld.simulate import HandheldScenario, simulate_handheld
+    from simucal.io import write_set
+    meta, samples, _ = simulate_handheld(HandheldScenario(gyro_effects={"gyro.bias_drift_time.x": 36.0}), 5)
+    write_set(tmp_path / "drift", meta, samples)
+    cal = api.calibrate(tmp_path / "drift")
+    assert cal.details["static_detection"]["count"] == 31 and cal.gyro.details["advice"] == "gyro.bias_drift_time.x"
 
 
 def test_a_calibration_keeps_no_moves_problem_alive():

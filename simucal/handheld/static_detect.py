@@ -3,8 +3,9 @@
 The norm of the per-axis accelerometer variance over a centred window is
 compared with `factor` times the same norm over the initial rest; runs below
 it, at least `min_s` long, are static poses. Where the gyro is given, a pose must
-also not turn: the gyro's mean over the window, less the rest's, within
-GYRO_STILL_DPS or 20 times its noise over the window, whichever is larger. A turn
+also not turn: the gyro's mean over the window, less its median over the still
+interval (a bias that drifts between poses is no turn), within GYRO_STILL_DPS or 20
+times its noise over the window, whichever is larger. A turn
 about the vertical leaves the accelerometers still (a clean simulated session took a
 42 deg/s turn for a pose, and its moves then failed their test), and any turn during a
 pose is lost to the moves, which are integrated between poses. The initial rest is found from
@@ -43,7 +44,7 @@ class Detection:
     init_rest_end: int    # rows [0, init_rest_end) are the initial rest
     factor: float
     threshold_from: str = "the initial rest"  # or the quietest 3 s of a stream without one
-    gyro_threshold_dps: float | None = None  # on the gyro's windowed mean rate less the rest's (None: no gyro)
+    gyro_threshold_dps: float | None = None  # on the gyro's windowed mean rate less the interval's median (None: no gyro)
 
     def as_dict(self, t):
         d = asdict(self)
@@ -80,7 +81,7 @@ def still_throughout(acc, t, window_s=1.0, rest_factor=20.0) -> bool:
     return first_motion(np.linalg.norm(moving_variance(acc, w), axis=1), acc, w, rest_factor) >= len(t)
 
 
-GYRO_STILL_DPS = 1.0  # a pose's windowed mean rate less the rest's may reach this (a hand's settling, bias drift)
+GYRO_STILL_DPS = 1.0  # a pose's windowed mean rate less its median may reach this (a hand's settling)
 
 
 def detect_static(acc, t, settings: DetectSettings = DetectSettings(), rest_factor=20.0, gyro_dps=None) -> Detection:
@@ -126,16 +127,20 @@ def detect_static(acc, t, settings: DetectSettings = DetectSettings(), rest_fact
     threshold = factor * float(np.linalg.norm(q2))
     still = mv < threshold
     gyro_threshold = None
+    edges = np.diff(np.r_[0, still.astype(int), 0])
+    starts, ends = np.nonzero(edges == 1)[0], np.nonzero(edges == -1)[0]
     if gyro_dps is not None:
         g = np.asarray(gyro_dps, float)
         g_rest = g[rest]
         noise = np.sqrt(np.sum(np.maximum(white_noise_var(g_rest), quantization_step(g_rest, g) ** 2 / 12)))
         gyro_threshold = max(GYRO_STILL_DPS, 20 * float(noise) / np.sqrt(w))
-        c = np.vstack([np.zeros((1, 3)), np.cumsum(g - g_rest.mean(0), 0)])
+        c = np.vstack([np.zeros((1, 3)), np.cumsum(g, 0)])
         lo, hi = np.clip(np.arange(len(g)) - w // 2, 0, len(g)), np.clip(np.arange(len(g)) + w // 2 + 1, 0, len(g))
-        still &= np.linalg.norm((c[hi] - c[lo]) / (hi - lo)[:, None], axis=1) < gyro_threshold
-    edges = np.diff(np.r_[0, still.astype(int), 0])
-    starts, ends = np.nonzero(edges == 1)[0], np.nonzero(edges == -1)[0]
+        windowed = (c[hi] - c[lo]) / (hi - lo)[:, None]
+        for a, b in zip(starts, ends):  # against the interval's own median: a bias drifting between poses is no turn
+            still[a:b] &= np.linalg.norm(windowed[a:b] - np.median(g[a:b], axis=0), axis=1) < gyro_threshold
+        edges = np.diff(np.r_[0, still.astype(int), 0])
+        starts, ends = np.nonzero(edges == 1)[0], np.nonzero(edges == -1)[0]
     min_samples = int(round(min_s / dt))
     keep = (ends - starts) >= min_samples
     if not keep.any():
