@@ -1,6 +1,7 @@
 """Benchmark: the model test as one family (fit/family.py, issue 51): false alarms on clean sets and the
 power against one library effect at 5, 10 and 20 of its own stds, for every kind of data that ranks
-candidates (a turntable set, a hand-placed stream's poses and moves, a rotation sequence), before
+candidates (a turntable set, a hand-placed stream's poses and moves, a rotation sequence, a turntable unit at
+three temperature plateaus calibrated --thermal), before
 (the omnibus alone at ALPHA, the rule until issue 51) and after (the family at ALPHA), and how often
 `--add auto` adds the planted effect at 10 std.
 
@@ -11,7 +12,7 @@ diagnose says so: twins are issue 51's item 2, not this power). Found: the senso
 planted effect. Sampling error of a rate p over n seeds: sqrt(p (1 - p) / n); at ALPHA = 1e-3 over
 200 seeds a right model fails in 0.2 sets on average (none in 82 % of such runs).
 
-    python3 benchmarks/bench_family.py [--seeds 200] [--kinds turntable,poses,moves,sequence] [--auto-seeds 40]
+    python3 benchmarks/bench_family.py [--seeds 200] [--kinds turntable,poses,moves,sequence,thermal] [--auto-seeds 40]
 """
 import argparse
 import time
@@ -30,14 +31,28 @@ KINDS = {
     "poses": ({"scenario": "handheld"}, {}, "acc.cross_coupling.yz", "acc"),  # a hand-placed stream's poses
     "moves": ({"scenario": "handheld"}, {}, "gyro.g_sensitivity.xz", "gyro"),  # and its moves
     "sequence": ({"sequence": "psins19"}, {"method": "systematic"}, "acc.cross_coupling.xy", "acc"),
+    # three wandering plateaus (0, 25, 50 degC) with a temperature term planted, calibrated --thermal
+    "thermal": ({"plan": "fibonacci24", "t_ref_c": 25.0, "temperature_wander_c": 0.3}, {}, "acc.quadratic.z", "acc"),
 }
-PILOT = {"acc.cross_coupling.xy": 1e-4, "acc.cross_coupling.yz": 1e-4, "gyro.g_sensitivity.xz": 1e-3}
+PILOT = {"acc.cross_coupling.xy": 1e-4, "acc.cross_coupling.yz": 1e-4, "gyro.g_sensitivity.xz": 1e-3,
+         "acc.quadratic.z": 5e-5}
 STRENGTHS = (5, 10, 20)
+PLATEAUS_C = (0.0, 25.0, 50.0)
 
 
-def effect_std(sim, cal_kw, eid, sensor) -> float:
-    """The calibration's std of eid on a pilot set with it planted and added by hand."""
-    cal = simucal.calibrate(simucal.simulate(seed=10_000, effects={eid: PILOT[eid]}, **sim), add=[eid], **cal_kw)
+def data(kind, seed, effects=None):
+    """The set of one seed (a thermal kind's: its three plateaus, seeds 3 seed + 0..2)."""
+    sim = KINDS[kind][0]
+    if kind != "thermal":
+        return simucal.simulate(seed=seed, effects=effects, **sim)
+    effects = {**(effects or {}), "acc.bias_temperature.x": 2e-6}
+    return [simucal.simulate(seed=3 * seed + i, temperature_c=T, effects=effects, **sim) for i, T in enumerate(PLATEAUS_C)]
+
+
+def effect_std(kind) -> float:
+    """The calibration's std of the kind's effect on a pilot set with it planted and added by hand."""
+    _, cal_kw, eid, sensor = KINDS[kind]
+    cal = simucal.calibrate(data(kind, 10_000, {eid: PILOT[eid]}), add=[eid], **cal_kw)
     return float(getattr(cal, sensor).effects[eid].std)
 
 
@@ -58,20 +73,20 @@ def main():
     warnings.simplefilter("ignore")  # the sets' own notes (nominal scale factors, ...) are not the point here
     rows = []
     for kind in a.kinds.split(","):
-        sim, cal_kw, eid, sensor = KINDS[kind]
+        _, cal_kw, eid, sensor = KINDS[kind]
         t0 = time.perf_counter()
-        std = effect_std(sim, cal_kw, eid, sensor)
+        std = effect_std(kind)
         tested = {"poses": ("acc",), "moves": ("gyro",)}.get(kind, ("acc", "gyro"))
-        clean = np.array([[outcome(simucal.calibrate(simucal.simulate(seed=s, **sim), **cal_kw), x)[:2]
+        clean = np.array([[outcome(simucal.calibrate(data(kind, s), **cal_kw), x)[:2]
                            for x in tested] for s in range(a.seeds)])  # (seeds, sensor, [family, omnibus])
         rows.append((kind, f"clean ({' or '.join(tested)} fails)", "-", clean[:, :, 1].any(1).mean(),
                      clean[:, :, 0].any(1).mean()))
         for k in STRENGTHS:
-            hit = np.array([outcome(simucal.calibrate(simucal.simulate(seed=s, effects={eid: k * std}, **sim), **cal_kw),
-                                    sensor, eid) for s in range(a.seeds)])
+            hit = np.array([outcome(simucal.calibrate(data(kind, s, {eid: k * std}), **cal_kw), sensor, eid)
+                            for s in range(a.seeds)])
             rows.append((kind, f"{eid} at {k} std (found)", f"{k * std:.3g}", hit[:, 1].mean(), hit[:, 2].mean()))
-        added = [eid in getattr(simucal.calibrate(simucal.simulate(seed=s, effects={eid: 10 * std}, **sim),
-                                                  add="auto", **cal_kw), sensor).effects for s in range(a.auto_seeds)]
+        added = [eid in getattr(simucal.calibrate(data(kind, s, {eid: 10 * std}), add="auto", **cal_kw),
+                                sensor).effects for s in range(a.auto_seeds)]
         rows.append((kind, f"`--add auto` adds {eid} at 10 std", f"{10 * std:.3g}", None, float(np.mean(added))))
         print(f"{kind}: {time.perf_counter() - t0:.0f} s; " + "; ".join(
             f"{what}: {before} -> {after}" for k, what, _, before, after in rows if k == kind), flush=True)

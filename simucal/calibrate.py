@@ -187,7 +187,9 @@ def _joint_block(obs, groups, first: SensorBlock, degree, labels, t_ref_c, plate
     gyro's, for the outer axis's tilt in its stds (turntable/tilt.py)."""
     from dataclasses import replace
 
-    from simucal.fit.augmented import AugmentedModel
+    from simucal.fit import family
+    from simucal.fit.augmented import AugmentedModel, effect_ids, follows_temperature
+    from simucal.fit.candidates import NormProblem
     from simucal.fit.thermal_select import group_tests, select
     from simucal.turntable.model_test import rows_text
     base = AugmentedModel(first.model, first.library_effects())
@@ -212,10 +214,18 @@ def _joint_block(obs, groups, first: SensorBlock, degree, labels, t_ref_c, plate
     thermal = {"t_ref_c": t_ref_c, "plateaus_c": T_g, "temperature_range_c": [float(T.min()), float(T.max())],
                "fit": "joint: every row at its own temp_c", "rows": rows_text(segs), "parameters": fits, "dropped": how["dropped"],
                "covariance": {"names": list(model.params), "matrix": fit.cov.tolist()}}
+    # the joint chi-square and the library's other effects' targeted tests: one family (fit/family.py)
+    test = {"p_value": fit.p_value, "test": "chi-square of every row at its own temperature"}
+    ids = [e for e in effect_ids(base.sensor) if e not in base.effects and not follows_temperature(e)]
+    family.fold(test, family.targeted(NormProblem(model, obs, fit), ids, fit.dof)
+                if ids and fit.dof > 0 and fit.chi2 is not None else None)
+    details.update({k: test[k] for k in ("omnibus_p_value", "omnibus_test", "targeted") if k in test})
+    if "verdict" in test.get("targeted", {}):  # a library effect beyond its test: the one to add
+        details["advice"] = test["targeted"]["strongest"]
     block = replace(first, effects={e: replace(v, value=fit.params[e], std=fit.std[e]) for e, v in first.effects.items()},
                     params={n: fit.params[n] for n in base.params}, std={n: fit.std[n] for n in base.params},
                     M=M @ first.C, bias=bias, residual_rms=fit.residual_rms, chi2=fit.chi2, dof=fit.dof,
-                    p_value=fit.p_value, thermal=thermal, details=details)
+                    p_value=test["p_value"], thermal=thermal, details=details)
     if meta is not None:
         from simucal.turntable.tilt import add_tilt_thermal
         add_tilt_thermal(block, model, fit, obs, segs, meta)

@@ -434,3 +434,19 @@ def test_a_linear_bias_through_plateaus_symmetric_about_t_ref_stays(tmp_path):
     c = acc["thermal"]["parameters"]["b_x"]
     assert c["degree"] >= 1 and abs(c["coefficients"][1] - 1e-5) < 4 * c["std"][1], c
     assert acc["p_value"] > 1e-3 and "MODEL FAILS" not in out
+
+
+@pytest.mark.slow
+def test_a_library_effect_beside_the_temperature_terms_fails_the_joint_model(tmp_path):
+    """Issue 51: the joint thermal fit's test is one family with the library's other effects' targeted tests
+    (fit/family.py): acc.quadratic.z at ~11 of its stds beside planted temperature terms is named as the
+    effect to add; clean plateaus pass."""
+    import simucal
+    for planted, fails in (({}, False), ({"acc.quadratic.z": 5e-5}, True)):
+        sets = [simucal.simulate(plan="fibonacci24", seed=s, temperature_c=T, t_ref_c=T_REF, temperature_wander_c=0.3,
+                                 effects={**planted, "acc.bias_temperature.x": 2e-6})
+                for s, T in ((1, 0), (2, 25), (3, 50))]
+        acc = simucal.calibrate(sets, thermal=True).acc
+        assert (acc.verdict == "fails") == fails, (acc.p_value, acc.details.get("targeted"))
+        if fails:
+            assert acc.details["targeted"]["strongest"] == acc.details["advice"] == "acc.quadratic.z"
