@@ -121,10 +121,10 @@ def validate(cal_path, data_dir, acc_noise_g=None, gyro_noise_dph=None, timestam
     given = isinstance(cal_path, calibration.Calibration)
     cal = cal_path if given else calibration.load(cal_path)
     ms = data_dir if isinstance(data_dir, io.MeasurementSet) else io.read_set(data_dir)
-    if timestamps is None:
-        timestamps = "nominal" if (cal.details.get("timestamps") or {}).get("chosen_by") == "--timestamps nominal" \
-            else "auto"
-    ms, stamps = with_timestamps(ms, timestamps)
+    stamps = None
+    if methods.data_kind(ms) == methods.STREAM:  # a stream's clock: as the calibration was told, else auto's rule
+        told = str((cal.details.get("timestamps") or {}).get("chosen_by", ""))
+        ms, stamps = with_timestamps(ms, timestamps or (told.split()[1] if told.startswith("--timestamps ") else "auto"))
     stated = {k: v for k, v in (("acc_noise_g", acc_noise_g), ("gyro_noise_dph", gyro_noise_dph)) if v is not None}
     if stated:
         units.check_meta({**ms.meta, **stated}, ms.path, lambda p, line, rule: CalibrationError(f"{p}: {rule}"))
@@ -156,7 +156,7 @@ def validate(cal_path, data_dir, acc_noise_g=None, gyro_noise_dph=None, timestam
             "independent": not own, "checks": checks, "verdict": verdicts, "verdict_notes": notes,
             "warnings": list(meta.get("warnings", [])),  # apply's: rows outside the calibrated temperature range
             "note": own or None, "nominal": [x for x in (said_a, said_g) if x],
-            **({"timestamps": stamps} if stamps and "chosen_by" in stamps else {})}  # a stream's clock
+            **({"timestamps": stamps} if stamps else {})}
 
 
 def own_rows(cal, ms) -> str:
@@ -183,7 +183,7 @@ def lines(report):
     for x in report.get("nominal", []):
         yield f"nominal: {x}"
     if report.get("timestamps"):
-        yield f"time stamps: {report['timestamps']['text']} ({report['timestamps']['chosen_by']})"
+        yield report["timestamps"]["text"]
     yield f"{'sensor':6} {'nominal':>10} {'calibrated':>10} {'floor':>9}  {'unit':8} check: verdict"
     for s, rows in report["checks"].items():
         for c in rows:

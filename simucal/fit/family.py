@@ -31,6 +31,7 @@ import numpy as np
 
 from simucal.fit.distributions import chi2_sf, f_sf
 from simucal.fit.results import ALPHA
+from simucal.generated.effects import EFFECTS
 
 OMNIBUS_SHARE = 0.5  # the omnibus's share of ALPHA; the targeted tests share the rest (module doc)
 COLLINEAR = 1e-3  # separable share of a column below which the plan cannot see the candidate at all
@@ -51,14 +52,15 @@ def candidate_level(n_tested: int) -> float:
 
 def targeted(problem, ids, dof: int | None = None) -> dict:
     """The score test of each candidate in ids beside the problem's model (fit/ranking.Problem: basis,
-    residual, column), the strongest named. dof: the residual's dof where its variance is estimated
+    residual, column), the strongest named, and what the JOINT strongest beyond their level explain
+    together (the residual projected on their columns: joint_statistic). dof: the residual's dof where its variance is estimated
     (the residual scale s2 != 1: an F test on dof - 1); None where s2 is a known scale or profiled out
     as the likelihood ratio does (chi-square on 1 dof of the statistic over s2). Returns {tested, strongest, statistic,
-    p_value, level}; strongest None where nothing is separable."""
+    p_value, level[, joint_statistic]}; strongest None where nothing is separable."""
     Q = problem.basis()
     r, s2 = problem.residual()
     rr, best = float(r @ r), None
-    n = 0
+    n, stats = 0, []
     for cid in ids:
         perp, share, _ = separable(Q, problem.column(cid))
         if share < COLLINEAR:
@@ -71,17 +73,25 @@ def targeted(problem, ids, dof: int | None = None) -> dict:
         else:  # the residual variance left with the column in, on dof - 1
             stat = g2 / max((rr - g2) / (dof - 1), 1e-300)
             p = float(f_sf(stat, 1, dof - 1))
+        stats.append((stat, p, perp))
         if best is None or stat > best[1]:  # by the statistic: p-values far out all underflow to 0
             best = (cid, stat, p)
-    return {"tested": n, "strongest": best[0] if best else None, "statistic": best[1] if best else None,
-            "p_value": best[2] if best else None, "level": candidate_level(n)}
+    out = {"tested": n, "strongest": best[0] if best else None, "statistic": best[1] if best else None,
+           "p_value": best[2] if best else None, "level": candidate_level(n)}
+    beyond = [perp for _, p, perp in sorted(stats, key=lambda x: -x[0]) if p < out["level"]][:JOINT]
+    if beyond:  # what the strongest candidates beyond their level explain together (outside_library asks)
+        Qc = np.linalg.qr(np.column_stack(beyond))[0]
+        out["joint_statistic"] = float(np.sum((Qc.T @ r) ** 2)) / s2
+    return out
 
 
 def family_p(p_omnibus: float | None, tgt: dict | None) -> float | None:
-    """The family's p-value (module doc): None where neither part has a test."""
-    ps = ([] if p_omnibus is None else [p_omnibus / OMNIBUS_SHARE]) + (
-        [tgt["tested"] * tgt["p_value"] / (1.0 - OMNIBUS_SHARE)] if tgt and tgt.get("p_value") is not None else [])
-    return min(1.0, min(ps)) if ps else None
+    """The family's p-value (module doc); the omnibus's own where no candidate is tested (it then holds the
+    whole ALPHA), None where neither part has a test."""
+    if not tgt or tgt.get("p_value") is None:  # nothing to test beside it: the omnibus holds the whole ALPHA
+        return p_omnibus
+    ps = ([] if p_omnibus is None else [p_omnibus / OMNIBUS_SHARE]) + [tgt["tested"] * tgt["p_value"] / (1.0 - OMNIBUS_SHARE)]
+    return min(1.0, min(ps))
 
 
 def fold(block: dict, tgt: dict | None, p_key: str = "p_value", test_key: str = "test") -> None:
@@ -106,16 +116,18 @@ def fold(block: dict, tgt: dict | None, p_key: str = "p_value", test_key: str = 
 
 
 OUTSIDE_SHARE = 0.5  # share of the misfit the best library effect must explain to be advised while more is missing
+JOINT = 3  # library effects missing at once that outside_library allows for (--add auto tries as many at a step)
 
 
 def outside_library(base: dict, cands: list[dict]) -> dict | None:
     """Where the model fails and its best significant candidate would leave it failing while explaining
-    less than OUTSIDE_SHARE of the misfit (the chi-square's excess over its dof), the missing effect is
-    most likely outside the library: {id, share, chi2_after, dof_after, p_after, text}. The model with
+    less than OUTSIDE_SHARE of the misfit (the chi-square's excess over its dof), and the JOINT
+    strongest candidates beyond their targeted level together (targeted's joint_statistic) explain less
+    than that too, the missing effect is most likely outside the library: {id, share, chi2_after, dof_after, p_after, text}. The model with
     the candidate is one linear step: its chi-square less the candidate's likelihood ratio, on one dof
     less (tests whose noise is known and whose candidates' statistics are drops of that chi-square).
     None where the candidate explains enough, or nothing can say."""
-    sig = [c for c in cands if c.get("significant") and c.get("statistic") is not None]
+    sig = [c for c in cands if c.get("significant") and c.get("statistic") is not None and c["id"] in EFFECTS]
     chi2, dof, test = base.get("chi2"), base.get("dof") or 0, base.get("omnibus_test") or ""
     # the candidates' statistics on the omnibus's scale: a chi-square drop over the same rows (the norm fit's,
     # the innovations'); a stream's moves rank by a likelihood ratio with their noise profiled out
@@ -125,7 +137,11 @@ def outside_library(base: dict, cands: list[dict]) -> dict | None:
     c2 = max(chi2 - c["statistic"], 0.0)
     p = float(chi2_sf(c2, dof - 1))
     share = min(c["statistic"] / (chi2 - dof), 1.0)
-    if p >= ALPHA * OMNIBUS_SHARE or share >= OUTSIDE_SHARE:
+    # a few library effects missing at once share the misfit, each explaining less than half of it: what the
+    # JOINT strongest beyond their targeted level explain together (targeted's joint_statistic) says so; more
+    # that explain half only together are absorbing what no one of them describes
+    together = (base.get("targeted") or {}).get("joint_statistic", c["statistic"]) / (chi2 - dof)
+    if p >= ALPHA * OMNIBUS_SHARE or share >= OUTSIDE_SHARE or together >= OUTSIDE_SHARE:
         return None
     return {"id": c["id"], "share": share, "chi2_after": c2, "dof_after": dof - 1, "p_after": p,
             "text": (f"no library effect explains the misfit: the best, {c['id']}, explains {100 * share:.0f} % of it "

@@ -12,8 +12,8 @@ likelihood-ratio or F statistic). rank() then, for every problem alike:
 - fits the others, notes the nearly collinear ones (under 5 % of the signature separable);
 - names the twins the data cannot tell apart (fit/twins.py);
 - applies the gate (gate): a candidate is significant where its p-value beats its share of the model
-  test's family (fit/family.py: ALPHA / 2 over the number tested), whether or not the omnibus fails:
-  a candidate beyond it makes the model fail.
+  test's family (fit/family.py: ALPHA / 2 over the number tested) and the family fails, which its own
+  targeted test beyond that level makes it do whether or not the omnibus fails.
 """
 from __future__ import annotations
 
@@ -105,16 +105,19 @@ def rank(problem: Problem, ids, base_fails: bool, label: str, test: str | None =
             if pair and base_fails and not advised and c.p_value is not None and c.p_value < level:
                 c, advised = c.with_note(pair(c, tw[0])), True  # the strongest pair only: the verdict rests on it
             out[k] = c
-    return gate(out)
+    return gate(out, base_fails)
 
 
-def gate(out: list[Candidate]) -> list[Candidate]:
+def gate(out: list[Candidate], base_fails: bool) -> list[Candidate]:
     """The candidates' part of the model test's family (fit/family.py): a separable candidate is
-    significant where its p-value beats family.candidate_level(number tested). Returns the tested
-    candidates, strongest first, then the ones that could not be tested."""
+    significant where its p-value beats family.candidate_level(number tested) and the model fails its
+    test, the family's, which the candidates' own targeted tests are part of (a likelihood ratio can
+    exceed its score test: the two then agree on the verdict). Returns the tested candidates,
+    strongest first, then the ones that could not be tested."""
     tested = sorted([c for c in out if c.separable], key=lambda c: -_strength(c))
     level = candidate_level(len(tested))
-    tested = [replace(c, significant=bool(c.p_value is not None and c.p_value < level)) for c in tested]
+    tested = [replace(c, significant=bool(base_fails and c.p_value is not None and c.p_value < level))
+              for c in tested]
     sig = [c for c in tested if c.significant]
     if sig:  # each alone beats the gate; the strongest is the one to add, and the others say why not them
         best = sig[0]

@@ -3,9 +3,12 @@
 The norm of the per-axis accelerometer variance over a centred window is
 compared with `factor` times the same norm over the initial rest; runs below
 it, at least `min_s` long, are static poses. Where the gyro is given, a pose must
-also not turn: the gyro's mean over the window, less its median over the still
-interval (a bias that drifts between poses is no turn), within GYRO_STILL_DPS or 20
-times its noise over the window, whichever is larger. A turn
+also not turn: the gyro's mean over the window, less the still interval's own
+reference, within GYRO_STILL_DPS or 20 times its noise over the window, whichever is
+larger. The reference is the interval's median or its windowed mean nearest the rest's
+bias, whichever more of the interval stays near (a bias that drifts between poses is
+no turn; a turn filling most of an interval is not taken for its bias: no reference
+lies GYRO_DRIFT_DPS from the rest's). A turn
 about the vertical leaves the accelerometers still (a clean simulated session took a
 42 deg/s turn for a pose, and its moves then failed their test), and any turn during a
 pose is lost to the moves, which are integrated between poses. The initial rest is found from
@@ -44,7 +47,7 @@ class Detection:
     init_rest_end: int    # rows [0, init_rest_end) are the initial rest
     factor: float
     threshold_from: str = "the initial rest"  # or the quietest 3 s of a stream without one
-    gyro_threshold_dps: float | None = None  # on the gyro's windowed mean rate less the interval's median (None: no gyro)
+    gyro_threshold_dps: float | None = None  # on the gyro's windowed mean rate less the interval's (None: no gyro)
 
     def as_dict(self, t):
         d = asdict(self)
@@ -81,7 +84,8 @@ def still_throughout(acc, t, window_s=1.0, rest_factor=20.0) -> bool:
     return first_motion(np.linalg.norm(moving_variance(acc, w), axis=1), acc, w, rest_factor) >= len(t)
 
 
-GYRO_STILL_DPS = 1.0  # a pose's windowed mean rate less its median may reach this (a hand's settling)
+GYRO_STILL_DPS = 1.0  # a pose's windowed mean rate less its reference may reach this (a hand's settling)
+GYRO_DRIFT_DPS = 10.0  # no gyro's bias drifts this far from the rest's in a session: an interval turning throughout
 
 
 def detect_static(acc, t, settings: DetectSettings = DetectSettings(), rest_factor=20.0, gyro_dps=None) -> Detection:
@@ -137,8 +141,15 @@ def detect_static(acc, t, settings: DetectSettings = DetectSettings(), rest_fact
         c = np.vstack([np.zeros((1, 3)), np.cumsum(g, 0)])
         lo, hi = np.clip(np.arange(len(g)) - w // 2, 0, len(g)), np.clip(np.arange(len(g)) + w // 2 + 1, 0, len(g))
         windowed = (c[hi] - c[lo]) / (hi - lo)[:, None]
-        for a, b in zip(starts, ends):  # against the interval's own median: a bias drifting between poses is no turn
-            still[a:b] &= np.linalg.norm(windowed[a:b] - np.median(g[a:b], axis=0), axis=1) < gyro_threshold
+        b_rest = g_rest.mean(0)
+        for a, b in zip(starts, ends):
+            # the interval's own reference (module doc): its median, or its windowed mean nearest the rest's
+            # bias, whichever more of it stays within the threshold of, and none that far from the rest's
+            refs = [r for r in (np.median(windowed[a:b], axis=0),
+                                windowed[a + int(np.argmin(np.linalg.norm(windowed[a:b] - b_rest, axis=1)))])
+                    if np.linalg.norm(r - b_rest) < GYRO_DRIFT_DPS]
+            within = [np.linalg.norm(windowed[a:b] - r, axis=1) < gyro_threshold for r in refs]
+            still[a:b] &= max(within, key=np.sum) if within else False
         edges = np.diff(np.r_[0, still.astype(int), 0])
         starts, ends = np.nonzero(edges == 1)[0], np.nonzero(edges == -1)[0]
     min_samples = int(round(min_s / dt))

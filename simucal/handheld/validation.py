@@ -8,8 +8,8 @@ scale factors and misalignments). Both use the calibrated accelerometers' direct
 time stamps are read as the calibration read its own (validate.py: io/timestamps.with_timestamps).
 
 The moves' floor, per move, is what the angle would be if T were exact (rad^2, summed over the two
-components across gravity): the rest's white gyro noise sigma_g (at least its quantisation's)
-integrated over the move,
+components across gravity, 2/3 of the angle's): the rest's white gyro noise sigma_g (at least its
+quantisation's) integrated over the move,
 |sigma_g|^2 sum dt^2; the rest bias's own error over the move's length, |sigma_g|^2 / n_rest (sum dt)^2
 (q^2/12 where the noise is below the quantum q: a quiet rest's mean keeps its rounding);
 the two poses' directions: each pose mean's noise across gravity (2 sigma_pose^2) and the
@@ -77,7 +77,7 @@ def _gyro_cal_var(cal, mv, g_dirs) -> np.ndarray:
         if found is None:
             return np.zeros(len(phi_dps))
         _, du, cov, names = found
-        keep = np.array([not n.startswith("b_") for n in names])
+        keep = np.array([not n.startswith("b_") and "." not in n for n in names])  # T's own: linear in the rate
         du = du[:, :, keep] / units.DPH_PER_DPS  # deg per unit parameter, over the move (du is linear in Phi)
         var = np.einsum("nim,mk,nik->ni", du, cov[np.ix_(keep, keep)], du)
     g = g_dirs[mv.after]
@@ -91,9 +91,10 @@ def _move_var(w_dps, rest, mv, pose_sd, pose_cal_var) -> np.ndarray:
     pose mean's noise over its norm (relative), pose_cal_var each pose direction's variance from the
     calibration (None: the file holds no covariance)."""
     white, q2 = white_noise_var(w_dps[rest]), quantization_step(w_dps[rest], w_dps) ** 2 / 12
-    s2 = float(np.sum(np.maximum(white, q2))) * np.radians(1.0) ** 2  # |sigma_g|^2, rad^2/s^2 per sample
+    across = 2 / 3 * np.radians(1.0) ** 2  # two of the angle's three components turn the gravity direction
+    s2 = float(np.sum(np.maximum(white, q2))) * across  # per sample, rad^2/s^2
     # the rest's mean: its white noise averages down where it dithers the rounding, else it keeps q^2/12
-    b2 = float(np.sum(np.where(white >= q2, white / (rest.stop - rest.start), q2))) * np.radians(1.0) ** 2
+    b2 = float(np.sum(np.where(white >= q2, white / (rest.stop - rest.start), q2))) * across
     dt = np.where(mv.dt > 0, mv.dt, 0.0)
     pose = 2 * pose_sd ** 2 + (0.0 if pose_cal_var is None else pose_cal_var)
     return s2 * np.sum(dt ** 2, axis=1) + b2 * np.sum(dt, axis=1) ** 2 + pose[mv.before] + pose[mv.after]
