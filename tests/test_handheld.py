@@ -374,3 +374,25 @@ def test_a_calibration_keeps_no_moves_problem_alive():
     api.calibrate(api.simulate("handheld", seed=3))
     gc.collect()
     assert not [o for o in gc.get_objects() if isinstance(o, MovesProblem)]
+
+
+@pytest.mark.parametrize("turn_s", [3.0, 8.0])
+def test_a_long_turn_about_the_vertical_is_no_pose_either(turn_s):
+    """Review of issue 51: a 30 deg/s turn about the vertical filling most of an accelerometer-still interval was
+    taken for the interval's bias (its median) and kept as the pose. Every interval the detector keeps is still."""
+    from simucal.handheld.static_detect import detect_static
+    rng, fs, g, acc, gyro = np.random.default_rng(0), 100.0, np.array([0, 0, 1.0]), [], []
+    for kind, dur, rate in (("still", 5, 0), ("tilt", 1, 0), ("still", 2, 0), ("yaw", turn_s, 30), ("still", 2, 0),
+                            ("tilt", 1, 0), ("still", 5, 0)):
+        n = int(dur * fs)
+        if kind == "tilt":
+            a = np.linspace(0, 1, n)[:, None] * np.array([0.5, 0, 0]) + g + 0.05 * np.sin(np.linspace(0, np.pi, n))[:, None]
+            w, g = np.tile([20.0, 0, 0], (n, 1)), a[-1] / np.linalg.norm(a[-1])
+        else:
+            a, w = np.tile(g, (n, 1)), np.tile([0, 0, float(rate)], (n, 1))
+        acc.append(a)
+        gyro.append(w)
+    acc = np.vstack(acc) + rng.normal(0, 1e-3, (sum(map(len, acc)), 3))
+    gyro = np.vstack(gyro) + rng.normal(0, 0.05, acc.shape)
+    d = detect_static(acc, np.arange(len(acc)) / fs, gyro_dps=gyro)
+    assert len(d.starts) >= 4 and all(np.abs(gyro[a:b, 2]).mean() < 1.0 for a, b in zip(d.starts, d.ends))

@@ -134,22 +134,7 @@ def detect_static(acc, t, settings: DetectSettings = DetectSettings(), rest_fact
     edges = np.diff(np.r_[0, still.astype(int), 0])
     starts, ends = np.nonzero(edges == 1)[0], np.nonzero(edges == -1)[0]
     if gyro_dps is not None:
-        g = np.asarray(gyro_dps, float)
-        g_rest = g[rest]
-        noise = np.sqrt(np.sum(np.maximum(white_noise_var(g_rest), quantization_step(g_rest, g) ** 2 / 12)))
-        gyro_threshold = max(GYRO_STILL_DPS, 20 * float(noise) / np.sqrt(w))
-        c = np.vstack([np.zeros((1, 3)), np.cumsum(g, 0)])
-        lo, hi = np.clip(np.arange(len(g)) - w // 2, 0, len(g)), np.clip(np.arange(len(g)) + w // 2 + 1, 0, len(g))
-        windowed = (c[hi] - c[lo]) / (hi - lo)[:, None]
-        b_rest = g_rest.mean(0)
-        for a, b in zip(starts, ends):
-            # the interval's own reference (module doc): its median, or its windowed mean nearest the rest's
-            # bias, whichever more of it stays within the threshold of, and none that far from the rest's
-            refs = [r for r in (np.median(windowed[a:b], axis=0),
-                                windowed[a + int(np.argmin(np.linalg.norm(windowed[a:b] - b_rest, axis=1)))])
-                    if np.linalg.norm(r - b_rest) < GYRO_DRIFT_DPS]
-            within = [np.linalg.norm(windowed[a:b] - r, axis=1) < gyro_threshold for r in refs]
-            still[a:b] &= max(within, key=np.sum) if within else False
+        still, gyro_threshold = _not_turning(still, starts, ends, np.asarray(gyro_dps, float), rest, w)
         edges = np.diff(np.r_[0, still.astype(int), 0])
         starts, ends = np.nonzero(edges == 1)[0], np.nonzero(edges == -1)[0]
     min_samples = int(round(min_s / dt))
@@ -162,3 +147,24 @@ def detect_static(acc, t, settings: DetectSettings = DetectSettings(), rest_fact
               f"the quietest 3 s ({t[rest.start]:.1f}-{t[rest.stop - 1]:.1f} s; the stream has no initial rest)")
     return Detection(starts[keep].tolist(), ends[keep].tolist(), threshold, w, min_samples, init_end, factor, source,
                      gyro_threshold)
+
+
+def _not_turning(still, starts, ends, g, rest, w) -> tuple[np.ndarray, float]:
+    """The still rows (mask) of the accelerometers' intervals (starts, ends) where the gyro g (deg/s) does
+    not turn either (module doc), and the threshold on its windowed mean (deg/s)."""
+    g_rest = g[rest]
+    noise = np.sqrt(np.sum(np.maximum(white_noise_var(g_rest), quantization_step(g_rest, g) ** 2 / 12)))
+    threshold = max(GYRO_STILL_DPS, 20 * float(noise) / np.sqrt(w))
+    c = np.vstack([np.zeros((1, 3)), np.cumsum(g, 0)])
+    lo, hi = np.clip(np.arange(len(g)) - w // 2, 0, len(g)), np.clip(np.arange(len(g)) + w // 2 + 1, 0, len(g))
+    windowed = (c[hi] - c[lo]) / (hi - lo)[:, None]
+    b_rest, still = g_rest.mean(0), still.copy()
+    for a, b in zip(starts, ends):
+        # the interval's own reference: its median, or its windowed mean nearest the rest's bias, whichever
+        # more of it stays within the threshold of, and none that far from the rest's
+        refs = [r for r in (np.median(windowed[a:b], axis=0),
+                            windowed[a + int(np.argmin(np.linalg.norm(windowed[a:b] - b_rest, axis=1)))])
+                if np.linalg.norm(r - b_rest) < GYRO_DRIFT_DPS]
+        within = [np.linalg.norm(windowed[a:b] - r, axis=1) < threshold for r in refs]
+        still[a:b] &= max(within, key=np.sum) if within else False
+    return still, threshold
