@@ -12,7 +12,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 from click.testing import CliRunner
-from hypothesis import HealthCheck, given, settings
+from hypothesis import HealthCheck, example, given, settings
 from hypothesis import strategies as st
 
 from simucal import io
@@ -411,6 +411,7 @@ def test_option_values_out_of_range_are_refused(sets, tmp_path, args, named):
 
 @settings(max_examples=30, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture])
 @given(value=st.one_of(st.floats(allow_nan=True, allow_infinity=True), st.text(max_size=6)))
+@example(value="0\r")  # a number with a carriage return: the refusal quotes it, on one line
 def test_noise_option_any_value(sets, tmp_path, value):
     """Any value of a numeric option: a calibration with a finite chi-square, or a one-line refusal."""
     out = tmp_path / "c.json"

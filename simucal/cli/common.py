@@ -112,12 +112,12 @@ class Number(click.ParamType):
         if not math.isfinite(v):
             raise _Refused(f"{self._name(param)} {self._shown(value)}: must be a finite number")
         if self.integer and v != round(v):
-            raise _Refused(f"{self._name(param)} {value}: must be a whole number")
+            raise _Refused(f"{self._name(param)} {self._shown(value)}: must be a whole number")
         below = self.low is not None and (v <= self.low if self.low_open else v < self.low)
         if below or (self.high is not None and v > self.high):
             lo = None if self.low is None else f"{'>' if self.low_open else '>='} {self.low:g}"
             hi = None if self.high is None else f"<= {self.high:g}"
-            raise _Refused(f"{self._name(param)} {value}: must be " + " and ".join(x for x in (lo, hi) if x)
+            raise _Refused(f"{self._name(param)} {self._shown(value)}: must be " + " and ".join(x for x in (lo, hi) if x)
                            + (f" ({self.what})" if self.what else ""))
         return int(round(v)) if self.integer else v
 
