@@ -192,3 +192,10 @@ def test_the_public_names_are_all_of_the_api():
     import simucal
     assert set(simucal.__all__) == {"__version__", *simucal._API}
     assert all(getattr(simucal, n) is not None for n in simucal.__all__)
+
+
+def test_a_sets_repr_is_one_line():
+    """Issue 54: repr(MeasurementSet) printed every array (8 kB); now one line says where, what, how much."""
+    import simucal
+    r = repr(simucal.simulate("handheld", seed=1))
+    assert "\n" not in r and len(r) < 200 and "stream, 27,030 rows over 270.3 s, acc in counts, gyro in counts" in r

@@ -31,6 +31,19 @@ class MeasurementSet(io.MeasurementSet):
 
     truth: dict | None = None  # a simulated set's truth (truth.json), else None
 
+    def __repr__(self) -> str:
+        """One line (issue 54: the dataclass's printed every array, 8 kB): where, what kind of data, how many
+        rows over how long, the sensors' units and the other columns; the arrays are in `samples`."""
+        from simucal import methods
+        t = self.samples["t_s"]
+        sensors = [f"{s} in {self.meta.get(f'{s}_unit')}" for s, has in (("acc", self.has_acc), ("gyro", self.has_gyro))
+                   if has]
+        other = [c for c in self.samples if c not in ("t_s", "segment", "ax", "ay", "az", "gx", "gy", "gz")]
+        return (f"MeasurementSet({str(self.path)!r}: {methods.data_kind(self)}, {len(t):,} rows over "
+                f"{float(t[-1] - t[0]) if len(t) else 0.0:.1f} s"
+                + (f", {len(self.segments)} segments" if self.segments else "")
+                + "".join(f", {x}" for x in sensors + other) + ")")
+
     @classmethod
     def of(cls, ms: io.MeasurementSet) -> MeasurementSet:
         """The same set as this class (its arrays shared, not copied)."""
