@@ -189,7 +189,7 @@ def _joint_block(obs, groups, first: SensorBlock, degree, labels, t_ref_c, plate
 
     from simucal.fit import family
     from simucal.fit.augmented import AugmentedModel, effect_ids, follows_temperature
-    from simucal.fit.candidates import NormProblem
+    from simucal.fit.candidates import targeted
     from simucal.fit.thermal_select import group_tests, select
     from simucal.turntable.model_test import rows_text
     base = AugmentedModel(first.model, first.library_effects())
@@ -217,8 +217,7 @@ def _joint_block(obs, groups, first: SensorBlock, degree, labels, t_ref_c, plate
     # the joint chi-square and the library's other effects' targeted tests: one family (fit/family.py)
     test = {"p_value": fit.p_value, "test": "chi-square of every row at its own temperature"}
     ids = [e for e in effect_ids(base.sensor) if e not in base.effects and not follows_temperature(e)]
-    family.fold(test, family.targeted(NormProblem(model, obs, fit), ids, fit.dof)
-                if ids and fit.dof > 0 and fit.chi2 is not None else None)
+    family.fold(test, targeted(model, obs, fit, ids) if fit.chi2 is not None else None)
     details.update({k: test[k] for k in ("omnibus_p_value", "omnibus_test", "targeted") if k in test})
     if "verdict" in test.get("targeted", {}):  # a library effect beyond its test: the one to add
         details["advice"] = test["targeted"]["strongest"]

@@ -117,14 +117,13 @@ def validate(cal_path, data_dir, acc_noise_g=None, gyro_noise_dph=None, timestam
     (or a MeasurementSet). acc_noise_g, gyro_noise_dph: the noise of one row where the data cannot give it
     (averaged rows), as calibrate takes it: the floors of those rows' checks stand on it. timestamps: a
     stream's stamps (io/timestamps.py: auto, recorded, nominal); None: as the calibration read its own
-    (nominal where it was told --timestamps nominal, else auto's rule, which it applied)."""
+    (the calibration file's timestamps choice, else auto's rule)."""
     given = isinstance(cal_path, calibration.Calibration)
     cal = cal_path if given else calibration.load(cal_path)
     ms = data_dir if isinstance(data_dir, io.MeasurementSet) else io.read_set(data_dir)
     stamps = None
     if methods.data_kind(ms) == methods.STREAM:  # a stream's clock: as the calibration was told, else auto's rule
-        told = str((cal.details.get("timestamps") or {}).get("chosen_by", ""))
-        ms, stamps = with_timestamps(ms, timestamps or (told.split()[1] if told.startswith("--timestamps ") else "auto"))
+        ms, stamps = with_timestamps(ms, timestamps or (cal.details.get("timestamps") or {}).get("choice", "auto"))
     stated = {k: v for k, v in (("acc_noise_g", acc_noise_g), ("gyro_noise_dph", gyro_noise_dph)) if v is not None}
     if stated:
         units.check_meta({**ms.meta, **stated}, ms.path, lambda p, line, rule: CalibrationError(f"{p}: {rule}"))

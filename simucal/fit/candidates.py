@@ -155,10 +155,11 @@ def test_model(model, obs: Observations, p0=None) -> tuple[Fit, Observations, di
     return fit, obs, block
 
 
-def targeted(model: AugmentedModel, obs: Observations, fit: Fit) -> dict | None:
-    """The targeted tests of the model test's family (fit/family.py) on the norm fit: every library
-    effect not in the model, by its score test at fit (None where there is none to test)."""
-    ids = [e for e in effect_ids(model.sensor) if e not in model.effects]
+def targeted(model: AugmentedModel, obs: Observations, fit: Fit, ids=None) -> dict | None:
+    """The targeted tests of the model test's family (fit/family.py) on the norm fit: each effect of ids
+    (default every library effect not in the model) by its score test at fit (None where there is none
+    to test, or no chi-square and no dof to test against)."""
+    ids = [e for e in effect_ids(model.sensor) if e not in model.effects] if ids is None else ids
     return family.targeted(norm_problem(model, obs, fit), ids, fit.dof) if ids and fit.dof > 0 else None
 
 

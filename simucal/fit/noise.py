@@ -109,6 +109,13 @@ def quantization_step(x, whole=None):
     return np.array(steps)
 
 
+def moving_sample_var(rest, whole=None):
+    """Per-axis variance of one sample's noise once the sensor moves, from its still rows rest (n, k): their
+    white noise, at least the quantisation's q^2/12 (quantization_step: a rest quieter than one LSB reads
+    constant, while a moving sensor's samples round by up to q/2); whole: the stream, for q."""
+    return np.maximum(white_noise_var(rest), quantization_step(rest, whole) ** 2 / 12)
+
+
 UNITS = {"acc": "g", "gyro": "deg/h"}  # the unit of a report's terms, as `simucal noise` writes them
 REWRITE = "write it again with simucal noise STILL_RECORDING -o noise.json"
 

@@ -19,7 +19,7 @@ from simucal.fit.augmented import regressor
 from simucal.fit.apply import model_inputs
 from simucal.fit.aux_inputs import AuxInputs, columns_at, specific_force
 from simucal.fit.distributions import chi2_sf
-from simucal.fit.noise import quantization_step, white_noise_var
+from simucal.fit.noise import moving_sample_var, quantization_step
 from simucal.fit.norm_fit import full_covariance
 from simucal.fit.rotations import skew
 from simucal.generated.effects import EFFECTS
@@ -74,8 +74,8 @@ def prepare_moves(ms, det: Detection, g_dirs, dir_var) -> GyroMoves:
 def gyro_noise_dps(ms, gm) -> np.ndarray:
     """White noise of one gyro sample (deg/s) from the initial rest: a moving gyro has at
     least its quantisation noise, even where the rest reads constant."""
-    rest = ms.gyro_dph()[gm.rest] / units.DPH_PER_DPS
-    return np.sqrt(np.maximum(white_noise_var(rest), quantization_step(rest, ms.gyro_dph() / units.DPH_PER_DPS) ** 2 / 12))
+    w = ms.gyro_dph() / units.DPH_PER_DPS
+    return np.sqrt(moving_sample_var(w[gm.rest], w))
 
 
 def move_covariances(gm, fit: GyroFit, sigma_g_dps):

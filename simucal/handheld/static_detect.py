@@ -23,7 +23,7 @@ from dataclasses import asdict, dataclass
 import numpy as np
 
 from simucal.errors import CalibrationError
-from simucal.fit.noise import quantization_step, white_noise_var
+from simucal.fit.noise import moving_sample_var, quantization_step, white_noise_var
 
 
 @dataclass(frozen=True)
@@ -56,16 +56,17 @@ class Detection:
         return d
 
 
+def moving_mean(x, w):
+    """Per-axis mean over a centred window of w samples (edges: shrunk window)."""
+    n = len(x)
+    c = np.vstack([np.zeros((1, x.shape[1])), np.cumsum(x, 0)])
+    lo, hi = np.clip(np.arange(n) - w // 2, 0, n), np.clip(np.arange(n) + w // 2 + 1, 0, n)
+    return (c[hi] - c[lo]) / (hi - lo)[:, None]
+
+
 def moving_variance(x, w):
     """Per-axis variance over a centred window of w samples (edges: shrunk window)."""
-    n = len(x)
-    c1 = np.vstack([np.zeros((1, x.shape[1])), np.cumsum(x, 0)])
-    c2 = np.vstack([np.zeros((1, x.shape[1])), np.cumsum(x * x, 0)])
-    lo = np.clip(np.arange(n) - w // 2, 0, n)
-    hi = np.clip(np.arange(n) + w // 2 + 1, 0, n)
-    cnt = (hi - lo)[:, None]
-    mean = (c1[hi] - c1[lo]) / cnt
-    return np.maximum((c2[hi] - c2[lo]) / cnt - mean ** 2, 0.0)
+    return np.maximum(moving_mean(x * x, w) - moving_mean(x, w) ** 2, 0.0)
 
 
 def first_motion(mv, acc, w, rest_factor=20.0) -> int:
@@ -152,13 +153,9 @@ def detect_static(acc, t, settings: DetectSettings = DetectSettings(), rest_fact
 def _not_turning(still, starts, ends, g, rest, w) -> tuple[np.ndarray, float]:
     """The still rows (mask) of the accelerometers' intervals (starts, ends) where the gyro g (deg/s) does
     not turn either (module doc), and the threshold on its windowed mean (deg/s)."""
-    g_rest = g[rest]
-    noise = np.sqrt(np.sum(np.maximum(white_noise_var(g_rest), quantization_step(g_rest, g) ** 2 / 12)))
-    threshold = max(GYRO_STILL_DPS, 20 * float(noise) / np.sqrt(w))
-    c = np.vstack([np.zeros((1, 3)), np.cumsum(g, 0)])
-    lo, hi = np.clip(np.arange(len(g)) - w // 2, 0, len(g)), np.clip(np.arange(len(g)) + w // 2 + 1, 0, len(g))
-    windowed = (c[hi] - c[lo]) / (hi - lo)[:, None]
-    b_rest, still = g_rest.mean(0), still.copy()
+    threshold = max(GYRO_STILL_DPS, 20 * float(np.sqrt(np.sum(moving_sample_var(g[rest], g)))) / np.sqrt(w))
+    windowed = moving_mean(g, w)
+    b_rest, still = g[rest].mean(0), still.copy()
     for a, b in zip(starts, ends):
         # the interval's own reference: its median, or its windowed mean nearest the rest's bias, whichever
         # more of it stays within the threshold of, and none that far from the rest's

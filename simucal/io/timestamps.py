@@ -83,7 +83,7 @@ def with_timestamps(ms, choice="auto"):
                                f"{gap_text(st['gaps'])} over every step; leave the option out (the recorded stamps "
                                "keep the gap where it is, and no move is integrated across one), or record without it")
     nominal = choice == "nominal" or (choice == "auto" and st["irregular"] and st["regular_clock"] and not st["gaps"])
-    st["used"] = "nominal" if nominal else "recorded"
+    st["used"], st["choice"] = ("nominal" if nominal else "recorded"), choice  # the option, for validate
     st["chosen_by"] = ("--timestamps " + choice) if choice != "auto" else (
         f"auto: the arrival times stay within {st['off_even_clock_steps']:.2g} median steps of an even clock (at most "
         f"{CLOCK_BOUND_STEPS:g}), so a regular clock took them" if nominal else
