@@ -15,7 +15,7 @@ from simucal import io, methods
 from simucal.errors import CalibrationError
 from simucal.fit.thermal import PLAUSIBLE_C, SPREAD_C
 from simucal.io import calibration, units
-from simucal.io.calibration import Calibration, SensorBlock
+from simucal.io.calibration import Calibration, EffectValue, SensorBlock
 from simucal.io.calibration_checks import check_layout, scale_notes
 from simucal.io.sensor_checks import stuck_channels
 from simucal.io.timestamps import with_timestamps
@@ -192,7 +192,7 @@ def _joint_block(obs, groups, first: SensorBlock, degree, labels, t_ref_c, plate
     from simucal.fit.candidates import targeted
     from simucal.fit.thermal_select import group_tests, select
     from simucal.turntable.model_test import rows_text
-    base = AugmentedModel(first.model, first.library_effects())
+    base, auto = _twins_by_every_row(first, obs, groups, degree)
     model, fit, how, obs = select(base, obs, groups, degree, dict(first.params))
     own = _own_fits(base, obs, groups) if plateaus else None
     fits = {}
@@ -221,7 +221,12 @@ def _joint_block(obs, groups, first: SensorBlock, degree, labels, t_ref_c, plate
     details.update({k: test[k] for k in ("omnibus_p_value", "omnibus_test", "targeted") if k in test})
     if "verdict" in test.get("targeted", {}):  # a library effect beyond its test: the one to add
         details["advice"] = test["targeted"]["strongest"]
-    block = replace(first, effects={e: replace(v, value=fit.params[e], std=fit.std[e]) for e, v in first.effects.items()},
+    if auto:
+        details["auto"] = auto
+    effects = {e: EffectValue(fit.params[e], fit.std[e], u, m) for e, u, m in
+               zip(base.effects, base.param_units[len(base.base.params):], base.meanings[len(base.base.params):])}
+    block = replace(first, effects={e: replace(v, value=fit.params[e], std=fit.std[e]) for e, v in first.effects.items()
+                                    if e in fit.params} | effects,
                     params={n: fit.params[n] for n in base.params}, std={n: fit.std[n] for n in base.params},
                     M=M @ first.C, bias=bias, residual_rms=fit.residual_rms, chi2=fit.chi2, dof=fit.dof,
                     p_value=test["p_value"], thermal=thermal, details=details)
@@ -233,6 +238,39 @@ def _joint_block(obs, groups, first: SensorBlock, degree, labels, t_ref_c, plate
         for f in fits.values():
             f["std"] = [e * k for e in f["std"]]
     return block
+
+
+def _twins_by_every_row(first: SensorBlock, obs, groups, degree):
+    """The model of the joint fit (first's library effects), and first's `--add auto` steps, with each
+    effect that auto chose on the plateau nearest T_ref over a twin it could not tell from it there
+    (fit/twins.py) chosen again by every plateau's rows: the model whose joint fit has the lower
+    chi-square keeps its place (issue 51, item 2: on fibonacci24 plateaus acc.quadratic.z and
+    acc.scale_asymmetry.z read alike on one plateau, and auto took the wrong one in 1 seed of 5)."""
+    from simucal.fit.augmented import AugmentedModel
+    from simucal.fit.thermal_select import select
+    effects = first.library_effects()
+    steps = [dict(s) for s in first.details.get("auto") or []]
+    for s in steps:
+        if not s.get("twins") or obs.sigma is None or not np.all(np.isfinite(obs.sigma)):
+            continue
+        chi2 = {}
+        for e in [s["id"]] + [t for t in s["twins"] if t not in effects]:
+            trial = tuple(e if x == s["id"] else x for x in effects)
+            try:
+                chi2[e] = select(AugmentedModel(first.model, trial), obs, groups, degree, dict(first.params))[1].chi2
+            except CalibrationError:
+                continue
+        if len(chi2) < 2:
+            continue
+        best = min(chi2, key=chi2.get)
+        others = "; ".join(f"{k} {v:.1f}" for k, v in chi2.items() if k != best)
+        if best != s["id"]:
+            effects = tuple(best if x == s["id"] else x for x in effects)
+            s.update(id=best, twins=[s["id"]] + [t for t in s["twins"] if t != best])
+        s["twin_choice"] = (f"{best}, not its twin {', '.join(k for k in chi2 if k != best)}: the plateau nearest T_ref "
+                            f"cannot tell them apart; every plateau's rows chose it (joint chi2 {chi2[best]:.1f} "
+                            f"against {others})")
+    return AugmentedModel(first.model, effects), steps
 
 
 def _still_warmup(folders, degree, kwargs):

@@ -8,6 +8,7 @@ shape of a misfit no candidate explains (with a model file for it), and with
 """
 from __future__ import annotations
 
+import heapq
 import json
 from pathlib import Path
 
@@ -153,9 +154,10 @@ def _diagnose(ms, folder, add, acc_model, gyro_model, acc_noise_g, gyro_noise_dp
                 else 1.0)
     result["sensor"] = worst
     result.update(model_test_keys(result[worst]["model_test"]))
-    result["candidates"] = sorted([c for s in sensors for c in result[s]["candidates"] if c["separable"]],
-                                  key=lambda c: (c["p_value"] if c["p_value"] is not None else 2.0,
-                                                 -c["statistic"])) + \
+    # merged in each sensor's own order (a twin chosen by rows beyond the likelihood ratio keeps its place)
+    result["candidates"] = list(heapq.merge(*[[c for c in result[s]["candidates"] if c["separable"]] for s in sensors],
+                                            key=lambda c: (c["p_value"] if c["p_value"] is not None else 2.0,
+                                                           -c["statistic"]))) + \
         [c for s in sensors for c in result[s]["candidates"] if not c["separable"]]
     result["verdict"] = " | ".join(result[s]["verdict"] for s in sensors)
     return result

@@ -450,3 +450,23 @@ def test_a_library_effect_beside_the_temperature_terms_fails_the_joint_model(tmp
         assert (acc.verdict == "fails") == fails, (acc.p_value, acc.details.get("targeted"))
         if fails:
             assert acc.details["targeted"]["strongest"] == acc.details["advice"] == "acc.quadratic.z"
+
+
+@pytest.mark.slow
+def test_auto_chooses_between_twins_with_every_plateau(tmp_path):
+    """Issue 51, item 2: `--add auto` chooses its effects on the plateau nearest T_ref, where acc.quadratic.z
+    and acc.scale_asymmetry.z read alike on fibonacci24; at these seeds it took scale_asymmetry there. The joint
+    fit over every plateau chooses again (the lower joint chi-square) and says so: the planted one is kept
+    and the model passes."""
+    import simucal
+    for seed in (1, 5):
+        sets = [simucal.simulate(plan="fibonacci24", seed=3 * seed + i, temperature_c=T, t_ref_c=T_REF,
+                                 temperature_wander_c=0.3, effects={"acc.quadratic.z": 4.9e-5, "acc.bias_temperature.x": 2e-6})
+                for i, T in enumerate((0.0, 25.0, 50.0))]
+        nearest = simucal.calibrate(sets[1], add=["auto"]).acc
+        assert [s["id"] for s in nearest.details["auto"]] == ["acc.scale_asymmetry.z"]
+        acc = simucal.calibrate(sets, thermal=True, add=["auto"]).acc
+        assert list(acc.effects) == ["acc.quadratic.z"] and acc.verdict != "fails"
+        step, = acc.details["auto"]
+        assert step["id"] == "acc.quadratic.z" and "acc.scale_asymmetry.z" in step["twins"]
+        assert "every plateau's rows chose it" in step["twin_choice"]

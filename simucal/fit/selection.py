@@ -122,10 +122,13 @@ def _still_failing(start: Step, step: Step, steps: list[dict], why: str) -> Sele
 
 def _twin_choice(c: dict, cands: list[dict], step: Step) -> dict:
     """Where the data cannot tell the chosen effect from a twin (fit/twins.py): the twins, why this
-    one was taken (the larger likelihood ratio only) and what would tell them apart (the step's kind
-    of data says), to say so rather than choose silently."""
+    one was taken (the larger likelihood ratio only, or the ranking's own choice on rows the fit does
+    not use: a turntable gyro's static rows, turntable/model_test.choose_twin) and what would tell
+    them apart (the step's kind of data says), to say so rather than choose silently."""
     if not c.get("twins"):
         return {}
+    if c.get("twin_choice"):
+        return {"twins": list(c["twins"]), "twin_choice": c["twin_choice"]}
     tw = next(x for x in cands if x["id"] == c["twins"][0])
     return {"twins": list(c["twins"]), "twin_choice": (
         f"{c['id']}, not its twin {tw['id']}, only for the larger likelihood ratio ({c['statistic']:.1f} against "

@@ -22,7 +22,7 @@ from simucal.fit.lack_of_fit import noise_dof, with_estimated_sigma
 from simucal.fit.norm_fit import fit_linear
 from simucal.io import calibration, units
 from simucal.turntable.consistency import handedness, latitude_check, static_gyro_rows
-from simucal.turntable.model_test import ROWS, rank, static_gyro_test, test_and_rank, with_static_rows
+from simucal.turntable.model_test import ROWS, AtRest, rank, test_and_rank, with_static_rows
 from simucal.turntable.observations import read_observations, table_accuracy_rad
 from simucal.turntable.tilt import add_tilt
 from simucal.turntable.unification import Unifier, unify, unify_paper
@@ -51,18 +51,19 @@ def _rate_run_acc_means(acc_obs, acc_segs, gyro_segs):
     return np.array(rows), acc_obs.N[k], acc_obs.sigma[k], acc_obs.aux.take(k)
 
 
-def _exact_sensor(model, obs, segs, method, where, ranked=True):
+def _exact_sensor(model, obs, segs, method, where, ranked=True, at_rest=None):
     """Fit and test one sensor by the one model test (model_test.py). Returns (fit, test block or
     None for the linear method, the effect to add when the model fails or None, the observations
     with the noise used). ranked False: no candidates ranked where the model fails (a thermal
-    calibration's plateau, whose temperature terms are fitted elsewhere)."""
+    calibration's plateau, whose temperature terms are fitted elsewhere); at_rest: model_test.rank's."""
     if method == "linear":
         if model.effects:
             raise CalibrationError("--add needs --method exact: the paper's linear regression exists for "
                                    "derived models only (or derive a model file with the term and use it)")
         return fit_linear(model, obs), None, None, obs
     try:
-        fit, obs2, base, cands, shape, _ = test_and_rank(model, obs, segs, only_if_failing=True, ranked=ranked)
+        fit, obs2, base, cands, shape, _ = test_and_rank(model, obs, segs, only_if_failing=True, ranked=ranked,
+                                                      at_rest=at_rest)
     except NotConverged as e:
         raise CalibrationError(f"{e}; or calibrate by the commanded attitudes alone, which needs no iteration "
                                "(--method multiposition: the Ferraris and multi-position protocols' method)") from None
@@ -87,6 +88,36 @@ def _noise_text(noise, obs, unit):
                   else ": none in the data or stated")
 
 
+def _tie(ms, acc, gm, fg, gyro_obs, gyro_segs, base_g):
+    """The exact unification of the frames (unification.unify): C_b^d, M in b, its std and the record."""
+    am, fa, acc_obs, acc_segs, base_a, acc_means = acc
+    un = Unifier(am, fa, acc_obs, gm, fg, gyro_obs, acc_means, noise_dof(base_a["noise"]), noise_dof(base_g["noise"]))
+    return unify(un, acc_segs, gyro_segs, _find, table_accuracy_rad(ms))
+
+
+def _at_rest(ms, acc, gm, fg, gyro_obs, gyro_noise_dph, C_b_d) -> AtRest | None:
+    """The gyro's static rows as a judge of its model (model_test.AtRest), or None where the set has none."""
+    rows, static_gyro = static_gyro_rows(ms, acc[3], gyro_noise_dph)
+    return AtRest(ms, acc[1].directions[rows], C_b_d, static_gyro, gm, gyro_obs, fg) if rows else None
+
+
+def _at_rest_factory(ms, acc, gyro_segs, gyro_noise_dph):
+    """at_rest(model, obs, fit, base) for the gyro's ranking (model_test.rank): its static rows with the
+    frames tied by this fit, or None where they cannot be (no accelerometer fit, no angles to pair)."""
+    fa, acc_segs, acc_means = acc[1], acc[3], acc[5]
+    if fa is None or (acc_means is None and any(s.middle_deg is None or s.inner_deg is None
+                                                for s in acc_segs + gyro_segs)):
+        return None
+
+    def at_rest(model, obs, fit, base):
+        try:
+            C_b_d = _tie(ms, acc, model, fit, obs, gyro_segs, base)[0]
+        except CalibrationError:
+            return None
+        return _at_rest(ms, acc, model, fit, obs, gyro_noise_dph, C_b_d)
+    return at_rest
+
+
 def _gyro_block(ms, method, cal, acc, gyro, gyro_noise_dph, static_probe=None) -> calibration.SensorBlock:
     """The gyro's block with M in b: the frame d tied to b by the exact unification (any model) or the
     paper's eq. 25-27 (linear, baseline models); in d where nothing ties them (no accelerometers, or
@@ -106,17 +137,15 @@ def _gyro_block(ms, method, cal, acc, gyro, gyro_noise_dph, static_probe=None) -
         return block
     std_M = None
     if method == "exact":
-        un = Unifier(am, fa, acc_obs, gm, fg, gyro_obs, acc_means, noise_dof(base_a["noise"]),
-                     noise_dof(base_g["noise"]))
-        C_b_d, M_b, std_M, info = unify(un, acc_segs, gyro_segs, _find, table_accuracy_rad(ms))
+        C_b_d, M_b, std_M, info = _tie(ms, acc, gm, fg, gyro_obs, gyro_segs, base_g)
         consistency = cal.details["consistency"]
         consistency["latitude"] = latitude_check(ms, fa, acc_segs, gm, fg, C_b_d, gyro_noise_dph)
         consistency["lines"].append("latitude: " + consistency["latitude"]["verdict"])
-        rows, static_gyro = static_gyro_rows(ms, acc_segs, gyro_noise_dph)
-        if rows:  # the gyro's test covers its rows at rest too
-            with_static_rows(base_g, static_gyro_test(ms, gm, fg, fa.directions[rows], C_b_d, static_gyro))
-            if static_probe:  # diagnose: the same rows with a term added (its twins judged at rest)
-                static_probe(lambda term: static_gyro_test(ms, gm, fg, fa.directions[rows], C_b_d, static_gyro, term))
+        judge = _at_rest(ms, acc, gm, fg, gyro_obs, gyro_noise_dph, C_b_d)
+        if judge is not None:  # the gyro's test covers its rows at rest too
+            with_static_rows(base_g, judge.test())
+            if static_probe:  # diagnose: the same rows judge its twins
+                static_probe(judge)
     else:
         if (am.name, gm.name) != ("acc_baseline", "gyro_baseline"):
             raise CalibrationError(f"the paper's frame unification (eq. 25-27) is derived for the baseline "
@@ -153,14 +182,10 @@ def calibrate_table(ms, method, acc_model, gyro_model, ids, acc_noise_g=None, gy
     am = AugmentedModel(acc_model, for_sensor(ids, "acc"))
     gm = AugmentedModel(gyro_model, for_sensor(ids, "gyro"))
     chosen = {}
-    if auto:
-        if acc_obs is not None:
-            chosen["acc"] = forward_selection(am, acc_obs, lambda *a: rank(*a, acc_segs)[:2])
-            am = chosen["acc"].model
-        if gyro_obs is not None:
-            chosen["gyro"] = forward_selection(gm, gyro_obs, lambda *a: rank(*a, gyro_segs)[:2])
-            gm = chosen["gyro"].model
-    fa = fg = None
+    if auto and acc_obs is not None:
+        chosen["acc"] = forward_selection(am, acc_obs, lambda *a: rank(*a, acc_segs)[:2])
+        am = chosen["acc"].model
+    fa = fg = base_a = None
     acc_read = acc_obs  # as read: _exact_sensor returns them with each row's sigma filled in
     if acc_obs is not None:
         fa, base_a, advice_a, acc_obs = _exact_sensor(am, acc_obs, acc_segs, method, str(ms.path), ranked)
@@ -168,13 +193,18 @@ def calibrate_table(ms, method, acc_model, gyro_model, ids, acc_noise_g=None, gy
         units.check_scale("acc", M, am.name)
         cal.acc = calibration.sensor_block(am, fa, M, b, base_a)
         cal.acc.details["advice"] = advice_a
+    acc = (am, fa, acc_obs, acc_segs, base_a,
+           _rate_run_acc_means(acc_read, acc_segs, gyro_segs) if fa is not None and method == "exact" else None)
+    # the gyro's twins chosen with its static rows too (model_test.choose_twin)
+    at_rest = _at_rest_factory(ms, acc, gyro_segs, gyro_noise_dph) if gyro_obs is not None and method == "exact" else None
+    if auto and gyro_obs is not None:
+        chosen["gyro"] = forward_selection(gm, gyro_obs, lambda *a: rank(*a, gyro_segs, at_rest)[:2])
+        gm = chosen["gyro"].model
     if gyro_obs is not None:
-        fg, base_g, advice_g, gyro_obs = _exact_sensor(gm, gyro_obs, gyro_segs, method, str(ms.path), ranked)
+        fg, base_g, advice_g, gyro_obs = _exact_sensor(gm, gyro_obs, gyro_segs, method, str(ms.path), ranked, at_rest)
     if method == "exact":
         cal.details["consistency"] = {"lines": handedness(ms, fa, acc_obs, acc_segs, fg, gyro_segs)}
     if gyro_obs is not None:
-        acc = (am, fa, acc_obs, acc_segs, base_a if fa is not None else None,
-               _rate_run_acc_means(acc_read, acc_segs, gyro_segs) if fa is not None and method == "exact" else None)
         cal.gyro = _gyro_block(ms, method, cal, acc, (gm, fg, gyro_obs, gyro_segs, base_g), gyro_noise_dph,
                                static_probe)
         if method == "exact":

@@ -9,7 +9,7 @@ from simucal.fit.lack_of_fit import twin_fits
 from simucal.fit.results import ALPHA
 from simucal.turntable.calibrate import calibrate_table
 from simucal.turntable.consistency import handedness_verdict, mirrored
-from simucal.turntable.model_test import ROWS, with_static_rows
+from simucal.turntable.model_test import ROWS, choose_twin, with_static_rows
 from simucal.turntable.observations import check_rate_sense, segment_observations
 
 
@@ -47,21 +47,23 @@ def finish(ms, result, settings) -> None:
 def _with_static_gyro_rows(ms, block, settings) -> None:
     """The gyro's test over its static rows too, as calibrate's (model_test.with_static_rows): they need
     the accelerometers' up and C_b^d, so calibrate's exact method gives them; where it refuses the set,
-    the rate runs' test stands (calibrate says why). Where the rate runs cannot tell the found term
-    from its twins, the static rows choose among them (_choose_twin)."""
-    fits, judged = block.pop("twin_fits", []), []
-    probe = (lambda test: judged.extend((tf, test(tf)) for tf in fits)) if fits else None
+    the rate runs' test stands (calibrate says why). Where the rate runs cannot tell the strongest
+    candidate, or the found generic term, from its twins, the static rows choose among them
+    (model_test.choose_twin, _choose_twin), as calibrate's advice and `--add auto` do."""
+    fits, judges = block.pop("twin_fits", []), []
     try:
-        gyro = calibrate_table(ms, "exact", *settings, static_probe=probe).gyro
+        gyro = calibrate_table(ms, "exact", *settings, static_probe=judges.append).gyro
     except CalibrationError:
         return
     if gyro is None or "static_rows" not in gyro.details:
         return
-    st = gyro.details["static_rows"]
-    with_static_rows(block["model_test"], st)
-    chose = _choose_twin(block, judged)
-    if chose:
-        block["twin_choice"] = chose  # report/verdicts.sensor_verdict appends it
+    with_static_rows(block["model_test"], gyro.details["static_rows"])
+    judge = judges[0]
+    choose_twin(block["candidates"], lambda: judge)
+    said = [c["twin_choice"] for c in block["candidates"][:1] if c.get("twin_choice")]
+    said += [_choose_twin(block, [(tf, judge.test(tf)) for tf in fits])]
+    if any(said):
+        block["twin_choice"] = "".join(f" {x.strip()}." for x in said if x)  # report/verdicts.sensor_verdict appends it
 
 
 def _choose_twin(block, judged) -> str:
@@ -76,8 +78,8 @@ def _choose_twin(block, judged) -> str:
     at_rest = {label(t["shape"]): {k: s[k] for k in ("chi2", "dof", "p_value")} for t, s in judged}
     block["shape"] = {**tf["shape"], "static_rows": at_rest}
     others = "; ".join(f"{k}: chi2 {v['chi2']:.1f}" for k, v in at_rest.items() if k != label(tf["shape"]))
-    said = (f" The rate runs cannot tell {label(tf['shape'])} from its twins; the static rows chose it (chi2 "
+    said = (f"The rate runs cannot tell {label(tf['shape'])} from its twins; the static rows chose it (chi2 "
             f"{st['chi2']:.1f} on {st['dof']} dof, p = {st['p_value']:.2g}, against {others})")
-    return said + ("." if st["p_value"] >= ALPHA else ", though none of them passes at rest.")
+    return said + ("" if st["p_value"] >= ALPHA else ", though none of them passes at rest")
 
 

@@ -16,13 +16,15 @@ from typing import NamedTuple
 
 import numpy as np
 
+from simucal.errors import CalibrationError
 from simucal.fit.apply import model_inputs
+from simucal.fit.augmented import AugmentedModel
 from simucal.fit.aux_inputs import specific_force
 from simucal.fit import family
 from simucal.fit.candidates import rank_candidates, shape_if_unexplained, test_model
 from simucal.fit.results import ALPHA, ModelTest
 from simucal.fit.distributions import chi2_sf
-from simucal.fit.norm_fit import Fit, Observations
+from simucal.fit.norm_fit import Fit, Observations, fit_exact
 from simucal.io import units
 from simucal.turntable.plan_design import TableAdvice
 
@@ -46,22 +48,25 @@ class Tested(NamedTuple):
     table: dict | None      # the table's own terms fitted (turntable/table_fit.py)
 
 
-def test_and_rank(model, obs, segs=None, only_if_failing=False, ranked=True) -> Tested:
+def test_and_rank(model, obs, segs=None, only_if_failing=False, ranked=True, at_rest=None) -> Tested:
     """The model tested and, unless only_if_failing and it passes or ranked is False, its candidates
     ranked (rank). segs: the turntable segments of obs's rows; None for a stream's static poses (no plan
-    to grow, no table angles)."""
+    to grow, no table angles); at_rest: rank's."""
     fit, obs, base = test_model(model, obs)
     if segs is not None:
         base["rows"] = rows_text(segs)
     if (only_if_failing and not ModelTest.of(base).fails) or not ranked:
         return Tested(fit, obs, base, [], None, None)
-    return Tested(fit, obs, base, *rank(model, obs, fit, base, segs))
+    return Tested(fit, obs, base, *rank(model, obs, fit, base, segs, at_rest))
 
 
-def rank(model, obs, fit, base, segs=None):
+def rank(model, obs, fit, base, segs=None, at_rest=None):
     """The ranked candidates, the generic shape where it explains more than they do (or None),
-    and the table's fit (or None)."""
+    and the table's fit (or None). at_rest(model, obs, fit, base) -> AtRest or None: a gyro's static
+    rows, which choose among twins the rate runs cannot tell apart (choose_twin)."""
     cands = rank_candidates(model, obs, fit, ModelTest.of(base).fails, advisor=TableAdvice() if segs is not None else None)
+    if at_rest is not None:
+        choose_twin(cands, lambda: at_rest(model, obs, fit, base))
     table_info = None
     if segs is not None:
         idx = [i for i, s in enumerate(segs) if s.kind == "static" and s.middle_deg is not None
@@ -127,6 +132,61 @@ def static_gyro_test(ms, gm, fg, u_b, C_b_d, static_gyro, term=None) -> dict:
                         + ("" if p_value >= ALPHA else ": the model misfits at rest what the rate runs cannot see "
                            "(e.g. a bias that follows a fixed direction in the local frame, as a magnetic field, "
                            "shows in rate-run means only as its vertical part, which a g-sensitivity absorbs)"))}
+
+
+class AtRest:
+    """A gyro model fitted on the rate runs, judged on the static rows (static_gyro_test): the rows
+    that tell apart the effects the rate runs cannot (issue 51, item 2). A g-sensitivity and its twin
+    in the rate-run means (another g-sensitivity, a scale asymmetry) read the same there; at rest only
+    the g-sensitivity reads G f. u_b: the accelerometers' up at the static rows (b), C_b_d: the frames'
+    tie, static_gyro: consistency.static_gyro_rows's (N, sigma, aux)."""
+
+    def __init__(self, ms, u_b, C_b_d, static_gyro, model, obs, fit):
+        self.ms, self.u_b, self.C_b_d, self.static_gyro = ms, u_b, C_b_d, static_gyro
+        self.model, self.obs, self.fit = model, obs, fit
+
+    def test(self, term=None) -> dict:
+        """The static rows' test of the model, or of it with a generic term (twin_fits's)."""
+        return static_gyro_test(self.ms, self.model, self.fit, self.u_b, self.C_b_d, self.static_gyro, term)
+
+    def with_effect(self, eid) -> dict:
+        """The static rows' test of the model with library effect eid added, refitted on the rate runs."""
+        model = AugmentedModel(self.model.base, self.model.effects + (eid,))
+        try:
+            fit = fit_exact(model, self.obs, p0=np.r_[self.fit.vector(self.model.params), 0.0])
+        except CalibrationError as e:
+            return {"verdict": f"not tested: the fit with {eid} failed: {e}"}
+        return static_gyro_test(self.ms, model, fit, self.u_b, self.C_b_d, self.static_gyro)
+
+
+def choose_twin(cands: list[dict], at_rest) -> None:
+    """Where the strongest significant candidate has twins that the rate runs cannot tell from it
+    (fit/twins.py), the one whose fit predicts the static rows best (lowest chi-square, all on the
+    same rows) leads the ranking, with its `at_rest` statistics and its `twin_choice` in words (which
+    rows decided): the ranking, calibrate's advice, diagnose's verdict and `--add auto` then take it.
+    at_rest() -> AtRest or None (built only here: it ties the frames)."""
+    lead = next((c for c in cands if c.get("significant")), None)
+    group = [lead] + [c for c in cands if c.get("significant") and c["id"] in lead.get("twins", ())] if lead else []
+    if len(group) < 2 or (judge := at_rest()) is None:
+        return
+    tested = {c["id"]: judge.with_effect(c["id"]) for c in group}
+    tested = {k: v for k, v in tested.items() if "chi2" in v}
+    if len(tested) < 2:
+        return
+    best = min(tested, key=lambda k: tested[k]["chi2"])
+    chosen = next(c for c in group if c["id"] == best)
+    st = tested[best]
+    others = "; ".join(f"{k} {v['chi2']:.1f}" for k, v in tested.items() if k != best)
+    rate = ", ".join(f"{c['statistic']:.1f}" for c in group)
+    chosen["at_rest"] = {k: {x: v[x] for x in ("chi2", "dof", "p_value")} for k, v in tested.items()}
+    chosen["twin_choice"] = (
+        f"{best}, not its twin{'s' if len(tested) > 2 else ''} {', '.join(k for k in tested if k != best)}: the rate "
+        f"runs cannot tell them apart (likelihood ratios {rate}); the {st['positions']} static positions chose it "
+        f"(chi2 {st['chi2']:.1f} on {st['dof']} dof, p = {st['p_value']:.2g}, against {others})"
+        + ("" if st["p_value"] >= ALPHA else ", though none of them passes at rest"))
+    at = cands.index(lead)
+    cands.remove(chosen)
+    cands.insert(at, chosen)
 
 
 def with_static_rows(base: dict, st: dict) -> None:
