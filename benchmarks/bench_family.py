@@ -32,7 +32,9 @@ KINDS = {
     "moves": ({"scenario": "handheld"}, {}, "gyro.g_sensitivity.xz", "gyro"),  # and its moves
     "sequence": ({"sequence": "psins19"}, {"method": "systematic"}, "acc.cross_coupling.xy", "acc"),
     # three wandering plateaus (0, 25, 50 degC) with a temperature term planted, calibrated --thermal
-    "thermal": ({"plan": "fibonacci24", "t_ref_c": 25.0, "temperature_wander_c": 0.3}, {}, "acc.quadratic.z", "acc"),
+    # (not acc.quadratic.z: its twin acc.scale_asymmetry.z correlates ~0.98 with it over these plateaus, so at 10 std the
+    # twin scored higher in 1 seed of 6, and the targeted record names the twin: a plan limit, not power)
+    "thermal": ({"plan": "fibonacci24", "t_ref_c": 25.0, "temperature_wander_c": 0.3}, {}, "acc.cross_coupling.xy", "acc"),
 }
 PILOT = {"acc.cross_coupling.xy": 1e-4, "acc.cross_coupling.yz": 1e-4, "gyro.g_sensitivity.xz": 1e-3,
          "acc.quadratic.z": 5e-5}

@@ -31,6 +31,7 @@ import numpy as np
 
 from simucal.fit.distributions import chi2_sf, f_sf
 from simucal.fit.results import ALPHA
+from simucal.fit.twins import twins
 from simucal.generated.effects import EFFECTS
 
 OMNIBUS_SHARE = 0.5  # the omnibus's share of ALPHA; the targeted tests share the rest (module doc)
@@ -56,16 +57,18 @@ def targeted(problem, ids, dof: int | None = None) -> dict:
     together (the residual projected on their columns: joint_statistic). dof: the residual's dof where its variance is estimated
     (the residual scale s2 != 1: an F test on dof - 1); None where s2 is a known scale or profiled out
     as the likelihood ratio does (chi-square on 1 dof of the statistic over s2). Returns {tested, strongest, statistic,
-    p_value, level[, joint_statistic]}; strongest None where nothing is separable."""
+    p_value, level[, joint_statistic][, twins]}; strongest None where nothing is separable; twins: where the
+    strongest is beyond its level, the candidates the data cannot tell from it (fit/twins.py)."""
     Q = problem.basis()
     r, s2 = problem.residual()
     rr, best = float(r @ r), None
-    n, stats = 0, []
+    n, stats, kept = 0, [], []
     for cid in ids:
         perp, share, _ = separable(Q, problem.column(cid))
         if share < COLLINEAR:
             continue
         n += 1
+        kept.append(cid)
         g2 = float(perp @ r) ** 2 / float(perp @ perp)
         if s2 == 1.0 or not dof or dof < 2:  # known noise, or a scale the LR profiles out (s2 given)
             stat = g2 / s2
@@ -78,6 +81,11 @@ def targeted(problem, ids, dof: int | None = None) -> dict:
             best = (cid, stat, p)
     out = {"tested": n, "strongest": best[0] if best else None, "statistic": best[1] if best else None,
            "p_value": best[2] if best else None, "level": candidate_level(n)}
+    if best is not None and best[2] < out["level"]:  # the strongest's twins: the data cannot say which it is
+        cols = {cid: perp / np.linalg.norm(perp) for cid, (_, _, perp) in zip(kept, stats)}
+        tw = twins(best[0], cols, r, s2)
+        if tw:
+            out["twins"] = tw
     beyond = [perp for _, p, perp in sorted(stats, key=lambda x: -x[0]) if p < out["level"]][:JOINT]
     if beyond:  # what the strongest candidates beyond their level explain together (outside_library asks)
         Qc = np.linalg.qr(np.column_stack(beyond))[0]

@@ -103,10 +103,17 @@ def _fit_lines(s, b: SensorBlock, source):
         yield (f"{s}: THE MODEL FAILS (p = {b.p_value:.2g} < {ALPHA:.0e}): ".replace("e-0", "e-")
                + ("the stated noise may be too small (the warning above); " if d.get("noise_too_small") else "")
                + (f"{what}; " if what and what.startswith("no library effect") else
-                  f"diagnose would add {what}; " if what else "the rows at rest misfit (above) by a term the rate runs "
+                  f"diagnose would add {what}{_twins_said(d, what)}; " if what else "the rows at rest misfit (above) by a term the rate runs "
                   "cannot see; " if (d.get("static_rows") or {}).get("p_value", 1.0) < ALPHA else
                   f"see simucal diagnose {source} for what is missing; ")
                + stds)
+
+
+def _twins_said(d: dict, what: str) -> str:
+    """' (or its twin X: ...)' where the model test's targeted tests name twins of the effect advised."""
+    t = d.get("targeted") or {}
+    return (f" (or its twin {', '.join(t['twins'])}: these data cannot tell them apart)"
+            if t.get("strongest") == what and t.get("twins") else "")
 
 
 def _determination_lines(s, b: SensorBlock):
