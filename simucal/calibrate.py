@@ -12,7 +12,7 @@ from __future__ import annotations
 import numpy as np
 
 from simucal import io, methods
-from simucal.errors import CalibrationError
+from simucal.errors import CalibrationError, SimucalError
 from simucal.fit.thermal import PLAUSIBLE_C, SPREAD_C
 from simucal.io import calibration, units
 from simucal.io.calibration import Calibration, EffectValue, SensorBlock
@@ -91,8 +91,8 @@ def calibrate_to_file(folder, output, kwargs: dict):
         result = calibrate(folder, **kwargs)
         calibration.save(output, result)
         return result, None
-    except (io.MeasurementSetError, CalibrationError, KeyError, FileNotFoundError, ValueError) as e:
-        return None, str(e.args[0] if isinstance(e, KeyError) and e.args else e)
+    except SimucalError as e:  # a refusal of this set; anything else is a bug, which stops the batch
+        return None, str(e)
 
 
 PLATEAU_SPREAD_C = SPREAD_C  # temperatures within this are one (a plateau's wander); plateaus or a ramp must span more
@@ -187,13 +187,10 @@ def _joint_block(obs, groups, first: SensorBlock, degree, labels, t_ref_c, plate
     gyro's, for the outer axis's tilt in its stds (turntable/tilt.py)."""
     from dataclasses import replace
 
-    from simucal.fit import family
-    from simucal.fit.augmented import AugmentedModel, effect_ids, follows_temperature
-    from simucal.fit.candidates import targeted
-    from simucal.fit.thermal_select import group_tests, select
+    from simucal.fit.thermal_auto import by_every_row, joint_test
+    from simucal.fit.thermal_select import group_tests
     from simucal.turntable.model_test import rows_text
-    base, auto = _twins_by_every_row(first, obs, groups, degree)
-    model, fit, how, obs = select(base, obs, groups, degree, dict(first.params))
+    base, model, fit, how, obs, auto = by_every_row(first, obs, groups, degree)
     own = _own_fits(base, obs, groups) if plateaus else None
     fits = {}
     for j, n in enumerate(base.params):
@@ -214,14 +211,11 @@ def _joint_block(obs, groups, first: SensorBlock, degree, labels, t_ref_c, plate
     thermal = {"t_ref_c": t_ref_c, "plateaus_c": T_g, "temperature_range_c": [float(T.min()), float(T.max())],
                "fit": "joint: every row at its own temp_c", "rows": rows_text(segs), "parameters": fits, "dropped": how["dropped"],
                "covariance": {"names": list(model.params), "matrix": fit.cov.tolist()}}
-    # the joint chi-square and the library's other effects' targeted tests: one family (fit/family.py)
-    test = {"p_value": fit.p_value, "test": "chi-square of every row at its own temperature"}
-    ids = [e for e in effect_ids(base.sensor) if e not in base.effects and not follows_temperature(e)]
-    family.fold(test, targeted(model, obs, fit, ids) if fit.chi2 is not None else None)
+    test = joint_test(base, model, obs, fit)
     details.update({k: test[k] for k in ("omnibus_p_value", "omnibus_test", "targeted") if k in test})
     if "verdict" in test.get("targeted", {}):  # a library effect beyond its test: the one to add
         details["advice"] = test["targeted"]["strongest"]
-    if auto:
+    if auto is not None:
         details["auto"] = auto
     effects = {e: EffectValue(fit.params[e], fit.std[e], u, m) for e, u, m in
                zip(base.effects, base.param_units[len(base.base.params):], base.meanings[len(base.base.params):])}
@@ -238,39 +232,6 @@ def _joint_block(obs, groups, first: SensorBlock, degree, labels, t_ref_c, plate
         for f in fits.values():
             f["std"] = [e * k for e in f["std"]]
     return block
-
-
-def _twins_by_every_row(first: SensorBlock, obs, groups, degree):
-    """The model of the joint fit (first's library effects), and first's `--add auto` steps, with each
-    effect that auto chose on the plateau nearest T_ref over a twin it could not tell from it there
-    (fit/twins.py) chosen again by every plateau's rows: the model whose joint fit has the lower
-    chi-square keeps its place (issue 51, item 2: on fibonacci24 plateaus acc.quadratic.z and
-    acc.scale_asymmetry.z read alike on one plateau, and auto took the wrong one in 1 seed of 5)."""
-    from simucal.fit.augmented import AugmentedModel
-    from simucal.fit.thermal_select import select
-    effects = first.library_effects()
-    steps = [dict(s) for s in first.details.get("auto") or []]
-    for s in steps:
-        if not s.get("twins") or obs.sigma is None or not np.all(np.isfinite(obs.sigma)):
-            continue
-        chi2 = {}
-        for e in [s["id"]] + [t for t in s["twins"] if t not in effects]:
-            trial = tuple(e if x == s["id"] else x for x in effects)
-            try:
-                chi2[e] = select(AugmentedModel(first.model, trial), obs, groups, degree, dict(first.params))[1].chi2
-            except CalibrationError:
-                continue
-        if len(chi2) < 2:
-            continue
-        best = min(chi2, key=chi2.get)
-        others = "; ".join(f"{k} {v:.1f}" for k, v in chi2.items() if k != best)
-        if best != s["id"]:
-            effects = tuple(best if x == s["id"] else x for x in effects)
-            s.update(id=best, twins=[s["id"]] + [t for t in s["twins"] if t != best])
-        s["twin_choice"] = (f"{best}, not its twin {', '.join(k for k in chi2 if k != best)}: the plateau nearest T_ref "
-                            f"cannot tell them apart; every plateau's rows chose it (joint chi2 {chi2[best]:.1f} "
-                            f"against {others})")
-    return AugmentedModel(first.model, effects), steps
 
 
 def _still_warmup(folders, degree, kwargs):

@@ -17,6 +17,7 @@ from pathlib import Path
 
 import numpy as np
 
+from simucal.errors import CalibrationError, InputError
 from simucal import derive_cmd, io, methods
 from simucal.calibrate import calibrate
 from simucal.diagnose import diagnose
@@ -56,7 +57,7 @@ def loop(out: Path, seed: int, echo) -> dict:
     found = [c["id"] for c in diag["acc"]["candidates"] if c.get("significant")][:1]
     echo(f"3 diagnose: {diag['acc']['verdict']}")
     if not found:
-        raise RuntimeError("the demo's hidden effect was not found: " + diag["acc"]["verdict"])
+        raise CalibrationError("the demo's hidden effect was not found: " + diag["acc"]["verdict"])
     fixed = calibrate(data, add=tuple(found))
     calibration.save(out / "loop_calibration_added.json", fixed)
     e = fixed.acc.effects[found[0]]
@@ -188,7 +189,7 @@ def run(out_dir, seed, echo) -> dict:
     out.mkdir(parents=True, exist_ok=True)
     stale, secs, diff = derive_cmd.run(check=True)
     if stale:
-        raise RuntimeError(diff + "generated/ is stale; run `simucal derive`. Differs: " + ", ".join(stale))
+        raise InputError(diff + "generated/ is stale; run `simucal derive`. Differs: " + ", ".join(stale))
     echo(f"derive: generated/ matches the derivation ({secs:.1f} s)")
     echo("== the loop: a hidden effect found, added, calibrated with, applied, validated ==")
     result = loop(out, seed, echo)

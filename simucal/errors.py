@@ -1,12 +1,27 @@
-"""The refusal every method raises when the data cannot give a trustworthy calibration.
+"""The refusals: one base, SimucalError, for everything the tool refuses because of what it was given.
 
-Its message says why and what to do; the command line prints it as one line (exit 2).
-Reading errors of the measurement-set spec are io.MeasurementSetError (file, line, rule);
-calibration files' are calibration.CalibrationFileError.
+Its message says why and what to do; the command line prints it as one line (exit 2), and anything
+else that escapes a command is a bug (exit 3, with the traceback: cli/common.py). Its kinds:
+- CalibrationError: the data cannot give a trustworthy calibration (every method);
+- InputError: an option or argument the tool cannot use (a simulation's scenario, a plan, a count);
+- io.MeasurementSetError: a set that breaks the measurement-set spec (file, line, rule);
+- io.calibration_checks.CalibrationFileError: a calibration file that cannot be read or does not fit;
+- fit.catalog.ModelFileError: a user's model file that cannot be derived (file, line);
+- io.outputs.OutputError: an output that would lose or corrupt a user's data;
+- io.importers.ImportError_: another tool's recording that cannot be imported.
+SimucalError subclasses ValueError, so code that caught ValueError before still catches a refusal.
 """
 
 
-class CalibrationError(ValueError):
+class SimucalError(ValueError):
+    """Something the tool was given that it refuses; the message says why and what to do."""
+
+
+class InputError(SimucalError):
+    """An option or argument the tool cannot use; the message names it and the fix."""
+
+
+class CalibrationError(SimucalError):
     """The data cannot give a trustworthy calibration; the message says why."""
 
     def naming(self, path) -> "CalibrationError":

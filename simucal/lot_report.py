@@ -26,6 +26,7 @@ import numpy as np
 
 from simucal.errors import CalibrationError
 from simucal.fit.distributions import chi2_sf
+from simucal.fit.results import ALPHA
 from simucal.io.calibration import Calibration, load
 from simucal.io.calibration_checks import SERIAL, CalibrationFileError
 from simucal.io.text_files import unique_keys
@@ -37,7 +38,7 @@ OUTLIER_P = 1e-3   # the chance that a unit of a normal lot is flagged at all (o
 MAD_TO_STD = 1.4826  # the median absolute deviation of a normal sample, times this, is its std
 MIN_UNITS = 20     # fewer units: no outlier test (said in the report): a median and MAD of 6 scatter too much
 SIMULATED_UNITS = 50_000  # units of normal lots simulated for the threshold: its 1e-3 tail holds 50
-DRIFT_P = 1e-3     # a drift whose joint chi^2 has a smaller p is reported as drifted (the model test's level)
+DRIFT_P = ALPHA    # a drift whose joint chi^2 has a smaller p is reported as drifted (the model test's level)
 
 
 def read_folder(folder) -> tuple[list[tuple[str, Calibration]], list[dict]]:

@@ -18,7 +18,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 from typing import Callable
 
-from simucal.errors import CalibrationError
+from simucal.errors import CalibrationError, InputError
 
 TURNTABLE, STREAM, FIELD, SEQUENCE = "turntable", "stream", "field", "sequence"
 DATA = {SEQUENCE: "a rotation sequence (segments.csv with move segments between rests, raw samples)",
@@ -262,7 +262,7 @@ def _simulate_table(seed, rate_hz, o):
         return simulate_table(sc, seed)
     from simucal.turntable.sequence import simulate_sequence
     if o["plan"] is not None or o["columns"] or o["temperature"] is not None:
-        raise ValueError("--sequence: the table turns through the sequence; --plan, --column and --temperature-c "
+        raise InputError("--sequence: the table turns through the sequence; --plan, --column and --temperature-c "
                          "describe a plan's positions: leave them out")
     return simulate_sequence(sc, o["sequence"], seed)
 

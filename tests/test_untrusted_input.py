@@ -396,3 +396,35 @@ def test_a_noise_file_without_a_sensor_says_whose_noise_is_used(raw, tmp_path):
     assert r.exit_code == 0, r.output
     assert "acc_only.json: holds no gyro curve, so the gyro noise is the data's own" in r.output
     assert any("holds no gyro curve" in w for w in json.loads((tmp_path / "c.json").read_text())["warnings"])
+
+
+def test_one_error_base_caught_in_one_place(tmp_path, monkeypatch):
+    """Issue 54, item 3: every refusal subclasses errors.SimucalError, which the command line alone catches
+    (exit 2, one line); anything else escaping a command is a bug: exit 3 with its traceback, even a KeyError
+    or a ValueError (until now a bug's KeyError exited 2 like a user's mistake); no command catches them
+    itself."""
+    import inspect
+    import pkgutil
+
+    import simucal
+    from simucal import api, cli
+    from simucal.errors import SimucalError
+    from simucal.fit.catalog import ModelFileError
+    from simucal.io import MeasurementSetError
+    from simucal.io.calibration_checks import CalibrationFileError
+    from simucal.io.importers import ImportError_
+    from simucal.io.outputs import OutputError
+    for cls in (MeasurementSetError, CalibrationFileError, ModelFileError, OutputError, ImportError_):
+        assert issubclass(cls, SimucalError), cls
+    for m in pkgutil.iter_modules(cli.__path__):
+        src = inspect.getsource(__import__(f"simucal.cli.{m.name}", fromlist=["x"]))
+        assert not re.search(r"except [^:]*(Error|Exception)[^:]* as e:\s*fail\(e\)", src), m.name  # a refusal's own handler
+    write(tmp_path / "s", Scenario(plan="table1"), 1)
+    refused(_run("simulate", "-o", tmp_path / "t", "--sequence", "nosuch"), "--sequence nosuch")  # an InputError
+    for bug in (KeyError("acc"), ValueError("shapes (3,) and (4,) not aligned")):
+        def broken(*a, bug=bug, **k):
+            raise bug
+        monkeypatch.setattr(api, "calibrate", broken)
+        r = _run("calibrate", tmp_path / "s", "-o", tmp_path / "c.json")
+        assert r.exit_code == 3 and "internal error" in r.stderr and "Traceback" in r.stderr, (r.exit_code, r.stderr)
+    assert simucal.calibrate is not broken  # the package's own name is untouched by the patch of the api module

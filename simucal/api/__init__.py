@@ -17,6 +17,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, NamedTuple, Sequence, Union
 
+from simucal.errors import InputError
 from simucal import io
 from simucal.api.analyses import Candidate, Diagnosis, Noise, Term, diagnose, noise, save_diagnosis
 from simucal.api.simulation import simulate
@@ -221,7 +222,7 @@ def _page(result: _file.Calibration | Validation | Diagnosis | Noise, calibratio
             from simucal.report.field_html import field_page
             return field_page(result, calibration_path)
         if not any(b.thermal is not None for _, b in result.blocks()):
-            raise ValueError("a page is a thermal or field calibration's (calibrate([plateaus...]) or method='field'): "
+            raise InputError("a page is a thermal or field calibration's (calibrate([plateaus...]) or method='field'): "
                              "save this calibration as .json; for one set's page use simucal.diagnose or "
                              "simucal.validate")
         from simucal.report.thermal_html import thermal_page

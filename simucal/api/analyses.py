@@ -8,6 +8,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import NamedTuple, Sequence, Union
 
+from simucal.errors import InputError
 from simucal import io
 from simucal.api.sets import as_set, effect_ids, folder_of
 from simucal.api.tables import TableOf
@@ -97,7 +98,7 @@ def diagnose(data: Data, *, add: str | Sequence[str] = (), acc_model: str = "acc
     from simucal.report.console import calibrate_refusal, next_adds, next_command
     add = effect_ids(add)
     if "auto" in add:
-        raise ValueError("add 'auto' is calibrate's: diagnose already ranks every candidate")
+        raise InputError("add 'auto' is calibrate's: diagnose already ranks every candidate")
     report = run(as_set(data), add, acc_model, gyro_model, acc_noise_g, gyro_noise_dph, timestamps)
     sensors = [s for s in ("acc", "gyro") if s in report]
     rows = [Candidate(c["id"].split(".")[0], c["id"], c.get("estimate"), c.get("std"), c.get("unit", ""),

@@ -5,6 +5,7 @@ from __future__ import annotations
 from pathlib import Path
 from typing import Any, Mapping, Sequence, Union
 
+from simucal.errors import InputError
 from simucal import methods
 from simucal.api.sets import MeasurementSet
 
@@ -37,16 +38,16 @@ def _span(v) -> str:
 def _refuse_unused(scenario: str, table_options: dict, effects, heading_accuracy_deg, unit_seed=None) -> None:
     """An option the scenario would not use is refused, naming it (Python name and the command's)."""
     if scenario == "paper" and unit_seed is not None:
-        raise ValueError(f"unit_seed (--unit-seed) {unit_seed}: the turntable unit is the scenario's at every seed; "
+        raise InputError(f"unit_seed (--unit-seed) {unit_seed}: the turntable unit is the scenario's at every seed; "
                          "the hand-placed and field scenarios draw theirs (--scenario handheld or field)")
     if scenario != "field" and heading_accuracy_deg is not None:
-        raise ValueError(f"heading_accuracy_deg (--heading-accuracy-deg) {heading_accuracy_deg:g}: the field "
+        raise InputError(f"heading_accuracy_deg (--heading-accuracy-deg) {heading_accuracy_deg:g}: the field "
                          f"scenario's north reference (--scenario field); a {scenario} test has none")
     given = {} if scenario == "paper" else {**table_options, "effects": effects if scenario == "field" else None}
     unused = [f"{k} ({TABLE_ONLY.get(k, '--effect')})" for k, v in given.items()
               if v is not None and v is not False and not (isinstance(v, (tuple, list, dict)) and not v)]
     if unused:
-        raise ValueError(f"{', '.join(unused)}: a turntable test's (--scenario paper); the {scenario} scenario takes "
+        raise InputError(f"{', '.join(unused)}: a turntable test's (--scenario paper); the {scenario} scenario takes "
                          + TAKES[scenario])
 
 
@@ -107,7 +108,7 @@ def simulate(scenario: str = "paper", *, seed: int = 0, rate_hz: float | None = 
     {'acc.quadratic.z': 0.0002}
     """
     if scenario not in SCENARIOS:
-        raise ValueError(f"scenario {scenario!r}: one of {', '.join(SCENARIOS)}")
+        raise InputError(f"scenario {scenario!r}: one of {', '.join(SCENARIOS)}")
     table_options = dict(sequence=sequence, plan=plan, position_error_arcmin=position_error_arcmin, acc_model=acc_model,
                          gyro_model=gyro_model, acc_unit=acc_unit, gyro_unit=gyro_unit, effect_file=effect_file,
                          sets=sets, columns=columns, temperature_c=temperature_c, t_ref_c=t_ref_c,

@@ -105,10 +105,7 @@ def calibrate(data_dirs, output, thermal, thermal_degree, html_out, px4, ardupil
     if len(data_dirs) == 1:
         from simucal import api
         guard(inputs, files=[output])
-        try:
-            result = api.calibrate(data_dirs[0], **kwargs)
-        except (ValueError, KeyError, FileNotFoundError) as e:  # MeasurementSetError, CalibrationError
-            fail(e)
+        result = api.calibrate(data_dirs[0], **kwargs)
         api.save(output, result)
         from simucal.report.console import calibration_lines
         for line in calibration_lines(result):
@@ -122,7 +119,7 @@ def _calibrate_batch(data_dirs, output, kwargs, inputs, scheduler):
     """Several sets, one by one (on a scheduler): one <set>.json each into the folder -o."""
     from simucal import progress
     from simucal.calibrate import calibrate_to_file
-    from simucal.errors import CalibrationError
+    from simucal.errors import SimucalError
     from simucal.sweeps import map_tasks
     out = Path(output)
     names = [Path(d).resolve().name for d in data_dirs]
@@ -137,7 +134,7 @@ def _calibrate_batch(data_dirs, output, kwargs, inputs, scheduler):
     out.mkdir(exist_ok=True)
     try:
         done = map_tasks(calibrate_to_file, tasks, scheduler, progress=progress.bar("calibrate", "set"))
-    except CalibrationError as e:  # no scheduler: leave nothing behind
+    except SimucalError as e:  # no scheduler: leave nothing behind
         if made:
             out.rmdir()
         fail(e)
@@ -161,11 +158,8 @@ def _calibrate_thermal(data_dirs, output, degree, t_ref_c, kwargs, inputs, html_
     from simucal import api
     from simucal.io import autopilot
     guard(inputs, files={"-o": output, "--html": html_out, "--px4": autopilot_out[0], "--ardupilot": autopilot_out[1]})
-    try:
-        result = api.calibrate([Path(d) for d in data_dirs], degree=degree, t_ref_c=t_ref_c, **kwargs)
-        exported = _autopilot_files(result, data_dirs, *autopilot_out)
-    except (ValueError, KeyError, FileNotFoundError) as e:  # CalibrationError, MeasurementSetError
-        fail(e)
+    result = api.calibrate([Path(d) for d in data_dirs], degree=degree, t_ref_c=t_ref_c, **kwargs)
+    exported = _autopilot_files(result, data_dirs, *autopilot_out)
     api.save(output, result)
     from simucal.report.console import calibration_lines
     for line in calibration_lines(result):
@@ -205,10 +199,7 @@ def field_drift(data_dir, output, html_path, plot, heading_accuracy_deg):
     guard([data_dir], files={"-o": output, "--html": html_path, "--plot": plot})
     if plot:  # after the refusals, which are one line
         click.echo("warning: --plot is deprecated: --html PAGE writes Fig. 4 in a page with the calibration", err=True)
-    try:
-        result = api.calibrate(data_dir, method="field", heading_accuracy_deg=heading_accuracy_deg)
-    except (ValueError, KeyError, FileNotFoundError) as e:  # MeasurementSetError, CalibrationError
-        fail(e)
+    result = api.calibrate(data_dir, method="field", heading_accuracy_deg=heading_accuracy_deg)
     api.save(output, result)
     if html_path:
         api.save(html_path, result, calibration_path=output)
@@ -258,11 +249,8 @@ def diagnose(data_dir, output, html_path, add, acc_model, gyro_model, acc_noise_
     guard([data_dir] + [a for a in add if a.endswith(".py")],
            files={"-o": output, "--html": html_path, "the acc model file it may write": shape_model_path(output, "acc"),
                   "the gyro model file it may write": shape_model_path(output, "gyro")})
-    try:
-        result = api.diagnose(data_dir, add=add, acc_model=acc_model, gyro_model=gyro_model, acc_noise_g=acc_noise_g,
-                              gyro_noise_dph=gyro_noise_dph, timestamps=timestamps)
-    except (ValueError, KeyError, FileNotFoundError) as e:  # MeasurementSetError, CalibrationError
-        fail(e)
+    result = api.diagnose(data_dir, add=add, acc_model=acc_model, gyro_model=gyro_model, acc_noise_g=acc_noise_g,
+                          gyro_noise_dph=gyro_noise_dph, timestamps=timestamps)
     for path in (output, html_path):
         if path:
             api.save(path, result)

@@ -5,15 +5,18 @@ from __future__ import annotations
 import math
 import os
 import sys
+import traceback
 import warnings
 from pathlib import Path
 
 import click
 
+from simucal.errors import InputError, SimucalError
+
 
 class _Commands(click.Group):
-    """Every refusal is one line (fail, exit 2). Anything else escaping a command is a bug:
-    one line too, exit 3, and the traceback with SIMUCAL_DEBUG=1."""
+    """Every refusal (errors.SimucalError, or an OSError on a named file) is one line (fail, exit 2).
+    Anything else escaping a command is a bug: its traceback and one line, exit 3 (_bug)."""
 
     def invoke(self, ctx):
         warnings.simplefilter("ignore", RuntimeWarning)  # numpy's, printed before a clear error otherwise
@@ -31,16 +34,25 @@ class _Commands(click.Group):
         except BrokenPipeError:  # the reader went away (| head): not an error of ours or the user's
             sys.stdout = open(os.devnull, "w")
             sys.exit(141)
+        except SimucalError as e:  # every refusal (errors.py), caught here alone
+            fail(e)
+        except OSError as e:
+            if e.filename is None:
+                _bug(e)
+            fail(f"{e.filename}: {e.strerror or e}")  # the user's file system: a file missing, unreadable, full
         except Exception as e:
-            from simucal.errors import CalibrationError
-            from simucal.io import MeasurementSetError
-            if isinstance(e, (CalibrationError, MeasurementSetError)):  # a refusal that reached the top
-                fail(e)
-            if os.environ.get("SIMUCAL_DEBUG"):
-                raise
-            click.echo(f"error: internal error ({type(e).__name__}: {_short(str(e))}); this is a bug in simucal: please report it "
-                       "with the command and the data (SIMUCAL_DEBUG=1 shows the traceback)", err=True)
-            sys.exit(3)
+            _bug(e)
+
+
+def _bug(e: Exception):
+    """Anything else that escapes a command: a bug in simucal, exit 3 with its traceback (re-raised
+    whole where SIMUCAL_DEBUG is set)."""
+    if os.environ.get("SIMUCAL_DEBUG"):
+        raise e
+    traceback.print_exception(e, file=sys.stderr)
+    click.echo(f"error: internal error ({type(e).__name__}: {_short(str(e))}); this is a bug in simucal: please report it "
+               "with the command, the data and the traceback above", err=True)
+    sys.exit(3)
 
 
 def _one_line(message, category, filename, lineno, line=None, _python=warnings.formatwarning):
@@ -149,9 +161,9 @@ def rates_dps(text: str) -> list[float]:
     try:
         rates = [float(x) for x in text.split(",")]
     except ValueError:
-        raise ValueError(f"--rates-dps {text}: write rates in deg/s separated by commas, e.g. 10,-10") from None
+        raise InputError(f"--rates-dps {text}: write rates in deg/s separated by commas, e.g. 10,-10") from None
     if not all(0 < abs(r) <= 2000 for r in rates):  # NaN fails too
-        raise ValueError(f"--rates-dps {text}: a rate run needs a non-zero rate within 2000 deg/s")
+        raise InputError(f"--rates-dps {text}: a rate run needs a non-zero rate within 2000 deg/s")
     return rates
 
 
@@ -182,11 +194,8 @@ def guard(inputs=(), files=(), sets=(), folders=(), force=False, together=True):
     so nothing is lost. together: the outputs are written all or none, when the command ends (the
     demo, which reads what it wrote, writes each at once)."""
     from simucal.io import cache, outputs
-    try:
-        outputs.check(inputs, files, sets, folders, force)
-        cache.check_outside(inputs)
-    except outputs.OutputError as e:
-        fail(e)
+    outputs.check(inputs, files, sets, folders, force)
+    cache.check_outside(inputs)
     page = files.get("--html") if isinstance(files, dict) else None
     if page and Path(page).suffix.lower() not in (".html", ".htm"):  # a browser opens a page by its name
         fail(f"--html {page}: a page is HTML; end its name in .html (e.g. {Path(page).with_suffix('.html')})")

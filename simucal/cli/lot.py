@@ -3,7 +3,7 @@ from __future__ import annotations
 
 import click
 
-from simucal.cli.common import InputPath, fail, guard, main
+from simucal.cli.common import InputPath, guard, main
 
 
 @main.command()
@@ -21,14 +21,10 @@ def lot(cal_folder, output, html_path, limits_path):
     and why (model test, spec limits), outliers, each parameter's spread, drift between calibrations of one unit."""
     import json
 
-    from simucal.errors import CalibrationError
     from simucal.io import outputs
     from simucal.lot_report import lot as run
     guard([cal_folder] + ([limits_path] if limits_path else []), files={"-o": output, "--html": html_path})
-    try:
-        report = run(cal_folder, limits_path)
-    except (CalibrationError, OSError) as e:
-        fail(e)
+    report = run(cal_folder, limits_path)
     outputs.write_text(output, json.dumps(report, indent=1) + "\n")
     if html_path:
         from simucal.report.lot_html import lot_page

@@ -104,15 +104,12 @@ def simulate(out_dir, output, scenario, heading_error_deg, seed, unit_seed, plan
         fail("no output folder: give -o FOLDER")
     guard([p if p and Path(p).exists() else None for p in (plan, sequence)] + [effect_file], sets=[out_dir],
           force=force)
-    try:
-        ms = api.simulate(scenario, seed=seed, rate_hz=rate_hz, plan=plan, effects=effects,
-                          position_error_arcmin=position_error_arcmin, acc_model=acc_model, gyro_model=gyro_model,
-                          acc_unit=acc_unit, gyro_unit=gyro_unit, effect_file=effect_file, sets=sets, columns=columns,
-                          temperature_c=temperature_c, t_ref_c=t_ref_c, temperature_wander_c=temperature_wander_c,
-                          noise_stated=not no_noise_stated, heading_accuracy_deg=heading_error_deg,
-                          sequence=sequence, unit_seed=unit_seed)
-    except (ValueError, KeyError, FileNotFoundError, SyntaxError) as e:
-        fail(e)
+    ms = api.simulate(scenario, seed=seed, rate_hz=rate_hz, plan=plan, effects=effects,
+                      position_error_arcmin=position_error_arcmin, acc_model=acc_model, gyro_model=gyro_model,
+                      acc_unit=acc_unit, gyro_unit=gyro_unit, effect_file=effect_file, sets=sets, columns=columns,
+                      temperature_c=temperature_c, t_ref_c=t_ref_c, temperature_wander_c=temperature_wander_c,
+                      noise_stated=not no_noise_stated, heading_accuracy_deg=heading_error_deg,
+                      sequence=sequence, unit_seed=unit_seed)
     ms.write(out_dir, force=force)
     click.echo(f"wrote {out_dir} ({scenario} scenario, seed {seed}"
                + (f", the unit of seed {unit_seed})" if unit_seed is not None else ")"))
@@ -157,35 +154,32 @@ def import_cmd(fmt, sources, out_dir, latitude_deg, acc_counts_per_g, gyro_count
     folders = [s for s in sources if Path(s).is_dir()]
     if folders and fmt != "rosbag":
         fail(f"{folders[0]}: is a folder; {fmt} reads files (a ROS 2 bag is a folder: import rosbag)")
-    try:
-        if fmt in ("ulog", "dataflash", "rosbag"):
-            from simucal.io.logs import import_log
-            if len(sources) != 1:
-                raise im.ImportError_(f"{fmt} reads one log: give one file (a ROS 2 bag: its folder)")
-            import_log(fmt, sources[0], out_dir, latitude_deg, int(instance), topic)
-        elif fmt == "imu_tk":
-            if len(sources) != 2 or not acc_counts_per_g or not gyro_counts_per_dps:
-                raise im.ImportError_("imu_tk needs ACC_FILE GYRO_FILE, --acc-counts-per-g and --gyro-counts-per-dps")
-            im.import_imu_tk(sources[0], sources[1], out_dir, acc_counts_per_g, gyro_counts_per_dps, latitude_deg,
-                             gravity_mps2)
-        elif fmt == "imucal-ferraris":
-            if len(sources) == 2:  # with the section list: poses and turns as segments
-                im.import_ferraris_sections(sources[0], sources[1], out_dir, rate_hz or FERRARIS_HZ, latitude_deg, turn_deg)
-            else:  # a continuous stream: poses found by static detection
-                im.import_ferraris(sources[0], out_dir, rate_hz or FERRARIS_HZ, latitude_deg)
-        elif fmt == "imucal-annotated":
-            im.import_imucal_annotated(sources[0], out_dir, rate_hz or ANNOTATED_HZ, acc_counts_per_g or ANNOTATED_ACC,
-                                       gyro_counts_per_dps or ANNOTATED_GYRO, latitude_deg, turn_deg)
-        else:
-            if not columns:
-                raise im.ImportError_("csv needs --columns (and --acc-unit, --gyro-unit for the triads it maps)")
-            cmap = im.parse_columns(columns)
-            for triad, unit, option in (("ax", acc_unit, "--acc-unit"), ("gx", gyro_unit, "--gyro-unit")):
-                if triad in cmap and not unit:
-                    raise im.ImportError_(f"csv: --columns maps {triad}, so give {option}")
-            im.import_csv(sources[0], out_dir, cmap, acc_unit, gyro_unit, rate_hz, latitude_deg)
-    except im.ImportError_ as e:
-        fail(e)
+    if fmt in ("ulog", "dataflash", "rosbag"):
+        from simucal.io.logs import import_log
+        if len(sources) != 1:
+            raise im.ImportError_(f"{fmt} reads one log: give one file (a ROS 2 bag: its folder)")
+        import_log(fmt, sources[0], out_dir, latitude_deg, int(instance), topic)
+    elif fmt == "imu_tk":
+        if len(sources) != 2 or not acc_counts_per_g or not gyro_counts_per_dps:
+            raise im.ImportError_("imu_tk needs ACC_FILE GYRO_FILE, --acc-counts-per-g and --gyro-counts-per-dps")
+        im.import_imu_tk(sources[0], sources[1], out_dir, acc_counts_per_g, gyro_counts_per_dps, latitude_deg,
+                         gravity_mps2)
+    elif fmt == "imucal-ferraris":
+        if len(sources) == 2:  # with the section list: poses and turns as segments
+            im.import_ferraris_sections(sources[0], sources[1], out_dir, rate_hz or FERRARIS_HZ, latitude_deg, turn_deg)
+        else:  # a continuous stream: poses found by static detection
+            im.import_ferraris(sources[0], out_dir, rate_hz or FERRARIS_HZ, latitude_deg)
+    elif fmt == "imucal-annotated":
+        im.import_imucal_annotated(sources[0], out_dir, rate_hz or ANNOTATED_HZ, acc_counts_per_g or ANNOTATED_ACC,
+                                   gyro_counts_per_dps or ANNOTATED_GYRO, latitude_deg, turn_deg)
+    else:
+        if not columns:
+            raise im.ImportError_("csv needs --columns (and --acc-unit, --gyro-unit for the triads it maps)")
+        cmap = im.parse_columns(columns)
+        for triad, unit, option in (("ax", acc_unit, "--acc-unit"), ("gx", gyro_unit, "--gyro-unit")):
+            if triad in cmap and not unit:
+                raise im.ImportError_(f"csv: --columns maps {triad}, so give {option}")
+        im.import_csv(sources[0], out_dir, cmap, acc_unit, gyro_unit, rate_hz, latitude_deg)
     click.echo(f"wrote {out_dir}")
 
 
@@ -201,11 +195,8 @@ def apply_cmd(calibration_file, data_dir, out_dir, force):
     from simucal.fit.apply import apply
     from simucal.io import calibration
     guard([calibration_file, data_dir], sets=[out_dir], force=force)
-    try:
-        cal = calibration.load(calibration_file)
-        meta, samples, segments = apply(cal, Path(data_dir), calibration_file)
-    except (ValueError, KeyError) as e:  # MeasurementSetError, CalibrationError, CalibrationFileError
-        fail(e)
+    cal = calibration.load(calibration_file)
+    meta, samples, segments = apply(cal, Path(data_dir), calibration_file)
     io.write_set(out_dir, meta, samples, segments)
     for line in meta.get("warnings", []):
         click.echo(f"WARNING: {line}")
@@ -231,11 +222,8 @@ def validate(calibration_file, data_dir, output, html_path, acc_noise_g, gyro_no
     from simucal import api
     from simucal.validate import lines
     guard([calibration_file, data_dir], files={"-o": output, "--html": html_path})
-    try:
-        result = api.validate(calibration_file, data_dir, acc_noise_g=acc_noise_g, gyro_noise_dph=gyro_noise_dph,
-                              timestamps=timestamps)
-    except ValueError as e:  # MeasurementSetError, CalibrationError, CalibrationFileError
-        fail(e)
+    result = api.validate(calibration_file, data_dir, acc_noise_g=acc_noise_g, gyro_noise_dph=gyro_noise_dph,
+                          timestamps=timestamps)
     _save(result, output, html_path)
     for line in lines(result.report):
         click.echo(line)
@@ -272,17 +260,13 @@ def noise(data_dir, output, html_path, kalibr_path, tau_max_s, scheduler, topic)
     """Allan deviation of a still recording (a measurement set, or a ROS bag) and its IEEE 952 noise terms (ARW,
     bias instability, ...); a stream is read a chunk at a time. The Python API's simucal.noise(DATA)."""
     from simucal import allan, api
-    from simucal.errors import CalibrationError
-    from simucal.io import MeasurementSetError, importers, logs, outputs
+    from simucal.io import logs, outputs
     guard([data_dir], files={"-o": output, "--html": html_path, "--kalibr": kalibr_path})
-    try:
-        data = data_dir
-        if logs.is_rosbag(data_dir) or topic:
-            data = logs.bag_as_set(data_dir, topic)
-        result = api.noise(data, tau_max_s=tau_max_s, scheduler=scheduler)
-        yaml = result.kalibr_yaml() if kalibr_path else None  # refused before anything is written
-    except (MeasurementSetError, CalibrationError, importers.ImportError_) as e:
-        fail(e)
+    data = data_dir
+    if logs.is_rosbag(data_dir) or topic:
+        data = logs.bag_as_set(data_dir, topic)
+    result = api.noise(data, tau_max_s=tau_max_s, scheduler=scheduler)
+    yaml = result.kalibr_yaml() if kalibr_path else None  # refused before anything is written
     _save(result, output, html_path)
     if kalibr_path:
         outputs.write_text(kalibr_path, yaml)
@@ -301,10 +285,7 @@ def noise(data_dir, output, html_path, kalibr_path, tau_max_s, scheduler, topic)
 def convert(data_dir, output, to, force):
     """Copy a measurement set with its samples as samples.parquet or samples.csv, read and written a chunk at a time
     (every row checked as it is read); the input is never changed."""
-    from simucal.io import MeasurementSetError, columnar
+    from simucal.io import columnar
     guard([data_dir], sets=[output], force=force)
-    try:
-        path, rows = columnar.convert(data_dir, output, to)
-    except MeasurementSetError as e:
-        fail(e)
+    path, rows = columnar.convert(data_dir, output, to)
     click.echo(f"wrote {path}: {rows} rows")

@@ -6,6 +6,7 @@ from pathlib import Path
 
 import click
 
+from simucal.errors import InputError
 from simucal.cli.common import (
     EFFECT_FILE,
     FORCE,
@@ -39,10 +40,7 @@ def derive(check, model_files):
     if model_files:
         from simucal.fit.catalog import derive_model_file
         for f in model_files:
-            try:
-                names, _ = derive_model_file(f)
-            except (FileNotFoundError, ValueError, SyntaxError) as e:
-                fail(e)
+            names, _ = derive_model_file(f)
             click.echo(f"derived {', '.join(names)} from {f} into the cache")
         return
     stale, secs, diff = derive_cmd.run(check=check)
@@ -86,10 +84,7 @@ def demo(out_dir, seed, force):
     out = Path(out_dir)  # its sets may be replaced where an earlier demo wrote them (its demo.json)
     guard(sets=[out] + [out / d for d in demo_mod.SETS], force=force or (out / demo_mod.MARKER).is_file(),
           together=False)  # it reads the sets it writes
-    try:
-        demo_mod.run(out_dir, seed, click.echo)
-    except RuntimeError as e:
-        fail(e)
+    demo_mod.run(out_dir, seed, click.echo)
 
 
 @main.command()
@@ -130,14 +125,11 @@ def montecarlo(scenario, plan, trials, seed, effects, effect_file, sets, rates, 
     sc = SCENARIOS[scenario]()
     if plan:
         sc.plan = plan
-    try:
-        if rates:
-            sc.outer_rate_dps = tuple(rates_dps(rates))
-        plant(sc, effects, effect_file, sets, writes_columns=False)  # its averaged rows have no columns
-        result = run(sc, trials, seed, scheduler=scheduler,
-                     progress=progress.bar("montecarlo", "batch"))
-    except (ValueError, KeyError, FileNotFoundError) as e:
-        fail(e)
+    if rates:
+        sc.outer_rate_dps = tuple(rates_dps(rates))
+    plant(sc, effects, effect_file, sets, writes_columns=False)  # its averaged rows have no columns
+    result = run(sc, trials, seed, scheduler=scheduler,
+                 progress=progress.bar("montecarlo", "batch"))
     outputs.write_text(output, json.dumps(result, indent=1) + "\n")
     backend = "; ".join(f"{s} {b}" for s, b in result["backend"].items())
     click.echo(f"{trials} trials in {result['seconds']:.2f} s ({result['trials_per_s']:.0f}/s; {backend}; "
@@ -163,7 +155,7 @@ def _plan_scores(model, score_plan, positions, criterion, rates, sigma):
     gyro = model.sensor == "gyro"
     rate_list = rates_dps(rates) if rates else [PAPER_RATE_DPS]
     if gyro and score_plan is not None and len(rate_list) > 1:
-        raise ValueError(f"--rates-dps {rates}: a score takes one rate (its rate runs'); a design (--positions N) "
+        raise InputError(f"--rates-dps {rates}: a score takes one rate (its rate runs'); a design (--positions N) "
                          "chooses among several")
     rho = abs(rate_list[0]) * DPH_PER_DPS if gyro else 1.0
     if score_plan is not None:
@@ -183,15 +175,15 @@ def _separation(model, pair, sizes, score_plan, u, rho, sigma, target):
     from simucal.io.calibration_checks import PARAM_LIMIT
     from simucal.turntable.plan_design import separate
     if score_plan is None or not sizes:
-        raise ValueError("--separate needs --score PLAN (the plan you have) and --sizes Q1,Q2")
+        raise InputError("--separate needs --score PLAN (the plan you have) and --sizes Q1,Q2")
     ids = [x.strip() for x in pair.split(",")]
     q = [float(x) for x in sizes.split(",")]
     if len(ids) != 2 or len(q) != 2:
-        raise ValueError("--separate ID1,ID2 and --sizes Q1,Q2: two of each")
+        raise InputError("--separate ID1,ID2 and --sizes Q1,Q2: two of each")
     if ids[0] == ids[1]:
-        raise ValueError(f"--separate {pair}: an effect cannot be told from itself; name two different effects")
+        raise InputError(f"--separate {pair}: an effect cannot be told from itself; name two different effects")
     if not all(np.isfinite(x) and 0 < abs(x) <= PARAM_LIMIT for x in q):
-        raise ValueError(f"--sizes {sizes}: each size must be a finite, non-zero number (the effect's expected "
+        raise InputError(f"--sizes {sizes}: each size must be a finite, non-zero number (the effect's expected "
                          f"value, in its unit) of at most {PARAM_LIMIT:g}")
     for e in ids:
         check_effect(e, model.sensor)
@@ -254,26 +246,22 @@ def _plan_sequence(sequence, model_name, add, score_plan, rates, acc_noise_g, gy
     import numpy as np
 
     from simucal import api
-    from simucal.errors import CalibrationError
     from simucal.fit.augmented import AugmentedModel, for_sensor
     from simucal.io import outputs
     from simucal.systematic.observability import observability
     guard([sequence if Path(sequence).exists() else None, score_plan if score_plan and Path(score_plan).exists() else None],
           files={"-o": output} if output else {})
     plan_name = score_plan or "table1"
-    try:
-        models = {"acc": "acc_baseline", "gyro": "gyro_baseline", AugmentedModel(model_name).sensor: model_name}
-        ms = api.simulate(sequence=sequence, seed=0)
-        obs = observability(ms, models["acc"], models["gyro"], tuple(add))
-        n = obs["noise_per_sample"]
-        # the same unit held as long at each position as at each of the sequence's rests (its median)
-        rest_n = float(np.median([len(ms.rows(s.segment)) for s in ms.segments if s.kind == "static"]))
-        noise = {"acc": acc_noise_g or max(n["acc_g"]) / rest_n ** 0.5, "gyro": gyro_noise_dph or max(n["gyro_dph"])
-                 / rest_n ** 0.5}
-        crlb = {s: _plan_scores(AugmentedModel(models[s], for_sensor(add, s)), plan_name, None, "D", rates, noise[s])[3]
-                for s in ("acc", "gyro")}
-    except (ValueError, KeyError, CalibrationError, FileNotFoundError) as e:
-        fail(e)
+    models = {"acc": "acc_baseline", "gyro": "gyro_baseline", AugmentedModel(model_name).sensor: model_name}
+    ms = api.simulate(sequence=sequence, seed=0)
+    obs = observability(ms, models["acc"], models["gyro"], tuple(add))
+    n = obs["noise_per_sample"]
+    # the same unit held as long at each position as at each of the sequence's rests (its median)
+    rest_n = float(np.median([len(ms.rows(s.segment)) for s in ms.segments if s.kind == "static"]))
+    noise = {"acc": acc_noise_g or max(n["acc_g"]) / rest_n ** 0.5, "gyro": gyro_noise_dph or max(n["gyro_dph"])
+             / rest_n ** 0.5}
+    crlb = {s: _plan_scores(AugmentedModel(models[s], for_sensor(add, s)), plan_name, None, "D", rates, noise[s])[3]
+            for s in ("acc", "gyro")}
     click.echo(f"sequence {ms.truth['sequence']['name']}: {models['acc']} and {models['gyro']}"
                + "".join(f" + {a}" for a in add) + f", one pass of the linearised filter ({obs['updates']} zero-velocity "
                f"updates; the default unit simulated, noise {max(n['acc_g']):.2g} g and {max(n['gyro_dph']):.2g} deg/h per "
@@ -346,7 +334,6 @@ def plan(score_plan, model_name, add, positions, criterion, rate_dps, rates, kin
 
     import numpy as np
 
-    from simucal.errors import CalibrationError
     from simucal.fit.augmented import AugmentedModel
     from simucal.io import outputs
     from simucal.io.units import DPH_PER_DPS
@@ -363,22 +350,19 @@ def plan(score_plan, model_name, add, positions, criterion, rate_dps, rates, kin
                                       if positions is not None else {})})
     elif positions is not None:
         guard(files=["plan.csv", "plan.json"])
-    try:
-        model = AugmentedModel(model_name, tuple(add))
-        gyro = model.sensor == "gyro"
-        wrong = acc_noise_g if gyro else gyro_noise_dph
-        if wrong is not None:
-            raise ValueError(f"{'--acc-noise-g' if gyro else '--gyro-noise-dph'} {wrong:g}: model {model.name} is a "
-                             f"{model.sensor} model; give {'--gyro-noise-dph' if gyro else '--acc-noise-g'}")
-        sigma = sigma or ((gyro_noise_dph or 0.01) if gyro else (acc_noise_g or 1e-5))
-        if not gyro:
-            refuse_unused({"rate_dps": "gyro models (rate runs)", "rates": "gyro models (rate runs)"})
-        name, u, rho, result = _plan_scores(model, score_plan, positions, criterion,
-                                            rates or (None if rate_dps is None else repr(rate_dps)), sigma)
-        if pair:
-            result["separation"] = _separation(model, pair, sizes, score_plan, u, rho, sigma, target)
-    except (ValueError, KeyError, CalibrationError, FileNotFoundError) as e:
-        fail(e)
+    model = AugmentedModel(model_name, tuple(add))
+    gyro = model.sensor == "gyro"
+    wrong = acc_noise_g if gyro else gyro_noise_dph
+    if wrong is not None:
+        raise InputError(f"{'--acc-noise-g' if gyro else '--gyro-noise-dph'} {wrong:g}: model {model.name} is a "
+                         f"{model.sensor} model; give {'--gyro-noise-dph' if gyro else '--acc-noise-g'}")
+    sigma = sigma or ((gyro_noise_dph or 0.01) if gyro else (acc_noise_g or 1e-5))
+    if not gyro:
+        refuse_unused({"rate_dps": "gyro models (rate runs)", "rates": "gyro models (rate runs)"})
+    name, u, rho, result = _plan_scores(model, score_plan, positions, criterion,
+                                        rates or (None if rate_dps is None else repr(rate_dps)), sigma)
+    if pair:
+        result["separation"] = _separation(model, pair, sizes, score_plan, u, rho, sigma, target)
     if rate_dps is not None:  # after the refusals, which are one line
         click.echo("warning: --rate-dps is deprecated: --rates-dps R takes one rate (deg/s) as it takes several", err=True)
     click.echo(f"{name}: {model.name}, noise {sigma:g} {model.unit} per position"

@@ -13,7 +13,7 @@ from __future__ import annotations
 import numpy as np
 
 from simucal import io
-from simucal.errors import CalibrationError
+from simucal.errors import CalibrationError, InputError
 from simucal.fit.augmented import AugmentedModel, effect_terms, follows_temperature
 from simucal.fit.aux_inputs import AuxInputs, columns_at, specific_force
 from simucal.fit.thermal import params_at
@@ -92,7 +92,7 @@ def check_block(block: SensorBlock, sensor, where) -> None:
         return
     try:
         model = AugmentedModel(block.model, block.library_effects())
-    except KeyError as e:  # a model this machine has not derived (another's cache), or an edit
+    except InputError as e:  # a model this machine has not derived (another's cache), or an edit
         raise CalibrationError(f"{where}: {sensor}.model {block.model!r}: {e.args[0]}") from None
     missing = [k for k in model.params if k not in block.params]
     if missing:

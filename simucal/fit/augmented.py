@@ -13,7 +13,7 @@ import warnings
 
 import numpy as np
 
-from simucal.errors import CalibrationError
+from simucal.errors import CalibrationError, InputError
 from simucal.fit.aux_inputs import SENSOR_AUX, AuxInputs
 from simucal.fit.catalog import derive_model_file, load
 from simucal.fit.models import GeneratedModel
@@ -62,11 +62,11 @@ def check_effect(eid: str, sensor: str | None = None):
         near = ([low[eid.lower()]] if eid.lower() in low else
                 [k for k in EFFECTS if eid and eid.lower() in k] or difflib.get_close_matches(eid, list(EFFECTS), 5))
         fam = sorted({".".join(k.split(".")[:2]) for k in EFFECTS})
-        raise KeyError(f"unknown effect {eid!r}" + (f"; did you mean {', '.join(near[:9])}?" if near else ".")
+        raise InputError(f"unknown effect {eid!r}" + (f"; did you mean {', '.join(near[:9])}?" if near else ".")
                        + f" Ids are <sensor>.<family>.<axis>, families {fam}, axes x, y, z (and pairs xy, ...). "
                        "A term of your own: a model file (--add my_model.py).")
     if sensor is not None and EFFECTS[eid].sensor != sensor:
-        raise KeyError(f"effect {eid} is for the {EFFECTS[eid].sensor}, not the {sensor}.")
+        raise InputError(f"effect {eid} is for the {EFFECTS[eid].sensor}, not the {sensor}.")
 
 
 class AugmentedModel:

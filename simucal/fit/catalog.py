@@ -27,6 +27,7 @@ import traceback
 import types
 from pathlib import Path
 
+from simucal.errors import InputError, SimucalError
 from simucal.io import cache
 from simucal.fit.models import GeneratedModel, load_builtin, manifest
 from simucal.io import outputs
@@ -61,7 +62,7 @@ def _write_atomic(path: Path, text: str):
     outputs.write_text(path, text, mode=0o644)
 
 
-class ModelFileError(ValueError):
+class ModelFileError(SimucalError):
     """A user's model file that cannot be derived: its file and line named, never a simucal bug."""
 
 
@@ -77,13 +78,13 @@ def derive_model_file(path) -> tuple[list[str], bool]:
     once, in a child process with a time limit (SIMUCAL_DERIVE_TIMEOUT_S, default 120 s);
     afterwards the cache is keyed by the file's bytes and the file is never run again."""
     if Path(path).is_symlink() and not Path(path).exists():  # resolve() would raise on a loop
-        raise FileNotFoundError(f"{path}: a symbolic link that leads nowhere (a loop of links, or its target is "
+        raise ModelFileError(f"{path}: a symbolic link that leads nowhere (a loop of links, or its target is "
                                 "missing): give the model file itself")
     path = Path(path).resolve()
     if path.is_dir():
-        raise FileNotFoundError(f"{path}: a folder, where a model file (Python with MODELS = [...]) is expected")
+        raise ModelFileError(f"{path}: a folder, where a model file (Python with MODELS = [...]) is expected")
     if not path.is_file():
-        raise FileNotFoundError(f"{path}: no such model file")
+        raise ModelFileError(f"{path}: no such model file")
     key = _key(path)
     cache.own_folder("models")  # the user's alone, or UntrustedCache: the fix named
     found = cache.locate(f"models/{key}/manifest.json")
@@ -156,7 +157,7 @@ def _derive_into(path: Path, folder: Path) -> None:
     builtin = set(manifest()["models"])
     clash = [m.name for m in models if m.name in builtin]
     if clash:
-        raise ValueError(f"{path}: model names {clash} are built-in models; give your model another name")
+        raise InputError(f"{path}: model names {clash} are built-in models; give your model another name")
     entries = {}
     for m in models:
         text, entry = codegen.model_module(m, source=str(path))
@@ -207,11 +208,11 @@ load.cache_clear = _load.cache_clear  # type: ignore[attr-defined]  # callers th
 def _load_user_model(name: str, compiled: bool = True) -> GeneratedModel:
     entry = _index().get(name)
     if entry is None:
-        raise KeyError(f"no model {name!r}: built-in models are {sorted(manifest()['models'])}; a model of your "
+        raise InputError(f"no model {name!r}: built-in models are {sorted(manifest()['models'])}; a model of your "
                        "own is derived from its file first (`--add FILE`, or `simucal derive --model FILE`)")
     py, c = (cache.locate(f"models/{entry['key']}/{name}.{ext}") for ext in ("py", "c"))
     if py is None or c is None:
-        raise KeyError(f"model {name!r} was derived from {entry['source']} but its cache {models_dir() / entry['key']} "
+        raise InputError(f"model {name!r} was derived from {entry['source']} but its cache {models_dir() / entry['key']} "
                        f"is gone; derive it again: simucal derive --model {entry['source']}")
     # compiled from the checked source here: an import would also load a bytecode file from a __pycache__
     # folder beside it, which the umask may have left writable by the group

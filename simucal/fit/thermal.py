@@ -25,7 +25,9 @@ SPREAD_C = 2.0  # temperatures within this of each other are one temperature (a 
 # an IMU's widest rated range (military grade), degC: beyond it a temp_c column is in another unit (kelvin
 # always; degF where a plateau is above 51.7 degC, 125 degF, as a hot plateau is) or broken
 PLAUSIBLE_C = (-55.0, 125.0)
-ALPHA = 0.01
+# each parameter's degree (one plateau fit per temperature) by up to MAX_DEGREE sequential chi-square drops: a
+# model choice, not the model test (results.ALPHA), where a real term left out biases every temperature's value
+DEGREE_ALPHA = 0.01
 
 
 def clusters(T, spread=SPREAD_C) -> np.ndarray:
@@ -68,7 +70,7 @@ def fit_polynomial(T_c, values, std, t_ref_c: float, degree: int | None = None) 
         d, (c, cov, chi2) = 0, _wls(dT, y, s, 0)
         while d < top:
             c1, cov1, chi2_1 = _wls(dT, y, s, d + 1)
-            if chi2_sf(max(chi2 - chi2_1, 0.0), 1) >= ALPHA:
+            if chi2_sf(max(chi2 - chi2_1, 0.0), 1) >= DEGREE_ALPHA:
                 break
             d, c, cov, chi2 = d + 1, c1, cov1, chi2_1
     else:

@@ -16,6 +16,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from simucal.errors import InputError
 from simucal import io
 from simucal.fit.augmented import regressor
 from simucal.fit.aux_inputs import AuxInputs, specific_force
@@ -126,7 +127,7 @@ def simulate_handheld(sc: HandheldScenario, seed=0, unit_seed=None):
         for eid, value in planted.items():
             effect = EFFECTS[eid]
             if effect.sensor != sensor:
-                raise ValueError(f"{eid}: not a {sensor} effect (plant it under {effect.sensor}_effects)")
+                raise InputError(f"{eid}: not a {sensor} effect (plant it under {effect.sensor}_effects)")
             out[:, effect.axis] += value * regressor(eid, u, aux) / scale
     acc = sc.offset_counts + sc.acc_counts_per_g * (out_g + rng.normal(0, sc.acc_noise_g, (n, 3)))
     gyro = sc.offset_counts + sc.gyro_counts_per_dps * (out_dps + rng.normal(0, sc.gyro_noise_dps, (n, 3)))

@@ -5,7 +5,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from simucal.errors import CalibrationError
+from simucal.errors import CalibrationError, SimucalError
 from simucal.io import units
 
 LAYOUT_KEYS = ("acc_unit", "gyro_unit", "acc_pulses_per_g", "gyro_pulses_per_arcsec", "acc_counts_per_g",
@@ -13,7 +13,7 @@ LAYOUT_KEYS = ("acc_unit", "gyro_unit", "acc_pulses_per_g", "gyro_pulses_per_arc
 SERIAL = "unit_serial"  # meta.json's optional serial number of the unit (README: the spec's extension)
 
 
-class CalibrationFileError(ValueError):
+class CalibrationFileError(SimucalError):
     """A calibration file that cannot be read, or that does not fit the data."""
 
 

@@ -18,11 +18,12 @@ from pathlib import Path
 import numpy as np
 
 from simucal import io
+from simucal.errors import SimucalError
 from simucal.io import units
 from simucal.io.text_files import ends_with_a_line_end
 
 
-class ImportError_(ValueError):
+class ImportError_(SimucalError):
     pass
 
 

@@ -21,10 +21,12 @@ import os
 import tempfile
 from pathlib import Path
 
+from simucal.errors import SimucalError
+
 SET_FILES = ("meta.json", "segments.csv", "samples.csv", "samples.parquet")
 
 
-class OutputError(ValueError):
+class OutputError(SimucalError):
     """An output that would lose or corrupt a user's data."""
 
 

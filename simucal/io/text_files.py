@@ -12,8 +12,10 @@ from pathlib import Path
 
 import numpy as np
 
+from simucal.errors import SimucalError
 
-class MeasurementSetError(ValueError):
+
+class MeasurementSetError(SimucalError):
     def __init__(self, path, line, rule):
         where = f"{path}" + (f", line {line}" if line else "")
         super().__init__(f"{where}: {rule}")

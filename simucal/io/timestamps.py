@@ -18,6 +18,8 @@ from dataclasses import replace
 
 import numpy as np
 
+from simucal.errors import InputError
+
 CHOICES = ("auto", "nominal", "recorded")
 IRREGULAR = 0.05   # steps farther than this share of the median step from it: irregular, where ...
 IRREGULAR_SHARE = 0.01  # ... at least this share of the steps are
@@ -69,7 +71,7 @@ def with_timestamps(ms, choice="auto"):
     A stream only (a turntable's segments keep theirs); nominal: evenly spaced at the mean step;
     auto: nominal where the stamps are irregular and a regular clock is proved, else as recorded."""
     if choice not in CHOICES:
-        raise ValueError(f"--timestamps {choice!r}: one of {', '.join(CHOICES)}")
+        raise InputError(f"--timestamps {choice!r}: one of {', '.join(CHOICES)}")
     if ms.segments is not None or len(ms.samples["t_s"]) < 3:
         if choice == "nominal":
             from simucal.errors import CalibrationError

@@ -29,6 +29,7 @@ import time
 
 import numpy as np
 
+from simucal.errors import InputError
 from simucal.fit.augmented import AugmentedModel, compiled_form
 from simucal.fit.aux_inputs import FORCE, AuxInputs, specific_force
 from simucal.fit.norm_fit import fit_batch
@@ -242,7 +243,7 @@ def _reference(sc: Scenario, am, gm):
     for m in (am, gm):
         read = _reads_beyond_input(m)
         if read:
-            raise ValueError(f"model {m.name} reads {', '.join(read)}, which {UNSEEN} ({_simulate_instead(m, read)}) "
+            raise InputError(f"model {m.name} reads {', '.join(read)}, which {UNSEEN} ({_simulate_instead(m, read)}) "
                              "and calibrate it instead")
     ref = simulate_batch(sc, 1, np.random.default_rng(0), noise=False)
     crlb = {}
@@ -251,7 +252,7 @@ def _reference(sc: Scenario, am, gm):
             ("gyro", gm, ref["gyro"], ref["rho_gyro"], sc.gyro_noise_dph, AuxInputs(specific_force(ref["f_gyro"])))):
         _, cov0, _, ok0 = fit_trials(model, N, rho, sig, aux)
         if not ok0[0]:
-            raise ValueError(f"plan {sc.plan}: a noise-free trial's {sensor} fit of {model.name} fails, so the plan "
+            raise InputError(f"plan {sc.plan}: a noise-free trial's {sensor} fit of {model.name} fails, so the plan "
                              f"leaves a combination of its parameters unobservable (simucal plan --score {sc.plan} "
                              f"--model {model.base.name}" + "".join(f" --add {e}" for e in model.effects)
                              + " names it)" + "".join(f"; to see {e}: {SEPARATE[e.split('.')[1]]}" for e in model.effects)

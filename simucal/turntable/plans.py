@@ -12,6 +12,7 @@ from pathlib import Path
 
 import numpy as np
 
+from simucal.errors import InputError
 from simucal.generated import unify
 
 # (outer gamma, middle alpha, inner beta), dong2018 Table 1. The paper prints
@@ -68,24 +69,24 @@ def read_csv(path) -> list:
     """A user's plan: CSV with columns outer_deg, middle_deg, inner_deg."""
     path = Path(path)
     if not path.is_file():
-        raise ValueError(f"plan {path}: no such file; a plan is one of {sorted(PLANS)} or a CSV file with "
+        raise InputError(f"plan {path}: no such file; a plan is one of {sorted(PLANS)} or a CSV file with "
                          "columns outer_deg, middle_deg, inner_deg")
     out = []
     with path.open(newline="") as fh:
         reader = csv.DictReader(fh)
         need = {"outer_deg", "middle_deg", "inner_deg"}
         if not need <= set(reader.fieldnames or []):
-            raise ValueError(f"{path}, line 1: plan needs columns {sorted(need)}")
+            raise InputError(f"{path}, line 1: plan needs columns {sorted(need)}")
         for line, row in enumerate(reader, start=2):
             try:
                 angles = tuple(float(row[c]) for c in ("outer_deg", "middle_deg", "inner_deg"))
             except (TypeError, ValueError):
-                raise ValueError(f"{path}, line {line}: angles must be numbers") from None
+                raise InputError(f"{path}, line {line}: angles must be numbers") from None
             if not all(math.isfinite(a) and abs(a) <= 3600 for a in angles):
-                raise ValueError(f"{path}, line {line}: angles {angles} must be finite, in degrees (|angle| <= 3600)")
+                raise InputError(f"{path}, line {line}: angles {angles} must be finite, in degrees (|angle| <= 3600)")
             out.append(angles)
     if not out:
-        raise ValueError(f"{path}: the plan has no positions; give one row per position under the header")
+        raise InputError(f"{path}: the plan has no positions; give one row per position under the header")
     return out
 
 

@@ -23,6 +23,7 @@ from pathlib import Path
 
 import numpy as np
 
+from simucal.errors import InputError
 from simucal import io
 from simucal.fit.aux_inputs import AuxInputs, specific_force
 from simucal.generated import table
@@ -76,33 +77,33 @@ def read_sequence(path) -> list[Step]:
     the line and the fix."""
     path = Path(path)
     if not path.is_file():
-        raise ValueError(f"--sequence {path}: neither a built-in sequence ({', '.join(SEQUENCES)}) nor a file")
+        raise InputError(f"--sequence {path}: neither a built-in sequence ({', '.join(SEQUENCES)}) nor a file")
     with path.open(newline="") as fh:
         rows = list(csv.reader(fh))
     if not rows or [c.strip() for c in rows[0]] != ["axis", "angle_deg", "rate_dps", "rest_s"]:
-        raise ValueError(f"{path}, line 1: the header must be axis,angle_deg,rate_dps,rest_s")
+        raise InputError(f"{path}, line 1: the header must be axis,angle_deg,rate_dps,rest_s")
     steps = []
     for line, row in enumerate(rows[1:], start=2):
         steps.append(_step(path, line, row))
     if not steps:
-        raise ValueError(f"{path}: no moves; write one row per move under the header")
+        raise InputError(f"{path}: no moves; write one row per move under the header")
     return steps
 
 
 def _step(path, line, row) -> Step:
     where = f"{path}, line {line}"
     if len(row) != 4 or row[0].strip() not in AXES:
-        raise ValueError(f"{where}: write AXIS,ANGLE_DEG,RATE_DPS,REST_S with AXIS one of {', '.join(AXES)}")
+        raise InputError(f"{where}: write AXIS,ANGLE_DEG,RATE_DPS,REST_S with AXIS one of {', '.join(AXES)}")
     try:
         angle, rate, rest = (float(x) for x in row[1:])
     except ValueError:
-        raise ValueError(f"{where}: angle_deg, rate_dps and rest_s must be numbers") from None
+        raise InputError(f"{where}: angle_deg, rate_dps and rest_s must be numbers") from None
     if not (math.isfinite(angle) and 0 < abs(angle) <= 3600):
-        raise ValueError(f"{where}: angle_deg {angle:g} must be non-zero and at most 3600 deg in size")
+        raise InputError(f"{where}: angle_deg {angle:g} must be non-zero and at most 3600 deg in size")
     if not 0 < rate <= MAX_RATE_DPS:
-        raise ValueError(f"{where}: rate_dps {rate:g} is not a table's rate: give 0 < rate <= {MAX_RATE_DPS:g} deg/s")
+        raise InputError(f"{where}: rate_dps {rate:g} is not a table's rate: give 0 < rate <= {MAX_RATE_DPS:g} deg/s")
     if not 0 < rest <= MAX_REST_S:
-        raise ValueError(f"{where}: rest_s {rest:g} must be within 0 < rest_s <= {MAX_REST_S:g} s")
+        raise InputError(f"{where}: rest_s {rest:g} must be within 0 < rest_s <= {MAX_REST_S:g} s")
     return Step(row[0].strip(), angle, rate, rest)
 
 
@@ -189,15 +190,15 @@ def sampled(name, steps, rate_hz):
     than one sample (no rows: the table never stops), a rate turning MAX_TURN_PER_SAMPLE_DEG or more
     in one sample."""
     if not rate_hz > 0:
-        raise ValueError(f"--rate-hz {rate_hz}: the sample rate must be positive")
+        raise InputError(f"--rate-hz {rate_hz}: the sample rate must be positive")
     for line, s in enumerate(steps, start=2):
         where = f"{name}, line {line}" if name not in SEQUENCES else f"--sequence {name}"
         if round(s.rest_s * rate_hz) < 1:
-            raise ValueError(f"{where}: rest_s {s.rest_s:g} is shorter than one sample at {rate_hz:g} Hz: rest at "
+            raise InputError(f"{where}: rest_s {s.rest_s:g} is shorter than one sample at {rate_hz:g} Hz: rest at "
                              f"least {1 / rate_hz:g} s (systematic calibration measures the noise on rests of over "
                              "10 samples) or raise --rate-hz")
         if s.rate_dps / rate_hz >= MAX_TURN_PER_SAMPLE_DEG:
-            raise ValueError(f"{where}: rate_dps {s.rate_dps:g} turns {s.rate_dps / rate_hz:g} deg per sample at "
+            raise InputError(f"{where}: rate_dps {s.rate_dps:g} turns {s.rate_dps / rate_hz:g} deg per sample at "
                              f"{rate_hz:g} Hz: give --rate-hz above {s.rate_dps / MAX_TURN_PER_SAMPLE_DEG:g} or a "
                              "lower rate")
 

@@ -15,6 +15,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from simucal.errors import InputError
 from simucal import io
 from simucal.fit.augmented import AugmentedModel
 from simucal.fit.aux_inputs import DEFAULT_ZERO, T_REF, AuxInputs, specific_force
@@ -99,16 +100,16 @@ def _pairs(items, what):
         name, eq, val = item.partition("=")
         example = "acc.quadratic.z=6e-5" if what == "--effect" else "K3_x=1e-3"
         if name.strip() in out:
-            raise ValueError(f"{what} {name.strip()} is given twice ({out[name.strip()]:g} and {val.strip()}): "
+            raise InputError(f"{what} {name.strip()} is given twice ({out[name.strip()]:g} and {val.strip()}): "
                              "give each once")
         try:
             if not eq or not name.strip():
-                raise ValueError
+                raise InputError
             out[name.strip()] = float(val)
         except ValueError:
-            raise ValueError(f"{what} {item!r}: write NAME=VALUE with a number, e.g. {example}") from None
+            raise InputError(f"{what} {item!r}: write NAME=VALUE with a number, e.g. {example}") from None
         if not abs(out[name.strip()]) <= PARAM_LIMIT:  # NaN fails this too
-            raise ValueError(f"{what} {item!r}: the value must be finite and at most {PARAM_LIMIT:g} in size (in "
+            raise InputError(f"{what} {item!r}: the value must be finite and at most {PARAM_LIMIT:g} in size (in "
                              "the unit its term declares), as a calibration file's parameters")
     return out
 
@@ -119,16 +120,16 @@ def at_temperature(sc: Scenario, text, t_ref_c=25.0, wander_c=0.0, columns=()):
     into the scenario; refused in one line where the text is not one or two temperatures."""
     if text is None:
         if wander_c:
-            raise ValueError("--temperature-wander-c needs --temperature-c (the plateau or ramp it wanders about)")
+            raise InputError("--temperature-wander-c needs --temperature-c (the plateau or ramp it wanders about)")
         return
     if any(c.partition("=")[0].strip() == "temp_c" for c in columns):
-        raise ValueError("--temperature-c and --column temp_c=...: give one")
+        raise InputError("--temperature-c and --column temp_c=...: give one")
     try:
         ends = [float(x) for x in str(text).split(":")]
         if len(ends) not in (1, 2) or not all(PLAUSIBLE_C[0] <= x <= PLAUSIBLE_C[1] for x in ends):
-            raise ValueError
+            raise InputError
     except ValueError:
-        raise ValueError(f"--temperature-c {text!r}: one temperature (a plateau, e.g. 40) or two (a ramp, e.g. 5:45), "
+        raise InputError(f"--temperature-c {text!r}: one temperature (a plateau, e.g. 40) or two (a ramp, e.g. 5:45), "
                          f"degC, within {PLAUSIBLE_C[0]:g}..{PLAUSIBLE_C[1]:g} (an IMU's rated range)") from None
     sc.temp_c, sc.t_ref_c, sc.temp_wander_c = (ends[0], ends[-1]), float(t_ref_c), float(wander_c)
 
@@ -143,12 +144,12 @@ def plant(sc: Scenario, effects=(), effect_file=None, sets=(), columns=(), write
         try:
             low, high = (float(x) for x in ends.split(":"))
             if not eq or not name.strip().isidentifier() or name.strip() in io.SAMPLE_COLS + ("segment", "t_s"):
-                raise ValueError
+                raise InputError
         except ValueError:
-            raise ValueError(f"--column {item!r}: write NAME=LOW:HIGH with a new column name and two numbers, "
+            raise InputError(f"--column {item!r}: write NAME=LOW:HIGH with a new column name and two numbers, "
                              "e.g. supply_v=4.8:5.2") from None
         if not (math.isfinite(low) and math.isfinite(high) and low <= high):
-            raise ValueError(f"--column {item!r}: LOW:HIGH must be finite numbers with LOW <= HIGH, e.g. "
+            raise InputError(f"--column {item!r}: LOW:HIGH must be finite numbers with LOW <= HIGH, e.g. "
                              f"{name.strip()}=4.8:5.2")
         sc.columns[name.strip()] = (low, high)
     from simucal.fit.augmented import check_effect
@@ -156,13 +157,13 @@ def plant(sc: Scenario, effects=(), effect_file=None, sets=(), columns=(), write
     for eid, val in _pairs(effects, "--effect").items():
         check_effect(eid)
         if "dtemp_c" in EFFECTS[eid].reads and not sc.temp_c and "temp_c" not in sc.columns:
-            raise ValueError(f"--effect {eid}: without a temperature temp_c stays at T_ref, so the effect is zero and "
+            raise InputError(f"--effect {eid}: without a temperature temp_c stays at T_ref, so the effect is zero and "
                              "the samples are those without it; give one: --temperature-c T (a plateau) or T0:T1 (a "
                              "ramp), degC (a turntable set)")
         (sc.acc_effects if EFFECTS[eid].sensor == "acc" else sc.gyro_effects)[eid] = val
     values = _pairs(sets, "--set")
     if values and not effect_file:
-        raise ValueError("--set needs --effect-file: the model file that defines those parameters")
+        raise InputError("--set needs --effect-file: the model file that defines those parameters")
     if effect_file:
         from simucal.fit.catalog import derive_model_file, load
         for name in derive_model_file(effect_file)[0]:
@@ -172,10 +173,10 @@ def plant(sc: Scenario, effects=(), effect_file=None, sets=(), columns=(), write
         known = set(load(sc.acc_model).params) | set(load(sc.gyro_model).params)
         unknown = sorted(set(values) - known)
         if unknown:
-            raise ValueError(f"--set {unknown}: not parameters of {effect_file}; its parameters are {sorted(known)}")
+            raise InputError(f"--set {unknown}: not parameters of {effect_file}; its parameters are {sorted(known)}")
         reads = (set(load(sc.acc_model).aux) | set(load(sc.gyro_model).aux)) - DEFAULT_ZERO - set(sc.columns)
         if reads and writes_columns:
-            raise ValueError(f"{effect_file} reads the column(s) {sorted(reads)}: give their values with "
+            raise InputError(f"{effect_file} reads the column(s) {sorted(reads)}: give their values with "
                              f"--column {sorted(reads)[0]}=LOW:HIGH")
 
 
@@ -264,7 +265,7 @@ def _samples(sc: Scenario, rng, segments, rows, acc, p_acc, gyro, p_gyro, meta):
         else:
             n = rows_per[k]
             if n < 3:  # raw rows are for a segment's scatter; fewer is an averaged row, written as such
-                raise ValueError(f"--rate-hz {sc.rate_hz:g}: a {dur:g} s segment would get {n} rows; use at least "
+                raise InputError(f"--rate-hz {sc.rate_hz:g}: a {dur:g} s segment would get {n} rows; use at least "
                                  f"{3 / dur:.3g} Hz, or leave --rate-hz out for one averaged row per segment")
             f, w, fd = inputs(np.arange(n) / sc.rate_hz)  # each row at its own instant (a point sample)
             t = t0 + np.arange(n) / sc.rate_hz
@@ -322,7 +323,7 @@ def truth_of(sc: Scenario, acc, p_acc, gyro, p_gyro, seed) -> dict:
 def simulate(sc: Scenario, seed: int = 0):
     """Return (meta, samples, segments, truth) of one simulated test."""
     if sc.rate_hz is not None and not sc.rate_hz > 0:
-        raise ValueError(f"--rate-hz {sc.rate_hz}: the sample rate must be positive")
+        raise InputError(f"--rate-hz {sc.rate_hz}: the sample rate must be positive")
     rng = np.random.default_rng(seed)
     acc, p_acc, gyro, p_gyro = models(sc)
     segments, rows = _segments(sc, rng)

@@ -34,6 +34,7 @@ from simucal.fit.apply import model_inputs
 from simucal.fit.distributions import chi2_sf_estimated
 from simucal.fit.gauss_newton import tangent_basis
 from simucal.fit.norm_fit import full_covariance
+from simucal.fit.results import ALPHA
 from simucal.fit.rotations import log_so3, skew, wahba
 from simucal.generated import table
 from simucal.generated import unify as eq
@@ -341,7 +342,7 @@ def unify(un: Unifier, acc_segs, gyro_segs, find, table_std_rad=None):
            "else lever arms it lacks (--add acc.size_effect.*)" if acc_fails else
            "lever arms the accelerometer model lacks (--add acc.size_effect.*)")
     p_pairs = chi2_sf_estimated(best["chi2"], best["dof"], best["noise_dof"]) if best["dof"] > 0 else 1.0
-    inflate = max(1.0, best["chi2"] / best["dof"]) if p_pairs < 1e-3 else 1.0
+    inflate = max(1.0, best["chi2"] / best["dof"]) if p_pairs < ALPHA else 1.0
     if inflate > 1:  # the pairs disagree beyond their noise: the stds take the misfit in
         cov_M = cov_M * inflate
         misfit = (f"the {best['pairs']} pairs misfit (chi2 {best['chi2']:.4g} on {best['dof']} dof): stds inflated by "
@@ -349,7 +350,7 @@ def unify(un: Unifier, acc_segs, gyro_segs, find, table_std_rad=None):
         fallback = f"{fallback}; {misfit}" if fallback else misfit
     noise = _estimated_noise(un)
     means = noise.get("acc_rate_run_means")
-    if means and means["p_value_vs_static"] < 1e-3:
+    if means and means["p_value_vs_static"] < ALPHA:
         scatter = (f"the rate runs' accelerometer means scatter {means['std_g'] / means['static_std_g']:.3g} times "
                    f"as much as the static positions (F test p = {means['p_value_vs_static']:.2g}): {why}, or "
                    "vibration under rotation")
@@ -368,7 +369,7 @@ def _cross_check(un: Unifier, C, J_phi, two, table_text) -> dict:
     """The static pairs' C_b^d against the rate runs' means': their difference and its Mahalanobis test."""
     d = log_so3(C.T @ two["C"])
     z2, cov_d, p = un.quadratic_form(d, two["J_phi"] - J_phi)
-    agree = p >= 1e-3
+    agree = p >= ALPHA
     return {
         "method": "static_pairs", "pairs": two["pairs"], "difference_rad": d.tolist(),
         "difference_std_rad": np.sqrt(np.diag(cov_d)).tolist(), "mahalanobis2": z2, "p_value": p,
