@@ -27,6 +27,15 @@ def test_mypy_finds_nothing_in_the_public_api_and_the_typed_results():
 
 
 @pytest.mark.slow
+def test_the_api_tutorial_passes_mypy_strict():
+    """Issue 54: a notebook's code on the API alone type-checks strictly, with no ignores."""
+    tutorial = ROOT / "docs" / "tutorials" / "three_methods.py"
+    assert "type: ignore" not in tutorial.read_text()
+    r = _run("mypy", "--strict", str(tutorial))
+    assert r.returncode == 0, r.stdout + r.stderr
+
+
+@pytest.mark.slow
 def test_the_lint_catches_what_it_claims_to(tmp_path):
     """The rules bite: an unused import and a wrong type in a typed result are found (the configuration
     is read, not skipped)."""

@@ -1,8 +1,8 @@
 """The public Python API (issue 40, item 1): `import simucal` and call
 
     read_set, MeasurementSet.from_arrays / .from_dataframe / .write, simulate, calibrate -> Calibration,
-    Calibration.apply / .parameters, validate -> Validation, diagnose -> Diagnosis, noise -> Noise,
-    save, load
+    Calibration.apply / .parameters / .sensor, compare (calibrations side by side in one vocabulary),
+    validate -> Validation, diagnose -> Diagnosis, noise -> Noise, save, load
 
 on folders, numpy arrays or (with simucal[pandas]) DataFrames. A layer over the commands' own
 functions (calibrate.py, validate.py, diagnose.py, allan.py, fit/apply.py, io/); the command line
@@ -28,14 +28,15 @@ from simucal.calibrate import calibrate_thermal as _calibrate_thermal
 from simucal.api.calibration import Calibration, Parameter
 from simucal.api.lot import lot
 from simucal.api.sets import MeasurementSet, as_set, effect_ids, folder_of
+from simucal.api.vocabulary import Entry, compare
 from simucal.io import calibration as _file
 from simucal.validate import validate as _validate_report
 
 Data = Union[str, os.PathLike, io.MeasurementSet]
 
 __all__ = ["read_set", "simulate", "calibrate", "validate", "diagnose", "noise", "save", "load", "table_rows",
-           "MeasurementSet", "Calibration", "Parameter", "Validation", "Check", "Diagnosis", "Candidate", "Noise", "Term",
-           "lot"]
+           "compare", "MeasurementSet", "Calibration", "Parameter", "Entry", "Validation", "Check", "Diagnosis",
+           "Candidate", "Noise", "Term", "lot"]
 
 
 def read_set(path: str | os.PathLike) -> MeasurementSet:

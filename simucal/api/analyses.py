@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import json
 import os
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 from typing import NamedTuple, Sequence, Union
 
@@ -150,6 +150,16 @@ class Term(NamedTuple):
     unit: str
 
 
+class AllanPoint(NamedTuple):
+    """One row of `Noise.curve`: an axis's overlapping Allan deviation at one averaging time."""
+    sensor: str
+    axis: str
+    tau_s: float
+    adev: float            # in unit
+    rel_err: float | None  # its relative standard error (the estimates' own scatter)
+    unit: str              # the sensor's output unit per axis (g or deg/h in the recording's terms)
+
+
 @dataclass
 class Noise:
     """The noise of a still recording: Allan deviation and its IEEE 952 terms.
@@ -160,13 +170,19 @@ class Noise:
         Every sensor's, axis's and term's value (seen) or bound (not seen), in a data sheet's units.
     term_rows : list of Term
         The same rows as a list.
+    curve : DataFrame or list of AllanPoint
+        Every sensor's and axis's Allan deviation by averaging time (``curve.pivot(index="tau_s",
+        columns=["sensor", "axis"], values="adev")`` for a plot).
+    curve_rows : list of AllanPoint
+        The same rows as a list.
     report : dict
-        What `simucal noise -o` writes (``simucal.noise/1``): also each axis's Allan deviation
-        (``report[sensor]["axes"][axis]["adev"]`` at ``report[sensor]["tau_s"]``).
+        What `simucal noise -o` writes (``simucal.noise/1``), the same numbers.
     """
     term_rows: list[Term]
     report: dict
+    curve_rows: list[AllanPoint] = field(default_factory=list)
     terms = TableOf("term_rows", Term._fields)
+    curve = TableOf("curve_rows", AllanPoint._fields)
 
     def kalibr_yaml(self) -> str:
         """Kalibr's imu.yaml (noise densities and random walks, SI), as `simucal noise --kalibr` writes it;
@@ -212,4 +228,17 @@ def noise(data: Data, *, tau_max_s: float | None = None, scheduler: str | None =
                  t["unit"])
             for s in ("acc", "gyro") if s in report for a, axis in report[s]["axes"].items()
             for k, t in axis.get("sheet", {}).items()]
-    return Noise(rows, report)
+    return Noise(rows, report, allan_points(report))
+
+
+def allan_points(report: dict) -> list[AllanPoint]:
+    """The report's Allan deviation curves as rows (Noise.curve)."""
+    out = []
+    for s in ("acc", "gyro"):
+        if s not in report:
+            continue
+        for a, axis in report[s]["axes"].items():
+            taus, errs = axis.get("tau_s", report[s]["tau_s"]), axis.get("rel_err") or [None] * len(axis["adev"])
+            out += [AllanPoint(s, a, float(t), float(d), None if e is None else float(e), report[s]["unit"])
+                    for t, d, e in zip(taus, axis["adev"], errs) if d is not None]
+    return out

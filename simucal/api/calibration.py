@@ -9,7 +9,8 @@ from typing import Any, NamedTuple
 import numpy as np
 
 from simucal.api.tables import table
-from simucal.errors import CalibrationError
+from simucal.api.vocabulary import common_table
+from simucal.errors import CalibrationError, InputError
 from simucal.fit import apply as fit_apply
 from simucal.fit.augmented import AugmentedModel
 from simucal.generated.effects import EFFECTS
@@ -84,8 +85,13 @@ class Calibration(calibration.Calibration):
         tested = ", ".join(f"{s} (p = {b.p_value:.2g})" if b.p_value is not None else s for s, b in self.blocks())
         return f"<simucal.Calibration {self.method!r} of {self.input!r}: {tested or 'no sensor'}>"
 
-    def parameters(self) -> Any:
+    def parameters(self, vocabulary: str = "own") -> Any:
         """Every parameter of every sensor's model as a table: a list of `Parameter` rows.
+
+        With ``vocabulary="common"``, every method's in one vocabulary instead (api/vocabulary.py): each
+        sensor's M entries (M_xx .. M_zz, output per input, frame b) and bias (bias_x .. bias_z) with
+        their stds, the effects by their ids, and the method's own name for each (``own_name``: dK_x,
+        theta_yx, b_x; M_xx): `Entry` rows. `simucal.compare` sets calibrations side by side so.
 
         Returns
         -------
@@ -102,8 +108,28 @@ class Calibration(calibration.Calibration):
         >>> p = cal.parameters()  # doctest: +SKIP
         >>> p.set_index(["sensor", "name"]).loc[("acc", "dK_z"), ["value", "std", "unit"]]  # doctest: +SKIP
         """
+        if vocabulary == "common":
+            return common_table(self)
+        if vocabulary != "own":
+            raise InputError(f"vocabulary {vocabulary!r}: 'own' (each method's parameters) or 'common' (M and bias)")
         return table([r for s, b in self.blocks() for r in (_model_rows(s, b) if b.params else _affine_rows(s, b))],
                       Parameter._fields)
+
+    def sensor(self, name: str) -> calibration.SensorBlock:
+        """The block of sensor `name` ("acc" or "gyro"), never None: refused (CalibrationError) where this
+        calibration holds none, saying why (`not_calibrated`).
+
+        Examples
+        --------
+        >>> cal.sensor("acc").p_value  # doctest: +SKIP
+        0.41
+        """
+        block = getattr(self, name, None) if name in ("acc", "gyro") else None
+        if block is None:
+            why = self.not_calibrated.get(name)
+            raise CalibrationError(f"this calibration ({self.method}) holds no {name!r} block"
+                                   + (f": {why}" if why else f"; its sensors: {', '.join(s for s, _ in self.blocks())}"))
+        return block
 
     def apply(self, x: Any, *, acc_unit: str | None = None, gyro_unit: str | None = None, temp_c: Any = None,
               t_s: Any = None, sensor: str | None = None, columns: dict[str, str] | None = None,
@@ -137,7 +163,7 @@ class Calibration(calibration.Calibration):
         -------
         numpy.ndarray or pandas.DataFrame
             The same type and shape as `x`: an array of the calibrated values, or a copy of the
-            frame with those columns replaced.
+            frame with those columns replaced, their units in ``attrs["units"]`` ({"acc": ..., "gyro": ...}).
 
         Examples
         --------
@@ -169,11 +195,19 @@ class Calibration(calibration.Calibration):
                 result.update(zip(cols, to(u, {f"{s}_unit": back[s], "gravity_mps2": gravity_mps2}).T))
         _plausible(result, back["acc"], given)
         if frame:
-            df = x.copy()
-            for c, v in result.items():
-                df[names[c]] = v
-            return df
+            return _frame_of(x, result, names, back)
         return np.column_stack([result[c] for c in SAMPLE_COLS if c in result]).reshape(np.shape(x))
+
+
+def _frame_of(x, result, names, units_of) -> Any:
+    """A copy of frame x with the calibrated columns replaced, their units in attrs["units"]."""
+    df = x.copy()
+    for c, v in result.items():
+        df[names[c]] = v
+    df.attrs["units"] = {s: units_of[s] for s, cols in (("acc", SAMPLE_COLS[:3]), ("gyro", SAMPLE_COLS[3:]))
+                         if cols[0] in result}
+    df.attrs["frame"] = "b (the calibration's)"
+    return df
 
 
 def _plausible(result, acc_unit, given) -> None:

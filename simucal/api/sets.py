@@ -10,6 +10,7 @@ from typing import Any, Mapping, Sequence
 import numpy as np
 
 from simucal import io
+from simucal.errors import InputError
 from simucal.io import arrays
 
 
@@ -159,6 +160,27 @@ class MeasurementSet(io.MeasurementSet):
         """
         first = [c for c in ("t_s", "segment", *io.SAMPLE_COLS, "temp_c") if c in self.samples]
         return {k: np.asarray(self.samples[k]) for k in first + [c for c in self.samples if c not in first]}
+
+    def to_dataframe(self) -> Any:
+        """The samples as a pandas DataFrame, `to_arrays`'s columns in its order, as recorded; the units in its
+        ``attrs`` (acc_unit, gyro_unit) and the segments' table, where the set has one, in ``attrs["segments"]``.
+
+        Examples
+        --------
+        >>> import simucal
+        >>> df = simucal.simulate(seed=1).to_dataframe()
+        >>> df.attrs["acc_unit"], list(df.columns[:3])
+        ('pulse/s', ['t_s', 'segment', 'ax'])
+        """
+        try:
+            import pandas as pd
+        except ImportError:
+            raise InputError("to_dataframe needs pandas: pip install simucal[pandas] (to_arrays needs nothing)") from None
+        df = pd.DataFrame(self.to_arrays())
+        df.attrs.update(acc_unit=self.meta.get("acc_unit"), gyro_unit=self.meta.get("gyro_unit"))
+        if self.segments:
+            df.attrs["segments"] = [dict(vars(s)) for s in self.segments]
+        return df
 
     def write(self, folder: str | os.PathLike, *, force: bool = False) -> None:
         """Write the set as a folder (meta.json, samples.csv, segments.csv; a simulated set's truth.json),

@@ -1,0 +1,185 @@
+"""One vocabulary for every method (issue 54, item 1): a sensor's M (output per input, frame b) and bias,
+with their stds, whatever the method fitted, and the method's own names beside them.
+
+Each method fits its own parameters: the exact and linear norm fits dK_x, theta_yx, b_x (dong2018 eq. 5,
+9), the multi-position method M_xx and bias_x, a stream's gyro T = M^-1 and its bias. Every calibration
+file holds the same M and bias (output = M input + bias, README "the calibration file"), so two
+calibrations of one unit line up entry by entry there:
+- the model-based methods' stds by the parameters' covariance through M(p) and bias(p) (a central
+  difference of the model's generated matrix_and_bias), scaled as the file's stds are (inflated where
+  the model fails); a gyro tied to b through C_b^d takes the unification's std of M (std_M), which
+  carries C_b^d's own;
+- an affine block's stds are its own (M's, or T's through dM = -M dT M, entries taken independent);
+- library effects keep their ids (they are the same term in every method).
+Frame b is each method's: the norm methods' is the accelerometers' own (x along the x accelerometer, y
+in the plane of x and y: M_acc lower triangular, dong2018 eq. 5), the multi-position method's the
+table's k (its commanded attitudes). `compare` puts every calibration in the accelerometers' frame:
+M_acc = L Q (L lower triangular with a positive diagonal, Q a rotation: an LQ decomposition), so M_acc
+in that frame is L and every other M is M Q^T; the stds go through the same map (its Jacobian, the
+entries of M taken independent, as an affine block's stds are given).
+"""
+from __future__ import annotations
+
+from typing import Any, Mapping, NamedTuple
+
+import numpy as np
+
+from simucal.api.tables import table
+from simucal.fit.augmented import AugmentedModel
+from simucal.generated.effects import EFFECTS
+from simucal.io.calibration import SensorBlock
+
+AXES = "xyz"
+
+
+class Entry(NamedTuple):
+    """One row of `Calibration.parameters(vocabulary="common")` and of `compare`."""
+    sensor: str
+    name: str              # M_xx .. M_zz, bias_x .. bias_z, or a library effect's id
+    value: float
+    std: float
+    unit: str
+    own_name: str | None   # the method's own parameter for this entry (dK_x, theta_yx, b_x, M_xx, G_xz), if one
+
+
+def entries(sensor: str, block: SensorBlock) -> list[Entry]:
+    """The sensor's M, bias and effects in the one vocabulary (module doc)."""
+    M_std, b_std, own = _model_stds(block) if block.params else _affine_stds(block)
+    if block.details.get("std_M") is not None:  # the gyro in b: C_b^d's uncertainty included
+        M_std = np.asarray(block.details["std_M"], float)
+    elif block.C_b_model is not None and block.params:  # tied to b by a C_b^d without a std (dong2018 eq. 25-27)
+        M_std = np.full((3, 3), np.nan)
+    rows = [Entry(sensor, f"M_{AXES[i]}{AXES[j]}", float(block.M[i, j]), float(M_std[i, j]), "1",
+                  own.get(f"M_{AXES[i]}{AXES[j]}")) for i in range(3) for j in range(3)]
+    rows += [Entry(sensor, f"bias_{c}", float(block.bias[i]), float(b_std[i]), block.bias_unit, own.get(f"bias_{c}"))
+             for i, c in enumerate(AXES)]
+    for eid, v in block.effects.items():  # a model file's own term is named by itself
+        rows.append(Entry(sensor, eid, float(v.value), float(v.std), v.unit, eid if v.term_of else EFFECTS[eid].parameter))
+    return rows
+
+
+def _model_stds(block: SensorBlock):
+    """(std of M (3, 3), of bias (3,), {entry: the parameter that moves it most}) of a model-based block."""
+    model = AugmentedModel(block.model, block.library_effects())
+    names = list(model.params)
+    p = np.array([block.params[n] for n in names])
+    cov_block = block.details.get("covariance") or {}
+    if not cov_block or any(n not in cov_block["names"] for n in names):
+        return np.full((3, 3), np.nan), np.full(3, np.nan), {}
+    k = [cov_block["names"].index(n) for n in names]
+    cov = np.asarray(cov_block["matrix"], float)[np.ix_(k, k)]
+    raw = np.sqrt(np.maximum(np.diag(cov), 0.0))
+    filed = np.array([float(block.std.get(n, np.nan)) for n in names])
+    ratio = filed[raw > 0] / raw[raw > 0]
+    cov = cov * (float(np.nanmedian(ratio)) ** 2 if ratio.size and np.isfinite(ratio).any() else 1.0)
+
+    def mb(q):
+        M, b = model.matrix_and_bias(q)
+        return np.r_[(np.asarray(M) @ block.C).ravel(), np.asarray(b).ravel()]
+    steps = np.maximum(raw * 1e-3, 1e-9)
+    J = np.column_stack([(mb(p + s * e) - mb(p - s * e)) / (2 * s) for s, e in zip(steps, np.eye(len(p)))])
+    std = np.sqrt(np.maximum(np.einsum("ij,jk,ik->i", J, cov, J), 0.0))
+    labels = [f"M_{AXES[i]}{AXES[j]}" for i in range(3) for j in range(3)] + [f"bias_{c}" for c in AXES]
+    own = {}
+    for j, n in enumerate(names[:len(model.base.params)]):  # each parameter to the entry it moves most
+        at = int(np.argmax(np.abs(J[:, j])))
+        if np.abs(J[at, j]) > 0 and labels[at] not in own:
+            own[labels[at]] = n
+    return std[:9].reshape(3, 3), std[9:], own
+
+
+def _affine_stds(block: SensorBlock):
+    """(std of M, of bias, own names) of an affine block: M's own, or a stream gyro's T's through M = T^-1."""
+    b_std = np.asarray(block.std.get("bias", np.full(3, np.nan)), float)
+    if "T" in block.std:
+        T_var = np.asarray(block.std["T"], float) ** 2
+        M = block.M
+        M_var = np.einsum("ik,lj,kl->ij", M ** 2, M ** 2, T_var)  # dM = -M dT M, entries of T independent
+        return np.sqrt(M_var), b_std, {f"bias_{c}": f"bias_{c}" for c in AXES}
+    M_std = np.asarray(block.std.get("M", np.full((3, 3), np.nan)), float)
+    own = {f"M_{AXES[i]}{AXES[j]}": f"M_{AXES[i]}{AXES[j]}" for i in range(3) for j in range(3)}
+    return M_std, b_std, {**own, **{f"bias_{c}": f"bias_{c}" for c in AXES}}
+
+
+def in_accelerometer_frame(rows: list[Entry]) -> list[Entry]:
+    """rows (one calibration's entries) with every M in the accelerometers' frame (module doc): M_acc Q^T = L
+    lower triangular, the gyro's M Q^T; stds mapped by the Jacobian of that map (entries independent)."""
+    by = {(e.sensor, e.name): e for e in rows}
+    if ("acc", "M_xx") not in by:
+        return rows
+    M = {s: np.array([[by[(s, f"M_{a}{b}")].value for b in AXES] for a in AXES]) for s in ("acc", "gyro")
+         if (s, "M_xx") in by}
+    sd = {s: np.array([[by[(s, f"M_{a}{b}")].std for b in AXES] for a in AXES]) for s in M}
+    if np.abs(np.triu(M["acc"], 1)).max() < 1e-12:  # already the accelerometers' own frame
+        return rows
+
+    def mapped(A_acc, A):
+        return A @ _rotation_to_lower(A_acc).T
+    out = dict(by)
+    for s in M:
+        value = mapped(M["acc"], M[s])
+        var = np.zeros((3, 3))
+        for src in {"acc", s}:  # the map's Jacobian by each entry of the matrices it reads
+            for i in range(3):
+                for j in range(3):
+                    h = max(abs(sd[src][i, j]) * 1e-3, 1e-12) if np.isfinite(sd[src][i, j]) else 1e-12
+                    d = np.zeros((3, 3))
+                    d[i, j] = h
+                    acc_p, acc_m = M["acc"] + (d if src == "acc" else 0), M["acc"] - (d if src == "acc" else 0)
+                    own_p, own_m = (acc_p, acc_m) if s == "acc" else (M[s] + (d if src == s else 0), M[s] - (d if src == s else 0))
+                    var += ((mapped(acc_p, own_p) - mapped(acc_m, own_m)) / (2 * h) * sd[src][i, j]) ** 2
+        for i in range(3):
+            for j in range(3):
+                key = (s, f"M_{AXES[i]}{AXES[j]}")
+                out[key] = by[key]._replace(value=float(value[i, j]), std=float(np.sqrt(var[i, j])))
+    return list(out.values())
+
+
+def _rotation_to_lower(M_acc) -> np.ndarray:
+    """Q of M_acc = L Q (L lower triangular, positive diagonal; Q a rotation): a QR of M_acc^T."""
+    Qt, R = np.linalg.qr(M_acc.T)
+    signs = np.sign(np.diag(R))
+    return (Qt * signs).T
+
+
+def compare(calibrations: Mapping[str, Any]) -> Any:
+    """Calibrations of one unit side by side in the one vocabulary: a row per sensor and entry (M_xx ..
+    bias_z, effects), for each calibration its value and std (columns ``LABEL`` and ``LABEL std``), and
+    the unit; every M in the accelerometers' own frame (module doc), so that the misalignments of a
+    method that works in the table's frame line up with the norm methods'.
+
+    Parameters
+    ----------
+    calibrations : mapping of str to Calibration
+        ``{label: calibration}``, e.g. ``{"exact": cal1, "multiposition": cal2}``.
+
+    Returns
+    -------
+    pandas.DataFrame or list of dict
+        A DataFrame indexed by (sensor, name) where pandas is installed, else the rows as dicts.
+
+    Examples
+    --------
+    >>> import simucal
+    >>> ms = simucal.simulate(seed=1)
+    >>> t = simucal.compare({m: simucal.calibrate(ms, method=m) for m in ("exact", "multiposition")})
+    >>> d = t["exact"] - t["multiposition"]
+    >>> bool((d.abs() < 4 * t["multiposition std"]).loc["acc"].all())
+    True
+    """
+    rows: dict[tuple[str, str], dict[str, Any]] = {}
+    for label, cal in calibrations.items():
+        for e in in_accelerometer_frame([e for s, block in cal.blocks() for e in entries(s, block)]):
+            row = rows.setdefault((e.sensor, e.name), {"sensor": e.sensor, "name": e.name, "unit": e.unit})
+            row[label], row[f"{label} std"] = e.value, e.std
+    out = list(rows.values())
+    try:
+        import pandas as pd
+    except ImportError:
+        return out
+    return pd.DataFrame(out).set_index(["sensor", "name"])
+
+
+def common_table(cal: Any) -> Any:
+    """`Calibration.parameters(vocabulary="common")`: every block's entries as a table."""
+    return table([e for s, b in cal.blocks() for e in entries(s, b)], Entry._fields)
