@@ -199,3 +199,25 @@ def test_a_sets_repr_is_one_line():
     import simucal
     r = repr(simucal.simulate("handheld", seed=1))
     assert "\n" not in r and len(r) < 200 and "stream, 27,030 rows over 270.3 s, acc in counts, gyro in counts" in r
+
+
+def test_other_tools_recordings_and_the_commands_from_python(tmp_path):
+    """Issue 54: imucal's own Ferraris session read from Python (simucal.read_set on its CSV said "not a folder";
+    a notebook shelled out to `simucal import`), calibrated, applied to a set and converted, by the API alone."""
+    from pathlib import Path
+
+    from simucal.errors import SimucalError
+    data = Path(__file__).resolve().parents[2] / "shared" / "data" / "imucal-ferraris"
+    ms = simucal.import_recording("imucal-ferraris", [data / "example_ferraris_session.csv",
+                                                       data / "example_ferraris_session_list.json"],
+                                  tmp_path / "set", latitude_deg=49.6)
+    assert isinstance(ms, simucal.MeasurementSet) and ms.segments and ms.has_acc and ms.has_gyro
+    with pytest.raises(SimucalError, match="force"):
+        simucal.import_recording("imucal-ferraris", [data / "example_ferraris_session.csv"], tmp_path / "set")
+    cal = simucal.calibrate(ms)
+    calibrated = cal.apply_to_set(ms)
+    assert calibrated.meta["acc_unit"] == "g" and len(calibrated.samples["t_s"]) == len(ms.samples["t_s"])
+    calibrated.write(tmp_path / "calibrated")
+    path, rows = simucal.convert(tmp_path / "calibrated", tmp_path / "columnar", "parquet")
+    assert path.name == "samples.parquet" and rows == len(ms.samples["t_s"])
+    assert simucal.read_set(tmp_path / "columnar").meta["acc_unit"] == "g"

@@ -145,6 +145,11 @@ def test_command_line_constants_are_the_api_s():
     assert cli_sets.SCENARIOS == simulation.SCENARIOS
     assert (cli_sets.ACC_UNITS, cli_sets.GYRO_UNITS) == (units.ACC_UNITS, units.GYRO_UNITS)
     assert cli_sets.DEFAULT_GRAVITY == units.DEFAULT_GRAVITY
+    from simucal.api import imports
+    from simucal.cli import common as cli_common
+    assert cli_common.MAX_TRIALS == simulation.MAX_TRIALS
+    assert (cli_sets.FORMATS, cli_sets.FERRARIS_HZ, cli_sets.ANNOTATED_HZ, cli_sets.ANNOTATED_ACC, cli_sets.ANNOTATED_GYRO) \
+        == (imports.FORMATS, imports.FERRARIS_HZ, imports.ANNOTATED_HZ, imports.ANNOTATED_ACC, imports.ANNOTATED_GYRO)
 
 
 @pytest.mark.slow

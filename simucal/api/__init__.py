@@ -20,12 +20,14 @@ from typing import Any, NamedTuple, Sequence, Union
 from simucal.errors import InputError
 from simucal import io
 from simucal.api.analyses import Candidate, Diagnosis, Noise, Term, diagnose, noise, save_diagnosis
-from simucal.api.simulation import simulate
+from simucal.api.simulation import montecarlo, simulate
 from simucal.api.tables import rows as table_rows
 from simucal.api.tables import TableOf
 from simucal.calibrate import calibrate as _calibrate_set
 from simucal.calibrate import calibrate_thermal as _calibrate_thermal
 from simucal.api.calibration import Calibration, Parameter
+from simucal.api.batch import Calibrated, calibrate_each
+from simucal.api.imports import convert, import_recording
 from simucal.api.lot import lot
 from simucal.api.sets import MeasurementSet, as_set, effect_ids, folder_of
 from simucal.api.vocabulary import Entry, compare
@@ -35,8 +37,8 @@ from simucal.validate import validate as _validate_report
 Data = Union[str, os.PathLike, io.MeasurementSet]
 
 __all__ = ["read_set", "simulate", "calibrate", "validate", "diagnose", "noise", "save", "load", "table_rows",
-           "compare", "MeasurementSet", "Calibration", "Parameter", "Entry", "Validation", "Check", "Diagnosis",
-           "Candidate", "Noise", "Term", "lot"]
+           "compare", "import_recording", "convert", "montecarlo", "calibrate_each", "Calibrated", "MeasurementSet", "Calibration", "Parameter", "Entry",
+           "Validation", "Check", "Diagnosis", "Candidate", "Noise", "Term", "lot"]
 
 
 def read_set(path: str | os.PathLike) -> MeasurementSet:

@@ -115,6 +115,34 @@ class Calibration(calibration.Calibration):
         return table([r for s, b in self.blocks() for r in (_model_rows(s, b) if b.params else _affine_rows(s, b))],
                       Parameter._fields)
 
+    def apply_to_set(self, data: Any, *, where: str = "this calibration") -> Any:
+        """The calibrated measurement set of a set's raw outputs (`simucal apply`): the samples in g and
+        deg/h, frame b, its other columns and segments kept; rows outside the calibrated temperatures are
+        said in ``meta["warnings"]``.
+
+        Parameters
+        ----------
+        data : str, os.PathLike or MeasurementSet
+            The raw set (a folder, or a set in memory).
+        where : str
+            How a refusal names this calibration (the command line: its file).
+
+        Returns
+        -------
+        MeasurementSet
+            In memory; ``.write(folder)`` writes it as `simucal apply -o` does.
+
+        Examples
+        --------
+        >>> calibrated = cal.apply_to_set("other")  # doctest: +SKIP
+        >>> calibrated.write("calibrated")  # doctest: +SKIP
+        """
+        from simucal import io
+        from simucal.api.sets import MeasurementSet, as_set
+        ms = as_set(data)
+        meta, samples, segments = fit_apply.apply(self, ms, where)
+        return MeasurementSet.of(io.MeasurementSet(ms.path, {"format": io.FORMAT, **meta}, samples, segments))
+
     def sensor(self, name: str) -> calibration.SensorBlock:
         """The block of sensor `name` ("acc" or "gyro"), never None: refused (CalibrationError) where this
         calibration holds none, saying why (`not_calibrated`).

@@ -116,38 +116,20 @@ def calibrate(data_dirs, output, thermal, thermal_degree, html_out, px4, ardupil
 
 
 def _calibrate_batch(data_dirs, output, kwargs, inputs, scheduler):
-    """Several sets, one by one (on a scheduler): one <set>.json each into the folder -o."""
-    from simucal import progress
-    from simucal.calibrate import calibrate_to_file
-    from simucal.errors import SimucalError
-    from simucal.sweeps import map_tasks
+    """Several sets, one by one (on a scheduler): one <set>.json each into the folder -o (simucal.calibrate_each)."""
+    from simucal import api, progress
     out = Path(output)
-    names = [Path(d).resolve().name for d in data_dirs]
-    if out.suffix == ".json" or (out.exists() and not out.is_dir()):
-        fail(f"-o {output}: with {len(data_dirs)} sets, -o names a folder (one <set>.json each)")
-    if len(set(names)) < len(names):
-        fail(f"two sets share a folder name ({sorted(n for n in names if names.count(n) > 1)[0]}): their files "
-              "would collide; calibrate them separately")
-    tasks = [(Path(d), out / f"{n}.json", kwargs) for d, n in zip(data_dirs, names)]
-    guard(inputs, files=[path for _, path, _ in tasks], folders=[out])
-    made = not out.exists()
-    out.mkdir(exist_ok=True)
-    try:
-        done = map_tasks(calibrate_to_file, tasks, scheduler, progress=progress.bar("calibrate", "set"))
-    except SimucalError as e:  # no scheduler: leave nothing behind
-        if made:
-            out.rmdir()
-        fail(e)
-    failed = 0
-    for (d, path, _), (result, error) in zip(tasks, done):
-        if error:
-            failed += 1
-            click.echo(f"{d}: error: {error}", err=True)
+    guard(inputs, files=[out / f"{Path(d).resolve().name}.json" for d in data_dirs], folders=[out])
+    done = api.calibrate_each(data_dirs, out, scheduler=scheduler, progress=progress.bar("calibrate", "set"), **kwargs)
+    for d in done:
+        if d.error:
+            click.echo(f"{d.data}: error: {d.error}", err=True)
         else:
             tests = ", ".join(f"{k} p = {b.p_value:.3g}" + (": THE MODEL FAILS" if b.verdict == "fails" else "")
-                              for k, b in result.blocks() if b.p_value is not None)
-            click.echo(f"{d}: wrote {path}" + (f" ({tests})" if tests else ""))
-    click.echo(f"{len(tasks) - failed} of {len(tasks)} sets calibrated into {out}")
+                              for k, b in d.calibration.blocks() if b.p_value is not None)
+            click.echo(f"{d.data}: wrote {d.output}" + (f" ({tests})" if tests else ""))
+    failed = sum(1 for d in done if d.error)
+    click.echo(f"{len(done) - failed} of {len(done)} sets calibrated into {out}")
     if failed:
         from simucal.io import outputs
         outputs.commit()  # the good sets' files are kept: each refused one is named above

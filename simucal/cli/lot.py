@@ -21,10 +21,10 @@ def lot(cal_folder, output, html_path, limits_path):
     and why (model test, spec limits), outliers, each parameter's spread, drift between calibrations of one unit."""
     import json
 
+    from simucal import api
     from simucal.io import outputs
-    from simucal.lot_report import lot as run
     guard([cal_folder] + ([limits_path] if limits_path else []), files={"-o": output, "--html": html_path})
-    report = run(cal_folder, limits_path)
+    report = api.lot(cal_folder, limits_path)
     outputs.write_text(output, json.dumps(report, indent=1) + "\n")
     if html_path:
         from simucal.report.lot_html import lot_page

@@ -32,8 +32,9 @@ ACC_UNITS = ("g", "m/s^2", "pulse/s", "counts")
 GYRO_UNITS = ("deg/h", "deg/s", "rad/s", "pulse/s", "counts")
 DEFAULT_GRAVITY = 9.80665
 
-FERRARIS_HZ = 102.4  # imucal's Ferraris recordings' rate, where the file has no time column
-ANNOTATED_HZ, ANNOTATED_ACC, ANNOTATED_GYRO = 204.8, 2048.0, 16.4  # imucal's annotated sessions: Hz, counts/g, counts/(deg/s)
+# api/imports.py's, for the help (tests/test_api_cli.py holds them equal)
+FORMATS = ("imu_tk", "imucal-ferraris", "imucal-annotated", "csv", "ulog", "dataflash", "rosbag")
+FERRARIS_HZ, ANNOTATED_HZ, ANNOTATED_ACC, ANNOTATED_GYRO = 102.4, 204.8, 2048.0, 16.4
 
 
 @main.command()
@@ -116,8 +117,7 @@ def simulate(out_dir, output, scenario, heading_error_deg, seed, unit_seed, plan
 
 
 @main.command("import")
-@click.argument("fmt", type=click.Choice(["imu_tk", "imucal-ferraris", "imucal-annotated", "csv", "ulog", "dataflash",
-                                          "rosbag"]))
+@click.argument("fmt", type=click.Choice(FORMATS))
 @click.argument("sources", nargs=-1, required=True, type=InputPath(exists=True))
 @click.option("-o", "--output", "--out-dir", "out_dir", required=True, type=click.Path(file_okay=False),
               help="The output folder (a measurement set).")
@@ -148,38 +148,14 @@ def simulate(out_dir, output, scenario, heading_error_deg, seed, unit_seed, plan
 def import_cmd(fmt, sources, out_dir, latitude_deg, acc_counts_per_g, gyro_counts_per_dps, gravity_mps2, rate_hz,
                columns, acc_unit, gyro_unit, turn_deg, instance, topic, force):
     """Write a measurement set from another tool's recording, or from a PX4 ULog, an ArduPilot DataFlash
-    log or a ROS 1 or ROS 2 bag (m/s^2 and rad/s as logged, the sensor frame and device ids in meta.json)."""
-    from simucal.io import importers as im
+    log or a ROS 1 or ROS 2 bag (m/s^2 and rad/s as logged, the sensor frame and device ids in meta.json).
+    The Python API's simucal.import_recording(FMT, SOURCES, OUT_DIR, ...)."""
+    from simucal import api
     guard(sources, sets=[out_dir], force=force)
-    folders = [s for s in sources if Path(s).is_dir()]
-    if folders and fmt != "rosbag":
-        fail(f"{folders[0]}: is a folder; {fmt} reads files (a ROS 2 bag is a folder: import rosbag)")
-    if fmt in ("ulog", "dataflash", "rosbag"):
-        from simucal.io.logs import import_log
-        if len(sources) != 1:
-            raise im.ImportError_(f"{fmt} reads one log: give one file (a ROS 2 bag: its folder)")
-        import_log(fmt, sources[0], out_dir, latitude_deg, int(instance), topic)
-    elif fmt == "imu_tk":
-        if len(sources) != 2 or not acc_counts_per_g or not gyro_counts_per_dps:
-            raise im.ImportError_("imu_tk needs ACC_FILE GYRO_FILE, --acc-counts-per-g and --gyro-counts-per-dps")
-        im.import_imu_tk(sources[0], sources[1], out_dir, acc_counts_per_g, gyro_counts_per_dps, latitude_deg,
-                         gravity_mps2)
-    elif fmt == "imucal-ferraris":
-        if len(sources) == 2:  # with the section list: poses and turns as segments
-            im.import_ferraris_sections(sources[0], sources[1], out_dir, rate_hz or FERRARIS_HZ, latitude_deg, turn_deg)
-        else:  # a continuous stream: poses found by static detection
-            im.import_ferraris(sources[0], out_dir, rate_hz or FERRARIS_HZ, latitude_deg)
-    elif fmt == "imucal-annotated":
-        im.import_imucal_annotated(sources[0], out_dir, rate_hz or ANNOTATED_HZ, acc_counts_per_g or ANNOTATED_ACC,
-                                   gyro_counts_per_dps or ANNOTATED_GYRO, latitude_deg, turn_deg)
-    else:
-        if not columns:
-            raise im.ImportError_("csv needs --columns (and --acc-unit, --gyro-unit for the triads it maps)")
-        cmap = im.parse_columns(columns)
-        for triad, unit, option in (("ax", acc_unit, "--acc-unit"), ("gx", gyro_unit, "--gyro-unit")):
-            if triad in cmap and not unit:
-                raise im.ImportError_(f"csv: --columns maps {triad}, so give {option}")
-        im.import_csv(sources[0], out_dir, cmap, acc_unit, gyro_unit, rate_hz, latitude_deg)
+    api.import_recording(fmt, sources, out_dir, latitude_deg=latitude_deg, acc_counts_per_g=acc_counts_per_g,
+                         gyro_counts_per_dps=gyro_counts_per_dps, gravity_mps2=gravity_mps2, rate_hz=rate_hz,
+                         columns=columns, acc_unit=acc_unit, gyro_unit=gyro_unit, turn_deg=turn_deg,
+                         instance=int(instance), topic=topic, force=force, read_back=False)
     click.echo(f"wrote {out_dir}")
 
 
@@ -190,17 +166,15 @@ def import_cmd(fmt, sources, out_dir, latitude_deg, acc_counts_per_g, gyro_count
               help="The output folder (a measurement set).")
 @FORCE
 def apply_cmd(calibration_file, data_dir, out_dir, force):
-    """Apply a calibration to raw data: a measurement set in g and deg/h, frame b."""
-    from simucal import io
-    from simucal.fit.apply import apply
-    from simucal.io import calibration
+    """Apply a calibration to raw data: a measurement set in g and deg/h, frame b. The Python API's
+    simucal.load(CAL).apply_to_set(DATA)."""
+    from simucal import api
     guard([calibration_file, data_dir], sets=[out_dir], force=force)
-    cal = calibration.load(calibration_file)
-    meta, samples, segments = apply(cal, Path(data_dir), calibration_file)
-    io.write_set(out_dir, meta, samples, segments)
-    for line in meta.get("warnings", []):
+    calibrated = api.load(calibration_file).apply_to_set(data_dir, where=calibration_file)
+    calibrated.write(out_dir, force=True)  # guarded above, with --force
+    for line in calibrated.meta.get("warnings", []):
         click.echo(f"WARNING: {line}")
-    click.echo(f"wrote {out_dir}: {len(samples['t_s'])} rows in g and deg/h (frame b), calibrated by "
+    click.echo(f"wrote {out_dir}: {len(calibrated.samples['t_s'])} rows in g and deg/h (frame b), calibrated by "
                f"{calibration_file}")
 
 
@@ -284,8 +258,8 @@ def noise(data_dir, output, html_path, kalibr_path, tau_max_s, scheduler, topic)
 @FORCE
 def convert(data_dir, output, to, force):
     """Copy a measurement set with its samples as samples.parquet or samples.csv, read and written a chunk at a time
-    (every row checked as it is read); the input is never changed."""
-    from simucal.io import columnar
+    (every row checked as it is read); the input is never changed. The Python API's simucal.convert(DIR, OUT, TO)."""
+    from simucal import api
     guard([data_dir], sets=[output], force=force)
-    path, rows = columnar.convert(data_dir, output, to)
+    path, rows = api.convert(data_dir, output, to, force=force)
     click.echo(f"wrote {path}: {rows} rows")

@@ -109,27 +109,18 @@ def demo(out_dir, seed, force):
               help="local (this process), processes (a Dask LocalCluster on 127.0.0.1, one worker per core) or a "
                    "Dask scheduler's address: the same numbers on any. " + SCHEDULER_TRUST)
 def montecarlo(scenario, plan, trials, seed, effects, effect_file, sets, rates, output, scheduler):
-    """Monte Carlo of a scenario: simulate, exact fits, unification; std against the Cramer-Rao bound."""
+    """Monte Carlo of a scenario: simulate, exact fits, unification; std against the Cramer-Rao bound.
+    The Python API's simucal.montecarlo(...)."""
     import json
 
-    from simucal import progress
+    from simucal import api, progress
     from simucal.io import outputs
-    from simucal.turntable.montecarlo import run
     from simucal.sweeps import keep_freed_memory
-    from simucal.turntable.simulate import SCENARIOS, plant
     guard([plan if plan and Path(plan).exists() else None, effect_file], files={"-o": output})
     keep_freed_memory()  # this process is the command's
-    if (effects or effect_file) and trials > MAX_TRIALS // 10:  # without a compiler, numpy: ~10x slower
-        fail(f"--trials {trials}: with --effect or --effect-file at most {MAX_TRIALS // 10} (about two minutes); "
-             "split the run over seeds")
-    sc = SCENARIOS[scenario]()
-    if plan:
-        sc.plan = plan
-    if rates:
-        sc.outer_rate_dps = tuple(rates_dps(rates))
-    plant(sc, effects, effect_file, sets, writes_columns=False)  # its averaged rows have no columns
-    result = run(sc, trials, seed, scheduler=scheduler,
-                 progress=progress.bar("montecarlo", "batch"))
+    result = api.montecarlo(plan=plan, trials=trials, seed=seed, effects=effects, effect_file=effect_file, sets=sets,
+                            rates_dps=rates_dps(rates) if rates else None, scheduler=scheduler,
+                            progress=progress.bar("montecarlo", "batch"))
     outputs.write_text(output, json.dumps(result, indent=1) + "\n")
     backend = "; ".join(f"{s} {b}" for s, b in result["backend"].items())
     click.echo(f"{trials} trials in {result['seconds']:.2f} s ({result['trials_per_s']:.0f}/s; {backend}; "

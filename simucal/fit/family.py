@@ -69,7 +69,7 @@ def targeted(problem, ids, dof: int | None = None) -> dict:
             continue
         n += 1
         kept.append(cid)
-        g2 = float(perp @ r) ** 2 / float(perp @ perp)
+        g2 = (float(perp @ r) / float(np.linalg.norm(perp))) ** 2  # normalised first: no overflow at absurd weights
         if s2 == 1.0 or not dof or dof < 2:  # known noise, or a scale the LR profiles out (s2 given)
             stat = g2 / s2
             p = float(chi2_sf(stat, 1))

@@ -1,0 +1,54 @@
+"""Several sets calibrated one by one into a folder (`simucal calibrate DIR1 DIR2 ... -o FOLDER`), from Python:
+a refusal of one set loses no other (each set's file, or its refusal's message)."""
+from __future__ import annotations
+
+import os
+from pathlib import Path
+from typing import Any, NamedTuple, Sequence
+
+from simucal.errors import InputError
+
+
+class Calibrated(NamedTuple):
+    """One set of `calibrate_each`: its folder, its calibration file, and the calibration or the refusal."""
+    data: Path
+    output: Path
+    calibration: Any     # simucal.Calibration, or None where refused
+    error: str | None    # the refusal's message
+
+
+def calibrate_each(data_dirs: Sequence[str | os.PathLike], folder: str | os.PathLike, *, scheduler: str | None = None,
+                   progress: Any = None, **options: Any) -> list[Calibrated]:
+    """Calibrate every set of `data_dirs` (as `simucal.calibrate` with `options`) and write each one's file as
+    FOLDER/<set's folder name>.json, on a scheduler where given (local, processes or a Dask address).
+
+    Returns
+    -------
+    list of Calibrated
+        Per set, in order: the files, and the calibration or why it was refused.
+
+    Examples
+    --------
+    >>> done = simucal.calibrate_each(["unit1", "unit2"], "cals")  # doctest: +SKIP
+    >>> [d.error for d in done]  # doctest: +SKIP
+    [None, None]
+    """
+    from simucal.calibrate import calibrate_to_file
+    from simucal.sweeps import map_tasks
+    out = Path(folder)
+    names = [Path(d).resolve().name for d in data_dirs]
+    if out.suffix == ".json" or (out.exists() and not out.is_dir()):
+        raise InputError(f"-o {folder}: with {len(data_dirs)} sets, -o names a folder (one <set>.json each)")
+    if len(set(names)) < len(names):
+        raise InputError(f"two sets share a folder name ({sorted(n for n in names if names.count(n) > 1)[0]}): their "
+                         "files would collide; calibrate them separately")
+    tasks = [(Path(d), out / f"{n}.json", options) for d, n in zip(data_dirs, names)]
+    made = not out.exists()
+    out.mkdir(exist_ok=True)
+    try:
+        done = map_tasks(calibrate_to_file, tasks, scheduler, progress=progress)
+    except BaseException:  # no scheduler, or interrupted: leave no empty folder behind
+        if made and not any(out.iterdir()):
+            out.rmdir()
+        raise
+    return [Calibrated(d, path, result, error) for (d, path, _), (result, error) in zip(tasks, done)]

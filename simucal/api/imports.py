@@ -1,0 +1,113 @@
+"""Other tools' recordings and logs into measurement sets, from Python (issue 54, items 3 and 4):
+`simucal import` and `simucal convert` are one call of these plus printing."""
+from __future__ import annotations
+
+import os
+from pathlib import Path
+from typing import Sequence
+
+from simucal.api.sets import MeasurementSet
+from simucal.errors import InputError
+
+FORMATS = ("imu_tk", "imucal-ferraris", "imucal-annotated", "csv", "ulog", "dataflash", "rosbag")
+FERRARIS_HZ = 102.4  # imucal's Ferraris recordings' rate, where the file has no time column
+ANNOTATED_HZ, ANNOTATED_ACC, ANNOTATED_GYRO = 204.8, 2048.0, 16.4  # imucal's annotated sessions: Hz, counts/g, counts/(deg/s)
+
+Path_ = str | os.PathLike
+
+
+def import_recording(fmt: str, sources: Sequence[Path_], out: Path_, *, latitude_deg: float | None = None,
+                     acc_counts_per_g: float | None = None, gyro_counts_per_dps: float | None = None,
+                     gravity_mps2: float | None = None, rate_hz: float | None = None, columns: str | None = None,
+                     acc_unit: str | None = None, gyro_unit: str | None = None, turn_deg: float = -360.0,
+                     instance: int = 0, topic: str | None = None, force: bool = False,
+                     read_back: bool = True) -> MeasurementSet | None:
+    """Write a measurement set from another tool's recording or an autopilot's or ROS log, and return it.
+
+    Parameters
+    ----------
+    fmt : str
+        One of FORMATS: imu_tk (two .mat or text files, acc and gyro), imucal-ferraris (its CSV, and
+        optionally its section list .json), imucal-annotated, csv (any CSV with `columns`), ulog (PX4),
+        dataflash (ArduPilot), rosbag (ROS 1 file or ROS 2 folder).
+    sources : sequence of paths
+        The recording's files.
+    out : path
+        The new set's folder (`simucal import -o`); refused where it holds a set already, unless `force`.
+    latitude_deg, acc_counts_per_g, gyro_counts_per_dps, gravity_mps2, rate_hz, columns, acc_unit, gyro_unit,
+    turn_deg, instance, topic :
+        `simucal import`'s options of the same names (``simucal import --help``).
+    force : bool
+        Replace a set already in `out`.
+    read_back : bool
+        Return the set read from `out` (False: None; the command line, whose outputs are renamed into place
+        only when it ends, reads nothing back).
+
+    Returns
+    -------
+    MeasurementSet or None
+        The set as written, read back.
+
+    Examples
+    --------
+    >>> ms = simucal.import_recording("imucal-ferraris", ["session.csv"], "set", latitude_deg=49.6)  # doctest: +SKIP
+    """
+    from simucal.io import importers as im
+    from simucal.io import outputs
+    if fmt not in FORMATS:
+        raise InputError(f"format {fmt!r}: one of {', '.join(FORMATS)}")
+    paths = [Path(s) for s in sources]
+    outputs.check(paths, sets=[out], force=force)
+    folders = [s for s in paths if s.is_dir()]
+    if folders and fmt != "rosbag":
+        raise im.ImportError_(f"{folders[0]}: is a folder; {fmt} reads files (a ROS 2 bag is a folder: import rosbag)")
+    if fmt in ("ulog", "dataflash", "rosbag"):
+        from simucal.io.logs import import_log
+        if len(paths) != 1:
+            raise im.ImportError_(f"{fmt} reads one log: give one file (a ROS 2 bag: its folder)")
+        import_log(fmt, paths[0], out, latitude_deg, int(instance), topic)
+    elif fmt == "imu_tk":
+        if len(paths) != 2 or not acc_counts_per_g or not gyro_counts_per_dps:
+            raise im.ImportError_("imu_tk needs ACC_FILE GYRO_FILE, --acc-counts-per-g and --gyro-counts-per-dps")
+        im.import_imu_tk(paths[0], paths[1], out, acc_counts_per_g, gyro_counts_per_dps, latitude_deg, gravity_mps2)
+    elif fmt == "imucal-ferraris":
+        if len(paths) == 2:  # with the section list: poses and turns as segments
+            im.import_ferraris_sections(paths[0], paths[1], out, rate_hz or FERRARIS_HZ, latitude_deg, turn_deg)
+        else:  # a continuous stream: poses found by static detection
+            im.import_ferraris(paths[0], out, rate_hz or FERRARIS_HZ, latitude_deg)
+    elif fmt == "imucal-annotated":
+        im.import_imucal_annotated(paths[0], out, rate_hz or ANNOTATED_HZ, acc_counts_per_g or ANNOTATED_ACC,
+                                   gyro_counts_per_dps or ANNOTATED_GYRO, latitude_deg, turn_deg)
+    else:
+        _import_csv(paths[0], out, columns, acc_unit, gyro_unit, rate_hz, latitude_deg)
+    from simucal import io
+    return MeasurementSet.of(io.read_set(out)) if read_back else None
+
+
+def _import_csv(path, out, columns, acc_unit, gyro_unit, rate_hz, latitude_deg) -> None:
+    """Any CSV by its columns' map (--columns), each mapped triad's unit given."""
+    from simucal.io import importers as im
+    if not columns:
+        raise im.ImportError_("csv needs --columns (and --acc-unit, --gyro-unit for the triads it maps)")
+    cmap = im.parse_columns(columns)
+    for triad, unit, option in (("ax", acc_unit, "--acc-unit"), ("gx", gyro_unit, "--gyro-unit")):
+        if triad in cmap and not unit:
+            raise im.ImportError_(f"csv: --columns maps {triad}, so give {option}")
+    im.import_csv(path, out, cmap, acc_unit, gyro_unit, rate_hz, latitude_deg)
+
+
+def convert(data: Path_, out: Path_, to: str, *, force: bool = False) -> tuple[Path, int]:
+    """Copy a measurement set with its samples as samples.parquet or samples.csv (`to`), read and written a
+    chunk at a time, every row checked; the input is never changed (a set already in `out` is refused
+    unless `force`). Returns (the samples file written, its rows).
+
+    Examples
+    --------
+    >>> simucal.convert("set", "set_parquet", "parquet")  # doctest: +SKIP
+    (PosixPath('set_parquet/samples.parquet'), 3600)
+    """
+    from simucal.io import columnar, outputs
+    if to not in ("parquet", "csv"):
+        raise InputError(f"to {to!r}: parquet or csv")
+    outputs.check([data], sets=[out], force=force)
+    return columnar.convert(data, out, to)
