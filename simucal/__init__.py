@@ -9,19 +9,19 @@ __version__ = "0.1.0"
 # The Python API (simucal/api/), imported on first use so that `import simucal` and the command
 # line's start stay light: simucal.read_set, simucal.calibrate, ... (README, "Python API").
 _API = ("read_set", "simulate", "calibrate", "validate", "diagnose", "noise", "save", "load", "table_rows", "compare",
-        "import_recording", "convert", "montecarlo", "calibrate_each", "Calibrated",
+        "import_recording", "convert", "montecarlo", "calibrate_each", "Calibrated", "plan", "sequence_observability",
         "MeasurementSet", "Calibration", "Parameter", "Entry", "Validation", "Check", "Diagnosis", "Candidate", "Noise",
         "Term", "lot")
 __all__ = ["__version__", "read_set", "simulate", "calibrate", "validate", "diagnose", "noise", "save", "load",
-           "table_rows", "compare", "import_recording", "convert", "montecarlo", "calibrate_each", "Calibrated",
-           "MeasurementSet", "Calibration", "Parameter", "Entry", "Validation", "Check",
+           "table_rows", "compare", "import_recording", "convert", "montecarlo", "calibrate_each", "Calibrated", "plan",
+           "sequence_observability", "MeasurementSet", "Calibration", "Parameter", "Entry", "Validation", "Check",
            "Diagnosis", "Candidate", "Noise", "Term", "lot"]  # the public names (_API, spelt out for type checkers)
 TYPE_CHECKING = False  # typing's constant without importing typing (2 ms); type checkers read it as True
 if TYPE_CHECKING:
     from simucal.api import (Calibrated, Calibration, Candidate, Check, Diagnosis, Entry, MeasurementSet, Noise,  # noqa: F401
                              Parameter, Term, Validation, calibrate, calibrate_each, compare, convert, diagnose,
-                             import_recording,
-                             load, lot, montecarlo, noise, read_set, save, simulate, table_rows, validate)
+                             import_recording, load, lot, montecarlo, noise, plan, read_set, save,
+                             sequence_observability, simulate, table_rows, validate)
 
 
 def __getattr__(name):

@@ -148,6 +148,9 @@ def test_command_line_constants_are_the_api_s():
     from simucal.api import imports
     from simucal.cli import common as cli_common
     assert cli_common.MAX_TRIALS == simulation.MAX_TRIALS
+    from simucal.api import planning
+    from simucal.cli import tools as cli_tools
+    assert cli_tools.PAPER_RATE_DPS == planning.PAPER_RATE_DPS
     assert (cli_sets.FORMATS, cli_sets.FERRARIS_HZ, cli_sets.ANNOTATED_HZ, cli_sets.ANNOTATED_ACC, cli_sets.ANNOTATED_GYRO) \
         == (imports.FORMATS, imports.FERRARIS_HZ, imports.ANNOTATED_HZ, imports.ANNOTATED_ACC, imports.ANNOTATED_GYRO)
 

@@ -28,6 +28,7 @@ from simucal.calibrate import calibrate_thermal as _calibrate_thermal
 from simucal.api.calibration import Calibration, Parameter
 from simucal.api.batch import Calibrated, calibrate_each
 from simucal.api.imports import convert, import_recording
+from simucal.api.planning import plan, sequence_observability
 from simucal.api.lot import lot
 from simucal.api.sets import MeasurementSet, as_set, effect_ids, folder_of
 from simucal.api.vocabulary import Entry, compare
@@ -37,7 +38,8 @@ from simucal.validate import validate as _validate_report
 Data = Union[str, os.PathLike, io.MeasurementSet]
 
 __all__ = ["read_set", "simulate", "calibrate", "validate", "diagnose", "noise", "save", "load", "table_rows",
-           "compare", "import_recording", "convert", "montecarlo", "calibrate_each", "Calibrated", "MeasurementSet", "Calibration", "Parameter", "Entry",
+           "compare", "import_recording", "convert", "montecarlo", "calibrate_each", "Calibrated", "plan",
+           "sequence_observability", "MeasurementSet", "Calibration", "Parameter", "Entry",
            "Validation", "Check", "Diagnosis", "Candidate", "Noise", "Term", "lot"]
 
 

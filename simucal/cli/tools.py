@@ -133,60 +133,10 @@ def montecarlo(scenario, plan, trials, seed, effects, effect_file, sets, rates, 
     click.echo(f"wrote {output}")
 
 
-PAPER_RATE_DPS = 10.0  # dong2018 section 4's rate runs
-
-
-def _plan_scores(model, score_plan, positions, criterion, rates, sigma):
-    """(plan name, its directions u in k, rho, the score) of the plan scored or designed."""
-    import numpy as np
-
-    from simucal.io.units import DPH_PER_DPS
-    from simucal.turntable import plans
-    from simucal.turntable.plan_design import design, directions_k, score
-    gyro = model.sensor == "gyro"
-    rate_list = rates_dps(rates) if rates else [PAPER_RATE_DPS]
-    if gyro and score_plan is not None and len(rate_list) > 1:
-        raise InputError(f"--rates-dps {rates}: a score takes one rate (its rate runs'); a design (--positions N) "
-                         "chooses among several")
-    rho = abs(rate_list[0]) * DPH_PER_DPS if gyro else 1.0
-    if score_plan is not None:
-        rows = plans.PLANS[score_plan]() if score_plan in plans.PLANS else plans.read_csv(score_plan)
-        u, name = directions_k(rows), score_plan
-    else:
-        u, rho = design(model, positions, np.abs(rate_list) * DPH_PER_DPS if gyro else 1.0, sigma, criterion)
-        name = f"{criterion}-optimal, {positions} positions"
-    return name, u, rho, {"plan": name, **score(model, u, rho, sigma)}
-
-
-def _separation(model, pair, sizes, score_plan, u, rho, sigma, target):
-    """plan --separate: the positions to add so that two candidate effects are told apart."""
-    import numpy as np
-
-    from simucal.fit.augmented import check_effect
-    from simucal.io.calibration_checks import PARAM_LIMIT
-    from simucal.turntable.plan_design import separate
-    if score_plan is None or not sizes:
-        raise InputError("--separate needs --score PLAN (the plan you have) and --sizes Q1,Q2")
-    ids = [x.strip() for x in pair.split(",")]
-    q = [float(x) for x in sizes.split(",")]
-    if len(ids) != 2 or len(q) != 2:
-        raise InputError("--separate ID1,ID2 and --sizes Q1,Q2: two of each")
-    if ids[0] == ids[1]:
-        raise InputError(f"--separate {pair}: an effect cannot be told from itself; name two different effects")
-    if not all(np.isfinite(x) and 0 < abs(x) <= PARAM_LIMIT for x in q):
-        raise InputError(f"--sizes {sizes}: each size must be a finite, non-zero number (the effect's expected "
-                         f"value, in its unit) of at most {PARAM_LIMIT:g}")
-    for e in ids:
-        check_effect(e, model.sensor)
-    rates = (np.array([0.5, 1.0, 2.0]) * rho) if model.sensor == "gyro" else ()
-    return separate(model.base, ids[0], ids[1], u, rho, sigma, q, rates, target)
+PAPER_RATE_DPS = 10.0  # api/planning.py's, for the help (tests/test_api_cli.py holds them equal)
 
 
 def _separation_lines(sep):
-    import numpy as np
-
-    from simucal.generated.effects import SEPARATE
-    from simucal.turntable.plan_design import plan_rows
     a, b = sep["effects"]
     yield (f"separate {a} from {b}: on this plan the expected likelihood ratios are "
            f"{sep['start']['noncentrality'][0]:.3g} and {sep['start']['noncentrality'][1]:.3g} "
@@ -195,70 +145,46 @@ def _separation_lines(sep):
         yield (f"  {len(sep['added'])} added positions give {sep['noncentrality'][0]:.3g} and "
                f"{sep['noncentrality'][1]:.3g} (power {sep['power'][0]:.2f}, {sep['power'][1]:.2f}): "
                + ("the target is reached" if sep["reached"] else f"short of {sep['target_power']}"))
-        for x in plan_rows(np.array([d["direction_k"] for d in sep["added"]]))[:48]:
+        for x in sep["added_rows"][:48]:
             yield f"    outer {x[0]:8.3f}  middle {x[1]:9.4f}  inner {x[2]:9.4f} deg"
     elif sep["reached"]:
         yield "  the plan already tells them apart at the target power"
     if not sep["reached"]:
-        hints = sorted({SEPARATE[e.split(".")[1]] for e in (a, b)})
         yield ("  no positions on the sphere separate them" + (" further" if sep["added"] else "")
-               + ": they differ in what the plan cannot vary by direction; " + "; ".join(hints))
+               + ": they differ in what the plan cannot vary by direction; " + "; ".join(sep["hints"]))
 
 
-def _write_design(result, model, u, rho, kind, output):
+def _write_design(result, output):
     """The designed plan's CSV (three-axis angles, or hand poses as gravity directions) and its JSON."""
     import json
 
-    import numpy as np
-
     from simucal.io import outputs
-    from simucal.io.units import DPH_PER_DPS
-    from simucal.turntable.plan_design import plan_rows
-    gyro = model.sensor == "gyro"
     out = Path(output or "plan.csv")
-    if kind == "hand":  # a pose is where gravity (or the turn axis) points in the unit's own axes
-        rows = [(i + 1, *map(float, d)) for i, d in enumerate(u)]
-        cols = "pose,f_x,f_y,f_z"
-    else:
-        rows = plan_rows(u, np.asarray(rho) / DPH_PER_DPS if gyro else None)
-        cols = "outer_deg,middle_deg,inner_deg" + (",outer_rate_dps" if gyro else "")
-    outputs.write_text(out, cols + "\n" + "".join(",".join(f"{x:.6f}" for x in r) + "\n" for r in rows))
-    result["rows"] = rows
-    outputs.write_text(out.with_suffix(".json"), json.dumps(result, indent=1) + "\n")
+    outputs.write_text(out, result["columns"] + "\n" + "".join(",".join(f"{x:.6f}" for x in r) + "\n"
+                                                                for r in result["rows"]))
+    outputs.write_text(out.with_suffix(".json"), json.dumps(result, indent=1, default=float) + "\n")
     return out
 
 
 def _plan_sequence(sequence, model_name, add, score_plan, rates, acc_noise_g, gyro_noise_dph, output):
-    """plan --sequence: the filter's observability of each parameter over a rotation sequence
-    (systematic/observability.py, the default unit simulated at seed 0) beside the norm method's CRLB of
-    the same models on a plan (--score, default table1)."""
+    """plan --sequence: simucal.sequence_observability, printed."""
     import json
 
-    import numpy as np
-
     from simucal import api
-    from simucal.fit.augmented import AugmentedModel, for_sensor
     from simucal.io import outputs
-    from simucal.systematic.observability import observability
     guard([sequence if Path(sequence).exists() else None, score_plan if score_plan and Path(score_plan).exists() else None],
           files={"-o": output} if output else {})
-    plan_name = score_plan or "table1"
-    models = {"acc": "acc_baseline", "gyro": "gyro_baseline", AugmentedModel(model_name).sensor: model_name}
-    ms = api.simulate(sequence=sequence, seed=0)
-    obs = observability(ms, models["acc"], models["gyro"], tuple(add))
+    r = api.sequence_observability(sequence, model=model_name, add=add, score=score_plan,
+                                   rates_dps=rates_dps(rates) if rates else None, acc_noise_g=acc_noise_g,
+                                   gyro_noise_dph=gyro_noise_dph)
+    obs, crlb, models, plan_name, noise = r["observability"], r["norm"], r["models"], r["plan"], r["noise"]
     n = obs["noise_per_sample"]
-    # the same unit held as long at each position as at each of the sequence's rests (its median)
-    rest_n = float(np.median([len(ms.rows(s.segment)) for s in ms.segments if s.kind == "static"]))
-    noise = {"acc": acc_noise_g or max(n["acc_g"]) / rest_n ** 0.5, "gyro": gyro_noise_dph or max(n["gyro_dph"])
-             / rest_n ** 0.5}
-    crlb = {s: _plan_scores(AugmentedModel(models[s], for_sensor(add, s)), plan_name, None, "D", rates, noise[s])[3]
-            for s in ("acc", "gyro")}
-    click.echo(f"sequence {ms.truth['sequence']['name']}: {models['acc']} and {models['gyro']}"
+    click.echo(f"sequence {r['sequence']['name']}: {models['acc']} and {models['gyro']}"
                + "".join(f" + {a}" for a in add) + f", one pass of the linearised filter ({obs['updates']} zero-velocity "
                f"updates; the default unit simulated, noise {max(n['acc_g']):.2g} g and {max(n['gyro_dph']):.2g} deg/h per "
                f"sample); beside it the norm method's CRLB on {plan_name}, noise {noise['acc']:.3g} g and {noise['gyro']:.3g} "
-               f"deg/h per position" + ("" if acc_noise_g and gyro_noise_dph else f" (held as long as a rest, {rest_n:g} "
-                                       "samples, unless stated)"))
+               f"deg/h per position" + ("" if r["stated"] else f" (held as long as a rest, {r['rest_n']:g} samples, unless "
+                                        "stated)"))
     click.echo(f"  {'parameter':18} {'unit':16} {'prior std':>10} {'sequence std':>13} {'of prior':>9} "
                f"{'CRLB ' + plan_name:>16}")
     for x in obs["parameters"]:
@@ -272,8 +198,8 @@ def _plan_sequence(sequence, model_name, add, score_plan, rates, acc_noise_g, gy
     else:
         click.echo(f"every parameter observed (the largest std {max(x['ratio'] for x in obs['parameters']):.2g} of its prior)")
     if output:
-        outputs.write_text(output, json.dumps({"sequence": ms.truth["sequence"], "models": models, "add": list(add),
-                                               "observability": obs, "norm": crlb}, indent=1) + "\n")
+        outputs.write_text(output, json.dumps({k: r[k] for k in ("sequence", "models", "add", "observability", "norm")},
+                                              indent=1, default=float) + "\n")
         click.echo(f"wrote {output}")
 
 
@@ -323,11 +249,8 @@ def plan(score_plan, model_name, add, positions, criterion, rate_dps, rates, kin
         return _plan_sequence(sequence, model_name, add, score_plan, rates, acc_noise_g, gyro_noise_dph, output)
     import json
 
-    import numpy as np
-
-    from simucal.fit.augmented import AugmentedModel
+    from simucal import api
     from simucal.io import outputs
-    from simucal.io.units import DPH_PER_DPS
     if (score_plan is None) == (positions is None):
         fail("give --score PLAN to score a plan, or --positions N to design one")
     if rate_dps is not None and rates:
@@ -341,24 +264,23 @@ def plan(score_plan, model_name, add, positions, criterion, rate_dps, rates, kin
                                       if positions is not None else {})})
     elif positions is not None:
         guard(files=["plan.csv", "plan.json"])
-    model = AugmentedModel(model_name, tuple(add))
-    gyro = model.sensor == "gyro"
+    from simucal.api.planning import model_sensor
+    gyro = model_sensor(model_name, add) == "gyro"
     wrong = acc_noise_g if gyro else gyro_noise_dph
     if wrong is not None:
-        raise InputError(f"{'--acc-noise-g' if gyro else '--gyro-noise-dph'} {wrong:g}: model {model.name} is a "
-                         f"{model.sensor} model; give {'--gyro-noise-dph' if gyro else '--acc-noise-g'}")
-    sigma = sigma or ((gyro_noise_dph or 0.01) if gyro else (acc_noise_g or 1e-5))
+        raise InputError(f"{'--acc-noise-g' if gyro else '--gyro-noise-dph'} {wrong:g}: model {model_name} is a "
+                         f"{'gyro' if gyro else 'acc'} model; give {'--gyro-noise-dph' if gyro else '--acc-noise-g'}")
     if not gyro:
         refuse_unused({"rate_dps": "gyro models (rate runs)", "rates": "gyro models (rate runs)"})
-    name, u, rho, result = _plan_scores(model, score_plan, positions, criterion,
-                                        rates or (None if rate_dps is None else repr(rate_dps)), sigma)
-    if pair:
-        result["separation"] = _separation(model, pair, sizes, score_plan, u, rho, sigma, target)
+    result = api.plan(score_plan, positions=positions, model=model_name, add=add, criterion=criterion,
+                      rates_dps=None if rates is None and rate_dps is None else rates_dps(rates or repr(rate_dps)),
+                      noise=sigma or (gyro_noise_dph if gyro else acc_noise_g), kind=kind,
+                      separate=pair.split(",") if pair else None,
+                      sizes=_numbers("--sizes", sizes) if sizes else None, power=target)
     if rate_dps is not None:  # after the refusals, which are one line
         click.echo("warning: --rate-dps is deprecated: --rates-dps R takes one rate (deg/s) as it takes several", err=True)
-    click.echo(f"{name}: {model.name}, noise {sigma:g} {model.unit} per position"
-               + (f", rate runs at {', '.join(f'{x:g}' for x in sorted(set(np.round(np.atleast_1d(rho) / DPH_PER_DPS, 6))))} "
-                  "deg/s" if gyro else ""))
+    click.echo(f"{result['plan']}: {result['model']}, noise {result['noise']:g} {result['unit']} per position"
+               + (f", rate runs at {', '.join(f'{x:g}' for x in result['rates_dps'])} deg/s" if result["rates_dps"] else ""))
     click.echo(f"  D per position {result['D_per_position']:.6g}, A {result['A']:.4g}, "
                f"largest |correlation| {result['max_abs_correlation']:.2f}")
     for k, v in result["crlb"].items():
@@ -366,11 +288,19 @@ def plan(score_plan, model_name, add, positions, criterion, rate_dps, rates, kin
     for line in _separation_lines(result["separation"]) if pair else ():
         click.echo(line)
     if positions is not None:
-        out = _write_design(result, model, u, rho, kind, output)
+        out = _write_design(result, output)
         click.echo(f"wrote {out} and {out.with_suffix('.json')}")
     elif output:
-        outputs.write_text(output, json.dumps(result, indent=1) + "\n")
+        outputs.write_text(output, json.dumps(result, indent=1, default=float) + "\n")
         click.echo(f"wrote {output}")
+
+
+def _numbers(option, text):
+    """A comma-separated list of numbers (--sizes Q1,Q2), or a one-line refusal naming the option."""
+    try:
+        return [float(x) for x in text.split(",")]
+    except ValueError:
+        raise InputError(f"{option} {text}: write numbers separated by commas, e.g. 1e-4,2e-4") from None
 
 
 @main.command()

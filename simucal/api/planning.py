@@ -1,0 +1,156 @@
+"""Test plans from Python (`simucal plan` is one call of these plus printing): a plan scored or designed for a
+model (Fisher information, CRLB, D and A criteria; turntable/plan_design.py), the positions that would tell two
+effects apart, and a rotation sequence's observability beside the norm method's CRLB."""
+from __future__ import annotations
+
+from typing import Any, Sequence
+
+import numpy as np
+
+from simucal.errors import InputError
+
+PAPER_RATE_DPS = 10.0  # dong2018 section 4's rate runs
+PAPER_NOISE = {"acc": 1e-5, "gyro": 0.01}  # section 4's noise of one position's mean: g, deg/h
+
+
+def model_sensor(model: str, add: Sequence[str] = ()) -> str:
+    """"acc" or "gyro": whose model `model` (a built-in's name or a derived model file's) with `add` is."""
+    from simucal.fit.augmented import AugmentedModel
+    return str(AugmentedModel(model, tuple(add)).sensor)
+
+
+def plan(score: str | None = None, *, positions: int | None = None, model: str = "acc_baseline",
+         add: Sequence[str] = (), criterion: str = "D", rates_dps: Sequence[float] | None = None,
+         noise: float | None = None, kind: str = "three-axis", separate: Sequence[str] | None = None,
+         sizes: Sequence[float] | None = None, power: float = 0.9) -> dict:
+    """Score a plan, or design one, for a model.
+
+    Parameters
+    ----------
+    score : str, optional
+        The plan to score: table1, dodecahedron20, fibonacci24, fibonacci48 or a CSV (outer_deg,middle_deg,inner_deg).
+    positions : int, optional
+        Design a plan of this many positions instead (by `criterion`: D or A optimal).
+    model, add :
+        The model scored (a built-in's name or a derived model file's) and effect ids added to it.
+    rates_dps : sequence of float, optional
+        Gyro models: the rate runs' outer-axis rate (a score: one; a design: the rates to choose from); default 10.
+    noise : float, optional
+        The noise of one position's mean in the model's unit (default section 4's: 1e-5 g, 0.01 deg/h).
+    kind : str
+        A design's table: "three-axis" (angles) or "hand" (poses as gravity directions in the unit).
+    separate, sizes, power :
+        With `score`: two effect ids, their expected sizes, and the power to reach: the positions to add so that
+        the plan tells them apart.
+
+    Returns
+    -------
+    dict
+        ``plan`` (its name), ``D_per_position``, ``A``, ``crlb`` and ``units`` per parameter, correlations, and
+        for a design ``rows`` with their ``columns`` (the plan file's), for `separate` ``separation``.
+
+    Examples
+    --------
+    >>> import simucal
+    >>> r = simucal.plan("table1")
+    >>> sorted(r["crlb"])[:3]
+    ['b_x', 'b_y', 'b_z']
+    """
+    from simucal.fit.augmented import AugmentedModel
+    from simucal.io.units import DPH_PER_DPS
+    from simucal.turntable import plans
+    from simucal.turntable.plan_design import design, directions_k, plan_rows, score as score_of
+    if (score is None) == (positions is None):
+        raise InputError("give --score PLAN to score a plan, or --positions N to design one")
+    m = AugmentedModel(model, tuple(add))
+    gyro = m.sensor == "gyro"
+    sigma = noise or PAPER_NOISE[m.sensor]
+    rate_list = list(rates_dps) if rates_dps else [PAPER_RATE_DPS]
+    if gyro and score is not None and len(rate_list) > 1:
+        raise InputError(f"--rates-dps {','.join(f'{r:g}' for r in rate_list)}: a score takes one rate (its rate "
+                         "runs'); a design (--positions N) chooses among several")
+    rho: Any = abs(rate_list[0]) * DPH_PER_DPS if gyro else 1.0
+    if score is not None:
+        rows = plans.PLANS[score]() if score in plans.PLANS else plans.read_csv(score)
+        u, name = directions_k(rows), score
+    else:
+        assert positions is not None  # one of the two, refused above otherwise
+        u, rho = design(m, positions, np.abs(rate_list) * DPH_PER_DPS if gyro else 1.0, sigma, criterion)
+        name = f"{criterion}-optimal, {positions} positions"
+    result = {"plan": name, "model": m.name, "unit": m.unit, "noise": sigma,
+              "rates_dps": sorted(set(np.round(np.atleast_1d(rho) / DPH_PER_DPS, 6).tolist())) if gyro else None,
+              **score_of(m, u, rho, sigma)}
+    if positions is not None:
+        if kind == "hand":  # a pose is where gravity (or the turn axis) points in the unit's own axes
+            result["rows"], result["columns"] = [(i + 1, *map(float, d)) for i, d in enumerate(u)], "pose,f_x,f_y,f_z"
+        else:
+            result["rows"] = plan_rows(u, np.asarray(rho) / DPH_PER_DPS if gyro else None)
+            result["columns"] = "outer_deg,middle_deg,inner_deg" + (",outer_rate_dps" if gyro else "")
+    if separate:
+        result["separation"] = _separation(m, separate, sizes, score, u, rho, sigma, power)
+    return result
+
+
+def _separation(model, pair, sizes, score, u, rho, sigma, target) -> dict:
+    """The positions to add so that two candidate effects are told apart (turntable/plan_design.separate), with
+    the added positions' angles and what a plan must vary where no position does."""
+    from simucal.fit.augmented import check_effect
+    from simucal.generated.effects import SEPARATE
+    from simucal.io.calibration_checks import PARAM_LIMIT
+    from simucal.turntable.plan_design import plan_rows, separate
+    ids, q = [str(x).strip() for x in pair], [float(x) for x in (sizes or ())]
+    if score is None or not q:
+        raise InputError("--separate needs --score PLAN (the plan you have) and --sizes Q1,Q2")
+    if len(ids) != 2 or len(q) != 2:
+        raise InputError("--separate ID1,ID2 and --sizes Q1,Q2: two of each")
+    if ids[0] == ids[1]:
+        raise InputError(f"--separate {','.join(ids)}: an effect cannot be told from itself; name two different effects")
+    if not all(np.isfinite(x) and 0 < abs(x) <= PARAM_LIMIT for x in q):
+        raise InputError(f"--sizes {','.join(f'{x:g}' for x in q)}: each size must be a finite, non-zero number (the "
+                         f"effect's expected value, in its unit) of at most {PARAM_LIMIT:g}")
+    for e in ids:
+        check_effect(e, model.sensor)
+    rates = (np.array([0.5, 1.0, 2.0]) * rho) if model.sensor == "gyro" else ()
+    sep = separate(model.base, ids[0], ids[1], u, rho, sigma, q, rates, target)
+    sep["added_rows"] = [list(map(float, x)) for x in plan_rows(np.array([d["direction_k"] for d in sep["added"]]))] \
+        if sep["added"] else []
+    sep["hints"] = sorted({SEPARATE[e.split(".")[1]] for e in ids})
+    return sep
+
+
+def sequence_observability(sequence: str, *, model: str = "acc_baseline", add: Sequence[str] = (),
+                           score: str | None = None, rates_dps: Sequence[float] | None = None,
+                           acc_noise_g: float | None = None, gyro_noise_dph: float | None = None) -> dict:
+    """Each parameter's std over a rotation sequence (one pass of the linearised systematic filter, the default
+    unit simulated at seed 0: systematic/observability.py) beside the norm method's CRLB of the same models on a
+    plan (`score`, default table1), its positions held as long as the sequence's rests unless the noise is given.
+
+    Returns
+    -------
+    dict
+        ``sequence``, ``models``, ``add``, ``observability`` (per parameter: prior std, std, ratio; the
+        unobserved), ``norm`` (per sensor: the plan's scores), ``plan``, ``noise`` (per position) and ``rest_n``.
+
+    Examples
+    --------
+    >>> r = simucal.sequence_observability("psins19")  # doctest: +SKIP
+    >>> r["observability"]["unobserved"]  # doctest: +SKIP
+    []
+    """
+    from simucal.api.simulation import simulate
+    from simucal.fit.augmented import AugmentedModel, for_sensor
+    from simucal.systematic.observability import observability
+    plan_name = score or "table1"
+    models = {"acc": "acc_baseline", "gyro": "gyro_baseline", AugmentedModel(model).sensor: model}
+    ms = simulate(sequence=sequence, seed=0)
+    obs = observability(ms, models["acc"], models["gyro"], tuple(add))
+    n = obs["noise_per_sample"]
+    # the same unit held as long at each position as at each of the sequence's rests (its median)
+    rest_n = float(np.median([len(ms.rows(s.segment)) for s in ms.segments or [] if s.kind == "static"]))
+    noise = {"acc": acc_noise_g or max(n["acc_g"]) / rest_n ** 0.5,
+             "gyro": gyro_noise_dph or max(n["gyro_dph"]) / rest_n ** 0.5}
+    crlb = {s: plan(plan_name, model=models[s], add=for_sensor(tuple(add), s), rates_dps=rates_dps, noise=noise[s])
+            for s in ("acc", "gyro")}
+    assert ms.truth is not None  # a simulated set's
+    return {"sequence": ms.truth["sequence"], "models": models, "add": list(add), "observability": obs, "norm": crlb,
+            "plan": plan_name, "noise": noise, "rest_n": rest_n, "stated": bool(acc_noise_g and gyro_noise_dph)}
