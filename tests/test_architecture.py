@@ -275,8 +275,8 @@ CLI_MAY_IMPORT = {"simucal.api", "simucal.api.analyses", "simucal.api.planning",
                   "simucal.errors", "simucal.progress", "simucal.report.console", "simucal.report.lot_html",
                   "simucal.validate", "simucal.sweeps"}
 CLI_NOT_YET = {"simucal.fit.catalog", "simucal.derive_cmd", "simucal.demo", "simucal.bench", "simucal.allan",
-               "simucal.io.logs", "simucal.io.autopilot", "simucal.field.drift", "simucal.handheld.static_detect",
-               "simucal.io.cache", "simucal.io", "simucal.methods", "simucal.report.paper_claims"}
+               "simucal.field.drift", "simucal.handheld.static_detect",
+               "simucal.io.cache", "simucal.methods", "simucal.report.paper_claims"}
 
 
 def _is_module(name: str) -> bool:

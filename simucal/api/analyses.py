@@ -196,7 +196,8 @@ class Noise:
         return allan.kalibr_yaml(self.report)
 
 
-def noise(data: Data, *, tau_max_s: float | None = None, scheduler: str | None = None) -> Noise:
+def noise(data: Data, *, tau_max_s: float | None = None, scheduler: str | None = None,
+          topic: str | None = None) -> Noise:
     """Allan deviation of a still recording and its IEEE 952 terms (quantisation, white noise, bias
     instability, random walk, ramp).
 
@@ -210,6 +211,9 @@ def noise(data: Data, *, tau_max_s: float | None = None, scheduler: str | None =
         For a folder holding a stream, which is read a chunk at a time: where the sums over its rows run
         (None or "local": here; "processes": a Dask LocalCluster; or a Dask scheduler's address), as
         `simucal noise --scheduler`.
+    topic : str, optional
+        Where `data` is a ROS 1 bag or a ROS 2 bag's folder: its sensor_msgs/Imu topic (default: the bag's only
+        one); a bag is read as `simucal import rosbag` reads it.
 
     Returns
     -------
@@ -222,6 +226,9 @@ def noise(data: Data, *, tau_max_s: float | None = None, scheduler: str | None =
     >>> n.terms[n.terms.name == "angle random walk"]  # doctest: +SKIP
     """
     from simucal import allan
+    from simucal.io import logs
+    if not isinstance(data, io.MeasurementSet) and (topic or logs.is_rosbag(folder_of(data))):
+        data = logs.bag_as_set(folder_of(data), topic)  # read as `simucal import rosbag` reads it
     report = (allan.characterise(data, tau_max_s) if isinstance(data, io.MeasurementSet)
               else allan.characterise_folder(folder_of(data), tau_max_s, scheduler))
     rows = [Term(s, a, k, t["name"], t["status"], t["value"] if t["status"] == "seen" else None, t.get("std"), t.get("bound_95"), t.get("needs_s"),

@@ -3,6 +3,7 @@ arrays and DataFrames and `parameters` as a table."""
 from __future__ import annotations
 
 import warnings
+from pathlib import Path
 from dataclasses import fields
 from typing import Any, NamedTuple
 
@@ -60,6 +61,14 @@ def _affine_rows(sensor, block) -> list[Parameter]:
             for i in range(3) for j in range(3)]
     return rows + [Parameter(f"bias_{c}", sensor, float(block.bias[i]), float(b_sd[i]), block.bias_unit,
                              f"{c} output at zero input") for i, c in enumerate("xyz")]
+
+
+class AutopilotFile(NamedTuple):
+    """One file of `Calibration.autopilot_files`: where it goes, its text, what it warns of and what to do with it."""
+    path: str
+    text: str
+    warnings: list[str]
+    note: str
 
 
 class Calibration(calibration.Calibration):
@@ -142,6 +151,32 @@ class Calibration(calibration.Calibration):
         ms = as_set(data)
         meta, samples, segments = fit_apply.apply(self, ms, where)
         return MeasurementSet.of(io.MeasurementSet(ms.path, {"format": io.FORMAT, **meta}, samples, segments))
+
+    def autopilot_files(self, data: Any, *, px4: str | None = None, ardupilot: str | None = None) -> list[AutopilotFile]:
+        """A thermal calibration's bias polynomials as PX4's and ArduPilot's thermal compensation parameter files
+        (`simucal calibrate --thermal --px4 FILE --ardupilot FILE`): their texts, made before anything is written.
+
+        Parameters
+        ----------
+        data : str, os.PathLike or MeasurementSet
+            A set it was calibrated from (its meta.json: g, the log's device ids).
+        px4, ardupilot : str, optional
+            The files asked for (.params for PX4's QGroundControl, .parm for ArduPilot's Mission Planner).
+
+        Returns
+        -------
+        list of AutopilotFile
+            (path, text, warnings, note) of each file asked for; the caller writes them.
+
+        Examples
+        --------
+        >>> for f in cal.autopilot_files("plateau_25", px4="tc.params"):  # doctest: +SKIP
+        ...     open(f.path, "w").write(f.text)
+        """
+        from simucal import io
+        from simucal.io import autopilot
+        meta = data.meta if isinstance(data, io.MeasurementSet) else io.read_meta(Path(data))
+        return [AutopilotFile(*f) for f in autopilot.texts(self, meta, px4, ardupilot)] if px4 or ardupilot else []
 
     def sensor(self, name: str) -> calibration.SensorBlock:
         """The block of sensor `name` ("acc" or "gyro"), never None: refused (CalibrationError) where this

@@ -138,10 +138,10 @@ def _calibrate_batch(data_dirs, output, kwargs, inputs, scheduler):
 
 def _calibrate_thermal(data_dirs, output, degree, t_ref_c, kwargs, inputs, html_out, autopilot_out=(None, None)):
     from simucal import api
-    from simucal.io import autopilot
+    from simucal.io import outputs
     guard(inputs, files={"-o": output, "--html": html_out, "--px4": autopilot_out[0], "--ardupilot": autopilot_out[1]})
     result = api.calibrate([Path(d) for d in data_dirs], degree=degree, t_ref_c=t_ref_c, **kwargs)
-    exported = _autopilot_files(result, data_dirs, *autopilot_out)
+    exported = result.autopilot_files(data_dirs[0], px4=autopilot_out[0], ardupilot=autopilot_out[1])
     api.save(output, result)
     from simucal.report.console import calibration_lines
     for line in calibration_lines(result):
@@ -149,17 +149,13 @@ def _calibrate_thermal(data_dirs, output, degree, t_ref_c, kwargs, inputs, html_
     if html_out:
         api.save(html_out, result, calibration_path=output)
         click.echo(f"wrote {html_out}")
-    for line in autopilot.write(exported):
-        click.echo(line)
+    for f in exported:  # made before anything was written: a refusal leaves nothing behind
+        outputs.write_text(f.path, f.text)
+        for w in f.warnings:
+            click.echo(f"WARNING: {w}")
+        click.echo(f"wrote {f.path}: {f.note}")
     lo, hi = result.temperature_range_c
     click.echo(f"wrote {output} (method {result.method}; calibrated from {lo:.4g} to {hi:.4g} degC)")
-
-
-def _autopilot_files(result, data_dirs, px4, ardupilot):
-    """--px4/--ardupilot: the files' texts, made before anything is written (a refusal leaves nothing behind)."""
-    from simucal import io
-    from simucal.io import autopilot
-    return autopilot.texts(result, io.read_meta(Path(data_dirs[0])), px4, ardupilot) if px4 or ardupilot else []
 
 
 @main.command("field-drift")

@@ -234,12 +234,9 @@ def noise(data_dir, output, html_path, kalibr_path, tau_max_s, scheduler, topic)
     """Allan deviation of a still recording (a measurement set, or a ROS bag) and its IEEE 952 noise terms (ARW,
     bias instability, ...); a stream is read a chunk at a time. The Python API's simucal.noise(DATA)."""
     from simucal import allan, api
-    from simucal.io import logs, outputs
+    from simucal.io import outputs
     guard([data_dir], files={"-o": output, "--html": html_path, "--kalibr": kalibr_path})
-    data = data_dir
-    if logs.is_rosbag(data_dir) or topic:
-        data = logs.bag_as_set(data_dir, topic)
-    result = api.noise(data, tau_max_s=tau_max_s, scheduler=scheduler)
+    result = api.noise(data_dir, tau_max_s=tau_max_s, scheduler=scheduler, topic=topic)
     yaml = result.kalibr_yaml() if kalibr_path else None  # refused before anything is written
     _save(result, output, html_path)
     if kalibr_path:

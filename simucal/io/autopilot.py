@@ -37,7 +37,7 @@ from math import comb
 import numpy as np
 
 from simucal.errors import CalibrationError
-from simucal.io import outputs, units
+from simucal.io import units
 
 BIAS = ("b_x", "b_y", "b_z")
 MAX_DEGREE = 3  # both autopilots: a cubic
@@ -216,12 +216,3 @@ def texts(cal, meta: dict, px4: str | None = None, ardupilot: str | None = None)
     ids = {p.sensor: log.get(f"{p.sensor}_device_id") for p in polys} if log else None
     made = [(px4, *px4_text(polys, source, ids), px4_note(ids))] if px4 else []
     return made + ([(ardupilot, *ardupilot_text(polys, source), ARDUPILOT_NOTE)] if ardupilot else [])
-
-
-def write(made: list[tuple]) -> list[str]:
-    """Write texts()'s files; the console's lines (each warning, then what was written and what to do)."""
-    lines = []
-    for path, text, warnings, note in made:
-        outputs.write_text(path, text)
-        lines += [f"WARNING: {w}" for w in warnings] + [f"wrote {path}: {note}"]
-    return lines
