@@ -10,7 +10,9 @@ scipy alone, and each check is shown failing on one planted derivation error (th
 - the RTS smoother (systematic/filter.smooth) against the batch least-squares solution of the same
   linear problem (initial state and process noises as unknowns);
 - the norm regressors psi(N) . K(p) against |h^-1(N)|^2, the input recovered from the output by
-  Newton's method: equal to first order in p, so their difference falls 4x when p is halved.
+  Newton's method: equal to first order in p, so their difference falls 4x when p is halved;
+- the models' outputs against the simulators' own forward model, written by hand from the physics
+  (turntable/forward.py), which the turntable's and the sequences' simulators write their sets with.
 """
 from dataclasses import replace
 
@@ -275,3 +277,51 @@ def test_the_norm_check_fails_on_a_planted_derivation_error():
     planted = list(reg.psi)
     planted[3] = -planted[3]
     assert max(regression_orders(gen, *_derived_norm(model, replace(reg, psi=planted)))) < 2.5
+
+
+# --- the simulators' forward model -------------------------------------------------------------
+
+def forward_error(derived_output, model_name="acc_baseline", effects=()) -> float:
+    """The largest relative difference between the simulators' hand-written forward model
+    (turntable/forward.py) and a derivation's output, at random inputs, parameters and auxiliary inputs."""
+    from simucal.fit.augmented import AugmentedModel
+    from simucal.fit.aux_inputs import AuxInputs
+    from simucal.turntable import forward
+    rng, n = np.random.default_rng(11), 9
+    aux = AuxInputs({"t_s": rng.uniform(0, 100, n), "temp_c": rng.uniform(10, 40, n), "t_ref_c": 25.0,
+                     "w2": rng.uniform(0, 0.1, n), **{f"f_{c}": rng.normal(size=n) for c in "xyz"}})
+    m = AugmentedModel(model_name, tuple(effects))
+    worst = 0.0
+    for _ in range(5):
+        p = rng.normal(size=len(m.params)) * 1e-2
+        u = rng.normal(size=(n, 3)) * (1.0 if m.sensor == "acc" else 36000.0)
+        mine, theirs = forward.output(m, p, u, aux), derived_output(m, p, u, aux)
+        worst = max(worst, float(np.abs(mine - theirs).max() / np.abs(theirs).max()))
+    return worst
+
+
+@pytest.mark.parametrize("sensor", ["acc", "gyro"])
+def test_the_simulators_forward_model_is_their_own_and_equals_the_derivation(sensor):
+    """Issue 54: the turntable's and the sequences' simulators write the outputs with a forward model written
+    by hand (turntable/forward.py), not the fit's generated one; the two agree on every library effect."""
+    from simucal.generated.effects import EFFECTS
+    ids = [e for e in EFFECTS if EFFECTS[e].sensor == sensor]
+    for chunk in (ids[i:i + 8] for i in range(0, len(ids), 8)):
+        for base in (f"{sensor}_baseline", f"{sensor}_extended"):
+            assert forward_error(lambda m, p, u, aux: m.output(u, p, aux), base, chunk) < 1e-12
+
+
+def test_the_forward_check_fails_on_a_planted_derivation_error():
+    """The misalignment theta_yx read off the wrong input (u_y for u_x) in the accelerometer's model."""
+    from simucal.derive.models.baseline import ACC_BASELINE
+
+    def derived(model, mutate=False):
+        terms = list(model.terms)
+        if mutate:
+            k = next(i for i, t in enumerate(terms) if t.name == "theta_yx")
+            terms[k] = replace(terms[k], regressor=model.inputs[1])
+        out = sp.lambdify((model.inputs, model.params), replace(model, terms=tuple(terms)).output(), "numpy")
+        return lambda m, p, u, aux: np.column_stack([np.broadcast_to(np.asarray(c, float).ravel(), (len(u),))
+                                                     for c in out(u.T, p)])
+    assert forward_error(derived(ACC_BASELINE)) < 1e-12
+    assert forward_error(derived(ACC_BASELINE, mutate=True)) > 1e-4

@@ -28,7 +28,7 @@ from simucal import io
 from simucal.fit.aux_inputs import AuxInputs, specific_force
 from simucal.generated import table
 from simucal.io import units
-from simucal.turntable import kinematics, plans
+from simucal.turntable import forward, kinematics, plans
 from simucal.turntable.simulate import Scenario, meta_of, models, truth_of
 
 AXES = ("outer", "middle", "inner")
@@ -215,8 +215,9 @@ def simulate_sequence(sc: Scenario, sequence, seed: int = 0):
     t = np.arange(1, len(seg_ids) + 1) / rate_hz
     aux = AuxInputs({"t_s": t})
     meta = meta_of(sc, seed)
-    N_a = acc.output(f_b, p_acc, aux) + rng.normal(0, sc.acc_noise_g, f_b.shape)
-    N_g = gyro.output(w_d, p_gyro, aux.with_values(**specific_force(f_d))) + rng.normal(0, sc.gyro_noise_dph, w_d.shape)
+    N_a = forward.output(acc, p_acc, f_b, aux) + rng.normal(0, sc.acc_noise_g, f_b.shape)
+    N_g = forward.output(gyro, p_gyro, w_d, aux.with_values(**specific_force(f_d))) + rng.normal(0, sc.gyro_noise_dph,
+                                                                                               w_d.shape)
     N_a, N_g = units.g_to_acc(N_a, meta), units.dph_to_gyro(N_g, meta)
     samples = {"segment": seg_ids, "t_s": t, **{f"a{c}": N_a[:, j] for j, c in enumerate("xyz")},
                **{f"g{c}": N_g[:, j] for j, c in enumerate("xyz")}}

@@ -20,6 +20,7 @@ from simucal import io
 from simucal.fit.augmented import AugmentedModel
 from simucal.fit.aux_inputs import DEFAULT_ZERO, T_REF, AuxInputs, specific_force
 from simucal.fit.thermal import PLAUSIBLE_C
+from simucal.turntable import forward
 from simucal.generated import table
 from simucal.io import units
 from simucal.io.calibration_checks import PARAM_LIMIT
@@ -272,8 +273,8 @@ def _samples(sc: Scenario, rng, segments, rows, acc, p_acc, gyro, p_gyro, meta):
         col = {name: np.full(len(t), v[k]) for name, v in values.items()}
         aux = AuxInputs({"t_s": t, **col, **({} if t_ref_c is None else {T_REF: t_ref_c})})
         w2 = np.radians(seg.outer_rate_dps) ** 2 / units.DEFAULT_GRAVITY  # centripetal scale, 1/m
-        acc_out.append(acc.output(f, p_acc, aux.with_values(w2=w2)) + rng.normal(0, sc.acc_noise_g, f.shape))
-        gyro_out.append(gyro.output(w, p_gyro, aux.with_values(**specific_force(fd)))
+        acc_out.append(forward.output(acc, p_acc, f, aux.with_values(w2=w2)) + rng.normal(0, sc.acc_noise_g, f.shape))
+        gyro_out.append(forward.output(gyro, p_gyro, w, aux.with_values(**specific_force(fd)))
                         + rng.normal(0, sc.gyro_noise_dph, w.shape))
         seg_ids.append(np.full(len(t), seg.segment))
         times.append(t)
