@@ -6,12 +6,12 @@ the truth is known; each ``assert`` is a claim of the page.
 import numpy as np
 
 import simucal
-from simucal.handheld.simulate import HandheldScenario, write_handheld
 
 # 1. 30 s at rest, then 30 poses held 5 s each and joined by 3 s hand moves, recorded at 100 Hz in
 #    raw counts (a 16-bit ADC resting near 32768), with no segments.csv: one continuous stream.
-truth = write_handheld("session", HandheldScenario(poses=30), seed=1)
-ms = simucal.read_set("session")
+ms = simucal.simulate("handheld", seed=1)
+ms.write("session")  # as `simucal simulate --scenario handheld -o session` writes it
+truth = ms.truth
 print(f"{len(ms.samples['t_s'])} samples, segments: {ms.segments}")
 assert ms.segments is None
 

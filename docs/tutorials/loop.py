@@ -1,26 +1,15 @@
 """The loop on a turntable set: plant an effect, calibrate, diagnose, add it, validate.
 
-Run in an empty folder: ``python3 loop.py`` (about ten seconds). The steps are the command
-line's (``simucal simulate``, ``simucal diagnose``) and the Python API's (``simucal.calibrate``,
-``simucal.validate``); each ``assert`` is a claim of the tutorial's page, checked by the test suite.
+Run in an empty folder: ``python3 loop.py`` (about ten seconds), on the Python API alone; each
+command line step is named beside its call (``simucal simulate``, ``simucal diagnose``, ...). Each
+``assert`` is a claim of the tutorial's page, checked by the test suite.
 """
-import json
-import subprocess
-import sys
-
 import simucal
-
-
-def cli(*args):
-    """One command of the command line, as a shell would run it (``python -m simucal`` = ``simucal``)."""
-    subprocess.run([sys.executable, "-m", "simucal", *args], check=True, stdout=subprocess.DEVNULL)
-
 
 # 1. A unit with a hidden z accelerometer nonlinearity (2e-4 g/g^2), tested on 48 table positions,
 #    and a second recording of the same unit on another plan (truth.json says what was planted).
-cli("simulate", "-o", "set", "--plan", "fibonacci48", "--effect", "acc.quadratic.z=2e-4")
-cli("simulate", "-o", "other", "--plan", "table1", "--rate-hz", "20", "--seed", "2",
-    "--effect", "acc.quadratic.z=2e-4")
+simucal.simulate(plan="fibonacci48", effects={"acc.quadratic.z": 2e-4}).write("set")  # simucal simulate -o set ...
+simucal.simulate(plan="table1", rate_hz=20.0, seed=2, effects={"acc.quadratic.z": 2e-4}).write("other")
 
 # 2. The baseline model (scale factors, misalignments, biases) fails its chi-square test.
 base = simucal.calibrate("set")
@@ -28,10 +17,11 @@ print(f"baseline: acc p = {base.acc.p_value:.2g}")
 assert base.acc.p_value < 1e-3
 
 # 3. diagnose ranks the library's effects by how much of the misfit each explains.
-cli("diagnose", "set", "-o", "diagnosis.json")
-best = json.load(open("diagnosis.json"))["candidates"][0]
-print(f"diagnose: {best['id']} = {best['estimate']:.3g} +- {best['std']:.2g} {best['unit']}")
-assert best["id"] == "acc.quadratic.z"
+diagnosis = simucal.diagnose("set")  # simucal diagnose set -o diagnosis.json
+simucal.save("diagnosis.json", diagnosis)
+best = simucal.table_rows(diagnosis.candidates)[0]
+print(f"diagnose: {best.id} = {best.estimate:.3g} +- {best.std:.2g} {best.unit}")
+assert best.id == "acc.quadratic.z"
 
 # 4. Calibrate with that effect: the model passes, and the effect is found within 3 std of the truth.
 cal = simucal.calibrate("set", add=["acc.quadratic.z"])

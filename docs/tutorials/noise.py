@@ -5,11 +5,11 @@ as a measurement set (meta.json and samples.csv, the data format's two required 
 is also how to bring a logger's file to simucal; each ``assert`` is a claim of the page.
 """
 import json
-import subprocess
-import sys
 from pathlib import Path
 
 import numpy as np
+
+import simucal
 
 # 1. Ten minutes at 100 Hz of a unit at rest, level: white noise of a known density on every
 #    channel (gyro: an angle random walk of 0.1 deg/sqrt(h); accelerometer: 50 ug/sqrt(Hz)).
@@ -31,9 +31,10 @@ np.savetxt(still / "samples.csv", table, delimiter=",", fmt="%.10g", comments=""
 
 # 2. simucal noise: the overlapping Allan deviation of every channel and the IEEE 952 terms
 #    fitted to it (generalised least squares with the Allan variance's own covariance).
-subprocess.run([sys.executable, "-m", "simucal", "noise", "still", "-o", "noise.json", "--html", "noise.html"],
-               check=True, stdout=subprocess.DEVNULL)
-report = json.load(open("noise.json"))
+noise = simucal.noise("still")  # simucal noise still -o noise.json --html noise.html
+simucal.save("noise.json", noise)
+simucal.save("noise.html", noise)
+report = noise.report
 
 # 3. The white noise comes back within 3 std of what was planted, on every axis; the terms not
 #    planted are "not seen", each with the 95 % bound the record allows.

@@ -4,7 +4,6 @@ Run from anywhere: ``python3 real_data.py [DATA]`` (a few seconds), where DATA h
 ``imu_tk-xsens/`` and ``imucal-ferraris/`` (default: the ``shared/data`` folder beside the
 repository; each has a README saying where the files come from). Each ``assert`` is a claim of the page.
 """
-import subprocess
 import sys
 from pathlib import Path
 
@@ -15,18 +14,14 @@ import simucal
 DATA = Path(sys.argv[1]) if len(sys.argv) > 1 else Path(__file__).resolve().parents[3] / "shared" / "data"
 
 
-def cli(*args):
-    subprocess.run([sys.executable, "-m", "simucal", *map(str, args)], check=True, stdout=subprocess.DEVNULL)
-
-
 # 1. imu_tk's Xsens session (Tedaldi et al. 2014): raw 16-bit counts, moved by hand, no turntable.
 #    import writes a measurement set; the nominal scale factors are the sensor's (4096 counts/g) and
 #    imu_tk's starting guess for the gyro (1/6258 (rad/s)/count = 109.2 counts per deg/s).
 xsens = DATA / "imu_tk-xsens"
 gyro_counts_per_dps = 6258 * np.pi / 180
-cli("import", "imu_tk", xsens / "xsens_acc.mat", xsens / "xsens_gyro.mat", "-o", "xsens",
-    "--acc-counts-per-g", 4096, "--gyro-counts-per-dps", gyro_counts_per_dps, "--latitude-deg", 45.4,
-    "--gravity-mps2", 9.81744)
+simucal.import_recording("imu_tk", [xsens / "xsens_acc.mat", xsens / "xsens_gyro.mat"], "xsens",
+                         acc_counts_per_g=4096, gyro_counts_per_dps=gyro_counts_per_dps, latitude_deg=45.4,
+                         gravity_mps2=9.81744)  # simucal import imu_tk ... -o xsens
 cal = simucal.calibrate("xsens")
 poses = cal.details["static_detection"]["count"]
 print(f"xsens: {poses} still stretches found unattended (the data's README counts 38)")
@@ -51,8 +46,9 @@ assert chi2[1] < chi2[0] / 30
 # 4. imucal's Ferraris session with its section list: six axis poses and three turns, the
 #    Ferraris method (simucal's multi-position method on the imported poses and turns).
 ferraris = DATA / "imucal-ferraris"
-cli("import", "imucal-ferraris", ferraris / "example_ferraris_session.csv",
-    ferraris / "example_ferraris_session_list.json", "-o", "ferraris", "--latitude-deg", 49.6)
+simucal.import_recording("imucal-ferraris", [ferraris / "example_ferraris_session.csv",
+                                            ferraris / "example_ferraris_session_list.json"], "ferraris",
+                         latitude_deg=49.6)  # simucal import imucal-ferraris ... -o ferraris
 fer = simucal.calibrate("ferraris", method="multiposition")
 print(f"ferraris: acc M diagonal {np.round(np.diag(fer.acc.M), 4)}, gyro M diagonal {np.round(np.diag(fer.gyro.M), 4)}")
 assert np.allclose(np.diag(fer.acc.M), 1, atol=0.05) and np.allclose(np.diag(fer.gyro.M), 1, atol=0.05)

@@ -1,26 +1,15 @@
 """Systematic calibration: simulate a rotation sequence, calibrate, diagnose, add the effect, validate.
 
 Run in an empty folder: ``python3 systematic.py`` (about a minute: the filter runs over the sequence
-five times). The steps are the command line's (``simucal simulate``, ``simucal plan``, ``simucal
-diagnose``) and the Python API's (``simucal.calibrate``, ``simucal.validate``); each ``assert`` is a
-claim of the tutorial's page, checked by the test suite.
+five times), on the Python API alone; each command line step is named beside its call (``simucal
+plan``, ``simucal simulate``, ``simucal diagnose``). Each ``assert`` is a claim of the tutorial's page,
+checked by the test suite.
 """
-import json
-import subprocess
-import sys
-
 import simucal
-
-
-def cli(*args):
-    """One command of the command line, as a shell would run it (``python -m simucal`` = ``simucal``)."""
-    subprocess.run([sys.executable, "-m", "simucal", *args], check=True, stdout=subprocess.DEVNULL)
-
 
 # 1. Before recording: what the psins19 sequence lets the filter see (one pass of the linearised filter),
 #    beside the norm method's CRLB on dong2018's Table 1 plan.
-cli("plan", "--sequence", "psins19", "-o", "plan.json")
-seen = json.load(open("plan.json"))["observability"]
+seen = simucal.sequence_observability("psins19")["observability"]  # simucal plan --sequence psins19
 worst = max(seen["parameters"], key=lambda x: x["ratio"])
 print(f"plan: every parameter observed; the least, {worst['sensor']} {worst['parameter']}, to "
       f"{worst['ratio']:.2g} of its prior std")
@@ -28,8 +17,8 @@ assert seen["unobserved"] == [] and worst["ratio"] < 1e-3
 
 # 2. A unit with a hidden z accelerometer nonlinearity (2e-4 g/g^2) turned through psins19 (19 rests,
 #    18 turns of 90 deg, raw samples at 100 Hz), and another recording of it through dong2018's sequence.
-cli("simulate", "--sequence", "psins19", "-o", "seq", "--effect", "acc.quadratic.z=2e-4")
-cli("simulate", "--sequence", "dong2018", "-o", "other", "--seed", "2", "--effect", "acc.quadratic.z=2e-4")
+simucal.simulate(sequence="psins19", effects={"acc.quadratic.z": 2e-4}).write("seq")  # simucal simulate --sequence ...
+simucal.simulate(sequence="dong2018", seed=2, effects={"acc.quadratic.z": 2e-4}).write("other")
 
 # 3. The filter with the baseline models: its innovations fail their test (NIS far above 3 per update).
 base = simucal.calibrate("seq", method="systematic")
@@ -38,10 +27,12 @@ print(f"baseline: NIS {test['nis_per_update']:.3g} per update (3 where the model
 assert base.acc.verdict == "fails" and test["p_value"] < 1e-3
 
 # 4. diagnose ranks every library effect on the innovations (their sensitivity to its parameter).
-cli("diagnose", "seq", "-o", "diagnosis.json", "--html", "diagnosis.html")
-best = json.load(open("diagnosis.json"))["candidates"][0]
-print(f"diagnose: {best['id']} = {best['estimate']:.4g} +- {best['std']:.2g} {best['unit']}")
-assert best["id"] == "acc.quadratic.z" and best["significant"]
+diagnosis = simucal.diagnose("seq")  # simucal diagnose seq -o diagnosis.json --html diagnosis.html
+simucal.save("diagnosis.json", diagnosis)
+simucal.save("diagnosis.html", diagnosis)
+best = simucal.table_rows(diagnosis.candidates)[0]
+print(f"diagnose: {best.id} = {best.estimate:.4g} +- {best.std:.2g} {best.unit}")
+assert best.id == "acc.quadratic.z" and best.significant
 
 # 5. The filter with that effect among its states: the innovations pass, the effect within 3 std of the truth.
 cal = simucal.calibrate("seq", add=["acc.quadratic.z"])  # method auto: a sequence's is systematic

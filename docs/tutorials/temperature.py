@@ -3,9 +3,6 @@
 Run in an empty folder: ``python3 temperature.py`` (about ten seconds). Each ``assert`` is a claim
 of the page.
 """
-import subprocess
-import sys
-
 import simucal
 
 # The unit's temperature effects (each in its term's unit, acting from T_ref = 25 degC).
@@ -14,11 +11,10 @@ EFFECTS = {"acc.bias_temperature.x": 1e-5, "acc.bias_temperature2.x": 1e-7, "acc
 
 
 def simulate(folder, temperature_c, plan, seed):
-    """A turntable test at one chamber temperature that wanders +-0.3 degC (temp_c in samples.csv)."""
-    effects = [a for e, v in EFFECTS.items() for a in ("--effect", f"{e}={v}")]
-    subprocess.run([sys.executable, "-m", "simucal", "simulate", "-o", folder, "--plan", plan, "--seed", str(seed),
-                    "--temperature-c", str(temperature_c), "--t-ref-c", "25", "--temperature-wander-c", "0.3",
-                    *effects], check=True, stdout=subprocess.DEVNULL)
+    """A turntable test at one chamber temperature that wanders +-0.3 degC (temp_c in samples.csv), as
+    `simucal simulate -o FOLDER --temperature-c T --t-ref-c 25 --temperature-wander-c 0.3 --effect ...` writes it."""
+    simucal.simulate(plan=plan, seed=seed, temperature_c=temperature_c, t_ref_c=25.0, temperature_wander_c=0.3,
+                     effects=EFFECTS).write(folder)
     return folder
 
 
