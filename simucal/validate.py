@@ -166,7 +166,7 @@ def own_rows(cal, ms) -> str:
     made_from = cal.input_sha256 if isinstance(cal.input_sha256, list) else [cal.input_sha256]
     mine = ms.sample_digests()
     shared = sum(d in set(cal.samples_sha256 or ()) for d in mine)
-    if ms.sha256 in made_from or (mine and shared == len(mine)):
+    if (ms.sha256 is not None and ms.sha256 in made_from) or (mine and shared == len(mine)):  # None: in memory
         return ("these are the data the calibration was made from: on its own rows a model always looks better; "
                 "validate on another recording")
     if shared:

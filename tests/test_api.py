@@ -221,3 +221,17 @@ def test_other_tools_recordings_and_the_commands_from_python(tmp_path):
     path, rows = simucal.convert(tmp_path / "calibrated", tmp_path / "columnar", "parquet")
     assert path.name == "samples.parquet" and rows == len(ms.samples["t_s"])
     assert simucal.read_set(tmp_path / "columnar").meta["acc_unit"] == "g"
+
+
+def test_short_reprs_and_notebook_views():
+    """Issue 54: a set, a calibration and every result print one short line and show a small HTML table in a
+    notebook; a set in memory is told from the calibration's own data (its missing file hash said 'own')."""
+    ms, other = simucal.simulate(seed=1), simucal.simulate(seed=2)
+    cal = simucal.calibrate(ms)
+    results = [ms, cal, simucal.validate(cal, other), simucal.diagnose(ms),
+               simucal.noise(simucal.simulate(seed=4, rate_hz=20))]
+    for r in results:
+        assert len(repr(r)) < 600 and "\n" not in repr(r), repr(r)[:200]
+        html = r._repr_html_()
+        assert html.startswith("<table>") and html.count("<tr>") >= 2 and "<script" not in html
+    assert results[2].independent and not simucal.validate(cal, ms).independent

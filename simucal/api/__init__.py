@@ -148,6 +148,15 @@ class Validation:
     report: dict
     checks = TableOf("check_rows", Check._fields)
 
+    def __repr__(self) -> str:  # the report's arrays are in .report
+        return ("<simucal.Validation: " + "; ".join(f"{s} {v}" for s, v in self.verdict.items())
+                + ("" if self.independent else " (on the calibration's own data)") + ">")
+
+    def _repr_html_(self) -> str:
+        from simucal.api.tables import html_card
+        return html_card("simucal.Validation", [*self.verdict.items(), ("independent data", self.independent),
+                                                *[("warning", w) for w in self.warnings]])
+
 
 def validate(cal: Calibration | str | os.PathLike, data: Data, *, acc_noise_g: float | None = None,
              gyro_noise_dph: float | None = None, timestamps: str | None = None) -> Validation:

@@ -64,6 +64,15 @@ class Diagnosis:
     report: dict
     candidates = TableOf("candidate_rows", Candidate._fields)
 
+    def __repr__(self) -> str:  # the verdicts are sentences: the first clause of each, the rest in .verdict
+        return ("<simucal.Diagnosis: " + "; ".join(v.split(" (")[0].split(". ")[0] for v in self.verdict.values())
+                + f"; next: {self.next_command}>")
+
+    def _repr_html_(self) -> str:
+        from simucal.api.tables import html_card
+        return html_card("simucal.Diagnosis", [*self.verdict.items(), ("next", self.next_command),
+                                               *[("note", n) for n in self.notes + self.next_notes]])
+
 
 def diagnose(data: Data, *, add: str | Sequence[str] = (), acc_model: str = "acc_baseline", gyro_model: str = "gyro_baseline",
              acc_noise_g: float | None = None, gyro_noise_dph: float | None = None,
@@ -183,6 +192,19 @@ class Noise:
     curve_rows: list[AllanPoint] = field(default_factory=list)
     terms = TableOf("term_rows", Term._fields)
     curve = TableOf("curve_rows", AllanPoint._fields)
+
+    def __repr__(self) -> str:
+        seen = [f"{t.sensor} {t.axis} {t.term} {t.value:.3g} {t.unit}" for t in self.term_rows if t.status == "seen"
+                and t.value is not None]
+        return f"<simucal.Noise: {len(seen)} terms seen" + (f": {'; '.join(seen[:6])}" if seen else "") + ">"
+
+    def _repr_html_(self) -> str:
+        from simucal.api.tables import html_card
+        return html_card("simucal.Noise", [(f"{t.sensor} {t.axis} {t.name}",
+                                            f"{t.value:.4g} +- {t.std:.2g} {t.unit}" if t.status == "seen" and t.value
+                                            is not None and t.std is not None else
+                                            f"{t.status}" + (f" (< {t.bound_95:.3g} {t.unit})" if t.bound_95 else ""))
+                                           for t in self.term_rows])
 
     def kalibr_yaml(self) -> str:
         """Kalibr's imu.yaml (noise densities and random walks, SI), as `simucal noise --kalibr` writes it;

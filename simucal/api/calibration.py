@@ -94,6 +94,17 @@ class Calibration(calibration.Calibration):
         tested = ", ".join(f"{s} (p = {b.p_value:.2g})" if b.p_value is not None else s for s, b in self.blocks())
         return f"<simucal.Calibration {self.method!r} of {self.input!r}: {tested or 'no sensor'}>"
 
+    def _repr_html_(self) -> str:
+        """A notebook's view: the method, the input, and per sensor its model, test and verdict."""
+        from simucal.api.tables import html_card
+        rows: list[tuple[str, Any]] = [("method", self.method), ("input", self.input)]
+        for s, b in self.blocks():
+            test = "no test" if b.p_value is None else f"chi2 {b.chi2:.4g} on {b.dof:g} dof, p = {b.p_value:.2g}"
+            rows.append((s, f"{b.model}: {b.verdict} ({test}); residual rms {b.residual_rms:.3g} {b.residual_unit}"
+                         if b.residual_rms is not None else f"{b.model}: {b.verdict} ({test})"))
+        rows += [(f"{s} not calibrated", why) for s, why in self.not_calibrated.items()]
+        return html_card("simucal.Calibration", rows)
+
     def parameters(self, vocabulary: str = "own") -> Any:
         """Every parameter of every sensor's model as a table: a list of `Parameter` rows.
 

@@ -45,6 +45,18 @@ class MeasurementSet(io.MeasurementSet):
                 + (f", {len(self.segments)} segments" if self.segments else "")
                 + "".join(f", {x}" for x in sensors + other) + ")")
 
+    def _repr_html_(self) -> str:
+        """A notebook's view: where, what kind, how many rows over how long, the sensors' units, the columns."""
+        from simucal import methods
+        from simucal.api.tables import html_card
+        t = self.samples["t_s"]
+        return html_card(f"MeasurementSet {self.path}", [
+            ("kind of data", methods.data_kind(self)), ("rows", f"{len(t):,}"),
+            ("duration", f"{float(t[-1] - t[0]) if len(t) else 0.0:.1f} s"),
+            ("segments", len(self.segments) if self.segments else "none (a stream)"),
+            *[(s, self.meta.get(f"{s}_unit")) for s, has in (("acc", self.has_acc), ("gyro", self.has_gyro)) if has],
+            ("columns", ", ".join(self.samples))])
+
     @classmethod
     def of(cls, ms: io.MeasurementSet) -> MeasurementSet:
         """The same set as this class (its arrays shared, not copied)."""

@@ -58,3 +58,11 @@ def rows(t: Any) -> list:
     if hasattr(t, "itertuples"):
         return list(t.itertuples(index=False))
     return list(t)
+
+
+def html_card(title: str, rows: Sequence[tuple[str, Any]]) -> str:
+    """A notebook's view of a result (its _repr_html_): a small table of (label, value) under a title, escaped."""
+    from html import escape
+    body = "".join(f"<tr><th style='text-align:left'>{escape(str(k))}</th><td style='text-align:left'>"
+                   f"{escape(str(v))}</td></tr>" for k, v in rows)
+    return f"<table><caption style='text-align:left'><b>{escape(title)}</b></caption>{body}</table>"
