@@ -17,8 +17,11 @@ __all__ = ["__version__", "read_set", "simulate", "calibrate", "validate", "diag
 TYPE_CHECKING = False  # typing's constant without importing typing (2 ms); type checkers read it as True
 if TYPE_CHECKING:
     from simucal.api import (Calibration, Candidate, Check, Diagnosis, Entry, MeasurementSet, Noise,  # noqa: F401
-                             Parameter, Term, Validation, calibrate, compare, diagnose, load, lot, noise, read_set,
+                             Parameter, Term, Validation, calibrate, compare, diagnose, load, noise, read_set,
                              save, simulate, table_rows, validate)
+    # lot from its own module: through simucal.api mypy took the submodule api/lot.py for it (simucal.lot
+    # typed as a module, "not callable" in a user's code)
+    from simucal.api.lot import lot  # noqa: F401
 
 
 def __getattr__(name):
