@@ -20,8 +20,11 @@ TYPE_CHECKING = False  # typing's constant without importing typing (2 ms); type
 if TYPE_CHECKING:
     from simucal.api import (Calibrated, Calibration, Candidate, Check, Diagnosis, Entry, MeasurementSet, Noise,  # noqa: F401
                              Parameter, Term, Validation, calibrate, calibrate_each, compare, convert, diagnose,
-                             import_recording, load, lot, montecarlo, noise, plan, read_set, save,
+                             import_recording, load, montecarlo, noise, plan, read_set, save,
                              sequence_observability, simulate, table_rows, validate)
+    # lot from its own module: through simucal.api mypy took the submodule api/lot.py for it (simucal.lot
+    # typed as a module, "not callable" in a user's code)
+    from simucal.api.lot import lot  # noqa: F401
 
 
 def __getattr__(name):

@@ -33,6 +33,7 @@ from __future__ import annotations
 import contextlib
 import tempfile
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
@@ -200,7 +201,7 @@ def characterise(ms, tau_max_s=None) -> dict:
     """The report of `simucal noise` (module doc): per sensor and axis, the Allan deviation with its
     68 % interval and the terms seen (value, std) or not (95 % bound) in the sensor's units and a
     data sheet's; tau up to tau_max_s (default a ninth of the longest still stretch)."""
-    out = {"format": "simucal.noise/1", "data": str(ms.path)}
+    out: dict[str, Any] = {"format": "simucal.noise/1", "data": str(ms.path)}
     for sensor, has in (("acc", ms.has_acc), ("gyro", ms.has_gyro)):
         if not has:
             continue
@@ -247,23 +248,25 @@ def characterise_folder(folder, tau_max_s=None, scheduler=None, size=allan_sums.
     sensors = [s for s, c in (("acc", "ax"), ("gyro", "gx")) if c in cols]
     if "gyro" in sensors and "latitude_deg" not in meta:
         raise MeasurementSetError(folder / "meta.json", None, "latitude_deg is required when gyro data are present")
-    spilled = scheduler not in (None, "local")
-    with (tempfile.TemporaryDirectory(prefix="simucal-noise-") if spilled else contextlib.nullcontext()) as spill:
+    scratch: contextlib.AbstractContextManager[str | None] = contextlib.nullcontext()
+    if scheduler not in (None, "local"):  # spilled: theta's parts in files the workers read
+        scratch = tempfile.TemporaryDirectory(prefix="simucal-noise-")
+    with scratch as spill:
         kept, steps = allan_sums.read_pass(folder, meta, sensors, Path(spill) if spill else None, size)
         dt = sample_step(steps, path)
         del steps
         n = kept.theta[next(iter(kept.theta))].n - 1
         if "acc" in sensors:
             _check_still_stream(kept, dt, folder)
-        out = {"format": "simucal.noise/1", "data": str(folder)}
+        out: dict[str, Any] = {"format": "simucal.noise/1", "data": str(folder)}
         for sensor in sensors:
             m = cluster_sizes([n], dt, tau_max_s, path)
             mats = allan_cov.basis(m, dt, [n])
-            cols = io.SAMPLE_COLS[:3] if sensor == "acc" else io.SAMPLE_COLS[3:]
-            avars = allan_sums.allan_variances([kept.theta[c] for c in cols], m, scheduler)
+            triad = io.SAMPLE_COLS[:3] if sensor == "acc" else io.SAMPLE_COLS[3:]
+            avars = allan_sums.allan_variances([kept.theta[c] for c in triad], m, scheduler)
             out[sensor] = sensor_report(sensor, dt, m, "the whole stream", {a: axis_from_avar(
                 sensor, avar, stuck(kept.lo[c], kept.hi[c], kept.first[c], n, UNIT[sensor]), dt, m, mats)
-                for a, c, avar in zip("xyz", cols, avars)})
+                for a, c, avar in zip("xyz", triad, avars)})
     return out
 
 
@@ -308,7 +311,8 @@ def kalibr_yaml(report) -> str:
     for sensor, key, to_si in KALIBR:
         ax = report[sensor]["axes"].values()
         out.append(f"{key}_noise_density: {max(a['terms']['N'] for a in ax) * to_si:.6e}")
-        out.append(f"{key}_random_walk: {max(_random_walk_or_bound(a) for a in ax) * to_si:.6e}")
+        walks = [w for w in map(_random_walk_or_bound, ax) if w is not None]  # kalibr_missing refused a None
+        out.append(f"{key}_random_walk: {max(walks) * to_si:.6e}")
     out.append(f"rostopic: /imu0\nupdate_rate: {report['gyro']['rate_hz']:.6g}")
     return "\n".join(out) + "\n"
 

@@ -28,6 +28,7 @@ import sys
 import tempfile
 import time
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
@@ -61,11 +62,12 @@ SIMUCAL = [str(Path(sys.executable).with_name("simucal"))] if Path(sys.executabl
 
 # the sizes of the figures; "quick" runs every step at a size of seconds (CI's run of the README's commands):
 # its figures are no measure of speed
-SIZES = {"full": dict(repeats=3, mc_trials=100000, mc_numpy_trials=20000, cli_trials=200000, effect_trials=(20000, 200000),
-                      rate_hz=(100.0, 452.0), still_s=7200.0, thermal_rate_hz=20.0, scaling=(12, 100, 1000, 10000, 100000),
-                      diagnose=True),
-         "quick": dict(repeats=0, mc_trials=2500, mc_numpy_trials=500, cli_trials=2500, effect_trials=(500, 2500),
-                       rate_hz=(2.0, 4.0), still_s=120.0, thermal_rate_hz=1.0, scaling=(12, 100), diagnose=False)}
+SIZES: dict[str, dict[str, Any]] = {
+    "full": dict(repeats=3, mc_trials=100000, mc_numpy_trials=20000, cli_trials=200000, effect_trials=(20000, 200000),
+                 rate_hz=(100.0, 452.0), still_s=7200.0, thermal_rate_hz=20.0, scaling=(12, 100, 1000, 10000, 100000),
+                 diagnose=True),
+    "quick": dict(repeats=0, mc_trials=2500, mc_numpy_trials=500, cli_trials=2500, effect_trials=(500, 2500),
+                  rate_hz=(2.0, 4.0), still_s=120.0, thermal_rate_hz=1.0, scaling=(12, 100), diagnose=False)}
 
 
 def _env(cached=True):
@@ -274,10 +276,11 @@ def _whole_commands(tmp, fig, n):
 def run(json_path=None, echo=print, before=None, size="full") -> dict:
     """Every figure, printed as a table (and written as JSON to json_path); before: a previous run's
     JSON, printed beside; size: a key of SIZES ("quick": every step at a size of seconds)."""
-    n, fig = SIZES[size], {}
+    n = SIZES[size]
+    fig: dict[str, Any] = {}
     REPEATS[0] = n["repeats"]
-    with tempfile.TemporaryDirectory() as tmp:
-        tmp = Path(tmp)
+    with tempfile.TemporaryDirectory() as tmp_name:
+        tmp = Path(tmp_name)
         _fits_and_montecarlo(tmp, fig, n)
         _whole_commands(tmp, fig, n)
         progress.status("bench: one model compiled afresh")

@@ -15,7 +15,7 @@ from simucal import io, methods
 from simucal.errors import CalibrationError, SimucalError
 from simucal.fit.thermal import PLAUSIBLE_C, SPREAD_C
 from simucal.io import calibration, units
-from simucal.io.calibration import Calibration, EffectValue, SensorBlock
+from simucal.io.calibration import Calibration, EffectValue, SensorBlock, SensorDetails
 from simucal.io.calibration_checks import check_layout, scale_notes
 from simucal.io.sensor_checks import stuck_channels
 from simucal.io.timestamps import with_timestamps
@@ -160,8 +160,9 @@ def _thermal_block(blocks: list[SensorBlock], T_k, t_ref_c, degree, sensor, plat
     p0 = np.array([fits[n]["coefficients"][0] for n in names])
     nearest = blocks[int(np.argmin(np.abs(np.asarray(T_k) - t_ref_c)))]
     M, bias = AugmentedModel(first.model, first.library_effects()).matrix_and_bias(p0)
-    details = {"plateaus": [{"input": p, "temp_c": t, "p_value": b.p_value, "residual_rms": b.residual_rms,
-                             "residual_unit": b.residual_unit} for p, t, b in zip(plateaus, T_k, blocks)]}
+    details: SensorDetails = {"plateaus": [{"input": p, "temp_c": t, "p_value": b.p_value,
+                                            "residual_rms": b.residual_rms, "residual_unit": b.residual_unit}
+                                           for p, t, b in zip(plateaus, T_k, blocks)]}
     if first.C_b_model is not None:
         details["M_in_d"] = M.tolist()
     return replace(first, effects={e: replace(v, value=fits[e]["coefficients"][0], std=fits[e]["std"][0])
@@ -202,17 +203,18 @@ def _joint_block(obs, groups, first: SensorBlock, degree, labels, t_ref_c, plate
     M, bias = base.matrix_and_bias(fit.vector(base.params))
     T = obs.aux.column("temp_c", len(obs.N))
     T_g = [float(np.mean(T[groups == g])) for g in np.unique(groups)]
-    details = {"groups": [{"input": lab, "temp_c": t, "own_p_value": f.p_value if f else None, **test}
-                          for lab, t, f, test in zip(labels, T_g, own or [None] * len(T_g),
-                                                     group_tests(model, obs, fit, groups))],
-               "plateaus": plateaus}
+    details: SensorDetails = {
+        "groups": [{"input": lab, "temp_c": t, "own_p_value": f.p_value if f else None, **test}
+                   for lab, t, f, test in zip(labels, T_g, own or [None] * len(T_g), group_tests(model, obs, fit, groups))],
+        "plateaus": plateaus}
     if first.C_b_model is not None:
         details["M_in_d"] = M.tolist()
     thermal = {"t_ref_c": t_ref_c, "plateaus_c": T_g, "temperature_range_c": [float(T.min()), float(T.max())],
                "fit": "joint: every row at its own temp_c", "rows": rows_text(segs), "parameters": fits, "dropped": how["dropped"],
                "covariance": {"names": list(model.params), "matrix": fit.cov.tolist()}}
     test = joint_test(base, model, obs, fit)
-    details.update({k: test[k] for k in ("omnibus_p_value", "omnibus_test", "targeted") if k in test})
+    details.update(calibration.as_details({k: test[k] for k in ("omnibus_p_value", "omnibus_test", "targeted")
+                                           if k in test}))
     if "verdict" in test.get("targeted", {}):  # a library effect beyond its test: the one to add
         details["advice"] = test["targeted"]["strongest"]
     if auto is not None:

@@ -48,6 +48,7 @@ def loop(out: Path, seed: int, echo) -> dict:
     truth = write(data, sc, seed)
     echo(f"1 simulate: {data} (fibonacci48 plan; a hidden effect is in {data / 'truth.json'} only)")
     base = calibrate(data)
+    assert base.acc is not None  # the demo's set has an accelerometer
     calibration.save(out / "loop_calibration_baseline.json", base)
     echo(f"2 calibrate (baseline model): acc chi2 {base.acc.chi2:.1f} on {base.acc.dof} dof, "
          f"p = {base.acc.p_value:.2g}; advice: add {base.acc.details['advice']}")
@@ -59,6 +60,7 @@ def loop(out: Path, seed: int, echo) -> dict:
     if not found:
         raise CalibrationError("the demo's hidden effect was not found: " + diag["acc"]["verdict"])
     fixed = calibrate(data, add=tuple(found))
+    assert fixed.acc is not None
     calibration.save(out / "loop_calibration_added.json", fixed)
     e = fixed.acc.effects[found[0]]
     echo(f"4 calibrate --add {found[0]}: acc chi2 {fixed.acc.chi2:.1f} on {fixed.acc.dof} dof, "
@@ -129,6 +131,7 @@ def thermal(out: Path, seed: int, echo) -> dict:
         return out / f"thermal_{T}"
     sets = [plateau(T, k) for k, T in enumerate((0, 25, 50))]
     cal = calibrate_thermal(sets, t_ref_c=25.0)
+    assert cal.acc is not None and cal.gyro is not None  # the plateaus hold both sensors
     calibration.save(out / "thermal_calibration.json", cal)
     calibration.save(out / "thermal_calibration_25.json", calibrate(sets[1]))
     moving = [f"{s}.{n} degree {f['degree']}" for s in ("acc", "gyro")

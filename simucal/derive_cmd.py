@@ -22,7 +22,7 @@ def run(check: bool = False, out_dir: Path | None = None) -> tuple[list[str], fl
     files = codegen.generate(list(BUILTIN))
     if check:
         stale = codegen.stale(out_dir, files)
-        diff = []
+        diff: list[str] = []
         for name in stale:
             path = out_dir / name
             old = path.read_text().splitlines(keepends=True) if path.is_file() else []

@@ -27,6 +27,7 @@ from simucal.turntable.model_test import test_and_rank
 
 
 def residual_table(fit: Fit, obs: Observations, segs) -> list[dict]:
+    assert fit.directions is not None  # an exact fit's (test_model)
     rows = []
     for i, s in enumerate(segs):
         r = fit.residuals[i]

@@ -293,7 +293,7 @@ def lot(folder, limits_path=None) -> dict:
                                   [c for (_, c), kk in zip(latest, keys) if kk == k])} for k in dict.fromkeys(keys)]
     known = {p["name"]: p["unit"] for g in groups for p in g["parameters"]}
     limits = read_limits(limits_path, known) if limits_path else {}
-    outliers = {}
+    outliers: dict[str, list[dict]] = {}  # per unit: its outlying parameters
     for g in groups:
         for p in g["parameters"]:
             for o in p["outliers"]:

@@ -1,6 +1,6 @@
 """The linter and the type checker, run by the suite (issue 40, item 0): ruff's pyflakes and
-pycodestyle errors over the repository, mypy over the public API and fit/'s typed results, both
-as configured in pyproject.toml. A finding fails the test with the tool's own lines."""
+pycodestyle errors over the repository, mypy over the whole package (simucal/), both as configured
+in pyproject.toml. A finding fails the test with the tool's own lines."""
 import subprocess
 import sys
 from pathlib import Path
@@ -21,7 +21,7 @@ def test_ruff_finds_nothing():
 
 
 @pytest.mark.slow
-def test_mypy_finds_nothing_in_the_public_api_and_the_typed_results():
+def test_mypy_finds_nothing_in_the_package():
     r = _run("mypy")
     assert r.returncode == 0, r.stdout + r.stderr
 

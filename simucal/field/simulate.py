@@ -53,7 +53,8 @@ def simulate_field(sc: FieldScenario, seed: int = 0, unit_seed: int | None = Non
     n = int(round(sc.duration_s * sc.rate_hz))
     dt = 1 / sc.rate_hz
     sigma_w = np.radians(sc.arw_deg_per_sqrt_h / 60) / np.sqrt(dt)  # rad/s per sample
-    segments, cols, true_att = [], {c: [] for c in ("segment", "t_s", "ax", "ay", "az", "gx", "gy", "gz")}, []
+    segments, true_att = [], []
+    cols: dict[str, list[np.ndarray]] = {c: [] for c in ("segment", "t_s", "ax", "ay", "az", "gx", "gy", "gz")}
     t0 = 0.0
     for k, (h, p, r) in enumerate(sc.attitudes_deg, start=1):
         att = np.array([h, p, r]) + rng.uniform(-1, 1, 3) * sc.attitude_jitter_deg * np.array([1, 0.2, 1])

@@ -165,7 +165,7 @@ def basis(m, dt, stretch_lengths) -> dict:
     m = np.asarray(m, dtype=float)
     i, j = np.triu_indices(len(m))
     m1, m2 = m[i], m[j]
-    sums = {}
+    sums: dict[tuple[str, str], np.ndarray] = {}
     lengths, counts = np.unique(np.asarray(stretch_lengths, dtype=float), return_counts=True)
     for length, count in zip(lengths, counts):
         n1, n2 = np.maximum(length - 2 * m1, 0.0), np.maximum(length - 2 * m2, 0.0)

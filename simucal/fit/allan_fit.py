@@ -104,7 +104,7 @@ def select(tau, v, mats) -> dict:
         room = [t for t in TERMS if t not in terms and len(tau) >= len(terms) + 1 + MIN_TAUS]
         trials = {t: fit.solve(terms + [t], cov)[0][t] for t in room}
         z = {t: x / s for t, (x, s) in trials.items() if s > 0}
-        best = max(z, key=z.get, default=None)
+        best = max(z, key=z.__getitem__, default=None)
         if best is None or z[best] <= SEEN:
             break
         sol, chi2, cov = fit.iterate(terms + [best], {t: x for t, (x, _) in sol.items()} | {best: trials[best][0]})
@@ -113,7 +113,7 @@ def select(tau, v, mats) -> dict:
             break
         terms.append(best)
     bounds = {t: float(np.sqrt(max(x, 0.0) + UPPER_95 * s)) for t, (x, s) in trials.items() if t not in terms}
-    out = {}
+    out: dict[str, tuple[float, float] | None] = {}
     for t in TERMS:
         x, s = sol.get(t, (0.0, 0.0))
         if t in terms and (t == "N" or x > SEEN * s) and x > 0:

@@ -37,12 +37,15 @@ class Theta:
     .npy files in `spill` (read by memory map: what a Dask worker is sent is the file names)."""
 
     def __init__(self, spill: Path | None = None, name="theta", size=CHUNK):
-        self.parts, self.n, self.spill, self.name, self.size = [], 0, spill, name, size
-        self._buf, self._fill = np.zeros(self.size), 1  # theta_0 = 0
-        self._maps = {}
+        self.n, self.spill, self.name, self.size = 0, spill, name, size
+        self.parts: list[np.ndarray | Path] = []  # arrays, or with spill their .npy files
+        self._buf: np.ndarray | None = np.zeros(self.size)  # None once closed
+        self._fill = 1  # theta_0 = 0
+        self._maps: dict[int, np.ndarray] = {}
 
     def extend(self, y: np.ndarray) -> None:
         """Append the cumulative sum of y, continuing from the last value (exactly as one cumsum)."""
+        assert self._buf is not None  # not closed
         last = self._buf[self._fill - 1] if self._fill else self._last_part()[-1]
         theta = np.cumsum(np.r_[last, y])[1:]
         while len(theta):
@@ -57,6 +60,7 @@ class Theta:
         return self._part(len(self.parts) - 1)
 
     def _flush(self) -> None:
+        assert self._buf is not None  # called before close() lets go of it
         if self.spill is None:
             self.parts.append(self._buf[:self._fill].copy() if self._fill < self.size else self._buf)
         else:

@@ -10,6 +10,8 @@ with the same segments (and rate runs' centripetal scale for lever arms).
 """
 from __future__ import annotations
 
+from typing import Any
+
 import numpy as np
 
 from simucal import io
@@ -115,9 +117,10 @@ def check_block(block: SensorBlock, sensor, where) -> None:
 def _check_thermal(block: SensorBlock, sensor, names, where) -> None:
     """A thermal section with a finite polynomial for every parameter, c_0 the parameter itself."""
     th = block.thermal
+    assert th is not None  # check_block checks a thermal block's only
     ok = isinstance(th, dict) and isinstance(th.get("t_ref_c"), (int, float)) and isinstance(th.get("parameters"), dict)
     for n in names if ok else ():
-        c = th["parameters"].get(n, {}).get("coefficients") if isinstance(th["parameters"].get(n), dict) else None
+        c: Any = th["parameters"].get(n, {}).get("coefficients") if isinstance(th["parameters"].get(n), dict) else None
         good = isinstance(c, list) and 0 < len(c) <= 4 and all(isinstance(x, (int, float)) and np.isfinite(x) for x in c)
         if not good or abs(c[0] - block.params[n]) > EDITED * max(1.0, abs(c[0])):
             ok = False
@@ -174,12 +177,14 @@ def apply(cal: Calibration, data, where="the calibration"):
     samples = {k: v for k, v in ms.samples.items() if k not in io.SAMPLE_COLS}  # the keys and auxiliary columns
     f_b = None
     if ms.has_acc:
+        assert cal.acc is not None  # check_layout refuses data of a sensor the calibration lacks
         rate = {s.segment: s.outer_rate_dps for s in (ms.segments or [])}
         w2 = (np.radians([rate.get(s, 0.0) for s in ms.samples["segment"]]) ** 2 / units.gravity(ms.meta)
               if "segment" in ms.samples else np.zeros(n))
         f_b = invert(cal.acc, "acc", ms.acc_g(), aux.with_values(w2=w2), ms.path / "samples.csv", temp_c)
         samples.update(ax=f_b[:, 0], ay=f_b[:, 1], az=f_b[:, 2])
     if ms.has_gyro:
+        assert cal.gyro is not None
         f_model = f_b @ cal.gyro.C.T if f_b is not None else np.zeros((n, 3))
         w_b = invert(cal.gyro, "gyro", ms.gyro_dph(), aux.with_values(**specific_force(f_model)),
                      ms.path / "samples.csv", temp_c)

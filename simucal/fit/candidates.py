@@ -108,11 +108,11 @@ def rank_candidates(model: AugmentedModel, obs: Observations, fit: Fit, base_fai
     data come from a plan that can grow (turntable/plan_design.TableAdvice), the positions to add for
     a candidate this plan cannot see, and for the strongest pair of candidates it cannot tell apart."""
     problem = norm_problem(model, obs, fit)
-    hooks = {} if advisor is None else dict(
-        unseen=lambda eid: advisor.reveal(model, eid, fit, obs, problem.sig),
-        pair=lambda c, twin: advisor.separate(model, c, twin, fit, obs, problem.sig))
+    unseen = None if advisor is None else lambda eid: advisor.reveal(model, eid, fit, obs, problem.sig)
+    pair = None if advisor is None else lambda c, twin: advisor.separate(model, c, twin, fit, obs, problem.sig)
     ids = [e for e in effect_ids(model.sensor) if e not in model.effects]
-    return [c.to_dict() for c in ranking.rank(problem, ids, base_fails, f"{model.sensor} candidates", **hooks)]
+    return [c.to_dict() for c in ranking.rank(problem, ids, base_fails, f"{model.sensor} candidates",
+                                              unseen=unseen, pair=pair)]
 
 
 def test_model(model, obs: Observations, p0=None) -> tuple[Fit, Observations, dict]:
@@ -124,6 +124,7 @@ def test_model(model, obs: Observations, p0=None) -> tuple[Fit, Observations, di
              "noise": noise, "lack_of_fit": lof, "chi2": fit.chi2,
              "cross_validation": leave_one_out(model, obs, fit)}
     if fit.chi2 is not None:
+        assert obs.sigma is not None  # a chi-square: the fit had every row's noise (fit_exact)
         noise_std = float(np.sqrt(np.mean(obs.sigma ** 2)))
         # expected residual rms if the model is right: chi2 has n - m dof over 3n components
         block.update(noise_floor=noise_std * float(np.sqrt(max(n - m, 0) / (3 * n))), noise_std_of_mean=noise_std)
@@ -219,7 +220,7 @@ def forward_selection(model: AugmentedModel, obs: Observations, rank=None, max_t
     return selection.forward_selection(NormStep(model, obs, rank, table), max_terms)
 
 
-def _rank(model, obs, fit, base):
+def _rank(model, obs, fit, base) -> tuple[list[dict], dict | None]:
     cands = rank_candidates(model, obs, fit, True)
     return cands, shape_if_unexplained(model, obs, fit, base, cands)
 

@@ -89,7 +89,7 @@ def derive_model_file(path) -> tuple[list[str], bool]:
     cache.own_folder("models")  # the user's alone, or UntrustedCache: the fix named
     found = cache.locate(f"models/{key}/manifest.json")
     derived = found is None
-    if derived:
+    if found is None:
         folder = cache.own_folder(f"models/{key}")
         found = folder / "manifest.json"
         child = _run_child(path, folder, derive_timeout_s())
@@ -103,7 +103,7 @@ def derive_model_file(path) -> tuple[list[str], bool]:
                                  "os._exit in the file?); a model file defines MODELS and returns")
     names = sorted(json.loads(found.read_text())["models"])
     _add_to_index({n: {"key": key, "source": str(path)} for n in names})
-    load.cache_clear()
+    _load.cache_clear()  # load's kept models (load.cache_clear)
     return names, derived
 
 

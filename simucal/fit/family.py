@@ -27,6 +27,8 @@ where the family fails, to say which effect to add.
 """
 from __future__ import annotations
 
+from typing import Any
+
 import numpy as np
 
 from simucal.fit.distributions import chi2_sf, f_sf
@@ -79,8 +81,9 @@ def targeted(problem, ids, dof: int | None = None) -> dict:
         stats.append((stat, p, perp))
         if best is None or stat > best[1]:  # by the statistic: p-values far out all underflow to 0
             best = (cid, stat, p)
-    out = {"tested": n, "strongest": best[0] if best else None, "statistic": best[1] if best else None,
-           "p_value": best[2] if best else None, "level": candidate_level(n)}
+    out: dict[str, Any] = {"tested": n, "strongest": best[0] if best else None,
+                           "statistic": best[1] if best else None, "p_value": best[2] if best else None,
+                           "level": candidate_level(n)}
     if best is not None and best[2] < out["level"]:  # the strongest's twins: the data cannot say which it is
         cols = {cid: perp / np.linalg.norm(perp) for cid, (_, _, perp) in zip(kept, stats)}
         tw = twins(best[0], cols, r, s2)

@@ -95,6 +95,7 @@ class GenericTerm:
     def name(self) -> str:
         a = "xyz"[self.axis]
         if self.is_scale:
+            assert self.aux is not None  # a scale term's aux (is_scale)
             return f"k_{a}_{self.aux.replace('_', '')}"
         if self.aux:
             return f"c_{a}_{self.aux.replace('_', '')}" + (f"_{self.times.replace('_', '')}" if self.times else "")
@@ -168,6 +169,7 @@ def fit_with_noise(model, obs: Observations, p0=None) -> tuple[Fit, Observations
         return fit, obs, {"source": "none in the data and none stated: one std for all rows, estimated from the fit "
                                "(so no chi-square test; the lack-of-fit F test decides)",
                      "estimated_std": s, "dof": int(fit.dof), "rows_estimated": int(len(obs.N))}
+    assert sig is not None  # some row's noise is known
     s_u = float(np.median(sig[known]))
     for _ in range(8):
         full = np.where(known[:, None], sig, s_u)

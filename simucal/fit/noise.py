@@ -193,21 +193,26 @@ def load_curves(path) -> dict:
             if stuck:
                 raise CalibrationError(f"{path}: {', '.join(stuck)} stuck or dead in the still recording (no noise "
                                        "terms): its noise cannot stand for the unit's; record it again or drop --noise")
-            tau_max = float(max(rep[sensor]["tau_s"]))
-
-            def curve(tau_s, axes=axes, tau_max=tau_max):
-                t = np.atleast_1d(np.asarray(tau_s, float))
-                at = np.minimum(t, tau_max)
-                var = []
-                for ax in axes:
-                    kept = {k: v if k in _measured_long(ax) else 0.0 for k, v in ax["terms"].items()}
-                    var.append(allan_deviation(ax["terms"], at) ** 2 * at / t
-                               + allan_deviation(kept, t) ** 2 - allan_deviation(kept, at) ** 2 * at / t)
-                return np.sqrt(np.array(var).T).squeeze()
-            curve.tau_max_s = tau_max
-            curve.source = str(path)
-            out[sensor] = curve
+            out[sensor] = Curve(axes, float(max(rep[sensor]["tau_s"])), str(path))
     return out
+
+
+class Curve:
+    """One sensor's curve of load_curves: curve(tau_s), the std of a tau-long mean per axis; tau_max_s,
+    the longest tau measured; source, the noise.json it was read from."""
+
+    def __init__(self, axes: list[dict], tau_max_s: float, source: str):
+        self.axes, self.tau_max_s, self.source = axes, tau_max_s, source
+
+    def __call__(self, tau_s) -> np.ndarray:
+        t = np.atleast_1d(np.asarray(tau_s, float))
+        at = np.minimum(t, self.tau_max_s)
+        var = []
+        for ax in self.axes:
+            kept = {k: v if k in _measured_long(ax) else 0.0 for k, v in ax["terms"].items()}
+            var.append(allan_deviation(ax["terms"], at) ** 2 * at / t
+                       + allan_deviation(kept, t) ** 2 - allan_deviation(kept, at) ** 2 * at / t)
+        return np.sqrt(np.array(var).T).squeeze()
 
 
 LONG_TERMS = ("B", "K", "R")  # the terms of long averages
@@ -216,7 +221,8 @@ MEASURED = 10.0  # a long-average term carried past the last tau only where it i
 
 def _measured_long(axis: dict) -> set:
     """The long-average terms of one axis of a noise report that stand MEASURED stds from zero."""
-    sheet = axis.get("sheet") if isinstance(axis.get("sheet"), dict) else {}
+    sheet = axis.get("sheet")
+    sheet = sheet if isinstance(sheet, dict) else {}
     rows = {k: sheet[k] for k in LONG_TERMS if isinstance(sheet.get(k), dict)}  # a damaged sheet measures nothing
     return {k for k, r in rows.items() if _number(r.get("std")) and _number(r.get("value")) and r["std"] > 0
             and r["value"] >= MEASURED * r["std"]}

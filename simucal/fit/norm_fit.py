@@ -36,6 +36,9 @@ class Observations:
     labels: list = field(default_factory=list)  # segment ids, for messages
     sigma_source: str = "each segment's scatter or the stated noise"  # where sigma came from, in words
     sigma_stated: bool = True      # whether a stated noise (meta, an option, an Allan curve) gave any sigma
+    # the --noise file that gave sigma, set by turntable/observations.py; init=False: replace() and take()
+    # do not carry it over
+    noise_file: str | None = field(default=None, init=False, repr=False, compare=False)
 
     def take(self, rows) -> "Observations":
         """The observations of the given rows (indices)."""
@@ -203,7 +206,7 @@ def initial_directions(model, obs, p):
     return directions(model, obs.N, p, obs.aux)
 
 
-_AFFINE = {}
+_AFFINE: dict[str, tuple[np.ndarray, np.ndarray, np.ndarray]] = {}  # model name -> _affine_columns
 
 
 def _affine_columns(model):
@@ -273,7 +276,7 @@ def _upright(model, fit: Fit):
 def _fit_exact(model, obs: Observations, p0, max_iter, tol, prior) -> Fit:
     _check_inputs(model, obs)
     n, m = len(obs.N), len(model.params)
-    if p0 is None and getattr(model, "effects", ()):  # baseline + effects: start from the baseline's fit
+    if p0 is None and getattr(model, "effects", None):  # baseline + effects: start from the baseline's fit
         base = fit_exact(model.base, obs, max_iter=max_iter)
         p0 = np.r_[base.vector(model.base.params), np.zeros(m - len(model.base.params))]
     if p0 is None and not prior:

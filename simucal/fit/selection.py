@@ -32,8 +32,12 @@ AUTO_TRIES = 3  # candidates passing the gate whose held-out errors are tried, s
 class Step(Protocol):
     """A model in the selection: its effects, its test, its ranked candidates, itself with one more
     effect, and its errors on data left out one piece at a time."""
-    model: object  # the model as its kind holds it (an AugmentedModel; the moves' fit)
     effects: tuple[str, ...]
+
+    @property
+    def model(self) -> object:
+        """The model as its kind holds it (an AugmentedModel; the moves' fit). A property: read only, so
+        that a step may hold a narrower type."""
 
     def test(self) -> ModelTest:
         """The model's test."""

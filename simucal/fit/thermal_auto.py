@@ -81,7 +81,7 @@ def _twin_by_every_row(step: dict, model_name, effects, obs, groups, degree, p0)
             continue
     if len(chi2) < 2:
         return effects
-    best = min(chi2, key=chi2.get)
+    best = min(chi2, key=chi2.__getitem__)
     others = "; ".join(f"{k} {v:.1f}" for k, v in chi2.items() if k != best)
     if best != step["id"]:
         effects = tuple(best if x == step["id"] else x for x in effects)

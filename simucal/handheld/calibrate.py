@@ -12,6 +12,7 @@ a unit put by hand in many static poses.
 from __future__ import annotations
 
 from dataclasses import replace
+from typing import Any
 
 import numpy as np
 
@@ -89,6 +90,7 @@ def _gyro_block(ms, det, am, obs, fa, acc_cal, gyro_effects, auto) -> SensorBloc
     f, effects, chosen = _gyro_fit(ms, gm, acc_cal, gyro_effects, auto)
     f, unseen, undetermined, dead = _hold_unseen(ms, gm, f)
     mv = gm.mv
+    assert mv.t_span is not None  # build_moves gives every move's times
     gyro_model, f, choice = choose_gyro_model(mv, gm.g_dirs, gm.bias_std, f, unseen)
     fixed = GYRO_MODELS[gyro_model]
     if gyro_model != "full":
@@ -142,16 +144,17 @@ def calibrate_handheld(ms, acc_model="acc_baseline", detect=None, pose_window_s=
     cal.details["static_detection"] = {**det.as_dict(ms.samples["t_s"]), "pose_window_s": pose_window_s}
     cal.acc = calibration.sensor_block(am, fa, M_a, b_a)
     # the poses' test made the model test's family (fit/family.py), each pose weighted as the fit weighs it
-    test = {"p_value": cal.acc.p_value, "test": "chi-square of the poses against their own noise"}
+    test: dict[str, Any] = {"p_value": cal.acc.p_value, "test": "chi-square of the poses against their own noise"}
+    assert obs.sigma is not None  # each pose's std (pose_observations)
     family.fold(test, targeted(am, replace(obs, sigma=np.hypot(obs.sigma, tau)), fa))
     cal.acc.p_value = test.pop("p_value")
-    cal.acc.details.update(test)
-    cal.acc.details.update(undetermined=fa.undetermined, model_error_std_g=tau, note=None if tau == 0 else (
+    cal.acc.details.update(calibration.as_details(test))
+    cal.acc.details.update({"undetermined": fa.undetermined, "model_error_std_g": tau, "note": None if tau == 0 else (
         "the model does not explain the poses down to their own noise (see chi2, p_value before "
         "the extra variance: simucal diagnose); each pose got an extra variance tau^2 so that "
-        "chi2/dof = 1, and the stds include it"))
+        "chi2/dof = 1, and the stds include it")})
     if auto:
-        cal.acc.details.update(auto=acc_auto.steps, auto_stopped=acc_auto.stopped)
+        cal.acc.details.update({"auto": acc_auto.steps, "auto_stopped": acc_auto.stopped})
     if cal.acc.verdict == "fails" and not fa.undetermined:
         cal.acc.details["advice"] = advice(am, obs)  # what diagnose names for the poses (its fit has no prior)
     if ms.has_gyro:

@@ -99,6 +99,7 @@ def chi2_test(fit: GyroFit, S, bias_std, mv: Moves):
     chi2 = sum(float(r @ np.linalg.pinv(s, rcond=1e-6, hermitian=True) @ r) for r, s in zip(fit.r, S))
     rest = fit.db.copy()  # the rest reads b + sum_j p_j e_j phi_j(rest): the prior's residual
     for j, axis in enumerate(mv.phi_axes):
+        assert mv.phi_rest is not None  # with_terms gives phi_rest with phi_axes
         rest[axis] += fit.p[j] * mv.phi_rest[j]
     chi2 += float(np.sum((rest / bias_std) ** 2))
     # 2 per move, 3 for the rest's reading where the moves estimate the bias, less what they estimate: the

@@ -27,15 +27,15 @@ from simucal.io import timestamps, units
 
 @dataclass
 class Moves:
-    y: np.ndarray        # (3, m, L) bias-free gyro outputs (deg/s), zero-padded
-    dt: np.ndarray       # (m, L) sample intervals, 0 on padding
-    before: np.ndarray   # (m,) index of the pose before
-    after: np.ndarray    # (m,) index of the pose after
-    t_span: list = None  # (m,) (start, end) times (s)
-    rows: list = None    # (m,) (a, b): the move integrates stream rows a+1 .. b
-    phi: np.ndarray = None  # (q, m, L) regressors of added effects, (deg/s) per unit parameter, 0 on padding
-    phi_axes: tuple = ()    # the output axis each one acts on
-    phi_rest: np.ndarray = None  # (q,) their mean over the initial rest, which reads b + sum_j p_j e_j phi_j
+    y: np.ndarray                       # (3, m, L) bias-free gyro outputs (deg/s), zero-padded
+    dt: np.ndarray                      # (m, L) sample intervals, 0 on padding
+    before: np.ndarray                  # (m,) index of the pose before
+    after: np.ndarray                   # (m,) index of the pose after
+    t_span: list | None = None          # (m,) (start, end) times (s)
+    rows: list | None = None            # (m,) (a, b): the move integrates stream rows a+1 .. b
+    phi: np.ndarray | None = None       # (q, m, L) regressors of added effects, (deg/s) per unit parameter, 0 on padding
+    phi_axes: tuple = ()                # the output axis each one acts on
+    phi_rest: np.ndarray | None = None  # (q,) their mean over the initial rest, which reads b + sum_j p_j e_j phi_j
 
     @property
     def n_terms(self):
@@ -69,7 +69,8 @@ def build_moves(w, t, det: Detection, bias, bad):
     dt_all = np.diff(t)
     gap = np.zeros(len(t), bool)  # row k follows a gap
     gap[[g["after_row"] + 1 for g in timestamps.gaps(t)]] = True
-    idx, skipped = [], []
+    idx: list[tuple[int, int, int]] = []  # (pose before, a, b): the move integrates rows a+1 .. b
+    skipped: list[dict] = []
     for i in range(len(det.starts) - 1):
         a, b = det.ends[i] - 1, det.starts[i + 1]
         why = ("saturated samples in the move" if bad[a:b + 1].any() else
@@ -126,12 +127,16 @@ def move_residuals(T, mv: Moves, g_dirs, jac=True, db=None, p=None):
 
 def jacobian(it: Integrated, T, mv: Moves) -> np.ndarray:
     """dr/d[vec(T), db, p] (m, 3, 12 + q) at the point the moves were integrated at."""
+    assert it.W is not None  # integrated with its Jacobian (jac=True)
     m = len(it.r)
     cols = [it.Rt @ (it.W @ it.y.transpose(1, 2, 0)).reshape(m, 3, 9),  # sum_k W_k (x) y_k
             -it.Rt @ it.W.sum(2).reshape(m, 3, 3) @ T]
     dphi = np.concatenate(cols, axis=2) * np.radians(1.0)
-    return np.concatenate([-np.matmul(skew(it.pred), dphi)] + [
-        effect_column(it, T, phi, axis) for phi, axis in zip(mv.phi if mv.n_terms else (), mv.phi_axes)], axis=2)
+    effects = []
+    if mv.n_terms:
+        assert mv.phi is not None  # with_terms gives phi with phi_axes
+        effects = [effect_column(it, T, phi, axis) for phi, axis in zip(mv.phi, mv.phi_axes)]
+    return np.concatenate([-np.matmul(skew(it.pred), dphi)] + effects, axis=2)
 
 
 @dataclass
@@ -150,6 +155,7 @@ def integrated(T, mv: Moves, g_dirs, db=None, p=None, jac=True) -> Integrated:
     """The moves integrated at (T, db, p) (move_residuals' first half)."""
     y = mv.y if db is None else mv.y - db[:, None, None] * (mv.dt > 0)
     if mv.n_terms:
+        assert mv.phi is not None  # with_terms gives phi with phi_axes
         y = y - np.einsum("j,ja,jmk->amk", p, np.eye(3)[list(mv.phi_axes)], mv.phi)
     v = np.einsum("ab,bmk->amk", T, y) * (np.radians(1.0) * mv.dt)
     Q = gen_moves.step_quaternion(v)

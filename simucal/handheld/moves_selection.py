@@ -29,7 +29,7 @@ from simucal.fit.selection import forward_selection
 from simucal.fit.twins import separating_plan
 from simucal.generated.effects import EFFECTS, SEPARATE_MOVES
 from simucal.handheld.gyro_moves import GyroMoves, chi2_test, has_input, move_covariances, with_terms
-from simucal.handheld.moves import (GyroFit, decimate, effect_column, fit_gyro_moves, free_entries, held_out_moves,
+from simucal.handheld.moves import (GyroFit, Moves, decimate, effect_column, fit_gyro_moves, free_entries, held_out_moves,
                                     integrated, jacobian, move_residuals)
 
 
@@ -48,7 +48,8 @@ class MovesProblem:
         self.gm, self.fit, self.inputs, self.effects = gm, fit, inputs, list(effects)
         self.rss0, self.m, self.k = float(np.sum(fit.r ** 2)), len(fit.r), 12 + len(self.effects)
         self.fixed, self.free = tuple(fixed), free_entries(self.k, fixed)
-        self.mv, self.columns = {}, {}
+        self.mv: dict[str, Moves] = {}  # per candidate: the moves with its regressor (column)
+        self.columns: dict[str, np.ndarray] = {}  # per candidate: its column at the base fit
         # each trial fits the moves in blocks of 4 samples (a quarter of the cost) with their defect
         # against full resolution at this fit added (as fit_gyro's coarse levels): the composition
         # error of the blocks (~1e-3 rad) then cancels where the candidate's coefficient is 0

@@ -27,6 +27,7 @@ def with_model_error(model, obs: Observations, fit, prior=None, alpha=0.01):
     the model misses, not only the noise within a pose, and the stds grow to match."""
     if fit.p_value is None or fit.p_value >= alpha or fit.dof <= 0:
         return fit, 0.0
+    assert obs.sigma is not None  # a p-value: the fit knew the poses' noise
     r2, s2 = fit.residuals ** 2, obs.sigma ** 2
     lo, hi = 0.0, float(np.max(r2)) * 10
     for _ in range(60):  # bisection on tau^2: sum r^2 / (s^2 + tau^2) = dof

@@ -45,8 +45,8 @@ class HandheldScenario:
     gyro_effects: dict = field(default_factory=dict)  # planted candidate effects: {effect id: value in its unit}
     acc_effects: dict = field(default_factory=dict)   # the same for the accelerometer (e.g. acc.quadratic.z, g/g^2)
     coplanar_poses: bool = False  # every pose turned about body x only: gravity directions in one plane
-    dead_gyro_axis: int = None    # this gyro output does not respond to rate (a dead channel)
-    weak_axis: int = None         # the moves turn about axes perpendicular to this body axis, never about it
+    dead_gyro_axis: int | None = None  # this gyro output does not respond to rate (a dead channel)
+    weak_axis: int | None = None  # the moves turn about axes perpendicular to this body axis, never about it
 
 
 def _random_rotation(rng):
@@ -78,10 +78,10 @@ def _motion(sc: HandheldScenario, rng):
         if sc.weak_axis is not None:  # the same angle, about an axis in the plane perpendicular to it
             norm = np.linalg.norm(v)
             v[sc.weak_axis] = 0.0
-            v *= norm / max(np.linalg.norm(v), 1e-12)
+            v *= norm / max(float(np.linalg.norm(v)), 1e-12)
         theta = np.linalg.norm(v)
         if i in clip:  # a fast whirl: one extra full turn in 0.1 s, far beyond full scale
-            v = v * (theta + 2 * np.pi) / max(theta, 1e-9)
+            v = v * (theta + 2 * np.pi) / max(float(theta), 1e-9)
             T = 0.1
         else:
             T = max(sc.move_s, 1.875 * np.degrees(theta) / sc.peak_rate_dps)  # s' peaks at 1.875/T

@@ -189,10 +189,10 @@ def read_samples(folder: Path, segments) -> tuple[dict, str, dict | None]:
         raise MeasurementSetError(path, None, "missing: a measurement set needs samples.csv (or samples.parquet)")
     with open(path, "rb") as fh, ThreadPoolExecutor(1) as pool:
         raw = mapped(fh)
-        sha256 = pool.submit(files_sha256, folder, raw)
+        hashing = pool.submit(files_sha256, folder, raw)
         csv_columns.prepare()
         samples, extremes = _parsed(path, raw, segments)
-        sha256 = sha256.result()
+        sha256 = hashing.result()
     del raw  # the file's pages let go before the checks' temporaries: the peak of reading is the file and the arrays
     return _check_samples(samples, path, segments, extremes is not None), sha256, extremes
 
@@ -320,7 +320,7 @@ def at_row(path, e: MeasurementSetError, before: int) -> MeasurementSetError:
     return MeasurementSetError(path, e.line + before, e.rule)
 
 
-def _read_parquet(folder, path, segments) -> tuple[dict, str]:
+def _read_parquet(folder, path, segments) -> tuple[dict, str, None]:
     """read_samples of samples.parquet: the same columns and rules, a break named by its row."""
     cols, others = parquet_columns(path, segments)
     try:

@@ -139,12 +139,12 @@ def px4_parameters(polys: list[BiasPolynomial], device_ids: dict | None = None
     """[(name, value, MAV_PARAM_TYPE)] of PX4's TC_A0_* / TC_G0_* (module doc), and the warnings; device_ids:
     {sensor: the device id a log holds}, written as TC_A0_ID / TC_G0_ID."""
     warnings = _checked(polys, "PX4")
-    rows = []
+    rows: list[tuple[str, float, int]] = []
     for p in polys:
         letter = "A" if p.sensor == "acc" else "G"
         c = _cubic(p)
         rows.append((f"TC_{letter}_ENABLE", 1, PX4_INT32))
-        if (device_ids or {}).get(p.sensor) is not None:
+        if device_ids and device_ids.get(p.sensor) is not None:
             rows.append((f"TC_{letter}0_ID", int(device_ids[p.sensor]), PX4_INT32))
         rows += [(f"TC_{letter}0_{k}", v, PX4_REAL32) for k, v in
                  (("TREF", p.t_ref_c), ("TMIN", p.t_min_c), ("TMAX", p.t_max_c))]

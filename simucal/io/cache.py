@@ -167,12 +167,12 @@ def compile_c(name: str, source: str, instead: str = "the numpy module") -> Path
     digest = hashlib.sha256((" ".join(CFLAGS) + "\n" + source).encode()).hexdigest()[:16]  # flags change the build
     try:
         lib, changed = library(f"{name}-{digest}.so")
-        folder = own_folder() if lib is None else None
+        if lib is not None:
+            return lib
+        folder = own_folder()
     except UntrustedCache as e:
         warnings.warn(f"{e}; {instead} runs instead", CacheWarning)
         return None
-    if lib is not None:
-        return lib
     if changed:
         warnings.warn(changed, CacheWarning)
     lib = folder / f"{name}-{digest}.so"

@@ -44,7 +44,7 @@ from __future__ import annotations
 
 import json
 from dataclasses import dataclass, field, fields
-from typing import Any, TypedDict
+from typing import Any, TypedDict, cast
 from pathlib import Path
 
 import numpy as np
@@ -124,7 +124,8 @@ class SensorDetails(TypedDict, total=False):
     frame: str                         # the frame M is in, where it is not b
     tilt_note: str
     table_tilt: dict[str, Any]         # the outer axis's tilt carried into the stds
-    plateaus: list[Any]                # a thermal calibration's plateaus
+    plateaus: list[Any] | bool         # a thermal calibration's plateaus; a joint fit's: its groups are plateaus
+                                       # (True) or a ramp's bands (False)
     groups: list[dict[str, Any]]       # a joint thermal fit's groups, each tested under it
     # a hand-placed session (handheld/calibrate.py)
     T: list[list[float]]               # T = M^-1
@@ -144,6 +145,12 @@ class SensorDetails(TypedDict, total=False):
     # a Ferraris session (turntable/ferraris.py)
     placement_tilt_deg: float          # the hand placement's tilt (std per pose) the pairs' mismatch shows
     pairs: list[list[int]]             # the segments of each pair of opposite poses, + then -
+
+
+def as_details(d: dict[str, Any]) -> SensorDetails:
+    """d, whose keys are chosen at run time (a file's, a test's), as a block's details: mypy cannot check
+    such keys; tests/test_calibration_file.py checks that every key a method writes is declared."""
+    return cast(SensorDetails, d)
 
 
 @dataclass(eq=False)
@@ -168,7 +175,7 @@ class SensorBlock:
     description: str | None = None   # a method without a generated model: what its affine model is
     thermal: dict | None = None
     nominal: bool = False            # left at the nominal scale factors (not calibrated)
-    details: SensorDetails = field(default_factory=SensorDetails)
+    details: SensorDetails = field(default_factory=lambda: SensorDetails())  # mypy 1.10 takes no class here
 
     def __post_init__(self):
         self.M, self.bias = np.asarray(self.M, float), np.asarray(self.bias, float)
@@ -221,8 +228,9 @@ class SensorBlock:
         names = {f.name for f in fields(cls)} - {"details", "effects"}
         given = {k: v for k, v in d.items() if k in names}
         given.setdefault("bias_unit", UNITS[sensor])  # files written before it was a field may lack it
+        details = {k: v for k, v in d.items() if k not in names and k not in ("effects", "verdict")}
         return cls(**given, effects={e: EffectValue.from_json(x) for e, x in d.get("effects", {}).items()},
-                   details={k: v for k, v in d.items() if k not in names and k not in ("effects", "verdict")})
+                   details=as_details(details))
 
 
 @dataclass(eq=False)
@@ -287,7 +295,8 @@ class Calibration:
         given = {k: v for k, v in d.items() if k in names}
         for k, default in (("method", "unknown"), ("input", ""), ("input_sha256", None)):  # hand-edited files
             given.setdefault(k, default)
-        return cls(**given, **{s: SensorBlock.from_json(d[s], s) for s in d["layout"]["sensors"]},
+        blocks: dict[str, Any] = {s: SensorBlock.from_json(d[s], s) for s in d["layout"]["sensors"]}  # acc, gyro
+        return cls(**given, **blocks,
                    details={k: v for k, v in d.items() if k not in names | derived | set(SENSORS)})
 
 
@@ -323,10 +332,11 @@ def sensor_block(model, fit, M, bias, base: dict | None = None, C_b_model=None) 
         block.details["poorly_determined"] = poor
     if base is not None:
         block.p_value = base["p_value"]
-        block.details.update(test=base["test"], noise=base["noise"], lack_of_fit=base["lack_of_fit"],
-                             cross_validation=base.get("cross_validation"),
-                             **{k: base[k] for k in ("rows", "noise_warning", "noise_too_small") if base.get(k)},
-                             **{k: base[k] for k in ("omnibus_p_value", "omnibus_test", "targeted") if k in base})
+        block.details.update({"test": base["test"], "noise": base["noise"], "lack_of_fit": base["lack_of_fit"],
+                              "cross_validation": base.get("cross_validation")})
+        copied = {k: base[k] for k in ("rows", "noise_warning", "noise_too_small") if base.get(k)}
+        copied |= {k: base[k] for k in ("omnibus_p_value", "omnibus_test", "targeted") if k in base}
+        block.details.update(as_details(copied))
     return block
 
 
@@ -356,7 +366,7 @@ def affine_block(sensor: str, M, bias, std: dict, residual_rms: float | None, de
     return SensorBlock("affine", M, bias, unit, effects or {}, std=std, residual_rms=residual_rms,
                        residual_unit=residual_unit or unit, description=description, nominal=nominal,
                        chi2=details.pop("chi2", None), dof=details.pop("dof", None),
-                       p_value=details.pop("p_value", None), details=details)
+                       p_value=details.pop("p_value", None), details=as_details(details))
 
 
 def inflate_if_failing(block: SensorBlock) -> bool:

@@ -45,6 +45,7 @@ def read_columns(body: memoryview, header: list[str], spec_cols: list[str], othe
         starts = np.cumsum([0] + counts[:-1]).tolist()
         native = _native()[0] if _native() and not quoted and sorted(header) == sorted(names) else None
         extremes = np.tile([np.inf, -np.inf, 0, 0], (len(pieces), len(header)))  # a piece's _merged, a column
+        rows: list | None  # each piece's rows; a piece pyarrow refuses gives None
         rows = list(pool.map(lambda k: _parse_native(native, body, pieces[k], header, out, starts[k], counts[k],
                                                      bound, extremes[k]), range(len(pieces)))) if native else None
         if rows == counts and sum(counts):  # no rows: the careful reader says so
@@ -169,8 +170,8 @@ def _line_ends(piece) -> tuple[int, bool]:
     """(the line ends in piece, whether it holds a quote): by csv_numbers.c, else by numpy."""
     a = np.frombuffer(piece, np.uint8)
     if _native():
-        quoted = ctypes.c_int(0)
-        return _native()[1](a.ctypes.data, len(a), ctypes.byref(quoted)), bool(quoted.value)
+        has_quote = ctypes.c_int(0)
+        return _native()[1](a.ctypes.data, len(a), ctypes.byref(has_quote)), bool(has_quote.value)
     lines, quoted = 0, False
     for i in range(0, len(a), SCAN_BYTES):
         part = a[i:i + SCAN_BYTES]

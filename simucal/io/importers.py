@@ -14,6 +14,7 @@ import csv
 import io as _io
 import math
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
@@ -95,7 +96,7 @@ def import_imu_tk(acc_path, gyro_path, out, acc_counts_per_g, gyro_counts_per_dp
 def parse_columns(text: str) -> dict:
     """--columns 'SPEC=SOURCE,...' -> {spec column: source column}, refusing anything malformed."""
     allowed = ("t_s", "segment", "temp_c", "ax", "ay", "az", "gx", "gy", "gz")
-    out = {}
+    out: dict[str, str] = {}
     for item in text.split(","):
         spec, eq, src = (x.strip() for x in item.partition("="))
         if not eq or not spec or not src:
@@ -145,7 +146,7 @@ def _read_columns(path, columns: dict, strings=()) -> dict:
     dup = sorted({c for c in header if header.count(c) > 1} & set(columns.values()))
     if dup:
         raise ImportError_(f"{path}, line 1: column {dup[0]} appears more than once; which one is the data?")
-    data = {k: [] for k in columns}
+    data: dict[str, list[float | str]] = {k: [] for k in columns}
     for line_no, row in rows:
         for k, src in columns.items():
             if row[src] is None:
@@ -247,7 +248,7 @@ def _read_sections(path, n_rows) -> dict:
     if not isinstance(sections, dict) or not sections:
         raise ImportError_(f"{path}: must map each section label to {{\"start\": row, \"end\": row}}")
     for label, s in sections.items():
-        ends = [s.get(k) if isinstance(s, dict) else None for k in ("start", "end")]
+        ends: list[Any] = [s.get(k) if isinstance(s, dict) else None for k in ("start", "end")]  # checked next
         if not all(isinstance(x, int) and not isinstance(x, bool) for x in ends):
             raise ImportError_(f"{path}: section {label!r} needs whole-number \"start\" and \"end\" rows, got {s!r}")
         if not 0 <= ends[0] < ends[1] <= n_rows:

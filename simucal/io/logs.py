@@ -21,6 +21,7 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import Callable
 
 import numpy as np
 
@@ -232,6 +233,7 @@ def _imu_rows(reader, raws, msgtype) -> tuple[np.ndarray, str | None]:
     first = reader.deserialize(raws[0][1], msgtype) if raws else None
     frame = first.header.frame_id if first is not None else None
     if raws and len({len(raw) for _, raw in raws}) == 1:
+        assert frame is not None  # the first message's (raws holds one)
         L = len(frame.encode())
         if reader.is2:  # CDR: 4-byte header; sec, nanosec, string (length with its NUL), doubles aligned to 8
             stamp, doubles = 4, 4 + (-(-(12 + L + 1) // 8) * 8)
@@ -317,7 +319,7 @@ def bag_as_set(path, topic: str | None = None):
                                             "Allan deviation does not use it)"}, name=str(path))
 
 
-READERS = {"ulog": read_ulog, "dataflash": read_dataflash, "rosbag": read_rosbag}
+READERS: dict[str, Callable[..., LogStream]] = {"ulog": read_ulog, "dataflash": read_dataflash, "rosbag": read_rosbag}
 
 
 def read_log(fmt: str, path, instance: int = 0, topic: str | None = None) -> LogStream:

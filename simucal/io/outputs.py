@@ -60,7 +60,7 @@ def _distinct(files, sets, folders) -> None:
                 continue
             if same or inner:
                 both = f"{wa} and {wb}" if wa != str(a) or wb != str(b) else "two of the outputs"
-                how = "the same file" if same else f"{inner[0]} inside {inner[1]}"
+                how = f"{inner[0]} inside {inner[1]}" if inner else "the same file"  # inner is None when same
                 raise OutputError(f"{a}: {both} would be {how}; give each output its own name")
 
 
@@ -125,7 +125,7 @@ os.umask(_UMASK)
 
 class _Held:
     """A command's outputs (resolved) and the renames into them that wait for its end."""
-    def __init__(self):
+    def __init__(self) -> None:
         self.outputs: list[Path] = []
         self.made: list[Path] = []      # output folders absent before: removed again if the command fails
         self.renames: list[tuple[Path, Path]] = []

@@ -68,8 +68,9 @@ def _segment_rows(path, reader) -> list[Segment]:
             vals[col] = None if text is None else number(text, path, line, col)
         for col, limit, what in (("heading_ref_deg", 360.0, "an azimuth in degrees, -360..360"),
                                  ("outer_rate_dps", 2000.0, "deg/s, |rate| <= 2000: no table turns faster")):
-            if vals[col] is not None and abs(vals[col]) > limit:
-                raise MeasurementSetError(path, line, f"{col} is {vals[col]:g}, but it is {what}; check the "
+            value = vals[col]
+            if value is not None and abs(value) > limit:
+                raise MeasurementSetError(path, line, f"{col} is {value:g}, but it is {what}; check the "
                                                       "column's unit (degrees and deg/s)")
         rate = vals["outer_rate_dps"] or 0.0
         if kind == "rate" and rate == 0.0:

@@ -47,7 +47,7 @@ def read_text(path: Path) -> str:
     return decoded(path, body_of(path, path.read_bytes()))
 
 
-def body_of(path: Path, data: bytes) -> memoryview:
+def body_of(path: Path, data: bytes | mmap.mmap) -> memoryview:
     """A text file's bytes without a byte-order mark (a view: a large file is not copied); binary
     files are refused."""
     if b"\0" in data[:65536]:
@@ -64,7 +64,7 @@ def decoded(path: Path, body: memoryview) -> str:
                                               "UTF-8") from None
 
 
-def files_sha256(folder: Path, samples_csv: bytes, samples_name="samples.csv") -> str:
+def files_sha256(folder: Path, samples_csv: bytes | mmap.mmap, samples_name="samples.csv") -> str:
     """SHA-256 over meta.json, segments.csv and samples.csv (each its name, a NUL and its bytes):
     what a calibration records as input_sha256 and validate compares. samples_csv: that file's
     bytes as read (hashed once, not read again); samples_name: samples.parquet where the set holds that."""
@@ -165,7 +165,7 @@ def careful_rows(reader, path, header, cols, others) -> dict:
     """samples.csv's rows (a csv.reader after the header) one by one, naming the line and the column of
     any cell that is not a number."""
     idx = {c: header.index(c) for c in cols + others}
-    data = {c: [] for c in cols + others}
+    data: dict[str, list[float]] = {c: [] for c in cols + others}
     for line, row in enumerate(reader, start=2):
         if not row or all(not x.strip() for x in row):
             continue

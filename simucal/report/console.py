@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 from simucal.fit import family
-from simucal.io.calibration import ALPHA, Calibration, SensorBlock
+from simucal.io.calibration import ALPHA, Calibration, SensorBlock, SensorDetails
 
 
 def n_units(n: int) -> str:
@@ -109,7 +109,7 @@ def _fit_lines(s, b: SensorBlock, source):
                + stds)
 
 
-def _twins_said(d: dict, what: str) -> str:
+def _twins_said(d: SensorDetails, what: str) -> str:
     """' (or its twin X: ...)' where the model test's targeted tests name twins of the effect advised."""
     t = d.get("targeted") or {}
     return (f" (or its twin {', '.join(t['twins'])}: these data cannot tell them apart)"
@@ -152,6 +152,7 @@ def _thermal_lines(s, b: SensorBlock):
     """A thermal block: the joint model test (whole fit and each plateau or band, beside each plateau
     alone), then every parameter that follows temperature."""
     th = b.thermal
+    assert th is not None  # a thermal block (the caller asks)
     groups = b.details.get("groups")
     if "warmup" in th:
         yield (f"{s}: a still warm-up ({th['warmup']}, {th['temperature_range_c'][0]:.4g} to "
@@ -159,7 +160,9 @@ def _thermal_lines(s, b: SensorBlock):
                f"temperature, per axis p = " + ", ".join(_p(th["parameters"][f"b_{a}"]["p_value"]) for a in "xyz")
                + ("; THE MODEL FAILS" if b.verdict == "fails" else ""))
     elif groups is None:
-        yield (f"{s}: {_where(th, b)}; per plateau p = " + ", ".join(_p(x["p_value"]) for x in b.details["plateaus"]))
+        plateaus = b.details["plateaus"]
+        assert isinstance(plateaus, list)  # a fit per plateau (calibrate._thermal_block): a list, not the joint's bool
+        yield f"{s}: {_where(th, b)}; per plateau p = " + ", ".join(_p(x["p_value"]) for x in plateaus)
     else:
         fails = b.verdict == "fails"
         yield (f"{s}: one model, every row at its own temperature ({_where(th, b)}): chi2 {b.chi2:.4g} / {b.dof} dof, "

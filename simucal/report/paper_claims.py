@@ -49,7 +49,7 @@ def section4_values(sc: Scenario | None = None) -> dict:
 
 def monte_carlo(sc: Scenario, seeds: int, names=METHODS, progress=None):
     """(truth entries, {method: (seeds, entries) array}) over simulated tests of scenario sc."""
-    est = {m: [] for m in names}
+    est: dict[str, list[np.ndarray]] = {m: [] for m in names}
     truth = None
     with tempfile.TemporaryDirectory() as tmp:
         for seed in (progress(range(seeds)) if progress else range(seeds)):
@@ -108,7 +108,7 @@ def claims(seeds=20, progress=None) -> list[dict]:
                                  + (f"; not: {', '.join(bad[:6])}" + (" ..." if len(bad) > 6 else "") if bad else ""),
                      "holds": _holds(not bad)})
     # Table 4: errors against the position error
-    t4 = {}
+    t4: dict[tuple[str, str], list[np.ndarray]] = {}  # (entry, method): per level, the errors over seeds
     for name, level in LEVELS:
         tr, e4 = monte_carlo(Scenario(position_error_rad=level), seeds, ("linear", "multiposition"))
         for key in PAPER_T4:
@@ -123,16 +123,16 @@ def claims(seeds=20, progress=None) -> list[dict]:
                          "measured": f"{e.mean():+.3g} +- {e.std(ddof=1):.2g} (z = {z:+.1f})",
                          "holds": "reproducible" if abs(z) <= 3 else "not reproducible"})
     for key in PAPER_T4:
-        rms = np.sqrt(np.mean(np.array(t4[key]) ** 2, axis=1))
+        rms_at = np.sqrt(np.mean(np.array(t4[key]) ** 2, axis=1))  # per level (the function rms is Table 3's)
         if key[1] == "linear":
-            ratio = rms[3] / rms[0]
+            ratio = rms_at[3] / rms_at[0]
             rows.append({"source": "section 4", "claim": f"norm observation: {key[0]} error does not change noticeably "
                                                          "up to 1 deg position errors",
                          "measured": f"rms at 1 deg / at 1\" = {ratio:.3g}", "holds": _holds(ratio < 1.5)})
         else:
-            grows = bool(np.all(np.diff(rms[:4]) > 0))
+            grows = bool(np.all(np.diff(rms_at[:4]) > 0))
             rows.append({"source": "section 4", "claim": f"previous method: {key[0]} error grows with the position error",
-                         "measured": "rms " + ", ".join(f"{r:.2g}" for r in rms), "holds": _holds(grows)})
+                         "measured": "rms " + ", ".join(f"{r:.2g}" for r in rms_at), "holds": _holds(grows)})
     return rows
 
 

@@ -101,6 +101,7 @@ def _table(b) -> str:
 def thermal_page(cal: Calibration, validations=(), cal_path="thermal_calibration.json") -> str:
     """The page; validations: `simucal validate` reports of this calibration, shown in the verdicts; cal_path:
     the file it is saved in (for the next command)."""
+    assert cal.temperature_range_c is not None  # a thermal calibration's
     lo, hi = cal.temperature_range_c
     verdicts = [(not any(w in line for w in ("FAILS", "WORSE", "no better")), line)
                 for s, b in cal.blocks() if b.thermal is not None for line in verdict_lines(s, b, validations)]

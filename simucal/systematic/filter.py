@@ -215,7 +215,7 @@ def smooth(epochs, covariance=True) -> tuple[np.ndarray, np.ndarray | None]:
     m, n = len(epochs), len(epochs[-1].P)
     x_s, P_s = np.empty((m, n)), np.empty((m, n, n)) if covariance else None
     x_s[-1] = epochs[-1].x
-    if covariance:
+    if P_s is not None:  # covariance
         P_s[-1] = epochs[-1].P
     for lo in range(max(0, m - 1 - CHUNK), -CHUNK, -CHUNK):
         ks = range(max(lo, 0), min(lo + CHUNK, m - 1))
@@ -225,7 +225,7 @@ def smooth(epochs, covariance=True) -> tuple[np.ndarray, np.ndarray | None]:
         gains = np.swapaxes(np.linalg.solve(P_pred / d / np.swapaxes(d, 1, 2), PhiP / d) / d, 1, 2)  # correlations
         for k, A in zip(reversed(ks), gains[::-1]):
             x_s[k] = epochs[k].x + A @ (x_s[k + 1] - epochs[k + 1].x_pred)
-            if covariance:
+            if P_s is not None:
                 P_s[k] = epochs[k].P + A @ (P_s[k + 1] - epochs[k + 1].P_pred) @ A.T
     return x_s, P_s
 

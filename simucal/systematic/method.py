@@ -62,7 +62,8 @@ def calibrate_systematic(ms, acc_model="acc_baseline", gyro_model="gyro_baseline
                                         M_g @ C_b_d, b_g, C_b_model=C_b_d)
     for block in (cal.acc, cal.gyro):
         block.residual_unit = "innovation std (whitened)"
-        block.details.update({k: test[k] for k in ("test", "omnibus_p_value", "omnibus_test", "targeted") if k in test})
+        block.details.update(calibration.as_details({k: test[k] for k in ("test", "omnibus_p_value", "omnibus_test",
+                                                                          "targeted") if k in test}))
     cal.gyro.details["eta_rad"] = {"value": s.eta.tolist(), "std": np.sqrt(np.diag(r.cov)[na + ng:]).tolist(),
                                    "meaning": "C_b^d = mounting(eta) (derive/systematic.py)"}
     cal.details["systematic"] = {
@@ -76,5 +77,6 @@ def calibrate_systematic(ms, acc_model="acc_baseline", gyro_model="gyro_baseline
             block.details["advice"] = advice or "no library effect passes its targeted test: see simucal diagnose"
     if auto:  # one selection for both sensors (one test): each block lists its own effects, the reason in both
         for sensor, block in (("acc", cal.acc), ("gyro", cal.gyro)):
-            block.details.update(auto=[x for x in chosen if x["id"].startswith(sensor + ".")], auto_stopped=stopped)
+            block.details.update({"auto": [x for x in chosen if x["id"].startswith(sensor + ".")],
+                                  "auto_stopped": stopped})
     return cal

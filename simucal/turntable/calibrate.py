@@ -132,8 +132,8 @@ def _gyro_block(ms, method, cal, acc, gyro, gyro_noise_dph, static_probe=None) -
                "segments.csv gives no middle/inner angles to pair them with static positions")
         units.check_scale("gyro", M_d, gm.name)
         block = calibration.sensor_block(gm, fg, M_d, b_g, base_g, np.eye(3))
-        block.details.update(frame="d (the gyro parameter frame)",
-                             note=f"M is in the gyro frame d, not in b: {why}, so the frames cannot be tied")
+        block.details.update({"frame": "d (the gyro parameter frame)",
+                              "note": f"M is in the gyro frame d, not in b: {why}, so the frames cannot be tied"})
         return block
     std_M = None
     if method == "exact":
@@ -183,7 +183,7 @@ def calibrate_table(ms, method, acc_model, gyro_model, ids, acc_noise_g=None, gy
     gm = AugmentedModel(gyro_model, for_sensor(ids, "gyro"))
     chosen = {}
     if auto and acc_obs is not None:
-        chosen["acc"] = forward_selection(am, acc_obs, lambda *a: rank(*a, acc_segs)[:2])
+        chosen["acc"] = forward_selection(am, acc_obs, lambda m, o, f, b: rank(m, o, f, b, acc_segs)[:2])
         am = chosen["acc"].model
     fa = fg = base_a = None
     acc_read = acc_obs  # as read: _exact_sensor returns them with each row's sigma filled in
@@ -198,7 +198,7 @@ def calibrate_table(ms, method, acc_model, gyro_model, ids, acc_noise_g=None, gy
     # the gyro's twins chosen with its static rows too (model_test.choose_twin)
     at_rest = _at_rest_factory(ms, acc, gyro_segs, gyro_noise_dph) if gyro_obs is not None and method == "exact" else None
     if auto and gyro_obs is not None:
-        chosen["gyro"] = forward_selection(gm, gyro_obs, lambda *a: rank(*a, gyro_segs, at_rest)[:2])
+        chosen["gyro"] = forward_selection(gm, gyro_obs, lambda m, o, f, b: rank(m, o, f, b, gyro_segs, at_rest)[:2])
         gm = chosen["gyro"].model
     if gyro_obs is not None:
         fg, base_g, advice_g, gyro_obs = _exact_sensor(gm, gyro_obs, gyro_segs, method, str(ms.path), ranked, at_rest)

@@ -9,7 +9,7 @@ from simucal.fit.lack_of_fit import twin_fits
 from simucal.fit.results import ALPHA
 from simucal.turntable.calibrate import calibrate_table
 from simucal.turntable.consistency import handedness_verdict, mirrored
-from simucal.turntable.model_test import ROWS, choose_twin, with_static_rows
+from simucal.turntable.model_test import ROWS, AtRest, choose_twin, with_static_rows
 from simucal.turntable.observations import check_rate_sense, segment_observations
 
 
@@ -50,9 +50,12 @@ def _with_static_gyro_rows(ms, block, settings) -> None:
     the rate runs' test stands (calibrate says why). Where the rate runs cannot tell the strongest
     candidate, or the found generic term, from its twins, the static rows choose among them
     (model_test.choose_twin, _choose_twin), as calibrate's advice and `--add auto` do."""
-    fits, judges = block.pop("twin_fits", []), []
+    fits = block.pop("twin_fits", [])
+    judges: list[AtRest] = []  # the judge of the static rows calibrate_table made (static_probe)
+    acc_model, gyro_model, ids, acc_noise_g, gyro_noise_dph = settings
     try:
-        gyro = calibrate_table(ms, "exact", *settings, static_probe=judges.append).gyro
+        gyro = calibrate_table(ms, "exact", acc_model, gyro_model, ids, acc_noise_g, gyro_noise_dph,
+                               static_probe=judges.append).gyro
     except CalibrationError:
         return
     if gyro is None or "static_rows" not in gyro.details:

@@ -31,7 +31,6 @@ def _regressor(family: str, pair: str, sensor: str, u: np.ndarray, aux) -> np.nd
     a, o = AXIS[pair[0]], AXIS[pair[-1]]
     n = len(u)
     ua = u[:, a] / (DPS if sensor == "gyro" else 1.0)  # a gyro's rate in deg/s in its nonlinear terms
-    dT = aux.column("dtemp_c", n) if "temperature" in family else None
     if family == "quadratic":
         return ua ** 2
     if family == "scale_asymmetry":
@@ -44,10 +43,9 @@ def _regressor(family: str, pair: str, sensor: str, u: np.ndarray, aux) -> np.nd
         return aux.column("w2", n) * (u[:, a] * u[:, o] - (1.0 if a == o else 0.0))
     if family == "g_sensitivity":
         return aux.column(f"f_{pair[-1]}", n)
-    if family.startswith("bias_temperature"):
-        return dT ** int(family[-1] if family[-1].isdigit() else 1)
-    if family.startswith("scale_temperature"):
-        return u[:, a] * dT ** int(family[-1] if family[-1].isdigit() else 1)
+    if "temperature" in family:  # bias_temperature{,2,3}: dT^k; scale_temperature{,2}: u_a dT^k
+        dT_k = aux.column("dtemp_c", n) ** int(family[-1] if family[-1].isdigit() else 1)
+        return dT_k if family.startswith("bias") else u[:, a] * dT_k
     raise KeyError(f"no forward model of the family {family!r}")  # a new family needs its physics here
 
 

@@ -26,7 +26,7 @@ def unit_scenario(base: Scenario, rng, planted=None, spread: float = 1.0) -> Sce
             scatter = spread * SPREAD[s][name.split("_")[0]] * rng.standard_normal()
             params[name] = v + scatter + planted.get(f"{s}.{name}", 0.0)
         drawn[f"{s}_params"] = params
-    return replace(base, **drawn)
+    return replace(base, acc_params=drawn["acc_params"], gyro_params=drawn["gyro_params"])
 
 
 def _write(folder, sc, noise_seed, serial) -> Path:

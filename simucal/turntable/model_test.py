@@ -184,6 +184,7 @@ def choose_twin(cands: list[dict], at_rest) -> None:
         f"runs cannot tell them apart (likelihood ratios {rate}); the {st['positions']} static positions chose it "
         f"(chi2 {st['chi2']:.1f} on {st['dof']} dof, p = {st['p_value']:.2g}, against {others})"
         + ("" if st["p_value"] >= ALPHA else ", though none of them passes at rest"))
+    assert lead is not None  # group holds it
     at = cands.index(lead)
     cands.remove(chosen)
     cands.insert(at, chosen)

@@ -26,6 +26,7 @@ from __future__ import annotations
 
 import os
 import time
+from typing import Any
 
 import numpy as np
 
@@ -277,12 +278,13 @@ def run(sc: Scenario, trials: int, seed: int = 0, chunk: int = 2500, progress=No
     parts = map_tasks(chunk_of_trials, tasks, scheduler, progress, threads=os.cpu_count() or 1)
     failed = [k * chunk + i for k, p in enumerate(parts) for i in p["failed"]]
     secs = time.perf_counter() - t0
-    out = {"format": "simucal.montecarlo/1", "scenario": "paper", "trials": trials, "failed": len(failed),
-           "failed_trials": failed[:1000], "seed": seed, "seconds": secs, "trials_per_s": trials / secs,
-           "scheduler": scheduler or "local",
-           "backend": {s: f"compiled {m.name} (one call per batch)" if m is not None and m._fit is not None else
-                       "numpy (gauss_newton.fit_batch, vectorised over the trials)" for s, m in compiled.items()},
-           "parameters": {}}
+    out: dict[str, Any] = {
+        "format": "simucal.montecarlo/1", "scenario": "paper", "trials": trials, "failed": len(failed),
+        "failed_trials": failed[:1000], "seed": seed, "seconds": secs, "trials_per_s": trials / secs,
+        "scheduler": scheduler or "local",
+        "backend": {s: f"compiled {m.name} (one call per batch)" if m is not None and m._fit is not None else
+                    "numpy (gauss_newton.fit_batch, vectorised over the trials)" for s, m in compiled.items()},
+        "parameters": {}}
     for sensor, model in (("acc", am), ("gyro", gm)):
         e = np.concatenate([p[sensor] for p in parts])
         mean = e.mean(axis=0)

@@ -132,7 +132,8 @@ def _timeline(sc: Scenario, steps, rng, rate_hz):
     sample ends and (n, 3) at their middles (sample k covers (t_k - dt, t_k], t_0 = 0)."""
     commanded = np.zeros(3)
     reached = commanded + sc.angle_errors_rad(rng, (len(steps) + 1,))  # each rest's true angles (rad)
-    ends, middles, seg_ids, segments = [np.radians(commanded) + reached[0]], [], [], []
+    ends, middles, seg_ids = [np.radians(commanded) + reached[0]], [], []
+    segments: list[io.Segment] = []
     dt = 1.0 / rate_hz
 
     def phase(kind, n, angles_at, angles):

@@ -12,6 +12,7 @@ from __future__ import annotations
 import math
 
 from dataclasses import dataclass, field
+from typing import Callable
 
 import numpy as np
 
@@ -67,7 +68,7 @@ class Scenario:
     # a gyro bias fixed in the local frame n (ENU, deg/h; e.g. one following the magnetic field): it turns
     # with the unit, so it is no library effect; rate-run means see only its vertical part
     gyro_bias_local_dph: tuple = (0.0, 0.0, 0.0)
-    temp_c: tuple | None = None       # (first, last): a linear sweep over the segments; None: no temp_c column
+    temp_c: tuple[float, float] | None = None  # (first, last): a linear sweep over the segments; None: no temp_c column
     t_ref_c: float | None = None      # T_ref of the unit's temperature terms; None: the data's mean temp_c
     temp_wander_c: float = 0.0        # each segment's temp_c off the sweep by a uniform draw within +- this
     columns: dict = field(default_factory=dict)  # auxiliary columns {name: (low, high)}: uniform, one value per segment
@@ -194,14 +195,15 @@ def _segments(sc: Scenario, rng):
     w_ie_n = table.earth_rate_n(units.DEFAULT_EARTH_RATE_DPH, np.radians(sc.latitude_deg)) + np.array(
         sc.gyro_bias_local_dph, float)  # what the gyro reads at rest
     plan = plans.PLANS[sc.plan]() if sc.plan in plans.PLANS else plans.read_csv(sc.plan)
-    static = list(plan) + (plans.TABLE2 if sc.unify_positions else [])
+    static: list[tuple[float, float, float]] = list(plan) + (plans.TABLE2 if sc.unify_positions else [])
     rates = [(0.0, a, b, r) for r in sc.outer_rate_dps for (_, a, b) in plan]
     if sc.unify_positions:
         rates += [(0.0, a, 0.0, r) for r in sc.outer_rate_dps for a in (0.0, 90.0)]
     if sc.shuffle:
         static = [static[i] for i in rng.permutation(len(static))]
         rates = [rates[i] for i in rng.permutation(len(rates))]
-    segments, rows = [], []
+    segments: list[io.Segment] = []
+    rows: list[tuple[Callable, float]] = []  # per segment: (inputs(t), duration)
 
     def table_errors(n):
         return kinematics.errors(sc.table_errors_rad(), sc.angle_errors_rad(rng, (n,)))
@@ -254,7 +256,7 @@ def _samples(sc: Scenario, rng, segments, rows, acc, p_acc, gyro, p_gyro, meta):
         values["temp_c"] = np.linspace(*sc.temp_c, len(segments))
         if sc.temp_wander_c:  # a chamber's or a self-heating unit's wander (drawn only then: other seeds unchanged)
             values["temp_c"] = values["temp_c"] + rng.uniform(-sc.temp_wander_c, sc.temp_wander_c, len(segments))
-    columns = {name: [] for name in values}  # auxiliary columns written
+    columns: dict[str, list[np.ndarray]] = {name: [] for name in values}  # auxiliary columns written
     rows_per = [1 if sc.rate_hz is None else int(round(dur * sc.rate_hz)) for _, dur in rows]
     t_ref_c = None if "temp_c" not in values else sc.t_ref_c if sc.t_ref_c is not None else \
         float(np.average(values["temp_c"], weights=rows_per))  # as MeasurementSet.t_ref_c

@@ -16,7 +16,8 @@ from simucal.turntable.observations import read_observations, segment_duration_s
 def _concatenate(parts: list[Observations], t_ref_c: float) -> Observations:
     """Observations of several sets as one (aux columns that every set has; dtemp_c from t_ref_c)."""
     keys = set.intersection(*(set(o.aux.values) for o in parts)) - {T_REF}
-    aux = {k: np.concatenate([np.broadcast_to(o.aux.values[k], len(o.N)) for o in parts]) for k in keys}
+    aux: dict[str, np.ndarray | float] = {
+        k: np.concatenate([np.broadcast_to(o.aux.values[k], len(o.N)) for o in parts]) for k in keys}
     aux[T_REF] = t_ref_c
     sig = None if any(o.sigma is None for o in parts) else np.concatenate([o.sigma for o in parts])
     return Observations(np.concatenate([o.N for o in parts]), np.concatenate([o.rho for o in parts]), sig,
@@ -55,7 +56,8 @@ def joint_observations(sets, t_ref_c, acc_noise_g=None, gyro_noise_dph=None, noi
     """{sensor: (observations of every set's rows, each row's set index, each row's segment)} for the
     sensors the sets hold; the gyro's rows are its rate runs and its static positions
     (static_gyro_observations)."""
-    per, segs = {"acc": [], "gyro": []}, {"acc": [], "gyro": []}
+    per: dict[str, list] = {"acc": [], "gyro": []}  # per set: its observations, None where it has none
+    segs: dict[str, list] = {"acc": [], "gyro": []}
     for ms in sets:
         ms.temperature_ref_c = t_ref_c
         _, (acc, acc_segs, gyro, gyro_segs) = read_observations(ms, "exact", ROWS, acc_noise_g, gyro_noise_dph,

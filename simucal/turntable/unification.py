@@ -88,7 +88,7 @@ def _sandwich(D, U):
 class Unifier:
     """Both fits and their covariances, for any pairing of directions."""
 
-    def __init__(self, am, fa, obs_a, gm, fg, obs_g, acc_means=None, dof_acc=math.inf, dof_gyro=math.inf):
+    def __init__(self, am, fa, obs_a, gm, fg, obs_g, acc_means=None, dof_acc=math.inf, dof_gyro=math.inf) -> None:
         """acc_means: (rows, N (n_r, 3) g, sigma (n_r, 3), AuxInputs) of the rate runs that have
         accelerometer data (rows: their index in the gyro fit), or None where none has; sigma NaN
         where neither their scatter nor a statement gives it: their variance component is then
