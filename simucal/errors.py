@@ -31,3 +31,8 @@ class CalibrationError(SimucalError):
 
 class NotConverged(CalibrationError):
     """An iterative fit stopped at its iteration limit: a caller may offer a method that needs no iteration."""
+
+
+class CacheWarning(UserWarning):
+    """A library of the cache not loaded (the numpy module runs) or rebuilt, and why: one line (io/cache.py warns
+    it, the command line prints it as a line)."""

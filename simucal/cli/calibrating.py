@@ -84,7 +84,7 @@ def calibrate(data_dirs, output, thermal, thermal_degree, html_out, px4, ardupil
     With segments.csv and table angles: a turntable test (dong2018). Without segments.csv: a
     continuous stream from a hand-placed session (static poses found from the data; Tedaldi).
     With heading_ref_deg and no table angles: a field set (ruan2019's gyro drift)."""
-    from simucal.handheld.static_detect import DetectSettings
+    from simucal.api import DetectSettings
     stream = dict(window_s=window_s, factor=threshold_factor, min_s=min_static_s, init_rest_s=init_rest_s)
     detect = DetectSettings(**{k: v for k, v in stream.items() if v is not None}) if any(
         v is not None for v in stream.values()) else None  # given only where set: other data refuse them
@@ -171,9 +171,9 @@ def field_drift(data_dir, output, html_path, plot, heading_accuracy_deg):
     """Three-position field calibration of gyro constant drift (ruan2019): `calibrate --method field`, with the
     paper's Fig. 4."""
     from simucal import api
-    from simucal.field.drift import plot_formats, plot_history
-    if plot and Path(plot).suffix.lower().lstrip(".") not in plot_formats():
-        fail(f"--plot {plot}: not an image file name; end it in .png (or {', '.join('.' + f for f in plot_formats())})")
+    from simucal.api import tools
+    if plot:
+        tools.check_image_name(plot)
     guard([data_dir], files={"-o": output, "--html": html_path, "--plot": plot})
     if plot:  # after the refusals, which are one line
         click.echo("warning: --plot is deprecated: --html PAGE writes Fig. 4 in a page with the calibration", err=True)
@@ -182,7 +182,7 @@ def field_drift(data_dir, output, html_path, plot, heading_accuracy_deg):
     if html_path:
         api.save(html_path, result, calibration_path=output)
     if plot:
-        plot_history(result.details["field"]["history"], plot)
+        tools.plot_field_history(result, plot)
     from simucal.report.console import calibration_lines
     for line in calibration_lines(result):
         click.echo(line)

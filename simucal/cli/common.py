@@ -58,7 +58,7 @@ def _bug(e: Exception):
 def _one_line(message, category, filename, lineno, line=None, _python=warnings.formatwarning):
     """A warning of the cache (a library not loaded, or rebuilt) is one line, as a refusal is;
     any other as Python prints it."""
-    from simucal.io.cache import CacheWarning
+    from simucal.errors import CacheWarning
     if issubclass(category, CacheWarning):
         return f"warning: {message}\n"
     return _python(message, category, filename, lineno, line)

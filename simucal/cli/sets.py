@@ -233,7 +233,7 @@ def _save(result, *paths):
 def noise(data_dir, output, html_path, kalibr_path, tau_max_s, scheduler, topic):
     """Allan deviation of a still recording (a measurement set, or a ROS bag) and its IEEE 952 noise terms (ARW,
     bias instability, ...); a stream is read a chunk at a time. The Python API's simucal.noise(DATA)."""
-    from simucal import allan, api
+    from simucal import api
     from simucal.io import outputs
     guard([data_dir], files={"-o": output, "--html": html_path, "--kalibr": kalibr_path})
     result = api.noise(data_dir, tau_max_s=tau_max_s, scheduler=scheduler, topic=topic)
@@ -241,7 +241,7 @@ def noise(data_dir, output, html_path, kalibr_path, tau_max_s, scheduler, topic)
     _save(result, output, html_path)
     if kalibr_path:
         outputs.write_text(kalibr_path, yaml)
-    for line in allan.lines(result.report, {"-o": output, "--kalibr": kalibr_path}):
+    for line in result.lines({"-o": output, "--kalibr": kalibr_path}):
         click.echo(line)
     click.echo(f"wrote {output}" + "".join(f" and {p}" for p in (html_path, kalibr_path) if p))
 

@@ -36,21 +36,19 @@ from simucal.cli.common import (
                    "(not generated/), then usable by name from any folder. " + MODEL_FILE_RUNS)
 def derive(check, model_files):
     """Derive the built-in models and (re)write generated/; or derive your own model file."""
-    from simucal import derive_cmd
+    from simucal.api import tools
     if model_files:
-        from simucal.fit.catalog import derive_model_file
         for f in model_files:
-            names, _ = derive_model_file(f)
-            click.echo(f"derived {', '.join(names)} from {f} into the cache")
+            click.echo(f"derived {', '.join(tools.derive_model(f))} from {f} into the cache")
         return
-    stale, secs, diff = derive_cmd.run(check=check)
+    done = tools.derive(check=check)
     if check:
-        if stale:
-            click.echo(diff + "generated/ is stale; run `simucal derive`. Differs: " + ", ".join(stale), err=True)
+        if done.stale:
+            click.echo(done.diff + "generated/ is stale; run `simucal derive`. Differs: " + ", ".join(done.stale), err=True)
             sys.exit(1)
-        click.echo(f"generated/ is up to date ({secs:.1f} s)")
+        click.echo(f"generated/ is up to date ({done.seconds:.1f} s)")
     else:
-        click.echo(f"wrote {derive_cmd.generated_dir()} ({secs:.1f} s)")
+        click.echo(f"wrote {done.folder} ({done.seconds:.1f} s)")
 
 
 @main.command()
@@ -62,10 +60,10 @@ def audit(output, seeds):
     """Check the paper's printed equations (4)-(27), Table 1 and 2, term by term at the section-4
     values, and its numeric claims (abstract, Tables 3 and 4) against a Monte Carlo."""
     from simucal import progress
+    from simucal.api import tools
     from simucal.io import outputs
-    from simucal.report.paper_claims import full_audit
     guard(files=[output])
-    report = full_audit(seeds, progress=progress.bar("audit", "item"))
+    report = tools.audit(seeds, progress=progress.bar("audit", "item"))
     outputs.write_text(output, report.markdown())
     click.echo(f"wrote {output}: {report.summary()}")
 
@@ -80,11 +78,11 @@ def demo(out_dir, seed, force):
     calibrated with, applied and validated on another recording; the unit over temperature
     (calibrate --thermal) and the Allan deviation of a still recording; then dong2018's methods, the audit
     and the diagnosis."""
-    from simucal import demo as demo_mod
+    from simucal.api import tools
     out = Path(out_dir)  # its sets may be replaced where an earlier demo wrote them (its demo.json)
-    guard(sets=[out] + [out / d for d in demo_mod.SETS], force=force or (out / demo_mod.MARKER).is_file(),
-          together=False)  # it reads the sets it writes
-    demo_mod.run(out_dir, seed, click.echo)
+    sets, marker = tools.demo_outputs(out)
+    guard(sets=[out] + sets, force=force or marker.is_file(), together=False)  # it reads the sets it writes
+    tools.demo(out_dir, seed, click.echo)
 
 
 @main.command()
@@ -312,8 +310,8 @@ def _numbers(option, text):
               help="Run every step at a size of seconds (a check that the bench runs; its figures measure nothing).")
 def bench(json_path, before, quick):
     """Measure the speed figures (fits, Monte Carlo, whole commands) on this machine."""
-    from simucal.bench import run
+    from simucal.api import tools
     if json_path:
         guard([before] if before else [], files=[json_path])
-    run(json_path, click.echo, before, "quick" if quick else "full")
+    tools.bench(json_path, click.echo, before, "quick" if quick else "full")
 

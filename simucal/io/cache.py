@@ -18,7 +18,7 @@ import threading
 import warnings
 from pathlib import Path
 
-from simucal.errors import CalibrationError
+from simucal.errors import CacheWarning, CalibrationError
 from simucal.io.outputs import OutputError, write_text
 
 SHARED_MODE = 0o022  # the group's and others' write bits: a file with either may have been written by another user
@@ -26,10 +26,6 @@ SHARED_MODE = 0o022  # the group's and others' write bits: a file with either ma
 
 class UntrustedCache(CalibrationError):
     """A cache folder or file another user could have written: nothing is loaded from it."""
-
-
-class CacheWarning(UserWarning):
-    """A library of the cache not loaded (the numpy module runs) or rebuilt, and why: one line."""
 
 
 def cache_dir() -> Path:
