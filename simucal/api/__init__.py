@@ -29,7 +29,7 @@ from simucal.api.calibration import Calibration, Parameter
 from simucal.api.batch import Calibrated, calibrate_each
 from simucal.api.imports import convert, import_recording
 from simucal.api.planning import plan, sequence_observability
-from simucal.api.tools import audit, bench, demo, derive, derive_model
+from simucal.api.tools import audit, derive_model
 from simucal.handheld.static_detect import DetectSettings
 from simucal.api.lot import lot
 from simucal.api.sets import MeasurementSet, as_set, effect_ids, folder_of
@@ -41,7 +41,7 @@ Data = Union[str, os.PathLike, io.MeasurementSet]
 
 __all__ = ["read_set", "simulate", "calibrate", "validate", "diagnose", "noise", "save", "load", "table_rows",
            "compare", "import_recording", "convert", "montecarlo", "calibrate_each", "Calibrated", "plan",
-           "sequence_observability", "derive", "derive_model", "audit", "demo", "bench", "DetectSettings", "MeasurementSet", "Calibration", "Parameter", "Entry",
+           "sequence_observability", "derive_model", "audit", "DetectSettings", "MeasurementSet", "Calibration", "Parameter", "Entry",
            "Validation", "Check", "Diagnosis", "Candidate", "Noise", "Term", "lot"]
 
 

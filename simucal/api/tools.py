@@ -1,5 +1,7 @@
 """The project's own tools from Python (`simucal derive`, `audit`, `demo`, `bench` are one call of these plus
-printing): the models derived, the paper audited, the demo run, the speed measured."""
+printing): the models derived, the paper audited, the demo run, the speed measured. `simucal.audit` and
+`simucal.derive_model` are the package's names too; derive, demo and bench are `simucal.api.tools`'s alone
+(simucal.derive, simucal.demo and simucal.bench are modules of their own)."""
 from __future__ import annotations
 
 import os
@@ -21,7 +23,7 @@ def derive(*, check: bool = False) -> Derived:
 
     Examples
     --------
-    >>> simucal.derive(check=True).stale  # doctest: +SKIP
+    >>> simucal.api.tools.derive(check=True).stale  # doctest: +SKIP
     []
     """
     from simucal import derive_cmd
