@@ -64,7 +64,7 @@ def output(model, p: np.ndarray, u: np.ndarray, aux) -> np.ndarray:
     N = u @ M.T + np.array([values[f"b_{c}"] for c in "xyz"])
     by_parameter = {EFFECTS[e].parameter: e for e in EFFECTS if EFFECTS[e].sensor == model.sensor}
     base_names = {f"dK_{c}" for c in "xyz"} | {f"b_{c}" for c in "xyz"} | {f"{mis}_{c}{r}" for c, r in
-                                                                          ("yx", "zx", "zy")}
+                                                                          (("y", "x"), ("z", "x"), ("z", "y"))}
     for name, q in values.items():
         if name in base_names or q == 0.0:
             continue
