@@ -15,7 +15,7 @@ from simucal import io, methods
 from simucal.errors import CalibrationError, SimucalError
 from simucal.fit.thermal import PLAUSIBLE_C, SPREAD_C
 from simucal.io import calibration, units
-from simucal.io.calibration import Calibration, EffectValue, SensorBlock, SensorDetails
+from simucal.io.calibration import Calibration, SensorBlock, SensorDetails
 from simucal.io.calibration_checks import check_layout, scale_notes
 from simucal.io.sensor_checks import stuck_channels
 from simucal.io.timestamps import with_timestamps
@@ -219,10 +219,7 @@ def _joint_block(obs, groups, first: SensorBlock, degree, labels, t_ref_c, plate
         details["advice"] = test["targeted"]["strongest"]
     if auto is not None:
         details["auto"] = auto
-    effects = {e: EffectValue(fit.params[e], fit.std[e], u, m) for e, u, m in
-               zip(base.effects, base.param_units[len(base.base.params):], base.meanings[len(base.base.params):])}
-    block = replace(first, effects={e: replace(v, value=fit.params[e], std=fit.std[e]) for e, v in first.effects.items()
-                                    if e in fit.params} | effects,
+    block = replace(first, effects=calibration.effect_values(base, fit),  # auto may have changed them (thermal_auto)
                     params={n: fit.params[n] for n in base.params}, std={n: fit.std[n] for n in base.params},
                     M=M @ first.C, bias=bias, residual_rms=fit.residual_rms, chi2=fit.chi2, dof=fit.dof,
                     p_value=test["p_value"], thermal=thermal, details=details)

@@ -316,13 +316,19 @@ def _user_terms(model, fit) -> dict:
             if n in model.model_file_terms}
 
 
-def sensor_block(model, fit, M, bias, base: dict | None = None, C_b_model=None) -> SensorBlock:
-    """The block of one sensor from a norm fit of `model` (an AugmentedModel); base: the model
-    test's block (turntable/model_test.py)."""
+def effect_values(model, fit) -> dict[str, EffectValue]:
+    """The effects of `model` (an AugmentedModel: its library effects, and a model file's own terms) at `fit`."""
     effects = {e: EffectValue(fit.params[e], fit.std[e], u, m)
                for e, u, m in zip(model.effects, model.param_units[len(model.base.params):],
                                   model.meanings[len(model.base.params):])}
     effects.update(_user_terms(model, fit))
+    return effects
+
+
+def sensor_block(model, fit, M, bias, base: dict | None = None, C_b_model=None) -> SensorBlock:
+    """The block of one sensor from a norm fit of `model` (an AugmentedModel); base: the model
+    test's block (turntable/model_test.py)."""
+    effects = effect_values(model, fit)
     block = SensorBlock(model.base.name, M, bias, model.unit, effects, model.base.source, dict(fit.params),
                         dict(fit.std), dict(zip(model.params, model.param_units)), C_b_model, fit.residual_rms,
                         model.unit, fit.chi2, fit.dof, fit.p_value)

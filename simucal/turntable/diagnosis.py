@@ -55,7 +55,7 @@ def _with_static_gyro_rows(ms, block, settings) -> None:
     acc_model, gyro_model, ids, acc_noise_g, gyro_noise_dph = settings
     try:
         gyro = calibrate_table(ms, "exact", acc_model, gyro_model, ids, acc_noise_g, gyro_noise_dph,
-                               static_probe=judges.append).gyro
+                               ranked=False, static_probe=judges.append).gyro  # the ranking is the diagnosis's
     except CalibrationError:
         return
     if gyro is None or "static_rows" not in gyro.details:
