@@ -14,7 +14,7 @@ import numpy as np
 from simucal import io, methods
 from simucal.errors import CalibrationError, SimucalError
 from simucal.fit.thermal import PLAUSIBLE_C, SPREAD_C
-from simucal.io import calibration, units
+from simucal.io import calibration, records, units
 from simucal.io.calibration import Calibration, SensorBlock, SensorDetails
 from simucal.io.calibration_checks import check_layout, scale_notes
 from simucal.io.sensor_checks import stuck_channels
@@ -156,7 +156,7 @@ def _thermal_block(blocks: list[SensorBlock], T_k, t_ref_c, degree, sensor, plat
     fits = {n: fit_polynomial(T_k, [b.params[n] for b in blocks], [b.std[n] for b in blocks], t_ref_c, degree)
             for n in names}
     for n, f in fits.items():
-        f.update(per_plateau=[b.params[n] for b in blocks], per_plateau_std=[b.std[n] for b in blocks])
+        f.update({"per_plateau": [b.params[n] for b in blocks], "per_plateau_std": np.array([b.std[n] for b in blocks], float).tolist()})
     p0 = np.array([fits[n]["coefficients"][0] for n in names])
     nearest = blocks[int(np.argmin(np.abs(np.asarray(T_k) - t_ref_c)))]
     M, bias = AugmentedModel(first.model, first.library_effects()).matrix_and_bias(p0)
@@ -170,7 +170,7 @@ def _thermal_block(blocks: list[SensorBlock], T_k, t_ref_c, degree, sensor, plat
                    params={n: fits[n]["coefficients"][0] for n in names}, std={n: fits[n]["std"][0] for n in names},
                    M=M @ nearest.C, bias=bias, C_b_model=None if first.C_b_model is None else nearest.C,
                    residual_rms=None, chi2=None, dof=None, p_value=None,
-                   thermal={"t_ref_c": t_ref_c, "plateaus_c": list(T_k), "parameters": fits}, details=details)
+                   thermal=records.Thermal(t_ref_c=t_ref_c, plateaus_c=list(T_k), parameters=fits), details=details)
 
 
 def _own_fits(base, obs, groups) -> list:
@@ -193,13 +193,13 @@ def _joint_block(obs, groups, first: SensorBlock, degree, labels, t_ref_c, plate
     from simucal.turntable.model_test import rows_text
     base, model, fit, how, obs, auto = by_every_row(first, obs, groups, degree)
     own = _own_fits(base, obs, groups) if plateaus else None
-    fits = {}
+    fits: dict[str, records.ThermalPolynomial] = {}
     for j, n in enumerate(base.params):
         names = [n] + [f"{n}.T{k}" for k in range(1, model.degrees[j] + 1)]
         fits[n] = {"degree": model.degrees[j], "degree_from": how["from"],
                    "coefficients": [fit.params[x] for x in names], "std": [fit.std[x] for x in names]}
         if own:
-            fits[n].update(per_plateau=[f.params[n] for f in own], per_plateau_std=[f.std[n] for f in own])
+            fits[n].update({"per_plateau": [f.params[n] for f in own], "per_plateau_std": [f.std[n] for f in own]})
     M, bias = base.matrix_and_bias(fit.vector(base.params))
     T = obs.aux.column("temp_c", len(obs.N))
     T_g = [float(np.mean(T[groups == g])) for g in np.unique(groups)]
@@ -209,7 +209,7 @@ def _joint_block(obs, groups, first: SensorBlock, degree, labels, t_ref_c, plate
         "plateaus": plateaus}
     if first.C_b_model is not None:
         details["M_in_d"] = M.tolist()
-    thermal = {"t_ref_c": t_ref_c, "plateaus_c": T_g, "temperature_range_c": [float(T.min()), float(T.max())],
+    thermal: records.Thermal = {"t_ref_c": t_ref_c, "plateaus_c": T_g, "temperature_range_c": [float(T.min()), float(T.max())],
                "fit": "joint: every row at its own temp_c", "rows": rows_text(segs), "parameters": fits, "dropped": how["dropped"],
                "covariance": {"names": list(model.params), "matrix": fit.cov.tolist()}}
     test = joint_test(base, model, obs, fit)
@@ -321,7 +321,7 @@ def _calibrate_thermal(folders, degree, t_ref_c, kwargs) -> Calibration:
                          [ms.sha256 for ms, _ in sets], cal.layout, t_ref_c=t_ref,
                          temperature_range_c=[float(T_all.min()), float(T_all.max())],
                          unification=cal.unification, not_calibrated=cal.not_calibrated,
-                         details=dict(cal.details),  # that plateau's checks (consistency, ...)
+                         details=cal.details.copy(),  # that plateau's checks (consistency, ...)
                          samples_sha256=[d for ms, _ in sets for d in ms.sample_digests()])
     if cal.method == "exact":
         _joint(result, sets, cal, degree, t_ref, kwargs)

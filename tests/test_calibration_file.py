@@ -11,11 +11,12 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from simucal import methods
-from simucal.calibrate import calibrate
+from simucal.calibrate import calibrate, calibrate_thermal
 from simucal.field.simulate import FieldScenario, write_field
 from simucal.handheld.simulate import HandheldScenario, write_handheld
-from simucal.io import calibration
+from simucal.io import calibration, records
 from simucal.io.calibration import Calibration, EffectValue, SensorBlock
+from simucal.io.arrays import from_arrays
 from simucal.io.importers import import_ferraris_sections
 from simucal.api import simulate
 from simucal.turntable.sequence import psins19
@@ -36,6 +37,21 @@ def every_method(paper_set, tmp_path_factory):
     import_ferraris_sections(ferraris / "example_ferraris_session.csv", ferraris / "example_ferraris_session_list.json",
                              tmp / "fe", 102.4, 49.6)
     return {m.name: calibrate(data[m.data] if m.any_plan else tmp / "fe", m.name) for m in methods.METHODS.values()}
+
+
+@pytest.fixture(scope="module")
+def thermal_calibrations():
+    """{kind: its thermal calibration}: turntable plateaus (fitted jointly) and a still warm-up log
+    (handheld/warmup.py). The plateaus of a hand-placed unit, each fitted alone, write the records mypy
+    checks in calibrate._thermal_block (no simulator writes such plateaus)."""
+    plateaus = [simulate(seed=i, plan="fibonacci24", temperature_c=T, t_ref_c=25.0) for i, T in enumerate((0, 25, 50))]
+    t = np.arange(0, 600.0, 0.1)
+    T = 15 + 40 * (1 - np.exp(-t / 200.0))
+    rng = np.random.default_rng(0)
+    still = from_arrays(np.array([0, 0, -1.0]) + 1e-4 * (T - 30)[:, None] + rng.normal(0, 2e-3, (len(t), 3)),
+                        2.0 * (T - 30)[:, None] + rng.normal(0, 180.0, (len(t), 3)), acc_unit="g", gyro_unit="deg/h",
+                        t_s=t, temp_c=T, meta={"latitude_deg": 47.0})
+    return {"thermal joint": calibrate_thermal(plateaus), "thermal warm-up": calibrate_thermal([still])}
 
 
 def _as_written(cal: Calibration) -> dict:
@@ -69,22 +85,69 @@ def test_what_a_method_reports_beyond_the_fields_travels_as_details(every_method
     assert field.gyro.library_effects() == ()
 
 
-def test_every_key_a_method_writes_in_a_block_is_declared(every_method, tmp_path):
-    """SensorBlock.details is typed (io.calibration.SensorDetails): every method's blocks, --add auto's
-    and a hand-placed session's included, hold only declared keys, each of its declared type's kind."""
-    declared = typing.get_type_hints(calibration.SensorDetails)
-    kinds = {k: tuple(typing.get_origin(a) or a for a in (typing.get_args(t) if typing.get_origin(t) in
-                      (typing.Union, types.UnionType) else (t,))) for k, t in declared.items()}
-    cals = dict(every_method)
+def _undeclared(value, declared, where: str) -> list[str]:
+    """Where the JSON value breaks its declared type (io/records.py): a key a TypedDict does not declare,
+    or a value of another kind, at any depth."""
+    origin, args = typing.get_origin(declared), typing.get_args(declared)
+    if declared is typing.Any or declared is object:
+        return [f"{where}: declared Any"]
+    if isinstance(declared, typing.ForwardRef) or declared == "JSONValue":
+        return []
+    if typing.is_typeddict(declared):
+        if not isinstance(value, dict):
+            return [f"{where}: {type(value).__name__}, not an object"]
+        hints = typing.get_type_hints(declared, localns=vars(records))  # JSONValue: its forward reference
+        return [f"{where}.{k}: not declared in {declared.__name__}" for k in value if k not in hints] + [
+            e for k, v in value.items() if k in hints for e in _undeclared(v, hints[k], f"{where}.{k}")]
+    if origin in (typing.Union, types.UnionType):
+        found = [_undeclared(value, a, where) for a in args]
+        return [] if any(not f for f in found) else min(found, key=len)
+    if origin is list:
+        if not isinstance(value, list):
+            return [f"{where}: {type(value).__name__}, not a list"]
+        return [e for i, v in enumerate(value) for e in _undeclared(v, args[0], f"{where}[{i}]")]
+    if origin is dict:
+        if not isinstance(value, dict):
+            return [f"{where}: {type(value).__name__}, not an object"]
+        return [e for k, v in value.items() for e in _undeclared(v, args[1], f"{where}.{k}")]
+    if declared is type(None):
+        return [] if value is None else [f"{where}: {value!r}, not null"]
+    kinds = (int, float) if declared is float else (declared,)
+    return [] if isinstance(value, kinds) else [f"{where}: {type(value).__name__}, not {declared.__name__}"]
+
+
+def test_every_record_a_method_writes_is_declared_at_every_depth(every_method, thermal_calibrations):
+    """What a method writes beside the fields is typed (io/records.py): every method's file, --add auto's,
+    a hand-placed session's and the thermal ones included, holds only declared keys, each value of its
+    declared type, down to the leaves; no record is Any."""
+    cals = dict(every_method, **thermal_calibrations)
     cals["exact --add auto"] = calibrate(every_method["exact"].input, add=("auto",))
+    block_hints = typing.get_type_hints(calibration.SensorDetails)
+    cal_hints = typing.get_type_hints(Calibration)
     for name, cal in cals.items():
+        written = _as_written(cal)
+        problems = []
         for s, block in cal.blocks():
-            unknown = set(block.details) - set(declared)
-            assert not unknown, f"{name} {s}: {unknown} not in SensorDetails"
-            wrong = {k: type(v).__name__ for k, v in block.details.items() if not isinstance(v, kinds[k])}
-            assert not wrong, f"{name} {s}: {wrong} not of the declared types"
+            problems += [f"{s}.{k}: not declared in SensorDetails" for k in block.details if k not in block_hints]
+            problems += [e for k in block.details if k in block_hints
+                         for e in _undeclared(written[s][k], block_hints[k], f"{s}.{k}")]
+            if block.thermal is not None:
+                problems += _undeclared(written[s]["thermal"], records.Thermal, f"{s}.thermal")
+        problems += _undeclared({k: written[k] for k in cal.details}, records.CalibrationDetails, "details")
+        for k in ("layout", "unification"):
+            if written.get(k) is not None:
+                problems += _undeclared(written[k], cal_hints[k], k)
+        assert not problems, f"{name}: {problems[:8]}"
     assert {"auto", "auto_stopped", "cross_validation"} <= set(cals["exact --add auto"].acc.details)
     assert {"T", "moves", "gyro_model"} <= set(cals["handheld"].gyro.details)
+
+
+def test_the_record_check_finds_an_undeclared_key_and_a_wrong_kind():
+    assert _undeclared({"tested": 3, "strongest": "acc.quadratic.z"}, records.Targeted, "t") == []
+    assert _undeclared({"tested": 3, "planted": 1}, records.Targeted, "t") == ["t.planted: not declared in Targeted"]
+    assert _undeclared({"tested": "3"}, records.Targeted, "t") == ["t.tested: str, not int"]
+    assert _undeclared([{"axis": "x", "count": 2, "first_row": "a"}], list[records.Saturation], "s") \
+        == ["s[0].first_row: str, not int"]
 
 
 finite = st.floats(-1e3, 1e3, allow_nan=False)
@@ -143,3 +206,25 @@ def test_multiposition_without_rate_runs_says_the_gyro_is_not_calibrated(paper_s
     calibration.save(tmp_path / "c.json", cal)
     with pytest.raises(calibration.CalibrationFileError, match="calibrates no gyro"):
         apply(calibration.load(tmp_path / "c.json"), tmp_path / "s")
+
+
+def test_what_plan_and_montecarlo_return_and_what_sets_state_is_declared(tmp_path):
+    """simucal.plan's and simucal.montecarlo's results (io/results.py) and the meta.json of every kind of set
+    simucal writes, its importers' included (io/meta.py), hold only declared keys of their declared kinds."""
+    import simucal
+    from simucal.io import meta, results
+    assert _undeclared(simucal.plan("table1", separate=["acc.quadratic.z", "acc.scale_asymmetry.z"],
+                                    sizes=[1e-4, 1e-4]), results.PlanScore, "plan") == []
+    assert _undeclared(simucal.plan(positions=12, model="gyro_baseline", rates_dps=[10, 20]), results.PlanScore,
+                       "design") == []
+    assert _undeclared(simucal.plan(positions=12, kind="hand"), results.PlanScore, "hand") == []
+    assert _undeclared(simucal.montecarlo(trials=20), results.MonteCarlo, "montecarlo") == []
+    ferraris = Path(__file__).resolve().parents[2] / "shared" / "data" / "imucal-ferraris"
+    import_ferraris_sections(ferraris / "example_ferraris_session.csv", ferraris / "example_ferraris_session_list.json",
+                             tmp_path / "fe", 102.4, 49.6)
+    sets = {"ferraris": simucal.read_set(tmp_path / "fe")} | {
+        k: simulate(**kw) for k, kw in {"turntable": {}, "raw": {"plan": "fibonacci24", "rate_hz": 20},
+                                         "hand": {"scenario": "handheld"}, "field": {"scenario": "field"},
+                                         "thermal": {"plan": "fibonacci24", "temperature_c": 40, "t_ref_c": 25}}.items()}
+    for name, ms in sets.items():
+        assert _undeclared(dict(ms.meta), meta.Meta, name) == []

@@ -35,6 +35,7 @@ from simucal.api.lot import lot
 from simucal.api.sets import MeasurementSet, as_set, effect_ids, folder_of
 from simucal.api.vocabulary import Entry, compare
 from simucal.io import calibration as _file
+from simucal.io import records as _records
 from simucal.validate import validate as _validate_report
 
 Data = Union[str, os.PathLike, io.MeasurementSet]
@@ -147,7 +148,7 @@ class Validation:
     check_rows: list[Check]
     independent: bool
     warnings: list[str]
-    report: dict
+    report: _records.JSONObject  # validation.json as written
     checks = TableOf("check_rows", Check._fields)
 
     def __repr__(self) -> str:  # the report's arrays are in .report

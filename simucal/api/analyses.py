@@ -10,6 +10,7 @@ from typing import NamedTuple, Sequence, Union
 
 from simucal.errors import InputError
 from simucal import io
+from simucal.io import records
 from simucal.api.sets import as_set, effect_ids, folder_of
 from simucal.api.tables import TableOf
 
@@ -61,7 +62,7 @@ class Diagnosis:
     next_notes: list[str]
     notes: list[str]
     model_files: dict[str, str]
-    report: dict
+    report: records.JSONObject  # diagnosis.json as written
     candidates = TableOf("candidate_rows", Candidate._fields)
 
     def __repr__(self) -> str:  # the verdicts are sentences: the first clause of each, the rest in .verdict
@@ -140,7 +141,10 @@ def save_diagnosis(path: str | os.PathLike, d: Diagnosis) -> list[Path]:
     for s, text in d.model_files.items():
         written.append(shape_model_path(path, s))
         outputs.write_text(written[-1], text)
-        d.report[s]["shape"]["model_file_path"] = str(written[-1])
+        block = d.report[s]
+        shape = block.get("shape") if isinstance(block, dict) else None
+        if isinstance(shape, dict):  # a model file is written for a shape found
+            shape["model_file_path"] = str(written[-1])
     outputs.write_text(path, json.dumps(d.report, indent=1, default=float) + "\n")
     return written
 
@@ -188,7 +192,7 @@ class Noise:
         What `simucal noise -o` writes (``simucal.noise/1``), the same numbers.
     """
     term_rows: list[Term]
-    report: dict
+    report: records.JSONObject  # noise.json as written
     curve_rows: list[AllanPoint] = field(default_factory=list)
     terms = TableOf("term_rows", Term._fields)
     curve = TableOf("curve_rows", AllanPoint._fields)

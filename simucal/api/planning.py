@@ -3,11 +3,12 @@ model (Fisher information, CRLB, D and A criteria; turntable/plan_design.py), th
 effects apart, and a rotation sequence's observability beside the norm method's CRLB."""
 from __future__ import annotations
 
-from typing import Any, Sequence
+from typing import Any, Sequence, cast
 
 import numpy as np
 
 from simucal.errors import InputError
+from simucal.io import results
 
 PAPER_RATE_DPS = 10.0  # dong2018 section 4's rate runs
 PAPER_NOISE = {"acc": 1e-5, "gyro": 0.01}  # section 4's noise of one position's mean: g, deg/h
@@ -22,7 +23,7 @@ def model_sensor(model: str, add: Sequence[str] = ()) -> str:
 def plan(score: str | None = None, *, positions: int | None = None, model: str = "acc_baseline",
          add: Sequence[str] = (), criterion: str = "D", rates_dps: Sequence[float] | None = None,
          noise: float | None = None, kind: str = "three-axis", separate: Sequence[str] | None = None,
-         sizes: Sequence[float] | None = None, power: float = 0.9) -> dict:
+         sizes: Sequence[float] | None = None, power: float = 0.9) -> results.PlanScore:
     """Score a plan, or design one, for a model.
 
     Parameters
@@ -77,21 +78,21 @@ def plan(score: str | None = None, *, positions: int | None = None, model: str =
         assert positions is not None  # one of the two, refused above otherwise
         u, rho = design(m, positions, np.abs(rate_list) * DPH_PER_DPS if gyro else 1.0, sigma, criterion)
         name = f"{criterion}-optimal, {positions} positions"
-    result = {"plan": name, "model": m.name, "unit": m.unit, "noise": sigma,
-              "rates_dps": sorted(set(np.round(np.atleast_1d(rho) / DPH_PER_DPS, 6).tolist())) if gyro else None,
-              **score_of(m, u, rho, sigma)}
+    rates = sorted(set(np.round(np.atleast_1d(rho) / DPH_PER_DPS, 6).tolist())) if gyro else None
+    result: results.PlanScore = {"plan": name, "model": m.name, "unit": m.unit, "noise": sigma, "rates_dps": rates}
+    result.update(score_of(m, u, rho, sigma))
     if positions is not None:
         if kind == "hand":  # a pose is where gravity (or the turn axis) points in the unit's own axes
-            result["rows"], result["columns"] = [(i + 1, *map(float, d)) for i, d in enumerate(u)], "pose,f_x,f_y,f_z"
+            result["rows"], result["columns"] = [[i + 1, *map(float, d)] for i, d in enumerate(u)], "pose,f_x,f_y,f_z"
         else:
-            result["rows"] = plan_rows(u, np.asarray(rho) / DPH_PER_DPS if gyro else None)
+            result["rows"] = [list(r) for r in plan_rows(u, np.asarray(rho) / DPH_PER_DPS if gyro else None)]
             result["columns"] = "outer_deg,middle_deg,inner_deg" + (",outer_rate_dps" if gyro else "")
     if separate:
         result["separation"] = _separation(m, separate, sizes, score, u, rho, sigma, power)
     return result
 
 
-def _separation(model, pair, sizes, score, u, rho, sigma, target) -> dict:
+def _separation(model, pair, sizes, score, u, rho, sigma, target) -> results.Separation:
     """The positions to add so that two candidate effects are told apart (turntable/plan_design.separate), with
     the added positions' angles and what a plan must vary where no position does."""
     from simucal.fit.augmented import check_effect
@@ -120,7 +121,7 @@ def _separation(model, pair, sizes, score, u, rho, sigma, target) -> dict:
 
 def sequence_observability(sequence: str, *, model: str = "acc_baseline", add: Sequence[str] = (),
                            score: str | None = None, rates_dps: Sequence[float] | None = None,
-                           acc_noise_g: float | None = None, gyro_noise_dph: float | None = None) -> dict:
+                           acc_noise_g: float | None = None, gyro_noise_dph: float | None = None) -> results.SequenceObservability:
     """Each parameter's std over a rotation sequence (one pass of the linearised systematic filter, the default
     unit simulated at seed 0: systematic/observability.py) beside the norm method's CRLB of the same models on a
     plan (`score`, default table1), its positions held as long as the sequence's rests unless the noise is given.
@@ -152,5 +153,6 @@ def sequence_observability(sequence: str, *, model: str = "acc_baseline", add: S
     crlb = {s: plan(plan_name, model=models[s], add=for_sensor(tuple(add), s), rates_dps=rates_dps, noise=noise[s])
             for s in ("acc", "gyro")}
     assert ms.truth is not None  # a simulated set's
-    return {"sequence": ms.truth["sequence"], "models": models, "add": list(add), "observability": obs, "norm": crlb,
+    record = cast(results.SequenceRecord, ms.truth["sequence"])  # the simulator's truth.json
+    return {"sequence": record, "models": models, "add": list(add), "observability": obs, "norm": crlb,
             "plan": plan_name, "noise": noise, "rest_n": rest_n, "stated": bool(acc_noise_g and gyro_noise_dph)}

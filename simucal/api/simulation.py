@@ -7,6 +7,7 @@ from typing import Any, Mapping, Sequence, Union
 
 from simucal.errors import InputError
 from simucal import methods
+from simucal.io import results
 from simucal.api.sets import MeasurementSet
 
 Pairs = Union[Mapping[str, float], Sequence[str]]  # {name: value} or the command's "NAME=VALUE" strings
@@ -129,7 +130,7 @@ MAX_TRIALS = 10_000_000  # ~1.4 GB of estimates, about two minutes compiled
 
 def montecarlo(*, plan: str | None = None, trials: int = 10_000, seed: int = 0, effects: Pairs | None = None,
                effect_file: str | None = None, sets: Pairs | None = None, rates_dps: Sequence[float] | None = None,
-               scheduler: str = "local", progress: Any = None) -> dict:
+               scheduler: str = "local", progress: Any = None) -> results.MonteCarlo:
     """Monte Carlo of dong2018's turntable test (`simucal montecarlo`): `trials` simulated tests, each fitted
     exactly and unified; every parameter's truth, mean, std over the trials and Cramer-Rao bound.
 

@@ -7,6 +7,8 @@ from __future__ import annotations
 import os
 from typing import Any, Callable, NamedTuple
 
+from simucal.io import records
+
 
 class Derived(NamedTuple):
     """What `derive` did: the generated files that differ from the derivation (check), the seconds it took, the
@@ -66,7 +68,7 @@ def demo_outputs(out: str | os.PathLike) -> tuple[list[Any], Any]:
     return [Path(out) / d for d in run.SETS], Path(out) / run.MARKER
 
 
-def demo(out: str | os.PathLike, seed: int = 0, echo: Callable[[str], Any] = print) -> dict:
+def demo(out: str | os.PathLike, seed: int = 0, echo: Callable[[str], Any] = print) -> records.JSONObject:
     """The main job end to end on built-in simulated data (`simucal demo -o OUT`): a hidden effect found, added,
     calibrated with, applied and validated; the unit over temperature; its noise; the paper's methods. Writes
     into `out`; echo prints each step. Returns the demo's record (demo.json)."""

@@ -63,13 +63,13 @@ def _model_stds(block: SensorBlock):
     model = AugmentedModel(block.model, block.library_effects())
     names = list(model.params)
     p = np.array([block.params[n] for n in names])
-    cov_block = block.details.get("covariance") or {}
+    cov_block = block.details.get("covariance")
     if not cov_block or any(n not in cov_block["names"] for n in names):
         return np.full((3, 3), np.nan), np.full(3, np.nan), {}
     k = [cov_block["names"].index(n) for n in names]
     cov = np.asarray(cov_block["matrix"], float)[np.ix_(k, k)]
     raw = np.sqrt(np.maximum(np.diag(cov), 0.0))
-    filed = np.array([float(block.std.get(n, np.nan)) for n in names])
+    filed = np.array([block.std.get(n, np.nan) for n in names], float)
     ratio = filed[raw > 0] / raw[raw > 0]
     cov = cov * (float(np.nanmedian(ratio)) ** 2 if ratio.size and np.isfinite(ratio).any() else 1.0)
 

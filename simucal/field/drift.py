@@ -26,7 +26,7 @@ from simucal.errors import CalibrationError
 from simucal.fit.noise import white_noise_var
 from simucal.fit.rotations import exp_so3
 from simucal.generated import field as gen
-from simucal.io import calibration, outputs, units
+from simucal.io import calibration, outputs, records, units
 
 AXIS_NAMES = ("x (forward)", "y (up)", "z (right)")
 
@@ -178,7 +178,7 @@ def heading_term_dph(meta, accuracy_deg):
     return abs(float(worst)) / np.sqrt(3)
 
 
-def field_drift(data, block_s=1.0, stages=2, heading_accuracy_deg=5.0) -> dict:
+def field_drift(data, block_s=1.0, stages=2, heading_accuracy_deg=5.0) -> records.FieldRecord:
     """The three body drifts of the set `data` (a folder or a MeasurementSet) with their stds, each
     position's attitude and eps_N, and under history each position's filter estimate against time
     (the paper's Fig. 4: plot_history)."""
@@ -189,7 +189,9 @@ def field_drift(data, block_s=1.0, stages=2, heading_accuracy_deg=5.0) -> dict:
         raise CalibrationError(f"{ms.path}: field calibration needs segments.csv with one static segment per position")
     f_all = ms.acc_g() * units.gravity(ms.meta)
     w_all = ms.gyro_dph() * units.RAD_S_PER_DPH
-    positions, rows, eps, sds, hist = [], [], [], [], []
+    positions: list[records.FieldPosition] = []
+    hist: list[records.FieldHistory] = []
+    rows, eps, sds = [], [], []
     for s in ms.segments:
         if s.kind != "static":
             continue

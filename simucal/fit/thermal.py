@@ -19,6 +19,7 @@ import numpy as np
 
 from simucal.errors import CalibrationError
 from simucal.fit.distributions import chi2_sf
+from simucal.io import records
 
 MAX_DEGREE = 3
 SPREAD_C = 2.0  # temperatures within this of each other are one temperature (a plateau's wander)
@@ -56,7 +57,7 @@ def _wls(dT, y, s, d):
     return c, cov, float(np.sum((A @ c - b) ** 2))
 
 
-def fit_polynomial(T_c, values, std, t_ref_c: float, degree: int | None = None) -> dict:
+def fit_polynomial(T_c, values, std, t_ref_c: float, degree: int | None = None) -> records.ThermalPolynomial:
     """One parameter's polynomial in (T - t_ref_c): {degree, coefficients, std, chi2, dof, p_value}.
     degree None: chosen by the sequential chi^2 test (module doc)."""
     dT = np.asarray(T_c, float) - t_ref_c
@@ -87,7 +88,7 @@ def evaluate(coefficients, dT) -> np.ndarray:
     return np.polynomial.polynomial.polyval(np.asarray(dT, float), np.asarray(coefficients, float))
 
 
-def params_at(thermal: dict, names, temp_c) -> np.ndarray:
+def params_at(thermal: records.Thermal, names, temp_c) -> np.ndarray:
     """(n, m): the parameters `names` at each temperature temp_c (n,), from a block's `thermal`
     section (its t_ref_c and per-parameter coefficients)."""
     dT = np.asarray(temp_c, float) - thermal["t_ref_c"]

@@ -32,7 +32,7 @@ from scipy.linalg import solve_triangular
 from simucal.errors import CalibrationError
 from simucal.fit.augmented import AugmentedModel
 from simucal.fit.distributions import chi2_sf
-from simucal.io import calibration
+from simucal.io import calibration, records
 from simucal.io.calibration import SensorBlock
 
 METHOD = "warm-up (a still board over temperature)"  # validate.WARMUP starts it
@@ -160,12 +160,12 @@ def _block(sensor, raw, T, t_s, t_ref, scale_c) -> SensorBlock:
     names = model.params
     fixed = {n: 0.0 for n in names if not n.startswith("b_")}
     params = {**fixed, **{f"b_{'xyz'[i]}": float(bias[i]) for i in range(3)}}
-    parameters = {n: {"degree": 0, "coefficients": [0.0], "std": [0.0], "degree_from": "not seen: nominal"}
+    parameters: dict[str, records.ThermalPolynomial] = {n: {"degree": 0, "coefficients": [0.0], "std": [0.0], "degree_from": "not seen: nominal"}
                   for n in fixed}
     parameters.update({f"b_{'xyz'[i]}": axes[i] for i in range(3)})
     chi2 = float(sum(a["chi2"] for a in axes))
     dof = int(sum(a["dof"] for a in axes))
-    thermal = {"t_ref_c": t_ref, "temperature_range_c": [float(T.min()), float(T.max())], "parameters": parameters,
+    thermal: records.Thermal = {"t_ref_c": t_ref, "temperature_range_c": [float(T.min()), float(T.max())], "parameters": parameters,
                "warmup": f"{len(T_b)} block means of {len(T) // len(T_b)} rows"}
     unit = model.unit
     return SensorBlock(model.base.name, np.eye(3), bias, unit, {}, "built-in", params,

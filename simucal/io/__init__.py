@@ -14,10 +14,12 @@ import re
 from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass
 from pathlib import Path
+from typing import cast
 
 import numpy as np
 
 from simucal.io import csv_columns, outputs, sensor_checks, units
+from simucal.io import meta as meta_keys
 from simucal.io.csv_columns import arrow_floats, read_columns, triad_block
 from simucal.io.segments import Segment, read_segments
 from simucal.io.text_files import (MeasurementSetError, RepeatedKey, body_of, check_delimiter, csv_refusal,
@@ -33,8 +35,8 @@ PLAUSIBLE = 1e12  # no output, time or temperature of a real unit is this large 
 @dataclass
 class MeasurementSet:
     path: Path
-    meta: dict
-    samples: dict                     # column -> float array (segment as int array)
+    meta: meta_keys.Meta
+    samples: dict[str, np.ndarray]    # column -> float array (segment as int array)
     segments: list[Segment] | None    # None: one continuous stream
     temperature_ref_c: float | None = None  # T_ref chosen by the user (calibrate --t-ref-c); None: t_ref_c's default
     sha256: str | None = None         # of the files as read (files_sha256): a calibration's input_sha256
@@ -149,7 +151,7 @@ def group_rows(segment_ids: np.ndarray) -> dict[int, np.ndarray]:
     return dict(zip(ids.tolist(), np.split(order, start[1:])))
 
 
-def read_meta(folder: Path) -> dict:
+def read_meta(folder: Path) -> meta_keys.Meta:
     path = not_a_folder(folder / "meta.json")
     if not path.is_file():
         raise MeasurementSetError(path, None, "missing: a measurement set needs meta.json")
@@ -171,7 +173,7 @@ def read_meta(folder: Path) -> dict:
     if meta.get("format") != FORMAT:
         raise MeasurementSetError(path, None, f'"format" must be "{FORMAT}", got {meta.get("format")!r}')
     units.check_meta(meta, path, MeasurementSetError)
-    return meta
+    return cast(meta_keys.Meta, meta)  # the spec's keys, checked
 
 
 def read_samples(folder: Path, segments) -> tuple[dict, str, dict | None]:

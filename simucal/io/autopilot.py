@@ -37,6 +37,7 @@ from math import comb
 import numpy as np
 
 from simucal.errors import CalibrationError
+from simucal.io import meta as meta_keys
 from simucal.io import units
 
 BIAS = ("b_x", "b_y", "b_z")
@@ -60,7 +61,7 @@ class BiasPolynomial:
     others: tuple[str, ...] = ()
 
 
-def gravity_mps2(meta: dict) -> float:
+def gravity_mps2(meta: meta_keys.Meta) -> float:
     """The m/s^2 of simucal's g: meta.json's gravity for data in m/s^2 (they were divided by it), else the
     standard 9.80665 m/s^2 by which the autopilots' drivers turn a g into m/s^2."""
     return units.gravity(meta) if meta.get("acc_unit") == "m/s^2" else units.DEFAULT_GRAVITY
@@ -208,7 +209,7 @@ def ardupilot_text(polys: list[BiasPolynomial], source: str) -> tuple[str, list[
     return "\n".join(lines) + "\n", warnings
 
 
-def texts(cal, meta: dict, px4: str | None = None, ardupilot: str | None = None) -> list[tuple]:
+def texts(cal, meta: meta_keys.Meta, px4: str | None = None, ardupilot: str | None = None) -> list[tuple]:
     """[(path, text, warnings, note)] of the files asked for; meta: the data's meta.json (gravity_mps2)."""
     polys = bias_polynomials(cal, gravity_mps2(meta))
     source = ", ".join(cal.input) if isinstance(cal.input, list) else str(cal.input)

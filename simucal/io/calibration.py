@@ -49,7 +49,7 @@ from pathlib import Path
 
 import numpy as np
 
-from simucal.io import outputs
+from simucal.io import outputs, records
 from simucal.io.calibration_checks import CalibrationFileError, check_file, layout
 from simucal.io.text_files import unique_keys
 
@@ -102,46 +102,46 @@ class SensorDetails(TypedDict, total=False):
     test: str                          # the test, in words
     omnibus_p_value: float | None      # the omnibus's own p (fit/family.py; p_value is the family's)
     omnibus_test: str | None           # the omnibus, in words
-    targeted: dict[str, Any]           # the library effects' targeted tests: tested, strongest, p_value, level
-    noise: dict[str, Any]              # the noise the test used and where it came from
-    lack_of_fit: dict[str, Any]        # the lack-of-fit F test (fit/lack_of_fit.py)
-    cross_validation: dict[str, Any] | None  # leave one position out (fit/cross_validation.py)
+    targeted: records.Targeted         # the library effects' targeted tests: tested, strongest, p_value, level
+    noise: records.NoiseUsed           # the noise the test used and where it came from
+    lack_of_fit: records.LackOfFit     # the lack-of-fit F test (fit/lack_of_fit.py)
+    cross_validation: records.CrossValidation | None  # leave one position out (fit/cross_validation.py)
     rows: str                          # the rows tested, where not all
     noise_warning: str                 # a stated noise far from the data's scatter
     noise_too_small: bool
-    covariance: dict[str, Any]         # {"names": [...], "matrix": [[...]]}: the parameters' covariance
-    poorly_determined: dict[str, Any]  # parameters whose std the plan inflates (poorly_determined)
-    std_raw: dict[str, Any]            # the stds before inflate_if_failing scaled them
+    covariance: records.Covariance     # the parameters' covariance
+    poorly_determined: dict[str, records.Inflation]  # parameters whose std the plan inflates (poorly_determined)
+    std_raw: dict[str, records.Std]    # the stds before inflate_if_failing scaled them
     std_note: str                      # how the stds were scaled, or what they include
     advice: str | None                 # the effect (or generic term) a failing model most likely lacks
-    auto: list[dict[str, Any]]         # --add auto's steps (fit/selection.py)
+    auto: list[records.AutoStep]       # --add auto's steps (fit/selection.py)
     auto_stopped: str                  # why it stopped
     note: str | None                   # what else the method says of this block
     # a turntable's gyro (turntable/calibrate.py, tilt.py) and a thermal calibration's
     M_in_d: list[list[float]]          # M in the gyro's parameter frame d
     std_M: list[list[float]]           # the std of each entry of M in b (unification and tilt included)
-    static_rows: dict[str, Any]        # the gyro's static rows against the Earth rate
+    static_rows: records.StaticRows    # the gyro's static rows against the Earth rate
     frame: str                         # the frame M is in, where it is not b
     tilt_note: str
-    table_tilt: dict[str, Any]         # the outer axis's tilt carried into the stds
-    plateaus: list[Any] | bool         # a thermal calibration's plateaus; a joint fit's: its groups are plateaus
+    table_tilt: records.TableTilt      # the outer axis's tilt carried into the stds
+    plateaus: list[records.Plateau] | bool  # a thermal calibration's plateaus; a joint fit's: its groups are plateaus
                                        # (True) or a ramp's bands (False)
-    groups: list[dict[str, Any]]       # a joint thermal fit's groups, each tested under it
+    groups: list[records.ThermalGroup]  # a joint thermal fit's groups, each tested under it
     # a hand-placed session (handheld/calibrate.py)
     T: list[list[float]]               # T = M^-1
     T_note: str
-    moves: list[dict[str, Any]]        # each move's residual
+    moves: list[records.MoveResidual]  # each move's residual
     moves_used: int
-    moves_skipped: list[Any]
-    saturation: list[Any]
-    moves_opposite_sense: list[Any]
+    moves_skipped: list[records.SkippedMove]
+    saturation: list[records.Saturation]
+    moves_opposite_sense: list[int]    # the moves turning against the gyro's sense, by index
     iterations: int
-    undetermined: dict[str, Any]       # parameters the data leave at nominal, and why
+    undetermined: dict[str, records.Undetermined]  # parameters the data leave at nominal, and why
     gyro_model: str                    # nominal, scale or full: chosen by the moves left out
-    model_choice: dict[str, Any]
+    model_choice: dict[str, records.GyroModelScore]  # each gyro model's held-out error
     model_error_std_g: float           # the poses' extra variance
     # systematic calibration (systematic/method.py)
-    eta_rad: dict[str, Any]            # the gyro frame's angles against b
+    eta_rad: records.Estimates         # the gyro frame's angles against b
     # a Ferraris session (turntable/ferraris.py)
     placement_tilt_deg: float          # the hand placement's tilt (std per pose) the pairs' mismatch shows
     pairs: list[list[int]]             # the segments of each pair of opposite poses, + then -
@@ -164,7 +164,7 @@ class SensorBlock:
     effects: dict[str, EffectValue] = field(default_factory=dict)
     model_source: str = "built-in"
     params: dict[str, float] = field(default_factory=dict)
-    std: dict = field(default_factory=dict)
+    std: dict[str, records.Std] = field(default_factory=dict)
     param_units: dict[str, str] = field(default_factory=dict)
     C_b_model: np.ndarray | None = None
     residual_rms: float | None = None
@@ -173,7 +173,7 @@ class SensorBlock:
     dof: float | None = None
     p_value: float | None = None
     description: str | None = None   # a method without a generated model: what its affine model is
-    thermal: dict | None = None
+    thermal: records.Thermal | None = None
     nominal: bool = False            # left at the nominal scale factors (not calibrated)
     details: SensorDetails = field(default_factory=lambda: SensorDetails())  # mypy 1.10 takes no class here
 
@@ -240,15 +240,15 @@ class Calibration:
     method: str
     input: str | list[str]
     input_sha256: str | list[str] | None  # None: a hand-edited file without it
-    layout: dict
+    layout: records.Layout
     acc: SensorBlock | None = None
     gyro: SensorBlock | None = None
     t_ref_c: float | None = None
     temperature_range_c: list[float] | None = None
-    unification: dict | None = None
+    unification: records.Unification | None = None
     not_calibrated: dict[str, str] = field(default_factory=dict)
     warnings: list[str] = field(default_factory=list)
-    details: dict = field(default_factory=dict)
+    details: records.CalibrationDetails = field(default_factory=lambda: records.CalibrationDetails())
     format: str = FORMAT
     samples_sha256: list[str] | None = None  # MeasurementSet.sample_digests of the data; None: an older file
 
@@ -297,7 +297,8 @@ class Calibration:
             given.setdefault(k, default)
         blocks: dict[str, Any] = {s: SensorBlock.from_json(d[s], s) for s in d["layout"]["sensors"]}  # acc, gyro
         return cls(**given, **blocks,
-                   details={k: v for k, v in d.items() if k not in names | derived | set(SENSORS)})
+                   details=cast(records.CalibrationDetails,  # check_file has read it: its keys are the file's
+                                {k: v for k, v in d.items() if k not in names | derived | set(SENSORS)}))
 
 
 def header(method: str, ms) -> Calibration:
@@ -385,7 +386,7 @@ def inflate_if_failing(block: SensorBlock) -> bool:
         k = float(np.sqrt(chi2 / dof))
         if k > 1:
             block.details["std_raw"] = block.std
-            block.std = {n: v * k for n, v in block.std.items()}
+            block.std = {n: (np.asarray(v) * k).tolist() for n, v in block.std.items()}  # an affine block's lists too
             block.details["std_note"] = (f"the model fails (p = {p:.2g}); std = std_raw * sqrt(chi2/dof) = std_raw * "
                                          f"{k:.3g}, so it includes the misfit; std_raw assumes the model is right")
     return True

@@ -3,23 +3,25 @@
 scale factors of a fresh calibration (`scale_notes`). Each refusal names the entry."""
 from __future__ import annotations
 
+from typing import Final, cast
+
 import numpy as np
 
 from simucal.errors import CalibrationError, SimucalError
-from simucal.io import units
+from simucal.io import records, units
 
 LAYOUT_KEYS = ("acc_unit", "gyro_unit", "acc_pulses_per_g", "gyro_pulses_per_arcsec", "acc_counts_per_g",
                "gyro_counts_per_dps")
-SERIAL = "unit_serial"  # meta.json's optional serial number of the unit (README: the spec's extension)
+SERIAL: Final = "unit_serial"  # meta.json's optional serial number of the unit (README: the spec's extension)
 
 
 class CalibrationFileError(SimucalError):
     """A calibration file that cannot be read, or that does not fit the data."""
 
 
-def layout(ms) -> dict:
+def layout(ms) -> records.Layout:
     """The data's units, nominal scale factors, serial and sensors: a calibration is for these only."""
-    out = {k: ms.meta[k] for k in LAYOUT_KEYS + (SERIAL,) if k in ms.meta}
+    out = cast(records.Layout, {k: ms.meta[k] for k in LAYOUT_KEYS + (SERIAL,) if k in ms.meta})  # meta.json's, read by the spec
     out["sensors"] = [s for s, has in (("acc", ms.has_acc), ("gyro", ms.has_gyro)) if has]
     return out
 

@@ -34,10 +34,10 @@ def calibration_lines(cal: Calibration):
             yield from _fit_lines(s, b, cal.input)
     u = cal.unification
     if u and "std_rad" in u:
+        means = (u.get("noise") or {}).get("acc_rate_run_means")
         yield (f"frames: C_b^d by {u['method'].replace('_', ' ')} ({u['pairs']} pairs), std "
                f"{max(u['std_rad']):.2g} rad, residual {u['direction_residual_rms_rad']:.2g} rad rms"
-               + "".join(f"; noise of the {k.replace('_', ' ')}: {v['text']}" for k, v in u.get("noise", {}).items()
-                         if k != "table_angles")
+               + (f"; noise of the acc rate run means: {means['text']}" if means else "")
                + (f"; cross-check: {u['cross_check']['note']}" if "cross_check" in u else "")
                + (f"; {u['note']}" if u.get("note") else ""))
     yield from cal.details.get("consistency", {}).get("lines", [])

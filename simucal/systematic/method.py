@@ -2,12 +2,14 @@
 on its innovations, and the refusal of a sequence that leaves a parameter unseen."""
 from __future__ import annotations
 
+from typing import cast
+
 import numpy as np
 
 from simucal.errors import CalibrationError
 from simucal.fit.norm_fit import Fit
 from simucal.generated import table
-from simucal.io import calibration
+from simucal.io import calibration, records
 from simucal.systematic.auto import select
 from simucal.systematic.calibrate import UNOBSERVABLE, run_filter
 from simucal.fit.candidates import advice_text
@@ -69,7 +71,7 @@ def calibrate_systematic(ms, acc_model="acc_baseline", gyro_model="gyro_baseline
     cal.details["systematic"] = {
         "passes": r.passes, "last_step_std": r.step_std, "white_noise_per_sample": {
             "gyro_dph": r.sigma[:3].tolist(), "acc_g": r.sigma[3:].tolist()},
-        "test": {k: v for k, v in test.items() if k != "innovations_whitened"}}
+        "test": cast(records.InnovationTest, {k: v for k, v in test.items() if k != "innovations_whitened"})}
     if cal.acc.verdict == "fails":  # one test for both sensors: the one effect to add, as diagnose names it
         cands = [c.to_dict() for c in ranked(test, sig)]
         advice = advice_text(cands, None, {"chi2": test["nis"], "dof": test["dof"], "omnibus_test": test["omnibus_test"]})

@@ -13,6 +13,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from simucal.io import results
 from simucal.systematic.calibrate import UNOBSERVABLE, run_filter
 
 ETA = ("eta_x", "eta_y", "eta_z")
@@ -30,12 +31,12 @@ def std_ratios(result) -> np.ndarray:
     return np.sqrt(np.diag(result.cov) / result.prior_var[6:])
 
 
-def observability(ms, acc_model="acc_baseline", gyro_model="gyro_baseline", ids=()) -> dict:
+def observability(ms, acc_model="acc_baseline", gyro_model="gyro_baseline", ids=()) -> results.Observability:
     """One pass of the filter over the sequence ms (module doc): {parameters: [{sensor, parameter, unit,
     prior_std, std, ratio, observed}], unobserved: ["sensor parameter"], updates, steps}."""
     r = run_filter(ms, acc_model, gyro_model, ids, max_passes=1)
     ratio = std_ratios(r)
-    rows = [{"sensor": s, "parameter": n, "unit": u, "prior_std": float(np.sqrt(pv)), "std": float(np.sqrt(v)),
+    rows: list[results.Observed] = [{"sensor": s, "parameter": n, "unit": u, "prior_std": float(np.sqrt(pv)), "std": float(np.sqrt(v)),
              "ratio": float(q), "observed": bool(q <= UNOBSERVABLE)}
             for (s, n, u), pv, v, q in zip(names_and_units(r.sensors), r.prior_var[6:], np.diag(r.cov), ratio)]
     return {"parameters": rows, "unobserved": [f"{x['sensor']} {x['parameter']}" for x in rows if not x["observed"]],

@@ -25,7 +25,7 @@ from simucal.fit.candidates import rank_candidates, shape_if_unexplained, test_m
 from simucal.fit.results import ALPHA, ModelTest
 from simucal.fit.distributions import chi2_sf
 from simucal.fit.norm_fit import Fit, Observations, fit_exact
-from simucal.io import units
+from simucal.io import records, units
 from simucal.turntable.plan_design import TableAdvice
 
 ROWS = {"acc": {"static", "rate"}, "gyro": {"rate"}}  # the segment kinds each sensor's test fits
@@ -82,7 +82,7 @@ def rank(model, obs, fit, base, segs=None, at_rest=None):
     return cands, shape_if_unexplained(model, obs, fit, base, cands), table_info
 
 
-def static_gyro_test(ms, gm, fg, u_b, C_b_d, static_gyro, term=None) -> dict:
+def static_gyro_test(ms, gm, fg, u_b, C_b_d, static_gyro, term=None) -> records.StaticRows:
     """The gyro's static rows as part of its model test (issue 38, item 4). At rest a gyro reads the
     Earth rate plus its bias: the fitted model (rate runs only) inverted whole at each static
     position, w = h^-1(N), must show the Earth rate's vertical component w_e sin L along the
@@ -145,11 +145,11 @@ class AtRest:
         self.ms, self.u_b, self.C_b_d, self.static_gyro = ms, u_b, C_b_d, static_gyro
         self.model, self.obs, self.fit = model, obs, fit
 
-    def test(self, term=None) -> dict:
+    def test(self, term=None) -> records.StaticRows:
         """The static rows' test of the model, or of it with a generic term (twin_fits's)."""
         return static_gyro_test(self.ms, self.model, self.fit, self.u_b, self.C_b_d, self.static_gyro, term)
 
-    def with_effect(self, eid) -> dict:
+    def with_effect(self, eid) -> records.StaticRows:
         """The static rows' test of the model with library effect eid added, refitted on the rate runs."""
         model = AugmentedModel(self.model.base, self.model.effects + (eid,))
         try:
@@ -190,7 +190,7 @@ def choose_twin(cands: list[dict], at_rest) -> None:
     cands.insert(at, chosen)
 
 
-def with_static_rows(base: dict, st: dict) -> None:
+def with_static_rows(base: dict, st: records.StaticRows) -> None:
     """A gyro's test block (test_model's) over its rate runs and its static rows together: one chi-square
     where the rate runs' noise is known (test 'chi-square'), else the smaller of the two p-values doubled.
     calibrate and diagnose both call it, so they report the same test."""

@@ -26,11 +26,11 @@ from __future__ import annotations
 
 import os
 import time
-from typing import Any
 
 import numpy as np
 
 from simucal.errors import InputError
+from simucal.io import results
 from simucal.fit.augmented import AugmentedModel, compiled_form
 from simucal.fit.aux_inputs import FORCE, AuxInputs, specific_force
 from simucal.fit.norm_fit import fit_batch
@@ -263,7 +263,7 @@ def _reference(sc: Scenario, am, gm):
     return ref, crlb
 
 
-def run(sc: Scenario, trials: int, seed: int = 0, chunk: int = 2500, progress=None, scheduler=None) -> dict:
+def run(sc: Scenario, trials: int, seed: int = 0, chunk: int = 2500, progress=None, scheduler=None) -> results.MonteCarlo:
     """The Monte Carlo result (module doc) as a dict ready for JSON. Batches of `chunk` trials
     run on the scheduler (sweeps.map_tasks; here on one thread per core), each with its own seed:
     the same numbers on any."""
@@ -278,7 +278,7 @@ def run(sc: Scenario, trials: int, seed: int = 0, chunk: int = 2500, progress=No
     parts = map_tasks(chunk_of_trials, tasks, scheduler, progress, threads=os.cpu_count() or 1)
     failed = [k * chunk + i for k, p in enumerate(parts) for i in p["failed"]]
     secs = time.perf_counter() - t0
-    out: dict[str, Any] = {
+    out: results.MonteCarlo = {
         "format": "simucal.montecarlo/1", "scenario": "paper", "trials": trials, "failed": len(failed),
         "failed_trials": failed[:1000], "seed": seed, "seconds": secs, "trials_per_s": trials / secs,
         "scheduler": scheduler or "local",

@@ -23,6 +23,7 @@ from __future__ import annotations
 import numpy as np
 
 from simucal.errors import CalibrationError
+from simucal.io import results
 from simucal.fit.augmented import AugmentedModel
 from simucal.fit.norm_fit import Observations, normal_equations
 from simucal.generated import table
@@ -46,7 +47,7 @@ def information(model: AugmentedModel, u, rho, sigma, p=None) -> np.ndarray:
     return normal_equations(model, obs, p, u, obs.sigma)[1]
 
 
-def score(model: AugmentedModel, u, rho, sigma) -> dict:
+def score(model: AugmentedModel, u, rho, sigma) -> results.PlanScore:
     """CRLB, correlation, D- and A-criteria of a plan (module doc)."""
     n, m = len(u), len(model.params)
     if n < m:

@@ -1,0 +1,136 @@
+"""What the planning and Monte Carlo commands return, as typed dicts (issue 54, item 2): simucal.plan,
+simucal.montecarlo and simucal.sequence_observability, written by `simucal plan -o` and `simucal montecarlo
+-o` as they are (io/records.py says why typed dicts)."""
+from __future__ import annotations
+
+from typing import TypedDict
+
+
+class PoseAdded(TypedDict):
+    """A position a separation adds: its direction in the table frame k and its rate's scale."""
+    direction_k: list[float]
+    rho: float
+
+
+class PowerAt(TypedDict):
+    noncentrality: list[float]
+    power: list[float]
+
+
+class Separation(TypedDict, total=False):
+    """The positions that tell two effects apart at a power (turntable/plan_design.separate)."""
+    effects: list[str]
+    sizes: list[float]
+    alpha: float
+    target_power: float
+    reached: bool
+    noncentrality: list[float]
+    power: list[float]
+    start: PowerAt
+    added: list[PoseAdded]
+    added_rows: list[list[float]]     # outer_deg, middle_deg, inner_deg of each
+    hints: list[str]
+
+
+class PlanScore(TypedDict, total=False):
+    """A plan scored, or designed, for a model (simucal.plan; turntable/plan_design.score): each
+    parameter's Cramer-Rao bound (crlb, in units), D- and A-criteria, correlations."""
+    plan: str
+    model: str
+    unit: str
+    noise: float                      # one position's mean, in the model's unit
+    sigma: float
+    positions: int
+    rates_dps: list[float] | None
+    D_per_position: float
+    A: float
+    crlb: dict[str, float]
+    units: dict[str, str]
+    correlation: list[list[float]]
+    max_abs_correlation: float
+    rows: list[list[float]]           # a design's positions, in the order of columns
+    columns: str
+    separation: Separation
+
+
+class ParameterSpread(TypedDict):
+    """One parameter over the Monte Carlo trials against its truth and Cramer-Rao bound."""
+    truth: float
+    mean: float
+    std: float
+    crlb: float
+    std_over_crlb: float
+    unit: str
+
+
+class FrameErrors(TypedDict):
+    method: str
+    C_b_d_error_rms_rad: list[float]
+
+
+class MonteCarlo(TypedDict, total=False):
+    """simucal.montecarlo's result (turntable/montecarlo.run), as `simucal montecarlo -o` writes it."""
+    format: str
+    scenario: str
+    scheduler: str
+    seed: int
+    trials: int
+    seconds: float
+    trials_per_s: float
+    failed: int
+    failed_trials: list[int]
+    backend: dict[str, str]
+    parameters: dict[str, ParameterSpread]  # "sensor.parameter"
+    unification: FrameErrors
+
+
+class SequenceStep(TypedDict):
+    """One move of a rotation sequence and the rest after it (turntable/sequence.Step)."""
+    axis: str
+    angle_deg: float
+    rate_dps: float
+    rest_s: float
+
+
+class SequenceRecord(TypedDict, total=False):
+    name: str
+    rate_hz: float
+    steps: list[SequenceStep]
+
+
+class Observed(TypedDict):
+    """A parameter's std after one pass of the sequence filter against its prior (systematic/observability.py)."""
+    sensor: str
+    parameter: str
+    unit: str
+    prior_std: float
+    std: float
+    ratio: float
+    observed: bool
+
+
+class NoisePerSample(TypedDict):
+    acc_g: list[float]
+    gyro_dph: list[float]
+
+
+class Observability(TypedDict, total=False):
+    parameters: list[Observed]
+    unobserved: list[str]
+    threshold: float
+    steps: int
+    updates: int
+    noise_per_sample: NoisePerSample
+
+
+class SequenceObservability(TypedDict, total=False):
+    """simucal.sequence_observability's result: the sequence's stds beside a plan's Cramer-Rao bounds."""
+    sequence: SequenceRecord
+    models: dict[str, str]
+    add: list[str]
+    observability: Observability
+    norm: dict[str, PlanScore]        # per sensor
+    plan: str
+    noise: dict[str, float]           # per sensor: one position's mean
+    rest_n: float
+    stated: bool
