@@ -10,17 +10,18 @@ __version__ = "0.1.0"
 # line's start stay light: simucal.read_set, simucal.calibrate, ... (README, "Python API").
 _API = ("read_set", "simulate", "calibrate", "validate", "diagnose", "noise", "save", "load", "table_rows", "compare",
         "import_recording", "convert", "montecarlo", "calibrate_each", "Calibrated", "plan", "sequence_observability",
-        "derive_model", "audit", "DetectSettings",
+        "derive_model", "audit", "DetectSettings", "CalibrateOptions",
         "MeasurementSet", "Calibration", "Parameter", "Entry", "Validation", "Check", "Diagnosis", "Candidate", "Noise",
         "Term", "lot")
 __all__ = ["__version__", "read_set", "simulate", "calibrate", "validate", "diagnose", "noise", "save", "load",
            "table_rows", "compare", "import_recording", "convert", "montecarlo", "calibrate_each", "Calibrated", "plan",
-           "sequence_observability", "derive_model", "audit", "DetectSettings",
+           "sequence_observability", "derive_model", "audit", "DetectSettings", "CalibrateOptions",
            "MeasurementSet", "Calibration", "Parameter", "Entry", "Validation", "Check",
            "Diagnosis", "Candidate", "Noise", "Term", "lot"]  # the public names (_API, spelt out for type checkers)
 TYPE_CHECKING = False  # typing's constant without importing typing (2 ms); type checkers read it as True
 if TYPE_CHECKING:
-    from simucal.api import (Calibrated, Calibration, Candidate, Check, DetectSettings, Diagnosis, Entry,  # noqa: F401
+    from simucal.api import (CalibrateOptions, Calibrated, Calibration, Candidate, Check, DetectSettings,  # noqa: F401
+                             Diagnosis, Entry,
                              MeasurementSet, Noise, Parameter, Term, Validation, audit, calibrate,
                              calibrate_each, compare, convert, derive_model, diagnose,
                              import_recording, load, montecarlo, noise, plan, read_set, save,

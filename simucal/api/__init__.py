@@ -27,6 +27,7 @@ from simucal.calibrate import calibrate as _calibrate_set
 from simucal.calibrate import calibrate_thermal as _calibrate_thermal
 from simucal.api.calibration import Calibration, Parameter
 from simucal.api.batch import Calibrated, calibrate_each
+from simucal.api.options import CalibrateOptions
 from simucal.api.imports import convert, import_recording
 from simucal.api.planning import plan, sequence_observability
 from simucal.api.tools import audit, derive_model
@@ -39,10 +40,13 @@ from simucal.io import records as _records
 from simucal.validate import validate as _validate_report
 
 Data = Union[str, os.PathLike, io.MeasurementSet]
+TYPE_CHECKING = False
+if TYPE_CHECKING:  # api/options.py says why
+    from typing_extensions import Unpack
 
 __all__ = ["read_set", "simulate", "calibrate", "validate", "diagnose", "noise", "save", "load", "table_rows",
            "compare", "import_recording", "convert", "montecarlo", "calibrate_each", "Calibrated", "plan",
-           "sequence_observability", "derive_model", "audit", "DetectSettings", "MeasurementSet", "Calibration", "Parameter", "Entry",
+           "sequence_observability", "derive_model", "audit", "DetectSettings", "CalibrateOptions", "MeasurementSet", "Calibration", "Parameter", "Entry",
            "Validation", "Check", "Diagnosis", "Candidate", "Noise", "Term", "lot"]
 
 
@@ -73,7 +77,7 @@ def read_set(path: str | os.PathLike) -> MeasurementSet:
     return MeasurementSet.of(io.read_set(path))
 
 
-def calibrate(data: Data | Sequence[str | os.PathLike], **options: Any) -> Calibration:
+def calibrate(data: Data | Sequence[str | os.PathLike], **options: Unpack[CalibrateOptions]) -> Calibration:
     """Calibrate a unit from one measurement set (or, with ``thermal=True``, from plateaus).
 
     Parameters
@@ -105,13 +109,14 @@ def calibrate(data: Data | Sequence[str | os.PathLike], **options: Any) -> Calib
     >>> cal.acc.effects["acc.quadratic.z"].value  # doctest: +SKIP
     0.000198...
     """
-    if "add" in options:
-        options["add"] = effect_ids(options["add"])
-    thermal = options.pop("thermal", False)
+    kw: dict[str, Any] = dict(options)  # the commands' own functions take them by name
+    if "add" in kw:
+        kw["add"] = effect_ids(kw["add"])
+    thermal = kw.pop("thermal", False)
     if thermal or isinstance(data, (list, tuple)):
         sets = list(data) if isinstance(data, (list, tuple)) else [data]
-        return Calibration.of(_calibrate_thermal([as_set(d) for d in sets], **options))
-    return Calibration.of(_calibrate_set(as_set(data), **options))
+        return Calibration.of(_calibrate_thermal([as_set(d) for d in sets], **kw))
+    return Calibration.of(_calibrate_set(as_set(data), **kw))
 
 
 class Check(NamedTuple):

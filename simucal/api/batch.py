@@ -6,19 +6,25 @@ import os
 from pathlib import Path
 from typing import Any, NamedTuple, Sequence
 
+from simucal.api.calibration import Calibration
+from simucal.api.options import CalibrateOptions
 from simucal.errors import InputError
+
+TYPE_CHECKING = False
+if TYPE_CHECKING:  # api/options.py says why
+    from typing_extensions import Unpack
 
 
 class Calibrated(NamedTuple):
     """One set of `calibrate_each`: its folder, its calibration file, and the calibration or the refusal."""
     data: Path
     output: Path
-    calibration: Any     # simucal.Calibration, or None where refused
+    calibration: Calibration | None  # None where refused
     error: str | None    # the refusal's message
 
 
 def calibrate_each(data_dirs: Sequence[str | os.PathLike], folder: str | os.PathLike, *, scheduler: str | None = None,
-                   progress: Any = None, **options: Any) -> list[Calibrated]:
+                   progress: Any = None, **options: Unpack[CalibrateOptions]) -> list[Calibrated]:
     """Calibrate every set of `data_dirs` (as `simucal.calibrate` with `options`) and write each one's file as
     FOLDER/<set's folder name>.json, on a scheduler where given (local, processes or a Dask address).
 
@@ -51,4 +57,5 @@ def calibrate_each(data_dirs: Sequence[str | os.PathLike], folder: str | os.Path
         if made and not any(out.iterdir()):
             out.rmdir()
         raise
-    return [Calibrated(d, path, result, error) for (d, path, _), (result, error) in zip(tasks, done)]
+    return [Calibrated(d, path, None if result is None else Calibration.of(result), error)
+            for (d, path, _), (result, error) in zip(tasks, done)]
