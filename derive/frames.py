@@ -77,9 +77,16 @@ AUX_INPUTS = {a.name: a for a in (
     AuxInput("f_y", "g", "specific force along y of b", "specific force"),
     AuxInput("f_z", "g", "specific force along z of b", "specific force"),
     AuxInput("w2", "1/m", "centripetal scale w_T^2 / g of the outer-axis rate (0 at rest)", "table rate"),
+    *(AuxInput(f"wb_{a}", "rad/s", f"body rate about {a} of b, as the gyros measure it (0 at rest)", "body rate")
+      for a in AXES),
+    *(AuxInput(f"dwb_{a}", "rad/s^2", f"angular acceleration about {a} of b, the body rate's change", "body rate")
+      for a in AXES),
 )}
-SENSOR_AUX = {"acc": ("temp_c", "dtemp_c", "t_s", "w2"), "gyro": ("temp_c", "dtemp_c", "t_s", "f_x", "f_y", "f_z")}
+SENSOR_AUX = {"acc": ("temp_c", "dtemp_c", "t_s", "w2", "wb_x", "wb_y", "wb_z", "dwb_x", "dwb_y", "dwb_z"),
+              "gyro": ("temp_c", "dtemp_c", "t_s", "f_x", "f_y", "f_z")}
 temp_c, dtemp_c, t_s, w2 = (AUX_INPUTS[n].symbol for n in ("temp_c", "dtemp_c", "t_s", "w2"))
+omega_b = sp.Matrix([AUX_INPUTS[f"wb_{a}"].symbol for a in AXES])   # rad/s: what accelerometer terms see of the motion
+domega_b = sp.Matrix([AUX_INPUTS[f"dwb_{a}"].symbol for a in AXES])  # rad/s^2
 _COLUMN_INPUTS: dict[str, AuxInput] = {}
 
 

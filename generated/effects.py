@@ -18,10 +18,10 @@ class Effect(NamedTuple):
     reads: tuple = ()  # the auxiliary inputs its regressor reads (temp_c, dtemp_c, t_s, ...)
 
 
-AUX = {'acc': ('temp_c', 'dtemp_c', 't_s', 'w2'), 'gyro': ('temp_c', 'dtemp_c', 't_s', 'f_x', 'f_y', 'f_z')}  # the aux argument of each sensor's phi, by name (derive/frames.py)
+AUX = {'acc': ('temp_c', 'dtemp_c', 't_s', 'w2', 'wb_x', 'wb_y', 'wb_z', 'dwb_x', 'dwb_y', 'dwb_z'), 'gyro': ('temp_c', 'dtemp_c', 't_s', 'f_x', 'f_y', 'f_z')}  # the aux argument of each sensor's phi, by name (derive/frames.py)
 
 
-def phi_acc_bias_drift_time_x(u, aux=numpy.zeros(4)):
+def phi_acc_bias_drift_time_x(u, aux=numpy.zeros(10)):
     """acc.bias_drift_time.x: phi = t_s and dphi/du."""
     f_x = u[..., 0]
     f_y = u[..., 1]
@@ -30,7 +30,13 @@ def phi_acc_bias_drift_time_x(u, aux=numpy.zeros(4)):
     dtemp_c = aux[..., 1]
     t_s = aux[..., 2]
     w2 = aux[..., 3]
-    shape = numpy.broadcast_shapes(numpy.shape(f_x), numpy.shape(f_y), numpy.shape(f_z), numpy.shape(temp_c), numpy.shape(dtemp_c), numpy.shape(t_s), numpy.shape(w2), )
+    wb_x = aux[..., 4]
+    wb_y = aux[..., 5]
+    wb_z = aux[..., 6]
+    dwb_x = aux[..., 7]
+    dwb_y = aux[..., 8]
+    dwb_z = aux[..., 9]
+    shape = numpy.broadcast_shapes(numpy.shape(f_x), numpy.shape(f_y), numpy.shape(f_z), numpy.shape(temp_c), numpy.shape(dtemp_c), numpy.shape(t_s), numpy.shape(w2), numpy.shape(wb_x), numpy.shape(wb_y), numpy.shape(wb_z), numpy.shape(dwb_x), numpy.shape(dwb_y), numpy.shape(dwb_z), )
     out0 = numpy.empty(shape + (1,))
     out0[..., 0] = t_s
     out1 = numpy.empty(shape + (3,))
@@ -40,7 +46,7 @@ def phi_acc_bias_drift_time_x(u, aux=numpy.zeros(4)):
     return out0, out1
 
 
-def phi_acc_bias_drift_time_y(u, aux=numpy.zeros(4)):
+def phi_acc_bias_drift_time_y(u, aux=numpy.zeros(10)):
     """acc.bias_drift_time.y: phi = t_s and dphi/du."""
     f_x = u[..., 0]
     f_y = u[..., 1]
@@ -49,7 +55,13 @@ def phi_acc_bias_drift_time_y(u, aux=numpy.zeros(4)):
     dtemp_c = aux[..., 1]
     t_s = aux[..., 2]
     w2 = aux[..., 3]
-    shape = numpy.broadcast_shapes(numpy.shape(f_x), numpy.shape(f_y), numpy.shape(f_z), numpy.shape(temp_c), numpy.shape(dtemp_c), numpy.shape(t_s), numpy.shape(w2), )
+    wb_x = aux[..., 4]
+    wb_y = aux[..., 5]
+    wb_z = aux[..., 6]
+    dwb_x = aux[..., 7]
+    dwb_y = aux[..., 8]
+    dwb_z = aux[..., 9]
+    shape = numpy.broadcast_shapes(numpy.shape(f_x), numpy.shape(f_y), numpy.shape(f_z), numpy.shape(temp_c), numpy.shape(dtemp_c), numpy.shape(t_s), numpy.shape(w2), numpy.shape(wb_x), numpy.shape(wb_y), numpy.shape(wb_z), numpy.shape(dwb_x), numpy.shape(dwb_y), numpy.shape(dwb_z), )
     out0 = numpy.empty(shape + (1,))
     out0[..., 0] = t_s
     out1 = numpy.empty(shape + (3,))
@@ -59,7 +71,7 @@ def phi_acc_bias_drift_time_y(u, aux=numpy.zeros(4)):
     return out0, out1
 
 
-def phi_acc_bias_drift_time_z(u, aux=numpy.zeros(4)):
+def phi_acc_bias_drift_time_z(u, aux=numpy.zeros(10)):
     """acc.bias_drift_time.z: phi = t_s and dphi/du."""
     f_x = u[..., 0]
     f_y = u[..., 1]
@@ -68,7 +80,13 @@ def phi_acc_bias_drift_time_z(u, aux=numpy.zeros(4)):
     dtemp_c = aux[..., 1]
     t_s = aux[..., 2]
     w2 = aux[..., 3]
-    shape = numpy.broadcast_shapes(numpy.shape(f_x), numpy.shape(f_y), numpy.shape(f_z), numpy.shape(temp_c), numpy.shape(dtemp_c), numpy.shape(t_s), numpy.shape(w2), )
+    wb_x = aux[..., 4]
+    wb_y = aux[..., 5]
+    wb_z = aux[..., 6]
+    dwb_x = aux[..., 7]
+    dwb_y = aux[..., 8]
+    dwb_z = aux[..., 9]
+    shape = numpy.broadcast_shapes(numpy.shape(f_x), numpy.shape(f_y), numpy.shape(f_z), numpy.shape(temp_c), numpy.shape(dtemp_c), numpy.shape(t_s), numpy.shape(w2), numpy.shape(wb_x), numpy.shape(wb_y), numpy.shape(wb_z), numpy.shape(dwb_x), numpy.shape(dwb_y), numpy.shape(dwb_z), )
     out0 = numpy.empty(shape + (1,))
     out0[..., 0] = t_s
     out1 = numpy.empty(shape + (3,))
@@ -78,7 +96,7 @@ def phi_acc_bias_drift_time_z(u, aux=numpy.zeros(4)):
     return out0, out1
 
 
-def phi_acc_bias_temperature_x(u, aux=numpy.zeros(4)):
+def phi_acc_bias_temperature_x(u, aux=numpy.zeros(10)):
     """acc.bias_temperature.x: phi = dtemp_c and dphi/du."""
     f_x = u[..., 0]
     f_y = u[..., 1]
@@ -87,7 +105,13 @@ def phi_acc_bias_temperature_x(u, aux=numpy.zeros(4)):
     dtemp_c = aux[..., 1]
     t_s = aux[..., 2]
     w2 = aux[..., 3]
-    shape = numpy.broadcast_shapes(numpy.shape(f_x), numpy.shape(f_y), numpy.shape(f_z), numpy.shape(temp_c), numpy.shape(dtemp_c), numpy.shape(t_s), numpy.shape(w2), )
+    wb_x = aux[..., 4]
+    wb_y = aux[..., 5]
+    wb_z = aux[..., 6]
+    dwb_x = aux[..., 7]
+    dwb_y = aux[..., 8]
+    dwb_z = aux[..., 9]
+    shape = numpy.broadcast_shapes(numpy.shape(f_x), numpy.shape(f_y), numpy.shape(f_z), numpy.shape(temp_c), numpy.shape(dtemp_c), numpy.shape(t_s), numpy.shape(w2), numpy.shape(wb_x), numpy.shape(wb_y), numpy.shape(wb_z), numpy.shape(dwb_x), numpy.shape(dwb_y), numpy.shape(dwb_z), )
     out0 = numpy.empty(shape + (1,))
     out0[..., 0] = dtemp_c
     out1 = numpy.empty(shape + (3,))
@@ -97,7 +121,7 @@ def phi_acc_bias_temperature_x(u, aux=numpy.zeros(4)):
     return out0, out1
 
 
-def phi_acc_bias_temperature_y(u, aux=numpy.zeros(4)):
+def phi_acc_bias_temperature_y(u, aux=numpy.zeros(10)):
     """acc.bias_temperature.y: phi = dtemp_c and dphi/du."""
     f_x = u[..., 0]
     f_y = u[..., 1]
@@ -106,7 +130,13 @@ def phi_acc_bias_temperature_y(u, aux=numpy.zeros(4)):
     dtemp_c = aux[..., 1]
     t_s = aux[..., 2]
     w2 = aux[..., 3]
-    shape = numpy.broadcast_shapes(numpy.shape(f_x), numpy.shape(f_y), numpy.shape(f_z), numpy.shape(temp_c), numpy.shape(dtemp_c), numpy.shape(t_s), numpy.shape(w2), )
+    wb_x = aux[..., 4]
+    wb_y = aux[..., 5]
+    wb_z = aux[..., 6]
+    dwb_x = aux[..., 7]
+    dwb_y = aux[..., 8]
+    dwb_z = aux[..., 9]
+    shape = numpy.broadcast_shapes(numpy.shape(f_x), numpy.shape(f_y), numpy.shape(f_z), numpy.shape(temp_c), numpy.shape(dtemp_c), numpy.shape(t_s), numpy.shape(w2), numpy.shape(wb_x), numpy.shape(wb_y), numpy.shape(wb_z), numpy.shape(dwb_x), numpy.shape(dwb_y), numpy.shape(dwb_z), )
     out0 = numpy.empty(shape + (1,))
     out0[..., 0] = dtemp_c
     out1 = numpy.empty(shape + (3,))
@@ -116,7 +146,7 @@ def phi_acc_bias_temperature_y(u, aux=numpy.zeros(4)):
     return out0, out1
 
 
-def phi_acc_bias_temperature_z(u, aux=numpy.zeros(4)):
+def phi_acc_bias_temperature_z(u, aux=numpy.zeros(10)):
     """acc.bias_temperature.z: phi = dtemp_c and dphi/du."""
     f_x = u[..., 0]
     f_y = u[..., 1]
@@ -125,7 +155,13 @@ def phi_acc_bias_temperature_z(u, aux=numpy.zeros(4)):
     dtemp_c = aux[..., 1]
     t_s = aux[..., 2]
     w2 = aux[..., 3]
-    shape = numpy.broadcast_shapes(numpy.shape(f_x), numpy.shape(f_y), numpy.shape(f_z), numpy.shape(temp_c), numpy.shape(dtemp_c), numpy.shape(t_s), numpy.shape(w2), )
+    wb_x = aux[..., 4]
+    wb_y = aux[..., 5]
+    wb_z = aux[..., 6]
+    dwb_x = aux[..., 7]
+    dwb_y = aux[..., 8]
+    dwb_z = aux[..., 9]
+    shape = numpy.broadcast_shapes(numpy.shape(f_x), numpy.shape(f_y), numpy.shape(f_z), numpy.shape(temp_c), numpy.shape(dtemp_c), numpy.shape(t_s), numpy.shape(w2), numpy.shape(wb_x), numpy.shape(wb_y), numpy.shape(wb_z), numpy.shape(dwb_x), numpy.shape(dwb_y), numpy.shape(dwb_z), )
     out0 = numpy.empty(shape + (1,))
     out0[..., 0] = dtemp_c
     out1 = numpy.empty(shape + (3,))
@@ -135,7 +171,7 @@ def phi_acc_bias_temperature_z(u, aux=numpy.zeros(4)):
     return out0, out1
 
 
-def phi_acc_bias_temperature2_x(u, aux=numpy.zeros(4)):
+def phi_acc_bias_temperature2_x(u, aux=numpy.zeros(10)):
     """acc.bias_temperature2.x: phi = dtemp_c**2 and dphi/du."""
     f_x = u[..., 0]
     f_y = u[..., 1]
@@ -144,7 +180,13 @@ def phi_acc_bias_temperature2_x(u, aux=numpy.zeros(4)):
     dtemp_c = aux[..., 1]
     t_s = aux[..., 2]
     w2 = aux[..., 3]
-    shape = numpy.broadcast_shapes(numpy.shape(f_x), numpy.shape(f_y), numpy.shape(f_z), numpy.shape(temp_c), numpy.shape(dtemp_c), numpy.shape(t_s), numpy.shape(w2), )
+    wb_x = aux[..., 4]
+    wb_y = aux[..., 5]
+    wb_z = aux[..., 6]
+    dwb_x = aux[..., 7]
+    dwb_y = aux[..., 8]
+    dwb_z = aux[..., 9]
+    shape = numpy.broadcast_shapes(numpy.shape(f_x), numpy.shape(f_y), numpy.shape(f_z), numpy.shape(temp_c), numpy.shape(dtemp_c), numpy.shape(t_s), numpy.shape(w2), numpy.shape(wb_x), numpy.shape(wb_y), numpy.shape(wb_z), numpy.shape(dwb_x), numpy.shape(dwb_y), numpy.shape(dwb_z), )
     out0 = numpy.empty(shape + (1,))
     out0[..., 0] = dtemp_c**2
     out1 = numpy.empty(shape + (3,))
@@ -154,7 +196,7 @@ def phi_acc_bias_temperature2_x(u, aux=numpy.zeros(4)):
     return out0, out1
 
 
-def phi_acc_bias_temperature2_y(u, aux=numpy.zeros(4)):
+def phi_acc_bias_temperature2_y(u, aux=numpy.zeros(10)):
     """acc.bias_temperature2.y: phi = dtemp_c**2 and dphi/du."""
     f_x = u[..., 0]
     f_y = u[..., 1]
@@ -163,7 +205,13 @@ def phi_acc_bias_temperature2_y(u, aux=numpy.zeros(4)):
     dtemp_c = aux[..., 1]
     t_s = aux[..., 2]
     w2 = aux[..., 3]
-    shape = numpy.broadcast_shapes(numpy.shape(f_x), numpy.shape(f_y), numpy.shape(f_z), numpy.shape(temp_c), numpy.shape(dtemp_c), numpy.shape(t_s), numpy.shape(w2), )
+    wb_x = aux[..., 4]
+    wb_y = aux[..., 5]
+    wb_z = aux[..., 6]
+    dwb_x = aux[..., 7]
+    dwb_y = aux[..., 8]
+    dwb_z = aux[..., 9]
+    shape = numpy.broadcast_shapes(numpy.shape(f_x), numpy.shape(f_y), numpy.shape(f_z), numpy.shape(temp_c), numpy.shape(dtemp_c), numpy.shape(t_s), numpy.shape(w2), numpy.shape(wb_x), numpy.shape(wb_y), numpy.shape(wb_z), numpy.shape(dwb_x), numpy.shape(dwb_y), numpy.shape(dwb_z), )
     out0 = numpy.empty(shape + (1,))
     out0[..., 0] = dtemp_c**2
     out1 = numpy.empty(shape + (3,))
@@ -173,7 +221,7 @@ def phi_acc_bias_temperature2_y(u, aux=numpy.zeros(4)):
     return out0, out1
 
 
-def phi_acc_bias_temperature2_z(u, aux=numpy.zeros(4)):
+def phi_acc_bias_temperature2_z(u, aux=numpy.zeros(10)):
     """acc.bias_temperature2.z: phi = dtemp_c**2 and dphi/du."""
     f_x = u[..., 0]
     f_y = u[..., 1]
@@ -182,7 +230,13 @@ def phi_acc_bias_temperature2_z(u, aux=numpy.zeros(4)):
     dtemp_c = aux[..., 1]
     t_s = aux[..., 2]
     w2 = aux[..., 3]
-    shape = numpy.broadcast_shapes(numpy.shape(f_x), numpy.shape(f_y), numpy.shape(f_z), numpy.shape(temp_c), numpy.shape(dtemp_c), numpy.shape(t_s), numpy.shape(w2), )
+    wb_x = aux[..., 4]
+    wb_y = aux[..., 5]
+    wb_z = aux[..., 6]
+    dwb_x = aux[..., 7]
+    dwb_y = aux[..., 8]
+    dwb_z = aux[..., 9]
+    shape = numpy.broadcast_shapes(numpy.shape(f_x), numpy.shape(f_y), numpy.shape(f_z), numpy.shape(temp_c), numpy.shape(dtemp_c), numpy.shape(t_s), numpy.shape(w2), numpy.shape(wb_x), numpy.shape(wb_y), numpy.shape(wb_z), numpy.shape(dwb_x), numpy.shape(dwb_y), numpy.shape(dwb_z), )
     out0 = numpy.empty(shape + (1,))
     out0[..., 0] = dtemp_c**2
     out1 = numpy.empty(shape + (3,))
@@ -192,7 +246,7 @@ def phi_acc_bias_temperature2_z(u, aux=numpy.zeros(4)):
     return out0, out1
 
 
-def phi_acc_bias_temperature3_x(u, aux=numpy.zeros(4)):
+def phi_acc_bias_temperature3_x(u, aux=numpy.zeros(10)):
     """acc.bias_temperature3.x: phi = dtemp_c**3 and dphi/du."""
     f_x = u[..., 0]
     f_y = u[..., 1]
@@ -201,7 +255,13 @@ def phi_acc_bias_temperature3_x(u, aux=numpy.zeros(4)):
     dtemp_c = aux[..., 1]
     t_s = aux[..., 2]
     w2 = aux[..., 3]
-    shape = numpy.broadcast_shapes(numpy.shape(f_x), numpy.shape(f_y), numpy.shape(f_z), numpy.shape(temp_c), numpy.shape(dtemp_c), numpy.shape(t_s), numpy.shape(w2), )
+    wb_x = aux[..., 4]
+    wb_y = aux[..., 5]
+    wb_z = aux[..., 6]
+    dwb_x = aux[..., 7]
+    dwb_y = aux[..., 8]
+    dwb_z = aux[..., 9]
+    shape = numpy.broadcast_shapes(numpy.shape(f_x), numpy.shape(f_y), numpy.shape(f_z), numpy.shape(temp_c), numpy.shape(dtemp_c), numpy.shape(t_s), numpy.shape(w2), numpy.shape(wb_x), numpy.shape(wb_y), numpy.shape(wb_z), numpy.shape(dwb_x), numpy.shape(dwb_y), numpy.shape(dwb_z), )
     out0 = numpy.empty(shape + (1,))
     out0[..., 0] = dtemp_c**3
     out1 = numpy.empty(shape + (3,))
@@ -211,7 +271,7 @@ def phi_acc_bias_temperature3_x(u, aux=numpy.zeros(4)):
     return out0, out1
 
 
-def phi_acc_bias_temperature3_y(u, aux=numpy.zeros(4)):
+def phi_acc_bias_temperature3_y(u, aux=numpy.zeros(10)):
     """acc.bias_temperature3.y: phi = dtemp_c**3 and dphi/du."""
     f_x = u[..., 0]
     f_y = u[..., 1]
@@ -220,7 +280,13 @@ def phi_acc_bias_temperature3_y(u, aux=numpy.zeros(4)):
     dtemp_c = aux[..., 1]
     t_s = aux[..., 2]
     w2 = aux[..., 3]
-    shape = numpy.broadcast_shapes(numpy.shape(f_x), numpy.shape(f_y), numpy.shape(f_z), numpy.shape(temp_c), numpy.shape(dtemp_c), numpy.shape(t_s), numpy.shape(w2), )
+    wb_x = aux[..., 4]
+    wb_y = aux[..., 5]
+    wb_z = aux[..., 6]
+    dwb_x = aux[..., 7]
+    dwb_y = aux[..., 8]
+    dwb_z = aux[..., 9]
+    shape = numpy.broadcast_shapes(numpy.shape(f_x), numpy.shape(f_y), numpy.shape(f_z), numpy.shape(temp_c), numpy.shape(dtemp_c), numpy.shape(t_s), numpy.shape(w2), numpy.shape(wb_x), numpy.shape(wb_y), numpy.shape(wb_z), numpy.shape(dwb_x), numpy.shape(dwb_y), numpy.shape(dwb_z), )
     out0 = numpy.empty(shape + (1,))
     out0[..., 0] = dtemp_c**3
     out1 = numpy.empty(shape + (3,))
@@ -230,7 +296,7 @@ def phi_acc_bias_temperature3_y(u, aux=numpy.zeros(4)):
     return out0, out1
 
 
-def phi_acc_bias_temperature3_z(u, aux=numpy.zeros(4)):
+def phi_acc_bias_temperature3_z(u, aux=numpy.zeros(10)):
     """acc.bias_temperature3.z: phi = dtemp_c**3 and dphi/du."""
     f_x = u[..., 0]
     f_y = u[..., 1]
@@ -239,7 +305,13 @@ def phi_acc_bias_temperature3_z(u, aux=numpy.zeros(4)):
     dtemp_c = aux[..., 1]
     t_s = aux[..., 2]
     w2 = aux[..., 3]
-    shape = numpy.broadcast_shapes(numpy.shape(f_x), numpy.shape(f_y), numpy.shape(f_z), numpy.shape(temp_c), numpy.shape(dtemp_c), numpy.shape(t_s), numpy.shape(w2), )
+    wb_x = aux[..., 4]
+    wb_y = aux[..., 5]
+    wb_z = aux[..., 6]
+    dwb_x = aux[..., 7]
+    dwb_y = aux[..., 8]
+    dwb_z = aux[..., 9]
+    shape = numpy.broadcast_shapes(numpy.shape(f_x), numpy.shape(f_y), numpy.shape(f_z), numpy.shape(temp_c), numpy.shape(dtemp_c), numpy.shape(t_s), numpy.shape(w2), numpy.shape(wb_x), numpy.shape(wb_y), numpy.shape(wb_z), numpy.shape(dwb_x), numpy.shape(dwb_y), numpy.shape(dwb_z), )
     out0 = numpy.empty(shape + (1,))
     out0[..., 0] = dtemp_c**3
     out1 = numpy.empty(shape + (3,))
@@ -249,7 +321,7 @@ def phi_acc_bias_temperature3_z(u, aux=numpy.zeros(4)):
     return out0, out1
 
 
-def phi_acc_cross_coupling_xy(u, aux=numpy.zeros(4)):
+def phi_acc_cross_coupling_xy(u, aux=numpy.zeros(10)):
     """acc.cross_coupling.xy: phi = f_x*f_y and dphi/du."""
     f_x = u[..., 0]
     f_y = u[..., 1]
@@ -258,7 +330,13 @@ def phi_acc_cross_coupling_xy(u, aux=numpy.zeros(4)):
     dtemp_c = aux[..., 1]
     t_s = aux[..., 2]
     w2 = aux[..., 3]
-    shape = numpy.broadcast_shapes(numpy.shape(f_x), numpy.shape(f_y), numpy.shape(f_z), numpy.shape(temp_c), numpy.shape(dtemp_c), numpy.shape(t_s), numpy.shape(w2), )
+    wb_x = aux[..., 4]
+    wb_y = aux[..., 5]
+    wb_z = aux[..., 6]
+    dwb_x = aux[..., 7]
+    dwb_y = aux[..., 8]
+    dwb_z = aux[..., 9]
+    shape = numpy.broadcast_shapes(numpy.shape(f_x), numpy.shape(f_y), numpy.shape(f_z), numpy.shape(temp_c), numpy.shape(dtemp_c), numpy.shape(t_s), numpy.shape(w2), numpy.shape(wb_x), numpy.shape(wb_y), numpy.shape(wb_z), numpy.shape(dwb_x), numpy.shape(dwb_y), numpy.shape(dwb_z), )
     out0 = numpy.empty(shape + (1,))
     out0[..., 0] = f_x*f_y
     out1 = numpy.empty(shape + (3,))
@@ -268,7 +346,7 @@ def phi_acc_cross_coupling_xy(u, aux=numpy.zeros(4)):
     return out0, out1
 
 
-def phi_acc_cross_coupling_xz(u, aux=numpy.zeros(4)):
+def phi_acc_cross_coupling_xz(u, aux=numpy.zeros(10)):
     """acc.cross_coupling.xz: phi = f_x*f_z and dphi/du."""
     f_x = u[..., 0]
     f_y = u[..., 1]
@@ -277,7 +355,13 @@ def phi_acc_cross_coupling_xz(u, aux=numpy.zeros(4)):
     dtemp_c = aux[..., 1]
     t_s = aux[..., 2]
     w2 = aux[..., 3]
-    shape = numpy.broadcast_shapes(numpy.shape(f_x), numpy.shape(f_y), numpy.shape(f_z), numpy.shape(temp_c), numpy.shape(dtemp_c), numpy.shape(t_s), numpy.shape(w2), )
+    wb_x = aux[..., 4]
+    wb_y = aux[..., 5]
+    wb_z = aux[..., 6]
+    dwb_x = aux[..., 7]
+    dwb_y = aux[..., 8]
+    dwb_z = aux[..., 9]
+    shape = numpy.broadcast_shapes(numpy.shape(f_x), numpy.shape(f_y), numpy.shape(f_z), numpy.shape(temp_c), numpy.shape(dtemp_c), numpy.shape(t_s), numpy.shape(w2), numpy.shape(wb_x), numpy.shape(wb_y), numpy.shape(wb_z), numpy.shape(dwb_x), numpy.shape(dwb_y), numpy.shape(dwb_z), )
     out0 = numpy.empty(shape + (1,))
     out0[..., 0] = f_x*f_z
     out1 = numpy.empty(shape + (3,))
@@ -287,7 +371,7 @@ def phi_acc_cross_coupling_xz(u, aux=numpy.zeros(4)):
     return out0, out1
 
 
-def phi_acc_cross_coupling_yx(u, aux=numpy.zeros(4)):
+def phi_acc_cross_coupling_yx(u, aux=numpy.zeros(10)):
     """acc.cross_coupling.yx: phi = f_x*f_y and dphi/du."""
     f_x = u[..., 0]
     f_y = u[..., 1]
@@ -296,7 +380,13 @@ def phi_acc_cross_coupling_yx(u, aux=numpy.zeros(4)):
     dtemp_c = aux[..., 1]
     t_s = aux[..., 2]
     w2 = aux[..., 3]
-    shape = numpy.broadcast_shapes(numpy.shape(f_x), numpy.shape(f_y), numpy.shape(f_z), numpy.shape(temp_c), numpy.shape(dtemp_c), numpy.shape(t_s), numpy.shape(w2), )
+    wb_x = aux[..., 4]
+    wb_y = aux[..., 5]
+    wb_z = aux[..., 6]
+    dwb_x = aux[..., 7]
+    dwb_y = aux[..., 8]
+    dwb_z = aux[..., 9]
+    shape = numpy.broadcast_shapes(numpy.shape(f_x), numpy.shape(f_y), numpy.shape(f_z), numpy.shape(temp_c), numpy.shape(dtemp_c), numpy.shape(t_s), numpy.shape(w2), numpy.shape(wb_x), numpy.shape(wb_y), numpy.shape(wb_z), numpy.shape(dwb_x), numpy.shape(dwb_y), numpy.shape(dwb_z), )
     out0 = numpy.empty(shape + (1,))
     out0[..., 0] = f_x*f_y
     out1 = numpy.empty(shape + (3,))
@@ -306,7 +396,7 @@ def phi_acc_cross_coupling_yx(u, aux=numpy.zeros(4)):
     return out0, out1
 
 
-def phi_acc_cross_coupling_yz(u, aux=numpy.zeros(4)):
+def phi_acc_cross_coupling_yz(u, aux=numpy.zeros(10)):
     """acc.cross_coupling.yz: phi = f_y*f_z and dphi/du."""
     f_x = u[..., 0]
     f_y = u[..., 1]
@@ -315,7 +405,13 @@ def phi_acc_cross_coupling_yz(u, aux=numpy.zeros(4)):
     dtemp_c = aux[..., 1]
     t_s = aux[..., 2]
     w2 = aux[..., 3]
-    shape = numpy.broadcast_shapes(numpy.shape(f_x), numpy.shape(f_y), numpy.shape(f_z), numpy.shape(temp_c), numpy.shape(dtemp_c), numpy.shape(t_s), numpy.shape(w2), )
+    wb_x = aux[..., 4]
+    wb_y = aux[..., 5]
+    wb_z = aux[..., 6]
+    dwb_x = aux[..., 7]
+    dwb_y = aux[..., 8]
+    dwb_z = aux[..., 9]
+    shape = numpy.broadcast_shapes(numpy.shape(f_x), numpy.shape(f_y), numpy.shape(f_z), numpy.shape(temp_c), numpy.shape(dtemp_c), numpy.shape(t_s), numpy.shape(w2), numpy.shape(wb_x), numpy.shape(wb_y), numpy.shape(wb_z), numpy.shape(dwb_x), numpy.shape(dwb_y), numpy.shape(dwb_z), )
     out0 = numpy.empty(shape + (1,))
     out0[..., 0] = f_y*f_z
     out1 = numpy.empty(shape + (3,))
@@ -325,7 +421,7 @@ def phi_acc_cross_coupling_yz(u, aux=numpy.zeros(4)):
     return out0, out1
 
 
-def phi_acc_cross_coupling_zx(u, aux=numpy.zeros(4)):
+def phi_acc_cross_coupling_zx(u, aux=numpy.zeros(10)):
     """acc.cross_coupling.zx: phi = f_x*f_z and dphi/du."""
     f_x = u[..., 0]
     f_y = u[..., 1]
@@ -334,7 +430,13 @@ def phi_acc_cross_coupling_zx(u, aux=numpy.zeros(4)):
     dtemp_c = aux[..., 1]
     t_s = aux[..., 2]
     w2 = aux[..., 3]
-    shape = numpy.broadcast_shapes(numpy.shape(f_x), numpy.shape(f_y), numpy.shape(f_z), numpy.shape(temp_c), numpy.shape(dtemp_c), numpy.shape(t_s), numpy.shape(w2), )
+    wb_x = aux[..., 4]
+    wb_y = aux[..., 5]
+    wb_z = aux[..., 6]
+    dwb_x = aux[..., 7]
+    dwb_y = aux[..., 8]
+    dwb_z = aux[..., 9]
+    shape = numpy.broadcast_shapes(numpy.shape(f_x), numpy.shape(f_y), numpy.shape(f_z), numpy.shape(temp_c), numpy.shape(dtemp_c), numpy.shape(t_s), numpy.shape(w2), numpy.shape(wb_x), numpy.shape(wb_y), numpy.shape(wb_z), numpy.shape(dwb_x), numpy.shape(dwb_y), numpy.shape(dwb_z), )
     out0 = numpy.empty(shape + (1,))
     out0[..., 0] = f_x*f_z
     out1 = numpy.empty(shape + (3,))
@@ -344,7 +446,7 @@ def phi_acc_cross_coupling_zx(u, aux=numpy.zeros(4)):
     return out0, out1
 
 
-def phi_acc_cross_coupling_zy(u, aux=numpy.zeros(4)):
+def phi_acc_cross_coupling_zy(u, aux=numpy.zeros(10)):
     """acc.cross_coupling.zy: phi = f_y*f_z and dphi/du."""
     f_x = u[..., 0]
     f_y = u[..., 1]
@@ -353,7 +455,13 @@ def phi_acc_cross_coupling_zy(u, aux=numpy.zeros(4)):
     dtemp_c = aux[..., 1]
     t_s = aux[..., 2]
     w2 = aux[..., 3]
-    shape = numpy.broadcast_shapes(numpy.shape(f_x), numpy.shape(f_y), numpy.shape(f_z), numpy.shape(temp_c), numpy.shape(dtemp_c), numpy.shape(t_s), numpy.shape(w2), )
+    wb_x = aux[..., 4]
+    wb_y = aux[..., 5]
+    wb_z = aux[..., 6]
+    dwb_x = aux[..., 7]
+    dwb_y = aux[..., 8]
+    dwb_z = aux[..., 9]
+    shape = numpy.broadcast_shapes(numpy.shape(f_x), numpy.shape(f_y), numpy.shape(f_z), numpy.shape(temp_c), numpy.shape(dtemp_c), numpy.shape(t_s), numpy.shape(w2), numpy.shape(wb_x), numpy.shape(wb_y), numpy.shape(wb_z), numpy.shape(dwb_x), numpy.shape(dwb_y), numpy.shape(dwb_z), )
     out0 = numpy.empty(shape + (1,))
     out0[..., 0] = f_y*f_z
     out1 = numpy.empty(shape + (3,))
@@ -363,7 +471,157 @@ def phi_acc_cross_coupling_zy(u, aux=numpy.zeros(4)):
     return out0, out1
 
 
-def phi_acc_quadratic_x(u, aux=numpy.zeros(4)):
+def phi_acc_lever_arm_yx(u, aux=numpy.zeros(10)):
+    """acc.lever_arm.yx: phi = 0.101971621297793*dwb_z + 0.101971621297793*wb_x*wb_y and dphi/du."""
+    f_x = u[..., 0]
+    f_y = u[..., 1]
+    f_z = u[..., 2]
+    temp_c = aux[..., 0]
+    dtemp_c = aux[..., 1]
+    t_s = aux[..., 2]
+    w2 = aux[..., 3]
+    wb_x = aux[..., 4]
+    wb_y = aux[..., 5]
+    wb_z = aux[..., 6]
+    dwb_x = aux[..., 7]
+    dwb_y = aux[..., 8]
+    dwb_z = aux[..., 9]
+    shape = numpy.broadcast_shapes(numpy.shape(f_x), numpy.shape(f_y), numpy.shape(f_z), numpy.shape(temp_c), numpy.shape(dtemp_c), numpy.shape(t_s), numpy.shape(w2), numpy.shape(wb_x), numpy.shape(wb_y), numpy.shape(wb_z), numpy.shape(dwb_x), numpy.shape(dwb_y), numpy.shape(dwb_z), )
+    out0 = numpy.empty(shape + (1,))
+    out0[..., 0] = 0.101971621297793*dwb_z + 0.101971621297793*wb_x*wb_y
+    out1 = numpy.empty(shape + (3,))
+    out1[..., 0] = 0
+    out1[..., 1] = 0
+    out1[..., 2] = 0
+    return out0, out1
+
+
+def phi_acc_lever_arm_yy(u, aux=numpy.zeros(10)):
+    """acc.lever_arm.yy: phi = -0.101971621297793*wb_x**2 - 0.101971621297793*wb_z**2 and dphi/du."""
+    f_x = u[..., 0]
+    f_y = u[..., 1]
+    f_z = u[..., 2]
+    temp_c = aux[..., 0]
+    dtemp_c = aux[..., 1]
+    t_s = aux[..., 2]
+    w2 = aux[..., 3]
+    wb_x = aux[..., 4]
+    wb_y = aux[..., 5]
+    wb_z = aux[..., 6]
+    dwb_x = aux[..., 7]
+    dwb_y = aux[..., 8]
+    dwb_z = aux[..., 9]
+    shape = numpy.broadcast_shapes(numpy.shape(f_x), numpy.shape(f_y), numpy.shape(f_z), numpy.shape(temp_c), numpy.shape(dtemp_c), numpy.shape(t_s), numpy.shape(w2), numpy.shape(wb_x), numpy.shape(wb_y), numpy.shape(wb_z), numpy.shape(dwb_x), numpy.shape(dwb_y), numpy.shape(dwb_z), )
+    out0 = numpy.empty(shape + (1,))
+    out0[..., 0] = -0.101971621297793*wb_x**2 - 0.101971621297793*wb_z**2
+    out1 = numpy.empty(shape + (3,))
+    out1[..., 0] = 0
+    out1[..., 1] = 0
+    out1[..., 2] = 0
+    return out0, out1
+
+
+def phi_acc_lever_arm_yz(u, aux=numpy.zeros(10)):
+    """acc.lever_arm.yz: phi = -0.101971621297793*dwb_x + 0.101971621297793*wb_y*wb_z and dphi/du."""
+    f_x = u[..., 0]
+    f_y = u[..., 1]
+    f_z = u[..., 2]
+    temp_c = aux[..., 0]
+    dtemp_c = aux[..., 1]
+    t_s = aux[..., 2]
+    w2 = aux[..., 3]
+    wb_x = aux[..., 4]
+    wb_y = aux[..., 5]
+    wb_z = aux[..., 6]
+    dwb_x = aux[..., 7]
+    dwb_y = aux[..., 8]
+    dwb_z = aux[..., 9]
+    shape = numpy.broadcast_shapes(numpy.shape(f_x), numpy.shape(f_y), numpy.shape(f_z), numpy.shape(temp_c), numpy.shape(dtemp_c), numpy.shape(t_s), numpy.shape(w2), numpy.shape(wb_x), numpy.shape(wb_y), numpy.shape(wb_z), numpy.shape(dwb_x), numpy.shape(dwb_y), numpy.shape(dwb_z), )
+    out0 = numpy.empty(shape + (1,))
+    out0[..., 0] = -0.101971621297793*dwb_x + 0.101971621297793*wb_y*wb_z
+    out1 = numpy.empty(shape + (3,))
+    out1[..., 0] = 0
+    out1[..., 1] = 0
+    out1[..., 2] = 0
+    return out0, out1
+
+
+def phi_acc_lever_arm_zx(u, aux=numpy.zeros(10)):
+    """acc.lever_arm.zx: phi = -0.101971621297793*dwb_y + 0.101971621297793*wb_x*wb_z and dphi/du."""
+    f_x = u[..., 0]
+    f_y = u[..., 1]
+    f_z = u[..., 2]
+    temp_c = aux[..., 0]
+    dtemp_c = aux[..., 1]
+    t_s = aux[..., 2]
+    w2 = aux[..., 3]
+    wb_x = aux[..., 4]
+    wb_y = aux[..., 5]
+    wb_z = aux[..., 6]
+    dwb_x = aux[..., 7]
+    dwb_y = aux[..., 8]
+    dwb_z = aux[..., 9]
+    shape = numpy.broadcast_shapes(numpy.shape(f_x), numpy.shape(f_y), numpy.shape(f_z), numpy.shape(temp_c), numpy.shape(dtemp_c), numpy.shape(t_s), numpy.shape(w2), numpy.shape(wb_x), numpy.shape(wb_y), numpy.shape(wb_z), numpy.shape(dwb_x), numpy.shape(dwb_y), numpy.shape(dwb_z), )
+    out0 = numpy.empty(shape + (1,))
+    out0[..., 0] = -0.101971621297793*dwb_y + 0.101971621297793*wb_x*wb_z
+    out1 = numpy.empty(shape + (3,))
+    out1[..., 0] = 0
+    out1[..., 1] = 0
+    out1[..., 2] = 0
+    return out0, out1
+
+
+def phi_acc_lever_arm_zy(u, aux=numpy.zeros(10)):
+    """acc.lever_arm.zy: phi = 0.101971621297793*dwb_x + 0.101971621297793*wb_y*wb_z and dphi/du."""
+    f_x = u[..., 0]
+    f_y = u[..., 1]
+    f_z = u[..., 2]
+    temp_c = aux[..., 0]
+    dtemp_c = aux[..., 1]
+    t_s = aux[..., 2]
+    w2 = aux[..., 3]
+    wb_x = aux[..., 4]
+    wb_y = aux[..., 5]
+    wb_z = aux[..., 6]
+    dwb_x = aux[..., 7]
+    dwb_y = aux[..., 8]
+    dwb_z = aux[..., 9]
+    shape = numpy.broadcast_shapes(numpy.shape(f_x), numpy.shape(f_y), numpy.shape(f_z), numpy.shape(temp_c), numpy.shape(dtemp_c), numpy.shape(t_s), numpy.shape(w2), numpy.shape(wb_x), numpy.shape(wb_y), numpy.shape(wb_z), numpy.shape(dwb_x), numpy.shape(dwb_y), numpy.shape(dwb_z), )
+    out0 = numpy.empty(shape + (1,))
+    out0[..., 0] = 0.101971621297793*dwb_x + 0.101971621297793*wb_y*wb_z
+    out1 = numpy.empty(shape + (3,))
+    out1[..., 0] = 0
+    out1[..., 1] = 0
+    out1[..., 2] = 0
+    return out0, out1
+
+
+def phi_acc_lever_arm_zz(u, aux=numpy.zeros(10)):
+    """acc.lever_arm.zz: phi = -0.101971621297793*wb_x**2 - 0.101971621297793*wb_y**2 and dphi/du."""
+    f_x = u[..., 0]
+    f_y = u[..., 1]
+    f_z = u[..., 2]
+    temp_c = aux[..., 0]
+    dtemp_c = aux[..., 1]
+    t_s = aux[..., 2]
+    w2 = aux[..., 3]
+    wb_x = aux[..., 4]
+    wb_y = aux[..., 5]
+    wb_z = aux[..., 6]
+    dwb_x = aux[..., 7]
+    dwb_y = aux[..., 8]
+    dwb_z = aux[..., 9]
+    shape = numpy.broadcast_shapes(numpy.shape(f_x), numpy.shape(f_y), numpy.shape(f_z), numpy.shape(temp_c), numpy.shape(dtemp_c), numpy.shape(t_s), numpy.shape(w2), numpy.shape(wb_x), numpy.shape(wb_y), numpy.shape(wb_z), numpy.shape(dwb_x), numpy.shape(dwb_y), numpy.shape(dwb_z), )
+    out0 = numpy.empty(shape + (1,))
+    out0[..., 0] = -0.101971621297793*wb_x**2 - 0.101971621297793*wb_y**2
+    out1 = numpy.empty(shape + (3,))
+    out1[..., 0] = 0
+    out1[..., 1] = 0
+    out1[..., 2] = 0
+    return out0, out1
+
+
+def phi_acc_quadratic_x(u, aux=numpy.zeros(10)):
     """acc.quadratic.x: phi = f_x**2 and dphi/du."""
     f_x = u[..., 0]
     f_y = u[..., 1]
@@ -372,7 +630,13 @@ def phi_acc_quadratic_x(u, aux=numpy.zeros(4)):
     dtemp_c = aux[..., 1]
     t_s = aux[..., 2]
     w2 = aux[..., 3]
-    shape = numpy.broadcast_shapes(numpy.shape(f_x), numpy.shape(f_y), numpy.shape(f_z), numpy.shape(temp_c), numpy.shape(dtemp_c), numpy.shape(t_s), numpy.shape(w2), )
+    wb_x = aux[..., 4]
+    wb_y = aux[..., 5]
+    wb_z = aux[..., 6]
+    dwb_x = aux[..., 7]
+    dwb_y = aux[..., 8]
+    dwb_z = aux[..., 9]
+    shape = numpy.broadcast_shapes(numpy.shape(f_x), numpy.shape(f_y), numpy.shape(f_z), numpy.shape(temp_c), numpy.shape(dtemp_c), numpy.shape(t_s), numpy.shape(w2), numpy.shape(wb_x), numpy.shape(wb_y), numpy.shape(wb_z), numpy.shape(dwb_x), numpy.shape(dwb_y), numpy.shape(dwb_z), )
     out0 = numpy.empty(shape + (1,))
     out0[..., 0] = f_x**2
     out1 = numpy.empty(shape + (3,))
@@ -382,7 +646,7 @@ def phi_acc_quadratic_x(u, aux=numpy.zeros(4)):
     return out0, out1
 
 
-def phi_acc_quadratic_y(u, aux=numpy.zeros(4)):
+def phi_acc_quadratic_y(u, aux=numpy.zeros(10)):
     """acc.quadratic.y: phi = f_y**2 and dphi/du."""
     f_x = u[..., 0]
     f_y = u[..., 1]
@@ -391,7 +655,13 @@ def phi_acc_quadratic_y(u, aux=numpy.zeros(4)):
     dtemp_c = aux[..., 1]
     t_s = aux[..., 2]
     w2 = aux[..., 3]
-    shape = numpy.broadcast_shapes(numpy.shape(f_x), numpy.shape(f_y), numpy.shape(f_z), numpy.shape(temp_c), numpy.shape(dtemp_c), numpy.shape(t_s), numpy.shape(w2), )
+    wb_x = aux[..., 4]
+    wb_y = aux[..., 5]
+    wb_z = aux[..., 6]
+    dwb_x = aux[..., 7]
+    dwb_y = aux[..., 8]
+    dwb_z = aux[..., 9]
+    shape = numpy.broadcast_shapes(numpy.shape(f_x), numpy.shape(f_y), numpy.shape(f_z), numpy.shape(temp_c), numpy.shape(dtemp_c), numpy.shape(t_s), numpy.shape(w2), numpy.shape(wb_x), numpy.shape(wb_y), numpy.shape(wb_z), numpy.shape(dwb_x), numpy.shape(dwb_y), numpy.shape(dwb_z), )
     out0 = numpy.empty(shape + (1,))
     out0[..., 0] = f_y**2
     out1 = numpy.empty(shape + (3,))
@@ -401,7 +671,7 @@ def phi_acc_quadratic_y(u, aux=numpy.zeros(4)):
     return out0, out1
 
 
-def phi_acc_quadratic_z(u, aux=numpy.zeros(4)):
+def phi_acc_quadratic_z(u, aux=numpy.zeros(10)):
     """acc.quadratic.z: phi = f_z**2 and dphi/du."""
     f_x = u[..., 0]
     f_y = u[..., 1]
@@ -410,7 +680,13 @@ def phi_acc_quadratic_z(u, aux=numpy.zeros(4)):
     dtemp_c = aux[..., 1]
     t_s = aux[..., 2]
     w2 = aux[..., 3]
-    shape = numpy.broadcast_shapes(numpy.shape(f_x), numpy.shape(f_y), numpy.shape(f_z), numpy.shape(temp_c), numpy.shape(dtemp_c), numpy.shape(t_s), numpy.shape(w2), )
+    wb_x = aux[..., 4]
+    wb_y = aux[..., 5]
+    wb_z = aux[..., 6]
+    dwb_x = aux[..., 7]
+    dwb_y = aux[..., 8]
+    dwb_z = aux[..., 9]
+    shape = numpy.broadcast_shapes(numpy.shape(f_x), numpy.shape(f_y), numpy.shape(f_z), numpy.shape(temp_c), numpy.shape(dtemp_c), numpy.shape(t_s), numpy.shape(w2), numpy.shape(wb_x), numpy.shape(wb_y), numpy.shape(wb_z), numpy.shape(dwb_x), numpy.shape(dwb_y), numpy.shape(dwb_z), )
     out0 = numpy.empty(shape + (1,))
     out0[..., 0] = f_z**2
     out1 = numpy.empty(shape + (3,))
@@ -420,7 +696,7 @@ def phi_acc_quadratic_z(u, aux=numpy.zeros(4)):
     return out0, out1
 
 
-def phi_acc_scale_asymmetry_x(u, aux=numpy.zeros(4)):
+def phi_acc_scale_asymmetry_x(u, aux=numpy.zeros(10)):
     """acc.scale_asymmetry.x: phi = Abs(f_x) and dphi/du."""
     f_x = u[..., 0]
     f_y = u[..., 1]
@@ -429,7 +705,13 @@ def phi_acc_scale_asymmetry_x(u, aux=numpy.zeros(4)):
     dtemp_c = aux[..., 1]
     t_s = aux[..., 2]
     w2 = aux[..., 3]
-    shape = numpy.broadcast_shapes(numpy.shape(f_x), numpy.shape(f_y), numpy.shape(f_z), numpy.shape(temp_c), numpy.shape(dtemp_c), numpy.shape(t_s), numpy.shape(w2), )
+    wb_x = aux[..., 4]
+    wb_y = aux[..., 5]
+    wb_z = aux[..., 6]
+    dwb_x = aux[..., 7]
+    dwb_y = aux[..., 8]
+    dwb_z = aux[..., 9]
+    shape = numpy.broadcast_shapes(numpy.shape(f_x), numpy.shape(f_y), numpy.shape(f_z), numpy.shape(temp_c), numpy.shape(dtemp_c), numpy.shape(t_s), numpy.shape(w2), numpy.shape(wb_x), numpy.shape(wb_y), numpy.shape(wb_z), numpy.shape(dwb_x), numpy.shape(dwb_y), numpy.shape(dwb_z), )
     out0 = numpy.empty(shape + (1,))
     out0[..., 0] = abs(f_x)
     out1 = numpy.empty(shape + (3,))
@@ -439,7 +721,7 @@ def phi_acc_scale_asymmetry_x(u, aux=numpy.zeros(4)):
     return out0, out1
 
 
-def phi_acc_scale_asymmetry_y(u, aux=numpy.zeros(4)):
+def phi_acc_scale_asymmetry_y(u, aux=numpy.zeros(10)):
     """acc.scale_asymmetry.y: phi = Abs(f_y) and dphi/du."""
     f_x = u[..., 0]
     f_y = u[..., 1]
@@ -448,7 +730,13 @@ def phi_acc_scale_asymmetry_y(u, aux=numpy.zeros(4)):
     dtemp_c = aux[..., 1]
     t_s = aux[..., 2]
     w2 = aux[..., 3]
-    shape = numpy.broadcast_shapes(numpy.shape(f_x), numpy.shape(f_y), numpy.shape(f_z), numpy.shape(temp_c), numpy.shape(dtemp_c), numpy.shape(t_s), numpy.shape(w2), )
+    wb_x = aux[..., 4]
+    wb_y = aux[..., 5]
+    wb_z = aux[..., 6]
+    dwb_x = aux[..., 7]
+    dwb_y = aux[..., 8]
+    dwb_z = aux[..., 9]
+    shape = numpy.broadcast_shapes(numpy.shape(f_x), numpy.shape(f_y), numpy.shape(f_z), numpy.shape(temp_c), numpy.shape(dtemp_c), numpy.shape(t_s), numpy.shape(w2), numpy.shape(wb_x), numpy.shape(wb_y), numpy.shape(wb_z), numpy.shape(dwb_x), numpy.shape(dwb_y), numpy.shape(dwb_z), )
     out0 = numpy.empty(shape + (1,))
     out0[..., 0] = abs(f_y)
     out1 = numpy.empty(shape + (3,))
@@ -458,7 +746,7 @@ def phi_acc_scale_asymmetry_y(u, aux=numpy.zeros(4)):
     return out0, out1
 
 
-def phi_acc_scale_asymmetry_z(u, aux=numpy.zeros(4)):
+def phi_acc_scale_asymmetry_z(u, aux=numpy.zeros(10)):
     """acc.scale_asymmetry.z: phi = Abs(f_z) and dphi/du."""
     f_x = u[..., 0]
     f_y = u[..., 1]
@@ -467,7 +755,13 @@ def phi_acc_scale_asymmetry_z(u, aux=numpy.zeros(4)):
     dtemp_c = aux[..., 1]
     t_s = aux[..., 2]
     w2 = aux[..., 3]
-    shape = numpy.broadcast_shapes(numpy.shape(f_x), numpy.shape(f_y), numpy.shape(f_z), numpy.shape(temp_c), numpy.shape(dtemp_c), numpy.shape(t_s), numpy.shape(w2), )
+    wb_x = aux[..., 4]
+    wb_y = aux[..., 5]
+    wb_z = aux[..., 6]
+    dwb_x = aux[..., 7]
+    dwb_y = aux[..., 8]
+    dwb_z = aux[..., 9]
+    shape = numpy.broadcast_shapes(numpy.shape(f_x), numpy.shape(f_y), numpy.shape(f_z), numpy.shape(temp_c), numpy.shape(dtemp_c), numpy.shape(t_s), numpy.shape(w2), numpy.shape(wb_x), numpy.shape(wb_y), numpy.shape(wb_z), numpy.shape(dwb_x), numpy.shape(dwb_y), numpy.shape(dwb_z), )
     out0 = numpy.empty(shape + (1,))
     out0[..., 0] = abs(f_z)
     out1 = numpy.empty(shape + (3,))
@@ -477,7 +771,7 @@ def phi_acc_scale_asymmetry_z(u, aux=numpy.zeros(4)):
     return out0, out1
 
 
-def phi_acc_scale_temperature_x(u, aux=numpy.zeros(4)):
+def phi_acc_scale_temperature_x(u, aux=numpy.zeros(10)):
     """acc.scale_temperature.x: phi = dtemp_c*f_x and dphi/du."""
     f_x = u[..., 0]
     f_y = u[..., 1]
@@ -486,7 +780,13 @@ def phi_acc_scale_temperature_x(u, aux=numpy.zeros(4)):
     dtemp_c = aux[..., 1]
     t_s = aux[..., 2]
     w2 = aux[..., 3]
-    shape = numpy.broadcast_shapes(numpy.shape(f_x), numpy.shape(f_y), numpy.shape(f_z), numpy.shape(temp_c), numpy.shape(dtemp_c), numpy.shape(t_s), numpy.shape(w2), )
+    wb_x = aux[..., 4]
+    wb_y = aux[..., 5]
+    wb_z = aux[..., 6]
+    dwb_x = aux[..., 7]
+    dwb_y = aux[..., 8]
+    dwb_z = aux[..., 9]
+    shape = numpy.broadcast_shapes(numpy.shape(f_x), numpy.shape(f_y), numpy.shape(f_z), numpy.shape(temp_c), numpy.shape(dtemp_c), numpy.shape(t_s), numpy.shape(w2), numpy.shape(wb_x), numpy.shape(wb_y), numpy.shape(wb_z), numpy.shape(dwb_x), numpy.shape(dwb_y), numpy.shape(dwb_z), )
     out0 = numpy.empty(shape + (1,))
     out0[..., 0] = dtemp_c*f_x
     out1 = numpy.empty(shape + (3,))
@@ -496,7 +796,7 @@ def phi_acc_scale_temperature_x(u, aux=numpy.zeros(4)):
     return out0, out1
 
 
-def phi_acc_scale_temperature_y(u, aux=numpy.zeros(4)):
+def phi_acc_scale_temperature_y(u, aux=numpy.zeros(10)):
     """acc.scale_temperature.y: phi = dtemp_c*f_y and dphi/du."""
     f_x = u[..., 0]
     f_y = u[..., 1]
@@ -505,7 +805,13 @@ def phi_acc_scale_temperature_y(u, aux=numpy.zeros(4)):
     dtemp_c = aux[..., 1]
     t_s = aux[..., 2]
     w2 = aux[..., 3]
-    shape = numpy.broadcast_shapes(numpy.shape(f_x), numpy.shape(f_y), numpy.shape(f_z), numpy.shape(temp_c), numpy.shape(dtemp_c), numpy.shape(t_s), numpy.shape(w2), )
+    wb_x = aux[..., 4]
+    wb_y = aux[..., 5]
+    wb_z = aux[..., 6]
+    dwb_x = aux[..., 7]
+    dwb_y = aux[..., 8]
+    dwb_z = aux[..., 9]
+    shape = numpy.broadcast_shapes(numpy.shape(f_x), numpy.shape(f_y), numpy.shape(f_z), numpy.shape(temp_c), numpy.shape(dtemp_c), numpy.shape(t_s), numpy.shape(w2), numpy.shape(wb_x), numpy.shape(wb_y), numpy.shape(wb_z), numpy.shape(dwb_x), numpy.shape(dwb_y), numpy.shape(dwb_z), )
     out0 = numpy.empty(shape + (1,))
     out0[..., 0] = dtemp_c*f_y
     out1 = numpy.empty(shape + (3,))
@@ -515,7 +821,7 @@ def phi_acc_scale_temperature_y(u, aux=numpy.zeros(4)):
     return out0, out1
 
 
-def phi_acc_scale_temperature_z(u, aux=numpy.zeros(4)):
+def phi_acc_scale_temperature_z(u, aux=numpy.zeros(10)):
     """acc.scale_temperature.z: phi = dtemp_c*f_z and dphi/du."""
     f_x = u[..., 0]
     f_y = u[..., 1]
@@ -524,7 +830,13 @@ def phi_acc_scale_temperature_z(u, aux=numpy.zeros(4)):
     dtemp_c = aux[..., 1]
     t_s = aux[..., 2]
     w2 = aux[..., 3]
-    shape = numpy.broadcast_shapes(numpy.shape(f_x), numpy.shape(f_y), numpy.shape(f_z), numpy.shape(temp_c), numpy.shape(dtemp_c), numpy.shape(t_s), numpy.shape(w2), )
+    wb_x = aux[..., 4]
+    wb_y = aux[..., 5]
+    wb_z = aux[..., 6]
+    dwb_x = aux[..., 7]
+    dwb_y = aux[..., 8]
+    dwb_z = aux[..., 9]
+    shape = numpy.broadcast_shapes(numpy.shape(f_x), numpy.shape(f_y), numpy.shape(f_z), numpy.shape(temp_c), numpy.shape(dtemp_c), numpy.shape(t_s), numpy.shape(w2), numpy.shape(wb_x), numpy.shape(wb_y), numpy.shape(wb_z), numpy.shape(dwb_x), numpy.shape(dwb_y), numpy.shape(dwb_z), )
     out0 = numpy.empty(shape + (1,))
     out0[..., 0] = dtemp_c*f_z
     out1 = numpy.empty(shape + (3,))
@@ -534,7 +846,7 @@ def phi_acc_scale_temperature_z(u, aux=numpy.zeros(4)):
     return out0, out1
 
 
-def phi_acc_scale_temperature2_x(u, aux=numpy.zeros(4)):
+def phi_acc_scale_temperature2_x(u, aux=numpy.zeros(10)):
     """acc.scale_temperature2.x: phi = dtemp_c**2*f_x and dphi/du."""
     f_x = u[..., 0]
     f_y = u[..., 1]
@@ -543,8 +855,14 @@ def phi_acc_scale_temperature2_x(u, aux=numpy.zeros(4)):
     dtemp_c = aux[..., 1]
     t_s = aux[..., 2]
     w2 = aux[..., 3]
+    wb_x = aux[..., 4]
+    wb_y = aux[..., 5]
+    wb_z = aux[..., 6]
+    dwb_x = aux[..., 7]
+    dwb_y = aux[..., 8]
+    dwb_z = aux[..., 9]
     _c0 = dtemp_c**2
-    shape = numpy.broadcast_shapes(numpy.shape(f_x), numpy.shape(f_y), numpy.shape(f_z), numpy.shape(temp_c), numpy.shape(dtemp_c), numpy.shape(t_s), numpy.shape(w2), )
+    shape = numpy.broadcast_shapes(numpy.shape(f_x), numpy.shape(f_y), numpy.shape(f_z), numpy.shape(temp_c), numpy.shape(dtemp_c), numpy.shape(t_s), numpy.shape(w2), numpy.shape(wb_x), numpy.shape(wb_y), numpy.shape(wb_z), numpy.shape(dwb_x), numpy.shape(dwb_y), numpy.shape(dwb_z), )
     out0 = numpy.empty(shape + (1,))
     out0[..., 0] = _c0*f_x
     out1 = numpy.empty(shape + (3,))
@@ -554,7 +872,7 @@ def phi_acc_scale_temperature2_x(u, aux=numpy.zeros(4)):
     return out0, out1
 
 
-def phi_acc_scale_temperature2_y(u, aux=numpy.zeros(4)):
+def phi_acc_scale_temperature2_y(u, aux=numpy.zeros(10)):
     """acc.scale_temperature2.y: phi = dtemp_c**2*f_y and dphi/du."""
     f_x = u[..., 0]
     f_y = u[..., 1]
@@ -563,8 +881,14 @@ def phi_acc_scale_temperature2_y(u, aux=numpy.zeros(4)):
     dtemp_c = aux[..., 1]
     t_s = aux[..., 2]
     w2 = aux[..., 3]
+    wb_x = aux[..., 4]
+    wb_y = aux[..., 5]
+    wb_z = aux[..., 6]
+    dwb_x = aux[..., 7]
+    dwb_y = aux[..., 8]
+    dwb_z = aux[..., 9]
     _c0 = dtemp_c**2
-    shape = numpy.broadcast_shapes(numpy.shape(f_x), numpy.shape(f_y), numpy.shape(f_z), numpy.shape(temp_c), numpy.shape(dtemp_c), numpy.shape(t_s), numpy.shape(w2), )
+    shape = numpy.broadcast_shapes(numpy.shape(f_x), numpy.shape(f_y), numpy.shape(f_z), numpy.shape(temp_c), numpy.shape(dtemp_c), numpy.shape(t_s), numpy.shape(w2), numpy.shape(wb_x), numpy.shape(wb_y), numpy.shape(wb_z), numpy.shape(dwb_x), numpy.shape(dwb_y), numpy.shape(dwb_z), )
     out0 = numpy.empty(shape + (1,))
     out0[..., 0] = _c0*f_y
     out1 = numpy.empty(shape + (3,))
@@ -574,7 +898,7 @@ def phi_acc_scale_temperature2_y(u, aux=numpy.zeros(4)):
     return out0, out1
 
 
-def phi_acc_scale_temperature2_z(u, aux=numpy.zeros(4)):
+def phi_acc_scale_temperature2_z(u, aux=numpy.zeros(10)):
     """acc.scale_temperature2.z: phi = dtemp_c**2*f_z and dphi/du."""
     f_x = u[..., 0]
     f_y = u[..., 1]
@@ -583,8 +907,14 @@ def phi_acc_scale_temperature2_z(u, aux=numpy.zeros(4)):
     dtemp_c = aux[..., 1]
     t_s = aux[..., 2]
     w2 = aux[..., 3]
+    wb_x = aux[..., 4]
+    wb_y = aux[..., 5]
+    wb_z = aux[..., 6]
+    dwb_x = aux[..., 7]
+    dwb_y = aux[..., 8]
+    dwb_z = aux[..., 9]
     _c0 = dtemp_c**2
-    shape = numpy.broadcast_shapes(numpy.shape(f_x), numpy.shape(f_y), numpy.shape(f_z), numpy.shape(temp_c), numpy.shape(dtemp_c), numpy.shape(t_s), numpy.shape(w2), )
+    shape = numpy.broadcast_shapes(numpy.shape(f_x), numpy.shape(f_y), numpy.shape(f_z), numpy.shape(temp_c), numpy.shape(dtemp_c), numpy.shape(t_s), numpy.shape(w2), numpy.shape(wb_x), numpy.shape(wb_y), numpy.shape(wb_z), numpy.shape(dwb_x), numpy.shape(dwb_y), numpy.shape(dwb_z), )
     out0 = numpy.empty(shape + (1,))
     out0[..., 0] = _c0*f_z
     out1 = numpy.empty(shape + (3,))
@@ -594,7 +924,7 @@ def phi_acc_scale_temperature2_z(u, aux=numpy.zeros(4)):
     return out0, out1
 
 
-def phi_acc_size_effect_xx(u, aux=numpy.zeros(4)):
+def phi_acc_size_effect_xx(u, aux=numpy.zeros(10)):
     """acc.size_effect.xx: phi = w2*(f_x**2 - 1) and dphi/du."""
     f_x = u[..., 0]
     f_y = u[..., 1]
@@ -603,7 +933,13 @@ def phi_acc_size_effect_xx(u, aux=numpy.zeros(4)):
     dtemp_c = aux[..., 1]
     t_s = aux[..., 2]
     w2 = aux[..., 3]
-    shape = numpy.broadcast_shapes(numpy.shape(f_x), numpy.shape(f_y), numpy.shape(f_z), numpy.shape(temp_c), numpy.shape(dtemp_c), numpy.shape(t_s), numpy.shape(w2), )
+    wb_x = aux[..., 4]
+    wb_y = aux[..., 5]
+    wb_z = aux[..., 6]
+    dwb_x = aux[..., 7]
+    dwb_y = aux[..., 8]
+    dwb_z = aux[..., 9]
+    shape = numpy.broadcast_shapes(numpy.shape(f_x), numpy.shape(f_y), numpy.shape(f_z), numpy.shape(temp_c), numpy.shape(dtemp_c), numpy.shape(t_s), numpy.shape(w2), numpy.shape(wb_x), numpy.shape(wb_y), numpy.shape(wb_z), numpy.shape(dwb_x), numpy.shape(dwb_y), numpy.shape(dwb_z), )
     out0 = numpy.empty(shape + (1,))
     out0[..., 0] = w2*(f_x**2 - 1)
     out1 = numpy.empty(shape + (3,))
@@ -613,7 +949,7 @@ def phi_acc_size_effect_xx(u, aux=numpy.zeros(4)):
     return out0, out1
 
 
-def phi_acc_size_effect_xy(u, aux=numpy.zeros(4)):
+def phi_acc_size_effect_xy(u, aux=numpy.zeros(10)):
     """acc.size_effect.xy: phi = f_x*f_y*w2 and dphi/du."""
     f_x = u[..., 0]
     f_y = u[..., 1]
@@ -622,8 +958,14 @@ def phi_acc_size_effect_xy(u, aux=numpy.zeros(4)):
     dtemp_c = aux[..., 1]
     t_s = aux[..., 2]
     w2 = aux[..., 3]
+    wb_x = aux[..., 4]
+    wb_y = aux[..., 5]
+    wb_z = aux[..., 6]
+    dwb_x = aux[..., 7]
+    dwb_y = aux[..., 8]
+    dwb_z = aux[..., 9]
     _c0 = f_y*w2
-    shape = numpy.broadcast_shapes(numpy.shape(f_x), numpy.shape(f_y), numpy.shape(f_z), numpy.shape(temp_c), numpy.shape(dtemp_c), numpy.shape(t_s), numpy.shape(w2), )
+    shape = numpy.broadcast_shapes(numpy.shape(f_x), numpy.shape(f_y), numpy.shape(f_z), numpy.shape(temp_c), numpy.shape(dtemp_c), numpy.shape(t_s), numpy.shape(w2), numpy.shape(wb_x), numpy.shape(wb_y), numpy.shape(wb_z), numpy.shape(dwb_x), numpy.shape(dwb_y), numpy.shape(dwb_z), )
     out0 = numpy.empty(shape + (1,))
     out0[..., 0] = _c0*f_x
     out1 = numpy.empty(shape + (3,))
@@ -633,7 +975,7 @@ def phi_acc_size_effect_xy(u, aux=numpy.zeros(4)):
     return out0, out1
 
 
-def phi_acc_size_effect_xz(u, aux=numpy.zeros(4)):
+def phi_acc_size_effect_xz(u, aux=numpy.zeros(10)):
     """acc.size_effect.xz: phi = f_x*f_z*w2 and dphi/du."""
     f_x = u[..., 0]
     f_y = u[..., 1]
@@ -642,8 +984,14 @@ def phi_acc_size_effect_xz(u, aux=numpy.zeros(4)):
     dtemp_c = aux[..., 1]
     t_s = aux[..., 2]
     w2 = aux[..., 3]
+    wb_x = aux[..., 4]
+    wb_y = aux[..., 5]
+    wb_z = aux[..., 6]
+    dwb_x = aux[..., 7]
+    dwb_y = aux[..., 8]
+    dwb_z = aux[..., 9]
     _c0 = f_z*w2
-    shape = numpy.broadcast_shapes(numpy.shape(f_x), numpy.shape(f_y), numpy.shape(f_z), numpy.shape(temp_c), numpy.shape(dtemp_c), numpy.shape(t_s), numpy.shape(w2), )
+    shape = numpy.broadcast_shapes(numpy.shape(f_x), numpy.shape(f_y), numpy.shape(f_z), numpy.shape(temp_c), numpy.shape(dtemp_c), numpy.shape(t_s), numpy.shape(w2), numpy.shape(wb_x), numpy.shape(wb_y), numpy.shape(wb_z), numpy.shape(dwb_x), numpy.shape(dwb_y), numpy.shape(dwb_z), )
     out0 = numpy.empty(shape + (1,))
     out0[..., 0] = _c0*f_x
     out1 = numpy.empty(shape + (3,))
@@ -653,7 +1001,7 @@ def phi_acc_size_effect_xz(u, aux=numpy.zeros(4)):
     return out0, out1
 
 
-def phi_acc_size_effect_yx(u, aux=numpy.zeros(4)):
+def phi_acc_size_effect_yx(u, aux=numpy.zeros(10)):
     """acc.size_effect.yx: phi = f_x*f_y*w2 and dphi/du."""
     f_x = u[..., 0]
     f_y = u[..., 1]
@@ -662,8 +1010,14 @@ def phi_acc_size_effect_yx(u, aux=numpy.zeros(4)):
     dtemp_c = aux[..., 1]
     t_s = aux[..., 2]
     w2 = aux[..., 3]
+    wb_x = aux[..., 4]
+    wb_y = aux[..., 5]
+    wb_z = aux[..., 6]
+    dwb_x = aux[..., 7]
+    dwb_y = aux[..., 8]
+    dwb_z = aux[..., 9]
     _c0 = f_y*w2
-    shape = numpy.broadcast_shapes(numpy.shape(f_x), numpy.shape(f_y), numpy.shape(f_z), numpy.shape(temp_c), numpy.shape(dtemp_c), numpy.shape(t_s), numpy.shape(w2), )
+    shape = numpy.broadcast_shapes(numpy.shape(f_x), numpy.shape(f_y), numpy.shape(f_z), numpy.shape(temp_c), numpy.shape(dtemp_c), numpy.shape(t_s), numpy.shape(w2), numpy.shape(wb_x), numpy.shape(wb_y), numpy.shape(wb_z), numpy.shape(dwb_x), numpy.shape(dwb_y), numpy.shape(dwb_z), )
     out0 = numpy.empty(shape + (1,))
     out0[..., 0] = _c0*f_x
     out1 = numpy.empty(shape + (3,))
@@ -673,7 +1027,7 @@ def phi_acc_size_effect_yx(u, aux=numpy.zeros(4)):
     return out0, out1
 
 
-def phi_acc_size_effect_yy(u, aux=numpy.zeros(4)):
+def phi_acc_size_effect_yy(u, aux=numpy.zeros(10)):
     """acc.size_effect.yy: phi = w2*(f_y**2 - 1) and dphi/du."""
     f_x = u[..., 0]
     f_y = u[..., 1]
@@ -682,7 +1036,13 @@ def phi_acc_size_effect_yy(u, aux=numpy.zeros(4)):
     dtemp_c = aux[..., 1]
     t_s = aux[..., 2]
     w2 = aux[..., 3]
-    shape = numpy.broadcast_shapes(numpy.shape(f_x), numpy.shape(f_y), numpy.shape(f_z), numpy.shape(temp_c), numpy.shape(dtemp_c), numpy.shape(t_s), numpy.shape(w2), )
+    wb_x = aux[..., 4]
+    wb_y = aux[..., 5]
+    wb_z = aux[..., 6]
+    dwb_x = aux[..., 7]
+    dwb_y = aux[..., 8]
+    dwb_z = aux[..., 9]
+    shape = numpy.broadcast_shapes(numpy.shape(f_x), numpy.shape(f_y), numpy.shape(f_z), numpy.shape(temp_c), numpy.shape(dtemp_c), numpy.shape(t_s), numpy.shape(w2), numpy.shape(wb_x), numpy.shape(wb_y), numpy.shape(wb_z), numpy.shape(dwb_x), numpy.shape(dwb_y), numpy.shape(dwb_z), )
     out0 = numpy.empty(shape + (1,))
     out0[..., 0] = w2*(f_y**2 - 1)
     out1 = numpy.empty(shape + (3,))
@@ -692,7 +1052,7 @@ def phi_acc_size_effect_yy(u, aux=numpy.zeros(4)):
     return out0, out1
 
 
-def phi_acc_size_effect_yz(u, aux=numpy.zeros(4)):
+def phi_acc_size_effect_yz(u, aux=numpy.zeros(10)):
     """acc.size_effect.yz: phi = f_y*f_z*w2 and dphi/du."""
     f_x = u[..., 0]
     f_y = u[..., 1]
@@ -701,8 +1061,14 @@ def phi_acc_size_effect_yz(u, aux=numpy.zeros(4)):
     dtemp_c = aux[..., 1]
     t_s = aux[..., 2]
     w2 = aux[..., 3]
+    wb_x = aux[..., 4]
+    wb_y = aux[..., 5]
+    wb_z = aux[..., 6]
+    dwb_x = aux[..., 7]
+    dwb_y = aux[..., 8]
+    dwb_z = aux[..., 9]
     _c0 = f_z*w2
-    shape = numpy.broadcast_shapes(numpy.shape(f_x), numpy.shape(f_y), numpy.shape(f_z), numpy.shape(temp_c), numpy.shape(dtemp_c), numpy.shape(t_s), numpy.shape(w2), )
+    shape = numpy.broadcast_shapes(numpy.shape(f_x), numpy.shape(f_y), numpy.shape(f_z), numpy.shape(temp_c), numpy.shape(dtemp_c), numpy.shape(t_s), numpy.shape(w2), numpy.shape(wb_x), numpy.shape(wb_y), numpy.shape(wb_z), numpy.shape(dwb_x), numpy.shape(dwb_y), numpy.shape(dwb_z), )
     out0 = numpy.empty(shape + (1,))
     out0[..., 0] = _c0*f_y
     out1 = numpy.empty(shape + (3,))
@@ -712,7 +1078,7 @@ def phi_acc_size_effect_yz(u, aux=numpy.zeros(4)):
     return out0, out1
 
 
-def phi_acc_size_effect_zx(u, aux=numpy.zeros(4)):
+def phi_acc_size_effect_zx(u, aux=numpy.zeros(10)):
     """acc.size_effect.zx: phi = f_x*f_z*w2 and dphi/du."""
     f_x = u[..., 0]
     f_y = u[..., 1]
@@ -721,8 +1087,14 @@ def phi_acc_size_effect_zx(u, aux=numpy.zeros(4)):
     dtemp_c = aux[..., 1]
     t_s = aux[..., 2]
     w2 = aux[..., 3]
+    wb_x = aux[..., 4]
+    wb_y = aux[..., 5]
+    wb_z = aux[..., 6]
+    dwb_x = aux[..., 7]
+    dwb_y = aux[..., 8]
+    dwb_z = aux[..., 9]
     _c0 = f_z*w2
-    shape = numpy.broadcast_shapes(numpy.shape(f_x), numpy.shape(f_y), numpy.shape(f_z), numpy.shape(temp_c), numpy.shape(dtemp_c), numpy.shape(t_s), numpy.shape(w2), )
+    shape = numpy.broadcast_shapes(numpy.shape(f_x), numpy.shape(f_y), numpy.shape(f_z), numpy.shape(temp_c), numpy.shape(dtemp_c), numpy.shape(t_s), numpy.shape(w2), numpy.shape(wb_x), numpy.shape(wb_y), numpy.shape(wb_z), numpy.shape(dwb_x), numpy.shape(dwb_y), numpy.shape(dwb_z), )
     out0 = numpy.empty(shape + (1,))
     out0[..., 0] = _c0*f_x
     out1 = numpy.empty(shape + (3,))
@@ -732,7 +1104,7 @@ def phi_acc_size_effect_zx(u, aux=numpy.zeros(4)):
     return out0, out1
 
 
-def phi_acc_size_effect_zy(u, aux=numpy.zeros(4)):
+def phi_acc_size_effect_zy(u, aux=numpy.zeros(10)):
     """acc.size_effect.zy: phi = f_y*f_z*w2 and dphi/du."""
     f_x = u[..., 0]
     f_y = u[..., 1]
@@ -741,8 +1113,14 @@ def phi_acc_size_effect_zy(u, aux=numpy.zeros(4)):
     dtemp_c = aux[..., 1]
     t_s = aux[..., 2]
     w2 = aux[..., 3]
+    wb_x = aux[..., 4]
+    wb_y = aux[..., 5]
+    wb_z = aux[..., 6]
+    dwb_x = aux[..., 7]
+    dwb_y = aux[..., 8]
+    dwb_z = aux[..., 9]
     _c0 = f_z*w2
-    shape = numpy.broadcast_shapes(numpy.shape(f_x), numpy.shape(f_y), numpy.shape(f_z), numpy.shape(temp_c), numpy.shape(dtemp_c), numpy.shape(t_s), numpy.shape(w2), )
+    shape = numpy.broadcast_shapes(numpy.shape(f_x), numpy.shape(f_y), numpy.shape(f_z), numpy.shape(temp_c), numpy.shape(dtemp_c), numpy.shape(t_s), numpy.shape(w2), numpy.shape(wb_x), numpy.shape(wb_y), numpy.shape(wb_z), numpy.shape(dwb_x), numpy.shape(dwb_y), numpy.shape(dwb_z), )
     out0 = numpy.empty(shape + (1,))
     out0[..., 0] = _c0*f_y
     out1 = numpy.empty(shape + (3,))
@@ -752,7 +1130,7 @@ def phi_acc_size_effect_zy(u, aux=numpy.zeros(4)):
     return out0, out1
 
 
-def phi_acc_size_effect_zz(u, aux=numpy.zeros(4)):
+def phi_acc_size_effect_zz(u, aux=numpy.zeros(10)):
     """acc.size_effect.zz: phi = w2*(f_z**2 - 1) and dphi/du."""
     f_x = u[..., 0]
     f_y = u[..., 1]
@@ -761,13 +1139,94 @@ def phi_acc_size_effect_zz(u, aux=numpy.zeros(4)):
     dtemp_c = aux[..., 1]
     t_s = aux[..., 2]
     w2 = aux[..., 3]
-    shape = numpy.broadcast_shapes(numpy.shape(f_x), numpy.shape(f_y), numpy.shape(f_z), numpy.shape(temp_c), numpy.shape(dtemp_c), numpy.shape(t_s), numpy.shape(w2), )
+    wb_x = aux[..., 4]
+    wb_y = aux[..., 5]
+    wb_z = aux[..., 6]
+    dwb_x = aux[..., 7]
+    dwb_y = aux[..., 8]
+    dwb_z = aux[..., 9]
+    shape = numpy.broadcast_shapes(numpy.shape(f_x), numpy.shape(f_y), numpy.shape(f_z), numpy.shape(temp_c), numpy.shape(dtemp_c), numpy.shape(t_s), numpy.shape(w2), numpy.shape(wb_x), numpy.shape(wb_y), numpy.shape(wb_z), numpy.shape(dwb_x), numpy.shape(dwb_y), numpy.shape(dwb_z), )
     out0 = numpy.empty(shape + (1,))
     out0[..., 0] = w2*(f_z**2 - 1)
     out1 = numpy.empty(shape + (3,))
     out1[..., 0] = 0
     out1[..., 1] = 0
     out1[..., 2] = 2*f_z*w2
+    return out0, out1
+
+
+def phi_acc_time_delay_x(u, aux=numpy.zeros(10)):
+    """acc.time_delay.x: phi = -f_y*wb_z + f_z*wb_y and dphi/du."""
+    f_x = u[..., 0]
+    f_y = u[..., 1]
+    f_z = u[..., 2]
+    temp_c = aux[..., 0]
+    dtemp_c = aux[..., 1]
+    t_s = aux[..., 2]
+    w2 = aux[..., 3]
+    wb_x = aux[..., 4]
+    wb_y = aux[..., 5]
+    wb_z = aux[..., 6]
+    dwb_x = aux[..., 7]
+    dwb_y = aux[..., 8]
+    dwb_z = aux[..., 9]
+    shape = numpy.broadcast_shapes(numpy.shape(f_x), numpy.shape(f_y), numpy.shape(f_z), numpy.shape(temp_c), numpy.shape(dtemp_c), numpy.shape(t_s), numpy.shape(w2), numpy.shape(wb_x), numpy.shape(wb_y), numpy.shape(wb_z), numpy.shape(dwb_x), numpy.shape(dwb_y), numpy.shape(dwb_z), )
+    out0 = numpy.empty(shape + (1,))
+    out0[..., 0] = -f_y*wb_z + f_z*wb_y
+    out1 = numpy.empty(shape + (3,))
+    out1[..., 0] = 0
+    out1[..., 1] = -wb_z
+    out1[..., 2] = wb_y
+    return out0, out1
+
+
+def phi_acc_time_delay_y(u, aux=numpy.zeros(10)):
+    """acc.time_delay.y: phi = f_x*wb_z - f_z*wb_x and dphi/du."""
+    f_x = u[..., 0]
+    f_y = u[..., 1]
+    f_z = u[..., 2]
+    temp_c = aux[..., 0]
+    dtemp_c = aux[..., 1]
+    t_s = aux[..., 2]
+    w2 = aux[..., 3]
+    wb_x = aux[..., 4]
+    wb_y = aux[..., 5]
+    wb_z = aux[..., 6]
+    dwb_x = aux[..., 7]
+    dwb_y = aux[..., 8]
+    dwb_z = aux[..., 9]
+    shape = numpy.broadcast_shapes(numpy.shape(f_x), numpy.shape(f_y), numpy.shape(f_z), numpy.shape(temp_c), numpy.shape(dtemp_c), numpy.shape(t_s), numpy.shape(w2), numpy.shape(wb_x), numpy.shape(wb_y), numpy.shape(wb_z), numpy.shape(dwb_x), numpy.shape(dwb_y), numpy.shape(dwb_z), )
+    out0 = numpy.empty(shape + (1,))
+    out0[..., 0] = f_x*wb_z - f_z*wb_x
+    out1 = numpy.empty(shape + (3,))
+    out1[..., 0] = wb_z
+    out1[..., 1] = 0
+    out1[..., 2] = -wb_x
+    return out0, out1
+
+
+def phi_acc_time_delay_z(u, aux=numpy.zeros(10)):
+    """acc.time_delay.z: phi = -f_x*wb_y + f_y*wb_x and dphi/du."""
+    f_x = u[..., 0]
+    f_y = u[..., 1]
+    f_z = u[..., 2]
+    temp_c = aux[..., 0]
+    dtemp_c = aux[..., 1]
+    t_s = aux[..., 2]
+    w2 = aux[..., 3]
+    wb_x = aux[..., 4]
+    wb_y = aux[..., 5]
+    wb_z = aux[..., 6]
+    dwb_x = aux[..., 7]
+    dwb_y = aux[..., 8]
+    dwb_z = aux[..., 9]
+    shape = numpy.broadcast_shapes(numpy.shape(f_x), numpy.shape(f_y), numpy.shape(f_z), numpy.shape(temp_c), numpy.shape(dtemp_c), numpy.shape(t_s), numpy.shape(w2), numpy.shape(wb_x), numpy.shape(wb_y), numpy.shape(wb_z), numpy.shape(dwb_x), numpy.shape(dwb_y), numpy.shape(dwb_z), )
+    out0 = numpy.empty(shape + (1,))
+    out0[..., 0] = -f_x*wb_y + f_y*wb_x
+    out1 = numpy.empty(shape + (3,))
+    out1[..., 0] = -wb_y
+    out1[..., 1] = wb_x
+    out1[..., 2] = 0
     return out0, out1
 
 
@@ -1486,6 +1945,12 @@ EFFECTS = {
     'acc.cross_coupling.yz': Effect('acc', 1, 'Kc_yz', 'g/g^2', 'y accelerometer output proportional to f_y f_z (cross-axis coupling)', phi_acc_cross_coupling_yz, ()),
     'acc.cross_coupling.zx': Effect('acc', 2, 'Kc_zx', 'g/g^2', 'z accelerometer output proportional to f_z f_x (cross-axis coupling)', phi_acc_cross_coupling_zx, ()),
     'acc.cross_coupling.zy': Effect('acc', 2, 'Kc_zy', 'g/g^2', 'z accelerometer output proportional to f_z f_y (cross-axis coupling)', phi_acc_cross_coupling_zy, ()),
+    'acc.lever_arm.yx': Effect('acc', 1, 'r_yx', 'm', "y accelerometer's lever arm from the x accelerometer, along x (size effect under any motion)", phi_acc_lever_arm_yx, ('wb_x', 'wb_y', 'dwb_z')),
+    'acc.lever_arm.yy': Effect('acc', 1, 'r_yy', 'm', "y accelerometer's lever arm from the x accelerometer, along y (size effect under any motion)", phi_acc_lever_arm_yy, ('wb_x', 'wb_z')),
+    'acc.lever_arm.yz': Effect('acc', 1, 'r_yz', 'm', "y accelerometer's lever arm from the x accelerometer, along z (size effect under any motion)", phi_acc_lever_arm_yz, ('wb_y', 'wb_z', 'dwb_x')),
+    'acc.lever_arm.zx': Effect('acc', 2, 'r_zx', 'm', "z accelerometer's lever arm from the x accelerometer, along x (size effect under any motion)", phi_acc_lever_arm_zx, ('wb_x', 'wb_z', 'dwb_y')),
+    'acc.lever_arm.zy': Effect('acc', 2, 'r_zy', 'm', "z accelerometer's lever arm from the x accelerometer, along y (size effect under any motion)", phi_acc_lever_arm_zy, ('wb_y', 'wb_z', 'dwb_x')),
+    'acc.lever_arm.zz': Effect('acc', 2, 'r_zz', 'm', "z accelerometer's lever arm from the x accelerometer, along z (size effect under any motion)", phi_acc_lever_arm_zz, ('wb_x', 'wb_y')),
     'acc.quadratic.x': Effect('acc', 0, 'K2_x', 'g/g^2', 'x accelerometer second-order nonlinearity (output grows with f_x^2)', phi_acc_quadratic_x, ()),
     'acc.quadratic.y': Effect('acc', 1, 'K2_y', 'g/g^2', 'y accelerometer second-order nonlinearity (output grows with f_y^2)', phi_acc_quadratic_y, ()),
     'acc.quadratic.z': Effect('acc', 2, 'K2_z', 'g/g^2', 'z accelerometer second-order nonlinearity (output grows with f_z^2)', phi_acc_quadratic_z, ()),
@@ -1507,6 +1972,9 @@ EFFECTS = {
     'acc.size_effect.zx': Effect('acc', 2, 'r_zx', 'm', 'z accelerometer x lever arm (size effect under rotation)', phi_acc_size_effect_zx, ('w2',)),
     'acc.size_effect.zy': Effect('acc', 2, 'r_zy', 'm', 'z accelerometer y lever arm (size effect under rotation)', phi_acc_size_effect_zy, ('w2',)),
     'acc.size_effect.zz': Effect('acc', 2, 'r_zz', 'm', 'z accelerometer z lever arm (size effect under rotation)', phi_acc_size_effect_zz, ('w2',)),
+    'acc.time_delay.x': Effect('acc', 0, 'tau_x', 's', 'x accelerometer sampled later than the gyros (time delay)', phi_acc_time_delay_x, ('wb_y', 'wb_z')),
+    'acc.time_delay.y': Effect('acc', 1, 'tau_y', 's', 'y accelerometer sampled later than the gyros (time delay)', phi_acc_time_delay_y, ('wb_x', 'wb_z')),
+    'acc.time_delay.z': Effect('acc', 2, 'tau_z', 's', 'z accelerometer sampled later than the gyros (time delay)', phi_acc_time_delay_z, ('wb_x', 'wb_y')),
     'gyro.bias_drift_time.x': Effect('gyro', 0, 'btg_x', '(deg/h)/s', 'x gyro bias drifting linearly in time', phi_gyro_bias_drift_time_x, ('t_s',)),
     'gyro.bias_drift_time.y': Effect('gyro', 1, 'btg_y', '(deg/h)/s', 'y gyro bias drifting linearly in time', phi_gyro_bias_drift_time_y, ('t_s',)),
     'gyro.bias_drift_time.z': Effect('gyro', 2, 'btg_z', '(deg/h)/s', 'z gyro bias drifting linearly in time', phi_gyro_bias_drift_time_z, ('t_s',)),
@@ -1544,7 +2012,7 @@ EFFECTS = {
 
 
 # family: what a turntable plan needs to tell it from the baseline (derive/models/effects.py)
-SEPARATE = {'quadratic': 'static positions at several levels and both signs of the input on that axis (e.g. --plan fibonacci48); for gyros rate runs at several rates (e.g. 5, 10, 20 deg/s)', 'scale_asymmetry': 'inputs of both signs on that axis (for gyros, rate runs of both signs)', 'cross_coupling': 'static positions where both axes carry input at once (e.g. --plan fibonacci48)', 'bias_drift_time': 'positions revisited at the start and the end of the test', 'bias_temperature': 'a temperature sweep across the positions (a temp_c column)', 'bias_temperature2': 'a temperature sweep across the positions at three or more temperatures', 'bias_temperature3': 'a temperature sweep across the positions at four or more temperatures', 'scale_temperature': 'inputs of both signs on that axis at several temperatures (a temp_c column)', 'scale_temperature2': 'inputs of both signs on that axis at three or more temperatures', 'size_effect': 'rate runs with the accelerometers recorded during them, at several attitudes and rates', 'g_sensitivity': 'rate runs of both signs at each attitude: the specific force keeps its direction while the rate flips, which separates G f from the scale and misalignment'}
+SEPARATE = {'quadratic': 'static positions at several levels and both signs of the input on that axis (e.g. --plan fibonacci48); for gyros rate runs at several rates (e.g. 5, 10, 20 deg/s)', 'scale_asymmetry': 'inputs of both signs on that axis (for gyros, rate runs of both signs)', 'cross_coupling': 'static positions where both axes carry input at once (e.g. --plan fibonacci48)', 'bias_drift_time': 'positions revisited at the start and the end of the test', 'bias_temperature': 'a temperature sweep across the positions (a temp_c column)', 'bias_temperature2': 'a temperature sweep across the positions at three or more temperatures', 'bias_temperature3': 'a temperature sweep across the positions at four or more temperatures', 'scale_temperature': 'inputs of both signs on that axis at several temperatures (a temp_c column)', 'scale_temperature2': 'inputs of both signs on that axis at three or more temperatures', 'size_effect': 'rate runs with the accelerometers recorded during them, at several attitudes and rates', 'lever_arm': 'a rotation sequence (the accelerometers recorded through moves about every axis, accelerating and braking)', 'time_delay': 'a rotation sequence (the accelerometers recorded through moves about every axis)', 'g_sensitivity': 'rate runs of both signs at each attitude: the specific force keeps its direction while the rate flips, which separates G f from the scale and misalignment'}
 
 # gyro family: what a hand-placed session's moves need
 SEPARATE_MOVES = {'quadratic': 'moves at several rates, fast and slow, about that axis', 'scale_asymmetry': 'moves turning both ways about that axis', 'bias_drift_time': 'moves spread over a longer session', 'bias_temperature': 'a temp_c column, with the temperature changing over the session', 'bias_temperature2': 'a temp_c column, with the temperature spanning a wide range over the session', 'bias_temperature3': 'a temp_c column, with the temperature spanning a wide range over the session', 'scale_temperature': 'moves about that axis at several temperatures (a temp_c column)', 'scale_temperature2': 'moves about that axis at three or more temperatures', 'g_sensitivity': 'moves made with that axis at several attitudes to gravity'}

@@ -7,10 +7,11 @@ generates their regressors and derivatives (generated/effects.py) so that
 """
 import sympy as sp
 
-from ..frames import AXES, dtemp_c, f_b, omega_d, t_s, w2
+from ..frames import AXES, domega_b, dtemp_c, f_b, omega_b, omega_d, skew, t_s, w2
 from . import Term
 
 DPS = 3600.0  # deg/h per deg/s: gyro rates enter nonlinear terms in deg/s to keep coefficients O(1)
+G0 = 9.80665  # m/s^2 per g: a lever arm's acceleration in the accelerometers' unit (local g differs by < 0.3 %)
 
 
 def _f(axis):
@@ -47,6 +48,34 @@ def acc_size_effect(axis, component):
     u_a, u_c = _f(axis), _f(component)
     return Term(f"r_{axis}{component}", axis, w2 * (u_a * u_c - (1 if axis == component else 0)), "m",
                 f"{axis} accelerometer {component} lever arm (size effect under rotation)")
+
+
+def acc_lever_arm(axis, component):
+    """Lever arm of the `axis` accelerometer from the x accelerometer, its `component`, in m, under any
+    motion the gyros measure (a rotation sequence's moves): the accelerometer feels
+    domega x r + omega x (omega x r) beyond the x accelerometer, so its output gains
+    [(domega x e_c)_a + omega_a omega_c - |omega|^2 delta_ac] r_c / g (omega_b, domega_b in rad/s, rad/s^2).
+    The size effect's general form: on a rate run (omega = w_T u, domega = 0) it is size_effect's
+    w2 (u_a u_c - delta_ac). Only the differences of the three accelerometers' positions show: a lever
+    arm common to all three is the navigation point's own motion, which returns to rest with the table
+    (zero-velocity updates cannot see it), so the x accelerometer is the reference point and its
+    own arm is zero, as in PSINS' sysclbt."""
+    a, c = AXES.index(axis), AXES.index(component)
+    e_c = sp.Matrix([1 if k == c else 0 for k in range(3)])
+    centripetal = omega_b[a] * omega_b[c] - (omega_b.dot(omega_b) if a == c else 0)
+    return Term(f"r_{axis}{component}", axis, ((skew(domega_b) * e_c)[a] + centripetal) / G0, "m",
+                f"{axis} accelerometer's lever arm from the x accelerometer, along {component} (size effect under any "
+                "motion)")
+
+
+def acc_time_delay(axis):
+    """The `axis` accelerometer sampled tau later than the gyros (s): its sample stands for f(t - tau)
+    = f - tau df/dt, and a body turning at omega in a still gravity field has df/dt = -omega x f
+    (f in b), so the output gains tau (omega x f)_a (first order: tau^2 omega^2 is 1e-7 g at 5 ms and
+    10 deg/s). omega_b in rad/s."""
+    a = AXES.index(axis)
+    return Term(f"tau_{axis}", axis, omega_b.cross(f_b)[a], "s",
+                f"{axis} accelerometer sampled later than the gyros (time delay)")
 
 
 def gyro_quadratic(axis):
@@ -105,6 +134,9 @@ def _catalog():
             if o != a:
                 out[f"acc.cross_coupling.{a}{o}"] = acc_cross_coupling(a, o)
             out[f"acc.size_effect.{a}{o}"] = acc_size_effect(a, o)
+            if a != "x":
+                out[f"acc.lever_arm.{a}{o}"] = acc_lever_arm(a, o)
+        out[f"acc.time_delay.{a}"] = acc_time_delay(a)
         out[f"gyro.quadratic.{a}"] = gyro_quadratic(a)
         out[f"gyro.scale_asymmetry.{a}"] = gyro_scale_asymmetry(a)
         out[f"gyro.bias_drift_time.{a}"] = gyro_bias_drift_time(a)
@@ -132,6 +164,9 @@ SEPARATE = {  # what a turntable plan needs for each family to be told apart fro
     "scale_temperature": "inputs of both signs on that axis at several temperatures (a temp_c column)",
     "scale_temperature2": "inputs of both signs on that axis at three or more temperatures",
     "size_effect": "rate runs with the accelerometers recorded during them, at several attitudes and rates",
+    "lever_arm": "a rotation sequence (the accelerometers recorded through moves about every axis, accelerating "
+                 "and braking)",
+    "time_delay": "a rotation sequence (the accelerometers recorded through moves about every axis)",
     "g_sensitivity": "rate runs of both signs at each attitude: the specific force keeps its direction while the "
                      "rate flips, which separates G f from the scale and misalignment",
 }

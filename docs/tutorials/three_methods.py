@@ -5,6 +5,8 @@ side in one vocabulary.
 Run in an empty folder: ``python3 three_methods.py`` (a few seconds), on the Python API alone; it passes
 ``mypy --strict`` (tests/test_lint.py). Each ``assert`` is a claim of the tutorial's page.
 """
+from typing import Literal
+
 import numpy as np
 
 import simucal
@@ -14,8 +16,8 @@ import simucal
 ms = simucal.simulate(seed=1)
 
 # 2. Calibrate it three ways. Each method fits its own parameters (dK_x, theta_yx, b_x; or M_xx, bias_x).
-methods = ("exact", "linear", "multiposition")
-cals = {m: simucal.calibrate(ms, method=m) for m in methods}
+methods: tuple[Literal["exact", "linear", "multiposition"], ...] = ("exact", "linear", "multiposition")  # method= is checked
+cals: dict[str, simucal.Calibration] = {m: simucal.calibrate(ms, method=m) for m in methods}
 for m, cal in cals.items():
     acc = cal.sensor("acc")  # never None: a calibration without an accelerometer block says why
     print(f"{m}: acc chi2 {acc.chi2}, p = {acc.p_value}")

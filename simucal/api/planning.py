@@ -3,7 +3,7 @@ model (Fisher information, CRLB, D and A criteria; turntable/plan_design.py), th
 effects apart, and a rotation sequence's observability beside the norm method's CRLB."""
 from __future__ import annotations
 
-from typing import Any, Sequence, cast
+from typing import Any, Sequence
 
 import numpy as np
 
@@ -153,6 +153,5 @@ def sequence_observability(sequence: str, *, model: str = "acc_baseline", add: S
     crlb = {s: plan(plan_name, model=models[s], add=for_sensor(tuple(add), s), rates_dps=rates_dps, noise=noise[s])
             for s in ("acc", "gyro")}
     assert ms.truth is not None  # a simulated set's
-    record = cast(results.SequenceRecord, ms.truth["sequence"])  # the simulator's truth.json
-    return {"sequence": record, "models": models, "add": list(add), "observability": obs, "norm": crlb,
+    return {"sequence": ms.truth["sequence"], "models": models, "add": list(add), "observability": obs, "norm": crlb,
             "plan": plan_name, "noise": noise, "rest_n": rest_n, "stated": bool(acc_noise_g and gyro_noise_dph)}

@@ -10,7 +10,7 @@ from typing import Any, Mapping, Sequence
 import numpy as np
 
 from simucal import io
-from simucal.io import records
+from simucal.io import results
 from simucal.errors import InputError
 from simucal.io import arrays
 
@@ -31,7 +31,7 @@ class MeasurementSet(io.MeasurementSet):
     (100, 3)
     """
 
-    truth: records.JSONObject | None = None  # a simulated set's truth (truth.json), else None
+    truth: results.Truth | None = None  # a simulated set's truth (truth.json), else None
 
     def __repr__(self) -> str:
         """One line (issue 54: the dataclass's printed every array, 8 kB): where, what kind of data, how many

@@ -27,7 +27,7 @@ import numpy as np
 from simucal.api.tables import table
 from simucal.fit.augmented import AugmentedModel
 from simucal.generated.effects import EFFECTS
-from simucal.io.calibration import SensorBlock
+from simucal.io.calibration import Calibration, SensorBlock
 
 AXES = "xyz"
 
@@ -142,7 +142,7 @@ def _rotation_to_lower(M_acc) -> np.ndarray:
     return (Qt * signs).T
 
 
-def compare(calibrations: Mapping[str, Any]) -> Any:
+def compare(calibrations: Mapping[str, Calibration]) -> Any:
     """Calibrations of one unit side by side in the one vocabulary: a row per sensor and entry (M_xx ..
     bias_z, effects), for each calibration its value and std (columns ``LABEL`` and ``LABEL std``), and
     the unit; every M in the accelerometers' own frame (module doc), so that the misalignments of a

@@ -49,7 +49,8 @@ def twins(key, cols: dict, r, s2=1.0) -> list:
 
 
 INPUTS = {"t_s": "time", "dtemp_c": "temperature", "temp_c": "temperature", "w2": "the rate (centripetal term)",
-          "f_x": "the attitude to gravity", "f_y": "the attitude to gravity", "f_z": "the attitude to gravity"}
+          "f_x": "the attitude to gravity", "f_y": "the attitude to gravity", "f_z": "the attitude to gravity",
+          **{f"{q}_{c}": "the motion (body rate and its change)" for q in ("wb", "dwb") for c in "xyz"}}
 
 
 def separating_plan(eid_a: str, eid_b: str, moves=False) -> str:

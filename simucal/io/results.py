@@ -134,3 +134,58 @@ class SequenceObservability(TypedDict, total=False):
     noise: dict[str, float]           # per sensor: one position's mean
     rest_n: float
     stated: bool
+
+
+class SensorTruth(TypedDict, total=False):
+    """One sensor's truth in a simulated set's truth.json: its model, parameters and planted effects, and
+    M and bias in b (units as the calibration file's)."""
+    model: str
+    params: dict[str, float]
+    effects: dict[str, float]         # effect id: value
+    M: list[list[float]]
+    bias: list[float]
+    bias_unit: str
+    M_in_d: list[list[float]]         # a turntable gyro's, in its own frame d, and C_b^d
+    C_b_d: list[list[float]]
+    T: list[list[float]]              # a hand-placed session's gyro: T = M^-1, bias in deg/s
+    bias_dps: list[float]
+
+
+class TableTruth(TypedDict, total=False):
+    """The simulated table's errors (rad; rate_error a fraction of the rate)."""
+    tilt_rad: list[float]
+    nonperp_rad: list[float]
+    zero_rad: list[float]
+    position_error_rad: float
+    rate_error: float
+
+
+class MountingTruth(TypedDict):
+    theta4_rad: list[float]           # C_b^k's angles (dong2018 eq. 13-27), and C_d^k's
+    lambda4_rad: list[float]
+
+
+class FieldPositionTruth(TypedDict, total=False):
+    segment: int
+    heading_deg: float
+    pitch_deg: float
+    roll_deg: float
+    heading_ref_error_deg: float
+
+
+class Truth(TypedDict, total=False):
+    """A simulated set's truth.json (MeasurementSet.truth): what the simulator planted, for checks against it."""
+    acc: SensorTruth
+    gyro: SensorTruth
+    mounting: MountingTruth
+    table: TableTruth
+    seed: int
+    unit_seed: int
+    t_ref_c: float
+    sequence: SequenceRecord
+    clipped_moves: list[int]          # a hand-placed session's moves the simulator clipped
+    pose_directions_b: list[list[float]]
+    gyro_drift_dph: list[float]       # a field set's
+    acc_bias_mps2: list[float]
+    positions: list[FieldPositionTruth]
+    arw_deg_per_sqrt_h: float

@@ -103,7 +103,7 @@ def start_from_rest(ms, gyro, first, C):
 def _levelled(ms, sensors, first, rows):
     """The first rest's commanded attitude, levelled by the accelerometers (the prior's centre)."""
     C0 = table.C_k_n(*np.radians([first.outer_deg, first.middle_deg, first.inner_deg]), np.zeros(7))
-    f_b, _ = sensors.compensate(ms.acc_g()[rows].mean(0, keepdims=True), ms.gyro_dph()[rows].mean(0, keepdims=True),
+    f_b, _, _ = sensors.compensate(ms.acc_g()[rows].mean(0, keepdims=True), ms.gyro_dph()[rows].mean(0, keepdims=True),
                                 AuxInputs(), AuxInputs())
     return level(C0, f_b[0])
 
@@ -212,8 +212,8 @@ def _one_pass(steps, sensors, C, x0, P0, q, w_ie, g0):
     transition (filter.compose; the steps after the last update see no data and are left out)."""
     R = np.eye(3) * ZUPT_STD_MPS ** 2
     aux = AuxInputs({"t_s": steps.t})
-    f_b, w_b = sensors.compensate(steps.N_a, steps.N_g, aux, aux)
-    D_a, D_g = sensors.sensitivities(f_b, w_b, aux, aux)
+    f_b, w_b, aux_a = sensors.compensate(steps.N_a, steps.N_g, aux, aux, steps.dt)
+    D_a, D_g = sensors.sensitivities(f_b, w_b, aux_a, aux)
     Cs, v_at = nominal(C, w_b * units.RAD_S_PER_DPH * steps.dt[:, None], f_b, steps.dt, steps.zupt, w_ie, g0)
     epochs = [Epoch(np.eye(len(P0)), P0, P0, x0, x0)]
     x, P = x0, P0

@@ -26,11 +26,49 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from scipy.ndimage import uniform_filter1d
+
 from simucal.fit.rotations import exp_so3, skew
 from simucal.generated import systematic as gen
 from simucal.generated import table
+from simucal.generated.effects import EFFECTS
+from simucal.io import units
 
 CHUNK = 1024  # epochs whose smoother gains are solved at once (memory: 3 CHUNK n^2 doubles)
+MOTION = tuple(f"{q}_{a}" for q in ("wb", "dwb") for a in "xyz")  # the body rate and its change, as acc terms read them
+SMOOTH_S = 0.1  # the window over which a regressor's inputs are averaged (smoothed)
+
+
+def smoothed(inputs, dt):
+    """Each input (n, 3) averaged over SMOOTH_S about each step. A column's regressor evaluated at the
+    measured input carries that sample's noise, which the innovations carry too: for a term nonlinear
+    in it (w^2: 2 w n) the two correlate, and the score test reads the noise as the effect (a MEMS
+    gyro's 30 deg/h gave gyro.quadratic a chi-square of 9-16 on clean sequences). The table's
+    moves change the rate over seconds, so the average keeps the input and divides the noise's
+    variance by the window's samples."""
+    size = max(1, int(round(SMOOTH_S / float(np.median(dt))))) | 1
+    return tuple(uniform_filter1d(x, size, axis=0, mode="nearest") for x in inputs)
+
+
+def motion(w_b_dph, dt_s) -> dict:
+    """{wb_x.., dwb_x..}: the body rate the gyros give (rad/s) at each step, and its rate of change (rad/s^2):
+    what the accelerometers' lever arms and time delay read (derive/frames.py). The change is the
+    central difference (w_{k+1} - w_{k-1}) / (2 dt_k) over each step's own length dt_k: a sample of a move
+    gets the central difference of the samples, and a block at rest the share that spills into its
+    first and last samples, so that the steps' changes add up to each move's whole change of rate (a
+    table's 0.2 s accelerations: differences taken over the blocks' centres, or a smoothed rate, lost
+    part of it, which a lever arm turned into velocity errors 60 times the zero-velocity noise).
+    Not smoothed: the differences of a MEMS gyro's noise are a fraction of its accelerometers' noise."""
+    w = np.asarray(w_b_dph, float) * units.RAD_S_PER_DPH
+    padded = np.concatenate([w[:1], w, w[-1:]])
+    dw = (padded[2:] - padded[:-2]) / (2.0 * np.asarray(dt_s, float).reshape(-1, 1))
+    return {**{f"wb_{a}": w[:, j] for j, a in enumerate("xyz")}, **{f"dwb_{a}": dw[:, j] for j, a in enumerate("xyz")}}
+
+
+def reads_motion(model) -> bool:
+    """Whether an (augmented) model's terms read the body rate: a library lever arm or time delay, or a
+    user's model file (whose terms may)."""
+    return model.base.source != "built-in" or any(set(MOTION) & set(EFFECTS[e].reads) for e in model.effects)
 
 
 @dataclass
@@ -49,14 +87,21 @@ class Sensors:
     def vector(self) -> np.ndarray:
         return np.r_[self.p_acc, self.p_gyro, self.eta]
 
-    def compensate(self, N_a, N_g, aux_a, aux_g):
-        """u_hat: f_b (g) and w_b (deg/h) per sample (n, 3), the models inverted at the estimates."""
+    def compensate(self, N_a, N_g, aux_a, aux_g, dt_s=None):
+        """u_hat: f_b (g) and w_b (deg/h) per step (n, 3), the models inverted at the estimates, and the
+        accelerometer's auxiliary inputs: with the steps' lengths dt_s, the motion the gyros give where its
+        terms read it (lever arms, time delay: f_b inverted again with it; the gyro's g-sensitivity is
+        left at the first f_b, a change far below its noise)."""
         from simucal.fit.apply import model_inputs
         f_b = model_inputs(self.acc, self.p_acc, N_a, aux_a, "the systematic filter")
         C_b_d = table.mounting(self.eta)
         w_d = model_inputs(self.gyro, self.p_gyro, N_g, aux_g.with_values(**_force(f_b @ C_b_d.T)),
                            "the systematic filter")
-        return f_b, w_d @ C_b_d
+        w_b = w_d @ C_b_d
+        if dt_s is not None and reads_motion(self.acc):
+            aux_a = aux_a.with_values(**motion(w_b, dt_s))
+            f_b = model_inputs(self.acc, self.p_acc, N_a, aux_a, "the systematic filter")
+        return f_b, w_b, aux_a
 
     def sensitivities(self, f_b, w_b, aux_a, aux_g):
         """D_a (n, 3, n_acc) and D_g (n, 3, n_gyro + 3): du_hat / dp_hat = -A^-1 J (derive/systematic.py)."""

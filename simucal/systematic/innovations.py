@@ -23,7 +23,6 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
-from scipy.ndimage import uniform_filter1d
 
 from simucal.fit.augmented import AugmentedModel, effect_ids, follows_temperature
 from simucal.fit.aux_inputs import AuxInputs
@@ -35,7 +34,7 @@ from simucal.generated import systematic as gen
 from simucal.generated.effects import EFFECTS, SEPARATE
 from simucal.io import units
 from simucal.systematic.calibrate import ZUPT_STD_MPS
-from simucal.systematic.filter import Sensors, nominal
+from simucal.systematic.filter import Sensors, nominal, smoothed
 
 CHUNK = 4096  # steps whose blocks are built at once
 
@@ -98,9 +97,9 @@ def signatures(result, ids=None) -> Signatures:
                   np.r_[s.p_acc, np.zeros(len(acc_c))], np.r_[s.p_gyro, np.zeros(len(gyro_c))], s.eta)
     steps, q, w_ie, g0 = result.setting
     aux = AuxInputs({"t_s": steps.t})
-    f_b, w_b = big.compensate(steps.N_a, steps.N_g, aux, aux)
+    f_b, w_b, aux_a = big.compensate(steps.N_a, steps.N_g, aux, aux, steps.dt)
     f_smooth, w_smooth = smoothed((f_b, w_b), steps.dt)
-    D_a, D_g = big.sensitivities(f_smooth, w_smooth, aux, aux)
+    D_a, D_g = big.sensitivities(f_smooth, w_smooth, aux_a, aux)
     Cs, v_at = nominal(result.C, w_b * units.RAD_S_PER_DPH * steps.dt[:, None], f_b, steps.dt, steps.zupt, w_ie, g0)
     na, ng = len(s.p_acc), len(s.p_gyro)
     own = list(range(na)) + [len(big.p_acc) + j for j in range(ng)] + list(range(D_a.shape[-1] + D_g.shape[-1] - 3,
@@ -110,20 +109,6 @@ def signatures(result, ids=None) -> Signatures:
     r, cols = out[0], out[1]
     return Signatures(r, cols[:, own], {e: cols[:, k] for e, k in zip(acc_c + gyro_c, cand)}, steps.t[steps.zupt],
                       out[2], out[3])
-
-
-SMOOTH_S = 0.1  # the window over which the inputs of the columns are averaged (smoothed)
-
-
-def smoothed(inputs, dt):
-    """Each input (n, 3) averaged over SMOOTH_S about each step. A column's regressor evaluated at the
-    measured input carries that sample's noise, which the innovations carry too: for a term nonlinear
-    in it (w^2: 2 w n) the two correlate, and the score test reads the noise as the effect (a MEMS
-    gyro's 30 deg/h gave gyro.quadratic a chi-square of 9-16 on clean sequences). The table's
-    moves change the rate over seconds, so the average keeps the input and divides the noise's
-    variance by the window's samples."""
-    size = max(1, int(round(SMOOTH_S / float(np.median(dt))))) | 1
-    return tuple(uniform_filter1d(x, size, axis=0, mode="nearest") for x in inputs)
 
 
 def _navigation_pass(steps, Cs, v_at, f_b, D_a, D_g, q, w_ie, g0, P0_diag):

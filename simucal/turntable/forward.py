@@ -10,7 +10,8 @@ simulators write the outputs with this module instead, from the physics as dong2
 L lower triangular: the scale-factor errors dK on its diagonal, the misalignment angles (theta_ij for the
 accelerometers, phi_ij for the gyros: axis i tilted toward j) below it; b the biases; and each library
 effect's regressor phi_e in numpy below (its family's physics: a quadratic u_a^2, a scale asymmetry |u_a|,
-a cross coupling u_a u_o, a bias drifting in time t, a lever arm (w_T^2/g)(u_a u_c - delta_ac) r_c, a
+a cross coupling u_a u_o, a bias drifting in time t, a lever arm on a rate run (w_T^2/g)(u_a u_c - delta_ac) r_c
+and under any motion (domega x r + omega x (omega x r))_a / g, a time delay tau (omega x f)_a, a
 g-sensitivity f_o, a bias or scale changing with temperature). A gyro's rates enter the nonlinear terms in
 deg/s. A model this module does not know (a user's model file) is simulated by its own generated output,
 which is then the only forward model there is.
@@ -24,6 +25,7 @@ from simucal.generated.effects import EFFECTS
 DPS = 3600.0  # deg/h per deg/s: a gyro's rate enters its nonlinear terms in deg/s
 BASELINE = {"acc": ("acc_baseline", "acc_extended"), "gyro": ("gyro_baseline", "gyro_extended")}
 AXIS = {"x": 0, "y": 1, "z": 2}
+G0 = 9.80665  # m/s^2 per g (a lever arm's acceleration in g)
 
 
 def _regressor(family: str, pair: str, sensor: str, u: np.ndarray, aux) -> np.ndarray:
@@ -41,6 +43,14 @@ def _regressor(family: str, pair: str, sensor: str, u: np.ndarray, aux) -> np.nd
         return aux.column("t_s", n)
     if family == "size_effect":
         return aux.column("w2", n) * (u[:, a] * u[:, o] - (1.0 if a == o else 0.0))
+    if family == "lever_arm":  # the a accelerometer r_c from the x one: (domega x e_c)_a + (omega x (omega x e_c))_a, in g
+        w = np.stack([aux.column(f"wb_{x}", n) for x in "xyz"], -1)
+        dw = np.stack([aux.column(f"dwb_{x}", n) for x in "xyz"], -1)
+        e_c = np.eye(3)[o]
+        return (np.cross(dw, e_c)[:, a] + np.cross(w, np.cross(w, e_c))[:, a]) / G0
+    if family == "time_delay":  # sampled tau late: f(t - tau) = f + tau (omega x f), to first order
+        w = np.stack([aux.column(f"wb_{x}", n) for x in "xyz"], -1)
+        return np.cross(w, u)[:, a]
     if family == "g_sensitivity":
         return aux.column(f"f_{pair[-1]}", n)
     if "temperature" in family:  # bias_temperature{,2,3}: dT^k; scale_temperature{,2}: u_a dT^k
