@@ -63,20 +63,25 @@ def numpy_function(fname, args, outputs, doc, first_axis=False):
     """
     SPECS.append((fname, args, outputs, first_axis))
     printer = _Printer()
-    sig, unpack, scalars = [], [], []
+    flat = [e for _, m in outputs for e in m]
+    read = set().union(*(sp.sympify(e).free_symbols for e in flat))
+    sig, unpack, scalars, shapes = [], [], [], []
     for name, syms in args:
         sig.append(f"{name}={DEFAULTS[name].format(n=len(syms))}" if name in DEFAULTS else name)
         if syms is None:
             scalars.append(name)
+        elif name == "aux":  # only the inputs the outputs read; the rest still shape the result, by aux's own shape
+            unpack += [line for line, s in zip(_vec_arg(name, syms, first_axis), syms) if s in read]
+            scalars += [str(s) for s in syms if s in read]
+            shapes.append(f"numpy.shape(aux){'[1:]' if first_axis else '[:-1]'}, ")
         else:
             unpack += _vec_arg(name, syms, first_axis)
             scalars += [str(s) for s in syms]
-    flat = [e for _, m in outputs for e in m]
     reps, reduced = sp.cse(flat, symbols=sp.numbered_symbols("_c"), order="canonical")
     lines = [f"def {fname}({', '.join(sig)}):", f'    """{doc}"""'] + unpack
     for s, e in reps:
         lines.append(f"    {s} = {printer.doprint(e)}")
-    lines.append("    shape = numpy.broadcast_shapes(" + "".join(f"numpy.shape({s}), " for s in scalars) + ")")
+    lines.append("    shape = numpy.broadcast_shapes(" + "".join(f"numpy.shape({s}), " for s in scalars) + "".join(shapes) + ")")
     k = 0
     names = []
     for j, (shape, m) in enumerate(outputs):

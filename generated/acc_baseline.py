@@ -26,13 +26,13 @@ PARAMS = ('dK_x', 'dK_y', 'dK_z', 'theta_yx', 'theta_zx', 'theta_zy', 'b_x', 'b_
 PARAM_UNITS = ('1', '1', '1', 'rad', 'rad', 'rad', 'g', 'g', 'g')
 PARAM_AXES = ('x', 'y', 'z', 'y', 'z', 'z', 'x', 'y', 'z')
 MEANINGS = ('x accelerometer scale-factor error', 'y accelerometer scale-factor error', 'z accelerometer scale-factor error', 'y accelerometer axis tilted toward x of the parameter frame', 'z accelerometer axis tilted toward x of the parameter frame', 'z accelerometer axis tilted toward y of the parameter frame', 'x accelerometer bias', 'y accelerometer bias', 'z accelerometer bias')
-AUX = ('temp_c', 'dtemp_c', 't_s', 'w2', 'wb_x', 'wb_y', 'wb_z', 'dwb_x', 'dwb_y', 'dwb_z')
-AUX_UNITS = ('degC', 'degC', 's', '1/m', 'rad/s', 'rad/s', 'rad/s', 'rad/s^2', 'rad/s^2', 'rad/s^2')
+AUX = ()
+AUX_UNITS = ()
 NORM_COLUMNS = ('N_x**2', 'N_y**2', 'N_z**2', '-2*N_x*N_y', '-2*N_x*N_z', '-2*N_y*N_z', '-2*N_x', '-2*N_y', '-2*N_z')
 K_OF_PARAMS = ('(dK_x + 1)**(-2)', '(dK_y + 1)**(-2)', '(dK_z + 1)**(-2)', 'theta_yx/((dK_x + 1)*(dK_y + 1)**2)', 'theta_zx/((dK_x + 1)*(dK_z + 1)**2)', 'theta_zy/((dK_y + 1)*(dK_z + 1)**2)', 'b_x/(dK_x + 1)**2', 'b_y/(dK_y + 1)**2', 'b_z/(dK_z + 1)**2')
 
 
-def output(u, p, aux=numpy.zeros(10)):
+def output(u, p, aux=numpy.zeros(0)):
     """N(u, p): the exact forward model (dong2018 eq. 5/9 generalised)."""
     f_x = u[..., 0]
     f_y = u[..., 1]
@@ -46,17 +46,7 @@ def output(u, p, aux=numpy.zeros(10)):
     b_x = p[..., 6]
     b_y = p[..., 7]
     b_z = p[..., 8]
-    temp_c = aux[..., 0]
-    dtemp_c = aux[..., 1]
-    t_s = aux[..., 2]
-    w2 = aux[..., 3]
-    wb_x = aux[..., 4]
-    wb_y = aux[..., 5]
-    wb_z = aux[..., 6]
-    dwb_x = aux[..., 7]
-    dwb_y = aux[..., 8]
-    dwb_z = aux[..., 9]
-    shape = numpy.broadcast_shapes(numpy.shape(f_x), numpy.shape(f_y), numpy.shape(f_z), numpy.shape(dK_x), numpy.shape(dK_y), numpy.shape(dK_z), numpy.shape(theta_yx), numpy.shape(theta_zx), numpy.shape(theta_zy), numpy.shape(b_x), numpy.shape(b_y), numpy.shape(b_z), numpy.shape(temp_c), numpy.shape(dtemp_c), numpy.shape(t_s), numpy.shape(w2), numpy.shape(wb_x), numpy.shape(wb_y), numpy.shape(wb_z), numpy.shape(dwb_x), numpy.shape(dwb_y), numpy.shape(dwb_z), )
+    shape = numpy.broadcast_shapes(numpy.shape(f_x), numpy.shape(f_y), numpy.shape(f_z), numpy.shape(dK_x), numpy.shape(dK_y), numpy.shape(dK_z), numpy.shape(theta_yx), numpy.shape(theta_zx), numpy.shape(theta_zy), numpy.shape(b_x), numpy.shape(b_y), numpy.shape(b_z), numpy.shape(aux)[:-1], )
     out0 = numpy.empty(shape + (3,))
     out0[..., 0] = b_x + dK_x*f_x + f_x
     out0[..., 1] = b_y + dK_y*f_y + f_x*theta_yx + f_y
@@ -64,7 +54,7 @@ def output(u, p, aux=numpy.zeros(10)):
     return out0
 
 
-def output_jacobians(u, p, aux=numpy.zeros(10)):
+def output_jacobians(u, p, aux=numpy.zeros(0)):
     """dN/du and dN/dp of the exact forward model."""
     f_x = u[..., 0]
     f_y = u[..., 1]
@@ -78,17 +68,7 @@ def output_jacobians(u, p, aux=numpy.zeros(10)):
     b_x = p[..., 6]
     b_y = p[..., 7]
     b_z = p[..., 8]
-    temp_c = aux[..., 0]
-    dtemp_c = aux[..., 1]
-    t_s = aux[..., 2]
-    w2 = aux[..., 3]
-    wb_x = aux[..., 4]
-    wb_y = aux[..., 5]
-    wb_z = aux[..., 6]
-    dwb_x = aux[..., 7]
-    dwb_y = aux[..., 8]
-    dwb_z = aux[..., 9]
-    shape = numpy.broadcast_shapes(numpy.shape(f_x), numpy.shape(f_y), numpy.shape(f_z), numpy.shape(dK_x), numpy.shape(dK_y), numpy.shape(dK_z), numpy.shape(theta_yx), numpy.shape(theta_zx), numpy.shape(theta_zy), numpy.shape(b_x), numpy.shape(b_y), numpy.shape(b_z), numpy.shape(temp_c), numpy.shape(dtemp_c), numpy.shape(t_s), numpy.shape(w2), numpy.shape(wb_x), numpy.shape(wb_y), numpy.shape(wb_z), numpy.shape(dwb_x), numpy.shape(dwb_y), numpy.shape(dwb_z), )
+    shape = numpy.broadcast_shapes(numpy.shape(f_x), numpy.shape(f_y), numpy.shape(f_z), numpy.shape(dK_x), numpy.shape(dK_y), numpy.shape(dK_z), numpy.shape(theta_yx), numpy.shape(theta_zx), numpy.shape(theta_zy), numpy.shape(b_x), numpy.shape(b_y), numpy.shape(b_z), numpy.shape(aux)[:-1], )
     out0 = numpy.empty(shape + (3, 3))
     out0[..., 0, 0] = dK_x + 1
     out0[..., 0, 1] = 0
@@ -130,24 +110,14 @@ def output_jacobians(u, p, aux=numpy.zeros(10)):
     return out0, out1
 
 
-def norm_regressors(N, aux=numpy.zeros(10)):
+def norm_regressors(N, aux=numpy.zeros(0)):
     """psi(N): one row of N_s (dong2018 eq. 7, 11): psi(N) . K = rho^2."""
     N_x = N[..., 0]
     N_y = N[..., 1]
     N_z = N[..., 2]
-    temp_c = aux[..., 0]
-    dtemp_c = aux[..., 1]
-    t_s = aux[..., 2]
-    w2 = aux[..., 3]
-    wb_x = aux[..., 4]
-    wb_y = aux[..., 5]
-    wb_z = aux[..., 6]
-    dwb_x = aux[..., 7]
-    dwb_y = aux[..., 8]
-    dwb_z = aux[..., 9]
     _c0 = 2*N_x
     _c1 = 2*N_y
-    shape = numpy.broadcast_shapes(numpy.shape(N_x), numpy.shape(N_y), numpy.shape(N_z), numpy.shape(temp_c), numpy.shape(dtemp_c), numpy.shape(t_s), numpy.shape(w2), numpy.shape(wb_x), numpy.shape(wb_y), numpy.shape(wb_z), numpy.shape(dwb_x), numpy.shape(dwb_y), numpy.shape(dwb_z), )
+    shape = numpy.broadcast_shapes(numpy.shape(N_x), numpy.shape(N_y), numpy.shape(N_z), numpy.shape(aux)[:-1], )
     out0 = numpy.empty(shape + (9,))
     out0[..., 0] = N_x**2
     out0[..., 1] = N_y**2
@@ -246,7 +216,7 @@ def params_of_K_first_order(K):
     return out0
 
 
-def matrix_and_bias(p, aux=numpy.zeros(10)):
+def matrix_and_bias(p, aux=numpy.zeros(0)):
     """M = dN/du at u = 0 and bias = N(0): output = M u + bias + nonlinear terms."""
     dK_x = p[..., 0]
     dK_y = p[..., 1]
@@ -257,17 +227,7 @@ def matrix_and_bias(p, aux=numpy.zeros(10)):
     b_x = p[..., 6]
     b_y = p[..., 7]
     b_z = p[..., 8]
-    temp_c = aux[..., 0]
-    dtemp_c = aux[..., 1]
-    t_s = aux[..., 2]
-    w2 = aux[..., 3]
-    wb_x = aux[..., 4]
-    wb_y = aux[..., 5]
-    wb_z = aux[..., 6]
-    dwb_x = aux[..., 7]
-    dwb_y = aux[..., 8]
-    dwb_z = aux[..., 9]
-    shape = numpy.broadcast_shapes(numpy.shape(dK_x), numpy.shape(dK_y), numpy.shape(dK_z), numpy.shape(theta_yx), numpy.shape(theta_zx), numpy.shape(theta_zy), numpy.shape(b_x), numpy.shape(b_y), numpy.shape(b_z), numpy.shape(temp_c), numpy.shape(dtemp_c), numpy.shape(t_s), numpy.shape(w2), numpy.shape(wb_x), numpy.shape(wb_y), numpy.shape(wb_z), numpy.shape(dwb_x), numpy.shape(dwb_y), numpy.shape(dwb_z), )
+    shape = numpy.broadcast_shapes(numpy.shape(dK_x), numpy.shape(dK_y), numpy.shape(dK_z), numpy.shape(theta_yx), numpy.shape(theta_zx), numpy.shape(theta_zy), numpy.shape(b_x), numpy.shape(b_y), numpy.shape(b_z), numpy.shape(aux)[:-1], )
     out0 = numpy.empty(shape + (3, 3))
     out0[..., 0, 0] = dK_x + 1
     out0[..., 0, 1] = 0

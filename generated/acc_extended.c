@@ -60,11 +60,11 @@ CASADI_SYMBOL_EXPORT int acc_extended_casadi_real_size(void) { return (int) size
 
 static const casadi_int casadi_s0[3] = {3, 1, 1};
 static const casadi_int casadi_s1[3] = {12, 1, 1};
-static const casadi_int casadi_s2[3] = {10, 1, 1};
+static const casadi_int casadi_s2[3] = {1, 1, 1};
 static const casadi_int casadi_s3[3] = {3, 3, 1};
 static const casadi_int casadi_s4[3] = {3, 12, 1};
 
-/* simucal_acc_extended:(u[3],p[12],aux[10])->(N[3],N_u[3x3],N_p[3x12]) */
+/* simucal_acc_extended:(u[3],p[12],aux)->(N[3],N_u[3x3],N_p[3x12]) */
 static int casadi_f0(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem) {
   casadi_real a00, a01, a02, a03, a04, a05, a06, a07, a08, a09, a10, a11;
   casadi_real a12, a13, a14, a15;
@@ -82,7 +82,7 @@ static int casadi_f0(const casadi_real** arg, casadi_real** res, casadi_int* iw,
   if (res[0]!=0) res[0][0]=a04;
   a04=arg[1]? arg[1][7] : 0;
   a06=arg[1]? arg[1][11] : 0;
-  a07=arg[2]? arg[2][2] : 0;
+  a07=arg[2]? arg[2][0] : 0;
   a06=(a06*a07);
   a04=(a04+a06);
   a06=arg[1]? arg[1][1] : 0;
@@ -248,7 +248,7 @@ CASADI_SYMBOL_EXPORT int simucal_acc_extended_work_bytes(casadi_int *sz_arg, cas
   return 0;
 }
 
-/* simucal_acc_extended_regressors:(N[3],aux[10])->(psi[12]) */
+/* simucal_acc_extended_regressors:(N[3],aux)->(psi[12]) */
 static int casadi_f1(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem) {
   casadi_real a0, a1, a2, a3, a4;
   a0=arg[0]? arg[0][0] : 0;
@@ -285,7 +285,7 @@ static int casadi_f1(const casadi_real** arg, casadi_real** res, casadi_int* iw,
   a0=(a0*a1);
   if (res[0]!=0) res[0][10]=a0;
   a3=(a3*a1);
-  a1=arg[1]? arg[1][2] : 0;
+  a1=arg[1]? arg[1][0] : 0;
   a3=(a3*a1);
   if (res[0]!=0) res[0][11]=a3;
   return 0;
@@ -498,7 +498,7 @@ CASADI_SYMBOL_EXPORT int simucal_acc_extended_params_of_K_work_bytes(casadi_int 
 
 
 #define MODEL_M 12
-#define MODEL_NAUX 10
+#define MODEL_NAUX 1
 #define MODEL_EVAL simucal_acc_extended
 #define MODEL_WORK simucal_acc_extended_work
 #define MODEL_FIT simucal_acc_extended_fit

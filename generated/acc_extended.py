@@ -29,13 +29,13 @@ PARAMS = ('dK_x', 'dK_y', 'dK_z', 'theta_yx', 'theta_zx', 'theta_zy', 'b_x', 'b_
 PARAM_UNITS = ('1', '1', '1', 'rad', 'rad', 'rad', 'g', 'g', 'g', 'g/g^2', 'g/g^2', 'g/s')
 PARAM_AXES = ('x', 'y', 'z', 'y', 'z', 'z', 'x', 'y', 'z', 'z', 'x', 'y')
 MEANINGS = ('x accelerometer scale-factor error', 'y accelerometer scale-factor error', 'z accelerometer scale-factor error', 'y accelerometer axis tilted toward x of the parameter frame', 'z accelerometer axis tilted toward x of the parameter frame', 'z accelerometer axis tilted toward y of the parameter frame', 'x accelerometer bias', 'y accelerometer bias', 'z accelerometer bias', 'z accelerometer second-order nonlinearity (output grows with f_z^2)', 'x accelerometer output proportional to f_x f_y (cross-axis coupling)', 'y accelerometer bias drifting linearly in time')
-AUX = ('temp_c', 'dtemp_c', 't_s', 'w2', 'wb_x', 'wb_y', 'wb_z', 'dwb_x', 'dwb_y', 'dwb_z')
-AUX_UNITS = ('degC', 'degC', 's', '1/m', 'rad/s', 'rad/s', 'rad/s', 'rad/s^2', 'rad/s^2', 'rad/s^2')
+AUX = ('t_s',)
+AUX_UNITS = ('s',)
 NORM_COLUMNS = ('N_x**2', 'N_y**2', 'N_z**2', '-2*N_x*N_y', '-2*N_x*N_z', '-2*N_y*N_z', '-2*N_x', '-2*N_y', '-2*N_z', '-2*N_z**3', '-2*N_x**2*N_y', '-2*N_y*t_s')
 K_OF_PARAMS = ('(dK_x + 1)**(-2)', '(dK_y + 1)**(-2)', '(dK_z + 1)**(-2)', 'theta_yx/((dK_x + 1)*(dK_y + 1)**2)', 'theta_zx/((dK_x + 1)*(dK_z + 1)**2)', 'theta_zy/((dK_y + 1)*(dK_z + 1)**2)', 'b_x/(dK_x + 1)**2', 'b_y/(dK_y + 1)**2', 'b_z/(dK_z + 1)**2', 'K2_z/(dK_z + 1)**4', 'Kc_xy/((dK_x + 1)**3*(dK_y + 1))', 'bt_y/(dK_y + 1)**2')
 
 
-def output(u, p, aux=numpy.zeros(10)):
+def output(u, p, aux=numpy.zeros(1)):
     """N(u, p): the exact forward model (dong2018 eq. 5/9 generalised)."""
     f_x = u[..., 0]
     f_y = u[..., 1]
@@ -52,17 +52,8 @@ def output(u, p, aux=numpy.zeros(10)):
     K2_z = p[..., 9]
     Kc_xy = p[..., 10]
     bt_y = p[..., 11]
-    temp_c = aux[..., 0]
-    dtemp_c = aux[..., 1]
-    t_s = aux[..., 2]
-    w2 = aux[..., 3]
-    wb_x = aux[..., 4]
-    wb_y = aux[..., 5]
-    wb_z = aux[..., 6]
-    dwb_x = aux[..., 7]
-    dwb_y = aux[..., 8]
-    dwb_z = aux[..., 9]
-    shape = numpy.broadcast_shapes(numpy.shape(f_x), numpy.shape(f_y), numpy.shape(f_z), numpy.shape(dK_x), numpy.shape(dK_y), numpy.shape(dK_z), numpy.shape(theta_yx), numpy.shape(theta_zx), numpy.shape(theta_zy), numpy.shape(b_x), numpy.shape(b_y), numpy.shape(b_z), numpy.shape(K2_z), numpy.shape(Kc_xy), numpy.shape(bt_y), numpy.shape(temp_c), numpy.shape(dtemp_c), numpy.shape(t_s), numpy.shape(w2), numpy.shape(wb_x), numpy.shape(wb_y), numpy.shape(wb_z), numpy.shape(dwb_x), numpy.shape(dwb_y), numpy.shape(dwb_z), )
+    t_s = aux[..., 0]
+    shape = numpy.broadcast_shapes(numpy.shape(f_x), numpy.shape(f_y), numpy.shape(f_z), numpy.shape(dK_x), numpy.shape(dK_y), numpy.shape(dK_z), numpy.shape(theta_yx), numpy.shape(theta_zx), numpy.shape(theta_zy), numpy.shape(b_x), numpy.shape(b_y), numpy.shape(b_z), numpy.shape(K2_z), numpy.shape(Kc_xy), numpy.shape(bt_y), numpy.shape(t_s), numpy.shape(aux)[:-1], )
     out0 = numpy.empty(shape + (3,))
     out0[..., 0] = Kc_xy*f_x*f_y + b_x + dK_x*f_x + f_x
     out0[..., 1] = b_y + bt_y*t_s + dK_y*f_y + f_x*theta_yx + f_y
@@ -70,7 +61,7 @@ def output(u, p, aux=numpy.zeros(10)):
     return out0
 
 
-def output_jacobians(u, p, aux=numpy.zeros(10)):
+def output_jacobians(u, p, aux=numpy.zeros(1)):
     """dN/du and dN/dp of the exact forward model."""
     f_x = u[..., 0]
     f_y = u[..., 1]
@@ -87,17 +78,8 @@ def output_jacobians(u, p, aux=numpy.zeros(10)):
     K2_z = p[..., 9]
     Kc_xy = p[..., 10]
     bt_y = p[..., 11]
-    temp_c = aux[..., 0]
-    dtemp_c = aux[..., 1]
-    t_s = aux[..., 2]
-    w2 = aux[..., 3]
-    wb_x = aux[..., 4]
-    wb_y = aux[..., 5]
-    wb_z = aux[..., 6]
-    dwb_x = aux[..., 7]
-    dwb_y = aux[..., 8]
-    dwb_z = aux[..., 9]
-    shape = numpy.broadcast_shapes(numpy.shape(f_x), numpy.shape(f_y), numpy.shape(f_z), numpy.shape(dK_x), numpy.shape(dK_y), numpy.shape(dK_z), numpy.shape(theta_yx), numpy.shape(theta_zx), numpy.shape(theta_zy), numpy.shape(b_x), numpy.shape(b_y), numpy.shape(b_z), numpy.shape(K2_z), numpy.shape(Kc_xy), numpy.shape(bt_y), numpy.shape(temp_c), numpy.shape(dtemp_c), numpy.shape(t_s), numpy.shape(w2), numpy.shape(wb_x), numpy.shape(wb_y), numpy.shape(wb_z), numpy.shape(dwb_x), numpy.shape(dwb_y), numpy.shape(dwb_z), )
+    t_s = aux[..., 0]
+    shape = numpy.broadcast_shapes(numpy.shape(f_x), numpy.shape(f_y), numpy.shape(f_z), numpy.shape(dK_x), numpy.shape(dK_y), numpy.shape(dK_z), numpy.shape(theta_yx), numpy.shape(theta_zx), numpy.shape(theta_zy), numpy.shape(b_x), numpy.shape(b_y), numpy.shape(b_z), numpy.shape(K2_z), numpy.shape(Kc_xy), numpy.shape(bt_y), numpy.shape(t_s), numpy.shape(aux)[:-1], )
     out0 = numpy.empty(shape + (3, 3))
     out0[..., 0, 0] = Kc_xy*f_y + dK_x + 1
     out0[..., 0, 1] = Kc_xy*f_x
@@ -148,25 +130,16 @@ def output_jacobians(u, p, aux=numpy.zeros(10)):
     return out0, out1
 
 
-def norm_regressors(N, aux=numpy.zeros(10)):
+def norm_regressors(N, aux=numpy.zeros(1)):
     """psi(N): one row of N_s (dong2018 eq. 7, 11): psi(N) . K = rho^2."""
     N_x = N[..., 0]
     N_y = N[..., 1]
     N_z = N[..., 2]
-    temp_c = aux[..., 0]
-    dtemp_c = aux[..., 1]
-    t_s = aux[..., 2]
-    w2 = aux[..., 3]
-    wb_x = aux[..., 4]
-    wb_y = aux[..., 5]
-    wb_z = aux[..., 6]
-    dwb_x = aux[..., 7]
-    dwb_y = aux[..., 8]
-    dwb_z = aux[..., 9]
+    t_s = aux[..., 0]
     _c0 = N_x**2
     _c1 = 2*N_x
     _c2 = 2*N_y
-    shape = numpy.broadcast_shapes(numpy.shape(N_x), numpy.shape(N_y), numpy.shape(N_z), numpy.shape(temp_c), numpy.shape(dtemp_c), numpy.shape(t_s), numpy.shape(w2), numpy.shape(wb_x), numpy.shape(wb_y), numpy.shape(wb_z), numpy.shape(dwb_x), numpy.shape(dwb_y), numpy.shape(dwb_z), )
+    shape = numpy.broadcast_shapes(numpy.shape(N_x), numpy.shape(N_y), numpy.shape(N_z), numpy.shape(t_s), numpy.shape(aux)[:-1], )
     out0 = numpy.empty(shape + (12,))
     out0[..., 0] = _c0
     out0[..., 1] = N_y**2
@@ -288,7 +261,7 @@ def params_of_K_first_order(K):
     return out0
 
 
-def matrix_and_bias(p, aux=numpy.zeros(10)):
+def matrix_and_bias(p, aux=numpy.zeros(1)):
     """M = dN/du at u = 0 and bias = N(0): output = M u + bias + nonlinear terms."""
     dK_x = p[..., 0]
     dK_y = p[..., 1]
@@ -302,17 +275,8 @@ def matrix_and_bias(p, aux=numpy.zeros(10)):
     K2_z = p[..., 9]
     Kc_xy = p[..., 10]
     bt_y = p[..., 11]
-    temp_c = aux[..., 0]
-    dtemp_c = aux[..., 1]
-    t_s = aux[..., 2]
-    w2 = aux[..., 3]
-    wb_x = aux[..., 4]
-    wb_y = aux[..., 5]
-    wb_z = aux[..., 6]
-    dwb_x = aux[..., 7]
-    dwb_y = aux[..., 8]
-    dwb_z = aux[..., 9]
-    shape = numpy.broadcast_shapes(numpy.shape(dK_x), numpy.shape(dK_y), numpy.shape(dK_z), numpy.shape(theta_yx), numpy.shape(theta_zx), numpy.shape(theta_zy), numpy.shape(b_x), numpy.shape(b_y), numpy.shape(b_z), numpy.shape(K2_z), numpy.shape(Kc_xy), numpy.shape(bt_y), numpy.shape(temp_c), numpy.shape(dtemp_c), numpy.shape(t_s), numpy.shape(w2), numpy.shape(wb_x), numpy.shape(wb_y), numpy.shape(wb_z), numpy.shape(dwb_x), numpy.shape(dwb_y), numpy.shape(dwb_z), )
+    t_s = aux[..., 0]
+    shape = numpy.broadcast_shapes(numpy.shape(dK_x), numpy.shape(dK_y), numpy.shape(dK_z), numpy.shape(theta_yx), numpy.shape(theta_zx), numpy.shape(theta_zy), numpy.shape(b_x), numpy.shape(b_y), numpy.shape(b_z), numpy.shape(K2_z), numpy.shape(Kc_xy), numpy.shape(bt_y), numpy.shape(t_s), numpy.shape(aux)[:-1], )
     out0 = numpy.empty(shape + (3, 3))
     out0[..., 0, 0] = dK_x + 1
     out0[..., 0, 1] = 0

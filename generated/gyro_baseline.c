@@ -60,11 +60,11 @@ CASADI_SYMBOL_EXPORT int gyro_baseline_casadi_real_size(void) { return (int) siz
 
 static const casadi_int casadi_s0[3] = {3, 1, 1};
 static const casadi_int casadi_s1[3] = {9, 1, 1};
-static const casadi_int casadi_s2[3] = {6, 1, 1};
+static const casadi_int casadi_s2[3] = {0, 1, 1};
 static const casadi_int casadi_s3[3] = {3, 3, 1};
 static const casadi_int casadi_s4[3] = {3, 9, 1};
 
-/* simucal_gyro_baseline:(u[3],p[9],aux[6])->(N[3],N_u[3x3],N_p[3x9]) */
+/* simucal_gyro_baseline:(u[3],p[9],aux[0])->(N[3],N_u[3x3],N_p[3x9]) */
 static int casadi_f0(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem) {
   casadi_real a00, a01, a02, a03, a04, a05, a06, a07, a08, a09, a10;
   a00=arg[1]? arg[1][6] : 0;
@@ -220,7 +220,7 @@ CASADI_SYMBOL_EXPORT int simucal_gyro_baseline_work_bytes(casadi_int *sz_arg, ca
   return 0;
 }
 
-/* simucal_gyro_baseline_regressors:(N[3],aux[6])->(psi[9]) */
+/* simucal_gyro_baseline_regressors:(N[3],aux[0])->(psi[9]) */
 static int casadi_f1(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem) {
   casadi_real a0, a1, a2, a3, a4;
   a0=arg[0]? arg[0][0] : 0;
@@ -444,7 +444,7 @@ CASADI_SYMBOL_EXPORT int simucal_gyro_baseline_params_of_K_work_bytes(casadi_int
 
 
 #define MODEL_M 9
-#define MODEL_NAUX 6
+#define MODEL_NAUX 0
 #define MODEL_EVAL simucal_gyro_baseline
 #define MODEL_WORK simucal_gyro_baseline_work
 #define MODEL_FIT simucal_gyro_baseline_fit

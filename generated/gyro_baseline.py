@@ -26,13 +26,13 @@ PARAMS = ('dK_x', 'dK_y', 'dK_z', 'phi_yx', 'phi_zx', 'phi_zy', 'b_x', 'b_y', 'b
 PARAM_UNITS = ('1', '1', '1', 'rad', 'rad', 'rad', 'deg/h', 'deg/h', 'deg/h')
 PARAM_AXES = ('x', 'y', 'z', 'y', 'z', 'z', 'x', 'y', 'z')
 MEANINGS = ('x gyro scale-factor error', 'y gyro scale-factor error', 'z gyro scale-factor error', 'y gyro axis tilted toward x of the parameter frame', 'z gyro axis tilted toward x of the parameter frame', 'z gyro axis tilted toward y of the parameter frame', 'x gyro bias', 'y gyro bias', 'z gyro bias')
-AUX = ('temp_c', 'dtemp_c', 't_s', 'f_x', 'f_y', 'f_z')
-AUX_UNITS = ('degC', 'degC', 's', 'g', 'g', 'g')
+AUX = ()
+AUX_UNITS = ()
 NORM_COLUMNS = ('N_x**2', 'N_y**2', 'N_z**2', '-2*N_x*N_y', '-2*N_x*N_z', '-2*N_y*N_z', '-2*N_x', '-2*N_y', '-2*N_z')
 K_OF_PARAMS = ('(dK_x + 1)**(-2)', '(dK_y + 1)**(-2)', '(dK_z + 1)**(-2)', 'phi_yx/((dK_x + 1)*(dK_y + 1)**2)', 'phi_zx/((dK_x + 1)*(dK_z + 1)**2)', 'phi_zy/((dK_y + 1)*(dK_z + 1)**2)', 'b_x/(dK_x + 1)**2', 'b_y/(dK_y + 1)**2', 'b_z/(dK_z + 1)**2')
 
 
-def output(u, p, aux=numpy.zeros(6)):
+def output(u, p, aux=numpy.zeros(0)):
     """N(u, p): the exact forward model (dong2018 eq. 5/9 generalised)."""
     w_x = u[..., 0]
     w_y = u[..., 1]
@@ -46,13 +46,7 @@ def output(u, p, aux=numpy.zeros(6)):
     b_x = p[..., 6]
     b_y = p[..., 7]
     b_z = p[..., 8]
-    temp_c = aux[..., 0]
-    dtemp_c = aux[..., 1]
-    t_s = aux[..., 2]
-    f_x = aux[..., 3]
-    f_y = aux[..., 4]
-    f_z = aux[..., 5]
-    shape = numpy.broadcast_shapes(numpy.shape(w_x), numpy.shape(w_y), numpy.shape(w_z), numpy.shape(dK_x), numpy.shape(dK_y), numpy.shape(dK_z), numpy.shape(phi_yx), numpy.shape(phi_zx), numpy.shape(phi_zy), numpy.shape(b_x), numpy.shape(b_y), numpy.shape(b_z), numpy.shape(temp_c), numpy.shape(dtemp_c), numpy.shape(t_s), numpy.shape(f_x), numpy.shape(f_y), numpy.shape(f_z), )
+    shape = numpy.broadcast_shapes(numpy.shape(w_x), numpy.shape(w_y), numpy.shape(w_z), numpy.shape(dK_x), numpy.shape(dK_y), numpy.shape(dK_z), numpy.shape(phi_yx), numpy.shape(phi_zx), numpy.shape(phi_zy), numpy.shape(b_x), numpy.shape(b_y), numpy.shape(b_z), numpy.shape(aux)[:-1], )
     out0 = numpy.empty(shape + (3,))
     out0[..., 0] = b_x + dK_x*w_x + w_x
     out0[..., 1] = b_y + dK_y*w_y + phi_yx*w_x + w_y
@@ -60,7 +54,7 @@ def output(u, p, aux=numpy.zeros(6)):
     return out0
 
 
-def output_jacobians(u, p, aux=numpy.zeros(6)):
+def output_jacobians(u, p, aux=numpy.zeros(0)):
     """dN/du and dN/dp of the exact forward model."""
     w_x = u[..., 0]
     w_y = u[..., 1]
@@ -74,13 +68,7 @@ def output_jacobians(u, p, aux=numpy.zeros(6)):
     b_x = p[..., 6]
     b_y = p[..., 7]
     b_z = p[..., 8]
-    temp_c = aux[..., 0]
-    dtemp_c = aux[..., 1]
-    t_s = aux[..., 2]
-    f_x = aux[..., 3]
-    f_y = aux[..., 4]
-    f_z = aux[..., 5]
-    shape = numpy.broadcast_shapes(numpy.shape(w_x), numpy.shape(w_y), numpy.shape(w_z), numpy.shape(dK_x), numpy.shape(dK_y), numpy.shape(dK_z), numpy.shape(phi_yx), numpy.shape(phi_zx), numpy.shape(phi_zy), numpy.shape(b_x), numpy.shape(b_y), numpy.shape(b_z), numpy.shape(temp_c), numpy.shape(dtemp_c), numpy.shape(t_s), numpy.shape(f_x), numpy.shape(f_y), numpy.shape(f_z), )
+    shape = numpy.broadcast_shapes(numpy.shape(w_x), numpy.shape(w_y), numpy.shape(w_z), numpy.shape(dK_x), numpy.shape(dK_y), numpy.shape(dK_z), numpy.shape(phi_yx), numpy.shape(phi_zx), numpy.shape(phi_zy), numpy.shape(b_x), numpy.shape(b_y), numpy.shape(b_z), numpy.shape(aux)[:-1], )
     out0 = numpy.empty(shape + (3, 3))
     out0[..., 0, 0] = dK_x + 1
     out0[..., 0, 1] = 0
@@ -122,20 +110,14 @@ def output_jacobians(u, p, aux=numpy.zeros(6)):
     return out0, out1
 
 
-def norm_regressors(N, aux=numpy.zeros(6)):
+def norm_regressors(N, aux=numpy.zeros(0)):
     """psi(N): one row of N_s (dong2018 eq. 7, 11): psi(N) . K = rho^2."""
     N_x = N[..., 0]
     N_y = N[..., 1]
     N_z = N[..., 2]
-    temp_c = aux[..., 0]
-    dtemp_c = aux[..., 1]
-    t_s = aux[..., 2]
-    f_x = aux[..., 3]
-    f_y = aux[..., 4]
-    f_z = aux[..., 5]
     _c0 = 2*N_x
     _c1 = 2*N_y
-    shape = numpy.broadcast_shapes(numpy.shape(N_x), numpy.shape(N_y), numpy.shape(N_z), numpy.shape(temp_c), numpy.shape(dtemp_c), numpy.shape(t_s), numpy.shape(f_x), numpy.shape(f_y), numpy.shape(f_z), )
+    shape = numpy.broadcast_shapes(numpy.shape(N_x), numpy.shape(N_y), numpy.shape(N_z), numpy.shape(aux)[:-1], )
     out0 = numpy.empty(shape + (9,))
     out0[..., 0] = N_x**2
     out0[..., 1] = N_y**2
@@ -234,7 +216,7 @@ def params_of_K_first_order(K):
     return out0
 
 
-def matrix_and_bias(p, aux=numpy.zeros(6)):
+def matrix_and_bias(p, aux=numpy.zeros(0)):
     """M = dN/du at u = 0 and bias = N(0): output = M u + bias + nonlinear terms."""
     dK_x = p[..., 0]
     dK_y = p[..., 1]
@@ -245,13 +227,7 @@ def matrix_and_bias(p, aux=numpy.zeros(6)):
     b_x = p[..., 6]
     b_y = p[..., 7]
     b_z = p[..., 8]
-    temp_c = aux[..., 0]
-    dtemp_c = aux[..., 1]
-    t_s = aux[..., 2]
-    f_x = aux[..., 3]
-    f_y = aux[..., 4]
-    f_z = aux[..., 5]
-    shape = numpy.broadcast_shapes(numpy.shape(dK_x), numpy.shape(dK_y), numpy.shape(dK_z), numpy.shape(phi_yx), numpy.shape(phi_zx), numpy.shape(phi_zy), numpy.shape(b_x), numpy.shape(b_y), numpy.shape(b_z), numpy.shape(temp_c), numpy.shape(dtemp_c), numpy.shape(t_s), numpy.shape(f_x), numpy.shape(f_y), numpy.shape(f_z), )
+    shape = numpy.broadcast_shapes(numpy.shape(dK_x), numpy.shape(dK_y), numpy.shape(dK_z), numpy.shape(phi_yx), numpy.shape(phi_zx), numpy.shape(phi_zy), numpy.shape(b_x), numpy.shape(b_y), numpy.shape(b_z), numpy.shape(aux)[:-1], )
     out0 = numpy.empty(shape + (3, 3))
     out0[..., 0, 0] = dK_x + 1
     out0[..., 0, 1] = 0

@@ -60,16 +60,16 @@ CASADI_SYMBOL_EXPORT int gyro_extended_casadi_real_size(void) { return (int) siz
 
 static const casadi_int casadi_s0[3] = {3, 1, 1};
 static const casadi_int casadi_s1[3] = {12, 1, 1};
-static const casadi_int casadi_s2[3] = {6, 1, 1};
+static const casadi_int casadi_s2[3] = {2, 1, 1};
 static const casadi_int casadi_s3[3] = {3, 3, 1};
 static const casadi_int casadi_s4[3] = {3, 12, 1};
 
-/* simucal_gyro_extended:(u[3],p[12],aux[6])->(N[3],N_u[3x3],N_p[3x12]) */
+/* simucal_gyro_extended:(u[3],p[12],aux[2])->(N[3],N_u[3x3],N_p[3x12]) */
 static int casadi_f0(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem) {
   casadi_real a00, a01, a02, a03, a04, a05, a06, a07, a08, a09, a10, a11;
   casadi_real a12, a13, a14, a15;
   a00=arg[1]? arg[1][9] : 0;
-  a01=arg[2]? arg[2][5] : 0;
+  a01=arg[2]? arg[2][1] : 0;
   a00=(a00*a01);
   a02=arg[1]? arg[1][6] : 0;
   a00=(a00+a02);
@@ -96,7 +96,7 @@ static int casadi_f0(const casadi_real** arg, casadi_real** res, casadi_int* iw,
   a07=(a07+a05);
   if (res[0]!=0) res[0][1]=a07;
   a07=arg[1]? arg[1][11] : 0;
-  a10=arg[2]? arg[2][1] : 0;
+  a10=arg[2]? arg[2][0] : 0;
   a07=(a07*a10);
   a11=arg[1]? arg[1][8] : 0;
   a07=(a07+a11);
@@ -248,7 +248,7 @@ CASADI_SYMBOL_EXPORT int simucal_gyro_extended_work_bytes(casadi_int *sz_arg, ca
   return 0;
 }
 
-/* simucal_gyro_extended_regressors:(N[3],aux[6])->(psi[12]) */
+/* simucal_gyro_extended_regressors:(N[3],aux[2])->(psi[12]) */
 static int casadi_f1(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem) {
   casadi_real a0, a1, a2, a3, a4;
   a0=arg[0]? arg[0][0] : 0;
@@ -277,7 +277,7 @@ static int casadi_f1(const casadi_real** arg, casadi_real** res, casadi_int* iw,
   a4=(a3*a2);
   if (res[0]!=0) res[0][8]=a4;
   a0=(a3*a0);
-  a4=arg[1]? arg[1][5] : 0;
+  a4=arg[1]? arg[1][1] : 0;
   a0=(a0*a4);
   if (res[0]!=0) res[0][9]=a0;
   a0=-1.5432098765432099e-07;
@@ -286,7 +286,7 @@ static int casadi_f1(const casadi_real** arg, casadi_real** res, casadi_int* iw,
   a0=(a0*a1);
   if (res[0]!=0) res[0][10]=a0;
   a3=(a3*a2);
-  a2=arg[1]? arg[1][1] : 0;
+  a2=arg[1]? arg[1][0] : 0;
   a3=(a3*a2);
   if (res[0]!=0) res[0][11]=a3;
   return 0;
@@ -495,7 +495,7 @@ CASADI_SYMBOL_EXPORT int simucal_gyro_extended_params_of_K_work_bytes(casadi_int
 
 
 #define MODEL_M 12
-#define MODEL_NAUX 6
+#define MODEL_NAUX 2
 #define MODEL_EVAL simucal_gyro_extended
 #define MODEL_WORK simucal_gyro_extended_work
 #define MODEL_FIT simucal_gyro_extended_fit

@@ -89,11 +89,13 @@ class ErrorModel:
 
     @property
     def aux(self) -> tuple[sp.Symbol, ...]:
-        """Auxiliary inputs, in the order the generated functions take them: the sensor's
-        built-in ones (frames.SENSOR_AUX), then the samples.csv columns its terms use, sorted."""
-        builtin = tuple(AUX_INPUTS[n].symbol for n in SENSOR_AUX[self.sensor])
+        """Auxiliary inputs its terms read, in the order the generated functions take them: the sensor's
+        built-in ones (frames.SENSOR_AUX) in their order, then the samples.csv columns, sorted. Only those
+        read: every row's inputs are built and compared in the compiled fit (a baseline reads none)."""
         used = set().union(*(t.regressor.free_symbols for t in self.terms)) if self.terms else set()
-        columns = used - set(self.inputs) - set(self.params) - set(builtin)
+        every = tuple(AUX_INPUTS[n].symbol for n in SENSOR_AUX[self.sensor])
+        builtin = tuple(s for s in every if s in used)
+        columns = used - set(self.inputs) - set(self.params) - set(every)
         return builtin + tuple(sorted(columns, key=str))
 
     @property
