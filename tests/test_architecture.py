@@ -314,3 +314,46 @@ def test_no_new_api_name_is_a_modules_name():
     commands' modules that the API rebinds (api/__init__.py); no other name may join them."""
     clashes = {n for n in simucal._API if (ROOT / f"{n}.py").exists() or (ROOT / n).is_dir()}
     assert clashes <= {"calibrate", "diagnose", "validate"}, sorted(clashes)
+
+
+def _untyped(hint, seen: set, where: str) -> list[str]:
+    """Where a public type holds a record with no keys: a bare dict, or dict[..., Any], at any depth of the
+    dataclasses, NamedTuples and TypedDicts of simucal it reaches."""
+    import dataclasses
+
+    origin, args = typing.get_origin(hint), typing.get_args(hint)
+    if hint is dict or (origin is dict and (not args or args[-1] is typing.Any)):
+        return [where]
+    if isinstance(hint, type) and hint.__module__.startswith("simucal") and hint not in seen:
+        seen.add(hint)
+        if typing.is_typeddict(hint) or dataclasses.is_dataclass(hint) or hasattr(hint, "_fields"):
+            hints = typing.get_type_hints(hint, localns=_HINT_NAMES)
+            return [e for k, h in hints.items() for e in _untyped(h, seen, f"{hint.__name__}.{k}")]
+        return []
+    return [e for a in args if not isinstance(a, typing.ForwardRef) for e in _untyped(a, seen, where)]
+
+
+_HINT_NAMES = {"Unpack": getattr(typing, "Unpack", None)}
+
+
+def test_no_public_type_holds_a_record_without_keys():
+    """Issue 54: every public name's type (a class's fields, a function's parameters and result), and every
+    simucal class those reach, names its records' keys: no bare dict and no dict[str, Any] (a document as
+    written is records.JSONObject, JSON by type). The check finds one where it is planted."""
+    import inspect
+
+    import simucal.api
+    from simucal.io import records
+    _HINT_NAMES["JSONValue"] = records.JSONValue
+    seen: set = set()
+    found = []
+    for name in simucal.__all__:
+        obj = getattr(simucal.api, name, None)
+        if inspect.isfunction(obj):
+            hints = typing.get_type_hints(obj, localns=_HINT_NAMES)
+            found += [e for k, h in hints.items() for e in _untyped(h, seen, f"{name}({k})")]
+        elif isinstance(obj, type):
+            found += _untyped(obj, seen, name)
+    assert not found, found
+    assert _untyped(dict[str, typing.Any], set(), "planted") == ["planted"]
+    assert _untyped(typing.Optional[list[dict]], set(), "planted") == ["planted"]
