@@ -376,12 +376,21 @@ class WhiteNoise(TypedDict):
     acc_g: list[float]
 
 
+class ZeroPosition(TypedDict):
+    """The zero-position updates of a sequence (systematic/zero_position.py)."""
+    updates: int                      # the returns measured
+    positions: int                    # the positions returned to
+    accuracy_arcsec: float            # each visit's attitude std
+    text: str
+
+
 class SystematicRecord(TypedDict, total=False):
     """The sequence filter's passes and noise (systematic/method.py)."""
     passes: int
     last_step_std: float
     white_noise_per_sample: WhiteNoise
     test: InnovationTest
+    zero_position: ZeroPosition
 
 
 class StaticDetection(TypedDict, total=False):

@@ -17,6 +17,9 @@ def calibration_lines(cal: Calibration):
     stamps = cal.details.get("timestamps")
     if stamps and (stamps["irregular"] or stamps.get("gaps") or not stamps["chosen_by"].startswith("auto")):
         yield stamps["text"]
+    zero = cal.details.get("systematic", {}).get("zero_position")
+    if zero:
+        yield zero["text"]
     for s in ("acc", "gyro"):
         out = [x["segment"] for x in cal.details.get("excluded_segments", []) if x["sensor"] == s]
         if out:

@@ -20,6 +20,7 @@ from simucal.io import timestamps, units
 from simucal.fit.rotations import exp_so3, log_so3
 from simucal.systematic.filter import (Epoch, Sensors, compose, kalman, level, nominal, smooth,
                                       transitions)
+from simucal.systematic.zero_position import Returns, returns
 
 BLOCK_S = 1.0           # zero-velocity updates at rest every this many seconds
 ZUPT_STD_MPS = 1e-6     # the table at rest: its velocity is zero to this (m/s)
@@ -121,13 +122,15 @@ class Result:
     step_std: float
     C: np.ndarray | None = None  # C_b^n at the start about the estimates, and what another pass over the data
     setting: tuple = ()          # needs, (steps, q, w_ie, g0): the innovations' candidates (innovations.py)
+    returns: Returns | None = None  # the zero-position updates made (zero_position.py)
 
 
 def run_filter(ms, acc_model="acc_baseline", gyro_model="gyro_baseline", ids=(), block_s=BLOCK_S,
-               max_passes=MAX_PASSES) -> Result:
+               max_passes=MAX_PASSES, zero_position=True) -> Result:
     """The filter and smoother over the whole sequence, pass after pass, each linearised about the
     estimates of the one before (iterated extended Kalman smoother), until a pass moves no
-    estimate by more than STEP_STD of its std."""
+    estimate by more than STEP_STD of its std. zero_position: with the zero-position updates where the
+    table returns to a position and meta.json states its accuracy (zero_position.py)."""
     segments = rests_and_moves(ms)
     acc, gyro = AugmentedModel(acc_model, for_sensor(ids, "acc")), AugmentedModel(gyro_model, for_sensor(ids, "gyro"))
     sensors = Sensors(acc, gyro, np.zeros(len(acc.params)), np.zeros(len(gyro.params)), np.zeros(3))
@@ -143,16 +146,22 @@ def run_filter(ms, acc_model="acc_baseline", gyro_model="gyro_baseline", ids=(),
     p_prior = sensors.vector()
     prior_var = np.r_[[PRIOR_ATTITUDE_RAD] * 3, [ZUPT_STD_MPS] * 3, _prior(acc, grade), _prior(gyro, grade),
                       [PRIOR_STD["rad"]] * 3] ** 2
+    zero = returns(ms, segments, steps.segment[steps.zupt]) if zero_position else None
+    p = slice(6, len(prior_var))  # the constants; the clones of zero-position updates after them
+    clones = 0 if zero is None else 3 * zero.slots
+    if zero is not None:
+        zero.n = len(prior_var) + clones
     for k in range(1, max_passes + 1):
-        x0 = np.r_[log_so3(C_prior @ C.T), np.zeros(3), sensors.vector() - p_prior]  # the prior's mean as errors
-        epochs = _one_pass(steps, sensors, C, x0, np.diag(prior_var), q, w_ie, g0)
+        x0 = np.r_[log_so3(C_prior @ C.T), np.zeros(3), sensors.vector() - p_prior, np.zeros(clones)]  # the prior's
+        P0 = np.diag(np.r_[prior_var, np.ones(clones)])  # mean as errors; a clone's value is set at its copy
+        epochs = _one_pass(steps, sensors, C, x0, P0, q, w_ie, g0, zero)
         x, P = epochs[-1].x, epochs[-1].P  # the constants: the filter's at the end (the smoother's at the start
-        step = np.abs(x[6:]) / np.sqrt(np.diag(P)[6:])  # equal them in exact arithmetic)
-        _move(sensors, sensors.vector() - x[6:])
+        step = np.abs(x[p]) / np.sqrt(np.diag(P)[p])  # equal them in exact arithmetic)
+        _move(sensors, sensors.vector() - x[p])
         if step.max() < STEP_STD or k == max_passes:
             break
         C = exp_so3(smooth(epochs, covariance=False)[0][0][:3]) @ C  # the next pass's attitude at the start
-    return Result(sensors, P[6:, 6:], epochs, prior_var, sigma, k, float(step.max()), C, (steps, q, w_ie, g0))
+    return Result(sensors, P[p, p], epochs, prior_var, sigma, k, float(step.max()), C, (steps, q, w_ie, g0), zero)
 
 
 def _move(sensors, p):
@@ -163,12 +172,14 @@ def _move(sensors, p):
 @dataclass
 class Steps:
     """The filter's steps: the moves' samples and the rests' blocks (their means), each with its
-    outputs (g, deg/h), time (s, the middle), length dt (s) and whether a zero-velocity update ends it."""
+    outputs (g, deg/h), time (s, the middle), length dt (s), whether a zero-velocity update ends it, and
+    its segment."""
     N_a: np.ndarray
     N_g: np.ndarray
     t: np.ndarray
     dt: np.ndarray
     zupt: np.ndarray
+    segment: np.ndarray
 
 
 def steps_of(ms, segments, block_s, dt) -> Steps:
@@ -200,16 +211,17 @@ def steps_of(ms, segments, block_s, dt) -> Steps:
     mean = [np.add.reduceat(x[order[0]:order[-1] + 1], start - order[0], axis=0) / counts[:, None]
             for x in (ms.acc_g(), ms.gyro_dph())]
     t = np.add.reduceat(ms.samples["t_s"][order[0]:order[-1] + 1], start - order[0]) / counts
-    return Steps(mean[0], mean[1], t, counts * dt, np.asarray(zupt))
+    return Steps(mean[0], mean[1], t, counts * dt, np.asarray(zupt), ms.samples["segment"][start])
 
 
 CHUNK = 4096  # steps whose transitions are built at once (memory: about 60 CHUNK doubles)
 
 
-def _one_pass(steps, sensors, C, x0, P0, q, w_ie, g0):
+def _one_pass(steps, sensors, C, x0, P0, q, w_ie, g0, zero=None):
     """One pass of the filter over the sequence about the nominal of sensors' estimates and C: the
     epochs (the first the prior at the start). The steps between two updates are composed into one
-    transition (filter.compose; the steps after the last update see no data and are left out)."""
+    transition (filter.compose; the steps after the last update see no data and are left out); zero:
+    the zero-position updates (zero_position.Returns) or None."""
     R = np.eye(3) * ZUPT_STD_MPS ** 2
     aux = AuxInputs({"t_s": steps.t})
     f_b, w_b, aux_a = sensors.compensate(steps.N_a, steps.N_g, aux, aux, steps.dt)
@@ -224,5 +236,5 @@ def _one_pass(steps, sensors, C, x0, P0, q, w_ie, g0):
         a, b = (ends[i[0] - 1] + 1 if i[0] else 0), ends[i[-1]] + 1
         k = slice(a, b)
         A, B, Q = compose(*transitions(Cs[k], f_b[k], D_a[k], D_g[k], steps.dt[k], q, w_ie, g0), ends[i] - a)
-        x, P = kalman(x, P, A, B, Q, v_at[ends[i]], R, steps.t[ends[i]], epochs)
+        x, P = kalman(x, P, A, B, Q, v_at[ends[i]], R, steps.t[ends[i]], epochs, zero, Cs[ends[i]])
     return epochs

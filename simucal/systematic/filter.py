@@ -213,27 +213,35 @@ def transitions(Cs, f_b, D_a, D_g, dt, q, w_ie, g0):
             (G * (q * dt[:, None])[:, None, :]) @ np.swapaxes(G, 1, 2))
 
 
-def kalman(x, P, A, B, Q, v_at, R, t_s, epochs):
+def kalman(x, P, A, B, Q, v_at, R, t_s, epochs, zero=None, C_at=None):
     """The filter over the intervals between updates, each one transition Phi = [[A, B], [0, I]]
     (`compose`): x <- Phi x, P <- Phi P Phi^T + Q, then the zero-velocity update of `update`,
-    recorded in epochs. Returns (x, P) after the last."""
+    recorded in epochs. zero: a sequence's returns (zero_position.Returns: the clones' copies and the
+    attitude updates, at the nominal attitudes C_at of the updates), or None. Returns (x, P) after the last."""
     n = len(P)
     Phi = np.broadcast_to(np.eye(n), (len(A), n, n)).copy()
-    Phi[:, :6, :6], Phi[:, :6, 6:] = A, B
+    Phi[:, :6, :6], Phi[:, :6, 6:6 + B.shape[-1]] = A, B
     for k in range(len(A)):
-        x = Phi[k] @ x
-        P = Phi[k] @ P @ Phi[k].T
+        u = len(epochs) - 1  # this update's number (epochs[0] is the prior)
+        Ph, Qz = (Phi[k], None) if zero is None else zero.transition(u, Phi[k])
+        x = Ph @ x
+        P = Ph @ P @ Ph.T
         P[:6, :6] += Q[k]
-        x, P = update(x, P, v_at[k], R, Phi[k], t_s[k], epochs)
+        if Qz is not None:
+            P = P + Qz
+        attitude = None if zero is None else zero.measurement(u, C_at[k])
+        x, P = update(x, P, v_at[k], R, Ph, t_s[k], epochs, attitude)
     return x, P
 
 
 DV = slice(3, 6)  # the states the update sees: H = [0 I 0] (gen.H), taken as this slice (tests hold them equal)
 
 
-def update(x_pred, P_pred, v, R, Phi, t_s, epochs):
-    """The update by v = 0 (z = v_nominal = dv + noise, H = [0 I 0], R (3, 3)) in Joseph form, the
-    epoch recorded; then the nominal velocity's reset to 0 (dv shifted by the same: the epoch keeps
+def update(x_pred, P_pred, v, R, Phi, t_s, epochs, attitude=None):
+    """The update by v = 0 (z = v_nominal = dv + noise, H = [0 I 0], R (3, 3)) in Joseph form, then
+    where the rest is a return the zero-position update (attitude: (H, z, R), zero_position.py), the
+    epoch recorded (its innovation the zero-velocity one's, which the model test reads); then the nominal
+    velocity's reset to 0 (dv shifted by the same: the epoch keeps
     the state before it, which x_pred of the next epoch is propagated from less the known shift, as
     the smoother needs: x_k+1 = Phi (x_k - reset) + w, so x_k+1|N - x_k+1|k carries no reset)."""
     nu = v - x_pred[DV]                               # z - H x_pred
@@ -243,6 +251,13 @@ def update(x_pred, P_pred, v, R, Phi, t_s, epochs):
     x = x_pred + K @ nu
     X = P_pred - K @ HP                               # (I - K H) P
     P = X - X[:, DV] @ K.T + K @ R @ K.T              # Joseph form: (I - K H) P (I - K H)^T + K R K^T
+    if attitude is not None:                          # a second, independent measurement: in sequence
+        H, z, Ra = attitude
+        HP = H @ P
+        K = np.linalg.solve(HP @ H.T + Ra, HP).T
+        x = x + K @ (z - H @ x)
+        IKH = np.eye(len(P)) - K @ H
+        P = IKH @ P @ IKH.T + K @ Ra @ K.T
     epochs.append(Epoch(Phi, P_pred, P, x_pred, x, nu, S, t_s))
     x = x.copy()
     x[DV] -= v                                        # the reset: dv = v_nominal - v

@@ -9,7 +9,7 @@ import numpy as np
 from simucal.errors import CalibrationError
 from simucal.fit.norm_fit import Fit
 from simucal.generated import table
-from simucal.io import calibration, records
+from simucal.io import calibration, records, units
 from simucal.systematic.auto import select
 from simucal.systematic.calibrate import UNOBSERVABLE, run_filter
 from simucal.fit.candidates import advice_text
@@ -72,6 +72,13 @@ def calibrate_systematic(ms, acc_model="acc_baseline", gyro_model="gyro_baseline
         "passes": r.passes, "last_step_std": r.step_std, "white_noise_per_sample": {
             "gyro_dph": r.sigma[:3].tolist(), "acc_g": r.sigma[3:].tolist()},
         "test": cast(records.InnovationTest, {k: v for k, v in test.items() if k != "innovations_whitened"})}
+    if r.returns is not None:
+        cal.details["systematic"]["zero_position"] = {
+            "updates": len(r.returns.update_at), "positions": r.returns.slots,
+            "accuracy_arcsec": r.returns.sigma_rad / units.ARCSEC_RAD,
+            "text": (f"{len(r.returns.update_at)} zero-position updates: the table returned to {r.returns.slots} "
+                     f"positions, each visit's attitude to {r.returns.sigma_rad / units.ARCSEC_RAD:.3g} arcsec "
+                     "(meta.json's table_accuracy_arcsec)")}
     if cal.acc.verdict == "fails":  # one test for both sensors: the one effect to add, as diagnose names it
         cands = [c.to_dict() for c in ranked(test, sig)]
         advice = advice_text(cands, None, {"chi2": test["nis"], "dof": test["dof"], "omnibus_test": test["omnibus_test"]})
