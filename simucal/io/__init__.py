@@ -14,7 +14,7 @@ import re
 from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass
 from pathlib import Path
-from typing import cast
+from typing import Any, Mapping, cast
 
 import numpy as np
 
@@ -405,7 +405,7 @@ def _fmt(v):
     return "" if v is None else repr(float(v))
 
 
-def write_set(folder, meta: dict, samples: dict, segments: list[Segment] | None = None, extra_files=None):
+def write_set(folder, meta: Mapping[str, Any], samples: dict, segments: list[Segment] | None = None, extra_files=None):
     """Write a measurement set; extra_files: {name: json-able} (e.g. truth.json). Each file by a
     temporary name and a rename (io/outputs.py); the caller has checked the folder with outputs.check."""
     folder = Path(folder)

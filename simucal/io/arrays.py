@@ -11,6 +11,7 @@ from __future__ import annotations
 import hashlib
 import json
 from pathlib import Path
+from typing import Any, Mapping
 
 import numpy as np
 
@@ -79,7 +80,7 @@ def _finite(samples: dict, name: str) -> None:
                                                   "infinities are errors: drop or fill those rows first)")
 
 
-def digest(meta: dict, samples: dict, segments) -> str:
+def digest(meta: Mapping[str, Any], samples: dict, segments) -> str:
     """sha256 of the set's content (what input_sha256 holds for a set read from files): validate tells
     a calibration's own data from independent data by it."""
     h = hashlib.sha256(json.dumps(meta, sort_keys=True, default=str).encode())

@@ -3,7 +3,7 @@
 scale factors of a fresh calibration (`scale_notes`). Each refusal names the entry."""
 from __future__ import annotations
 
-from typing import Final, cast
+from typing import Any, Final, Mapping, cast
 
 import numpy as np
 
@@ -143,7 +143,7 @@ def _flat(v) -> list:
 SCALE_NOTE = 0.1  # a scale factor this far from 1 after the nominal ones: the nominal is likely wrong
 
 
-def scale_notes(cal, meta: dict) -> list[str]:
+def scale_notes(cal, meta: Mapping[str, Any]) -> list[str]:
     """Lines naming implausible scale factors of a fresh calibration (M's diagonal, after dividing by
     the nominal scale factors of meta.json); a reversed axis (diagonal <= 0) is refused instead."""
     lines = []

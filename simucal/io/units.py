@@ -6,6 +6,7 @@ outputs are divided by the nominal scale factors of meta.json. Note
 """
 import math
 import re
+from typing import Any, Mapping
 
 import numpy as np
 
@@ -42,7 +43,7 @@ def _unit_word(text) -> str | None:
             "celsius": "degC"}.get(w)
 
 
-def temperature_unit_evidence(meta: dict, samples: dict) -> str | None:
+def temperature_unit_evidence(meta: Mapping[str, Any], samples: dict) -> str | None:
     """Where a recording itself says that its temp_c is not in degC, the evidence in words, else None:
     a meta.json key stating the temperature's unit (temp_unit, temperature_units, temp_c_unit) as degF or
     kelvin, or a meta.json number or samples.csv column named as a temperature in degF or kelvin
@@ -66,7 +67,7 @@ def temperature_unit_evidence(meta: dict, samples: dict) -> str | None:
     return None
 
 
-def refuse_temperature_unit(meta: dict, samples: dict, path, error) -> None:
+def refuse_temperature_unit(meta: Mapping[str, Any], samples: dict, path, error) -> None:
     """Raise error naming the evidence where the recording says its temp_c is in degF or kelvin."""
     said = temperature_unit_evidence(meta, samples) if "temp_c" in samples else None
     if said:
