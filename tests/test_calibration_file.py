@@ -122,6 +122,10 @@ def test_every_record_a_method_writes_is_declared_at_every_depth(every_method, t
     declared type, down to the leaves; no record is Any."""
     cals = dict(every_method, **thermal_calibrations)
     cals["exact --add auto"] = calibrate(every_method["exact"].input, add=("auto",))
+    planted = {"acc.quadratic.z": 2e-4}  # --add auto's steps, written where it adds an effect
+    cals["exact --add auto, adding"] = calibrate(simulate(seed=1, effects=planted), add=("auto",))
+    cals["systematic --add auto, adding"] = calibrate(simulate(sequence=Path(every_method["systematic"].input).parent / "seq.csv", seed=7,
+                                                              effects=planted), method="systematic", add=("auto",))
     block_hints = typing.get_type_hints(calibration.SensorDetails)
     cal_hints = typing.get_type_hints(Calibration)
     for name, cal in cals.items():
@@ -139,6 +143,7 @@ def test_every_record_a_method_writes_is_declared_at_every_depth(every_method, t
                 problems += _undeclared(written[k], cal_hints[k], k)
         assert not problems, f"{name}: {problems[:8]}"
     assert {"auto", "auto_stopped", "cross_validation"} <= set(cals["exact --add auto"].acc.details)
+    assert all(cals[k].acc.details["auto"] for k in ("exact --add auto, adding", "systematic --add auto, adding"))
     assert {"T", "moves", "gyro_model"} <= set(cals["handheld"].gyro.details)
 
 

@@ -97,15 +97,18 @@ class AutoStep(TypedDict, total=False):
     estimate: float
     std: float
     unit: str
-    chi2: float | None
-    dof: float | None
-    p_value: float | None
-    residual_rms: float | None
-    held_out_rms: float | None
+    p_value_after: float | None       # the model's test with it (NormStep, MovesStep, FilterStep .after())
+    residual_rms_after: float | None
+    held_out_rms_after: float | None
+    chi2_after: float | None
+    dof_after: float | None
+    nis_after: float                  # a sequence's: the filter with it, and its own estimate
+    filter_estimate: float
+    filter_std: float
     p_held_out_better: float | None
+    chosen_by: str                    # a thermal fit's: the rows that decided (fit/thermal_auto.py)
     twins: list[str]
     twin_choice: str
-    to_separate: str
 
 
 class StaticRows(TypedDict, total=False):

@@ -230,11 +230,15 @@ def _one_pass(steps, sensors, C, x0, P0, q, w_ie, g0, zero=None):
     epochs = [Epoch(np.eye(len(P0)), P0, P0, x0, x0)]
     x, P = x0, P0
     ends = np.flatnonzero(steps.zupt)
+    # the nominal attitude at the end of each update's step (Cs holds the steps' starts), where phi is
+    C_end = exp_so3(-w_ie[None] * steps.dt[ends, None]) @ Cs[ends] @ exp_so3(
+        w_b[ends] * units.RAD_S_PER_DPH * steps.dt[ends, None]) if zero is not None else None
     group = ends // CHUNK  # the intervals that end in one CHUNK of steps, together
     for g in np.unique(group):
         i = np.flatnonzero(group == g)
         a, b = (ends[i[0] - 1] + 1 if i[0] else 0), ends[i[-1]] + 1
         k = slice(a, b)
         A, B, Q = compose(*transitions(Cs[k], f_b[k], D_a[k], D_g[k], steps.dt[k], q, w_ie, g0), ends[i] - a)
-        x, P = kalman(x, P, A, B, Q, v_at[ends[i]], R, steps.t[ends[i]], epochs, zero, Cs[ends[i]])
+        x, P = kalman(x, P, A, B, Q, v_at[ends[i]], R, steps.t[ends[i]], epochs, zero,
+                      None if C_end is None else C_end[i])
     return epochs
