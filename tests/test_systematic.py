@@ -239,7 +239,7 @@ def _lever_arms_and_delay(seed):
 @pytest.mark.parametrize("seed", [0, 1, 2])
 def test_lever_arms_and_a_delay_are_estimated_within_3_std_and_without_them_the_model_fails(short, seed):
     """Issue 55, item 1: the accelerometers' lever arms and their delay behind the gyros, read from the body
-    rate and its change the gyros give (systematic/filter.motion); the simulator writes them by its own
+    rate and its change the gyros give (fit/aux_inputs.motion); the simulator writes them by its own
     physics (turntable/forward.py). Without the states the model fails and names one of them (20 seeds
     of psins19 in docs/systematic.md)."""
     planted = _lever_arms_and_delay(seed)
@@ -253,10 +253,10 @@ def test_lever_arms_and_a_delay_are_estimated_within_3_std_and_without_them_the_
 
 
 def test_the_body_rate_s_change_adds_up_to_each_move_s_change_of_rate():
-    """filter.motion: a move's samples and the rest blocks on either side share the central differences so
+    """aux_inputs.motion: a move's samples and the rest blocks on either side share the central differences so
     that sum(dw dt) over the steps is the move's whole change of rate (a rest block gets what spills into
     its first and last samples); a change taken over the blocks' centres instead loses part of it."""
-    from simucal.systematic.filter import motion
+    from simucal.fit.aux_inputs import motion
     dt = np.r_[1.0, np.full(40, 0.01), 1.0]               # a rest block, a move of 40 samples, a rest block
     w = np.r_[0.0, np.linspace(5.0, 200.0, 40), 0.0][:, None] * np.ones(3) * 3600.0  # deg/h
     m = motion(w, dt)

@@ -17,7 +17,7 @@ import numpy as np
 
 from simucal.errors import CalibrationError
 from simucal.generated.effects import AUX as SENSOR_AUX
-from simucal.io import SAMPLE_COLS, run_or_rows
+from simucal.io import SAMPLE_COLS, run_or_rows, units
 
 DEFAULT_ZERO = set(SENSOR_AUX["acc"]) | set(SENSOR_AUX["gyro"])  # built-in inputs: 0 where the data have none
 NOT_AUX_COLUMNS = ("segment",) + SAMPLE_COLS  # samples.csv's key and outputs
@@ -66,6 +66,25 @@ class AuxInputs:
 
     def get(self, name, default=0.0):
         return self.values.get(name, default)
+
+
+MOTION = tuple(f"{q}_{a}" for q in ("wb", "dwb") for a in "xyz")  # the body rate and its change, as acc terms read them
+
+
+def motion(w_b_dph, dt_s) -> dict:
+    """{wb_x.., dwb_x..}: a body rate (deg/h in, rad/s out) at each step and its rate of change (rad/s^2):
+    what the accelerometers' lever arms and time delay read (derive/frames.py), from the gyros in the
+    systematic filter and from the true motion in the sequence simulator. The change is the central
+    difference (w_{k+1} - w_{k-1}) / (2 dt_k) over each step's own length dt_k: a sample of a move gets
+    the central difference of the samples, and a block at rest (the filter's) the share that spills into
+    its first and last samples, so that the steps' changes add up to each move's whole change of rate (a
+    table's 0.2 s accelerations: differences taken over the blocks' centres, or a smoothed rate, lost
+    part of it, which a lever arm turned into velocity errors 60 times the zero-velocity noise).
+    Not smoothed: the differences of a MEMS gyro's noise are a fraction of its accelerometers' noise."""
+    w = np.asarray(w_b_dph, float) * units.RAD_S_PER_DPH
+    padded = np.concatenate([w[:1], w, w[-1:]])
+    dw = (padded[2:] - padded[:-2]) / (2.0 * np.asarray(dt_s, float).reshape(-1, 1))
+    return {**{f"wb_{a}": w[:, j] for j, a in enumerate("xyz")}, **{f"dwb_{a}": dw[:, j] for j, a in enumerate("xyz")}}
 
 
 def specific_force(f_b_g) -> dict:

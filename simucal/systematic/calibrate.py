@@ -146,11 +146,9 @@ def run_filter(ms, acc_model="acc_baseline", gyro_model="gyro_baseline", ids=(),
     p_prior = sensors.vector()
     prior_var = np.r_[[PRIOR_ATTITUDE_RAD] * 3, [ZUPT_STD_MPS] * 3, _prior(acc, grade), _prior(gyro, grade),
                       [PRIOR_STD["rad"]] * 3] ** 2
-    zero = returns(ms, segments, steps.segment[steps.zupt]) if zero_position else None
+    zero = returns(ms, segments, steps.segment[steps.zupt], len(prior_var)) if zero_position else None
     p = slice(6, len(prior_var))  # the constants; the clones of zero-position updates after them
     clones = 0 if zero is None else 3 * zero.slots
-    if zero is not None:
-        zero.n = len(prior_var) + clones
     for k in range(1, max_passes + 1):
         x0 = np.r_[log_so3(C_prior @ C.T), np.zeros(3), sensors.vector() - p_prior, np.zeros(clones)]  # the prior's
         P0 = np.diag(np.r_[prior_var, np.ones(clones)])  # mean as errors; a clone's value is set at its copy

@@ -28,14 +28,13 @@ import numpy as np
 
 from scipy.ndimage import uniform_filter1d
 
+from simucal.fit.aux_inputs import MOTION, motion
 from simucal.fit.rotations import exp_so3, skew
 from simucal.generated import systematic as gen
 from simucal.generated import table
 from simucal.generated.effects import EFFECTS
-from simucal.io import units
 
 CHUNK = 1024  # epochs whose smoother gains are solved at once (memory: 3 CHUNK n^2 doubles)
-MOTION = tuple(f"{q}_{a}" for q in ("wb", "dwb") for a in "xyz")  # the body rate and its change, as acc terms read them
 SMOOTH_S = 0.1  # the window over which a regressor's inputs are averaged (smoothed)
 
 
@@ -48,21 +47,6 @@ def smoothed(inputs, dt):
     variance by the window's samples."""
     size = max(1, int(round(SMOOTH_S / float(np.median(dt))))) | 1
     return tuple(uniform_filter1d(x, size, axis=0, mode="nearest") for x in inputs)
-
-
-def motion(w_b_dph, dt_s) -> dict:
-    """{wb_x.., dwb_x..}: the body rate the gyros give (rad/s) at each step, and its rate of change (rad/s^2):
-    what the accelerometers' lever arms and time delay read (derive/frames.py). The change is the
-    central difference (w_{k+1} - w_{k-1}) / (2 dt_k) over each step's own length dt_k: a sample of a move
-    gets the central difference of the samples, and a block at rest the share that spills into its
-    first and last samples, so that the steps' changes add up to each move's whole change of rate (a
-    table's 0.2 s accelerations: differences taken over the blocks' centres, or a smoothed rate, lost
-    part of it, which a lever arm turned into velocity errors 60 times the zero-velocity noise).
-    Not smoothed: the differences of a MEMS gyro's noise are a fraction of its accelerometers' noise."""
-    w = np.asarray(w_b_dph, float) * units.RAD_S_PER_DPH
-    padded = np.concatenate([w[:1], w, w[-1:]])
-    dw = (padded[2:] - padded[:-2]) / (2.0 * np.asarray(dt_s, float).reshape(-1, 1))
-    return {**{f"wb_{a}": w[:, j] for j, a in enumerate("xyz")}, **{f"dwb_{a}": dw[:, j] for j, a in enumerate("xyz")}}
 
 
 def reads_motion(model) -> bool:

@@ -33,7 +33,7 @@ class Returns:
     update_at: dict[int, int]
     sigma_rad: float
     slots: int
-    n: int = 0                                   # the state's size with the clones (set by the filter)
+    n: int                                       # the state's size with the clones
     C_first: dict[int, np.ndarray] = field(default_factory=dict)
 
     def slot(self, k: int) -> slice:
@@ -68,8 +68,9 @@ class Returns:
         return H, log_so3(self.C_first[k] @ C_nominal.T), np.eye(3) * self.sigma_rad ** 2
 
 
-def returns(ms, segments, update_segment: np.ndarray) -> Returns | None:
-    """The returns of a sequence (module doc): update_segment, the segment of each update in time order. None
+def returns(ms, segments, update_segment: np.ndarray, n_states: int) -> Returns | None:
+    """The returns of a sequence (module doc): update_segment, the segment of each update in time order;
+    n_states, the filter's states without the clones. None
     where meta.json states no table_accuracy_arcsec, or no rest returns to an earlier one's angles."""
     accuracy = ms.meta.get("table_accuracy_arcsec")
     if accuracy is None:
@@ -90,4 +91,4 @@ def returns(ms, segments, update_segment: np.ndarray) -> Returns | None:
         update_at[last[s.segment]] = k
     if not update_at:
         return None
-    return Returns(copy_after, update_at, float(accuracy) * units.ARCSEC_RAD, len(copy_after))
+    return Returns(copy_after, update_at, float(accuracy) * units.ARCSEC_RAD, len(copy_after), n_states + 3 * len(copy_after))

@@ -43,14 +43,12 @@ def _regressor(family: str, pair: str, sensor: str, u: np.ndarray, aux) -> np.nd
         return aux.column("t_s", n)
     if family == "size_effect":
         return aux.column("w2", n) * (u[:, a] * u[:, o] - (1.0 if a == o else 0.0))
-    if family == "lever_arm":  # the a accelerometer r_c from the x one: (domega x e_c)_a + (omega x (omega x e_c))_a, in g
-        w = np.stack([aux.column(f"wb_{x}", n) for x in "xyz"], -1)
-        dw = np.stack([aux.column(f"dwb_{x}", n) for x in "xyz"], -1)
-        e_c = np.eye(3)[o]
+    if family in ("lever_arm", "time_delay"):
+        w, dw = (np.stack([aux.column(f"{q}_{x}", n) for x in "xyz"], -1) for q in ("wb", "dwb"))
+        if family == "time_delay":  # sampled tau late: f(t - tau) = f + tau (omega x f), to first order
+            return np.cross(w, u)[:, a]
+        e_c = np.eye(3)[o]  # the a accelerometer r_c from the x one: (domega x e_c)_a + (omega x (omega x e_c))_a, in g
         return (np.cross(dw, e_c)[:, a] + np.cross(w, np.cross(w, e_c))[:, a]) / G0
-    if family == "time_delay":  # sampled tau late: f(t - tau) = f + tau (omega x f), to first order
-        w = np.stack([aux.column(f"wb_{x}", n) for x in "xyz"], -1)
-        return np.cross(w, u)[:, a]
     if family == "g_sensitivity":
         return aux.column(f"f_{pair[-1]}", n)
     if "temperature" in family:  # bias_temperature{,2,3}: dT^k; scale_temperature{,2}: u_a dT^k

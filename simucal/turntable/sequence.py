@@ -25,7 +25,7 @@ import numpy as np
 
 from simucal.errors import InputError
 from simucal import io
-from simucal.fit.aux_inputs import AuxInputs, specific_force
+from simucal.fit.aux_inputs import AuxInputs, motion, specific_force
 from simucal.generated import table
 from simucal.io import units
 from simucal.turntable import forward, kinematics, plans
@@ -172,7 +172,7 @@ def _rotation_vectors(R):
 def inputs(sc: Scenario, ends, middles, rate_hz):
     """The true inputs per sample: f_b (g) at the middle, the mean w_d (deg/h) over the interval,
     f_d (g, the gyro's g-sensitivity input), and the motion the accelerometers' lever arms and time
-    delay see (motion_inputs: the body rate in b and its change)."""
+    delay see (aux_inputs.motion: the body rate in b and its change)."""
     err = kinematics.errors(sc.table_errors_rad(), np.zeros(3))
     C_end = table.C_k_n(*ends.T, err)
     C_mid = table.C_k_n(*middles.T, err)
@@ -181,16 +181,7 @@ def inputs(sc: Scenario, ends, middles, rate_hz):
     turned = _rotation_vectors(np.swapaxes(C_end[:-1], 1, 2) @ C_end[1:])  # in k, rad per sample
     w_k = np.degrees(turned) * rate_hz * units.DPH_PER_DPS + np.einsum("nji,j->ni", C_mid, w_ie_n)
     up_k = C_mid[:, 2, :]  # C_n^k [0, 0, 1]
-    return up_k @ C_b_k, w_k @ C_d_k, up_k @ C_d_k, motion_inputs(w_k @ C_b_k, 1.0 / rate_hz)
-
-
-def motion_inputs(w_b_dph, dt_s) -> dict:
-    """{wb_x.., dwb_x..}: the body rate in b (rad/s) at each sample and its rate of change (rad/s^2, central
-    differences over the samples dt_s apart): the inputs the accelerometers' lever arms and time delay
-    read (derive/frames.py)."""
-    w = np.asarray(w_b_dph, float) * units.RAD_S_PER_DPH
-    dw = np.gradient(w, dt_s, axis=0) if len(w) > 1 else np.zeros_like(w)
-    return {**{f"wb_{a}": w[:, j] for j, a in enumerate("xyz")}, **{f"dwb_{a}": dw[:, j] for j, a in enumerate("xyz")}}
+    return up_k @ C_b_k, w_k @ C_d_k, up_k @ C_d_k, motion(w_k @ C_b_k, np.full(len(w_k), 1.0 / rate_hz))
 
 
 MAX_TURN_PER_SAMPLE_DEG = 90.0  # a sample's rotation is taken below this (_rotation_vectors)
