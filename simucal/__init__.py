@@ -9,13 +9,13 @@ __version__ = "0.1.0"
 # The Python API (simucal/api/), imported on first use so that `import simucal` and the command
 # line's start stay light: simucal.read_set, simucal.calibrate, ... (README, "Python API").
 _API = ("read_set", "simulate", "calibrate", "validate", "diagnose", "noise", "save", "load", "table_rows", "compare",
-        "import_recording", "convert", "montecarlo", "calibrate_each", "Calibrated", "plan", "sequence_observability",
+        "import_recording", "convert", "montecarlo", "calibrate_each", "Calibrated", "plan", "sequence_observability", "design_sequence",
         "derive_model", "audit", "DetectSettings", "CalibrateOptions",
         "MeasurementSet", "Calibration", "Parameter", "Entry", "Validation", "Check", "Diagnosis", "Candidate", "Noise",
         "Term", "lot")
 __all__ = ["__version__", "read_set", "simulate", "calibrate", "validate", "diagnose", "noise", "save", "load",
            "table_rows", "compare", "import_recording", "convert", "montecarlo", "calibrate_each", "Calibrated", "plan",
-           "sequence_observability", "derive_model", "audit", "DetectSettings", "CalibrateOptions",
+           "sequence_observability", "design_sequence", "derive_model", "audit", "DetectSettings", "CalibrateOptions",
            "MeasurementSet", "Calibration", "Parameter", "Entry", "Validation", "Check",
            "Diagnosis", "Candidate", "Noise", "Term", "lot"]  # the public names (_API, spelt out for type checkers)
 TYPE_CHECKING = False  # typing's constant without importing typing (2 ms); type checkers read it as True
@@ -25,7 +25,7 @@ if TYPE_CHECKING:
                              MeasurementSet, Noise, Parameter, Term, Validation, audit, calibrate,
                              calibrate_each, compare, convert, derive_model, diagnose,
                              import_recording, load, montecarlo, noise, plan, read_set, save,
-                             sequence_observability, simulate, table_rows, validate)
+                             sequence_observability, design_sequence, simulate, table_rows, validate)
     # lot from its own module: through simucal.api mypy took the submodule api/lot.py for it (simucal.lot
     # typed as a module, "not callable" in a user's code)
     from simucal.api.lot import lot  # noqa: F401

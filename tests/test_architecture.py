@@ -167,8 +167,9 @@ def test_one_method_registry():
     assert spelled == [Path("api/options.py")] and set(typing.get_args(Method)) == {"auto", *methods.NAMES}
 
 
-UNITLESS = {"--seed", "--seeds", "--instance", "--unit-seed", "--trials", "--positions", "--power", "--thermal-degree", "--threshold-factor"}
-UNIT_SUFFIXES = ("-deg", "-s", "-hz", "-dps", "-dph", "-g", "-c", "-arcmin", "-mps2", "-per-g", "-per-dps")
+UNITLESS = {"--seed", "--seeds", "--instance", "--unit-seed", "--trials", "--positions", "--power", "--thermal-degree", "--threshold-factor",
+            "--evaluations"}
+UNIT_SUFFIXES = ("-deg", "-s", "-hz", "-dps", "-dph", "-g", "-c", "-arcmin", "-mps2", "-per-g", "-per-dps", "minutes")
 OLD_NAMES = {"--out-dir": "-o/--output", "--json": "-o/--output", "--sigma": "--acc-noise-g/--gyro-noise-dph",
              "--rates": "--rates-dps", "--heading-error-deg": "--heading-accuracy-deg"}  # accepted, never shown first
 

@@ -8,20 +8,7 @@ import pytest
 from simucal import io
 from simucal.systematic.method import calibrate_systematic
 from simucal.turntable.sequence import simulate_sequence
-from simucal.turntable.simulate import Scenario
-
-
-def mems_unit(seed):
-    rng = np.random.default_rng(1000 + seed)
-    sc = Scenario()
-    sc.acc_unit, sc.gyro_unit = "g", "deg/h"
-    shape = ("dK_x", "dK_y", "dK_z")
-    sc.acc_params = {**{k: rng.normal(0, 2e-2) for k in shape + ("theta_yx", "theta_zx", "theta_zy")},
-                     **{k: rng.normal(0, 0.05) for k in ("b_x", "b_y", "b_z")}}
-    sc.gyro_params = {**{k: rng.normal(0, 2e-2) for k in shape + ("phi_yx", "phi_zx", "phi_zy")},
-                      **{k: rng.normal(0, 1800.0) for k in ("b_x", "b_y", "b_z")}}
-    sc.acc_noise_g, sc.gyro_noise_dph = 2e-4, 30.0
-    return sc
+from simucal.turntable.simulate import mems_unit
 
 
 @pytest.mark.slow

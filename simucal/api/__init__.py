@@ -29,7 +29,7 @@ from simucal.api.calibration import Calibration, Parameter
 from simucal.api.batch import Calibrated, calibrate_each
 from simucal.api.options import CalibrateOptions
 from simucal.api.imports import convert, import_recording
-from simucal.api.planning import plan, sequence_observability
+from simucal.api.planning import design_sequence, plan, sequence_observability
 from simucal.api.tools import audit, derive_model
 from simucal.handheld.static_detect import DetectSettings
 from simucal.api.lot import lot
@@ -46,7 +46,7 @@ if TYPE_CHECKING:  # api/options.py says why
 
 __all__ = ["read_set", "simulate", "calibrate", "validate", "diagnose", "noise", "save", "load", "table_rows",
            "compare", "import_recording", "convert", "montecarlo", "calibrate_each", "Calibrated", "plan",
-           "sequence_observability", "derive_model", "audit", "DetectSettings", "CalibrateOptions", "MeasurementSet", "Calibration", "Parameter", "Entry",
+           "sequence_observability", "design_sequence", "derive_model", "audit", "DetectSettings", "CalibrateOptions", "MeasurementSet", "Calibration", "Parameter", "Entry",
            "Validation", "Check", "Diagnosis", "Candidate", "Noise", "Term", "lot"]
 
 

@@ -155,3 +155,96 @@ def sequence_observability(sequence: str, *, model: str = "acc_baseline", add: S
     assert ms.truth is not None  # a simulated set's
     return {"sequence": ms.truth["sequence"], "models": models, "add": list(add), "observability": obs, "norm": crlb,
             "plan": plan_name, "noise": noise, "rest_n": rest_n, "stated": bool(acc_noise_g and gyro_noise_dph)}
+
+
+def design_sequence(minutes: float = 10.0, *, reference: str = "psins19", reference_minutes: float | None = None,
+                    unit: str | None = None, acc_noise_g: float | None = None, gyro_noise_dph: float | None = None,
+                    rate_dps: float = 60.0, evaluations: int = 600, seed: int = 0,
+                    progress: Any = None) -> results.SequenceDesign:
+    """A rotation sequence designed for a unit and a table time (`simucal plan --sequence REF --design`;
+    turntable/sequence_design.py): its moves and rests chosen to minimise the worst parameter std relative to the
+    reference sequence's in reference_minutes (default: the same table time).
+
+    Parameters
+    ----------
+    minutes : float
+        The designed sequence's table time, min.
+    reference : str
+        The sequence whose stds are the targets: psins19, sysclbt19, dong2018 or a sequence file.
+    reference_minutes : float, optional
+        The reference's table time (its rests scaled to fit it), min; default `minutes`.
+    unit : str, optional
+        A calibration file: the unit's baseline parameters and white noise per sample (default: the
+        simulator's default unit).
+    acc_noise_g, gyro_noise_dph : float, optional
+        The unit's noise per sample at 100 Hz (over the file's).
+    rate_dps : float
+        The table's rate for the moves, deg/s (its acceleration is sequence.ACCEL_DPS2).
+    evaluations, seed :
+        The filter passes the search may spend, and the seed of its random changes.
+
+    Returns
+    -------
+    dict
+        ``sequence`` (its steps: what `simulate --sequence` reads), ``parameters`` (each std, target and
+        ratio), ``worst_ratio``, ``built_in`` (each built-in's worst ratio in the same time), ``evaluations``.
+
+    Examples
+    --------
+    >>> r = simucal.design_sequence(10.0, reference_minutes=12.5)  # doctest: +SKIP
+    >>> r["worst_ratio"] <= 1.0  # doctest: +SKIP
+    True
+    """
+    from simucal.turntable import sequence as seq
+    from simucal.turntable import sequence_design as design
+    from simucal.turntable.simulate import unit_from_calibration
+    if not 0 < minutes <= seq.MAX_REST_S / 60:
+        raise InputError(f"--minutes {minutes:g}: give a table time of 0 < minutes <= {seq.MAX_REST_S / 60:g}")
+    if not 0 < rate_dps <= seq.MAX_RATE_DPS:
+        raise InputError(f"--rate-dps {rate_dps:g}: give the table's rate, 0 < rate <= {seq.MAX_RATE_DPS:g} deg/s")
+    if evaluations < len(seq.SEQUENCES):
+        raise InputError(f"--evaluations {evaluations}: at least {len(seq.SEQUENCES)} (the built-ins are scored first)")
+    ref_minutes = minutes if reference_minutes is None else reference_minutes
+    sc, said = unit_from_calibration(unit, acc_noise_g, gyro_noise_dph)
+    name, ref_steps = seq.resolve(reference)
+    ref_steps = seq.in_minutes(ref_steps, ref_minutes, f"--sequence {name}")
+    rows = sequence_stds(sc, ref_steps)
+    target = np.array([r["std"] for r in rows])
+    found = design.design(lambda steps: np.array([r["std"] for r in sequence_stds(sc, steps)]), minutes, target,
+                          rate_dps, evaluations, seed, progress)
+    best = found.best
+    ratio = best.std / target
+    record: list[results.Designed] = [{"sensor": r["sensor"], "parameter": r["parameter"], "unit": r["unit"], "std": float(s),
+               "target": float(t), "ratio": float(q)} for r, s, t, q in zip(rows, best.std, target, ratio)]
+    return {"sequence": {"name": "designed", "rate_hz": float(sc.rate_hz or seq.DEFAULT_RATE_HZ),
+                         "steps": _steps_record(best.steps)},
+            "minutes": float(minutes), "rate_dps": float(rate_dps),
+            "reference": {"name": name, "steps": _steps_record(ref_steps)}, "reference_minutes": float(ref_minutes),
+            "parameters": record, "worst_ratio": best.worst,
+            "worst_parameter": f"{rows[best.worst_at]['sensor']} {rows[best.worst_at]['parameter']}",
+            "built_in": {k: None if c is None else c.worst for k, c in found.built_in.items()},
+            "start": found.start, "evaluations": found.evaluations, "unit": said, "rate_hz": float(sc.rate_hz or seq.DEFAULT_RATE_HZ),
+            "noise_per_sample": {"acc_g": [sc.acc_noise_g] * 3, "gyro_dph": [sc.gyro_noise_dph] * 3}}
+
+
+def sequence_stds(sc: Any, steps: Sequence[Any]) -> list[results.Observed]:
+    """Each parameter's std over the steps (turntable/sequence.Step) on the unit sc (a turntable Scenario),
+    simulated at seed 0: one pass of the linearised filter (systematic/observability.py)."""
+    from pathlib import Path
+
+    from simucal.io import MeasurementSet as Set
+    from simucal.systematic.observability import observability
+    from simucal.turntable.sequence import simulate_sequence
+    meta, samples, segments, _ = simulate_sequence(sc, list(steps), seed=0)
+    return observability(Set(Path("designed sequence"), meta, samples, segments))["parameters"]
+
+
+def save_sequence(path: str, steps: Sequence[results.SequenceStep]) -> None:
+    """A sequence file (axis,angle_deg,rate_dps,rest_s) of a record's steps, as `plan --sequence --design -o`."""
+    from simucal.turntable.sequence import Step, write_sequence
+    write_sequence(path, [Step(**s) for s in steps])
+
+
+def _steps_record(steps) -> list[results.SequenceStep]:
+    return [{"axis": s.axis, "angle_deg": float(s.angle_deg), "rate_dps": float(s.rate_dps), "rest_s": float(s.rest_s)}
+            for s in steps]

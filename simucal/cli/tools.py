@@ -201,6 +201,39 @@ def _plan_sequence(sequence, model_name, add, score_plan, rates, acc_noise_g, gy
         click.echo(f"wrote {output}")
 
 
+def _design_sequence(reference, minutes, reference_minutes, unit_file, acc_noise_g, gyro_noise_dph, rate_dps,
+                     evaluations, output):
+    """plan --sequence REF --design: simucal.design_sequence, printed, and the sequence written."""
+    import json
+
+    from simucal import api, progress
+    from simucal.api.planning import save_sequence
+    from simucal.io import outputs
+    out = Path(output or "sequence.csv")
+    guard([p for p in (reference, unit_file) if p and Path(p).exists()],
+          files={"-o": str(out), "the sequence's JSON sidecar": str(out.with_suffix(".json"))})
+    r = api.design_sequence(minutes, reference=reference, reference_minutes=reference_minutes, unit=unit_file,
+                            acc_noise_g=acc_noise_g, gyro_noise_dph=gyro_noise_dph, rate_dps=rate_dps,
+                            evaluations=evaluations, progress=progress.bar("designing the sequence", "round"))
+    steps = r["sequence"]["steps"]
+    click.echo(f"designed: {len(steps)} moves at {r['rate_dps']:g} deg/s in {r['minutes']:g} min for {r['unit']} "
+               f"({r['evaluations']} filter passes, from {r['start']}); targets: {r['reference']['name']}'s stds in "
+               f"{r['reference_minutes']:g} min")
+    click.echo(f"  {'parameter':18} {'unit':16} {'designed std':>13} {'target':>10} {'ratio':>7}")
+    for x in r["parameters"]:
+        click.echo(f"  {x['sensor'] + ' ' + x['parameter']:18} {x['unit']:16} {x['std']:13.3g} {x['target']:10.3g} "
+                   f"{x['ratio']:7.3f}")
+    others = ", ".join(f"{k} {'does not fit' if v is None else format(v, '.3g')}" for k, v in r["built_in"].items())
+    click.echo(f"worst ratio {r['worst_ratio']:.3f} ({r['worst_parameter']}); the built-ins' moves at {r['rate_dps']:g} "
+               f"deg/s in the same time: {others}")
+    if r["worst_ratio"] > 1.0:
+        click.echo(f"NOT every parameter reaches its target: {r['worst_parameter']} is {r['worst_ratio']:.3f} of it; "
+                   "give more --minutes or --evaluations, or a longer --reference-minutes")
+    save_sequence(str(out), steps)
+    outputs.write_text(out.with_suffix(".json"), json.dumps(r, indent=1) + "\n")
+    click.echo(f"wrote {out} (simucal simulate --sequence {out}) and {out.with_suffix('.json')}")
+
+
 @main.command()
 @click.option("--score", "score_plan", default=None, metavar="PLAN",
               help="Score a plan: table1, dodecahedron20, fibonacci24, fibonacci48 or a CSV (outer_deg,middle_deg,inner_deg).")
@@ -231,19 +264,48 @@ def _plan_sequence(sequence, model_name, add, score_plan, rates, acc_noise_g, gy
 @click.option("--sizes", default=None, metavar="Q1,Q2", help="With --separate: the effects' sizes, in their units.")
 @click.option("--power", "target", type=Number(0.0, 1.0, low_open=True), default=0.9, show_default=True,
               help="With --separate: the power to reach.")
-@click.option("--sequence", default=None, metavar="NAME|FILE",
-              help="Systematic calibration: each parameter's std over a rotation sequence (psins19, dong2018 or a CSV "
-                   "axis,angle_deg,rate_dps,rest_s; one pass of the filter, the default unit at 100 Hz) beside the "
-                   "norm method's CRLB on --score PLAN (default table1).")
+@click.option("--sequence", default=None, metavar="NAME|FILE", is_flag=False, flag_value="psins19",
+              help="Systematic calibration: each parameter's std over a rotation sequence (psins19, sysclbt19, dong2018 "
+                   "or a CSV axis,angle_deg,rate_dps,rest_s; one pass of the filter, the default unit at 100 Hz) beside "
+                   "the norm method's CRLB on --score PLAN (default table1); with --design, the reference (default "
+                   "psins19).")
+@click.option("--design", "design_seq", is_flag=True,
+              help="With --sequence: design a sequence of --minutes whose every parameter's std is as far as can be "
+                   "under the reference's (in --reference-minutes); -o writes it (a sequence CSV, its JSON beside).")
+@click.option("--minutes", type=Number(0.0, 600.0, low_open=True), default=10.0, show_default=True,
+              help="--design: the designed sequence's table time, min.")
+@click.option("--reference-minutes", type=Number(0.0, 600.0, low_open=True), default=None,
+              help="--design: the reference's table time, its rests scaled to fit (default --minutes).")
+@click.option("--calibration", "unit_file", type=click.Path(dir_okay=False), default=None, metavar="CAL.json",
+              help="--design: the unit to design for, a calibration file's baseline parameters and white noise per "
+                   "sample (default: the simulator's default unit); --acc-noise-g and --gyro-noise-dph give the "
+                   "noise per sample at 100 Hz instead.")
+@click.option("--table-rate-dps", type=Number(0.0, 400.0, low_open=True), default=60.0, show_default=True,
+              help="--design: the table's rate for the moves, deg/s (accelerating at 50 deg/s^2).")
+@click.option("--evaluations", type=Number(3, 100_000, integer=True), default=600, show_default=True,
+              help="--design: the filter passes the search may spend (about 0.2 s each for 10 minutes).")
 @click.option("-o", "--output", type=click.Path(dir_okay=False), default=None,
-              help="Design: the plan CSV (a JSON sidecar with its scores beside it); score or --sequence: the JSON.")
+              help="Design: the plan CSV or sequence CSV (a JSON sidecar with its scores beside it); score or "
+                   "--sequence: the JSON.")
 def plan(score_plan, model_name, add, positions, criterion, rate_dps, rates, kind, acc_noise_g, gyro_noise_dph, sigma,
-         pair, sizes, target, sequence, output):
+         pair, sizes, target, sequence, design_seq, minutes, reference_minutes, unit_file, table_rate_dps, evaluations,
+         output):
     """Score a test plan (Fisher information, CRLB, correlations, D and A criteria) or design one; or a
-    rotation sequence's observability (--sequence)."""
+    rotation sequence's observability (--sequence), or design a sequence (--sequence --design)."""
+    design = "a sequence's design (--sequence --design)"
+    if not design_seq:
+        refuse_unused({"minutes": design, "reference_minutes": design, "unit_file": design, "table_rate_dps": design,
+                       "evaluations": design})
+    if design_seq and sequence is None:
+        sequence = "psins19"
     if sequence is not None:
         if positions is not None or pair:
             fail("--sequence scores a rotation sequence; --positions and --separate design a plan's positions: give one")
+        if design_seq:
+            refuse_unused({"score_plan": "--sequence without --design", "model_name": "--sequence without --design",
+                           "add": "--sequence without --design", "rates": "--sequence without --design"})
+            return _design_sequence(sequence, minutes, reference_minutes, unit_file, acc_noise_g, gyro_noise_dph,
+                                    table_rate_dps, evaluations, output)
         return _plan_sequence(sequence, model_name, add, score_plan, rates, acc_noise_g, gyro_noise_dph, output)
     import json
 

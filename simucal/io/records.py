@@ -374,9 +374,10 @@ class InnovationTest(TypedDict, total=False):
     updates: int
 
 
-class WhiteNoise(TypedDict):
+class WhiteNoise(TypedDict, total=False):
     gyro_dph: list[float]
     acc_g: list[float]
+    rate_hz: float                    # the samples' (files before issue 55 lack it)
 
 
 class ZeroPosition(TypedDict):

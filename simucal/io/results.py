@@ -136,6 +136,36 @@ class SequenceObservability(TypedDict, total=False):
     stated: bool
 
 
+class Designed(TypedDict):
+    """A parameter's std over a designed sequence against its target, the reference sequence's std
+    (turntable/sequence_design.py)."""
+    sensor: str
+    parameter: str
+    unit: str
+    std: float
+    target: float
+    ratio: float
+
+
+class SequenceDesign(TypedDict):
+    """simucal.design_sequence's result: the designed sequence, each parameter's std against its target, and
+    the built-in sequences' worst ratios in the same table time at the same rate."""
+    sequence: SequenceRecord
+    minutes: float
+    rate_dps: float
+    reference: SequenceRecord         # as scored: its rests fitted to reference_minutes
+    reference_minutes: float
+    parameters: list[Designed]
+    worst_ratio: float
+    worst_parameter: str
+    built_in: dict[str, float | None]  # each built-in's moves at rate_dps in `minutes`: its worst ratio (None: no fit)
+    start: str                        # the built-in the search started from
+    evaluations: int
+    unit: str                         # "the default unit" or the calibration file read
+    noise_per_sample: NoisePerSample  # at rate_hz
+    rate_hz: float
+
+
 class SensorTruth(TypedDict, total=False):
     """One sensor's truth in a simulated set's truth.json: its model, parameters and planted effects, and
     M and bias in b (units as the calibration file's)."""

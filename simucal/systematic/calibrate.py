@@ -120,6 +120,7 @@ class Result:
     sigma: np.ndarray
     passes: int
     step_std: float
+    rate_hz: float                  # the samples' (1 / their median step)
     C: np.ndarray | None = None  # C_b^n at the start about the estimates, and what another pass over the data
     setting: tuple = ()          # needs, (steps, q, w_ie, g0): the innovations' candidates (innovations.py)
     returns: Returns | None = None  # the zero-position updates made (zero_position.py)
@@ -159,7 +160,7 @@ def run_filter(ms, acc_model="acc_baseline", gyro_model="gyro_baseline", ids=(),
         if step.max() < STEP_STD or k == max_passes:
             break
         C = exp_so3(smooth(epochs, covariance=False)[0][0][:3]) @ C  # the next pass's attitude at the start
-    return Result(sensors, P[p, p], epochs, prior_var, sigma, k, float(step.max()), C, (steps, q, w_ie, g0), zero)
+    return Result(sensors, P[p, p], epochs, prior_var, sigma, k, float(step.max()), 1.0 / dt, C, (steps, q, w_ie, g0), zero)
 
 
 def _move(sensors, p):

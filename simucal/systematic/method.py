@@ -70,7 +70,7 @@ def calibrate_systematic(ms, acc_model="acc_baseline", gyro_model="gyro_baseline
                                    "meaning": "C_b^d = mounting(eta) (derive/systematic.py)"}
     cal.details["systematic"] = {
         "passes": r.passes, "last_step_std": r.step_std, "white_noise_per_sample": {
-            "gyro_dph": r.sigma[:3].tolist(), "acc_g": r.sigma[3:].tolist()},
+            "gyro_dph": r.sigma[:3].tolist(), "acc_g": r.sigma[3:].tolist(), "rate_hz": r.rate_hz},
         "test": cast(records.InnovationTest, {k: v for k, v in test.items() if k != "innovations_whitened"})}
     if r.returns is not None:
         cal.details["systematic"]["zero_position"] = {

@@ -12,7 +12,8 @@ rests skip them).
 
 A sequence file is a CSV with the header axis,angle_deg,rate_dps,rest_s: one row per move, the
 table axis (outer, middle or inner), the angle turned (deg, signed), the cruising rate (deg/s) and
-the rest after it (s); the first rest, before any move, lasts the first row's rest_s.
+the rest after it (s); the first rest, before any move, lasts the first row's rest_s. Built in:
+psins19, sysclbt19 (PSINS' published 19 positions) and dong2018.
 """
 from __future__ import annotations
 
@@ -27,7 +28,7 @@ from simucal.errors import InputError
 from simucal import io
 from simucal.fit.aux_inputs import AuxInputs, motion, specific_force
 from simucal.generated import table
-from simucal.io import units
+from simucal.io import outputs, units
 from simucal.turntable import forward, kinematics, plans
 from simucal.turntable.simulate import Scenario, meta_of, models, truth_of
 
@@ -35,6 +36,7 @@ AXES = ("outer", "middle", "inner")
 ACCEL_DPS2 = 50.0     # the table's angular acceleration and braking, deg/s^2
 MAX_RATE_DPS = 400.0  # no three-axis test table turns faster (outer axis, loaded)
 MAX_REST_S = 36000.0
+MIN_REST_S = 5.0      # a rest fitted to a time budget: the filter's noise and zero-velocity updates need seconds
 DEFAULT_RATE_HZ = 100.0
 
 
@@ -48,10 +50,11 @@ class Step:
 
 
 def psins19(rest_s=100.0, rate_dps=10.0) -> list[Step]:
-    """19 positions, 18 turns of 90 deg (in the manner of PSINS' sysclbt demo and Ren et al. 2019's
-    sequence): the inner axis round twice (once level, once with the middle axis at 90 deg, so that
-    each body axis points up and down and turns about each horizontal axis), the middle axis
-    round, the outer axis round."""
+    """19 positions, 18 turns of 90 deg (in the manner of PSINS' sysclbt demo, not its path):
+    the inner axis round twice (once level, once with the middle axis at 90 deg), the middle axis
+    round, the outer axis round. On this table the inner axis is the unit's y, so z turns only
+    while vertical: its scale factor is seen through the heading alone (gyro dK_z's std is about
+    100 times the other scale factors'; sysclbt19 turns z while horizontal)."""
     turns = [("inner", 90.0)] * 4 + [("middle", 90.0)] * 4 + [("middle", 90.0)] + [("inner", 90.0)] * 4 \
         + [("middle", -90.0)] + [("outer", 90.0)] * 4
     return [Step(a, ang, rate_dps, rest_s) for a, ang in turns]
@@ -69,7 +72,45 @@ def dong2018(rest_s=60.0, rate_dps=10.0) -> list[Step]:
     return steps
 
 
-SEQUENCES = {"psins19": psins19, "dong2018": dong2018}
+def sysclbt19(rest_s=40.0, rate_dps=10.0) -> list[Step]:
+    """PSINS' published 19-position scheme (test_SINS_sysclbt19, after Xie et al. 2011: 18 turns of 90
+    deg about the unit's own axes, +y three times and back, +z, +x three times and back, +z twice and
+    -z three times; 90 deg in 9 s, rests of 20 s before and after each turn). PSINS' x, y, z are this
+    table's z, x, y (a cyclic relabelling, so that its first position, x up, is the table's zero with
+    z up), and each of its turns is then one axis of this table: the middle axis while it lies along
+    the unit's x or z, the inner axis (the unit's y)."""
+    turns = [("middle", 90.0)] * 3 + [("middle", -90.0)] * 3 + [("inner", 90.0)] + [("middle", 90.0)] * 3 \
+        + [("middle", -90.0)] * 3 + [("inner", 90.0)] * 2 + [("inner", -90.0)] * 3
+    return [Step(a, ang, rate_dps, rest_s) for a, ang in turns]
+
+
+SEQUENCES = {"psins19": psins19, "sysclbt19": sysclbt19, "dong2018": dong2018}
+
+
+def duration_s(steps) -> float:
+    """The sequence's table time (s): the first rest, then each move and the rest after it."""
+    return steps[0].rest_s + sum(move_angle(s.angle_deg, s.rate_dps, 0.0)[1] + s.rest_s for s in steps)
+
+
+def in_minutes(steps, minutes, name="the sequence") -> list[Step]:
+    """The same moves with every rest of MIN_REST_S or more scaled by one factor so that the sequence
+    lasts `minutes` (a lab's way of fitting a sequence to its table time; dong2018's 1 s pauses between
+    one position's axes stay as they are); refused where the moves and pauses leave a rest under
+    MIN_REST_S."""
+    rests = np.array([steps[0].rest_s] + [s.rest_s for s in steps])
+    long = rests >= MIN_REST_S
+    scale = (60.0 * minutes - (duration_s(steps) - rests[long].sum())) / rests[long].sum()
+    if not long.any() or scale * rests[long].min() < MIN_REST_S:
+        raise InputError(f"{name}: its {len(steps)} moves leave rests under {MIN_REST_S:g} s in {minutes:g} min "
+                         f"(it lasts {duration_s(steps) / 60:.3g} min as written): give more minutes or fewer moves")
+    return [Step(s.axis, s.angle_deg, s.rate_dps, s.rest_s * scale if s.rest_s >= MIN_REST_S else s.rest_s)
+            for s in steps]
+
+
+def write_sequence(path, steps) -> None:
+    """A sequence file (module doc) of the steps, every number as Python writes it back exactly."""
+    outputs.write_text(path, "axis,angle_deg,rate_dps,rest_s\n" + "".join(
+        f"{s.axis},{float(s.angle_deg)!r},{float(s.rate_dps)!r},{float(s.rest_s)!r}\n" for s in steps))
 
 
 def read_sequence(path) -> list[Step]:
@@ -108,7 +149,9 @@ def _step(path, line, row) -> Step:
 
 
 def resolve(sequence) -> tuple[str, list[Step]]:
-    """(name, steps) of a built-in sequence's name or a sequence file."""
+    """(name, steps) of a built-in sequence's name, a sequence file or a list of steps (a design's)."""
+    if isinstance(sequence, list):
+        return "designed", sequence
     if isinstance(sequence, str) and sequence in SEQUENCES:
         return sequence, SEQUENCES[sequence]()
     return str(sequence), read_sequence(sequence)

@@ -183,6 +183,53 @@ def plant(sc: Scenario, effects=(), effect_file=None, sets=(), columns=(), write
 
 
 SCENARIOS = {"paper": Scenario}
+
+
+def unit_from_calibration(path=None, acc_noise_g=None, gyro_noise_dph=None, rate_hz=100.0) -> tuple[Scenario, str]:
+    """(a unit to simulate at rate_hz, its description; a sequence is designed for it): the default unit,
+    or the baseline parameters of a calibration file (the others the default unit's) with its white
+    noise per sample (a systematic calibration's, at rate_hz from the rate it states). acc_noise_g,
+    gyro_noise_dph: the noise per sample at rate_hz, over the file's; a file that states none needs both."""
+    from simucal.io import calibration
+    sc = Scenario()
+    if path is None:
+        said = "the default unit"
+    else:
+        cal = calibration.load(path)
+        for block, params in ((cal.acc, sc.acc_params), (cal.gyro, sc.gyro_params)):
+            if block is not None:
+                params.update({k: v for k, v in block.params.items() if k in params})
+        sc.acc_unit, sc.gyro_unit = "g", "deg/h"
+        noise = cal.details.get("systematic", {}).get("white_noise_per_sample", {})
+        if (acc_noise_g is None or gyro_noise_dph is None) and "rate_hz" not in noise:
+            raise InputError(f"--calibration {path}: states no white noise per sample with its rate (a systematic "
+                             "calibration of this version does): give --acc-noise-g and --gyro-noise-dph, the "
+                             f"unit's noise per sample at {rate_hz:g} Hz")
+        if "rate_hz" in noise:  # white noise: its std per sample goes as the square root of the rate
+            k = np.sqrt(rate_hz / noise["rate_hz"])
+            sc.acc_noise_g = float(k * np.sqrt(np.mean(np.square(noise["acc_g"]))))
+            sc.gyro_noise_dph = float(k * np.sqrt(np.mean(np.square(noise["gyro_dph"]))))
+        said = f"the unit of {path}"
+    sc.acc_noise_g = acc_noise_g or sc.acc_noise_g
+    sc.gyro_noise_dph = gyro_noise_dph or sc.gyro_noise_dph
+    sc.rate_hz = rate_hz
+    return sc, said
+
+
+def mems_unit(seed: int) -> Scenario:
+    """A MEMS unit drawn at seed (issue 50): gyro biases near 0.5 deg/s (1800 deg/h std), accelerometer
+    biases near 50 mg, scale factors and misalignments near 2e-2, noise 2e-4 g and 30 deg/h per sample;
+    outputs in g and deg/h."""
+    rng = np.random.default_rng(1000 + seed)
+    sc = Scenario()
+    sc.acc_unit, sc.gyro_unit = "g", "deg/h"
+    shape = ("dK_x", "dK_y", "dK_z")
+    sc.acc_params = {**{k: rng.normal(0, 2e-2) for k in shape + ("theta_yx", "theta_zx", "theta_zy")},
+                     **{k: rng.normal(0, 0.05) for k in ("b_x", "b_y", "b_z")}}
+    sc.gyro_params = {**{k: rng.normal(0, 2e-2) for k in shape + ("phi_yx", "phi_zx", "phi_zy")},
+                      **{k: rng.normal(0, 1800.0) for k in ("b_x", "b_y", "b_z")}}
+    sc.acc_noise_g, sc.gyro_noise_dph = 2e-4, 30.0
+    return sc
 AVERAGE_POINTS = 720  # an averaged rate run: the mean of its inputs at this many outer angles over the revolution
 
 
