@@ -39,12 +39,15 @@ def table(minutes, reference_minutes, evaluations, sc=None, label="the default u
     took = time.perf_counter() - t0
     std = {"designed": found.best.std, **std}
     print(f"\n{label}: stds at {minutes:g} min (psins19 also at {reference_minutes:g} min); designed: "
-          f"{len(found.best.steps)} moves at 60 deg/s, {found.evaluations} filter passes in {took:.0f} s, from "
+          f"{len(found.best.steps)} moves at 60 deg/s, {found.evaluations} candidates scored in {took:.0f} s, from "
           f"{found.start}\n")
     print("| parameter | unit | " + " | ".join(std) + " |\n|---|---|" + "---|" * len(std))
     for i, r in enumerate(rows):
         print(f"| {r['sensor']} {r['parameter']} | {r['unit']} | " + " | ".join(f"{v[i]:.3g}" for v in std.values())
               + " |")
+    print("| worst of the built-ins' moves turned at 60 deg/s, as the design's | | | " + " | ".join(
+        f"{c.worst:.3f}" if c else "no fit" for c in (found.built_in[k] for k in ("psins19", "sysclbt19", "dong2018")))
+        + " | |")
     print(f"| worst std / psins19's in {reference_minutes:g} min | | "
           + " | ".join(f"{np.max(v / target):.3f} ({rows[int(np.argmax(v / target))]['parameter']})"
                        for v in std.values()) + " |")

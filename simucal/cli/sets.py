@@ -57,7 +57,7 @@ FERRARIS_HZ, ANNOTATED_HZ, ANNOTATED_ACC, ANNOTATED_GYRO = 102.4, 204.8, 2048.0,
               help="table1, dodecahedron20, fibonacci24, fibonacci48, or a CSV of outer_deg,middle_deg,inner_deg.")
 @click.option("--sequence", default=None, metavar="NAME|FILE",
               help="A continuous rotation sequence instead of --plan (raw samples, default 100 Hz, while the table "
-                   "rests and turns; for calibrate --method systematic): psins19, dong2018, or a CSV of "
+                   "rests and turns; for calibrate --method systematic): psins19, sysclbt19, dong2018, or a CSV of "
                    "axis,angle_deg,rate_dps,rest_s.")
 @click.option("--rate-hz", type=SIM_RATE_HZ, default=None,
               help="Write raw samples at this rate (Hz, up to 2000) instead of one row per position (field, "

@@ -217,7 +217,7 @@ def _design_sequence(reference, minutes, reference_minutes, unit_file, acc_noise
                             evaluations=evaluations, progress=progress.bar("designing the sequence", "round"))
     steps = r["sequence"]["steps"]
     click.echo(f"designed: {len(steps)} moves at {r['rate_dps']:g} deg/s in {r['minutes']:g} min for {r['unit']} "
-               f"({r['evaluations']} filter passes, from {r['start']}); targets: {r['reference']['name']}'s stds in "
+               f"({r['evaluations']} candidates scored, from {r['start']}); targets: {r['reference']['name']}'s stds in "
                f"{r['reference_minutes']:g} min")
     click.echo(f"  {'parameter':18} {'unit':16} {'designed std':>13} {'target':>10} {'ratio':>7}")
     for x in r["parameters"]:
@@ -271,7 +271,8 @@ def _design_sequence(reference, minutes, reference_minutes, unit_file, acc_noise
                    "psins19).")
 @click.option("--design", "design_seq", is_flag=True,
               help="With --sequence: design a sequence of --minutes whose every parameter's std is as far as can be "
-                   "under the reference's (in --reference-minutes); -o writes it (a sequence CSV, its JSON beside).")
+                   "under the reference's (in --reference-minutes); written to -o (default sequence.csv, its JSON "
+                   "beside).")
 @click.option("--minutes", type=Number(0.0, 600.0, low_open=True), default=10.0, show_default=True,
               help="--design: the designed sequence's table time, min.")
 @click.option("--reference-minutes", type=Number(0.0, 600.0, low_open=True), default=None,
@@ -283,7 +284,8 @@ def _design_sequence(reference, minutes, reference_minutes, unit_file, acc_noise
 @click.option("--table-rate-dps", type=Number(0.0, 400.0, low_open=True), default=60.0, show_default=True,
               help="--design: the table's rate for the moves, deg/s (accelerating at 50 deg/s^2).")
 @click.option("--evaluations", type=Number(3, 100_000, integer=True), default=600, show_default=True,
-              help="--design: the filter passes the search may spend (about 0.2 s each for 10 minutes).")
+              help="--design: the candidates the search may score (a filter pass each, about 0.05-0.2 s for 10 "
+                   "minutes).")
 @click.option("-o", "--output", type=click.Path(dir_okay=False), default=None,
               help="Design: the plan CSV or sequence CSV (a JSON sidecar with its scores beside it); score or "
                    "--sequence: the JSON.")
@@ -302,8 +304,9 @@ def plan(score_plan, model_name, add, positions, criterion, rate_dps, rates, kin
         if positions is not None or pair:
             fail("--sequence scores a rotation sequence; --positions and --separate design a plan's positions: give one")
         if design_seq:
-            refuse_unused({"score_plan": "--sequence without --design", "model_name": "--sequence without --design",
-                           "add": "--sequence without --design", "rates": "--sequence without --design"})
+            refuse_unused({k: "--sequence without --design" for k in ("score_plan", "model_name", "add", "rates")}
+                          | {k: "a plan (--score or --positions)" for k in ("rate_dps", "criterion", "kind", "sigma",
+                                                                           "sizes", "target")})
             return _design_sequence(sequence, minutes, reference_minutes, unit_file, acc_noise_g, gyro_noise_dph,
                                     table_rate_dps, evaluations, output)
         return _plan_sequence(sequence, model_name, add, score_plan, rates, acc_noise_g, gyro_noise_dph, output)

@@ -94,13 +94,15 @@ def duration_s(steps) -> float:
 
 def in_minutes(steps, minutes, name="the sequence") -> list[Step]:
     """The same moves with every rest of MIN_REST_S or more scaled by one factor so that the sequence
-    lasts `minutes` (a lab's way of fitting a sequence to its table time; dong2018's 1 s pauses between
+    lasts `minutes` (nominally: the simulator rounds each rest and move to samples) (a lab's way of fitting a sequence to its table time; dong2018's 1 s pauses between
     one position's axes stay as they are); refused where the moves and pauses leave a rest under
     MIN_REST_S."""
     rests = np.array([steps[0].rest_s] + [s.rest_s for s in steps])
     long = rests >= MIN_REST_S
+    if not long.any():
+        raise InputError(f"{name}: no rest of {MIN_REST_S:g} s or more to fit to {minutes:g} min: rest longer")
     scale = (60.0 * minutes - (duration_s(steps) - rests[long].sum())) / rests[long].sum()
-    if not long.any() or scale * rests[long].min() < MIN_REST_S:
+    if scale * rests[long].min() < MIN_REST_S:
         raise InputError(f"{name}: its {len(steps)} moves leave rests under {MIN_REST_S:g} s in {minutes:g} min "
                          f"(it lasts {duration_s(steps) / 60:.3g} min as written): give more minutes or fewer moves")
     return [Step(s.axis, s.angle_deg, s.rate_dps, s.rest_s * scale if s.rest_s >= MIN_REST_S else s.rest_s)

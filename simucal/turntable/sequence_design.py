@@ -9,7 +9,7 @@ linearised filter over it simulated on the unit (systematic/observability.py, wh
 this method-free search): the filter's covariance depends on the attitudes, rates, step lengths, noise
 and updates, not on the measured values. The criterion is a soft maximum over the parameters of
 log(std / target), (1 / SOFTNESS) log sum exp(SOFTNESS log(std / target)): within a few per cent of
-the worst ratio, and lowered too by a change that helps a parameter just under the worst (the hard
+the worst ratio (at most log(n) / SOFTNESS above it in log, n parameters near it), and lowered too by a change that helps a parameter just under the worst (the hard
 maximum is flat over most changes, and a search on it stalls).
 
 The search is an exchange algorithm (in the manner of Fedorov's for exact designs): it starts from
@@ -52,8 +52,9 @@ class Candidate:
 def score(stds_of, moves, rate_dps: float, minutes: float, target: np.ndarray) -> Candidate | None:
     """The candidate of these moves (axis, angle, rest weight) at rate_dps with rests filling `minutes`
     in proportion to their weights; None where the moves leave a rest under sequence.MIN_REST_S."""
+    shortest = min(w for _, _, w in moves)  # every rest at MIN_REST_S or more before fitting: all scale alike
     try:
-        steps = tuple(in_minutes([Step(a, x, rate_dps, MIN_REST_S * w) for a, x, w in moves], minutes))
+        steps = tuple(in_minutes([Step(a, x, rate_dps, MIN_REST_S * w / shortest) for a, x, w in moves], minutes))
     except InputError:
         return None
     std = stds_of(steps)
