@@ -10,10 +10,13 @@ stretched to fill that many hours at 100 Hz, `simucal calibrate --method systema
 whole process (reading the set, every pass, writing the file): wall and CPU (user + sys; the wall
 of a shared machine is its load's). Part 3 (--compare-seeds): the same unit by exact and
 multiposition (table1 with its rate runs, 10 s per position at 100 Hz) and systematic (psins19, 30 s
-rests), tables of angle errors 1, 10 and 60 arcsec (uniform +- each, each axis, each position) and
-poor ones, 60 arcsec with its rate off by 10 or 100 ppm in the rate runs or with 600 arcsec of tilt
-and non-perpendicular axes: per group (M, bias of each sensor) the rms error against the truth
-over the seeds, the rms stated std and the rms error / std.
+rests, and a sequence designed for the unit in the same table time against the built-ins' best
+stds, plan --sequence best --design), tables
+of angle errors 1, 10 and 60 arcsec (uniform +- each, each axis, each position) and poor ones, 60
+arcsec with its rate off by 10 or 100 ppm in the rate runs or with 600 arcsec of tilt and
+non-perpendicular axes; a MEMS unit on a good and a poor table; lever arms of 1-5 cm and a 1-5 ms
+delay: per group (M, bias of each sensor) the rms error against the truth over the seeds, the rms
+stated std and the rms error / std.
 """
 import argparse
 import os
@@ -30,8 +33,8 @@ import simucal
 from simucal.generated import table
 from simucal.io import MeasurementSet
 from simucal.systematic.calibrate import run_filter
-from simucal.turntable.sequence import psins19, simulate_sequence
-from simucal.turntable.simulate import ARCSEC, Scenario
+from simucal.turntable.sequence import duration_s, psins19, simulate_sequence
+from simucal.turntable.simulate import ARCSEC, Scenario, lever_arms_and_delay, mems_unit
 from simucal.turntable.simulate import simulate as simulate_table
 
 
@@ -85,8 +88,14 @@ def _children_cpu():
 
 GROUPS = {"acc M": ("acc", 1e6, "ppm"), "gyro M": ("gyro", 1e6, "ppm"), "acc bias": ("acc", 1e6, "ug"),
           "gyro bias": ("gyro", 1.0, "deg/h")}
-# (angle error arcsec, rate error, tilt and non-perpendicularity arcsec: 5 the simulator's default)
-TABLES = [(1.0, 0.0, 5.0), (10.0, 0.0, 5.0), (60.0, 0.0, 5.0), (60.0, 1e-5, 5.0), (60.0, 1e-4, 5.0), (60.0, 0.0, 600.0)]
+# (unit, angle error arcsec, rate error, tilt and non-perpendicularity arcsec: 5 the simulator's default); the
+# units: the default (navigation grade), a MEMS unit (simulate.mems_unit, one per seed), the default with
+# lever arms of 1-5 cm and a 1-5 ms accelerometer delay (simulate.lever_arms_and_delay, the filter given their
+# states; a turntable test's accelerometers rest, so exact and multiposition do not see them)
+TABLES = [("default", 1.0, 0.0, 5.0), ("default", 10.0, 0.0, 5.0), ("default", 60.0, 0.0, 5.0),
+          ("default", 60.0, 1e-5, 5.0), ("default", 60.0, 1e-4, 5.0), ("default", 60.0, 0.0, 600.0),
+          ("MEMS", 1.0, 0.0, 5.0), ("MEMS", 60.0, 0.0, 600.0), ("lever arms", 1.0, 0.0, 5.0)]
+METHODS = ("exact", "multiposition", "systematic psins19", "systematic designed")
 
 
 def _group_errors(cal, truth):
@@ -111,46 +120,79 @@ def _group_errors(cal, truth):
     return out
 
 
-def _sets(seed, table_errors, sequence):
+def _unit(kind, seed):
+    """(the unit's scenario, the effects the filter is given) of a TABLES row's unit at seed."""
+    if kind == "MEMS":
+        return mems_unit(seed), ()
+    sc = Scenario()
+    if kind == "lever arms":
+        sc.acc_effects = lever_arms_and_delay(seed)
+    return sc, tuple(sc.acc_effects)
+
+
+def _sets(seed, row, sequences):
     """The same unit on one table (TABLES' row): Table 1 with its rate runs (10 s per position at
-    100 Hz) and the sequence. meta.json states the table's levelling (table_tilt_arcsec), as a user
+    100 Hz) and each sequence. meta.json states the table's levelling (table_tilt_arcsec), as a user
     of a levelled table does: the outer axis's tilt turns the Earth rate's horizontal part into the
     rate runs' norm, a common gyro scale (7e-9 at 5 arcsec) that exact's stds hold only where stated."""
-    arcsec, rate_error, geometry = table_errors
-    sc = Scenario(rate_hz=100.0, position_error_rad=arcsec * ARCSEC, rate_error=rate_error,
-                  tilt_rad=(geometry * ARCSEC,) * 2, nonperp_rad=(geometry * ARCSEC,) * 2, tilt_stated_arcsec=geometry)
-    sets = []
-    for name, (meta, samples, segments, truth) in (("table1", simulate_table(sc, seed)),
-                                                    ("psins19", simulate_sequence(sc, sequence, seed))):
+    kind, arcsec, rate_error, geometry = row
+    sc, added = _unit(kind, seed)
+    sc.rate_hz, sc.position_error_rad, sc.rate_error = 100.0, arcsec * ARCSEC, rate_error
+    sc.tilt_rad = sc.nonperp_rad = (geometry * ARCSEC,) * 2
+    sc.tilt_stated_arcsec = geometry
+    sets = {}
+    for name, (meta, samples, segments, truth) in [("table1", simulate_table(sc, seed))] + [
+            (name, simulate_sequence(sc, steps, seed)) for name, steps in sequences[kind].items()]:
         ms = MeasurementSet(Path(f"{name}_seed{seed}"), meta, samples, segments)
         ms.truth = truth
-        sets.append(ms)
-    return sets
+        sets[name] = ms
+    return sets, added
 
 
-def comparison(seeds, folder):
-    """exact, multiposition and systematic on the same unit (per-sample noise 1e-5 g, 0.01 deg/h at
-    100 Hz) under each table of TABLES: per group, the rms error over the seeds and the group's
-    entries, the rms of the stated stds and the rms of error / std."""
-    path = sequence_file(folder / "psins19_30s.csv", 30.0)
-    print(f"\n{seeds} seeds per cell; per group: rms error / rms std (rms of error / std)\n")
-    print("| angle error | rate error (ppm) | tilt, non-perp. | method | " + " | ".join(f"{g} ({u})" for g, (_, _, u) in GROUPS.items())
-          + " |\n|---|---|---|---|" + "---|" * len(GROUPS))
-    for table_errors in TABLES:
-        cells = {m: {g: [] for g in GROUPS} for m in ("exact", "multiposition", "systematic")}
+def _designed(sc, steps):
+    """A sequence designed for the unit sc in the table time of `steps`, each parameter's target the best
+    std of the built-ins in that time (plan --sequence best --design)."""
+    from simucal.api.planning import reference_stds, sequence_stds
+    from simucal.turntable import sequence_design
+
+    def stds_of(s):
+        return np.array([r["std"] for r in sequence_stds(sc, s)])
+    minutes = duration_s(steps) / 60.0
+    target = np.array([r["std"] for r in reference_stds(sc, "best", minutes)[2]])
+    return list(sequence_design.design(stds_of, minutes, target, 60.0, 600).best.steps)
+
+
+def comparison(seeds):
+    """exact, multiposition and systematic (psins19 with 30 s rests, and a sequence designed for the unit in
+    the same table time) on the same unit under each table of TABLES: per group, the rms error over the
+    seeds and the group's entries, the rms of the stated stds and the rms of error / std."""
+    psins = psins19(rest_s=30.0)
+    sequences = {kind: {"systematic psins19": psins, "systematic designed": _designed(_unit(kind, 0)[0], psins)}
+                 for kind in ("default", "MEMS")}
+    sequences["lever arms"] = sequences["default"]
+    print(f"\n{seeds} seeds per cell; per group: rms error / rms std (rms of error / std); the designed sequences "
+          f"last psins19's {duration_s(psins) / 60:.3g} min ({len(sequences['default']['systematic designed'])} "
+          f"moves for the default unit, {len(sequences['MEMS']['systematic designed'])} for a MEMS unit)\n")
+    print("| unit | angle error | rate error (ppm) | tilt, non-perp. | method | "
+          + " | ".join(f"{g} ({u})" for g, (_, _, u) in GROUPS.items()) + " |\n|---|---|---|---|---|" + "---|" * len(GROUPS))
+    for row in TABLES:
+        cells = {m: {g: [] for g in GROUPS} for m in METHODS}
         for seed in range(seeds):
-            plan, seq = _sets(seed, table_errors, path)
-            for method, ms in (("exact", plan), ("multiposition", plan), ("systematic", seq)):
-                for g, e in _group_errors(simucal.calibrate(ms, method=method), ms.truth).items():
+            sets, added = _sets(seed, row, sequences)
+            for method in METHODS:
+                name = "table1" if method in ("exact", "multiposition") else method
+                kwargs = {"add": list(added)} if name != "table1" and added else {}
+                cal = simucal.calibrate(sets[name], method=method.split()[0], **kwargs)
+                for g, e in _group_errors(cal, sets[name].truth).items():
                     cells[method][g].append(e)
         for method, groups in cells.items():
-            row = []
+            out = []
             for g, (_, k, _) in GROUPS.items():
                 err, std = (np.concatenate([e[i] for e in groups[g]]) for i in (0, 1))
                 rms = np.sqrt(np.mean(err ** 2))
-                row.append(f"{k * rms:.3g} / {k * np.sqrt(np.mean(std ** 2)):.3g} ({np.sqrt(np.mean((err / std) ** 2)):.2g})")
-            print("| {:g}\" | {:g} | {:g}\" | ".format(table_errors[0], 1e6 * table_errors[1], table_errors[2])
-                  + f"{method} | " + " | ".join(row) + " |")
+                out.append(f"{k * rms:.3g} / {k * np.sqrt(np.mean(std ** 2)):.3g} ({np.sqrt(np.mean((err / std) ** 2)):.2g})")
+            print("| {} | {:g}\" | {:g} | {:g}\" | ".format(row[0], row[1], 1e6 * row[2], row[3])
+                  + f"{method} | " + " | ".join(out) + " |")
 
 
 def main():
@@ -166,7 +208,7 @@ def main():
         if a.speed_hours > 0:
             speed(a.speed_hours, Path(tmp))
         if a.compare_seeds > 0:
-            comparison(a.compare_seeds, Path(tmp))
+            comparison(a.compare_seeds)
 
 
 if __name__ == "__main__":

@@ -63,6 +63,10 @@ def test_the_reference_in_its_own_minutes_sets_the_targets(designed):
     for a, b in zip(designed["parameters"], longer["parameters"]):
         assert b["target"] < a["target"]
     assert longer["reference"]["name"] == "psins19" and longer["reference_minutes"] == 10.0
+    best = simucal.design_sequence(5.0, reference="best", evaluations=3)  # each target the built-ins' smallest
+    assert best["reference"]["name"] == "best of psins19, sysclbt19, dong2018"
+    assert all(b["target"] <= a["target"] for a, b in zip(designed["parameters"], best["parameters"]))
+    assert any(b["target"] < 0.5 * a["target"] for a, b in zip(designed["parameters"], best["parameters"]))
 
 
 def test_plan_design_writes_a_sequence_that_simulate_reads_and_calibrate_calibrates(tmp_path):

@@ -13,6 +13,7 @@ from simucal import io
 from simucal.errors import CalibrationError
 from simucal.generated import table
 from simucal.turntable.sequence import AXES, psins19, read_sequence
+from simucal.turntable.simulate import lever_arms_and_delay
 from tests.cli_helpers import refused, run
 
 REST_S = 30.0  # the tests' psins19: shorter rests than the built-in 100 s, every parameter still seen
@@ -224,15 +225,6 @@ def test_a_table_rate_error_reaches_the_norm_method_alone():
     assert errors[0] < 2e-5 and 0.7e-4 < errors[1] < 1.3e-4, errors
 
 
-LEVER_ARMS = [f"acc.lever_arm.{a}{c}" for a in "yz" for c in "xyz"]
-
-
-def _lever_arms_and_delay(seed):
-    """Lever arms of 1-5 cm (either sign) and one 1-5 ms accelerometer delay, drawn per seed."""
-    rng = np.random.default_rng(500 + seed)
-    planted = {e: float(rng.choice([-1, 1]) * rng.uniform(0.01, 0.05)) for e in LEVER_ARMS}
-    tau = float(rng.uniform(1e-3, 5e-3))
-    return planted | {f"acc.time_delay.{a}": tau for a in "xyz"}
 
 
 @pytest.mark.slow
@@ -242,7 +234,7 @@ def test_lever_arms_and_a_delay_are_estimated_within_3_std_and_without_them_the_
     rate and its change the gyros give (fit/aux_inputs.motion); the simulator writes them by its own
     physics (turntable/forward.py). Without the states the model fails and names one of them (20 seeds
     of psins19 in docs/systematic.md)."""
-    planted = _lever_arms_and_delay(seed)
+    planted = lever_arms_and_delay(seed)
     ms = simucal.simulate(sequence=short, seed=seed, effects=planted)
     plain = simucal.calibrate(ms, method="systematic")
     assert plain.acc.verdict == "fails" and plain.acc.details["targeted"]["strongest"] in planted

@@ -170,7 +170,8 @@ def design_sequence(minutes: float = 10.0, *, reference: str = "psins19", refere
     minutes : float
         The designed sequence's table time, min.
     reference : str
-        The sequence whose stds are the targets: psins19, sysclbt19, dong2018 or a sequence file.
+        The sequence whose stds are the targets: psins19, sysclbt19, dong2018 or a sequence file; or "best",
+        each parameter's smallest std over the built-ins.
     reference_minutes : float, optional
         The reference's table time (its rests scaled to fit it), min; default `minutes`.
     unit : str, optional
@@ -206,9 +207,7 @@ def design_sequence(minutes: float = 10.0, *, reference: str = "psins19", refere
         raise InputError(f"--evaluations {evaluations}: at least {len(seq.SEQUENCES)} (the built-ins are scored first)")
     ref_minutes = minutes if reference_minutes is None else reference_minutes
     sc, said = unit_from_calibration(unit, acc_noise_g, gyro_noise_dph)
-    name, ref_steps = seq.resolve(reference)
-    ref_steps = seq.in_minutes(ref_steps, ref_minutes, f"--sequence {name}")
-    rows = sequence_stds(sc, ref_steps)
+    name, ref_steps, rows = reference_stds(sc, reference, ref_minutes)
     target = np.array([r["std"] for r in rows])
     found = design.design(lambda steps: np.array([r["std"] for r in sequence_stds(sc, steps)]), minutes, target,
                           rate_dps, evaluations, seed, progress)
@@ -225,6 +224,27 @@ def design_sequence(minutes: float = 10.0, *, reference: str = "psins19", refere
             "built_in": {k: None if c is None else c.worst for k, c in found.built_in.items()},
             "start": found.start, "evaluations": found.evaluations, "unit": said, "rate_hz": float(sc.rate_hz or seq.DEFAULT_RATE_HZ),
             "noise_per_sample": {"acc_g": [sc.acc_noise_g] * 3, "gyro_dph": [sc.gyro_noise_dph] * 3}}
+
+
+def reference_stds(sc: Any, reference: str, minutes: float) -> tuple[str, list[Any], list[results.Observed]]:
+    """(its name, its steps, each parameter's std) of a design's reference in `minutes` on the unit sc: a
+    built-in's name or a sequence file, its rests fitted to the time; or "best", each parameter's smallest
+    std over the built-ins that fit (no steps)."""
+    from simucal.turntable import sequence as seq
+    if reference != "best":
+        name, steps = seq.resolve(reference)
+        steps = seq.in_minutes(steps, minutes, f"--sequence {name}")
+        return name, steps, sequence_stds(sc, steps)
+    each = {}
+    for name, make in seq.SEQUENCES.items():
+        try:
+            each[name] = sequence_stds(sc, seq.in_minutes(make(), minutes, name))
+        except InputError:  # its moves leave no rest in this time
+            continue
+    if not each:
+        raise InputError(f"--sequence best: no built-in sequence fits in {minutes:g} min: give more minutes")
+    rows = [min(column, key=lambda r: r["std"]) for column in zip(*each.values())]
+    return f"best of {', '.join(each)}", [], rows
 
 
 def sequence_stds(sc: Any, steps: Sequence[Any]) -> list[results.Observed]:

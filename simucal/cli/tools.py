@@ -268,7 +268,7 @@ def _design_sequence(reference, minutes, reference_minutes, unit_file, acc_noise
               help="Systematic calibration: each parameter's std over a rotation sequence (psins19, sysclbt19, dong2018 "
                    "or a CSV axis,angle_deg,rate_dps,rest_s; one pass of the filter, the default unit at 100 Hz) beside "
                    "the norm method's CRLB on --score PLAN (default table1); with --design, the reference (default "
-                   "psins19).")
+                   "psins19; best: each parameter's smallest std over the built-ins).")
 @click.option("--design", "design_seq", is_flag=True,
               help="With --sequence: design a sequence of --minutes whose every parameter's std is as far as can be "
                    "under the reference's (in --reference-minutes); written to -o (default sequence.csv, its JSON "

@@ -216,6 +216,16 @@ def unit_from_calibration(path=None, acc_noise_g=None, gyro_noise_dph=None, rate
     return sc, said
 
 
+def lever_arms_and_delay(seed: int) -> dict[str, float]:
+    """Library effects drawn at seed (issue 55): the y and z accelerometers' lever arms from the x
+    accelerometer, 1-5 cm either way (acc.lever_arm.*, m), and one 1-5 ms delay of the accelerometers
+    behind the gyros (acc.time_delay.*, s)."""
+    rng = np.random.default_rng(500 + seed)
+    planted = {f"acc.lever_arm.{a}{c}": float(rng.choice([-1, 1]) * rng.uniform(0.01, 0.05)) for a in "yz" for c in "xyz"}
+    tau = float(rng.uniform(1e-3, 5e-3))
+    return planted | {f"acc.time_delay.{a}": tau for a in "xyz"}
+
+
 def mems_unit(seed: int) -> Scenario:
     """A MEMS unit drawn at seed (issue 50): gyro biases near 0.5 deg/s (1800 deg/h std), accelerometer
     biases near 50 mg, scale factors and misalignments near 2e-2, noise 2e-4 g and 30 deg/h per sample;
