@@ -278,3 +278,20 @@ def test_zero_position_updates_sharpen_the_heading_s_parameters_and_blunt_none()
     unstated = io.MeasurementSet(ms.path, {k: v for k, v in ms.meta.items() if k != "table_accuracy_arcsec"},
                                  ms.samples, ms.segments)
     assert sc.run_filter(unstated, max_passes=1).returns is None
+
+
+def test_the_returns_enter_the_model_test_and_a_table_claiming_too_much_fails_it():
+    """The zero-position returns' innovations join the NIS (3 dof each): at the table's stated accuracy the model
+    passes; a table that states 0.05 arcsec while it returns to within arcseconds fails it, which the
+    zero-velocity innovations alone would not see."""
+    from simucal.systematic import calibrate as sc
+    from simucal.systematic.innovations import innovation_test
+    ms = simucal.simulate(seed=2, sequence="psins19", position_error_arcmin=0.02)
+    honest = innovation_test(sc.run_filter(ms).epochs)
+    assert honest["returns"] >= 4 and honest["dof"] == 3 * (honest["updates"] + honest["returns"])
+    assert honest["p_value"] > 1e-3 and "zero-position returns" in honest["test"]
+    boast = io.MeasurementSet(ms.path, {**ms.meta, "table_accuracy_arcsec": 0.05}, ms.samples, ms.segments)
+    claimed = innovation_test(sc.run_filter(boast).epochs)
+    assert claimed["p_value"] < 1e-6 and claimed["nis_returns"] > 10 * 3 * claimed["returns"], claimed["nis_returns"]
+    zero_velocity_only = claimed["nis"] - claimed["nis_returns"]
+    assert zero_velocity_only < 3 * claimed["updates"] + 5 * np.sqrt(6 * claimed["updates"])

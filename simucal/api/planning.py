@@ -206,6 +206,8 @@ def design_sequence(minutes: float = 10.0, *, reference: str = "psins19", refere
     if evaluations < len(seq.SEQUENCES):
         raise InputError(f"--evaluations {evaluations}: at least {len(seq.SEQUENCES)} (the built-ins are scored first)")
     ref_minutes = minutes if reference_minutes is None else reference_minutes
+    if not 0 < ref_minutes <= seq.MAX_REST_S / 60:
+        raise InputError(f"--reference-minutes {ref_minutes:g}: give 0 < minutes <= {seq.MAX_REST_S / 60:g}")
     sc, said = unit_from_calibration(unit, acc_noise_g, gyro_noise_dph)
     name, ref_steps, rows = reference_stds(sc, reference, ref_minutes)
     target = np.array([r["std"] for r in rows])

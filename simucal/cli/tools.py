@@ -265,8 +265,8 @@ def _design_sequence(reference, minutes, reference_minutes, unit_file, acc_noise
 @click.option("--power", "target", type=Number(0.0, 1.0, low_open=True), default=0.9, show_default=True,
               help="With --separate: the power to reach.")
 @click.option("--sequence", default=None, metavar="NAME|FILE", is_flag=False, flag_value="psins19",
-              help="Systematic calibration: each parameter's std over a rotation sequence (psins19, sysclbt19, dong2018 "
-                   "or a CSV axis,angle_deg,rate_dps,rest_s; one pass of the filter, the default unit at 100 Hz) beside "
+              help="Systematic calibration: each parameter's std over a rotation sequence (psins19, the default, "
+                   "sysclbt19, dong2018 or a CSV axis,angle_deg,rate_dps,rest_s; one pass of the filter, the default unit at 100 Hz) beside "
                    "the norm method's CRLB on --score PLAN (default table1); with --design, the reference (default "
                    "psins19; best: each parameter's smallest std over the built-ins).")
 @click.option("--design", "design_seq", is_flag=True,
@@ -302,7 +302,8 @@ def plan(score_plan, model_name, add, positions, criterion, rate_dps, rates, kin
         sequence = "psins19"
     if sequence is not None:
         if positions is not None or pair:
-            fail("--sequence scores a rotation sequence; --positions and --separate design a plan's positions: give one")
+            fail(f"{'--design designs' if design_seq else '--sequence scores'} a rotation sequence; --positions and "
+                 "--separate design a plan's positions: give one")
         if design_seq:
             refuse_unused({k: "--sequence without --design" for k in ("score_plan", "model_name", "add", "rates")}
                           | {k: "a plan (--score or --positions)" for k in ("rate_dps", "criterion", "kind", "sigma",

@@ -33,8 +33,7 @@ class Targeted(TypedDict, total=False):
 
 
 class NoiseUsed(TypedDict, total=False):
-    """The noise a model test used and where it came from (fit/lack_of_fit.fit_with_noise and the
-    methods' own)."""
+    """The noise a model test used and where it came from (fit/lack_of_fit.fit_with_noise, methods' own)."""
     source: str
     text: str                         # the console's line
     estimated_std: float | None       # one std estimated from the fit (the block's unit)
@@ -371,7 +370,9 @@ class InnovationTest(TypedDict, total=False):
     targeted: Targeted
     lag1_autocorrelation: list[float]
     lag1_z: list[float]
-    updates: int
+    updates: int                      # zero-velocity updates
+    returns: int                      # zero-position returns (their NIS in nis too)
+    nis_returns: float
 
 
 class WhiteNoise(TypedDict, total=False):

@@ -116,6 +116,8 @@ class Epoch:
     nu: np.ndarray | None = None
     S: np.ndarray | None = None
     t_s: float = 0.0
+    nu_zero: np.ndarray | None = None  # a return's zero-position innovation and its covariance (zero_position.py)
+    S_zero: np.ndarray | None = None
 
 
 def nominal(C0, dtheta_b, f_b, dt, zupt, w_ie, g0):
@@ -235,14 +237,16 @@ def update(x_pred, P_pred, v, R, Phi, t_s, epochs, attitude=None):
     x = x_pred + K @ nu
     X = P_pred - K @ HP                               # (I - K H) P
     P = X - X[:, DV] @ K.T + K @ R @ K.T              # Joseph form: (I - K H) P (I - K H)^T + K R K^T
+    nu_a = S_a = None
     if attitude is not None:                          # a second, independent measurement: in sequence
         H, z, Ra = attitude
         HP = H @ P
-        K = np.linalg.solve(HP @ H.T + Ra, HP).T
-        x = x + K @ (z - H @ x)
+        nu_a, S_a = z - H @ x, HP @ H.T + Ra          # its innovation, white beside the zero-velocity one's
+        K = np.linalg.solve(S_a, HP).T
+        x = x + K @ nu_a
         IKH = np.eye(len(P)) - K @ H
         P = IKH @ P @ IKH.T + K @ Ra @ K.T
-    epochs.append(Epoch(Phi, P_pred, P, x_pred, x, nu, S, t_s))
+    epochs.append(Epoch(Phi, P_pred, P, x_pred, x, nu, S, t_s, nu_a, S_a))
     x = x.copy()
     x[DV] -= v                                        # the reset: dv = v_nominal - v
     return x, P

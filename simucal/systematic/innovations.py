@@ -40,20 +40,24 @@ CHUNK = 4096  # steps whose blocks are built at once
 
 
 def innovation_test(epochs) -> dict:
-    """The model test on the zero-velocity innovations: NIS, the sum of nu^T S^-1 nu, against
-    chi-square with 3 dof per update (Bar-Shalom, Li & Kirubarajan 2001, sec. 5.4), and their
-    whiteness: each axis's lag-1 autocorrelation of the whitened innovations (L^-1 nu, S = L L^T),
-    about N(0, 1/m) for white ones."""
+    """The model test on the innovations: NIS, the sum of nu^T S^-1 nu over the zero-velocity updates
+    and the zero-position returns (a return's attitude innovation, zero_position.py), against chi-square
+    with 3 dof per update (Bar-Shalom, Li & Kirubarajan 2001, sec. 5.4), and the zero-velocity
+    innovations' whiteness: each axis's lag-1 autocorrelation of the whitened innovations (L^-1 nu,
+    S = L L^T), about N(0, 1/m) for white ones."""
     updates = [e for e in epochs if e.nu is not None]
     L = np.linalg.cholesky(np.array([e.S for e in updates]))
     nu = np.linalg.solve(L, np.array([e.nu for e in updates])[..., None])[..., 0]
     m = len(nu)
-    nis = float((nu ** 2).sum())
+    returns = [e for e in updates if e.nu_zero is not None]
+    nis_zero = float(sum(e.nu_zero @ np.linalg.solve(e.S_zero, e.nu_zero) for e in returns))
+    nis, dof = float((nu ** 2).sum()) + nis_zero, 3 * (m + len(returns))
     r1 = (nu[1:] * nu[:-1]).sum(0) / (nu ** 2).sum(0)
-    return {"nis": nis, "dof": 3 * m, "nis_per_update": nis / m, "p_value": chi2_sf(nis, 3 * m),
-            "test": "NIS of the zero-velocity innovations (chi-square, 3 dof per update)",
+    return {"nis": nis, "dof": dof, "nis_per_update": nis / (m + len(returns)), "p_value": chi2_sf(nis, dof),
+            "test": "NIS of the zero-velocity innovations" + (
+                f" and of {len(returns)} zero-position returns" if returns else "") + " (chi-square, 3 dof per update)",
             "lag1_autocorrelation": r1.tolist(), "lag1_z": (r1 * np.sqrt(m)).tolist(), "updates": m,
-            "innovations_whitened": nu}
+            "returns": len(returns), "nis_returns": nis_zero, "innovations_whitened": nu}
 
 
 def family_test(result) -> tuple[dict, Signatures]:

@@ -196,9 +196,12 @@ def unit_from_calibration(path=None, acc_noise_g=None, gyro_noise_dph=None, rate
         said = "the default unit"
     else:
         cal = calibration.load(path)
-        for block, params in ((cal.acc, sc.acc_params), (cal.gyro, sc.gyro_params)):
-            if block is not None:
-                params.update({k: v for k, v in block.params.items() if k in params})
+        for sensor, block, params in (("acc", cal.acc, sc.acc_params), ("gyro", cal.gyro, sc.gyro_params)):
+            taken = {k: v for k, v in (block.params if block else {}).items() if k in params}
+            if block is not None and not taken:
+                raise InputError(f"--calibration {path}: its {sensor} model {block.model} holds none of the "
+                                 f"baseline's parameters ({', '.join(params)}), which the design's filter estimates")
+            params.update(taken)
         sc.acc_unit, sc.gyro_unit = "g", "deg/h"
         noise = cal.details.get("systematic", {}).get("white_noise_per_sample", {})
         if (acc_noise_g is None or gyro_noise_dph is None) and "rate_hz" not in noise:
