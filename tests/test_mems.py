@@ -86,3 +86,19 @@ def test_mems_units_over_temperature_plateaus(tmp_path):
         assert par["degree"] >= degree, (name, par)
         est, std = par["coefficients"][degree], par["std"][degree]
         assert abs(est - value) < 3.5 * std, (name, est, std, value)
+
+
+def test_passes_that_do_not_converge_are_refused_not_written():
+    """A MEMS unit's passes stopped before they converge (here by max_passes=2; a unit on fast turns can
+    need 20): calibrate's refusal names it, never a calibration whose estimates are not the stds' fixed point."""
+    from pathlib import Path
+
+    from simucal.systematic.calibrate import STEP_STD, run_filter
+    from simucal.systematic.method import refusal
+    from simucal.turntable.sequence import psins19
+    meta, samples, segments, _ = simulate_sequence(mems_unit(1), psins19(rest_s=30.0), 1)
+    ms = io.MeasurementSet(Path("mems"), meta, samples, segments)
+    early = run_filter(ms, max_passes=2)
+    assert early.step_std > STEP_STD
+    assert "did not converge: the last of 2 still moved an estimate" in refusal(early, ms.path)
+    assert refusal(run_filter(ms), ms.path) is None

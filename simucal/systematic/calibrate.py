@@ -30,7 +30,7 @@ PRIOR_OTHER = 1e-2
 PRIOR_ATTITUDE_RAD = 1e-2
 GRADE_DPH = 100.0       # a gyro bias at rest above this widens the priors in proportion (a MEMS unit's 0.5 deg/s: 18x)
 PRIOR_CAP = 0.1         # the widened priors of dimensionless, rad and g parameters stop here
-MAX_PASSES = 12
+MAX_PASSES = 30        # a MEMS unit on fast turns can take 20 (each pass a Gauss-Newton step of the smoother)
 STEP_STD = 0.05         # a pass that moves no estimate by more than this many stds ends the iteration
 UNOBSERVABLE = 0.5      # a std above this fraction of its prior: the sequence did not see the parameter
 

@@ -11,7 +11,7 @@ from simucal.fit.norm_fit import Fit
 from simucal.generated import table
 from simucal.io import calibration, records, units
 from simucal.systematic.auto import select
-from simucal.systematic.calibrate import UNOBSERVABLE, run_filter
+from simucal.systematic.calibrate import STEP_STD, UNOBSERVABLE, run_filter
 from simucal.fit.candidates import advice_text
 from simucal.systematic.innovations import family_test, ranked
 from simucal.systematic.observability import names_and_units, std_ratios
@@ -24,9 +24,14 @@ def unobserved(result) -> dict:
 
 
 def refusal(result, where) -> str | None:
-    """Why calibrate refuses the sequence (a parameter left unobserved), or None: calibrate and diagnose's
-    next line both ask here, so that the loop never sends a user to a refusal."""
-    poor = unobserved(result)
+    """Why calibrate refuses the sequence (a parameter left unobserved, or passes that did not converge), or
+    None: calibrate and diagnose's next line both ask here, so that the loop never sends a user to a refusal."""
+    poor = unobserved(result)  # first: a parameter the data do not hold also keeps the passes from converging
+    if not poor and result.step_std >= STEP_STD:
+        return (f"{where}: the filter's passes did not converge: the last of {result.passes} still moved an estimate "
+                f"by {result.step_std:.2g} of its std (they end below {STEP_STD:g}), so the estimates are not the "
+                "fixed point the stds describe: the linearisation about them does not hold on this sequence; a unit "
+                "far from nominal (a MEMS unit) converges on slower turns and longer rests (the built-in psins19)")
     if not poor:
         return None
     worst = ", ".join(f"{k} (std {v:.2f} of its prior)" for k, v in poor.items())
