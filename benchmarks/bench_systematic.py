@@ -30,6 +30,7 @@ from pathlib import Path
 import numpy as np
 
 import simucal
+from simucal.errors import CalibrationError
 from simucal.generated import table
 from simucal.io import MeasurementSet
 from simucal.systematic.calibrate import run_filter
@@ -162,7 +163,7 @@ def _designed(sc, steps):
     return list(sequence_design.design(stds_of, minutes, target, 60.0, 600).best.steps)
 
 
-def comparison(seeds):
+def comparison(seeds, units=("default", "MEMS", "lever arms")):
     """exact, multiposition and systematic (psins19 with 30 s rests, and a sequence designed for the unit in
     the same table time) on the same unit under each table of TABLES: per group, the rms error over the
     seeds and the group's entries, the rms of the stated stds and the rms of error / std."""
@@ -175,17 +176,28 @@ def comparison(seeds):
           f"moves for the default unit, {len(sequences['MEMS']['systematic designed'])} for a MEMS unit)\n")
     print("| unit | angle error | rate error (ppm) | tilt, non-perp. | method | "
           + " | ".join(f"{g} ({u})" for g, (_, _, u) in GROUPS.items()) + " |\n|---|---|---|---|---|" + "---|" * len(GROUPS))
-    for row in TABLES:
+    for row in [r for r in TABLES if r[0] in units]:
         cells = {m: {g: [] for g in GROUPS} for m in METHODS}
+        refused = {m: 0 for m in METHODS}
         for seed in range(seeds):
             sets, added = _sets(seed, row, sequences)
             for method in METHODS:
                 name = "table1" if method in ("exact", "multiposition") else method
                 kwargs = {"add": list(added)} if name != "table1" and added else {}
-                cal = simucal.calibrate(sets[name], method=method.split()[0], **kwargs)
+                try:
+                    cal = simucal.calibrate(sets[name], method=method.split()[0], **kwargs)
+                except CalibrationError:  # counted and said: a refusal is the method's answer on that set
+                    refused[method] += 1
+                    continue
                 for g, e in _group_errors(cal, sets[name].truth).items():
                     cells[method][g].append(e)
         for method, groups in cells.items():
+            if refused[method]:
+                method = f"{method} ({refused[method]} of {seeds} refused)"
+            if not groups["acc M"]:
+                print("| {} | {:g}\" | {:g} | {:g}\" | ".format(row[0], row[1], 1e6 * row[2], row[3]) + f"{method} |"
+                      + " - |" * len(GROUPS))
+                continue
             out = []
             for g, (_, k, _) in GROUPS.items():
                 err, std = (np.concatenate([e[i] for e in groups[g]]) for i in (0, 1))
@@ -201,6 +213,7 @@ def main():
     ap.add_argument("--rest-s", type=float, default=30.0, help="part 1's rests, s (default 30)")
     ap.add_argument("--speed-hours", type=float, default=1.0, help="part 2's length, h; 0 leaves it out (default 1)")
     ap.add_argument("--compare-seeds", type=int, default=10, help="part 3's seeds per table (default 10; 0: none)")
+    ap.add_argument("--compare-units", default="default,MEMS,lever arms", help="part 3's units (default all three)")
     a = ap.parse_args()
     with tempfile.TemporaryDirectory() as tmp:
         if a.seeds > 0:
@@ -208,7 +221,7 @@ def main():
         if a.speed_hours > 0:
             speed(a.speed_hours, Path(tmp))
         if a.compare_seeds > 0:
-            comparison(a.compare_seeds)
+            comparison(a.compare_seeds, a.compare_units.split(","))
 
 
 if __name__ == "__main__":
