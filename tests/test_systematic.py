@@ -295,3 +295,5 @@ def test_the_returns_enter_the_model_test_and_a_table_claiming_too_much_fails_it
     assert claimed["p_value"] < 1e-6 and claimed["nis_returns"] > 10 * 3 * claimed["returns"], claimed["nis_returns"]
     zero_velocity_only = claimed["nis"] - claimed["nis_returns"]
     assert zero_velocity_only < 3 * claimed["updates"] + 5 * np.sqrt(6 * claimed["updates"])
+    cal = simucal.calibrate(boast, method="systematic")  # the advice names the cause, not a library effect
+    assert cal.acc.verdict == "fails" and "disagree with meta.json's table_accuracy_arcsec" in cal.acc.details["advice"]

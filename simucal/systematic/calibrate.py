@@ -157,7 +157,7 @@ def run_filter(ms, acc_model="acc_baseline", gyro_model="gyro_baseline", ids=(),
         x, P = epochs[-1].x, epochs[-1].P  # the constants: the filter's at the end (the smoother's at the start
         step = np.abs(x[p]) / np.sqrt(np.diag(P)[p])  # equal them in exact arithmetic)
         _move(sensors, sensors.vector() - x[p])
-        if step.max() < STEP_STD or k == max_passes:
+        if step.max() < STEP_STD or k == max_passes or not np.isfinite(step.max()):  # diverged: refused (method.py)
             break
         C = exp_so3(smooth(epochs, covariance=False)[0][0][:3]) @ C  # the next pass's attitude at the start
     return Result(sensors, P[p, p], epochs, prior_var, sigma, k, float(step.max()), 1.0 / dt, C, (steps, q, w_ie, g0), zero)

@@ -26,7 +26,9 @@ def model_test(test) -> dict:
     return {"chi2": test["nis"], "dof": test["dof"], "p_value": test["p_value"], "residual_unit": UNIT,
             "residual_rms": float(np.sqrt(test["nis"] / test["dof"])), "noise_floor": 1.0, "test": test["test"],
             **{k: test[k] for k in ("omnibus_p_value", "omnibus_test", "targeted") if k in test},
-            "rows": f"{test['updates']} zero-velocity updates",
+            "rows": f"{test['updates']} zero-velocity updates" + (
+                f" and {test['returns']} zero-position returns" if test.get("returns") else ""),
+            "returns": test.get("returns", 0),
             "noise": {"source": "the rests' white noise (first differences)", "rows_estimated": False},
             "whiteness": {"lag1_autocorrelation": test["lag1_autocorrelation"], "lag1_z": test["lag1_z"],
                           "meaning": "each axis's lag-1 autocorrelation of the whitened innovations times sqrt(updates), "

@@ -7,6 +7,8 @@ from typing import cast
 import numpy as np
 
 from simucal.errors import CalibrationError
+from simucal.fit.distributions import chi2_sf
+from simucal.fit.results import ALPHA
 from simucal.fit.norm_fit import Fit
 from simucal.generated import table
 from simucal.io import calibration, records, units
@@ -27,7 +29,7 @@ def refusal(result, where) -> str | None:
     """Why calibrate refuses the sequence (a parameter left unobserved, or passes that did not converge), or
     None: calibrate and diagnose's next line both ask here, so that the loop never sends a user to a refusal."""
     poor = unobserved(result)  # first: a parameter the data do not hold also keeps the passes from converging
-    if not poor and result.step_std >= STEP_STD:
+    if not poor and not result.step_std < STEP_STD:  # NaN too: a filter that diverged
         return (f"{where}: the filter's passes did not converge: the last of {result.passes} still moved an estimate "
                 f"by {result.step_std:.2g} of its std (they end below {STEP_STD:g}), so the estimates are not the "
                 "fixed point the stds describe: the linearisation about them does not hold on this sequence; a unit "
@@ -37,6 +39,16 @@ def refusal(result, where) -> str | None:
     worst = ", ".join(f"{k} (std {v:.2f} of its prior)" for k, v in poor.items())
     return (f"{where}: the sequence leaves {worst} unobserved: turn the unit about each of its axes with each axis "
             "up and down (the built-in psins19 does)")
+
+
+def returns_advice(test) -> str | None:
+    """Where the zero-position returns fail on their own (their NIS at ALPHA), what to do: the table returned
+    less accurately than meta.json states, which no library effect describes; else None."""
+    if not test.get("returns") or chi2_sf(test["nis_returns"], 3 * test["returns"]) >= ALPHA:
+        return None
+    return (f"the table's {test['returns']} returns to a position disagree with meta.json's table_accuracy_arcsec "
+            f"(their NIS {test['nis_returns']:.4g} on {3 * test['returns']} dof): state the table's repeatability "
+            "there, or leave it out to calibrate without zero-position updates")
 
 
 def _fit(model, p, cov, test) -> Fit:
@@ -86,7 +98,8 @@ def calibrate_systematic(ms, acc_model="acc_baseline", gyro_model="gyro_baseline
                      "(meta.json's table_accuracy_arcsec)")}
     if cal.acc.verdict == "fails":  # one test for both sensors: the one effect to add, as diagnose names it
         cands = [c.to_dict() for c in ranked(test, sig)]
-        advice = advice_text(cands, None, {"chi2": test["nis"], "dof": test["dof"], "omnibus_test": test["omnibus_test"]})
+        advice = returns_advice(test) or advice_text(
+            cands, None, {"chi2": test["nis"], "dof": test["dof"], "omnibus_test": test["omnibus_test"]})
         for block in (cal.acc, cal.gyro):
             block.details["advice"] = advice or "no library effect passes its targeted test: see simucal diagnose"
     if auto:  # one selection for both sensors (one test): each block lists its own effects, the reason in both
