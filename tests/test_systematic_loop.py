@@ -167,3 +167,18 @@ def test_an_effect_outside_the_library_is_said_so_on_a_sequence(short, tmp_path)
     assert not auto.acc.effects and not auto.gyro.effects, auto.acc.details["auto_stopped"]
     for sensor in ("acc", "gyro"):
         assert getattr(auto, sensor).params == getattr(cal, sensor).params
+
+
+def test_auto_leaves_out_an_effect_whose_filter_does_not_converge(monkeypatch, short):
+    """--add auto's step with a candidate whose passes do not converge is refused as that step (said), not
+    taken into a model that calibrate would then refuse whole."""
+    from simucal.systematic import auto
+    step = auto.FilterStep(simucal.simulate(sequence=short, seed=3), "acc_baseline", "gyro_baseline")
+    real = auto.run_filter
+
+    def stuck(*args, **kwargs):
+        r = real(*args, **kwargs)
+        r.step_std = 0.5
+        return r
+    monkeypatch.setattr(auto, "run_filter", stuck)
+    assert "with acc.quadratic.z the filter's passes did not converge" in step.add("acc.quadratic.z")

@@ -12,7 +12,7 @@ import numpy as np
 
 from simucal.fit.results import ModelTest
 from simucal.fit.selection import forward_selection
-from simucal.systematic.calibrate import run_filter
+from simucal.systematic.calibrate import STEP_STD, run_filter
 from simucal.systematic.innovations import family_test, ranked, to_separate
 
 MAX_TERMS = 4
@@ -42,7 +42,11 @@ class FilterStep:
         return [c.to_dict() for c in ranked(self.innovations, self.signatures)], None
 
     def add(self, eid):
-        return FilterStep(self.ms, *self.models, self.effects + (eid,))
+        trial = FilterStep(self.ms, *self.models, self.effects + (eid,))
+        if not trial.model.step_std < STEP_STD:  # a model whose passes do not converge would be refused whole
+            return (f"with {eid} the filter's passes did not converge (the last of {trial.model.passes} moved an "
+                    f"estimate by {trial.model.step_std:.2g} of its std)")
+        return trial
 
     def held_out(self):
         return np.linalg.norm(self.innovations["innovations_whitened"], axis=1).tolist()
