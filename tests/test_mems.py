@@ -100,9 +100,11 @@ def test_passes_that_do_not_converge_are_refused_not_written():
     ms = io.MeasurementSet(Path("mems"), meta, samples, segments)
     early = run_filter(ms, max_passes=2)
     assert early.step_std > STEP_STD
-    assert "did not converge: the last of 2 still moved an estimate" in refusal(early, ms.path)
+    refused = refusal(early, ms.path)
+    assert "did not converge: the last of 2 still moved an estimate" in refused.why
     assert refusal(run_filter(ms), ms.path) is None
     from simucal.report.console import next_command  # diagnose's next: no plan shows convergence
-    diag = {"input": "mems", "acc": {"calibrate_refuses": refusal(early, ms.path)}, "gyro": {}}
+    diag = {"input": "mems", "acc": {"calibrate_refuses": refused.why,
+                                     "next_instead": {"command": refused.next, "note": refused.note}}, "gyro": {}}
     command, notes = next_command(diag)
     assert command.startswith("record the sequence again with slower turns") and "did not converge" in notes[0]

@@ -217,14 +217,14 @@ def design_sequence(minutes: float = 10.0, *, reference: str = "psins19", refere
     ratio = best.std / target
     record: list[results.Designed] = [{"sensor": r["sensor"], "parameter": r["parameter"], "unit": r["unit"], "std": float(s),
                "target": float(t), "ratio": float(q)} for r, s, t, q in zip(rows, best.std, target, ratio)]
-    return {"sequence": {"name": "designed", "rate_hz": float(sc.rate_hz or seq.DEFAULT_RATE_HZ),
-                         "steps": _steps_record(best.steps)},
+    rate_hz = float(sc.rate_hz or seq.DEFAULT_RATE_HZ)
+    return {"sequence": {"name": "designed", "rate_hz": rate_hz, "steps": _steps_record(best.steps)},
             "minutes": float(minutes), "rate_dps": float(rate_dps),
             "reference": {"name": name, "steps": _steps_record(ref_steps)}, "reference_minutes": float(ref_minutes),
             "parameters": record, "worst_ratio": best.worst,
             "worst_parameter": f"{rows[best.worst_at]['sensor']} {rows[best.worst_at]['parameter']}",
             "built_in": {k: None if c is None else c.worst for k, c in found.built_in.items()},
-            "start": found.start, "evaluations": found.evaluations, "unit": said, "rate_hz": float(sc.rate_hz or seq.DEFAULT_RATE_HZ),
+            "start": found.start, "evaluations": found.evaluations, "unit": said, "rate_hz": rate_hz,
             "noise_per_sample": {"acc_g": [sc.acc_noise_g] * 3, "gyro_dph": [sc.gyro_noise_dph] * 3}}
 
 

@@ -226,18 +226,13 @@ def next_command(diag: dict) -> tuple[str, list[str]]:
 
 
 def calibrate_refusal(diag: dict) -> tuple[str, list[str]] | None:
-    """(the plan that scores a sequence, or what to record instead, why) where calibrate would refuse the
-    diagnosed data (a sequence that leaves a parameter unobserved, or whose passes do not converge:
-    systematic/method.refusal), else None."""
-    refused = next((diag[s]["calibrate_refuses"] for s in ("acc", "gyro") if s in diag
-                    and diag[s].get("calibrate_refuses")), None)
-    if refused is None:
+    """(what to do instead, why) where calibrate would refuse the diagnosed data (a sequence that leaves a
+    parameter unobserved, or whose passes do not converge: systematic/method.refusal), else None."""
+    block = next((diag[s] for s in ("acc", "gyro") if s in diag and diag[s].get("calibrate_refuses")), None)
+    if block is None:
         return None
-    if "did not converge" in refused:  # no plan shows convergence: the sequence itself must change
-        return ("record the sequence again with slower turns and longer rests (simucal simulate --sequence psins19 "
-                "shows one)", [f"{refused}; calibrate refuses these data"])
-    return ("simucal plan --sequence psins19 -o plan.json",
-            [f"{refused}; calibrate refuses these data: plan --sequence scores a sequence before it is recorded"])
+    instead = block["next_instead"]
+    return instead["command"], [f"{block['calibrate_refuses']}; calibrate refuses these data: {instead['note']}"]
 
 
 def next_adds(diag: dict) -> tuple[list[str], list[str]]:

@@ -12,7 +12,7 @@ import numpy as np
 
 from simucal.fit.results import ModelTest
 from simucal.fit.selection import forward_selection
-from simucal.systematic.calibrate import STEP_STD, run_filter
+from simucal.systematic.calibrate import run_filter
 from simucal.systematic.innovations import family_test, ranked, to_separate
 
 MAX_TERMS = 4
@@ -43,7 +43,7 @@ class FilterStep:
 
     def add(self, eid):
         trial = FilterStep(self.ms, *self.models, self.effects + (eid,))
-        if not trial.model.step_std < STEP_STD:  # a model whose passes do not converge would be refused whole
+        if not trial.model.converged:  # a model whose passes do not converge would be refused whole
             return (f"with {eid} the filter's passes did not converge (the last of {trial.model.passes} moved an "
                     f"estimate by {trial.model.step_std:.2g} of its std)")
         return trial

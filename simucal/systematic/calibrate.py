@@ -125,6 +125,11 @@ class Result:
     setting: tuple = ()          # needs, (steps, q, w_ie, g0): the innovations' candidates (innovations.py)
     returns: Returns | None = None  # the zero-position updates made (zero_position.py)
 
+    @property
+    def converged(self) -> bool:
+        """Whether the last pass moved no estimate by STEP_STD of its std (False for a NaN: diverged)."""
+        return self.step_std < STEP_STD
+
 
 def run_filter(ms, acc_model="acc_baseline", gyro_model="gyro_baseline", ids=(), block_s=BLOCK_S,
                max_passes=MAX_PASSES, zero_position=True) -> Result:

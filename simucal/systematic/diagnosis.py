@@ -98,6 +98,7 @@ def diagnose_sequence(ms, acc_model, gyro_model, ids, truth, before_models, adde
         if before is not None:
             block["added"] = _added(sensor, r, before, base, truth, added)
         if refused:
-            block["calibrate_refuses"] = refused
+            block["calibrate_refuses"] = refused.why
+            block["next_instead"] = {"command": refused.next, "note": refused.note}
         out[sensor] = block
     return out

@@ -2,7 +2,7 @@
 on its innovations, and the refusal of a sequence that leaves a parameter unseen."""
 from __future__ import annotations
 
-from typing import cast
+from typing import NamedTuple, cast
 
 import numpy as np
 
@@ -25,20 +25,32 @@ def unobserved(result) -> dict:
     return {n: float(r) for n, r in zip(names, std_ratios(result)) if r > UNOBSERVABLE}
 
 
-def refusal(result, where) -> str | None:
-    """Why calibrate refuses the sequence (a parameter left unobserved, or passes that did not converge), or
-    None: calibrate and diagnose's next line both ask here, so that the loop never sends a user to a refusal."""
+class Refusal(NamedTuple):
+    """Why calibrate refuses a sequence, and the step that helps instead (diagnose's next)."""
+    why: str
+    next: str
+    note: str
+
+
+def refusal(result, where) -> Refusal | None:
+    """Why calibrate refuses the sequence (a parameter left unobserved, or passes that did not converge) and
+    what to do instead, or None: calibrate and diagnose's next line both ask here, so that the loop never
+    sends a user to a refusal."""
     poor = unobserved(result)  # first: a parameter the data do not hold also keeps the passes from converging
-    if not poor and not result.step_std < STEP_STD:  # NaN too: a filter that diverged
-        return (f"{where}: the filter's passes did not converge: the last of {result.passes} still moved an estimate "
-                f"by {result.step_std:.2g} of its std (they end below {STEP_STD:g}), so the estimates are not the "
-                "fixed point the stds describe: the linearisation about them does not hold on this sequence; a unit "
-                "far from nominal (a MEMS unit) converges on slower turns and longer rests (the built-in psins19)")
+    if not poor and not result.converged:
+        return Refusal(
+            f"{where}: the filter's passes did not converge: the last of {result.passes} still moved an estimate "
+            f"by {result.step_std:.2g} of its std (they end below {STEP_STD:g}), so the estimates are not the "
+            "fixed point the stds describe: the linearisation about them does not hold on this sequence; a unit "
+            "far from nominal (a MEMS unit) converges on slower turns and longer rests (the built-in psins19)",
+            "record the sequence again with slower turns and longer rests (simucal simulate --sequence psins19 "
+            "shows one)", "no plan shows convergence: the sequence itself must change")
     if not poor:
         return None
     worst = ", ".join(f"{k} (std {v:.2f} of its prior)" for k, v in poor.items())
-    return (f"{where}: the sequence leaves {worst} unobserved: turn the unit about each of its axes with each axis "
-            "up and down (the built-in psins19 does)")
+    return Refusal(f"{where}: the sequence leaves {worst} unobserved: turn the unit about each of its axes with each "
+                   "axis up and down (the built-in psins19 does)", "simucal plan --sequence psins19 -o plan.json",
+                   "plan --sequence scores a sequence before it is recorded")
 
 
 def returns_advice(test) -> str | None:
@@ -67,9 +79,9 @@ def calibrate_systematic(ms, acc_model="acc_baseline", gyro_model="gyro_baseline
         r, ids, chosen, stopped = select(ms, acc_model, gyro_model, ids)
     else:
         r = run_filter(ms, acc_model, gyro_model, ids)
-    why = refusal(r, ms.path)
-    if why:
-        raise CalibrationError(why)
+    refused = refusal(r, ms.path)
+    if refused:
+        raise CalibrationError(refused.why)
     (test, sig), s = family_test(r), r.sensors
     na, ng = len(s.p_acc), len(s.p_gyro)
     cal = calibration.header("systematic", ms)

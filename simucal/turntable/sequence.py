@@ -94,9 +94,9 @@ def duration_s(steps) -> float:
 
 def in_minutes(steps, minutes, name="the sequence") -> list[Step]:
     """The same moves with every rest of MIN_REST_S or more scaled by one factor so that the sequence
-    lasts `minutes` (nominally: the simulator rounds each rest and move to samples) (a lab's way of fitting a sequence to its table time; dong2018's 1 s pauses between
-    one position's axes stay as they are); refused where the moves and pauses leave a rest under
-    MIN_REST_S."""
+    lasts `minutes` (nominally: the simulator rounds each rest and move to samples): a lab's way of
+    fitting a sequence to its table time; dong2018's 1 s pauses between one position's axes stay as
+    they are. Refused where the moves and pauses leave a rest under MIN_REST_S."""
     rests = np.array([steps[0].rest_s] + [s.rest_s for s in steps])
     long = rests >= MIN_REST_S
     if not long.any():

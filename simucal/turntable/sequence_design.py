@@ -8,9 +8,9 @@ Each candidate is scored by `stds_of`, a function of its steps given by the call
 linearised filter over it simulated on the unit (systematic/observability.py, which the API joins to
 this method-free search): the filter's covariance depends on the attitudes, rates, step lengths, noise
 and updates, not on the measured values. The criterion is a soft maximum over the parameters of
-log(std / target), (1 / SOFTNESS) log sum exp(SOFTNESS log(std / target)): within a few per cent of
-the worst ratio (at most log(n) / SOFTNESS above it in log, n parameters near it), and lowered too by a change that helps a parameter just under the worst (the hard
-maximum is flat over most changes, and a search on it stalls).
+log(std / target), (1 / SOFTNESS) log sum exp(SOFTNESS log(std / target)): at most log(n) / SOFTNESS
+above the worst log ratio (n parameters near it), and lowered too by a change that helps a parameter
+just under the worst (the hard maximum is flat over most changes, and a search on it alone stalls).
 
 The search is an exchange algorithm (in the manner of Fedorov's for exact designs): it starts from
 the best of the built-in sequences' move lists turned at the table's rate; each round tries

@@ -243,6 +243,8 @@ def mems_unit(seed: int) -> Scenario:
                       **{k: rng.normal(0, 1800.0) for k in ("b_x", "b_y", "b_z")}}
     sc.acc_noise_g, sc.gyro_noise_dph = 2e-4, 30.0
     return sc
+
+
 AVERAGE_POINTS = 720  # an averaged rate run: the mean of its inputs at this many outer angles over the revolution
 
 
