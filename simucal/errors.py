@@ -36,3 +36,8 @@ class NotConverged(CalibrationError):
 class CacheWarning(UserWarning):
     """A library of the cache not loaded (the numpy module runs) or rebuilt, and why: one line (io/cache.py warns
     it, the command line prints it as a line)."""
+
+
+class LogWarning(UserWarning):
+    """What a log's import kept but a user must know (a cut end, gaps, a low rate, a magnitude far from g): one
+    line naming the file; also in the set's meta.json `warnings` (io/logs.py)."""

@@ -68,21 +68,34 @@ def _df_fmt(type_id: int, name: str, fmt: str, columns: str) -> bytes:
     return DF_HEAD + struct.pack("<BBB4s16s64s", DF_FMT, type_id, length, name.encode(), fmt.encode(), columns.encode())
 
 
-def write_dataflash(path, imu: dict | None, instance=0, params=None, temperature=True, truncate_bytes=0):
+def write_dataflash(path, imu: dict | list | None, instance=0, params=None, temperature=True, truncate_bytes=0,
+                    numbered=False):
     """An ArduPilot DataFlash log: FMT, PARM messages (TimeUS, Name, Value) and IMU messages (TimeUS, I,
     GyrX..Z rad/s, AccX..Z m/s^2 and, where temperature, T degC) of instance `instance`; imu a dict of numpy
-    columns t_us, acc (n, 3), gyro (n, 3), temperature (or None: no IMU messages)."""
-    imu_fmt, imu_cols = ("QBfffffff", "TimeUS,I,GyrX,GyrY,GyrZ,AccX,AccY,AccZ,T") if temperature \
-        else ("QBffffff", "TimeUS,I,GyrX,GyrY,GyrZ,AccX,AccY,AccZ")
+    columns t_us, acc (n, 3), gyro (n, 3), temperature (or None: no IMU messages), or a list of them, one an
+    instance from `instance` on. numbered: as logs before ArduPilot 4.0, the second and third IMU as IMU2
+    and IMU3 messages without an I field."""
+    cols = "GyrX,GyrY,GyrZ,AccX,AccY,AccZ" + (",T" if temperature else "")
+    fmt = "f" * (7 if temperature else 6)
     out = bytearray(_df_fmt(DF_FMT, "FMT", "BBnNZ", "Type,Length,Name,Format,Columns"))
     out += _df_fmt(64, "PARM", "QNf", "TimeUS,Name,Value")
-    out += _df_fmt(65, "IMU", imu_fmt, imu_cols)
+    if numbered:
+        for k, name in enumerate(("IMU", "IMU2", "IMU3")):
+            out += _df_fmt(65 + k, name, "Q" + fmt, "TimeUS," + cols)
+    else:
+        out += _df_fmt(65, "IMU", "QB" + fmt, "TimeUS,I," + cols)
     for name, value in (params or {}).items():
         out += DF_HEAD + struct.pack("<BQ16sf", 64, 0, name.encode(), float(value))
-    if imu is not None:
-        for k in range(len(imu["t_us"])):
-            values = [*imu["gyro"][k], *imu["acc"][k]] + ([imu["temperature"][k]] if temperature else [])
-            out += DF_HEAD + struct.pack("<BQB" + "f" * len(values), 65, int(imu["t_us"][k]), instance, *values)
+    imus = [] if imu is None else imu if isinstance(imu, list) else [imu]
+    rows = []
+    for i, one in enumerate(imus, start=instance):
+        for k in range(len(one["t_us"])):
+            values = [*one["gyro"][k], *one["acc"][k]] + ([one["temperature"][k]] if temperature else [])
+            head = struct.pack("<BQ", 65 + i, int(one["t_us"][k])) if numbered \
+                else struct.pack("<BQB", 65, int(one["t_us"][k]), i)
+            rows.append((int(one["t_us"][k]), i, DF_HEAD + head + struct.pack("<" + "f" * len(values), *values)))
+    rows.sort(key=lambda r: (r[0], r[1]))
+    out += b"".join(r[2] for r in rows)
     Path(path).write_bytes(bytes(out[:len(out) - truncate_bytes]))
 
 

@@ -2,6 +2,7 @@
 and ROS 2 bags, written here (tests/log_writers.py) from a still board warming up, read back as the logged
 samples; every broken-file case refused in one line with nothing written."""
 import json
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -44,8 +45,9 @@ def test_a_ulog_becomes_a_stream_on_the_slower_sensors_clock(tmp_path):
     ms = io.read_set(tmp_path / "set")
     log = ms.meta["log"]
     assert log["acc_device_id"] == 1442826 and log["gyro_device_id"] == 2490378 and log["sensor_frame"].startswith("FRD")
+    # the first accel sample has no interval before it: left out, and counted
     assert "sensor_accel's samples" in log["clock"]["rows"] and log["clock"]["intervals_without_a_sample"][
-        "rows_left_out"] == 0
+        "rows_left_out"] == 1
     t_acc = acc["t_us"] * 1e-6
     # the rows are the accelerometer's samples (float32 as logged); the gyro each row's bin mean
     n = len(ms.samples["t_s"])
@@ -110,21 +112,25 @@ def _refused_writing_nothing(tmp_path, *args_and_words):
 
 def test_broken_logs_are_refused_in_one_line_and_nothing_is_written(tmp_path):
     acc, gyro = still_board(seconds=2.0)
-    write_ulog(tmp_path / "cut.ulg", acc, gyro, truncate_bytes=7)
-    _refused_writing_nothing(tmp_path, "ulog", tmp_path / "cut.ulg", ["cut.ulg", "cut short"])
     write_ulog(tmp_path / "noacc.ulg", None, gyro)
-    _refused_writing_nothing(tmp_path, "ulog", tmp_path / "noacc.ulg", ["noacc.ulg", "no sensor_accel"])
+    _refused_writing_nothing(tmp_path, "ulog", tmp_path / "noacc.ulg", ["noacc.ulg", "no topic holds both sensors",
+                                                                       "sensor_gyro: instances 0"])
     write_ulog(tmp_path / "i1.ulg", acc, gyro, instance=1)
-    _refused_writing_nothing(tmp_path, "ulog", tmp_path / "i1.ulg", ["no sensor_accel instance 0", "--instance 1"])
+    _refused_writing_nothing(tmp_path, "ulog", tmp_path / "i1.ulg", "--instance", 0,
+                             ["no IMU source of instance 0", "--instance 1"])
     (tmp_path / "not.ulg").write_bytes(b"hello, not a log\n" * 10)
     _refused_writing_nothing(tmp_path, "ulog", tmp_path / "not.ulg", ["not.ulg", "not a ULog"])
     imu = {"t_us": acc["t_us"], "acc": np.column_stack([acc[k] for k in "xyz"]),
            "gyro": np.column_stack([acc[k] for k in "xyz"]), "temperature": acc["temperature"]}
-    write_dataflash(tmp_path / "cut.bin", imu, truncate_bytes=5)
-    _refused_writing_nothing(tmp_path, "dataflash", tmp_path / "cut.bin", ["cut.bin", "cut short"])
     write_dataflash(tmp_path / "i2.bin", imu, instance=2)
-    _refused_writing_nothing(tmp_path, "dataflash", tmp_path / "i2.bin", ["no IMU messages of instance 0",
-                                                                          "--instance 2"])
+    _refused_writing_nothing(tmp_path, "dataflash", tmp_path / "i2.bin", "--instance", 0,
+                             ["no IMU messages of instance 0", "--instance 2"])
+    broken = bytearray((tmp_path / "i2.bin").read_bytes())
+    at = broken.index(b"\xa3\x95\x41", len(broken) // 2)  # an IMU message's head, mid-file
+    broken[at:at + 2] = b"\x00\x00"
+    (tmp_path / "broken.bin").write_bytes(bytes(broken))
+    _refused_writing_nothing(tmp_path, "dataflash", tmp_path / "broken.bin", ["broken.bin", "broken at byte",
+                                                                              "bytes follow"])
     write_dataflash(tmp_path / "none.bin", None)
     _refused_writing_nothing(tmp_path, "dataflash", tmp_path / "none.bin", ["no IMU messages"])
     t = np.arange(200) * 0.005
@@ -156,3 +162,115 @@ def test_a_bag_read_as_records_equals_its_messages(tmp_path, ros):
         np.testing.assert_array_equal(s.acc_mps2, acc, err_msg=name)
         np.testing.assert_array_equal(s.gyro_rads, gyro, err_msg=name)
         np.testing.assert_allclose(s.t_s, t, rtol=0, atol=1e-9, err_msg=name)
+
+
+PYULOG_DATA = Path(__file__).parent / "data" / "pyulog"  # real logs, pyulog's test data (its README)
+
+
+@pytest.mark.parametrize("name", ["sample_log_small.ulg", "sample_appended_multiple.ulg"])
+def test_a_real_ulog_of_the_default_profile_imports_sensor_combined_sample_for_sample(tmp_path, name):
+    """PX4's default profile logs the full-rate IMU as sensor_combined only (sensor_accel at 1 Hz, if at all):
+    the import takes it, names it and every other source with its rate, and its rows are pyulog's read of
+    that topic, message for message."""
+    import pyulog
+    r = _import("ulog", PYULOG_DATA / name, "-o", tmp_path / "set", "--latitude-deg", 47.4)
+    assert r.exit_code == 0, r.output
+    ms = io.read_set(tmp_path / "set")
+    log = ms.meta["log"]
+    assert log["source"] == "sensor_combined" and log["why"]
+    d = pyulog.ULog(str(PYULOG_DATA / name), ["sensor_combined"]).get_dataset("sensor_combined").data
+    valid = d["accelerometer_timestamp_relative"] != 2147483647
+    assert valid.all() and len(ms.samples["t_s"]) == len(d["timestamp"])
+    np.testing.assert_allclose(ms.samples["t_s"], (d["timestamp"] - d["timestamp"][0]) * 1e-6, rtol=0, atol=1e-9)
+    for sensor, field in (("acc", "accelerometer_m_s2"), ("gyro", "gyro_rad")):
+        logged = np.column_stack([d[f"{field}[{j}]"] for j in range(3)]).astype(float)
+        np.testing.assert_allclose(ms.raw(sensor), logged, rtol=1e-7, atol=0)  # float32 as logged, through CSV
+    rates = {s["name"]: s["rate_hz"] for s in log["sources"]}
+    assert rates["sensor_combined"] > 150
+    if name == "sample_log_small.ulg":  # its sensor_accel at 1 Hz and vehicle_imu at 2 Hz lose to it
+        assert rates["sensor_accel+sensor_gyro instance 0"] < 2 and rates["vehicle_imu instance 1"] < 3
+        assert log["acc_device_id"] == log["gyro_device_id"] == 2424842  # sensor_selection's
+        assert "interpolated" in log["temperature"] and "temp_c" in ms.samples
+
+
+def test_a_real_ulog_gives_its_latitude_and_a_low_rate_source_is_named(tmp_path):
+    """The latitude from the log's GPS fixes where none is given; an instance asked for whose only source is
+    1 Hz is read and said to be."""
+    r = _import("ulog", PYULOG_DATA / "sample_log_small.ulg", "-o", tmp_path / "set", "--instance", 1)
+    assert r.exit_code == 0, r.output
+    ms = io.read_set(tmp_path / "set")
+    assert abs(ms.meta["latitude_deg"] - 63.417) < 1e-3 and "GPS" in ms.meta["log"]["latitude"]
+    assert ms.meta["log"]["source"] == "vehicle_imu instance 1"  # 2 Hz beats sensor_accel's 1 Hz
+    assert "under 10 Hz" in r.output and "SDLOG_PROFILE" in r.output
+    assert any("under 10 Hz" in w for w in ms.meta["warnings"])
+
+
+def test_a_log_cut_inside_its_last_message_keeps_every_whole_message_and_names_the_cut(tmp_path):
+    acc, gyro = still_board(seconds=2.0, gyro_hz=200.0)
+    imu = {"t_us": acc["t_us"], "acc": np.column_stack([acc[k] for k in "xyz"]),
+           "gyro": np.column_stack([gyro[k] for k in "xyz"]), "temperature": acc["temperature"]}
+    write_dataflash(tmp_path / "cut.bin", imu, truncate_bytes=5)
+    r = _import("dataflash", tmp_path / "cut.bin", "-o", tmp_path / "df", "--latitude-deg", 47.4)
+    assert r.exit_code == 0, r.output
+    assert "cut inside its last message" in r.output and "cut.bin" in r.output
+    np.testing.assert_allclose(io.read_set(tmp_path / "df").raw("gyro"), imu["gyro"][:-1], atol=1e-6)
+    write_ulog(tmp_path / "cut.ulg", acc, gyro, truncate_bytes=7)
+    r = _import("ulog", tmp_path / "cut.ulg", "-o", tmp_path / "ulg", "--latitude-deg", 47.4)
+    assert r.exit_code == 0 and "cut inside its last message" in r.output, r.output
+    write_ulog(tmp_path / "whole.ulg", acc, gyro)
+    assert _import("ulog", tmp_path / "whole.ulg", "-o", tmp_path / "whole", "--latitude-deg", 47.4).exit_code == 0
+    cut, whole = (io.read_set(tmp_path / f).raw("acc") for f in ("ulg", "whole"))
+    assert len(whole) - 1 <= len(cut) < len(whole)  # the last message lost, whichever sensor's it was
+    np.testing.assert_array_equal(cut[:-1], whole[:len(cut) - 1])
+
+
+def test_an_older_dataflash_logs_imu2_as_instance_1_with_its_device_ids(tmp_path):
+    acc, gyro = still_board(seconds=2.0, gyro_hz=200.0)
+    imu = {"t_us": acc["t_us"], "acc": np.column_stack([acc[k] for k in "xyz"]),
+           "gyro": np.column_stack([gyro[k] for k in "xyz"]), "temperature": acc["temperature"]}
+    second = {**imu, "acc": imu["acc"] + 0.05}
+    write_dataflash(tmp_path / "old.bin", [imu, second], numbered=True,
+                    params={"INS_ACC_ID": 1, "INS_GYR_ID": 2, "INS_ACC2_ID": 11, "INS_GYR2_ID": 12})
+    r = _import("dataflash", tmp_path / "old.bin", "-o", tmp_path / "set", "--latitude-deg", 47.4, "--instance", 1)
+    assert r.exit_code == 0, r.output
+    ms = io.read_set(tmp_path / "set")
+    assert ms.meta["log"]["messages"] == "IMU2" and ms.meta["log"]["instances"] == [0, 1]
+    assert (ms.meta["log"]["acc_device_id"], ms.meta["log"]["gyro_device_id"]) == (11, 12)
+    np.testing.assert_allclose(ms.raw("acc"), second["acc"], atol=1e-5)
+
+
+def test_broken_log_contents_are_refused_or_named_in_one_line(tmp_path):
+    """NaN samples and sensors that never overlap refused (nothing written); a ULog renamed .bin refused in
+    one line (pymavlink's byte-by-byte complaints kept off the screen); a gap and a magnitude far from g named."""
+    acc, gyro = still_board(seconds=4.0, gyro_hz=200.0)
+    imu = {"t_us": acc["t_us"], "acc": np.column_stack([acc[k] for k in "xyz"]),
+           "gyro": np.column_stack([gyro[k] for k in "xyz"]), "temperature": acc["temperature"]}
+    nan = {**imu, "gyro": imu["gyro"].copy()}
+    nan["gyro"][300:305, 1] = np.nan
+    write_dataflash(tmp_path / "nan.bin", nan)
+    _refused_writing_nothing(tmp_path, "dataflash", tmp_path / "nan.bin", ["nan.bin", "5 gyro samples are NaN",
+                                                                           "row 301"])
+    later = {k: (v + 10e6 if k == "t_us" else v) for k, v in gyro.items()}
+    write_ulog(tmp_path / "apart.ulg", acc, later)
+    _refused_writing_nothing(tmp_path, "ulog", tmp_path / "apart.ulg", ["apart.ulg", "never overlap"])
+    (tmp_path / "ulog.bin").write_bytes((PYULOG_DATA / "sample_log_small.ulg").read_bytes())
+    r = _import("dataflash", tmp_path / "ulog.bin", "-o", tmp_path / "out", "--latitude-deg", 47.4)
+    assert r.exit_code != 0 and len(r.output.strip().splitlines()) == 1, r.output
+    assert "not a DataFlash log" in r.output and "import ulog" in r.output and not (tmp_path / "out").exists()
+    keep = (acc["t_us"] < 2.0e6) | (acc["t_us"] > 3.0e6)
+    gappy = {**imu, **{k: imu[k][keep] for k in ("t_us", "acc", "gyro", "temperature")}}
+    gappy["acc"] = gappy["acc"] * 27.0  # a "still" unit reading 265 m/s^2
+    write_dataflash(tmp_path / "gap.bin", gappy)
+    r = _import("dataflash", tmp_path / "gap.bin", "-o", tmp_path / "gap", "--latitude-deg", 47.4)
+    assert r.exit_code == 0, r.output
+    assert "1 gap in the rows" in r.output and "the longest 1" in r.output and "not near g" in r.output
+    gaps = io.read_set(tmp_path / "gap").meta["log"]["gaps"]
+    assert len(gaps) == 1 and abs(gaps[0]["length_s"] - 1.0) < 0.02
+
+
+def test_topic_on_a_measurement_set_names_the_set_and_the_option(tmp_path):
+    io.write_set(tmp_path / "set", {"acc_unit": "m/s^2", "gyro_unit": "rad/s", "latitude_deg": 0.0},
+                 {"t_s": np.arange(10) * 0.01, **{c: np.zeros(10) for c in ("ax", "ay", "gx", "gy", "gz")},
+                  "az": np.full(10, G)})
+    r = CliRunner().invoke(main, ["noise", str(tmp_path / "set"), "--topic", "/imu", "-o", str(tmp_path / "n.json")])
+    refused(r, "a measurement set", "--topic")

@@ -258,8 +258,8 @@ def noise(data: Data, *, tau_max_s: float | None = None, scheduler: str | None =
     >>> n.terms[n.terms.name == "angle random walk"]  # doctest: +SKIP
     """
     from simucal import allan
-    from simucal.io import logs
-    if not isinstance(data, io.MeasurementSet) and (topic or logs.is_rosbag(folder_of(data))):
+    from simucal.io import logs, rosbag
+    if not isinstance(data, io.MeasurementSet) and (topic or rosbag.is_rosbag(folder_of(data))):
         data = logs.bag_as_set(folder_of(data), topic)  # read as `simucal import rosbag` reads it
     report = (allan.characterise(data, tau_max_s) if isinstance(data, io.MeasurementSet)
               else allan.characterise_folder(folder_of(data), tau_max_s, scheduler))

@@ -20,7 +20,7 @@ def import_recording(fmt: str, sources: Sequence[Path_], out: Path_, *, latitude
                      acc_counts_per_g: float | None = None, gyro_counts_per_dps: float | None = None,
                      gravity_mps2: float | None = None, rate_hz: float | None = None, columns: str | None = None,
                      acc_unit: str | None = None, gyro_unit: str | None = None, turn_deg: float = -360.0,
-                     instance: int = 0, topic: str | None = None, force: bool = False,
+                     instance: int | None = None, topic: str | None = None, force: bool = False,
                      read_back: bool = True) -> MeasurementSet | None:
     """Write a measurement set from another tool's recording or an autopilot's or ROS log, and return it.
 
@@ -65,7 +65,11 @@ def import_recording(fmt: str, sources: Sequence[Path_], out: Path_, *, latitude
         from simucal.io.logs import import_log
         if len(paths) != 1:
             raise im.ImportError_(f"{fmt} reads one log: give one file (a ROS 2 bag: its folder)")
-        import_log(fmt, paths[0], out, latitude_deg, int(instance), topic)
+        import warnings
+        from simucal.errors import LogWarning
+        meta = import_log(fmt, paths[0], out, latitude_deg, None if instance is None else int(instance), topic)
+        for line in meta.get("warnings", []):
+            warnings.warn(line, LogWarning, stacklevel=2)
     elif fmt == "imu_tk":
         if len(paths) != 2 or not acc_counts_per_g or not gyro_counts_per_dps:
             raise im.ImportError_("imu_tk needs ACC_FILE GYRO_FILE, --acc-counts-per-g and --gyro-counts-per-dps")

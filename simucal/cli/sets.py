@@ -141,8 +141,9 @@ def simulate(out_dir, output, scenario, heading_error_deg, seed, unit_seed, plan
               help="csv: the gyro columns' unit (pulse/s and counts need their nominal scale factors).")
 @click.option("--turn-deg", type=Number(-3600.0, 3600.0), default=-360.0, show_default=True,
               help="Ferraris: the protocol's turn angle, deg (imucal's default -360, clockwise).")
-@click.option("--instance", type=Number(0, 9, integer=True), default=0, show_default=True,
-              help="ulog, dataflash: the IMU's instance (PX4's multi_id, ArduPilot's IMU.I).")
+@click.option("--instance", type=Number(0, 9, integer=True), default=None,
+              help="ulog, dataflash: the IMU's instance (PX4's multi_id, ArduPilot's IMU.I or IMU2, IMU3); default: "
+                   "ulog the highest-rate source, sensor_combined (PX4's primary IMU) included; dataflash the first.")
 @click.option("--topic", default=None, help="rosbag: the sensor_msgs/Imu topic (default: the bag's only one).")
 @FORCE
 def import_cmd(fmt, sources, out_dir, latitude_deg, acc_counts_per_g, gyro_counts_per_dps, gravity_mps2, rate_hz,
@@ -150,12 +151,20 @@ def import_cmd(fmt, sources, out_dir, latitude_deg, acc_counts_per_g, gyro_count
     """Write a measurement set from another tool's recording, or from a PX4 ULog, an ArduPilot DataFlash
     log or a ROS 1 or ROS 2 bag (m/s^2 and rad/s as logged, the sensor frame and device ids in meta.json).
     The Python API's simucal.import_recording(FMT, SOURCES, OUT_DIR, ...)."""
+    import warnings
+
     from simucal import api
+    from simucal.errors import LogWarning
     guard(sources, sets=[out_dir], force=force)
-    api.import_recording(fmt, sources, out_dir, latitude_deg=latitude_deg, acc_counts_per_g=acc_counts_per_g,
-                         gyro_counts_per_dps=gyro_counts_per_dps, gravity_mps2=gravity_mps2, rate_hz=rate_hz,
-                         columns=columns, acc_unit=acc_unit, gyro_unit=gyro_unit, turn_deg=turn_deg,
-                         instance=int(instance), topic=topic, force=force, read_back=False)
+    with warnings.catch_warnings(record=True) as said:  # a log's warnings, printed as lines
+        warnings.simplefilter("always", LogWarning)
+        api.import_recording(fmt, sources, out_dir, latitude_deg=latitude_deg, acc_counts_per_g=acc_counts_per_g,
+                             gyro_counts_per_dps=gyro_counts_per_dps, gravity_mps2=gravity_mps2, rate_hz=rate_hz,
+                             columns=columns, acc_unit=acc_unit, gyro_unit=gyro_unit, turn_deg=turn_deg,
+                             instance=None if instance is None else int(instance), topic=topic, force=force,
+                             read_back=False)
+    for w in said:
+        click.echo(f"WARNING: {w.message}", err=not issubclass(w.category, LogWarning))
     click.echo(f"wrote {out_dir}")
 
 

@@ -1,0 +1,239 @@
+"""PX4's ULog (pyulog) as one IMU stream: which topic holds the IMU, how each is read, and the site's
+latitude from the log's GPS.
+
+PX4 logs the IMU in one or more of these topics, by its logging profile (SDLOG_PROFILE):
+- `sensor_combined` (every profile; the default profile's only full-rate IMU topic): the primary IMU that
+  PX4's voter chose (sensor_selection names its device ids), one message per gyro sample. `timestamp`
+  (us) is the gyro's sample time and `gyro_rad` its mean rate (rad/s) over `gyro_integral_dt` (us; seconds,
+  as a float, in logs before 2019); `accelerometer_m_s2` is the mean specific force over
+  `accelerometer_integral_dt`, sampled at timestamp + `accelerometer_timestamp_relative` (2147483647,
+  RELATIVE_TIMESTAMP_INVALID: the accelerometer did not update, and the row is left out). Each message is
+  one row, read as logged.
+- `sensor_accel` / `sensor_gyro` (per instance, the topic's multi_id): each sensor at its own stamps
+  (timestamp_sample), put on one clock by logs.on_one_clock; 1 Hz in the default profile, full rate in the
+  high-rate and thermal-calibration ones.
+- `vehicle_imu` (per instance): `delta_angle` over `delta_angle_dt` and `delta_velocity` over
+  `delta_velocity_dt` (us), read as their means, rad/s and m/s^2, at timestamp_sample.
+Where a log holds several, the source whose slower sensor has the highest rate is read, and the log block
+lists every source found with its rate and says why this one. With an instance asked for, only that
+instance's topics qualify (sensor_combined follows the voter, not an instance). A source under 10 Hz is
+read but named as such (LOW_RATE_HZ).
+
+The latitude: the median of the GPS fixes (vehicle_gps_position or sensor_gps, fix_type 3 or more) where the
+log holds some.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+from functools import partial
+from pathlib import Path
+from typing import Callable
+
+import numpy as np
+
+from simucal.io.importers import ImportError_
+from simucal.io.log_stream import LogStream, need, on_one_clock, other_format
+
+LOW_RATE_HZ = 10.0  # under this a source is named as such: the IMU's noise is averaged away, its bandwidth lost
+RELATIVE_TIMESTAMP_INVALID = 2147483647
+TOPICS = ["sensor_combined", "sensor_accel", "sensor_gyro", "vehicle_imu", "sensor_selection",
+          "vehicle_gps_position", "sensor_gps"]
+FRAME = "FRD (PX4's body frame, after the board's rotation)"
+
+
+@dataclass
+class Source:
+    """One topic (or pair of topics) of the log that holds both sensors."""
+    name: str          # e.g. "sensor_combined" or "sensor_accel+sensor_gyro instance 1"
+    instance: int | None
+    rate_hz: float     # its slower sensor's
+    samples: int
+    read: Callable[[], LogStream]
+
+
+def read_ulog(path, instance: int | None = None) -> LogStream:
+    """The IMU of a ULog from its best source (module doc); `instance` None: any source, sensor_combined
+    included; else that instance's sensor_accel/sensor_gyro or vehicle_imu."""
+    path = Path(path)
+    pyulog = need("pyulog", "ULog", path)
+    warnings = whole_ulog(path)
+    try:
+        ulog = pyulog.ULog(str(path), TOPICS)
+    except Exception as e:  # pyulog raises bare Exceptions on a foreign or broken file
+        raise ImportError_(f"{path}: not a ULog pyulog can read ({e})") from None
+    data = {(d.name, d.multi_id): d.data for d in ulog.data_list}
+    sources = [s for s in _sources(data, path) if instance is None or s.instance == instance]
+    if not sources:
+        raise ImportError_(f"{path}: {_missing(data, instance)}")
+    best = max(sources, key=lambda s: (s.rate_hz, s.samples))
+    stream = best.read()
+    stream.log.update({"format": "ulog", "file": path.name, "sensor_frame": FRAME, "source": best.name,
+                       "sources": [{"name": s.name, "rate_hz": round(s.rate_hz, 3), "samples": s.samples}
+                                   for s in sources],
+                       "why": "the highest rate of the sources that hold both sensors" if len(sources) > 1
+                       else "the only source that holds both sensors"})
+    if best.rate_hz < LOW_RATE_HZ:
+        warnings.append(f"{path}: the IMU is read from {best.name} at {best.rate_hz:.3g} Hz, under {LOW_RATE_HZ:g} Hz "
+                        "(the log's only source): log it at full rate (SDLOG_PROFILE's high-rate or thermal "
+                        "calibration bit)")
+    latitude = gps_latitude(data)
+    if latitude is not None:
+        stream.log["gps_latitude_deg"] = latitude
+    stream.warnings += warnings
+    return stream
+
+
+def _sources(data, path) -> list[Source]:
+    out = []
+    combined = data.get(("sensor_combined", 0))
+    if combined is not None and "gyro_rad[0]" in combined and len(combined["timestamp"]) > 1:
+        out.append(Source("sensor_combined", None, _rate(combined["timestamp"]), len(combined["timestamp"]),
+                          partial(_combined, combined, data.get(("sensor_selection", 0)), data, path)))
+    for (name, i), d in sorted(data.items()):
+        if name == "sensor_accel" and ("sensor_gyro", i) in data:
+            g = data[("sensor_gyro", i)]
+            if len(d["timestamp"]) > 1 and len(g["timestamp"]) > 1:
+                out.append(Source(f"sensor_accel+sensor_gyro instance {i}", i,
+                                  min(_rate(_stamps(d)), _rate(_stamps(g))), min(len(d["timestamp"]), len(g["timestamp"])),
+                                  partial(_pair, d, g, i, path)))
+        if name == "vehicle_imu" and len(d["timestamp"]) > 1:
+            out.append(Source(f"vehicle_imu instance {i}", i, _rate(_stamps(d)), len(d["timestamp"]),
+                              partial(_vehicle_imu, d, i, data, path)))
+    return out
+
+
+def _missing(data, instance) -> str:
+    """What the log lacks, and the fix, where no source holds both sensors."""
+    has = lambda topic: sorted(i for n, i in data if n == topic)  # noqa: E731
+    acc, gyro, vimu = has("sensor_accel"), has("sensor_gyro"), has("vehicle_imu")
+    both = sorted(set(acc) & set(gyro) | set(vimu))
+    if instance is not None and both:
+        return f"no IMU source of instance {instance} (the log's instances with both sensors: " \
+               f"{', '.join(map(str, both))}): give --instance {both[0]}, or leave --instance out"
+    found = "; ".join(f"{t}: instances {', '.join(map(str, i))}" for t, i in
+                      (("sensor_accel", acc), ("sensor_gyro", gyro)) if i) or "no IMU topic"
+    return (f"no topic holds both sensors (sensor_combined, sensor_accel with sensor_gyro of one instance, or "
+            f"vehicle_imu; it has {found}): log the IMU (SDLOG_PROFILE)")
+
+
+def _rate(t_us) -> float:
+    return 1e6 / float(np.median(np.diff(np.asarray(t_us, float))))
+
+
+def _stamps(d) -> np.ndarray:
+    return np.asarray(d.get("timestamp_sample", d["timestamp"]), float)
+
+
+def _xyz(d, name=None) -> np.ndarray:
+    """(n, 3) of a vector field (`name[0]` ...), or of the fields x, y, z where name is None."""
+    return np.column_stack([d[f"{name}[{j}]" if name else "xyz"[j]] for j in range(3)]).astype(float)
+
+
+def _device_id(d, key="device_id") -> int | None:
+    return int(np.median(d[key])) if d is not None and key in d and len(d[key]) else None
+
+
+def _combined(d, selection, data, path) -> LogStream:
+    """sensor_combined: one row a message, where the accelerometer updated (module doc)."""
+    t_us = np.asarray(d["timestamp"], float)
+    relative = np.asarray(d["accelerometer_timestamp_relative"], np.int64)
+    valid = relative != RELATIVE_TIMESTAMP_INVALID
+    dt = np.asarray(d["gyro_integral_dt"])
+    dt_unit = "s" if dt.dtype.kind == "f" else "us"  # PX4 logged it as float seconds before 2019
+    acc_id, gyro_id = _device_id(selection, "accel_device_id"), _device_id(selection, "gyro_device_id")
+    log = {"instance": None, "topics": ["sensor_combined"] + (["sensor_selection"] if selection is not None else []),
+           "clock": {"rows": f"sensor_combined's messages at their timestamp, the gyro's sample time ({_rate(t_us):.4g} Hz)",
+                     "gyro": f"gyro_rad, its mean rate over gyro_integral_dt ({dt_unit})",
+                     "acc": "accelerometer_m_s2, its mean over accelerometer_integral_dt, at timestamp + "
+                            "accelerometer_timestamp_relative (largest |relative| "
+                            f"{int(np.max(np.abs(relative[valid]), initial=0))} us)",
+                     "intervals_without_a_sample": {"rows_left_out": int((~valid).sum())}},
+           "acc_device_id": acc_id, "gyro_device_id": gyro_id,
+           "primary": "the IMU PX4's voter chose (sensor_selection's device ids)"}
+    warnings = []
+    if selection is not None and any(len(np.unique(selection[k])) > 1 for k in ("accel_device_id", "gyro_device_id")):
+        warnings.append(f"{path}: PX4's voter changed the primary IMU during the log (sensor_selection), so "
+                        "sensor_combined's rows come from more than one sensor: log the IMU per instance "
+                        "(sensor_accel, sensor_gyro) and give --instance")
+    t_s = t_us[valid] * 1e-6
+    temp, how = _temperature_of(acc_id, t_s, data)
+    log["temperature"] = how
+    return LogStream(t_s, _xyz(d, "accelerometer_m_s2")[valid], _xyz(d, "gyro_rad")[valid], temp, log, warnings)
+
+
+def _temperature_of(acc_device_id, t_s, data) -> tuple[np.ndarray | None, str | None]:
+    """The temperature of sensor_combined's accelerometer: the sensor_accel instance of its device id,
+    interpolated onto the rows where its samples span them (to within two of its periods)."""
+    for (name, i), a in sorted(data.items()):
+        if name != "sensor_accel" or acc_device_id is None or _device_id(a) != acc_device_id or "temperature" not in a:
+            continue
+        t_a, temp = _stamps(a) * 1e-6, np.asarray(a["temperature"], float)
+        ok = np.isfinite(temp)
+        if ok.sum() < 2:
+            return None, None
+        margin = 2 / (_rate(t_a * 1e6))
+        if t_a[ok][0] - margin <= t_s[0] and t_s[-1] <= t_a[ok][-1] + margin:
+            return (np.interp(t_s, t_a[ok], temp[ok]),
+                    f"sensor_accel instance {i}'s (the same device id), {_rate(t_a * 1e6):.3g} Hz, interpolated")
+    return None, None
+
+
+def _pair(a, g, instance, path) -> LogStream:
+    """sensor_accel and sensor_gyro of one instance on one clock (logs.on_one_clock)."""
+    temp_a = np.asarray(a["temperature"], float) if "temperature" in a else None
+    t, acc, gyro, temp, clock = on_one_clock(_stamps(a) * 1e-6, _xyz(a), temp_a, _stamps(g) * 1e-6,
+                                             _xyz(g), path)
+    return LogStream(t, acc, gyro, temp, {"instance": instance, "topics": ["sensor_accel", "sensor_gyro"],
+                                          "clock": clock, "acc_device_id": _device_id(a),
+                                          "gyro_device_id": _device_id(g),
+                                          "temperature": "sensor_accel's" if temp is not None else None})
+
+
+def _vehicle_imu(d, instance, data, path) -> LogStream:
+    """vehicle_imu: each delta over its own integration time (module doc)."""
+    t_s = _stamps(d) * 1e-6
+    dt_a, dt_v = (np.asarray(d[k], float) * 1e-6 for k in ("delta_angle_dt", "delta_velocity_dt"))
+    valid = (dt_a > 0) & (dt_v > 0)
+    acc_id = _device_id(d, "accel_device_id")
+    temp, how = _temperature_of(acc_id, t_s[valid], data)
+    log = {"instance": instance, "topics": ["vehicle_imu"], "acc_device_id": acc_id,
+           "gyro_device_id": _device_id(d, "gyro_device_id"), "temperature": how,
+           "clock": {"rows": f"vehicle_imu's messages at timestamp_sample ({_rate(t_s * 1e6):.4g} Hz)",
+                     "gyro": "delta_angle / delta_angle_dt", "acc": "delta_velocity / delta_velocity_dt",
+                     "intervals_without_a_sample": {"rows_left_out": int((~valid).sum())}}}
+    return LogStream(t_s[valid], _xyz(d, "delta_velocity")[valid] / dt_v[valid, None],
+                     _xyz(d, "delta_angle")[valid] / dt_a[valid, None], temp, log)
+
+
+def gps_latitude(data) -> float | None:
+    """The median latitude (deg) of the log's 3D GPS fixes, or None."""
+    for topic in ("vehicle_gps_position", "sensor_gps"):
+        d = data.get((topic, 0))
+        if d is None:
+            continue
+        lat = (np.asarray(d["latitude_deg"], float) if "latitude_deg" in d
+               else np.asarray(d["lat"], float) * 1e-7 if "lat" in d else None)
+        if lat is None:
+            continue
+        fix = np.asarray(d["fix_type"]) >= 3 if "fix_type" in d else np.ones(len(lat), bool)
+        good = fix & np.isfinite(lat) & (np.abs(lat) <= 90) & (lat != 0)
+        if good.any():
+            return round(float(np.median(lat[good])), 6)
+    return None
+
+
+def whole_ulog(path: Path) -> list[str]:
+    """A ULog's whole messages: after its 16-byte header every message is a uint16 size and a uint8 type.
+    A file cut inside its last message (power pulled, a copy stopped) keeps every whole message before the
+    cut, and the warning says where and how much was cut (pyulog drops the cut message without a word)."""
+    data = path.read_bytes()
+    if data[:7] != b"ULog\x01\x12\x35":
+        raise ImportError_(f"{path}: not a ULog (its first bytes are not ULog's magic){other_format(data)}")
+    pos, n = 16, len(data)
+    while pos + 3 <= n and pos + 3 + data[pos] + 256 * data[pos + 1] <= n:
+        pos += 3 + data[pos] + 256 * data[pos + 1]
+    if pos == n:
+        return []
+    return [f"{path}: the log is cut inside its last message: every message up to byte {pos:,} is read, the "
+            f"last {n - pos:,} bytes (a message the file ends inside) are left out"]
+
