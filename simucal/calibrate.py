@@ -13,7 +13,7 @@ import numpy as np
 
 from simucal import io, methods
 from simucal.errors import CalibrationError, SimucalError
-from simucal.fit.thermal import PLAUSIBLE_C, SPREAD_C
+from simucal.fit.thermal import SPREAD_C, check_temp_c
 from simucal.io import calibration, records, units
 from simucal.io.calibration import Calibration, SensorBlock, SensorDetails
 from simucal.io.calibration_checks import check_layout, scale_notes
@@ -119,13 +119,7 @@ def _plateau(folder):
         raise CalibrationError(f"{ms.path / 'samples.csv'}: no temp_c column, so no plateau temperature: a thermal "
                                "calibration needs the unit's temperature on every row" + (
                                    f"; it has {', '.join(named)}: convert it to degC as column temp_c" if named else ""))
-    units.refuse_temperature_unit(ms.meta, ms.samples, ms.path, CalibrationError)
-    T = ms.samples["temp_c"]
-    if T.min() < PLAUSIBLE_C[0] or T.max() > PLAUSIBLE_C[1]:
-        raise CalibrationError(f"{ms.path / 'samples.csv'}: temp_c runs {T.min():.4g} to {T.max():.4g}, outside an "
-                               f"IMU's rated {PLAUSIBLE_C[0]:g}..{PLAUSIBLE_C[1]:g} degC: is the column in kelvin "
-                               "(subtract 273.15) or degF (C = (F - 32) / 1.8)? temp_c is degC")
-    return ms, float(T.mean())
+    return ms, float(check_temp_c(ms).mean())
 
 
 def _same_model(blocks, sensor, plateaus) -> None:

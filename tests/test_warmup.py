@@ -74,8 +74,17 @@ def test_the_px4_file_holds_the_logs_device_ids(tmp_path):
     assert CliRunner().invoke(main, ["import", "ulog", str(tmp_path / "w.ulg"), "-o", str(tmp_path / "s"),
                                      "--latitude-deg", "47"]).exit_code == 0
     r = CliRunner().invoke(main, ["calibrate", str(tmp_path / "s"), "--thermal", "-o", str(tmp_path / "c.json"),
-                                  "--px4", str(tmp_path / "tc.params"), "--ardupilot", str(tmp_path / "tc.param")])
+                                  "--px4", str(tmp_path / "tc.params"), "--ardupilot", str(tmp_path / "tc.param"),
+                                  "--html", str(tmp_path / "tc.html")])
     assert r.exit_code == 0, r.output
+    # the page: each sensor's verdict, and a figure (the curve and its 68 % band) per bias that follows temperature
+    page = (tmp_path / "tc.html").read_text()
+    cal = simucal.load(tmp_path / "c.json")
+    curves = [n for _, b in cal.blocks() for n, f in b.thermal["parameters"].items() if f["degree"] > 0]
+    assert curves and page.count("<img") == len(curves)
+    assert all(f"{s}: PASSES" in page or f"{s}: FAILS" in page for s in ("acc", "gyro"))
+    simucal.save(tmp_path / "again.html", cal)
+    assert (tmp_path / "again.html").read_text().count("<img") == len(curves)
     text = (tmp_path / "tc.params").read_text()
     assert "TC_A0_ID\t1442826\t6" in text and "TC_G0_ID\t2490378\t6" in text
     assert "INS_TCAL1_ENABLE,1" in (tmp_path / "tc.param").read_text()
@@ -119,3 +128,25 @@ def test_validated_on_another_warm_up_of_the_unit(tmp_path):
                                        temp_c=ms.samples["temp_c"], meta={"latitude_deg": 47.0}).write(tmp_path / "moving")
     with pytest.raises(CalibrationError, match="validated on another still warm-up"):
         validate(str(tmp_path / "c.json"), str(tmp_path / "moving"))
+
+
+def test_a_warm_up_reads_its_temperature_as_every_thermal_path_does(tmp_path):
+    """Two holds (25 then 45 degC) give a line, said, and no model test where none can be made; temp_c in
+    kelvin, or stated as degF in meta.json, is refused as the plateaus' temp_c is."""
+    ms = warmup(4, seconds=600.0)
+    n = len(ms.samples["t_s"])
+    holds = np.where(np.arange(n) < n // 2, 25.0, 45.0) + np.random.default_rng(0).normal(0, 0.05, n)
+
+    def board(T, **meta):
+        return simucal.MeasurementSet.from_arrays(ms.raw("acc"), ms.raw("gyro"), acc_unit="g", gyro_unit="deg/h",
+                                                  t_s=ms.samples["t_s"], temp_c=T, meta={"latitude_deg": 47.0, **meta})
+    cal = calibrate_warmup(board(holds))
+    for _, b in cal.blocks():
+        for a in "xyz":
+            f = b.thermal["parameters"][f"b_{a}"]
+            assert f["degree"] <= 1 and "2 temperatures seen" in f["degree_from"]
+            assert f["dof"] == 1 - f["degree"] and (f["p_value"] is None) == (f["degree"] == 1)
+    with pytest.raises(CalibrationError, match="kelvin"):
+        calibrate_warmup(board(np.asarray(ms.samples["temp_c"]) + 273.15))
+    with pytest.raises(CalibrationError, match="degF"):
+        calibrate_warmup(board(ms.samples["temp_c"], temp_unit="degF"))

@@ -31,6 +31,19 @@ PLAUSIBLE_C = (-55.0, 125.0)
 DEGREE_ALPHA = 0.01
 
 
+def check_temp_c(ms) -> np.ndarray:
+    """A set's temp_c (degC), refused where the recording says it is in degF or kelvin, or where it runs outside
+    PLAUSIBLE_C; every thermal path (plateaus, a ramp, a warm-up) reads it through here."""
+    from simucal.io import units
+    units.refuse_temperature_unit(ms.meta, ms.samples, ms.path, CalibrationError)
+    T = np.asarray(ms.samples["temp_c"], float)
+    if T.min() < PLAUSIBLE_C[0] or T.max() > PLAUSIBLE_C[1]:
+        raise CalibrationError(f"{ms.path / 'samples.csv'}: temp_c runs {T.min():.4g} to {T.max():.4g}, outside an "
+                               f"IMU's rated {PLAUSIBLE_C[0]:g}..{PLAUSIBLE_C[1]:g} degC: is the column in kelvin "
+                               "(subtract 273.15) or degF (C = (F - 32) / 1.8)? temp_c is degC")
+    return T
+
+
 def clusters(T, spread=SPREAD_C) -> np.ndarray:
     """Each temperature's cluster (0, 1, ...): sorted, a new cluster where a temperature lies more
     than `spread` above its cluster's first. Their number is the distinct temperatures."""

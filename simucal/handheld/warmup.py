@@ -32,6 +32,7 @@ from scipy.linalg import solve_triangular
 from simucal.errors import CalibrationError
 from simucal.fit.augmented import AugmentedModel
 from simucal.fit.distributions import chi2_sf
+from simucal.fit.thermal import check_temp_c, clusters
 from simucal.io import calibration, records
 from simucal.io.calibration import SensorBlock
 
@@ -101,24 +102,30 @@ def _wald(c, cov, rows):
     return float(v @ np.linalg.solve(cov[np.ix_(s, s)], v)), len(s)
 
 
-def axis_polynomial(w: Whitened, axis: int, scale_c: float):
+def axis_polynomial(w: Whitened, axis: int, scale_c: float, temperatures: int = MAX_DEGREE + 3):
     """One axis: {degree, coefficients, std (per degC^k), chi2, dof, p_value (the model test), the noise}.
-    The degree falls from 3 while its top coefficient's Wald chi2 is under AIC_KEEP (at the best lam); the
-    model test is the two powers beyond it, jointly, at ALPHA (at the wide lam, as the stds)."""
-    degree = MAX_DEGREE
+    The degree falls from 3 (or from the distinct temperatures seen less one: two holds give a line) while its
+    top coefficient's Wald chi2 is under AIC_KEEP (at the best lam); the model test is the two powers beyond it
+    (fewer where the temperatures seen allow fewer; none: no test), jointly, at ALPHA (at the wide lam)."""
+    top = min(MAX_DEGREE, temperatures - 1)
+    degree = top
     c, cov, lam, r, cov_best = w.fit(axis, degree)
     # Akaike's rule (a term stays where its Wald chi2 exceeds 2: it lowers the curve's expected error), at the
     # best lam: a test at ALPHA, or the wide lam's covariance, drops real terms where the bias wanders
     while degree > 0 and _wald(c, cov_best, [degree])[0] <= AIC_KEEP:
         degree -= 1
         c, cov, lam, r, cov_best = w.fit(axis, degree)
-    c2, cov2, _, _, _ = w.fit(axis, degree + 2)
-    chi2, dof = _wald(c2, cov2, [degree + 1, degree + 2])
+    extra = min(2, temperatures - 1 - degree)
+    chi2, dof = 0.0, 0
+    if extra > 0:
+        c2, cov2, _, _, _ = w.fit(axis, degree + extra)
+        chi2, dof = _wald(c2, cov2, list(range(degree + 1, degree + extra + 1)))
     per = scale_c ** -np.arange(degree + 1)
     e = w.grid[0][2][:, axis] - w.X[:, :degree + 1] @ c  # lam 0's whitening is none: the block means themselves
-    return {"degree": degree, "degree_from": "the data", "coefficients": (c * per).tolist(),
+    return {"degree": degree, "degree_from": "the data" if top == MAX_DEGREE else
+            f"the data, at most {top} for the {temperatures} temperatures seen", "coefficients": (c * per).tolist(),
             "std": (np.sqrt(np.diag(cov)) * per).tolist(), "chi2": chi2, "dof": dof,
-            "p_value": float(chi2_sf(chi2, dof)), "residual_rms": float(np.sqrt(np.mean(e ** 2))),
+            "p_value": float(chi2_sf(chi2, dof)) if dof else None, "residual_rms": float(np.sqrt(np.mean(e ** 2))),
             "noise": {"block_mean_std": float(np.sqrt(r)), "random_walk_per_sqrt_s": float(np.sqrt(r * lam))}}
 
 
@@ -127,7 +134,7 @@ def calibrate_warmup(ms, t_ref_c=None) -> calibration.Calibration:
     if "temp_c" not in ms.samples:
         raise CalibrationError(f"{ms.path / 'samples.csv'}: no temp_c column: a still recording gives the bias over "
                                "temperature only where each row's temperature is logged")
-    T = np.asarray(ms.samples["temp_c"], float)
+    T = check_temp_c(ms)
     lo, hi = float(T.min()), float(T.max())
     if hi - lo < MIN_SPAN_C:
         raise CalibrationError(f"{ms.path}: still throughout, and its temperature spans {hi - lo:.2g} degC "
@@ -150,7 +157,8 @@ def _block(sensor, raw, T, t_s, t_ref, scale_c) -> SensorBlock:
     model = AugmentedModel(f"{sensor}_baseline")
     y, T_b, t_b = block_means(MAX_BLOCKS, raw, T, t_s - t_s[0])
     w = Whitened(y, (T_b - t_ref) / scale_c, t_b)  # powers of order 1 for the solves; coefficients scaled back
-    axes = [axis_polynomial(w, i, scale_c) for i in range(3)]
+    temperatures = int(clusters(T_b).max()) + 1  # holds (within SPREAD_C) count once: they fix the degree's limit
+    axes = [axis_polynomial(w, i, scale_c, temperatures) for i in range(3)]
     if sensor == "acc":  # the constant less the median reading, as PX4's tool writes X0 (module doc)
         median = np.median(raw, axis=0)
         for i, a in enumerate(axes):
@@ -171,7 +179,7 @@ def _block(sensor, raw, T, t_s, t_ref, scale_c) -> SensorBlock:
     return SensorBlock(model.base.name, np.eye(3), bias, unit, {}, "built-in", params,
                        {f"b_{'xyz'[i]}": axes[i]["std"][0] for i in range(3)}, dict(zip(names, model.param_units)),
                        None, float(np.sqrt(np.mean([a["residual_rms"] ** 2 for a in axes]))), f"{unit} (block means)",
-                       chi2, dof, float(chi2_sf(chi2, dof)),
+                       chi2, dof, float(chi2_sf(chi2, dof)) if dof else None,
                        description=f"bias over temperature, each axis a polynomial of degree {[a['degree'] for a in axes]}"
                                    " chosen by the data (Newey-West stds); scale factors and misalignments nominal",
                        thermal=thermal,

@@ -28,7 +28,7 @@ def _band(th, name, f, dT):
 
 
 def _figure(sensor, name, f, unit, th):
-    T = np.asarray(th["plateaus_c"], float)
+    T = np.asarray(th.get("plateaus_c", th.get("temperature_range_c")), float)  # a warm-up has no plateaus
     lo, hi = th.get("temperature_range_c", [T.min(), T.max()])
     grid = np.linspace(lo - 5, hi + 5, 200)
     dT = grid - th["t_ref_c"]
@@ -52,22 +52,33 @@ def _p(x):
 def verdict_lines(sensor, b, validations=()) -> list[str]:
     """The sensor's verdict in words: the joint test, each group under it (and alone), each validation."""
     groups = b.details.get("groups")
-    if groups is None:  # each plateau alone, then the polynomials
+    if groups is None and "warmup" in b.thermal:  # one still warm-up: each axis's curve and its test
+        passes = b.p_value is not None and b.p_value >= ALPHA
+        axes = ", ".join(f"{n} p = {_p(f.get('p_value'))}" for n, f in b.thermal["parameters"].items())
+        out = [f"{sensor}: {'PASSES' if passes else 'FAILS'}: {b.details.get('test', 'the model test')}, chi2 "
+               f"{b.chi2:.4g} on {b.dof} dof, p = {_p(b.p_value)} ({axes})"]
+    elif groups is None:  # each plateau alone, then the polynomials
         return [f"{sensor}: each plateau fitted alone, p = " + ", ".join(_p(x["p_value"]) for x in b.details["plateaus"])]
-    failing = [g for g in groups if g["p_value"] is not None and g["p_value"] < ALPHA]
-    passes = b.p_value is not None and b.p_value >= ALPHA and not failing
-    out = [f"{sensor}: {'PASSES' if passes else 'FAILS'}: the one model over every row at its own temperature, "
-           f"chi2 {b.chi2:.4g} on {b.dof} dof, p = {_p(b.p_value)}; each "
-           + ("plateau" if b.details.get("plateaus") else "band") + " under it p = "
-           + ", ".join(_p(g["p_value"]) for g in groups)
-           + ("; each plateau alone (at one temperature) p = " + ", ".join(_p(g["own_p_value"]) for g in groups)
-              if b.details.get("plateaus") else "")]
+    else:
+        out = _joint_verdict(sensor, b, groups)
     for v in validations:
         for c in v["checks"].get(sensor, [])[:1]:
             fl = "" if c["floor_rms"] is None else f", floor {c['floor_rms']:.3g}"
             out.append(f"{sensor}: validated on {v['data']}: {c['what'].split(' (')[0]} {c['after_rms']:.3g} "
                        f"{c['unit']} rms{fl}: {c['verdict']}")
     return out
+
+
+def _joint_verdict(sensor, b, groups) -> list[str]:
+    """The joint fit's test over every row, each plateau or band under it."""
+    failing = [g for g in groups if g["p_value"] is not None and g["p_value"] < ALPHA]
+    passes = b.p_value is not None and b.p_value >= ALPHA and not failing
+    return [f"{sensor}: {'PASSES' if passes else 'FAILS'}: the one model over every row at its own temperature, "
+            f"chi2 {b.chi2:.4g} on {b.dof} dof, p = {_p(b.p_value)}; each "
+            + ("plateau" if b.details.get("plateaus") else "band") + " under it p = "
+            + ", ".join(_p(g["p_value"]) for g in groups)
+            + ("; each plateau alone (at one temperature) p = " + ", ".join(_p(g["own_p_value"]) for g in groups)
+               if b.details.get("plateaus") else "")]
 
 
 def thermal_next(cal: Calibration, cal_path: str, validations=()) -> tuple[str, list[str]]:
