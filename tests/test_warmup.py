@@ -150,3 +150,28 @@ def test_a_warm_up_reads_its_temperature_as_every_thermal_path_does(tmp_path):
         calibrate_warmup(board(np.asarray(ms.samples["temp_c"]) + 273.15))
     with pytest.raises(CalibrationError, match="degF"):
         calibrate_warmup(board(ms.samples["temp_c"], temp_unit="degF"))
+
+
+def test_a_second_imu_is_exported_into_its_own_slot(tmp_path):
+    """PX4's instance 1 writes TC_A1_* / TC_G1_* with its device ids, ArduPilot's IMU2 INS_TCAL2_*: never the
+    first IMU's slot."""
+    from log_writers import write_dataflash, write_ulog
+    from test_logs import still_board
+    acc, gyro = still_board(seconds=300.0, acc_hz=50.0, gyro_hz=100.0)
+    write_ulog(tmp_path / "w.ulg", acc, gyro, instance=1)
+    imu = {"t_us": acc["t_us"], "acc": np.column_stack([acc[k] for k in "xyz"]),
+           "gyro": np.column_stack([acc[k] * 0.01 for k in "xyz"]), "temperature": acc["temperature"]}
+    write_dataflash(tmp_path / "w.bin", [imu, imu], numbered=True, params={"INS_ACC2_ID": 11, "INS_GYR2_ID": 12})
+    for fmt, log, out in (("ulog", "w.ulg", "px4"), ("dataflash", "w.bin", "ap")):
+        assert CliRunner().invoke(main, ["import", fmt, str(tmp_path / log), "-o", str(tmp_path / out),
+                                         "--latitude-deg", "47", "--instance", "1"]).exit_code == 0
+    r = CliRunner().invoke(main, ["calibrate", str(tmp_path / "px4"), "--thermal", "-o", str(tmp_path / "c.json"),
+                                  "--px4", str(tmp_path / "tc.params")])
+    assert r.exit_code == 0, r.output
+    text = (tmp_path / "tc.params").read_text()
+    assert "TC_A1_ID\t1442826\t6" in text and "TC_G1_X3_2" in text and "TC_A0_" not in text and "TC_G0_" not in text
+    r = CliRunner().invoke(main, ["calibrate", str(tmp_path / "ap"), "--thermal", "-o", str(tmp_path / "d.json"),
+                                  "--ardupilot", str(tmp_path / "tc.param")])
+    assert r.exit_code == 0, r.output
+    text = (tmp_path / "tc.param").read_text()
+    assert "INS_TCAL2_ENABLE,1" in text and "INS_TCAL1_" not in text and "INS_ACC2_CALTEMP" in text

@@ -1,5 +1,6 @@
-"""A thermal calibration's bias polynomials as an autopilot's thermal compensation: PX4's TC_A0_*/TC_G0_*
-(a QGroundControl .params file) and ArduPilot's INS_TCAL1_* (a Mission Planner .param file).
+"""A thermal calibration's bias polynomials as an autopilot's thermal compensation: PX4's TC_A{n}_*/TC_G{n}_*
+(a QGroundControl .params file) and ArduPilot's INS_TCAL{n+1}_* (a Mission Planner .param file), n the
+log's instance of the IMU.
 
 The narrow interface is `BiasPolynomial`: per sensor, per axis, the bias b(T) = sum_k c_k (T - T_ref)^k
 in the autopilot's units (m/s^2, rad/s), with T_ref and the calibrated range, and the sensor's other
@@ -135,10 +136,11 @@ def _cubic(p: BiasPolynomial) -> np.ndarray:
     return c
 
 
-def px4_parameters(polys: list[BiasPolynomial], device_ids: dict | None = None
+def px4_parameters(polys: list[BiasPolynomial], device_ids: dict | None = None, slot: int = 0
                    ) -> tuple[list[tuple[str, float, int]], list[str]]:
-    """[(name, value, MAV_PARAM_TYPE)] of PX4's TC_A0_* / TC_G0_* (module doc), and the warnings; device_ids:
-    {sensor: the device id a log holds}, written as TC_A0_ID / TC_G0_ID."""
+    """[(name, value, MAV_PARAM_TYPE)] of PX4's TC_A{slot}_* / TC_G{slot}_* (module doc; slot: the sensor's
+    instance, as PX4's own script numbers them), and the warnings; device_ids: {sensor: the device id a log
+    holds}, written as TC_A{slot}_ID / TC_G{slot}_ID."""
     warnings = _checked(polys, "PX4")
     rows: list[tuple[str, float, int]] = []
     for p in polys:
@@ -146,24 +148,26 @@ def px4_parameters(polys: list[BiasPolynomial], device_ids: dict | None = None
         c = _cubic(p)
         rows.append((f"TC_{letter}_ENABLE", 1, PX4_INT32))
         if device_ids and device_ids.get(p.sensor) is not None:
-            rows.append((f"TC_{letter}0_ID", int(device_ids[p.sensor]), PX4_INT32))
-        rows += [(f"TC_{letter}0_{k}", v, PX4_REAL32) for k, v in
+            rows.append((f"TC_{letter}{slot}_ID", int(device_ids[p.sensor]), PX4_INT32))
+        rows += [(f"TC_{letter}{slot}_{k}", v, PX4_REAL32) for k, v in
                  (("TREF", p.t_ref_c), ("TMIN", p.t_min_c), ("TMAX", p.t_max_c))]
-        rows += [(f"TC_{letter}0_X{k}_{i}", float(c[i, k]), PX4_REAL32) for i in range(3) for k in range(4)]
+        rows += [(f"TC_{letter}{slot}_X{k}_{i}", float(c[i, k]), PX4_REAL32) for i in range(3) for k in range(4)]
     return rows, warnings
 
 
-def ardupilot_parameters(polys: list[BiasPolynomial]) -> tuple[list[tuple[str, float]], list[str]]:
-    """[(name, value)] of ArduPilot's INS_TCAL1_* (module doc), and the warnings."""
+def ardupilot_parameters(polys: list[BiasPolynomial], slot: int = 0) -> tuple[list[tuple[str, float]], list[str]]:
+    """[(name, value)] of ArduPilot's INS_TCAL{slot + 1}_* (module doc; slot: the IMU's instance, IMU.I), and
+    the warnings."""
     warnings = _checked(polys, "ArduPilot")
     lo, hi = max(p.t_min_c for p in polys), min(p.t_max_c for p in polys)
-    rows = [("INS_TCAL1_ENABLE", 1), ("INS_TCAL1_TMIN", lo), ("INS_TCAL1_TMAX", hi)]
+    tcal = f"INS_TCAL{slot + 1}"
+    rows = [(f"{tcal}_ENABLE", 1), (f"{tcal}_TMIN", lo), (f"{tcal}_TMAX", hi)]
     by_sensor = {p.sensor: p for p in polys}
     for sensor, name in (("acc", "ACC"), ("gyro", "GYR")):
         p = by_sensor.get(sensor)  # one enable for both: a sensor not calibrated gets zeros, not stale values
         c = np.zeros((3, 4)) if p is None else about(_cubic(p), ARDUPILOT_T_REF_C - p.t_ref_c) * ARDUPILOT_SCALE
-        warnings += [] if p else [f"no {sensor} calibration: INS_TCAL1_{name}* set to 0 (no correction)"]
-        rows += [(f"INS_TCAL1_{name}{k}_{'XYZ'[i]}", float(c[i, k])) for k in range(1, 4) for i in range(3)]
+        warnings += [] if p else [f"no {sensor} calibration: {tcal}_{name}* set to 0 (no correction)"]
+        rows += [(f"{tcal}_{name}{k}_{'XYZ'[i]}", float(c[i, k])) for k in range(1, 4) for i in range(3)]
     return rows, warnings
 
 
@@ -180,32 +184,36 @@ def _header(polys, source, warnings, notes) -> list[str]:
     return lines + [f"# {n}" for n in notes] + [f"# WARNING: {w}" for w in warnings]
 
 
-PX4_NOTE = ("set TC_A0_ID and TC_G0_ID to the sensor's device id (CAL_ACC0_ID, CAL_GYRO0_ID): PX4 applies the "
-            "set only to that sensor; then reboot and redo the ordinary accelerometer and gyro calibration")
-PX4_NOTE_IDS = ("TC_A0_ID and TC_G0_ID are the log's device ids (PX4 applies the set only to those sensors); reboot and "
-                "redo the ordinary accelerometer and gyro calibration")
+def px4_note(device_ids: dict | None, slot: int = 0) -> str:
+    if device_ids and all(v is not None for v in device_ids.values()):
+        return (f"TC_A{slot}_ID and TC_G{slot}_ID are the log's device ids (PX4 applies the set only to those "
+                "sensors); reboot and redo the ordinary accelerometer and gyro calibration")
+    return (f"set TC_A{slot}_ID and TC_G{slot}_ID to the sensor's device id (CAL_ACC{slot}_ID, CAL_GYRO{slot}_ID): "
+            "PX4 applies the set only to that sensor; then reboot and redo the ordinary accelerometer and gyro "
+            "calibration")
 
 
-def px4_note(device_ids: dict | None) -> str:
-    return PX4_NOTE_IDS if device_ids and all(v is not None for v in device_ids.values()) else PX4_NOTE
-ARDUPILOT_NOTE = ("the constant bias is the ordinary calibration's (offsets at INS_ACC1_CALTEMP and INS_GYR1_CALTEMP):"
-                  " redo it after loading; these polynomials correct the change from that temperature")
+def ardupilot_note(slot: int = 0) -> str:
+    return (f"the constant bias is the ordinary calibration's (offsets at INS_ACC{slot + 1}_CALTEMP and "
+            f"INS_GYR{slot + 1}_CALTEMP): redo it after loading; these polynomials correct the change from that "
+            "temperature")
 
 
-def px4_text(polys: list[BiasPolynomial], source: str, device_ids: dict | None = None) -> tuple[str, list[str]]:
+def px4_text(polys: list[BiasPolynomial], source: str, device_ids: dict | None = None,
+             slot: int = 0) -> tuple[str, list[str]]:
     """A QGroundControl .params file (tab-separated: vehicle id, component id, name, value, type) and the
     warnings."""
-    rows, warnings = px4_parameters(polys, device_ids)
-    lines = ["# Onboard parameters for Vehicle 1", "#"] + _header(polys, source, warnings, [px4_note(device_ids)])
+    rows, warnings = px4_parameters(polys, device_ids, slot)
+    lines = ["# Onboard parameters for Vehicle 1", "#"] + _header(polys, source, warnings, [px4_note(device_ids, slot)])
     lines += ["#", "# Vehicle-Id Component-Id Name Value Type"]
     lines += [f"1\t1\t{n}\t{_number(v)}\t{t}" for n, v, t in rows]
     return "\n".join(lines) + "\n", warnings
 
 
-def ardupilot_text(polys: list[BiasPolynomial], source: str) -> tuple[str, list[str]]:
+def ardupilot_text(polys: list[BiasPolynomial], source: str, slot: int = 0) -> tuple[str, list[str]]:
     """A Mission Planner .param file (NAME,VALUE lines, # comments) and the warnings."""
-    rows, warnings = ardupilot_parameters(polys)
-    lines = _header(polys, source, warnings, [ARDUPILOT_NOTE]) + [f"{n},{_number(v)}" for n, v in rows]
+    rows, warnings = ardupilot_parameters(polys, slot)
+    lines = _header(polys, source, warnings, [ardupilot_note(slot)]) + [f"{n},{_number(v)}" for n, v in rows]
     return "\n".join(lines) + "\n", warnings
 
 
@@ -215,5 +223,7 @@ def texts(cal, meta: meta_keys.Meta, px4: str | None = None, ardupilot: str | No
     source = ", ".join(cal.input) if isinstance(cal.input, list) else str(cal.input)
     log = meta.get("log") if isinstance(meta.get("log"), dict) else {}
     ids = {p.sensor: log.get(f"{p.sensor}_device_id") for p in polys} if log else None
-    made = [(px4, *px4_text(polys, source, ids), px4_note(ids))] if px4 else []
-    return made + ([(ardupilot, *ardupilot_text(polys, source), ARDUPILOT_NOTE)] if ardupilot else [])
+    # the slot is the log's instance (PX4's primary IMU, sensor_combined, has none: slot 0, matched by its id)
+    slot = log.get("instance") if isinstance(log.get("instance"), int) else 0
+    made = [(px4, *px4_text(polys, source, ids, slot), px4_note(ids, slot))] if px4 else []
+    return made + ([(ardupilot, *ardupilot_text(polys, source, slot), ardupilot_note(slot))] if ardupilot else [])
