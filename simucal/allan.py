@@ -41,11 +41,10 @@ from simucal import io, methods
 from simucal.errors import CalibrationError
 from simucal.fit import allan_cov, allan_fit, allan_sums
 from simucal.fit.noise import TERMS, allan_deviation
-from simucal.io import MeasurementSetError, columnar, units
+from simucal.io import MeasurementSetError, columnar
+from simucal.report.kalibr import kalibr_missing, kalibr_yaml  # noqa: F401 (allan.kalibr_yaml: the API's)
 
 MIN_CLUSTERS = 9  # the longest tau keeps this many independent clusters (relative error <= 25 %)
-G0 = units.DEFAULT_GRAVITY  # m/s^2 per g: Kalibr's SI, not the site's gravity
-RAD_PER_DEG = np.pi / 180.0
 
 # (name, factor from the fitted unit, unit) of each term for a data sheet; the fitted units are
 # sigma's (deg/h, g) times s^a: Q [.s], N [.sqrt(s)], B [.], K [./sqrt(s)], R [./s]
@@ -107,23 +106,31 @@ def second_rows(dt) -> int:
     return max(int(round(1.0 / dt)), 1)
 
 
+# A still unit's 1-s means wander by its noise and drift only, far below these; a hand-placed move passes them
+# (0.05 g of specific force; 1 deg/s of rate, where a set has no accelerometers to tell)
+MOVING = {"acc": (0.05, "g", "specific force"), "gyro": (3600.0, "deg/h", "rate")}
+
+
 def check_still(ms, dt):
-    """Refuse a stream that moves: its 1-s mean specific force may wander by noise, not move by 0.05 g (the
-    difference of two means: a raw register's zero cancels, where an angle would need it)."""
-    if not methods.kind_of(ms).still_whole or not ms.has_acc:
+    """Refuse a stream that moves: its 1-s mean specific force (or, without accelerometers, rate) may wander by
+    noise, not move by MOVING's amount (the difference of two means: a raw register's zero cancels, where an
+    angle would need it)."""
+    if not methods.kind_of(ms).still_whole:
         return
-    f = ms.acc_g()
+    sensor = "acc" if ms.has_acc else "gyro"
+    x = ms.acc_g() if sensor == "acc" else ms.gyro_dph()
     k = second_rows(dt)
-    refuse_moving(f[: len(f) // k * k].reshape(-1, k, 3).mean(1), f.mean(0), ms.path)
+    refuse_moving(x[: len(x) // k * k].reshape(-1, k, 3).mean(1), x.mean(0), ms.path, sensor)
 
 
-def refuse_moving(f_1s_g, f_mean_g, where):
-    """check_still on the 1-s means of the specific force (rows, 3) and its mean over the record (g)."""
-    tilt = np.linalg.norm(f_1s_g - f_mean_g, axis=1)
-    if len(tilt) > 1 and np.max(tilt) > 0.05:
-        raise CalibrationError(f"{where}: the unit moves during the recording (its 1-s mean specific force differs "
-                               f"from the record's mean by up to {np.max(tilt):.2g} g, where a still unit's wanders by "
-                               "the noise only): the Allan deviation needs a still unit; record it at rest")
+def refuse_moving(x_1s, x_mean, where, sensor="acc"):
+    """check_still on a sensor's 1-s means (rows, 3) and its mean over the record (g or deg/h)."""
+    limit, unit, what = MOVING[sensor]
+    off = np.linalg.norm(x_1s - x_mean, axis=1)
+    if len(off) > 1 and np.max(off) > limit:
+        raise CalibrationError(f"{where}: the unit moves during the recording (its 1-s mean {what} differs "
+                               f"from the record's mean by up to {np.max(off):.2g} {unit}, where a still unit's "
+                               "wanders by the noise only): the Allan deviation needs a still unit; record it at rest")
 
 
 def _seconds_for(n_taus: int, dt: float) -> float:
@@ -214,7 +221,26 @@ def characterise(ms, tau_max_s=None) -> dict:
             sensor, [s[:, j] for s in stretches], dt, m, mats, UNIT[sensor]) for j, a in enumerate("xyz")})
     if "acc" not in out and "gyro" not in out:
         raise CalibrationError(f"{ms.path}: no sensor columns to characterise")
+    if "temp_c" in ms.samples:
+        T = np.asarray(ms.samples["temp_c"], float)
+        out.update(temperature_block(float(T.min()), float(T.max()), ms.path))
     return out
+
+
+TEMP_CHANGE_C = 3.0  # a MEMS bias moves by its instability's size over a few degC
+
+
+def temperature_block(lo, hi, data) -> dict:
+    """{"temperature": its range and, where it changes by over TEMP_CHANGE_C, the warning}: a warming board's
+    bias follows its temperature, which the Allan variance reads as rate ramp, random walk and instability."""
+    block: dict[str, Any] = {"range_c": [lo, hi]}
+    if hi - lo > TEMP_CHANGE_C:
+        block["warning"] = (f"the temperature changes by {hi - lo:.3g} degC over the record ({lo:.4g} to {hi:.4g} degC): "
+                            "the bias's thermal drift reads as bias instability, random walk and rate ramp, so the "
+                            "long-tau terms (and Kalibr's random walks) may be thermal, not noise; record at a steady "
+                            f"temperature, or take the thermal model out first: simucal calibrate {data} --thermal -o "
+                            f"warm.json, simucal apply warm.json {data} -o flat, simucal noise flat")
+    return {"temperature": block}
 
 
 UNIT = {"gyro": "deg/h", "acc": "g"}
@@ -225,14 +251,15 @@ def sensor_report(sensor, dt, m, where, axes) -> dict:
     return {"unit": UNIT[sensor], "tau_s": (m * dt).tolist(), "rate_hz": 1.0 / dt, "rows": where, "axes": axes}
 
 
-def _check_still_stream(kept, dt, where) -> None:
-    """check_still from the accelerometer's theta: the 1-s means are its differences."""
-    th = [kept.theta[c] for c in io.SAMPLE_COLS[:3]]
+def _check_still_stream(kept, dt, where, sensor) -> None:
+    """check_still from a sensor's theta: the 1-s means are its differences."""
+    triad = io.SENSOR_COLS[sensor]
+    th = [kept.theta[c] for c in triad]
     n, k = th[0].n - 1, second_rows(dt)
-    center = np.array([kept.center[c] for c in io.SAMPLE_COLS[:3]])
+    center = np.array([kept.center[c] for c in triad])
     sums = np.column_stack([t.at(np.arange(0, n // k * k + 1, k)) for t in th])
     whole = np.array([t.at(np.array([n]))[0] for t in th])
-    refuse_moving(np.diff(sums, axis=0) / k + center, whole / n + center, where)
+    refuse_moving(np.diff(sums, axis=0) / k + center, whole / n + center, where, sensor)
 
 
 def characterise_folder(folder, tau_max_s=None, scheduler=None, size=allan_sums.CHUNK) -> dict:
@@ -252,12 +279,12 @@ def characterise_folder(folder, tau_max_s=None, scheduler=None, size=allan_sums.
     if scheduler not in (None, "local"):  # spilled: theta's parts in files the workers read
         scratch = tempfile.TemporaryDirectory(prefix="simucal-noise-")
     with scratch as spill:
-        kept, steps = allan_sums.read_pass(folder, meta, sensors, Path(spill) if spill else None, size)
+        kept, steps = allan_sums.read_pass(folder, meta, sensors, Path(spill) if spill else None, size,
+                                           temperature="temp_c" in cols)
         dt = sample_step(steps, path)
         del steps
         n = kept.theta[next(iter(kept.theta))].n - 1
-        if "acc" in sensors:
-            _check_still_stream(kept, dt, folder)
+        _check_still_stream(kept, dt, folder, sensors[0])  # acc where it has them
         out: dict[str, Any] = {"format": "simucal.noise/1", "data": str(folder)}
         for sensor in sensors:
             m = cluster_sizes([n], dt, tau_max_s, path)
@@ -267,54 +294,9 @@ def characterise_folder(folder, tau_max_s=None, scheduler=None, size=allan_sums.
             out[sensor] = sensor_report(sensor, dt, m, "the whole stream", {a: axis_from_avar(
                 sensor, avar, stuck(kept.lo[c], kept.hi[c], kept.first[c], n, UNIT[sensor]), dt, m, mats)
                 for a, c, avar in zip("xyz", triad, avars)})
+    if "temp_c" in cols:
+        out.update(temperature_block(*kept.temp_c, folder))
     return out
-
-
-KALIBR = (("acc", "accelerometer", G0), ("gyro", "gyroscope", RAD_PER_DEG / units.DPH_PER_DPS))
-
-
-def _random_walk_or_bound(axis) -> float | None:
-    """K where seen, else its 95 % bound (Kalibr needs a random walk above zero); None where the
-    record is too short to say."""
-    k = axis["sheet"]["K"]
-    return axis["terms"]["K"] if k["status"] == "seen" else axis["bounds"].get("K")
-
-
-def kalibr_missing(report) -> list[str]:
-    """What Kalibr's imu.yaml would lack (it requires both sensors' densities and random walks)."""
-    missing = []
-    for sensor, key, _ in KALIBR:
-        if sensor not in report:
-            missing.append(f"{key}_noise_density and {key}_random_walk (the recording has no {sensor} columns)")
-            continue
-        for a, ax in report[sensor]["axes"].items():
-            if "stuck" in ax:
-                missing.append(f"{key}_* ({sensor} {a} is {ax['stuck'].split(':')[0]})")
-            elif ax["sheet"]["N"]["status"] != "seen":
-                missing.append(f"{key}_noise_density ({sensor} {a} shows no white noise)")
-            elif _random_walk_or_bound(ax) is None:
-                missing.append(f"{key}_random_walk ({sensor} {a}: the record is too short to bound it, it needs "
-                               f"{ax['sheet']['K']['needs_s']:.3g} s)")
-    return missing
-
-
-def kalibr_yaml(report) -> str:
-    """Kalibr's imu.yaml (continuous-time densities in SI, the largest over the three axes); refused
-    where incomplete (kalibr_missing)."""
-    missing = kalibr_missing(report)
-    if missing:
-        raise CalibrationError(f"{report['data']}: Kalibr's imu.yaml would lack " + "; ".join(missing)
-                               + ": record both sensors, still, long enough")
-    out = ["# written by simucal noise from " + report["data"],
-           "# white noise N and random walk K of the Allan fit; a random walk the record does not show",
-           "# is given as its 95 % upper bound"]
-    for sensor, key, to_si in KALIBR:
-        ax = report[sensor]["axes"].values()
-        out.append(f"{key}_noise_density: {max(a['terms']['N'] for a in ax) * to_si:.6e}")
-        walks = [w for w in map(_random_walk_or_bound, ax) if w is not None]  # kalibr_missing refused a None
-        out.append(f"{key}_random_walk: {max(walks) * to_si:.6e}")
-    out.append(f"rostopic: /imu0\nupdate_rate: {report['gyro']['rate_hz']:.6g}")
-    return "\n".join(out) + "\n"
 
 
 def _term_text(t, html=False) -> str:
@@ -343,6 +325,7 @@ def lines(report, written=None):
             yield f"  {a}: " + ", ".join(f"{t['name']} {_term_text(t)}" for t in ax["sheet"].values())
     for _, text in verdicts(report):
         yield text
+    yield from io.skipped_sensors([s for s in ("acc", "gyro") if s in report])
     yield "next: " + next_step(report, written)[0]
 
 
@@ -368,6 +351,8 @@ def verdicts(report) -> list[tuple[bool, str]]:
                      if k != "N" and _axes_of(axes, status, k)]
             text += f"; {say}: {', '.join(terms)}" if terms else ""
         out.append((not stuck and len(n) == len(axes), text + "".join(f"; STUCK: {x}" for x in stuck)))
+    if report.get("temperature", {}).get("warning"):
+        out.append((False, "WARNING: " + report["temperature"]["warning"]))
     return out
 
 

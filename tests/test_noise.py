@@ -337,3 +337,25 @@ def test_a_record_too_short_for_a_term_says_the_length_it_needs(tmp_path):
     assert r.exit_code == 2 and "its 3 taus need 0.27 s" in r.output and not (tmp_path / "m.json").exists()
     r = _run("noise", _still(tmp_path / "s60", seconds=60.0), "-o", tmp_path / "m.json", "--tau-max-s", 0.001)
     assert r.exit_code == 2 and "--tau-max-s 0.03 at least" in r.output and not (tmp_path / "m.json").exists()
+
+
+def test_noise_of_a_warming_board_warns_that_its_drift_may_be_thermal(tmp_path):
+    """A still record whose temperature rises 30 degC: the console, the page's verdicts and Kalibr's imu.yaml say
+    the long-tau terms may be thermal, and how to take the thermal model out; at a steady temperature, nothing."""
+    import simucal
+    rng = np.random.default_rng(5)
+    t = np.arange(0, 600.0, 0.02)
+    for name, T in (("warm", 15 + 30 * (1 - np.exp(-t / 200))), ("steady", 25 + rng.normal(0, 0.1, len(t)))):
+        acc = np.array([0.0, 0.0, 1.0]) + 1e-4 * (T - 25)[:, None] + rng.normal(0, 1e-3, (len(t), 3))
+        gyro = 10.0 * (T - 25)[:, None] + rng.normal(0, 50.0, (len(t), 3))
+        simucal.MeasurementSet.from_arrays(acc, gyro, acc_unit="g", gyro_unit="deg/h", t_s=t, temp_c=T,
+                                           meta={"latitude_deg": 47.0}).write(tmp_path / name)
+        r = CliRunner().invoke(main, ["noise", str(tmp_path / name), "-o", str(tmp_path / f"{name}.json"),
+                                      "--kalibr", str(tmp_path / f"{name}.yaml")])
+        assert r.exit_code == 0, r.output
+        warned = "WARNING: the temperature changes by" in r.output
+        assert warned == (name == "warm"), r.output
+        assert ("# WARNING" in (tmp_path / f"{name}.yaml").read_text()) == warned
+    report = json.loads((tmp_path / "warm.json").read_text())
+    assert report["temperature"]["range_c"][1] - report["temperature"]["range_c"][0] > 25
+    assert "simucal apply warm.json" in report["temperature"]["warning"]

@@ -153,8 +153,11 @@ class Pass:
         self.lo = {c: np.inf for c in channels}
         self.hi = {c: -np.inf for c in channels}
         self.first, self.center, self.steps, self.last_t = {}, {}, [], None
+        self.temp_c = [np.inf, -np.inf]  # the least and greatest temp_c, where the set has one
 
-    def add(self, t: np.ndarray, y: dict) -> None:
+    def add(self, t: np.ndarray, y: dict, temp_c: np.ndarray | None = None) -> None:
+        if temp_c is not None and len(temp_c):
+            self.temp_c = [min(self.temp_c[0], float(temp_c.min())), max(self.temp_c[1], float(temp_c.max()))]
         self.steps.append(np.diff(t if self.last_t is None else np.r_[self.last_t, t]))
         self.last_t = t[-1]
         for c, v in y.items():
@@ -170,17 +173,17 @@ class Pass:
         return steps
 
 
-def read_pass(folder, meta, sensors, spill, size=CHUNK) -> tuple[Pass, np.ndarray]:
+def read_pass(folder, meta, sensors, spill, size=CHUNK, temperature=False) -> tuple[Pass, np.ndarray]:
     """One pass over the set's samples, a chunk at a time: (what it keeps, the steps of t_s); theta
-    held in parts of `size` values."""
+    held in parts of `size` values; temperature: temp_c's range too."""
     channels = [c for s in sensors for c in (SAMPLE_COLS[:3] if s == "acc" else SAMPLE_COLS[3:])]
     kept = Pass(channels, spill, size)
-    for chunk in columnar.chunks(folder, ["t_s"] + channels):
+    for chunk in columnar.chunks(folder, ["t_s"] + channels + (["temp_c"] if temperature else [])):
         y = {}
         for s in sensors:
             cols = SAMPLE_COLS[:3] if s == "acc" else SAMPLE_COLS[3:]
             raw = np.column_stack([chunk[c] for c in cols])
             conv = units.acc_to_g(raw, meta) if s == "acc" else units.gyro_to_dph(raw, meta)
             y.update({c: np.ascontiguousarray(conv[:, j]) for j, c in enumerate(cols)})
-        kept.add(chunk["t_s"], y)
+        kept.add(chunk["t_s"], y, chunk["temp_c"] if temperature else None)
     return kept, kept.close()
