@@ -66,7 +66,8 @@ def calibrate(folder, method="auto", acc_model="acc_baseline", gyro_model="gyro_
                               "heading_accuracy_deg") if given[k] not in (None, False, ()) and k not in m.options]
         if unused:
             flag = {"ids": "--add", "auto": "--add auto", "noise_curves": "--noise",
-                    "detect": "--init-rest-s, --threshold-factor, --window-s and --min-static-s (a stream's)"}.get(
+                    "detect": "--init-rest-s, --threshold-factor, --window-s, --min-static-s and --gyro-limit-dps "
+                              "(a stream's)"}.get(
                 unused[0], "--" + unused[0].replace("_", "-"))
             takes = [x.name for x in methods.METHODS.values() if unused[0] in x.options]
             raise CalibrationError(f"{flag} does not apply to method {m.name} ({m.summary}); it applies to method "

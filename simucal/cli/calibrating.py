@@ -72,20 +72,24 @@ _ADD_AUTO_HELP = (_ADD_HELP + " Also 'auto': the library effects a failing model
 @click.option("--window-s", type=POSITIVE, default=None, show_default="1", help="Stream: moving-variance window, s.")
 @click.option("--min-static-s", type=POSITIVE, default=None, show_default="1",
               help="Stream: shortest static interval, s.")
+@click.option("--gyro-limit-dps", type=POSITIVE, default=None,
+              help="Stream: the gyro's limit on a pose's windowed rate less its own level, deg/s (default: from the "
+                   "data, the rest's noise or the poses' sway, whichever is larger).")
 @click.option("--heading-accuracy-deg", type=Number(0.0, 180.0), default=None, show_default="5", help=_HEADING_HELP)
 @click.option("--scheduler", default="local", show_default=True,
               help="Several sets: local, processes (a Dask LocalCluster on 127.0.0.1) or a Dask scheduler's address. "
                    + SCHEDULER_TRUST)
 def calibrate(data_dirs, output, thermal, thermal_degree, html_out, px4, ardupilot, t_ref_c, method, acc_model,
               gyro_model, add, acc_noise_g, gyro_noise_dph, noise_file, timestamps, init_rest_s, threshold_factor,
-              window_s, min_static_s, heading_accuracy_deg, scheduler):
+              window_s, min_static_s, gyro_limit_dps, heading_accuracy_deg, scheduler):
     """Calibrate measurement sets; write calibration.json (one per set into a folder for several).
 
     With segments.csv and table angles: a turntable test (dong2018). Without segments.csv: a
     continuous stream from a hand-placed session (static poses found from the data; Tedaldi).
     With heading_ref_deg and no table angles: a field set (ruan2019's gyro drift)."""
     from simucal.api import DetectSettings
-    stream = dict(window_s=window_s, factor=threshold_factor, min_s=min_static_s, init_rest_s=init_rest_s)
+    stream = dict(window_s=window_s, factor=threshold_factor, min_s=min_static_s, init_rest_s=init_rest_s,
+                  gyro_limit_dps=gyro_limit_dps)
     detect = DetectSettings(**{k: v for k, v in stream.items() if v is not None}) if any(
         v is not None for v in stream.values()) else None  # given only where set: other data refuse them
     kwargs = dict(method=method, acc_model=acc_model, gyro_model=gyro_model, detect=detect, add=add,

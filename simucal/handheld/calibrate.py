@@ -37,6 +37,7 @@ from simucal.handheld.moves_selection import moves_family, rank_move_candidates,
 from simucal.io import calibration, units
 from simucal.io.calibration import Calibration, EffectValue, SensorBlock
 from simucal.handheld.poses import acc_from_poses
+from simucal.handheld.static_detect import Detection, dropped_text
 
 
 def _gyro_fit(ms, gm: GyroMoves, acc_cal, gyro_effects, auto):
@@ -126,6 +127,17 @@ def _gyro_block(ms, det, am, obs, fa, acc_cal, gyro_effects, auto) -> SensorBloc
         **({"auto": chosen["steps"], "auto_stopped": chosen["stopped"]} if chosen else {"auto": []} if auto else {}))
 
 
+def dropped_warnings(det: Detection, t) -> list[str]:
+    """The console's line for the still intervals a rule dropped (static_detect: each with its rule and numbers;
+    stretches shorter than half --min-static-s, a pause in a move, counted), with the gyro limit in force."""
+    if not det.dropped:
+        return []
+    min_s = det.min_samples * float(np.median(np.diff(t)))
+    limit = f" ({det.gyro_limit['text']})" if det.gyro_limit else ""
+    return [f"static detection: {len(det.dropped)} still interval{'s' * (len(det.dropped) != 1)} dropped: "
+            + dropped_text(det.dropped, "; ", skip_short_s=min_s / 2) + limit]
+
+
 def calibrate_handheld(ms, acc_model="acc_baseline", detect=None, pose_window_s=1.0, gyro_effects=(),
                        auto=False) -> Calibration:
     """pose_window_s: seconds at the start of each static interval averaged into the
@@ -142,6 +154,7 @@ def calibrate_handheld(ms, acc_model="acc_baseline", detect=None, pose_window_s=
     units.check_scale("acc", M_a, ms.path / "samples.csv")
     cal = calibration.header("handheld (Tedaldi): exact norm fit + gyro moves", ms)
     cal.details["static_detection"] = {**det.as_dict(ms.samples["t_s"]), "pose_window_s": pose_window_s}
+    cal.warnings += dropped_warnings(det, ms.samples["t_s"])
     cal.acc = calibration.sensor_block(am, fa, M_a, b_a)
     # the poses' test made the model test's family (fit/family.py), each pose weighted as the fit weighs it
     test: dict[str, Any] = {"p_value": cal.acc.p_value, "test": "chi-square of the poses against their own noise"}

@@ -13,7 +13,8 @@ from simucal.errors import CalibrationError
 from simucal.fit.augmented import AugmentedModel
 from simucal.fit.aux_inputs import AuxInputs, column_means
 from simucal.fit.norm_fit import Fit, Observations, check_not_coplanar, fit_exact
-from simucal.handheld.static_detect import DetectSettings, Detection, detect_static
+from simucal.handheld.static_detect import (DetectSettings, Detection, detect_static, dropped_text,
+                                            two_digits)
 from simucal.io import units
 
 
@@ -79,15 +80,46 @@ def rail_poses(ms, poses):
                                "larger range (or give full_scale in meta.json), or record those poses again")
 
 
-def pose_observations(ms, detect=None, pose_window_s=1.0):
+def too_few_poses(ms, det: Detection, settings: DetectSettings, am: AugmentedModel):
+    """Refuse fewer poses than the model has parameters, naming each interval a rule dropped (with the rule and
+    its numbers) and the option that relaxes it."""
+    n, m = len(det.starts), len(am.params)
+    if n >= m:
+        return
+    relax = []
+    gyro = [x for x in det.dropped if x["rule"] == "gyro"]
+    short = [x for x in det.dropped if x["rule"] == "min_static_s" and x["length_s"] >= settings.min_s / 2]
+    if gyro:
+        limits, more = sorted(x["kept_from_limit_dps"] for x in gyro), min(m - n, len(gyro))
+        relax.append(f"--gyro-limit-dps {two_digits(limits[more - 1], True):g} keeps {more} more of the intervals the "
+                     f"gyro dropped (now {det.gyro_threshold_dps:.3g} deg/s, set by "
+                     f"{(det.gyro_limit or {}).get('set_by', '')}); a hand that holds its poses stiller keeps them too")
+    if short:
+        lengths = sorted((x["length_s"] for x in short), reverse=True)
+        keep = min(m - n, len(lengths))
+        relax.append(f"--min-static-s {two_digits(lengths[keep - 1], False):g} keeps {keep} more of the short ones")
+    relax.append(f"a larger --threshold-factor (now {det.factor:g}) lets more through the accelerometers' test; "
+                 "or record more poses, each held still for a few seconds")
+    raise CalibrationError(
+        f"{ms.path}: {n} acc positions for {m} parameters of {am.name}: {n} static poses found (the norm gives one "
+        f"equation per pose, so at least {m} are needed)"
+        + (f"; {len(det.dropped)} still interval{'s' * (len(det.dropped) != 1)} dropped: "
+           + dropped_text(det.dropped, "; ") if det.dropped else "; no still interval was dropped")
+        + ". To relax: " + "; ".join(relax))
+
+
+def pose_observations(ms, detect=None, pose_window_s=1.0, am=None):
     """Accelerometer observations of a stream's static poses: (Observations, Detection, poses).
 
     Each pose is the mean of its first pose_window_s (None: the whole interval),
-    with the std of that mean from the scatter of its samples."""
+    with the std of that mean from the scatter of its samples. am: the model to fit, whose parameters the
+    poses must outnumber (too_few_poses)."""
     t = ms.samples["t_s"]
     acc = ms.acc_g()
-    det = detect_static(acc, t, detect or DetectSettings(),
-                        gyro_dps=ms.gyro_dph() / units.DPH_PER_DPS if ms.has_gyro else None)
+    settings = detect or DetectSettings()
+    det = detect_static(acc, t, settings, gyro_dps=ms.gyro_dph() / units.DPH_PER_DPS if ms.has_gyro else None)
+    if am is not None:
+        too_few_poses(ms, det, settings, am)
     dt = float(np.median(np.diff(t)))
     win = None if pose_window_s is None else max(int(round(pose_window_s / dt)), 2)
     poses = [(a, b if win is None else min(a + win, b)) for a, b in zip(det.starts, det.ends)]
@@ -112,11 +144,11 @@ def acc_from_poses(ms, acc_model="acc_baseline", detect=None, pose_window_s=1.0)
     """The accelerometer from a stream's poses."""
     if not ms.has_acc:
         raise CalibrationError(f"{ms.path}: a hand-placed session needs accelerometer data")
-    obs, det, poses = pose_observations(ms, detect, pose_window_s)
+    am = acc_model if isinstance(acc_model, AugmentedModel) else AugmentedModel(acc_model)
+    obs, det, poses = pose_observations(ms, detect, pose_window_s, am)
     swapped_or_still(ms, obs, poses)
     units.check_magnitude("acc", np.linalg.norm(obs.N, axis=1), obs.rho, ms.path / "samples.csv", ms.meta)
     check_not_coplanar(obs.N, "accelerometer", f"{ms.path}: ")
-    am = acc_model if isinstance(acc_model, AugmentedModel) else AugmentedModel(acc_model)
     prior = None
     if np.all(np.max(np.abs(obs.N / np.linalg.norm(obs.N, axis=1, keepdims=True)), axis=1) > np.cos(np.radians(10))):
         # every pose along a sensor axis (the Ferraris design): the norm sees each axis's scale and bias,

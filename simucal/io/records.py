@@ -398,20 +398,20 @@ class SystematicRecord(TypedDict, total=False):
     zero_position: ZeroPosition
 
 
-class StaticDetection(TypedDict, total=False):
-    """How a stream's rests were found (handheld/static_detect.py): the settings and the intervals."""
-    window: int
-    factor: float
-    threshold: float
-    threshold_from: str
-    min_samples: int
-    gyro_threshold_dps: float
-    init_rest_end: int
-    pose_window_s: float
-    starts: list[int]
-    ends: list[int]
-    intervals_s: list[list[float]]
-    count: int
+# How a stream's rests were found (handheld/static_detect.py): the settings, the intervals, the gyro limit and how it
+# was set (GyroLimit), and each still interval a rule dropped or the gyro shortened, with its rule and numbers.
+GyroLimit = TypedDict("GyroLimit", {"limit_dps": float, "set_by": str, "text": str, "noise_dps": float, "sway_dps": float,
+                                    "poses": int, "noise_factor": float, "sway_factor": float, "from_data_dps": float},
+                      total=False)
+DroppedInterval = TypedDict("DroppedInterval", {
+    "t_s": list[float], "rule": str, "text": str, "length_s": float, "from_rest_dps": float, "max_dps": float,
+    "median_dps": float, "limit_dps": float, "share_above": float, "longest_within_s": float,
+    "kept_from_limit_dps": float, "kept_s": list[list[float]]}, total=False)
+StaticDetection = TypedDict("StaticDetection", {
+    "window": int, "factor": float, "threshold": float, "threshold_from": str, "min_samples": int,
+    "gyro_threshold_dps": float, "gyro_limit": GyroLimit, "dropped": list[DroppedInterval],
+    "trimmed": list[DroppedInterval], "init_rest_end": int, "pose_window_s": float, "starts": list[int],
+    "ends": list[int], "intervals_s": list[list[float]], "count": int}, total=False)
 
 
 class Gap(TypedDict):
