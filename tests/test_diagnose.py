@@ -193,3 +193,24 @@ def test_temperature_and_time_twins_only_where_the_data_cannot_tell(tmp_path, si
         assert "goes up and down" in t["note"] and "acc.bias_temperature.y" in d["twins"]
     elif not ramp:
         assert t is next(iter(cands.values()))
+
+
+@pytest.mark.parametrize("at_rest,chosen", [((34.3, 32.2), None), ((40.0, 20.0), "gyro.g_sensitivity.zx")])
+def test_the_static_rows_choose_a_twin_only_beyond_the_twins_level(at_rest, chosen):
+    """Two twins of the rate runs whose static-row chi-squares differ by 2.1: no twin is claimed, the ranking
+    stands and the record says these data cannot tell them apart and which plan would; 20 apart: the static
+    rows choose."""
+    from simucal.turntable.model_test import choose_twin
+    a, b = "gyro.g_sensitivity.xz", "gyro.g_sensitivity.zx"
+    cands = [{"id": a, "significant": True, "twins": [b], "statistic": 245.9, "estimate": 1.0},
+             {"id": b, "significant": True, "twins": [a], "statistic": 245.7, "estimate": 1.0}]
+
+    class Judge:
+        def with_effect(self, eid):
+            return {"chi2": dict(zip((a, b), at_rest))[eid], "dof": 26, "p_value": 0.5, "positions": 26}
+    choose_twin(cands, lambda: Judge())
+    if chosen is None:
+        assert cands[0]["id"] == a and "cannot tell" in cands[0]["twin_choice"]
+        assert f"plan --score PLAN --separate {a},{b}" in cands[0]["twin_choice"]
+    else:
+        assert cands[0]["id"] == chosen and "static positions chose it" in cands[0]["twin_choice"]

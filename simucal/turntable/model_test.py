@@ -23,6 +23,7 @@ from simucal.fit.aux_inputs import specific_force
 from simucal.fit import family
 from simucal.fit.candidates import rank_candidates, shape_if_unexplained, test_model
 from simucal.fit.results import ALPHA, ModelTest
+from simucal.fit.twins import CANNOT_TELL
 from simucal.fit.distributions import chi2_sf
 from simucal.fit.norm_fit import Fit, Observations, fit_exact
 from simucal.io import records, units
@@ -162,7 +163,8 @@ class AtRest:
 def choose_twin(cands: list[dict], at_rest) -> None:
     """Where the strongest significant candidate has twins that the rate runs cannot tell from it
     (fit/twins.py), the one whose fit predicts the static rows best (lowest chi-square, all on the
-    same rows) leads the ranking, with its `at_rest` statistics and its `twin_choice` in words (which
+    same rows), by at least the twins' level (CANNOT_TELL, else no twin is chosen and the record says
+    that these data cannot tell them apart and which plan would), leads the ranking, with its `at_rest` statistics and its `twin_choice` in words (which
     rows decided): the ranking, calibrate's advice, diagnose's verdict and `--add auto` then take it.
     at_rest() -> AtRest or None (built only here: it ties the frames)."""
     lead = next((c for c in cands if c.get("significant")), None)
@@ -178,7 +180,20 @@ def choose_twin(cands: list[dict], at_rest) -> None:
     st = tested[best]
     others = "; ".join(f"{k} {v['chi2']:.1f}" for k, v in tested.items() if k != best)
     rate = ", ".join(f"{c['statistic']:.1f}" for c in group)
-    chosen["at_rest"] = {k: {x: v[x] for x in ("chi2", "dof", "p_value")} for k, v in tested.items()}
+    at_rest = {k: {x: v[x] for x in ("chi2", "dof", "p_value")} for k, v in tested.items()}
+    gap = min(v["chi2"] for k, v in tested.items() if k != best) - st["chi2"]
+    if gap < CANNOT_TELL:  # the static rows cannot choose either: no twin is claimed, the ranking stands
+        assert lead is not None
+        twin = next(c for c in group if c is not lead)
+        lead["at_rest"] = at_rest
+        lead["twin_choice"] = (
+            f"cannot tell {lead['id']} from {', '.join(k for k in tested if k != lead['id'])} with these data: neither the "
+            f"rate runs (likelihood ratios {rate}) nor the {st['positions']} static positions (chi2 "
+            + ", ".join(f"{k} {v['chi2']:.1f}" for k, v in tested.items()) + f", {gap:.1f} apart, under the twins' "
+            f"level {CANNOT_TELL:.2f}) choose: either may be the unit's; the positions that would: simucal plan --score "
+            f"PLAN --separate {lead['id']},{twin['id']} --sizes {lead['estimate']:.2g},{twin['estimate']:.2g}")
+        return
+    chosen["at_rest"] = at_rest
     chosen["twin_choice"] = (
         f"{best}, not its twin{'s' if len(tested) > 2 else ''} {', '.join(k for k in tested if k != best)}: the rate "
         f"runs cannot tell them apart (likelihood ratios {rate}); the {st['positions']} static positions chose it "
