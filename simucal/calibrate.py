@@ -235,18 +235,51 @@ def _still_warmup(folders, degree, kwargs):
         return None
     from simucal.handheld.static_detect import still_throughout
     ms = folders[0] if isinstance(folders[0], io.MeasurementSet) else io.read_set(folders[0])
-    if methods.data_kind(ms) != methods.STREAM or not ms.has_acc or len(ms.samples["t_s"]) < 20 \
-            or not still_throughout(ms.acc_g(), ms.samples["t_s"]):
+    if methods.data_kind(ms) != methods.STREAM or not ms.has_acc or len(ms.samples["t_s"]) < 20:
+        return None
+    if not still_throughout(ms.acc_g(), ms.samples["t_s"]):
+        _refuse_a_board_that_moved(ms)
         return None
     method = kwargs.get("method")
     given = [o for o, v in (("--thermal-degree", degree), ("--add", kwargs.get("add")),
                             ("--method", method not in (None, "auto") and method),
                             ("--acc-noise-g", kwargs.get("acc_noise_g")), ("--gyro-noise-dph", kwargs.get("gyro_noise_dph")),
-                            ("--noise", kwargs.get("noise"))) if v]
+                            ("--noise", kwargs.get("noise")),
+                            ("--window-s, --threshold-factor, --init-rest-s, --min-static-s, --gyro-limit-dps (a "
+                             "hand session's static detection)", kwargs.get("detect")),
+                            ("--timestamps", kwargs.get("timestamps"))) if v]
     if given:
         raise CalibrationError(f"{given[0]}: a still warm-up's bias takes its degree from the data (0 to 3), its noise "
-                               "from the data and no effects or other method; leave it out")
+                               "from the data, its rows as they are (no poses to find, no moves to time) and no "
+                               "effects or other method; leave it out")
     return ms
+
+
+def _refuse_a_board_that_moved(ms) -> None:
+    """A warm-up (temp_c rising over MIN_SPAN_C) that is still in a few long stretches, not throughout: the
+    board was turned, and each stretch is another orientation; refused by name (the plateau path would count
+    its stretches as poses)."""
+    from simucal.handheld.static_detect import detect_static
+    from simucal.handheld.warmup import MIN_SPAN_C
+    T, t = ms.samples.get("temp_c"), np.asarray(ms.samples["t_s"], float)
+    if T is None or np.ptp(T) < MIN_SPAN_C:
+        return
+    try:
+        d = detect_static(ms.acc_g(), t)
+    except CalibrationError:
+        return
+    spans = [(float(t[a]), float(t[b - 1])) for a, b in zip(d.starts, d.ends)]
+    still_s = sum(b - a for a, b in spans)
+    if not 2 <= len(spans) <= 3 or still_s < 0.8 * (t[-1] - t[0]):
+        return
+    f = ms.acc_g()
+    first, last = (f[a:b].mean(axis=0) for a, b in ((d.starts[0], d.ends[0]), (d.starts[-1], d.ends[-1])))
+    angle = np.degrees(np.arccos(np.clip(first @ last / np.linalg.norm(first) / np.linalg.norm(last), -1, 1)))
+    raise CalibrationError(
+        f"{ms.path}: the board moved during the warm-up: it is still in {len(spans)} stretches ("
+        + ", ".join(f"{a:.0f}-{b:.0f} s" for a, b in spans) + f"), the first and last {angle:.0f} deg apart, while a "
+        "still warm-up is one orientation: give each stretch as a set of its own (each is calibrated with --thermal "
+        f"where its temperature spans {MIN_SPAN_C:g} degC), or log the warm-up again without touching the board")
 
 
 def _refuse_thermal_options(folders, degree, kwargs):

@@ -175,3 +175,20 @@ def test_a_second_imu_is_exported_into_its_own_slot(tmp_path):
     assert r.exit_code == 0, r.output
     text = (tmp_path / "tc.param").read_text()
     assert "INS_TCAL2_ENABLE,1" in text and "INS_TCAL1_" not in text and "INS_ACC2_CALTEMP" in text
+
+
+def test_a_board_turned_during_its_warm_up_and_stream_options_are_named(tmp_path):
+    """A board turned 90 deg half-way is refused as a board that moved (not as too few poses); a hand session's
+    options on a still warm-up are refused by name, not ignored."""
+    ms = warmup(2, seconds=900.0)
+    acc = ms.raw("acc").copy()
+    half = np.arange(len(acc)) >= len(acc) // 2
+    acc[half] = acc[half][:, [0, 2, 1]] * [1, 1, -1]  # turned 90 deg about x
+    simucal.MeasurementSet.from_arrays(acc, ms.raw("gyro"), acc_unit="g", gyro_unit="deg/h", t_s=ms.samples["t_s"],
+                                       temp_c=ms.samples["temp_c"], meta={"latitude_deg": 47.0}).write(tmp_path / "turned")
+    refused(CliRunner().invoke(main, ["calibrate", str(tmp_path / "turned"), "--thermal", "-o", str(tmp_path / "c.json")]),
+            "the board moved during the warm-up", "2 stretches", "90 deg apart")
+    simucal.MeasurementSet.of(warmup(2, seconds=300.0)).write(tmp_path / "still")
+    for option in (["--window-s", "2"], ["--min-static-s", "3"], ["--timestamps", "nominal"]):
+        refused(CliRunner().invoke(main, ["calibrate", str(tmp_path / "still"), "--thermal", *option, "-o",
+                                          str(tmp_path / "c.json")]), option[0], "a still warm-up")
