@@ -263,7 +263,7 @@ def test_broken_log_contents_are_refused_or_named_in_one_line(tmp_path):
     write_dataflash(tmp_path / "gap.bin", gappy)
     r = _import("dataflash", tmp_path / "gap.bin", "-o", tmp_path / "gap", "--latitude-deg", 47.4)
     assert r.exit_code == 0, r.output
-    assert "1 gap in the rows" in r.output and "the longest 1" in r.output and "not near g" in r.output
+    assert "1 gap in t_s" in r.output and "samples missing" in r.output and "not near g" in r.output
     gaps = io.read_set(tmp_path / "gap").meta["log"]["gaps"]
     assert len(gaps) == 1 and abs(gaps[0]["length_s"] - 1.0) < 0.02
 

@@ -192,3 +192,15 @@ def test_a_board_turned_during_its_warm_up_and_stream_options_are_named(tmp_path
     for option in (["--window-s", "2"], ["--min-static-s", "3"], ["--timestamps", "nominal"]):
         refused(CliRunner().invoke(main, ["calibrate", str(tmp_path / "still"), "--thermal", *option, "-o",
                                           str(tmp_path / "c.json")]), option[0], "a still warm-up")
+
+
+def test_a_gap_in_a_warm_up_is_named():
+    ms = warmup(6, seconds=600.0)
+    t = np.asarray(ms.samples["t_s"])
+    keep = (t < 200) | (t > 205)  # 5 s of both sensors missing
+    gappy = simucal.MeasurementSet.from_arrays(ms.raw("acc")[keep], ms.raw("gyro")[keep], acc_unit="g",
+                                               gyro_unit="deg/h", t_s=t[keep], temp_c=ms.samples["temp_c"][keep],
+                                               meta={"latitude_deg": 47.0})
+    cal = calibrate_warmup(gappy)
+    assert any("1 gap in t_s (5.04 s from t = 199.98 s" in w for w in cal.warnings), cal.warnings
+    assert not any("gap" in w for w in calibrate_warmup(ms).warnings)

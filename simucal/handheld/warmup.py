@@ -33,7 +33,7 @@ from simucal.errors import CalibrationError
 from simucal.fit.augmented import AugmentedModel
 from simucal.fit.distributions import chi2_sf
 from simucal.fit.thermal import check_temp_c, clusters
-from simucal.io import calibration, records
+from simucal.io import calibration, records, timestamps
 from simucal.io.calibration import SensorBlock
 
 METHOD = "warm-up (a still board over temperature)"  # validate.WARMUP starts it
@@ -147,6 +147,10 @@ def calibrate_warmup(ms, t_ref_c=None) -> calibration.Calibration:
     for sensor, raw in (("acc", ms.acc_g() if ms.has_acc else None), ("gyro", ms.gyro_dph() if ms.has_gyro else None)):
         if raw is not None:
             setattr(cal, sensor, _block(sensor, raw, T, np.asarray(ms.samples["t_s"], float), t_ref, (hi - lo) / 2))
+    found = timestamps.gaps(ms.samples["t_s"])
+    if found:  # the block means still average rows; a gap shifts a block's time, which the random walk reads
+        cal.warnings.append(f"{timestamps.gap_text(found)}: no rows there, so the curve has no data in the temperatures "
+                            "those gaps crossed")
     cal.warnings.append("a still board over temperature: the bias's change with temperature only; scale factors and "
                         "misalignments stay nominal (one orientation), and the accelerometer's constant bias is not seen "
                         "(gravity): calibrate them by a six-pose or turntable session")

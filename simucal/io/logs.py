@@ -11,7 +11,7 @@ id and how the two sensors were put on one clock (io/log_stream.py).
 What a set may not hold is refused at import, in one line naming the file: NaN samples (the spec has none),
 two sensors that never overlap, a log that is not of its format. What a user must know is kept and said
 (meta.json's `warnings`, and the command's WARNING lines): a log cut inside its last message, gaps in
-the rows (where and how long), a source under 10 Hz, a "still" magnitude far from g (a wrong unit?).
+the rows (io/timestamps.gaps: where and how long), a source under 10 Hz, a "still" magnitude far from g (a wrong unit?).
 """
 from __future__ import annotations
 
@@ -21,6 +21,7 @@ from typing import Callable
 import numpy as np
 
 from simucal import io
+from simucal.io import timestamps
 from simucal.io.dataflash import read_dataflash
 from simucal.io.importers import ImportError_, import_meta
 from simucal.io.log_stream import LogStream
@@ -28,8 +29,6 @@ from simucal.io.rosbag import read_rosbag
 from simucal.io.ulog import read_ulog
 
 G_MPS2 = 9.80665
-GAP_ROWS = 10      # a row interval over this many median intervals, and over GAP_S, is a gap
-GAP_S = 0.1
 MAGNITUDE_OFF = 0.2  # a median |f| more than this fraction away from g is named (m/s^2 assumed)
 
 READERS: dict[str, Callable[..., LogStream]] = {"ulog": read_ulog, "dataflash": read_dataflash}
@@ -53,16 +52,11 @@ def checked(s: LogStream, path: Path) -> LogStream:
             raise ImportError_(f"{path}: {int(bad.sum()):,} {name} samples are NaN or infinite (the first at "
                                f"{s.t_s[first]:.3f} s of the log, row {first + 1:,}); a measurement set holds none: "
                                "cut the log where its sensor failed, or log again")
-    dt = np.diff(s.t_s)
-    if dt.size:
-        limit = max(GAP_ROWS * float(np.median(dt)), GAP_S)
-        gaps = np.nonzero(dt > limit)[0]
-        if gaps.size:
-            k = int(gaps[np.argmax(dt[gaps])])
-            s.log["gaps"] = [{"at_s": float(s.t_s[i] - s.t_s[0]), "length_s": float(dt[i])} for i in gaps]
-            s.warnings.append(f"{path}: {gaps.size} gap{'s' if gaps.size > 1 else ''} in the rows (no sample for "
-                              f"over {limit:.3g} s), the longest {dt[k]:.3g} s at {s.t_s[k] - s.t_s[0]:.3f} s of the "
-                              "set: a calibration sees no motion there; meta.json's log.gaps lists each")
+    found = timestamps.gaps(s.t_s - s.t_s[0])
+    if found:
+        s.log["gaps"] = found
+        s.warnings.append(f"{path}: {timestamps.gap_text(found)}: a calibration sees no motion there; meta.json's "
+                          "log.gaps lists each")
     magnitude = float(np.median(np.linalg.norm(s.acc_mps2, axis=1))) if len(s.acc_mps2) else G_MPS2
     if abs(magnitude / G_MPS2 - 1) > MAGNITUDE_OFF:
         s.warnings.append(f"{path}: the accelerometer's median magnitude is {magnitude:.4g} m/s^2 "
