@@ -247,7 +247,7 @@ def _still_warmup(folders, degree, kwargs):
                             ("--noise", kwargs.get("noise")),
                             ("--window-s, --threshold-factor, --init-rest-s, --min-static-s, --gyro-limit-dps (a "
                              "hand session's static detection)", kwargs.get("detect")),
-                            ("--timestamps", kwargs.get("timestamps"))) if v]
+                            ("--timestamps", kwargs.get("timestamps") not in (None, "auto"))) if v]
     if given:
         raise CalibrationError(f"{given[0]}: a still warm-up's bias takes its degree from the data (0 to 3), its noise "
                                "from the data, its rows as they are (no poses to find, no moves to time) and no "
