@@ -41,6 +41,7 @@ from simucal import io, methods
 from simucal.errors import CalibrationError
 from simucal.fit import allan_cov, allan_fit, allan_sums
 from simucal.fit.noise import TERMS, allan_deviation
+from simucal.report.console import skipped_sensors
 from simucal.io import MeasurementSetError, columnar
 from simucal.report.kalibr import kalibr_missing, kalibr_yaml  # noqa: F401 (allan.kalibr_yaml: the API's)
 
@@ -295,7 +296,7 @@ def characterise_folder(folder, tau_max_s=None, scheduler=None, size=allan_sums.
                 sensor, avar, stuck(kept.lo[c], kept.hi[c], kept.first[c], n, UNIT[sensor]), dt, m, mats)
                 for a, c, avar in zip("xyz", triad, avars)})
     if "temp_c" in cols:
-        out.update(temperature_block(*kept.temp_c, folder))
+        out.update(temperature_block(kept.temp_c[0], kept.temp_c[1], folder))
     return out
 
 
@@ -325,7 +326,7 @@ def lines(report, written=None):
             yield f"  {a}: " + ", ".join(f"{t['name']} {_term_text(t)}" for t in ax["sheet"].values())
     for _, text in verdicts(report):
         yield text
-    yield from io.skipped_sensors([s for s in ("acc", "gyro") if s in report])
+    yield from skipped_sensors([s for s in ("acc", "gyro") if s in report])
     yield "next: " + next_step(report, written)[0]
 
 

@@ -18,6 +18,7 @@ from simucal import io, methods
 from simucal.errors import CalibrationError
 from simucal.fit.augmented import AugmentedModel
 from simucal.fit.candidates import test_model
+from simucal.report.console import skipped_sensors
 from simucal.report.verdicts import sensor_verdict
 from simucal.fit.norm_fit import Fit, Observations
 from simucal.fit.results import ALPHA, added_params, model_test_keys
@@ -150,7 +151,9 @@ def _diagnose(ms, folder, add, acc_model, gyro_model, acc_noise_g, gyro_noise_dp
     for s in sensors:
         result[s]["verdict"] = sensor_verdict(result[s], s)
     if not sensors:
-        raise CalibrationError(f"{folder}: nothing to diagnose (no static or rate segments)")
+        raise CalibrationError(f"{folder}: nothing to diagnose: segments.csv holds no rows the "
+                               f"{' or '.join(ms.sensors)} model is tested on (the accelerometers' static positions, "
+                               "the gyro's rate runs)")
     worst = min(sensors, key=lambda s: result[s]["model_test"]["p_value"] if result[s]["model_test"]["p_value"] is not None
                 else 1.0)
     result["sensor"] = worst
@@ -161,4 +164,5 @@ def _diagnose(ms, folder, add, acc_model, gyro_model, acc_noise_g, gyro_noise_dp
                                                            -c["statistic"]))) + \
         [c for s in sensors for c in result[s]["candidates"] if not c["separable"]]
     result["verdict"] = " | ".join(result[s]["verdict"] for s in sensors)
+    result["notes"] = skipped_sensors(ms.sensors) + result.get("notes", [])
     return result

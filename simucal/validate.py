@@ -39,7 +39,7 @@ from simucal.fit.validation import FAR_OFF
 from simucal.errors import CalibrationError
 from simucal.io import calibration, units
 from simucal.io.timestamps import with_timestamps
-from simucal.report.console import validation_next
+from simucal.report.console import skipped_sensors, validation_next
 
 WARMUP = "warm-up"  # a still board's warm-up calibration (handheld/warmup.py): validated on another warm-up
 WORSE = 1.05  # after/before above this: the calibration makes the unit worse on these data
@@ -154,7 +154,7 @@ def validate(cal_path, data_dir, acc_noise_g=None, gyro_noise_dph=None, timestam
     return {"format": "simucal.validation/1", "calibration": str(where), "data": str(ms.path),
             "independent": not own, "checks": checks, "verdict": verdicts, "verdict_notes": notes,
             "warnings": list(meta.get("warnings", [])),  # apply's: rows outside the calibrated temperature range
-            "note": own or None, "nominal": [x for x in (said_a, said_g) if x],
+            "note": own or None, "nominal": [x for x in (said_a, said_g) if x], "skipped": skipped_sensors(ms.sensors),
             **({"timestamps": stamps} if stamps else {})}
 
 
@@ -194,6 +194,7 @@ def lines(report):
                        + c.get("far_off_hint", "check those rows of the recording"))
     for w in report.get("warnings", []):
         yield f"WARNING: {report['data']}: {w}"
+    yield from report.get("skipped", [])
     for s, v in report["verdict"].items():
         yield f"{s}: {v}" + (": this calibration makes the unit worse on these data than its nominal scale "
                              "factors; do not use it" if v.startswith("WORSE THAN NOMINAL") else "") + (

@@ -122,3 +122,52 @@ def test_a_frame_s_first_mistakes_are_named_with_the_column_row_and_option():
     typo.loc[5, "az"] = "1.0g"
     with pytest.raises(MeasurementSetError, match=r"column 'az', row 5: '1.0g' is not a number"):
         simucal.MeasurementSet.from_dataframe(typo, acc_unit="g", gyro_unit="deg/h")
+
+
+# Placeholders for the arguments a call needs beside the one tested: never read, the types are checked first.
+REQUIRED = {"import_recording": ("ulog", ["w.ulg"], "out"), "calibrate": ("set",), "validate": ("cal.json", "set"),
+            "diagnose": ("set",), "noise": ("set",), "sequence_observability": ("psins19",),
+            "calibrate_each": (["set"], "out")}
+
+
+def _wrong_values(annotation: str) -> list:
+    """Values of a wrong type for a parameter so annotated: a str where a list of paths or of numbers is; a str
+    and a bool (and where a whole number is, a fraction) where a number is; none where it takes neither."""
+    import re
+    if annotation.startswith("Sequence[float]"):
+        return ["10"]
+    if annotation.startswith("Sequence[") and "Path" in annotation:
+        return ["w.ulg"]
+    if re.search(r"\b(int|float)\b", annotation) and not annotation.startswith(("Sequence", "Data")):
+        return ["ten", True] + ([2.5] if "float" not in annotation else [])
+    return []
+
+
+def test_every_public_function_refuses_an_argument_of_a_wrong_type_in_one_line():
+    """A wrong type was a bare TypeError deep inside (design_sequence('ten')) or misread (one path as a str, read a
+    character at a time: "would write into the input ."); now each is one InputError naming the function, the
+    argument, what was given and what is expected."""
+    import inspect
+
+    from simucal.errors import InputError
+    tested = set()
+    for name in simucal.__all__:
+        f = getattr(simucal, name)
+        if not inspect.isfunction(f):
+            continue
+        params = inspect.signature(f).parameters
+        required = [p for p in params.values() if p.default is p.empty and p.kind is p.POSITIONAL_OR_KEYWORD]
+        annotated = {p.name: p.annotation for p in params.values() if p.kind is not p.VAR_KEYWORD}
+        if any(p.kind is p.VAR_KEYWORD for p in params.values()):  # calibrate's options
+            annotated.update(simucal.CalibrateOptions.__annotations__)
+        for arg, annotation in annotated.items():
+            for wrong in _wrong_values(str(getattr(annotation, "__forward_arg__", annotation))):  # options': ForwardRef
+                given = dict(zip([p.name for p in required], REQUIRED.get(name, ())))
+                given[arg] = wrong
+                with pytest.raises(InputError) as refusal:
+                    f(**given)
+                text = str(refusal.value)
+                assert "\n" not in text and text.startswith(f"{name}: {arg}={wrong!r} is a {type(wrong).__name__}, ")
+                tested.add(name)
+    assert {"import_recording", "design_sequence", "calibrate", "diagnose", "validate", "noise", "simulate", "plan",
+            "sequence_observability", "montecarlo", "calibrate_each", "audit"} <= tested

@@ -906,3 +906,78 @@ def test_a_turntable_set_with_a_run_relabelled_move_names_the_segments_and_the_r
                                   str(tmp_path / "c.json")])
     assert r.exit_code == 2 and f"move segments (segment {first[0]})" in r.stderr
     assert "a rotation sequence is rests (static) and the moves between them" in r.stderr
+
+
+# --- a set of one sensor (the spec lets samples.csv hold the accelerometers' or the gyros' columns only) ----------
+
+OTHER = {"acc": "gyro", "gyro": "acc"}
+
+
+def _one_sensor(src, dst, keep):
+    """A copy of src with the other sensor's columns dropped, and its meta.json fields as the spec then allows: no
+    scale factors or noise of it (its unit, required, in a physical unit), no latitude without a gyro."""
+    d = Path(shutil.copytree(src, dst))
+    for c in io.SENSOR_COLS[OTHER[keep]]:
+        _drop_column(d, c)
+    m = json.loads((d / "meta.json").read_text())
+    m = {k: v for k, v in m.items() if not k.startswith(OTHER[keep] + "_")
+         and not (keep == "acc" and k == "latitude_deg")}
+    m[OTHER[keep] + "_unit"] = "deg/h" if keep == "acc" else "g"
+    (d / "meta.json").write_text(json.dumps(m))
+    return d
+
+
+def _ran(args):
+    r = CliRunner().invoke(main, [str(a) for a in args])
+    assert r.exit_code == 0 and "Traceback" not in r.output, (args, r.output, r.exception)
+    return r.output
+
+
+@pytest.mark.parametrize("keep", ["acc", "gyro"])
+def test_a_turntable_set_of_one_sensor_is_worked_on_and_the_other_said_skipped(raw_table, tmp_path, keep):
+    """An accelerometer-only set ended in an internal error (TypeError) in calibrate; now every command does the
+    one sensor's work and says which it skipped."""
+    d = _one_sensor(raw_table, tmp_path / "one", keep)
+    skipped = f"{OTHER[keep]}: skipped (the data have no {' '.join(io.SENSOR_COLS[OTHER[keep]])} columns)"
+    cal = tmp_path / "c.json"
+    out = _ran(["calibrate", d, "-o", cal])
+    assert skipped in out and f"{keep}: residual rms" in out
+    assert json.loads(cal.read_text())["layout"]["sensors"] == [keep]
+    assert skipped in _ran(["diagnose", d, "-o", tmp_path / "d.json"])
+    assert skipped in _ran(["validate", cal, d, "-o", tmp_path / "v.json"])
+    assert skipped in _ran(["noise", d, "-o", tmp_path / "n.json"])
+    assert f"{OTHER[keep]} skipped (not in {d})" in _ran(["apply", cal, d, "-o", tmp_path / "applied"])
+
+
+@pytest.mark.parametrize("keep", ["acc", "gyro"])
+def test_a_sequence_of_one_sensor_is_refused_naming_the_columns(tmp_path, keep):
+    """Systematic calibration navigates with both sensors: a gyro-only sequence was a KeyError ('ax'), an
+    accelerometer-only one was sent to add a latitude it did not need."""
+    from simucal import api
+    seq = tmp_path / "seq.csv"
+    seq.write_text("axis,angle_deg,rate_dps,rest_s\n" + "outer,90,10,15\n" * 2 + "inner,90,10,15\n" * 2)
+    api.simulate(sequence=str(seq), rate_hz=20.0).write(tmp_path / "seq")
+    d = _one_sensor(tmp_path / "seq", tmp_path / "one", keep)
+    for cmd in ("calibrate", "diagnose"):
+        run_refused([cmd, d, "-o", tmp_path / "o.json"], f"{d / 'samples.csv'}: has no "
+                    f"{' '.join(io.SENSOR_COLS[OTHER[keep]])} columns", "both sensors", out=tmp_path / "o.json")
+
+
+def test_noise_of_a_moving_stream_without_accelerometers_is_refused_by_its_rate(sets, tmp_path):
+    """Without accelerometers noise could not tell a hand-placed session from a still recording, and gave its
+    moves as a rate random walk; the gyro's 1-s means tell it now."""
+    d = _one_sensor(sets / "stream", tmp_path / "gyro_only", "gyro")
+    run_refused(["noise", d, "-o", tmp_path / "n.json"], "the unit moves", "1-s mean rate", out=tmp_path / "n.json")
+
+
+def test_simulate_a_sequence_says_the_sequence_scenario(tmp_path):
+    """--scenario sequence --sequence NAME was an internal error (KeyError: 'sequence'); --sequence alone wrote a
+    sequence and said "paper scenario"."""
+    seq = tmp_path / "seq.csv"
+    seq.write_text("axis,angle_deg,rate_dps,rest_s\nouter,90,10,5\n")
+    for i, args in enumerate((["--scenario", "sequence", "--sequence", seq], ["--sequence", seq])):
+        out = _ran(["simulate", "-o", tmp_path / f"s{i}", *args])
+        assert f"wrote {tmp_path / f's{i}'} (sequence scenario, seed 0)" in out
+        assert any(s.kind == "move" for s in io.read_set(tmp_path / f"s{i}").segments)
+    run_refused(["simulate", "-o", tmp_path / "s2", "--scenario", "handheld", "--sequence", seq],
+                "sequence (--sequence)", "--scenario paper or sequence", out=tmp_path / "s2")

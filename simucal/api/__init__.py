@@ -27,6 +27,7 @@ from simucal.calibrate import calibrate as _calibrate_set
 from simucal.calibrate import calibrate_thermal as _calibrate_thermal
 from simucal.api.calibration import Calibration, Parameter
 from simucal.api.batch import Calibrated, calibrate_each
+from simucal.api.arguments import checked
 from simucal.api.options import CalibrateOptions
 from simucal.api.imports import convert, import_recording
 from simucal.api.planning import design_sequence, plan, sequence_observability
@@ -77,6 +78,7 @@ def read_set(path: str | os.PathLike) -> MeasurementSet:
     return MeasurementSet.of(io.read_set(path))
 
 
+@checked
 def calibrate(data: Data | Sequence[str | os.PathLike], **options: Unpack[CalibrateOptions]) -> Calibration:
     """Calibrate a unit from one measurement set (or, with ``thermal=True``, from plateaus).
 
@@ -166,6 +168,7 @@ class Validation:
                                                 *[("warning", w) for w in self.warnings]])
 
 
+@checked
 def validate(cal: Calibration | str | os.PathLike, data: Data, *, acc_noise_g: float | None = None,
              gyro_noise_dph: float | None = None, timestamps: str | None = None) -> Validation:
     """Apply a calibration to an independent set and compare with nominal and the noise floor.

@@ -11,6 +11,7 @@ from typing import NamedTuple, Sequence, Union
 from simucal.errors import InputError
 from simucal import io
 from simucal.io import records
+from simucal.api.arguments import checked
 from simucal.api.sets import as_set, effect_ids, folder_of
 from simucal.api.tables import TableOf
 
@@ -75,6 +76,7 @@ class Diagnosis:
                                                *[("note", n) for n in self.notes + self.next_notes]])
 
 
+@checked
 def diagnose(data: Data, *, add: str | Sequence[str] = (), acc_model: str = "acc_baseline", gyro_model: str = "gyro_baseline",
              acc_noise_g: float | None = None, gyro_noise_dph: float | None = None,
              timestamps: str = "auto") -> Diagnosis:
@@ -228,6 +230,7 @@ class Noise:
         return allan.kalibr_yaml(self.report)
 
 
+@checked
 def noise(data: Data, *, tau_max_s: float | None = None, scheduler: str | None = None,
           topic: str | None = None) -> Noise:
     """Allan deviation of a still recording and its IEEE 952 terms (quantisation, white noise, bias

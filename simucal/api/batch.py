@@ -6,6 +6,7 @@ import os
 from pathlib import Path
 from typing import Any, NamedTuple, Sequence
 
+from simucal.api.arguments import checked
 from simucal.api.calibration import Calibration
 from simucal.api.options import CalibrateOptions
 from simucal.errors import InputError
@@ -23,6 +24,7 @@ class Calibrated(NamedTuple):
     error: str | None    # the refusal's message
 
 
+@checked
 def calibrate_each(data_dirs: Sequence[str | os.PathLike], folder: str | os.PathLike, *, scheduler: str | None = None,
                    progress: Any = None, **options: Unpack[CalibrateOptions]) -> list[Calibrated]:
     """Calibrate every set of `data_dirs` (as `simucal.calibrate` with `options`) and write each one's file as

@@ -6,6 +6,7 @@ import os
 from pathlib import Path
 from typing import Sequence
 
+from simucal.api.arguments import checked
 from simucal.api.sets import MeasurementSet
 from simucal.errors import InputError
 
@@ -16,6 +17,7 @@ ANNOTATED_HZ, ANNOTATED_ACC, ANNOTATED_GYRO = 204.8, 2048.0, 16.4  # imucal's an
 Path_ = str | os.PathLike
 
 
+@checked
 def import_recording(fmt: str, sources: Sequence[Path_], out: Path_, *, latitude_deg: float | None = None,
                      acc_counts_per_g: float | None = None, gyro_counts_per_dps: float | None = None,
                      gravity_mps2: float | None = None, rate_hz: float | None = None, columns: str | None = None,

@@ -7,6 +7,7 @@ from typing import Any, Sequence
 
 import numpy as np
 
+from simucal.api.arguments import checked
 from simucal.errors import InputError
 from simucal.io import results
 
@@ -20,6 +21,7 @@ def model_sensor(model: str, add: Sequence[str] = ()) -> str:
     return str(AugmentedModel(model, tuple(add)).sensor)
 
 
+@checked
 def plan(score: str | None = None, *, positions: int | None = None, model: str = "acc_baseline",
          add: Sequence[str] = (), criterion: str = "D", rates_dps: Sequence[float] | None = None,
          noise: float | None = None, kind: str = "three-axis", separate: Sequence[str] | None = None,
@@ -119,6 +121,7 @@ def _separation(model, pair, sizes, score, u, rho, sigma, target) -> results.Sep
     return sep
 
 
+@checked
 def sequence_observability(sequence: str, *, model: str = "acc_baseline", add: Sequence[str] = (),
                            score: str | None = None, rates_dps: Sequence[float] | None = None,
                            acc_noise_g: float | None = None, gyro_noise_dph: float | None = None) -> results.SequenceObservability:
@@ -157,6 +160,7 @@ def sequence_observability(sequence: str, *, model: str = "acc_baseline", add: S
             "plan": plan_name, "noise": noise, "rest_n": rest_n, "stated": bool(acc_noise_g and gyro_noise_dph)}
 
 
+@checked
 def design_sequence(minutes: float = 10.0, *, reference: str = "psins19", reference_minutes: float | None = None,
                     unit: str | None = None, acc_noise_g: float | None = None, gyro_noise_dph: float | None = None,
                     rate_dps: float = 60.0, evaluations: int = 600, seed: int = 0,

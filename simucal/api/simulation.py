@@ -8,6 +8,7 @@ from typing import Any, Mapping, Sequence, Union
 from simucal.errors import InputError
 from simucal import methods
 from simucal.io import results
+from simucal.api.arguments import checked
 from simucal.api.sets import MeasurementSet
 
 Pairs = Union[Mapping[str, float], Sequence[str]]  # {name: value} or the command's "NAME=VALUE" strings
@@ -18,6 +19,7 @@ TABLE_ONLY = {"sequence": "--sequence", "plan": "--plan", "position_error_arcmin
               "effect_file": "--effect-file", "sets": "--set", "columns": "--column",
               "temperature_c": "--temperature-c", "t_ref_c": "--t-ref-c",
               "temperature_wander_c": "--temperature-wander-c", "noise_stated": "--no-noise-stated"}
+TABLE = ("paper", "sequence")  # the scenarios of a turntable: they take its options
 TAKES = {"paper": "--seed, --rate-hz and the turntable's options", "field": "--seed, --rate-hz and --heading-accuracy-deg",
          "handheld": "--seed, --rate-hz and --effect"}
 
@@ -36,22 +38,31 @@ def _span(v) -> str:
     return ":".join(repr(float(x)) for x in v) if isinstance(v, (tuple, list)) else str(v)
 
 
+def _scenario(scenario: str, sequence: str | None) -> str:
+    """The scenario named, refused unless one of SCENARIOS; "paper" with a sequence is "sequence" (the same table
+    turning through it: that scenario's data)."""
+    if scenario not in SCENARIOS:
+        raise InputError(f"scenario {scenario!r}: one of {', '.join(SCENARIOS)}")
+    return "sequence" if scenario == "paper" and sequence is not None else scenario
+
+
 def _refuse_unused(scenario: str, table_options: dict, effects, heading_accuracy_deg, unit_seed=None) -> None:
     """An option the scenario would not use is refused, naming it (Python name and the command's)."""
-    if scenario == "paper" and unit_seed is not None:
+    if scenario in TABLE and unit_seed is not None:
         raise InputError(f"unit_seed (--unit-seed) {unit_seed}: the turntable unit is the scenario's at every seed; "
                          "the hand-placed and field scenarios draw theirs (--scenario handheld or field)")
     if scenario != "field" and heading_accuracy_deg is not None:
         raise InputError(f"heading_accuracy_deg (--heading-accuracy-deg) {heading_accuracy_deg:g}: the field "
                          f"scenario's north reference (--scenario field); a {scenario} test has none")
-    given = {} if scenario == "paper" else {**table_options, "effects": effects if scenario == "field" else None}
+    given = {} if scenario in TABLE else {**table_options, "effects": effects if scenario == "field" else None}
     unused = [f"{k} ({TABLE_ONLY.get(k, '--effect')})" for k, v in given.items()
               if v is not None and v is not False and not (isinstance(v, (tuple, list, dict)) and not v)]
     if unused:
-        raise InputError(f"{', '.join(unused)}: a turntable test's (--scenario paper); the {scenario} scenario takes "
-                         + TAKES[scenario])
+        raise InputError(f"{', '.join(unused)}: a turntable test's (--scenario paper or sequence); the {scenario} "
+                         "scenario takes " + TAKES[scenario])
 
 
+@checked
 def simulate(scenario: str = "paper", *, seed: int = 0, rate_hz: float | None = None, plan: str | None = None,
              effects: Pairs | None = None, position_error_arcmin: float | None = None, acc_model: str | None = None,
              gyro_model: str | None = None, acc_unit: str | None = None, gyro_unit: str | None = None,
@@ -63,10 +74,10 @@ def simulate(scenario: str = "paper", *, seed: int = 0, rate_hz: float | None = 
 
     Parameters
     ----------
-    scenario : {"paper", "field", "handheld"}
-        "paper": a turntable test, dong2018 section 4 (raw pulse/s); "field": ruan2019's three
-        positions without a table; "handheld": a hand-placed session (a stream in counts, poses held
-        between moves).
+    scenario : {"paper", "sequence", "field", "handheld"}
+        "paper": a turntable test, dong2018 section 4 (raw pulse/s); "sequence" (or `sequence` given): its table
+        turning through a rotation sequence; "field": ruan2019's three positions without a table; "handheld": a
+        hand-placed session (a stream in counts, poses held between moves).
     seed, unit_seed : int
         numpy's seeds: the recording's, and where the unit is drawn (hand-placed, field) the unit's (default seed).
     rate_hz : float, optional
@@ -108,8 +119,7 @@ def simulate(scenario: str = "paper", *, seed: int = 0, rate_hz: float | None = 
     >>> ms.truth["acc"]["effects"]
     {'acc.quadratic.z': 0.0002}
     """
-    if scenario not in SCENARIOS:
-        raise InputError(f"scenario {scenario!r}: one of {', '.join(SCENARIOS)}")
+    scenario = _scenario(scenario, sequence)
     table_options = dict(sequence=sequence, plan=plan, position_error_arcmin=position_error_arcmin, acc_model=acc_model,
                          gyro_model=gyro_model, acc_unit=acc_unit, gyro_unit=gyro_unit, effect_file=effect_file,
                          sets=sets, columns=columns, temperature_c=temperature_c, t_ref_c=t_ref_c,
@@ -128,6 +138,7 @@ def simulate(scenario: str = "paper", *, seed: int = 0, rate_hz: float | None = 
 MAX_TRIALS = 10_000_000  # ~1.4 GB of estimates, about two minutes compiled
 
 
+@checked
 def montecarlo(*, plan: str | None = None, trials: int = 10_000, seed: int = 0, effects: Pairs | None = None,
                effect_file: str | None = None, sets: Pairs | None = None, rates_dps: Sequence[float] | None = None,
                scheduler: str = "local", progress: Any = None) -> results.MonteCarlo:

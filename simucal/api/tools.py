@@ -7,6 +7,7 @@ from __future__ import annotations
 import os
 from typing import Any, Callable, NamedTuple
 
+from simucal.api.arguments import checked
 from simucal.io import records
 
 
@@ -47,6 +48,7 @@ def derive_model(path: str | os.PathLike) -> list[str]:
     return list(names)
 
 
+@checked
 def audit(seeds: int = 20, progress: Any = None) -> Any:
     """dong2018 audited: its printed equations (4)-(27), Tables 1 and 2 term by term at the section-4 values, and
     its numeric claims against a Monte Carlo of `seeds` tests per setting (0: skipped). The result has

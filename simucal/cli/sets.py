@@ -112,7 +112,7 @@ def simulate(out_dir, output, scenario, heading_error_deg, seed, unit_seed, plan
                       noise_stated=not no_noise_stated, heading_accuracy_deg=heading_error_deg,
                       sequence=sequence, unit_seed=unit_seed)
     ms.write(out_dir, force=force)
-    click.echo(f"wrote {out_dir} ({scenario} scenario, seed {seed}"
+    click.echo(f"wrote {out_dir} ({methods.kind_of(ms).scenario} scenario, seed {seed}"  # what was written
                + (f", the unit of seed {unit_seed})" if unit_seed is not None else ")"))
 
 
@@ -183,8 +183,10 @@ def apply_cmd(calibration_file, data_dir, out_dir, force):
     calibrated.write(out_dir, force=True)  # guarded above, with --force
     for line in calibrated.meta.get("warnings", []):
         click.echo(f"WARNING: {line}")
-    click.echo(f"wrote {out_dir}: {len(calibrated.samples['t_s'])} rows in g and deg/h (frame b), calibrated by "
-               f"{calibration_file}")
+    written = {"acc": "g", "gyro": "deg/h"}  # apply's units; a sensor the data lack is said skipped
+    click.echo(f"wrote {out_dir}: {len(calibrated.samples['t_s'])} rows in "
+               f"{' and '.join(written[s] for s in calibrated.sensors)} (frame b), calibrated by {calibration_file}"
+               + "".join(f"; {s} skipped (not in {data_dir})" for s in written if s not in calibrated.sensors))
 
 
 @main.command()

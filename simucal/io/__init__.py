@@ -28,6 +28,7 @@ from simucal.io.text_files import (MeasurementSetError, RepeatedKey, body_of, ch
 
 FORMAT = "simucal.measurements/1"
 SAMPLE_COLS = ("ax", "ay", "az", "gx", "gy", "gz")
+SENSOR_COLS = {"acc": SAMPLE_COLS[:3], "gyro": SAMPLE_COLS[3:]}
 SEGMENT_COLS = ("segment", "kind", "outer_deg", "middle_deg", "inner_deg", "outer_rate_dps")
 PLAUSIBLE = 1e12  # no output, time or temperature of a real unit is this large (counts and pulse/s included)
 
@@ -66,6 +67,11 @@ class MeasurementSet:
     @property
     def has_gyro(self):
         return "gx" in self.samples
+
+    @property
+    def sensors(self) -> list[str]:
+        """The sensors the set records: acc, gyro or both."""
+        return [s for s, cols in SENSOR_COLS.items() if cols[0] in self.samples]
 
     def raw(self, sensor: str) -> np.ndarray:
         """The outputs of 'acc' (ax ay az) or 'gyro' (gx gy gz) as recorded, in their own unit (n, 3),

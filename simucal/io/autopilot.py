@@ -221,9 +221,11 @@ def texts(cal, meta: meta_keys.Meta, px4: str | None = None, ardupilot: str | No
     """[(path, text, warnings, note)] of the files asked for; meta: the data's meta.json (gravity_mps2)."""
     polys = bias_polynomials(cal, gravity_mps2(meta))
     source = ", ".join(cal.input) if isinstance(cal.input, list) else str(cal.input)
-    log = meta.get("log") if isinstance(meta.get("log"), dict) else {}
+    got = meta.get("log")
+    log = got if isinstance(got, dict) else {}
     ids = {p.sensor: log.get(f"{p.sensor}_device_id") for p in polys} if log else None
     # the slot is the log's instance (PX4's primary IMU, sensor_combined, has none: slot 0, matched by its id)
-    slot = log.get("instance") if isinstance(log.get("instance"), int) else 0
+    instance = log.get("instance")
+    slot = instance if isinstance(instance, int) else 0
     made = [(px4, *px4_text(polys, source, ids, slot), px4_note(ids, slot))] if px4 else []
     return made + ([(ardupilot, *ardupilot_text(polys, source, slot), ardupilot_note(slot))] if ardupilot else [])

@@ -3,12 +3,20 @@
 from __future__ import annotations
 
 from simucal.fit import family
+from simucal.io import SENSOR_COLS
 from simucal.io.calibration import ALPHA, Calibration, SensorBlock, SensorDetails
 
 
 def n_units(n: int) -> str:
     """'1 unit', '2 units': a count of units in words."""
     return f"{n} unit" + "s" * (n != 1)
+
+
+def skipped_sensors(present) -> list[str]:
+    """A line for each sensor not among `present`: the spec lets a set record one kind of sensor only, so a
+    command that works on the other alone says what it left out (calibrate, diagnose, validate, noise)."""
+    return [f"{s}: skipped (the data have no {' '.join(cols)} columns)" for s, cols in SENSOR_COLS.items()
+            if s not in present]
 
 
 def calibration_lines(cal: Calibration):
@@ -48,6 +56,7 @@ def calibration_lines(cal: Calibration):
         yield from _determination_lines(s, b)
     for sensor, why in cal.not_calibrated.items():
         yield f"{sensor}: NOT CALIBRATED: {why}"
+    yield from skipped_sensors([*cal.sensors, *cal.not_calibrated])  # the layout is the data's sensors
     for line in cal.warnings:
         yield f"WARNING: {line}"
 

@@ -16,7 +16,7 @@ from simucal.errors import CalibrationError
 from simucal.fit.augmented import AugmentedModel, for_sensor
 from simucal.fit.aux_inputs import AuxInputs
 from simucal.generated import table
-from simucal.io import timestamps, units
+from simucal.io import SENSOR_COLS, timestamps, units
 from simucal.fit.rotations import exp_so3, log_so3
 from simucal.systematic.filter import (Epoch, Sensors, compose, kalman, level, nominal, smooth,
                                       transitions)
@@ -51,6 +51,10 @@ def rests_and_moves(ms):
             "sequence is rests (static) and the moves between them, in recording order, raw samples throughout; a "
             "turntable test is static positions and rate runs. If this is a turntable test, label those moves rate "
             "(then calibrate takes --method exact); else record the sequence's turns as moves")
+    if len(ms.sensors) < 2:  # the gyro's attitude carries gravity into the accelerometers' frame, and back
+        lacking = "gyro" if ms.has_acc else "acc"
+        raise CalibrationError(f"{ms.path / 'samples.csv'}: has no {' '.join(SENSOR_COLS[lacking])} columns; "
+                               "systematic calibration navigates through the sequence with both sensors: record both")
     if ms.meta.get("latitude_deg") is None:
         raise CalibrationError(f"{ms.path / 'meta.json'}: latitude_deg is missing; the navigation needs the "
                                "site's latitude (the Earth rate's direction): add \"latitude_deg\": <deg>")

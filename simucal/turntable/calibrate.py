@@ -41,7 +41,7 @@ def _rate_run_acc_means(acc_obs, acc_segs, gyro_segs):
     from the accelerometers' observations as segment_observations gave them (before a fit fills
     their sigma): NaN where neither their scatter nor a statement gives it (the unification then
     estimates it from the rate-run pairs)."""
-    if acc_obs is None:
+    if acc_obs is None or gyro_segs is None:  # an accelerometer-only set has no gyro rows to pair
         return None
     at = {s.segment: i for i, s in enumerate(acc_segs) if s.kind == "rate"}
     rows = [j for j, s in enumerate(gyro_segs) if s.segment in at]
