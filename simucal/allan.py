@@ -240,7 +240,8 @@ def temperature_block(lo, hi, data) -> dict:
                             "the bias's thermal drift reads as bias instability, random walk and rate ramp, so the "
                             "long-tau terms (and Kalibr's random walks) may be thermal, not noise; record at a steady "
                             f"temperature, or take the thermal model out first: simucal calibrate {data} --thermal -o "
-                            f"warm.json, simucal apply warm.json {data} -o flat, simucal noise flat")
+                            f"warm.json, simucal apply warm.json {data} -o {Path(str(data)).name}_flat, simucal noise "
+                            f"{Path(str(data)).name}_flat")
     return {"temperature": block}
 
 

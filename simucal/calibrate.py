@@ -273,11 +273,11 @@ def _refuse_a_board_that_moved(ms) -> None:
     if not 2 <= len(spans) <= 3 or still_s < 0.8 * (t[-1] - t[0]):
         return
     f = ms.acc_g()
-    first, last = (f[a:b].mean(axis=0) for a, b in ((d.starts[0], d.ends[0]), (d.starts[-1], d.ends[-1])))
-    angle = np.degrees(np.arccos(np.clip(first @ last / np.linalg.norm(first) / np.linalg.norm(last), -1, 1)))
+    up = [f[a:b].mean(axis=0) / np.linalg.norm(f[a:b].mean(axis=0)) for a, b in zip(d.starts, d.ends)]
+    angle = max(np.degrees(np.arccos(np.clip(u @ v, -1, 1))) for i, u in enumerate(up) for v in up[i + 1:])
     raise CalibrationError(
         f"{ms.path}: the board moved during the warm-up: it is still in {len(spans)} stretches ("
-        + ", ".join(f"{a:.0f}-{b:.0f} s" for a, b in spans) + f"), the first and last {angle:.0f} deg apart, while a "
+        + ", ".join(f"{a:.0f}-{b:.0f} s" for a, b in spans) + f"), up to {angle:.0f} deg apart, while a "
         "still warm-up is one orientation: give each stretch as a set of its own (each is calibrated with --thermal "
         f"where its temperature spans {MIN_SPAN_C:g} degC), or log the warm-up again without touching the board")
 

@@ -367,7 +367,7 @@ def test_a_turn_about_the_vertical_is_no_pose(tmp_path):
 
 
 def test_a_slow_move_is_no_part_of_a_pose():
-    """A 3.9 deg move peaking at 2.4 deg/s (seed 927): at GYRO_STILL_DPS = 1 deg/s the poses on either side took
+    """A 3.9 deg move peaking at 2.4 deg/s (seed 927): at a fixed gyro limit of 1 deg/s (the limit is now the session's own) the poses on either side took
     0.35 deg of it each, and the moves failed their test at chi2 186 on 51 dof (p = 6e-17) on a clean session."""
     from simucal import api
     cal = api.calibrate(api.simulate("handheld", seed=927))

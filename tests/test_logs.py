@@ -12,6 +12,7 @@ from log_writers import write_bag, write_dataflash, write_ulog
 
 from simucal import io
 from simucal.cli import main
+from simucal.errors import CalibrationError
 
 G = 9.80665
 
@@ -201,7 +202,7 @@ def test_a_real_ulog_gives_its_latitude_and_a_low_rate_source_is_named(tmp_path)
     ms = io.read_set(tmp_path / "set")
     assert abs(ms.meta["latitude_deg"] - 63.417) < 1e-3 and "GPS" in ms.meta["log"]["latitude"]
     assert ms.meta["log"]["source"] == "vehicle_imu instance 1"  # 2 Hz beats sensor_accel's 1 Hz
-    assert "under 10 Hz" in r.output and "SDLOG_PROFILE" in r.output
+    assert "under 10 Hz" in r.output and "full rate" in r.output
     assert any("under 10 Hz" in w for w in ms.meta["warnings"])
 
 
@@ -274,3 +275,35 @@ def test_topic_on_a_measurement_set_names_the_set_and_the_option(tmp_path):
                   "az": np.full(10, G)})
     r = CliRunner().invoke(main, ["noise", str(tmp_path / "set"), "--topic", "/imu", "-o", str(tmp_path / "n.json")])
     refused(r, "a measurement set", "--topic")
+
+
+def test_px4_parameters_are_never_fitted_on_data_px4_has_already_calibrated(tmp_path):
+    """sensor_combined is VehicleIMU's output, PX4's calibration (and thermal compensation) in it: the import says
+    so, and --px4 from such a set is refused; a DataFlash log ending in padding keeps its messages; a temperature
+    logged NaN at first drops the column, said."""
+    r = _import("ulog", PYULOG_DATA / "sample_log_small.ulg", "-o", tmp_path / "set", "--latitude-deg", 47.4)
+    assert r.exit_code == 0, r.output
+    assert "calibration already applied" in io.read_set(tmp_path / "set").meta["log"]["corrected"]
+    import simucal
+    from simucal.io.autopilot import texts
+    acc, gyro = still_board(seconds=120.0, acc_hz=50.0, gyro_hz=100.0)
+    write_ulog(tmp_path / "w.ulg", acc, gyro)
+    assert _import("ulog", tmp_path / "w.ulg", "-o", tmp_path / "raw", "--latitude-deg", 47.4).exit_code == 0
+    cal = simucal.calibrate(tmp_path / "raw", thermal=True)
+    meta = io.read_set(tmp_path / "raw").meta
+    assert texts(cal, meta, px4="tc.params")  # the raw topics: written
+    meta["log"] = io.read_set(tmp_path / "set").meta["log"]  # as if the warm-up were sensor_combined's
+    with pytest.raises(CalibrationError, match="sensor_combined.*raw sensor_accel/sensor_gyro"):
+        texts(cal, meta, px4="tc.params")
+    acc, gyro = still_board(seconds=2.0, gyro_hz=200.0)
+    temp = acc["temperature"].copy()
+    temp[:10] = np.nan
+    imu = {"t_us": acc["t_us"], "acc": np.column_stack([acc[k] for k in "xyz"]),
+           "gyro": np.column_stack([gyro[k] for k in "xyz"]), "temperature": temp}
+    write_dataflash(tmp_path / "pad.bin", imu)
+    (tmp_path / "pad.bin").write_bytes((tmp_path / "pad.bin").read_bytes() + bytes(512))
+    r = _import("dataflash", tmp_path / "pad.bin", "-o", tmp_path / "pad", "--latitude-deg", 47.4)
+    assert r.exit_code == 0 and "the last 512 bytes are left out" in r.output, r.output
+    assert "10 of 400 temperature samples are NaN" in r.output
+    pad = io.read_set(tmp_path / "pad")
+    assert len(pad.samples["t_s"]) == 400 and "temp_c" not in pad.samples

@@ -71,7 +71,7 @@ def import_recording(fmt: str, sources: Sequence[Path_], out: Path_, *, latitude
         from simucal.errors import LogWarning
         meta = import_log(fmt, paths[0], out, latitude_deg, None if instance is None else int(instance), topic)
         for line in meta.get("warnings", []):
-            warnings.warn(line, LogWarning, stacklevel=2)
+            warnings.warn(line, LogWarning, stacklevel=3)  # the caller's line, past arguments.checked
     elif fmt == "imu_tk":
         if len(paths) != 2 or not acc_counts_per_g or not gyro_counts_per_dps:
             raise im.ImportError_("imu_tk needs ACC_FILE GYRO_FILE, --acc-counts-per-g and --gyro-counts-per-dps")

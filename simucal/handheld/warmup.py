@@ -187,8 +187,8 @@ def _block(sensor, raw, T, t_s, t_ref, scale_c) -> SensorBlock:
                        description=f"bias over temperature, each axis a polynomial of degree {[a['degree'] for a in axes]}"
                                    " chosen by the data (Newey-West stds); scale factors and misalignments nominal",
                        thermal=thermal,
-                       details={"test": "the two powers beyond each axis's degree, jointly (Wald, Newey-West "
-                                        "covariance; 2 dof an axis)",
+                       details={"test": "the powers beyond each axis's degree, jointly (Wald, under the random "
+                                        f"walk's covariance; {'/'.join(str(a['dof']) for a in axes)} dof on x/y/z)",
                                 "note": "still data: " + ("the change over temperature only (gravity hides the "
                                                           "constant)" if sensor == "acc" else
                                                           "the bias with the Earth rate's share along each axis")})

@@ -16,7 +16,9 @@ offset_i = X0_i + X1_i dT + X2_i dT^2 + X3_i dT^3 (float32), m/s^2 and rad/s, su
 sensor_accel/sensor_gyro reading before the calibration's offset, scale and rotation to the body frame
 (src/lib/sensor_calibration/Accelerometer.hpp, `Correct`: _rotation * ((data - _thermal_offset - _offset)
 .emult(_scale))). So X_k = c_k with TREF = T_ref. PX4 applies a set only to the sensor whose device id is
-TC_A0_ID / TC_G0_ID, which the data do not know: the user sets it (the file says so).
+TC_A{n}_ID / TC_G{n}_ID: the log's device ids where the data were imported from one, else the user sets them
+(the file says so). The data must be the raw topics: a ULog's sensor_combined or vehicle_imu already has
+PX4's calibration in it, and is refused.
 
 ArduPilot (libraries/AP_InertialSensor/AP_InertialSensor_tempcal.cpp, `TCal::correct_sensor` and
 `TCal::polynomial_eval`): v -= P(T - 35) and v += P(T_cal - 35), T and T_cal (the temperature of the
@@ -47,6 +49,7 @@ SI_UNIT = {"acc": "m/s^2", "gyro": "rad/s"}
 ARDUPILOT_T_REF_C = 35.0     # AP_InertialSensor_tempcal.cpp, TEMP_REFERENCE
 ARDUPILOT_SCALE = 1.0e6      # AP_InertialSensor_tempcal.cpp, SCALE_FACTOR
 PX4_REAL32, PX4_INT32 = 9, 6  # MAV_PARAM_TYPE of a QGroundControl .params line
+PX4_SLOTS, ARDUPILOT_SLOTS = 4, 3  # TC_A0..TC_A3 (temperature_compensation's params); INS_TCAL1..3
 
 
 @dataclass(frozen=True)
@@ -227,5 +230,13 @@ def texts(cal, meta: meta_keys.Meta, px4: str | None = None, ardupilot: str | No
     # the slot is the log's instance (PX4's primary IMU, sensor_combined, has none: slot 0, matched by its id)
     instance = log.get("instance")
     slot = instance if isinstance(instance, int) else 0
+    if px4 and log.get("corrected"):
+        raise CalibrationError(f"--px4: {source} was imported from {log.get('source')}, with {log['corrected']}; PX4's "
+                               "TC_* correct the raw sensor_accel/sensor_gyro: log those (SDLOG_PROFILE's thermal "
+                               "calibration bit) and import them with --instance N")
+    for given, name, slots in ((px4, "--px4", PX4_SLOTS), (ardupilot, "--ardupilot", ARDUPILOT_SLOTS)):
+        if given and slot >= slots:
+            raise CalibrationError(f"{name}: {source} is the log's IMU instance {slot}; the autopilot has thermal "
+                                   f"compensation slots for instances 0 to {slots - 1} only")
     made = [(px4, *px4_text(polys, source, ids, slot), px4_note(ids, slot))] if px4 else []
     return made + ([(ardupilot, *ardupilot_text(polys, source, slot), ardupilot_note(slot))] if ardupilot else [])

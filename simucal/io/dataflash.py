@@ -43,7 +43,7 @@ def read_dataflash(path, instance: int | None = None) -> LogStream:
     if instance is None and seen:
         instance = seen[0]
     if instance not in rows:
-        raise ImportError_(f"{path}: no IMU messages of instance {instance} in the log (it has "
+        raise ImportError_(f"{path}: no IMU messages{'' if instance is None else f' of instance {instance}'} in the log (it has "
                            f"{'instances ' + ', '.join(map(str, seen)) if seen else 'no IMU messages'})"
                            + (f": give --instance {seen[0]}" if seen else ": set LOG_BITMASK to log the IMU"))
     r = np.array(rows[instance], float)
@@ -98,12 +98,14 @@ def whole_dataflash(path: Path) -> tuple[int, list[str]]:
         pos += lengths[data[pos + 2]]
     if pos == n:
         return n, []
-    at_end = pos + 3 > n or (data[pos:pos + 2] == b"\xa3\x95" and data[pos + 2] in lengths)
+    # cut inside a message, or ending in bytes no message follows (a card's padding): every whole message is kept
+    at_end = pos + 3 > n or (data[pos:pos + 2] == b"\xa3\x95" and data[pos + 2] in lengths) \
+        or data.find(b"\xa3\x95", pos) < 0
     if not at_end:
         raise ImportError_(f"{path}: the log is broken at byte {pos:,} of {n:,}: no whole message starts there "
                            f"({n - pos:,} bytes follow): copy it again from the vehicle")
-    return pos, [f"{path}: the log is cut inside its last message: every message up to byte {pos:,} is read, the "
-                 f"last {n - pos:,} bytes (a message the file ends inside) are left out"]
+    return pos, [f"{path}: the log is cut inside its last message, or ends in bytes that are no message: every "
+                 f"message up to byte {pos:,} is read, the last {n - pos:,} bytes are left out"]
 
 
 def _int(v):

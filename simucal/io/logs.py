@@ -41,12 +41,18 @@ def read_log(fmt: str, path, instance: int | None = None, topic: str | None = No
 
 
 def checked(s: LogStream, path: Path) -> LogStream:
-    """The stream refused where it holds NaN; its gaps and an implausible magnitude added to its warnings."""
-    if s.temp_c is not None and not np.any(np.isfinite(s.temp_c)):
-        s.temp_c = None  # a driver without a temperature logs NaN: no column rather than a broken one
+    """The stream refused where a sensor holds NaN; a temperature with NaN dropped, and it, the gaps and an
+    implausible magnitude added to its warnings."""
+    if s.temp_c is not None and not np.all(np.isfinite(s.temp_c)):
+        # a driver without a temperature logs NaN, and one logs it until its first reading: no column rather
+        # than a broken one, said where some rows had one
+        if np.any(np.isfinite(s.temp_c)):
+            s.warnings.append(f"{path}: {int((~np.isfinite(s.temp_c)).sum()):,} of {len(s.temp_c):,} temperature samples "
+                              "are NaN: the set has no temp_c column (a thermal calibration needs one on every row)")
+        s.temp_c = None
         s.log["temperature"] = None
-    for name, x in (("accelerometer", s.acc_mps2), ("gyro", s.gyro_rads), ("temperature", s.temp_c)):
-        bad = np.zeros(0, bool) if x is None else ~np.isfinite(x).reshape(len(x), -1).all(axis=1)
+    for name, x in (("accelerometer", s.acc_mps2), ("gyro", s.gyro_rads)):
+        bad = ~np.isfinite(x).all(axis=1)
         if bad.any():
             first = int(np.argmax(bad))
             raise ImportError_(f"{path}: {int(bad.sum()):,} {name} samples are NaN or infinite (the first at "

@@ -10,7 +10,7 @@ PX4 logs the IMU in one or more of these topics, by its logging profile (SDLOG_P
   RELATIVE_TIMESTAMP_INVALID: the accelerometer did not update, and the row is left out). Each message is
   one row, read as logged.
 - `sensor_accel` / `sensor_gyro` (per instance, the topic's multi_id): each sensor at its own stamps
-  (timestamp_sample), put on one clock by logs.on_one_clock; 1 Hz in the default profile, full rate in the
+  (timestamp_sample), put on one clock by log_stream.on_one_clock; 1 Hz in the default profile, full rate in the
   high-rate and thermal-calibration ones.
 - `vehicle_imu` (per instance): `delta_angle` over `delta_angle_dt` and `delta_velocity` over
   `delta_velocity_dt` (us), read as their means, rad/s and m/s^2, at timestamp_sample.
@@ -39,6 +39,9 @@ RELATIVE_TIMESTAMP_INVALID = 2147483647
 TOPICS = ["sensor_combined", "sensor_accel", "sensor_gyro", "vehicle_imu", "sensor_selection",
           "vehicle_gps_position", "sensor_gps"]
 FRAME = "FRD (PX4's body frame, after the board's rotation)"
+# sensor_combined and vehicle_imu are VehicleIMU's output: PX4's calibration already applied
+CORRECTED = ("PX4's own calibration already applied (offsets, scale factors and, where TC_*_ENABLE, its thermal "
+             "compensation): what is left of the unit's errors, not the raw sensor")
 
 
 @dataclass
@@ -67,6 +70,8 @@ def read_ulog(path, instance: int | None = None) -> LogStream:
         raise ImportError_(f"{path}: {_missing(data, instance)}")
     best = max(sources, key=lambda s: (s.rate_hz, s.samples))
     stream = best.read()
+    if not best.name.startswith("sensor_accel"):
+        stream.log["corrected"] = CORRECTED
     stream.log.update({"format": "ulog", "file": path.name, "sensor_frame": FRAME, "source": best.name,
                        "sources": [{"name": s.name, "rate_hz": round(s.rate_hz, 3), "samples": s.samples}
                                    for s in sources],
@@ -74,8 +79,8 @@ def read_ulog(path, instance: int | None = None) -> LogStream:
                        else "the only source that holds both sensors"})
     if best.rate_hz < LOW_RATE_HZ:
         warnings.append(f"{path}: the IMU is read from {best.name} at {best.rate_hz:.3g} Hz, under {LOW_RATE_HZ:g} Hz "
-                        "(the log's only source): log it at full rate (SDLOG_PROFILE's high-rate or thermal "
-                        "calibration bit)")
+                        f"(the fastest of {len(sources)} source{'s' * (len(sources) > 1)}): enough for a warm-up's slow "
+                        "curve, not for noise or motion, which need the full rate (PX4's high-rate logging)")
     latitude = gps_latitude(data)
     if latitude is not None:
         stream.log["gps_latitude_deg"] = latitude
@@ -179,7 +184,7 @@ def _temperature_of(acc_device_id, t_s, data) -> tuple[np.ndarray | None, str | 
 
 
 def _pair(a, g, instance, path) -> LogStream:
-    """sensor_accel and sensor_gyro of one instance on one clock (logs.on_one_clock)."""
+    """sensor_accel and sensor_gyro of one instance on one clock (log_stream.on_one_clock)."""
     temp_a = np.asarray(a["temperature"], float) if "temperature" in a else None
     t, acc, gyro, temp, clock = on_one_clock(_stamps(a) * 1e-6, _xyz(a), temp_a, _stamps(g) * 1e-6,
                                              _xyz(g), path)

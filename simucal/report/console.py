@@ -64,6 +64,8 @@ def calibration_lines(cal: Calibration):
 def _test_text(b: SensorBlock) -> str:
     d = b.details
     rows = f" over {d['rows']}" if d.get("rows") else ""
+    if b.dof == 0 and "warmup" in (b.thermal or {}):  # a warm-up's holds: no power beyond the degree to test
+        return "no test possible (each axis's degree is as high as its temperatures allow: hold a third temperature)"
     if b.chi2 is not None and b.p_value is None:  # as many rows as parameters: the fit passes through them all
         return (f"chi2 {b.chi2:.2g}, dof {b.dof}{rows}: no test possible (as many rows as parameters; add positions "
                 "or poses to test the model)")
@@ -105,7 +107,9 @@ def _fit_lines(s, b: SensorBlock, source):
                "the candidate test and predicting the data left out better)" if d["auto"] else "nothing")
                + (f"; {d['auto_stopped']}" if d.get("auto_stopped") else ""))
         for x in d["auto"]:
-            if x.get("twin_choice"):
+            if x.get("twin_choice", "").startswith("cannot tell"):
+                yield f"{s}: --add auto added {x['id']}, though it {x['twin_choice']}"
+            elif x.get("twin_choice"):
                 yield f"{s}: --add auto chose {x['twin_choice']}"
     if b.verdict == "fails":
         what = d.get("advice")

@@ -53,10 +53,10 @@ def verdict_lines(sensor, b, validations=()) -> list[str]:
     """The sensor's verdict in words: the joint test, each group under it (and alone), each validation."""
     groups = b.details.get("groups")
     if groups is None and "warmup" in b.thermal:  # one still warm-up: each axis's curve and its test
-        passes = b.p_value is not None and b.p_value >= ALPHA
+        verdict = "UNTESTED" if b.p_value is None else "PASSES" if b.p_value >= ALPHA else "FAILS"
         axes = ", ".join(f"{n} p = {_p(f.get('p_value'))}" for n, f in b.thermal["parameters"].items())
-        out = [f"{sensor}: {'PASSES' if passes else 'FAILS'}: {b.details.get('test', 'the model test')}, chi2 "
-               f"{b.chi2:.4g} on {b.dof} dof, p = {_p(b.p_value)} ({axes})"]
+        out = [f"{sensor}: {verdict}: {b.details.get('test', 'the model test')}, chi2 {b.chi2:.4g} on {b.dof} dof, "
+               f"p = {_p(b.p_value)} ({axes})"]
     elif groups is None:  # each plateau alone, then the polynomials
         return [f"{sensor}: each plateau fitted alone, p = " + ", ".join(_p(x["p_value"]) for x in b.details["plateaus"])]
     else:
@@ -114,7 +114,7 @@ def thermal_page(cal: Calibration, validations=(), cal_path="thermal_calibration
     the file it is saved in (for the next command)."""
     assert cal.temperature_range_c is not None  # a thermal calibration's
     lo, hi = cal.temperature_range_c
-    verdicts = [(not any(w in line for w in ("FAILS", "WORSE", "no better")), line)
+    verdicts = [(not any(w in line for w in ("FAILS", "WORSE", "no better", "UNTESTED")), line)
                 for s, b in cal.blocks() if b.thermal is not None for line in verdict_lines(s, b, validations)]
     parts = [f"<p>{html.escape(cal.method)}; T_ref {cal.t_ref_c:.4g} degC; calibrated from {lo:.4g} to {hi:.4g} degC "
              "(grey; outside it the polynomials are extrapolated and apply and validate warn).</p>"]

@@ -184,7 +184,7 @@ def choose_twin(cands: list[dict], at_rest) -> None:
     gap = min(v["chi2"] for k, v in tested.items() if k != best) - st["chi2"]
     if gap < CANNOT_TELL:  # the static rows cannot choose either: no twin is claimed, the ranking stands
         assert lead is not None
-        twin = next(c for c in group if c is not lead)
+        twin = next(c for c in group if c is not lead and c["id"] in tested)
         lead["at_rest"] = at_rest
         lead["twin_choice"] = (
             f"cannot tell {lead['id']} from {', '.join(k for k in tested if k != lead['id'])} with these data: neither the "
