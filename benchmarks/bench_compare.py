@@ -6,7 +6,9 @@ and a verdict on the wall: a figure more than 10 % slower is to be fixed or expl
 The commands (docs/benchmarks.md, Speed): the Monte Carlo of dong2018's section 4 with and without an
 effect, calibrate and diagnose of imu_tk's Xsens session (shared/data), diagnose of a rich turntable
 set (fibonacci48: 102 segments), calibrate of a raw turntable set (fibonacci24 at 250 Hz: 304,000
-rows). The sets are written once by this checkout; the earlier code is REV's simucal/, generated/
+rows), the systematic calibration of a psins19 sequence (100 Hz) and the import of a PX4 ULog (a still
+board's sensor_accel and sensor_gyro, 10 minutes at 200 and 400 Hz, tests/log_writers.py), which every
+revision since the readers came can read. The sets are written once by this checkout; the earlier code is REV's simucal/, generated/
 and derive/ from git, laid out as installed and run with PYTHONPATH. Each figure is the median of
 --repeats runs after one that warms the caches (bytecode, compiled models); its spread is printed
 beside it, so that a ratio inside the spread reads as noise.
@@ -20,6 +22,7 @@ import argparse
 import os
 import statistics
 import subprocess
+import sys
 import tempfile
 from pathlib import Path
 
@@ -44,7 +47,20 @@ def sets(tmp: Path, quick: bool) -> dict:
         out[name] = tmp / name
         subprocess.run(["simucal", "simulate", "-o", str(out[name]), "--seed", "1", *args], check=True,
                        capture_output=True)
+    out["sequence"] = tmp / "sequence"
+    subprocess.run(["simucal", "simulate", "-o", str(out["sequence"]), "--seed", "1", "--sequence", "psins19"],
+                   check=True, capture_output=True)
+    out["ulog"] = tmp / "still.ulg"
+    write_still_ulog(out["ulog"], 60.0 if quick else 600.0)
     return out
+
+
+def write_still_ulog(path: Path, seconds: float) -> None:
+    """A still board's ULog, each sensor at its own rate (tests/test_logs.py's board)."""
+    sys.path.insert(0, str(ROOT / "tests"))
+    from log_writers import write_ulog
+    from test_logs import still_board
+    write_ulog(path, *still_board(seconds=seconds, acc_hz=200.0, gyro_hz=400.0))
 
 
 def commands(s: dict, quick: bool) -> list:
@@ -58,7 +74,11 @@ def commands(s: dict, quick: bool) -> list:
                  ("diagnose, imu_tk's Xsens session", ["diagnose", s["xsens"], "-o", "xd_{name}.json"])]
     rows += [(f"diagnose, a rich turntable set ({_segments(s['rich'])} segments)",
               ["diagnose", s["rich"], "-o", "rd_{name}.json"]),
-             (f"calibrate, a raw turntable set ({_rows(s['raw']):,} rows)", ["calibrate", s["raw"], "-o", "rc_{name}.json"])]
+             (f"calibrate, a raw turntable set ({_rows(s['raw']):,} rows)", ["calibrate", s["raw"], "-o", "rc_{name}.json"]),
+             (f"calibrate --method systematic, psins19 ({_rows(s['sequence']):,} rows)",
+              ["calibrate", s["sequence"], "--method", "systematic", "-o", "sc_{name}.json"]),
+             ("import ulog, a still board's sensor_accel and sensor_gyro",
+              ["import", "ulog", s["ulog"], "-o", "ulog_{name}", "--latitude-deg", "47", "--force"])]
     return rows
 
 
