@@ -234,11 +234,12 @@ def whole_ulog(path: Path) -> list[str]:
     data = path.read_bytes()
     if data[:7] != b"ULog\x01\x12\x35":
         raise ImportError_(f"{path}: not a ULog (its first bytes are not ULog's magic){other_format(data)}")
-    pos, n = 16, len(data)
-    while pos + 3 <= n and pos + 3 + data[pos] + 256 * data[pos + 1] <= n:
-        pos += 3 + data[pos] + 256 * data[pos + 1]
+    pos, last, n = 16, 16, len(data)
+    while pos + 3 <= n:
+        last, pos = pos, pos + 3 + data[pos] + 256 * data[pos + 1]
     if pos == n:
         return []
+    pos = last if pos > n else pos  # the start of the message the file ends inside
     return [f"{path}: the log is cut inside its last message: every message up to byte {pos:,} is read, the "
             f"last {n - pos:,} bytes (a message the file ends inside) are left out"]
 
