@@ -210,8 +210,13 @@ class NormStep:
     def to_separate(self, chosen, twin):
         if not self.table:
             return "poses that would: " + separating_plan(chosen["id"], twin["id"])
-        return (f"the positions that would: simucal plan --score PLAN --separate {chosen['id']},{twin['id']} --sizes "
-                f"{chosen['estimate']:.2g},{twin['estimate']:.2g}")
+        return positions_that_separate(chosen, twin)
+
+
+def positions_that_separate(chosen: dict, twin: dict) -> str:
+    """The plan command that finds the table positions telling candidate `chosen` from its twin."""
+    return (f"the positions that would: simucal plan --score PLAN --separate {chosen['id']},{twin['id']} --sizes "
+            f"{chosen['estimate']:.2g},{twin['estimate']:.2g}")
 
 
 def forward_selection(model: AugmentedModel, obs: Observations, rank=None, max_terms=6, table=True) -> Selection:

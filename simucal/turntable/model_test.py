@@ -21,7 +21,7 @@ from simucal.fit.apply import model_inputs
 from simucal.fit.augmented import AugmentedModel
 from simucal.fit.aux_inputs import specific_force
 from simucal.fit import family
-from simucal.fit.candidates import rank_candidates, shape_if_unexplained, test_model
+from simucal.fit.candidates import positions_that_separate, rank_candidates, shape_if_unexplained, test_model
 from simucal.fit.results import ALPHA, ModelTest
 from simucal.fit.twins import CANNOT_TELL
 from simucal.fit.distributions import chi2_sf
@@ -190,8 +190,7 @@ def choose_twin(cands: list[dict], at_rest) -> None:
             f"cannot tell {lead['id']} from {', '.join(k for k in tested if k != lead['id'])} with these data: neither the "
             f"rate runs (likelihood ratios {rate}) nor the {st['positions']} static positions (chi2 "
             + ", ".join(f"{k} {v['chi2']:.1f}" for k, v in tested.items()) + f", {gap:.1f} apart, under the twins' "
-            f"level {CANNOT_TELL:.2f}) choose: either may be the unit's; the positions that would: simucal plan --score "
-            f"PLAN --separate {lead['id']},{twin['id']} --sizes {lead['estimate']:.2g},{twin['estimate']:.2g}")
+            f"level {CANNOT_TELL:.2f}) choose: either may be the unit's; " + positions_that_separate(lead, twin))
         return
     chosen["at_rest"] = at_rest
     chosen["twin_choice"] = (
