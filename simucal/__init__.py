@@ -9,12 +9,12 @@ __version__ = "0.1.0"
 # The Python API (simucal/api/), imported on first use so that `import simucal` and the command
 # line's start stay light: simucal.read_set, simucal.calibrate, ... (README, "Python API").
 _API = ("read_set", "simulate", "calibrate", "validate", "diagnose", "noise", "save", "load", "table_rows", "compare",
-        "import_recording", "convert", "montecarlo", "calibrate_each", "Calibrated", "plan", "sequence_observability", "design_sequence",
+        "import_recording", "import_instances", "calibrate_instances", "autopilot_files", "ImuCalibration", "convert", "montecarlo", "calibrate_each", "Calibrated", "plan", "sequence_observability", "design_sequence",
         "derive_model", "audit", "DetectSettings", "CalibrateOptions",
         "MeasurementSet", "Calibration", "Parameter", "Entry", "Validation", "Check", "Diagnosis", "Candidate", "Noise",
         "Term", "lot")
 __all__ = ["__version__", "read_set", "simulate", "calibrate", "validate", "diagnose", "noise", "save", "load",
-           "table_rows", "compare", "import_recording", "convert", "montecarlo", "calibrate_each", "Calibrated", "plan",
+           "table_rows", "compare", "import_recording", "import_instances", "calibrate_instances", "autopilot_files", "ImuCalibration", "convert", "montecarlo", "calibrate_each", "Calibrated", "plan",
            "sequence_observability", "design_sequence", "derive_model", "audit", "DetectSettings", "CalibrateOptions",
            "MeasurementSet", "Calibration", "Parameter", "Entry", "Validation", "Check",
            "Diagnosis", "Candidate", "Noise", "Term", "lot"]  # the public names (_API, spelt out for type checkers)
@@ -24,7 +24,8 @@ if TYPE_CHECKING:
                              Diagnosis, Entry,
                              MeasurementSet, Noise, Parameter, Term, Validation, audit, calibrate,
                              calibrate_each, compare, convert, derive_model, diagnose,
-                             import_recording, load, montecarlo, noise, plan, read_set, save,
+                             import_instances, import_recording, load, calibrate_instances, autopilot_files,
+                             ImuCalibration, montecarlo, noise, plan, read_set, save,
                              sequence_observability, design_sequence, simulate, table_rows, validate)
     # lot from its own module: through simucal.api mypy took the submodule api/lot.py for it (simucal.lot
     # typed as a module, "not callable" in a user's code)

@@ -282,7 +282,22 @@ def _refuse_a_board_that_moved(ms) -> None:
         f"where its temperature spans {MIN_SPAN_C:g} degC), or log the warm-up again without touching the board")
 
 
+def _refuse_several_imus(folders) -> None:
+    """Sets of different IMUs of a log (meta.json's log: instance, device ids) are not one unit's plateaus:
+    refused, naming two of them (simucal.calibrate_instances calibrates each apart)."""
+    from simucal.io.meta import log_imu
+    metas = [(f.path, f.meta) if isinstance(f, io.MeasurementSet) else (f, io.read_meta(f)) for f in folders]
+    imus = {log_imu(m): path for path, m in metas}
+    if len(imus) > 1:
+        (a, one), (b, other) = list(imus.items())[:2]
+        said = lambda k: "a set not from a log" if k is None else f"instance {k[0]}, device ids {k[1]}, {k[2]}"  # noqa: E731
+        raise CalibrationError(f"{one} and {other}: two IMUs of a log ({said(a)}; {said(b)}), and one thermal "
+                               "calibration is one unit: calibrate each apart (the command line does so with several "
+                               "instances' sets; from Python, simucal.calibrate_instances)")
+
+
 def _refuse_thermal_options(folders, degree, kwargs):
+    _refuse_several_imus(folders)
     if degree is not None and not 0 <= degree <= 3:
         raise CalibrationError(f"--thermal-degree {degree}: between 0 and 3")
     from simucal.fit.augmented import follows_temperature

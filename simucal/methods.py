@@ -138,9 +138,10 @@ def choose(name, ms) -> Method:
     kind = data_kind(ms)
     if name in (None, "auto"):
         if kind == TURNTABLE:
-            from simucal.turntable.ferraris import pose_pairs
+            from simucal.turntable.ferraris import pose_pairs, refuse_unpaired
             if pose_pairs(ms.segments) is not None:  # six poses in opposite pairs: too few for the exact fit
                 return METHODS["ferraris"]
+            refuse_unpaired(ms)  # six poses that pair but for one: named, not left to the exact fit
         return METHODS[for_data(kind)[0]]
     if name not in METHODS:
         raise CalibrationError(f"unknown method {name!r}; one of auto, {', '.join(NAMES)}.")

@@ -27,28 +27,31 @@ def _ulog_key(kind: bytes, ctype: str, name: str, value: bytes) -> bytes:
     return _ulog_message(kind, struct.pack("<B", len(key)) + key + value)
 
 
-def write_ulog(path, accel: dict | None, gyro: dict | None, instance=0, params=None, truncate_bytes=0, baro=None):
+def write_ulog(path, accel: dict | list | None, gyro: dict | list | None, instance=0, params=None, truncate_bytes=0,
+               baro=None):
     """A ULog with sensor_accel and sensor_gyro (PX4's fields; either None: left out) of multi instance
-    `instance`. Each a dict of numpy columns: t_us (timestamp and timestamp_sample), x, y, z (m/s^2 or rad/s),
-    temperature (degC, NaN where the driver has none), device_id. baro: a sensor_baro topic (t_us, pressure
-    hPa, temperature, device_id), which PX4's thermal calibration script reads too. truncate_bytes: cut the
-    file's end."""
+    `instance`, or lists of them, one an instance from `instance` on. Each a dict of numpy columns: t_us
+    (timestamp and timestamp_sample), x, y, z (m/s^2 or rad/s), temperature (degC, NaN where the driver has
+    none), device_id. baro: a sensor_baro topic (t_us, pressure hPa, temperature, device_id), which PX4's
+    thermal calibration script reads too. truncate_bytes: cut the file's end."""
     out = bytearray(ULOG_MAGIC + b"\x01" + struct.pack("<Q", 0))
     out += _ulog_message(b"B", bytes(16) + struct.pack("<3Q", 0, 0, 0))
-    topics = [(name, fields, fmt, values, cols) for name, fields, fmt, values, cols in (
-        ("sensor_accel", PX4_ACCEL, "<HQQIffffI", ("x", "y", "z", "temperature"), accel),
-        ("sensor_gyro", PX4_ACCEL, "<HQQIffffI", ("x", "y", "z", "temperature"), gyro),
-        ("sensor_baro", PX4_BARO, "<HQQIffI", ("pressure", "temperature"), baro)) if cols is not None]
-    for name, fields, *_ in topics:
+    listed = lambda c: [] if c is None else c if isinstance(c, list) else [c]  # noqa: E731
+    topics = [(name, fields, fmt, values, cols, i) for name, fields, fmt, values, group in (
+        ("sensor_accel", PX4_ACCEL, "<HQQIffffI", ("x", "y", "z", "temperature"), listed(accel)),
+        ("sensor_gyro", PX4_ACCEL, "<HQQIffffI", ("x", "y", "z", "temperature"), listed(gyro)),
+        ("sensor_baro", PX4_BARO, "<HQQIffI", ("pressure", "temperature"), listed(baro)))
+        for i, cols in enumerate(group, start=instance if name != "sensor_baro" else 0)]
+    for name, fields in dict.fromkeys((t[0], t[1]) for t in topics):
         out += _ulog_message(b"F", (f"{name}:" + "".join(f"{f};" for f in fields)).encode())
     out += _ulog_key(b"I", "char[8]", "sys_name", b"PX4_SITL")
     for name, value in (params or {}).items():
         out += _ulog_key(b"P", "float" if isinstance(value, float) else "int32_t", name,
                          struct.pack("<f" if isinstance(value, float) else "<i", value))
-    for msg_id, (name, *_) in enumerate(topics):
-        out += _ulog_message(b"A", struct.pack("<BH", instance, msg_id) + name.encode())
+    for msg_id, (name, *_, i) in enumerate(topics):
+        out += _ulog_message(b"A", struct.pack("<BH", i, msg_id) + name.encode())
     rows = []
-    for msg_id, (_, _, fmt, values, c) in enumerate(topics):
+    for msg_id, (_, _, fmt, values, c, _) in enumerate(topics):
         for k in range(len(c["t_us"])):
             payload = struct.pack(fmt, msg_id, int(c["t_us"][k]), int(c["t_us"][k]), int(c["device_id"]),
                                   *(c[v][k] for v in values), 0)

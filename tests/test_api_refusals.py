@@ -127,7 +127,8 @@ def test_a_frame_s_first_mistakes_are_named_with_the_column_row_and_option():
 # Placeholders for the arguments a call needs beside the one tested: never read, the types are checked first.
 REQUIRED = {"import_recording": ("ulog", ["w.ulg"], "out"), "calibrate": ("set",), "validate": ("cal.json", "set"),
             "diagnose": ("set",), "noise": ("set",), "sequence_observability": ("psins19",),
-            "calibrate_each": (["set"], "out")}
+            "calibrate_each": (["set"], "out"), "calibrate_instances": (["set"],),
+            "import_instances": ("ulog", "w.ulg", "out")}
 
 
 def _wrong_values(annotation: str) -> list:

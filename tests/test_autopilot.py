@@ -25,28 +25,29 @@ NAMES = {"acc": ("dK_x", "dK_y", "dK_z", "theta_yx", "theta_zx", "theta_zy", "b_
          "gyro": ("dK_x", "dK_y", "dK_z", "phi_yx", "phi_zx", "phi_zy", "b_x", "b_y", "b_z")}
 
 
-def px4_offsets(params: dict, letter: str, temp_c) -> np.ndarray:
+def px4_offsets(params: dict, letter: str, temp_c, slot: int = 0) -> np.ndarray:
     """(3, n): the offset PX4 subtracts from the raw reading: TemperatureCompensation::calc_thermal_offsets_3D
     (src/modules/temperature_compensation/TemperatureCompensation.cpp), float32 parameters and arithmetic:
     dT = T - TREF with T held to TMIN or TMAX outside them; offset_i = x0 + x1 dT + x2 dT^2 + x3 dT^3."""
     p = {k: np.float32(v) for k, v in params.items()}
     T = np.asarray(temp_c, np.float32)
-    tmin, tmax, tref = (p[f"TC_{letter}0_{k}"] for k in ("TMIN", "TMAX", "TREF"))
+    tmin, tmax, tref = (p[f"TC_{letter}{slot}_{k}"] for k in ("TMIN", "TMAX", "TREF"))
     dT = np.where(T > tmax, tmax - tref, np.where(T < tmin, tmin - tref, T - tref)).astype(np.float32)
     dT2 = dT * dT
     dT3 = dT2 * dT
-    return np.stack([p[f"TC_{letter}0_X0_{i}"] + p[f"TC_{letter}0_X1_{i}"] * dT + p[f"TC_{letter}0_X2_{i}"] * dT2
-                     + p[f"TC_{letter}0_X3_{i}"] * dT3 for i in range(3)])
+    x = lambda k, i: p[f"TC_{letter}{slot}_X{k}_{i}"]  # noqa: E731
+    return np.stack([x(0, i) + x(1, i) * dT + x(2, i) * dT2 + x(3, i) * dT3 for i in range(3)])
 
 
-def ardupilot_correction(params: dict, name: str, temp_c, cal_temp_c: float) -> np.ndarray:
+def ardupilot_correction(params: dict, name: str, temp_c, cal_temp_c: float, slot: int = 0) -> np.ndarray:
     """(3, n): what ArduPilot subtracts from the reading: TCal::correct_sensor and TCal::polynomial_eval
     (libraries/AP_InertialSensor/AP_InertialSensor_tempcal.cpp), float32: T and the ordinary calibration's
     temperature both constrained to [TMIN, TMAX], v -= P(T - 35), v += P(T_cal - 35), P(x) = (c1 + (c2 +
     c3 x) x) x * 1e-6."""
     f = np.float32
-    c = [np.array([params[f"INS_TCAL1_{name}{k}_{a}"] for a in "XYZ"], f)[:, None] for k in (1, 2, 3)]
-    lo, hi = f(params["INS_TCAL1_TMIN"]), f(params["INS_TCAL1_TMAX"])
+    tcal = f"INS_TCAL{slot + 1}"
+    c = [np.array([params[f"{tcal}_{name}{k}_{a}"] for a in "XYZ"], f)[:, None] for k in (1, 2, 3)]
+    lo, hi = f(params[f"{tcal}_TMIN"]), f(params[f"{tcal}_TMAX"])
 
     def P(x):
         x = f(x)
@@ -118,7 +119,7 @@ def test_px4_round_trip_by_hand(tmp_path, meta, g_mps2):
     """Cubic biases about T_ref 22.5 degC: PX4's offsets from the file are simucal's bias, over -10..60 degC;
     the g is the one the data were divided by (meta's for m/s^2, else the drivers' standard g)."""
     cal, path = _hand_built(), tmp_path / "tc.params"
-    made = autopilot.texts(cal, meta, px4=str(path))
+    made = autopilot.texts([(cal, meta)], px4=str(path))
     assert made[-1][3].startswith("set TC_A0_ID")
     _write(made)
     values, types = _read_px4(path)
@@ -141,7 +142,7 @@ def test_each_sensors_own_range(tmp_path):
     cal = _hand_built()
     cal.gyro.thermal["temperature_range_c"] = [5.0, 45.0]
     px4, ardupilot = tmp_path / "tc.params", tmp_path / "tcal.param"
-    _write(autopilot.texts(cal, {"acc_unit": "g"}, px4=str(px4), ardupilot=str(ardupilot)))
+    _write(autopilot.texts([(cal, {"acc_unit": "g"})], px4=str(px4), ardupilot=str(ardupilot)))
     values, _ = _read_px4(px4)
     assert (values["TC_A0_TMIN"], values["TC_A0_TMAX"], values["TC_G0_TMIN"], values["TC_G0_TMAX"]) == (LO, HI, 5, 45)
     values = _read_ardupilot(ardupilot)
@@ -152,7 +153,7 @@ def test_ardupilot_round_trip_by_hand(tmp_path):
     """INS_TCAL1_*: the polynomial re-expanded about ArduPilot's 35 degC without its constant; what ArduPilot
     subtracts is simucal's b(T) - b(T_cal) for an ordinary calibration at any T_cal in the range."""
     cal, path = _hand_built(), tmp_path / "tcal.param"
-    _write(autopilot.texts(cal, {"acc_unit": "g"}, ardupilot=str(path)))
+    _write(autopilot.texts([(cal, {"acc_unit": "g"})], ardupilot=str(path)))
     values = _read_ardupilot(path)
     assert len(values) == 3 + 2 * 9 and values["INS_TCAL1_ENABLE"] == 1
     assert (values["INS_TCAL1_TMIN"], values["INS_TCAL1_TMAX"]) == (LO, HI)

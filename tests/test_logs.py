@@ -291,10 +291,10 @@ def test_px4_parameters_are_never_fitted_on_data_px4_has_already_calibrated(tmp_
     assert _import("ulog", tmp_path / "w.ulg", "-o", tmp_path / "raw", "--latitude-deg", 47.4).exit_code == 0
     cal = simucal.calibrate(tmp_path / "raw", thermal=True)
     meta = io.read_set(tmp_path / "raw").meta
-    assert texts(cal, meta, px4="tc.params")  # the raw topics: written
+    assert texts([(cal, meta)], px4="tc.params")  # the raw topics: written
     meta["log"] = io.read_set(tmp_path / "set").meta["log"]  # as if the warm-up were sensor_combined's
     with pytest.raises(CalibrationError, match="sensor_combined.*raw sensor_accel/sensor_gyro"):
-        texts(cal, meta, px4="tc.params")
+        texts([(cal, meta)], px4="tc.params")
     acc, gyro = still_board(seconds=2.0, gyro_hz=200.0)
     temp = acc["temperature"].copy()
     temp[:10] = np.nan

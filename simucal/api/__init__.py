@@ -15,7 +15,7 @@ import json
 import os
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any, NamedTuple, Sequence, Union
+from typing import Any, NamedTuple, Sequence, Union, cast
 
 from simucal.errors import InputError
 from simucal import io
@@ -24,17 +24,18 @@ from simucal.api.simulation import montecarlo, simulate
 from simucal.api.tables import rows as table_rows
 from simucal.api.tables import TableOf
 from simucal.calibrate import calibrate as _calibrate_set
-from simucal.calibrate import calibrate_thermal as _calibrate_thermal
 from simucal.api.calibration import Calibration, Parameter
 from simucal.api.batch import Calibrated, calibrate_each
 from simucal.api.arguments import checked
 from simucal.api.options import CalibrateOptions
-from simucal.api.imports import convert, import_recording
+from simucal.api.imports import convert, import_instances, import_recording
+from simucal.api.instances import ImuCalibration, autopilot_files, calibrate_instances, calibrate_over_temperature
+from simucal.api.instances import imus_of as imus_of  # the command line's, beside the public names
 from simucal.api.planning import design_sequence, plan, sequence_observability
 from simucal.api.tools import audit, derive_model
 from simucal.handheld.static_detect import DetectSettings
 from simucal.api.lot import lot
-from simucal.api.sets import MeasurementSet, as_set, effect_ids, folder_of
+from simucal.api.sets import MeasurementSet, as_set, folder_of, keywords
 from simucal.api.vocabulary import Entry, compare
 from simucal.io import calibration as _file
 from simucal.io import records as _records
@@ -46,7 +47,7 @@ if TYPE_CHECKING:  # api/options.py says why
     from typing_extensions import Unpack
 
 __all__ = ["read_set", "simulate", "calibrate", "validate", "diagnose", "noise", "save", "load", "table_rows",
-           "compare", "import_recording", "convert", "montecarlo", "calibrate_each", "Calibrated", "plan",
+           "compare", "import_recording", "import_instances", "calibrate_instances", "autopilot_files", "ImuCalibration", "convert", "montecarlo", "calibrate_each", "Calibrated", "plan",
            "sequence_observability", "design_sequence", "derive_model", "audit", "DetectSettings", "CalibrateOptions", "MeasurementSet", "Calibration", "Parameter", "Entry",
            "Validation", "Check", "Diagnosis", "Candidate", "Noise", "Term", "lot"]
 
@@ -79,7 +80,7 @@ def read_set(path: str | os.PathLike) -> MeasurementSet:
 
 
 @checked
-def calibrate(data: Data | Sequence[str | os.PathLike], **options: Unpack[CalibrateOptions]) -> Calibration:
+def calibrate(data: Data | Sequence[Data], **options: Unpack[CalibrateOptions]) -> Calibration:
     """Calibrate a unit from one measurement set (or, with ``thermal=True``, from plateaus).
 
     Parameters
@@ -111,14 +112,12 @@ def calibrate(data: Data | Sequence[str | os.PathLike], **options: Unpack[Calibr
     >>> cal.acc.effects["acc.quadratic.z"].value  # doctest: +SKIP
     0.000198...
     """
-    kw: dict[str, Any] = dict(options)  # the commands' own functions take them by name
-    if "add" in kw:
-        kw["add"] = effect_ids(kw["add"])
-    thermal = kw.pop("thermal", False)
-    if thermal or isinstance(data, (list, tuple)):
-        sets = list(data) if isinstance(data, (list, tuple)) else [data]
-        return Calibration.of(_calibrate_thermal([as_set(d) for d in sets], **kw))
-    return Calibration.of(_calibrate_set(as_set(data), **kw))
+    if isinstance(data, (list, tuple)):
+        return calibrate_over_temperature(list(data), **options)
+    one = cast(Data, data)  # not a list: one set
+    if options.get("thermal"):
+        return calibrate_over_temperature([one], **options)
+    return Calibration.of(_calibrate_set(as_set(one), **keywords(options)))
 
 
 class Check(NamedTuple):
@@ -219,8 +218,6 @@ def save(path: str | os.PathLike, result: Calibration | Validation | Diagnosis |
     >>> simucal.save("validation.html", simucal.validate(cal, "other"))  # doctest: +SKIP
     """
     from simucal.io import outputs
-    if not isinstance(result, (_file.Calibration, Validation, Diagnosis, Noise)):
-        raise TypeError(f"save: a Calibration, Validation, Diagnosis or Noise, not {type(result).__name__}")
     # as every command: never into or over what the result was made from, nor over a set's own files
     outputs.check(_inputs(result), files={str(path): path})
     if Path(path).suffix.lower() in (".html", ".htm"):
@@ -264,6 +261,7 @@ def _page(result: _file.Calibration | Validation | Diagnosis | Noise, calibratio
 
 def load(path: str | os.PathLike) -> Calibration:
     """Read a calibration file, checked before any of it is used.
+@checked
 
     Examples
     --------

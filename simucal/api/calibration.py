@@ -187,7 +187,7 @@ class Calibration(calibration.Calibration):
         from simucal import io
         from simucal.io import autopilot
         meta = data.meta if isinstance(data, io.MeasurementSet) else io.read_meta(Path(data))
-        return [AutopilotFile(*f) for f in autopilot.texts(self, meta, px4, ardupilot)] if px4 or ardupilot else []
+        return [AutopilotFile(*f) for f in autopilot.texts([(self, meta)], px4, ardupilot)] if px4 or ardupilot else []
 
     def sensor(self, name: str) -> calibration.SensorBlock:
         """The block of sensor `name` ("acc" or "gyro"), never None: refused (CalibrationError) where this

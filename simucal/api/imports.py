@@ -90,6 +90,51 @@ def import_recording(fmt: str, sources: Sequence[Path_], out: Path_, *, latitude
     return MeasurementSet.of(io.read_set(out)) if read_back else None
 
 
+@checked
+def import_instances(fmt: str, source: Path_, out: Path_, *, instances: Sequence[int] | None = None,
+                     latitude_deg: float | None = None, force: bool = False,
+                     read_back: bool = True) -> list[MeasurementSet]:
+    """Write one measurement set per IMU instance of an autopilot's log, OUT/instance<n> (`simucal import
+    ulog|dataflash LOG --instance all -o OUT`, or `--instance 0,1`), the log read once; return them.
+
+    Parameters
+    ----------
+    fmt : str
+        ulog (PX4: each instance's sensor_accel/sensor_gyro or vehicle_imu) or dataflash (ArduPilot: IMU's
+        instance field, or IMU2, IMU3).
+    source : path
+        The log.
+    out : path
+        The folder that gets instance<n> for each instance.
+    instances : sequence of int, optional
+        The instances to import (default: every instance holding both sensors).
+    latitude_deg, force :
+        As `import_recording`.
+    read_back : bool
+        Return the sets read from `out` (False: as written, in memory; the command line's outputs are renamed
+        into place only when it ends).
+
+    Examples
+    --------
+    >>> sets = simucal.import_instances("ulog", "warmup.ulg", "imus")  # doctest: +SKIP
+    >>> [s.meta["log"]["instance"] for s in sets]  # doctest: +SKIP
+    [0, 1]
+    """
+    from simucal import io
+    from simucal.io.logs import import_instances as write_instances
+    from simucal.io import outputs
+    if isinstance(source, (list, tuple)):
+        raise InputError(f"import_instances: source={source!r}: one log (a path), not a list")
+    outputs.check([source], folders=[out])
+    done = write_instances(fmt, Path(source), out, latitude_deg, None if instances is None else
+                           [int(i) for i in instances], force)
+    import warnings
+    from simucal.errors import LogWarning
+    for line in dict.fromkeys(w for ms in done for w in ms.meta.get("warnings", [])):  # a log's once
+        warnings.warn(line, LogWarning, stacklevel=3)
+    return [MeasurementSet.of(io.read_set(ms.path) if read_back else ms) for ms in done]
+
+
 def _import_csv(path, out, columns, acc_unit, gyro_unit, rate_hz, latitude_deg) -> None:
     """Any CSV by its columns' map (--columns), each mapped triad's unit given."""
     from simucal.io import importers as im

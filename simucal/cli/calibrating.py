@@ -45,12 +45,14 @@ _ADD_AUTO_HELP = (_ADD_HELP + " Also 'auto': the library effects a failing model
               help="--thermal: a page opening with each sensor's verdict, then each parameter against temperature "
                    "with its polynomial.")
 @click.option("--px4", type=click.Path(dir_okay=False), default=None,
-              help="--thermal: also PX4's thermal compensation (TC_A0_*, TC_G0_*: bias polynomials X0..X3 in m/s^2 and "
-                   "rad/s, TREF, TMIN, TMAX), a QGroundControl .params file. The data's sensor axes are taken as PX4's "
+              help="--thermal: also PX4's thermal compensation (TC_A{n}_*, TC_G{n}_*, n the log's instance: bias "
+                   "polynomials X0..X3 in m/s^2 and rad/s, TREF, TMIN, TMAX, the device ids), a QGroundControl .params "
+                   "file; sets of several instances (import --instance all): each calibrated apart, -o and --html "
+                   "get _instance<n> each, this one file every slot. The data's sensor axes are taken as PX4's "
                    "sensor axes (sensor_accel, sensor_gyro); scale-factor and misalignment drift are not expressible "
                    "(warned).")
 @click.option("--ardupilot", type=click.Path(dir_okay=False), default=None,
-              help="--thermal: also ArduPilot's INS_TCAL1_* (bias polynomials about 35 degC, TMIN, TMAX), a .param "
+              help="--thermal: also ArduPilot's INS_TCAL{n+1}_* (bias polynomials about 35 degC, TMIN, TMAX), a .param "
                    "file (NAME,VALUE). The data's sensor axes are taken as ArduPilot's IMU axes; as --px4.")
 @click.option("--t-ref-c", type=Number(-55.0, 125.0), default=None,
               help="T_ref of temperature terms, degC (default: the mean of temp_c; --thermal: of the plateaus).")
@@ -142,6 +144,8 @@ def _calibrate_batch(data_dirs, output, kwargs, inputs, scheduler):
 
 def _calibrate_thermal(data_dirs, output, degree, t_ref_c, kwargs, inputs, html_out, autopilot_out=(None, None)):
     from simucal import api
+    if len(api.imus_of(data_dirs)) > 1:
+        return _calibrate_instances(data_dirs, output, degree, t_ref_c, kwargs, inputs, html_out, autopilot_out)
     from simucal.io import outputs
     guard(inputs, files={"-o": output, "--html": html_out, "--px4": autopilot_out[0], "--ardupilot": autopilot_out[1]})
     result = api.calibrate([Path(d) for d in data_dirs], degree=degree, t_ref_c=t_ref_c, **kwargs)
@@ -160,6 +164,49 @@ def _calibrate_thermal(data_dirs, output, degree, t_ref_c, kwargs, inputs, html_
         click.echo(f"wrote {f.path}: {f.note}")
     lo, hi = result.temperature_range_c
     click.echo(f"wrote {output} (method {result.method}; calibrated from {lo:.4g} to {hi:.4g} degC)")
+
+
+def _instance_path(path, instance):
+    """An output of one IMU, where several are calibrated: its name with _instance<n> (calibration.json ->
+    calibration_instance1.json)."""
+    return None if path is None else str(Path(path).with_name(f"{Path(path).stem}_instance{instance}"
+                                                               f"{Path(path).suffix}"))
+
+
+def _calibrate_instances(data_dirs, output, degree, t_ref_c, kwargs, inputs, html_out, autopilot_out):
+    """--thermal of sets of several IMUs of a log (simucal.calibrate_instances): each apart, one calibration
+    file and page each, and one PX4 and one ArduPilot file holding every IMU's slot."""
+    from simucal import api
+    from simucal.io import outputs
+    from simucal.report.console import calibration_lines
+    instances = [None if key is None else key[0] for key in api.imus_of(data_dirs)]
+    if None in instances:
+        fail(f"--thermal: {', '.join(map(str, data_dirs))} mix sets of a log's IMUs with sets from elsewhere: give "
+             "each IMU's sets in a command of its own")
+    if len(set(instances)) < len(instances):
+        twice = next(n for n in instances if instances.count(n) > 1)
+        fail(f"--thermal: two IMUs at instance {twice} (their device ids differ: two boards' logs?): give each "
+             "board's sets in a command of its own")
+    named = {f"-o ({n})": _instance_path(output, n) for n in instances}
+    named.update({f"--html ({n})": _instance_path(html_out, n) for n in instances if html_out})
+    guard(inputs, files={**named, "--px4": autopilot_out[0], "--ardupilot": autopilot_out[1]})
+    imus = api.calibrate_instances([Path(d) for d in data_dirs], degree=degree, t_ref_c=t_ref_c, **kwargs)
+    exported = api.autopilot_files(imus, px4=autopilot_out[0], ardupilot=autopilot_out[1])
+    for u in imus:
+        path = _instance_path(output, u.instance)
+        api.save(path, u.calibration)
+        for line in calibration_lines(u.calibration):
+            click.echo(f"instance {u.instance}: {line}")
+        if html_out:
+            api.save(_instance_path(html_out, u.instance), u.calibration, calibration_path=path)
+            click.echo(f"wrote {_instance_path(html_out, u.instance)}")
+        lo, hi = u.calibration.temperature_range_c
+        click.echo(f"wrote {path} (instance {u.instance}, {', '.join(u.sets)}; calibrated from {lo:.4g} to {hi:.4g} degC)")
+    for f in exported:
+        outputs.write_text(f.path, f.text)
+        for w in f.warnings:
+            click.echo(f"WARNING: {w}")
+        click.echo(f"wrote {f.path} (instances {', '.join(str(u.instance) for u in imus)}): {f.note}")
 
 
 @main.command("field-drift")

@@ -37,6 +37,22 @@ FORMATS = ("imu_tk", "imucal-ferraris", "imucal-annotated", "csv", "ulog", "data
 FERRARIS_HZ, ANNOTATED_HZ, ANNOTATED_ACC, ANNOTATED_GYRO = 102.4, 204.8, 2048.0, 16.4
 
 
+class _Instances(click.ParamType):
+    """--instance: N, N,M,... or all (a list or "all": one set per instance)."""
+    name = "instances"
+
+    def convert(self, value, param, ctx):
+        if isinstance(value, (int, list)) or value == "all":
+            return value
+        parts = [p.strip() for p in str(value).split(",")]
+        if not all(p.isdigit() and int(p) <= 9 for p in parts):
+            self.fail(f"{value!r}: an instance 0 to 9, several as 0,1, or all", param, ctx)
+        return int(parts[0]) if len(parts) == 1 else [int(p) for p in parts]
+
+
+INSTANCES = _Instances()
+
+
 @main.command()
 @click.argument("out_dir", required=False, type=click.Path(file_okay=False))
 @click.option("-o", "--output", type=click.Path(file_okay=False), default=None,
@@ -141,9 +157,10 @@ def simulate(out_dir, output, scenario, heading_error_deg, seed, unit_seed, plan
               help="csv: the gyro columns' unit (pulse/s and counts need their nominal scale factors).")
 @click.option("--turn-deg", type=Number(-3600.0, 3600.0), default=-360.0, show_default=True,
               help="Ferraris: the protocol's turn angle, deg (imucal's default -360, clockwise).")
-@click.option("--instance", type=Number(0, 9, integer=True), default=None,
+@click.option("--instance", type=INSTANCES, default=None, metavar="N|N,M,...|all",
               help="ulog, dataflash: the IMU's instance (PX4's multi_id, ArduPilot's IMU.I or IMU2, IMU3); default: "
-                   "ulog the highest-rate source, sensor_combined (PX4's primary IMU) included; dataflash the first.")
+                   "ulog the highest-rate source, sensor_combined (PX4's primary IMU) included; dataflash the first. "
+                   "Several, or all: one set per instance, OUT/instance<n>, the log read once.")
 @click.option("--topic", default=None, help="rosbag: the sensor_msgs/Imu topic (default: the bag's only one).")
 @FORCE
 def import_cmd(fmt, sources, out_dir, latitude_deg, acc_counts_per_g, gyro_counts_per_dps, gravity_mps2, rate_hz,
@@ -155,17 +172,28 @@ def import_cmd(fmt, sources, out_dir, latitude_deg, acc_counts_per_g, gyro_count
 
     from simucal import api
     from simucal.errors import LogWarning
-    guard(sources, sets=[out_dir], force=force)
+    several = isinstance(instance, list) or instance == "all"
+    guard(sources, **({"folders": [out_dir]} if several else {"sets": [out_dir]}), force=force)
+    if several and len(sources) != 1:
+        fail(f"--instance {instance}: {fmt} reads one log: give one file")
     with warnings.catch_warnings(record=True) as said:  # a log's warnings, printed as lines
         warnings.simplefilter("always", LogWarning)
-        api.import_recording(fmt, sources, out_dir, latitude_deg=latitude_deg, acc_counts_per_g=acc_counts_per_g,
-                             gyro_counts_per_dps=gyro_counts_per_dps, gravity_mps2=gravity_mps2, rate_hz=rate_hz,
-                             columns=columns, acc_unit=acc_unit, gyro_unit=gyro_unit, turn_deg=turn_deg,
-                             instance=None if instance is None else int(instance), topic=topic, force=force,
-                             read_back=False)
+        if several:
+            done = api.import_instances(fmt, sources[0], out_dir, instances=None if instance == "all" else instance,
+                                        latitude_deg=latitude_deg, force=force, read_back=False)
+        else:
+            api.import_recording(fmt, sources, out_dir, latitude_deg=latitude_deg, acc_counts_per_g=acc_counts_per_g,
+                                 gyro_counts_per_dps=gyro_counts_per_dps, gravity_mps2=gravity_mps2, rate_hz=rate_hz,
+                                 columns=columns, acc_unit=acc_unit, gyro_unit=gyro_unit, turn_deg=turn_deg,
+                                 instance=instance, topic=topic, force=force, read_back=False)
     for w in said:
         click.echo(f"WARNING: {w.message}", err=not issubclass(w.category, LogWarning))
-    click.echo(f"wrote {out_dir}")
+    for ms in done if several else []:
+        log = ms.meta["log"]
+        click.echo(f"wrote {ms.path}: instance {log['instance']} ({log.get('source') or log.get('messages')}, "
+                   f"{len(ms.samples['t_s']):,} rows)")
+    if not several:
+        click.echo(f"wrote {out_dir}")
 
 
 @main.command("apply")

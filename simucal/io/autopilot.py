@@ -179,49 +179,77 @@ def _number(v) -> str:
     return str(v) if isinstance(v, int) else f"{v:.9g}"
 
 
-def _header(polys, source, warnings, notes) -> list[str]:
-    lines = [f"# from simucal calibrate --thermal: {source}",
+def _header(imus: list["Imu"], warnings, notes) -> list[str]:
+    lines = [f"# from simucal calibrate --thermal: {', '.join(u.source for u in imus)}",
              "# the data's sensor axes taken as the autopilot's sensor axes (before its rotation to the body frame)"]
-    lines += [f"# {p.sensor}: bias polynomial in {SI_UNIT[p.sensor]}, calibrated {p.t_min_c:g} to {p.t_max_c:g} degC"
-              for p in polys]
+    lines += [f"# instance {u.slot} {p.sensor}: bias polynomial in {SI_UNIT[p.sensor]}, calibrated {p.t_min_c:g} to "
+              f"{p.t_max_c:g} degC, from {u.source}" for u in imus for p in u.polys]
     return lines + [f"# {n}" for n in notes] + [f"# WARNING: {w}" for w in warnings]
 
 
-def px4_note(device_ids: dict | None, slot: int = 0) -> str:
-    if device_ids and all(v is not None for v in device_ids.values()):
-        return (f"TC_A{slot}_ID and TC_G{slot}_ID are the log's device ids (PX4 applies the set only to those "
-                "sensors); reboot and redo the ordinary accelerometer and gyro calibration")
-    return (f"set TC_A{slot}_ID and TC_G{slot}_ID to the sensor's device id (CAL_ACC{slot}_ID, CAL_GYRO{slot}_ID): "
-            "PX4 applies the set only to that sensor; then reboot and redo the ordinary accelerometer and gyro "
-            "calibration")
+def _and(names: list[str]) -> str:
+    return names[0] if len(names) == 1 else ", ".join(names[:-1]) + " and " + names[-1]
 
 
-def ardupilot_note(slot: int = 0) -> str:
-    return (f"the constant bias is the ordinary calibration's (offsets at INS_ACC{slot + 1}_CALTEMP and "
-            f"INS_GYR{slot + 1}_CALTEMP): redo it after loading; these polynomials correct the change from that "
-            "temperature")
+def px4_note(imus: list["Imu"]) -> str:
+    """What to do with the PX4 file: the device ids it holds, or that the user must set."""
+    known = [u.slot for u in imus if u.device_ids and all(v is not None for v in u.device_ids.values())]
+    unknown = [u.slot for u in imus if u.slot not in known]
+    said = [f"{_and([f'TC_A{n}_ID and TC_G{n}_ID' for n in known])} are the log's device ids (PX4 applies each set "
+            "only to those sensors)"] if known else []
+    said += [f"set {_and([f'TC_A{n}_ID and TC_G{n}_ID' for n in unknown])} to the sensor's device id "
+             f"({_and([f'CAL_ACC{n}_ID, CAL_GYRO{n}_ID' for n in unknown])}): PX4 applies each set only to that "
+             "sensor"] if unknown else []
+    return "; ".join(said) + "; then reboot and redo the ordinary accelerometer and gyro calibration"
 
 
-def px4_text(polys: list[BiasPolynomial], source: str, device_ids: dict | None = None,
-             slot: int = 0) -> tuple[str, list[str]]:
-    """A QGroundControl .params file (tab-separated: vehicle id, component id, name, value, type) and the
-    warnings."""
-    rows, warnings = px4_parameters(polys, device_ids, slot)
-    lines = ["# Onboard parameters for Vehicle 1", "#"] + _header(polys, source, warnings, [px4_note(device_ids, slot)])
+def ardupilot_note(imus: list["Imu"]) -> str:
+    offsets = _and([f"INS_ACC{u.slot + 1}_CALTEMP and INS_GYR{u.slot + 1}_CALTEMP" for u in imus])
+    return (f"the constant bias is the ordinary calibration's (offsets at {offsets}): redo it after loading; "
+            "these polynomials correct the change from that temperature")
+
+
+@dataclass(frozen=True)
+class Imu:
+    """One IMU's export: its bias polynomials, its log's device ids, its slot (the log's instance) and the
+    sets it was calibrated from."""
+    polys: list[BiasPolynomial]
+    device_ids: dict | None
+    slot: int
+    source: str
+
+
+def px4_text(imus: list[Imu]) -> tuple[str, list[str]]:
+    """A QGroundControl .params file (tab-separated: vehicle id, component id, name, value, type) of every
+    IMU's TC_A{n}_*/TC_G{n}_* (one TC_*_ENABLE each, as PX4's own script writes them) and the warnings."""
+    rows: list[tuple[str, float, int]] = []
+    warnings: list[str] = []
+    for u in imus:
+        got, said = px4_parameters(u.polys, u.device_ids, u.slot)
+        rows += [r for r in got if r not in rows]
+        warnings += [f"instance {u.slot}: {w}" if len(imus) > 1 else w for w in said]
+    lines = ["# Onboard parameters for Vehicle 1", "#"] + _header(imus, warnings, [px4_note(imus)])
     lines += ["#", "# Vehicle-Id Component-Id Name Value Type"]
     lines += [f"1\t1\t{n}\t{_number(v)}\t{t}" for n, v, t in rows]
     return "\n".join(lines) + "\n", warnings
 
 
-def ardupilot_text(polys: list[BiasPolynomial], source: str, slot: int = 0) -> tuple[str, list[str]]:
-    """A Mission Planner .param file (NAME,VALUE lines, # comments) and the warnings."""
-    rows, warnings = ardupilot_parameters(polys, slot)
-    lines = _header(polys, source, warnings, [ardupilot_note(slot)]) + [f"{n},{_number(v)}" for n, v in rows]
+def ardupilot_text(imus: list[Imu]) -> tuple[str, list[str]]:
+    """A Mission Planner .param file (NAME,VALUE lines, # comments) of every IMU's INS_TCAL{n+1}_* and the
+    warnings."""
+    rows: list[tuple[str, float]] = []
+    warnings: list[str] = []
+    for u in imus:
+        got, said = ardupilot_parameters(u.polys, u.slot)
+        rows += got
+        warnings += [f"instance {u.slot}: {w}" if len(imus) > 1 else w for w in said]
+    lines = _header(imus, warnings, [ardupilot_note(imus)]) + [f"{n},{_number(v)}" for n, v in rows]
     return "\n".join(lines) + "\n", warnings
 
 
-def texts(cal, meta: meta_keys.Meta, px4: str | None = None, ardupilot: str | None = None) -> list[tuple]:
-    """[(path, text, warnings, note)] of the files asked for; meta: the data's meta.json (gravity_mps2)."""
+def imu(cal, meta: meta_keys.Meta, px4: bool = False) -> Imu:
+    """The export of one calibration; meta: its data's meta.json (gravity_mps2, the log's instance and device
+    ids). Refused: --px4 of data PX4 has already corrected, an instance beyond the autopilots' slots."""
     polys = bias_polynomials(cal, gravity_mps2(meta))
     source = ", ".join(cal.input) if isinstance(cal.input, list) else str(cal.input)
     got = meta.get("log")
@@ -234,9 +262,22 @@ def texts(cal, meta: meta_keys.Meta, px4: str | None = None, ardupilot: str | No
         raise CalibrationError(f"--px4: {source} was imported from {log.get('source')}, with {log['corrected']}; PX4's "
                                "TC_* correct the raw sensor_accel/sensor_gyro: log those (SDLOG_PROFILE's thermal "
                                "calibration bit) and import them with --instance N")
-    for given, name, slots in ((px4, "--px4", PX4_SLOTS), (ardupilot, "--ardupilot", ARDUPILOT_SLOTS)):
-        if given and slot >= slots:
-            raise CalibrationError(f"{name}: {source} is the log's IMU instance {slot}; the autopilot has thermal "
-                                   f"compensation slots for instances 0 to {slots - 1} only")
-    made = [(px4, *px4_text(polys, source, ids, slot), px4_note(ids, slot))] if px4 else []
-    return made + ([(ardupilot, *ardupilot_text(polys, source, slot), ardupilot_note(slot))] if ardupilot else [])
+    return Imu(polys, ids, slot, source)
+
+
+def texts(units: list[tuple], px4: str | None = None, ardupilot: str | None = None) -> list[tuple]:
+    """[(path, text, warnings, note)] of the files asked for, each holding every unit's slot; units: [(a thermal
+    calibration, its data's meta.json)], one per IMU of the log."""
+    imus = [imu(cal, meta, bool(px4)) for cal, meta in units]
+    slots = [u.slot for u in imus]
+    if len(set(slots)) < len(slots):
+        twice = next(s for s in slots if slots.count(s) > 1)
+        raise CalibrationError(f"instance {twice}: two calibrations for one slot ("
+                               f"{' and '.join(u.source for u in imus if u.slot == twice)}): export one per instance")
+    for given, name, room in ((px4, "--px4", PX4_SLOTS), (ardupilot, "--ardupilot", ARDUPILOT_SLOTS)):
+        beyond = [u for u in imus if u.slot >= room]
+        if given and beyond:
+            raise CalibrationError(f"{name}: {beyond[0].source} is the log's IMU instance {beyond[0].slot}; the autopilot "
+                                   f"has thermal compensation slots for instances 0 to {room - 1} only")
+    made = [(px4, *px4_text(imus), px4_note(imus))] if px4 else []
+    return made + ([(ardupilot, *ardupilot_text(imus), ardupilot_note(imus))] if ardupilot else [])

@@ -145,6 +145,7 @@ class SensorDetails(TypedDict, total=False):
     # a Ferraris session (turntable/ferraris.py)
     placement_tilt_deg: float          # the hand placement's tilt (std per pose) the pairs' mismatch shows
     pairs: list[list[int]]             # the segments of each pair of opposite poses, + then -
+    turn_axis_from_rest: list[list[int | None]]  # [turn, the rest whose gravity is its axis (None: commanded)]
 
 
 def as_details(d: dict[str, Any]) -> SensorDetails:

@@ -28,21 +28,38 @@ NUMBERED = {"IMU": 0, "IMU2": 1, "IMU3": 2}  # instance of a message without I (
 def read_dataflash(path, instance: int | None = None) -> LogStream:
     """The IMU messages of one instance (module doc; None: the lowest instance the log holds)."""
     path = Path(path)
+    parsed = _parsed(path)
+    seen = sorted(parsed[0])
+    return _stream(path, parsed, seen[0] if instance is None and seen else instance)
+
+
+def read_dataflash_instances(path, instances: list[int] | None = None) -> list[LogStream]:
+    """Each instance's IMU messages, the log parsed once; `instances` None: every instance it holds."""
+    path = Path(path)
+    parsed = _parsed(path)
+    wanted: list[int | None] = list(instances or sorted(parsed[0])) or [None]  # None: refused, saying why
+    return [_stream(path, parsed, i) for i in wanted]
+
+
+def _parsed(path: Path) -> tuple[dict[int, list[tuple]], dict[int, str], dict, list[str]]:
+    """_messages's rows, kinds and parameters of the whole messages, and the warnings of a cut end."""
     need("pymavlink", "DataFlash log", path)
     from pymavlink import DFReader
     whole, warnings = whole_dataflash(path)
     try:
         with contextlib.redirect_stdout(_io.StringIO()):  # pymavlink prints what it skips
             log = DFReader.DFReader_binary(str(path))
-            rows, kinds, params = _messages(log, whole)
+            return (*_messages(log, whole), warnings)
     except ImportError_:
         raise
     except Exception as e:  # pymavlink raises what its parser meets
         raise ImportError_(f"{path}: not a DataFlash log pymavlink can read ({e})") from None
+
+
+def _stream(path: Path, parsed, instance: int | None) -> LogStream:
+    rows, kinds, params, warnings = parsed
     seen = sorted(rows)
-    if instance is None and seen:
-        instance = seen[0]
-    if instance not in rows:
+    if instance is None or instance not in rows:
         raise ImportError_(f"{path}: no IMU messages{'' if instance is None else f' of instance {instance}'} in the log (it has "
                            f"{'instances ' + ', '.join(map(str, seen)) if seen else 'no IMU messages'})"
                            + (f": give --instance {seen[0]}" if seen else ": set LOG_BITMASK to log the IMU"))
@@ -59,7 +76,7 @@ def read_dataflash(path, instance: int | None = None) -> LogStream:
                  "ahrs_orientation": int(orientation), "temperature": "IMU.T" if temp is not None else None}
     t = r[:, 0] * 1e-6
     increasing(t, path)
-    return LogStream(t, r[:, 1:4], r[:, 4:7], temp, log_block, warnings)
+    return LogStream(t, r[:, 1:4], r[:, 4:7], temp, log_block, list(warnings))
 
 
 def _messages(log, whole: int) -> tuple[dict[int, list[tuple]], dict[int, str], dict]:

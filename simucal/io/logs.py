@@ -22,16 +22,19 @@ import numpy as np
 
 from simucal import io
 from simucal.io import timestamps
-from simucal.io.dataflash import read_dataflash
+from simucal.io.dataflash import read_dataflash, read_dataflash_instances
 from simucal.io.importers import ImportError_, import_meta
 from simucal.io.log_stream import LogStream
 from simucal.io.rosbag import read_rosbag
-from simucal.io.ulog import read_ulog
+from simucal.io.ulog import read_ulog, read_ulog_instances
 
 G_MPS2 = 9.80665
 MAGNITUDE_OFF = 0.2  # a median |f| more than this fraction away from g is named (m/s^2 assumed)
 
 READERS: dict[str, Callable[..., LogStream]] = {"ulog": read_ulog, "dataflash": read_dataflash}
+# every instance of one log, parsed once (a ROS bag's Imu topics are no instances)
+INSTANCE_READERS: dict[str, Callable[..., list[LogStream]]] = {"ulog": read_ulog_instances,
+                                                               "dataflash": read_dataflash_instances}
 
 
 def read_log(fmt: str, path, instance: int | None = None, topic: str | None = None) -> LogStream:
@@ -73,12 +76,36 @@ def checked(s: LogStream, path: Path) -> LogStream:
 def import_log(fmt: str, path, out, latitude_deg, instance: int | None = None, topic: str | None = None) -> dict:
     """`simucal import ulog|dataflash|rosbag FILE -o SET`: the log as a stream (module doc); its meta, whose
     `warnings` the command prints."""
-    s = read_log(fmt, path, instance, topic)
+    return dict(_write(read_log(fmt, path, instance, topic), fmt, Path(path), out, latitude_deg).meta)
+
+
+def instance_folder(out, instance: int) -> Path:
+    """The set of one instance in `import --instance all -o OUT`."""
+    return Path(out) / f"instance{instance}"
+
+
+def import_instances(fmt: str, path, out, latitude_deg, instances: list[int] | None = None,
+                     force: bool = False) -> list[io.MeasurementSet]:
+    """`simucal import ulog|dataflash FILE --instance all|0,1 -o OUT`: one set per instance (None: every
+    instance that holds both sensors), OUT/instance<n>, the log parsed once; the sets as written (in memory:
+    their files are renamed into place when the command ends)."""
+    from simucal.io import outputs
+    if fmt not in INSTANCE_READERS:
+        raise ImportError_(f"{path}: --instance reads an autopilot's log (ulog, dataflash); a {fmt} has topics "
+                           "(--topic)")
+    streams = [checked(s, Path(path)) for s in INSTANCE_READERS[fmt](path, instances)]
+    folders = [instance_folder(out, s.log["instance"]) for s in streams]
+    outputs.check([path], sets=folders, force=force)
+    return [_write(s, fmt, Path(path), f, latitude_deg) for s, f in zip(streams, folders)]
+
+
+def _write(s: LogStream, fmt: str, path: Path, out, latitude_deg) -> io.MeasurementSet:
+    """The stream written as a set at `out`; the set."""
     if latitude_deg is None and s.log.get("gps_latitude_deg") is not None:
         latitude_deg = s.log["gps_latitude_deg"]
         s.log["latitude"] = "the log's GPS fixes (their median)"
     source = s.log.get("topic") or s.log.get("source") or f"instance {s.log.get('instance')}"
-    extra: dict = {"log": s.log, "description": f"imported from {Path(path).name} ({fmt}): {source}"}
+    extra: dict = {"log": s.log, "description": f"imported from {path.name} ({fmt}): {source}"}
     if s.warnings:
         extra["warnings"] = list(s.warnings)
     meta = import_meta("m/s^2", "rad/s", latitude_deg, extra)
@@ -88,7 +115,7 @@ def import_log(fmt: str, path, out, latitude_deg, instance: int | None = None, t
     if s.temp_c is not None:
         samples["temp_c"] = s.temp_c
     io.write_set(out, meta, samples)
-    return meta
+    return io.MeasurementSet(Path(out), {"format": io.FORMAT, **meta}, samples, None)
 
 
 def bag_as_set(path, topic: str | None = None):

@@ -29,3 +29,12 @@ class Meta(SensorUnits, total=False):
     gyro_offset_counts: list[float] | float
     log: JSONObject                   # an importer's record of the log it read (file, topics, clock, ...)
     warnings: list[str]
+
+
+def log_imu(meta: Meta) -> tuple | None:
+    """(instance, acc device id, gyro device id) of a set imported from an autopilot's log (meta.json's
+    `log`), which tells one IMU of a log from another; None for a set from elsewhere."""
+    log = meta.get("log")
+    if not isinstance(log, dict):
+        return None
+    return log.get("instance"), log.get("acc_device_id"), log.get("gyro_device_id")

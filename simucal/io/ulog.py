@@ -58,13 +58,39 @@ def read_ulog(path, instance: int | None = None) -> LogStream:
     """The IMU of a ULog from its best source (module doc); `instance` None: any source, sensor_combined
     included; else that instance's sensor_accel/sensor_gyro or vehicle_imu."""
     path = Path(path)
+    return _best(path, *_parsed(path), instance)
+
+
+def read_ulog_instances(path, instances: list[int] | None = None) -> list[LogStream]:
+    """Each instance's IMU from its best source, the log parsed once; `instances` None: every instance that
+    holds both sensors (sensor_combined, which follows PX4's voter, is no instance)."""
+    path = Path(path)
+    data, warnings = _parsed(path)
+    held = sorted({s.instance for s in _sources(data, path) if s.instance is not None})
+    if not held and ("sensor_combined", 0) in data:
+        raise ImportError_(f"{path}: no instance holds both sensors (sensor_accel with sensor_gyro, or vehicle_imu); "
+                           "the log has sensor_combined, PX4's primary IMU: import it without --instance, or log "
+                           "the IMU per instance (SDLOG_PROFILE)")
+    if not held:
+        raise ImportError_(f"{path}: {_missing(data, None)}")
+    for i in instances or []:
+        if i not in held:
+            raise ImportError_(f"{path}: {_missing(data, i)}")
+    return [_best(path, data, list(warnings), i) for i in (instances or held)]
+
+
+def _parsed(path: Path) -> tuple[dict, list[str]]:
+    """{(topic, multi_id): its columns} of the topics read, and the warnings of a cut end."""
     pyulog = need("pyulog", "ULog", path)
     warnings = whole_ulog(path)
     try:
         ulog = pyulog.ULog(str(path), TOPICS)
     except Exception as e:  # pyulog raises bare Exceptions on a foreign or broken file
         raise ImportError_(f"{path}: not a ULog pyulog can read ({e})") from None
-    data = {(d.name, d.multi_id): d.data for d in ulog.data_list}
+    return {(d.name, d.multi_id): d.data for d in ulog.data_list}, warnings
+
+
+def _best(path: Path, data: dict, warnings: list[str], instance: int | None) -> LogStream:
     sources = [s for s in _sources(data, path) if instance is None or s.instance == instance]
     if not sources:
         raise ImportError_(f"{path}: {_missing(data, instance)}")
