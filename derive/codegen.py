@@ -373,6 +373,16 @@ def unify_module(acc: ErrorModel, gyro: ErrorModel) -> str:
                                          ("w_T", None), ("w_e", None), ("L", None)],
                        [((3,), sp.Matrix([gyro_sol[s] for s in unify.GYRO_UNIFY_UNKNOWNS]))],
                        "lambda_x4, lambda_y4, lambda_z4 (rad) from the rate runs (eq. 27)."),
+        numpy_function("direction_jacobian", [("f", list(unify.f_b))], [((3, 3), unify.direction_jacobian())],
+                       "d(f/|f|)/df (3, 3): a specific force's error turning its direction."),
+        numpy_function("pair_misfit_jacobians", [("u_b", list(unify.u_b)), ("C", list(unify.C0)),
+                                                 ("E", list(unify.E_m))],
+                       [((2, 3), J) for J in unify.pair_misfit_jacobians()],
+                       "A pair's misfit E^T (u_d - C (I + [phi x]) u_b): its derivatives in u_b, u_d, phi (2, 3) "
+                       "each; C (9,) and E (6,) row-major."),
+        numpy_function("wahba_terms", [("u_b", list(unify.u_b)), ("u_d", list(unify.u_d)), ("C", list(unify.C0))],
+                       [((3, 3), J) for J in unify.wahba_terms()],
+                       "One pair's Wahba gradient g = dc/dphi at phi = 0: dg/dphi, dg/du_b, dg/du_d (3, 3) each."),
     ])
 
 

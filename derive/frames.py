@@ -56,7 +56,8 @@ class AuxInput:
     runtime finds it (source): "column" a samples.csv column of that name, averaged over a
     position like the outputs; "specific force" what the accelerometers measure (gyro
     terms: g-sensitivity); "table rate" the outer-axis rate of a rate run (accelerometer
-    terms: lever arms)."""
+    terms: lever arms); "temperature rate" the smoothed derivative of temp_c in time
+    (simucal.fit.thermal.temperature_rate)."""
 
     name: str
     unit: str
@@ -73,6 +74,8 @@ AUX_INPUTS = {a.name: a for a in (
     AuxInput("dtemp_c", "degC", "sensor temperature from the calibration's reference, temp_c - T_ref (the calibration "
              "file's t_ref_c)", "temperature from its reference"),
     AuxInput("t_s", "s", "time"),
+    AuxInput("temp_rate_c_s", "degC/s", "the logged temperature's rate of change dT/dt, a smoothed derivative of temp_c "
+             "(simucal.fit.thermal.temperature_rate)", "temperature rate"),
     AuxInput("f_x", "g", "specific force along x of b", "specific force"),
     AuxInput("f_y", "g", "specific force along y of b", "specific force"),
     AuxInput("f_z", "g", "specific force along z of b", "specific force"),
@@ -82,9 +85,13 @@ AUX_INPUTS = {a.name: a for a in (
     *(AuxInput(f"dwb_{a}", "rad/s^2", f"angular acceleration about {a} of b, the body rate's change", "body rate")
       for a in AXES),
 )}
-SENSOR_AUX = {"acc": ("temp_c", "dtemp_c", "t_s", "w2", "wb_x", "wb_y", "wb_z", "dwb_x", "dwb_y", "dwb_z"),
-              "gyro": ("temp_c", "dtemp_c", "t_s", "f_x", "f_y", "f_z")}
-temp_c, dtemp_c, t_s, w2 = (AUX_INPUTS[n].symbol for n in ("temp_c", "dtemp_c", "t_s", "w2"))
+# each sensor's in the order its generated functions take them; a new input goes at the end, so that the
+# others keep their places in the aux arrays of existing generated models
+SENSOR_AUX = {"acc": ("temp_c", "dtemp_c", "t_s", "w2", "wb_x", "wb_y", "wb_z", "dwb_x", "dwb_y", "dwb_z",
+                      "temp_rate_c_s"),
+              "gyro": ("temp_c", "dtemp_c", "t_s", "f_x", "f_y", "f_z", "temp_rate_c_s")}
+temp_c, dtemp_c, t_s, w2, temp_rate_c_s = (AUX_INPUTS[n].symbol for n in ("temp_c", "dtemp_c", "t_s", "w2",
+                                                                         "temp_rate_c_s"))
 omega_b = sp.Matrix([AUX_INPUTS[f"wb_{a}"].symbol for a in AXES])   # rad/s: what accelerometer terms see of the motion
 domega_b = sp.Matrix([AUX_INPUTS[f"dwb_{a}"].symbol for a in AXES])  # rad/s^2
 _COLUMN_INPUTS: dict[str, AuxInput] = {}

@@ -20,7 +20,7 @@ from dataclasses import dataclass
 import sympy as sp
 
 from . import table
-from .frames import UP, lat, w_T, w_e
+from .frames import UP, f_b, lat, skew, w_T, w_e
 from .models import ErrorModel
 from .norm import EPS
 
@@ -128,3 +128,44 @@ def gyro_matrix_in_b(model: ErrorModel):
     small = model.params + table.theta4 + table.lambda4
     return exact, exact.applyfunc(lambda e: _first_order(e, small))
 
+
+
+# The exact unification's pairs (simucal/turntable/unification.py): each pair joins a direction in b
+# (u_b: a calibrated specific force f_b / |f_b|) and one in d (u_d: the gyro fit's), tied by
+# C = C0 (I + [phi x]). The derivatives below carry every input's error (the fits' parameters and
+# directions, the rate runs' mean outputs) into the pair's misfit and into phi.
+u_b = sp.Matrix(sp.symbols("ub_x ub_y ub_z", real=True))
+u_d = sp.Matrix(sp.symbols("ud_x ud_y ud_z", real=True))
+C0 = sp.Matrix(3, 3, sp.symbols("C_0:3_0:3", real=True))   # C_b^d at the solution, row-major
+phi = sp.Matrix(sp.symbols("phi_x phi_y phi_z", real=True))
+E_m = sp.Matrix(3, 2, sp.symbols("E_0:3_0:2", real=True))  # row-major
+
+
+def direction_jacobian():
+    """d u_b / d f_b, u_b = f_b / |f_b|: how an error of a calibrated specific force turns its direction
+    (the part along f_b changes only its norm)."""
+    return sp.simplify((f_b / f_b.norm()).jacobian(f_b))
+
+
+def _at_zero(expr):
+    return expr.subs({s: 0 for s in phi})
+
+
+def pair_misfit_jacobians():
+    """A pair's misfit r = E_m^T (u_d - C0 (I + [phi x]) u_b) and its derivatives in u_b, u_d, phi at
+    phi = 0. E_m: two orthonormal columns perpendicular to the bisector m of u_d and C0 u_b. For unit
+    vectors u_d - C0 u_b is perpendicular to m exactly, so r holds all of the misfit in 2 components; in
+    3 its covariance would be singular along m only to first order (rank 2 plus a sliver of the misfit's
+    size, which a pseudo-inverse reads as a third, nearly noiseless component)."""
+    r = E_m.T * (u_d - C0 * (sp.eye(3) + skew(phi)) * u_b)
+    return tuple(_at_zero(r.jacobian(x)) for x in (u_b, u_d, phi))
+
+
+def wahba_terms():
+    """One pair's share of Wahba's problem min sum_i w_i c_i, c = |u_d - C0 R(phi) u_b|^2 / 2 with R(phi) =
+    exp([phi x]) to second order (the Hessian at the misfit's own size needs it): with g = dc/dphi, at
+    phi = 0, (dg/dphi, dg/du_b, dg/du_d). At the solution sum_i w_i g_i = 0, so to first order
+    dphi = -(sum w dg/dphi)^-1 sum w (dg/du_b du_b + dg/du_d du_d)."""
+    v = u_d - C0 * (sp.eye(3) + skew(phi) + skew(phi) ** 2 / 2) * u_b
+    g = sp.Matrix([(v.T * v)[0, 0] / 2]).jacobian(phi).T
+    return tuple(_at_zero(g.jacobian(x)) for x in (phi, u_b, u_d))

@@ -18,10 +18,10 @@ class Effect(NamedTuple):
     reads: tuple = ()  # the auxiliary inputs its regressor reads (temp_c, dtemp_c, t_s, ...)
 
 
-AUX = {'acc': ('temp_c', 'dtemp_c', 't_s', 'w2', 'wb_x', 'wb_y', 'wb_z', 'dwb_x', 'dwb_y', 'dwb_z'), 'gyro': ('temp_c', 'dtemp_c', 't_s', 'f_x', 'f_y', 'f_z')}  # the aux argument of each sensor's phi, by name (derive/frames.py)
+AUX = {'acc': ('temp_c', 'dtemp_c', 't_s', 'w2', 'wb_x', 'wb_y', 'wb_z', 'dwb_x', 'dwb_y', 'dwb_z', 'temp_rate_c_s'), 'gyro': ('temp_c', 'dtemp_c', 't_s', 'f_x', 'f_y', 'f_z', 'temp_rate_c_s')}  # the aux argument of each sensor's phi, by name (derive/frames.py)
 
 
-def phi_acc_bias_drift_time_x(u, aux=numpy.zeros(10)):
+def phi_acc_bias_drift_time_x(u, aux=numpy.zeros(11)):
     """acc.bias_drift_time.x: phi = t_s and dphi/du."""
     f_x = u[..., 0]
     f_y = u[..., 1]
@@ -37,7 +37,7 @@ def phi_acc_bias_drift_time_x(u, aux=numpy.zeros(10)):
     return out0, out1
 
 
-def phi_acc_bias_drift_time_y(u, aux=numpy.zeros(10)):
+def phi_acc_bias_drift_time_y(u, aux=numpy.zeros(11)):
     """acc.bias_drift_time.y: phi = t_s and dphi/du."""
     f_x = u[..., 0]
     f_y = u[..., 1]
@@ -53,7 +53,7 @@ def phi_acc_bias_drift_time_y(u, aux=numpy.zeros(10)):
     return out0, out1
 
 
-def phi_acc_bias_drift_time_z(u, aux=numpy.zeros(10)):
+def phi_acc_bias_drift_time_z(u, aux=numpy.zeros(11)):
     """acc.bias_drift_time.z: phi = t_s and dphi/du."""
     f_x = u[..., 0]
     f_y = u[..., 1]
@@ -69,7 +69,7 @@ def phi_acc_bias_drift_time_z(u, aux=numpy.zeros(10)):
     return out0, out1
 
 
-def phi_acc_bias_temperature_x(u, aux=numpy.zeros(10)):
+def phi_acc_bias_temperature_x(u, aux=numpy.zeros(11)):
     """acc.bias_temperature.x: phi = dtemp_c and dphi/du."""
     f_x = u[..., 0]
     f_y = u[..., 1]
@@ -85,7 +85,7 @@ def phi_acc_bias_temperature_x(u, aux=numpy.zeros(10)):
     return out0, out1
 
 
-def phi_acc_bias_temperature_y(u, aux=numpy.zeros(10)):
+def phi_acc_bias_temperature_y(u, aux=numpy.zeros(11)):
     """acc.bias_temperature.y: phi = dtemp_c and dphi/du."""
     f_x = u[..., 0]
     f_y = u[..., 1]
@@ -101,7 +101,7 @@ def phi_acc_bias_temperature_y(u, aux=numpy.zeros(10)):
     return out0, out1
 
 
-def phi_acc_bias_temperature_z(u, aux=numpy.zeros(10)):
+def phi_acc_bias_temperature_z(u, aux=numpy.zeros(11)):
     """acc.bias_temperature.z: phi = dtemp_c and dphi/du."""
     f_x = u[..., 0]
     f_y = u[..., 1]
@@ -117,7 +117,7 @@ def phi_acc_bias_temperature_z(u, aux=numpy.zeros(10)):
     return out0, out1
 
 
-def phi_acc_bias_temperature2_x(u, aux=numpy.zeros(10)):
+def phi_acc_bias_temperature2_x(u, aux=numpy.zeros(11)):
     """acc.bias_temperature2.x: phi = dtemp_c**2 and dphi/du."""
     f_x = u[..., 0]
     f_y = u[..., 1]
@@ -133,7 +133,7 @@ def phi_acc_bias_temperature2_x(u, aux=numpy.zeros(10)):
     return out0, out1
 
 
-def phi_acc_bias_temperature2_y(u, aux=numpy.zeros(10)):
+def phi_acc_bias_temperature2_y(u, aux=numpy.zeros(11)):
     """acc.bias_temperature2.y: phi = dtemp_c**2 and dphi/du."""
     f_x = u[..., 0]
     f_y = u[..., 1]
@@ -149,7 +149,7 @@ def phi_acc_bias_temperature2_y(u, aux=numpy.zeros(10)):
     return out0, out1
 
 
-def phi_acc_bias_temperature2_z(u, aux=numpy.zeros(10)):
+def phi_acc_bias_temperature2_z(u, aux=numpy.zeros(11)):
     """acc.bias_temperature2.z: phi = dtemp_c**2 and dphi/du."""
     f_x = u[..., 0]
     f_y = u[..., 1]
@@ -165,7 +165,7 @@ def phi_acc_bias_temperature2_z(u, aux=numpy.zeros(10)):
     return out0, out1
 
 
-def phi_acc_bias_temperature3_x(u, aux=numpy.zeros(10)):
+def phi_acc_bias_temperature3_x(u, aux=numpy.zeros(11)):
     """acc.bias_temperature3.x: phi = dtemp_c**3 and dphi/du."""
     f_x = u[..., 0]
     f_y = u[..., 1]
@@ -181,7 +181,7 @@ def phi_acc_bias_temperature3_x(u, aux=numpy.zeros(10)):
     return out0, out1
 
 
-def phi_acc_bias_temperature3_y(u, aux=numpy.zeros(10)):
+def phi_acc_bias_temperature3_y(u, aux=numpy.zeros(11)):
     """acc.bias_temperature3.y: phi = dtemp_c**3 and dphi/du."""
     f_x = u[..., 0]
     f_y = u[..., 1]
@@ -197,7 +197,7 @@ def phi_acc_bias_temperature3_y(u, aux=numpy.zeros(10)):
     return out0, out1
 
 
-def phi_acc_bias_temperature3_z(u, aux=numpy.zeros(10)):
+def phi_acc_bias_temperature3_z(u, aux=numpy.zeros(11)):
     """acc.bias_temperature3.z: phi = dtemp_c**3 and dphi/du."""
     f_x = u[..., 0]
     f_y = u[..., 1]
@@ -213,7 +213,7 @@ def phi_acc_bias_temperature3_z(u, aux=numpy.zeros(10)):
     return out0, out1
 
 
-def phi_acc_cross_coupling_xy(u, aux=numpy.zeros(10)):
+def phi_acc_cross_coupling_xy(u, aux=numpy.zeros(11)):
     """acc.cross_coupling.xy: phi = f_x*f_y and dphi/du."""
     f_x = u[..., 0]
     f_y = u[..., 1]
@@ -228,7 +228,7 @@ def phi_acc_cross_coupling_xy(u, aux=numpy.zeros(10)):
     return out0, out1
 
 
-def phi_acc_cross_coupling_xz(u, aux=numpy.zeros(10)):
+def phi_acc_cross_coupling_xz(u, aux=numpy.zeros(11)):
     """acc.cross_coupling.xz: phi = f_x*f_z and dphi/du."""
     f_x = u[..., 0]
     f_y = u[..., 1]
@@ -243,7 +243,7 @@ def phi_acc_cross_coupling_xz(u, aux=numpy.zeros(10)):
     return out0, out1
 
 
-def phi_acc_cross_coupling_yx(u, aux=numpy.zeros(10)):
+def phi_acc_cross_coupling_yx(u, aux=numpy.zeros(11)):
     """acc.cross_coupling.yx: phi = f_x*f_y and dphi/du."""
     f_x = u[..., 0]
     f_y = u[..., 1]
@@ -258,7 +258,7 @@ def phi_acc_cross_coupling_yx(u, aux=numpy.zeros(10)):
     return out0, out1
 
 
-def phi_acc_cross_coupling_yz(u, aux=numpy.zeros(10)):
+def phi_acc_cross_coupling_yz(u, aux=numpy.zeros(11)):
     """acc.cross_coupling.yz: phi = f_y*f_z and dphi/du."""
     f_x = u[..., 0]
     f_y = u[..., 1]
@@ -273,7 +273,7 @@ def phi_acc_cross_coupling_yz(u, aux=numpy.zeros(10)):
     return out0, out1
 
 
-def phi_acc_cross_coupling_zx(u, aux=numpy.zeros(10)):
+def phi_acc_cross_coupling_zx(u, aux=numpy.zeros(11)):
     """acc.cross_coupling.zx: phi = f_x*f_z and dphi/du."""
     f_x = u[..., 0]
     f_y = u[..., 1]
@@ -288,7 +288,7 @@ def phi_acc_cross_coupling_zx(u, aux=numpy.zeros(10)):
     return out0, out1
 
 
-def phi_acc_cross_coupling_zy(u, aux=numpy.zeros(10)):
+def phi_acc_cross_coupling_zy(u, aux=numpy.zeros(11)):
     """acc.cross_coupling.zy: phi = f_y*f_z and dphi/du."""
     f_x = u[..., 0]
     f_y = u[..., 1]
@@ -303,7 +303,7 @@ def phi_acc_cross_coupling_zy(u, aux=numpy.zeros(10)):
     return out0, out1
 
 
-def phi_acc_lever_arm_yx(u, aux=numpy.zeros(10)):
+def phi_acc_lever_arm_yx(u, aux=numpy.zeros(11)):
     """acc.lever_arm.yx: phi = 0.101971621297793*dwb_z + 0.101971621297793*wb_x*wb_y and dphi/du."""
     f_x = u[..., 0]
     f_y = u[..., 1]
@@ -321,7 +321,7 @@ def phi_acc_lever_arm_yx(u, aux=numpy.zeros(10)):
     return out0, out1
 
 
-def phi_acc_lever_arm_yy(u, aux=numpy.zeros(10)):
+def phi_acc_lever_arm_yy(u, aux=numpy.zeros(11)):
     """acc.lever_arm.yy: phi = -0.101971621297793*wb_x**2 - 0.101971621297793*wb_z**2 and dphi/du."""
     f_x = u[..., 0]
     f_y = u[..., 1]
@@ -338,7 +338,7 @@ def phi_acc_lever_arm_yy(u, aux=numpy.zeros(10)):
     return out0, out1
 
 
-def phi_acc_lever_arm_yz(u, aux=numpy.zeros(10)):
+def phi_acc_lever_arm_yz(u, aux=numpy.zeros(11)):
     """acc.lever_arm.yz: phi = -0.101971621297793*dwb_x + 0.101971621297793*wb_y*wb_z and dphi/du."""
     f_x = u[..., 0]
     f_y = u[..., 1]
@@ -356,7 +356,7 @@ def phi_acc_lever_arm_yz(u, aux=numpy.zeros(10)):
     return out0, out1
 
 
-def phi_acc_lever_arm_zx(u, aux=numpy.zeros(10)):
+def phi_acc_lever_arm_zx(u, aux=numpy.zeros(11)):
     """acc.lever_arm.zx: phi = -0.101971621297793*dwb_y + 0.101971621297793*wb_x*wb_z and dphi/du."""
     f_x = u[..., 0]
     f_y = u[..., 1]
@@ -374,7 +374,7 @@ def phi_acc_lever_arm_zx(u, aux=numpy.zeros(10)):
     return out0, out1
 
 
-def phi_acc_lever_arm_zy(u, aux=numpy.zeros(10)):
+def phi_acc_lever_arm_zy(u, aux=numpy.zeros(11)):
     """acc.lever_arm.zy: phi = 0.101971621297793*dwb_x + 0.101971621297793*wb_y*wb_z and dphi/du."""
     f_x = u[..., 0]
     f_y = u[..., 1]
@@ -392,7 +392,7 @@ def phi_acc_lever_arm_zy(u, aux=numpy.zeros(10)):
     return out0, out1
 
 
-def phi_acc_lever_arm_zz(u, aux=numpy.zeros(10)):
+def phi_acc_lever_arm_zz(u, aux=numpy.zeros(11)):
     """acc.lever_arm.zz: phi = -0.101971621297793*wb_x**2 - 0.101971621297793*wb_y**2 and dphi/du."""
     f_x = u[..., 0]
     f_y = u[..., 1]
@@ -409,7 +409,7 @@ def phi_acc_lever_arm_zz(u, aux=numpy.zeros(10)):
     return out0, out1
 
 
-def phi_acc_quadratic_x(u, aux=numpy.zeros(10)):
+def phi_acc_quadratic_x(u, aux=numpy.zeros(11)):
     """acc.quadratic.x: phi = f_x**2 and dphi/du."""
     f_x = u[..., 0]
     f_y = u[..., 1]
@@ -424,7 +424,7 @@ def phi_acc_quadratic_x(u, aux=numpy.zeros(10)):
     return out0, out1
 
 
-def phi_acc_quadratic_y(u, aux=numpy.zeros(10)):
+def phi_acc_quadratic_y(u, aux=numpy.zeros(11)):
     """acc.quadratic.y: phi = f_y**2 and dphi/du."""
     f_x = u[..., 0]
     f_y = u[..., 1]
@@ -439,7 +439,7 @@ def phi_acc_quadratic_y(u, aux=numpy.zeros(10)):
     return out0, out1
 
 
-def phi_acc_quadratic_z(u, aux=numpy.zeros(10)):
+def phi_acc_quadratic_z(u, aux=numpy.zeros(11)):
     """acc.quadratic.z: phi = f_z**2 and dphi/du."""
     f_x = u[..., 0]
     f_y = u[..., 1]
@@ -454,7 +454,7 @@ def phi_acc_quadratic_z(u, aux=numpy.zeros(10)):
     return out0, out1
 
 
-def phi_acc_scale_asymmetry_x(u, aux=numpy.zeros(10)):
+def phi_acc_scale_asymmetry_x(u, aux=numpy.zeros(11)):
     """acc.scale_asymmetry.x: phi = Abs(f_x) and dphi/du."""
     f_x = u[..., 0]
     f_y = u[..., 1]
@@ -469,7 +469,7 @@ def phi_acc_scale_asymmetry_x(u, aux=numpy.zeros(10)):
     return out0, out1
 
 
-def phi_acc_scale_asymmetry_y(u, aux=numpy.zeros(10)):
+def phi_acc_scale_asymmetry_y(u, aux=numpy.zeros(11)):
     """acc.scale_asymmetry.y: phi = Abs(f_y) and dphi/du."""
     f_x = u[..., 0]
     f_y = u[..., 1]
@@ -484,7 +484,7 @@ def phi_acc_scale_asymmetry_y(u, aux=numpy.zeros(10)):
     return out0, out1
 
 
-def phi_acc_scale_asymmetry_z(u, aux=numpy.zeros(10)):
+def phi_acc_scale_asymmetry_z(u, aux=numpy.zeros(11)):
     """acc.scale_asymmetry.z: phi = Abs(f_z) and dphi/du."""
     f_x = u[..., 0]
     f_y = u[..., 1]
@@ -499,7 +499,7 @@ def phi_acc_scale_asymmetry_z(u, aux=numpy.zeros(10)):
     return out0, out1
 
 
-def phi_acc_scale_temperature_x(u, aux=numpy.zeros(10)):
+def phi_acc_scale_temperature_x(u, aux=numpy.zeros(11)):
     """acc.scale_temperature.x: phi = dtemp_c*f_x and dphi/du."""
     f_x = u[..., 0]
     f_y = u[..., 1]
@@ -515,7 +515,7 @@ def phi_acc_scale_temperature_x(u, aux=numpy.zeros(10)):
     return out0, out1
 
 
-def phi_acc_scale_temperature_y(u, aux=numpy.zeros(10)):
+def phi_acc_scale_temperature_y(u, aux=numpy.zeros(11)):
     """acc.scale_temperature.y: phi = dtemp_c*f_y and dphi/du."""
     f_x = u[..., 0]
     f_y = u[..., 1]
@@ -531,7 +531,7 @@ def phi_acc_scale_temperature_y(u, aux=numpy.zeros(10)):
     return out0, out1
 
 
-def phi_acc_scale_temperature_z(u, aux=numpy.zeros(10)):
+def phi_acc_scale_temperature_z(u, aux=numpy.zeros(11)):
     """acc.scale_temperature.z: phi = dtemp_c*f_z and dphi/du."""
     f_x = u[..., 0]
     f_y = u[..., 1]
@@ -547,7 +547,7 @@ def phi_acc_scale_temperature_z(u, aux=numpy.zeros(10)):
     return out0, out1
 
 
-def phi_acc_scale_temperature2_x(u, aux=numpy.zeros(10)):
+def phi_acc_scale_temperature2_x(u, aux=numpy.zeros(11)):
     """acc.scale_temperature2.x: phi = dtemp_c**2*f_x and dphi/du."""
     f_x = u[..., 0]
     f_y = u[..., 1]
@@ -564,7 +564,7 @@ def phi_acc_scale_temperature2_x(u, aux=numpy.zeros(10)):
     return out0, out1
 
 
-def phi_acc_scale_temperature2_y(u, aux=numpy.zeros(10)):
+def phi_acc_scale_temperature2_y(u, aux=numpy.zeros(11)):
     """acc.scale_temperature2.y: phi = dtemp_c**2*f_y and dphi/du."""
     f_x = u[..., 0]
     f_y = u[..., 1]
@@ -581,7 +581,7 @@ def phi_acc_scale_temperature2_y(u, aux=numpy.zeros(10)):
     return out0, out1
 
 
-def phi_acc_scale_temperature2_z(u, aux=numpy.zeros(10)):
+def phi_acc_scale_temperature2_z(u, aux=numpy.zeros(11)):
     """acc.scale_temperature2.z: phi = dtemp_c**2*f_z and dphi/du."""
     f_x = u[..., 0]
     f_y = u[..., 1]
@@ -598,7 +598,7 @@ def phi_acc_scale_temperature2_z(u, aux=numpy.zeros(10)):
     return out0, out1
 
 
-def phi_acc_size_effect_xx(u, aux=numpy.zeros(10)):
+def phi_acc_size_effect_xx(u, aux=numpy.zeros(11)):
     """acc.size_effect.xx: phi = w2*(f_x**2 - 1) and dphi/du."""
     f_x = u[..., 0]
     f_y = u[..., 1]
@@ -614,7 +614,7 @@ def phi_acc_size_effect_xx(u, aux=numpy.zeros(10)):
     return out0, out1
 
 
-def phi_acc_size_effect_xy(u, aux=numpy.zeros(10)):
+def phi_acc_size_effect_xy(u, aux=numpy.zeros(11)):
     """acc.size_effect.xy: phi = f_x*f_y*w2 and dphi/du."""
     f_x = u[..., 0]
     f_y = u[..., 1]
@@ -631,7 +631,7 @@ def phi_acc_size_effect_xy(u, aux=numpy.zeros(10)):
     return out0, out1
 
 
-def phi_acc_size_effect_xz(u, aux=numpy.zeros(10)):
+def phi_acc_size_effect_xz(u, aux=numpy.zeros(11)):
     """acc.size_effect.xz: phi = f_x*f_z*w2 and dphi/du."""
     f_x = u[..., 0]
     f_y = u[..., 1]
@@ -648,7 +648,7 @@ def phi_acc_size_effect_xz(u, aux=numpy.zeros(10)):
     return out0, out1
 
 
-def phi_acc_size_effect_yx(u, aux=numpy.zeros(10)):
+def phi_acc_size_effect_yx(u, aux=numpy.zeros(11)):
     """acc.size_effect.yx: phi = f_x*f_y*w2 and dphi/du."""
     f_x = u[..., 0]
     f_y = u[..., 1]
@@ -665,7 +665,7 @@ def phi_acc_size_effect_yx(u, aux=numpy.zeros(10)):
     return out0, out1
 
 
-def phi_acc_size_effect_yy(u, aux=numpy.zeros(10)):
+def phi_acc_size_effect_yy(u, aux=numpy.zeros(11)):
     """acc.size_effect.yy: phi = w2*(f_y**2 - 1) and dphi/du."""
     f_x = u[..., 0]
     f_y = u[..., 1]
@@ -681,7 +681,7 @@ def phi_acc_size_effect_yy(u, aux=numpy.zeros(10)):
     return out0, out1
 
 
-def phi_acc_size_effect_yz(u, aux=numpy.zeros(10)):
+def phi_acc_size_effect_yz(u, aux=numpy.zeros(11)):
     """acc.size_effect.yz: phi = f_y*f_z*w2 and dphi/du."""
     f_x = u[..., 0]
     f_y = u[..., 1]
@@ -698,7 +698,7 @@ def phi_acc_size_effect_yz(u, aux=numpy.zeros(10)):
     return out0, out1
 
 
-def phi_acc_size_effect_zx(u, aux=numpy.zeros(10)):
+def phi_acc_size_effect_zx(u, aux=numpy.zeros(11)):
     """acc.size_effect.zx: phi = f_x*f_z*w2 and dphi/du."""
     f_x = u[..., 0]
     f_y = u[..., 1]
@@ -715,7 +715,7 @@ def phi_acc_size_effect_zx(u, aux=numpy.zeros(10)):
     return out0, out1
 
 
-def phi_acc_size_effect_zy(u, aux=numpy.zeros(10)):
+def phi_acc_size_effect_zy(u, aux=numpy.zeros(11)):
     """acc.size_effect.zy: phi = f_y*f_z*w2 and dphi/du."""
     f_x = u[..., 0]
     f_y = u[..., 1]
@@ -732,7 +732,7 @@ def phi_acc_size_effect_zy(u, aux=numpy.zeros(10)):
     return out0, out1
 
 
-def phi_acc_size_effect_zz(u, aux=numpy.zeros(10)):
+def phi_acc_size_effect_zz(u, aux=numpy.zeros(11)):
     """acc.size_effect.zz: phi = w2*(f_z**2 - 1) and dphi/du."""
     f_x = u[..., 0]
     f_y = u[..., 1]
@@ -748,7 +748,55 @@ def phi_acc_size_effect_zz(u, aux=numpy.zeros(10)):
     return out0, out1
 
 
-def phi_acc_time_delay_x(u, aux=numpy.zeros(10)):
+def phi_acc_temperature_rate_x(u, aux=numpy.zeros(11)):
+    """acc.temperature_rate.x: phi = temp_rate_c_s and dphi/du."""
+    f_x = u[..., 0]
+    f_y = u[..., 1]
+    f_z = u[..., 2]
+    temp_rate_c_s = aux[..., 10]
+    shape = numpy.broadcast_shapes(numpy.shape(f_x), numpy.shape(f_y), numpy.shape(f_z), numpy.shape(temp_rate_c_s), numpy.shape(aux)[:-1], )
+    out0 = numpy.empty(shape + (1,))
+    out0[..., 0] = temp_rate_c_s
+    out1 = numpy.empty(shape + (3,))
+    out1[..., 0] = 0
+    out1[..., 1] = 0
+    out1[..., 2] = 0
+    return out0, out1
+
+
+def phi_acc_temperature_rate_y(u, aux=numpy.zeros(11)):
+    """acc.temperature_rate.y: phi = temp_rate_c_s and dphi/du."""
+    f_x = u[..., 0]
+    f_y = u[..., 1]
+    f_z = u[..., 2]
+    temp_rate_c_s = aux[..., 10]
+    shape = numpy.broadcast_shapes(numpy.shape(f_x), numpy.shape(f_y), numpy.shape(f_z), numpy.shape(temp_rate_c_s), numpy.shape(aux)[:-1], )
+    out0 = numpy.empty(shape + (1,))
+    out0[..., 0] = temp_rate_c_s
+    out1 = numpy.empty(shape + (3,))
+    out1[..., 0] = 0
+    out1[..., 1] = 0
+    out1[..., 2] = 0
+    return out0, out1
+
+
+def phi_acc_temperature_rate_z(u, aux=numpy.zeros(11)):
+    """acc.temperature_rate.z: phi = temp_rate_c_s and dphi/du."""
+    f_x = u[..., 0]
+    f_y = u[..., 1]
+    f_z = u[..., 2]
+    temp_rate_c_s = aux[..., 10]
+    shape = numpy.broadcast_shapes(numpy.shape(f_x), numpy.shape(f_y), numpy.shape(f_z), numpy.shape(temp_rate_c_s), numpy.shape(aux)[:-1], )
+    out0 = numpy.empty(shape + (1,))
+    out0[..., 0] = temp_rate_c_s
+    out1 = numpy.empty(shape + (3,))
+    out1[..., 0] = 0
+    out1[..., 1] = 0
+    out1[..., 2] = 0
+    return out0, out1
+
+
+def phi_acc_time_delay_x(u, aux=numpy.zeros(11)):
     """acc.time_delay.x: phi = -f_y*wb_z + f_z*wb_y and dphi/du."""
     f_x = u[..., 0]
     f_y = u[..., 1]
@@ -765,7 +813,7 @@ def phi_acc_time_delay_x(u, aux=numpy.zeros(10)):
     return out0, out1
 
 
-def phi_acc_time_delay_y(u, aux=numpy.zeros(10)):
+def phi_acc_time_delay_y(u, aux=numpy.zeros(11)):
     """acc.time_delay.y: phi = f_x*wb_z - f_z*wb_x and dphi/du."""
     f_x = u[..., 0]
     f_y = u[..., 1]
@@ -782,7 +830,7 @@ def phi_acc_time_delay_y(u, aux=numpy.zeros(10)):
     return out0, out1
 
 
-def phi_acc_time_delay_z(u, aux=numpy.zeros(10)):
+def phi_acc_time_delay_z(u, aux=numpy.zeros(11)):
     """acc.time_delay.z: phi = -f_x*wb_y + f_y*wb_x and dphi/du."""
     f_x = u[..., 0]
     f_y = u[..., 1]
@@ -799,7 +847,7 @@ def phi_acc_time_delay_z(u, aux=numpy.zeros(10)):
     return out0, out1
 
 
-def phi_gyro_bias_drift_time_x(u, aux=numpy.zeros(6)):
+def phi_gyro_bias_drift_time_x(u, aux=numpy.zeros(7)):
     """gyro.bias_drift_time.x: phi = t_s and dphi/du."""
     w_x = u[..., 0]
     w_y = u[..., 1]
@@ -815,7 +863,7 @@ def phi_gyro_bias_drift_time_x(u, aux=numpy.zeros(6)):
     return out0, out1
 
 
-def phi_gyro_bias_drift_time_y(u, aux=numpy.zeros(6)):
+def phi_gyro_bias_drift_time_y(u, aux=numpy.zeros(7)):
     """gyro.bias_drift_time.y: phi = t_s and dphi/du."""
     w_x = u[..., 0]
     w_y = u[..., 1]
@@ -831,7 +879,7 @@ def phi_gyro_bias_drift_time_y(u, aux=numpy.zeros(6)):
     return out0, out1
 
 
-def phi_gyro_bias_drift_time_z(u, aux=numpy.zeros(6)):
+def phi_gyro_bias_drift_time_z(u, aux=numpy.zeros(7)):
     """gyro.bias_drift_time.z: phi = t_s and dphi/du."""
     w_x = u[..., 0]
     w_y = u[..., 1]
@@ -847,7 +895,7 @@ def phi_gyro_bias_drift_time_z(u, aux=numpy.zeros(6)):
     return out0, out1
 
 
-def phi_gyro_bias_temperature_x(u, aux=numpy.zeros(6)):
+def phi_gyro_bias_temperature_x(u, aux=numpy.zeros(7)):
     """gyro.bias_temperature.x: phi = dtemp_c and dphi/du."""
     w_x = u[..., 0]
     w_y = u[..., 1]
@@ -863,7 +911,7 @@ def phi_gyro_bias_temperature_x(u, aux=numpy.zeros(6)):
     return out0, out1
 
 
-def phi_gyro_bias_temperature_y(u, aux=numpy.zeros(6)):
+def phi_gyro_bias_temperature_y(u, aux=numpy.zeros(7)):
     """gyro.bias_temperature.y: phi = dtemp_c and dphi/du."""
     w_x = u[..., 0]
     w_y = u[..., 1]
@@ -879,7 +927,7 @@ def phi_gyro_bias_temperature_y(u, aux=numpy.zeros(6)):
     return out0, out1
 
 
-def phi_gyro_bias_temperature_z(u, aux=numpy.zeros(6)):
+def phi_gyro_bias_temperature_z(u, aux=numpy.zeros(7)):
     """gyro.bias_temperature.z: phi = dtemp_c and dphi/du."""
     w_x = u[..., 0]
     w_y = u[..., 1]
@@ -895,7 +943,7 @@ def phi_gyro_bias_temperature_z(u, aux=numpy.zeros(6)):
     return out0, out1
 
 
-def phi_gyro_bias_temperature2_x(u, aux=numpy.zeros(6)):
+def phi_gyro_bias_temperature2_x(u, aux=numpy.zeros(7)):
     """gyro.bias_temperature2.x: phi = dtemp_c**2 and dphi/du."""
     w_x = u[..., 0]
     w_y = u[..., 1]
@@ -911,7 +959,7 @@ def phi_gyro_bias_temperature2_x(u, aux=numpy.zeros(6)):
     return out0, out1
 
 
-def phi_gyro_bias_temperature2_y(u, aux=numpy.zeros(6)):
+def phi_gyro_bias_temperature2_y(u, aux=numpy.zeros(7)):
     """gyro.bias_temperature2.y: phi = dtemp_c**2 and dphi/du."""
     w_x = u[..., 0]
     w_y = u[..., 1]
@@ -927,7 +975,7 @@ def phi_gyro_bias_temperature2_y(u, aux=numpy.zeros(6)):
     return out0, out1
 
 
-def phi_gyro_bias_temperature2_z(u, aux=numpy.zeros(6)):
+def phi_gyro_bias_temperature2_z(u, aux=numpy.zeros(7)):
     """gyro.bias_temperature2.z: phi = dtemp_c**2 and dphi/du."""
     w_x = u[..., 0]
     w_y = u[..., 1]
@@ -943,7 +991,7 @@ def phi_gyro_bias_temperature2_z(u, aux=numpy.zeros(6)):
     return out0, out1
 
 
-def phi_gyro_bias_temperature3_x(u, aux=numpy.zeros(6)):
+def phi_gyro_bias_temperature3_x(u, aux=numpy.zeros(7)):
     """gyro.bias_temperature3.x: phi = dtemp_c**3 and dphi/du."""
     w_x = u[..., 0]
     w_y = u[..., 1]
@@ -959,7 +1007,7 @@ def phi_gyro_bias_temperature3_x(u, aux=numpy.zeros(6)):
     return out0, out1
 
 
-def phi_gyro_bias_temperature3_y(u, aux=numpy.zeros(6)):
+def phi_gyro_bias_temperature3_y(u, aux=numpy.zeros(7)):
     """gyro.bias_temperature3.y: phi = dtemp_c**3 and dphi/du."""
     w_x = u[..., 0]
     w_y = u[..., 1]
@@ -975,7 +1023,7 @@ def phi_gyro_bias_temperature3_y(u, aux=numpy.zeros(6)):
     return out0, out1
 
 
-def phi_gyro_bias_temperature3_z(u, aux=numpy.zeros(6)):
+def phi_gyro_bias_temperature3_z(u, aux=numpy.zeros(7)):
     """gyro.bias_temperature3.z: phi = dtemp_c**3 and dphi/du."""
     w_x = u[..., 0]
     w_y = u[..., 1]
@@ -991,7 +1039,7 @@ def phi_gyro_bias_temperature3_z(u, aux=numpy.zeros(6)):
     return out0, out1
 
 
-def phi_gyro_g_sensitivity_xx(u, aux=numpy.zeros(6)):
+def phi_gyro_g_sensitivity_xx(u, aux=numpy.zeros(7)):
     """gyro.g_sensitivity.xx: phi = f_x and dphi/du."""
     w_x = u[..., 0]
     w_y = u[..., 1]
@@ -1007,7 +1055,7 @@ def phi_gyro_g_sensitivity_xx(u, aux=numpy.zeros(6)):
     return out0, out1
 
 
-def phi_gyro_g_sensitivity_xy(u, aux=numpy.zeros(6)):
+def phi_gyro_g_sensitivity_xy(u, aux=numpy.zeros(7)):
     """gyro.g_sensitivity.xy: phi = f_y and dphi/du."""
     w_x = u[..., 0]
     w_y = u[..., 1]
@@ -1023,7 +1071,7 @@ def phi_gyro_g_sensitivity_xy(u, aux=numpy.zeros(6)):
     return out0, out1
 
 
-def phi_gyro_g_sensitivity_xz(u, aux=numpy.zeros(6)):
+def phi_gyro_g_sensitivity_xz(u, aux=numpy.zeros(7)):
     """gyro.g_sensitivity.xz: phi = f_z and dphi/du."""
     w_x = u[..., 0]
     w_y = u[..., 1]
@@ -1039,7 +1087,7 @@ def phi_gyro_g_sensitivity_xz(u, aux=numpy.zeros(6)):
     return out0, out1
 
 
-def phi_gyro_g_sensitivity_yx(u, aux=numpy.zeros(6)):
+def phi_gyro_g_sensitivity_yx(u, aux=numpy.zeros(7)):
     """gyro.g_sensitivity.yx: phi = f_x and dphi/du."""
     w_x = u[..., 0]
     w_y = u[..., 1]
@@ -1055,7 +1103,7 @@ def phi_gyro_g_sensitivity_yx(u, aux=numpy.zeros(6)):
     return out0, out1
 
 
-def phi_gyro_g_sensitivity_yy(u, aux=numpy.zeros(6)):
+def phi_gyro_g_sensitivity_yy(u, aux=numpy.zeros(7)):
     """gyro.g_sensitivity.yy: phi = f_y and dphi/du."""
     w_x = u[..., 0]
     w_y = u[..., 1]
@@ -1071,7 +1119,7 @@ def phi_gyro_g_sensitivity_yy(u, aux=numpy.zeros(6)):
     return out0, out1
 
 
-def phi_gyro_g_sensitivity_yz(u, aux=numpy.zeros(6)):
+def phi_gyro_g_sensitivity_yz(u, aux=numpy.zeros(7)):
     """gyro.g_sensitivity.yz: phi = f_z and dphi/du."""
     w_x = u[..., 0]
     w_y = u[..., 1]
@@ -1087,7 +1135,7 @@ def phi_gyro_g_sensitivity_yz(u, aux=numpy.zeros(6)):
     return out0, out1
 
 
-def phi_gyro_g_sensitivity_zx(u, aux=numpy.zeros(6)):
+def phi_gyro_g_sensitivity_zx(u, aux=numpy.zeros(7)):
     """gyro.g_sensitivity.zx: phi = f_x and dphi/du."""
     w_x = u[..., 0]
     w_y = u[..., 1]
@@ -1103,7 +1151,7 @@ def phi_gyro_g_sensitivity_zx(u, aux=numpy.zeros(6)):
     return out0, out1
 
 
-def phi_gyro_g_sensitivity_zy(u, aux=numpy.zeros(6)):
+def phi_gyro_g_sensitivity_zy(u, aux=numpy.zeros(7)):
     """gyro.g_sensitivity.zy: phi = f_y and dphi/du."""
     w_x = u[..., 0]
     w_y = u[..., 1]
@@ -1119,7 +1167,7 @@ def phi_gyro_g_sensitivity_zy(u, aux=numpy.zeros(6)):
     return out0, out1
 
 
-def phi_gyro_g_sensitivity_zz(u, aux=numpy.zeros(6)):
+def phi_gyro_g_sensitivity_zz(u, aux=numpy.zeros(7)):
     """gyro.g_sensitivity.zz: phi = f_z and dphi/du."""
     w_x = u[..., 0]
     w_y = u[..., 1]
@@ -1135,7 +1183,7 @@ def phi_gyro_g_sensitivity_zz(u, aux=numpy.zeros(6)):
     return out0, out1
 
 
-def phi_gyro_quadratic_x(u, aux=numpy.zeros(6)):
+def phi_gyro_quadratic_x(u, aux=numpy.zeros(7)):
     """gyro.quadratic.x: phi = 7.71604938271605e-8*w_x**2 and dphi/du."""
     w_x = u[..., 0]
     w_y = u[..., 1]
@@ -1150,7 +1198,7 @@ def phi_gyro_quadratic_x(u, aux=numpy.zeros(6)):
     return out0, out1
 
 
-def phi_gyro_quadratic_y(u, aux=numpy.zeros(6)):
+def phi_gyro_quadratic_y(u, aux=numpy.zeros(7)):
     """gyro.quadratic.y: phi = 7.71604938271605e-8*w_y**2 and dphi/du."""
     w_x = u[..., 0]
     w_y = u[..., 1]
@@ -1165,7 +1213,7 @@ def phi_gyro_quadratic_y(u, aux=numpy.zeros(6)):
     return out0, out1
 
 
-def phi_gyro_quadratic_z(u, aux=numpy.zeros(6)):
+def phi_gyro_quadratic_z(u, aux=numpy.zeros(7)):
     """gyro.quadratic.z: phi = 7.71604938271605e-8*w_z**2 and dphi/du."""
     w_x = u[..., 0]
     w_y = u[..., 1]
@@ -1180,7 +1228,7 @@ def phi_gyro_quadratic_z(u, aux=numpy.zeros(6)):
     return out0, out1
 
 
-def phi_gyro_scale_asymmetry_x(u, aux=numpy.zeros(6)):
+def phi_gyro_scale_asymmetry_x(u, aux=numpy.zeros(7)):
     """gyro.scale_asymmetry.x: phi = Abs(w_x) and dphi/du."""
     w_x = u[..., 0]
     w_y = u[..., 1]
@@ -1195,7 +1243,7 @@ def phi_gyro_scale_asymmetry_x(u, aux=numpy.zeros(6)):
     return out0, out1
 
 
-def phi_gyro_scale_asymmetry_y(u, aux=numpy.zeros(6)):
+def phi_gyro_scale_asymmetry_y(u, aux=numpy.zeros(7)):
     """gyro.scale_asymmetry.y: phi = Abs(w_y) and dphi/du."""
     w_x = u[..., 0]
     w_y = u[..., 1]
@@ -1210,7 +1258,7 @@ def phi_gyro_scale_asymmetry_y(u, aux=numpy.zeros(6)):
     return out0, out1
 
 
-def phi_gyro_scale_asymmetry_z(u, aux=numpy.zeros(6)):
+def phi_gyro_scale_asymmetry_z(u, aux=numpy.zeros(7)):
     """gyro.scale_asymmetry.z: phi = Abs(w_z) and dphi/du."""
     w_x = u[..., 0]
     w_y = u[..., 1]
@@ -1225,7 +1273,7 @@ def phi_gyro_scale_asymmetry_z(u, aux=numpy.zeros(6)):
     return out0, out1
 
 
-def phi_gyro_scale_temperature_x(u, aux=numpy.zeros(6)):
+def phi_gyro_scale_temperature_x(u, aux=numpy.zeros(7)):
     """gyro.scale_temperature.x: phi = dtemp_c*w_x and dphi/du."""
     w_x = u[..., 0]
     w_y = u[..., 1]
@@ -1241,7 +1289,7 @@ def phi_gyro_scale_temperature_x(u, aux=numpy.zeros(6)):
     return out0, out1
 
 
-def phi_gyro_scale_temperature_y(u, aux=numpy.zeros(6)):
+def phi_gyro_scale_temperature_y(u, aux=numpy.zeros(7)):
     """gyro.scale_temperature.y: phi = dtemp_c*w_y and dphi/du."""
     w_x = u[..., 0]
     w_y = u[..., 1]
@@ -1257,7 +1305,7 @@ def phi_gyro_scale_temperature_y(u, aux=numpy.zeros(6)):
     return out0, out1
 
 
-def phi_gyro_scale_temperature_z(u, aux=numpy.zeros(6)):
+def phi_gyro_scale_temperature_z(u, aux=numpy.zeros(7)):
     """gyro.scale_temperature.z: phi = dtemp_c*w_z and dphi/du."""
     w_x = u[..., 0]
     w_y = u[..., 1]
@@ -1273,7 +1321,7 @@ def phi_gyro_scale_temperature_z(u, aux=numpy.zeros(6)):
     return out0, out1
 
 
-def phi_gyro_scale_temperature2_x(u, aux=numpy.zeros(6)):
+def phi_gyro_scale_temperature2_x(u, aux=numpy.zeros(7)):
     """gyro.scale_temperature2.x: phi = dtemp_c**2*w_x and dphi/du."""
     w_x = u[..., 0]
     w_y = u[..., 1]
@@ -1290,7 +1338,7 @@ def phi_gyro_scale_temperature2_x(u, aux=numpy.zeros(6)):
     return out0, out1
 
 
-def phi_gyro_scale_temperature2_y(u, aux=numpy.zeros(6)):
+def phi_gyro_scale_temperature2_y(u, aux=numpy.zeros(7)):
     """gyro.scale_temperature2.y: phi = dtemp_c**2*w_y and dphi/du."""
     w_x = u[..., 0]
     w_y = u[..., 1]
@@ -1307,7 +1355,7 @@ def phi_gyro_scale_temperature2_y(u, aux=numpy.zeros(6)):
     return out0, out1
 
 
-def phi_gyro_scale_temperature2_z(u, aux=numpy.zeros(6)):
+def phi_gyro_scale_temperature2_z(u, aux=numpy.zeros(7)):
     """gyro.scale_temperature2.z: phi = dtemp_c**2*w_z and dphi/du."""
     w_x = u[..., 0]
     w_y = u[..., 1]
@@ -1321,6 +1369,54 @@ def phi_gyro_scale_temperature2_z(u, aux=numpy.zeros(6)):
     out1[..., 0] = 0
     out1[..., 1] = 0
     out1[..., 2] = _c0
+    return out0, out1
+
+
+def phi_gyro_temperature_rate_x(u, aux=numpy.zeros(7)):
+    """gyro.temperature_rate.x: phi = temp_rate_c_s and dphi/du."""
+    w_x = u[..., 0]
+    w_y = u[..., 1]
+    w_z = u[..., 2]
+    temp_rate_c_s = aux[..., 6]
+    shape = numpy.broadcast_shapes(numpy.shape(w_x), numpy.shape(w_y), numpy.shape(w_z), numpy.shape(temp_rate_c_s), numpy.shape(aux)[:-1], )
+    out0 = numpy.empty(shape + (1,))
+    out0[..., 0] = temp_rate_c_s
+    out1 = numpy.empty(shape + (3,))
+    out1[..., 0] = 0
+    out1[..., 1] = 0
+    out1[..., 2] = 0
+    return out0, out1
+
+
+def phi_gyro_temperature_rate_y(u, aux=numpy.zeros(7)):
+    """gyro.temperature_rate.y: phi = temp_rate_c_s and dphi/du."""
+    w_x = u[..., 0]
+    w_y = u[..., 1]
+    w_z = u[..., 2]
+    temp_rate_c_s = aux[..., 6]
+    shape = numpy.broadcast_shapes(numpy.shape(w_x), numpy.shape(w_y), numpy.shape(w_z), numpy.shape(temp_rate_c_s), numpy.shape(aux)[:-1], )
+    out0 = numpy.empty(shape + (1,))
+    out0[..., 0] = temp_rate_c_s
+    out1 = numpy.empty(shape + (3,))
+    out1[..., 0] = 0
+    out1[..., 1] = 0
+    out1[..., 2] = 0
+    return out0, out1
+
+
+def phi_gyro_temperature_rate_z(u, aux=numpy.zeros(7)):
+    """gyro.temperature_rate.z: phi = temp_rate_c_s and dphi/du."""
+    w_x = u[..., 0]
+    w_y = u[..., 1]
+    w_z = u[..., 2]
+    temp_rate_c_s = aux[..., 6]
+    shape = numpy.broadcast_shapes(numpy.shape(w_x), numpy.shape(w_y), numpy.shape(w_z), numpy.shape(temp_rate_c_s), numpy.shape(aux)[:-1], )
+    out0 = numpy.empty(shape + (1,))
+    out0[..., 0] = temp_rate_c_s
+    out1 = numpy.empty(shape + (3,))
+    out1[..., 0] = 0
+    out1[..., 1] = 0
+    out1[..., 2] = 0
     return out0, out1
 
 
@@ -1370,6 +1466,9 @@ EFFECTS = {
     'acc.size_effect.zx': Effect('acc', 2, 'r_zx', 'm', 'z accelerometer x lever arm (size effect under rotation)', phi_acc_size_effect_zx, ('w2',)),
     'acc.size_effect.zy': Effect('acc', 2, 'r_zy', 'm', 'z accelerometer y lever arm (size effect under rotation)', phi_acc_size_effect_zy, ('w2',)),
     'acc.size_effect.zz': Effect('acc', 2, 'r_zz', 'm', 'z accelerometer z lever arm (size effect under rotation)', phi_acc_size_effect_zz, ('w2',)),
+    'acc.temperature_rate.x': Effect('acc', 0, 'bTr_x', 'g/(degC/s)', "x accelerometer bias following the temperature's rate of change dT/dt (the die lagging the thermistor)", phi_acc_temperature_rate_x, ('temp_rate_c_s',)),
+    'acc.temperature_rate.y': Effect('acc', 1, 'bTr_y', 'g/(degC/s)', "y accelerometer bias following the temperature's rate of change dT/dt (the die lagging the thermistor)", phi_acc_temperature_rate_y, ('temp_rate_c_s',)),
+    'acc.temperature_rate.z': Effect('acc', 2, 'bTr_z', 'g/(degC/s)', "z accelerometer bias following the temperature's rate of change dT/dt (the die lagging the thermistor)", phi_acc_temperature_rate_z, ('temp_rate_c_s',)),
     'acc.time_delay.x': Effect('acc', 0, 'tau_x', 's', 'x accelerometer sampled later than the gyros (time delay)', phi_acc_time_delay_x, ('wb_y', 'wb_z')),
     'acc.time_delay.y': Effect('acc', 1, 'tau_y', 's', 'y accelerometer sampled later than the gyros (time delay)', phi_acc_time_delay_y, ('wb_x', 'wb_z')),
     'acc.time_delay.z': Effect('acc', 2, 'tau_z', 's', 'z accelerometer sampled later than the gyros (time delay)', phi_acc_time_delay_z, ('wb_x', 'wb_y')),
@@ -1406,11 +1505,14 @@ EFFECTS = {
     'gyro.scale_temperature2.x': Effect('gyro', 0, 'kT2g_x', '1/degC^2', 'x gyro scale factor changing quadratically with temperature (from T_ref)', phi_gyro_scale_temperature2_x, ('dtemp_c',)),
     'gyro.scale_temperature2.y': Effect('gyro', 1, 'kT2g_y', '1/degC^2', 'y gyro scale factor changing quadratically with temperature (from T_ref)', phi_gyro_scale_temperature2_y, ('dtemp_c',)),
     'gyro.scale_temperature2.z': Effect('gyro', 2, 'kT2g_z', '1/degC^2', 'z gyro scale factor changing quadratically with temperature (from T_ref)', phi_gyro_scale_temperature2_z, ('dtemp_c',)),
+    'gyro.temperature_rate.x': Effect('gyro', 0, 'bTrg_x', '(deg/h)/(degC/s)', "x gyro bias following the temperature's rate of change dT/dt (the die lagging the thermistor)", phi_gyro_temperature_rate_x, ('temp_rate_c_s',)),
+    'gyro.temperature_rate.y': Effect('gyro', 1, 'bTrg_y', '(deg/h)/(degC/s)', "y gyro bias following the temperature's rate of change dT/dt (the die lagging the thermistor)", phi_gyro_temperature_rate_y, ('temp_rate_c_s',)),
+    'gyro.temperature_rate.z': Effect('gyro', 2, 'bTrg_z', '(deg/h)/(degC/s)', "z gyro bias following the temperature's rate of change dT/dt (the die lagging the thermistor)", phi_gyro_temperature_rate_z, ('temp_rate_c_s',)),
 }
 
 
 # family: what a turntable plan needs to tell it from the baseline (derive/models/effects.py)
-SEPARATE = {'quadratic': 'static positions at several levels and both signs of the input on that axis (e.g. --plan fibonacci48); for gyros rate runs at several rates (e.g. 5, 10, 20 deg/s)', 'scale_asymmetry': 'inputs of both signs on that axis (for gyros, rate runs of both signs)', 'cross_coupling': 'static positions where both axes carry input at once (e.g. --plan fibonacci48)', 'bias_drift_time': 'positions revisited at the start and the end of the test', 'bias_temperature': 'a temperature sweep across the positions (a temp_c column)', 'bias_temperature2': 'a temperature sweep across the positions at three or more temperatures', 'bias_temperature3': 'a temperature sweep across the positions at four or more temperatures', 'scale_temperature': 'inputs of both signs on that axis at several temperatures (a temp_c column)', 'scale_temperature2': 'inputs of both signs on that axis at three or more temperatures', 'size_effect': 'rate runs with the accelerometers recorded during them, at several attitudes and rates', 'lever_arm': 'a rotation sequence (the accelerometers recorded through moves about every axis, accelerating and braking)', 'time_delay': 'a rotation sequence (the accelerometers recorded through moves about every axis)', 'g_sensitivity': 'rate runs of both signs at each attitude: the specific force keeps its direction while the rate flips, which separates G f from the scale and misalignment'}
+SEPARATE = {'quadratic': 'static positions at several levels and both signs of the input on that axis (e.g. --plan fibonacci48); for gyros rate runs at several rates (e.g. 5, 10, 20 deg/s)', 'scale_asymmetry': 'inputs of both signs on that axis (for gyros, rate runs of both signs)', 'cross_coupling': 'static positions where both axes carry input at once (e.g. --plan fibonacci48)', 'bias_drift_time': 'positions revisited at the start and the end of the test', 'bias_temperature': 'a temperature sweep across the positions (a temp_c column)', 'bias_temperature2': 'a temperature sweep across the positions at three or more temperatures', 'bias_temperature3': 'a temperature sweep across the positions at four or more temperatures', 'scale_temperature': 'inputs of both signs on that axis at several temperatures (a temp_c column)', 'scale_temperature2': 'inputs of both signs on that axis at three or more temperatures', 'temperature_rate': "a temperature that changes at different rates while the positions repeat (a temp_c column logged at the samples' rate; a still warm-up whose rate changes at a temperature)", 'size_effect': 'rate runs with the accelerometers recorded during them, at several attitudes and rates', 'lever_arm': 'a rotation sequence (the accelerometers recorded through moves about every axis, accelerating and braking)', 'time_delay': 'a rotation sequence (the accelerometers recorded through moves about every axis)', 'g_sensitivity': 'rate runs of both signs at each attitude: the specific force keeps its direction while the rate flips, which separates G f from the scale and misalignment'}
 
 # gyro family: what a hand-placed session's moves need
-SEPARATE_MOVES = {'quadratic': 'moves at several rates, fast and slow, about that axis', 'scale_asymmetry': 'moves turning both ways about that axis', 'bias_drift_time': 'moves spread over a longer session', 'bias_temperature': 'a temp_c column, with the temperature changing over the session', 'bias_temperature2': 'a temp_c column, with the temperature spanning a wide range over the session', 'bias_temperature3': 'a temp_c column, with the temperature spanning a wide range over the session', 'scale_temperature': 'moves about that axis at several temperatures (a temp_c column)', 'scale_temperature2': 'moves about that axis at three or more temperatures', 'g_sensitivity': 'moves made with that axis at several attitudes to gravity'}
+SEPARATE_MOVES = {'quadratic': 'moves at several rates, fast and slow, about that axis', 'scale_asymmetry': 'moves turning both ways about that axis', 'bias_drift_time': 'moves spread over a longer session', 'bias_temperature': 'a temp_c column, with the temperature changing over the session', 'bias_temperature2': 'a temp_c column, with the temperature spanning a wide range over the session', 'bias_temperature3': 'a temp_c column, with the temperature spanning a wide range over the session', 'scale_temperature': 'moves about that axis at several temperatures (a temp_c column)', 'scale_temperature2': 'moves about that axis at three or more temperatures', 'temperature_rate': "a temp_c column, with the temperature's rate of change varying over the session", 'g_sensitivity': 'moves made with that axis at several attitudes to gravity'}

@@ -241,7 +241,7 @@ def _still_warmup(folders, degree, kwargs):
         _refuse_a_board_that_moved(ms)
         return None
     method = kwargs.get("method")
-    given = [o for o, v in (("--thermal-degree", degree), ("--add", kwargs.get("add")),
+    given = [o for o, v in (("--thermal-degree", degree),
                             ("--method", method not in (None, "auto") and method),
                             ("--acc-noise-g", kwargs.get("acc_noise_g")), ("--gyro-noise-dph", kwargs.get("gyro_noise_dph")),
                             ("--noise", kwargs.get("noise")),
@@ -251,7 +251,7 @@ def _still_warmup(folders, degree, kwargs):
     if given:
         raise CalibrationError(f"{given[0]}: a still warm-up's bias takes its degree from the data (0 to 3), its noise "
                                "from the data, its rows as they are (no poses to find, no moves to time) and no "
-                               "effects or other method; leave it out")
+                               "other method; leave it out")
     return ms
 
 
@@ -348,7 +348,7 @@ def _calibrate_thermal(folders, degree, t_ref_c, kwargs) -> Calibration:
     warmup = _still_warmup(folders, degree, kwargs)
     if warmup is not None:
         from simucal.handheld.warmup import calibrate_warmup
-        return calibrate_warmup(warmup, t_ref_c)
+        return calibrate_warmup(warmup, t_ref_c, kwargs.get("add") or ())
     sets = [_plateau(f) for f in folders]
     _refuse_repeated([ms for ms, _ in sets])
     t_ref = _temperatures(sets, t_ref_c)

@@ -4,6 +4,7 @@ Its message says why and what to do; the command line prints it as one line (exi
 else that escapes a command is a bug (exit 3, with the traceback: cli/common.py). Its kinds:
 - CalibrationError: the data cannot give a trustworthy calibration (every method);
 - InputError: an option or argument the tool cannot use (a simulation's scenario, a plan, a count);
+  ArgumentError, one of them: a Python function's argument of the wrong type or name (also a TypeError);
 - io.MeasurementSetError: a set that breaks the measurement-set spec (file, line, rule);
 - io.calibration_checks.CalibrationFileError: a calibration file that cannot be read or does not fit;
 - fit.catalog.ModelFileError: a user's model file that cannot be derived (file, line);
@@ -19,6 +20,11 @@ class SimucalError(ValueError):
 
 class InputError(SimucalError):
     """An option or argument the tool cannot use; the message names it and the fix."""
+
+
+class ArgumentError(InputError, TypeError):
+    """A public function's argument of the wrong type or name (api/arguments.checked): a refusal like any other,
+    and a TypeError to code that catches one (what Python raises for an unknown keyword)."""
 
 
 class CalibrationError(SimucalError):

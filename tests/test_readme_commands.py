@@ -40,6 +40,7 @@ SMALL = {"bench_derive_and_solve.py": ["--quick"], "bench_paper_tables.py": ["--
          "bench_imucal.py": [], "bench_exit_stress.py": ["--runs", "2", "--only", "apply"],
          "bench_allan.py": ["--seeds", "1", "--hours", "0.25", "--rate-hz", "5"],
          "bench_stds_by_rate.py": ["--seeds", "1", "--rates", "20"], "bench_thermal.py": ["0", "1"],
+         "bench_temperature_rate.py": ["--seeds", "2", "--lag-seeds", "1"],
          "bench_cache_checks.py": [], "bench_lot.py": ["6", "--seeds", "2", "--workers", "2"],
          "bench_raw400.py": ["--rate-hz", "5", "--repeats", "1"], "bench_compare.py": ["--quick", "--repeats", "1"],
          "bench_warmup.py": ["--seeds", "1", "--minutes", "5"],

@@ -7,7 +7,7 @@ generates their regressors and derivatives (generated/effects.py) so that
 """
 import sympy as sp
 
-from ..frames import AXES, domega_b, dtemp_c, f_b, omega_b, omega_d, skew, t_s, w2
+from ..frames import AXES, domega_b, dtemp_c, f_b, omega_b, omega_d, skew, t_s, temp_rate_c_s, w2
 from . import Term
 
 DPS = 3600.0  # deg/h per deg/s: gyro rates enter nonlinear terms in deg/s to keep coefficients O(1)
@@ -120,6 +120,25 @@ def scale_temperature(sensor, axis, degree):
                 "with temperature (from T_ref)")
 
 
+def bias_temperature_rate(sensor, axis):
+    """Bias b = bTr dT/dt (IEEE 952's temperature-gradient, or temperature-rate, sensitivity): the bias
+    follows the temperature's rate of change. Its usual cause is a lag: the die warms after the
+    thermistor that logs temp_c, with dT_s/dt = (T - T_s) / tau, so the sensor reads b(T_s) ~ b(T) -
+    tau b'(T) dT/dt, a term bTr = -tau b'(T_ref) per degC/s beside the bias's polynomial in T (the
+    change of b' over the range is left to second order). dT/dt is the input temp_rate_c_s, the slope
+    of a least-squares line through the logged temp_c over a window centred on each time
+    (simucal.fit.thermal.temperature_rate: RATE_WINDOW_S, or a whole block or segment where that is
+    longer): a derivative smoothed against the thermistor's noise and steps. A single monotone warm-up
+    shows it only where its rate changes at a temperature in a way no polynomial in T follows: where
+    the rate is a smooth function of T (an exponential warm-up, a constant ramp) the lag is a
+    polynomial in T too, and no data can tell the two apart."""
+    unit = f"{UNIT[sensor]}/(degC/s)"
+    return Term(f"bTr{'g' if sensor == 'gyro' else ''}_{axis}", axis, temp_rate_c_s,
+                unit if sensor == "acc" else f"({UNIT[sensor]})/(degC/s)",
+                f"{axis} {'accelerometer' if sensor == 'acc' else 'gyro'} bias following the temperature's rate of "
+                "change dT/dt (the die lagging the thermistor)")
+
+
 def gyro_bias_drift_time(axis):
     return Term(f"btg_{axis}", axis, t_s, "(deg/h)/s", f"{axis} gyro bias drifting linearly in time")
 
@@ -147,6 +166,7 @@ def _catalog():
                 out[f"{sensor}.bias_temperature{tag}.{a}"] = bias_temperature(sensor, a, k)
             for k, tag in ((1, ""), (2, "2")):
                 out[f"{sensor}.scale_temperature{tag}.{a}"] = scale_temperature(sensor, a, k)
+            out[f"{sensor}.temperature_rate.{a}"] = bias_temperature_rate(sensor, a)
     return dict(sorted(out.items()))
 
 
@@ -163,6 +183,8 @@ SEPARATE = {  # what a turntable plan needs for each family to be told apart fro
     "bias_temperature3": "a temperature sweep across the positions at four or more temperatures",
     "scale_temperature": "inputs of both signs on that axis at several temperatures (a temp_c column)",
     "scale_temperature2": "inputs of both signs on that axis at three or more temperatures",
+    "temperature_rate": "a temperature that changes at different rates while the positions repeat (a temp_c column "
+                        "logged at the samples' rate; a still warm-up whose rate changes at a temperature)",
     "size_effect": "rate runs with the accelerometers recorded during them, at several attitudes and rates",
     "lever_arm": "a rotation sequence (the accelerometers recorded through moves about every axis, accelerating "
                  "and braking)",
@@ -180,6 +202,7 @@ SEPARATE_MOVES = {  # what a hand-placed session's moves need, per gyro family
     "bias_temperature3": "a temp_c column, with the temperature spanning a wide range over the session",
     "scale_temperature": "moves about that axis at several temperatures (a temp_c column)",
     "scale_temperature2": "moves about that axis at three or more temperatures",
+    "temperature_rate": "a temp_c column, with the temperature's rate of change varying over the session",
     "g_sensitivity": "moves made with that axis at several attitudes to gravity",
 }
 

@@ -21,7 +21,7 @@ from simucal.errors import InputError
 from simucal import io
 from simucal.api.analyses import Candidate, Diagnosis, Noise, Term, diagnose, noise, save_diagnosis
 from simucal.api.simulation import montecarlo, simulate
-from simucal.api.tables import rows as table_rows
+from simucal.api.tables import table_rows
 from simucal.api.tables import TableOf
 from simucal.calibrate import calibrate as _calibrate_set
 from simucal.api.calibration import Calibration, Parameter
@@ -52,6 +52,7 @@ __all__ = ["read_set", "simulate", "calibrate", "validate", "diagnose", "noise",
            "Validation", "Check", "Diagnosis", "Candidate", "Noise", "Term", "lot"]
 
 
+@checked
 def read_set(path: str | os.PathLike) -> MeasurementSet:
     """Read a measurement set (a folder: meta.json, samples.csv, segments.csv), checked by the spec.
 
@@ -200,6 +201,7 @@ def validate(cal: Calibration | str | os.PathLike, data: Data, *, acc_noise_g: f
                       list(report["warnings"]), report)
 
 
+@checked
 def save(path: str | os.PathLike, result: Calibration | Validation | Diagnosis | Noise,
          calibration_path: str | os.PathLike = "thermal_calibration.json") -> None:
     """Write a result as its command writes it: a calibration file (``simucal.calibration/2``, as
@@ -259,9 +261,9 @@ def _page(result: _file.Calibration | Validation | Diagnosis | Noise, calibratio
     return allan.html_page(result.report)
 
 
+@checked
 def load(path: str | os.PathLike) -> Calibration:
     """Read a calibration file, checked before any of it is used.
-@checked
 
     Examples
     --------

@@ -212,12 +212,14 @@ class Noise:
                                             f"{t.status}" + (f" (< {t.bound_95:.3g} {t.unit})" if t.bound_95 else ""))
                                            for t in self.term_rows])
 
+    @checked
     def lines(self, written: dict | None = None) -> list[str]:
         """What `simucal noise` prints: each axis's terms in a data sheet's units, the verdicts and the next step
         (written: the files the command wrote, {"-o": ..., "--kalibr": ...}, which the next step names)."""
         from simucal import allan
         return list(allan.lines(self.report, written))
 
+    @checked
     def kalibr_yaml(self) -> str:
         """Kalibr's imu.yaml (noise densities and random walks, SI), as `simucal noise --kalibr` writes it;
         refused (CalibrationError) unless both sensors give them.

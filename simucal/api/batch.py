@@ -24,6 +24,17 @@ class Calibrated(NamedTuple):
     error: str | None    # the refusal's message
 
 
+def output_files(data_dirs: Sequence[str | os.PathLike], folder: str | os.PathLike) -> list[Path]:
+    """Each set's calibration file, FOLDER/<set's folder name>.json; refused where two sets share a folder name."""
+    files = [Path(folder) / f"{Path(d).resolve().name}.json" for d in data_dirs]
+    for i, f in enumerate(files):
+        if (first := files.index(f)) < i:
+            raise InputError(f"{data_dirs[first]} and {data_dirs[i]} would both be calibrated into {f} (each set's "
+                             f"file is named after its folder, {Path(data_dirs[i]).resolve().name}): rename one of "
+                             "the folders, or calibrate them in separate commands, each with its own -o FILE")
+    return files
+
+
 @checked
 def calibrate_each(data_dirs: Sequence[str | os.PathLike], folder: str | os.PathLike, *, scheduler: str | None = None,
                    progress: Any = None, **options: Unpack[CalibrateOptions]) -> list[Calibrated]:
@@ -44,13 +55,9 @@ def calibrate_each(data_dirs: Sequence[str | os.PathLike], folder: str | os.Path
     from simucal.calibrate import calibrate_to_file
     from simucal.sweeps import map_tasks
     out = Path(folder)
-    names = [Path(d).resolve().name for d in data_dirs]
     if out.suffix == ".json" or (out.exists() and not out.is_dir()):
         raise InputError(f"-o {folder}: with {len(data_dirs)} sets, -o names a folder (one <set>.json each)")
-    if len(set(names)) < len(names):
-        raise InputError(f"two sets share a folder name ({sorted(n for n in names if names.count(n) > 1)[0]}): their "
-                         "files would collide; calibrate them separately")
-    tasks = [(Path(d), out / f"{n}.json", options) for d, n in zip(data_dirs, names)]
+    tasks = [(Path(d), f, options) for d, f in zip(data_dirs, output_files(data_dirs, out))]
     made = not out.exists()
     out.mkdir(exist_ok=True)
     try:

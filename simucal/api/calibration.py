@@ -9,6 +9,7 @@ from typing import Any, NamedTuple
 
 import numpy as np
 
+from simucal.api.arguments import checked
 from simucal.api.tables import table
 from simucal.api.vocabulary import common_table
 from simucal.errors import CalibrationError, InputError
@@ -86,6 +87,7 @@ class Calibration(calibration.Calibration):
     """
 
     @classmethod
+    @checked
     def of(cls, cal: calibration.Calibration) -> Calibration:
         """The same calibration as this class (its fields shared, not copied)."""
         return cal if isinstance(cal, cls) else cls(**{f.name: getattr(cal, f.name) for f in fields(cal)})
@@ -105,6 +107,7 @@ class Calibration(calibration.Calibration):
         rows += [(f"{s} not calibrated", why) for s, why in self.not_calibrated.items()]
         return html_card("simucal.Calibration", rows)
 
+    @checked
     def parameters(self, vocabulary: str = "own") -> Any:
         """Every parameter of every sensor's model as a table: a list of `Parameter` rows.
 
@@ -135,6 +138,7 @@ class Calibration(calibration.Calibration):
         return table([r for s, b in self.blocks() for r in (_model_rows(s, b) if b.params else _affine_rows(s, b))],
                       Parameter._fields)
 
+    @checked
     def apply_to_set(self, data: Any, *, where: str = "this calibration") -> Any:
         """The calibrated measurement set of a set's raw outputs (`simucal apply`): the samples in g and
         deg/h, frame b, its other columns and segments kept; rows outside the calibrated temperatures are
@@ -163,6 +167,7 @@ class Calibration(calibration.Calibration):
         meta, samples, segments = fit_apply.apply(self, ms, where)
         return MeasurementSet.of(io.MeasurementSet(ms.path, {"format": io.FORMAT, **meta}, samples, segments))
 
+    @checked
     def autopilot_files(self, data: Any, *, px4: str | None = None, ardupilot: str | None = None) -> list[AutopilotFile]:
         """A thermal calibration's bias polynomials as PX4's and ArduPilot's thermal compensation parameter files
         (`simucal calibrate --thermal --px4 FILE --ardupilot FILE`): their texts, made before anything is written.
@@ -189,6 +194,7 @@ class Calibration(calibration.Calibration):
         meta = data.meta if isinstance(data, io.MeasurementSet) else io.read_meta(Path(data))
         return [AutopilotFile(*f) for f in autopilot.texts([(self, meta)], px4, ardupilot)] if px4 or ardupilot else []
 
+    @checked
     def sensor(self, name: str) -> calibration.SensorBlock:
         """The block of sensor `name` ("acc" or "gyro"), never None: refused (CalibrationError) where this
         calibration holds none, saying why (`not_calibrated`).
@@ -205,6 +211,7 @@ class Calibration(calibration.Calibration):
                                    + (f": {why}" if why else f"; its sensors: {', '.join(s for s, _ in self.blocks())}"))
         return block
 
+    @checked
     def apply(self, x: Any, *, acc_unit: str | None = None, gyro_unit: str | None = None, temp_c: Any = None,
               t_s: Any = None, sensor: str | None = None, columns: dict[str, str] | None = None,
               gravity_mps2: float = units.DEFAULT_GRAVITY) -> Any:

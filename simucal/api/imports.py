@@ -147,6 +147,7 @@ def _import_csv(path, out, columns, acc_unit, gyro_unit, rate_hz, latitude_deg) 
     im.import_csv(path, out, cmap, acc_unit, gyro_unit, rate_hz, latitude_deg)
 
 
+@checked
 def convert(data: Path_, out: Path_, to: str, *, force: bool = False) -> tuple[Path, int]:
     """Copy a measurement set with its samples as samples.parquet or samples.csv (`to`), read and written a
     chunk at a time, every row checked; the input is never changed (a set already in `out` is refused

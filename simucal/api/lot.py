@@ -3,10 +3,12 @@ from __future__ import annotations
 
 import os
 
+from simucal.api.arguments import checked
 from simucal.io import records
 from simucal.lot_report import lot as _lot
 
 
+@checked
 def lot(folder: str | os.PathLike, limits: str | os.PathLike | None = None) -> records.JSONObject:
     """The lot report of the calibration files in a folder: the dict `simucal lot -o lot.json` writes.
 

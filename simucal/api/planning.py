@@ -82,7 +82,7 @@ def plan(score: str | None = None, *, positions: int | None = None, model: str =
         name = f"{criterion}-optimal, {positions} positions"
     rates = sorted(set(np.round(np.atleast_1d(rho) / DPH_PER_DPS, 6).tolist())) if gyro else None
     result: results.PlanScore = {"plan": name, "model": m.name, "unit": m.unit, "noise": sigma, "rates_dps": rates}
-    result.update(score_of(m, u, rho, sigma))
+    result.update(score_of(m, u, rho, sigma, f"plan {score}: " if score is not None else ""))
     if positions is not None:
         if kind == "hand":  # a pose is where gravity (or the turn axis) points in the unit's own axes
             result["rows"], result["columns"] = [[i + 1, *map(float, d)] for i, d in enumerate(u)], "pose,f_x,f_y,f_z"
@@ -147,7 +147,7 @@ def sequence_observability(sequence: str, *, model: str = "acc_baseline", add: S
     plan_name = score or "table1"
     models = {"acc": "acc_baseline", "gyro": "gyro_baseline", AugmentedModel(model).sensor: model}
     ms = simulate(sequence=sequence, seed=0)
-    obs = observability(ms, models["acc"], models["gyro"], tuple(add))
+    obs = observability(ms, models["acc"], models["gyro"], tuple(add), truth=ms.truth)
     n = obs["noise_per_sample"]
     # the same unit held as long at each position as at each of the sequence's rests (its median)
     rest_n = float(np.median([len(ms.rows(s.segment)) for s in ms.segments or [] if s.kind == "static"]))
@@ -255,14 +255,15 @@ def reference_stds(sc: Any, reference: str, minutes: float) -> tuple[str, list[A
 
 def sequence_stds(sc: Any, steps: Sequence[Any]) -> list[results.Observed]:
     """Each parameter's std over the steps (turntable/sequence.Step) on the unit sc (a turntable Scenario),
-    simulated at seed 0: one pass of the linearised filter (systematic/observability.py)."""
+    simulated at seed 0: one pass of the linearised filter about its truth (systematic/observability.py), where the
+    calibration's passes converge."""
     from pathlib import Path
 
     from simucal.io import MeasurementSet as Set
     from simucal.systematic.observability import observability
     from simucal.turntable.sequence import simulate_sequence
-    meta, samples, segments, _ = simulate_sequence(sc, list(steps), seed=0)
-    return observability(Set(Path("designed sequence"), meta, samples, segments))["parameters"]
+    meta, samples, segments, truth = simulate_sequence(sc, list(steps), seed=0)
+    return observability(Set(Path("designed sequence"), meta, samples, segments), truth=truth)["parameters"]
 
 
 def save_sequence(path: str, steps: Sequence[results.SequenceStep]) -> None:

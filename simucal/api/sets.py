@@ -10,6 +10,8 @@ from typing import Any, Mapping, Sequence
 import numpy as np
 
 from simucal import io
+from simucal.api.arguments import checked, refusal
+from simucal.api.tables import DataFrame
 from simucal.io import results
 from simucal.errors import InputError
 from simucal.io import arrays
@@ -59,14 +61,16 @@ class MeasurementSet(io.MeasurementSet):
             ("columns", ", ".join(self.samples))])
 
     @classmethod
+    @checked
     def of(cls, ms: io.MeasurementSet) -> MeasurementSet:
         """The same set as this class (its arrays shared, not copied)."""
         return ms if isinstance(ms, cls) else cls(**{f.name: getattr(ms, f.name) for f in fields(ms)})
 
     @classmethod
+    @checked
     def from_arrays(cls, acc: Any = None, gyro: Any = None, *, acc_unit: str, gyro_unit: str,
                     rate_hz: float | None = None, t_s: Any = None, temp_c: Any = None, segment: Any = None,
-                    segments: Sequence[io.Segment | Mapping[str, Any]] | None = None,
+                    segments: Sequence[io.Segment | Mapping[str, Any]] | DataFrame | None = None,
                     columns: Mapping[str, Any] | None = None, meta: Mapping[str, Any] | None = None,
                     name: str = "arrays") -> MeasurementSet:
         """A set from numpy arrays of raw outputs, checked by the spec's rules.
@@ -121,9 +125,10 @@ class MeasurementSet(io.MeasurementSet):
                                   name=name, cls=cls))
 
     @classmethod
+    @checked
     def from_dataframe(cls, df: Any, *, acc_unit: str, gyro_unit: str, columns: Mapping[str, str] | None = None,
                        rate_hz: float | None = None, t_s: Any = None,
-                       segments: Sequence[io.Segment | Mapping[str, Any]] | None = None,
+                       segments: Sequence[io.Segment | Mapping[str, Any]] | DataFrame | None = None,
                        meta: Mapping[str, Any] | None = None, name: str = "dataframe") -> MeasurementSet:
         """A set from a pandas DataFrame (pandas: ``pip install simucal[pandas]``).
 
@@ -159,6 +164,7 @@ class MeasurementSet(io.MeasurementSet):
         return cls.of(arrays.from_dataframe(df, acc_unit=acc_unit, gyro_unit=gyro_unit, columns=columns, rate_hz=rate_hz,
                                      t_s=t_s, segments=segments, meta=meta, name=name, cls=cls))
 
+    @checked
     def to_arrays(self) -> dict[str, np.ndarray]:
         """The samples by column as recorded, as arrays, in one order whatever made the set: t_s,
         segment, ax ay az gx gy gz, temp_c, then any other column.
@@ -174,6 +180,7 @@ class MeasurementSet(io.MeasurementSet):
         first = [c for c in ("t_s", "segment", *io.SAMPLE_COLS, "temp_c") if c in self.samples]
         return {k: np.asarray(self.samples[k]) for k in first + [c for c in self.samples if c not in first]}
 
+    @checked
     def to_dataframe(self) -> Any:
         """The samples as a pandas DataFrame, `to_arrays`'s columns in its order, as recorded; the units in its
         ``attrs`` (acc_unit, gyro_unit) and the segments' table, where the set has one, in ``attrs["segments"]``.
@@ -195,6 +202,7 @@ class MeasurementSet(io.MeasurementSet):
             df.attrs["segments"] = [dict(vars(s)) for s in self.segments]
         return df
 
+    @checked
     def write(self, folder: str | os.PathLike, *, force: bool = False) -> None:
         """Write the set as a folder (meta.json, samples.csv, segments.csv; a simulated set's truth.json),
         as `simucal simulate` and `simucal import` write one.
@@ -218,12 +226,11 @@ class MeasurementSet(io.MeasurementSet):
 
 
 def folder_of(data: Any) -> str | os.PathLike:
-    """data as a set's folder, or a one-line TypeError naming the constructor it needs."""
+    """data as a set's folder, or refused in one line naming the constructor it needs (an item of a list the door
+    let through, arguments.refusal)."""
     if isinstance(data, (str, os.PathLike)):
         return data
-    how = "from_dataframe(df, ...)" if type(data).__name__ == "DataFrame" else "from_arrays(...)"
-    raise TypeError(f"a measurement set's folder or a simucal.MeasurementSet, not {type(data).__name__}; make one "
-                    f"with simucal.MeasurementSet.{how}")
+    raise refusal("a measurement set", "data", data, "a path or a MeasurementSet")
 
 
 def as_set(data: Any) -> io.MeasurementSet:

@@ -2,7 +2,18 @@
 NamedTuple rows (the same columns, each row's fields by name), so that the API works on numpy alone."""
 from __future__ import annotations
 
-from typing import Any, NamedTuple, Sequence
+from typing import Any, NamedTuple, Protocol, Sequence, runtime_checkable
+
+from simucal.api.arguments import checked
+
+
+@runtime_checkable
+class DataFrame(Protocol):
+    """A table by column: pandas' DataFrame, or anything with its columns and to_dict (io/arrays reads it so), for
+    the annotation of an argument that takes one (pandas is an extra: the door cannot name its class)."""
+    columns: Any
+
+    def to_dict(self, orient: str = "dict") -> Any: ...
 
 
 def table(rows: Sequence[NamedTuple], columns: Sequence[str]) -> Any:
@@ -34,7 +45,8 @@ class TableOf:
         return made[self.name]
 
 
-def rows(t: Any) -> list:
+@checked
+def table_rows(t: Any) -> list:
     """A table's rows as NamedTuples, whichever type the API gave (``simucal.table_rows``): for code that
     runs with pandas and without.
 

@@ -34,6 +34,7 @@ def derive(*, check: bool = False) -> Derived:
     return Derived(list(stale), float(secs), diff, str(derive_cmd.generated_dir()))
 
 
+@checked
 def derive_model(path: str | os.PathLike) -> list[str]:
     """Derive a user's model file (MODELS = [ErrorModel, ...]) into the cache; returns its models' names, each then
     usable by name (`calibrate(..., acc_model=NAME)`) from any folder.

@@ -24,6 +24,7 @@ from typing import Any, Mapping, NamedTuple
 
 import numpy as np
 
+from simucal.api.arguments import checked
 from simucal.api.tables import table
 from simucal.fit.augmented import AugmentedModel
 from simucal.generated.effects import EFFECTS
@@ -142,6 +143,7 @@ def _rotation_to_lower(M_acc) -> np.ndarray:
     return (Qt * signs).T
 
 
+@checked
 def compare(calibrations: Mapping[str, Calibration]) -> Any:
     """Calibrations of one unit side by side in the one vocabulary: a row per sensor and entry (M_xx ..
     bias_z, effects), for each calibration its value and std (columns ``LABEL`` and ``LABEL std``), and

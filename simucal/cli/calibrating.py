@@ -125,7 +125,7 @@ def _calibrate_batch(data_dirs, output, kwargs, inputs, scheduler):
     """Several sets, one by one (on a scheduler): one <set>.json each into the folder -o (simucal.calibrate_each)."""
     from simucal import api, progress
     out = Path(output)
-    guard(inputs, files=[out / f"{Path(d).resolve().name}.json" for d in data_dirs], folders=[out])
+    guard(inputs, files=api.batch.output_files(data_dirs, out), folders=[out])
     done = api.calibrate_each(data_dirs, out, scheduler=scheduler, progress=progress.bar("calibrate", "set"), **kwargs)
     for d in done:
         if d.error:

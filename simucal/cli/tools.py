@@ -190,7 +190,8 @@ def _plan_sequence(sequence, model_name, add, score_plan, rates, acc_noise_g, gy
         click.echo(f"  {x['sensor'] + ' ' + x['parameter']:18} {x['unit']:16} {x['prior_std']:10.3g} {x['std']:13.3g} "
                    f"{x['ratio']:9.2g} {'' if c is None else format(c, '.3g'):>16}")
     if obs["unobserved"]:
-        click.echo(f"UNOBSERVED on this sequence (std above {obs['threshold']:g} of its prior): "
+        click.echo(f"UNOBSERVED on this sequence (std above {obs['threshold']:g} of its prior, or over "
+                   f"{obs['inflation_threshold']:g} times its std were the other states known): "
                    f"{', '.join(obs['unobserved'])}; calibrate --method systematic refuses it: turn the unit about each "
                    "of its axes with each axis up and down (psins19 does)")
     else:

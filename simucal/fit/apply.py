@@ -18,7 +18,7 @@ from simucal import io
 from simucal.errors import CalibrationError, InputError
 from simucal.fit.augmented import AugmentedModel, effect_terms, follows_temperature
 from simucal.fit.aux_inputs import AuxInputs, columns_at, specific_force
-from simucal.fit.thermal import params_at
+from simucal.fit.thermal import params_at, rate_input
 from simucal.io import units
 from simucal.io.calibration import Calibration, SensorBlock
 from simucal.io.calibration_checks import LAYOUT_KEYS, check_layout
@@ -172,7 +172,8 @@ def apply(cal: Calibration, data, where="the calibration"):
     for s, block in cal.blocks():
         check_block(block, s, where)
     n = len(ms.samples["t_s"])
-    aux = AuxInputs(columns_at(ms.samples, slice(None), t_ref_c=cal.t_ref_c))
+    aux = AuxInputs({**columns_at(ms.samples, slice(None), t_ref_c=cal.t_ref_c),  # dT/dt where an effect reads it
+                     **rate_input(ms.samples, [e for _, b in cal.blocks() for e in b.library_effects()])})
     temp_c, warnings = temperatures(cal, ms)
     samples = {k: v for k, v in ms.samples.items() if k not in io.SAMPLE_COLS}  # the keys and auxiliary columns
     f_b = None

@@ -9,7 +9,9 @@ from __future__ import annotations
 
 import functools
 import hashlib
+import os
 import warnings
+from pathlib import Path
 
 import numpy as np
 
@@ -222,6 +224,20 @@ def resolve_add(add, acc_model: str, gyro_model: str) -> tuple[str, str, tuple[s
                 else:
                     gyro_model = name
         else:
+            refuse_a_path(a)
             check_effect(a)
             ids.append(a)
     return acc_model, gyro_model, tuple(dict.fromkeys(ids))
+
+
+def refuse_a_path(a: str) -> None:
+    """Refuse a folder or a path given to --add, where an effect id or a model file goes (a measurement set put
+    after --add instead of before it read as an unknown effect, every family listed)."""
+    if a in EFFECTS or not (os.sep in a or "/" in a or Path(a).exists()):
+        return
+    if Path(a).is_dir():
+        raise InputError(f"--add {a}: a folder (a measurement set?), not an effect id or a model file: a set goes as "
+                         f"the command's argument, not after --add (SET --add EFFECT: {a} --add acc.quadratic.z)")
+    what = "a file, not a model file (.py)" if Path(a).exists() else "a path, and no such file"
+    raise InputError(f"--add {a}: {what}, where an effect id (acc.quadratic.z) or a model file (my_model.py) is "
+                     "expected")

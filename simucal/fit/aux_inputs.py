@@ -103,10 +103,11 @@ def _with_reference(out: dict, t_ref_c) -> dict:
 def column_means(samples: dict, groups, *, t_ref_c) -> dict:
     """Each auxiliary samples.csv column (t_s, temp_c, a user's supply_v, ...: every column
     but the keys and outputs) averaged over each group of rows (boolean masks or index arrays),
-    with T_ref (t_ref_c, degC) for dtemp_c."""
+    with T_ref (t_ref_c, degC) for dtemp_c, and each group's temperature rate (fit/thermal.group_rates)."""
+    from simucal.fit.thermal import group_rates
     groups = [run_or_rows(g) if np.asarray(g).dtype.kind in "iu" else g for g in groups]  # a run: a view, no copy
-    return _with_reference({c: np.array([np.mean(v[g]) for g in groups]) for c, v in samples.items()
-                            if c not in NOT_AUX_COLUMNS}, t_ref_c)
+    return _with_reference({**{c: np.array([np.mean(v[g]) for g in groups]) for c, v in samples.items()
+                               if c not in NOT_AUX_COLUMNS}, **group_rates(samples, groups)}, t_ref_c)
 
 
 def columns_at(samples: dict, idx, *, t_ref_c) -> dict:

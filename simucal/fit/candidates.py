@@ -214,9 +214,11 @@ class NormStep:
 
 
 def positions_that_separate(chosen: dict, twin: dict) -> str:
-    """The plan command that finds the table positions telling candidate `chosen` from its twin."""
+    """The plan command that finds the table positions telling candidate `chosen` from its twin (a gyro's on
+    the gyro's model: plan scores the accelerometer's by default)."""
+    model = " --model gyro_baseline" if EFFECTS[chosen["id"]].sensor == "gyro" else ""
     return (f"the positions that would: simucal plan --score PLAN --separate {chosen['id']},{twin['id']} --sizes "
-            f"{chosen['estimate']:.2g},{twin['estimate']:.2g}")
+            f"{chosen['estimate']:.2g},{twin['estimate']:.2g}{model}")
 
 
 def forward_selection(model: AugmentedModel, obs: Observations, rank=None, max_terms=6, table=True) -> Selection:
@@ -233,12 +235,24 @@ def _rank(model, obs, fit, base) -> tuple[list[dict], dict | None]:
 def advice_text(cands, shape, base) -> str | None:
     """What a failing model lacks, as calibrate names it: the generic term where it beats every library
     effect (the verdict leads with it), else the strongest significant candidate unless it leaves the
-    model failing having explained little (family.outside_library: then that, in words), else None."""
+    model failing having explained little (family.outside_library: then that, in words) or has twins
+    no rows could choose between (then all of them and the plan that would tell), else None."""
     sig = [c for c in cands if c.get("significant")]
     if shape and not shape.get("catalog_id"):
         return "a term " + shape["text"]
     outside = family.outside_library(base, cands)
-    return outside["text"] if outside else sig[0]["id"] if sig else None
+    if outside:
+        return outside["text"]
+    if sig and sig[0].get("twins_undecided"):  # the rows that judge twins could not choose: name none alone
+        return undecided_twins(sig[0], cands)
+    return sig[0]["id"] if sig else None
+
+
+def undecided_twins(lead: dict, cands: list[dict]) -> str:
+    """A candidate and its twins that no rows of these data could choose between, and the plan that would."""
+    twin = next(c for c in cands if c["id"] in lead["twins"])
+    return f"{' or '.join([lead['id'], *lead['twins']])}, which these data cannot tell apart: " + \
+        positions_that_separate(lead, twin)
 
 
 def advice(model: AugmentedModel, obs: Observations) -> str | None:

@@ -20,6 +20,8 @@ import functools
 import hashlib
 import json
 import os
+import re
+import signal
 import subprocess
 import sys
 import time
@@ -29,6 +31,7 @@ from pathlib import Path
 
 from simucal.errors import InputError, SimucalError
 from simucal.io import cache
+from simucal.fit.aux_inputs import NOT_AUX_COLUMNS
 from simucal.fit.models import GeneratedModel, load_builtin, manifest
 from simucal.io import outputs
 
@@ -138,14 +141,28 @@ def _run_child(path: Path, folder: Path, limit: float) -> subprocess.CompletedPr
                     return subprocess.CompletedProcess(child.args, child.returncode, out, err)
                 except subprocess.TimeoutExpired:
                     if left <= wait.step_s:
-                        child.kill()
-                        child.communicate()
-                        raise ModelFileError(f"{path}: deriving it took more than {limit:g} s (a loop that never "
-                                             "ends?); fix the file, or allow more time with "
-                                             "SIMUCAL_DERIVE_TIMEOUT_S") from None
+                        raise ModelFileError(_timed_out(child, path, limit)) from None
                     wait.tick(time.monotonic() - start)
     finally:
         wait.close()
+
+
+def _timed_out(child: subprocess.Popen, path: Path, limit: float) -> str:
+    """Kill the child at its time limit, and say where it was: the line of the file it was running (its stack,
+    which _child_main's faulthandler writes on SIGUSR1), else that it was not in the file's own code."""
+    child.send_signal(signal.SIGUSR1)
+    try:
+        child.communicate(timeout=1.0)  # the stack written meanwhile; the child, looping, does not end
+    except subprocess.TimeoutExpired:
+        pass
+    child.kill()
+    stack = child.communicate()[1] or ""
+    line = re.search(rf'File "{re.escape(str(path))}", line (\d+)', stack)  # the deepest frame first
+    if line:
+        return (f"{path}, line {line.group(1)}: deriving it took more than {limit:g} s, still at this line (a loop "
+                "that never ends?); fix the file, or allow more time with SIMUCAL_DERIVE_TIMEOUT_S")
+    return (f"{path}: deriving it took more than {limit:g} s, in SymPy's import or derivation (not in the file's own "
+            "lines); allow more time with SIMUCAL_DERIVE_TIMEOUT_S, or give fewer or simpler terms")
 
 
 def _derive_into(path: Path, folder: Path) -> None:
@@ -158,6 +175,13 @@ def _derive_into(path: Path, folder: Path) -> None:
     clash = [m.name for m in models if m.name in builtin]
     if clash:
         raise InputError(f"{path}: model names {clash} are built-in models; give your model another name")
+    for m in models:
+        outputs_read = sorted({str(s) for s in m.aux} & set(NOT_AUX_COLUMNS))
+        if outputs_read:
+            raise InputError(f"{path}: model {m.name} reads {', '.join(outputs_read)} as an auxiliary input, but "
+                             f"{outputs_read[0]} is a spec sensor column of samples.csv (the raw outputs the model "
+                             "maps, or the segment id), which cannot be an auxiliary input; give the input a column "
+                             f"of its own (column_input('{outputs_read[0]}_aux', ...) and that column in samples.csv)")
     entries = {}
     for m in models:
         text, entry = codegen.model_module(m, source=str(path))
@@ -176,12 +200,28 @@ def _where_in(path: Path, e: BaseException) -> str:
     return f"{path}, line {lines[-1]}" if lines else str(path)
 
 
+def _recursion(path: Path, e: RecursionError) -> str:
+    """The line of a RecursionError: where the file runs its own module code again (it includes itself: exec of its
+    own text, runpy or load_model_file of its own path), that loop named; else the file's line and the error."""
+    frames = [fr for fr in traceback.extract_tb(e.__traceback__) if fr.name == "<module>"]
+    again = [fr.lineno for fr in frames if Path(fr.filename).resolve() == path]
+    if again and len(again) + sum(fr.filename == "<string>" for fr in frames) > 1:  # exec's text is "<string>"
+        return (f"{path}, line {again[0]}: the file runs itself (line {again[0]} runs {path.name} again, which runs "
+                f"line {again[0]} again: a loop without end); a model file defines MODELS once: remove that line")
+    return f"{_where_in(path, e)}: RecursionError: {e}"
+
+
 def _child_main(argv) -> int:
+    import faulthandler
+    faulthandler.register(signal.SIGUSR1, file=sys.stderr, all_threads=False)  # the stack, at the time limit
     path, folder = Path(argv[0]).resolve(), Path(argv[1])
     try:
         _derive_into(path, folder)
     except SyntaxError as e:
         print(f"{_where_in(path, e)}: syntax error: {e.msg}", file=sys.stderr)
+        return 2
+    except RecursionError as e:
+        print(_recursion(path, e), file=sys.stderr)
         return 2
     except Exception as e:  # the user's code raised: name its file and line, and the message
         own = str(e).startswith(str(path))  # simucal's own checks of the file name it already

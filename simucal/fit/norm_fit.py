@@ -97,7 +97,7 @@ def check_not_coplanar(N, sensor, where="", axes="the output axes"):
     spread, normal = np.linalg.eigh(d.T @ d / (len(d) - 1))  # the outputs' covariance (np.cov costs 20 us more)
     if spread[0] < 1e-3 * spread[-1]:
         raise CalibrationError(
-            f"{where}the {len(N)} {sensor} input directions lie in one plane (spread across it "
+            f"{where}the {len(N)} {sensor} input directions lie in one plane (coplanar: spread across it "
             f"{np.sqrt(max(spread[0], 0)):.2g} against {np.sqrt(spread[-1]):.2g} along it; normal "
             f"{np.round(normal[:, 0], 2).tolist()} in {axes}): the scale, misalignment and bias along that "
             "normal are unobservable; add positions tilted out of that plane")

@@ -81,6 +81,8 @@ def forward_selection(start: Step, max_terms: int = 6) -> Selection:
         if not sig:
             return _still_failing(start, step, steps,
                                   "no library effect passes the candidate gate; the model still fails")
+        if sig[0].get("twins_undecided"):  # no rows chose between its twins (turntable/model_test.choose_twin)
+            return _still_failing(start, step, steps, f"{sig[0]['id']}: {sig[0]['twin_choice']}; --add auto adds neither")
         worse, refused = [], []
         for c in sig:
             trial = step.add(c["id"])

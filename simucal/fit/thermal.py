@@ -44,6 +44,68 @@ def check_temp_c(ms) -> np.ndarray:
     return T
 
 
+RATE_WINDOW_S = 10.0  # dT/dt's smoothing: a thermistor's noise and 0.01 degC steps average out, a die's lag does not
+
+
+def temperature_rate(t_s, temp_c, at_s=None, window_s=RATE_WINDOW_S) -> np.ndarray:
+    """dT/dt (degC/s) of a logged temperature at the times at_s (default t_s): at each, the slope of the
+    least-squares line through the rows within window_s / 2 of it (window_s a number, or one per time: a
+    block's or a segment's span), and never fewer than the nearest row on each side, so that rows sparser
+    than the window (a turntable's one row per position) give the central difference of their
+    neighbours. A smoothed derivative: the 0.01 degC steps and noise of a thermistor differenced sample to
+    sample are far larger than its rate, and over RATE_WINDOW_S the slope's error is sigma_T sqrt(12 /
+    (n window_s^2)) for n rows. Any spacing, gaps; the rows' sums window by window where the times are few
+    (blocks, segments: no pass over the whole log), by cumulative sums where they are many (every row)."""
+    t, T = np.asarray(t_s, float), np.asarray(temp_c, float)
+    if np.any(t[1:] < t[:-1]):
+        order = np.argsort(t, kind="stable")
+        t, T = t[order], T[order]
+    at = t if at_s is None else np.asarray(at_s, float)
+    n = len(t)
+    if n < 2:
+        return np.zeros(len(at))
+    half = np.broadcast_to(np.asarray(window_s, float) / 2, at.shape)
+    before, after = np.searchsorted(t, at) - 1, np.searchsorted(t, at, "right")  # the neighbours: last before, first after
+    lo = np.maximum(np.minimum(np.searchsorted(t, at - half), before), 0)
+    hi = np.minimum(np.maximum(np.searchsorted(t, at + half, "right"), after + 1), n)
+    if 64 * len(at) < n:
+        return np.array([_slope(t[a:b], T[a:b]) for a, b in zip(lo, hi)])
+    t0, T0 = t[n // 2], T[n // 2]  # centred: the sums of squares keep their digits over a long log
+    tc, Tc = t - t0, T - T0
+    sums = [np.concatenate([[0.0], np.cumsum(v)]) for v in (np.ones(n), tc, Tc, tc * tc, tc * Tc)]
+    m, a, b, aa, ab = (s[hi] - s[lo] for s in sums)
+    den = m * aa - a * a
+    return np.where(den > 0, (m * ab - a * b) / np.where(den > 0, den, 1.0), 0.0)
+
+
+def _slope(t, T) -> float:
+    """The least-squares slope of T over t (0 where t does not vary)."""
+    d = t - t.mean()
+    dd = float(d @ d)
+    return float(d @ (T - T.mean())) / dd if dd > 0 else 0.0
+
+
+def group_rates(samples, groups) -> dict:
+    """{temp_rate_c_s: each group's dT/dt}, the slope of temp_c over its rows (RATE_WINDOW_S at least; the
+    neighbours of a group of one row), where the samples have temp_c; else {}. What aux_inputs.column_means
+    gives beside each group's mean temp_c."""
+    if "temp_c" not in samples or "t_s" not in samples or not len(groups):
+        return {}
+    t = np.asarray(samples["t_s"], float)
+    spans = [t[g] for g in groups]
+    return {"temp_rate_c_s": temperature_rate(t, samples["temp_c"], [float(np.mean(x)) for x in spans],
+                                              np.maximum([float(np.ptp(x)) for x in spans], RATE_WINDOW_S))}
+
+
+def rate_input(samples, effects) -> dict:
+    """{temp_rate_c_s: each row's dT/dt} where one of the library effects read it and the samples have temp_c
+    (apply, validate: a calibration with a temperature-rate effect); else {} (no cost where none reads it)."""
+    from simucal.generated.effects import EFFECTS
+    if "temp_c" not in samples or not any("temp_rate_c_s" in EFFECTS[e].reads for e in effects if e in EFFECTS):
+        return {}
+    return {"temp_rate_c_s": temperature_rate(samples["t_s"], samples["temp_c"])}
+
+
 def clusters(T, spread=SPREAD_C) -> np.ndarray:
     """Each temperature's cluster (0, 1, ...): sorted, a new cluster where a temperature lies more
     than `spread` above its cluster's first. Their number is the distinct temperatures."""
@@ -136,8 +198,7 @@ class ThermalModel:
 
     def _powers(self, aux, shape):
         """(..., n, MAX_DEGREE + 1): each row's (T - T_ref)^k."""
-        from simucal.fit.aux_inputs import AuxInputs
-        dT = (aux or AuxInputs()).array(("dtemp_c",), shape)[..., 0]
+        dT = np.zeros(shape or ()) if aux is None else aux.array(("dtemp_c",), shape)[..., 0]  # no aux: at T_ref
         return dT[..., None] ** np.arange(MAX_DEGREE + 1)
 
     def per_row(self, p, aux, shape):

@@ -48,7 +48,7 @@ import numpy as np
 
 from simucal.errors import CalibrationError
 from simucal.fit.noise import moving_sample_var, quantization_step, white_noise_var
-from simucal.io.records import DroppedInterval, GyroLimit
+from simucal.io.stream_records import DroppedInterval, GyroLimit
 
 
 @dataclass(frozen=True)

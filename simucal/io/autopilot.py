@@ -217,6 +217,14 @@ class Imu:
     device_ids: dict | None
     slot: int
     source: str
+    effects: tuple[str, ...] = ()  # the effects fitted beside the polynomials (a warm-up's temperature rates)
+
+
+def unexpressed(u: Imu, autopilot: str) -> list[str]:
+    """The warnings of the effects an IMU's calibration fitted that the autopilot has no parameter for."""
+    return [f"{e} was fitted beside the bias polynomial, but {autopilot} has no parameter for it: the file holds the "
+            "polynomial alone (the bias at a steady temperature), so the correction is off by that term while the "
+            "temperature changes" for e in u.effects]
 
 
 def px4_text(imus: list[Imu]) -> tuple[str, list[str]]:
@@ -226,6 +234,7 @@ def px4_text(imus: list[Imu]) -> tuple[str, list[str]]:
     warnings: list[str] = []
     for u in imus:
         got, said = px4_parameters(u.polys, u.device_ids, u.slot)
+        said += unexpressed(u, "PX4")
         rows += [r for r in got if r not in rows]
         warnings += [f"instance {u.slot}: {w}" if len(imus) > 1 else w for w in said]
     lines = ["# Onboard parameters for Vehicle 1", "#"] + _header(imus, warnings, [px4_note(imus)])
@@ -241,6 +250,7 @@ def ardupilot_text(imus: list[Imu]) -> tuple[str, list[str]]:
     warnings: list[str] = []
     for u in imus:
         got, said = ardupilot_parameters(u.polys, u.slot)
+        said += unexpressed(u, "ArduPilot")
         rows += got
         warnings += [f"instance {u.slot}: {w}" if len(imus) > 1 else w for w in said]
     lines = _header(imus, warnings, [ardupilot_note(imus)]) + [f"{n},{_number(v)}" for n, v in rows]
@@ -262,7 +272,7 @@ def imu(cal, meta: meta_keys.Meta, px4: bool = False) -> Imu:
         raise CalibrationError(f"--px4: {source} was imported from {log.get('source')}, with {log['corrected']}; PX4's "
                                "TC_* correct the raw sensor_accel/sensor_gyro: log those (SDLOG_PROFILE's thermal "
                                "calibration bit) and import them with --instance N")
-    return Imu(polys, ids, slot, source)
+    return Imu(polys, ids, slot, source, tuple(e for _, b in cal.blocks() for e in b.effects))
 
 
 def texts(units: list[tuple], px4: str | None = None, ardupilot: str | None = None) -> list[tuple]:

@@ -1,4 +1,4 @@
-"""The records a calibration file holds beside its fields, as typed dicts (issue 54, item 2).
+"""The records a calibration file holds beside its fields, as typed dicts.
 
 A method's report is written into the file as JSON objects (docs/calibration-file.md). Each such
 object is declared here with its keys and their types, so that mypy checks every writer and a
@@ -15,6 +15,8 @@ from __future__ import annotations
 
 from typing import List, TypedDict, Union
 
+from simucal.io.stream_records import StaticDetection, Timestamps
+
 # a JSON value: what json.load gives (typing.List in the alias: a runtime alias must not subscript list with a str)
 JSONValue = Union[str, int, float, bool, None, List["JSONValue"], "dict[str, JSONValue]"]
 JSONObject = dict[str, JSONValue]  # a document as a command writes it (diagnosis.json, noise.json, lot.json)
@@ -27,6 +29,7 @@ class Targeted(TypedDict, total=False):
     statistic: float | None
     p_value: float | None
     level: float                      # each test's level (Bonferroni over the tested)
+    estimate: float                   # a warm-up's candidate: its value were it added (handheld/warmup.py)
     joint_statistic: float            # what the strongest beyond their level explain together
     twins: list[str]                  # candidates the data cannot tell from the strongest
     verdict: str                      # where the strongest is beyond its level, in words
@@ -110,8 +113,10 @@ class AutoStep(TypedDict, total=False):
     twin_choice: str
 
 
+PairsChi2 = TypedDict("PairsChi2", {"pairs": int, "chi2": float, "dof": int, "p_value": float})  # model_test.pairs_evidence
 class StaticRows(TypedDict, total=False):
     """A turntable gyro's static rows against the Earth rate (turntable/model_test.py)."""
+    pairs: PairsChi2                  # a twin's fit judged: the unification pairs with it too
     what: str
     positions: int
     chi2: float
@@ -187,6 +192,11 @@ class Estimates(TypedDict):
     meaning: str
 
 
+RateValue = TypedDict("RateValue", {"value": float, "std": float})  # a warm-up axis's temperature rate, per degC/s
+WalkCheck = TypedDict("WalkCheck", {"walk_low_per_sqrt_s": float, "white_block_std": float, "first_differences_ms": float,
+                                    "predicted_ms": float, "z": float, "p_value": float})  # handheld/warmup.walk_check
+
+
 class ThermalPolynomial(TypedDict, total=False):
     """One parameter's polynomial in dT = temp_c - t_ref_c (fit/thermal.py), coefficients c_0, c_1, ..."""
     degree: int
@@ -200,6 +210,12 @@ class ThermalPolynomial(TypedDict, total=False):
     per_plateau_std: list[float]
     residual_rms: float               # a warm-up's axis (handheld/warmup.py): its block means' fit
     noise: NoiseUsed
+    rate: RateValue                   # its temperature-rate effect, where added; its family's tests:
+    walk_check: WalkCheck
+    test: str
+    omnibus_p_value: float | None
+    omnibus_test: str | None
+    targeted: Targeted
     constant: str                     # what the constant term is, where gravity is in the readings
 
 
@@ -282,6 +298,8 @@ class CrossCheck(TypedDict, total=False):
     note: str
 
 
+LeverArms = TypedDict("LeverArms", {"tested": list[str], "statistic": float, "dof": int, "p_value": float,
+                                    "fails": bool, "text": str})  # the pairs' targeted test: turntable/lever_arms.py
 class Unification(TypedDict, total=False):
     """The accelerometer and gyro frames unified (dong2018 eq. 13-27; turntable/unification.py):
     C_b_d and the small rotation's std about b's axes."""
@@ -296,6 +314,7 @@ class Unification(TypedDict, total=False):
     noise: UnificationNoise
     note: str
     cross_check: CrossCheck
+    lever_arms: LeverArms
     theta4_rad: list[float]           # the paper's own angles (eq. 27)
     tilt_rad: list[float]
     lambda4_rad: list[float]
@@ -378,7 +397,7 @@ class InnovationTest(TypedDict, total=False):
 class WhiteNoise(TypedDict, total=False):
     gyro_dph: list[float]
     acc_g: list[float]
-    rate_hz: float                    # the samples' (files before issue 55 lack it)
+    rate_hz: float                    # the samples' (older files lack it)
 
 
 class ZeroPosition(TypedDict):
@@ -396,48 +415,6 @@ class SystematicRecord(TypedDict, total=False):
     white_noise_per_sample: WhiteNoise
     test: InnovationTest
     zero_position: ZeroPosition
-
-
-# How a stream's rests were found (handheld/static_detect.py): the settings, the intervals, the gyro limit and how it
-# was set (GyroLimit), and each still interval a rule dropped or the gyro shortened, with its rule and numbers.
-GyroLimit = TypedDict("GyroLimit", {"limit_dps": float, "set_by": str, "text": str, "noise_dps": float, "sway_dps": float,
-                                    "poses": int, "noise_factor": float, "sway_factor": float, "from_data_dps": float},
-                      total=False)
-DroppedInterval = TypedDict("DroppedInterval", {
-    "t_s": list[float], "rule": str, "text": str, "length_s": float, "from_rest_dps": float, "max_dps": float,
-    "median_dps": float, "limit_dps": float, "share_above": float, "longest_within_s": float,
-    "kept_from_limit_dps": float, "kept_s": list[list[float]]}, total=False)
-StaticDetection = TypedDict("StaticDetection", {
-    "window": int, "factor": float, "threshold": float, "threshold_from": str, "min_samples": int,
-    "gyro_threshold_dps": float, "gyro_limit": GyroLimit, "dropped": list[DroppedInterval],
-    "trimmed": list[DroppedInterval], "init_rest_end": int, "pose_window_s": float, "starts": list[int],
-    "ends": list[int], "intervals_s": list[list[float]], "count": int}, total=False)
-
-
-class Gap(TypedDict):
-    """Samples missing from a stream (io/timestamps.gaps)."""
-    after_row: int
-    start_s: float
-    length_s: float
-    samples_missing: int
-
-
-class Timestamps(TypedDict, total=False):
-    """The clock a stream was read on (io/timestamps.py): recorded, or the even clock its median step gives."""
-    used: str
-    choice: str
-    chosen_by: str
-    text: str
-    gaps: list[Gap]
-    irregular: bool
-    regular_clock: bool
-    catch_up_steps: int
-    catch_up_median_ms: float | None
-    median_step_ms: float
-    mean_step_ms: float
-    std_step_ms: float
-    longest_step_ms: float
-    off_even_clock_steps: float
 
 
 class CalibrationDetails(TypedDict, total=False):

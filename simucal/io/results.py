@@ -106,6 +106,7 @@ class Observed(TypedDict):
     prior_std: float
     std: float
     ratio: float
+    inflation: float  # its std over its std were the other states known (systematic/observability.verdict)
     observed: bool
 
 
@@ -118,6 +119,7 @@ class Observability(TypedDict, total=False):
     parameters: list[Observed]
     unobserved: list[str]
     threshold: float
+    inflation_threshold: float
     steps: int
     updates: int
     noise_per_sample: NoisePerSample

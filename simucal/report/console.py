@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 from simucal.fit import family
+from simucal.fit.candidates import undecided_twins
 from simucal.io import SENSOR_COLS
 from simucal.io.calibration import ALPHA, Calibration, SensorBlock, SensorDetails
 
@@ -107,9 +108,7 @@ def _fit_lines(s, b: SensorBlock, source):
                "the candidate test and predicting the data left out better)" if d["auto"] else "nothing")
                + (f"; {d['auto_stopped']}" if d.get("auto_stopped") else ""))
         for x in d["auto"]:
-            if x.get("twin_choice", "").startswith("cannot tell"):
-                yield f"{s}: --add auto added {x['id']}, though it {x['twin_choice']}"
-            elif x.get("twin_choice"):
+            if x.get("twin_choice"):
                 yield f"{s}: --add auto chose {x['twin_choice']}"
     if b.verdict == "fails":
         what = d.get("advice")
@@ -196,6 +195,11 @@ def _thermal_lines(s, b: SensorBlock):
                + ("chosen by the data)" if chosen == "the data" else f"from {chosen})"))
     yield (f"{s}: {len(th['parameters']) - len(moving)} of {len(th['parameters'])} parameters constant over "
            "temperature (a temperature dependence below their noise)")
+    if "warmup" in th:  # a warm-up's effects (its temperature rates) beside the polynomials, and auto's choice
+        for e, v in b.effects.items():
+            yield f"{s}: {e} = {v.value:.4g} +- {v.std:.2g} {v.unit} (added)"
+        if "auto" in b.details:
+            yield f"{s}: --add auto chose " + (", ".join(x["id"] for x in b.details["auto"]) or "nothing")
     exact = [n for n, f in th["parameters"].items() if f.get("dof") == 0]
     if exact:
         yield (f"{s}: {len(exact)} polynomials pass through every plateau (degree = plateaus - 1): no plateau is left "
@@ -222,6 +226,9 @@ def to_add(diag: dict, sensor: str) -> tuple[list[str] | None, str]:
     if outside:
         return None, f"{sensor}: {outside['text']}"
     sig = [c["id"] for c in b["candidates"] if c.get("significant")]
+    lead = next((c for c in b["candidates"] if c.get("significant")), None)
+    if lead and lead.get("twins_undecided") and not (shape.get("model_file_path") or steps):
+        return [], f"{sensor}: {undecided_twins(lead, b['candidates'])}"
     found = ([shape["model_file_path"]] if shape.get("model_file_path") else [x["id"] for x in steps] if steps
              else sig[:1] or ([shape["catalog_id"]] if shape.get("catalog_id") else None))
     return found, "" if found else f"{sensor}: nothing found explains the misfit; the plots below show where it is"

@@ -68,10 +68,13 @@ def verdict(sensor, base, cands, shape=None) -> str:
         more = (f" With it the residual rms would be {after:.3g} {unit}, still above the floor: more is missing "
                 "(see the other candidates)." if after and base.get("noise_floor") and after > 2 * base["noise_floor"]
                 else "")
+        undecided = c.get("twins_undecided")  # no rows chose between it and its twins: neither is claimed
         text += (f" {'The best library effect, explaining less' if generic else 'Most likely missing'}: {c['id']} "
-                 f"({c['meaning']}), estimate {c['estimate']:.3g} +- {c['std']:.2g} {c['unit']}, LR "
+                 f"({c['meaning']})" + (f" or its twin {', '.join(c['twins'])}" if undecided else "")
+                 + f", estimate {c['estimate']:.3g} +- {c['std']:.2g} {c['unit']}, LR "
                  f"{c['statistic']:.1f}, p = {c['p_value']:.2g}."
-                 + ("" if generic else f" Add it: --add {c['id']}.{more}"))
+                 + ("" if generic else " Add neither until a plan tells them apart (below)." if undecided else
+                    f" Add it: --add {c['id']}.{more}"))
     elif not shape:
         text += (" No candidate explains it; the missing effect is not in the library (or the plan cannot "
                  "separate it).")

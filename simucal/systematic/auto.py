@@ -43,7 +43,9 @@ class FilterStep:
 
     def add(self, eid):
         trial = FilterStep(self.ms, *self.models, self.effects + (eid,))
-        if not trial.model.converged:  # a model whose passes do not converge would be refused whole
+        if trial.model.diverged:  # a model whose passes diverge or do not converge would be refused whole
+            return f"with {eid} the filter diverged ({trial.model.diverged})"
+        if not trial.model.converged:
             return (f"with {eid} the filter's passes did not converge (the last of {trial.model.passes} moved an "
                     f"estimate by {trial.model.step_std:.2g} of its std)")
         return trial

@@ -20,7 +20,7 @@ from simucal.io import SENSOR_COLS, timestamps, units
 from simucal.fit.rotations import exp_so3, log_so3
 from simucal.systematic.filter import (Epoch, Sensors, compose, kalman, level, nominal, smooth,
                                       transitions)
-from simucal.systematic.zero_position import Returns, returns
+from simucal.systematic.zero_position import Returns, position, returns
 
 BLOCK_S = 1.0           # zero-velocity updates at rest every this many seconds
 ZUPT_STD_MPS = 1e-6     # the table at rest: its velocity is zero to this (m/s)
@@ -128,19 +128,25 @@ class Result:
     C: np.ndarray | None = None  # C_b^n at the start about the estimates, and what another pass over the data
     setting: tuple = ()          # needs, (steps, q, w_ie, g0): the innovations' candidates (innovations.py)
     returns: Returns | None = None  # the zero-position updates made (zero_position.py)
+    first_cov: np.ndarray | None = None  # cov after the first pass: the observability check's (observability.py)
+    diverged: str = ""           # where a pass diverged (`divergence`), else empty
+    positions: int = 0           # the rests' distinct commanded positions (zero_position.position)
 
     @property
     def converged(self) -> bool:
-        """Whether the last pass moved no estimate by STEP_STD of its std (False for a NaN: diverged)."""
-        return self.step_std < STEP_STD
+        """Whether the last pass moved no estimate by STEP_STD of its std (False where a pass diverged)."""
+        return not self.diverged and self.step_std < STEP_STD
 
 
 def run_filter(ms, acc_model="acc_baseline", gyro_model="gyro_baseline", ids=(), block_s=BLOCK_S,
-               max_passes=MAX_PASSES, zero_position=True) -> Result:
+               max_passes=MAX_PASSES, zero_position=True, start=None, stop_if=None) -> Result:
     """The filter and smoother over the whole sequence, pass after pass, each linearised about the
     estimates of the one before (iterated extended Kalman smoother), until a pass moves no
-    estimate by more than STEP_STD of its std. zero_position: with the zero-position updates where the
-    table returns to a position and meta.json states its accuracy (zero_position.py)."""
+    estimate by more than STEP_STD of its std, or diverges (`divergence`: the passes stop there). zero_position:
+    with the zero-position updates where the table returns to a position and meta.json states its accuracy
+    (zero_position.py). start: {"acc": {name: value}, "gyro": {..}, "eta": [3]}, the estimates the first pass is
+    linearised about (names it lacks at nominal; observability.py gives a simulated unit's truth, where the
+    passes converge); stop_if: a test of the first pass's (cov, prior_var) that stops the passes there."""
     segments = rests_and_moves(ms)
     acc, gyro = AugmentedModel(acc_model, for_sensor(ids, "acc")), AugmentedModel(gyro_model, for_sensor(ids, "gyro"))
     sensors = Sensors(acc, gyro, np.zeros(len(acc.params)), np.zeros(len(gyro.params)), np.zeros(3))
@@ -151,25 +157,63 @@ def run_filter(ms, acc_model="acc_baseline", gyro_model="gyro_baseline", ids=(),
     sigma = white_noise(ms, segments, lambda s: ms.rows(s.segment))
     q = np.r_[(sigma[:3] * units.RAD_S_PER_DPH) ** 2, (sigma[3:] * g0) ** 2] * dt  # spectral densities
     steps = steps_of(ms, segments, block_s, dt)
+    if start is not None:
+        _move(sensors, np.r_[[start["acc"].get(n, 0.0) for n in acc.params],
+                             [start["gyro"].get(n, 0.0) for n in gyro.params], start["eta"]])
     C_prior = C = _levelled(ms, sensors, segments[0], ms.rows(segments[0].segment))
-    sensors.p_gyro, grade = start_from_rest(ms, gyro, segments[0], C)
+    p_gyro, grade = start_from_rest(ms, gyro, segments[0], C)
+    sensors.p_gyro = sensors.p_gyro if start is not None else p_gyro
     p_prior = sensors.vector()
     prior_var = np.r_[[PRIOR_ATTITUDE_RAD] * 3, [ZUPT_STD_MPS] * 3, _prior(acc, grade), _prior(gyro, grade),
                       [PRIOR_STD["rad"]] * 3] ** 2
     zero = returns(ms, segments, steps.segment[steps.zupt], len(prior_var)) if zero_position else None
     p = slice(6, len(prior_var))  # the constants; the clones of zero-position updates after them
     clones = 0 if zero is None else 3 * zero.slots
+    first, where = None, ""
     for k in range(1, max_passes + 1):
         x0 = np.r_[log_so3(C_prior @ C.T), np.zeros(3), sensors.vector() - p_prior, np.zeros(clones)]  # the prior's
         P0 = np.diag(np.r_[prior_var, np.ones(clones)])  # mean as errors; a clone's value is set at its copy
         epochs = _one_pass(steps, sensors, C, x0, P0, q, w_ie, g0, zero)
         x, P = epochs[-1].x, epochs[-1].P  # the constants: the filter's at the end (the smoother's at the start
-        step = np.abs(x[p]) / np.sqrt(np.diag(P)[p])  # equal them in exact arithmetic)
-        _move(sensors, sensors.vector() - x[p])
-        if step.max() < STEP_STD or k == max_passes or not np.isfinite(step.max()):  # diverged: refused (method.py)
+        step = np.abs(x[p]) / np.sqrt(np.abs(np.diag(P)[p]))  # equal them in exact arithmetic)
+        first = P[p, p] if first is None else first
+        if not (np.isfinite(x).all() and np.isfinite(P).all() and (np.diag(P) >= 0).all()):
+            where = divergence(epochs, steps, segments, k)  # a NaN carries forward: the end shows it
             break
-        C = exp_so3(smooth(epochs, covariance=False)[0][0][:3]) @ C  # the next pass's attitude at the start
-    return Result(sensors, P[p, p], epochs, prior_var, sigma, k, float(step.max()), 1.0 / dt, C, (steps, q, w_ie, g0), zero)
+        _move(sensors, sensors.vector() - x[p])
+        if step.max() < STEP_STD or k == max_passes or (k == 1 and stop_if is not None and stop_if(first, prior_var)):
+            break
+        x_s = smooth(epochs, covariance=False)[0]
+        if not np.isfinite(x_s[0]).all():  # and back through the smoother to the start
+            where = divergence(epochs, steps, segments, k, x_s)
+            break
+        C = exp_so3(x_s[0][:3]) @ C  # the next pass's attitude at the start
+    return Result(sensors, P[p, p], epochs, prior_var, sigma, k, float(step.max()), 1.0 / dt, C, (steps, q, w_ie, g0),
+                  zero, first, where, len({position(s) for s in segments if s.kind == "static"}))
+
+
+def _bad(e) -> bool:
+    """Whether an epoch's state or covariances are not finite or hold a negative variance (a diverged filter)."""
+    return not (np.isfinite(e.x).all() and np.isfinite(e.P).all() and np.isfinite(e.P_pred).all()) \
+        or bool((np.diagonal(e.P_pred) < 0).any() or (np.diagonal(e.P) < 0).any())
+
+
+def divergence(epochs, steps, segments, k, x_s=None) -> str:
+    """Where pass k diverged: the first epoch that is `_bad`; where none is, the smoother's (x_s, its states),
+    the last whose smoothed state is not finite (it runs from the end back); named by its update, time and the
+    move before it."""
+    u = next((i for i, e in enumerate(epochs) if _bad(e)), None)
+    what = "the filter"
+    if u is None:
+        u, what = (len(epochs) - 1, what) if x_s is None else \
+            (int(np.flatnonzero(~np.isfinite(x_s).all(axis=1))[-1]), "the smoother")
+    if u == 0:
+        return f"pass {k}, {what} at its start"
+    i = np.flatnonzero(steps.zupt)[u - 1]
+    seg = int(steps.segment[i])
+    moves = sum(s.kind == "move" for s in segments[:[s.segment for s in segments].index(seg)])
+    return (f"pass {k}, {what} at update {u} of {len(epochs) - 1} (t = {steps.t[i]:.1f} s, segment {seg}: the rest "
+            + (f"after move {moves})" if moves else "before the first move)"))
 
 
 def _move(sensors, p):

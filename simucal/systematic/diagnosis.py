@@ -12,6 +12,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from simucal.errors import CalibrationError
 from simucal.fit.results import added_params, model_test_keys
 from simucal.systematic.calibrate import rests_and_moves, run_filter
 from simucal.fit import family
@@ -73,6 +74,9 @@ def diagnose_sequence(ms, acc_model, gyro_model, ids, truth, before_models, adde
     """{sensor: block} of both sensors (module doc). before_models: (acc, gyro) the models without
     --add; added: what the user added (ids and model files), for the report."""
     r = run_filter(ms, acc_model, gyro_model, ids)
+    diverged = refusal(r, ms.path) if r.diverged else None
+    if diverged:  # no test holds on NaN innovations: the refusal says where, what the sequence leaves unseen, the fix
+        raise CalibrationError(diverged.why)
     test, sig = family_test(r)
     base = model_test(test)
     cands = ranked(test, sig)

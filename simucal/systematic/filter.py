@@ -268,7 +268,8 @@ def smooth(epochs, covariance=True) -> tuple[np.ndarray, np.ndarray | None]:
     for lo in range(max(0, m - 1 - CHUNK), -CHUNK, -CHUNK):
         ks = range(max(lo, 0), min(lo + CHUNK, m - 1))
         P_pred = np.array([epochs[k + 1].P_pred for k in ks])
-        d = np.sqrt(np.diagonal(P_pred, axis1=1, axis2=2))[:, :, None]  # P_pred spans ~20 decades:
+        with np.errstate(invalid="ignore"):  # a negative variance (diverged) gives NaN: calibrate.divergence names it
+            d = np.sqrt(np.diagonal(P_pred, axis1=1, axis2=2))[:, :, None]  # P_pred spans ~20 decades:
         PhiP = np.array([epochs[k + 1].Phi for k in ks]) @ np.array([epochs[k].P for k in ks])  # solved as
         gains = np.swapaxes(np.linalg.solve(P_pred / d / np.swapaxes(d, 1, 2), PhiP / d) / d, 1, 2)  # correlations
         for k, A in zip(reversed(ks), gains[::-1]):

@@ -13,16 +13,10 @@ from simucal.fit.norm_fit import Fit
 from simucal.generated import table
 from simucal.io import calibration, records, units
 from simucal.systematic.auto import select
-from simucal.systematic.calibrate import STEP_STD, UNOBSERVABLE, run_filter
+from simucal.systematic.calibrate import STEP_STD, run_filter
 from simucal.fit.candidates import advice_text
 from simucal.systematic.innovations import family_test, ranked
-from simucal.systematic.observability import names_and_units, std_ratios
-
-
-def unobserved(result) -> dict:
-    """{parameter: std / prior std} of those the sequence barely saw (the ratio above UNOBSERVABLE)."""
-    names = [n for _, n, _ in names_and_units(result.sensors)]
-    return {n: float(r) for n, r in zip(names, std_ratios(result)) if r > UNOBSERVABLE}
+from simucal.systematic.observability import INFLATION, unobserved, verdict
 
 
 class Refusal(NamedTuple):
@@ -32,12 +26,40 @@ class Refusal(NamedTuple):
     note: str
 
 
+SHOWN = 4  # the unobserved parameters a refusal names (plan --sequence names every one)
+FIX = ("turn 90 or 180 deg about each of the unit's axes so that the rests hold each axis up and down (the "
+       "built-in psins19 does)")
+
+
+def seen_text(result, cov=None) -> str:
+    """The observability check's verdict (observability.unobserved) in words, or "" where every state is seen."""
+    poor = unobserved(result, cov)
+    if not poor:
+        return ""
+    shown = [f"{k} (std {q:.2g} of its prior" + (f", {f:.2g} times its own)" if f > INFLATION else ")")
+             for k, (q, f) in list(poor.items())[:SHOWN]]
+    more = f" and {len(poor) - SHOWN} more" if len(poor) > SHOWN else ""
+    why = [f"its own: its std were the other states known, over {INFLATION:g} times smaller where the data see it only "
+           "with them"] * any(f > INFLATION for _, f in poor.values()) + ["simucal plan --sequence names each"] * bool(more)
+    one = ("; its rests all hold the unit at one attitude (a move of whole turns returns it where it was)"
+           if result.positions == 1 else "")
+    return f"the sequence leaves {', '.join(shown)}{more} unobserved{' (' + '; '.join(why) + ')' if why else ''}{one}"
+
+
 def refusal(result, where) -> Refusal | None:
-    """Why calibrate refuses the sequence (a parameter left unobserved, or passes that did not converge) and
-    what to do instead, or None: calibrate and diagnose's next line both ask here, so that the loop never
-    sends a user to a refusal."""
-    poor = unobserved(result)  # first: a parameter the data do not hold also keeps the passes from converging
-    if not poor and not result.converged:
+    """Why calibrate refuses the sequence (a pass that diverged, a parameter left unobserved, or passes that did not
+    converge) and what to do instead, or None: calibrate and diagnose's next line both ask here, so that the loop
+    never sends a user to a refusal."""
+    plan = ("simucal plan --sequence psins19 -o plan.json", "plan --sequence scores a sequence before it is recorded")
+    if result.diverged:  # its estimates and stds are NaN: the verdict is the first pass's, the observability check's
+        seen = seen_text(result, result.first_cov)
+        return Refusal(f"{where}: the filter diverged (a state or variance not finite, or negative) in "
+                       f"{result.diverged}: " + (f"{seen}: {FIX}" if seen else
+                                                 "the first pass saw every parameter, but the linearisation did not "
+                                                 "hold: record slower turns and longer rests (the built-in psins19)"),
+                       *plan)
+    seen = seen_text(result)  # first: a parameter the data do not hold also keeps the passes from converging
+    if not seen and not result.converged:
         return Refusal(
             f"{where}: the filter's passes did not converge: the last of {result.passes} still moved an estimate "
             f"by {result.step_std:.2g} of its std (they end below {STEP_STD:g}), so the estimates are not the "
@@ -45,12 +67,7 @@ def refusal(result, where) -> Refusal | None:
             "far from nominal (a MEMS unit) converges on slower turns and longer rests (the built-in psins19)",
             "record the sequence again with slower turns and longer rests (simucal simulate --sequence psins19 "
             "shows one)", "no plan shows convergence: the sequence itself must change")
-    if not poor:
-        return None
-    worst = ", ".join(f"{k} (std {v:.2f} of its prior)" for k, v in poor.items())
-    return Refusal(f"{where}: the sequence leaves {worst} unobserved: turn the unit about each of its axes with each "
-                   "axis up and down (the built-in psins19 does)", "simucal plan --sequence psins19 -o plan.json",
-                   "plan --sequence scores a sequence before it is recorded")
+    return Refusal(f"{where}: {seen}: {FIX}", *plan) if seen else None
 
 
 def returns_advice(test) -> str | None:
@@ -77,8 +94,8 @@ def calibrate_systematic(ms, acc_model="acc_baseline", gyro_model="gyro_baseline
     failing innovations need (auto.select)."""
     if auto:
         r, ids, chosen, stopped = select(ms, acc_model, gyro_model, ids)
-    else:
-        r = run_filter(ms, acc_model, gyro_model, ids)
+    else:  # the first pass is the observability check: an unobservable sequence is refused there
+        r = run_filter(ms, acc_model, gyro_model, ids, stop_if=lambda cov, prior_var: not verdict(cov, prior_var)[2].all())
     refused = refusal(r, ms.path)
     if refused:
         raise CalibrationError(refused.why)

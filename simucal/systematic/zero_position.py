@@ -68,6 +68,12 @@ class Returns:
         return H, log_so3(self.C_first[k] @ C_nominal.T), np.eye(3) * self.sigma_rad ** 2
 
 
+def position(s) -> tuple:
+    """A rest's commanded angles modulo 360 deg (segments.csv): two rests at one position hold the unit at one
+    attitude, to the table's accuracy."""
+    return tuple(round(float(a) % 360.0, 6) % 360.0 for a in (s.outer_deg, s.middle_deg, s.inner_deg))
+
+
 def returns(ms, segments, update_segment: np.ndarray, n_states: int) -> Returns | None:
     """The returns of a sequence (module doc): update_segment, the segment of each update in time order;
     n_states, the filter's states without the clones. None
@@ -82,7 +88,7 @@ def returns(ms, segments, update_segment: np.ndarray, n_states: int) -> Returns 
     for s in segments:
         if s.kind != "static" or s.outer_deg is None or s.segment not in last:
             continue
-        key = tuple(round(float(a) % 360.0, 6) % 360.0 for a in (s.outer_deg, s.middle_deg, s.inner_deg))
+        key = position(s)
         if key not in first_visit:
             first_visit[key] = last[s.segment]
             continue

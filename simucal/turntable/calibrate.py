@@ -95,10 +95,11 @@ def _tie(ms, acc, gm, fg, gyro_obs, gyro_segs, base_g):
     return unify(un, acc_segs, gyro_segs, _find, table_accuracy_rad(ms))
 
 
-def _at_rest(ms, acc, gm, fg, gyro_obs, gyro_noise_dph, C_b_d) -> AtRest | None:
-    """The gyro's static rows as a judge of its model (model_test.AtRest), or None where the set has none."""
+def _at_rest(ms, acc, gm, fg, gyro_obs, gyro_noise_dph, C_b_d, tie=None) -> AtRest | None:
+    """The gyro's static rows as a judge of its model (model_test.AtRest, with the unification pairs where
+    tie is given), or None where the set has none."""
     rows, static_gyro = static_gyro_rows(ms, acc[3], gyro_noise_dph)
-    return AtRest(ms, acc[1].directions[rows], C_b_d, static_gyro, gm, gyro_obs, fg) if rows else None
+    return AtRest(ms, acc[1].directions[rows], C_b_d, static_gyro, gm, gyro_obs, fg, tie) if rows else None
 
 
 def _at_rest_factory(ms, acc, gyro_segs, gyro_noise_dph):
@@ -114,7 +115,8 @@ def _at_rest_factory(ms, acc, gyro_segs, gyro_noise_dph):
             C_b_d = _tie(ms, acc, model, fit, obs, gyro_segs, base)[0]
         except CalibrationError:
             return None
-        return _at_rest(ms, acc, model, fit, obs, gyro_noise_dph, C_b_d)
+        return _at_rest(ms, acc, model, fit, obs, gyro_noise_dph, C_b_d,
+                        lambda m, f: _tie(ms, acc, m, f, obs, gyro_segs, base))
     return at_rest
 
 
@@ -141,7 +143,8 @@ def _gyro_block(ms, method, cal, acc, gyro, gyro_noise_dph, static_probe=None) -
         consistency = cal.details["consistency"]
         consistency["latitude"] = latitude_check(ms, fa, acc_segs, gm, fg, C_b_d, gyro_noise_dph)
         consistency["lines"].append("latitude: " + consistency["latitude"]["verdict"])
-        judge = _at_rest(ms, acc, gm, fg, gyro_obs, gyro_noise_dph, C_b_d)
+        judge = _at_rest(ms, acc, gm, fg, gyro_obs, gyro_noise_dph, C_b_d,
+                         lambda m, f: _tie(ms, acc, m, f, gyro_obs, gyro_segs, base_g))
         if judge is not None:  # the gyro's test covers its rows at rest too
             with_static_rows(base_g, judge.test())
             if static_probe:  # diagnose: the same rows judge its twins
@@ -215,7 +218,8 @@ def calibrate_table(ms, method, acc_model, gyro_model, ids, acc_noise_g=None, gy
         calibration.inflate_if_failing(block)
         if s in chosen:
             block.details["auto"], block.details["auto_stopped"] = chosen[s].steps, chosen[s].stopped
-            if (block.details.get("static_rows") or {}).get("p_value", 1.0) < ALPHA:  # auto weighs the rate runs only
+            if (block.details.get("static_rows") or {}).get("p_value", 1.0) < ALPHA \
+                    and chosen[s].stopped.startswith("the model passes"):  # auto weighs the rate runs only
                 block.details["auto_stopped"] += " over the rate runs; the static rows still misfit (no library effect" \
                                                  " describes a term the rate runs cannot see)"
     if ms.has_gyro and cal.gyro is None:  # the data hold a gyro, the plan determines none of it

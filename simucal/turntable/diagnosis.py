@@ -49,8 +49,9 @@ def _with_static_gyro_rows(ms, block, settings) -> None:
     """The gyro's test over its static rows too, as calibrate's (model_test.with_static_rows): they need
     the accelerometers' up and C_b^d, so calibrate's exact method gives them; where it refuses the set,
     the rate runs' test stands (calibrate says why). Where the rate runs cannot tell the strongest
-    candidate, or the found generic term, from its twins, the static rows choose among them
-    (model_test.choose_twin, _choose_twin), as calibrate's advice and `--add auto` do."""
+    candidate, or the found generic term, from its twins, the static rows choose among them (with the
+    unification pairs, for library effects: model_test.choose_twin; _choose_twin), as calibrate's advice and
+    `--add auto` do."""
     fits = block.pop("twin_fits", [])
     judges: list[AtRest] = []  # the judge of the static rows calibrate_table made (static_probe)
     acc_model, gyro_model, ids, acc_noise_g, gyro_noise_dph = settings

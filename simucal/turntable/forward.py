@@ -12,8 +12,8 @@ accelerometers, phi_ij for the gyros: axis i tilted toward j) below it; b the bi
 effect's regressor phi_e in numpy below (its family's physics: a quadratic u_a^2, a scale asymmetry |u_a|,
 a cross coupling u_a u_o, a bias drifting in time t, a lever arm on a rate run (w_T^2/g)(u_a u_c - delta_ac) r_c
 and under any motion (domega x r + omega x (omega x r))_a / g, a time delay tau (omega x f)_a, a
-g-sensitivity f_o, a bias or scale changing with temperature). A gyro's rates enter the nonlinear terms in
-deg/s. A model this module does not know (a user's model file) is simulated by its own generated output,
+g-sensitivity f_o, a bias or scale changing with temperature, a bias following its rate dT/dt). A gyro's
+rates enter the nonlinear terms in deg/s. A model this module does not know (a user's model file) is simulated by its own generated output,
 which is then the only forward model there is.
 """
 from __future__ import annotations
@@ -51,6 +51,8 @@ def _regressor(family: str, pair: str, sensor: str, u: np.ndarray, aux) -> np.nd
         return (np.cross(dw, e_c)[:, a] + np.cross(w, np.cross(w, e_c))[:, a]) / G0
     if family == "g_sensitivity":
         return aux.column(f"f_{pair[-1]}", n)
+    if family == "temperature_rate":  # a bias following dT/dt (the die lagging the thermistor)
+        return aux.column("temp_rate_c_s", n)
     if "temperature" in family:  # bias_temperature{,2,3}: dT^k; scale_temperature{,2}: u_a dT^k
         dT_k = aux.column("dtemp_c", n) ** int(family[-1] if family[-1].isdigit() else 1)
         return dT_k if family.startswith("bias") else u[:, a] * dT_k

@@ -136,36 +136,78 @@ def static_gyro_test(ms, gm, fg, u_b, C_b_d, static_gyro, term=None) -> records.
 
 
 class AtRest:
-    """A gyro model fitted on the rate runs, judged on the static rows (static_gyro_test): the rows
-    that tell apart the effects the rate runs cannot (issue 51, item 2). A g-sensitivity and its twin
-    in the rate-run means (another g-sensitivity, a scale asymmetry) read the same there; at rest only
-    the g-sensitivity reads G f. u_b: the accelerometers' up at the static rows (b), C_b_d: the frames'
-    tie, static_gyro: consistency.static_gyro_rows's (N, sigma, aux)."""
+    """A gyro model fitted on the rate runs, judged on the rows that fit does not use (issue 51, item 2):
+    the static rows (static_gyro_test) and, where tie is given, the unification pairs, which tell apart
+    the effects the rate runs cannot. A g-sensitivity and its twin in the rate-run means (another
+    g-sensitivity, a scale asymmetry) read the same there; at rest only the g-sensitivity reads G f, and
+    in the pairs each twin turns the rate runs' directions its own way (a turn that flips with the rate's
+    sign, which C_b^d cannot take up). u_b: the accelerometers' up at the static rows (b), C_b_d: the
+    frames' tie, static_gyro: consistency.static_gyro_rows's (N, sigma, aux); tie(model, fit): the
+    frames tied by that gyro fit (unification.unify's answer), raising CalibrationError where they cannot be."""
 
-    def __init__(self, ms, u_b, C_b_d, static_gyro, model, obs, fit):
+    def __init__(self, ms, u_b, C_b_d, static_gyro, model, obs, fit, tie=None):
         self.ms, self.u_b, self.C_b_d, self.static_gyro = ms, u_b, C_b_d, static_gyro
-        self.model, self.obs, self.fit = model, obs, fit
+        self.model, self.obs, self.fit, self.tie = model, obs, fit, tie
 
     def test(self, term=None) -> records.StaticRows:
         """The static rows' test of the model, or of it with a generic term (twin_fits's)."""
         return static_gyro_test(self.ms, self.model, self.fit, self.u_b, self.C_b_d, self.static_gyro, term)
 
     def with_effect(self, eid) -> records.StaticRows:
-        """The static rows' test of the model with library effect eid added, refitted on the rate runs."""
+        """The static rows' test of the model with library effect eid added, refitted on the rate runs, with
+        the frames tied by that fit and, where their noise is known, the pairs' chi-square (`pairs`)."""
         model = AugmentedModel(self.model.base, self.model.effects + (eid,))
         try:
             fit = fit_exact(model, self.obs, p0=np.r_[self.fit.vector(self.model.params), 0.0])
         except CalibrationError as e:
             return {"verdict": f"not tested: the fit with {eid} failed: {e}"}
-        return static_gyro_test(self.ms, model, fit, self.u_b, self.C_b_d, self.static_gyro)
+        C_b_d, pairs = self.C_b_d, None
+        if self.tie is not None:
+            try:
+                C_b_d, _, _, info = self.tie(model, fit)
+                pairs = pairs_evidence(info)
+            except CalibrationError:
+                pass
+        st = static_gyro_test(self.ms, model, fit, self.u_b, C_b_d, self.static_gyro)
+        return {**st, "pairs": pairs} if pairs and "chi2" in st else st
+
+
+def pairs_evidence(info) -> records.PairsChi2 | None:
+    """The unification pairs' chi-square as evidence between twins (unification.unify's record), or None
+    where their noise is estimated from their own scatter (which brings every fit's pairs to their dof)."""
+    noise = info.get("noise") or {}
+    estimated = ("acc_rate_run_means" in noise if info["method"] == "rate_run_means" else
+                 (noise.get("table_angles") or {}).get("dof") is not None)
+    if estimated or not info["dof"] > 0:
+        return None
+    return {"pairs": info["pairs"], "chi2": info["chi2"], "dof": info["dof"],
+            "p_value": float(chi2_sf(info["chi2"], info["dof"]))}
+
+
+def _evidence(tested: dict) -> tuple[dict, bool, str]:
+    """({twin: chi-square over the rows that judge}, whether the pairs are among them, those rows in words):
+    the static rows, and the pairs where every twin has them (the sum is the evidence)."""
+    pairs = all("pairs" in v for v in tested.values())
+    total = {k: v["chi2"] + (v["pairs"]["chi2"] if pairs else 0.0) for k, v in tested.items()}
+    st = next(iter(tested.values()))
+    return total, pairs, f"{st['positions']} static positions" + (f" and {st['pairs']['pairs']} unification pairs"
+                                                                   if pairs else "")
+
+
+def _chi2s(tested: dict, ids, pairs: bool) -> str:
+    """Each twin's chi-squares at rest and, where they judge, in the pairs."""
+    return ", ".join(f"{k} {tested[k]['chi2']:.1f}" + (f" + {tested[k]['pairs']['chi2']:.1f}" if pairs else "")
+                     for k in ids)
 
 
 def choose_twin(cands: list[dict], at_rest) -> None:
     """Where the strongest significant candidate has twins that the rate runs cannot tell from it
-    (fit/twins.py), the one whose fit predicts the static rows best (lowest chi-square, all on the
-    same rows), by at least the twins' level (CANNOT_TELL, else no twin is chosen and the record says
-    that these data cannot tell them apart and which plan would), leads the ranking, with its `at_rest` statistics and its `twin_choice` in words (which
-    rows decided): the ranking, calibrate's advice, diagnose's verdict and `--add auto` then take it.
+    (fit/twins.py), the one whose fit predicts the rows the rate-run fit does not use best (the static rows'
+    chi-square, plus the unification pairs' where their noise is known: AtRest.with_effect; lowest, all
+    on the same rows), by at least the twins' level CANNOT_TELL, leads the ranking, with its `at_rest`
+    statistics and its `twin_choice` in words (which rows decided): the ranking, calibrate's advice,
+    diagnose's verdict and `--add auto` then take it. Closer, no twin is chosen: the lead keeps its place
+    marked `twins_undecided` (so `--add auto` adds neither and the advice names the plan that would tell).
     at_rest() -> AtRest or None (built only here: it ties the frames)."""
     lead = next((c for c in cands if c.get("significant")), None)
     group = [lead] + [c for c in cands if c.get("significant") and c["id"] in lead.get("twins", ())] if lead else []
@@ -175,30 +217,31 @@ def choose_twin(cands: list[dict], at_rest) -> None:
     tested = {k: v for k, v in tested.items() if "chi2" in v}
     if len(tested) < 2:
         return
-    best = min(tested, key=lambda k: tested[k]["chi2"])
+    assert lead is not None  # group holds it
+    total, with_pairs, rows = _evidence(tested)
+    best = min(total, key=lambda k: total[k])
     chosen = next(c for c in group if c["id"] == best)
     st = tested[best]
-    others = "; ".join(f"{k} {v['chi2']:.1f}" for k, v in tested.items() if k != best)
     rate = ", ".join(f"{c['statistic']:.1f}" for c in group)
-    at_rest = {k: {x: v[x] for x in ("chi2", "dof", "p_value")} for k, v in tested.items()}
-    gap = min(v["chi2"] for k, v in tested.items() if k != best) - st["chi2"]
-    if gap < CANNOT_TELL:  # the static rows cannot choose either: no twin is claimed, the ranking stands
-        assert lead is not None
+    at_rest_chi2 = {k: {x: v[x] for x in ("chi2", "dof", "p_value")} | ({"pairs": v["pairs"]} if "pairs" in v else {})
+                    for k, v in tested.items()}
+    gap = min(v for k, v in total.items() if k != best) - total[best]
+    if gap < CANNOT_TELL:  # the rows that judge cannot choose either: no twin is claimed, the ranking stands
         twin = next(c for c in group if c is not lead and c["id"] in tested)
-        lead["at_rest"] = at_rest
-        lead["twin_choice"] = (
+        lead.update(at_rest=at_rest_chi2, twins_undecided=True, twin_choice=(
             f"cannot tell {lead['id']} from {', '.join(k for k in tested if k != lead['id'])} with these data: neither the "
-            f"rate runs (likelihood ratios {rate}) nor the {st['positions']} static positions (chi2 "
-            + ", ".join(f"{k} {v['chi2']:.1f}" for k, v in tested.items()) + f", {gap:.1f} apart, under the twins' "
-            f"level {CANNOT_TELL:.2f}) choose: either may be the unit's; " + positions_that_separate(lead, twin))
+            f"rate runs (likelihood ratios {rate}) nor the {rows} (chi2 {_chi2s(tested, tested, with_pairs)}, {gap:.1f} apart, under "
+            f"the twins' level {CANNOT_TELL:.2f}) choose: either may be the unit's; " + positions_that_separate(lead, twin)))
         return
-    chosen["at_rest"] = at_rest
+    others = "; ".join(_chi2s(tested, [k], with_pairs) for k in tested if k != best)
+    pairs = f", and {st['pairs']['chi2']:.1f} on {st['pairs']['dof']} dof in the pairs" if with_pairs else ""
+    chosen["at_rest"] = at_rest_chi2
     chosen["twin_choice"] = (
         f"{best}, not its twin{'s' if len(tested) > 2 else ''} {', '.join(k for k in tested if k != best)}: the rate "
-        f"runs cannot tell them apart (likelihood ratios {rate}); the {st['positions']} static positions chose it "
-        f"(chi2 {st['chi2']:.1f} on {st['dof']} dof, p = {st['p_value']:.2g}, against {others})"
+        f"runs cannot tell them apart (likelihood ratios {rate}); the {st['positions']} static positions chose it"
+        + (f" with the {st['pairs']['pairs']} unification pairs" if pairs else "")
+        + f" (chi2 {st['chi2']:.1f} on {st['dof']} dof at rest, p = {st['p_value']:.2g}{pairs}; against {others})"
         + ("" if st["p_value"] >= ALPHA else ", though none of them passes at rest"))
-    assert lead is not None  # group holds it
     at = cands.index(lead)
     cands.remove(chosen)
     cands.insert(at, chosen)

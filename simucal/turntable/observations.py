@@ -151,11 +151,28 @@ def check_curve_scale(ms, sensor, rows, curve):
     unit = units.NOISE_UNIT[sensor][0]
     for k in range(3):
         if own[k] > 0 and not 1 / CURVE_FACTOR <= file[k] / own[k] <= CURVE_FACTOR:
+            if not tau:  # the stated noise of averaged rows: their average_s may be the slip
+                refuse_average_s(ms, sensor, curve, own, at)
             raise CalibrationError(
                 f"{curve.source}: its {sensor} {'xyz'[k]} noise over {at:.3g} s is {file[k]:.3g} {unit}, "
                 f"{file[k] / own[k]:.3g} times {what}, {own[k]:.3g} {unit}: the report is of another unit, "
                 f"another output unit or another rate; measure this unit's still recording with simucal noise "
                 "(or leave --noise out)")
+
+
+def refuse_average_s(ms, sensor, curve, stated, average_s):
+    """Refuse meta.json's average_s where the noise file's curve gives the stated noise of one row at other
+    averages only (the range where every axis is within CURVE_FACTOR of it, computed on a grid 0.05 decade
+    apart): the averaging is the likelier slip than the report (the report is blamed where no average would do)."""
+    taus = average_s * np.logspace(-12, 12, 481)
+    ratio = np.atleast_2d(curve(taus)).reshape(len(taus), -1) / np.asarray(stated, float)
+    fits = taus[np.all((ratio >= 1 / CURVE_FACTOR) & (ratio <= CURVE_FACTOR), axis=1)]
+    if len(fits) and not fits[0] <= average_s <= fits[-1]:
+        raise CalibrationError(
+            f"{ms.path / 'meta.json'}: average_s is {average_s:.4g} s, but {curve.source}'s Allan curve gives the "
+            f"stated {sensor} noise of one row ({units.NOISE_KEY[sensor]} {stated[0]:.3g}) at averages of "
+            f"{fits[0]:.3g} to {fits[-1]:.3g} s only: average_s must lie in that range (the seconds each averaged "
+            f"row averages); correct average_s, or the stated noise, or leave --noise out")
 
 
 def check_axes_follow_gravity(ms, obs, segs, live_g=0.5, dead_ratio=0.05, spread=0.2):

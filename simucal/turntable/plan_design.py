@@ -25,7 +25,7 @@ import numpy as np
 from simucal.errors import CalibrationError
 from simucal.io import results
 from simucal.fit.augmented import AugmentedModel
-from simucal.fit.norm_fit import Observations, normal_equations
+from simucal.fit.norm_fit import Observations, check_not_coplanar, normal_equations
 from simucal.generated import table
 from simucal.generated.effects import SEPARATE
 from simucal.turntable import plans
@@ -47,11 +47,12 @@ def information(model: AugmentedModel, u, rho, sigma, p=None) -> np.ndarray:
     return normal_equations(model, obs, p, u, obs.sigma)[1]
 
 
-def score(model: AugmentedModel, u, rho, sigma) -> results.PlanScore:
-    """CRLB, correlation, D- and A-criteria of a plan (module doc)."""
+def score(model: AugmentedModel, u, rho, sigma, where="") -> results.PlanScore:
+    """CRLB, correlation, D- and A-criteria of a plan (module doc); where: the plan's name, which a refusal starts
+    with ("plan FILE: ")."""
     n, m = len(u), len(model.params)
     if n < m:
-        raise CalibrationError(f"{n} positions for {m} parameters of {model.name}: the norm gives one equation per "
+        raise CalibrationError(f"{where}{n} positions for {m} parameters of {model.name}: the norm gives one equation per "
                                f"position, so a plan needs at least {m}")
     H = information(model, u, rho, sigma)
     d = np.sqrt(np.abs(np.diag(H)))
@@ -59,8 +60,9 @@ def score(model: AugmentedModel, u, rho, sigma) -> results.PlanScore:
     if not singular:
         w = np.linalg.eigvalsh(H / np.outer(d, d))
         singular = w[0] < 1e-10 * w[-1]
-    if singular:
-        raise CalibrationError(f"the plan leaves a combination of {model.name}'s parameters unobservable (the "
+    if singular:  # directions in one plane are the usual cause: named, with the plane's normal
+        check_not_coplanar(u, "accelerometer" if model.sensor == "acc" else "gyro", where, "the table frame k")
+        raise CalibrationError(f"{where}the plan leaves a combination of {model.name}'s parameters unobservable (the "
                                "information is singular): add positions with other input directions")
     cov = np.linalg.inv(H)
     sd = np.sqrt(np.diag(cov))

@@ -229,21 +229,32 @@ def lever_arms_and_delay(seed: int) -> dict[str, float]:
     return planted | {f"acc.time_delay.{a}": tau for a in "xyz"}
 
 
-def mems_unit(seed: int) -> Scenario:
-    """A MEMS unit drawn at seed (issue 50): gyro biases near 0.5 deg/s (1800 deg/h std), accelerometer
-    biases near 50 mg, scale factors and misalignments near 2e-2, noise 2e-4 g and 30 deg/h per sample;
-    outputs in g and deg/h."""
-    rng = np.random.default_rng(1000 + seed)
+def drawn_unit(rng, shape_std: float, acc_bias_g: float, gyro_bias_dph: float, acc_noise_g: float,
+               gyro_noise_dph: float) -> Scenario:
+    """A unit of one grade drawn from rng: scale factors and misalignments of std shape_std, the biases' stds,
+    the noise per sample; outputs in g and deg/h."""
     sc = Scenario()
     sc.acc_unit, sc.gyro_unit = "g", "deg/h"
     shape = ("dK_x", "dK_y", "dK_z")
-    sc.acc_params = {**{k: rng.normal(0, 2e-2) for k in shape + ("theta_yx", "theta_zx", "theta_zy")},
-                     **{k: rng.normal(0, 0.05) for k in ("b_x", "b_y", "b_z")}}
-    sc.gyro_params = {**{k: rng.normal(0, 2e-2) for k in shape + ("phi_yx", "phi_zx", "phi_zy")},
-                      **{k: rng.normal(0, 1800.0) for k in ("b_x", "b_y", "b_z")}}
-    sc.acc_noise_g, sc.gyro_noise_dph = 2e-4, 30.0
+    sc.acc_params = {**{k: rng.normal(0, shape_std) for k in shape + ("theta_yx", "theta_zx", "theta_zy")},
+                     **{k: rng.normal(0, acc_bias_g) for k in ("b_x", "b_y", "b_z")}}
+    sc.gyro_params = {**{k: rng.normal(0, shape_std) for k in shape + ("phi_yx", "phi_zx", "phi_zy")},
+                      **{k: rng.normal(0, gyro_bias_dph) for k in ("b_x", "b_y", "b_z")}}
+    sc.acc_noise_g, sc.gyro_noise_dph = acc_noise_g, gyro_noise_dph
     return sc
 
+
+def mems_unit(seed: int) -> Scenario:
+    """A MEMS unit drawn at seed: gyro biases near 0.5 deg/s (1800 deg/h std), accelerometer biases near 50 mg,
+    scale factors and misalignments near 2e-2, noise 2e-4 g and 30 deg/h per sample."""
+    return drawn_unit(np.random.default_rng(1000 + seed), 2e-2, 0.05, 1800.0, 2e-4, 30.0)
+
+
+def tactical_unit(seed: int) -> Scenario:
+    """A tactical-grade unit drawn at seed (HG1700's class, uncompensated): gyro biases near 3 deg/h,
+    accelerometer biases near 1 mg, scale factors and misalignments near 1e-3, noise 75 deg/h and 1.1e-3 g per
+    sample at 100 Hz (0.125 deg/sqrt(h), 0.065 m/s/sqrt(h))."""
+    return drawn_unit(np.random.default_rng(3000 + seed), 1e-3, 1e-3, 3.0, 1.1e-3, 75.0)
 
 AVERAGE_POINTS = 720  # an averaged rate run: the mean of its inputs at this many outer angles over the revolution
 

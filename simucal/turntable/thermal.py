@@ -1,5 +1,6 @@
 """A turntable unit over temperature: the rows of every plateau (or of one ramp) as one set of
-observations, each at its own temperature, for the joint thermal fit (fit/thermal_select.py)."""
+observations, each at its own temperature (and its rate: aux_inputs.column_means), for the joint
+thermal fit (fit/thermal_select.py)."""
 from __future__ import annotations
 
 import numpy as np

@@ -18,9 +18,11 @@ solved by SVD):
 Covariance, first order. The inputs z are the accelerometer fit's parameters and
 directions, the rate runs' mean accelerometer outputs and the gyro fit's parameters
 and directions, with their covariance (the fits' full covariances, inflated by
-chi2/dof when a model fails). With C = C0 (I + [phi x]) and v_i = C0^T u_d,i:
-    phi = A^-1 sum_i w_i u_b,i x (dv_i - du_b,i),  A = sum_i w_i (I - u_b,i u_b,i^T),
-and the gyro matrix in b, M_b = M_d(p_g) C, follows by the chain rule.
+chi2/dof when a model fails). With C = C0 (I + [phi x]), each pair's misfit (in the plane
+across the bisector of u_d and C u_b, where it lies whole: 2 components), phi's sensitivity
+(Wahba's gradients) and the normalisation f/|f| are derived (derive/unify.py); the gyro
+matrix in b, M_b = M_d(p_g) C, follows by the chain rule. Lever arms are named only where
+their targeted test on the pairs fails (lever_arms.py).
 """
 from __future__ import annotations
 
@@ -40,6 +42,7 @@ from simucal.generated import table
 from simucal.generated import unify as eq
 from simucal.io import units
 from simucal.turntable.consistency import GROSS_RAD, mirror_error, mirror_test
+from simucal.turntable.lever_arms import lever_arm_test, misplaced_by
 
 ARCMIN_RAD = math.radians(1 / 60)  # a start for an estimated table accuracy
 
@@ -62,12 +65,33 @@ def _misfit_scale(fit):
     return 1.0
 
 
+def _full_covariance(model, obs, fit):
+    """norm_fit.full_covariance, kept on the fit for these model and observations: every tie of the frames
+    with one fit (a twin judged, the gyro block) shares it."""
+    kept = fit.__dict__.get("_full_covariance")
+    if kept is None or kept[0] is not model or kept[1] is not obs:
+        kept = fit.__dict__["_full_covariance"] = (model, obs, full_covariance(model, obs, fit))
+    return kept[2]
+
+
 def wahba_sensitivity(u_b, D_b, u_d, D_d, w, C):
-    """d phi / dz (3, nz) from du_b/dz (n, 3, nz) and du_d/dz (n, 3, nz) (module doc)."""
-    A = np.einsum("n,nij->ij", w, np.eye(3) - np.einsum("ni,nj->nij", u_b, u_b))
-    dv = np.einsum("ji,njz->niz", C, D_d) - D_b
-    rhs = np.tensordot(w, skew(u_b) @ dv, axes=1)
-    return np.linalg.solve(A, rhs)
+    """d phi / dz (3, nz) from du_b/dz (n, 3, nz) and du_d/dz (n, 3, nz): at Wahba's solution the weighted
+    gradients in phi sum to zero, so dphi = -(sum w dg/dphi)^-1 sum w (dg/du_b du_b + dg/du_d du_d)
+    (derived: generated/unify.wahba_terms)."""
+    H, G_b, G_d = eq.wahba_terms(u_b, u_d, C.ravel())
+    return -np.linalg.solve(np.tensordot(w, H, axes=1), np.tensordot(w, G_b @ D_b + G_d @ D_d, axes=1))
+
+
+def pair_misfits(u_b, D_b, u_d, D_d, C, J_phi):
+    """Each pair's misfit u_d - C u_b in the plane perpendicular to the bisector of u_d and C u_b (n, 2),
+    where it lies whole, its derivative in z (n, 2, nz) and in u_b and phi (n, 2, 3) (derive/unify.py's
+    pair_misfit_jacobians). In 3
+    components its covariance has a third eigenvalue of the misfit's size squared times the noise's, which
+    a pseudo-inverse counts as an almost noiseless direction: at MEMS noise that doubled the chi-square."""
+    m = u_d + u_b @ C.T
+    E = tangent_basis(m / np.linalg.norm(m, axis=1, keepdims=True))
+    R_b, R_d, R_phi = eq.pair_misfit_jacobians(u_b, C.ravel(), E.reshape(len(E), 6))
+    return np.einsum("nia,ni->na", E, u_d - u_b @ C.T), R_b @ D_b + R_d @ D_d + R_phi @ J_phi, R_b, R_phi
 
 
 def _sandwich(D, U):
@@ -97,14 +121,14 @@ class Unifier:
         self.am, self.fa, self.obs_a, self.gm, self.fg, self.obs_g = am, fa, obs_a, gm, fg, obs_g
         self.acc_means = acc_means
         self.parts: dict[str, Part] = {}
-        self.add_part("acc", full_covariance(am, obs_a, fa) * _misfit_scale(fa), dof=dof_acc)
+        self.add_part("acc", _full_covariance(am, obs_a, fa) * _misfit_scale(fa), dof=dof_acc)
         if acc_means is not None:
             sig_m = acc_means[2]
             if np.isnan(sig_m).any():  # one component for all of them (a set averages its rate runs alike)
                 self.add_part("acc_means", np.eye(sig_m.size), float(np.median(obs_a.sigma ** 2)), None)
             else:
                 self.add_part("acc_means", np.diag(sig_m.ravel() ** 2))
-        self.add_part("gyro", full_covariance(gm, obs_g, fg) * _misfit_scale(fg), dof=dof_gyro)
+        self.add_part("gyro", _full_covariance(gm, obs_g, fg) * _misfit_scale(fg), dof=dof_gyro)
 
     def add_part(self, name, unit_cov, var=1.0, dof=math.inf):
         """Append a block to z; dof None: its variance factor is to be estimated (solve), var its start."""
@@ -131,24 +155,26 @@ class Unifier:
     def acc_directions(self, rows):
         return self._directions(self.fa, self.am, self.parts["acc"].index.start, rows)
 
-    def acc_mean_directions(self):
-        """The rate runs' mean specific force, calibrated: unit u_b and du_b/dz. At the solution
-        of h(f, p) = N: df = (dh/df)^-1 (dN - dh/dp dp)."""
+    def acc_mean_inputs(self):
+        """The rate runs' mean specific force, calibrated (f (n, 3), g), and the model's Jacobians there."""
         _, N, _, aux = self.acc_means
         p = self.fa.vector(self.am.params)
         f = model_inputs(self.am, p, N, aux, "the rate runs")
         _, Ju, Jp = self.am.jacobians(f, p, aux)
+        return f, Ju, Jp
+
+    def acc_mean_directions(self):
+        """The rate runs' mean specific force, calibrated: unit u_b and du_b/dz. At the solution
+        of h(f, p) = N: df = (dh/df)^-1 (dN - dh/dp dp)."""
+        f, Ju, Jp = self.acc_mean_inputs()
         Jinv = np.linalg.inv(Ju)
-        m, n = len(p), len(N)
+        m, n = Jp.shape[-1], len(f)
         acc, means = self.parts["acc"].index.start, self.parts["acc_means"].index.start
         df = np.zeros((n, 3, self.nz))
         df[:, :, acc:acc + m] = -np.einsum("nij,njk->nik", Jinv, Jp)
         for i in range(n):
             df[i, :, means + 3 * i:means + 3 * i + 3] = Jinv[i]
-        r = np.linalg.norm(f, axis=1)
-        u = f / r[:, None]
-        P = (np.eye(3) - np.einsum("ni,nj->nij", u, u)) / r[:, None, None]
-        return u, np.einsum("nij,njz->niz", P, df)
+        return f / np.linalg.norm(f, axis=1, keepdims=True), eq.direction_jacobian(f) @ df
 
     def _variance(self, D):
         """tr(D cov D^T) per row of D (n, 3, nz), part by part (cov is block-diagonal over them)."""
@@ -207,8 +233,7 @@ class Unifier:
             w = 2.0 / (self._variance(D_b) + self._variance(D_d))
             C = wahba(u_b, u_d, w)
             J_phi = wahba_sensitivity(u_b, D_b, u_d, D_d, w, C)
-            resid = u_d - u_b @ C.T
-            J = D_d - C @ D_b + C @ skew(u_b) @ J_phi
+            resid, J, R_b, R_phi = pair_misfits(u_b, D_b, u_d, D_d, C, J_phi)
             if estimate and dof > 0:
                 self.parts[estimate].var = self._estimate_var(estimate, resid, J, dof)
             by_part = self._by_part(J)
@@ -217,6 +242,7 @@ class Unifier:
             share = float(np.einsum("nab,nba->", S_inv, by_part[estimate])) / (2 * len(u_b))
             self.parts[estimate].dof = max(dof * share, 1.0)
         return {"pairs": len(u_b), "C": C, "u_b": u_b, "u_d": u_d, "J_phi": J_phi, "chi2": chi2, "dof": dof,
+                "misfit": resid, "S_inv": S_inv, "R_b": R_b, "R_phi": R_phi,
                 "noise_dof": self._dof(S_inv, by_part, 2 * len(u_b)),
                 "residual_rms_rad": float(np.sqrt(np.mean(np.sum(resid ** 2, axis=1)))),
                 "rank": int(np.linalg.matrix_rank(u_b, tol=1e-3))}
@@ -226,7 +252,7 @@ class Unifier:
         dM_b = dM_d C + M_d C [dphi x]."""
         p = self.fg.vector(self.gm.params)
         M_d, _ = self.gm.matrix_and_bias(p)
-        d_skew = -np.einsum("abk,kz->abz", _LEVI_CIVITA, J_phi)  # d [phi x] / dz
+        d_skew = np.moveaxis(skew(J_phi.T), 0, -1)  # d [phi x] / dz: [.x] is linear
         J = np.einsum("ia,abz->ibz", M_d @ C, d_skew)
         gyro = self.parts["gyro"].index.start
         for k in range(len(p)):  # dM_d/dp by central differences (M_d is linear in p for the built-in models)
@@ -247,11 +273,6 @@ class Unifier:
         S_inv = np.linalg.pinv(cov_d, rcond=1e-12, hermitian=True)
         z2 = float(d @ S_inv @ d)
         return z2, cov_d, chi2_sf_estimated(z2, len(d), self._dof(S_inv, self._by_part(J), len(d)))
-
-
-_LEVI_CIVITA = np.zeros((3, 3, 3))
-_LEVI_CIVITA[0, 1, 2] = _LEVI_CIVITA[1, 2, 0] = _LEVI_CIVITA[2, 0, 1] = 1
-_LEVI_CIVITA[0, 2, 1] = _LEVI_CIVITA[2, 1, 0] = _LEVI_CIVITA[1, 0, 2] = -1
 
 
 def vertical_k(middle_rad, inner_rad):
@@ -336,11 +357,8 @@ def unify(un: Unifier, acc_segs, gyro_segs, find, table_std_rad=None):
     best = usable[method]
     C, J_phi = best["C"], best["J_phi"]
     M_b, cov_M = un.gyro_matrix_in_b(C, J_phi)
-    # a failing accelerometer model misplaces the rate runs' directions itself: name it before lever arms
-    acc_fails = un.fa.test.fails  # the console's THE MODEL FAILS
-    why = ("the accelerometer model fails its own test (the acc lines above say what it lacks; add that first), "
-           "else lever arms it lacks (--add acc.size_effect.*)" if acc_fails else
-           "lever arms the accelerometer model lacks (--add acc.size_effect.*)")
+    lever = lever_arm_test(un, usable["rate_run_means"]) if "rate_run_means" in usable else None
+    why = misplaced_by(un.fa.test.fails, lever)
     p_pairs = chi2_sf_estimated(best["chi2"], best["dof"], best["noise_dof"]) if best["dof"] > 0 else 1.0
     inflate = max(1.0, best["chi2"] / best["dof"]) if p_pairs < ALPHA else 1.0
     if inflate > 1:  # the pairs disagree beyond their noise: the stds take the misfit in
@@ -355,18 +373,23 @@ def unify(un: Unifier, acc_segs, gyro_segs, find, table_std_rad=None):
                    f"as much as the static positions (F test p = {means['p_value_vs_static']:.2g}): {why}, or "
                    "vibration under rotation")
         fallback = f"{fallback}; {scatter}" if fallback else scatter
+    if lever is not None and lever["fails"] and not inflate > 1:  # the targeted test sees what the omnibus did not
+        arms = f"the pairs' targeted test of lever arms fails ({lever['text']}): --add acc.size_effect.*"
+        fallback = f"{fallback}; {arms}" if fallback else arms
     info = {"method": method, "pairs": best["pairs"], "C_b_d": C.tolist(),
             "std_rad": np.sqrt(inflate * np.diag(un.covariance(J_phi))).tolist(),
             "std_note": "std of the small rotation phi with C_b_d = C (I + [phi x]), about b's x, y, z",
             "direction_residual_rms_rad": best["residual_rms_rad"], "chi2": best["chi2"], "dof": best["dof"],
-            "noise": noise, **({"note": fallback} if fallback else {})}
+            "noise": noise, **({"lever_arms": lever} if lever else {}), **({"note": fallback} if fallback else {})}
     if method == "rate_run_means" and "static_pairs" in usable:
-        info["cross_check"] = _cross_check(un, C, J_phi, usable["static_pairs"], noise["table_angles"]["text"])
+        info["cross_check"] = _cross_check(un, C, J_phi, usable["static_pairs"], noise["table_angles"]["text"],
+                                           bool(lever and lever["fails"]))
     return C, M_b, np.sqrt(np.diag(cov_M)).reshape(3, 3), info
 
 
-def _cross_check(un: Unifier, C, J_phi, two, table_text) -> dict:
-    """The static pairs' C_b^d against the rate runs' means': their difference and its Mahalanobis test."""
+def _cross_check(un: Unifier, C, J_phi, two, table_text, lever_fails=False) -> dict:
+    """The static pairs' C_b^d against the rate runs' means': their difference and its Mahalanobis test
+    (lever_fails: the pairs' targeted test of lever arms failed, so the note names them)."""
     d = log_so3(C.T @ two["C"])
     z2, cov_d, p = un.quadratic_form(d, two["J_phi"] - J_phi)
     agree = p >= ALPHA
@@ -378,8 +401,8 @@ def _cross_check(un: Unifier, C, J_phi, two, table_text) -> dict:
                  if agree else
                  f"the static pairs differ by {np.degrees(np.linalg.norm(d)) * 60:.2g} arcmin (p = {p:.2g}) beyond "
                  f"their noise and the table's angle errors ({table_text}): rate runs that are not whole "
-                 "revolutions, or lever arms that the accelerometer model lacks (--add acc.size_effect.*), or "
-                 "a table less accurate than stated")}
+                 "revolutions, " + ("or lever arms that the accelerometer model lacks (--add acc.size_effect.*), "
+                                    if lever_fails else "") + "or a table less accurate than stated")}
 
 
 def _estimated_noise(un: Unifier) -> dict:
