@@ -311,8 +311,16 @@ def _term_text(t, html=False) -> str:
     return f"record too short (needs {t['needs_s']:.3g} s)"
 
 
-def lines(report, written=None):
-    """The console: each axis's terms in a data sheet's units, seen or not; written: next_step's."""
+def lines(report, written=None, units: str = "spec"):
+    """The console: each axis's terms in a data sheet's units (or SI), seen or not; written: next_step's."""
+    if units == "spec":
+        return list(_lines(report, written))
+    from simucal.report import units as shown
+    g = shown.gravity_of(report.get("data"))
+    return shown.lines_in(_lines(shown.noise_in(report, units, g), written), units, g)
+
+
+def _lines(report, written=None):
     for sensor in ("acc", "gyro"):
         if sensor not in report:
             continue
@@ -372,19 +380,25 @@ def next_step(report, written=None) -> tuple[str, list[str]]:
             ["Kalibr's imu.yaml would lack " + "; ".join(missing)])
 
 
-def html_page(report) -> str:
+def html_page(report, units: str = "spec") -> str:
     """A self-contained page: the verdicts and the next step (as the console prints them), then each
-    sensor's Allan deviation with its interval and the fitted terms, in one unit system per table."""
+    sensor's Allan deviation with its interval and the fitted terms, in one unit system per table (the
+    spec's data-sheet units, or SI)."""
     import html as _html
 
+    from simucal.io.units import in_units
+    from simucal.report import units as shown
     from simucal.report.page import page, plt, png
-    parts = []
+    parts, g = [], shown.gravity_of(report.get("data"))
+    sheets = shown.noise_in(report, units, g)  # the tables' and verdicts' numbers; the plot's scaled below
     for sensor in ("acc", "gyro"):
         if sensor not in report:
             continue
         b = report[sensor]
         fig, ax = plt.subplots(figsize=(6.5, 4.2))
         _, scale, adev_unit = SHEET[sensor]["B"]  # the bias instability's unit: the table's (ug, deg/h)
+        if units != "spec":
+            scale, adev_unit = in_units(1.0, b["unit"], units, g)
         for (a, axd), color in zip(b["axes"].items(), ("C0", "C1", "C2")):
             if "stuck" in axd:
                 continue
@@ -397,13 +411,15 @@ def html_page(report) -> str:
                title=f"{sensor}: points, the fit of the terms seen and its 68 % band")
         ax.legend(fontsize=8)
         ax.grid(True, which="both", alpha=0.3)
-        head = "".join(f"<th>{name} ({_html.escape(unit)})</th>" for name, _, unit in SHEET[sensor].values())
+        axes = sheets[sensor]["axes"]
+        head = "".join(f"<th>{name} ({_html.escape(in_units(1.0, unit, units, g)[1])})</th>"
+                       for name, _, unit in SHEET[sensor].values())
         rows = "".join(f"<tr><td>{a}</td>" + (f"<td colspan=5>{_html.escape(axd['stuck'])}</td>" if "stuck" in axd else
                        "".join(f"<td>{_term_text(t, html=True)}</td>" for t in axd["sheet"].values())) + "</tr>"
-                       for a, axd in b["axes"].items())
+                       for a, axd in axes.items())
         parts.append(f"<h2>{sensor}</h2>{png(fig)}<table><tr><th>axis</th>{head}</tr>"
                      f"{rows}</table><p>Terms fitted by generalised least squares with the covariance of the "
                      f"overlapping estimates; a term is shown where beyond {allan_fit.SEEN:g} std, otherwise "
                      "with its 95 % upper bound.</p>")
     cmd, notes = next_step(report)
-    return page("simucal noise", f"Noise of {report['data']}", verdicts(report), cmd, notes, parts)
+    return page("simucal noise", f"Noise of {report['data']}", verdicts(sheets), cmd, notes, parts)

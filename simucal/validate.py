@@ -175,8 +175,16 @@ def own_rows(cal, ms) -> str:
     return ""
 
 
-def lines(report):
-    """The console: one table row per check, then the verdict per sensor."""
+def lines(report, units: str = "spec"):
+    """The console: one table row per check, then the verdict per sensor, in the unit system asked."""
+    if units == "spec":
+        return list(_lines(report))
+    from simucal.report import units as shown
+    g = shown.gravity_of(report.get("data"))
+    return shown.lines_in(_lines(shown.validation_in(report, units, g)), units, g)
+
+
+def _lines(report):
     if report["note"]:
         yield f"NOTE: {report['note']}"
     for x in report.get("nominal", []):

@@ -170,7 +170,7 @@ class Validation:
 
 @checked
 def validate(cal: Calibration | str | os.PathLike, data: Data, *, acc_noise_g: float | None = None,
-             gyro_noise_dph: float | None = None, timestamps: str | None = None) -> Validation:
+             gyro_noise_dph: float | None = None, timestamps: str | None = None, units: str = "spec") -> Validation:
     """Apply a calibration to an independent set and compare with nominal and the noise floor.
 
     Parameters
@@ -182,6 +182,9 @@ def validate(cal: Calibration | str | os.PathLike, data: Data, *, acc_noise_g: f
         the floor of those rows' checks stands on it (without it, such rows have no floor).
     timestamps : {"auto", "recorded", "nominal"}, optional
         A stream's time stamps, as `calibrate` takes them; default: as the calibration read its own.
+    units : {"spec", "si"}
+        The unit system of ``.checks`` (si: m/s^2 and rad/s, as `simucal validate --units si` prints them);
+        ``.report``, the file, is always in the spec's.
 
     Returns
     -------
@@ -193,17 +196,19 @@ def validate(cal: Calibration | str | os.PathLike, data: Data, *, acc_noise_g: f
     >>> v.verdict  # doctest: +SKIP
     {'acc': 'at the noise floor', 'gyro': 'at the noise floor'}
     """
+    from simucal.report.units import validation_in
+    io.units.check_unit_system(units)
     report = _validate_report(cal, data if isinstance(data, io.MeasurementSet) else folder_of(data), acc_noise_g,
                               gyro_noise_dph, timestamps)
     checks = [Check(s, c["what"], c["unit"], c["n"], c["before_rms"], c["after_rms"], c["floor_rms"], c["verdict"])
-              for s, rows in report["checks"].items() for c in rows]
+              for s, rows in validation_in(report, units)["checks"].items() for c in rows]
     return Validation(dict(report["verdict"]), checks, bool(report["independent"]),
                       list(report["warnings"]), report)
 
 
 @checked
 def save(path: str | os.PathLike, result: Calibration | Validation | Diagnosis | Noise,
-         calibration_path: str | os.PathLike = "thermal_calibration.json") -> None:
+         calibration_path: str | os.PathLike = "thermal_calibration.json", units: str = "spec") -> None:
     """Write a result as its command writes it: a calibration file (``simucal.calibration/2``, as
     `simucal calibrate -o`), or the report of `simucal validate`, `diagnose` or `noise` (``-o``); a
     path ending in .html: the page of ``--html`` (a calibration's: a thermal one's, as `calibrate
@@ -213,6 +218,8 @@ def save(path: str | os.PathLike, result: Calibration | Validation | Diagnosis |
     Refused (simucal.io.outputs.OutputError, one line) where path is inside or is one of the data the
     result was made from, or a file of a measurement set (meta.json, samples.csv, ...).
     calibration_path: where the calibration file is, for a thermal or field page's next command.
+    units: a page's numbers in the spec's units ("spec") or in SI ("si": m/s^2, rad/s, rad/sqrt(s), ...; a
+    diagnosis page stays in the spec's); a .json file is always in the spec's (docs/calibration-file.md).
 
     Examples
     --------
@@ -222,8 +229,9 @@ def save(path: str | os.PathLike, result: Calibration | Validation | Diagnosis |
     from simucal.io import outputs
     # as every command: never into or over what the result was made from, nor over a set's own files
     outputs.check(_inputs(result), files={str(path): path})
+    io.units.check_unit_system(units)
     if Path(path).suffix.lower() in (".html", ".htm"):
-        return outputs.write_text(path, _page(result, str(calibration_path)))
+        return outputs.write_text(path, _page(result, str(calibration_path), units))
     if isinstance(result, _file.Calibration):
         return _file.save(path, result)
     if isinstance(result, Diagnosis):
@@ -239,26 +247,27 @@ def _inputs(result: _file.Calibration | Validation | Diagnosis | Noise) -> list[
     return [str(p) for p in given if isinstance(p, str) and Path(p).exists()]
 
 
-def _page(result: _file.Calibration | Validation | Diagnosis | Noise, calibration_path: str) -> str:
-    """The self-contained HTML page of a result (the commands' --html)."""
+def _page(result: _file.Calibration | Validation | Diagnosis | Noise, calibration_path: str, units: str) -> str:
+    """The self-contained HTML page of a result (the commands' --html), in the unit system asked."""
+    from simucal.report import units as shown
     if isinstance(result, _file.Calibration):
         if result.method == "field":
             from simucal.report.field_html import field_page
-            return field_page(result, calibration_path)
+            return field_page(result, calibration_path, units)
         if not any(b.thermal is not None for _, b in result.blocks()):
             raise InputError("a page is a thermal or field calibration's (calibrate([plateaus...]) or method='field'): "
                              "save this calibration as .json; for one set's page use simucal.diagnose or "
                              "simucal.validate")
         from simucal.report.thermal_html import thermal_page
-        return thermal_page(result, cal_path=calibration_path)
+        return thermal_page(shown.calibration_in(result, units), cal_path=calibration_path)
     if isinstance(result, Validation):
         from simucal.validate import html_page
-        return html_page(result.report)
+        return html_page(shown.validation_in(result.report, units))
     if isinstance(result, Diagnosis):
         from simucal.report.html import render
         return render(result.report)
     from simucal import allan
-    return allan.html_page(result.report)
+    return allan.html_page(result.report, units)
 
 
 @checked

@@ -213,11 +213,12 @@ class Noise:
                                            for t in self.term_rows])
 
     @checked
-    def lines(self, written: dict | None = None) -> list[str]:
-        """What `simucal noise` prints: each axis's terms in a data sheet's units, the verdicts and the next step
-        (written: the files the command wrote, {"-o": ..., "--kalibr": ...}, which the next step names)."""
+    def lines(self, written: dict | None = None, units: str = "spec") -> list[str]:
+        """What `simucal noise` prints: each axis's terms in a data sheet's units (``units="si"``: in SI, as
+        `simucal noise --units si`), the verdicts and the next step (written: the files the command wrote,
+        {"-o": ..., "--kalibr": ...}, which the next step names)."""
         from simucal import allan
-        return list(allan.lines(self.report, written))
+        return list(allan.lines(self.report, written, units))
 
     @checked
     def kalibr_yaml(self) -> str:
@@ -234,7 +235,7 @@ class Noise:
 
 @checked
 def noise(data: Data, *, tau_max_s: float | None = None, scheduler: str | None = None,
-          topic: str | None = None) -> Noise:
+          topic: str | None = None, units: str = "spec") -> Noise:
     """Allan deviation of a still recording and its IEEE 952 terms (quantisation, white noise, bias
     instability, random walk, ramp).
 
@@ -251,6 +252,9 @@ def noise(data: Data, *, tau_max_s: float | None = None, scheduler: str | None =
     topic : str, optional
         Where `data` is a ROS 1 bag or a ROS 2 bag's folder: its sensor_msgs/Imu topic (default: the bag's only
         one); a bag is read as `simucal import rosbag` reads it.
+    units : {"spec", "si"}
+        The unit system of ``.terms`` and ``.curve`` (si: rad/sqrt(s), m/s^2/sqrt(Hz), rad/s, ...; ``.lines(units=)``
+        prints either); ``.report``, the file, is always in the spec's.
 
     Returns
     -------
@@ -264,15 +268,18 @@ def noise(data: Data, *, tau_max_s: float | None = None, scheduler: str | None =
     """
     from simucal import allan
     from simucal.io import logs, rosbag
+    from simucal.report.units import noise_in
+    io.units.check_unit_system(units)
     if not isinstance(data, io.MeasurementSet) and (topic or rosbag.is_rosbag(folder_of(data))):
         data = logs.bag_as_set(folder_of(data), topic)  # read as `simucal import rosbag` reads it
     report = (allan.characterise(data, tau_max_s) if isinstance(data, io.MeasurementSet)
               else allan.characterise_folder(folder_of(data), tau_max_s, scheduler))
+    shown = noise_in(report, units)  # the tables in the units asked; the report as written
     rows = [Term(s, a, k, t["name"], t["status"], t["value"] if t["status"] == "seen" else None, t.get("std"), t.get("bound_95"), t.get("needs_s"),
                  t["unit"])
-            for s in ("acc", "gyro") if s in report for a, axis in report[s]["axes"].items()
+            for s in ("acc", "gyro") if s in shown for a, axis in shown[s]["axes"].items()
             for k, t in axis.get("sheet", {}).items()]
-    return Noise(rows, report, allan_points(report))
+    return Noise(rows, report, allan_points(shown))
 
 
 def allan_points(report: dict) -> list[AllanPoint]:

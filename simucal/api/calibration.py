@@ -108,8 +108,12 @@ class Calibration(calibration.Calibration):
         return html_card("simucal.Calibration", rows)
 
     @checked
-    def parameters(self, vocabulary: str = "own") -> Any:
+    def parameters(self, vocabulary: str = "own", units: str = "spec") -> Any:
         """Every parameter of every sensor's model as a table: a list of `Parameter` rows.
+
+        With ``units="si"``, each value and std with its unit in SI (a bias in g in m/s^2 with the set's
+        gravity_mps2 where its meta.json is at hand, else 9.80665; deg/h in rad/s; a scale factor or an angle
+        unchanged), as `simucal calibrate --units si` prints them; the calibration file keeps the spec's.
 
         With ``vocabulary="common"``, every method's in one vocabulary instead (api/vocabulary.py): each
         sensor's M entries (M_xx .. M_zz, output per input, frame b) and bias (bias_x .. bias_z) with
@@ -131,18 +135,21 @@ class Calibration(calibration.Calibration):
         >>> p = cal.parameters()  # doctest: +SKIP
         >>> p.set_index(["sensor", "name"]).loc[("acc", "dK_z"), ["value", "std", "unit"]]  # doctest: +SKIP
         """
+        from simucal.report.units import calibration_in
+        shown = calibration_in(self, units)
         if vocabulary == "common":
-            return common_table(self)
+            return common_table(shown)
         if vocabulary != "own":
             raise InputError(f"vocabulary {vocabulary!r}: 'own' (each method's parameters) or 'common' (M and bias)")
-        return table([r for s, b in self.blocks() for r in (_model_rows(s, b) if b.params else _affine_rows(s, b))],
+        return table([r for s, b in shown.blocks() for r in (_model_rows(s, b) if b.params else _affine_rows(s, b))],
                       Parameter._fields)
 
     @checked
-    def apply_to_set(self, data: Any, *, where: str = "this calibration") -> Any:
+    def apply_to_set(self, data: Any, *, where: str = "this calibration", units: str = "spec") -> Any:
         """The calibrated measurement set of a set's raw outputs (`simucal apply`): the samples in g and
-        deg/h, frame b, its other columns and segments kept; rows outside the calibrated temperatures are
-        said in ``meta["warnings"]``.
+        deg/h (``units="si"``: m/s^2 with the set's gravity_mps2, and rad/s, both units of the spec), frame b,
+        its other columns and segments kept; rows outside the calibrated temperatures are said in
+        ``meta["warnings"]``.
 
         Parameters
         ----------
@@ -150,6 +157,8 @@ class Calibration(calibration.Calibration):
             The raw set (a folder, or a set in memory).
         where : str
             How a refusal names this calibration (the command line: its file).
+        units : str
+            "spec" (g, deg/h) or "si" (m/s^2, rad/s; meta.json's acc_unit and gyro_unit say so).
 
         Returns
         -------
@@ -163,8 +172,16 @@ class Calibration(calibration.Calibration):
         """
         from simucal import io
         from simucal.api.sets import MeasurementSet, as_set
+        from simucal.io import units as spec  # the module: `units` is the argument here
+        spec.check_unit_system(units)
         ms = as_set(data)
         meta, samples, segments = fit_apply.apply(self, ms, where)
+        if units == "si":  # the spec's own SI units: m/s^2 (the set's gravity) and rad/s
+            si = {"acc_unit": "m/s^2", "gyro_unit": "rad/s", "gravity_mps2": spec.gravity(ms.meta)}
+            for s, cols, to in (("acc", SAMPLE_COLS[:3], spec.g_to_acc), ("gyro", SAMPLE_COLS[3:], spec.dph_to_gyro)):
+                if s in ms.sensors:
+                    samples.update(zip(cols, to(np.column_stack([samples[c] for c in cols]), si).T))
+            meta.update(acc_unit=si["acc_unit"], gyro_unit=si["gyro_unit"])
         return MeasurementSet.of(io.MeasurementSet(ms.path, {"format": io.FORMAT, **meta}, samples, segments))
 
     @checked

@@ -7,8 +7,8 @@ from pathlib import Path
 import click
 
 from simucal import methods
-from simucal.cli.common import (MODEL_FILE_RUNS, NOISE_DPH, NOISE_G, POSITIVE, SCHEDULER_TRUST, InputPath, Number, fail,
-                                guard, main, refuse_unused)
+from simucal.cli.common import (MODEL_FILE_RUNS, NOISE_DPH, NOISE_G, POSITIVE, SCHEDULER_TRUST, UNITS, InputPath, Number,
+                                fail, guard, main, refuse_unused)
 
 
 TIMESTAMPS = click.option(
@@ -81,9 +81,10 @@ _ADD_AUTO_HELP = (_ADD_HELP + " Also 'auto': the library effects a failing model
 @click.option("--scheduler", default="local", show_default=True,
               help="Several sets: local, processes (a Dask LocalCluster on 127.0.0.1) or a Dask scheduler's address. "
                    + SCHEDULER_TRUST)
+@UNITS
 def calibrate(data_dirs, output, thermal, thermal_degree, html_out, px4, ardupilot, t_ref_c, method, acc_model,
               gyro_model, add, acc_noise_g, gyro_noise_dph, noise_file, timestamps, init_rest_s, threshold_factor,
-              window_s, min_static_s, gyro_limit_dps, heading_accuracy_deg, scheduler):
+              window_s, min_static_s, gyro_limit_dps, heading_accuracy_deg, scheduler, units):
     """Calibrate measurement sets; write calibration.json (one per set into a folder for several).
 
     With segments.csv and table angles: a turntable test (dong2018). Without segments.csv: a
@@ -102,7 +103,7 @@ def calibrate(data_dirs, output, thermal, thermal_degree, html_out, px4, ardupil
         refuse_unused({"scheduler": "several sets calibrated one by one (not one set, nor --thermal's plateaus)"})
     if thermal or thermal_degree is not None:
         return _calibrate_thermal(data_dirs, output, thermal_degree, t_ref_c, kwargs, inputs, html_out,
-                                  (px4, ardupilot))
+                                  (px4, ardupilot), units)
     if px4 or ardupilot:
         fail("--px4/--ardupilot: an autopilot's thermal compensation is made from plateaus or a ramp with --thermal")
     if html_out:
@@ -114,10 +115,11 @@ def calibrate(data_dirs, output, thermal, thermal_degree, html_out, px4, ardupil
         result = api.calibrate(data_dirs[0], **kwargs)
         api.save(output, result)
         from simucal.report.console import calibration_lines
-        for line in calibration_lines(result):
+        for line in calibration_lines(result, units):
             click.echo(line)
         click.echo(f"wrote {output} (method {result.method})")
         return
+    refuse_unused({"units": "what one set's calibration prints (several sets print each one's file and tests)"})
     _calibrate_batch(data_dirs, output, kwargs, inputs, scheduler)
 
 
@@ -142,20 +144,21 @@ def _calibrate_batch(data_dirs, output, kwargs, inputs, scheduler):
         sys.exit(2)
 
 
-def _calibrate_thermal(data_dirs, output, degree, t_ref_c, kwargs, inputs, html_out, autopilot_out=(None, None)):
+def _calibrate_thermal(data_dirs, output, degree, t_ref_c, kwargs, inputs, html_out, autopilot_out=(None, None),
+                       units="spec"):
     from simucal import api
     if len(api.imus_of(data_dirs)) > 1:
-        return _calibrate_instances(data_dirs, output, degree, t_ref_c, kwargs, inputs, html_out, autopilot_out)
+        return _calibrate_instances(data_dirs, output, degree, t_ref_c, kwargs, inputs, html_out, autopilot_out, units)
     from simucal.io import outputs
     guard(inputs, files={"-o": output, "--html": html_out, "--px4": autopilot_out[0], "--ardupilot": autopilot_out[1]})
     result = api.calibrate([Path(d) for d in data_dirs], degree=degree, t_ref_c=t_ref_c, **kwargs)
     exported = result.autopilot_files(data_dirs[0], px4=autopilot_out[0], ardupilot=autopilot_out[1])
     api.save(output, result)
     from simucal.report.console import calibration_lines
-    for line in calibration_lines(result):
+    for line in calibration_lines(result, units):
         click.echo(line)
     if html_out:
-        api.save(html_out, result, calibration_path=output)
+        api.save(html_out, result, calibration_path=output, units=units)
         click.echo(f"wrote {html_out}")
     for f in exported:  # made before anything was written: a refusal leaves nothing behind
         outputs.write_text(f.path, f.text)
@@ -173,7 +176,7 @@ def _instance_path(path, instance):
                                                                f"{Path(path).suffix}"))
 
 
-def _calibrate_instances(data_dirs, output, degree, t_ref_c, kwargs, inputs, html_out, autopilot_out):
+def _calibrate_instances(data_dirs, output, degree, t_ref_c, kwargs, inputs, html_out, autopilot_out, units):
     """--thermal of sets of several IMUs of a log (simucal.calibrate_instances): each apart, one calibration
     file and page each, and one PX4 and one ArduPilot file holding every IMU's slot."""
     from simucal import api
@@ -195,10 +198,10 @@ def _calibrate_instances(data_dirs, output, degree, t_ref_c, kwargs, inputs, htm
     for u in imus:
         path = _instance_path(output, u.instance)
         api.save(path, u.calibration)
-        for line in calibration_lines(u.calibration):
+        for line in calibration_lines(u.calibration, units):
             click.echo(f"instance {u.instance}: {line}")
         if html_out:
-            api.save(_instance_path(html_out, u.instance), u.calibration, calibration_path=path)
+            api.save(_instance_path(html_out, u.instance), u.calibration, calibration_path=path, units=units)
             click.echo(f"wrote {_instance_path(html_out, u.instance)}")
         lo, hi = u.calibration.temperature_range_c
         click.echo(f"wrote {path} (instance {u.instance}, {', '.join(u.sets)}; calibrated from {lo:.4g} to {hi:.4g} degC)")
@@ -218,7 +221,8 @@ def _calibrate_instances(data_dirs, output, degree, t_ref_c, kwargs, inputs, htm
 @click.option("--plot", type=click.Path(dir_okay=False), default=None, hidden=True,
               help="Deprecated (warns): Fig. 4 alone as an image file (.png, .svg, ...); --html writes it in a page.")
 @HEADING_ACCURACY
-def field_drift(data_dir, output, html_path, plot, heading_accuracy_deg):
+@UNITS
+def field_drift(data_dir, output, html_path, plot, heading_accuracy_deg, units):
     """Three-position field calibration of gyro constant drift (ruan2019): `calibrate --method field`, with the
     paper's Fig. 4."""
     from simucal import api
@@ -231,11 +235,11 @@ def field_drift(data_dir, output, html_path, plot, heading_accuracy_deg):
     result = api.calibrate(data_dir, method="field", heading_accuracy_deg=heading_accuracy_deg)
     api.save(output, result)
     if html_path:
-        api.save(html_path, result, calibration_path=output)
+        api.save(html_path, result, calibration_path=output, units=units)
     if plot:
         tools.plot_field_history(result, plot)
     from simucal.report.console import calibration_lines
-    for line in calibration_lines(result):
+    for line in calibration_lines(result, units):
         click.echo(line)
     click.echo(f"wrote {output}" + "".join(f" and {p}" for p in (html_path, plot) if p))
 
@@ -268,7 +272,8 @@ def _added_lines(result):
 @click.option("--acc-noise-g", type=NOISE_G, default=None, help="Stated noise of one acc row (g), when the data cannot give it.")
 @click.option("--gyro-noise-dph", type=NOISE_DPH, default=None, help="Stated noise of one gyro row (deg/h).")
 @TIMESTAMPS
-def diagnose(data_dir, output, html_path, add, acc_model, gyro_model, acc_noise_g, gyro_noise_dph, timestamps):
+@UNITS
+def diagnose(data_dir, output, html_path, add, acc_model, gyro_model, acc_noise_g, gyro_noise_dph, timestamps, units):
     """Compare model and measurements; rank the candidate missing effects. The Python API's simucal.diagnose(DATA)."""
     from simucal import api
     from simucal.api.analyses import shape_model_path
@@ -280,13 +285,13 @@ def diagnose(data_dir, output, html_path, add, acc_model, gyro_model, acc_noise_
                   "the gyro model file it may write": shape_model_path(output, "gyro")})
     result = api.diagnose(data_dir, add=add, acc_model=acc_model, gyro_model=gyro_model, acc_noise_g=acc_noise_g,
                           gyro_noise_dph=gyro_noise_dph, timestamps=timestamps)
-    for path in (output, html_path):
+    for path in (output, html_path):  # the page in the spec's units (its plots' axes are the fit's)
         if path:
             api.save(path, result)
+    from simucal.report.console import printed
     report = result.report
-    for line in report["verdict"].split(" | ") + report.get("notes", []):
-        click.echo(line)
-    for line in _added_lines(report):
+    for line in printed([*report["verdict"].split(" | "), *report.get("notes", []), *_added_lines(report)], units,
+                        data_dir):
         click.echo(line)
     click.echo(f"next: {result.next_command}" + "".join(f" ({n})" for n in result.next_notes))
     for s in result.model_files:

@@ -19,6 +19,7 @@ from simucal.cli.common import (
     SEED_HELP,
     SIM_RATE_HZ,
     SCHEDULER_TRUST,
+    UNITS,
     InputPath,
     Number,
     fail,
@@ -202,16 +203,17 @@ def import_cmd(fmt, sources, out_dir, latitude_deg, acc_counts_per_g, gyro_count
 @click.option("-o", "--output", "--out-dir", "out_dir", required=True, type=click.Path(file_okay=False),
               help="The output folder (a measurement set).")
 @FORCE
-def apply_cmd(calibration_file, data_dir, out_dir, force):
-    """Apply a calibration to raw data: a measurement set in g and deg/h, frame b. The Python API's
-    simucal.load(CAL).apply_to_set(DATA)."""
+@UNITS
+def apply_cmd(calibration_file, data_dir, out_dir, force, units):
+    """Apply a calibration to raw data: a measurement set in g and deg/h (--units si: m/s^2 and rad/s), frame b.
+    The Python API's simucal.load(CAL).apply_to_set(DATA)."""
     from simucal import api
     guard([calibration_file, data_dir], sets=[out_dir], force=force)
-    calibrated = api.load(calibration_file).apply_to_set(data_dir, where=calibration_file)
+    calibrated = api.load(calibration_file).apply_to_set(data_dir, where=calibration_file, units=units)
     calibrated.write(out_dir, force=True)  # guarded above, with --force
     for line in calibrated.meta.get("warnings", []):
         click.echo(f"WARNING: {line}")
-    written = {"acc": "g", "gyro": "deg/h"}  # apply's units; a sensor the data lack is said skipped
+    written = {s: calibrated.meta[f"{s}_unit"] for s in ("acc", "gyro")}  # a sensor the data lack is said skipped
     click.echo(f"wrote {out_dir}: {len(calibrated.samples['t_s'])} rows in "
                f"{' and '.join(written[s] for s in calibrated.sensors)} (frame b), calibrated by {calibration_file}"
                + "".join(f"; {s} skipped (not in {data_dir})" for s in written if s not in calibrated.sensors))
@@ -229,7 +231,8 @@ def apply_cmd(calibration_file, data_dir, out_dir, force):
 @click.option("--timestamps", type=click.Choice(("auto", "nominal", "recorded")), default=None,
               help="Stream: the time stamps as calibrate takes them (its --timestamps); default: as the calibration "
                    "read its own.")
-def validate(calibration_file, data_dir, output, html_path, acc_noise_g, gyro_noise_dph, timestamps):
+@UNITS
+def validate(calibration_file, data_dir, output, html_path, acc_noise_g, gyro_noise_dph, timestamps, units):
     """Apply a calibration to an independent set: the error before (nominal) and after, against the noise floor.
     The Python API's simucal.validate(CAL, DATA)."""
     from simucal import api
@@ -237,18 +240,19 @@ def validate(calibration_file, data_dir, output, html_path, acc_noise_g, gyro_no
     guard([calibration_file, data_dir], files={"-o": output, "--html": html_path})
     result = api.validate(calibration_file, data_dir, acc_noise_g=acc_noise_g, gyro_noise_dph=gyro_noise_dph,
                           timestamps=timestamps)
-    _save(result, output, html_path)
-    for line in lines(result.report):
+    _save(result, output, None)
+    _save(result, html_path, units=units)
+    for line in lines(result.report, units):
         click.echo(line)
     click.echo(f"wrote {output}" + (f" and {html_path}" if html_path else ""))
 
 
-def _save(result, *paths):
-    """The result's report and page (api.save), where a path is given."""
+def _save(result, *paths, units="spec"):
+    """The result's report and page (api.save), where a path is given; a page in the unit system asked."""
     from simucal import api
     for path in paths:
         if path:
-            api.save(path, result)
+            api.save(path, result, units=units)
 
 
 @main.command()
@@ -269,7 +273,8 @@ def _save(result, *paths):
                    "the same numbers on any. " + SCHEDULER_TRUST)
 @click.option("--topic", default=None, help="DATA a ROS 1 bag or a ROS 2 bag's folder: its sensor_msgs/Imu topic "
                                             "(default: the bag's only one), read as `simucal import rosbag` reads it.")
-def noise(data_dir, output, html_path, kalibr_path, tau_max_s, scheduler, topic):
+@UNITS
+def noise(data_dir, output, html_path, kalibr_path, tau_max_s, scheduler, topic, units):
     """Allan deviation of a still recording (a measurement set, or a ROS bag) and its IEEE 952 noise terms (ARW,
     bias instability, ...); a stream is read a chunk at a time. The Python API's simucal.noise(DATA)."""
     from simucal import api
@@ -277,10 +282,11 @@ def noise(data_dir, output, html_path, kalibr_path, tau_max_s, scheduler, topic)
     guard([data_dir], files={"-o": output, "--html": html_path, "--kalibr": kalibr_path})
     result = api.noise(data_dir, tau_max_s=tau_max_s, scheduler=scheduler, topic=topic)
     yaml = result.kalibr_yaml() if kalibr_path else None  # refused before anything is written
-    _save(result, output, html_path)
+    _save(result, output)
+    _save(result, html_path, units=units)
     if kalibr_path:
         outputs.write_text(kalibr_path, yaml)
-    for line in result.lines({"-o": output, "--kalibr": kalibr_path}):
+    for line in result.lines({"-o": output, "--kalibr": kalibr_path}, units):
         click.echo(line)
     click.echo(f"wrote {output}" + "".join(f" and {p}" for p in (html_path, kalibr_path) if p))
 

@@ -223,3 +223,122 @@ def _refuse_ratio(sensor, r, where, what="outputs"):
     from simucal.errors import CalibrationError
     known = "1 g at rest" if sensor == "acc" else "the commanded rate, or the Earth rate at rest"
     raise CalibrationError(f"{where}: the {sensor} {what} are {r:.4g} times the known input ({known}): check {sensor}_unit and the nominal scale factors in meta.json{likely}")
+
+
+# The units a person may ask numbers in: the spec's (g, deg/h and the noise terms' data-sheet units) or SI
+# (m/s^2, rad/s, rad/sqrt(s), ...). The files keep the spec's; these convert what is printed, tabled or written
+# for a person, label and value together.
+UNIT_SYSTEMS = ("spec", "si")
+# each spec atom of a unit label as (its SI atom, SI per spec atom, times gravity: the set's or standard)
+_SI_ATOMS: dict[str, tuple[str, float, bool]] = {
+    "g": ("m/s^2", 1.0, True), "mg": ("m/s^2", 1e-3, True), "ug": ("m/s^2", 1e-6, True),
+    "deg": ("rad", math.pi / 180, False), "arcsec": ("rad", ARCSEC_RAD, False), "h": ("s", 3600.0, False)}
+_KEPT_ATOMS = {"s", "Hz", "rad", "degC", "m", "1", "ppm", "K"}  # SI already, or dimensionless
+_TIMES = {"h", "s", "Hz"}
+_UNIT_TOKEN = re.compile(r"\s*(sqrt\(|[A-Za-z]+|\d+|[()/*^])")
+
+
+def check_unit_system(system: str, where: str = "units") -> None:
+    """Refuse a unit system simucal does not print in, naming the choices."""
+    if system not in UNIT_SYSTEMS:
+        from simucal.errors import InputError
+        raise InputError(f"{where}={system!r}: not a unit system simucal prints in; one of {', '.join(UNIT_SYSTEMS)}")
+
+
+def si_unit(label: str, gravity_mps2: float = DEFAULT_GRAVITY) -> tuple[float, str] | None:
+    """(SI per unit of label, the SI label) for a unit label of the spec's atoms (g, ug, deg/h, deg/sqrt(h),
+    (deg/h)/g, g/degC^2, ug*s, ...), None where label is no unit made of them. An angle alone (deg, arcsec)
+    and a time alone stay as they are (factor 1): only accelerations, rates and the noise terms convert."""
+    tokens, at = [], 0
+    while at < len(label):
+        m = _UNIT_TOKEN.match(label, at)
+        if m is None:
+            return None
+        tokens.append(m.group(1))
+        at = m.end()
+    try:
+        factor, text, atoms, end = _unit_expr(tokens, 0, gravity_mps2)
+    except (IndexError, ValueError):
+        return None
+    if end != len(tokens):
+        return None
+    rate_or_acc = atoms & {"g", "mg", "ug"} or (atoms & {"deg", "arcsec"} and atoms & _TIMES)
+    return (factor, text) if rate_or_acc else (1.0, label)
+
+
+def _unit_expr(tokens, i, g):
+    """tokens[i:] as factor ((/|*) factor)*: (SI per unit, SI text, the atoms met, the index after it)."""
+    factor, text, atoms, i = _unit_factor(tokens, i, g, first=True)
+    while i < len(tokens) and tokens[i] in "/*":
+        op = tokens[i]
+        f, t, a, i = _unit_factor(tokens, i + 1, g, first=False)
+        factor, text, atoms = factor / f if op == "/" else factor * f, f"{text}{op}{t}", atoms | a
+    return factor, text, atoms, i
+
+
+def _unit_factor(tokens, i, g, first):
+    """One atom, (expr) or sqrt(expr), with an integer power; an SI compound in parentheses where it is
+    raised or divides (g^2 -> (m/s^2)^2, /g -> /(m/s^2))."""
+    t = tokens[i]
+    if t in ("(", "sqrt("):
+        factor, text, atoms, i = _unit_expr(tokens, i + 1, g)
+        if tokens[i] != ")":
+            raise ValueError(t)
+        factor, text, i = (math.sqrt(factor), f"sqrt({text})", i + 1) if t == "sqrt(" else (factor, f"({text})", i + 1)
+    elif t in _SI_ATOMS:
+        text, per, by_gravity = _SI_ATOMS[t]
+        factor, atoms, i = per * (g if by_gravity else 1.0), {t}, i + 1
+        raised = i < len(tokens) and tokens[i] == "^"
+        text = f"({text})" if "/" in text and (raised or not first) else text
+    elif t in _KEPT_ATOMS:
+        factor, text, atoms, i = 1.0, t, {t} & _TIMES, i + 1
+    else:
+        raise ValueError(t)
+    if i < len(tokens) and tokens[i] == "^":
+        power = int(tokens[i + 1])
+        factor, text, i = factor ** power, f"{text}^{power}", i + 2
+    return factor, text, atoms, i
+
+
+def in_units(value, label: str, system: str = "spec", gravity_mps2: float = DEFAULT_GRAVITY):
+    """(value, label) in the unit system asked: the spec's as given, or SI (si_unit's factor and label; a
+    dimensionless or unknown label unchanged). value: a number, an array or None."""
+    si = si_unit(label, gravity_mps2) if system == "si" else None
+    if si is None or value is None:
+        return value, label if si is None else si[1]
+    return (value * si[0] if not isinstance(value, list) else [None if v is None else v * si[0] for v in value]), si[1]
+
+
+_NUMBER = r"[-+]?(?:\d+\.?\d*|\.\d+)(?:e[-+]?\d+)?"
+_QUANTITY = re.compile(rf"(?<![\w.^/*-])(?P<a>{_NUMBER})(?:(?P<op> \+- | to | -> )(?P<b>{_NUMBER}))? "
+                       rf"(?P<unit>(?:1/)?[A-Za-z(][\w()/*^.]*)(?: against (?P<c>{_NUMBER}))?")
+
+
+def text_in_units(text: str, system: str = "spec", gravity_mps2: float = DEFAULT_GRAVITY) -> str:
+    """A printed line with each quantity (a number, a value +- its std, a range from ... to ... or a change from
+    ... -> ..., then its unit; "... against N" for a comparison in the same unit) in the unit system asked, each
+    number to its digits."""
+    if system != "si":
+        return text
+    return _QUANTITY.sub(lambda m: _quantity_in_si(m, gravity_mps2), text)
+
+
+def _quantity_in_si(m: re.Match, gravity_mps2: float) -> str:
+    label = m["unit"]
+    while label and (label[-1] in ".," or label.count(")") > label.count("(")):  # the sentence's, not the unit's
+        label = label[:-1]
+    si = si_unit(label, gravity_mps2) if label else None
+    if si is None or si[1] == label:
+        return m[0]
+    rest = m[0][m.start("unit") - m.start() + len(label):]
+    if m["c"] is not None:
+        rest = rest.replace(m["c"], _number_in(m["c"], si[0]))
+    return (_number_in(m["a"], si[0]) + (f"{m['op']}{_number_in(m['b'], si[0])}" if m["b"] else "")
+            + f" {si[1]}{rest}")
+
+
+def _number_in(text: str, factor: float) -> str:
+    """text's number times factor, to as many significant digits as text shows (at least 3: %g drops zeros)."""
+    digits = len(re.sub(r"^[-+]?0*\.?0*", "", text.split("e")[0]).replace(".", "")) or 1
+    v = float(text) * factor
+    return ("+" if text.startswith("+") and v >= 0 else "") + f"{v:.{max(digits, 3)}g}"

@@ -9,10 +9,10 @@ from simucal.report.console import calibration_lines
 from simucal.report.page import page, png
 
 
-def field_page(result, calibration_path: str) -> str:
+def field_page(result, calibration_path: str, units: str = "spec") -> str:
     """The page of a field calibration (`calibrate --method field`'s result with its filter history),
-    saved at calibration_path (for the next command)."""
-    lines = list(calibration_lines(result))
+    saved at calibration_path (for the next command); its lines in the unit system asked."""
+    lines = list(calibration_lines(result, units))
     gyro = [t for t in lines if t.startswith("gyro: bias")]
     acc = [t for t in lines if t.startswith("acc:")]
     verdicts = [(True, t) for t in gyro] + [(False, t) for t in acc]
