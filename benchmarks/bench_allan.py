@@ -1,5 +1,5 @@
 """Benchmark: the Allan terms `simucal noise` reports on still recordings of white noise and a
-random walk only (issue 38, item 1).
+random walk only.
 
 Per seed, six channels (gyro and accelerometer, three axes each) of white noise plus a random walk
 at the sizes below, through the command's own path (the Allan variance, the covariance of its

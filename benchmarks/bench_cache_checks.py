@@ -1,4 +1,4 @@
-"""Benchmark: what the cache's checks (issue 43) cost a command: the lookup of a built library
+"""Benchmark: what the cache's checks cost a command: the lookup of a built library
 (the owner and mode of the cache, the library and its sha256 sidecar, the library's sha256)
 against the bare existence test it replaced, and against the shortest process that loads a
 model (the floor of every command that fits one).

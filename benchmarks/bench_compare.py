@@ -1,4 +1,4 @@
-"""The speed guard (issue 52): the headline commands run by an earlier revision's code and by this
+"""The speed guard: the headline commands run by an earlier revision's code and by this
 working tree's, side by side in one run, alternating, each a whole process; each figure's ratio
 now / before (wall, and CPU: on two cores a command's second thread makes its wall time the noisier),
 and a verdict on the wall: a figure more than 10 % slower is to be fixed or explained in docs/benchmarks.md.

@@ -1,6 +1,6 @@
 """Benchmark: time to derive and regenerate one model, and one exact solve.
 
-Prints a table. Goal (issue 2): under 10 s to derive and regenerate one model.
+Prints a table. Goal: under 10 s to derive and regenerate one model.
 Solve times compare the generated exact solver (compiled CasADi C and the
 numpy fallback), the paper's linear method, and scipy.optimize.least_squares
 on the same exact problem.

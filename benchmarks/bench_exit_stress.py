@@ -1,5 +1,5 @@
 """Stress: every command, a refusal and a success, run as whole processes many times; counts the runs
-killed by a signal (issue 39: a refused `apply` was once killed by SIGABRT at interpreter exit,
+killed by a signal (a refused `apply` was once killed by SIGABRT at interpreter exit,
 "terminate called without an active exception", a C++ library's thread still alive).
 
 Each case must end with its expected exit status (0, or 2 for a refusal) every time; a run that a

@@ -1,14 +1,14 @@
-"""Benchmark: the model test as one family (fit/family.py, issue 51): false alarms on clean sets and the
+"""Benchmark: the model test as one family (fit/family.py): false alarms on clean sets and the
 power against one library effect at 5, 10 and 20 of its own stds, for every kind of data that ranks
 candidates (a turntable set, a hand-placed stream's poses and moves, a rotation sequence, a turntable unit at
 three temperature plateaus calibrated --thermal), before
-(the omnibus alone at ALPHA, the rule until issue 51) and after (the family at ALPHA), and how often
+(the omnibus alone at ALPHA, the rule before the family) and after (the family at ALPHA), and how often
 `--add auto` adds the planted effect at 10 std.
 
 Each effect's std is the calibration's own std of it on a pilot set (the effect added by hand), so
 "k std" is k times what the data can resolve. Each kind's effect is one its data tell from every other
 candidate (a hand-placed session's poses cannot tell acc.quadratic.z from acc.scale_asymmetry.z, and
-diagnose says so: twins are issue 51's item 2, not this power). Found: the sensor's model fails and its advice names the
+diagnose says so: twins are a matter of the plan, not of this power). Found: the sensor's model fails and its advice names the
 planted effect. Sampling error of a rate p over n seeds: sqrt(p (1 - p) / n); at ALPHA = 1e-3 over
 200 seeds a right model fails in 0.2 sets on average (none in 82 % of such runs).
 

@@ -7,8 +7,8 @@ simucal) and the same moves between them:
   direction seen at the pose before, compare with the one seen after (each
   tool's own accelerometer calibration on the same pose means: the first 100
   samples of each interval), rms over components.
-imu_tk's numbers are the ones its test app prints on these data (issue 7;
-threshold factor 6, g = 9.81744, gyro bias from the first 50 s), reference data.
+imu_tk's numbers are the ones its test app prints on these data
+(threshold factor 6, g = 9.81744, gyro bias from the first 50 s), reference data.
 Also: which of imu_tk's parameters lie outside simucal's 3 sigma, and time.
 Usage: python3 benchmarks/bench_imu_tk.py [--repeats 3] (the calibration's time: the best of that many)
 """

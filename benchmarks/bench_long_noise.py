@@ -1,5 +1,5 @@
 """Benchmark: `simucal noise` of a long still recording, the whole-file path beside the chunked one
-(issue 41, item 1; goal: 24 h at 200 Hz, 17.3 million rows, in at most 60 s and 2 GB peak).
+(goal: 24 h at 200 Hz, 17.3 million rows, in at most 60 s and 2 GB peak).
 
 Generates (a chunk at a time, into a temporary folder removed at the end; never committed) a still
 recording of `--hours` at `--rate-hz`: white noise and a gyro rate random walk on six channels,

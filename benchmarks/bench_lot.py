@@ -1,5 +1,5 @@
 """Benchmark: a production lot end to end, `simucal calibrate DIR1 DIR2 ... -o FOLDER --scheduler S` then
-`simucal lot FOLDER --limits ... --html ...` (issue 41 item 3), and the lot report's outlier and drift rules.
+`simucal lot FOLDER --limits ... --html ...`, and the lot report's outlier and drift rules.
 
 A lot of N simulated units (simucal/turntable/lot.py: each unit's parameters drawn about the design's,
 the paper's Table 1 plan, one averaged row per position); every 20th unit from the 6th carries a planted

@@ -1,4 +1,4 @@
-"""`simucal calibrate` of a clean raw turntable set at 400 Hz in counts (issue 41 item 2), this
+"""`simucal calibrate` of a clean raw turntable set at 400 Hz in counts, this
 checkout's code beside an earlier commit's, measured in one run, alternating.
 
 The set: `simucal simulate --plan PLAN.csv --rate-hz RATE` (pulse/s, the paper's counts) over 84
@@ -6,7 +6,7 @@ Fibonacci positions (1,590,400 rows at 400 Hz), its outputs then written to 0.00
 times to 0.1 ms as a logger writes fixed-point numbers (the simulator's 17 digits make a file 1.8
 times larger). Each run is a whole process; its wall time, CPU time (user + system) and peak
 resident memory are those of the command alone (measured in a wrapper process around it). The
-earlier commit's code (--before, default a0d9eae: before issue 41) is its `simucal/` package from
+earlier commit's code (--before, default a0d9eae: before the chunked readers) is its `simucal/` package from
 git, run with PYTHONPATH. Goals: <= 1 s whole process, <= 3x the file in peak memory.
 
     python3 benchmarks/bench_raw400.py [--rate-hz 400] [--repeats 3] [--before a0d9eae]

@@ -1,9 +1,9 @@
-"""Benchmark: issue 41's figures in one run, an earlier commit's code (--before, default a0d9eae:
-before issue 41) beside this checkout's, each figure's runs alternating between the two.
+"""Benchmark: the long-recording and lot figures in one run, an earlier commit's code (--before, default
+a0d9eae: before the chunked readers) beside this checkout's, each figure's runs alternating between the two.
 
 - `simucal calibrate` of the clean raw turntable set at 400 Hz in counts (bench_raw400.make_set,
   1,590,400 rows): wall, CPU and peak memory (goals: <= 1 s wall, <= 3x the file);
-- `simucal calibrate A B C --thermal` on issue 37's three wandering plateaus at 20 Hz
+- `simucal calibrate A B C --thermal` on three wandering plateaus at 20 Hz
   (simucal.bench.write_plateaus): wall (goal <= 1 s) and its spread from run to run;
 - `simucal noise` of a still recording of --hours at 200 Hz (bench_long_noise.still_chunks, CSV):
   wall and peak memory (goals at 24 h: <= 60 s, <= 2 GB);

@@ -1,4 +1,4 @@
-"""Designed rotation sequences (issue 55, item 2; docs/systematic.md): a designed sequence against the
+"""Designed rotation sequences (docs/systematic.md): a designed sequence against the
 built-in ones at equal table time, and its stds checked against its errors over seeds.
 
     python3 benchmarks/bench_sequence_design.py [--minutes 10] [--reference-minutes 12.5] [--seeds 20]

@@ -1,4 +1,4 @@
-"""Benchmark: the speed figures of issue 14 (simucal/bench.py, also `simucal bench`).
+"""Benchmark: the speed figures (simucal/bench.py, also `simucal bench`).
 Usage: python3 benchmarks/bench_speed.py [--json OUT] [--before OLD.json] [--quick]
 """
 import argparse

@@ -1,4 +1,4 @@
-"""Benchmark: are the turntable calibration's stds right at any sample rate (issue 38, item 2)?
+"""Benchmark: are the turntable calibration's stds right at any sample rate?
 
 Per sample rate, dong2018's test simulated with the noise not stated (`simulate --no-noise-stated`)
 and the table's tilt drawn per seed and stated (scenario below),

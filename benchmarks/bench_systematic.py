@@ -1,4 +1,4 @@
-"""Systematic calibration (issue 42): the filter's stds against its errors over seeds, and the
+"""Systematic calibration: the filter's stds against its errors over seeds, and the
 whole process's time on a long sequence (docs/systematic.md).
 
     python3 benchmarks/bench_systematic.py [--seeds 50] [--rest-s 30] [--speed-hours 1] [--compare-seeds 10]

@@ -1,4 +1,4 @@
-"""Benchmark: `calibrate --thermal` on plateaus that wander, over seeds (issue 37's acceptance).
+"""Benchmark: `calibrate --thermal` on plateaus that wander, over seeds.
 
 Per seed: three plateaus (-10, 25, 60 degC, fibonacci48 at 20 Hz, each segment's temperature within
 +-0.3 degC of its plateau) of one unit whose biases are quadratic and scale factors linear in

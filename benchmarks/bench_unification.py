@@ -1,4 +1,4 @@
-"""Benchmark: frame unification against the table's position errors (issue 13).
+"""Benchmark: frame unification against the table's position errors.
 
 Per plan and position error, over seeds: the largest error of the gyro matrix in b
 (M_d C_b^d against truth) for the three ways of tying the frames: the rate runs'

@@ -1,4 +1,4 @@
-"""Benchmark: the turntable calibration with and without the noise stated (issue 23, items 1-2).
+"""Benchmark: the turntable calibration with and without the noise stated (items 1-2).
 
 Per plan and table position error, over seeds, on sets of one averaged row per segment: with
 the noise stated in meta.json and without it (the fits' variance components then stand in), the

@@ -1,5 +1,5 @@
-"""`simucal noise`: Allan deviation of a static recording and the IEEE 952 noise terms (issue 26, item 3;
-issue 38, item 1: the terms the data show).
+"""`simucal noise`: Allan deviation of a static recording and the IEEE 952 noise terms (the
+terms the data show).
 
 Overlapping Allan variance of a rate y sampled every dt (IEEE 952-1997, Annex C, eq. C.2, with
 overlapping clusters as allantools' oadev computes it): with theta the integrated output
@@ -16,7 +16,7 @@ The terms (IEEE 952 Table C.1): sigma^2(tau) = 3 Q^2 / tau^2 + N^2 / tau + (2 ln
 + K^2 tau / 3 + R^2 tau^2 / 2, linear in the squares. Q: quantisation, N: angle (velocity) random
 walk, B: bias instability (the flat floor's coefficient, 0.664 B), K: rate random walk, R: rate
 ramp. Neighbouring overlapping estimates share most of their data: fitted as independent points
-every term looked significant (issue 38: 3-18 sigma for terms that were not there). So they are
+every term looked significant (3-18 sigma for terms that were not there). So they are
 fitted by generalised least squares with the estimates' covariance, exact for white noise,
 random walk and quantisation at the record's length and rate (simucal.fit.allan_cov), and a term
 is reported only where the data show it (simucal.fit.allan_fit: why GLS, the test, the bound);

@@ -1,4 +1,4 @@
-"""`simucal bench`: the speed figures of issue 14, measured in one run on this machine.
+"""`simucal bench`: the speed figures (docs/benchmarks.md), measured in one run on this machine.
 
 - one exact accelerometer fit, N = 12 (Table 1 plan): the compiled whole fit called once
   (min of repeats), the same fit by fit_exact with the compiled call, and the numpy path;
@@ -97,7 +97,7 @@ def process(args, repeats=None, cached=True):
 def process_times(args, repeats):
     """Each run's wall time and its CPU time (user + system, the process and its children), after a
     first run that writes the bytecode: the spread of the walls shows threads spinning against
-    each other (issue 37: 0.66-7.7 s), the CPU time what the process costs on a loaded machine."""
+    each other (0.66-7.7 s), the CPU time what the process costs on a loaded machine."""
     import resource
     walls, cpus = [], []
     for k in range(repeats + 1):
@@ -112,7 +112,7 @@ def process_times(args, repeats):
 
 
 def _new_commands(tmp, fig, n):
-    """validate's neighbours of issue 26: noise on 2 h at 100 Hz, a thermal calibration of 3 plateaus,
+    """The commands beside validate: noise on 2 h at 100 Hz, a thermal calibration of 3 plateaus,
     and the Monte Carlo with an effect as a whole process."""
     from simucal.handheld.simulate import write_still
     progress.status("bench: simucal noise (2 h at 100 Hz), calibrate --thermal (3 plateaus), montecarlo --effect")
@@ -128,7 +128,7 @@ def _new_commands(tmp, fig, n):
 
 
 def write_plateaus(folder: Path, rate_hz: float) -> list[str]:
-    """Issue 37's three plateaus (-10, 25, 60 degC, each wandering +-0.3 degC; biases quadratic and
+    """Three plateaus (-10, 25, 60 degC, each wandering +-0.3 degC; biases quadratic and
     scale factors linear in temperature) on the fibonacci48 plan at rate_hz: the sets' folders."""
     from simucal.turntable.simulate import plant
     plateaus = []
@@ -144,7 +144,7 @@ def write_plateaus(folder: Path, rate_hz: float) -> list[str]:
 def _montecarlo_effect(tmp, fig, n):
     """The Monte Carlo with acc.quadratic.z=1e-4: in process, and as whole processes of 100 trials
     (what the process costs before its trials: start-up, the reference fit, the check of the
-    revolution's samples), 20,000 (issue 27's figure) and 200,000 (std/CRLB over them); with a
+    revolution's samples), 20,000 (the documented figure) and 200,000 (std/CRLB over them); with a
     user's model file (a cubic term) in process."""
     from simucal.turntable.simulate import plant
     sc = Scenario()
@@ -247,7 +247,7 @@ def _whole_commands(tmp, fig, n):
     write(tmp / "raw", Scenario(rate_hz=n["rate_hz"][0]), 1)
     fig["rows_raw_turntable"] = len(io.read_set(tmp / "raw").samples["t_s"])
     fig["cli_calibrate_raw_turntable_s"] = process([*SIMUCAL, "calibrate", str(tmp / "raw"), "-o", str(tmp / "c.json")])
-    write(tmp / "raw300k", Scenario(rate_hz=n["rate_hz"][1]), 1)  # issue 27's 300,000 rows
+    write(tmp / "raw300k", Scenario(rate_hz=n["rate_hz"][1]), 1)  # 300,000 rows
     fig["rows_raw_turntable_300k"] = len(io.read_set(tmp / "raw300k").samples["t_s"])
     fig["cli_calibrate_raw_turntable_300k_s"] = process([*SIMUCAL, "calibrate", str(tmp / "raw300k"), "-o",
                                                          str(tmp / "c3.json")])

@@ -339,7 +339,7 @@ def calibrate_thermal(folders, degree=None, t_ref_c=None, **kwargs) -> Calibrati
     _refuse_thermal_options(folders, degree, kwargs)
     from threadpoolctl import threadpool_limits
     # one BLAS thread: the QRs and solves here are small, and OpenBLAS's threads spinning against each other
-    # (or against another process) made one run 0.66-7.7 s (issue 37)
+    # (or against another process) made one run 0.66-7.7 s
     with threadpool_limits(1, "blas"):
         return _calibrate_thermal(folders, degree, t_ref_c, kwargs)
 

@@ -45,7 +45,7 @@ def pytest_sessionstart(session):
 
 
 def pytest_sessionfinish(session, exitstatus):
-    """The guard of isolated tests (issue 52): the run fails where the repository's tree changed under it."""
+    """The guard of isolated tests: the run fails where the repository's tree changed under it."""
     before = session.config.stash.get(REPOSITORY, None)
     if before is None:
         return

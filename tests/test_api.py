@@ -1,4 +1,4 @@
-"""Issue 40, item 1: the public Python API as a notebook user meets it (numpy arrays, a DataFrame),
+"""The public Python API as a notebook user meets it (numpy arrays, a DataFrame),
 the same files as the command line, and the docs' example (docs/api.md) run as written."""
 import json
 import os
@@ -143,7 +143,7 @@ def test_the_docs_api_example_runs(tmp_path):
     res = subprocess.run([sys.executable, "-c", code], cwd=tmp_path, capture_output=True, text=True)
     assert res.returncode == 0, res.stderr[-2000:]
     assert "acc.dK_x" not in res.stdout and "dK_x" in res.stdout and "'acc':" in res.stdout
-    # issue 51: on clean data both sensors at the floor (the gravity-direction check, limited by the table's
+    # on clean data both sensors at the floor (the gravity-direction check, limited by the table's
     # unstated angle errors, no longer pulls the accelerometer down to "better")
     assert "{'acc': 'at the noise floor', 'gyro': 'at the noise floor'}" in res.stdout, res.stdout
     assert json.loads((tmp_path / "cal.json").read_text())["format"] == "simucal.calibration/2"
@@ -187,7 +187,7 @@ def test_a_diagnosis_of_a_set_in_memory_names_the_call_and_of_a_folder_the_comma
 
 
 def test_the_public_names_are_all_of_the_api():
-    """Issue 54: `import simucal` has __all__, the names the lazy API gives (a type checker's and `from simucal
+    """`import simucal` has __all__, the names the lazy API gives (a type checker's and `from simucal
     import *`'s list)."""
     import simucal
     assert set(simucal.__all__) == {"__version__", *simucal._API}
@@ -195,14 +195,14 @@ def test_the_public_names_are_all_of_the_api():
 
 
 def test_a_sets_repr_is_one_line():
-    """Issue 54: repr(MeasurementSet) printed every array (8 kB); now one line says where, what, how much."""
+    """Repr(MeasurementSet) printed every array (8 kB); now one line says where, what, how much."""
     import simucal
     r = repr(simucal.simulate("handheld", seed=1))
     assert "\n" not in r and len(r) < 200 and "stream, 27,030 rows over 270.3 s, acc in counts, gyro in counts" in r
 
 
 def test_other_tools_recordings_and_the_commands_from_python(tmp_path):
-    """Issue 54: imucal's own Ferraris session read from Python (simucal.read_set on its CSV said "not a folder";
+    """Imucal's own Ferraris session read from Python (simucal.read_set on its CSV said "not a folder";
     a notebook shelled out to `simucal import`), calibrated, applied to a set and converted, by the API alone."""
     from pathlib import Path
 
@@ -224,7 +224,7 @@ def test_other_tools_recordings_and_the_commands_from_python(tmp_path):
 
 
 def test_short_reprs_and_notebook_views():
-    """Issue 54: a set, a calibration and every result print one short line and show a small HTML table in a
+    """A set, a calibration and every result print one short line and show a small HTML table in a
     notebook; a set in memory is told from the calibration's own data (its missing file hash said 'own')."""
     ms, other = simucal.simulate(seed=1), simucal.simulate(seed=2)
     cal = simucal.calibrate(ms)

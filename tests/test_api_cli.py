@@ -1,4 +1,4 @@
-"""Issue 40 items 1 and 4: the command line is the API plus printing, so both write the same files
+"""The command line is the API plus printing, so both write the same files
 (simulate, validate, diagnose, noise; calibrate in test_api.py); the rest of the API (simulate,
 diagnose, noise, tables) as a notebook user meets it, with only the documented names."""
 import inspect

@@ -106,7 +106,7 @@ def test_the_whole_api_is_listed():
 
 
 def test_a_frame_s_first_mistakes_are_named_with_the_column_row_and_option():
-    """Issue 53: a segment column without segments= (was silently a stream, then blamed on t_s); sensor
+    """A segment column without segments= (was silently a stream, then blamed on t_s); sensor
     columns under other names (was "neither acc nor gyro given"); a string in a number column (was pandas'
     "could not convert string to float", no column or row)."""
     from simucal.io import MeasurementSetError

@@ -148,7 +148,7 @@ def test_readme_layout_table_names_every_module():
 
 
 def test_one_method_registry():
-    """Issue 25: every calibration method is named once (simucal/methods.py); the cli's --method, the demo and
+    """Every calibration method is named once (simucal/methods.py); the cli's --method, the demo and
     the paper's claims read it, and no other module spells the list of methods."""
     from click.testing import CliRunner
 
@@ -181,7 +181,7 @@ CLOSED_SETS = ("-unit", "--scenario", "--method", "--criterion", "--timestamps",
 
 
 def _option_rules(name, p, first):
-    """Issue 40 item 5, on one shown option: help present; the unit its name carries named in the help;
+    """On one shown option: help present; the unit its name carries named in the help;
     a closed set of values a click.Choice; a default shown."""
     import re
 
@@ -197,9 +197,9 @@ def _option_rules(name, p, first):
 
 
 def test_one_command_grammar():
-    """Issue 25: `simucal VERB INPUT... -o OUTPUT [options]`. Every command that writes takes -o/--output;
+    """`simucal VERB INPUT... -o OUTPUT [options]`. Every command that writes takes -o/--output;
     a number carries its unit in its name (or is a count); one name per quantity (the old names are
-    aliases at most); every --help renders and names only options the command has. Issue 40 item 5:
+    aliases at most); every --help renders and names only options the command has;
     every option's help, units, choices and defaults (_option_rules); a hidden option is an old name."""
     import re
 
@@ -233,7 +233,7 @@ def test_one_command_grammar():
 
 
 def test_files_and_functions_stay_short():
-    """Issue 25: no hand-written file over 450 lines, no function over 70 (generated/ is written by derive)."""
+    """No hand-written file over 450 lines, no function over 70 (generated/ is written by derive)."""
     long_files, long_functions = [], []
     for p in list(ROOT.rglob("*.py")) + list((ROOT.parent / "derive").rglob("*.py")):
         if "generated" in p.parts:
@@ -244,6 +244,16 @@ def test_files_and_functions_stay_short():
         long_functions += [f"{p.name}:{n.name} ({n.end_lineno - n.lineno + 1})" for n in ast.walk(ast.parse(text))
                            if isinstance(n, (ast.FunctionDef, ast.AsyncFunctionDef)) and n.end_lineno - n.lineno >= 70]
     assert not long_files and not long_functions, (long_files, long_functions)
+
+
+def test_no_issue_numbers_in_code():
+    """Comments and docstrings say why in words: an issue number means nothing to the next reader of the code."""
+    import re
+    repo = ROOT.parent
+    cited = [f"{p.relative_to(repo)}:{i}" for folder in ("simucal", "derive", "tests", "benchmarks")
+             for p in (repo / folder).rglob("*.py") for i, line in enumerate(p.read_text().splitlines(), 1)
+             if re.search(r"\b[Ii]ssues? \d+", line)]
+    assert not cited, cited
 
 
 def test_a_sets_kind_is_told_once_and_its_entry_looked_up(monkeypatch):
@@ -273,7 +283,7 @@ def test_a_sets_kind_is_told_once_and_its_entry_looked_up(monkeypatch):
     assert where == "the third kind's still rows" and len(stretches[0]) == len(rows) and abs(dt - 0.1) < 1e-12
 
 
-# What the command line may import (issue 54, item 3): the API, its own helpers, output safety, the refusals, the
+# What the command line may import: the API, its own helpers, output safety, the refusals, the
 # words it prints and the registry of names its help shows. CLI_NOT_YET held the commands whose logic was not yet
 # the API's; it may only stay empty.
 CLI_MAY_IMPORT = {"simucal.api", "simucal.api.analyses", "simucal.api.planning", "simucal.api.tools", "simucal.cli",
@@ -311,7 +321,7 @@ def test_the_command_line_stands_on_the_api():
 
 def test_no_new_api_name_is_a_modules_name():
     """`from simucal import X` gives the API's X or the module simucal/X.py depending on what was imported
-    before (issue 54: the demo's tests got the function for the module). The three clashes left are the
+    before (the demo's tests got the function for the module). The three clashes left are the
     commands' modules that the API rebinds (api/__init__.py); no other name may join them."""
     clashes = {n for n in simucal._API if (ROOT / f"{n}.py").exists() or (ROOT / n).is_dir()}
     assert clashes <= {"calibrate", "diagnose", "validate"}, sorted(clashes)
@@ -338,7 +348,7 @@ _HINT_NAMES = {"Unpack": getattr(typing, "Unpack", None)}
 
 
 def test_no_public_type_holds_a_record_without_keys():
-    """Issue 54: every public name's type (a class's fields, a function's parameters and result), and every
+    """Every public name's type (a class's fields, a function's parameters and result), and every
     simucal class those reach, names its records' keys: no bare dict and no dict[str, Any] (a document as
     written is records.JSONObject, JSON by type). The check finds one where it is planted."""
     import inspect

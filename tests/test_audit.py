@@ -1,4 +1,4 @@
-"""The paper audit, completed (issue 13): every printed row of eq. 17, 21, 25-27 term by term at the
+"""The paper audit, completed: every printed row of eq. 17, 21, 25-27 term by term at the
 section-4 values, the dropped norm constant, Table 2's rank, and the numeric claims by Monte Carlo."""
 import math
 

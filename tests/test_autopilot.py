@@ -1,4 +1,4 @@
-"""Issue 37, part 4: a thermal calibration's bias polynomials exported as PX4's TC_A0_*/TC_G0_* and
+"""Part 4: a thermal calibration's bias polynomials exported as PX4's TC_A0_*/TC_G0_* and
 ArduPilot's INS_TCAL1_*. Each round trip evaluates the written file as the autopilot does (its code
 re-implemented below, in float32 as the autopilot stores and computes it) and holds it against simucal's
 own bias correction (fit/thermal.py's polynomials) over the calibrated range, within 1e-6 of the

@@ -1,4 +1,4 @@
-"""A new auxiliary input end to end (issue 12): a supply_v column that a user's bias term
+"""A new auxiliary input end to end: a supply_v column that a user's bias term
 reads. Only the user's model file names it: the reader keeps the column, derive generates
 the model with it, calibrate, diagnose and apply carry it by name."""
 import json
@@ -57,7 +57,7 @@ def test_supply_voltage_term_simulated_found_calibrated_and_applied(tmp_path):
                                                       "b_x", "b_y", "b_z")][0]
         assert abs(acc["params"][name] - TRUE_BV_Z) < 3 * acc["std"][name]
         assert acc["p_value"] > 1e-3
-        # the user's term is listed under effects like a library one (issue 26), named by its model
+        # the user's term is listed under effects like a library one, named by its model
         assert acc["effects"][name]["value"] == acc["params"][name] and acc["effects"][name]["term_of"] == acc["model"]
         assert name in out  # and printed with its std
     code, out = _run("apply", tmp_path / "cal.json", data, "-o", tmp_path / "applied")

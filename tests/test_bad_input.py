@@ -1,4 +1,4 @@
-"""Bad input: one line naming the cause, a non-zero exit, no traceback, nothing written (issue 13).
+"""Bad input: one line naming the cause, a non-zero exit, no traceback, nothing written.
 
 A corpus of the cases found by trying the tool as a new user would, each run through the
 command line, and a property test of the readers on random bytes, CSV shapes and meta.
@@ -380,7 +380,7 @@ def test_a_settling_table_is_no_glitch(raw_table, tmp_path):
     assert r.exit_code == 0, r.output
 
 
-# --- issue 24: options, calibration files, model files, importers, columns --------------------
+# --- options, calibration files, model files, importers, columns --------------------
 
 @pytest.mark.parametrize("args,named", [
     (["calibrate", "{table}", "--acc-noise-g", "-1"], "--acc-noise-g -1"),
@@ -621,7 +621,7 @@ def test_importer_files_missing_columns(tmp_path, text, named):
 
 def test_a_plan_on_one_great_circle_names_what_it_cannot_determine(tmp_path):
     """Gravity directions on one great circle (the inner axis turned alone, middle at 0): the fit runs,
-    and the console names the parameters the plan confounds (issue 24); a good plan names none."""
+    and the console names the parameters the plan confounds; a good plan names none."""
     plan = tmp_path / "circle.csv"
     plan.write_text("outer_deg,middle_deg,inner_deg\n" + "".join(f"0,0,{a}\n" for a in range(0, 360, 30)))
     write(tmp_path / "circle", Scenario(plan=str(plan)), 1)
@@ -684,7 +684,7 @@ def test_an_unreachable_scheduler_is_one_line_and_writes_nothing(sets, tmp_path,
                  "tcp://127.0.0.1:1"], "no Dask scheduler answers", out=tmp_path / "out")
 
 
-# --- issue 24, second corpus: silent-wrong and unclear cases ----------------------------------
+# --- second corpus: silent-wrong and unclear cases ----------------------------------
 
 def test_a_stated_noise_far_below_the_scatter_is_named_before_any_effect(sets, tmp_path):
     """acc_noise_g 1e4 times too small: the misfit has no structure, so the noise is named first,
@@ -875,7 +875,7 @@ def test_import_csv_reads_a_loggers_whitespace_text(tmp_path):
 
 @pytest.mark.slow
 def test_diagnose_never_sends_a_user_to_a_refusal(tmp_path):
-    """Issue 53: a sequence that turns only the outer axis passes its model test, but calibrate refuses it
+    """A sequence that turns only the outer axis passes its model test, but calibrate refuses it
     (parameters unobserved); diagnose's next line was `simucal calibrate SET`. Now it is a command that runs,
     and it says why calibrate would refuse."""
     import shlex

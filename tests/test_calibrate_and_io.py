@@ -260,7 +260,7 @@ def test_reading_a_set_imports_no_pandas(paper_set):
 
 
 def test_calibrating_a_csv_set_imports_no_pandas_matplotlib_dask_or_scipy(paper_set, tmp_path):
-    """`simucal calibrate` of a samples.csv set imports what its path needs (issue 41: a whole process of
+    """`simucal calibrate` of a samples.csv set imports what its path needs (a whole process of
     the 400 Hz set in about a second): pandas only for a DataFrame, matplotlib only for --html, dask only
     for --scheduler, scipy nowhere on it, nor CasADi (the models' Jacobians by their numpy modules)."""
     import subprocess

@@ -1,4 +1,4 @@
-"""The calibration file as one typed object (issue 25): every method returns a Calibration, whose
+"""The calibration file as one typed object: every method returns a Calibration, whose
 JSON is read back to the same object; apply and validate take it as loaded."""
 import json
 import types
@@ -186,7 +186,7 @@ def test_any_block_round_trips(M, bias, value, std, p, term_of, extra):
     (lambda d: d["acc"].__setitem__("param_units", [1, 2]), 2, "acc.param_units must be an object"),
 ])
 def test_a_hand_edited_file_is_read_or_refused_in_one_line(paper_set, tmp_path, edit, exit_code, words):
-    """Issue 25's review: the typed object never turns an edited file into an internal error."""
+    """The typed object never turns an edited file into an internal error."""
     from click.testing import CliRunner
 
     from simucal.cli import main

@@ -1,4 +1,4 @@
-"""Issue 13: frame unification at the noise level, and physics that a calibration must not pass."""
+"""Frame unification at the noise level, and physics that a calibration must not pass."""
 import csv
 import json
 import shutil
@@ -178,7 +178,7 @@ def _errors(folder, sc, truth, **kw):
 
 @pytest.mark.parametrize("plan,position_error", [("table1", 60 * ARCMIN), ("fibonacci24", ARCMIN)])
 def test_unknown_noise_unifies_as_well_as_stated_noise(tmp_path, plan, position_error):
-    """Issue 23 item 1: one averaged row per segment and no noise anywhere: the fits' variance
+    """One averaged row per segment and no noise anywhere: the fits' variance
     components stand in, the rate-run unification is kept, C_b^d and the gyro M in b come within
     1.5x of the stated-noise errors, each within 3 of its std, and the console says which noise."""
     errs = {}
@@ -195,7 +195,7 @@ def test_unknown_noise_unifies_as_well_as_stated_noise(tmp_path, plan, position_
 
 
 def test_latitude_checked_with_the_noise_given_on_the_command_line(tmp_path):
-    """Issue 23 item 1: no gyro_noise_dph in meta.json but --gyro-noise-dph given: checked with it;
+    """No gyro_noise_dph in meta.json but --gyro-noise-dph given: checked with it;
     neither: checked with the noise its own residuals give."""
     write(tmp_path, Scenario(state_noise=False), 2)
     for kw, words in (({"gyro_noise_dph": 0.01}, "agrees"), ({}, "from this fit's residuals")):
@@ -205,7 +205,7 @@ def test_latitude_checked_with_the_noise_given_on_the_command_line(tmp_path):
 
 @pytest.mark.slow
 def test_cross_check_false_alarm_rate_nominal_over_seeds(tmp_path):
-    """Issue 23 item 2: clean sets with position errors from 0 to 1 deg, noise stated or not, table
+    """Clean sets with position errors from 0 to 1 deg, noise stated or not, table
     accuracy stated or estimated: the static-pair cross-check (alarm at p < 1e-3) stays quiet, and
     its p-values are not piled up near 0 (at most a third below 0.1 over 24 sets)."""
     p, alarms = [], 0
@@ -230,7 +230,7 @@ def test_table_accuracy_refused_when_not_a_number(paper_set, tmp_path):
 
 
 def test_mixed_shuffled_set_without_noise_unifies_and_validates(tmp_path):
-    """Issue 23 on data the simulator did not lay out for it: another plan, positions visited in random
+    """The checks on data the simulator did not lay out for it: another plan, positions visited in random
     order, raw static rows beside one averaged row per rate run, rows of the file shuffled across
     segments, no noise stated. The unification keeps the rate-run means (their noise from the pairs'
     scatter), C_b^d and M_b within 3.5 sigma, no cross-check alarm; and on a second set of the same
@@ -290,7 +290,7 @@ def test_a_failing_accelerometer_model_is_named_before_lever_arms(tmp_path):
 
 @pytest.mark.slow
 def test_gyro_model_test_covers_the_static_rows(tmp_path):
-    """Issue 38, item 4: a gyro bias fixed in the local frame (0.05 deg/h north and up, as one following
+    """A gyro bias fixed in the local frame (0.05 deg/h north and up, as one following
     the magnetic field) shows in rate-run means only as its vertical part, which --add auto absorbs by
     a g-sensitivity, and the rate runs then pass; the static rows (the Earth rate's vertical component
     and horizontal magnitude predicted by the rate runs' fit) still misfit, and the gyro's one test,

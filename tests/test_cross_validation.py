@@ -1,4 +1,4 @@
-"""Judged on data the fit did not see (issue 23, items 4 and 5): the leave-one-out prediction error
+"""Judged on data the fit did not see: the leave-one-out prediction error
 beside the in-sample one, `--add auto` that adds an effect only when it predicts left-out rows better
 and stops where a term outside the library explains more, and a stream's gyro model chosen by the
 moves left out."""
@@ -65,7 +65,7 @@ def test_auto_never_chains_library_effects_onto_an_effect_outside_it(tmp_path, m
                                                                      name, value, column):
     """An effect outside the library (a cubic nonlinearity, a bias following the supply voltage):
     `--add auto` adds nothing rather than library terms that only absorb the misfit, says why, and
-    the bias is no worse than the baseline's (issue 23 saw 1.8e-5 -> 1.3e-3 g and 0.07 -> 1.1 deg/h
+    the bias is no worse than the baseline's (once 1.8e-5 -> 1.3e-3 g and 0.07 -> 1.1 deg/h
     with a temperature effect, before the library had one)."""
     monkeypatch.setenv("SIMUCAL_CACHE", str(tmp_path / "cache"))
     (tmp_path / "m.py").write_text(model_text)
@@ -85,7 +85,7 @@ def test_auto_never_chains_library_effects_onto_an_effect_outside_it(tmp_path, m
     ("gyro", "gyro.scale_temperature.z", 3e-6),
 ])
 def test_auto_adds_a_temperature_effect_of_the_library(tmp_path, sensor, eid, value):
-    """Issue 26 item 1: a bias or a scale factor following temperature is a library effect now
+    """A bias or a scale factor following temperature is a library effect now
     (taken from T_ref, the data's mean temp_c): `--add auto` adds it, recovers it within 4 std, the
     model passes and the bias (at T_ref, as the truth's) is closer than the baseline's."""
     sc = Scenario(plan="fibonacci48")
@@ -131,7 +131,7 @@ def test_stream_gyro_model_chosen_by_the_moves_left_out(tmp_path, poses):
 def test_a_gyro_model_the_moves_cannot_support_is_not_taken(tmp_path):
     """Few usable moves (three of ten clipped) and an effect the gyro model lacks (g-sensitivity): a full
     matrix fits the misfit and predicts the moves left out worse than the nominal scale factors, so the
-    nominal model is handed over and said to be (issue 23: an MPU-6050 with 6 usable moves)."""
+    nominal model is handed over and said to be (an MPU-6050 with 6 usable moves)."""
     sc = HandheldScenario(poses=10, rest_s=10.0, clip_moves=3,
                           gyro_effects={"gyro.g_sensitivity.xz": 3000.0, "gyro.g_sensitivity.yz": -3000.0})
     write_handheld(tmp_path / "h", sc, 2)

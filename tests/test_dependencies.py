@@ -1,4 +1,4 @@
-"""Dependencies for a user's environment (issue 40, item 3): ranges in pyproject.toml, the lowest
+"""Dependencies for a user's environment: ranges in pyproject.toml, the lowest
 set CI tests equal to their lower bounds, the locked set inside the ranges, and Dask an extra
 that only --scheduler processes or an address needs."""
 import sys

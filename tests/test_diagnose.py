@@ -62,7 +62,7 @@ def test_hidden_effect_found_added_and_explained(tmp_path, eid, size, settings):
 @pytest.mark.parametrize("eid,seed", [("gyro.g_sensitivity.xz", 1), ("gyro.g_sensitivity.xz", 3),
                                       ("gyro.g_sensitivity.zx", 2)])
 def test_the_static_rows_choose_between_twins_of_the_rate_runs(tmp_path, eid, seed):
-    """Issue 51, item 2: g_sensitivity.xz and .zx read alike in fibonacci24's rate runs (likelihood ratios
+    """G_sensitivity.xz and .zx read alike in fibonacci24's rate runs (likelihood ratios
     within 0.1 of each other); by those alone the wrong one led at these seeds, and with it added the
     gyro failed at rest. The static rows choose: diagnose advises, and --add auto adds, the planted one,
     the model then passes, and both say which rows decided."""
@@ -178,7 +178,7 @@ def test_the_wrong_twin_never_wins_silently(tmp_path, plan, seed):
 
 @pytest.mark.parametrize("size,ramp,twin", [(2e-6, True, True), (2e-5, True, False), (2e-6, False, False)])
 def test_temperature_and_time_twins_only_where_the_data_cannot_tell(tmp_path, size, ramp, twin):
-    """Issue 38, item 5: on one temperature ramp a y bias following temperature and one drifting with
+    """On one temperature ramp a y bias following temperature and one drifting with
     time are twins while their likelihood ratios are within 10.83 (LR 82.5 and 84.0 at 2e-6 g/degC), and
     the note says the plan that would separate them (a temperature that goes up and down); ten times
     larger the ramp tells them apart (8450 against 8102), and a temperature that does not follow time

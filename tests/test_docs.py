@@ -1,4 +1,4 @@
-"""The documentation site (docs/, issue 40 item 2): it builds from the repository with warnings as
+"""The documentation site (docs/): it builds from the repository with warnings as
 errors and loads nothing from the network; its API and CLI references cover what the package
 exports; every tutorial runs and asserts what its page claims; the data spec is the shared one."""
 import re

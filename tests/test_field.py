@@ -60,7 +60,7 @@ def test_transition_matrix_matches_scipy():
 
 @pytest.mark.slow
 def test_field_calibration_is_a_calibration_file_that_apply_corrects_the_drift_with(tmp_path):
-    """Issue 25: the field method writes the one calibration format (methods.py registry, chosen by the
+    """The field method writes the one calibration format (methods.py registry, chosen by the
     data), apply subtracts the drift, and a method that takes other data is refused naming the one to use."""
     import json
 

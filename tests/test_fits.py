@@ -174,7 +174,7 @@ def test_numpy_batch_equals_one_set_at_a_time(tmp_path):
 def test_a_large_offset_never_leaves_fit_exact_at_a_spurious_point():
     """Raw outputs with offsets of several g: the paper's linear start can be far off (or not finite), and a
     fit from it alone stops at a spurious point (chi2 1e6 dof); fit_exact then takes its other starts
-    (the review of issue 27 found 8 % of such sets failing)."""
+    (a review once found 8 % of such sets failing)."""
     from simucal.fit.catalog import load
     from simucal.fit.norm_fit import Observations, fit_exact
     am = load("acc_baseline")

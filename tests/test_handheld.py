@@ -284,7 +284,7 @@ def _direction_error_rad(tmp_path, acc_effects, add):
 
 
 def test_moves_judged_against_the_whole_accelerometer_model(tmp_path):
-    """Issue 38, item 6: an accelerometer effect added (acc.quadratic.z, planted) must enter the poses'
+    """An accelerometer effect added (acc.quadratic.z, planted) must enter the poses'
     gravity directions the gyro's moves are judged against (the exact fit's directions, not
     M^-1 (N - b)): with the affine inverse they were 1.1e-3 rad off (clean 1.4e-4) and the moves'
     chi2 470 on 51 dof; now both are at the clean session's level and the gyro passes."""
@@ -308,7 +308,7 @@ def test_stream_calibrate_names_what_diagnose_would_add(tmp_path):
 @pytest.mark.slow
 def test_xsens_moves_take_the_g_sensitivities_one_at_a_time(tmp_path):
     """docs/real-recordings.md: on imu_tk's Xsens session `--add auto` takes two g-sensitivities, then yz,
-    whose moves left out are predicted better at p between 0.01 (the held-out level before issue 51, where
+    whose moves left out are predicted better at p between 0.01 (the held-out level before the family test, where
     the selection stopped) and 0.05 (now), then yx; the four together lower the held-out rms by a third."""
     from simucal import io
     from simucal.fit.cross_validation import paired_improvement
@@ -389,7 +389,7 @@ def test_a_calibration_keeps_no_moves_problem_alive():
 
 @pytest.mark.parametrize("turn_s", [3.0, 8.0])
 def test_a_long_turn_about_the_vertical_is_no_pose_either(turn_s):
-    """Review of issue 51: a 30 deg/s turn about the vertical filling most of an accelerometer-still interval was
+    """A 30 deg/s turn about the vertical filling most of an accelerometer-still interval was
     taken for the interval's bias (its median) and kept as the pose. Every interval the detector keeps is still."""
     from simucal.handheld.static_detect import detect_static
     rng, fs, g, acc, gyro = np.random.default_rng(0), 100.0, np.array([0, 0, 1.0]), [], []

@@ -1,4 +1,4 @@
-"""The linter and the type checker, run by the suite (issue 40, item 0): ruff's pyflakes and
+"""The linter and the type checker, run by the suite: ruff's pyflakes and
 pycodestyle errors over the repository, mypy over the whole package (simucal/), both as configured
 in pyproject.toml. A finding fails the test with the tool's own lines."""
 import subprocess
@@ -28,7 +28,7 @@ def test_mypy_finds_nothing_in_the_package():
 
 @pytest.mark.slow
 def test_the_api_tutorial_passes_mypy_strict():
-    """Issue 54: a notebook's code on the API alone type-checks strictly, with no ignores."""
+    """A notebook's code on the API alone type-checks strictly, with no ignores."""
     tutorial = ROOT / "docs" / "tutorials" / "three_methods.py"
     assert "type: ignore" not in tutorial.read_text()
     r = _run("mypy", "--strict", str(tutorial))
@@ -37,7 +37,7 @@ def test_the_api_tutorial_passes_mypy_strict():
 
 @pytest.mark.slow
 def test_a_misspelt_option_or_a_record_read_wrongly_is_a_type_error(tmp_path):
-    """Issue 54: calibrate's options are typed (api/options.py) and a calibration's records too (io/records.py):
+    """Calibrate's options are typed (api/options.py) and a calibration's records too (io/records.py):
     a checker finds a misspelt option, an unknown method, a wrong type, and a record's key read as the wrong
     type, in a notebook's code."""
     user = tmp_path / "user.py"

@@ -1,4 +1,4 @@
-"""The logs MEMS users have (issue 50, simucal/io/logs.py): a PX4 ULog, an ArduPilot DataFlash log and ROS 1
+"""The logs MEMS users have (simucal/io/logs.py): a PX4 ULog, an ArduPilot DataFlash log and ROS 1
 and ROS 2 bags, written here (tests/log_writers.py) from a still board warming up, read back as the logged
 samples; every broken-file case refused in one line with nothing written."""
 import json

@@ -1,4 +1,4 @@
-"""Long recordings (issue 41, item 1): `simucal noise` a chunk at a time gives the whole-file path's
+"""Long recordings: `simucal noise` a chunk at a time gives the whole-file path's
 numbers (simulated and the real Xsens stream, CSV and Parquet, here and on Dask), with memory that
 holds theta and no table; samples.parquet is read wherever a set is; `simucal convert` round-trips
 every bit, never over its input, all or nothing; bad rows are named by line or row."""

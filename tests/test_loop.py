@@ -1,4 +1,4 @@
-"""The discovery loop (issue 11): plant, see the misfit, add, calibrate with it, apply."""
+"""The discovery loop: plant, see the misfit, add, calibrate with it, apply."""
 import json
 import shutil
 

@@ -1,4 +1,4 @@
-"""`simucal lot` (issue 41 item 3): a simulated lot with a planted outlier, a unit recorded twice with a
+"""`simucal lot`: a simulated lot with a planted outlier, a unit recorded twice with a
 planted drift and one without, spec limits, a file that is no calibration and a unit of another method;
 the outlier rule's false-alarm rate and power over seeds; bad limits files refused in one line."""
 import json

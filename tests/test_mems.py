@@ -1,4 +1,4 @@
-"""MEMS units (issue 50, item 4): gyro biases near 0.5 deg/s, accelerometer biases near 50 mg, scale factors and
+"""MEMS units: gyro biases near 0.5 deg/s, accelerometer biases near 50 mg, scale factors and
 misalignments near 2e-2, MEMS noise. Systematic calibration on psins19: the filter starts from the first rest
 and scales its priors to the unit (systematic/calibrate.start_from_rest); before, such a unit was refused as
 unobserved or calibrated hundreds of thousands of stds off. And the exact method on a turntable plan."""
@@ -45,7 +45,7 @@ def test_mems_units_on_a_table_by_the_exact_method(tmp_path):
 
 @pytest.mark.slow
 def test_mems_units_by_hand_within_their_stds(tmp_path):
-    """Issue 50, item 4: hand-placed sessions of MEMS units (the simulator's unit: acc biases to 50 mg and
+    """Hand-placed sessions of MEMS units (the simulator's unit: acc biases to 50 mg and
     scale/misalignment to 1e-2, gyro biases to 2 deg/s and T off I by up to 4e-2, 1 mg and 0.1 deg/s noise,
     16-bit counts): the accelerometer biases and the gyro's T within their stds over seeds."""
     from simucal.calibrate import calibrate
@@ -64,7 +64,7 @@ def test_mems_units_by_hand_within_their_stds(tmp_path):
 
 @pytest.mark.slow
 def test_mems_units_over_temperature_plateaus(tmp_path):
-    """Issue 50, item 4: a MEMS unit (mems_unit: biases 50 mg and 0.5 deg/s, scale factors 2e-2) at three
+    """A MEMS unit (mems_unit: biases 50 mg and 0.5 deg/s, scale factors 2e-2) at three
     wandering plateaus with MEMS-sized temperature coefficients (0.1 mg/degC, 10 deg/h/degC, 1e-4/degC):
     calibrate --thermal passes its test and every coefficient the truth holds is within 3.5 of its stds."""
     from simucal.calibrate import calibrate_thermal

@@ -1,4 +1,4 @@
-"""simucal montecarlo (issue 14): batched simulation and compiled fits, std against the CRLB."""
+"""simucal montecarlo: batched simulation and compiled fits, std against the CRLB."""
 import json
 
 import numpy as np
@@ -200,7 +200,7 @@ MODELS = [ACC_BASELINE.with_terms("acc_{name}_mc", [Term("{param}", "x", {term},
 @pytest.mark.slow
 def test_a_users_model_file_runs_compiled_with_std_at_the_bound(tmp_path):
     """--effect-file: the user's model is the truth and the fitted model, through the compiled fit
-    (issue 27: any library effect or user model file); its term's std meets its CRLB and its mean the
+    (any library effect or user model file); its term's std meets its CRLB and its mean the
     truth. A term reading a column the averaged positions never vary is refused, naming the column."""
     (tmp_path / "cubic.py").write_text(MODEL_FILE.format(name="cubic", param="K3_x", term="f_b[0] ** 3",
                                                           unit="g/g^3"))

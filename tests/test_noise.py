@@ -1,4 +1,4 @@
-"""`simucal noise` (issue 26, item 3; issue 38, item 1): the Allan deviation against allantools, its
+"""`simucal noise`: the Allan deviation against allantools, its
 covariance against a brute-force sum, the IEEE 952 terms recovered from simulated noise of known
 size with stds right over seeds and absent terms not reported, Kalibr's imu.yaml in SI (only when
 complete), a stuck channel named, and refusals."""
@@ -215,7 +215,7 @@ def test_the_covariance_of_the_allan_variance_is_the_brute_force_sum(brute_produ
 
 
 def test_a_day_at_200_hz_with_a_strong_walk_has_a_positive_definite_covariance():
-    """Issue 41: 24 h at 200 Hz, a random walk of 10 deg/h/sqrt(h) over a white noise of 0.1
+    """24 h at 200 Hz, a random walk of 10 deg/h/sqrt(h) over a white noise of 0.1
     deg/sqrt(h). The walk's filter correlation is exact at lags of the record's length (it was the
     difference of cubics of 1e21 there: minus 5.9 as the smallest eigenvalue of the correlation),
     and the covariance at the record's 60 taus is positive definite."""

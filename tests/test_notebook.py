@@ -1,4 +1,4 @@
-"""Issue 40's Done-when, as a notebook user does it with only the documented API (README, "Python API"):
+"""What a notebook user does with only the documented API (README, "Python API"):
 calibrate a DataFrame, apply the calibration to another DataFrame in the user's own units (temp_c taken
 from the frame where the model follows temperature), validate, read the parameter table."""
 import numpy as np

@@ -1,4 +1,4 @@
-"""A user's recordings are read-only (issue 24): no command writes into or over its inputs, a
+"""A user's recordings are read-only: no command writes into or over its inputs, a
 measurement set is replaced only with --force, and files are written by a temporary name and a
 rename, so an interrupted write leaves the old file or the new one, never half."""
 import hashlib

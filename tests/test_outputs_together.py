@@ -1,4 +1,4 @@
-"""A command's outputs (issue 39): two outputs on one path, or one inside the other, are refused
+"""A command's outputs: two outputs on one path, or one inside the other, are refused
 before any work; every output's place is checked writable before the work; a command writes all
 its outputs or none."""
 import hashlib

@@ -1,4 +1,4 @@
-"""Issue 40 item 4: every page read at a glance. Each page the commands write (diagnosis of a turntable
+"""Every page read at a glance. Each page the commands write (diagnosis of a turntable
 set, with an effect added, and of a stream; validation; thermal; noise; field drift), built from the demo's data:
 no text of any figure overlaps another or sits on a marker, nothing shrinks below 8 px in a 1280 px
 window (tests/page_layout.py says why without a browser), every page opens with a verdict per sensor

@@ -1,4 +1,4 @@
-"""simucal plan (issue 16): the Fisher information of a plan, its scores, D/A-optimal designs."""
+"""simucal plan: the Fisher information of a plan, its scores, D/A-optimal designs."""
 import numpy as np
 import pytest
 from click.testing import CliRunner

@@ -1,4 +1,4 @@
-"""Every command the README and the docs (docs/**/*.md) show runs (issue 39: 5 of its 8 benchmark commands
+"""Every command the README and the docs (docs/**/*.md) show runs (5 of its 8 benchmark commands
 crashed and no test ran benchmarks/). Their code blocks are read here, not copied: a block whose commands hold
 no placeholder runs as written, in order, in a fresh folder; the benchmarks run at a small size
 (their size options below), each its own test; a block of placeholders (DIR, [--option], a|b) is a

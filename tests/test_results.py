@@ -1,4 +1,4 @@
-"""The typed core (issue 40, item 0): one level at which a model fails, one candidate schema, the
+"""The typed core: one level at which a model fails, one candidate schema, the
 diagnosis's model test under its name and its old one, no write onto the caller's set (a fit that
 stops at its limit is told by its type: tests/test_calibrate_and_io.py)."""
 import json
@@ -174,7 +174,7 @@ class _Fake:
 
 
 def test_auto_keeps_no_effect_that_leaves_the_model_failing_having_explained_little():
-    """Issue 51: an effect that passes the gate and predicts the held-out rows better, but leaves the model
+    """An effect that passes the gate and predicts the held-out rows better, but leaves the model
     failing with less than half the misfit explained and moves a baseline parameter by more than its std,
     is not kept; where it explains most of the misfit it is (more may be missing, in the library)."""
     from simucal.fit.selection import forward_selection
@@ -188,7 +188,7 @@ def test_auto_keeps_no_effect_that_leaves_the_model_failing_having_explained_lit
 
 
 def test_several_library_effects_at_once_are_not_called_outside_the_library():
-    """Review of issue 51: three accelerometer quadratics planted at once each explain under half of the misfit;
+    """Three accelerometer quadratics planted at once each explain under half of the misfit;
     together (family.outside_library's joint test of the strongest three) they explain it, so calibrate and
     diagnose advise one of them, not 'outside the library'."""
     from simucal import api

@@ -1,4 +1,4 @@
-"""The derivations checked by a second route (issue 54, item 5).
+"""The derivations checked by a second route.
 
 tests/test_generated.py holds generated/ equal to the SymPy expressions it was printed from: that
 catches printing, not derivation. Here each derived quantity is computed another way, with numpy and
@@ -303,7 +303,7 @@ def forward_error(derived_output, model_name="acc_baseline", effects=()) -> floa
 
 @pytest.mark.parametrize("sensor", ["acc", "gyro"])
 def test_the_simulators_forward_model_is_their_own_and_equals_the_derivation(sensor):
-    """Issue 54: the turntable's and the sequences' simulators write the outputs with a forward model written
+    """The turntable's and the sequences' simulators write the outputs with a forward model written
     by hand (turntable/forward.py), not the fit's generated one; the two agree on every library effect."""
     from simucal.generated.effects import EFFECTS
     ids = [e for e in EFFECTS if EFFECTS[e].sensor == sensor]

@@ -1,4 +1,4 @@
-"""Issue 43: simucal runs only code the user built. Code another user planted in the cache never
+"""Simucal runs only code the user built. Code another user planted in the cache never
 runs: a library built from a model's own C plus a constructor that writes a marker file is put
 where simucal's build was (the attack of the issue: the calibration comes out the same, so only
 the marker shows it ran), and simucal loads it in a process of its own (dlopen would return a
@@ -253,7 +253,7 @@ def test_processes_adding_models_to_one_cache_lose_no_entry(tmp_path, monkeypatc
 
 
 def test_a_cache_path_that_is_a_file_is_named_and_the_numpy_modules_run(tmp_path, paper_set):
-    """SIMUCAL_CACHE naming a file (issue 53): a warning naming the variable and the fix, the work done by the
+    """SIMUCAL_CACHE naming a file: a warning naming the variable and the fix, the work done by the
     uncompiled modules; was FileExistsError, 'a bug in simucal'."""
     (tmp_path / "afile").write_text("")
     r = subprocess.run([sys.executable, "-m", "simucal", "calibrate", str(paper_set[0]), "-o", str(tmp_path / "c.json")],
@@ -263,7 +263,7 @@ def test_a_cache_path_that_is_a_file_is_named_and_the_numpy_modules_run(tmp_path
 
 
 def test_a_cache_inside_the_input_is_refused_and_nothing_written_there(tmp_path, monkeypatch):
-    """Compiled libraries are never written into a user's data (issue 53): a cache inside the set read."""
+    """Compiled libraries are never written into a user's data: a cache inside the set read."""
     from cli_helpers import refused
     from simucal.turntable.simulate import Scenario, write
     write(tmp_path / "set", Scenario(), seed=1)

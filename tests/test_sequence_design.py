@@ -1,4 +1,4 @@
-"""Issue 55, item 2: designed rotation sequences. The built-ins fitted to a table time, PSINS' published
+"""Designed rotation sequences. The built-ins fitted to a table time, PSINS' published
 19 positions turned about the unit's own axes, the design never worse than the built-in it starts from
 and the same call designing the same sequence, what it writes read back by simulate and calibrated, the
 unit taken from a calibration file, and what it cannot use refused in one line."""

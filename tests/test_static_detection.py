@@ -1,4 +1,4 @@
-"""The static detector's gyro limit from the data and the intervals its rules drop (issue 63, item 1)."""
+"""The static detector's gyro limit from the data and the intervals its rules drop."""
 import json
 from pathlib import Path
 

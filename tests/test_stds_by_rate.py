@@ -1,4 +1,4 @@
-"""The turntable calibration's stds against truth at raw sample rates (issue 38, item 2):
+"""The turntable calibration's stds against truth at raw sample rates:
 benchmarks/bench_stds_by_rate.py over more seeds and rates; here a few seeds, which could fail."""
 import numpy as np
 import pytest
@@ -55,7 +55,7 @@ def test_turning_mean_is_the_mean_over_whole_revolutions():
 @pytest.mark.slow
 @pytest.mark.parametrize("rate_hz", [20.0, 100.0])
 def test_simulated_raw_sets_state_their_table_and_their_stds_hold(rate_hz):
-    """Issue 51, item 5: simulate states the table it simulated in meta.json (table_tilt_arcsec,
+    """Simulate states the table it simulated in meta.json (table_tilt_arcsec,
     table_accuracy_arcsec), as a lab's meta.json would; nothing stated by hand, the gyro's stds hold the
     tilt (they were 1.5x at 20 Hz and 2.9x at 100 Hz smaller than the errors)."""
     import simucal

@@ -1,4 +1,4 @@
-"""Issue 42: systematic calibration. A rotation sequence simulated (simulate --sequence), the filter's
+"""Systematic calibration. A rotation sequence simulated (simulate --sequence), the filter's
 model held against its SymPy derivation, every parameter within 3 std of the truth, the stds against
 the scatter over seeds, the innovations' test failing where an effect is planted and passing once it
 is added, and bad input refused in one line."""
@@ -230,7 +230,7 @@ def test_a_table_rate_error_reaches_the_norm_method_alone():
 @pytest.mark.slow
 @pytest.mark.parametrize("seed", [0, 1, 2])
 def test_lever_arms_and_a_delay_are_estimated_within_3_std_and_without_them_the_model_fails(short, seed):
-    """Issue 55, item 1: the accelerometers' lever arms and their delay behind the gyros, read from the body
+    """The accelerometers' lever arms and their delay behind the gyros, read from the body
     rate and its change the gyros give (fit/aux_inputs.motion); the simulator writes them by its own
     physics (turntable/forward.py). Without the states the model fails and names one of them (20 seeds
     of psins19 in docs/systematic.md)."""
@@ -261,7 +261,7 @@ def test_the_body_rate_s_change_adds_up_to_each_move_s_change_of_rate():
 
 
 def test_zero_position_updates_sharpen_the_heading_s_parameters_and_blunt_none():
-    """Issue 55, item 3: where the table returns to a position it held (psins19's inner and outer axes go
+    """Where the table returns to a position it held (psins19's inner and outer axes go
     round) and meta.json states its accuracy, each return is an attitude update against the first visit
     (systematic/zero_position.py): every std no worse, the z gyro's scale (seen through the heading, which
     zero-velocity updates see only through the Earth rate) 10 % better at a 4.5 arcsec table; none where

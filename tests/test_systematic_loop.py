@@ -1,4 +1,4 @@
-"""Issue 42, the loop on the filter: diagnose on the innovations (the model test, the candidates of
+"""The loop on the filter: diagnose on the innovations (the model test, the candidates of
 both sensors ranked on them), --add auto through the filter, and plan --sequence's observability."""
 import json
 
@@ -135,7 +135,7 @@ MODELS = [ACC_BASELINE.with_terms("acc_fxfy_truth", [Term("K_xy", "z", f_b[0] * 
 
 @pytest.mark.slow
 def test_a_strong_effect_fails_the_model_where_the_omnibus_passes(short):
-    """Issue 51: an effect at about 12 of its stds adds ~150 to a NIS of thousands of dof, inside the omnibus's
+    """An effect at about 12 of its stds adds ~150 to a NIS of thousands of dof, inside the omnibus's
     tail; its targeted test (fit/family.py) fails the model, and calibrate advises it."""
     ms = simucal.simulate(sequence=short, seed=5, effects={"acc.cross_coupling.xy": 3e-4})
     cal = simucal.calibrate(ms, method="systematic")
@@ -151,7 +151,7 @@ def test_a_strong_effect_fails_the_model_where_the_omnibus_passes(short):
 
 @pytest.mark.slow
 def test_an_effect_outside_the_library_is_said_so_on_a_sequence(short, tmp_path):
-    """Issue 51: acc z reading f_x f_y (no library effect has it). calibrate and diagnose say that no library
+    """Acc z reading f_x f_y (no library effect has it). calibrate and diagnose say that no library
     effect explains the misfit, advise no --add, and --add auto keeps nothing (the parameters as without it)."""
     (tmp_path / "fxfy.py").write_text(FXFY)
     ms = simucal.simulate(sequence=short, seed=3, effect_file=str(tmp_path / "fxfy.py"), sets={"K_xy": 1e-3})

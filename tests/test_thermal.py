@@ -1,4 +1,4 @@
-"""Thermal calibration (issues 26 and 37): one unit at temperature plateaus that wander +-0.3 degC, or on
+"""Thermal calibration: one unit at temperature plateaus that wander +-0.3 degC, or on
 one ramp, calibrated with --thermal by one fit of every row at its own temperature (every parameter a
 polynomial in T - T_ref inside the model); simulated from the command line at a temperature; the joint
 model test passes where each plateau alone fails, the planted polynomials come back and nothing the truth
@@ -438,7 +438,7 @@ def test_a_linear_bias_through_plateaus_symmetric_about_t_ref_stays(tmp_path):
 
 @pytest.mark.slow
 def test_a_library_effect_beside_the_temperature_terms_fails_the_joint_model(tmp_path):
-    """Issue 51: the joint thermal fit's test is one family with the library's other effects' targeted tests
+    """The joint thermal fit's test is one family with the library's other effects' targeted tests
     (fit/family.py): acc.quadratic.z at ~11 of its stds beside planted temperature terms is named as the
     effect to add; clean plateaus pass."""
     import simucal
@@ -454,7 +454,7 @@ def test_a_library_effect_beside_the_temperature_terms_fails_the_joint_model(tmp
 
 @pytest.mark.slow
 def test_auto_chooses_between_twins_with_every_plateau(tmp_path):
-    """Issue 51, item 2: `--add auto` chooses its effects on the plateau nearest T_ref, where acc.quadratic.z
+    """Item 2: `--add auto` chooses its effects on the plateau nearest T_ref, where acc.quadratic.z
     and acc.scale_asymmetry.z read alike on fibonacci24; at these seeds it took scale_asymmetry there. The joint
     fit over every plateau chooses again (the lower joint chi-square) and says so: the planted one is kept
     and the model passes."""

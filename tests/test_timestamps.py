@@ -1,4 +1,4 @@
-"""Real loggers' sessions (issue 38, item 3): as many poses as parameters, and a logger's time stamps."""
+"""Real loggers' sessions: as many poses as parameters, and a logger's time stamps."""
 import json
 
 import numpy as np
@@ -25,7 +25,7 @@ def test_as_many_poses_as_parameters_calibrates_and_says_no_test(tmp_path):
 
 def test_nine_rate_runs_leave_the_gyro_tested_at_rest(tmp_path):
     """Nine positions and nine rate runs: the rate runs hold as many rows as the gyro's parameters (0 dof,
-    where the console's formatter died on p = None); its static rows still test it (issue 38 item 4)."""
+    where the console's formatter died on p = None); its static rows still test it."""
     from simucal.turntable import plans
     plan = tmp_path / "p9.csv"
     plan.write_text("outer_deg,middle_deg,inner_deg\n" + "".join(
@@ -97,7 +97,7 @@ def test_stamps_that_lose_samples_are_kept(tmp_path):
 
 
 def test_a_gap_is_named_never_spread(tmp_path):
-    """Issue 53: a stream with an hour missing in the middle. --timestamps nominal would spread the hour over
+    """A stream with an hour missing in the middle. --timestamps nominal would spread the hour over
     every step: refused, naming where and how long; auto keeps the stamps, and the console and the file name
     the gap (it was 'regular: step 10 ms' with no line, and the file's irregular false)."""
     from cli_helpers import refused
@@ -120,7 +120,7 @@ def test_a_gap_is_named_never_spread(tmp_path):
 
 
 def test_a_sequence_with_samples_missing_in_a_move_is_refused_naming_the_segment(tmp_path):
-    """Issue 53: ten samples missing inside a move of a rotation sequence (was THE MODEL FAILS, chi2 6e9,
+    """Ten samples missing inside a move of a rotation sequence (was THE MODEL FAILS, chi2 6e9,
     and diagnose sent the user after a missing effect)."""
     from cli_helpers import refused
     from simucal import api, io
@@ -156,7 +156,7 @@ def test_a_gap_inside_a_turntable_segment_is_named(tmp_path):
 
 
 def test_validate_reads_a_loggers_stamps_as_the_calibration_did(tmp_path):
-    """Issue 51, item 4: a session calibrated on the sensor's clock, validated on another session of the same
+    """A session calibrated on the sensor's clock, validated on another session of the same
     unit whose stamps a logger wrote. validate reads them as the calibration did (the line says so), both arms
     take this session's own rest bias, and the gyro's direction check has a floor: with the logger's stamps it
     equals the check on the true stamps within that floor, and the calibrated gyro is at it."""

@@ -1,4 +1,4 @@
-"""Input that looks valid and is not (issue 39): a noise.json, a calibration, a measurement set or a
+"""Input that looks valid and is not: a noise.json, a calibration, a measurement set or a
 model file that a user edited or a tool damaged is refused in one line naming the file, the entry
 and the fix, never an internal error or a silent wrong answer."""
 import copy
@@ -101,7 +101,7 @@ def _meta(folder, **kw):
 
 
 def test_validate_knows_its_own_rows_by_their_samples(raw, tmp_path):
-    """Issue 39: adding average_s to meta.json (which calibrate --noise asks for) hid that the rows were
+    """Adding average_s to meta.json (which calibrate --noise asks for) hid that the rows were
     the calibration's own. The calibration records a digest of each segment's samples: an edit of
     meta.json, segments.csv or the number format does not hide them, a few of its segments copied into
     another set show, and a file without the digests (an older one) still compares the files."""
@@ -308,7 +308,7 @@ def test_a_model_file_that_never_returns_is_said_at_once_and_stopped_at_its_limi
 
 @pytest.mark.slow
 def test_the_diagnosis_next_command_keeps_every_add_and_agrees_with_the_verdicts(tmp_path):
-    """Issue 39: the page's Next dropped the --add that made the model pass, its verdict said another
+    """The page's Next dropped the --add that made the model pass, its verdict said another
     command, and the gyro's Next omitted the accelerometer's --add. One next command for the set now
     holds every --add (the ones diagnose ran with and what each failing verdict adds), on the console
     and the page, and running it makes both models pass."""
@@ -399,7 +399,7 @@ def test_a_noise_file_without_a_sensor_says_whose_noise_is_used(raw, tmp_path):
 
 
 def test_one_error_base_caught_in_one_place(tmp_path, monkeypatch):
-    """Issue 54, item 3: every refusal subclasses errors.SimucalError, which the command line alone catches
+    """Every refusal subclasses errors.SimucalError, which the command line alone catches
     (exit 2, one line); anything else escaping a command is a bug: exit 3 with its traceback, even a KeyError
     or a ValueError (until now a bug's KeyError exited 2 like a user's mistake); no command catches them
     itself."""

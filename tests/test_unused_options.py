@@ -1,5 +1,5 @@
 """An option a run will not use is refused in one line naming what it applies to, before any work
-(issue 39: simulate --scenario field dropped --effect, --plan, ...; plan --score dropped --rates-dps;
+(simulate --scenario field dropped --effect, --plan, ...; plan --score dropped --rates-dps;
 --plot with a name that is not an image failed after the work)."""
 import json
 import pytest

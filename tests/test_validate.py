@@ -1,4 +1,4 @@
-"""`simucal validate` (issue 23, item 4): a calibration applied to a set it was not made from, the error
+"""`simucal validate`: a calibration applied to a set it was not made from, the error
 before (nominal scale factors) and after, against the noise floor."""
 import json
 import shutil
@@ -57,7 +57,7 @@ def test_the_direction_floor_holds_the_tables_stated_angle_errors(table, tmp_pat
     not, the check says how to state it."""
     shutil.copytree(table / "val", tmp_path / "val")
     meta = json.loads((tmp_path / "val" / "meta.json").read_text())
-    # simulate states the table it simulated (issue 51): the floor holds it and the check reaches it
+    # simulate states the table it simulated: the floor holds it and the check reaches it
     assert meta["table_accuracy_arcsec"] >= np.degrees(Scenario().position_error_rad) * 3600 / np.sqrt(3)
     stated, _ = _report(tmp_path, table / "added.json", "val", tmp_path / "s.json")  # an absolute path joins as itself
     d = stated["checks"]["acc"][1]
@@ -148,7 +148,7 @@ def test_a_second_recording_of_one_drawn_unit(tmp_path, scenario):
         assert _run("calibrate", tmp_path / "a", "-o", tmp_path / "c.json").exit_code == 0
         assert _run("validate", tmp_path / "c.json", tmp_path / "b", "-o", tmp_path / "r.json").exit_code == 0
         verdict = json.loads((tmp_path / "r.json").read_text())["verdict"]
-        # the gyro's direction check has a floor since issue 51 (the rest's noise, its bias's error, the poses')
+        # the gyro's direction check has a floor (the rest's noise, its bias's error, the poses')
         assert verdict["acc"] in ("better", "at the noise floor") and verdict["gyro"] == "at the noise floor", verdict
 
 
@@ -171,7 +171,7 @@ def test_mislabelled_positions_are_named_and_not_called_better(table, tmp_path):
 
 
 def test_averaged_rows_without_stated_noise_take_it_from_the_options(tmp_path):
-    """Issue 51: validate of averaged rows whose noise the set does not state had no floor (floor_rms null);
+    """Validate of averaged rows whose noise the set does not state had no floor (floor_rms null);
     --acc-noise-g/--gyro-noise-dph give it, as calibrate takes them."""
     import json
 

@@ -1,4 +1,4 @@
-"""One vocabulary for every method (issue 54, item 1): M and bias with their stds whatever the method
+"""One vocabulary for every method: M and bias with their stds whatever the method
 fitted, and calibrations of one unit side by side (simucal.compare) in the accelerometers' frame."""
 import numpy as np
 import pytest

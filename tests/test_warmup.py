@@ -1,4 +1,4 @@
-"""A still board warming up (issue 50, simucal/handheld/warmup.py): each axis's bias over temperature with
+"""A still board warming up (simucal/handheld/warmup.py): each axis's bias over temperature with
 honest stds where the bias also wanders in time, a model test that holds its level, the autopilots' files
 with the log's device ids, and refusals that say what still data can give."""
 import numpy as np

@@ -1,4 +1,4 @@
-"""The public Python API (issue 40, item 1): `import simucal` and call
+"""The public Python API: `import simucal` and call
 
     read_set, MeasurementSet.from_arrays / .from_dataframe / .write, simulate, calibrate -> Calibration,
     Calibration.apply / .parameters / .sensor, compare (calibrations side by side in one vocabulary),

@@ -1,4 +1,4 @@
-"""Other tools' recordings and logs into measurement sets, from Python (issue 54, items 3 and 4):
+"""Other tools' recordings and logs into measurement sets, from Python:
 `simucal import` and `simucal convert` are one call of these plus printing."""
 from __future__ import annotations
 

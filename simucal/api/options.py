@@ -1,4 +1,4 @@
-"""calibrate's options by their Python names, typed (issue 54, item 2): `simucal.calibrate(data, **options)`
+"""calibrate's options by their Python names, typed: `simucal.calibrate(data, **options)`
 and `simucal.calibrate_each` take them as keyword arguments checked by a type checker (PEP 692), so that
 `methd="exact"` or `add=3` is an error in the notebook's editor, not only at run time. Each is the
 command line's option of the same name (docs/commands.md). The functions name it as

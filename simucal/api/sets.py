@@ -36,7 +36,7 @@ class MeasurementSet(io.MeasurementSet):
     truth: results.Truth | None = None  # a simulated set's truth (truth.json), else None
 
     def __repr__(self) -> str:
-        """One line (issue 54: the dataclass's printed every array, 8 kB): where, what kind of data, how many
+        """One line (the dataclass's printed every array, 8 kB): where, what kind of data, how many
         rows over how long, the sensors' units and the other columns; the arrays are in `samples`."""
         from simucal import methods
         t = self.samples["t_s"]

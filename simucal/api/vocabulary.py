@@ -1,4 +1,4 @@
-"""One vocabulary for every method (issue 54, item 1): a sensor's M (output per input, frame b) and bias,
+"""One vocabulary for every method: a sensor's M (output per input, frame b) and bias,
 with their stds, whatever the method fitted, and the method's own names beside them.
 
 Each method fits its own parameters: the exact and linear norm fits dK_x, theta_yx, b_x (dong2018 eq. 5,

@@ -1,4 +1,4 @@
-"""The covariance of overlapping Allan variance estimates at a grid of cluster sizes (issue 38).
+"""The covariance of overlapping Allan variance estimates at a grid of cluster sizes.
 
 An estimate at cluster size m is S_m / (2 tau^2 n_m), S_m = sum_k d_k^2 over the n_m second
 differences d_k = theta_{k+2m} - 2 theta_{k+m} + theta_k of the integrated output (allan.py). Each
@@ -21,7 +21,7 @@ breakpoints, so each piece is summed directly where it is short and, where it is
 by Euler-Maclaurin, exact for these degree-7 pieces: the integral plus the end terms up to B_6,
 from the piece's Chebyshev interpolant at 8 points (_euler_maclaurin_weights). The old form
 (Gauss-Legendre plus the trapezoid's ends, relative error 1 / (6 LONG^2)) broke the positive
-definiteness of the strongly correlated random-walk covariance (issue 41). The quantisation filter has nine taps: its terms are
+definiteness of the strongly correlated random-walk covariance. The quantisation filter has nine taps: its terms are
 evaluated at those lags. A bias instability (flicker) or a ramp has no finite filter and is not
 carried: the covariance is that of white noise, random walk and quantisation.
 """
@@ -74,7 +74,7 @@ def _ramp(y, m):
     """(box_m^2 * step^2)(y) = sum_s (-1)^s C(2, s) C(y - s m + 3, 3) (zero below y - s m = -1).
     Where all three terms are on (y >= 2 m - 1) their cubics cancel to the line m^2 (y - m + 2)
     (the second difference of (u^3 - u) / 6, u = z + 2, is m^2 u at the centre): evaluated so, not
-    as the difference of three cubics of size y^3, which at y ~ 1e7 loses every digit (issue 41)."""
+    as the difference of three cubics of size y^3, which at y ~ 1e7 loses every digit."""
     y = np.asarray(y, dtype=float)
     on = y >= 2 * m - 1
     y_low = np.where(on, 0.0, y)  # the cubics only where they are of the size of the result

@@ -1,5 +1,5 @@
 """The IEEE 952 terms fitted to an overlapping Allan variance curve by generalised least squares
-with the estimates' covariance, and kept only where the data show them (issue 38, item 1).
+with the estimates' covariance, and kept only where the data show them.
 
 Why GLS and not GMWM: GMWM (Guerrier et al. 2013) fits the Haar wavelet variance, which is the
 Allan variance over two (nu^2(tau) = sigma^2(tau) / 2), with a weight matrix estimated from the

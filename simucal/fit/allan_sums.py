@@ -1,5 +1,5 @@
-"""The overlapping Allan variance of a long still recording, read a chunk at a time (issue 41, item 1;
-`simucal noise`: simucal.allan.characterise_folder).
+"""The overlapping Allan variance of a long still recording, read a chunk at a time
+(`simucal noise`: simucal.allan.characterise_folder).
 
 The overlapping Allan variance (simucal.allan, IEEE 952-1997 Annex C eq. C.2) needs, per channel,
 only the integrated output theta_k = sum_{i<k} y_i: sigma^2(m dt) = sum_k (theta_{k+2m} -

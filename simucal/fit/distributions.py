@@ -1,7 +1,7 @@
 """Tail probabilities of the chi-square, F and t distributions, in plain Python.
 
 The tests' p-values need only these few functions; scipy.special costs 0.12 s
-to import, a third of the command's budget (issue 14). Regularized incomplete
+to import, a third of the command's budget. Regularized incomplete
 gamma and beta functions by their series and continued fractions (Numerical
 Recipes, 3rd ed., 6.2 and 6.4), computed from their logarithms so tiny tails stay
 positive; relative error below 1e-9 down to 1e-100, 1e-2 down to 1e-250

@@ -1,4 +1,4 @@
-"""The model test as one family: the omnibus statistic and the library's targeted tests (issue 51, item 1).
+"""The model test as one family: the omnibus statistic and the library's targeted tests.
 
 An omnibus chi-square over thousands of dof has little power against one direction: an effect at
 18 of its own stds adds about 18^2 = 324 to a chi-square of 2115 dof, whose ALPHA tail starts 220

@@ -1,4 +1,4 @@
-"""The typed results of the model test, the candidate ranking and forward selection (issue 40, item 0).
+"""The typed results of the model test, the candidate ranking and forward selection.
 
 - ModelTest: a model's test (chi2, dof, p) and the one level at which a model fails, ALPHA
   (io.calibration: the calibration file's `verdict` is defined by it). The advice, `--add auto`,

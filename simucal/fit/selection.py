@@ -1,4 +1,4 @@
-"""`--add auto`: one forward selection for every fit that ranks candidates (issue 40, item 0).
+"""`--add auto`: one forward selection for every fit that ranks candidates.
 
 The library effects a failing model needs, chosen one at a time, by one rule for the turntable's
 and a stream's poses (the exact norm fit: fit.candidates.NormStep) and a stream's moves (the gyro
@@ -108,7 +108,7 @@ def _still_failing(start: Step, step: Step, steps: list[dict], why: str) -> Sele
     family.OUTSIDE_SHARE of the start's misfit (its chi-square's excess over the dof) and moved a
     baseline parameter by more than its std, they are not kept: what fails is then most likely
     outside the library, and effects that only absorb part of it bend the parameters the user wants
-    (issue 51: a sequence's gyro bias went from 37 to 49 std off the truth). The start's model is
+    (a sequence's gyro bias went from 37 to 49 std off the truth). The start's model is
     returned; the reason names the effects tried."""
     t0, t1 = start.test(), step.test()
     if not steps or t0.chi2 is None or t1.chi2 is None or t0.chi2 <= t0.dof \

@@ -1,4 +1,4 @@
-"""`--add auto` over every row of a thermal calibration (issue 51, item 2).
+"""`--add auto` over every row of a thermal calibration.
 
 calibrate --thermal --add auto chooses its effects on the plateau nearest T_ref (calibrate.py: that
 plateau gives the frames, the checks and the model's shape), a third of the rows of three plateaus.

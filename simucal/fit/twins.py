@@ -1,4 +1,4 @@
-"""Whether the data tell two candidate terms apart, and what would (issue 38, item 5).
+"""Whether the data tell two candidate terms apart, and what would.
 
 Two candidates are twins where these data cannot say which of them the misfit holds, judged by
 the fit itself rather than by how alike their signatures look: with a and b each candidate's
@@ -16,7 +16,7 @@ acc.scale_asymmetry.z, which `plan --separate` gives power 0.01) scale_asymmetry
 10-17 and at LR gaps 3.9 and 4.7 (seeds 15, 17) no note said so. At 10.83 the note stands unless the
 data reject the twin at the level every other test here uses (tests/test_diagnose.py checks both
 plans over 20 seeds). A fixed cosine (0.99) called a temperature and a time term twins on a
-ramp whose likelihood ratios differed by 70 (as issue 38 reports), and missed the same pair at a
+ramp whose likelihood ratios differed by 70, and missed the same pair at a
 cosine of 0.976 whose ratios were 82.5 and 84.0 (tests/test_diagnose.py). Where the noise is
 unknown, s2 (the residual variance) scales the sums.
 """

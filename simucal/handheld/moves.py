@@ -308,7 +308,7 @@ def choose_gyro_model(mv: Moves, g_dirs, bias_std, f_full: GyroFit, held=()) -> 
     only, or the full 3x3. A richer one is taken only where it predicts the left-out moves better than
     the one chosen before it, significantly: the paired test of their squared held-out errors
     (cross_validation.paired_improvement) at fit/selection.HELD_OUT_ALPHA, the level of `--add auto`'s
-    same question (issue 51: a fixed 2 % gain took a full T at p = 0.29 that transferred 22 % worse).
+    same question (a fixed 2 % gain took a full T at p = 0.29 that transferred 22 % worse).
     So the chosen model's held-out error is never above the nominal's. Returns (name, its fit, the
     table: each model's held-out and in-sample rms and p_better)."""
     from simucal.fit.cross_validation import paired_improvement

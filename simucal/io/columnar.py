@@ -1,4 +1,4 @@
-"""samples.parquet beside samples.csv, and either read in chunks (issue 41: recordings of hours).
+"""samples.parquet beside samples.csv, and either read in chunks (recordings of hours).
 
 A set holds its samples in samples.csv or, as a compatible extension of the spec
 (docs/notes/samples-parquet.md), in samples.parquet: the same columns, named as in samples.csv,

@@ -10,7 +10,7 @@ round it, 4x faster than pyarrow's parse and with no table copied out; anything 
 compiler is found. pyarrow parses the spec's columns as float64 from the start (type inference
 and a conversion cost 2.8x the parse), each piece's table copied out and dropped. Each piece with
 use_threads=False: Arrow's own CPU pool left std::threads alive at exit, about one exit in a
-hundred a SIGABRT (issue 39; apache/arrow#34314), while these threads are joined before the
+hundred a SIGABRT (apache/arrow#34314), while these threads are joined before the
 function returns."""
 from __future__ import annotations
 

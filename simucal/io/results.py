@@ -1,4 +1,4 @@
-"""What the planning and Monte Carlo commands return, as typed dicts (issue 54, item 2): simucal.plan,
+"""What the planning and Monte Carlo commands return, as typed dicts: simucal.plan,
 simucal.montecarlo and simucal.sequence_observability, written by `simucal plan -o` and `simucal montecarlo
 -o` as they are (io/records.py says why typed dicts)."""
 from __future__ import annotations

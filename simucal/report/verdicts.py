@@ -1,5 +1,5 @@
 """The verdicts in words: what a sensor's model test and its candidates say, with the command to
-run next (issue 40, item 0: the statistics layers hand over numbers and ids, this module writes
+run next (the statistics layers hand over numbers and ids, this module writes
 the sentences). diagnose.py asks sensor_verdict of every block once its kind of data has judged it.
 """
 from __future__ import annotations

@@ -1,4 +1,4 @@
-"""Zero-position updates (issue 55, item 3): a table that returns to a position it held before puts the unit
+"""Zero-position updates: a table that returns to a position it held before puts the unit
 at the same attitude again, to its angular accuracy, which the zero-velocity updates alone cannot say (they
 see the tilt, and the heading only through the Earth rate).
 

@@ -1,4 +1,4 @@
-"""The unit's outputs from its truth, written by hand for the simulators (issue 54, item 5).
+"""The unit's outputs from its truth, written by hand for the simulators.
 
 The calibration fits the models derived in derive/ and printed into generated/; a simulator that wrote
 its sets with those same functions would make the loop's tests self-consistent by construction (a wrong

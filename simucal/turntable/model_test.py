@@ -1,4 +1,4 @@
-"""One model test per sensor on a turntable set, shared by calibrate and diagnose (issue 23, item 3).
+"""One model test per sensor on a turntable set, shared by calibrate and diagnose.
 
 The rows: for accelerometers the static positions and the rate runs (a rate run's mean
 specific force is gravity's component along the outer axis plus, with lever arms, a
@@ -84,7 +84,7 @@ def rank(model, obs, fit, base, segs=None, at_rest=None):
 
 
 def static_gyro_test(ms, gm, fg, u_b, C_b_d, static_gyro, term=None) -> records.StaticRows:
-    """The gyro's static rows as part of its model test (issue 38, item 4). At rest a gyro reads the
+    """The gyro's static rows as part of its model test. At rest a gyro reads the
     Earth rate plus its bias: the fitted model (rate runs only) inverted whole at each static
     position, w = h^-1(N), must show the Earth rate's vertical component w_e sin L along the
     accelerometers' up (u_b in d through C_b^d) and its horizontal magnitude w_e cos L (the
@@ -136,7 +136,7 @@ def static_gyro_test(ms, gm, fg, u_b, C_b_d, static_gyro, term=None) -> records.
 
 
 class AtRest:
-    """A gyro model fitted on the rate runs, judged on the rows that fit does not use (issue 51, item 2):
+    """A gyro model fitted on the rate runs, judged on the rows that fit does not use:
     the static rows (static_gyro_test) and, where tie is given, the unification pairs, which tell apart
     the effects the rate runs cannot. A g-sensitivity and its twin in the rate-run means (another
     g-sensitivity, a scale asymmetry) read the same there; at rest only the g-sensitivity reads G f, and

@@ -74,7 +74,7 @@ class Scenario:
     columns: dict = field(default_factory=dict)  # auxiliary columns {name: (low, high)}: uniform, one value per segment
     shuffle: bool = False             # visit the positions in random order (separates time from direction)
     state_noise: bool = True          # write acc_noise_g / gyro_noise_dph into meta.json
-    # meta.json states the table simulated, as a lab's would (issue 51): table_tilt_arcsec, the levelling's std
+    # meta.json states the table simulated, as a lab's would: table_tilt_arcsec, the levelling's std
     # per axis (default the tilt's rms), and table_accuracy_arcsec, each angle's error std (default the position
     # error's, position_error_rad / sqrt(3) for its uniform draw, with the axes' fixed zero offsets and
     # non-perpendicularity, which turn the commanded attitude as much); state_table False: neither
@@ -220,7 +220,7 @@ def unit_from_calibration(path=None, acc_noise_g=None, gyro_noise_dph=None, rate
 
 
 def lever_arms_and_delay(seed: int) -> dict[str, float]:
-    """Library effects drawn at seed (issue 55): the y and z accelerometers' lever arms from the x
+    """Library effects drawn at seed: the y and z accelerometers' lever arms from the x
     accelerometer, 1-5 cm either way (acc.lever_arm.*, m), and one 1-5 ms delay of the accelerometers
     behind the gyros (acc.time_delay.*, s)."""
     rng = np.random.default_rng(500 + seed)
