@@ -4,7 +4,7 @@ Runtime package: reads measurement sets (spec measurement-set.md), simulates,
 calibrates, audits. It imports the generated modules (simucal.generated) and
 never SymPy on the hot path.
 """
-__version__ = "0.1.0"
+from simucal.version import __version__
 
 # The Python API (simucal/api/), imported on first use so that `import simucal` and the command
 # line's start stay light: simucal.read_set, simucal.calibrate, ... (README, "Python API").

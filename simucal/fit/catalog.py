@@ -41,7 +41,7 @@ def models_dir() -> Path:
 
 
 def _key(path: Path) -> str:
-    from simucal import __version__  # not importlib.metadata's lookup: 7 ms a process
+    from simucal.version import __version__  # not importlib.metadata's lookup: 7 ms a process
     h = hashlib.sha256(path.read_bytes())
     h.update(__version__.encode())
     h.update(json.dumps(manifest()["versions"], sort_keys=True).encode())
