@@ -39,5 +39,5 @@ def __getattr__(name):
     raise AttributeError(f"module 'simucal' has no attribute {name!r}")
 
 
-def __dir__():  # a notebook's completion lists the API
-    return sorted([*globals(), *_API])
+def __dir__():  # a notebook's completion lists the API (not the module's own machinery)
+    return sorted([*(n for n in globals() if n.startswith("__") or n in __all__), *_API])

@@ -63,3 +63,25 @@ def test_validate_on_the_other_recording(notebook):
     assert v.independent and v.verdict["acc"] in ("at the noise floor", "better"), v.verdict
     acc = v.checks[v.checks.sensor == "acc"]
     assert (acc.calibrated_rms < acc.nominal_rms).all()
+
+
+def test_a_notebook_sees_short_reprs_its_truth_and_plain_names(tmp_path):
+    """Every public object's repr is a line under 1 kB (the numbers are in its fields and tables); a set read
+    back from its folder has the truth simulate gave it; dir(simucal) lists the API, not the module's own
+    machinery; save refuses a suffix it does not write (it would write JSON under a PX4 name)."""
+    ms = simucal.simulate(seed=1)
+    ms.write(tmp_path / "s")
+    read = simucal.read_set(tmp_path / "s")
+    assert read.truth == ms.truth and read.truth["acc"]["params"]
+    (tmp_path / "s" / "truth.json").write_text("{not json")
+    assert simucal.read_set(tmp_path / "s").truth is None  # never an input: a damaged one is only left out
+    cal = simucal.calibrate(ms, add=["acc.quadratic.z"])
+    for obj in (ms, cal, cal.acc, cal.gyro, simucal.diagnose(ms), simucal.validate(cal, simucal.simulate(seed=2))):
+        assert len(repr(obj)) < 1024 and "\n" not in repr(obj), (type(obj).__name__, repr(obj)[:200])
+    assert "acc.quadratic.z" in repr(cal.acc) and cal.acc.verdict in repr(cal.acc)
+    assert "TYPE_CHECKING" not in dir(simucal) and {"calibrate", "read_set", "__version__"} <= set(dir(simucal))
+    with pytest.raises(simucal.errors.InputError, match=r"x\.params: save writes .* not \.params; PX4's"):
+        simucal.save(tmp_path / "x.params", cal)
+    assert not (tmp_path / "x.params").exists()
+    simucal.save(tmp_path / "cal.json", cal)
+    assert simucal.load(tmp_path / "cal.json").acc.effects.keys() == cal.acc.effects.keys()

@@ -39,6 +39,7 @@ from simucal.api.sets import MeasurementSet, as_set, folder_of, keywords
 from simucal.api.vocabulary import Entry, compare
 from simucal.io import calibration as _file
 from simucal.io import records as _records
+from simucal.io import results
 from simucal.validate import validate as _validate_report
 
 Data = Union[str, os.PathLike, io.MeasurementSet]
@@ -77,7 +78,19 @@ def read_set(path: str | os.PathLike) -> MeasurementSet:
     >>> ms.segments is None  # a stream: a hand-placed session  # doctest: +SKIP
     False
     """
-    return MeasurementSet.of(io.read_set(path))
+    ms = MeasurementSet.of(io.read_set(path))
+    ms.truth = _truth(Path(path) / "truth.json")
+    return ms
+
+
+def _truth(path: Path) -> results.Truth | None:
+    """A simulator's truth.json beside a set (what `simulate` returns as .truth), None where there is none or
+    it is not a JSON object (it is never an input: a damaged one only leaves .truth empty)."""
+    try:
+        d = json.loads(path.read_text()) if path.is_file() else None
+    except (OSError, UnicodeDecodeError, ValueError, RecursionError):
+        return None
+    return cast(results.Truth, d) if isinstance(d, dict) else None
 
 
 @checked
@@ -227,6 +240,7 @@ def save(path: str | os.PathLike, result: Calibration | Validation | Diagnosis |
     >>> simucal.save("validation.html", simucal.validate(cal, "other"))  # doctest: +SKIP
     """
     from simucal.io import outputs
+    _refuse_suffix(path)
     # as every command: never into or over what the result was made from, nor over a set's own files
     outputs.check(_inputs(result), files={str(path): path})
     io.units.check_unit_system(units)
@@ -238,6 +252,21 @@ def save(path: str | os.PathLike, result: Calibration | Validation | Diagnosis |
         save_diagnosis(path, result)
         return None
     return outputs.write_text(path, json.dumps(result.report, indent=1) + "\n")
+
+
+SAVED_AS = {".json": "JSON", ".html": "its page", ".htm": "its page"}
+OTHER_FORMATS = {".params": "PX4's parameters: simucal.autopilot_files(imus, px4=PATH)",
+                 ".param": "ArduPilot's parameters: simucal.autopilot_files(imus, ardupilot=PATH)",
+                 ".yaml": "Kalibr's imu.yaml: Noise.kalibr_yaml()", ".yml": "Kalibr's imu.yaml: Noise.kalibr_yaml()"}
+
+
+def _refuse_suffix(path: str | os.PathLike) -> None:
+    """Refuse a file name whose suffix names a format save does not write (it would write JSON under it)."""
+    suffix = Path(path).suffix.lower()
+    if suffix and suffix not in SAVED_AS:
+        other = OTHER_FORMATS.get(suffix)
+        raise InputError(f"{path}: save writes a result as JSON (.json) or its page (.html), not {suffix}"
+                         + (f"; {other}" if other else "; name the file .json or .html"))
 
 
 def _inputs(result: _file.Calibration | Validation | Diagnosis | Noise) -> list[str]:

@@ -194,6 +194,13 @@ class SensorBlock:
 
     ALWAYS = ("residual_rms", "residual_unit", "chi2", "dof", "p_value")  # written as null where there is no test
 
+    def __repr__(self) -> str:
+        """One line (the dataclass's printed every array and record, 6 kB): the model, its test and verdict, the
+        effects added; the numbers are in the fields and the calibration's parameters()."""
+        test = "no test" if self.p_value is None else f"chi2 {self.chi2:.4g} on {self.dof:g} dof, p = {self.p_value:.2g}"
+        effects = f"; effects {', '.join(self.effects)}" if self.effects else ""
+        return f"<SensorBlock {self.model}: {self.verdict} ({test}){effects}; bias in {self.bias_unit}>"
+
     @property
     def verdict(self) -> str:
         """The model test's verdict, written as the block's `verdict`: "passes", "fails" (p below
