@@ -85,3 +85,19 @@ def test_a_notebook_sees_short_reprs_its_truth_and_plain_names(tmp_path):
     assert not (tmp_path / "x.params").exists()
     simucal.save(tmp_path / "cal.json", cal)
     assert simucal.load(tmp_path / "cal.json").acc.effects.keys() == cal.acc.effects.keys()
+
+
+def test_the_advice_is_data_from_diagnosis_to_the_added_effect():
+    """Diagnosis.suggested holds the effect the verdict names with its statistics, and Diagnosis.next the
+    API's call: the loop runs on them with no sentence parsed, and the model passes after it."""
+    ms = simucal.simulate(seed=1, plan="fibonacci48", effects={"acc.quadratic.z": 2e-4})
+    d = simucal.diagnose(ms)
+    [s] = d.suggested
+    assert (s.sensor, s.id, s.add) == ("acc", "acc.quadratic.z", True) and abs(s.estimate - 2e-4) < 4 * s.std
+    assert s.unit and s.p_value < 1e-3 and isinstance(s.estimate, float)
+    assert d.next.function == "calibrate" and d.next.options == {"add": ["acc.quadratic.z"]}
+    assert d.next.call == d.next_command and d.next.command.startswith("simucal calibrate ")
+    cal = getattr(simucal, d.next.function)(ms, **d.next.options)
+    assert cal.acc.verdict == "passes" and list(cal.acc.effects) == ["acc.quadratic.z"]
+    after = simucal.diagnose(ms, add=[x.id for x in d.suggested if x.add])
+    assert after.suggested == [] and after.next.options == {"add": ["acc.quadratic.z"]}  # the model keeps it

@@ -19,7 +19,8 @@ from typing import Any, NamedTuple, Sequence, Union, cast
 
 from simucal.errors import InputError
 from simucal import io
-from simucal.api.analyses import Candidate, Diagnosis, Noise, Term, diagnose, noise, save_diagnosis
+from simucal.api.analyses import (Candidate, Diagnosis, NextStep, Noise, Suggestion, Term, diagnose, noise,
+                                   save_diagnosis)
 from simucal.api.simulation import montecarlo, simulate
 from simucal.api.tables import table_rows
 from simucal.api.tables import TableOf
@@ -50,7 +51,7 @@ if TYPE_CHECKING:  # api/options.py says why
 __all__ = ["read_set", "simulate", "calibrate", "validate", "diagnose", "noise", "save", "load", "table_rows",
            "compare", "import_recording", "import_instances", "calibrate_instances", "autopilot_files", "ImuCalibration", "convert", "montecarlo", "calibrate_each", "Calibrated", "plan",
            "sequence_observability", "design_sequence", "derive_model", "audit", "DetectSettings", "CalibrateOptions", "MeasurementSet", "Calibration", "Parameter", "Entry",
-           "Validation", "Check", "Diagnosis", "Candidate", "Noise", "Term", "lot"]
+           "Validation", "Check", "Diagnosis", "Candidate", "Suggestion", "NextStep", "Noise", "Term", "lot"]
 
 
 @checked

@@ -33,6 +33,33 @@ class Candidate(NamedTuple):
     note: str
 
 
+class Suggestion(NamedTuple):
+    """One effect the diagnosis's verdicts lead to (`Diagnosis.suggested`): its statistics, the twins the data
+    could not tell from it and how the choice between them was made."""
+    sensor: str
+    id: str                 # the effect id calibrate's add takes
+    estimate: float | None  # its value fitted beside the model, in `unit`
+    std: float | None
+    unit: str
+    statistic: float | None
+    p_value: float | None
+    twins: tuple[str, ...]  # candidates these data cannot tell from it by their likelihood ratio
+    decided_by: str         # which rows chose it over its twins (in words), "" where it has none
+    add: bool               # False: its twins are undecided, so neither is added (the plan that would tell in note)
+    note: str
+
+
+class NextStep(NamedTuple):
+    """The step after a diagnosis (`Diagnosis.next`), as data: the API's function and its keywords, with the
+    same step as a Python call and as a command. function is "" where calibrate would refuse the data and the
+    step is another command (its `command`, and why in `notes`)."""
+    function: str
+    options: dict[str, list[str]]
+    call: str
+    command: str
+    notes: tuple[str, ...]
+
+
 @dataclass
 class Diagnosis:
     """Where a model fails on a set and which missing effect explains it.
@@ -54,6 +81,11 @@ class Diagnosis:
         The data's own (a reflected triad, irregular time stamps).
     model_files : dict
         Per sensor, a found term that is no library effect, as a model file's text (``--add FILE``).
+    suggested : list of Suggestion
+        The effects the verdicts lead to, with their statistics and twins, as data (the sentences are made from
+        them): ``simucal.calibrate(data, add=[s.id for s in d.suggested if s.add])``.
+    next : NextStep
+        The next step as data: ``getattr(simucal, d.next.function)(data, **d.next.options)``.
     report : dict
         What `simucal diagnose -o` writes (``simucal.diagnosis/1``).
     """
@@ -64,6 +96,8 @@ class Diagnosis:
     notes: list[str]
     model_files: dict[str, str]
     report: records.JSONObject  # diagnosis.json as written
+    suggested: list[Suggestion] = field(default_factory=list)
+    next: NextStep = NextStep("calibrate", {"add": []}, "simucal.calibrate(data)", "", ())
     candidates = TableOf("candidate_rows", Candidate._fields)
 
     def __repr__(self) -> str:  # the verdicts are sentences: the first clause of each, the rest in .verdict
@@ -119,16 +153,42 @@ def diagnose(data: Data, *, add: str | Sequence[str] = (), acc_model: str = "acc
     files = {s: report[s]["shape"]["model_file"] for s in sensors
              if report[s].get("shape") and not report[s]["shape"].get("catalog_id")}
     refused = calibrate_refusal(report)
+    adds, notes = next_adds(report)
+    call = f"simucal.calibrate(data, add={adds!r})" + (
+        " (a found term: write Diagnosis.model_files[sensor] to a file and add its path)" if files else "")
     if refused is not None:
         cmd, notes = refused
-    elif isinstance(data, io.MeasurementSet) and not (Path(data.path) / "meta.json").is_file():
-        adds, notes = next_adds(report)  # a set in memory: the next step is a call, not a command on a folder
-        cmd = f"simucal.calibrate(data, add={adds!r})" + (
-            " (a found term: write Diagnosis.model_files[sensor] to a file and add its path)" if files else "")
+        step = NextStep("", {}, "", cmd, tuple(notes))
     else:
-        cmd, notes = next_command(report)
+        in_memory = isinstance(data, io.MeasurementSet) and not (Path(data.path) / "meta.json").is_file()
+        command = next_command(report)[0]
+        cmd = call if in_memory else command  # a set in memory: the next step is a call, not a command on a folder
+        step = NextStep("calibrate", {"add": adds}, call, command, tuple(notes))
     return Diagnosis({s: report[s]["verdict"] for s in sensors}, rows, cmd, notes,
-                     list(report.get("notes", [])), files, report)
+                     list(report.get("notes", [])), files, report, suggestions(report), step)
+
+
+def suggestions(report: dict) -> list[Suggestion]:
+    """Each sensor's effects its verdict adds (report/console.to_add) and a lead whose twins no rows could
+    choose between (added by neither), with the candidate's statistics."""
+    from simucal.report.console import to_add
+    out = []
+    for s in ("acc", "gyro"):
+        if s not in report:
+            continue
+        found, why = to_add(report, s)
+        block = report[s]
+        cands = {c["id"]: c for c in block["candidates"]}
+        lead = next((c for c in block["candidates"] if c.get("significant")), None)
+        undecided = [lead["id"]] if lead and lead.get("twins_undecided") and not found else []
+        for eid in [e for e in found or [] if e in cands] + undecided:
+            c = cands[eid]
+            number = lambda k: None if c.get(k) is None else float(c[k])  # noqa: E731 (numpy's scalars as floats)
+            out.append(Suggestion(s, eid, number("estimate"), number("std"), c.get("unit", ""), number("statistic"),
+                                  number("p_value"), tuple(c.get("twins") or ()),
+                                  str(c.get("twin_choice") or "") if not undecided else "",
+                                  not undecided, why if undecided else str(c.get("note") or "")))
+    return out
 
 
 def shape_model_path(output: str | os.PathLike, sensor: str) -> Path:
