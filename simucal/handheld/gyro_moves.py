@@ -145,3 +145,14 @@ def with_terms(mv: Moves, ids, inputs) -> Moves:
     phi_rest = np.array([np.mean(regressor(e, u0, aux0)) / units.DPH_PER_DPS for e in ids])
     return Moves(mv.y, mv.dt, mv.before, mv.after, mv.t_span, mv.rows, phi, tuple(EFFECTS[e].axis for e in ids),
                  phi_rest)
+
+
+def with_term_added(mv: Moves, eid, inputs) -> Moves:
+    """mv (with_terms' of some effects, or none) with effect eid's regressor after theirs: theirs not evaluated
+    again (a ranking's every candidate is tried beside the same effects)."""
+    if not mv.n_terms:
+        return with_terms(mv, [eid], inputs)
+    assert mv.phi is not None and mv.phi_rest is not None  # with_terms gives them with phi_axes
+    one = with_terms(mv, [eid], inputs)
+    return Moves(mv.y, mv.dt, mv.before, mv.after, mv.t_span, mv.rows, np.concatenate([mv.phi, one.phi]),
+                 mv.phi_axes + one.phi_axes, np.r_[mv.phi_rest, one.phi_rest])

@@ -175,6 +175,14 @@ def effect_column(it: Integrated, T, phi, axis) -> np.ndarray:
     return -np.matmul(skew(it.pred), d)
 
 
+def with_effect(it: Integrated, J, T, mv: Moves) -> tuple[np.ndarray, np.ndarray]:
+    """(r, dr/dx) of moves mv at the point `it` was integrated at, with the coefficient of mv's last effect 0
+    there: `it` and its Jacobian J without that effect serve (the same integration), its column added
+    (effect_column). Each trial fit of a ranking starts there (fit_gyro_moves' start)."""
+    assert mv.phi is not None  # with_terms gives phi with phi_axes
+    return it.r, np.concatenate([J, effect_column(it, T, mv.phi[-1], mv.phi_axes[-1])], axis=2)
+
+
 def _prior(mv: Moves, n, bias_std, held=()):
     """The prior rows and their targets for x = [vec(T), db, p]: the rest read b_rest = b + sum_j
     p_j e_j phi_j(rest), so db + that sum = 0 +- bias_std; entries `held` of vec(T) at nominal (I)
@@ -201,12 +209,13 @@ def free_entries(n, fixed) -> np.ndarray:
 
 
 def fit_gyro_moves(mv: Moves, g_dirs, x0, bias_std, max_iter=30, step_tol=1e-3, offset=0.0, held=(),
-                   fixed=()) -> GyroFit:
+                   fixed=(), start=None) -> GyroFit:
     """Gauss-Newton on x = [vec(T), db, p] from x0, the rest's bias entering as a prior
     with its standard error bias_std (deg/s): the moves inform the bias too. The
     direction noise sigma_r is the moves' residual rms (re-estimated each step).
     offset is added to the residuals (a coarse level's defect, see fit_gyro). held: entries of vec(T)
-    near nominal by a prior (_prior); fixed: entries at nominal, left out of the fit (free_entries).
+    near nominal by a prior (_prior); fixed: entries at nominal, left out of the fit (free_entries); start:
+    (r, J) at x0 (offset not added) where at hand (with_effect), else integrated here.
 
     Converged when no step exceeds step_tol of its parameter's std: that step is
     taken and only the residual recomputed, the Jacobian of the point before serving
@@ -230,7 +239,7 @@ def fit_gyro_moves(mv: Moves, g_dirs, x0, bias_std, max_iter=30, step_tol=1e-3, 
     def system(x, r, J, s_r):  # the rows over the free entries alone
         return np.vstack([J.reshape(-1, n) / s_r, prior])[:, free], whitened(x, r, s_r)
 
-    r, J = evaluate(x)
+    r, J = evaluate(x) if start is None else (start[0] + offset, start[1])
     converged = False
     for it in range(1, max_iter + 1):
         s_r = max(float(np.sqrt(np.mean(r ** 2))), 1e-12)
@@ -283,11 +292,12 @@ GYRO_MODEL_TEXT = {
     "full": "full 3x3 M (scale, misalignment, triad rotation), bias from the initial rest, effects over the moves"}
 
 
-def held_out_moves(mv: Moves, g_dirs, f: GyroFit, bias_std, held=(), fixed=()) -> np.ndarray:
+def held_out_moves(mv: Moves, g_dirs, f: GyroFit, bias_std, held=(), fixed=(), at=None) -> np.ndarray:
     """Each move's gravity-direction residual (rad, ~ the angle) predicted by the fit without that
     move: the leave-one-out identity of the Gauss-Newton step at the optimum, r_(k) = (I - H_kk)^-1 r_k
-    with H_kk = A_k (A^T A)^-1 A_k^T the move's block of the hat matrix (the prior rows stay in A)."""
-    r, J = move_residuals(f.T, mv, g_dirs, db=f.db, p=f.p)
+    with H_kk = A_k (A^T A)^-1 A_k^T the move's block of the hat matrix (the prior rows stay in A).
+    at: (r, J) of the moves at f where at hand (move_residuals' there)."""
+    r, J = move_residuals(f.T, mv, g_dirs, db=f.db, p=f.p) if at is None else at
     n = J.shape[-1]
     free = free_entries(n, fixed)
     J = J[..., free]

@@ -28,9 +28,9 @@ from simucal.fit.results import ModelTest
 from simucal.fit.selection import forward_selection
 from simucal.fit.twins import separating_plan
 from simucal.generated.effects import EFFECTS, SEPARATE_MOVES
-from simucal.handheld.gyro_moves import GyroMoves, chi2_test, has_input, move_covariances, with_terms
-from simucal.handheld.moves import (GyroFit, Moves, decimate, effect_column, fit_gyro_moves, free_entries, held_out_moves,
-                                    integrated, jacobian, move_residuals)
+from simucal.handheld.gyro_moves import GyroMoves, chi2_test, has_input, move_covariances, with_term_added, with_terms
+from simucal.handheld.moves import (GyroFit, Integrated, Moves, decimate, effect_column, fit_gyro_moves, free_entries,
+                                    held_out_moves, integrated, jacobian, move_residuals, with_effect)
 
 
 class MovesProblem:
@@ -40,12 +40,15 @@ class MovesProblem:
     direction noise profiled out, 2 m log(rss0 / rss1)."""
     span = "T's estimated entries and the bias"
 
-    def __init__(self, gm: GyroMoves, fit: GyroFit, inputs, effects=(), fixed=()):
+    def __init__(self, gm: GyroMoves, fit: GyroFit, inputs, effects=(), fixed=(), at=None):
         """fixed: the entries of vec(T) the chosen gyro model leaves at nominal (moves.GYRO_MODELS), left so
         in each trial fit and out of the basis: a candidate is credited with what it explains alone. The
         bias stays free, held by the rest's prior: an effect with a value at the rest (a g-sensitivity:
-        gravity is there) moves the rest's reading, and a bias fixed at it pinned the effect."""
+        gravity is there) moves the rest's reading, and a bias fixed at it pinned the effect. at: the moves
+        integrated at fit and their Jacobian where at hand (MovesStep.at)."""
         self.gm, self.fit, self.inputs, self.effects = gm, fit, inputs, list(effects)
+        if at is not None:
+            self.at = at
         self.rss0, self.m, self.k = float(np.sum(fit.r ** 2)), len(fit.r), 12 + len(self.effects)
         self.fixed, self.free = tuple(fixed), free_entries(self.k, fixed)
         self.mv: dict[str, Moves] = {}  # per candidate: the moves with its regressor (column)
@@ -61,13 +64,18 @@ class MovesProblem:
         return EFFECTS[eid].parameter, EFFECTS[eid].unit, EFFECTS[eid].meaning
 
     @functools.cached_property
-    def at(self):
-        """The moves integrated at the base fit: its Jacobian and every candidate's column (whose coefficient
-        is zero there) come from this one integration."""
-        return integrated(self.fit.T, self.mv0, self.gm.g_dirs, self.fit.db, self.fit.p)
+    def at(self) -> tuple[Integrated, np.ndarray]:
+        """The moves integrated at the base fit and their Jacobian: every candidate's column (whose coefficient
+        is zero there) comes from this one integration."""
+        return integrated_with_jacobian(self.fit, self.mv0, self.gm.g_dirs)
+
+    @functools.cached_property
+    def at4(self) -> tuple[Integrated, np.ndarray]:
+        """The same in blocks of 4 samples: every trial fit's first point (moves.with_effect)."""
+        return integrated_with_jacobian(self.fit, decimate(self.mv0, 4), self.gm.g_dirs)
 
     def basis(self):
-        return np.linalg.qr(jacobian(self.at, self.fit.T, self.mv0).reshape(-1, self.k)[:, self.free])[0]
+        return np.linalg.qr(self.at[1].reshape(-1, self.k)[:, self.free])[0]
 
     def residual(self):
         return self.fit.r.ravel(), self.rss0 / (2 * self.m)  # the noise profiled out as in the LR
@@ -77,8 +85,8 @@ class MovesProblem:
             if not has_input(eid, self.inputs):  # a temperature term without temp_c: no move to integrate
                 self.columns[eid] = np.zeros(self.fit.r.size)
             else:
-                self.mv[eid] = mv = with_terms(self.gm.mv, self.effects + [eid], self.inputs)
-                self.columns[eid] = effect_column(self.at, self.fit.T, mv.phi[-1], mv.phi_axes[-1]).ravel()
+                self.mv[eid] = mv = with_term_added(self.mv0, eid, self.inputs)
+                self.columns[eid] = effect_column(self.at[0], self.fit.T, mv.phi[-1], mv.phi_axes[-1]).ravel()
         return self.columns[eid]
 
     def to_see(self, eid):
@@ -88,15 +96,21 @@ class MovesProblem:
         return separating_plan(eid, twin, moves=True)
 
     def fit_with(self, eid):
-        f = self.fit
-        f1 = fit_gyro_moves(decimate(self.mv[eid], 4), self.gm.g_dirs, np.r_[f.T.ravel(), f.db, f.p, 0.0],
-                            self.gm.bias_std, offset=self.defect, fixed=self.fixed)
+        f, mv4 = self.fit, decimate(self.mv[eid], 4)
+        f1 = fit_gyro_moves(mv4, self.gm.g_dirs, np.r_[f.T.ravel(), f.db, f.p, 0.0], self.gm.bias_std,
+                            offset=self.defect, fixed=self.fixed, start=with_effect(*self.at4, f.T, mv4))
         if not f1.converged:
             return f"the fit with it did not converge in {f1.iterations} steps"
         stat = max(2 * self.m * np.log(self.rss0 / float(np.sum(f1.r ** 2))), 0.0)
         k = self.k
         return Trial(float(f1.p[-1]), float(np.sqrt(f1.cov[k, k])), float(stat), float(chi2_sf(stat, 1)),
                      float(stat - 2.0), float(np.sqrt(np.mean(f1.r ** 2))))
+
+
+def integrated_with_jacobian(fit: GyroFit, mv: Moves, g_dirs) -> tuple[Integrated, np.ndarray]:
+    """The moves mv integrated at a fit, and their Jacobian there (moves.move_residuals' two halves)."""
+    it = integrated(fit.T, mv, g_dirs, fit.db, fit.p)
+    return it, jacobian(it, fit.T, mv)
 
 
 def rank_move_candidates(gm: GyroMoves, fit: GyroFit, inputs, base_fails, effects=(), fixed=(),
@@ -109,14 +123,15 @@ def rank_move_candidates(gm: GyroMoves, fit: GyroFit, inputs, base_fails, effect
     return [c.to_dict() for c in rank(problem, ids, base_fails, "gyro candidates over the moves")]
 
 
-def moves_family(gm: GyroMoves, fit: GyroFit, inputs, omnibus: tuple, effects=(), fixed=()) -> tuple[dict, MovesProblem]:
+def moves_family(gm: GyroMoves, fit: GyroFit, inputs, omnibus: tuple, effects=(), fixed=(),
+                 at=None) -> tuple[dict, MovesProblem]:
     """The moves' model test as one family (fit/family.py): omnibus (chi2, dof, p) the moves' chi-square
     (gyro_moves.chi2_test), with the score test of every library gyro effect not in the model along the
-    moves (MovesProblem). Returns a test block (chi2, dof, p_value the family's, test, omnibus_p_value,
-    targeted) and the problem, for rank_move_candidates."""
+    moves (MovesProblem; at: its moves integrated at fit where at hand). Returns a test block (chi2, dof,
+    p_value the family's, test, omnibus_p_value, targeted) and the problem, for rank_move_candidates."""
     block = dict(zip(("chi2", "dof", "p_value"), omnibus), test="chi-square of the moves against the rests' white noise")
     ids = [e for e in effect_ids("gyro") if e not in effects]
-    problem = MovesProblem(gm, fit, inputs, effects, fixed)
+    problem = MovesProblem(gm, fit, inputs, effects, fixed, at)
     family.fold(block, family.targeted(problem, ids) if ids else None)
     return block, problem
 
@@ -135,7 +150,14 @@ class MovesStep:
     def family(self) -> tuple[dict, MovesProblem]:
         """moves_family's test and problem, made when first asked: a trial step the selection turns
         away is never tested."""
-        return moves_family(self.gm, self.fit, self.inputs, (self.chi2, self.dof, self.omnibus_p), self.effects)
+        return moves_family(self.gm, self.fit, self.inputs, (self.chi2, self.dof, self.omnibus_p), self.effects,
+                            at=self.at)
+
+    @functools.cached_property
+    def at(self) -> tuple[Integrated, np.ndarray]:
+        """The moves integrated at the fit and their Jacobian: the held-out errors', the family's and each
+        trial's first point (add) from one integration."""
+        return integrated_with_jacobian(self.fit, self.mv, self.gm.g_dirs)
 
     @property
     def p_value(self):
@@ -151,15 +173,17 @@ class MovesStep:
         return self.ranked, None
 
     def add(self, eid):
-        f, mv = self.fit, with_terms(self.gm.mv, list(self.effects) + [eid], self.inputs)
-        f1 = fit_gyro_moves(mv, self.gm.g_dirs, np.r_[f.T.ravel(), f.db, f.p, 0.0], self.gm.bias_std)
+        f, mv = self.fit, with_term_added(self.mv, eid, self.inputs)
+        f1 = fit_gyro_moves(mv, self.gm.g_dirs, np.r_[f.T.ravel(), f.db, f.p, 0.0], self.gm.bias_std,
+                            start=with_effect(*self.at, f.T, mv))
         if not f1.converged:
             return f"the fit with {eid} did not converge in {f1.iterations} steps"
         return MovesStep(self.gm, self.inputs, self.sigma_g, f1, self.effects + (eid,))
 
     def held_out(self):
         if self._held_out is None:  # asked once per candidate tried against this step
-            self._held_out = held_out_moves(self.mv, self.gm.g_dirs, self.fit, self.gm.bias_std).tolist()
+            self._held_out = held_out_moves(self.mv, self.gm.g_dirs, self.fit, self.gm.bias_std,
+                                            at=(self.at[0].r, self.at[1])).tolist()
         return self._held_out
 
     def estimates(self):

@@ -18,8 +18,7 @@ from simucal.fit.aux_inputs import AuxInputs
 from simucal.generated import table
 from simucal.io import SENSOR_COLS, timestamps, units
 from simucal.fit.rotations import exp_so3, log_so3
-from simucal.systematic.filter import (Epoch, Sensors, compose, kalman, level, nominal, smooth,
-                                      transitions)
+from simucal.systematic.filter import Epoch, Sensors, composed, kalman, level, nominal, smooth
 from simucal.systematic.zero_position import Returns, position, returns
 
 BLOCK_S = 1.0           # zero-velocity updates at rest every this many seconds
@@ -266,14 +265,10 @@ def steps_of(ms, segments, block_s, dt) -> Steps:
     return Steps(mean[0], mean[1], t, counts * dt, np.asarray(zupt), ms.samples["segment"][start])
 
 
-CHUNK = 4096  # steps whose transitions are built at once (memory: about 60 CHUNK doubles)
-
-
 def _one_pass(steps, sensors, C, x0, P0, q, w_ie, g0, zero=None):
     """One pass of the filter over the sequence about the nominal of sensors' estimates and C: the
     epochs (the first the prior at the start). The steps between two updates are composed into one
-    transition (filter.compose; the steps after the last update see no data and are left out); zero:
-    the zero-position updates (zero_position.Returns) or None."""
+    transition (filter.composed); zero: the zero-position updates (zero_position.Returns) or None."""
     R = np.eye(3) * ZUPT_STD_MPS ** 2
     aux = AuxInputs({"t_s": steps.t})
     f_b, w_b, aux_a = sensors.compensate(steps.N_a, steps.N_g, aux, aux, steps.dt)
@@ -285,12 +280,7 @@ def _one_pass(steps, sensors, C, x0, P0, q, w_ie, g0, zero=None):
     # the nominal attitude at the end of each update's step (Cs holds the steps' starts), where phi is
     C_end = exp_so3(-w_ie[None] * steps.dt[ends, None]) @ Cs[ends] @ exp_so3(
         w_b[ends] * units.RAD_S_PER_DPH * steps.dt[ends, None]) if zero is not None else None
-    group = ends // CHUNK  # the intervals that end in one CHUNK of steps, together
-    for g in np.unique(group):
-        i = np.flatnonzero(group == g)
-        a, b = (ends[i[0] - 1] + 1 if i[0] else 0), ends[i[-1]] + 1
-        k = slice(a, b)
-        A, B, Q = compose(*transitions(Cs[k], f_b[k], D_a[k], D_g[k], steps.dt[k], q, w_ie, g0), ends[i] - a)
+    for i, A, B, Q in composed(Cs, f_b, D_a, D_g, steps.dt, steps.zupt, q, w_ie, g0):
         x, P = kalman(x, P, A, B, Q, v_at[ends[i]], R, steps.t[ends[i]], epochs, zero,
                       None if C_end is None else C_end[i])
     return epochs

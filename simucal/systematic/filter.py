@@ -26,8 +26,6 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from scipy.ndimage import uniform_filter1d
-
 from simucal.fit.aux_inputs import MOTION, motion
 from simucal.fit.rotations import exp_so3, skew
 from simucal.generated import systematic as gen
@@ -44,9 +42,12 @@ def smoothed(inputs, dt):
     in it (w^2: 2 w n) the two correlate, and the score test reads the noise as the effect (a MEMS
     gyro's 30 deg/h gave gyro.quadratic a chi-square of 9-16 on clean sequences). The table's
     moves change the rate over seconds, so the average keeps the input and divides the noise's
-    variance by the window's samples."""
+    variance by the window's samples. Each edge is padded with its own value (scipy.ndimage's "nearest",
+    whose import cost calibrate 0.3-0.6 s)."""
     size = max(1, int(round(SMOOTH_S / float(np.median(dt))))) | 1
-    return tuple(uniform_filter1d(x, size, axis=0, mode="nearest") for x in inputs)
+    return tuple(np.lib.stride_tricks.sliding_window_view(np.pad(x, [(size // 2,) * 2] + [(0, 0)] * (x.ndim - 1),
+                                                                 mode="edge"), size, axis=0).mean(axis=-1)
+                 for x in inputs)
 
 
 def reads_motion(model) -> bool:
@@ -197,6 +198,22 @@ def transitions(Cs, f_b, D_a, D_g, dt, q, w_ie, g0):
     G = gen.nav_G(Cs.reshape(len(Cs), 9))
     return (np.eye(6) + F_nn + 0.5 * F_nn @ F_nn, F_np + 0.5 * F_nn @ F_np,
             (G * (q * dt[:, None])[:, None, :]) @ np.swapaxes(G, 1, 2))
+
+
+STEPS = 4096  # steps whose transitions are built at once (memory: about 60 STEPS doubles per state)
+
+
+def composed(Cs, f_b, D_a, D_g, dt, zupt, q, w_ie, g0):
+    """The steps between two updates composed into one transition (`transitions`, `compose`), STEPS steps'
+    at a time: yields (those updates' indices among all, their A, B, Q). The steps after the last update see
+    no data and are left out."""
+    ends = np.flatnonzero(zupt)
+    group = ends // STEPS  # the intervals that end in one STEPS of steps, together
+    for g in np.unique(group):
+        i = np.flatnonzero(group == g)
+        a = ends[i[0] - 1] + 1 if i[0] else 0
+        k = slice(a, ends[i[-1]] + 1)
+        yield (i, *compose(*transitions(Cs[k], f_b[k], D_a[k], D_g[k], dt[k], q, w_ie, g0), ends[i] - a))
 
 
 def kalman(x, P, A, B, Q, v_at, R, t_s, epochs, zero=None, C_at=None):

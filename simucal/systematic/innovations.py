@@ -30,13 +30,10 @@ from simucal.fit import family
 from simucal.fit.distributions import chi2_sf
 from simucal.fit.ranking import Trial, rank
 from simucal.fit.results import ModelTest
-from simucal.generated import systematic as gen
 from simucal.generated.effects import EFFECTS, SEPARATE
 from simucal.io import units
 from simucal.systematic.calibrate import ZUPT_STD_MPS
-from simucal.systematic.filter import Sensors, nominal, smoothed
-
-CHUNK = 4096  # steps whose blocks are built at once
+from simucal.systematic.filter import Sensors, composed, nominal, smoothed
 
 
 def innovation_test(epochs) -> dict:
@@ -117,35 +114,28 @@ def signatures(result, ids=None) -> Signatures:
 
 def _navigation_pass(steps, Cs, v_at, f_b, D_a, D_g, q, w_ie, g0, P0_diag):
     """The filter of phi and dv alone (the parameters held) with every column's signature carried
-    along (module doc): (r (3m,), columns (3m, k), nu (m, 3), its std (m, 3))."""
+    along (module doc), the steps between two updates composed into one transition (filter.composed):
+    (r (3m,), columns (3m, k), nu (m, 3), its std (m, 3))."""
     R = np.eye(3) * ZUPT_STD_MPS ** 2
     x, P = np.zeros(6), np.diag(P0_diag)
     mu = np.zeros((6, D_a.shape[-1] + D_g.shape[-1]))
-    r, cols, nus, sds = [], [], [], []
-    for a in range(0, len(Cs), CHUNK):
-        k = slice(a, a + CHUNK)
-        dt = steps.dt[k][:, None, None]
-        c = Cs[k].reshape(-1, 9)
-        F = gen.nav_F(c, f_b[k], w_ie, g0) * dt
-        B = gen.nav_B(c, g0)
-        Fp = np.concatenate([B[:, :, 3:] @ D_a[k], B[:, :, :3] @ D_g[k]], axis=-1) * dt
-        Phi, Gam = np.eye(6) + F + 0.5 * F @ F, Fp + 0.5 * F @ Fp
-        G = gen.nav_G(c)
-        Q = (G * (q * steps.dt[k][:, None])[:, None, :]) @ np.swapaxes(G, 1, 2)
-        for i, z in enumerate(steps.zupt[k]):
-            x, P, mu = Phi[i] @ x, Phi[i] @ P @ Phi[i].T + Q[i], Phi[i] @ mu + Gam[i]
-            if z:
-                S = P[3:, 3:] + R
-                L, nu = np.linalg.cholesky(S), v_at[a + i] - x[3:]
-                K = np.linalg.solve(S, P[3:]).T
-                r.append(np.linalg.solve(L, nu))
-                cols.append(np.linalg.solve(L, mu[3:]))
-                nus.append(nu)
-                sds.append(np.sqrt(np.diag(S)))
-                IKH = np.eye(6) - np.c_[np.zeros((6, 3)), K]
-                x, P, mu = x + K @ nu, IKH @ P @ IKH.T + K @ R @ K.T, mu - K @ mu[3:]
-                x[3:] -= v_at[a + i]
-    return np.concatenate(r), np.concatenate(cols), np.array(nus), np.array(sds)
+    Ss, nus, mus = [], [], []  # per update: S, nu and mu's dv rows, whitened at once after the loop
+    ends = np.flatnonzero(steps.zupt)
+    for i, A, Gam, Q in composed(Cs, f_b, D_a, D_g, steps.dt, steps.zupt, q, w_ie, g0):
+        for Phi, Gk, Qk, v in zip(A, Gam, Q, v_at[ends[i]]):
+            x, P, mu = Phi @ x, Phi @ P @ Phi.T + Qk, Phi @ mu + Gk
+            S, nu = P[3:, 3:] + R, v - x[3:]
+            K = np.linalg.solve(S, P[3:]).T
+            Ss.append(S)
+            nus.append(nu)
+            mus.append(mu[3:])
+            IKH = np.eye(6) - np.c_[np.zeros((6, 3)), K]
+            x, P, mu = x + K @ nu, IKH @ P @ IKH.T + K @ R @ K.T, mu - K @ mu[3:]
+            x[3:] -= v
+    S, nu = np.array(Ss), np.array(nus)
+    L = np.linalg.cholesky(S)
+    return (np.linalg.solve(L, nu[..., None]).ravel(), np.concatenate(np.linalg.solve(L, np.array(mus))), nu,
+            np.sqrt(np.diagonal(S, axis1=1, axis2=2)))
 
 
 class InnovationsProblem:
