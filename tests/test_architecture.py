@@ -217,6 +217,10 @@ def test_one_method_registry():
     # but a type checker's Literal of the options (api/options.py), which must be spelt out: it is the registry's
     from simucal.api.options import Method
     assert spelled == [Path("api/options.py")] and set(typing.get_args(Method)) == {"auto", *methods.NAMES}
+    from simucal.api.imports import FORMATS, Format  # and the other names an editor checks, each its registry's
+    from simucal.api.simulation import ScenarioName
+    from simucal.cli.sets import FORMATS as CLI_FORMATS
+    assert set(typing.get_args(ScenarioName)) == set(methods.SCENARIOS) and typing.get_args(Format) == FORMATS == CLI_FORMATS
 
 
 UNITLESS = {"--seed", "--seeds", "--instance", "--unit-seed", "--trials", "--positions", "--power", "--thermal-degree", "--threshold-factor",

@@ -4,13 +4,15 @@ from __future__ import annotations
 
 import os
 from pathlib import Path
-from typing import Sequence
+import typing
+from typing import Literal, Sequence
 
 from simucal.api.arguments import checked
 from simucal.api.sets import MeasurementSet
 from simucal.errors import InputError
 
-FORMATS = ("imu_tk", "imucal-ferraris", "imucal-annotated", "csv", "ulog", "dataflash", "rosbag")
+Format = Literal["imu_tk", "imucal-ferraris", "imucal-annotated", "csv", "ulog", "dataflash", "rosbag"]  # an editor's check
+FORMATS: tuple[str, ...] = typing.get_args(Format)
 FERRARIS_HZ = 102.4  # imucal's Ferraris recordings' rate, where the file has no time column
 ANNOTATED_HZ, ANNOTATED_ACC, ANNOTATED_GYRO = 204.8, 2048.0, 16.4  # imucal's annotated sessions: Hz, counts/g, counts/(deg/s)
 
@@ -18,7 +20,7 @@ Path_ = str | os.PathLike
 
 
 @checked
-def import_recording(fmt: str, sources: Sequence[Path_], out: Path_, *, latitude_deg: float | None = None,
+def import_recording(fmt: Format, sources: Sequence[Path_], out: Path_, *, latitude_deg: float | None = None,
                      acc_counts_per_g: float | None = None, gyro_counts_per_dps: float | None = None,
                      gravity_mps2: float | None = None, rate_hz: float | None = None, columns: str | None = None,
                      acc_unit: str | None = None, gyro_unit: str | None = None, turn_deg: float = -360.0,
@@ -28,7 +30,7 @@ def import_recording(fmt: str, sources: Sequence[Path_], out: Path_, *, latitude
 
     Parameters
     ----------
-    fmt : str
+    fmt : {"imu_tk", "imucal-ferraris", "imucal-annotated", "csv", "ulog", "dataflash", "rosbag"}
         One of FORMATS: imu_tk (two .mat or text files, acc and gyro), imucal-ferraris (its CSV, and
         optionally its section list .json), imucal-annotated, csv (any CSV with `columns`), ulog (PX4),
         dataflash (ArduPilot), rosbag (ROS 1 file or ROS 2 folder).
@@ -91,7 +93,7 @@ def import_recording(fmt: str, sources: Sequence[Path_], out: Path_, *, latitude
 
 
 @checked
-def import_instances(fmt: str, source: Path_, out: Path_, *, instances: Sequence[int] | None = None,
+def import_instances(fmt: Literal["ulog", "dataflash"], source: Path_, out: Path_, *, instances: Sequence[int] | None = None,
                      latitude_deg: float | None = None, force: bool = False,
                      read_back: bool = True) -> list[MeasurementSet]:
     """Write one measurement set per IMU instance of an autopilot's log, OUT/instance<n> (`simucal import
@@ -99,7 +101,7 @@ def import_instances(fmt: str, source: Path_, out: Path_, *, instances: Sequence
 
     Parameters
     ----------
-    fmt : str
+    fmt : {"ulog", "dataflash"}
         ulog (PX4: each instance's sensor_accel/sensor_gyro or vehicle_imu) or dataflash (ArduPilot: IMU's
         instance field, or IMU2, IMU3).
     source : path

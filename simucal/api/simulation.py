@@ -3,7 +3,7 @@ turntable test (dong2018 section 4), a field set (ruan2019) or a hand-placed ses
 from __future__ import annotations
 
 from pathlib import Path
-from typing import Any, Mapping, Sequence, Union
+from typing import Any, Literal, Mapping, Sequence, Union
 
 from simucal.errors import InputError
 from simucal import methods
@@ -13,6 +13,7 @@ from simucal.api.sets import MeasurementSet
 
 Pairs = Union[Mapping[str, float], Sequence[str]]  # {name: value} or the command's "NAME=VALUE" strings
 SCENARIOS = tuple(methods.SCENARIOS)  # paper, field, handheld: a kind of data each (methods.KINDS)
+ScenarioName = Literal["paper", "sequence", "field", "handheld"]  # SCENARIOS for an editor (test_architecture)
 # the turntable test's options, by their Python names, with the command's spelling (refusals name both)
 TABLE_ONLY = {"sequence": "--sequence", "plan": "--plan", "position_error_arcmin": "--position-error-arcmin", "acc_model": "--acc-model",
               "gyro_model": "--gyro-model", "acc_unit": "--acc-unit", "gyro_unit": "--gyro-unit",
@@ -63,7 +64,7 @@ def _refuse_unused(scenario: str, table_options: dict, effects, heading_accuracy
 
 
 @checked
-def simulate(scenario: str = "paper", *, seed: int = 0, rate_hz: float | None = None, plan: str | None = None,
+def simulate(scenario: ScenarioName = "paper", *, seed: int = 0, rate_hz: float | None = None, plan: str | None = None,
              effects: Pairs | None = None, position_error_arcmin: float | None = None, acc_model: str | None = None,
              gyro_model: str | None = None, acc_unit: str | None = None, gyro_unit: str | None = None,
              effect_file: str | None = None, sets: Pairs | None = None, columns: Mapping[str, Any] | Sequence[str] | None = None,
@@ -74,7 +75,7 @@ def simulate(scenario: str = "paper", *, seed: int = 0, rate_hz: float | None = 
 
     Parameters
     ----------
-    scenario : {"paper", "sequence", "field", "handheld"}
+    scenario : {"paper", "sequence", "field", "handheld"} (ScenarioName)
         "paper": a turntable test, dong2018 section 4 (raw pulse/s); "sequence" (or `sequence` given): its table
         turning through a rotation sequence; "field": ruan2019's three positions without a table; "handheld": a
         hand-placed session (a stream in counts, poses held between moves).
@@ -119,17 +120,17 @@ def simulate(scenario: str = "paper", *, seed: int = 0, rate_hz: float | None = 
     >>> ms.truth["acc"]["effects"]
     {'acc.quadratic.z': 0.0002}
     """
-    scenario = _scenario(scenario, sequence)
+    kind = _scenario(scenario, sequence)
     table_options = dict(sequence=sequence, plan=plan, position_error_arcmin=position_error_arcmin, acc_model=acc_model,
                          gyro_model=gyro_model, acc_unit=acc_unit, gyro_unit=gyro_unit, effect_file=effect_file,
                          sets=sets, columns=columns, temperature_c=temperature_c, t_ref_c=t_ref_c,
                          temperature_wander_c=temperature_wander_c, noise_stated=not noise_stated)
-    _refuse_unused(scenario, table_options, effects, heading_accuracy_deg, unit_seed)
+    _refuse_unused(kind, table_options, effects, heading_accuracy_deg, unit_seed)
     options = {**table_options, "effects": _strings(effects), "sets": _strings(sets), "unit_seed": unit_seed,  # as the command's
                "columns": _strings(columns, _span), "temperature": None if temperature_c is None else _span(temperature_c),
                "state_noise": noise_stated, "heading_accuracy_deg": heading_accuracy_deg}
-    meta, samples, segments, truth = methods.SCENARIOS[scenario].simulate(seed, rate_hz, options)
-    ms = MeasurementSet(Path(f"simulated_{scenario}_seed{seed}"), meta, samples, segments)  # the name errors say
+    meta, samples, segments, truth = methods.SCENARIOS[kind].simulate(seed, rate_hz, options)
+    ms = MeasurementSet(Path(f"simulated_{kind}_seed{seed}"), meta, samples, segments)  # the name errors say
     ms.truth = truth
     return ms
 
