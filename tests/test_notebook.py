@@ -101,3 +101,15 @@ def test_the_advice_is_data_from_diagnosis_to_the_added_effect():
     assert cal.acc.verdict == "passes" and list(cal.acc.effects) == ["acc.quadratic.z"]
     after = simucal.diagnose(ms, add=[x.id for x in d.suggested if x.add])
     assert after.suggested == [] and after.next.options == {"add": ["acc.quadratic.z"]}  # the model keeps it
+
+
+def test_a_frame_s_attrs_stay_small_and_its_segments_come_back_as_a_table():
+    """to_dataframe's attrs hold the units only (pandas copies attrs along every operation); the segments are
+    segments_frame(), which from_dataframe takes back to the same calibration."""
+    ms = simucal.simulate(seed=1, plan="fibonacci48")
+    df, segments = ms.to_dataframe(), ms.segments_frame()
+    assert df.attrs == {"acc_unit": "pulse/s", "gyro_unit": "pulse/s"} and len(segments) == len(ms.segments) == 102
+    back = simucal.MeasurementSet.from_dataframe(df, acc_unit=df.attrs["acc_unit"], gyro_unit=df.attrs["gyro_unit"],
+                                                 segments=segments, meta=ms.meta)
+    assert simucal.calibrate(back).gyro.chi2 == simucal.calibrate(ms).gyro.chi2
+    assert simucal.simulate("handheld", seed=1).segments_frame() is None

@@ -183,7 +183,8 @@ class MeasurementSet(io.MeasurementSet):
     @checked
     def to_dataframe(self) -> Any:
         """The samples as a pandas DataFrame, `to_arrays`'s columns in its order, as recorded; the units in its
-        ``attrs`` (acc_unit, gyro_unit) and the segments' table, where the set has one, in ``attrs["segments"]``.
+        ``attrs`` (acc_unit, gyro_unit: attrs stay small, as pandas copies them along); the segments' table is
+        `segments_frame()`.
 
         Examples
         --------
@@ -198,9 +199,16 @@ class MeasurementSet(io.MeasurementSet):
             raise InputError("to_dataframe needs pandas: pip install simucal[pandas] (to_arrays needs nothing)") from None
         df = pd.DataFrame(self.to_arrays())
         df.attrs.update(acc_unit=self.meta.get("acc_unit"), gyro_unit=self.meta.get("gyro_unit"))
-        if self.segments:
-            df.attrs["segments"] = [dict(vars(s)) for s in self.segments]
         return df
+
+    @checked
+    def segments_frame(self) -> Any:
+        """segments.csv's rows as a pandas DataFrame (what `from_dataframe`'s segments= takes back), None for a
+        stream (a set without segments)."""
+        if not self.segments:
+            return None
+        import pandas as pd
+        return pd.DataFrame([dict(vars(s)) for s in self.segments])
 
     @checked
     def write(self, folder: str | os.PathLike, *, force: bool = False) -> None:
