@@ -3,6 +3,8 @@
 import simucal
 
 project = "simucal"
+author = "the simucal authors"
+copyright = "2026, the simucal authors"  # the footer reads "(c) 2026, the simucal authors", not "(c). |"
 release = version = simucal.__version__
 extensions = [
     "myst_parser",  # the pages are Markdown, as the README they came from
@@ -18,5 +20,7 @@ numpydoc_class_members_toctree = False
 autodoc_member_order = "bysource"
 html_theme = "alabaster"  # Sphinx's own: no web fonts, no CDN, so the pages open without a network
 html_theme_options = {"description": "strapdown IMU calibration", "font_family": "sans-serif",
-                      "head_font_family": "sans-serif"}
+                      "head_font_family": "sans-serif",
+                      # alabaster's 940 px page left code a 660 px column: 1280 px screens get 1240
+                      "page_width": "min(1240px, 100%)", "body_max_width": "none"}
 html_static_path = []
