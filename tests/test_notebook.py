@@ -113,3 +113,13 @@ def test_a_frame_s_attrs_stay_small_and_its_segments_come_back_as_a_table():
                                                  segments=segments, meta=ms.meta)
     assert simucal.calibrate(back).gyro.chi2 == simucal.calibrate(ms).gyro.chi2
     assert simucal.simulate("handheld", seed=1).segments_frame() is None
+
+
+def test_help_lists_every_option_of_calibrate():
+    """help(simucal.calibrate) names every option calibrate takes (CalibrateOptions), each in its parameters."""
+    import pydoc
+    import typing
+    text = pydoc.render_doc(simucal.calibrate, renderer=pydoc.plaintext)
+    params = text.split("Parameters")[1].split("Returns")[0]
+    missing = [k for k in typing.get_type_hints(simucal.CalibrateOptions) if k not in params]
+    assert not missing and "ferraris" in params, missing

@@ -103,13 +103,28 @@ def calibrate(data: Data | Sequence[Data], **options: Unpack[CalibrateOptions]) 
     data : str, os.PathLike or MeasurementSet, or a list of them
         The set; a list (plateaus, or one set whose temperature ramps), or one set with
         ``thermal=True``, is a thermal calibration (`simucal calibrate --thermal`).
-    **options
-        The command's options by their Python names: ``method`` ("auto", "exact", "linear",
-        "multiposition", "handheld", "field", "systematic"), ``add`` (effect ids, model files, "auto": a list,
-        or one as a string),
-        ``acc_model``, ``gyro_model``, ``acc_noise_g``, ``gyro_noise_dph``, ``t_ref_c`` (degC),
-        ``noise`` (a noise.json), ``detect``, ``heading_accuracy_deg``; with a list,
-        ``degree`` (the thermal polynomials', default chosen by the data).
+    method : {"auto", "exact", "linear", "multiposition", "ferraris", "handheld", "field", "systematic"}
+        The method (default "auto": the one the data's kind takes; simucal.methods).
+    add : str or list of str
+        Effect ids, model files, or "auto" (a forward selection): one as a string.
+    acc_model, gyro_model : str
+        A built-in model's name (default the baselines) or a model file.
+    acc_noise_g, gyro_noise_dph : float, optional
+        The noise of one row (g, deg/h) where the data cannot give it.
+    heading_accuracy_deg : float, optional
+        A field set's north reference accuracy (deg).
+    t_ref_c : float, optional
+        T_ref of the temperature terms (degC; default the data's middle).
+    noise : str or os.PathLike, optional
+        A noise.json of `simucal noise`, the noise of one row at any averaging.
+    detect : DetectSettings, optional
+        A stream's static detection (its window, threshold factor, gyro limit).
+    timestamps : {"auto", "recorded", "nominal"}
+        A stream's clock: the recorded time stamps, or the even clock of their median step.
+    thermal : bool
+        One set whose temperature ramps calibrated over temperature (a list of sets always is).
+    degree : int, optional
+        The thermal polynomials' degree, 0-3 (`--thermal-degree`; default chosen by the data).
 
     Returns
     -------
