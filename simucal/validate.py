@@ -206,8 +206,13 @@ def _lines(report):
     for s, v in report["verdict"].items():
         yield f"{s}: {v}" + (": this calibration makes the unit worse on these data than its nominal scale "
                              "factors; do not use it" if v.startswith("WORSE THAN NOMINAL") else "") + (
-            f" ({report['verdict_notes'][s]})" if s in report.get("verdict_notes", {}) else "")
+            f" ({report['verdict_notes'][s]})" if s in report.get("verdict_notes", {}) else "") + _own(report)
     yield "next: " + validation_next(report)[0]
+
+
+def _own(report) -> str:
+    """What a verdict on the calibration's own rows adds to it: that it proves nothing (the NOTE says why)."""
+    return " (NOT INDEPENDENT: the calibration's own rows)" if report["note"] else ""
 
 
 def html_page(report) -> str:
@@ -229,7 +234,8 @@ def html_page(report) -> str:
                    f"<td>{c['after_rms']:.3g}</td><td>{'-' if c['floor_rms'] is None else format(c['floor_rms'], '.3g')}"
                    f"</td><td>{c['unit']}</td><td>{c['verdict']}</td></tr>" for s, c in rows)
     cmd, notes = validation_next(report)
-    verdicts = [(not v.startswith(("WORSE", "no better")), f"{s}: {v}") for s, v in report["verdict"].items()]
+    verdicts = [(not v.startswith(("WORSE", "no better")) and not report["note"], f"{s}: {v}{_own(report)}")
+                for s, v in report["verdict"].items()]  # on its own rows no verdict is shown as passed
     return page("simucal validate", f"Validation of {report['calibration']} on {report['data']}", verdicts, cmd,
                 notes + [f"WARNING: {w}" for w in report.get("warnings", [])],
                 [png(fig), "<table><tr><th>sensor</th><th>check</th><th>nominal</th><th>calibrated</th>"

@@ -82,8 +82,16 @@ def test_a_calibration_worse_than_nominal_is_said_loudly(table, tmp_path):
 
 
 def test_its_own_data_are_flagged(table, tmp_path):
+    """On the calibration's own rows every verdict says it is not independent, and the page shows none as passed."""
     rep, out = _report(table, "added.json", "cal", tmp_path / "r.json")
     assert not rep["independent"] and "NOTE" in out
+    said = [line for line in out.splitlines() if line.startswith(("acc: ", "gyro: "))]
+    assert len(said) == 2 and all(line.endswith("(NOT INDEPENDENT: the calibration's own rows)") for line in said)
+    from simucal.validate import html_page
+    page = html_page(rep)
+    assert page.count("NOT INDEPENDENT") == 2 and "class='verdict ok'" not in page
+    independent = html_page({**_report(table, "added.json", "val", tmp_path / "v.json")[0]})
+    assert "NOT INDEPENDENT" not in independent and "class='verdict ok'" in independent
 
 
 def test_another_units_set_is_refused(table, tmp_path):
