@@ -16,6 +16,11 @@ PX4_ACCEL = ("uint64_t timestamp", "uint64_t timestamp_sample", "uint32_t device
 PX4_BARO = ("uint64_t timestamp", "uint64_t timestamp_sample", "uint32_t device_id", "float pressure",
             "float temperature", "uint32_t error_count")
 PX4_GYRO = PX4_ACCEL
+PX4_FIFO = ("uint64_t timestamp", "uint64_t timestamp_sample", "uint32_t device_id", "float dt", "float scale",
+            "uint8_t samples", "int16_t[32] x", "int16_t[32] y", "int16_t[32] z")  # sensor_accel_fifo, sensor_gyro_fifo
+PX4_IMU_FIFO = ("uint64_t timestamp", "uint64_t timestamp_sample", "uint32_t device_id", "float dt", "uint8_t samples",
+                "float accel_scale", "float gyro_scale", *(f"int16_t[24] {s}_{a}" for s in ("accel", "gyro") for a in "xyz"),
+                "float temperature", "uint32_t error_count")  # sensor_imu_fifo, both sensors in one (a few PX4 versions)
 
 
 def _ulog_message(kind: bytes, payload: bytes) -> bytes:
@@ -28,19 +33,27 @@ def _ulog_key(kind: bytes, ctype: str, name: str, value: bytes) -> bytes:
 
 
 def write_ulog(path, accel: dict | list | None, gyro: dict | list | None, instance=0, params=None, truncate_bytes=0,
-               baro=None):
+               baro=None, accel_fifo: dict | list | None = None, gyro_fifo: dict | list | None = None,
+               imu_fifo: dict | None = None):
     """A ULog with sensor_accel and sensor_gyro (PX4's fields; either None: left out) of multi instance
     `instance`, or lists of them, one an instance from `instance` on. Each a dict of numpy columns: t_us
     (timestamp and timestamp_sample), x, y, z (m/s^2 or rad/s), temperature (degC, NaN where the driver has
     none), device_id. baro: a sensor_baro topic (t_us, pressure hPa, temperature, device_id), which PX4's
-    thermal calibration script reads too. truncate_bytes: cut the file's end."""
+    thermal calibration script reads too. accel_fifo, gyro_fifo: sensor_accel_fifo and sensor_gyro_fifo
+    (PX4's fields), one message a row: t_us (timestamp_sample, the newest sample's), dt (us), scale,
+    samples, x, y, z ((n, 32) integer counts), device_id; a list: one an instance from `instance` on.
+    imu_fifo: sensor_imu_fifo of instance `instance`: t_us, dt, samples, accel_scale, gyro_scale, accel_x ...
+    gyro_z ((n, 24) counts), temperature, device_id.
+    truncate_bytes: cut the file's end."""
     out = bytearray(ULOG_MAGIC + b"\x01" + struct.pack("<Q", 0))
     out += _ulog_message(b"B", bytes(16) + struct.pack("<3Q", 0, 0, 0))
     listed = lambda c: [] if c is None else c if isinstance(c, list) else [c]  # noqa: E731
-    topics = [(name, fields, fmt, values, cols, i) for name, fields, fmt, values, group in (
-        ("sensor_accel", PX4_ACCEL, "<HQQIffffI", ("x", "y", "z", "temperature"), listed(accel)),
-        ("sensor_gyro", PX4_ACCEL, "<HQQIffffI", ("x", "y", "z", "temperature"), listed(gyro)),
-        ("sensor_baro", PX4_BARO, "<HQQIffI", ("pressure", "temperature"), listed(baro)))
+    topics = [(name, fields, pack, cols, i) for name, fields, pack, group in (
+        ("sensor_accel", PX4_ACCEL, _sensor_row, listed(accel)), ("sensor_gyro", PX4_GYRO, _sensor_row, listed(gyro)),
+        ("sensor_baro", PX4_BARO, _baro_row, listed(baro)),
+        ("sensor_accel_fifo", PX4_FIFO, _fifo_row, listed(accel_fifo)),
+        ("sensor_gyro_fifo", PX4_FIFO, _fifo_row, listed(gyro_fifo)),
+        ("sensor_imu_fifo", PX4_IMU_FIFO, _imu_fifo_row, listed(imu_fifo)))
         for i, cols in enumerate(group, start=instance if name != "sensor_baro" else 0)]
     for name, fields in dict.fromkeys((t[0], t[1]) for t in topics):
         out += _ulog_message(b"F", (f"{name}:" + "".join(f"{f};" for f in fields)).encode())
@@ -51,14 +64,36 @@ def write_ulog(path, accel: dict | list | None, gyro: dict | list | None, instan
     for msg_id, (name, *_, i) in enumerate(topics):
         out += _ulog_message(b"A", struct.pack("<BH", i, msg_id) + name.encode())
     rows = []
-    for msg_id, (_, _, fmt, values, c, _) in enumerate(topics):
+    for msg_id, (_, _, pack, c, _) in enumerate(topics):
         for k in range(len(c["t_us"])):
-            payload = struct.pack(fmt, msg_id, int(c["t_us"][k]), int(c["t_us"][k]), int(c["device_id"]),
-                                  *(c[v][k] for v in values), 0)
-            rows.append((int(c["t_us"][k]), msg_id, _ulog_message(b"D", payload)))
+            rows.append((int(c["t_us"][k]), msg_id, _ulog_message(b"D", struct.pack("<H", msg_id) + pack(c, k))))
     rows.sort(key=lambda r: (r[0], r[1]))
     out += b"".join(r[2] for r in rows)
     Path(path).write_bytes(bytes(out[:len(out) - truncate_bytes]))
+
+
+def _sensor_row(c, k) -> bytes:
+    return struct.pack("<QQIffffI", int(c["t_us"][k]), int(c["t_us"][k]), int(c["device_id"]),
+                       *(c[v][k] for v in ("x", "y", "z", "temperature")), 0)
+
+
+def _baro_row(c, k) -> bytes:
+    return struct.pack("<QQIffI", int(c["t_us"][k]), int(c["t_us"][k]), int(c["device_id"]), c["pressure"][k],
+                       c["temperature"][k], 0)
+
+
+def _fifo_row(c, k) -> bytes:
+    each = lambda v: np.broadcast_to(c[v], (len(c["t_us"]),))[k]  # noqa: E731 (a scalar or one a message)
+    return struct.pack("<QQIffB32h32h32h", int(c["t_us"][k]), int(c["t_us"][k]), int(c["device_id"]),
+                       each("dt"), each("scale"), int(c["samples"][k]),
+                       *(int(v) for axis in "xyz" for v in c[axis][k]))
+
+
+def _imu_fifo_row(c, k) -> bytes:
+    return struct.pack("<QQIfBff144hfI", int(c["t_us"][k]), int(c["t_us"][k]), int(c["device_id"]), c["dt"],
+                       int(c["samples"][k]), c["accel_scale"], c["gyro_scale"],
+                       *(int(v) for s in ("accel", "gyro") for a in "xyz" for v in c[f"{s}_{a}"][k]),
+                       c["temperature"][k], 0)
 
 
 DF_HEAD = b"\xa3\x95"

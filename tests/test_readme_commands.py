@@ -43,7 +43,7 @@ SMALL = {"bench_derive_and_solve.py": ["--quick"], "bench_paper_tables.py": ["--
          "bench_temperature_rate.py": ["--seeds", "2", "--lag-seeds", "1"],
          "bench_cache_checks.py": [], "bench_lot.py": ["6", "--seeds", "2", "--workers", "2"],
          "bench_raw400.py": ["--rate-hz", "5", "--repeats", "1"], "bench_compare.py": ["--quick", "--repeats", "1"],
-         "bench_warmup.py": ["--seeds", "1", "--minutes", "5"],
+         "bench_warmup.py": ["--seeds", "1", "--minutes", "5", "--imus", "2"],
          "bench_family.py": ["--seeds", "2", "--auto-seeds", "1"], "bench_bag_noise.py": ["--hours", "0.02"],
          "bench_long_noise.py": ["--hours", "0.05", "--rate-hz", "50"],
          "bench_systematic.py": ["--seeds", "1", "--speed-hours", "0", "--compare-seeds", "0"],

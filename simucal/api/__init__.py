@@ -103,8 +103,9 @@ def calibrate(data: Data | Sequence[Data], **options: Unpack[CalibrateOptions]) 
     data : str, os.PathLike or MeasurementSet, or a list of them
         The set; a list (plateaus, or one set whose temperature ramps), or one set with
         ``thermal=True``, is a thermal calibration (`simucal calibrate --thermal`).
-    method : {"auto", "exact", "linear", "multiposition", "ferraris", "handheld", "field", "systematic"}
-        The method (default "auto": the one the data's kind takes; simucal.methods).
+    method : str
+        The method (simucal.api.options.Method, the registry's: auto, exact, linear, multiposition, ferraris,
+        handheld, field or systematic; default "auto", the one the data's kind takes).
     add : str or list of str
         Effect ids, model files, or "auto" (a forward selection): one as a string.
     acc_model, gyro_model : str

@@ -54,15 +54,16 @@ def increasing(t, path):
                            f"{t[bad[0] + 1]:.6f} s)")
 
 
-def on_one_clock(t_a, acc, temp_a, t_g, gyro, path):
+def on_one_clock(t_a, acc, temp_a, t_g, gyro, path, names=("sensor_accel", "sensor_gyro")):
     """(t, acc, gyro, temp, how) of two sensors logged at their own stamps: the slower sensor's rows, the
-    other's samples averaged over each row's interval (module doc). temp: the accelerometer's, on the rows."""
-    for t, what in ((t_a, "sensor_accel"), (t_g, "sensor_gyro")):
+    other's samples averaged over each row's interval (module doc). temp: the accelerometer's, on the rows;
+    names: the two topics', for the log block and the refusals."""
+    for t, what in ((t_a, names[0]), (t_g, names[1])):
         if len(t) < 2:
             raise ImportError_(f"{path}: {what} holds {len(t)} samples")
         increasing(t, f"{path} ({what})")
     if t_a[-1] <= t_g[0] or t_g[-1] <= t_a[0]:
-        raise ImportError_(f"{path}: sensor_accel ({t_a[0]:.3f} to {t_a[-1]:.3f} s) and sensor_gyro ({t_g[0]:.3f} to "
+        raise ImportError_(f"{path}: {names[0]} ({t_a[0]:.3f} to {t_a[-1]:.3f} s) and {names[1]} ({t_g[0]:.3f} to "
                            f"{t_g[-1]:.3f} s) never overlap in time: no row holds both sensors")
     acc_slower = np.median(np.diff(t_a)) >= np.median(np.diff(t_g))
     (t_s, slow), (t_f, fast) = ((t_a, acc), (t_g, gyro)) if acc_slower else ((t_g, gyro), (t_a, acc))
@@ -73,7 +74,7 @@ def on_one_clock(t_a, acc, temp_a, t_g, gyro, path):
     sums = np.stack([np.bincount(rows[inside], fast[inside, j], len(t_s)) for j in range(3)], axis=1)
     keep = count > 0
     if not keep.any():
-        raise ImportError_(f"{path}: no sensor_accel interval holds a sensor_gyro sample (or the reverse)")
+        raise ImportError_(f"{path}: no {names[0]} interval holds a {names[1]} sample (or the reverse)")
     mean = sums[keep] / count[keep, None]
     if temp_f is not None:
         temp_rows = np.bincount(rows[inside], temp_f[inside], len(t_s))[keep] / count[keep]
@@ -85,7 +86,7 @@ def on_one_clock(t_a, acc, temp_a, t_g, gyro, path):
         longest = int(empty[np.argmax(t_s[empty] - t_s[empty - 1])])
         gaps["longest_s"] = float(t_s[longest] - t_s[longest - 1])
         gaps["longest_at_s"] = float(t_s[longest - 1])
-    slow_name, fast_name = ("sensor_accel", "sensor_gyro") if acc_slower else ("sensor_gyro", "sensor_accel")
+    slow_name, fast_name = names if acc_slower else names[::-1]
     how = {"rows": f"{slow_name}'s samples at their timestamp_sample ({1 / np.median(np.diff(t_s)):.4g} Hz)",
            "other": f"{fast_name}'s samples ({1 / np.median(np.diff(t_f)):.4g} Hz) averaged over each row's interval "
                     "(the previous row's stamp, this row's]", "intervals_without_a_sample": gaps}

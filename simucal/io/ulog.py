@@ -14,6 +14,15 @@ PX4 logs the IMU in one or more of these topics, by its logging profile (SDLOG_P
   high-rate and thermal-calibration ones.
 - `vehicle_imu` (per instance): `delta_angle` over `delta_angle_dt` and `delta_velocity` over
   `delta_velocity_dt` (us), read as their means, rad/s and m/s^2, at timestamp_sample.
+- `sensor_accel_fifo` / `sensor_gyro_fifo` (PX4 v1.12+, per instance; the high-rate profiles): each message
+  one read of the sensor's FIFO, `samples` (at most the length of its arrays, 32) readings `x[]`, `y[]`, `z[]`
+  in integer counts, times `scale` (m/s^2 or rad/s a count), `dt` (us) apart; `timestamp_sample` is the
+  newest reading's (the drivers stamp the FIFO's read), so reading k of N is at timestamp_sample - (N-1-k) dt.
+  Every reading is a row (sensor_accel and sensor_gyro are each message's mean). The FIFO has no
+  temperature: it is sensor_accel's of the same device id, interpolated. `sensor_imu_fifo` (one topic of
+  both, `accel_x[]` ... with accel_scale and gyro_scale, and a temperature; a few PX4 versions) likewise.
+  A FIFO topic whose samples exceed its arrays, or whose dt or scale is not positive, is no source: the
+  warning (or, where nothing else holds the IMU, the refusal) names it.
 Where a log holds several, the source whose slower sensor has the highest rate is read, and the log block
 lists every source found with its rate and says why this one. With an instance asked for, only that
 instance's topics qualify (sensor_combined follows the voter, not an instance). A source under 10 Hz is
@@ -36,8 +45,8 @@ from simucal.io.log_stream import LogStream, need, on_one_clock, other_format
 
 LOW_RATE_HZ = 10.0  # under this a source is named as such: the IMU's noise is averaged away, its bandwidth lost
 RELATIVE_TIMESTAMP_INVALID = 2147483647
-TOPICS = ["sensor_combined", "sensor_accel", "sensor_gyro", "vehicle_imu", "sensor_selection",
-          "vehicle_gps_position", "sensor_gps"]
+TOPICS = ["sensor_combined", "sensor_accel", "sensor_gyro", "vehicle_imu", "sensor_accel_fifo", "sensor_gyro_fifo",
+          "sensor_imu_fifo", "sensor_selection", "vehicle_gps_position", "sensor_gps"]
 FRAME = "FRD (PX4's body frame, after the board's rotation)"
 # sensor_combined and vehicle_imu are VehicleIMU's output: PX4's calibration already applied
 CORRECTED = ("PX4's own calibration already applied (offsets, scale factors and, where TC_*_ENABLE, its thermal "
@@ -52,6 +61,7 @@ class Source:
     rate_hz: float     # its slower sensor's
     samples: int
     read: Callable[[], LogStream]
+    fault: str | None = None  # a FIFO topic that breaks its definition: listed, never read
 
 
 def read_ulog(path, instance: int | None = None) -> LogStream:
@@ -66,7 +76,7 @@ def read_ulog_instances(path, instances: list[int] | None = None) -> list[LogStr
     holds both sensors (sensor_combined, which follows PX4's voter, is no instance)."""
     path = Path(path)
     data, warnings = _parsed(path)
-    held = sorted({s.instance for s in _sources(data, path) if s.instance is not None})
+    held = sorted({s.instance for s in _usable(_sources(data, path), path, []) if s.instance is not None})
     if not held and ("sensor_combined", 0) in data:
         raise ImportError_(f"{path}: no instance holds both sensors (sensor_accel with sensor_gyro, or vehicle_imu); "
                            "the log has sensor_combined, PX4's primary IMU: import it without --instance, or log "
@@ -91,12 +101,13 @@ def _parsed(path: Path) -> tuple[dict, list[str]]:
 
 
 def _best(path: Path, data: dict, warnings: list[str], instance: int | None) -> LogStream:
-    sources = [s for s in _sources(data, path) if instance is None or s.instance == instance]
+    listed = [s for s in _sources(data, path) if instance is None or s.instance == instance]
+    sources = _usable(listed, path, warnings)
     if not sources:
         raise ImportError_(f"{path}: {_missing(data, instance)}")
     best = max(sources, key=lambda s: (s.rate_hz, s.samples))
     stream = best.read()
-    if not best.name.startswith("sensor_accel"):
+    if best.name.startswith(("sensor_combined", "vehicle_imu")):
         stream.log["corrected"] = CORRECTED
     stream.log.update({"format": "ulog", "file": path.name, "sensor_frame": FRAME, "source": best.name,
                        "sources": [{"name": s.name, "rate_hz": round(s.rate_hz, 3), "samples": s.samples}
@@ -112,6 +123,18 @@ def _best(path: Path, data: dict, warnings: list[str], instance: int | None) -> 
         stream.log["gps_latitude_deg"] = latitude
     stream.warnings += warnings
     return stream
+
+
+def _usable(sources: list[Source], path, warnings: list[str]) -> list[Source]:
+    """The sources that can be read; a faulty FIFO topic is named in a warning, or refused where it is the
+    only source."""
+    faulty = [s for s in sources if s.fault is not None]
+    usable = [s for s in sources if s.fault is None]
+    if faulty and not usable:
+        raise ImportError_(f"{path}: {faulty[0].fault}: the log holds no other IMU source; log it again, or "
+                           "import a log whose FIFO topics keep PX4's definition")
+    warnings += [f"{path}: {s.fault}: it is left out, and the IMU read from the next source" for s in faulty]
+    return usable
 
 
 def _sources(data, path) -> list[Source]:
@@ -130,6 +153,12 @@ def _sources(data, path) -> list[Source]:
         if name == "vehicle_imu" and len(d["timestamp"]) > 1:
             out.append(Source(f"vehicle_imu instance {i}", i, _rate(_stamps(d)), len(d["timestamp"]),
                               partial(_vehicle_imu, d, i, data, path)))
+        if name == "sensor_accel_fifo" and ("sensor_gyro_fifo", i) in data:
+            g = data[("sensor_gyro_fifo", i)]
+            out.append(_fifo_source("sensor_accel_fifo+sensor_gyro_fifo", ((name, d, ""), ("sensor_gyro_fifo", g, "")),
+                                    i, data, path))
+        if name == "sensor_imu_fifo":
+            out.append(_fifo_source(name, ((name, d, "accel_"), (name, d, "gyro_")), i, data, path))
     return out
 
 
@@ -142,9 +171,10 @@ def _missing(data, instance) -> str:
         return f"no IMU source of instance {instance} (the log's instances with both sensors: " \
                f"{', '.join(map(str, both))}): give --instance {both[0]}, or leave --instance out"
     found = "; ".join(f"{t}: instances {', '.join(map(str, i))}" for t, i in
-                      (("sensor_accel", acc), ("sensor_gyro", gyro)) if i) or "no IMU topic"
+                      (("sensor_accel", acc), ("sensor_gyro", gyro), ("sensor_accel_fifo", has("sensor_accel_fifo")),
+                       ("sensor_gyro_fifo", has("sensor_gyro_fifo"))) if i) or "no IMU topic"
     return (f"no topic holds both sensors (sensor_combined, sensor_accel with sensor_gyro of one instance, or "
-            f"vehicle_imu; it has {found}): log the IMU (SDLOG_PROFILE)")
+            f"vehicle_imu, sensor_accel_fifo with sensor_gyro_fifo; it has {found}): log the IMU (SDLOG_PROFILE)")
 
 
 def _rate(t_us) -> float:
@@ -234,6 +264,83 @@ def _vehicle_imu(d, instance, data, path) -> LogStream:
                      "intervals_without_a_sample": {"rows_left_out": int((~valid).sum())}}}
     return LogStream(t_s[valid], _xyz(d, "delta_velocity")[valid] / dt_v[valid, None],
                      _xyz(d, "delta_angle")[valid] / dt_a[valid, None], temp, log)
+
+
+def _fifo_source(name: str, sensors, multi_id: int, data, path) -> Source:
+    """A FIFO source: sensors ((topic, columns, field prefix) of the accelerometer, then the gyro's); its
+    instance the sensor_accel instance of the accelerometer's device id (the FIFO topics' multi_ids follow
+    their first publication), else the topic's own."""
+    faults = [_fifo_fault(d, topic, multi_id, prefix) for topic, d, prefix in sensors]
+    acc_id = _device_id(sensors[0][1])
+    same = [i for (n, i), a in sorted(data.items()) if n == "sensor_accel" and _device_id(a) == acc_id]
+    instance = same[0] if same and acc_id is not None else multi_id
+    held = [np.asarray(d["samples"], np.int64) > 0 for _, d, _ in sensors] if not any(faults) else []
+    rate = min(1e6 / float(np.median(np.asarray(d["dt"], float)[h])) for (_, d, _), h in zip(sensors, held)) \
+        if held and all(h.sum() > 1 for h in held) else 0.0
+    count = min(int(np.sum(d["samples"])) for _, d, _ in sensors) if rate else 0
+    return Source(f"{name} instance {instance}", instance, rate, count,
+                  partial(_fifo_pair, sensors, instance, data, path),
+                  next((f for f in faults if f), None) or (None if rate else f"{name} instance {multi_id}: "
+                                                           "fewer than two messages hold samples"))
+
+
+def _fifo_fault(d, topic: str, multi_id: int, prefix: str) -> str | None:
+    """What breaks PX4's definition of a FIFO topic's messages (samples within its arrays, dt and scale
+    positive), or None."""
+    scale = f"{prefix}scale" if prefix else "scale"
+    lacks = [k for k in ("timestamp_sample", "dt", "samples", scale, f"{prefix}x[0]") if k not in d]
+    if lacks:
+        return f"{topic} instance {multi_id} lacks the field {lacks[0]} of PX4's definition"
+    width, n = _fifo_width(d, prefix), np.asarray(d["samples"], np.int64)
+    held = n > 0
+    for bad, what in ((n > width, lambda k: f"samples {n[k]}, more than the {width} its {prefix}x[] holds"),
+                      (held & ~(np.asarray(d["dt"], float) > 0), lambda k: f"dt {d['dt'][k]:g} us, not a positive "
+                                                                         "interval between samples"),
+                      (held & ~(np.asarray(d[scale], float) > 0), lambda k: f"{scale} {d[scale][k]:g}, not a "
+                                                                           "positive unit a count")):
+        if bad.any():
+            k = int(np.argmax(bad))
+            return f"{topic} instance {multi_id}, message {k} (of {len(n)}): {what(k)}"
+    return None
+
+
+def _fifo_width(d, prefix: str) -> int:
+    """The length of a FIFO topic's arrays (32 in sensor_accel_fifo, 24 in sensor_imu_fifo)."""
+    return sum(1 for k in d if k.startswith(f"{prefix}x["))
+
+
+def fifo_samples(d, prefix: str = "") -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """(t_us, (n, 3) readings in m/s^2 or rad/s, each reading's message) of a FIFO topic, every message
+    unpacked (module doc): reading k of N at timestamp_sample - (N-1-k) dt, its counts times the scale."""
+    n = np.asarray(d["samples"], np.int64)
+    k = np.arange(_fifo_width(d, prefix))
+    held = k[None, :] < n[:, None]
+    t_us = np.asarray(d["timestamp_sample"], float)[:, None] - (n[:, None] - 1 - k) * np.asarray(d["dt"], float)[:, None]
+    counts = np.stack([np.column_stack([d[f"{prefix}{axis}[{j}]"] for j in k]) for axis in "xyz"], axis=-1)
+    scale = np.asarray(d[f"{prefix}scale" if prefix else "scale"], float)[:, None, None]
+    message = np.broadcast_to(np.arange(len(n))[:, None], held.shape)
+    return t_us[held], (counts * scale)[held], message[held]
+
+
+def _fifo_pair(sensors, instance, data, path) -> LogStream:
+    """A FIFO source's readings, the two sensors on one clock (log_stream.on_one_clock: where both read one
+    FIFO, at the same stamps, each row is one reading of each)."""
+    (topic_a, a, pa), (topic_g, g, pg) = sensors
+    (t_a, acc, msg_a), (t_g, gyro, _) = fifo_samples(a, pa), fifo_samples(g, pg)
+    names = (topic_a, topic_g) if topic_a != topic_g else (f"{topic_a} (accel_)", f"{topic_g} (gyro_)")
+    temp_a = np.asarray(a["temperature"], float)[msg_a] if "temperature" in a else None
+    t, acc_rows, gyro_rows, temp, clock = on_one_clock(t_a * 1e-6, acc, temp_a, t_g * 1e-6, gyro, path, names)
+    acc_id = _device_id(a)
+    how = f"{topic_a}'s" if temp is not None else None
+    if temp is None:
+        temp, how = _temperature_of(acc_id, t, data)
+    clock["fifo"] = "every reading of each message, reading k of N at timestamp_sample - (N-1-k) dt"
+    warnings = [f"{path}: {topic} holds PX4's rotation field (PX4 before v1.12): its readings are in the sensor's "
+                "own frame, before the board's rotation" for topic, d, _ in sensors[:1 + (topic_a != topic_g)]
+                if "rotation" in d and np.any(np.asarray(d["rotation"]) != 0)]
+    return LogStream(t, acc_rows, gyro_rows, temp, {
+        "instance": instance, "topics": list(dict.fromkeys([topic_a, topic_g])), "clock": clock,
+        "acc_device_id": acc_id, "gyro_device_id": _device_id(g), "temperature": how}, warnings)
 
 
 def gps_latitude(data) -> float | None:
