@@ -185,7 +185,8 @@ def _outside(value, std, lim) -> str | None:
     """Why a value breaks its limits (with its distance in its own std), or None."""
     for k, sign, word in (("min", -1, "below"), ("max", 1, "above")):
         if k in lim and sign * (value - lim[k]) > 0:
-            return f"{value:.4g} {word} its {k} {lim[k]:.4g} {lim['unit']} ({abs(value - lim[k]) / std:.2g} std)"
+            return (f"{value:.4g} {lim['unit']} {word} its {k} {lim[k]:.4g} {lim['unit']} "
+                    f"({abs(value - lim[k]) / std:.2g} std)")
     return None
 
 

@@ -344,9 +344,10 @@ def test_a_sets_kind_is_told_once_and_its_entry_looked_up(monkeypatch):
 # the API's; it may only stay empty.
 CLI_MAY_IMPORT = {"simucal.api", "simucal.api.analyses", "simucal.api.planning", "simucal.api.tools", "simucal.cli",
                   "simucal.cli.common", "simucal.io.outputs", "simucal.errors", "simucal.progress",
-                  "simucal.report.console", "simucal.report.lot_html", "simucal.validate", "simucal.sweeps",
-                  "simucal.methods", "simucal.io.cache"}  # the registry's names in the help, read at start without
-# numpy; the cache's check that no input lies in it, beside output safety (common.guard)
+                  "simucal.report.console", "simucal.report.lot_html", "simucal.report.units", "simucal.validate",
+                  "simucal.sweeps", "simucal.methods", "simucal.io.cache"}  # the registry's names in the help, read at
+# start without numpy; the cache's check that no input lies in it, beside output safety (common.guard); what is
+# printed in the unit system asked (--units), as the console prints it
 CLI_NOT_YET: set[str] = set()
 
 

@@ -120,11 +120,14 @@ def test_noise_terms_in_si(sets, tmp_path):
         pairs = _pairs(spec_out, si_out.replace(str(tmp_path), ""), spec_unit, si_unit)
         assert len(pairs) >= 3 and all(_agrees(y, x, factor) for y, x in pairs), (spec_unit, pairs)
     assert "rad/sqrt(s)" in (tmp_path / "n.html").read_text()
+    # the quantisation, a sensor's angle error, in rad: the spec's arcsec times the factor
+    q = _pairs(spec_out, si_out.replace(str(tmp_path), ""), "arcsec", "rad")
+    assert len(q) == 3 and all(_agrees(y, x, units.ARCSEC_RAD) for y, x in q), q
     noise, noise_si = simucal.noise(sets / "still"), simucal.noise(sets / "still", units="si")
     assert noise.lines() == noise.lines(units="spec") != noise.lines(units="si") == noise_si.lines(units="si")
     assert noise_si.report == noise.report  # the file's numbers: the spec's
     factor = {"deg/sqrt(h)": math.radians(1) / 60, "deg/h": DPH, "deg/h/sqrt(h)": DPH / 60, "deg/h/h": DPH / 3600,
-              "arcsec": 1.0, "ug*s": 1e-6 * G, "ug/sqrt(Hz)": 1e-6 * G, "ug": 1e-6 * G, "ug/sqrt(s)": 1e-6 * G,
+              "arcsec": units.ARCSEC_RAD, "ug*s": 1e-6 * G, "ug/sqrt(Hz)": 1e-6 * G, "ug": 1e-6 * G, "ug/sqrt(s)": 1e-6 * G,
               "ug/s": 1e-6 * G}
     for t, u in zip(noise.term_rows, noise_si.term_rows, strict=True):
         for x, y in ((t.value, u.value), (t.std, u.std), (t.bound_95, u.bound_95)):
@@ -160,3 +163,92 @@ def test_an_unknown_unit_system_is_refused_naming_the_choices(sets, tmp_path, co
 def test_the_command_lines_choices_are_the_units_modules():
     from simucal.cli.common import UNIT_SYSTEMS
     assert UNIT_SYSTEMS == units.UNIT_SYSTEMS
+
+
+@pytest.mark.parametrize("label, factor, si", [
+    ("g/g^2", 1 / G, "1/(m/s^2)"), ("ug*s", 1e-6 * G, "m/s"), ("(deg/h)/(deg/s)^2", DPH / math.radians(1) ** 2,
+                                                              "1/(rad/s)"),
+    ("deg/h/h", DPH / 3600, "rad/s^2"), ("(deg/h)/g", DPH / G, "(rad/s)/(m/s^2)"), ("g/degC^2", G, "m/s^2/degC^2"),
+    ("ug/sqrt(Hz)", 1e-6 * G, "m/s^2/sqrt(Hz)"), ("deg/h/sqrt(h)", DPH / 60, "rad/s/sqrt(s)"),
+    ("arcsec", units.ARCSEC_RAD, "rad"), ("deg", 1.0, "deg"), ("1/degC", 1.0, "1/degC")])
+def test_si_labels_cancel_like_factors_and_a_sensors_angle_error_is_in_rad(label, factor, si):
+    got = units.si_unit(label)
+    assert got is not None and got[1] == si and math.isclose(got[0], factor, rel_tol=1e-12), got
+
+
+def _number_before(text: str, unit: str) -> list[str]:
+    return re.findall(rf"({NUMBER}) {re.escape(unit)}(?![\w/^*(])", text)
+
+
+def test_diagnose_prints_its_page_and_added_parameters_in_si(sets, tmp_path):
+    add = ("--add", "acc.quadratic.z")
+    spec = run("diagnose", sets / "set", "-o", tmp_path / "d.json", "--html", tmp_path / "d.html", *add)
+    same = run("diagnose", sets / "set", "-o", tmp_path / "d2.json", "--units", "spec", *add)
+    si = run("diagnose", sets / "set", "-o", tmp_path / "d3.json", "--html", tmp_path / "d3.html", "--units", "si", *add)
+    assert spec.exit_code == same.exit_code == si.exit_code == 0, si.output
+    out = {k: r.output.split("\nwrote ")[0] for k, r in (("spec", spec), ("same", same), ("si", si))}
+    assert out["spec"] == out["same"]
+    assert (tmp_path / "d.json").read_bytes() == (tmp_path / "d3.json").read_bytes()
+    for spec_unit, si_unit, factor in (("g", "m/s^2", G), ("deg/h", "rad/s", DPH), ("g/g^2", "1/(m/s^2)", 1 / G)):
+        pairs = _pairs(out["spec"], out["si"], spec_unit, si_unit)
+        assert pairs and all(_agrees(y, x, factor) for y, x in pairs), (spec_unit, pairs)
+    assert re.search(rf"^    acc.quadratic.z = {NUMBER} \+- {NUMBER} g/g\^2(, truth {NUMBER} g/g\^2)?$", out["spec"], re.M)
+    assert "deg/h" not in out["si"] and not re.search(rf"{NUMBER} g\b", out["si"]), out["si"]
+    # one number, one reading: the gyro's residual as calibrate --units si prints it, from the number not its text
+    cal = run("calibrate", sets / "set", "-o", tmp_path / "c.json", "--units", "si", *add)
+    gyro = [re.search(rf"gyro: .*?residual rms ({NUMBER}) rad/s", t)[1] for t in (cal.output, out["si"])]
+    assert gyro[0] == gyro[1], gyro
+    pages = [re.sub(r"data:image/png;base64,[^\"]+", "", (tmp_path / f).read_text()) for f in ("d.html", "d3.html")]
+    row = [re.search(r"<td>acc.quadratic.z</td><td>([^<]*)</td><td></td><td></td><td>([^<]+)</td>", t) for t in pages]
+    assert row[0][1] == "g/g^2" and row[1][1] == "1/(m/s^2)" and _agrees(row[1][2], row[0][2], 1 / G), row
+    assert "residual rms" in pages[1] and "m/s^2" in pages[1] and not re.search(rf"{NUMBER} g\b", pages[1])
+
+
+def test_the_diagnosis_in_si_converts_the_numbers_and_writes_its_verdicts_from_them(sets):
+    from simucal.report.units import diagnosis_in
+    from simucal.report.verdicts import sensor_verdict
+    report = simucal.diagnose(sets / "set").report
+    si, api_si = diagnosis_in(report, "si"), simucal.diagnose(sets / "set", units="si")
+    assert diagnosis_in(report, "spec") is report and api_si.report == report  # the file: the spec's
+    assert api_si.verdict == {s: si[s]["verdict"] for s in ("acc", "gyro")} != {s: report[s]["verdict"] for s in
+                                                                                ("acc", "gyro")}
+    by_id = {c["id"]: c for c in report["candidates"]}
+    assert [c.unit for c in api_si.candidate_rows] == [units.in_units(1.0, by_id[c.id]["unit"], "si")[1]
+                                                       for c in api_si.candidate_rows]
+    for s, f in (("acc", G), ("gyro", DPH)):
+        assert sensor_verdict(report[s], s) == report[s]["verdict"]  # the verdict is its numbers' sentence
+        a, b = report[s]["model_test"], si[s]["model_test"]
+        assert b["residual_rms"] == pytest.approx(a["residual_rms"] * f, rel=1e-12) and b["residual_unit"] != a[
+            "residual_unit"]
+        np.testing.assert_allclose(si[s]["residuals"][0]["residual"], np.array(report[s]["residuals"][0]["residual"]) * f)
+        assert f"{b['residual_rms']:.3g} {b['residual_unit']}" in si[s]["verdict"]
+        estimated = [(c, d) for c, d in zip(report[s]["candidates"], si[s]["candidates"], strict=True)
+                     if c.get("estimate") is not None]
+        assert len(estimated) > 3
+        for c, d in estimated:
+            per, label = units.si_unit(c["unit"])
+            assert d["unit"] == label and d["estimate"] == pytest.approx(c["estimate"] * per, rel=1e-12)
+
+
+def test_plan_lot_and_montecarlo_print_si(sets, tmp_path):
+    plan = [run("plan", "--score", "table1", *x).output for x in ((), ("--units", "spec"), ("--units", "si"))]
+    assert plan[0] == plan[1] and len(_pairs(plan[0], plan[2], "g", "m/s^2")) == 4  # the noise and 3 biases
+    assert all(_agrees(y, x, G) for y, x in _pairs(plan[0], plan[2], "g", "m/s^2"))
+    mc = [run("montecarlo", "--trials", 20, "-o", tmp_path / f"mc{k}.json", *x).output.splitlines()[1:-1]
+          for k, x in enumerate(((), ("--units", "spec"), ("--units", "si")))]
+    assert mc[0] == mc[1] and len(mc[0]) == len(mc[2]) > 10
+    factor = {"1": (1.0, "1"), "rad": (1.0, "rad"), "g": (G, "m/s^2"), "deg/h": (DPH, "rad/s")}
+    for a, b in zip(mc[0][1:], mc[2][1:]):
+        a, b = a.split(), b.split()
+        f, label = factor[a[1]]
+        assert b[1] == label and all(_agrees(y, x, f) for x, y in zip(a[2:6], b[2:6])), (a, b)
+    assert run("calibrate", sets / "set", sets / "other", "-o", tmp_path / "cals").exit_code == 0
+    (tmp_path / "lim.json").write_text(json.dumps({"format": "simucal.limits/1", "limits": {
+        "acc.b_x": {"min": -1e-4, "max": 1e-4, "unit": "g"}}}))
+    lot = [run("lot", tmp_path / "cals", "-o", tmp_path / f"lot{k}.json", "--limits", tmp_path / "lim.json", *x)
+           for k, x in enumerate(((), ("--units", "spec"), ("--units", "si")))]
+    assert [r.exit_code for r in lot] == [0, 0, 0], lot[2].output
+    assert lot[0].output.replace("lot0", "X") == lot[1].output.replace("lot1", "X")
+    assert (tmp_path / "lot0.json").read_bytes() == (tmp_path / "lot2.json").read_bytes()
+    pairs = _pairs(lot[0].output, lot[2].output.replace("lot2", "lot0"), "g", "m/s^2")
+    assert len(pairs) >= 2 and all(_agrees(y, x, G) for y, x in pairs), pairs

@@ -248,8 +248,8 @@ def save(path: str | os.PathLike, result: Calibration | Validation | Diagnosis |
     Refused (simucal.io.outputs.OutputError, one line) where path is inside or is one of the data the
     result was made from, or a file of a measurement set (meta.json, samples.csv, ...).
     calibration_path: where the calibration file is, for a thermal or field page's next command.
-    units: a page's numbers in the spec's units ("spec") or in SI ("si": m/s^2, rad/s, rad/sqrt(s), ...; a
-    diagnosis page stays in the spec's); a .json file is always in the spec's (docs/calibration-file.md).
+    units: a page's numbers, its tables, verdicts and plots, in the spec's units ("spec") or in SI ("si": m/s^2,
+    rad/s, rad/sqrt(s), ...); a .json file is always in the spec's (docs/calibration-file.md).
 
     Examples
     --------
@@ -311,7 +311,7 @@ def _page(result: _file.Calibration | Validation | Diagnosis | Noise, calibratio
         return html_page(shown.validation_in(result.report, units))
     if isinstance(result, Diagnosis):
         from simucal.report.html import render
-        return render(result.report)
+        return render(shown.diagnosis_in(result.report, units))
     from simucal import allan
     return allan.html_page(result.report, units)
 

@@ -113,7 +113,7 @@ class Diagnosis:
 @checked
 def diagnose(data: Data, *, add: str | Sequence[str] = (), acc_model: str = "acc_baseline", gyro_model: str = "gyro_baseline",
              acc_noise_g: float | None = None, gyro_noise_dph: float | None = None,
-             timestamps: str = "auto") -> Diagnosis:
+             timestamps: str = "auto", units: str = "spec") -> Diagnosis:
     """Test the model on a set and rank the candidate missing effects.
 
     Parameters
@@ -128,6 +128,9 @@ def diagnose(data: Data, *, add: str | Sequence[str] = (), acc_model: str = "acc
         The noise of one row (g, deg/h) where the data's meta.json states none.
     timestamps : {"auto", "nominal", "recorded"}
         A stream's time stamps, as `calibrate` takes them.
+    units : {"spec", "si"}
+        The unit system of ``.verdict`` and ``.candidates`` (si: m/s^2, rad/s, 1/(m/s^2), ..., as `simucal diagnose
+        --units si` prints them); ``.report``, the file, is always in the spec's.
 
     Returns
     -------
@@ -142,14 +145,17 @@ def diagnose(data: Data, *, add: str | Sequence[str] = (), acc_model: str = "acc
     """
     from simucal.diagnose import diagnose as run
     from simucal.report.console import calibrate_refusal, next_adds, next_command
+    from simucal.report.units import diagnosis_in
+    io.units.check_unit_system(units)
     add = effect_ids(add)
     if "auto" in add:
         raise InputError("add 'auto' is calibrate's: diagnose already ranks every candidate")
     report = run(as_set(data), add, acc_model, gyro_model, acc_noise_g, gyro_noise_dph, timestamps)
     sensors = [s for s in ("acc", "gyro") if s in report]
+    shown = diagnosis_in(report, units)  # the verdicts and the table in the units asked; the report as written
     rows = [Candidate(c["id"].split(".")[0], c["id"], c.get("estimate"), c.get("std"), c.get("unit", ""),
                       c.get("statistic"), c.get("p_value"), bool(c.get("significant")), bool(c["separable"]),
-                      c.get("note") or "") for c in report["candidates"]]
+                      c.get("note") or "") for c in shown["candidates"]]
     files = {s: report[s]["shape"]["model_file"] for s in sensors
              if report[s].get("shape") and not report[s]["shape"].get("catalog_id")}
     refused = calibrate_refusal(report)
@@ -164,8 +170,8 @@ def diagnose(data: Data, *, add: str | Sequence[str] = (), acc_model: str = "acc
         command = next_command(report)[0]
         cmd = call if in_memory else command  # a set in memory: the next step is a call, not a command on a folder
         step = NextStep("calibrate", {"add": adds}, call, command, tuple(notes))
-    return Diagnosis({s: report[s]["verdict"] for s in sensors}, rows, cmd, notes,
-                     list(report.get("notes", [])), files, report, suggestions(report), step)
+    return Diagnosis({s: shown[s]["verdict"] for s in sensors}, rows, cmd, notes,
+                     list(report.get("notes", [])), files, report, suggestions(shown), step)
 
 
 def suggestions(report: dict) -> list[Suggestion]:

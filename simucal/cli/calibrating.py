@@ -245,10 +245,12 @@ def field_drift(data_dir, output, html_path, plot, heading_accuracy_deg, units):
 
 
 def _added_lines(result):
-    """diagnose --add: the residual and p before and after, per sensor, with units."""
+    """diagnose --add: the residual and p before and after, per sensor, and each added parameter, with units."""
+    from simucal.report.units import param_units_of
     for s in ("acc", "gyro"):
         a = result.get(s, {}).get("added")
         if a:
+            shown = param_units_of(result[s])
             u = a.get("residual_unit", "")
             p0, p1 = a["p_value_before"], a["p_value_after"]
             fmt = lambda p: "n/a" if p is None else f"{p:.3g}"
@@ -256,8 +258,10 @@ def _added_lines(result):
                    f"{a['residual_rms_after']:.3g} {u}, p {fmt(p0)} -> {fmt(p1)}")
             for k, row in a["params"].items():
                 if row["before"] is None:
-                    err = f", truth {row['truth']:.4g}" if "truth" in row else ""
-                    yield f"    {k} = {row['after']:.4g} +- {row['std_after']:.2g}{err}"
+                    label = row.get("unit", shown.get(k))
+                    unit = f" {label}" if label else ""
+                    err = f", truth {row['truth']:.4g}{unit}" if "truth" in row else ""
+                    yield f"    {k} = {row['after']:.4g} +- {row['std_after']:.2g}{unit}{err}"
 
 
 @main.command()
@@ -285,13 +289,12 @@ def diagnose(data_dir, output, html_path, add, acc_model, gyro_model, acc_noise_
                   "the gyro model file it may write": shape_model_path(output, "gyro")})
     result = api.diagnose(data_dir, add=add, acc_model=acc_model, gyro_model=gyro_model, acc_noise_g=acc_noise_g,
                           gyro_noise_dph=gyro_noise_dph, timestamps=timestamps)
-    for path in (output, html_path):  # the page in the spec's units (its plots' axes are the fit's)
-        if path:
-            api.save(path, result)
-    from simucal.report.console import printed
-    report = result.report
-    for line in printed([*report["verdict"].split(" | "), *report.get("notes", []), *_added_lines(report)], units,
-                        data_dir):
+    api.save(output, result)
+    if html_path:
+        api.save(html_path, result, units=units)
+    from simucal.report.units import diagnosis_in
+    report = diagnosis_in(result.report, units)  # the numbers converted, the verdicts written from them
+    for line in [*report["verdict"].split(" | "), *report.get("notes", []), *_added_lines(report)]:
         click.echo(line)
     click.echo(f"next: {result.next_command}" + "".join(f" ({n})" for n in result.next_notes))
     for s in result.model_files:

@@ -176,8 +176,9 @@ SETS = click.option("--set", "sets", multiple=True, metavar="NAME=VALUE",
 UNIT_SYSTEMS = ("spec", "si")  # io/units.py's, written here so that the command line starts without numpy
 UNITS = click.option(
     "--units", type=click.Choice(UNIT_SYSTEMS), default="spec", show_default=True,
-    help="The numbers printed (and a page's, a diagnosis page's aside) in the spec's units (g, deg/h, a data sheet's "
-         "noise units) or in SI (m/s^2, rad/s, rad/sqrt(s), ...); a scale factor or an angle is the same in both. "
+    help="The numbers printed (and a page's) in the spec's units (g, deg/h, a data sheet's noise units) or in SI "
+         "(m/s^2, rad/s, rad/sqrt(s), a sensor's angle error in rad, ...); a scale factor, a latitude or an attitude "
+         "is the same in both. "
          "The reports and calibration files written keep the spec's units; apply's set is written in the units asked "
          "(si: m/s^2 and rad/s).")
 FORCE = click.option("--force", is_flag=True,

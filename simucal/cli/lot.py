@@ -3,7 +3,7 @@ from __future__ import annotations
 
 import click
 
-from simucal.cli.common import InputPath, guard, main
+from simucal.cli.common import UNITS, InputPath, guard, main
 
 
 @main.command()
@@ -16,7 +16,8 @@ from simucal.cli.common import InputPath, guard, main
               help="A limits.json of spec limits per parameter ({\"format\": \"simucal.limits/1\", \"limits\": "
                    "{\"acc.b_x\": {\"min\": -0.005, \"max\": 0.005, \"unit\": \"g\"}}}, each in the unit the "
                    "calibrations give; default: none).")
-def lot(cal_folder, output, html_path, limits_path):
+@UNITS
+def lot(cal_folder, output, html_path, limits_path, units):
     """A lot of units from their calibration files (calibrate DIR1 DIR2 ... -o CAL_FOLDER): which pass, which fail
     and why (model test, spec limits), outliers, each parameter's spread, drift between calibrations of one unit."""
     import json
@@ -26,6 +27,8 @@ def lot(cal_folder, output, html_path, limits_path):
     guard([cal_folder] + ([limits_path] if limits_path else []), files={"-o": output, "--html": html_path})
     report = api.lot(cal_folder, limits_path)
     outputs.write_text(output, json.dumps(report, indent=1) + "\n")
+    from simucal.report.units import lot_in
+    report = lot_in(report, units)  # what is printed and paged; the file in the spec's units
     if html_path:
         from simucal.report.lot_html import lot_page
         outputs.write_text(html_path, lot_page(report))

@@ -19,6 +19,7 @@ from simucal.cli.common import (
     SEED,
     SEED_HELP,
     SETS,
+    UNITS,
     InputPath,
     Number,
     fail,
@@ -106,7 +107,8 @@ def demo(out_dir, seed, force):
 @click.option("--scheduler", default="local", show_default=True,
               help="local (this process), processes (a Dask LocalCluster on 127.0.0.1, one worker per core) or a "
                    "Dask scheduler's address: the same numbers on any. " + SCHEDULER_TRUST)
-def montecarlo(scenario, plan, trials, seed, effects, effect_file, sets, rates, output, scheduler):
+@UNITS
+def montecarlo(scenario, plan, trials, seed, effects, effect_file, sets, rates, output, scheduler, units):
     """Monte Carlo of a scenario: simulate, exact fits, unification; std against the Cramer-Rao bound.
     The Python API's simucal.montecarlo(...)."""
     import json
@@ -125,7 +127,8 @@ def montecarlo(scenario, plan, trials, seed, effects, effect_file, sets, rates, 
                f"scheduler {scheduler}); "
                f"{result['failed']} failed")
     click.echo(f"{'parameter':18} {'unit':8} {'truth':>12} {'mean':>12} {'std':>10} {'CRLB':>10} {'std/CRLB':>9}")
-    for name, v in result["parameters"].items():
+    from simucal.report.units import montecarlo_in
+    for name, v in montecarlo_in(result, units)["parameters"].items():
         click.echo(f"{name:18} {v['unit']:8} {v['truth']:12.5g} {v['mean']:12.5g} {v['std']:10.3g} {v['crlb']:10.3g} "
                    f"{v['std_over_crlb']:9.3f}")
     click.echo(f"wrote {output}")
@@ -290,9 +293,10 @@ def _design_sequence(reference, minutes, reference_minutes, unit_file, acc_noise
 @click.option("-o", "--output", type=click.Path(dir_okay=False), default=None,
               help="Design: the plan CSV or sequence CSV (a JSON sidecar with its scores beside it); score or "
                    "--sequence: the JSON.")
+@UNITS
 def plan(score_plan, model_name, add, positions, criterion, rate_dps, rates, kind, acc_noise_g, gyro_noise_dph, sigma,
          pair, sizes, target, sequence, design_seq, minutes, reference_minutes, unit_file, table_rate_dps, evaluations,
-         output):
+         output, units):
     """Score a test plan (Fisher information, CRLB, correlations, D and A criteria) or design one; or a
     rotation sequence's observability (--sequence), or design a sequence (--sequence --design)."""
     design = "a sequence's design (--sequence --design)"
@@ -302,6 +306,7 @@ def plan(score_plan, model_name, add, positions, criterion, rate_dps, rates, kin
     if design_seq and sequence is None:
         sequence = "psins19"
     if sequence is not None:
+        refuse_unused({"units": "a plan's score or design (--score, --positions)"})
         if positions is not None or pair:
             fail(f"{'--design designs' if design_seq else '--sequence scores'} a rotation sequence; --positions and "
                  "--separate design a plan's positions: give one")
@@ -344,12 +349,8 @@ def plan(score_plan, model_name, add, positions, criterion, rate_dps, rates, kin
                       sizes=_numbers("--sizes", sizes) if sizes else None, power=target)
     if rate_dps is not None:  # after the refusals, which are one line
         click.echo("warning: --rate-dps is deprecated: --rates-dps R takes one rate (deg/s) as it takes several", err=True)
-    click.echo(f"{result['plan']}: {result['model']}, noise {result['noise']:g} {result['unit']} per position"
-               + (f", rate runs at {', '.join(f'{x:g}' for x in result['rates_dps'])} deg/s" if result["rates_dps"] else ""))
-    click.echo(f"  D per position {result['D_per_position']:.6g}, A {result['A']:.4g}, "
-               f"largest |correlation| {result['max_abs_correlation']:.2f}")
-    for k, v in result["crlb"].items():
-        click.echo(f"  {k:16} CRLB {v:.3g} {result['units'][k]}")
+    for line in _score_lines(result, units):
+        click.echo(line)
     for line in _separation_lines(result["separation"]) if pair else ():
         click.echo(line)
     if positions is not None:
@@ -358,6 +359,18 @@ def plan(score_plan, model_name, add, positions, criterion, rate_dps, rates, kin
     elif output:
         outputs.write_text(output, json.dumps(result, indent=1, default=float) + "\n")
         click.echo(f"wrote {output}")
+
+
+def _score_lines(result, units):
+    """A plan's score on the console: its noise, criteria and each parameter's CRLB, in the unit system asked."""
+    from simucal.report.units import plan_in
+    shown = plan_in(result, units)  # the numbers printed; the files in the spec's units
+    yield (f"{result['plan']}: {result['model']}, noise {shown['noise']:g} {shown['unit']} per position"
+           + (f", rate runs at {', '.join(f'{x:g}' for x in result['rates_dps'])} deg/s" if result["rates_dps"] else ""))
+    yield (f"  D per position {result['D_per_position']:.6g}, A {result['A']:.4g}, "
+           f"largest |correlation| {result['max_abs_correlation']:.2f}")
+    for k, v in shown["crlb"].items():
+        yield f"  {k:16} CRLB {v:.3g} {shown['units'][k]}"
 
 
 def _numbers(option, text):

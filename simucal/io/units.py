@@ -3,6 +3,10 @@
 Calibrations work in g (accelerometers) and deg/h (gyros). Pulse and count
 outputs are divided by the nominal scale factors of meta.json. Note
 1 arcsec/s = 1 deg/h, so gyro pulse/s / (pulses per arcsec) is deg/h.
+
+What a person reads may be asked in SI (si_unit, in_units): m/s^2 for g, rad/s for deg/h, and rad for an angle
+that is a sensor's error (a quantisation, a misalignment, a table's angle error: given in arcsec); an angle a
+person sets or reads as a place or a pose (a latitude, an attitude, a heading: given in deg) stays in deg.
 """
 import math
 import re
@@ -227,14 +231,16 @@ def _refuse_ratio(sensor, r, where, what="outputs"):
 
 # The units a person may ask numbers in: the spec's (g, deg/h and the noise terms' data-sheet units) or SI
 # (m/s^2, rad/s, rad/sqrt(s), ...). The files keep the spec's; these convert what is printed, tabled or written
-# for a person, label and value together.
+# for a person, label and value together (the angles: the module's doc).
 UNIT_SYSTEMS = ("spec", "si")
 # each spec atom of a unit label as (its SI atom, SI per spec atom, times gravity: the set's or standard)
 _SI_ATOMS: dict[str, tuple[str, float, bool]] = {
     "g": ("m/s^2", 1.0, True), "mg": ("m/s^2", 1e-3, True), "ug": ("m/s^2", 1e-6, True),
     "deg": ("rad", math.pi / 180, False), "arcsec": ("rad", ARCSEC_RAD, False), "h": ("s", 3600.0, False)}
+_SI_POWERS = {"m/s^2": {"m": 1, "s": -2}}  # a compound SI atom's base atoms, for cancelling (ug*s -> m/s)
 _KEPT_ATOMS = {"s", "Hz", "rad", "degC", "m", "1", "ppm", "K"}  # SI already, or dimensionless
 _TIMES = {"h", "s", "Hz"}
+_SENSOR_ANGLES = {"arcsec"}  # an angle alone converted to rad: only a sensor's error is given in arcsec
 _UNIT_TOKEN = re.compile(r"\s*(sqrt\(|[A-Za-z]+|\d+|[()/*^])")
 
 
@@ -247,8 +253,9 @@ def check_unit_system(system: str, where: str = "units") -> None:
 
 def si_unit(label: str, gravity_mps2: float = DEFAULT_GRAVITY) -> tuple[float, str] | None:
     """(SI per unit of label, the SI label) for a unit label of the spec's atoms (g, ug, deg/h, deg/sqrt(h),
-    (deg/h)/g, g/degC^2, ug*s, ...), None where label is no unit made of them. An angle alone (deg, arcsec)
-    and a time alone stay as they are (factor 1): only accelerations, rates and the noise terms convert."""
+    (deg/h)/g, g/degC^2, ug*s, arcsec, ...), None where label is no unit made of them; the SI label with its
+    like factors cancelled (g/g^2 -> 1/(m/s^2), ug*s -> m/s). An angle in deg and a time alone stay as they are
+    (factor 1): accelerations, rates, the noise terms and a sensor's angle errors (arcsec) convert."""
     tokens, at = [], 0
     while at < len(label):
         m = _UNIT_TOKEN.match(label, at)
@@ -257,47 +264,96 @@ def si_unit(label: str, gravity_mps2: float = DEFAULT_GRAVITY) -> tuple[float, s
         tokens.append(m.group(1))
         at = m.end()
     try:
-        factor, text, atoms, end = _unit_expr(tokens, 0, gravity_mps2)
+        factor, terms, atoms, end = _unit_expr(tokens, 0, gravity_mps2)
     except (IndexError, ValueError):
         return None
     if end != len(tokens):
         return None
-    rate_or_acc = atoms & {"g", "mg", "ug"} or (atoms & {"deg", "arcsec"} and atoms & _TIMES)
-    return (factor, text) if rate_or_acc else (1.0, label)
+    converts = atoms & {"g", "mg", "ug"} or (atoms & {"deg", "arcsec"} and atoms & _TIMES) or atoms == _SENSOR_ANGLES
+    return (factor, _render(_simplified(terms))) if converts else (1.0, label)
 
 
+# A label's SI form as terms [group, exponent]; a group: (its base atoms' powers, its text, compound (several
+# atoms: parenthesised where raised or dividing), plain (one atom to an integer power: may cancel into a compound))
 def _unit_expr(tokens, i, g):
-    """tokens[i:] as factor ((/|*) factor)*: (SI per unit, SI text, the atoms met, the index after it)."""
-    factor, text, atoms, i = _unit_factor(tokens, i, g, first=True)
+    """tokens[i:] as factor ((/|*) factor)*: (SI per unit, its SI terms, the atoms met, the index after it)."""
+    factor, group, power, atoms, i = _unit_factor(tokens, i, g)
+    terms = [[group, power]]
     while i < len(tokens) and tokens[i] in "/*":
         op = tokens[i]
-        f, t, a, i = _unit_factor(tokens, i + 1, g, first=False)
-        factor, text, atoms = factor / f if op == "/" else factor * f, f"{text}{op}{t}", atoms | a
-    return factor, text, atoms, i
+        f, group, power, a, i = _unit_factor(tokens, i + 1, g)
+        factor, atoms = factor / f if op == "/" else factor * f, atoms | a
+        terms.append([group, -power if op == "/" else power])
+    return factor, terms, atoms, i
 
 
-def _unit_factor(tokens, i, g, first):
-    """One atom, (expr) or sqrt(expr), with an integer power; an SI compound in parentheses where it is
-    raised or divides (g^2 -> (m/s^2)^2, /g -> /(m/s^2))."""
+def _unit_factor(tokens, i, g):
+    """One atom, (expr) or sqrt(expr), with an integer power: (SI per unit, group, power, atoms, next index)."""
     t = tokens[i]
     if t in ("(", "sqrt("):
-        factor, text, atoms, i = _unit_expr(tokens, i + 1, g)
+        factor, terms, atoms, i = _unit_expr(tokens, i + 1, g)
         if tokens[i] != ")":
             raise ValueError(t)
-        factor, text, i = (math.sqrt(factor), f"sqrt({text})", i + 1) if t == "sqrt(" else (factor, f"({text})", i + 1)
+        terms, i = _simplified(terms), i + 1
+        powers = _powers(terms)
+        if t == "sqrt(":
+            factor, group = math.sqrt(factor), ({a: p / 2 for a, p in powers.items()}, f"sqrt({_render(terms)})",
+                                                False, False)
+        else:
+            group = (powers, f"({_render(terms)})" if len(powers) > 1 else _render(terms), len(powers) > 1, False)
     elif t in _SI_ATOMS:
         text, per, by_gravity = _SI_ATOMS[t]
         factor, atoms, i = per * (g if by_gravity else 1.0), {t}, i + 1
-        raised = i < len(tokens) and tokens[i] == "^"
-        text = f"({text})" if "/" in text and (raised or not first) else text
+        group = (_SI_POWERS.get(text, {text: 1}), text, text in _SI_POWERS, text not in _SI_POWERS)
     elif t in _KEPT_ATOMS:
-        factor, text, atoms, i = 1.0, t, {t} & _TIMES, i + 1
+        factor, atoms, i = 1.0, {t} & _TIMES, i + 1
+        group = ({} if t == "1" else {t: 1}, t, False, True)
     else:
         raise ValueError(t)
+    power = 1
     if i < len(tokens) and tokens[i] == "^":
-        power = int(tokens[i + 1])
-        factor, text, i = factor ** power, f"{text}^{power}", i + 2
-    return factor, text, atoms, i
+        power, i = int(tokens[i + 1]), i + 2
+        factor **= power
+    return factor, group, power, atoms, i
+
+
+def _powers(terms) -> dict:
+    out: dict = {}
+    for (powers, *_), e in terms:
+        for a, p in powers.items():
+            out[a] = out.get(a, 0) + p * e
+    return {a: p for a, p in out.items() if p}
+
+
+def _simplified(terms):
+    """Like groups summed (g/g^2 -> 1/g), then a plain atom cancelled into a compound that holds it with the
+    opposite sign (m/s^2*s -> m/s); dimensionless and cancelled terms dropped."""
+    out: list = []
+    for group, e in terms:
+        same = next((t for t in out if t[0][0] == group[0]), None)
+        if same is not None:
+            same[1] += e
+        elif group[0]:
+            out.append([group, e])
+    for plain in [t for t in out if t[0][3] and t[1]]:
+        (atom, p), = plain[0][0].items()
+        into = next((t for t in out if t[0][2] and t[1] == 1 and t[0][0].get(atom, 0) * plain[1] < 0), None)
+        if into is not None:
+            powers = _powers([into, plain])
+            into[0] = (powers, _render([[({a: 1}, a, False, True), q] for a, q in powers.items()]), len(powers) > 1,
+                       False)
+            plain[1] = 0
+    return [t for t in out if t[1]]
+
+
+def _render(terms) -> str:
+    """The label of SI terms: the numerator's groups by *, then each denominator's by / (a compound in
+    parentheses where raised or dividing; the first one alone as it is)."""
+    def text(group, e, first):
+        paren = group[2] and not group[1].startswith("(") and (e != 1 or not first)
+        return (f"({group[1]})" if paren else group[1]) + (f"^{e:g}" if e != 1 else "")
+    num = [text(g, e, k == 0) for k, (g, e) in enumerate(t for t in terms if t[1] > 0)]
+    return ("*".join(num) or "1") + "".join(f"/{text(g, -e, False)}" for g, e in terms if e < 0)
 
 
 def in_units(value, label: str, system: str = "spec", gravity_mps2: float = DEFAULT_GRAVITY):

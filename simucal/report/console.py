@@ -29,14 +29,6 @@ def calibration_lines(cal: Calibration, units: str = "spec"):
     return shown.lines_in(_lines(shown.calibration_in(cal, units, g)), units, g)
 
 
-def printed(lines, units: str, where) -> list[str]:
-    """Lines in the unit system asked, each quantity that carries its unit (diagnose's verdicts); where: the set the
-    numbers came from (its gravity)."""
-    from simucal.report import units as shown
-    shown.units.check_unit_system(units)
-    return list(lines) if units == "spec" else shown.lines_in(lines, units, shown.gravity_of(where))
-
-
 def _lines(cal: Calibration):
     """Per sensor its test and effects (and what to add when the model fails), then the frames'
     unification, the consistency checks, what the plan leaves undetermined, and the warnings."""

@@ -106,7 +106,7 @@ def candidate_figure(sensor, block, n_tested):
     return png(fig)
 
 
-def before_after_figure(sensor, block):
+def before_after_figure(sensor, block, unit):
     a = block["added"]
     r0 = np.sqrt(np.mean(np.array([x["residual"] for x in a["residuals_before"]]) ** 2, axis=0))
     r1 = np.sqrt(np.mean(np.array([x["residual"] for x in block["residuals"]]) ** 2, axis=0))
@@ -117,7 +117,7 @@ def before_after_figure(sensor, block):
     if block["baseline"].get("noise_floor"):
         ax.axhline(block["baseline"]["noise_floor"], color="k", ls="--", label="noise floor")
     ax.set_xticks(x, [f"{sensor} {c}" for c in AXES])
-    ax.set(ylabel="residual rms", title="residual before and after adding")
+    ax.set(ylabel=f"residual rms ({unit})", title="residual before and after adding")
     ax.legend(fontsize=8)
     return png(fig)
 
@@ -146,7 +146,9 @@ def stream_figures(stream):
     det = stream["static_detection"]
     for k, (a, b) in enumerate(det["intervals_s"]):
         ax.axvspan(a, b, color="tab:green", alpha=0.25, label="static (detected)" if k == 0 else None)
-    ax.set(xlabel="time (s)", ylabel="calibrated |f| (g)", ylim=(0.5, 1.5), title=f"stream: {det['count']} static intervals "
+    one_g = stream.get("one_g", 1.0)  # 1 g in the unit shown (report/units.diagnosis_in)
+    ax.set(xlabel="time (s)", ylabel=f"calibrated |f| ({stream.get('acc_norm_unit', 'g')})", ylim=(0.5 * one_g, 1.5 * one_g),
+           title=f"stream: {det['count']} static intervals "
            f"(threshold {det['threshold']:.3g}, window {det['window']} samples, min {det['min_samples']} samples)")
     ax.legend(fontsize=8)
     figs.append(png(fig))
@@ -181,7 +183,9 @@ def candidate_tables(cands) -> list[str]:
 
 
 def render(diag: dict) -> str:
-    units = {"acc": "g", "gyro": "deg/h"}
+    """The page of a diagnosis, in its own units: the spec's, or those report/units.diagnosis_in gave it."""
+    from simucal.report.units import param_units_of
+    units = {s: diag[s].get("unit", u) for s, u in (("acc", "g"), ("gyro", "deg/h")) if s in diag}
     parts = []
     if "stream" in diag:
         parts.append("<h2>stream</h2>")
@@ -200,9 +204,10 @@ def render(diag: dict) -> str:
         parts.append(candidate_figure(s, b, len(tested)))
         parts += candidate_tables(b["candidates"])
         if "added" in b:
-            parts.append(before_after_figure(s, b))
-            rows = [{"parameter": k, **v} for k, v in b["added"]["params"].items()]
-            parts.append(_table(rows, ["parameter", "before", "std_before", "after", "std_after", "truth",
+            parts.append(before_after_figure(s, b, units[s]))
+            shown = param_units_of(b)
+            rows = [{"parameter": k, "unit": v.get("unit", shown.get(k)), **v} for k, v in b["added"]["params"].items()]
+            parts.append(_table(rows, ["parameter", "unit", "before", "std_before", "after", "std_after", "truth",
                                        "error_before", "error_after"]))
     cmd, notes = next_command(diag)
     return page("simucal diagnosis", f"Diagnosis of {diag['input']}", _verdicts(diag), cmd, notes, parts)

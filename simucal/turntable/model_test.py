@@ -12,7 +12,7 @@ diagnose's verdict are read from the same list, so they name the same effect.
 from __future__ import annotations
 
 from collections import Counter
-from typing import NamedTuple
+from typing import Any, NamedTuple, cast
 
 import numpy as np
 
@@ -125,14 +125,20 @@ def static_gyro_test(ms, gm, fg, u_b, C_b_d, static_gyro, term=None) -> records.
     n, dof = len(N), len(e)
     p_value = float(chi2_sf(chi2, dof))
     what = "the Earth rate's vertical component" + (" and horizontal magnitude" if horizontal else "")
-    return {"chi2": chi2, "dof": dof, "p_value": p_value, "positions": n, "what": what,
-            "residual_rms_dph": float(np.sqrt(np.mean(e ** 2))), "noise_rms_dph": float(np.sqrt(np.mean(var))),
-            "verdict": (f"{n} static positions ({what} at rest, predicted by the rate runs' fit): chi2 {chi2:.1f} on "
-                        f"{dof} dof, p = {p_value:.2g}; residual rms {np.sqrt(np.mean(e ** 2)):.3g} deg/h against "
-                        f"{np.sqrt(np.mean(var)):.3g} noise"
-                        + ("" if p_value >= ALPHA else ": the model misfits at rest what the rate runs cannot see "
-                           "(e.g. a bias that follows a fixed direction in the local frame, as a magnetic field, "
-                           "shows in rate-run means only as its vertical part, which a g-sensitivity absorbs)"))}
+    out: dict[str, Any] = {"chi2": chi2, "dof": dof, "p_value": p_value, "positions": n, "what": what,
+                           "residual_rms_dph": float(np.sqrt(np.mean(e ** 2))),
+                           "noise_rms_dph": float(np.sqrt(np.mean(var)))}
+    return cast(records.StaticRows, {**out, "verdict": static_rows_verdict(out)})
+
+
+def static_rows_verdict(st: dict, unit: str = "deg/h", per_dph: float = 1.0) -> str:
+    """The static rows' test in words, their residual and noise in unit (per_dph of it per deg/h)."""
+    return (f"{st['positions']} static positions ({st['what']} at rest, predicted by the rate runs' fit): chi2 "
+            f"{st['chi2']:.1f} on {st['dof']} dof, p = {st['p_value']:.2g}; residual rms "
+            f"{st['residual_rms_dph'] * per_dph:.3g} {unit} against {st['noise_rms_dph'] * per_dph:.3g} noise"
+            + ("" if st["p_value"] >= ALPHA else ": the model misfits at rest what the rate runs cannot see "
+               "(e.g. a bias that follows a fixed direction in the local frame, as a magnetic field, "
+               "shows in rate-run means only as its vertical part, which a g-sensitivity absorbs)"))
 
 
 class AtRest:
