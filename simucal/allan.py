@@ -380,10 +380,10 @@ def next_step(report, written=None) -> tuple[str, list[str]]:
             ["Kalibr's imu.yaml would lack " + "; ".join(missing)])
 
 
-def html_page(report, units: str = "spec") -> str:
+def html_page(report, units: str = "spec", written=None) -> str:
     """A self-contained page: the verdicts and the next step (as the console prints them), then each
     sensor's Allan deviation with its interval and the fitted terms, in one unit system per table (the
-    spec's data-sheet units, or SI)."""
+    spec's data-sheet units, or SI); written: as next_step's, so that the page's next step is the console's."""
     import html as _html
 
     from simucal.io.units import in_units
@@ -421,5 +421,5 @@ def html_page(report, units: str = "spec") -> str:
                      f"{rows}</table><p>Terms fitted by generalised least squares with the covariance of the "
                      f"overlapping estimates; a term is shown where beyond {allan_fit.SEEN:g} std, otherwise "
                      "with its 95 % upper bound.</p>")
-    cmd, notes = next_step(report)
+    cmd, notes = next_step(report, written)
     return page("simucal noise", f"Noise of {report['data']}", verdicts(sheets), cmd, notes, parts)

@@ -77,6 +77,9 @@ def test_white_noise_is_recovered_and_kalibr_gets_it_in_si(tmp_path):
     assert "<img src=\"data:image/png;base64," in (tmp_path / "n.html").read_text()
     nxt = next(x for x in r.output.splitlines() if x.startswith("next: "))  # not the --kalibr command just run
     assert "--kalibr" not in nxt and f"--noise {tmp_path / 'n.json'}" in nxt, nxt
+    import html
+    page = html.unescape((tmp_path / "n.html").read_text())
+    assert f"Next: <code>{nxt[len('next: '):]}</code>" in page  # the page's next step is the console's
 
 
 def test_a_rate_random_walk_raises_the_long_taus(tmp_path):

@@ -15,7 +15,7 @@ import json
 import os
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any, NamedTuple, Sequence, Union, cast
+from typing import Any, Mapping, NamedTuple, Sequence, Union, cast
 
 from simucal.errors import InputError
 from simucal import io
@@ -238,7 +238,8 @@ def validate(cal: Calibration | str | os.PathLike, data: Data, *, acc_noise_g: f
 
 @checked
 def save(path: str | os.PathLike, result: Calibration | Validation | Diagnosis | Noise,
-         calibration_path: str | os.PathLike = "thermal_calibration.json", units: str = "spec") -> None:
+         calibration_path: str | os.PathLike = "thermal_calibration.json", units: str = "spec",
+         written: Mapping[str, str | None] | None = None) -> None:
     """Write a result as its command writes it: a calibration file (``simucal.calibration/2``, as
     `simucal calibrate -o`), or the report of `simucal validate`, `diagnose` or `noise` (``-o``); a
     path ending in .html: the page of ``--html`` (a calibration's: a thermal one's, as `calibrate
@@ -248,6 +249,8 @@ def save(path: str | os.PathLike, result: Calibration | Validation | Diagnosis |
     Refused (simucal.io.outputs.OutputError, one line) where path is inside or is one of the data the
     result was made from, or a file of a measurement set (meta.json, samples.csv, ...).
     calibration_path: where the calibration file is, for a thermal or field page's next command.
+    written: a noise page's: the files its command wrote beside it ({"-o": noise.json, "--kalibr": imu.yaml}),
+    so that the page's next step is the console's (not the command just run).
     units: a page's numbers, its tables, verdicts and plots, in the spec's units ("spec") or in SI ("si": m/s^2,
     rad/s, rad/sqrt(s), ...); a .json file is always in the spec's (docs/calibration-file.md).
 
@@ -262,7 +265,7 @@ def save(path: str | os.PathLike, result: Calibration | Validation | Diagnosis |
     outputs.check(_inputs(result), files={str(path): path})
     io.units.check_unit_system(units)
     if Path(path).suffix.lower() in (".html", ".htm"):
-        return outputs.write_text(path, _page(result, str(calibration_path), units))
+        return outputs.write_text(path, _page(result, str(calibration_path), units, written))
     if isinstance(result, _file.Calibration):
         return _file.save(path, result)
     if isinstance(result, Diagnosis):
@@ -293,7 +296,8 @@ def _inputs(result: _file.Calibration | Validation | Diagnosis | Noise) -> list[
     return [str(p) for p in given if isinstance(p, str) and Path(p).exists()]
 
 
-def _page(result: _file.Calibration | Validation | Diagnosis | Noise, calibration_path: str, units: str) -> str:
+def _page(result: _file.Calibration | Validation | Diagnosis | Noise, calibration_path: str, units: str,
+          written: Mapping[str, str | None] | None = None) -> str:
     """The self-contained HTML page of a result (the commands' --html), in the unit system asked."""
     from simucal.report import units as shown
     if isinstance(result, _file.Calibration):
@@ -313,7 +317,7 @@ def _page(result: _file.Calibration | Validation | Diagnosis | Noise, calibratio
         from simucal.report.html import render
         return render(shown.diagnosis_in(result.report, units))
     from simucal import allan
-    return allan.html_page(result.report, units)
+    return allan.html_page(result.report, units, written)
 
 
 @checked

@@ -76,7 +76,8 @@ def _union(args: tuple) -> Accepts | None:
     if any(m is None for m in members):
         return None
     known = [m for m in members if m is not None]
-    return Accepts(lambda v: any(m.test(v) for m in known), " or ".join(dict.fromkeys(m.words for m in known)),
+    none = type(None) in args  # an item's None (a mapping's value): at the top, the door's nullable already took it
+    return Accepts(lambda v: (none and v is None) or any(m.test(v) for m in known), " or ".join(dict.fromkeys(m.words for m in known)),
                    any(m.listed for m in known), next((m.item for m in known if m.item), None),
                    any(m.fspath for m in known))
 

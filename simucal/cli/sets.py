@@ -282,11 +282,13 @@ def noise(data_dir, output, html_path, kalibr_path, tau_max_s, scheduler, topic,
     guard([data_dir], files={"-o": output, "--html": html_path, "--kalibr": kalibr_path})
     result = api.noise(data_dir, tau_max_s=tau_max_s, scheduler=scheduler, topic=topic)
     yaml = result.kalibr_yaml() if kalibr_path else None  # refused before anything is written
+    written = {"-o": output, "--kalibr": kalibr_path}
     _save(result, output)
-    _save(result, html_path, units=units)
+    if html_path:  # its next step the console's: the page is written beside the report and imu.yaml
+        api.save(html_path, result, units=units, written=written)
     if kalibr_path:
         outputs.write_text(kalibr_path, yaml)
-    for line in result.lines({"-o": output, "--kalibr": kalibr_path}, units):
+    for line in result.lines(written, units):
         click.echo(line)
     click.echo(f"wrote {output}" + "".join(f" and {p}" for p in (html_path, kalibr_path) if p))
 
