@@ -74,10 +74,10 @@ def test_a_calibration_never_lands_on_another_sets_file(work):
 
 
 def test_writing_over_a_hard_link_to_an_input_leaves_the_input(work):
-    os.link(work / "set" / "samples.csv", work / "linked.csv")  # a rename replaces the link, not the data
+    os.link(work / "set" / "samples.csv", work / "linked.json")  # a rename replaces the link, not the data
     before = _digest(work / "set")
-    assert _run("calibrate", work / "set", "-o", work / "linked.csv").exit_code == 0
-    assert _digest(work / "set") == before and (work / "linked.csv").read_text().startswith("{")
+    assert _run("calibrate", work / "set", "-o", work / "linked.json").exit_code == 0
+    assert _digest(work / "set") == before and (work / "linked.json").read_text().startswith("{")
 
 
 def test_diagnose_never_writes_its_model_file_over_the_one_it_was_given(work):
