@@ -84,7 +84,7 @@ def diagnose_moves(ms, obs, det, am, fa, add=(), truth=None):
         block["note"] = f"the moves' fit with {', '.join(add)} did not converge in {fit.iterations} steps"
     inside = gm.mv.dt > 0
     columns = {k: np.sum(np.where(inside, v, 0.0), 1) / np.maximum(inside.sum(1), 1)
-               for k, v in inputs[0][1].values.items() if k not in FORCE}
+               for k, v in inputs.moves[1].values.items() if k not in FORCE}
     fails = ModelTest(chi2, dof, p).fails
     cands = rank_move_candidates(gm, fit, inputs, fails, tuple(add), problem=problem)
     shares = (select_effects(gm, base, sigma_g, inputs, cands)

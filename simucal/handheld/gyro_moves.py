@@ -6,12 +6,13 @@
 - the test: each move's residual covariance S_i from the rests' white noise integrated over the move
   and the two poses' direction variances (move_covariances), chi2 = sum r_i^T S_i^+ r_i plus the
   bias prior (chi2_test; handheld/diagnose_moves.py gives the derivation);
-- candidate effects along the moves: their inputs at every move sample (regressor_inputs) and their
-  regressors integrated into the moves (with_terms).
+- candidate effects along the moves: their inputs at every move sample (regressor_inputs), their
+  regressors there evaluated once (regressors) and integrated into the moves (with_terms).
 """
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import NamedTuple
 
 import numpy as np
 
@@ -109,13 +110,29 @@ def chi2_test(fit: GyroFit, S, bias_std, mv: Moves):
     return chi2, dof, float(chi2_sf(chi2, dof)) if dof > 0 else None
 
 
-def has_input(eid, inputs) -> bool:
+class RegressorInputs(NamedTuple):
+    """The candidate regressors' inputs (regressor_inputs): (u deg/h, AuxInputs) along the moves (m, L) and at
+    the initial rest (n,), with each effect's regressors there once evaluated (`regressors`): a ranking, its
+    trial fits and each step of --add auto ask for the same effects again at the same inputs."""
+    moves: tuple
+    rest: tuple
+    evaluated: dict
+
+
+def regressors(eid, inputs: RegressorInputs) -> tuple[np.ndarray, np.ndarray]:
+    """Effect eid's regressor along the moves (m, L) and at the rest (n,), evaluated once per inputs."""
+    if eid not in inputs.evaluated:
+        inputs.evaluated[eid] = tuple(regressor(eid, u, aux) for u, aux in (inputs.moves, inputs.rest))
+    return inputs.evaluated[eid]
+
+
+def has_input(eid, inputs: RegressorInputs) -> bool:
     """Whether effect eid's regressor is anywhere nonzero at the inputs (regressor_inputs): a temperature
     term has none in a recording without temp_c, and is then not worth integrating along the moves."""
-    return any(np.any(regressor(eid, u, aux)) for u, aux in inputs)
+    return any(np.any(phi) for phi in regressors(eid, inputs))
 
 
-def regressor_inputs(ms, gm, fit: GyroFit, acc_cal):
+def regressor_inputs(ms, gm, fit: GyroFit, acc_cal) -> RegressorInputs:
     """Inputs of the candidate regressors, (u deg/h, AuxInputs), at every move sample (m, L) and
     at every sample of the initial rest (n,): the calibrated rate, the calibrated specific
     force (acc_cal: the accelerometer's model and parameters, inverted whole) and the samples'
@@ -134,15 +151,14 @@ def regressor_inputs(ms, gm, fit: GyroFit, acc_cal):
         flat = AuxInputs({k: np.ravel(v) if np.ndim(v) else v for k, v in columns.items()})
         f = model_inputs(am, p_a, ms.acc_g()[ix].reshape(-1, 3), flat, ms.path / "samples.csv").reshape(ix.shape + (3,))
         out.append((w[ix] @ fit.T.T * units.DPH_PER_DPS, AuxInputs({**columns, **specific_force(f)})))
-    return out
+    return RegressorInputs(out[0], out[1], {})
 
 
-def with_terms(mv: Moves, ids, inputs) -> Moves:
+def with_terms(mv: Moves, ids, inputs: RegressorInputs) -> Moves:
     """mv with the regressors of effects ids along the moves and their mean over the rest."""
-    (u, aux), (u0, aux0) = inputs
     mask = mv.dt > 0
-    phi = np.array([regressor(e, u, aux) * mask / units.DPH_PER_DPS for e in ids]).reshape(len(ids), *mask.shape)
-    phi_rest = np.array([np.mean(regressor(e, u0, aux0)) / units.DPH_PER_DPS for e in ids])
+    phi = np.array([regressors(e, inputs)[0] * mask / units.DPH_PER_DPS for e in ids]).reshape(len(ids), *mask.shape)
+    phi_rest = np.array([np.mean(regressors(e, inputs)[1]) / units.DPH_PER_DPS for e in ids])
     return Moves(mv.y, mv.dt, mv.before, mv.after, mv.t_span, mv.rows, phi, tuple(EFFECTS[e].axis for e in ids),
                  phi_rest)
 
