@@ -9,7 +9,6 @@ shape of a misfit no candidate explains (with a model file for it), and with
 from __future__ import annotations
 
 import heapq
-import json
 from pathlib import Path
 
 import numpy as np
@@ -18,6 +17,7 @@ from simucal import io, methods
 from simucal.errors import CalibrationError
 from simucal.fit.augmented import AugmentedModel
 from simucal.fit.candidates import test_model
+from simucal.io.text_files import json_object_or_none
 from simucal.report.console import skipped_sensors
 from simucal.report.verdicts import sensor_verdict
 from simucal.fit.norm_fit import Fit, Observations
@@ -84,10 +84,7 @@ def scoring_truth(path) -> dict | None:
     """A simulator's truth.json beside the set, read for scoring only (the errors of --add's parameters):
     {sensor: {params: {name: number}, T: 3x3, bias_dps: 3}} with whatever is not of that shape left
     out, and None where it is missing or unreadable (deep, damaged, not JSON): it is never an input."""
-    try:
-        d = json.loads(Path(path).read_text()) if Path(path).is_file() else None
-    except (OSError, UnicodeDecodeError, ValueError, RecursionError):
-        return None
+    d = json_object_or_none(path)
     number = lambda x: isinstance(x, (int, float)) and not isinstance(x, bool) and np.isfinite(x)
     out = {}
     for sensor, block in (d.items() if isinstance(d, dict) else ()):

@@ -85,13 +85,10 @@ def read_set(path: str | os.PathLike) -> MeasurementSet:
 
 
 def _truth(path: Path) -> results.Truth | None:
-    """A simulator's truth.json beside a set (what `simulate` returns as .truth), None where there is none or
-    it is not a JSON object (it is never an input: a damaged one only leaves .truth empty)."""
-    try:
-        d = json.loads(path.read_text()) if path.is_file() else None
-    except (OSError, UnicodeDecodeError, ValueError, RecursionError):
-        return None
-    return cast(results.Truth, d) if isinstance(d, dict) else None
+    """A simulator's truth.json beside a set (what `simulate` returns as .truth), None where there is none (it is
+    never an input: a damaged one only leaves .truth empty)."""
+    from simucal.io.text_files import json_object_or_none
+    return cast(results.Truth, json_object_or_none(path))
 
 
 @checked

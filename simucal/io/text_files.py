@@ -5,6 +5,7 @@ for reading; and the careful reader of samples.csv, which names the line where t
 from __future__ import annotations
 
 import hashlib
+import json
 import math
 import mmap
 import os
@@ -185,3 +186,13 @@ def careful_rows(reader, path, header, cols, others) -> dict:
     if not data["t_s"]:
         raise MeasurementSetError(path, None, "no samples")
     return {c: np.asarray(v, float) for c, v in data.items()}
+
+
+def json_object_or_none(path) -> dict | None:
+    """The JSON object a file holds, None where it is missing or holds none (unreadable, damaged, not JSON, too
+    deep): for a file that is never an input, such as a simulator's truth.json beside a set."""
+    try:
+        d = json.loads(Path(path).read_text()) if Path(path).is_file() else None
+    except (OSError, UnicodeDecodeError, ValueError, RecursionError):
+        return None
+    return d if isinstance(d, dict) else None
