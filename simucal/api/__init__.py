@@ -271,7 +271,7 @@ def save(path: str | os.PathLike, result: Calibration | Validation | Diagnosis |
     return outputs.write_text(path, json.dumps(result.report, indent=1) + "\n")
 
 
-SAVED_AS = {".json": "JSON", ".html": "its page", ".htm": "its page"}
+SAVED_AS = (".json", ".html", ".htm")  # the report or calibration as JSON, or its page
 OTHER_FORMATS = {".params": "PX4's parameters: simucal.autopilot_files(imus, px4=PATH)",
                  ".param": "ArduPilot's parameters: simucal.autopilot_files(imus, ardupilot=PATH)",
                  ".yaml": "Kalibr's imu.yaml: Noise.kalibr_yaml()", ".yml": "Kalibr's imu.yaml: Noise.kalibr_yaml()"}
