@@ -297,7 +297,25 @@ KINDS = {k.name: k for k in (
     Kind(STREAM, "handheld", _simulate_stream, _stream_observations, _stream_gyro, _no_extras, _stream_finish,
          _stream_checks, _whole_stream, True),
 )}
-SCENARIOS = {k.scenario: k for k in KINDS.values()}
+
+
+def _simulate_still(seed, rate_hz, o):
+    from simucal.handheld.simulate import simulate_still
+    meta, samples, truth = simulate_still(**{k: v for k, v in (("seconds", o["seconds"]), ("dt", rate_hz and 1 / rate_hz))
+                                             if v is not None}, seed=seed)
+    return meta, samples, None, truth
+
+
+def _simulate_warmup(seed, rate_hz, o):
+    from simucal.handheld.simulate import simulate_warmup
+    meta, samples, truth = simulate_warmup(seed, **{k: v for k, v in (("seconds", o["seconds"]), ("hz", rate_hz))
+                                                    if v is not None})
+    return meta, samples, None, truth
+
+
+# `simulate --scenario`'s names: each kind's own (its simulate), and a still stream's two (a unit at rest for
+# `simucal noise`, a still board warming up for `calibrate --thermal`)
+SCENARIOS = {**{k.scenario: k.simulate for k in KINDS.values()}, "still": _simulate_still, "warmup": _simulate_warmup}
 
 
 def kind_of(ms) -> Kind:

@@ -1,6 +1,8 @@
 """A still board warming up (simucal/handheld/warmup.py): each axis's bias over temperature with
 honest stds where the bias also wanders in time, a model test that holds its level, the autopilots' files
 with the log's device ids, and refusals that say what still data can give."""
+from pathlib import Path
+
 import numpy as np
 import pytest
 from click.testing import CliRunner
@@ -12,24 +14,17 @@ from simucal.calibrate import calibrate
 from simucal.cli import main
 from simucal.errors import CalibrationError
 from simucal.handheld.warmup import calibrate_warmup
-from simucal.io.arrays import from_arrays
+from simucal.handheld.simulate import WARMUP_ACC_G, WARMUP_GYRO_DPH, WARMUP_T_REF_C, simulate_warmup
 
-T_REF = 37.5
-ACC_G = np.array([[2e-3, 4e-5, -2e-6, 1e-6], [-1e-3, -3e-5, 1e-6, 2e-6], [1.5e-3, 2e-5, 3e-6, -1.5e-6]])
-GYRO_DPH = np.array([[360.0, 5.0, -0.1, 0.04], [-180.0, -4.0, 0.08, 0.03], [90.0, 3.0, 0.05, -0.04]])
+T_REF = WARMUP_T_REF_C
+ACC_G, GYRO_DPH = np.array(WARMUP_ACC_G), np.array(WARMUP_GYRO_DPH)
 
 
 def warmup(seed, seconds=1500.0, hz=50.0, wander=True):
-    """A still board (z down) warming from 15 to 58 degC: a cubic bias in (T - 37.5) on every axis, white
-    noise and (wander) a random walk of the bias in time, as a MEMS unit's."""
-    rng = np.random.default_rng(seed)
-    t = np.arange(0, seconds, 1 / hz)
-    T = 15 + 45 * (1 - np.exp(-t / 500.0)) + rng.normal(0, 0.02, len(t))
-    powers = (T - T_REF)[:, None] ** np.arange(4)
-    walk = (lambda step: np.cumsum(rng.normal(0, step, (len(t), 3)), axis=0)) if wander else (lambda step: 0.0)
-    acc = np.array([0, 0, -1.0]) + powers @ ACC_G.T + rng.normal(0, 2e-3, (len(t), 3)) + walk(2e-6)
-    gyro = powers @ GYRO_DPH.T + rng.normal(0, 180.0, (len(t), 3)) + walk(0.05)
-    return from_arrays(acc, gyro, acc_unit="g", gyro_unit="deg/h", t_s=t, temp_c=T, meta={"latitude_deg": 47.0})
+    """simulate's warm-up (a still board from 15 to 58 degC, a cubic bias per axis); `wander`: the bias's random
+    walk in time, as a MEMS unit's."""
+    meta, samples, _ = simulate_warmup(seed, seconds, hz, wander)
+    return simucal.MeasurementSet(Path(f"warmup_seed{seed}"), meta, samples, None)
 
 
 @pytest.mark.slow

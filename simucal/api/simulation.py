@@ -12,8 +12,8 @@ from simucal.api.arguments import checked
 from simucal.api.sets import MeasurementSet
 
 Pairs = Union[Mapping[str, float], Sequence[str]]  # {name: value} or the command's "NAME=VALUE" strings
-SCENARIOS = tuple(methods.SCENARIOS)  # paper, field, handheld: a kind of data each (methods.KINDS)
-ScenarioName = Literal["paper", "sequence", "field", "handheld"]  # SCENARIOS for an editor (test_architecture)
+SCENARIOS = tuple(methods.SCENARIOS)  # paper, field, handheld, ...: methods.SCENARIOS
+ScenarioName = Literal["paper", "sequence", "field", "handheld", "still", "warmup"]  # SCENARIOS for an editor (test_architecture)
 # the turntable test's options, by their Python names, with the command's spelling (refusals name both)
 TABLE_ONLY = {"sequence": "--sequence", "plan": "--plan", "position_error_arcmin": "--position-error-arcmin", "acc_model": "--acc-model",
               "gyro_model": "--gyro-model", "acc_unit": "--acc-unit", "gyro_unit": "--gyro-unit",
@@ -22,7 +22,9 @@ TABLE_ONLY = {"sequence": "--sequence", "plan": "--plan", "position_error_arcmin
               "temperature_wander_c": "--temperature-wander-c", "noise_stated": "--no-noise-stated"}
 TABLE = ("paper", "sequence")  # the scenarios of a turntable: they take its options
 TAKES = {"paper": "--seed, --rate-hz and the turntable's options", "field": "--seed, --rate-hz and --heading-accuracy-deg",
-         "handheld": "--seed, --rate-hz and --effect"}
+         "handheld": "--seed, --rate-hz and --effect", "still": "--seed, --rate-hz and --duration-s",
+         "warmup": "--seed, --rate-hz and --duration-s"}
+STILL = ("still", "warmup")  # a still stream's scenarios: they take duration_s
 
 
 def _strings(pairs: Pairs | None, fmt=repr) -> list[str]:
@@ -39,7 +41,7 @@ def _span(v) -> str:
     return ":".join(repr(float(x)) for x in v) if isinstance(v, (tuple, list)) else str(v)
 
 
-def _scenario(scenario: str, sequence: str | None) -> str:
+def resolved_scenario(scenario: str, sequence: str | None) -> str:
     """The scenario named, refused unless one of SCENARIOS; "paper" with a sequence is "sequence" (the same table
     turning through it: that scenario's data)."""
     if scenario not in SCENARIOS:
@@ -47,8 +49,15 @@ def _scenario(scenario: str, sequence: str | None) -> str:
     return "sequence" if scenario == "paper" and sequence is not None else scenario
 
 
-def _refuse_unused(scenario: str, table_options: dict, effects, heading_accuracy_deg, unit_seed=None) -> None:
+def _refuse_unused(scenario: str, table_options: dict, effects, heading_accuracy_deg, unit_seed=None,
+                   duration_s=None) -> None:
     """An option the scenario would not use is refused, naming it (Python name and the command's)."""
+    if scenario not in STILL and duration_s is not None:
+        raise InputError(f"duration_s (--duration-s) {duration_s:g}: a still stream's length (--scenario still or warmup); "
+                         f"the {scenario} scenario takes " + TAKES[scenario])
+    if scenario in STILL and (unit_seed is not None or effects):
+        raise InputError(f"{'unit_seed (--unit-seed)' if unit_seed is not None else 'effects (--effect)'}: the "
+                         f"{scenario} scenario's unit is fixed, its truth.json names it; it takes " + TAKES[scenario])
     if scenario in TABLE and unit_seed is not None:
         raise InputError(f"unit_seed (--unit-seed) {unit_seed}: the turntable unit is the scenario's at every seed; "
                          "the hand-placed and field scenarios draw theirs (--scenario handheld or field)")
@@ -70,15 +79,16 @@ def simulate(scenario: ScenarioName = "paper", *, seed: int = 0, rate_hz: float 
              effect_file: str | None = None, sets: Pairs | None = None, columns: Mapping[str, Any] | Sequence[str] | None = None,
              temperature_c: Any = None, t_ref_c: float | None = None, temperature_wander_c: float | None = None,
              noise_stated: bool = True, heading_accuracy_deg: float | None = None, sequence: str | None = None,
-             unit_seed: int | None = None) -> MeasurementSet:
+             unit_seed: int | None = None, duration_s: float | None = None) -> MeasurementSet:
     """Simulate a recording of a unit whose truth is known.
 
     Parameters
     ----------
-    scenario : {"paper", "sequence", "field", "handheld"} (ScenarioName)
+    scenario : {"paper", "sequence", "field", "handheld", "still", "warmup"} (ScenarioName)
         "paper": a turntable test, dong2018 section 4 (raw pulse/s); "sequence" (or `sequence` given): its table
         turning through a rotation sequence; "field": ruan2019's three positions without a table; "handheld": a
-        hand-placed session (a stream in counts, poses held between moves).
+        hand-placed session (a stream in counts, poses held between moves); "still": a unit at rest (for `noise`);
+        "warmup": a still board from 15 to 58 degC, a cubic bias per axis (for ``calibrate(..., thermal=True)``).
     seed, unit_seed : int
         numpy's seeds: the recording's, and where the unit is drawn (hand-placed, field) the unit's (default seed).
     rate_hz : float, optional
@@ -96,12 +106,12 @@ def simulate(scenario: ScenarioName = "paper", *, seed: int = 0, rate_hz: float 
     temperature_c : float or (float, float), optional
         Turntable: temp_c, a plateau at T degC or a ramp (T0, T1) over the segments.
     t_ref_c, temperature_wander_c : float, optional
-        With `temperature_c`: the unit's T_ref (degC, default 25) and each segment's wander (+- degC,
-        default 0).
+        With `temperature_c`: the unit's T_ref (degC, default 25) and each segment's wander (+- degC, default 0).
     noise_stated : bool
         Turntable: write acc_noise_g / gyro_noise_dph into meta.json (default True).
-    heading_accuracy_deg : float, optional
-        Field: the north reference's accuracy, deg (its error drawn uniform +- this; default 5).
+    heading_accuracy_deg, duration_s : float, optional
+        Field: the north reference's accuracy, deg (its error drawn uniform +- this; default 5). Still and
+        warm-up: the stream's length, s (default 1800 and 1500).
 
     Returns
     -------
@@ -111,7 +121,7 @@ def simulate(scenario: ScenarioName = "paper", *, seed: int = 0, rate_hz: float 
     Raises
     ------
     ValueError
-        An option the scenario does not use, or a malformed value, named.
+        An option the scenario does not use (named), or a malformed value.
 
     Examples
     --------
@@ -120,16 +130,16 @@ def simulate(scenario: ScenarioName = "paper", *, seed: int = 0, rate_hz: float 
     >>> ms.truth["acc"]["effects"]
     {'acc.quadratic.z': 0.0002}
     """
-    kind = _scenario(scenario, sequence)
+    kind = resolved_scenario(scenario, sequence)
     table_options = dict(sequence=sequence, plan=plan, position_error_arcmin=position_error_arcmin, acc_model=acc_model,
-                         gyro_model=gyro_model, acc_unit=acc_unit, gyro_unit=gyro_unit, effect_file=effect_file,
-                         sets=sets, columns=columns, temperature_c=temperature_c, t_ref_c=t_ref_c,
+                         gyro_model=gyro_model, acc_unit=acc_unit, gyro_unit=gyro_unit, effect_file=effect_file, sets=sets,
+                         columns=columns, temperature_c=temperature_c, t_ref_c=t_ref_c,
                          temperature_wander_c=temperature_wander_c, noise_stated=not noise_stated)
-    _refuse_unused(kind, table_options, effects, heading_accuracy_deg, unit_seed)
+    _refuse_unused(kind, table_options, effects, heading_accuracy_deg, unit_seed, duration_s)
     options = {**table_options, "effects": _strings(effects), "sets": _strings(sets), "unit_seed": unit_seed,  # as the command's
                "columns": _strings(columns, _span), "temperature": None if temperature_c is None else _span(temperature_c),
-               "state_noise": noise_stated, "heading_accuracy_deg": heading_accuracy_deg}
-    meta, samples, segments, truth = methods.SCENARIOS[kind].simulate(seed, rate_hz, options)
+               "state_noise": noise_stated, "heading_accuracy_deg": heading_accuracy_deg, "seconds": duration_s}
+    meta, samples, segments, truth = methods.SCENARIOS[kind](seed, rate_hz, options)
     ms = MeasurementSet(Path(f"simulated_{kind}_seed{seed}"), meta, samples, segments)  # the name errors say
     ms.truth = truth
     return ms

@@ -28,7 +28,7 @@ from simucal.cli.common import (
 )
 
 # io/units.py's names, written here so that the command line starts without numpy (tests/test_api.py holds them equal)
-SCENARIOS = tuple(methods.SCENARIOS)  # a kind of data each (methods.KINDS: the command line reads it at start)
+SCENARIOS = tuple(methods.SCENARIOS)  # methods.SCENARIOS (the command line reads it at start)
 ACC_UNITS = ("g", "m/s^2", "pulse/s", "counts")
 GYRO_UNITS = ("deg/h", "deg/s", "rad/s", "pulse/s", "counts")
 DEFAULT_GRAVITY = 9.80665
@@ -61,7 +61,8 @@ INSTANCES = _Instances()
 @click.option("--scenario", type=click.Choice(SCENARIOS), default="paper", show_default=True,
               help="Preset: 'paper' is dong2018 section 4 (turntable); 'field' is ruan2019 (three positions, no table); "
                    "'handheld' a hand-placed session (a stream in counts, 30 poses held 5 s between moves); "
-                   "'sequence' the turntable turning through psins19 (raw samples; --sequence for another).")
+                   "'sequence' the turntable turning through psins19 (raw samples; --sequence for another); 'still' a unit "
+                   "at rest (for noise); 'warmup' a still board warming from 15 to 58 degC (for calibrate --thermal).")
 @click.option("--heading-accuracy-deg", "--heading-error-deg", "heading_error_deg", type=Number(0.0, 180.0), default=None,
               show_default="5", help="field: the north reference's accuracy, deg; its error is drawn uniform +- this.")
 @click.option("--seed", type=SEED, default=0, show_default=True,
@@ -108,10 +109,12 @@ INSTANCES = _Instances()
               help="With --temperature-c: each segment's temperature off the plateau or ramp by a uniform draw "
                    "within +- this, degC (a chamber's wander).")
 @click.option("--no-noise-stated", is_flag=True, help="Leave acc_noise_g / gyro_noise_dph out of meta.json.")
+@click.option("--duration-s", type=Number(1.0, 86400.0), default=None, show_default="1800 (still), 1500 (warmup)",
+              help="still and warmup: the stream's length, s.")
 @FORCE
 def simulate(out_dir, output, scenario, heading_error_deg, seed, unit_seed, plan, sequence, rate_hz, position_error_arcmin, acc_model, gyro_model,
              acc_unit, gyro_unit, effects, effect_file, sets, columns, temperature_c, t_ref_c, temperature_wander_c,
-             no_noise_stated, force):
+             no_noise_stated, duration_s, force):
     """Simulate a test; write a measurement set and truth.json (simucal simulate -o FOLDER [options]).
     The Python API's simucal.simulate(...).write(FOLDER)."""
     from simucal import api
@@ -127,9 +130,9 @@ def simulate(out_dir, output, scenario, heading_error_deg, seed, unit_seed, plan
                       acc_unit=acc_unit, gyro_unit=gyro_unit, effect_file=effect_file, sets=sets, columns=columns,
                       temperature_c=temperature_c, t_ref_c=t_ref_c, temperature_wander_c=temperature_wander_c,
                       noise_stated=not no_noise_stated, heading_accuracy_deg=heading_error_deg,
-                      sequence=sequence, unit_seed=unit_seed)
+                      sequence=sequence, unit_seed=unit_seed, duration_s=duration_s)
     ms.write(out_dir, force=force)
-    click.echo(f"wrote {out_dir} ({methods.kind_of(ms).scenario} scenario, seed {seed}"  # what was written
+    click.echo(f"wrote {out_dir} ({api.simulation.resolved_scenario(scenario, sequence)} scenario, seed {seed}"  # what was written
                + (f", the unit of seed {unit_seed})" if unit_seed is not None else ")"))
 
 

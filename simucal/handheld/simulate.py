@@ -8,7 +8,8 @@ gyro through a full M_g (so omega is in b). Translational acceleration during
 moves and the Earth rate are left out. Gyro effects of generated/effects.py
 can be planted (gyro_effects), evaluated at the true rate and specific force, and accelerometer
 effects (acc_effects) at the true specific force.
-`write_still`: a unit at rest (the stream `simucal noise` characterises).
+`simulate_still`: a unit at rest (the stream `simucal noise` characterises); `simulate_warmup`: a
+still board warming up (the thermal calibration's record).
 """
 from __future__ import annotations
 
@@ -157,11 +158,12 @@ def write_handheld(folder, sc: HandheldScenario, seed=0):
     return truth
 
 
-def write_still(folder, seconds=1800.0, dt=0.01, arw_deg_sqrt_h=0.1, rrw_dph_sqrt_s=5 / 60, vrw_g_sqrt_s=50e-6,
-                seed=0, move=False):
+def simulate_still(seconds=1800.0, dt=0.01, arw_deg_sqrt_h=0.1, rrw_dph_sqrt_s=5 / 60, vrw_g_sqrt_s=50e-6,
+                   seed=0, move=False):
     """A still stream in g and deg/h: white noise (angle random walk arw_deg_sqrt_h, velocity random
     walk vrw_g_sqrt_s) and a gyro rate random walk rrw_dph_sqrt_s (deg/h per sqrt(s)), the unit level
-    (f = +1 g on z); `move`: it tips over half-way (a recording `simucal noise` refuses)."""
+    (f = +1 g on z); `move`: it tips over half-way (a recording `simucal noise` refuses).
+    (meta, samples, truth): truth the noise terms, in these units."""
     rng = np.random.default_rng(seed)
     n = int(seconds / dt)
     w = (arw_deg_sqrt_h * 60 / np.sqrt(dt) * rng.standard_normal((n, 3))
@@ -171,6 +173,41 @@ def write_still(folder, seconds=1800.0, dt=0.01, arw_deg_sqrt_h=0.1, rrw_dph_sqr
         f[n // 2:] = f[n // 2:, [2, 1, 0]]
     samples = {"t_s": np.arange(n) * dt, **{c: f[:, j] for j, c in enumerate(("ax", "ay", "az"))},
                **{c: w[:, j] for j, c in enumerate(("gx", "gy", "gz"))}}
-    io.write_set(folder, {"acc_unit": "g", "gyro_unit": "deg/h", "latitude_deg": 45.0,
-                          "description": f"simucal still stream, seed {seed}"}, samples, None)
+    meta = {"acc_unit": "g", "gyro_unit": "deg/h", "latitude_deg": 45.0, "description": f"simucal still stream, seed {seed}"}
+    truth = {"noise": {"acc": {"vrw_g_sqrt_s": vrw_g_sqrt_s},
+                       "gyro": {"arw_deg_sqrt_h": arw_deg_sqrt_h, "rrw_dph_sqrt_s": rrw_dph_sqrt_s}}}
+    return meta, samples, truth
+
+
+def write_still(folder, seconds=1800.0, dt=0.01, arw_deg_sqrt_h=0.1, rrw_dph_sqrt_s=5 / 60, vrw_g_sqrt_s=50e-6,
+                seed=0, move=False):
+    """simulate_still's stream written to `folder` (samples.csv and meta.json; no truth.json)."""
+    meta, samples, _ = simulate_still(seconds, dt, arw_deg_sqrt_h, rrw_dph_sqrt_s, vrw_g_sqrt_s, seed, move)
+    io.write_set(folder, meta, samples, None)
     return folder
+
+
+WARMUP_T_REF_C = 37.5
+# a MEMS board's bias per axis, coefficients of (T - WARMUP_T_REF_C)^0..3: g per degC^k and deg/h per degC^k
+WARMUP_ACC_G = ((2e-3, 4e-5, -2e-6, 1e-6), (-1e-3, -3e-5, 1e-6, 2e-6), (1.5e-3, 2e-5, 3e-6, -1.5e-6))
+WARMUP_GYRO_DPH = ((360.0, 5.0, -0.1, 0.04), (-180.0, -4.0, 0.08, 0.03), (90.0, 3.0, 0.05, -0.04))
+
+
+def simulate_warmup(seed=0, seconds=1500.0, hz=50.0, wander=True):
+    """A still board (z down) warming from 15 to 58 degC (a time constant of 500 s): a cubic bias in
+    (T - WARMUP_T_REF_C) on every axis, white noise and (wander) a random walk of the bias in time, as a
+    MEMS unit's; temp_c with 0.02 degC of noise. (meta, samples, truth): truth the curves' coefficients."""
+    rng = np.random.default_rng(seed)
+    t = np.arange(0, seconds, 1 / hz)
+    T = 15 + 45 * (1 - np.exp(-t / 500.0)) + rng.normal(0, 0.02, len(t))
+    powers = (T - WARMUP_T_REF_C)[:, None] ** np.arange(4)
+    walk = (lambda step: np.cumsum(rng.normal(0, step, (len(t), 3)), axis=0)) if wander else (lambda step: 0.0)
+    acc = np.array([0, 0, -1.0]) + powers @ np.array(WARMUP_ACC_G).T + rng.normal(0, 2e-3, (len(t), 3)) + walk(2e-6)
+    gyro = powers @ np.array(WARMUP_GYRO_DPH).T + rng.normal(0, 180.0, (len(t), 3)) + walk(0.05)
+    samples = {"t_s": t, **{c: acc[:, j] for j, c in enumerate(("ax", "ay", "az"))},
+               **{c: gyro[:, j] for j, c in enumerate(("gx", "gy", "gz"))}, "temp_c": T}
+    meta = {"acc_unit": "g", "gyro_unit": "deg/h", "latitude_deg": 47.0,
+            "description": f"simucal warm-up of a still board, seed {seed}"}
+    truth = {"t_ref_c": WARMUP_T_REF_C, "acc": {"bias_g": {f"b_{a}": list(WARMUP_ACC_G[i]) for i, a in enumerate("xyz")}},
+             "gyro": {"bias_dph": {f"b_{a}": list(WARMUP_GYRO_DPH[i]) for i, a in enumerate("xyz")}}}
+    return meta, samples, truth
