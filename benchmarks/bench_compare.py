@@ -4,7 +4,7 @@ now / before (wall, and CPU: on two cores a command's second thread makes its wa
 and a verdict on the wall: a figure more than 10 % slower is to be fixed or explained in docs/benchmarks.md.
 
 The commands (docs/benchmarks.md, Speed): the Monte Carlo of dong2018's section 4 with and without an
-effect, calibrate and diagnose of imu_tk's Xsens session (shared/data), diagnose of a rich turntable
+effect, calibrate and diagnose of imu_tk's Xsens session (../shared/data), diagnose of a rich turntable
 set (fibonacci48: 102 segments), calibrate of a raw turntable set (fibonacci24 at 250 Hz: 304,000
 rows), the systematic calibration of a psins19 sequence (100 Hz) and the import of a PX4 ULog (a still
 board's sensor_accel and sensor_gyro, 10 minutes at 200 and 400 Hz, tests/log_writers.py), which every

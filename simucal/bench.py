@@ -18,7 +18,7 @@
 - compiling one model's C.
 Run by `simucal bench [-o OUT.json] [--before OLD.json]` or `python3 benchmarks/bench_speed.py`;
 --before prints a previous run's figures beside these (benchmarks/bench_*.json hold earlier
-runs). The imu_tk Xsens figures need shared/data beside the repository. Benchmarks print;
+runs). The imu_tk Xsens figures need ../shared/data beside the repository. Benchmarks print;
 tests never time.
 """
 import json

@@ -18,7 +18,7 @@ from simucal.io import arrays
 
 
 class MeasurementSet(io.MeasurementSet):
-    """One recording of one unit (spec: shared/spec/measurement-set.md): meta.json's keys, the
+    """One recording of one unit (spec: docs/spec/measurement-set.md): meta.json's keys, the
     samples by column, and the segments (None: one continuous stream, a hand-placed session).
 
     Build one with `simucal.read_set` (a folder), `MeasurementSet.from_arrays` or

@@ -1,4 +1,4 @@
-"""Read and write measurement sets (spec: shared/spec/measurement-set.md).
+"""Read and write measurement sets (spec: docs/spec/measurement-set.md).
 
 Every rule the spec states is checked; a break is reported as
 MeasurementSetError naming the file, the line and the rule.

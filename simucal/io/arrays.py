@@ -1,5 +1,5 @@
 """A measurement set from arrays or a DataFrame, held in memory (no folder): the same set
-`read_set` gives, checked by the same rules (the spec, shared/spec/measurement-set.md), each
+`read_set` gives, checked by the same rules (the spec, docs/spec/measurement-set.md), each
 refusal naming the argument, the row and the fix.
 
 Without `segments` the rows are one stream (a hand-placed session: the static poses are found

@@ -1,4 +1,4 @@
-"""segments.csv (spec: shared/spec/measurement-set.md): its rows as Segments, each checked by the
+"""segments.csv (spec: docs/spec/measurement-set.md): its rows as Segments, each checked by the
 spec (moved out of io/__init__.py for the room samples.parquet needed there; the package
 re-exports Segment and read_segments)."""
 from __future__ import annotations

@@ -1,4 +1,4 @@
-"""The spec's files as text (shared/spec/measurement-set.md): UTF-8 without binary bytes, commas
+"""The spec's files as text (docs/spec/measurement-set.md): UTF-8 without binary bytes, commas
 between columns, finite numbers and non-empty cells, each break a MeasurementSetError naming the
 file and the line; the SHA-256 of a set's files, which calibrations record; a file's bytes mapped
 for reading; and the careful reader of samples.csv, which names the line where the fast one stops."""
