@@ -51,6 +51,7 @@ import numpy as np
 
 from simucal.io import outputs, records
 from simucal.io.calibration_checks import CalibrationFileError, check_file, layout
+from simucal.io.calibration_versions import upgraded
 from simucal.io.text_files import unique_keys
 
 FORMAT = "simucal.calibration/2"
@@ -408,7 +409,8 @@ def save(path, cal: Calibration) -> None:
 
 
 def load(path) -> Calibration:
-    """A calibration file, checked before any of it is used (calibration_checks.check_file)."""
+    """A calibration file, checked before any of it is used (calibration_checks.check_file); a file of an
+    earlier format is read as this one (io/calibration_versions.py)."""
     path = Path(path)
     try:
         d = json.loads(path.read_text(), object_pairs_hook=unique_keys)
@@ -417,10 +419,9 @@ def load(path) -> Calibration:
     except RecursionError:
         raise CalibrationFileError(f"{path}: not a calibration file: nested too deep to read (objects within each "
                                    "other thousands of levels down); calibrate again") from None
-    fmt = d.get("format") if isinstance(d, dict) else None
-    if fmt != FORMAT:
-        raise CalibrationFileError(f"{path}: format {fmt!r}, expected {FORMAT!r}"
-                                   + ("; calibrate the data again with this version" if fmt else ""))
+    if not isinstance(d, dict):
+        raise CalibrationFileError(f"{path}: format None, expected {FORMAT!r}")
+    d = upgraded(path, d, FORMAT)  # a file of an earlier format, read as this one
     check_file(path, d)
     try:
         return Calibration.from_json(d)
