@@ -289,7 +289,7 @@ def noise(data_dir, output, html_path, kalibr_path, tau_max_s, scheduler, topic,
     _save(result, output)
     if html_path:  # its next step the console's: the page is written beside the report and imu.yaml
         api.save(html_path, result, units=units, written=written)
-    if kalibr_path:
+    if kalibr_path and yaml is not None:
         outputs.write_text(kalibr_path, yaml)
     for line in result.lines(written, units):
         click.echo(line)

@@ -75,7 +75,8 @@ class StaticFilter:
         Q = np.diag([vrw ** 2, vrw ** 2, arw ** 2, arw ** 2, arw ** 2, 0, 0, 0]) * dt
         R = np.eye(2) * r_v ** 2
         P = np.diag(P0_diag)
-        self.gains, self.sd = [], []
+        self.gains: list[np.ndarray] = []
+        sd: list[np.ndarray] = []
         for _ in range(steps):  # the covariance does not depend on the data: run it once
             P = self.Phi @ P @ self.Phi.T + Q          # predict: P = Phi P Phi^T + Q
             S = self.H @ P @ self.H.T + R               # innovation covariance: S = H P H^T + R
@@ -83,8 +84,8 @@ class StaticFilter:
             I_KH = np.eye(8) - K @ self.H
             P = I_KH @ P @ I_KH.T + K @ R @ K.T         # Joseph form: stays symmetric and positive
             self.gains.append(K)
-            self.sd.append(np.sqrt(np.diag(P)))
-        self.sd = np.array(self.sd)
+            sd.append(np.sqrt(np.diag(P)))
+        self.sd = np.array(sd)
 
     def run(self, C0, f_b, w_b, dt, w_ie_n, g_n):
         """Strapdown on block means with the level fed back after every update.

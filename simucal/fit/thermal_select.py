@@ -128,7 +128,7 @@ def select(base, obs, groups, forced=None, p0=None):
                                    f"{top}: give more plateaus or a wider ramp, or a lower degree")
         model, fit = fit_degrees(base, obs, [forced] * m, p0=p0)
         return model, fit, {"from": "--thermal-degree", "dropped": [], "top": top}, obs
-    dropped = []
+    dropped: list[dict] = []
     try:
         if len(obs.N) < SATURATED_ROWS * m * (top + 1):
             raise CalibrationError("too few rows for every coefficient at once")

@@ -56,15 +56,15 @@ def far_off(after, floor_sd, labels, k=FAR_OFF):
 def block_model(block, t_ref_c):
     """(model, p, covariance) of a block for the propagation, or None without a covariance."""
     from simucal.fit.augmented import AugmentedModel
+    from simucal.fit.thermal import ThermalModel
     if block.model == "affine":
         return None
-    model = AugmentedModel(block.model, block.library_effects())
+    model: AugmentedModel | ThermalModel = AugmentedModel(block.model, block.library_effects())
     th = block.thermal
     cov = th.get("covariance") if th else block.details.get("covariance")
     if not cov:
         return None
     if th:
-        from simucal.fit.thermal import ThermalModel
         model = ThermalModel(model, [th["parameters"][n]["degree"] for n in model.params])
         p = np.array([th["parameters"][n.split(".T")[0]]["coefficients"][int(n.split(".T")[1]) if ".T" in n else 0]
                       for n in model.params])

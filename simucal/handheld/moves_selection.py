@@ -86,6 +86,7 @@ class MovesProblem:
                 self.columns[eid] = np.zeros(self.fit.r.size)
             else:
                 self.mv[eid] = mv = with_term_added(self.mv0, eid, self.inputs)
+                assert mv.phi is not None  # with_term_added gives the term's column
                 self.columns[eid] = effect_column(self.at[0], self.fit.T, mv.phi[-1], mv.phi_axes[-1]).ravel()
         return self.columns[eid]
 

@@ -289,9 +289,9 @@ def _fit_axes(sensor, raw, T, t_s, t_ref, scale_c, effects, auto):
     def axis(i, fitted):
         return axis_polynomial(w, i, scale_c, temperatures, fitted, float(white[i]), rate_scale, rate_id(sensor, i))
     axes = [axis(i, rate_id(sensor, i) in effects) for i in range(3)]
-    steps = [] if auto else None
+    steps: list[dict] | None = [] if auto else None
     for i, a in enumerate(axes):
-        if auto and "verdict" in a.get("targeted", {}):
+        if steps is not None and "verdict" in a.get("targeted", {}):
             stat = a["targeted"]["statistic"]
             axes[i] = a = axis(i, True)
             effects += (rate_id(sensor, i),)

@@ -369,7 +369,7 @@ def _check_samples(out, path, segments, plausible=False):
         if len(seg) > 1 and np.all(seg[1:] >= seg[:-1]):  # recorded segment by segment: no sort, no copies
             first = np.r_[0, np.flatnonzero(seg[1:] != seg[:-1]) + 1]
             groups = dict(zip(seg[first].tolist(), first[:, None]))  # each segment's first row
-            seg_t = (seg, out["t_s"], None)
+            seg_t: tuple[np.ndarray, np.ndarray, np.ndarray | None] = (seg, out["t_s"], None)
         else:
             groups = group_rows(seg)
             order = np.concatenate(list(groups.values()))  # the rows segment by segment, ascending ids

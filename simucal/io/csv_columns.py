@@ -74,10 +74,10 @@ def _merged(pieces) -> tuple:
 def _native():
     """csv_numbers.c's (parse, count lines), built into the cache at first use; None without a compiler."""
     from simucal.io.cache import compile_c
-    lib = compile_c("csv_numbers", Path(__file__).with_name("csv_numbers.c").read_text(), "pyarrow's parser")
-    if lib is None:
+    built = compile_c("csv_numbers", Path(__file__).with_name("csv_numbers.c").read_text(), "pyarrow's parser")
+    if built is None:
         return None
-    lib = ctypes.CDLL(str(lib))  # ctypes frees the GIL while a function of it runs
+    lib = ctypes.CDLL(str(built))  # ctypes frees the GIL while a function of it runs
     parse, lines = lib.simucal_csv_numbers, lib.simucal_csv_lines
     parse.argtypes = [ctypes.c_void_p, ctypes.c_long, ctypes.c_int, ctypes.c_int, ctypes.POINTER(ctypes.c_void_p),
                       ctypes.POINTER(ctypes.c_long), ctypes.c_long, ctypes.c_double, ctypes.c_void_p]

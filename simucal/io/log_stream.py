@@ -76,12 +76,13 @@ def on_one_clock(t_a, acc, temp_a, t_g, gyro, path, names=("sensor_accel", "sens
     if not keep.any():
         raise ImportError_(f"{path}: no {names[0]} interval holds a {names[1]} sample (or the reverse)")
     mean = sums[keep] / count[keep, None]
+    temp_rows: np.ndarray | None
     if temp_f is not None:
         temp_rows = np.bincount(rows[inside], temp_f[inside], len(t_s))[keep] / count[keep]
     else:
         temp_rows = None if temp_s is None else temp_s[keep]
     empty = np.nonzero(~keep[1:])[0] + 1
-    gaps = {"rows_left_out": int((~keep).sum())}  # the first sample's, which has no interval, counted too
+    gaps: dict[str, float] = {"rows_left_out": int((~keep).sum())}  # the first sample's, which has no interval, counted too
     if empty.size:
         longest = int(empty[np.argmax(t_s[empty] - t_s[empty - 1])])
         gaps["longest_s"] = float(t_s[longest] - t_s[longest - 1])

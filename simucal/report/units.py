@@ -8,7 +8,7 @@ import copy
 import os
 from dataclasses import replace
 from pathlib import Path
-from typing import Any, Iterable, TypeVar, cast
+from typing import Any, Iterable, Mapping, TypeVar, cast
 
 import numpy as np
 
@@ -258,7 +258,7 @@ def lot_in(report: dict, system: str, gravity_mps2: float = units.DEFAULT_GRAVIT
     return out
 
 
-def montecarlo_in(result: dict, system: str, gravity_mps2: float = units.DEFAULT_GRAVITY) -> dict:
+def montecarlo_in(result: Mapping[str, Any], system: str, gravity_mps2: float = units.DEFAULT_GRAVITY) -> Mapping[str, Any]:
     """A copy of a Monte Carlo's result with each parameter's truth, mean, std and CRLB in the system asked."""
     units.check_unit_system(system)
     if system == "spec":

@@ -19,6 +19,7 @@ latitude is right. So, after the fits:
 from __future__ import annotations
 
 import math
+from typing import Any
 
 import numpy as np
 
@@ -97,7 +98,7 @@ def latitude(ms, gm, fg, C_b_d, u_b, static_gyro):
                                                                   max(1.0, chi2 / (n - 4)))
     s_L, std_s = float(coef[3]), float(np.sqrt(cov[3, 3]))
     noise_dof = n - 4 if sig is None else math.inf
-    out = {"meta_deg": L_meta, "positions": n, "sin_L_measured": s_L, "sin_L_std": std_s,
+    out: dict[str, Any] = {"meta_deg": L_meta, "positions": n, "sin_L_measured": s_L, "sin_L_std": std_s,
            "chi2": None if sig is None else chi2, "dof": n - 4,
            "noise": ({"std_dph": float(np.sqrt(chi2 / (n - 4))), "dof": n - 4,
                       "source": "one gyro row per static position and no gyro_noise_dph: estimated from this fit's "
@@ -186,15 +187,17 @@ def _static_gyro_rows(ms, acc_segs, gyro_noise_dph):
         return rows, None
     raw = ms.raw("gyro")
     stated = units.stated_noise(ms.meta, "gyro") if gyro_noise_dph is None else gyro_noise_dph
-    N, sig, groups = [], [], []
+    N: list[np.ndarray] = []
+    sig_list: list[np.ndarray] = []
+    groups = []
     # each static segment's gyro rows checked, then their mean and its std, on one thread (segment_observations)
     for i in rows:
         r = ms.rows(acc_segs[i].segment)
         refuse_outliers(ms, raw, r, "gyro", acc_segs[i].segment)
         m, sd = mean_and_sigma(ms.in_units("gyro", run_or_rows(r)), stated)
         N.append(m)
-        sig.append(sd)
+        sig_list.append(sd)
         groups.append(r)
-    sig = np.array(sig)
-    sig = None if np.isnan(sig).all() else np.where(np.isnan(sig), np.nanmax(sig), sig)
+    sig_all = np.array(sig_list)
+    sig = None if np.isnan(sig_all).all() else np.where(np.isnan(sig_all), np.nanmax(sig_all), sig_all)
     return rows, (np.array(N), sig, AuxInputs(column_means(ms.samples, groups, t_ref_c=ms.t_ref_c)))

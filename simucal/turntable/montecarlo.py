@@ -152,7 +152,7 @@ def fit_trials(model, N, rho, sigma, aux=None, covariance=True, threads=0):
         p, u, _, H, _, status = fit_batch(model, N, rho_b, sig, p0, aux)
     ok = status == 0
     cov = np.full((T, m, m), np.nan) if covariance else None
-    if covariance and ok.any():
+    if cov is not None and ok.any():
         cov[ok] = np.linalg.inv(H[ok])
     return p, cov, u, ok
 

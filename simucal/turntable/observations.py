@@ -17,7 +17,7 @@ from simucal.fit.aux_inputs import AuxInputs, column_means
 from simucal.fit.noise import axis_rows, mean_and_sigma, white_noise_var
 from simucal.fit.norm_fit import Observations
 from simucal.generated import table
-from simucal.io import calibration, run_or_rows, units
+from simucal.io import calibration, records, run_or_rows, units
 from simucal.io.sensor_checks import saturated_rows
 
 
@@ -132,13 +132,13 @@ def check_curve_scale(ms, sensor, rows, curve):
     over the segments of 3 rows or more: the static ones where there are, as simucal noise pools), and for one-row segments against meta.json's stated noise
     where it is given. A file CURVE_FACTOR times too large makes every model pass (a silent wrong
     answer); one too small fails every model, blaming it."""
-    own, tau = [], []
+    noises, tau = [], []
     for r in (r for r in rows if len(r) >= 3):
-        own.append(np.sqrt(white_noise_var(ms.in_units(sensor, r))))
+        noises.append(np.sqrt(white_noise_var(ms.in_units(sensor, r))))
         tau.append(float(np.median(np.diff(ms.samples["t_s"][r]))))
     stated = units.stated_noise(ms.meta, sensor)
-    if own:
-        own, at = np.median(own, axis=0), float(np.median(tau))
+    if noises:
+        own, at = np.median(noises, axis=0), float(np.median(tau))
         what = f"the rows' own noise (first differences of {len(tau)} segments' rows, {at:.3g} s each)"
     elif stated is not None and "average_s" in ms.meta:
         own, at = np.full(3, float(stated)), float(ms.meta["average_s"])
@@ -315,7 +315,7 @@ def read_observations(ms, method, rows, acc_noise_g=None, gyro_noise_dph=None, n
     check_rate_sense(ms, gyro_obs, gyro_segs)
     cal = calibration.header(method, ms)
     kind = {s.segment: s.kind for s in ms.segments}
-    excluded = [{"sensor": sensor, "segment": k, "samples": n, "reason": "saturated samples"}
+    excluded = [records.ExcludedSegment(sensor=sensor, segment=k, samples=n, reason="saturated samples")
                 for sensor, present in (("acc", ms.has_acc), ("gyro", ms.has_gyro)) if present
                 for k, n in saturated_segments(ms, sensor).items() if kind.get(k) in rows[sensor]]
     if excluded:

@@ -219,7 +219,7 @@ def separate(base, e1, e2, u, rho, sigma, sizes, rates_dph=(), target=0.9, alpha
         return _misfit(J, m - 2, sizes[0]), _misfit(J, m - 1, sizes[1])
     lam = lams(J)
     start = {"noncentrality": list(lam), "power": [power(x, alpha) for x in lam]}
-    added = []
+    added: list[tuple[np.ndarray, float]] = []  # (direction in k, rho)
     while min(power(x, alpha) for x in lam) < target and len(added) < max_extra:
         vals = [min(lams(np.vstack([J, blk]))) for blk in blocks]
         j = int(np.argmax(vals))

@@ -58,7 +58,7 @@ def fibonacci(n: int):
 def dodecahedron():
     """20 positions with f^k on the vertices of a regular dodecahedron."""
     g = (1 + 5 ** 0.5) / 2
-    v = [(x, y, z) for x in (-1, 1) for y in (-1, 1) for z in (-1, 1)]
+    v: list[tuple[float, float, float]] = [(x, y, z) for x in (-1, 1) for y in (-1, 1) for z in (-1, 1)]
     for a in (-1 / g, 1 / g):
         for b in (-g, g):
             v += [(0, a, b), (a, b, 0), (b, 0, a)]

@@ -182,9 +182,11 @@ def _timeline(sc: Scenario, steps, rng, rate_hz):
     dt = 1.0 / rate_hz
 
     def phase(kind, n, angles_at, angles):
-        segments.append(io.Segment(len(segments) + 1, kind, *(angles if kind == "static" else (None,) * 3), 0.0))
+        outer, middle, inner = angles if kind == "static" else (None, None, None)
+        segments.append(io.Segment(len(segments) + 1, kind, outer, middle, inner, 0.0))
         k = np.arange(1, n + 1) * dt
-        ends.extend(angles_at(k)), middles.extend(angles_at(k - dt / 2))
+        ends.extend(angles_at(k))
+        middles.extend(angles_at(k - dt / 2))
         seg_ids.extend([segments[-1].segment] * n)
 
     def at_rest(i):

@@ -97,7 +97,7 @@ class Scenario:
 
 def _pairs(items, what):
     """NAME=VALUE strings -> {name: float}, refusing malformed ones."""
-    out = {}
+    out: dict[str, float] = {}
     for item in items:
         name, eq, val = item.partition("=")
         example = "acc.quadratic.z=6e-5" if what == "--effect" else "K3_x=1e-3"
