@@ -63,3 +63,25 @@ def test_the_lint_catches_what_it_claims_to(tmp_path):
     assert r.returncode == 1 and "F401" in r.stdout, r.stdout + r.stderr
     r = _run("mypy", "--cache-dir", str(tmp_path / "cache"), "--config-file", str(ROOT / "pyproject.toml"), str(bad))
     assert r.returncode == 1 and "Incompatible return value" in r.stdout, r.stdout + r.stderr
+
+
+@pytest.mark.slow
+def test_a_users_script_type_checks_against_the_installed_package_under_strict(tmp_path):
+    """Installed as a user installs it (a wheel, not this checkout's editable hook, which mypy cannot follow), the
+    package is found through its py.typed: the verbs return their classes, and a misspelt keyword is an error."""
+    venv = tmp_path / "venv"
+    subprocess.run([sys.executable, "-m", "venv", "--system-site-packages", str(venv)], check=True)
+    python = venv / "bin" / "python"
+    subprocess.run([str(python), "-m", "pip", "install", "-q", "--no-deps", str(ROOT)], check=True, capture_output=True,
+                   cwd=tmp_path)
+    script = tmp_path / "user.py"
+    script.write_text('import simucal\n\nms = simucal.simulate("paper", seed=1)\ncal = simucal.calibrate(ms)\n'
+                      "reveal_type(cal)\nreveal_type(simucal.validate(cal, ms))\n")
+    r = subprocess.run([str(python), "-m", "mypy", "--strict", "--no-incremental", str(script)], capture_output=True,
+                       text=True, cwd=tmp_path)
+    assert r.returncode == 0, r.stdout + r.stderr
+    assert "Calibration" in r.stdout and "Validation" in r.stdout, r.stdout
+    script.write_text('import simucal\n\nsimucal.calibrate("set", methd="exact")\n')
+    r = subprocess.run([str(python), "-m", "mypy", "--strict", "--no-incremental", str(script)], capture_output=True,
+                       text=True, cwd=tmp_path)
+    assert r.returncode == 1 and 'did you mean "method"' in r.stdout, r.stdout
