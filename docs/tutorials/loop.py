@@ -16,15 +16,20 @@ base = simucal.calibrate("set")
 print(f"baseline: acc p = {base.acc.p_value:.2g}")
 assert base.acc.p_value < 1e-3
 
-# 3. diagnose ranks the library's effects by how much of the misfit each explains.
+# 3. diagnose ranks the library's effects by how much of the misfit each explains; what it suggests is data:
+#    each effect with its estimate, std and statistic, and whether it can be added (no undecided twin).
 diagnosis = simucal.diagnose("set")  # simucal diagnose set -o diagnosis.json
 simucal.save("diagnosis.json", diagnosis)
-best = simucal.table_rows(diagnosis.candidates)[0]
-print(f"diagnose: {best.id} = {best.estimate:.3g} +- {best.std:.2g} {best.unit}")
-assert best.id == "acc.quadratic.z"
+suggestion = diagnosis.suggested[0]
+print(f"diagnose: {suggestion.id} = {suggestion.estimate:.3g} +- {suggestion.std:.2g} {suggestion.unit} "
+      f"(chi2 {suggestion.statistic:.0f}, twins: {', '.join(suggestion.twins) or 'none'})")
+assert suggestion.id == "acc.quadratic.z" and suggestion.add
 
-# 4. Calibrate with that effect: the model passes, and the effect is found within 3 std of the truth.
-cal = simucal.calibrate("set", add=["acc.quadratic.z"])
+# 4. The next step is data too: the API's function and its keywords (diagnosis.next.command is the same step as
+#    a command line). Run it: the model passes, and the effect is found within 3 std of the truth.
+step = diagnosis.next
+print(f"next: {step.call}   (command: {step.command})")
+cal = getattr(simucal, step.function)("set", **step.options)
 effect = cal.acc.effects["acc.quadratic.z"]
 print(f"with the effect: acc p = {cal.acc.p_value:.2g}; acc.quadratic.z = {effect.value:.3g} +- {effect.std:.2g}")
 assert cal.acc.p_value > 0.01 and abs(effect.value - 2e-4) < 3 * effect.std
