@@ -18,7 +18,7 @@ from pathlib import Path
 import numpy as np
 
 from simucal import io
-from simucal.calibrate import calibrate
+from simucal.api.calibrating import calibrate_set as calibrate
 from simucal.errors import CalibrationError
 from simucal.io.importers import import_ferraris_sections, import_imucal_annotated
 from simucal.report.markdown import header

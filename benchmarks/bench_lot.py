@@ -25,7 +25,7 @@ from pathlib import Path
 
 import numpy as np
 
-from simucal import lot_report
+from simucal.api import lot_reporting
 from simucal.turntable.lot import SPREAD, write_lot
 
 SIMUCAL = str(Path(sys.executable).with_name("simucal"))
@@ -97,7 +97,7 @@ def rules(report, plants, n):
     z = np.array([[r["z"][j] for r in g["parameters"]] for j in clean])
     false = sorted(g["units"][j] for j in clean if g["units"][j] in flagged)
     print(f"\nfalse alarms among {len(clean)} units without a planted outlier: {len(false)} {false} (expected "
-          f"{len(clean) * lot_report.OUTLIER_P:.2g}); their {z.size} |z|: > 2 in {np.mean(np.abs(z) > 2):.2%}, "
+          f"{len(clean) * lot_reporting.OUTLIER_P:.2g}); their {z.size} |z|: > 2 in {np.mean(np.abs(z) > 2):.2%}, "
           f"> 3 in {np.mean(np.abs(z) > 3):.2%} (a normal's 4.55 %, 0.27 %)")
     print("\n| drift | sensor | chi2 / dof | p | verdict |\n|---|---|---|---|---|")
     planted_drift, rest = report["drift"][:1], report["drift"][1:]
@@ -123,17 +123,17 @@ def at_estimates(stds, names, seeds):
     for seed in range(seeds):
         s = stds[rng.integers(0, n, n)]
         x = tau * rng.standard_normal((n, k)) + s * rng.standard_normal((n, k))
-        z_max = lot_report.threshold(lot_report._z(x, s)[3][0], s, seed=seed)
-        alarms += int((np.abs(lot_report._z(x, s)[0]).max(axis=1) > z_max).sum())
+        z_max = lot_reporting.threshold(lot_reporting._z(x, s)[3][0], s, seed=seed)
+        alarms += int((np.abs(lot_reporting._z(x, s)[0]).max(axis=1) > z_max).sum())
         j = rng.integers(0, k)
         for d in OFFSETS:
             y = x.copy()
             y[0, j] += d * np.sqrt(tau[j] ** 2 + s[0, j] ** 2)
-            found[d] += bool(abs(lot_report._z(y, s)[0][0, j]) > z_max)
+            found[d] += bool(abs(lot_reporting._z(y, s)[0][0, j]) > z_max)
     units = seeds * n
     lo, hi = (max(alarms - 2 * np.sqrt(alarms), 0) / units, (alarms + 2 * np.sqrt(alarms) + 2) / units)
     print(f"\n{seeds} lots of {n} units at the level of the estimates: false alarms {alarms} of {units} units = "
-          f"{alarms / units:.2g} per unit (about {lo:.2g} to {hi:.2g}; goal {lot_report.OUTLIER_P:g})\n")
+          f"{alarms / units:.2g} per unit (about {lo:.2g} to {hi:.2g}; goal {lot_reporting.OUTLIER_P:g})\n")
     print("| planted offset (sqrt(tau^2 + std^2)) | " + " | ".join(str(d) for d in OFFSETS) + " |")
     print("|---|" + "---|" * len(OFFSETS))
     print(f"| found in {seeds} lots | " + " | ".join(f"{found[d] / seeds:.0%}" for d in OFFSETS) + " |")
@@ -151,7 +151,7 @@ def main():
         sets = write_lot(root / "sets", a.n, seed=0, planted=plants, again=max(2, a.n // 10),
                          drift={0: {"gyro.b_z": 0.05}})
         limits = root / "limits.json"
-        limits.write_text(json.dumps({"format": lot_report.LIMITS_FORMAT, "limits": {
+        limits.write_text(json.dumps({"format": lot_reporting.LIMITS_FORMAT, "limits": {
             "acc.b_x": {"min": 0.0002, "max": 0.0014, "unit": "g"},
             "gyro.b_z": {"min": -0.08, "max": 0.04, "unit": "deg/h"}}}))
         report = speed(root, sets, limits, [int(w) for w in a.workers.split(",")])

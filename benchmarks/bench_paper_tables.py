@@ -16,7 +16,7 @@ from pathlib import Path
 import numpy as np
 from tqdm import tqdm
 
-from simucal.calibrate import calibrate
+from simucal.api.calibrating import calibrate_set as calibrate
 from simucal.report import markdown as report
 from simucal.report.paper_claims import LEVELS, PAPER_T3, PAPER_T4
 from simucal.turntable.simulate import Scenario, write

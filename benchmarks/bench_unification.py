@@ -14,7 +14,7 @@ from pathlib import Path
 
 import numpy as np
 
-from simucal.calibrate import calibrate
+from simucal.api.calibrating import calibrate_set as calibrate
 from simucal.fit.rotations import exp_so3
 from simucal.report.markdown import header
 from simucal.turntable.simulate import ARCMIN, Scenario, write

@@ -25,11 +25,8 @@ if TYPE_CHECKING:
                              MeasurementSet, Noise, Parameter, Term, Validation, audit, calibrate,
                              calibrate_each, compare, convert, derive_model, diagnose,
                              import_instances, import_recording, load, calibrate_instances, autopilot_files,
-                             ImuCalibration, montecarlo, noise, plan, read_set, save,
+                             ImuCalibration, lot, montecarlo, noise, plan, read_set, save,
                              sequence_observability, design_sequence, simulate, table_rows, validate)
-    # lot from its own module: through simucal.api mypy took the submodule api/lot.py for it (simucal.lot
-    # typed as a module, "not callable" in a user's code)
-    from simucal.api.lot import lot  # noqa: F401
 
 
 def __getattr__(name):

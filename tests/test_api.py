@@ -168,7 +168,7 @@ def test_python_m_simucal_runs_the_command_line():
 def test_import_stays_light():
     """`import simucal` loads no API (numpy, the methods) until a name of it is used."""
     code = ("import sys, simucal; assert 'numpy' not in sys.modules and 'simucal.api' not in sys.modules; "
-            "simucal.read_set; assert 'simucal.api' in sys.modules; import simucal.calibrate; "
+            "simucal.read_set; assert 'simucal.api' in sys.modules; import simucal.api.calibrating; "
             "assert callable(simucal.calibrate) and callable(simucal.validate)")
     res = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True)
     assert res.returncode == 0, res.stderr[-1000:]
@@ -243,6 +243,6 @@ def test_calibrate_s_typed_options_are_the_command_s():
     import inspect
 
     from simucal.api.options import CalibrateOptions
-    from simucal.calibrate import calibrate as command, calibrate_thermal
+    from simucal.api.calibrating import calibrate_set as command, calibrate_thermal
     takes = set(inspect.signature(command).parameters) | set(inspect.signature(calibrate_thermal).parameters) | {"thermal"}
     assert set(CalibrateOptions.__annotations__) <= takes

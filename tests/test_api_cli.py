@@ -194,7 +194,8 @@ def test_docstring_examples_run(tmp_path, monkeypatch):
     import importlib
     monkeypatch.chdir(tmp_path)
     for name in ("simucal.api", "simucal.api.sets", "simucal.api.calibration", "simucal.api.simulation",
-                 "simucal.api.analyses", "simucal.api.tables", "simucal.api.vocabulary"):
+                 "simucal.api.analyses", "simucal.api.calibrating", "simucal.api.validating", "simucal.api.diagnosing",
+                 "simucal.api.lot_reporting", "simucal.api.tables", "simucal.api.vocabulary"):
         result = doctest.testmod(importlib.import_module(name), optionflags=doctest.ELLIPSIS)
         assert result.failed == 0, name
     assert result.attempted > 0

@@ -23,10 +23,8 @@ LAYERS = [
     {"simucal.turntable", "simucal.handheld", "simucal.field", "simucal.systematic"},
     {"simucal.methods"},
     {"simucal.report"},
-    {"simucal.calibrate", "simucal.diagnose", "simucal.validate", "simucal.allan", "simucal.bench", "simucal.derive_cmd",
-     "simucal.lot_report"},
-    {"simucal.demo"},
-    {"simucal.api"},  # the demo too is one of its calls (simucal.api.tools)
+    {"simucal.allan", "simucal.bench", "simucal.derive_cmd"},
+    {"simucal.api"},  # each verb's one home (the demo too: simucal.api.demo_run)
     {"simucal.cli"},
     {"simucal.__main__"},  # python -m simucal
 ]
@@ -82,11 +80,6 @@ def _imports() -> dict:
     return out
 
 
-# The one arrow up that stays until each verb has one home: the API binds simucal.calibrate, .validate and
-# .diagnose back to its functions (the modules of those names bound them at import: simucal/api/__init__.py).
-REBINDING = {("simucal.api", "simucal")}
-
-
 def _wrong(graph: dict) -> list[str]:
     """Every import that runs up the layers, or sideways between methods, or reaches SymPy at run time."""
     wrong = []
@@ -97,7 +90,7 @@ def _wrong(graph: dict) -> list[str]:
                     wrong.append(f"{mod} imports {d} (SymPy at run time)")
                 continue
             if d == "simucal":  # the package's face: only the command line's entry and its own modules above it
-                if (mod, d) not in REBINDING and _group(mod) not in ("simucal.cli", "simucal.__main__"):
+                if _group(mod) not in ("simucal.cli", "simucal.__main__"):
                     wrong.append(f"{mod} imports the package's face (simucal's __init__): import the module itself")
                 continue
             if _group(d) == _group(mod):
@@ -110,9 +103,8 @@ def _wrong(graph: dict) -> list[str]:
 
 def test_imports_run_down_the_layers_without_circles():
     graph = _imports()
-    # the package's face: __version__ and the Python API's names, imported on first use (README, Python API);
-    # lot from its own module for type checkers (simucal/__init__.py says why)
-    assert graph.pop("simucal") <= {"simucal.version", "simucal.api", "simucal.api.lot"}
+    # the package's face: __version__ and the Python API's names, imported on first use (README, Python API)
+    assert graph.pop("simucal") <= {"simucal.version", "simucal.api"}
     wrong = _wrong(graph)
     assert not wrong, "\n".join(wrong)
     # circles among modules (the layer rule already forbids them between packages)
@@ -167,8 +159,8 @@ def test_runtime_imports_no_sympy_and_writes_nothing_into_the_package(tmp_path):
 import json, sys
 from pathlib import Path
 from simucal.turntable.simulate import SCENARIOS, write
-from simucal.calibrate import calibrate
-from simucal.diagnose import diagnose
+from simucal.api.calibrating import calibrate_set as calibrate
+from simucal.api.diagnosing import diagnosis_report as diagnose
 from simucal.fit.apply import apply
 from simucal.io import calibration
 tmp = Path({str(tmp_path)!r})
@@ -347,9 +339,9 @@ def test_a_sets_kind_is_told_once_and_its_entry_looked_up(monkeypatch):
 # What the command line may import: the API, its own helpers, output safety, the refusals, the
 # words it prints and the registry of names its help shows. CLI_NOT_YET held the commands whose logic was not yet
 # the API's; it may only stay empty.
-CLI_MAY_IMPORT = {"simucal.api", "simucal.api.analyses", "simucal.api.planning", "simucal.api.tools", "simucal.cli",
+CLI_MAY_IMPORT = {"simucal.api", "simucal.api.diagnosing", "simucal.api.planning", "simucal.api.tools", "simucal.cli",
                   "simucal.cli.common", "simucal.io.outputs", "simucal.errors", "simucal.progress",
-                  "simucal.report.console", "simucal.report.lot_html", "simucal.report.units", "simucal.validate",
+                  "simucal.report.console", "simucal.report.lot_html", "simucal.report.units", "simucal.api.validating",
                   "simucal.sweeps", "simucal.methods", "simucal.io.cache"}  # the registry's names in the help, read at
 # start without numpy; the cache's check that no input lies in it, beside output safety (common.guard); what is
 # printed in the unit system asked (--units), as the console prints it
@@ -381,12 +373,25 @@ def test_the_command_line_stands_on_the_api():
     assert not CLI_NOT_YET - used, f"no longer imported by cli/, drop from CLI_NOT_YET: {sorted(CLI_NOT_YET - used)}"
 
 
-def test_no_new_api_name_is_a_modules_name():
-    """`from simucal import X` gives the API's X or the module simucal/X.py depending on what was imported
-    before (the demo's tests got the function for the module). The three clashes left are the
-    commands' modules that the API rebinds (api/__init__.py); no other name may join them."""
-    clashes = {n for n in simucal._API if (ROOT / f"{n}.py").exists() or (ROOT / n).is_dir()}
-    assert clashes <= {"calibrate", "diagnose", "validate"}, sorted(clashes)
+def test_no_module_shares_its_name_with_a_public_function():
+    """`from simucal import X` and `simucal.X` must be the API's X whatever was imported before: a module
+    simucal/X.py (or simucal/api/X.py) would bind X on its package at import, over the function (the two
+    namespaces the public names live in). Each verb has one home, in a module of another name
+    (api/calibrating.py for calibrate); the check finds a clash where one is planted."""
+    import inspect
+
+    import simucal.api
+
+    def clashes(public: set[str]) -> list[str]:
+        return sorted(f"{folder.relative_to(ROOT.parent).as_posix()}/{n}" for folder in (ROOT, ROOT / "api")
+                      for n in public if (folder / f"{n}.py").exists() or (folder / n / "__init__.py").exists())
+    functions = {n for n in simucal.__all__ if inspect.isfunction(getattr(simucal.api, n, None))}
+    assert {"calibrate", "validate", "diagnose", "noise", "lot"} <= functions
+    assert not clashes(functions), clashes(functions)
+    assert clashes(functions | {"methods", "tools"}) == ["simucal/api/tools", "simucal/methods"]  # planted
+    for name in functions:  # whatever the import order: the face's name is the function, defined once
+        assert getattr(simucal, name) is getattr(simucal.api, name)
+        assert getattr(simucal, name).__module__.split(".")[:2] == ["simucal", "api"], name
 
 
 def _untyped(hint, seen: set, where: str) -> list[str]:

@@ -8,7 +8,7 @@ import pytest
 from click.testing import CliRunner
 
 from simucal import io
-from simucal.calibrate import calibrate
+from simucal.api.calibrating import calibrate_set as calibrate
 from simucal.cli import main
 from simucal.errors import CalibrationError, NotConverged
 

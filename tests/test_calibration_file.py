@@ -11,7 +11,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from simucal import methods
-from simucal.calibrate import calibrate, calibrate_thermal
+from simucal.api.calibrating import calibrate_set as calibrate, calibrate_thermal
 from simucal.field.simulate import FieldScenario, write_field
 from simucal.handheld.simulate import HandheldScenario, write_handheld
 from simucal.io import calibration, records

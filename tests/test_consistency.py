@@ -9,7 +9,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 from simucal.generated import table
 
-from simucal.calibrate import calibrate
+from simucal.api.calibrating import calibrate_set as calibrate
 from simucal.errors import CalibrationError
 from simucal.fit.distributions import chi2_sf
 from simucal.fit.rotations import log_so3

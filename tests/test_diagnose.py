@@ -6,7 +6,7 @@ import pytest
 from click.testing import CliRunner
 
 from simucal.cli import main
-from simucal.diagnose import diagnose
+from simucal.api.diagnosing import diagnosis_report as diagnose
 from simucal.turntable.simulate import Scenario, write
 
 RATES = (5.0, 10.0, -10.0, 20.0)

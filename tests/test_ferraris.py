@@ -6,7 +6,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from simucal.calibrate import calibrate
+from simucal.api.calibrating import calibrate_set as calibrate
 from simucal.errors import CalibrationError
 from simucal.fit.rotations import exp_so3
 from simucal.io.importers import import_ferraris_sections, import_imucal_annotated

@@ -4,7 +4,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from simucal.calibrate import calibrate
+from simucal.api.calibrating import calibrate_set as calibrate
 from simucal.errors import CalibrationError
 from simucal.handheld import moves_selection
 from simucal.handheld.simulate import HandheldScenario, write_handheld
@@ -129,7 +129,7 @@ def test_imu_tk_xsens_unattended(tmp_path):
 
 @pytest.mark.slow
 def test_diagnose_real_stream_says_honestly_what_it_finds(tmp_path):
-    from simucal.diagnose import diagnose
+    from simucal.api.diagnosing import diagnosis_report as diagnose
     import_imu_tk(DATA / "imu_tk-xsens" / "xsens_acc.mat", DATA / "imu_tk-xsens" / "xsens_gyro.mat", tmp_path / "x",
                   4096.0, 6258 * np.pi / 180, 45.4, 9.81744)
     d = diagnose(tmp_path / "x")
@@ -165,7 +165,7 @@ def test_diagnose_moves_clean_and_with_a_planted_g_sensitivity(tmp_path):
     value and brings the residual down to the noise floor. With --add, the block's model test and
     candidates are those of the model with it, as on a turntable set (they were the model's without it:
     the added effect ranked first again, the test failing)."""
-    from simucal.diagnose import diagnose
+    from simucal.api.diagnosing import diagnosis_report as diagnose
     write_handheld(tmp_path / "clean", HandheldScenario(), 1)
     g = diagnose(tmp_path / "clean")["gyro"]
     assert g["baseline"]["p_value"] > 0.01 and not any(c.get("significant") for c in g["candidates"])
@@ -188,7 +188,7 @@ def test_stream_effect_found_first_and_carried_by_calibrate(tmp_path, eid, value
     """A rate-dependent scale (the fast turns of a hand session), a scale asymmetry and a
     g-sensitivity planted in a simulated session: diagnose ranks it first, calibrate --add
     recovers it within 3 sigma."""
-    from simucal.diagnose import diagnose
+    from simucal.api.diagnosing import diagnosis_report as diagnose
     write_handheld(tmp_path / "s", HandheldScenario(gyro_effects={eid: value}), 3)
     top = diagnose(tmp_path / "s")["gyro"]["candidates"][0]
     assert top["id"] == eid and top["significant"]

@@ -11,7 +11,7 @@ from cli_helpers import refused, run
 
 from simucal import allan, io
 from simucal.fit import allan_sums
-from simucal.calibrate import calibrate
+from simucal.api.calibrating import calibrate_set as calibrate
 from simucal.errors import CalibrationError
 from simucal.handheld.simulate import write_still
 from simucal.io import columnar

@@ -7,9 +7,9 @@ import pytest
 from click.testing import CliRunner
 
 from simucal import io
-from simucal.calibrate import calibrate
+from simucal.api.calibrating import calibrate_set as calibrate
 from simucal.cli import main
-from simucal.diagnose import diagnose
+from simucal.api.diagnosing import diagnosis_report as diagnose
 from simucal.fit.apply import apply
 from simucal.io import calibration
 from simucal.turntable.simulate import Scenario, write

@@ -10,11 +10,11 @@ import pytest
 
 from cli_helpers import refused, run
 from page_layout import figures_checked, html_problems
-from simucal import lot_report
+from simucal.api import lot_reporting
 from simucal.report.page import STYLE
 from simucal.turntable.lot import SPREAD, write_lot
 
-N = 21  # lot_report.MIN_UNITS and one more
+N = 21  # lot_reporting.MIN_UNITS and one more
 OUTLIER = 3     # acc.b_x off by 15 spreads of units
 LIMIT_MAX = 0.0025  # acc.b_x's max: the design's 8e-4 + 8.5 spreads, so only the outlier breaks it
 
@@ -85,7 +85,7 @@ def test_the_python_api_gives_the_report(lot):
 
 
 @pytest.mark.slow
-@pytest.mark.parametrize("n", [lot_report.MIN_UNITS, 60])
+@pytest.mark.parametrize("n", [lot_reporting.MIN_UNITS, 60])
 def test_the_outlier_rule_false_alarm_rate_and_power_over_seeds(n):
     """Lots of n units without outliers, each parameter's stds 0.05 to 2 times its spread of units (within
     one parameter within 25 %, as one plan gives): a unit is flagged at the rule's chance p (here 0.05,
@@ -97,11 +97,11 @@ def test_the_outlier_rule_false_alarm_rate_and_power_over_seeds(n):
     for seed in range(lots):
         s = tau * rng.uniform(0.05, 2.0, k) * rng.uniform(0.8, 1.25, (n, k))
         x = tau * rng.standard_normal((n, k)) + s * rng.standard_normal((n, k))
-        z, _, _, tau_hat = lot_report._z(x, s)
-        z_max = lot_report.threshold(tau_hat[0], s, p=p, units=2000, seed=seed)
+        z, _, _, tau_hat = lot_reporting._z(x, s)
+        z_max = lot_reporting.threshold(tau_hat[0], s, p=p, units=2000, seed=seed)
         alarms += int((np.abs(z).max(axis=1) > z_max).sum())
         x[0, seed % k] += 30 * np.sqrt(tau[seed % k] ** 2 + s[0, seed % k] ** 2)
-        found += abs(lot_report._z(x, s)[0][0, seed % k]) > z_max
+        found += abs(lot_reporting._z(x, s)[0][0, seed % k]) > z_max
     units = lots * n
     assert abs(alarms - p * units) < 4 * np.sqrt(p * (1 - p) * units), (alarms, units)
     assert found == lots

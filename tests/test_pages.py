@@ -14,8 +14,9 @@ import matplotlib.pyplot as plt
 import pytest
 from page_layout import figure_problems, figures_checked, html_problems
 
-from simucal import allan, api, demo
-from simucal.diagnose import diagnose
+from simucal import allan, api
+from simucal.api import demo_run
+from simucal.api.diagnosing import diagnosis_report as diagnose
 from simucal.handheld.simulate import HandheldScenario, write_handheld
 from simucal.io import calibration
 from simucal.report import page as page_module
@@ -24,7 +25,7 @@ from simucal.report.field_html import field_page
 from simucal.report.html import render
 from simucal.report.thermal_html import thermal_page
 from simucal.turntable.simulate import SCENARIOS, write
-from simucal.validate import html_page, lines, validate
+from simucal.api.validating import html_page, lines, validation_report as validate
 
 
 @pytest.fixture(scope="module")
@@ -33,13 +34,13 @@ def pages(tmp_path_factory):
     demo's unit over temperature, its noise, its hidden effect on the Table 1 plan, a hand-placed stream."""
     out = tmp_path_factory.mktemp("pages")
     said = []
-    demo.thermal(out, 0, said.append)
+    demo_run.thermal(out, 0, said.append)
     rows = said[said.index(next(x for x in said if "validate at 35 degC" in x)) + 2:]  # the demo's table, whole
-    assert [r.strip().split("  ")[0] for r in rows[:2]] == [demo._label(c) for c in validate(
+    assert [r.strip().split("  ")[0] for r in rows[:2]] == [demo_run._label(c) for c in validate(
         out / "thermal_calibration.json", out / "thermal_35")["checks"].values() for c in c[:1]], rows
-    demo.noise(out, 0, lambda _: None)
+    demo_run.noise(out, 0, lambda _: None)
     sc = SCENARIOS["paper"]()
-    sc.plan, sc.rate_hz, sc.static_s, sc.acc_effects = "table1", 20.0, 5.0, dict(demo.HIDDEN)
+    sc.plan, sc.rate_hz, sc.static_s, sc.acc_effects = "table1", 20.0, 5.0, dict(demo_run.HIDDEN)
     write(out / "loop", sc, 0)
     write_handheld(out / "stream", HandheldScenario(poses=14, rest_s=10.0), 1)
     api.simulate("field", seed=3).write(out / "field")
@@ -47,7 +48,7 @@ def pages(tmp_path_factory):
     (out / "validation.json").write_text(json.dumps(validate(out / "thermal_calibration_25.json", out / "thermal_35")))
     build = {
         "diagnosis": lambda: render(diagnose(out / "loop")),
-        "diagnosis --add": lambda: render(diagnose(out / "loop", add=tuple(demo.HIDDEN))),
+        "diagnosis --add": lambda: render(diagnose(out / "loop", add=tuple(demo_run.HIDDEN))),
         "diagnosis of a stream": lambda: render(diagnose(out / "stream")),
         "validation": lambda: html_page(json.loads((out / "validation.json").read_text())),
         "thermal": lambda: thermal_page(calibration.load(thermal_cal), [validate(thermal_cal, out / "thermal_35")],

@@ -101,7 +101,7 @@ def test_separation_design_decides_an_inseparable_pair(tmp_path):
     """On Table 1, acc.quadratic.z and acc.scale_asymmetry.z cannot be told apart (noncentrality 0);
     the designed extra positions separate them, and a simulated test on the extended plan finds the
     planted quadratic first, with its twin rejected."""
-    from simucal.diagnose import diagnose
+    from simucal.api.diagnosing import diagnosis_report as diagnose
     from simucal.turntable.plan_design import separate
     from simucal.turntable.simulate import Scenario, write
     u = directions_k(plans.TABLE1)

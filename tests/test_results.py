@@ -7,8 +7,8 @@ import numpy as np
 import pytest
 
 from simucal import io
-from simucal.calibrate import calibrate
-from simucal.diagnose import diagnose
+from simucal.api.calibrating import calibrate_set as calibrate
+from simucal.api.diagnosing import diagnosis_report as diagnose
 from simucal.fit.candidates import forward_selection
 from simucal.fit.ranking import Trial, gate, rank
 from simucal.fit.results import ALPHA, Candidate, ModelTest, Selection

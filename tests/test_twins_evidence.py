@@ -10,9 +10,9 @@ import shlex
 import pytest
 from click.testing import CliRunner
 
-from simucal.calibrate import calibrate
+from simucal.api.calibrating import calibrate_set as calibrate
 from simucal.cli import main
-from simucal.diagnose import diagnose
+from simucal.api.diagnosing import diagnosis_report as diagnose
 from simucal.report.console import next_command
 from simucal.turntable.model_test import choose_twin, pairs_evidence
 from simucal.turntable.simulate import mems_unit, write

@@ -87,7 +87,7 @@ def test_its_own_data_are_flagged(table, tmp_path):
     assert not rep["independent"] and "NOTE" in out
     said = [line for line in out.splitlines() if line.startswith(("acc: ", "gyro: "))]
     assert len(said) == 2 and all(line.endswith("(NOT INDEPENDENT: the calibration's own rows)") for line in said)
-    from simucal.validate import html_page
+    from simucal.api.validating import html_page
     page = html_page(rep)
     assert page.count("NOT INDEPENDENT") == 2 and "class='verdict ok'" not in page
     independent = html_page({**_report(table, "added.json", "val", tmp_path / "v.json")[0]})

@@ -10,7 +10,7 @@ from cli_helpers import refused
 
 import simucal
 
-from simucal.calibrate import calibrate
+from simucal.api.calibrating import calibrate_set as calibrate
 from simucal.cli import main
 from simucal.errors import CalibrationError
 from simucal.handheld.warmup import calibrate_warmup
@@ -106,7 +106,7 @@ def test_validated_on_another_warm_up_of_the_unit(tmp_path):
     """calibrate one warm-up, validate on another of the same unit: each axis's change over the warm-up falls
     from the thermal curve's (mg, hundreds of deg/h) to near the block means' noise; on a moving stream the
     check is refused by name."""
-    from simucal.validate import validate
+    from simucal.api.validating import validation_report as validate
     simucal.MeasurementSet.of(warmup(0)).write(tmp_path / "a")
     simucal.MeasurementSet.of(warmup(1)).write(tmp_path / "b")
     r = CliRunner().invoke(main, ["calibrate", str(tmp_path / "a"), "--thermal", "-o", str(tmp_path / "c.json")])

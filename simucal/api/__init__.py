@@ -4,49 +4,41 @@
     Calibration.apply / .parameters / .sensor, compare (calibrations side by side in one vocabulary),
     validate -> Validation, diagnose -> Diagnosis, noise -> Noise, save, load
 
-on folders, numpy arrays or (with simucal[pandas]) DataFrames. A layer over the commands' own
-functions (calibrate.py, validate.py, diagnose.py, allan.py, fit/apply.py, io/); the command line
-calls it, so both write the same files. A table is a pandas DataFrame where pandas is installed,
+on folders, numpy arrays or (with simucal[pandas]) DataFrames. Each verb is defined once, in a module of
+this package (calibrating.py, validating.py, diagnosing.py, lot_reporting.py, ...); the command line calls
+it, so both write the same files. A table is a pandas DataFrame where pandas is installed,
 else a list of NamedTuple rows (api/tables.py).
 """
 from __future__ import annotations
 
 import json
 import os
-from dataclasses import dataclass
 from pathlib import Path
-from typing import Any, Mapping, NamedTuple, Sequence, Union, cast
+from typing import Any, Mapping, cast
 
 from simucal.errors import InputError
 from simucal import io
-from simucal.api.analyses import (Candidate, Diagnosis, NextStep, Noise, Suggestion, Term, diagnose, noise,
-                                   save_diagnosis)
+from simucal.api.analyses import Noise, Term, noise
+from simucal.api.calibrating import calibrate
+from simucal.api.diagnosing import Candidate, Diagnosis, NextStep, Suggestion, diagnose, save_diagnosis
 from simucal.api.simulation import montecarlo, simulate
 from simucal.api.tables import table_rows
-from simucal.api.tables import TableOf
-from simucal.calibrate import calibrate as _calibrate_set
 from simucal.api.calibration import Calibration, Parameter
 from simucal.api.batch import Calibrated, calibrate_each
 from simucal.api.arguments import checked
 from simucal.api.options import CalibrateOptions
 from simucal.api.imports import convert, import_instances, import_recording
-from simucal.api.instances import ImuCalibration, autopilot_files, calibrate_instances, calibrate_over_temperature
+from simucal.api.instances import ImuCalibration, autopilot_files, calibrate_instances
 from simucal.api.instances import imus_of as imus_of  # the command line's, beside the public names
+from simucal.api.lot_reporting import lot
 from simucal.api.planning import design_sequence, plan, sequence_observability
 from simucal.api.tools import audit, derive_model
+from simucal.api.validating import Check, Validation, validate
 from simucal.handheld.static_detect import DetectSettings
-from simucal.api.lot import lot
-from simucal.api.sets import MeasurementSet, as_set, folder_of, keywords
+from simucal.api.sets import MeasurementSet
 from simucal.api.vocabulary import Entry, compare
 from simucal.io import calibration as _file
-from simucal.io import records as _records
 from simucal.io import results
-from simucal.validate import validate as _validate_report
-
-Data = Union[str, os.PathLike, io.MeasurementSet]
-TYPE_CHECKING = False
-if TYPE_CHECKING:  # api/options.py says why
-    from typing_extensions import Unpack
 
 __all__ = ["read_set", "simulate", "calibrate", "validate", "diagnose", "noise", "save", "load", "table_rows",
            "compare", "import_recording", "import_instances", "calibrate_instances", "autopilot_files", "ImuCalibration", "convert", "montecarlo", "calibrate_each", "Calibrated", "plan",
@@ -89,148 +81,6 @@ def _truth(path: Path) -> results.Truth | None:
     never an input: a damaged one only leaves .truth empty)."""
     from simucal.io.text_files import json_object_or_none
     return cast(results.Truth, json_object_or_none(path))
-
-
-@checked
-def calibrate(data: Data | Sequence[Data], **options: Unpack[CalibrateOptions]) -> Calibration:
-    """Calibrate a unit from one measurement set (or, with ``thermal=True``, from plateaus).
-
-    Parameters
-    ----------
-    data : str, os.PathLike or MeasurementSet, or a list of them
-        The set; a list (plateaus, or one set whose temperature ramps), or one set with
-        ``thermal=True``, is a thermal calibration (`simucal calibrate --thermal`).
-    method : str
-        The method (simucal.api.options.Method, the registry's: auto, exact, linear, multiposition, ferraris,
-        handheld, field or systematic; default "auto", the one the data's kind takes).
-    add : str or list of str
-        Effect ids, model files, or "auto" (a forward selection): one as a string.
-    acc_model, gyro_model : str
-        A built-in model's name (default the baselines) or a model file.
-    acc_noise_g, gyro_noise_dph : float, optional
-        The noise of one row (g, deg/h) where the data cannot give it.
-    heading_accuracy_deg : float, optional
-        A field set's north reference accuracy (deg).
-    t_ref_c : float, optional
-        T_ref of the temperature terms (degC; default the data's middle).
-    noise : str or os.PathLike, optional
-        A noise.json of `simucal noise`, the noise of one row at any averaging.
-    detect : DetectSettings, optional
-        A stream's static detection (its window, threshold factor, gyro limit).
-    timestamps : {"auto", "recorded", "nominal"}
-        A stream's clock: the recorded time stamps, or the even clock of their median step.
-    thermal : bool
-        One set whose temperature ramps calibrated over temperature (a list of sets always is).
-    degree : int, optional
-        The thermal polynomials' degree, 0-3 (`--thermal-degree`; default chosen by the data).
-
-    Returns
-    -------
-    Calibration
-
-    Raises
-    ------
-    simucal.errors.CalibrationError, simucal.io.MeasurementSetError
-        One line naming the set and the fix.
-
-    Examples
-    --------
-    >>> import simucal
-    >>> cal = simucal.calibrate("set", add=["acc.quadratic.z"])  # doctest: +SKIP
-    >>> cal.acc.effects["acc.quadratic.z"].value  # doctest: +SKIP
-    0.000198...
-    """
-    if isinstance(data, (list, tuple)):
-        return calibrate_over_temperature(list(data), **options)
-    one = cast(Data, data)  # not a list: one set
-    if options.get("thermal"):
-        return calibrate_over_temperature([one], **options)
-    return Calibration.of(_calibrate_set(as_set(one), **keywords(options)))
-
-
-class Check(NamedTuple):
-    """One row of `Validation.checks`: an error of the calibrated outputs against physics."""
-    sensor: str
-    what: str
-    unit: str
-    n: int
-    nominal_rms: float | None     # at the nominal scale factors only
-    calibrated_rms: float | None  # after the calibration
-    floor_rms: float | None       # the noise and the calibration's own uncertainty (None: not known)
-    verdict: str
-
-
-@dataclass
-class Validation:
-    """A calibration judged on a set (ideally one it was not made from).
-
-    Attributes
-    ----------
-    verdict : dict
-        Per sensor: "at the noise floor", "better", "no better than nominal", "WORSE THAN NOMINAL".
-    checks : DataFrame or list of Check
-        Each check's error at nominal, after the calibration and its floor (a table).
-    check_rows : list of Check
-        The same rows as a list.
-    independent : bool
-        False where the data are the calibration's own (a model always looks better there).
-    warnings : list of str
-    report : dict
-        What `simucal validate -o` writes (``simucal.validation/1``).
-    """
-    verdict: dict[str, str]
-    check_rows: list[Check]
-    independent: bool
-    warnings: list[str]
-    report: _records.JSONObject  # validation.json as written
-    checks = TableOf("check_rows", Check._fields)
-
-    def __repr__(self) -> str:  # the report's arrays are in .report
-        return ("<simucal.Validation: " + "; ".join(f"{s} {v}" for s, v in self.verdict.items())
-                + ("" if self.independent else " (on the calibration's own data)") + ">")
-
-    def _repr_html_(self) -> str:
-        from simucal.api.tables import html_card
-        return html_card("simucal.Validation", [*self.verdict.items(), ("independent data", self.independent),
-                                                *[("warning", w) for w in self.warnings]])
-
-
-@checked
-def validate(cal: Calibration | str | os.PathLike, data: Data, *, acc_noise_g: float | None = None,
-             gyro_noise_dph: float | None = None, timestamps: str | None = None, units: str = "spec") -> Validation:
-    """Apply a calibration to an independent set and compare with nominal and the noise floor.
-
-    Parameters
-    ----------
-    cal : Calibration or a calibration file's path
-    data : str, os.PathLike or MeasurementSet
-    acc_noise_g, gyro_noise_dph : float, optional
-        The noise of one row (g, deg/h) where the data cannot give it (averaged rows), as `calibrate` takes it:
-        the floor of those rows' checks stands on it (without it, such rows have no floor).
-    timestamps : {"auto", "recorded", "nominal"}, optional
-        A stream's time stamps, as `calibrate` takes them; default: as the calibration read its own.
-    units : {"spec", "si"}
-        The unit system of ``.checks`` (si: m/s^2 and rad/s, as `simucal validate --units si` prints them);
-        ``.report``, the file, is always in the spec's.
-
-    Returns
-    -------
-    Validation
-
-    Examples
-    --------
-    >>> v = simucal.validate(cal, "other_set")  # doctest: +SKIP
-    >>> v.verdict  # doctest: +SKIP
-    {'acc': 'at the noise floor', 'gyro': 'at the noise floor'}
-    """
-    from simucal.report.units import validation_in
-    io.units.check_unit_system(units)
-    report = _validate_report(cal, data if isinstance(data, io.MeasurementSet) else folder_of(data), acc_noise_g,
-                              gyro_noise_dph, timestamps)
-    checks = [Check(s, c["what"], c["unit"], c["n"], c["before_rms"], c["after_rms"], c["floor_rms"], c["verdict"])
-              for s, rows in validation_in(report, units)["checks"].items() for c in rows]
-    return Validation(dict(report["verdict"]), checks, bool(report["independent"]),
-                      list(report["warnings"]), report)
 
 
 @checked
@@ -308,7 +158,7 @@ def _page(result: _file.Calibration | Validation | Diagnosis | Noise, calibratio
         from simucal.report.thermal_html import thermal_page
         return thermal_page(shown.calibration_in(result, units), cal_path=calibration_path)
     if isinstance(result, Validation):
-        from simucal.validate import html_page
+        from simucal.api.validating import html_page
         return html_page(shown.validation_in(result.report, units))
     if isinstance(result, Diagnosis):
         from simucal.report.html import render
@@ -326,11 +176,3 @@ def load(path: str | os.PathLike) -> Calibration:
     >>> cal = simucal.load("calibration.json")  # doctest: +SKIP
     """
     return Calibration.of(_file.load(path))
-
-
-# Importing the modules simucal.calibrate, .validate and .diagnose bound those names on the package to
-# the modules; the API's functions take them back (`simucal.calibrate(...)` is the function).
-import simucal as _package  # noqa: E402
-import simucal.diagnose  # noqa: E402,F401 (imported here, so that no later import binds the module's name)
-
-_package.calibrate, _package.validate, _package.diagnose = calibrate, validate, diagnose  # type: ignore[assignment]

@@ -52,7 +52,7 @@ def calibrate_each(data_dirs: Sequence[str | os.PathLike], folder: str | os.Path
     >>> [d.error for d in done]  # doctest: +SKIP
     [None, None]
     """
-    from simucal.calibrate import calibrate_to_file
+    from simucal.api.calibrating import calibrate_to_file
     from simucal.sweeps import map_tasks
     out = Path(folder)
     if out.suffix == ".json" or (out.exists() and not out.is_dir()):

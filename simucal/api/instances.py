@@ -13,7 +13,8 @@ from simucal import io
 from simucal.api.arguments import checked
 from simucal.api.options import CalibrateOptions
 from simucal.api.calibration import AutopilotFile, Calibration
-from simucal.api.sets import as_set, keywords
+from simucal.api.calibrating import calibrate_over_temperature
+from simucal.api.sets import as_set
 from simucal.errors import InputError
 from simucal.io.meta import Meta, log_imu
 
@@ -44,12 +45,6 @@ def by_imu(sets: Sequence[io.MeasurementSet]) -> list[list[io.MeasurementSet]]:
     for ms in sets:
         groups.setdefault(log_imu(ms.meta), []).append(ms)
     return list(groups.values())
-
-
-def calibrate_over_temperature(sets: Sequence[Data], **options: Unpack[CalibrateOptions]) -> Calibration:
-    """One unit's thermal calibration (`calibrate(data, thermal=True)`, simucal/calibrate.calibrate_thermal)."""
-    from simucal.calibrate import calibrate_thermal
-    return Calibration.of(calibrate_thermal([as_set(d) for d in sets], **keywords(options)))
 
 
 @checked

@@ -1,8 +1,9 @@
 """The API's tables: a pandas DataFrame where pandas is installed (simucal[pandas]), else a list of
-NamedTuple rows (the same columns, each row's fields by name), so that the API works on numpy alone."""
+rows (NamedTuples, or a diagnosis's Candidate records: the same columns, each row's fields by name), so that
+the API works on numpy alone."""
 from __future__ import annotations
 
-from typing import Any, NamedTuple, Protocol, Sequence, runtime_checkable
+from typing import Any, Protocol, Sequence, runtime_checkable
 
 from simucal.api.arguments import checked
 
@@ -16,14 +17,14 @@ class DataFrame(Protocol):
     def to_dict(self, orient: str = "dict") -> Any: ...
 
 
-def table(rows: Sequence[NamedTuple], columns: Sequence[str]) -> Any:
-    """rows as a DataFrame with these columns (the rows' fields; also when there are no rows), or the
-    list itself without pandas."""
+def table(rows: Sequence[Any], columns: Sequence[str]) -> Any:
+    """rows as a DataFrame with these columns (the rows' attributes of those names; also when there are no
+    rows), or the list itself without pandas."""
     try:
         import pandas as pd
     except ImportError:  # pandas is an extra: the rows are the table
         return list(rows)
-    return pd.DataFrame(list(rows), columns=list(columns))
+    return pd.DataFrame([[getattr(r, c) for c in columns] for r in rows], columns=list(columns))
 
 
 class TableOf:
@@ -47,8 +48,8 @@ class TableOf:
 
 @checked
 def table_rows(t: Any) -> list:
-    """A table's rows as NamedTuples, whichever type the API gave (``simucal.table_rows``): for code that
-    runs with pandas and without.
+    """A table's rows, each with its fields by name, whichever type the API gave (``simucal.table_rows``): for
+    code that runs with pandas and without.
 
     Parameters
     ----------
@@ -57,7 +58,7 @@ def table_rows(t: Any) -> list:
 
     Returns
     -------
-    list of NamedTuple
+    list of NamedTuple (or of Candidate, a diagnosis's without pandas)
         One per row, its fields by the table's columns.
 
     Examples

@@ -1,7 +1,7 @@
 """The project's own tools from Python (`simucal derive`, `audit`, `demo`, `bench` are one call of these plus
-printing): the models derived, the paper audited, the demo run, the speed measured. `simucal.audit` and
-`simucal.derive_model` are the package's names too; derive, demo and bench are `simucal.api.tools`'s alone
-(simucal.derive, simucal.demo and simucal.bench are modules of their own)."""
+printing): the models derived, the paper audited, the demo run (api/demo_run.py), the speed measured.
+`simucal.audit` and `simucal.derive_model` are the package's names too; derive, demo and bench are
+`simucal.api.tools`'s alone (simucal.derive and simucal.bench are modules of their own)."""
 from __future__ import annotations
 
 import os
@@ -67,21 +67,17 @@ def demo_outputs(out: str | os.PathLike) -> tuple[list[Any], Any]:
     """(the sets the demo writes under `out`, its record's path): a record there is an earlier demo's, whose sets
     it may replace."""
     from pathlib import Path
-    run = _demo_module()
-    return [Path(out) / d for d in run.SETS], Path(out) / run.MARKER
+
+    from simucal.api import demo_run
+    return [Path(out) / d for d in demo_run.SETS], Path(out) / demo_run.MARKER
 
 
 def demo(out: str | os.PathLike, seed: int = 0, echo: Callable[[str], Any] = print) -> records.JSONObject:
     """The main job end to end on built-in simulated data (`simucal demo -o OUT`): a hidden effect found, added,
     calibrated with, applied and validated; the unit over temperature; its noise; the paper's methods. Writes
     into `out`; echo prints each step. Returns the demo's record (demo.json)."""
-    return _demo_module().run(out, seed, echo)
-
-
-def _demo_module() -> Any:
-    """simucal/demo.py (by its module name: `simucal.demo` is this API's function too)."""
-    import importlib
-    return importlib.import_module("simucal.demo")
+    from simucal.api import demo_run
+    return demo_run.run(out, seed, echo)
 
 
 def bench(json_path: str | os.PathLike | None = None, echo: Callable[[str], Any] = print,

@@ -280,7 +280,7 @@ def _added_lines(result):
 def diagnose(data_dir, output, html_path, add, acc_model, gyro_model, acc_noise_g, gyro_noise_dph, timestamps, units):
     """Compare model and measurements; rank the candidate missing effects. The Python API's simucal.diagnose(DATA)."""
     from simucal import api
-    from simucal.api.analyses import shape_model_path
+    from simucal.api.diagnosing import shape_model_path
     if "auto" in add:
         fail(f"--add auto is calibrate's: diagnose already ranks every candidate; run simucal calibrate {data_dir} "
               "--add auto")

@@ -1,4 +1,4 @@
-"""The lot command: the calibrations of many units side by side (simucal/lot_report.py)."""
+"""The lot command: the calibrations of many units side by side (simucal/api/lot_reporting.py)."""
 from __future__ import annotations
 
 import click

@@ -239,7 +239,7 @@ def validate(calibration_file, data_dir, output, html_path, acc_noise_g, gyro_no
     """Apply a calibration to an independent set: the error before (nominal) and after, against the noise floor.
     The Python API's simucal.validate(CAL, DATA)."""
     from simucal import api
-    from simucal.validate import lines
+    from simucal.api.validating import lines
     guard([calibration_file, data_dir], files={"-o": output, "--html": html_path})
     result = api.validate(calibration_file, data_dir, acc_noise_g=acc_noise_g, gyro_noise_dph=gyro_noise_dph,
                           timestamps=timestamps)

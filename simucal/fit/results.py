@@ -40,11 +40,12 @@ class ModelTest:
 
 @dataclass(frozen=True)
 class Candidate:
-    """One effect tried beside the model. Not separable: note says why (no input for it in these
+    """One effect tried beside the model: a ranking's, and a row of `simucal.Diagnosis.candidates` (read back
+    from the diagnosis file by `of`, in the units asked). Not separable: note says why (no input for it in these
     data, collinear with the model, its fit failed) and what would show it. Separable: its estimate
     and std, the likelihood-ratio (or F) statistic and p-value, delta AIC where the noise is known,
-    the residual rms with it, whether it passes the gate (ranking.gate) and the candidates the data
-    cannot tell it from (fit/twins.py)."""
+    the residual rms with it, whether it passes the gate (ranking.gate; significant: the one to add) and
+    the candidates the data cannot tell it from (fit/twins.py)."""
     id: str
     parameter: str
     unit: str
@@ -60,6 +61,19 @@ class Candidate:
     significant: bool = False
     twins: tuple[str, ...] = ()
     test: str | None = None  # a ranking other than the model's likelihood ratio names its test
+
+    @classmethod
+    def of(cls, d: Mapping[str, Any]) -> Candidate:
+        """The candidate a diagnosis file holds (to_dict's keys)."""
+        number = lambda k: None if d.get(k) is None else float(d[k])  # noqa: E731 (numpy's scalars as floats)
+        return cls(str(d["id"]), str(d.get("parameter", "")), str(d.get("unit", "")), str(d.get("meaning", "")),
+                   bool(d["separable"]), d.get("note"), number("estimate"), number("std"), number("statistic"),
+                   number("p_value"), number("delta_aic"), number("residual_rms_after"), bool(d.get("significant")),
+                   tuple(d.get("twins") or ()), d.get("test"))
+
+    @property
+    def sensor(self) -> str:
+        return self.id.split(".")[0]
 
     @property
     def effect(self) -> str:

@@ -1,6 +1,6 @@
 """`--add auto` over every row of a thermal calibration.
 
-calibrate --thermal --add auto chooses its effects on the plateau nearest T_ref (calibrate.py: that
+calibrate --thermal --add auto chooses its effects on the plateau nearest T_ref (api/calibrating.py: that
 plateau gives the frames, the checks and the model's shape), a third of the rows of three plateaus.
 There an effect and its twin can read alike (on fibonacci24 plateaus acc.quadratic.z and
 acc.scale_asymmetry.z: auto took the wrong one in 1 seed of 5), and an effect at 10 of the joint

@@ -44,7 +44,7 @@ def _param_names(n_terms_names):
 
 
 def move_rows(gm, fit: GyroFit, S, columns: dict):
-    """Per-move residuals in the shape of diagnose.residual_table (one row per move); columns:
+    """Per-move residuals in the shape of api/diagnosing.residual_table (one row per move); columns:
     each auxiliary samples.csv column's mean over each move (temp_c, a user's supply_v, ...)."""
     mv, sig = gm.mv, np.sqrt(np.einsum("mii->mi", S))
     return [{"segment": i, "kind": "move", "from_pose": int(a), "to_pose": int(b), "t_span_s": list(span),

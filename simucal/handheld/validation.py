@@ -5,7 +5,7 @@ the calibrated accelerometers measure (Tedaldi's cost; handheld/moves.py), as an
 Both arms take the gyro's bias from this session's initial rest: a MEMS gyro's turn-on bias changes
 with every power-up, so no calibration can carry it, and the check is of what it can carry (T: the
 scale factors and misalignments). Both use the calibrated accelerometers' directions. The stream's
-time stamps are read as the calibration read its own (validate.py: io/timestamps.with_timestamps).
+time stamps are read as the calibration read its own (api/validating.py: io/timestamps.with_timestamps).
 
 The moves' floor, per move, is what the angle would be if T were exact (rad^2, summed over the two
 components across gravity, 2/3 of the angle's): the rest's white gyro noise sigma_g (at least its

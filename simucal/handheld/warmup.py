@@ -262,6 +262,31 @@ def calibrate_warmup(ms, t_ref_c=None, add=()) -> calibration.Calibration:
     return cal
 
 
+def refuse_a_board_that_moved(ms) -> None:
+    """A warm-up (temp_c rising over MIN_SPAN_C) that is still in a few long stretches, not throughout: the
+    board was turned, and each stretch is another orientation; refused by name (the plateau path would count
+    its stretches as poses)."""
+    from simucal.handheld.static_detect import detect_static
+    T, t = ms.samples.get("temp_c"), np.asarray(ms.samples["t_s"], float)
+    if T is None or np.ptp(T) < MIN_SPAN_C:
+        return
+    try:
+        d = detect_static(ms.acc_g(), t)
+    except CalibrationError:
+        return
+    spans = [(float(t[a]), float(t[b - 1])) for a, b in zip(d.starts, d.ends)]
+    still_s = sum(b - a for a, b in spans)
+    if not 2 <= len(spans) <= 3 or still_s < 0.8 * (t[-1] - t[0]):
+        return
+    f = ms.acc_g()
+    up = [f[a:b].mean(axis=0) / np.linalg.norm(f[a:b].mean(axis=0)) for a, b in zip(d.starts, d.ends)]
+    angle = max(np.degrees(np.arccos(np.clip(u @ v, -1, 1))) for i, u in enumerate(up) for v in up[i + 1:])
+    raise CalibrationError(
+        f"{ms.path}: the board moved during the warm-up: it is still in {len(spans)} stretches ("
+        + ", ".join(f"{a:.0f}-{b:.0f} s" for a, b in spans) + f"), up to {angle:.0f} deg apart, while a "
+        "still warm-up is one orientation: give each stretch as a set of its own (each is calibrated with --thermal "
+        f"where its temperature spans {MIN_SPAN_C:g} degC), or log the warm-up again without touching the board")
+
 def _rate_effects(add) -> tuple[str, ...]:
     """The effect ids of --add, each a temperature-rate effect (the one family still data see), else refused."""
     ids = tuple(e for e in add if e != "auto")

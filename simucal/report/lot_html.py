@@ -1,7 +1,7 @@
 """The page of a lot (`simucal lot --html`): first the lot's verdict (how many units pass, which fail and
 why, which are flagged) and the next command, then per group and sensor each parameter over the units
 (each unit's value with its std, the lot's median, the band the outlier rule allows, the spec limits),
-the table of every parameter's distribution, the units and the drifts. Reads the report (simucal/lot_report.py)."""
+the table of every parameter's distribution, the units and the drifts. Reads the report (simucal/api/lot_reporting.py)."""
 from __future__ import annotations
 
 import html
@@ -52,7 +52,7 @@ def _largest(drift, sensor) -> str:
 
 
 def lot_page(report: dict) -> str:
-    """The page (module doc) of a report of simucal.lot_report.lot, in the pages' one shell (report/page.py):
+    """The page (module doc) of a report of simucal.api.lot_reporting.lot, in the pages' one shell (report/page.py):
     the verdict's first line is the lot's, each further line a unit failing or flagged, or a note."""
     e = html.escape
     first, *rest = report["verdict"]

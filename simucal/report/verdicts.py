@@ -1,6 +1,6 @@
 """The verdicts in words: what a sensor's model test and its candidates say, with the command to
 run next (the statistics layers hand over numbers and ids, this module writes
-the sentences). diagnose.py asks sensor_verdict of every block once its kind of data has judged it.
+the sentences). api/diagnosing.py asks sensor_verdict of every block once its kind of data has judged it.
 """
 from __future__ import annotations
 

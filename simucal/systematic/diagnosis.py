@@ -37,7 +37,7 @@ def model_test(test) -> dict:
 
 
 def innovation_rows(ms, result) -> list[dict]:
-    """The zero-velocity innovations, one row per update (the shape of diagnose.residual_table): the
+    """The zero-velocity innovations, one row per update (the shape of api/diagnosing.residual_table): the
     rest's segment, its time, the specific force's direction in b, nu (m/s, in n: east, north, up),
     its std and nu / std."""
     steps = result.setting[0]

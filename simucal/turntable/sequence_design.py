@@ -40,7 +40,7 @@ MIN_MOVES = 6  # fewer cannot turn each axis of the unit both ways with each up 
 
 
 @dataclass(frozen=True)
-class Candidate:
+class ScoredSequence:
     """A sequence scored: its steps, each parameter's std (the observability's order), the criterion
     (module doc) and the worst std / target with its index."""
     steps: tuple[Step, ...]
@@ -50,7 +50,7 @@ class Candidate:
     worst_at: int
 
 
-def score(stds_of, moves, rate_dps: float, minutes: float, target: np.ndarray) -> Candidate | None:
+def score(stds_of, moves, rate_dps: float, minutes: float, target: np.ndarray) -> ScoredSequence | None:
     """The candidate of these moves (axis, angle, rest weight) at rate_dps with rests filling `minutes`
     in proportion to their weights; None where the moves leave a rest under sequence.MIN_REST_S."""
     shortest = min(w for _, _, w in moves)  # every rest at MIN_REST_S or more before fitting: all scale alike
@@ -62,7 +62,7 @@ def score(stds_of, moves, rate_dps: float, minutes: float, target: np.ndarray) -
     log_ratio = np.log(std / target)
     worst = int(np.argmax(log_ratio))
     soft = float(np.log(np.exp(SOFTNESS * (log_ratio - log_ratio[worst])).sum()) / SOFTNESS + log_ratio[worst])
-    return Candidate(steps, std, soft, float(np.exp(log_ratio[worst])), worst)
+    return ScoredSequence(steps, std, soft, float(np.exp(log_ratio[worst])), worst)
 
 
 def moves_of(steps) -> list[tuple[str, float, float]]:
@@ -96,8 +96,8 @@ def changes(moves, rng) -> list[tuple]:
 class Design:
     """The search's result: the designed candidate, each built-in's at the table's rate in the same time
     (None: its moves do not fit), the built-in it started from, the evaluations spent."""
-    best: Candidate
-    built_in: dict[str, Candidate | None]
+    best: ScoredSequence
+    built_in: dict[str, ScoredSequence | None]
     start: str
     evaluations: int
 

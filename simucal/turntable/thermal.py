@@ -1,6 +1,6 @@
 """A turntable unit over temperature: the rows of every plateau (or of one ramp) as one set of
-observations, each at its own temperature (and its rate: aux_inputs.column_means), for the joint
-thermal fit (fit/thermal_select.py)."""
+observations, each at its own temperature (and its rate: aux_inputs.column_means), and the joint
+thermal fit of them (fit/thermal_select.py, fit/thermal_auto.py) as each sensor's block of the calibration."""
 from __future__ import annotations
 
 import numpy as np
@@ -8,7 +8,8 @@ import numpy as np
 from simucal.fit.aux_inputs import T_REF, AuxInputs, specific_force
 from simucal.fit.norm_fit import Observations
 from simucal.fit.thermal_select import RAMP_BANDS
-from simucal.io import units
+from simucal.io import calibration, records, units
+from simucal.io.calibration import SensorBlock, SensorDetails
 from simucal.turntable.consistency import static_gyro_rows
 from simucal.turntable.model_test import ROWS
 from simucal.turntable.observations import read_observations, segment_duration_s
@@ -115,3 +116,85 @@ def axes_following_temperature(obs) -> dict:
     res = u - X @ np.linalg.lstsq(X, u, rcond=None)[0]
     r2 = 1 - np.sum(res ** 2, 0) / np.maximum(np.sum((u - u.mean(0)) ** 2, 0), 1e-300)
     return {"xyz"[k]: float(r2[k]) for k in range(3) if r2[k] > FOLLOWS_R2}
+
+
+def _own_fits(base, obs, groups) -> list:
+    """Each plateau fitted alone by the model without temperature terms: the evidence beside the joint
+    fit (its test, and its parameters at the plateau's temperature)."""
+    from simucal.fit.lack_of_fit import fit_with_noise
+    return [fit_with_noise(base, obs.take(np.nonzero(groups == g)[0]))[0] for g in np.unique(groups)]
+
+
+def joint_block(obs, groups, first: SensorBlock, degree, labels, t_ref_c, plateaus: bool, segs,
+                meta=None) -> SensorBlock:
+    """One sensor's block from the joint fit of every row at its own temperature (fit/thermal_select.py):
+    the block at T_ref (params = c_0), every parameter's polynomial, each group's test under the joint
+    model beside its own fit's (plateaus; a ramp's bands have none); segs: the rows' segments; meta: the
+    gyro's, for the outer axis's tilt in its stds (turntable/tilt.py)."""
+    from dataclasses import replace
+
+    from simucal.fit.thermal_auto import by_every_row, joint_test
+    from simucal.fit.thermal_select import group_tests
+    from simucal.turntable.model_test import rows_text
+    base, model, fit, how, obs, auto = by_every_row(first, obs, groups, degree)
+    own = _own_fits(base, obs, groups) if plateaus else None
+    fits: dict[str, records.ThermalPolynomial] = {}
+    for j, n in enumerate(base.params):
+        names = [n] + [f"{n}.T{k}" for k in range(1, model.degrees[j] + 1)]
+        fits[n] = {"degree": model.degrees[j], "degree_from": how["from"],
+                   "coefficients": [fit.params[x] for x in names], "std": [fit.std[x] for x in names]}
+        if own:
+            fits[n].update({"per_plateau": [f.params[n] for f in own], "per_plateau_std": [f.std[n] for f in own]})
+    M, bias = base.matrix_and_bias(fit.vector(base.params))
+    T = obs.aux.column("temp_c", len(obs.N))
+    T_g = [float(np.mean(T[groups == g])) for g in np.unique(groups)]
+    details: SensorDetails = {
+        "groups": [{"input": lab, "temp_c": t, "own_p_value": f.p_value if f else None, **test}
+                   for lab, t, f, test in zip(labels, T_g, own or [None] * len(T_g), group_tests(model, obs, fit, groups))],
+        "plateaus": plateaus}
+    if first.C_b_model is not None:
+        details["M_in_d"] = M.tolist()
+    thermal: records.Thermal = {"t_ref_c": t_ref_c, "plateaus_c": T_g, "temperature_range_c": [float(T.min()), float(T.max())],
+               "fit": "joint: every row at its own temp_c", "rows": rows_text(segs), "parameters": fits, "dropped": how["dropped"],
+               "covariance": {"names": list(model.params), "matrix": fit.cov.tolist()}}
+    test = joint_test(base, model, obs, fit)
+    details.update(calibration.as_details({k: test[k] for k in ("omnibus_p_value", "omnibus_test", "targeted")
+                                           if k in test}))
+    if "verdict" in test.get("targeted", {}):  # a library effect beyond its test: the one to add
+        details["advice"] = test["targeted"]["strongest"]
+    if auto is not None:
+        details["auto"] = auto
+    block = replace(first, effects=calibration.effect_values(base, fit),  # auto may have changed them (thermal_auto)
+                    params={n: fit.params[n] for n in base.params}, std={n: fit.std[n] for n in base.params},
+                    M=M @ first.C, bias=bias, residual_rms=fit.residual_rms, chi2=fit.chi2, dof=fit.dof,
+                    p_value=test["p_value"], thermal=thermal, details=details)
+    if meta is not None:
+        from simucal.turntable.tilt import add_tilt_thermal
+        add_tilt_thermal(block, model, fit, obs, segs, meta)
+    if calibration.inflate_if_failing(block) and fit.dof:  # the coefficients' stds too (covariance kept unscaled)
+        k = float(np.sqrt(max(fit.chi2 / fit.dof, 1.0)))
+        for f in fits.values():
+            f["std"] = [e * k for e in f["std"]]
+    return block
+
+
+def joint_blocks(result, sets, cal, degree, t_ref, noise=None, acc_noise_g=None, gyro_noise_dph=None) -> None:
+    """The sensors' blocks of a turntable unit by the joint fit (joint_block) set on result: sets, the plateaus
+    (set, temperature), or one set whose bands of its ramp are the groups; cal, the plateau nearest T_ref's
+    calibration (each sensor's model and frame); noise: a noise.json's path (fit/noise.load_curves)."""
+    curves = None
+    if noise is not None:
+        from simucal.fit.noise import load_curves
+        curves = load_curves(noise)
+    obs = joint_observations([ms for ms, _ in sets], t_ref, acc_noise_g, gyro_noise_dph, curves)
+    for s in cal.sensors:
+        if s not in obs:
+            continue
+        o, groups, segs = obs[s]
+        labels = [str(ms.path) for ms, _ in sets]
+        if len(sets) == 1:
+            groups = ramp_bands(o.aux.column("temp_c", len(o.N)))
+            labels = [f"{sets[0][0].path}, band {g + 1}" for g in np.unique(groups)]
+            result.warnings += ramp_warnings(s, o, segs)
+        setattr(result, s, joint_block(o, groups, getattr(cal, s), degree, labels, t_ref, len(sets) > 1, segs,
+                                       sets[0][0].meta if s == "gyro" else None))

@@ -1,4 +1,4 @@
-"""`simucal validate`: a calibration judged on an independent set, before and after.
+"""`simucal.validate` -> Validation (`simucal validate`): a calibration judged on an independent set, before and after.
 
 The promise of the loop is that the user watches the error fall; on the fit's own rows
 it always does. Here a calibration is applied (fit/apply.py) to a set it was not made
@@ -31,13 +31,22 @@ temperature range are named (apply's warning). The checks of each kind of data a
 """
 from __future__ import annotations
 
+import os
+from dataclasses import dataclass
+from typing import NamedTuple
+
 import numpy as np
 
 from simucal import io, methods
+from simucal.api.arguments import checked
+from simucal.api.calibrating import Data
+from simucal.api.calibration import Calibration
+from simucal.api.sets import folder_of
+from simucal.api.tables import TableOf
 from simucal.fit.apply import apply
 from simucal.fit.validation import FAR_OFF
 from simucal.errors import CalibrationError
-from simucal.io import calibration, units
+from simucal.io import calibration, records, units
 from simucal.io.timestamps import with_timestamps
 from simucal.report.console import skipped_sensors, validation_next
 
@@ -112,7 +121,92 @@ def nominal(ms, sensor) -> tuple[np.ndarray, str]:
     return out - to_unit(off[None], ms.meta)[0], f"{sensor}: the counts less {', '.join(f'{x:g}' for x in off)} ({how})"
 
 
-def validate(cal_path, data_dir, acc_noise_g=None, gyro_noise_dph=None, timestamps=None) -> dict:
+class Check(NamedTuple):
+    """One row of `Validation.checks`: an error of the calibrated outputs against physics."""
+    sensor: str
+    what: str
+    unit: str
+    n: int
+    nominal_rms: float | None     # at the nominal scale factors only
+    calibrated_rms: float | None  # after the calibration
+    floor_rms: float | None       # the noise and the calibration's own uncertainty (None: not known)
+    verdict: str
+
+
+@dataclass
+class Validation:
+    """A calibration judged on a set (ideally one it was not made from).
+
+    Attributes
+    ----------
+    verdict : dict
+        Per sensor: "at the noise floor", "better", "no better than nominal", "WORSE THAN NOMINAL".
+    checks : DataFrame or list of Check
+        Each check's error at nominal, after the calibration and its floor (a table).
+    check_rows : list of Check
+        The same rows as a list.
+    independent : bool
+        False where the data are the calibration's own (a model always looks better there).
+    warnings : list of str
+    report : dict
+        What `simucal validate -o` writes (``simucal.validation/1``).
+    """
+    verdict: dict[str, str]
+    check_rows: list[Check]
+    independent: bool
+    warnings: list[str]
+    report: records.JSONObject  # validation.json as written
+    checks = TableOf("check_rows", Check._fields)
+
+    def __repr__(self) -> str:  # the report's arrays are in .report
+        return ("<simucal.Validation: " + "; ".join(f"{s} {v}" for s, v in self.verdict.items())
+                + ("" if self.independent else " (on the calibration's own data)") + ">")
+
+    def _repr_html_(self) -> str:
+        from simucal.api.tables import html_card
+        return html_card("simucal.Validation", [*self.verdict.items(), ("independent data", self.independent),
+                                                *[("warning", w) for w in self.warnings]])
+
+
+@checked
+def validate(cal: Calibration | str | os.PathLike, data: Data, *, acc_noise_g: float | None = None,
+             gyro_noise_dph: float | None = None, timestamps: str | None = None, units: str = "spec") -> Validation:
+    """Apply a calibration to an independent set and compare with nominal and the noise floor.
+
+    Parameters
+    ----------
+    cal : Calibration or a calibration file's path
+    data : str, os.PathLike or MeasurementSet
+    acc_noise_g, gyro_noise_dph : float, optional
+        The noise of one row (g, deg/h) where the data cannot give it (averaged rows), as `calibrate` takes it:
+        the floor of those rows' checks stands on it (without it, such rows have no floor).
+    timestamps : {"auto", "recorded", "nominal"}, optional
+        A stream's time stamps, as `calibrate` takes them; default: as the calibration read its own.
+    units : {"spec", "si"}
+        The unit system of ``.checks`` (si: m/s^2 and rad/s, as `simucal validate --units si` prints them);
+        ``.report``, the file, is always in the spec's.
+
+    Returns
+    -------
+    Validation
+
+    Examples
+    --------
+    >>> v = simucal.validate(cal, "other_set")  # doctest: +SKIP
+    >>> v.verdict  # doctest: +SKIP
+    {'acc': 'at the noise floor', 'gyro': 'at the noise floor'}
+    """
+    from simucal.report.units import validation_in
+    io.units.check_unit_system(units)
+    report = validation_report(cal, data if isinstance(data, io.MeasurementSet) else folder_of(data), acc_noise_g,
+                              gyro_noise_dph, timestamps)
+    checks = [Check(s, c["what"], c["unit"], c["n"], c["before_rms"], c["after_rms"], c["floor_rms"], c["verdict"])
+              for s, rows in validation_in(report, units)["checks"].items() for c in rows]
+    return Validation(dict(report["verdict"]), checks, bool(report["independent"]),
+                      list(report["warnings"]), report)
+
+
+def validation_report(cal_path, data_dir, acc_noise_g=None, gyro_noise_dph=None, timestamps=None) -> dict:
     """The report (module doc) of calibration file cal_path (or a Calibration) applied to the set data_dir
     (or a MeasurementSet). acc_noise_g, gyro_noise_dph: the noise of one row where the data cannot give it
     (averaged rows), as calibrate takes it: the floors of those rows' checks stand on it. timestamps: a

@@ -1,4 +1,4 @@
-"""`simucal lot CAL_FOLDER`: the units of a production lot side by side, from their calibration files.
+"""`simucal.lot` (`simucal lot CAL_FOLDER`): the units of a production lot side by side, from their calibration files.
 
 Per parameter (every parameter of each block's model, effects included, or an affine block's M and bias;
 named `sensor.param`) the lot's robust centre (the median) and spread (1.4826 x the median absolute
@@ -20,13 +20,16 @@ calibrated more than once enters it with its last calibration.
 from __future__ import annotations
 
 import json
+import os
 from pathlib import Path
 
 import numpy as np
 
+from simucal.api.arguments import checked
 from simucal.errors import CalibrationError
 from simucal.fit.distributions import chi2_sf
 from simucal.fit.results import ALPHA
+from simucal.io import records
 from simucal.io.calibration import Calibration, load
 from simucal.io.calibration_checks import SERIAL, CalibrationFileError
 from simucal.io.text_files import unique_keys
@@ -285,24 +288,54 @@ def verdict_lines(report) -> list[str]:
     return out
 
 
-def lot(folder, limits_path=None) -> dict:
-    """The lot report of the calibrations in folder (module doc); limits_path: a limits.json."""
+@checked
+def lot(folder: str | os.PathLike, limits: str | os.PathLike | None = None) -> records.JSONObject:
+    """The lot report of the calibration files in a folder: the dict `simucal lot -o lot.json` writes.
+
+    Parameters
+    ----------
+    folder : str or os.PathLike
+        A folder of calibration files, one per unit (``simucal calibrate DIR1 DIR2 ... -o FOLDER``);
+        other files in it are named under ``not_calibrations``.
+    limits : str or os.PathLike, optional
+        A limits.json (format ``simucal.limits/1``): spec limits per parameter, in the calibrations' units.
+
+    Returns
+    -------
+    dict
+        ``verdict`` (lines: how many units pass, which fail and why), ``next`` (the command to run next),
+        ``units`` (each unit's status, model tests, limits broken, outliers), ``groups`` (per method and
+        model, each parameter's median, spread, spread of units, values, stds and z), ``drift`` (between
+        calibrations of one unit_serial) and ``not_calibrations``.
+
+    Raises
+    ------
+    simucal.errors.CalibrationError
+        A folder with no calibration file, or a bad limits file, in one line naming the file and entry.
+
+    Examples
+    --------
+    >>> import simucal.api
+    >>> report = simucal.api.lot("cals")  # doctest: +SKIP
+    >>> report["verdict"][0]  # doctest: +SKIP
+    '11 of 12 units pass, 0 fail, 1 flagged'
+    """
     cals, others = read_folder(folder)
     latest, earlier, drifts = _by_serial(cals)
     keys = [_group_key(c) for _, c in latest]
     groups = [{"key": k, **_group([n for (n, _), kk in zip(latest, keys) if kk == k],
                                   [c for (_, c), kk in zip(latest, keys) if kk == k])} for k in dict.fromkeys(keys)]
     known = {p["name"]: p["unit"] for g in groups for p in g["parameters"]}
-    limits = read_limits(limits_path, known) if limits_path else {}
+    limits_of = read_limits(limits, known) if limits else {}
     outliers: dict[str, list[dict]] = {}  # per unit: its outlying parameters
     for g in groups:
         for p in g["parameters"]:
             for o in p["outliers"]:
                 outliers.setdefault(o["unit"], []).append({"name": p["name"], "z": o["z"]})
-    units = [_unit(n, c, k, limits, outliers.get(n, []),
+    units = [_unit(n, c, k, limits_of, outliers.get(n, []),
                    [d for d in drifts if d["later"] == n and _drifted(d)])
              for (n, c), k in zip(latest, keys)]
-    report = {"format": FORMAT, "folder": str(folder), "units": units, "groups": groups, "limits": limits,
+    report = {"format": FORMAT, "folder": str(folder), "units": units, "groups": groups, "limits": limits_of,
               "drift": drifts, "superseded": earlier, "not_calibrations": others, "outlier_p": OUTLIER_P,
               "drift_p": DRIFT_P}
     report["verdict"] = verdict_lines(report)

@@ -1,4 +1,4 @@
-"""`simucal demo`: the product's loop on built-in simulated data, then the paper's comparison.
+"""`simucal demo` (api/tools.demo): the product's loop on built-in simulated data, then the paper's comparison.
 
 The loop: simulate a turntable test with a hidden effect (written only to
 truth.json), calibrate with the baseline model (it fails, and says what to
@@ -19,8 +19,8 @@ import numpy as np
 
 from simucal.errors import CalibrationError, InputError
 from simucal import derive_cmd, io, methods
-from simucal.calibrate import calibrate
-from simucal.diagnose import diagnose
+from simucal.api.calibrating import calibrate_set, calibrate_thermal
+from simucal.api.diagnosing import diagnosis_report
 from simucal.fit.apply import apply
 from simucal.io import calibration, outputs
 from simucal.report import markdown as report
@@ -47,19 +47,19 @@ def loop(out: Path, seed: int, echo) -> dict:
     data = out / "loop"
     truth = write(data, sc, seed)
     echo(f"1 simulate: {data} (fibonacci48 plan; a hidden effect is in {data / 'truth.json'} only)")
-    base = calibrate(data)
+    base = calibrate_set(data)
     assert base.acc is not None  # the demo's set has an accelerometer
     calibration.save(out / "loop_calibration_baseline.json", base)
     echo(f"2 calibrate (baseline model): acc chi2 {base.acc.chi2:.1f} on {base.acc.dof} dof, "
          f"p = {base.acc.p_value:.2g}; advice: add {base.acc.details['advice']}")
-    diag = diagnose(data)
+    diag = diagnosis_report(data)
     outputs.write_text(out / "loop_diagnosis.json", json.dumps(diag, indent=1, default=float) + "\n")
     outputs.write_text(out / "loop_diagnosis.html", render(diag))
     found = [c["id"] for c in diag["acc"]["candidates"] if c.get("significant")][:1]
     echo(f"3 diagnose: {diag['acc']['verdict']}")
     if not found:
         raise CalibrationError("the demo's hidden effect was not found: " + diag["acc"]["verdict"])
-    fixed = calibrate(data, add=tuple(found))
+    fixed = calibrate_set(data, add=tuple(found))
     assert fixed.acc is not None
     calibration.save(out / "loop_calibration_added.json", fixed)
     e = fixed.acc.effects[found[0]]
@@ -83,10 +83,10 @@ def loop(out: Path, seed: int, echo) -> dict:
 
 def _validate(out: Path, sc, seed: int, echo) -> dict:
     """Step 6: both calibrations on another recording of the same unit (the Table 1 plan, raw rows)."""
-    from simucal.validate import html_page, validate
+    from simucal.api.validating import html_page, validation_report
     sc.plan, sc.rate_hz, sc.static_s = "table1", 20.0, 5.0  # meta.json states the table (simulate's default)
     write(out / "loop_other", sc, seed + 1)
-    reps = {name: validate(out / f"loop_calibration_{name}.json", out / "loop_other") for name in ("baseline", "added")}
+    reps = {name: validation_report(out / f"loop_calibration_{name}.json", out / "loop_other") for name in ("baseline", "added")}
     for name, rep in reps.items():
         outputs.write_text(out / f"loop_validation_{name}.json", json.dumps(rep, indent=1) + "\n")
         outputs.write_text(out / f"loop_validation_{name}.html", html_page(rep))
@@ -117,10 +117,9 @@ def thermal(out: Path, seed: int, echo) -> dict:
     `simulate --temperature-c T --t-ref-c 25 --temperature-wander-c 0.3` does and calibrated with
     --thermal (one fit, every row at its own temperature); it and the 25 degC plateau's calibration
     validated at 35 degC on another plan; the page with the verdicts and the validation."""
-    from simucal.calibrate import calibrate_thermal
     from simucal.report.thermal_html import thermal_page
     from simucal.turntable.simulate import at_temperature
-    from simucal.validate import validate
+    from simucal.api.validating import validation_report
 
     def plateau(T, k, plan="fibonacci48"):
         sc = SCENARIOS["paper"]()
@@ -133,14 +132,14 @@ def thermal(out: Path, seed: int, echo) -> dict:
     cal = calibrate_thermal(sets, t_ref_c=25.0)
     assert cal.acc is not None and cal.gyro is not None  # the plateaus hold both sensors
     calibration.save(out / "thermal_calibration.json", cal)
-    calibration.save(out / "thermal_calibration_25.json", calibrate(sets[1]))
+    calibration.save(out / "thermal_calibration_25.json", calibrate_set(sets[1]))
     moving = [f"{s}.{n} degree {f['degree']}" for s in ("acc", "gyro")
               for n, f in getattr(cal, s).thermal["parameters"].items() if f["degree"]]
     echo(f"7 simulate --temperature-c T --t-ref-c 25 --temperature-wander-c 0.3 (T = 0, 25, 50); calibrate "
          f"{' '.join(p.name for p in sets)} --thermal: joint test acc p = {cal.acc.p_value:.2g}, gyro p = "
          f"{cal.gyro.p_value:.2g}; following temperature: {', '.join(moving)} (planted: {', '.join(THERMAL)})")
     other = plateau(35, 7, "table1")
-    reps = {n: validate(out / f"thermal_calibration{n}.json", other) for n in ("", "_25")}
+    reps = {n: validation_report(out / f"thermal_calibration{n}.json", other) for n in ("", "_25")}
     outputs.write_text(out / "thermal.html", thermal_page(cal, [reps[""]], str(out / "thermal_calibration.json")))
     w = max(len(_label(reps[""]["checks"][s][0])) for s in ("acc", "gyro"))
     echo(f"   validate at 35 degC ({other}):")
@@ -171,7 +170,7 @@ def paper(out: Path, seed: int, echo) -> None:
     echo(f"simulate: {out / 'paper'} (dong2018 section 4 settings, seed {seed})")
     results = {}
     for method in methods.for_any_plan(methods.TURNTABLE):
-        results[method] = calibrate(out / "paper", method)
+        results[method] = calibrate_set(out / "paper", method)
         calibration.save(out / f"calibration_{method}.json", results[method])
     echo("calibrate: " + ", ".join(f"calibration_{m}.json" for m in results))
     audit_report = full_audit(seeds=8)
@@ -181,7 +180,7 @@ def paper(out: Path, seed: int, echo) -> None:
     text = report.compare_table(results, truth)
     outputs.write_text(out / "report.md", text)
     echo(text)
-    diag = diagnose(out / "paper")
+    diag = diagnosis_report(out / "paper")
     outputs.write_text(out / "diagnosis.json", json.dumps(diag, indent=1, default=float) + "\n")
     outputs.write_text(out / "diagnosis.html", render(diag))
     echo(f"diagnose: {out / 'diagnosis.html'}: {diag['verdict']}")
