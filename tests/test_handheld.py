@@ -407,3 +407,20 @@ def test_a_long_turn_about_the_vertical_is_no_pose_either(turn_s):
     gyro = np.vstack(gyro) + rng.normal(0, 0.05, acc.shape)
     d = detect_static(acc, np.arange(len(acc)) / fs, gyro_dps=gyro)
     assert len(d.starts) >= 4 and all(np.abs(gyro[a:b, 2]).mean() < 1.0 for a, b in zip(d.starts, d.ends))
+
+
+def test_a_trial_s_decimation_from_its_base_is_the_whole_s():
+    """moves.decimate with base (the moves' decimation less their last regressor, as each trial of a ranking adds
+    one): the same numbers as decimating the whole, bit for bit."""
+    from simucal.handheld.moves import Moves, decimate
+    rng = np.random.default_rng(5)
+    dt = np.where(np.arange(23) < [[23], [17], [9]], 0.01, 0.0)  # three moves, zero-padded
+    y, phi = rng.normal(size=(3, 3, 23)) * (dt > 0), rng.normal(size=(2, 3, 23)) * (dt > 0)
+    for before in (None, phi[:1]):
+        mv = Moves(y, dt, np.arange(3), np.arange(1, 4), phi=phi if before is not None else phi[-1:],
+                   phi_axes=(0, 2) if before is not None else (2,), phi_rest=np.zeros(2 if before is not None else 1))
+        less = Moves(y, dt, mv.before, mv.after, phi=before, phi_axes=(0,) if before is not None else ())
+        whole, trial = decimate(mv, 4), decimate(mv, 4, decimate(less, 4))
+        for a, b in ((whole.y, trial.y), (whole.dt, trial.dt), (whole.phi, trial.phi)):
+            assert np.array_equal(a, b)
+        assert trial.phi_axes == mv.phi_axes

@@ -297,3 +297,39 @@ def test_the_returns_enter_the_model_test_and_a_table_claiming_too_much_fails_it
     assert zero_velocity_only < 3 * claimed["updates"] + 5 * np.sqrt(6 * claimed["updates"])
     cal = simucal.calibrate(boast, method="systematic")  # the advice names the cause, not a library effect
     assert cal.acc.verdict == "fails" and "disagree with meta.json's table_accuracy_arcsec" in cal.acc.details["advice"]
+
+
+def test_the_signatures_composition_equals_the_filter_s():
+    """innovations._navigation_pass composes each interval's steps by its E_k (the transition to the update) and
+    sums E_k B_k: the same A, B and Q as the filter's tree (filter.compose), rests' one-step intervals and moves'
+    long ones alike."""
+    from simucal.systematic.filter import compose
+    from simucal.systematic.innovations import _summed, _to_update
+    rng = np.random.default_rng(3)
+    m, ends = 40, np.array([0, 1, 9, 10, 25, 26, 39])
+    A = np.eye(6) + 0.1 * rng.normal(size=(m, 6, 6))
+    B, G = rng.normal(size=(m, 6, 5)), rng.normal(size=(m, 6, 6))
+    Q = G @ np.swapaxes(G, 1, 2)
+    A_u, B_u, Q_u = compose(A, B, Q, ends)
+    E, starts = _to_update(A, ends), np.r_[0, ends[:-1] + 1]
+    assert np.allclose(E[starts] @ A[starts], A_u, rtol=0, atol=1e-12)
+    assert np.allclose(_summed(E, B, starts, ends), B_u, rtol=0, atol=1e-12)
+    assert np.allclose(np.add.reduceat(E @ Q @ np.swapaxes(E, 1, 2), starts, axis=0), Q_u, rtol=0, atol=1e-11)
+
+
+def test_the_factored_sensitivities_equal_the_filter_s():
+    """innovations._factored: M J of each sensor is the filter's D (Sensors.sensitivities), candidates included."""
+    from simucal.fit.augmented import AugmentedModel
+    from simucal.fit.aux_inputs import AuxInputs
+    from simucal.systematic.filter import Sensors
+    from simucal.systematic.innovations import _factored
+    rng = np.random.default_rng(4)
+    acc = AugmentedModel("acc_baseline", ("acc.quadratic.z",))
+    gyro = AugmentedModel("gyro_baseline", ("gyro.g_sensitivity.xz", "gyro.quadratic.x"))
+    s = Sensors(acc, gyro, 1e-3 * rng.normal(size=len(acc.params)), 1e-2 * rng.normal(size=len(gyro.params)),
+                1e-3 * rng.normal(size=3))
+    f_b, w_b, aux = rng.normal(size=(50, 3)), 3e5 * rng.normal(size=(50, 3)), AuxInputs({"t_s": np.arange(50.0)})
+    D_a, D_g = s.sensitivities(f_b, w_b, aux, aux)
+    M_a, J_a, M_g, J_g = _factored(s, f_b, w_b, aux, aux)
+    for D, MJ in ((D_a, M_a @ J_a), (D_g, M_g @ J_g)):
+        assert D.shape == MJ.shape and np.allclose(MJ, D, rtol=1e-10, atol=1e-12 * np.abs(D).max())

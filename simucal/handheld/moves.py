@@ -342,22 +342,30 @@ def choose_gyro_model(mv: Moves, g_dirs, bias_std, f_full: GyroFit, held=()) -> 
     return chosen, fits[chosen][0], table
 
 
-def decimate(mv: Moves, k: int) -> Moves:
+def decimate(mv: Moves, k: int, base: Moves | None = None) -> Moves:
     """Moves with k samples per step (block means of the rate, summed dt): cheaper
-    iterations whose composition error (~1e-3 rad) the full-resolution steps remove."""
+    iterations whose composition error (~1e-3 rad) the full-resolution steps remove. base: mv's decimation
+    without its last regressor (a ranking's trials each add one to the same moves), so that only that one is
+    averaged (each row's mean is its own: the same numbers)."""
     m, L = mv.dt.shape
     n = -(-L // k) * k
+    if base is not None:
+        assert mv.phi is not None  # base: decimate(mv less its last regressor, k)
+        last = _block_means(mv.phi[-1:], mv.dt, n, k, base.dt)
+        phi = last if base.phi is None else np.concatenate([base.phi, last])
+        return Moves(base.y, base.dt, mv.before, mv.after, mv.t_span, mv.rows, phi, mv.phi_axes, mv.phi_rest)
     dt = np.zeros((m, n))
     dt[:, :L] = mv.dt
     dt_b = dt.reshape(m, n // k, k).sum(2)
+    return Moves(_block_means(mv.y, mv.dt, n, k, dt_b), dt_b, mv.before, mv.after, mv.t_span, mv.rows,
+                 None if mv.phi is None else _block_means(mv.phi, mv.dt, n, k, dt_b), mv.phi_axes, mv.phi_rest)
 
-    def block_means(z):  # rate-like (..., m, L): dt-weighted means over the blocks
-        out = np.zeros(z.shape[:-1] + (n,))
-        out[..., :L] = z * mv.dt
-        return out.reshape(z.shape[:-1] + (n // k, k)).sum(-1) / np.where(dt_b > 0, dt_b, 1.0)
 
-    return Moves(block_means(mv.y), dt_b, mv.before, mv.after, mv.t_span, mv.rows,
-                 None if mv.phi is None else block_means(mv.phi), mv.phi_axes, mv.phi_rest)
+def _block_means(z, dt, n, k, dt_b):
+    """A rate-like z (..., m, L): its dt-weighted means over blocks of k samples (padded to n), dt_b their lengths."""
+    out = np.zeros(z.shape[:-1] + (n,))
+    out[..., :dt.shape[-1]] = z * dt
+    return out.reshape(z.shape[:-1] + (n // k, k)).sum(-1) / np.where(dt_b > 0, dt_b, 1.0)
 
 
 def _wiring_faults() -> dict:

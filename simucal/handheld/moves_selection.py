@@ -57,8 +57,9 @@ class MovesProblem:
         # against full resolution at this fit added (as fit_gyro's coarse levels): the composition
         # error of the blocks (~1e-3 rad) then cancels where the candidate's coefficient is 0
         self.mv0 = mv0 = with_terms(gm.mv, self.effects, inputs) if self.effects else gm.mv
+        self.mv4 = decimate(mv0, 4)  # every trial's moves: these with the candidate's regressor averaged alone
         self.defect = (move_residuals(fit.T, mv0, gm.g_dirs, jac=False, db=fit.db, p=fit.p)[0]
-                       - move_residuals(fit.T, decimate(mv0, 4), gm.g_dirs, jac=False, db=fit.db, p=fit.p)[0])
+                       - move_residuals(fit.T, self.mv4, gm.g_dirs, jac=False, db=fit.db, p=fit.p)[0])
 
     def info(self, eid):
         return EFFECTS[eid].parameter, EFFECTS[eid].unit, EFFECTS[eid].meaning
@@ -72,7 +73,7 @@ class MovesProblem:
     @functools.cached_property
     def at4(self) -> tuple[Integrated, np.ndarray]:
         """The same in blocks of 4 samples: every trial fit's first point (moves.with_effect)."""
-        return integrated_with_jacobian(self.fit, decimate(self.mv0, 4), self.gm.g_dirs)
+        return integrated_with_jacobian(self.fit, self.mv4, self.gm.g_dirs)
 
     def basis(self):
         return np.linalg.qr(self.at[1].reshape(-1, self.k)[:, self.free])[0]
@@ -97,7 +98,7 @@ class MovesProblem:
         return separating_plan(eid, twin, moves=True)
 
     def fit_with(self, eid):
-        f, mv4 = self.fit, decimate(self.mv[eid], 4)
+        f, mv4 = self.fit, decimate(self.mv[eid], 4, self.mv4)
         f1 = fit_gyro_moves(mv4, self.gm.g_dirs, np.r_[f.T.ravel(), f.db, f.p, 0.0], self.gm.bias_std,
                             offset=self.defect, fixed=self.fixed, start=with_effect(*self.at4, f.T, mv4))
         if not f1.converged:

@@ -25,6 +25,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
+from numpy.linalg import _umath_linalg
 
 from simucal.fit.aux_inputs import MOTION, motion
 from simucal.fit.rotations import exp_so3, skew
@@ -32,8 +33,11 @@ from simucal.generated import systematic as gen
 from simucal.generated import table
 from simucal.generated.effects import EFFECTS
 
-CHUNK = 1024  # epochs whose smoother gains are solved at once (memory: 3 CHUNK n^2 doubles)
+CHUNK = 256  # epochs whose smoother gains are solved at once (memory: 3 CHUNK n^2 doubles; more pages cost more)
 SMOOTH_S = 0.1  # the window over which a regressor's inputs are averaged (smoothed)
+# np.linalg.solve's own LAPACK kernel (the same numbers) without its checks, a quarter of its cost on the filter's
+# one 3 x 3 per update: a singular S gives NaN (which calibrate.divergence names) where the checks raised
+lapack_solve = _umath_linalg.solve
 
 
 def smoothed(inputs, dt):
@@ -200,7 +204,7 @@ def transitions(Cs, f_b, D_a, D_g, dt, q, w_ie, g0):
             (G * (q * dt[:, None])[:, None, :]) @ np.swapaxes(G, 1, 2))
 
 
-STEPS = 4096  # steps whose transitions are built at once (memory: about 60 STEPS doubles per state)
+STEPS = 1024  # steps whose transitions are built at once (memory: about 60 STEPS doubles per state)
 
 
 def composed(Cs, f_b, D_a, D_g, dt, zupt, q, w_ie, g0):
@@ -250,7 +254,7 @@ def update(x_pred, P_pred, v, R, Phi, t_s, epochs, attitude=None):
     nu = v - x_pred[DV]                               # z - H x_pred
     HP = P_pred[DV]
     S = HP[:, DV] + R                                 # innovation covariance H P H^T + R
-    K = np.linalg.solve(S, HP).T                      # K = P H^T S^-1
+    K = lapack_solve(S, HP).T                         # K = P H^T S^-1
     x = x_pred + K @ nu
     X = P_pred - K @ HP                               # (I - K H) P
     P = X - X[:, DV] @ K.T + K @ R @ K.T              # Joseph form: (I - K H) P (I - K H)^T + K R K^T

@@ -30,10 +30,13 @@ from simucal.fit import family
 from simucal.fit.distributions import chi2_sf
 from simucal.fit.ranking import Trial, rank
 from simucal.fit.results import ModelTest
+from simucal.generated import systematic as gen
+from simucal.generated import table
 from simucal.generated.effects import EFFECTS, SEPARATE
 from simucal.io import units
 from simucal.systematic.calibrate import ZUPT_STD_MPS
-from simucal.systematic.filter import Sensors, composed, nominal, reads_motion, smoothed
+from simucal.systematic.filter import (Sensors, lapack_solve, nominal, prefix_products, reads_motion, smoothed,
+                                      transitions)
 
 
 def innovation_test(epochs) -> dict:
@@ -103,42 +106,90 @@ def signatures(result, ids=None) -> Signatures:
     f_b, w_b, aux_a = s.compensate(steps.N_a, steps.N_g, aux, aux, steps.dt)
     aux_a = aux.with_values(**motion(w_b, steps.dt)) if reads_motion(big.acc) else aux_a
     f_smooth, w_smooth = smoothed((f_b, w_b), steps.dt)
-    D_a, D_g = big.sensitivities(f_smooth, w_smooth, aux_a, aux)
+    factors = _factored(big, f_smooth, w_smooth, aux_a, aux)
     Cs, v_at = nominal(result.C, w_b * units.RAD_S_PER_DPH * steps.dt[:, None], f_b, steps.dt, steps.zupt, w_ie, g0)
     na, ng = len(s.p_acc), len(s.p_gyro)
-    own = list(range(na)) + [len(big.p_acc) + j for j in range(ng)] + list(range(D_a.shape[-1] + D_g.shape[-1] - 3,
-                                                                                  D_a.shape[-1] + D_g.shape[-1]))
+    k = len(big.p_acc) + len(big.p_gyro)  # the columns: big's acc, gyro, then eta's 3
+    own = list(range(na)) + [len(big.p_acc) + j for j in range(ng)] + list(range(k, k + 3))
     cand = [na + j for j in range(len(acc_c))] + [len(big.p_acc) + ng + j for j in range(len(gyro_c))]
-    out = _navigation_pass(steps, Cs, v_at, f_b, D_a, D_g, q, w_ie, g0, result.prior_var[:6])
+    out = _navigation_pass(steps, Cs, v_at, f_b, factors, q, w_ie, g0, result.prior_var[:6])
     r, cols = out[0], out[1]
     return Signatures(r, cols[:, own], {e: cols[:, k] for e, k in zip(acc_c + gyro_c, cand)}, steps.t[steps.zupt],
                       out[2], out[3])
 
 
-def _navigation_pass(steps, Cs, v_at, f_b, D_a, D_g, q, w_ie, g0, P0_diag):
-    """The filter of phi and dv alone (the parameters held) with every column's signature carried
-    along (module doc), the steps between two updates composed into one transition (filter.composed):
-    (r (3m,), columns (3m, k), nu (m, 3), its std (m, 3))."""
-    R = np.eye(3) * ZUPT_STD_MPS ** 2
-    x, P = np.zeros(6), np.diag(P0_diag)
-    mu = np.zeros((6, D_a.shape[-1] + D_g.shape[-1]))
-    Ss, nus, mus = [], [], []  # per update: S, nu and mu's dv rows, whitened at once after the loop
+def _factored(sensors, f_b, w_b, aux_a, aux_g):
+    """Sensors.sensitivities factored, D_a = M_a J_a and D_g = M_g J_g: (M_a, J_a, M_g, J_g), M (n, 3, 3) the inverted
+    models' -A^-1 (the gyro's turned by C_b_d^T) and J their parameters' Jacobians (the gyro's with the frame angles'
+    A S: -C^T A^-1 A S = -C^T S), so that the candidates' many columns are multiplied by a 3 x 3 once per step
+    (`_summed`) rather than each solved. The signatures only: the filter's passes keep the solve, whose round-off
+    their iteration amplifies."""
+    _, Ju, J_a = sensors.acc.jacobians(f_b, sensors.p_acc, aux_a)
+    M_a = -np.linalg.inv(Ju)
+    C_b_d = table.mounting(sensors.eta)
+    f_d = f_b @ C_b_d.T
+    _, Ju, Jp = sensors.gyro.jacobians(w_b @ C_b_d.T, sensors.p_gyro,
+                                       aux_g.with_values(f_x=f_d[:, 0], f_y=f_d[:, 1], f_z=f_d[:, 2]))
+    S = gen.frame_rate_sensitivity(np.broadcast_to(sensors.eta, w_b.shape), w_b)
+    return M_a, J_a, -C_b_d.T @ np.linalg.inv(Ju), np.concatenate([Jp, Ju @ S], axis=-1)
+
+
+def _navigation_pass(steps, Cs, v_at, f_b, factors, q, w_ie, g0, P0_diag):
+    """The filter of phi and dv alone (the parameters held) with every column's signature carried along (module
+    doc), the sensitivities as `_factored`'s (M_a, J_a, M_g, J_g): (r (3m,), columns (3m, k), nu (m, 3), its std
+    (m, 3)). The steps between two updates are composed into one transition: its A and Q from the steps'
+    (filter.transitions), each column's Gamma the sum over the interval's steps of E_k B_k M_k J_k (`_to_update`,
+    `_summed`), B_k the step's input matrix with the sensitivities factored out (transitions at unit
+    sensitivities), so that the columns pass through one product per step rather than through compose's tree."""
     ends = np.flatnonzero(steps.zupt)
-    for i, A, Gam, Q in composed(Cs, f_b, D_a, D_g, steps.dt, steps.zupt, q, w_ie, g0):
-        for Phi, Gk, Qk, v in zip(A, Gam, Q, v_at[ends[i]]):
-            x, P, mu = Phi @ x, Phi @ P @ Phi.T + Qk, Phi @ mu + Gk
-            S, nu = P[3:, 3:] + R, v - x[3:]
-            K = np.linalg.solve(S, P[3:]).T
-            Ss.append(S)
-            nus.append(nu)
-            mus.append(mu[3:])
-            IKH = np.eye(6) - np.c_[np.zeros((6, 3)), K]
-            x, P, mu = x + K @ nu, IKH @ P @ IKH.T + K @ R @ K.T, mu - K @ mu[3:]
-            x[3:] -= v
-    S, nu = np.array(Ss), np.array(nus)
+    k = slice(0, ends[-1] + 1)  # the steps after the last update see no data
+    unit = np.broadcast_to(np.eye(3), (ends[-1] + 1, 3, 3))
+    A, B, Q = transitions(Cs[k], f_b[k], unit, unit, steps.dt[k], q, w_ie, g0)
+    E = _to_update(A, ends)
+    W = E @ B
+    starts = np.r_[0, ends[:-1] + 1]
+    Phis = E[starts] @ A[starts]
+    Qs = np.add.reduceat(E @ Q @ np.swapaxes(E, 1, 2), starts, axis=0)
+    M_a, J_a, M_g, J_g = factors
+    Gams = np.concatenate([_summed(W[..., :3] @ M_a[k], J_a[k], starts, ends),
+                           _summed(W[..., 3:] @ M_g[k], J_g[k], starts, ends)], -1)
+    r2 = ZUPT_STD_MPS ** 2
+    R, I6 = np.eye(3) * r2, np.eye(6)
+    x, P, mu, IKH = np.zeros(6), np.diag(P0_diag), np.zeros(Gams.shape[1:]), np.eye(6)
+    S, nu, g = np.empty((len(ends), 3, 3)), np.empty((len(ends), 3)), np.empty((len(ends), 3, Gams.shape[-1]))
+    for u, (Phi, Gk, Qk, v) in enumerate(zip(Phis, Gams, Qs, v_at[ends])):
+        x, P, mu = Phi @ x, Phi @ P @ Phi.T + Qk, Phi @ mu + Gk
+        S[u], nu[u], g[u] = P[3:, 3:] + R, v - x[3:], mu[3:]  # g: mu's dv rows, whitened at once after the loop
+        K = lapack_solve(S[u], P[3:]).T
+        IKH[:, 3:] = I6[:, 3:] - K
+        x, P, mu = x + K @ nu[u], IKH @ P @ IKH.T + r2 * (K @ K.T), mu - K @ g[u]
+        x[3:] -= v
     L = np.linalg.cholesky(S)
-    return (np.linalg.solve(L, nu[..., None]).ravel(), np.concatenate(np.linalg.solve(L, np.array(mus))), nu,
+    return (np.linalg.solve(L, nu[..., None]).ravel(), np.concatenate(np.linalg.solve(L, g)), nu,
             np.sqrt(np.diagonal(S, axis1=1, axis2=2)))
+
+
+def _to_update(A, ends):
+    """E_k = A_j ... A_k+1 of every step k (m, n, n): the transition from the end of step k to the end of step j,
+    the last of its interval (j = ends' next at or after k; the identity at j), by prefix products reversed."""
+    E = np.empty_like(A)
+    E[ends] = np.eye(A.shape[-1])
+    starts = np.r_[0, ends[:-1] + 1]
+    for i, j in zip(starts[starts < ends], ends[starts < ends]):
+        E[i:j] = prefix_products(A[j:i:-1])[::-1]
+    return E
+
+
+def _summed(W, D, starts, ends):
+    """Sum over each interval [start, end] of the steps' W_k D_k (W (m, a, b), D (m, b, c)): (intervals, a, c);
+    a one-step interval (a rest's block) batched, a longer one (a move) one matrix product over its steps."""
+    out = np.empty((len(ends), W.shape[1], D.shape[-1]))
+    one = starts == ends
+    out[one] = W[ends[one]] @ D[ends[one]]
+    for u in np.flatnonzero(~one):
+        i, j = starts[u], ends[u] + 1
+        out[u] = np.tensordot(W[i:j], D[i:j], axes=([0, 2], [0, 1]))
+    return out
 
 
 class InnovationsProblem:
