@@ -26,6 +26,7 @@ from pathlib import Path
 import numpy as np
 
 from simucal.api import lot_reporting
+from simucal.report import lot_figures
 from simucal.turntable.lot import SPREAD, write_lot
 
 SIMUCAL = str(Path(sys.executable).with_name("simucal"))
@@ -151,7 +152,7 @@ def main():
         sets = write_lot(root / "sets", a.n, seed=0, planted=plants, again=max(2, a.n // 10),
                          drift={0: {"gyro.b_z": 0.05}})
         limits = root / "limits.json"
-        limits.write_text(json.dumps({"format": lot_reporting.LIMITS_FORMAT, "limits": {
+        limits.write_text(json.dumps({"format": lot_figures.LIMITS_FORMAT, "limits": {
             "acc.b_x": {"min": 0.0002, "max": 0.0014, "unit": "g"},
             "gyro.b_z": {"min": -0.08, "max": 0.04, "unit": "deg/h"}}}))
         report = speed(root, sets, limits, [int(w) for w in a.workers.split(",")])

@@ -9,7 +9,9 @@ else that escapes a command is a bug (exit 3, with the traceback: cli/common.py)
 - io.calibration_checks.CalibrationFileError: a calibration file that cannot be read or does not fit;
 - fit.catalog.ModelFileError: a user's model file that cannot be derived (file, line);
 - io.outputs.OutputError: an output that would lose or corrupt a user's data;
-- io.importers.ImportError_: another tool's recording that cannot be imported.
+- io.importers.ImportError_: another tool's recording that cannot be imported;
+- StoreError: a calibration store that cannot be opened or written (not the tool's, a newer schema, a
+  record already there), its URL shown without its password (simucal/store/).
 SimucalError subclasses ValueError, so code that caught ValueError before still catches a refusal.
 """
 
@@ -33,6 +35,10 @@ class CalibrationError(SimucalError):
     def naming(self, path) -> "CalibrationError":
         """The same refusal, its message starting with the data's path where it does not name it."""
         return self if str(path) in str(self) else CalibrationError(f"{path}: {self}")
+
+
+class StoreError(SimucalError):
+    """A calibration store refused (simucal/store/): the message names the store, password hidden, and the fix."""
 
 
 class NotConverged(CalibrationError):

@@ -24,6 +24,7 @@ LAYERS = [
     {"simucal.methods"},
     {"simucal.report"},
     {"simucal.allan", "simucal.bench", "simucal.derive_cmd"},
+    {"simucal.store"},  # a lab's records: calibration files and their history (report/lot_figures' drift)
     {"simucal.api"},  # each verb's one home (the demo too: simucal.api.demo_run)
     {"simucal.cli"},
     {"simucal.__main__"},  # python -m simucal
@@ -260,11 +261,13 @@ def test_one_command_grammar():
     from click.testing import CliRunner
 
     from simucal.cli import main
-    for name, cmd in main.commands.items():
-        out = CliRunner().invoke(main, [name, "--help"], terminal_width=200)
+    commands = {f"{name} {sub}" if sub else name: c for name, cmd in main.commands.items()
+                for sub, c in (getattr(cmd, "commands", {}) or {"": cmd}).items()}  # a group's: each of its own
+    for name, cmd in commands.items():
+        out = CliRunner().invoke(main, [*name.split(), "--help"], terminal_width=200)
         assert out.exit_code == 0, (name, out.output)
         options = [p for p in cmd.params if isinstance(p, click.Option)]
-        if name != "derive":  # derive writes generated/ itself
+        if name not in ("derive", "store add"):  # derive writes generated/ itself, store add into its --store
             assert any({"-o", "--output"} <= set(p.opts) for p in options), f"{name} has no -o/--output"
             assert "-o, --output" in out.output, name
         for p in options:

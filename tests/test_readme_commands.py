@@ -42,6 +42,7 @@ SMALL = {"bench_derive_and_solve.py": ["--quick"], "bench_paper_tables.py": ["--
          "bench_stds_by_rate.py": ["--seeds", "1", "--rates", "20"], "bench_thermal.py": ["0", "1"],
          "bench_temperature_rate.py": ["--seeds", "2", "--lag-seeds", "1"],
          "bench_cache_checks.py": [], "bench_lot.py": ["6", "--seeds", "2", "--workers", "2"],
+         "bench_store.py": ["--records", "200", "--adds", "3", "--repeats", "1"],
          "bench_raw400.py": ["--rate-hz", "5", "--repeats", "1"], "bench_compare.py": ["--quick", "--repeats", "1"],
          "bench_warmup.py": ["--seeds", "1", "--minutes", "5", "--imus", "2"],
          "bench_family.py": ["--seeds", "2", "--auto-seeds", "1"], "bench_bag_noise.py": ["--hours", "0.02"],
@@ -113,6 +114,8 @@ def _options(command):
 def test_every_command_of_the_reference_exists_with_its_options(command):
     words = command.split()
     cmd = main.commands.get(words[1])
+    if isinstance(cmd, click.Group):  # simucal store add: the subcommand's options
+        cmd = cmd.commands.get(words[2])
     assert isinstance(cmd, click.Command), command
     given = set(re.findall(r"(?<![\w-])(--?[a-z][a-z0-9-]*)", command))
     assert given <= _options(cmd) | {"--help"}, (command, given - _options(cmd))

@@ -36,6 +36,7 @@ from simucal.api.tools import audit, derive_model
 from simucal.api.validating import Check, Validation, validate
 from simucal.handheld.static_detect import DetectSettings
 from simucal.api.sets import MeasurementSet
+from simucal.api.store import Store
 from simucal.api.vocabulary import Entry, compare
 from simucal.io import calibration as _file
 from simucal.io import results
@@ -43,7 +44,7 @@ from simucal.io import results
 __all__ = ["read_set", "simulate", "calibrate", "validate", "diagnose", "noise", "save", "load", "table_rows",
            "compare", "import_recording", "import_instances", "calibrate_instances", "autopilot_files", "ImuCalibration", "convert", "montecarlo", "calibrate_each", "Calibrated", "plan",
            "sequence_observability", "design_sequence", "derive_model", "audit", "DetectSettings", "CalibrateOptions", "MeasurementSet", "Calibration", "Parameter", "Entry",
-           "Validation", "Check", "Diagnosis", "Candidate", "Suggestion", "NextStep", "Noise", "Term", "lot"]
+           "Validation", "Check", "Diagnosis", "Candidate", "Suggestion", "NextStep", "Noise", "Term", "lot", "Store"]
 
 
 @checked

@@ -19,29 +19,25 @@ calibrated more than once enters it with its last calibration.
 """
 from __future__ import annotations
 
-import json
 import os
 from pathlib import Path
 
 import numpy as np
 
 from simucal.api.arguments import checked
-from simucal.errors import CalibrationError
-from simucal.fit.distributions import chi2_sf
-from simucal.fit.results import ALPHA
+from simucal.errors import CalibrationError, InputError, StoreError
 from simucal.io import records
 from simucal.io.calibration import Calibration, load
 from simucal.io.calibration_checks import SERIAL, CalibrationFileError
-from simucal.io.text_files import unique_keys
 from simucal.report.console import n_units
+from simucal.report.lot_figures import (DRIFT_P, block_parameters, drift, model_name,
+                                        outside, read_limits)
 
 FORMAT = "simucal.lot/1"
-LIMITS_FORMAT = "simucal.limits/1"
 OUTLIER_P = 1e-3   # the chance that a unit of a normal lot is flagged at all (over its K parameters)
 MAD_TO_STD = 1.4826  # the median absolute deviation of a normal sample, times this, is its std
 MIN_UNITS = 20     # fewer units: no outlier test (said in the report): a median and MAD of 6 scatter too much
 SIMULATED_UNITS = 50_000  # units of normal lots simulated for the threshold: its 1e-3 tail holds 50
-DRIFT_P = ALPHA    # a drift whose joint chi^2 has a smaller p is reported as drifted (the model test's level)
 
 
 def read_folder(folder) -> tuple[list[tuple[str, Calibration]], list[dict]]:
@@ -64,31 +60,7 @@ def read_folder(folder) -> tuple[list[tuple[str, Calibration]], list[dict]]:
 
 def _group_key(cal: Calibration) -> str:
     units = [f"{s} {cal.layout.get(s + '_unit')}" for s in cal.sensors]
-    models = [b.model + "".join(f" + {e}" for e in sorted(b.effects)) + (" (thermal)" if b.thermal else "")
-              for _, b in cal.blocks()]
-    return f"{cal.method}: " + ", ".join(f"{s} {m}" for (s, _), m in zip(cal.blocks(), models)) + "; " + \
-        ", ".join(units)
-
-
-def _finite(x) -> bool:
-    return isinstance(x, (int, float)) and not isinstance(x, bool) and bool(np.isfinite(x))
-
-
-def block_parameters(b) -> dict:
-    """{param: (value, std, unit)} of a block's parameters that carry a std: its model's, or for an affine
-    block (multiposition, handheld) the entries of M (M_xy: output x per input y) and bias (b_x)."""
-    if b.params:
-        return {n: (float(v), float(b.std[n]), b.param_units.get(n, "")) for n, v in b.params.items()
-                if _finite(b.std.get(n))}
-    M, bias = np.asarray(b.std.get("M", np.nan), float), np.asarray(b.std.get("bias", np.nan), float)
-    out = {}
-    if M.shape == (3, 3):
-        out.update({f"M_{r}{c}": (float(b.M[i, j]), float(M[i, j]), "1") for i, r in enumerate("xyz")
-                    for j, c in enumerate("xyz") if _finite(float(M[i, j]))})
-    if bias.shape == (3,):
-        out.update({f"b_{a}": (float(b.bias[i]), float(bias[i]), b.bias_unit) for i, a in enumerate("xyz")
-                    if _finite(float(bias[i]))})
-    return out
+    return f"{cal.method}: {model_name(cal)}; " + ", ".join(units)
 
 
 def _parameters(cal: Calibration) -> dict:
@@ -151,79 +123,6 @@ def _group(names, cals) -> dict:
             **({"not_compared": left} if left else {})}
 
 
-def read_limits(path, known: dict) -> dict:
-    """limits.json: {"format": "simucal.limits/1", "limits": {"acc.b_x": {"min": -0.005, "max": 0.005,
-    "unit": "g"}, ...}}, min or max or both, in the unit the calibrations give that parameter (known:
-    {name: unit} of the lot). Anything else is refused in one line naming the file and the entry."""
-    def bad(where, why):
-        return CalibrationError(f"{path}: {where}: {why} (the format: {{\"format\": \"{LIMITS_FORMAT}\", \"limits\": "
-                                "{\"acc.b_x\": {\"min\": -0.005, \"max\": 0.005, \"unit\": \"g\"}}})")
-    try:
-        d = json.loads(Path(path).read_text(), object_pairs_hook=unique_keys)
-    except (OSError, UnicodeDecodeError, ValueError, RecursionError) as e:
-        raise CalibrationError(f"{path}: not a readable limits file ({str(e)[:120]})") from None
-    if not isinstance(d, dict) or d.get("format") != LIMITS_FORMAT or not isinstance(d.get("limits"), dict):
-        raise bad("top level", f"expected an object with format {LIMITS_FORMAT!r} and an object 'limits'")
-    out = {}
-    for name, lim in d["limits"].items():
-        where = f"limits.{name}"
-        if name not in known:
-            raise bad(where, "no calibration of the lot has this parameter; it has " + ", ".join(sorted(known)[:40]))
-        if not isinstance(lim, dict) or set(lim) - {"min", "max", "unit"} or not ({"min", "max"} & set(lim)):
-            raise bad(where, "expected an object with min, max or both, and unit")
-        if lim.get("unit") != known[name]:
-            raise bad(where, f"unit {lim.get('unit')!r}: the calibrations give {name} in {known[name]!r}; "
-                             "state that unit")
-        for k in ("min", "max"):
-            v = lim.get(k)
-            if k in lim and (isinstance(v, bool) or not isinstance(v, (int, float)) or not np.isfinite(v)):
-                raise bad(f"{where}.{k}", f"{v!r} is not a finite number")
-        if "min" in lim and "max" in lim and lim["min"] > lim["max"]:
-            raise bad(where, f"min {lim['min']} is above max {lim['max']}")
-        out[name] = {k: float(lim[k]) for k in ("min", "max") if k in lim} | {"unit": known[name]}
-    return out
-
-
-def _outside(value, std, lim) -> str | None:
-    """Why a value breaks its limits (with its distance in its own std), or None."""
-    for k, sign, word in (("min", -1, "below"), ("max", 1, "above")):
-        if k in lim and sign * (value - lim[k]) > 0:
-            return (f"{value:.4g} {lim['unit']} {word} its {k} {lim[k]:.4g} {lim['unit']} "
-                    f"({abs(value - lim[k]) / std:.2g} std)")
-    return None
-
-
-def _cov(block, params, names):
-    """The covariance of the named parameters: the file's (unscaled by a misfit), else their stds squared."""
-    cov = block.details.get("covariance")
-    if cov and all(n in cov["names"] for n in names):
-        i = [cov["names"].index(n) for n in names]
-        return np.asarray(cov["matrix"], float)[np.ix_(i, i)]
-    return np.diag([params[n][1] ** 2 for n in names])
-
-
-def drift(name1, cal1: Calibration, name2, cal2: Calibration) -> dict:
-    """cal2 - cal1 per parameter with its std from both, and per sensor the joint chi^2 of no drift."""
-    sensors, rows = {}, []
-    for s, b2 in cal2.blocks():
-        b1 = getattr(cal1, s)
-        p1, p2 = (block_parameters(b1) if b1 is not None else {}), block_parameters(b2)
-        names = [n for n in p2 if n in p1]
-        if not names:
-            continue
-        d = np.array([p2[n][0] - p1[n][0] for n in names])
-        C = _cov(b1, p1, names) + _cov(b2, p2, names)
-        std = np.sqrt(np.diag(C))
-        rows += [{"name": f"{s}.{n}", "unit": p2[n][2], "drift": float(d[j]), "std": float(std[j]),
-                  "z": float(d[j] / std[j])} for j, n in enumerate(names)]
-        chi2 = float(d @ np.linalg.lstsq(C, d, rcond=None)[0])
-        p = chi2_sf(chi2, len(names))
-        sensors[s] = {"chi2": chi2, "dof": len(names), "p_value": p,
-                      "verdict": "drifted" if p < DRIFT_P else "no drift seen"}
-    serial = cal2.layout.get(SERIAL)
-    return {"serial": serial, "earlier": name1, "later": name2, "sensors": sensors, "parameters": rows}
-
-
 def _by_serial(cals):
     """The calibration each unit enters the lot with (its last by file name), the earlier ones, and the
     drift between each unit's consecutive calibrations."""
@@ -249,7 +148,7 @@ def _unit(name, cal, group, limits, outliers, drifted) -> dict:
     fails += [f"{s} not calibrated ({why})" for s, why in cal.not_calibrated.items()]
     fails += [f"{s} left at nominal" for s, t in tests.items() if t["verdict"] == "nominal"]
     params = _parameters(cal)
-    broken = {n: _outside(params[n][0], params[n][1], lim) for n, lim in limits.items() if n in params}
+    broken = {n: outside(params[n][0], params[n][1], lim) for n, lim in limits.items() if n in params}
     fails += [f"{n} {why}" for n, why in broken.items() if why]
     flags = [f"outlier: {o['name']} z = {o['z']:.3g}" for o in outliers]
     flags += [f"drifted since {d['earlier']} ({', '.join(_drifted(d))} p = "
@@ -289,8 +188,11 @@ def verdict_lines(report) -> list[str]:
 
 
 @checked
-def lot(folder: str | os.PathLike, limits: str | os.PathLike | None = None) -> records.JSONObject:
-    """The lot report of the calibration files in a folder: the dict `simucal lot -o lot.json` writes.
+def lot(folder: str | os.PathLike | None = None, limits: str | os.PathLike | None = None, *,
+        store: str | os.PathLike | None = None, since: str | None = None, until: str | None = None,
+        method: str | None = None, model: str | None = None, station: str | None = None) -> records.JSONObject:
+    """The lot report of the calibration files in a folder, or of a store's records: the dict `simucal lot -o
+    lot.json` writes.
 
     Parameters
     ----------
@@ -299,6 +201,9 @@ def lot(folder: str | os.PathLike, limits: str | os.PathLike | None = None) -> r
         other files in it are named under ``not_calibrations``.
     limits : str or os.PathLike, optional
         A limits.json (format ``simucal.limits/1``): spec limits per parameter, in the calibrations' units.
+    store : str or os.PathLike, optional
+        Instead of a folder: a calibration store's URL (``simucal.Store``), its records that match since and
+        until (calibrated_utc, inclusive), method, model and station; each unit enters with its last.
 
     Returns
     -------
@@ -320,7 +225,24 @@ def lot(folder: str | os.PathLike, limits: str | os.PathLike | None = None) -> r
     >>> report["verdict"][0]  # doctest: +SKIP
     '11 of 12 units pass, 0 fail, 1 flagged'
     """
-    cals, others = read_folder(folder)
+    if (folder is None) == (store is None):
+        raise InputError("lot: give a folder of calibration files or store=URL, one of the two")
+    if store is None:
+        if any(v is not None for v in (since, until, method, model, station)):
+            raise InputError("lot: since, until, method, model and station select a store's records; give store=URL")
+        return lot_report(folder, limits, *read_folder(folder))
+    from simucal.store import CalibrationStore
+    st = CalibrationStore(os.fspath(store))
+    cals = st.calibrations(since=since, until=until, method=method, model=model, station=station)
+    if not cals:
+        raise StoreError(f"{st.shown}: no record matches (since {since}, until {until}, method {method}, model "
+                         f"{model}, station {station}); Store.records() lists them")
+    return lot_report(st.shown, limits, cals, [])
+
+
+def lot_report(folder, limits, cals, others) -> records.JSONObject:
+    """The lot report (module doc) of cals, (name, Calibration) each, read from `folder` (or what names them: a
+    store), beside `others`, the folder's files that are not calibrations."""
     latest, earlier, drifts = _by_serial(cals)
     keys = [_group_key(c) for _, c in latest]
     groups = [{"key": k, **_group([n for (n, _), kk in zip(latest, keys) if kk == k],

@@ -10,7 +10,7 @@ import os
 # at best).
 os.environ.setdefault("NUMPY_MADVISE_HUGEPAGE", "0")
 
-from simucal.cli import calibrating, lot, sets, tools  # noqa: E402,F401 (each registers its commands on main)
+from simucal.cli import calibrating, lot, sets, store, tools  # noqa: E402,F401 (each registers its commands on main)
 from simucal.cli.common import main  # noqa: E402
 
 __all__ = ["main"]

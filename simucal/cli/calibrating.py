@@ -9,6 +9,7 @@ import click
 from simucal import methods
 from simucal.cli.common import (MODEL_FILE_RUNS, NOISE_DPH, NOISE_G, POSITIVE, SCHEDULER_TRUST, UNITS, InputPath, Number,
                                 fail, guard, main, refuse_unused)
+from simucal.cli.store import record, store_option
 
 
 TIMESTAMPS = click.option(
@@ -82,9 +83,10 @@ _ADD_AUTO_HELP = (_ADD_HELP + " Also 'auto': the library effects a failing model
               help="Several sets: local, processes (a Dask LocalCluster on 127.0.0.1) or a Dask scheduler's address. "
                    + SCHEDULER_TRUST)
 @UNITS
+@store_option(False)
 def calibrate(data_dirs, output, thermal, thermal_degree, html_out, px4, ardupilot, t_ref_c, method, acc_model,
               gyro_model, add, acc_noise_g, gyro_noise_dph, noise_file, timestamps, init_rest_s, threshold_factor,
-              window_s, min_static_s, gyro_limit_dps, heading_accuracy_deg, scheduler, units):
+              window_s, min_static_s, gyro_limit_dps, heading_accuracy_deg, scheduler, units, store_url):
     """Calibrate measurement sets; write calibration.json (one per set into a folder for several).
 
     With segments.csv and table angles: a turntable test (dong2018). Without segments.csv: a
@@ -102,6 +104,7 @@ def calibrate(data_dirs, output, thermal, thermal_degree, html_out, px4, ardupil
     if len(data_dirs) == 1 or thermal or thermal_degree is not None:
         refuse_unused({"scheduler": "several sets calibrated one by one (not one set, nor --thermal's plateaus)"})
     if thermal or thermal_degree is not None:
+        refuse_unused({"store_url": "one set's or several sets' calibrations (a thermal one: simucal store add FILE)"})
         return _calibrate_thermal(data_dirs, output, thermal_degree, t_ref_c, kwargs, inputs, html_out,
                                   (px4, ardupilot), units)
     if px4 or ardupilot:
@@ -118,12 +121,14 @@ def calibrate(data_dirs, output, thermal, thermal_degree, html_out, px4, ardupil
         for line in calibration_lines(result, units):
             click.echo(line)
         click.echo(f"wrote {output} (method {result.method})")
+        if store_url:
+            click.echo(record(store_url, result))
         return
     refuse_unused({"units": "what one set's calibration prints (several sets print each one's file and tests)"})
-    _calibrate_batch(data_dirs, output, kwargs, inputs, scheduler)
+    _calibrate_batch(data_dirs, output, kwargs, inputs, scheduler, store_url)
 
 
-def _calibrate_batch(data_dirs, output, kwargs, inputs, scheduler):
+def _calibrate_batch(data_dirs, output, kwargs, inputs, scheduler, store_url=None):
     """Several sets, one by one (on a scheduler): one <set>.json each into the folder -o (simucal.calibrate_each)."""
     from simucal import api, progress
     out = Path(output)
@@ -136,6 +141,8 @@ def _calibrate_batch(data_dirs, output, kwargs, inputs, scheduler):
             tests = ", ".join(f"{k} p = {b.p_value:.3g}" + (": THE MODEL FAILS" if b.verdict == "fails" else "")
                               for k, b in d.calibration.blocks() if b.p_value is not None)
             click.echo(f"{d.data}: wrote {d.output}" + (f" ({tests})" if tests else ""))
+            if store_url:
+                click.echo(f"{d.data}: " + record(store_url, d.calibration))
     failed = sum(1 for d in done if d.error)
     click.echo(f"{len(done) - failed} of {len(done)} sets calibrated into {out}")
     if failed:

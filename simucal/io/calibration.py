@@ -405,7 +405,12 @@ def save(path, cal: Calibration) -> None:
     path = Path(path)
     if not path.parent.is_dir():
         raise CalibrationFileError(f"{path}: the folder {path.parent} does not exist")
-    outputs.write_text(path, json.dumps(cal.to_json(), indent=2, default=float) + "\n")
+    outputs.write_text(path, dumps(cal))
+
+
+def dumps(cal: Calibration) -> str:
+    """The calibration file's text, as save writes it (a store records these bytes)."""
+    return json.dumps(cal.to_json(), indent=2, default=float) + "\n"
 
 
 def load(path) -> Calibration:
@@ -413,8 +418,18 @@ def load(path) -> Calibration:
     earlier format is read as this one (io/calibration_versions.py)."""
     path = Path(path)
     try:
-        d = json.loads(path.read_text(), object_pairs_hook=unique_keys)
-    except (OSError, UnicodeDecodeError, ValueError) as e:  # bad JSON, a key twice, a number of 5000 digits
+        text = path.read_text()
+    except (OSError, UnicodeDecodeError) as e:
+        raise CalibrationFileError(f"{path}: not a readable calibration file ({str(e)[:120]})") from None
+    return loads(text, path)
+
+
+def loads(text: str, path) -> Calibration:
+    """A calibration file's text (from a file, or a store's record), checked as load checks it; path: what the
+    messages name."""
+    try:
+        d = json.loads(text, object_pairs_hook=unique_keys)
+    except ValueError as e:  # bad JSON, a key twice, a number of 5000 digits
         raise CalibrationFileError(f"{path}: not a readable calibration file ({str(e)[:120]})") from None
     except RecursionError:
         raise CalibrationFileError(f"{path}: not a calibration file: nested too deep to read (objects within each "

@@ -1,0 +1,121 @@
+"""A lot's figures per calibration, shared by the lot report (api/lot_reporting.py) and a lab's store
+(store/): each block's parameters with their stds, the drift between two calibrations of one unit (each
+parameter's change in the std of both, and per sensor the joint chi^2 of no drift), a limits file and a value
+outside its limits, and a calibration's model in words."""
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import numpy as np
+
+from simucal.errors import CalibrationError
+from simucal.fit.distributions import chi2_sf
+from simucal.fit.results import ALPHA
+from simucal.io.calibration import Calibration
+from simucal.io.calibration_checks import SERIAL
+from simucal.io.text_files import unique_keys
+
+LIMITS_FORMAT = "simucal.limits/1"
+DRIFT_P = ALPHA    # a drift whose joint chi^2 has a smaller p is reported as drifted (the model test's level)
+
+
+def model_name(cal: Calibration) -> str:
+    """Each block's model with its effects, in words: "acc acc_baseline + acc.quadratic.z, gyro gyro_baseline (thermal)"."""
+    return ", ".join(f"{s} {b.model}" + "".join(f" + {e}" for e in sorted(b.effects)) + (" (thermal)" if b.thermal
+                                                                                          else "")
+                     for s, b in cal.blocks())
+
+
+def finite(x) -> bool:
+    return isinstance(x, (int, float)) and not isinstance(x, bool) and bool(np.isfinite(x))
+
+
+def block_parameters(b) -> dict:
+    """{param: (value, std, unit)} of a block's parameters that carry a std: its model's, or for an affine
+    block (multiposition, handheld) the entries of M (M_xy: output x per input y) and bias (b_x)."""
+    if b.params:
+        return {n: (float(v), float(b.std[n]), b.param_units.get(n, "")) for n, v in b.params.items()
+                if finite(b.std.get(n))}
+    M, bias = np.asarray(b.std.get("M", np.nan), float), np.asarray(b.std.get("bias", np.nan), float)
+    out = {}
+    if M.shape == (3, 3):
+        out.update({f"M_{r}{c}": (float(b.M[i, j]), float(M[i, j]), "1") for i, r in enumerate("xyz")
+                    for j, c in enumerate("xyz") if finite(float(M[i, j]))})
+    if bias.shape == (3,):
+        out.update({f"b_{a}": (float(b.bias[i]), float(bias[i]), b.bias_unit) for i, a in enumerate("xyz")
+                    if finite(float(bias[i]))})
+    return out
+
+
+def read_limits(path, known: dict) -> dict:
+    """limits.json: {"format": "simucal.limits/1", "limits": {"acc.b_x": {"min": -0.005, "max": 0.005,
+    "unit": "g"}, ...}}, min or max or both, in the unit the calibrations give that parameter (known:
+    {name: unit} of the lot). Anything else is refused in one line naming the file and the entry."""
+    def bad(where, why):
+        return CalibrationError(f"{path}: {where}: {why} (the format: {{\"format\": \"{LIMITS_FORMAT}\", \"limits\": "
+                                "{\"acc.b_x\": {\"min\": -0.005, \"max\": 0.005, \"unit\": \"g\"}}})")
+    try:
+        d = json.loads(Path(path).read_text(), object_pairs_hook=unique_keys)
+    except (OSError, UnicodeDecodeError, ValueError, RecursionError) as e:
+        raise CalibrationError(f"{path}: not a readable limits file ({str(e)[:120]})") from None
+    if not isinstance(d, dict) or d.get("format") != LIMITS_FORMAT or not isinstance(d.get("limits"), dict):
+        raise bad("top level", f"expected an object with format {LIMITS_FORMAT!r} and an object 'limits'")
+    out = {}
+    for name, lim in d["limits"].items():
+        where = f"limits.{name}"
+        if name not in known:
+            raise bad(where, "no calibration of the lot has this parameter; it has " + ", ".join(sorted(known)[:40]))
+        if not isinstance(lim, dict) or set(lim) - {"min", "max", "unit"} or not ({"min", "max"} & set(lim)):
+            raise bad(where, "expected an object with min, max or both, and unit")
+        if lim.get("unit") != known[name]:
+            raise bad(where, f"unit {lim.get('unit')!r}: the calibrations give {name} in {known[name]!r}; "
+                             "state that unit")
+        for k in ("min", "max"):
+            v = lim.get(k)
+            if k in lim and (isinstance(v, bool) or not isinstance(v, (int, float)) or not np.isfinite(v)):
+                raise bad(f"{where}.{k}", f"{v!r} is not a finite number")
+        if "min" in lim and "max" in lim and lim["min"] > lim["max"]:
+            raise bad(where, f"min {lim['min']} is above max {lim['max']}")
+        out[name] = {k: float(lim[k]) for k in ("min", "max") if k in lim} | {"unit": known[name]}
+    return out
+
+
+def outside(value, std, lim) -> str | None:
+    """Why a value breaks its limits (with its distance in its own std), or None."""
+    for k, sign, word in (("min", -1, "below"), ("max", 1, "above")):
+        if k in lim and sign * (value - lim[k]) > 0:
+            return (f"{value:.4g} {lim['unit']} {word} its {k} {lim[k]:.4g} {lim['unit']} "
+                    f"({abs(value - lim[k]) / std:.2g} std)")
+    return None
+
+
+def covariance_of(block, params, names):
+    """The covariance of the named parameters: the file's (unscaled by a misfit), else their stds squared."""
+    cov = block.details.get("covariance")
+    if cov and all(n in cov["names"] for n in names):
+        i = [cov["names"].index(n) for n in names]
+        return np.asarray(cov["matrix"], float)[np.ix_(i, i)]
+    return np.diag([params[n][1] ** 2 for n in names])
+
+
+def drift(name1, cal1: Calibration, name2, cal2: Calibration) -> dict:
+    """cal2 - cal1 per parameter with its std from both, and per sensor the joint chi^2 of no drift."""
+    sensors, rows = {}, []
+    for s, b2 in cal2.blocks():
+        b1 = getattr(cal1, s)
+        p1, p2 = (block_parameters(b1) if b1 is not None else {}), block_parameters(b2)
+        names = [n for n in p2 if n in p1]
+        if not names:
+            continue
+        d = np.array([p2[n][0] - p1[n][0] for n in names])
+        C = covariance_of(b1, p1, names) + covariance_of(b2, p2, names)
+        std = np.sqrt(np.diag(C))
+        rows += [{"name": f"{s}.{n}", "unit": p2[n][2], "drift": float(d[j]), "std": float(std[j]),
+                  "z": float(d[j] / std[j])} for j, n in enumerate(names)]
+        chi2 = float(d @ np.linalg.lstsq(C, d, rcond=None)[0])
+        p = chi2_sf(chi2, len(names))
+        sensors[s] = {"chi2": chi2, "dof": len(names), "p_value": p,
+                      "verdict": "drifted" if p < DRIFT_P else "no drift seen"}
+    serial = cal2.layout.get(SERIAL)
+    return {"serial": serial, "earlier": name1, "later": name2, "sensors": sensors, "parameters": rows}

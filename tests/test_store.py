@@ -1,0 +1,203 @@
+"""The calibration store (simucal/store/, simucal.Store, `simucal store add`, `calibrate --store`, `history`) on
+SQLite (a temporary file) and on a real PostgreSQL server started here: records byte for byte and never
+replaced; a store of schema 1 migrated on opening; a database not the tool's, or of a newer schema, refused in one
+line; a password never printed; two writer processes at once losing nothing; a lot with a planted drift on some
+units whose history flags exactly those."""
+import json
+import subprocess
+import sys
+
+import pytest
+
+import simucal
+from cli_helpers import run
+from simucal.errors import StoreError
+from simucal.store import CalibrationStore, records, schema
+from store_helpers import DRIFT_PARAM, Postgres, base_calibration, unit_files
+
+ENGINES = ("sqlite", "postgresql")
+WRITES = 500  # per writer process: two at once
+
+
+@pytest.fixture(scope="module")
+def server():
+    pg = Postgres()
+    yield pg
+    pg.stop()
+
+
+@pytest.fixture(scope="module")
+def base(tmp_path_factory):
+    return base_calibration(tmp_path_factory.mktemp("base"))
+
+
+@pytest.fixture(params=ENGINES)
+def url(request, tmp_path):
+    """An empty store's URL on each engine."""
+    if request.param == "sqlite":
+        return str(tmp_path / "lab.db")
+    return request.getfixturevalue("server").url()
+
+
+def test_a_record_keeps_the_file_byte_for_byte_and_is_never_replaced(url, base, tmp_path):
+    files = unit_files(base, tmp_path / "cals", units=1, visits=2, prefix="A")["A-0000"]
+    store = simucal.Store(url)
+    first = store.add(files[0], station="bench 1", time="2026-01-05")
+    second = store.add(files[1], station="bench 2", time="2026-07-05T10:00:00Z")
+    assert store.file(first) == files[0].read_bytes() and store.file(second) == files[1].read_bytes()
+    with pytest.raises(StoreError, match=r"already recorded \(record 1, unit A-0000.*never replaced"):
+        store.add(files[0])
+    recs = store.records(serial="A-0000")
+    assert list(recs["id"]) == [first, second] and list(recs["station"]) == ["bench 1", "bench 2"]
+    assert recs["calibrated_utc"][0] == "2026-01-05T00:00:00.000000Z" and recs["tool_version"][0] == simucal.__version__
+    cal = simucal.load(files[1])
+    assert recs["input_sha256"][1] == cal.input_sha256 and recs["method"][1] == cal.method == "exact"
+    params = store.parameters(serial="A-0000", since="2026-07-01")
+    assert len(params) == 18 and set(params["calibration_id"]) == {second}
+    row = params[(params["sensor"] == "gyro") & (params["name"] == "b_z")].iloc[0]
+    assert row["value"] == cal.gyro.params["b_z"] and row["std"] == cal.gyro.std["b_z"] and row["unit"] == "deg/h"
+    assert len(store.records(station="bench 3")) == 0 and len(store.records(until="2026-02-01")) == 1
+
+
+def test_a_store_of_schema_1_opens_after_its_migration(url, base, tmp_path):
+    from sqlalchemy import create_engine, select
+    schema.make_at(url, 1)
+    path = unit_files(base, tmp_path / "cals", units=1, visits=1, prefix="OLD")["OLD-0000"][0]
+    row, params = records.record_of(path.read_bytes(), path)  # as schema 1 held it: no calibrated_utc
+    _, _, cals_v1, params_v1 = schema._tables(1)
+    engine = create_engine(schema.engine_url(url))
+    with engine.begin() as conn:
+        rid = conn.execute(cals_v1.insert().values({k: v for k, v in row.items() if k != "calibrated_utc"})
+                           ).inserted_primary_key[0]
+        conn.execute(params_v1.insert(), [{"calibration_id": rid, **p} for p in params])
+    store = CalibrationStore(url)
+    (rec,) = store.records()
+    assert rec["calibrated_utc"] == rec["recorded_utc"] == row["recorded_utc"] and len(store.parameters()) == 18
+    with engine.connect() as conn:
+        versions = [r.version for r in conn.execute(select(schema.SCHEMA_TABLE).order_by("version"))]
+    engine.dispose()
+    assert versions == list(range(1, schema.SCHEMA + 1)) == [1, 2]
+    assert store.history("OLD-0000")["records"][0]["id"] == rid
+
+
+def test_a_database_not_the_tools_or_newer_is_refused_in_one_line_and_left_as_it_was(url, base, tmp_path):
+    from sqlalchemy import create_engine, inspect, text
+    path = unit_files(base, tmp_path / "cals", units=1, visits=1, prefix="B")["B-0000"][0]
+    engine = create_engine(schema.engine_url(url))
+    with engine.begin() as conn:
+        conn.execute(text("CREATE TABLE orders (id INTEGER)"))
+    with pytest.raises(StoreError, match=r"not a simucal calibration store \(it has the tables orders"):
+        simucal.Store(url).add(path)
+    with engine.connect() as conn:
+        assert inspect(conn).get_table_names() == ["orders"]
+    with engine.begin() as conn:
+        conn.execute(text("DROP TABLE orders"))
+    simucal.Store(url).add(path)
+    with engine.begin() as conn:
+        conn.execute(schema.SCHEMA_TABLE.insert().values(version=schema.SCHEMA + 1, applied_utc="later", what="x"))
+    engine.dispose()
+    r = run("history", "B-0000", "--store", url, "-o", tmp_path / "h.json")
+    assert r.exit_code == 2 and r.output.count("\n") == 1
+    assert f"schema {schema.SCHEMA + 1} is newer than this simucal's {schema.SCHEMA}" in r.output
+    assert not (tmp_path / "h.json").exists()
+
+
+def test_a_password_in_the_url_is_never_printed(server, base, tmp_path):
+    secret = "Sw0rdf1sh-x9"
+    url = server.url(password=secret)
+    missing = url.rsplit("/", 1)[0] + "/nosuchdb"
+    for args in (["history", "X", "--store", missing, "-o", tmp_path / "h.json"],
+                 ["store", "add", base, "--store", missing, "--serial", "X"]):
+        r = run(*args)
+        assert r.exit_code == 2 and secret not in r.output and "simucal:***@" in r.output, r.output
+    assert secret not in repr(simucal.Store(url)) and schema.shown(url).count("***") == 1
+
+
+def test_calibrate_and_store_add_record_from_the_command_line(tmp_path):
+    db = tmp_path / "lab.db"
+    ms = simucal.simulate(seed=2)
+    ms.meta["unit_serial"] = "CLI-1"
+    ms.write(tmp_path / "set")
+    r = run("calibrate", tmp_path / "set", "-o", tmp_path / "cal.json", "--store", db)
+    assert r.exit_code == 0 and "recorded as record 1 in Store(" in r.output, r.output
+    store = simucal.Store(db)
+    assert store.file(1) == (tmp_path / "cal.json").read_bytes()
+    r = run("store", "add", tmp_path / "cal.json", "--store", db)
+    assert r.exit_code == 2 and "already recorded (record 1, unit CLI-1" in r.output
+    r = run("store", "add", tmp_path / "cal.json", "--store", db, "--serial", "OTHER")
+    assert r.exit_code == 2 and "--serial OTHER:" in r.output and "made for unit 'CLI-1'" in r.output
+
+
+_WRITER = """
+import sys
+from simucal.store import CalibrationStore
+store = CalibrationStore(sys.argv[1])
+for path in open(sys.argv[2]).read().split():
+    store.add(path, station=sys.argv[3])
+"""
+
+
+@pytest.mark.slow
+def test_two_writers_at_once_lose_nothing_and_duplicate_nothing(url, base, tmp_path):
+    files = [p for ps in unit_files(base, tmp_path / "cals", units=2 * WRITES, visits=1, prefix="W").values()
+             for p in ps]
+    procs = []
+    for k in range(2):  # both open the empty store at once: its creation is raced too
+        listing = tmp_path / f"writer{k}.txt"
+        listing.write_text("\n".join(map(str, files[k::2])))
+        procs.append(subprocess.Popen([sys.executable, "-c", _WRITER, url, str(listing), f"station {k}"],
+                                      stderr=subprocess.PIPE, text=True))
+    errors = [p.communicate(timeout=600)[1] for p in procs]
+    assert [p.returncode for p in procs] == [0, 0], [e[-2000:] for e in errors]
+    recs = simucal.Store(url).records()
+    assert len(recs) == 2 * WRITES and recs["id"].is_unique and recs["file_sha256"].is_unique
+    assert sorted(recs["serial"]) == sorted(f"W-{i:04d}" for i in range(2 * WRITES))
+    assert (recs["station"].value_counts() == WRITES).all()
+    assert len(simucal.Store(url).parameters()) == 18 * 2 * WRITES
+
+
+@pytest.mark.slow
+def test_history_flags_exactly_the_drifting_units(url, base, tmp_path):
+    drifting = {3, 8, 17}
+    units = unit_files(base, tmp_path / "cals", units=24, visits=3, drifting=drifting, seed=7)
+    store = CalibrationStore(url)
+    for serial, paths in units.items():
+        for month, path in enumerate(paths):
+            store.add(path, station="line 1", calibrated_utc=f"2026-{1 + 4 * month:02d}-15")
+    flagged = set()
+    for serial in units:
+        h = store.history(serial)
+        assert [len(e.get("since_first", {}).get("parameters", [])) for e in h["records"]] == [0, 0, 18]
+        if h["flagged"]:
+            flagged.add(int(serial.split("-")[1]))
+            last = h["records"][-1]
+            assert any("gyro moved" in w for w in last["why"])
+            z = {p["name"]: p["z"] for p in last["since_first"]["parameters"]}
+            assert abs(z[DRIFT_PARAM]) > 10 > max(abs(v) for k, v in z.items() if k != DRIFT_PARAM)
+    assert flagged == drifting
+    r = run("history", "SN-0003", "--store", url, "-o", tmp_path / "h.json")
+    assert r.exit_code == 0 and "FLAGGED" in r.output and "unit SN-0003: 3 calibrations, " in r.output
+    assert json.loads((tmp_path / "h.json").read_text())["flagged"] == store.history("SN-0003")["flagged"]
+    changes = simucal.Store(url).changes("SN-0003")
+    row = changes[(changes["name"] == DRIFT_PARAM) & (changes["record"] == max(changes["record"]))].iloc[0]
+    assert row["flagged"] and row["z_since_first"] > 12 and 5 < row["z_since_last"] < row["z_since_first"]
+
+
+def test_lot_of_the_store_equals_lot_of_the_folder(url, base, tmp_path):
+    units = unit_files(base, tmp_path / "cals", units=21, visits=2, drifting={4}, seed=5)
+    store = simucal.Store(url)
+    for paths in units.values():
+        for month, path in enumerate(paths):
+            store.add(path, time=f"2026-{1 + 6 * month:02d}-01")
+    of_folder, of_store = simucal.lot(tmp_path / "cals"), simucal.lot(store=url)
+    assert [u["status"] for u in of_store["units"]] == [u["status"] for u in of_folder["units"]]
+    drifted = [d["later"] for d in of_store["drift"] if d["sensors"]["gyro"]["verdict"] == "drifted"]
+    assert len(of_store["units"]) == 21 and len(drifted) == 1 and drifted[0].startswith("SN-0004_2026-07-01T00:00")
+    for g_store, g_folder in zip(of_store["groups"], of_folder["groups"]):
+        assert [(p["name"], p["values"], p["stds"], p["outliers"] == []) for p in g_store["parameters"]] == \
+            [(p["name"], p["values"], p["stds"], p["outliers"] == []) for p in g_folder["parameters"]]
+    assert len(simucal.lot(store=url, until="2026-02-01")["superseded"]) == 0
+    r = run("lot", "--store", url, "--since", "2026-06-01", "-o", tmp_path / "lot.json")
+    later = json.loads((tmp_path / "lot.json").read_text())  # the second calibrations alone: SN-0004 moved 12 std
+    assert r.exit_code == 0 and later["verdict"][0] == "20 of 21 units pass, 0 fail, 1 flagged" and not later["drift"]
+    assert [u["serial"] for u in later["units"] if u["status"] == "flagged"] == ["SN-0004"]
