@@ -48,7 +48,9 @@ SMALL = {"bench_derive_and_solve.py": ["--quick"], "bench_paper_tables.py": ["--
          "bench_family.py": ["--seeds", "2", "--auto-seeds", "1"], "bench_bag_noise.py": ["--hours", "0.02"],
          "bench_long_noise.py": ["--hours", "0.05", "--rate-hz", "50"],
          "bench_systematic.py": ["--seeds", "1", "--speed-hours", "0", "--compare-seeds", "0"],
-         "bench_sequence_design.py": ["--minutes", "5", "--reference-minutes", "5", "--evaluations", "3", "--seeds", "1"],
+         "bench_sequence_design.py": ["--minutes", "5", "--evaluations", "3", "--seeds", "1", "--units", "mems",
+                                      "--table", "--table-minutes", "5", "--reference-minutes", "5",
+                                      "--table-evaluations", "3"],
          "bench_scale.py": ["--rate-hz", "5", "--repeats", "0", "--hours", "0.005", "--lot", "2", "--thermal-rate-hz", "1"]}
 # what CI does by being CI: the installation, the suite itself, and the stale check (tests/test_generated.py
 # runs derive --check's function); the demo (minutes of work, tests/test_loop.py and the others run its parts)

@@ -404,7 +404,7 @@ class ZeroPosition(TypedDict):
     """The zero-position updates of a sequence (systematic/zero_position.py)."""
     updates: int                      # the returns measured
     positions: int                    # the positions returned to
-    accuracy_arcsec: float            # each visit's attitude std
+    accuracy_arcsec: float            # each table angle's std at a visit
     text: str
 
 

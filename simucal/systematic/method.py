@@ -123,8 +123,8 @@ def calibrate_systematic(ms, acc_model="acc_baseline", gyro_model="gyro_baseline
             "updates": len(r.returns.update_at), "positions": r.returns.slots,
             "accuracy_arcsec": r.returns.sigma_rad / units.ARCSEC_RAD,
             "text": (f"{len(r.returns.update_at)} zero-position updates: the table returned to {r.returns.slots} "
-                     f"positions, each visit's attitude to {r.returns.sigma_rad / units.ARCSEC_RAD:.3g} arcsec "
-                     "(meta.json's table_accuracy_arcsec)")}
+                     f"positions, each visit's table angles to {r.returns.sigma_rad / units.ARCSEC_RAD:.3g} arcsec "
+                     "each (meta.json's table_accuracy_arcsec), about its gimbal axis")}
     if cal.acc.verdict == "fails":  # one test for both sensors: the one effect to add, as diagnose names it
         cands = [c.to_dict() for c in ranked(test, sig)]
         advice = returns_advice(test) or advice_text(

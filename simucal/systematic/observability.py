@@ -68,6 +68,33 @@ def truth_start(truth) -> dict:
     return {"acc": truth["acc"]["params"], "gyro": truth["gyro"]["params"], "eta": eta}
 
 
+def against_truth(cal, truth, rows) -> tuple[np.ndarray, np.ndarray, dict[str, tuple[float, int]]]:
+    """A simulated sequence's calibration cal against its truth.json: each row's (`observability`'s rows) reported
+    std and error (estimate - truth), and per sensor the normalised estimation error squared e^T C^-1 e over its
+    block's parameters (C the block's covariance; chi-square with their number of dof where the stds hold) and
+    that number."""
+    eta, eta_true = cal.gyro.details["eta_rad"], truth_start(truth)["eta"]
+    std, err = [], []
+    for r in rows:
+        if r["parameter"] in ETA:
+            j = ETA.index(r["parameter"])
+            std.append(eta["std"][j])
+            err.append(eta["value"][j] - eta_true[j])
+        else:
+            block = getattr(cal, r["sensor"])
+            std.append(block.std[r["parameter"]])
+            err.append(block.params[r["parameter"]] - truth[r["sensor"]]["params"][r["parameter"]])
+    nees = {}
+    for sensor in ("acc", "gyro"):
+        block = getattr(cal, sensor)
+        names = block.details["covariance"]["names"]
+        C = np.asarray(block.details["covariance"]["matrix"])
+        d = np.sqrt(np.diag(C))  # the covariance spans decades: solved as correlations
+        e = np.array([block.params[n] - truth[sensor]["params"][n] for n in names]) / d
+        nees[sensor] = (float(e @ np.linalg.solve(C / np.outer(d, d), e)), len(names))
+    return np.array(std), np.array(err), nees
+
+
 def observability(ms, acc_model="acc_baseline", gyro_model="gyro_baseline", ids=(),
                   truth=None) -> results.Observability:
     """One pass of the filter over the sequence ms (module doc), about the unit's truth (truth.json's) where
