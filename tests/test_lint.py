@@ -72,8 +72,12 @@ def test_a_users_script_type_checks_against_the_installed_package_under_strict(t
     venv = tmp_path / "venv"
     subprocess.run([sys.executable, "-m", "venv", "--system-site-packages", str(venv)], check=True)
     python = venv / "bin" / "python"
-    subprocess.run([str(python), "-m", "pip", "install", "-q", "--no-deps", str(ROOT)], check=True, capture_output=True,
-                   cwd=tmp_path)
+    import shutil
+    source = tmp_path / "source"  # a copy: setuptools builds in the tree it installs from (build/), not in ours
+    shutil.copytree(ROOT, source, symlinks=True, ignore=shutil.ignore_patterns(".git", ".venv*", "build", "*.egg-info", "__pycache__", "_build",
+                                                                 ".mypy_cache", ".ruff_cache", ".pytest_cache"))
+    subprocess.run([str(python), "-m", "pip", "install", "-q", "--no-deps", str(source)], check=True,
+                   capture_output=True, cwd=tmp_path)
     script = tmp_path / "user.py"
     script.write_text('import simucal\n\nms = simucal.simulate("paper", seed=1)\ncal = simucal.calibrate(ms)\n'
                       "reveal_type(cal)\nreveal_type(simucal.validate(cal, ms))\n")
