@@ -231,7 +231,7 @@ def lot(folder: str | os.PathLike | None = None, limits: str | os.PathLike | Non
         if any(v is not None for v in (since, until, method, model, station)):
             raise InputError("lot: since, until, method, model and station select a store's records; give store=URL")
         return lot_report(folder, limits, *read_folder(folder))
-    from simucal.store import CalibrationStore
+    from simucal.store import CalibrationStore  # SQLAlchemy loads only for a store, not for every command
     st = CalibrationStore(os.fspath(store))
     cals = st.calibrations(since=since, until=until, method=method, model=model, station=station)
     if not cals:
