@@ -3,7 +3,7 @@ random walk only.
 
 Per seed, six channels (gyro and accelerometer, three axes each) of white noise plus a random walk
 at the sizes below, through the command's own path (the Allan variance, the covariance of its
-grid, the GLS fit and the term test: simucal.allan.axis_report). Prints, per sensor: the share of
+grid, the GLS fit and the term test: simucal.fit.allan_terms.axis_report). Prints, per sensor: the share of
 (axis, term) pairs where a term that is not in the data (quantisation, bias instability, ramp) is
 reported (the goal: at most 5 %), and for the white noise N and random walk K the rms and mean of
 (estimate - truth) / std (1 and 0 when the stds are right; the goal 0.8-1.25), with how often K
@@ -15,7 +15,7 @@ import time
 
 import numpy as np
 
-from simucal.allan import axis_report, taus
+from simucal.fit.allan_terms import axis_report, taus
 from simucal.fit import allan_cov
 from simucal.report.markdown import header
 

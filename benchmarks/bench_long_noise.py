@@ -7,7 +7,7 @@ g and deg/h, written as samples.csv, then `simucal convert --to parquet`. Each r
 process, timed whole (wall clock, from start to exit) with its peak resident memory (the process's
 own; Dask's workers are not counted), and its CPU time (user + system: on a loaded machine the
 wall clock waits for the cores). Rows: the whole-file path (io.read_set then
-allan.characterise, as `simucal noise` ran before chunks), `simucal noise` (chunked), and
+fit/allan_noise.characterise, as `simucal noise` ran before chunks), `simucal noise` (chunked), and
 `simucal noise --scheduler processes` (chunked, theta on disk, the sums on a Dask LocalCluster),
 on samples.csv and on samples.parquet; each run's Allan deviations against the whole-file path's
 on samples.csv (the largest relative difference over every channel and tau). Rows print as they end.
@@ -28,8 +28,8 @@ from simucal.io import columnar, outputs
 from simucal.report.markdown import header
 
 NAMES = ["t_s", "ax", "ay", "az", "gx", "gy", "gz"]
-OLD = ("import json, sys; from simucal import allan, io; "
-       "open(sys.argv[2], 'w').write(json.dumps(allan.characterise(io.read_set(sys.argv[1]))))")
+OLD = ("import json, sys; from simucal import io, methods; from simucal.fit.allan_noise import characterise; "
+       "ms = io.read_set(sys.argv[1]); open(sys.argv[2], 'w').write(json.dumps(characterise(ms, methods.kind_of(ms))))")
 
 
 def still_chunks(rows, rate_hz, seed=0, chunk=1 << 20):

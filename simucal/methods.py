@@ -315,7 +315,7 @@ def _simulate_warmup(seed, rate_hz, o):
 
 # `simulate --scenario`'s names: each kind's own (its simulate), and a still stream's two (a unit at rest for
 # `simucal noise`, a still board warming up for `calibrate --thermal`)
-SCENARIOS = {**{k.scenario: k.simulate for k in KINDS.values()}, "still": _simulate_still, "warmup": _simulate_warmup}
+SCENARIOS: dict[str, Callable] = {**{k.scenario: k.simulate for k in KINDS.values()}, "still": _simulate_still, "warmup": _simulate_warmup}
 
 
 def kind_of(ms) -> Kind:

@@ -5,7 +5,9 @@ CI installs only what pyproject.toml pip-installs and downloads nothing at run t
 (playwright's browsers are a download of their own). The figures are the only part of a page whose
 layout is not the browser's own text flow: their text is placed by matplotlib, and this reads where
 it drew each piece (`Text.draw`, so exactly the tick labels, labels, titles, legend entries and
-annotations that are drawn) and finds any two that cross, and any that sits on a scatter marker.
+annotations that are drawn) and finds any two that cross, and any that sits on a plot's marks: a scatter
+marker, or a line or its markers inside the axes (a legend's entries excepted: its frame covers the lines).
+The page itself, laid out by the browser, is tests/browser.py's.
 """
 from __future__ import annotations
 
@@ -15,6 +17,7 @@ from unittest import mock
 import numpy as np
 from matplotlib.collections import PathCollection
 from matplotlib.figure import Figure
+from matplotlib.transforms import Bbox
 from matplotlib.text import Text
 
 PAGE_PX = 1280  # the window the pages are read in
@@ -51,6 +54,27 @@ def _title(fig) -> str:
     return titles[0] if titles else "untitled figure"
 
 
+def _on_lines(fig, texts, where) -> list[str]:
+    """Each text (a legend's excepted) crossed, inside an axes, by one of its lines or their markers."""
+    legends = {id(t) for leg in [ax.get_legend() for ax in fig.axes] + list(fig.legends) if leg for t in leg.get_texts()}
+    out = []
+    for ax in fig.axes:
+        for line in (x for x in ax.get_lines() if x.get_visible()):
+            path = line.get_transform().transform_path(line.get_path())
+            r = line.get_markersize() / 2 * fig.dpi / 72 if line.get_marker() not in (None, "None", "", " ") else None
+            for t, bt in texts:
+                inside = Bbox.intersection(bt, ax.bbox)
+                if id(t) in legends or inside is None or min(inside.width, inside.height) <= TOUCH_PX:
+                    continue
+                box = inside.expanded(1 - 2 * TOUCH_PX / inside.width, 1 - 2 * TOUCH_PX / inside.height)
+                dashed = line.get_linestyle() not in ("None", "", " ") and path.intersects_bbox(box, filled=False)
+                dotted = r is not None and bool(((path.vertices > [box.x0 - r, box.y0 - r])
+                                                 & (path.vertices < [box.x1 + r, box.y1 + r])).all(1).any())
+                if dashed or dotted:
+                    out.append(f"{where}: {_name(t)} on a line of the plot")
+    return out
+
+
 def figure_problems(fig, dpi) -> list[str]:
     """Each text crossing another text, sitting on a scatter marker, or smaller than MIN_TEXT_PX on the
     page, named with the figure's first title."""
@@ -70,6 +94,7 @@ def figure_problems(fig, dpi) -> list[str]:
                 near = ((xy[:, 0] > bt.x0 - r) & (xy[:, 0] < bt.x1 + r) & (xy[:, 1] > bt.y0 - r) & (xy[:, 1] < bt.y1 + r))
                 if near.any():
                     out.append(f"{where}: {_name(t)} under a marker at {xy[near][0].round()}")
+    out += _on_lines(fig, texts, where)
     width_px = fig.get_size_inches()[0] * dpi
     scale = min(1.0, BODY_PX / width_px)
     small = [t for t, bt in texts if t.get_fontsize() * dpi / 72 * scale < MIN_TEXT_PX]

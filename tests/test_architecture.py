@@ -23,7 +23,7 @@ LAYERS = [
     {"simucal.turntable", "simucal.handheld", "simucal.field", "simucal.systematic"},
     {"simucal.methods"},
     {"simucal.report"},
-    {"simucal.allan", "simucal.bench", "simucal.derive_cmd"},
+    {"simucal.bench", "simucal.derive_cmd"},
     {"simucal.store"},  # a lab's records: calibration files and their history (report/lot_figures' drift)
     {"simucal.api"},  # each verb's one home (the demo too: simucal.api.demo_run)
     {"simucal.cli"},
@@ -320,7 +320,8 @@ def test_a_sets_kind_is_told_once_and_its_entry_looked_up(monkeypatch):
 
     import numpy as np
 
-    from simucal import allan, methods
+    from simucal import methods
+    from simucal.fit.stillness import still_stretches
     from simucal.api import MeasurementSet
     refusals = {"methods.py": 1, "field/drift.py": 1, "turntable/observations.py": 1,
                 "api/__init__.py": 1}  # read_set's example shows a user the segments
@@ -335,7 +336,7 @@ def test_a_sets_kind_is_told_once_and_its_entry_looked_up(monkeypatch):
     monkeypatch.setattr(methods, "data_kind", lambda ms: "third")
     ms = MeasurementSet.from_arrays(np.tile([0.0, 0.0, 1.0], (50, 1)), None, acc_unit="g", gyro_unit="deg/h",
                                     rate_hz=10.0)
-    stretches, dt, where = allan.still_stretches(ms, "acc")
+    stretches, dt, where = still_stretches(ms, "acc", methods.kind_of(ms))
     assert where == "the third kind's still rows" and len(stretches[0]) == len(rows) and abs(dt - 0.1) < 1e-12
 
 

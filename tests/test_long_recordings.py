@@ -9,9 +9,11 @@ import numpy as np
 import pytest
 from cli_helpers import refused, run
 
-from simucal import allan, io
+from simucal import io, methods
 from simucal.fit import allan_sums
 from simucal.api.calibrating import calibrate_set as calibrate
+from simucal.fit.allan_noise import characterise, characterise_folder
+from simucal.fit.allan_terms import allan_variance, taus
 from simucal.errors import CalibrationError
 from simucal.handheld.simulate import write_still
 from simucal.io import columnar
@@ -54,9 +56,9 @@ def _same(a, b, rtol):
 @pytest.mark.slow
 @pytest.mark.parametrize("fmt", ["csv", "parquet"])
 def test_noise_in_chunks_is_the_whole_file_path(still, monkeypatch, fmt):
-    whole = allan.characterise(io.read_set(still / "csv"))
+    whole = characterise(ms := io.read_set(still / "csv"), methods.kind_of(ms))
     _small_reads(monkeypatch)
-    chunked = allan.characterise_folder(still / fmt, size=PART)
+    chunked = characterise_folder(still / fmt, methods.kind_of, size=PART)
     # the whole-file path sums theta of y with its bias (1 g on az): its last digits, not the chunks', differ
     _same(whole, chunked, rtol=1e-7)
     assert whole["gyro"]["axes"]["x"]["sheet"]["K"]["status"] == "seen"
@@ -64,8 +66,8 @@ def test_noise_in_chunks_is_the_whole_file_path(still, monkeypatch, fmt):
 
 @pytest.mark.slow
 def test_noise_on_dask_is_the_same(still, dask_cluster):
-    here = allan.characterise_folder(still / "parquet", size=20_000)
-    on_dask = allan.characterise_folder(still / "parquet", scheduler=dask_cluster, size=20_000)
+    here = characterise_folder(still / "parquet", methods.kind_of, size=20_000)
+    on_dask = characterise_folder(still / "parquet", methods.kind_of, scheduler=dask_cluster, size=20_000)
     _same(here, on_dask, rtol=1e-12)
 
 
@@ -77,19 +79,19 @@ def test_the_real_xsens_stream_in_chunks(tmp_path, monkeypatch):
                   4096.0, 6258 * np.pi / 180, 45.4, 9.81744)
     ms = io.read_set(tmp_path / "x")
     with pytest.raises(CalibrationError, match="the unit moves") as whole:
-        allan.characterise(ms)
+        characterise(ms, methods.kind_of(ms))
     _small_reads(monkeypatch)
     with pytest.raises(CalibrationError, match="the unit moves") as chunked:
-        allan.characterise_folder(tmp_path / "x", size=PART)
+        characterise_folder(tmp_path / "x", methods.kind_of, size=PART)
     assert str(whole.value) == str(chunked.value)
     kept, steps = allan_sums.read_pass(tmp_path / "x", ms.meta, ["acc", "gyro"], None, PART)
     assert np.array_equal(steps, np.diff(ms.samples["t_s"]))
-    m = allan.taus(len(steps) + 1)
+    m = taus(len(steps) + 1)
     for sensor, y in (("acc", ms.acc_g()), ("gyro", ms.gyro_dph())):
         cols = io.SAMPLE_COLS[:3] if sensor == "acc" else io.SAMPLE_COLS[3:]
         parts = allan_sums.allan_variances([kept.theta[c] for c in cols], m)
         for j, c in enumerate(cols):
-            np.testing.assert_allclose(parts[j], allan.allan_variance([y[:, j]], 1.0, m)[0], rtol=1e-9)
+            np.testing.assert_allclose(parts[j], allan_variance([y[:, j]], 1.0, m)[0], rtol=1e-9)
             assert (kept.lo[c], kept.hi[c], kept.first[c]) == (y[:, j].min(), y[:, j].max(), y[0, j])
 
 
@@ -107,7 +109,7 @@ def test_memory_holds_theta_not_the_table(tmp_path, monkeypatch):
 
     def chunked():
         kept, _ = allan_sums.read_pass(tmp_path / "s", meta, ["acc", "gyro"], None, 1 << 14)
-        allan_sums.allan_variances(list(kept.theta.values()), allan.taus(rows))
+        allan_sums.allan_variances(list(kept.theta.values()), taus(rows))
     peaks = {}
     for name, fn in (("whole", lambda: io.read_set(tmp_path / "s")), ("chunked", chunked)):
         tracemalloc.start()

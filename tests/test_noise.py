@@ -10,7 +10,7 @@ import pytest
 from click.testing import CliRunner
 
 from simucal import io
-from simucal.allan import allan_variance, axis_report, taus
+from simucal.fit.allan_terms import allan_variance, axis_report, taus
 from simucal.cli import main
 from simucal.fit import allan_cov
 from simucal.handheld.simulate import write_still

@@ -102,11 +102,11 @@ def test_a_read_only_folder_is_refused_before_the_work(work, monkeypatch):
 
 
 def test_a_command_that_fails_after_writing_leaves_none_of_its_outputs(work, monkeypatch):
-    from simucal import allan
+    from simucal.report import kalibr
 
     def broken(report):
         raise RuntimeError("the last writer failed")
-    monkeypatch.setattr(allan, "kalibr_yaml", broken)  # after noise.json and the page were written
+    monkeypatch.setattr(kalibr, "kalibr_yaml", broken)  # after noise.json and the page were written
     before = _tree(work)
     r = _run("noise", work / "still", "-o", work / "n.json", "--html", work / "n.html", "--kalibr", work / "imu.yaml")
     assert r.exit_code == 3, r.output

@@ -199,7 +199,8 @@ def test_diagnose_prints_its_page_and_added_parameters_in_si(sets, tmp_path):
     gyro = [re.search(rf"gyro: .*?residual rms ({NUMBER}) rad/s", t)[1] for t in (cal.output, out["si"])]
     assert gyro[0] == gyro[1], gyro
     pages = [re.sub(r"data:image/png;base64,[^\"]+", "", (tmp_path / f).read_text()) for f in ("d.html", "d3.html")]
-    row = [re.search(r"<td>acc.quadratic.z</td><td>([^<]*)</td><td></td><td></td><td>([^<]+)</td>", t) for t in pages]
+    row = [re.search(r"<td>acc.quadratic.z</td><td>([^<]*)</td><td></td><td></td><td><span class='n'>([^<]+)</span></td>", t)
+           for t in pages]
     assert row[0][1] == "g/g^2" and row[1][1] == "1/(m/s^2)" and _agrees(row[1][2], row[0][2], 1 / G), row
     assert "residual rms" in pages[1] and "m/s^2" in pages[1] and not re.search(rf"{NUMBER} g\b", pages[1])
 

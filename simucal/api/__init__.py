@@ -14,7 +14,7 @@ from __future__ import annotations
 import json
 import os
 from pathlib import Path
-from typing import Any, Mapping, cast
+from typing import TYPE_CHECKING, Any, Mapping, cast
 
 from simucal.errors import InputError
 from simucal import io
@@ -36,15 +36,25 @@ from simucal.api.tools import audit, derive_model
 from simucal.api.validating import Check, Validation, validate
 from simucal.handheld.static_detect import DetectSettings
 from simucal.api.sets import MeasurementSet
-from simucal.api.store import Store
 from simucal.api.vocabulary import Entry, compare
 from simucal.io import calibration as _file
 from simucal.io import results
+
+if TYPE_CHECKING:
+    from simucal.api.store import Store
 
 __all__ = ["read_set", "simulate", "calibrate", "validate", "diagnose", "noise", "save", "load", "table_rows",
            "compare", "import_recording", "import_instances", "calibrate_instances", "autopilot_files", "ImuCalibration", "convert", "montecarlo", "calibrate_each", "Calibrated", "plan",
            "sequence_observability", "design_sequence", "derive_model", "audit", "DetectSettings", "CalibrateOptions", "MeasurementSet", "Calibration", "Parameter", "Entry",
            "Validation", "Check", "Diagnosis", "Candidate", "Suggestion", "NextStep", "Noise", "Term", "lot", "Store"]
+
+
+def __getattr__(name: str) -> Any:
+    """Store on first use: SQLAlchemy takes 0.3-0.8 s to import, which no other command should wait for."""
+    if name == "Store":
+        from simucal.api.store import Store
+        return Store
+    raise AttributeError(f"module 'simucal.api' has no attribute {name!r}")
 
 
 @checked
@@ -164,8 +174,8 @@ def _page(result: _file.Calibration | Validation | Diagnosis | Noise, calibratio
     if isinstance(result, Diagnosis):
         from simucal.report.html import render
         return render(shown.diagnosis_in(result.report, units))
-    from simucal import allan
-    return allan.html_page(result.report, units, written)
+    from simucal.report.noise_html import noise_page
+    return noise_page(result.report, units, written)
 
 
 @checked

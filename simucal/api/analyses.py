@@ -81,8 +81,8 @@ class Noise:
         """What `simucal noise` prints: each axis's terms in a data sheet's units (``units="si"``: in SI, as
         `simucal noise --units si`), the verdicts and the next step (written: the files the command wrote,
         {"-o": ..., "--kalibr": ...}, which the next step names)."""
-        from simucal import allan
-        return list(allan.lines(self.report, written, units))
+        from simucal.report.console import noise_lines
+        return list(noise_lines(self.report, written, units))
 
     @checked
     def kalibr_yaml(self) -> str:
@@ -93,8 +93,8 @@ class Noise:
         --------
         >>> open("imu.yaml", "w").write(simucal.noise("still").kalibr_yaml())  # doctest: +SKIP
         """
-        from simucal import allan
-        return allan.kalibr_yaml(self.report)
+        from simucal.report.kalibr import kalibr_yaml
+        return kalibr_yaml(self.report)
 
 
 @checked
@@ -130,14 +130,15 @@ def noise(data: Data, *, tau_max_s: float | None = None, scheduler: str | None =
     >>> n = simucal.noise("still")  # doctest: +SKIP
     >>> n.terms[n.terms.name == "angle random walk"]  # doctest: +SKIP
     """
-    from simucal import allan
+    from simucal import methods
+    from simucal.fit.allan_noise import characterise, characterise_folder
     from simucal.io import logs, rosbag
     from simucal.report.units import noise_in
     io.units.check_unit_system(units)
     if not isinstance(data, io.MeasurementSet) and (topic or rosbag.is_rosbag(folder_of(data))):
         data = logs.bag_as_set(folder_of(data), topic)  # read as `simucal import rosbag` reads it
-    report = (allan.characterise(data, tau_max_s) if isinstance(data, io.MeasurementSet)
-              else allan.characterise_folder(folder_of(data), tau_max_s, scheduler))
+    report = (characterise(data, methods.kind_of(data), tau_max_s) if isinstance(data, io.MeasurementSet)
+              else characterise_folder(folder_of(data), methods.kind_of, tau_max_s, scheduler))
     shown = noise_in(report, units)  # the tables in the units asked; the report as written
     rows = [Term(s, a, k, t["name"], t["status"], t["value"] if t["status"] == "seen" else None, t.get("std"), t.get("bound_95"), t.get("needs_s"),
                  t["unit"])

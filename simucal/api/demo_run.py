@@ -152,12 +152,13 @@ def thermal(out: Path, seed: int, echo) -> dict:
 
 def noise(out: Path, seed: int, echo) -> None:
     """The noise of a still recording: Allan deviation and the IEEE 952 terms, with the plot."""
-    from simucal.allan import characterise, html_page
+    from simucal.fit.allan_noise import characterise
     from simucal.handheld.simulate import write_still
+    from simucal.report.noise_html import noise_page
     write_still(out / "still", seconds=600.0, seed=seed)
-    rep = characterise(io.read_set(out / "still"))
+    rep = characterise(still := io.read_set(out / "still"), methods.kind_of(still))
     outputs.write_text(out / "noise.json", json.dumps(rep, indent=1) + "\n")
-    outputs.write_text(out / "noise.html", html_page(rep))
+    outputs.write_text(out / "noise.html", noise_page(rep))
     g, a = rep["gyro"]["axes"]["x"]["sheet"]["N"], rep["acc"]["axes"]["x"]["sheet"]["N"]
     echo(f"8 noise of a still recording ({out / 'still'}, 10 min at 100 Hz): x gyro ARW {g['value']:.3g} +- "
          f"{g['std']:.2g} {g['unit']} (simulated 0.1), x acc VRW {a['value']:.3g} +- {a['std']:.2g} {a['unit']} "

@@ -314,6 +314,7 @@ def html_page(report) -> str:
     prints them), each check's error at nominal and calibrated on a log scale with its floor, the table."""
     import html as _html
 
+    from simucal.report.numbers import eng_html
     from simucal.report.page import log_bars, page, plt, png, wrapped
     rows = [(s, c) for s, cs in report["checks"].items() for c in cs]
     cols = min(len(rows), 4)
@@ -324,8 +325,8 @@ def html_page(report) -> str:
         ax.set_title(wrapped(f"{s}: {c['what'].split(' (')[0]}: {c['verdict']}", 34), fontsize=8)
     for ax in axs.flat[len(rows):]:
         ax.set_visible(False)
-    body = "".join(f"<tr><td>{s}</td><td>{_html.escape(c['what'])}</td><td>{c['before_rms']:.3g}</td>"
-                   f"<td>{c['after_rms']:.3g}</td><td>{'-' if c['floor_rms'] is None else format(c['floor_rms'], '.3g')}"
+    body = "".join(f"<tr><td>{s}</td><td>{_html.escape(c['what'])}</td><td>{eng_html(c['before_rms'])}</td>"
+                   f"<td>{eng_html(c['after_rms'])}</td><td>{eng_html(c['floor_rms'])}"
                    f"</td><td>{c['unit']}</td><td>{c['verdict']}</td></tr>" for s, c in rows)
     cmd, notes = validation_next(report)
     verdicts = [(not v.startswith(("WORSE", "no better")) and not report["note"], f"{s}: {v}{_own(report)}")

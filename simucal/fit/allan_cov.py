@@ -1,7 +1,7 @@
 """The covariance of overlapping Allan variance estimates at a grid of cluster sizes.
 
 An estimate at cluster size m is S_m / (2 tau^2 n_m), S_m = sum_k d_k^2 over the n_m second
-differences d_k = theta_{k+2m} - 2 theta_{k+m} + theta_k of the integrated output (allan.py). Each
+differences d_k = theta_{k+2m} - 2 theta_{k+m} + theta_k of the integrated output (fit/allan_terms.py). Each
 d is a finite filter of the noise: of a white rate y (N^2 = var(y) dt) the Haar wavelet g_m = dt
 (-1 on [0, m), +1 on [m, 2m)); of a rate random walk y_i = sum_{l<=i} e_l (K^2 = var(e) / dt) the
 triangle dt min(i, 2m - i) on [0, 2m]; of a white angle (velocity) error q (quantisation, Q^2 =

@@ -1,7 +1,7 @@
 """The overlapping Allan variance of a long still recording, read a chunk at a time
-(`simucal noise`: simucal.allan.characterise_folder).
+(`simucal noise`: simucal.fit.allan_noise.characterise_folder).
 
-The overlapping Allan variance (simucal.allan, IEEE 952-1997 Annex C eq. C.2) needs, per channel,
+The overlapping Allan variance (simucal.fit.allan_terms, IEEE 952-1997 Annex C eq. C.2) needs, per channel,
 only the integrated output theta_k = sum_{i<k} y_i: sigma^2(m dt) = sum_k (theta_{k+2m} -
 2 theta_{k+m} + theta_k)^2 / (2 m^2 (N - 2m)) in the units of y, exactly, for every m. So the
 samples are read a chunk at a time (simucal.io.columnar: samples.csv or samples.parquet), each
@@ -10,7 +10,7 @@ row and channel); the table of the file is never held. theta is taken of y less 
 chunk's mean (the Allan variance does not see a constant, and theta then keeps the digits of the
 noise, not of a bias times the row count). Besides theta one pass keeps each channel's least,
 greatest and first value (a stuck channel), and the steps of t_s (the sample clock and its gaps,
-as simucal.allan.sample_step); the 1-s means of check_still are differences of the accelerometer's theta.
+as simucal.fit.stillness.sample_step); the 1-s means of check_still are differences of the accelerometer's theta.
 
 The sums over k run in blocks of BLOCK rows (the second differences stay in the processor's
 cache), and the rows in ranges of CHUNK, one task each (simucal.sweeps.map_tasks): here, or on

@@ -1,11 +1,13 @@
 """A calibration on the console: one line per fact, the failures loud (`simucal calibrate`,
-`simucal field-drift`); a diagnosis's one next command (`simucal diagnose`, its page)."""
+`simucal field-drift`); a diagnosis's one next command (`simucal diagnose`, its page); a noise report's terms,
+verdicts and next step (`simucal noise`, its page)."""
 from __future__ import annotations
 
-from simucal.fit import family
+from simucal.fit import allan_fit, allan_terms, family
 from simucal.fit.candidates import undecided_twins
 from simucal.io import SENSOR_COLS
 from simucal.io.calibration import ALPHA, Calibration, SensorBlock, SensorDetails
+from simucal.report.kalibr import kalibr_missing
 
 
 def n_units(n: int) -> str:
@@ -292,3 +294,82 @@ def validation_next(report: dict) -> tuple[str, list[str]]:
         return (f"simucal diagnose {data} -o diagnosis.json --html diagnosis.html",
                 [f"{', '.join(bad)}: the calibration does not hold on these data; the diagnosis shows what its model lacks"])
     return f"simucal apply {cal} {data} -o calibrated", []
+
+
+def term_text(t, html=False) -> str:
+    """One term: value +- std where seen, else "not seen" and its bound, or the length it needs."""
+    pm, lt, unit = (" &plusmn; ", "&lt;", "") if html else (" +- ", "<", " " + t["unit"])
+    if t["status"] == "seen":
+        return f"{t['value']:.3g}{pm}{t['std']:.2g}{unit}"
+    if t["status"] == "not seen":
+        return f"not seen ({lt} {t['bound_95']:.2g}{unit}, 95 %)"
+    return f"record too short (needs {t['needs_s']:.3g} s)"
+
+
+def noise_lines(report, written=None, units: str = "spec"):
+    """The console: each axis's terms in a data sheet's units (or SI), seen or not; written: noise_next's."""
+    if units == "spec":
+        return list(_noise_lines(report, written))
+    from simucal.report import units as shown
+    g = shown.gravity_of(report.get("data"))
+    return shown.lines_in(_noise_lines(shown.noise_in(report, units, g), written), units, g)
+
+
+def _noise_lines(report, written=None):
+    for sensor in ("acc", "gyro"):
+        if sensor not in report:
+            continue
+        b = report[sensor]
+        yield (f"{sensor}: Allan deviation over {b['rows']}, {b['rate_hz']:.4g} Hz, tau {b['tau_s'][0]:.3g} to "
+               f"{b['tau_s'][-1]:.3g} s; terms fitted with the estimates' covariance, reported where beyond "
+               f"{allan_fit.SEEN:g} std")
+        for a, ax in b["axes"].items():
+            if "stuck" in ax:
+                yield f"  {a}: {ax['stuck']}"
+                continue
+            yield f"  {a}: " + ", ".join(f"{t['name']} {term_text(t)}" for t in ax["sheet"].values())
+    for _, text in noise_verdicts(report):
+        yield text
+    yield from skipped_sensors([s for s in ("acc", "gyro") if s in report])
+    yield "next: " + noise_next(report, written)[0]
+
+
+def _axes_of(axes, status, k) -> list[str]:
+    return [a for a, ax in axes.items() if "stuck" not in ax and ax["sheet"][k]["status"] == status]
+
+
+def noise_verdicts(report) -> list[tuple[bool, str]]:
+    """Per sensor (ok, the verdict): an axis stuck, else the white noise, the terms seen beyond it and
+    those not seen (each with its 95 % bound in the table) or the record too short to tell."""
+    out = []
+    for sensor in ("acc", "gyro"):
+        if sensor not in report:
+            continue
+        axes = report[sensor]["axes"]
+        stuck = [f"{a} {ax['stuck']}" for a, ax in axes.items() if "stuck" in ax]
+        n = [axes[a]["sheet"]["N"] for a in _axes_of(axes, "seen", "N")]
+        text = (f"{sensor}: {allan_terms.SHEET[sensor]['N'][0]} " + (f"{min(t['value'] for t in n):.3g} to {max(t['value'] for t in n):.3g} "
+                f"{n[0]['unit']}" if n else "not seen") + " on " + ", ".join(_axes_of(axes, "seen", "N") or ["no axis"]))
+        for status, say in (("seen", "seen beyond it"), ("not seen", "not seen (95 % bounds below)"),
+                            ("too short", "the record too short to tell")):
+            terms = [f"{allan_terms.SHEET[sensor][k][0]} ({', '.join(_axes_of(axes, status, k))})" for k in allan_terms.SHEET[sensor]
+                     if k != "N" and _axes_of(axes, status, k)]
+            text += f"; {say}: {', '.join(terms)}" if terms else ""
+        out.append((not stuck and len(n) == len(axes), text + "".join(f"; STUCK: {x}" for x in stuck)))
+    if report.get("temperature", {}).get("warning"):
+        out.append((False, "WARNING: " + report["temperature"]["warning"]))
+    return out
+
+
+def noise_next(report, written=None) -> tuple[str, list[str]]:
+    """(the command after `simucal noise`, why): Kalibr's imu.yaml where the record gives it, else what to record;
+    written ({"-o": noise.json, "--kalibr": imu.yaml}) once imu.yaml is written: a calibration weighed by the
+    noise curves (calibrate --noise), not the command just run."""
+    missing = kalibr_missing(report)
+    if written and written.get("--kalibr"):
+        return (f"simucal calibrate TEST_SET --noise {written['-o']} -o calibration.json",
+                [f"{written['--kalibr']} is written: Kalibr reads it as its --imu file"])
+    if not missing:
+        return f"simucal noise {report['data']} -o noise.json --kalibr imu.yaml", []
+    return ("simucal noise LONGER_STILL_RECORDING -o noise.json --html noise.html",
+            ["Kalibr's imu.yaml would lack " + "; ".join(missing)])

@@ -6,7 +6,7 @@ import html
 
 from simucal.field.drift import history_figure
 from simucal.report.console import calibration_lines
-from simucal.report.page import page, png
+from simucal.report.page import grid, page, png
 
 
 def field_page(result, calibration_path: str, units: str = "spec") -> str:
@@ -22,4 +22,4 @@ def field_page(result, calibration_path: str, units: str = "spec") -> str:
                 f"simucal apply {calibration_path} DATA_DIR -o calibrated",
                 ["DATA_DIR: a recording of the same unit to correct with the drift above"],
                 [f"<pre style='white-space:pre-wrap'>{rest}</pre>",
-                 "<h2>Each position's north drift estimate (Fig. 4)</h2>", png(fig)]) + "\n"
+                 "<h2>Each position's north drift estimate (Fig. 4)</h2>", grid([png(fig)])]) + "\n"

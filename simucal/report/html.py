@@ -12,7 +12,8 @@ import html
 import numpy as np
 
 from simucal.report.console import next_command
-from simucal.report.page import folded, page, plt, png
+from simucal.report.numbers import cell_html, eng
+from simucal.report.page import CELL_IN, FULL_IN, figure, folded, grid, page, plt, png
 
 AXES = "xyz"
 
@@ -25,13 +26,13 @@ def _res(rows, key="normalized"):
 def shape_figure(sensor, shape, unit):
     """The residual on the found term's axis against its regressor, with the fitted term."""
     x, r = np.array(shape["points"]["regressor"]), np.array(shape["points"]["residual"])
-    fig, ax = plt.subplots(figsize=(6, 3.2))
+    fig, ax = figure(CELL_IN, 3.2)
     ax.plot(x, r, "o", ms=4, label=f"{sensor} {shape['axis']} residual")
     ax.plot(x, shape["points"]["term_visible"], "x", ms=5,
-            label=f"{shape['estimate']:.2g} * {shape['regressor']}, less what the model absorbs")
+            label=f"{eng(shape['estimate'])} * {shape['regressor']}, less what the model absorbs")
     ax.set(xlabel=shape["regressor"], ylabel=f"residual ({unit})", title=f"{sensor}: the shape of the misfit")
     ax.legend(fontsize=8)
-    return f"<p>{html.escape(shape['text'])}</p>" + png(fig)
+    return png(fig)
 
 
 ROW_KEYS = {"segment", "kind", "outer_rate_dps", "t_s", "direction", "residual", "sigma", "normalized", "from_pose",
@@ -44,37 +45,37 @@ def _varying_inputs(rows):
     return [(k, "temperature (degC)" if k == "temp_c" else k) for k in names if len({x[k] for x in rows}) > 1]
 
 
-def residual_figures(sensor, block, unit):
+def residual_figures(sensor, block, unit) -> tuple[list[str], list[str]]:
+    """(the figures the body's width: against time; those of the grid: against the input direction on the
+    sphere, one map per axis, the outer axis's rate and each varying input)."""
     rows = block["residuals"]
     r, kind = _res(rows)
     ylab = "residual / sigma" if kind == "normalized" else f"residual ({unit})"
     t = np.array([x["t_s"] for x in rows])
-    figs = []
-    fig, ax = plt.subplots(figsize=(8, 3))
+    fig, ax = figure(FULL_IN, 3)
     for j in range(3):
         ax.plot(t, r[:, j], "o-", ms=4, lw=0.8, label=f"{sensor} {AXES[j]}")
     if kind == "normalized":
         ax.axhspan(-2, 2, color="0.9", zorder=0, label="+-2 sigma")
     ax.set(xlabel="time (s)", ylabel=ylab, title=f"{sensor}: residual against time")
     ax.legend(fontsize=8, ncol=4)
-    figs.append(png(fig))
+    full, figs = [png(fig)], list[str]()
     d = np.array([x["direction"] for x in rows])
     lon, lat = np.arctan2(d[:, 1], d[:, 0]), np.arcsin(np.clip(d[:, 2], -1, 1))
     lim = max(np.max(np.abs(r)), 1e-300)
-    fig, axs = plt.subplots(1, 3, figsize=(13, 3.6), subplot_kw={"projection": "mollweide"})
-    for j, ax in enumerate(axs):
+    for j in range(3):  # a map per axis, a cell of the grid each, on one colour scale
+        fig, ax = plt.subplots(figsize=(CELL_IN, 3.6), subplot_kw={"projection": "mollweide"}, layout="constrained")
         sc = ax.scatter(lon, lat, c=r[:, j], cmap="coolwarm", vmin=-lim, vmax=lim, s=60, edgecolors="k")
         ax.set_title(f"{sensor} {AXES[j]} residual vs input direction", pad=12)
         ax.set_xticks(np.radians([-90, 0, 90]), [])  # the grid only: a label inside the map sits under the markers
         ax.set_yticks(np.radians([-60, 0, 60]), ["-60", "0", "60 deg"])  # outside the map, at its left edge
         ax.set_xlabel("longitude from +x, grid every 90 deg")
         ax.grid(True, lw=0.5, alpha=0.5)
-    fig.subplots_adjust(wspace=0.25)
-    fig.colorbar(sc, ax=axs, shrink=0.7, label=ylab)
-    figs.append(png(fig))
+        fig.colorbar(sc, ax=ax, shrink=0.8, label=ylab)
+        figs.append(png(fig))
     rate = np.array([x["outer_rate_dps"] for x in rows])
     if sensor == "gyro" and len(set(rate)) > 1:
-        fig, ax = plt.subplots(figsize=(6, 3))
+        fig, ax = figure(CELL_IN, 3)
         for j in range(3):
             ax.plot(rate, r[:, j], "o", label=AXES[j])
         ax.set(xlabel="outer-axis rate (deg/s)", ylabel=ylab, title="gyro: residual against rate sign and size")
@@ -82,25 +83,25 @@ def residual_figures(sensor, block, unit):
         figs.append(png(fig))
     for name, label in _varying_inputs(rows):  # temperature, a user's column (supply_v, ...)
         x = [row[name] for row in rows]
-        fig, ax = plt.subplots(figsize=(6, 3))
+        fig, ax = figure(CELL_IN, 3)
         for j in range(3):
             ax.plot(x, r[:, j], "o", label=AXES[j])
         ax.set(xlabel=label, ylabel=ylab, title=f"{sensor}: residual against {label}")
         ax.legend(fontsize=8)
         figs.append(png(fig))
-    return figs
+    return full, figs
 
 
 def candidate_figure(sensor, block, n_tested):
     c = [x for x in block["candidates"] if x["separable"]][:12]
     if not c:
         return ""
-    fig, ax = plt.subplots(figsize=(8, 3))
+    fig, ax = figure(FULL_IN, 3)
     colors = ["tab:red" if x.get("significant") else "tab:gray" for x in c]
     ax.barh([x["id"] for x in c][::-1], [x["statistic"] for x in c][::-1], color=colors[::-1])
     from simucal.fit.distributions import chi2_isf
     thr = chi2_isf(0.01 / max(n_tested, 1), 1)
-    ax.axvline(thr, color="k", ls="--", lw=1, label=f"significance threshold ({thr:.1f})")
+    ax.axvline(thr, color="k", ls="--", lw=1, label=f"significance threshold ({eng(thr)})")
     ax.set(xlabel="likelihood-ratio statistic", title=f"{sensor}: which effect is missing (red: significant)")
     ax.legend(fontsize=8)
     return png(fig)
@@ -110,7 +111,7 @@ def before_after_figure(sensor, block, unit):
     a = block["added"]
     r0 = np.sqrt(np.mean(np.array([x["residual"] for x in a["residuals_before"]]) ** 2, axis=0))
     r1 = np.sqrt(np.mean(np.array([x["residual"] for x in block["residuals"]]) ** 2, axis=0))
-    fig, ax = plt.subplots(figsize=(6, 3))
+    fig, ax = figure(CELL_IN, 3)
     x = np.arange(3)
     ax.bar(x - 0.2, r0, 0.4, label="before")
     ax.bar(x + 0.2, r1, 0.4, label="after " + ", ".join(a["effects"]))
@@ -124,24 +125,14 @@ def before_after_figure(sensor, block, unit):
 
 def _table(rows, cols):
     head = "".join(f"<th>{html.escape(c)}</th>" for c in cols)
-    body = "".join("<tr>" + "".join(f"<td>{html.escape(_fmt(r.get(c)))}</td>" for c in cols) + "</tr>" for r in rows)
+    body = "".join("<tr>" + "".join(f"<td>{cell_html(r.get(c))}</td>" for c in cols) + "</tr>" for r in rows)
     return f"<table><tr>{head}</tr>{body}</table>"
-
-
-def _fmt(v):
-    if v is None:
-        return ""
-    if isinstance(v, bool):
-        return "yes" if v else ""
-    if isinstance(v, float):
-        return f"{v:.4g}"
-    return str(v)
 
 
 def stream_figures(stream):
     """The stream with its static intervals shaded."""
     figs = []
-    fig, ax = plt.subplots(figsize=(12, 3))
+    fig, ax = figure(FULL_IN, 3)
     ax.plot(stream["t_s"], stream["acc_norm_g"], lw=0.6, color="k")
     det = stream["static_detection"]
     for k, (a, b) in enumerate(det["intervals_s"]):
@@ -195,16 +186,19 @@ def render(diag: dict) -> str:
             continue
         b = diag[s]
         parts.append(f"<h2>{s}: the evidence</h2>")
-        parts += residual_figures(s, b, units[s])
+        full, small = residual_figures(s, b, units[s])
+        parts += full
+        if b.get("shape"):
+            parts.append(f"<p>{html.escape(b['shape']['text'])}</p>")
+            small.append(shape_figure(s, b["shape"], units[s]))
+        parts.append(grid(small))
         if b.get("moves_skipped"):  # a stream's gyro: the moves left out, and why
             parts.append(_table(b["moves_skipped"], ["from_pose", "to_pose", "t_s", "reason"]))
-        if b.get("shape"):
-            parts.append(shape_figure(s, b["shape"], units[s]))
         tested = [c for c in b["candidates"] if c["separable"]]
         parts.append(candidate_figure(s, b, len(tested)))
         parts += candidate_tables(b["candidates"])
         if "added" in b:
-            parts.append(before_after_figure(s, b, units[s]))
+            parts.append(grid([before_after_figure(s, b, units[s])]))
             shown = param_units_of(b)
             rows = [{"parameter": k, "unit": v.get("unit", shown.get(k)), **v} for k, v in b["added"]["params"].items()]
             parts.append(_table(rows, ["parameter", "unit", "before", "std_before", "after", "std_after", "truth",

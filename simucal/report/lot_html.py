@@ -9,13 +9,14 @@ import html
 import numpy as np
 
 from simucal.report.console import n_units
+from simucal.report.numbers import cell_html, eng_html
 from simucal.report.page import page, plt, png
 
 
 def _figure(group, sensor, limits) -> str:
     rows = [p for p in group["parameters"] if p["name"].startswith(sensor + ".")]
     cols = 3
-    fig, axes = plt.subplots(-(-len(rows) // cols), cols, figsize=(11, 2.4 * -(-len(rows) // cols)), squeeze=False)
+    fig, axes = plt.subplots(-(-len(rows) // cols), cols, figsize=(14.5, 2.4 * -(-len(rows) // cols)), squeeze=False)
     for ax, p in zip(axes.flat, rows):
         x, s = np.asarray(p["values"]), np.asarray(p["stds"])
         i = np.arange(len(x))
@@ -42,7 +43,7 @@ def _figure(group, sensor, limits) -> str:
 
 def _table(head, rows) -> str:
     return ("<table><tr>" + "".join(f"<th>{h}</th>" for h in head) + "</tr>"
-            + "".join("<tr>" + "".join(f"<td>{html.escape(str(c))}</td>" for c in r) + "</tr>" for r in rows)
+            + "".join("<tr>" + "".join(f"<td>{cell_html(c)}</td>" for c in r) + "</tr>" for r in rows)
             + "</table>")
 
 
@@ -65,8 +66,8 @@ def lot_page(report: dict) -> str:
             parts.append(f"<h3>{sensor}</h3>" + _figure(g, sensor, report["limits"]))
         parts.append(_table(
             ["parameter", "unit", "median", "spread (1.4826 MAD)", "spread of units", "median std", "outliers"],
-            [[p["name"], p["unit"], f"{p['centre']:.6g}", f"{p['spread']:.3g}", f"{p['spread_of_units']:.3g}",
-              f"{p['median_std']:.3g}", ", ".join(f"{o['unit']} (z {o['z']:.3g})" for o in p["outliers"])]
+            [[p["name"], p["unit"], eng_html(p["centre"], 6), p["spread"], p["spread_of_units"],
+              p["median_std"], ", ".join(f"{o['unit']} (z {o['z']:.3g})" for o in p["outliers"])]
              for p in g["parameters"]]))
     parts.append("<h2>Units</h2>" + _table(
         ["file", "serial", "status", "model tests", "why"],
@@ -76,6 +77,6 @@ def lot_page(report: dict) -> str:
     if report["drift"]:
         parts.append("<h2>Drift between calibrations of one unit</h2>" + _table(
             ["serial", "earlier", "later", "sensor", "chi2 / dof", "p", "verdict", "largest |drift| / std"],
-            [[d["serial"], d["earlier"], d["later"], s, f"{v['chi2']:.3g} / {v['dof']}", f"{v['p_value']:.2g}",
+            [[d["serial"], d["earlier"], d["later"], s, f"{v['chi2']:.3g} / {v['dof']}", v["p_value"],
               v["verdict"], _largest(d, s)] for d in report["drift"] for s, v in d["sensors"].items()]))
     return page("simucal lot", f"Lot {report['folder']}", verdicts, report["next"], body=parts)

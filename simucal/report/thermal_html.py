@@ -11,7 +11,9 @@ import numpy as np
 
 from simucal.fit.thermal import evaluate
 from simucal.io.calibration import ALPHA, Calibration
-from simucal.report.page import page, plt, png
+from simucal.fit.augmented import AugmentedModel
+from simucal.report.numbers import eng_html
+from simucal.report.page import CELL_IN, figure, grid, page, png
 
 
 def _band(th, name, f, dT):
@@ -28,20 +30,28 @@ def _band(th, name, f, dT):
 
 
 def _figure(sensor, name, f, unit, th):
+    """The polynomial over temperature (above) and, below, its 68 % band about it, each plateau's own estimate
+    less the polynomial beside it: the band is far thinner than the curve's change, so it has an axis of its own."""
     T = np.asarray(th.get("plateaus_c", th.get("temperature_range_c")), float)  # a warm-up has no plateaus
     lo, hi = th.get("temperature_range_c", [T.min(), T.max()])
     grid = np.linspace(lo - 5, hi + 5, 200)
     dT = grid - th["t_ref_c"]
     y, band = evaluate(f["coefficients"], dT), _band(th, name, f, dT)
-    fig, ax = plt.subplots(figsize=(5.2, 3.2))
-    ax.fill_between(grid, y - band, y + band, alpha=0.25, label="fit, 68 %")
-    ax.plot(grid, y, "-", lw=1)
+    fig, (ax, low) = figure(CELL_IN, 4.4, 2, 1, sharex=True, height_ratios=(3, 2))
+    ax.plot(grid, y, "-", lw=1, label="fit")
+    low.fill_between(grid, -band, band, alpha=0.35, label="fit's 68 % band")
+    low.axhline(0.0, color="C0", lw=1)
     if "per_plateau" in f:
         ax.errorbar(T, f["per_plateau"], yerr=f["per_plateau_std"], fmt="o", ms=4, capsize=3,
                     label="each plateau alone")
-    ax.axvspan(lo, hi, color="0.9", zorder=0)
-    ax.set(xlabel="temperature (degC)", ylabel=f"{name} ({unit})", title=f"{sensor} {name}: degree {f['degree']}")
+        low.errorbar(T, np.asarray(f["per_plateau"]) - evaluate(f["coefficients"], T - th["t_ref_c"]),
+                     yerr=f["per_plateau_std"], fmt="o", ms=4, capsize=3, color="C1")
+    for a in (ax, low):
+        a.axvspan(lo, hi, color="0.9", zorder=0)
+    ax.set(ylabel=f"{name} ({unit})", title=f"{sensor} {name}: degree {f['degree']}")
+    low.set(xlabel="temperature (degC)", ylabel="less the fit")
     ax.legend(fontsize=7)
+    low.legend(fontsize=7)
     return png(fig)
 
 
@@ -98,15 +108,28 @@ def thermal_next(cal: Calibration, cal_path: str, validations=()) -> tuple[str, 
             if not validations else ["the validation above does not hold: see its checks"])
 
 
+def _meanings(b) -> dict[str, str]:
+    """Each parameter's meaning, the model's words: theta_ij (an accelerometer's axis, in frame b) and phi_ij (a
+    gyro's, in frame d) both read as "the y ... axis tilted toward x of the parameter frame"."""
+    if b.model == "affine":
+        return {}
+    model = AugmentedModel(b.model, b.library_effects())
+    return dict(zip(model.params, model.meanings))
+
+
 def _table(b) -> str:
-    """Every parameter with its unit and polynomial (a constant says so, not degree 0)."""
+    """Every parameter with its meaning, unit and polynomial (a constant says so, not degree 0), a column per
+    coefficient: every row as long as the highest degree's."""
+    params, meaning = b.thermal["parameters"], _meanings(b)
+    n = max(len(f["coefficients"]) for f in params.values())
     rows = "".join(
-        f"<tr><td>{html.escape(n)}</td><td>{html.escape(b.param_units.get(n, ''))}</td>"
-        f"<td>{f['degree'] or 'constant'}</td>"
-        + "".join(f"<td>{c:.4g} &plusmn; {e:.2g}</td>" for c, e in zip(f["coefficients"], f["std"]))
-        + "</tr>" for n, f in b.thermal["parameters"].items())
-    return ("<table><tr><th>parameter</th><th>unit</th><th>degree</th>"
-            "<th colspan=4>c_0 (at T_ref), c_1, ... per degC^k</th></tr>" + rows + "</table>")
+        f"<tr><td>{html.escape(name)}</td><td>{html.escape(meaning.get(name, ''))}</td>"
+        f"<td>{html.escape(b.param_units.get(name, ''))}</td><td>{f['degree'] or 'constant'}</td>"
+        + "".join(f"<td>{eng_html(c)} &plusmn; {eng_html(e, 2)}</td>" for c, e in zip(f["coefficients"], f["std"]))
+        + "<td></td>" * (n - len(f["coefficients"])) + "</tr>" for name, f in params.items())
+    head = "".join(f"<th>c_{k}" + (" (at T_ref)" if k == 0 else f" (per degC^{k})" if k > 1 else " (per degC)")
+                   + "</th>" for k in range(n))
+    return f"<table><tr><th>parameter</th><th>meaning</th><th>unit</th><th>degree</th>{head}</tr>{rows}</table>"
 
 
 def thermal_page(cal: Calibration, validations=(), cal_path="thermal_calibration.json") -> str:
@@ -121,8 +144,8 @@ def thermal_page(cal: Calibration, validations=(), cal_path="thermal_calibration
     for s, b in cal.blocks():
         if b.thermal is not None:
             parts.append(f"<h2>{s}</h2>")
-            parts += [_figure(s, n, f, b.param_units.get(n, ""), b.thermal)
-                      for n, f in b.thermal["parameters"].items() if f["degree"] > 0]
+            parts.append(grid([_figure(s, n, f, b.param_units.get(n, ""), b.thermal)
+                               for n, f in b.thermal["parameters"].items() if f["degree"] > 0]))
             parts.append(_table(b))
     cmd, notes = thermal_next(cal, cal_path, validations)
     return page("simucal thermal calibration", "Thermal calibration", verdicts, cmd, notes, parts)

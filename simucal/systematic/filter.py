@@ -22,10 +22,10 @@ filter diverged. The passes repeat (calibrate.py) as an iterated extended Kalman
 """
 from __future__ import annotations
 
+import importlib
 from dataclasses import dataclass
 
 import numpy as np
-from numpy.linalg import _umath_linalg
 
 from simucal.fit.aux_inputs import MOTION, motion
 from simucal.fit.rotations import exp_so3, skew
@@ -37,7 +37,7 @@ CHUNK = 256  # epochs whose smoother gains are solved at once (memory: 3 CHUNK n
 SMOOTH_S = 0.1  # the window over which a regressor's inputs are averaged (smoothed)
 # np.linalg.solve's own LAPACK kernel (the same numbers) without its checks, a quarter of its cost on the filter's
 # one 3 x 3 per update: a singular S gives NaN (which calibrate.divergence names) where the checks raised
-lapack_solve = _umath_linalg.solve
+lapack_solve = importlib.import_module("numpy.linalg._umath_linalg").solve  # private, so no stub in every numpy
 
 
 def smoothed(inputs, dt):

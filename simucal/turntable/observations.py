@@ -48,7 +48,7 @@ def segment_observations(ms: io.MeasurementSet, sensor: str, kinds=None, stated=
     {"static", "rate"} the rate runs too, whose centripetal scale w2 lets lever arms show)
     or 'gyro' (rate segments). stated: the noise of one row (g or deg/h) where the data
     cannot give it; default meta's acc_noise_g / gyro_noise_dph. curve: the std of a mean
-    over tau seconds (allan.load_curves, `calibrate --noise`), which then gives every
+    over tau seconds (fit/noise.load_curves, `calibrate --noise`), which then gives every
     segment's noise at its length: with bias instability a long mean is noisier than its
     rows' scatter over sqrt(n) says. The segments one after the other: on two threads a segment's
     many short numpy calls wait on each other for the GIL (the 400 Hz set's 9,140-row segments took
