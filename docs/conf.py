@@ -23,4 +23,5 @@ html_theme_options = {"description": "strapdown IMU calibration", "font_family":
                       "head_font_family": "sans-serif",
                       # alabaster's 940 px page left code a 660 px column: 1280 px screens get 1240
                       "page_width": "min(1240px, 100%)", "body_max_width": "none"}
-html_static_path = []
+html_static_path = ["_static"]
+html_css_files = ["simucal.css"]  # code blocks that fit the column (the file says how)

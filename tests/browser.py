@@ -8,6 +8,9 @@ that selenium-manager downloads nothing), each page rendered at a width and meas
   their marks is tests/page_layout.py's, where matplotlib says where it drew each);
 - figures using the width they have: each at least FILL of its column's width, none wider than it, and the
   page no wider than the window (a wide table scrolls inside itself).
+
+The docs site's pages (tests/test_docs.py) are read the same way for one thing, WIDE: no code block or table
+wider than its text column.
 """
 from __future__ import annotations
 
@@ -90,18 +93,49 @@ return out;
 """ % {"touch": TOUCH_PX, "fill": FILL}
 
 
+# The code blocks and tables wider than their text column (a Sphinx page's div.body, less its padding; the
+# page's body elsewhere): scrolled sideways inside themselves or reaching past the column's right edge. A block
+# inside one already named is not named again (a div.highlight's pre).
+WIDE = r"""
+const out = [], named = [], T = %(touch)s;
+document.querySelectorAll('pre, div.highlight, table').forEach(e => {
+  if (!e.checkVisibility() || named.some(n => n.contains(e))) return;
+  const column = e.closest('div.body') || document.body, s = getComputedStyle(column);
+  const right = column.getBoundingClientRect().right - parseFloat(s.paddingRight);
+  const past = Math.max(e.scrollWidth - e.clientWidth, e.getBoundingClientRect().right - right);
+  if (past > T) {
+    named.push(e);
+    const kind = e.tagName === 'TABLE' ? 'table' : 'code block';
+    out.push(`the ${kind} '${e.textContent.trim().split('\n')[0].trim().slice(0, 60)}' is ${Math.round(past)} px wider than its column`);
+  }
+});
+return out;
+""" % {"touch": TOUCH_PX}
+
+
+def window(driver, width: int, height: int = 900) -> None:
+    """The window's size in CSS px, one device pixel each, as a desktop's."""
+    driver.execute_cdp_cmd("Emulation.setDeviceMetricsOverride",
+                           {"width": width, "height": height, "deviceScaleFactor": 1, "mobile": False})
+
+
 def page_problems(driver, page: str, width: int, folder: Path, shot: str | None = None) -> list[str]:
     """The problems (CHECKS) of the page's HTML rendered `width` CSS px wide, a screenshot of the whole page
     saved as folder/shot where named."""
     path = folder / "page.html"
     path.write_text(page, encoding="utf-8")
-    driver.execute_cdp_cmd("Emulation.setDeviceMetricsOverride",
-                           {"width": width, "height": 900, "deviceScaleFactor": 1, "mobile": False})
+    window(driver, width)
     driver.get(path.as_uri())
     problems = driver.execute_script(CHECKS)
     if shot:
-        height = driver.execute_script("return document.documentElement.scrollHeight")
-        driver.execute_cdp_cmd("Emulation.setDeviceMetricsOverride",
-                               {"width": width, "height": min(height, 16000), "deviceScaleFactor": 1, "mobile": False})
+        window(driver, width, min(driver.execute_script("return document.documentElement.scrollHeight"), 16000))
         driver.save_screenshot(str(folder / shot))
     return problems
+
+
+def wide_blocks(driver, path: Path, width: int) -> list[str]:
+    """The code blocks and tables (WIDE) of the HTML file at path, opened where it lies (its stylesheets
+    beside it) in a window `width` CSS px wide, wider than their text column; each named by its first line."""
+    window(driver, width)
+    driver.get(path.as_uri())
+    return driver.execute_script(WIDE)

@@ -132,8 +132,8 @@ def test_command_line_constants_are_the_api_s():
     from simucal.turntable.simulate import ARCMIN, Scenario, at_temperature
     shown = {(c, p.name): getattr(p, "show_default", None) for c, cmd in main.commands.items() for p in cmd.params}
     detect = DetectSettings()
-    for name, value in (("threshold_factor", detect.factor), ("window_s", detect.window_s),
-                        ("min_static_s", detect.min_s), ("heading_accuracy_deg", methods.DEFAULTS["heading_accuracy_deg"])):
+    for name, value in (("threshold_factor", detect.threshold_factor), ("window_s", detect.window_s),
+                        ("min_static_s", detect.min_static_s), ("heading_accuracy_deg", methods.DEFAULTS["heading_accuracy_deg"])):
         assert float(shown[("calibrate", name)]) == value, name
     assert float(shown[("simulate", "heading_error_deg")]) == FieldScenario().heading_error_deg
     table, temperature = Scenario(), inspect.signature(at_temperature).parameters
@@ -153,6 +153,38 @@ def test_command_line_constants_are_the_api_s():
     assert cli_tools.PAPER_RATE_DPS == planning.PAPER_RATE_DPS
     assert (cli_sets.FORMATS, cli_sets.FERRARIS_HZ, cli_sets.ANNOTATED_HZ, cli_sets.ANNOTATED_ACC, cli_sets.ANNOTATED_GYRO) \
         == (imports.FORMATS, imports.FERRARIS_HZ, imports.ANNOTATED_HZ, imports.ANNOTATED_ACC, imports.ANNOTATED_GYRO)
+
+
+# what each command calls (beside its options' own use of them)
+API_OF = {"calibrate": ("calibrate", "calibrate_each"), "diagnose": ("diagnose",), "validate": ("validate",),
+          "noise": ("noise",), "simulate": ("simulate",), "montecarlo": ("montecarlo",), "lot": ("lot",),
+          "plan": ("plan", "sequence_observability", "design_sequence"), "import": ("import_recording",),
+          "convert": ("convert",)}
+# the options that say what the command line does with a result, which Python does by itself
+CLI_ONLY = {"output", "out_dir", "html", "units", "kalibr", "px4", "ardupilot", "store", "force",
+            "design",     # plan --design: design_sequence is a function of its own
+            "scenario"}   # montecarlo --scenario: the paper's only
+
+
+def test_every_option_is_the_api_keyword_of_the_same_name():
+    """`--thermal-degree` is `thermal_degree=`, `--threshold-factor` DetectSettings' `threshold_factor`: a
+    repeated option is the keyword's plural, `--no-X` is X=False; every other name is one in both."""
+    import dataclasses
+    import typing
+
+    kwargs = set(typing.get_type_hints(simucal.CalibrateOptions)) | {f.name for f in dataclasses.fields(simucal.DetectSettings)}
+    unmatched = {}
+    for command, functions in API_OF.items():
+        keywords = set().union(*(inspect.signature(getattr(simucal, f)).parameters for f in functions))
+        keywords |= kwargs if command == "calibrate" else set()
+        for option in main.commands[command].params:
+            if option.param_type_name != "option" or option.hidden:
+                continue
+            names = {o[2:].replace("-", "_") for o in option.opts if o.startswith("--")}
+            names |= {n + "s" for n in names if option.multiple} | {n[3:] for n in names if n.startswith("no_")}
+            if not names & (keywords | CLI_ONLY):
+                unmatched.setdefault(command, []).append(max(option.opts, key=len))
+    assert not unmatched, unmatched
 
 
 @pytest.mark.slow

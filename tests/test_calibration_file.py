@@ -222,7 +222,7 @@ def test_what_plan_and_montecarlo_return_and_what_sets_state_is_declared(tmp_pat
                                     sizes=[1e-4, 1e-4]), results.PlanScore, "plan") == []
     assert _undeclared(simucal.plan(positions=12, model="gyro_baseline", rates_dps=[10, 20]), results.PlanScore,
                        "design") == []
-    assert _undeclared(simucal.plan(positions=12, kind="hand"), results.PlanScore, "hand") == []
+    assert _undeclared(simucal.plan(positions=12, table="hand"), results.PlanScore, "hand") == []
     assert _undeclared(simucal.montecarlo(trials=20), results.MonteCarlo, "montecarlo") == []
     ferraris = Path(__file__).resolve().parents[2] / "shared" / "data" / "imucal-ferraris"
     import_ferraris_sections(ferraris / "example_ferraris_session.csv", ferraris / "example_ferraris_session_list.json",

@@ -262,7 +262,7 @@ def test_stream_with_no_long_enough_static_interval_is_refused(tmp_path):
     write_handheld(tmp_path / "h", HandheldScenario(poses=8, rest_s=5.0), 0)
     ms = io.read_set(tmp_path / "h")
     with pytest.raises(CalibrationError, match="no static interval of at least 15 s found"):
-        detect_static(ms.acc_g(), ms.samples["t_s"], DetectSettings(min_s=15.0))
+        detect_static(ms.acc_g(), ms.samples["t_s"], DetectSettings(min_static_s=15.0))
 
 
 def _direction_error_rad(tmp_path, acc_effects, add):

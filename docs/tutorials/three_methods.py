@@ -16,7 +16,8 @@ import simucal
 ms = simucal.simulate(seed=1)
 
 # 2. Calibrate it three ways. Each method fits its own parameters (dK_x, theta_yx, b_x; or M_xx, bias_x).
-methods: tuple[Literal["exact", "linear", "multiposition"], ...] = ("exact", "linear", "multiposition")  # method= is checked
+# method= is checked
+methods: tuple[Literal["exact", "linear", "multiposition"], ...] = ("exact", "linear", "multiposition")
 cals: dict[str, simucal.Calibration] = {m: simucal.calibrate(ms, method=m) for m in methods}
 for m, cal in cals.items():
     acc = cal.sensor("acc")  # never None: a calibration without an accelerometer block says why

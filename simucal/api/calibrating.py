@@ -61,7 +61,7 @@ def calibrate(data: Data | Sequence[Data], **options: Unpack[CalibrateOptions]) 
         A stream's clock: the recorded time stamps, or the even clock of their median step.
     thermal : bool
         One set whose temperature ramps calibrated over temperature (a list of sets always is).
-    degree : int, optional
+    thermal_degree : int, optional
         The thermal polynomials' degree, 0-3 (`--thermal-degree`; default chosen by the data).
 
     Returns
@@ -196,7 +196,7 @@ def _still_warmup(folders, degree, kwargs):
     return ms
 
 
-def calibrate_thermal(folders, degree=None, t_ref_c=None, **kwargs) -> calibration.Calibration:
+def calibrate_thermal(folders, thermal_degree=None, t_ref_c=None, **kwargs) -> calibration.Calibration:
     """One unit at two or more temperature plateaus (one set each), or one set whose temperature
     ramps. A turntable unit (method exact) is fitted once, every row at its own temp_c, with every
     parameter of the model a polynomial in (T - T_ref) inside the model, each parameter's degree
@@ -208,12 +208,12 @@ def calibrate_thermal(folders, degree=None, t_ref_c=None, **kwargs) -> calibrati
     from simucal.fit.thermal_plateaus import refuse_thermal_options
     if not folders:
         raise CalibrationError("--thermal needs a set whose temperature ramps, or two or more plateaus")
-    refuse_thermal_options(folders, degree, kwargs.get("add", ()))
+    refuse_thermal_options(folders, thermal_degree, kwargs.get("add", ()))
     from threadpoolctl import threadpool_limits
     # one BLAS thread: the QRs and solves here are small, and OpenBLAS's threads spinning against each other
     # (or against another process) made one run 0.66-7.7 s
     with threadpool_limits(1, "blas"):
-        return _calibrate_thermal(folders, degree, t_ref_c, kwargs)
+        return _calibrate_thermal(folders, thermal_degree, t_ref_c, kwargs)
 
 
 def _calibrate_thermal(folders, degree, t_ref_c, kwargs) -> calibration.Calibration:

@@ -14,7 +14,7 @@ import json
 import os
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import NamedTuple, Sequence
+from typing import Any, NamedTuple, Sequence
 
 import numpy as np
 
@@ -323,7 +323,7 @@ def _diagnose(ms, folder, add, acc_model, gyro_model, acc_noise_g, gyro_noise_dp
     acc_model, gyro_model, ids = resolve_add(add, acc_model, gyro_model)
     truth = scoring_truth(folder / "truth.json")
     kind = methods.kind_of(ms)
-    result = {"format": "simucal.diagnosis/1", "input": str(folder), "alpha": ALPHA}
+    result: dict[str, Any] = {"format": "simucal.diagnosis/1", "input": str(folder), "alpha": ALPHA}
     if kind.diagnose_both is not None:  # both sensors in one (a sequence's filter)
         added = tuple(add) if add else ()
         result.update(kind.diagnose_both(ms, acc_model, gyro_model, ids, truth, (before["acc"], before["gyro"]), added))

@@ -57,7 +57,7 @@ def calibrate_instances(data: Sequence[Data], **options: Unpack[CalibrateOptions
     data : sequence of paths or MeasurementSets
         Every IMU's sets, e.g. those `import_instances` wrote; the sets of one IMU are one unit's plateaus.
     **options
-        As `calibrate`'s with ``thermal=True`` (``degree``, ``t_ref_c``, ...).
+        As `calibrate`'s with ``thermal=True`` (``thermal_degree``, ``t_ref_c``, ...).
 
     Returns
     -------

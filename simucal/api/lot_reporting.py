@@ -126,7 +126,9 @@ def _group(names, cals) -> dict:
 def _by_serial(cals):
     """The calibration each unit enters the lot with (its last by file name), the earlier ones, and the
     drift between each unit's consecutive calibrations."""
-    last, earlier, drifts = {}, [], []
+    last: dict[tuple[str, object], tuple[str, Calibration]] = {}
+    earlier: list[str] = []
+    drifts: list[dict] = []
     for i, (name, cal) in enumerate(cals):
         serial = cal.layout.get(SERIAL)  # one unit in one group: another method's calibration is no drift
         key = (_group_key(cal), serial) if serial is not None else ("file", i)

@@ -29,4 +29,4 @@ class CalibrateOptions(TypedDict, total=False):
     detect: DetectSettings | None         # a stream's static detection
     timestamps: Literal["auto", "recorded", "nominal"]  # a stream's clock
     thermal: bool                         # --thermal: one set whose temperature ramps
-    degree: int | None                    # --thermal-degree
+    thermal_degree: int | None            # --thermal-degree

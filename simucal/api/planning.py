@@ -24,8 +24,8 @@ def model_sensor(model: str, add: Sequence[str] = ()) -> str:
 @checked
 def plan(score: str | None = None, *, positions: int | None = None, model: str = "acc_baseline",
          add: Sequence[str] = (), criterion: str = "D", rates_dps: Sequence[float] | None = None,
-         noise: float | None = None, kind: str = "three-axis", separate: Sequence[str] | None = None,
-         sizes: Sequence[float] | None = None, power: float = 0.9) -> results.PlanScore:
+         acc_noise_g: float | None = None, gyro_noise_dph: float | None = None, table: str = "three-axis",
+         separate: Sequence[str] | None = None, sizes: Sequence[float] | None = None, power: float = 0.9) -> results.PlanScore:
     """Score a plan, or design one, for a model.
 
     Parameters
@@ -38,9 +38,9 @@ def plan(score: str | None = None, *, positions: int | None = None, model: str =
         The model scored (a built-in's name or a derived model file's) and effect ids added to it.
     rates_dps : sequence of float, optional
         Gyro models: the rate runs' outer-axis rate (a score: one; a design: the rates to choose from); default 10.
-    noise : float, optional
-        The noise of one position's mean in the model's unit (default section 4's: 1e-5 g, 0.01 deg/h).
-    kind : str
+    acc_noise_g, gyro_noise_dph : float, optional
+        The noise of one position's mean, g or deg/h: the model's sensor's (default section 4's: 1e-5 g, 0.01 deg/h).
+    table : str
         A design's table: "three-axis" (angles) or "hand" (poses as gravity directions in the unit).
     separate, sizes, power :
         With `score`: two effect ids, their expected sizes, and the power to reach: the positions to add so that
@@ -67,7 +67,7 @@ def plan(score: str | None = None, *, positions: int | None = None, model: str =
         raise InputError("give --score PLAN to score a plan, or --positions N to design one")
     m = AugmentedModel(model, tuple(add))
     gyro = m.sensor == "gyro"
-    sigma = noise or PAPER_NOISE[m.sensor]
+    sigma = _noise(model, gyro, acc_noise_g, gyro_noise_dph)
     rate_list = list(rates_dps) if rates_dps else [PAPER_RATE_DPS]
     if gyro and score is not None and len(rate_list) > 1:
         raise InputError(f"--rates-dps {','.join(f'{r:g}' for r in rate_list)}: a score takes one rate (its rate "
@@ -84,7 +84,7 @@ def plan(score: str | None = None, *, positions: int | None = None, model: str =
     result: results.PlanScore = {"plan": name, "model": m.name, "unit": m.unit, "noise": sigma, "rates_dps": rates}
     result.update(score_of(m, u, rho, sigma, f"plan {score}: " if score is not None else ""))
     if positions is not None:
-        if kind == "hand":  # a pose is where gravity (or the turn axis) points in the unit's own axes
+        if table == "hand":  # a pose is where gravity (or the turn axis) points in the unit's own axes
             result["rows"], result["columns"] = [[i + 1, *map(float, d)] for i, d in enumerate(u)], "pose,f_x,f_y,f_z"
         else:
             result["rows"] = [list(r) for r in plan_rows(u, np.asarray(rho) / DPH_PER_DPS if gyro else None)]
@@ -92,6 +92,15 @@ def plan(score: str | None = None, *, positions: int | None = None, model: str =
     if separate:
         result["separation"] = _separation(m, separate, sizes, score, u, rho, sigma, power)
     return result
+
+
+def _noise(model, gyro, acc_noise_g, gyro_noise_dph) -> float:
+    """The noise of one position's mean for the model's sensor (the other sensor's refused), else section 4's."""
+    wrong = acc_noise_g if gyro else gyro_noise_dph
+    if wrong is not None:
+        raise InputError(f"{'--acc-noise-g' if gyro else '--gyro-noise-dph'} {wrong:g}: model {model} is a "
+                         f"{'gyro' if gyro else 'acc'} model; give {'--gyro-noise-dph' if gyro else '--acc-noise-g'}")
+    return (gyro_noise_dph if gyro else acc_noise_g) or PAPER_NOISE["gyro" if gyro else "acc"]
 
 
 def _separation(model, pair, sizes, score, u, rho, sigma, target) -> results.Separation:
@@ -153,7 +162,9 @@ def sequence_observability(sequence: str, *, model: str = "acc_baseline", add: S
     rest_n = float(np.median([len(ms.rows(s.segment)) for s in ms.segments or [] if s.kind == "static"]))
     noise = {"acc": acc_noise_g or max(n["acc_g"]) / rest_n ** 0.5,
              "gyro": gyro_noise_dph or max(n["gyro_dph"]) / rest_n ** 0.5}
-    crlb = {s: plan(plan_name, model=models[s], add=for_sensor(tuple(add), s), rates_dps=rates_dps, noise=noise[s])
+    crlb = {s: plan(plan_name, model=models[s], add=for_sensor(tuple(add), s), rates_dps=rates_dps,
+                  acc_noise_g=noise["acc"] if s == "acc" else None,
+                  gyro_noise_dph=noise["gyro"] if s == "gyro" else None)
             for s in ("acc", "gyro")}
     assert ms.truth is not None  # a simulated set's
     return {"sequence": ms.truth["sequence"], "models": models, "add": list(add), "observability": obs, "norm": crlb,
@@ -162,8 +173,8 @@ def sequence_observability(sequence: str, *, model: str = "acc_baseline", add: S
 
 @checked
 def design_sequence(minutes: float = 10.0, *, reference: str = "psins19", reference_minutes: float | None = None,
-                    unit: str | None = None, acc_noise_g: float | None = None, gyro_noise_dph: float | None = None,
-                    rate_dps: float = 60.0, evaluations: int = 600, seed: int = 0,
+                    calibration: str | None = None, acc_noise_g: float | None = None,
+                    gyro_noise_dph: float | None = None, table_rate_dps: float = 60.0, evaluations: int = 600, seed: int = 0,
                     progress: Any = None) -> results.SequenceDesign:
     """A rotation sequence designed for a unit and a table time (`simucal plan --sequence REF --design`;
     turntable/sequence_design.py): its moves and rests chosen to minimise the worst parameter std relative to the
@@ -178,12 +189,12 @@ def design_sequence(minutes: float = 10.0, *, reference: str = "psins19", refere
         each parameter's smallest std over the built-ins.
     reference_minutes : float, optional
         The reference's table time (its rests scaled to fit it), min; default `minutes`.
-    unit : str, optional
+    calibration : str, optional
         A calibration file: the unit's baseline parameters and white noise per sample (default: the
         simulator's default unit).
     acc_noise_g, gyro_noise_dph : float, optional
         The unit's noise per sample at 100 Hz (over the file's).
-    rate_dps : float
+    table_rate_dps : float
         The table's rate for the moves, deg/s (its acceleration is sequence.ACCEL_DPS2).
     evaluations, seed :
         The filter passes the search may spend, and the seed of its random changes.
@@ -205,25 +216,25 @@ def design_sequence(minutes: float = 10.0, *, reference: str = "psins19", refere
     from simucal.turntable.simulate import unit_from_calibration
     if not 0 < minutes <= seq.MAX_REST_S / 60:
         raise InputError(f"--minutes {minutes:g}: give a table time of 0 < minutes <= {seq.MAX_REST_S / 60:g}")
-    if not 0 < rate_dps <= seq.MAX_RATE_DPS:
-        raise InputError(f"--rate-dps {rate_dps:g}: give the table's rate, 0 < rate <= {seq.MAX_RATE_DPS:g} deg/s")
+    if not 0 < table_rate_dps <= seq.MAX_RATE_DPS:
+        raise InputError(f"--table-rate-dps {table_rate_dps:g}: give the table's rate, 0 < rate <= {seq.MAX_RATE_DPS:g} deg/s")
     if evaluations < len(seq.SEQUENCES):
         raise InputError(f"--evaluations {evaluations}: at least {len(seq.SEQUENCES)} (the built-ins are scored first)")
     ref_minutes = minutes if reference_minutes is None else reference_minutes
     if not 0 < ref_minutes <= seq.MAX_REST_S / 60:
         raise InputError(f"--reference-minutes {ref_minutes:g}: give 0 < minutes <= {seq.MAX_REST_S / 60:g}")
-    sc, said = unit_from_calibration(unit, acc_noise_g, gyro_noise_dph)
+    sc, said = unit_from_calibration(calibration, acc_noise_g, gyro_noise_dph)
     name, ref_steps, rows = reference_stds(sc, reference, ref_minutes)
     target = np.array([r["std"] for r in rows])
     found = design.design(lambda steps: np.array([r["std"] for r in sequence_stds(sc, steps)]), minutes, target,
-                          rate_dps, evaluations, seed, progress)
+                          table_rate_dps, evaluations, seed, progress)
     best = found.best
     ratio = best.std / target
     record: list[results.Designed] = [{"sensor": r["sensor"], "parameter": r["parameter"], "unit": r["unit"], "std": float(s),
                "target": float(t), "ratio": float(q)} for r, s, t, q in zip(rows, best.std, target, ratio)]
     rate_hz = float(sc.rate_hz or seq.DEFAULT_RATE_HZ)
     return {"sequence": {"name": "designed", "rate_hz": rate_hz, "steps": _steps_record(best.steps)},
-            "minutes": float(minutes), "rate_dps": float(rate_dps),
+            "minutes": float(minutes), "rate_dps": float(table_rate_dps),
             "reference": {"name": name, "steps": _steps_record(ref_steps)}, "reference_minutes": float(ref_minutes),
             "parameters": record, "worst_ratio": best.worst,
             "worst_parameter": f"{rows[best.worst_at]['sensor']} {rows[best.worst_at]['parameter']}",

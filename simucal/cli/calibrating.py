@@ -93,7 +93,7 @@ def calibrate(data_dirs, output, thermal, thermal_degree, html_out, px4, ardupil
     continuous stream from a hand-placed session (static poses found from the data; Tedaldi).
     With heading_ref_deg and no table angles: a field set (ruan2019's gyro drift)."""
     from simucal.api import DetectSettings
-    stream = dict(window_s=window_s, factor=threshold_factor, min_s=min_static_s, init_rest_s=init_rest_s,
+    stream = dict(window_s=window_s, threshold_factor=threshold_factor, min_static_s=min_static_s, init_rest_s=init_rest_s,
                   gyro_limit_dps=gyro_limit_dps)
     detect = DetectSettings(**{k: v for k, v in stream.items() if v is not None}) if any(
         v is not None for v in stream.values()) else None  # given only where set: other data refuse them
@@ -138,6 +138,7 @@ def _calibrate_batch(data_dirs, output, kwargs, inputs, scheduler, store_url=Non
         if d.error:
             click.echo(f"{d.data}: error: {d.error}", err=True)
         else:
+            assert d.calibration is not None  # set where not refused
             tests = ", ".join(f"{k} p = {b.p_value:.3g}" + (": THE MODEL FAILS" if b.verdict == "fails" else "")
                               for k, b in d.calibration.blocks() if b.p_value is not None)
             click.echo(f"{d.data}: wrote {d.output}" + (f" ({tests})" if tests else ""))
@@ -158,7 +159,7 @@ def _calibrate_thermal(data_dirs, output, degree, t_ref_c, kwargs, inputs, html_
         return _calibrate_instances(data_dirs, output, degree, t_ref_c, kwargs, inputs, html_out, autopilot_out, units)
     from simucal.io import outputs
     guard(inputs, files={"-o": output, "--html": html_out, "--px4": autopilot_out[0], "--ardupilot": autopilot_out[1]})
-    result = api.calibrate([Path(d) for d in data_dirs], degree=degree, t_ref_c=t_ref_c, **kwargs)
+    result = api.calibrate([Path(d) for d in data_dirs], thermal_degree=degree, t_ref_c=t_ref_c, **kwargs)
     exported = result.autopilot_files(data_dirs[0], px4=autopilot_out[0], ardupilot=autopilot_out[1])
     api.save(output, result)
     from simucal.report.console import calibration_lines
@@ -172,6 +173,7 @@ def _calibrate_thermal(data_dirs, output, degree, t_ref_c, kwargs, inputs, html_
         for w in f.warnings:
             click.echo(f"WARNING: {w}")
         click.echo(f"wrote {f.path}: {f.note}")
+    assert result.temperature_range_c is not None  # a thermal calibration's
     lo, hi = result.temperature_range_c
     click.echo(f"wrote {output} (method {result.method}; calibrated from {lo:.4g} to {hi:.4g} degC)")
 
@@ -200,7 +202,7 @@ def _calibrate_instances(data_dirs, output, degree, t_ref_c, kwargs, inputs, htm
     named = {f"-o ({n})": _instance_path(output, n) for n in instances}
     named.update({f"--html ({n})": _instance_path(html_out, n) for n in instances if html_out})
     guard(inputs, files={**named, "--px4": autopilot_out[0], "--ardupilot": autopilot_out[1]})
-    imus = api.calibrate_instances([Path(d) for d in data_dirs], degree=degree, t_ref_c=t_ref_c, **kwargs)
+    imus = api.calibrate_instances([Path(d) for d in data_dirs], thermal_degree=degree, t_ref_c=t_ref_c, **kwargs)
     exported = api.autopilot_files(imus, px4=autopilot_out[0], ardupilot=autopilot_out[1])
     for u in imus:
         path = _instance_path(output, u.instance)
@@ -210,6 +212,7 @@ def _calibrate_instances(data_dirs, output, degree, t_ref_c, kwargs, inputs, htm
         if html_out:
             api.save(_instance_path(html_out, u.instance), u.calibration, calibration_path=path, units=units)
             click.echo(f"wrote {_instance_path(html_out, u.instance)}")
+        assert u.calibration.temperature_range_c is not None  # a thermal calibration's
         lo, hi = u.calibration.temperature_range_c
         click.echo(f"wrote {path} (instance {u.instance}, {', '.join(u.sets)}; calibrated from {lo:.4g} to {hi:.4g} degC)")
     for f in exported:

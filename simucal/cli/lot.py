@@ -37,13 +37,13 @@ def lot(cal_folder, output, html_path, limits_path, store_url, since, until, mod
                      station=station)
     outputs.write_text(output, json.dumps(report, indent=1) + "\n")
     from simucal.report.units import lot_in
-    report = lot_in(report, units)  # what is printed and paged; the file in the spec's units
+    shown = lot_in(report, units)  # what is printed and paged; the file in the spec's units
     if html_path:
         from simucal.report.lot_html import lot_page
-        outputs.write_text(html_path, lot_page(report))
-    for line in report["verdict"]:
+        outputs.write_text(html_path, lot_page(shown))
+    for line in shown["verdict"]:
         click.echo(line)
-    for d in report["drift"]:
+    for d in shown["drift"]:
         click.echo(f"{d['serial']}: {d['earlier']} -> {d['later']}: " + ", ".join(
             f"{s} {v['verdict']} (chi2 {v['chi2']:.3g} on {v['dof']}, p = {v['p_value']:.2g})"
             for s, v in d["sensors"].items()))

@@ -200,8 +200,8 @@ def _plan_sequence(sequence, model_name, add, score_plan, rates, acc_noise_g, gy
     else:
         click.echo(f"every parameter observed (the largest std {max(x['ratio'] for x in obs['parameters']):.2g} of its prior)")
     if output:
-        outputs.write_text(output, json.dumps({k: r[k] for k in ("sequence", "models", "add", "observability", "norm")},
-                                              indent=1, default=float) + "\n")
+        kept = {"sequence": r["sequence"], "models": models, "add": r["add"], "observability": obs, "norm": crlb}
+        outputs.write_text(output, json.dumps(kept, indent=1, default=float) + "\n")
         click.echo(f"wrote {output}")
 
 
@@ -216,8 +216,8 @@ def _design_sequence(reference, minutes, reference_minutes, unit_file, acc_noise
     out = Path(output or "sequence.csv")
     guard([p for p in (reference, unit_file) if p and Path(p).exists()],
           files={"-o": str(out), "the sequence's JSON sidecar": str(out.with_suffix(".json"))})
-    r = api.design_sequence(minutes, reference=reference, reference_minutes=reference_minutes, unit=unit_file,
-                            acc_noise_g=acc_noise_g, gyro_noise_dph=gyro_noise_dph, rate_dps=rate_dps,
+    r = api.design_sequence(minutes, reference=reference, reference_minutes=reference_minutes, calibration=unit_file,
+                            acc_noise_g=acc_noise_g, gyro_noise_dph=gyro_noise_dph, table_rate_dps=rate_dps,
                             evaluations=evaluations, progress=progress.bar("designing the sequence", "round"))
     steps = r["sequence"]["steps"]
     click.echo(f"designed: {len(steps)} moves at {r['rate_dps']:g} deg/s in {r['minutes']:g} min for {r['unit']} "
@@ -336,15 +336,12 @@ def plan(score_plan, model_name, add, positions, criterion, rate_dps, rates, kin
         guard(files=["plan.csv", "plan.json"])
     from simucal.api.planning import model_sensor
     gyro = model_sensor(model_name, add) == "gyro"
-    wrong = acc_noise_g if gyro else gyro_noise_dph
-    if wrong is not None:
-        raise InputError(f"{'--acc-noise-g' if gyro else '--gyro-noise-dph'} {wrong:g}: model {model_name} is a "
-                         f"{'gyro' if gyro else 'acc'} model; give {'--gyro-noise-dph' if gyro else '--acc-noise-g'}")
     if not gyro:
         refuse_unused({"rate_dps": "gyro models (rate runs)", "rates": "gyro models (rate runs)"})
     result = api.plan(score_plan, positions=positions, model=model_name, add=add, criterion=criterion,
                       rates_dps=None if rates is None and rate_dps is None else rates_dps(rates or repr(rate_dps)),
-                      noise=sigma or (gyro_noise_dph if gyro else acc_noise_g), kind=kind,
+                      acc_noise_g=sigma if sigma and not gyro else acc_noise_g,
+                      gyro_noise_dph=sigma if sigma and gyro else gyro_noise_dph, table=kind,
                       separate=pair.split(",") if pair else None,
                       sizes=_numbers("--sizes", sizes) if sizes else None, power=target)
     if rate_dps is not None:  # after the refusals, which are one line

@@ -78,7 +78,7 @@ def _ramp(y, m):
     y = np.asarray(y, dtype=float)
     on = y >= 2 * m - 1
     y_low = np.where(on, 0.0, y)  # the cubics only where they are of the size of the result
-    cubic = 0.0
+    cubic: np.ndarray | float = 0.0
     for s, weight in _SECOND_DIFFERENCE:
         z = y_low - s * m
         cubic = cubic + weight * np.where(z >= -1, (z + 1) * (z + 2) * (z + 3) / 6.0, 0.0)

@@ -169,7 +169,7 @@ class Pass:
     def close(self):
         for th in self.theta.values():
             th.close()
-        steps, self.steps = np.concatenate(self.steps), None
+        steps, self.steps = np.concatenate(self.steps), []  # the parts let go
         return steps
 
 

@@ -93,7 +93,8 @@ class NormProblem:
                            p0=np.r_[fit.vector(model.params), 0.0])
         except CalibrationError as e:
             return f"augmented fit failed: {e}"
-        if f1.chi2 is not None:
+        p: float | None
+        if f1.chi2 is not None and fit.chi2 is not None:  # both or neither: the same rows' noise
             stat = max(fit.chi2 - f1.chi2, 0.0)
             p, daic = float(chi2_sf(stat, 1)), stat - 2.0
         else:  # unknown noise: F test on the residual sums of squares

@@ -119,6 +119,11 @@ class _Prior:
             g[:, self.held] += self.weight * (p[:, self.held] - self.value)
 
 
+def _view(sub: np.ndarray, n: int) -> slice | np.ndarray:
+    """The indices sub of n sets, or a slice where they are all of them (a view: no copies)."""
+    return slice(None) if len(sub) == n else sub
+
+
 def fit_batch(model, N, rho, sig, p0, aux=None, max_iter=200, tol=1e-12, prior=None):
     """The Levenberg-Marquardt loop of fit_exact for S sets (module doc): N, sig (S, n, 3), rho (S, n), p0 (S, m);
     aux per row, shared by the sets (arrays (n,)) or each set's (arrays (S, n)); prior {parameter: (value, std)}. Returns p (S, m), u (S, n, 3), cost
@@ -141,7 +146,7 @@ def fit_batch(model, N, rho, sig, p0, aux=None, max_iter=200, tol=1e-12, prior=N
         if not len(idx):
             break
         iters[idx] = it
-        I = slice(None) if len(idx) == S else idx  # a view where every set is active: no copies
+        I = _view(idx, S)
         r, H, g, Ainv, Bm, gd, E = schur(*row_blocks(model, N[I], rho[I], sig[I], p[I], u[I], _sets(aux, I)))
         pr.add(H, g, p[idx])
         H_last[idx] = H
@@ -170,7 +175,7 @@ def fit_batch(model, N, rho, sig, p0, aux=None, max_iter=200, tol=1e-12, prior=N
                 k = np.nonzero(need)[0]
                 if not len(k):
                     break
-            K, IK = (slice(None), I) if len(k) == len(idx) else (k, idx[k])
+            K, IK = _view(k, len(idx)), _view(idx[k], S)
             dd = -(Ainv[K] @ (gd[K] + (Bm[K] @ dp[K][:, None, :, None])[..., 0])[..., None])[..., 0]
             pk = p[IK] + dp[K]
             v = u[IK] + (E[K] @ dd[..., None])[..., 0]

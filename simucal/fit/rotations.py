@@ -17,6 +17,8 @@ def skew(v):
 def exp_so3(v):
     """Rotation matrix exp([v x]) for rotation vectors v (..., 3), safe at 0."""
     v = np.asarray(v, float)
+    s: float | np.ndarray  # sin(a) / a and (1 - cos(a)) / a^2: floats for one vector, else arrays
+    c: float | np.ndarray
     if v.ndim == 1:  # one vector: Rodrigues in plain floats (array set-up would cost more than the work)
         x, y, z = map(float, v)
         a = math.sqrt(x * x + y * y + z * z)

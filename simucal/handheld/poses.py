@@ -88,7 +88,7 @@ def too_few_poses(ms, det: Detection, settings: DetectSettings, am: AugmentedMod
         return
     relax = []
     gyro = [x for x in det.dropped if x["rule"] == "gyro"]
-    short = [x for x in det.dropped if x["rule"] == "min_static_s" and x["length_s"] >= settings.min_s / 2]
+    short = [x for x in det.dropped if x["rule"] == "min_static_s" and x["length_s"] >= settings.min_static_s / 2]
     if gyro:
         limits, more = sorted(x["kept_from_limit_dps"] for x in gyro), min(m - n, len(gyro))
         relax.append(f"--gyro-limit-dps {two_digits(limits[more - 1], True):g} keeps {more} more of the intervals the "

@@ -201,7 +201,10 @@ def simulate_warmup(seed=0, seconds=1500.0, hz=50.0, wander=True):
     t = np.arange(0, seconds, 1 / hz)
     T = 15 + 45 * (1 - np.exp(-t / 500.0)) + rng.normal(0, 0.02, len(t))
     powers = (T - WARMUP_T_REF_C)[:, None] ** np.arange(4)
-    walk = (lambda step: np.cumsum(rng.normal(0, step, (len(t), 3)), axis=0)) if wander else (lambda step: 0.0)
+
+    def walk(step: float) -> np.ndarray | float:
+        return np.cumsum(rng.normal(0, step, (len(t), 3)), axis=0) if wander else 0.0
+
     acc = np.array([0, 0, -1.0]) + powers @ np.array(WARMUP_ACC_G).T + rng.normal(0, 2e-3, (len(t), 3)) + walk(2e-6)
     gyro = powers @ np.array(WARMUP_GYRO_DPH).T + rng.normal(0, 180.0, (len(t), 3)) + walk(0.05)
     samples = {"t_s": t, **{c: acc[:, j] for j, c in enumerate(("ax", "ay", "az"))},

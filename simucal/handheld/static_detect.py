@@ -2,7 +2,7 @@
 
 The norm of the per-axis accelerometer variance over a centred window is
 compared with `factor` times the same norm over the initial rest; runs below
-it, at least `min_s` long, are static poses. Where the gyro is given, a pose must
+it, at least `min_static_s` long, are static poses. Where the gyro is given, a pose must
 also not turn: the gyro's mean over the window, less the still interval's own
 reference, within the gyro limit (gyro_limit). The reference is the interval's median or its windowed mean nearest
 the rest's bias, whichever more of the interval stays near (a bias that drifts between poses is
@@ -35,7 +35,7 @@ gave 0.3), keeps the same 13 poses.
 
 Every accelerometer-still interval a rule drops is reported with the rule and its numbers
 (Detection.dropped: the gyro limit, the gyro far from the rest's bias throughout, or shorter than
-`min_s`), and every one the gyro shortens (Detection.trimmed). The initial rest is found from
+`min_static_s`), and every one the gyro shortens (Detection.trimmed). The initial rest is found from
 the data: it lasts while the moving variance stays within `rest_factor` of
 the white-noise level that first differences give over the first window. Everything is reported so a user can
 check and override it.
@@ -59,8 +59,8 @@ class DetectSettings:
     found), the gyro's limit on a pose's windowed rate less its reference (deg/s; None: from the
     data, gyro_limit)."""
     window_s: float = 1.0
-    factor: float = 6.0
-    min_s: float = 1.0
+    threshold_factor: float = 6.0
+    min_static_s: float = 1.0
     init_rest_s: float | None = None
     gyro_limit_dps: float | None = None
 
@@ -127,7 +127,8 @@ def detect_static(acc, t, settings: DetectSettings = DetectSettings(), rest_fact
     if len(t) < 20:
         raise CalibrationError(f"the stream has {len(t)} row{'s' * (len(t) != 1)}: a hand-placed session is one "
                                "continuous recording, an initial rest and then poses joined by moves")
-    window_s, factor, min_s, init_rest_s = settings.window_s, settings.factor, settings.min_s, settings.init_rest_s
+    window_s, factor, min_s, init_rest_s = (settings.window_s, settings.threshold_factor, settings.min_static_s,
+                                            settings.init_rest_s)
     dt, length = float(np.median(np.diff(t))), float(t[-1] - t[0])
     if dt >= 0.5:
         raise CalibrationError(f"t_s steps by {dt:g} s (median): {1 / dt:.2g} Hz is too slow to follow a move between "

@@ -24,6 +24,7 @@ from __future__ import annotations
 
 import importlib
 from dataclasses import dataclass
+from typing import TYPE_CHECKING
 
 import numpy as np
 
@@ -32,6 +33,9 @@ from simucal.fit.rotations import exp_so3, skew
 from simucal.generated import systematic as gen
 from simucal.generated import table
 from simucal.generated.effects import EFFECTS
+
+if TYPE_CHECKING:
+    from simucal.fit.augmented import AugmentedModel
 
 CHUNK = 256  # epochs whose smoother gains are solved at once (memory: 3 CHUNK n^2 doubles; more pages cost more)
 SMOOTH_S = 0.1  # the window over which a regressor's inputs are averaged (smoothed)
@@ -63,8 +67,8 @@ def reads_motion(model) -> bool:
 @dataclass
 class Sensors:
     """The two models, their current estimates and what the filter's blocks need of them."""
-    acc: object            # AugmentedModel
-    gyro: object           # AugmentedModel
+    acc: AugmentedModel
+    gyro: AugmentedModel
     p_acc: np.ndarray
     p_gyro: np.ndarray     # the gyro's own parameters
     eta: np.ndarray        # C_b^d = mounting(eta), rad
@@ -192,7 +196,7 @@ def nav_blocks(Cs, f_b, D_a, D_g, w_ie, g0):
     return gen.nav_F(c, f_b, w_ie, g0), np.concatenate([B[:, :, 3:] @ D_a, B[:, :, :3] @ D_g], axis=-1)
 
 
-def transitions(Cs, f_b, D_a, D_g, dt, q, w_ie, g0):
+def transitions(Cs, f_b, D_a, D_g, dt, q, w_ie, g0) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Phi = I + F dt + (F dt)^2 / 2 of every step (F constant over it) by its blocks, vectorised: the
     parameters are constants, so Phi = [[A, B], [0, I]] with A = I + F_nn dt + (F_nn dt)^2 / 2 (m, 6, 6)
     and B = F_np dt + F_nn dt F_np dt / 2 (m, 6, n - 6); and the noise's Q (m, 6, 6) over the step (it drives
@@ -315,4 +319,4 @@ def level(C, f_b):
     f_n = C @ f_b
     axis = np.cross(f_n / np.linalg.norm(f_n), [0.0, 0.0, 1.0])
     s = np.linalg.norm(axis)
-    return C if s < 1e-15 else exp_so3(axis / s * np.arcsin(min(s, 1.0))) @ C
+    return C if s < 1e-15 else exp_so3(axis / s * np.arcsin(min(float(s), 1.0))) @ C
