@@ -110,7 +110,12 @@ def main():
         for what, args in commands(sets(tmp, a.quick), a.quick):
             if a.only not in what:
                 continue
-            runs = alternate(args, old, tmp, a.repeats)
+            try:
+                runs = alternate(args, old, tmp, a.repeats)
+            except subprocess.CalledProcessError as e:  # a command the earlier revision does not have
+                said = (e.stderr or "").strip().splitlines() or [f"exit {e.returncode}"]
+                print(f"| {what} | cannot run it: {said[-1][:90]} | | | | not compared |", flush=True)
+                continue
             walls = {k: [m[0] for m in v] for k, v in runs.items()}
             cpus = {k: statistics.median(m[1] for m in v) for k, v in runs.items()}
             before, after = statistics.median(walls["before"]), statistics.median(walls["now"])

@@ -26,7 +26,8 @@ ROOT = Path(__file__).resolve().parents[1]
 SIMUCAL = [sys.executable, "-m", "simucal"]
 # the wrapper: the command's own wall time, CPU time and peak memory (its only child)
 WRAP = ("import resource, subprocess, sys, time; t = time.perf_counter(); "
-        "subprocess.run(sys.argv[1:], check=True, capture_output=True); w = time.perf_counter() - t; "
+        "r = subprocess.run(sys.argv[1:], capture_output=True); w = time.perf_counter() - t; "
+        "r.returncode and sys.exit(r.stderr.decode()); "  # the command's own message where it fails
         "u = resource.getrusage(resource.RUSAGE_CHILDREN); print(w, u.ru_utime + u.ru_stime, u.ru_maxrss)")
 
 

@@ -187,3 +187,19 @@ def test_a_large_offset_never_leaves_fit_exact_at_a_spurious_point():
         obs = Observations(am.output(u, p) + rng.normal(0, 1e-3, (n, 3)), np.ones(n), np.full((n, 3), 1e-3))
         fit = fit_exact(am, obs)
         assert fit.chi2 < 3 * fit.dof + 20, (fit.chi2, fit.dof)
+
+
+def test_a_solve_per_row_is_numpy_s_whether_the_rows_share_their_matrix_or_not():
+    from simucal.fit.row_solve import solve_rows
+    rng = np.random.default_rng(3)
+    M = np.eye(3) + 1e-2 * rng.standard_normal((3, 3))
+    for shape in ((50,), (4, 50)):  # rows, and a batch of sets' rows
+        shared = np.broadcast_to(M, (*shape, 3, 3)).copy()
+        varied = shared + 1e-3 * rng.standard_normal(shared.shape)
+        for B in (rng.standard_normal((*shape, 3, 12)), rng.standard_normal((*shape, 3, 1))):
+            for A in (shared, varied):
+                X = solve_rows(A, B)
+                assert X.shape == B.shape
+                np.testing.assert_allclose(X, np.linalg.solve(A, B), rtol=0, atol=1e-13)
+    with pytest.raises(np.linalg.LinAlgError):  # a singular shared matrix is refused as numpy refuses it
+        solve_rows(np.zeros((5, 3, 3)), np.ones((5, 3, 1)))

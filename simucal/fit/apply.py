@@ -18,6 +18,7 @@ from simucal import io
 from simucal.errors import CalibrationError, InputError
 from simucal.fit.augmented import AugmentedModel, effect_terms, follows_temperature
 from simucal.fit.aux_inputs import AuxInputs, columns_at, specific_force
+from simucal.fit.row_solve import solve_rows
 from simucal.fit.thermal import params_at, rate_input
 from simucal.io import units
 from simucal.io.calibration import Calibration, SensorBlock
@@ -138,7 +139,7 @@ def solve_inputs(h, M, bias, N, aux: AuxInputs, sensor, where) -> np.ndarray:
     tol = 1e-11 * np.maximum(np.abs(u).max(axis=1), 1e-6 * max(np.abs(u).max(), 1e-300))
     for _ in range(30):
         r, J = h(u, aux)
-        du = np.linalg.solve(J, (r - N)[..., None])[..., 0]
+        du = solve_rows(J, (r - N)[..., None])[..., 0]
         u = u - du
         if np.all(np.abs(du).max(axis=1) <= tol):
             return u

@@ -30,6 +30,7 @@ import numpy as np
 
 from simucal.fit.aux_inputs import MOTION, motion
 from simucal.fit.rotations import exp_so3, skew
+from simucal.fit.row_solve import solve_rows
 from simucal.generated import systematic as gen
 from simucal.generated import table
 from simucal.generated.effects import EFFECTS
@@ -99,12 +100,12 @@ class Sensors:
     def sensitivities(self, f_b, w_b, aux_a, aux_g):
         """D_a (n, 3, n_acc) and D_g (n, 3, n_gyro + 3): du_hat / dp_hat = -A^-1 J (derive/systematic.py)."""
         _, Ju, Jp = self.acc.jacobians(f_b, self.p_acc, aux_a)
-        D_a = -np.linalg.solve(Ju, Jp)
+        D_a = -solve_rows(Ju, Jp)
         C_b_d = table.mounting(self.eta)
         w_d = w_b @ C_b_d.T
         _, Ju, Jp = self.gyro.jacobians(w_d, self.p_gyro, aux_g.with_values(**_force(f_b @ C_b_d.T)))
         S = gen.frame_rate_sensitivity(np.broadcast_to(self.eta, w_b.shape), w_b)
-        D_g = np.concatenate([-C_b_d.T @ np.linalg.solve(Ju, Jp), -np.broadcast_to(C_b_d.T, S.shape) @ S], axis=-1)
+        D_g = np.concatenate([-C_b_d.T @ solve_rows(Ju, Jp), -np.broadcast_to(C_b_d.T, S.shape) @ S], axis=-1)
         return D_a, D_g
 
 
