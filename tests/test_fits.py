@@ -190,7 +190,7 @@ def test_a_large_offset_never_leaves_fit_exact_at_a_spurious_point():
 
 
 def test_a_solve_per_row_is_numpy_s_whether_the_rows_share_their_matrix_or_not():
-    from simucal.fit.row_solve import solve_rows
+    from simucal.fit.row_solve import inverse_rows, solve_rows
     rng = np.random.default_rng(3)
     M = np.eye(3) + 1e-2 * rng.standard_normal((3, 3))
     for shape in ((50,), (4, 50)):  # rows, and a batch of sets' rows
@@ -201,5 +201,6 @@ def test_a_solve_per_row_is_numpy_s_whether_the_rows_share_their_matrix_or_not()
                 X = solve_rows(A, B)
                 assert X.shape == B.shape
                 np.testing.assert_allclose(X, np.linalg.solve(A, B), rtol=0, atol=1e-13)
+                np.testing.assert_allclose(inverse_rows(A), np.linalg.inv(A), rtol=0, atol=1e-13)
     with pytest.raises(np.linalg.LinAlgError):  # a singular shared matrix is refused as numpy refuses it
         solve_rows(np.zeros((5, 3, 3)), np.ones((5, 3, 1)))

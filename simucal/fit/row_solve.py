@@ -15,3 +15,8 @@ def solve_rows(A: np.ndarray, B: np.ndarray) -> np.ndarray:
         return np.linalg.solve(A, B)
     A_inv = np.linalg.inv(A.reshape(-1, *A.shape[-2:])[0])
     return np.swapaxes(np.swapaxes(B, -1, -2) @ A_inv.T, -1, -2)  # B^T A^-T: one product over every row
+
+
+def inverse_rows(A: np.ndarray) -> np.ndarray:
+    """A[i]^-1 of every row (..., m, m), as np.linalg.inv: once where the rows share A."""
+    return solve_rows(A, np.broadcast_to(np.eye(A.shape[-1]), A.shape))

@@ -29,6 +29,7 @@ from simucal.fit.aux_inputs import AuxInputs, motion
 from simucal.fit import family
 from simucal.fit.distributions import chi2_sf
 from simucal.fit.ranking import Trial, rank
+from simucal.fit.row_solve import inverse_rows
 from simucal.fit.results import ModelTest
 from simucal.generated import systematic as gen
 from simucal.generated import table
@@ -122,16 +123,15 @@ def _factored(sensors, f_b, w_b, aux_a, aux_g):
     """Sensors.sensitivities factored, D_a = M_a J_a and D_g = M_g J_g: (M_a, J_a, M_g, J_g), M (n, 3, 3) the inverted
     models' -A^-1 (the gyro's turned by C_b_d^T) and J their parameters' Jacobians (the gyro's with the frame angles'
     A S: -C^T A^-1 A S = -C^T S), so that the candidates' many columns are multiplied by a 3 x 3 once per step
-    (`_summed`) rather than each solved. The signatures only: the filter's passes keep the solve, whose round-off
-    their iteration amplifies."""
+    (`_summed`) rather than each solved."""
     _, Ju, J_a = sensors.acc.jacobians(f_b, sensors.p_acc, aux_a)
-    M_a = -np.linalg.inv(Ju)
+    M_a = -inverse_rows(Ju)
     C_b_d = table.mounting(sensors.eta)
     f_d = f_b @ C_b_d.T
     _, Ju, Jp = sensors.gyro.jacobians(w_b @ C_b_d.T, sensors.p_gyro,
                                        aux_g.with_values(f_x=f_d[:, 0], f_y=f_d[:, 1], f_z=f_d[:, 2]))
     S = gen.frame_rate_sensitivity(np.broadcast_to(sensors.eta, w_b.shape), w_b)
-    return M_a, J_a, -C_b_d.T @ np.linalg.inv(Ju), np.concatenate([Jp, Ju @ S], axis=-1)
+    return M_a, J_a, -C_b_d.T @ inverse_rows(Ju), np.concatenate([Jp, Ju @ S], axis=-1)
 
 
 def _navigation_pass(steps, Cs, v_at, f_b, factors, q, w_ie, g0, P0_diag):
