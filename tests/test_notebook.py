@@ -115,6 +115,21 @@ def test_a_frame_s_attrs_stay_small_and_its_segments_come_back_as_a_table():
     assert simucal.simulate("handheld", seed=1).segments_frame() is None
 
 
+def test_help_lists_every_parameter_of_every_public_function():
+    """help() of each public function names each of its parameters in its Parameters section."""
+    import inspect
+    missing = {}
+    for name in simucal.__all__:
+        obj = getattr(simucal, name)
+        if inspect.isfunction(obj):
+            doc = inspect.getdoc(obj) or ""
+            section = doc.split("Parameters")[1].split("Returns")[0] if "Parameters" in doc else ""
+            absent = [p for p in inspect.signature(obj).parameters if p not in section]
+            if absent or not section:
+                missing[name] = absent
+    assert not missing, missing
+
+
 def test_help_lists_every_option_of_calibrate():
     """help(simucal.calibrate) names every option calibrate takes (CalibrateOptions), each in its parameters."""
     import pydoc

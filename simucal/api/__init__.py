@@ -112,6 +112,19 @@ def save(path: str | os.PathLike, result: Calibration | Validation | Diagnosis |
     units: a page's numbers, its tables, verdicts and plots, in the spec's units ("spec") or in SI ("si": m/s^2,
     rad/s, rad/sqrt(s), ...); a .json file is always in the spec's (docs/calibration-file.md).
 
+    Parameters
+    ----------
+    path : str or os.PathLike
+        The file written: .json (the calibration file or the report) or .html (the page).
+    result : Calibration, Validation, Diagnosis or Noise
+        What is written.
+    calibration_path : str or os.PathLike
+        A thermal or field page's: where the calibration file is, for its next command.
+    units : {"spec", "si"}
+        A page's numbers in the spec's units or in SI.
+    written : mapping, optional
+        A noise page's: the files its command wrote beside it.
+
     Examples
     --------
     >>> simucal.save("calibration.json", cal)  # doctest: +SKIP
@@ -181,6 +194,11 @@ def _page(result: _file.Calibration | Validation | Diagnosis | Noise, calibratio
 @checked
 def load(path: str | os.PathLike) -> Calibration:
     """Read a calibration file, checked before any of it is used.
+
+    Parameters
+    ----------
+    path : str or os.PathLike
+        The calibration file (any format version simucal wrote: io/calibration_versions.py).
 
     Examples
     --------

@@ -41,6 +41,19 @@ def calibrate_each(data_dirs: Sequence[str | os.PathLike], folder: str | os.Path
     """Calibrate every set of `data_dirs` (as `simucal.calibrate` with `options`) and write each one's file as
     FOLDER/<set's folder name>.json, on a scheduler where given (local, processes or a Dask address).
 
+    Parameters
+    ----------
+    data_dirs : sequence of str or os.PathLike
+        The sets, one calibration each.
+    folder : str or os.PathLike
+        Where each calibration file is written.
+    scheduler : str, optional
+        "local" (threads, the default), "processes", or a Dask scheduler's address.
+    progress : callable, optional
+        A callable wrapping the iterable of sets (e.g. simucal.progress.bar("calibrating", "set")).
+    **options
+        `simucal.calibrate`'s (CalibrateOptions).
+
     Returns
     -------
     list of Calibrated

@@ -155,6 +155,17 @@ def convert(data: Path_, out: Path_, to: str, *, force: bool = False) -> tuple[P
     chunk at a time, every row checked; the input is never changed (a set already in `out` is refused
     unless `force`). Returns (the samples file written, its rows).
 
+    Parameters
+    ----------
+    data : str or os.PathLike
+        The set read.
+    out : str or os.PathLike
+        The set written (a folder).
+    to : {"parquet", "csv"}
+        The samples' format.
+    force : bool
+        Replace a set already in `out`.
+
     Examples
     --------
     >>> simucal.convert("set", "set_parquet", "parquet")  # doctest: +SKIP

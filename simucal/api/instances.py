@@ -82,6 +82,13 @@ def autopilot_files(imus: Sequence[ImuCalibration], *, px4: str | None = None,
     """Every IMU's bias polynomials in one PX4 file and one ArduPilot file, each IMU in its own slot (the
     log's instance): their texts, made before anything is written (`Calibration.autopilot_files` of one).
 
+    Parameters
+    ----------
+    imus : sequence of ImuCalibration
+        `calibrate_instances`' result: each IMU's thermal calibration with its log instance.
+    px4, ardupilot : str, optional
+        The paths of PX4's parameter file and ArduPilot's (each written only where given).
+
     Examples
     --------
     >>> for f in simucal.autopilot_files(imus, px4="tc.params", ardupilot="tc.param"):  # doctest: +SKIP

@@ -138,6 +138,19 @@ def sequence_observability(sequence: str, *, model: str = "acc_baseline", add: S
     unit simulated at seed 0: systematic/observability.py) beside the norm method's CRLB of the same models on a
     plan (`score`, default table1), its positions held as long as the sequence's rests unless the noise is given.
 
+    Parameters
+    ----------
+    sequence : str
+        psins19, sysclbt19, dong2018 or a sequence file.
+    model, add :
+        The model whose stds are compared (a built-in's name or a model file) and effect ids added to it.
+    score : str, optional
+        The plan the norm method is scored on (default table1).
+    rates_dps : sequence of float, optional
+        That plan's rate runs' outer-axis rate, deg/s.
+    acc_noise_g, gyro_noise_dph : float, optional
+        The noise of one position's mean (g, deg/h; default: the sequence's noise per sample over its rests).
+
     Returns
     -------
     dict
@@ -198,6 +211,8 @@ def design_sequence(minutes: float = 10.0, *, reference: str = "psins19", refere
         The table's rate for the moves, deg/s (its acceleration is sequence.ACCEL_DPS2).
     evaluations, seed :
         The filter passes the search may spend, and the seed of its random changes.
+    progress : callable, optional
+        A callable wrapping the iterable of the search's rounds (e.g. simucal.progress.bar("design", "round")).
 
     Returns
     -------

@@ -39,6 +39,11 @@ def derive_model(path: str | os.PathLike) -> list[str]:
     """Derive a user's model file (MODELS = [ErrorModel, ...]) into the cache; returns its models' names, each then
     usable by name (`calibrate(..., acc_model=NAME)`) from any folder.
 
+    Parameters
+    ----------
+    path : str or os.PathLike
+        The model file (docs/own-model.md).
+
     Examples
     --------
     >>> simucal.derive_model("my_models.py")  # doctest: +SKIP
@@ -54,6 +59,13 @@ def audit(seeds: int = 20, progress: Any = None) -> Any:
     """dong2018 audited: its printed equations (4)-(27), Tables 1 and 2 term by term at the section-4 values, and
     its numeric claims against a Monte Carlo of `seeds` tests per setting (0: skipped). The result has
     ``markdown()`` (what `simucal audit -o` writes) and ``summary()``.
+
+    Parameters
+    ----------
+    seeds : int
+        Monte Carlo tests per setting of the numeric claims (0: those skipped).
+    progress : callable, optional
+        A callable wrapping the iterable of the Monte Carlo's tests (e.g. simucal.progress.bar("audit")).
 
     Examples
     --------
