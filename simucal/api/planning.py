@@ -203,8 +203,7 @@ def design_sequence(minutes: float = 10.0, *, reference: str = "psins19", refere
     reference_minutes : float, optional
         The reference's table time (its rests scaled to fit it), min; default `minutes`.
     calibration : str, optional
-        A calibration file: the unit's baseline parameters and white noise per sample (default: the
-        simulator's default unit).
+        A calibration file: the unit's parameters and white noise per sample (default the simulator's unit).
     acc_noise_g, gyro_noise_dph : float, optional
         The unit's noise per sample at 100 Hz (over the file's).
     table_rate_dps : float
