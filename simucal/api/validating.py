@@ -312,10 +312,8 @@ def _own(report) -> str:
 def html_page(report) -> str:
     """A self-contained page: the verdicts and the next command (report/console.py's, as the console
     prints them), each check's error at nominal and calibrated on a log scale with its floor, the table."""
-    import html as _html
-
     from simucal.report.numbers import eng_html
-    from simucal.report.page import log_bars, page, plt, png, wrapped
+    from simucal.report.page import log_bars, page, plt, png, table, wrapped
     rows = [(s, c) for s, cs in report["checks"].items() for c in cs]
     cols = min(len(rows), 4)
     fig, axs = plt.subplots((len(rows) + cols - 1) // cols, cols, figsize=(3.1 * cols, 3.4 * ((len(rows) + cols - 1) // cols)),
@@ -325,13 +323,11 @@ def html_page(report) -> str:
         ax.set_title(wrapped(f"{s}: {c['what'].split(' (')[0]}: {c['verdict']}", 34), fontsize=8)
     for ax in axs.flat[len(rows):]:
         ax.set_visible(False)
-    body = "".join(f"<tr><td>{s}</td><td>{_html.escape(c['what'])}</td><td>{eng_html(c['before_rms'])}</td>"
-                   f"<td>{eng_html(c['after_rms'])}</td><td>{eng_html(c['floor_rms'])}"
-                   f"</td><td>{c['unit']}</td><td>{c['verdict']}</td></tr>" for s, c in rows)
     cmd, notes = validation_next(report)
     verdicts = [(not v.startswith(("WORSE", "no better")) and not report["note"], f"{s}: {v}{_own(report)}")
                 for s, v in report["verdict"].items()]  # on its own rows no verdict is shown as passed
     return page("simucal validate", f"Validation of {report['calibration']} on {report['data']}", verdicts, cmd,
                 notes + [f"WARNING: {w}" for w in report.get("warnings", [])],
-                [png(fig), "<table><tr><th>sensor</th><th>check</th><th>nominal</th><th>calibrated</th>"
-                 f"<th>floor</th><th>unit</th><th>verdict</th></tr>{body}</table>"])
+                [png(fig), table(["sensor", "check", "nominal", "calibrated", "floor", "unit", "verdict"],
+                                 [[s, c["what"], c["before_rms"], c["after_rms"], eng_html(c["floor_rms"]), c["unit"],
+                                   c["verdict"]] for s, c in rows])])

@@ -296,13 +296,13 @@ def validation_next(report: dict) -> tuple[str, list[str]]:
     return f"simucal apply {cal} {data} -o calibrated", []
 
 
-def term_text(t, html=False) -> str:
-    """One term: value +- std where seen, else "not seen" and its bound, or the length it needs."""
-    pm, lt, unit = (" &plusmn; ", "&lt;", "") if html else (" +- ", "<", " " + t["unit"])
+def _term_text(t) -> str:
+    """One term: value +- std where seen, else "not seen" and its bound, or the length it needs (the page's
+    cells: report/noise_html.py)."""
     if t["status"] == "seen":
-        return f"{t['value']:.3g}{pm}{t['std']:.2g}{unit}"
+        return f"{t['value']:.3g} +- {t['std']:.2g} {t['unit']}"
     if t["status"] == "not seen":
-        return f"not seen ({lt} {t['bound_95']:.2g}{unit}, 95 %)"
+        return f"not seen (< {t['bound_95']:.2g} {t['unit']}, 95 %)"
     return f"record too short (needs {t['needs_s']:.3g} s)"
 
 
@@ -327,7 +327,7 @@ def _noise_lines(report, written=None):
             if "stuck" in ax:
                 yield f"  {a}: {ax['stuck']}"
                 continue
-            yield f"  {a}: " + ", ".join(f"{t['name']} {term_text(t)}" for t in ax["sheet"].values())
+            yield f"  {a}: " + ", ".join(f"{t['name']} {_term_text(t)}" for t in ax["sheet"].values())
     for _, text in noise_verdicts(report):
         yield text
     yield from skipped_sensors([s for s in ("acc", "gyro") if s in report])

@@ -12,8 +12,8 @@ import html
 import numpy as np
 
 from simucal.report.console import next_command
-from simucal.report.numbers import cell_html, eng
-from simucal.report.page import CELL_IN, FULL_IN, figure, folded, grid, page, plt, png
+from simucal.report.numbers import eng
+from simucal.report.page import CELL_IN, FULL_IN, figure, folded, grid, page, plt, png, table
 
 AXES = "xyz"
 
@@ -124,9 +124,7 @@ def before_after_figure(sensor, block, unit):
 
 
 def _table(rows, cols):
-    head = "".join(f"<th>{html.escape(c)}</th>" for c in cols)
-    body = "".join("<tr>" + "".join(f"<td>{cell_html(r.get(c))}</td>" for c in cols) + "</tr>" for r in rows)
-    return f"<table><tr>{head}</tr>{body}</table>"
+    return table(cols, [[r.get(c) for c in cols] for r in rows])
 
 
 def stream_figures(stream):

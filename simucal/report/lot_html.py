@@ -9,8 +9,8 @@ import html
 import numpy as np
 
 from simucal.report.console import n_units
-from simucal.report.numbers import cell_html, eng_html
-from simucal.report.page import page, plt, png
+from simucal.report.numbers import eng_html
+from simucal.report.page import page, plt, png, table
 
 
 def _figure(group, sensor, limits) -> str:
@@ -41,12 +41,6 @@ def _figure(group, sensor, limits) -> str:
     return png(fig)
 
 
-def _table(head, rows) -> str:
-    return ("<table><tr>" + "".join(f"<th>{h}</th>" for h in head) + "</tr>"
-            + "".join("<tr>" + "".join(f"<td>{cell_html(c)}</td>" for c in r) + "</tr>" for r in rows)
-            + "</table>")
-
-
 def _largest(drift, sensor) -> str:
     r = max((r for r in drift["parameters"] if r["name"].startswith(sensor + ".")), key=lambda r: abs(r["z"]))
     return f"{abs(r['z']):.3g} ({r['name']})"
@@ -64,18 +58,18 @@ def lot_page(report: dict) -> str:
         parts.append(f"<h2>{e(g['key'])}: {n_units(len(g['units']))}</h2><p>Outliers: {e(g['outlier_rule'])}.</p>")
         for sensor in dict.fromkeys(p["name"].split(".")[0] for p in g["parameters"]):
             parts.append(f"<h3>{sensor}</h3>" + _figure(g, sensor, report["limits"]))
-        parts.append(_table(
+        parts.append(table(
             ["parameter", "unit", "median", "spread (1.4826 MAD)", "spread of units", "median std", "outliers"],
             [[p["name"], p["unit"], eng_html(p["centre"], 6), p["spread"], p["spread_of_units"],
               p["median_std"], ", ".join(f"{o['unit']} (z {o['z']:.3g})" for o in p["outliers"])]
              for p in g["parameters"]]))
-    parts.append("<h2>Units</h2>" + _table(
+    parts.append("<h2>Units</h2>" + table(
         ["file", "serial", "status", "model tests", "why"],
         [[u["file"], u["serial"] or "-", u["status"],
           ", ".join(f"{s} {t['verdict']}" + (f" (p {t['p_value']:.2g})" if t["p_value"] is not None else "")
                     for s, t in u["tests"].items()), "; ".join(u["why"])] for u in report["units"]]))
     if report["drift"]:
-        parts.append("<h2>Drift between calibrations of one unit</h2>" + _table(
+        parts.append("<h2>Drift between calibrations of one unit</h2>" + table(
             ["serial", "earlier", "later", "sensor", "chi2 / dof", "p", "verdict", "largest |drift| / std"],
             [[d["serial"], d["earlier"], d["later"], s, f"{v['chi2']:.3g} / {v['dof']}", v["p_value"],
               v["verdict"], _largest(d, s)] for d in report["drift"] for s, v in d["sensors"].items()]))

@@ -15,7 +15,7 @@ import matplotlib
 matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
 
-from simucal.report.numbers import eng  # noqa: E402
+from simucal.report.numbers import cell_html, eng  # noqa: E402
 
 FONT = "DejaVu Sans"  # matplotlib ships it, so the figures have it everywhere; the page asks the browser for it
 plt.rcParams.update({"font.family": FONT, "font.size": 9})
@@ -69,6 +69,12 @@ def grid(images) -> str:
     """Figures side by side (each png()'s, CELL_IN wide), each filling its cell: two in a laptop's window, one on
     a phone."""
     return "<div class='figs'>" + "".join(f"<div>{x}</div>" for x in images if x) + "</div>"
+
+
+def table(head, rows) -> str:
+    """A table: the head's texts, then each row's cells as report/numbers.cell_html writes them."""
+    return ("<table><tr>" + "".join(f"<th>{html.escape(str(h))}</th>" for h in head) + "</tr>"
+            + "".join("<tr>" + "".join(f"<td>{cell_html(c)}</td>" for c in r) + "</tr>" for r in rows) + "</table>")
 
 
 def wrapped(text: str, width: int) -> str:
