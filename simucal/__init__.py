@@ -12,12 +12,13 @@ _API = ("read_set", "simulate", "calibrate", "validate", "diagnose", "noise", "s
         "import_recording", "import_instances", "calibrate_instances", "autopilot_files", "ImuCalibration", "convert", "montecarlo", "calibrate_each", "Calibrated", "plan", "sequence_observability", "design_sequence",
         "derive_model", "audit", "DetectSettings", "CalibrateOptions",
         "MeasurementSet", "Calibration", "Parameter", "Entry", "Validation", "Check", "Diagnosis", "Candidate", "Suggestion",
-        "NextStep", "Noise", "Term", "lot", "Store")
+        "NextStep", "Noise", "Term", "lot", "Store", "certificate")
 __all__ = ["__version__", "read_set", "simulate", "calibrate", "validate", "diagnose", "noise", "save", "load",
            "table_rows", "compare", "import_recording", "import_instances", "calibrate_instances", "autopilot_files", "ImuCalibration", "convert", "montecarlo", "calibrate_each", "Calibrated", "plan",
            "sequence_observability", "design_sequence", "derive_model", "audit", "DetectSettings", "CalibrateOptions",
            "MeasurementSet", "Calibration", "Parameter", "Entry", "Validation", "Check",
-           "Diagnosis", "Candidate", "Suggestion", "NextStep", "Noise", "Term", "lot", "Store"]  # the public names (_API, spelt out for type checkers)
+           "Diagnosis", "Candidate", "Suggestion", "NextStep", "Noise", "Term", "lot", "Store",
+           "certificate"]  # the public names (_API, spelt out for type checkers)
 TYPE_CHECKING = False  # typing's constant without importing typing (2 ms); type checkers read it as True
 if TYPE_CHECKING:
     from simucal.api import (CalibrateOptions, Calibrated, Calibration, Candidate, Check, DetectSettings,  # noqa: F401
@@ -25,7 +26,7 @@ if TYPE_CHECKING:
                              MeasurementSet, Noise, Parameter, Store, Term, Validation, audit, calibrate,
                              calibrate_each, compare, convert, derive_model, diagnose,
                              import_instances, import_recording, load, calibrate_instances, autopilot_files,
-                             ImuCalibration, lot, montecarlo, noise, plan, read_set, save,
+                             ImuCalibration, certificate, lot, montecarlo, noise, plan, read_set, save,
                              sequence_observability, design_sequence, simulate, table_rows, validate)
 
 

@@ -159,7 +159,7 @@ def test_command_line_constants_are_the_api_s():
 API_OF = {"calibrate": ("calibrate", "calibrate_each"), "diagnose": ("diagnose",), "validate": ("validate",),
           "noise": ("noise",), "simulate": ("simulate",), "montecarlo": ("montecarlo",), "lot": ("lot",),
           "plan": ("plan", "sequence_observability", "design_sequence"), "import": ("import_recording",),
-          "convert": ("convert",)}
+          "convert": ("convert",), "certificate": ("certificate",)}
 # the options that say what the command line does with a result, which Python does by itself
 CLI_ONLY = {"output", "out_dir", "html", "units", "kalibr", "px4", "ardupilot", "store", "force",
             "design",     # plan --design: design_sequence is a function of its own

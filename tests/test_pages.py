@@ -29,10 +29,12 @@ from simucal.report.numbers import eng
 from simucal.report.console import noise_lines, noise_verdicts, validation_next
 from simucal.report.field_html import field_page
 from simucal.report.html import render
+from simucal.report.history_html import history_page
 from simucal.report.lot_html import lot_page
 from simucal.report.noise_html import noise_page
 from simucal.report.thermal_html import thermal_page
 from simucal.turntable.lot import write_lot
+from store_helpers import unit_files
 from simucal.turntable.simulate import SCENARIOS, write
 from simucal.api.validating import html_page, lines, validation_report as validate
 
@@ -55,7 +57,16 @@ def pages(tmp_path_factory):
     api.simulate("field", seed=3).write(out / "field")
     api.calibrate_each(write_lot(out / "lot", 3, seed=3), out / "lot_calibrations")
     thermal_cal = out / "thermal_calibration.json"
+    lot_cal = sorted((out / "lot_calibrations").glob("*.json"))[0]
+    store = api.Store(out / "lab.db")
+    for month, path in enumerate(unit_files(lot_cal, out / "history", 1, 4, drifting={0})["SN-0000"]):
+        store.add(path, time=f"2026-{1 + 3 * month:02d}-01")
+    gyro = calibration.load(lot_cal).gyro
+    (out / "spec.json").write_text(json.dumps({"format": "simucal.limits/1", "limits": {"gyro.b_z": {
+        "min": gyro.params["b_z"] - 300 * gyro.std["b_z"], "max": gyro.params["b_z"] + 300 * gyro.std["b_z"],
+        "unit": gyro.param_units["b_z"]}}}))
     (out / "validation.json").write_text(json.dumps(validate(out / "thermal_calibration_25.json", out / "thermal_35")))
+    (out / "thermal_validation.json").write_text(json.dumps(validate(thermal_cal, out / "thermal_35")))
     build = {
         "diagnosis": lambda: render(diagnose(out / "loop")),
         "diagnosis --add": lambda: render(diagnose(out / "loop", add=tuple(demo_run.HIDDEN))),
@@ -66,6 +77,8 @@ def pages(tmp_path_factory):
         "noise": lambda: noise_page(json.loads((out / "noise.json").read_text())),
         "field": lambda: field_page(api.calibrate(out / "field", method="field"), "field_calibration.json"),
         "lot": lambda: lot_page(api.lot(out / "lot_calibrations")),
+        "history": lambda: history_page(store.history("SN-0000", spec=out / "spec.json")),
+        "certificate": lambda: api.certificate(thermal_cal, validation=out / "thermal_validation.json"),
     }
     made = {"out": out}
     for name, f in build.items():
@@ -79,7 +92,8 @@ def test_no_text_overlaps_on_any_page(pages):
     made = {k: v for k, v in pages.items() if k != "out"}
     found = [f"{name}: {p}" for name, (page, problems, _) in made.items() for p in problems + html_problems(page)]
     assert not found, "\n".join(found)
-    assert all(figs for _, _, figs in made.values())  # every page was checked through its figures
+    assert all(figs for name, (_, _, figs) in made.items() if name != "certificate")  # checked through its figures
+    assert not made["certificate"][2]  # a certificate is its tables: text the browser lays out
 
 
 def test_the_check_finds_what_it_looks_for():

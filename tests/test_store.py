@@ -7,6 +7,7 @@ import json
 import subprocess
 import sys
 
+import numpy as np
 import pytest
 
 import simucal
@@ -157,14 +158,20 @@ def test_two_writers_at_once_lose_nothing_and_duplicate_nothing(url, base, tmp_p
 
 
 @pytest.mark.slow
-def test_history_flags_exactly_the_drifting_units(url, base, tmp_path):
-    drifting = {3, 8, 17}
-    units = unit_files(base, tmp_path / "cals", units=24, visits=3, drifting=drifting, seed=7)
+def test_a_lot_of_200_units_history_flags_exactly_the_drifting_and_the_trend_holds_its_stds(url, base, tmp_path):
+    """200 units calibrated three times four months apart, seven with a planted drift of 12 std per calibration in
+    gyro b_z: history flags exactly those seven, lot of the store equals lot of the folder, and every parameter's
+    trend (its slope against the planted one, over 200 units and 18 parameters) is off by its std as often as
+    its std says."""
+    drifting = {3, 8, 17, 60, 111, 150, 199}
+    units = unit_files(base, tmp_path / "cals", units=200, visits=3, drifting=drifting, seed=7)
     store = CalibrationStore(url)
     for serial, paths in units.items():
         for month, path in enumerate(paths):
             store.add(path, station="line 1", calibrated_utc=f"2026-{1 + 4 * month:02d}-15")
-    flagged = set()
+    flagged, z_slope = set(), []
+    sensor, name = DRIFT_PARAM.split(".")
+    planted_per_year = 12.0 * getattr(simucal.load(base), sensor).std[name] * 365.25 / 120  # 12 std per 120 days
     for serial in units:
         h = store.history(serial)
         assert [len(e.get("since_first", {}).get("parameters", [])) for e in h["records"]] == [0, 0, 18]
@@ -174,7 +181,23 @@ def test_history_flags_exactly_the_drifting_units(url, base, tmp_path):
             assert any("gyro moved" in w for w in last["why"])
             z = {p["name"]: p["z"] for p in last["since_first"]["parameters"]}
             assert abs(z[DRIFT_PARAM]) > 10 > max(abs(v) for k, v in z.items() if k != DRIFT_PARAM)
+        for p in h["trend"]["parameters"]:
+            truth = planted_per_year if p["name"] == DRIFT_PARAM and int(serial.split("-")[1]) in drifting else 0.0
+            z_slope.append((p["slope_per_year"] - truth) / p["slope_std"])
     assert flagged == drifting
+    z_slope = np.array(z_slope)  # 3,600 slopes: the rms of error/std within 5 % of 1, none beyond 5 std
+    assert len(z_slope) == 3600 and 0.95 < np.sqrt(np.mean(z_slope ** 2)) < 1.05 and np.max(np.abs(z_slope)) < 5
+    of_folder, of_store = simucal.lot(tmp_path / "cals"), simucal.lot(store=url)
+    assert len(of_store["units"]) == 200
+    assert [(u["serial"], u["status"]) for u in of_store["units"]] == \
+        [(u["serial"], u["status"]) for u in of_folder["units"]]
+    for g_store, g_folder in zip(of_store["groups"], of_folder["groups"]):
+        assert [(p["name"], p["values"], p["stds"]) for p in g_store["parameters"]] == \
+            [(p["name"], p["values"], p["stds"]) for p in g_folder["parameters"]]
+    drifted = [{d["later"][:7] for d in report["drift"] if d["sensors"]["gyro"]["verdict"] == "drifted"}
+               for report in (of_store, of_folder)]  # lot's drift: each pair at ALPHA, 800 tests here
+    assert drifted[0] == drifted[1] and len(drifted[0] - {f"SN-{u:04d}" for u in drifting}) <= 2
+    assert {f"SN-{u:04d}" for u in drifting} <= drifted[0]
     r = run("history", "SN-0003", "--store", url, "-o", tmp_path / "h.json")
     assert r.exit_code == 0 and "FLAGGED" in r.output and "unit SN-0003: 3 calibrations, " in r.output
     assert json.loads((tmp_path / "h.json").read_text())["flagged"] == store.history("SN-0003")["flagged"]

@@ -25,6 +25,7 @@ from simucal.api.simulation import montecarlo, simulate
 from simucal.api.tables import table_rows
 from simucal.api.calibration import Calibration, Parameter
 from simucal.api.batch import Calibrated, calibrate_each
+from simucal.api.certificates import certificate
 from simucal.api.arguments import checked
 from simucal.api.options import CalibrateOptions
 from simucal.api.imports import convert, import_instances, import_recording
@@ -46,7 +47,8 @@ if TYPE_CHECKING:
 __all__ = ["read_set", "simulate", "calibrate", "validate", "diagnose", "noise", "save", "load", "table_rows",
            "compare", "import_recording", "import_instances", "calibrate_instances", "autopilot_files", "ImuCalibration", "convert", "montecarlo", "calibrate_each", "Calibrated", "plan",
            "sequence_observability", "design_sequence", "derive_model", "audit", "DetectSettings", "CalibrateOptions", "MeasurementSet", "Calibration", "Parameter", "Entry",
-           "Validation", "Check", "Diagnosis", "Candidate", "Suggestion", "NextStep", "Noise", "Term", "lot", "Store"]
+           "Validation", "Check", "Diagnosis", "Candidate", "Suggestion", "NextStep", "Noise", "Term", "lot", "Store",
+           "certificate"]
 
 
 def __getattr__(name: str) -> Any:

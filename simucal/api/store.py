@@ -13,8 +13,16 @@ from simucal.store import CalibrationStore
 from simucal.store.history import lines as history_lines  # noqa: F401 (the command line's words)
 from simucal.store.queries import PARAMETER_COLUMNS, RECORD_COLUMNS
 
+TREND_COLUMNS = ("name", "unit", "calibrations", "last_value", "last_std", "slope_per_year", "slope_std", "chi2",
+                 "dof", "p_value", "expected_utc", "earliest_utc")
 CHANGE_COLUMNS = ("record", "calibrated_utc", "name", "unit", "value_change_since_last", "z_since_last",
                   "value_change_since_first", "z_since_first", "flagged")
+
+
+def history_page(report: _records.JSONObject) -> str:
+    """The unit's page of `Store.history`'s report (`simucal history --html`; report/history_html.py)."""
+    from simucal.report.history_html import history_page as page  # matplotlib: only where a page is asked for
+    return page(report)
 
 
 def _table(rows: list[dict], columns) -> Any:
@@ -87,10 +95,24 @@ class Store:
         return found[record]
 
     @checked
-    def history(self, serial: str, limits: str | os.PathLike | None = None) -> _records.JSONObject:
+    def history(self, serial: str, limits: str | os.PathLike | None = None,
+                spec: str | os.PathLike | None = None) -> _records.JSONObject:
         """Unit `serial`'s history as `simucal history SERIAL -o history.json` writes it: each calibration's change
-        since the last and the first in std, the flags and why (simucal/store/history.py)."""
-        return self._store.history(serial, limits)
+        since the last and the first in std, the flags and why (simucal/store/history.py), and its trend with the
+        due date by `spec` (a limits.json bounding each parameter's value; simucal/store/trend.py).
+
+        limits: a limits.json bounding each parameter's change since the first calibration, in its unit."""
+        return self._store.history(serial, limits, spec)
+
+    @checked
+    def trend(self, serial: str, spec: str | os.PathLike | None = None) -> Any:
+        """Each parameter's trend over the unit's calibrations as a DataFrame: the weighted line's slope per year
+        with its std, chi2 of the line on dof (from three calibrations), and the dates at which the line
+        (expected_utc) and its k = 2 band (earliest_utc) first reach the spec's limits (simucal/store/trend.py)."""
+        rows = [{"name": p["name"], "unit": p["unit"], "calibrations": len(p["values"]), "last_value": p["values"][-1],
+                 "last_std": p["stds"][-1], **{k: p[k] for k in TREND_COLUMNS[5:]}}
+                for p in self._store.history(serial, spec=spec)["trend"]["parameters"]]
+        return _table(rows, TREND_COLUMNS)
 
     @checked
     def changes(self, serial: str, limits: str | os.PathLike | None = None) -> Any:

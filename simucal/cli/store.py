@@ -1,4 +1,4 @@
-"""A lab's calibration store on the command line: store add, history (simucal.Store; simucal/store/)."""
+"""A lab's records on the command line: store add, history (simucal.Store; simucal/store/), certificate."""
 from __future__ import annotations
 
 import click
@@ -56,17 +56,48 @@ def store_add(calibrations, store_url, serial, station, time_utc):
 @click.option("--limits", "limits_path", type=InputPath(exists=True, dir_okay=False), default=None,
               help="A limits.json (as simucal lot takes) bounding each parameter's change since the first "
                    "calibration, in its unit (default: none).")
-def history(serial, store_url, output, limits_path):
+@click.option("--spec", "spec_path", type=InputPath(exists=True, dir_okay=False), default=None,
+              help="A limits.json bounding each parameter's value (as simucal lot --limits): the due date, where "
+                   "each parameter's trend is expected to leave it (default: none).")
+@click.option("--html", "html_path", type=click.Path(dir_okay=False), default=None,
+              help="Also write the unit's page: each parameter's history with its k = 2 band, its trend and spec.")
+def history(serial, store_url, output, limits_path, spec_path, html_path):
     """A unit's calibrations from the store: each parameter's change since the last and since the first in units of
     the combined std, flagged where the stds do not explain it (chi2 at ALPHA over the unit's history) or where it
-    passes the lab's limits."""
+    passes the lab's limits; each parameter's trend, and the date it is expected to leave the spec."""
     import json
 
     from simucal import api
     from simucal.io import outputs
-    guard([limits_path] if limits_path else [], files={"-o": output})
-    report = api.Store(store_url).history(serial, limits_path)
+    inputs = [p for p in (limits_path, spec_path) if p]
+    guard(inputs, files={"-o": output, **({"--html": html_path} if html_path else {})})
+    report = api.Store(store_url).history(serial, limits_path, spec_path)
     outputs.write_text(output, json.dumps(report, indent=1) + "\n")
     for line in api.store.history_lines(report):
         click.echo(line)
     click.echo(f"wrote {output}")
+    if html_path:
+        outputs.write_text(html_path, api.store.history_page(report))
+        click.echo(f"wrote {html_path}")
+
+
+@main.command()
+@click.argument("calibration", type=InputPath(exists=True, dir_okay=False))
+@click.option("-o", "--output", type=click.Path(dir_okay=False), default="certificate.html", show_default=True,
+              help="The certificate page (HTML).")
+@click.option("--pdf", type=click.Path(dir_okay=False), default=None,
+              help="Also the same page as PDF, printed by a headless Chromium ($SIMUCAL_CHROMIUM, else chromium or "
+                   "google-chrome on the PATH).")
+@click.option("--validation", type=InputPath(exists=True, dir_okay=False), default=None,
+              help="validate's report of this calibration on independent data (simucal validate CAL DATA -o "
+                   "validation.json), shown on the certificate.")
+def certificate(calibration, output, pdf, validation):
+    """A calibration's certificate: the unit, the file's and the data's sha256, the method and each model's test,
+    every parameter with its expanded uncertainty (k = 2) and its budget, the validation, simucal's version; every
+    number read from the files."""
+    from simucal import api
+    files = {"-o": output, **({"--pdf": pdf} if pdf else {})}
+    guard([calibration] + ([validation] if validation else []), files=files)
+    api.certificate(calibration, validation=validation, html=output, pdf=pdf)
+    for path in files.values():
+        click.echo(f"wrote {path}")

@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import html
 import math
+import re
 
 DIGITS = 3  # significant digits of a value; its std or bound with 2
 
@@ -31,6 +32,11 @@ class Html(str):
 def eng_html(value: float | None, digits: int = DIGITS, unit: str = "") -> Html:
     """eng() for a page: one unbreakable span, so that a narrow cell never wraps a number at its exponent."""
     return Html(f"<span class='n'>{html.escape(eng(value, digits, unit))}</span>")
+
+
+def words_html(text: str) -> Html:
+    """Text for a page, each number in it unbreakable (a narrow cell wraps the words, never a number)."""
+    return Html(re.sub(r"[-+]?\d[\d.]*(?:e[-+]?\d+)?", lambda m: f"<span class='n'>{m[0]}</span>", html.escape(text)))
 
 
 def cell_html(value, digits: int = DIGITS) -> str:

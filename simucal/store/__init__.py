@@ -2,11 +2,12 @@
 
     CalibrationStore(url).add(CAL.json, serial=, station=, calibrated_utc=) -> record id
     .records(serial=, method=, model=, station=, since=, until=), .parameters(...)  -> rows
-    .calibrations(...) -> (name, Calibration) for `simucal lot`;  .history(serial) -> the unit's history
+    .calibrations(...) -> (name, Calibration) for `simucal lot`;  .history(serial) -> the unit's history and trend
 
 url: a SQLite file (a plain path or sqlite:///path; the standard library's driver) or any SQL server
 SQLAlchemy reaches (postgresql://user@host/db through psycopg). schema.py holds the tables and their
-migrations, records.py a record and its insertion, queries.py the reads, history.py a unit's changes.
+migrations, records.py a record and its insertion, queries.py the reads, history.py a unit's changes, trend.py
+its drift and due date.
 The engine is opened (and the schema checked, migrated or created) on first use, once per object.
 """
 from __future__ import annotations
@@ -75,6 +76,6 @@ class CalibrationStore:
         return [(f"{r['serial']}_{r['calibrated_utc']}_{r['id']:08d}.json",
                  loads(raw[r["id"]].decode("utf-8"), f"{self.shown} record {r['id']}")) for r in recs]
 
-    def history(self, serial: str, limits=None) -> dict:
-        """history.history: the unit's calibrations, their changes and flags."""
-        return _history.history(self._db(), self.url, serial, limits)
+    def history(self, serial: str, limits=None, spec=None) -> dict:
+        """history.history: the unit's calibrations, their changes and flags, and its trend by the spec."""
+        return _history.history(self._db(), self.url, serial, limits, spec)

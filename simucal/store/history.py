@@ -7,7 +7,9 @@ covariances, and per sensor the joint chi^2 of no change. A unit's history is on
 (each later record's since-last and, from the third on, since-first test per sensor): a record is flagged
 where a test's p is below ALPHA / (the family's count), Bonferroni, so that a unit that never moved is
 flagged with a chance of at most ALPHA over its whole history. A lab's limits (a limits.json as `simucal lot`
-reads, here bounding each parameter's change since the first calibration) flag a record too.
+reads, here bounding each parameter's change since the first calibration) flag a record too. Beside the changes,
+each parameter's trend and the unit's due date by the lab's spec (trend.py; the spec a limits.json bounding
+each parameter's value, as `simucal lot --limits` reads it).
 """
 from __future__ import annotations
 
@@ -15,7 +17,7 @@ from simucal.errors import StoreError
 from simucal.fit.results import ALPHA
 from simucal.io.calibration import loads
 from simucal.report.lot_figures import drift, outside, read_limits
-from simucal.store import queries
+from simucal.store import queries, trend
 from simucal.store.schema import shown
 
 FORMAT = "simucal.history/1"
@@ -53,8 +55,9 @@ def _judge(entries, limits) -> tuple[float, int]:
     return level, tests
 
 
-def history(engine, url: str, serial: str, limits_path=None) -> dict:
-    """The history of unit `serial` (module doc): {format, store, serial, records, level, tests, flagged, verdict}."""
+def history(engine, url: str, serial: str, limits_path=None, spec_path=None) -> dict:
+    """The history of unit `serial` (module doc): {format, store, serial, records, level, tests, flagged, verdict,
+    trend}."""
     recs = queries.records(engine, url, serial=serial)
     if not recs:
         raise StoreError(f"{shown(url)}: no calibration of unit {serial!r}; record one: simucal store add CAL.json "
@@ -77,6 +80,8 @@ def history(engine, url: str, serial: str, limits_path=None) -> dict:
     known = {p["name"]: p["unit"] for e in entries for k in ("since_last", "since_first") if e.get(k)
              for p in e[k]["parameters"]}
     limits = read_limits(limits_path, known) if limits_path else {}
+    units = {f"{p['sensor']}.{p['name']}": p["unit"] for p in queries.parameters(engine, url, serial=serial)}
+    spec = read_limits(spec_path, units) if spec_path else {}
     level, tests = _judge(entries, limits)
     flagged = [e["id"] for e in entries if e["flagged"]]
     verdict = (f"unit {serial}: {len(entries)} calibrations, " +
@@ -84,7 +89,8 @@ def history(engine, url: str, serial: str, limits_path=None) -> dict:
                 f"no change beyond the stds (each test at {level:.2g}: ALPHA {ALPHA:g} over {tests} tests)"
                 + (" or the lab's limits" if limits else "")))
     return {"format": FORMAT, "store": shown(url), "serial": serial, "alpha": ALPHA, "level": level, "tests": tests,
-            "limits": limits, "records": entries, "flagged": flagged, "verdict": verdict}
+            "limits": limits, "records": entries, "flagged": flagged, "verdict": verdict,
+            "trend": trend.trend(engine, url, serial, spec)}
 
 
 def lines(report) -> list[str]:
@@ -100,4 +106,4 @@ def lines(report) -> list[str]:
                 parts.append(f"{words}: largest {top['name']} {top['z']:+.2f} std")
         flag = ("  FLAGGED: " + "; ".join(e["why"])) if e["flagged"] else ""
         out.append(head + (": " + ", ".join(parts) if parts else ": the first") + flag)
-    return out + [report["verdict"]]
+    return out + [report["verdict"], report["trend"]["verdict"]]

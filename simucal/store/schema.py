@@ -126,6 +126,8 @@ def open_engine(url: str, create: bool):
         @event.listens_for(engine, "connect")
         def _no_driver_transactions(dbapi_connection, _record):
             dbapi_connection.isolation_level = None
+            # write-ahead log: a station reading (history, lot) neither waits for a writer nor blocks one
+            dbapi_connection.execute("PRAGMA journal_mode=WAL")
 
         @event.listens_for(engine, "begin")
         def _begin(conn):

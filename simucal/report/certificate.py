@@ -1,0 +1,117 @@
+"""A calibration's certificate (`simucal certificate CAL.json`): the page a lab hands over with a unit, every
+number read from the calibration file (and its validation, where one was made), none typed by hand.
+
+It gives the unit, the calibration file's sha256 and the measurement set's, the method and each sensor's
+model with its test, each parameter with its standard uncertainty u (the file's std), its expanded
+uncertainty U = k u (k = 2, GUM's coverage factor for about 95 %) and its budget, the validation on
+independent data, and the version of simucal that wrote the certificate. The budget splits u^2 into the
+parts the file records, in the order the methods build the std (turntable/tilt.py, io/calibration
+.inflate_if_failing):
+    table   = |dp / dtilt| * the stated tilt      (the outer axis's levelling, meta.json table_tilt_arcsec)
+    misfit  = sqrt(u^2 - u_raw^2)                 (where the model failed its test: u = u_raw sqrt(chi2/dof))
+    noise   = sqrt(u_raw^2 - table^2)             (the fit's own: the data's noise through the plan)
+where u_raw is the std before the misfit's inflation (u where the model passed). Temperature enters as the
+calibration's own: a thermal model's coefficients are parameters of their own, and the temperatures the data
+spanned are stated (the calibration holds there); no temperature share is invented for a model without one.
+"""
+from __future__ import annotations
+
+import html
+import math
+from typing import Any
+
+import numpy as np
+
+from simucal.io.calibration import Calibration, SensorBlock
+from simucal.report.lot_figures import block_parameters, model_name
+from simucal.report.numbers import eng_html
+from simucal.report.page import page, table
+
+K = 2.0  # the coverage factor of the expanded uncertainty
+
+
+def _entry(stds: dict, name: str) -> float:
+    """A parameter's std in a std dict: its own key, or an affine block's entry of M (M_xy) or bias (b_x)."""
+    v = stds.get(name)
+    if isinstance(v, (int, float)):
+        return float(v)
+    M, b = np.asarray(stds.get("M", np.nan), float), np.asarray(stds.get("bias", np.nan), float)
+    if name.startswith("M_") and M.shape == (3, 3):
+        return float(M["xyz".index(name[2]), "xyz".index(name[3])])
+    if name.startswith("b_") and b.shape == (3,):
+        return float(b["xyz".index(name[2])])
+    return math.nan
+
+
+def budget(block: SensorBlock) -> list[dict[str, Any]]:
+    """Each parameter of the block with its value, unit, u, U = K u and u's parts (module doc)."""
+    tilt = block.details.get("table_tilt")
+    raw = block.details.get("std_raw")
+    rows = []
+    for name, (value, u, unit) in block_parameters(block).items():
+        u_raw = _entry(raw, name) if raw else u
+        table_part = abs(tilt["per_arcsec"].get(name, 0.0)) * tilt["stated_arcsec"] if tilt else None  # None: not in u
+        rows.append({"name": name, "value": value, "unit": unit, "u": u, "U": K * u,
+                     "noise": math.sqrt(max(u_raw ** 2 - (table_part or 0.0) ** 2, 0.0)), "table": table_part,
+                     "misfit": math.sqrt(max(u ** 2 - u_raw ** 2, 0.0))})
+    return rows
+
+
+def value_digits(value: float, u: float) -> int:
+    """The significant digits of a value stated with its uncertainty: down to u's second digit (at least 3)."""
+    if not (math.isfinite(value) and math.isfinite(u)) or value == 0 or u <= 0:
+        return 3
+    return max(3, math.floor(math.log10(abs(value))) - math.floor(math.log10(u)) + 2)
+
+
+def _test_line(block: SensorBlock) -> str:
+    test = block.details.get("test") or "no model test"
+    stat = (f"chi2 = {block.chi2:.4g} on {block.dof:g} dof, p = {block.p_value:.3g}" if block.p_value is not None
+            and block.chi2 is not None and block.dof else "")
+    lof = block.details.get("lack_of_fit")
+    lof_text = f"; lack-of-fit F = {lof['F']:.3g}, p = {lof['p_value']:.3g}" if lof and "p_value" in lof else ""
+    return f"the model {block.verdict} its test ({test}{'; ' + stat if stat else ''}{lof_text})"
+
+
+def _validation_rows(validation: dict) -> list[list]:
+    return [[sensor, c["what"], c["n"], c["unit"], c["before_rms"], c["after_rms"], c["floor_rms"], c["verdict"]]
+            for sensor, checks in validation["checks"].items() for c in checks]
+
+
+def certificate_page(cal: Calibration, file_name: str, file_sha256: str, validation: dict | None,
+                     version: str) -> str:
+    """The certificate of `cal` (module doc); file_sha256: the file's bytes', validation: validate's report."""
+    serial = cal.layout.get("unit_serial") or "(no unit_serial in the set's meta.json)"
+    data_sha = cal.input_sha256 if isinstance(cal.input_sha256, list) else [cal.input_sha256 or "(not recorded)"]
+    verdicts = [(b.verdict != "fails", f"{s}: {_test_line(b)}") for s, b in cal.blocks()]
+    if validation:
+        verdicts += [(v == "at the noise floor", f"{s} on independent data ({validation['data']}): {v}")
+                     for s, v in validation["verdict"].items()]
+    facts = [("unit", serial), ("calibration file", f"{file_name} (sha256 {file_sha256})"),
+             ("measurement set", f"{cal.input if isinstance(cal.input, str) else ', '.join(cal.input)}"),
+             ("its files' sha256", ", ".join(data_sha)), ("method", cal.method), ("model", model_name(cal)),
+             ("file format", cal.format), ("certificate written by", f"simucal {version}")]
+    if cal.temperature_range_c:
+        lo, hi = cal.temperature_range_c
+        facts.append(("temperature", f"the data spanned {lo:.2f} to {hi:.2f} degC"
+                      + (f"; temperature terms read T - {cal.t_ref_c:g} degC" if cal.t_ref_c is not None else "")))
+    body = ["<table>" + "".join(f"<tr><th>{html.escape(k)}</th><td>{html.escape(str(v))}</td></tr>" for k, v in facts)
+            + "</table>"]
+    for s, b in cal.blocks():
+        tilt = b.details.get("table_tilt")
+        body.append(f"<h2>{s}</h2><p>{html.escape(_test_line(b))}"
+                    + (f"; the table's stated tilt {tilt['stated_arcsec']:g} arcsec is in u" if tilt else "")
+                    + (f"; {html.escape(b.details['std_note'])}" if b.details.get("std_note") else "") + ".</p>")
+        body.append(table(["parameter", "value", "unit", "u (std)", f"U (k = {K:g})", "u: noise", "u: table",
+                           "u: model misfit"],
+                          [[r["name"], eng_html(r["value"], value_digits(r["value"], r["u"])), r["unit"], r["u"],
+                            r["U"], r["noise"], r["table"], r["misfit"]] for r in budget(b)]))
+    if validation:
+        body.append("<h2>Validation on independent data</h2>")
+        body.append(table(["sensor", "check", "n", "unit", "at nominal (rms)", "calibrated (rms)", "floor (rms)",
+                           "verdict"], _validation_rows(validation)))
+    else:
+        body.append("<p>No validation on independent data was given (simucal validate CAL.json DATA -o "
+                    "validation.json; then --validation validation.json).</p>")
+    return page(f"certificate {serial}", f"Calibration certificate: unit {serial}", verdicts,
+                f"simucal apply {file_name} DATA_DIR -o calibrated", body=body)

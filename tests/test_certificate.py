@@ -1,0 +1,87 @@
+"""A calibration's certificate (simucal.certificate, `simucal certificate`): its numbers are the calibration
+file's (u the file's std, U = 2 u, the budget's parts adding up to u), the validation shown is of this
+calibration, and its PDF, printed by a headless Chromium, renders to an image that is not blank and reads
+as the page."""
+import json
+import math
+
+import numpy as np
+import pypdfium2 as pdfium
+import pytest
+
+import simucal
+from cli_helpers import run
+from simucal.api.demo_run import HIDDEN
+from simucal.errors import SimucalError
+from simucal.report.certificate import K, budget, value_digits
+from simucal.report.numbers import eng
+
+
+@pytest.fixture(scope="module")
+def files(tmp_path_factory):
+    """A calibration whose accelerometer model fails (a hidden effect: its stds inflated by the misfit) on a
+    table with a stated tilt (in the gyro's stds), its set's files hashed, and its validation on another set."""
+    tmp = tmp_path_factory.mktemp("certificate")
+    simucal.simulate(seed=4, effects=HIDDEN).write(tmp / "set")
+    simucal.simulate(seed=5, effects=HIDDEN).write(tmp / "other")
+    cal = tmp / "cal.json"
+    simucal.save(cal, simucal.calibrate(tmp / "set"))
+    validation = tmp / "validation.json"
+    assert run("validate", cal, tmp / "other", "-o", validation).exit_code == 0
+    return tmp, cal, validation
+
+
+def test_the_certificates_numbers_are_the_files(files):
+    tmp, cal_path, validation = files
+    cal = simucal.load(cal_path)
+    page = simucal.certificate(cal_path, validation=validation)
+    raw = json.loads(cal_path.read_text())
+    assert raw["acc"]["verdict"] == "fails" and "std_raw" in raw["acc"] and "table_tilt" in raw["gyro"]
+    for sensor, block in cal.blocks():
+        rows = budget(block)
+        assert [r["name"] for r in rows] == list(raw[sensor]["params"])
+        for r in rows:
+            assert r["u"] == raw[sensor]["std"][r["name"]] and r["U"] == K * r["u"] == 2 * r["u"]
+            parts = r["noise"] ** 2 + (r["table"] or 0.0) ** 2 + r["misfit"] ** 2
+            assert math.isclose(parts, r["u"] ** 2, rel_tol=1e-9), (sensor, r)
+            assert f">{eng(r['U'])}<" in page and f">{eng(r['value'], value_digits(r['value'], r['u']))}<" in page
+        if sensor == "acc":  # the failing model: the misfit is most of u
+            assert all(r["misfit"] > r["noise"] for r in rows) and all(r["table"] is None for r in rows)
+        else:
+            assert all(r["misfit"] == 0 and r["table"] is not None for r in rows)
+            dK = [r["table"] / r["u"] for r in rows if r["name"].startswith("dK")]  # the tilt moves them alike
+            assert len(dK) == 3 and min(dK) > 0.01
+    digest = __import__("hashlib").sha256(cal_path.read_bytes()).hexdigest()
+    assert digest in page and all(h in page for h in raw["input_sha256"]) and f"simucal {simucal.__version__}" in page
+    assert f"gyro on independent data ({tmp / 'other'}): at the noise floor" in page and "acc: the model fails its test" in page
+
+
+def test_the_pdf_renders_and_reads_as_the_page(files, tmp_path):
+    _, cal, validation = files
+    r = run("certificate", cal, "-o", tmp_path / "c.html", "--pdf", tmp_path / "c.pdf", "--validation", validation)
+    assert r.exit_code == 0, r.output
+    assert (tmp_path / "c.html").read_text() == simucal.certificate(cal, validation=validation)
+    doc = pdfium.PdfDocument(str(tmp_path / "c.pdf"))
+    image = doc[0].render(scale=1.0).to_numpy()
+    ink = np.mean(image.min(axis=2) < 128)  # the share of dark pixels: text and table rules
+    assert image.shape[0] > 500 and 0.01 < ink < 0.5, ink
+    text = " ".join(doc[i].get_textpage().get_text_bounded() for i in range(len(doc)))
+    assert "Calibration certificate" in text and "U (k = 2)" in text and "Validation on independent data" in text
+
+
+def test_no_browser_a_foreign_validation_and_no_overwrite_are_refused_writing_nothing(files, tmp_path, monkeypatch):
+    tmp, cal, validation = files
+    monkeypatch.setenv("SIMUCAL_CHROMIUM", str(tmp_path / "no-such-browser"))
+    with pytest.raises(SimucalError, match="SIMUCAL_CHROMIUM=.*no such program"):
+        simucal.certificate(cal, html=tmp_path / "c.html", pdf=tmp_path / "c.pdf")
+    assert not list(tmp_path.iterdir())
+    monkeypatch.delenv("SIMUCAL_CHROMIUM")
+    other = tmp_path / "other.json"
+    other.write_bytes(cal.read_bytes())
+    with pytest.raises(SimucalError, match="validates .*cal.json, not .*other.json"):
+        simucal.certificate(other, validation=validation)
+    before = cal.read_bytes()
+    for given in (("-o", validation, "--validation", validation), ("-o", cal)):  # an input is never written over
+        r = run("certificate", cal, *given)
+        assert r.exit_code != 0 and "input" in r.output, r.output
+    assert cal.read_bytes() == before and json.loads(validation.read_text())["format"] == "simucal.validation/1"

@@ -1,0 +1,58 @@
+"""A unit's trend and due date (simucal/store/trend.py): the weighted line and its crossing of the spec, checked
+against the line's own algebra; and from the store, a drifting unit's due date on the command line and its page."""
+import json
+
+import numpy as np
+import pytest
+
+import simucal
+from cli_helpers import run
+from simucal.errors import SimucalError
+from simucal.store.trend import HORIZON_YEARS, K, due, line
+from store_helpers import DRIFT_PARAM, base_calibration, unit_files
+
+
+def test_the_line_is_the_weighted_least_squares_one():
+    t, v, s = np.array([0.0, 0.5, 1.0, 2.0]), np.array([1.0, 1.4, 2.1, 2.9]), np.array([0.1, 0.2, 0.1, 0.3])
+    ab, cov, chi2 = line(t, v, s)
+    X = np.column_stack([np.ones(4), t])
+    ref, *_ = np.linalg.lstsq(X / s[:, None], v / s, rcond=None)
+    assert np.allclose(ab, ref) and np.allclose(cov, np.linalg.inv((X / s[:, None]).T @ (X / s[:, None])))
+    assert np.isclose(chi2, np.sum(((v - X @ ab) / s) ** 2))
+
+
+def test_the_due_dates_are_where_the_line_and_its_band_reach_the_spec():
+    ab, cov = np.array([0.0, 1.0]), np.array([[0.01, 0.0], [0.0, 0.04]])
+    expected, earliest = due(ab, cov, {"max": 3.0}, 1.0)
+    assert np.isclose(expected, 3.0)
+    band = K * np.sqrt(np.array([1, earliest]) @ cov @ np.array([1, earliest]))
+    assert 1.0 < earliest < expected and np.isclose(earliest + band, 3.0)
+    assert due(ab, cov, {"min": 0.5}, 1.0) == (None, None)  # moving away from its only limit
+    assert due(ab, cov, {"max": 0.5}, 1.0) == (1.0, 1.0)  # outside already: due at its last calibration
+    far = due(np.array([0.0, 1e-3]), cov * 1e-6, {"max": 1.0}, 0.0)
+    assert far == (None, None) and HORIZON_YEARS < 1.0 / 1e-3
+
+
+def test_a_drifting_units_due_date_on_the_command_line_and_its_page(tmp_path):
+    base = base_calibration(tmp_path)
+    store = tmp_path / "lab.db"
+    for month, path in enumerate(unit_files(base, tmp_path / "cals", 1, 3, drifting={0}, seed=2)["SN-0000"]):
+        assert run("store", "add", path, "--store", store, "--time", f"2026-{1 + 4 * month:02d}-01").exit_code == 0
+    sensor, name = DRIFT_PARAM.split(".")
+    block = getattr(simucal.load(base), sensor)
+    value, std, unit = block.params[name], block.std[name], block.param_units[name]
+    spec = tmp_path / "spec.json"
+    spec.write_text(json.dumps({"format": "simucal.limits/1", "limits": {DRIFT_PARAM: {
+        "min": value - 100 * std, "max": value + 100 * std, "unit": unit}}}))
+    r = run("history", "SN-0000", "--store", store, "--spec", spec, "-o", tmp_path / "h.json",
+            "--html", tmp_path / "h.html")
+    assert r.exit_code == 0, r.output
+    trend = json.loads((tmp_path / "h.json").read_text())["trend"]
+    p = next(p for p in trend["parameters"] if p["name"] == DRIFT_PARAM)
+    years = (100 - (p["intercept"] - value) / std) * std / p["slope_per_year"]  # the line at value + 100 std
+    assert trend["due_parameter"] == DRIFT_PARAM and np.isclose(p["expected_years"], years, rtol=1e-6)
+    assert p["earliest_years"] < p["expected_years"] and f"{DRIFT_PARAM} is expected to leave its spec" in r.output
+    assert trend["due_utc"] == p["earliest_utc"] and p["earliest_utc"][:10] in (tmp_path / "h.html").read_text()
+    spec.write_text(json.dumps({"format": "simucal.limits/1", "limits": {DRIFT_PARAM: {"max": 1.0, "unit": "g"}}}))
+    with pytest.raises(SimucalError, match="spec.json: limits.gyro.b_z: unit 'g'"):
+        simucal.Store(store).history("SN-0000", spec=spec)
