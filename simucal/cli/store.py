@@ -70,6 +70,8 @@ def history(serial, store_url, output, limits_path, spec_path, html_path):
     from simucal import api
     from simucal.io import outputs
     inputs = [p for p in (limits_path, spec_path) if p]
+    if "://" not in store_url or store_url.startswith("sqlite:///"):  # the store's file is an input: never written over
+        inputs.append(store_url.split("sqlite:///", 1)[-1])
     guard(inputs, files={"-o": output, **({"--html": html_path} if html_path else {})})
     report = api.Store(store_url).history(serial, limits_path, spec_path)
     outputs.write_text(output, json.dumps(report, indent=1) + "\n")

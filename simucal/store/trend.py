@@ -94,6 +94,9 @@ def _parameter(rows: list[dict], t0: datetime, spec: dict) -> dict[str, Any]:
                expected_utc=None, earliest_utc=None)
     if name in spec:
         expected, earliest = due(ab, cov, spec[name], float(t[-1]))
+        lim = spec[name]
+        if v[-1] > lim.get("max", np.inf) or v[-1] < lim.get("min", -np.inf):  # measured outside: due now
+            expected = earliest = float(t[-1])
         out["expected_utc"] = None if expected is None else _utc(t0, expected)
         out["earliest_utc"] = None if earliest is None else _utc(t0, earliest)
         out["expected_years"], out["earliest_years"] = expected, earliest
