@@ -74,12 +74,16 @@ def test_no_browser_a_foreign_validation_and_no_overwrite_are_refused_writing_no
     monkeypatch.setenv("SIMUCAL_CHROMIUM", str(tmp_path / "no-such-browser"))
     with pytest.raises(SimucalError, match="SIMUCAL_CHROMIUM=.*no such program"):
         simucal.certificate(cal, html=tmp_path / "c.html", pdf=tmp_path / "c.pdf")
-    assert not list(tmp_path.iterdir())
+    assert not list(tmp_path.iterdir())  # nothing written
     monkeypatch.delenv("SIMUCAL_CHROMIUM")
     other = tmp_path / "other.json"
     other.write_bytes(cal.read_bytes())
     with pytest.raises(SimucalError, match="validates .*cal.json, not .*other.json"):
         simucal.certificate(other, validation=validation)
+    same = tmp_path / "same.json"  # validated on the data it was made from: not independent
+    assert run("validate", cal, tmp / "set", "-o", same).exit_code == 0
+    with pytest.raises(SimucalError, match="same.json: a validation on the data the calibration was made from"):
+        simucal.certificate(cal, validation=same)
     before = cal.read_bytes()
     for given in (("-o", validation, "--validation", validation), ("-o", cal)):  # an input is never written over
         r = run("certificate", cal, *given)

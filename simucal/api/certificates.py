@@ -25,6 +25,10 @@ def _validation(path: Path, calibration: Path) -> dict:
     if not isinstance(report, dict) or report.get("format") != VALIDATION_FORMAT:
         raise InputError(f"{path}: not a validation report (format {VALIDATION_FORMAT}: simucal validate CAL.json "
                          "DATA -o validation.json writes one)")
+    if report.get("independent") is False:
+        raise InputError(f"{path}: a validation on the data the calibration was made from, not independent data; "
+                         f"validate on another recording of the unit: simucal validate {calibration} OTHER_DATA -o "
+                         "validation.json")
     if Path(str(report.get("calibration"))).name != calibration.name:
         raise InputError(f"{path}: validates {report.get('calibration')}, not {calibration}; give the validation "
                          f"of this calibration: simucal validate {calibration} DATA -o validation.json")

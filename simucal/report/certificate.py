@@ -10,9 +10,9 @@ parts the file records, in the order the methods build the std (turntable/tilt.p
     table   = |dp / dtilt| * the stated tilt      (the outer axis's levelling, meta.json table_tilt_arcsec)
     misfit  = sqrt(u^2 - u_raw^2)                 (where the model failed its test: u = u_raw sqrt(chi2/dof))
     noise   = sqrt(u_raw^2 - table^2)             (the fit's own: the data's noise through the plan)
-where u_raw is the std before the misfit's inflation (u where the model passed). Temperature enters as the
-calibration's own: a thermal model's coefficients are parameters of their own, and the temperatures the data
-spanned are stated (the calibration holds there); no temperature share is invented for a model without one.
+where u_raw is the std before the misfit's inflation (u where the model passed). The temperatures the data
+spanned are stated (the calibration holds there); a thermal model's parameters are given at T_ref, and no
+temperature share is invented for a model without one.
 """
 from __future__ import annotations
 
