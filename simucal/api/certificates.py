@@ -8,12 +8,12 @@ import os
 from pathlib import Path
 
 from simucal.api.arguments import checked
+from simucal.api.validating import FORMAT as VALIDATION_FORMAT
 from simucal.errors import InputError
 from simucal.io import outputs
 from simucal.io.calibration import loads
 from simucal.version import __version__
 
-VALIDATION_FORMAT = "simucal.validation/1"
 
 
 def _validation(path: Path, calibration: Path) -> dict:

@@ -54,6 +54,8 @@ WARMUP = "warm-up"  # a still board's warm-up calibration (handheld/warmup.py): 
 WORSE = 1.05  # after/before above this: the calibration makes the unit worse on these data
 AT_FLOOR = 2.0  # after below this many floors: the noise, nothing left to gain
 
+FORMAT = "simucal.validation/1"  # the report validate writes (the certificate reads it)
+
 
 def _verdict(check) -> str:
     b, a, fl = check["before_rms"], check["after_rms"], check["floor_rms"]
@@ -245,7 +247,7 @@ def validation_report(cal_path, data_dir, acc_noise_g=None, gyro_noise_dph=None,
         if far and s in verdicts:
             verdicts[s] += f"; but {', '.join(far)} FAR OFF where the rest agree (mislabelled or disturbed)"
     own = own_rows(cal, ms)
-    return {"format": "simucal.validation/1", "calibration": str(where), "data": str(ms.path),
+    return {"format": FORMAT, "calibration": str(where), "data": str(ms.path),
             "independent": not own, "checks": checks, "verdict": verdicts, "verdict_notes": notes,
             "warnings": list(meta.get("warnings", [])),  # apply's: rows outside the calibrated temperature range
             "note": own or None, "nominal": [x for x in (said_a, said_g) if x], "skipped": skipped_sensors(ms.sensors),
