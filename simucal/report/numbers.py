@@ -36,7 +36,9 @@ def eng_html(value: float | None, digits: int = DIGITS, unit: str = "") -> Html:
 
 def words_html(text: str) -> Html:
     """Text for a page, each number in it unbreakable (a narrow cell wraps the words, never a number)."""
-    return Html(re.sub(r"[-+]?\d[\d.]*(?:e[-+]?\d+)?", lambda m: f"<span class='n'>{m[0]}</span>",
+    def unbreakable(number: re.Match[str]) -> str:
+        return f"<span class='n'>{number.group(0)}</span>"
+    return Html(re.sub(r"[-+]?\d[\d.]*(?:e[-+]?\d+)?", unbreakable,
                        html.escape(text, quote=False)))  # quote=False: no &#x27; whose digits it would wrap
 
 
