@@ -16,9 +16,13 @@ and one entry here.
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import Callable
+from typing import TYPE_CHECKING, Any, Callable
 
 from simucal.errors import CalibrationError, InputError
+
+if TYPE_CHECKING:  # the methods' modules load when one is called (below)
+    from simucal import io
+    from simucal.io.calibration import Calibration
 
 TURNTABLE, STREAM, FIELD, SEQUENCE = "turntable", "stream", "field", "sequence"
 DATA = {SEQUENCE: "a rotation sequence (segments.csv with move segments between rests, raw samples)",
@@ -36,7 +40,7 @@ class Method:
     run: Callable              # run(ms, **options) -> io.calibration.Calibration
     any_plan: bool = True      # takes any plan of its kind of data (False: a protocol's own, Ferraris's six poses)
 
-    def call(self, ms, **given):
+    def call(self, ms: io.MeasurementSet, **given: Any) -> Calibration:
         """run(ms) with the options given that this method takes, the others (and those given as None)
         at their DEFAULTS."""
         given = {k: v for k, v in given.items() if v is not None}
@@ -163,8 +167,8 @@ class Kind:
     simulate: Callable         # simulate(seed, rate_hz, options) -> (meta, samples, segments or None, truth)
     observations: Callable     # observations(ms, sensor, stated) -> (Observations, segments or None, row segments)
     #                            or None: the rows a sensor's model is tested on (diagnose)
-    diagnose_gyro: Callable | None  # diagnose_gyro(ms, gyro_model, add, truth, acc_model) -> block: the gyro
-    #                                 judged otherwise than by observations (None: by them)
+    diagnose_gyro: Callable[..., dict[str, Any]] | None  # diagnose_gyro(ms, gyro_model, add, truth, acc_model)
+    #                            -> block: the gyro judged otherwise than by observations (None: by them)
     sensor_extras: Callable    # sensor_extras(ms, sensor, model, obs, fit, segs, shape) -> dict: a diagnosis
     #                            block's own keys
     finish_diagnosis: Callable  # finish_diagnosis(ms, result, settings): the checks over both sensors, in place

@@ -27,6 +27,14 @@ def test_mypy_finds_nothing_in_the_package():
 
 
 @pytest.mark.slow
+def test_the_api_passes_mypy_strict():
+    """The API's own modules type-check strictly: every function annotated, every generic given its parameters,
+    no call into an unannotated function."""
+    r = _run("mypy", "--strict", "simucal/api")
+    assert r.returncode == 0, r.stdout + r.stderr
+
+
+@pytest.mark.slow
 def test_the_api_tutorial_passes_mypy_strict():
     """A notebook's code on the API alone type-checks strictly, with no ignores."""
     tutorial = ROOT / "docs" / "tutorials" / "three_methods.py"

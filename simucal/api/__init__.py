@@ -60,7 +60,7 @@ def __getattr__(name: str) -> Any:
 
 
 @checked
-def read_set(path: str | os.PathLike) -> MeasurementSet:
+def read_set(path: str | os.PathLike[str]) -> MeasurementSet:
     """Read a measurement set (a folder: meta.json, samples.csv, segments.csv), checked by the spec.
 
     Parameters
@@ -97,8 +97,8 @@ def _truth(path: Path) -> results.Truth | None:
 
 
 @checked
-def save(path: str | os.PathLike, result: Calibration | Validation | Diagnosis | Noise,
-         calibration_path: str | os.PathLike = "thermal_calibration.json", units: str = "spec",
+def save(path: str | os.PathLike[str], result: Calibration | Validation | Diagnosis | Noise,
+         calibration_path: str | os.PathLike[str] = "thermal_calibration.json", units: str = "spec",
          written: Mapping[str, str | None] | None = None) -> None:
     """Write a result as its command writes it: a calibration file (``simucal.calibration/2``, as
     `simucal calibrate -o`), or the report of `simucal validate`, `diagnose` or `noise` (``-o``); a
@@ -153,7 +153,7 @@ OTHER_FORMATS = {".params": "PX4's parameters: simucal.autopilot_files(imus, px4
                  ".yaml": "Kalibr's imu.yaml: Noise.kalibr_yaml()", ".yml": "Kalibr's imu.yaml: Noise.kalibr_yaml()"}
 
 
-def _refuse_suffix(path: str | os.PathLike) -> None:
+def _refuse_suffix(path: str | os.PathLike[str]) -> None:
     """Refuse a file name whose suffix names a format save does not write (it would write JSON under it)."""
     suffix = Path(path).suffix.lower()
     if suffix and suffix not in SAVED_AS:
@@ -194,7 +194,7 @@ def _page(result: _file.Calibration | Validation | Diagnosis | Noise, calibratio
 
 
 @checked
-def load(path: str | os.PathLike) -> Calibration:
+def load(path: str | os.PathLike[str]) -> Calibration:
     """Read a calibration file, checked before any of it is used.
 
     Parameters

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import os
 from dataclasses import dataclass, field
-from typing import NamedTuple, Union
+from typing import Any, NamedTuple, Union
 
 from simucal import io
 from simucal.io import records
@@ -12,7 +12,7 @@ from simucal.api.arguments import checked
 from simucal.api.sets import folder_of
 from simucal.api.tables import TableOf
 
-Data = Union[str, os.PathLike, io.MeasurementSet]
+Data = Union[str, os.PathLike[str], io.MeasurementSet]
 
 
 class Term(NamedTuple):
@@ -77,7 +77,7 @@ class Noise:
                                            for t in self.term_rows])
 
     @checked
-    def lines(self, written: dict | None = None, units: str = "spec") -> list[str]:
+    def lines(self, written: dict[str, Any] | None = None, units: str = "spec") -> list[str]:
         """What `simucal noise` prints: each axis's terms in a data sheet's units (``units="si"``: in SI, as
         `simucal noise --units si`), the verdicts and the next step (written: the files the command wrote,
         {"-o": ..., "--kalibr": ...}, which the next step names)."""
@@ -147,7 +147,7 @@ def noise(data: Data, *, tau_max_s: float | None = None, scheduler: str | None =
     return Noise(rows, report, allan_points(shown))
 
 
-def allan_points(report: dict) -> list[AllanPoint]:
+def allan_points(report: dict[str, Any]) -> list[AllanPoint]:
     """The report's Allan deviation curves as rows (Noise.curve)."""
     out = []
     for s in ("acc", "gyro"):

@@ -69,8 +69,12 @@ def _to_list(v: Any) -> bool:
     return not isinstance(v, (str, bytes)) and isinstance(v, (abc.Iterator, abc.Set, abc.ValuesView))
 
 
-def _union(args: tuple) -> Accepts | None:
-    if str in args and os.PathLike in args:  # a path's words cover the str
+def _is_path(t: Any) -> bool:
+    return (typing.get_origin(t) or t) is os.PathLike  # os.PathLike[str] as the bare class
+
+
+def _union(args: tuple[Any, ...]) -> Accepts | None:
+    if str in args and any(_is_path(a) for a in args):  # a path's words cover the str
         args = tuple(a for a in args if a is not str)
     members = [accepts(a) for a in args if a is not type(None)]  # None: the door's
     if any(m is None for m in members):
@@ -82,7 +86,7 @@ def _union(args: tuple) -> Accepts | None:
                    any(m.fspath for m in known))
 
 
-def _collection(origin: Any, args: tuple) -> Accepts:
+def _collection(origin: Any, args: tuple[Any, ...]) -> Accepts:
     """A sequence's or a mapping's Accepts, its items checked where their type is given."""
     if origin in MAPPINGS or (isinstance(origin, type) and typing.is_typeddict(origin)):
         key, value = (accepts(a) for a in args) if len(args) == 2 else (None, None)
@@ -97,6 +101,8 @@ def _collection(origin: Any, args: tuple) -> Accepts:
 
 def accepts(t: Any) -> Accepts | None:
     """What a resolved annotation accepts; None: anything."""
+    if _is_path(t):
+        t = os.PathLike
     origin, args = typing.get_origin(t), typing.get_args(t)
     if t is Any or t is object:
         return None
@@ -122,7 +128,7 @@ def accepts(t: Any) -> Accepts | None:
     return None
 
 
-def _resolved(annotation: Any, namespace: dict) -> Any:
+def _resolved(annotation: Any, namespace: dict[str, Any]) -> Any:
     """An annotation as a type: a string (PEP 563) evaluated in the function's module; Any where it cannot be."""
     if annotation is inspect.Parameter.empty:
         return Any
@@ -191,7 +197,7 @@ def door_of(f: Callable[..., Any]) -> Door:
     return Door({n: accepts(t) for n, t in types_of.items()}, nullable, keywords, options)
 
 
-def _unknown(where: str, keywords: list[str], kwargs: dict) -> None:
+def _unknown(where: str, keywords: list[str], kwargs: dict[str, Any]) -> None:
     for k, v in kwargs.items():
         if k not in keywords:
             near = difflib.get_close_matches(k, keywords, 1)

@@ -24,7 +24,7 @@ class Calibrated(NamedTuple):
     error: str | None    # the refusal's message
 
 
-def output_files(data_dirs: Sequence[str | os.PathLike], folder: str | os.PathLike) -> list[Path]:
+def output_files(data_dirs: Sequence[str | os.PathLike[str]], folder: str | os.PathLike[str]) -> list[Path]:
     """Each set's calibration file, FOLDER/<set's folder name>.json; refused where two sets share a folder name."""
     files = [Path(folder) / f"{Path(d).resolve().name}.json" for d in data_dirs]
     for i, f in enumerate(files):
@@ -36,7 +36,7 @@ def output_files(data_dirs: Sequence[str | os.PathLike], folder: str | os.PathLi
 
 
 @checked
-def calibrate_each(data_dirs: Sequence[str | os.PathLike], folder: str | os.PathLike, *, scheduler: str | None = None,
+def calibrate_each(data_dirs: Sequence[str | os.PathLike[str]], folder: str | os.PathLike[str], *, scheduler: str | None = None,
                    progress: Any = None, **options: Unpack[CalibrateOptions]) -> list[Calibrated]:
     """Calibrate every set of `data_dirs` (as `simucal.calibrate` with `options`) and write each one's file as
     FOLDER/<set's folder name>.json, on a scheduler where given (local, processes or a Dask address).

@@ -10,7 +10,7 @@ polynomial in temperature; a turntable unit fitted once, every row at its own te
 from __future__ import annotations
 
 import os
-from typing import Sequence, Union, cast
+from typing import Any, Mapping, Sequence, Union, cast
 
 import numpy as np
 
@@ -23,12 +23,15 @@ from simucal.errors import CalibrationError, SimucalError
 from simucal.io import calibration
 from simucal.io.calibration_checks import check_layout, scale_notes
 from simucal.io.sensor_checks import stuck_channels
+from simucal.io.stream_records import Timestamps
 from simucal.io.timestamps import with_timestamps
 
-Data = Union[str, os.PathLike, io.MeasurementSet]
+Data = Union[str, os.PathLike[str], io.MeasurementSet]
 TYPE_CHECKING = False
 if TYPE_CHECKING:  # api/options.py says why
     from typing_extensions import Unpack
+
+    from simucal.handheld.static_detect import DetectSettings
 
 
 @checked
@@ -93,9 +96,11 @@ def calibrate_over_temperature(sets: Sequence[Data], **options: Unpack[Calibrate
     return Calibration.of(calibrate_thermal([as_set(d) for d in sets], **keywords(options)))
 
 
-def calibrate_set(folder, method="auto", acc_model="acc_baseline", gyro_model="gyro_baseline", detect=None,
-                  add=(), acc_noise_g=None, gyro_noise_dph=None, heading_accuracy_deg=None, t_ref_c=None,
-                  noise=None, rank=True, timestamps="auto") -> calibration.Calibration:
+def calibrate_set(folder: Data, method: str = "auto", acc_model: str = "acc_baseline", gyro_model: str = "gyro_baseline",
+                  detect: DetectSettings | None = None, add: Sequence[str] = (), acc_noise_g: float | None = None,
+                  gyro_noise_dph: float | None = None, heading_accuracy_deg: float | None = None,
+                  t_ref_c: float | None = None, noise: str | os.PathLike[str] | None = None, rank: bool = True,
+                  timestamps: str = "auto") -> calibration.Calibration:
     """Calibrate a measurement set. method: a name of methods.METHODS, or "auto" (the default for
     the set's data). add: effect ids and model files (augmented.resolve_add), and "auto": the
     library effects a failing model needs, chosen one at a time (each sensor's block lists them
@@ -151,13 +156,14 @@ def calibrate_set(folder, method="auto", acc_model="acc_baseline", gyro_model="g
         result.warnings += [f"{noise}: holds no {s} curve, so the {s} noise is the data's own (--noise covers the "
                             f"{' and '.join(curves)} only)" for s, _ in result.blocks() if curves and s not in curves]
         if stamps:
-            result.details["timestamps"] = stamps
+            result.details["timestamps"] = cast(Timestamps, stamps)  # with_timestamps's block
     except CalibrationError as e:
         raise e.naming(ms.path) from None
     return result
 
 
-def calibrate_to_file(folder, output, kwargs: dict):
+def calibrate_to_file(folder: Data, output: str | os.PathLike[str],
+                      kwargs: dict[str, Any]) -> tuple[calibration.Calibration | None, str | None]:
     """calibrate_set() one set and write its file; (result, None), or (None, the refusal's message).
     One task of a batch (`simucal calibrate DIR1 DIR2 ... --scheduler`): a refusal loses no other set."""
     try:
@@ -168,7 +174,7 @@ def calibrate_to_file(folder, output, kwargs: dict):
         return None, str(e)
 
 
-def _still_warmup(folders, degree, kwargs):
+def _still_warmup(folders: Sequence[Data], degree: int | None, kwargs: Mapping[str, Any]) -> io.MeasurementSet | None:
     """The set, where --thermal is given one stream that never moves (a board warming up, handheld/warmup.py);
     else None. Options a warm-up cannot use are refused by name."""
     if len(folders) != 1:
@@ -196,7 +202,8 @@ def _still_warmup(folders, degree, kwargs):
     return ms
 
 
-def calibrate_thermal(folders, thermal_degree=None, t_ref_c=None, **kwargs) -> calibration.Calibration:
+def calibrate_thermal(folders: Sequence[Data], thermal_degree: int | None = None, t_ref_c: float | None = None,
+                      **kwargs: Any) -> calibration.Calibration:
     """One unit at two or more temperature plateaus (one set each), or one set whose temperature
     ramps. A turntable unit (method exact) is fitted once, every row at its own temp_c, with every
     parameter of the model a polynomial in (T - T_ref) inside the model, each parameter's degree
@@ -216,7 +223,8 @@ def calibrate_thermal(folders, thermal_degree=None, t_ref_c=None, **kwargs) -> c
         return _calibrate_thermal(folders, thermal_degree, t_ref_c, kwargs)
 
 
-def _calibrate_thermal(folders, degree, t_ref_c, kwargs) -> calibration.Calibration:
+def _calibrate_thermal(folders: Sequence[Data], degree: int | None, t_ref_c: float | None,
+                       kwargs: dict[str, Any]) -> calibration.Calibration:
     from simucal.fit.thermal_plateaus import plateau, plateaus_block, reference_temperature, refuse_repeated
     warmup = _still_warmup(folders, degree, kwargs)
     if warmup is not None:

@@ -5,9 +5,10 @@ from __future__ import annotations
 import warnings
 from pathlib import Path
 from dataclasses import fields
-from typing import Any, NamedTuple
+from typing import Any, NamedTuple, cast
 
 import numpy as np
+from numpy.typing import NDArray
 
 from simucal.api.arguments import checked
 from simucal.api.tables import table
@@ -18,6 +19,7 @@ from simucal.fit.augmented import AugmentedModel
 from simucal.generated.effects import EFFECTS
 from simucal.io import SAMPLE_COLS, arrays, calibration, units
 from simucal.io.calibration_checks import LAYOUT_KEYS
+from simucal.io.meta import Meta
 
 PHYSICAL = {"acc": ("g", "m/s^2"), "gyro": ("deg/h", "deg/s", "rad/s")}  # units a calibrated output is given in
 
@@ -32,14 +34,14 @@ class Parameter(NamedTuple):
     meaning: str
 
 
-def _model_rows(sensor, block) -> list[Parameter]:
+def _model_rows(sensor: str, block: calibration.SensorBlock) -> list[Parameter]:
     """Each parameter at T_ref; for a thermal calibration also each coefficient of its polynomial
     in (T - T_ref) (name.T1, name.T2, ...), in unit per degC^k."""
     model = AugmentedModel(block.model, block.library_effects())
     rows = []
     for n, u, m in zip(model.params, model.param_units, model.meanings):
         unit = block.param_units.get(n, u)
-        rows.append(Parameter(n, sensor, float(block.params[n]), float(block.std.get(n, np.nan)), unit,
+        rows.append(Parameter(n, sensor, float(block.params[n]), float(cast(float, block.std.get(n, np.nan))), unit,
                               m + (f" (at T_ref = {block.thermal['t_ref_c']:.4g} degC)" if block.thermal else "")))
         poly = (block.thermal or {}).get("parameters", {}).get(n, {})
         for k, (c, e) in enumerate(zip(poly.get("coefficients", [])[1:], poly.get("std", [])[1:]), start=1):
@@ -48,7 +50,7 @@ def _model_rows(sensor, block) -> list[Parameter]:
     return rows
 
 
-def _affine_rows(sensor, block) -> list[Parameter]:
+def _affine_rows(sensor: str, block: calibration.SensorBlock) -> list[Parameter]:
     """An affine block (multiposition, a stream's gyro): M's (or the fitted T's) entries and the bias,
     their stds where the method gave them (as M- and bias-shaped arrays)."""
     name, A = "M", block.M
@@ -182,7 +184,8 @@ class Calibration(calibration.Calibration):
                 if s in ms.sensors:
                     samples.update(zip(cols, to(np.column_stack([samples[c] for c in cols]), si).T))
             meta.update(acc_unit=si["acc_unit"], gyro_unit=si["gyro_unit"])
-        return MeasurementSet.of(io.MeasurementSet(ms.path, {"format": io.FORMAT, **meta}, samples, segments))
+        calibrated = cast(Meta, {"format": io.FORMAT, **meta})  # the set's meta.json, its units the calibrated ones
+        return MeasurementSet.of(io.MeasurementSet(ms.path, calibrated, samples, segments))
 
     @checked
     def autopilot_files(self, data: Any, *, px4: str | None = None, ardupilot: str | None = None) -> list[AutopilotFile]:
@@ -221,7 +224,7 @@ class Calibration(calibration.Calibration):
         >>> cal.sensor("acc").p_value  # doctest: +SKIP
         0.41
         """
-        block = getattr(self, name, None) if name in ("acc", "gyro") else None
+        block: calibration.SensorBlock | None = getattr(self, name, None) if name in ("acc", "gyro") else None
         if block is None:
             why = self.not_calibrated.get(name)
             raise CalibrationError(f"this calibration ({self.method}) holds no {name!r} block"
@@ -286,18 +289,19 @@ class Calibration(calibration.Calibration):
             warnings.warn(w.replace(" of samples.csv", " of x"), stacklevel=2)
         back = {"acc": given["acc_unit"] if given["acc_unit"] in PHYSICAL["acc"] else "g",
                 "gyro": given["gyro_unit"] if given["gyro_unit"] in PHYSICAL["gyro"] else "deg/h"}
-        result: dict[str, np.ndarray] = {}
+        result: dict[str, NDArray[np.float64]] = {}
         for s, cols, to in (("acc", SAMPLE_COLS[:3], units.g_to_acc), ("gyro", SAMPLE_COLS[3:], units.dph_to_gyro)):
             if cols[0] in out:
                 u = np.column_stack([out[c] for c in cols])
                 result.update(zip(cols, to(u, {f"{s}_unit": back[s], "gravity_mps2": gravity_mps2}).T))
         _plausible(result, back["acc"], given)
         if frame:
+            assert names is not None  # _split names a frame's columns
             return _frame_of(x, result, names, back)
         return np.column_stack([result[c] for c in SAMPLE_COLS if c in result]).reshape(np.shape(x))
 
 
-def _frame_of(x, result, names, units_of) -> Any:
+def _frame_of(x: Any, result: dict[str, NDArray[np.float64]], names: dict[str, str], units_of: dict[str, str]) -> Any:
     """A copy of frame x with the calibrated columns replaced, their units in attrs["units"]."""
     df = x.copy()
     for c, v in result.items():
@@ -308,7 +312,7 @@ def _frame_of(x, result, names, units_of) -> Any:
     return df
 
 
-def _plausible(result, acc_unit, given) -> None:
+def _plausible(result: dict[str, NDArray[np.float64]], acc_unit: str, given: dict[str, Any]) -> None:
     """A unit mix-up (pulse/s given as g) would come back silently absurd: refused as a set's is."""
     if "ax" in result:
         f = np.linalg.norm(np.column_stack([result[c] for c in SAMPLE_COLS[:3]]), axis=1)
@@ -316,7 +320,8 @@ def _plausible(result, acc_unit, given) -> None:
                               f"Calibration.apply(acc_unit={given['acc_unit']!r}): calibrated")
 
 
-def _given_units(cal, acc_unit, gyro_unit, gravity_mps2) -> dict:
+def _given_units(cal: calibration.Calibration, acc_unit: str | None, gyro_unit: str | None,
+                 gravity_mps2: float) -> dict[str, Any]:
     """The caller's units (default the calibration's own), refused where simucal does not know one."""
     given = {"acc_unit": acc_unit or cal.layout.get("acc_unit", "g"),
              "gyro_unit": gyro_unit or cal.layout.get("gyro_unit", "deg/h"), "gravity_mps2": gravity_mps2}
@@ -326,7 +331,10 @@ def _given_units(cal, acc_unit, gyro_unit, gravity_mps2) -> dict:
     return given
 
 
-def _split(cal, x, frame, sensor, columns):
+Split = tuple[NDArray[np.float64] | None, NDArray[np.float64] | None, dict[str, str] | None]  # acc, gyro, the frame's columns
+
+
+def _split(cal: calibration.Calibration, x: Any, frame: bool, sensor: str | None, columns: dict[str, str] | None) -> Split:
     """(acc, gyro, {spec name: the frame's column}) of x."""
     if frame:
         names = {c: c for c in SAMPLE_COLS} | dict(columns or {})
@@ -353,7 +361,7 @@ def _split(cal, x, frame, sensor, columns):
     return (a, None, None) if sensor == "acc" else (None, a, None)
 
 
-def _needs(cal, temp_c, t_s) -> None:
+def _needs(cal: calibration.Calibration, temp_c: Any, t_s: Any) -> None:
     """Refuse leaving out an input the model reads (it would be taken as 0, silently)."""
     reads = {r for _, b in cal.blocks() for e in b.library_effects() for r in EFFECTS[e].reads}
     if any(b.thermal is not None for _, b in cal.blocks()):

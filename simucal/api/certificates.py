@@ -6,6 +6,7 @@ import hashlib
 import json
 import os
 from pathlib import Path
+from typing import Any
 
 from simucal.api.arguments import checked
 from simucal.api.validating import FORMAT as VALIDATION_FORMAT
@@ -15,8 +16,7 @@ from simucal.io.calibration import loads
 from simucal.version import __version__
 
 
-
-def _validation(path: Path, calibration: Path) -> dict:
+def _validation(path: Path, calibration: Path) -> dict[str, Any]:
     """validate's report, refused where it is not one, or is of another calibration file."""
     try:
         report = json.loads(path.read_text())
@@ -36,22 +36,22 @@ def _validation(path: Path, calibration: Path) -> dict:
 
 
 @checked
-def certificate(calibration: str | os.PathLike, validation: str | os.PathLike | None = None,
-                html: str | os.PathLike | None = None, pdf: str | os.PathLike | None = None) -> str:
+def certificate(calibration: str | os.PathLike[str], validation: str | os.PathLike[str] | None = None,
+                html: str | os.PathLike[str] | None = None, pdf: str | os.PathLike[str] | None = None) -> str:
     """The certificate of a calibration file: the unit, the file's and the data's sha256, the method and each
     model's test, every parameter with its std u, its expanded uncertainty U = 2 u and u's budget (noise, the
     table's tilt, the model's misfit), the validation on independent data, simucal's version.
 
     Parameters
     ----------
-    calibration : str or os.PathLike
+    calibration : str or os.PathLike[str]
         A calibration file (``simucal calibrate ... -o calibration.json``); read, never written.
-    validation : str or os.PathLike, optional
+    validation : str or os.PathLike[str], optional
         validate's report of this calibration on independent data (``simucal validate CAL DATA -o
         validation.json``); the report of another calibration file is refused.
-    html : str or os.PathLike, optional
+    html : str or os.PathLike[str], optional
         Also write the page there (never over an input).
-    pdf : str or os.PathLike, optional
+    pdf : str or os.PathLike[str], optional
         Also write the same page as PDF, printed by a headless Chromium ($SIMUCAL_CHROMIUM, else chromium or
         google-chrome on the PATH; none: refused, nothing written).
 

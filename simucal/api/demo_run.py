@@ -13,7 +13,9 @@ audit, and the diagnosis report.
 from __future__ import annotations
 
 import json
+import os
 from pathlib import Path
+from typing import Any, Callable, Mapping
 
 import numpy as np
 
@@ -25,7 +27,7 @@ from simucal.fit.apply import apply
 from simucal.io import calibration, outputs
 from simucal.report import markdown as report
 from simucal.report.html import render
-from simucal.turntable.simulate import SCENARIOS, plant, write
+from simucal.turntable.simulate import SCENARIOS, Scenario, plant, write
 
 HIDDEN = {"acc.quadratic.z": 2e-4}  # g/g^2: a z accelerometer second-order nonlinearity
 SETS = ("loop", "loop_applied", "loop_other", "thermal_0", "thermal_25", "thermal_50", "thermal_35", "still",
@@ -33,7 +35,7 @@ SETS = ("loop", "loop_applied", "loop_other", "thermal_0", "thermal_25", "therma
 MARKER = "demo.json"  # written last: the folder is a demo's, and a later demo may replace its sets
 
 
-def _rest_error(cal, folder):
+def _rest_error(cal: calibration.Calibration, folder: Path) -> float:
     """rms of |f| - 1 g over the static rows after applying cal (g)."""
     _, samples, segments = apply(cal, folder)
     static = np.isin(samples["segment"], [s.segment for s in segments if s.kind == "static"])
@@ -41,7 +43,7 @@ def _rest_error(cal, folder):
     return float(np.sqrt(np.mean((np.linalg.norm(f, axis=1) - 1.0) ** 2)))
 
 
-def loop(out: Path, seed: int, echo) -> dict:
+def loop(out: Path, seed: int, echo: Callable[[str], Any]) -> dict[str, Any]:
     sc = SCENARIOS["paper"]()
     sc.plan, sc.acc_effects = "fibonacci48", dict(HIDDEN)
     data = out / "loop"
@@ -81,7 +83,7 @@ def loop(out: Path, seed: int, echo) -> dict:
     return {"found": found[0], "rest_error_before": err0, "rest_error_after": err1, "validation": other}
 
 
-def _validate(out: Path, sc, seed: int, echo) -> dict:
+def _validate(out: Path, sc: Scenario, seed: int, echo: Callable[[str], Any]) -> dict[str, Any]:
     """Step 6: both calibrations on another recording of the same unit (the Table 1 plan, raw rows)."""
     from simucal.api.validating import html_page, validation_report
     sc.plan, sc.rate_hz, sc.static_s = "table1", 20.0, 5.0  # meta.json states the table (simulate's default)
@@ -103,16 +105,17 @@ def _validate(out: Path, sc, seed: int, echo) -> dict:
     return {n: r["checks"]["acc"][0]["after_rms"] for n, r in reps.items()}
 
 
-def _label(check) -> str:
+def _label(check: Mapping[str, Any]) -> str:
     """A validation check's name for a table row, whole: its text up to the first comma or the floor's note."""
-    return check["what"].split(" (floor")[0].split(",")[0]
+    what: str = check["what"]
+    return what.split(" (floor")[0].split(",")[0]
 
 
 THERMAL = {"acc.bias_temperature.x": 1e-5, "acc.bias_temperature2.x": 1e-7, "acc.scale_temperature.z": 1e-5,
            "gyro.bias_temperature.z": 0.01, "gyro.scale_temperature.x": 2e-6}
 
 
-def thermal(out: Path, seed: int, echo) -> dict:
+def thermal(out: Path, seed: int, echo: Callable[[str], Any]) -> dict[str, Any]:
     """The unit over temperature: plateaus at 0, 25 and 50 degC that wander +-0.3 degC, simulated as
     `simulate --temperature-c T --t-ref-c 25 --temperature-wander-c 0.3` does and calibrated with
     --thermal (one fit, every row at its own temperature); it and the 25 degC plateau's calibration
@@ -121,7 +124,7 @@ def thermal(out: Path, seed: int, echo) -> dict:
     from simucal.turntable.simulate import at_temperature
     from simucal.api.validating import validation_report
 
-    def plateau(T, k, plan="fibonacci48"):
+    def plateau(T: int, k: int, plan: str = "fibonacci48") -> Path:
         sc = SCENARIOS["paper"]()
         sc.plan = plan
         at_temperature(sc, str(T), t_ref_c=25.0, wander_c=0.3)
@@ -150,7 +153,7 @@ def thermal(out: Path, seed: int, echo) -> dict:
     return {s: (reps[""]["checks"][s][0]["after_rms"], reps["_25"]["checks"][s][0]["after_rms"]) for s in ("acc", "gyro")}
 
 
-def noise(out: Path, seed: int, echo) -> None:
+def noise(out: Path, seed: int, echo: Callable[[str], Any]) -> None:
     """The noise of a still recording: Allan deviation and the IEEE 952 terms, with the plot."""
     from simucal.fit.allan_noise import characterise
     from simucal.handheld.simulate import write_still
@@ -165,7 +168,7 @@ def noise(out: Path, seed: int, echo) -> None:
          f"(simulated 50); Allan plot {out / 'noise.html'}")
 
 
-def paper(out: Path, seed: int, echo) -> None:
+def paper(out: Path, seed: int, echo: Callable[[str], Any]) -> None:
     from simucal.report.paper_claims import full_audit
     write(out / "paper", SCENARIOS["paper"](), seed)
     echo(f"simulate: {out / 'paper'} (dong2018 section 4 settings, seed {seed})")
@@ -187,7 +190,7 @@ def paper(out: Path, seed: int, echo) -> None:
     echo(f"diagnose: {out / 'diagnosis.html'}: {diag['verdict']}")
 
 
-def run(out_dir, seed, echo) -> dict:
+def run(out_dir: str | os.PathLike[str], seed: int, echo: Callable[[str], Any]) -> dict[str, Any]:
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
     stale, secs, diff = derive_cmd.run(check=True)

@@ -14,7 +14,7 @@ import json
 import os
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any, NamedTuple, Sequence
+from typing import Any, Callable, NamedTuple, Sequence
 
 import numpy as np
 
@@ -24,7 +24,7 @@ from simucal.api.calibrating import Data
 from simucal.api.sets import as_set, effect_ids
 from simucal.api.tables import TableOf
 from simucal.errors import InputError
-from simucal.fit.results import Candidate
+from simucal.fit.results import Candidate as Candidate  # the API's (simucal.Candidate)
 from simucal.io import records
 from simucal.errors import CalibrationError
 from simucal.fit.augmented import AugmentedModel
@@ -160,8 +160,8 @@ def diagnose(data: Data, *, add: str | Sequence[str] = (), acc_model: str = "acc
     sensors = [s for s in ("acc", "gyro") if s in report]
     shown = diagnosis_in(report, units)  # the verdicts and the table in the units asked; the report as written
     rows = [Candidate.of(c) for c in shown["candidates"]]
-    files = {s: report[s]["shape"]["model_file"] for s in sensors
-             if report[s].get("shape") and not report[s]["shape"].get("catalog_id")}
+    files: dict[str, str] = {s: report[s]["shape"]["model_file"] for s in sensors
+                             if report[s].get("shape") and not report[s]["shape"].get("catalog_id")}
     refused = calibrate_refusal(report)
     adds, notes = next_adds(report)
     call = f"simucal.calibrate(data, add={adds!r})" + (
@@ -178,7 +178,7 @@ def diagnose(data: Data, *, add: str | Sequence[str] = (), acc_model: str = "acc
                      list(report.get("notes", [])), files, report, suggestions(shown), step)
 
 
-def suggestions(report: dict) -> list[Suggestion]:
+def suggestions(report: dict[str, Any]) -> list[Suggestion]:
     """Each sensor's effects its verdict adds (report/console.to_add) and a lead whose twins no rows could
     choose between (added by neither), with the candidate's statistics."""
     from simucal.report.console import to_add
@@ -193,7 +193,7 @@ def suggestions(report: dict) -> list[Suggestion]:
         undecided = [lead["id"]] if lead and lead.get("twins_undecided") and not found else []
         for eid in [e for e in found or [] if e in cands] + undecided:
             c = cands[eid]
-            number = lambda k: None if c.get(k) is None else float(c[k])  # noqa: E731 (numpy's scalars as floats)
+            number: Callable[[str], float | None] = lambda k: None if c.get(k) is None else float(c[k])  # noqa: E731 (numpy's scalars as floats)
             out.append(Suggestion(s, eid, number("estimate"), number("std"), c.get("unit", ""), number("statistic"),
                                   number("p_value"), tuple(c.get("twins") or ()),
                                   str(c.get("twin_choice") or "") if not undecided else "",
@@ -201,12 +201,12 @@ def suggestions(report: dict) -> list[Suggestion]:
     return out
 
 
-def shape_model_path(output: str | os.PathLike, sensor: str) -> Path:
+def shape_model_path(output: str | os.PathLike[str], sensor: str) -> Path:
     """Where a diagnosis written to `output` puts a sensor's found term (<stem>_<sensor>_model.py)."""
     return Path(output).with_name(f"{Path(output).stem}_{sensor}_model.py")
 
 
-def save_diagnosis(path: str | os.PathLike, d: Diagnosis) -> list[Path]:
+def save_diagnosis(path: str | os.PathLike[str], d: Diagnosis) -> list[Path]:
     """The diagnosis file and, beside it, each found term's model file (named in the file); returns those."""
     from simucal.io import outputs
     written = []
@@ -221,7 +221,7 @@ def save_diagnosis(path: str | os.PathLike, d: Diagnosis) -> list[Path]:
     return written
 
 
-def residual_table(fit: Fit, obs: Observations, segs) -> list[dict]:
+def residual_table(fit: Fit, obs: Observations, segs: Sequence[io.Segment]) -> list[dict[str, Any]]:
     assert fit.directions is not None  # an exact fit's (test_model)
     rows = []
     for i, s in enumerate(segs):
@@ -235,8 +235,10 @@ def residual_table(fit: Fit, obs: Observations, segs) -> list[dict]:
     return rows
 
 
-def diagnose_sensor(ms, sensor, base_model, add=(), stated=None, truth=None, before_model=None, added=(),
-                    acc_model="acc_baseline", kind=None):
+def diagnose_sensor(ms: io.MeasurementSet, sensor: str, base_model: str, add: Sequence[str] = (),
+                    stated: float | None = None, truth: dict[str, Any] | None = None, before_model: str | None = None,
+                    added: Sequence[str] = (), acc_model: str | AugmentedModel = "acc_baseline",
+                    kind: methods.Kind | None = None) -> dict[str, Any] | None:
     """One sensor's block. add: effect ids; before_model: the model to compare with when
     something was added (default base_model without the ids); added: what the user added
     (ids and model files), for the report; acc_model: on a stream, the accelerometer model (its
@@ -274,12 +276,12 @@ def diagnose_sensor(ms, sensor, base_model, add=(), stated=None, truth=None, bef
     return out
 
 
-def scoring_truth(path) -> dict | None:
+def scoring_truth(path: Path) -> dict[str, Any] | None:
     """A simulator's truth.json beside the set, read for scoring only (the errors of --add's parameters):
     {sensor: {params: {name: number}, T: 3x3, bias_dps: 3}} with whatever is not of that shape left
     out, and None where it is missing or unreadable (deep, damaged, not JSON): it is never an input."""
     d = json_object_or_none(path)
-    number = lambda x: isinstance(x, (int, float)) and not isinstance(x, bool) and np.isfinite(x)
+    number: Callable[[Any], bool] = lambda x: isinstance(x, (int, float)) and not isinstance(x, bool) and np.isfinite(x)
     out = {}
     for sensor, block in (d.items() if isinstance(d, dict) else ()):
         if sensor not in ("acc", "gyro") or not isinstance(block, dict):
@@ -296,8 +298,9 @@ def scoring_truth(path) -> dict | None:
     return out
 
 
-def diagnosis_report(folder, add=(), acc_model="acc_baseline", gyro_model="gyro_baseline",
-                     acc_noise_g=None, gyro_noise_dph=None, timestamps="auto") -> dict:
+def diagnosis_report(folder: Data, add: Sequence[str] = (), acc_model: str = "acc_baseline",
+                     gyro_model: str = "gyro_baseline", acc_noise_g: float | None = None,
+                     gyro_noise_dph: float | None = None, timestamps: str = "auto") -> dict[str, Any]:
     """folder: a set's folder, or the set (io.MeasurementSet: its truth.json beside it, if any, scores);
     add: effect ids and model files (fit/augmented.resolve_add); timestamps: a stream's time
     stamps as calibrate takes them (io/timestamps.py)."""
@@ -315,7 +318,8 @@ def diagnosis_report(folder, add=(), acc_model="acc_baseline", gyro_model="gyro_
         raise e.naming(ms.path) from None
 
 
-def _diagnose(ms, folder, add, acc_model, gyro_model, acc_noise_g, gyro_noise_dph):
+def _diagnose(ms: io.MeasurementSet, folder: Path, add: Sequence[str], acc_model: str, gyro_model: str,
+              acc_noise_g: float | None, gyro_noise_dph: float | None) -> dict[str, Any]:
     from simucal.fit.augmented import resolve_add
     from simucal.io.sensor_checks import stuck_channels
     stuck_channels(ms)

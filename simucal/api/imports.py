@@ -16,7 +16,7 @@ FORMATS: tuple[str, ...] = typing.get_args(Format)
 FERRARIS_HZ = 102.4  # imucal's Ferraris recordings' rate, where the file has no time column
 ANNOTATED_HZ, ANNOTATED_ACC, ANNOTATED_GYRO = 204.8, 2048.0, 16.4  # imucal's annotated sessions: Hz, counts/g, counts/(deg/s)
 
-Path_ = str | os.PathLike
+Path_ = str | os.PathLike[str]
 
 
 @checked
@@ -137,7 +137,8 @@ def import_instances(fmt: Literal["ulog", "dataflash"], source: Path_, out: Path
     return [MeasurementSet.of(io.read_set(ms.path) if read_back else ms) for ms in done]
 
 
-def _import_csv(path, out, columns, acc_unit, gyro_unit, rate_hz, latitude_deg) -> None:
+def _import_csv(path: Path, out: Path_, columns: str | None, acc_unit: str | None, gyro_unit: str | None, rate_hz: float | None,
+                latitude_deg: float | None) -> None:
     """Any CSV by its columns' map (--columns), each mapped triad's unit given."""
     from simucal.io import importers as im
     if not columns:

@@ -18,7 +18,7 @@ from simucal.api.sets import as_set
 from simucal.errors import InputError
 from simucal.io.meta import Meta, log_imu
 
-Data = Union[str, os.PathLike, io.MeasurementSet]
+Data = Union[str, os.PathLike[str], io.MeasurementSet]
 TYPE_CHECKING = False
 if TYPE_CHECKING:  # api/options.py says why
     from typing_extensions import Unpack
@@ -33,7 +33,7 @@ class ImuCalibration(NamedTuple):
     meta: Meta
 
 
-def imus_of(data: Sequence[Data]) -> list[tuple | None]:
+def imus_of(data: Sequence[Data]) -> list[tuple[Any, ...] | None]:
     """The IMUs (io/meta.log_imu) the sets are of, each once, in the order first given; only meta.json read."""
     metas = [d.meta if isinstance(d, io.MeasurementSet) else io.read_meta(Path(d)) for d in data]
     return list(dict.fromkeys(log_imu(m) for m in metas))

@@ -21,8 +21,10 @@ from __future__ import annotations
 
 import os
 from pathlib import Path
+from typing import Any, Mapping, Sequence
 
 import numpy as np
+from numpy.typing import NDArray
 
 from simucal.api.arguments import checked
 from simucal.errors import CalibrationError, InputError, StoreError
@@ -40,7 +42,7 @@ MIN_UNITS = 20     # fewer units: no outlier test (said in the report): a median
 SIMULATED_UNITS = 50_000  # units of normal lots simulated for the threshold: its 1e-3 tail holds 50
 
 
-def read_folder(folder) -> tuple[list[tuple[str, Calibration]], list[dict]]:
+def read_folder(folder: str | os.PathLike[str]) -> tuple[list[tuple[str, Calibration]], list[dict[str, str]]]:
     """The calibrations of a folder, by file name, and every other file in it named with why."""
     folder = Path(folder)
     cals, others = [], []
@@ -63,12 +65,12 @@ def _group_key(cal: Calibration) -> str:
     return f"{cal.method}: {model_name(cal)}; " + ", ".join(units)
 
 
-def _parameters(cal: Calibration) -> dict:
+def _parameters(cal: Calibration) -> dict[str, tuple[float, float, str]]:
     """{sensor.param: (value, std, unit)} of every block (block_parameters)."""
     return {f"{s}.{n}": v for s, b in cal.blocks() for n, v in block_parameters(b).items()}
 
 
-def _z(x, s, steps: int = 24):
+def _z(x: NDArray[np.float64], s: NDArray[np.float64], steps: int = 24) -> tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.float64], NDArray[np.float64]]:
     """z of each unit (axis -2) for each parameter (axis -1) of one lot or a stack of lots, the median,
     the spread and tau: the spread of units at which the z's median |z| is a normal's (0.6745), found
     by bisection (0 where the stds alone explain the scatter). Consistent where the units' stds differ,
@@ -86,7 +88,7 @@ def _z(x, s, steps: int = 24):
     return (x - centre) / np.sqrt(tau ** 2 + s ** 2), centre, spread, tau
 
 
-def threshold(tau, s, p=OUTLIER_P, units=SIMULATED_UNITS, seed=0) -> float:
+def threshold(tau: NDArray[np.float64], s: NDArray[np.float64], p: float = OUTLIER_P, units: int = SIMULATED_UNITS, seed: int = 0) -> float:
     """The |z| a unit of a normal lot exceeds in any of its parameters with chance p: the 1 - p quantile
     of each unit's largest |z| over `units` simulated units in lots like this one (its units' stds s
     (n, k), its spreads of units tau (k,)); a median and MAD from few units scatter, so it is above
@@ -99,7 +101,7 @@ def threshold(tau, s, p=OUTLIER_P, units=SIMULATED_UNITS, seed=0) -> float:
     return float(np.quantile(np.abs(z).max(axis=-1), 1.0 - p))
 
 
-def _group(names, cals) -> dict:
+def _group(names: Sequence[str], cals: Sequence[Calibration]) -> dict[str, Any]:
     """One group's parameters (those every unit's file gives with a std): each one's distribution over
     the units and its outliers, by the rule of the module doc."""
     per_unit = [_parameters(c) for c in cals]
@@ -123,12 +125,12 @@ def _group(names, cals) -> dict:
             **({"not_compared": left} if left else {})}
 
 
-def _by_serial(cals):
+def _by_serial(cals: Sequence[tuple[str, Calibration]]) -> tuple[list[tuple[str, Calibration]], list[str], list[dict[str, Any]]]:
     """The calibration each unit enters the lot with (its last by file name), the earlier ones, and the
     drift between each unit's consecutive calibrations."""
     last: dict[tuple[str, object], tuple[str, Calibration]] = {}
     earlier: list[str] = []
-    drifts: list[dict] = []
+    drifts: list[dict[str, Any]] = []
     for i, (name, cal) in enumerate(cals):
         serial = cal.layout.get(SERIAL)  # one unit in one group: another method's calibration is no drift
         key = (_group_key(cal), serial) if serial is not None else ("file", i)
@@ -139,11 +141,12 @@ def _by_serial(cals):
     return sorted(last.values(), key=lambda nc: nc[0]), earlier, drifts
 
 
-def _drifted(d) -> list[str]:
+def _drifted(d: Mapping[str, Any]) -> list[str]:
     return [s for s, v in d["sensors"].items() if v["verdict"] == "drifted"]
 
 
-def _unit(name, cal, group, limits, outliers, drifted) -> dict:
+def _unit(name: str, cal: Calibration, group: str, limits: Mapping[str, Any], outliers: list[dict[str, Any]],
+          drifted: list[dict[str, Any]]) -> dict[str, Any]:
     """One unit: its model tests, limits broken, outliers, and its status with the reasons."""
     tests = {s: {"verdict": b.verdict, "p_value": b.p_value} for s, b in cal.blocks()}
     fails = [f"{s} model test fails (p = {t['p_value']:.2g})" for s, t in tests.items() if t["verdict"] == "fails"]
@@ -161,7 +164,7 @@ def _unit(name, cal, group, limits, outliers, drifted) -> dict:
             "why": fails + flags}
 
 
-def _next(units, folder) -> str:
+def _next(units: list[dict[str, Any]], folder: str | os.PathLike[str]) -> str:
     """The command to run next: diagnose the first unit whose model fails, else validate the first unit
     failed or flagged on another recording of it, else apply."""
     for u in units:
@@ -173,7 +176,7 @@ def _next(units, folder) -> str:
     return f"simucal apply {Path(folder) / units[0]['file']} DATA_OF_THAT_UNIT -o OUT (each unit its own file)"
 
 
-def verdict_lines(report) -> list[str]:
+def verdict_lines(report: Mapping[str, Any]) -> list[str]:
     """The lot's verdict in words: how many pass, which fail and why, which are flagged."""
     units = report["units"]
     by = {s: [u for u in units if u["status"] == s] for s in ("passes", "fails", "flagged")}
@@ -190,8 +193,8 @@ def verdict_lines(report) -> list[str]:
 
 
 @checked
-def lot(folder: str | os.PathLike | None = None, limits: str | os.PathLike | None = None, *,
-        store: str | os.PathLike | None = None, since: str | None = None, until: str | None = None,
+def lot(folder: str | os.PathLike[str] | None = None, limits: str | os.PathLike[str] | None = None, *,
+        store: str | os.PathLike[str] | None = None, since: str | None = None, until: str | None = None,
         method: str | None = None, model: str | None = None, station: str | None = None) -> records.JSONObject:
     """The lot report of the calibration files in a folder, or of a store's records: the dict `simucal lot -o
     lot.json` writes.
@@ -232,6 +235,7 @@ def lot(folder: str | os.PathLike | None = None, limits: str | os.PathLike | Non
     if store is None:
         if any(v is not None for v in (since, until, method, model, station)):
             raise InputError("lot: since, until, method, model and station select a store's records; give store=URL")
+        assert folder is not None  # one of the two, refused above otherwise
         return lot_report(folder, limits, *read_folder(folder))
     from simucal.store import CalibrationStore  # SQLAlchemy loads only for a store, not for every command
     st = CalibrationStore(os.fspath(store))
@@ -242,7 +246,8 @@ def lot(folder: str | os.PathLike | None = None, limits: str | os.PathLike | Non
     return lot_report(st.shown, limits, cals, [])
 
 
-def lot_report(folder, limits, cals, others) -> records.JSONObject:
+def lot_report(folder: str | os.PathLike[str], limits: str | os.PathLike[str] | None, cals: Sequence[tuple[str, Calibration]],
+               others: list[dict[str, str]]) -> records.JSONObject:
     """The lot report (module doc) of cals, (name, Calibration) each, read from `folder` (or what names them: a
     store), beside `others`, the folder's files that are not calibrations."""
     latest, earlier, drifts = _by_serial(cals)
@@ -251,7 +256,7 @@ def lot_report(folder, limits, cals, others) -> records.JSONObject:
                                   [c for (_, c), kk in zip(latest, keys) if kk == k])} for k in dict.fromkeys(keys)]
     known = {p["name"]: p["unit"] for g in groups for p in g["parameters"]}
     limits_of = read_limits(limits, known) if limits else {}
-    outliers: dict[str, list[dict]] = {}  # per unit: its outlying parameters
+    outliers: dict[str, list[dict[str, Any]]] = {}  # per unit: its outlying parameters
     for g in groups:
         for p in g["parameters"]:
             for o in p["outliers"]:
@@ -259,9 +264,9 @@ def lot_report(folder, limits, cals, others) -> records.JSONObject:
     units = [_unit(n, c, k, limits_of, outliers.get(n, []),
                    [d for d in drifts if d["later"] == n and _drifted(d)])
              for (n, c), k in zip(latest, keys)]
-    report = {"format": FORMAT, "folder": str(folder), "units": units, "groups": groups, "limits": limits_of,
-              "drift": drifts, "superseded": earlier, "not_calibrations": others, "outlier_p": OUTLIER_P,
-              "drift_p": DRIFT_P}
+    report: dict[str, Any] = {"format": FORMAT, "folder": str(folder), "units": units, "groups": groups,
+                              "limits": limits_of, "drift": drifts, "superseded": earlier, "not_calibrations": others,
+                              "outlier_p": OUTLIER_P, "drift_p": DRIFT_P}
     report["verdict"] = verdict_lines(report)
     report["next"] = _next(units, folder)
     return report

@@ -25,7 +25,7 @@ class CalibrateOptions(TypedDict, total=False):
     gyro_noise_dph: float | None
     heading_accuracy_deg: float | None    # a field set's north reference
     t_ref_c: float | None                 # T_ref of temperature terms, degC
-    noise: str | os.PathLike | None       # a noise.json of `simucal noise`
+    noise: str | os.PathLike[str] | None  # a noise.json of `simucal noise`
     detect: DetectSettings | None         # a stream's static detection
     timestamps: Literal["auto", "recorded", "nominal"]  # a stream's clock
     thermal: bool                         # --thermal: one set whose temperature ramps

@@ -3,13 +3,18 @@ model (Fisher information, CRLB, D and A criteria; turntable/plan_design.py), th
 effects apart, and a rotation sequence's observability beside the norm method's CRLB."""
 from __future__ import annotations
 
-from typing import Any, Sequence
+from typing import TYPE_CHECKING, Any, Sequence
 
 import numpy as np
+from numpy.typing import NDArray
 
 from simucal.api.arguments import checked
 from simucal.errors import InputError
 from simucal.io import results
+
+if TYPE_CHECKING:  # imported where used: the commands that plan nothing skip them
+    from simucal.fit.augmented import AugmentedModel
+    from simucal.turntable.sequence import Step
 
 PAPER_RATE_DPS = 10.0  # dong2018 section 4's rate runs
 PAPER_NOISE = {"acc": 1e-5, "gyro": 0.01}  # section 4's noise of one position's mean: g, deg/h
@@ -94,7 +99,7 @@ def plan(score: str | None = None, *, positions: int | None = None, model: str =
     return result
 
 
-def _noise(model, gyro, acc_noise_g, gyro_noise_dph) -> float:
+def _noise(model: str, gyro: bool, acc_noise_g: float | None, gyro_noise_dph: float | None) -> float:
     """The noise of one position's mean for the model's sensor (the other sensor's refused), else section 4's."""
     wrong = acc_noise_g if gyro else gyro_noise_dph
     if wrong is not None:
@@ -103,7 +108,8 @@ def _noise(model, gyro, acc_noise_g, gyro_noise_dph) -> float:
     return (gyro_noise_dph if gyro else acc_noise_g) or PAPER_NOISE["gyro" if gyro else "acc"]
 
 
-def _separation(model, pair, sizes, score, u, rho, sigma, target) -> results.Separation:
+def _separation(model: AugmentedModel, pair: Sequence[str], sizes: Sequence[float] | None, score: str | None,
+                u: NDArray[np.float64], rho: float | NDArray[np.float64], sigma: float, target: float) -> results.Separation:
     """The positions to add so that two candidate effects are told apart (turntable/plan_design.separate), with
     the added positions' angles and what a plan must vary where no position does."""
     from simucal.fit.augmented import check_effect
@@ -122,7 +128,7 @@ def _separation(model, pair, sizes, score, u, rho, sigma, target) -> results.Sep
                          f"effect's expected value, in its unit) of at most {PARAM_LIMIT:g}")
     for e in ids:
         check_effect(e, model.sensor)
-    rates = (np.array([0.5, 1.0, 2.0]) * rho) if model.sensor == "gyro" else ()
+    rates: Sequence[float] | NDArray[np.float64] = (np.array([0.5, 1.0, 2.0]) * rho) if model.sensor == "gyro" else ()
     sep = separate(model.base, ids[0], ids[1], u, rho, sigma, q, rates, target)
     sep["added_rows"] = [list(map(float, x)) for x in plan_rows(np.array([d["direction_k"] for d in sep["added"]]))] \
         if sep["added"] else []
@@ -297,6 +303,6 @@ def save_sequence(path: str, steps: Sequence[results.SequenceStep]) -> None:
     write_sequence(path, [Step(**s) for s in steps])
 
 
-def _steps_record(steps) -> list[results.SequenceStep]:
+def _steps_record(steps: Sequence[Step]) -> list[results.SequenceStep]:
     return [{"axis": s.axis, "angle_deg": float(s.angle_deg), "rate_dps": float(s.rate_dps), "rest_s": float(s.rest_s)}
             for s in steps]

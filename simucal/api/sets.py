@@ -8,6 +8,7 @@ from pathlib import Path
 from typing import Any, Mapping, Sequence
 
 import numpy as np
+from numpy.typing import NDArray
 
 from simucal import io
 from simucal.api.arguments import checked, refusal
@@ -165,7 +166,7 @@ class MeasurementSet(io.MeasurementSet):
                                      t_s=t_s, segments=segments, meta=meta, name=name, cls=cls))
 
     @checked
-    def to_arrays(self) -> dict[str, np.ndarray]:
+    def to_arrays(self) -> dict[str, NDArray[Any]]:
         """The samples by column as recorded, as arrays, in one order whatever made the set: t_s,
         segment, ax ay az gx gy gz, temp_c, then any other column.
 
@@ -211,7 +212,7 @@ class MeasurementSet(io.MeasurementSet):
         return pd.DataFrame([dict(vars(s)) for s in self.segments])
 
     @checked
-    def write(self, folder: str | os.PathLike, *, force: bool = False) -> None:
+    def write(self, folder: str | os.PathLike[str], *, force: bool = False) -> None:
         """Write the set as a folder (meta.json, samples.csv, segments.csv; a simulated set's truth.json),
         as `simucal simulate` and `simucal import` write one.
 
@@ -233,7 +234,7 @@ class MeasurementSet(io.MeasurementSet):
                      {"truth.json": self.truth} if self.truth is not None else None)
 
 
-def folder_of(data: Any) -> str | os.PathLike:
+def folder_of(data: Any) -> str | os.PathLike[str]:
     """data as a set's folder, or refused in one line naming the constructor it needs (an item of a list the door
     let through, arguments.refusal)."""
     if isinstance(data, (str, os.PathLike)):

@@ -3,7 +3,7 @@ turntable test (dong2018 section 4), a field set (ruan2019) or a hand-placed ses
 from __future__ import annotations
 
 from pathlib import Path
-from typing import Any, Literal, Mapping, Sequence, Union
+from typing import Any, Callable, Literal, Mapping, Sequence, Union
 
 from simucal.errors import InputError
 from simucal import methods
@@ -27,7 +27,7 @@ TAKES = {"paper": "--seed, --rate-hz and the turntable's options", "field": "--s
 STILL = ("still", "warmup")  # a still stream's scenarios: they take duration_s
 
 
-def _strings(pairs: Pairs | None, fmt=repr) -> list[str]:
+def _strings(pairs: Pairs | None, fmt: Callable[[Any], str] = repr) -> list[str]:
     """{name: value} as the command's NAME=VALUE strings (repr: the float read back is the same)."""
     if pairs is None:
         return []
@@ -36,7 +36,7 @@ def _strings(pairs: Pairs | None, fmt=repr) -> list[str]:
     return [str(p) for p in pairs]
 
 
-def _span(v) -> str:
+def _span(v: float | Sequence[float]) -> str:
     """A column's (low, high) or a temperature's T or (T0, T1) as the command writes it (LOW:HIGH)."""
     return ":".join(repr(float(x)) for x in v) if isinstance(v, (tuple, list)) else str(v)
 
@@ -49,8 +49,8 @@ def resolved_scenario(scenario: str, sequence: str | None) -> str:
     return "sequence" if scenario == "paper" and sequence is not None else scenario
 
 
-def _refuse_unused(scenario: str, table_options: dict, effects, heading_accuracy_deg, unit_seed=None,
-                   duration_s=None) -> None:
+def _refuse_unused(scenario: str, table_options: dict[str, Any], effects: Pairs | None, heading_accuracy_deg: float | None,
+                   unit_seed: int | None = None, duration_s: float | None = None) -> None:
     """An option the scenario would not use is refused, naming it (Python name and the command's)."""
     if scenario not in STILL and duration_s is not None:
         raise InputError(f"duration_s (--duration-s) {duration_s:g}: a still stream's length (--scenario still or warmup); "

@@ -3,7 +3,7 @@ from __future__ import annotations
 
 import os
 from collections import namedtuple
-from typing import Any
+from typing import Any, Sequence
 
 from simucal.api.arguments import checked
 from simucal.api.tables import table
@@ -25,7 +25,7 @@ def history_page(report: _records.JSONObject) -> str:
     return page(report)
 
 
-def _table(rows: list[dict], columns) -> Any:
+def _table(rows: list[dict[str, Any]], columns: Sequence[str]) -> Any:
     """rows (dicts whose keys are `columns`, in that order: the query's) as the API's table."""
     row = namedtuple("Row", columns)  # type: ignore[misc]  # the columns are the query's
     assert not rows or tuple(rows[0]) == tuple(columns), (tuple(rows[0]), columns)
@@ -48,7 +48,7 @@ class Store:
     """
 
     @checked
-    def __init__(self, url: str | os.PathLike):
+    def __init__(self, url: str | os.PathLike[str]):
         self._store = CalibrationStore(os.fspath(url))
 
     def __repr__(self) -> str:
@@ -56,7 +56,7 @@ class Store:
         return f"Store({store.shown!r})" if store else "Store(?)"
 
     @checked
-    def add(self, calibration: str | os.PathLike | _file.Calibration, serial: str | None = None,
+    def add(self, calibration: str | os.PathLike[str] | _file.Calibration, serial: str | None = None,
             station: str | None = None, time: str | None = None) -> int:
         """Record a calibration (a file, byte for byte; or a Calibration, as `simucal.save` would write it:
         `simucal store add`, `calibrate --store`); its record id.
@@ -95,8 +95,8 @@ class Store:
         return found[record]
 
     @checked
-    def history(self, serial: str, limits: str | os.PathLike | None = None,
-                spec: str | os.PathLike | None = None) -> _records.JSONObject:
+    def history(self, serial: str, limits: str | os.PathLike[str] | None = None,
+                spec: str | os.PathLike[str] | None = None) -> _records.JSONObject:
         """Unit `serial`'s history as `simucal history SERIAL -o history.json` writes it: each calibration's change
         since the last and the first in std, the flags and why (simucal/store/history.py), and its trend with the
         due date by `spec` (a limits.json bounding each parameter's value; simucal/store/trend.py).
@@ -105,7 +105,7 @@ class Store:
         return self._store.history(serial, limits, spec)
 
     @checked
-    def trend(self, serial: str, spec: str | os.PathLike | None = None) -> Any:
+    def trend(self, serial: str, spec: str | os.PathLike[str] | None = None) -> Any:
         """Each parameter's trend over the unit's calibrations as a DataFrame: the weighted line's slope per year
         with its std, chi2 of the line on dof (from three calibrations), and the dates at which the line
         (expected_utc) and its k = 2 band (earliest_utc) first reach the spec's limits (simucal/store/trend.py)."""
@@ -115,7 +115,7 @@ class Store:
         return _table(rows, TREND_COLUMNS)
 
     @checked
-    def changes(self, serial: str, limits: str | os.PathLike | None = None) -> Any:
+    def changes(self, serial: str, limits: str | os.PathLike[str] | None = None) -> Any:
         """The history as a DataFrame: one row per later calibration and parameter, its change since the last and
         since the first (value and z, the change in the combined std) and whether its record is flagged."""
         rows = []

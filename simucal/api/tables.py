@@ -47,7 +47,7 @@ class TableOf:
 
 
 @checked
-def table_rows(t: Any) -> list:
+def table_rows(t: Any) -> list[Any]:
     """A table's rows, each with its fields by name, whichever type the API gave (``simucal.table_rows``): for
     code that runs with pandas and without.
 

@@ -30,12 +30,13 @@ def derive(*, check: bool = False) -> Derived:
     []
     """
     from simucal import derive_cmd
+    from simucal.fit.models import generated_dir
     stale, secs, diff = derive_cmd.run(check=check)
-    return Derived(list(stale), float(secs), diff, str(derive_cmd.generated_dir()))
+    return Derived(list(stale), float(secs), diff, str(generated_dir()))
 
 
 @checked
-def derive_model(path: str | os.PathLike) -> list[str]:
+def derive_model(path: str | os.PathLike[str]) -> list[str]:
     """Derive a user's model file (MODELS = [ErrorModel, ...]) into the cache; returns its models' names, each then
     usable by name (`calibrate(..., acc_model=NAME)`) from any folder.
 
@@ -75,7 +76,7 @@ def audit(seeds: int = 20, progress: Any = None) -> Any:
     return full_audit(seeds, progress=progress)
 
 
-def demo_outputs(out: str | os.PathLike) -> tuple[list[Any], Any]:
+def demo_outputs(out: str | os.PathLike[str]) -> tuple[list[Any], Any]:
     """(the sets the demo writes under `out`, its record's path): a record there is an earlier demo's, whose sets
     it may replace."""
     from pathlib import Path
@@ -84,7 +85,7 @@ def demo_outputs(out: str | os.PathLike) -> tuple[list[Any], Any]:
     return [Path(out) / d for d in demo_run.SETS], Path(out) / demo_run.MARKER
 
 
-def demo(out: str | os.PathLike, seed: int = 0, echo: Callable[[str], Any] = print) -> records.JSONObject:
+def demo(out: str | os.PathLike[str], seed: int = 0, echo: Callable[[str], Any] = print) -> records.JSONObject:
     """The main job end to end on built-in simulated data (`simucal demo -o OUT`): a hidden effect found, added,
     calibrated with, applied and validated; the unit over temperature; its noise; the paper's methods. Writes
     into `out`; echo prints each step. Returns the demo's record (demo.json)."""
@@ -92,15 +93,15 @@ def demo(out: str | os.PathLike, seed: int = 0, echo: Callable[[str], Any] = pri
     return demo_run.run(out, seed, echo)
 
 
-def bench(json_path: str | os.PathLike | None = None, echo: Callable[[str], Any] = print,
-          before: str | os.PathLike | None = None, size: str = "full") -> None:
+def bench(json_path: str | os.PathLike[str] | None = None, echo: Callable[[str], Any] = print,
+          before: str | os.PathLike[str] | None = None, size: str = "full") -> None:
     """The speed figures on this machine (`simucal bench`): echo prints the table; json_path also writes it;
     before: an earlier run's JSON printed beside; size "quick" runs every step in seconds (a check, no figures)."""
     from simucal.bench import run
     run(json_path, echo, before, size)
 
 
-def check_image_name(path: str | os.PathLike) -> None:
+def check_image_name(path: str | os.PathLike[str]) -> None:
     """Refused (InputError) where no image format has the name's suffix (.png, .svg, ...)."""
     from pathlib import Path
 
@@ -111,7 +112,7 @@ def check_image_name(path: str | os.PathLike) -> None:
                          f"{', '.join('.' + f for f in plot_formats())})")
 
 
-def plot_field_history(cal: Any, path: str | os.PathLike) -> None:
+def plot_field_history(cal: Any, path: str | os.PathLike[str]) -> None:
     """A field calibration's filter history (ruan2019 Fig. 4) as an image file (check_image_name)."""
     from simucal.field.drift import plot_history
     check_image_name(path)

@@ -33,9 +33,10 @@ from __future__ import annotations
 
 import os
 from dataclasses import dataclass
-from typing import NamedTuple
+from typing import Any, Iterator, Mapping, NamedTuple, Sequence
 
 import numpy as np
+from numpy.typing import NDArray
 
 from simucal import io, methods
 from simucal.api.arguments import checked
@@ -57,7 +58,7 @@ AT_FLOOR = 2.0  # after below this many floors: the noise, nothing left to gain
 FORMAT = "simucal.validation/1"  # the report validate writes (the certificate reads it)
 
 
-def _verdict(check) -> str:
+def _verdict(check: Mapping[str, Any]) -> str:
     b, a, fl = check["before_rms"], check["after_rms"], check["floor_rms"]
     if a is None or b is None:
         return "not measured"
@@ -73,7 +74,7 @@ TABLE_LIMITED = ("the gravity direction against the commanded angles is above it
                  "calibration")
 
 
-def _sensor_verdict(rows, nominal) -> str:
+def _sensor_verdict(rows: Sequence[Mapping[str, Any]], nominal: bool) -> str:
     """A sensor's verdict from its checks. A check limited by the table (the gravity direction against commanded
     angles whose errors the set does not state: its floor lacks them) does not pull a verdict below the floor
     that the calibration's own checks reach (the report's verdict_notes say so); it still counts when it is
@@ -91,7 +92,7 @@ def _sensor_verdict(rows, nominal) -> str:
 REGISTER_BITS = (8, 10, 12, 14, 16, 18, 20, 24, 32)
 
 
-def nominal(ms, sensor) -> tuple[np.ndarray, str]:
+def nominal(ms: io.MeasurementSet, sensor: str) -> tuple[NDArray[np.float64], str]:
     """A sensor's outputs at the nominal scale factors (acc in g, gyro in deg/h) as a user reads them
     without a calibration, and what was subtracted, said ('' where nothing). Raw counts carry the
     register's zero (the spec's `counts`: an unsigned 16-bit ADC rests near 32768, 8 g at 4096
@@ -102,14 +103,15 @@ def nominal(ms, sensor) -> tuple[np.ndarray, str]:
     out = ms.acc_g() if sensor == "acc" else ms.gyro_dph()
     if ms.meta.get(f"{sensor}_unit") != "counts":
         return out, ""
+    meta: Mapping[str, Any] = ms.meta  # read by a key made of the sensor's name
     raw, key = ms.raw(sensor), f"{sensor}_offset_counts"
-    if key in ms.meta:
+    if key in meta:
         try:
-            off = np.asarray(ms.meta[key], float).reshape(-1)
+            off = np.asarray(meta[key], float).reshape(-1)
         except (TypeError, ValueError):
             off = np.zeros(0)
         if off.size not in (1, 3) or not np.all(np.isfinite(off)):
-            raise CalibrationError(f"{ms.path / 'meta.json'}: {key} {ms.meta[key]!r}: give the register's value at "
+            raise CalibrationError(f"{ms.path / 'meta.json'}: {key} {meta[key]!r}: give the register's value at "
                                    "zero input, one number or x y z, e.g. 32768")
         how = f"meta.json's {key}"
     else:
@@ -171,7 +173,7 @@ class Validation:
 
 
 @checked
-def validate(cal: Calibration | str | os.PathLike, data: Data, *, acc_noise_g: float | None = None,
+def validate(cal: Calibration | str | os.PathLike[str], data: Data, *, acc_noise_g: float | None = None,
              gyro_noise_dph: float | None = None, timestamps: str | None = None, units: str = "spec") -> Validation:
     """Apply a calibration to an independent set and compare with nominal and the noise floor.
 
@@ -208,14 +210,16 @@ def validate(cal: Calibration | str | os.PathLike, data: Data, *, acc_noise_g: f
                       list(report["warnings"]), report)
 
 
-def validation_report(cal_path, data_dir, acc_noise_g=None, gyro_noise_dph=None, timestamps=None) -> dict:
+def validation_report(cal_path: str | os.PathLike[str] | calibration.Calibration, data_dir: str | os.PathLike[str] | io.MeasurementSet,
+                      acc_noise_g: float | None = None, gyro_noise_dph: float | None = None,
+                      timestamps: str | None = None) -> dict[str, Any]:
     """The report (module doc) of calibration file cal_path (or a Calibration) applied to the set data_dir
     (or a MeasurementSet). acc_noise_g, gyro_noise_dph: the noise of one row where the data cannot give it
     (averaged rows), as calibrate takes it: the floors of those rows' checks stand on it. timestamps: a
     stream's stamps (io/timestamps.py: auto, recorded, nominal); None: as the calibration read its own
     (the calibration file's timestamps choice, else auto's rule)."""
     given = isinstance(cal_path, calibration.Calibration)
-    cal = cal_path if given else calibration.load(cal_path)
+    cal = cal_path if isinstance(cal_path, calibration.Calibration) else calibration.load(cal_path)
     ms = data_dir if isinstance(data_dir, io.MeasurementSet) else io.read_set(data_dir)
     stamps = None
     if methods.data_kind(ms) == methods.STREAM:  # a stream's clock: as the calibration was told, else auto's rule
@@ -254,7 +258,7 @@ def validation_report(cal_path, data_dir, acc_noise_g=None, gyro_noise_dph=None,
             **({"timestamps": stamps} if stamps else {})}
 
 
-def own_rows(cal, ms) -> str:
+def own_rows(cal: calibration.Calibration, ms: io.MeasurementSet) -> str:
     """What of set ms the calibration was made from, said ("" if nothing): its samples' digests against
     the calibration's samples_sha256 (per segment: an edit of meta.json, segments.csv or the number
     format does not hide them, and a few of its segments copied into another set show), else, for a
@@ -271,7 +275,7 @@ def own_rows(cal, ms) -> str:
     return ""
 
 
-def lines(report, units: str = "spec"):
+def lines(report: dict[str, Any], units: str = "spec") -> list[str]:
     """The console: one table row per check, then the verdict per sensor, in the unit system asked."""
     if units == "spec":
         return list(_lines(report))
@@ -280,7 +284,7 @@ def lines(report, units: str = "spec"):
     return shown.lines_in(_lines(shown.validation_in(report, units, g)), units, g)
 
 
-def _lines(report):
+def _lines(report: dict[str, Any]) -> Iterator[str]:
     if report["note"]:
         yield f"NOTE: {report['note']}"
     for x in report.get("nominal", []):
@@ -306,16 +310,17 @@ def _lines(report):
     yield "next: " + validation_next(report)[0]
 
 
-def _own(report) -> str:
+def _own(report: dict[str, Any]) -> str:
     """What a verdict on the calibration's own rows adds to it: that it proves nothing (the NOTE says why)."""
     return " (NOT INDEPENDENT: the calibration's own rows)" if report["note"] else ""
 
 
-def html_page(report) -> str:
+def html_page(report: dict[str, Any]) -> str:
     """A self-contained page: the verdicts and the next command (report/console.py's, as the console
     prints them), each check's error at nominal and calibrated on a log scale with its floor, the table."""
     from simucal.report.numbers import eng_html
-    from simucal.report.page import log_bars, page, plt, png, table, wrapped
+    from simucal.report.page import log_bars, page, png, table, wrapped
+    import matplotlib.pyplot as plt  # after page: its backend and style
     rows = [(s, c) for s, cs in report["checks"].items() for c in cs]
     cols = min(len(rows), 4)
     fig, axs = plt.subplots((len(rows) + cols - 1) // cols, cols, figsize=(3.1 * cols, 3.4 * ((len(rows) + cols - 1) // cols)),

@@ -20,9 +20,10 @@ entries of M taken independent, as an affine block's stds are given).
 """
 from __future__ import annotations
 
-from typing import Any, Mapping, NamedTuple
+from typing import Any, Mapping, NamedTuple, cast
 
 import numpy as np
+from numpy.typing import NDArray
 
 from simucal.api.arguments import checked
 from simucal.api.tables import table
@@ -59,7 +60,10 @@ def entries(sensor: str, block: SensorBlock) -> list[Entry]:
     return rows
 
 
-def _model_stds(block: SensorBlock):
+Stds = tuple[NDArray[np.float64], NDArray[np.float64], dict[str, str]]  # of M, of bias, own names
+
+
+def _model_stds(block: SensorBlock) -> Stds:
     """(std of M (3, 3), of bias (3,), {entry: the parameter that moves it most}) of a model-based block."""
     model = AugmentedModel(block.model, block.library_effects())
     names = list(model.params)
@@ -74,9 +78,9 @@ def _model_stds(block: SensorBlock):
     ratio = filed[raw > 0] / raw[raw > 0]
     cov = cov * (float(np.nanmedian(ratio)) ** 2 if ratio.size and np.isfinite(ratio).any() else 1.0)
 
-    def mb(q):
+    def mb(q: NDArray[np.float64]) -> NDArray[np.float64]:
         M, b = model.matrix_and_bias(q)
-        return np.r_[(np.asarray(M) @ block.C).ravel(), np.asarray(b).ravel()]
+        return cast("NDArray[np.float64]", np.r_[(np.asarray(M) @ block.C).ravel(), np.asarray(b).ravel()])
     steps = np.maximum(raw * 1e-3, 1e-9)
     J = np.column_stack([(mb(p + s * e) - mb(p - s * e)) / (2 * s) for s, e in zip(steps, np.eye(len(p)))])
     std = np.sqrt(np.maximum(np.einsum("ij,jk,ik->i", J, cov, J), 0.0))
@@ -89,7 +93,7 @@ def _model_stds(block: SensorBlock):
     return std[:9].reshape(3, 3), std[9:], own
 
 
-def _affine_stds(block: SensorBlock):
+def _affine_stds(block: SensorBlock) -> Stds:
     """(std of M, of bias, own names) of an affine block: M's own, or a stream gyro's T's through M = T^-1."""
     b_std = np.asarray(block.std.get("bias", np.full(3, np.nan)), float)
     if "T" in block.std:
@@ -114,7 +118,7 @@ def in_accelerometer_frame(rows: list[Entry]) -> list[Entry]:
     if np.abs(np.triu(M["acc"], 1)).max() < 1e-12:  # already the accelerometers' own frame
         return rows
 
-    def mapped(A_acc, A):
+    def mapped(A_acc: NDArray[np.float64], A: NDArray[np.float64]) -> NDArray[np.float64]:
         return A @ _rotation_to_lower(A_acc).T
     out = dict(by)
     for s in M:
@@ -136,11 +140,11 @@ def in_accelerometer_frame(rows: list[Entry]) -> list[Entry]:
     return list(out.values())
 
 
-def _rotation_to_lower(M_acc) -> np.ndarray:
+def _rotation_to_lower(M_acc: NDArray[np.float64]) -> NDArray[np.float64]:
     """Q of M_acc = L Q (L lower triangular, positive diagonal; Q a rotation): a QR of M_acc^T."""
     Qt, R = np.linalg.qr(M_acc.T)
     signs = np.sign(np.diag(R))
-    return (Qt * signs).T
+    return cast("NDArray[np.float64]", (Qt * signs).T)
 
 
 @checked

@@ -17,6 +17,7 @@ three body drifts with their covariance. Frames: NUE navigation, FUR body.
 """
 from __future__ import annotations
 
+import os
 from pathlib import Path
 
 import numpy as np
@@ -276,7 +277,7 @@ def history_figure(hist):
     return fig, plt
 
 
-def plot_history(hist, path):
+def plot_history(hist: list[records.FieldHistory], path: str | os.PathLike[str]) -> None:
     """Fig. 4 as an image file (its format from path's ending)."""
     fig, plt = history_figure(hist)
     with outputs.replacing(path) as tmp:

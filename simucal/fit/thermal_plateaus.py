@@ -4,6 +4,8 @@ and, for a method that fits each plateau alone, every parameter's polynomial ove
 (fit/thermal.fit_polynomial). The joint fit of a turntable unit's rows is turntable/thermal.py's."""
 from __future__ import annotations
 
+import os
+
 import numpy as np
 
 from simucal import io
@@ -25,7 +27,7 @@ def refuse_repeated(sets) -> None:
         seen[key] = ms.path
 
 
-def plateau(folder):
+def plateau(folder: str | os.PathLike[str] | io.MeasurementSet) -> tuple[io.MeasurementSet, float]:
     """A plateau's set and its temperature (the mean of temp_c), refused without a plausible temp_c."""
     ms = folder if isinstance(folder, io.MeasurementSet) else io.read_set(folder)
     if "temp_c" not in ms.samples:

@@ -13,6 +13,7 @@ still board warming up (the thermal calibration's record).
 """
 from __future__ import annotations
 
+import os
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -179,8 +180,8 @@ def simulate_still(seconds=1800.0, dt=0.01, arw_deg_sqrt_h=0.1, rrw_dph_sqrt_s=5
     return meta, samples, truth
 
 
-def write_still(folder, seconds=1800.0, dt=0.01, arw_deg_sqrt_h=0.1, rrw_dph_sqrt_s=5 / 60, vrw_g_sqrt_s=50e-6,
-                seed=0, move=False):
+def write_still(folder: str | os.PathLike[str], seconds: float = 1800.0, dt: float = 0.01, arw_deg_sqrt_h: float = 0.1,
+                rrw_dph_sqrt_s: float = 5 / 60, vrw_g_sqrt_s: float = 50e-6, seed: int = 0, move: bool = False) -> str | os.PathLike[str]:
     """simulate_still's stream written to `folder` (samples.csv and meta.json; no truth.json)."""
     meta, samples, _ = simulate_still(seconds, dt, arw_deg_sqrt_h, rrw_dph_sqrt_s, vrw_g_sqrt_s, seed, move)
     io.write_set(folder, meta, samples, None)

@@ -21,7 +21,7 @@ import numpy as np
 from simucal.io import csv_columns, outputs, sensor_checks, units
 from simucal.io import meta as meta_keys
 from simucal.io.csv_columns import arrow_floats, read_columns, triad_block
-from simucal.io.segments import Segment, read_segments
+from simucal.io.segments import Segment as Segment, read_segments  # Segment: the API names it simucal.io.Segment
 from simucal.io.text_files import (MeasurementSetError, RepeatedKey, body_of, check_delimiter, csv_refusal,
                                      decoded, ends_with_a_line_end, files_sha256, no_repeated_columns, not_a_folder,
                                      careful_rows, is_ascii, mapped, read_text, unique_keys)
@@ -79,11 +79,11 @@ class MeasurementSet:
         cols = SAMPLE_COLS[:3] if sensor == "acc" else SAMPLE_COLS[3:]
         return self._once(("raw", sensor), cols, lambda: _block_or_stack(self.samples, cols))
 
-    def acc_g(self):
+    def acc_g(self) -> np.ndarray:
         """Accelerometer outputs in g (n, 3), read-only."""
         return self._once(("g", "acc"), SAMPLE_COLS[:3], lambda: self.in_units("acc", slice(None)))
 
-    def gyro_dph(self):
+    def gyro_dph(self) -> np.ndarray:
         """Gyro outputs in deg/h (n, 3), read-only."""
         return self._once(("g", "gyro"), SAMPLE_COLS[3:], lambda: self.in_units("gyro", slice(None)))
 

@@ -248,7 +248,7 @@ class Calibration:
     (consistency, unification's checks, static_detection, field, excluded_segments, ...)."""
     method: str
     input: str | list[str]
-    input_sha256: str | list[str] | None  # None: a hand-edited file without it
+    input_sha256: str | list[str | None] | None  # None: a hand-edited file, or a set made without its digest (simulate)
     layout: records.Layout
     acc: SensorBlock | None = None
     gyro: SensorBlock | None = None
@@ -266,7 +266,7 @@ class Calibration:
         """The sensors calibrated (or kept at nominal), as the layout names them."""
         return list(self.layout["sensors"])
 
-    def blocks(self):
+    def blocks(self) -> list[tuple[str, SensorBlock]]:
         """(sensor, block) for each block present."""
         return [(s, getattr(self, s)) for s in SENSORS if getattr(self, s) is not None]
 
@@ -277,7 +277,7 @@ class Calibration:
         self.not_calibrated[sensor] = why
 
     def to_json(self) -> dict:
-        out = {"format": self.format, "method": self.method, "input": self.input, "input_sha256": self.input_sha256,
+        out: dict[str, Any] = {"format": self.format, "method": self.method, "input": self.input, "input_sha256": self.input_sha256,
                "layout": self.layout, "formula": {s: FORMULA[s] for s in self.sensors},
                "units": UNITS}
         for s, b in self.blocks():

@@ -3,6 +3,8 @@ stuck channels. A clipped sample would pull a mean toward the rail; a stuck colu
 no sensor at all."""
 from __future__ import annotations
 
+from typing import Any
+
 import numpy as np
 
 from simucal.errors import CalibrationError
@@ -101,7 +103,7 @@ def repeat_is_clipping(col, ext, runs) -> bool:
     return int(np.sum(col == ext)) > int(np.sum(col == nxt))
 
 
-def stuck_channels(ms):
+def stuck_channels(ms: Any) -> None:  # a simucal.io.MeasurementSet: that package imports this module
     """Refuse a column that holds one value in every row (no sensor reads that, even at rest),
     or over part of the recording (_frozen), a sensor at a time (on one thread: on two, the 400 Hz
     set's took 0.1 s more CPU for no less wall)."""

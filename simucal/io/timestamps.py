@@ -15,10 +15,14 @@ step or more off the line for good, and then the recorded stamps are kept.
 from __future__ import annotations
 
 from dataclasses import replace
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
 from simucal.errors import InputError
+
+if TYPE_CHECKING:  # simucal.io imports this module's users
+    from simucal.io import MeasurementSet
 
 CHOICES = ("auto", "nominal", "recorded")
 IRREGULAR = 0.05   # steps farther than this share of the median step from it: irregular, where ...
@@ -66,7 +70,7 @@ def statistics(t) -> dict:
             "regular_clock": bool(off <= CLOCK_BOUND_STEPS), "gaps": gaps(t)}
 
 
-def with_timestamps(ms, choice="auto"):
+def with_timestamps(ms: MeasurementSet, choice: str = "auto") -> tuple[MeasurementSet, dict[str, Any] | None]:
     """(the set with the time stamps to integrate on, the timestamps block of the calibration file).
     A stream only (a turntable's segments keep theirs); nominal: evenly spaced at the mean step;
     auto: nominal where the stamps are irregular and a regular clock is proved, else as recorded."""

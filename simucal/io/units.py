@@ -10,9 +10,10 @@ person sets or reads as a place or a pose (a latitude, an attitude, a heading: g
 """
 import math
 import re
-from typing import Any, Mapping
+from typing import Any, Callable, Mapping
 
 import numpy as np
+from numpy.typing import ArrayLike
 
 ACC_UNITS = ("g", "m/s^2", "pulse/s", "counts")
 GYRO_UNITS = ("deg/h", "deg/s", "rad/s", "pulse/s", "counts")
@@ -86,7 +87,7 @@ SCALE_KEY = {("acc", "pulse/s"): "acc_pulses_per_g", ("acc", "counts"): "acc_cou
              ("gyro", "pulse/s"): "gyro_pulses_per_arcsec", ("gyro", "counts"): "gyro_counts_per_dps"}
 
 
-def check_meta(meta, path, error):
+def check_meta(meta: Mapping[str, Any], path: Any, error: Callable[[Any, Any, str], Exception]) -> None:
     for sensor, allowed in (("acc", ACC_UNITS), ("gyro", GYRO_UNITS)):
         key = f"{sensor}_unit"
         if key not in meta:
@@ -141,15 +142,15 @@ def stated_noise(meta, sensor):
     return meta.get(NOISE_KEY[sensor])
 
 
-def gravity(meta):
+def gravity(meta: Mapping[str, Any]) -> float:
     return float(meta.get("gravity_mps2", DEFAULT_GRAVITY))
 
 
-def earth_rate_dph(meta):
+def earth_rate_dph(meta: Mapping[str, Any]) -> float:
     return float(meta.get("earth_rate_dph", DEFAULT_EARTH_RATE_DPH))
 
 
-def acc_to_g(raw, meta):
+def acc_to_g(raw: np.ndarray, meta: Mapping[str, Any]) -> np.ndarray:
     u = meta["acc_unit"]
     if u == "g":
         return raw
@@ -158,7 +159,7 @@ def acc_to_g(raw, meta):
     return raw / np.asarray(meta[SCALE_KEY[("acc", u)]], float)
 
 
-def gyro_to_dph(raw, meta):
+def gyro_to_dph(raw: np.ndarray, meta: Mapping[str, Any]) -> np.ndarray:
     u = meta["gyro_unit"]
     if u == "deg/h":
         return raw
@@ -171,7 +172,7 @@ def gyro_to_dph(raw, meta):
     return raw / np.asarray(meta["gyro_counts_per_dps"], float) * DPH_PER_DPS
 
 
-def g_to_acc(f_g, meta):
+def g_to_acc(f_g: np.ndarray, meta: Mapping[str, Any]) -> np.ndarray:
     """Inverse of acc_to_g, for the simulator."""
     u = meta["acc_unit"]
     if u == "g":
@@ -181,7 +182,7 @@ def g_to_acc(f_g, meta):
     return f_g * np.asarray(meta[SCALE_KEY[("acc", u)]], float)
 
 
-def dph_to_gyro(w_dph, meta):
+def dph_to_gyro(w_dph: np.ndarray, meta: Mapping[str, Any]) -> np.ndarray:
     u = meta["gyro_unit"]
     if u == "deg/h":
         return w_dph
@@ -202,7 +203,8 @@ UNIT_MIXUPS = {"acc": {"m/s^2 labelled g": DEFAULT_GRAVITY, "g labelled m/s^2": 
                     "rad/s labelled deg/h": np.pi / 180 / DPH_PER_DPS, "deg/h labelled rad/s": DPH_PER_DPS * 180 / np.pi}}
 
 
-def check_magnitude(sensor, measured_norm, expected_norm, where, meta=None):
+def check_magnitude(sensor: str, measured_norm: ArrayLike, expected_norm: ArrayLike, where: object,
+                    meta: Mapping[str, Any] | None = None) -> None:
     """Refuse outputs whose size is far from the known input's: almost always a unit
     mix-up, which a calibration would otherwise absorb into absurd scale factors.
     Raw counts carry an offset by design (the bias absorbs it): for them see check_scale."""

@@ -82,7 +82,8 @@ def certificate_page(cal: Calibration, file_name: str, file_sha256: str, validat
                      version: str) -> str:
     """The certificate of `cal` (module doc); file_sha256: the file's bytes', validation: validate's report."""
     serial = cal.layout.get("unit_serial") or "(no unit_serial in the set's meta.json)"
-    data_sha = cal.input_sha256 if isinstance(cal.input_sha256, list) else [cal.input_sha256 or "(not recorded)"]
+    shas = cal.input_sha256 if isinstance(cal.input_sha256, list) else [cal.input_sha256]
+    data_sha = [sha or "(not recorded)" for sha in shas]
     verdicts = [(b.verdict != "fails", f"{s}: {_test_line(b)}") for s, b in cal.blocks()]
     if validation:
         verdicts += [(v == "at the noise floor", f"{s} on independent data ({validation['data']}): {v}")

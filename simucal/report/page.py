@@ -9,6 +9,7 @@ import base64
 import html
 import io as _io
 import textwrap
+from typing import Any, Sequence
 
 import matplotlib
 
@@ -81,10 +82,12 @@ def wrapped(text: str, width: int) -> str:
     return "\n".join(textwrap.wrap(text, width))
 
 
-def log_bars(ax, labels, values, floor=None, unit=""):
+def log_bars(ax: Any, labels: Sequence[str], values: Sequence[float], floor: float | None = None,
+             unit: str = "") -> None:
     """Bars on a log scale (a calibrated error 1e-3 of the nominal one stays visible), each with its value (as
     the table writes it, report/numbers.py), and the floor as a line in the gaps between the bars: never across
-    a bar's value written above it."""
+    a bar's value written above it. ax: a matplotlib Axes (Any: matplotlib 3.8's stubs refuse the
+    (axes fraction, data) xycoords below)."""
     positive = [v for v in [*values, floor] if v and v > 0] or [1.0]
     low, top = min(positive) / 5, max(positive) * 8  # room above the tallest bar for its value
     shown = [max(v, low) for v in values]  # a zero at the axis's foot, its value written

@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import tempfile
 from pathlib import Path
+from typing import TYPE_CHECKING, Any, Callable, Iterable
 
 import numpy as np
 
@@ -18,6 +19,9 @@ from simucal import io, methods
 from simucal.io import units
 from simucal.report import markdown as report
 from simucal.turntable.simulate import ARCMIN, ARCSEC, Scenario, write
+
+if TYPE_CHECKING:  # derive/ loads for the audit alone
+    from simucal.derive.audit import Report
 
 # Table 3 as printed (norm observation, previous method), in report.ENTRIES order.
 PAPER_T3 = {
@@ -136,7 +140,7 @@ def claims(seeds=20, progress=None) -> list[dict]:
     return rows
 
 
-def full_audit(seeds=20, progress=None):
+def full_audit(seeds: int = 20, progress: Callable[[Iterable[Any]], Iterable[Any]] | None = None) -> Report:
     """derive.audit's report with the term-by-term check at the section-4 values and, for seeds > 0,
     the claims' Monte Carlo (progress: wraps an iterable, e.g. tqdm)."""
     from simucal.derive.audit import run_audit

@@ -20,11 +20,15 @@ the stated noise: its inverse is the Cramer-Rao bound of the exact fit.
 """
 from __future__ import annotations
 
+from typing import Sequence
+
 import numpy as np
+from numpy.typing import ArrayLike
 
 from simucal.errors import CalibrationError
 from simucal.io import results
 from simucal.fit.augmented import AugmentedModel
+from simucal.fit.models import GeneratedModel
 from simucal.fit.norm_fit import Observations, check_not_coplanar, normal_equations
 from simucal.generated import table
 from simucal.generated.effects import SEPARATE
@@ -201,7 +205,9 @@ def power(lam, alpha=0.01):
     return float(ncx2.sf(chi2.isf(alpha, 1), 1, lam)) if lam > 0 else alpha
 
 
-def separate(base, e1, e2, u, rho, sigma, sizes, rates_dph=(), target=0.9, alpha=0.01, max_extra=48, grid=150):
+def separate(base: GeneratedModel | str, e1: str, e2: str, u: np.ndarray, rho: ArrayLike, sigma: float, sizes: Sequence[float],
+             rates_dph: Sequence[float] | np.ndarray = (), target: float = 0.9, alpha: float = 0.01, max_extra: int = 48,
+             grid: int = 150) -> results.Separation:
     """Positions to add to a plan (u, rho) so that effects e1 and e2 are told apart with the target
     power both ways; a dict with the current and final noncentralities, the power and the added
     directions (and their rho), or the reason no positions can."""
@@ -218,7 +224,7 @@ def separate(base, e1, e2, u, rho, sigma, sizes, rates_dph=(), target=0.9, alpha
     def lams(J):
         return _misfit(J, m - 2, sizes[0]), _misfit(J, m - 1, sizes[1])
     lam = lams(J)
-    start = {"noncentrality": list(lam), "power": [power(x, alpha) for x in lam]}
+    start: results.PowerAt = {"noncentrality": list(lam), "power": [power(x, alpha) for x in lam]}
     added: list[tuple[np.ndarray, float]] = []  # (direction in k, rho)
     while min(power(x, alpha) for x in lam) < target and len(added) < max_extra:
         vals = [min(lams(np.vstack([J, blk]))) for blk in blocks]

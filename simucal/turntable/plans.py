@@ -9,6 +9,7 @@ from __future__ import annotations
 import csv
 import math
 from pathlib import Path
+from typing import Callable, Sequence
 
 import numpy as np
 
@@ -50,12 +51,12 @@ def fibonacci_directions(n: int) -> np.ndarray:
     return np.stack([r * np.cos(phi), r * np.sin(phi), z], 1)
 
 
-def fibonacci(n: int):
+def fibonacci(n: int) -> list[tuple[float, ...]]:
     """n positions with f^k on a spherical Fibonacci set."""
     return angles_for(fibonacci_directions(n))
 
 
-def dodecahedron():
+def dodecahedron() -> list[tuple[float, ...]]:
     """20 positions with f^k on the vertices of a regular dodecahedron."""
     g = (1 + 5 ** 0.5) / 2
     v: list[tuple[float, float, float]] = [(x, y, z) for x in (-1, 1) for y in (-1, 1) for z in (-1, 1)]
@@ -90,5 +91,5 @@ def read_csv(path) -> list:
     return out
 
 
-PLANS = {"table1": lambda: TABLE1, "dodecahedron20": dodecahedron,
+PLANS: dict[str, Callable[[], Sequence[Sequence[float]]]] = {"table1": lambda: TABLE1, "dodecahedron20": dodecahedron,
          "fibonacci24": lambda: fibonacci(24), "fibonacci48": lambda: fibonacci(48)}
