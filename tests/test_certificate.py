@@ -76,10 +76,19 @@ def test_no_browser_a_foreign_validation_and_no_overwrite_are_refused_writing_no
         simucal.certificate(cal, html=tmp_path / "c.html", pdf=tmp_path / "c.pdf")
     assert not list(tmp_path.iterdir())  # nothing written
     monkeypatch.delenv("SIMUCAL_CHROMIUM")
-    other = tmp_path / "other.json"
-    other.write_bytes(cal.read_bytes())
-    with pytest.raises(SimucalError, match="validates .*cal.json, not .*other.json"):
-        simucal.certificate(other, validation=validation)
+    copy = tmp_path / "copy.json"  # the same bytes under another name: the same calibration
+    copy.write_bytes(cal.read_bytes())
+    assert "<h2>Validation on independent data</h2>" in simucal.certificate(copy, validation=validation)
+    (tmp_path / "b").mkdir()  # another calibration under the same name: refused by its sha256
+    namesake = tmp_path / "b" / cal.name
+    namesake.write_text(cal.read_text() + " ")  # another byte
+    with pytest.raises(SimucalError, match=f"validates .*{cal.name} \\(sha256 .*\\), not .*b/{cal.name}"):
+        simucal.certificate(namesake, validation=validation)
+    legacy = tmp_path / "legacy.json"  # a report written before validate recorded the sha256: matched by name
+    legacy.write_text(json.dumps({**json.loads(validation.read_text()), "calibration_sha256": None}))
+    assert "<h2>Validation on independent data</h2>" in simucal.certificate(cal, validation=legacy)
+    with pytest.raises(SimucalError, match="validates .*cal.json, not .*copy.json"):
+        simucal.certificate(copy, validation=legacy)
     same = tmp_path / "same.json"  # validated on the data it was made from: not independent
     assert run("validate", cal, tmp / "set", "-o", same).exit_code == 0
     with pytest.raises(SimucalError, match="same.json: a validation on the data the calibration was made from"):

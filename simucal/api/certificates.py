@@ -17,7 +17,8 @@ from simucal.version import __version__
 
 
 def _validation(path: Path, calibration: Path) -> dict[str, Any]:
-    """validate's report, refused where it is not one, or is of another calibration file."""
+    """validate's report, refused where it is not one, or is of another calibration file (its bytes' sha256, which
+    validate records; a copy of the file under another name is the same calibration)."""
     try:
         report = json.loads(path.read_text())
     except (OSError, UnicodeDecodeError, ValueError) as e:
@@ -29,9 +30,12 @@ def _validation(path: Path, calibration: Path) -> dict[str, Any]:
         raise InputError(f"{path}: a validation on the data the calibration was made from, not independent data; "
                          f"validate on another recording of the unit: simucal validate {calibration} OTHER_DATA -o "
                          "validation.json")
-    if Path(str(report.get("calibration"))).name != calibration.name:
-        raise InputError(f"{path}: validates {report.get('calibration')}, not {calibration}; give the validation "
-                         f"of this calibration: simucal validate {calibration} DATA -o validation.json")
+    sha = report.get("calibration_sha256")  # a report written before validate recorded it: matched by name
+    if (sha != hashlib.sha256(calibration.read_bytes()).hexdigest() if sha else
+            Path(str(report.get("calibration"))).name != calibration.name):
+        raise InputError(f"{path}: validates {report.get('calibration')}" + (f" (sha256 {sha[:12]}...)" if sha else "")
+                         + f", not {calibration}; give the validation of this calibration: simucal validate "
+                         f"{calibration} DATA -o validation.json")
     return report
 
 

@@ -31,8 +31,10 @@ temperature range are named (apply's warning). The checks of each kind of data a
 """
 from __future__ import annotations
 
+import hashlib
 import os
 from dataclasses import dataclass
+from pathlib import Path
 from typing import Any, Iterator, Mapping, NamedTuple, Sequence
 
 import numpy as np
@@ -251,7 +253,8 @@ def validation_report(cal_path: str | os.PathLike[str] | calibration.Calibration
         if far and s in verdicts:
             verdicts[s] += f"; but {', '.join(far)} FAR OFF where the rest agree (mislabelled or disturbed)"
     own = own_rows(cal, ms)
-    return {"format": FORMAT, "calibration": str(where), "data": str(ms.path),
+    cal_sha = None if given else hashlib.sha256(Path(cal_path).read_bytes()).hexdigest()  # what the certificate matches
+    return {"format": FORMAT, "calibration": str(where), "calibration_sha256": cal_sha, "data": str(ms.path),
             "independent": not own, "checks": checks, "verdict": verdicts, "verdict_notes": notes,
             "warnings": list(meta.get("warnings", [])),  # apply's: rows outside the calibrated temperature range
             "note": own or None, "nominal": [x for x in (said_a, said_g) if x], "skipped": skipped_sensors(ms.sensors),
