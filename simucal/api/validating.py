@@ -253,7 +253,8 @@ def validation_report(cal_path: str | os.PathLike[str] | calibration.Calibration
         if far and s in verdicts:
             verdicts[s] += f"; but {', '.join(far)} FAR OFF where the rest agree (mislabelled or disturbed)"
     own = own_rows(cal, ms)
-    cal_sha = None if given else hashlib.sha256(Path(cal_path).read_bytes()).hexdigest()  # what the certificate matches
+    cal_sha = (None if isinstance(cal_path, calibration.Calibration)  # the bytes the certificate matches
+               else hashlib.sha256(Path(cal_path).read_bytes()).hexdigest())
     return {"format": FORMAT, "calibration": str(where), "calibration_sha256": cal_sha, "data": str(ms.path),
             "independent": not own, "checks": checks, "verdict": verdicts, "verdict_notes": notes,
             "warnings": list(meta.get("warnings", [])),  # apply's: rows outside the calibrated temperature range
