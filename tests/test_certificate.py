@@ -53,7 +53,19 @@ def test_the_certificates_numbers_are_the_files(files):
             assert len(dK) == 3 and min(dK) > 0.01
     digest = __import__("hashlib").sha256(cal_path.read_bytes()).hexdigest()
     assert digest in page and all(h in page for h in raw["input_sha256"]) and f"simucal {simucal.__version__}" in page
-    assert f"gyro on independent data ({tmp / 'other'}): at the noise floor" in page and "acc: the model fails its test" in page
+    assert f"gyro on independent data ({tmp / 'other'}): at the noise floor" in page and "acc: THE MODEL FAILS its test" in page
+    assert "<p class='verdict bad'><b>acc: THE MODEL FAILS" in page and "<p class='verdict ok'><b>gyro: the model passes" in page
+
+
+def test_a_model_no_test_judged_is_said_untested_not_passed(files, tmp_path):
+    """The multi-position method gives no model test: its certificate says so, in amber, not as a pass."""
+    tmp, _, _ = files
+    cal = tmp_path / "multiposition.json"
+    simucal.save(cal, simucal.calibrate(tmp / "set", method="multiposition"))
+    page = simucal.certificate(cal)
+    for sensor in ("acc", "gyro"):
+        assert f"<p class='verdict unsure'><b>{sensor}: the model is untested: the method gives no test" in page
+    assert "class='verdict ok'" not in page and "passes its test" not in page and "untested its test" not in page
 
 
 def test_the_pdf_renders_and_reads_as_the_page(files, tmp_path):

@@ -64,13 +64,24 @@ def value_digits(value: float, u: float) -> int:
     return max(3, math.floor(math.log10(abs(value))) - math.floor(math.log10(u)) + 2)
 
 
+# each verdict of a block (io/calibration.SensorBlock.verdict) as the certificate states it, and its colour:
+# True passes, False fails, None neither (a method that gives no test: its stds hold only if the model does)
+VERDICTS = {"passes": ("the model passes its test", True), "fails": ("THE MODEL FAILS its test", False),
+            "untested": ("the model is untested: the method gives no test of it, and its stds hold only if the "
+                         "model does", None),
+            "nominal": ("not calibrated: kept at the nominal scale factors", None)}
+
+
 def _test_line(block: SensorBlock) -> str:
+    said = VERDICTS[block.verdict][0]
+    if block.verdict == "untested":
+        return said
     test = block.details.get("test") or "no model test"
     stat = (f"chi2 = {block.chi2:.4g} on {block.dof:g} dof, p = {block.p_value:.3g}" if block.p_value is not None
             and block.chi2 is not None and block.dof else "")
     lof = block.details.get("lack_of_fit")
     lof_text = f"; lack-of-fit F = {lof['F']:.3g}, p = {lof['p_value']:.3g}" if lof and "p_value" in lof else ""
-    return f"the model {block.verdict} its test ({test}{'; ' + stat if stat else ''}{lof_text})"
+    return f"{said} ({test}{'; ' + stat if stat else ''}{lof_text})"
 
 
 def _validation_rows(validation: dict) -> list[list]:
@@ -84,7 +95,8 @@ def certificate_page(cal: Calibration, file_name: str, file_sha256: str, validat
     serial = cal.layout.get("unit_serial") or "(no unit_serial in the set's meta.json)"
     shas = cal.input_sha256 if isinstance(cal.input_sha256, list) else [cal.input_sha256]
     data_sha = [sha or "(not recorded)" for sha in shas]
-    verdicts = [(b.verdict != "fails", f"{s}: {_test_line(b)}") for s, b in cal.blocks()]
+    verdicts: list[tuple[bool | None, str]] = [(VERDICTS[b.verdict][1], f"{s}: {_test_line(b)}")
+                                                for s, b in cal.blocks()]
     if validation:
         verdicts += [(v == "at the noise floor", f"{s} on independent data ({validation['data']}): {v}")
                      for s, v in validation["verdict"].items()]

@@ -26,7 +26,7 @@ CELL_IN = 6.8  # a figure of the grid: 612 px, about a cell of two in the body
 
 STYLE = (f"body{{font-family:'{FONT}',Verdana,sans-serif;max-width:1250px;margin:auto;padding:0 6px;font-size:14px}}"
          "table{border-collapse:collapse;font-size:12px;margin:6px 0} td,th{border:1px solid #ccc;padding:2px 6px}"
-         "th{background:#f4f4f4} .bad{color:#b00} .ok{color:#070} img{max-width:100%;display:block}"
+         "th{background:#f4f4f4} .bad{color:#b00} .ok{color:#070} .unsure{color:#a60} img{max-width:100%;display:block}"
          ".verdict{margin:0;padding:2px 0} .next{background:#f4f4f4;padding:6px} summary{cursor:pointer;color:#444}"
          "code{font-family:'DejaVu Sans Mono',monospace} table{display:block;overflow-x:auto;max-width:100%} .n{white-space:nowrap}"
          "h1,.verdict,.next{overflow-wrap:anywhere}"
@@ -34,12 +34,13 @@ STYLE = (f"body{{font-family:'{FONT}',Verdana,sans-serif;max-width:1250px;margin
 
 
 def page(title: str, heading: str, verdicts, next_cmd: str, notes=(), body=()) -> str:
-    """A page: the heading, each (ok, text) verdict (one per sensor), the next command with its notes,
-    then the body's parts."""
+    """A page: the heading, each (ok, text) verdict (one per sensor; ok True green, False red, None amber:
+    neither, such as a model no test could judge), the next command with its notes, then the body's parts."""
     head = [f"<!doctype html><html><head><meta charset='utf-8'><title>{html.escape(title)}</title>"
             "<meta name='viewport' content='width=device-width, initial-scale=1'>"
             f"<style>{STYLE}</style></head><body><h1>{html.escape(heading)}</h1>"]
-    head += [f"<p class='verdict {'ok' if ok else 'bad'}'><b>{html.escape(text)}</b></p>" for ok, text in verdicts]
+    head += [f"<p class='verdict {'unsure' if ok is None else 'ok' if ok else 'bad'}'><b>{html.escape(text)}</b></p>"
+             for ok, text in verdicts]
     head.append(f"<p class='next'>Next: <code>{html.escape(next_cmd)}</code>"
                 + "".join(f"<br>{html.escape(n)}" for n in notes) + "</p>")
     return "\n".join([*head, *body, "</body></html>"])
