@@ -62,3 +62,26 @@ def test_a_drifting_units_due_date_on_the_command_line_and_its_page(tmp_path):
     spec.write_text(json.dumps({"format": "simucal.limits/1", "limits": {DRIFT_PARAM: {"max": 1.0, "unit": "g"}}}))
     with pytest.raises(SimucalError, match="spec.json: limits.gyro.b_z: unit 'g'"):
         simucal.Store(store).history("SN-0000", spec=spec)
+
+
+def test_a_std_of_zero_is_said_to_leave_no_trend_and_a_value_outside_is_still_due(tmp_path):
+    """A record whose std of a parameter is 0 (held fixed, or a file edited) cannot weigh a line: the trend says
+    so by name, and the verdict, rather than the parameter silently dropping out of the due dates."""
+    base = base_calibration(tmp_path)
+    files = unit_files(base, tmp_path / "cals", 1, 3, drifting={0}, seed=2)["SN-0000"]
+    sensor, name = DRIFT_PARAM.split(".")
+    raw = json.loads(files[1].read_text())
+    raw[sensor]["std"][name] = 0.0
+    files[1].write_text(json.dumps(raw))
+    store = tmp_path / "lab.db"
+    for month, path in enumerate(files):
+        assert run("store", "add", path, "--store", store, "--time", f"2026-{1 + 4 * month:02d}-01").exit_code == 0
+    last = simucal.load(files[-1])
+    spec = tmp_path / "spec.json"
+    spec.write_text(json.dumps({"format": "simucal.limits/1", "limits": {DRIFT_PARAM: {
+        "max": getattr(last, sensor).params[name] - 1e-9, "unit": getattr(last, sensor).param_units[name]}}}))
+    trend = simucal.Store(store).history("SN-0000", spec=spec)["trend"]
+    p = next(p for p in trend["parameters"] if p["name"] == DRIFT_PARAM)
+    assert p["slope_per_year"] is None and "a std of 0 or none in record 2" in p["no_trend"]
+    assert p["expected_years"] == p["t_years"][-1] and trend["due_parameter"] == DRIFT_PARAM  # outside: due now
+    assert f"NO TREND for 1 parameter(s), no date from a line for them: {DRIFT_PARAM}: a std of 0" in trend["verdict"]

@@ -14,7 +14,9 @@ Due dates, from the lab's spec (limits.json as `simucal lot --limits` reads it: 
 or both, in its unit): `expected_utc` is the first time after the last calibration at which the line
 crosses a limit, and `earliest_utc` the first at which its k = 2 band (2 sqrt(x^T C x), x = (1, t))
 reaches one; a parameter outside already is due at its last calibration; neither within HORIZON_YEARS is
-None. The unit's due date is the earliest of its parameters'.
+None. The unit's due date is the earliest of its parameters'. A parameter no line can be fitted through
+(one calibration, all at one time, a std of 0 or none in a record) has `no_trend` saying why, and the verdict
+names it; a value of it measured outside the spec is still due at its last calibration.
 """
 from __future__ import annotations
 
@@ -77,6 +79,19 @@ def due(ab: np.ndarray, cov: np.ndarray, lim: dict, t_last: float) -> tuple[floa
     return _crossing(beyond(lambda t: 0.0), t_last), _crossing(beyond(band), t_last)
 
 
+def _no_trend(rows: list[dict], t: np.ndarray, s: np.ndarray) -> str | None:
+    """Why no weighted line can be fitted through a parameter's values (None: it can)."""
+    if len(rows) < 2:
+        return "one calibration: no trend before a second"
+    if np.ptp(t) <= 0:
+        return "every calibration at one time: no trend"
+    bad = [r["calibration_id"] for r, si in zip(rows, s) if not (np.isfinite(si) and si > 0)]
+    if bad:
+        return (f"a std of 0 or none in record {', '.join(map(str, bad))}: a weighted line cannot be fitted "
+                "(a parameter held fixed has no std; recalibrate with it estimated)")
+    return None
+
+
 def _parameter(rows: list[dict], t0: datetime, spec: dict) -> dict[str, Any]:
     """One parameter's trend: rows are its values over the calibrations, in time order."""
     t = np.array([(_time(r["calibrated_utc"]) - t0).total_seconds() / YEAR_S for r in rows])
@@ -84,18 +99,22 @@ def _parameter(rows: list[dict], t0: datetime, spec: dict) -> dict[str, Any]:
     name, unit = f"{rows[0]['sensor']}.{rows[0]['name']}", rows[0]["unit"]
     out: dict[str, Any] = {"name": name, "unit": unit, "t_years": t.tolist(), "values": v.tolist(), "stds": s.tolist(),
                            "records": [r["calibration_id"] for r in rows], "spec": spec.get(name)}
-    if len(rows) < 2 or np.ptp(t) <= 0 or not np.all(s > 0):
+    lim = spec.get(name)
+    outside = bool(lim) and (v[-1] > lim.get("max", np.inf) or v[-1] < lim.get("min", -np.inf))
+    no_trend = _no_trend(rows, t, s)
+    if no_trend:  # said, and a value measured outside its spec still due now
+        now = _utc(t0, float(t[-1])) if outside else None
         return {**out, "slope_per_year": None, "slope_std": None, "chi2": None, "dof": 0, "p_value": None,
-                "expected_utc": None, "earliest_utc": None}
+                "no_trend": no_trend, "expected_utc": now, "earliest_utc": now,
+                **({"expected_years": float(t[-1]), "earliest_years": float(t[-1])} if outside else {})}
     ab, cov, c2 = line(t, v, s)
     dof = len(rows) - 2
     out.update(intercept=float(ab[0]), slope_per_year=float(ab[1]), slope_std=float(np.sqrt(cov[1, 1])),
                covariance=cov.tolist(), chi2=c2, dof=dof, p_value=float(chi2_dist.sf(c2, dof)) if dof else None,
                expected_utc=None, earliest_utc=None)
-    if name in spec:
-        expected, earliest = due(ab, cov, spec[name], float(t[-1]))
-        lim = spec[name]
-        if v[-1] > lim.get("max", np.inf) or v[-1] < lim.get("min", -np.inf):  # measured outside: due now
+    if lim:
+        expected, earliest = due(ab, cov, lim, float(t[-1]))
+        if outside:  # measured outside: due now
             expected = earliest = float(t[-1])
         out["expected_utc"] = None if expected is None else _utc(t0, expected)
         out["earliest_utc"] = None if earliest is None else _utc(t0, earliest)
@@ -121,11 +140,14 @@ def trend(engine, url: str, serial: str, spec: dict) -> dict[str, Any]:
     params = [_parameter(ps, t0, spec) for ps in by_name.values()]
     dated = [(p["expected_utc"], p["earliest_utc"], p["name"]) for p in params if p["earliest_utc"]]
     first = min(dated, key=lambda d: d[1]) if dated else None
+    untrended = [p for p in params if p.get("no_trend") and (p["name"] in spec or len(p["values"]) > 1)]
     verdict = (f"unit {serial}: {len(ids)} calibrations by {method} ({model}); "
                + (f"{first[2]} is expected to leave its spec on {first[0] or 'no date within the horizon'} "
                   f"(its k = {K:g} band reaches it on {first[1]})" if first else
                   "no parameter is expected to leave its spec within "
-                  f"{HORIZON_YEARS:g} years" if spec else "no spec given (--spec limits.json): no due date"))
+                  f"{HORIZON_YEARS:g} years" if spec else "no spec given (--spec limits.json): no due date")
+               + (f"; NO TREND for {len(untrended)} parameter(s), no date from a line for them: "
+                  + "; ".join(f"{p['name']}: {p['no_trend']}" for p in untrended[:3]) if untrended else ""))
     return {"format": FORMAT, "store": shown(url), "serial": serial, "method": method, "model": model,
             "first_utc": t0.strftime("%Y-%m-%dT%H:%M:%SZ"), "k": K, "horizon_years": HORIZON_YEARS,
             "parameters": params, "due_utc": first[1] if first else None,
