@@ -95,12 +95,13 @@ def _no_trend(rows: list[dict], t: np.ndarray, s: np.ndarray) -> str | None:
 def _parameter(rows: list[dict], t0: datetime, spec: dict) -> dict[str, Any]:
     """One parameter's trend: rows are its values over the calibrations, in time order."""
     t = np.array([(_time(r["calibrated_utc"]) - t0).total_seconds() / YEAR_S for r in rows])
-    v, s = np.array([r["value"] for r in rows]), np.array([r["std"] for r in rows])
+    v = np.array([r["value"] for r in rows], float)
+    s = np.array([np.nan if r["std"] is None else r["std"] for r in rows], float)  # none recorded: no weight
     name, unit = f"{rows[0]['sensor']}.{rows[0]['name']}", rows[0]["unit"]
     out: dict[str, Any] = {"name": name, "unit": unit, "t_years": t.tolist(), "values": v.tolist(), "stds": s.tolist(),
                            "records": [r["calibration_id"] for r in rows], "spec": spec.get(name)}
-    lim = spec.get(name)
-    outside = bool(lim) and (v[-1] > lim.get("max", np.inf) or v[-1] < lim.get("min", -np.inf))
+    lim: dict[str, float] = spec.get(name) or {}
+    outside = bool(lim) and bool(v[-1] > lim.get("max", np.inf) or v[-1] < lim.get("min", -np.inf))
     no_trend = _no_trend(rows, t, s)
     if no_trend:  # said, and a value measured outside its spec still due now
         now = _utc(t0, float(t[-1])) if outside else None
