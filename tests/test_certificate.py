@@ -79,6 +79,22 @@ def test_the_pdf_renders_and_reads_as_the_page(files, tmp_path):
     assert image.shape[0] > 500 and 0.01 < ink < 0.5, ink
     text = " ".join(doc[i].get_textpage().get_text_bounded() for i in range(len(doc)))
     assert "Calibration certificate" in text and "U (k = 2)" in text and "Validation on independent data" in text
+    assert "file://" not in text and "page.html" not in text  # no browser header or footer (its URL, its title)
+
+
+def test_an_older_chromium_is_told_to_leave_out_the_header_too(tmp_path, monkeypatch):
+    """Chromium before 111 knows --print-to-pdf-no-header, not --no-pdf-header-footer: both are given (a browser
+    ignores a flag it does not know). A stand-in browser records what it was given and prints a PDF."""
+    from simucal.report.pdf import html_to_pdf
+    args = tmp_path / "args"
+    fake = tmp_path / "old-chromium"
+    fake.write_text("#!/bin/sh\nprintf '%s\\n' \"$@\" > " + str(args) + "\nfor a in \"$@\"; do case $a in "
+                    "--print-to-pdf=*) printf '%%PDF-1.4' > \"${a#--print-to-pdf=}\";; esac; done\n")
+    fake.chmod(0o755)
+    monkeypatch.setenv("SIMUCAL_CHROMIUM", str(fake))
+    assert html_to_pdf("<p>x</p>").startswith(b"%PDF")
+    given = args.read_text().split("\n")
+    assert "--print-to-pdf-no-header" in given and "--no-pdf-header-footer" in given and "--headless" in given
 
 
 def test_no_browser_a_foreign_validation_and_no_overwrite_are_refused_writing_nothing(files, tmp_path, monkeypatch):

@@ -37,7 +37,9 @@ def html_to_pdf(page_html: str) -> bytes:
     with tempfile.TemporaryDirectory(prefix="simucal-pdf-") as tmp:
         src, out = Path(tmp) / "page.html", Path(tmp) / "page.pdf"
         src.write_text(page_html, encoding="utf-8")
-        cmd = [exe, "--headless", "--disable-gpu", "--no-sandbox", "--no-pdf-header-footer",
+        # no header or footer: --no-pdf-header-footer since Chromium 111, --print-to-pdf-no-header before it (each
+        # ignores the other's flag), so a lab's older browser prints the same page
+        cmd = [exe, "--headless", "--disable-gpu", "--no-sandbox", "--no-pdf-header-footer", "--print-to-pdf-no-header",
                f"--user-data-dir={Path(tmp) / 'profile'}", f"--print-to-pdf={out}", src.as_uri()]
         try:
             res = subprocess.run(cmd, capture_output=True, text=True, timeout=TIMEOUT_S)
