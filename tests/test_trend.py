@@ -8,6 +8,7 @@ import pytest
 import simucal
 from cli_helpers import run
 from simucal.errors import SimucalError
+from simucal.report.lot_figures import block_parameters
 from simucal.store.trend import HORIZON_YEARS, K, due, line
 from store_helpers import DRIFT_PARAM, base_calibration, unit_files
 
@@ -85,3 +86,23 @@ def test_a_std_of_zero_is_said_to_leave_no_trend_and_a_value_outside_is_still_du
     assert p["slope_per_year"] is None and "a std of 0 or none in record 2" in p["no_trend"]
     assert p["expected_years"] == p["t_years"][-1] and trend["due_parameter"] == DRIFT_PARAM  # outside: due now
     assert f"NO TREND for 1 parameter(s), no date from a line for them: {DRIFT_PARAM}: a std of 0" in trend["verdict"]
+
+
+def test_a_spec_bounding_another_lines_parameter_is_refused_not_ignored(tmp_path):
+    """The trend follows the unit's last method and model: a spec entry naming a parameter only an earlier line
+    has (the multi-position method's M_xx, where the unit is now calibrated by the exact method) would bound
+    nothing, so it is refused, naming the line."""
+    base = base_calibration(tmp_path)
+    older = tmp_path / "older.json"
+    simucal.save(older, simucal.calibrate(simucal.simulate(seed=1), method="multiposition"))
+    store = tmp_path / "lab.db"
+    assert run("store", "add", older, "--store", store, "--serial", "SN-0000", "--time", "2025-06-01").exit_code == 0
+    for month, path in enumerate(unit_files(base, tmp_path / "cals", 1, 2, seed=2)["SN-0000"]):
+        assert run("store", "add", path, "--store", store, "--time", f"2026-{1 + 4 * month:02d}-01").exit_code == 0
+    names = block_parameters(simucal.load(older).acc)  # the names the store records (M_xy, b_x)
+    name = next(n for n in names if n not in block_parameters(simucal.load(base).acc))
+    spec = tmp_path / "spec.json"
+    spec.write_text(json.dumps({"format": "simucal.limits/1", "limits": {f"acc.{name}": {
+        "max": 1.0, "unit": names[name][2]}}}))
+    with pytest.raises(SimucalError, match=f"limits.acc.{name}: unit SN-0000's trend \\(its calibrations by exact"):
+        simucal.Store(store).history("SN-0000", spec=spec)

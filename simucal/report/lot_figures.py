@@ -48,10 +48,11 @@ def block_parameters(b) -> dict:
     return out
 
 
-def read_limits(path, known: dict) -> dict:
+def read_limits(path, known: dict, whose: str = "no calibration of the lot") -> dict:
     """limits.json: {"format": "simucal.limits/1", "limits": {"acc.b_x": {"min": -0.005, "max": 0.005,
     "unit": "g"}, ...}}, min or max or both, in the unit the calibrations give that parameter (known:
-    {name: unit} of the lot). Anything else is refused in one line naming the file and the entry."""
+    {name: unit} of the lot; whose: what has none of a name that is not in it, as the refusal says it).
+    Anything else is refused in one line naming the file and the entry."""
     def bad(where, why):
         return CalibrationError(f"{path}: {where}: {why} (the format: {{\"format\": \"{LIMITS_FORMAT}\", \"limits\": "
                                 "{\"acc.b_x\": {\"min\": -0.005, \"max\": 0.005, \"unit\": \"g\"}}})")
@@ -65,7 +66,7 @@ def read_limits(path, known: dict) -> dict:
     for name, lim in d["limits"].items():
         where = f"limits.{name}"
         if name not in known:
-            raise bad(where, "no calibration of the lot has this parameter; it has " + ", ".join(sorted(known)[:40]))
+            raise bad(where, f"{whose} has this parameter; it has " + ", ".join(sorted(known)[:40]))
         if not isinstance(lim, dict) or set(lim) - {"min", "max", "unit"} or not ({"min", "max"} & set(lim)):
             raise bad(where, "expected an object with min, max or both, and unit")
         if lim.get("unit") != known[name]:
