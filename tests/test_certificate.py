@@ -126,3 +126,34 @@ def test_no_browser_a_foreign_validation_and_no_overwrite_are_refused_writing_no
         r = run("certificate", cal, *given)
         assert r.exit_code != 0 and "input" in r.output, r.output
     assert cal.read_bytes() == before and json.loads(validation.read_text())["format"] == "simucal.validation/1"
+
+
+def test_a_thermal_certificate_gives_its_coefficients_and_each_parameters_temperature_part(tmp_path):
+    """Three plateaus with a planted quadratic bias in temperature: the certificate lists every coefficient the
+    file holds (value, u, U = 2 u), and beside u each parameter's temperature part, sqrt(max_T u(T)^2 -
+    u(T_ref)^2) over the calibrated range, here recomputed from the file's covariance term by term."""
+    effects = {"acc.bias_temperature.x": 2e-6, "acc.bias_temperature2.x": 5e-8}
+    sets = [simucal.simulate(plan="fibonacci48", rate_hz=20, seed=seed, temperature_c=T, t_ref_c=25.0,
+                             temperature_wander_c=0.3, effects=effects) for T, seed in ((0, 1), (25, 2), (50, 3))]
+    path = tmp_path / "thermal.json"
+    simucal.save(path, simucal.calibrate(sets, thermal=True, t_ref_c=25.0))
+    raw = json.loads(path.read_text())
+    page = simucal.certificate(path)
+    th = raw["acc"]["thermal"]
+    assert th["parameters"]["b_x"]["degree"] == 2  # the planted polynomial, found
+    for name, f in th["parameters"].items():
+        for k in range(1, f["degree"] + 1):
+            c, u = f["coefficients"][k], f["std"][k]
+            assert f">{name}.T{k}<" in page and f">{eng(c)}<" in page and f">{eng(2 * u)}<" in page
+    cov = th["covariance"]
+    lo, hi = th["temperature_range_c"]
+    for r in budget(simucal.load(path).acc):
+        names = [r["name"]] + [f"{r['name']}.T{k}" for k in range(1, th["parameters"][r["name"]]["degree"] + 1)]
+        idx = [cov["names"].index(n) for n in names]
+        C = np.asarray(cov["matrix"])[np.ix_(idx, idx)]
+        var = [sum(C[i, j] * dT ** (i + j) for i in range(len(idx)) for j in range(len(idx)))
+               for dT in np.linspace(lo - 25.0, hi - 25.0, 1001)]
+        part = math.sqrt(max(max(var) - C[0, 0], 0.0))
+        assert math.isclose(r["temperature"], part, rel_tol=1e-3, abs_tol=1e-12 * r["u"]), r
+        assert (r["temperature"] > 0.1 * r["u"]) == (r["name"] == "b_x"), r  # only the term the data hold
+    assert "temperature: over the range, beside u" in page and "temperature coefficients" in page

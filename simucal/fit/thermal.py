@@ -163,6 +163,22 @@ def evaluate(coefficients, dT) -> np.ndarray:
     return np.polynomial.polynomial.polyval(np.asarray(dT, float), np.asarray(coefficients, float))
 
 
+def std_at(thermal: records.Thermal, name: str, dT) -> np.ndarray:
+    """Parameter `name`'s std at dT = T - T_ref (any shape): sqrt(x' C x), x = (1, dT, dT^2, ...), C its
+    coefficients' covariance where the block's `thermal` holds it (else their stds, uncorrelated)."""
+    f = thermal["parameters"][name]
+    dT = np.asarray(dT, float)
+    V = np.vander(dT.reshape(-1), len(f["coefficients"]), increasing=True)
+    cov = thermal.get("covariance")
+    names = [name] + [f"{name}.T{k}" for k in range(1, len(f["coefficients"]))]
+    if cov and all(n in cov["names"] for n in names):
+        idx = [cov["names"].index(n) for n in names]
+        C = np.asarray(cov["matrix"], float)[np.ix_(idx, idx)]
+    else:
+        C = np.diag(np.asarray(f["std"], float) ** 2)
+    return np.sqrt(np.maximum(np.einsum("ik,kl,il->i", V, C, V), 0.0)).reshape(dT.shape)
+
+
 def params_at(thermal: records.Thermal, names, temp_c) -> np.ndarray:
     """(n, m): the parameters `names` at each temperature temp_c (n,), from a block's `thermal`
     section (its t_ref_c and per-parameter coefficients)."""

@@ -11,8 +11,10 @@ parts the file records, in the order the methods build the std (turntable/tilt.p
     misfit  = sqrt(u^2 - u_raw^2)                 (where the model failed its test: u = u_raw sqrt(chi2/dof))
     noise   = sqrt(u_raw^2 - table^2)             (the fit's own: the data's noise through the plan)
 where u_raw is the std before the misfit's inflation (u where the model passed). The temperatures the data
-spanned are stated (the calibration holds there); a thermal model's parameters are given at T_ref, and no
-temperature share is invented for a model without one.
+spanned are stated (the calibration holds there). A thermal model's parameters are given at T_ref, its
+temperature coefficients in a table of their own, and beside u its temperature part, what using a parameter
+anywhere in the calibrated range adds to u (sqrt(max_T u(T)^2 - u(T_ref)^2), u(T) from the coefficients'
+covariance); no temperature part is invented for a model without one.
 """
 from __future__ import annotations
 
@@ -22,6 +24,7 @@ from typing import Any
 
 import numpy as np
 
+from simucal.fit.thermal import std_at
 from simucal.io.calibration import Calibration, SensorBlock
 from simucal.report.lot_figures import block_parameters, model_name
 from simucal.report.numbers import eng_html
@@ -43,8 +46,21 @@ def _entry(stds: dict, name: str) -> float:
     return math.nan
 
 
+def temperature_part(block: SensorBlock, name: str) -> float | None:
+    """What using parameter `name` anywhere in the calibrated temperature range adds to its u at T_ref:
+    sqrt(max_T u(T)^2 - u(T_ref)^2), u(T) its polynomial's std (fit/thermal.std_at); 0 where the data showed
+    no temperature term of it; None without a temperature model (the value holds at the data's temperatures)."""
+    th = block.thermal
+    if not th or name not in th.get("parameters", {}) or "temperature_range_c" not in th:
+        return None
+    lo, hi = th["temperature_range_c"]
+    u_T = std_at(th, name, np.linspace(lo, hi, 201) - th["t_ref_c"])
+    return float(np.sqrt(max(float(np.max(u_T)) ** 2 - float(std_at(th, name, 0.0)) ** 2, 0.0)))
+
+
 def budget(block: SensorBlock) -> list[dict[str, Any]]:
-    """Each parameter of the block with its value, unit, u, U = K u and u's parts (module doc)."""
+    """Each parameter of the block with its value, unit, u, U = K u, u's parts (module doc) and the temperature
+    part (temperature_part: beside u, not in it)."""
     tilt = block.details.get("table_tilt")
     raw = block.details.get("std_raw")
     rows = []
@@ -53,7 +69,20 @@ def budget(block: SensorBlock) -> list[dict[str, Any]]:
         table_part = abs(tilt["per_arcsec"].get(name, 0.0)) * tilt["stated_arcsec"] if tilt else None  # None: not in u
         rows.append({"name": name, "value": value, "unit": unit, "u": u, "U": K * u,
                      "noise": math.sqrt(max(u_raw ** 2 - (table_part or 0.0) ** 2, 0.0)), "table": table_part,
-                     "misfit": math.sqrt(max(u ** 2 - u_raw ** 2, 0.0))})
+                     "misfit": math.sqrt(max(u ** 2 - u_raw ** 2, 0.0)),
+                     "temperature": temperature_part(block, name)})
+    return rows
+
+
+def coefficients(block: SensorBlock) -> list[list[Any]]:
+    """A thermal block's temperature coefficients: [name.Tk, value, unit/degC^k, u, U] of every term the data
+    hold (k >= 1), from the block's `thermal` polynomials."""
+    th = block.thermal or {}
+    rows = []
+    for name, f in th.get("parameters", {}).items():
+        unit = block.param_units.get(name, block.bias_unit if name.startswith("b_") else "")
+        for k, (c, u) in enumerate(zip(f["coefficients"][1:], f["std"][1:]), start=1):
+            rows.append([f"{name}.T{k}", float(c), f"{unit}/degC" + (f"^{k}" if k > 1 else ""), float(u), K * float(u)])
     return rows
 
 
@@ -115,10 +144,17 @@ def certificate_page(cal: Calibration, file_name: str, file_sha256: str, validat
         body.append(f"<h2>{s}</h2><p>{html.escape(_test_line(b))}"
                     + (f"; the table's stated tilt {tilt['stated_arcsec']:g} arcsec is in u" if tilt else "")
                     + (f"; {html.escape(b.details['std_note'])}" if b.details.get("std_note") else "") + ".</p>")
+        rows = budget(b)
+        thermal = any(r["temperature"] is not None for r in rows)
         body.append(table(["parameter", "value", "unit", "u (std)", f"U (k = {K:g})", "u: noise", "u: table",
-                           "u: model misfit"],
+                           "u: model misfit"] + (["temperature: over the range, beside u"] if thermal else []),
                           [[r["name"], eng_html(r["value"], value_digits(r["value"], r["u"])), r["unit"], r["u"],
-                            r["U"], r["noise"], r["table"], r["misfit"]] for r in budget(b)]))
+                            r["U"], r["noise"], r["table"], r["misfit"]] + ([r["temperature"]] if thermal else [])
+                           for r in rows]))
+        if b.thermal and coefficients(b):
+            body.append(f"<p>{s}'s temperature coefficients, of (T - T_ref), T_ref = {b.thermal['t_ref_c']:g} degC "
+                        "(the value at T is the polynomial's: simucal apply evaluates it at each row's temperature):</p>")
+            body.append(table(["coefficient", "value", "unit", "u (std)", f"U (k = {K:g})"], coefficients(b)))
     if validation:
         body.append("<h2>Validation on independent data</h2>")
         body.append(table(["sensor", "check", "n", "unit", "at nominal (rms)", "calibrated (rms)", "floor (rms)",

@@ -9,24 +9,11 @@ import html
 
 import numpy as np
 
-from simucal.fit.thermal import evaluate
+from simucal.fit.thermal import evaluate, std_at
 from simucal.io.calibration import ALPHA, Calibration
 from simucal.fit.augmented import AugmentedModel
 from simucal.report.numbers import eng_html
 from simucal.report.page import CELL_IN, figure, grid, page, png
-
-
-def _band(th, name, f, dT):
-    """The polynomial's std at dT: its coefficients' covariance where the file holds it (else their stds)."""
-    V = np.vander(dT, len(f["coefficients"]), increasing=True)
-    cov = th.get("covariance")
-    names = [name] + [f"{name}.T{k}" for k in range(1, len(f["coefficients"]))]
-    if cov and all(n in cov["names"] for n in names):
-        idx = [cov["names"].index(n) for n in names]
-        C = np.asarray(cov["matrix"])[np.ix_(idx, idx)]
-    else:
-        C = np.diag(np.asarray(f["std"]) ** 2)
-    return np.sqrt(np.maximum(np.einsum("ik,kl,il->i", V, C, V), 0.0))
 
 
 def _figure(sensor, name, f, unit, th):
@@ -36,7 +23,7 @@ def _figure(sensor, name, f, unit, th):
     lo, hi = th.get("temperature_range_c", [T.min(), T.max()])
     grid = np.linspace(lo - 5, hi + 5, 200)
     dT = grid - th["t_ref_c"]
-    y, band = evaluate(f["coefficients"], dT), _band(th, name, f, dT)
+    y, band = evaluate(f["coefficients"], dT), std_at(th, name, dT)
     fig, (ax, low) = figure(CELL_IN, 4.4, 2, 1, sharex=True, height_ratios=(3, 2))
     ax.plot(grid, y, "-", lw=1, label="fit")
     low.fill_between(grid, -band, band, alpha=0.35, label="fit's 68 % band")
