@@ -222,7 +222,7 @@ def test_one_method_registry():
 
 
 UNITLESS = {"--seed", "--seeds", "--instance", "--unit-seed", "--trials", "--positions", "--power", "--thermal-degree", "--threshold-factor",
-            "--evaluations"}
+            "--evaluations", "--record"}  # --record: a store's record id
 UNIT_SUFFIXES = ("-deg", "-s", "-hz", "-dps", "-dph", "-g", "-c", "-arcmin", "-mps2", "-per-g", "-per-dps", "minutes")
 OLD_NAMES = {"--out-dir": "-o/--output", "--json": "-o/--output", "--sigma": "--acc-noise-g/--gyro-noise-dph",
              "--rates": "--rates-dps", "--heading-error-deg": "--heading-accuracy-deg"}  # accepted, never shown first

@@ -157,3 +157,31 @@ def test_a_thermal_certificate_gives_its_coefficients_and_each_parameters_temper
         assert math.isclose(r["temperature"], part, rel_tol=1e-3, abs_tol=1e-12 * r["u"]), r
         assert (r["temperature"] > 0.1 * r["u"]) == (r["name"] == "b_x"), r  # only the term the data hold
     assert "temperature: over the range, beside u" in page and "temperature coefficients" in page
+
+
+def test_a_certificate_of_a_store_record_is_the_files_and_its_validation_matches_by_sha256(files, tmp_path):
+    """`simucal certificate --store URL --record N`: the record's file, byte for byte, so the same numbers and
+    sha256 as the file's certificate, and validate's report of the file is this record's; the store is an
+    input, never written over; a file and a record at once, or a record the store lacks, are refused."""
+    _, cal, validation = files
+    store = tmp_path / "lab.db"
+    assert run("store", "add", cal, "--store", store, "--serial", "SN-1").exit_code == 0
+    page = simucal.certificate(store=store, record=1, validation=validation)
+    own = simucal.certificate(cal, validation=validation)
+    digest = __import__("hashlib").sha256(cal.read_bytes()).hexdigest()
+    assert f"record 1 of Store(&#x27;{store}&#x27;) (sha256 {digest})" in page
+    assert "Calibration certificate: unit SN-1" in page and "(no unit_serial" in own  # the serial the lab recorded
+    numbers = __import__("re").compile(r"<span class='n'>[^<]*</span>")
+    assert numbers.findall(page) == numbers.findall(own) and len(numbers.findall(own)) > 50  # every number the same
+    r = run("certificate", "--store", store, "--record", 1, "-o", tmp_path / "c.html", "--validation", validation)
+    assert r.exit_code == 0, r.output
+    assert (tmp_path / "c.html").read_text() == page
+    before = store.read_bytes()
+    r = run("certificate", "--store", store, "--record", 1, "-o", store)
+    assert r.exit_code != 0 and "input" in r.output and store.read_bytes() == before
+    with pytest.raises(SimucalError, match="lab.db.*: no record 7"):
+        simucal.certificate(store=store, record=7)
+    with pytest.raises(SimucalError, match="a calibration file or a store's record"):
+        simucal.certificate(cal, store=store, record=1)
+    with pytest.raises(SimucalError, match="a calibration file or a store's record"):
+        simucal.certificate()

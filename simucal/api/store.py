@@ -12,6 +12,7 @@ from simucal.io import records as _records
 from simucal.store import CalibrationStore
 from simucal.store.history import lines as history_lines  # noqa: F401 (the command line's words)
 from simucal.store.queries import PARAMETER_COLUMNS, RECORD_COLUMNS
+from simucal.store.schema import local_file as local_file  # the command line's: a store's file is an input
 
 TREND_COLUMNS = ("name", "unit", "calibrations", "last_value", "last_std", "slope_per_year", "slope_std", "chi2",
                  "dof", "p_value", "expected_utc", "earliest_utc")
@@ -90,9 +91,20 @@ class Store:
         """Record `record`'s calibration file, byte for byte as it was recorded."""
         found = self._store.files([record])
         if record not in found:
-            from simucal.errors import StoreError
-            raise StoreError(f"{self._store.shown}: no record {record}; Store.records() lists them")
+            raise self._no_record(record)
         return found[record]
+
+    @checked
+    def record(self, record: int) -> dict[str, Any]:
+        """Record `record`'s row as records() gives it (id, serial, calibrated_utc, station, ...), as a dict."""
+        rows = self._store.records(record_id=record)
+        if not rows:
+            raise self._no_record(record)
+        return rows[0]
+
+    def _no_record(self, record: int) -> Exception:
+        from simucal.errors import StoreError
+        return StoreError(f"{self._store.shown}: no record {record}; Store.records() lists them")
 
     @checked
     def history(self, serial: str, limits: str | os.PathLike[str] | None = None,

@@ -69,9 +69,7 @@ def history(serial, store_url, output, limits_path, spec_path, html_path):
 
     from simucal import api
     from simucal.io import outputs
-    inputs = [p for p in (limits_path, spec_path) if p]
-    if "://" not in store_url or store_url.startswith("sqlite:///"):  # the store's file is an input: never written over
-        inputs.append(store_url.split("sqlite:///", 1)[-1])
+    inputs = [p for p in (limits_path, spec_path, api.store.local_file(store_url)) if p]  # the store's file too
     guard(inputs, files={"-o": output, **({"--html": html_path} if html_path else {})})
     report = api.Store(store_url).history(serial, limits_path, spec_path)
     outputs.write_text(output, json.dumps(report, indent=1) + "\n")
@@ -84,7 +82,10 @@ def history(serial, store_url, output, limits_path, spec_path, html_path):
 
 
 @main.command()
-@click.argument("calibration", type=InputPath(exists=True, dir_okay=False))
+@click.argument("calibration", required=False, type=InputPath(exists=True, dir_okay=False))
+@click.option("--record", type=int, default=None,
+              help="Instead of a calibration file: this record of the store (--store), its file as recorded.")
+@store_option(True)
 @click.option("-o", "--output", type=click.Path(dir_okay=False), default="certificate.html", show_default=True,
               help="The certificate page (HTML).")
 @click.option("--pdf", type=click.Path(dir_okay=False), default=None,
@@ -93,13 +94,15 @@ def history(serial, store_url, output, limits_path, spec_path, html_path):
 @click.option("--validation", type=InputPath(exists=True, dir_okay=False), default=None,
               help="validate's report of this calibration on independent data (simucal validate CAL DATA -o "
                    "validation.json), shown on the certificate.")
-def certificate(calibration, output, pdf, validation):
-    """A calibration's certificate: the unit, the file's and the data's sha256, the method and each model's test,
-    every parameter with its expanded uncertainty (k = 2) and its budget, the validation, simucal's version; every
-    number read from the files."""
+def certificate(calibration, record, store_url, output, pdf, validation):
+    """A calibration's certificate (of CALIBRATION, a file, or of --record N in --store): the unit, the file's and
+    the data's sha256, the method and each model's test, every parameter with its expanded uncertainty (k = 2) and
+    its budget, the validation, simucal's version; every number read from the files."""
     from simucal import api
     files = {"-o": output, **({"--pdf": pdf} if pdf else {})}
-    guard([calibration] + ([validation] if validation else []), files=files)
-    api.certificate(calibration, validation=validation, html=output, pdf=pdf)
+    inputs = [p for p in (calibration, validation, record is not None and api.store.local_file(store_url)) if p]
+    guard(inputs, files=files)
+    api.certificate(calibration, validation=validation, html=output, pdf=pdf,
+                    **({"store": store_url, "record": record} if record is not None else {}))
     for path in files.values():
         click.echo(f"wrote {path}")

@@ -119,9 +119,11 @@ def _validation_rows(validation: dict) -> list[list]:
 
 
 def certificate_page(cal: Calibration, file_name: str, file_sha256: str, validation: dict | None,
-                     version: str) -> str:
-    """The certificate of `cal` (module doc); file_sha256: the file's bytes', validation: validate's report."""
-    serial = cal.layout.get("unit_serial") or "(no unit_serial in the set's meta.json)"
+                     version: str, apply_line: str, record: dict | None = None) -> str:
+    """The certificate of `cal` (module doc); file_sha256: the file's bytes', validation: validate's report,
+    apply_line: the next command; record: a store's row of it (its serial the lab's, its time and station)."""
+    serial = ((record or {}).get("serial") or cal.layout.get("unit_serial")
+              or "(no unit_serial in the set's meta.json)")
     shas = cal.input_sha256 if isinstance(cal.input_sha256, list) else [cal.input_sha256]
     data_sha = [sha or "(not recorded)" for sha in shas]
     verdicts: list[tuple[bool | None, str]] = [(VERDICTS[b.verdict][1], f"{s}: {_test_line(b)}")
@@ -133,6 +135,9 @@ def certificate_page(cal: Calibration, file_name: str, file_sha256: str, validat
              ("measurement set", f"{cal.input if isinstance(cal.input, str) else ', '.join(cal.input)}"),
              ("its files' sha256", ", ".join(data_sha)), ("method", cal.method), ("model", model_name(cal)),
              ("file format", cal.format), ("certificate written by", f"simucal {version}")]
+    if record:
+        facts.insert(2, ("recorded", f"calibrated {record['calibrated_utc']} at station {record['station']}, "
+                                     f"by simucal {record['tool_version']}"))
     if cal.temperature_range_c:
         lo, hi = cal.temperature_range_c
         facts.append(("temperature", f"the data spanned {lo:.2f} to {hi:.2f} degC"
@@ -163,4 +168,4 @@ def certificate_page(cal: Calibration, file_name: str, file_sha256: str, validat
         body.append("<p>No validation on independent data was given (simucal validate CAL.json DATA -o "
                     "validation.json; then --validation validation.json).</p>")
     return page(f"certificate {serial}", f"Calibration certificate: unit {serial}", verdicts,
-                f"simucal apply {file_name} DATA_DIR -o calibrated", body=body)
+                apply_line, body=body)

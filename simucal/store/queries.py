@@ -10,9 +10,9 @@ RECORD_COLUMNS = ("id", "serial", "calibrated_utc", "recorded_utc", "station", "
 PARAMETER_COLUMNS = ("calibration_id", "serial", "calibrated_utc", "sensor", "name", "value", "std", "unit")
 
 
-def _where(serial=None, method=None, model=None, station=None, since=None, until=None) -> list:
+def _where(serial=None, method=None, model=None, station=None, since=None, until=None, record_id=None) -> list:
     c = CALIBRATIONS.c
-    tests = [(serial, c.serial.__eq__), (method, c.method.__eq__), (model, c.model.__eq__),
+    tests = [(record_id, c.id.__eq__), (serial, c.serial.__eq__), (method, c.method.__eq__), (model, c.model.__eq__),
              (station, c.station.__eq__), (since, c.calibrated_utc.__ge__), (until, c.calibrated_utc.__le__)]
     return [test(value) for value, test in tests if value is not None]
 
@@ -29,8 +29,8 @@ def _rows(engine, url, query) -> list[dict]:
 
 
 def records(engine, url, **where) -> list[dict]:
-    """The records that match `where` (serial, method, model, station, since, until: calibrated_utc's range,
-    inclusive), in calibration time order (then recording order)."""
+    """The records that match `where` (record_id, serial, method, model, station, since, until: calibrated_utc's
+    range, inclusive), in calibration time order (then recording order)."""
     from sqlalchemy import select
     c = CALIBRATIONS.c
     query = select(*(getattr(c, k) for k in RECORD_COLUMNS)).where(*_where(**where))

@@ -93,6 +93,13 @@ def engine_url(url: str) -> str:
     return url
 
 
+def local_file(url: str) -> Path | None:
+    """A SQLite store's file (an input that no command writes over); None: a server's database, or in memory."""
+    target = engine_url(url)
+    path = target.split(":///", 1)[1] if target.startswith("sqlite") and ":///" in target else ""
+    return Path(path) if path and path != ":memory:" else None
+
+
 def failure(url: str, e: Exception, doing: str) -> StoreError:
     """A database's error as one line naming the store (password hidden) and what was being done."""
     from sqlalchemy.engine import make_url
@@ -114,8 +121,8 @@ def open_engine(url: str, create: bool):
     target = engine_url(url)
     sqlite = target.startswith("sqlite")
     if sqlite and not create:
-        path = target.split(":///", 1)[1]
-        if path and path != ":memory:" and not Path(path).is_file():
+        path = local_file(url)
+        if path and not path.is_file():
             raise StoreError(f"{shown(url)}: no store there; record into it first: simucal store add CAL.json "
                              f"--store {shown(url)}")
     try:
