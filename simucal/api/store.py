@@ -12,7 +12,7 @@ from simucal.io import records as _records
 from simucal.store import CalibrationStore
 from simucal.store.history import lines as history_lines  # noqa: F401 (the command line's words)
 from simucal.store.queries import PARAMETER_COLUMNS, RECORD_COLUMNS
-from simucal.store.schema import local_file as local_file  # the command line's: a store's file is an input
+from simucal.store.schema import local_file
 
 TREND_COLUMNS = ("name", "unit", "calibrations", "last_value", "last_std", "slope_per_year", "slope_std", "chi2",
                  "dof", "p_value", "expected_utc", "earliest_utc")
@@ -85,6 +85,12 @@ class Store:
         calibrated_utc, sensor, name, value, std, unit)."""
         return _table(self._store.parameters(serial=serial, method=method, model=model, station=station, since=since,
                                              until=until), PARAMETER_COLUMNS)
+
+    @staticmethod
+    def local_file(url: str | os.PathLike[str]) -> str | None:
+        """The SQLite file a store URL names (an input: no command writes over it); None for a server's database."""
+        path = local_file(os.fspath(url))
+        return None if path is None else str(path)
 
     @checked
     def file(self, record: int) -> bytes:

@@ -69,7 +69,7 @@ def history(serial, store_url, output, limits_path, spec_path, html_path):
 
     from simucal import api
     from simucal.io import outputs
-    inputs = [p for p in (limits_path, spec_path, api.store.local_file(store_url)) if p]  # the store's file too
+    inputs = [p for p in (limits_path, spec_path, api.Store.local_file(store_url)) if p]  # the store's file too
     guard(inputs, files={"-o": output, **({"--html": html_path} if html_path else {})})
     report = api.Store(store_url).history(serial, limits_path, spec_path)
     outputs.write_text(output, json.dumps(report, indent=1) + "\n")
@@ -100,7 +100,7 @@ def certificate(calibration, record, store_url, output, pdf, validation):
     its budget, the validation, simucal's version; every number read from the files."""
     from simucal import api
     files = {"-o": output, **({"--pdf": pdf} if pdf else {})}
-    inputs = [p for p in (calibration, validation, record is not None and api.store.local_file(store_url)) if p]
+    inputs = [p for p in (calibration, validation, record is not None and api.Store.local_file(store_url)) if p]
     guard(inputs, files=files)
     api.certificate(calibration, validation=validation, html=output, pdf=pdf,
                     **({"store": store_url, "record": record} if record is not None else {}))

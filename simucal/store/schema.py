@@ -14,6 +14,7 @@ from datetime import datetime, timezone
 from pathlib import Path
 
 from simucal.errors import StoreError
+from simucal.store.sqlite_file import how_to_open
 
 SCHEMA = 2  # this version's schema; MIGRATIONS below leads to it from an empty database
 TOOL_TABLE = "simucal_schema"
@@ -120,11 +121,13 @@ def open_engine(url: str, create: bool):
     from sqlalchemy.exc import SQLAlchemyError
     target = engine_url(url)
     sqlite = target.startswith("sqlite")
-    if sqlite and not create:
-        path = local_file(url)
-        if path and not path.is_file():
-            raise StoreError(f"{shown(url)}: no store there; record into it first: simucal store add CAL.json "
-                             f"--store {shown(url)}")
+    path = local_file(url) if sqlite else None
+    journal: str | None = "WAL"  # a SQLite file's journal (sqlite_file.py: by where it lives; None: read only)
+    if path and not create and not path.is_file():
+        raise StoreError(f"{shown(url)}: no store there; record into it first: simucal store add CAL.json "
+                         f"--store {shown(url)}")
+    if path:
+        target, journal = how_to_open(path, shown(url), write=create)
     try:
         engine = create_engine(target, **({"connect_args": {"timeout": 60}} if sqlite else {}))
     except (SQLAlchemyError, ImportError, ValueError) as e:
@@ -133,8 +136,8 @@ def open_engine(url: str, create: bool):
         @event.listens_for(engine, "connect")
         def _no_driver_transactions(dbapi_connection, _record):
             dbapi_connection.isolation_level = None
-            # write-ahead log: a station reading (history, lot) neither waits for a writer nor blocks one
-            dbapi_connection.execute("PRAGMA journal_mode=WAL")
+            if journal:  # WAL: a station reading neither waits for a writer nor blocks one (sqlite_file.py)
+                dbapi_connection.execute(f"PRAGMA journal_mode={journal}")
 
         @event.listens_for(engine, "begin")
         def _begin(conn):
