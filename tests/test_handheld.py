@@ -275,7 +275,7 @@ def _direction_error_rad(tmp_path, acc_effects, add):
     folder = tmp_path / str(len(acc_effects))
     truth = write_handheld(folder, HandheldScenario(acc_effects=acc_effects), 1)
     ms = io.read_set(folder)
-    obs, _, am, fa, _ = acc_from_poses(ms, AugmentedModel("acc_baseline", add))
+    obs, _, am, fa, _, _ = acc_from_poses(ms, AugmentedModel("acc_baseline", add))
     u = pose_directions(am, obs, fa)[0]
     true = np.array(truth["pose_directions_b"])
     assert len(u) == len(true)

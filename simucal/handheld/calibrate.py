@@ -145,11 +145,11 @@ def calibrate_handheld(ms, acc_model="acc_baseline", detect=None, pose_window_s=
     session the baseline's chi2 falls from 472 to 141 (29 dof) when only the first
     second is used, which is also imu_tk's convention (100 samples).
     gyro_effects: candidate ids fit with T and the bias over the moves."""
-    obs, det, am, fa, tau = acc_from_poses(ms, acc_model, detect, pose_window_s)
+    obs, det, am, fa, tau, std_noise = acc_from_poses(ms, acc_model, detect, pose_window_s)
     if auto:  # the library effects the failing poses need (candidates.forward_selection)
         acc_auto = forward_selection(am, obs, table=False)
         if acc_auto.steps:
-            obs, det, am, fa, tau = acc_from_poses(ms, acc_auto.model, detect, pose_window_s)
+            obs, det, am, fa, tau, std_noise = acc_from_poses(ms, acc_auto.model, detect, pose_window_s)
     M_a, b_a = am.matrix_and_bias(fa.vector(am.params))
     units.check_scale("acc", M_a, ms.path / "samples.csv")
     cal = calibration.header("handheld (Tedaldi): exact norm fit + gyro moves", ms)
@@ -166,6 +166,8 @@ def calibrate_handheld(ms, acc_model="acc_baseline", detect=None, pose_window_s=
         "the model does not explain the poses down to their own noise (see chi2, p_value before "
         "the extra variance: simucal diagnose); each pose got an extra variance tau^2 so that "
         "chi2/dof = 1, and the stds include it")})
+    if std_noise:  # the certificate's budget: u's share from the poses' noise, the rest the model's misfit
+        cal.acc.details["std_noise"] = {n: float(v) for n, v in std_noise.items() if n in cal.acc.params}
     if auto:
         cal.acc.details.update({"auto": acc_auto.steps, "auto_stopped": acc_auto.stopped})
     if cal.acc.verdict == "fails" and not fa.undetermined:

@@ -26,7 +26,7 @@ def diagnose_gyro(ms, gyro_model, add, truth, acc_model):
     if gyro_model != "gyro_baseline":
         raise CalibrationError(f"{ms.path}: on a stream the gyro is fit as a full T and a bias over the moves, so "
                                f"the model {gyro_model} does not apply; add effects with --add gyro.<effect>.<axis>")
-    obs, det, am, fa, _ = acc_from_poses(ms, acc_model)
+    obs, det, am, fa, _, _ = acc_from_poses(ms, acc_model)
     return diagnose_moves(ms, obs, det, am, fa, tuple(add), truth)
 
 
@@ -34,7 +34,7 @@ def stream_summary(ms, max_points=4000):
     """A continuous stream for the report: |f| over time (decimated), calibrated by the
     hand-placed accelerometer fit, and the static intervals found (the gyro's moves are in
     the gyro block, diagnose_moves)."""
-    _, det, am, fa, _ = acc_from_poses(ms)
+    _, det, am, fa, _, _ = acc_from_poses(ms)
     t = ms.samples["t_s"]
     step = max(len(t) // max_points, 1)
     rows = np.arange(0, len(t), step)

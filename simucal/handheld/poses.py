@@ -138,6 +138,7 @@ class Poses(NamedTuple):
     model: AugmentedModel
     fit: Fit
     tau: float             # the poses' extra std (g) where the model does not explain them, else 0
+    std_noise: dict | None  # where tau > 0: the stds from the poses' own noise alone (the fit before tau)
 
 
 def acc_from_poses(ms, acc_model="acc_baseline", detect=None, pose_window_s=1.0) -> Poses:
@@ -154,10 +155,11 @@ def acc_from_poses(ms, acc_model="acc_baseline", detect=None, pose_window_s=1.0)
         # every pose along a sensor axis (the Ferraris design): the norm sees each axis's scale and bias,
         # not the misalignments (second order there): hold them at 0 by a stated prior, named undetermined
         prior = {k: (0.0, PRIOR_MISALIGNMENT_RAD) for k, unit in zip(am.params, am.param_units) if unit == "rad"}
-    fa, tau = with_model_error(am, obs, fit_exact(am, obs, prior=prior), prior)
+    noise_only = fit_exact(am, obs, prior=prior)
+    fa, tau = with_model_error(am, obs, noise_only, prior)
     fa.undetermined = {k: {"determined": False, "held_at": v, "prior_std": sd,
                            "to_determine": "add poses tilted between the sensor axes (e.g. 45 deg about each axis)"}
                        for k, (v, sd) in (prior or {}).items()}
-    return Poses(obs, det, am, fa, tau)
+    return Poses(obs, det, am, fa, tau, dict(noise_only.std) if tau else None)
 
 

@@ -141,6 +141,7 @@ class SensorDetails(TypedDict, total=False):
     gyro_model: str                    # nominal, scale or full: chosen by the moves left out
     model_choice: dict[str, records.GyroModelScore]  # each gyro model's held-out error
     model_error_std_g: float           # the poses' extra variance
+    std_noise: dict[str, float]        # where it is not 0: the stds from the poses' own noise alone (std includes it)
     # systematic calibration (systematic/method.py)
     eta_rad: records.Estimates         # the gyro frame's angles against b
     # a Ferraris session (turntable/ferraris.py)

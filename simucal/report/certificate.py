@@ -62,16 +62,25 @@ def budget(block: SensorBlock) -> list[dict[str, Any]]:
     """Each parameter of the block with its value, unit, u, U = K u, u's parts (module doc) and the temperature
     part (temperature_part: beside u, not in it)."""
     tilt = block.details.get("table_tilt")
-    raw = block.details.get("std_raw")
+    raw = block.details.get("std_raw") or block.details.get("std_noise")  # u before the misfit's share
     rows = []
     for name, (value, u, unit) in block_parameters(block).items():
-        u_raw = _entry(raw, name) if raw else u
+        u_raw = min(_entry(raw, name), u) if raw else u
         table_part = abs(tilt["per_arcsec"].get(name, 0.0)) * tilt["stated_arcsec"] if tilt else None  # None: not in u
-        rows.append({"name": name, "value": value, "unit": unit, "u": u, "U": K * u,
-                     "noise": math.sqrt(max(u_raw ** 2 - (table_part or 0.0) ** 2, 0.0)), "table": table_part,
-                     "misfit": math.sqrt(max(u ** 2 - u_raw ** 2, 0.0)),
-                     "temperature": temperature_part(block, name)})
+        noise: float | None = None  # None: the file does not split u (splits)
+        misfit: float | None = None
+        if splits(block):
+            noise = math.sqrt(max(u_raw ** 2 - (table_part or 0.0) ** 2, 0.0))
+            misfit = math.sqrt(max(u ** 2 - u_raw ** 2, 0.0))
+        rows.append({"name": name, "value": value, "unit": unit, "u": u, "U": K * u, "noise": noise,
+                     "table": table_part, "misfit": misfit, "temperature": temperature_part(block, name)})
     return rows
+
+
+def splits(block: SensorBlock) -> bool:
+    """Whether u's budget can be split: a model that passed (u is the noise's and the table's), or a failing one
+    whose file keeps the stds before the misfit's share (std_raw, or a hand session's std_noise)."""
+    return block.verdict != "fails" or bool(block.details.get("std_raw") or block.details.get("std_noise"))
 
 
 def coefficients(block: SensorBlock) -> list[list[Any]]:
@@ -148,7 +157,9 @@ def certificate_page(cal: Calibration, file_name: str, file_sha256: str, validat
         tilt = b.details.get("table_tilt")
         body.append(f"<h2>{s}</h2><p>{html.escape(_test_line(b))}"
                     + (f"; the table's stated tilt {tilt['stated_arcsec']:g} arcsec is in u" if tilt else "")
-                    + (f"; {html.escape(b.details['std_note'])}" if b.details.get("std_note") else "") + ".</p>")
+                    + (f"; {html.escape(b.details['std_note'])}" if b.details.get("std_note") else "")
+                    + ("" if splits(b) else "; u includes the model's misfit, which the file does not split from the "
+                       "noise") + ".</p>")
         rows = budget(b)
         thermal = any(r["temperature"] is not None for r in rows)
         body.append(table(["parameter", "value", "unit", "u (std)", f"U (k = {K:g})", "u: noise", "u: table",
