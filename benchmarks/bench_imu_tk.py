@@ -127,7 +127,7 @@ def misfit_table(ms, theirs):
     one rule, fit/selection.py), each
     effect's estimate and the share of the baseline's excess chi-square it removes, beside
     imu_tk's residual on the same moves (its own calibration, no effects)."""
-    obs, det, am, fa, _ = acc_from_poses(ms)
+    obs, det, am, fa = acc_from_poses(ms)[:4]
     d = diagnose_moves(ms, obs, det, am, fa)
     s, floor = d["misfit_shares"], d["model_test"]["noise_floor"]
     print(f"\n### The moves' misfit, effect by effect (noise floor {floor:.3g}, imu_tk's residual {theirs:.4g})\n")

@@ -87,6 +87,7 @@ class Store:
                                              until=until), PARAMETER_COLUMNS)
 
     @staticmethod
+    @checked
     def local_file(url: str | os.PathLike[str]) -> str | None:
         """The SQLite file a store URL names (an input: no command writes over it); None for a server's database."""
         path = local_file(os.fspath(url))
