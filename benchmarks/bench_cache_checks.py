@@ -31,7 +31,8 @@ if __name__ == "__main__":
                         "assert load_builtin('acc_baseline').backend == 'casadi-c'"], check=True)
         walls.append(time.perf_counter() - t)
     process = min(walls) * 1e6
-    print("| library | checked lookup | of it the sha256 | bare lookup (before) | a process loading the model | the checks' share |\n"
+    print("| library | checked lookup | of it the sha256 | bare lookup (before) | a process loading the model "
+          "| the checks' share |\n"
           "|---|---|---|---|---|---|\n"
           f"| {lib.stat().st_size} B | {checked:.0f} us | {hashed:.0f} us | {bare:.1f} us | {process / 1e3:.0f} ms "
           f"| {checked / process:.2%} |")

@@ -8,8 +8,8 @@ effect, calibrate and diagnose of imu_tk's Xsens session (../shared/data), diagn
 set (fibonacci48: 102 segments), calibrate of a raw turntable set (fibonacci24 at 250 Hz: 304,000
 rows), the systematic calibration of a psins19 sequence (100 Hz) and the import of a PX4 ULog (a still
 board's sensor_accel and sensor_gyro, 10 minutes at 200 and 400 Hz, tests/log_writers.py), which every
-revision since the readers came can read. The sets are written once by this checkout; the earlier code is REV's simucal/, generated/
-and derive/ from git, laid out as installed and run with PYTHONPATH. Each figure is the median of
+revision since the readers came can read. The sets are written once by this checkout; the earlier code is REV's
+simucal/, generated/ and derive/ from git, laid out as installed and run with PYTHONPATH. Each figure is the median of
 --repeats runs after one that warms the caches (bytecode, compiled models); its spread is printed
 beside it, so that a ratio inside the spread reads as noise.
 
@@ -68,13 +68,15 @@ def commands(s: dict, quick: bool) -> list:
     trials = "20000" if quick else "200000"
     rows = [(f"montecarlo --scenario paper --trials {trials} --effect acc.quadratic.z=1e-4",
              ["montecarlo", "--scenario", "paper", "--trials", trials, "--effect", "acc.quadratic.z=1e-4"]),
-            (f"montecarlo --scenario paper --trials {trials}", ["montecarlo", "--scenario", "paper", "--trials", trials])]
+            (f"montecarlo --scenario paper --trials {trials}",
+             ["montecarlo", "--scenario", "paper", "--trials", trials])]
     if "xsens" in s:
         rows += [("calibrate, imu_tk's Xsens session", ["calibrate", s["xsens"], "-o", "xs_{name}.json"]),
                  ("diagnose, imu_tk's Xsens session", ["diagnose", s["xsens"], "-o", "xd_{name}.json"])]
     rows += [(f"diagnose, a rich turntable set ({_segments(s['rich'])} segments)",
               ["diagnose", s["rich"], "-o", "rd_{name}.json"]),
-             (f"calibrate, a raw turntable set ({_rows(s['raw']):,} rows)", ["calibrate", s["raw"], "-o", "rc_{name}.json"]),
+             (f"calibrate, a raw turntable set ({_rows(s['raw']):,} rows)",
+              ["calibrate", s["raw"], "-o", "rc_{name}.json"]),
              (f"calibrate --method systematic, psins19 ({_rows(s['sequence']):,} rows)",
               ["calibrate", s["sequence"], "--method", "systematic", "-o", "sc_{name}.json"]),
              ("import ulog, a still board's sensor_accel and sensor_gyro",

@@ -8,8 +8,8 @@ three temperature plateaus calibrated --thermal), before
 Each effect's std is the calibration's own std of it on a pilot set (the effect added by hand), so
 "k std" is k times what the data can resolve. Each kind's effect is one its data tell from every other
 candidate (a hand-placed session's poses cannot tell acc.quadratic.z from acc.scale_asymmetry.z, and
-diagnose says so: twins are a matter of the plan, not of this power). Found: the sensor's model fails and its advice names the
-planted effect. Sampling error of a rate p over n seeds: sqrt(p (1 - p) / n); at ALPHA = 1e-3 over
+diagnose says so: twins are a matter of the plan, not of this power). Found: the sensor's model fails and its advice
+names the planted effect. Sampling error of a rate p over n seeds: sqrt(p (1 - p) / n); at ALPHA = 1e-3 over
 200 seeds a right model fails in 0.2 sets on average (none in 82 % of such runs).
 
     python3 benchmarks/bench_family.py [--seeds 200] [--kinds turntable,poses,moves,sequence,thermal] [--auto-seeds 40]
@@ -32,9 +32,10 @@ KINDS = {
     "moves": ({"scenario": "handheld"}, {}, "gyro.g_sensitivity.xz", "gyro"),  # and its moves
     "sequence": ({"sequence": "psins19"}, {"method": "systematic"}, "acc.cross_coupling.xy", "acc"),
     # three wandering plateaus (0, 25, 50 degC) with a temperature term planted, calibrated --thermal
-    # (not acc.quadratic.z: its twin acc.scale_asymmetry.z correlates ~0.98 with it over these plateaus, so at 10 std the
-    # twin scored higher in 1 seed of 6, and the targeted record names the twin: a plan limit, not power)
-    "thermal": ({"plan": "fibonacci24", "t_ref_c": 25.0, "temperature_wander_c": 0.3}, {}, "acc.cross_coupling.xy", "acc"),
+    # (not acc.quadratic.z: its twin acc.scale_asymmetry.z correlates ~0.98 with it over these plateaus, so at 10 std
+    # the twin scored higher in 1 seed of 6, and the targeted record names the twin: a plan limit, not power)
+    "thermal": ({"plan": "fibonacci24", "t_ref_c": 25.0, "temperature_wander_c": 0.3}, {},
+                "acc.cross_coupling.xy", "acc"),
 }
 PILOT = {"acc.cross_coupling.xy": 1e-4, "acc.cross_coupling.yz": 1e-4, "gyro.g_sensitivity.xz": 1e-3,
          "acc.quadratic.z": 5e-5}
@@ -48,7 +49,8 @@ def data(kind, seed, effects=None):
     if kind != "thermal":
         return simucal.simulate(seed=seed, effects=effects, **sim)
     effects = {**(effects or {}), "acc.bias_temperature.x": 2e-6}
-    return [simucal.simulate(seed=3 * seed + i, temperature_c=T, effects=effects, **sim) for i, T in enumerate(PLATEAUS_C)]
+    return [simucal.simulate(seed=3 * seed + i, temperature_c=T, effects=effects, **sim)
+            for i, T in enumerate(PLATEAUS_C)]
 
 
 def effect_std(kind) -> float:

@@ -87,13 +87,14 @@ def main(repeats=3):
     ours = metrics(*ours_as_maps(cal), acc, gyro, t, det)
     theirs = metrics(IMU_TK["acc_T"] @ IMU_TK["acc_K"], IMU_TK["acc_B"], IMU_TK["gyro_T"] @ IMU_TK["gyro_K"],
                      IMU_TK["gyro_B"], acc, gyro, t, det)
-    print(f"static intervals found: {det['count']} (threshold {det['threshold']:.3g} g^2, window {det['window']} samples, "
-          f"initial rest {t[det['init_rest_end'] - 1] - t[0]:.1f} s)\n")
+    print(f"static intervals found: {det['count']} (threshold {det['threshold']:.3g} g^2, "
+          f"window {det['window']} samples, initial rest {t[det['init_rest_end'] - 1] - t[0]:.1f} s)\n")
     print("| metric | simucal | imu_tk |\n|---|---|---|")
     print(f"| acc norm residual rms, first 100 samples of each interval (m/s^2) | {ours[0]:.7f} | {theirs[0]:.7f} |")
     print(f"| gravity-direction residual rms over {len(det['starts']) - 1} moves | {ours[1]:.7f} | {theirs[1]:.7f} |")
     print(f"\nsimucal calibrate of the {len(t)}-sample stream (detection, acc and gyro fits): {secs:.2f} s; reading "
-          f"the CSV {read_secs:.2f} s more. imu_tk reports 0.75 s for its calibration on this kind of machine; goal 0.15 s")
+          f"the CSV {read_secs:.2f} s more. imu_tk reports 0.75 s for its calibration on this kind of machine; "
+          "goal 0.15 s")
     print(f"accelerometer model test: chi2 {cal.acc.chi2:.0f} on {cal.acc.dof} dof "
           f"(p = {cal.acc.p_value:.2g}): the baseline does not explain these poses down to their own noise")
     print(f"gyro: {cal.gyro.details['moves_used']} moves used, skipped {len(cal.gyro.details['moves_skipped'])}, "
@@ -104,19 +105,21 @@ def main(repeats=3):
     print("\n| parameter | simucal | 3 sigma | imu_tk | outside |\n|---|---|---|---|---|")
     for j, ax in enumerate("xyz"):
         out = abs(IMU_TK["acc_B"][j] - B_a[j]) > 3 * std_b[j]
-        print(f"| acc B_{ax} (counts) | {B_a[j]:.2f} | {3 * std_b[j]:.2f} | {IMU_TK['acc_B'][j]:.2f} | {'yes' if out else 'no'} |")
+        print(f"| acc B_{ax} (counts) | {B_a[j]:.2f} | {3 * std_b[j]:.2f} | {IMU_TK['acc_B'][j]:.2f} | "
+              f"{'yes' if out else 'no'} |")
     B_g, sg = GYRO_CPD * cal.gyro.bias / 3600, GYRO_CPD * np.array(cal.gyro.std["bias"]) / 3600
     for j, ax in enumerate("xyz"):
         out = abs(IMU_TK["gyro_B"][j] - B_g[j]) > 3 * sg[j]
-        print(f"| gyro B_{ax} (counts) | {B_g[j]:.2f} | {3 * sg[j]:.2f} | {IMU_TK['gyro_B'][j]:.2f} | {'yes' if out else 'no'} |")
+        print(f"| gyro B_{ax} (counts) | {B_g[j]:.2f} | {3 * sg[j]:.2f} | {IMU_TK['gyro_B'][j]:.2f} | "
+              f"{'yes' if out else 'no'} |")
     P_g = ours_as_maps(cal)[2]
     S_g = np.radians(np.array(cal.gyro.std["T"])) / GYRO_CPD
     TK = IMU_TK["gyro_T"] @ IMU_TK["gyro_K"]
     for i in range(3):
         for j in range(3):
             out = abs(TK[i, j] - P_g[i, j]) > 3 * S_g[i, j]
-            print(f"| gyro (T K)_{i + 1}{j + 1} ((rad/s)/count) | {P_g[i, j]:.4e} | {3 * S_g[i, j]:.1e} | {TK[i, j]:.4e} | "
-                  f"{'yes' if out else 'no'} |")
+            print(f"| gyro (T K)_{i + 1}{j + 1} ((rad/s)/count) | {P_g[i, j]:.4e} | {3 * S_g[i, j]:.1e} | "
+                  f"{TK[i, j]:.4e} | {'yes' if out else 'no'} |")
     print("\nThe gyro matrices are compared in each tool's own accelerometer frame (simucal: b, x along the x")
     print("accelerometer; imu_tk: its upper-triangular T), which differ by the accelerometer misalignment (~0.02).")
     misfit_table(ms, theirs[1])

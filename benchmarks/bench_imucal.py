@@ -114,7 +114,8 @@ def main():
             show("annotated, imucal (assumes -360 deg)", t[:4])
             rows.append(("annotated", "imucal", checks(an, (t[0], t[1] * counts[0], t[2], t[3] * counts[1],
                                                             t[4] / 16.4), counts)))  # K_ga: counts per m/s^2
-    print("\nimucal assumes each turn is -360 deg; the annotated session's turns are +360 deg, so its gyro K R comes out")
+    print("\nimucal assumes each turn is -360 deg; the annotated session's turns are +360 deg, "
+          "so its gyro K R comes out")
     print("near -I. simucal checks the sense of every rate segment against the gyro and refuses; imported with")
     print("--turn-deg 360 it calibrates normally.\n")
     print(header(["session", "tool", "|f| - g at the poses, rms (m/s^2)", "|mean f| - g over each turn, rms (m/s^2)",

@@ -92,7 +92,8 @@ def main():
               f"{os.getloadavg()[0]:.2f}\n")
         noise = [sys.executable, "-m", "simucal", "noise"]
         runs, ref = {}, None
-        print(header(["path", "samples", "wall (s)", "CPU (s)", "peak RSS (GB)", "max rel. diff. of the Allan deviations"]),
+        print(header(["path", "samples", "wall (s)", "CPU (s)", "peak RSS (GB)",
+                      "max rel. diff. of the Allan deviations"]),
               flush=True)
         for name, cmd in (("whole file (before)", None), ("chunked", []), ("chunked, Dask processes",
                                                                             ["--scheduler", "processes"])):
@@ -100,7 +101,8 @@ def main():
                 out = tmp / f"{len(runs)}.json"
                 if cmd is None and args.hours > args.old_max_hours:
                     continue
-                full = [sys.executable, "-c", OLD, str(s), str(out)] if cmd is None else noise + [str(s), "-o", str(out)] + cmd
+                full = ([sys.executable, "-c", OLD, str(s), str(out)] if cmd is None
+                        else noise + [str(s), "-o", str(out)] + cmd)
                 wall, cpu, rss, code = runs[(name, s.name)] = run(full)
                 ref = adev(out) if ref is None and not code and cmd is None else ref
                 diff = "failed" if code else "-" if ref is None else f"{np.max(np.abs(adev(out) / ref - 1)):.1e}"

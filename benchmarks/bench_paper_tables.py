@@ -62,7 +62,8 @@ def main():
                     cells.append(f"{PAPER_T3[paper][i]:.6g}")
             print("| " + " | ".join(cells) + " |")
         sd = est["exact"].std(axis=0, ddof=1)
-        far = [f"{lab} (paper {PAPER_T3['linear'][i]:.4g}, truth {t[i]:.4g}, {abs(PAPER_T3['linear'][i] - t[i]) / sd[i]:.0f} std)"
+        far = [f"{lab} (paper {PAPER_T3['linear'][i]:.4g}, truth {t[i]:.4g}, "
+               f"{abs(PAPER_T3['linear'][i] - t[i]) / sd[i]:.0f} std)"
                for i, (lab, _, _) in enumerate(report.ENTRIES) if abs(PAPER_T3["linear"][i] - t[i]) > 3 * sd[i]]
         print("\nThe paper prints one run; ours are means over seeds. Paper norm-method entries more than 3 of our")
         print("exact std from truth: " + ("; ".join(far) if far else "none") + ".")
@@ -72,10 +73,12 @@ def main():
         emp = est["exact_params"].std(axis=0, ddof=1)
         pred = std_pred.mean(axis=0)
         ratio = emp / pred
-        print("## Efficiency of the exact method: empirical std / predicted std (Cramer-Rao, from the Fisher information)\n")
+        print("## Efficiency of the exact method: empirical std / predicted std (Cramer-Rao, "
+              "from the Fisher information)\n")
         print(f"acc parameters: {np.array2string(ratio[:9], precision=2)}")
         print(f"gyro parameters: {np.array2string(ratio[9:], precision=2)}")
-        print(f"(with {args.seeds} seeds a ratio has a sampling spread of about +-{1 / np.sqrt(2 * (args.seeds - 1)):.0%})\n")
+        print(f"(with {args.seeds} seeds a ratio has a sampling spread of about "
+              f"+-{1 / np.sqrt(2 * (args.seeds - 1)):.0%})\n")
         print("## Speed\n\n| method | ms per calibration (read + fit + unify) |\n|---|---|")
         for m in METHODS:
             print(f"| {m} | {secs[m] * 1e3:.1f} |")
@@ -96,7 +99,9 @@ def main():
             for m in METHODS:
                 print(f"| {key} | {m} | " + " | ".join(rows[(key, m)]) + " |")
             for m, who in (("linear", "norm"), ("multiposition", "previous")):
-                print(f"| {key} | paper {who} | " + " | ".join(f"{v:.3g}" for v in PAPER_T4[(key + (' deg/h' if key == 'b_y^g' else ''), m)]) + " |")
+                print(f"| {key} | paper {who} | "
+                      + " | ".join(f"{v:.3g}" for v in PAPER_T4[(key + (' deg/h' if key == 'b_y^g' else ''), m)])
+                      + " |")
 
 
 if __name__ == "__main__":

@@ -70,7 +70,8 @@ def suite_seconds(rev: str, tmp: Path) -> float:
 def main():
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--before", default="a0d9eae", help="the earlier commit (default a0d9eae)")
-    ap.add_argument("--repeats", type=int, default=3, help="whole processes per code and figure after a first (default 3; 0: the first alone)")
+    ap.add_argument("--repeats", type=int, default=3,
+                    help="whole processes per code and figure after a first (default 3; 0: the first alone)")
     ap.add_argument("--rate-hz", type=float, default=400.0, help="the raw set's sample rate, Hz (default 400)")
     ap.add_argument("--thermal-rate-hz", type=float, default=20.0, help="the plateaus' sample rate, Hz (default 20)")
     ap.add_argument("--hours", type=float, default=24.0, help="the still recording for noise, h at 200 Hz (default 24)")
@@ -78,7 +79,7 @@ def main():
     ap.add_argument("--suite", action="store_true", help="also time the README's test command in fresh clones")
     a = ap.parse_args()
     print(f"{os.cpu_count()} cores; load average before {os.getloadavg()[0]:.2f}; before = {a.before}, now = "
-          f"{subprocess.run(['git', '-C', str(ROOT), 'describe', '--always', '--dirty'], capture_output=True, text=True).stdout.strip()}\n")
+          f"{subprocess.run(['git', '-C', str(ROOT), 'describe', '--always', '--dirty'], capture_output=True, text=True).stdout.strip()}\n")  # noqa: E501
     print(header(["figure", f"before ({a.before})", "now", "goal", "met"]), flush=True)
     with tempfile.TemporaryDirectory(prefix="bench-scale-") as tmp:
         tmp = Path(tmp)
@@ -119,9 +120,10 @@ def row(what, runs, i, unit, goal):
 def lot(tmp: Path, n: int, old: str, runs: int):
     """A lot of n units on Dask: units per second of `calibrate ... --scheduler processes` (a LocalCluster of
     one single-threaded worker a core, started by the command, its start counted), before and now
-    (alternating, runs each: 1 where --repeats is 0, a check that the commands run), and of the lot report (now only: the command is new). Each command starts
-    its own cluster, whose workers inherit its PYTHONPATH and so run its revision's code: a cluster
-    started here ran this checkout's code for both (sweeps sends the function by reference)."""
+    (alternating, runs each: 1 where --repeats is 0, a check that the commands run), and of the lot report (now only:
+    the command is new). Each command starts its own cluster, whose workers inherit its PYTHONPATH and so run its
+    revision's code: a cluster started here ran this checkout's code for both (sweeps sends the function by
+    reference)."""
     sets = write_lot(tmp / "lot", n, seed=0)
     cal = {"before": [], "now": []}
     for k in range(runs):

@@ -103,17 +103,18 @@ def promise_kept(name, minutes, evaluations, seeds):
     for i, r in enumerate(rows):
         k = int(np.argmax(np.abs(z[:, i])))
         print(f"| {r['sensor']} {r['parameter']} | {promised[i]:.3g} | {np.mean(std[:, i]) / promised[i]:.3f} | "
-              f"{np.sqrt(np.mean(np.square(err[:, i]))) / promised[i]:.3f} | {np.sqrt(np.mean(np.square(z[:, i]))):.2f} "
-              f"| {p[i]:.3g} | {abs(z[k, i]):.2f} ({seeds[k]}) |")
+              f"{np.sqrt(np.mean(np.square(err[:, i]))) / promised[i]:.3f} | "
+              f"{np.sqrt(np.mean(np.square(z[:, i]))):.2f} | {p[i]:.3g} | {abs(z[k, i]):.2f} ({seeds[k]}) |")
     nees = "; ".join(
         f"{s} NEES {np.mean([r[2][s][0] for r in runs]):.2f} per seed on {runs[0][2][s][1]} dof (p "
         f"{chi2_sf(float(sum(r[2][s][0] for r in runs)), n * runs[0][2][s][1]):.3g})" for s in ("acc", "gyro"))
     ratio = np.mean(std, axis=0) / promised
     print(f"\n{name}: reported / promised {ratio.min():.3f}-{ratio.max():.3f}; rms error/std "
-          f"{np.sqrt(np.mean(np.square(z))):.3f} over all {z.size} (p {chi2_sf(float(np.sum(np.square(z))), z.size):.3g}, "
-          f"parameters correlated); the lowest parameter's p {p.min():.3g} ({rows[int(np.argmin(p))]['parameter']}), "
-          f"x {len(p)} = {min(1.0, len(p) * p.min()):.3g}; {nees}; model test passed in "
-          f"{sum(r[3] > 1e-3 for r in runs)} of {n}")
+          f"{np.sqrt(np.mean(np.square(z))):.3f} over all {z.size} "
+          f"(p {chi2_sf(float(np.sum(np.square(z))), z.size):.3g}, parameters correlated); "
+          f"the lowest parameter's p {p.min():.3g} ({rows[int(np.argmin(p))]['parameter']}), "
+          f"x {len(p)} = {min(1.0, len(p) * p.min()):.3g}; {nees}; "
+          f"model test passed in {sum(r[3] > 1e-3 for r in runs)} of {n}")
     return p
 
 
@@ -134,8 +135,9 @@ def main():
         p = np.concatenate([promise_kept(u, a.minutes, a.evaluations, seeds) for u in units])
         at = 1.3 ** 2 * len(seeds)
         print(f"\n'every rms error/std <= 1.3' at {len(seeds)} seeds: a filter whose stds are exact meets it with "
-              f"probability {1 - chi2_sf(at, len(seeds)):.3f} per parameter, {(1 - chi2_sf(at, len(seeds))) ** len(p):.3f} "
-              f"for all {len(p)}; here the lowest p is {p.min():.3g}, x {len(p)} = {min(1.0, len(p) * p.min()):.3g}")
+              f"probability {1 - chi2_sf(at, len(seeds)):.3f} per parameter, "
+              f"{(1 - chi2_sf(at, len(seeds))) ** len(p):.3f} for all {len(p)}; here the lowest p is {p.min():.3g}, "
+              f"x {len(p)} = {min(1.0, len(p) * p.min()):.3g}")
     if a.table:
         table(a.table_minutes, a.reference_minutes, a.table_evaluations)
 

@@ -9,6 +9,7 @@ if __name__ == "__main__":
     ap = argparse.ArgumentParser()
     ap.add_argument("--json", default=None)
     ap.add_argument("--before", default=None)
-    ap.add_argument("--quick", action="store_true", help="every step at a size of seconds (its figures measure nothing)")
+    ap.add_argument("--quick", action="store_true",
+                    help="every step at a size of seconds (its figures measure nothing)")
     args = ap.parse_args()
     run(args.json, before=args.before, size="quick" if args.quick else "full")

@@ -175,7 +175,8 @@ def comparison(seeds, units=("default", "MEMS", "lever arms")):
           f"last psins19's {duration_s(psins) / 60:.3g} min ({len(sequences['default']['systematic designed'])} "
           f"moves for the default unit, {len(sequences['MEMS']['systematic designed'])} for a MEMS unit)\n")
     print("| unit | angle error | rate error (ppm) | tilt, non-perp. | method | "
-          + " | ".join(f"{g} ({u})" for g, (_, _, u) in GROUPS.items()) + " |\n|---|---|---|---|---|" + "---|" * len(GROUPS))
+          + " | ".join(f"{g} ({u})" for g, (_, _, u) in GROUPS.items()) + " |\n|---|---|---|---|---|"
+          + "---|" * len(GROUPS))
     for row in [r for r in TABLES if r[0] in units]:
         cells = {m: {g: [] for g in GROUPS} for m in METHODS}
         refused = {m: 0 for m in METHODS}
@@ -202,7 +203,8 @@ def comparison(seeds, units=("default", "MEMS", "lever arms")):
             for g, (_, k, _) in GROUPS.items():
                 err, std = (np.concatenate([e[i] for e in groups[g]]) for i in (0, 1))
                 rms = np.sqrt(np.mean(err ** 2))
-                out.append(f"{k * rms:.3g} / {k * np.sqrt(np.mean(std ** 2)):.3g} ({np.sqrt(np.mean((err / std) ** 2)):.2g})")
+                out.append(f"{k * rms:.3g} / {k * np.sqrt(np.mean(std ** 2)):.3g} "
+                           f"({np.sqrt(np.mean((err / std) ** 2)):.2g})")
             print("| {} | {:g}\" | {:g} | {:g}\" | ".format(row[0], row[1], 1e6 * row[2], row[3])
                   + f"{method} | " + " | ".join(out) + " |")
 

@@ -28,7 +28,8 @@ def main(seeds: int):
             e_rate, e_static, e_paper, z = [], [], [], []
             for seed in range(seeds):
                 folder = Path(tmp) / f"{plan}-{arcmin}-{seed}"
-                truth = np.array(write(folder, Scenario(plan=plan, position_error_rad=arcmin * ARCMIN), seed)["gyro"]["M"])
+                truth = np.array(write(folder, Scenario(plan=plan, position_error_rad=arcmin * ARCMIN),
+                                       seed)["gyro"]["M"])
                 cal = calibrate(folder)
                 M = cal.gyro.M
                 e_rate.append(np.abs(M - truth).max())

@@ -63,7 +63,8 @@ def log(path: Path, seed: int, minutes: float, imus: int = 1) -> list[tuple[dict
         return {"t_us": np.round(t * 1e6), "x": xyz[:, 0], "y": xyz[:, 1], "z": xyz[:, 2], "temperature": T,
                 "device_id": device_id}
     gravity = np.array([[0, 0, 0, 0], [0, 0, 0, 0], [-G, 0, 0, 0]])
-    boards = [(topic(ACC[k] + gravity, 0.02, 2e-5, DEVICE_IDS[k][0], k), topic(GYRO[k], 2e-3, 2e-7, DEVICE_IDS[k][1], k))
+    boards = [(topic(ACC[k] + gravity, 0.02, 2e-5, DEVICE_IDS[k][0], k),
+               topic(GYRO[k], 2e-3, 2e-7, DEVICE_IDS[k][1], k))
               for k in range(imus)]
     gyro = boards[0][1]
     baro = {"t_us": gyro["t_us"][::4], "pressure": np.full(len(gyro["t_us"][::4]), 1013.25),
@@ -181,9 +182,11 @@ def imu_errors(k, board, cal, files: dict, errors: dict, times: dict):
             t0 = time.perf_counter()
             c_ap, ref_ap = ardupilot(T, data[axis], HZ)
             times["ArduPilot's method"].append(time.perf_counter() - t0)
-            curves = {"simucal": curve(np.array(th["parameters"][f"b_{axis}"]["coefficients"]) * per, th["t_ref_c"], grid),
+            curves = {"simucal": curve(np.array(th["parameters"][f"b_{axis}"]["coefficients"]) * per,
+                                       th["t_ref_c"], grid),
                       "PX4's method": curve(c_px4, ref_px4, grid), "ArduPilot's method": curve(c_ap, ref_ap, grid),
-                      **{column: file_curve(read, params, sensor, i, k, grid) for column, (params, read) in files.items()}}
+                      **{column: file_curve(read, params, sensor, i, k, grid)
+                         for column, (params, read) in files.items()}}
             for column, v in curves.items():
                 if sensor == "gyro" and "ArduPilot" not in column and "INS_TCAL" not in column:
                     errors.setdefault((k, "gyro whole", column), []).append(v - want)
@@ -212,11 +215,12 @@ def main():
     ap.add_argument("--minutes", type=float, default=30.0, help="the warm-up's length (default 30)")
     ap.add_argument("--imus", type=int, default=1, choices=(1, 2), help="IMUs on the board (default 1)")
     ap.add_argument("--px4-tool", type=Path, help="a copy of PX4's Tools/process_sensor_caldata.py: run it too")
-    ap.add_argument("--ardupilot-tool", type=Path, help="a copy of ArduPilot's Tools/scripts/tempcal_IMU.py: run it too")
+    ap.add_argument("--ardupilot-tool", type=Path,
+                    help="a copy of ArduPilot's Tools/scripts/tempcal_IMU.py: run it too")
     a = ap.parse_args()
     errors: dict = {}
-    times = {"simucal (import ulog + calibrate --thermal, both files)": [], "PX4's method": [], "ArduPilot's method": [],
-             **({"PX4's tool (process_sensor_caldata.py)": []} if a.px4_tool else {}),
+    times = {"simucal (import ulog + calibrate --thermal, both files)": [], "PX4's method": [],
+             "ArduPilot's method": [], **({"PX4's tool (process_sensor_caldata.py)": []} if a.px4_tool else {}),
              **({"ArduPilot's tool (tempcal_IMU.py)": []} if a.ardupilot_tool else {})}
     ids = set()
     with tempfile.TemporaryDirectory() as tmp:

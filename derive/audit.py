@@ -86,7 +86,8 @@ class Report:
             out += f", {len(self.terms)} terms at the section-4 values"
         if self.claims:
             out += (f", {len(self.claims)} claims ("
-                    f"{sum(c['holds'] in ('claim not supported', 'not reproducible') for c in self.claims)} not supported)")
+                    f"{sum(c['holds'] in ('claim not supported', 'not reproducible') for c in self.claims)} not "
+                    "supported)")
         return out
 
     def markdown(self):
@@ -136,7 +137,8 @@ def max_diff(a, b, sensor="acc", n=200, seed=1, subs=None):
         if name.startswith(("N", "Na", "Ng")) or name in ("alpha", "gamma", "beta"):
             vals.append(rng.uniform(-np.pi, np.pi, n) if name in ("alpha", "gamma", "beta") else rng.uniform(-1, 1, n))
         elif name.startswith("K_"):
-            vals.append(1 + rng.uniform(-0.02, 0.02, n) if name in ("K_1", "K_2", "K_3") else rng.uniform(-1e-3, 1e-3, n))
+            vals.append(1 + rng.uniform(-0.02, 0.02, n) if name in ("K_1", "K_2", "K_3")
+                        else rng.uniform(-1e-3, 1e-3, n))
         else:
             vals.append(rng.uniform(-1, 1, n) * approx.bound_for(s, sensor))
     worst = 0.0
@@ -181,25 +183,30 @@ def check_norm(rep):
     d = max_diff(printed, reg.norm_sq_first)
     rep.findings.append(Finding("6-7", "first-order |f|^2 (acc)", "... + N_y^2 (1+dK_z)^-2 + N_y^2 (1+dK_z)^-2 ...",
                                 str(reg.norm_sq_first)[:60] + "...", d,
-                                "typo/OCR: second and third squares print N_y^2 (1+dK_z)^-2; derived N_y^2 (1+dK_y)^-2 and N_z^2 (1+dK_z)^-2"))
+                                "typo/OCR: second and third squares print N_y^2 (1+dK_z)^-2; derived N_y^2 "
+                                "(1+dK_y)^-2 and N_z^2 (1+dK_z)^-2"))
     # eq. 7: N_s column order against the printed K_4..K_6.
     K = reg.K
     cols = P("[Nx**2, Ny**2, Nz**2, -2*Nx*Ny, -2*Ny*Nz, -2*Nx*Nz, -2*Nx, -2*Ny, -2*Nz]")
     printed = sum(k * c for k, c in zip(reg.K_of_p, cols))
     d = max_diff(printed, reg.norm_sq_first)
-    rep.findings.append(Finding("7", "rows of N_s^a with K^a", "columns 5, 6 = -2N_yN_z, -2N_xN_z; K_5 = theta_zx.., K_6 = theta_zy..",
+    rep.findings.append(Finding("7", "rows of N_s^a with K^a",
+                                "columns 5, 6 = -2N_yN_z, -2N_xN_z; K_5 = theta_zx.., K_6 = theta_zy..",
                                 ", ".join(map(str, reg.psi)), d,
-                                "error in the paper: columns 5 and 6 are swapped relative to K_5, K_6 (derived: -2N_xN_z with K_5, -2N_yN_z with K_6); the bias columns are OCR-truncated"))
+                                "error in the paper: columns 5 and 6 are swapped relative to K_5, K_6 (derived: "
+                                "-2N_xN_z with K_5, -2N_yN_z with K_6); the bias columns are OCR-truncated"))
     for i, printed_k in enumerate(["(1+dKx)**-2", "(1+dKy)**-2", "(1+dKz)**-2",
                                    "theta_yx/(1+dKx)/(1+dKy)**2", "theta_zx/(1+dKx)/(1+dKz)**2",
-                                   "theta_zy/(1+dKy)/(1+dKz)**2", "b_x/(1+dKx)**2", "b_y/(1+dKy)**2", "b_z/(1+dKz)**2"]):
+                                   "theta_zy/(1+dKy)/(1+dKz)**2", "b_x/(1+dKx)**2", "b_y/(1+dKy)**2",
+                                   "b_z/(1+dKz)**2"]):
         d = max_diff(P(printed_k), reg.K_of_p[i])
         rep.findings.append(Finding("7", f"K_{i + 1}^a", printed_k, str(reg.K_of_p[i]), d,
                                     _verdict(d, 1e-12, "agrees", "differs")))
     # eq. 8 -> back-substitution: only b_z survives OCR for the accelerometer.
     d = max_diff(P("K_9/K_3", K_9=K[8], K_3=K[2]), reg.p_of_K[S("b_z", real=True)])
     rep.findings.append(Finding("8", "acc back-substitution b_z", "K_9/K_3", str(reg.p_of_K[S('b_z', real=True)]), d,
-                                "agrees; the other eight acc formulas are lost to OCR (derived ones in generated/acc_baseline.py)"))
+                                "agrees; the other eight acc formulas are lost to OCR "
+                                "(derived ones in generated/acc_baseline.py)"))
     greg = norm.derive_norm_regression(GYRO_BASELINE)
     Kg = dict(zip([f"K_{i}" for i in range(1, 10)], greg.K))
     printed_inv = [("dK_x", "K_1**(-1/2) - 1"), ("dK_y", "K_2**(-1/2) - 1"), ("dK_z", "K_3**(-1/2) - 1"),
@@ -219,8 +226,11 @@ def check_norm(rep):
     inst = sp.sqrt(w_T ** 2 + w_e ** 2 + 2 * w_T * w_e * sp.sin(lat))
     mean = w_T + w_e * sp.sin(lat)
     d = float((inst - mean).subs(PAPER))
-    rep.findings.append(Finding("4", "input norm under rate (deg/h)", str(inst), f"{mean} (norm of the mean over whole revolutions)", d,
-                                "both right for what they describe: eq. 4 is the instantaneous norm; averaged outputs see w_T + w_e sin L; the difference w_e^2 cos^2 L / (2 w_T) is negligible"))
+    rep.findings.append(Finding("4", "input norm under rate (deg/h)", str(inst),
+                                f"{mean} (norm of the mean over whole revolutions)", d,
+                                "both right for what they describe: eq. 4 is the instantaneous norm; "
+                                "averaged outputs see w_T + w_e sin L; the difference w_e^2 cos^2 L / (2 w_T) is "
+                                "negligible"))
 
 
 def check_unify(rep):
@@ -233,38 +243,43 @@ def check_unify(rep):
     d_fix = max_diff(fixed, C_b_k_first.T)
     rep.findings.append(Finding("13", "C_b^k (first order)", str(printed13.tolist()), str(C_b_k_first.tolist()), d_bk,
                                 f"not a rotation to first order (not I + skew). With (1,3) negated it equals C_k^b "
-                                f"(difference {d_fix:.2g}; as printed vs C_k^b {d_kb:.2g}); eq. 17 holds for C_k^b = I - [theta x]: "
-                                "the printed matrix is C_k^b with a sign error at (1,3)"))
+                                f"(difference {d_fix:.2g}; as printed vs C_k^b {d_kb:.2g}); eq. 17 holds for C_k^b = I "
+                                "- [theta x]: the printed matrix is C_k^b with a sign error at (1,3)"))
     C_d_k_first = sp.eye(3) + skew(sp.Matrix(table.lambda4))
     printed18 = P("Matrix([[1, laz4, -lay4], [-laz4, 1, lax4], [lay4, -lax4, 1]])")
     d = max_diff(printed18, C_d_k_first.T)
-    rep.findings.append(Finding("18", "C_d^k (printed label C_b^k)", str(printed18.tolist()), str(C_d_k_first.T.tolist()), d,
-                                _verdict(d, 1e-12, "equals the derived C_k^d: the label (C_b^k in the OCR, C_d^k in the text) should be C_k^d",
-                                         "differs")))
+    rep.findings.append(Finding("18", "C_d^k (printed label C_b^k)", str(printed18.tolist()),
+                                str(C_d_k_first.T.tolist()), d,
+                                _verdict(d, 1e-12, "equals the derived C_k^d: the label (C_b^k in the OCR, C_d^k in "
+                                         "the text) should be C_k^d", "differs")))
     printed14 = table.rot_x(tx0) * table.rot_y(ty0) * table.rot_z(ga) * table.rot_x(al)
     derived14 = table.C_k_n().subs({table.beta: 0, table.nonperp_om: 0, table.nonperp_mi: 0,
                                     table.d_gamma: 0, table.d_alpha: 0, table.d_beta: 0})
     d = max_diff(printed14, derived14)
-    rep.findings.append(Finding("14-16", "C_k^n with tilt; f^b = C_k^b C_n^k z", "Rx(dtheta_x0) Ry(dtheta_y0) Rz(gamma) Rx(alpha)",
-                                "derive/table.py C_k_n at beta = 0, no gimbal errors", d, _verdict(d, 1e-12, "agrees", "differs")))
+    rep.findings.append(Finding("14-16", "C_k^n with tilt; f^b = C_k^b C_n^k z",
+                                "Rx(dtheta_x0) Ry(dtheta_y0) Rz(gamma) Rx(alpha)",
+                                "derive/table.py C_k_n at beta = 0, no gimbal errors", d,
+                                _verdict(d, 1e-12, "agrees", "differs")))
     lin = unify.acc_outputs(ACC_BASELINE)
     printed17 = sp.Matrix([P(t) for t in PRINTED_17])
     d = max_diff(printed17, lin.first)
-    rep.findings.append(Finding("17", "acc outputs at table angles (first order)", "3 rows as printed", "derive.unify.acc_outputs",
+    rep.findings.append(Finding("17", "acc outputs at table angles (first order)", "3 rows as printed",
+                                "derive.unify.acc_outputs",
                                 d, _verdict(d, 1e-12, "agrees (with C_k^b = I - [theta x], see eq. 13)", "differs")))
     glin = unify.gyro_outputs(GYRO_BASELINE)
     printed21x = P(PRINTED_21[0][0])
     d = max_diff(printed21x, glin.first[0], "gyro")
-    rep.findings.append(Finding("19-21", "gyro x output under outer-axis rate (deg/h)", str(printed21x), str(glin.first[0]), d,
+    rep.findings.append(Finding("19-21", "gyro x output under outer-axis rate (deg/h)", str(printed21x),
+                                str(glin.first[0]), d,
                                 "neglects w_e sin L beside w_T on the mounting terms (second order relative, "
-                                "but of the size shown in deg/h) and eq. 19-20 keep the horizontal Earth rate fixed in k, "
-                                "where it turns with gamma and averages out over whole revolutions"))
+                                "but of the size shown in deg/h) and eq. 19-20 keep the horizontal Earth rate "
+                                "fixed in k, where it turns with gamma and averages out over whole revolutions"))
     ex23, fo23 = unify.gyro_matrix_in_b(GYRO_BASELINE)
     printed23 = P("Matrix([[1+dKx, laz4-thz4, -lay4+thy4], [phi_yx-laz4+thz4, 1+dKy, lax4-thx4],"
                   " [phi_zx+lay4-thy4, phi_zy-lax4+thx4, 1+dKz]])")
     d = max_diff(printed23, fo23, "gyro")
-    rep.findings.append(Finding("22-24", "gyro matrix M^g in b (first order)", "eq. 23 as printed", "derive.unify.gyro_matrix_in_b",
-                                d, _verdict(d, 1e-12, "agrees", "differs")))
+    rep.findings.append(Finding("22-24", "gyro matrix M^g in b (first order)", "eq. 23 as printed",
+                                "derive.unify.gyro_matrix_in_b", d, _verdict(d, 1e-12, "agrees", "differs")))
     # eq. 25-26: substitute the derived first-order outputs into the printed solutions.
     pos = [{al: sp.rad(a), ga: sp.rad(c)} for a, c in unify.TABLE2]
     out = [lin.first.subs(p) for p in pos]
@@ -306,8 +321,8 @@ def check_table1(rep):
     exact = np.degrees(np.arctan2(m, n))
     rep.findings.append(Finding("Table 1", "gravity directions vs icosahedron vertices (arcsec)",
                                 "12 printed (alpha, beta)", f"vertices (+-m,0,+-n)...; atan(m/n) = {exact:.5f} deg",
-                                worst, f"all 12 distinct vertices hit ({len(hit)} of 12); largest offset from the printed "
-                                "rounding (148.282, 31.717 at positions 3 and 4 for 148.2825, 31.7175)"))
+                                worst, f"all 12 distinct vertices hit ({len(hit)} of 12); largest offset from the "
+                                "printed rounding (148.282, 31.717 at positions 3 and 4 for 148.2825, 31.7175)"))
 
 
 def remainders(rep):
@@ -327,19 +342,26 @@ def remainders(rep):
         rep.remainders.append((f"norm regression eq. {'7' if model.sensor == 'acc' else '11'} ({model.unit}^2)", r))
 
     def angles(rng, n):
-        return {al: rng.uniform(-np.pi, np.pi, n), ga: rng.uniform(-np.pi, np.pi, n), **{k: np.full(n, v) for k, v in PAPER.items()}}
+        return {al: rng.uniform(-np.pi, np.pi, n), ga: rng.uniform(-np.pi, np.pi, n),
+                **{k: np.full(n, v) for k, v in PAPER.items()}}
     lin = unify.acc_outputs(ACC_BASELINE)
-    rep.remainders.append(("eq. 17 acc outputs (g)", approx.remainder_size(lin.exact, lin.first, lin.small, angles, _bounds(lin.small, "acc"))))
+    rep.remainders.append(("eq. 17 acc outputs (g)",
+                           approx.remainder_size(lin.exact, lin.first, lin.small, angles, _bounds(lin.small, "acc"))))
     glin = unify.gyro_outputs(GYRO_BASELINE)
-    rep.remainders.append(("eq. 21 gyro mean outputs (deg/h)", approx.remainder_size(glin.exact, glin.first, glin.small, angles, _bounds(glin.small, "gyro"))))
+    rep.remainders.append(("eq. 21 gyro mean outputs (deg/h)",
+                           approx.remainder_size(glin.exact, glin.first, glin.small, angles,
+                                                 _bounds(glin.small, "gyro"))))
     ex, fo = unify.gyro_matrix_in_b(GYRO_BASELINE)
     small = GYRO_BASELINE.params + table.theta4 + table.lambda4
-    rep.remainders.append(("eq. 23 M^g in b", approx.remainder_size(ex, fo, small, lambda r, n: {}, _bounds(small, "gyro"))))
+    rep.remainders.append(("eq. 23 M^g in b",
+                           approx.remainder_size(ex, fo, small, lambda r, n: {}, _bounds(small, "gyro"))))
     sol = unify.acc_table2_solution(ACC_BASELINE)
     pos = [{al: sp.rad(a), ga: sp.rad(c)} for a, c in unify.TABLE2]
     exact_out = {s: lin.exact.subs(p)[j] for p, v in zip(pos, unify.measured("Na", 4)) for j, s in enumerate(v)}
     err = sp.Matrix([sol[s].subs(exact_out) - s for s in unify.ACC_UNIFY_UNKNOWNS])
-    rep.remainders.append(("eq. 25-26 solution error (rad)", approx.remainder_size(err, sp.zeros(5, 1), lin.small, lambda r, n: {}, _bounds(lin.small, "acc"))))
+    rep.remainders.append(("eq. 25-26 solution error (rad)",
+                           approx.remainder_size(err, sp.zeros(5, 1), lin.small, lambda r, n: {},
+                                                 _bounds(lin.small, "acc"))))
 
 
 def check_terms(rep, values):

@@ -140,7 +140,8 @@ def eq17(rep, values, printed17):
     for i, ax in enumerate("xyz"):
         _row_terms(rep, "17", f"N_{ax}^a", printed17[i], lin.first[i], pos, subs, "g",
                    lambda t: "error in the paper: not in the derivation")
-        _row_vs_exact(rep, "17", f"N_{ax}^a", printed17[i], pos, subs, [e[i] for e in exact], [e[i] for e in ideal], "g")
+        _row_vs_exact(rep, "17", f"N_{ax}^a", printed17[i], pos, subs, [e[i] for e in exact],
+                      [e[i] for e in ideal], "g")
 
 
 def eq21(rep, values, printed21):

@@ -81,7 +81,8 @@ def numpy_function(fname, args, outputs, doc, first_axis=False):
     lines = [f"def {fname}({', '.join(sig)}):", f'    """{doc}"""'] + unpack
     for s, e in reps:
         lines.append(f"    {s} = {printer.doprint(e)}")
-    lines.append("    shape = numpy.broadcast_shapes(" + "".join(f"numpy.shape({s}), " for s in scalars) + "".join(shapes) + ")")
+    lines.append("    shape = numpy.broadcast_shapes(" + "".join(f"numpy.shape({s}), " for s in scalars)
+                 + "".join(shapes) + ")")
     k = 0
     names = []
     for j, (shape, m) in enumerate(outputs):
@@ -223,7 +224,8 @@ def table_module() -> str:
         numpy_function("C_k_n", args, [((3, 3), table.C_k_n())], "C_k^n of the table with its errors."),
         numpy_function("specific_force_k", args, [((3,), table.specific_force_k())],
                        "f^k at rest (g): C_n^k z, the third row of C_k_n alone (a third of its cost)."),
-        numpy_function("outer_axis_k", [("alpha", None), ("beta", None), ("errors", errs)], [((3,), table.outer_axis_k())],
+        numpy_function("outer_axis_k", [("alpha", None), ("beta", None), ("errors", errs)],
+                       [((3,), table.outer_axis_k())],
                        "The outer axis in k: a rate run's mean input direction over whole revolutions."),
         numpy_function("mounting", [("angles", table.theta4)], [((3, 3), table.C_b_k())],
                        "C_b^k (or C_d^k) = Rx(a_x) Ry(a_y) Rz(a_z) from three mounting angles."),
@@ -336,7 +338,8 @@ def systematic_module() -> str:
     return "\n\n".join([
         HEADER.format(what="derive.systematic", **_versions()),
         '"""Systematic calibration\'s error-state blocks (derive/systematic.py): n = ENU, b the accelerometers\'\n'
-        'frame, C = C_b^n flattened row by row (9,), f_b in g, w_b in deg/h, w_ie in rad/s, g0 in m/s^2."""\nimport numpy\n',
+        'frame, C = C_b^n flattened row by row (9,), f_b in g, w_b in deg/h, w_ie in rad/s, g0 in '
+        'm/s^2."""\nimport numpy\n',
         f"NAV_STATES = {tuple(map(str, s.NAV_STATES))!r}\nH = numpy.array({H.tolist()!r}, dtype=float)\n",
         numpy_function("nav_F", [("C", list(s.C)), ("f_b", s.f_b), ("w_ie", s.w_ie), ("g0", None)], [((6, 6), F)],
                        "F_nav of d[phi, dv]/dt = F_nav [phi, dv] + B [dw_b, df_b] + G noise."),

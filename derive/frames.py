@@ -74,7 +74,8 @@ AUX_INPUTS = {a.name: a for a in (
     AuxInput("dtemp_c", "degC", "sensor temperature from the calibration's reference, temp_c - T_ref (the calibration "
              "file's t_ref_c)", "temperature from its reference"),
     AuxInput("t_s", "s", "time"),
-    AuxInput("temp_rate_c_s", "degC/s", "the logged temperature's rate of change dT/dt, a smoothed derivative of temp_c "
+    AuxInput("temp_rate_c_s", "degC/s",
+             "the logged temperature's rate of change dT/dt, a smoothed derivative of temp_c "
              "(simucal.fit.thermal.temperature_rate)", "temperature rate"),
     AuxInput("f_x", "g", "specific force along x of b", "specific force"),
     AuxInput("f_y", "g", "specific force along y of b", "specific force"),

@@ -84,7 +84,8 @@ def sensor_sensitivity(model: ErrorModel, u_b, frame=None) -> tuple[sp.Matrix, t
         return D_model.subs(dict(zip(model.inputs, u_b)), simultaneous=True), sensor_params(model)
     R = mounting(*frame)
     D_model = D_model.subs(dict(zip(model.inputs, R * u_b)), simultaneous=True)
-    return sp.Matrix.hstack(R.T * D_model, -R.T * frame_rate_sensitivity(frame, u_b)), sensor_params(model) + tuple(frame)
+    return (sp.Matrix.hstack(R.T * D_model, -R.T * frame_rate_sensitivity(frame, u_b)),
+            sensor_params(model) + tuple(frame))
 
 
 def error_state_model(acc: ErrorModel, gyro: ErrorModel):

@@ -9,12 +9,14 @@ from simucal.version import __version__
 # The Python API (simucal/api/), imported on first use so that `import simucal` and the command
 # line's start stay light: simucal.read_set, simucal.calibrate, ... (README, "Python API").
 _API = ("read_set", "simulate", "calibrate", "validate", "diagnose", "noise", "save", "load", "table_rows", "compare",
-        "import_recording", "import_instances", "calibrate_instances", "autopilot_files", "ImuCalibration", "convert", "montecarlo", "calibrate_each", "Calibrated", "plan", "sequence_observability", "design_sequence",
+        "import_recording", "import_instances", "calibrate_instances", "autopilot_files", "ImuCalibration", "convert",
+        "montecarlo", "calibrate_each", "Calibrated", "plan", "sequence_observability", "design_sequence",
         "derive_model", "audit", "DetectSettings", "CalibrateOptions",
-        "MeasurementSet", "Calibration", "Parameter", "Entry", "Validation", "Check", "Diagnosis", "Candidate", "Suggestion",
-        "NextStep", "Noise", "Term", "lot", "Store", "certificate")
+        "MeasurementSet", "Calibration", "Parameter", "Entry", "Validation", "Check", "Diagnosis", "Candidate",
+        "Suggestion", "NextStep", "Noise", "Term", "lot", "Store", "certificate")
 __all__ = ["__version__", "read_set", "simulate", "calibrate", "validate", "diagnose", "noise", "save", "load",
-           "table_rows", "compare", "import_recording", "import_instances", "calibrate_instances", "autopilot_files", "ImuCalibration", "convert", "montecarlo", "calibrate_each", "Calibrated", "plan",
+           "table_rows", "compare", "import_recording", "import_instances", "calibrate_instances", "autopilot_files",
+           "ImuCalibration", "convert", "montecarlo", "calibrate_each", "Calibrated", "plan",
            "sequence_observability", "design_sequence", "derive_model", "audit", "DetectSettings", "CalibrateOptions",
            "MeasurementSet", "Calibration", "Parameter", "Entry", "Validation", "Check",
            "Diagnosis", "Candidate", "Suggestion", "NextStep", "Noise", "Term", "lot", "Store",

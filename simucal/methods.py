@@ -7,8 +7,8 @@ The data a set holds decide which methods apply (data_kind, the one place that l
 turntable test has segments.csv with commanded table angles; a stream has no segments.csv (a
 hand-placed session, static poses found from the data); a field set has segments.csv with a north
 reference (heading_ref_deg) and no table angles (ruan2019); a sequence has segments.csv with move
-segments between its rests (the table turning, raw samples throughout: systematic calibration). Each kind of data is one entry of
-KINDS (`kind_of(ms)`), which supplies what the commands do differently with it: its simulator,
+segments between its rests (the table turning, raw samples throughout: systematic calibration). Each kind of data is one
+entry of KINDS (`kind_of(ms)`), which supplies what the commands do differently with it: its simulator,
 its diagnosis (the observations each sensor's model is tested on, and the checks over the set), its
 validation checks and its still stretches for `simucal noise`. A new kind of data is its module(s)
 and one entry here.
@@ -86,8 +86,9 @@ def _field(ms, heading_accuracy_deg):
     return field_calibration(ms, heading_accuracy_deg)
 
 
+# every option, as calibrate's
 DEFAULTS = dict(acc_model="acc_baseline", gyro_model="gyro_baseline", ids=(), auto=False, detect=None, acc_noise_g=None,
-                gyro_noise_dph=None, noise_curves=None, heading_accuracy_deg=5.0, rank=True)  # every option, as calibrate's
+                gyro_noise_dph=None, noise_curves=None, heading_accuracy_deg=5.0, rank=True)
 _TABLE_OPTIONS = ("acc_model", "gyro_model", "ids", "auto", "acc_noise_g", "gyro_noise_dph", "noise_curves", "rank")
 METHODS = {m.name: m for m in (
     Method("exact", TURNTABLE, "dong2018's norm observation by the exact fit of any model (eq. 6-12 without the "
@@ -305,8 +306,8 @@ KINDS = {k.name: k for k in (
 
 def _simulate_still(seed, rate_hz, o):
     from simucal.handheld.simulate import simulate_still
-    meta, samples, truth = simulate_still(**{k: v for k, v in (("seconds", o["seconds"]), ("dt", rate_hz and 1 / rate_hz))
-                                             if v is not None}, seed=seed)
+    meta, samples, truth = simulate_still(
+        **{k: v for k, v in (("seconds", o["seconds"]), ("dt", rate_hz and 1 / rate_hz)) if v is not None}, seed=seed)
     return meta, samples, None, truth
 
 
@@ -319,7 +320,8 @@ def _simulate_warmup(seed, rate_hz, o):
 
 # `simulate --scenario`'s names: each kind's own (its simulate), and a still stream's two (a unit at rest for
 # `simucal noise`, a still board warming up for `calibrate --thermal`)
-SCENARIOS: dict[str, Callable] = {**{k.scenario: k.simulate for k in KINDS.values()}, "still": _simulate_still, "warmup": _simulate_warmup}
+SCENARIOS: dict[str, Callable] = {**{k.scenario: k.simulate for k in KINDS.values()}, "still": _simulate_still,
+                                  "warmup": _simulate_warmup}
 
 
 def kind_of(ms) -> Kind:

@@ -72,7 +72,8 @@ def _client(address: str):
         if not (security.tls_ca_file and security.tls_client_cert):
             raise CalibrationError(f"--scheduler {address}: Dask's configuration names no TLS credentials for a "
                                    "client; set distributed.comm.tls.ca-file, .client.cert and .client.key (in "
-                                   "~/.config/dask/distributed.yaml, or DASK_DISTRIBUTED__COMM__TLS__CA_FILE and so on)")
+                                   "~/.config/dask/distributed.yaml, or DASK_DISTRIBUTED__COMM__TLS__CA_FILE "
+                                   "and so on)")
     wait_s = float(os.environ.get("SIMUCAL_SCHEDULER_TIMEOUT_S", "10"))  # a slow network: more
     try:
         return Client(address, timeout=f"{wait_s:g}s")

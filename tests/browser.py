@@ -90,7 +90,7 @@ figures.forEach((f, k) => {
 if (document.documentElement.scrollWidth > innerWidth + T)
   out.push(`the page is ${document.documentElement.scrollWidth} px wide in a ${innerWidth} px window`);
 return out;
-""" % {"touch": TOUCH_PX, "fill": FILL}
+""" % {"touch": TOUCH_PX, "fill": FILL}  # noqa: E501 (the page's JavaScript, kept as the browser runs it)
 
 
 # The code blocks and tables wider than their text column (a Sphinx page's div.body, less its padding; the
@@ -110,7 +110,7 @@ document.querySelectorAll('pre, div.highlight, table').forEach(e => {
   }
 });
 return out;
-""" % {"touch": TOUCH_PX}
+""" % {"touch": TOUCH_PX}  # noqa: E501 (the page's JavaScript, kept as the browser runs it)
 
 
 def window(driver, width: int, height: int = 900) -> None:

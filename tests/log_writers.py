@@ -19,8 +19,9 @@ PX4_GYRO = PX4_ACCEL
 PX4_FIFO = ("uint64_t timestamp", "uint64_t timestamp_sample", "uint32_t device_id", "float dt", "float scale",
             "uint8_t samples", "int16_t[32] x", "int16_t[32] y", "int16_t[32] z")  # sensor_accel_fifo, sensor_gyro_fifo
 PX4_IMU_FIFO = ("uint64_t timestamp", "uint64_t timestamp_sample", "uint32_t device_id", "float dt", "uint8_t samples",
-                "float accel_scale", "float gyro_scale", *(f"int16_t[24] {s}_{a}" for s in ("accel", "gyro") for a in "xyz"),
-                "float temperature", "uint32_t error_count")  # sensor_imu_fifo, both sensors in one (a few PX4 versions)
+                "float accel_scale", "float gyro_scale",
+                *(f"int16_t[24] {s}_{a}" for s in ("accel", "gyro") for a in "xyz"), "float temperature",
+                "uint32_t error_count")  # sensor_imu_fifo, both sensors in one (a few PX4 versions)
 
 
 def _ulog_message(kind: bytes, payload: bytes) -> bytes:
@@ -160,7 +161,8 @@ def write_bag(path, t_s, acc_mps2, gyro_rads, topic="/imu", ros=1, msgtype="sens
                                               **({"seq": k} if has_seq else {}))
             if msgtype == "sensor_msgs/msg/Imu":
                 v3 = T["geometry_msgs/msg/Vector3"]
-                msg = T[msgtype](header=header, orientation=T["geometry_msgs/msg/Quaternion"](x=0.0, y=0.0, z=0.0, w=1.0),
+                msg = T[msgtype](header=header,
+                                 orientation=T["geometry_msgs/msg/Quaternion"](x=0.0, y=0.0, z=0.0, w=1.0),
                                  orientation_covariance=np.zeros(9), angular_velocity=v3(*gyro_rads[k]),
                                  angular_velocity_covariance=np.zeros(9), linear_acceleration=v3(*acc_mps2[k]),
                                  linear_acceleration_covariance=np.zeros(9))

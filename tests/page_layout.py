@@ -56,7 +56,8 @@ def _title(fig) -> str:
 
 def _on_lines(fig, texts, where) -> list[str]:
     """Each text (a legend's excepted) crossed, inside an axes, by one of its lines or their markers."""
-    legends = {id(t) for leg in [ax.get_legend() for ax in fig.axes] + list(fig.legends) if leg for t in leg.get_texts()}
+    legends = {id(t) for leg in [ax.get_legend() for ax in fig.axes] + list(fig.legends) if leg
+               for t in leg.get_texts()}
     out = []
     for ax in fig.axes:
         for line in (x for x in ax.get_lines() if x.get_visible()):
@@ -91,7 +92,8 @@ def figure_problems(fig, dpi) -> list[str]:
             xy = c.get_offset_transform().transform(c.get_offsets())
             r = np.sqrt(np.max(c.get_sizes())) / 2 * fig.dpi / 72
             for t, bt in texts:
-                near = ((xy[:, 0] > bt.x0 - r) & (xy[:, 0] < bt.x1 + r) & (xy[:, 1] > bt.y0 - r) & (xy[:, 1] < bt.y1 + r))
+                near = ((xy[:, 0] > bt.x0 - r) & (xy[:, 0] < bt.x1 + r)
+                        & (xy[:, 1] > bt.y0 - r) & (xy[:, 1] < bt.y1 + r))
                 if near.any():
                     out.append(f"{where}: {_name(t)} under a marker at {xy[near][0].round()}")
     out += _on_lines(fig, texts, where)
@@ -99,7 +101,8 @@ def figure_problems(fig, dpi) -> list[str]:
     scale = min(1.0, BODY_PX / width_px)
     small = [t for t, bt in texts if t.get_fontsize() * dpi / 72 * scale < MIN_TEXT_PX]
     if small:
-        out.append(f"{where}: {len(small)} texts below {MIN_TEXT_PX:g} px on a {PAGE_PX} px page, e.g. {_name(small[0])}")
+        out.append(f"{where}: {len(small)} texts below {MIN_TEXT_PX:g} px on a {PAGE_PX} px page, "
+                   f"e.g. {_name(small[0])}")
     return out
 
 

@@ -87,7 +87,8 @@ def test_notebook_flow_on_dataframes():
                                                segments=segments, meta={k: meta[k] for k in KEYS})
     cal = simucal.calibrate(ms)
     params = cal.parameters()  # a DataFrame, pandas being installed
-    assert isinstance(params, pd.DataFrame) and list(params.columns) == ["name", "sensor", "value", "std", "unit", "meaning"]
+    assert (isinstance(params, pd.DataFrame)
+            and list(params.columns) == ["name", "sensor", "value", "std", "unit", "meaning"])
     assert (params["std"] > 0).all() and len(params) == 18
     df2, segments2, meta2 = frame(2)
     out = cal.apply(df2, columns=names)
@@ -127,7 +128,8 @@ def test_refusals_name_the_argument_and_the_fix():
     with pytest.raises(MeasurementSetError, match="latitude_deg is required"):
         simucal.MeasurementSet.from_arrays(acc, acc, acc_unit="g", gyro_unit="deg/h", rate_hz=10.0)
     with pytest.raises(MeasurementSetError, match="row 3: t_s must increase"):
-        simucal.MeasurementSet.from_arrays(acc, None, acc_unit="g", gyro_unit="deg/h", t_s=[0, 1, 2, 2, 3, 4, 5, 6, 7, 8])
+        simucal.MeasurementSet.from_arrays(acc, None, acc_unit="g", gyro_unit="deg/h",
+                                           t_s=[0, 1, 2, 2, 3, 4, 5, 6, 7, 8])
     with pytest.raises(MeasurementSetError, match=r"shape \(10, 2\), expected \(10, 3\)"):
         simucal.MeasurementSet.from_arrays(acc, acc[:, :2], acc_unit="g", gyro_unit="deg/h", rate_hz=1.0,
                                            meta={"latitude_deg": 45.0})
@@ -244,5 +246,6 @@ def test_calibrate_s_typed_options_are_the_command_s():
 
     from simucal.api.options import CalibrateOptions
     from simucal.api.calibrating import calibrate_set as command, calibrate_thermal
-    takes = set(inspect.signature(command).parameters) | set(inspect.signature(calibrate_thermal).parameters) | {"thermal"}
+    takes = (set(inspect.signature(command).parameters) | set(inspect.signature(calibrate_thermal).parameters)
+             | {"thermal"})
     assert set(CalibrateOptions.__annotations__) <= takes

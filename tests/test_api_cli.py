@@ -48,7 +48,8 @@ def sets(tmp_path_factory):
     """The same simulations by the command and by the API: a turntable test with a planted effect, a
     raw recording of the same unit (20 Hz: noise pools its static rows), a field set, a hand-placed one."""
     root = tmp_path_factory.mktemp("api_cli")
-    runs = {"effect": (["--seed", "1", "--effect", "acc.quadratic.z=2e-4"], dict(seed=1, effects={"acc.quadratic.z": 2e-4})),
+    runs = {"effect": (["--seed", "1", "--effect", "acc.quadratic.z=2e-4"],
+                       dict(seed=1, effects={"acc.quadratic.z": 2e-4})),
             "raw": (["--seed", "2", "--rate-hz", "20"], dict(seed=2, rate_hz=20.0)),
             "field": (["--scenario", "field", "--seed", "3"], dict(scenario="field", seed=3)),
             "hand": (["--scenario", "handheld", "--seed", "4", "--effect", "acc.quadratic.z=1e-3"],
@@ -133,7 +134,8 @@ def test_command_line_constants_are_the_api_s():
     shown = {(c, p.name): getattr(p, "show_default", None) for c, cmd in main.commands.items() for p in cmd.params}
     detect = DetectSettings()
     for name, value in (("threshold_factor", detect.threshold_factor), ("window_s", detect.window_s),
-                        ("min_static_s", detect.min_static_s), ("heading_accuracy_deg", methods.DEFAULTS["heading_accuracy_deg"])):
+                        ("min_static_s", detect.min_static_s),
+                        ("heading_accuracy_deg", methods.DEFAULTS["heading_accuracy_deg"])):
         assert float(shown[("calibrate", name)]) == value, name
     assert float(shown[("simulate", "heading_error_deg")]) == FieldScenario().heading_error_deg
     table, temperature = Scenario(), inspect.signature(at_temperature).parameters
@@ -151,7 +153,8 @@ def test_command_line_constants_are_the_api_s():
     from simucal.api import planning
     from simucal.cli import tools as cli_tools
     assert cli_tools.PAPER_RATE_DPS == planning.PAPER_RATE_DPS
-    assert (cli_sets.FORMATS, cli_sets.FERRARIS_HZ, cli_sets.ANNOTATED_HZ, cli_sets.ANNOTATED_ACC, cli_sets.ANNOTATED_GYRO) \
+    assert (cli_sets.FORMATS, cli_sets.FERRARIS_HZ, cli_sets.ANNOTATED_HZ, cli_sets.ANNOTATED_ACC,
+            cli_sets.ANNOTATED_GYRO) \
         == (imports.FORMATS, imports.FERRARIS_HZ, imports.ANNOTATED_HZ, imports.ANNOTATED_ACC, imports.ANNOTATED_GYRO)
 
 
@@ -172,7 +175,8 @@ def test_every_option_is_the_api_keyword_of_the_same_name():
     import dataclasses
     import typing
 
-    kwargs = set(typing.get_type_hints(simucal.CalibrateOptions)) | {f.name for f in dataclasses.fields(simucal.DetectSettings)}
+    kwargs = (set(typing.get_type_hints(simucal.CalibrateOptions))
+              | {f.name for f in dataclasses.fields(simucal.DetectSettings)})
     unmatched = {}
     for command, functions in API_OF.items():
         keywords = set().union(*(inspect.signature(getattr(simucal, f)).parameters for f in functions))

@@ -65,7 +65,8 @@ def _deps(source: str) -> set[str]:
         elif isinstance(node, ast.Import):
             deps |= {_module_of(a.name) for a in node.names if a.name.split(".")[0] == "simucal"}
         elif (isinstance(node, ast.Call) and getattr(node.func, "attr", getattr(node.func, "id", "")) == "import_module"
-              and node.args and isinstance(node.args[0], ast.Constant) and str(node.args[0].value).startswith("simucal")):
+              and node.args and isinstance(node.args[0], ast.Constant)
+              and str(node.args[0].value).startswith("simucal")):
             deps.add(_module_of(node.args[0].value))
         elif isinstance(node, ast.Call) and getattr(node.func, "attr", getattr(node.func, "id", "")) == "import_module":
             deps.add("simucal.generated")  # a generated module by its name (fit/models.py): the only dynamic one
@@ -218,11 +219,12 @@ def test_one_method_registry():
     from simucal.api.imports import FORMATS, Format  # and the other names an editor checks, each its registry's
     from simucal.api.simulation import ScenarioName
     from simucal.cli.sets import FORMATS as CLI_FORMATS
-    assert set(typing.get_args(ScenarioName)) == set(methods.SCENARIOS) and typing.get_args(Format) == FORMATS == CLI_FORMATS
+    assert (set(typing.get_args(ScenarioName)) == set(methods.SCENARIOS)
+            and typing.get_args(Format) == FORMATS == CLI_FORMATS)
 
 
-UNITLESS = {"--seed", "--seeds", "--instance", "--unit-seed", "--trials", "--positions", "--power", "--thermal-degree", "--threshold-factor",
-            "--evaluations", "--record"}  # --record: a store's record id
+UNITLESS = {"--seed", "--seeds", "--instance", "--unit-seed", "--trials", "--positions", "--power", "--thermal-degree",
+            "--threshold-factor", "--evaluations", "--record"}  # --record: a store's record id
 UNIT_SUFFIXES = ("-deg", "-s", "-hz", "-dps", "-dph", "-g", "-c", "-arcmin", "-mps2", "-per-g", "-per-dps", "minutes")
 OLD_NAMES = {"--out-dir": "-o/--output", "--json": "-o/--output", "--sigma": "--acc-noise-g/--gyro-noise-dph",
              "--rates": "--rates-dps", "--heading-error-deg": "--heading-accuracy-deg"}  # accepted, never shown first

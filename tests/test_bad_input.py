@@ -471,7 +471,8 @@ def test_any_numeric_edit_of_a_calibration_applies_finite_or_is_refused(sets, tm
     """Replace one number of the file by anything: apply writes finite inputs or refuses in one line."""
     cal = json.loads(json.dumps(table_cal))
     sensor = data.draw(st.sampled_from(["acc", "gyro"]))
-    key = data.draw(st.sampled_from(["M", "bias", "params", "C_b_model"] if sensor == "gyro" else ["M", "bias", "params"]))
+    key = data.draw(st.sampled_from(["M", "bias", "params", "C_b_model"] if sensor == "gyro"
+                                    else ["M", "bias", "params"]))
     value = data.draw(st.one_of(st.floats(allow_nan=True, allow_infinity=True), st.sampled_from([0.0, -1.0, 1e30])))
     block = cal[sensor]
     if key == "params":
@@ -672,7 +673,8 @@ def test_simulated_values_that_would_write_nonsense_are_refused(tmp_path, args, 
 
 
 def test_a_stated_noise_far_above_the_scatter_is_named(sets, tmp_path):
-    r = CliRunner().invoke(main, ["calibrate", str(sets / "table"), "-o", str(tmp_path / "c.json"), "--acc-noise-g", "0.1"])
+    r = CliRunner().invoke(main,
+                           ["calibrate", str(sets / "table"), "-o", str(tmp_path / "c.json"), "--acc-noise-g", "0.1"])
     assert r.exit_code == 0 and "acc: WARNING: the residuals are" in r.output
     assert "noise_warning" in json.loads((tmp_path / "c.json").read_text())["acc"]
 

@@ -26,7 +26,8 @@ def test_exact_within_3_sigma_of_truth(paper_set):
 def test_norm_beats_multiposition_on_gyro_bias(paper_set):
     folder, truth = paper_set
     tb = np.array(truth["gyro"]["bias"])
-    err = {m: np.abs(np.array(calibrate(folder, m).to_json()["gyro"]["bias"]) - tb).max() for m in ("exact", "multiposition")}
+    err = {m: np.abs(np.array(calibrate(folder, m).to_json()["gyro"]["bias"]) - tb).max()
+           for m in ("exact", "multiposition")}
     assert err["exact"] < err["multiposition"] / 10
 
 
@@ -235,7 +236,8 @@ def test_unusual_samples_files_read_as_csv_reads_them(tmp_path, case):
     data = {"header over 64 KiB": header + b"," + b"x" * 70000 + b"\n" + b"".join(r + b",1\n" for r in rows),
             "carriage returns alone": (header + b"\n" + body).replace(b"\n", b"\r"),
             "not UTF-8 in a label column": header + b",my note\n" + b"".join(r + b",caf\xe9\n" for r in rows),
-            "not UTF-8 in a number": header + b"\n" + b"\n".join(rows[:5] + [rows[5] + b"\xb0"] + rows[6:]) + b"\n"}[case]
+            "not UTF-8 in a number": (header + b"\n" + b"\n".join(rows[:5] + [rows[5] + b"\xb0"] + rows[6:])
+                                      + b"\n")}[case]
     (d / "samples.csv").write_bytes(data)
     if case.startswith("not UTF-8"):  # the C parser stops at the byte; the check after it names the line
         with pytest.raises(io.MeasurementSetError, match=f"line {2 if 'label' in case else 7}: not UTF-8"):
@@ -286,8 +288,8 @@ def test_the_reports_import_no_pandas(tmp_path):
     folder = tmp_path / "raw"  # raw rows: noise reads samples
     subprocess.run([sys.executable, "-m", "simucal", "simulate", "-o", str(folder), "--rate-hz", "5"], check=True)
     code = ("import sys; from simucal.cli import main\nfor args in (sys.argv[1:6], sys.argv[6:10], sys.argv[10:]):\n"
-            "    try:\n        main(args, prog_name='simucal')\n    except SystemExit as e:\n        assert not e.code, e.code\n"
-            "print('pandas' in sys.modules)")
+            "    try:\n        main(args, prog_name='simucal')\n    except SystemExit as e:\n        assert not "
+            "e.code, e.code\nprint('pandas' in sys.modules)")
     cal = tmp_path / "c.json"
     assert subprocess.run([sys.executable, "-m", "simucal", "calibrate", str(folder), "-o", str(cal)]).returncode == 0
     r = subprocess.run([sys.executable, "-c", code, "validate", str(cal), str(folder), "-o", str(tmp_path / "v.json"),

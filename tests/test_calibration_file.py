@@ -79,7 +79,8 @@ def test_what_a_method_reports_beyond_the_fields_travels_as_details(every_method
     assert "test" in exact.acc.details and "noise" in exact.acc.details  # the model test
     assert "consistency" in exact.details and exact.unification is not None
     written = exact.to_json()
-    assert written["acc"]["test"] == exact.acc.details["test"] and written["consistency"] == exact.details["consistency"]
+    assert (written["acc"]["test"] == exact.acc.details["test"]
+            and written["consistency"] == exact.details["consistency"])
     field = every_method["field"]
     assert field.acc.nominal and "acc" in field.not_calibrated and field.details["field"]["gyro_drift_dph"]
     assert field.gyro.library_effects() == ()
@@ -124,8 +125,9 @@ def test_every_record_a_method_writes_is_declared_at_every_depth(every_method, t
     cals["exact --add auto"] = calibrate(every_method["exact"].input, add=("auto",))
     planted = {"acc.quadratic.z": 2e-4}  # --add auto's steps, written where it adds an effect
     cals["exact --add auto, adding"] = calibrate(simulate(seed=1, effects=planted), add=("auto",))
-    cals["systematic --add auto, adding"] = calibrate(simulate(sequence=Path(every_method["systematic"].input).parent / "seq.csv", seed=7,
-                                                              effects=planted), method="systematic", add=("auto",))
+    cals["systematic --add auto, adding"] = calibrate(
+        simulate(sequence=Path(every_method["systematic"].input).parent / "seq.csv", seed=7, effects=planted),
+        method="systematic", add=("auto",))
     block_hints = typing.get_type_hints(calibration.SensorDetails)
     cal_hints = typing.get_type_hints(Calibration)
     for name, cal in cals.items():
@@ -230,6 +232,7 @@ def test_what_plan_and_montecarlo_return_and_what_sets_state_is_declared(tmp_pat
     sets = {"ferraris": simucal.read_set(tmp_path / "fe")} | {
         k: simulate(**kw) for k, kw in {"turntable": {}, "raw": {"plan": "fibonacci24", "rate_hz": 20},
                                          "hand": {"scenario": "handheld"}, "field": {"scenario": "field"},
-                                         "thermal": {"plan": "fibonacci24", "temperature_c": 40, "t_ref_c": 25}}.items()}
+                                         "thermal": {"plan": "fibonacci24", "temperature_c": 40,
+                                                     "t_ref_c": 25}}.items()}
     for name, ms in sets.items():
         assert _undeclared(dict(ms.meta), meta.Meta, name) == []

@@ -74,5 +74,6 @@ def test_a_newer_or_unknown_format_is_refused_naming_the_ones_read(tmp_path):
     d = json.loads((DATA / "b1bf6b5" / "calibration.json").read_text())
     (tmp_path / "new.json").write_text(json.dumps({**d, "format": "simucal.calibration/3"}))
     with pytest.raises(CalibrationFileError, match=r"format 'simucal.calibration/3', expected "
-                                                   r"'simucal.calibration/2' or an earlier one \(simucal.calibration/1\)"):
+                                                   r"'simucal.calibration/2' or an earlier one "
+                                                   r"\(simucal.calibration/1\)"):
         simucal.load(tmp_path / "new.json")

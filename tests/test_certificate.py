@@ -53,8 +53,10 @@ def test_the_certificates_numbers_are_the_files(files):
             assert len(dK) == 3 and min(dK) > 0.01
     digest = __import__("hashlib").sha256(cal_path.read_bytes()).hexdigest()
     assert digest in page and all(h in page for h in raw["input_sha256"]) and f"simucal {simucal.__version__}" in page
-    assert f"gyro on independent data ({tmp / 'other'}): at the noise floor" in page and "acc: THE MODEL FAILS its test" in page
-    assert "<p class='verdict bad'><b>acc: THE MODEL FAILS" in page and "<p class='verdict ok'><b>gyro: the model passes" in page
+    assert (f"gyro on independent data ({tmp / 'other'}): at the noise floor" in page
+            and "acc: THE MODEL FAILS its test" in page)
+    assert ("<p class='verdict bad'><b>acc: THE MODEL FAILS" in page
+            and "<p class='verdict ok'><b>gyro: the model passes" in page)
 
 
 def test_a_model_no_test_judged_is_said_untested_not_passed(files, tmp_path):

@@ -173,7 +173,8 @@ def _errors(folder, sc, truth, **kw):
     u = cal["unification"]
     phi = log_so3(np.array(u["C_b_d"]).T @ _truth_C_b_d(sc))
     err_M = np.array(cal["gyro"]["M"]) - np.array(truth["gyro"]["M"])
-    return cal, np.linalg.norm(phi), np.abs(err_M).max(), np.r_[phi / u["std_rad"], (err_M / cal["gyro"]["std_M"]).ravel()]
+    return (cal, np.linalg.norm(phi), np.abs(err_M).max(),
+            np.r_[phi / u["std_rad"], (err_M / cal["gyro"]["std_M"]).ravel()])
 
 
 @pytest.mark.parametrize("plan,position_error", [("table1", 60 * ARCMIN), ("fibonacci24", ARCMIN)])
@@ -188,7 +189,8 @@ def test_unknown_noise_unifies_as_well_as_stated_noise(tmp_path, plan, position_
         cal, e_C, e_M, z = errs[stated] = _errors(tmp_path / str(stated), sc, truth)
         assert cal["unification"]["method"] == "rate_run_means"
         assert np.all(np.abs(z) < 3.5), z
-    assert errs[False][1] < 1.5 * errs[True][1] and errs[False][2] < 1.5 * errs[True][2], (errs[False][1:3], errs[True][1:3])
+    assert (errs[False][1] < 1.5 * errs[True][1]
+            and errs[False][2] < 1.5 * errs[True][2]), (errs[False][1:3], errs[True][1:3])
     noise = errs[False][0]["unification"]["noise"]
     assert "rate-run pairs' scatter" in noise["acc_rate_run_means"]["text"]
     assert "estimated from the fit's residuals" in errs[False][0]["acc"]["noise"]["text"]

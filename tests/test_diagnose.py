@@ -170,7 +170,8 @@ def test_the_wrong_twin_never_wins_silently(tmp_path, plan, seed):
     assert first["id"] in pair and first["significant"]
     if plan == "table1":
         assert (pair - {first["id"]}) <= set(first.get("twins", ())) and "cannot tell it from" in first["note"]
-        out = CliRunner().invoke(main, ["calibrate", str(tmp_path / "s"), "--add", "auto", "-o", str(tmp_path / "c.json")])
+        out = CliRunner().invoke(main,
+                                 ["calibrate", str(tmp_path / "s"), "--add", "auto", "-o", str(tmp_path / "c.json")])
         assert f"--add auto chose {first['id']}, not its twin" in out.output  # never silently
     else:
         assert first["id"] == "acc.quadratic.z" and not first.get("twins")

@@ -75,8 +75,10 @@ def test_field_calibration_is_a_calibration_file_that_apply_corrects_the_drift_w
     cal = calibration.load(tmp_path / "d.json").to_json()
     assert cal["method"] == "field" and cal["acc"]["nominal"] and "acc" in cal["not_calibrated"]
     assert np.allclose(cal["gyro"]["bias"], cal["field"]["gyro_drift_dph"]) and np.allclose(cal["gyro"]["M"], np.eye(3))
-    assert np.all(np.abs(np.array(cal["gyro"]["bias"]) - truth["gyro_drift_dph"]) < 4 * np.array(cal["gyro"]["std"]["bias"]))
-    assert calibrate(tmp_path / "f").to_json()["gyro"]["bias"] == cal["gyro"]["bias"]  # the default method for a field set
+    assert np.all(np.abs(np.array(cal["gyro"]["bias"]) - truth["gyro_drift_dph"])
+                  < 4 * np.array(cal["gyro"]["std"]["bias"]))
+    # the default method for a field set
+    assert calibrate(tmp_path / "f").to_json()["gyro"]["bias"] == cal["gyro"]["bias"]
     r = CliRunner().invoke(main, ["apply", str(tmp_path / "d.json"), str(tmp_path / "f"), "-o", str(tmp_path / "a")])
     assert r.exit_code == 0, r.output
     before, after = io.read_set(tmp_path / "f"), io.read_set(tmp_path / "a")
@@ -87,6 +89,7 @@ def test_field_calibration_is_a_calibration_file_that_apply_corrects_the_drift_w
     assert np.allclose(after.acc_g(), before.acc_g())  # accelerometers at nominal, unchanged
     for method, words in (("exact", f"use simucal calibrate {tmp_path / 'f'} --method field"),
                           ("handheld", "--method field")):
-        r = CliRunner().invoke(main, ["calibrate", str(tmp_path / "f"), "--method", method, "-o", str(tmp_path / "x.json")])
+        r = CliRunner().invoke(main,
+                               ["calibrate", str(tmp_path / "f"), "--method", method, "-o", str(tmp_path / "x.json")])
         assert r.exit_code == 2 and words in r.stderr and not (tmp_path / "x.json").exists()
     json.loads((tmp_path / "d.json").read_text())["field"]["history"][0]["eps_N_dph"]  # Fig. 4 from the file

@@ -65,7 +65,8 @@ def test_the_scale_model_is_fitted_over_its_own_entries(tmp_path, monkeypatch):
     off = list(moves.GYRO_MODELS["scale"])
     assert np.array_equal(scale[-1].T.ravel()[off], np.zeros(6)) and not scale[-1].cov[off].any()
     assert np.all(np.diag(scale[-1].cov)[[0, 4, 8]] > 0)
-    assert choice["full"]["held_out_rms_deg"] < choice["scale"]["held_out_rms_deg"] < choice["nominal"]["held_out_rms_deg"]
+    assert (choice["full"]["held_out_rms_deg"] < choice["scale"]["held_out_rms_deg"]
+            < choice["nominal"]["held_out_rms_deg"])
 
 
 @pytest.mark.parametrize("model,planted,seed", [("scale", {}, 3), ("nominal", {"gyro.g_sensitivity.yz": 3000.0}, 1)])
@@ -86,7 +87,8 @@ def test_candidates_under_a_simpler_gyro_model_are_credited_with_their_own_share
         table = choose(mv, g_dirs, bias_std, f_full, held)[2]
         if model == "nominal":
             r = moves.move_residuals(np.eye(3), mv, g_dirs, jac=False, db=np.zeros(3), p=f_full.p * 0)[0]
-            return model, moves.GyroFit(np.eye(3), np.zeros(3), f_full.p * 0, r, np.zeros_like(f_full.cov), 0, True), table
+            return (model, moves.GyroFit(np.eye(3), np.zeros(3), f_full.p * 0, r, np.zeros_like(f_full.cov), 0, True),
+                    table)
         x0 = np.r_[f_full.T.ravel(), f_full.db, f_full.p]
         return model, moves.fit_gyro(mv, g_dirs, bias_std, x0, fixed=moves.GYRO_MODELS["scale"]), table
     monkeypatch.setattr(handheld, "choose_gyro_model", forced)
@@ -323,7 +325,8 @@ def test_xsens_moves_take_the_g_sensitivities_one_at_a_time(tmp_path):
     p = acc_from_poses(ms)
     gm = prepare_moves(ms, p.det, *pose_directions(p.model, p.obs, p.fit))
     f = fit_gyro(gm.mv, gm.g_dirs, gm.bias_std)
-    step = MovesStep(gm, regressor_inputs(ms, gm, f, (p.model, p.fit.vector(p.model.params))), gyro_noise_dps(ms, gm), f)
+    step = MovesStep(gm, regressor_inputs(ms, gm, f, (p.model, p.fit.vector(p.model.params))),
+                     gyro_noise_dps(ms, gm), f)
     two = step.add("gyro.g_sensitivity.xz").add("gyro.g_sensitivity.zy")
     rms = lambda s: float(np.sqrt(np.mean(np.square(s.held_out()))))
     three = two.add("gyro.g_sensitivity.yz")
@@ -367,8 +370,9 @@ def test_a_turn_about_the_vertical_is_no_pose(tmp_path):
 
 
 def test_a_slow_move_is_no_part_of_a_pose():
-    """A 3.9 deg move peaking at 2.4 deg/s (seed 927): at a fixed gyro limit of 1 deg/s (the limit is now the session's own) the poses on either side took
-    0.35 deg of it each, and the moves failed their test at chi2 186 on 51 dof (p = 6e-17) on a clean session."""
+    """A 3.9 deg move peaking at 2.4 deg/s (seed 927): at a fixed gyro limit of 1 deg/s (the limit is now the session's
+    own) the poses on either side took 0.35 deg of it each, and the moves failed their test at chi2 186 on 51 dof (p =
+    6e-17) on a clean session."""
     from simucal import api
     cal = api.calibrate(api.simulate("handheld", seed=927))
     assert cal.gyro.verdict == "passes" and cal.gyro.chi2 < 1.5 * cal.gyro.dof, (cal.gyro.chi2, cal.gyro.dof)
@@ -397,7 +401,8 @@ def test_a_long_turn_about_the_vertical_is_no_pose_either(turn_s):
                             ("tilt", 1, 0), ("still", 5, 0)):
         n = int(dur * fs)
         if kind == "tilt":
-            a = np.linspace(0, 1, n)[:, None] * np.array([0.5, 0, 0]) + g + 0.05 * np.sin(np.linspace(0, np.pi, n))[:, None]
+            a = (np.linspace(0, 1, n)[:, None] * np.array([0.5, 0, 0]) + g
+                 + 0.05 * np.sin(np.linspace(0, np.pi, n))[:, None])
             w, g = np.tile([20.0, 0, 0], (n, 1)), a[-1] / np.linalg.norm(a[-1])
         else:
             a, w = np.tile(g, (n, 1)), np.tile([0, 0, float(rate)], (n, 1))

@@ -82,7 +82,8 @@ def test_a_users_script_type_checks_against_the_installed_package_under_strict(t
     python = venv / "bin" / "python"
     import shutil
     source = tmp_path / "source"  # a copy: setuptools builds in the tree it installs from (build/), not in ours
-    shutil.copytree(ROOT, source, symlinks=True, ignore=shutil.ignore_patterns(".git", ".venv*", "build", "*.egg-info", "__pycache__", "_build",
+    shutil.copytree(ROOT, source, symlinks=True,
+                    ignore=shutil.ignore_patterns(".git", ".venv*", "build", "*.egg-info", "__pycache__", "_build",
                                                                  ".mypy_cache", ".ruff_cache", ".pytest_cache"))
     subprocess.run([str(python), "-m", "pip", "install", "-q", "--no-deps", str(source)], check=True,
                    capture_output=True, cwd=tmp_path)

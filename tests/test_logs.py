@@ -45,7 +45,8 @@ def test_a_ulog_becomes_a_stream_on_the_slower_sensors_clock(tmp_path):
     assert r.exit_code == 0, r.output
     ms = io.read_set(tmp_path / "set")
     log = ms.meta["log"]
-    assert log["acc_device_id"] == 1442826 and log["gyro_device_id"] == 2490378 and log["sensor_frame"].startswith("FRD")
+    assert (log["acc_device_id"] == 1442826 and log["gyro_device_id"] == 2490378
+            and log["sensor_frame"].startswith("FRD"))
     # the first accel sample has no interval before it: left out, and counted
     assert "sensor_accel's samples" in log["clock"]["rows"] and log["clock"]["intervals_without_a_sample"][
         "rows_left_out"] == 1

@@ -140,8 +140,10 @@ def test_convert_round_trips_every_bit_and_keeps_its_input(still, tmp_path):
     a, b = io.read_set(still / "csv"), io.read_set(tmp_path / "back")
     assert all(np.array_equal(a.samples[c], b.samples[c]) for c in a.samples)
     assert (still / "csv" / "meta.json").read_bytes() == (tmp_path / "back" / "meta.json").read_bytes()
-    refused(run("convert", still / "csv", "-o", still / "csv", "--to", "parquet", "--force"), "never changes its inputs")
-    refused(run("convert", still / "csv", "-o", tmp_path / "back", "--to", "parquet"), "already holds a measurement set")
+    refused(run("convert", still / "csv", "-o", still / "csv", "--to", "parquet", "--force"),
+            "never changes its inputs")
+    refused(run("convert", still / "csv", "-o", tmp_path / "back", "--to", "parquet"),
+            "already holds a measurement set")
     assert run("convert", still / "csv", "-o", tmp_path / "back", "--to", "parquet", "--force").exit_code == 0
     assert sorted(p.name for p in (tmp_path / "back").iterdir()) == ["meta.json", "samples.parquet"]
 
@@ -153,7 +155,8 @@ def test_a_bad_row_is_named_and_nothing_is_written(still, tmp_path, monkeypatch)
     (bad / "meta.json").write_bytes((still / "csv" / "meta.json").read_bytes())
     lines = (still / "csv" / "samples.csv").read_text().splitlines(keepends=True)
     (bad / "samples.csv").write_text("".join(lines[:5001] + [lines[4000]] + lines[5001:]))  # t_s steps back
-    refused(run("convert", bad, "-o", tmp_path / "out", "--to", "parquet"), "samples.csv, line 5002", "t_s must increase")
+    refused(run("convert", bad, "-o", tmp_path / "out", "--to", "parquet"), "samples.csv, line 5002",
+            "t_s must increase")
     assert not (tmp_path / "out").exists()
     refused(run("noise", bad, "-o", tmp_path / "n.json"), "samples.csv, line 5002")
     (bad / "samples.csv").write_text("".join(lines[:7001] + [lines[7001].replace(",", ",nan,", 1)[:-1] + "\n"]

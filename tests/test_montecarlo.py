@@ -34,7 +34,8 @@ def test_batched_simulation_matches_the_simulator(tmp_path):
     """Noise-free, no position errors: the batch's mean outputs are simulate()'s (720 samples per revolution)."""
     from simucal import io
     from simucal.turntable.simulate import write
-    sc = Scenario(position_error_rad=0.0, acc_effects={"acc.quadratic.z": 2e-4}, gyro_effects={"gyro.g_sensitivity.xz": 0.3})
+    sc = Scenario(position_error_rad=0.0, acc_effects={"acc.quadratic.z": 2e-4},
+                  gyro_effects={"gyro.g_sensitivity.xz": 0.3})
     sc.acc_noise_g = sc.gyro_noise_dph = 0.0
     write(tmp_path, sc, 0)
     ms = io.read_set(tmp_path)

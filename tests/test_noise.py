@@ -67,7 +67,8 @@ def test_white_noise_is_recovered_and_kalibr_gets_it_in_si(tmp_path):
     for a in "xyz":
         arw = rep["gyro"]["axes"][a]["sheet"]["N"]
         vrw = rep["acc"]["axes"][a]["sheet"]["N"]
-        assert arw["unit"] == "deg/sqrt(h)" and abs(arw["value"] - ARW_DEG_SQRT_H) < 3 * arw["std"] + 0.01 * ARW_DEG_SQRT_H
+        assert (arw["unit"] == "deg/sqrt(h)"
+                and abs(arw["value"] - ARW_DEG_SQRT_H) < 3 * arw["std"] + 0.01 * ARW_DEG_SQRT_H)
         assert vrw["unit"] == "ug/sqrt(Hz)" and abs(vrw["value"] - 1e6 * VRW_G_SQRT_S) < 0.02 * 1e6 * VRW_G_SQRT_S
     yaml = dict(line.split(": ") for line in (tmp_path / "imu.yaml").read_text().splitlines() if not line[0] == "#")
     assert float(yaml["gyroscope_noise_density"]) == pytest.approx(ARW_DEG_SQRT_H / 60 * np.pi / 180, rel=0.02)
@@ -260,7 +261,8 @@ def test_absent_terms_are_not_reported_and_the_stds_are_right_over_seeds():
         rng = np.random.default_rng(100 + seed)
         for sensor, (unit, white, walk) in sizes.items():
             for _ in range(3):
-                y = white / np.sqrt(dt) * rng.standard_normal(n) + np.cumsum(walk * np.sqrt(dt) * rng.standard_normal(n))
+                y = (white / np.sqrt(dt) * rng.standard_normal(n)
+                     + np.cumsum(walk * np.sqrt(dt) * rng.standard_normal(n)))
                 ax = axis_report(sensor, [y], dt, m, mats, unit)
                 false += sum(ax["sheet"][t]["status"] == "seen" for t in ("Q", "B", "R"))
                 pairs += 3
@@ -304,7 +306,8 @@ def test_a_stuck_channel_is_named_and_kalibr_refused(tmp_path):
     (d / "samples.csv").write_text("\n".join([lines[0]] + [",".join(r) for r in rows]) + "\n")
     r = _run("noise", d, "-o", tmp_path / "n.json", "--html", tmp_path / "n.html")
     assert r.exit_code == 0, r.output
-    assert "z: stuck or dead: constant at 3 deg/h" in r.output and "quantisation" not in r.output.split("z: stuck")[1].splitlines()[0]
+    assert ("z: stuck or dead: constant at 3 deg/h" in r.output
+            and "quantisation" not in r.output.split("z: stuck")[1].splitlines()[0])
     assert "; STUCK: z stuck or dead" in r.output  # and the gyro's verdict says so
     gz = json.loads((tmp_path / "n.json").read_text())["gyro"]["axes"]["z"]
     assert "stuck" in gz and "terms" not in gz
@@ -317,7 +320,8 @@ def test_kalibr_is_refused_without_the_gyroscope(tmp_path):
     """Kalibr requires both sensors' densities and walks: an accelerometer-only recording writes none."""
     n = 6000
     rng = np.random.default_rng(4)
-    io.write_set(tmp_path / "acc", {"acc_unit": "g", "gyro_unit": "deg/h"}, {"t_s": np.arange(n) * DT, "ax": rng.standard_normal(n) * 1e-4,
+    io.write_set(tmp_path / "acc", {"acc_unit": "g", "gyro_unit": "deg/h"},
+                 {"t_s": np.arange(n) * DT, "ax": rng.standard_normal(n) * 1e-4,
                                                         "ay": rng.standard_normal(n) * 1e-4,
                                                         "az": 1 + rng.standard_normal(n) * 1e-4})
     r = _run("noise", tmp_path / "acc", "-o", tmp_path / "n.json", "--kalibr", tmp_path / "k.yaml")

@@ -166,7 +166,8 @@ def test_the_noise_page_one_unit_system_and_the_consoles_verdicts(pages):
     assert [f.axes[0].get_ylabel() for f in pages["noise"][2]] == ["Allan deviation (ug)", "Allan deviation (deg/h)"]
     cells = [re.sub(r"<span class='n'>([^<]*)</span>", r"\1", c) for c in re.findall(r"<td>(.*?)</td>", page)]
     # every term: value +- std, or not seen with its bound
-    assert all(re.fullmatch(r"[xyz]|\S+ &plusmn; \S+|not seen \(&lt; \S+, 95 %\)|record too short.*", c) for c in cells), cells
+    assert all(re.fullmatch(r"[xyz]|\S+ &plusmn; \S+|not seen \(&lt; \S+, 95 %\)|record too short.*", c)
+               for c in cells), cells
     report = json.loads((pages["out"] / "noise.json").read_text())
     console = list(noise_lines(report))
     assert len(noise_verdicts(report)) == 2

@@ -68,7 +68,8 @@ def test_designed_plan_monte_carlo_std_matches_its_crlb(tmp_path):
     (["--positions", "6"], "at least 9"),
     (["--score", "table1", "--model", "gyro_baseline", "--rate-dps", "0"], "non-zero rate"),
     ([], "--score PLAN"),
-    (["--positions", "12", "--separate", "acc.quadratic.z,acc.quadratic.y", "--sizes", "1,1"], "--separate needs --score"),
+    (["--positions", "12", "--separate", "acc.quadratic.z,acc.quadratic.y", "--sizes", "1,1"],
+     "--separate needs --score"),
     (["--score", "table1", "--separate", "acc.quadratic.z,gyro.quadratic.y", "--sizes", "1,1"], "not the acc"),
 ])
 def test_bad_input_one_line(tmp_path, args, named):
@@ -113,7 +114,8 @@ def test_separation_design_decides_an_inseparable_pair(tmp_path):
     csv.write_text("outer_deg,middle_deg,inner_deg\n" + "".join(",".join(map(str, r[:3])) + "\n" for r in rows))
     write(tmp_path / "s", Scenario(plan=str(csv), unify_positions=False, acc_effects={"acc.quadratic.z": 3e-4}), 2)
     cands = {c["id"]: c for c in diagnose(tmp_path / "s")["acc"]["candidates"]}
-    top = max((c for c in cands.values() if c.get("separable", True) and "statistic" in c), key=lambda c: c["statistic"])
+    top = max((c for c in cands.values() if c.get("separable", True) and "statistic" in c),
+              key=lambda c: c["statistic"])
     assert top["id"] == "acc.quadratic.z" and top.get("significant")
     twin = cands["acc.scale_asymmetry.z"]
     assert twin.get("separable", True) and twin["statistic"] < top["statistic"]
@@ -135,11 +137,13 @@ def test_separation_power_is_the_rate_observed(tmp_path):
     rows = list(plans.TABLE1) + plan_rows(np.array([a["direction_k"] for a in sep["added"]]))
     csv = tmp_path / "p.csv"
     csv.write_text("outer_deg,middle_deg,inner_deg\n" + "".join(",".join(map(str, r[:3])) + "\n" for r in rows))
-    truth, twin = AugmentedModel("acc_baseline", ("acc.quadratic.z",)), AugmentedModel("acc_baseline", ("acc.scale_asymmetry.z",))
+    truth, twin = (AugmentedModel("acc_baseline", ("acc.quadratic.z",)),
+                   AugmentedModel("acc_baseline", ("acc.scale_asymmetry.z",)))
     crit, rejected, n = chi2_isf(0.01, 1), 0, 40
     for seed in range(n):
-        write(tmp_path / str(seed), Scenario(plan=str(csv), unify_positions=False, acc_effects={"acc.quadratic.z": 1e-4}),
-              seed)
+        write(tmp_path / str(seed),
+              Scenario(plan=str(csv), unify_positions=False, acc_effects={"acc.quadratic.z": 1e-4}), seed)
         obs, _ = segment_observations(io.read_set(tmp_path / str(seed)), "acc")
         rejected += (fit_exact(twin, obs).chi2 - fit_exact(truth, obs).chi2) > crit
-    assert abs(rejected / n - predicted) < 3 * np.sqrt(predicted * (1 - predicted) / n) + 0.05, (rejected / n, predicted)
+    assert (abs(rejected / n - predicted)
+            < 3 * np.sqrt(predicted * (1 - predicted) / n) + 0.05), (rejected / n, predicted)

@@ -51,7 +51,8 @@ SMALL = {"bench_derive_and_solve.py": ["--quick"], "bench_paper_tables.py": ["--
          "bench_sequence_design.py": ["--minutes", "5", "--evaluations", "3", "--seeds", "1", "--units", "mems",
                                       "--table", "--table-minutes", "5", "--reference-minutes", "5",
                                       "--table-evaluations", "3"],
-         "bench_scale.py": ["--rate-hz", "5", "--repeats", "0", "--hours", "0.005", "--lot", "2", "--thermal-rate-hz", "1"]}
+         "bench_scale.py": ["--rate-hz", "5", "--repeats", "0", "--hours", "0.005", "--lot", "2",
+                            "--thermal-rate-hz", "1"]}
 # what CI does by being CI: the installation, the suite itself, and the stale check (tests/test_generated.py
 # runs derive --check's function); the demo (minutes of work, tests/test_loop.py and the others run its parts)
 BY_CI = ("pip install", "python3 -m pip install", "python3 -m pytest", "simucal derive --check", "simucal demo")

@@ -180,7 +180,8 @@ def test_auto_keeps_no_effect_that_leaves_the_model_failing_having_explained_lit
     from simucal.fit.selection import forward_selection
     start = lambda after: _Fake(1000.0, 100, {"b_z": (0.0, 1.0)}, next_steps={"gyro.quadratic.z": after})  # noqa
     little = forward_selection(start(_Fake(800.0, 99, {"b_z": (3.0, 1.0)}, ("gyro.quadratic.z",))), max_terms=1)
-    assert little.steps == [] and little.model == () and "not kept" in little.stopped and "b_z by 3.0 std" in little.stopped
+    assert (little.steps == [] and little.model == () and "not kept" in little.stopped
+            and "b_z by 3.0 std" in little.stopped)
     most = forward_selection(start(_Fake(300.0, 99, {"b_z": (3.0, 1.0)}, ("gyro.quadratic.z",))), max_terms=1)
     assert [s["id"] for s in most.steps] == ["gyro.quadratic.z"] and most.model == ("gyro.quadratic.z",)
     still = forward_selection(start(_Fake(800.0, 99, {"b_z": (0.5, 1.0)}, ("gyro.quadratic.z",))), max_terms=1)

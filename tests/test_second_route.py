@@ -146,7 +146,8 @@ def filter_error(nav_F, nav_B) -> float:
 
 
 def _generated_filter():
-    return (lambda C, f_b, w_ie, g0: gsys.nav_F(C.reshape(9), f_b, w_ie, g0), lambda C, g0: gsys.nav_B(C.reshape(9), g0))
+    return (lambda C, f_b, w_ie, g0: gsys.nav_F(C.reshape(9), f_b, w_ie, g0),
+            lambda C, g0: gsys.nav_B(C.reshape(9), g0))
 
 
 def _derived_filter(rates):
@@ -289,7 +290,8 @@ def forward_error(derived_output, model_name="acc_baseline", effects=()) -> floa
     from simucal.turntable import forward
     rng, n = np.random.default_rng(11), 9
     aux = AuxInputs({"t_s": rng.uniform(0, 100, n), "temp_c": rng.uniform(10, 40, n), "t_ref_c": 25.0,
-                     "temp_rate_c_s": rng.normal(0, 0.05, n), "w2": rng.uniform(0, 0.1, n), **{f"f_{c}": rng.normal(size=n) for c in "xyz"},
+                     "temp_rate_c_s": rng.normal(0, 0.05, n), "w2": rng.uniform(0, 0.1, n),
+                     **{f"f_{c}": rng.normal(size=n) for c in "xyz"},
                      **{f"{q}_{c}": rng.normal(size=n) for q in ("wb", "dwb") for c in "xyz"}})  # lever arms, delay
     m = AugmentedModel(model_name, tuple(effects))
     worst = 0.0

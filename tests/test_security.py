@@ -256,7 +256,8 @@ def test_a_cache_path_that_is_a_file_is_named_and_the_numpy_modules_run(tmp_path
     """SIMUCAL_CACHE naming a file: a warning naming the variable and the fix, the work done by the
     uncompiled modules; was FileExistsError, 'a bug in simucal'."""
     (tmp_path / "afile").write_text("")
-    r = subprocess.run([sys.executable, "-m", "simucal", "calibrate", str(paper_set[0]), "-o", str(tmp_path / "c.json")],
+    r = subprocess.run([sys.executable, "-m", "simucal", "calibrate", str(paper_set[0]), "-o",
+                        str(tmp_path / "c.json")],
                        capture_output=True, text=True, env={**os.environ, "SIMUCAL_CACHE": str(tmp_path / "afile")})
     assert r.returncode == 0, r.stderr
     assert "is a file, not a folder" in r.stderr and "set SIMUCAL_CACHE to a folder" in r.stderr

@@ -88,7 +88,8 @@ def test_the_unit_comes_from_a_systematic_calibration_file(tmp_path):
     simucal.save(path, simucal.calibrate(tmp_path / "set", method="systematic"))
     stated = json.loads(path.read_text())["systematic"]["white_noise_per_sample"]
     assert stated["rate_hz"] == pytest.approx(100.0)
-    sc, said = unit_from_calibration(path, rate_hz=400.0)  # white noise: twice the std per sample at four times the rate
+    # white noise: twice the std per sample at four times the rate
+    sc, said = unit_from_calibration(path, rate_hz=400.0)
     assert sc.acc_noise_g == pytest.approx(2 * np.sqrt(np.mean(np.square(stated["acc_g"]))))
     assert sc.gyro_params["b_x"] == pytest.approx(simucal.load(path).gyro.params["b_x"]) and str(path) in said
 

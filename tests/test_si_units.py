@@ -86,7 +86,8 @@ def test_parameters_in_si_are_the_spec_ones_converted():
 
 def test_validate_and_its_page_in_si(sets, tmp_path):
     assert run("calibrate", sets / "set", "-o", tmp_path / "cal.json").exit_code == 0
-    spec = run("validate", tmp_path / "cal.json", sets / "other", "-o", tmp_path / "v.json", "--html", tmp_path / "v.html")
+    spec = run("validate", tmp_path / "cal.json", sets / "other", "-o", tmp_path / "v.json", "--html",
+               tmp_path / "v.html")
     si = run("validate", tmp_path / "cal.json", sets / "other", "-o", tmp_path / "v_si.json", "--html",
              tmp_path / "v_si.html", "--units", "si")
     assert spec.exit_code == si.exit_code == 0, si.output
@@ -127,12 +128,13 @@ def test_noise_terms_in_si(sets, tmp_path):
     assert noise.lines() == noise.lines(units="spec") != noise.lines(units="si") == noise_si.lines(units="si")
     assert noise_si.report == noise.report  # the file's numbers: the spec's
     factor = {"deg/sqrt(h)": math.radians(1) / 60, "deg/h": DPH, "deg/h/sqrt(h)": DPH / 60, "deg/h/h": DPH / 3600,
-              "arcsec": units.ARCSEC_RAD, "ug*s": 1e-6 * G, "ug/sqrt(Hz)": 1e-6 * G, "ug": 1e-6 * G, "ug/sqrt(s)": 1e-6 * G,
-              "ug/s": 1e-6 * G}
+              "arcsec": units.ARCSEC_RAD, "ug*s": 1e-6 * G, "ug/sqrt(Hz)": 1e-6 * G, "ug": 1e-6 * G,
+              "ug/sqrt(s)": 1e-6 * G, "ug/s": 1e-6 * G}
     for t, u in zip(noise.term_rows, noise_si.term_rows, strict=True):
         for x, y in ((t.value, u.value), (t.std, u.std), (t.bound_95, u.bound_95)):
             assert (x is None) == (y is None) and (x is None or math.isclose(y, x * factor[t.unit], rel_tol=1e-12))
-    adev = {p.sensor: (p.adev, p.unit) for p in noise.curve_rows}, {p.sensor: (p.adev, p.unit) for p in noise_si.curve_rows}
+    adev = ({p.sensor: (p.adev, p.unit) for p in noise.curve_rows},
+            {p.sensor: (p.adev, p.unit) for p in noise_si.curve_rows})
     assert adev[1]["acc"] == (pytest.approx(adev[0]["acc"][0] * G), "m/s^2") and adev[1]["gyro"][1] == "rad/s"
 
 
@@ -184,7 +186,8 @@ def test_diagnose_prints_its_page_and_added_parameters_in_si(sets, tmp_path):
     add = ("--add", "acc.quadratic.z")
     spec = run("diagnose", sets / "set", "-o", tmp_path / "d.json", "--html", tmp_path / "d.html", *add)
     same = run("diagnose", sets / "set", "-o", tmp_path / "d2.json", "--units", "spec", *add)
-    si = run("diagnose", sets / "set", "-o", tmp_path / "d3.json", "--html", tmp_path / "d3.html", "--units", "si", *add)
+    si = run("diagnose", sets / "set", "-o", tmp_path / "d3.json", "--html", tmp_path / "d3.html", "--units", "si",
+             *add)
     assert spec.exit_code == same.exit_code == si.exit_code == 0, si.output
     out = {k: r.output.split("\nwrote ")[0] for k, r in (("spec", spec), ("same", same), ("si", si))}
     assert out["spec"] == out["same"]
@@ -192,14 +195,16 @@ def test_diagnose_prints_its_page_and_added_parameters_in_si(sets, tmp_path):
     for spec_unit, si_unit, factor in (("g", "m/s^2", G), ("deg/h", "rad/s", DPH), ("g/g^2", "1/(m/s^2)", 1 / G)):
         pairs = _pairs(out["spec"], out["si"], spec_unit, si_unit)
         assert pairs and all(_agrees(y, x, factor) for y, x in pairs), (spec_unit, pairs)
-    assert re.search(rf"^    acc.quadratic.z = {NUMBER} \+- {NUMBER} g/g\^2(, truth {NUMBER} g/g\^2)?$", out["spec"], re.M)
+    assert re.search(rf"^    acc.quadratic.z = {NUMBER} \+- {NUMBER} g/g\^2(, truth {NUMBER} g/g\^2)?$", out["spec"],
+                     re.M)
     assert "deg/h" not in out["si"] and not re.search(rf"{NUMBER} g\b", out["si"]), out["si"]
     # one number, one reading: the gyro's residual as calibrate --units si prints it, from the number not its text
     cal = run("calibrate", sets / "set", "-o", tmp_path / "c.json", "--units", "si", *add)
     gyro = [re.search(rf"gyro: .*?residual rms ({NUMBER}) rad/s", t)[1] for t in (cal.output, out["si"])]
     assert gyro[0] == gyro[1], gyro
     pages = [re.sub(r"data:image/png;base64,[^\"]+", "", (tmp_path / f).read_text()) for f in ("d.html", "d3.html")]
-    row = [re.search(r"<td>acc.quadratic.z</td><td>([^<]*)</td><td></td><td></td><td><span class='n'>([^<]+)</span></td>", t)
+    row = [re.search(r"<td>acc.quadratic.z</td><td>([^<]*)</td><td></td><td></td><td><span "
+                     r"class='n'>([^<]+)</span></td>", t)
            for t in pages]
     assert row[0][1] == "g/g^2" and row[1][1] == "1/(m/s^2)" and _agrees(row[1][2], row[0][2], 1 / G), row
     assert "residual rms" in pages[1] and "m/s^2" in pages[1] and not re.search(rf"{NUMBER} g\b", pages[1])
@@ -221,7 +226,8 @@ def test_the_diagnosis_in_si_converts_the_numbers_and_writes_its_verdicts_from_t
         a, b = report[s]["model_test"], si[s]["model_test"]
         assert b["residual_rms"] == pytest.approx(a["residual_rms"] * f, rel=1e-12) and b["residual_unit"] != a[
             "residual_unit"]
-        np.testing.assert_allclose(si[s]["residuals"][0]["residual"], np.array(report[s]["residuals"][0]["residual"]) * f)
+        np.testing.assert_allclose(si[s]["residuals"][0]["residual"],
+                                   np.array(report[s]["residuals"][0]["residual"]) * f)
         assert f"{b['residual_rms']:.3g} {b['residual_unit']}" in si[s]["verdict"]
         estimated = [(c, d) for c, d in zip(report[s]["candidates"], si[s]["candidates"], strict=True)
                      if c.get("estimate") is not None]

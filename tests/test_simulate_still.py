@@ -53,5 +53,6 @@ def test_an_option_the_still_scenarios_cannot_use_is_refused(scenario, options, 
 
 
 def test_the_command_refuses_seconds_for_a_turntable(tmp_path):
-    refused(CliRunner().invoke(main, ["simulate", "--duration-s", "60", "-o", str(tmp_path / "x")]), "duration_s (--duration-s) 60")
+    refused(CliRunner().invoke(main, ["simulate", "--duration-s", "60", "-o", str(tmp_path / "x")]),
+            "duration_s (--duration-s) 60")
     assert not (tmp_path / "x").exists()

@@ -54,7 +54,8 @@ def test_sequence_set_marks_rests_and_moves(tmp_path, short):
     steps = read_sequence(short)
     for k, s in enumerate(ms.segments):
         rows = ms.rows(s.segment)
-        if s.kind == "static":  # gravity in b where the commanded angles put it (within the table's and mounting errors)
+        # gravity in b where the commanded angles put it (within the table's and mounting errors)
+        if s.kind == "static":
             C = table.C_k_n(*np.radians([s.outer_deg, s.middle_deg, s.inner_deg]), np.zeros(7))
             f = ms.acc_g()[rows].mean(0)
             assert np.degrees(np.arccos(f @ C[2] / np.linalg.norm(f))) < 0.5
@@ -104,7 +105,8 @@ def test_filter_model_equals_its_derivation():
         F_sym, _, H, states = d.error_state_model(acc, gyro)
         C = table.mounting(rng.normal(0, 1, 3))
         f_b, w_b, w_ie = rng.normal(0, 1, 3), rng.normal(0, 50, 3), rng.normal(0, 7e-5, 3)
-        p_a, p_g, eta = rng.normal(0, 1e-2, len(acc.params)), rng.normal(0, 1e-2, len(gyro.params)), rng.normal(0, 1e-2, 3)
+        p_a, p_g, eta = (rng.normal(0, 1e-2, len(acc.params)), rng.normal(0, 1e-2, len(gyro.params)),
+                         rng.normal(0, 1e-2, 3))
         t_s, temp_c = 12.5, 30.0
         sensors = Sensors(AugmentedModel(acc.name), AugmentedModel(gyro.name), p_a, p_g, eta)
         aux = AuxInputs({"t_s": np.array([t_s]), "temp_c": np.array([temp_c]), "t_ref_c": 25.0})
@@ -113,7 +115,8 @@ def test_filter_model_equals_its_derivation():
         F = np.block([[F_nn[0], F_np[0]], [np.zeros((len(states) - 6, len(states)))]])  # the constants' rows: 0
         f_d = table.mounting(eta) @ f_b
         values = {**dict(zip(d.C, C.ravel())), **dict(zip(d.f_b, f_b)), **dict(zip(d.w_b, w_b)),
-                  **dict(zip(d.w_ie, w_ie)), d.g0: 9.8, **dict(zip(d.sensor_params(acc), p_a)), **dict(zip(d.sensor_params(gyro), p_g)),
+                  **dict(zip(d.w_ie, w_ie)), d.g0: 9.8, **dict(zip(d.sensor_params(acc), p_a)),
+                  **dict(zip(d.sensor_params(gyro), p_g)),
                   **dict(zip(d.eta, eta)), **{sp.Symbol(n, real=True): v for n, v in (
                       ("t_s", t_s), ("temp_c", temp_c), ("dtemp_c", temp_c - 25.0), ("w2", 0.0),
                       ("f_x", f_d[0]), ("f_y", f_d[1]), ("f_z", f_d[2]))}}

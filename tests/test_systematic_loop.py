@@ -22,7 +22,8 @@ def short(tmp_path_factory):
 def quadratic(tmp_path_factory, short):
     """A sequence of a unit with acc.quadratic.z = 2e-4 /g planted (written with truth.json)."""
     out = tmp_path_factory.mktemp("quadratic") / "set"
-    assert run("simulate", "--sequence", short, "--effect", "acc.quadratic.z=2e-4", "--seed", 7, "-o", out).exit_code == 0
+    assert run("simulate", "--sequence", short, "--effect", "acc.quadratic.z=2e-4", "--seed", 7, "-o",
+               out).exit_code == 0
     return out
 
 

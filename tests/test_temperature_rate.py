@@ -29,7 +29,8 @@ def board_c(t, heat_s=(900.0, 600.0), cycle_s=1800.0, cycle_c=4.0):
     """The thermistor's temperature: 15 to 55 degC through two time constants (its rate starts at 0), plus a
     chamber's cycle, so that the rate at a temperature is not a polynomial in it (else no data tell a lag)."""
     a, b = heat_s
-    return 15 + 40 * (1 - (a * np.exp(-t / a) - b * np.exp(-t / b)) / (a - b)) + cycle_c * (1 - np.cos(2 * np.pi * t / cycle_s))
+    return (15 + 40 * (1 - (a * np.exp(-t / a) - b * np.exp(-t / b)) / (a - b))
+            + cycle_c * (1 - np.cos(2 * np.pi * t / cycle_s)))
 
 
 def lagged(t, T, tau):
@@ -90,7 +91,8 @@ def test_a_die_lagging_its_thermistor_fails_the_model_and_its_rate_brings_the_ax
     for seed in range(3):
         cal = calibrate_warmup(warmup(seed, (LAG_S, 0, 0)), t_ref_c=T_REF)
         x = cal.gyro.thermal["parameters"]["b_x"]
-        assert cal.gyro.p_value < ALPHA and x["p_value"] < ALPHA and x["targeted"]["strongest"] == "gyro.temperature_rate.x"
+        assert (cal.gyro.p_value < ALPHA and x["p_value"] < ALPHA
+                and x["targeted"]["strongest"] == "gyro.temperature_rate.x")
         assert "verdict" in x["targeted"] and cal.gyro.details["advice"] == "gyro.temperature_rate.x"
         assert all(cal.gyro.thermal["parameters"][f"b_{a}"]["p_value"] >= ALPHA for a in "yz")
         assert cal.acc.p_value >= ALPHA
@@ -138,8 +140,9 @@ def test_the_rate_through_the_command_line_and_on_another_warm_up(tmp_path):
     warmup(5, (LAG_S, 0, 0), heat_s=(600.0, 300.0), cycle_s=900.0, cycle_c=3.0).write(tmp_path / "b")
     runner, after = CliRunner(), {}
     for name, add in (("plain", []), ("rate", ["--add", "gyro.temperature_rate.x"])):
-        r = runner.invoke(main, ["calibrate", str(tmp_path / "a"), "--thermal", *add, "-o", str(tmp_path / f"{name}.json"),
-                                 "--px4", str(tmp_path / f"{name}.params"), "--ardupilot", str(tmp_path / f"{name}.param")])
+        r = runner.invoke(main, ["calibrate", str(tmp_path / "a"), "--thermal", *add, "-o",
+                                 str(tmp_path / f"{name}.json"), "--px4", str(tmp_path / f"{name}.params"),
+                                 "--ardupilot", str(tmp_path / f"{name}.param")])
         assert r.exit_code == 0, r.output
         for autopilot, suffix in (("PX4", "params"), ("ArduPilot", "param")):  # no rate parameter: said in the file
             said = f"gyro.temperature_rate.x was fitted beside the bias polynomial, but {autopilot} has no parameter"

@@ -36,7 +36,8 @@ def _sim(folder, temperature, seed, plan="fibonacci48", wander=0.3):
                      temperature, "--t-ref-c", T_REF, "--temperature-wander-c", wander, *EFFECTS)
     assert code == 0, out
     meta = json.loads((folder / "meta.json").read_text())  # the simulated table's outer axis leans 5 arcsec: stated,
-    meta["table_tilt_arcsec"] = 5.0  # as a user states the levelling, so that the gyro's stds hold it (turntable/tilt.py)
+    # as a user states the levelling, so that the gyro's stds hold it (turntable/tilt.py)
+    meta["table_tilt_arcsec"] = 5.0
     (folder / "meta.json").write_text(json.dumps(meta))
     return folder
 
@@ -391,7 +392,8 @@ def test_a_g_sensitivity_drifting_with_temperature_is_described_and_written(tmp_
     # the rate runs cannot tell the twins apart; the static rows can, and choose the truth
     at_rest = shape["static_rows"]
     assert set(at_rest) == found and min(at_rest, key=lambda k: at_rest[k]["chi2"]) == "f_z dtemp_c on x"
-    assert f"{shape['regressor']} on {shape['axis']}" == "f_z dtemp_c on x" and "static rows chose it" in gyro["verdict"]
+    assert (f"{shape['regressor']} on {shape['axis']}" == "f_z dtemp_c on x"
+            and "static rows chose it" in gyro["verdict"])
     assert abs(abs(shape["estimate"]) - 0.01) < 0.002
     code, out = _run("calibrate", tmp_path / "s", "--add", tmp_path / "d_gyro_model.py", "-o", tmp_path / "c.json")
     assert code == 0, out
@@ -461,7 +463,8 @@ def test_auto_chooses_between_twins_with_every_plateau(tmp_path):
     import simucal
     for seed in (1, 5):
         sets = [simucal.simulate(plan="fibonacci24", seed=3 * seed + i, temperature_c=T, t_ref_c=T_REF,
-                                 temperature_wander_c=0.3, effects={"acc.quadratic.z": 4.9e-5, "acc.bias_temperature.x": 2e-6})
+                                 temperature_wander_c=0.3,
+                                 effects={"acc.quadratic.z": 4.9e-5, "acc.bias_temperature.x": 2e-6})
                 for i, T in enumerate((0.0, 25.0, 50.0))]
         nearest = simucal.calibrate(sets[1], add=["auto"]).acc
         assert [s["id"] for s in nearest.details["auto"]] == ["acc.scale_asymmetry.z"]

@@ -152,7 +152,8 @@ def test_a_gap_inside_a_turntable_segment_is_named(tmp_path):
     assert "1 gap in t_s" in r.output and "40 samples missing" in r.output and f"inside segment {seg}" in r.output
     assert json.loads((tmp_path / "c.json").read_text())["timestamps"]["gaps"][0]["segment"] == seg
     r = CliRunner().invoke(main, ["diagnose", str(tmp_path / "gap"), "-o", str(tmp_path / "d.json")])
-    assert r.exit_code == 0 and "40 samples missing" in json.dumps(json.loads((tmp_path / "d.json").read_text())["notes"])
+    assert (r.exit_code == 0
+            and "40 samples missing" in json.dumps(json.loads((tmp_path / "d.json").read_text())["notes"]))
 
 
 def test_validate_reads_a_loggers_stamps_as_the_calibration_did(tmp_path):

@@ -55,8 +55,10 @@ def test_a_drifting_units_due_date_on_the_command_line_and_its_page(tmp_path):
     assert p["earliest_years"] < p["expected_years"] and f"{DRIFT_PARAM} is expected to leave its spec" in r.output
     assert trend["due_utc"] == p["earliest_utc"] and p["earliest_utc"][:10] in (tmp_path / "h.html").read_text()
     last = p["values"][-1]  # measured outside already: due at the last calibration, whatever the line says
-    spec.write_text(json.dumps({"format": "simucal.limits/1", "limits": {DRIFT_PARAM: {"max": last - std, "unit": unit}}}))
-    out = next(q for q in simucal.Store(store).history("SN-0000", spec=spec)["trend"]["parameters"] if q["name"] == p["name"])
+    spec.write_text(json.dumps({"format": "simucal.limits/1",
+                                "limits": {DRIFT_PARAM: {"max": last - std, "unit": unit}}}))
+    out = next(q for q in simucal.Store(store).history("SN-0000", spec=spec)["trend"]["parameters"]
+               if q["name"] == p["name"])
     assert out["expected_years"] == out["earliest_years"] == p["t_years"][-1]
     r = run("history", "SN-0000", "--store", store, "-o", store)  # the store is an input: never written over
     assert r.exit_code != 0 and "input" in r.output and len(simucal.Store(store).records()) == 3

@@ -221,7 +221,8 @@ def test_data_that_look_valid_and_are_not_are_refused(avg, tmp_path, case):
     d = tmp_path / "set"
     shutil.copytree(avg / "set", d)
     damage(d)
-    for cmd in (["calibrate", d, "-o", tmp_path / "c.json"], ["validate", avg / "cal.json", d, "-o", tmp_path / "v.json"]):
+    for cmd in (["calibrate", d, "-o", tmp_path / "c.json"],
+                ["validate", avg / "cal.json", d, "-o", tmp_path / "v.json"]):
         line = refused(_run(*cmd), expect)
         assert len(line) < 2000  # a 10 MB value is not echoed whole
     assert not (tmp_path / "c.json").exists() and not (tmp_path / "v.json").exists()
@@ -418,7 +419,8 @@ def test_one_error_base_caught_in_one_place(tmp_path, monkeypatch):
         assert issubclass(cls, SimucalError), cls
     for m in pkgutil.iter_modules(cli.__path__):
         src = inspect.getsource(__import__(f"simucal.cli.{m.name}", fromlist=["x"]))
-        assert not re.search(r"except [^:]*(Error|Exception)[^:]* as e:\s*fail\(e\)", src), m.name  # a refusal's own handler
+        # a refusal's own handler
+        assert not re.search(r"except [^:]*(Error|Exception)[^:]* as e:\s*fail\(e\)", src), m.name
     write(tmp_path / "s", Scenario(plan="table1"), 1)
     refused(_run("simulate", "-o", tmp_path / "t", "--sequence", "nosuch"), "--sequence nosuch")  # an InputError
     for bug in (KeyError("acc"), ValueError("shapes (3,) and (4,) not aligned")):

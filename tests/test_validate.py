@@ -194,7 +194,8 @@ def test_averaged_rows_without_stated_noise_take_it_from_the_options(tmp_path):
             meta.pop(key)
         (tmp_path / name / "meta.json").write_text(json.dumps(meta))
     noise = ["--acc-noise-g", "1e-5", "--gyro-noise-dph", "0.01"]
-    assert CliRunner().invoke(main, ["calibrate", str(tmp_path / "a"), "-o", str(tmp_path / "c.json"), *noise]).exit_code == 0
+    assert CliRunner().invoke(main,
+                              ["calibrate", str(tmp_path / "a"), "-o", str(tmp_path / "c.json"), *noise]).exit_code == 0
     floors = {}
     for tag, extra in (("none", []), ("stated", noise)):
         r = CliRunner().invoke(main, ["validate", str(tmp_path / "c.json"), str(tmp_path / "b"), "-o",

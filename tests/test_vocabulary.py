@@ -34,14 +34,16 @@ def test_every_methods_m_and_bias_with_stds_that_hold_against_the_truth():
                 z[m][s] += v
     for m, by in z.items():
         for s, v in by.items():
-            assert len(v) >= 8 * 9 and 0.7 < np.sqrt(np.mean(np.square(v))) < 1.4, (m, s, np.sqrt(np.mean(np.square(v))))
+            assert (len(v) >= 8 * 9
+                    and 0.7 < np.sqrt(np.mean(np.square(v))) < 1.4), (m, s, np.sqrt(np.mean(np.square(v))))
 
 
 def test_compare_lines_three_methods_up_in_one_table():
     ms = simucal.simulate(seed=1)
     cals = {m: simucal.calibrate(ms, method=m) for m in ("exact", "linear", "multiposition")}
     t = simucal.compare(cals)
-    assert list(t.columns) == ["unit", "exact", "exact std", "linear", "linear std", "multiposition", "multiposition std"]
+    assert list(t.columns) == ["unit", "exact", "exact std", "linear", "linear std", "multiposition",
+                               "multiposition std"]
     assert len(t.loc["acc"]) == len(t.loc["gyro"]) == 12
     acc = t.loc["acc"]
     assert (acc.loc[["M_xy", "M_xz", "M_yz"], ["exact", "multiposition"]].abs() < 1e-12).all().all()  # one frame

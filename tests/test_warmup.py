@@ -97,7 +97,8 @@ def test_still_data_say_what_they_can_give(tmp_path):
     with pytest.raises(CalibrationError, match=r"no motion.*calibrate SET --thermal.*simucal noise"):
         calibrate(tmp_path / "still")
     refused(CliRunner().invoke(main, ["calibrate", str(tmp_path / "still"), "--thermal", "--thermal-degree", "2",
-                                      "-o", str(tmp_path / "c.json")]), "--thermal-degree", "takes its degree from the data")
+                                      "-o", str(tmp_path / "c.json")]), "--thermal-degree",
+            "takes its degree from the data")
     refused(CliRunner().invoke(main, ["calibrate", str(tmp_path / "still"), "--thermal", "--add", "acc.quadratic.z",
                                       "-o", str(tmp_path / "c.json")]), "--add", "no effects")
 
@@ -120,7 +121,8 @@ def test_validated_on_another_warm_up_of_the_unit(tmp_path):
     acc = ms.raw("acc").copy()
     acc[len(acc) // 2:] = acc[len(acc) // 2:, ::-1]  # turned onto its side half way
     simucal.MeasurementSet.from_arrays(acc, ms.raw("gyro"), acc_unit="g", gyro_unit="deg/h", t_s=ms.samples["t_s"],
-                                       temp_c=ms.samples["temp_c"], meta={"latitude_deg": 47.0}).write(tmp_path / "moving")
+                                       temp_c=ms.samples["temp_c"],
+                                       meta={"latitude_deg": 47.0}).write(tmp_path / "moving")
     with pytest.raises(CalibrationError, match="validated on another still warm-up"):
         validate(str(tmp_path / "c.json"), str(tmp_path / "moving"))
 
@@ -180,8 +182,10 @@ def test_a_board_turned_during_its_warm_up_and_stream_options_are_named(tmp_path
     half = np.arange(len(acc)) >= len(acc) // 2
     acc[half] = acc[half][:, [0, 2, 1]] * [1, 1, -1]  # turned 90 deg about x
     simucal.MeasurementSet.from_arrays(acc, ms.raw("gyro"), acc_unit="g", gyro_unit="deg/h", t_s=ms.samples["t_s"],
-                                       temp_c=ms.samples["temp_c"], meta={"latitude_deg": 47.0}).write(tmp_path / "turned")
-    refused(CliRunner().invoke(main, ["calibrate", str(tmp_path / "turned"), "--thermal", "-o", str(tmp_path / "c.json")]),
+                                       temp_c=ms.samples["temp_c"],
+                                       meta={"latitude_deg": 47.0}).write(tmp_path / "turned")
+    refused(CliRunner().invoke(main,
+                               ["calibrate", str(tmp_path / "turned"), "--thermal", "-o", str(tmp_path / "c.json")]),
             "the board moved during the warm-up", "2 stretches", "up to 90 deg apart")
     simucal.MeasurementSet.of(warmup(2, seconds=300.0)).write(tmp_path / "still")
     for option in (["--window-s", "2"], ["--min-static-s", "3"], ["--timestamps", "nominal"]):

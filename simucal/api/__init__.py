@@ -45,8 +45,10 @@ if TYPE_CHECKING:
     from simucal.api.store import Store
 
 __all__ = ["read_set", "simulate", "calibrate", "validate", "diagnose", "noise", "save", "load", "table_rows",
-           "compare", "import_recording", "import_instances", "calibrate_instances", "autopilot_files", "ImuCalibration", "convert", "montecarlo", "calibrate_each", "Calibrated", "plan",
-           "sequence_observability", "design_sequence", "derive_model", "audit", "DetectSettings", "CalibrateOptions", "MeasurementSet", "Calibration", "Parameter", "Entry",
+           "compare", "import_recording", "import_instances", "calibrate_instances", "autopilot_files",
+           "ImuCalibration", "convert", "montecarlo", "calibrate_each", "Calibrated", "plan",
+           "sequence_observability", "design_sequence", "derive_model", "audit", "DetectSettings", "CalibrateOptions",
+           "MeasurementSet", "Calibration", "Parameter", "Entry",
            "Validation", "Check", "Diagnosis", "Candidate", "Suggestion", "NextStep", "Noise", "Term", "lot", "Store",
            "certificate"]
 

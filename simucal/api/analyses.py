@@ -140,8 +140,8 @@ def noise(data: Data, *, tau_max_s: float | None = None, scheduler: str | None =
     report = (characterise(data, methods.kind_of(data), tau_max_s) if isinstance(data, io.MeasurementSet)
               else characterise_folder(folder_of(data), methods.kind_of, tau_max_s, scheduler))
     shown = noise_in(report, units)  # the tables in the units asked; the report as written
-    rows = [Term(s, a, k, t["name"], t["status"], t["value"] if t["status"] == "seen" else None, t.get("std"), t.get("bound_95"), t.get("needs_s"),
-                 t["unit"])
+    rows = [Term(s, a, k, t["name"], t["status"], t["value"] if t["status"] == "seen" else None, t.get("std"),
+                 t.get("bound_95"), t.get("needs_s"), t["unit"])
             for s in ("acc", "gyro") if s in shown for a, axis in shown[s]["axes"].items()
             for k, t in axis.get("sheet", {}).items()]
     return Noise(rows, report, allan_points(shown))

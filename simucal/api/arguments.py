@@ -6,9 +6,10 @@ comparison, a KeyError) or misread it (one path as a str taken for a list of pat
 `@checked` reads what each argument accepts off the function's own annotations (resolved in its module), so an
 argument or a function added later is checked as well:
 - a number (int or float, never a bool), a whole number, True or False, a string (a pathlib.Path given for one
-  is passed on as its str: many take a built-in name or a file), a path (str or os.PathLike), a list of any of them (a list, a tuple, a 1-d array; an iterator or a set is taken as a list, so that reading
-  it here leaves the function its items), a mapping, an instance of a class, or a union of these; a Literal's
-  type; Any, and what cannot be resolved, accepts anything;
+  is passed on as its str: many take a built-in name or a file), a path (str or os.PathLike), a list of any of them (a
+  list, a tuple, a 1-d array; an iterator or a set is taken as a list, so that reading it here leaves the function its
+  items), a mapping, an instance of a class, or a union of these; a Literal's type; Any, and what cannot be resolved,
+  accepts anything;
 - None where the annotation admits it or the argument is optional (None: not given, as the command line
   passes an option left out);
 - only the keywords the function takes (calibrate's options: CalibrateOptions's), the nearest one named."""
@@ -81,7 +82,8 @@ def _union(args: tuple[Any, ...]) -> Accepts | None:
         return None
     known = [m for m in members if m is not None]
     none = type(None) in args  # an item's None (a mapping's value): at the top, the door's nullable already took it
-    return Accepts(lambda v: (none and v is None) or any(m.test(v) for m in known), " or ".join(dict.fromkeys(m.words for m in known)),
+    return Accepts(lambda v: (none and v is None) or any(m.test(v) for m in known),
+                   " or ".join(dict.fromkeys(m.words for m in known)),
                    any(m.listed for m in known), next((m.item for m in known if m.item), None),
                    any(m.fspath for m in known))
 
@@ -202,7 +204,8 @@ def _unknown(where: str, keywords: list[str], kwargs: dict[str, Any]) -> None:
         if k not in keywords:
             near = difflib.get_close_matches(k, keywords, 1)
             raise ArgumentError(f"{where}: {k}={shown(v)} is not an argument of {where}"
-                                + (f"; did you mean {near[0]}=?" if near else "") + f" (it takes {', '.join(keywords)})")
+                                + (f"; did you mean {near[0]}=?" if near else "")
+                                + f" (it takes {', '.join(keywords)})")
 
 
 def checked(f: Callable[P, R]) -> Callable[P, R]:

@@ -36,7 +36,8 @@ def output_files(data_dirs: Sequence[str | os.PathLike[str]], folder: str | os.P
 
 
 @checked
-def calibrate_each(data_dirs: Sequence[str | os.PathLike[str]], folder: str | os.PathLike[str], *, scheduler: str | None = None,
+def calibrate_each(data_dirs: Sequence[str | os.PathLike[str]], folder: str | os.PathLike[str], *,
+                   scheduler: str | None = None,
                    progress: Any = None, **options: Unpack[CalibrateOptions]) -> list[Calibrated]:
     """Calibrate every set of `data_dirs` (as `simucal.calibrate` with `options`) and write each one's file as
     FOLDER/<set's folder name>.json, on a scheduler where given (local, processes or a Dask address).

@@ -96,7 +96,8 @@ def calibrate_over_temperature(sets: Sequence[Data], **options: Unpack[Calibrate
     return Calibration.of(calibrate_thermal([as_set(d) for d in sets], **keywords(options)))
 
 
-def calibrate_set(folder: Data, method: str = "auto", acc_model: str = "acc_baseline", gyro_model: str = "gyro_baseline",
+def calibrate_set(folder: Data, method: str = "auto", acc_model: str = "acc_baseline",
+                  gyro_model: str = "gyro_baseline",
                   detect: DetectSettings | None = None, add: Sequence[str] = (), acc_noise_g: float | None = None,
                   gyro_noise_dph: float | None = None, heading_accuracy_deg: float | None = None,
                   t_ref_c: float | None = None, noise: str | os.PathLike[str] | None = None, rank: bool = True,
@@ -106,8 +107,8 @@ def calibrate_set(folder: Data, method: str = "auto", acc_model: str = "acc_base
     library effects a failing model needs, chosen one at a time (each sensor's block lists them
     under `auto`); acc_noise_g / gyro_noise_dph: the noise of one row where the data cannot give
     it; detect: a stream's static detection settings; heading_accuracy_deg: a field set's north
-    reference (None: methods.DEFAULTS' 5 deg); t_ref_c: T_ref of temperature terms (default the mean of temp_c); noise: a noise.json of
-    `simucal noise`, whose Allan curve gives each segment's noise at its length; rank: a failing model's
+    reference (None: methods.DEFAULTS' 5 deg); t_ref_c: T_ref of temperature terms (default the mean of temp_c); noise:
+    a noise.json of `simucal noise`, whose Allan curve gives each segment's noise at its length; rank: a failing model's
     candidates ranked (turntable; a thermal calibration's plateau needs none); timestamps: a
     stream's time stamps as recorded, evenly spaced at their mean step (nominal: the sensor's clock
     behind a logger's arrival times), or auto (io/timestamps.py). Options a method does not take are
@@ -132,7 +133,8 @@ def calibrate_set(folder: Data, method: str = "auto", acc_model: str = "acc_base
         if "ids" in m.options:  # models and effects: imported only by the methods that fit them
             from simucal.fit.augmented import resolve_add
             acc_model, gyro_model, ids = resolve_add(ids, acc_model, gyro_model)
-        for sensor, stated, flag in (("acc", acc_noise_g, "--acc-noise-g"), ("gyro", gyro_noise_dph, "--gyro-noise-dph")):
+        for sensor, stated, flag in (("acc", acc_noise_g, "--acc-noise-g"),
+                                     ("gyro", gyro_noise_dph, "--gyro-noise-dph")):
             if stated is not None and curves and curves.get(sensor) is not None:
                 raise CalibrationError(f"--noise {noise} gives the {sensor} noise of every segment, and {flag} "
                                        f"{stated:g} one row's: give one of them")
@@ -148,7 +150,8 @@ def calibrate_set(folder: Data, method: str = "auto", acc_model: str = "acc_base
                 unused[0], "--" + unused[0].replace("_", "-"))
             takes = [x.name for x in methods.METHODS.values() if unused[0] in x.options]
             raise CalibrationError(f"{flag} does not apply to method {m.name} ({m.summary}); it applies to method "
-                                   f"{' or '.join(takes)} ({' or '.join(sorted({methods.DATA[methods.METHODS[t].data] for t in takes}))}).")
+                                   f"{' or '.join(takes)} "
+                                   f"({' or '.join(sorted({methods.DATA[methods.METHODS[t].data] for t in takes}))}).")
         from threadpoolctl import threadpool_limits
         with threadpool_limits(1, "blas"):  # the fits' QRs and pseudo-inverses (up to 522 x 357) are small: on two
             result = m.call(ms, **given)    # OpenBLAS threads each ran 1.1-60x slower here (raw41, both ways measured)
@@ -190,8 +193,8 @@ def _still_warmup(folders: Sequence[Data], degree: int | None, kwargs: Mapping[s
     method = kwargs.get("method")
     given = [o for o, v in (("--thermal-degree", degree),
                             ("--method", method not in (None, "auto") and method),
-                            ("--acc-noise-g", kwargs.get("acc_noise_g")), ("--gyro-noise-dph", kwargs.get("gyro_noise_dph")),
-                            ("--noise", kwargs.get("noise")),
+                            ("--acc-noise-g", kwargs.get("acc_noise_g")),
+                            ("--gyro-noise-dph", kwargs.get("gyro_noise_dph")), ("--noise", kwargs.get("noise")),
                             ("--window-s, --threshold-factor, --init-rest-s, --min-static-s, --gyro-limit-dps (a "
                              "hand session's static detection)", kwargs.get("detect")),
                             ("--timestamps", kwargs.get("timestamps") not in (None, "auto"))) if v]

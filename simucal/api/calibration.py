@@ -188,7 +188,8 @@ class Calibration(calibration.Calibration):
         return MeasurementSet.of(io.MeasurementSet(ms.path, calibrated, samples, segments))
 
     @checked
-    def autopilot_files(self, data: Any, *, px4: str | None = None, ardupilot: str | None = None) -> list[AutopilotFile]:
+    def autopilot_files(self, data: Any, *, px4: str | None = None,
+                        ardupilot: str | None = None) -> list[AutopilotFile]:
         """A thermal calibration's bias polynomials as PX4's and ArduPilot's thermal compensation parameter files
         (`simucal calibrate --thermal --px4 FILE --ardupilot FILE`): their texts, made before anything is written.
 
@@ -228,7 +229,8 @@ class Calibration(calibration.Calibration):
         if block is None:
             why = self.not_calibrated.get(name)
             raise CalibrationError(f"this calibration ({self.method}) holds no {name!r} block"
-                                   + (f": {why}" if why else f"; its sensors: {', '.join(s for s, _ in self.blocks())}"))
+                                   + (f": {why}" if why
+                                      else f"; its sensors: {', '.join(s for s, _ in self.blocks())}"))
         return block
 
     @checked
@@ -280,7 +282,8 @@ class Calibration(calibration.Calibration):
         mine = {"acc_unit": "g", "gyro_unit": "deg/h", **scales, "gravity_mps2": gravity_mps2}
         # the caller's units to the calibration's own (its check refuses any other): exact for physical units
         raw = [None if a is None else conv(back(a, {**scales, **given}), mine)
-               for a, back, conv in ((acc, units.acc_to_g, units.g_to_acc), (gyro, units.gyro_to_dph, units.dph_to_gyro))]
+               for a, back, conv in ((acc, units.acc_to_g, units.g_to_acc),
+                                     (gyro, units.gyro_to_dph, units.dph_to_gyro))]
         ms = arrays.from_arrays(*raw, acc_unit=mine["acc_unit"], gyro_unit=mine["gyro_unit"], temp_c=temp_c,
                                 **({"t_s": t_s} if t_s is not None else {"rate_hz": 1.0}),
                                 meta={**scales, "latitude_deg": 0.0, "gravity_mps2": gravity_mps2}, name="x")
@@ -331,10 +334,12 @@ def _given_units(cal: calibration.Calibration, acc_unit: str | None, gyro_unit: 
     return given
 
 
-Split = tuple[NDArray[np.float64] | None, NDArray[np.float64] | None, dict[str, str] | None]  # acc, gyro, the frame's columns
+Split = tuple[NDArray[np.float64] | None, NDArray[np.float64] | None,
+              dict[str, str] | None]  # acc, gyro, the frame's columns
 
 
-def _split(cal: calibration.Calibration, x: Any, frame: bool, sensor: str | None, columns: dict[str, str] | None) -> Split:
+def _split(cal: calibration.Calibration, x: Any, frame: bool, sensor: str | None,
+           columns: dict[str, str] | None) -> Split:
     """(acc, gyro, {spec name: the frame's column}) of x."""
     if frame:
         names = {c: c for c in SAMPLE_COLS} | dict(columns or {})
@@ -344,8 +349,8 @@ def _split(cal: calibration.Calibration, x: Any, frame: bool, sensor: str | None
             missing = [names[c] for c in cols if names[c] not in x.columns]
             if s in wanted and missing:  # a sensor left raw beside calibrated ones would pass unnoticed
                 raise CalibrationError(f"the frame lacks {', '.join(missing)} (the calibration's {s} reads "
-                                       f"{' '.join(names[c] for c in cols)}; its columns: {list(x.columns)}): name them "
-                                       "with columns={'" + cols[0] + "': ..., ...}" + ("" if sensor else
+                                       f"{' '.join(names[c] for c in cols)}; its columns: {list(x.columns)}): "
+                                       "name them with columns={'" + cols[0] + "': ..., ...}" + ("" if sensor else
                                        f", or apply one sensor with sensor='{'gyro' if s == 'acc' else 'acc'}'"))
             got[s] = x[[names[c] for c in cols]].to_numpy(float) if s in wanted else None
         return got["acc"], got["gyro"], names

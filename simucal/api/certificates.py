@@ -66,7 +66,8 @@ def _source(calibration: str | os.PathLike[str] | None, store: str | os.PathLike
     finally:
         st.close()
     local = local_file(url)
-    return _Source(raw, where, where, [local] if local else [], row, "simucal apply CAL.json DATA_DIR -o calibrated (CAL.json: this "
+    return _Source(raw, where, where, [local] if local else [], row,
+                   "simucal apply CAL.json DATA_DIR -o calibrated (CAL.json: this "
                    f"record's file, simucal.Store(URL).file({record}))")
 
 

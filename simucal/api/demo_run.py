@@ -6,8 +6,8 @@ add), diagnose (which effect is missing), calibrate with it, apply both
 calibrations to the raw outputs, and show the error falling; then validate both on
 another recording of the same unit (a set they were not made from). Then the same
 unit over temperature (three wandering plateaus simulated as `simulate --temperature-c` does,
-`calibrate --thermal`, validated between them against one plateau's calibration) and the noise of a still recording (Allan
-deviation, IEEE 952 terms); then dong2018's section 4 test by the three methods, the
+`calibrate --thermal`, validated between them against one plateau's calibration) and the noise of a still recording
+(Allan deviation, IEEE 952 terms); then dong2018's section 4 test by the three methods, the
 audit, and the diagnosis report.
 """
 from __future__ import annotations
@@ -88,7 +88,8 @@ def _validate(out: Path, sc: Scenario, seed: int, echo: Callable[[str], Any]) ->
     from simucal.api.validating import html_page, validation_report
     sc.plan, sc.rate_hz, sc.static_s = "table1", 20.0, 5.0  # meta.json states the table (simulate's default)
     write(out / "loop_other", sc, seed + 1)
-    reps = {name: validation_report(out / f"loop_calibration_{name}.json", out / "loop_other") for name in ("baseline", "added")}
+    reps = {name: validation_report(out / f"loop_calibration_{name}.json", out / "loop_other")
+            for name in ("baseline", "added")}
     for name, rep in reps.items():
         outputs.write_text(out / f"loop_validation_{name}.json", json.dumps(rep, indent=1) + "\n")
         outputs.write_text(out / f"loop_validation_{name}.html", html_page(rep))
@@ -150,7 +151,8 @@ def thermal(out: Path, seed: int, echo: Callable[[str], Any]) -> dict[str, Any]:
     for s in ("acc", "gyro"):
         a, b = reps[""]["checks"][s][0], reps["_25"]["checks"][s][0]
         echo(f"   {_label(a):{w}} {a['after_rms']:9.3g} {b['after_rms']:13.3g} {a['floor_rms']:9.3g} {a['unit']}")
-    return {s: (reps[""]["checks"][s][0]["after_rms"], reps["_25"]["checks"][s][0]["after_rms"]) for s in ("acc", "gyro")}
+    return {s: (reps[""]["checks"][s][0]["after_rms"], reps["_25"]["checks"][s][0]["after_rms"])
+            for s in ("acc", "gyro")}
 
 
 def noise(out: Path, seed: int, echo: Callable[[str], Any]) -> None:

@@ -118,8 +118,8 @@ class Diagnosis:
 
 
 @checked
-def diagnose(data: Data, *, add: str | Sequence[str] = (), acc_model: str = "acc_baseline", gyro_model: str = "gyro_baseline",
-             acc_noise_g: float | None = None, gyro_noise_dph: float | None = None,
+def diagnose(data: Data, *, add: str | Sequence[str] = (), acc_model: str = "acc_baseline",
+             gyro_model: str = "gyro_baseline", acc_noise_g: float | None = None, gyro_noise_dph: float | None = None,
              timestamps: str = "auto", units: str = "spec") -> Diagnosis:
     """Test the model on a set and rank the candidate missing effects.
 
@@ -349,7 +349,8 @@ def _diagnose(ms: io.MeasurementSet, folder: Path, add: Sequence[str], acc_model
         raise CalibrationError(f"{folder}: nothing to diagnose: segments.csv holds no rows the "
                                f"{' or '.join(ms.sensors)} model is tested on (the accelerometers' static positions, "
                                "the gyro's rate runs)")
-    worst = min(sensors, key=lambda s: result[s]["model_test"]["p_value"] if result[s]["model_test"]["p_value"] is not None
+    worst = min(sensors,
+                key=lambda s: result[s]["model_test"]["p_value"] if result[s]["model_test"]["p_value"] is not None
                 else 1.0)
     result["sensor"] = worst
     result.update(model_test_keys(result[worst]["model_test"]))

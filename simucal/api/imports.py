@@ -11,10 +11,12 @@ from simucal.api.arguments import checked
 from simucal.api.sets import MeasurementSet
 from simucal.errors import InputError
 
-Format = Literal["imu_tk", "imucal-ferraris", "imucal-annotated", "csv", "ulog", "dataflash", "rosbag"]  # an editor's check
+Format = Literal["imu_tk", "imucal-ferraris", "imucal-annotated", "csv", "ulog", "dataflash",
+                 "rosbag"]  # an editor's check
 FORMATS: tuple[str, ...] = typing.get_args(Format)
 FERRARIS_HZ = 102.4  # imucal's Ferraris recordings' rate, where the file has no time column
-ANNOTATED_HZ, ANNOTATED_ACC, ANNOTATED_GYRO = 204.8, 2048.0, 16.4  # imucal's annotated sessions: Hz, counts/g, counts/(deg/s)
+# imucal's annotated sessions: Hz, counts/g, counts/(deg/s)
+ANNOTATED_HZ, ANNOTATED_ACC, ANNOTATED_GYRO = 204.8, 2048.0, 16.4
 
 Path_ = str | os.PathLike[str]
 
@@ -93,8 +95,8 @@ def import_recording(fmt: Format, sources: Sequence[Path_], out: Path_, *, latit
 
 
 @checked
-def import_instances(fmt: Literal["ulog", "dataflash"], source: Path_, out: Path_, *, instances: Sequence[int] | None = None,
-                     latitude_deg: float | None = None, force: bool = False,
+def import_instances(fmt: Literal["ulog", "dataflash"], source: Path_, out: Path_, *,
+                     instances: Sequence[int] | None = None, latitude_deg: float | None = None, force: bool = False,
                      read_back: bool = True) -> list[MeasurementSet]:
     """Write one measurement set per IMU instance of an autopilot's log, OUT/instance<n> (`simucal import
     ulog|dataflash LOG --instance all -o OUT`, or `--instance 0,1`), the log read once; return them.
@@ -137,8 +139,8 @@ def import_instances(fmt: Literal["ulog", "dataflash"], source: Path_, out: Path
     return [MeasurementSet.of(io.read_set(ms.path) if read_back else ms) for ms in done]
 
 
-def _import_csv(path: Path, out: Path_, columns: str | None, acc_unit: str | None, gyro_unit: str | None, rate_hz: float | None,
-                latitude_deg: float | None) -> None:
+def _import_csv(path: Path, out: Path_, columns: str | None, acc_unit: str | None, gyro_unit: str | None,
+                rate_hz: float | None, latitude_deg: float | None) -> None:
     """Any CSV by its columns' map (--columns), each mapped triad's unit given."""
     from simucal.io import importers as im
     if not columns:

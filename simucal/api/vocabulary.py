@@ -56,7 +56,8 @@ def entries(sensor: str, block: SensorBlock) -> list[Entry]:
     rows += [Entry(sensor, f"bias_{c}", float(block.bias[i]), float(b_std[i]), block.bias_unit, own.get(f"bias_{c}"))
              for i, c in enumerate(AXES)]
     for eid, v in block.effects.items():  # a model file's own term is named by itself
-        rows.append(Entry(sensor, eid, float(v.value), float(v.std), v.unit, eid if v.term_of else EFFECTS[eid].parameter))
+        rows.append(Entry(sensor, eid, float(v.value), float(v.std), v.unit,
+                          eid if v.term_of else EFFECTS[eid].parameter))
     return rows
 
 
@@ -131,7 +132,8 @@ def in_accelerometer_frame(rows: list[Entry]) -> list[Entry]:
                     d = np.zeros((3, 3))
                     d[i, j] = h
                     acc_p, acc_m = M["acc"] + (d if src == "acc" else 0), M["acc"] - (d if src == "acc" else 0)
-                    own_p, own_m = (acc_p, acc_m) if s == "acc" else (M[s] + (d if src == s else 0), M[s] - (d if src == s else 0))
+                    own_p, own_m = ((acc_p, acc_m) if s == "acc"
+                                    else (M[s] + (d if src == s else 0), M[s] - (d if src == s else 0)))
                     var += ((mapped(acc_p, own_p) - mapped(acc_m, own_m)) / (2 * h) * sd[src][i, j]) ** 2
         for i in range(3):
             for j in range(3):

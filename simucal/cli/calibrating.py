@@ -7,8 +7,8 @@ from pathlib import Path
 import click
 
 from simucal import methods
-from simucal.cli.common import (MODEL_FILE_RUNS, NOISE_DPH, NOISE_G, POSITIVE, SCHEDULER_TRUST, UNITS, InputPath, Number,
-                                fail, guard, main, refuse_unused)
+from simucal.cli.common import (MODEL_FILE_RUNS, NOISE_DPH, NOISE_G, POSITIVE, SCHEDULER_TRUST, UNITS, InputPath,
+                                Number, fail, guard, main, refuse_unused)
 from simucal.cli.store import record, store_option
 
 
@@ -22,7 +22,8 @@ HEADING_ACCURACY = click.option("--heading-accuracy-deg", type=Number(0.0, 180.0
                                 help=_HEADING_HELP)
 _MODEL_HELP = ("The {} model fitted: a built-in (derive/models/) or one derived from your model file "
                "(simucal derive --model FILE).")
-ACC_MODEL = click.option("--acc-model", default="acc_baseline", show_default=True, help=_MODEL_HELP.format("accelerometer"))
+ACC_MODEL = click.option("--acc-model", default="acc_baseline", show_default=True,
+                         help=_MODEL_HELP.format("accelerometer"))
 GYRO_MODEL = click.option("--gyro-model", default="gyro_baseline", show_default=True, help=_MODEL_HELP.format("gyro"))
 _ADD_HELP = ("Effect id to add, e.g. acc.quadratic.z (exact ids; unknown ones are refused), or a model file "
              "(MODELS = [...]) with your own SymPy terms, derived into the cache (repeatable). " + MODEL_FILE_RUNS)
@@ -63,13 +64,15 @@ _ADD_AUTO_HELP = (_ADD_HELP + " Also 'auto': the library effects a failing model
 @ACC_MODEL
 @GYRO_MODEL
 @click.option("--add", "add", multiple=True, help=_ADD_AUTO_HELP)
-@click.option("--acc-noise-g", type=NOISE_G, default=None, help="Noise of one acc row (g), where the data cannot give it.")
+@click.option("--acc-noise-g", type=NOISE_G, default=None,
+              help="Noise of one acc row (g), where the data cannot give it.")
 @click.option("--gyro-noise-dph", type=NOISE_DPH, default=None, help="Noise of one gyro row (deg/h).")
 @click.option("--noise", "noise_file", type=InputPath(exists=True, dir_okay=False), default=None,
               help="A noise.json of simucal noise: each segment's noise from its Allan curve at the segment's length "
                    "(averaged rows: meta.json's average_s).")
 @TIMESTAMPS
-@click.option("--init-rest-s", type=POSITIVE, default=None, help="Stream: length of the initial rest, s (default: found from the data).")
+@click.option("--init-rest-s", type=POSITIVE, default=None,
+              help="Stream: length of the initial rest, s (default: found from the data).")
 @click.option("--threshold-factor", type=Number(1.0, 1e6, low_open=True), default=None, show_default="6",
               help="Stream: static threshold, times the rest's variance.")
 @click.option("--window-s", type=POSITIVE, default=None, show_default="1", help="Stream: moving-variance window, s.")
@@ -93,8 +96,8 @@ def calibrate(data_dirs, output, thermal, thermal_degree, html_out, px4, ardupil
     continuous stream from a hand-placed session (static poses found from the data; Tedaldi).
     With heading_ref_deg and no table angles: a field set (ruan2019's gyro drift)."""
     from simucal.api import DetectSettings
-    stream = dict(window_s=window_s, threshold_factor=threshold_factor, min_static_s=min_static_s, init_rest_s=init_rest_s,
-                  gyro_limit_dps=gyro_limit_dps)
+    stream = dict(window_s=window_s, threshold_factor=threshold_factor, min_static_s=min_static_s,
+                  init_rest_s=init_rest_s, gyro_limit_dps=gyro_limit_dps)
     detect = DetectSettings(**{k: v for k, v in stream.items() if v is not None}) if any(
         v is not None for v in stream.values()) else None  # given only where set: other data refuse them
     kwargs = dict(method=method, acc_model=acc_model, gyro_model=gyro_model, detect=detect, add=add,
@@ -214,7 +217,8 @@ def _calibrate_instances(data_dirs, output, degree, t_ref_c, kwargs, inputs, htm
             click.echo(f"wrote {_instance_path(html_out, u.instance)}")
         assert u.calibration.temperature_range_c is not None  # a thermal calibration's
         lo, hi = u.calibration.temperature_range_c
-        click.echo(f"wrote {path} (instance {u.instance}, {', '.join(u.sets)}; calibrated from {lo:.4g} to {hi:.4g} degC)")
+        click.echo(f"wrote {path} (instance {u.instance}, {', '.join(u.sets)}; calibrated from {lo:.4g} to "
+                   f"{hi:.4g} degC)")
     for f in exported:
         outputs.write_text(f.path, f.text)
         for w in f.warnings:
@@ -279,11 +283,13 @@ def _added_lines(result):
 @click.option("-o", "--output", type=click.Path(dir_okay=False), default="diagnosis.json", show_default=True,
               help="The diagnosis (simucal.diagnosis/1): each sensor's model test, the ranked candidates, the verdict; "
                    "a found term that is no library effect also as <stem>_<sensor>_model.py beside it.")
-@click.option("--html", "html_path", type=click.Path(dir_okay=False), default=None, help="Also write a self-contained HTML report.")
+@click.option("--html", "html_path", type=click.Path(dir_okay=False), default=None,
+              help="Also write a self-contained HTML report.")
 @click.option("--add", "add", multiple=True, help=_ADD_HELP)
 @ACC_MODEL
 @GYRO_MODEL
-@click.option("--acc-noise-g", type=NOISE_G, default=None, help="Stated noise of one acc row (g), when the data cannot give it.")
+@click.option("--acc-noise-g", type=NOISE_G, default=None,
+              help="Stated noise of one acc row (g), when the data cannot give it.")
 @click.option("--gyro-noise-dph", type=NOISE_DPH, default=None, help="Stated noise of one gyro row (deg/h).")
 @TIMESTAMPS
 @UNITS

@@ -50,8 +50,8 @@ def _bug(e: Exception):
     if os.environ.get("SIMUCAL_DEBUG"):
         raise e
     traceback.print_exception(e, file=sys.stderr)
-    click.echo(f"error: internal error ({type(e).__name__}: {_short(str(e))}); this is a bug in simucal: please report it "
-               "with the command, the data and the traceback above", err=True)
+    click.echo(f"error: internal error ({type(e).__name__}: {_short(str(e))}); this is a bug in simucal: "
+               "please report it with the command, the data and the traceback above", err=True)
     sys.exit(3)
 
 
@@ -129,8 +129,8 @@ class Number(click.ParamType):
         if below or (self.high is not None and v > self.high):
             lo = None if self.low is None else f"{'>' if self.low_open else '>='} {self.low:g}"
             hi = None if self.high is None else f"<= {self.high:g}"
-            raise _Refused(f"{self._name(param)} {self._shown(value)}: must be " + " and ".join(x for x in (lo, hi) if x)
-                           + (f" ({self.what})" if self.what else ""))
+            raise _Refused(f"{self._name(param)} {self._shown(value)}: must be "
+                           + " and ".join(x for x in (lo, hi) if x) + (f" ({self.what})" if self.what else ""))
         return int(round(v)) if self.integer else v
 
     @staticmethod

@@ -59,11 +59,13 @@ INSTANCES = _Instances()
 @click.option("-o", "--output", type=click.Path(file_okay=False), default=None,
               help="The output folder (a measurement set and truth.json); may also be given as the argument.")
 @click.option("--scenario", type=click.Choice(SCENARIOS), default="paper", show_default=True,
-              help="Preset: 'paper' is dong2018 section 4 (turntable); 'field' is ruan2019 (three positions, no table); "
-                   "'handheld' a hand-placed session (a stream in counts, 30 poses held 5 s between moves); "
-                   "'sequence' the turntable turning through psins19 (raw samples; --sequence for another); 'still' a unit "
-                   "at rest (for noise); 'warmup' a still board warming from 15 to 58 degC (for calibrate --thermal).")
-@click.option("--heading-accuracy-deg", "--heading-error-deg", "heading_error_deg", type=Number(0.0, 180.0), default=None,
+              help="Preset: 'paper' is dong2018 section 4 (turntable); 'field' is ruan2019 (three positions, no "
+                   "table); 'handheld' a hand-placed session (a stream in counts, 30 poses held 5 s between moves); "
+                   "'sequence' the turntable turning through psins19 (raw samples; --sequence for another); "
+                   "'still' a unit at rest (for noise); 'warmup' a still board warming from 15 to 58 degC "
+                   "(for calibrate --thermal).")
+@click.option("--heading-accuracy-deg", "--heading-error-deg", "heading_error_deg", type=Number(0.0, 180.0),
+              default=None,
               show_default="5", help="field: the north reference's accuracy, deg; its error is drawn uniform +- this.")
 @click.option("--seed", type=SEED, default=0, show_default=True,
               help=SEED_HELP + " paper: the unit is the scenario's at every seed; handheld and field: the unit "
@@ -86,11 +88,11 @@ INSTANCES = _Instances()
               help="Generated accelerometer model for the truth (may hold terms calibration lacks).")
 @click.option("--gyro-model", default=None, show_default="gyro_baseline", help="Generated gyro model for the truth.")
 @click.option("--acc-unit", type=click.Choice(["g", "m/s^2", "pulse/s"]), default=None,
-              help="The accelerometer outputs' unit in samples.csv (default pulse/s, the paper's pulse counts; the field "
-                   "scenario writes m/s^2).")
+              help="The accelerometer outputs' unit in samples.csv (default pulse/s, the paper's pulse counts; "
+                   "the field scenario writes m/s^2).")
 @click.option("--gyro-unit", type=click.Choice(["deg/h", "deg/s", "rad/s", "pulse/s"]), default=None,
-              help="The gyro outputs' unit in samples.csv (default pulse/s, the paper's pulse counts; the field scenario "
-                   "writes deg/s).")
+              help="The gyro outputs' unit in samples.csv (default pulse/s, the paper's pulse counts; "
+                   "the field scenario writes deg/s).")
 @click.option("--effect", "effects", multiple=True, metavar="ID=VALUE",
               help="Plant a candidate effect in the truth, in the unit its term declares, e.g. "
                    "acc.quadratic.z=6e-5 or gyro.g_sensitivity.xz=0.3 (repeatable; paper and handheld).")
@@ -112,9 +114,9 @@ INSTANCES = _Instances()
 @click.option("--duration-s", type=Number(1.0, 86400.0), default=None, show_default="1800 (still), 1500 (warmup)",
               help="still and warmup: the stream's length, s.")
 @FORCE
-def simulate(out_dir, output, scenario, heading_error_deg, seed, unit_seed, plan, sequence, rate_hz, position_error_arcmin, acc_model, gyro_model,
-             acc_unit, gyro_unit, effects, effect_file, sets, columns, temperature_c, t_ref_c, temperature_wander_c,
-             no_noise_stated, duration_s, force):
+def simulate(out_dir, output, scenario, heading_error_deg, seed, unit_seed, plan, sequence, rate_hz,
+             position_error_arcmin, acc_model, gyro_model, acc_unit, gyro_unit, effects, effect_file, sets, columns,
+             temperature_c, t_ref_c, temperature_wander_c, no_noise_stated, duration_s, force):
     """Simulate a test; write a measurement set and truth.json (simucal simulate -o FOLDER [options]).
     The Python API's simucal.simulate(...).write(FOLDER)."""
     from simucal import api
@@ -132,7 +134,8 @@ def simulate(out_dir, output, scenario, heading_error_deg, seed, unit_seed, plan
                       noise_stated=not no_noise_stated, heading_accuracy_deg=heading_error_deg,
                       sequence=sequence, unit_seed=unit_seed, duration_s=duration_s)
     ms.write(out_dir, force=force)
-    click.echo(f"wrote {out_dir} ({api.simulation.resolved_scenario(scenario, sequence)} scenario, seed {seed}"  # what was written
+    click.echo(f"wrote {out_dir} ({api.simulation.resolved_scenario(scenario, sequence)} scenario, "  # what was written
+               f"seed {seed}"
                + (f", the unit of seed {unit_seed})" if unit_seed is not None else ")"))
 
 
@@ -227,7 +230,8 @@ def apply_cmd(calibration_file, data_dir, out_dir, force, units):
 @click.argument("data_dir", type=InputPath(exists=True, file_okay=False))
 @click.option("-o", "--output", type=click.Path(dir_okay=False), default="validation.json", show_default=True,
               help="The report (simucal.validation/1): each check's error at nominal, calibrated and its floor.")
-@click.option("--html", "html_path", type=click.Path(dir_okay=False), default=None, help="Also write a page with a plot.")
+@click.option("--html", "html_path", type=click.Path(dir_okay=False), default=None,
+              help="Also write a page with a plot.")
 @click.option("--acc-noise-g", type=NOISE_G, default=None,
               help="Noise of one acc row (g), where the data cannot give it (averaged rows): the checks' floors.")
 @click.option("--gyro-noise-dph", type=NOISE_DPH, default=None, help="Noise of one gyro row (deg/h), likewise.")
@@ -301,7 +305,8 @@ def noise(data_dir, output, html_path, kalibr_path, tau_max_s, scheduler, topic,
 @click.option("-o", "--output", type=click.Path(file_okay=False), required=True,
               help="The new set's folder (meta.json and segments.csv copied, the samples converted).")
 @click.option("--to", "to", type=click.Choice(["parquet", "csv"]), required=True,
-              help="The samples' format: samples.parquet (columnar, binary: smaller and faster to read) or samples.csv.")
+              help="The samples' format: samples.parquet (columnar, binary: smaller and faster to read) "
+                   "or samples.csv.")
 @FORCE
 def convert(data_dir, output, to, force):
     """Copy a measurement set with its samples as samples.parquet or samples.csv, read and written a chunk at a time

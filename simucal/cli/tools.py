@@ -45,7 +45,8 @@ def derive(check, model_files):
     done = tools.derive(check=check)
     if check:
         if done.stale:
-            click.echo(done.diff + "generated/ is stale; run `simucal derive`. Differs: " + ", ".join(done.stale), err=True)
+            click.echo(done.diff + "generated/ is stale; run `simucal derive`. Differs: " + ", ".join(done.stale),
+                       err=True)
             sys.exit(1)
         click.echo(f"generated/ is up to date ({done.seconds:.1f} s)")
     else:
@@ -70,7 +71,8 @@ def audit(output, seeds):
 
 
 @main.command()
-@click.option("-o", "--output", "--out-dir", "out_dir", type=click.Path(file_okay=False), default="out", show_default=True,
+@click.option("-o", "--output", "--out-dir", "out_dir", type=click.Path(file_okay=False), default="out",
+              show_default=True,
               help="The folder of everything the demo writes (its sets, calibrations, reports and pages).")
 @click.option("--seed", type=SEED, default=0, show_default=True, help=SEED_HELP)
 @FORCE
@@ -173,7 +175,8 @@ def _plan_sequence(sequence, model_name, add, score_plan, rates, acc_noise_g, gy
 
     from simucal import api
     from simucal.io import outputs
-    guard([sequence if Path(sequence).exists() else None, score_plan if score_plan and Path(score_plan).exists() else None],
+    guard([sequence if Path(sequence).exists() else None,
+           score_plan if score_plan and Path(score_plan).exists() else None],
           files={"-o": output} if output else {})
     r = api.sequence_observability(sequence, model=model_name, add=add, score=score_plan,
                                    rates_dps=rates_dps(rates) if rates else None, acc_noise_g=acc_noise_g,
@@ -181,10 +184,12 @@ def _plan_sequence(sequence, model_name, add, score_plan, rates, acc_noise_g, gy
     obs, crlb, models, plan_name, noise = r["observability"], r["norm"], r["models"], r["plan"], r["noise"]
     n = obs["noise_per_sample"]
     click.echo(f"sequence {r['sequence']['name']}: {models['acc']} and {models['gyro']}"
-               + "".join(f" + {a}" for a in add) + f", one pass of the linearised filter ({obs['updates']} zero-velocity "
-               f"updates; the default unit simulated, noise {max(n['acc_g']):.2g} g and {max(n['gyro_dph']):.2g} deg/h per "
-               f"sample); beside it the norm method's CRLB on {plan_name}, noise {noise['acc']:.3g} g and {noise['gyro']:.3g} "
-               f"deg/h per position" + ("" if r["stated"] else f" (held as long as a rest, {r['rest_n']:g} samples, unless "
+               + "".join(f" + {a}" for a in add)
+               + f", one pass of the linearised filter ({obs['updates']} zero-velocity "
+               f"updates; the default unit simulated, noise {max(n['acc_g']):.2g} g and {max(n['gyro_dph']):.2g} "
+               f"deg/h per sample); beside it the norm method's CRLB on {plan_name}, noise {noise['acc']:.3g} g and "
+               f"{noise['gyro']:.3g} deg/h per position"
+               + ("" if r["stated"] else f" (held as long as a rest, {r['rest_n']:g} samples, unless "
                                         "stated)"))
     click.echo(f"  {'parameter':18} {'unit':16} {'prior std':>10} {'sequence std':>13} {'of prior':>9} "
                f"{'CRLB ' + plan_name:>16}")
@@ -195,10 +200,11 @@ def _plan_sequence(sequence, model_name, add, score_plan, rates, acc_noise_g, gy
     if obs["unobserved"]:
         click.echo(f"UNOBSERVED on this sequence (std above {obs['threshold']:g} of its prior, or over "
                    f"{obs['inflation_threshold']:g} times its std were the other states known): "
-                   f"{', '.join(obs['unobserved'])}; calibrate --method systematic refuses it: turn the unit about each "
-                   "of its axes with each axis up and down (psins19 does)")
+                   f"{', '.join(obs['unobserved'])}; calibrate --method systematic refuses it: "
+                   "turn the unit about each of its axes with each axis up and down (psins19 does)")
     else:
-        click.echo(f"every parameter observed (the largest std {max(x['ratio'] for x in obs['parameters']):.2g} of its prior)")
+        click.echo(f"every parameter observed (the largest std {max(x['ratio'] for x in obs['parameters']):.2g} of "
+                   "its prior)")
     if output:
         kept = {"sequence": r["sequence"], "models": models, "add": r["add"], "observability": obs, "norm": crlb}
         outputs.write_text(output, json.dumps(kept, indent=1, default=float) + "\n")
@@ -221,15 +227,15 @@ def _design_sequence(reference, minutes, reference_minutes, unit_file, acc_noise
                             evaluations=evaluations, progress=progress.bar("designing the sequence", "round"))
     steps = r["sequence"]["steps"]
     click.echo(f"designed: {len(steps)} moves at {r['rate_dps']:g} deg/s in {r['minutes']:g} min for {r['unit']} "
-               f"({r['evaluations']} candidates scored, from {r['start']}); targets: {r['reference']['name']}'s stds in "
-               f"{r['reference_minutes']:g} min")
+               f"({r['evaluations']} candidates scored, from {r['start']}); targets: {r['reference']['name']}'s "
+               f"stds in {r['reference_minutes']:g} min")
     click.echo(f"  {'parameter':18} {'unit':16} {'designed std':>13} {'target':>10} {'ratio':>7}")
     for x in r["parameters"]:
         click.echo(f"  {x['sensor'] + ' ' + x['parameter']:18} {x['unit']:16} {x['std']:13.3g} {x['target']:10.3g} "
                    f"{x['ratio']:7.3f}")
     others = ", ".join(f"{k} {'does not fit' if v is None else format(v, '.3g')}" for k, v in r["built_in"].items())
-    click.echo(f"worst ratio {r['worst_ratio']:.3f} ({r['worst_parameter']}); the built-ins' moves at {r['rate_dps']:g} "
-               f"deg/s in the same time: {others}")
+    click.echo(f"worst ratio {r['worst_ratio']:.3f} ({r['worst_parameter']}); "
+               f"the built-ins' moves at {r['rate_dps']:g} deg/s in the same time: {others}")
     if r["worst_ratio"] > 1.0:
         click.echo(f"NOT every parameter reaches its target: {r['worst_parameter']} is {r['worst_ratio']:.3f} of it; "
                    "give more --minutes or --evaluations, or a longer --reference-minutes")
@@ -240,13 +246,15 @@ def _design_sequence(reference, minutes, reference_minutes, unit_file, acc_noise
 
 @main.command()
 @click.option("--score", "score_plan", default=None, metavar="PLAN",
-              help="Score a plan: table1, dodecahedron20, fibonacci24, fibonacci48 or a CSV (outer_deg,middle_deg,inner_deg).")
+              help="Score a plan: table1, dodecahedron20, fibonacci24, fibonacci48 or a CSV "
+                   "(outer_deg,middle_deg,inner_deg).")
 @click.option("--model", "model_name", default="acc_baseline", show_default=True,
-              help="The model scored: a built-in (acc_baseline, gyro_baseline, ...) or one derived from your model file "
-                   "(simucal derive --model FILE).")
+              help="The model scored: a built-in (acc_baseline, gyro_baseline, ...) "
+                   "or one derived from your model file (simucal derive --model FILE).")
 @click.option("--add", "add", multiple=True, help="Candidate effect ids to add to the model, e.g. acc.quadratic.z "
               "(repeatable).")
-@click.option("--positions", type=Number(1, 300, integer=True), default=None, help="Design a plan with this many positions.")
+@click.option("--positions", type=Number(1, 300, integer=True), default=None,
+              help="Design a plan with this many positions.")
 @click.option("--criterion", type=click.Choice(["D", "A"]), default="D", show_default=True,
               help="Design: D maximises the Fisher information's determinant (all parameters together), A minimises "
                    "the sum of the parameters' CRLB variances.")
@@ -270,9 +278,9 @@ def _design_sequence(reference, minutes, reference_minutes, unit_file, acc_noise
               help="With --separate: the power to reach.")
 @click.option("--sequence", default=None, metavar="NAME|FILE", is_flag=False, flag_value="psins19",
               help="Systematic calibration: each parameter's std over a rotation sequence (psins19, the default, "
-                   "sysclbt19, dong2018 or a CSV axis,angle_deg,rate_dps,rest_s; one pass of the filter, the default unit at 100 Hz) beside "
-                   "the norm method's CRLB on --score PLAN (default table1); with --design, the reference (default "
-                   "psins19; best: each parameter's smallest std over the built-ins).")
+                   "sysclbt19, dong2018 or a CSV axis,angle_deg,rate_dps,rest_s; one pass of the filter, "
+                   "the default unit at 100 Hz) beside the norm method's CRLB on --score PLAN (default table1); with "
+                   "--design, the reference (default psins19; best: each parameter's smallest std over the built-ins).")
 @click.option("--design", "design_seq", is_flag=True,
               help="With --sequence: design a sequence of --minutes whose every parameter's std is as far as can be "
                    "under the reference's (in --reference-minutes); written to -o (default sequence.csv, its JSON "
@@ -345,7 +353,8 @@ def plan(score_plan, model_name, add, positions, criterion, rate_dps, rates, kin
                       separate=pair.split(",") if pair else None,
                       sizes=_numbers("--sizes", sizes) if sizes else None, power=target)
     if rate_dps is not None:  # after the refusals, which are one line
-        click.echo("warning: --rate-dps is deprecated: --rates-dps R takes one rate (deg/s) as it takes several", err=True)
+        click.echo("warning: --rate-dps is deprecated: --rates-dps R takes one rate (deg/s) as it takes several",
+                   err=True)
     for line in _score_lines(result, units):
         click.echo(line)
     for line in _separation_lines(result["separation"]) if pair else ():
@@ -363,7 +372,8 @@ def _score_lines(result, units):
     from simucal.report.units import plan_in
     shown = plan_in(result, units)  # the numbers printed; the files in the spec's units
     yield (f"{result['plan']}: {result['model']}, noise {shown['noise']:g} {shown['unit']} per position"
-           + (f", rate runs at {', '.join(f'{x:g}' for x in result['rates_dps'])} deg/s" if result["rates_dps"] else ""))
+           + (f", rate runs at {', '.join(f'{x:g}' for x in result['rates_dps'])} deg/s" if result["rates_dps"]
+              else ""))
     yield (f"  D per position {result['D_per_position']:.6g}, A {result['A']:.4g}, "
            f"largest |correlation| {result['max_abs_correlation']:.2f}")
     for k, v in shown["crlb"].items():

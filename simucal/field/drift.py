@@ -130,7 +130,8 @@ def position_estimate(f_raw, w_raw, t, heading_rad, meta, block_s=1.0, stages=2)
     per = max(int(round(block_s / dt_raw)), 1)
     k = len(t) // per
     if k < 30:
-        raise CalibrationError(f"a field position needs at least {30 * block_s:.0f} s of samples; got {len(t) * dt_raw:.0f} s")
+        raise CalibrationError(f"a field position needs at least {30 * block_s:.0f} s of samples; "
+                               f"got {len(t) * dt_raw:.0f} s")
     f_b = f_raw[:k * per].reshape(k, per, 3).mean(1)
     w_b = w_raw[:k * per].reshape(k, per, 3).mean(1)
     dt = per * dt_raw
@@ -149,7 +150,8 @@ def position_estimate(f_raw, w_raw, t, heading_rad, meta, block_s=1.0, stages=2)
     # eps_N is the drift along the computed north, which turns slowly (up drift);
     # the estimate weighs the whole window, so project on the mean computed north.
     c_N = north.mean(0)
-    return {"C_b_n": C0, "c_N": c_N / np.linalg.norm(c_N), "eps_N": xs[:, 5] / units.RAD_S_PER_DPH, "std": kf.sd[:, 5] / units.RAD_S_PER_DPH,
+    return {"C_b_n": C0, "c_N": c_N / np.linalg.norm(c_N), "eps_N": xs[:, 5] / units.RAD_S_PER_DPH,
+            "std": kf.sd[:, 5] / units.RAD_S_PER_DPH,
             "t": (np.arange(k) + 1) * dt, "arw_dpsh": arw * np.degrees(1) * 60, "vrw_mps_sqrth": vrw * 60}
 
 
@@ -221,8 +223,8 @@ def field_drift(data, block_s=1.0, stages=2, heading_accuracy_deg=5.0) -> record
     except CalibrationError as e:
         heads = [p["heading_ref_deg"] for p in positions]
         if max(abs(h) for h in heads) <= 2 * np.pi:  # every heading within one turn in radians
-            raise CalibrationError(f"{e}; the headings ({', '.join(f'{h:.3g}' for h in heads)}) are all within 2 pi: written in radians? "
-                                   "heading_ref_deg is in degrees") from None
+            raise CalibrationError(f"{e}; the headings ({', '.join(f'{h:.3g}' for h in heads)}) are all within 2 pi: "
+                                   "written in radians? heading_ref_deg is in degrees") from None
         raise
     return {"method": "ruan2019 three-position",
             "gyro_drift_dph": drift.tolist(), "std_dph": std.tolist(), "positions": positions,

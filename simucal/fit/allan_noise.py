@@ -49,19 +49,19 @@ def temperature_block(lo, hi, data) -> dict:
     bias follows its temperature, which the Allan variance reads as rate ramp, random walk and instability."""
     block: dict[str, Any] = {"range_c": [lo, hi]}
     if hi - lo > TEMP_CHANGE_C:
-        block["warning"] = (f"the temperature changes by {hi - lo:.3g} degC over the record ({lo:.4g} to {hi:.4g} degC): "
-                            "the bias's thermal drift reads as bias instability, random walk and rate ramp, so the "
-                            "long-tau terms (and Kalibr's random walks) may be thermal, not noise; record at a steady "
-                            f"temperature, or take the thermal model out first: simucal calibrate {data} --thermal -o "
-                            f"warm.json, simucal apply warm.json {data} -o {Path(str(data)).name}_flat, simucal noise "
-                            f"{Path(str(data)).name}_flat")
+        block["warning"] = (f"the temperature changes by {hi - lo:.3g} degC over the record "
+                            f"({lo:.4g} to {hi:.4g} degC): the bias's thermal drift reads as bias instability, "
+                            "random walk and rate ramp, so the long-tau terms (and Kalibr's random walks) "
+                            "may be thermal, not noise; record at a steady temperature, or take the thermal model out "
+                            f"first: simucal calibrate {data} --thermal -o warm.json, simucal apply warm.json {data} "
+                            f"-o {Path(str(data)).name}_flat, simucal noise {Path(str(data)).name}_flat")
     return {"temperature": block}
 
 
 def characterise_folder(folder, kind_of, tau_max_s=None, scheduler=None, size=allan_sums.CHUNK) -> dict:
-    """characterise() of the set in `folder` (kind_of(set): its kind, simucal.methods.kind_of), a still stream read a chunk at a time (simucal.fit.allan_sums:
-    theta in parts of `size` values, the rows of one task, here or on Dask with `scheduler`); a
-    segmented set (a turntable test's static segments, short) is read whole."""
+    """characterise() of the set in `folder` (kind_of(set): its kind, simucal.methods.kind_of), a still stream read a
+    chunk at a time (simucal.fit.allan_sums: theta in parts of `size` values, the rows of one task, here or on Dask with
+    `scheduler`); a segmented set (a turntable test's static segments, short) is read whole."""
     folder = Path(folder)
     meta = io.read_meta(folder)
     if io.read_segments(folder) is not None:

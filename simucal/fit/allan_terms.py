@@ -91,8 +91,8 @@ def cluster_sizes(lengths, dt, tau_max_s, where) -> np.ndarray:
         return taus(n)
     if n < MIN_CLUSTERS * tau_max_s / dt:
         raise CalibrationError(f"{where}: the longest still stretch is {n * dt:.4g} s; a tau of {tau_max_s:g} s needs "
-                               f"{MIN_CLUSTERS} clusters of it ({MIN_CLUSTERS * tau_max_s:.4g} s): record longer, or ask "
-                               f"for --tau-max-s {n * dt / MIN_CLUSTERS:.3g} at most")
+                               f"{MIN_CLUSTERS} clusters of it ({MIN_CLUSTERS * tau_max_s:.4g} s): "
+                               f"record longer, or ask for --tau-max-s {n * dt / MIN_CLUSTERS:.3g} at most")
     if len(taus(n, m_max=tau_max_s / dt)) < need:
         lowest = next(m for m in range(need, n) if len(taus(n, m_max=m)) >= need) * dt
         raise CalibrationError(f"{where}: --tau-max-s {tau_max_s:g} leaves fewer than the {need} taus (multiples of "
@@ -119,7 +119,8 @@ def axis_report(sensor, y, dt, m, mats, unit) -> dict:
 
 
 def axis_from_avar(sensor, avar, stuck_why, dt, m, mats) -> dict:
-    """axis_report from the Allan variance at the cluster sizes m (a stream read chunk by chunk: characterise_folder)."""
+    """axis_report from the Allan variance at the cluster sizes m (a stream read chunk by chunk:
+    characterise_folder)."""
     tau = m * dt
     if stuck_why:
         return {"stuck": stuck_why, "adev": np.sqrt(avar).tolist(), "tau_s": tau.tolist()}

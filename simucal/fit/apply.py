@@ -122,7 +122,8 @@ def _check_thermal(block: SensorBlock, sensor, names, where) -> None:
     ok = isinstance(th, dict) and isinstance(th.get("t_ref_c"), (int, float)) and isinstance(th.get("parameters"), dict)
     for n in names if ok else ():
         c: Any = th["parameters"].get(n, {}).get("coefficients") if isinstance(th["parameters"].get(n), dict) else None
-        good = isinstance(c, list) and 0 < len(c) <= 4 and all(isinstance(x, (int, float)) and np.isfinite(x) for x in c)
+        good = (isinstance(c, list) and 0 < len(c) <= 4
+                and all(isinstance(x, (int, float)) and np.isfinite(x) for x in c))
         if not good or abs(c[0] - block.params[n]) > EDITED * max(1.0, abs(c[0])):
             ok = False
             break
@@ -222,7 +223,7 @@ def temperatures(cal: Calibration, ms) -> tuple[np.ndarray | None, list[str]]:
         out = np.nonzero((temp < lo - 1.0) | (temp > hi + 1.0))[0]  # 1 degC: a plateau's own scatter
         if len(out):
             warnings.append(f"{s}: {len(out)} of {len(temp)} rows (from line {out[0] + 2} of samples.csv) have temp_c "
-                            f"{temp[out].min():.4g} to {temp[out].max():.4g} degC, outside the {s}'s calibrated {lo:.4g} "
-                            f"to {hi:.4g} degC: their temperature terms are extrapolated" + KELVIN_HINT * bool(
+                            f"{temp[out].min():.4g} to {temp[out].max():.4g} degC, outside the {s}'s calibrated "
+                            f"{lo:.4g} to {hi:.4g} degC: their temperature terms are extrapolated" + KELVIN_HINT * bool(
                                 np.all((temp >= 250.0) & (temp <= 400.0))))
     return temp, warnings

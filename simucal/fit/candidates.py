@@ -145,11 +145,12 @@ def test_model(model, obs: Observations, p0=None) -> tuple[Fit, Observations, di
             elif fit.dof > 0 and fit.chi2 > NOISE_TOO_SMALL ** 2 * fit.dof and (lof.get("p_value") or 0.0) >= ALPHA:
                 block["noise_too_small"] = True
                 block["noise_warning"] = (
-                    f"the residuals are {np.sqrt(fit.chi2 / fit.dof):.3g} times the noise used ({noise['source']}), yet "
-                    f"the generic terms find no structure in them (lack-of-fit p = {lof['p_value']:.2g}): the stated "
-                    "noise is likely too small (else an effect outside the library and the generic terms is "
-                    "missing), and an effect ranked against it may only absorb scatter; check acc_noise_g / "
-                    "gyro_noise_dph (or the option), or leave them out to have the noise estimated")
+                    f"the residuals are {np.sqrt(fit.chi2 / fit.dof):.3g} times the noise used "
+                    f"({noise['source']}), yet the generic terms find no structure in them "
+                    f"(lack-of-fit p = {lof['p_value']:.2g}): the stated noise is likely too small "
+                    "(else an effect outside the library and the generic terms is missing), "
+                    "and an effect ranked against it may only absorb scatter; check acc_noise_g / gyro_noise_dph "
+                    "(or the option), or leave them out to have the noise estimated")
     else:
         block.update(noise_floor=None, noise_std_of_mean=None, p_value=lof["p_value"],
                      test="lack-of-fit F (no noise in the data or stated)")

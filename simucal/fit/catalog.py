@@ -252,8 +252,9 @@ def _load_user_model(name: str, compiled: bool = True) -> GeneratedModel:
                        "own is derived from its file first (`--add FILE`, or `simucal derive --model FILE`)")
     py, c = (cache.locate(f"models/{entry['key']}/{name}.{ext}") for ext in ("py", "c"))
     if py is None or c is None:
-        raise InputError(f"model {name!r} was derived from {entry['source']} but its cache {models_dir() / entry['key']} "
-                       f"is gone; derive it again: simucal derive --model {entry['source']}")
+        raise InputError(f"model {name!r} was derived from {entry['source']} but its cache "
+                         f"{models_dir() / entry['key']} is gone; derive it again: "
+                         f"simucal derive --model {entry['source']}")
     # compiled from the checked source here: an import would also load a bytecode file from a __pycache__
     # folder beside it, which the umask may have left writable by the group
     module = types.ModuleType(f"simucal_user_model_{name}_{entry['key']}")

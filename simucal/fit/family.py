@@ -56,8 +56,8 @@ def candidate_level(n_tested: int) -> float:
 def targeted(problem, ids, dof: int | None = None) -> dict:
     """The score test of each candidate in ids beside the problem's model (fit/ranking.Problem: basis,
     residual, column), the strongest named, and what the JOINT strongest beyond their level explain
-    together (the residual projected on their columns: joint_statistic). dof: the residual's dof where its variance is estimated
-    (the residual scale s2 != 1: an F test on dof - 1); None where s2 is a known scale or profiled out
+    together (the residual projected on their columns: joint_statistic). dof: the residual's dof where its variance is
+    estimated (the residual scale s2 != 1: an F test on dof - 1); None where s2 is a known scale or profiled out
     as the likelihood ratio does (chi-square on 1 dof of the statistic over s2). Returns {tested, strongest, statistic,
     p_value, level[, joint_statistic][, twins]}; strongest None where nothing is separable; twins: where the
     strongest is beyond its level, the candidates the data cannot tell from it (fit/twins.py)."""
@@ -101,7 +101,8 @@ def family_p(p_omnibus: float | None, tgt: dict | None) -> float | None:
     whole ALPHA), None where neither part has a test."""
     if not tgt or tgt.get("p_value") is None:  # nothing to test beside it: the omnibus holds the whole ALPHA
         return p_omnibus
-    ps = ([] if p_omnibus is None else [p_omnibus / OMNIBUS_SHARE]) + [tgt["tested"] * tgt["p_value"] / (1.0 - OMNIBUS_SHARE)]
+    ps = (([] if p_omnibus is None else [p_omnibus / OMNIBUS_SHARE])
+          + [tgt["tested"] * tgt["p_value"] / (1.0 - OMNIBUS_SHARE)])
     return min(1.0, min(ps))
 
 
@@ -116,8 +117,9 @@ def fold(block: dict, tgt: dict | None, p_key: str = "p_value", test_key: str = 
         return
     block["targeted"] = tgt
     block[p_key] = family_p(p0, tgt)
-    block[test_key] = (f"{block.get(test_key) or 'omnibus'} at {ALPHA * OMNIBUS_SHARE:g}, with {tgt['tested']} targeted "
-                       f"tests of the library's effects at {tgt['level']:.2g} each (one family at {ALPHA:g})")
+    block[test_key] = (f"{block.get(test_key) or 'omnibus'} at {ALPHA * OMNIBUS_SHARE:g}, "
+                       f"with {tgt['tested']} targeted tests of the library's effects at {tgt['level']:.2g} each "
+                       f"(one family at {ALPHA:g})")
     if tgt["p_value"] < tgt["level"]:
         omnibus_passes = p0 is None or p0 >= ALPHA * OMNIBUS_SHARE
         tgt["verdict"] = (f"{tgt['strongest']} is beyond its targeted test (p = {tgt['p_value']:.2g} < "
@@ -134,9 +136,9 @@ def outside_library(base: dict, cands: list[dict]) -> dict | None:
     """Where the model fails and its best significant candidate would leave it failing while explaining
     less than OUTSIDE_SHARE of the misfit (the chi-square's excess over its dof), and the JOINT
     strongest candidates beyond their targeted level together (targeted's joint_statistic) explain less
-    than that too, the missing effect is most likely outside the library: {id, share, chi2_after, dof_after, p_after, text}. The model with
-    the candidate is one linear step: its chi-square less the candidate's likelihood ratio, on one dof
-    less (tests whose noise is known and whose candidates' statistics are drops of that chi-square).
+    than that too, the missing effect is most likely outside the library: {id, share, chi2_after, dof_after, p_after,
+    text}. The model with the candidate is one linear step: its chi-square less the candidate's likelihood ratio, on one
+    dof less (tests whose noise is known and whose candidates' statistics are drops of that chi-square).
     None where the candidate explains enough, or nothing can say."""
     sig = [c for c in cands if c.get("significant") and c.get("statistic") is not None and c["id"] in EFFECTS]
     chi2, dof, test = base.get("chi2"), base.get("dof") or 0, base.get("omnibus_test") or ""

@@ -126,9 +126,9 @@ def _view(sub: np.ndarray, n: int) -> slice | np.ndarray:
 
 def fit_batch(model, N, rho, sig, p0, aux=None, max_iter=200, tol=1e-12, prior=None):
     """The Levenberg-Marquardt loop of fit_exact for S sets (module doc): N, sig (S, n, 3), rho (S, n), p0 (S, m);
-    aux per row, shared by the sets (arrays (n,)) or each set's (arrays (S, n)); prior {parameter: (value, std)}. Returns p (S, m), u (S, n, 3), cost
-    without the prior (S,), the last H (S, m, m), the iterations (S,) and a status (S,): 0 converged,
-    1 not, 2 singular, 3 a parameter without any input (as derive/templates/exact_fit.c)."""
+    aux per row, shared by the sets (arrays (n,)) or each set's (arrays (S, n)); prior {parameter: (value, std)}.
+    Returns p (S, m), u (S, n, 3), cost without the prior (S,), the last H (S, m, m), the iterations (S,) and a status
+    (S,): 0 converged, 1 not, 2 singular, 3 a parameter without any input (as derive/templates/exact_fit.c)."""
     S, n, _ = N.shape
     m = len(model.params)
     pr = _Prior.of(model, prior)
@@ -188,8 +188,8 @@ def fit_batch(model, N, rho, sig, p0, aux=None, max_iter=200, tol=1e-12, prior=N
             lam[idx[rej]] = np.maximum(1e-3, 10 * lam[idx[rej]])
             need[acc] = False
         go = active[idx]
-        # converged: the cost stalls, or the step taken is negligible (as above)
-        done = last | (np.abs(cost[idx] - new_cost) <= tol * np.maximum(cost[idx], 1e-30)) | _negligible(dp, g, diag, cost[idx])
+        done = (last | (np.abs(cost[idx] - new_cost) <= tol * np.maximum(cost[idx], 1e-30))  # converged: the cost
+                | _negligible(dp, g, diag, cost[idx]))  # stalls, or the step taken is negligible (as above)
         p[idx[go]], u[idx[go]], cost[idx[go]] = p_new[go], u_new[go], new_cost[go]
         fin = go & done
         status[idx[fin]], active[idx[fin]] = 0, False

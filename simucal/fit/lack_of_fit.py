@@ -185,9 +185,10 @@ def fit_with_noise(model, obs: Observations, p0=None) -> tuple[Fit, Observations
             break
     fit.dof -= 1  # one variance estimated
     fit.p_value = float(chi2_sf(fit.chi2, fit.dof)) if fit.dof > 0 else None
-    return fit, replace(obs, sigma=np.where(known[:, None], sig, s_u)), {"source": f"{int(known.sum())} rows from their scatter or the stated noise; {int((~known).sum())} "
-                           "rows (one averaged row, no stated noise) from a variance component estimated from the fit",
-                 "estimated_std": s_u, "dof": share, "rows_estimated": int((~known).sum())}
+    return fit, replace(obs, sigma=np.where(known[:, None], sig, s_u)), {
+        "source": f"{int(known.sum())} rows from their scatter or the stated noise; {int((~known).sum())} "
+                  "rows (one averaged row, no stated noise) from a variance component estimated from the fit",
+        "estimated_std": s_u, "dof": share, "rows_estimated": int((~known).sum())}
 
 
 def with_estimated_sigma(obs: Observations, noise: dict) -> Observations:
@@ -287,8 +288,8 @@ def _shape_of(best, alike, b, model, obs, fit) -> dict:
     after = (fit.residuals / sig).ravel() - coef * Gp[:, best]
     rms_after = float(np.sqrt(np.mean((after.reshape(-1, 3) * sig) ** 2)))
     unit = "g" if model.sensor == "acc" else "deg/h"
-    return {"axis": "xyz"[t.axis], "regressor": t.text(), "catalog_id": catalog_id(t), "degree": t.degree, "parity": t.parity(),
-            "estimate": coef, "unit": t.unit(), "parameter": t.name(), "sympy": t.sympy(),
+    return {"axis": "xyz"[t.axis], "regressor": t.text(), "catalog_id": catalog_id(t), "degree": t.degree,
+            "parity": t.parity(), "estimate": coef, "unit": t.unit(), "parameter": t.name(), "sympy": t.sympy(),
             "share_of_misfit": float(lr[best] / max(r @ r, 1e-300)), "residual_rms_after": rms_after,
             "indistinguishable_here": [f"{terms[k].text()} on {'xyz'[terms[k].axis]}" for k in alike][:6],
             "points": {"regressor": t.values(fit.directions * obs.rho[:, None], obs).tolist(),
@@ -308,7 +309,8 @@ def twin_fits(model, obs: Observations, fit: Fit, shape: dict) -> list[dict]:
     rows the rate runs did not fit (the gyro's static rows) can judge between them."""
     terms, r, G, Gp, sig, n2, ok, proj, lr = b = _basis_at(model, obs, fit)
     label = {f"{t.text()} on {'xyz'[t.axis]}": k for k, t in enumerate(terms) if ok[k]}
-    idx = [label[x] for x in [f"{shape['regressor']} on {shape['axis']}"] + shape["indistinguishable_here"] if x in label]
+    idx = [label[x]
+           for x in [f"{shape['regressor']} on {shape['axis']}"] + shape["indistinguishable_here"] if x in label]
     J, _ = dense_jacobian(model, obs, fit)
     m = len(model.params)
     Jp = np.linalg.pinv(J)

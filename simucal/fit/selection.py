@@ -82,7 +82,8 @@ def forward_selection(start: Step, max_terms: int = 6) -> Selection:
             return _still_failing(start, step, steps,
                                   "no library effect passes the candidate gate; the model still fails")
         if sig[0].get("twins_undecided"):  # no rows chose between its twins (turntable/model_test.choose_twin)
-            return _still_failing(start, step, steps, f"{sig[0]['id']}: {sig[0]['twin_choice']}; --add auto adds neither")
+            return _still_failing(start, step, steps,
+                                  f"{sig[0]['id']}: {sig[0]['twin_choice']}; --add auto adds neither")
         worse, refused = [], []
         for c in sig:
             trial = step.add(c["id"])
@@ -100,7 +101,8 @@ def forward_selection(start: Step, max_terms: int = 6) -> Selection:
         steps.append({"id": c["id"], "estimate": c["estimate"], "std": c["std"], "unit": c["unit"], **trial.after(),
                       "p_held_out_better": p_cv, **_twin_choice(c, cands, step)})
         step = trial
-    return Selection(step.model, steps, "the model passes its test" if steps else "the model passes its test: nothing added")
+    return Selection(step.model, steps,
+                     "the model passes its test" if steps else "the model passes its test: nothing added")
 
 
 def _still_failing(start: Step, step: Step, steps: list[dict], why: str) -> Selection:
@@ -115,7 +117,8 @@ def _still_failing(start: Step, step: Step, steps: list[dict], why: str) -> Sele
             or (t0.chi2 - t1.chi2) / (t0.chi2 - t0.dof) >= OUTSIDE_SHARE:
         return Selection(step.model, steps, why)
     before, after = start.estimates(), step.estimates()
-    moved = sorted(((abs(after[k][0] - v) / s, k) for k, (v, s) in before.items() if k in after and s > 0), reverse=True)
+    moved = sorted(((abs(after[k][0] - v) / s, k) for k, (v, s) in before.items() if k in after and s > 0),
+                   reverse=True)
     if not moved or moved[0][0] <= 1.0:
         return Selection(step.model, steps, why)
     added = ", ".join(x["id"] for x in steps)

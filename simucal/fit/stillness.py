@@ -41,9 +41,9 @@ MOVING = {"acc": (0.05, "g", "specific force"), "gyro": (3600.0, "deg/h", "rate"
 
 
 def check_still(ms, dt, kind):
-    """Where the set's kind must be still throughout (simucal.methods.Kind.still_whole), refuse a stream that moves: its 1-s mean specific force (or, without accelerometers, rate) may wander by
-    noise, not move by MOVING's amount (the difference of two means: a raw register's zero cancels, where an
-    angle would need it)."""
+    """Where the set's kind must be still throughout (simucal.methods.Kind.still_whole), refuse a stream that moves: its
+    1-s mean specific force (or, without accelerometers, rate) may wander by noise, not move by MOVING's amount (the
+    difference of two means: a raw register's zero cancels, where an angle would need it)."""
     if not kind.still_whole:
         return
     sensor = "acc" if ms.has_acc else "gyro"

@@ -65,7 +65,8 @@ def temperature_rate(t_s, temp_c, at_s=None, window_s=RATE_WINDOW_S) -> np.ndarr
     if n < 2:
         return np.zeros(len(at))
     half = np.broadcast_to(np.asarray(window_s, float) / 2, at.shape)
-    before, after = np.searchsorted(t, at) - 1, np.searchsorted(t, at, "right")  # the neighbours: last before, first after
+    # the neighbours: last before, first after
+    before, after = np.searchsorted(t, at) - 1, np.searchsorted(t, at, "right")
     lo = np.maximum(np.minimum(np.searchsorted(t, at - half), before), 0)
     hi = np.minimum(np.maximum(np.searchsorted(t, at + half, "right"), after + 1), n)
     if 64 * len(at) < n:

@@ -35,7 +35,8 @@ def plateau(folder: str | os.PathLike[str] | io.MeasurementSet) -> tuple[io.Meas
         named = [f"{c} (named as {u})" for c, u in other.items() if u]
         raise CalibrationError(f"{ms.path / 'samples.csv'}: no temp_c column, so no plateau temperature: a thermal "
                                "calibration needs the unit's temperature on every row" + (
-                                   f"; it has {', '.join(named)}: convert it to degC as column temp_c" if named else ""))
+                                   f"; it has {', '.join(named)}: convert it to degC as column temp_c" if named
+                                   else ""))
     return ms, float(check_temp_c(ms).mean())
 
 
@@ -114,7 +115,8 @@ def plateaus_block(blocks: list[SensorBlock], T_k, t_ref_c, degree, sensor, plat
     fits = {n: fit_polynomial(T_k, [b.params[n] for b in blocks], [b.std[n] for b in blocks], t_ref_c, degree)
             for n in names}
     for n, f in fits.items():
-        f.update({"per_plateau": [b.params[n] for b in blocks], "per_plateau_std": np.array([b.std[n] for b in blocks], float).tolist()})
+        f.update({"per_plateau": [b.params[n] for b in blocks],
+                  "per_plateau_std": np.array([b.std[n] for b in blocks], float).tolist()})
     p0 = np.array([fits[n]["coefficients"][0] for n in names])
     nearest = blocks[int(np.argmin(np.abs(np.asarray(T_k) - t_ref_c)))]
     M, bias = AugmentedModel(first.model, first.library_effects()).matrix_and_bias(p0)

@@ -110,8 +110,8 @@ def held_out(base, obs, groups, degrees, p0) -> float | None:
 
 
 def select(base, obs, groups, forced=None, p0=None):
-    """(model, fit, how each degree was chosen, obs with every row's sigma) for one sensor: module doc. groups: each row's plateau
-    or band; forced: one degree for every parameter; p0: start values by name. Rows without a known
+    """(model, fit, how each degree was chosen, obs with every row's sigma) for one sensor: module doc. groups: each
+    row's plateau or band; forced: one degree for every parameter; p0: start values by name. Rows without a known
     sigma take one estimated from the top-degree fit (lack_of_fit.fit_with_noise)."""
     m = len(base.params)
     T = obs.aux.column("temp_c", len(obs.N))

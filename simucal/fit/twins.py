@@ -68,7 +68,8 @@ def separating_plan(eid_a: str, eid_b: str, moves=False) -> str:
                 f"down, or plateaus visited out of order, not one ramp)")
     if ra != rb:
         aux, fam = (ra, fa) if ra else (rb, fb)
-        return f"{sorted(aux)[0]} changing at the same inputs (not with the position): {texts.get(fam, '')}".rstrip(": ")
+        return (f"{sorted(aux)[0]} changing at the same inputs (not with the position): "
+                f"{texts.get(fam, '')}").rstrip(": ")
     if fa == fb and eid_a.split(".")[2] != eid_b.split(".")[2]:
         return f"inputs where the two axes' regressors differ: {texts.get(fa, '')}"
     return "; ".join(dict.fromkeys(texts.get(f, "") for f in (fa, fb) if texts.get(f)))

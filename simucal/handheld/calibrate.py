@@ -79,8 +79,8 @@ def _hold_unseen(ms, gm: GyroMoves, f: GyroFit):
     f = fit_gyro(mv, gm.g_dirs, gm.bias_std, np.r_[f.T.ravel(), f.db, f.p], held=unseen)
     undetermined = {f"T_{'xyz'[k // 3]}{'xyz'[k % 3]}": {
         "determined": False, "std_moves_alone": float(std_alone[k]), "held_at": float(np.eye(3).ravel()[k]),
-        "prior_std": PRIOR_T, "to_determine": f"turn about the {'xyz'[k % 3]} axis by at least 90 deg between two poses"}
-        for k in unseen}
+        "prior_std": PRIOR_T,
+        "to_determine": f"turn about the {'xyz'[k % 3]} axis by at least 90 deg between two poses"} for k in unseen}
     return f, unseen, undetermined, dead
 
 

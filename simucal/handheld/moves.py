@@ -33,7 +33,8 @@ class Moves:
     after: np.ndarray                   # (m,) index of the pose after
     t_span: list | None = None          # (m,) (start, end) times (s)
     rows: list | None = None            # (m,) (a, b): the move integrates stream rows a+1 .. b
-    phi: np.ndarray | None = None       # (q, m, L) regressors of added effects, (deg/s) per unit parameter, 0 on padding
+    phi: np.ndarray | None = None       # (q, m, L) regressors of added effects, (deg/s) per unit parameter,
+                                        # 0 on padding
     phi_axes: tuple = ()                # the output axis each one acts on
     phi_rest: np.ndarray | None = None  # (q,) their mean over the initial rest, which reads b + sum_j p_j e_j phi_j
 
@@ -287,8 +288,8 @@ GYRO_MODELS = {"nominal": tuple(range(9)), "scale": (1, 2, 3, 5, 6, 7), "full": 
 GYRO_MODEL_TEXT = {
     "nominal": "nominal scale factors (T = I; std null: not estimated), bias from the initial rest: the moves do not "
                "support more (model_choice)",
-    "scale": "scale factors only (T diagonal; off-diagonal std null: not estimated), bias from the initial rest refined "
-             "by the moves: the moves do not support a full matrix (model_choice)",
+    "scale": "scale factors only (T diagonal; off-diagonal std null: not estimated), bias from the initial rest "
+             "refined by the moves: the moves do not support a full matrix (model_choice)",
     "full": "full 3x3 M (scale, misalignment, triad rotation), bias from the initial rest, effects over the moves"}
 
 
@@ -333,7 +334,8 @@ def choose_gyro_model(mv: Moves, g_dirs, bias_std, f_full: GyroFit, held=()) -> 
     fits["full"] = (f_full, held_out_moves(mv, g_dirs, f_full, bias_std, held=held))
     chosen, table = "nominal", {}
     for name, (fit, held_out) in fits.items():
-        table[name] = {"held_out_rms_deg": _rms_deg(held_out), "in_sample_rms_deg": _rms_deg(np.linalg.norm(fit.r, axis=1))}
+        table[name] = {"held_out_rms_deg": _rms_deg(held_out),
+                       "in_sample_rms_deg": _rms_deg(np.linalg.norm(fit.r, axis=1))}
         if name != "nominal":
             table[name].update(compared_with=chosen, p_better=paired_improvement(fits[chosen][1], held_out))
             p = table[name]["p_better"]

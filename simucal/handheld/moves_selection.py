@@ -131,7 +131,8 @@ def moves_family(gm: GyroMoves, fit: GyroFit, inputs, omnibus: tuple, effects=()
     (gyro_moves.chi2_test), with the score test of every library gyro effect not in the model along the
     moves (MovesProblem; at: its moves integrated at fit where at hand). Returns a test block (chi2, dof,
     p_value the family's, test, omnibus_p_value, targeted) and the problem, for rank_move_candidates."""
-    block = dict(zip(("chi2", "dof", "p_value"), omnibus), test="chi-square of the moves against the rests' white noise")
+    block = dict(zip(("chi2", "dof", "p_value"), omnibus),
+                 test="chi-square of the moves against the rests' white noise")
     ids = [e for e in effect_ids("gyro") if e not in effects]
     problem = MovesProblem(gm, fit, inputs, effects, fixed, at)
     family.fold(block, family.targeted(problem, ids) if ids else None)

@@ -174,14 +174,16 @@ def simulate_still(seconds=1800.0, dt=0.01, arw_deg_sqrt_h=0.1, rrw_dph_sqrt_s=5
         f[n // 2:] = f[n // 2:, [2, 1, 0]]
     samples = {"t_s": np.arange(n) * dt, **{c: f[:, j] for j, c in enumerate(("ax", "ay", "az"))},
                **{c: w[:, j] for j, c in enumerate(("gx", "gy", "gz"))}}
-    meta = {"acc_unit": "g", "gyro_unit": "deg/h", "latitude_deg": 45.0, "description": f"simucal still stream, seed {seed}"}
+    meta = {"acc_unit": "g", "gyro_unit": "deg/h", "latitude_deg": 45.0,
+            "description": f"simucal still stream, seed {seed}"}
     truth = {"noise": {"acc": {"vrw_g_sqrt_s": vrw_g_sqrt_s},
                        "gyro": {"arw_deg_sqrt_h": arw_deg_sqrt_h, "rrw_dph_sqrt_s": rrw_dph_sqrt_s}}}
     return meta, samples, truth
 
 
 def write_still(folder: str | os.PathLike[str], seconds: float = 1800.0, dt: float = 0.01, arw_deg_sqrt_h: float = 0.1,
-                rrw_dph_sqrt_s: float = 5 / 60, vrw_g_sqrt_s: float = 50e-6, seed: int = 0, move: bool = False) -> str | os.PathLike[str]:
+                rrw_dph_sqrt_s: float = 5 / 60, vrw_g_sqrt_s: float = 50e-6, seed: int = 0,
+                move: bool = False) -> str | os.PathLike[str]:
     """simulate_still's stream written to `folder` (samples.csv and meta.json; no truth.json)."""
     meta, samples, _ = simulate_still(seconds, dt, arw_deg_sqrt_h, rrw_dph_sqrt_s, vrw_g_sqrt_s, seed, move)
     io.write_set(folder, meta, samples, None)
@@ -212,6 +214,7 @@ def simulate_warmup(seed=0, seconds=1500.0, hz=50.0, wander=True):
                **{c: gyro[:, j] for j, c in enumerate(("gx", "gy", "gz"))}, "temp_c": T}
     meta = {"acc_unit": "g", "gyro_unit": "deg/h", "latitude_deg": 47.0,
             "description": f"simucal warm-up of a still board, seed {seed}"}
-    truth = {"t_ref_c": WARMUP_T_REF_C, "acc": {"bias_g": {f"b_{a}": list(WARMUP_ACC_G[i]) for i, a in enumerate("xyz")}},
+    truth = {"t_ref_c": WARMUP_T_REF_C,
+             "acc": {"bias_g": {f"b_{a}": list(WARMUP_ACC_G[i]) for i, a in enumerate("xyz")}},
              "gyro": {"bias_dph": {f"b_{a}": list(WARMUP_GYRO_DPH[i]) for i, a in enumerate("xyz")}}}
     return meta, samples, truth

@@ -77,7 +77,8 @@ class Detection:
     threshold_from: str = "the initial rest"  # or the quietest 3 s of a stream without one
     gyro_threshold_dps: float | None = None  # on the gyro's windowed mean rate less the interval's (None: no gyro)
     gyro_limit: GyroLimit | None = None  # how that limit was set (gyro_limit): noise_dps, sway_dps, set_by
-    dropped: list[DroppedInterval] = field(default_factory=list)  # still intervals no pose was kept from: t_s, rule, text
+    # still intervals no pose was kept from: t_s, rule, text
+    dropped: list[DroppedInterval] = field(default_factory=list)
     trimmed: list[DroppedInterval] = field(default_factory=list)  # those the gyro shortened: t_s, kept_s, text
 
     def as_dict(self, t):
@@ -133,7 +134,8 @@ def detect_static(acc, t, settings: DetectSettings = DetectSettings(), rest_fact
     if dt >= 0.5:
         raise CalibrationError(f"t_s steps by {dt:g} s (median): {1 / dt:.2g} Hz is too slow to follow a move between "
                                "poses; if t_s is in milliseconds, write it in seconds (the spec's unit)")
-    for name, value, part in (("--window-s", window_s, 4), ("--min-static-s", min_s, 4), ("--init-rest-s", init_rest_s, 2)):
+    for name, value, part in (("--window-s", window_s, 4), ("--min-static-s", min_s, 4),
+                              ("--init-rest-s", init_rest_s, 2)):
         if value is not None and value > length / part:
             raise CalibrationError(f"{name} {value:g}: longer than 1/{part} of the stream ({length:.1f} s), which "
                                    "leaves no room for the poses and moves; give seconds")
@@ -143,10 +145,10 @@ def detect_static(acc, t, settings: DetectSettings = DetectSettings(), rest_fact
                                                                                                        rest_factor)
     if init_end >= len(mv) and init_rest_s is None:
         raise CalibrationError(f"no motion: the accelerometers stay still through the whole stream "
-                               f"({t[-1] - t[0]:.1f} s); a calibration needs the unit turned into many poses. Still data "
-                               "give the bias over temperature where temp_c rises (simucal calibrate SET --thermal: a "
-                               "warm-up, as PX4's and ArduPilot's thermal calibrations take it) and the noise terms "
-                               "(simucal noise SET)")
+                               f"({t[-1] - t[0]:.1f} s); a calibration needs the unit turned into many poses. "
+                               "Still data give the bias over temperature where temp_c rises "
+                               "(simucal calibrate SET --thermal: a warm-up, as PX4's and ArduPilot's thermal "
+                               "calibrations take it) and the noise terms (simucal noise SET)")
     needed = 3.0 if init_rest_s is None else 0.5  # a stated rest is the user's call
     rest = slice(0, init_end)
     if t[min(init_end, len(t) - 1)] - t[0] < needed:

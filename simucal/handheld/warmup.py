@@ -13,16 +13,16 @@ What such data give, and what they cannot:
 
 The fit (per sensor, per axis): the stream averaged over blocks of equal rows (400 at most), and the
 block means regressed on the powers of (T - T_ref) (and the blocks' dT/dt, where its effect is added) by
-generalised least squares under white noise plus a random walk in time, their ratio by maximum likelihood. A warm-up's bias wanders (bias instability,
-random walk) while the temperature rises with time, so the wander and the temperature's effect are
-confounded: ordinary least squares (or a HAC covariance, which assumes a stationary residual) reads the
+generalised least squares under white noise plus a random walk in time, their ratio by maximum likelihood. A warm-up's
+bias wanders (bias instability, random walk) while the temperature rises with time, so the wander and the temperature's
+effect are confounded: ordinary least squares (or a HAC covariance, which assumes a stationary residual) reads the
 wander as temperature and gives stds several times too small; the random walk's covariance carries it
 into the stds. The degree falls from 3 (both autopilots' cubic) while the top power's Wald chi2 is under 2
 (Akaike's criterion: a bias curve is judged by its error over the range; a test at ALPHA drops real terms
 where the bias wanders). The wander's size is poorly seen (its slow
-part is the polynomial's), so the stds take it at the upper end of its 68 % likelihood interval (REML). The model test: the two powers beyond the chosen degree, jointly (2 dof);
-where they are significant the bias follows temperature in a way the polynomial misses.
-T_ref: the middle of the temperatures reached, as PX4's tool takes it (--t-ref-c to choose).
+part is the polynomial's), so the stds take it at the upper end of its 68 % likelihood interval (REML). The model test:
+the two powers beyond the chosen degree, jointly (2 dof); where they are significant the bias follows temperature in a
+way the polynomial misses. T_ref: the middle of the temperatures reached, as PX4's tool takes it (--t-ref-c to choose).
 
 A random walk absorbs any slow misfit (on benchmarks/bench_temperature_rate.py's warm-ups a die 30 s behind
 its thermistor passed that test in 50 seeds of 50, the walk fitted 5x the unit's and the residual 1.8x the other
@@ -197,7 +197,8 @@ def axis_polynomial(w: Whitened, axis: int, scale_c: float, temperatures: int = 
     e = w.residual(axis, degree, rate, f.c)
     std = np.sqrt(np.diag(f.cov))
     out = {"degree": degree, "degree_from": "the data" if top == MAX_DEGREE else
-           f"the data, at most {top} for the {temperatures} temperatures seen", "coefficients": (f.c[:degree + 1] * per).tolist(),
+           f"the data, at most {top} for the {temperatures} temperatures seen",
+           "coefficients": (f.c[:degree + 1] * per).tolist(),
            "std": (std[:degree + 1] * per).tolist(), "chi2": chi2, "dof": dof,
            "p_value": float(chi2_sf(chi2, dof)) if dof else None, "residual_rms": float(np.sqrt(np.mean(e ** 2))),
            "noise": {"block_mean_std": float(np.sqrt(f.r)), "random_walk_per_sqrt_s": float(np.sqrt(f.r * f.lam))}}
@@ -239,9 +240,9 @@ def calibrate_warmup(ms, t_ref_c=None, add=()) -> calibration.Calibration:
     lo, hi = float(T.min()), float(T.max())
     if hi - lo < MIN_SPAN_C:
         raise CalibrationError(f"{ms.path}: still throughout, and its temperature spans {hi - lo:.2g} degC "
-                               f"({lo:.4g} to {hi:.4g}): a warm-up of under {MIN_SPAN_C:g} degC shows too little of the "
-                               "bias's temperature dependence; cold-soak the board and log its warm-up, or run "
-                               "simucal noise on these data for their noise terms")
+                               f"({lo:.4g} to {hi:.4g}): a warm-up of under {MIN_SPAN_C:g} degC shows too "
+                               "little of the bias's temperature dependence; cold-soak the board and log its "
+                               "warm-up, or run simucal noise on these data for their noise terms")
     t_ref = (lo + hi) / 2 if t_ref_c is None else float(t_ref_c)
     cal = calibration.header(METHOD, ms)
     cal.t_ref_c, cal.temperature_range_c = t_ref, [lo, hi]
@@ -254,11 +255,11 @@ def calibrate_warmup(ms, t_ref_c=None, add=()) -> calibration.Calibration:
             cal.warnings += said
     found = timestamps.gaps(ms.samples["t_s"])
     if found:  # the block means still average rows; a gap shifts a block's time, which the random walk reads
-        cal.warnings.append(f"{timestamps.gap_text(found)}: no rows there, so the curve has no data in the temperatures "
-                            "those gaps crossed")
+        cal.warnings.append(f"{timestamps.gap_text(found)}: no rows there, so the curve has no data in the "
+                            "temperatures those gaps crossed")
     cal.warnings.append("a still board over temperature: the bias's change with temperature only; scale factors and "
-                        "misalignments stay nominal (one orientation), and the accelerometer's constant bias is not seen "
-                        "(gravity): calibrate them by a six-pose or turntable session")
+                        "misalignments stay nominal (one orientation), and the accelerometer's constant bias is "
+                        "not seen (gravity): calibrate them by a six-pose or turntable session")
     return cal
 
 
@@ -300,8 +301,8 @@ def _rate_effects(add) -> tuple[str, ...]:
 
 
 def _fit_axes(sensor, raw, T, t_s, t_ref, scale_c, effects, auto):
-    """(axes, effects, auto's steps or None, blocks): each axis's polynomial (axis_polynomial), with the temperature rate
-    fitted where `effects` name it, and with auto where its targeted test fails."""
+    """(axes, effects, auto's steps or None, blocks): each axis's polynomial (axis_polynomial), with the temperature
+    rate fitted where `effects` name it, and with auto where its targeted test fails."""
     y, T_b, t_b = block_means(MAX_BLOCKS, raw, T, t_s - t_s[0])
     per = len(raw) // len(y)
     span_s = per * float(np.median(np.diff(t_s)))
@@ -339,37 +340,43 @@ def _block(sensor, raw, T, t_s, t_ref, scale_c, effects, auto) -> tuple[SensorBl
     bias = np.array([a["coefficients"][0] for a in axes])
     values = {rate_id(sensor, i): a["rate"] for i, a in enumerate(axes) if "rate" in a}
     fixed = {n: 0.0 for n in model.base.params if not n.startswith("b_")}
-    params = {**fixed, **{f"b_{'xyz'[i]}": float(bias[i]) for i in range(3)}, **{e: v["value"] for e, v in values.items()}}
+    params = {**fixed, **{f"b_{'xyz'[i]}": float(bias[i]) for i in range(3)},
+              **{e: v["value"] for e, v in values.items()}}
     parameters: dict[str, records.ThermalPolynomial] = {
         n: {"degree": 0, "coefficients": [0.0], "std": [0.0], "degree_from": "not seen: nominal"} for n in fixed}
     parameters.update({f"b_{'xyz'[i]}": axes[i] for i in range(3)})
     parameters.update({e: {"degree": 0, "coefficients": [v["value"]], "std": [v["std"]],
-                           "degree_from": "constant: an effect added beside the bias's polynomial"} for e, v in values.items()})
+                           "degree_from": "constant: an effect added beside the bias's polynomial"}
+                       for e, v in values.items()})
     chi2 = float(sum(a["chi2"] for a in axes))
     dof = int(sum(a["dof"] for a in axes))
     tested = [a["p_value"] for a in axes if a["p_value"] is not None]
     thermal: records.Thermal = {"t_ref_c": t_ref, "temperature_range_c": [float(T.min()), float(T.max())],
-                                "parameters": parameters, "warmup": f"{blocks} block means of {len(raw) // blocks} rows"}
+                                "parameters": parameters,
+                                "warmup": f"{blocks} block means of {len(raw) // blocks} rows"}
     unit = model.unit
     details = {"test": "per axis one family at the model test's level: the powers beyond its degree (Wald, under "
                        f"the random walk's covariance; {'/'.join(str(a['dof']) for a in axes)} dof on x/y/z) and the "
                        "walk check at half of it, the temperature-rate effect's nested chi2 at the other half; the "
                        "sensor's p Bonferroni over its axes",
                "note": "still data: " + ("the change over temperature only (gravity hides the constant)"
-                                         if sensor == "acc" else "the bias with the Earth rate's share along each axis")}
+                                         if sensor == "acc"
+                                         else "the bias with the Earth rate's share along each axis")}
     beyond = [a["targeted"] for a in axes if "verdict" in a.get("targeted", {})]
     if beyond:
         details["advice"] = max(beyond, key=lambda t: t["statistic"])["strongest"]
     if steps is not None:
         details["auto"] = steps
     block = SensorBlock(model.base.name, np.eye(3), bias, unit,
-                        {e: EffectValue(v["value"], v["std"], EFFECTS[e].unit, EFFECTS[e].meaning) for e, v in values.items()},
+                        {e: EffectValue(v["value"], v["std"], EFFECTS[e].unit, EFFECTS[e].meaning)
+                         for e, v in values.items()},
                         "built-in", params, {**{f"b_{'xyz'[i]}": axes[i]["std"][0] for i in range(3)},
                                              **{e: v["std"] for e, v in values.items()}},
                         dict(zip(model.params, model.param_units)), None,
                         float(np.sqrt(np.mean([a["residual_rms"] ** 2 for a in axes]))), f"{unit} (block means)",
                         chi2, dof, min(1.0, len(tested) * min(tested)) if tested else None,
-                        description=f"bias over temperature, each axis a polynomial of degree {[a['degree'] for a in axes]}"
+                        description="bias over temperature, each axis a polynomial of degree "
+                                    f"{[a['degree'] for a in axes]}"
                                     " chosen by the data (stds under the random walk's covariance)"
                                     + "".join(f", {e}" for e in values) + "; scale factors and misalignments nominal",
                         thermal=thermal, details=calibration.as_details(details))
@@ -389,11 +396,11 @@ def _said(sensor, i, a) -> str:
                 + f": calibrate with --add {t['strongest']} (or --add auto); the autopilots' thermal parameters "
                 "hold no such term")
     if walk is not None and walk["p_value"] < level:
-        return (f"{sensor} {'xyz'[i]}: the bias's random walk the fit takes ({a['noise']['random_walk_per_sqrt_s']:.3g} "
-                f"per sqrt(s); at least {walk['walk_low_per_sqrt_s']:.3g}) is more than the record's short-term part "
-                f"holds (the block means' first differences {walk['first_differences_ms']:.3g} against "
-                f"{walk['predicted_ms']:.3g} predicted, p = {walk['p_value']:.2g}): a slow misfit the polynomial "
-                "misses, read as a wander")
+        return (f"{sensor} {'xyz'[i]}: the bias's random walk the fit takes "
+                f"({a['noise']['random_walk_per_sqrt_s']:.3g} per sqrt(s); at least {walk['walk_low_per_sqrt_s']:.3g}) "
+                "is more than the record's short-term part holds (the block means' first differences "
+                f"{walk['first_differences_ms']:.3g} against {walk['predicted_ms']:.3g} predicted, "
+                f"p = {walk['p_value']:.2g}): a slow misfit the polynomial misses, read as a wander")
     return ""
 
 

@@ -186,8 +186,8 @@ def read_samples(folder: Path, segments) -> tuple[dict, str, dict | None]:
     """(column -> array, files_sha256 of the set's files as read: hashed on a thread of its own while
     the numbers are parsed, as hashlib frees the GIL, each column's (least, greatest, rows at the least,
     rows at the greatest) where the parser found them, else None) of samples.csv, or samples.parquet
-    (_read_parquet). The numbers are parsed by csv_columns (C or pyarrow), and only where that finds anything unusual by the careful reader,
-    which names the line; the whole file is checked to be UTF-8 either way (an ASCII file, the usual
+    (_read_parquet). The numbers are parsed by csv_columns (C or pyarrow), and only where that finds anything unusual by
+    the careful reader, which names the line; the whole file is checked to be UTF-8 either way (an ASCII file, the usual
     one, is UTF-8 without decoding it)."""
     path = samples_path(folder)
     if path.suffix == ".parquet":

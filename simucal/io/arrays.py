@@ -68,7 +68,8 @@ def _segment_table(segments) -> list[Segment]:
             raise MeasurementSetError("segments", i + 1, f"{e!r}: each segment is a Segment or a mapping with "
                                                          "segment, kind and segments.csv's other columns") from None
         if out[-1].kind not in KINDS:
-            raise MeasurementSetError("segments", i + 1, f"kind must be one of {', '.join(KINDS)}, got {out[-1].kind!r}")
+            raise MeasurementSetError("segments", i + 1,
+                                      f"kind must be one of {', '.join(KINDS)}, got {out[-1].kind!r}")
     return out
 
 
@@ -113,7 +114,8 @@ def from_arrays(acc=None, gyro=None, *, acc_unit, gyro_unit, rate_hz=None, t_s=N
     table = None
     if segments is not None or segment is not None:
         if segments is None or segment is None:
-            raise MeasurementSetError("segments", None, "segments= (the table) and segment= (each row's id) go together")
+            raise MeasurementSetError("segments", None,
+                                      "segments= (the table) and segment= (each row's id) go together")
         table = _segment_table(segments)
         samples["segment"] = _column(segment, "segment", n)
     _finite(samples, name)
@@ -128,19 +130,22 @@ def from_dataframe(df, *, acc_unit, gyro_unit, columns=None, rate_hz=None, t_s=N
                    name="dataframe", cls=MeasurementSet) -> MeasurementSet:
     """from_arrays on a DataFrame's columns. columns: {spec name: the frame's column} for the ones
     named otherwise (ax ay az gx gy gz, t_s, temp_c, segment); a t_s column is used unless rate_hz
-    or t_s is given; with segments= (the table) the segment column gives each row's. pandas is needed only to hand the frame in (simucal[pandas])."""
+    or t_s is given; with segments= (the table) the segment column gives each row's. pandas is needed only to hand the
+    frame in (simucal[pandas])."""
     cols = {k: k for k in KEYS if k in df.columns} | dict(columns or {})
     missing = [v for v in cols.values() if v not in df.columns]
     if missing:
         raise MeasurementSetError(name, None, f"no column {missing[0]!r} (columns: {list(df.columns)}): fix columns=")
 
     if "segment" in cols and segments is None:
-        raise MeasurementSetError(name, None, f"the column {cols['segment']!r} gives each row a segment, but no segments= "
+        raise MeasurementSetError(name, None,
+                                  f"the column {cols['segment']!r} gives each row a segment, but no segments= "
                                               "table says what the segments are: give segments= (segments.csv's rows: "
                                               "segment, kind, the table's angles) for a turntable test, or leave the "
                                               "column out for a stream")
     if not any(k in cols for k in SAMPLE_COLS):
-        raise MeasurementSetError(name, None, f"no accelerometer or gyro columns among {list(df.columns)}: name them ax ay "
+        raise MeasurementSetError(name, None,
+                                  f"no accelerometer or gyro columns among {list(df.columns)}: name them ax ay "
                                               "az gx gy gz, or map them with columns={'ax': 'acc_x', ...}")
 
     def numbers(key):

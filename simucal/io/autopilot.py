@@ -287,7 +287,7 @@ def texts(units: list[tuple], px4: str | None = None, ardupilot: str | None = No
     for given, name, room in ((px4, "--px4", PX4_SLOTS), (ardupilot, "--ardupilot", ARDUPILOT_SLOTS)):
         beyond = [u for u in imus if u.slot >= room]
         if given and beyond:
-            raise CalibrationError(f"{name}: {beyond[0].source} is the log's IMU instance {beyond[0].slot}; the autopilot "
-                                   f"has thermal compensation slots for instances 0 to {room - 1} only")
+            raise CalibrationError(f"{name}: {beyond[0].source} is the log's IMU instance {beyond[0].slot}; "
+                                   f"the autopilot has thermal compensation slots for instances 0 to {room - 1} only")
     made = [(px4, *px4_text(imus), px4_note(imus))] if px4 else []
     return made + ([(ardupilot, *ardupilot_text(imus), ardupilot_note(imus))] if ardupilot else [])

@@ -140,7 +140,8 @@ def library(rel: str) -> tuple[Path | None, str | None]:
     return None, why
 
 
-CFLAGS = ("-O3", "-fno-math-errno", "-shared", "-fPIC")  # no -march=native: a cache may be shared by machines of other CPUs
+# no -march=native: a cache may be shared by machines of other CPUs
+CFLAGS = ("-O3", "-fno-math-errno", "-shared", "-fPIC")
 
 
 def compiler() -> str | None:

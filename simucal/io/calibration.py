@@ -199,7 +199,8 @@ class SensorBlock:
     def __repr__(self) -> str:
         """One line (the dataclass's printed every array and record, 6 kB): the model, its test and verdict, the
         effects added; the numbers are in the fields and the calibration's parameters()."""
-        test = "no test" if self.p_value is None else f"chi2 {self.chi2:.4g} on {self.dof:g} dof, p = {self.p_value:.2g}"
+        test = ("no test" if self.p_value is None
+                else f"chi2 {self.chi2:.4g} on {self.dof:g} dof, p = {self.p_value:.2g}")
         effects = f"; effects {', '.join(self.effects)}" if self.effects else ""
         return f"<SensorBlock {self.model}: {self.verdict} ({test}){effects}; bias in {self.bias_unit}>"
 
@@ -278,7 +279,8 @@ class Calibration:
         self.not_calibrated[sensor] = why
 
     def to_json(self) -> dict:
-        out: dict[str, Any] = {"format": self.format, "method": self.method, "input": self.input, "input_sha256": self.input_sha256,
+        out: dict[str, Any] = {"format": self.format, "method": self.method, "input": self.input,
+                               "input_sha256": self.input_sha256,
                "layout": self.layout, "formula": {s: FORMULA[s] for s in self.sensors},
                "units": UNITS}
         for s, b in self.blocks():

@@ -21,7 +21,8 @@ class CalibrationFileError(SimucalError):
 
 def layout(ms) -> records.Layout:
     """The data's units, nominal scale factors, serial and sensors: a calibration is for these only."""
-    out = cast(records.Layout, {k: ms.meta[k] for k in LAYOUT_KEYS + (SERIAL,) if k in ms.meta})  # meta.json's, read by the spec
+    out = cast(records.Layout, {k: ms.meta[k] for k in LAYOUT_KEYS + (SERIAL,)
+                                if k in ms.meta})  # meta.json's, read by the spec
     out["sensors"] = [s for s, has in (("acc", ms.has_acc), ("gyro", ms.has_gyro)) if has]
     return out
 
@@ -123,9 +124,10 @@ def check_file(path, cal: dict) -> None:
 
 
 def _check_stds(path, sensor, block) -> None:
-    """A std (or each entry of a matrix's) is null (not estimated) or a finite number >= 0: a negative or NaN one is no uncertainty, and
-    apply, validate and the reports would carry it on."""
-    entries = [(f"{k}.{n}", v) for k in ("std", "std_raw") if isinstance(block.get(k), dict) for n, v in block[k].items()]
+    """A std (or each entry of a matrix's) is null (not estimated) or a finite number >= 0: a negative or NaN one is no
+    uncertainty, and apply, validate and the reports would carry it on."""
+    entries = [(f"{k}.{n}", v) for k in ("std", "std_raw") if isinstance(block.get(k), dict)
+               for n, v in block[k].items()]
     entries += [(f"effects.{e}.std", d.get("std")) for e, d in block["effects"].items() if isinstance(d, dict)] \
         if isinstance(block.get("effects"), dict) else []
     for where, v in entries:

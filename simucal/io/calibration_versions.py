@@ -27,7 +27,8 @@ def _from_format_1(path: Path, d: dict) -> dict:
     if found is None:
         raise CalibrationFileError(f"{path}: format {FORMAT_1!r} holds no layout (the raw outputs' units and "
                                    f"nominal scales were the set's meta.json), and its set {d.get('input')!r} is "
-                                   "neither beside the file nor in the working folder: put it there, or calibrate again")
+                                   "neither beside the file nor in the working folder: put it there, or "
+                                   "calibrate again")
     ms = read_set(found)
     if d.get("input_sha256") not in (None, ms.sha256):
         raise CalibrationFileError(f"{path}: format {FORMAT_1!r} takes its layout from its set, but {found} is not "

@@ -33,8 +33,8 @@ def read_columns(body: memoryview, header: list[str], spec_cols: list[str], othe
     is not a number, an empty cell, a ragged row, a NaN or an infinity): the careful reader then names
     the line and the column; {column: (least, greatest, rows at the least, rows at the greatest)} where
     every number is known to lie within +-bound, else None). A column of others holding text also gives
-    None, as before. The pieces go into arrays sized by the file's line count: no table of the whole file is held. csv_numbers.c
-    checks each number against bound and keeps each column's extremes as it parses it (no further
+    None, as before. The pieces go into arrays sized by the file's line count: no table of the whole file is held.
+    csv_numbers.c checks each number against bound and keeps each column's extremes as it parses it (no further
     pass over the columns); pyarrow's numbers are checked to be finite here, and against bound by the
     caller, which names the row."""
     names = spec_cols + others

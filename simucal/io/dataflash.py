@@ -60,8 +60,8 @@ def _stream(path: Path, parsed, instance: int | None) -> LogStream:
     rows, kinds, params, warnings = parsed
     seen = sorted(rows)
     if instance is None or instance not in rows:
-        raise ImportError_(f"{path}: no IMU messages{'' if instance is None else f' of instance {instance}'} in the log (it has "
-                           f"{'instances ' + ', '.join(map(str, seen)) if seen else 'no IMU messages'})"
+        raise ImportError_(f"{path}: no IMU messages{'' if instance is None else f' of instance {instance}'} in the "
+                           f"log (it has {'instances ' + ', '.join(map(str, seen)) if seen else 'no IMU messages'})"
                            + (f": give --instance {seen[0]}" if seen else ": set LOG_BITMASK to log the IMU"))
     r = np.array(rows[instance], float)
     suffix = "" if instance == 0 else str(instance + 1)

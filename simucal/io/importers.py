@@ -75,8 +75,9 @@ def import_meta(acc_unit, gyro_unit, latitude_deg, extra, has_gyro=True):
     return meta
 
 
-def import_imu_tk(acc_path: str | os.PathLike[str], gyro_path: str | os.PathLike[str], out: str | os.PathLike[str], acc_counts_per_g: float,
-                  gyro_counts_per_dps: float, latitude_deg: float | None, gravity_mps2: float | None = None) -> dict[str, Any]:
+def import_imu_tk(acc_path: str | os.PathLike[str], gyro_path: str | os.PathLike[str], out: str | os.PathLike[str],
+                  acc_counts_per_g: float, gyro_counts_per_dps: float, latitude_deg: float | None,
+                  gravity_mps2: float | None = None) -> dict[str, Any]:
     a = _read_numeric(acc_path, 4)
     g = _read_numeric(gyro_path, 4)
     if len(a) != len(g) or np.any(np.abs(a[:, 0] - g[:, 0]) > 1e-9):
@@ -84,7 +85,8 @@ def import_imu_tk(acc_path: str | os.PathLike[str], gyro_path: str | os.PathLike
     bad = np.nonzero(np.diff(a[:, 0]) <= 0)[0]
     if bad.size:
         raise ImportError_(f"{acc_path}, line {bad[0] + 2}: time does not increase")
-    extra: dict[str, Any] = {"acc_counts_per_g": [acc_counts_per_g] * 3, "gyro_counts_per_dps": [gyro_counts_per_dps] * 3,
+    extra: dict[str, Any] = {"acc_counts_per_g": [acc_counts_per_g] * 3,
+                             "gyro_counts_per_dps": [gyro_counts_per_dps] * 3,
              "description": f"imported from imu_tk files {Path(acc_path).name}, {Path(gyro_path).name}"}
     if gravity_mps2:
         extra["gravity_mps2"] = gravity_mps2
@@ -108,7 +110,8 @@ def parse_columns(text: str) -> dict:
             raise ImportError_(f"--columns: {spec} is mapped twice")
         if src in out.values():
             raise ImportError_(f"--columns: source column {src!r} is mapped to both "
-                               f"{[k for k, v in out.items() if v == src][0]} and {spec}: each axis needs its own column")
+                               f"{[k for k, v in out.items() if v == src][0]} and {spec}: "
+                               "each axis needs its own column")
         out[spec] = src
     for group in (("ax", "ay", "az"), ("gx", "gy", "gz")):
         got = [c for c in group if c in out]
@@ -192,7 +195,8 @@ def import_csv(path, out, columns: dict, acc_unit, gyro_unit, rate_hz=None, lati
 FERRARIS_COLUMNS = {"ax": "acc_x", "ay": "acc_y", "az": "acc_z", "gx": "gyr_x", "gy": "gyr_y", "gz": "gyr_z"}
 
 
-def import_ferraris(path: str | os.PathLike[str], out: str | os.PathLike[str], rate_hz: float, latitude_deg: float | None) -> dict[str, Any]:
+def import_ferraris(path: str | os.PathLike[str], out: str | os.PathLike[str], rate_hz: float,
+                    latitude_deg: float | None) -> dict[str, Any]:
     return import_csv(path, out, FERRARIS_COLUMNS, "m/s^2", "deg/s", rate_hz, latitude_deg, {"gravity_mps2": 9.81})
 
 
@@ -258,7 +262,8 @@ def _read_sections(path, n_rows) -> dict:
     return sections
 
 
-def import_ferraris_sections(csv_path: str | os.PathLike[str], json_path: str | os.PathLike[str], out: str | os.PathLike[str], rate_hz: float,
+def import_ferraris_sections(csv_path: str | os.PathLike[str], json_path: str | os.PathLike[str],
+                             out: str | os.PathLike[str], rate_hz: float,
                              latitude_deg: float | None, turn_deg: float = -360.0) -> dict[str, Any]:
     """imucal's session CSV with its section list (0-based rows, end exclusive)."""
     data = _read_columns(csv_path, FERRARIS_COLUMNS)
@@ -275,7 +280,8 @@ def import_ferraris_sections(csv_path: str | os.PathLike[str], json_path: str | 
                          latitude_deg, turn_deg, Path(csv_path).name)
 
 
-def import_imucal_annotated(csv_path: str | os.PathLike[str], out: str | os.PathLike[str], rate_hz: float, acc_counts_per_g: float, gyro_counts_per_dps: float,
+def import_imucal_annotated(csv_path: str | os.PathLike[str], out: str | os.PathLike[str], rate_hz: float,
+                            acc_counts_per_g: float, gyro_counts_per_dps: float,
                             latitude_deg: float | None, turn_deg: float = -360.0) -> dict[str, Any]:
     """imucal's annotated session: sections already cut, sorted by label; `samples`
     gives the recording order."""

@@ -33,7 +33,8 @@ def need(module: str, fmt: str, path):
     try:
         return __import__(module, fromlist=["_"])
     except ImportError:
-        raise ImportError_(f"{path}: reading a {fmt} needs {module.split('.')[0]}: pip install 'simucal[logs]'") from None
+        raise ImportError_(f"{path}: reading a {fmt} needs {module.split('.')[0]}: "
+                           "pip install 'simucal[logs]'") from None
 
 
 def other_format(data: bytes) -> str:
@@ -82,7 +83,8 @@ def on_one_clock(t_a, acc, temp_a, t_g, gyro, path, names=("sensor_accel", "sens
     else:
         temp_rows = None if temp_s is None else temp_s[keep]
     empty = np.nonzero(~keep[1:])[0] + 1
-    gaps: dict[str, float] = {"rows_left_out": int((~keep).sum())}  # the first sample's, which has no interval, counted too
+    # the first sample's, which has no interval, counted too
+    gaps: dict[str, float] = {"rows_left_out": int((~keep).sum())}
     if empty.size:
         longest = int(empty[np.argmax(t_s[empty] - t_s[empty - 1])])
         gaps["longest_s"] = float(t_s[longest] - t_s[longest - 1])

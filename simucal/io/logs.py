@@ -50,8 +50,9 @@ def checked(s: LogStream, path: Path) -> LogStream:
         # a driver without a temperature logs NaN, and one logs it until its first reading: no column rather
         # than a broken one, said where some rows had one
         if np.any(np.isfinite(s.temp_c)):
-            s.warnings.append(f"{path}: {int((~np.isfinite(s.temp_c)).sum()):,} of {len(s.temp_c):,} temperature samples "
-                              "are NaN: the set has no temp_c column (a thermal calibration needs one on every row)")
+            s.warnings.append(f"{path}: {int((~np.isfinite(s.temp_c)).sum()):,} of {len(s.temp_c):,} temperature "
+                              "samples are NaN: the set has no temp_c column (a thermal calibration needs one on "
+                              "every row)")
         s.temp_c = None
         s.log["temperature"] = None
     for name, x in (("accelerometer", s.acc_mps2), ("gyro", s.gyro_rads)):

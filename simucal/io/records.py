@@ -113,7 +113,8 @@ class AutoStep(TypedDict, total=False):
     twin_choice: str
 
 
-PairsChi2 = TypedDict("PairsChi2", {"pairs": int, "chi2": float, "dof": int, "p_value": float})  # model_test.pairs_evidence
+# model_test.pairs_evidence
+PairsChi2 = TypedDict("PairsChi2", {"pairs": int, "chi2": float, "dof": int, "p_value": float})
 class StaticRows(TypedDict, total=False):
     """A turntable gyro's static rows against the Earth rate (turntable/model_test.py)."""
     pairs: PairsChi2                  # a twin's fit judged: the unification pairs with it too
@@ -193,7 +194,8 @@ class Estimates(TypedDict):
 
 
 RateValue = TypedDict("RateValue", {"value": float, "std": float})  # a warm-up axis's temperature rate, per degC/s
-WalkCheck = TypedDict("WalkCheck", {"walk_low_per_sqrt_s": float, "white_block_std": float, "first_differences_ms": float,
+WalkCheck = TypedDict("WalkCheck",
+                      {"walk_low_per_sqrt_s": float, "white_block_std": float, "first_differences_ms": float,
                                     "predicted_ms": float, "z": float, "p_value": float})  # handheld/warmup.walk_check
 
 

@@ -30,9 +30,10 @@ def read_rosbag(path, topic: str | None = None) -> LogStream:
         imus = sorted({c.topic for c in reader.connections if c.msgtype == "sensor_msgs/msg/Imu"})
         if topic is None:
             if len(imus) != 1:
-                raise ImportError_(f"{path}: {'no sensor_msgs/Imu topic' if not imus else 'several Imu topics: ' + ', '.join(imus)}"
-                                   f" in the bag{': give --topic' if imus else ''} (its topics: "
-                                   f"{', '.join(sorted({c.topic + ' ' + c.msgtype for c in reader.connections}))})")
+                raise ImportError_(
+                    f"{path}: {'no sensor_msgs/Imu topic' if not imus else 'several Imu topics: ' + ', '.join(imus)}"
+                    f" in the bag{': give --topic' if imus else ''} (its topics: "
+                    f"{', '.join(sorted({c.topic + ' ' + c.msgtype for c in reader.connections}))})")
             topic = imus[0]
         cons = [c for c in reader.connections if c.topic == topic]
         if not cons:
@@ -52,7 +53,8 @@ def read_rosbag(path, topic: str | None = None) -> LogStream:
     except ImportError_:
         raise
     except Exception as e:  # a bag cut short fails in rosbags' reader or its storage
-        raise ImportError_(f"{path}: the bag could not be read to its end ({e}): copy it again, or reindex it") from None
+        raise ImportError_(f"{path}: the bag could not be read to its end ({e}): copy it again, or "
+                           "reindex it") from None
     finally:
         reader.close()
     if not k:

@@ -126,7 +126,8 @@ def stuck_channels(ms: Any) -> None:  # a simucal.io.MeasurementSet: that packag
             where = f"segment {seg}" if seg is not None else f"{len(rows)} rows from line {int(rows[0]) + 2}"
             raise CalibrationError(f"{ms.path / 'samples.csv'}: column {cols[j]} holds {X[rows, j][0]:g} in every row "
                                    f"of {where} while {' and '.join(c for k, c in enumerate(cols) if k != j)} vary: "
-                                   "a channel stuck for that part (a dropout or a frozen value); cut or repair those rows")
+                                   "a channel stuck for that part (a dropout or a frozen value); "
+                                   "cut or repair those rows")
 
 
 def _one_value(ms, c) -> bool:

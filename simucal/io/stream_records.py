@@ -7,7 +7,8 @@ from typing import TypedDict
 
 # How a stream's rests were found (handheld/static_detect.py): the settings, the intervals, the gyro limit and how it
 # was set (GyroLimit), and each still interval a rule dropped or the gyro shortened, with its rule and numbers.
-GyroLimit = TypedDict("GyroLimit", {"limit_dps": float, "set_by": str, "text": str, "noise_dps": float, "sway_dps": float,
+GyroLimit = TypedDict("GyroLimit",
+                      {"limit_dps": float, "set_by": str, "text": str, "noise_dps": float, "sway_dps": float,
                                     "poses": int, "noise_factor": float, "sway_factor": float, "from_data_dps": float},
                       total=False)
 DroppedInterval = TypedDict("DroppedInterval", {

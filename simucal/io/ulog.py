@@ -116,8 +116,9 @@ def _best(path: Path, data: dict, warnings: list[str], instance: int | None) -> 
                        else "the only source that holds both sensors"})
     if best.rate_hz < LOW_RATE_HZ:
         warnings.append(f"{path}: the IMU is read from {best.name} at {best.rate_hz:.3g} Hz, under {LOW_RATE_HZ:g} Hz "
-                        f"(the fastest of {len(sources)} source{'s' * (len(sources) > 1)}): enough for a warm-up's slow "
-                        "curve, not for noise or motion, which need the full rate (PX4's high-rate logging)")
+                        f"(the fastest of {len(sources)} source{'s' * (len(sources) > 1)}): "
+                        "enough for a warm-up's slow curve, not for noise or motion, which need the full rate "
+                        "(PX4's high-rate logging)")
     latitude = gps_latitude(data)
     if latitude is not None:
         stream.log["gps_latitude_deg"] = latitude
@@ -148,8 +149,8 @@ def _sources(data, path) -> list[Source]:
             g = data[("sensor_gyro", i)]
             if len(d["timestamp"]) > 1 and len(g["timestamp"]) > 1:
                 out.append(Source(f"sensor_accel+sensor_gyro instance {i}", i,
-                                  min(_rate(_stamps(d)), _rate(_stamps(g))), min(len(d["timestamp"]), len(g["timestamp"])),
-                                  partial(_pair, d, g, i, path)))
+                                  min(_rate(_stamps(d)), _rate(_stamps(g))),
+                                  min(len(d["timestamp"]), len(g["timestamp"])), partial(_pair, d, g, i, path)))
         if name == "vehicle_imu" and len(d["timestamp"]) > 1:
             out.append(Source(f"vehicle_imu instance {i}", i, _rate(_stamps(d)), len(d["timestamp"]),
                               partial(_vehicle_imu, d, i, data, path)))
@@ -203,7 +204,8 @@ def _combined(d, selection, data, path) -> LogStream:
     dt_unit = "s" if dt.dtype.kind == "f" else "us"  # PX4 logged it as float seconds before 2019
     acc_id, gyro_id = _device_id(selection, "accel_device_id"), _device_id(selection, "gyro_device_id")
     log = {"instance": None, "topics": ["sensor_combined"] + (["sensor_selection"] if selection is not None else []),
-           "clock": {"rows": f"sensor_combined's messages at their timestamp, the gyro's sample time ({_rate(t_us):.4g} Hz)",
+           "clock": {"rows": "sensor_combined's messages at their timestamp, the gyro's sample time "
+                             f"({_rate(t_us):.4g} Hz)",
                      "gyro": f"gyro_rad, its mean rate over gyro_integral_dt ({dt_unit})",
                      "acc": "accelerometer_m_s2, its mean over accelerometer_integral_dt, at timestamp + "
                             "accelerometer_timestamp_relative (largest |relative| "
@@ -315,7 +317,8 @@ def fifo_samples(d, prefix: str = "") -> tuple[np.ndarray, np.ndarray, np.ndarra
     n = np.asarray(d["samples"], np.int64)
     k = np.arange(_fifo_width(d, prefix))
     held = k[None, :] < n[:, None]
-    t_us = np.asarray(d["timestamp_sample"], float)[:, None] - (n[:, None] - 1 - k) * np.asarray(d["dt"], float)[:, None]
+    t_us = (np.asarray(d["timestamp_sample"], float)[:, None]
+            - (n[:, None] - 1 - k) * np.asarray(d["dt"], float)[:, None])
     counts = np.stack([np.column_stack([d[f"{prefix}{axis}[{j}]"] for j in k]) for axis in "xyz"], axis=-1)
     scale = np.asarray(d[f"{prefix}scale" if prefix else "scale"], float)[:, None, None]
     message = np.broadcast_to(np.arange(len(n))[:, None], held.shape)

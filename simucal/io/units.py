@@ -200,7 +200,8 @@ UNIT_MIXUPS = {"acc": {"m/s^2 labelled g": DEFAULT_GRAVITY, "g labelled m/s^2": 
                    "mg labelled g": 1000.0},
            "gyro": {"deg/s labelled deg/h": 1 / DPH_PER_DPS, "deg/h labelled deg/s": DPH_PER_DPS,
                     "rad/s labelled deg/s": np.pi / 180, "deg/s labelled rad/s": 180 / np.pi,
-                    "rad/s labelled deg/h": np.pi / 180 / DPH_PER_DPS, "deg/h labelled rad/s": DPH_PER_DPS * 180 / np.pi}}
+                    "rad/s labelled deg/h": np.pi / 180 / DPH_PER_DPS,
+                    "deg/h labelled rad/s": DPH_PER_DPS * 180 / np.pi}}
 
 
 def check_magnitude(sensor: str, measured_norm: ArrayLike, expected_norm: ArrayLike, where: object,
@@ -228,7 +229,8 @@ def _refuse_ratio(sensor, r, where, what="outputs"):
     likely = f"; the ratio matches {guess[0]}" if abs(np.log(r / guess[1])) < 0.2 else ""
     from simucal.errors import CalibrationError
     known = "1 g at rest" if sensor == "acc" else "the commanded rate, or the Earth rate at rest"
-    raise CalibrationError(f"{where}: the {sensor} {what} are {r:.4g} times the known input ({known}): check {sensor}_unit and the nominal scale factors in meta.json{likely}")
+    raise CalibrationError(f"{where}: the {sensor} {what} are {r:.4g} times the known input ({known}): check "
+                           f"{sensor}_unit and the nominal scale factors in meta.json{likely}")
 
 
 # The units a person may ask numbers in: the spec's (g, deg/h and the noise terms' data-sheet units) or SI

@@ -169,7 +169,8 @@ def certificate_page(cal: Calibration, file_name: str, file_sha256: str, validat
                            for r in rows]))
         if b.thermal and coefficients(b):
             body.append(f"<p>{s}'s temperature coefficients, of (T - T_ref), T_ref = {b.thermal['t_ref_c']:g} degC "
-                        "(the value at T is the polynomial's: simucal apply evaluates it at each row's temperature):</p>")
+                        "(the value at T is the polynomial's: simucal apply evaluates it at each row's "
+                        "temperature):</p>")
             body.append(table(["coefficient", "value", "unit", "u (std)", f"U (k = {K:g})"], coefficients(b)))
     if validation:
         body.append("<h2>Validation on independent data</h2>")

@@ -109,7 +109,8 @@ def _fit_lines(s, b: SensorBlock, source):
             f"{x['count']} on {x['axis']} from line {x['first_row'] + 2} of samples.csv" for x in d["saturation"]))
     if d.get("moves_skipped"):
         why = sorted({m["reason"] for m in d["moves_skipped"]})
-        yield f"{s}: {len(d['moves_skipped'])} of {d['moves_used'] + len(d['moves_skipped'])} moves left out ({'; '.join(why)})"
+        yield (f"{s}: {len(d['moves_skipped'])} of {d['moves_used'] + len(d['moves_skipped'])} moves left out "
+               f"({'; '.join(why)})")
     if d.get("model_choice"):
         yield (f"{s}: T chosen by the moves left out one at a time: " + ", ".join(
             f"{k} {v['held_out_rms_deg']:.3g} deg" for k, v in d["model_choice"].items())
@@ -124,12 +125,14 @@ def _fit_lines(s, b: SensorBlock, source):
     if b.verdict == "fails":
         what = d.get("advice")
         stds = ("stds are inflated by sqrt(chi2/dof) (std_raw keeps the unscaled ones)" if "std_raw" in d else
-                d["std_note"] if d.get("std_note") else f"stds include a model-error std {d['model_error_std_g']:.2g} g "
+                d["std_note"] if d.get("std_note")
+                else f"stds include a model-error std {d['model_error_std_g']:.2g} g "
                 "per pose" if d.get("model_error_std_g") else "stds assume the model is right")
         yield (f"{s}: THE MODEL FAILS (p = {b.p_value:.2g} < {ALPHA:.0e}): ".replace("e-0", "e-")
                + ("the stated noise may be too small (the warning above); " if d.get("noise_too_small") else "")
                + (f"{what}; " if what and what.startswith("no library effect") else
-                  f"diagnose would add {what}{_twins_said(d, what)}; " if what else "the rows at rest misfit (above) by a term the rate runs "
+                  f"diagnose would add {what}{_twins_said(d, what)}; " if what
+                  else "the rows at rest misfit (above) by a term the rate runs "
                   "cannot see; " if (d.get("static_rows") or {}).get("p_value", 1.0) < ALPHA else
                   f"see simucal diagnose {source} for what is missing; ")
                + stds)
@@ -233,7 +236,8 @@ def to_add(diag: dict, sensor: str) -> tuple[list[str] | None, str]:
         return [], ""
     shape = b.get("shape") or {}
     steps = (b.get("misfit_shares") or {}).get("steps")
-    outside = None if shape.get("model_file_path") or steps else family.outside_library(b["model_test"], b["candidates"])
+    outside = (None if shape.get("model_file_path") or steps
+               else family.outside_library(b["model_test"], b["candidates"]))
     if outside:
         return None, f"{sensor}: {outside['text']}"
     sig = [c["id"] for c in b["candidates"] if c.get("significant")]
@@ -289,10 +293,12 @@ def validation_next(report: dict) -> tuple[str, list[str]]:
     cal, data = report["calibration"], report["data"]
     if report["note"]:
         return f"simucal validate {cal} OTHER_RECORDING -o validation.json --html validation.html", [report["note"]]
-    bad = [s for s, v in report["verdict"].items() if not v.startswith(("better", "at the noise floor", "not calibrated"))]
+    bad = [s for s, v in report["verdict"].items()
+           if not v.startswith(("better", "at the noise floor", "not calibrated"))]
     if bad:
         return (f"simucal diagnose {data} -o diagnosis.json --html diagnosis.html",
-                [f"{', '.join(bad)}: the calibration does not hold on these data; the diagnosis shows what its model lacks"])
+                [f"{', '.join(bad)}: the calibration does not hold on these data; the diagnosis shows what its "
+                 "model lacks"])
     return f"simucal apply {cal} {data} -o calibrated", []
 
 
@@ -348,12 +354,14 @@ def noise_verdicts(report) -> list[tuple[bool, str]]:
         axes = report[sensor]["axes"]
         stuck = [f"{a} {ax['stuck']}" for a, ax in axes.items() if "stuck" in ax]
         n = [axes[a]["sheet"]["N"] for a in _axes_of(axes, "seen", "N")]
-        text = (f"{sensor}: {allan_terms.SHEET[sensor]['N'][0]} " + (f"{min(t['value'] for t in n):.3g} to {max(t['value'] for t in n):.3g} "
-                f"{n[0]['unit']}" if n else "not seen") + " on " + ", ".join(_axes_of(axes, "seen", "N") or ["no axis"]))
+        text = (f"{sensor}: {allan_terms.SHEET[sensor]['N'][0]} "
+                + (f"{min(t['value'] for t in n):.3g} to {max(t['value'] for t in n):.3g} "
+                   f"{n[0]['unit']}" if n else "not seen")
+                + " on " + ", ".join(_axes_of(axes, "seen", "N") or ["no axis"]))
         for status, say in (("seen", "seen beyond it"), ("not seen", "not seen (95 % bounds below)"),
                             ("too short", "the record too short to tell")):
-            terms = [f"{allan_terms.SHEET[sensor][k][0]} ({', '.join(_axes_of(axes, status, k))})" for k in allan_terms.SHEET[sensor]
-                     if k != "N" and _axes_of(axes, status, k)]
+            terms = [f"{allan_terms.SHEET[sensor][k][0]} ({', '.join(_axes_of(axes, status, k))})"
+                     for k in allan_terms.SHEET[sensor] if k != "N" and _axes_of(axes, status, k)]
             text += f"; {say}: {', '.join(terms)}" if terms else ""
         out.append((not stuck and len(n) == len(axes), text + "".join(f"; STUCK: {x}" for x in stuck)))
     if report.get("temperature", {}).get("warning"):

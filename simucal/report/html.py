@@ -35,8 +35,9 @@ def shape_figure(sensor, shape, unit):
     return png(fig)
 
 
+# a residual row's own fields and the inputs plotted elsewhere
 ROW_KEYS = {"segment", "kind", "outer_rate_dps", "t_s", "direction", "residual", "sigma", "normalized", "from_pose",
-            "to_pose", "t_span_s", "f_x", "f_y", "f_z", "w2"}  # a residual row's own fields and the inputs plotted elsewhere
+            "to_pose", "t_span_s", "f_x", "f_y", "f_z", "w2"}
 
 
 def _varying_inputs(rows):
@@ -136,8 +137,8 @@ def stream_figures(stream):
     for k, (a, b) in enumerate(det["intervals_s"]):
         ax.axvspan(a, b, color="tab:green", alpha=0.25, label="static (detected)" if k == 0 else None)
     one_g = stream.get("one_g", 1.0)  # 1 g in the unit shown (report/units.diagnosis_in)
-    ax.set(xlabel="time (s)", ylabel=f"calibrated |f| ({stream.get('acc_norm_unit', 'g')})", ylim=(0.5 * one_g, 1.5 * one_g),
-           title=f"stream: {det['count']} static intervals "
+    ax.set(xlabel="time (s)", ylabel=f"calibrated |f| ({stream.get('acc_norm_unit', 'g')})",
+           ylim=(0.5 * one_g, 1.5 * one_g), title=f"stream: {det['count']} static intervals "
            f"(threshold {det['threshold']:.3g}, window {det['window']} samples, min {det['min_samples']} samples)")
     ax.legend(fontsize=8)
     figs.append(png(fig))
@@ -146,7 +147,8 @@ def stream_figures(stream):
 
 def _verdicts(diag: dict) -> list[tuple[bool, str]]:
     """Per sensor (ok, its verdict): the diagnosis's own, as the console prints it."""
-    return [(diag[s]["baseline"]["p_value"] is None or diag[s]["baseline"]["p_value"] >= diag["alpha"], diag[s]["verdict"])
+    return [(diag[s]["baseline"]["p_value"] is None or diag[s]["baseline"]["p_value"] >= diag["alpha"],
+             diag[s]["verdict"])
             for s in ("acc", "gyro") if s in diag]
 
 

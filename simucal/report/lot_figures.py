@@ -21,7 +21,8 @@ DRIFT_P = ALPHA    # a drift whose joint chi^2 has a smaller p is reported as dr
 
 
 def model_name(cal: Calibration) -> str:
-    """Each block's model with its effects, in words: "acc acc_baseline + acc.quadratic.z, gyro gyro_baseline (thermal)"."""
+    """Each block's model with its effects, in words: "acc acc_baseline + acc.quadratic.z, gyro gyro_baseline
+    (thermal)"."""
     return ", ".join(f"{s} {b.model}" + "".join(f" + {e}" for e in sorted(b.effects)) + (" (thermal)" if b.thermal
                                                                                           else "")
                      for s, b in cal.blocks())

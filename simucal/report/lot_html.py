@@ -1,7 +1,8 @@
 """The page of a lot (`simucal lot --html`): first the lot's verdict (how many units pass, which fail and
 why, which are flagged) and the next command, then per group and sensor each parameter over the units
 (each unit's value with its std, the lot's median, the band the outlier rule allows, the spec limits),
-the table of every parameter's distribution, the units and the drifts. Reads the report (simucal/api/lot_reporting.py)."""
+the table of every parameter's distribution, the units and the drifts. Reads the report
+(simucal/api/lot_reporting.py)."""
 from __future__ import annotations
 
 import html

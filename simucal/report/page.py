@@ -28,9 +28,11 @@ STYLE = (f"body{{font-family:'{FONT}',Verdana,sans-serif;max-width:1250px;margin
          "table{border-collapse:collapse;font-size:12px;margin:6px 0} td,th{border:1px solid #ccc;padding:2px 6px}"
          "th{background:#f4f4f4} .bad{color:#b00} .ok{color:#070} .unsure{color:#a60} img{max-width:100%;display:block}"
          ".verdict{margin:0;padding:2px 0} .next{background:#f4f4f4;padding:6px} summary{cursor:pointer;color:#444}"
-         "code{font-family:'DejaVu Sans Mono',monospace} table{display:block;overflow-x:auto;max-width:100%} .n{white-space:nowrap}"
+         "code{font-family:'DejaVu Sans Mono',monospace} table{display:block;overflow-x:auto;max-width:100%} "
+         ".n{white-space:nowrap}"
          "h1,.verdict,.next{overflow-wrap:anywhere}"
-         ".figs{display:grid;grid-template-columns:repeat(auto-fill,minmax(min(560px,100%),1fr));gap:6px} .figs img{width:100%}")
+         ".figs{display:grid;grid-template-columns:repeat(auto-fill,minmax(min(560px,100%),1fr));gap:6px} "
+         ".figs img{width:100%}")
 
 
 def page(title: str, heading: str, verdicts, next_cmd: str, notes=(), body=()) -> str:

@@ -106,7 +106,8 @@ def claims(seeds=20, progress=None) -> list[dict]:
         mean, sd = est[m].mean(0), est[m].std(0, ddof=1)
         z = (np.array(PAPER_T3[m]) - mean) / np.maximum(sd, 1e-300)
         bad = [f"{labels[i]} ({z[i]:+.0f} std)" for i in np.argsort(-np.abs(z)) if abs(z[i]) > 3]
-        rows.append({"source": "Table 3", "claim": f"every printed {'norm observation' if m == 'linear' else 'previous method'} "
+        rows.append({"source": "Table 3",
+                     "claim": f"every printed {'norm observation' if m == 'linear' else 'previous method'} "
                                                    "entry is reproducible (within 3 std of the Monte Carlo)",
                      "measured": f"{len(labels) - len(bad)} of {len(labels)} within 3 std"
                                  + (f"; not: {', '.join(bad[:6])}" + (" ..." if len(bad) > 6 else "") if bad else ""),
@@ -122,7 +123,8 @@ def claims(seeds=20, progress=None) -> list[dict]:
         errs = np.array(t4[key])  # (levels, seeds)
         for (lv, _), p, e in zip(LEVELS, printed, errs):
             z = (p - e.mean()) / e.std(ddof=1)
-            rows.append({"source": "Table 4", "claim": f"{key[0]}, {'norm observation' if key[1] == 'linear' else 'previous'}"
+            rows.append({"source": "Table 4",
+                         "claim": f"{key[0]}, {'norm observation' if key[1] == 'linear' else 'previous'}"
                                                        f", position errors {lv}: printed error {p:.3g}",
                          "measured": f"{e.mean():+.3g} +- {e.std(ddof=1):.2g} (z = {z:+.1f})",
                          "holds": "reproducible" if abs(z) <= 3 else "not reproducible"})
@@ -135,7 +137,8 @@ def claims(seeds=20, progress=None) -> list[dict]:
                          "measured": f"rms at 1 deg / at 1\" = {ratio:.3g}", "holds": _holds(ratio < 1.5)})
         else:
             grows = bool(np.all(np.diff(rms_at[:4]) > 0))
-            rows.append({"source": "section 4", "claim": f"previous method: {key[0]} error grows with the position error",
+            rows.append({"source": "section 4",
+                         "claim": f"previous method: {key[0]} error grows with the position error",
                          "measured": "rms " + ", ".join(f"{r:.2g}" for r in rms_at), "holds": _holds(grows)})
     return rows
 

@@ -55,7 +55,8 @@ def verdict_lines(sensor, b, validations=()) -> list[str]:
         out = [f"{sensor}: {verdict}: {b.details.get('test', 'the model test')}, chi2 {b.chi2:.4g} on {b.dof} dof, "
                f"p = {_p(b.p_value)} ({axes})"]
     elif groups is None:  # each plateau alone, then the polynomials
-        return [f"{sensor}: each plateau fitted alone, p = " + ", ".join(_p(x["p_value"]) for x in b.details["plateaus"])]
+        return [f"{sensor}: each plateau fitted alone, p = "
+                + ", ".join(_p(x["p_value"]) for x in b.details["plateaus"])]
     else:
         out = _joint_verdict(sensor, b, groups)
     for v in validations:

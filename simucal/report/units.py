@@ -152,7 +152,8 @@ def diagnosis_in(report: dict, system: str, gravity_mps2: float | None = None) -
     def conv(d, labels):  # labels: {key: its unit label}
         if id(d) not in done:
             done.add(id(d))
-            d.update({k: units.in_units(d[k], u, system, g)[0] for k, u in labels.items() if u and d.get(k) is not None})
+            d.update({k: units.in_units(d[k], u, system, g)[0]
+                      for k, u in labels.items() if u and d.get(k) is not None})
 
     def candidate(c, residual_unit):
         if id(c) not in done:
@@ -247,7 +248,8 @@ def lot_in(report: dict, system: str, gravity_mps2: float = units.DEFAULT_GRAVIT
         for p in grp["parameters"]:
             f, label = units.in_units(1.0, p["unit"], system, gravity_mps2)
             p.update({k: [None if v is None else v * f for v in p[k]] for k in ("values", "stds") if k in p})
-            p.update({k: p[k] * f for k in ("centre", "spread", "spread_of_units", "median_std") if p.get(k) is not None},
+            p.update({k: p[k] * f
+                      for k in ("centre", "spread", "spread_of_units", "median_std") if p.get(k) is not None},
                      unit=label)
     for lim in out["limits"].values():
         f, label = units.in_units(1.0, lim.get("unit", "1"), system, gravity_mps2)
@@ -258,7 +260,8 @@ def lot_in(report: dict, system: str, gravity_mps2: float = units.DEFAULT_GRAVIT
     return out
 
 
-def montecarlo_in(result: Mapping[str, Any], system: str, gravity_mps2: float = units.DEFAULT_GRAVITY) -> Mapping[str, Any]:
+def montecarlo_in(result: Mapping[str, Any], system: str,
+                  gravity_mps2: float = units.DEFAULT_GRAVITY) -> Mapping[str, Any]:
     """A copy of a Monte Carlo's result with each parameter's truth, mean, std and CRLB in the system asked."""
     units.check_unit_system(system)
     if system == "spec":

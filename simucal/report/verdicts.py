@@ -15,7 +15,8 @@ def sensor_verdict(block: dict, sensor: str) -> str:
     if block.get("explained_by"):  # a test shared with the other sensor (a sequence's filter), one effect at a time
         by = block["explained_by"]
         return (f"{sensor}: the innovations fail their test, which the {by['sensor']} shares (one filter); {by['id']} "
-                f"explains the misfit best: add it, then diagnose again to see whether the {sensor} still lacks an effect.")
+                f"explains the misfit best: add it, then diagnose again to see whether the {sensor} still lacks "
+                "an effect.")
     moves = "misfit_shares" in block
     text = verdict("gyro (moves)" if moves else sensor, block["model_test"], block["candidates"],
                    block.get("shape"))
@@ -96,5 +97,6 @@ def shares_text(shares) -> str:
     head = (f" Together, {', '.join(x['id'] for x in s)} ({len(s)} effects, chosen one by one) explain" if len(s) > 1
             else f" Alone, {s[0]['id']} explains")
     return (f"{head} {100 * (1 - shares['unexplained']):.1f} % of the misfit (chi2 {s[-1]['chi2_after']:.1f} on "
-            f"{s[-1]['dof_after']} dof, residual rms {s[-1]['residual_rms_after']:.3g}): add {'them' if len(s) > 1 else 'it'}, "
+            f"{s[-1]['dof_after']} dof, residual rms {s[-1]['residual_rms_after']:.3g}): "
+            f"add {'them' if len(s) > 1 else 'it'}, "
             + " ".join(f"--add {x['id']}" for x in s) + "." + still)

@@ -83,8 +83,9 @@ def history(engine, url: str, serial: str, limits_path=None, spec_path=None) -> 
     method, model = recs[-1]["method"], recs[-1]["model"]  # the trend's line: the last calibration's (trend.py)
     units = {f"{p['sensor']}.{p['name']}": p["unit"]
              for p in queries.parameters(engine, url, serial=serial, method=method, model=model)}
-    spec = read_limits(spec_path, units, f"unit {serial}'s trend (its calibrations by {method}, {model}, as its "
-                                         "last one was made: a spec bounds that line's parameters)") if spec_path else {}
+    spec = (read_limits(spec_path, units, f"unit {serial}'s trend (its calibrations by {method}, {model}, as its "
+                                          "last one was made: a spec bounds that line's parameters)")
+            if spec_path else {})
     level, tests = _judge(entries, limits)
     flagged = [e["id"] for e in entries if e["flagged"]]
     verdict = (f"unit {serial}: {len(entries)} calibrations, " +

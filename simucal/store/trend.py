@@ -75,7 +75,8 @@ def due(ab: np.ndarray, cov: np.ndarray, lim: dict, t_last: float) -> tuple[floa
         return K * float(np.sqrt(x @ cov @ x))
 
     def beyond(width):
-        return lambda t: max(value(t) + width(t) - lim.get("max", np.inf), lim.get("min", -np.inf) - value(t) + width(t))
+        return lambda t: max(value(t) + width(t) - lim.get("max", np.inf),
+                             lim.get("min", -np.inf) - value(t) + width(t))
     return _crossing(beyond(lambda t: 0.0), t_last), _crossing(beyond(band), t_last)
 
 

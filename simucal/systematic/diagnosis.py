@@ -32,8 +32,8 @@ def model_test(test) -> dict:
             "returns": test.get("returns", 0),
             "noise": {"source": "the rests' white noise (first differences)", "rows_estimated": False},
             "whiteness": {"lag1_autocorrelation": test["lag1_autocorrelation"], "lag1_z": test["lag1_z"],
-                          "meaning": "each axis's lag-1 autocorrelation of the whitened innovations times sqrt(updates), "
-                                     "about N(0, 1) where they are white"}}
+                          "meaning": "each axis's lag-1 autocorrelation of the whitened innovations times "
+                                     "sqrt(updates), about N(0, 1) where they are white"}}
 
 
 def innovation_rows(ms, result) -> list[dict]:
@@ -65,7 +65,8 @@ def _added(sensor, result, before, base, truth, added) -> dict:
     comp = added_params(*_params(result, sensor)[:2], *_params(before["result"], sensor)[:2],
                         (truth or {}).get(sensor, {}).get("params"))
     b0 = before["test"]
-    return {"effects": list(added), "residual_rms_before": b0["residual_rms"], "residual_rms_after": base["residual_rms"],
+    return {"effects": list(added), "residual_rms_before": b0["residual_rms"],
+            "residual_rms_after": base["residual_rms"],
             "residual_unit": UNIT, "p_value_before": b0["p_value"], "p_value_after": base["p_value"], "params": comp,
             "residuals_before": before["rows"]}
 

@@ -1,5 +1,6 @@
 """The filter's innovations as the loop's evidence: the model test (NIS, whiteness, and the candidates'
-targeted tests with it: fit/family.py) and the candidate effects scored on them, through the project's one ranking (fit/ranking.py).
+targeted tests with it: fit/family.py) and the candidate effects scored on them, through the project's one ranking
+(fit/ranking.py).
 
 The zero-velocity innovations of a linear(ised) Kalman filter are its data whitened in time order
 (the innovations form of the likelihood, Schweppe 1965): with the parameters held at their estimates
@@ -98,7 +99,8 @@ def signatures(result, ids=None) -> Signatures:
     s = result.sensors
     ids = candidate_ids(s) if ids is None else tuple(ids)
     acc_c, gyro_c = (tuple(e for e in ids if EFFECTS[e].sensor == x) for x in ("acc", "gyro"))
-    big = Sensors(AugmentedModel(s.acc.base, s.acc.effects + acc_c), AugmentedModel(s.gyro.base, s.gyro.effects + gyro_c),
+    big = Sensors(AugmentedModel(s.acc.base, s.acc.effects + acc_c),
+                  AugmentedModel(s.gyro.base, s.gyro.effects + gyro_c),
                   np.r_[s.p_acc, np.zeros(len(acc_c))], np.r_[s.p_gyro, np.zeros(len(gyro_c))], s.eta)
     steps, q, w_ie, g0 = result.setting
     aux = AuxInputs({"t_s": steps.t})

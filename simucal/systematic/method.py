@@ -39,8 +39,9 @@ def seen_text(result, cov=None) -> str:
     shown = [f"{k} (std {q:.2g} of its prior" + (f", {f:.2g} times its own)" if f > INFLATION else ")")
              for k, (q, f) in list(poor.items())[:SHOWN]]
     more = f" and {len(poor) - SHOWN} more" if len(poor) > SHOWN else ""
-    why = [f"its own: its std were the other states known, over {INFLATION:g} times smaller where the data see it only "
-           "with them"] * any(f > INFLATION for _, f in poor.values()) + ["simucal plan --sequence names each"] * bool(more)
+    why = ([f"its own: its std were the other states known, over {INFLATION:g} times smaller where the data see it "
+            "only with them"] * any(f > INFLATION for _, f in poor.values())
+           + ["simucal plan --sequence names each"] * bool(more))
     one = ("; its rests all hold the unit at one attitude (a move of whole turns returns it where it was)"
            if result.positions == 1 else "")
     return f"the sequence leaves {', '.join(shown)}{more} unobserved{' (' + '; '.join(why) + ')' if why else ''}{one}"
@@ -95,7 +96,8 @@ def calibrate_systematic(ms, acc_model="acc_baseline", gyro_model="gyro_baseline
     if auto:
         r, ids, chosen, stopped = select(ms, acc_model, gyro_model, ids)
     else:  # the first pass is the observability check: an unobservable sequence is refused there
-        r = run_filter(ms, acc_model, gyro_model, ids, stop_if=lambda cov, prior_var: not verdict(cov, prior_var)[2].all())
+        r = run_filter(ms, acc_model, gyro_model, ids,
+                       stop_if=lambda cov, prior_var: not verdict(cov, prior_var)[2].all())
     refused = refusal(r, ms.path)
     if refused:
         raise CalibrationError(refused.why)

@@ -10,8 +10,8 @@ truth, where the calibration's passes converge (each linearised about the estima
 about the nominal (the parameters at zero) a unit's scale errors turn the nominal attitude away from the
 true one by their size times each turn, and the pass reads information that is not there, or misses some (a
 unit with 1e-2 scale errors and 100 deg/h gyro biases on psins19's moves at 60 deg/s: gyro dK_z's std 3.1
-times too small, eta_x's 2.2 times too large; dK_z's 1.4 and 8.6 times at 3e-3 and 3e-2, 30 and 300 deg/h); about the truth
-every std is the converged filter's to 3 digits.
+times too small, eta_x's 2.2 times too large; dK_z's 1.4 and 8.6 times at 3e-3 and 3e-2, 30 and 300 deg/h); about the
+truth every std is the converged filter's to 3 digits.
 
 A parameter is unobserved (calibrate refuses the sequence; `verdict`) where its std stays above
 UNOBSERVABLE of its prior, or where the data see it only together with other states: its std over

@@ -199,7 +199,8 @@ def calibrate_table(ms, method, acc_model, gyro_model, ids, acc_noise_g=None, gy
     acc = (am, fa, acc_obs, acc_segs, base_a,
            _rate_run_acc_means(acc_read, acc_segs, gyro_segs) if fa is not None and method == "exact" else None)
     # the gyro's twins chosen with its static rows too (model_test.choose_twin)
-    at_rest = _at_rest_factory(ms, acc, gyro_segs, gyro_noise_dph) if gyro_obs is not None and method == "exact" else None
+    at_rest = (_at_rest_factory(ms, acc, gyro_segs, gyro_noise_dph) if gyro_obs is not None and method == "exact"
+               else None)
     if auto and gyro_obs is not None:
         chosen["gyro"] = forward_selection(gm, gyro_obs, lambda m, o, f, b: rank(m, o, f, b, gyro_segs, at_rest)[:2])
         gm = chosen["gyro"].model
@@ -220,8 +221,8 @@ def calibrate_table(ms, method, acc_model, gyro_model, ids, acc_noise_g=None, gy
             block.details["auto"], block.details["auto_stopped"] = chosen[s].steps, chosen[s].stopped
             if (block.details.get("static_rows") or {}).get("p_value", 1.0) < ALPHA \
                     and chosen[s].stopped.startswith("the model passes"):  # auto weighs the rate runs only
-                block.details["auto_stopped"] += " over the rate runs; the static rows still misfit (no library effect" \
-                                                 " describes a term the rate runs cannot see)"
+                block.details["auto_stopped"] += " over the rate runs; the static rows still misfit (no library" \
+                                                 " effect describes a term the rate runs cannot see)"
     if ms.has_gyro and cal.gyro is None:  # the data hold a gyro, the plan determines none of it
         n_rate = sum(s.kind == "rate" for s in ms.segments)
         cal.drop_sensor("gyro", (f"no usable rate runs ({n_rate} in segments.csv, all saturated)" if n_rate else

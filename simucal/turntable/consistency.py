@@ -131,7 +131,8 @@ def handedness(ms, fa, acc_obs, acc_segs, fg, gyro_segs) -> list[str]:
     """Each triad's fitted directions against the commanded table vertical (consistency.py):
     refuses a reflected triad; where both are reflected, the table's angles follow another
     convention than the spec's, which the exact method does not need (a note)."""
-    return handedness_verdict(ms, {"accelerometer": mirrored(fa, acc_segs, False), "gyro": mirrored(fg, gyro_segs, True)})
+    return handedness_verdict(ms,
+                              {"accelerometer": mirrored(fa, acc_segs, False), "gyro": mirrored(fg, gyro_segs, True)})
 
 
 def mirrored(fit, segs, rate_sign: bool):

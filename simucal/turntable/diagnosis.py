@@ -74,7 +74,8 @@ def _with_static_gyro_rows(ms, block, settings) -> None:
 def _choose_twin(block, judged) -> str:
     """Of the found term and its twins (which the rate runs cannot tell apart), the one whose fit
     predicts the static rows best (lowest chi-square, all on the same rows, by the twins' level at least:
-    else none is chosen, and the sentence says so) becomes the shape and its model file, the others its twins; returns the verdict's sentence on the choice ('' if none made)."""
+    else none is chosen, and the sentence says so) becomes the shape and its model file, the others its twins; returns
+    the verdict's sentence on the choice ('' if none made)."""
     judged = [(tf, st) for tf, st in judged if "chi2" in st]
     if len(judged) < 2:
         return ""
@@ -85,8 +86,10 @@ def _choose_twin(block, judged) -> str:
     if gap < CANNOT_TELL:  # the static rows cannot choose either: the shape stays the rate runs' find
         block["shape"] = {**block["shape"], "static_rows": at_rest}
         return (f"Neither the rate runs nor the static rows can tell {' from '.join(at_rest)} (chi2 at rest "
-                + ", ".join(f"{v['chi2']:.1f}" for v in at_rest.values()) + f", {gap:.1f} apart, under the twins' level "
-                f"{CANNOT_TELL:.2f}): either may be the unit's; a plan that moves the inputs they read apart would tell")
+                + ", ".join(f"{v['chi2']:.1f}" for v in at_rest.values())
+                + f", {gap:.1f} apart, under the twins' level "
+                f"{CANNOT_TELL:.2f}): either may be the unit's; a plan that moves the inputs they read apart "
+                "would tell")
     block["shape"] = {**tf["shape"], "static_rows": at_rest}
     others = "; ".join(f"{k}: chi2 {v['chi2']:.1f}" for k, v in at_rest.items() if k != label(tf["shape"]))
     said = (f"The rate runs cannot tell {label(tf['shape'])} from its twins; the static rows chose it (chi2 "

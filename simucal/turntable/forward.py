@@ -13,8 +13,8 @@ effect's regressor phi_e in numpy below (its family's physics: a quadratic u_a^2
 a cross coupling u_a u_o, a bias drifting in time t, a lever arm on a rate run (w_T^2/g)(u_a u_c - delta_ac) r_c
 and under any motion (domega x r + omega x (omega x r))_a / g, a time delay tau (omega x f)_a, a
 g-sensitivity f_o, a bias or scale changing with temperature, a bias following its rate dT/dt). A gyro's
-rates enter the nonlinear terms in deg/s. A model this module does not know (a user's model file) is simulated by its own generated output,
-which is then the only forward model there is.
+rates enter the nonlinear terms in deg/s. A model this module does not know (a user's model file) is simulated by its
+own generated output, which is then the only forward model there is.
 """
 from __future__ import annotations
 

@@ -65,7 +65,8 @@ def rank(model, obs, fit, base, segs=None, at_rest=None):
     """The ranked candidates, the generic shape where it explains more than they do (or None),
     and the table's fit (or None). at_rest(model, obs, fit, base) -> AtRest or None: a gyro's static
     rows, which choose among twins the rate runs cannot tell apart (choose_twin)."""
-    cands = rank_candidates(model, obs, fit, ModelTest.of(base).fails, advisor=TableAdvice() if segs is not None else None)
+    cands = rank_candidates(model, obs, fit, ModelTest.of(base).fails,
+                            advisor=TableAdvice() if segs is not None else None)
     if at_rest is not None:
         choose_twin(cands, lambda: at_rest(model, obs, fit, base))
     table_info = None
@@ -235,9 +236,10 @@ def choose_twin(cands: list[dict], at_rest) -> None:
     if gap < CANNOT_TELL:  # the rows that judge cannot choose either: no twin is claimed, the ranking stands
         twin = next(c for c in group if c is not lead and c["id"] in tested)
         lead.update(at_rest=at_rest_chi2, twins_undecided=True, twin_choice=(
-            f"cannot tell {lead['id']} from {', '.join(k for k in tested if k != lead['id'])} with these data: neither the "
-            f"rate runs (likelihood ratios {rate}) nor the {rows} (chi2 {_chi2s(tested, tested, with_pairs)}, {gap:.1f} apart, under "
-            f"the twins' level {CANNOT_TELL:.2f}) choose: either may be the unit's; " + positions_that_separate(lead, twin)))
+            f"cannot tell {lead['id']} from {', '.join(k for k in tested if k != lead['id'])} with these data: "
+            f"neither the rate runs (likelihood ratios {rate}) nor the {rows} (chi2 "
+            f"{_chi2s(tested, tested, with_pairs)}, {gap:.1f} apart, under the twins' level {CANNOT_TELL:.2f}) choose: "
+            "either may be the unit's; " + positions_that_separate(lead, twin)))
         return
     others = "; ".join(_chi2s(tested, [k], with_pairs) for k in tested if k != best)
     pairs = f", and {st['pairs']['chi2']:.1f} on {st['pairs']['dof']} dof in the pairs" if with_pairs else ""
@@ -264,7 +266,8 @@ def with_static_rows(base: dict, st: records.StaticRows) -> None:
     p0, test0 = base["omnibus_p_value"], base["omnibus_test"]
     if base["chi2"] is not None and test0 == "chi-square":
         base["chi2"], base["dof"] = base["chi2"] + st["chi2"], base["dof"] + st["dof"]
-        base.update(p_value=float(chi2_sf(base["chi2"], base["dof"])), test="chi-square over the rate runs and the static rows")
+        base.update(p_value=float(chi2_sf(base["chi2"], base["dof"])),
+                    test="chi-square over the rate runs and the static rows")
     elif p0 is not None:
         base.update(p_value=min(1.0, 2 * min(p0, st["p_value"])),
                     test=f"{test0} (rate runs) and the static rows' chi-square, the smaller p doubled")

@@ -256,14 +256,16 @@ def _reference(sc: Scenario, am, gm):
             raise InputError(f"plan {sc.plan}: a noise-free trial's {sensor} fit of {model.name} fails, so the plan "
                              f"leaves a combination of its parameters unobservable (simucal plan --score {sc.plan} "
                              f"--model {model.base.name}" + "".join(f" --add {e}" for e in model.effects)
-                             + " names it)" + "".join(f"; to see {e}: {SEPARATE[e.split('.')[1]]}" for e in model.effects)
+                             + " names it)"
+                             + "".join(f"; to see {e}: {SEPARATE[e.split('.')[1]]}" for e in model.effects)
                              + f" (this scenario's rate runs: {', '.join(f'{r:g}' for r in sc.outer_rate_dps)} deg/s; "
                              "montecarlo --plan and --rates-dps, e.g. 10,-10, change them)")
         crlb[sensor] = np.sqrt(np.diag(cov0[0]))
     return ref, crlb
 
 
-def run(sc: Scenario, trials: int, seed: int = 0, chunk: int = 2500, progress=None, scheduler=None) -> results.MonteCarlo:
+def run(sc: Scenario, trials: int, seed: int = 0, chunk: int = 2500, progress=None,
+        scheduler=None) -> results.MonteCarlo:
     """The Monte Carlo result (module doc) as a dict ready for JSON. Batches of `chunk` trials
     run on the scheduler (sweeps.map_tasks; here on one thread per core), each with its own seed:
     the same numbers on any."""

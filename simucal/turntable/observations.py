@@ -129,9 +129,9 @@ CURVE_FACTOR = 10.0  # a noise file's row noise this many times the data's own (
 def check_curve_scale(ms, sensor, rows, curve):
     """Refuse a noise file (`calibrate --noise`) whose noise of one row is not the data's own: per axis
     the Allan curve at a row's length against the rows' own white noise (first differences, the median
-    over the segments of 3 rows or more: the static ones where there are, as simucal noise pools), and for one-row segments against meta.json's stated noise
-    where it is given. A file CURVE_FACTOR times too large makes every model pass (a silent wrong
-    answer); one too small fails every model, blaming it."""
+    over the segments of 3 rows or more: the static ones where there are, as simucal noise pools), and for one-row
+    segments against meta.json's stated noise where it is given. A file CURVE_FACTOR times too large makes every model
+    pass (a silent wrong answer); one too small fails every model, blaming it."""
     noises, tau = [], []
     for r in (r for r in rows if len(r) >= 3):
         noises.append(np.sqrt(white_noise_var(ms.in_units(sensor, r))))
@@ -349,12 +349,13 @@ def check_rate_sense(ms, gyro_obs, gyro_segs):
         return
     for k in range(3):  # some runs reversed, some not: one axis of the triad reversed?
         D = np.diag([-1.0 if j == k else 1.0 for j in range(3)])
-        if wrong.sum() < len(rate) and np.all(np.sign(np.einsum("ni,ni->n", (gyro_obs.N - rest) @ D, up)) == np.sign(rate)):
+        if wrong.sum() < len(rate) and np.all(np.sign(np.einsum("ni,ni->n", (gyro_obs.N - rest) @ D, up))
+                                              == np.sign(rate)):
             raise CalibrationError(
-                f"{ms.path}: the gyro {'xyz'[k]} output has the wrong sign: {int(wrong.sum())} of {len(rate)} rate runs "
-                f"turn opposite to the commanded rate, and all agree once gyro {'xyz'[k]} is reversed (a left-handed "
-                f"triad, the axis wired or declared with its sign reversed); fix the sign of g{'xyz'[k]} in samples.csv "
-                "(or the wiring) and calibrate again")
+                f"{ms.path}: the gyro {'xyz'[k]} output has the wrong sign: {int(wrong.sum())} of {len(rate)} "
+                f"rate runs turn opposite to the commanded rate, and all agree once gyro {'xyz'[k]} is reversed "
+                "(a left-handed triad, the axis wired or declared with its sign reversed); "
+                f"fix the sign of g{'xyz'[k]} in samples.csv (or the wiring) and calibrate again")
     detail = ", ".join([f"segment {s.segment}: commanded {r:+.1f} deg/s, measured {a:+.1f} deg/s"
                         for s, r, a, w in zip(gyro_segs, rate, along, wrong) if w][:4])
     raise CalibrationError(

@@ -56,8 +56,8 @@ def score(model: AugmentedModel, u, rho, sigma, where="") -> results.PlanScore:
     with ("plan FILE: ")."""
     n, m = len(u), len(model.params)
     if n < m:
-        raise CalibrationError(f"{where}{n} positions for {m} parameters of {model.name}: the norm gives one equation per "
-                               f"position, so a plan needs at least {m}")
+        raise CalibrationError(f"{where}{n} positions for {m} parameters of {model.name}: "
+                               f"the norm gives one equation per position, so a plan needs at least {m}")
     H = information(model, u, rho, sigma)
     d = np.sqrt(np.abs(np.diag(H)))
     singular = not (np.all(np.isfinite(H)) and np.all(d > 0))  # a parameter the plan never moves
@@ -205,9 +205,9 @@ def power(lam, alpha=0.01):
     return float(ncx2.sf(chi2.isf(alpha, 1), 1, lam)) if lam > 0 else alpha
 
 
-def separate(base: GeneratedModel | str, e1: str, e2: str, u: np.ndarray, rho: ArrayLike, sigma: float, sizes: Sequence[float],
-             rates_dph: Sequence[float] | np.ndarray = (), target: float = 0.9, alpha: float = 0.01, max_extra: int = 48,
-             grid: int = 150) -> results.Separation:
+def separate(base: GeneratedModel | str, e1: str, e2: str, u: np.ndarray, rho: ArrayLike, sigma: float,
+             sizes: Sequence[float], rates_dph: Sequence[float] | np.ndarray = (), target: float = 0.9,
+             alpha: float = 0.01, max_extra: int = 48, grid: int = 150) -> results.Separation:
     """Positions to add to a plan (u, rho) so that effects e1 and e2 are told apart with the target
     power both ways; a dict with the current and final noncentralities, the power and the added
     directions (and their rho), or the reason no positions can."""
@@ -242,8 +242,8 @@ def separate(base: GeneratedModel | str, e1: str, e2: str, u: np.ndarray, rho: A
 
 
 class TableAdvice:
-    """The positions to add to a turntable plan, for fit.candidates.rank_candidates (fit/ranking.rank's unseen and pair): the
-    fitted directions taken as the table's (a nominal mounting), 60 trial directions."""
+    """The positions to add to a turntable plan, for fit.candidates.rank_candidates (fit/ranking.rank's unseen and
+    pair): the fitted directions taken as the table's (a nominal mounting), 60 trial directions."""
 
     def reveal(self, model, eid, fit, obs, sig) -> str:
         """Positions that make a candidate this plan cannot see separable (reveal), as a clause ('' where

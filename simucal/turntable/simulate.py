@@ -50,7 +50,8 @@ class Scenario:
     nonperp_rad: tuple = (5 * ARCSEC, 5 * ARCSEC)        # outer/middle, middle/inner
     zero_rad: tuple = (0.0, 5 * ARCSEC, 5 * ARCSEC)       # outer, middle, inner
     position_error_rad: float = 1 * ARCMIN               # uniform +- this, each axis, each position
-    rate_error: float = 0.0           # the rate runs' true rate off the commanded by this fraction (the table's rate accuracy)
+    rate_error: float = 0.0           # the rate runs' true rate off the commanded by this fraction (the table's
+                                      # rate accuracy)
     outer_rate_dps: tuple = (10.0,)
     acc_noise_g: float = 1e-5         # std of one row (one position mean when rate_hz is None)
     gyro_noise_dph: float = 0.01
@@ -224,7 +225,8 @@ def lever_arms_and_delay(seed: int) -> dict[str, float]:
     accelerometer, 1-5 cm either way (acc.lever_arm.*, m), and one 1-5 ms delay of the accelerometers
     behind the gyros (acc.time_delay.*, s)."""
     rng = np.random.default_rng(500 + seed)
-    planted = {f"acc.lever_arm.{a}{c}": float(rng.choice([-1, 1]) * rng.uniform(0.01, 0.05)) for a in "yz" for c in "xyz"}
+    planted = {f"acc.lever_arm.{a}{c}": float(rng.choice([-1, 1]) * rng.uniform(0.01, 0.05))
+               for a in "yz" for c in "xyz"}
     tau = float(rng.uniform(1e-3, 5e-3))
     return planted | {f"acc.time_delay.{a}": tau for a in "xyz"}
 

@@ -90,6 +90,7 @@ def table_candidates(u_meas, ang_deg):
     """Candidate table errors ranked by an F test against the mounting-only fit (fit/ranking.rank)."""
     problem = DirectionsProblem(u_meas, np.radians(np.asarray(ang_deg, float)))
     # an F test against the mounting-only fit: it needs no failing baseline to count
-    cands = rank(problem, CANDIDATES, True, "table candidates", test="F on gravity directions (position errors as noise)")
+    cands = rank(problem, CANDIDATES, True, "table candidates",
+                 test="F on gravity directions (position errors as noise)")
     return [c.to_dict() for c in cands], {"mounting_rad": problem.x0[MOUNT].tolist(),
                                           "direction_residual_rms": float(np.sqrt(problem.rss0 / (3 * len(u_meas))))}

@@ -50,7 +50,8 @@ def static_gyro_observations(ms, acc, acc_segs, gyro_noise_dph=None, curve=None)
     if sig is None or units.earth_rate_dph(ms.meta) < STATIC_SNR * float(np.median(sig)):
         return None, []
     aux = aux.with_values(**specific_force(acc.N[rows]))
-    return Observations(N, np.full(len(N), units.earth_rate_dph(ms.meta)), sig, aux, [acc_segs[i].segment for i in rows]), \
+    return Observations(N, np.full(len(N), units.earth_rate_dph(ms.meta)), sig, aux,
+                        [acc_segs[i].segment for i in rows]), \
         [acc_segs[i] for i in rows]
 
 
@@ -150,13 +151,16 @@ def joint_block(obs, groups, first: SensorBlock, degree, labels, t_ref_c, platea
     T_g = [float(np.mean(T[groups == g])) for g in np.unique(groups)]
     details: SensorDetails = {
         "groups": [{"input": lab, "temp_c": t, "own_p_value": f.p_value if f else None, **test}
-                   for lab, t, f, test in zip(labels, T_g, own or [None] * len(T_g), group_tests(model, obs, fit, groups))],
+                   for lab, t, f, test in zip(labels, T_g, own or [None] * len(T_g),
+                                              group_tests(model, obs, fit, groups))],
         "plateaus": plateaus}
     if first.C_b_model is not None:
         details["M_in_d"] = M.tolist()
-    thermal: records.Thermal = {"t_ref_c": t_ref_c, "plateaus_c": T_g, "temperature_range_c": [float(T.min()), float(T.max())],
-               "fit": "joint: every row at its own temp_c", "rows": rows_text(segs), "parameters": fits, "dropped": how["dropped"],
-               "covariance": {"names": list(model.params), "matrix": fit.cov.tolist()}}
+    thermal: records.Thermal = {"t_ref_c": t_ref_c, "plateaus_c": T_g,
+                                "temperature_range_c": [float(T.min()), float(T.max())],
+                                "fit": "joint: every row at its own temp_c", "rows": rows_text(segs),
+                                "parameters": fits, "dropped": how["dropped"],
+                                "covariance": {"names": list(model.params), "matrix": fit.cov.tolist()}}
     test = joint_test(base, model, obs, fit)
     details.update(calibration.as_details({k: test[k] for k in ("omnibus_p_value", "omnibus_test", "targeted")
                                            if k in test}))

@@ -60,7 +60,8 @@ def table_checks(ms, f_before, f_after, w_before, w_after, cal) -> dict:
         sd = units.stated_noise(ms.meta, "gyro")
         checks = []
         rate = [s for s in segs if s.kind == "rate" and seg_rows[s.segment].size]
-        for kind, chosen, truth in (("rate", rate, [abs(s.outer_rate_dps * units.DPH_PER_DPS + w_e * np.sin(lat)) for s in rate]),
+        for kind, chosen, truth in (("rate", rate,
+                                     [abs(s.outer_rate_dps * units.DPH_PER_DPS + w_e * np.sin(lat)) for s in rate]),
                                     ("static", static, [w_e] * len(static))):
             if not chosen:
                 continue
