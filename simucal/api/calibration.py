@@ -16,6 +16,7 @@ from simucal.api.vocabulary import common_table
 from simucal.errors import CalibrationError, InputError
 from simucal.fit import apply as fit_apply
 from simucal.fit.augmented import AugmentedModel
+from simucal.fit.thermal import terms as thermal_terms
 from simucal.generated.effects import EFFECTS
 from simucal.io import SAMPLE_COLS, arrays, calibration, units
 from simucal.io.calibration_checks import LAYOUT_KEYS
@@ -43,10 +44,8 @@ def _model_rows(sensor: str, block: calibration.SensorBlock) -> list[Parameter]:
         unit = block.param_units.get(n, u)
         rows.append(Parameter(n, sensor, float(block.params[n]), float(cast(float, block.std.get(n, np.nan))), unit,
                               m + (f" (at T_ref = {block.thermal['t_ref_c']:.4g} degC)" if block.thermal else "")))
-        poly = (block.thermal or {}).get("parameters", {}).get(n, {})
-        for k, (c, e) in enumerate(zip(poly.get("coefficients", [])[1:], poly.get("std", [])[1:]), start=1):
-            rows.append(Parameter(f"{n}.T{k}", sensor, float(c), float(e), f"{unit}/degC" + (f"^{k}" if k > 1 else ""),
-                                  f"{m}: coefficient of (T - T_ref)^{k}"))
+        rows += [Parameter(term, sensor, c, e, term_unit, f"{m}: coefficient of (T - T_ref)^{k}")
+                 for term, k, c, e, term_unit in thermal_terms(block.thermal, n, unit)]
     return rows
 
 

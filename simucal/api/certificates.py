@@ -55,11 +55,11 @@ def _source(calibration: str | os.PathLike[str] | None, store: str | os.PathLike
         path = Path(calibration)
         return _Source(path.read_bytes(), str(path), path.name, [path], None,
                        f"simucal apply {path.name} DATA_DIR -o calibrated")
-    if record is None or calibration is not None:
+    if record is None or calibration is not None or store is None:
         raise InputError("give a calibration file or a store's record (--store URL --record N), one of them")
     from simucal.api.store import Store
     from simucal.store.schema import local_file
-    url = str(store if store is not None else os.environ.get("SIMUCAL_STORE", "calibrations.db"))
+    url = os.fspath(store)
     st = Store(url)
     try:
         raw, row, where = st.file(record), st.record(record), f"record {record} of {st!r}"  # repr: no password
@@ -84,8 +84,7 @@ def certificate(calibration: str | os.PathLike[str] | None = None, validation: s
     calibration : str or os.PathLike[str], optional
         A calibration file (``simucal calibrate ... -o calibration.json``); read, never written. Or:
     store : str or os.PathLike[str], optional
-        A calibration store (a SQLite file or a SQL server's URL, as `simucal.Store` takes; default
-        $SIMUCAL_STORE, else calibrations.db), with
+        A calibration store (a SQLite file or a SQL server's URL, as `simucal.Store` takes), with
     record : int, optional
         its record whose calibration file (as recorded, byte for byte) the certificate is of.
     validation : str or os.PathLike[str], optional

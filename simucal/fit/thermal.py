@@ -164,6 +164,14 @@ def evaluate(coefficients, dT) -> np.ndarray:
     return np.polynomial.polynomial.polyval(np.asarray(dT, float), np.asarray(coefficients, float))
 
 
+def terms(thermal: records.Thermal | None, name: str, unit: str) -> list[tuple[str, int, float, float, str]]:
+    """Parameter `name`'s temperature terms in a block's `thermal` (k >= 1): (name.Tk, k, coefficient, its std,
+    unit/degC^k), the parameter in `unit`; none without a polynomial of it."""
+    poly = (thermal or {}).get("parameters", {}).get(name, {})
+    return [(f"{name}.T{k}", k, float(c), float(e), f"{unit}/degC" + (f"^{k}" if k > 1 else ""))
+            for k, (c, e) in enumerate(zip(poly.get("coefficients", [])[1:], poly.get("std", [])[1:]), start=1)]
+
+
 def std_at(thermal: records.Thermal, name: str, dT) -> np.ndarray:
     """Parameter `name`'s std at dT = T - T_ref (any shape): sqrt(x' C x), x = (1, dT, dT^2, ...), C its
     coefficients' covariance where the block's `thermal` holds it (else their stds, uncorrelated)."""

@@ -24,7 +24,7 @@ from typing import Any
 
 import numpy as np
 
-from simucal.fit.thermal import std_at
+from simucal.fit.thermal import std_at, terms
 from simucal.io.calibration import Calibration, SensorBlock
 from simucal.report.lot_figures import block_parameters, model_name
 from simucal.report.numbers import eng_html
@@ -86,13 +86,8 @@ def splits(block: SensorBlock) -> bool:
 def coefficients(block: SensorBlock) -> list[list[Any]]:
     """A thermal block's temperature coefficients: [name.Tk, value, unit/degC^k, u, U] of every term the data
     hold (k >= 1), from the block's `thermal` polynomials."""
-    th = block.thermal or {}
-    rows = []
-    for name, f in th.get("parameters", {}).items():
-        unit = block.param_units.get(name, block.bias_unit if name.startswith("b_") else "")
-        for k, (c, u) in enumerate(zip(f["coefficients"][1:], f["std"][1:]), start=1):
-            rows.append([f"{name}.T{k}", float(c), f"{unit}/degC" + (f"^{k}" if k > 1 else ""), float(u), K * float(u)])
-    return rows
+    return [[term, c, unit, u, K * u] for name, (_, _, param_unit) in block_parameters(block).items()
+            for term, _, c, u, unit in terms(block.thermal, name, param_unit)]
 
 
 def value_digits(value: float, u: float) -> int:
