@@ -20,7 +20,7 @@ from pathlib import Path
 import numpy as np
 
 from simucal import io
-from simucal.api.calibrating import calibrate_set as calibrate
+from simucal.api.calibrating import calibrate
 from simucal.fit.rotations import exp_so3
 from simucal.handheld.calibrate import calibrate_handheld
 from simucal.handheld.poses import acc_from_poses

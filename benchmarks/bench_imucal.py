@@ -18,7 +18,7 @@ from pathlib import Path
 import numpy as np
 
 from simucal import io
-from simucal.api.calibrating import calibrate_set as calibrate
+from simucal.api.calibrating import calibrate
 from simucal.errors import CalibrationError
 from simucal.io.importers import import_ferraris_sections, import_imucal_annotated
 from simucal.report.markdown import header
@@ -28,7 +28,7 @@ G = 9.81
 
 
 def ours(folder, method=None):
-    r = calibrate(folder, method)
+    r = calibrate(folder, method=method)
     return r.acc.M, r.acc.bias * G, r.gyro.M, r.gyro.bias / 3600
 
 

@@ -16,7 +16,7 @@ from pathlib import Path
 import numpy as np
 from tqdm import tqdm
 
-from simucal.api.calibrating import calibrate_set as calibrate
+from simucal.api.calibrating import calibrate
 from simucal.report import markdown as report
 from simucal.report.paper_claims import LEVELS, PAPER_T3, PAPER_T4
 from simucal.turntable.simulate import Scenario, write
@@ -32,7 +32,7 @@ def run(sc, seeds, tmp, label):
         truth = write(folder, sc, seed)
         for m in METHODS:
             t = time.perf_counter()
-            r = calibrate(folder, m)
+            r = calibrate(folder, method=m)
             secs[m] += time.perf_counter() - t
             est[m].append(report.entries(r))
             if m == "exact":

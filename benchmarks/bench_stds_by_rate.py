@@ -14,7 +14,7 @@ from pathlib import Path
 import numpy as np
 
 from simucal import io
-from simucal.api.calibrating import calibrate_set as calibrate
+from simucal.api.calibrating import calibrate
 from simucal.report.markdown import header
 from simucal.turntable.simulate import ARCSEC, Scenario, simulate
 

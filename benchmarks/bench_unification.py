@@ -14,7 +14,7 @@ from pathlib import Path
 
 import numpy as np
 
-from simucal.api.calibrating import calibrate_set as calibrate
+from simucal.api.calibrating import calibrate
 from simucal.fit.rotations import exp_so3
 from simucal.report.markdown import header
 from simucal.turntable.simulate import ARCMIN, Scenario, write
@@ -38,7 +38,7 @@ def main(seeds: int):
                 M_static = np.array(cal.gyro.details["M_in_d"]) @ np.array(u["C_b_d"]) @ exp_so3(
                     np.array(u["cross_check"]["difference_rad"]))
                 e_static.append(np.abs(M_static - truth).max())
-                e_paper.append(np.abs(calibrate(folder, "linear").gyro.M - truth).max())
+                e_paper.append(np.abs(calibrate(folder, method="linear").gyro.M - truth).max())
             print(f"| {plan} | {arcmin:g}' | {np.median(e_rate):.2g} | {np.median(e_static):.2g} | "
                   f"{np.median(e_paper):.2g} | {np.sqrt(np.mean(np.square(z))):.2f} |")
 

@@ -14,7 +14,7 @@ from pathlib import Path
 
 import numpy as np
 
-from simucal.api.calibrating import calibrate_set as calibrate
+from simucal.api.calibrating import calibrate
 from simucal.fit.rotations import log_so3
 from simucal.generated import table
 from simucal.report.markdown import header

@@ -19,6 +19,7 @@ from dataclasses import dataclass
 from typing import TYPE_CHECKING, Any, Callable
 
 from simucal.errors import CalibrationError, InputError
+from simucal.options import CalibrateOptions, unused
 
 if TYPE_CHECKING:  # the methods' modules load when one is called (below)
     from simucal import io
@@ -36,81 +37,83 @@ class Method:
     name: str
     data: str                  # TURNTABLE, STREAM or FIELD
     summary: str               # what it is, with its paper
-    options: tuple[str, ...]   # the keyword options its function takes (calibrate's names)
-    run: Callable              # run(ms, **options) -> io.calibration.Calibration
+    reads: frozenset[str]      # the options its function reads: CalibrateOptions' fields ("add auto": add's "auto")
+    run: Callable[[io.MeasurementSet, CalibrateOptions], Calibration]
     any_plan: bool = True      # takes any plan of its kind of data (False: a protocol's own, Ferraris's six poses)
 
-    def call(self, ms: io.MeasurementSet, **given: Any) -> Calibration:
-        """run(ms) with the options given that this method takes, the others (and those given as None)
-        at their DEFAULTS."""
-        given = {k: v for k, v in given.items() if v is not None}
-        return self.run(ms, **{k: v for k, v in {**DEFAULTS, **given}.items() if k in self.options})
+    def refuse_unused(self, options: CalibrateOptions) -> None:
+        """The one rule for an option this method would ignore (options.unused): refused, naming its flag and
+        the methods that read it."""
+        left = unused(options, self.reads)
+        if left:
+            name, flag = left[0]
+            takes = [x.name for x in METHODS.values() if name in x.reads]
+            raise CalibrationError(f"{flag} does not apply to method {self.name} ({self.summary}); it applies to "
+                                   f"method {' or '.join(takes)} "
+                                   f"({' or '.join(sorted({DATA[METHODS[t].data] for t in takes}))}).")
 
 
-# The functions import their method when called: the cli reads the names at every start.
+# Each function is run(ms, options) with the fields its entry reads; it imports its method when called (the cli
+# reads the names at every start).
 def _table(name):
-    def run(ms, acc_model, gyro_model, ids, auto, acc_noise_g, gyro_noise_dph, noise_curves, rank):
+    def run(ms, o):
         from simucal.turntable.calibrate import calibrate_table
-        return calibrate_table(ms, name, acc_model, gyro_model, ids, acc_noise_g, gyro_noise_dph, auto, noise_curves,
-                               rank)
+        return calibrate_table(ms, name, o.acc_model, o.gyro_model, o.effect_ids, o.acc_noise_g, o.gyro_noise_dph,
+                               o.auto, o.noise_curves, o.rank)
     return run
 
 
-def _multiposition(ms, acc_model, gyro_model, ids, acc_noise_g, gyro_noise_dph, noise_curves):
+def _multiposition(ms, o):
     from simucal.turntable.multiposition import calibrate_multiposition
-    return calibrate_multiposition(ms, acc_model, gyro_model, ids, acc_noise_g, gyro_noise_dph, noise_curves)
+    return calibrate_multiposition(ms, o.acc_model, o.gyro_model, o.effect_ids, o.acc_noise_g, o.gyro_noise_dph,
+                                   o.noise_curves)
 
 
-def _ferraris(ms, acc_model, gyro_model, ids, acc_noise_g, gyro_noise_dph, noise_curves):
+def _ferraris(ms, o):
     from simucal.turntable.ferraris import calibrate_ferraris
-    if ids or acc_model != "acc_baseline" or gyro_model != "gyro_baseline":
+    if o.effect_ids or o.acc_model != "acc_baseline" or o.gyro_model != "gyro_baseline":
         raise CalibrationError("the Ferraris method is the affine y = M f + b of six poses; --add and models need "
                                "--method exact (nine or more positions)")
-    return calibrate_ferraris(ms, acc_noise_g, gyro_noise_dph, noise_curves)
+    return calibrate_ferraris(ms, o.acc_noise_g, o.gyro_noise_dph, o.noise_curves)
 
 
-def _handheld(ms, acc_model, ids, auto, detect):
+def _handheld(ms, o):
     from simucal.fit.augmented import AugmentedModel, for_sensor
     from simucal.handheld.calibrate import calibrate_handheld
-    return calibrate_handheld(ms, AugmentedModel(acc_model, for_sensor(ids, "acc")), detect,
-                              gyro_effects=for_sensor(ids, "gyro"), auto=auto)
+    return calibrate_handheld(ms, AugmentedModel(o.acc_model, for_sensor(o.effect_ids, "acc")), o.detect,
+                              gyro_effects=for_sensor(o.effect_ids, "gyro"), auto=o.auto)
 
 
-def _systematic(ms, acc_model, gyro_model, ids, auto):
+def _systematic(ms, o):
     from simucal.systematic.method import calibrate_systematic
-    return calibrate_systematic(ms, acc_model, gyro_model, ids, auto)
+    return calibrate_systematic(ms, o.acc_model, o.gyro_model, o.effect_ids, o.auto)
 
 
-def _field(ms, heading_accuracy_deg):
+def _field(ms, o):
     from simucal.field.drift import field_calibration
-    return field_calibration(ms, heading_accuracy_deg)
+    return field_calibration(ms, o.heading_accuracy_deg)
 
 
-# every option, as calibrate's
-DEFAULTS = dict(acc_model="acc_baseline", gyro_model="gyro_baseline", ids=(), auto=False, detect=None, acc_noise_g=None,
-                gyro_noise_dph=None, noise_curves=None, heading_accuracy_deg=5.0, rank=True)
-_TABLE_OPTIONS = ("acc_model", "gyro_model", "ids", "auto", "acc_noise_g", "gyro_noise_dph", "noise_curves", "rank")
+_TABLE = frozenset({"acc_model", "gyro_model", "add", "add auto", "acc_noise_g", "gyro_noise_dph", "noise"})
 METHODS = {m.name: m for m in (
     Method("exact", TURNTABLE, "dong2018's norm observation by the exact fit of any model (eq. 6-12 without the "
-           "linearisation), frames unified by the rate runs' means", _TABLE_OPTIONS, _table("exact")),
+           "linearisation), frames unified by the rate runs' means", _TABLE, _table("exact")),
     Method("linear", TURNTABLE, "dong2018 as printed: the linear regression of eq. 8/12 and the unification of "
-           "eq. 25-27 (derived models only)", _TABLE_OPTIONS, _table("linear")),
+           "eq. 25-27 (derived models only)", _TABLE, _table("linear")),
     Method("multiposition", TURNTABLE, "the traditional multi-position method (dong2018's 'previous method', "
-           "Tables 3 and 4): least squares on the commanded attitudes",
-           tuple(o for o in _TABLE_OPTIONS if o not in ("auto", "rank")), _multiposition),
+           "Tables 3 and 4): least squares on the commanded attitudes", _TABLE - {"add auto"}, _multiposition),
     Method("ferraris", TURNTABLE, "Ferraris et al. 1995 (imucal): six poses in opposite pairs, M from their "
            "differences, each accelerometer bias from the pairs' norms (no attitude), the gyro from the turns; the "
-           "default for such a set", tuple(o for o in _TABLE_OPTIONS if o not in ("auto", "rank")), _ferraris,
-           any_plan=False),
+           "default for such a set", _TABLE - {"add auto"}, _ferraris, any_plan=False),
     Method("handheld", STREAM, "Tedaldi: static poses found in the stream, the exact norm fit of the "
            "accelerometers, the gyro from the gravity directions before and after each move",
-           ("acc_model", "ids", "auto", "detect"), _handheld),
+           frozenset({"acc_model", "add", "add auto", "detect"}), _handheld),
     Method("field", FIELD, "ruan2019: the gyro constant drift from three static positions with a north reference "
-           "(two-stage alignment, a Kalman filter per position, least squares)", ("heading_accuracy_deg",),
+           "(two-stage alignment, a Kalman filter per position, least squares)", frozenset({"heading_accuracy_deg"}),
            _field),
     Method("systematic", SEQUENCE, "systematic calibration: strapdown navigation through a rotation sequence, an "
            "error-state Kalman filter (states derived from the error models) and RTS smoother on zero velocity at "
-           "rest", ("acc_model", "gyro_model", "ids", "auto"), _systematic),
+           "rest", frozenset({"acc_model", "gyro_model", "add", "add auto"}), _systematic),
 )}
 NAMES = tuple(METHODS)
 

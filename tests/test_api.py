@@ -237,15 +237,3 @@ def test_short_reprs_and_notebook_views():
         html = r._repr_html_()
         assert html.startswith("<table>") and html.count("<tr>") >= 2 and "<script" not in html
     assert results[2].independent and not simucal.validate(cal, ms).independent
-
-
-def test_calibrate_s_typed_options_are_the_command_s():
-    """api/options.py: every option is a parameter of the commands' own calibrate (or calibrate --thermal's), so no
-    typed option is refused at run time (its methods are the registry's: tests/test_architecture.py)."""
-    import inspect
-
-    from simucal.api.options import CalibrateOptions
-    from simucal.api.calibrating import calibrate_set as command, calibrate_thermal
-    takes = (set(inspect.signature(command).parameters) | set(inspect.signature(calibrate_thermal).parameters)
-             | {"thermal"})
-    assert set(CalibrateOptions.__annotations__) <= takes

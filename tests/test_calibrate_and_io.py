@@ -8,14 +8,14 @@ import pytest
 from click.testing import CliRunner
 
 from simucal import io
-from simucal.api.calibrating import calibrate_set as calibrate
+from simucal.api.calibrating import calibrate
 from simucal.cli import main
 from simucal.errors import CalibrationError, NotConverged
 
 
 def test_exact_within_3_sigma_of_truth(paper_set):
     folder, truth = paper_set
-    r = calibrate(folder, "exact").to_json()
+    r = calibrate(folder, method="exact").to_json()
     for sensor in ("acc", "gyro"):
         for name, est in r[sensor]["params"].items():
             err = est - truth[sensor]["params"][name]
@@ -26,7 +26,7 @@ def test_exact_within_3_sigma_of_truth(paper_set):
 def test_norm_beats_multiposition_on_gyro_bias(paper_set):
     folder, truth = paper_set
     tb = np.array(truth["gyro"]["bias"])
-    err = {m: np.abs(np.array(calibrate(folder, m).to_json()["gyro"]["bias"]) - tb).max()
+    err = {m: np.abs(np.array(calibrate(folder, method=m).to_json()["gyro"]["bias"]) - tb).max()
            for m in ("exact", "multiposition")}
     assert err["exact"] < err["multiposition"] / 10
 
@@ -78,7 +78,7 @@ def test_paper_unification_needs_table2(paper_set, tmp_path):
     rows = (dst / "samples.csv").read_text().splitlines()
     (dst / "samples.csv").write_text("\n".join([rows[0]] + [r for r in rows[1:] if r.split(",")[0] in kept_ids]) + "\n")
     with pytest.raises(CalibrationError, match="Table 2"):
-        calibrate(dst, "linear")
+        calibrate(dst, method="linear")
 
 
 def test_cli_simulate_calibrate(tmp_path):
@@ -115,7 +115,7 @@ def test_audit_covers_eq5_to_27_and_table1(audit_report):
 def test_raw_samples_within_3_sigma(tmp_path):
     from simucal.turntable.simulate import Scenario, write
     truth = write(tmp_path / "raw", Scenario(rate_hz=20.0, static_s=5.0, acc_unit="m/s^2", gyro_unit="rad/s"), seed=5)
-    r = calibrate(tmp_path / "raw", "exact")
+    r = calibrate(tmp_path / "raw", method="exact")
     for sensor, block in r.blocks():
         for name, est in block.params.items():
             assert abs(est - truth[sensor]["params"][name]) < 3 * block.std[name], (sensor, name)
@@ -151,7 +151,7 @@ def test_user_model_file_goes_to_the_cache_not_the_package(tmp_path, monkeypatch
     load.cache_clear()
     m = load("acc_mine")
     assert m.params[-1] == "K2_x" and m.source == str(model_file.resolve())
-    result = calibrate(paper_set[0], "exact", acc_model="acc_mine")
+    result = calibrate(paper_set[0], method="exact", acc_model="acc_mine")
     assert result.acc.model == "acc_mine" and "K2_x" in result.acc.params
 
 
@@ -162,14 +162,14 @@ def test_unit_mixup_named(paper_set, tmp_path):
     meta.pop("acc_pulses_per_g")
     (dst / "meta.json").write_text(json.dumps(meta))
     with pytest.raises(CalibrationError, match="times the known input"):
-        calibrate(dst, "exact")
+        calibrate(dst, method="exact")
     from simucal.turntable.simulate import Scenario, write
     write(tmp_path / "ms2", Scenario(acc_unit="m/s^2"), 1)
     meta = json.loads((tmp_path / "ms2" / "meta.json").read_text())
     meta["acc_unit"] = "g"
     (tmp_path / "ms2" / "meta.json").write_text(json.dumps(meta))
     with pytest.raises(CalibrationError, match="m/s\\^2 labelled g"):
-        calibrate(tmp_path / "ms2", "exact")
+        calibrate(tmp_path / "ms2", method="exact")
 
 
 def test_saturated_segment_left_out_and_reported(tmp_path):
@@ -185,7 +185,7 @@ def test_saturated_segment_left_out_and_reported(tmp_path):
             row[j] = repr(min(max(float(row[j]), -0.98), 0.98))
     csv.writer(open(tmp_path / "s" / "samples.csv", "w", newline="")).writerows(rows)
     try:
-        r = calibrate(tmp_path / "s", "exact")
+        r = calibrate(tmp_path / "s", method="exact")
     except CalibrationError as e:  # too few left is also an honest answer
         assert "positions" in str(e)
         return

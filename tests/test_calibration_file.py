@@ -11,7 +11,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from simucal import methods
-from simucal.api.calibrating import calibrate_set as calibrate, calibrate_thermal
+from simucal.api.calibrating import calibrate, calibrate_thermal
 from simucal.field.simulate import FieldScenario, write_field
 from simucal.handheld.simulate import HandheldScenario, write_handheld
 from simucal.io import calibration, records
@@ -36,7 +36,8 @@ def every_method(paper_set, tmp_path_factory):
     ferraris = Path(__file__).resolve().parents[2] / "shared" / "data" / "imucal-ferraris"  # a protocol's own plan
     import_ferraris_sections(ferraris / "example_ferraris_session.csv", ferraris / "example_ferraris_session_list.json",
                              tmp / "fe", 102.4, 49.6)
-    return {m.name: calibrate(data[m.data] if m.any_plan else tmp / "fe", m.name) for m in methods.METHODS.values()}
+    return {m.name: calibrate(data[m.data] if m.any_plan else tmp / "fe", method=m.name)
+            for m in methods.METHODS.values()}
 
 
 @pytest.fixture(scope="module")
@@ -208,7 +209,7 @@ def test_multiposition_without_rate_runs_says_the_gyro_is_not_calibrated(paper_s
     keep = [s for s in ms.segments if s.kind == "static"]
     rows = np.isin(ms.samples["segment"], [s.segment for s in keep])
     io.write_set(tmp_path / "s", ms.meta, {k: v[rows] for k, v in ms.samples.items()}, keep)
-    cal = calibrate(tmp_path / "s", "multiposition")
+    cal = calibrate(tmp_path / "s", method="multiposition")
     assert cal.gyro is None and "gyro" in cal.not_calibrated and cal.sensors == ["acc"]
     calibration.save(tmp_path / "c.json", cal)
     with pytest.raises(calibration.CalibrationFileError, match="calibrates no gyro"):

@@ -9,7 +9,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 from simucal.generated import table
 
-from simucal.api.calibrating import calibrate_set as calibrate
+from simucal.api.calibrating import calibrate
 from simucal.errors import CalibrationError
 from simucal.fit.distributions import chi2_sf
 from simucal.fit.rotations import log_so3
@@ -120,7 +120,7 @@ def test_paper_linear_method_unifies_at_table2_carrying_the_table_errors(paper_s
     the rate-run means are ten times closer."""
     errors = {}
     for method in ("linear", "exact"):
-        cal = calibrate(paper_set[0], method).to_json()
+        cal = calibrate(paper_set[0], method=method).to_json()
         errors[method] = np.abs(np.array(cal["gyro"]["M"]) - np.array(paper_set[1]["gyro"]["M"])).max()
     assert cal["unification"]["method"] == "rate_run_means"
     assert errors["linear"] < 1e-3 and errors["exact"] < errors["linear"] / 10, errors
@@ -144,7 +144,7 @@ def test_lever_arms_the_model_lacks_inflate_the_unification_and_adding_them_fixe
 @pytest.mark.slow
 def test_paper_unification_refused_for_other_models(paper_set):
     with pytest.raises(CalibrationError, match="derived for the baseline models"):
-        calibrate(paper_set[0], "linear", acc_model="acc_extended")
+        calibrate(paper_set[0], method="linear", acc_model="acc_extended")
 
 
 @settings(max_examples=60, deadline=None)

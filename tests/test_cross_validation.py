@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 from click.testing import CliRunner
 
-from simucal.api.calibrating import calibrate_set as calibrate
+from simucal.api.calibrating import calibrate
 from simucal.cli import main
 from simucal.fit.cross_validation import paired_improvement
 from simucal.handheld.simulate import HandheldScenario, write_handheld

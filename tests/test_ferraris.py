@@ -6,7 +6,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from simucal.api.calibrating import calibrate_set as calibrate
+from simucal.api.calibrating import calibrate
 from simucal.errors import CalibrationError
 from simucal.fit.rotations import exp_so3
 from simucal.io.importers import import_ferraris_sections, import_imucal_annotated
@@ -106,4 +106,4 @@ def test_imucal_sessions_with_no_method_no_worse_than_imucal(tmp_path, session):
 
 def test_a_set_that_is_not_six_opposite_poses_is_refused_by_name(paper_set):
     with pytest.raises(CalibrationError, match="six static poses in three pairs of opposite"):
-        calibrate(paper_set[0], "ferraris")
+        calibrate(paper_set[0], method="ferraris")

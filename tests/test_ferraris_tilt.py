@@ -7,7 +7,7 @@ from pathlib import Path
 import numpy as np
 
 from simucal import io
-from simucal.api.calibrating import calibrate_set as calibrate
+from simucal.api.calibrating import calibrate
 from simucal.fit.rotations import exp_so3
 from simucal.io.importers import FERRARIS_POSES
 from simucal.io.units import DEFAULT_EARTH_RATE_DPH, DPH_PER_DPS

@@ -66,7 +66,7 @@ def test_field_calibration_is_a_calibration_file_that_apply_corrects_the_drift_w
 
     from click.testing import CliRunner
 
-    from simucal.api.calibrating import calibrate_set as calibrate
+    from simucal.api.calibrating import calibrate
     from simucal.cli import main
     from simucal.io import calibration
     truth = write_field(tmp_path / "f", FieldScenario(heading_error_deg=2.0), 3)

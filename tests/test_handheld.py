@@ -4,7 +4,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from simucal.api.calibrating import calibrate_set as calibrate
+from simucal.api.calibrating import calibrate
 from simucal.errors import CalibrationError
 from simucal.handheld import moves_selection
 from simucal.handheld.simulate import HandheldScenario, write_handheld
@@ -203,14 +203,14 @@ def test_ferraris_sessions(tmp_path):
     d = DATA / "imucal-ferraris"
     import_ferraris_sections(d / "example_ferraris_session.csv", d / "example_ferraris_session_list.json",
                              tmp_path / "ex", 102.4, 49.6)
-    r = calibrate(tmp_path / "ex", "multiposition")
+    r = calibrate(tmp_path / "ex", method="multiposition")
     assert np.allclose(np.diag(r.gyro.M), 1, atol=0.05) and np.allclose(np.diag(r.acc.M), 1, atol=0.05)
     # imucal's annotated session turns +360 deg where imucal assumes -360: caught, not fitted into -I
     import_imucal_annotated(d / "annotated_session.csv", tmp_path / "an", 204.8, 2048.0, 16.4, 49.6)
     with pytest.raises(CalibrationError, match="turns opposite to the commanded rate in 3 of 3"):
-        calibrate(tmp_path / "an", "multiposition")
+        calibrate(tmp_path / "an", method="multiposition")
     import_imucal_annotated(d / "annotated_session.csv", tmp_path / "an2", 204.8, 2048.0, 16.4, 49.6, turn_deg=360.0)
-    assert np.all(np.diag(calibrate(tmp_path / "an2", "multiposition").gyro.M) > 0.9)
+    assert np.all(np.diag(calibrate(tmp_path / "an2", method="multiposition").gyro.M) > 0.9)
 
 
 def test_stream_without_initial_rest_takes_its_threshold_from_the_quietest_stretch(tmp_path):

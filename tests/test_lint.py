@@ -45,7 +45,7 @@ def test_the_api_tutorial_passes_mypy_strict():
 
 @pytest.mark.slow
 def test_a_misspelt_option_or_a_record_read_wrongly_is_a_type_error(tmp_path):
-    """Calibrate's options are typed (api/options.py) and a calibration's records too (io/records.py):
+    """Calibrate's options are typed (its keywords, simucal/options.py) and a calibration's records too (io/records.py):
     a checker finds a misspelt option, an unknown method, a wrong type, and a record's key read as the wrong
     type, in a notebook's code."""
     user = tmp_path / "user.py"

@@ -11,7 +11,7 @@ from cli_helpers import refused, run
 
 from simucal import io, methods
 from simucal.fit import allan_sums
-from simucal.api.calibrating import calibrate_set as calibrate
+from simucal.api.calibrating import calibrate
 from simucal.fit.allan_noise import characterise, characterise_folder
 from simucal.fit.allan_terms import allan_variance, taus
 from simucal.errors import CalibrationError

@@ -7,7 +7,7 @@ import pytest
 from click.testing import CliRunner
 
 from simucal import io
-from simucal.api.calibrating import calibrate_set as calibrate
+from simucal.api.calibrating import calibrate
 from simucal.cli import main
 from simucal.api.diagnosing import diagnosis_report as diagnose
 from simucal.fit.apply import apply

@@ -28,7 +28,7 @@ def test_mems_units_are_calibrated_within_their_stds(tmp_path):
 
 @pytest.mark.slow
 def test_mems_units_on_a_table_by_the_exact_method(tmp_path):
-    from simucal.api.calibrating import calibrate_set as calibrate
+    from simucal.api.calibrating import calibrate
     from simucal.turntable.simulate import write
     z = []
     for seed in range(8):
@@ -48,7 +48,7 @@ def test_mems_units_by_hand_within_their_stds(tmp_path):
     """Hand-placed sessions of MEMS units (the simulator's unit: acc biases to 50 mg and
     scale/misalignment to 1e-2, gyro biases to 2 deg/s and T off I by up to 4e-2, 1 mg and 0.1 deg/s noise,
     16-bit counts): the accelerometer biases and the gyro's T within their stds over seeds."""
-    from simucal.api.calibrating import calibrate_set as calibrate
+    from simucal.api.calibrating import calibrate
     from simucal.handheld.simulate import HandheldScenario, write_handheld
     z_acc, z_T = [], []
     for seed in range(8):
@@ -67,7 +67,7 @@ def test_mems_units_over_temperature_plateaus(tmp_path):
     """A MEMS unit (mems_unit: biases 50 mg and 0.5 deg/s, scale factors 2e-2) at three
     wandering plateaus with MEMS-sized temperature coefficients (0.1 mg/degC, 10 deg/h/degC, 1e-4/degC):
     calibrate --thermal passes its test and every coefficient the truth holds is within 3.5 of its stds."""
-    from simucal.api.calibrating import calibrate_thermal
+    from simucal.api.calibrating import calibrate
     from simucal.turntable.simulate import at_temperature, plant, write
     planted = {"acc.bias_temperature.x": 1e-4, "gyro.bias_temperature.z": 10.0, "acc.scale_temperature.y": 1e-4}
     sets = []
@@ -78,7 +78,7 @@ def test_mems_units_over_temperature_plateaus(tmp_path):
         plant(sc, [f"{k}={v}" for k, v in planted.items()])
         write(tmp_path / f"p{T}", sc, seed)
         sets.append(tmp_path / f"p{T}")
-    cal = calibrate_thermal(sets, t_ref_c=25.0)
+    cal = calibrate(sets, t_ref_c=25.0)
     assert cal.acc.p_value > 1e-3 and cal.gyro.p_value > 1e-3, (cal.acc.p_value, cal.gyro.p_value)
     truth = {("acc", "b_x", 1): 1e-4, ("gyro", "b_z", 1): 10.0, ("acc", "dK_y", 1): 1e-4}
     for (sensor, name, degree), value in truth.items():

@@ -157,7 +157,7 @@ def test_noise_beyond_the_measured_taus_is_white_and_said(tmp_path):
     """A raw turntable set's own static segments give an Allan curve to a ninth of a segment; a short
     record fits long-tau terms by chance, so calibrate --noise carries the curve on as white noise
     past its last tau and says so: the chi-square then sits at its dof (the review found 0.42 times)."""
-    from simucal.api.calibrating import calibrate_set as calibrate
+    from simucal.api.calibrating import calibrate
     from simucal.turntable.simulate import Scenario, write
     write(tmp_path / "raw", Scenario(rate_hz=100.0), 3)
     r = CliRunner().invoke(main, ["noise", str(tmp_path / "raw"), "-o", str(tmp_path / "n.json")])

@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 
 from simucal import io
-from simucal.api.calibrating import calibrate_set as calibrate
+from simucal.api.calibrating import calibrate
 from simucal.fit.gauss_newton import tangent_basis
 from simucal.fit.rotations import log_so3, wahba
 from simucal.turntable.simulate import Scenario, mems_unit, simulate

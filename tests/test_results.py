@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 
 from simucal import io
-from simucal.api.calibrating import calibrate_set as calibrate
+from simucal.api.calibrating import calibrate
 from simucal.api.diagnosing import diagnosis_report as diagnose
 from simucal.fit.candidates import forward_selection
 from simucal.fit.ranking import Trial, gate, rank

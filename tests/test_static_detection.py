@@ -5,7 +5,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from simucal.api.calibrating import calibrate_set as calibrate
+from simucal.api.calibrating import calibrate
 from simucal.errors import CalibrationError
 from simucal.handheld.static_detect import DetectSettings, detect_static
 from simucal.io.importers import import_imu_tk

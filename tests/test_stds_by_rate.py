@@ -3,7 +3,7 @@ benchmarks/bench_stds_by_rate.py over more seeds and rates; here a few seeds, wh
 import numpy as np
 import pytest
 
-from simucal.api.calibrating import calibrate_set as calibrate
+from simucal.api.calibrating import calibrate
 from simucal.fit.noise import turning_mean
 from simucal.turntable.simulate import ARCSEC, Scenario, write
 

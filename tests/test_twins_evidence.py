@@ -10,7 +10,7 @@ import shlex
 import pytest
 from click.testing import CliRunner
 
-from simucal.api.calibrating import calibrate_set as calibrate
+from simucal.api.calibrating import calibrate
 from simucal.cli import main
 from simucal.api.diagnosing import diagnosis_report as diagnose
 from simucal.report.console import next_command

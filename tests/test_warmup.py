@@ -10,7 +10,7 @@ from cli_helpers import refused
 
 import simucal
 
-from simucal.api.calibrating import calibrate_set as calibrate
+from simucal.api.calibrating import calibrate
 from simucal.cli import main
 from simucal.errors import CalibrationError
 from simucal.handheld.warmup import calibrate_warmup

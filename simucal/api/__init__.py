@@ -27,7 +27,7 @@ from simucal.api.calibration import Calibration, Parameter
 from simucal.api.batch import Calibrated, calibrate_each
 from simucal.api.certificates import certificate
 from simucal.api.arguments import checked
-from simucal.api.options import CalibrateOptions
+from simucal.options import CalibrateOptions
 from simucal.api.imports import convert, import_instances, import_recording
 from simucal.api.instances import ImuCalibration, autopilot_files, calibrate_instances
 from simucal.api.instances import imus_of as imus_of  # the command line's, beside the public names

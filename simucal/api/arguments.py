@@ -12,7 +12,7 @@ argument or a function added later is checked as well:
   accepts anything;
 - None where the annotation admits it or the argument is optional (None: not given, as the command line
   passes an option left out);
-- only the keywords the function takes (calibrate's options: CalibrateOptions's), the nearest one named."""
+- only the keywords the function takes, the nearest one named."""
 from __future__ import annotations
 
 import collections.abc as abc
@@ -26,7 +26,6 @@ import types
 import typing
 from typing import Any, Callable, NamedTuple, ParamSpec, TypeVar
 
-from simucal.api.options import CalibrateOptions
 from simucal.errors import ArgumentError
 
 P = ParamSpec("P")
@@ -171,32 +170,23 @@ def _refused(where: str, name: str, value: Any, ok: Accepts) -> ArgumentError:
 
 
 class Door(NamedTuple):
-    """What a function's door checks: each argument's Accepts, those that may be None, the keywords it takes
-    (None: any, where **kwargs is not typed) and the name of its **options."""
+    """What a function's door checks: each argument's Accepts, those that may be None and the keywords it takes
+    (None: any, where it has **kwargs)."""
     expects: dict[str, Accepts | None]
     nullable: set[str]
     keywords: list[str] | None
-    options: str | None
 
 
 def door_of(f: Callable[..., Any]) -> Door:
-    """The checks of f's arguments, from its signature (and CalibrateOptions for its **options)."""
+    """The checks of f's arguments, from its signature."""
     params = inspect.signature(f).parameters
     named = {n: p for n, p in params.items() if p.kind not in (p.VAR_KEYWORD, p.VAR_POSITIONAL)
              and n not in ("self", "cls")}  # a method's own, never a keyword
     types_of = {n: _resolved(p.annotation, f.__globals__) for n, p in named.items()}
     nullable = {n for n, p in named.items() if p.default is not p.empty
                 or types_of[n] is type(None) or type(None) in typing.get_args(types_of[n])}
-    options = next((n for n, p in params.items() if p.kind is p.VAR_KEYWORD), None)
-    keywords: list[str] | None = list(named)
-    if options and "CalibrateOptions" in str(params[options].annotation):
-        typed = typing.get_type_hints(CalibrateOptions)
-        types_of.update(typed)
-        nullable |= set(typed)  # every option may be left out
-        keywords = list(named) + list(typed)
-    elif options:
-        keywords = None
-    return Door({n: accepts(t) for n, t in types_of.items()}, nullable, keywords, options)
+    open_ended = any(p.kind is p.VAR_KEYWORD for p in params.values())
+    return Door({n: accepts(t) for n, t in types_of.items()}, nullable, None if open_ended else list(named))
 
 
 def _unknown(where: str, keywords: list[str], kwargs: dict[str, Any]) -> None:
@@ -220,8 +210,7 @@ def checked(f: Callable[P, R]) -> Callable[P, R]:
             bound = signature.bind(*args, **kwargs)
         except TypeError as e:  # missing, too many or repeated arguments
             raise ArgumentError(f"{where}: {e} (it takes {', '.join(door.keywords or signature.parameters)})") from None
-        options = bound.arguments.get(door.options, {}) if door.options else {}
-        for name, value in [*bound.arguments.items(), *options.items()]:
+        for name, value in list(bound.arguments.items()):
             ok = door.expects.get(name)
             if ok is None or (value is None and name in door.nullable):
                 continue
@@ -233,7 +222,7 @@ def checked(f: Callable[P, R]) -> Callable[P, R]:
             elif ok.item is not None and ok.item.fspath and _list_like(value):
                 value = [os.fspath(x) if isinstance(x, os.PathLike) else x for x in value]
             if value is not given:
-                (options if name in options else bound.arguments)[name] = value
+                bound.arguments[name] = value
             if value is None or not ok.test(value):
                 raise _refused(where, name, value, ok)
         return f(*bound.args, **bound.kwargs)

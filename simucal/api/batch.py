@@ -8,12 +8,8 @@ from typing import Any, NamedTuple, Sequence
 
 from simucal.api.arguments import checked
 from simucal.api.calibration import Calibration
-from simucal.api.options import CalibrateOptions
 from simucal.errors import InputError
-
-TYPE_CHECKING = False
-if TYPE_CHECKING:  # api/options.py says why
-    from typing_extensions import Unpack
+from simucal.options import CalibrateOptions
 
 
 class Calibrated(NamedTuple):
@@ -37,8 +33,8 @@ def output_files(data_dirs: Sequence[str | os.PathLike[str]], folder: str | os.P
 
 @checked
 def calibrate_each(data_dirs: Sequence[str | os.PathLike[str]], folder: str | os.PathLike[str], *,
-                   scheduler: str | None = None,
-                   progress: Any = None, **options: Unpack[CalibrateOptions]) -> list[Calibrated]:
+                   options: CalibrateOptions | None = None, scheduler: str | None = None,
+                   progress: Any = None) -> list[Calibrated]:
     """Calibrate every set of `data_dirs` (as `simucal.calibrate` with `options`) and write each one's file as
     FOLDER/<set's folder name>.json, on a scheduler where given (local, processes or a Dask address).
 
@@ -48,12 +44,12 @@ def calibrate_each(data_dirs: Sequence[str | os.PathLike[str]], folder: str | os
         The sets, one calibration each.
     folder : str or os.PathLike
         Where each calibration file is written.
+    options : CalibrateOptions, optional
+        `simucal.calibrate`'s options as one object, e.g. ``simucal.CalibrateOptions(method="exact")``.
     scheduler : str, optional
         "local" (threads, the default), "processes", or a Dask scheduler's address.
     progress : callable, optional
         A callable wrapping the iterable of sets (e.g. simucal.progress.bar("calibrating", "set")).
-    **options
-        `simucal.calibrate`'s (CalibrateOptions).
 
     Returns
     -------
@@ -71,7 +67,7 @@ def calibrate_each(data_dirs: Sequence[str | os.PathLike[str]], folder: str | os
     out = Path(folder)
     if out.suffix == ".json" or (out.exists() and not out.is_dir()):
         raise InputError(f"-o {folder}: with {len(data_dirs)} sets, -o names a folder (one <set>.json each)")
-    tasks = [(Path(d), f, options) for d, f in zip(data_dirs, output_files(data_dirs, out))]
+    tasks = [(Path(d), f, options or CalibrateOptions()) for d, f in zip(data_dirs, output_files(data_dirs, out))]
     made = not out.exists()
     out.mkdir(exist_ok=True)
     try:

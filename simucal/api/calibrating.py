@@ -10,32 +10,35 @@ polynomial in temperature; a turntable unit fitted once, every row at its own te
 from __future__ import annotations
 
 import os
-from typing import Any, Mapping, Sequence, Union, cast
+from dataclasses import replace
+from typing import Sequence, Union, cast
 
 import numpy as np
 
 from simucal import io, methods
 from simucal.api.arguments import checked
 from simucal.api.calibration import Calibration
-from simucal.api.options import CalibrateOptions
-from simucal.api.sets import as_set, keywords
-from simucal.errors import CalibrationError, SimucalError
+from simucal.api.sets import as_set
+from simucal.errors import CalibrationError, InputError, SimucalError
 from simucal.io import calibration
 from simucal.io.calibration_checks import check_layout, scale_notes
 from simucal.io.sensor_checks import stuck_channels
-from simucal.io.stream_records import Timestamps
+from simucal.handheld.static_detect import DetectSettings  # an annotation the door checks
+from simucal.io import stream_records
 from simucal.io.timestamps import with_timestamps
+from simucal.options import AUTO, CalibrateOptions, Method, Timestamps, described, unused
 
 Data = Union[str, os.PathLike[str], io.MeasurementSet]
-TYPE_CHECKING = False
-if TYPE_CHECKING:  # api/options.py says why
-    from typing_extensions import Unpack
-
-    from simucal.handheld.static_detect import DetectSettings
 
 
 @checked
-def calibrate(data: Data | Sequence[Data], **options: Unpack[CalibrateOptions]) -> Calibration:
+def calibrate(data: Data | Sequence[Data], options: CalibrateOptions | None = None, *, method: Method = "auto",
+              add: str | Sequence[str] = (), acc_model: str = "acc_baseline", gyro_model: str = "gyro_baseline",
+              acc_noise_g: float | None = None, gyro_noise_dph: float | None = None,
+              heading_accuracy_deg: float = 5.0, t_ref_c: float | None = None,
+              noise: str | os.PathLike[str] | None = None, detect: DetectSettings | None = None,
+              timestamps: Timestamps = "auto", thermal: bool = False,
+              thermal_degree: int | None = None) -> Calibration:
     """Calibrate a unit from one measurement set (or, with ``thermal=True``, from plateaus).
 
     Parameters
@@ -43,29 +46,12 @@ def calibrate(data: Data | Sequence[Data], **options: Unpack[CalibrateOptions]) 
     data : str, os.PathLike or MeasurementSet, or a list of them
         The set; a list (plateaus, or one set whose temperature ramps), or one set with
         ``thermal=True``, is a thermal calibration (`simucal calibrate --thermal`).
-    method : str
-        The method (simucal.api.options.Method, the registry's: auto, exact, linear, multiposition, ferraris,
-        handheld, field or systematic; default "auto", the one the data's kind takes).
-    add : str or list of str
-        Effect ids, model files, or "auto" (a forward selection): one as a string.
-    acc_model, gyro_model : str
-        A built-in model's name (default the baselines) or a model file.
-    acc_noise_g, gyro_noise_dph : float, optional
-        The noise of one row (g, deg/h) where the data cannot give it.
-    heading_accuracy_deg : float, optional
-        A field set's north reference accuracy (deg).
-    t_ref_c : float, optional
-        T_ref of the temperature terms (degC; default the data's middle).
-    noise : str or os.PathLike, optional
-        A noise.json of `simucal noise`, the noise of one row at any averaging.
-    detect : DetectSettings, optional
-        A stream's static detection (its window, threshold factor, gyro limit).
-    timestamps : {"auto", "recorded", "nominal"}
-        A stream's clock: the recorded time stamps, or the even clock of their median step.
-    thermal : bool
-        One set whose temperature ramps calibrated over temperature (a list of sets always is).
-    thermal_degree : int, optional
-        The thermal polynomials' degree, 0-3 (`--thermal-degree`; default chosen by the data).
+    options : CalibrateOptions, optional
+        The options below as one object (then none of them as a keyword).
+    {options}
+
+    An option the method does not read is refused (CalibrationError), naming the methods that read it; None
+    is an option left out (its default).
 
     Returns
     -------
@@ -83,103 +69,91 @@ def calibrate(data: Data | Sequence[Data], **options: Unpack[CalibrateOptions]) 
     >>> cal.acc.effects["acc.quadratic.z"].value  # doctest: +SKIP
     0.000198...
     """
+    given = {k: v for k, v in locals().items() if k not in ("data", "options") and v is not None}  # None: left out
+    if options is not None and CalibrateOptions(**given) != CalibrateOptions():
+        raise InputError(f"calibrate: options=CalibrateOptions(...) and {', '.join(sorted(given))}=: give the "
+                         "options as one object or as keywords, not both")
+    options = options or CalibrateOptions(**given)
     if isinstance(data, (list, tuple)):
-        return calibrate_over_temperature(list(data), **options)
+        return Calibration.of(calibrate_thermal([as_set(d) for d in data], options))
     one = cast(Data, data)  # not a list: one set
-    if options.get("thermal"):
-        return calibrate_over_temperature([one], **options)
-    return Calibration.of(calibrate_set(as_set(one), **keywords(options)))
+    if options.thermal:
+        return Calibration.of(calibrate_thermal([as_set(one)], options))
+    return Calibration.of(calibrate_set(as_set(one), options))
 
 
-def calibrate_over_temperature(sets: Sequence[Data], **options: Unpack[CalibrateOptions]) -> Calibration:
-    """One unit's thermal calibration (`calibrate(data, thermal=True)`: calibrate_thermal)."""
-    return Calibration.of(calibrate_thermal([as_set(d) for d in sets], **keywords(options)))
+calibrate.__doc__ = (calibrate.__doc__ or "").replace("{options}", described().replace("\n", "\n    "))
 
 
-def calibrate_set(folder: Data, method: str = "auto", acc_model: str = "acc_baseline",
-                  gyro_model: str = "gyro_baseline",
-                  detect: DetectSettings | None = None, add: Sequence[str] = (), acc_noise_g: float | None = None,
-                  gyro_noise_dph: float | None = None, heading_accuracy_deg: float | None = None,
-                  t_ref_c: float | None = None, noise: str | os.PathLike[str] | None = None, rank: bool = True,
-                  timestamps: str = "auto") -> calibration.Calibration:
-    """Calibrate a measurement set. method: a name of methods.METHODS, or "auto" (the default for
-    the set's data). add: effect ids and model files (augmented.resolve_add), and "auto": the
-    library effects a failing model needs, chosen one at a time (each sensor's block lists them
-    under `auto`); acc_noise_g / gyro_noise_dph: the noise of one row where the data cannot give
-    it; detect: a stream's static detection settings; heading_accuracy_deg: a field set's north
-    reference (None: methods.DEFAULTS' 5 deg); t_ref_c: T_ref of temperature terms (default the mean of temp_c); noise:
-    a noise.json of `simucal noise`, whose Allan curve gives each segment's noise at its length; rank: a failing model's
-    candidates ranked (turntable; a thermal calibration's plateau needs none); timestamps: a
-    stream's time stamps as recorded, evenly spaced at their mean step (nominal: the sensor's clock
-    behind a logger's arrival times), or auto (io/timestamps.py). Options a method does not take are
-    refused when set."""
+def calibrate_set(folder: Data, options: CalibrateOptions = CalibrateOptions()) -> calibration.Calibration:
+    """Calibrate a measurement set by its method (options.method, "auto": the default for the set's data).
+    options.add: effect ids and model files (augmented.resolve_add), and "auto": the library effects a failing
+    model needs, chosen one at a time (each sensor's block lists them under `auto`); options.noise: a noise.json
+    of `simucal noise`, whose Allan curve gives each segment's noise at its length; options.timestamps: a stream's
+    time stamps as recorded, evenly spaced at their mean step (nominal: the sensor's clock behind a logger's
+    arrival times), or auto (io/timestamps.py). An option the method does not read is refused
+    (Method.refuse_unused)."""
     ms = io.read_set(folder) if not isinstance(folder, io.MeasurementSet) else folder
     try:
-        ms, stamps = with_timestamps(ms, timestamps)
+        ms, stamps = with_timestamps(ms, options.timestamps)
     except CalibrationError as e:
         raise e.naming(ms.path) from None
-    if t_ref_c is not None and "temp_c" not in ms.samples:
-        raise CalibrationError(f"{ms.path / 'samples.csv'}: --t-ref-c {t_ref_c:g}, but there is no temp_c column for "
-                               "temperature terms to take it from: leave --t-ref-c out")
-    ms = ms.copy(temperature_ref_c=t_ref_c)  # the caller's set keeps its own T_ref
+    if options.t_ref_c is not None and "temp_c" not in ms.samples:
+        raise CalibrationError(f"{ms.path / 'samples.csv'}: --t-ref-c {options.t_ref_c:g}, but there is no temp_c "
+                               "column for temperature terms to take it from: leave --t-ref-c out")
+    ms = ms.copy(temperature_ref_c=options.t_ref_c)  # the caller's set keeps its own T_ref
     curves = None
-    if noise is not None:  # the file checked before any work, its refusal naming it alone
+    if options.noise is not None:  # the file checked before any work, its refusal naming it alone
         from simucal.fit.noise import load_curves
-        curves = load_curves(noise)
+        curves = load_curves(options.noise)
     try:
-        m = methods.choose(method, ms)
+        m = methods.choose(options.method, ms)
+        m.refuse_unused(options)
         stuck_channels(ms)
-        ids = tuple(a for a in add if a != "auto")
-        if "ids" in m.options:  # models and effects: imported only by the methods that fit them
-            from simucal.fit.augmented import resolve_add
-            acc_model, gyro_model, ids = resolve_add(ids, acc_model, gyro_model)
-        for sensor, stated, flag in (("acc", acc_noise_g, "--acc-noise-g"),
-                                     ("gyro", gyro_noise_dph, "--gyro-noise-dph")):
+        for sensor, stated, flag in (("acc", options.acc_noise_g, "--acc-noise-g"),
+                                     ("gyro", options.gyro_noise_dph, "--gyro-noise-dph")):
             if stated is not None and curves and curves.get(sensor) is not None:
-                raise CalibrationError(f"--noise {noise} gives the {sensor} noise of every segment, and {flag} "
-                                       f"{stated:g} one row's: give one of them")
-        given = dict(acc_model=acc_model, gyro_model=gyro_model, ids=ids, auto="auto" in add, detect=detect,
-                     acc_noise_g=acc_noise_g, gyro_noise_dph=gyro_noise_dph, heading_accuracy_deg=heading_accuracy_deg,
-                     noise_curves=curves, rank=rank)
-        unused = [k for k in ("ids", "auto", "acc_noise_g", "gyro_noise_dph", "noise_curves", "detect",
-                              "heading_accuracy_deg") if given[k] not in (None, False, ()) and k not in m.options]
-        if unused:
-            flag = {"ids": "--add", "auto": "--add auto", "noise_curves": "--noise",
-                    "detect": "--init-rest-s, --threshold-factor, --window-s, --min-static-s and --gyro-limit-dps "
-                              "(a stream's)"}.get(
-                unused[0], "--" + unused[0].replace("_", "-"))
-            takes = [x.name for x in methods.METHODS.values() if unused[0] in x.options]
-            raise CalibrationError(f"{flag} does not apply to method {m.name} ({m.summary}); it applies to method "
-                                   f"{' or '.join(takes)} "
-                                   f"({' or '.join(sorted({methods.DATA[methods.METHODS[t].data] for t in takes}))}).")
+                raise CalibrationError(f"--noise {options.noise} gives the {sensor} noise of every segment, and "
+                                       f"{flag} {stated:g} one row's: give one of them")
+        if "add" in m.reads:  # models and effects: imported only by the methods that fit them
+            from simucal.fit.augmented import resolve_add
+            acc_model, gyro_model, ids = resolve_add(options.effect_ids, options.acc_model, options.gyro_model)
+            options = replace(options, acc_model=acc_model, gyro_model=gyro_model,
+                              add=ids + (AUTO,) * options.auto)
+        options = replace(options, noise_curves=curves)
         from threadpoolctl import threadpool_limits
         with threadpool_limits(1, "blas"):  # the fits' QRs and pseudo-inverses (up to 522 x 357) are small: on two
-            result = m.call(ms, **given)    # OpenBLAS threads each ran 1.1-60x slower here (raw41, both ways measured)
+            result = m.run(ms, options)     # OpenBLAS threads each ran 1.1-60x slower here (raw41, both ways measured)
         result.warnings += scale_notes(result, ms.meta)
-        result.warnings += [f"{noise}: holds no {s} curve, so the {s} noise is the data's own (--noise covers the "
-                            f"{' and '.join(curves)} only)" for s, _ in result.blocks() if curves and s not in curves]
+        result.warnings += [f"{options.noise}: holds no {s} curve, so the {s} noise is the data's own (--noise "
+                            f"covers the {' and '.join(curves)} only)" for s, _ in result.blocks()
+                            if curves and s not in curves]
         if stamps:
-            result.details["timestamps"] = cast(Timestamps, stamps)  # with_timestamps's block
+            result.details["timestamps"] = cast(stream_records.Timestamps, stamps)  # with_timestamps's block
     except CalibrationError as e:
         raise e.naming(ms.path) from None
     return result
 
 
 def calibrate_to_file(folder: Data, output: str | os.PathLike[str],
-                      kwargs: dict[str, Any]) -> tuple[calibration.Calibration | None, str | None]:
+                      options: CalibrateOptions) -> tuple[calibration.Calibration | None, str | None]:
     """calibrate_set() one set and write its file; (result, None), or (None, the refusal's message).
     One task of a batch (`simucal calibrate DIR1 DIR2 ... --scheduler`): a refusal loses no other set."""
     try:
-        result = calibrate_set(folder, **kwargs)
+        result = calibrate_set(folder, options)
         calibration.save(output, result)
         return result, None
     except SimucalError as e:  # a refusal of this set; anything else is a bug, which stops the batch
         return None, str(e)
 
 
-def _still_warmup(folders: Sequence[Data], degree: int | None, kwargs: Mapping[str, Any]) -> io.MeasurementSet | None:
+# What a still warm-up reads (handheld/warmup.py): its degree, noise and rows come from the data, its method is its own
+WARMUP_READS = frozenset({"thermal", "t_ref_c", "add", "add auto", "rank", "noise_curves"})
+
+
+def _still_warmup(folders: Sequence[Data], options: CalibrateOptions) -> io.MeasurementSet | None:
     """The set, where --thermal is given one stream that never moves (a board warming up, handheld/warmup.py);
-    else None. Options a warm-up cannot use are refused by name."""
+    else None. Options a warm-up cannot use are refused by the one rule (options.unused)."""
     if len(folders) != 1:
         return None
     from simucal.handheld.static_detect import still_throughout
@@ -190,56 +164,48 @@ def _still_warmup(folders: Sequence[Data], degree: int | None, kwargs: Mapping[s
     if not still_throughout(ms.acc_g(), ms.samples["t_s"]):
         refuse_a_board_that_moved(ms)
         return None
-    method = kwargs.get("method")
-    given = [o for o, v in (("--thermal-degree", degree),
-                            ("--method", method not in (None, "auto") and method),
-                            ("--acc-noise-g", kwargs.get("acc_noise_g")),
-                            ("--gyro-noise-dph", kwargs.get("gyro_noise_dph")), ("--noise", kwargs.get("noise")),
-                            ("--window-s, --threshold-factor, --init-rest-s, --min-static-s, --gyro-limit-dps (a "
-                             "hand session's static detection)", kwargs.get("detect")),
-                            ("--timestamps", kwargs.get("timestamps") not in (None, "auto"))) if v]
-    if given:
-        raise CalibrationError(f"{given[0]}: a still warm-up's bias takes its degree from the data (0 to 3), its noise "
-                               "from the data, its rows as they are (no poses to find, no moves to time) and no "
+    left = unused(options, WARMUP_READS, own=())
+    if left:
+        raise CalibrationError(f"{left[0][1]}: a still warm-up's bias takes its degree from the data (0 to 3), its "
+                               "noise from the data, its rows as they are (no poses to find, no moves to time) and no "
                                "other method; leave it out")
     return ms
 
 
-def calibrate_thermal(folders: Sequence[Data], thermal_degree: int | None = None, t_ref_c: float | None = None,
-                      **kwargs: Any) -> calibration.Calibration:
+def calibrate_thermal(folders: Sequence[Data],
+                      options: CalibrateOptions = CalibrateOptions()) -> calibration.Calibration:
     """One unit at two or more temperature plateaus (one set each), or one set whose temperature
     ramps. A turntable unit (method exact) is fitted once, every row at its own temp_c, with every
     parameter of the model a polynomial in (T - T_ref) inside the model, each parameter's degree
     chosen by the model test and by the groups (plateaus, bands of a ramp) left out
     (fit/thermal_select.py); each plateau is also calibrated alone as evidence. Other methods fit
     each plateau alone and then each parameter's polynomial over the plateaus (fit/thermal.py).
-    T_ref: t_ref_c, else the mean of the plateaus' temperatures. The file holds the unit at T_ref
+    T_ref: options.t_ref_c, else the mean of the plateaus' temperatures. The file holds the unit at T_ref
     and, per sensor, `thermal` (the polynomials) that apply evaluates at each row's temp_c."""
     from simucal.fit.thermal_plateaus import refuse_thermal_options
     if not folders:
         raise CalibrationError("--thermal needs a set whose temperature ramps, or two or more plateaus")
-    refuse_thermal_options(folders, thermal_degree, kwargs.get("add", ()))
+    refuse_thermal_options(folders, options.thermal_degree, options.add)
     from threadpoolctl import threadpool_limits
     # one BLAS thread: the QRs and solves here are small, and OpenBLAS's threads spinning against each other
     # (or against another process) made one run 0.66-7.7 s
     with threadpool_limits(1, "blas"):
-        return _calibrate_thermal(folders, thermal_degree, t_ref_c, kwargs)
+        return _calibrate_thermal(folders, options)
 
 
-def _calibrate_thermal(folders: Sequence[Data], degree: int | None, t_ref_c: float | None,
-                       kwargs: dict[str, Any]) -> calibration.Calibration:
+def _calibrate_thermal(folders: Sequence[Data], options: CalibrateOptions) -> calibration.Calibration:
     from simucal.fit.thermal_plateaus import plateau, plateaus_block, reference_temperature, refuse_repeated
-    warmup = _still_warmup(folders, degree, kwargs)
+    warmup = _still_warmup(folders, options)
     if warmup is not None:
         from simucal.handheld.warmup import calibrate_warmup
-        return calibrate_warmup(warmup, t_ref_c, kwargs.get("add") or ())
+        return calibrate_warmup(warmup, options.t_ref_c, options.add)
     sets = [plateau(f) for f in folders]
     refuse_repeated([ms for ms, _ in sets])
-    t_ref = reference_temperature(sets, t_ref_c)
+    t_ref = reference_temperature(sets, options.t_ref_c)
     T_k = [t for _, t in sets]
     near = int(np.argmin(np.abs(np.asarray(T_k) - t_ref)))
     # the plateau nearest T_ref by its method: the gyro frame (C_b^d), the checks, the model's shape
-    cal = calibrate_set(sets[near][0], t_ref_c=T_k[near], rank=False, **kwargs)
+    cal = calibrate_set(sets[near][0], replace(options, t_ref_c=T_k[near], rank=False))
     for ms, _ in sets:
         check_layout(cal, ms, f"the plateau nearest T_ref ({sets[near][0].path})")
     plateaus = [str(ms.path) for ms, _ in sets]
@@ -252,16 +218,17 @@ def _calibrate_thermal(folders: Sequence[Data], degree: int | None, t_ref_c: flo
                                      samples_sha256=[d for ms, _ in sets for d in ms.sample_digests()])
     if cal.method == "exact":
         from simucal.turntable.thermal import joint_blocks
-        joint_blocks(result, sets, cal, degree, t_ref, kwargs.get("noise"), kwargs.get("acc_noise_g"),
-                     kwargs.get("gyro_noise_dph"))
+        joint_blocks(result, sets, cal, options.thermal_degree, t_ref, options.noise, options.acc_noise_g,
+                     options.gyro_noise_dph)
     else:
         if len(sets) < 2:
             raise CalibrationError(f"--thermal on one set needs a turntable set (method exact, whose rows are fitted "
                                    f"at their own temperature); method {cal.method} fits each plateau alone: give "
                                    "two or more plateaus")
-        cals = [cal if k == near else calibrate_set(ms, t_ref_c=t, **kwargs) for k, (ms, t) in enumerate(sets)]
+        cals = [cal if k == near else calibrate_set(ms, replace(options, t_ref_c=t)) for k, (ms, t) in enumerate(sets)]
         for s in cal.sensors:
-            setattr(result, s, plateaus_block([getattr(c, s) for c in cals], T_k, t_ref, degree, s, plateaus))
+            setattr(result, s, plateaus_block([getattr(c, s) for c in cals], T_k, t_ref, options.thermal_degree, s,
+                                              plateaus))
         result.warnings += [w for c in cals for w in c.warnings]
         return result
     result.warnings += cal.warnings

@@ -15,7 +15,7 @@ from __future__ import annotations
 import json
 import os
 from pathlib import Path
-from typing import Any, Callable, Mapping
+from typing import Any, Callable, Mapping, cast
 
 import numpy as np
 
@@ -25,6 +25,7 @@ from simucal.api.calibrating import calibrate_set, calibrate_thermal
 from simucal.api.diagnosing import diagnosis_report
 from simucal.fit.apply import apply
 from simucal.io import calibration, outputs
+from simucal.options import CalibrateOptions, Method
 from simucal.report import markdown as report
 from simucal.report.html import render
 from simucal.turntable.simulate import SCENARIOS, Scenario, plant, write
@@ -61,7 +62,7 @@ def loop(out: Path, seed: int, echo: Callable[[str], Any]) -> dict[str, Any]:
     echo(f"3 diagnose: {diag['acc']['verdict']}")
     if not found:
         raise CalibrationError("the demo's hidden effect was not found: " + diag["acc"]["verdict"])
-    fixed = calibrate_set(data, add=tuple(found))
+    fixed = calibrate_set(data, CalibrateOptions(add=tuple(found)))
     assert fixed.acc is not None
     calibration.save(out / "loop_calibration_added.json", fixed)
     e = fixed.acc.effects[found[0]]
@@ -133,7 +134,7 @@ def thermal(out: Path, seed: int, echo: Callable[[str], Any]) -> dict[str, Any]:
         write(out / f"thermal_{T}", sc, seed + k)
         return out / f"thermal_{T}"
     sets = [plateau(T, k) for k, T in enumerate((0, 25, 50))]
-    cal = calibrate_thermal(sets, t_ref_c=25.0)
+    cal = calibrate_thermal(sets, CalibrateOptions(t_ref_c=25.0))
     assert cal.acc is not None and cal.gyro is not None  # the plateaus hold both sensors
     calibration.save(out / "thermal_calibration.json", cal)
     calibration.save(out / "thermal_calibration_25.json", calibrate_set(sets[1]))
@@ -176,7 +177,7 @@ def paper(out: Path, seed: int, echo: Callable[[str], Any]) -> None:
     echo(f"simulate: {out / 'paper'} (dong2018 section 4 settings, seed {seed})")
     results = {}
     for method in methods.for_any_plan(methods.TURNTABLE):
-        results[method] = calibrate_set(out / "paper", method)
+        results[method] = calibrate_set(out / "paper", CalibrateOptions(method=cast(Method, method)))
         calibration.save(out / f"calibration_{method}.json", results[method])
     echo("calibrate: " + ", ".join(f"calibration_{m}.json" for m in results))
     audit_report = full_audit(seeds=8)

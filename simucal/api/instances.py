@@ -11,18 +11,14 @@ from typing import Any, NamedTuple, Sequence, Union
 
 from simucal import io
 from simucal.api.arguments import checked
-from simucal.api.options import CalibrateOptions
 from simucal.api.calibration import AutopilotFile, Calibration
-from simucal.api.calibrating import calibrate_over_temperature
+from simucal.api.calibrating import calibrate
 from simucal.api.sets import as_set
 from simucal.errors import InputError
 from simucal.io.meta import Meta, log_imu
+from simucal.options import CalibrateOptions
 
 Data = Union[str, os.PathLike[str], io.MeasurementSet]
-TYPE_CHECKING = False
-if TYPE_CHECKING:  # api/options.py says why
-    from typing_extensions import Unpack
-
 
 class ImuCalibration(NamedTuple):
     """One IMU's thermal calibration: its log's instance (None: a set from elsewhere), the sets it was made
@@ -48,7 +44,7 @@ def by_imu(sets: Sequence[io.MeasurementSet]) -> list[list[io.MeasurementSet]]:
 
 
 @checked
-def calibrate_instances(data: Sequence[Data], **options: Unpack[CalibrateOptions]) -> list[ImuCalibration]:
+def calibrate_instances(data: Sequence[Data], options: CalibrateOptions | None = None) -> list[ImuCalibration]:
     """Calibrate each IMU of the sets over temperature apart (`simucal calibrate SETS --thermal` where the
     sets are of several instances): its plateaus, or its warm-up.
 
@@ -56,8 +52,9 @@ def calibrate_instances(data: Sequence[Data], **options: Unpack[CalibrateOptions
     ----------
     data : sequence of paths or MeasurementSets
         Every IMU's sets, e.g. those `import_instances` wrote; the sets of one IMU are one unit's plateaus.
-    **options
-        As `calibrate`'s with ``thermal=True`` (``thermal_degree``, ``t_ref_c``, ...).
+    options : CalibrateOptions, optional
+        `calibrate`'s options as one object (``thermal_degree``, ``t_ref_c``, ...); every IMU is calibrated over
+        temperature.
 
     Returns
     -------
@@ -72,7 +69,7 @@ def calibrate_instances(data: Sequence[Data], **options: Unpack[CalibrateOptions
     if isinstance(data, (str, os.PathLike, io.MeasurementSet)):
         raise InputError(f"calibrate_instances: data={data!r}: a list of sets ([{data!r}] for one)")
     return [ImuCalibration(None if (key := log_imu(group[0].meta)) is None else key[0], [str(ms.path) for ms in group],
-                           calibrate_over_temperature(group, **options), group[0].meta)
+                           calibrate(group, options), group[0].meta)
             for group in by_imu([as_set(d) for d in data])]
 
 

@@ -252,12 +252,3 @@ def as_set(data: Any) -> io.MeasurementSet:
 def effect_ids(add: str | Sequence[str]) -> tuple[str, ...]:
     """add as the commands take it, one id or model file per item: a string is one (not its letters)."""
     return (add,) if isinstance(add, str) else tuple(add)
-
-
-def keywords(options: Mapping[str, Any]) -> dict[str, Any]:
-    """calibrate's **options as the commands' own functions take them by name: add as effect_ids, and
-    thermal (which chooses the function) left out."""
-    kw = {k: v for k, v in options.items() if k != "thermal"}
-    if "add" in kw:
-        kw["add"] = effect_ids(kw["add"])
-    return kw

@@ -95,30 +95,29 @@ def calibrate(data_dirs, output, thermal, thermal_degree, html_out, px4, ardupil
     With segments.csv and table angles: a turntable test (dong2018). Without segments.csv: a
     continuous stream from a hand-placed session (static poses found from the data; Tedaldi).
     With heading_ref_deg and no table angles: a field set (ruan2019's gyro drift)."""
-    from simucal.api import DetectSettings
+    from simucal import api
     stream = dict(window_s=window_s, threshold_factor=threshold_factor, min_static_s=min_static_s,
                   init_rest_s=init_rest_s, gyro_limit_dps=gyro_limit_dps)
-    detect = DetectSettings(**{k: v for k, v in stream.items() if v is not None}) if any(
+    detect = api.DetectSettings(**{k: v for k, v in stream.items() if v is not None}) if any(
         v is not None for v in stream.values()) else None  # given only where set: other data refuse them
-    kwargs = dict(method=method, acc_model=acc_model, gyro_model=gyro_model, detect=detect, add=add,
-                  acc_noise_g=acc_noise_g, gyro_noise_dph=gyro_noise_dph, heading_accuracy_deg=heading_accuracy_deg,
-                  noise=noise_file, timestamps=timestamps)
+    given = dict(method=method, acc_model=acc_model, gyro_model=gyro_model, detect=detect, add=add,
+                 acc_noise_g=acc_noise_g, gyro_noise_dph=gyro_noise_dph, heading_accuracy_deg=heading_accuracy_deg,
+                 noise=noise_file, timestamps=timestamps, t_ref_c=t_ref_c, thermal_degree=thermal_degree,
+                 thermal=thermal or thermal_degree is not None)
+    options = api.CalibrateOptions(**{k: v for k, v in given.items() if v is not None})  # None: left out
     inputs = list(data_dirs) + [a for a in add if a.endswith(".py")] + ([noise_file] if noise_file else [])
-    if len(data_dirs) == 1 or thermal or thermal_degree is not None:
+    if len(data_dirs) == 1 or options.thermal:
         refuse_unused({"scheduler": "several sets calibrated one by one (not one set, nor --thermal's plateaus)"})
-    if thermal or thermal_degree is not None:
+    if options.thermal:
         refuse_unused({"store_url": "one set's or several sets' calibrations (a thermal one: simucal store add FILE)"})
-        return _calibrate_thermal(data_dirs, output, thermal_degree, t_ref_c, kwargs, inputs, html_out,
-                                  (px4, ardupilot), units)
+        return _calibrate_thermal(data_dirs, output, options, inputs, html_out, (px4, ardupilot), units)
     if px4 or ardupilot:
         fail("--px4/--ardupilot: an autopilot's thermal compensation is made from plateaus or a ramp with --thermal")
     if html_out:
         fail("--html: a page of a thermal calibration (with --thermal); for one set use simucal diagnose --html")
-    kwargs["t_ref_c"] = t_ref_c
     if len(data_dirs) == 1:
-        from simucal import api
         guard(inputs, files=[output])
-        result = api.calibrate(data_dirs[0], **kwargs)
+        result = api.calibrate(data_dirs[0], options)
         api.save(output, result)
         from simucal.report.console import calibration_lines
         for line in calibration_lines(result, units):
@@ -128,15 +127,16 @@ def calibrate(data_dirs, output, thermal, thermal_degree, html_out, px4, ardupil
             click.echo(record(store_url, result))
         return
     refuse_unused({"units": "what one set's calibration prints (several sets print each one's file and tests)"})
-    _calibrate_batch(data_dirs, output, kwargs, inputs, scheduler, store_url)
+    _calibrate_batch(data_dirs, output, options, inputs, scheduler, store_url)
 
 
-def _calibrate_batch(data_dirs, output, kwargs, inputs, scheduler, store_url=None):
+def _calibrate_batch(data_dirs, output, options, inputs, scheduler, store_url=None):
     """Several sets, one by one (on a scheduler): one <set>.json each into the folder -o (simucal.calibrate_each)."""
     from simucal import api, progress
     out = Path(output)
     guard(inputs, files=api.batch.output_files(data_dirs, out), folders=[out])
-    done = api.calibrate_each(data_dirs, out, scheduler=scheduler, progress=progress.bar("calibrate", "set"), **kwargs)
+    done = api.calibrate_each(data_dirs, out, options=options, scheduler=scheduler,
+                              progress=progress.bar("calibrate", "set"))
     for d in done:
         if d.error:
             click.echo(f"{d.data}: error: {d.error}", err=True)
@@ -155,14 +155,13 @@ def _calibrate_batch(data_dirs, output, kwargs, inputs, scheduler, store_url=Non
         sys.exit(2)
 
 
-def _calibrate_thermal(data_dirs, output, degree, t_ref_c, kwargs, inputs, html_out, autopilot_out=(None, None),
-                       units="spec"):
+def _calibrate_thermal(data_dirs, output, options, inputs, html_out, autopilot_out=(None, None), units="spec"):
     from simucal import api
     if len(api.imus_of(data_dirs)) > 1:
-        return _calibrate_instances(data_dirs, output, degree, t_ref_c, kwargs, inputs, html_out, autopilot_out, units)
+        return _calibrate_instances(data_dirs, output, options, inputs, html_out, autopilot_out, units)
     from simucal.io import outputs
     guard(inputs, files={"-o": output, "--html": html_out, "--px4": autopilot_out[0], "--ardupilot": autopilot_out[1]})
-    result = api.calibrate([Path(d) for d in data_dirs], thermal_degree=degree, t_ref_c=t_ref_c, **kwargs)
+    result = api.calibrate([Path(d) for d in data_dirs], options)
     exported = result.autopilot_files(data_dirs[0], px4=autopilot_out[0], ardupilot=autopilot_out[1])
     api.save(output, result)
     from simucal.report.console import calibration_lines
@@ -188,7 +187,7 @@ def _instance_path(path, instance):
                                                                f"{Path(path).suffix}"))
 
 
-def _calibrate_instances(data_dirs, output, degree, t_ref_c, kwargs, inputs, html_out, autopilot_out, units):
+def _calibrate_instances(data_dirs, output, options, inputs, html_out, autopilot_out, units):
     """--thermal of sets of several IMUs of a log (simucal.calibrate_instances): each apart, one calibration
     file and page each, and one PX4 and one ArduPilot file holding every IMU's slot."""
     from simucal import api
@@ -205,7 +204,7 @@ def _calibrate_instances(data_dirs, output, degree, t_ref_c, kwargs, inputs, htm
     named = {f"-o ({n})": _instance_path(output, n) for n in instances}
     named.update({f"--html ({n})": _instance_path(html_out, n) for n in instances if html_out})
     guard(inputs, files={**named, "--px4": autopilot_out[0], "--ardupilot": autopilot_out[1]})
-    imus = api.calibrate_instances([Path(d) for d in data_dirs], thermal_degree=degree, t_ref_c=t_ref_c, **kwargs)
+    imus = api.calibrate_instances([Path(d) for d in data_dirs], options)
     exported = api.autopilot_files(imus, px4=autopilot_out[0], ardupilot=autopilot_out[1])
     for u in imus:
         path = _instance_path(output, u.instance)

@@ -16,6 +16,7 @@ from typing import TYPE_CHECKING, Any, Callable, Iterable
 import numpy as np
 
 from simucal import io, methods
+from simucal.options import CalibrateOptions
 from simucal.io import units
 from simucal.report import markdown as report
 from simucal.turntable.simulate import ARCMIN, ARCSEC, Scenario, write
@@ -60,7 +61,7 @@ def monte_carlo(sc: Scenario, seeds: int, names=METHODS, progress=None):
             folder = Path(tmp) / str(seed)
             truth = report.entries(write(folder, sc, seed))
             for m in names:
-                est[m].append(report.entries(methods.METHODS[m].call(io.read_set(folder))))
+                est[m].append(report.entries(methods.METHODS[m].run(io.read_set(folder), CalibrateOptions())))
     return np.array(truth), {m: np.array(v) for m, v in est.items()}
 
 
