@@ -47,8 +47,9 @@ def test_notebook_flow_on_numpy_arrays(monkeypatch):
     ms = _set(raw, samples, segments, meta, "lab_run_1")
     cal = simucal.calibrate(ms, add=["acc.quadratic.z"])
     assert isinstance(cal, simucal.Calibration) and ms.temperature_ref_c is None  # the caller's set untouched
-    assert isinstance(cal.parameters(), list) and isinstance(cal.parameters()[0], simucal.Parameter)
-    table = {(r.sensor, r.name): r for r in cal.parameters()}
+    assert isinstance(cal.parameters(), list) and isinstance(cal.parameters()[0], simucal.Entry)
+    assert isinstance(cal.parameters("own")[0], simucal.Parameter)
+    table = {(r.sensor, r.name): r for r in cal.parameters("own")}
     for name in ("dK_x", "dK_y", "dK_z", "b_z"):  # the truth within 5 std of each estimate
         r = table[("acc", name)]
         assert abs(r.value - truth["acc"]["params"][name]) < 5 * r.std, r
@@ -86,10 +87,13 @@ def test_notebook_flow_on_dataframes():
     ms = simucal.MeasurementSet.from_dataframe(df, columns=cols, acc_unit="pulse/s", gyro_unit="pulse/s",
                                                segments=segments, meta={k: meta[k] for k in KEYS})
     cal = simucal.calibrate(ms)
-    params = cal.parameters()  # a DataFrame, pandas being installed
+    params = cal.parameters("own")  # a DataFrame, pandas being installed
     assert (isinstance(params, pd.DataFrame)
             and list(params.columns) == ["name", "sensor", "value", "std", "unit", "meaning"])
     assert (params["std"] > 0).all() and len(params) == 18
+    common = cal.parameters()  # by default every method's M and bias
+    assert list(common.columns) == ["sensor", "name", "value", "std", "unit", "own_name", "meaning"]
+    assert len(common) == 24 and set(common["own_name"].dropna()) <= set(params["name"])
     df2, segments2, meta2 = frame(2)
     out = cal.apply(df2, columns=names)
     assert isinstance(out, pd.DataFrame) and list(out.columns) == list(df2.columns)

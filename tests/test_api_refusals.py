@@ -87,8 +87,8 @@ def test_add_as_text_and_thermal_of_one_ramp():
             for t in (0, 25, 50)]
     cal = simucal.calibrate(sets)  # in-memory plateaus
     rows = cal.parameters()
-    slope = rows[(rows.sensor == "acc") & (rows.name == "b_x.T1")].iloc[0]
-    assert slope.unit == "g/degC" and abs(slope.value - 1e-5) < 4 * slope['std'], slope
+    slope = rows[(rows.sensor == "acc") & (rows.name == "bias_x.T1")].iloc[0]  # the one vocabulary: b_x.T1's entry
+    assert slope.unit == "g/degC" and slope.own_name == "b_x.T1" and abs(slope.value - 1e-5) < 4 * slope['std'], slope
     ramp = simucal.simulate(seed=3, temperature_c=(0.0, 50.0), rate_hz=2.0)
     assert simucal.calibrate(ramp, thermal=True).acc.thermal is not None  # thermal=True is not ignored
     assert "acc.quadratic.z" in simucal.calibrate(sets[1], add="acc.quadratic.z").acc.effects  # not its letters

@@ -28,9 +28,11 @@ def notebook():
 
 def test_parameter_table_holds_the_truth(notebook):
     cal, _, _ = notebook
-    params = cal.parameters().set_index(["sensor", "name"])
+    params = cal.parameters("own").set_index(["sensor", "name"])
     row = params.loc[("acc", EFFECT)]
     assert row["unit"] == "g/degC" and "temperature" in row["meaning"]
+    common = cal.parameters().set_index(["sensor", "name"]).loc[("acc", EFFECT)]  # an effect: its id in both
+    assert (common["value"], common["std"], common["meaning"]) == (row["value"], row["std"], row["meaning"])
     assert abs(row["value"] - SIZE_G_PER_C) < 5 * row["std"], row
     assert (params["std"] > 0).all() and params["value"].notna().all()
 

@@ -48,6 +48,7 @@ print(f"|f| - 1 g rms: nominal {nominal:.2g} g, baseline {before:.2g} g, with th
 assert after < before / 3 < nominal and after < 2 * floor
 
 # 6. The parameter table (a pandas DataFrame where pandas is installed, else a list of rows; table_rows
-#    gives rows either way).
+#    gives rows either way): M and bias in one vocabulary for every method, the method's own names beside them.
 for p in simucal.table_rows(cal.parameters())[:10]:
-    print(f"  {p.sensor:4} {p.name:16} {p.value:+.4g} +- {p.std:.2g} {p.unit}")
+    own = p.own_name if isinstance(p.own_name, str) else "none: fixed by the model"  # a missing cell: NaN or None
+    print(f"  {p.sensor:4} {p.name:16} {p.value:+.4g} +- {p.std:.2g} {p.unit} (the method's {own})")

@@ -109,32 +109,34 @@ class Calibration(calibration.Calibration):
         return html_card("simucal.Calibration", rows)
 
     @checked
-    def parameters(self, vocabulary: str = "own", units: str = "spec") -> Any:
-        """Every parameter of every sensor's model as a table: a list of `Parameter` rows.
+    def parameters(self, vocabulary: str = "common", units: str = "spec") -> Any:
+        """Every sensor's parameters as a table, in one vocabulary for every method (api/vocabulary.py): each
+        sensor's M entries (M_xx .. M_zz: output per input, frame b) and bias (bias_x .. bias_z) with their stds,
+        the library effects by their ids, and the method's own name for each (``own_name``: dK_x, theta_yx, b_x
+        for dong2018's methods; M_xx, bias_x for the multi-position method). A thermal calibration gives them
+        at T_ref and below them each one's coefficient of (T - T_ref)^k that the data hold (``bias_x.T1`` in
+        unit/degC, ``M_yy.T2`` in 1/degC^2), M and bias through the model of every parameter's polynomial.
+        `simucal.compare` sets calibrations side by side so.
+
+        With ``vocabulary="own"``, the method's own parameters instead: `Parameter` rows ``(name, sensor,
+        value, std, unit, meaning)``; an affine model (the multi-position method, a stream's gyro) gives M's
+        entries (or T's, T = M^-1) and the bias, a thermal calibration each parameter's coefficients
+        (``b_x.T1``). std is the file's (inflated by the misfit where the model fails its test).
 
         With ``units="si"``, each value and std with its unit in SI (a bias in g in m/s^2 with the set's
         gravity_mps2 where its meta.json is at hand, else 9.80665; deg/h in rad/s; a scale factor or an angle
         unchanged), as `simucal calibrate --units si` prints them; the calibration file keeps the spec's.
 
-        With ``vocabulary="common"``, every method's in one vocabulary instead (api/vocabulary.py): each
-        sensor's M entries (M_xx .. M_zz, output per input, frame b) and bias (bias_x .. bias_z) with
-        their stds, the effects by their ids, and the method's own name for each (``own_name``: dK_x,
-        theta_yx, b_x; M_xx): `Entry` rows. `simucal.compare` sets calibrations side by side so.
-
         Returns
         -------
-        pandas.DataFrame or list of Parameter
-            ``(name, sensor, value, std, unit, meaning)`` per parameter: a DataFrame where pandas
-            is installed, else a list of `Parameter` rows. An affine model (the multi-position
-            method, a stream's gyro) gives M's entries and the bias. A thermal calibration gives
-            each parameter at T_ref and below it each coefficient of its polynomial in (T - T_ref)
-            that the data hold (``b_x.T1`` in unit/degC, ``b_x.T2`` in unit/degC^2). std is the file's (inflated by
-            the misfit where the model fails its test).
+        pandas.DataFrame or list of Entry (or of Parameter)
+            A DataFrame where pandas is installed, else a list of NamedTuple rows: ``(sensor, name, value, std,
+            unit, own_name)`` (``vocabulary="own"``: ``(name, sensor, value, std, unit, meaning)``).
 
         Examples
         --------
         >>> p = cal.parameters()  # doctest: +SKIP
-        >>> p.set_index(["sensor", "name"]).loc[("acc", "dK_z"), ["value", "std", "unit"]]  # doctest: +SKIP
+        >>> p.set_index(["sensor", "name"]).loc[("acc", "bias_z"), ["value", "std", "own_name"]]  # doctest: +SKIP
         """
         from simucal.report.units import calibration_in
         shown = calibration_in(self, units)

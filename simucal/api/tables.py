@@ -65,8 +65,8 @@ def table_rows(t: Any) -> list[Any]:
     --------
     >>> import simucal
     >>> p = simucal.table_rows(simucal.calibrate(simucal.simulate(seed=1)).parameters())
-    >>> p[0].sensor, p[0].name, p[0].unit
-    ('acc', 'dK_x', '1')
+    >>> p[0].sensor, p[0].name, p[0].unit, p[0].own_name
+    ('acc', 'M_xx', '1', 'dK_x')
     """
     if hasattr(t, "itertuples"):
         return list(t.itertuples(index=False))
