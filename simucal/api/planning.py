@@ -30,7 +30,8 @@ def model_sensor(model: str, add: Sequence[str] = ()) -> str:
 def plan(score: str | None = None, *, positions: int | None = None, model: str = "acc_baseline",
          add: Sequence[str] = (), criterion: str = "D", rates_dps: Sequence[float] | None = None,
          acc_noise_g: float | None = None, gyro_noise_dph: float | None = None, table: str = "three-axis",
-         separate: Sequence[str] | None = None, sizes: Sequence[float] | None = None, power: float = 0.9) -> results.PlanScore:  # noqa: E501 (wrapped, the function would pass test_architecture's 70 lines)
+         separate: Sequence[str] | None = None, sizes: Sequence[float] | None = None,
+         power: float = 0.9) -> results.PlanScore:
     """Score a plan, or design one, for a model.
 
     Parameters
@@ -66,8 +67,7 @@ def plan(score: str | None = None, *, positions: int | None = None, model: str =
     """
     from simucal.fit.augmented import AugmentedModel
     from simucal.io.units import DPH_PER_DPS
-    from simucal.turntable import plans
-    from simucal.turntable.plan_design import design, directions_k, plan_rows, score as score_of
+    from simucal.turntable.plan_design import plan_rows, score as score_of
     if (score is None) == (positions is None):
         raise InputError("give --score PLAN to score a plan, or --positions N to design one")
     m = AugmentedModel(model, tuple(add))
@@ -77,14 +77,7 @@ def plan(score: str | None = None, *, positions: int | None = None, model: str =
     if gyro and score is not None and len(rate_list) > 1:
         raise InputError(f"--rates-dps {','.join(f'{r:g}' for r in rate_list)}: a score takes one rate (its rate "
                          "runs'); a design (--positions N) chooses among several")
-    rho: Any = abs(rate_list[0]) * DPH_PER_DPS if gyro else 1.0
-    if score is not None:
-        rows = plans.PLANS[score]() if score in plans.PLANS else plans.read_csv(score)
-        u, name = directions_k(rows), score
-    else:
-        assert positions is not None  # one of the two, refused above otherwise
-        u, rho = design(m, positions, np.abs(rate_list) * DPH_PER_DPS if gyro else 1.0, sigma, criterion)
-        name = f"{criterion}-optimal, {positions} positions"
+    u, rho, name = _directions(m, score, positions, rate_list, sigma, criterion)
     rates = sorted(set(np.round(np.atleast_1d(rho) / DPH_PER_DPS, 6).tolist())) if gyro else None
     result: results.PlanScore = {"plan": name, "model": m.name, "unit": m.unit, "noise": sigma, "rates_dps": rates}
     result.update(score_of(m, u, rho, sigma, f"plan {score}: " if score is not None else ""))
@@ -97,6 +90,22 @@ def plan(score: str | None = None, *, positions: int | None = None, model: str =
     if separate:
         result["separation"] = _separation(m, separate, sizes, score, u, rho, sigma, power)
     return result
+
+
+def _directions(m: Any, score: str | None, positions: int | None, rate_list: list[float], sigma: float,
+                criterion: str) -> tuple[NDArray[np.float64], Any, str]:
+    """The plan's directions in frame k, its rate runs' rate (deg/h; a design's per position; 1 for an
+    accelerometer) and its name: the plan scored, or one designed (D or A optimal)."""
+    from simucal.io.units import DPH_PER_DPS
+    from simucal.turntable import plans
+    from simucal.turntable.plan_design import design, directions_k
+    gyro = m.sensor == "gyro"
+    if score is not None:
+        rows = plans.PLANS[score]() if score in plans.PLANS else plans.read_csv(score)
+        return directions_k(rows), abs(rate_list[0]) * DPH_PER_DPS if gyro else 1.0, score
+    assert positions is not None  # one of the two, refused by plan otherwise
+    u, rho = design(m, positions, np.abs(rate_list) * DPH_PER_DPS if gyro else 1.0, sigma, criterion)
+    return u, rho, f"{criterion}-optimal, {positions} positions"
 
 
 def _noise(model: str, gyro: bool, acc_noise_g: float | None, gyro_noise_dph: float | None) -> float:
@@ -237,15 +246,8 @@ def design_sequence(minutes: float = 10.0, *, reference: str = "psins19", refere
     from simucal.turntable import sequence as seq
     from simucal.turntable import sequence_design as design
     from simucal.turntable.simulate import unit_from_calibration
-    if not 0 < minutes <= seq.MAX_REST_S / 60:
-        raise InputError(f"--minutes {minutes:g}: give a table time of 0 < minutes <= {seq.MAX_REST_S / 60:g}")
-    if not 0 < table_rate_dps <= seq.MAX_RATE_DPS:
-        raise InputError(f"--table-rate-dps {table_rate_dps:g}: give the table's rate, 0 < rate <= {seq.MAX_RATE_DPS:g} deg/s")  # noqa: E501 (wrapped, the function would pass test_architecture's 70 lines)
-    if evaluations < len(seq.SEQUENCES):
-        raise InputError(f"--evaluations {evaluations}: at least {len(seq.SEQUENCES)} (the built-ins are scored first)")
     ref_minutes = minutes if reference_minutes is None else reference_minutes
-    if not 0 < ref_minutes <= seq.MAX_REST_S / 60:
-        raise InputError(f"--reference-minutes {ref_minutes:g}: give 0 < minutes <= {seq.MAX_REST_S / 60:g}")
+    _refuse_design(minutes, ref_minutes, table_rate_dps, evaluations)
     sc, said = unit_from_calibration(calibration, acc_noise_g, gyro_noise_dph)
     name, ref_steps, rows = reference_stds(sc, reference, ref_minutes)
     target = np.array([r["std"] for r in rows])
@@ -253,8 +255,9 @@ def design_sequence(minutes: float = 10.0, *, reference: str = "psins19", refere
                           table_rate_dps, evaluations, seed, progress)
     best = found.best
     ratio = best.std / target
-    record: list[results.Designed] = [{"sensor": r["sensor"], "parameter": r["parameter"], "unit": r["unit"], "std": float(s),  # noqa: E501 (wrapped, the function would pass test_architecture's 70 lines)
-               "target": float(t), "ratio": float(q)} for r, s, t, q in zip(rows, best.std, target, ratio)]
+    record: list[results.Designed] = [{"sensor": r["sensor"], "parameter": r["parameter"], "unit": r["unit"],
+                                       "std": float(s), "target": float(t), "ratio": float(q)}
+                                      for r, s, t, q in zip(rows, best.std, target, ratio)]
     rate_hz = float(sc.rate_hz or seq.DEFAULT_RATE_HZ)
     return {"sequence": {"name": "designed", "rate_hz": rate_hz, "steps": _steps_record(best.steps)},
             "minutes": float(minutes), "rate_dps": float(table_rate_dps),
@@ -309,3 +312,17 @@ def save_sequence(path: str, steps: Sequence[results.SequenceStep]) -> None:
 def _steps_record(steps: Sequence[Step]) -> list[results.SequenceStep]:
     return [{"axis": s.axis, "angle_deg": float(s.angle_deg), "rate_dps": float(s.rate_dps), "rest_s": float(s.rest_s)}
             for s in steps]
+
+
+def _refuse_design(minutes: float, ref_minutes: float, table_rate_dps: float, evaluations: int) -> None:
+    """design_sequence's numbers outside what a table and the search can take, each refused naming its option."""
+    from simucal.turntable import sequence as seq
+    if not 0 < minutes <= seq.MAX_REST_S / 60:
+        raise InputError(f"--minutes {minutes:g}: give a table time of 0 < minutes <= {seq.MAX_REST_S / 60:g}")
+    if not 0 < table_rate_dps <= seq.MAX_RATE_DPS:
+        raise InputError(f"--table-rate-dps {table_rate_dps:g}: give the table's rate, 0 < rate <= "
+                         f"{seq.MAX_RATE_DPS:g} deg/s")
+    if evaluations < len(seq.SEQUENCES):
+        raise InputError(f"--evaluations {evaluations}: at least {len(seq.SEQUENCES)} (the built-ins are scored first)")
+    if not 0 < ref_minutes <= seq.MAX_REST_S / 60:
+        raise InputError(f"--reference-minutes {ref_minutes:g}: give 0 < minutes <= {seq.MAX_REST_S / 60:g}")

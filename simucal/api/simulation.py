@@ -80,7 +80,8 @@ def _refuse_unused(scenario: str, table_options: dict[str, Any], effects: Pairs 
 def simulate(scenario: ScenarioName = "paper", *, seed: int = 0, rate_hz: float | None = None, plan: str | None = None,
              effects: Pairs | None = None, position_error_arcmin: float | None = None, acc_model: str | None = None,
              gyro_model: str | None = None, acc_unit: str | None = None, gyro_unit: str | None = None,
-             effect_file: str | None = None, sets: Pairs | None = None, columns: Mapping[str, Any] | Sequence[str] | None = None,  # noqa: E501 (wrapped, the function would pass test_architecture's 70 lines)
+             effect_file: str | None = None, sets: Pairs | None = None,
+             columns: Mapping[str, Any] | Sequence[str] | None = None,
              temperature_c: Any = None, t_ref_c: float | None = None, temperature_wander_c: float | None = None,
              noise_stated: bool = True, heading_accuracy_deg: float | None = None, sequence: str | None = None,
              unit_seed: int | None = None, duration_s: float | None = None) -> MeasurementSet:
@@ -140,9 +141,18 @@ def simulate(scenario: ScenarioName = "paper", *, seed: int = 0, rate_hz: float 
                          sets=sets, columns=columns, temperature_c=temperature_c, t_ref_c=t_ref_c,
                          temperature_wander_c=temperature_wander_c, noise_stated=not noise_stated)
     _refuse_unused(kind, table_options, effects, heading_accuracy_deg, unit_seed, duration_s)
-    options = {**table_options, "effects": _strings(effects), "sets": _strings(sets), "unit_seed": unit_seed,  # as the command's  # noqa: E501 (wrapped, the function would pass test_architecture's 70 lines)
-               "columns": _strings(columns, _span), "temperature": None if temperature_c is None else _span(temperature_c),  # noqa: E501 (wrapped, the function would pass test_architecture's 70 lines)
-               "state_noise": noise_stated, "heading_accuracy_deg": heading_accuracy_deg, "seconds": duration_s}
+    return _simulated(kind, seed, rate_hz, table_options, {"effects": _strings(effects), "unit_seed": unit_seed,
+                      "state_noise": noise_stated, "heading_accuracy_deg": heading_accuracy_deg, "seconds": duration_s})
+
+
+def _simulated(kind: str, seed: int, rate_hz: float | None, table_options: Mapping[str, Any],
+               others: Mapping[str, Any]) -> MeasurementSet:
+    """simulate()'s set by its scenario's simulator (methods.SCENARIOS), given the options as the command gives
+    them: the pairs as "ID=VALUE" strings, a temperature as its span."""
+    temperature_c = table_options["temperature_c"]
+    options = {**table_options, **others, "sets": _strings(table_options["sets"]),
+               "columns": _strings(table_options["columns"], _span),
+               "temperature": None if temperature_c is None else _span(temperature_c)}
     meta, samples, segments, truth = methods.SCENARIOS[kind](seed, rate_hz, options)
     ms = MeasurementSet(Path(f"simulated_{kind}_seed{seed}"), meta, samples, segments)  # the name errors say
     ms.truth = truth
