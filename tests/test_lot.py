@@ -10,6 +10,7 @@ import pytest
 
 from cli_helpers import refused, run
 from page_layout import figures_checked, html_problems
+import simucal
 from simucal.api import lot_reporting
 from simucal.report.page import STYLE
 from simucal.turntable.lot import SPREAD, write_lot
@@ -45,7 +46,9 @@ def test_the_lot_report_finds_what_was_planted(lot):
     units = {u["file"]: u for u in report["units"]}
     bad = f"unit{OUTLIER:04d}.json"
     assert units[bad]["status"] == "fails" and any("acc.b_x" in w and "above its max" in w for w in units[bad]["why"])
-    assert [o["name"] for o in units[bad]["outliers"]] == ["acc.b_x"]
+    assert [o["name"] for o in units[bad]["outliers"]] == ["acc.bias_x"]  # the one vocabulary; the limit named b_x
+    exact = {p["name"]: p for p in report["groups"][0]["parameters"]}
+    assert exact["acc.bias_x"]["own_name"] == "b_x" and exact["acc.M_yx"]["own_name"] == "theta_yx"
     # the other units of the lot: none flagged (the rule's chance 1e-3 each), every model test passes
     others = [u for u in report["units"] if u["file"] not in (bad, "zz_linear.json", "zz_mp.json")]
     assert others and all(not u["outliers"] and not u["outside_limits"] for u in others)
@@ -59,7 +62,7 @@ def test_the_lot_report_finds_what_was_planted(lot):
     assert [g["units"] for g in report["groups"]][1:] == [["zz_linear.json"], ["zz_mp.json"]]
     assert report["groups"][1]["outlier_rule"].startswith("not tested: 1 unit, fewer than")
     mp = {p["name"]: p for p in report["groups"][2]["parameters"]}  # an affine block: M's entries and the bias
-    assert len(mp) == 24 and mp["acc.M_xx"]["stds"][0] > 0 and mp["gyro.b_z"]["unit"] == "deg/h"
+    assert len(mp) == 24 and mp["acc.M_xx"]["stds"][0] > 0 and mp["gyro.bias_z"]["unit"] == "deg/h"
     assert [o["file"] for o in report["not_calibrations"]] == ["notes.txt"]
     assert out.splitlines()[0] == report["verdict"][0]
     assert re.match(rf"{N} of {N + 2} units pass, 1 fail, 1 flagged \(3 groups", report["verdict"][0])
@@ -143,3 +146,16 @@ def test_a_lot_of_one_unit_says_unit(lot, tmp_path):
     assert r.exit_code == 0, r.output
     said = r.output + (tmp_path / "l.html").read_text() + (tmp_path / "l.json").read_text()
     assert "1 unit" in said and "1 units" not in said, r.output
+
+
+@pytest.mark.slow
+def test_a_limit_by_the_one_vocabulary_s_name_or_the_method_s_own_is_the_same_limit(lot, tmp_path):
+    """acc.bias_x (the one vocabulary's entry, every method's) and acc.b_x (the exact method's own, as limits files
+    written before name it) break the same unit."""
+    root, report, _, _ = lot
+    limits = tmp_path / "limits.json"
+    limits.write_text(json.dumps({"format": "simucal.limits/1",
+                                  "limits": {"acc.bias_x": {"max": LIMIT_MAX, "unit": "g"}}}))
+    common = simucal.lot(root / "cals", limits=limits)
+    assert ([u["file"] for u in common["units"] if u["outside_limits"]]
+            == [u["file"] for u in report["units"] if u["outside_limits"]] == [f"unit{OUTLIER:04d}.json"])

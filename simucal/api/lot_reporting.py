@@ -1,7 +1,8 @@
 """`simucal.lot` (`simucal lot CAL_FOLDER`): the units of a production lot side by side, from their calibration files.
 
-Per parameter (every parameter of each block's model, effects included, or an affine block's M and bias;
-named `sensor.param`) the lot's robust centre (the median) and spread (1.4826 x the median absolute
+Per parameter, in the one vocabulary of every method (api/vocabulary.py: each block's M entries and bias,
+effects by id; named `sensor.name`, acc.M_xx, gyro.bias_z, with the method's own name beside it), the lot's robust
+centre (the median) and spread (1.4826 x the median absolute
 deviation, the std of a normal lot), and the spread of the units themselves with the calibrations' own noise taken out:
 tau, at which the z below have the median |z| of a normal (`_z`).
 
@@ -10,12 +11,13 @@ z = (x - median) / sqrt(tau^2 + std^2); a unit is flagged where any of its K par
 the threshold at which a unit of a normal lot would be flagged with chance OUTLIER_P (`threshold`:
 simulated lots with this lot's units, stds and spreads; a median and MAD of few units scatter, so the
 threshold rises as the lot shrinks; benchmarks/bench_lot.py measures the rate and the power).
-Spec limits (limits.json, `read_limits`), each block's model test, and the drift between two
-calibrations of one `unit_serial` by one method and model (later minus earlier in file-name order,
-its std from both covariances: d^T (C_1 + C_2)^-1 d is chi^2 on the parameters' count where nothing
-drifted). Units are grouped by method, model (with its effects), thermal or not, and units of the
-data: each group's distribution is its own (a lot of mixed files is grouped, never refused); a unit
-calibrated more than once enters it with its last calibration.
+Spec limits (limits.json, `read_limits`: by those names or the method's own, acc.b_x), each block's model
+test, and the drift between two calibrations of one `unit_serial` by one method and model (in the method's
+own parameters; later minus earlier in file-name order, its std from both covariances: d^T (C_1 + C_2)^-1 d is
+chi^2 on the parameters' count where nothing drifted). Units are grouped by method, model (with its effects),
+thermal or not, and units of the data: each group's distribution is its own (a lot of mixed files is grouped,
+never refused); a unit calibrated more than once enters it with its last calibration. An entry whose std the
+file does not give (the linear method's gyro M, through a C_b^d without a std) is not judged.
 """
 from __future__ import annotations
 
@@ -27,6 +29,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from simucal.api.arguments import checked
+from simucal.api.vocabulary import entries
 from simucal.errors import CalibrationError, InputError, StoreError
 from simucal.io import records
 from simucal.io.calibration import Calibration, load
@@ -65,9 +68,19 @@ def _group_key(cal: Calibration) -> str:
     return f"{cal.method}: {model_name(cal)}; " + ", ".join(units)
 
 
-def _parameters(cal: Calibration) -> dict[str, tuple[float, float, str]]:
-    """{sensor.param: (value, std, unit)} of every block (block_parameters)."""
-    return {f"{s}.{n}": v for s, b in cal.blocks() for n, v in block_parameters(b).items()}
+def _parameters(cal: Calibration) -> dict[str, tuple[float, float, str, str | None]]:
+    """{sensor.name: (value, std, unit, the method's own name)} of every block in the one vocabulary
+    (api/vocabulary.py: M_xx .. M_zz, bias_x .. bias_z, the effects by id) that the file determines (a std above
+    0: an entry the model fixes is no unit's)."""
+    return {f"{s}.{e.name}": (e.value, e.std, e.unit, e.own_name) for s, b in cal.blocks()
+            for e in entries(s, b, terms=False) if np.isfinite(e.std) and e.std > 0}
+
+
+def _limited(cal: Calibration) -> dict[str, tuple[float, float, str]]:
+    """What a limits file may name: the entries of the one vocabulary, and each method's own parameters
+    (report/lot_figures.block_parameters: acc.b_x, acc.dK_x), as the limits files written before it name them."""
+    own = {f"{s}.{n}": v for s, b in cal.blocks() for n, v in block_parameters(b).items()}
+    return {**own, **{n: (v, s, u) for n, (v, s, u, _) in _parameters(cal).items()}}
 
 
 def _z(x: NDArray[np.float64], s: NDArray[np.float64],
@@ -113,7 +126,8 @@ def _group(names: Sequence[str], cals: Sequence[Calibration]) -> dict[str, Any]:
     z, centre, spread, tau = _z(x, s)
     tested = len(cals) >= MIN_UNITS and params
     z_max = threshold(tau[0], s) if tested else None
-    rows = [{"name": p, "unit": per_unit[0][p][2], "centre": float(centre[0, j]), "spread": float(spread[0, j]),
+    rows = [{"name": p, "unit": per_unit[0][p][2], "own_name": per_unit[0][p][3],
+             "centre": float(centre[0, j]), "spread": float(spread[0, j]),
              "spread_of_units": float(tau[0, j]), "median_std": float(np.median(s[:, j])),
              "values": x[:, j].tolist(), "stds": s[:, j].tolist(), "z": z[:, j].tolist(),
              "outliers": [{"unit": names[i], "value": float(x[i, j]), "std": float(s[i, j]), "z": float(z[i, j])}
@@ -155,7 +169,7 @@ def _unit(name: str, cal: Calibration, group: str, limits: Mapping[str, Any], ou
     fails = [f"{s} model test fails (p = {t['p_value']:.2g})" for s, t in tests.items() if t["verdict"] == "fails"]
     fails += [f"{s} not calibrated ({why})" for s, why in cal.not_calibrated.items()]
     fails += [f"{s} left at nominal" for s, t in tests.items() if t["verdict"] == "nominal"]
-    params = _parameters(cal)
+    params = _limited(cal)
     broken = {n: outside(params[n][0], params[n][1], lim) for n, lim in limits.items() if n in params}
     fails += [f"{n} {why}" for n, why in broken.items() if why]
     flags = [f"outlier: {o['name']} z = {o['z']:.3g}" for o in outliers]
@@ -257,7 +271,7 @@ def lot_report(folder: str | os.PathLike[str], limits: str | os.PathLike[str] | 
     keys = [_group_key(c) for _, c in latest]
     groups = [{"key": k, **_group([n for (n, _), kk in zip(latest, keys) if kk == k],
                                   [c for (_, c), kk in zip(latest, keys) if kk == k])} for k in dict.fromkeys(keys)]
-    known = {p["name"]: p["unit"] for g in groups for p in g["parameters"]}
+    known = {n: v[2] for _, c in latest for n, v in _limited(c).items()}
     limits_of = read_limits(limits, known) if limits else {}
     outliers: dict[str, list[dict[str, Any]]] = {}  # per unit: its outlying parameters
     for g in groups:

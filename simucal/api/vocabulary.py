@@ -46,10 +46,11 @@ class Entry(NamedTuple):
     meaning: str
 
 
-def entries(sensor: str, block: SensorBlock, temperature_range_c: Sequence[float] | None = None) -> list[Entry]:
+def entries(sensor: str, block: SensorBlock, temperature_range_c: Sequence[float] | None = None,
+            terms: bool = True) -> list[Entry]:
     """The sensor's M, bias and effects in the one vocabulary (module doc); a thermal block's also their
-    temperature terms (thermal_entries), over its calibrated range (the file's temperature_range_c where the
-    block does not hold its own)."""
+    temperature terms (thermal_entries; terms=False: at T_ref alone), over its calibrated range (the file's
+    temperature_range_c where the block does not hold its own)."""
     model = AugmentedModel(block.model, block.library_effects()) if block.params else None
     M_std, b_std, own = _model_stds(block, model) if model else _affine_stds(block)
     if block.details.get("std_M") is not None:  # the gyro in b: C_b^d's uncertainty included
@@ -64,7 +65,7 @@ def entries(sensor: str, block: SensorBlock, temperature_range_c: Sequence[float
     for eid, v in block.effects.items():  # a model file's own term is named by itself
         rows.append(Entry(sensor, eid, float(v.value), float(v.std), v.unit,
                           eid if v.term_of else EFFECTS[eid].parameter, v.meaning))
-    if model and block.thermal:
+    if model and block.thermal and terms:
         rows += thermal_entries(sensor, block, model, own, temperature_range_c)
     return rows
 

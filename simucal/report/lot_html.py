@@ -16,8 +16,8 @@ from simucal.report.page import page, plt, png, table
 
 def _figure(group, sensor, limits) -> str:
     rows = [p for p in group["parameters"] if p["name"].startswith(sensor + ".")]
-    cols = 3
-    fig, axes = plt.subplots(-(-len(rows) // cols), cols, figsize=(14.5, 2.4 * -(-len(rows) // cols)), squeeze=False)
+    cols, height_in = 3, 2.4 * -(-len(rows) // 3)
+    fig, axes = plt.subplots(-(-len(rows) // cols), cols, figsize=(14.5, height_in), squeeze=False)
     for ax, p in zip(axes.flat, rows):
         x, s = np.asarray(p["values"]), np.asarray(p["stds"])
         i = np.arange(len(x))
@@ -38,7 +38,9 @@ def _figure(group, sensor, limits) -> str:
         ax.set_visible(False)
     axes.flat[0].legend(fontsize=7)
     fig.supxlabel("unit (file-name order)", fontsize=8)
-    fig.subplots_adjust(hspace=0.5, wspace=0.35)  # not tight_layout: it draws the figure twice
+    # margins in inches, not fractions, so that one row keeps room for its ticks and the label below them (not
+    # tight_layout: it draws the figure twice)
+    fig.subplots_adjust(hspace=0.5, wspace=0.35, bottom=0.65 / height_in, top=1 - 0.3 / height_in)
     return png(fig)
 
 
@@ -60,9 +62,10 @@ def lot_page(report: dict) -> str:
         for sensor in dict.fromkeys(p["name"].split(".")[0] for p in g["parameters"]):
             parts.append(f"<h3>{sensor}</h3>" + _figure(g, sensor, report["limits"]))
         parts.append(table(
-            ["parameter", "unit", "median", "spread (1.4826 MAD)", "spread of units", "median std", "outliers"],
-            [[p["name"], p["unit"], eng_html(p["centre"], 6), p["spread"], p["spread_of_units"],
-              p["median_std"], ", ".join(f"{o['unit']} (z {o['z']:.3g})" for o in p["outliers"])]
+            ["parameter", "the method's", "unit", "median", "spread (1.4826 MAD)", "spread of units", "median std",
+             "outliers"],
+            [[p["name"], p.get("own_name") or "-", p["unit"], eng_html(p["centre"], 6), p["spread"],
+              p["spread_of_units"], p["median_std"], ", ".join(f"{o['unit']} (z {o['z']:.3g})" for o in p["outliers"])]
              for p in g["parameters"]]))
     parts.append("<h2>Units</h2>" + table(
         ["file", "serial", "status", "model tests", "why"],
