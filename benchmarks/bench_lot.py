@@ -34,6 +34,13 @@ OFFSETS = (5, 7, 10, 15)  # planted outliers, in the lot's spread of units
 PARAMS = ("acc.b_x", "acc.dK_y", "acc.theta_zx", "gyro.b_z", "gyro.dK_x", "gyro.phi_zy")
 
 
+def _row(group, name):
+    """The lot's row of a planted parameter, named as the method names it (acc.b_x): the one vocabulary's entry
+    whose own name it is (acc.bias_x)."""
+    sensor, param = name.split(".")
+    return next(r for r in group["parameters"] if r["name"].startswith(sensor + ".") and r["own_name"] == param)
+
+
 def _spread(name):
     sensor, param = name.split(".")
     return SPREAD[sensor][param.split("_")[0]]
@@ -91,7 +98,7 @@ def rules(report, plants, n):
     print("|---|---|---|---|---|")
     for i, p in plants.items():
         name = next(iter(p))
-        row = next(r for r in g["parameters"] if r["name"] == name)
+        row = _row(g, name)
         z = row["z"][g["units"].index(names[i])]
         print(f"| {names[i]} | {name} | {p[name] / _spread(name):.0f} | {z:.3g} | {names[i] in flagged} |")
     clean = [j for j, u in enumerate(g["units"]) if u in names and names.index(u) not in plants]
@@ -111,14 +118,17 @@ def rules(report, plants, n):
         mean = np.mean([x["chi2"] / x["dof"] for x in v])
         print(f"| {len(v)} units recorded again, nothing moved | {s} | mean {mean:.3g} | lowest "
               f"{min(x['p_value'] for x in v):.2g} | {sum(x['verdict'] == 'drifted' for x in v)} drifted |")
-    return np.array([r["stds"] for r in g["parameters"]]).T, [r["name"] for r in g["parameters"]]
+    # each entry's spread of units: the design's for the method's own parameter, else the lot's estimate (a gyro's
+    # M entry that the frames' unification moves)
+    tau = [_spread(f"{r['name'].split('.')[0]}.{r['own_name']}") if r["own_name"] else r["spread_of_units"]
+           for r in g["parameters"]]
+    return np.array([r["stds"] for r in g["parameters"]]).T, np.array(tau)
 
 
-def at_estimates(stds, names, seeds):
+def at_estimates(stds, tau, seeds):
     """The rule over seeds on lots simulated at the level of the estimates: false alarms per unit, and
     the power on one planted unit per lot at each offset (in sqrt(tau^2 + std^2))."""
     rng = np.random.default_rng(2026)
-    tau = np.array([_spread(n) for n in names])
     n, k = stds.shape
     alarms, found = 0, {d: 0 for d in OFFSETS}
     for seed in range(seeds):
@@ -158,8 +168,8 @@ def main():
         report = speed(root, sets, limits, [int(w) for w in a.workers.split(",")])
         print("\n" + "\n".join(report["verdict"][:1]) + " (limits: acc.b_x and gyro.b_z at the design's +- 3 "
               "spreads of units)")
-        stds, names = rules(report, plants, a.n)
-    at_estimates(stds, names, a.seeds)
+        stds, tau = rules(report, plants, a.n)
+    at_estimates(stds, tau, a.seeds)
 
 
 if __name__ == "__main__":

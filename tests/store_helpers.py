@@ -95,10 +95,21 @@ def unit_files(base: Path, folder: Path, units: int, visits: int, drifting=(), d
                 sensor, name = DRIFT_PARAM.split(".")
                 block = getattr(cal, sensor)
                 block.params[name] += v * drift_std * block.std[name]
+            for _, b in cal.blocks():
+                _follow_parameters(b)
             path = folder / f"{serial}_{v}.json"
             calibration.save(path, cal)
             out.setdefault(serial, []).append(path)
     return out
+
+
+def _follow_parameters(block) -> None:
+    """The block's M and bias from its parameters, as the methods write them (M(p) C, bias(p)): a file whose
+    parameters were drawn stays one calibration in every vocabulary."""
+    from simucal.fit.augmented import AugmentedModel
+    model = AugmentedModel(block.model, block.library_effects())
+    M, bias = model.matrix_and_bias([block.params[n] for n in model.params])
+    block.M, block.bias = np.asarray(M) @ block.C, np.asarray(bias)
 
 
 def _draw(block, rng, scale: float = 1.0) -> dict[str, float]:
