@@ -43,6 +43,8 @@ from simucal.turntable.observations import segment_observations
 from simucal.turntable.simulate import Scenario, write
 
 DATA = Path(__file__).resolve().parents[2] / "shared" / "data" / "imu_tk-xsens"  # beside a source checkout
+# each figure by name (its unit in the name: _s, _per_s, rows), or fit_exact's seconds by rows (_scaling)
+Figures = dict[str, float | dict[int, float]]
 
 
 def best(f, repeats=7, inner=20):
@@ -197,7 +199,7 @@ def _table(fig, before, echo):
             echo(f"| {k} | {_cell(k, old.get(k))} | {_cell(k, v)} |" if before else f"| {k} | {_cell(k, v)} |")
 
 
-def _scaling(c, sizes) -> dict:
+def _scaling(c, sizes) -> dict[int, float]:
     """fit_exact's time against N = 12 ... 100,000 rows (it must stay linear)."""
     progress.status("bench: fit_exact against N = 12 ... 100,000 rows")
     scaling = {}
@@ -273,11 +275,11 @@ def _whole_commands(tmp, fig, n):
         [*SIMUCAL, "calibrate", str(tmp / "raw300k"), "-o", str(tmp / "c3.json")], cached=False)
 
 
-def run(json_path=None, echo=print, before=None, size="full") -> dict:
+def run(json_path=None, echo=print, before=None, size="full") -> Figures:
     """Every figure, printed as a table (and written as JSON to json_path); before: a previous run's
     JSON, printed beside; size: a key of SIZES ("quick": every step at a size of seconds)."""
     n = SIZES[size]
-    fig: dict[str, Any] = {}
+    fig: Figures = {}
     REPEATS[0] = n["repeats"]
     with tempfile.TemporaryDirectory() as tmp_name:
         tmp = Path(tmp_name)

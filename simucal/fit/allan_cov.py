@@ -28,6 +28,7 @@ carried: the covariance is that of white noise, random walk and quantisation.
 from __future__ import annotations
 
 import numpy as np
+from numpy.typing import NDArray
 
 COMPONENTS = ("Q", "N", "K")
 LONG = 32  # pieces this long or longer are integrated, shorter ones summed
@@ -158,7 +159,7 @@ def _quantisation_sums(m1, m2, n1, n2, dt) -> dict:
     return {("Q", "Q"): (pw * phi * phi).sum(1), ("Q", "N"): (pw * phi * w).sum(1), ("Q", "K"): (pw * phi * k).sum(1)}
 
 
-def basis(m, dt, stretch_lengths) -> dict:
+def basis(m, dt, stretch_lengths) -> dict[tuple[str, str], NDArray[np.float64]]:
     """{(a, b): M_ab (len(m), len(m))} with cov(avar_i, avar_j) = sum over a, b in COMPONENTS of
     x_a x_b M_ab[i, j] (module doc; (a, b) and (b, a) both given), for cluster sizes m, sample step
     dt and the still stretches' lengths (samples)."""

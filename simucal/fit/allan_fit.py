@@ -23,7 +23,10 @@ that gets none. The std of a term from that of its square: std(x) / (2 sqrt(x)).
 """
 from __future__ import annotations
 
+from typing import TypedDict
+
 import numpy as np
+from numpy.typing import NDArray
 
 from simucal.errors import CalibrationError
 from simucal.fit import allan_cov
@@ -35,6 +38,17 @@ MIN_TAUS = 2      # the dof a model needs beyond its terms
 BASE = ("N", "K")  # always in the model: every sensor has white noise and a random walk (Kalibr's pair)
 TERMS_NEEDING = {"N": 1 + MIN_TAUS, "K": 2 + MIN_TAUS}
 ITERATIONS = 4    # covariance from the model, refit (converged to < 1e-3 of a std in tests)
+
+
+class Selection(TypedDict):
+    """The terms one axis's Allan variance shows (select): values in the sensor's unit times s^a."""
+    terms: dict[str, tuple[float, float] | None]  # each term's (value, std), None where not seen
+    bounds: dict[str, float]                      # 95 % upper bound of each term tested and not seen
+    needs_taus: int                               # the taus a term untested needs
+    squares: dict[str, tuple[float, float]]       # the final model's squares (x, std of x), below 0 by noise
+    chi2: float                                   # the GLS fit's, on dof
+    dof: int                          # the taus less the terms fitted
+    cov: NDArray[np.float64]                      # the Allan variance's covariance under the model (the unit^4)
 
 
 def gls(v, A, cov):
@@ -87,12 +101,12 @@ class Fit:
         return sol, chi2, cov
 
 
-def start(tau, v) -> dict:
+def start(tau, v) -> dict[str, float]:
     """A white-noise level to start from: N^2 = v tau at the shortest tau (it dominates there)."""
     return {"N": float(v[0] * tau[0])}
 
 
-def select(tau, v, mats) -> dict:
+def select(tau, v, mats) -> Selection:
     """The terms the curve shows (module doc): {"terms": {t: (value, std) or None},
     "bounds": {t: 95 % bound} (a term in neither is one the grid is too short to test: it needs
     "needs_taus"), "squares": {t: (x, std)} of the final model's terms, seen or not, "chi2", "dof",

@@ -6,7 +6,7 @@ from __future__ import annotations
 import contextlib
 import tempfile
 from pathlib import Path
-from typing import Any
+from typing import Any, TypedDict
 
 import numpy as np
 
@@ -44,10 +44,19 @@ def characterise(ms, kind, tau_max_s=None) -> dict:
 TEMP_CHANGE_C = 3.0  # a MEMS bias moves by its instability's size over a few degC
 
 
-def temperature_block(lo, hi, data) -> dict:
+class TemperatureRange(TypedDict, total=False):
+    """The record's temperature in the noise report (temperature_block)."""
+    range_c: list[float]              # the lowest and the highest temp_c, degC
+    warning: str                      # where it changes by over TEMP_CHANGE_C: why the long-tau terms may be thermal
+
+
+TemperatureBlock = TypedDict("TemperatureBlock", {"temperature": TemperatureRange})  # the report's temperature key
+
+
+def temperature_block(lo, hi, data) -> TemperatureBlock:
     """{"temperature": its range and, where it changes by over TEMP_CHANGE_C, the warning}: a warming board's
     bias follows its temperature, which the Allan variance reads as rate ramp, random walk and instability."""
-    block: dict[str, Any] = {"range_c": [lo, hi]}
+    block: TemperatureRange = {"range_c": [lo, hi]}
     if hi - lo > TEMP_CHANGE_C:
         block["warning"] = (f"the temperature changes by {hi - lo:.3g} degC over the record "
                             f"({lo:.4g} to {hi:.4g} degC): the bias's thermal drift reads as bias instability, "

@@ -30,6 +30,8 @@ data sheet uses (deg/sqrt(h), ug/sqrt(Hz), deg/h, ...), and for Kalibr's imu.yam
 """
 from __future__ import annotations
 
+from typing import TypedDict, cast
+
 import numpy as np
 
 from simucal.errors import CalibrationError
@@ -37,6 +39,45 @@ from simucal.fit import allan_fit
 from simucal.fit.noise import TERMS, allan_deviation
 
 MIN_CLUSTERS = 9  # the longest tau keeps this many independent clusters (relative error <= 25 %)
+
+
+class SheetTerm(TypedDict, total=False):
+    """One noise term of an axis in a data sheet's units (axis_from_avar)."""
+    name: str                         # the term's name (angle random walk, ...)
+    unit: str                         # the data sheet's unit of it
+    value: float                      # its value, 0 where not seen
+    std: float | None                 # its std where seen
+    status: str                       # seen, not seen or too short
+    bound_95: float                   # not seen: its 95 % upper bound
+    needs_s: float                    # too short: the record's length that would test it, s
+
+
+class AxisFit(TypedDict):
+    """The final model of an axis's Allan variance (allan_fit.select)."""
+    chi2: float                       # the GLS fit's, on dof
+    dof: int                          # the taus less the terms fitted
+    squares: dict[str, tuple[float, float]]  # each term's square and its std (the sensor's unit^2 times s^2a)
+
+
+class AxisNoise(TypedDict, total=False):
+    """One axis of the noise report (axis_report; module doc)."""
+    stuck: str                        # a channel that never changes: why it has no terms
+    adev: list[float]                 # the Allan deviation at tau_s (the sensor's unit)
+    tau_s: list[float]                # the cluster times, s
+    rel_err: list[float]              # the model's 68 % band, relative to the deviation
+    terms: dict[str, float]           # Q N B K R, 0 where not seen (the sensor's unit times s^a)
+    bounds: dict[str, float]          # each term's 95 % upper bound where not seen
+    sheet: dict[str, SheetTerm]       # each term in a data sheet's units
+    fit: AxisFit                      # the final model of the Allan variance
+
+
+class SensorNoise(TypedDict):
+    """One sensor's block of the noise report (sensor_report)."""
+    unit: str                         # g or deg/h
+    tau_s: list[float]                # the cluster times, s
+    rate_hz: float                    # the samples' rate
+    rows: str                         # the rows characterised, in words
+    axes: dict[str, AxisNoise]        # x, y, z
 
 # (name, factor from the fitted unit, unit) of each term for a data sheet; the fitted units are
 # sigma's (deg/h, g) times s^a: Q [.s], N [.sqrt(s)], B [.], K [./sqrt(s)], R [./s]
@@ -109,7 +150,7 @@ def stuck(lo, hi, first, rows, unit) -> str | None:
     return None
 
 
-def axis_report(sensor, y, dt, m, mats, unit) -> dict:
+def axis_report(sensor, y, dt, m, mats, unit) -> AxisNoise:
     """One axis of the report: its Allan deviation, the model's 68 % interval, the terms seen and
     the bounds of those not seen (module doc); "fit": the final model's chi2, dof and its terms'
     squares (x, std) in the fitted units (Q^2, N^2, ... of `terms`), below zero where noise puts them."""
@@ -118,7 +159,7 @@ def axis_report(sensor, y, dt, m, mats, unit) -> dict:
                                                                       len(values), unit), dt, m, mats)
 
 
-def axis_from_avar(sensor, avar, stuck_why, dt, m, mats) -> dict:
+def axis_from_avar(sensor, avar, stuck_why, dt, m, mats) -> AxisNoise:
     """axis_report from the Allan variance at the cluster sizes m (a stream read chunk by chunk:
     characterise_folder)."""
     tau = m * dt
@@ -127,17 +168,17 @@ def axis_from_avar(sensor, avar, stuck_why, dt, m, mats) -> dict:
     fit = allan_fit.select(tau, avar, mats)
     terms = {k: (v[0] if v else 0.0) for k, v in fit["terms"].items()}
     model = allan_deviation(terms, tau) ** 2
-    sheet = {}
+    sheet: dict[str, SheetTerm] = {}
     for k in TERMS:
         name, factor, unit_k = SHEET[sensor][k]
         entry = {"name": name, "unit": unit_k, "value": terms[k] * factor, "std": None}
         if fit["terms"][k]:
-            entry.update(status="seen", std=fit["terms"][k][1] * factor)
+            entry.update(status="seen", std=cast("tuple[float, float]", fit["terms"][k])[1] * factor)
         elif k in fit["bounds"]:
             entry.update(status="not seen", bound_95=fit["bounds"][k] * factor)
         else:
             entry.update(status="too short", needs_s=seconds_for(fit["needs_taus"], dt))
-        sheet[k] = entry
+        sheet[k] = cast(SheetTerm, entry)
     return {"adev": np.sqrt(avar).tolist(), "rel_err": (np.sqrt(np.diag(fit["cov"])) / (2 * model)).tolist(),
             "tau_s": tau.tolist(), "terms": terms, "bounds": fit["bounds"], "sheet": sheet,
             "fit": {"chi2": fit["chi2"], "dof": fit["dof"], "squares": fit["squares"]}}
@@ -146,7 +187,7 @@ def axis_from_avar(sensor, avar, stuck_why, dt, m, mats) -> dict:
 UNIT = {"gyro": "deg/h", "acc": "g"}
 
 
-def sensor_report(sensor, dt, m, where, axes) -> dict:
+def sensor_report(sensor, dt, m, where, axes) -> SensorNoise:
     """One sensor's block of the report, around its axes' (axis_report)."""
     return {"unit": UNIT[sensor], "tau_s": (m * dt).tolist(), "rate_hz": 1.0 / dt, "rows": where, "axes": axes}
 

@@ -14,6 +14,7 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 
 import numpy as np
+from numpy.typing import NDArray
 
 from simucal.errors import CalibrationError
 from simucal.generated.effects import AUX as SENSOR_AUX
@@ -71,7 +72,7 @@ class AuxInputs:
 MOTION = tuple(f"{q}_{a}" for q in ("wb", "dwb") for a in "xyz")  # the body rate and its change, as acc terms read them
 
 
-def motion(w_b_dph, dt_s) -> dict:
+def motion(w_b_dph, dt_s) -> dict[str, NDArray[np.float64]]:
     """{wb_x.., dwb_x..}: a body rate (deg/h in, rad/s out) at each step and its rate of change (rad/s^2):
     what the accelerometers' lever arms and time delay read (derive/frames.py), from the gyros in the
     systematic filter and from the true motion in the sequence simulator. The change is the central
@@ -87,7 +88,7 @@ def motion(w_b_dph, dt_s) -> dict:
     return {**{f"wb_{a}": w[:, j] for j, a in enumerate("xyz")}, **{f"dwb_{a}": dw[:, j] for j, a in enumerate("xyz")}}
 
 
-def specific_force(f_b_g) -> dict:
+def specific_force(f_b_g) -> dict[str, NDArray[np.float64]]:
     """{f_x, f_y, f_z} of a specific force (..., 3) in g, for AuxInputs."""
     f = np.asarray(f_b_g, float)
     return {name: f[..., j] for j, name in enumerate(FORCE)}
@@ -100,7 +101,7 @@ def _with_reference(out: dict, t_ref_c) -> dict:
     return out
 
 
-def column_means(samples: dict, groups, *, t_ref_c) -> dict:
+def column_means(samples: dict, groups, *, t_ref_c) -> dict[str, NDArray[np.float64] | float]:
     """Each auxiliary samples.csv column (t_s, temp_c, a user's supply_v, ...: every column
     but the keys and outputs) averaged over each group of rows (boolean masks or index arrays),
     with T_ref (t_ref_c, degC) for dtemp_c, and each group's temperature rate (fit/thermal.group_rates)."""
@@ -110,6 +111,6 @@ def column_means(samples: dict, groups, *, t_ref_c) -> dict:
                                if c not in NOT_AUX_COLUMNS}, **group_rates(samples, groups)}, t_ref_c)
 
 
-def columns_at(samples: dict, idx, *, t_ref_c) -> dict:
+def columns_at(samples: dict, idx, *, t_ref_c) -> dict[str, NDArray[np.float64] | float]:
     """Each auxiliary samples.csv column at the rows idx (any shape of indices), with T_ref."""
     return _with_reference({c: np.asarray(v)[idx] for c, v in samples.items() if c not in NOT_AUX_COLUMNS}, t_ref_c)

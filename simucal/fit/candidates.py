@@ -20,6 +20,7 @@ streams' poses), diagnose_moves and table_fit.
 from __future__ import annotations
 
 import functools
+from typing import cast
 
 import numpy as np
 
@@ -27,12 +28,13 @@ from simucal.errors import CalibrationError
 from simucal.fit.augmented import AugmentedModel, effect_ids, regressor
 from simucal.fit.cross_validation import leave_one_out
 from simucal.fit.distributions import chi2_sf, f_sf
-from simucal.fit.lack_of_fit import describe_shape, fit_with_noise, lack_of_fit
+from simucal.fit.lack_of_fit import Shape, describe_shape, fit_with_noise, lack_of_fit
 from simucal.fit.norm_fit import Fit, Observations, dense_jacobian, fit_exact
 from simucal.fit import family, ranking, selection
 from simucal.fit.results import ALPHA, ModelTest, Selection
 from simucal.fit.twins import separating_plan
 from simucal.generated.effects import EFFECTS, SEPARATE
+from simucal.io import records
 
 NOISE_TOO_LARGE = 1e-3  # P(chi2 below the value found): residuals this far under the stated noise
 NOISE_TOO_SMALL = 10.0  # residual rms / stated noise above which a misfit with no structure is the noise's
@@ -112,8 +114,8 @@ def rank_candidates(model: AugmentedModel, obs: Observations, fit: Fit, base_fai
     unseen = None if advisor is None else lambda eid: advisor.reveal(model, eid, fit, obs, problem.sig)
     pair = None if advisor is None else lambda c, twin: advisor.separate(model, c, twin, fit, obs, problem.sig)
     ids = [e for e in effect_ids(model.sensor) if e not in model.effects]
-    return [c.to_dict() for c in ranking.rank(problem, ids, base_fails, f"{model.sensor} candidates",
-                                              unseen=unseen, pair=pair)]
+    return cast("list[dict]", [c.to_dict() for c in ranking.rank(problem, ids, base_fails, f"{model.sensor} candidates",
+                                                                  unseen=unseen, pair=pair)])
 
 
 def test_model(model, obs: Observations, p0=None) -> tuple[Fit, Observations, dict]:
@@ -158,7 +160,7 @@ def test_model(model, obs: Observations, p0=None) -> tuple[Fit, Observations, di
     return fit, obs, block
 
 
-def targeted(model: AugmentedModel, obs: Observations, fit: Fit, ids=None) -> dict | None:
+def targeted(model: AugmentedModel, obs: Observations, fit: Fit, ids=None) -> records.Targeted | None:
     """The targeted tests of the model test's family (fit/family.py) on the norm fit: each effect of ids
     (default every library effect not in the model) by its score test at fit (None where there is none
     to test, or no chi-square and no dof to test against)."""
@@ -229,7 +231,7 @@ def forward_selection(model: AugmentedModel, obs: Observations, rank=None, max_t
     return selection.forward_selection(NormStep(model, obs, rank, table), max_terms)
 
 
-def _rank(model, obs, fit, base) -> tuple[list[dict], dict | None]:
+def _rank(model, obs, fit, base) -> tuple[list[dict], Shape | None]:
     cands = rank_candidates(model, obs, fit, True)
     return cands, shape_if_unexplained(model, obs, fit, base, cands)
 
@@ -269,7 +271,7 @@ def advice(model: AugmentedModel, obs: Observations) -> str | None:
 MIN_SHARE = 0.5  # a generic term named as the missing one must explain at least half the misfit
 
 
-def shape_if_unexplained(model, obs, fit, base, cands) -> dict | None:
+def shape_if_unexplained(model, obs, fit, base, cands) -> Shape | None:
     """The generic term's description when the model fails, the term explains at least MIN_SHARE of
     the misfit (less is no single term: several effects, or one outside the generic basis), and no
     candidate explains the misfit as well (no significant candidate, or the generic term's

@@ -22,6 +22,7 @@ from simucal.fit.apply import model_function, rowwise_function, solve_inputs
 from simucal.fit.distributions import f_sf
 from simucal.fit.gauss_newton import fit_batch
 from simucal.fit.norm_fit import Fit, Observations, fit_exact
+from simucal.io import records
 
 
 def _norm_error(model, p, obs: Observations, rows, h=None) -> np.ndarray:
@@ -53,7 +54,7 @@ def _refits(model, obs: Observations, p) -> np.ndarray:
     return p_all
 
 
-def leave_one_out(model, obs: Observations, fit: Fit) -> dict | None:
+def leave_one_out(model, obs: Observations, fit: Fit) -> records.CrossValidation | None:
     """Held-out and in-sample norm errors per row, or None where a row cannot be left out (fewer rows
     than parameters + 1). Rows whose refit fails are counted, not hidden. The refits run at once
     (_refits), and each left-out row is inverted by its refit's parameters, all rows at once."""

@@ -27,7 +27,7 @@ where the family fails, to say which effect to add.
 """
 from __future__ import annotations
 
-from typing import Any
+from typing import Any, Mapping, TypedDict, cast
 
 import numpy as np
 
@@ -35,9 +35,20 @@ from simucal.fit.distributions import chi2_sf, f_sf
 from simucal.fit.results import ALPHA
 from simucal.fit.twins import twins
 from simucal.generated.effects import EFFECTS
+from simucal.io import records
 
 OMNIBUS_SHARE = 0.5  # the omnibus's share of ALPHA; the targeted tests share the rest (module doc)
 COLLINEAR = 1e-3  # separable share of a column below which the plan cannot see the candidate at all
+
+
+class OutsideLibrary(TypedDict):
+    """A misfit most likely outside the library (outside_library): the best significant candidate's part of it."""
+    id: str                           # the best significant candidate
+    share: float                      # of the misfit (the chi-square's excess over its dof) it explains, 0 to 1
+    chi2_after: float                 # the model's chi-square with it, on dof_after
+    dof_after: int                    # one less than the model's
+    p_after: float                    # the model's p-value with it
+    text: str                         # the console's words
 
 
 def separable(Q: np.ndarray, col: np.ndarray) -> tuple[np.ndarray, float, float]:
@@ -53,7 +64,7 @@ def candidate_level(n_tested: int) -> float:
     return ALPHA * (1.0 - OMNIBUS_SHARE) / max(n_tested, 1)
 
 
-def targeted(problem, ids, dof: int | None = None) -> dict:
+def targeted(problem, ids, dof: int | None = None) -> records.Targeted:
     """The score test of each candidate in ids beside the problem's model (fit/ranking.Problem: basis,
     residual, column), the strongest named, and what the JOINT strongest beyond their level explain
     together (the residual projected on their columns: joint_statistic). dof: the residual's dof where its variance is
@@ -81,7 +92,7 @@ def targeted(problem, ids, dof: int | None = None) -> dict:
         stats.append((stat, p, perp))
         if best is None or stat > best[1]:  # by the statistic: p-values far out all underflow to 0
             best = (cid, stat, p)
-    out: dict[str, Any] = {"tested": n, "strongest": best[0] if best else None,
+    out: records.Targeted = {"tested": n, "strongest": best[0] if best else None,
                            "statistic": best[1] if best else None, "p_value": best[2] if best else None,
                            "level": candidate_level(n)}
     if best is not None and best[2] < out["level"]:  # the strongest's twins: the data cannot say which it is
@@ -96,17 +107,17 @@ def targeted(problem, ids, dof: int | None = None) -> dict:
     return out
 
 
-def family_p(p_omnibus: float | None, tgt: dict | None) -> float | None:
+def family_p(p_omnibus: float | None, tgt: records.Targeted | None) -> float | None:
     """The family's p-value (module doc); the omnibus's own where no candidate is tested (it then holds the
     whole ALPHA), None where neither part has a test."""
     if not tgt or tgt.get("p_value") is None:  # nothing to test beside it: the omnibus holds the whole ALPHA
         return p_omnibus
     ps = (([] if p_omnibus is None else [p_omnibus / OMNIBUS_SHARE])
-          + [tgt["tested"] * tgt["p_value"] / (1.0 - OMNIBUS_SHARE)])
+          + [tgt["tested"] * cast(float, tgt["p_value"]) / (1.0 - OMNIBUS_SHARE)])
     return min(1.0, min(ps))
 
 
-def fold(block: dict, tgt: dict | None, p_key: str = "p_value", test_key: str = "test") -> None:
+def fold(block: dict, tgt: records.Targeted | None, p_key: str = "p_value", test_key: str = "test") -> None:
     """A test block (chi2, dof, p_value, test) made the family's: the omnibus's p kept as
     `omnibus_p_value`, the targeted tests as `targeted`, block[p_key] the family's p and the test's
     words saying both, and where a targeted test fails the family, which."""
@@ -120,7 +131,7 @@ def fold(block: dict, tgt: dict | None, p_key: str = "p_value", test_key: str = 
     block[test_key] = (f"{block.get(test_key) or 'omnibus'} at {ALPHA * OMNIBUS_SHARE:g}, "
                        f"with {tgt['tested']} targeted tests of the library's effects at {tgt['level']:.2g} each "
                        f"(one family at {ALPHA:g})")
-    if tgt["p_value"] < tgt["level"]:
+    if cast(float, tgt["p_value"]) < tgt["level"]:
         omnibus_passes = p0 is None or p0 >= ALPHA * OMNIBUS_SHARE
         tgt["verdict"] = (f"{tgt['strongest']} is beyond its targeted test (p = {tgt['p_value']:.2g} < "
                           f"{tgt['level']:.2g}): the model lacks it"
@@ -132,7 +143,7 @@ OUTSIDE_SHARE = 0.5  # share of the misfit the best library effect must explain 
 JOINT = 3  # library effects missing at once that outside_library allows for (--add auto tries as many at a step)
 
 
-def outside_library(base: dict, cands: list[dict]) -> dict | None:
+def outside_library(base: Mapping[str, Any], cands: list[dict]) -> OutsideLibrary | None:
     """Where the model fails and its best significant candidate would leave it failing while explaining
     less than OUTSIDE_SHARE of the misfit (the chi-square's excess over its dof), and the JOINT
     strongest candidates beyond their targeted level together (targeted's joint_statistic) explain less

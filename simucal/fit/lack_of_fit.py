@@ -24,6 +24,7 @@ from __future__ import annotations
 import itertools
 import math
 from dataclasses import dataclass, replace
+from typing import TypedDict
 
 import numpy as np
 
@@ -32,9 +33,34 @@ from simucal.fit.aux_inputs import DEFAULT_ZERO, FORCE, SENSOR_AUX, T_REF, AuxIn
 from simucal.fit.distributions import chi2_sf, f_sf
 from simucal.fit.norm_fit import Fit, Observations, dense_jacobian, fit_exact
 from simucal.fit.twins import twins
-from simucal.io import units
+from simucal.io import records, units
 
 DPS = units.DPH_PER_DPS  # gyro rates enter generic terms in deg/s (as in derive/models/effects.py)
+
+
+class ShapePoints(TypedDict):
+    """The rows of a shape block's plot, in the model's residual unit."""
+    regressor: list[float]            # the term's regressor at each row
+    residual: list[float]             # the row's residual on the term's axis
+    term_visible: list[float]         # the part of the term the model cannot absorb: what the residual should show
+
+
+class Shape(TypedDict):
+    """The generic term that explains most of a model's misfit (describe_shape): diagnose's `shape`."""
+    axis: str                         # x, y or z
+    regressor: str                    # the term, in words
+    catalog_id: str | None            # the library effect with this very regressor, if there is one
+    degree: int                       # the regressor's degree in the input
+    parity: str                       # even or odd in the input, in words
+    estimate: float                   # its coefficient, in unit
+    unit: str                         # the coefficient's
+    parameter: str                    # its name as a model file's parameter
+    sympy: str                        # its regressor as a SymPy expression
+    share_of_misfit: float            # of the residuals' sum of squares it explains, 0 to 1
+    residual_rms_after: float         # with it, in g or deg/h
+    indistinguishable_here: list[str]  # the generic terms these rows cannot tell from it (6 at most)
+    points: ShapePoints               # the plot's rows
+    text: str                         # the console's words
 
 
 @dataclass
@@ -233,7 +259,7 @@ def _left_singular(A):
         return A @ V[:, order] / np.maximum(S, 1e-300), S
 
 
-def lack_of_fit(model, obs: Observations, fit: Fit) -> dict:
+def lack_of_fit(model, obs: Observations, fit: Fit) -> records.LackOfFit:
     """F test of the model against model + generic basis (see module doc)."""
     terms = generic_terms(model.sensor, obs)
     r, G, Gp, _ = _perp_basis(model, obs, fit, terms)
@@ -266,7 +292,7 @@ def _basis_at(model, obs, fit):
     return terms, r, G, Gp, sig, n2, ok, proj, lr
 
 
-def describe_shape(model, obs: Observations, fit: Fit) -> dict | None:
+def describe_shape(model, obs: Observations, fit: Fit) -> Shape | None:
     """The one generic term that explains most of the misfit, with its estimate."""
     terms, r, _, Gp, sig, n2, ok, _, lr = b = _basis_at(model, obs, fit)
     if not ok.any():
@@ -280,7 +306,7 @@ def describe_shape(model, obs: Observations, fit: Fit) -> dict | None:
     return _shape_of(best, twins(best, cols, r, s2), b, model, obs, fit)
 
 
-def _shape_of(best, alike, b, model, obs, fit) -> dict:
+def _shape_of(best, alike, b, model, obs, fit) -> Shape:
     """The shape block of generic term `best` (an index into _basis_at's terms); alike: its twins' indices."""
     terms, r, _, Gp, sig, n2, _, proj, lr = b
     t = terms[best]

@@ -5,6 +5,7 @@ from __future__ import annotations
 import importlib
 import json
 from pathlib import Path
+from typing import TypedDict
 
 import numpy as np
 
@@ -16,12 +17,30 @@ class StaleGeneratedCode(RuntimeError):
     pass
 
 
+class ManifestEntry(TypedDict):
+    """One built-in model in generated/manifest.json (derive/codegen.py)."""
+    c_file: str                       # its CasADi C source in generated/
+    module: str                       # its SymPy-printed numpy module in generated/
+    sha256: str                       # the derivation's hash, the module's MODEL_SHA256
+    params: list[str]                 # its parameters, in order
+    sensor: str                       # acc or gyro
+    extends: str | None               # the model it adds terms to
+    derivation: list[str]             # how each part was derived, in words
+
+
+class Manifest(TypedDict):
+    """generated/manifest.json: the built-in models and the versions that generated them."""
+    format: str                       # simucal.generated/1
+    models: dict[str, ManifestEntry]  # each built-in model by name
+    versions: dict[str, str]          # SymPy's and CasADi's
+
+
 def generated_dir() -> Path:
     import simucal.generated
     return Path(simucal.generated.__file__).parent
 
 
-def manifest() -> dict:
+def manifest() -> Manifest:
     return json.loads((generated_dir() / "manifest.json").read_text())
 
 

@@ -1,7 +1,10 @@
 """White-noise level from the data itself, and the noise of a mean from an Allan curve."""
+from typing import Any
+
 import numpy as np
 
 from simucal.errors import CalibrationError
+from simucal.io import records
 
 TERMS = ("Q", "N", "B", "K", "R")
 # each IEEE 952 term's column in sigma^2(tau) (Table C.1): quantisation, angle/velocity random walk,
@@ -120,7 +123,7 @@ UNITS = {"acc": "g", "gyro": "deg/h"}  # the unit of a report's terms, as `simuc
 REWRITE = "write it again with simucal noise STILL_RECORDING -o noise.json"
 
 
-def read_report(path) -> dict:
+def read_report(path) -> records.JSONObject:
     """A noise.json of `simucal noise`, checked entry by entry before any number is used: per sensor its
     unit (g, deg/h), its tau_s (finite, positive) and per axis x, y, z the five terms Q N B K R, each a
     finite number >= 0, not all zero. Refused in one line naming the file, the entry and the fix."""
@@ -176,7 +179,7 @@ def _number(x) -> bool:
     return isinstance(x, (int, float)) and not isinstance(x, bool) and bool(np.isfinite(x))
 
 
-def load_curves(path) -> dict:
+def load_curves(path) -> "dict[str, Curve]":
     """{sensor: curve} from a noise.json of `simucal noise` (read_report): curve(tau_s) is the std of a
     tau-long mean per axis (3,), from the fitted IEEE 952 terms, sigma(tau) = sqrt(sum_k term_k^2
     column_k(tau)) in g or deg/h: what `calibrate --noise` takes as the noise of each segment's mean.
@@ -184,8 +187,8 @@ def load_curves(path) -> dict:
     instability, random walk, ramp) are fitted from its last few taus, often by chance: there the curve
     goes on as white noise, sigma(tau_max) sqrt(tau_max / tau), but for the long terms measured MEASURED
     stds from 0, which follow their own law; calibrate says so. curve.source names the file."""
-    rep = read_report(path)
-    out = {}
+    rep: dict[str, Any] = read_report(path)
+    out: dict[str, Curve] = {}
     for sensor in ("acc", "gyro"):
         if sensor in rep:
             axes = [rep[sensor]["axes"][a] for a in "xyz"]

@@ -11,11 +11,44 @@
 from __future__ import annotations
 
 from dataclasses import dataclass, field, replace
-from typing import Any, Mapping
+from typing import Any, Mapping, TypedDict, TypeVar, cast
 
 from simucal.io.calibration import ALPHA
 
 __all__ = ["ALPHA", "Candidate", "ModelTest", "Selection", "added_params", "model_test_keys"]
+Test = TypeVar("Test")  # a model test's block, whatever its type
+
+
+class CandidateRecord(TypedDict, total=False):
+    """A candidate as the diagnosis file writes it (Candidate.to_dict; units: the candidate's unit)."""
+    effect: str                       # the library effect, without its axis
+    axis: str                         # x, y or z
+    id: str                           # effect.axis
+    parameter: str                    # its parameter's name in the model
+    unit: str                         # the parameter's
+    meaning: str                      # what it is, in words
+    test: str                         # a ranking other than the likelihood ratio: its test
+    separable: bool                   # the data can tell it from the model
+    estimate: float | None            # where separable: its estimate and std, in unit
+    std: float | None                 # its estimate's std
+    statistic: float | None           # the likelihood-ratio (or F) statistic, and its p
+    p_value: float | None             # the statistic's p-value
+    delta_aic: float | None           # the AIC's change with it, where the noise is known
+    residual_rms_after: float | None  # the model's residual rms with it
+    significant: bool                 # it passes the gate: the one to add
+    note: str                         # why it is not separable, what would show it
+    twins: list[str]                  # the candidates the data cannot tell it from
+
+
+class AddedParam(TypedDict, total=False):
+    """One parameter of the diagnosis file's `added.params` (added_params), in the parameter's unit."""
+    before: float | None              # without the effects (None: an effect's own)
+    std_before: float | None          # its std without them
+    after: float                      # with them
+    std_after: float                  # its std with them
+    truth: float                      # a simulator's truth, and each fit's error against it
+    error_before: float | None        # before less truth (None: an effect's own)
+    error_after: float                # after less truth
 
 
 @dataclass(frozen=True)
@@ -89,7 +122,7 @@ class Candidate:
             return self
         return replace(self, note=(self.note + "; " if self.note else "") + text)
 
-    def to_dict(self) -> dict:
+    def to_dict(self) -> CandidateRecord:
         """The diagnosis file's candidate (spec/measurement-set.md): the keys a candidate of its kind
         has always had."""
         d = {"effect": self.effect, "axis": self.axis, "id": self.id, "parameter": self.parameter, "unit": self.unit,
@@ -101,7 +134,7 @@ class Candidate:
             d["note"] = self.note
         if self.twins:
             d["twins"] = list(self.twins)
-        return d
+        return cast(CandidateRecord, d)
 
 
 @dataclass(frozen=True)
@@ -114,22 +147,22 @@ class Selection:
 
 
 
-def model_test_keys(test: dict) -> dict:
+def model_test_keys(test: Test) -> dict[str, Test]:
     """A diagnosis block's model test under its name, `model_test` (the model diagnosed, --add's effects
     included), and under `baseline`, the name the diagnosis file has always given it (kept for its readers)."""
     return {"model_test": test, "baseline": test}
 
 
 def added_params(after: Mapping[str, float], std_after: Mapping[str, float], before: Mapping[str, float],
-                 std_before: Mapping[str, float], truth: Mapping[str, float] | None = None) -> dict:
+                 std_before: Mapping[str, float], truth: Mapping[str, float] | None = None) -> dict[str, AddedParam]:
     """The diagnosis file's `added.params` (diagnose --add, every kind of data): each parameter of the
     model with the effects, its value and std without them (None for the effects' own) and, where a
     simulator's truth knows it, the error of each."""
-    out = {}
+    out: dict[str, AddedParam] = {}
     for k, v in after.items():
         row = {"before": before.get(k), "std_before": std_before.get(k), "after": v, "std_after": std_after[k]}
         if truth and k in truth:
             t = truth[k]
             row.update(truth=t, error_before=None if row["before"] is None else row["before"] - t, error_after=v - t)
-        out[k] = row
+        out[k] = cast(AddedParam, row)
     return out

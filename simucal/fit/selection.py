@@ -24,6 +24,7 @@ from simucal.fit.cross_validation import paired_improvement
 from simucal.fit.family import OUTSIDE_SHARE
 from simucal.fit.results import ModelTest, Selection
 from simucal.generated.effects import EFFECTS
+from simucal.io import records
 
 HELD_OUT_ALPHA = 0.05  # one-sided level of "predicts the data left out better" (module doc)
 AUTO_TRIES = 3  # candidates passing the gate whose held-out errors are tried, strongest first
@@ -53,7 +54,7 @@ class Step(Protocol):
     def held_out(self) -> list[float] | None:
         """Each left-out piece's error predicted without it (a row's norm error, a move's residual)."""
 
-    def after(self) -> dict:
+    def after(self) -> records.AutoStep:
         """What the step's record says of the model with the effect added (its test, residual rms, ...)."""
 
     def estimates(self) -> dict[str, tuple[float, float]]:

@@ -16,6 +16,7 @@ Degrees never exceed MAX_DEGREE nor the distinct temperatures (clusters within S
 from __future__ import annotations
 
 import numpy as np
+from numpy.typing import NDArray
 
 from simucal.errors import CalibrationError
 from simucal.fit.distributions import chi2_sf
@@ -86,7 +87,7 @@ def _slope(t, T) -> float:
     return float(d @ (T - T.mean())) / dd if dd > 0 else 0.0
 
 
-def group_rates(samples, groups) -> dict:
+def group_rates(samples, groups) -> dict[str, NDArray[np.float64]]:
     """{temp_rate_c_s: each group's dT/dt}, the slope of temp_c over its rows (RATE_WINDOW_S at least; the
     neighbours of a group of one row), where the samples have temp_c; else {}. What aux_inputs.column_means
     gives beside each group's mean temp_c."""
@@ -98,7 +99,7 @@ def group_rates(samples, groups) -> dict:
                                               np.maximum([float(np.ptp(x)) for x in spans], RATE_WINDOW_S))}
 
 
-def rate_input(samples, effects) -> dict:
+def rate_input(samples, effects) -> dict[str, NDArray[np.float64]]:
     """{temp_rate_c_s: each row's dT/dt} where one of the library effects read it and the samples have temp_c
     (apply, validate: a calibration with a temperature-rate effect); else {} (no cost where none reads it)."""
     from simucal.generated.effects import EFFECTS

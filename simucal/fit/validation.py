@@ -9,11 +9,28 @@ propagated to the calibrated norm, d|u|/dp = (u/|u|)' (dh/du)^-1 dh/dp, added in
 """
 from __future__ import annotations
 
+from typing import TypedDict
+
 import numpy as np
 
 from simucal.fit.noise import mean_and_sigma
 
 FAR_OFF = 10.0  # a row this many floors (and medians) off is named
+
+
+class Check(TypedDict, total=False):
+    """One check of `simucal validate`: a calibrated error against physics (norm_block, each kind's checks)."""
+    what: str                         # the error checked, in words
+    unit: str                         # of the rms values
+    n: int                            # the rows (segments, poses, moves) it is taken over
+    before_rms: float                 # at the nominal scale factors
+    after_rms: float                  # calibrated
+    floor_rms: float | None           # what the noise (and the table's stated errors) leave; None: unknown
+    far_off: list[str]                # the rows far off where the rest agree
+    far_off_hint: str                 # what to check there
+    limited_by_table: bool            # the floor lacks the table's angle errors (meta.json states none)
+    ratio_after_before: float | None  # the report's (api's validation_report), as its verdict
+    verdict: str                      # at the noise floor, improved, ..., in words
 
 
 def rms(x):
@@ -33,7 +50,7 @@ def segment_means(data, groups, stated, angles=None):
     return np.array([m for m, _ in out]), np.array([np.sqrt(np.mean(sd ** 2)) for _, sd in out], float)
 
 
-def norm_block(unit, before, after, floor_sd, what, labels):
+def norm_block(unit, before, after, floor_sd, what, labels) -> Check:
     """Errors of a norm against its known value, before and after, with the floor; labels name
     the rows (segments or poses) for the ones far off (far_off)."""
     ok = np.isfinite(floor_sd)

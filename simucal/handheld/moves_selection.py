@@ -17,6 +17,7 @@ chosen effect explains of the misfit.
 from __future__ import annotations
 
 import functools
+from typing import TypedDict, cast
 
 import numpy as np
 
@@ -31,6 +32,7 @@ from simucal.generated.effects import EFFECTS, SEPARATE_MOVES
 from simucal.handheld.gyro_moves import GyroMoves, chi2_test, has_input, move_covariances, with_term_added, with_terms
 from simucal.handheld.moves import (GyroFit, Integrated, Moves, decimate, effect_column, fit_gyro_moves, free_entries,
                                     held_out_moves, integrated, jacobian, move_residuals, with_effect)
+from simucal.io import records
 
 
 class MovesProblem:
@@ -122,7 +124,7 @@ def rank_move_candidates(gm: GyroMoves, fit: GyroFit, inputs, base_fails, effect
     MovesProblem of these arguments where one is at hand (moves_family's)."""
     problem = problem or MovesProblem(gm, fit, inputs, effects, fixed)
     ids = [e for e in effect_ids("gyro") if e not in effects]
-    return [c.to_dict() for c in rank(problem, ids, base_fails, "gyro candidates over the moves")]
+    return cast("list[dict]", [c.to_dict() for c in rank(problem, ids, base_fails, "gyro candidates over the moves")])
 
 
 def moves_family(gm: GyroMoves, fit: GyroFit, inputs, omnibus: tuple, effects=(), fixed=(),
@@ -202,7 +204,18 @@ class MovesStep:
                 "residual_rms_after": float(np.sqrt(np.mean(self.fit.r ** 2)))}
 
 
-def select_effects(gm: GyroMoves, base: GyroFit, sigma_g, inputs, ranked=None, max_terms=9) -> dict:
+class MisfitShares(TypedDict):
+    """`--add auto` over the moves as the diagnosis file's `misfit_shares` (select_effects)."""
+    chi2: float                       # the fit without effects, on dof
+    dof: int                          # its degrees of freedom
+    residual_rms: float               # its gravity-direction residuals' rms (unit vector components)
+    steps: list[records.AutoStep]     # each effect chosen, with its share of that fit's excess (chi2 - dof)
+    effects: list[str]                # the model chosen's effects
+    stopped: str                      # why the selection stopped
+    unexplained: float                # the share of the excess the chosen effects leave
+
+
+def select_effects(gm: GyroMoves, base: GyroFit, sigma_g, inputs, ranked=None, max_terms=9) -> MisfitShares:
     """`--add auto` over the moves (fit/selection.forward_selection from the fit without effects), as
     the diagnosis file's `misfit_shares`: each step's share, its chi-square drop over the baseline's
     excess (chi2 - dof); `unexplained` what the chosen effects leave of that excess; `stopped` why.

@@ -56,6 +56,7 @@ from simucal.fit.augmented import AugmentedModel, check_effect
 from simucal.fit.distributions import chi2_sf
 from simucal.fit.noise import white_noise_var
 from simucal.fit.thermal import RATE_WINDOW_S, check_temp_c, clusters, temperature_rate
+from simucal.fit.validation import Check
 from simucal.generated.effects import EFFECTS
 from simucal.io import calibration, records, timestamps
 from simucal.io.calibration import EffectValue, SensorBlock
@@ -217,7 +218,7 @@ def _model_test(out, w: Whitened, axis, degree, rate, f: AxisFit, e, white, eid,
     out["walk_check"] = walk
     out["test"] = "the powers beyond the degree (Wald) and the walk check, Bonferroni"
     out["p_value"] = min(1.0, 2 * min(out["p_value"], walk["p_value"]))
-    tgt = None
+    tgt: records.Targeted | None = None
     if not rate and eid is not None:
         Q = np.linalg.qr(w.X[:, w.columns(degree, False)])[0]
         if family.separable(Q, w.X[:, RATE_COLUMN])[1] >= family.COLLINEAR:
@@ -404,7 +405,7 @@ def _said(sensor, i, a) -> str:
     return ""
 
 
-def warmup_checks(ms, f_before, f_after, w_before, w_after, cal) -> dict:
+def warmup_checks(ms, f_before, f_after, w_before, w_after, cal) -> dict[str, list[Check]]:
     """`simucal validate` of a warm-up calibration on another warm-up (the same unit, a still stream over
     temperature): per sensor, each axis's change over the warm-up (its block means less their median) at
     nominal and calibrated, with the block means' white noise as the floor (first differences); for the
@@ -416,7 +417,7 @@ def warmup_checks(ms, f_before, f_after, w_before, w_after, cal) -> dict:
     if not ms.has_acc or not still_throughout(ms.acc_g(), t):
         raise CalibrationError(f"{ms.path}: a warm-up calibration is validated on another still warm-up of the unit "
                                "(a stream that never moves, with temp_c); these data are not one")
-    out = {}
+    out: dict[str, list[Check]] = {}
     for sensor, before, after, unit in (("acc", f_before, f_after, "g"), ("gyro", w_before, w_after, "deg/h")):
         if before is None or getattr(cal, sensor, None) is None:
             continue

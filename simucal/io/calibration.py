@@ -81,7 +81,7 @@ class EffectValue:
     meaning: str
     term_of: str | None = None
 
-    def to_json(self) -> dict:
+    def to_json(self) -> records.EffectRecord:
         return {"value": float(self.value), "std": float(self.std), "unit": self.unit, "meaning": self.meaning,
                 **({"term_of": self.term_of} if self.term_of else {})}
 
@@ -215,7 +215,7 @@ class SensorBlock:
             return "untested"
         return "fails" if self.p_value < ALPHA else "passes"
 
-    def to_json(self) -> dict:
+    def to_json(self) -> records.JSONObject:
         out = {}
         for f in fields(self):
             v = getattr(self, f.name)
@@ -278,7 +278,7 @@ class Calibration:
         self.layout["sensors"] = [s for s in self.layout["sensors"] if s != sensor]
         self.not_calibrated[sensor] = why
 
-    def to_json(self) -> dict:
+    def to_json(self) -> records.JSONObject:
         out: dict[str, Any] = {"format": self.format, "method": self.method, "input": self.input,
                                "input_sha256": self.input_sha256,
                "layout": self.layout, "formula": {s: FORMULA[s] for s in self.sensors},
@@ -362,7 +362,7 @@ def sensor_block(model, fit, M, bias, base: dict | None = None, C_b_model=None) 
 POOR_INFLATION = 10.0  # good plans give 1-2 (Table 1, fibonacci48, a hand-placed session)
 
 
-def poorly_determined(names, fit) -> dict:
+def poorly_determined(names, fit) -> dict[str, records.Inflation]:
     """Parameters whose std the plan inflates more than POOR_INFLATION times by their correlation with
     the others: sqrt of the variance inflation factor, VIF_j = (R^-1)_jj for the correlation matrix R
     of the fit's covariance (1 for a parameter the plan separates from all others). A near-singular

@@ -14,6 +14,7 @@ from __future__ import annotations
 
 from pathlib import Path
 
+from simucal.io import records
 from simucal.io.calibration_checks import CalibrationFileError, layout
 
 FORMAT_1 = "simucal.calibration/1"
@@ -47,7 +48,7 @@ def _from_format_1(path: Path, d: dict) -> dict:
 STEPS = {FORMAT_1: _from_format_1}  # each earlier format: the step to the next one
 
 
-def upgraded(path: Path, d: dict, current: str) -> dict:
+def upgraded(path: Path, d: dict, current: str) -> records.JSONObject:
     """The file's dict in format `current`, through the steps from its own; an unknown format refused."""
     while d.get("format") != current:
         fmt = d.get("format")

@@ -20,6 +20,7 @@ from concurrent.futures import ThreadPoolExecutor
 from pathlib import Path
 
 import numpy as np
+from numpy.typing import NDArray
 
 from simucal.io.text_files import MeasurementSetError
 
@@ -218,7 +219,7 @@ def triad_block(samples: dict, cols) -> np.ndarray | None:
     return base
 
 
-def arrow_floats(path, data, names, before=0) -> dict:
+def arrow_floats(path, data, names, before=0) -> dict[str, NDArray[np.float64]]:
     """The named numeric columns of an Arrow table or record batch as float64 arrays; a null, NaN or
     infinity refused naming its row (counted from 1; `before` rows came in earlier batches)."""
     import pyarrow as pa

@@ -96,7 +96,7 @@ def import_imu_tk(acc_path: str | os.PathLike[str], gyro_path: str | os.PathLike
     return meta
 
 
-def parse_columns(text: str) -> dict:
+def parse_columns(text: str) -> dict[str, str]:
     """--columns 'SPEC=SOURCE,...' -> {spec column: source column}, refusing anything malformed."""
     allowed = ("t_s", "segment", "temp_c", "ax", "ay", "az", "gx", "gy", "gz")
     out: dict[str, str] = {}

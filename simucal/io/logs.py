@@ -16,7 +16,7 @@ the rows (io/timestamps.gaps: where and how long), a source under 10 Hz, a "stil
 from __future__ import annotations
 
 from pathlib import Path
-from typing import Callable
+from typing import Callable, cast
 
 import numpy as np
 
@@ -25,6 +25,7 @@ from simucal.io import timestamps
 from simucal.io.dataflash import read_dataflash, read_dataflash_instances
 from simucal.io.importers import ImportError_, import_meta
 from simucal.io.log_stream import LogStream
+from simucal.io.meta import Meta
 from simucal.io.rosbag import read_rosbag
 from simucal.io.ulog import read_ulog, read_ulog_instances
 
@@ -74,10 +75,10 @@ def checked(s: LogStream, path: Path) -> LogStream:
     return s
 
 
-def import_log(fmt: str, path, out, latitude_deg, instance: int | None = None, topic: str | None = None) -> dict:
+def import_log(fmt: str, path, out, latitude_deg, instance: int | None = None, topic: str | None = None) -> Meta:
     """`simucal import ulog|dataflash|rosbag FILE -o SET`: the log as a stream (module doc); its meta, whose
     `warnings` the command prints."""
-    return dict(_write(read_log(fmt, path, instance, topic), fmt, Path(path), out, latitude_deg).meta)
+    return cast(Meta, dict(_write(read_log(fmt, path, instance, topic), fmt, Path(path), out, latitude_deg).meta))
 
 
 def instance_folder(out, instance: int) -> Path:

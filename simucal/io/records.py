@@ -52,8 +52,9 @@ class LackOfFit(TypedDict, total=False):
     F: float
     dof: int
     q: int
-    p_value: float
+    p_value: float | None             # None: too few dof to test
     test: str
+    note: str                         # why there is no test
 
 
 class CrossValidation(TypedDict, total=False):
@@ -64,7 +65,7 @@ class CrossValidation(TypedDict, total=False):
     what: str
     held_out: list[float]
     in_sample: list[float]
-    held_out_rms: float
+    held_out_rms: float | None        # None: no refit held a row out
     in_sample_rms: float
 
 
@@ -76,6 +77,15 @@ class Covariance(TypedDict):
     """The parameters' covariance, in the order of names."""
     names: list[str]
     matrix: list[list[float]]
+
+
+class EffectRecord(TypedDict, total=False):
+    """An effect added to a block (io/calibration.EffectValue), in its unit."""
+    value: float                      # its estimate
+    std: float                        # the estimate's std
+    unit: str                         # the effect's
+    meaning: str                      # in words
+    term_of: str                      # a model file's term beyond the baseline: the model's name
 
 
 class Inflation(TypedDict):
@@ -111,6 +121,7 @@ class AutoStep(TypedDict, total=False):
     chosen_by: str                    # a thermal fit's: the rows that decided (fit/thermal_auto.py)
     twins: list[str]
     twin_choice: str
+    share: float                      # a stream's moves: its chi-square drop over the baseline's excess
 
 
 # model_test.pairs_evidence

@@ -30,13 +30,18 @@ class Gap(TypedDict):
     samples_missing: int
 
 
+class SegmentGap(Gap, total=False):
+    """A gap inside a segment of a set with segments.csv (io/timestamps.segment_gaps)."""
+    segment: int                      # the segment it is in
+
+
 class Timestamps(TypedDict, total=False):
     """The clock a stream was read on (io/timestamps.py): recorded, or the even clock its median step gives."""
     used: str
     choice: str
     chosen_by: str
     text: str
-    gaps: list[Gap]
+    gaps: list[Gap] | list[SegmentGap]  # a segmented set's name their segment
     irregular: bool
     regular_clock: bool
     catch_up_steps: int

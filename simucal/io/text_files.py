@@ -12,8 +12,10 @@ import os
 from pathlib import Path
 
 import numpy as np
+from numpy.typing import NDArray
 
 from simucal.errors import SimucalError
+from simucal.io.records import JSONObject
 
 
 class MeasurementSetError(SimucalError):
@@ -115,7 +117,7 @@ class RepeatedKey(ValueError):
     """A JSON object that names a key twice."""
 
 
-def unique_keys(pairs) -> dict:
+def unique_keys(pairs) -> JSONObject:
     """json's object_pairs_hook: an object that names a key twice is refused (json keeps the last one
     silently; which value was meant cannot be told)."""
     seen = set()
@@ -162,7 +164,7 @@ def is_ascii(raw) -> bool:
     return raw.isascii() if isinstance(raw, bytes) else not len(raw) or int(np.frombuffer(raw, np.uint8).max()) < 128
 
 
-def careful_rows(reader, path, header, cols, others) -> dict:
+def careful_rows(reader, path, header, cols, others) -> dict[str, NDArray[np.float64]]:
     """samples.csv's rows (a csv.reader after the header) one by one, naming the line and the column of
     any cell that is not a number."""
     idx = {c: header.index(c) for c in cols + others}
@@ -188,7 +190,7 @@ def careful_rows(reader, path, header, cols, others) -> dict:
     return {c: np.asarray(v, float) for c, v in data.items()}
 
 
-def json_object_or_none(path) -> dict | None:
+def json_object_or_none(path) -> JSONObject | None:
     """The JSON object a file holds, None where it is missing or holds none (unreadable, damaged, not JSON, too
     deep): for a file that is never an input, such as a simulator's truth.json beside a set."""
     try:

@@ -15,11 +15,12 @@ step or more off the line for good, and then the recorded stamps are kept.
 from __future__ import annotations
 
 from dataclasses import replace
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING, Any, Sequence, cast
 
 import numpy as np
 
 from simucal.errors import InputError
+from simucal.io.stream_records import Gap, SegmentGap, Timestamps
 
 if TYPE_CHECKING:  # simucal.io imports this module's users
     from simucal.io import MeasurementSet
@@ -32,7 +33,7 @@ CLOCK_BOUND_STEPS = 2.0  # arrival times within this many median steps of an eve
 GAP_STEPS = 5.0    # a step longer than this many median steps is a gap: samples missing, not jitter
 
 
-def gaps(t, rows=None) -> list[dict]:
+def gaps(t, rows=None) -> list[Gap]:
     """Every gap in the stamps t (a step over GAP_STEPS median steps): where it starts (s, and the row after
     which it opens), how long it lasts and how many samples at the median step it lacks. rows: the rows'
     numbers in the set, where t is a part of it."""
@@ -46,14 +47,14 @@ def gaps(t, rows=None) -> list[dict]:
              "samples_missing": int(round(dt[k] / med)) - 1} for k in np.nonzero(dt > GAP_STEPS * med)[0]]
 
 
-def gap_text(found: list[dict], most=3) -> str:
+def gap_text(found: Sequence[Gap], most=3) -> str:
     """The gaps in words: how many, then the first `most` (where, how long, samples missing)."""
     return (f"{len(found)} gap{'s' * (len(found) != 1)} in t_s (" + "; ".join(
         f"{g['length_s']:.4g} s from t = {g['start_s']:.6g} s, {g['samples_missing']} samples missing"
         for g in found[:most]) + (" ..." if len(found) > most else "") + ")")
 
 
-def statistics(t) -> dict:
+def statistics(t) -> Timestamps:
     """The stamps' steps: median, mean, std (ms), the catch-up steps (count, median ms), the longest
     step, the largest distance of any stamp from an even spacing at the mean step (in median steps),
     and whether the stamps are irregular and whether a regular clock is proved (module doc)."""
@@ -81,7 +82,7 @@ def with_timestamps(ms: MeasurementSet, choice: str = "auto") -> tuple[Measureme
             from simucal.errors import CalibrationError
             raise CalibrationError(f"{ms.path / 'samples.csv'}: --timestamps nominal respaces a continuous stream's "
                                    "stamps; this set has segments.csv (leave the option out)")
-        return ms, segment_gaps(ms)
+        return ms, cast("dict[str, Any] | None", segment_gaps(ms))
     st = statistics(ms.samples["t_s"])
     if choice == "nominal" and st["gaps"]:
         from simucal.errors import CalibrationError
@@ -98,19 +99,19 @@ def with_timestamps(ms: MeasurementSet, choice: str = "auto") -> tuple[Measureme
         f"{CLOCK_BOUND_STEPS:g}: dropped samples, pauses or a changing rate), so they are kept")
     st["text"] = describe(st)
     if not nominal:
-        return ms, st
+        return ms, cast("dict[str, Any]", st)
     t = ms.samples["t_s"]
     even = t[0] + (t[-1] - t[0]) / (len(t) - 1) * np.arange(len(t))
-    return replace(ms, samples={**ms.samples, "t_s": even}), st
+    return replace(ms, samples={**ms.samples, "t_s": even}), cast("dict[str, Any]", st)
 
 
-def segment_gaps(ms) -> dict | None:
+def segment_gaps(ms) -> Timestamps | None:
     """The gaps inside the segments of a set with segments.csv (between segments the table moves and nothing
     need be recorded), as the calibration's timestamps block, or None where there are none: named, never
     spread (each segment's mean and a rate run's fit take its rows at their recorded stamps)."""
     if ms.segments is None:
         return None
-    found = [dict(g, segment=s.segment) for s in ms.segments
+    found = [cast(SegmentGap, dict(g, segment=s.segment)) for s in ms.segments
              for g in gaps(ms.samples["t_s"][ms.rows(s.segment)], ms.rows(s.segment))]
     if not found:
         return None

@@ -11,7 +11,7 @@ from __future__ import annotations
 
 import tempfile
 from pathlib import Path
-from typing import TYPE_CHECKING, Any, Callable, Iterable
+from typing import TYPE_CHECKING, Any, Callable, Iterable, TypedDict
 
 import numpy as np
 
@@ -42,7 +42,21 @@ LEVELS = [("1\"", ARCSEC), ("1'", ARCMIN), ("10'", 10 * ARCMIN), ("1 deg", 60 * 
 METHODS = methods.for_any_plan(methods.TURNTABLE)  # exact, linear, multiposition
 
 
-def section4_values(sc: Scenario | None = None) -> dict:
+class Section4Values(TypedDict):
+    """The section-4 values derive.audit_terms substitutes (section4_values), from a Scenario."""
+    acc: dict[str, float]             # the accelerometer model's parameters by name (the model's units)
+    gyro: dict[str, float]            # the gyro model's
+    theta4: list[float]               # C_b^k's angles, rad
+    lambda4: list[float]              # C_d^k's angles, rad
+    tilt: list[float]                 # the table's errors, rad: the outer axis's tilt, ...
+    nonperp: list[float]              # ... its axes' non-perpendicularities ...
+    zero: list[float]                 # ... and their zero errors
+    w_T_dph: float                    # the outer axis's rate, deg/h
+    w_e_dph: float                    # the Earth rate, deg/h
+    latitude_deg: float               # the test site's, deg
+
+
+def section4_values(sc: Scenario | None = None) -> Section4Values:
     """The section-4 values for derive.audit_terms: both models' parameters, the mountings, the
     table's errors (no random position errors), the rates and the latitude."""
     sc = sc or Scenario()

@@ -13,9 +13,11 @@ from typing import Any, Iterable, Mapping, TypeVar, cast
 import numpy as np
 
 from simucal.io import units
+from simucal.io.results import PlanScore
 from simucal.io.calibration import Calibration, EffectValue, SensorBlock, SensorDetails
 
 C = TypeVar("C", bound=Calibration)
+Report = TypeVar("Report", bound="dict[str, Any]")  # a JSON report, returned converted in the type it was given
 
 
 def gravity_of(where: Any) -> float:
@@ -101,7 +103,7 @@ def _covariance_in(cov, factor):
     return {**cov, "matrix": (np.asarray(cov["matrix"], float) * np.outer(f, f)).tolist()}
 
 
-def validation_in(report: dict, system: str, gravity_mps2: float | None = None) -> dict:
+def validation_in(report: Report, system: str, gravity_mps2: float | None = None) -> Report:
     """A copy of a validation report with each check's errors and floor in the system asked, its texts too."""
     units.check_unit_system(system)
     if system == "spec":
@@ -113,10 +115,10 @@ def validation_in(report: dict, system: str, gravity_mps2: float | None = None) 
                           "unit": units.in_units(1.0, c["unit"], system, g)[1],
                           "what": units.text_in_units(c["what"], system, g)} for c in rows]
                      for s, rows in report["checks"].items()}
-    return out
+    return cast(Report, out)
 
 
-def noise_in(report: dict, system: str, gravity_mps2: float | None = None) -> dict:
+def noise_in(report: Report, system: str, gravity_mps2: float | None = None) -> Report:
     """A copy of a noise report with each axis's Allan deviation and every term (value, std, bound) in the
     system asked, each with its label."""
     units.check_unit_system(system)
@@ -274,7 +276,7 @@ def montecarlo_in(result: Mapping[str, Any], system: str,
     return {**result, "parameters": shown}
 
 
-def plan_in(result: dict, system: str, gravity_mps2: float = units.DEFAULT_GRAVITY) -> dict:
+def plan_in(result: PlanScore, system: str, gravity_mps2: float = units.DEFAULT_GRAVITY) -> PlanScore:
     """A copy of a plan's score with its noise and each parameter's CRLB in the system asked, each with its label."""
     units.check_unit_system(system)
     if system == "spec":

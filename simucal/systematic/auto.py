@@ -13,6 +13,7 @@ import numpy as np
 from simucal.fit.results import ModelTest
 from simucal.fit.selection import forward_selection
 from simucal.systematic.calibrate import run_filter
+from simucal.io import records
 from simucal.systematic.innovations import family_test, ranked, to_separate
 
 MAX_TERMS = 4
@@ -64,7 +65,7 @@ class FilterStep:
     def to_separate(self, chosen, twin):
         return "what would tell them apart: " + to_separate(chosen["id"], twin["id"])
 
-    def after(self) -> dict:
+    def after(self) -> records.AutoStep:
         value, std = estimate(self.model, self.effects[-1])
         return {"nis_after": self.innovations["nis"], "p_value_after": self.innovations["p_value"],
                 "filter_estimate": value, "filter_std": std}

@@ -10,21 +10,50 @@ both blocks say the misfit is most likely outside the library.
 """
 from __future__ import annotations
 
+from typing import TypedDict, cast
+
 import numpy as np
 
 from simucal.errors import CalibrationError
 from simucal.fit.results import added_params, model_test_keys
 from simucal.systematic.calibrate import rests_and_moves, run_filter
 from simucal.fit import family
+from simucal.io import records
 from simucal.systematic.innovations import family_test, ranked
 from simucal.systematic.method import refusal
 
 UNIT = "innovation std (whitened)"
 
 
-def model_test(test) -> dict:
+class Whiteness(TypedDict):
+    """The zero-velocity innovations' whiteness (systematic/innovations.innovation_test), per axis."""
+    lag1_autocorrelation: list[float]  # of the whitened innovations
+    lag1_z: list[float]               # times sqrt(updates): about N(0, 1) where they are white
+    meaning: str                      # what lag1_z is, in words
+
+
+class SequenceModelTest(TypedDict, total=False):
+    """The innovations' test as a diagnosis block's model test (model_test), whitened: noise floor 1."""
+    chi2: float                       # the NIS, on dof
+    dof: int                          # 3 a zero-velocity update and a return
+    p_value: float | None             # the family's
+    residual_unit: str                # UNIT
+    residual_rms: float               # sqrt(NIS / dof)
+    noise_floor: float                # 1: the innovations are whitened
+    test: str                         # the family's test, in words
+    omnibus_p_value: float | None     # the NIS's own (fit/family.fold)
+    omnibus_test: str | None          # the NIS test, in words
+    targeted: records.Targeted        # the library effects' targeted tests on the innovations
+    rows: str                         # the updates and returns tested, in words
+    returns: int                      # the zero-position returns among them
+    noise: records.NoiseUsed          # the noise the test used
+    whiteness: Whiteness              # the innovations' lag-1 autocorrelation
+
+
+def model_test(test) -> SequenceModelTest:
     """The innovations' test as a diagnosis block's model test (the keys candidates.verdict reads)."""
-    return {"chi2": test["nis"], "dof": test["dof"], "p_value": test["p_value"], "residual_unit": UNIT,
+    return cast(SequenceModelTest, {
+            "chi2": test["nis"], "dof": test["dof"], "p_value": test["p_value"], "residual_unit": UNIT,
             "residual_rms": float(np.sqrt(test["nis"] / test["dof"])), "noise_floor": 1.0, "test": test["test"],
             **{k: test[k] for k in ("omnibus_p_value", "omnibus_test", "targeted") if k in test},
             "rows": f"{test['updates']} zero-velocity updates" + (
@@ -33,7 +62,7 @@ def model_test(test) -> dict:
             "noise": {"source": "the rests' white noise (first differences)", "rows_estimated": False},
             "whiteness": {"lag1_autocorrelation": test["lag1_autocorrelation"], "lag1_z": test["lag1_z"],
                           "meaning": "each axis's lag-1 autocorrelation of the whitened innovations times "
-                                     "sqrt(updates), about N(0, 1) where they are white"}}
+                                     "sqrt(updates), about N(0, 1) where they are white"}})
 
 
 def innovation_rows(ms, result) -> list[dict]:

@@ -22,8 +22,10 @@ its state added: the score test of adding it, which --add auto confirms by runni
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import cast
 
 import numpy as np
+from numpy.typing import NDArray
 
 from simucal.fit.augmented import AugmentedModel, effect_ids, follows_temperature
 from simucal.fit.aux_inputs import AuxInputs, motion
@@ -35,13 +37,18 @@ from simucal.fit.results import ModelTest
 from simucal.generated import systematic as gen
 from simucal.generated import table
 from simucal.generated.effects import EFFECTS, SEPARATE
-from simucal.io import units
+from simucal.io import records, units
 from simucal.systematic.calibrate import ZUPT_STD_MPS
 from simucal.systematic.filter import (Sensors, lapack_solve, nominal, prefix_products, reads_motion, smoothed,
                                       transitions)
 
 
-def innovation_test(epochs) -> dict:
+class WhitenedTest(records.InnovationTest, total=False):
+    """The innovations' test (innovation_test) with the whitened innovations it was taken on."""
+    innovations_whitened: NDArray[np.float64]  # (updates, 3): L^-1 nu of each zero-velocity update, unitless
+
+
+def innovation_test(epochs) -> WhitenedTest:
     """The model test on the innovations: NIS, the sum of nu^T S^-1 nu over the zero-velocity updates
     and the zero-position returns (a return's attitude innovation, zero_position.py), against chi-square
     with 3 dof per update (Bar-Shalom, Li & Kirubarajan 2001, sec. 5.4), and the zero-velocity
@@ -62,13 +69,13 @@ def innovation_test(epochs) -> dict:
             "returns": len(returns), "nis_returns": nis_zero, "innovations_whitened": nu}
 
 
-def family_test(result) -> tuple[dict, Signatures]:
+def family_test(result) -> tuple[WhitenedTest, Signatures]:
     """The sequence's model test (fit/family.py): the NIS (innovation_test) as the omnibus, with the
     targeted test of every candidate on the innovations (InnovationsProblem's score tests, the
     statistic its likelihood ratio already is). Returns the test and the signatures, which the
     ranking reuses."""
     test, sig = innovation_test(result.epochs), signatures(result)
-    family.fold(test, family.targeted(InnovationsProblem(sig), list(sig.B)))
+    family.fold(cast(dict, test), family.targeted(InnovationsProblem(sig), list(sig.B)))
     return test, sig
 
 

@@ -2,7 +2,7 @@
 on its innovations, and the refusal of a sequence that leaves a parameter unseen."""
 from __future__ import annotations
 
-from typing import NamedTuple, cast
+from typing import Any, Mapping, NamedTuple, cast
 
 import numpy as np
 
@@ -112,8 +112,8 @@ def calibrate_systematic(ms, acc_model="acc_baseline", gyro_model="gyro_baseline
                                         M_g @ C_b_d, b_g, C_b_model=C_b_d)
     for block in (cal.acc, cal.gyro):
         block.residual_unit = "innovation std (whitened)"
-        block.details.update(calibration.as_details({k: test[k] for k in ("test", "omnibus_p_value", "omnibus_test",
-                                                                          "targeted") if k in test}))
+        block.details.update(calibration.as_details({k: cast("Mapping[str, Any]", test)[k] for k in (
+            "test", "omnibus_p_value", "omnibus_test", "targeted") if k in test}))
     cal.gyro.details["eta_rad"] = {"value": s.eta.tolist(), "std": np.sqrt(np.diag(r.cov)[na + ng:]).tolist(),
                                    "meaning": "C_b^d = mounting(eta) (derive/systematic.py)"}
     cal.details["systematic"] = {

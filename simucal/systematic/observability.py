@@ -26,6 +26,8 @@ outer-axis turns alone the z accelerometer's 9e4 times.
 """
 from __future__ import annotations
 
+from typing import TypedDict
+
 import numpy as np
 
 from simucal.io import results
@@ -60,7 +62,14 @@ def unobserved(result, cov=None) -> dict[str, tuple[float, float]]:
     return {names[i]: (float(ratio[i]), float(inflation[i])) for i in worst if not seen[i]}
 
 
-def truth_start(truth) -> dict:
+class FilterStart(TypedDict):
+    """Where run_filter starts (truth_start): each sensor's parameters by name (the model's units) and eta."""
+    acc: dict[str, float]             # the accelerometer model's parameters
+    gyro: dict[str, float]            # the gyro model's
+    eta: list[float]                  # the gyro frame's angles, rad
+
+
+def truth_start(truth) -> FilterStart:
     """A simulated unit's truth.json as run_filter's start: its parameters by name and the gyro frame's angles
     (eta: C_b^d = mounting(eta) = Rx Ry Rz, inverted)."""
     C = np.asarray(truth["gyro"]["C_b_d"])

@@ -4,6 +4,8 @@ stream (the registry of kinds of data: methods.py): each sensor tested on the mo
 triads, and the gyro's static rows against the Earth rate."""
 from __future__ import annotations
 
+from typing import TypedDict
+
 from simucal.errors import CalibrationError
 from simucal.fit.lack_of_fit import twin_fits
 from simucal.fit.results import ALPHA
@@ -23,10 +25,16 @@ def observations(ms, sensor, stated):
     return (obs, segs, segs) if segs else None
 
 
-def sensor_extras(sensor, model, obs, fit, segs, shape) -> dict:
+class SensorExtras(TypedDict, total=False):
+    """A turntable block's keys for finish (sensor_extras)."""
+    twin_fits: list[dict]             # the found gyro term and each of its twins fitted (fit/lack_of_fit.twin_fits)
+    mirror: tuple[int, float, float] | None  # a mirror image: (axis, rms residual, with it reversed); else None
+
+
+def sensor_extras(sensor, model, obs, fit, segs, shape) -> SensorExtras:
     """A block's keys for finish: the triad's mirror test, and a gyro term the rate runs cannot tell
     from its twins fitted as each of them (judged at rest in finish)."""
-    out = {}
+    out: SensorExtras = {}
     if shape and sensor == "gyro" and shape["indistinguishable_here"]:
         out["twin_fits"] = twin_fits(model, obs, fit, shape)
     out["mirror"] = mirrored(fit, segs, sensor == "gyro")  # judged over both triads in finish

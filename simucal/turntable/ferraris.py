@@ -36,12 +36,15 @@ stays put in the body (six poses fix the affine model exactly).
 """
 from __future__ import annotations
 
+from typing import Mapping, TypedDict, cast
+
 import numpy as np
+from numpy.typing import NDArray
 
 from simucal.errors import CalibrationError
 from simucal.fit.distributions import chi2_sf
 from simucal.fit.noise import mean_and_sigma, moving_sample_var
-from simucal.io import calibration, units
+from simucal.io import calibration, records, units
 from simucal.turntable.observations import (commanded_up_k, outer_angle_rad, read_observations, saturated_segments,
                                             segment_duration_s)
 from simucal.turntable.plans import angles_for
@@ -49,6 +52,39 @@ from simucal.turntable.plans import angles_for
 OPPOSITE = -1 + 1e-6  # cosine between two commanded verticals that make a pair
 OFF_DEG = 20.0  # a pose whose gravity direction is this far from its commanded one is commanded wrong
 SPAN = 0.1  # the turns' axes span space where their third singular value is this or more (6 deg out of a plane)
+
+
+class AccFit(TypedDict):
+    """The accelerometer's affine fit y = M f + b of the opposite poses (acc_fit), in g."""
+    M: NDArray[np.float64]            # (3, 3)
+    bias: NDArray[np.float64]         # (3,)
+    std: dict[str, records.Std]       # M's and bias's, each entry's
+    residual_rms: float               # of |f| - 1 at the poses
+    placement_tilt_deg: float         # the hand placement's tilt, a std per pose
+    mismatch_g: list[list[float]]     # each pair's mean of its two poses' f: what a tilt moves
+    tilt2: float                      # rad^2 a pose, per component across its vertical
+    pose_var: NDArray[np.float64]     # (2, 3, 3: side, pair, axis) the poses' error variance, g^2
+
+
+class TurnTest(TypedDict, total=False):
+    """The accelerometer's model test at the turns (acc_turn_test): chi2 of |f| - 1 on a dof a turn."""
+    chi2: float                       # of |f| - 1 at the turns against their means' noise
+    dof: int                          # one a turn
+    p_value: float                    # chi2's
+    test: str                         # in words
+    rows: str                         # the turns tested
+
+
+class GyroFit(TypedDict, total=False):
+    """The gyro's affine fit y = M w + b of the turns and poses (gyro_fit), in deg/h; its test where the noise is
+    known."""
+    M: NDArray[np.float64]            # (3, 3)
+    bias: NDArray[np.float64]         # (3,)
+    std: dict[str, records.Std]       # M's and bias's, each entry's
+    residual_rms: float               # of the rows' residuals
+    chi2: float                       # of the rows' residuals against their noise, on dof
+    dof: int                          # 3 (rows - 4): 3 a row less the 12 parameters
+    p_value: float                    # chi2's
 
 
 def _pairing(up) -> tuple[list[tuple[int, int]], list[int]]:
@@ -150,7 +186,7 @@ def acc_matrix_and_bias(y_plus, y_minus, U, passes=4):
     return M, b
 
 
-def acc_fit(y_plus, y_minus, U, sig_plus=None, sig_minus=None) -> dict:
+def acc_fit(y_plus, y_minus, U, sig_plus=None, sig_minus=None) -> AccFit:
     """M, b, their stds and the placement's tilt (module doc). sig_*: each mean's std (3, 3), or None
     where the noise is unknown (then the mismatch's variance is taken as the noise's, isotropic). Also
     tilt2 (rad^2 a pose, per component across its vertical) and pose_var (2, 3, 3: side, pair, axis; g^2),
@@ -210,7 +246,7 @@ def rests_beside(ms) -> dict[int, int]:
     return out
 
 
-def acc_turn_test(ms, M, b, obs, segs, beside, stated) -> dict:
+def acc_turn_test(ms, M, b, obs, segs, beside, stated) -> TurnTest:
     """The accelerometer's model test (module doc): chi2 of |f| - 1 at each turn beside a rest, against the
     noise of the turn's mean (its rows about their harmonics in the turn's angle) and the rest's (the fit
     holds |f| = 1 at the rest, the turn reads the same gravity), one dof a turn. A turn with clipped samples
@@ -267,7 +303,7 @@ def _gyro_rows(ms, poses, gyro_obs, gyro_segs, stated, curve):
     return np.vstack([y, gyro_obs.N]), np.vstack([var, turn_var])
 
 
-def gyro_fit(y, var, up, rho, static, w_h, err) -> dict:
+def gyro_fit(y, var, up, rho, static, w_h, err) -> GyroFit:
     """y = M w + b (module doc) by weighted least squares: y, var (n, 3) the rows' means and noise variances
     (NaN: unknown, then estimated from the residuals, untested), up (n, 3) each row's measured vertical
     (its input rho (n,) deg/h along it), static (n,) the poses, whose horizontal Earth rate w_h (deg/h)
@@ -307,7 +343,7 @@ def gyro_fit(y, var, up, rho, static, w_h, err) -> dict:
     v = var + np.einsum("ia,kab,ib->ki", M, H + rho[:, None, None] ** 2 * C_up, M)
     chi2, dof = float(np.sum(r ** 2 / v)), 3 * (n - 4)
     std = np.sqrt(np.diag(cov))
-    test = {"chi2": chi2, "dof": dof, "p_value": chi2_sf(chi2, dof)} if known and dof > 0 else {}
+    test: GyroFit = {"chi2": chi2, "dof": dof, "p_value": chi2_sf(chi2, dof)} if known and dof > 0 else {}
     return {"M": M, "bias": b, "std": {"M": std[:9].reshape(3, 3).tolist(), "bias": std[9:].tolist()},
             "residual_rms": float(np.sqrt(np.mean(r ** 2))), **test}
 
@@ -355,7 +391,7 @@ def _gyro_block(ms, acc, poses, gyro_obs, gyro_segs, beside, stated, curve):
         "the rest beside it (else its commanded axis)", rows=f"{len(poses)} poses and {len(gyro_segs)} turns",
         test="the residuals against the raw samples' noise" if "chi2" in r else "no noise estimate",
         turn_axis_from_rest=[[t, p] for t, p in axes.items()],
-        **{k: r[k] for k in ("chi2", "dof", "p_value") if k in r})
+        **{k: cast("Mapping[str, float]", r)[k] for k in ("chi2", "dof", "p_value") if k in r})
 
 
 def calibrate_ferraris(ms, acc_noise_g=None, gyro_noise_dph=None, noise_curves=None) -> calibration.Calibration:

@@ -26,8 +26,10 @@ from __future__ import annotations
 
 import os
 import time
+from typing import TypedDict
 
 import numpy as np
+from numpy.typing import NDArray
 
 from simucal.errors import InputError
 from simucal.io import results
@@ -42,6 +44,14 @@ from simucal.turntable import kinematics, plans
 from simucal.turntable.simulate import Scenario
 
 K_REV = (3, 4, 12)  # outer-angle samples per revolution: the fewest where exact, else the most (module doc)
+
+
+class TrialChunk(TypedDict):
+    """One batch of trials (chunk_of_trials): the estimates of those whose fits converged, in the models' units."""
+    acc: NDArray[np.float64]          # (converged, acc parameters)
+    gyro: NDArray[np.float64]         # (converged, gyro parameters and effects)
+    phi: NDArray[np.float64]          # (converged, 3): the error rotation of C_b^d, rad
+    failed: list[int]                 # the others, by their index within the batch
 
 
 def _plan(sc):
@@ -192,7 +202,7 @@ def revolution_samples(sc: Scenario) -> int:
     return K_REV[-1]
 
 
-def chunk_of_trials(sc: Scenario, size: int, seed: int, k: int, k_rev: int = K_REV[-1]) -> dict:
+def chunk_of_trials(sc: Scenario, size: int, seed: int, k: int, k_rev: int = K_REV[-1]) -> TrialChunk:
     """One batch of trials with its own random stream (seed, k): the estimates of the trials whose
     fits converged, the error rotation of C_b^d, and the indices (within the batch) of the others."""
     rng = np.random.default_rng([seed, k])

@@ -8,6 +8,7 @@ import functools
 from concurrent.futures import ThreadPoolExecutor
 
 import numpy as np
+from numpy.typing import NDArray
 
 from simucal import io
 from simucal.errors import CalibrationError
@@ -216,7 +217,7 @@ def _rates_not_units(ms) -> str:
             "is outer_rate_dps in segments.csv that is off: it is deg/s (not rad/s, not deg/h)")
 
 
-def saturated_segments(ms, sensor) -> dict:
+def saturated_segments(ms, sensor) -> dict[int, int]:
     """{segment: number of its samples clipped} of one sensor (io/sensor_checks.saturated_rows)."""
     bad = saturated_rows(ms, sensor)[0]
     seg, n = np.unique(ms.samples["segment"][bad], return_counts=True)
@@ -266,7 +267,7 @@ def centripetal_scale(ms, segs):
     return np.array([np.radians(s.outer_rate_dps) ** 2 / units.gravity(ms.meta) for s in segs])
 
 
-def specific_force(ms, segs) -> dict:
+def specific_force(ms, segs) -> dict[str, NDArray[np.float64]]:
     """The specific force (g) each segment's gyro saw, for g-sensitivity terms (f_x, f_y, f_z):
     the accelerometer mean where there is one, else the commanded vertical, else none."""
     if not segs:

@@ -21,6 +21,7 @@ import csv
 import math
 from dataclasses import dataclass
 from pathlib import Path
+from typing import cast
 
 import numpy as np
 
@@ -29,6 +30,7 @@ from simucal import io
 from simucal.fit.aux_inputs import AuxInputs, motion, specific_force
 from simucal.generated import table
 from simucal.io import outputs, units
+from simucal.io.results import SequenceStep
 from simucal.turntable import forward, kinematics, plans
 from simucal.turntable.simulate import Scenario, meta_of, models, truth_of
 
@@ -271,5 +273,5 @@ def simulate_sequence(sc: Scenario, sequence, seed: int = 0):
     samples = {"segment": seg_ids, "t_s": t, **{f"a{c}": N_a[:, j] for j, c in enumerate("xyz")},
                **{f"g{c}": N_g[:, j] for j, c in enumerate("xyz")}}
     truth = truth_of(sc, acc, p_acc, gyro, p_gyro, seed)
-    truth["sequence"] = {"name": name, "rate_hz": rate_hz, "steps": [vars(s) for s in steps]}
+    truth["sequence"] = {"name": name, "rate_hz": rate_hz, "steps": [cast(SequenceStep, vars(s)) for s in steps]}
     return meta, samples, segments, truth

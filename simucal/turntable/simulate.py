@@ -12,7 +12,7 @@ from __future__ import annotations
 import math
 
 from dataclasses import dataclass, field
-from typing import Callable
+from typing import Callable, cast
 
 import numpy as np
 
@@ -23,7 +23,8 @@ from simucal.fit.aux_inputs import DEFAULT_ZERO, T_REF, AuxInputs, specific_forc
 from simucal.fit.thermal import PLAUSIBLE_C
 from simucal.turntable import forward
 from simucal.generated import table
-from simucal.io import units
+from simucal.io import results, units
+from simucal.io.meta import Meta
 from simucal.io.calibration_checks import PARAM_LIMIT
 from simucal.turntable import kinematics, plans
 
@@ -302,7 +303,7 @@ def _segments(sc: Scenario, rng):
     return segments, rows
 
 
-def meta_of(sc: Scenario, seed) -> dict:
+def meta_of(sc: Scenario, seed) -> Meta:
     """meta.json of a simulated test."""
     meta = {"latitude_deg": sc.latitude_deg, "gravity_mps2": units.DEFAULT_GRAVITY,
             "earth_rate_dph": units.DEFAULT_EARTH_RATE_DPH, "acc_unit": sc.acc_unit, "gyro_unit": sc.gyro_unit,
@@ -319,7 +320,7 @@ def meta_of(sc: Scenario, seed) -> dict:
         meta["acc_pulses_per_g"] = list(sc.acc_pulses_per_g)
     if sc.gyro_unit == "pulse/s":
         meta["gyro_pulses_per_arcsec"] = list(sc.gyro_pulses_per_arcsec)
-    return meta
+    return cast(Meta, meta)
 
 
 def _samples(sc: Scenario, rng, segments, rows, acc, p_acc, gyro, p_gyro, meta):
@@ -378,7 +379,7 @@ def models(sc: Scenario):
     return acc, p_acc, gyro, p_gyro
 
 
-def truth_of(sc: Scenario, acc, p_acc, gyro, p_gyro, seed) -> dict:
+def truth_of(sc: Scenario, acc, p_acc, gyro, p_gyro, seed) -> results.Truth:
     """truth.json: every parameter of the unit and the table."""
     M_a, b_a = acc.matrix_and_bias(p_acc)
     M_g_d, b_g = gyro.matrix_and_bias(p_gyro)

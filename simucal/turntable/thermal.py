@@ -3,13 +3,17 @@ observations, each at its own temperature (and its rate: aux_inputs.column_means
 thermal fit of them (fit/thermal_select.py, fit/thermal_auto.py) as each sensor's block of the calibration."""
 from __future__ import annotations
 
+from typing import Any, Mapping
+
 import numpy as np
+from numpy.typing import NDArray
 
 from simucal.fit.aux_inputs import T_REF, AuxInputs, specific_force
 from simucal.fit.norm_fit import Observations
 from simucal.fit.thermal_select import RAMP_BANDS
 from simucal.io import calibration, records, units
 from simucal.io.calibration import SensorBlock, SensorDetails
+from simucal.io.segments import Segment
 from simucal.turntable.consistency import static_gyro_rows
 from simucal.turntable.model_test import ROWS
 from simucal.turntable.observations import read_observations, segment_duration_s
@@ -55,7 +59,8 @@ def static_gyro_observations(ms, acc, acc_segs, gyro_noise_dph=None, curve=None)
         [acc_segs[i] for i in rows]
 
 
-def joint_observations(sets, t_ref_c, acc_noise_g=None, gyro_noise_dph=None, noise_curves=None) -> dict:
+def joint_observations(sets, t_ref_c, acc_noise_g=None, gyro_noise_dph=None,
+                       noise_curves=None) -> dict[str, tuple[Observations, NDArray[np.int_], list[Segment]]]:
     """{sensor: (observations of every set's rows, each row's set index, each row's segment)} for the
     sensors the sets hold; the gyro's rows are its rate runs and its static positions
     (static_gyro_observations)."""
@@ -105,7 +110,7 @@ def ramp_warnings(sensor, obs, segs) -> list[str]:
 FOLLOWS_R2 = 0.5  # an input axis whose share of the rows' directions a line in temperature explains beyond this
 
 
-def axes_following_temperature(obs) -> dict:
+def axes_following_temperature(obs) -> dict[str, float]:
     """{axis: R^2} of the axes whose input (the rows' unit directions) a line in the rows' temperature
     explains beyond FOLLOWS_R2: on a ramp recorded in the plan's order (fibonacci48's rate runs turn from
     +z to -z as it heats: R^2 0.73 on z; 0.02 in a shuffled order) an axis's bias curvature and its
@@ -161,7 +166,7 @@ def joint_block(obs, groups, first: SensorBlock, degree, labels, t_ref_c, platea
                                 "fit": "joint: every row at its own temp_c", "rows": rows_text(segs),
                                 "parameters": fits, "dropped": how["dropped"],
                                 "covariance": {"names": list(model.params), "matrix": fit.cov.tolist()}}
-    test = joint_test(base, model, obs, fit)
+    test: Mapping[str, Any] = joint_test(base, model, obs, fit)  # its keys read by name below
     details.update(calibration.as_details({k: test[k] for k in ("omnibus_p_value", "omnibus_test", "targeted")
                                            if k in test}))
     if "verdict" in test.get("targeted", {}):  # a library effect beyond its test: the one to add
