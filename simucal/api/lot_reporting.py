@@ -35,7 +35,7 @@ from simucal.io import records
 from simucal.io.calibration import Calibration, load
 from simucal.io.calibration_checks import SERIAL, CalibrationFileError
 from simucal.report.console import n_units
-from simucal.report.lot_figures import (DRIFT_P, block_parameters, drift, model_name,
+from simucal.report.lot_figures import (DRIFT_P, Drift, block_parameters, drift, model_name,
                                         outside, read_limits)
 
 FORMAT = "simucal.lot/1"
@@ -142,12 +142,12 @@ def _group(names: Sequence[str], cals: Sequence[Calibration]) -> dict[str, Any]:
 
 
 def _by_serial(cals: Sequence[tuple[str, Calibration]]) -> tuple[list[tuple[str, Calibration]], list[str],
-                                                                 list[dict[str, Any]]]:
+                                                                 list[Drift]]:
     """The calibration each unit enters the lot with (its last by file name), the earlier ones, and the
     drift between each unit's consecutive calibrations."""
     last: dict[tuple[str, object], tuple[str, Calibration]] = {}
     earlier: list[str] = []
-    drifts: list[dict[str, Any]] = []
+    drifts: list[Drift] = []
     for i, (name, cal) in enumerate(cals):
         serial = cal.layout.get(SERIAL)  # one unit in one group: another method's calibration is no drift
         key = (_group_key(cal), serial) if serial is not None else ("file", i)
@@ -158,12 +158,12 @@ def _by_serial(cals: Sequence[tuple[str, Calibration]]) -> tuple[list[tuple[str,
     return sorted(last.values(), key=lambda nc: nc[0]), earlier, drifts
 
 
-def _drifted(d: Mapping[str, Any]) -> list[str]:
+def _drifted(d: Drift) -> list[str]:
     return [s for s, v in d["sensors"].items() if v["verdict"] == "drifted"]
 
 
 def _unit(name: str, cal: Calibration, group: str, limits: Mapping[str, Any], outliers: list[dict[str, Any]],
-          drifted: list[dict[str, Any]]) -> dict[str, Any]:
+          drifted: list[Drift]) -> dict[str, Any]:
     """One unit: its model tests, limits broken, outliers, and its status with the reasons."""
     tests = {s: {"verdict": b.verdict, "p_value": b.p_value} for s, b in cal.blocks()}
     fails = [f"{s} model test fails (p = {t['p_value']:.2g})" for s, t in tests.items() if t["verdict"] == "fails"]

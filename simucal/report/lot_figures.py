@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import json
 from pathlib import Path
+from typing import Mapping, TypedDict
 
 import numpy as np
 
@@ -18,6 +19,40 @@ from simucal.io.text_files import unique_keys
 
 LIMITS_FORMAT = "simucal.limits/1"
 DRIFT_P = ALPHA    # a drift whose joint chi^2 has a smaller p is reported as drifted (the model test's level)
+Parameters = dict[str, tuple[float, float, str]]  # {name: (value, std, unit)}
+
+
+class Limit(TypedDict, total=False):
+    """One parameter's spec limits (read_limits), in its unit."""
+    min: float
+    max: float
+    unit: str
+
+
+class DriftRow(TypedDict):
+    """One parameter's change between two calibrations of a unit (drift), in its unit."""
+    name: str          # sensor.parameter
+    unit: str
+    drift: float       # later minus earlier
+    std: float         # of the change, from both calibrations
+    z: float           # drift / std
+
+
+class SensorDrift(TypedDict):
+    """A sensor's joint test of no drift: d^T (C_1 + C_2)^-1 d against chi^2 on the parameters' count."""
+    chi2: float
+    dof: int
+    p_value: float
+    verdict: str       # "drifted" (p below DRIFT_P) or "no drift seen"
+
+
+class Drift(TypedDict):
+    """The drift between two calibrations of one unit (drift): the lot report's and the store's."""
+    serial: str | None
+    earlier: str | int  # the earlier calibration: its file's name, or its store record's id
+    later: str | int
+    sensors: dict[str, SensorDrift]
+    parameters: list[DriftRow]
 
 
 def model_name(cal: Calibration) -> str:
@@ -32,14 +67,14 @@ def finite(x) -> bool:
     return isinstance(x, (int, float)) and not isinstance(x, bool) and bool(np.isfinite(x))
 
 
-def block_parameters(b) -> dict:
+def block_parameters(b) -> Parameters:
     """{param: (value, std, unit)} of a block's parameters that carry a std: its model's, or for an affine
     block (multiposition, handheld) the entries of M (M_xy: output x per input y) and bias (b_x)."""
     if b.params:
         return {n: (float(v), float(b.std[n]), b.param_units.get(n, "")) for n, v in b.params.items()
                 if finite(b.std.get(n))}
     M, bias = np.asarray(b.std.get("M", np.nan), float), np.asarray(b.std.get("bias", np.nan), float)
-    out = {}
+    out: Parameters = {}
     if M.shape == (3, 3):
         out.update({f"M_{r}{c}": (float(b.M[i, j]), float(M[i, j]), "1") for i, r in enumerate("xyz")
                     for j, c in enumerate("xyz") if finite(float(M[i, j]))})
@@ -49,7 +84,7 @@ def block_parameters(b) -> dict:
     return out
 
 
-def read_limits(path, known: dict, whose: str = "no calibration of the lot") -> dict:
+def read_limits(path, known: Mapping[str, str], whose: str = "no calibration of the lot") -> dict[str, Limit]:
     """limits.json: {"format": "simucal.limits/1", "limits": {"acc.b_x": {"min": -0.005, "max": 0.005,
     "unit": "g"}, ...}}, min or max or both, in the unit the calibrations give that parameter (known:
     {name: unit} of the lot; whose: what has none of a name that is not in it, as the refusal says it).
@@ -63,7 +98,7 @@ def read_limits(path, known: dict, whose: str = "no calibration of the lot") -> 
         raise CalibrationError(f"{path}: not a readable limits file ({str(e)[:120]})") from None
     if not isinstance(d, dict) or d.get("format") != LIMITS_FORMAT or not isinstance(d.get("limits"), dict):
         raise bad("top level", f"expected an object with format {LIMITS_FORMAT!r} and an object 'limits'")
-    out = {}
+    out: dict[str, Limit] = {}
     for name, lim in d["limits"].items():
         where = f"limits.{name}"
         if name not in known:
@@ -79,7 +114,11 @@ def read_limits(path, known: dict, whose: str = "no calibration of the lot") -> 
                 raise bad(f"{where}.{k}", f"{v!r} is not a finite number")
         if "min" in lim and "max" in lim and lim["min"] > lim["max"]:
             raise bad(where, f"min {lim['min']} is above max {lim['max']}")
-        out[name] = {k: float(lim[k]) for k in ("min", "max") if k in lim} | {"unit": known[name]}
+        out[name] = Limit(unit=known[name])
+        if "min" in lim:
+            out[name]["min"] = float(lim["min"])
+        if "max" in lim:
+            out[name]["max"] = float(lim["max"])
     return out
 
 
@@ -101,9 +140,10 @@ def covariance_of(block, params, names):
     return np.diag([params[n][1] ** 2 for n in names])
 
 
-def drift(name1, cal1: Calibration, name2, cal2: Calibration) -> dict:
+def drift(name1: str | int, cal1: Calibration, name2: str | int, cal2: Calibration) -> Drift:
     """cal2 - cal1 per parameter with its std from both, and per sensor the joint chi^2 of no drift."""
-    sensors, rows = {}, []
+    sensors: dict[str, SensorDrift] = {}
+    rows: list[DriftRow] = []
     for s, b2 in cal2.blocks():
         b1 = getattr(cal1, s)
         p1, p2 = (block_parameters(b1) if b1 is not None else {}), block_parameters(b2)

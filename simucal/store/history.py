@@ -29,7 +29,8 @@ def _change(earlier, later) -> dict:
     (r1, c1), (r2, c2) = earlier, later
     d = drift(r1["id"], c1, r2["id"], c2)
     return {"since": r1["id"], "since_utc": r1["calibrated_utc"],
-            "sensors": {s: {k: v[k] for k in ("chi2", "dof", "p_value")} for s, v in d["sensors"].items()},
+            "sensors": {s: {"chi2": v["chi2"], "dof": v["dof"], "p_value": v["p_value"]}
+                        for s, v in d["sensors"].items()},
             "parameters": [{"name": p["name"], "unit": p["unit"], "change": p["drift"], "std": p["std"], "z": p["z"]}
                            for p in d["parameters"]]}
 
