@@ -114,8 +114,20 @@ def test_a_misspelt_option_and_options_given_twice_are_refused(sets):
         simucal.calibrate(made[methods.TURNTABLE], methd="exact")
     with pytest.raises(ArgumentError, match="acc_noise_g='1e-5' is a str, a number"):
         simucal.calibrate(made[methods.TURNTABLE], acc_noise_g="1e-5")
-    with pytest.raises(InputError, match="as one object or as keywords, not both"):
+    with pytest.raises(InputError, match=r"and add=: give the options as one object or as keywords, not both"):
         simucal.calibrate(made[methods.TURNTABLE], CalibrateOptions(method="exact"), add="acc.quadratic.z")
+
+
+def test_a_thermal_option_is_never_dropped(sets, tmp_path):
+    """thermal_degree makes a calibration over temperature (as --thermal-degree does), refused for one plateau,
+    never a plain calibration; calibrate_each, which calibrates each set on its own, refuses a thermal one."""
+    made, _ = sets
+    with pytest.raises(CalibrationError, match="shows no temperature dependence|temp_c"):
+        simucal.calibrate(made[methods.TURNTABLE], thermal_degree=1)
+    made[methods.TURNTABLE].write(tmp_path / "set")
+    with pytest.raises(InputError, match="calibrate_each: options with thermal"):
+        simucal.calibrate_each([tmp_path / "set"], tmp_path / "cals", options=CalibrateOptions(thermal_degree=1))
+    assert not (tmp_path / "cals").exists()
 
 
 def test_the_options_object_is_frozen_and_takes_one_id_as_a_string():

@@ -124,3 +124,30 @@ def test_a_thermal_calibration_s_common_terms_hold_against_the_truth(tmp_path):
     assert found == set(truth), found
     rms = np.sqrt(np.mean(np.square(z)))
     assert len(z) >= 30 and 0.6 < rms < 1.4 and np.max(np.abs(z)) < 4.5, (len(z), rms, np.round(z, 2))
+
+
+def test_a_failing_thermal_fit_s_common_terms_carry_its_inflated_stds(tmp_path):
+    """Three plateaus of a unit with an effect the model lacks (acc.cross_coupling.xy) and an effect added whose size
+    follows temperature (acc.quadratic.z): the joint fit fails and its stds are inflated; the common bias terms
+    (bias = b in dong2018's models) carry the file's stds, not the covariance's, and the added effect's terms appear
+    by its id."""
+    from simucal.turntable.simulate import Scenario, at_temperature, plant, write
+    sets = []
+    for T in (-10, 25, 60):
+        sc = Scenario()
+        at_temperature(sc, T, t_ref_c=25.0, wander_c=0.3)
+        plant(sc, ["acc.bias_temperature.x=1e-4", "acc.cross_coupling.xy=3e-4", f"acc.quadratic.z={5e-4 + 2e-5 * T}"])
+        write(tmp_path / str(T), sc, T + 50)
+        sets.append(tmp_path / str(T))
+    cal = simucal.calibrate(sets, t_ref_c=25.0, add=["acc.quadratic.z"])
+    assert cal.acc.p_value < 1e-3  # the model fails: the file's stds are inflated
+    common = {(r.sensor, r.name): r for r in simucal.table_rows(cal.parameters())}
+    own = {(r.sensor, r.name): r for r in simucal.table_rows(cal.parameters("own"))}
+    terms = [(s, n) for s, n in common if n.startswith("bias_") and ".T" in n]
+    assert ("acc", "bias_x.T1") in terms
+    for s, n in terms:
+        mine = own[(s, common[(s, n)].own_name)]
+        assert common[(s, n)].std == pytest.approx(mine.std, rel=1e-3), (s, n)
+    effect = [n for s, n in own if s == "acc" and n.startswith("acc.quadratic.z.T")]
+    assert effect and all(common[("acc", n)].own_name == n and common[("acc", n)].std == own[("acc", n)].std
+                          for n in effect)

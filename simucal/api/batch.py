@@ -64,6 +64,9 @@ def calibrate_each(data_dirs: Sequence[str | os.PathLike[str]], folder: str | os
     """
     from simucal.api.calibrating import calibrate_to_file
     from simucal.sweeps import map_tasks
+    if options is not None and (options.thermal or options.thermal_degree is not None):
+        raise InputError("calibrate_each: options with thermal: each set is calibrated on its own; a unit over "
+                         "temperature is one calibrate(sets, thermal=True) (or calibrate_instances, an IMU each)")
     out = Path(folder)
     if out.suffix == ".json" or (out.exists() and not out.is_dir()):
         raise InputError(f"-o {folder}: with {len(data_dirs)} sets, -o names a folder (one <set>.json each)")

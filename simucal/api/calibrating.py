@@ -70,9 +70,13 @@ def calibrate(data: Data | Sequence[Data], options: CalibrateOptions | None = No
     0.000198...
     """
     given = {k: v for k, v in locals().items() if k not in ("data", "options") and v is not None}  # None: left out
-    if options is not None and CalibrateOptions(**given) != CalibrateOptions():
-        raise InputError(f"calibrate: options=CalibrateOptions(...) and {', '.join(sorted(given))}=: give the "
-                         "options as one object or as keywords, not both")
+    defaults = CalibrateOptions()
+    also = sorted(k for k in given if getattr(CalibrateOptions(**{k: given[k]}), k) != getattr(defaults, k))
+    if options is not None and also:
+        raise InputError(f"calibrate: options=CalibrateOptions(...) and {'=, '.join(also)}=: give the options as "
+                         "one object or as keywords, not both")
+    if given.get("thermal_degree") is not None:  # a degree is a thermal calibration's, as --thermal-degree is
+        given["thermal"] = True
     options = options or CalibrateOptions(**given)
     if isinstance(data, (list, tuple)):
         return Calibration.of(calibrate_thermal([as_set(d) for d in data], options))

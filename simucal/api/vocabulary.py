@@ -92,6 +92,8 @@ def _model_stds(block: SensorBlock, model: AugmentedModel) -> Stds:
     p = np.array([block.params[n] for n in names])
     filed = np.array([block.std.get(n, np.nan) for n in names], float)
     cov_block = block.details.get("covariance")
+    if not (cov_block and all(n in cov_block["names"] for n in names)) and block.thermal:
+        cov_block = block.thermal.get("covariance")  # a joint thermal fit's: its k = 0 terms, the parameters at T_ref
     if cov_block and all(n in cov_block["names"] for n in names):
         k = [cov_block["names"].index(n) for n in names]
         cov = np.asarray(cov_block["matrix"], float)[np.ix_(k, k)]
@@ -147,6 +149,9 @@ def thermal_entries(sensor: str, block: SensorBlock, model: AugmentedModel, own:
     if cov_block and all(key in cov_block["names"] for key in keys):
         at = [cov_block["names"].index(key) for key in keys]
         cov = np.asarray(cov_block["matrix"], float)[np.ix_(at, at)]
+        raw = np.sqrt(np.maximum(np.diag(cov), 0.0))
+        scale = np.where((raw > 0) & np.isfinite(x_std), x_std / np.where(raw > 0, raw, 1.0), 1.0)
+        cov = cov * np.outer(scale, scale)  # to the file's stds (inflated by the misfit where the model fails)
     else:
         cov = np.diag(x_std ** 2)
     lo, hi = min(span) - t_ref, max(span) - t_ref
@@ -175,10 +180,9 @@ def thermal_entries(sensor: str, block: SensorBlock, model: AugmentedModel, own:
                                   f"{unit}/degC" + (f"^{k}" if k > 1 else ""),
                                   f"{own[label]}.T{k}" if label in own else None,
                                   f"{MEANINGS[i]}: coefficient of (T - T_ref)^{k}"))
-    for eid, v in block.effects.items():  # a library effect's terms are its parameter's own
-        rows += [Entry(sensor, f"{eid}.T{k}", c, e, unit, term, f"{v.meaning}: coefficient of (T - T_ref)^{k}")
-                 for term, k, c, e, unit in thermal_terms(thermal, eid if v.term_of else EFFECTS[eid].parameter,
-                                                         v.unit)]
+    for eid, v in block.effects.items():  # an effect's terms are its own, named by its id in both vocabularies
+        rows += [Entry(sensor, term, c, e, unit, term, f"{v.meaning}: coefficient of (T - T_ref)^{k}")
+                 for term, k, c, e, unit in thermal_terms(thermal, eid, v.unit)]
     return rows
 
 
