@@ -64,6 +64,8 @@ class CalibrateOptions:
     def __post_init__(self) -> None:
         if isinstance(self.add, str) or not isinstance(self.add, tuple):  # one id or model file, or a list
             object.__setattr__(self, "add", (self.add,) if isinstance(self.add, str) else tuple(self.add))
+        if self.thermal_degree is not None:  # a degree is a thermal calibration's: never dropped
+            object.__setattr__(self, "thermal", True)
 
     @property
     def effect_ids(self) -> tuple[str, ...]:

@@ -64,7 +64,7 @@ def calibrate_each(data_dirs: Sequence[str | os.PathLike[str]], folder: str | os
     """
     from simucal.api.calibrating import calibrate_to_file
     from simucal.sweeps import map_tasks
-    if options is not None and (options.thermal or options.thermal_degree is not None):
+    if options is not None and options.thermal:
         raise InputError("calibrate_each: options with thermal: each set is calibrated on its own; a unit over "
                          "temperature is one calibrate(sets, thermal=True) (or calibrate_instances, an IMU each)")
     out = Path(folder)

@@ -75,8 +75,6 @@ def calibrate(data: Data | Sequence[Data], options: CalibrateOptions | None = No
     if options is not None and also:
         raise InputError(f"calibrate: options=CalibrateOptions(...) and {'=, '.join(also)}=: give the options as "
                          "one object or as keywords, not both")
-    if given.get("thermal_degree") is not None:  # a degree is a thermal calibration's, as --thermal-degree is
-        given["thermal"] = True
     options = options or CalibrateOptions(**given)
     if isinstance(data, (list, tuple)):
         return Calibration.of(calibrate_thermal([as_set(d) for d in data], options))

@@ -103,7 +103,7 @@ def calibrate(data_dirs, output, thermal, thermal_degree, html_out, px4, ardupil
     given = dict(method=method, acc_model=acc_model, gyro_model=gyro_model, detect=detect, add=add,
                  acc_noise_g=acc_noise_g, gyro_noise_dph=gyro_noise_dph, heading_accuracy_deg=heading_accuracy_deg,
                  noise=noise_file, timestamps=timestamps, t_ref_c=t_ref_c, thermal_degree=thermal_degree,
-                 thermal=thermal or thermal_degree is not None)
+                 thermal=thermal)
     options = api.CalibrateOptions(**{k: v for k, v in given.items() if v is not None})  # None: left out
     inputs = list(data_dirs) + [a for a in add if a.endswith(".py")] + ([noise_file] if noise_file else [])
     if len(data_dirs) == 1 or options.thermal:
