@@ -429,8 +429,11 @@ def test_no_public_type_holds_a_record_without_keys():
 
     import simucal.api
     from simucal.io import records
+    from simucal.api.demo_run import DemoRecord
+    from simucal.fit.allan_noise import NoiseReport
     from simucal.handheld.static_detect import DetectSettings
-    _HINT_NAMES.update(JSONValue=records.JSONValue, DetectSettings=DetectSettings)
+    _HINT_NAMES.update(JSONValue=records.JSONValue, DetectSettings=DetectSettings, NoiseReport=NoiseReport,
+                       DemoRecord=DemoRecord)
     seen: set = set()
     found = []
     for name in simucal.__all__:
@@ -443,3 +446,40 @@ def test_no_public_type_holds_a_record_without_keys():
     assert not found, found
     assert _untyped(dict[str, typing.Any], set(), "planted") == ["planted"]
     assert _untyped(typing.Optional[list[dict]], set(), "planted") == ["planted"]
+
+
+BARE = {"dict", "Dict", "dict[str, Any]", "dict[str, object]", "Mapping[str, Any]", "Dict[str, Any]"}
+
+
+def _bare_dict_returns(source: str, where: str) -> list[str]:
+    """The public functions and methods of `source` that return a dict whose keys no type names: annotated
+    dict, dict[str, Any] or Mapping[str, Any] (alone or with None), or unannotated with a dict display returned."""
+    def bare(hint: ast.expr) -> bool:
+        if isinstance(hint, ast.BinOp) and isinstance(hint.op, ast.BitOr):  # X | None
+            return bare(hint.left) or bare(hint.right)
+        return ast.unparse(hint) in BARE
+
+    def returns_a_display(f: ast.FunctionDef) -> bool:
+        inner = {id(n) for g in ast.walk(f) if g is not f and isinstance(g, (ast.FunctionDef, ast.Lambda))
+                 for n in ast.walk(g)}
+        return any(isinstance(n, ast.Return) and isinstance(n.value, (ast.Dict, ast.DictComp)) and id(n) not in inner
+                   for n in ast.walk(f))
+    return [f"{where}:{f.lineno} {f.name}" for f in ast.walk(ast.parse(source))
+            if isinstance(f, ast.FunctionDef) and not f.name.startswith("_")
+            and (bare(f.returns) if f.returns is not None else returns_a_display(f))]
+
+
+def test_no_public_function_returns_a_bare_dict():
+    """Every public function and method of simucal/ that returns a dict says what it holds (a TypedDict, a
+    parameterised mapping, records.JSONObject for a document as written): no bare dict, no dict[str, Any].
+    The check finds each form where it is planted."""
+    found = [e for p in sorted(ROOT.rglob("*.py")) if "generated" not in p.relative_to(ROOT).parts
+             for e in _bare_dict_returns(p.read_text(), str(p.relative_to(ROOT)))]
+    assert not found, found
+    planted = ("def a() -> dict:\n    return {}\n"
+               "def b(x) -> dict[str, Any] | None:\n    return None\n"
+               "class C:\n    def c(self):\n        return {'k': 1}\n"
+               "def d():\n    f = lambda: {}\n    return [f]\n"
+               "def e() -> dict[str, float]:\n    return {}\n"
+               "def _f() -> dict:\n    return {}\n")
+    assert [e.split()[1] for e in _bare_dict_returns(planted, "planted")] == ["a", "b", "c"]

@@ -237,3 +237,31 @@ def test_what_plan_and_montecarlo_return_and_what_sets_state_is_declared(tmp_pat
                                                      "t_ref_c": 25}}.items()}
     for name, ms in sets.items():
         assert _undeclared(dict(ms.meta), meta.Meta, name) == []
+
+
+def test_every_key_a_diagnosis_writes_is_declared(every_method):
+    """diagnosis.json is typed (fit/results.DiagnosisReport, SensorDiagnosis): a turntable set's (with --add and
+    without), a stream's and a sequence's hold only declared keys, each of its declared type."""
+    from simucal.api.diagnosing import diagnosis_report
+    from simucal.fit.results import DiagnosisReport
+    sets = {"turntable": every_method["exact"].input, "stream": every_method["handheld"].input,
+            "sequence": every_method["systematic"].input}
+    reports = {k: diagnosis_report(Path(v)) for k, v in sets.items()}
+    reports["turntable --add"] = diagnosis_report(Path(sets["turntable"]), add=("acc.quadratic.z",))
+    for name, report in reports.items():
+        written = json.loads(json.dumps(report, default=float))
+        problems = _undeclared(written, DiagnosisReport, "diagnosis")
+        assert not problems, f"{name}: {problems[:8]}"
+    assert "added" in reports["turntable --add"]["acc"] and "moves_skipped" in reports["stream"]["gyro"]
+
+
+def test_every_key_a_validation_writes_is_declared(every_method):
+    """validation.json is typed (fit/validation.ValidationReport): a turntable's and a stream's report hold only
+    declared keys, each of its declared type (on their own rows: the note says so)."""
+    from simucal.api.validating import validation_report
+    from simucal.fit.validation import ValidationReport
+    for method in ("exact", "handheld"):
+        cal = every_method[method]
+        written = json.loads(json.dumps(validation_report(cal, Path(cal.input)), default=float))
+        assert not (problems := _undeclared(written, ValidationReport, "validation")), f"{method}: {problems[:8]}"
+        assert written["note"] and not written["independent"]

@@ -13,7 +13,7 @@ from simucal.api.calibrating import calibrate
 from simucal.fit.gauss_newton import tangent_basis
 from simucal.fit.rotations import log_so3, wahba
 from simucal.turntable.simulate import Scenario, mems_unit, simulate
-from simucal.turntable.unification import pair_misfits, wahba_sensitivity
+from simucal.turntable.pairs import pair_misfits, wahba_sensitivity
 
 RATES = (12.0, -12.0, 30.0, -30.0)
 

@@ -4,13 +4,15 @@ from __future__ import annotations
 
 import os
 from dataclasses import dataclass, field
-from typing import Any, NamedTuple, Union
+from typing import TYPE_CHECKING, Any, NamedTuple, Union
 
 from simucal import io
-from simucal.io import records
 from simucal.api.arguments import checked
 from simucal.api.sets import folder_of
 from simucal.api.tables import TableOf
+
+if TYPE_CHECKING:  # the report's type only: fit/ loads when noise() runs
+    from simucal.fit.allan_noise import NoiseReport
 
 Data = Union[str, os.PathLike[str], io.MeasurementSet]
 
@@ -58,7 +60,7 @@ class Noise:
         What `simucal noise -o` writes (``simucal.noise/1``), the same numbers.
     """
     term_rows: list[Term]
-    report: records.JSONObject  # noise.json as written
+    report: NoiseReport  # noise.json as written
     curve_rows: list[AllanPoint] = field(default_factory=list)
     terms = TableOf("term_rows", Term._fields)
     curve = TableOf("curve_rows", AllanPoint._fields)
@@ -131,7 +133,7 @@ def noise(data: Data, *, tau_max_s: float | None = None, scheduler: str | None =
     >>> n.terms[n.terms.name == "angle random walk"]  # doctest: +SKIP
     """
     from simucal import methods
-    from simucal.fit.allan_noise import characterise, characterise_folder
+    from simucal.fit.allan_noise import characterise, characterise_folder, noise_blocks
     from simucal.io import logs, rosbag
     from simucal.report.units import noise_in
     io.units.check_unit_system(units)
@@ -142,19 +144,19 @@ def noise(data: Data, *, tau_max_s: float | None = None, scheduler: str | None =
     shown = noise_in(report, units)  # the tables in the units asked; the report as written
     rows = [Term(s, a, k, t["name"], t["status"], t["value"] if t["status"] == "seen" else None, t.get("std"),
                  t.get("bound_95"), t.get("needs_s"), t["unit"])
-            for s in ("acc", "gyro") if s in shown for a, axis in shown[s]["axes"].items()
+            for s, block in noise_blocks(shown).items() for a, axis in block["axes"].items()
             for k, t in axis.get("sheet", {}).items()]
     return Noise(rows, report, allan_points(shown))
 
 
-def allan_points(report: dict[str, Any]) -> list[AllanPoint]:
+def allan_points(report: NoiseReport) -> list[AllanPoint]:
     """The report's Allan deviation curves as rows (Noise.curve)."""
+    from simucal.fit.allan_noise import noise_blocks
     out = []
-    for s in ("acc", "gyro"):
-        if s not in report:
-            continue
-        for a, axis in report[s]["axes"].items():
-            taus, errs = axis.get("tau_s", report[s]["tau_s"]), axis.get("rel_err") or [None] * len(axis["adev"])
-            out += [AllanPoint(s, a, float(t), float(d), None if e is None else float(e), report[s]["unit"])
+    for s, block in noise_blocks(report).items():
+        for a, axis in block["axes"].items():
+            taus = axis.get("tau_s", block["tau_s"])
+            errs: list[float | None] = [*axis["rel_err"]] if axis.get("rel_err") else [None] * len(axis["adev"])
+            out += [AllanPoint(s, a, float(t), float(d), None if e is None else float(e), block["unit"])
                     for t, d, e in zip(taus, axis["adev"], errs) if d is not None]
     return out

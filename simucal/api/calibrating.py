@@ -24,7 +24,6 @@ from simucal.io import calibration
 from simucal.io.calibration_checks import check_layout, scale_notes
 from simucal.io.sensor_checks import stuck_channels
 from simucal.handheld.static_detect import DetectSettings  # an annotation the door checks
-from simucal.io import stream_records
 from simucal.io.timestamps import with_timestamps
 from simucal.options import AUTO, CalibrateOptions, Method, Timestamps, described, unused
 
@@ -131,7 +130,7 @@ def calibrate_set(folder: Data, options: CalibrateOptions = CalibrateOptions()) 
                             f"covers the {' and '.join(curves)} only)" for s, _ in result.blocks()
                             if curves and s not in curves]
         if stamps:
-            result.details["timestamps"] = cast(stream_records.Timestamps, stamps)  # with_timestamps's block
+            result.details["timestamps"] = stamps
     except CalibrationError as e:
         raise e.naming(ms.path) from None
     return result

@@ -6,7 +6,7 @@ import hashlib
 import json
 import os
 from pathlib import Path
-from typing import Any, NamedTuple
+from typing import TYPE_CHECKING, Any, NamedTuple
 
 from simucal.api.arguments import checked
 from simucal.api.validating import FORMAT as VALIDATION_FORMAT
@@ -14,6 +14,9 @@ from simucal.errors import InputError
 from simucal.io import outputs
 from simucal.io.calibration import loads
 from simucal.version import __version__
+
+if TYPE_CHECKING:  # the row's type only: SQLAlchemy loads for a store's record, not for a file
+    from simucal.store.schema import RecordRow
 
 
 def _validation(path: Path, calibration: str, raw: bytes) -> dict[str, Any]:
@@ -44,7 +47,7 @@ class _Source(NamedTuple):
     where: str           # the file's path, or the store's record, as messages name it
     name: str            # as the certificate gives it
     read: list[Path]     # the files read (never written over)
-    record: dict[str, Any] | None  # a store's record: its row (the unit's serial as the lab recorded it, when, where)
+    record: RecordRow | None  # a store's record: its row (the unit's serial as the lab recorded it, when, where)
     apply_line: str      # the page's next command
 
 

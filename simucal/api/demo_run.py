@@ -15,7 +15,7 @@ from __future__ import annotations
 import json
 import os
 from pathlib import Path
-from typing import Any, Callable, Mapping, cast
+from typing import Any, Callable, Mapping, TypedDict, cast
 
 import numpy as np
 
@@ -44,7 +44,16 @@ def _rest_error(cal: calibration.Calibration, folder: Path) -> float:
     return float(np.sqrt(np.mean((np.linalg.norm(f, axis=1) - 1.0) ** 2)))
 
 
-def loop(out: Path, seed: int, echo: Callable[[str], Any]) -> dict[str, Any]:
+class DemoRecord(TypedDict, total=False):
+    """The demo's record (demo.json): the loop's figures, in the sensors' units."""
+    found: str                       # the hidden effect diagnose found
+    rest_error_before: float         # |f| - 1 g at rest, rms, g: the baseline's and with the effect
+    rest_error_after: float
+    validation: dict[str, float]     # each calibration's first acc check on another recording, rms, g
+    thermal: dict[str, tuple[float, float]]  # per sensor: the thermal and the 25 degC calibration's at 35 degC
+
+
+def loop(out: Path, seed: int, echo: Callable[[str], Any]) -> DemoRecord:
     sc = SCENARIOS["paper"]()
     sc.plan, sc.acc_effects = "fibonacci48", dict(HIDDEN)
     data = out / "loop"
@@ -84,7 +93,7 @@ def loop(out: Path, seed: int, echo: Callable[[str], Any]) -> dict[str, Any]:
     return {"found": found[0], "rest_error_before": err0, "rest_error_after": err1, "validation": other}
 
 
-def _validate(out: Path, sc: Scenario, seed: int, echo: Callable[[str], Any]) -> dict[str, Any]:
+def _validate(out: Path, sc: Scenario, seed: int, echo: Callable[[str], Any]) -> dict[str, float]:
     """Step 6: both calibrations on another recording of the same unit (the Table 1 plan, raw rows)."""
     from simucal.api.validating import html_page, validation_report
     sc.plan, sc.rate_hz, sc.static_s = "table1", 20.0, 5.0  # meta.json states the table (simulate's default)
@@ -117,7 +126,7 @@ THERMAL = {"acc.bias_temperature.x": 1e-5, "acc.bias_temperature2.x": 1e-7, "acc
            "gyro.bias_temperature.z": 0.01, "gyro.scale_temperature.x": 2e-6}
 
 
-def thermal(out: Path, seed: int, echo: Callable[[str], Any]) -> dict[str, Any]:
+def thermal(out: Path, seed: int, echo: Callable[[str], Any]) -> dict[str, tuple[float, float]]:
     """The unit over temperature: plateaus at 0, 25 and 50 degC that wander +-0.3 degC, simulated as
     `simulate --temperature-c T --t-ref-c 25 --temperature-wander-c 0.3` does and calibrated with
     --thermal (one fit, every row at its own temperature); it and the 25 degC plateau's calibration
@@ -193,7 +202,7 @@ def paper(out: Path, seed: int, echo: Callable[[str], Any]) -> None:
     echo(f"diagnose: {out / 'diagnosis.html'}: {diag['verdict']}")
 
 
-def run(out_dir: str | os.PathLike[str], seed: int, echo: Callable[[str], Any]) -> dict[str, Any]:
+def run(out_dir: str | os.PathLike[str], seed: int, echo: Callable[[str], Any]) -> DemoRecord:
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
     stale, secs, diff = derive_cmd.run(check=True)

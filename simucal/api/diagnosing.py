@@ -14,7 +14,7 @@ import json
 import os
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any, Callable, NamedTuple, Sequence
+from typing import Any, Callable, Mapping, NamedTuple, Sequence, cast
 
 import numpy as np
 
@@ -29,11 +29,13 @@ from simucal.io import records
 from simucal.errors import CalibrationError
 from simucal.fit.augmented import AugmentedModel
 from simucal.fit.candidates import test_model
+from simucal.io.results import SensorTruth
 from simucal.io.text_files import json_object_or_none
 from simucal.report.console import skipped_sensors
 from simucal.report.verdicts import sensor_verdict
 from simucal.fit.norm_fit import Fit, Observations
-from simucal.fit.results import ALPHA, added_params, model_test_keys
+from simucal.fit.results import (ALPHA, DiagnosisReport, SensorDiagnosis, added_params, model_test_keys,
+                                 diagnosis_blocks)
 from simucal.io.timestamps import with_timestamps
 from simucal.report.model_files import model_file_text
 from simucal.turntable.model_test import test_and_rank
@@ -101,7 +103,7 @@ class Diagnosis:
     next_notes: list[str]
     notes: list[str]
     model_files: dict[str, str]
-    report: records.JSONObject  # diagnosis.json as written
+    report: DiagnosisReport  # diagnosis.json as written
     suggested: list[Suggestion] = field(default_factory=list)
     next: NextStep = NextStep("calibrate", {"add": []}, "simucal.calibrate(data)", "", ())
     candidates = TableOf("candidate_rows", ("sensor", "id", "estimate", "std", "unit", "statistic", "p_value",
@@ -157,11 +159,11 @@ def diagnose(data: Data, *, add: str | Sequence[str] = (), acc_model: str = "acc
     if "auto" in add:
         raise InputError("add 'auto' is calibrate's: diagnose already ranks every candidate")
     report = diagnosis_report(as_set(data), add, acc_model, gyro_model, acc_noise_g, gyro_noise_dph, timestamps)
-    sensors = [s for s in ("acc", "gyro") if s in report]
+    blocks = diagnosis_blocks(report)
     shown = diagnosis_in(report, units)  # the verdicts and the table in the units asked; the report as written
     rows = [Candidate.of(c) for c in shown["candidates"]]
-    files: dict[str, str] = {s: report[s]["shape"]["model_file"] for s in sensors
-                             if report[s].get("shape") and not report[s]["shape"].get("catalog_id")}
+    files: dict[str, str] = {s: str(b["shape"]["model_file"]) for s, b in blocks.items()
+                             if b.get("shape") and not b["shape"].get("catalog_id")}
     refused = calibrate_refusal(report)
     adds, notes = next_adds(report)
     call = f"simucal.calibrate(data, add={adds!r})" + (
@@ -174,25 +176,22 @@ def diagnose(data: Data, *, add: str | Sequence[str] = (), acc_model: str = "acc
         command = next_command(report)[0]
         cmd = call if in_memory else command  # a set in memory: the next step is a call, not a command on a folder
         step = NextStep("calibrate", {"add": adds}, call, command, tuple(notes))
-    return Diagnosis({s: shown[s]["verdict"] for s in sensors}, rows, cmd, notes,
+    return Diagnosis({s: b["verdict"] for s, b in diagnosis_blocks(shown).items()}, rows, cmd, notes,
                      list(report.get("notes", [])), files, report, suggestions(shown), step)
 
 
-def suggestions(report: dict[str, Any]) -> list[Suggestion]:
+def suggestions(report: DiagnosisReport) -> list[Suggestion]:
     """Each sensor's effects its verdict adds (report/console.to_add) and a lead whose twins no rows could
     choose between (added by neither), with the candidate's statistics."""
     from simucal.report.console import to_add
     out = []
-    for s in ("acc", "gyro"):
-        if s not in report:
-            continue
+    for s, block in diagnosis_blocks(report).items():
         found, why = to_add(report, s)
-        block = report[s]
         cands = {c["id"]: c for c in block["candidates"]}
         lead = next((c for c in block["candidates"] if c.get("significant")), None)
         undecided = [lead["id"]] if lead and lead.get("twins_undecided") and not found else []
         for eid in [e for e in found or [] if e in cands] + undecided:
-            c = cands[eid]
+            c: Mapping[str, Any] = cands[eid]  # read by the names below
             number: Callable[[str], float | None] = lambda k: None if c.get(k) is None else float(c[k])  # noqa: E731 (numpy's scalars as floats)
             out.append(Suggestion(s, eid, number("estimate"), number("std"), c.get("unit", ""), number("statistic"),
                                   number("p_value"), tuple(c.get("twins") or ()),
@@ -213,7 +212,7 @@ def save_diagnosis(path: str | os.PathLike[str], d: Diagnosis) -> list[Path]:
     for s, text in d.model_files.items():
         written.append(shape_model_path(path, s))
         outputs.write_text(written[-1], text)
-        block = d.report[s]
+        block = cast(Mapping[str, Any], d.report).get(s)
         shape = block.get("shape") if isinstance(block, dict) else None
         if isinstance(shape, dict):  # a model file is written for a shape found
             shape["model_file_path"] = str(written[-1])
@@ -221,9 +220,10 @@ def save_diagnosis(path: str | os.PathLike[str], d: Diagnosis) -> list[Path]:
     return written
 
 
-def residual_table(fit: Fit, obs: Observations, segs: Sequence[io.Segment]) -> list[dict[str, Any]]:
+def residual_table(fit: Fit, obs: Observations, segs: Sequence[io.Segment]) -> list[records.JSONObject]:
+    """Each row's residual, its sigma and its inputs (the rows of a diagnosis's `residuals`)."""
     assert fit.directions is not None  # an exact fit's (test_model)
-    rows = []
+    rows: list[records.JSONObject] = []
     for i, s in enumerate(segs):
         r = fit.residuals[i]
         sd = obs.sigma[i] if obs.sigma is not None else None
@@ -236,9 +236,10 @@ def residual_table(fit: Fit, obs: Observations, segs: Sequence[io.Segment]) -> l
 
 
 def diagnose_sensor(ms: io.MeasurementSet, sensor: str, base_model: str, add: Sequence[str] = (),
-                    stated: float | None = None, truth: dict[str, Any] | None = None, before_model: str | None = None,
+                    stated: float | None = None, truth: dict[str, SensorTruth] | None = None,
+                    before_model: str | None = None,
                     added: Sequence[str] = (), acc_model: str | AugmentedModel = "acc_baseline",
-                    kind: methods.Kind | None = None) -> dict[str, Any] | None:
+                    kind: methods.Kind | None = None) -> SensorDiagnosis | None:
     """One sensor's block. add: effect ids; before_model: the model to compare with when
     something was added (default base_model without the ids); added: what the user added
     (ids and model files), for the report; acc_model: on a stream, the accelerometer model (its
@@ -246,14 +247,14 @@ def diagnose_sensor(ms: io.MeasurementSet, sensor: str, base_model: str, add: Se
     in methods.KINDS (default its own), which gives the rows and what else its data judge."""
     kind = kind or methods.kind_of(ms)
     if sensor == "gyro" and kind.diagnose_gyro is not None:  # judged its own way (a stream: against its moves)
-        return kind.diagnose_gyro(ms, base_model, tuple(add), truth, acc_model)
+        return cast(SensorDiagnosis, kind.diagnose_gyro(ms, base_model, tuple(add), truth, acc_model))
     found = kind.observations(ms, sensor, stated)
     if found is None:
         return None
     obs, segs, rows = found
     model = AugmentedModel(base_model, tuple(add))
     fit, obs, base, cands, shape, table_info = test_and_rank(model, obs, segs)
-    out = {**model_test_keys(base), "candidates": cands,
+    out: dict[str, Any] = {**model_test_keys(base), "candidates": cands,
            "params": fit.params, "std": fit.std, "param_units": dict(zip(model.params, model.param_units)),
            "residuals": residual_table(fit, obs, rows)}
     if shape:
@@ -273,16 +274,16 @@ def diagnose_sensor(ms: io.MeasurementSet, sensor: str, base_model: str, add: Se
                         "residual_rms_after": fit.residual_rms, "residual_unit": model.unit,
                         "p_value_before": b0["p_value"], "p_value_after": base["p_value"], "params": comp,
                         "residuals_before": residual_table(f0, obs, segs)}
-    return out
+    return cast(SensorDiagnosis, out)  # with its kind's extras (tests/test_calibration_file.py checks the keys)
 
 
-def scoring_truth(path: Path) -> dict[str, Any] | None:
+def scoring_truth(path: Path) -> dict[str, SensorTruth] | None:
     """A simulator's truth.json beside the set, read for scoring only (the errors of --add's parameters):
     {sensor: {params: {name: number}, T: 3x3, bias_dps: 3}} with whatever is not of that shape left
     out, and None where it is missing or unreadable (deep, damaged, not JSON): it is never an input."""
     d = json_object_or_none(path)
     number: Callable[[Any], bool] = lambda x: isinstance(x, (int, float)) and not isinstance(x, bool) and np.isfinite(x)
-    out = {}
+    out: dict[str, dict[str, Any]] = {}
     for sensor, block in (d.items() if isinstance(d, dict) else ()):
         if sensor not in ("acc", "gyro") or not isinstance(block, dict):
             continue
@@ -295,12 +296,12 @@ def scoring_truth(path: Path) -> dict[str, Any] | None:
                     out[sensor][key] = a.tolist()
             except (KeyError, TypeError, ValueError):
                 continue
-    return out
+    return cast("dict[str, SensorTruth]", out)
 
 
 def diagnosis_report(folder: Data, add: Sequence[str] = (), acc_model: str = "acc_baseline",
                      gyro_model: str = "gyro_baseline", acc_noise_g: float | None = None,
-                     gyro_noise_dph: float | None = None, timestamps: str = "auto") -> dict[str, Any]:
+                     gyro_noise_dph: float | None = None, timestamps: str = "auto") -> DiagnosisReport:
     """folder: a set's folder, or the set (io.MeasurementSet: its truth.json beside it, if any, scores);
     add: effect ids and model files (fit/augmented.resolve_add); timestamps: a stream's time
     stamps as calibrate takes them (io/timestamps.py)."""
@@ -319,7 +320,7 @@ def diagnosis_report(folder: Data, add: Sequence[str] = (), acc_model: str = "ac
 
 
 def _diagnose(ms: io.MeasurementSet, folder: Path, add: Sequence[str], acc_model: str, gyro_model: str,
-              acc_noise_g: float | None, gyro_noise_dph: float | None) -> dict[str, Any]:
+              acc_noise_g: float | None, gyro_noise_dph: float | None) -> DiagnosisReport:
     from simucal.fit.augmented import resolve_add
     from simucal.io.sensor_checks import stuck_channels
     stuck_channels(ms)
@@ -361,4 +362,4 @@ def _diagnose(ms: io.MeasurementSet, folder: Path, add: Sequence[str], acc_model
         [c for s in sensors for c in result[s]["candidates"] if not c["separable"]]
     result["verdict"] = " | ".join(result[s]["verdict"] for s in sensors)
     result["notes"] = skipped_sensors(ms.sensors) + result.get("notes", [])
-    return result
+    return cast(DiagnosisReport, result)  # with the kind's keys (tests/test_calibration_file.py checks them)

@@ -23,7 +23,7 @@ from __future__ import annotations
 
 import os
 from pathlib import Path
-from typing import Any, Mapping, Sequence
+from typing import Mapping, Sequence
 
 import numpy as np
 from numpy.typing import NDArray
@@ -31,11 +31,11 @@ from numpy.typing import NDArray
 from simucal.api.arguments import checked
 from simucal.api.vocabulary import entries
 from simucal.errors import CalibrationError, InputError, StoreError
-from simucal.io import records
 from simucal.io.calibration import Calibration, load
 from simucal.io.calibration_checks import SERIAL, CalibrationFileError
 from simucal.report.console import n_units
-from simucal.report.lot_figures import (DRIFT_P, Drift, block_parameters, drift, model_name,
+from simucal.report.lot_figures import (DRIFT_P, Drift, Limit, LotGroup, LotParameter, LotReport, LotUnit,
+                                        NamedOutlier, NotCalibration, UnitTest, block_parameters, drift, model_name,
                                         outside, read_limits)
 
 FORMAT = "simucal.lot/1"
@@ -45,10 +45,11 @@ MIN_UNITS = 20     # fewer units: no outlier test (said in the report): a median
 SIMULATED_UNITS = 50_000  # units of normal lots simulated for the threshold: its 1e-3 tail holds 50
 
 
-def read_folder(folder: str | os.PathLike[str]) -> tuple[list[tuple[str, Calibration]], list[dict[str, str]]]:
+def read_folder(folder: str | os.PathLike[str]) -> tuple[list[tuple[str, Calibration]], list[NotCalibration]]:
     """The calibrations of a folder, by file name, and every other file in it named with why."""
     folder = Path(folder)
-    cals, others = [], []
+    cals: list[tuple[str, Calibration]] = []
+    others: list[NotCalibration] = []
     for p in sorted(folder.iterdir()):
         if p.is_dir():
             others.append({"file": p.name, "why": "a folder, not a calibration file"})
@@ -116,9 +117,9 @@ def threshold(tau: NDArray[np.float64], s: NDArray[np.float64], p: float = OUTLI
     return float(np.quantile(np.abs(z).max(axis=-1), 1.0 - p))
 
 
-def _group(names: Sequence[str], cals: Sequence[Calibration]) -> dict[str, Any]:
-    """One group's parameters (those every unit's file gives with a std): each one's distribution over
-    the units and its outliers, by the rule of the module doc."""
+def _group(key: str, names: Sequence[str], cals: Sequence[Calibration]) -> LotGroup:
+    """One group's (key: its method and model) parameters (those every unit's file gives with a std): each one's
+    distribution over the units and its outliers, by the rule of the module doc."""
     per_unit = [_parameters(c) for c in cals]
     params = sorted(set.intersection(*(set(d) for d in per_unit)))
     x = np.array([[d[p][0] for p in params] for d in per_unit]).reshape(len(cals), len(params))
@@ -126,7 +127,7 @@ def _group(names: Sequence[str], cals: Sequence[Calibration]) -> dict[str, Any]:
     z, centre, spread, tau = _z(x, s)
     tested = len(cals) >= MIN_UNITS and params
     z_max = threshold(tau[0], s) if tested else None
-    rows = [{"name": p, "unit": per_unit[0][p][2], "own_name": per_unit[0][p][3],
+    rows: list[LotParameter] = [{"name": p, "unit": per_unit[0][p][2], "own_name": per_unit[0][p][3],
              "centre": float(centre[0, j]), "spread": float(spread[0, j]),
              "spread_of_units": float(tau[0, j]), "median_std": float(np.median(s[:, j])),
              "values": x[:, j].tolist(), "stds": s[:, j].tolist(), "z": z[:, j].tolist(),
@@ -137,7 +138,7 @@ def _group(names: Sequence[str], cals: Sequence[Calibration]) -> dict[str, Any]:
             f"of a normal lot is flagged with a chance of {OUTLIER_P:g}" if tested else
             f"not tested: {n_units(len(cals))}, fewer than {MIN_UNITS}")
     left = sorted(set().union(*per_unit) - set(params))
-    return {"units": list(names), "parameters": rows, "outlier_rule": rule, "z_threshold": z_max,
+    return {"key": key, "units": list(names), "parameters": rows, "outlier_rule": rule, "z_threshold": z_max,
             **({"not_compared": left} if left else {})}
 
 
@@ -162,10 +163,10 @@ def _drifted(d: Drift) -> list[str]:
     return [s for s, v in d["sensors"].items() if v["verdict"] == "drifted"]
 
 
-def _unit(name: str, cal: Calibration, group: str, limits: Mapping[str, Any], outliers: list[dict[str, Any]],
-          drifted: list[Drift]) -> dict[str, Any]:
+def _unit(name: str, cal: Calibration, group: str, limits: Mapping[str, Limit], outliers: list[NamedOutlier],
+          drifted: list[Drift]) -> LotUnit:
     """One unit: its model tests, limits broken, outliers, and its status with the reasons."""
-    tests = {s: {"verdict": b.verdict, "p_value": b.p_value} for s, b in cal.blocks()}
+    tests: dict[str, UnitTest] = {s: {"verdict": b.verdict, "p_value": b.p_value} for s, b in cal.blocks()}
     fails = [f"{s} model test fails (p = {t['p_value']:.2g})" for s, t in tests.items() if t["verdict"] == "fails"]
     fails += [f"{s} not calibrated ({why})" for s, why in cal.not_calibrated.items()]
     fails += [f"{s} left at nominal" for s, t in tests.items() if t["verdict"] == "nominal"]
@@ -181,7 +182,7 @@ def _unit(name: str, cal: Calibration, group: str, limits: Mapping[str, Any], ou
             "why": fails + flags}
 
 
-def _next(units: list[dict[str, Any]], folder: str | os.PathLike[str]) -> str:
+def _next(units: list[LotUnit], folder: str | os.PathLike[str]) -> str:
     """The command to run next: diagnose the first unit whose model fails, else validate the first unit
     failed or flagged on another recording of it, else apply."""
     for u in units:
@@ -193,7 +194,7 @@ def _next(units: list[dict[str, Any]], folder: str | os.PathLike[str]) -> str:
     return f"simucal apply {Path(folder) / units[0]['file']} DATA_OF_THAT_UNIT -o OUT (each unit its own file)"
 
 
-def verdict_lines(report: Mapping[str, Any]) -> list[str]:
+def verdict_lines(report: LotReport) -> list[str]:
     """The lot's verdict in words: how many pass, which fail and why, which are flagged."""
     units = report["units"]
     by = {s: [u for u in units if u["status"] == s] for s in ("passes", "fails", "flagged")}
@@ -212,7 +213,7 @@ def verdict_lines(report: Mapping[str, Any]) -> list[str]:
 @checked
 def lot(folder: str | os.PathLike[str] | None = None, limits: str | os.PathLike[str] | None = None, *,
         store: str | os.PathLike[str] | None = None, since: str | None = None, until: str | None = None,
-        method: str | None = None, model: str | None = None, station: str | None = None) -> records.JSONObject:
+        method: str | None = None, model: str | None = None, station: str | None = None) -> LotReport:
     """The lot report of the calibration files in a folder, or of a store's records: the dict `simucal lot -o
     lot.json` writes.
 
@@ -264,16 +265,16 @@ def lot(folder: str | os.PathLike[str] | None = None, limits: str | os.PathLike[
 
 
 def lot_report(folder: str | os.PathLike[str], limits: str | os.PathLike[str] | None,
-               cals: Sequence[tuple[str, Calibration]], others: list[dict[str, str]]) -> records.JSONObject:
+               cals: Sequence[tuple[str, Calibration]], others: list[NotCalibration]) -> LotReport:
     """The lot report (module doc) of cals, (name, Calibration) each, read from `folder` (or what names them: a
     store), beside `others`, the folder's files that are not calibrations."""
     latest, earlier, drifts = _by_serial(cals)
     keys = [_group_key(c) for _, c in latest]
-    groups = [{"key": k, **_group([n for (n, _), kk in zip(latest, keys) if kk == k],
-                                  [c for (_, c), kk in zip(latest, keys) if kk == k])} for k in dict.fromkeys(keys)]
+    groups = [_group(k, [n for (n, _), kk in zip(latest, keys) if kk == k],
+                     [c for (_, c), kk in zip(latest, keys) if kk == k]) for k in dict.fromkeys(keys)]
     known = {n: v[2] for _, c in latest for n, v in _limited(c).items()}
     limits_of = read_limits(limits, known) if limits else {}
-    outliers: dict[str, list[dict[str, Any]]] = {}  # per unit: its outlying parameters
+    outliers: dict[str, list[NamedOutlier]] = {}  # per unit: its outlying parameters
     for g in groups:
         for p in g["parameters"]:
             for o in p["outliers"]:
@@ -281,9 +282,8 @@ def lot_report(folder: str | os.PathLike[str], limits: str | os.PathLike[str] | 
     units = [_unit(n, c, k, limits_of, outliers.get(n, []),
                    [d for d in drifts if d["later"] == n and _drifted(d)])
              for (n, c), k in zip(latest, keys)]
-    report: dict[str, Any] = {"format": FORMAT, "folder": str(folder), "units": units, "groups": groups,
-                              "limits": limits_of, "drift": drifts, "superseded": earlier, "not_calibrations": others,
-                              "outlier_p": OUTLIER_P, "drift_p": DRIFT_P}
+    report: LotReport = {"format": FORMAT, "folder": str(folder), "units": units, "groups": groups,
+                         "limits": limits_of, "drift": drifts, "superseded": earlier, "not_calibrations": others,
+                         "outlier_p": OUTLIER_P, "drift_p": DRIFT_P, "verdict": [], "next": _next(units, folder)}
     report["verdict"] = verdict_lines(report)
-    report["next"] = _next(units, folder)
     return report

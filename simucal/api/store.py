@@ -3,16 +3,16 @@ from __future__ import annotations
 
 import os
 from collections import namedtuple
-from typing import Any, Sequence
+from typing import Any, Mapping, Sequence
 
 from simucal.api.arguments import checked
 from simucal.api.tables import table
 from simucal.io import calibration as _file
-from simucal.io import records as _records
 from simucal.store import CalibrationStore
+from simucal.store.history import History
 from simucal.store.history import lines as history_lines  # noqa: F401 (the command line's words)
 from simucal.store.queries import PARAMETER_COLUMNS, RECORD_COLUMNS
-from simucal.store.schema import local_file
+from simucal.store.schema import RecordRow, local_file
 
 TREND_COLUMNS = ("name", "unit", "calibrations", "last_value", "last_std", "slope_per_year", "slope_std", "chi2",
                  "dof", "p_value", "expected_utc", "earliest_utc")
@@ -20,13 +20,13 @@ CHANGE_COLUMNS = ("record", "calibrated_utc", "name", "unit", "value_change_sinc
                   "value_change_since_first", "z_since_first", "flagged")
 
 
-def history_page(report: _records.JSONObject) -> str:
+def history_page(report: History) -> str:
     """The unit's page of `Store.history`'s report (`simucal history --html`; report/history_html.py)."""
     from simucal.report.history_html import history_page as page  # matplotlib: only where a page is asked for
     return page(report)
 
 
-def _table(rows: list[dict[str, Any]], columns: Sequence[str]) -> Any:
+def _table(rows: Sequence[Mapping[str, object]], columns: Sequence[str]) -> Any:
     """rows (dicts whose keys are `columns`, in that order: the query's) as the API's table."""
     row = namedtuple("Row", columns)  # type: ignore[misc]  # the columns are the query's
     assert not rows or tuple(rows[0]) == tuple(columns), (tuple(rows[0]), columns)
@@ -102,7 +102,7 @@ class Store:
         return found[record]
 
     @checked
-    def record(self, record: int) -> dict[str, Any]:
+    def record(self, record: int) -> RecordRow:
         """Record `record`'s row as records() gives it (id, serial, calibrated_utc, station, ...), as a dict."""
         rows = self._store.records(record_id=record)
         if not rows:
@@ -115,7 +115,7 @@ class Store:
 
     @checked
     def history(self, serial: str, limits: str | os.PathLike[str] | None = None,
-                spec: str | os.PathLike[str] | None = None) -> _records.JSONObject:
+                spec: str | os.PathLike[str] | None = None) -> History:
         """Unit `serial`'s history as `simucal history SERIAL -o history.json` writes it: each calibration's change
         since the last and the first in std, the flags and why (simucal/store/history.py), and its trend with the
         due date by `spec` (a limits.json bounding each parameter's value; simucal/store/trend.py).
@@ -129,7 +129,7 @@ class Store:
         with its std, chi2 of the line on dof (from three calibrations), and the dates at which the line
         (expected_utc) and its k = 2 band (earliest_utc) first reach the spec's limits (simucal/store/trend.py)."""
         rows = [{"name": p["name"], "unit": p["unit"], "calibrations": len(p["values"]), "last_value": p["values"][-1],
-                 "last_std": p["stds"][-1], **{k: p[k] for k in TREND_COLUMNS[5:]}}
+                 "last_std": p["stds"][-1], **{k: p.get(k) for k in TREND_COLUMNS[5:]}}
                 for p in self._store.history(serial, spec=spec)["trend"]["parameters"]]
         return _table(rows, TREND_COLUMNS)
 

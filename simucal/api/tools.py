@@ -5,10 +5,12 @@ printing): the models derived, the paper audited, the demo run (api/demo_run.py)
 from __future__ import annotations
 
 import os
-from typing import Any, Callable, NamedTuple
+from typing import TYPE_CHECKING, Any, Callable, NamedTuple
 
 from simucal.api.arguments import checked
-from simucal.io import records
+
+if TYPE_CHECKING:  # the record's type only: the demo's modules load when it runs
+    from simucal.api.demo_run import DemoRecord
 
 
 class Derived(NamedTuple):
@@ -85,7 +87,7 @@ def demo_outputs(out: str | os.PathLike[str]) -> tuple[list[Any], Any]:
     return [Path(out) / d for d in demo_run.SETS], Path(out) / demo_run.MARKER
 
 
-def demo(out: str | os.PathLike[str], seed: int = 0, echo: Callable[[str], Any] = print) -> records.JSONObject:
+def demo(out: str | os.PathLike[str], seed: int = 0, echo: Callable[[str], Any] = print) -> DemoRecord:
     """The main job end to end on built-in simulated data (`simucal demo -o OUT`): a hidden effect found, added,
     calibrated with, applied and validated; the unit over temperature; its noise; the paper's methods. Writes
     into `out`; echo prints each step. Returns the demo's record (demo.json)."""

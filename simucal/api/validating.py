@@ -47,9 +47,9 @@ from simucal.api.calibration import Calibration
 from simucal.api.sets import folder_of
 from simucal.api.tables import TableOf
 from simucal.fit.apply import apply
-from simucal.fit.validation import FAR_OFF
+from simucal.fit.validation import FAR_OFF, ValidationReport
 from simucal.errors import CalibrationError
-from simucal.io import calibration, records, units
+from simucal.io import calibration, units
 from simucal.io.timestamps import with_timestamps
 from simucal.report.console import skipped_sensors, validation_next
 
@@ -161,7 +161,7 @@ class Validation:
     check_rows: list[Check]
     independent: bool
     warnings: list[str]
-    report: records.JSONObject  # validation.json as written
+    report: ValidationReport  # validation.json as written
     checks = TableOf("check_rows", Check._fields)
 
     def __repr__(self) -> str:  # the report's arrays are in .report
@@ -215,7 +215,7 @@ def validate(cal: Calibration | str | os.PathLike[str], data: Data, *, acc_noise
 def validation_report(cal_path: str | os.PathLike[str] | calibration.Calibration,
                       data_dir: str | os.PathLike[str] | io.MeasurementSet,
                       acc_noise_g: float | None = None, gyro_noise_dph: float | None = None,
-                      timestamps: str | None = None) -> dict[str, Any]:
+                      timestamps: str | None = None) -> ValidationReport:
     """The report (module doc) of calibration file cal_path (or a Calibration) applied to the set data_dir
     (or a MeasurementSet). acc_noise_g, gyro_noise_dph: the noise of one row where the data cannot give it
     (averaged rows), as calibrate takes it: the floors of those rows' checks stand on it. timestamps: a
@@ -280,7 +280,7 @@ def own_rows(cal: calibration.Calibration, ms: io.MeasurementSet) -> str:
     return ""
 
 
-def lines(report: dict[str, Any], units: str = "spec") -> list[str]:
+def lines(report: ValidationReport, units: str = "spec") -> list[str]:
     """The console: one table row per check, then the verdict per sensor, in the unit system asked."""
     if units == "spec":
         return list(_lines(report))
@@ -289,7 +289,7 @@ def lines(report: dict[str, Any], units: str = "spec") -> list[str]:
     return shown.lines_in(_lines(shown.validation_in(report, units, g)), units, g)
 
 
-def _lines(report: dict[str, Any]) -> Iterator[str]:
+def _lines(report: ValidationReport) -> Iterator[str]:
     if report["note"]:
         yield f"NOTE: {report['note']}"
     for x in report.get("nominal", []):
@@ -315,12 +315,12 @@ def _lines(report: dict[str, Any]) -> Iterator[str]:
     yield "next: " + validation_next(report)[0]
 
 
-def _own(report: dict[str, Any]) -> str:
+def _own(report: ValidationReport) -> str:
     """What a verdict on the calibration's own rows adds to it: that it proves nothing (the NOTE says why)."""
     return " (NOT INDEPENDENT: the calibration's own rows)" if report["note"] else ""
 
 
-def html_page(report: dict[str, Any]) -> str:
+def html_page(report: ValidationReport) -> str:
     """A self-contained page: the verdicts and the next command (report/console.py's, as the console
     prints them), each check's error at nominal and calibrated on a log scale with its floor, the table."""
     from simucal.report.numbers import eng_html

@@ -19,6 +19,7 @@ from __future__ import annotations
 
 import os
 from pathlib import Path
+from typing import TypedDict
 
 import numpy as np
 
@@ -122,7 +123,18 @@ def _noise(raw, dt_raw):
     return float(np.sqrt(np.mean(white_noise_var(raw))) * np.sqrt(dt_raw))
 
 
-def position_estimate(f_raw, w_raw, t, heading_rad, meta, block_s=1.0, stages=2):
+class PositionFilter(TypedDict):
+    """One position's alignment and north-drift filter (position_estimate); per filter step where an array."""
+    C_b_n: np.ndarray          # the attitude, body to navigation (North-Up-East)
+    c_N: np.ndarray            # north in the body frame, unit
+    eps_N: np.ndarray          # the north drift's estimate, deg/h
+    std: np.ndarray            # its std, deg/h
+    t: np.ndarray              # s
+    arw_dpsh: float            # the gyros' angle random walk, deg/sqrt(h)
+    vrw_mps_sqrth: float       # the accelerometers' velocity random walk, m/s/sqrt(h)
+
+
+def position_estimate(f_raw, w_raw, t, heading_rad, meta, block_s=1.0, stages=2) -> PositionFilter:
     """Alignment and north-drift filter at one position; SI units in, dict out."""
     lat = np.radians(meta["latitude_deg"])
     w_e = units.earth_rate_dph(meta) * units.RAD_S_PER_DPH

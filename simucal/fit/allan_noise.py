@@ -6,23 +6,25 @@ from __future__ import annotations
 import contextlib
 import tempfile
 from pathlib import Path
-from typing import Any, TypedDict
+from typing import TypedDict
 
 import numpy as np
 
 from simucal import io
 from simucal.errors import CalibrationError
 from simucal.fit import allan_cov, allan_sums
-from simucal.fit.allan_terms import UNIT, axis_from_avar, axis_report, cluster_sizes, sensor_report, stuck
+from simucal.fit.allan_terms import (UNIT, SensorNoise, axis_from_avar, axis_report, cluster_sizes, sensor_report,
+                                     stuck)
 from simucal.fit.stillness import check_still, check_still_stream, sample_step, still_stretches
 from simucal.io import MeasurementSetError, columnar
 
-def characterise(ms, kind, tau_max_s=None) -> dict:
+
+def characterise(ms, kind, tau_max_s=None) -> NoiseReport:
     """The report of `simucal noise` (simucal.fit.allan_terms) of a set of this kind (simucal.methods.Kind: its
     still rows, whether it must be still throughout): per sensor and axis, the Allan deviation with its
     68 % interval and the terms seen (value, std) or not (95 % bound) in the sensor's units and a
     data sheet's; tau up to tau_max_s (default a ninth of the longest still stretch)."""
-    out: dict[str, Any] = {"format": "simucal.noise/1", "data": str(ms.path)}
+    out: NoiseReport = {"format": "simucal.noise/1", "data": str(ms.path)}
     for sensor, has in (("acc", ms.has_acc), ("gyro", ms.has_gyro)):
         if not has:
             continue
@@ -31,8 +33,9 @@ def characterise(ms, kind, tau_max_s=None) -> dict:
         lengths = [len(s) for s in stretches]
         m = cluster_sizes(lengths, dt, tau_max_s, ms.path / "samples.csv")
         mats = allan_cov.basis(m, dt, lengths)
-        out[sensor] = sensor_report(sensor, dt, m, where, {a: axis_report(
-            sensor, [s[:, j] for s in stretches], dt, m, mats, UNIT[sensor]) for j, a in enumerate("xyz")})
+        axes = {a: axis_report(sensor, [s[:, j] for s in stretches], dt, m, mats, UNIT[sensor])
+                for j, a in enumerate("xyz")}
+        out[sensor] = sensor_report(sensor, dt, m, where, axes)  # type: ignore[literal-required]  # acc or gyro
     if "acc" not in out and "gyro" not in out:
         raise CalibrationError(f"{ms.path}: no sensor columns to characterise")
     if "temp_c" in ms.samples:
@@ -53,6 +56,20 @@ class TemperatureRange(TypedDict, total=False):
 TemperatureBlock = TypedDict("TemperatureBlock", {"temperature": TemperatureRange})  # the report's temperature key
 
 
+class NoiseReport(TypedDict, total=False):
+    """What `simucal noise -o` writes (simucal.noise/1; characterise)."""
+    format: str                       # simucal.noise/1
+    data: str                         # the set's folder
+    acc: SensorNoise                  # each sensor's block, where the set has it
+    gyro: SensorNoise
+    temperature: TemperatureRange     # where the set has temp_c (temperature_block)
+
+
+def noise_blocks(report: NoiseReport) -> dict[str, SensorNoise]:
+    """The report's sensor blocks by name, those it has."""
+    return {s: b for s, b in (("acc", report.get("acc")), ("gyro", report.get("gyro"))) if b is not None}
+
+
 def temperature_block(lo, hi, data) -> TemperatureBlock:
     """{"temperature": its range and, where it changes by over TEMP_CHANGE_C, the warning}: a warming board's
     bias follows its temperature, which the Allan variance reads as rate ramp, random walk and instability."""
@@ -67,7 +84,7 @@ def temperature_block(lo, hi, data) -> TemperatureBlock:
     return {"temperature": block}
 
 
-def characterise_folder(folder, kind_of, tau_max_s=None, scheduler=None, size=allan_sums.CHUNK) -> dict:
+def characterise_folder(folder, kind_of, tau_max_s=None, scheduler=None, size=allan_sums.CHUNK) -> NoiseReport:
     """characterise() of the set in `folder` (kind_of(set): its kind, simucal.methods.kind_of), a still stream read a
     chunk at a time (simucal.fit.allan_sums: theta in parts of `size` values, the rows of one task, here or on Dask with
     `scheduler`); a segmented set (a turntable test's static segments, short) is read whole."""
@@ -91,15 +108,15 @@ def characterise_folder(folder, kind_of, tau_max_s=None, scheduler=None, size=al
         del steps
         n = kept.theta[next(iter(kept.theta))].n - 1
         check_still_stream(kept, dt, folder, sensors[0])  # acc where it has them
-        out: dict[str, Any] = {"format": "simucal.noise/1", "data": str(folder)}
+        out: NoiseReport = {"format": "simucal.noise/1", "data": str(folder)}
         for sensor in sensors:
             m = cluster_sizes([n], dt, tau_max_s, path)
             mats = allan_cov.basis(m, dt, [n])
             triad = io.SAMPLE_COLS[:3] if sensor == "acc" else io.SAMPLE_COLS[3:]
             avars = allan_sums.allan_variances([kept.theta[c] for c in triad], m, scheduler)
-            out[sensor] = sensor_report(sensor, dt, m, "the whole stream", {a: axis_from_avar(
-                sensor, avar, stuck(kept.lo[c], kept.hi[c], kept.first[c], n, UNIT[sensor]), dt, m, mats)
-                for a, c, avar in zip("xyz", triad, avars)})
+            axes = {a: axis_from_avar(sensor, avar, stuck(kept.lo[c], kept.hi[c], kept.first[c], n, UNIT[sensor]),
+                                      dt, m, mats) for a, c, avar in zip("xyz", triad, avars)}
+            out[sensor] = sensor_report(sensor, dt, m, "the whole stream", axes)  # type: ignore[literal-required]
     if "temp_c" in cols:
         out.update(temperature_block(kept.temp_c[0], kept.temp_c[1], folder))
     return out

@@ -203,12 +203,12 @@ class NormStep:
         cv = self.base["cross_validation"]
         return cv["held_out"] if cv else None
 
-    def after(self):
+    def after(self) -> records.AutoStep:
         cv = self.base["cross_validation"]
         return {"p_value_after": self.base["p_value"], "residual_rms_after": self.fit.residual_rms,
                 "held_out_rms_after": cv["held_out_rms"] if cv else None}
 
-    def estimates(self):
+    def estimates(self) -> dict[str, tuple[float, float]]:
         return {k: (self.fit.params[k], self.fit.std[k]) for k in self.model.base.params}
 
     def to_separate(self, chosen, twin):

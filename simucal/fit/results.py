@@ -14,6 +14,8 @@ from dataclasses import dataclass, field, replace
 from typing import Any, Mapping, TypedDict, TypeVar, cast
 
 from simucal.io.calibration import ALPHA
+from simucal.io.records import JSONObject, Saturation, SkippedMove
+from simucal.io.stream_records import Timestamps
 
 __all__ = ["ALPHA", "Candidate", "ModelTest", "Selection", "added_params", "model_test_keys"]
 Test = TypeVar("Test")  # a model test's block, whatever its type
@@ -38,6 +40,54 @@ class CandidateRecord(TypedDict, total=False):
     significant: bool                 # it passes the gate: the one to add
     note: str                         # why it is not separable, what would show it
     twins: list[str]                  # the candidates the data cannot tell it from
+
+
+class SensorDiagnosis(TypedDict, total=False):
+    """One sensor's block of a diagnosis (api/diagnosing.py, and the kinds' own: handheld/, systematic/); its
+    free-form parts are documents (docs/spec/measurement-set.md). tests/test_calibration_file.py checks that
+    every key a diagnosis writes is declared here."""
+    model_test: JSONObject            # the model diagnosed's test (model_test_keys), also under `baseline`
+    baseline: JSONObject
+    candidates: list[CandidateRecord]  # ranked
+    params: dict[str, float]          # the model's estimates and stds, in param_units
+    std: dict[str, float]
+    param_units: dict[str, str]
+    residual_unit: str
+    residuals: list[JSONObject]       # each row's residual, sigma and inputs
+    shape: JSONObject                 # a term found in the residuals, with its model file
+    table: JSONObject                 # a turntable's own terms
+    added: JSONObject                 # --add: the residuals and parameters before and after
+    misfit_shares: JSONObject | None  # a stream's: the effects chosen over its moves
+    twin_choice: JSONObject           # twins the rows chose between
+    moves_opposite_sense: list[int]
+    moves_skipped: list[SkippedMove]
+    saturation: list[Saturation]
+    explained_by: dict[str, str]      # the other sensor's effect explains the misfit (id, sensor)
+    calibrate_refuses: str            # why calibrate would refuse these data, and what to run instead
+    next_instead: dict[str, str]
+    verdict: str
+
+
+class DiagnosisReport(TypedDict, total=False):
+    """What `simucal diagnose -o` writes (simucal.diagnosis/1): the top level; each sensor's a SensorDiagnosis."""
+    format: str
+    input: str                        # the set's folder
+    alpha: float                      # the model test's level
+    acc: SensorDiagnosis
+    gyro: SensorDiagnosis
+    sensor: str                       # the sensor whose model test has the lowest p (its test below)
+    model_test: JSONObject
+    baseline: JSONObject
+    candidates: list[CandidateRecord]  # both sensors', merged in each one's order
+    stream: JSONObject                # a stream's stillness and norms
+    timestamps: Timestamps
+    verdict: str                      # each sensor's, joined by " | "
+    notes: list[str]
+
+
+def diagnosis_blocks(report: DiagnosisReport) -> dict[str, SensorDiagnosis]:
+    """The report's sensor blocks by name, those it has."""
+    return {s: b for s, b in (("acc", report.get("acc")), ("gyro", report.get("gyro"))) if b is not None}
 
 
 class AddedParam(TypedDict, total=False):

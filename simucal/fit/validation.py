@@ -14,6 +14,7 @@ from typing import TypedDict
 import numpy as np
 
 from simucal.fit.noise import mean_and_sigma
+from simucal.io.stream_records import Timestamps
 
 FAR_OFF = 10.0  # a row this many floors (and medians) off is named
 
@@ -31,6 +32,23 @@ class Check(TypedDict, total=False):
     limited_by_table: bool            # the floor lacks the table's angle errors (meta.json states none)
     ratio_after_before: float | None  # the report's (api's validation_report), as its verdict
     verdict: str                      # at the noise floor, improved, ..., in words
+
+
+class ValidationReport(TypedDict, total=False):
+    """What `simucal validate -o` writes (simucal.validation/1; api/validating.validation_report)."""
+    format: str
+    calibration: str                  # the calibration file, or what names one in memory
+    calibration_sha256: str | None    # its bytes' (None: in memory), which the certificate matches
+    data: str                         # the set validated on
+    independent: bool                 # not the rows the calibration was made from
+    checks: dict[str, list[Check]]    # per sensor
+    verdict: dict[str, str]           # per sensor, in words
+    verdict_notes: dict[str, str]
+    warnings: list[str]               # apply's: rows outside the calibrated temperatures
+    note: str | None                  # why the data are not independent
+    nominal: list[str]                # how the nominal outputs were read
+    skipped: list[str]                # the sensors not validated, and why
+    timestamps: Timestamps            # a stream's clock
 
 
 def rms(x):

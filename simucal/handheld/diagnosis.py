@@ -11,6 +11,7 @@ from simucal.fit.apply import model_inputs
 from simucal.fit.aux_inputs import AuxInputs, columns_at
 from simucal.handheld.diagnose_moves import diagnose_moves
 from simucal.handheld.poses import acc_from_poses, pose_observations
+from simucal.io.records import JSONObject
 
 
 def observations(ms):
@@ -30,7 +31,7 @@ def diagnose_gyro(ms, gyro_model, add, truth, acc_model):
     return diagnose_moves(ms, obs, det, am, fa, tuple(add), truth)
 
 
-def stream_summary(ms, max_points=4000):
+def stream_summary(ms, max_points=4000) -> JSONObject:
     """A continuous stream for the report: |f| over time (decimated), calibrated by the
     hand-placed accelerometer fit, and the static intervals found (the gyro's moves are in
     the gyro block, diagnose_moves)."""

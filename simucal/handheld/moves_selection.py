@@ -191,7 +191,7 @@ class MovesStep:
                                             at=(self.at[0].r, self.at[1])).tolist()
         return self._held_out
 
-    def estimates(self):
+    def estimates(self) -> dict[str, tuple[float, float]]:
         std = np.sqrt(np.diag(self.fit.cov))
         names = [f"T_{a}{b}" for a in "xyz" for b in "xyz"] + [f"b_{a}" for a in "xyz"]
         return {k: (float(v), float(s)) for k, v, s in zip(names, np.r_[self.fit.T.ravel(), self.fit.db], std)}
@@ -199,7 +199,7 @@ class MovesStep:
     def to_separate(self, chosen, twin):
         return "moves that would: " + separating_plan(chosen["id"], twin["id"], moves=True)
 
-    def after(self):
+    def after(self) -> records.AutoStep:
         return {"chi2_after": self.chi2, "dof_after": self.dof, "p_value_after": self.p_value,
                 "residual_rms_after": float(np.sqrt(np.mean(self.fit.r ** 2)))}
 

@@ -22,6 +22,7 @@ import numpy as np
 from simucal import io
 from simucal.errors import SimucalError
 from simucal.io import units
+from simucal.io.meta import Meta
 from simucal.io.text_files import ends_with_a_line_end
 
 
@@ -77,7 +78,7 @@ def import_meta(acc_unit, gyro_unit, latitude_deg, extra, has_gyro=True):
 
 def import_imu_tk(acc_path: str | os.PathLike[str], gyro_path: str | os.PathLike[str], out: str | os.PathLike[str],
                   acc_counts_per_g: float, gyro_counts_per_dps: float, latitude_deg: float | None,
-                  gravity_mps2: float | None = None) -> dict[str, Any]:
+                  gravity_mps2: float | None = None) -> Meta:
     a = _read_numeric(acc_path, 4)
     g = _read_numeric(gyro_path, 4)
     if len(a) != len(g) or np.any(np.abs(a[:, 0] - g[:, 0]) > 1e-9):
@@ -170,7 +171,8 @@ def _read_columns(path, columns: dict, strings=()) -> dict:
     return {k: np.array(v) for k, v in data.items()}
 
 
-def import_csv(path, out, columns: dict, acc_unit, gyro_unit, rate_hz=None, latitude_deg=None, scales=None):
+def import_csv(path, out, columns: dict[str, str], acc_unit, gyro_unit, rate_hz=None, latitude_deg=None,
+               scales=None) -> Meta:
     """columns: {spec column: source column name}, e.g. {"ax": "acc_x", ...};
     without a t_s column, time is row / rate_hz."""
     path = Path(path)
@@ -196,7 +198,7 @@ FERRARIS_COLUMNS = {"ax": "acc_x", "ay": "acc_y", "az": "acc_z", "gx": "gyr_x", 
 
 
 def import_ferraris(path: str | os.PathLike[str], out: str | os.PathLike[str], rate_hz: float,
-                    latitude_deg: float | None) -> dict[str, Any]:
+                    latitude_deg: float | None) -> Meta:
     return import_csv(path, out, FERRARIS_COLUMNS, "m/s^2", "deg/s", rate_hz, latitude_deg, {"gravity_mps2": 9.81})
 
 
@@ -207,7 +209,7 @@ FERRARIS_POSES = {"x_p": (0.0, -90.0), "x_a": (0.0, 90.0), "y_p": (90.0, 0.0), "
 FERRARIS_TURNS = {"x_rot": "x_p", "y_rot": "y_p", "z_rot": "z_p"}
 
 
-def _ferraris_set(out, sections, data, t, units_meta, latitude_deg, turn_deg, source):
+def _ferraris_set(out, sections, data, t, units_meta, latitude_deg, turn_deg, source) -> Meta:
     """sections: [(label, row indices)] in recording order. Static poses become static
     segments at their nominal orientation; each 360 deg turn a rate segment about the
     vertical (the pose's axis) at the protocol's mean rate turn_deg / duration."""
@@ -264,7 +266,7 @@ def _read_sections(path, n_rows) -> dict:
 
 def import_ferraris_sections(csv_path: str | os.PathLike[str], json_path: str | os.PathLike[str],
                              out: str | os.PathLike[str], rate_hz: float,
-                             latitude_deg: float | None, turn_deg: float = -360.0) -> dict[str, Any]:
+                             latitude_deg: float | None, turn_deg: float = -360.0) -> Meta:
     """imucal's session CSV with its section list (0-based rows, end exclusive)."""
     data = _read_columns(csv_path, FERRARIS_COLUMNS)
     n = len(data["ax"])
@@ -282,7 +284,7 @@ def import_ferraris_sections(csv_path: str | os.PathLike[str], json_path: str | 
 
 def import_imucal_annotated(csv_path: str | os.PathLike[str], out: str | os.PathLike[str], rate_hz: float,
                             acc_counts_per_g: float, gyro_counts_per_dps: float,
-                            latitude_deg: float | None, turn_deg: float = -360.0) -> dict[str, Any]:
+                            latitude_deg: float | None, turn_deg: float = -360.0) -> Meta:
     """imucal's annotated session: sections already cut, sorted by label; `samples`
     gives the recording order."""
     path = Path(csv_path)

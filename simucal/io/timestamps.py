@@ -15,7 +15,7 @@ step or more off the line for good, and then the recorded stamps are kept.
 from __future__ import annotations
 
 from dataclasses import replace
-from typing import TYPE_CHECKING, Any, Sequence, cast
+from typing import TYPE_CHECKING, Sequence, cast
 
 import numpy as np
 
@@ -71,7 +71,7 @@ def statistics(t) -> Timestamps:
             "regular_clock": bool(off <= CLOCK_BOUND_STEPS), "gaps": gaps(t)}
 
 
-def with_timestamps(ms: MeasurementSet, choice: str = "auto") -> tuple[MeasurementSet, dict[str, Any] | None]:
+def with_timestamps(ms: MeasurementSet, choice: str = "auto") -> tuple[MeasurementSet, Timestamps | None]:
     """(the set with the time stamps to integrate on, the timestamps block of the calibration file).
     A stream only (a turntable's segments keep theirs); nominal: evenly spaced at the mean step;
     auto: nominal where the stamps are irregular and a regular clock is proved, else as recorded."""
@@ -82,7 +82,7 @@ def with_timestamps(ms: MeasurementSet, choice: str = "auto") -> tuple[Measureme
             from simucal.errors import CalibrationError
             raise CalibrationError(f"{ms.path / 'samples.csv'}: --timestamps nominal respaces a continuous stream's "
                                    "stamps; this set has segments.csv (leave the option out)")
-        return ms, cast("dict[str, Any] | None", segment_gaps(ms))
+        return ms, segment_gaps(ms)
     st = statistics(ms.samples["t_s"])
     if choice == "nominal" and st["gaps"]:
         from simucal.errors import CalibrationError
@@ -99,10 +99,10 @@ def with_timestamps(ms: MeasurementSet, choice: str = "auto") -> tuple[Measureme
         f"{CLOCK_BOUND_STEPS:g}: dropped samples, pauses or a changing rate), so they are kept")
     st["text"] = describe(st)
     if not nominal:
-        return ms, cast("dict[str, Any]", st)
+        return ms, st
     t = ms.samples["t_s"]
     even = t[0] + (t[-1] - t[0]) / (len(t) - 1) * np.arange(len(t))
-    return replace(ms, samples={**ms.samples, "t_s": even}), cast("dict[str, Any]", st)
+    return replace(ms, samples={**ms.samples, "t_s": even}), st
 
 
 def segment_gaps(ms) -> Timestamps | None:

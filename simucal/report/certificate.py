@@ -20,7 +20,7 @@ from __future__ import annotations
 
 import html
 import math
-from typing import Any
+from typing import Any, Mapping
 
 import numpy as np
 
@@ -123,7 +123,7 @@ def _validation_rows(validation: dict) -> list[list]:
 
 
 def certificate_page(cal: Calibration, file_name: str, file_sha256: str, validation: dict | None,
-                     version: str, apply_line: str, record: dict | None = None) -> str:
+                     version: str, apply_line: str, record: Mapping[str, Any] | None = None) -> str:
     """The certificate of `cal` (module doc); file_sha256: the file's bytes', validation: validate's report,
     apply_line: the next command; record: a store's row of it (its serial the lab's, its time and station)."""
     serial = ((record or {}).get("serial") or cal.layout.get("unit_serial")

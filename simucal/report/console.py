@@ -3,6 +3,8 @@
 verdicts and next step (`simucal noise`, its page)."""
 from __future__ import annotations
 
+from typing import Any, Mapping
+
 from simucal.fit import allan_fit, allan_terms, family
 from simucal.fit.candidates import undecided_twins
 from simucal.io import SENSOR_COLS
@@ -220,7 +222,7 @@ def _thermal_lines(s, b: SensorBlock):
                "to test them; give fewer degrees or more plateaus")
 
 
-def to_add(diag: dict, sensor: str) -> tuple[list[str] | None, str]:
+def to_add(diag: Mapping[str, Any], sensor: str) -> tuple[list[str] | None, str]:
     """(what the verdict adds for one sensor, why): [] where its model passes (or was not tested: the
     why says so), the verdict's effects where it fails (the found term's model file when it beats
     every library effect and was written, the effects chosen together on a stream's moves, else the
@@ -249,7 +251,7 @@ def to_add(diag: dict, sensor: str) -> tuple[list[str] | None, str]:
     return found, "" if found else f"{sensor}: nothing found explains the misfit; the plots below show where it is"
 
 
-def next_command(diag: dict) -> tuple[str, list[str]]:
+def next_command(diag: Mapping[str, Any]) -> tuple[str, list[str]]:
     """(the one calibrate command for the set, the notes beside it): next_adds as --add options; where
     calibrate would refuse these data (a sequence that leaves a parameter unobserved), the plan that scores
     a sequence before it is recorded, and why."""
@@ -260,7 +262,7 @@ def next_command(diag: dict) -> tuple[str, list[str]]:
     return f"simucal calibrate {diag['input']}{''.join(f' --add {a}' for a in adds)} -o calibration.json", notes
 
 
-def calibrate_refusal(diag: dict) -> tuple[str, list[str]] | None:
+def calibrate_refusal(diag: Mapping[str, Any]) -> tuple[str, list[str]] | None:
     """(what to do instead, why) where calibrate would refuse the diagnosed data (a sequence that leaves a
     parameter unobserved, or whose passes do not converge: systematic/method.refusal), else None."""
     block = next((diag[s] for s in ("acc", "gyro") if s in diag and diag[s].get("calibrate_refuses")), None)
@@ -270,7 +272,7 @@ def calibrate_refusal(diag: dict) -> tuple[str, list[str]] | None:
     return instead["command"], [f"{block['calibrate_refuses']}; calibrate refuses these data: {instead['note']}"]
 
 
-def next_adds(diag: dict) -> tuple[list[str], list[str]]:
+def next_adds(diag: Mapping[str, Any]) -> tuple[list[str], list[str]]:
     """(what the next calibration adds, the notes beside it): every --add the diagnosis was run with
     (both sensors' effects and model files) and, for each sensor whose model fails, what its verdict
     adds; so the command that made a model pass keeps its --add, and the gyro's keeps the
@@ -287,7 +289,7 @@ def next_adds(diag: dict) -> tuple[list[str], list[str]]:
     return list(dict.fromkeys(adds)), notes
 
 
-def validation_next(report: dict) -> tuple[str, list[str]]:
+def validation_next(report: Mapping[str, Any]) -> tuple[str, list[str]]:
     """(the command after `simucal validate`, why): another recording where these are the calibration's
     own rows, a diagnosis of these data where a sensor is no better than nominal, else apply."""
     cal, data = report["calibration"], report["data"]

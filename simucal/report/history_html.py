@@ -5,6 +5,7 @@ Reads the report (simucal/store/history.py, trend.py)."""
 from __future__ import annotations
 
 from datetime import datetime, timedelta
+from typing import Any, Mapping
 
 import matplotlib.dates as mdates
 import numpy as np
@@ -53,7 +54,7 @@ def _trend_row(p: dict) -> list:
             p.get("earliest_utc") or "-"]
 
 
-def _verdicts(report: dict) -> list[tuple[bool, str]]:
+def _verdicts(report: Mapping[str, Any]) -> list[tuple[bool, str]]:
     """Per sensor: whether a calibration moved it beyond its stds, and when its first parameter is due."""
     tr, out = report["trend"], []
     for sensor in sorted({p["name"].split(".")[0] for p in tr["parameters"]}):
@@ -67,7 +68,7 @@ def _verdicts(report: dict) -> list[tuple[bool, str]]:
     return out
 
 
-def history_page(report: dict) -> str:
+def history_page(report: Mapping[str, Any]) -> str:  # store/history.History (a floor above)
     tr = report["trend"]
     t0 = datetime.fromisoformat(tr["first_utc"].replace("Z", "+00:00"))
     serial, due = report["serial"], tr["due_utc"]

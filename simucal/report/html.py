@@ -7,6 +7,8 @@ effects' test statistics; before/after bars when effects were added.
 """
 from __future__ import annotations
 
+from typing import Any, Mapping
+
 import html
 
 import numpy as np
@@ -145,7 +147,7 @@ def stream_figures(stream):
     return figs
 
 
-def _verdicts(diag: dict) -> list[tuple[bool, str]]:
+def _verdicts(diag: Mapping[str, Any]) -> list[tuple[bool, str]]:
     """Per sensor (ok, its verdict): the diagnosis's own, as the console prints it."""
     return [(diag[s]["baseline"]["p_value"] is None or diag[s]["baseline"]["p_value"] >= diag["alpha"],
              diag[s]["verdict"])
@@ -173,7 +175,7 @@ def candidate_tables(cands) -> list[str]:
     return out
 
 
-def render(diag: dict) -> str:
+def render(diag: Mapping[str, Any]) -> str:
     """The page of a diagnosis, in its own units: the spec's, or those report/units.diagnosis_in gave it."""
     from simucal.report.units import param_units_of
     units = {s: diag[s].get("unit", u) for s, u in (("acc", "g"), ("gyro", "deg/h")) if s in diag}

@@ -55,6 +55,86 @@ class Drift(TypedDict):
     parameters: list[DriftRow]
 
 
+class Outlier(TypedDict):
+    """A unit whose parameter lies outside its lot's distribution (the lot report's rule)."""
+    unit: str          # the unit's file
+    value: float
+    std: float
+    z: float           # (x - median) / sqrt(tau^2 + std^2)
+
+
+class LotParameter(TypedDict):
+    """One parameter's distribution over a group's units, in its unit (the lot report)."""
+    name: str          # sensor.parameter, the one vocabulary
+    unit: str
+    own_name: str | None  # the method's own name of it
+    centre: float      # the median
+    spread: float
+    spread_of_units: float  # tau: the units' own spread beyond their stds
+    median_std: float
+    values: list[float]  # per unit, in the group's order
+    stds: list[float]
+    z: list[float]
+    outliers: list[Outlier]
+
+
+class LotGroup(TypedDict, total=False):
+    """The units of one method and model, their parameters and the outlier rule."""
+    key: str           # method and model
+    units: list[str]
+    parameters: list[LotParameter]
+    outlier_rule: str  # in words
+    z_threshold: float | None  # None: too few units to test
+    not_compared: list[str]  # parameters not every unit's file gives with a std
+
+
+class UnitTest(TypedDict):
+    """A sensor's model test, as the unit's file gives it."""
+    verdict: str
+    p_value: float | None
+
+
+class NamedOutlier(TypedDict):
+    """One of a unit's outlying parameters."""
+    name: str
+    z: float
+
+
+class LotUnit(TypedDict):
+    """One unit in the lot report: its tests, limits broken, outliers, status and why."""
+    file: str
+    serial: str | None
+    input: str | list[str]  # the set it was calibrated from (a thermal calibration's: one per plateau)
+    group: str
+    tests: dict[str, UnitTest]
+    outside_limits: dict[str, str]  # {parameter: how it breaks its limit}
+    outliers: list[NamedOutlier]
+    status: str        # passes, fails or flagged
+    why: list[str]
+
+
+class NotCalibration(TypedDict):
+    """A file of the folder that is not a calibration, and why."""
+    file: str
+    why: str
+
+
+class LotReport(TypedDict):
+    """What `simucal lot -o` writes (simucal.lot/1; api/lot_reporting.py)."""
+    format: str
+    folder: str
+    units: list[LotUnit]
+    groups: list[LotGroup]
+    limits: dict[str, Limit]
+    drift: list[Drift]
+    superseded: list[str]  # the earlier calibrations of units calibrated again
+    not_calibrations: list[NotCalibration]
+    outlier_p: float
+    drift_p: float
+    verdict: list[str]
+    next: str          # the command to run next
+
+
 def model_name(cal: Calibration) -> str:
     """Each block's model with its effects, in words: "acc acc_baseline + acc.quadratic.z, gyro gyro_baseline
     (thermal)"."""

@@ -11,6 +11,7 @@ import numpy as np
 
 from simucal.report.console import n_units
 from simucal.report.numbers import eng_html
+from simucal.report.lot_figures import LotReport
 from simucal.report.page import page, plt, png, table
 
 
@@ -49,7 +50,7 @@ def _largest(drift, sensor) -> str:
     return f"{abs(r['z']):.3g} ({r['name']})"
 
 
-def lot_page(report: dict) -> str:
+def lot_page(report: LotReport) -> str:
     """The page (module doc) of a report of simucal.api.lot_reporting.lot, in the pages' one shell (report/page.py):
     the verdict's first line is the lot's, each further line a unit failing or flagged, or a note."""
     e = html.escape

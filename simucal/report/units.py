@@ -15,9 +15,10 @@ import numpy as np
 from simucal.io import units
 from simucal.io.results import PlanScore
 from simucal.io.calibration import Calibration, EffectValue, SensorBlock, SensorDetails
+from simucal.report.lot_figures import LotReport
 
 C = TypeVar("C", bound=Calibration)
-Report = TypeVar("Report", bound="dict[str, Any]")  # a JSON report, returned converted in the type it was given
+Report = TypeVar("Report", bound="Mapping[str, Any]")  # a JSON report, returned converted in the type it was given
 
 
 def gravity_of(where: Any) -> float:
@@ -140,7 +141,7 @@ def noise_in(report: Report, system: str, gravity_mps2: float | None = None) -> 
     return out
 
 
-def diagnosis_in(report: dict, system: str, gravity_mps2: float | None = None) -> dict:
+def diagnosis_in(report: Report, system: str, gravity_mps2: float | None = None) -> Report:
     """A copy of a diagnosis with each sensor's residuals, noise floor, candidates' estimates, added effects'
     parameters and the plots' points in the system asked, each with its label, and its verdicts written anew
     from those numbers (a sentence without numbers behind it converted as printed)."""
@@ -149,7 +150,8 @@ def diagnosis_in(report: dict, system: str, gravity_mps2: float | None = None) -
     if system == "spec":
         return report
     g = gravity_of(report.get("input")) if gravity_mps2 is None else gravity_mps2
-    out, done = copy.deepcopy(report), set()  # done: the dicts converted, one object may sit in two places
+    out: Any = copy.deepcopy(report)  # its blocks are free-form documents
+    done: set[int] = set()  # done: the dicts converted, one object may sit in two places
 
     def conv(d, labels):  # labels: {key: its unit label}
         if id(d) not in done:
@@ -239,13 +241,13 @@ def _static_rows_in(st: dict, system: str, g: float) -> dict:
     return {**st, "verdict": static_rows_verdict(st, *units.in_units(1.0, "deg/h", system, g)[::-1])}
 
 
-def lot_in(report: dict, system: str, gravity_mps2: float = units.DEFAULT_GRAVITY) -> dict:
+def lot_in(report: LotReport, system: str, gravity_mps2: float = units.DEFAULT_GRAVITY) -> LotReport:
     """A copy of a lot report with each parameter's values, stds, centre and spreads and the spec limits in the
     system asked (the units' reasons and the verdict, sentences, from their printed digits)."""
     units.check_unit_system(system)
     if system == "spec":
         return report
-    out = copy.deepcopy(report)
+    out: Any = copy.deepcopy(report)  # converted in place, each record by its unit
     for grp in out["groups"]:
         for p in grp["parameters"]:
             f, label = units.in_units(1.0, p["unit"], system, gravity_mps2)
@@ -262,8 +264,7 @@ def lot_in(report: dict, system: str, gravity_mps2: float = units.DEFAULT_GRAVIT
     return out
 
 
-def montecarlo_in(result: Mapping[str, Any], system: str,
-                  gravity_mps2: float = units.DEFAULT_GRAVITY) -> Mapping[str, Any]:
+def montecarlo_in(result: Report, system: str, gravity_mps2: float = units.DEFAULT_GRAVITY) -> Report:
     """A copy of a Monte Carlo's result with each parameter's truth, mean, std and CRLB in the system asked."""
     units.check_unit_system(system)
     if system == "spec":
@@ -273,7 +274,7 @@ def montecarlo_in(result: Mapping[str, Any], system: str,
         f, label = units.in_units(1.0, v["unit"], system, gravity_mps2)
         shown[name] = {**v, **{k: v[k] * f for k in ("truth", "mean", "std", "crlb") if v.get(k) is not None},
                        "unit": label}
-    return {**result, "parameters": shown}
+    return cast(Report, {**result, "parameters": shown})
 
 
 def plan_in(result: PlanScore, system: str, gravity_mps2: float = units.DEFAULT_GRAVITY) -> PlanScore:

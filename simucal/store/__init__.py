@@ -18,7 +18,7 @@ from simucal.errors import StoreError
 from simucal.io.calibration import Calibration, loads
 from simucal.store import history as _history
 from simucal.store import queries, records
-from simucal.store.schema import open_engine, shown
+from simucal.store.schema import ParameterRow, RecordRow, open_engine, shown
 
 
 class CalibrationStore:
@@ -56,11 +56,11 @@ class CalibrationStore:
         row, params = records.record_of(raw, where, serial, station, calibrated_utc)
         return records.insert(self._db(create=True), self.url, row, params, where)
 
-    def records(self, **where) -> list[dict]:
+    def records(self, **where) -> list[RecordRow]:
         """queries.records: the records matching serial, method, model, station, since, until."""
         return queries.records(self._db(), self.url, **where)
 
-    def parameters(self, **where) -> list[dict]:
+    def parameters(self, **where) -> list[ParameterRow]:
         """queries.parameters: the parameters' rows of the records matching `where`."""
         return queries.parameters(self._db(), self.url, **where)
 
@@ -76,6 +76,6 @@ class CalibrationStore:
         return [(f"{r['serial']}_{r['calibrated_utc']}_{r['id']:08d}.json",
                  loads(raw[r["id"]].decode("utf-8"), f"{self.shown} record {r['id']}")) for r in recs]
 
-    def history(self, serial: str, limits=None, spec=None) -> dict:
+    def history(self, serial: str, limits=None, spec=None) -> _history.History:
         """history.history: the unit's calibrations, their changes and flags, and its trend by the spec."""
         return _history.history(self._db(), self.url, serial, limits, spec)

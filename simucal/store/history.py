@@ -13,17 +13,72 @@ each parameter's value, as `simucal lot --limits` reads it).
 """
 from __future__ import annotations
 
+from typing import TypedDict
+
 from simucal.errors import StoreError
 from simucal.fit.results import ALPHA
-from simucal.io.calibration import loads
-from simucal.report.lot_figures import drift, outside, read_limits
+from simucal.io.calibration import Calibration, loads
+from simucal.report.lot_figures import Limit, drift, outside, read_limits
 from simucal.store import queries, trend
-from simucal.store.schema import shown
+from simucal.store.schema import RecordRow, shown
 
 FORMAT = "simucal.history/1"
 
 
-def _change(earlier, later) -> dict:
+class ChangeTest(TypedDict):
+    """A sensor's joint test of no change (report/lot_figures.SensorDrift's numbers)."""
+    chi2: float
+    dof: int
+    p_value: float
+
+
+class ParameterChange(TypedDict):
+    """One parameter's change between two records, in its unit."""
+    name: str          # sensor.parameter
+    unit: str
+    change: float      # later minus earlier
+    std: float         # of the change, from both records
+    z: float           # change / std
+
+
+class Change(TypedDict):
+    """The change since an earlier record (_change)."""
+    since: int         # the earlier record's id
+    since_utc: str
+    sensors: dict[str, ChangeTest]
+    parameters: list[ParameterChange]
+
+
+class HistoryEntry(TypedDict, total=False):
+    """One calibration of the unit in its history."""
+    id: int
+    calibrated_utc: str
+    station: str
+    method: str
+    model: str
+    tool_version: str
+    since_last: Change   # from the unit's second calibration of this method and model on
+    since_first: Change  # from its third on
+    flagged: bool
+    why: list[str]       # why it is flagged
+
+
+class History(TypedDict):
+    """What `simucal history SERIAL -o` writes (simucal.history/1; module doc)."""
+    format: str
+    store: str
+    serial: str
+    alpha: float         # the family's level
+    level: float         # each test's: alpha over the family's count
+    tests: int
+    limits: dict[str, Limit]  # the lab's limits of a change since the first, where given
+    records: list[HistoryEntry]
+    flagged: list[int]   # the flagged records' ids
+    verdict: str
+    trend: trend.Trend
+
+
+def _change(earlier, later) -> Change:
     """The change from record `earlier` to `later` (each (record, calibration)): report/lot_figures.drift's, with its
     parameters' z the change in units of the combined std."""
     (r1, c1), (r2, c2) = earlier, later
@@ -56,7 +111,7 @@ def _judge(entries, limits) -> tuple[float, int]:
     return level, tests
 
 
-def history(engine, url: str, serial: str, limits_path=None, spec_path=None) -> dict:
+def history(engine, url: str, serial: str, limits_path=None, spec_path=None) -> History:
     """The history of unit `serial` (module doc): {format, store, serial, records, level, tests, flagged, verdict,
     trend}."""
     recs = queries.records(engine, url, serial=serial)
@@ -65,12 +120,13 @@ def history(engine, url: str, serial: str, limits_path=None, spec_path=None) -> 
                          f"--serial {serial}")
     raw = queries.files(engine, url, [r["id"] for r in recs])
     cals = [(r, loads(raw[r["id"]].decode("utf-8"), f"{shown(url)} record {r['id']}")) for r in recs]
-    firsts: dict = {}
-    lasts: dict = {}
-    entries = []
+    firsts: dict[tuple[str, str], tuple[RecordRow, Calibration]] = {}
+    lasts: dict[tuple[str, str], tuple[RecordRow, Calibration]] = {}
+    entries: list[HistoryEntry] = []
     for r, cal in cals:
         key = (r["method"], r["model"])  # another method or model: its own line of changes
-        e = {k: r[k] for k in ("id", "calibrated_utc", "station", "method", "model", "tool_version")}
+        e: HistoryEntry = {"id": r["id"], "calibrated_utc": r["calibrated_utc"], "station": r["station"],
+                           "method": r["method"], "model": r["model"], "tool_version": r["tool_version"]}
         if key in lasts:
             e["since_last"] = _change(lasts[key], (r, cal))
             if firsts[key][0]["id"] != lasts[key][0]["id"]:
@@ -78,8 +134,8 @@ def history(engine, url: str, serial: str, limits_path=None, spec_path=None) -> 
         firsts.setdefault(key, (r, cal))
         lasts[key] = (r, cal)
         entries.append(e)
-    known = {p["name"]: p["unit"] for e in entries for k in ("since_last", "since_first") if e.get(k)
-             for p in e[k]["parameters"]}
+    known = {p["name"]: p["unit"] for e in entries for change in (e.get("since_last"), e.get("since_first"))
+             if change for p in change["parameters"]}
     limits = read_limits(limits_path, known) if limits_path else {}
     method, model = recs[-1]["method"], recs[-1]["model"]  # the trend's line: the last calibration's (trend.py)
     units = {f"{p['sensor']}.{p['name']}": p["unit"]

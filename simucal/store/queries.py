@@ -2,7 +2,9 @@
 parameters' rows and their files, each as plain rows (api/store.py makes DataFrames of them)."""
 from __future__ import annotations
 
-from simucal.store.schema import CALIBRATIONS, PARAMETERS, failure
+from typing import Any, cast
+
+from simucal.store.schema import CALIBRATIONS, PARAMETERS, ParameterRow, RecordRow, failure
 
 # a record's columns as a query gives them (the file itself only from files())
 RECORD_COLUMNS = ("id", "serial", "calibrated_utc", "recorded_utc", "station", "method", "model", "tool_version",
@@ -17,7 +19,7 @@ def _where(serial=None, method=None, model=None, station=None, since=None, until
     return [test(value) for value, test in tests if value is not None]
 
 
-def _rows(engine, url, query) -> list[dict]:
+def _rows(engine, url, query) -> list[dict[str, Any]]:  # a query's columns
     from sqlalchemy.exc import SQLAlchemyError
     try:
         with engine.connect() as conn:
@@ -28,22 +30,22 @@ def _rows(engine, url, query) -> list[dict]:
         raise failure(url, e, "cannot read") from None
 
 
-def records(engine, url, **where) -> list[dict]:
+def records(engine, url, **where) -> list[RecordRow]:
     """The records that match `where` (record_id, serial, method, model, station, since, until: calibrated_utc's
     range, inclusive), in calibration time order (then recording order)."""
     from sqlalchemy import select
     c = CALIBRATIONS.c
     query = select(*(getattr(c, k) for k in RECORD_COLUMNS)).where(*_where(**where))
-    return _rows(engine, url, query.order_by(c.calibrated_utc, c.id))
+    return cast(list[RecordRow], _rows(engine, url, query.order_by(c.calibrated_utc, c.id)))
 
 
-def parameters(engine, url, **where) -> list[dict]:
+def parameters(engine, url, **where) -> list[ParameterRow]:
     """The parameters' rows of the records that match `where` (as records), each with its record's serial and time."""
     from sqlalchemy import select
     c, p = CALIBRATIONS.c, PARAMETERS.c
     query = select(p.calibration_id, c.serial, c.calibrated_utc, p.sensor, p.name, p.value, p.std, p.unit).join(
         CALIBRATIONS, c.id == p.calibration_id).where(*_where(**where))
-    return _rows(engine, url, query.order_by(c.calibrated_utc, c.id, p.sensor, p.name))
+    return cast(list[ParameterRow], _rows(engine, url, query.order_by(c.calibrated_utc, c.id, p.sensor, p.name)))
 
 
 def files(engine, url, ids) -> dict[int, bytes]:

@@ -18,13 +18,14 @@ from simucal.errors import StoreError
 from simucal.io.calibration import Calibration, loads
 from simucal.io.calibration_checks import SERIAL
 from simucal.report.lot_figures import block_parameters, model_name
-from simucal.store.schema import CALIBRATIONS, PARAMETERS, TIME_FORMAT, failure, utc_now
+from simucal.store.schema import (CALIBRATIONS, PARAMETERS, TIME_FORMAT, NewParameter, NewRecord, failure,
+                                  utc_now)
 from simucal.version import __version__
 
 _TIME = re.compile(r"^\d{4}-\d{2}-\d{2}(T\d{2}:\d{2}(:\d{2}(\.\d{1,6})?)?Z?)?$")
 
 
-def parameter_rows(cal: Calibration) -> list[dict]:
+def parameter_rows(cal: Calibration) -> list[NewParameter]:
     """Every parameter that carries a std (report/lot_figures.block_parameters), as the rows of `parameters`."""
     return [{"sensor": s, "name": n, "value": v, "std": std, "unit": u}
             for s, b in cal.blocks() for n, (v, std, u) in block_parameters(b).items()]
@@ -41,7 +42,7 @@ def _time(value: str | None, what: str) -> str | None:
 
 
 def record_of(raw: bytes, where, serial: str | None = None, station: str | None = None,
-              calibrated_utc: str | None = None) -> tuple[dict, list[dict]]:
+              calibrated_utc: str | None = None) -> tuple[NewRecord, list[NewParameter]]:
     """The record of a calibration file's bytes (checked as `simucal.load` checks a file; where: what messages
     name) and its parameters' rows. Refused where the file has no serial and none is given, or where the one
     given is another unit's."""
@@ -56,15 +57,15 @@ def record_of(raw: bytes, where, serial: str | None = None, station: str | None 
                          "serial: --serial S")
     now = utc_now()
     sha = cal.input_sha256
-    row = {"serial": str(serial), "file": raw, "file_sha256": hashlib.sha256(raw).hexdigest(), "method": cal.method,
-           "model": model_name(cal), "tool_version": __version__,
-           "input_sha256": json.dumps(sha) if isinstance(sha, list) else sha,
-           "station": station or socket.gethostname(), "recorded_utc": now,
-           "calibrated_utc": _time(calibrated_utc, "--time") or now}
+    row: NewRecord = {"serial": str(serial), "file": raw, "file_sha256": hashlib.sha256(raw).hexdigest(),
+                      "method": cal.method, "model": model_name(cal), "tool_version": __version__,
+                      "input_sha256": json.dumps(sha) if isinstance(sha, list) else sha,
+                      "station": station or socket.gethostname(), "recorded_utc": now,
+                      "calibrated_utc": _time(calibrated_utc, "--time") or now}
     return row, parameter_rows(cal)
 
 
-def insert(engine, url: str, row: dict, params: list[dict], where) -> int:
+def insert(engine, url: str, row: NewRecord, params: list[NewParameter], where) -> int:
     """The record and its parameters in one transaction; its id. A file recorded before is refused, naming
     its record (the unique sha256 decides, so two stations adding one file at once record it once)."""
     from sqlalchemy import select

@@ -12,6 +12,7 @@ from __future__ import annotations
 import re
 from datetime import datetime, timezone
 from pathlib import Path
+from typing import TypedDict
 
 from simucal.errors import StoreError
 from simucal.store.sqlite_file import how_to_open
@@ -56,6 +57,50 @@ def _tables(version: int):
 
 
 _, SCHEMA_TABLE, CALIBRATIONS, PARAMETERS = _tables(SCHEMA)  # what records.py and queries.py read and write
+
+
+class NewParameter(TypedDict):
+    """A row of `parameters` as records.py writes it: one parameter of one sensor, in its unit."""
+    sensor: str
+    name: str
+    value: float
+    std: float
+    unit: str
+
+
+class ParameterRow(NewParameter):
+    """A row of `parameters` as queries.py reads it, with its record's id, serial and time."""
+    calibration_id: int
+    serial: str
+    calibrated_utc: str
+
+
+class NewRecord(TypedDict):
+    """A row of `calibrations` as records.py writes it (module doc)."""
+    serial: str
+    file: bytes               # the calibration file, byte for byte
+    file_sha256: str
+    method: str
+    model: str
+    tool_version: str
+    input_sha256: str | None  # the set's files' (a JSON list for plateaus)
+    station: str
+    recorded_utc: str
+    calibrated_utc: str
+
+
+class RecordRow(TypedDict):
+    """A row of `calibrations` as queries.py reads it (queries.RECORD_COLUMNS: the file itself from files())."""
+    id: int
+    serial: str
+    calibrated_utc: str
+    recorded_utc: str
+    station: str
+    method: str
+    model: str
+    tool_version: str
+    input_sha256: str | None
+    file_sha256: str
 
 
 def _to_1(conn) -> None:

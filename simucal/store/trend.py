@@ -21,20 +21,60 @@ names it; a value of it measured outside the spec is still due at its last calib
 from __future__ import annotations
 
 from datetime import datetime, timedelta, timezone
-from typing import Any
+from typing import TypedDict
 
 import numpy as np
 from scipy.optimize import brentq
 from scipy.stats import chi2 as chi2_dist
 
 from simucal.errors import StoreError
+from simucal.report.lot_figures import Limit
 from simucal.store import queries
-from simucal.store.schema import shown
+from simucal.store.schema import ParameterRow, shown
 
 FORMAT = "simucal.trend/1"
 YEAR_S = 365.25 * 86400.0
 HORIZON_YEARS = 10.0  # a crossing further than this is not a due date a lab plans by
 K = 2.0  # the band's coverage factor (GUM's expanded uncertainty)
+
+
+class ParameterTrend(TypedDict, total=False):
+    """One parameter's trend (module doc), in its unit; times in years since the line's first calibration."""
+    name: str                  # sensor.parameter
+    unit: str
+    t_years: list[float]
+    values: list[float]
+    stds: list[float]          # NaN where none was recorded
+    records: list[int]         # the store's record of each value
+    spec: Limit | None         # the lab's spec of it, where given
+    intercept: float           # a, at t = 0
+    slope_per_year: float | None  # b; None where no line is fitted (no_trend says why)
+    slope_std: float | None
+    covariance: list[list[float]]  # of (a, b)
+    chi2: float | None         # of the line, on dof
+    dof: int
+    p_value: float | None
+    no_trend: str              # why no line is fitted
+    expected_utc: str | None   # where the line reaches the spec (None: not within HORIZON_YEARS, or no spec)
+    earliest_utc: str | None   # where its k = 2 band does
+    expected_years: float | None
+    earliest_years: float | None
+
+
+class Trend(TypedDict):
+    """What `Store.trend` gives and a history's `trend` key holds (simucal.trend/1)."""
+    format: str
+    store: str
+    serial: str
+    method: str                # the line's: the unit's last calibration's method and model
+    model: str
+    first_utc: str
+    k: float                   # the band's coverage factor
+    horizon_years: float
+    parameters: list[ParameterTrend]
+    due_utc: str | None        # the earliest of the parameters' earliest_utc
+    due_parameter: str | None
+    verdict: str
 
 
 def _time(utc: str) -> datetime:
@@ -65,7 +105,7 @@ def _crossing(f, start: float) -> float | None:
     return float(ts[0]) if i == 0 else float(brentq(f, ts[i - 1], ts[i]))
 
 
-def due(ab: np.ndarray, cov: np.ndarray, lim: dict, t_last: float) -> tuple[float | None, float | None]:
+def due(ab: np.ndarray, cov: np.ndarray, lim: Limit, t_last: float) -> tuple[float | None, float | None]:
     """(expected, earliest): the years at which the line, and its k = 2 band, first reach a limit (module doc)."""
     def value(t):
         return ab[0] + ab[1] * t
@@ -80,7 +120,7 @@ def due(ab: np.ndarray, cov: np.ndarray, lim: dict, t_last: float) -> tuple[floa
     return _crossing(beyond(lambda t: 0.0), t_last), _crossing(beyond(band), t_last)
 
 
-def _no_trend(rows: list[dict], t: np.ndarray, s: np.ndarray) -> str | None:
+def _no_trend(rows: list[ParameterRow], t: np.ndarray, s: np.ndarray) -> str | None:
     """Why no weighted line can be fitted through a parameter's values (None: it can)."""
     if len(rows) < 2:
         return "one calibration: no trend before a second"
@@ -93,15 +133,15 @@ def _no_trend(rows: list[dict], t: np.ndarray, s: np.ndarray) -> str | None:
     return None
 
 
-def _parameter(rows: list[dict], t0: datetime, spec: dict) -> dict[str, Any]:
+def _parameter(rows: list[ParameterRow], t0: datetime, spec: dict[str, Limit]) -> ParameterTrend:
     """One parameter's trend: rows are its values over the calibrations, in time order."""
     t = np.array([(_time(r["calibrated_utc"]) - t0).total_seconds() / YEAR_S for r in rows])
     v = np.array([r["value"] for r in rows], float)
     s = np.array([np.nan if r["std"] is None else r["std"] for r in rows], float)  # none recorded: no weight
     name, unit = f"{rows[0]['sensor']}.{rows[0]['name']}", rows[0]["unit"]
-    out: dict[str, Any] = {"name": name, "unit": unit, "t_years": t.tolist(), "values": v.tolist(), "stds": s.tolist(),
+    out: ParameterTrend = {"name": name, "unit": unit, "t_years": t.tolist(), "values": v.tolist(), "stds": s.tolist(),
                            "records": [r["calibration_id"] for r in rows], "spec": spec.get(name)}
-    lim: dict[str, float] = spec.get(name) or {}
+    lim: Limit = spec.get(name) or {}
     outside = bool(lim) and bool(v[-1] > lim.get("max", np.inf) or v[-1] < lim.get("min", -np.inf))
     no_trend = _no_trend(rows, t, s)
     if no_trend:  # said, and a value measured outside its spec still due now
@@ -111,9 +151,9 @@ def _parameter(rows: list[dict], t0: datetime, spec: dict) -> dict[str, Any]:
                 **({"expected_years": float(t[-1]), "earliest_years": float(t[-1])} if outside else {})}
     ab, cov, c2 = line(t, v, s)
     dof = len(rows) - 2
-    out.update(intercept=float(ab[0]), slope_per_year=float(ab[1]), slope_std=float(np.sqrt(cov[1, 1])),
-               covariance=cov.tolist(), chi2=c2, dof=dof, p_value=float(chi2_dist.sf(c2, dof)) if dof else None,
-               expected_utc=None, earliest_utc=None)
+    out.update({"intercept": float(ab[0]), "slope_per_year": float(ab[1]), "slope_std": float(np.sqrt(cov[1, 1])),
+                "covariance": cov.tolist(), "chi2": c2, "dof": dof,
+                "p_value": float(chi2_dist.sf(c2, dof)) if dof else None, "expected_utc": None, "earliest_utc": None})
     if lim:
         expected, earliest = due(ab, cov, lim, float(t[-1]))
         if outside:  # measured outside: due now
@@ -124,7 +164,7 @@ def _parameter(rows: list[dict], t0: datetime, spec: dict) -> dict[str, Any]:
     return out
 
 
-def trend(engine, url: str, serial: str, spec: dict) -> dict[str, Any]:
+def trend(engine, url: str, serial: str, spec: dict[str, Limit]) -> Trend:
     """The unit's trend (module doc): {format, store, serial, method, model, first_utc, parameters, due_utc,
     earliest_utc, due_parameter, verdict}; spec: read_limits' {name: {min, max, unit}} (may be empty)."""
     recs = queries.records(engine, url, serial=serial)
@@ -136,7 +176,7 @@ def trend(engine, url: str, serial: str, spec: dict) -> dict[str, Any]:
     rows = [p for p in queries.parameters(engine, url, serial=serial, method=method, model=model)
             if p["calibration_id"] in ids]
     t0 = _time(min(r["calibrated_utc"] for r in recs if r["id"] in ids))
-    by_name: dict[str, list[dict]] = {}
+    by_name: dict[str, list[ParameterRow]] = {}
     for p in rows:
         by_name.setdefault(f"{p['sensor']}.{p['name']}", []).append(p)
     params = [_parameter(ps, t0, spec) for ps in by_name.values()]

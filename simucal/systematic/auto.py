@@ -54,7 +54,7 @@ class FilterStep:
     def held_out(self):
         return np.linalg.norm(self.innovations["innovations_whitened"], axis=1).tolist()
 
-    def estimates(self):
+    def estimates(self) -> dict[str, tuple[float, float]]:
         s = self.model.sensors
         names = [f"acc {k}" for k in s.acc.base.params] + [f"gyro {k}" for k in s.gyro.base.params]
         na = len(s.p_acc)

@@ -10,12 +10,12 @@ both blocks say the misfit is most likely outside the library.
 """
 from __future__ import annotations
 
-from typing import TypedDict, cast
+from typing import Any, TypedDict, cast
 
 import numpy as np
 
 from simucal.errors import CalibrationError
-from simucal.fit.results import added_params, model_test_keys
+from simucal.fit.results import SensorDiagnosis, added_params, model_test_keys
 from simucal.systematic.calibrate import rests_and_moves, run_filter
 from simucal.fit import family
 from simucal.io import records
@@ -100,7 +100,7 @@ def _added(sensor, result, before, base, truth, added) -> dict:
             "residuals_before": before["rows"]}
 
 
-def diagnose_sequence(ms, acc_model, gyro_model, ids, truth, before_models, added) -> dict:
+def diagnose_sequence(ms, acc_model, gyro_model, ids, truth, before_models, added) -> dict[str, SensorDiagnosis]:
     """{sensor: block} of both sensors (module doc). before_models: (acc, gyro) the models without
     --add; added: what the user added (ids and model files), for the report."""
     r = run_filter(ms, acc_model, gyro_model, ids)
@@ -118,12 +118,13 @@ def diagnose_sequence(ms, acc_model, gyro_model, ids, truth, before_models, adde
     if added:
         r0 = run_filter(ms, *before_models)
         before = {"result": r0, "test": model_test(family_test(r0)[0]), "rows": innovation_rows(ms, r0)}
-    out, refused = {}, refusal(r, ms.path)
+    out: dict[str, SensorDiagnosis] = {}
+    refused = refusal(r, ms.path)
     for sensor in ("acc", "gyro"):
         own = [c.to_dict() for c in cands if c.id.startswith(sensor + ".")]
         params, std, units = _params(r, sensor)
-        block = {**model_test_keys(base), "candidates": own, "params": params, "std": std, "param_units": units,
-                 "residuals": rows}
+        block: dict[str, Any] = {**model_test_keys(base), "candidates": own, "params": params, "std": std,
+                                 "param_units": units, "residuals": rows}
         if best is not None and not best.id.startswith(sensor + "."):
             other = best.id.split(".")[0]
             for c in block["candidates"]:
@@ -134,5 +135,5 @@ def diagnose_sequence(ms, acc_model, gyro_model, ids, truth, before_models, adde
         if refused:
             block["calibrate_refuses"] = refused.why
             block["next_instead"] = {"command": refused.next, "note": refused.note}
-        out[sensor] = block
+        out[sensor] = cast(SensorDiagnosis, block)  # tests/test_calibration_file.py checks its keys
     return out

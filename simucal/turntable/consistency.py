@@ -19,7 +19,6 @@ latitude is right. So, after the fits:
 from __future__ import annotations
 
 import math
-from typing import Any
 
 import numpy as np
 
@@ -30,6 +29,7 @@ from simucal.fit.distributions import chi2_sf, t_isf
 from simucal.fit.rotations import log_so3, wahba
 from simucal.fit.aux_inputs import AuxInputs, column_means
 from simucal.io import run_or_rows, units
+from simucal.io.records import LatitudeCheck, NoiseUsed
 from simucal.fit.noise import mean_and_sigma
 from simucal.turntable.observations import commanded_up_k, refuse_outliers
 
@@ -69,7 +69,7 @@ def mirror_error(what, whose, axis, resid, r):
         "column in samples.csv (or the wiring) and calibrate again")
 
 
-def latitude(ms, gm, fg, C_b_d, u_b, static_gyro):
+def latitude(ms, gm, fg, C_b_d, u_b, static_gyro) -> LatitudeCheck:
     """The latitude the gyros measure at rest, against meta.json's; refuses a mismatch.
 
     u_b: (n, 3) unit specific force (up) in b at static positions; static_gyro: (N (n, 3)
@@ -98,19 +98,19 @@ def latitude(ms, gm, fg, C_b_d, u_b, static_gyro):
                                                                   max(1.0, chi2 / (n - 4)))
     s_L, std_s = float(coef[3]), float(np.sqrt(cov[3, 3]))
     noise_dof = n - 4 if sig is None else math.inf
-    out: dict[str, Any] = {"meta_deg": L_meta, "positions": n, "sin_L_measured": s_L, "sin_L_std": std_s,
-           "chi2": None if sig is None else chi2, "dof": n - 4,
-           "noise": ({"std_dph": float(np.sqrt(chi2 / (n - 4))), "dof": n - 4,
-                      "source": "one gyro row per static position and no gyro_noise_dph: estimated from this fit's "
-                                "residuals"} if sig is None else
-                     {"std_dph": float(np.median(sig)), "source": "each position's scatter or the stated noise"})}
+    noise: NoiseUsed = ({"std_dph": float(np.sqrt(chi2 / (n - 4))), "dof": n - 4,
+                         "source": "one gyro row per static position and no gyro_noise_dph: estimated from this "
+                                   "fit's residuals"} if sig is None else
+                        {"std_dph": float(np.median(sig)), "source": "each position's scatter or the stated noise"})
+    out: LatitudeCheck = {"meta_deg": L_meta, "positions": n, "sin_L_measured": s_L, "sin_L_std": std_s,
+                          "chi2": None if sig is None else chi2, "dof": n - 4, "noise": noise}
     if abs(s_L) > 1 + 5 * std_s:
         raise CalibrationError(
             f"{ms.path}: at rest the gyros measure a vertical rate of {s_L * w_e:.3g} deg/h, more than the "
             f"Earth's rate ({w_e} deg/h): check gyro_unit, earth_rate_dph and the static segments")
     L = float(np.degrees(np.arcsin(np.clip(s_L, -1, 1))))
     std_L = float(np.degrees(std_s / max(np.cos(np.radians(L)), 0.05)))
-    out.update(measured_deg=L, std_deg=std_L)
+    out.update({"measured_deg": L, "std_deg": std_L})
     if std_L > 10.0:
         out["verdict"] = (f"not checked: the gyros do not resolve the Earth rate's vertical component (latitude "
                           f"std {std_L:.3g} deg)")
@@ -122,7 +122,7 @@ def latitude(ms, gm, fg, C_b_d, u_b, static_gyro):
             "positive); if it is right, the gyro model lacks an effect of that size at rest (g-sensitivity: "
             "--add gyro.g_sensitivity.*)")
     out["verdict"] = (f"agrees: measured {L:.2f} +- {std_L:.2g} deg, meta.json {L_meta:g} deg"
-                      + (f" (gyro noise at rest {out['noise']['std_dph']:.2g} deg/h, from this fit's residuals, "
+                      + (f" (gyro noise at rest {noise['std_dph']:.2g} deg/h, from this fit's residuals, "
                          f"{n - 4} dof)" if sig is None else ""))
     return out
 
@@ -164,7 +164,7 @@ def handedness_verdict(ms, found: dict) -> list[str]:
     return []
 
 
-def latitude_check(ms, fa, acc_segs, gm, fg, C_b_d, gyro_noise_dph=None):
+def latitude_check(ms, fa, acc_segs, gm, fg, C_b_d, gyro_noise_dph=None) -> LatitudeCheck:
     """consistency.latitude at the static positions that have gyro data; their noise from their
     scatter, else the stated one (gyro_noise_dph, else meta's), else estimated by the latitude
     fit itself."""

@@ -75,7 +75,26 @@ def _times(X, C):
     return (X.reshape(-1, 3) @ C).reshape(X.shape)
 
 
-def simulate_batch(sc: Scenario, trials: int, rng, noise=True, k_rev=K_REV[-1]):
+class BatchTruth(TypedDict):
+    """The simulated unit's parameters, every trial's (simulate_batch)."""
+    acc: np.ndarray            # the acc model's parameters, in its order
+    gyro: np.ndarray           # the gyro model's
+    C_b_d: np.ndarray          # (3, 3)
+
+
+class Batch(TypedDict):
+    """`trials` simulated tests' mean outputs (simulate_batch)."""
+    acc: np.ndarray            # (T, Ps, 3), g: at the static positions
+    acc_rate: np.ndarray       # (T, Pr, 3), g: over the rate runs
+    gyro: np.ndarray           # (T, Pr, 3), deg/h
+    rho_gyro: np.ndarray       # (Pr,): each rate run's rate magnitude, deg/h
+    rate_sign: np.ndarray      # (Pr,)
+    f_gyro: np.ndarray         # (Pr, 3): the rate runs' mean specific force in d
+    truth: BatchTruth
+    models: tuple[AugmentedModel, AugmentedModel]  # acc, gyro
+
+
+def simulate_batch(sc: Scenario, trials: int, rng, noise=True, k_rev=K_REV[-1]) -> Batch:
     """Mean outputs of `trials` simulated tests: acc at the static positions (T, Ps, 3) in g,
     gyro (T, Pr, 3) in deg/h and acc (T, Pr, 3) over the rate runs, with the plan's rates and the
     rate runs' mean specific force in the gyro frame (T, Pr, 3), the g-sensitivity terms' input."""
@@ -196,8 +215,8 @@ def revolution_samples(sc: Scenario) -> int:
     exact = simulate_batch(sc, 8, np.random.default_rng(0), k_rev=24)
     for k_rev in K_REV[:-1]:
         few = simulate_batch(sc, 8, np.random.default_rng(0), k_rev=k_rev)
-        if all(np.abs(few[k] - exact[k]).max() <= 1e-12 * max(np.abs(exact[k]).max(), 1.0)
-               for k in ("acc_rate", "gyro")):
+        if all(np.abs(a - b).max() <= 1e-12 * max(np.abs(b).max(), 1.0)
+               for a, b in ((few["acc_rate"], exact["acc_rate"]), (few["gyro"], exact["gyro"]))):
             return k_rev
     return K_REV[-1]
 

@@ -43,6 +43,7 @@ from simucal.generated import unify as eq
 from simucal.io import units
 from simucal.turntable.consistency import GROSS_RAD, mirror_error, mirror_test
 from simucal.turntable.lever_arms import lever_arm_test, misplaced_by
+from simucal.turntable.pairs import PairSolution, pair_misfits, wahba_sensitivity
 
 ARCMIN_RAD = math.radians(1 / 60)  # a start for an estimated table accuracy
 
@@ -72,26 +73,6 @@ def _full_covariance(model, obs, fit):
     if kept is None or kept[0] is not model or kept[1] is not obs:
         kept = fit.__dict__["_full_covariance"] = (model, obs, full_covariance(model, obs, fit))
     return kept[2]
-
-
-def wahba_sensitivity(u_b, D_b, u_d, D_d, w, C):
-    """d phi / dz (3, nz) from du_b/dz (n, 3, nz) and du_d/dz (n, 3, nz): at Wahba's solution the weighted
-    gradients in phi sum to zero, so dphi = -(sum w dg/dphi)^-1 sum w (dg/du_b du_b + dg/du_d du_d)
-    (derived: generated/unify.wahba_terms)."""
-    H, G_b, G_d = eq.wahba_terms(u_b, u_d, C.ravel())
-    return -np.linalg.solve(np.tensordot(w, H, axes=1), np.tensordot(w, G_b @ D_b + G_d @ D_d, axes=1))
-
-
-def pair_misfits(u_b, D_b, u_d, D_d, C, J_phi):
-    """Each pair's misfit u_d - C u_b in the plane perpendicular to the bisector of u_d and C u_b (n, 2),
-    where it lies whole, its derivative in z (n, 2, nz) and in u_b and phi (n, 2, 3) (derive/unify.py's
-    pair_misfit_jacobians). In 3
-    components its covariance has a third eigenvalue of the misfit's size squared times the noise's, which
-    a pseudo-inverse counts as an almost noiseless direction: at MEMS noise that doubled the chi-square."""
-    m = u_d + u_b @ C.T
-    E = tangent_basis(m / np.linalg.norm(m, axis=1, keepdims=True))
-    R_b, R_d, R_phi = eq.pair_misfit_jacobians(u_b, C.ravel(), E.reshape(len(E), 6))
-    return np.einsum("nia,ni->na", E, u_d - u_b @ C.T), R_b @ D_b + R_d @ D_d + R_phi @ J_phi, R_b, R_phi
 
 
 def _sandwich(D, U):
@@ -223,7 +204,7 @@ class Unifier:
             lo, hi = (mid, hi) if chi2(mid) > dof else (lo, mid)
         return math.sqrt(lo) * math.sqrt(hi)
 
-    def solve(self, u_b, D_b, u_d, D_d, estimate=None) -> dict:
+    def solve(self, u_b, D_b, u_d, D_d, estimate=None) -> PairSolution:
         """C_b^d, d phi/dz, the pairs' residual rms (rad) and chi-square (2 dof per pair, 3 for C),
         each pair weighted by the inverse of its directions' variance (both sides, from z).
         estimate: the part whose variance factor the pairs' scatter gives (_estimate_var), with
