@@ -16,13 +16,14 @@ and one entry here.
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import TYPE_CHECKING, Any, Callable
+from typing import TYPE_CHECKING, Callable
 
 from simucal.errors import CalibrationError, InputError
 from simucal.options import CalibrateOptions, unused
 
 if TYPE_CHECKING:  # the methods' modules load when one is called (below)
     from simucal import io
+    from simucal.fit.results import SensorDiagnosis
     from simucal.io.calibration import Calibration
 
 TURNTABLE, STREAM, FIELD, SEQUENCE = "turntable", "stream", "field", "sequence"
@@ -171,7 +172,7 @@ class Kind:
     simulate: Callable         # simulate(seed, rate_hz, options) -> (meta, samples, segments or None, truth)
     observations: Callable     # observations(ms, sensor, stated) -> (Observations, segments or None, row segments)
     #                            or None: the rows a sensor's model is tested on (diagnose)
-    diagnose_gyro: Callable[..., dict[str, Any]] | None  # diagnose_gyro(ms, gyro_model, add, truth, acc_model)
+    diagnose_gyro: Callable[..., SensorDiagnosis] | None  # diagnose_gyro(ms, gyro_model, add, truth, acc_model)
     #                            -> block: the gyro judged otherwise than by observations (None: by them)
     sensor_extras: Callable    # sensor_extras(ms, sensor, model, obs, fit, segs, shape) -> dict: a diagnosis
     #                            block's own keys
@@ -221,7 +222,7 @@ def _stream_observations(ms, sensor, stated):
     return observations(ms)
 
 
-def _stream_gyro(ms, gyro_model, add, truth, acc_model):
+def _stream_gyro(ms, gyro_model, add, truth, acc_model) -> SensorDiagnosis:
     from simucal.handheld.diagnosis import diagnose_gyro
     return diagnose_gyro(ms, gyro_model, add, truth, acc_model)
 

@@ -448,31 +448,52 @@ def test_no_public_type_holds_a_record_without_keys():
     assert _untyped(typing.Optional[list[dict]], set(), "planted") == ["planted"]
 
 
-BARE = {"dict", "Dict", "dict[str, Any]", "dict[str, object]", "Mapping[str, Any]", "Dict[str, Any]"}
+MAPS = {"dict", "Dict", "Mapping", "MutableMapping"}
+
+
+def _name(n: ast.expr) -> str | None:
+    """dict of `dict` and of `typing.Dict`."""
+    return n.id if isinstance(n, ast.Name) else n.attr if isinstance(n, ast.Attribute) else None
+
+
+def _bare(hint: ast.expr) -> bool:
+    """hint holds, at any depth, a dict whose keys no type names: a bare dict, or a mapping to Any or object."""
+    if isinstance(hint, ast.Constant) and isinstance(hint.value, str):  # a quoted annotation
+        return _bare(ast.parse(hint.value, mode="eval").body)
+    keyed = {id(n.value) for n in ast.walk(hint) if isinstance(n, ast.Subscript)}
+    for n in ast.walk(hint):
+        if _name(n) in MAPS and id(n) not in keyed:
+            return True
+        if isinstance(n, ast.Subscript) and _name(n.value) in MAPS:
+            last = n.slice.elts[-1] if isinstance(n.slice, ast.Tuple) else n.slice
+            if _name(last) in ("Any", "object"):
+                return True
+    return False
 
 
 def _bare_dict_returns(source: str, where: str) -> list[str]:
-    """The public functions and methods of `source` that return a dict whose keys no type names: annotated
-    dict, dict[str, Any] or Mapping[str, Any] (alone or with None), or unannotated with a dict display returned."""
-    def bare(hint: ast.expr) -> bool:
-        if isinstance(hint, ast.BinOp) and isinstance(hint.op, ast.BitOr):  # X | None
-            return bare(hint.left) or bare(hint.right)
-        return ast.unparse(hint) in BARE
+    """The public functions and methods of `source` that return a dict whose keys no type names (_bare, at
+    any depth of the annotation: list[dict], tuple[X, dict[str, Any]]), or, unannotated, a dict display."""
+    def a_dict(e: ast.expr | None) -> bool:  # a display, a comprehension or a call of dict
+        return isinstance(e, (ast.Dict, ast.DictComp)) or (isinstance(e, ast.Call) and _name(e.func) == "dict")
 
-    def returns_a_display(f: ast.FunctionDef) -> bool:
+    def returns_a_dict(f: ast.FunctionDef | ast.AsyncFunctionDef) -> bool:  # unannotated: what it returns
         inner = {id(n) for g in ast.walk(f) if g is not f and isinstance(g, (ast.FunctionDef, ast.Lambda))
                  for n in ast.walk(g)}
-        return any(isinstance(n, ast.Return) and isinstance(n.value, (ast.Dict, ast.DictComp)) and id(n) not in inner
-                   for n in ast.walk(f))
+        mine = [n for n in ast.walk(f) if id(n) not in inner]
+        dicts = {t.id for n in mine if isinstance(n, (ast.Assign, ast.AnnAssign)) and a_dict(n.value)
+                 for t in (n.targets if isinstance(n, ast.Assign) else [n.target]) if isinstance(t, ast.Name)}
+        return any(isinstance(n, ast.Return) and (a_dict(n.value) or isinstance(n.value, ast.Name)
+                                                  and n.value.id in dicts) for n in mine)
     return [f"{where}:{f.lineno} {f.name}" for f in ast.walk(ast.parse(source))
-            if isinstance(f, ast.FunctionDef) and not f.name.startswith("_")
-            and (bare(f.returns) if f.returns is not None else returns_a_display(f))]
+            if isinstance(f, (ast.FunctionDef, ast.AsyncFunctionDef)) and not f.name.startswith("_")
+            and (_bare(f.returns) if f.returns is not None else returns_a_dict(f))]
 
 
 def test_no_public_function_returns_a_bare_dict():
-    """Every public function and method of simucal/ that returns a dict says what it holds (a TypedDict, a
-    parameterised mapping, records.JSONObject for a document as written): no bare dict, no dict[str, Any].
-    The check finds each form where it is planted."""
+    """Every public function and method of simucal/ that returns a dict, alone or in a list or tuple, says what
+    it holds (a TypedDict, a parameterised mapping, records.JSONObject for a free-form document): no bare dict,
+    no dict[str, Any]. The check finds each form where it is planted."""
     found = [e for p in sorted(ROOT.rglob("*.py")) if "generated" not in p.relative_to(ROOT).parts
              for e in _bare_dict_returns(p.read_text(), str(p.relative_to(ROOT)))]
     assert not found, found
@@ -481,5 +502,13 @@ def test_no_public_function_returns_a_bare_dict():
                "class C:\n    def c(self):\n        return {'k': 1}\n"
                "def d():\n    f = lambda: {}\n    return [f]\n"
                "def e() -> dict[str, float]:\n    return {}\n"
-               "def _f() -> dict:\n    return {}\n")
-    assert [e.split()[1] for e in _bare_dict_returns(planted, "planted")] == ["a", "b", "c"]
+               "def _f() -> dict:\n    return {}\n"
+               "def g() -> tuple[list[dict], int]:\n    return [], 0\n"
+               "async def h() -> 'Mapping[str, Any]':\n    return {}\n"
+               "def i() -> list[dict[str, list[float]]]:\n    return []\n"
+               "def j() -> Optional[typing.Dict[str, typing.Any]]:\n    return None\n"
+               "def k():\n    out = {}\n    out['x'] = 1\n    return out\n"
+               "def m():\n    return dict(x=1)\n"
+               "def n() -> Mapping:\n    return {}\n")
+    assert sorted(e.split()[1] for e in _bare_dict_returns(planted, "planted")) == ["a", "b", "c", "g", "h", "j", "k",
+                                                                                    "m", "n"]

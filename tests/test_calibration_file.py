@@ -14,12 +14,17 @@ from simucal import methods
 from simucal.api.calibrating import calibrate, calibrate_thermal
 from simucal.field.simulate import FieldScenario, write_field
 from simucal.handheld.simulate import HandheldScenario, write_handheld
-from simucal.io import calibration, records
+from simucal.io import calibration, details, records
 from simucal.io.calibration import Calibration, EffectValue, SensorBlock
 from simucal.io.arrays import from_arrays
 from simucal.io.importers import import_ferraris_sections
 from simucal.api import simulate
 from simucal.turntable.sequence import psins19
+
+CUBIC = ("from simucal.derive.frames import f_b\nfrom simucal.derive.models import Term\n"  # a term no library has
+         "from simucal.derive.models.baseline import ACC_BASELINE\n"
+         "MODELS = [ACC_BASELINE.with_terms('acc_cubic_truth',\n"
+         "                               [Term('K3_x', 'x', f_b[0] ** 3, 'g/g^3', 'x cubic')])]\n")
 
 
 @pytest.fixture(scope="module")
@@ -119,9 +124,10 @@ def _undeclared(value, declared, where: str) -> list[str]:
 
 
 def test_every_record_a_method_writes_is_declared_at_every_depth(every_method, thermal_calibrations):
-    """What a method writes beside the fields is typed (io/records.py): every method's file, --add auto's,
-    a hand-placed session's and the thermal ones included, holds only declared keys, each value of its
-    declared type, down to the leaves; no record is Any."""
+    """What a method writes beside the fields is typed (io/details.py, io/records.py): every method's file,
+    --add auto's, a hand-placed session's and the thermal ones included, holds only the keys its method's classes
+    declare (details_types: not another method's), each value of its declared type, down to the leaves; no
+    record is Any."""
     cals = dict(every_method, **thermal_calibrations)
     cals["exact --add auto"] = calibrate(every_method["exact"].input, add=("auto",))
     planted = {"acc.quadratic.z": 2e-4}  # --add auto's steps, written where it adds an effect
@@ -129,13 +135,15 @@ def test_every_record_a_method_writes_is_declared_at_every_depth(every_method, t
     cals["systematic --add auto, adding"] = calibrate(
         simulate(sequence=Path(every_method["systematic"].input).parent / "seq.csv", seed=7, effects=planted),
         method="systematic", add=("auto",))
-    block_hints = typing.get_type_hints(calibration.SensorDetails)
     cal_hints = typing.get_type_hints(Calibration)
     for name, cal in cals.items():
         written = _as_written(cal)
         problems = []
+        own = details.details_types(cal.method)  # the method's own classes: not every method's keys
+        block_hints = {k: h for c in own for k, h in typing.get_type_hints(c).items()}
         for s, block in cal.blocks():
-            problems += [f"{s}.{k}: not declared in SensorDetails" for k in block.details if k not in block_hints]
+            problems += [f"{s}.{k}: not declared in {', '.join(c.__name__ for c in own)} ({cal.method})"
+                         for k in block.details if k not in block_hints]
             problems += [e for k in block.details if k in block_hints
                          for e in _undeclared(written[s][k], block_hints[k], f"{s}.{k}")]
             if block.thermal is not None:
@@ -239,13 +247,29 @@ def test_what_plan_and_montecarlo_return_and_what_sets_state_is_declared(tmp_pat
         assert _undeclared(dict(ms.meta), meta.Meta, name) == []
 
 
-def test_every_key_a_diagnosis_writes_is_declared(every_method):
-    """diagnosis.json is typed (fit/results.DiagnosisReport, SensorDiagnosis): a turntable set's (with --add and
-    without), a stream's and a sequence's hold only declared keys, each of its declared type."""
+def test_every_key_a_diagnosis_writes_is_declared(every_method, tmp_path):
+    """diagnosis.json is typed (fit/results.DiagnosisReport, SensorDiagnosis, CandidateRecord): a turntable set's
+    (with --add and without), a stream's, a sequence's, twins chosen at rest and twins no rows tell apart
+    (turntable/model_test.choose_twin), and a term found outside the library (its shape and model file) hold
+    only declared keys, each of its declared type."""
+    from click.testing import CliRunner
     from simucal.api.diagnosing import diagnosis_report
+    from simucal.cli import main
     from simucal.fit.results import DiagnosisReport
+    from simucal.turntable.simulate import mems_unit, write
     sets = {"turntable": every_method["exact"].input, "stream": every_method["handheld"].input,
             "sequence": every_method["systematic"].input}
+    for name, rates, size in (("twins chosen", (12.0, -12.0, 30.0, -30.0), 254.0),
+                              ("twins undecided", (1500.0, -1500.0), 359.0)):  # tests/test_twins_evidence.py's
+        sc = mems_unit(0)
+        sc.outer_rate_dps, sc.gyro_effects = rates, {"gyro.g_sensitivity.xz": size}
+        write(tmp_path / name, sc, 0)
+        sets[name] = tmp_path / name
+    (tmp_path / "cubic.py").write_text(CUBIC)
+    ran = CliRunner().invoke(main, ["simulate", str(tmp_path / "cubic"), "--plan", "fibonacci48", "--effect-file",
+                                    str(tmp_path / "cubic.py"), "--set", "K3_x=3e-4"])
+    assert ran.exit_code == 0, ran.output
+    sets["a term outside the library"] = tmp_path / "cubic"
     reports = {k: diagnosis_report(Path(v)) for k, v in sets.items()}
     reports["turntable --add"] = diagnosis_report(Path(sets["turntable"]), add=("acc.quadratic.z",))
     for name, report in reports.items():
@@ -253,6 +277,9 @@ def test_every_key_a_diagnosis_writes_is_declared(every_method):
         problems = _undeclared(written, DiagnosisReport, "diagnosis")
         assert not problems, f"{name}: {problems[:8]}"
     assert "added" in reports["turntable --add"]["acc"] and "moves_skipped" in reports["stream"]["gyro"]
+    assert "shape" in reports["a term outside the library"]["acc"]
+    chosen, undecided = (reports[k]["gyro"]["candidates"][0] for k in ("twins chosen", "twins undecided"))
+    assert "at_rest" in chosen and undecided.get("twins_undecided")
 
 
 def test_every_key_a_validation_writes_is_declared(every_method):
@@ -265,3 +292,20 @@ def test_every_key_a_validation_writes_is_declared(every_method):
         written = json.loads(json.dumps(validation_report(cal, Path(cal.input)), default=float))
         assert not (problems := _undeclared(written, ValidationReport, "validation")), f"{method}: {problems[:8]}"
         assert written["note"] and not written["independent"]
+
+
+def test_each_method_has_its_own_details_class():
+    """io/details.details_types: a method's blocks may hold every method's keys and its own, not another
+    method's (a hand-placed session's blocks no turntable gyro's M_in_d, an exact one's no moves); a thermal
+    calibration adds its plateaus to its method's; an unknown method is refused, not given every key."""
+    def keys(method):
+        return {k for c in details.details_types(method) for k in typing.get_type_hints(c)}
+    hand, exact = keys("handheld (Tedaldi): exact norm fit + gyro moves"), keys("exact")
+    assert {"moves", "T", "test"} <= hand and "M_in_d" not in hand and "eta_rad" not in hand
+    assert {"M_in_d", "static_rows", "test"} <= exact and "moves" not in exact and "plateaus" not in exact
+    assert keys("thermal (exact, every row at its own temperature)") == exact | {"plateaus", "groups"}
+    assert keys("multiposition") == keys("warm-up (a still board over temperature)") == keys("field")
+    assert set(typing.get_type_hints(details.SensorDetails)) == set().union(*map(keys, details.BY_METHOD), {
+        "plateaus", "groups"})
+    with pytest.raises(KeyError):
+        keys("a method nobody wrote")

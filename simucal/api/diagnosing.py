@@ -191,7 +191,7 @@ def suggestions(report: DiagnosisReport) -> list[Suggestion]:
         lead = next((c for c in block["candidates"] if c.get("significant")), None)
         undecided = [lead["id"]] if lead and lead.get("twins_undecided") and not found else []
         for eid in [e for e in found or [] if e in cands] + undecided:
-            c: Mapping[str, Any] = cands[eid]  # read by the names below
+            c: Mapping[str, Any] = cands[eid]  # its numbers read by name (number, below)
             number: Callable[[str], float | None] = lambda k: None if c.get(k) is None else float(c[k])  # noqa: E731 (numpy's scalars as floats)
             out.append(Suggestion(s, eid, number("estimate"), number("std"), c.get("unit", ""), number("statistic"),
                                   number("p_value"), tuple(c.get("twins") or ()),
@@ -247,7 +247,7 @@ def diagnose_sensor(ms: io.MeasurementSet, sensor: str, base_model: str, add: Se
     in methods.KINDS (default its own), which gives the rows and what else its data judge."""
     kind = kind or methods.kind_of(ms)
     if sensor == "gyro" and kind.diagnose_gyro is not None:  # judged its own way (a stream: against its moves)
-        return cast(SensorDiagnosis, kind.diagnose_gyro(ms, base_model, tuple(add), truth, acc_model))
+        return kind.diagnose_gyro(ms, base_model, tuple(add), truth, acc_model)
     found = kind.observations(ms, sensor, stated)
     if found is None:
         return None
@@ -274,13 +274,13 @@ def diagnose_sensor(ms: io.MeasurementSet, sensor: str, base_model: str, add: Se
                         "residual_rms_after": fit.residual_rms, "residual_unit": model.unit,
                         "p_value_before": b0["p_value"], "p_value_after": base["p_value"], "params": comp,
                         "residuals_before": residual_table(f0, obs, segs)}
-    return cast(SensorDiagnosis, out)  # with its kind's extras (tests/test_calibration_file.py checks the keys)
+    return cast(SensorDiagnosis, out)  # its kind's extras: finish takes the transient ones (mirror, twin_fits) out
 
 
-def scoring_truth(path: Path) -> dict[str, SensorTruth] | None:
+def scoring_truth(path: Path) -> dict[str, SensorTruth]:
     """A simulator's truth.json beside the set, read for scoring only (the errors of --add's parameters):
     {sensor: {params: {name: number}, T: 3x3, bias_dps: 3}} with whatever is not of that shape left
-    out, and None where it is missing or unreadable (deep, damaged, not JSON): it is never an input."""
+    out, and empty where it is missing or unreadable (deep, damaged, not JSON): it is never an input."""
     d = json_object_or_none(path)
     number: Callable[[Any], bool] = lambda x: isinstance(x, (int, float)) and not isinstance(x, bool) and np.isfinite(x)
     out: dict[str, dict[str, Any]] = {}

@@ -20,7 +20,7 @@ streams' poses), diagnose_moves and table_fit.
 from __future__ import annotations
 
 import functools
-from typing import cast
+from typing import Any, cast
 
 import numpy as np
 
@@ -31,10 +31,11 @@ from simucal.fit.distributions import chi2_sf, f_sf
 from simucal.fit.lack_of_fit import Shape, describe_shape, fit_with_noise, lack_of_fit
 from simucal.fit.norm_fit import Fit, Observations, dense_jacobian, fit_exact
 from simucal.fit import family, ranking, selection
-from simucal.fit.results import ALPHA, ModelTest, Selection
+from simucal.fit.results import ALPHA, CandidateRecord, ModelTest, Selection
 from simucal.fit.twins import separating_plan
 from simucal.generated.effects import EFFECTS, SEPARATE
 from simucal.io import records
+from simucal.io.details import ModelTestBlock
 
 NOISE_TOO_LARGE = 1e-3  # P(chi2 below the value found): residuals this far under the stated noise
 NOISE_TOO_SMALL = 10.0  # residual rms / stated noise above which a misfit with no structure is the noise's
@@ -106,7 +107,8 @@ class NormProblem:
         return ranking.Trial(f1.params[eid], f1.std[eid], float(stat), p, daic, f1.residual_rms)
 
 
-def rank_candidates(model: AugmentedModel, obs: Observations, fit: Fit, base_fails: bool, advisor=None) -> list[dict]:
+def rank_candidates(model: AugmentedModel, obs: Observations, fit: Fit, base_fails: bool,
+                    advisor=None) -> list[CandidateRecord]:
     """Every library effect not in the model, ranked beside it (fit/ranking.rank). advisor: where the
     data come from a plan that can grow (turntable/plan_design.TableAdvice), the positions to add for
     a candidate this plan cannot see, and for the strongest pair of candidates it cannot tell apart."""
@@ -114,18 +116,18 @@ def rank_candidates(model: AugmentedModel, obs: Observations, fit: Fit, base_fai
     unseen = None if advisor is None else lambda eid: advisor.reveal(model, eid, fit, obs, problem.sig)
     pair = None if advisor is None else lambda c, twin: advisor.separate(model, c, twin, fit, obs, problem.sig)
     ids = [e for e in effect_ids(model.sensor) if e not in model.effects]
-    return cast("list[dict]", [c.to_dict() for c in ranking.rank(problem, ids, base_fails, f"{model.sensor} candidates",
-                                                                  unseen=unseen, pair=pair)])
+    return [c.to_dict() for c in ranking.rank(problem, ids, base_fails, f"{model.sensor} candidates", unseen=unseen,
+                                              pair=pair)]
 
 
-def test_model(model, obs: Observations, p0=None) -> tuple[Fit, Observations, dict]:
+def test_model(model, obs: Observations, p0=None) -> tuple[Fit, Observations, ModelTestBlock]:
     """Fit and test the model. Returns (fit, observations with the sigma used, baseline block)."""
     fit, obs, noise = fit_with_noise(model, obs, p0)
     n, m = len(obs.N), len(model.params)
     lof = lack_of_fit(model, obs, fit)
-    block = {"residual_rms": fit.residual_rms, "residual_unit": model.unit, "dof": fit.dof, "model": fit.model,
-             "noise": noise, "lack_of_fit": lof, "chi2": fit.chi2,
-             "cross_validation": leave_one_out(model, obs, fit)}
+    block: dict[str, Any] = {"residual_rms": fit.residual_rms, "residual_unit": model.unit, "dof": fit.dof,
+                             "model": fit.model, "noise": noise, "lack_of_fit": lof, "chi2": fit.chi2,
+                             "cross_validation": leave_one_out(model, obs, fit)}
     if fit.chi2 is not None:
         assert obs.sigma is not None  # a chi-square: the fit had every row's noise (fit_exact)
         noise_std = float(np.sqrt(np.mean(obs.sigma ** 2)))
@@ -157,7 +159,7 @@ def test_model(model, obs: Observations, p0=None) -> tuple[Fit, Observations, di
         block.update(noise_floor=None, noise_std_of_mean=None, p_value=lof["p_value"],
                      test="lack-of-fit F (no noise in the data or stated)")
     family.fold(block, targeted(model, obs, fit))
-    return fit, obs, block
+    return fit, obs, cast(ModelTestBlock, block)  # tests/test_calibration_file.py checks its keys
 
 
 def targeted(model: AugmentedModel, obs: Observations, fit: Fit, ids=None) -> records.Targeted | None:
@@ -193,7 +195,7 @@ class NormStep:
     def test(self):
         return ModelTest.of(self.base)
 
-    def rank(self):
+    def rank(self) -> tuple[list[CandidateRecord], Shape | None]:
         return self._rank(self.model, self.obs_used, self.fit, self.base)
 
     def add(self, eid):
@@ -217,7 +219,7 @@ class NormStep:
         return positions_that_separate(chosen, twin)
 
 
-def positions_that_separate(chosen: dict, twin: dict) -> str:
+def positions_that_separate(chosen: CandidateRecord, twin: CandidateRecord) -> str:
     """The plan command that finds the table positions telling candidate `chosen` from its twin (a gyro's on
     the gyro's model: plan scores the accelerometer's by default)."""
     model = " --model gyro_baseline" if EFFECTS[chosen["id"]].sensor == "gyro" else ""
@@ -231,7 +233,7 @@ def forward_selection(model: AugmentedModel, obs: Observations, rank=None, max_t
     return selection.forward_selection(NormStep(model, obs, rank, table), max_terms)
 
 
-def _rank(model, obs, fit, base) -> tuple[list[dict], Shape | None]:
+def _rank(model, obs, fit, base) -> tuple[list[CandidateRecord], Shape | None]:
     cands = rank_candidates(model, obs, fit, True)
     return cands, shape_if_unexplained(model, obs, fit, base, cands)
 
@@ -252,7 +254,7 @@ def advice_text(cands, shape, base) -> str | None:
     return sig[0]["id"] if sig else None
 
 
-def undecided_twins(lead: dict, cands: list[dict]) -> str:
+def undecided_twins(lead: CandidateRecord, cands: list[CandidateRecord]) -> str:
     """A candidate and its twins that no rows of these data could choose between, and the plan that would."""
     twin = next(c for c in cands if c["id"] in lead["twins"])
     return f"{' or '.join([lead['id'], *lead['twins']])}, which these data cannot tell apart: " + \

@@ -24,7 +24,7 @@ from __future__ import annotations
 import itertools
 import math
 from dataclasses import dataclass, replace
-from typing import TypedDict
+from typing import Callable, TypedDict
 
 import numpy as np
 
@@ -181,7 +181,7 @@ def generic_terms(sensor: str, obs: Observations) -> list[GenericTerm]:
         [GenericTerm(a, (), x, sensor, "dtemp_c") for x in aux if x in FORCE for a in range(3) if "dtemp_c" in aux]
 
 
-def fit_with_noise(model, obs: Observations, p0=None) -> tuple[Fit, Observations, dict]:
+def fit_with_noise(model, obs: Observations, p0=None) -> tuple[Fit, Observations, records.NoiseUsed]:
     """The exact fit with sigma from the data, the statement, or a variance component.
     Returns (fit, the observations with the sigma used (None: one unknown std), noise info)."""
     sig = None if obs.sigma is None else np.asarray(obs.sigma, float)
@@ -217,7 +217,7 @@ def fit_with_noise(model, obs: Observations, p0=None) -> tuple[Fit, Observations
         "estimated_std": s_u, "dof": share, "rows_estimated": int((~known).sum())}
 
 
-def with_estimated_sigma(obs: Observations, noise: dict) -> Observations:
+def with_estimated_sigma(obs: Observations, noise: records.NoiseUsed) -> Observations:
     """The observations with every row's std: where fit_with_noise estimated one std for all
     rows (sigma None, so that the test stays the F test), that std."""
     if obs.sigma is not None or noise.get("estimated_std") is None:
@@ -327,7 +327,15 @@ def _shape_of(best, alike, b, model, obs, fit) -> Shape:
                      + f": {t.parity()}; it explains {100 * lr[best] / max(r @ r, 1e-300):.0f} % of the misfit")}
 
 
-def twin_fits(model, obs: Observations, fit: Fit, shape: dict) -> list[dict]:
+class TwinFit(TypedDict):
+    """A generic term fitted with the model (twin_fits), for rows the fit did not use to judge."""
+    shape: Shape                      # its shape block, the others its twins
+    column: Callable[[np.ndarray, AuxInputs], np.ndarray]  # (u, aux) -> (n, 3) per unit coefficient
+    params: np.ndarray                # [the model's..., the term's]
+    cov: np.ndarray                   # their covariance
+
+
+def twin_fits(model, obs: Observations, fit: Fit, shape: Shape) -> list[TwinFit]:
     """The found term and each of its twins (shape['indistinguishable_here']) fitted with the model,
     linearised at the model's fit (one Gauss-Newton step, exact for a linear term): each's shape
     block (the others its twins), its values as a function column(u, aux) -> (n, 3) per unit
@@ -343,7 +351,7 @@ def twin_fits(model, obs: Observations, fit: Fit, shape: dict) -> list[dict]:
     cov_J = (Jp @ Jp.T)[:m, :m]  # (J^T J)^+
     scale = np.median(np.diag(fit.cov) / np.maximum(np.diag(cov_J), 1e-300))  # as fit.cov (full_covariance)
     p = fit.vector(model.params)
-    out = []
+    out: list[TwinFit] = []
     for k in idx:
         t, c, h = terms[k], float(proj[k] / n2[k]), (Jp @ G[:, k])[:m]
         # min |r + J dp - c G|, J^T r = 0 at the fit: dp = c J^+ G; [J, -G]'s covariance by its Schur

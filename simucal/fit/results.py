@@ -14,11 +14,20 @@ from dataclasses import dataclass, field, replace
 from typing import Any, Mapping, TypedDict, TypeVar, cast
 
 from simucal.io.calibration import ALPHA
-from simucal.io.records import JSONObject, Saturation, SkippedMove
+from simucal.io.details import ModelTestBlock
+from simucal.io.records import JSONObject, PairsChi2, Saturation, SkippedMove
 from simucal.io.stream_records import Timestamps
 
 __all__ = ["ALPHA", "Candidate", "ModelTest", "Selection", "added_params", "model_test_keys"]
 Test = TypeVar("Test")  # a model test's block, whatever its type
+
+
+class TwinAtRest(TypedDict, total=False):
+    """A twin's fit judged on the rows the rate runs do not use (turntable/model_test.choose_twin)."""
+    chi2: float                       # the static rows', on dof
+    dof: int
+    p_value: float
+    pairs: PairsChi2                  # the unification pairs', where their noise is known
 
 
 class CandidateRecord(TypedDict, total=False):
@@ -40,14 +49,17 @@ class CandidateRecord(TypedDict, total=False):
     significant: bool                 # it passes the gate: the one to add
     note: str                         # why it is not separable, what would show it
     twins: list[str]                  # the candidates the data cannot tell it from
+    at_rest: dict[str, TwinAtRest]    # a lead with twins: each twin's fit judged at rest (turntable/model_test.py)
+    twin_choice: str                  # which twin the rows at rest chose, or why none, in words
+    twins_undecided: bool             # no rows chose between its twins: --add auto adds neither
 
 
 class SensorDiagnosis(TypedDict, total=False):
     """One sensor's block of a diagnosis (api/diagnosing.py, and the kinds' own: handheld/, systematic/); its
     free-form parts are documents (docs/spec/measurement-set.md). tests/test_calibration_file.py checks that
     every key a diagnosis writes is declared here."""
-    model_test: JSONObject            # the model diagnosed's test (model_test_keys), also under `baseline`
-    baseline: JSONObject
+    model_test: ModelTestBlock        # the model diagnosed's test (model_test_keys), also under `baseline`
+    baseline: ModelTestBlock
     candidates: list[CandidateRecord]  # ranked
     params: dict[str, float]          # the model's estimates and stds, in param_units
     std: dict[str, float]
@@ -58,7 +70,7 @@ class SensorDiagnosis(TypedDict, total=False):
     table: JSONObject                 # a turntable's own terms
     added: JSONObject                 # --add: the residuals and parameters before and after
     misfit_shares: JSONObject | None  # a stream's: the effects chosen over its moves
-    twin_choice: JSONObject           # twins the rows chose between
+    twin_choice: str                  # which twin the rows at rest chose, in words
     moves_opposite_sense: list[int]
     moves_skipped: list[SkippedMove]
     saturation: list[Saturation]
@@ -66,6 +78,7 @@ class SensorDiagnosis(TypedDict, total=False):
     calibrate_refuses: str            # why calibrate would refuse these data, and what to run instead
     next_instead: dict[str, str]
     verdict: str
+    unit: str                         # the residuals' unit in the system shown (report/units.diagnosis_in)
 
 
 class DiagnosisReport(TypedDict, total=False):
@@ -76,8 +89,8 @@ class DiagnosisReport(TypedDict, total=False):
     acc: SensorDiagnosis
     gyro: SensorDiagnosis
     sensor: str                       # the sensor whose model test has the lowest p (its test below)
-    model_test: JSONObject
-    baseline: JSONObject
+    model_test: ModelTestBlock
+    baseline: ModelTestBlock
     candidates: list[CandidateRecord]  # both sensors', merged in each one's order
     stream: JSONObject                # a stream's stillness and norms
     timestamps: Timestamps

@@ -22,7 +22,8 @@ from typing import Protocol
 
 from simucal.fit.cross_validation import paired_improvement
 from simucal.fit.family import OUTSIDE_SHARE
-from simucal.fit.results import ModelTest, Selection
+from simucal.fit.lack_of_fit import Shape
+from simucal.fit.results import CandidateRecord, ModelTest, Selection
 from simucal.generated.effects import EFFECTS
 from simucal.io import records
 
@@ -43,7 +44,7 @@ class Step(Protocol):
     def test(self) -> ModelTest:
         """The model's test."""
 
-    def rank(self) -> tuple[list[dict], dict | None]:
+    def rank(self) -> tuple[list[CandidateRecord], Shape | None]:
         """The candidates as the diagnosis file holds them (results.Candidate.to_dict; fit/ranking.rank:
         gated, strongest first) and the generic term that explains
         the misfit better than any of them, if any (its description: text, catalog_id)."""
@@ -60,7 +61,7 @@ class Step(Protocol):
     def estimates(self) -> dict[str, tuple[float, float]]:
         """The baseline model's parameters, each (estimate, std), to see what the effects added moved."""
 
-    def to_separate(self, chosen: dict, twin: dict) -> str:
+    def to_separate(self, chosen: CandidateRecord, twin: CandidateRecord) -> str:
         """What would tell the chosen candidate from its twin in this kind of data (a turntable's plan
         command, a stream's poses or moves to make)."""
 
@@ -130,7 +131,7 @@ def _still_failing(start: Step, step: Step, steps: list[dict], why: str) -> Sele
                      f"diagnose shows it)")
 
 
-def _twin_choice(c: dict, cands: list[dict], step: Step) -> dict:
+def _twin_choice(c: CandidateRecord, cands: list[CandidateRecord], step: Step) -> records.AutoStep:
     """Where the data cannot tell the chosen effect from a twin (fit/twins.py): the twins, why this
     one was taken (the larger likelihood ratio only, or the ranking's own choice on rows the fit does
     not use: a turntable gyro's static rows, turntable/model_test.choose_twin) and what would tell

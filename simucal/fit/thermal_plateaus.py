@@ -12,7 +12,8 @@ from simucal import io
 from simucal.errors import CalibrationError
 from simucal.fit.thermal import SPREAD_C, check_temp_c
 from simucal.io import records, units
-from simucal.io.calibration import SensorBlock, SensorDetails
+from simucal.io.calibration import SensorBlock
+from simucal.io.details import SensorDetails
 
 
 def refuse_repeated(sets) -> None:

@@ -38,6 +38,7 @@ from simucal.fit.distributions import chi2_sf
 from simucal.fit.gauss_newton import directions
 from simucal.fit.norm_fit import fit_exact, jacobian_blocks
 from simucal.fit.thermal import SPREAD_C, ThermalModel, clusters, top_degree
+from simucal.io import records
 
 ALPHA = 1e-3      # the model test's level: the chance of keeping any coefficient the truth lacks (module doc)
 RAMP_BANDS = 4    # a ramp is left out in this many equal bands of its temperature range
@@ -211,7 +212,7 @@ def _by_prediction(base, obs, groups, model, fit, dropped):
     return model, fit
 
 
-def group_tests(model, obs, fit, groups) -> list[dict]:
+def group_tests(model, obs, fit, groups) -> list[records.ThermalGroup]:
     """Each group's rows tested under the joint fit: chi^2 over its rows, dof = its rows less their
     leverage on the parameters (the directions profiled out; the leverages sum to the parameters)."""
     r, Jq, Jd, _ = jacobian_blocks(model, obs, fit.vector(model.params), fit.directions, obs.sigma)
@@ -220,7 +221,7 @@ def group_tests(model, obs, fit, groups) -> list[dict]:
     Hinv = np.linalg.pinv(np.einsum("iam,ian->mn", Jt, Jt))
     lev = np.einsum("iam,mn,ian->i", Jt, Hinv, Jt)
     chi = np.sum(r ** 2, axis=1)
-    out = []
+    out: list[records.ThermalGroup] = []
     for g in np.unique(groups):
         k = groups == g
         dof = float(np.sum(k) - np.sum(lev[k]))

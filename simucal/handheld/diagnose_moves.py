@@ -19,11 +19,13 @@ Candidates: ranked and chosen over the moves as handheld/moves_selection.py says
 """
 from __future__ import annotations
 
+from typing import Any, cast
+
 import numpy as np
 
 from simucal.fit.augmented import check_effect
 from simucal.fit.aux_inputs import FORCE
-from simucal.fit.results import ModelTest, added_params, model_test_keys
+from simucal.fit.results import ModelTest, SensorDiagnosis, added_params, model_test_keys
 from simucal.generated.effects import EFFECTS
 from simucal.handheld.gyro_moves import (
     chi2_test,
@@ -54,7 +56,7 @@ def move_rows(gm, fit: GyroFit, S, columns: dict):
             for i, (a, b, span, r, s) in enumerate(zip(mv.before, mv.after, mv.t_span, fit.r, sig))]
 
 
-def diagnose_moves(ms, obs, det, am, fa, add=(), truth=None):
+def diagnose_moves(ms, obs, det, am, fa, add=(), truth=None) -> SensorDiagnosis:
     """The gyro block of `simucal diagnose` for a stream (same keys as for a turntable set): its model test,
     candidates and residuals those of the model with the effects `add`, as on a turntable set; "added"
     compares it with the model without them."""
@@ -91,7 +93,7 @@ def diagnose_moves(ms, obs, det, am, fa, add=(), truth=None):
               if not add and fails and any(c.get("significant") for c in cands) else None)
     vec = lambda f: np.r_[f.T.ravel(), (gm.bias + f.db) * DPH_PER_DPS, f.p]
     std = lambda f: np.sqrt(np.diag(f.cov)) * np.r_[np.ones(9), np.full(3, DPH_PER_DPS), np.ones(len(f.p))]
-    out = {**model_test_keys(block), "candidates": cands, "misfit_shares": shares,
+    out: dict[str, Any] = {**model_test_keys(block), "candidates": cands, "misfit_shares": shares,
            "params": dict(zip(names, vec(fit).tolist())), "std": dict(zip(names, std(fit).tolist())),
            "param_units": {"T": "1 (deg/s of rate per deg/s of output)", "b": "deg/h"},
            "residuals": move_rows(gm, fit, S, columns), "residual_unit": "gravity direction (unit vector), per move",
@@ -103,7 +105,7 @@ def diagnose_moves(ms, obs, det, am, fa, add=(), truth=None):
                         "residual_rms_after": block["residual_rms"], "residual_unit": block["residual_unit"],
                         "p_value_before": test0["p_value"], "p_value_after": p,
                         "params": comp, "residuals_before": move_rows(gm, base, S0, columns)}
-    return out
+    return cast(SensorDiagnosis, out)  # tests/test_calibration_file.py checks its keys
 
 
 def _known(truth) -> dict:

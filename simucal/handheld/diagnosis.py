@@ -9,6 +9,7 @@ from simucal import io
 from simucal.errors import CalibrationError
 from simucal.fit.apply import model_inputs
 from simucal.fit.aux_inputs import AuxInputs, columns_at
+from simucal.fit.results import SensorDiagnosis
 from simucal.handheld.diagnose_moves import diagnose_moves
 from simucal.handheld.poses import acc_from_poses, pose_observations
 from simucal.io.records import JSONObject
@@ -21,7 +22,7 @@ def observations(ms):
     return obs, None, [io.Segment(i, "static", None, None, None, 0.0) for i in range(len(poses))]
 
 
-def diagnose_gyro(ms, gyro_model, add, truth, acc_model):
+def diagnose_gyro(ms, gyro_model, add, truth, acc_model) -> SensorDiagnosis:
     """The gyro's block: a full T and a bias fit over the moves, judged against the poses' directions
     of the accelerometer model acc_model (its effects too)."""
     if gyro_model != "gyro_baseline":

@@ -21,7 +21,7 @@ from simucal.errors import CalibrationError
 from simucal.fit.rotations import skew
 from simucal.generated import moves as gen_moves
 from simucal.handheld.static_detect import Detection
-from simucal.io import timestamps, units
+from simucal.io import records, timestamps, units
 
 
 
@@ -313,7 +313,8 @@ def _rms_deg(angles_rad):
     return float(np.degrees(np.sqrt(np.mean(np.asarray(angles_rad) ** 2))))
 
 
-def choose_gyro_model(mv: Moves, g_dirs, bias_std, f_full: GyroFit, held=()) -> tuple[str, GyroFit, dict]:
+def choose_gyro_model(mv: Moves, g_dirs, bias_std, f_full: GyroFit,
+                      held=()) -> tuple[str, GyroFit, dict[str, records.GyroModelScore]]:
     """The gyro's T by what the moves support, judged on moves left out (issue: a full matrix from
     few moves can be worse than the nominal one): nominal (T = I, the rest's bias), scale factors
     only, or the full 3x3. A richer one is taken only where it predicts the left-out moves better than
@@ -332,12 +333,13 @@ def choose_gyro_model(mv: Moves, g_dirs, bias_std, f_full: GyroFit, held=()) -> 
     scale = fit_gyro(mv, g_dirs, bias_std, x0, held=held_diag, fixed=GYRO_MODELS["scale"])
     fits["scale"] = (scale, held_out_moves(mv, g_dirs, scale, bias_std, held_diag, GYRO_MODELS["scale"]))
     fits["full"] = (f_full, held_out_moves(mv, g_dirs, f_full, bias_std, held=held))
-    chosen, table = "nominal", {}
+    chosen = "nominal"
+    table: dict[str, records.GyroModelScore] = {}
     for name, (fit, held_out) in fits.items():
         table[name] = {"held_out_rms_deg": _rms_deg(held_out),
                        "in_sample_rms_deg": _rms_deg(np.linalg.norm(fit.r, axis=1))}
         if name != "nominal":
-            table[name].update(compared_with=chosen, p_better=paired_improvement(fits[chosen][1], held_out))
+            table[name].update({"compared_with": chosen, "p_better": paired_improvement(fits[chosen][1], held_out)})
             p = table[name]["p_better"]
             if fit.converged and p is not None and p < HELD_OUT_ALPHA:
                 chosen = name

@@ -17,7 +17,7 @@ chosen effect explains of the misfit.
 from __future__ import annotations
 
 import functools
-from typing import TypedDict, cast
+from typing import Any, TypedDict, cast
 
 import numpy as np
 
@@ -25,7 +25,8 @@ from simucal.fit import family
 from simucal.fit.augmented import effect_ids
 from simucal.fit.distributions import chi2_sf
 from simucal.fit.ranking import Trial, rank
-from simucal.fit.results import ModelTest
+from simucal.fit.lack_of_fit import Shape
+from simucal.fit.results import CandidateRecord, ModelTest
 from simucal.fit.selection import forward_selection
 from simucal.fit.twins import separating_plan
 from simucal.generated.effects import EFFECTS, SEPARATE_MOVES
@@ -33,6 +34,7 @@ from simucal.handheld.gyro_moves import GyroMoves, chi2_test, has_input, move_co
 from simucal.handheld.moves import (GyroFit, Integrated, Moves, decimate, effect_column, fit_gyro_moves, free_entries,
                                     held_out_moves, integrated, jacobian, move_residuals, with_effect)
 from simucal.io import records
+from simucal.io.details import FamilyTest
 
 
 class MovesProblem:
@@ -118,27 +120,27 @@ def integrated_with_jacobian(fit: GyroFit, mv: Moves, g_dirs) -> tuple[Integrate
 
 
 def rank_move_candidates(gm: GyroMoves, fit: GyroFit, inputs, base_fails, effects=(), fixed=(),
-                         problem: MovesProblem | None = None) -> list[dict]:
+                         problem: MovesProblem | None = None) -> list[CandidateRecord]:
     """Every library gyro effect not yet in the model, ranked beside T, the bias and effects over the
     moves (fit/ranking.rank); fixed: the entries the fit's gyro model leaves at nominal. problem: the
     MovesProblem of these arguments where one is at hand (moves_family's)."""
     problem = problem or MovesProblem(gm, fit, inputs, effects, fixed)
     ids = [e for e in effect_ids("gyro") if e not in effects]
-    return cast("list[dict]", [c.to_dict() for c in rank(problem, ids, base_fails, "gyro candidates over the moves")])
+    return [c.to_dict() for c in rank(problem, ids, base_fails, "gyro candidates over the moves")]
 
 
 def moves_family(gm: GyroMoves, fit: GyroFit, inputs, omnibus: tuple, effects=(), fixed=(),
-                 at=None) -> tuple[dict, MovesProblem]:
+                 at=None) -> tuple[FamilyTest, MovesProblem]:
     """The moves' model test as one family (fit/family.py): omnibus (chi2, dof, p) the moves' chi-square
     (gyro_moves.chi2_test), with the score test of every library gyro effect not in the model along the
     moves (MovesProblem; at: its moves integrated at fit where at hand). Returns a test block (chi2, dof,
     p_value the family's, test, omnibus_p_value, targeted) and the problem, for rank_move_candidates."""
-    block = dict(zip(("chi2", "dof", "p_value"), omnibus),
-                 test="chi-square of the moves against the rests' white noise")
+    block: dict[str, Any] = dict(zip(("chi2", "dof", "p_value"), omnibus),
+                                 test="chi-square of the moves against the rests' white noise")
     ids = [e for e in effect_ids("gyro") if e not in effects]
     problem = MovesProblem(gm, fit, inputs, effects, fixed, at)
     family.fold(block, family.targeted(problem, ids) if ids else None)
-    return block, problem
+    return cast(FamilyTest, block), problem  # tests/test_calibration_file.py checks its keys
 
 
 class MovesStep:
@@ -152,7 +154,7 @@ class MovesStep:
         self._held_out = None
 
     @functools.cached_property
-    def family(self) -> tuple[dict, MovesProblem]:
+    def family(self) -> tuple[FamilyTest, MovesProblem]:
         """moves_family's test and problem, made when first asked: a trial step the selection turns
         away is never tested."""
         return moves_family(self.gm, self.fit, self.inputs, (self.chi2, self.dof, self.omnibus_p), self.effects,
@@ -171,7 +173,7 @@ class MovesStep:
     def test(self):
         return ModelTest(self.chi2, self.dof, self.p_value)
 
-    def rank(self):
+    def rank(self) -> tuple[list[CandidateRecord], Shape | None]:
         if self.ranked is None:
             self.ranked = rank_move_candidates(self.gm, self.fit, self.inputs, self.test().fails, self.effects,
                                                problem=self.family[1])

@@ -59,6 +59,7 @@ from simucal.fit.thermal import RATE_WINDOW_S, check_temp_c, clusters, temperatu
 from simucal.fit.validation import Check
 from simucal.generated.effects import EFFECTS
 from simucal.io import calibration, records, timestamps
+from simucal.io.details import as_details
 from simucal.io.calibration import EffectValue, SensorBlock
 
 METHOD = "warm-up (a still board over temperature)"  # validate.WARMUP starts it
@@ -174,7 +175,8 @@ def walk_check(e, t_b, white, walk_low) -> records.WalkCheck:
 
 
 def axis_polynomial(w: Whitened, axis: int, scale_c: float, temperatures: int = MAX_DEGREE + 3, rate: bool = False,
-                    white: float | None = None, rate_scale: float = 1.0, eid: str | None = None):
+                    white: float | None = None, rate_scale: float = 1.0,
+                    eid: str | None = None) -> records.ThermalPolynomial:
     """One axis: {degree, coefficients, std (per degC^k), chi2, dof, p_value (the model test), the noise, and
     where the rate is fitted (rate) its coefficient and std per degC/s}. The degree falls from 3 (or from the
     distinct temperatures seen less one: two holds give a line) while its top coefficient's Wald chi2 is under
@@ -197,12 +199,13 @@ def axis_polynomial(w: Whitened, axis: int, scale_c: float, temperatures: int = 
     per = scale_c ** -np.arange(degree + 1)
     e = w.residual(axis, degree, rate, f.c)
     std = np.sqrt(np.diag(f.cov))
-    out = {"degree": degree, "degree_from": "the data" if top == MAX_DEGREE else
-           f"the data, at most {top} for the {temperatures} temperatures seen",
-           "coefficients": (f.c[:degree + 1] * per).tolist(),
-           "std": (std[:degree + 1] * per).tolist(), "chi2": chi2, "dof": dof,
-           "p_value": float(chi2_sf(chi2, dof)) if dof else None, "residual_rms": float(np.sqrt(np.mean(e ** 2))),
-           "noise": {"block_mean_std": float(np.sqrt(f.r)), "random_walk_per_sqrt_s": float(np.sqrt(f.r * f.lam))}}
+    out: records.ThermalPolynomial = {
+        "degree": degree, "degree_from": "the data" if top == MAX_DEGREE else
+        f"the data, at most {top} for the {temperatures} temperatures seen",
+        "coefficients": (f.c[:degree + 1] * per).tolist(),
+        "std": (std[:degree + 1] * per).tolist(), "chi2": chi2, "dof": dof,
+        "p_value": float(chi2_sf(chi2, dof)) if dof else None, "residual_rms": float(np.sqrt(np.mean(e ** 2))),
+        "noise": {"block_mean_std": float(np.sqrt(f.r)), "random_walk_per_sqrt_s": float(np.sqrt(f.r * f.lam))}}
     if rate:
         out["rate"] = {"value": float(f.c[-1] / rate_scale), "std": float(std[-1] / rate_scale)}
     if dof and white is not None:
@@ -380,7 +383,7 @@ def _block(sensor, raw, T, t_s, t_ref, scale_c, effects, auto) -> tuple[SensorBl
                                     f"{[a['degree'] for a in axes]}"
                                     " chosen by the data (stds under the random walk's covariance)"
                                     + "".join(f", {e}" for e in values) + "; scale factors and misalignments nominal",
-                        thermal=thermal, details=calibration.as_details(details))
+                        thermal=thermal, details=as_details(details))
     return block, [_said(sensor, i, a) for i, a in enumerate(axes) if _said(sensor, i, a)]
 
 

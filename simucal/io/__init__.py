@@ -20,7 +20,7 @@ import numpy as np
 
 from simucal.io import csv_columns, outputs, sensor_checks, units
 from simucal.io import meta as meta_keys
-from simucal.io.csv_columns import arrow_floats, read_columns, triad_block
+from simucal.io.csv_columns import Columns, Extremes, arrow_floats, read_columns, triad_block
 from simucal.io.segments import Segment as Segment, read_segments  # Segment: the API names it simucal.io.Segment
 from simucal.io.text_files import (MeasurementSetError, RepeatedKey, body_of, check_delimiter, csv_refusal,
                                      decoded, ends_with_a_line_end, files_sha256, no_repeated_columns, not_a_folder,
@@ -182,7 +182,7 @@ def read_meta(folder: Path) -> meta_keys.Meta:
     return cast(meta_keys.Meta, meta)  # the spec's keys, checked
 
 
-def read_samples(folder: Path, segments) -> tuple[dict, str, dict | None]:
+def read_samples(folder: Path, segments) -> tuple[Columns, str, dict[str, Extremes] | None]:
     """(column -> array, files_sha256 of the set's files as read: hashed on a thread of its own while
     the numbers are parsed, as hashlib frees the GIL, each column's (least, greatest, rows at the least,
     rows at the greatest) where the parser found them, else None) of samples.csv, or samples.parquet
@@ -328,7 +328,7 @@ def at_row(path, e: MeasurementSetError, before: int) -> MeasurementSetError:
     return MeasurementSetError(path, e.line + before, e.rule)
 
 
-def _read_parquet(folder, path, segments) -> tuple[dict, str, None]:
+def _read_parquet(folder, path, segments) -> tuple[Columns, str, None]:
     """read_samples of samples.parquet: the same columns and rules, a break named by its row."""
     cols, others = parquet_columns(path, segments)
     try:

@@ -44,7 +44,7 @@ from __future__ import annotations
 
 import json
 from dataclasses import dataclass, field, fields
-from typing import Any, TypedDict, cast
+from typing import Any, cast
 from pathlib import Path
 
 import numpy as np
@@ -52,6 +52,7 @@ import numpy as np
 from simucal.io import outputs, records
 from simucal.io.calibration_checks import CalibrationFileError, check_file, layout
 from simucal.io.calibration_versions import upgraded
+from simucal.io.details import SensorDetails, as_details
 from simucal.io.text_files import unique_keys
 
 FORMAT = "simucal.calibration/2"
@@ -93,67 +94,6 @@ class EffectValue:
 def _plain(x):
     """JSON's view of a value: arrays as lists."""
     return np.asarray(x).tolist() if isinstance(x, np.ndarray) else x
-
-
-class SensorDetails(TypedDict, total=False):
-    """What a method reports about one sensor's fit beside SensorBlock's fields, written at the block's
-    top level in the file. Every key a method writes is declared here (tests/test_calibration_file.py
-    checks each method's blocks against it); units as the block's."""
-    # the model test (sensor_block, from fit.candidates.test_model)
-    test: str                          # the test, in words
-    omnibus_p_value: float | None      # the omnibus's own p (fit/family.py; p_value is the family's)
-    omnibus_test: str | None           # the omnibus, in words
-    targeted: records.Targeted         # the library effects' targeted tests: tested, strongest, p_value, level
-    noise: records.NoiseUsed           # the noise the test used and where it came from
-    lack_of_fit: records.LackOfFit     # the lack-of-fit F test (fit/lack_of_fit.py)
-    cross_validation: records.CrossValidation | None  # leave one position out (fit/cross_validation.py)
-    rows: str                          # the rows tested, where not all
-    noise_warning: str                 # a stated noise far from the data's scatter
-    noise_too_small: bool
-    covariance: records.Covariance     # the parameters' covariance
-    poorly_determined: dict[str, records.Inflation]  # parameters whose std the plan inflates (poorly_determined)
-    std_raw: dict[str, records.Std]    # the stds before inflate_if_failing scaled them
-    std_note: str                      # how the stds were scaled, or what they include
-    advice: str | None                 # the effect (or generic term) a failing model most likely lacks
-    auto: list[records.AutoStep]       # --add auto's steps (fit/selection.py)
-    auto_stopped: str                  # why it stopped
-    note: str | None                   # what else the method says of this block
-    # a turntable's gyro (turntable/calibrate.py, tilt.py) and a thermal calibration's
-    M_in_d: list[list[float]]          # M in the gyro's parameter frame d
-    std_M: list[list[float]]           # the std of each entry of M in b (unification and tilt included)
-    static_rows: records.StaticRows    # the gyro's static rows against the Earth rate
-    frame: str                         # the frame M is in, where it is not b
-    tilt_note: str
-    table_tilt: records.TableTilt      # the outer axis's tilt carried into the stds
-    plateaus: list[records.Plateau] | bool  # a thermal calibration's plateaus; a joint fit's: its groups are plateaus
-                                       # (True) or a ramp's bands (False)
-    groups: list[records.ThermalGroup]  # a joint thermal fit's groups, each tested under it
-    # a hand-placed session (handheld/calibrate.py)
-    T: list[list[float]]               # T = M^-1
-    T_note: str
-    moves: list[records.MoveResidual]  # each move's residual
-    moves_used: int
-    moves_skipped: list[records.SkippedMove]
-    saturation: list[records.Saturation]
-    moves_opposite_sense: list[int]    # the moves turning against the gyro's sense, by index
-    iterations: int
-    undetermined: dict[str, records.Undetermined]  # parameters the data leave at nominal, and why
-    gyro_model: str                    # nominal, scale or full: chosen by the moves left out
-    model_choice: dict[str, records.GyroModelScore]  # each gyro model's held-out error
-    model_error_std_g: float           # the poses' extra variance
-    std_noise: dict[str, float]        # where it is not 0: the stds from the poses' own noise alone (std includes it)
-    # systematic calibration (systematic/method.py)
-    eta_rad: records.Estimates         # the gyro frame's angles against b
-    # a Ferraris session (turntable/ferraris.py)
-    placement_tilt_deg: float          # the hand placement's tilt (std per pose) the pairs' mismatch shows
-    pairs: list[list[int]]             # the segments of each pair of opposite poses, + then -
-    turn_axis_from_rest: list[list[int | None]]  # [turn, the rest whose gravity is its axis (None: commanded)]
-
-
-def as_details(d: dict[str, Any]) -> SensorDetails:
-    """d, whose keys are chosen at run time (a file's, a test's), as a block's details: mypy cannot check
-    such keys; tests/test_calibration_file.py checks that every key a method writes is declared."""
-    return cast(SensorDetails, d)
 
 
 @dataclass(eq=False)

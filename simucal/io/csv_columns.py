@@ -26,10 +26,12 @@ from simucal.io.text_files import MeasurementSetError
 
 TRIADS = (("ax", "ay", "az"), ("gx", "gy", "gz"))
 PIECE_BYTES = 4 << 20  # parsed two at a time: the tables held at once are two pieces', not the file's
+Columns = dict[str, NDArray[np.float64]]  # {column: its values}
+Extremes = tuple[float, float, int, int]  # a column's (least, greatest, rows at the least, rows at the greatest)
 
 
 def read_columns(body: memoryview, header: list[str], spec_cols: list[str], others: list[str],
-                 bound: float) -> tuple[dict | None, dict | None]:
+                 bound: float) -> tuple[Columns | None, dict[str, Extremes] | None]:
     """({column: float64 array} of spec_cols and others, or None if anything is unusual (a cell that
     is not a number, an empty cell, a ragged row, a NaN or an infinity): the careful reader then names
     the line and the column; {column: (least, greatest, rows at the least, rows at the greatest)} where
@@ -65,9 +67,9 @@ def read_columns(body: memoryview, header: list[str], spec_cols: list[str], othe
     return out, None
 
 
-def _merged(pieces) -> tuple:
+def _merged(pieces) -> Extremes:
     """A column's (least, greatest, rows at the least, rows at the greatest) from its pieces' own (k, 4)."""
-    least, greatest = pieces[:, 0].min(), pieces[:, 1].max()
+    least, greatest = float(pieces[:, 0].min()), float(pieces[:, 1].max())
     return least, greatest, int(pieces[pieces[:, 0] == least, 2].sum()), int(pieces[pieces[:, 1] == greatest, 3].sum())
 
 

@@ -66,8 +66,9 @@ def _read_numeric(path, ncols=None, skip_header=False):
     return np.array(rows)
 
 
-def import_meta(acc_unit, gyro_unit, latitude_deg, extra, has_gyro=True):
-    meta = {"acc_unit": acc_unit, "gyro_unit": gyro_unit, **extra}
+def import_meta(acc_unit, gyro_unit, latitude_deg, extra, has_gyro=True) -> Meta:
+    """meta.json of an imported set: its units, extra (the importer's keys) and the latitude where it has gyros."""
+    meta: Meta = {"acc_unit": acc_unit, "gyro_unit": gyro_unit, **extra}
     if latitude_deg is None and has_gyro:
         raise ImportError_("give --latitude-deg: the spec needs the latitude when gyro data are present "
                            "(where the Earth rate is below the gyro noise any nearby value will do)")

@@ -20,7 +20,7 @@ from __future__ import annotations
 
 import html
 import math
-from typing import Any, Mapping
+from typing import Any, Mapping, TypedDict
 
 import numpy as np
 
@@ -58,12 +58,25 @@ def temperature_part(block: SensorBlock, name: str) -> float | None:
     return float(np.sqrt(max(float(np.max(u_T)) ** 2 - float(std_at(th, name, 0.0)) ** 2, 0.0)))
 
 
-def budget(block: SensorBlock) -> list[dict[str, Any]]:
+class BudgetRow(TypedDict):
+    """One parameter's uncertainty budget (budget), in its unit."""
+    name: str
+    value: float
+    unit: str
+    u: float                          # the standard uncertainty (the file's std)
+    U: float                          # the expanded one, K u
+    noise: float | None               # u's parts (None: the file does not split u)
+    table: float | None               # the table's stated angle errors' share (None: not in u)
+    misfit: float | None
+    temperature: float | None         # beside u, not in it (temperature_part)
+
+
+def budget(block: SensorBlock) -> list[BudgetRow]:
     """Each parameter of the block with its value, unit, u, U = K u, u's parts (module doc) and the temperature
     part (temperature_part: beside u, not in it)."""
     tilt = block.details.get("table_tilt")
     raw = block.details.get("std_raw") or block.details.get("std_noise")  # u before the misfit's share
-    rows = []
+    rows: list[BudgetRow] = []
     for name, (value, u, unit) in block_parameters(block).items():
         u_raw = min(_entry(raw, name), u) if raw else u
         table_part = abs(tilt["per_arcsec"].get(name, 0.0)) * tilt["stated_arcsec"] if tilt else None  # None: not in u

@@ -8,7 +8,8 @@ from typing import Any, Mapping
 from simucal.fit import allan_fit, allan_terms, family
 from simucal.fit.candidates import undecided_twins
 from simucal.io import SENSOR_COLS
-from simucal.io.calibration import ALPHA, Calibration, SensorBlock, SensorDetails
+from simucal.io.calibration import ALPHA, Calibration, SensorBlock
+from simucal.io.details import SensorDetails
 from simucal.report.kalibr import kalibr_missing
 
 

@@ -84,7 +84,7 @@ class LotGroup(TypedDict, total=False):
     units: list[str]
     parameters: list[LotParameter]
     outlier_rule: str  # in words
-    z_threshold: float | None  # None: too few units to test
+    z_threshold: float | None  # None: not tested (too few units, or no parameter every unit gives)
     not_compared: list[str]  # parameters not every unit's file gives with a std
 
 

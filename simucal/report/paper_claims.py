@@ -87,9 +87,17 @@ def _index(label):
     return [e[0] for e in report.ENTRIES].index(label)
 
 
-def claims(seeds=20, progress=None) -> list[dict]:
+class Claim(TypedDict):
+    """One claim of the paper and what the Monte Carlo measures of it (claims)."""
+    source: str                       # where in the paper
+    claim: str
+    measured: str
+    holds: str                        # in words
+
+
+def claims(seeds=20, progress=None) -> list[Claim]:
     """One row per claim: source, claim, measured, holds."""
-    rows = []
+    rows: list[Claim] = []
     truth, est = monte_carlo(Scenario(), seeds, progress=progress)
     err = {m: est[m] - truth for m in est}
     labels = [e[0] for e in report.ENTRIES]

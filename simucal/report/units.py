@@ -14,7 +14,8 @@ import numpy as np
 
 from simucal.io import units
 from simucal.io.results import PlanScore
-from simucal.io.calibration import Calibration, EffectValue, SensorBlock, SensorDetails
+from simucal.io.calibration import Calibration, EffectValue, SensorBlock
+from simucal.io.details import SensorDetails
 from simucal.report.lot_figures import LotReport
 
 C = TypeVar("C", bound=Calibration)

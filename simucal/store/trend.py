@@ -165,8 +165,7 @@ def _parameter(rows: list[ParameterRow], t0: datetime, spec: dict[str, Limit]) -
 
 
 def trend(engine, url: str, serial: str, spec: dict[str, Limit]) -> Trend:
-    """The unit's trend (module doc): {format, store, serial, method, model, first_utc, parameters, due_utc,
-    earliest_utc, due_parameter, verdict}; spec: read_limits' {name: {min, max, unit}} (may be empty)."""
+    """The unit's trend (module doc; Trend); spec: read_limits' {name: {min, max, unit}} (may be empty)."""
     recs = queries.records(engine, url, serial=serial)
     if not recs:
         raise StoreError(f"{shown(url)}: no calibration of unit {serial!r}; record one: simucal store add CAL.json "

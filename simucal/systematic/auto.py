@@ -10,7 +10,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from simucal.fit.results import ModelTest
+from simucal.fit.lack_of_fit import Shape
+from simucal.fit.results import CandidateRecord, ModelTest
 from simucal.fit.selection import forward_selection
 from simucal.systematic.calibrate import run_filter
 from simucal.io import records
@@ -39,7 +40,7 @@ class FilterStep:
         t = self.innovations
         return ModelTest(t["nis"], t["dof"], t["p_value"], t["test"])
 
-    def rank(self):
+    def rank(self) -> tuple[list[CandidateRecord], Shape | None]:
         return [c.to_dict() for c in ranked(self.innovations, self.signatures)], None
 
     def add(self, eid):

@@ -19,17 +19,11 @@ from simucal.fit.results import SensorDiagnosis, added_params, model_test_keys
 from simucal.systematic.calibrate import rests_and_moves, run_filter
 from simucal.fit import family
 from simucal.io import records
+from simucal.io.details import Whiteness
 from simucal.systematic.innovations import family_test, ranked
 from simucal.systematic.method import refusal
 
 UNIT = "innovation std (whitened)"
-
-
-class Whiteness(TypedDict):
-    """The zero-velocity innovations' whiteness (systematic/innovations.innovation_test), per axis."""
-    lag1_autocorrelation: list[float]  # of the whitened innovations
-    lag1_z: list[float]               # times sqrt(updates): about N(0, 1) where they are white
-    meaning: str                      # what lag1_z is, in words
 
 
 class SequenceModelTest(TypedDict, total=False):
@@ -65,7 +59,7 @@ def model_test(test) -> SequenceModelTest:
                                      "sqrt(updates), about N(0, 1) where they are white"}})
 
 
-def innovation_rows(ms, result) -> list[dict]:
+def innovation_rows(ms, result) -> list[records.JSONObject]:
     """The zero-velocity innovations, one row per update (the shape of api/diagnosing.residual_table): the
     rest's segment, its time, the specific force's direction in b, nu (m/s, in n: east, north, up),
     its std and nu / std."""

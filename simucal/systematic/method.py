@@ -12,6 +12,7 @@ from simucal.fit.results import ALPHA
 from simucal.fit.norm_fit import Fit
 from simucal.generated import table
 from simucal.io import calibration, records, units
+from simucal.io.details import as_details
 from simucal.systematic.auto import select
 from simucal.systematic.calibrate import STEP_STD, run_filter
 from simucal.fit.candidates import advice_text
@@ -112,7 +113,7 @@ def calibrate_systematic(ms, acc_model="acc_baseline", gyro_model="gyro_baseline
                                         M_g @ C_b_d, b_g, C_b_model=C_b_d)
     for block in (cal.acc, cal.gyro):
         block.residual_unit = "innovation std (whitened)"
-        block.details.update(calibration.as_details({k: cast("Mapping[str, Any]", test)[k] for k in (
+        block.details.update(as_details({k: cast("Mapping[str, Any]", test)[k] for k in (
             "test", "omnibus_p_value", "omnibus_test", "targeted") if k in test}))
     cal.gyro.details["eta_rad"] = {"value": s.eta.tolist(), "std": np.sqrt(np.diag(r.cov)[na + ng:]).tolist(),
                                    "meaning": "C_b^d = mounting(eta) (derive/systematic.py)"}

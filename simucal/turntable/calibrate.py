@@ -69,10 +69,10 @@ def _exact_sensor(model, obs, segs, method, where, ranked=True, at_rest=None):
                                "(--method multiposition: the Ferraris and multi-position protocols' method)") from None
     if getattr(obs, "noise_file", None) and base.get("noise_warning") and not base.get("noise_too_small"):
         raise CalibrationError(  # a warning for a stated number; a noise file this far off is of another unit
-            f"{obs.noise_file}: the {model.sensor} residuals are {np.sqrt(base['chi2'] / base['dof']):.2g} times its "
-            "noise (the chi-square below its 0.1 % lower tail): the report is of another unit, another output unit "
-            "or another rate, and would let every model pass; measure this unit's still recording with simucal "
-            "noise (or leave --noise out)")
+            f"{obs.noise_file}: the {model.sensor} residuals are "
+            f"{np.sqrt((base['chi2'] or 0.0) / base['dof']):.2g} times its noise (the chi-square below its 0.1 % "
+            "lower tail): the report is of another unit, another output unit or another rate, and would let every "
+            "model pass; measure this unit's still recording with simucal noise (or leave --noise out)")
     base["noise"]["text"] = _noise_text(base["noise"], obs2, model.unit)
     advice = advice_text(cands, shape, base) if ModelTest.of(base).fails else None
     return fit, base, advice, with_estimated_sigma(obs2, base["noise"])

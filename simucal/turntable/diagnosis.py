@@ -7,7 +7,7 @@ from __future__ import annotations
 from typing import TypedDict
 
 from simucal.errors import CalibrationError
-from simucal.fit.lack_of_fit import twin_fits
+from simucal.fit.lack_of_fit import TwinFit, twin_fits
 from simucal.fit.results import ALPHA
 from simucal.fit.twins import CANNOT_TELL
 from simucal.turntable.calibrate import calibrate_table
@@ -27,7 +27,7 @@ def observations(ms, sensor, stated):
 
 class SensorExtras(TypedDict, total=False):
     """A turntable block's keys for finish (sensor_extras)."""
-    twin_fits: list[dict]             # the found gyro term and each of its twins fitted (fit/lack_of_fit.twin_fits)
+    twin_fits: list[TwinFit]          # the found gyro term and each of its twins fitted (fit/lack_of_fit.twin_fits)
     mirror: tuple[int, float, float] | None  # a mirror image: (axis, rms residual, with it reversed); else None
 
 

@@ -22,11 +22,12 @@ from simucal.fit.augmented import AugmentedModel
 from simucal.fit.aux_inputs import specific_force
 from simucal.fit import family
 from simucal.fit.candidates import positions_that_separate, rank_candidates, shape_if_unexplained, test_model
-from simucal.fit.results import ALPHA, ModelTest
+from simucal.fit.results import ALPHA, CandidateRecord, ModelTest, TwinAtRest
 from simucal.fit.twins import CANNOT_TELL
 from simucal.fit.distributions import chi2_sf
 from simucal.fit.norm_fit import Fit, Observations, fit_exact
 from simucal.io import records, units
+from simucal.io.details import ModelTestBlock
 from simucal.turntable.plan_design import TableAdvice
 
 ROWS = {"acc": {"static", "rate"}, "gyro": {"rate"}}  # the segment kinds each sensor's test fits
@@ -43,8 +44,8 @@ class Tested(NamedTuple):
     """A model tested and its candidates ranked (test_and_rank)."""
     fit: Fit
     obs: Observations       # with the noise the test used
-    base: dict              # the test block (fit.candidates.test_model, with `rows`)
-    candidates: list        # ranked (results.Candidate.to_dict), [] where not ranked
+    base: ModelTestBlock    # the test block (fit.candidates.test_model, with `rows`)
+    candidates: list[CandidateRecord]  # ranked (results.Candidate.to_dict), [] where not ranked
     shape: dict | None      # the generic term that explains the misfit better than any candidate
     table: dict | None      # the table's own terms fitted (turntable/table_fit.py)
 
@@ -207,7 +208,7 @@ def _chi2s(tested: dict, ids, pairs: bool) -> str:
                      for k in ids)
 
 
-def choose_twin(cands: list[dict], at_rest) -> None:
+def choose_twin(cands: list[CandidateRecord], at_rest) -> None:
     """Where the strongest significant candidate has twins that the rate runs cannot tell from it
     (fit/twins.py), the one whose fit predicts the rows the rate-run fit does not use best (the static rows'
     chi-square, plus the unification pairs' where their noise is known: AtRest.with_effect; lowest, all
@@ -230,16 +231,19 @@ def choose_twin(cands: list[dict], at_rest) -> None:
     chosen = next(c for c in group if c["id"] == best)
     st = tested[best]
     rate = ", ".join(f"{c['statistic']:.1f}" for c in group)
-    at_rest_chi2 = {k: {x: v[x] for x in ("chi2", "dof", "p_value")} | ({"pairs": v["pairs"]} if "pairs" in v else {})
-                    for k, v in tested.items()}
+    at_rest_chi2: dict[str, TwinAtRest] = {}
+    for k, v in tested.items():
+        at_rest_chi2[k] = {"chi2": v["chi2"], "dof": v["dof"], "p_value": v["p_value"]}
+        if "pairs" in v:
+            at_rest_chi2[k]["pairs"] = v["pairs"]
     gap = min(v for k, v in total.items() if k != best) - total[best]
     if gap < CANNOT_TELL:  # the rows that judge cannot choose either: no twin is claimed, the ranking stands
         twin = next(c for c in group if c is not lead and c["id"] in tested)
-        lead.update(at_rest=at_rest_chi2, twins_undecided=True, twin_choice=(
+        lead.update({"at_rest": at_rest_chi2, "twins_undecided": True, "twin_choice": (
             f"cannot tell {lead['id']} from {', '.join(k for k in tested if k != lead['id'])} with these data: "
             f"neither the rate runs (likelihood ratios {rate}) nor the {rows} (chi2 "
             f"{_chi2s(tested, tested, with_pairs)}, {gap:.1f} apart, under the twins' level {CANNOT_TELL:.2f}) choose: "
-            "either may be the unit's; " + positions_that_separate(lead, twin)))
+            "either may be the unit's; " + positions_that_separate(lead, twin))})
         return
     others = "; ".join(_chi2s(tested, [k], with_pairs) for k in tested if k != best)
     pairs = f", and {st['pairs']['chi2']:.1f} on {st['pairs']['dof']} dof in the pairs" if with_pairs else ""

@@ -97,7 +97,7 @@ class Batch(TypedDict):
 def simulate_batch(sc: Scenario, trials: int, rng, noise=True, k_rev=K_REV[-1]) -> Batch:
     """Mean outputs of `trials` simulated tests: acc at the static positions (T, Ps, 3) in g,
     gyro (T, Pr, 3) in deg/h and acc (T, Pr, 3) over the rate runs, with the plan's rates and the
-    rate runs' mean specific force in the gyro frame (T, Pr, 3), the g-sensitivity terms' input."""
+    rate runs' mean specific force in the gyro frame (Pr, 3), the g-sensitivity terms' input (Batch)."""
     static, rates = _plan(sc)
     am, gm = AugmentedModel(sc.acc_model, tuple(sc.acc_effects)), AugmentedModel(sc.gyro_model, tuple(sc.gyro_effects))
     p_a = np.array([{**sc.acc_params, **sc.acc_effects}.get(k, 0.0) for k in am.params])

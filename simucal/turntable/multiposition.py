@@ -3,16 +3,26 @@ outputs regressed on the inputs computed from the commanded angles of an ideal t
 assumed: y = M f + b by least squares, no model test beyond the residual."""
 from __future__ import annotations
 
+from typing import TypedDict
+
 import numpy as np
 
 from simucal.errors import CalibrationError
 from simucal.fit.norm_fit import check_not_coplanar
 from simucal.generated import table
-from simucal.io import calibration, units
+from simucal.io import calibration, records, units
 from simucal.turntable.observations import commanded_up_k
 
 
-def multiposition(ms, acc_obs, acc_segs, gyro_obs, gyro_segs):
+class AffineFit(TypedDict):
+    """y = M f + b fitted by least squares (_affine_fit), in the sensor's units."""
+    M: np.ndarray                     # (3, 3)
+    bias: np.ndarray                  # (3,)
+    residual_rms: float
+    std: dict[str, records.Std]       # of M and bias, by the fit's own scatter
+
+
+def multiposition(ms, acc_obs, acc_segs, gyro_obs, gyro_segs) -> dict[str, AffineFit]:
     """Traditional method: y = M f + b with f from commanded angles, ideal table, b = k.
 
     Gyro inputs: rate runs (w_T + w_e sin L) along the commanded vertical, and
@@ -21,7 +31,7 @@ def multiposition(ms, acc_obs, acc_segs, gyro_obs, gyro_segs):
     lat = np.radians(ms.meta.get("latitude_deg", 0.0))
     w_e = units.earth_rate_dph(ms.meta)
     w_ie_n = table.earth_rate_n(w_e, lat)
-    out = {}
+    out: dict[str, AffineFit] = {}
     if acc_obs is not None:
         up, _ = commanded_up_k(acc_segs)
         out["acc"] = _affine_fit(up, acc_obs.N, "acc")
@@ -42,7 +52,7 @@ def multiposition(ms, acc_obs, acc_segs, gyro_obs, gyro_segs):
     return out
 
 
-def _affine_fit(f, N, sensor):
+def _affine_fit(f, N, sensor) -> AffineFit:
     """y = M f + b by least squares, refused where the inputs f do not span three dimensions: inputs in
     one plane (a gyro's rate runs all about axes of one plane, the Earth rate alone out of it) leave M
     along its normal to the noise, a confident wrong answer rather than a rank deficiency."""

@@ -12,7 +12,8 @@ from simucal.fit.aux_inputs import T_REF, AuxInputs, specific_force
 from simucal.fit.norm_fit import Observations
 from simucal.fit.thermal_select import RAMP_BANDS
 from simucal.io import calibration, records, units
-from simucal.io.calibration import SensorBlock, SensorDetails
+from simucal.io.calibration import SensorBlock
+from simucal.io.details import SensorDetails, as_details
 from simucal.io.segments import Segment
 from simucal.turntable.consistency import static_gyro_rows
 from simucal.turntable.model_test import ROWS
@@ -167,7 +168,7 @@ def joint_block(obs, groups, first: SensorBlock, degree, labels, t_ref_c, platea
                                 "parameters": fits, "dropped": how["dropped"],
                                 "covariance": {"names": list(model.params), "matrix": fit.cov.tolist()}}
     test: Mapping[str, Any] = joint_test(base, model, obs, fit)  # its keys read by name below
-    details.update(calibration.as_details({k: test[k] for k in ("omnibus_p_value", "omnibus_test", "targeted")
+    details.update(as_details({k: test[k] for k in ("omnibus_p_value", "omnibus_test", "targeted")
                                            if k in test}))
     if "verdict" in test.get("targeted", {}):  # a library effect beyond its test: the one to add
         details["advice"] = test["targeted"]["strongest"]
