@@ -13,7 +13,8 @@ import simucal
 from cli_helpers import run
 from simucal.api.demo_run import HIDDEN
 from simucal.errors import SimucalError
-from simucal.report.certificate import K, budget, value_digits
+from simucal.report.certificate import K, budget
+from simucal.report.numbers import value_digits
 from simucal.report.numbers import eng
 
 

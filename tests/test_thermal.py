@@ -248,6 +248,18 @@ def test_the_thermal_page_opens_with_a_verdict_per_sensor(plateaus):
     assert page.count("PASSES: the one model over every row") == 2
     assert page.count("<img") >= 5  # acc b_x, b_y, dK_z; gyro b_z, dK_x against temperature
     assert "T_ref 25 degC" in page
+    # the table in the one vocabulary first (each entry at T_ref and per degC^k, the method's own name beside it),
+    # then the method's own polynomials
+    from simucal.io import calibration
+    from simucal.report.numbers import eng_html, value_digits
+    from simucal.report.vocabulary import entries
+    cal = calibration.load(root / "cal.json")
+    rows = {e.name: e for e in entries("acc", cal.acc, cal.temperature_range_c)}
+    t1 = rows["bias_x.T1"]
+    row = page[page.index("<tr><td>bias_x</td><td>b_x</td>"):]
+    assert f"{eng_html(t1.value, value_digits(t1.value, t1.std))} &plusmn; {eng_html(t1.std, 2)}" in row[
+        :row.index("</tr>")]
+    assert page.index("<th>entry</th><th>method's own</th>") < page.index("acc: the method's own parameters")
 
 
 @pytest.mark.slow

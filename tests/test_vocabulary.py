@@ -4,7 +4,7 @@ import numpy as np
 import pytest
 
 import simucal
-from simucal.api.vocabulary import entries, in_accelerometer_frame
+from simucal.report.vocabulary import entries, in_accelerometer_frame
 from simucal.errors import CalibrationError, InputError
 
 

@@ -37,7 +37,8 @@ from simucal.api.tools import audit, derive_model
 from simucal.api.validating import Check, Validation, validate
 from simucal.handheld.static_detect import DetectSettings
 from simucal.api.sets import MeasurementSet
-from simucal.api.vocabulary import Entry, compare
+from simucal.api.vocabulary import compare
+from simucal.report.vocabulary import Entry
 from simucal.io import calibration as _file
 from simucal.io import results
 

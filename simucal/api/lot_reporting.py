@@ -29,7 +29,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from simucal.api.arguments import checked
-from simucal.api.vocabulary import entries
+from simucal.report.vocabulary import entries
 from simucal.errors import CalibrationError, InputError, StoreError
 from simucal.io.calibration import Calibration, load
 from simucal.io.calibration_checks import SERIAL, CalibrationFileError

@@ -27,7 +27,7 @@ import numpy as np
 from simucal.fit.thermal import std_at, terms
 from simucal.io.calibration import Calibration, SensorBlock
 from simucal.report.lot_figures import block_parameters, model_name
-from simucal.report.numbers import eng_html
+from simucal.report.numbers import eng_html, value_digits
 from simucal.report.page import page, table
 
 K = 2.0  # the coverage factor of the expanded uncertainty
@@ -101,13 +101,6 @@ def coefficients(block: SensorBlock) -> list[list[Any]]:
     hold (k >= 1), from the block's `thermal` polynomials."""
     return [[term, c, unit, u, K * u] for name, (_, _, param_unit) in block_parameters(block).items()
             for term, _, c, u, unit in terms(block.thermal, name, param_unit)]
-
-
-def value_digits(value: float, u: float) -> int:
-    """The significant digits of a value stated with its uncertainty: down to u's second digit (at least 3)."""
-    if not (math.isfinite(value) and math.isfinite(u)) or value == 0 or u <= 0:
-        return 3
-    return max(3, math.floor(math.log10(abs(value))) - math.floor(math.log10(u)) + 2)
 
 
 # each verdict of a block (io/calibration.SensorBlock.verdict) as the certificate states it, and its colour:

@@ -29,6 +29,13 @@ class Html(str):
     """Text that is HTML already (a table's cell takes it as it is)."""
 
 
+def value_digits(value: float, u: float) -> int:
+    """The significant digits of a value stated with its uncertainty: down to u's second digit (at least 3)."""
+    if not (math.isfinite(value) and math.isfinite(u)) or value == 0 or u <= 0:
+        return 3
+    return max(3, math.floor(math.log10(abs(value))) - math.floor(math.log10(u)) + 2)
+
+
 def eng_html(value: float | None, digits: int = DIGITS, unit: str = "") -> Html:
     """eng() for a page: one unbreakable span, so that a narrow cell never wraps a number at its exponent."""
     return Html(f"<span class='n'>{html.escape(eng(value, digits, unit))}</span>")

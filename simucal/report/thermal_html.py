@@ -12,8 +12,9 @@ import numpy as np
 from simucal.fit.thermal import evaluate, std_at
 from simucal.io.calibration import ALPHA, Calibration
 from simucal.fit.augmented import AugmentedModel
-from simucal.report.numbers import eng_html
+from simucal.report.numbers import eng_html, value_digits
 from simucal.report.page import CELL_IN, figure, grid, page, png
+from simucal.report.vocabulary import TERM, Entry, entries
 
 
 def _figure(sensor, name, f, unit, th):
@@ -120,6 +121,31 @@ def _table(b) -> str:
     return f"<table><tr><th>parameter</th><th>meaning</th><th>unit</th><th>degree</th>{head}</tr>{rows}</table>"
 
 
+def _stated(e: Entry) -> str:
+    """An entry's value, down to its std's second digit, and its std."""
+    return f"{eng_html(e.value, value_digits(e.value, e.std))} &plusmn; {eng_html(e.std, 2)}"
+
+
+def _common_table(sensor: str, b, span) -> str:
+    """The sensor's M, bias and effects over temperature in the one vocabulary (report/vocabulary.py): each at
+    T_ref and its temperature terms name.Tk (per degC^k), with the method's own parameter beside it."""
+    rows = entries(sensor, b, span)
+    terms: dict[str, dict[int, Entry]] = {}
+    for e in rows:
+        if (m := TERM.search(e.name)) is not None:
+            terms.setdefault(e.name[:m.start()], {})[int(m.group(1))] = e
+    n = max((max(t) for t in terms.values()), default=0)
+    body = "".join(
+        f"<tr><td>{html.escape(e.name)}</td><td>{html.escape(e.own_name or '')}</td><td>{html.escape(e.meaning)}</td>"
+        f"<td>{html.escape(e.unit)}</td><td>{_stated(e)}</td>"
+        + "".join(f"<td>{_stated(t)}</td>" if (t := terms.get(e.name, {}).get(k)) else "<td></td>"
+                  for k in range(1, n + 1)) + "</tr>"
+        for e in rows if TERM.search(e.name) is None)
+    head = "".join(f"<th>per degC{'' if k == 1 else f'^{k}'}</th>" for k in range(1, n + 1))
+    return ("<table><tr><th>entry</th><th>method's own</th><th>meaning</th><th>unit</th><th>at T_ref</th>"
+            f"{head}</tr>{body}</table>")
+
+
 def thermal_page(cal: Calibration, validations=(), cal_path="thermal_calibration.json") -> str:
     """The page; validations: `simucal validate` reports of this calibration, shown in the verdicts; cal_path:
     the file it is saved in (for the next command)."""
@@ -134,6 +160,8 @@ def thermal_page(cal: Calibration, validations=(), cal_path="thermal_calibration
             parts.append(f"<h2>{s}</h2>")
             parts.append(grid([_figure(s, n, f, b.param_units.get(n, ""), b.thermal)
                                for n, f in b.thermal["parameters"].items() if f["degree"] > 0]))
+            parts.append(_common_table(s, b, cal.temperature_range_c))
+            parts.append(f"<h3>{s}: the method's own parameters</h3>")
             parts.append(_table(b))
     cmd, notes = thermal_next(cal, cal_path, validations)
     return page("simucal thermal calibration", "Thermal calibration", verdicts, cmd, notes, parts)
