@@ -6,6 +6,7 @@ table of every parameter."""
 from __future__ import annotations
 
 import html
+import math
 
 import numpy as np
 
@@ -121,9 +122,20 @@ def _table(b) -> str:
     return f"<table><tr><th>parameter</th><th>meaning</th><th>unit</th><th>degree</th>{head}</tr>{rows}</table>"
 
 
+NO_STD_DIGITS = 7  # a value without a std: as many digits as a scale factor's ppm need
+
+
 def _stated(e: Entry) -> str:
-    """An entry's value, down to its std's second digit, and its std."""
+    """An entry's value, down to its std's second digit, and its std; without one (the file gives none), more
+    digits and "no std" (NO_STD)."""
+    if not math.isfinite(e.std):
+        return f"{eng_html(e.value, NO_STD_DIGITS)} (no std)"
     return f"{eng_html(e.value, value_digits(e.value, e.std))} &plusmn; {eng_html(e.std, 2)}"
+
+
+NO_STD = ("<p>no std: the file gives none for this entry (as for a gyro's M tied to b through a C_b^d whose "
+          "uncertainty it does not hold), so neither this page nor `simucal lot` states or judges one; the "
+          "method's own parameters below carry theirs.</p>")
 
 
 def _common_table(sensor: str, b, span) -> str:
@@ -143,7 +155,7 @@ def _common_table(sensor: str, b, span) -> str:
         for e in rows if TERM.search(e.name) is None)
     head = "".join(f"<th>per degC{'' if k == 1 else f'^{k}'}</th>" for k in range(1, n + 1))
     return ("<table><tr><th>entry</th><th>method's own</th><th>meaning</th><th>unit</th><th>at T_ref</th>"
-            f"{head}</tr>{body}</table>")
+            f"{head}</tr>{body}</table>" + (NO_STD if any(not math.isfinite(e.std) for e in rows) else ""))
 
 
 def thermal_page(cal: Calibration, validations=(), cal_path="thermal_calibration.json") -> str:
