@@ -259,7 +259,7 @@ def test_the_thermal_page_opens_with_a_verdict_per_sensor(plateaus):
     row = page[page.index("<tr><td>bias_x</td><td>b_x</td>"):]
     assert f"{eng_html(t1.value, value_digits(t1.value, t1.std))} &plusmn; {eng_html(t1.std, 2)}" in row[
         :row.index("</tr>")]
-    assert page.index("<th>entry</th><th>method's own</th>") < page.index("acc: the method's own parameters")
+    assert page.index("<th>entry</th><th>the method&#x27;s</th>") < page.index("acc: the method's own parameters")
     no_std = [e for e in entries("gyro", cal.gyro, cal.temperature_range_c) if not np.isfinite(e.std)]
     assert no_std and "'n'>nan<" not in page  # the joint fit's gyro M has none: said, not printed as nan
     assert f"<td>{eng_html(no_std[0].value, 7)} (no std)</td>" in page and "no std: the file gives none" in page

@@ -22,6 +22,7 @@ from simucal.api.sets import as_set
 from simucal.errors import CalibrationError, InputError, SimucalError
 from simucal.io import calibration
 from simucal.io.calibration_checks import check_layout, scale_notes
+from simucal.io.details import THERMAL
 from simucal.io.sensor_checks import stuck_channels
 from simucal.handheld.static_detect import DetectSettings  # an annotation the door checks
 from simucal.io.timestamps import with_timestamps
@@ -211,7 +212,7 @@ def _calibrate_thermal(folders: Sequence[Data], options: CalibrateOptions) -> ca
         check_layout(cal, ms, f"the plateau nearest T_ref ({sets[near][0].path})")
     plateaus = [str(ms.path) for ms, _ in sets]
     T_all = np.concatenate([ms.samples["temp_c"] for ms, _ in sets])
-    result = calibration.Calibration(f"thermal ({cal.method}, every row at its own temperature)", plateaus,
+    result = calibration.Calibration(f"{THERMAL}{cal.method}, every row at its own temperature)", plateaus,
                                      [ms.sha256 for ms, _ in sets], cal.layout, t_ref_c=t_ref,
                                      temperature_range_c=[float(T_all.min()), float(T_all.max())],
                                      unification=cal.unification, not_calibrated=cal.not_calibrated,

@@ -212,8 +212,7 @@ def save_diagnosis(path: str | os.PathLike[str], d: Diagnosis) -> list[Path]:
     for s, text in d.model_files.items():
         written.append(shape_model_path(path, s))
         outputs.write_text(written[-1], text)
-        block = cast(Mapping[str, Any], d.report).get(s)
-        shape = block.get("shape") if isinstance(block, dict) else None
+        shape = diagnosis_blocks(d.report).get(s, {}).get("shape")
         if isinstance(shape, dict):  # a model file is written for a shape found
             shape["model_file_path"] = str(written[-1])
     outputs.write_text(path, json.dumps(d.report, indent=1, default=float) + "\n")

@@ -50,10 +50,10 @@ from simucal.fit.apply import apply
 from simucal.fit.validation import FAR_OFF, ValidationReport
 from simucal.errors import CalibrationError
 from simucal.io import calibration, units
+from simucal.io.details import WARMUP
 from simucal.io.timestamps import with_timestamps
 from simucal.report.console import skipped_sensors, validation_next
 
-WARMUP = "warm-up"  # a still board's warm-up calibration (handheld/warmup.py): validated on another warm-up
 WORSE = 1.05  # after/before above this: the calibration makes the unit worse on these data
 AT_FLOOR = 2.0  # after below this many floors: the noise, nothing left to gain
 

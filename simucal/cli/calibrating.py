@@ -3,7 +3,6 @@ from __future__ import annotations
 
 import sys
 from pathlib import Path
-from typing import cast
 
 import click
 
@@ -310,8 +309,7 @@ def diagnose(data_dir, output, html_path, add, acc_model, gyro_model, acc_noise_
         api.save(html_path, result, units=units)
     from simucal.report.units import diagnosis_in
     report = diagnosis_in(result.report, units)  # the numbers converted, the verdicts written from them
-    notes = cast(list[str], report.get("notes", []))  # a document: diagnosis.json's keys (docs/spec)
-    for line in [*str(report["verdict"]).split(" | "), *notes, *_added_lines(report)]:
+    for line in [*report["verdict"].split(" | "), *report.get("notes", []), *_added_lines(report)]:
         click.echo(line)
     click.echo(f"next: {result.next_command}" + "".join(f" ({n})" for n in result.next_notes))
     for s in result.model_files:

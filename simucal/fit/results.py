@@ -15,19 +15,11 @@ from typing import Any, Mapping, TypedDict, TypeVar, cast
 
 from simucal.io.calibration import ALPHA
 from simucal.io.details import ModelTestBlock
-from simucal.io.records import JSONObject, PairsChi2, Saturation, SkippedMove
+from simucal.io.records import JSONObject, Saturation, SkippedMove, StaticRows
 from simucal.io.stream_records import Timestamps
 
 __all__ = ["ALPHA", "Candidate", "ModelTest", "Selection", "added_params", "model_test_keys"]
 Test = TypeVar("Test")  # a model test's block, whatever its type
-
-
-class TwinAtRest(TypedDict, total=False):
-    """A twin's fit judged on the rows the rate runs do not use (turntable/model_test.choose_twin)."""
-    chi2: float                       # the static rows', on dof
-    dof: int
-    p_value: float
-    pairs: PairsChi2                  # the unification pairs', where their noise is known
 
 
 class CandidateRecord(TypedDict, total=False):
@@ -49,7 +41,7 @@ class CandidateRecord(TypedDict, total=False):
     significant: bool                 # it passes the gate: the one to add
     note: str                         # why it is not separable, what would show it
     twins: list[str]                  # the candidates the data cannot tell it from
-    at_rest: dict[str, TwinAtRest]    # a lead with twins: each twin's fit judged at rest (turntable/model_test.py)
+    at_rest: dict[str, StaticRows]    # a lead with twins: each twin's static rows' (and pairs') test
     twin_choice: str                  # which twin the rows at rest chose, or why none, in words
     twins_undecided: bool             # no rows chose between its twins: --add auto adds neither
 

@@ -15,7 +15,7 @@ nothing in 3 seeds of 40). The joint fit, every row at its own temperature, deci
 """
 from __future__ import annotations
 
-from typing import TypedDict, cast
+from typing import cast
 
 import numpy as np
 
@@ -26,27 +26,18 @@ from simucal.fit.candidates import targeted
 from simucal.fit.thermal_select import select
 from simucal.fit.twins import CANNOT_TELL
 from simucal.generated.effects import EFFECTS
-from simucal.io import records
+from simucal.io.details import FamilyTest
 
 MAX_TERMS = 6  # as selection.forward_selection's
 
 
-class JointTest(TypedDict, total=False):
-    """The joint thermal model's test (joint_test), made the family's by fit/family.fold."""
-    p_value: float | None             # the family's
-    test: str                         # in words
-    omnibus_p_value: float | None     # the chi-square's own, of every row at its own temperature
-    omnibus_test: str | None          # the chi-square, in words
-    targeted: records.Targeted        # the library effects' targeted tests
-
-
-def joint_test(base: AugmentedModel, model, obs, fit) -> JointTest:
+def joint_test(base: AugmentedModel, model, obs, fit) -> FamilyTest:
     """The joint model's test: its chi-square and the targeted tests of the library effects not in base
     that do not follow temperature, one family (fit/family.py)."""
     test = {"p_value": fit.p_value, "test": "chi-square of every row at its own temperature"}
     ids = [e for e in effect_ids(base.sensor) if e not in base.effects and not follows_temperature(e)]
     family.fold(test, targeted(model, obs, fit, ids) if fit.chi2 is not None else None)
-    return cast(JointTest, test)
+    return cast(FamilyTest, test)
 
 
 def by_every_row(first, obs, groups, degree):

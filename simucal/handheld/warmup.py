@@ -59,10 +59,10 @@ from simucal.fit.thermal import RATE_WINDOW_S, check_temp_c, clusters, temperatu
 from simucal.fit.validation import Check
 from simucal.generated.effects import EFFECTS
 from simucal.io import calibration, records, timestamps
-from simucal.io.details import as_details
+from simucal.io.details import WARMUP, as_details
 from simucal.io.calibration import EffectValue, SensorBlock
 
-METHOD = "warm-up (a still board over temperature)"  # validate.WARMUP starts it
+METHOD = f"{WARMUP} (a still board over temperature)"  # validated on another warm-up (api/validating.py)
 MAX_DEGREE = 3
 MAX_BLOCKS = 300  # the generalised least squares' n x n factorisations: 300 blocks, 1 ms each
 AIC_KEEP = 2.0  # Akaike: a coefficient is worth its degree of freedom where its chi2 exceeds 2

@@ -51,7 +51,7 @@ class ModelTestBlock(FamilyTest, total=False):
     note: str                         # what else the test says (a fit that did not converge)
     # a stream's gyro, tested over its moves (handheld/diagnose_moves.py)
     gyro_white_noise_dps: list[float]  # the rests' white noise per axis
-    # a sequence's innovations (systematic/diagnosis.SequenceModelTest)
+    # a sequence's innovations (systematic/diagnosis.model_test), whitened: noise_floor 1
     returns: int                      # the zero-position returns among the rows
     whiteness: Whiteness
 
@@ -137,7 +137,7 @@ class SensorDetails(ModelTestDetails, TurntableDetails, ThermalDetails, Handheld
 BY_METHOD: dict[str, tuple[type, ...]] = {  # each method's own keys, beside ModelTestDetails
     "exact": (TurntableDetails,), "linear": (TurntableDetails,), "multiposition": (), "ferraris": (FerrarisDetails,),
     "handheld": (HandheldDetails,), "field": (), "systematic": (SystematicDetails,)}
-THERMAL, WARMUP = "thermal (", "warm-up"  # how a thermal and a still warm-up calibration's method begins
+THERMAL, WARMUP = "thermal (", "warm-up"  # how a thermal and a warm-up calibration's method begins (their makers')
 
 
 def details_types(method: str) -> tuple[type, ...]:

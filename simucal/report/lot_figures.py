@@ -38,11 +38,15 @@ class DriftRow(TypedDict):
     z: float           # drift / std
 
 
-class SensorDrift(TypedDict):
+class DriftTest(TypedDict):
     """A sensor's joint test of no drift: d^T (C_1 + C_2)^-1 d against chi^2 on the parameters' count."""
     chi2: float
     dof: int
     p_value: float
+
+
+class SensorDrift(DriftTest):
+    """DriftTest with its verdict (the lot report's)."""
     verdict: str       # "drifted" (p below DRIFT_P) or "no drift seen"
 
 

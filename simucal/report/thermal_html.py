@@ -13,8 +13,8 @@ import numpy as np
 from simucal.fit.thermal import evaluate, std_at
 from simucal.io.calibration import ALPHA, Calibration
 from simucal.fit.augmented import AugmentedModel
-from simucal.report.numbers import eng_html, value_digits
-from simucal.report.page import CELL_IN, figure, grid, page, png
+from simucal.report.numbers import Html, eng_html, value_digits
+from simucal.report.page import CELL_IN, figure, grid, page, png, table
 from simucal.report.vocabulary import TERM, Entry, entries
 
 
@@ -125,12 +125,12 @@ def _table(b) -> str:
 NO_STD_DIGITS = 7  # a value without a std: as many digits as a scale factor's ppm need
 
 
-def _stated(e: Entry) -> str:
+def _stated(e: Entry) -> Html:
     """An entry's value, down to its std's second digit, and its std; without one (the file gives none), more
     digits and "no std" (NO_STD)."""
     if not math.isfinite(e.std):
-        return f"{eng_html(e.value, NO_STD_DIGITS)} (no std)"
-    return f"{eng_html(e.value, value_digits(e.value, e.std))} &plusmn; {eng_html(e.std, 2)}"
+        return Html(f"{eng_html(e.value, NO_STD_DIGITS)} (no std)")
+    return Html(f"{eng_html(e.value, value_digits(e.value, e.std))} &plusmn; {eng_html(e.std, 2)}")
 
 
 NO_STD = ("<p>no std: the file gives none for this entry (as for a gyro's M tied to b through a C_b^d whose "
@@ -147,15 +147,12 @@ def _common_table(sensor: str, b, span) -> str:
         if (m := TERM.search(e.name)) is not None:
             terms.setdefault(e.name[:m.start()], {})[int(m.group(1))] = e
     n = max((max(t) for t in terms.values()), default=0)
-    body = "".join(
-        f"<tr><td>{html.escape(e.name)}</td><td>{html.escape(e.own_name or '')}</td><td>{html.escape(e.meaning)}</td>"
-        f"<td>{html.escape(e.unit)}</td><td>{_stated(e)}</td>"
-        + "".join(f"<td>{_stated(t)}</td>" if (t := terms.get(e.name, {}).get(k)) else "<td></td>"
-                  for k in range(1, n + 1)) + "</tr>"
-        for e in rows if TERM.search(e.name) is None)
-    head = "".join(f"<th>per degC{'' if k == 1 else f'^{k}'}</th>" for k in range(1, n + 1))
-    return ("<table><tr><th>entry</th><th>method's own</th><th>meaning</th><th>unit</th><th>at T_ref</th>"
-            f"{head}</tr>{body}</table>" + (NO_STD if any(not math.isfinite(e.std) for e in rows) else ""))
+    head = ["entry", "the method's", "meaning", "unit", "at T_ref"] + [f"per degC{'' if k == 1 else f'^{k}'}"
+                                                                     for k in range(1, n + 1)]
+    cells = [[e.name, e.own_name, e.meaning, e.unit, _stated(e)]
+             + [_stated(t) if (t := terms.get(e.name, {}).get(k)) else None for k in range(1, n + 1)]
+             for e in rows if TERM.search(e.name) is None]
+    return table(head, cells) + (NO_STD if any(not math.isfinite(e.std) for e in rows) else "")
 
 
 def thermal_page(cal: Calibration, validations=(), cal_path="thermal_calibration.json") -> str:

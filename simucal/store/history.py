@@ -18,18 +18,11 @@ from typing import TypedDict
 from simucal.errors import StoreError
 from simucal.fit.results import ALPHA
 from simucal.io.calibration import Calibration, loads
-from simucal.report.lot_figures import Limit, drift, outside, read_limits
+from simucal.report.lot_figures import DriftTest, Limit, drift, outside, read_limits
 from simucal.store import queries, trend
 from simucal.store.schema import RecordRow, shown
 
 FORMAT = "simucal.history/1"
-
-
-class ChangeTest(TypedDict):
-    """A sensor's joint test of no change (report/lot_figures.SensorDrift's numbers)."""
-    chi2: float
-    dof: int
-    p_value: float
 
 
 class ParameterChange(TypedDict):
@@ -45,7 +38,7 @@ class Change(TypedDict):
     """The change since an earlier record (_change)."""
     since: int         # the earlier record's id
     since_utc: str
-    sensors: dict[str, ChangeTest]
+    sensors: dict[str, DriftTest]  # each sensor's joint test of no change
     parameters: list[ParameterChange]
 
 

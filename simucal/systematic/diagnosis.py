@@ -10,7 +10,7 @@ both blocks say the misfit is most likely outside the library.
 """
 from __future__ import annotations
 
-from typing import Any, TypedDict, cast
+from typing import Any, cast
 
 import numpy as np
 
@@ -19,34 +19,17 @@ from simucal.fit.results import SensorDiagnosis, added_params, model_test_keys
 from simucal.systematic.calibrate import rests_and_moves, run_filter
 from simucal.fit import family
 from simucal.io import records
-from simucal.io.details import Whiteness
+from simucal.io.details import ModelTestBlock
 from simucal.systematic.innovations import family_test, ranked
 from simucal.systematic.method import refusal
 
 UNIT = "innovation std (whitened)"
 
 
-class SequenceModelTest(TypedDict, total=False):
-    """The innovations' test as a diagnosis block's model test (model_test), whitened: noise floor 1."""
-    chi2: float                       # the NIS, on dof
-    dof: int                          # 3 a zero-velocity update and a return
-    p_value: float | None             # the family's
-    residual_unit: str                # UNIT
-    residual_rms: float               # sqrt(NIS / dof)
-    noise_floor: float                # 1: the innovations are whitened
-    test: str                         # the family's test, in words
-    omnibus_p_value: float | None     # the NIS's own (fit/family.fold)
-    omnibus_test: str | None          # the NIS test, in words
-    targeted: records.Targeted        # the library effects' targeted tests on the innovations
-    rows: str                         # the updates and returns tested, in words
-    returns: int                      # the zero-position returns among them
-    noise: records.NoiseUsed          # the noise the test used
-    whiteness: Whiteness              # the innovations' lag-1 autocorrelation
-
-
-def model_test(test) -> SequenceModelTest:
-    """The innovations' test as a diagnosis block's model test (the keys candidates.verdict reads)."""
-    return cast(SequenceModelTest, {
+def model_test(test) -> ModelTestBlock:
+    """The innovations' test as a diagnosis block's model test (the keys candidates.verdict reads), whitened:
+    noise floor 1, the rows the updates and returns, with the innovations' whiteness."""
+    return cast(ModelTestBlock, {
             "chi2": test["nis"], "dof": test["dof"], "p_value": test["p_value"], "residual_unit": UNIT,
             "residual_rms": float(np.sqrt(test["nis"] / test["dof"])), "noise_floor": 1.0, "test": test["test"],
             **{k: test[k] for k in ("omnibus_p_value", "omnibus_test", "targeted") if k in test},

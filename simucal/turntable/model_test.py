@@ -22,7 +22,7 @@ from simucal.fit.augmented import AugmentedModel
 from simucal.fit.aux_inputs import specific_force
 from simucal.fit import family
 from simucal.fit.candidates import positions_that_separate, rank_candidates, shape_if_unexplained, test_model
-from simucal.fit.results import ALPHA, CandidateRecord, ModelTest, TwinAtRest
+from simucal.fit.results import ALPHA, CandidateRecord, ModelTest
 from simucal.fit.twins import CANNOT_TELL
 from simucal.fit.distributions import chi2_sf
 from simucal.fit.norm_fit import Fit, Observations, fit_exact
@@ -231,7 +231,7 @@ def choose_twin(cands: list[CandidateRecord], at_rest) -> None:
     chosen = next(c for c in group if c["id"] == best)
     st = tested[best]
     rate = ", ".join(f"{c['statistic']:.1f}" for c in group)
-    at_rest_chi2: dict[str, TwinAtRest] = {}
+    at_rest_chi2: dict[str, records.StaticRows] = {}
     for k, v in tested.items():
         at_rest_chi2[k] = {"chi2": v["chi2"], "dof": v["dof"], "p_value": v["p_value"]}
         if "pairs" in v:
