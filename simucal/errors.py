@@ -25,7 +25,7 @@ class InputError(SimucalError):
 
 
 class ArgumentError(InputError, TypeError):
-    """A public function's argument of the wrong type or name (api/arguments.checked): a refusal like any other,
+    """A public function's argument of the wrong type or name (arguments.checked): a refusal like any other,
     and a TypeError to code that catches one (what Python raises for an unknown keyword)."""
 
 

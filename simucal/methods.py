@@ -19,6 +19,8 @@ from dataclasses import dataclass
 from typing import TYPE_CHECKING, Callable
 
 from simucal.errors import CalibrationError, InputError
+from simucal.kinds import (FIELD as FIELD, SEQUENCE as SEQUENCE, STREAM as STREAM, TURNTABLE as TURNTABLE,
+                           data_kind as data_kind)  # the registry's kinds, told from the segments
 from simucal.options import CalibrateOptions, unused
 
 if TYPE_CHECKING:  # the methods' modules load when one is called (below)
@@ -26,7 +28,6 @@ if TYPE_CHECKING:  # the methods' modules load when one is called (below)
     from simucal.fit.results import SensorDiagnosis
     from simucal.io.calibration import Calibration
 
-TURNTABLE, STREAM, FIELD, SEQUENCE = "turntable", "stream", "field", "sequence"
 DATA = {SEQUENCE: "a rotation sequence (segments.csv with move segments between rests, raw samples)",
         TURNTABLE: "a turntable test (segments.csv with commanded table angles)",
         STREAM: "a continuous stream (no segments.csv: a hand-placed session)",
@@ -128,17 +129,6 @@ def for_any_plan(kind) -> tuple[str, ...]:
     """The methods that take any plan of this kind of data (not a protocol's own, as Ferraris's six poses): the
     paper's comparison and the demo run these on dong2018's plan."""
     return tuple(m for m in for_data(kind) if METHODS[m].any_plan)
-
-
-def data_kind(ms) -> str:
-    """TURNTABLE, STREAM or FIELD (module doc): the one function that tells a set's kind."""
-    if ms.segments is None:
-        return STREAM
-    if any(s.kind == "move" for s in ms.segments):
-        return SEQUENCE
-    static = [s for s in ms.segments if s.kind == "static"]
-    no_table = all(s.middle_deg is None and s.inner_deg is None for s in static)
-    return FIELD if no_table and any(s.heading_ref_deg is not None for s in static) else TURNTABLE
 
 
 def choose(name, ms) -> Method:

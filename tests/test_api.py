@@ -47,23 +47,23 @@ def test_notebook_flow_on_numpy_arrays(monkeypatch):
     ms = _set(raw, samples, segments, meta, "lab_run_1")
     cal = simucal.calibrate(ms, add=["acc.quadratic.z"])
     assert isinstance(cal, simucal.Calibration) and ms.temperature_ref_c is None  # the caller's set untouched
-    assert isinstance(cal.parameters(), list) and isinstance(cal.parameters()[0], simucal.Entry)
-    assert isinstance(cal.parameters("own")[0], simucal.Parameter)
-    table = {(r.sensor, r.name): r for r in cal.parameters("own")}
+    assert isinstance(simucal.parameters(cal), list) and isinstance(simucal.parameters(cal)[0], simucal.Entry)
+    assert isinstance(simucal.parameters(cal, "own")[0], simucal.Parameter)
+    table = {(r.sensor, r.name): r for r in simucal.parameters(cal, "own")}
     for name in ("dK_x", "dK_y", "dK_z", "b_z"):  # the truth within 5 std of each estimate
         r = table[("acc", name)]
         assert abs(r.value - truth["acc"]["params"][name]) < 5 * r.std, r
     q = table[("acc", "acc.quadratic.z")]
     assert abs(q.value - 2e-4) < 5 * q.std and q.unit and q.meaning
     raw2, samples2, segments2, meta2, _ = _recording(2, {"acc.quadratic.z": 2e-4})
-    out = cal.apply(raw2)  # pulse/s in: g and deg/h out
+    out = simucal.apply(cal, raw2)  # pulse/s in: g and deg/h out
     assert out.shape == raw2.shape and isinstance(out, np.ndarray)
     nominal = raw2[:, :3] / np.asarray(meta2["acc_pulses_per_g"])
     before = _static_norm_error_g(nominal, samples2, segments2)
     after = _static_norm_error_g(out[:, :3], samples2, segments2)
     assert np.sqrt(np.mean(after ** 2)) < 3e-5 < 0.1 * np.sqrt(np.mean(before ** 2))
     # the caller's units: the same data in m/s^2 come back in m/s^2; one sensor as (n, 3)
-    acc_mps2 = cal.apply(nominal * 9.80665, acc_unit="m/s^2", sensor="acc")
+    acc_mps2 = simucal.apply(cal, nominal * 9.80665, acc_unit="m/s^2", sensor="acc")
     np.testing.assert_allclose(acc_mps2, out[:, :3] * 9.80665, rtol=1e-9)
     v = simucal.validate(cal, _set(raw2, samples2, segments2, meta2, "lab_run_2"))
     assert v.independent and set(v.verdict) == {"acc", "gyro"}
@@ -87,15 +87,15 @@ def test_notebook_flow_on_dataframes():
     ms = simucal.MeasurementSet.from_dataframe(df, columns=cols, acc_unit="pulse/s", gyro_unit="pulse/s",
                                                segments=segments, meta={k: meta[k] for k in KEYS})
     cal = simucal.calibrate(ms)
-    params = cal.parameters("own")  # a DataFrame, pandas being installed
+    params = simucal.parameters(cal, "own")  # a DataFrame, pandas being installed
     assert (isinstance(params, pd.DataFrame)
             and list(params.columns) == ["name", "sensor", "value", "std", "unit", "meaning"])
     assert (params["std"] > 0).all() and len(params) == 18
-    common = cal.parameters()  # by default every method's M and bias
+    common = simucal.parameters(cal)  # by default every method's M and bias
     assert list(common.columns) == ["sensor", "name", "value", "std", "unit", "own_name", "meaning"]
     assert len(common) == 24 and set(common["own_name"].dropna()) <= set(params["name"])
     df2, segments2, meta2 = frame(2)
-    out = cal.apply(df2, columns=names)
+    out = simucal.apply(cal, df2, columns=names)
     assert isinstance(out, pd.DataFrame) and list(out.columns) == list(df2.columns)
     assert (out["time"] == df2["time"]).all() and not np.allclose(out[names["az"]], df2[names["az"]])
     ms2 = simucal.MeasurementSet.from_dataframe(df2, columns=cols, acc_unit="pulse/s", gyro_unit="pulse/s",
@@ -159,9 +159,10 @@ def test_apply_refuses_leaving_out_an_input_the_model_reads():
     raw, samples, segments, meta, _ = _recording(4, {"acc.bias_drift_time.z": 2e-7})
     cal = simucal.calibrate(_set(raw, samples, segments, meta, "run"), add=["acc.bias_drift_time.z"])
     with pytest.raises(CalibrationError, match="drifting in time: give each row's t_s="):
-        cal.apply(raw)
+        simucal.apply(cal, raw)
     drift = cal.acc.effects["acc.bias_drift_time.z"].value
-    late = cal.apply(raw, t_s=samples["t_s"] + 1000.0)[:, 2] - cal.apply(raw, t_s=samples["t_s"])[:, 2]
+    late = (simucal.apply(cal, raw, t_s=samples["t_s"] + 1000.0)[:, 2]
+            - simucal.apply(cal, raw, t_s=samples["t_s"])[:, 2])
     assert abs(drift - 2e-7) < 2e-8  # planted, found
     np.testing.assert_allclose(late, -1000.0 * drift / cal.acc.M[2, 2], rtol=1e-2)  # z: the drift taken out
 
@@ -221,7 +222,7 @@ def test_other_tools_recordings_and_the_commands_from_python(tmp_path):
     with pytest.raises(SimucalError, match="force"):
         simucal.import_recording("imucal-ferraris", [data / "example_ferraris_session.csv"], tmp_path / "set")
     cal = simucal.calibrate(ms)
-    calibrated = cal.apply_to_set(ms)
+    calibrated = simucal.apply_set(cal, ms)
     assert calibrated.meta["acc_unit"] == "g" and len(calibrated.samples["t_s"]) == len(ms.samples["t_s"])
     calibrated.write(tmp_path / "calibrated")
     path, rows = simucal.convert(tmp_path / "calibrated", tmp_path / "columnar", "parquet")

@@ -227,7 +227,8 @@ def test_docstring_examples_run(tmp_path, monkeypatch):
     import doctest
     import importlib
     monkeypatch.chdir(tmp_path)
-    for name in ("simucal.api", "simucal.api.sets", "simucal.api.calibration", "simucal.api.simulation",
+    for name in ("simucal.api", "simucal.io.measurement_set", "simucal.io.calibration", "simucal.api.applying",
+                 "simucal.api.simulation",
                  "simucal.api.analyses", "simucal.api.calibrating", "simucal.api.validating", "simucal.api.diagnosing",
                  "simucal.api.lot_reporting", "simucal.api.tables", "simucal.api.vocabulary"):
         result = doctest.testmod(importlib.import_module(name), optionflags=doctest.ELLIPSIS)

@@ -37,12 +37,12 @@ def test_a_frame_with_a_sensor_partly_missing_is_refused(made):
     root, cal = made
     df = pd.DataFrame(simucal.read_set(str(root / "b")).to_arrays())
     with pytest.raises(CalibrationError, match="the frame lacks gz"):
-        cal.apply(df.drop(columns=["gz"]))
+        simucal.apply(cal, df.drop(columns=["gz"]))
     typo = df.rename(columns={"ax": "acc_x", "ay": "acc_y", "az": "acc_z"})
     with pytest.raises(CalibrationError, match="the frame lacks ACC_X"):
-        cal.apply(typo, columns={"ax": "ACC_X", "ay": "acc_y", "az": "acc_z"})
-    only_acc = cal.apply(df.drop(columns=["gx", "gy", "gz"]), sensor="acc")  # one sensor, said so
-    both = cal.apply(df)
+        simucal.apply(cal, typo, columns={"ax": "ACC_X", "ay": "acc_y", "az": "acc_z"})
+    only_acc = simucal.apply(cal, df.drop(columns=["gx", "gy", "gz"]), sensor="acc")  # one sensor, said so
+    both = simucal.apply(cal, df)
     assert np.allclose(only_acc[["ax", "ay", "az"]], both[["ax", "ay", "az"]])
     assert np.allclose(np.linalg.norm(both[["ax", "ay", "az"]].to_numpy(), axis=1).mean(), 1.0, atol=1e-3)
 
@@ -52,11 +52,11 @@ def test_units_unknown_or_mixed_up_are_refused(made):
     raw = simucal.read_set(str(root / "b"))
     x = np.column_stack([raw.samples[c] for c in ("ax", "ay", "az", "gx", "gy", "gz")])  # pulse/s, as recorded
     with pytest.raises(CalibrationError, match=r"acc_unit='mg': not a unit simucal knows; one of \('g'"):
-        cal.apply(x, acc_unit="mg")
+        simucal.apply(cal, x, acc_unit="mg")
     with pytest.raises(CalibrationError, match="gyro_unit='dps'"):
-        cal.apply(x, gyro_unit="dps")
+        simucal.apply(cal, x, gyro_unit="dps")
     with pytest.raises(CalibrationError, match=r"acc_unit='g'\): calibrated: the acc outputs are .* times the known"):
-        cal.apply(x, acc_unit="g")  # pulse/s said to be g
+        simucal.apply(cal, x, acc_unit="g")  # pulse/s said to be g
 
 
 def test_other_objects_are_refused_naming_the_constructor(made):
@@ -86,7 +86,7 @@ def test_add_as_text_and_thermal_of_one_ramp():
     sets = [simucal.simulate(seed=t, temperature_c=float(t), rate_hz=2.0, effects={"acc.bias_temperature.x": 1e-5})
             for t in (0, 25, 50)]
     cal = simucal.calibrate(sets)  # in-memory plateaus
-    rows = cal.parameters()
+    rows = simucal.parameters(cal)
     slope = rows[(rows.sensor == "acc") & (rows.name == "bias_x.T1")].iloc[0]  # the one vocabulary: b_x.T1's entry
     assert slope.unit == "g/degC" and slope.own_name == "b_x.T1" and abs(slope.value - 1e-5) < 4 * slope['std'], slope
     ramp = simucal.simulate(seed=3, temperature_c=(0.0, 50.0), rate_hz=2.0)
@@ -95,9 +95,9 @@ def test_add_as_text_and_thermal_of_one_ramp():
     th = simucal.calibrate(sets)
     x = np.column_stack([sets[1].samples[c] for c in ("ax", "ay", "az", "gx", "gy", "gz")])
     with pytest.warns(UserWarning, match="temp_c looks like kelvin"):  # as `simucal apply` says it
-        th.apply(x, temp_c=np.full(len(x), 298.0))
+        simucal.apply(th, x, temp_c=np.full(len(x), 298.0))
     with pytest.warns(UserWarning, match="temp_c"):
-        th.apply(x, temp_c=np.full(len(x), 90.0))  # beyond the calibrated 0..50 degC: said
+        simucal.apply(th, x, temp_c=np.full(len(x), 90.0))  # beyond the calibrated 0..50 degC: said
 
 
 def test_the_whole_api_is_listed():
@@ -125,10 +125,12 @@ def test_a_frame_s_first_mistakes_are_named_with_the_column_row_and_option():
 
 
 # Placeholders for the arguments a call needs beside the one tested: never read, the types are checked first.
+BLANK = simucal.Calibration.__new__(simucal.Calibration)
 REQUIRED = {"import_recording": ("ulog", ["w.ulg"], "out"), "calibrate": ("set",), "validate": ("cal.json", "set"),
             "diagnose": ("set",), "noise": ("set",), "sequence_observability": ("psins19",),
             "calibrate_each": (["set"], "out"), "calibrate_instances": (["set"],),
-            "import_instances": ("ulog", "w.ulg", "out")}
+            "import_instances": ("ulog", "w.ulg", "out"), "apply": (BLANK, None), "apply_set": (BLANK, "set"),
+            "parameters": (BLANK,)}
 
 
 def _wrong_values(annotation: str) -> list:
@@ -171,4 +173,4 @@ def test_every_public_function_refuses_an_argument_of_a_wrong_type_in_one_line()
                 assert "\n" not in text and text.startswith(f"{name}: {arg}={wrong!r} is a {type(wrong).__name__}, ")
                 tested.add(name)
     assert {"import_recording", "design_sequence", "calibrate", "diagnose", "validate", "noise", "simulate", "plan",
-            "sequence_observability", "montecarlo", "calibrate_each", "audit"} <= tested
+            "sequence_observability", "montecarlo", "calibrate_each", "audit", "apply"} <= tested

@@ -17,7 +17,8 @@ ROOT = Path(simucal.__file__).parent
 # Lower layers first; a module may import from its own layer's package and from lower layers.
 # The methods sit side by side and never import each other.
 LAYERS = [
-    {"simucal.errors", "simucal.sweeps", "simucal.progress", "simucal.generated", "simucal.version"},
+    {"simucal.errors", "simucal.sweeps", "simucal.progress", "simucal.generated", "simucal.version",
+     "simucal.arguments", "simucal.notebook", "simucal.kinds"},
     {"simucal.io"},
     {"simucal.fit"},
     {"simucal.turntable", "simucal.handheld", "simucal.field", "simucal.systematic"},
@@ -326,7 +327,7 @@ def test_a_sets_kind_is_told_once_and_its_entry_looked_up(monkeypatch):
     from simucal import methods
     from simucal.fit.stillness import still_stretches
     from simucal.api import MeasurementSet
-    refusals = {"methods.py": 1, "field/drift.py": 1, "turntable/observations.py": 1,
+    refusals = {"kinds.py": 1, "field/drift.py": 1, "turntable/observations.py": 1,
                 "api/__init__.py": 1}  # read_set's example shows a user the segments
     found = {p.relative_to(ROOT).as_posix(): len(re.findall(r"segments is (not )?None", p.read_text()))
              for p in ROOT.rglob("*.py") if "io" not in p.relative_to(ROOT).parts[:1]}
@@ -365,7 +366,7 @@ def _is_module(name: str) -> bool:
 
 def test_the_command_line_stands_on_the_api():
     """cli/ imports the API, its helpers and output safety; the commands' logic is the API's (import, apply,
-    convert, lot, montecarlo, plan and a batch of sets moved there: simucal.import_recording, Calibration.apply_to_set,
+    convert, lot, montecarlo, plan and a batch of sets moved there: simucal.import_recording, simucal.apply_set,
     simucal.convert, simucal.lot, simucal.montecarlo, simucal.plan, simucal.sequence_observability,
     simucal.calibrate_each). An import outside both lists fails,
     and so does one of CLI_NOT_YET that the command line no longer needs (the list shrinks as commands move)."""
@@ -399,6 +400,41 @@ def test_no_module_shares_its_name_with_a_public_function():
     for name in functions:  # whatever the import order: the face's name is the function, defined once
         assert getattr(simucal, name) is getattr(simucal.api, name)
         assert getattr(simucal, name).__module__.split(".")[:2] == ["simucal", "api"], name
+
+
+def _twice(sources: dict[str, str]) -> dict[str, list[str]]:
+    """The public class names defined in two or more of these modules ({module: source}), and every class that
+    subclasses the set or the calibration (a second class of the same concept)."""
+    homes: dict[str, list[str]] = {}
+    for where, source in sources.items():
+        for node in ast.parse(source).body:
+            if isinstance(node, ast.ClassDef) and not node.name.startswith("_"):
+                homes.setdefault(node.name, []).append(where)
+                bases = {ast.unparse(b).split(".")[-1] for b in node.bases}
+                if bases & {"Calibration", "MeasurementSet"}:
+                    homes.setdefault(f"{node.name}({', '.join(sorted(bases))})", []).extend([where, "a subclass"])
+    return {name: found for name, found in homes.items() if len(found) > 1}
+
+
+def test_one_class_per_concept(tmp_path):
+    """The API's set and calibration are io's own classes, never a subclass re-wrapping them, and a public class
+    name is defined in one module only (Candidate was three classes, Check two): a reader who meets a name meets
+    one class. Every verb returns those very classes; a planted second class of either kind is found."""
+    import simucal
+    from simucal import io
+    assert simucal.Calibration is io.calibration.Calibration and simucal.MeasurementSet is io.MeasurementSet
+    ms = simucal.simulate(seed=1)
+    cal = simucal.calibrate(ms)
+    simucal.save(tmp_path / "cal.json", cal)
+    assert type(ms) is type(simucal.apply_set(cal, ms)) is io.MeasurementSet
+    assert type(cal) is type(simucal.load(tmp_path / "cal.json")) is io.calibration.Calibration
+    with pytest.raises(AttributeError, match=r"simucal\.apply\(cal, x"):  # the method that moved names its call
+        cal.apply(ms.raw("acc"))
+    sources = {p.relative_to(ROOT).as_posix(): p.read_text() for p in ROOT.rglob("*.py")}
+    assert _twice(sources) == {}
+    planted = {"a.py": "class Entry:\n    pass\n", "b.py": "class Entry(tuple):\n    pass\n",
+               "c.py": "class Cal(io.calibration.Calibration):\n    pass\n"}
+    assert set(_twice(planted)) == {"Entry", "Cal(Calibration)"}
 
 
 def _untyped(hint, seen: set, where: str) -> list[str]:

@@ -15,8 +15,8 @@ from simucal.api.calibrating import calibrate, calibrate_thermal
 from simucal.field.simulate import FieldScenario, write_field
 from simucal.handheld.simulate import HandheldScenario, write_handheld
 from simucal.io import calibration, details, records
+from simucal.io import MeasurementSet
 from simucal.io.calibration import Calibration, EffectValue, SensorBlock
-from simucal.io.arrays import from_arrays
 from simucal.io.importers import import_ferraris_sections
 from simucal.api import simulate
 from simucal.turntable.sequence import psins19
@@ -54,9 +54,10 @@ def thermal_calibrations():
     t = np.arange(0, 600.0, 0.1)
     T = 15 + 40 * (1 - np.exp(-t / 200.0))
     rng = np.random.default_rng(0)
-    still = from_arrays(np.array([0, 0, -1.0]) + 1e-4 * (T - 30)[:, None] + rng.normal(0, 2e-3, (len(t), 3)),
-                        2.0 * (T - 30)[:, None] + rng.normal(0, 180.0, (len(t), 3)), acc_unit="g", gyro_unit="deg/h",
-                        t_s=t, temp_c=T, meta={"latitude_deg": 47.0})
+    acc = np.array([0, 0, -1.0]) + 1e-4 * (T - 30)[:, None] + rng.normal(0, 2e-3, (len(t), 3))
+    gyro = 2.0 * (T - 30)[:, None] + rng.normal(0, 180.0, (len(t), 3))
+    still = MeasurementSet.from_arrays(acc, gyro, acc_unit="g", gyro_unit="deg/h", t_s=t, temp_c=T,
+                                       meta={"latitude_deg": 47.0})
     return {"thermal joint": calibrate_thermal(plateaus), "thermal warm-up": calibrate_thermal([still])}
 
 

@@ -44,7 +44,7 @@ def test_an_earlier_revisions_file_applies_as_todays_calibration(rev):
 
     assert np.all(np.abs(phi_rad) < 3 * std_rad), (phi_rad, std_rad)
     ms = simucal.read_set(DATA / rev / "set")
-    old, new = cal.apply_to_set(ms), today.apply_to_set(ms)
+    old, new = simucal.apply_set(cal, ms), simucal.apply_set(today, ms)
     for column in ("ax", "ay", "az"):
         assert np.allclose(old.samples[column], new.samples[column], rtol=0, atol=1e-4), column
     rate_dph = np.linalg.norm([new.samples[c] for c in ("gx", "gy", "gz")], axis=0)

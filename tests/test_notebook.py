@@ -28,10 +28,10 @@ def notebook():
 
 def test_parameter_table_holds_the_truth(notebook):
     cal, _, _ = notebook
-    params = cal.parameters("own").set_index(["sensor", "name"])
+    params = simucal.parameters(cal, "own").set_index(["sensor", "name"])
     row = params.loc[("acc", EFFECT)]
     assert row["unit"] == "g/degC" and "temperature" in row["meaning"]
-    common = cal.parameters().set_index(["sensor", "name"]).loc[("acc", EFFECT)]  # an effect: its id in both
+    common = simucal.parameters(cal).set_index(["sensor", "name"]).loc[("acc", EFFECT)]  # an effect: its id in both
     assert (common["value"], common["std"], common["meaning"]) == (row["value"], row["std"], row["meaning"])
     assert abs(row["value"] - SIZE_G_PER_C) < 5 * row["std"], row
     assert (params["std"] > 0).all() and params["value"].notna().all()
@@ -44,19 +44,19 @@ def test_apply_to_a_frame_in_the_user_s_units_with_its_temperature(notebook):
     mine = df2.copy()
     mine[["ax", "ay", "az"]] = df2[["ax", "ay", "az"]].to_numpy() / scale_acc * G
     mine[["gx", "gy", "gz"]] = df2[["gx", "gy", "gz"]].to_numpy() / scale_gyro
-    out = cal.apply(mine, acc_unit="m/s^2", gyro_unit="deg/s")
+    out = simucal.apply(cal, mine, acc_unit="m/s^2", gyro_unit="deg/s")
     assert type(out) is type(mine) and list(out.columns) == list(mine.columns) and len(out) == len(mine)
     assert (out["t_s"] == mine["t_s"]).all() and (out["temp_c"] == mine["temp_c"]).all()
     raw = df2[["ax", "ay", "az", "gx", "gy", "gz"]].to_numpy()
-    ref = cal.apply(raw, acc_unit="pulse/s", gyro_unit="pulse/s", temp_c=df2["temp_c"].to_numpy())  # g, deg/h
+    ref = simucal.apply(cal, raw, acc_unit="pulse/s", gyro_unit="pulse/s", temp_c=df2["temp_c"].to_numpy())  # g, deg/h
     np.testing.assert_allclose(out[["ax", "ay", "az"]].to_numpy(), ref[:, :3] * G, rtol=1e-9, atol=1e-12)
     np.testing.assert_allclose(out[["gx", "gy", "gz"]].to_numpy(), ref[:, 3:] / 3600.0, rtol=1e-9, atol=1e-12)
-    warmer = cal.apply(mine.assign(temp_c=mine["temp_c"] + 10.0), acc_unit="m/s^2", gyro_unit="deg/s")
+    warmer = simucal.apply(cal, mine.assign(temp_c=mine["temp_c"] + 10.0), acc_unit="m/s^2", gyro_unit="deg/s")
     shift_g = (warmer["az"] - out["az"]).to_numpy() / G  # the model's bias taken out at each row's temp_c
     found = cal.acc.effects[EFFECT].value
     np.testing.assert_allclose(shift_g, -10.0 * found / cal.acc.M[2, 2], rtol=1e-6)
     with pytest.raises(simucal.errors.CalibrationError, match="temp_c"):
-        cal.apply(mine.drop(columns="temp_c"), acc_unit="m/s^2", gyro_unit="deg/s")
+        simucal.apply(cal, mine.drop(columns="temp_c"), acc_unit="m/s^2", gyro_unit="deg/s")
 
 
 def test_validate_on_the_other_recording(notebook):

@@ -114,13 +114,13 @@ def test_a_command_that_fails_after_writing_leaves_none_of_its_outputs(work, mon
 
 
 def test_a_set_whose_writing_fails_leaves_no_folder_behind(work, monkeypatch):
-    from simucal import io
-    real = io.write_set
+    from simucal.io import set_writer
+    real = set_writer.write_set
 
     def fails_after(folder, *a, **k):  # every file written, then a failure before the command ends
         real(folder, *a, **k)
         raise OSError(28, "No space left on device")
-    monkeypatch.setattr(io, "write_set", fails_after)
+    monkeypatch.setattr(set_writer, "write_set", fails_after)
     before = _tree(work)
     r = _run("apply", work / "cal.json", work / "set", "-o", work / "applied")
     assert r.exit_code == 3 and _tree(work) == before, r.output

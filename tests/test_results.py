@@ -12,7 +12,8 @@ from simucal.api.diagnosing import diagnosis_report as diagnose
 from simucal.fit.candidates import forward_selection
 from simucal.fit.ranking import Trial, gate, rank
 from simucal.fit.results import ALPHA, Candidate, ModelTest, Selection
-from simucal.io.calibration import SensorBlock, inflate_if_failing
+from simucal.io.calibration import SensorBlock
+from simucal.io.blocks import inflate_if_failing
 from simucal.report.console import calibration_lines
 from simucal.turntable.simulate import Scenario, plant, write
 
@@ -129,21 +130,21 @@ def test_calibrate_leaves_the_callers_set_as_it_was(tmp_path):
 
 
 def test_every_step_of_the_forward_selection_has_the_whole_protocol():
-    """fit/selection.forward_selection asks a Step for each of the Protocol's methods (to_separate only where
+    """fit/selection.forward_selection asks a SelectionStep for each of the Protocol's methods (to_separate only where
     the chosen effect has a twin, so a missing one would fail late, on real data): every kind of data's
-    Step implements them all."""
+    SelectionStep implements them all."""
     from simucal.fit.candidates import NormStep
-    from simucal.fit.selection import Step
+    from simucal.fit.selection import SelectionStep
     from simucal.handheld.moves_selection import MovesStep
     from simucal.systematic.auto import FilterStep
-    wanted = {n for n in vars(Step) if not n.startswith("_") and callable(getattr(Step, n))}
+    wanted = {n for n in vars(SelectionStep) if not n.startswith("_") and callable(getattr(SelectionStep, n))}
     assert {"test", "rank", "add", "held_out", "after", "to_separate"} <= wanted
     for cls in (NormStep, MovesStep, FilterStep):
         assert not wanted - set(dir(cls)), (cls.__name__, wanted - set(dir(cls)))
 
 
 class _Fake:
-    """A Step of fit/selection.forward_selection with a fixed test, candidates and estimates."""
+    """A SelectionStep of fit/selection.forward_selection with a fixed test, candidates and estimates."""
 
     def __init__(self, chi2, dof, estimates, effects=(), next_steps=None):
         self.chi2, self.dof, self.est, self.effects, self.next = chi2, dof, estimates, tuple(effects), next_steps or {}

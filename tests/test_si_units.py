@@ -70,15 +70,16 @@ def test_calibrate_prints_si_as_the_spec_times_the_factor_and_writes_the_same_fi
 
 def test_parameters_in_si_are_the_spec_ones_converted():
     cal = simucal.calibrate(simucal.simulate("paper", seed=3))
-    spec, si = cal.parameters("own"), cal.parameters("own", units="si")
+    spec, si = simucal.parameters(cal, "own"), simucal.parameters(cal, "own", units="si")
     factor = {"g": (G, "m/s^2"), "deg/h": (DPH, "rad/s"), "1": (1.0, "1"), "rad": (1.0, "rad")}
     assert set(spec["unit"]) <= set(factor) and {"g", "deg/h", "1"} <= set(spec["unit"])
     f = np.array([factor[u][0] for u in spec["unit"]])
     assert list(si["unit"]) == [factor[u][1] for u in spec["unit"]]
     np.testing.assert_allclose(si["value"], spec["value"] * f, rtol=1e-12)
     np.testing.assert_allclose(si["std"], spec["std"] * f, rtol=1e-12)
-    assert list(si["name"]) == list(spec["name"]) and cal.parameters("own").equals(spec)  # the calibration unchanged
-    common, common_si = cal.parameters(), cal.parameters(units="si")
+    assert list(si["name"]) == list(spec["name"])
+    assert simucal.parameters(cal, "own").equals(spec)  # the calibration unchanged
+    common, common_si = simucal.parameters(cal), simucal.parameters(cal, units="si")
     f = np.array([factor[u][0] for u in common["unit"]])
     np.testing.assert_allclose(common_si["value"], common["value"] * f, rtol=1e-12)
     np.testing.assert_allclose(common_si["std"], common["std"] * f, rtol=1e-6)

@@ -49,9 +49,9 @@ def test_compare_lines_three_methods_up_in_one_table():
     assert (acc.loc[["M_xy", "M_xz", "M_yz"], ["exact", "multiposition"]].abs() < 1e-12).all().all()  # one frame
     d = (acc["exact"] - acc["multiposition"]).abs()
     assert (d <= 4 * np.hypot(acc["exact std"], acc["multiposition std"]) + 1e-15).all(), d
-    common = cals["exact"].parameters("common").set_index(["sensor", "name"])["own_name"]
+    common = simucal.parameters(cals["exact"], "common").set_index(["sensor", "name"])["own_name"]
     assert common[("acc", "M_yx")] == "theta_yx" and common[("gyro", "bias_z")] == "b_z"
-    own = cals["multiposition"].parameters("common")
+    own = simucal.parameters(cals["multiposition"], "common")
     assert set(own["own_name"].dropna()) >= {"M_xx", "bias_z"}
 
 
@@ -62,15 +62,15 @@ def test_sensor_access_is_never_none():
     with pytest.raises(CalibrationError, match="holds no 'gyro' block: no usable rate runs"):
         cal.sensor("gyro")
     with pytest.raises(InputError, match="vocabulary"):
-        cal.parameters("mine")
+        simucal.parameters(cal, "mine")
 
 
 def test_a_warm_up_s_bias_terms_are_its_own_in_the_common_vocabulary():
     """A still warm-up fits b_x(T) directly (dong2018's bias is the output at zero input): its common bias_x.Tk
     are b_x.Tk with the same std, and M, which no temperature term moves, has none."""
     cal = simucal.calibrate(simucal.simulate("warmup", seed=1), thermal=True)
-    common = {(r.sensor, r.name): r for r in simucal.table_rows(cal.parameters())}
-    own = {(r.sensor, r.name): r for r in simucal.table_rows(cal.parameters("own"))}
+    common = {(r.sensor, r.name): r for r in simucal.table_rows(simucal.parameters(cal))}
+    own = {(r.sensor, r.name): r for r in simucal.table_rows(simucal.parameters(cal, "own"))}
     terms = [k for k in common if "." in k[1]]
     assert terms and all(k[1].startswith("bias_") for k in terms)
     for s, n in terms:
@@ -103,7 +103,7 @@ def test_a_thermal_calibration_s_common_terms_hold_against_the_truth(tmp_path):
             write(tmp_path / f"{seed}_{T}", sc, 100 * seed + T + 50)
             sets.append(tmp_path / f"{seed}_{T}")
         cal = simucal.calibrate(sets, t_ref_c=25.0)
-        rows = {(r.sensor, r.name): r for r in simucal.table_rows(cal.parameters())}
+        rows = {(r.sensor, r.name): r for r in simucal.table_rows(simucal.parameters(cal))}
         for (s, n), r in rows.items():
             if n.endswith(".T1") and n[:-3] in ("bias_x", "bias_y", "bias_z") + tuple(
                     f"M_{a}{b}" for a in "xyz" for b in "xyz") and r.std > 0:
@@ -141,8 +141,8 @@ def test_a_failing_thermal_fit_s_common_terms_carry_its_inflated_stds(tmp_path):
         sets.append(tmp_path / str(T))
     cal = simucal.calibrate(sets, t_ref_c=25.0, add=["acc.quadratic.z"])
     assert cal.acc.p_value < 1e-3  # the model fails: the file's stds are inflated
-    common = {(r.sensor, r.name): r for r in simucal.table_rows(cal.parameters())}
-    own = {(r.sensor, r.name): r for r in simucal.table_rows(cal.parameters("own"))}
+    common = {(r.sensor, r.name): r for r in simucal.table_rows(simucal.parameters(cal))}
+    own = {(r.sensor, r.name): r for r in simucal.table_rows(simucal.parameters(cal, "own"))}
     terms = [(s, n) for s, n in common if n.startswith("bias_") and ".T" in n]
     assert ("acc", "bias_x.T1") in terms
     for s, n in terms:

@@ -108,8 +108,8 @@ def test_validated_on_another_warm_up_of_the_unit(tmp_path):
     from the thermal curve's (mg, hundreds of deg/h) to near the block means' noise; on a moving stream the
     check is refused by name."""
     from simucal.api.validating import validation_report as validate
-    simucal.MeasurementSet.of(warmup(0)).write(tmp_path / "a")
-    simucal.MeasurementSet.of(warmup(1)).write(tmp_path / "b")
+    warmup(0).write(tmp_path / "a")
+    warmup(1).write(tmp_path / "b")
     r = CliRunner().invoke(main, ["calibrate", str(tmp_path / "a"), "--thermal", "-o", str(tmp_path / "c.json")])
     assert r.exit_code == 0, r.output
     report = validate(str(tmp_path / "c.json"), str(tmp_path / "b"))
@@ -187,7 +187,7 @@ def test_a_board_turned_during_its_warm_up_and_stream_options_are_named(tmp_path
     refused(CliRunner().invoke(main,
                                ["calibrate", str(tmp_path / "turned"), "--thermal", "-o", str(tmp_path / "c.json")]),
             "the board moved during the warm-up", "2 stretches", "up to 90 deg apart")
-    simucal.MeasurementSet.of(warmup(2, seconds=300.0)).write(tmp_path / "still")
+    warmup(2, seconds=300.0).write(tmp_path / "still")
     for option in (["--window-s", "2"], ["--min-static-s", "3"], ["--timestamps", "nominal"]):
         refused(CliRunner().invoke(main, ["calibrate", str(tmp_path / "still"), "--thermal", *option, "-o",
                                           str(tmp_path / "c.json")]), option[0], "a still warm-up")

@@ -32,7 +32,7 @@ assert np.all(np.abs(z) < 3)
 #    physical unit). At the initial rest |f| is 1 g to the noise.
 raw = ms.to_arrays()
 x = np.column_stack([raw[c] for c in ("ax", "ay", "az", "gx", "gy", "gz")])
-u = cal.apply(x)
+u = simucal.apply(cal, x)
 rest = raw["t_s"] < 25.0
 err_g = np.linalg.norm(u[rest, :3].mean(axis=0)) - 1.0
 nominal_g = np.linalg.norm((x[rest, :3].mean(axis=0) - 32768.0) / 4096.0) - 1.0

@@ -49,6 +49,6 @@ assert after < before / 3 < nominal and after < 2 * floor
 
 # 6. The parameter table (a pandas DataFrame where pandas is installed, else a list of rows; table_rows
 #    gives rows either way): M and bias in one vocabulary for every method, the method's own names beside them.
-for p in simucal.table_rows(cal.parameters())[:10]:
+for p in simucal.table_rows(simucal.parameters(cal))[:10]:
     own = p.own_name if isinstance(p.own_name, str) else "none: fixed by the model"  # a missing cell: NaN or None
     print(f"  {p.sensor:4} {p.name:16} {p.value:+.4g} +- {p.std:.2g} {p.unit} (the method's {own})")

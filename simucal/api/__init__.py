@@ -1,7 +1,7 @@
 """The public Python API: `import simucal` and call
 
     read_set, MeasurementSet.from_arrays / .from_dataframe / .write, simulate, calibrate -> Calibration,
-    Calibration.apply / .parameters / .sensor, compare (calibrations side by side in one vocabulary),
+    apply, apply_set, parameters, Calibration.sensor, compare (calibrations side by side in one vocabulary),
     validate -> Validation, diagnose -> Diagnosis, noise -> Noise, save, load
 
 on folders, numpy arrays or (with simucal[pandas]) DataFrames. Each verb is defined once, in a module of
@@ -23,10 +23,10 @@ from simucal.api.calibrating import calibrate
 from simucal.api.diagnosing import Candidate, Diagnosis, NextStep, Suggestion, diagnose, save_diagnosis
 from simucal.api.simulation import montecarlo, simulate
 from simucal.api.tables import table_rows
-from simucal.api.calibration import Calibration, Parameter
+from simucal.api.applying import apply, apply_set
 from simucal.api.batch import Calibrated, calibrate_each
 from simucal.api.certificates import certificate
-from simucal.api.arguments import checked
+from simucal.arguments import checked
 from simucal.options import CalibrateOptions
 from simucal.api.imports import convert, import_instances, import_recording
 from simucal.api.instances import ImuCalibration, autopilot_files, calibrate_instances
@@ -36,17 +36,19 @@ from simucal.api.planning import design_sequence, plan, sequence_observability
 from simucal.api.tools import audit, derive_model
 from simucal.api.validating import Check, Validation, validate
 from simucal.handheld.static_detect import DetectSettings
-from simucal.api.sets import MeasurementSet
-from simucal.api.vocabulary import compare
+from simucal.api.vocabulary import Parameter, compare, parameters
 from simucal.report.vocabulary import Entry
 from simucal.io import calibration as _file
+from simucal.io.calibration import Calibration
+from simucal.io.measurement_set import MeasurementSet
 from simucal.io import results
 
 if TYPE_CHECKING:
     from simucal.api.store import Store
 
 __all__ = ["read_set", "simulate", "calibrate", "validate", "diagnose", "noise", "save", "load", "table_rows",
-           "compare", "import_recording", "import_instances", "calibrate_instances", "autopilot_files",
+           "compare", "parameters", "apply", "apply_set", "import_recording", "import_instances", "calibrate_instances",
+           "autopilot_files",
            "ImuCalibration", "convert", "montecarlo", "calibrate_each", "Calibrated", "plan",
            "sequence_observability", "design_sequence", "derive_model", "audit", "DetectSettings", "CalibrateOptions",
            "MeasurementSet", "Calibration", "Parameter", "Entry",
@@ -87,7 +89,7 @@ def read_set(path: str | os.PathLike[str]) -> MeasurementSet:
     >>> ms.segments is None  # a stream: a hand-placed session  # doctest: +SKIP
     False
     """
-    ms = MeasurementSet.of(io.read_set(path))
+    ms = io.read_set(path)
     ms.truth = _truth(Path(path) / "truth.json")
     return ms
 
@@ -209,4 +211,4 @@ def load(path: str | os.PathLike[str]) -> Calibration:
     --------
     >>> cal = simucal.load("calibration.json")  # doctest: +SKIP
     """
-    return Calibration.of(_file.load(path))
+    return _file.load(path)

@@ -7,7 +7,7 @@ from dataclasses import dataclass, field
 from typing import TYPE_CHECKING, Any, NamedTuple, Union
 
 from simucal import io
-from simucal.api.arguments import checked
+from simucal.arguments import checked
 from simucal.api.sets import folder_of
 from simucal.api.tables import TableOf
 
@@ -71,7 +71,7 @@ class Noise:
         return f"<simucal.Noise: {len(seen)} terms seen" + (f": {'; '.join(seen[:6])}" if seen else "") + ">"
 
     def _repr_html_(self) -> str:
-        from simucal.api.tables import html_card
+        from simucal.notebook import html_card
         return html_card("simucal.Noise", [(f"{t.sensor} {t.axis} {t.name}",
                                             f"{t.value:.4g} +- {t.std:.2g} {t.unit}" if t.status == "seen" and t.value
                                             is not None and t.std is not None else

@@ -6,8 +6,8 @@ import os
 from pathlib import Path
 from typing import Any, NamedTuple, Sequence
 
-from simucal.api.arguments import checked
-from simucal.api.calibration import Calibration
+from simucal.arguments import checked
+from simucal.io.calibration import Calibration
 from simucal.errors import InputError
 from simucal.options import CalibrateOptions
 
@@ -79,5 +79,5 @@ def calibrate_each(data_dirs: Sequence[str | os.PathLike[str]], folder: str | os
         if made and not any(out.iterdir()):
             out.rmdir()
         raise
-    return [Calibrated(d, path, None if result is None else Calibration.of(result), error)
+    return [Calibrated(d, path, result, error)
             for (d, path, _), (result, error) in zip(tasks, done)]

@@ -16,8 +16,8 @@ from typing import Sequence, Union, cast
 import numpy as np
 
 from simucal import io, methods
-from simucal.api.arguments import checked
-from simucal.api.calibration import Calibration
+from simucal.arguments import checked
+from simucal.io.calibration import Calibration
 from simucal.api.sets import as_set
 from simucal.errors import CalibrationError, InputError, SimucalError
 from simucal.io import calibration
@@ -77,11 +77,11 @@ def calibrate(data: Data | Sequence[Data], options: CalibrateOptions | None = No
                          "one object or as keywords, not both")
     options = options or CalibrateOptions(**given)
     if isinstance(data, (list, tuple)):
-        return Calibration.of(calibrate_thermal([as_set(d) for d in data], options))
+        return calibrate_thermal([as_set(d) for d in data], options)
     one = cast(Data, data)  # not a list: one set
     if options.thermal:
-        return Calibration.of(calibrate_thermal([as_set(one)], options))
-    return Calibration.of(calibrate_set(as_set(one), options))
+        return calibrate_thermal([as_set(one)], options)
+    return calibrate_set(as_set(one), options)
 
 
 calibrate.__doc__ = (calibrate.__doc__ or "").replace("{options}", described().replace("\n", "\n    "))

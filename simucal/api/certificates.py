@@ -8,7 +8,7 @@ import os
 from pathlib import Path
 from typing import TYPE_CHECKING, Any, NamedTuple
 
-from simucal.api.arguments import checked
+from simucal.arguments import checked
 from simucal.api.validating import FORMAT as VALIDATION_FORMAT
 from simucal.errors import InputError
 from simucal.io import outputs

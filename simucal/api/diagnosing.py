@@ -19,7 +19,7 @@ from typing import Any, Callable, Mapping, NamedTuple, Sequence, cast
 import numpy as np
 
 from simucal import io, methods
-from simucal.api.arguments import checked
+from simucal.arguments import checked
 from simucal.api.calibrating import Data
 from simucal.api.sets import as_set, effect_ids
 from simucal.api.tables import TableOf
@@ -114,7 +114,7 @@ class Diagnosis:
                 + f"; next: {self.next_command}>")
 
     def _repr_html_(self) -> str:
-        from simucal.api.tables import html_card
+        from simucal.notebook import html_card
         return html_card("simucal.Diagnosis", [*self.verdict.items(), ("next", self.next_command),
                                                *[("note", n) for n in self.notes + self.next_notes]])
 

@@ -7,8 +7,8 @@ from pathlib import Path
 import typing
 from typing import Literal, Sequence
 
-from simucal.api.arguments import checked
-from simucal.api.sets import MeasurementSet
+from simucal.arguments import checked
+from simucal.io.measurement_set import MeasurementSet
 from simucal.errors import InputError
 
 Format = Literal["imu_tk", "imucal-ferraris", "imucal-annotated", "csv", "ulog", "dataflash",
@@ -91,7 +91,7 @@ def import_recording(fmt: Format, sources: Sequence[Path_], out: Path_, *, latit
     else:
         _import_csv(paths[0], out, columns, acc_unit, gyro_unit, rate_hz, latitude_deg)
     from simucal import io
-    return MeasurementSet.of(io.read_set(out)) if read_back else None
+    return io.read_set(out) if read_back else None
 
 
 @checked
@@ -136,7 +136,7 @@ def import_instances(fmt: Literal["ulog", "dataflash"], source: Path_, out: Path
     from simucal.errors import LogWarning
     for line in dict.fromkeys(w for ms in done for w in ms.meta.get("warnings", [])):  # a log's once
         warnings.warn(line, LogWarning, stacklevel=3)
-    return [MeasurementSet.of(io.read_set(ms.path) if read_back else ms) for ms in done]
+    return [io.read_set(ms.path) if read_back else ms for ms in done]
 
 
 def _import_csv(path: Path, out: Path_, columns: str | None, acc_unit: str | None, gyro_unit: str | None,

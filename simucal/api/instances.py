@@ -10,8 +10,9 @@ from pathlib import Path
 from typing import Any, NamedTuple, Sequence, Union
 
 from simucal import io
-from simucal.api.arguments import checked
-from simucal.api.calibration import AutopilotFile, Calibration
+from simucal.arguments import checked
+from simucal.io.autopilot import AutopilotFile
+from simucal.io.calibration import Calibration
 from simucal.api.calibrating import calibrate
 from simucal.api.sets import as_set
 from simucal.errors import InputError
@@ -93,4 +94,4 @@ def autopilot_files(imus: Sequence[ImuCalibration], *, px4: str | None = None,
     """
     from simucal.io import autopilot
     pairs = [(u.calibration, u.meta) for u in imus]
-    return [AutopilotFile(*f) for f in autopilot.texts(pairs, px4, ardupilot)] if px4 or ardupilot else []
+    return autopilot.files(pairs, px4, ardupilot)

@@ -28,7 +28,7 @@ from typing import Mapping, Sequence
 import numpy as np
 from numpy.typing import NDArray
 
-from simucal.api.arguments import checked
+from simucal.arguments import checked
 from simucal.report.vocabulary import entries
 from simucal.errors import CalibrationError, InputError, StoreError
 from simucal.io.calibration import Calibration, load

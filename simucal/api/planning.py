@@ -8,7 +8,7 @@ from typing import TYPE_CHECKING, Any, Sequence
 import numpy as np
 from numpy.typing import NDArray
 
-from simucal.api.arguments import checked
+from simucal.arguments import checked
 from simucal.errors import InputError
 from simucal.io import results
 

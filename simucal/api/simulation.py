@@ -8,8 +8,8 @@ from typing import Any, Callable, Literal, Mapping, Sequence, Union
 from simucal.errors import InputError
 from simucal import methods
 from simucal.io import results
-from simucal.api.arguments import checked
-from simucal.api.sets import MeasurementSet
+from simucal.arguments import checked
+from simucal.io.measurement_set import MeasurementSet
 
 Pairs = Union[Mapping[str, float], Sequence[str]]  # {name: value} or the command's "NAME=VALUE" strings
 SCENARIOS = tuple(methods.SCENARIOS)  # paper, field, handheld, ...: methods.SCENARIOS

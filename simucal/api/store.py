@@ -5,7 +5,7 @@ import os
 from collections import namedtuple
 from typing import Any, Mapping, Sequence
 
-from simucal.api.arguments import checked
+from simucal.arguments import checked
 from simucal.api.tables import table
 from simucal.io import calibration as _file
 from simucal.store import CalibrationStore

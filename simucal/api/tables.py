@@ -3,18 +3,9 @@ rows (NamedTuples, or a diagnosis's Candidate records: the same columns, each ro
 the API works on numpy alone."""
 from __future__ import annotations
 
-from typing import Any, Protocol, Sequence, runtime_checkable
+from typing import Any, Sequence
 
-from simucal.api.arguments import checked
-
-
-@runtime_checkable
-class DataFrame(Protocol):
-    """A table by column: pandas' DataFrame, or anything with its columns and to_dict (io/arrays reads it so), for
-    the annotation of an argument that takes one (pandas is an extra: the door cannot name its class)."""
-    columns: Any
-
-    def to_dict(self, orient: str = "dict") -> Any: ...
+from simucal.arguments import checked
 
 
 def table(rows: Sequence[Any], columns: Sequence[str]) -> Any:
@@ -54,7 +45,7 @@ def table_rows(t: Any) -> list[Any]:
     Parameters
     ----------
     t : pandas.DataFrame or list of NamedTuple
-        A table of the API (``Calibration.parameters()``, ``Validation.checks``, ...).
+        A table of the API (``simucal.parameters(cal)``, ``Validation.checks``, ...).
 
     Returns
     -------
@@ -64,18 +55,10 @@ def table_rows(t: Any) -> list[Any]:
     Examples
     --------
     >>> import simucal
-    >>> p = simucal.table_rows(simucal.calibrate(simucal.simulate(seed=1)).parameters())
+    >>> p = simucal.table_rows(simucal.parameters(simucal.calibrate(simucal.simulate(seed=1))))
     >>> p[0].sensor, p[0].name, p[0].unit, p[0].own_name
     ('acc', 'M_xx', '1', 'dK_x')
     """
     if hasattr(t, "itertuples"):
         return list(t.itertuples(index=False))
     return list(t)
-
-
-def html_card(title: str, rows: Sequence[tuple[str, Any]]) -> str:
-    """A notebook's view of a result (its _repr_html_): a small table of (label, value) under a title, escaped."""
-    from html import escape
-    body = "".join(f"<tr><th style='text-align:left'>{escape(str(k))}</th><td style='text-align:left'>"
-                   f"{escape(str(v))}</td></tr>" for k, v in rows)
-    return f"<table><caption style='text-align:left'><b>{escape(title)}</b></caption>{body}</table>"

@@ -7,7 +7,7 @@ from __future__ import annotations
 import os
 from typing import TYPE_CHECKING, Any, Callable, NamedTuple
 
-from simucal.api.arguments import checked
+from simucal.arguments import checked
 
 if TYPE_CHECKING:  # the record's type only: the demo's modules load when it runs
     from simucal.api.demo_run import DemoRecord

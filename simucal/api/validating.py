@@ -41,9 +41,9 @@ import numpy as np
 from numpy.typing import NDArray
 
 from simucal import io, methods
-from simucal.api.arguments import checked
+from simucal.arguments import checked
 from simucal.api.calibrating import Data
-from simucal.api.calibration import Calibration
+from simucal.io.calibration import Calibration
 from simucal.api.sets import folder_of
 from simucal.api.tables import TableOf
 from simucal.fit.apply import apply
@@ -169,7 +169,7 @@ class Validation:
                 + ("" if self.independent else " (on the calibration's own data)") + ">")
 
     def _repr_html_(self) -> str:
-        from simucal.api.tables import html_card
+        from simucal.notebook import html_card
         return html_card("simucal.Validation", [*self.verdict.items(), ("independent data", self.independent),
                                                 *[("warning", w) for w in self.warnings]])
 

@@ -212,10 +212,10 @@ def import_cmd(fmt, sources, out_dir, latitude_deg, acc_counts_per_g, gyro_count
 @UNITS
 def apply_cmd(calibration_file, data_dir, out_dir, force, units):
     """Apply a calibration to raw data: a measurement set in g and deg/h (--units si: m/s^2 and rad/s), frame b.
-    The Python API's simucal.load(CAL).apply_to_set(DATA)."""
+    The Python API's simucal.apply_set(simucal.load(CAL), DATA)."""
     from simucal import api
     guard([calibration_file, data_dir], sets=[out_dir], force=force)
-    calibrated = api.load(calibration_file).apply_to_set(data_dir, where=calibration_file, units=units)
+    calibrated = api.apply_set(api.load(calibration_file), data_dir, where=calibration_file, units=units)
     calibrated.write(out_dir, force=True)  # guarded above, with --force
     for line in calibrated.meta.get("warnings", []):
         click.echo(f"WARNING: {line}")

@@ -28,7 +28,7 @@ from simucal.errors import CalibrationError
 from simucal.fit.noise import white_noise_var
 from simucal.fit.rotations import exp_so3
 from simucal.generated import field as gen
-from simucal.io import calibration, outputs, records, units
+from simucal.io import blocks, calibration, outputs, records, units
 
 AXIS_NAMES = ("x (forward)", "y (up)", "z (right)")
 
@@ -253,9 +253,9 @@ def field_calibration(ms, heading_accuracy_deg=5.0) -> calibration.Calibration:
     nominal, and named under not_calibrated), the positions and the filter's figures under field."""
     r = field_drift(ms, heading_accuracy_deg=heading_accuracy_deg)
     cal = calibration.header("field", ms)
-    cal.gyro = calibration.affine_block("gyro", np.eye(3), r["gyro_drift_dph"], {"bias": r["std_dph"]}, None,
+    cal.gyro = blocks.affine_block("gyro", np.eye(3), r["gyro_drift_dph"], {"bias": r["std_dph"]}, None,
                                         "ruan2019: constant drift only (M held at I)")
-    cal.acc = calibration.affine_block("acc", np.eye(3), np.zeros(3), {}, None,
+    cal.acc = blocks.affine_block("acc", np.eye(3), np.zeros(3), {}, None,
                                        "nominal scale factors (the field method calibrates no accelerometer)",
                                        nominal=True)
     cal.not_calibrated = {

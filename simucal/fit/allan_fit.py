@@ -40,7 +40,7 @@ TERMS_NEEDING = {"N": 1 + MIN_TAUS, "K": 2 + MIN_TAUS}
 ITERATIONS = 4    # covariance from the model, refit (converged to < 1e-3 of a std in tests)
 
 
-class Selection(TypedDict):
+class TermSelection(TypedDict):
     """The terms one axis's Allan variance shows (select): values in the sensor's unit times s^a."""
     terms: dict[str, tuple[float, float] | None]  # each term's (value, std), None where not seen
     bounds: dict[str, float]                      # 95 % upper bound of each term tested and not seen
@@ -74,7 +74,7 @@ def gls(v, A, cov):
     return x, rinv @ rinv.T, float(resid @ resid)
 
 
-class Fit:
+class AllanFit:
     """One axis: the Allan variance v at tau (s), the covariance basis of its grid (allan_cov.basis)."""
 
     def __init__(self, tau, v, mats):
@@ -106,12 +106,12 @@ def start(tau, v) -> dict[str, float]:
     return {"N": float(v[0] * tau[0])}
 
 
-def select(tau, v, mats) -> Selection:
+def select(tau, v, mats) -> TermSelection:
     """The terms the curve shows (module doc): {"terms": {t: (value, std) or None},
     "bounds": {t: 95 % bound} (a term in neither is one the grid is too short to test: it needs
     "needs_taus"), "squares": {t: (x, std)} of the final model's terms, seen or not, "chi2", "dof",
     "cov" (of the Allan variance under the model)}."""
-    fit = Fit(tau, v, mats)
+    fit = AllanFit(tau, v, mats)
     terms = [t for t in BASE if len(tau) >= TERMS_NEEDING[t]]
     sol, chi2, cov = fit.iterate(terms, start(tau, v))
     while True:

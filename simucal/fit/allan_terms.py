@@ -52,7 +52,7 @@ class SheetTerm(TypedDict, total=False):
     needs_s: float                    # too short: the record's length that would test it, s
 
 
-class AxisFit(TypedDict):
+class AllanAxisFit(TypedDict):
     """The final model of an axis's Allan variance (allan_fit.select)."""
     chi2: float                       # the GLS fit's, on dof
     dof: int                          # the taus less the terms fitted
@@ -68,7 +68,7 @@ class AxisNoise(TypedDict, total=False):
     terms: dict[str, float]           # Q N B K R, 0 where not seen (the sensor's unit times s^a)
     bounds: dict[str, float]          # each term's 95 % upper bound where not seen
     sheet: dict[str, SheetTerm]       # each term in a data sheet's units
-    fit: AxisFit                      # the final model of the Allan variance
+    fit: AllanAxisFit                      # the final model of the Allan variance
 
 
 class SensorNoise(TypedDict):

@@ -31,7 +31,7 @@ HELD_OUT_ALPHA = 0.05  # one-sided level of "predicts the data left out better" 
 AUTO_TRIES = 3  # candidates passing the gate whose held-out errors are tried, strongest first
 
 
-class Step(Protocol):
+class SelectionStep(Protocol):
     """A model in the selection: its effects, its test, its ranked candidates, itself with one more
     effect, and its errors on data left out one piece at a time."""
     effects: tuple[str, ...]
@@ -49,7 +49,7 @@ class Step(Protocol):
         gated, strongest first) and the generic term that explains
         the misfit better than any of them, if any (its description: text, catalog_id)."""
 
-    def add(self, eid: str) -> Step | str:
+    def add(self, eid: str) -> SelectionStep | str:
         """The model refit with eid added, or why there is none."""
 
     def held_out(self) -> list[float] | None:
@@ -66,8 +66,8 @@ class Step(Protocol):
         command, a stream's poses or moves to make)."""
 
 
-def forward_selection(start: Step, max_terms: int = 6) -> Selection:
-    """The steps from start while its model fails (module doc). Returns the Selection: the last Step's model,
+def forward_selection(start: SelectionStep, max_terms: int = 6) -> Selection:
+    """The steps from start while its model fails (module doc). Returns the Selection: the last SelectionStep's model,
     the steps (id, estimate, std, unit, the step's after(), the held-out test's p, the twins where the
     data cannot tell the chosen one from another) and why it stopped."""
     steps: list[dict] = []
@@ -107,7 +107,7 @@ def forward_selection(start: Step, max_terms: int = 6) -> Selection:
                      "the model passes its test" if steps else "the model passes its test: nothing added")
 
 
-def _still_failing(start: Step, step: Step, steps: list[dict], why: str) -> Selection:
+def _still_failing(start: SelectionStep, step: SelectionStep, steps: list[dict], why: str) -> Selection:
     """The selection's end with the model still failing. Where the effects added explain less than
     family.OUTSIDE_SHARE of the start's misfit (its chi-square's excess over the dof) and moved a
     baseline parameter by more than its std, they are not kept: what fails is then most likely
@@ -131,7 +131,7 @@ def _still_failing(start: Step, step: Step, steps: list[dict], why: str) -> Sele
                      f"diagnose shows it)")
 
 
-def _twin_choice(c: CandidateRecord, cands: list[CandidateRecord], step: Step) -> records.AutoStep:
+def _twin_choice(c: CandidateRecord, cands: list[CandidateRecord], step: SelectionStep) -> records.AutoStep:
     """Where the data cannot tell the chosen effect from a twin (fit/twins.py): the twins, why this
     one was taken (the larger likelihood ratio only, or the ranking's own choice on rows the fit does
     not use: a turntable gyro's static rows, turntable/model_test.choose_twin) and what would tell

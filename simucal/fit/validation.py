@@ -19,7 +19,7 @@ from simucal.io.stream_records import Timestamps
 FAR_OFF = 10.0  # a row this many floors (and medians) off is named
 
 
-class Check(TypedDict, total=False):
+class CheckRecord(TypedDict, total=False):
     """One check of `simucal validate`: a calibrated error against physics (norm_block, each kind's checks)."""
     what: str                         # the error checked, in words
     unit: str                         # of the rms values
@@ -41,7 +41,7 @@ class ValidationReport(TypedDict, total=False):
     calibration_sha256: str | None    # its bytes' (None: in memory), which the certificate matches
     data: str                         # the set validated on
     independent: bool                 # not the rows the calibration was made from
-    checks: dict[str, list[Check]]    # per sensor
+    checks: dict[str, list[CheckRecord]]    # per sensor
     verdict: dict[str, str]           # per sensor, in words
     verdict_notes: dict[str, str]
     warnings: list[str]               # apply's: rows outside the calibrated temperatures
@@ -68,7 +68,7 @@ def segment_means(data, groups, stated, angles=None):
     return np.array([m for m, _ in out]), np.array([np.sqrt(np.mean(sd ** 2)) for _, sd in out], float)
 
 
-def norm_block(unit, before, after, floor_sd, what, labels) -> Check:
+def norm_block(unit, before, after, floor_sd, what, labels) -> CheckRecord:
     """Errors of a norm against its known value, before and after, with the floor; labels name
     the rows (segments or poses) for the ones far off (far_off)."""
     ok = np.isfinite(floor_sd)

@@ -34,7 +34,7 @@ from simucal.handheld.gyro_moves import (
 from simucal.handheld.moves import (GYRO_MODEL_TEXT, GYRO_MODELS, PRIOR_T, UNSEEN_STD, GyroFit, choose_gyro_model,
                                     fit_gyro)
 from simucal.handheld.moves_selection import moves_family, rank_move_candidates, select_effects
-from simucal.io import calibration, units
+from simucal.io import blocks, calibration, units
 from simucal.io.details import as_details
 from simucal.io.calibration import Calibration, EffectValue, SensorBlock
 from simucal.handheld.poses import acc_from_poses
@@ -113,7 +113,7 @@ def _gyro_block(ms, det, am, obs, fa, acc_cal, gyro_effects, auto) -> SensorBloc
              for i in range(3)]
     M_g = np.linalg.inv(f.T)
     units.check_scale("gyro", M_g, ms.path / "samples.csv")
-    return calibration.affine_block(
+    return blocks.affine_block(
         "gyro", M_g, (gm.bias + f.db) * units.DPH_PER_DPS,
         {"T": std_T, "bias": (bias_std * units.DPH_PER_DPS).tolist()},
         float(np.sqrt(np.mean(np.sum(f.r ** 2, 1)))), GYRO_MODEL_TEXT[gyro_model],
@@ -156,7 +156,7 @@ def calibrate_handheld(ms, acc_model="acc_baseline", detect=None, pose_window_s=
     cal = calibration.header("handheld (Tedaldi): exact norm fit + gyro moves", ms)
     cal.details["static_detection"] = {**det.as_dict(ms.samples["t_s"]), "pose_window_s": pose_window_s}
     cal.warnings += dropped_warnings(det, ms.samples["t_s"])
-    cal.acc = calibration.sensor_block(am, fa, M_a, b_a)
+    cal.acc = blocks.sensor_block(am, fa, M_a, b_a)
     # the poses' test made the model test's family (fit/family.py), each pose weighted as the fit weighs it
     test: dict[str, Any] = {"p_value": cal.acc.p_value, "test": "chi-square of the poses against their own noise"}
     assert obs.sigma is not None  # each pose's std (pose_observations)

@@ -22,7 +22,7 @@ import numpy as np
 
 from simucal.errors import CalibrationError
 from simucal.fit.noise import quantization_step, white_noise_var
-from simucal.fit.validation import (FLOOR, Check, direction_var, input_change, norm_block, rms, segment_means,
+from simucal.fit.validation import (FLOOR, CheckRecord, direction_var, input_change, norm_block, rms, segment_means,
                                     with_calibration)
 from simucal.handheld.moves import build_moves, move_residuals
 from simucal.handheld.static_detect import detect_static
@@ -30,7 +30,7 @@ from simucal.io import units
 from simucal.io.sensor_checks import saturated_rows
 
 
-def stream_checks(ms, f_before, f_after, w_before, w_after, cal) -> dict[str, list[Check]]:
+def stream_checks(ms, f_before, f_after, w_before, w_after, cal) -> dict[str, list[CheckRecord]]:
     """{sensor: [check]} of a calibration cal on the stream ms (as turntable/validation.table_checks)."""
     if f_after is None:
         raise CalibrationError(f"{ms.path}: a stream without accelerometers has no reference to validate against")

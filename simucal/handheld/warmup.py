@@ -56,7 +56,7 @@ from simucal.fit.augmented import AugmentedModel, check_effect
 from simucal.fit.distributions import chi2_sf
 from simucal.fit.noise import white_noise_var
 from simucal.fit.thermal import RATE_WINDOW_S, check_temp_c, clusters, temperature_rate
-from simucal.fit.validation import Check
+from simucal.fit.validation import CheckRecord
 from simucal.generated.effects import EFFECTS
 from simucal.io import calibration, records, timestamps
 from simucal.io.details import WARMUP, as_details
@@ -408,7 +408,7 @@ def _said(sensor, i, a) -> str:
     return ""
 
 
-def warmup_checks(ms, f_before, f_after, w_before, w_after, cal) -> dict[str, list[Check]]:
+def warmup_checks(ms, f_before, f_after, w_before, w_after, cal) -> dict[str, list[CheckRecord]]:
     """`simucal validate` of a warm-up calibration on another warm-up (the same unit, a still stream over
     temperature): per sensor, each axis's change over the warm-up (its block means less their median) at
     nominal and calibrated, with the block means' white noise as the floor (first differences); for the
@@ -420,7 +420,7 @@ def warmup_checks(ms, f_before, f_after, w_before, w_after, cal) -> dict[str, li
     if not ms.has_acc or not still_throughout(ms.acc_g(), t):
         raise CalibrationError(f"{ms.path}: a warm-up calibration is validated on another still warm-up of the unit "
                                "(a stream that never moves, with temp_c); these data are not one")
-    out: dict[str, list[Check]] = {}
+    out: dict[str, list[CheckRecord]] = {}
     for sensor, before, after, unit in (("acc", f_before, f_after, "g"), ("gyro", w_before, w_after, "deg/h")):
         if before is None or getattr(cal, sensor, None) is None:
             continue

@@ -11,14 +11,18 @@ from __future__ import annotations
 import hashlib
 import json
 from pathlib import Path
-from typing import Any, Mapping
+from typing import Any, Callable, Mapping, TypeVar
 
 import numpy as np
 
-from simucal.io import SAMPLE_COLS, MeasurementSet, MeasurementSetError, Segment, _check_samples, units
-from simucal.io.segments import KINDS
+from simucal.io import units
+from simucal.io.segments import KINDS, Segment
+from simucal.io.set_rules import SAMPLE_COLS, check_samples
+from simucal.io.text_files import MeasurementSetError
 
 KEYS = ("segment", "t_s", "temp_c") + SAMPLE_COLS  # the spec's columns, as a DataFrame may name them
+
+T = TypeVar("T")  # the set's class (io.MeasurementSet, whose constructors these are)
 
 
 def _triad(x, what, n=None) -> np.ndarray | None:
@@ -92,7 +96,7 @@ def digest(meta: Mapping[str, Any], samples: dict, segments) -> str:
 
 
 def from_arrays(acc=None, gyro=None, *, acc_unit, gyro_unit, rate_hz=None, t_s=None, temp_c=None, segment=None,
-                segments=None, columns=None, meta=None, name="arrays", cls=MeasurementSet) -> MeasurementSet:
+                segments=None, columns=None, meta=None, name="arrays", cls: Callable[..., T]) -> T:
     """The set of raw outputs acc and gyro ((n, 3) each, either may be None) in acc_unit and
     gyro_unit (the spec's units); the times from rate_hz or t_s; temp_c (degC) and further named
     columns (a user's model's inputs) one value per row; meta: meta.json's other keys
@@ -120,14 +124,14 @@ def from_arrays(acc=None, gyro=None, *, acc_unit, gyro_unit, rate_hz=None, t_s=N
         samples["segment"] = _column(segment, "segment", n)
     _finite(samples, name)
     try:
-        samples = _check_samples(samples, Path(name), table)
+        samples = check_samples(samples, Path(name), table)
     except MeasurementSetError as e:  # its line of samples.csv is row line - 2 here
         raise MeasurementSetError(name, None, (f"row {e.line - 2}: " if e.line else "") + e.rule) from None
     return cls(Path(name), meta, samples, table, sha256=digest(meta, samples, table))
 
 
 def from_dataframe(df, *, acc_unit, gyro_unit, columns=None, rate_hz=None, t_s=None, segments=None, meta=None,
-                   name="dataframe", cls=MeasurementSet) -> MeasurementSet:
+                   name="dataframe", cls: Callable[..., T]) -> T:
     """from_arrays on a DataFrame's columns. columns: {spec name: the frame's column} for the ones
     named otherwise (ax ay az gx gy gz, t_s, temp_c, segment); a t_s column is used unless rate_hz
     or t_s is given; with segments= (the table) the segment column gives each row's. pandas is needed only to hand the

@@ -35,6 +35,7 @@ autopilot's own topics; the autopilot rotates to its body frame (FRD) after the 
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import NamedTuple
 from math import comb
 
 import numpy as np
@@ -273,6 +274,19 @@ def imu(cal, meta: meta_keys.Meta, px4: bool = False) -> Imu:
                                "TC_* correct the raw sensor_accel/sensor_gyro: log those (SDLOG_PROFILE's thermal "
                                "calibration bit) and import them with --instance N")
     return Imu(polys, ids, slot, source, tuple(e for _, b in cal.blocks() for e in b.effects))
+
+
+class AutopilotFile(NamedTuple):
+    """One file of `Calibration.autopilot_files`: where it goes, its text, what it warns of and what to do with it."""
+    path: str
+    text: str
+    warnings: list[str]
+    note: str
+
+
+def files(units: list[tuple], px4: str | None = None, ardupilot: str | None = None) -> list[AutopilotFile]:
+    """texts' files as records, none where no file is asked for."""
+    return [AutopilotFile(*f) for f in texts(units, px4, ardupilot)] if px4 or ardupilot else []
 
 
 def texts(units: list[tuple], px4: str | None = None, ardupilot: str | None = None) -> list[tuple]:

@@ -49,11 +49,15 @@ from pathlib import Path
 
 import numpy as np
 
-from simucal.io import outputs, records
+from simucal.arguments import checked
+from simucal.errors import CalibrationError
+from simucal.io import autopilot, outputs, records
+from simucal.io.autopilot import AutopilotFile
 from simucal.io.calibration_checks import CalibrationFileError, check_file, layout
 from simucal.io.calibration_versions import upgraded
 from simucal.io.details import SensorDetails, as_details
 from simucal.io.text_files import unique_keys
+from simucal.notebook import html_card
 
 FORMAT = "simucal.calibration/2"
 FORMULA = {
@@ -70,6 +74,8 @@ UNITS = {"acc": "g", "gyro": "deg/h", "angles": "rad"}
 # below 1e-3 (the planted ones at p < 1e-6), and the thermal fit's model test uses the same level.
 ALPHA = 1e-3
 SENSORS = ("acc", "gyro")
+MOVED = {"apply": "simucal.apply(cal, x, ...)", "apply_to_set": "simucal.apply_set(cal, data, ...)",
+         "parameters": "simucal.parameters(cal, ...)"}  # methods that need the floors above io
 
 
 @dataclass
@@ -186,8 +192,22 @@ class SensorBlock:
 
 @dataclass(eq=False)
 class Calibration:
-    """A calibration file (module doc). details: what the method reports beyond the blocks
-    (consistency, unification's checks, static_detection, field, excluded_segments, ...)."""
+    """A calibration of one unit (simucal.Calibration; the file: module doc): per sensor the model
+    output = h(input, p), its parameters with their stds, the test of the model and what the method
+    reports; details: what the method reports beyond the blocks (consistency, unification's checks,
+    static_detection, field, excluded_segments, ...).
+
+    Returned by `simucal.calibrate` and `simucal.load`; written by `simucal.save`; applied by
+    `simucal.apply` (arrays, DataFrames) and `simucal.apply_set` (a measurement set); its parameters
+    tabled by `simucal.parameters`.
+
+    Examples
+    --------
+    >>> import simucal
+    >>> cal = simucal.load("calibration.json")  # doctest: +SKIP
+    >>> cal.acc.p_value, cal.sensors  # doctest: +SKIP
+    (0.41, ['acc', 'gyro'])
+    """
     method: str
     input: str | list[str]
     input_sha256: str | list[str | None] | None  # None: a hand-edited file, or a set made without its digest (simulate)
@@ -208,16 +228,84 @@ class Calibration:
         """The sensors calibrated (or kept at nominal), as the layout names them."""
         return list(self.layout["sensors"])
 
+    @checked
     def blocks(self) -> list[tuple[str, SensorBlock]]:
         """(sensor, block) for each block present."""
         return [(s, getattr(self, s)) for s in SENSORS if getattr(self, s) is not None]
 
+    def __repr__(self) -> str:  # a notebook cell shows this: the file's every array is for parameters()
+        tested = ", ".join(f"{s} (p = {b.p_value:.2g})" if b.p_value is not None else s for s, b in self.blocks())
+        return f"<simucal.Calibration {self.method!r} of {self.input!r}: {tested or 'no sensor'}>"
+
+    def _repr_html_(self) -> str:
+        """A notebook's view: the method, the input, and per sensor its model, test and verdict."""
+        rows: list[tuple[str, Any]] = [("method", self.method), ("input", self.input)]
+        for s, b in self.blocks():
+            test = "no test" if b.p_value is None else f"chi2 {b.chi2:.4g} on {b.dof:g} dof, p = {b.p_value:.2g}"
+            rows.append((s, f"{b.model}: {b.verdict} ({test}); residual rms {b.residual_rms:.3g} {b.residual_unit}"
+                         if b.residual_rms is not None else f"{b.model}: {b.verdict} ({test})"))
+        rows += [(f"{s} not calibrated", why) for s, why in self.not_calibrated.items()]
+        return html_card("simucal.Calibration", rows)
+
+    def __getattr__(self, name: str) -> Any:
+        """A method that became a function of the API (docs/changelog.md): named with its new call."""
+        if name in MOVED:
+            raise AttributeError(f"Calibration.{name} is now {MOVED[name]}")
+        raise AttributeError(f"'Calibration' object has no attribute {name!r}")
+
+    @checked
+    def sensor(self, name: str) -> SensorBlock:
+        """The block of sensor `name` ("acc" or "gyro"), never None: refused (CalibrationError) where this
+        calibration holds none, saying why (`not_calibrated`).
+
+        Examples
+        --------
+        >>> cal.sensor("acc").p_value  # doctest: +SKIP
+        0.41
+        """
+        block: SensorBlock | None = getattr(self, name, None) if name in SENSORS else None
+        if block is None:
+            why = self.not_calibrated.get(name)
+            raise CalibrationError(f"this calibration ({self.method}) holds no {name!r} block"
+                                   + (f": {why}" if why
+                                      else f"; its sensors: {', '.join(s for s, _ in self.blocks())}"))
+        return block
+
+    @checked
+    def autopilot_files(self, data: Any, *, px4: str | None = None,
+                        ardupilot: str | None = None) -> list[AutopilotFile]:
+        """A thermal calibration's bias polynomials as PX4's and ArduPilot's thermal compensation parameter files
+        (`simucal calibrate --thermal --px4 FILE --ardupilot FILE`): their texts, made before anything is written.
+
+        Parameters
+        ----------
+        data : str, os.PathLike or MeasurementSet
+            A set it was calibrated from (its meta.json: g, the log's device ids).
+        px4, ardupilot : str, optional
+            The files asked for (.params for PX4's QGroundControl, .parm for ArduPilot's Mission Planner).
+
+        Returns
+        -------
+        list of AutopilotFile
+            (path, text, warnings, note) of each file asked for; the caller writes them.
+
+        Examples
+        --------
+        >>> for f in cal.autopilot_files("plateau_25", px4="tc.params"):  # doctest: +SKIP
+        ...     open(f.path, "w").write(f.text)
+        """
+        from simucal.io import MeasurementSet, read_meta  # the package's reader, which builds on this module
+        meta = data.meta if isinstance(data, MeasurementSet) else read_meta(Path(data))
+        return autopilot.files([(self, meta)], px4, ardupilot)
+
+    @checked
     def drop_sensor(self, sensor: str, why: str) -> None:
         """The data hold `sensor` but the method could not calibrate it: no block, said under not_calibrated."""
         setattr(self, sensor, None)
         self.layout["sensors"] = [s for s in self.layout["sensors"] if s != sensor]
         self.not_calibrated[sensor] = why
 
+    @checked
     def to_json(self) -> records.JSONObject:
         out: dict[str, Any] = {"format": self.format, "method": self.method, "input": self.input,
                                "input_sha256": self.input_sha256,
@@ -239,6 +327,7 @@ class Calibration:
         return out
 
     @classmethod
+    @checked
     def from_json(cls, d: dict) -> Calibration:
         """The file's dict (checked by calibration_checks.check_file) as the object; a block the layout
         does not name is left out (check_layout then refuses data that have that sensor)."""
@@ -260,88 +349,6 @@ def header(method: str, ms) -> Calibration:
         temp = ms.samples["temp_c"]
         cal.t_ref_c, cal.temperature_range_c = ms.t_ref_c, [float(np.min(temp)), float(np.max(temp))]
     return cal
-
-
-def _user_terms(model, fit) -> dict:
-    """A user's model file's terms beyond its sensor's baseline, as effects."""
-    return {n: EffectValue(fit.params[n], fit.std[n], u, m, model.base.name)
-            for n, u, m in zip(model.base.params, model.base.param_units, model.base.meanings)
-            if n in model.model_file_terms}
-
-
-def effect_values(model, fit) -> dict[str, EffectValue]:
-    """The effects of `model` (an AugmentedModel: its library effects, and a model file's own terms) at `fit`."""
-    effects = {e: EffectValue(fit.params[e], fit.std[e], u, m)
-               for e, u, m in zip(model.effects, model.param_units[len(model.base.params):],
-                                  model.meanings[len(model.base.params):])}
-    effects.update(_user_terms(model, fit))
-    return effects
-
-
-def sensor_block(model, fit, M, bias, base: dict | None = None, C_b_model=None) -> SensorBlock:
-    """The block of one sensor from a norm fit of `model` (an AugmentedModel); base: the model
-    test's block (turntable/model_test.py)."""
-    effects = effect_values(model, fit)
-    block = SensorBlock(model.base.name, M, bias, model.unit, effects, model.base.source, dict(fit.params),
-                        dict(fit.std), dict(zip(model.params, model.param_units)), C_b_model, fit.residual_rms,
-                        model.unit, fit.chi2, fit.dof, fit.p_value)
-    block.details["covariance"] = {"names": list(model.params), "matrix": np.asarray(fit.cov).tolist()}
-    poor = poorly_determined(model.params, fit)
-    if poor:
-        block.details["poorly_determined"] = poor
-    if base is not None:
-        block.p_value = base["p_value"]
-        block.details.update({"test": base["test"], "noise": base["noise"], "lack_of_fit": base["lack_of_fit"],
-                              "cross_validation": base.get("cross_validation")})
-        copied = {k: base[k] for k in ("rows", "noise_warning", "noise_too_small") if base.get(k)}
-        copied |= {k: base[k] for k in ("omnibus_p_value", "omnibus_test", "targeted") if k in base}
-        block.details.update(as_details(copied))
-    return block
-
-
-POOR_INFLATION = 10.0  # good plans give 1-2 (Table 1, fibonacci48, a hand-placed session)
-
-
-def poorly_determined(names, fit) -> dict[str, records.Inflation]:
-    """Parameters whose std the plan inflates more than POOR_INFLATION times by their correlation with
-    the others: sqrt of the variance inflation factor, VIF_j = (R^-1)_jj for the correlation matrix R
-    of the fit's covariance (1 for a parameter the plan separates from all others). A near-singular
-    plan (gravity directions on one great circle) gives thousands. Parameters held by a prior are
-    listed as undetermined instead."""
-    cov = np.asarray(fit.cov, float)
-    d = np.sqrt(np.diag(cov))
-    if cov.shape != (len(names), len(names)) or not np.all(d > 0):
-        return {}
-    lam, V = np.linalg.eigh(cov / np.outer(d, d))
-    inflation = np.sqrt((V ** 2 / np.maximum(lam, 1e-300)).sum(axis=1))
-    return {n: {"std": float(fit.std[n]), "inflation": float(k)} for n, k in zip(names, inflation)
-            if k > POOR_INFLATION and n not in fit.undetermined}
-
-
-def affine_block(sensor: str, M, bias, std: dict, residual_rms: float | None, description: str,
-                 residual_unit=None, effects=None, nominal=False, **details) -> SensorBlock:
-    """The block of a method without a generated model: output = M u_b + bias (+ effects)."""
-    unit = UNITS[sensor]
-    return SensorBlock("affine", M, bias, unit, effects or {}, std=std, residual_rms=residual_rms,
-                       residual_unit=residual_unit or unit, description=description, nominal=nominal,
-                       chi2=details.pop("chi2", None), dof=details.pop("dof", None),
-                       p_value=details.pop("p_value", None), details=as_details(details))
-
-
-def inflate_if_failing(block: SensorBlock) -> bool:
-    """When the model fails (p < ALPHA), scale every std by sqrt(chi2/dof), the misfit the
-    noise does not explain, and keep the unscaled ones as std_raw. Returns whether it failed."""
-    p, chi2, dof = block.p_value, block.chi2, block.dof
-    if block.verdict != "fails":
-        return False
-    if chi2 is not None and dof:
-        k = float(np.sqrt(chi2 / dof))
-        if k > 1:
-            block.details["std_raw"] = block.std
-            block.std = {n: (np.asarray(v) * k).tolist() for n, v in block.std.items()}  # an affine block's lists too
-            block.details["std_note"] = (f"the model fails (p = {p:.2g}); std = std_raw * sqrt(chi2/dof) = std_raw * "
-                                         f"{k:.3g}, so it includes the misfit; std_raw assumes the model is right")
-    return True
 
 
 def save(path, cal: Calibration) -> None:

@@ -17,8 +17,9 @@ from pathlib import Path
 
 import numpy as np
 
-from simucal.io import (MeasurementSetError, _check_samples, _header, _sample_columns, arrow_floats, at_row,
-                        parquet_columns, parquet_file, read_samples, samples_path)
+from simucal.io import (MeasurementSetError, _header, _sample_columns, arrow_floats, at_row, parquet_columns,
+                        parquet_file, read_samples, samples_path)
+from simucal.io.set_rules import check_samples
 from simucal.io.text_files import body_of
 
 BLOCK_BYTES = 32 << 20  # CSV read this many bytes at a time (about 300,000 rows of a six-channel stream)
@@ -97,7 +98,7 @@ def chunks(folder, names, segments=None, others=()):
                 kept = [c for c in others if pa.types.is_integer(batch.schema.field(c).type)
                         or pa.types.is_floating(batch.schema.field(c).type)]
             try:
-                out = _check_samples(arrow_floats(path, batch, list(names) + kept, before), path, segments)
+                out = check_samples(arrow_floats(path, batch, list(names) + kept, before), path, segments)
                 if segments is None and last_t is not None and out["t_s"][0] <= last_t:
                     raise MeasurementSetError(path, 2, f"t_s must increase through a stream: {out['t_s'][0]:g} s "
                                                        f"follows {last_t:g} s")

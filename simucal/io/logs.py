@@ -124,10 +124,10 @@ def bag_as_set(path, topic: str | None = None):
     """A ROS bag's Imu topic as a measurement set in memory (`simucal noise BAG`): the samples as
     `import rosbag` writes them. The latitude a bag does not hold is set to 0 and said: the Allan
     variance takes out each stretch's mean, and with it the Earth rate."""
-    from simucal.io.arrays import from_arrays
     s = read_log("rosbag", path, topic=topic)
-    return from_arrays(s.acc_mps2, s.gyro_rads, acc_unit="m/s^2", gyro_unit="rad/s", t_s=s.t_s - s.t_s[0],
-                       meta={"latitude_deg": 0.0, "log": {**s.log, "t0_s": float(s.t_s[0])},
-                             **({"warnings": list(s.warnings)} if s.warnings else {}),
-                             "description": f"{Path(path).name}, topic {s.log['topic']} (latitude unknown, 0 here: the "
-                                            "Allan deviation does not use it)"}, name=str(path))
+    meta = {"latitude_deg": 0.0, "log": {**s.log, "t0_s": float(s.t_s[0])},
+            **({"warnings": list(s.warnings)} if s.warnings else {}),
+            "description": f"{Path(path).name}, topic {s.log['topic']} (latitude unknown, 0 here: the "
+                           "Allan deviation does not use it)"}
+    return io.MeasurementSet.from_arrays(s.acc_mps2, s.gyro_rads, acc_unit="m/s^2", gyro_unit="rad/s",
+                                         t_s=s.t_s - s.t_s[0], meta=meta, name=str(path))

@@ -89,7 +89,7 @@ class EffectRecord(TypedDict, total=False):
 
 
 class Inflation(TypedDict):
-    """A poorly determined parameter (io/calibration.poorly_determined): its std and the plan's inflation."""
+    """A poorly determined parameter (io/blocks.poorly_determined): its std and the plan's inflation."""
     std: float
     inflation: float
 

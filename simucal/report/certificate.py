@@ -5,7 +5,7 @@ It gives the unit, the calibration file's sha256 and the measurement set's, the 
 model with its test, each parameter with its standard uncertainty u (the file's std), its expanded
 uncertainty U = k u (k = 2, GUM's coverage factor for about 95 %) and its budget, the validation on
 independent data, and the version of simucal that wrote the certificate. The budget splits u^2 into the
-parts the file records, in the order the methods build the std (turntable/tilt.py, io/calibration
+parts the file records, in the order the methods build the std (turntable/tilt.py, io/blocks
 .inflate_if_failing):
     table   = |dp / dtilt| * the stated tilt      (the outer axis's levelling, meta.json table_tilt_arcsec)
     misfit  = sqrt(u^2 - u_raw^2)                 (where the model failed its test: u = u_raw sqrt(chi2/dof))

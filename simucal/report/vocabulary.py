@@ -36,7 +36,7 @@ TERM = re.compile(r"\.T(\d+)$")  # a temperature term's name: its entry's, then 
 
 
 class Entry(NamedTuple):
-    """One row of `Calibration.parameters()`, of `compare`, of the thermal page's table and the lot report's."""
+    """One row of `simucal.parameters(cal)`, of `compare`, of the thermal page's table and the lot report's."""
     sensor: str
     name: str              # M_xx .. M_zz, bias_x .. bias_z, or a library effect's id
     value: float

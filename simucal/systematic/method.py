@@ -11,7 +11,7 @@ from simucal.fit.distributions import chi2_sf
 from simucal.fit.results import ALPHA
 from simucal.fit.norm_fit import Fit
 from simucal.generated import table
-from simucal.io import calibration, records, units
+from simucal.io import blocks, calibration, records, units
 from simucal.io.details import as_details
 from simucal.systematic.auto import select
 from simucal.systematic.calibrate import STEP_STD, run_filter
@@ -106,10 +106,10 @@ def calibrate_systematic(ms, acc_model="acc_baseline", gyro_model="gyro_baseline
     na, ng = len(s.p_acc), len(s.p_gyro)
     cal = calibration.header("systematic", ms)
     M_a, b_a = s.acc.matrix_and_bias(s.p_acc)
-    cal.acc = calibration.sensor_block(s.acc, _fit(s.acc, s.p_acc, r.cov[:na, :na], test), M_a, b_a)
+    cal.acc = blocks.sensor_block(s.acc, _fit(s.acc, s.p_acc, r.cov[:na, :na], test), M_a, b_a)
     C_b_d = table.mounting(s.eta)
     M_g, b_g = s.gyro.matrix_and_bias(s.p_gyro)
-    cal.gyro = calibration.sensor_block(s.gyro, _fit(s.gyro, s.p_gyro, r.cov[na:na + ng, na:na + ng], test),
+    cal.gyro = blocks.sensor_block(s.gyro, _fit(s.gyro, s.p_gyro, r.cov[na:na + ng, na:na + ng], test),
                                         M_g @ C_b_d, b_g, C_b_model=C_b_d)
     for block in (cal.acc, cal.gyro):
         block.residual_unit = "innovation std (whitened)"

@@ -20,7 +20,7 @@ from simucal.fit.candidates import advice_text, forward_selection
 from simucal.fit.results import ALPHA, ModelTest
 from simucal.fit.lack_of_fit import noise_dof, with_estimated_sigma
 from simucal.fit.norm_fit import fit_linear
-from simucal.io import calibration, units
+from simucal.io import blocks, calibration, units
 from simucal.turntable.consistency import handedness, latitude_check, static_gyro_rows
 from simucal.turntable.model_test import ROWS, AtRest, rank, test_and_rank, with_static_rows
 from simucal.turntable.observations import read_observations, table_accuracy_rad
@@ -133,7 +133,7 @@ def _gyro_block(ms, method, cal, acc, gyro, gyro_noise_dph, static_probe=None) -
         why = ("no accelerometer data" if fa is None else "the rate runs have no accelerometer data and "
                "segments.csv gives no middle/inner angles to pair them with static positions")
         units.check_scale("gyro", M_d, gm.name)
-        block = calibration.sensor_block(gm, fg, M_d, b_g, base_g, np.eye(3))
+        block = blocks.sensor_block(gm, fg, M_d, b_g, base_g, np.eye(3))
         block.details.update({"frame": "d (the gyro parameter frame)",
                               "note": f"M is in the gyro frame d, not in b: {why}, so the frames cannot be tied"})
         return block
@@ -159,7 +159,7 @@ def _gyro_block(ms, method, cal, acc, gyro, gyro_noise_dph, static_probe=None) -
         M_b = M_d @ C_b_d
         info = {"method": "dong2018 eq. 25-27 at the Table 2 positions", "C_b_d": C_b_d.tolist(), **info}
     units.check_scale("gyro", M_b, gm.name)
-    block = calibration.sensor_block(gm, fg, M_b, b_g, base_g, C_b_d)
+    block = blocks.sensor_block(gm, fg, M_b, b_g, base_g, C_b_d)
     block.details["M_in_d"] = np.asarray(M_d).tolist()
     if std_M is not None:
         block.details["std_M"] = std_M.tolist()
@@ -194,7 +194,7 @@ def calibrate_table(ms, method, acc_model, gyro_model, ids, acc_noise_g=None, gy
         fa, base_a, advice_a, acc_obs = _exact_sensor(am, acc_obs, acc_segs, method, str(ms.path), ranked)
         M, b = am.matrix_and_bias(fa.vector(am.params))
         units.check_scale("acc", M, am.name)
-        cal.acc = calibration.sensor_block(am, fa, M, b, base_a)
+        cal.acc = blocks.sensor_block(am, fa, M, b, base_a)
         cal.acc.details["advice"] = advice_a
     acc = (am, fa, acc_obs, acc_segs, base_a,
            _rate_run_acc_means(acc_read, acc_segs, gyro_segs) if fa is not None and method == "exact" else None)
@@ -216,7 +216,7 @@ def calibrate_table(ms, method, acc_model, gyro_model, ids, acc_noise_g=None, gy
                      cal.unification and np.array(cal.unification["C_b_d"]))
         cal.gyro.details["advice"] = advice_g
     for s, block in cal.blocks():
-        calibration.inflate_if_failing(block)
+        blocks.inflate_if_failing(block)
         if s in chosen:
             block.details["auto"], block.details["auto_stopped"] = chosen[s].steps, chosen[s].stopped
             if (block.details.get("static_rows") or {}).get("p_value", 1.0) < ALPHA \

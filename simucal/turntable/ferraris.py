@@ -44,7 +44,7 @@ from numpy.typing import NDArray
 from simucal.errors import CalibrationError
 from simucal.fit.distributions import chi2_sf
 from simucal.fit.noise import mean_and_sigma, moving_sample_var
-from simucal.io import calibration, records, units
+from simucal.io import blocks, calibration, records, units
 from simucal.turntable.observations import (commanded_up_k, outer_angle_rad, read_observations, saturated_segments,
                                             segment_duration_s)
 from simucal.turntable.plans import angles_for
@@ -75,7 +75,7 @@ class TurnTest(TypedDict, total=False):
     rows: str                         # the turns tested
 
 
-class GyroFit(TypedDict, total=False):
+class TurnsFit(TypedDict, total=False):
     """The gyro's affine fit y = M w + b of the turns and poses (gyro_fit), in deg/h; its test where the noise is
     known."""
     M: NDArray[np.float64]            # (3, 3)
@@ -303,7 +303,7 @@ def _gyro_rows(ms, poses, gyro_obs, gyro_segs, stated, curve):
     return np.vstack([y, gyro_obs.N]), np.vstack([var, turn_var])
 
 
-def gyro_fit(y, var, up, rho, static, w_h, err) -> GyroFit:
+def gyro_fit(y, var, up, rho, static, w_h, err) -> TurnsFit:
     """y = M w + b (module doc) by weighted least squares: y, var (n, 3) the rows' means and noise variances
     (NaN: unknown, then estimated from the residuals, untested), up (n, 3) each row's measured vertical
     (its input rho (n,) deg/h along it), static (n,) the poses, whose horizontal Earth rate w_h (deg/h)
@@ -343,7 +343,7 @@ def gyro_fit(y, var, up, rho, static, w_h, err) -> GyroFit:
     v = var + np.einsum("ia,kab,ib->ki", M, H + rho[:, None, None] ** 2 * C_up, M)
     chi2, dof = float(np.sum(r ** 2 / v)), 3 * (n - 4)
     std = np.sqrt(np.diag(cov))
-    test: GyroFit = {"chi2": chi2, "dof": dof, "p_value": chi2_sf(chi2, dof)} if known and dof > 0 else {}
+    test: TurnsFit = {"chi2": chi2, "dof": dof, "p_value": chi2_sf(chi2, dof)} if known and dof > 0 else {}
     return {"M": M, "bias": b, "std": {"M": std[:9].reshape(3, 3).tolist(), "bias": std[9:].tolist()},
             "residual_rms": float(np.sqrt(np.mean(r ** 2))), **test}
 
@@ -385,7 +385,7 @@ def _gyro_block(ms, acc, poses, gyro_obs, gyro_segs, beside, stated, curve):
                                         for s in segs])  # deg/h along the vertical
     r = gyro_fit(y, var, up, rho, np.array([s.kind == "static" for s in segs]), w_e * np.cos(lat), err)
     axes = {s.segment: poses[rest[k]].segment if rest[k] >= 0 else None for k, s in enumerate(segs) if s.kind == "rate"}
-    return calibration.affine_block(
+    return blocks.affine_block(
         "gyro", r["M"], r["bias"], r["std"], r["residual_rms"],
         "linear y = M w + b over the turns and the poses' Earth rate, each turn about the gravity direction of "
         "the rest beside it (else its commanded axis)", rows=f"{len(poses)} poses and {len(gyro_segs)} turns",
@@ -419,12 +419,12 @@ def calibrate_ferraris(ms, acc_noise_g=None, gyro_noise_dph=None, noise_curves=N
         test = acc_turn_test(ms, r["M"], r["bias"], acc_obs, acc_segs, beside, stated) or {"test": (
             "six poses fix the affine model, and no turn rests beside its pose to test it on" if not beside else
             "no noise estimate")}
-        cal.acc = calibration.affine_block(
+        cal.acc = blocks.affine_block(
             "acc", r["M"], r["bias"], r["std"], r["residual_rms"],
             "Ferraris: M from the opposite poses' differences, b from their norms' equality (no attitude)",
             residual_unit="g (|f| - 1 at the poses)", placement_tilt_deg=r["placement_tilt_deg"],
             pairs=[[acc_obs.labels[p], acc_obs.labels[m]] for p, m in pairs], **test)
-        calibration.inflate_if_failing(cal.acc)
+        blocks.inflate_if_failing(cal.acc)
     if gyro_obs is not None:
         why = missing_turns(gyro_segs)
         if why:
@@ -433,7 +433,7 @@ def calibrate_ferraris(ms, acc_noise_g=None, gyro_noise_dph=None, noise_curves=N
             stated = gyro_noise_dph if gyro_noise_dph is not None else units.stated_noise(ms.meta, "gyro")
             cal.gyro = _gyro_block(ms, acc, poses, gyro_obs, gyro_segs, beside, stated,
                                    (noise_curves or {}).get("gyro"))
-            calibration.inflate_if_failing(cal.gyro)
+            blocks.inflate_if_failing(cal.gyro)
     elif ms.has_gyro:
         cal.drop_sensor("gyro", "no usable turns (rate segments) in segments.csv: the Ferraris gyro matrix needs "
                                 "a turn about each axis")

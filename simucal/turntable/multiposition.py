@@ -10,7 +10,7 @@ import numpy as np
 from simucal.errors import CalibrationError
 from simucal.fit.norm_fit import check_not_coplanar
 from simucal.generated import table
-from simucal.io import calibration, records, units
+from simucal.io import blocks, calibration, records, units
 from simucal.turntable.observations import commanded_up_k
 
 
@@ -81,7 +81,7 @@ def calibrate_multiposition(ms, acc_model="acc_baseline", gyro_model="gyro_basel
     cal, obs = read_observations(ms, "multiposition", {"acc": {"static"}, "gyro": {"rate"}}, acc_noise_g,
                                  gyro_noise_dph, noise_curves)
     for sensor, r in multiposition(ms, *obs).items():
-        setattr(cal, sensor, calibration.affine_block(sensor, r["M"], r["bias"], r["std"], r["residual_rms"],
+        setattr(cal, sensor, blocks.affine_block(sensor, r["M"], r["bias"], r["std"], r["residual_rms"],
                                                       "linear y = M f + b on commanded inputs"))
     if ms.has_gyro and cal.gyro is None:
         cal.drop_sensor("gyro", "no usable rate runs in segments.csv: the multi-position gyro regression needs "

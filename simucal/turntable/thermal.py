@@ -11,7 +11,7 @@ from numpy.typing import NDArray
 from simucal.fit.aux_inputs import T_REF, AuxInputs, specific_force
 from simucal.fit.norm_fit import Observations
 from simucal.fit.thermal_select import RAMP_BANDS
-from simucal.io import calibration, records, units
+from simucal.io import blocks, records, units
 from simucal.io.calibration import SensorBlock
 from simucal.io.details import SensorDetails, as_details
 from simucal.io.segments import Segment
@@ -174,14 +174,14 @@ def joint_block(obs, groups, first: SensorBlock, degree, labels, t_ref_c, platea
         details["advice"] = test["targeted"]["strongest"]
     if auto is not None:
         details["auto"] = auto
-    block = replace(first, effects=calibration.effect_values(base, fit),  # auto may have changed them (thermal_auto)
+    block = replace(first, effects=blocks.effect_values(base, fit),  # auto may have changed them (thermal_auto)
                     params={n: fit.params[n] for n in base.params}, std={n: fit.std[n] for n in base.params},
                     M=M @ first.C, bias=bias, residual_rms=fit.residual_rms, chi2=fit.chi2, dof=fit.dof,
                     p_value=test["p_value"], thermal=thermal, details=details)
     if meta is not None:
         from simucal.turntable.tilt import add_tilt_thermal
         add_tilt_thermal(block, model, fit, obs, segs, meta)
-    if calibration.inflate_if_failing(block) and fit.dof:  # the coefficients' stds too (covariance kept unscaled)
+    if blocks.inflate_if_failing(block) and fit.dof:  # the coefficients' stds too (covariance kept unscaled)
         k = float(np.sqrt(max(fit.chi2 / fit.dof, 1.0)))
         for f in fits.values():
             f["std"] = [e * k for e in f["std"]]

@@ -60,7 +60,7 @@ class Part:
 
 
 def _misfit_scale(fit):
-    """chi2/dof when the fit's model fails (as calibration.inflate_if_failing), else 1."""
+    """chi2/dof when the fit's model fails (as blocks.inflate_if_failing), else 1."""
     if fit.test.fails and fit.chi2 and fit.dof:
         return max(1.0, fit.chi2 / fit.dof)
     return 1.0

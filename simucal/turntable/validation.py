@@ -7,20 +7,20 @@ from __future__ import annotations
 import numpy as np
 
 from simucal.fit.rotations import wahba
-from simucal.fit.validation import FLOOR, Check, far_off, norm_block, rms, segment_means, with_calibration
+from simucal.fit.validation import FLOOR, CheckRecord, far_off, norm_block, rms, segment_means, with_calibration
 from simucal.io import units
 from simucal.turntable.observations import outer_angle_rad, table_accuracy_rad
 from simucal.turntable.plan_design import directions_k
 
 
-def table_checks(ms, f_before, f_after, w_before, w_after, cal) -> dict[str, list[Check]]:
+def table_checks(ms, f_before, f_after, w_before, w_after, cal) -> dict[str, list[CheckRecord]]:
     """{sensor: [check]} of a calibration cal on the set ms: each sensor's outputs (g, deg/h) at its nominal
     scale factors (before) and calibrated (after; None: no such sensor)."""
     segs = ms.segments
     seg_rows = {s.segment: ms.rows(s.segment) for s in segs}
     lat = np.radians(ms.meta.get("latitude_deg", 0.0))
     w_e = units.earth_rate_dph(ms.meta)
-    out: dict[str, list[Check]] = {}
+    out: dict[str, list[CheckRecord]] = {}
     static = [s for s in segs if s.kind == "static" and seg_rows[s.segment].size]
     if f_after is not None and static:
         groups = [seg_rows[s.segment] for s in static]

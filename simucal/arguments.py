@@ -24,7 +24,7 @@ import os
 import re
 import types
 import typing
-from typing import Any, Callable, NamedTuple, ParamSpec, TypeVar
+from typing import Any, Callable, NamedTuple, ParamSpec, Protocol, TypeVar, runtime_checkable
 
 from simucal.errors import ArgumentError
 
@@ -227,3 +227,12 @@ def checked(f: Callable[P, R]) -> Callable[P, R]:
                 raise _refused(where, name, value, ok)
         return f(*bound.args, **bound.kwargs)
     return checked_door
+
+
+@runtime_checkable
+class DataFrame(Protocol):
+    """A table by column: pandas' DataFrame, or anything with its columns and to_dict (io/arrays reads it so), for
+    the annotation of an argument that takes one (pandas is an extra: the door cannot name its class)."""
+    columns: Any
+
+    def to_dict(self, orient: str = "dict") -> Any: ...
