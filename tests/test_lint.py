@@ -46,19 +46,22 @@ def test_the_api_tutorial_passes_mypy_strict():
 @pytest.mark.slow
 def test_a_misspelt_option_or_a_record_read_wrongly_is_a_type_error(tmp_path):
     """Calibrate's options are typed (its keywords, simucal/options.py) and a calibration's records too (io/records.py):
-    a checker finds a misspelt option, an unknown method, a wrong type, and a record's key read as the wrong
-    type, in a notebook's code."""
+    a checker finds a misspelt option, an unknown method, a wrong type, a record's key read as the wrong type, and
+    a method that became a function (cal.apply), in a notebook's code."""
     user = tmp_path / "user.py"
     user.write_text('import simucal\n\n'
                     'cal = simucal.calibrate("set", methd="exact")\n'
                     'cal = simucal.calibrate("set", method="exakt")\n'
                     'cal = simucal.calibrate("set", acc_noise_g="1e-5")\n'
                     'strongest: int = simucal.calibrate("set").sensor("acc").details["targeted"]["strongest"]\n'
-                    'ok = simucal.calibrate("set", method="exact", add=["acc.quadratic.z"], acc_noise_g=1e-5)\n')
+                    'ok = simucal.calibrate("set", method="exact", add=["acc.quadratic.z"], acc_noise_g=1e-5)\n'
+                    'old = ok.apply([[0.0] * 6])\n'  # a method that became simucal.apply(cal, x)
+                    'new = simucal.apply(ok, [[0.0] * 6])\n')
     r = _run("mypy", "--strict", "--cache-dir", str(tmp_path / "cache"), str(user))
     lines = [x for x in r.stdout.splitlines() if ": error:" in x]
-    assert [int(x.split(":")[1]) for x in lines] == [3, 4, 5, 6], r.stdout
+    assert [int(x.split(":")[1]) for x in lines] == [3, 4, 5, 6, 8], r.stdout
     assert '"methd"' in lines[0] and "exakt" in lines[1] and "acc_noise_g" in lines[2], r.stdout
+    assert 'has no attribute "apply"' in lines[4], r.stdout
 
 
 @pytest.mark.slow

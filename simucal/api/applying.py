@@ -96,7 +96,8 @@ def apply(cal: Calibration, x: Any, *, acc_unit: str | None = None, gyro_unit: s
 
 
 @checked
-def apply_set(cal: Calibration, data: Any, *, where: str = "this calibration", units: str = "spec") -> Any:
+def apply_set(cal: Calibration, data: Any, *, where: str = "this calibration",
+              units: str = "spec") -> io.MeasurementSet:
     """The calibrated measurement set of a set's raw outputs (`simucal apply`): the samples in g and
     deg/h (``units="si"``: m/s^2 with the set's gravity_mps2, and rad/s, both units of the spec), frame b,
     its other columns and segments kept; rows outside the calibrated temperatures are said in
@@ -153,7 +154,7 @@ def _plausible(result: dict[str, NDArray[np.float64]], acc_unit: str, given: dic
     if "ax" in result:
         f = np.linalg.norm(np.column_stack([result[c] for c in SAMPLE_COLS[:3]]), axis=1)
         units.check_magnitude("acc", f, 1.0 if acc_unit == "g" else given["gravity_mps2"],
-                              f"Calibration.apply(acc_unit={given['acc_unit']!r}): calibrated")
+                              f"simucal.apply(acc_unit={given['acc_unit']!r}): calibrated")
 
 
 def _given_units(cal: calibration.Calibration, acc_unit: str | None, gyro_unit: str | None,

@@ -154,9 +154,8 @@ def _simulated(kind: str, seed: int, rate_hz: float | None, table_options: Mappi
                "columns": _strings(table_options["columns"], _span),
                "temperature": None if temperature_c is None else _span(temperature_c)}
     meta, samples, segments, truth = methods.SCENARIOS[kind](seed, rate_hz, options)
-    ms = MeasurementSet(Path(f"simulated_{kind}_seed{seed}"), meta, samples, segments)  # the name errors say
-    ms.truth = truth
-    return ms
+    return MeasurementSet(Path(f"simulated_{kind}_seed{seed}"), meta, samples, segments,  # the name errors say
+                          truth=truth)
 
 
 

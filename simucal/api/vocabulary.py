@@ -11,8 +11,7 @@ from simucal.api.tables import table
 from simucal.errors import InputError
 from simucal.fit.augmented import AugmentedModel
 from simucal.fit.thermal import terms as thermal_terms
-from simucal.io import calibration
-from simucal.io.calibration import Calibration
+from simucal.io.calibration import Calibration, SensorBlock
 from simucal.report.vocabulary import Entry, entries, in_accelerometer_frame
 
 
@@ -65,7 +64,7 @@ class Parameter(NamedTuple):
     meaning: str
 
 
-def _model_rows(sensor: str, block: calibration.SensorBlock) -> list[Parameter]:
+def _model_rows(sensor: str, block: SensorBlock) -> list[Parameter]:
     """Each parameter at T_ref; for a thermal calibration also each coefficient of its polynomial
     in (T - T_ref) (name.T1, name.T2, ...), in unit per degC^k."""
     model = AugmentedModel(block.model, block.library_effects())
@@ -79,7 +78,7 @@ def _model_rows(sensor: str, block: calibration.SensorBlock) -> list[Parameter]:
     return rows
 
 
-def _affine_rows(sensor: str, block: calibration.SensorBlock) -> list[Parameter]:
+def _affine_rows(sensor: str, block: SensorBlock) -> list[Parameter]:
     """An affine block (multiposition, a stream's gyro): M's (or the fitted T's) entries and the bias,
     their stds where the method gave them (as M- and bias-shaped arrays)."""
     name, A = "M", block.M

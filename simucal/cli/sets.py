@@ -219,7 +219,7 @@ def apply_cmd(calibration_file, data_dir, out_dir, force, units):
     calibrated.write(out_dir, force=True)  # guarded above, with --force
     for line in calibrated.meta.get("warnings", []):
         click.echo(f"WARNING: {line}")
-    written = {s: calibrated.meta[f"{s}_unit"] for s in ("acc", "gyro")}  # a sensor the data lack is said skipped
+    written = {"acc": calibrated.meta["acc_unit"], "gyro": calibrated.meta["gyro_unit"]}  # one the data lack: skipped
     click.echo(f"wrote {out_dir}: {len(calibrated.samples['t_s'])} rows in "
                f"{' and '.join(written[s] for s in calibrated.sensors)} (frame b), calibrated by {calibration_file}"
                + "".join(f"; {s} skipped (not in {data_dir})" for s in written if s not in calibrated.sensors))

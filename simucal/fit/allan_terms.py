@@ -68,7 +68,7 @@ class AxisNoise(TypedDict, total=False):
     terms: dict[str, float]           # Q N B K R, 0 where not seen (the sensor's unit times s^a)
     bounds: dict[str, float]          # each term's 95 % upper bound where not seen
     sheet: dict[str, SheetTerm]       # each term in a data sheet's units
-    fit: AllanAxisFit                      # the final model of the Allan variance
+    fit: AllanAxisFit                 # the final model of the Allan variance
 
 
 class SensorNoise(TypedDict):

@@ -41,7 +41,7 @@ class ValidationReport(TypedDict, total=False):
     calibration_sha256: str | None    # its bytes' (None: in memory), which the certificate matches
     data: str                         # the set validated on
     independent: bool                 # not the rows the calibration was made from
-    checks: dict[str, list[CheckRecord]]    # per sensor
+    checks: dict[str, list[CheckRecord]]  # per sensor
     verdict: dict[str, str]           # per sensor, in words
     verdict_notes: dict[str, str]
     warnings: list[str]               # apply's: rows outside the calibrated temperatures

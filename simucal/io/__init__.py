@@ -27,6 +27,7 @@ from simucal.io.text_files import (MeasurementSetError, RepeatedKey, body_of, ch
                                      decoded, ends_with_a_line_end, files_sha256, no_repeated_columns, not_a_folder,
                                      careful_rows, is_ascii, mapped, read_text, unique_keys)
 
+
 def read_meta(folder: Path) -> meta_keys.Meta:
     path = not_a_folder(folder / "meta.json")
     if not path.is_file():

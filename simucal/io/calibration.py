@@ -44,14 +44,14 @@ from __future__ import annotations
 
 import json
 from dataclasses import dataclass, field, fields
-from typing import Any, cast
+from typing import TYPE_CHECKING, Any, cast
 from pathlib import Path
 
 import numpy as np
 
 from simucal.arguments import checked
 from simucal.errors import CalibrationError
-from simucal.io import autopilot, outputs, records
+from simucal.io import MeasurementSet, autopilot, outputs, read_meta, records
 from simucal.io.autopilot import AutopilotFile
 from simucal.io.calibration_checks import CalibrationFileError, check_file, layout
 from simucal.io.calibration_versions import upgraded
@@ -228,7 +228,6 @@ class Calibration:
         """The sensors calibrated (or kept at nominal), as the layout names them."""
         return list(self.layout["sensors"])
 
-    @checked
     def blocks(self) -> list[tuple[str, SensorBlock]]:
         """(sensor, block) for each block present."""
         return [(s, getattr(self, s)) for s in SENSORS if getattr(self, s) is not None]
@@ -247,11 +246,12 @@ class Calibration:
         rows += [(f"{s} not calibrated", why) for s, why in self.not_calibrated.items()]
         return html_card("simucal.Calibration", rows)
 
-    def __getattr__(self, name: str) -> Any:
-        """A method that became a function of the API (docs/changelog.md): named with its new call."""
-        if name in MOVED:
-            raise AttributeError(f"Calibration.{name} is now {MOVED[name]}")
-        raise AttributeError(f"'Calibration' object has no attribute {name!r}")
+    if not TYPE_CHECKING:  # a type checker then still refuses cal.apply and any misspelt attribute
+        def __getattr__(self, name: str) -> Any:
+            """A method that became a function of the API (docs/api.md): named with its new call."""
+            if name in MOVED:
+                raise AttributeError(f"Calibration.{name} is now {MOVED[name]}")
+            raise AttributeError(f"'Calibration' object has no attribute {name!r}")
 
     @checked
     def sensor(self, name: str) -> SensorBlock:
@@ -294,18 +294,15 @@ class Calibration:
         >>> for f in cal.autopilot_files("plateau_25", px4="tc.params"):  # doctest: +SKIP
         ...     open(f.path, "w").write(f.text)
         """
-        from simucal.io import MeasurementSet, read_meta  # the package's reader, which builds on this module
         meta = data.meta if isinstance(data, MeasurementSet) else read_meta(Path(data))
         return autopilot.files([(self, meta)], px4, ardupilot)
 
-    @checked
     def drop_sensor(self, sensor: str, why: str) -> None:
         """The data hold `sensor` but the method could not calibrate it: no block, said under not_calibrated."""
         setattr(self, sensor, None)
         self.layout["sensors"] = [s for s in self.layout["sensors"] if s != sensor]
         self.not_calibrated[sensor] = why
 
-    @checked
     def to_json(self) -> records.JSONObject:
         out: dict[str, Any] = {"format": self.format, "method": self.method, "input": self.input,
                                "input_sha256": self.input_sha256,
@@ -327,7 +324,6 @@ class Calibration:
         return out
 
     @classmethod
-    @checked
     def from_json(cls, d: dict) -> Calibration:
         """The file's dict (checked by calibration_checks.check_file) as the object; a block the layout
         does not name is left out (check_layout then refuses data that have that sensor)."""

@@ -17,12 +17,13 @@ from numpy.typing import NDArray
 from simucal.arguments import DataFrame, checked
 from simucal.errors import InputError
 from simucal.io import meta as meta_keys
-from simucal.io import results, units
+from simucal.io import arrays, outputs, results, set_writer, units
 from simucal.io.csv_columns import triad_block
 from simucal.io.segments import Segment
 from simucal.io.set_rules import SAMPLE_COLS, SENSOR_COLS, group_rows, run_or_rows
 from simucal.kinds import data_kind
 from simucal.notebook import html_card
+
 
 @dataclass
 class MeasurementSet:
@@ -125,7 +126,6 @@ class MeasurementSet:
         >>> ms.has_gyro, ms.has_acc
         (True, False)
         """
-        from simucal.io import arrays  # it builds on this module
         return arrays.from_arrays(acc, gyro, acc_unit=acc_unit, gyro_unit=gyro_unit, rate_hz=rate_hz, t_s=t_s,
                                   temp_c=temp_c, segment=segment, segments=segments, columns=columns, meta=meta,
                                   name=name, cls=cls)
@@ -167,7 +167,6 @@ class MeasurementSet:
         >>> len(ms.samples["t_s"])
         10
         """
-        from simucal.io import arrays
         return arrays.from_dataframe(df, acc_unit=acc_unit, gyro_unit=gyro_unit, columns=columns,
                                      rate_hz=rate_hz, t_s=t_s, segments=segments, meta=meta, name=name, cls=cls)
 
@@ -235,11 +234,9 @@ class MeasurementSet:
         >>> import simucal
         >>> simucal.simulate(seed=1).write("set")  # doctest: +SKIP
         """
-        from simucal.io import outputs
-        from simucal.io.set_writer import write_set
         outputs.check(sets=[folder], force=force)
-        write_set(Path(folder), {k: v for k, v in self.meta.items() if k != "format"}, self.samples, self.segments,
-                     {"truth.json": self.truth} if self.truth is not None else None)
+        set_writer.write_set(Path(folder), {k: v for k, v in self.meta.items() if k != "format"}, self.samples,
+                             self.segments, {"truth.json": self.truth} if self.truth is not None else None)
 
     @property
     def t_ref_c(self) -> float | None:
