@@ -9,7 +9,7 @@ from simucal.arguments import checked
 from simucal.api.tables import table
 from simucal.io import calibration as _file
 from simucal.store import CalibrationStore
-from simucal.store.history import History
+from simucal.report.unit_history import History
 from simucal.store.history import lines as history_lines  # noqa: F401 (the command line's words)
 from simucal.store.queries import PARAMETER_COLUMNS, RECORD_COLUMNS
 from simucal.store.schema import RecordRow, local_file

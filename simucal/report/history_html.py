@@ -5,13 +5,12 @@ Reads the report (simucal/store/history.py, trend.py)."""
 from __future__ import annotations
 
 from datetime import datetime, timedelta
-from typing import Any, Mapping
-
 import matplotlib.dates as mdates
 import numpy as np
 
 from simucal.report.numbers import words_html
 from simucal.report.page import CELL_IN, grid, page, plt, png, table
+from simucal.report.unit_history import History, ParameterTrend
 
 
 def _dates(t0: datetime, years) -> np.ndarray:
@@ -19,7 +18,7 @@ def _dates(t0: datetime, years) -> np.ndarray:
     return np.asarray(mdates.date2num([t0 + timedelta(days=365.25 * float(y)) for y in years]), float)
 
 
-def _figure(p: dict, t0: datetime, k: float, legend: bool) -> str:
+def _figure(p: ParameterTrend, t0: datetime, k: float, legend: bool) -> str:
     """One parameter: its values +- k std, its line with the line's k band (to its due date), the spec's limits."""
     fig, ax = plt.subplots(figsize=(CELL_IN, 2.6))
     t, v, s = np.array(p["t_years"]), np.array(p["values"]), np.array(p["stds"])
@@ -32,9 +31,8 @@ def _figure(p: dict, t0: datetime, k: float, legend: bool) -> str:
         band = k * np.sqrt(np.einsum("ij,jk,ik->i", X, np.asarray(p["covariance"]), X))
         ax.plot(_dates(t0, tt), line, color="k", lw=0.8, label="trend")
         ax.fill_between(_dates(t0, tt), line - band, line + band, color="0.88", zorder=0, label=f"trend +- {k:g} std")
-    for bound in ("min", "max"):
-        if p.get("spec") and bound in p["spec"]:
-            ax.axhline(p["spec"][bound], color="orange", ls="--", lw=1, label=f"spec {bound}")
+    for bound, limit in _limits(p):
+        ax.axhline(limit, color="orange", ls="--", lw=1, label=f"spec {bound}")
     if p.get("earliest_years") is not None:
         ax.axvline(float(_dates(t0, [p["earliest_years"]])[0]), color="red", lw=1, label="due (band reaches the spec)")
     ax.set_title(f"{p['name']} ({p['unit']})", fontsize=9)
@@ -46,15 +44,22 @@ def _figure(p: dict, t0: datetime, k: float, legend: bool) -> str:
     return png(fig)
 
 
-def _trend_row(p: dict) -> list:
-    z = None if p.get("slope_std") in (None, 0) else p["slope_per_year"] / p["slope_std"]
-    spec = ", ".join(f"{b} {p['spec'][b]:.4g}" for b in ("min", "max") if p.get("spec") and b in p["spec"])
+def _limits(p: ParameterTrend) -> list[tuple[str, float]]:
+    """The spec's (bound, value) of a parameter, min before max, none without a spec."""
+    spec = p.get("spec") or {}
+    return [(b, v) for b, v in (("min", spec.get("min")), ("max", spec.get("max"))) if v is not None]
+
+
+def _trend_row(p: ParameterTrend) -> list:
+    slope, sd = p.get("slope_per_year"), p.get("slope_std")
+    z = None if slope is None or not sd else slope / sd
+    spec = ", ".join(f"{b} {v:.4g}" for b, v in _limits(p))
     return [p["name"], p["unit"], len(p["values"]), p["values"][-1], p["stds"][-1], p.get("slope_per_year"),
             p.get("slope_std"), z, p.get("p_value"), spec or "-", p.get("expected_utc") or "-",
             p.get("earliest_utc") or "-"]
 
 
-def _verdicts(report: Mapping[str, Any]) -> list[tuple[bool, str]]:
+def _verdicts(report: History) -> list[tuple[bool, str]]:
     """Per sensor: whether a calibration moved it beyond its stds, and when its first parameter is due."""
     tr, out = report["trend"], []
     for sensor in sorted({p["name"].split(".")[0] for p in tr["parameters"]}):
@@ -68,7 +73,7 @@ def _verdicts(report: Mapping[str, Any]) -> list[tuple[bool, str]]:
     return out
 
 
-def history_page(report: Mapping[str, Any]) -> str:  # store/history.History (a floor above)
+def history_page(report: History) -> str:
     tr = report["trend"]
     t0 = datetime.fromisoformat(tr["first_utc"].replace("Z", "+00:00"))
     serial, due = report["serial"], tr["due_utc"]

@@ -16,6 +16,7 @@ from pathlib import Path
 
 from simucal.errors import StoreError
 from simucal.io.calibration import Calibration, loads
+from simucal.report.unit_history import History
 from simucal.store import history as _history
 from simucal.store import queries, records
 from simucal.store.schema import ParameterRow, RecordRow, open_engine, shown
@@ -76,6 +77,6 @@ class CalibrationStore:
         return [(f"{r['serial']}_{r['calibrated_utc']}_{r['id']:08d}.json",
                  loads(raw[r["id"]].decode("utf-8"), f"{self.shown} record {r['id']}")) for r in recs]
 
-    def history(self, serial: str, limits=None, spec=None) -> _history.History:
+    def history(self, serial: str, limits=None, spec=None) -> History:
         """history.history: the unit's calibrations, their changes and flags, and its trend by the spec."""
         return _history.history(self._db(), self.url, serial, limits, spec)

@@ -13,62 +13,15 @@ each parameter's value, as `simucal lot --limits` reads it).
 """
 from __future__ import annotations
 
-from typing import TypedDict
-
 from simucal.errors import StoreError
 from simucal.fit.results import ALPHA
 from simucal.io.calibration import Calibration, loads
-from simucal.report.lot_figures import DriftTest, Limit, drift, outside, read_limits
+from simucal.report.lot_figures import drift, outside, read_limits
+from simucal.report.unit_history import Change, History, HistoryEntry
 from simucal.store import queries, trend
 from simucal.store.schema import RecordRow, shown
 
 FORMAT = "simucal.history/1"
-
-
-class ParameterChange(TypedDict):
-    """One parameter's change between two records, in its unit."""
-    name: str          # sensor.parameter
-    unit: str
-    change: float      # later minus earlier
-    std: float         # of the change, from both records
-    z: float           # change / std
-
-
-class Change(TypedDict):
-    """The change since an earlier record (_change)."""
-    since: int         # the earlier record's id
-    since_utc: str
-    sensors: dict[str, DriftTest]  # each sensor's joint test of no change
-    parameters: list[ParameterChange]
-
-
-class HistoryEntry(TypedDict, total=False):
-    """One calibration of the unit in its history."""
-    id: int
-    calibrated_utc: str
-    station: str
-    method: str
-    model: str
-    tool_version: str
-    since_last: Change   # from the unit's second calibration of this method and model on
-    since_first: Change  # from its third on
-    flagged: bool
-    why: list[str]       # why it is flagged
-
-
-class History(TypedDict):
-    """What `simucal history SERIAL -o` writes (simucal.history/1; module doc)."""
-    format: str
-    store: str
-    serial: str
-    alpha: float         # the family's level
-    level: float         # each test's: alpha over the family's count
-    tests: int
-    limits: dict[str, Limit]  # the lab's limits of a change since the first, where given
-    records: list[HistoryEntry]
-    flagged: list[int]   # the flagged records' ids
-    verdict: str
-    trend: trend.Trend
 
 
 def _change(earlier, later) -> Change:

@@ -21,14 +21,13 @@ names it; a value of it measured outside the spec is still due at its last calib
 from __future__ import annotations
 
 from datetime import datetime, timedelta, timezone
-from typing import TypedDict
-
 import numpy as np
 from scipy.optimize import brentq
 from scipy.stats import chi2 as chi2_dist
 
 from simucal.errors import StoreError
 from simucal.report.lot_figures import Limit
+from simucal.report.unit_history import ParameterTrend, Trend
 from simucal.store import queries
 from simucal.store.schema import ParameterRow, shown
 
@@ -36,45 +35,6 @@ FORMAT = "simucal.trend/1"
 YEAR_S = 365.25 * 86400.0
 HORIZON_YEARS = 10.0  # a crossing further than this is not a due date a lab plans by
 K = 2.0  # the band's coverage factor (GUM's expanded uncertainty)
-
-
-class ParameterTrend(TypedDict, total=False):
-    """One parameter's trend (module doc), in its unit; times in years since the line's first calibration."""
-    name: str                  # sensor.parameter
-    unit: str
-    t_years: list[float]
-    values: list[float]
-    stds: list[float]          # NaN where none was recorded
-    records: list[int]         # the store's record of each value
-    spec: Limit | None         # the lab's spec of it, where given
-    intercept: float           # a, at t = 0
-    slope_per_year: float | None  # b; None where no line is fitted (no_trend says why)
-    slope_std: float | None
-    covariance: list[list[float]]  # of (a, b)
-    chi2: float | None         # of the line, on dof
-    dof: int
-    p_value: float | None
-    no_trend: str              # why no line is fitted
-    expected_utc: str | None   # where the line reaches the spec (None: not within HORIZON_YEARS, or no spec)
-    earliest_utc: str | None   # where its k = 2 band does
-    expected_years: float | None
-    earliest_years: float | None
-
-
-class Trend(TypedDict):
-    """What `Store.trend` gives and a history's `trend` key holds (simucal.trend/1)."""
-    format: str
-    store: str
-    serial: str
-    method: str                # the line's: the unit's last calibration's method and model
-    model: str
-    first_utc: str
-    k: float                   # the band's coverage factor
-    horizon_years: float
-    parameters: list[ParameterTrend]
-    due_utc: str | None        # the earliest of the parameters' earliest_utc
-    due_parameter: str | None
-    verdict: str
 
 
 def _time(utc: str) -> datetime:

@@ -44,7 +44,8 @@ from numpy.typing import NDArray
 from simucal.errors import CalibrationError
 from simucal.fit.distributions import chi2_sf
 from simucal.fit.noise import mean_and_sigma, moving_sample_var
-from simucal.io import blocks, calibration, records, units
+from simucal.io import blocks, calibration, units
+from simucal.turntable.multiposition import AffineFit
 from simucal.turntable.observations import (commanded_up_k, outer_angle_rad, read_observations, saturated_segments,
                                             segment_duration_s)
 from simucal.turntable.plans import angles_for
@@ -54,12 +55,9 @@ OFF_DEG = 20.0  # a pose whose gravity direction is this far from its commanded 
 SPAN = 0.1  # the turns' axes span space where their third singular value is this or more (6 deg out of a plane)
 
 
-class AccFit(TypedDict):
-    """The accelerometer's affine fit y = M f + b of the opposite poses (acc_fit), in g."""
-    M: NDArray[np.float64]            # (3, 3)
-    bias: NDArray[np.float64]         # (3,)
-    std: dict[str, records.Std]       # M's and bias's, each entry's
-    residual_rms: float               # of |f| - 1 at the poses
+class AccFit(AffineFit):
+    """The accelerometer's affine fit y = M f + b of the opposite poses (acc_fit), in g; residual_rms of |f| - 1
+    at the poses."""
     placement_tilt_deg: float         # the hand placement's tilt, a std per pose
     mismatch_g: list[list[float]]     # each pair's mean of its two poses' f: what a tilt moves
     tilt2: float                      # rad^2 a pose, per component across its vertical
@@ -75,13 +73,9 @@ class TurnTest(TypedDict, total=False):
     rows: str                         # the turns tested
 
 
-class TurnsFit(TypedDict, total=False):
+class TurnsFit(AffineFit, total=False):
     """The gyro's affine fit y = M w + b of the turns and poses (gyro_fit), in deg/h; its test where the noise is
     known."""
-    M: NDArray[np.float64]            # (3, 3)
-    bias: NDArray[np.float64]         # (3,)
-    std: dict[str, records.Std]       # M's and bias's, each entry's
-    residual_rms: float               # of the rows' residuals
     chi2: float                       # of the rows' residuals against their noise, on dof
     dof: int                          # 3 (rows - 4): 3 a row less the 12 parameters
     p_value: float                    # chi2's
@@ -343,9 +337,11 @@ def gyro_fit(y, var, up, rho, static, w_h, err) -> TurnsFit:
     v = var + np.einsum("ia,kab,ib->ki", M, H + rho[:, None, None] ** 2 * C_up, M)
     chi2, dof = float(np.sum(r ** 2 / v)), 3 * (n - 4)
     std = np.sqrt(np.diag(cov))
-    test: TurnsFit = {"chi2": chi2, "dof": dof, "p_value": chi2_sf(chi2, dof)} if known and dof > 0 else {}
-    return {"M": M, "bias": b, "std": {"M": std[:9].reshape(3, 3).tolist(), "bias": std[9:].tolist()},
-            "residual_rms": float(np.sqrt(np.mean(r ** 2))), **test}
+    out: TurnsFit = {"M": M, "bias": b, "std": {"M": std[:9].reshape(3, 3).tolist(), "bias": std[9:].tolist()},
+                     "residual_rms": float(np.sqrt(np.mean(r ** 2)))}
+    if known and dof > 0:
+        out["chi2"], out["dof"], out["p_value"] = chi2, dof, chi2_sf(chi2, dof)
+    return out
 
 
 def _verticals(acc, up_cmd, rest):
