@@ -20,7 +20,6 @@ streams' poses), diagnose_moves and table_fit.
 from __future__ import annotations
 
 import functools
-from typing import Any, cast
 
 import numpy as np
 
@@ -125,20 +124,21 @@ def test_model(model, obs: Observations, p0=None) -> tuple[Fit, Observations, Mo
     fit, obs, noise = fit_with_noise(model, obs, p0)
     n, m = len(obs.N), len(model.params)
     lof = lack_of_fit(model, obs, fit)
-    block: dict[str, Any] = {"residual_rms": fit.residual_rms, "residual_unit": model.unit, "dof": fit.dof,
+    block: ModelTestBlock = {"residual_rms": fit.residual_rms, "residual_unit": model.unit, "dof": fit.dof,
                              "model": fit.model, "noise": noise, "lack_of_fit": lof, "chi2": fit.chi2,
                              "cross_validation": leave_one_out(model, obs, fit)}
     if fit.chi2 is not None:
         assert obs.sigma is not None  # a chi-square: the fit had every row's noise (fit_exact)
         noise_std = float(np.sqrt(np.mean(obs.sigma ** 2)))
         # expected residual rms if the model is right: chi2 has n - m dof over 3n components
-        block.update(noise_floor=noise_std * float(np.sqrt(max(n - m, 0) / (3 * n))), noise_std_of_mean=noise_std)
+        block.update({"noise_floor": noise_std * float(np.sqrt(max(n - m, 0) / (3 * n))),
+                      "noise_std_of_mean": noise_std})
         if noise.get("rows_estimated"):
             ps = [p for p in (fit.p_value, lof["p_value"]) if p is not None]
-            block.update(p_value=min(1.0, 2 * min(ps)) if ps else None,
-                         test="chi-square (noise partly estimated) and lack-of-fit F, the smaller p doubled")
+            block.update({"p_value": min(1.0, 2 * min(ps)) if ps else None,
+                          "test": "chi-square (noise partly estimated) and lack-of-fit F, the smaller p doubled"})
         else:
-            block.update(p_value=fit.p_value, test="chi-square")
+            block.update({"p_value": fit.p_value, "test": "chi-square"})
             # the advice is to check a stated noise: where the data's own scatter gave every sigma it cannot help
             if obs.sigma_stated and fit.dof > 0 and 1.0 - chi2_sf(fit.chi2, fit.dof) < NOISE_TOO_LARGE:
                 block["noise_warning"] = (
@@ -156,10 +156,10 @@ def test_model(model, obs: Observations, p0=None) -> tuple[Fit, Observations, Mo
                     "and an effect ranked against it may only absorb scatter; check acc_noise_g / gyro_noise_dph "
                     "(or the option), or leave them out to have the noise estimated")
     else:
-        block.update(noise_floor=None, noise_std_of_mean=None, p_value=lof["p_value"],
-                     test="lack-of-fit F (no noise in the data or stated)")
+        block.update({"noise_floor": None, "noise_std_of_mean": None, "p_value": lof["p_value"],
+                      "test": "lack-of-fit F (no noise in the data or stated)"})
     family.fold(block, targeted(model, obs, fit))
-    return fit, obs, cast(ModelTestBlock, block)  # tests/test_calibration_file.py checks its keys
+    return fit, obs, block  # tests/test_calibration_file.py checks its keys
 
 
 def targeted(model: AugmentedModel, obs: Observations, fit: Fit, ids=None) -> records.Targeted | None:

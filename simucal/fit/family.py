@@ -117,20 +117,20 @@ def family_p(p_omnibus: float | None, tgt: records.Targeted | None) -> float | N
     return min(1.0, min(ps))
 
 
-def fold(block: dict, tgt: records.Targeted | None, p_key: str = "p_value", test_key: str = "test") -> None:
-    """A test block (chi2, dof, p_value, test) made the family's: the omnibus's p kept as
-    `omnibus_p_value`, the targeted tests as `targeted`, block[p_key] the family's p and the test's
-    words saying both, and where a targeted test fails the family, which."""
-    p0 = block.get(p_key)
-    block["omnibus_p_value"], block["omnibus_test"] = p0, block.get(test_key)
+def fold(block: records.FamilyKeys, tgt: records.Targeted | None) -> None:
+    """A test block (its p_value and test the omnibus's) made the family's: the omnibus's p kept as
+    `omnibus_p_value`, the targeted tests as `targeted`, p_value the family's p and the test's words
+    saying both, and where a targeted test fails the family, which."""
+    p0 = block.get("p_value")
+    block["omnibus_p_value"], block["omnibus_test"] = p0, block.get("test")
     if not tgt or not tgt["tested"]:
-        block[p_key] = family_p(p0, None)
+        block["p_value"] = family_p(p0, None)
         return
     block["targeted"] = tgt
-    block[p_key] = family_p(p0, tgt)
-    block[test_key] = (f"{block.get(test_key) or 'omnibus'} at {ALPHA * OMNIBUS_SHARE:g}, "
-                       f"with {tgt['tested']} targeted tests of the library's effects at {tgt['level']:.2g} each "
-                       f"(one family at {ALPHA:g})")
+    block["p_value"] = family_p(p0, tgt)
+    block["test"] = (f"{block.get('test') or 'omnibus'} at {ALPHA * OMNIBUS_SHARE:g}, "
+                     f"with {tgt['tested']} targeted tests of the library's effects at {tgt['level']:.2g} each "
+                     f"(one family at {ALPHA:g})")
     if cast(float, tgt["p_value"]) < tgt["level"]:
         omnibus_passes = p0 is None or p0 >= ALPHA * OMNIBUS_SHARE
         tgt["verdict"] = (f"{tgt['strongest']} is beyond its targeted test (p = {tgt['p_value']:.2g} < "

@@ -15,7 +15,6 @@ nothing in 3 seeds of 40). The joint fit, every row at its own temperature, deci
 """
 from __future__ import annotations
 
-from typing import cast
 
 import numpy as np
 
@@ -34,10 +33,10 @@ MAX_TERMS = 6  # as selection.forward_selection's
 def joint_test(base: AugmentedModel, model, obs, fit) -> FamilyTest:
     """The joint model's test: its chi-square and the targeted tests of the library effects not in base
     that do not follow temperature, one family (fit/family.py)."""
-    test = {"p_value": fit.p_value, "test": "chi-square of every row at its own temperature"}
+    test: FamilyTest = {"p_value": fit.p_value, "test": "chi-square of every row at its own temperature"}
     ids = [e for e in effect_ids(base.sensor) if e not in base.effects and not follows_temperature(e)]
     family.fold(test, targeted(model, obs, fit, ids) if fit.chi2 is not None else None)
-    return cast(FamilyTest, test)
+    return test
 
 
 def by_every_row(first, obs, groups, degree):

@@ -12,7 +12,6 @@ a unit put by hand in many static poses.
 from __future__ import annotations
 
 from dataclasses import replace
-from typing import Any
 
 import numpy as np
 
@@ -35,7 +34,7 @@ from simucal.handheld.moves import (GYRO_MODEL_TEXT, GYRO_MODELS, PRIOR_T, UNSEE
                                     fit_gyro)
 from simucal.handheld.moves_selection import moves_family, rank_move_candidates, select_effects
 from simucal.io import blocks, calibration, units
-from simucal.io.details import as_details
+from simucal.io.details import FamilyTest
 from simucal.io.calibration import Calibration, EffectValue, SensorBlock
 from simucal.handheld.poses import acc_from_poses
 from simucal.handheld.static_detect import Detection, dropped_text
@@ -158,11 +157,11 @@ def calibrate_handheld(ms, acc_model="acc_baseline", detect=None, pose_window_s=
     cal.warnings += dropped_warnings(det, ms.samples["t_s"])
     cal.acc = blocks.sensor_block(am, fa, M_a, b_a)
     # the poses' test made the model test's family (fit/family.py), each pose weighted as the fit weighs it
-    test: dict[str, Any] = {"p_value": cal.acc.p_value, "test": "chi-square of the poses against their own noise"}
+    test: FamilyTest = {"p_value": cal.acc.p_value, "test": "chi-square of the poses against their own noise"}
     assert obs.sigma is not None  # each pose's std (pose_observations)
     family.fold(test, targeted(am, replace(obs, sigma=np.hypot(obs.sigma, tau)), fa))
     cal.acc.p_value = test.pop("p_value")
-    cal.acc.details.update(as_details(test))
+    cal.acc.details.update(test)
     cal.acc.details.update({"undetermined": fa.undetermined, "model_error_std_g": tau, "note": None if tau == 0 else (
         "the model does not explain the poses down to their own noise (see chi2, p_value before "
         "the extra variance: simucal diagnose); each pose got an extra variance tau^2 so that "

@@ -17,7 +17,7 @@ chosen effect explains of the misfit.
 from __future__ import annotations
 
 import functools
-from typing import Any, TypedDict, cast
+from typing import TypedDict
 
 import numpy as np
 
@@ -135,12 +135,13 @@ def moves_family(gm: GyroMoves, fit: GyroFit, inputs, omnibus: tuple, effects=()
     (gyro_moves.chi2_test), with the score test of every library gyro effect not in the model along the
     moves (MovesProblem; at: its moves integrated at fit where at hand). Returns a test block (chi2, dof,
     p_value the family's, test, omnibus_p_value, targeted) and the problem, for rank_move_candidates."""
-    block: dict[str, Any] = dict(zip(("chi2", "dof", "p_value"), omnibus),
-                                 test="chi-square of the moves against the rests' white noise")
+    chi2, dof, p = omnibus
+    block: FamilyTest = {"chi2": chi2, "dof": dof, "p_value": p,
+                         "test": "chi-square of the moves against the rests' white noise"}
     ids = [e for e in effect_ids("gyro") if e not in effects]
     problem = MovesProblem(gm, fit, inputs, effects, fixed, at)
     family.fold(block, family.targeted(problem, ids) if ids else None)
-    return cast(FamilyTest, block), problem  # tests/test_calibration_file.py checks its keys
+    return block, problem  # tests/test_calibration_file.py checks its keys
 
 
 class MovesStep:

@@ -22,15 +22,10 @@ class Whiteness(TypedDict):
     meaning: str                      # what lag1_z is, in words
 
 
-class FamilyTest(TypedDict, total=False):
+class FamilyTest(records.FamilyKeys, total=False):
     """A model test made one family with the library effects' targeted tests (fit/family.fold)."""
     chi2: float | None                # None: no noise in the data or stated
     dof: int
-    p_value: float | None             # the family's
-    test: str                         # in words
-    omnibus_p_value: float | None     # the omnibus's own
-    omnibus_test: str | None
-    targeted: records.Targeted
 
 
 class ModelTestBlock(FamilyTest, total=False):

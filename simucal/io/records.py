@@ -35,6 +35,16 @@ class Targeted(TypedDict, total=False):
     verdict: str                      # where the strongest is beyond its level, in words
 
 
+class FamilyKeys(TypedDict, total=False):
+    """What fit/family.fold writes into a model test made one family with the targeted tests: the family's p and
+    words, the omnibus's own, and the targeted tests (details.FamilyTest, a thermal polynomial's, a sequence's)."""
+    p_value: float | None             # the family's (the omnibus's before fold)
+    test: str                         # in words
+    omnibus_p_value: float | None     # the omnibus's own
+    omnibus_test: str | None
+    targeted: Targeted
+
+
 class NoiseUsed(TypedDict, total=False):
     """The noise a model test used and where it came from (fit/lack_of_fit.fit_with_noise, methods' own)."""
     source: str
@@ -210,7 +220,7 @@ WalkCheck = TypedDict("WalkCheck",
                                     "predicted_ms": float, "z": float, "p_value": float})  # handheld/warmup.walk_check
 
 
-class ThermalPolynomial(TypedDict, total=False):
+class ThermalPolynomial(FamilyKeys, total=False):
     """One parameter's polynomial in dT = temp_c - t_ref_c (fit/thermal.py), coefficients c_0, c_1, ..."""
     degree: int
     degree_from: str
@@ -218,17 +228,12 @@ class ThermalPolynomial(TypedDict, total=False):
     std: list[float]
     chi2: float                       # the plateaus' fit (fit/thermal.fit_polynomial)
     dof: int
-    p_value: float | None
     per_plateau: list[float]          # each plateau's own fit, where it has one
     per_plateau_std: list[float]
     residual_rms: float               # a warm-up's axis (handheld/warmup.py): its block means' fit
     noise: NoiseUsed
     rate: RateValue                   # its temperature-rate effect, where added; its family's tests:
     walk_check: WalkCheck
-    test: str
-    omnibus_p_value: float | None
-    omnibus_test: str | None
-    targeted: Targeted
     constant: str                     # what the constant term is, where gravity is in the readings
 
 
@@ -390,16 +395,11 @@ class FieldRecord(TypedDict, total=False):
     history: list[FieldHistory]
 
 
-class InnovationTest(TypedDict, total=False):
+class InnovationTest(FamilyKeys, total=False):
     """A sequence's model test on the filter's innovations (systematic/innovations.py)."""
     nis: float
     dof: int
     nis_per_update: float
-    p_value: float
-    test: str
-    omnibus_p_value: float | None
-    omnibus_test: str | None
-    targeted: Targeted
     lag1_autocorrelation: list[float]
     lag1_z: list[float]
     updates: int                      # zero-velocity updates

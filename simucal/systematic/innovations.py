@@ -22,7 +22,6 @@ its state added: the score test of adding it, which --add auto confirms by runni
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import cast
 
 import numpy as np
 from numpy.typing import NDArray
@@ -75,7 +74,7 @@ def family_test(result) -> tuple[WhitenedTest, Signatures]:
     statistic its likelihood ratio already is). Returns the test and the signatures, which the
     ranking reuses."""
     test, sig = innovation_test(result.epochs), signatures(result)
-    family.fold(cast(dict, test), family.targeted(InnovationsProblem(sig), list(sig.B)))
+    family.fold(test, family.targeted(InnovationsProblem(sig), list(sig.B)))
     return test, sig
 
 

@@ -259,7 +259,7 @@ def choose_twin(cands: list[CandidateRecord], at_rest) -> None:
     cands.insert(at, chosen)
 
 
-def with_static_rows(base: dict, st: records.StaticRows) -> None:
+def with_static_rows(base: ModelTestBlock, st: records.StaticRows) -> None:
     """A gyro's test block (test_model's) over its rate runs and its static rows together: one chi-square
     where the rate runs' noise is known (test 'chi-square'), else the smaller of the two p-values doubled.
     calibrate and diagnose both call it, so they report the same test."""
@@ -270,11 +270,11 @@ def with_static_rows(base: dict, st: records.StaticRows) -> None:
     p0, test0 = base["omnibus_p_value"], base["omnibus_test"]
     if base["chi2"] is not None and test0 == "chi-square":
         base["chi2"], base["dof"] = base["chi2"] + st["chi2"], base["dof"] + st["dof"]
-        base.update(p_value=float(chi2_sf(base["chi2"], base["dof"])),
-                    test="chi-square over the rate runs and the static rows")
+        base.update({"p_value": float(chi2_sf(base["chi2"], base["dof"])),
+                     "test": "chi-square over the rate runs and the static rows"})
     elif p0 is not None:
-        base.update(p_value=min(1.0, 2 * min(p0, st["p_value"])),
-                    test=f"{test0} (rate runs) and the static rows' chi-square, the smaller p doubled")
+        base.update({"p_value": min(1.0, 2 * min(p0, st["p_value"])),
+                     "test": f"{test0} (rate runs) and the static rows' chi-square, the smaller p doubled"})
     else:
         return
     family.fold(base, base.get("targeted"))
