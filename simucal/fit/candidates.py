@@ -27,10 +27,10 @@ from simucal.errors import CalibrationError
 from simucal.fit.augmented import AugmentedModel, effect_ids, regressor
 from simucal.fit.cross_validation import leave_one_out
 from simucal.fit.distributions import chi2_sf, f_sf
-from simucal.fit.lack_of_fit import Shape, describe_shape, fit_with_noise, lack_of_fit
+from simucal.fit.lack_of_fit import describe_shape, fit_with_noise, lack_of_fit
 from simucal.fit.norm_fit import Fit, Observations, dense_jacobian, fit_exact
 from simucal.fit import family, ranking, selection
-from simucal.fit.results import ALPHA, CandidateRecord, ModelTest, Selection
+from simucal.fit.results import ALPHA, CandidateRecord, ModelTest, Selection, Shape
 from simucal.fit.twins import separating_plan
 from simucal.generated.effects import EFFECTS, SEPARATE
 from simucal.io import records

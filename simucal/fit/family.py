@@ -27,7 +27,7 @@ where the family fails, to say which effect to add.
 """
 from __future__ import annotations
 
-from typing import Any, Mapping, TypedDict, cast
+from typing import Any, Mapping, Sequence, TypedDict, cast
 
 import numpy as np
 
@@ -143,7 +143,7 @@ OUTSIDE_SHARE = 0.5  # share of the misfit the best library effect must explain 
 JOINT = 3  # library effects missing at once that outside_library allows for (--add auto tries as many at a step)
 
 
-def outside_library(base: Mapping[str, Any], cands: list[dict]) -> OutsideLibrary | None:
+def outside_library(base: Mapping[str, Any], cands: Sequence[Mapping[str, Any]]) -> OutsideLibrary | None:
     """Where the model fails and its best significant candidate would leave it failing while explaining
     less than OUTSIDE_SHARE of the misfit (the chi-square's excess over its dof), and the JOINT
     strongest candidates beyond their targeted level together (targeted's joint_statistic) explain less

@@ -32,35 +32,11 @@ from simucal.fit.augmented import regressor
 from simucal.fit.aux_inputs import DEFAULT_ZERO, FORCE, SENSOR_AUX, T_REF, AuxInputs
 from simucal.fit.distributions import chi2_sf, f_sf
 from simucal.fit.norm_fit import Fit, Observations, dense_jacobian, fit_exact
+from simucal.fit.results import Shape
 from simucal.fit.twins import twins
 from simucal.io import records, units
 
 DPS = units.DPH_PER_DPS  # gyro rates enter generic terms in deg/s (as in derive/models/effects.py)
-
-
-class ShapePoints(TypedDict):
-    """The rows of a shape block's plot, in the model's residual unit."""
-    regressor: list[float]            # the term's regressor at each row
-    residual: list[float]             # the row's residual on the term's axis
-    term_visible: list[float]         # the part of the term the model cannot absorb: what the residual should show
-
-
-class Shape(TypedDict):
-    """The generic term that explains most of a model's misfit (describe_shape): diagnose's `shape`."""
-    axis: str                         # x, y or z
-    regressor: str                    # the term, in words
-    catalog_id: str | None            # the library effect with this very regressor, if there is one
-    degree: int                       # the regressor's degree in the input
-    parity: str                       # even or odd in the input, in words
-    estimate: float                   # its coefficient, in unit
-    unit: str                         # the coefficient's
-    parameter: str                    # its name as a model file's parameter
-    sympy: str                        # its regressor as a SymPy expression
-    share_of_misfit: float            # of the residuals' sum of squares it explains, 0 to 1
-    residual_rms_after: float         # with it, in g or deg/h
-    indistinguishable_here: list[str]  # the generic terms these rows cannot tell from it (6 at most)
-    points: ShapePoints               # the plot's rows
-    text: str                         # the console's words
 
 
 @dataclass

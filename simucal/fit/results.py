@@ -15,7 +15,7 @@ from typing import Any, Mapping, TypedDict, TypeVar, cast
 
 from simucal.io.calibration import ALPHA
 from simucal.io.details import ModelTestBlock
-from simucal.io.records import JSONObject, Saturation, SkippedMove, StaticRows
+from simucal.io.records import AutoStep, JSONObject, Saturation, SkippedMove, StaticRows
 from simucal.io.stream_records import Timestamps
 
 __all__ = ["ALPHA", "Candidate", "ModelTest", "Selection", "added_params", "model_test_keys"]
@@ -46,6 +46,60 @@ class CandidateRecord(TypedDict, total=False):
     twins_undecided: bool             # no rows chose between its twins: --add auto adds neither
 
 
+class MisfitShares(TypedDict):
+    """`--add auto` over the moves as the diagnosis file's `misfit_shares` (select_effects)."""
+    chi2: float                       # the fit without effects, on dof
+    dof: int                          # its degrees of freedom
+    residual_rms: float               # its gravity-direction residuals' rms (unit vector components)
+    steps: list[AutoStep]             # each effect chosen, with its share of that fit's excess (chi2 - dof)
+    effects: list[str]                # the model chosen's effects
+    stopped: str                      # why the selection stopped
+    unexplained: float                # the share of the excess the chosen effects leave
+
+
+class ShapePoints(TypedDict):
+    """The rows of a shape block's plot, in the model's residual unit."""
+    regressor: list[float]            # the term's regressor at each row
+    residual: list[float]             # the row's residual on the term's axis
+    term_visible: list[float]         # the part of the term the model cannot absorb: what the residual should show
+
+
+class Shape(TypedDict):
+    """The generic term that explains most of a model's misfit (describe_shape): diagnose's `shape`."""
+    axis: str                         # x, y or z
+    regressor: str                    # the term, in words
+    catalog_id: str | None            # the library effect with this very regressor, if there is one
+    degree: int                       # the regressor's degree in the input
+    parity: str                       # even or odd in the input, in words
+    estimate: float                   # its coefficient, in unit
+    unit: str                         # the coefficient's
+    parameter: str                    # its name as a model file's parameter
+    sympy: str                        # its regressor as a SymPy expression
+    share_of_misfit: float            # of the residuals' sum of squares it explains, 0 to 1
+    residual_rms_after: float         # with it, in g or deg/h
+    indistinguishable_here: list[str]  # the generic terms these rows cannot tell from it (6 at most)
+    points: ShapePoints               # the plot's rows
+    text: str                         # the console's words
+
+
+class DiagnosedShape(Shape, total=False):
+    """A diagnosis's `shape`: the term found in the residuals (fit/lack_of_fit.describe_shape) with its model file."""
+    model_file: str                   # the term as a model file's text (report/model_files.py)
+    model_file_path: str              # where diagnose wrote it, where it did
+
+
+class Added(TypedDict):
+    """diagnose --add: the model without the effects beside the model with them (every kind of data)."""
+    effects: list[str]                # what was added: ids and model files
+    residual_rms_before: float
+    residual_rms_after: float
+    residual_unit: str
+    p_value_before: float | None      # the model test's, without and with the effects
+    p_value_after: float | None
+    params: dict[str, AddedParam]     # each parameter before and after (added_params)
+    residuals_before: list[JSONObject]  # each row's residual without the effects
+
+
 class SensorDiagnosis(TypedDict, total=False):
     """One sensor's block of a diagnosis (api/diagnosing.py, and the kinds' own: handheld/, systematic/); its
     free-form parts are documents (docs/spec/measurement-set.md). tests/test_calibration_file.py checks that
@@ -58,10 +112,10 @@ class SensorDiagnosis(TypedDict, total=False):
     param_units: dict[str, str]
     residual_unit: str
     residuals: list[JSONObject]       # each row's residual, sigma and inputs
-    shape: JSONObject                 # a term found in the residuals, with its model file
+    shape: DiagnosedShape             # a term found in the residuals, with its model file
     table: JSONObject                 # a turntable's own terms
-    added: JSONObject                 # --add: the residuals and parameters before and after
-    misfit_shares: JSONObject | None  # a stream's: the effects chosen over its moves
+    added: Added                      # --add: the residuals and parameters before and after
+    misfit_shares: MisfitShares | None  # a stream's: the effects chosen over its moves
     twin_choice: str                  # which twin the rows at rest chose, in words
     moves_opposite_sense: list[int]
     moves_skipped: list[SkippedMove]

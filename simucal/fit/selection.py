@@ -22,8 +22,7 @@ from typing import Protocol
 
 from simucal.fit.cross_validation import paired_improvement
 from simucal.fit.family import OUTSIDE_SHARE
-from simucal.fit.lack_of_fit import Shape
-from simucal.fit.results import CandidateRecord, ModelTest, Selection
+from simucal.fit.results import CandidateRecord, ModelTest, Selection, Shape
 from simucal.generated.effects import EFFECTS
 from simucal.io import records
 

@@ -17,7 +17,6 @@ chosen effect explains of the misfit.
 from __future__ import annotations
 
 import functools
-from typing import TypedDict
 
 import numpy as np
 
@@ -25,8 +24,7 @@ from simucal.fit import family
 from simucal.fit.augmented import effect_ids
 from simucal.fit.distributions import chi2_sf
 from simucal.fit.ranking import Trial, rank
-from simucal.fit.lack_of_fit import Shape
-from simucal.fit.results import CandidateRecord, ModelTest
+from simucal.fit.results import CandidateRecord, MisfitShares, ModelTest, Shape
 from simucal.fit.selection import forward_selection
 from simucal.fit.twins import separating_plan
 from simucal.generated.effects import EFFECTS, SEPARATE_MOVES
@@ -205,17 +203,6 @@ class MovesStep:
     def after(self) -> records.AutoStep:
         return {"chi2_after": self.chi2, "dof_after": self.dof, "p_value_after": self.p_value,
                 "residual_rms_after": float(np.sqrt(np.mean(self.fit.r ** 2)))}
-
-
-class MisfitShares(TypedDict):
-    """`--add auto` over the moves as the diagnosis file's `misfit_shares` (select_effects)."""
-    chi2: float                       # the fit without effects, on dof
-    dof: int                          # its degrees of freedom
-    residual_rms: float               # its gravity-direction residuals' rms (unit vector components)
-    steps: list[records.AutoStep]     # each effect chosen, with its share of that fit's excess (chi2 - dof)
-    effects: list[str]                # the model chosen's effects
-    stopped: str                      # why the selection stopped
-    unexplained: float                # the share of the excess the chosen effects leave
 
 
 def select_effects(gm: GyroMoves, base: GyroFit, sigma_g, inputs, ranked=None, max_terms=9) -> MisfitShares:

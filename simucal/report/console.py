@@ -3,10 +3,11 @@
 verdicts and next step (`simucal noise`, its page)."""
 from __future__ import annotations
 
-from typing import Any, Mapping
 
 from simucal.fit import allan_fit, allan_terms, family
 from simucal.fit.candidates import undecided_twins
+from simucal.fit.results import DiagnosisReport, diagnosis_blocks
+from simucal.fit.validation import ValidationReport
 from simucal.io import SENSOR_COLS
 from simucal.io.calibration import ALPHA, Calibration, SensorBlock
 from simucal.io.details import SensorDetails
@@ -223,13 +224,13 @@ def _thermal_lines(s, b: SensorBlock):
                "to test them; give fewer degrees or more plateaus")
 
 
-def to_add(diag: Mapping[str, Any], sensor: str) -> tuple[list[str] | None, str]:
+def to_add(diag: DiagnosisReport, sensor: str) -> tuple[list[str] | None, str]:
     """(what the verdict adds for one sensor, why): [] where its model passes (or was not tested: the
     why says so), the verdict's effects where it fails (the found term's model file when it beats
     every library effect and was written, the effects chosen together on a stream's moves, else the
     strongest significant effect or the library's match of the found term), None where nothing
     found explains the misfit."""
-    b = diag[sensor]
+    b = diagnosis_blocks(diag)[sensor]
     p = b["model_test"]["p_value"]
     if p is None:
         return [], f"{sensor}: no test (too few degrees of freedom): state the noise or add positions"
@@ -237,22 +238,23 @@ def to_add(diag: Mapping[str, Any], sensor: str) -> tuple[list[str] | None, str]
         return [], ""
     if b.get("explained_by"):  # a test shared with the other sensor, whose effect explains it (a sequence's filter)
         return [], ""
-    shape = b.get("shape") or {}
-    steps = (b.get("misfit_shares") or {}).get("steps")
-    outside = (None if shape.get("model_file_path") or steps
-               else family.outside_library(b["model_test"], b["candidates"]))
+    shape, shares = b.get("shape"), b.get("misfit_shares")
+    steps = shares["steps"] if shares else []
+    written = shape.get("model_file_path") if shape else None  # the found term's model file
+    outside = None if written or steps else family.outside_library(b["model_test"], b["candidates"])
     if outside:
         return None, f"{sensor}: {outside['text']}"
     sig = [c["id"] for c in b["candidates"] if c.get("significant")]
     lead = next((c for c in b["candidates"] if c.get("significant")), None)
-    if lead and lead.get("twins_undecided") and not (shape.get("model_file_path") or steps):
+    if lead and lead.get("twins_undecided") and not (written or steps):
         return [], f"{sensor}: {undecided_twins(lead, b['candidates'])}"
-    found = ([shape["model_file_path"]] if shape.get("model_file_path") else [x["id"] for x in steps] if steps
-             else sig[:1] or ([shape["catalog_id"]] if shape.get("catalog_id") else None))
+    catalog_id = shape["catalog_id"] if shape else None
+    found = [written] if written else [x["id"] for x in steps] if steps else sig[:1] or ([catalog_id] if catalog_id
+                                                                                          else None)
     return found, "" if found else f"{sensor}: nothing found explains the misfit; the plots below show where it is"
 
 
-def next_command(diag: Mapping[str, Any]) -> tuple[str, list[str]]:
+def next_command(diag: DiagnosisReport) -> tuple[str, list[str]]:
     """(the one calibrate command for the set, the notes beside it): next_adds as --add options; where
     calibrate would refuse these data (a sequence that leaves a parameter unobserved), the plan that scores
     a sequence before it is recorded, and why."""
@@ -263,34 +265,34 @@ def next_command(diag: Mapping[str, Any]) -> tuple[str, list[str]]:
     return f"simucal calibrate {diag['input']}{''.join(f' --add {a}' for a in adds)} -o calibration.json", notes
 
 
-def calibrate_refusal(diag: Mapping[str, Any]) -> tuple[str, list[str]] | None:
+def calibrate_refusal(diag: DiagnosisReport) -> tuple[str, list[str]] | None:
     """(what to do instead, why) where calibrate would refuse the diagnosed data (a sequence that leaves a
     parameter unobserved, or whose passes do not converge: systematic/method.refusal), else None."""
-    block = next((diag[s] for s in ("acc", "gyro") if s in diag and diag[s].get("calibrate_refuses")), None)
+    block = next((b for b in diagnosis_blocks(diag).values() if b.get("calibrate_refuses")), None)
     if block is None:
         return None
     instead = block["next_instead"]
     return instead["command"], [f"{block['calibrate_refuses']}; calibrate refuses these data: {instead['note']}"]
 
 
-def next_adds(diag: Mapping[str, Any]) -> tuple[list[str], list[str]]:
+def next_adds(diag: DiagnosisReport) -> tuple[list[str], list[str]]:
     """(what the next calibration adds, the notes beside it): every --add the diagnosis was run with
     (both sensors' effects and model files) and, for each sensor whose model fails, what its verdict
     adds; so the command that made a model pass keeps its --add, and the gyro's keeps the
     accelerometer's."""
-    adds, notes = [], []
-    for s in ("acc", "gyro"):
-        if s in diag:
-            adds += (diag[s].get("added") or {}).get("effects", [])
-    for s in ("acc", "gyro"):
-        if s in diag:
-            found, why = to_add(diag, s)
-            adds += found or []
-            notes += [why] if why else []
+    adds: list[str] = []
+    notes: list[str] = []
+    blocks = diagnosis_blocks(diag)
+    for b in blocks.values():
+        adds += b["added"]["effects"] if "added" in b else []
+    for s in blocks:
+        found, why = to_add(diag, s)
+        adds += found or []
+        notes += [why] if why else []
     return list(dict.fromkeys(adds)), notes
 
 
-def validation_next(report: Mapping[str, Any]) -> tuple[str, list[str]]:
+def validation_next(report: ValidationReport) -> tuple[str, list[str]]:
     """(the command after `simucal validate`, why): another recording where these are the calibration's
     own rows, a diagnosis of these data where a sensor is no better than nominal, else apply."""
     cal, data = report["calibration"], report["data"]

@@ -7,12 +7,12 @@ effects' test statistics; before/after bars when effects were added.
 """
 from __future__ import annotations
 
-from typing import Any, Mapping
 
 import html
 
 import numpy as np
 
+from simucal.fit.results import DiagnosisReport, diagnosis_blocks
 from simucal.report.console import next_command
 from simucal.report.numbers import eng
 from simucal.report.page import CELL_IN, FULL_IN, figure, folded, grid, page, plt, png, table
@@ -147,11 +147,10 @@ def stream_figures(stream):
     return figs
 
 
-def _verdicts(diag: Mapping[str, Any]) -> list[tuple[bool, str]]:
+def _verdicts(diag: DiagnosisReport) -> list[tuple[bool, str]]:
     """Per sensor (ok, its verdict): the diagnosis's own, as the console prints it."""
-    return [(diag[s]["baseline"]["p_value"] is None or diag[s]["baseline"]["p_value"] >= diag["alpha"],
-             diag[s]["verdict"])
-            for s in ("acc", "gyro") if s in diag]
+    tests = [(b["baseline"]["p_value"], b["verdict"]) for b in diagnosis_blocks(diag).values()]
+    return [(p is None or p >= diag["alpha"], verdict) for p, verdict in tests]
 
 
 CANDIDATE_COLS = ["id", "estimate", "std", "unit", "statistic", "p_value", "delta_aic", "residual_rms_after",
@@ -175,18 +174,16 @@ def candidate_tables(cands) -> list[str]:
     return out
 
 
-def render(diag: Mapping[str, Any]) -> str:
+def render(diag: DiagnosisReport) -> str:
     """The page of a diagnosis, in its own units: the spec's, or those report/units.diagnosis_in gave it."""
     from simucal.report.units import param_units_of
-    units = {s: diag[s].get("unit", u) for s, u in (("acc", "g"), ("gyro", "deg/h")) if s in diag}
+    blocks = diagnosis_blocks(diag)
+    units = {s: b.get("unit", "g" if s == "acc" else "deg/h") for s, b in blocks.items()}
     parts = []
     if "stream" in diag:
         parts.append("<h2>stream</h2>")
         parts += stream_figures(diag["stream"])
-    for s in ("acc", "gyro"):
-        if s not in diag:
-            continue
-        b = diag[s]
+    for s, b in blocks.items():
         parts.append(f"<h2>{s}: the evidence</h2>")
         full, small = residual_figures(s, b, units[s])
         parts += full

@@ -15,6 +15,7 @@ import numpy as np
 from simucal.io import units
 from simucal.io.results import PlanScore
 from simucal.io.calibration import Calibration, EffectValue, SensorBlock
+from simucal.fit.results import SensorDiagnosis
 from simucal.io.details import SensorDetails
 from simucal.report.lot_figures import LotReport
 
@@ -196,11 +197,11 @@ def diagnosis_in(report: Report, system: str, gravity_mps2: float | None = None)
     return out
 
 
-def param_units_of(block: dict) -> dict[str, str]:
+def param_units_of(block: SensorDiagnosis) -> dict[str, str]:
     """Each parameter's unit label of a diagnosis block (the spec's): its model's, an added effect's from the
     effect library."""
     from simucal.generated.effects import EFFECTS
-    names = block.get("added", {}).get("params", {})
+    names = block["added"]["params"] if "added" in block else {}
     return {**{e: EFFECTS[e].unit for e in names if e in EFFECTS}, **block.get("param_units", {})}
 
 

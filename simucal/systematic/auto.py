@@ -10,8 +10,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from simucal.fit.lack_of_fit import Shape
-from simucal.fit.results import CandidateRecord, ModelTest
+from simucal.fit.results import CandidateRecord, ModelTest, Shape
 from simucal.fit.selection import forward_selection
 from simucal.systematic.calibrate import run_filter
 from simucal.io import records
