@@ -193,6 +193,17 @@ def test_a_diagnosis_of_a_set_in_memory_names_the_call_and_of_a_folder_the_comma
         f"simucal calibrate {tmp_path / 's'} --add acc.quadratic.z -o calibration.json")
 
 
+def test_a_set_written_reads_back_with_its_truth(tmp_path):
+    """write writes a simulated set's truth.json and every reader of the folder reads it back (the set's own
+    reader, so the API and the commands see one set); a folder without one has none."""
+    from simucal import io
+    ms = simucal.simulate(seed=2)
+    ms.write(tmp_path / "s")
+    assert simucal.read_set(tmp_path / "s").truth == io.read_set(tmp_path / "s").truth == ms.truth is not None
+    (tmp_path / "s" / "truth.json").unlink()
+    assert simucal.read_set(tmp_path / "s").truth is None
+
+
 def test_the_public_names_are_all_of_the_api():
     """`import simucal` has __all__, the names the lazy API gives (a type checker's and `from simucal
     import *`'s list)."""

@@ -14,7 +14,7 @@ from __future__ import annotations
 import json
 import os
 from pathlib import Path
-from typing import TYPE_CHECKING, Any, Mapping, cast
+from typing import TYPE_CHECKING, Any, Mapping
 
 from simucal.errors import InputError
 from simucal import io
@@ -41,7 +41,6 @@ from simucal.report.vocabulary import Entry
 from simucal.io import calibration as _file
 from simucal.io.calibration import Calibration
 from simucal.io.measurement_set import MeasurementSet
-from simucal.io import results
 
 if TYPE_CHECKING:
     from simucal.api.store import Store
@@ -89,16 +88,7 @@ def read_set(path: str | os.PathLike[str]) -> MeasurementSet:
     >>> ms.segments is None  # a stream: a hand-placed session  # doctest: +SKIP
     False
     """
-    ms = io.read_set(path)
-    ms.truth = _truth(Path(path) / "truth.json")
-    return ms
-
-
-def _truth(path: Path) -> results.Truth | None:
-    """A simulator's truth.json beside a set (what `simulate` returns as .truth), None where there is none (it is
-    never an input: a damaged one only leaves .truth empty)."""
-    from simucal.io.text_files import json_object_or_none
-    return cast(results.Truth, json_object_or_none(path))
+    return io.read_set(path)
 
 
 @checked

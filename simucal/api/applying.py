@@ -14,7 +14,7 @@ from simucal.arguments import checked
 from simucal.errors import CalibrationError
 from simucal.fit import apply as fit_apply
 from simucal.generated.effects import EFFECTS
-from simucal.io import SAMPLE_COLS, calibration, units
+from simucal.io import SAMPLE_COLS, units
 from simucal.io.calibration import Calibration
 from simucal.io.calibration_checks import LAYOUT_KEYS
 from simucal.io.meta import Meta
@@ -157,7 +157,7 @@ def _plausible(result: dict[str, NDArray[np.float64]], acc_unit: str, given: dic
                               f"simucal.apply(acc_unit={given['acc_unit']!r}): calibrated")
 
 
-def _given_units(cal: calibration.Calibration, acc_unit: str | None, gyro_unit: str | None,
+def _given_units(cal: Calibration, acc_unit: str | None, gyro_unit: str | None,
                  gravity_mps2: float) -> dict[str, Any]:
     """The caller's units (default the calibration's own), refused where simucal does not know one."""
     given = {"acc_unit": acc_unit or cal.layout.get("acc_unit", "g"),
@@ -172,7 +172,7 @@ Split = tuple[NDArray[np.float64] | None, NDArray[np.float64] | None,
               dict[str, str] | None]  # acc, gyro, the frame's columns
 
 
-def _split(cal: calibration.Calibration, x: Any, frame: bool, sensor: str | None,
+def _split(cal: Calibration, x: Any, frame: bool, sensor: str | None,
            columns: dict[str, str] | None) -> Split:
     """(acc, gyro, {spec name: the frame's column}) of x."""
     if frame:
@@ -200,7 +200,7 @@ def _split(cal: calibration.Calibration, x: Any, frame: bool, sensor: str | None
     return (a, None, None) if sensor == "acc" else (None, a, None)
 
 
-def _needs(cal: calibration.Calibration, temp_c: Any, t_s: Any) -> None:
+def _needs(cal: Calibration, temp_c: Any, t_s: Any) -> None:
     """Refuse leaving out an input the model reads (it would be taken as 0, silently)."""
     reads = {r for _, b in cal.blocks() for e in b.library_effects() for r in EFFECTS[e].reads}
     if any(b.thermal is not None for _, b in cal.blocks()):

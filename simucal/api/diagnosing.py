@@ -34,7 +34,7 @@ from simucal.io.text_files import json_object_or_none
 from simucal.report.console import skipped_sensors
 from simucal.report.verdicts import sensor_verdict
 from simucal.fit.norm_fit import Fit, Observations
-from simucal.fit.results import (ALPHA, DiagnosisReport, SensorDiagnosis, added_params, model_test_keys,
+from simucal.fit.results import (ALPHA, Added, DiagnosisReport, SensorDiagnosis, added_params, model_test_keys,
                                  diagnosis_blocks)
 from simucal.io.timestamps import with_timestamps
 from simucal.report.model_files import model_file_text
@@ -269,10 +269,11 @@ def diagnose_sensor(ms: io.MeasurementSet, sensor: str, base_model: str, add: Se
         f0, _, b0 = test_model(AugmentedModel(before_model), obs)
         comp = added_params({k: fit.params[k] for k in model.params}, fit.std, f0.params, f0.std,
                             (truth or {}).get(sensor, {}).get("params"))
-        out["added"] = {"effects": list(added or add), "residual_rms_before": f0.residual_rms,
-                        "residual_rms_after": fit.residual_rms, "residual_unit": model.unit,
-                        "p_value_before": b0["p_value"], "p_value_after": base["p_value"], "params": comp,
-                        "residuals_before": residual_table(f0, obs, segs)}
+        before_after: Added = {"effects": list(added or add), "residual_rms_before": f0.residual_rms,
+                               "residual_rms_after": fit.residual_rms, "residual_unit": model.unit,
+                               "p_value_before": b0["p_value"], "p_value_after": base["p_value"], "params": comp,
+                               "residuals_before": residual_table(f0, obs, segs)}
+        out["added"] = before_after
     return cast(SensorDiagnosis, out)  # its kind's extras: finish takes the transient ones (mirror, twin_fits) out
 
 

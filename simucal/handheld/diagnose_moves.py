@@ -25,7 +25,7 @@ import numpy as np
 
 from simucal.fit.augmented import check_effect
 from simucal.fit.aux_inputs import FORCE
-from simucal.fit.results import ModelTest, SensorDiagnosis, added_params, model_test_keys
+from simucal.fit.results import Added, ModelTest, SensorDiagnosis, added_params, model_test_keys
 from simucal.generated.effects import EFFECTS
 from simucal.handheld.gyro_moves import (
     chi2_test,
@@ -101,10 +101,11 @@ def diagnose_moves(ms, obs, det, am, fa, add=(), truth=None) -> SensorDiagnosis:
     if add:
         comp = added_params(dict(zip(names, vec(fit).tolist())), dict(zip(names, std(fit).tolist())),
                             dict(zip(names, vec(base).tolist())), dict(zip(names, std(base).tolist())), _known(truth))
-        out["added"] = {"effects": list(add), "residual_rms_before": float(np.sqrt(np.mean(base.r ** 2))),
-                        "residual_rms_after": block["residual_rms"], "residual_unit": block["residual_unit"],
-                        "p_value_before": test0["p_value"], "p_value_after": p,
-                        "params": comp, "residuals_before": move_rows(gm, base, S0, columns)}
+        before_after: Added = {"effects": list(add), "residual_rms_before": float(np.sqrt(np.mean(base.r ** 2))),
+                               "residual_rms_after": block["residual_rms"], "residual_unit": block["residual_unit"],
+                               "p_value_before": test0["p_value"], "p_value_after": p,
+                               "params": comp, "residuals_before": move_rows(gm, base, S0, columns)}
+        out["added"] = before_after
     return cast(SensorDiagnosis, out)  # tests/test_calibration_file.py checks its keys
 
 

@@ -14,7 +14,7 @@ from pathlib import Path
 from typing import cast
 
 
-from simucal.io import csv_columns, sensor_checks, units
+from simucal.io import csv_columns, results, sensor_checks, units
 from simucal.io import meta as meta_keys
 from simucal.io.csv_columns import Columns, Extremes, arrow_floats, read_columns
 from simucal.io.measurement_set import MeasurementSet as MeasurementSet
@@ -25,7 +25,8 @@ from simucal.io.set_writer import write_set as write_set
 from simucal.io.segments import Segment as Segment, read_segments  # Segment: the API names it simucal.io.Segment
 from simucal.io.text_files import (MeasurementSetError, RepeatedKey, body_of, check_delimiter, csv_refusal,
                                      decoded, ends_with_a_line_end, files_sha256, no_repeated_columns, not_a_folder,
-                                     careful_rows, is_ascii, mapped, read_text, unique_keys)
+                                     careful_rows, is_ascii, json_object_or_none, mapped, read_text,
+                                     unique_keys)
 
 
 def read_meta(folder: Path) -> meta_keys.Meta:
@@ -219,7 +220,9 @@ def read_set(folder) -> MeasurementSet:
     if "gx" in samples and "latitude_deg" not in meta:
         raise MeasurementSetError(folder / "meta.json", None,
                                   "latitude_deg is required when gyro data are present")
-    ms = MeasurementSet(folder, meta, samples, segments, sha256=sha256)
+    # a simulator's truth.json, as MeasurementSet.write writes it: never an input (a damaged one leaves it None)
+    truth = cast(results.Truth | None, json_object_or_none(folder / "truth.json"))
+    ms = MeasurementSet(folder, meta, samples, segments, sha256=sha256, truth=truth)
     if extremes is not None:
         sensor_checks.known_extremes(ms, extremes)
     return ms

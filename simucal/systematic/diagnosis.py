@@ -15,7 +15,7 @@ from typing import Any, cast
 import numpy as np
 
 from simucal.errors import CalibrationError
-from simucal.fit.results import SensorDiagnosis, added_params, model_test_keys
+from simucal.fit.results import Added, SensorDiagnosis, added_params, model_test_keys
 from simucal.systematic.calibrate import rests_and_moves, run_filter
 from simucal.fit import family
 from simucal.io import records
@@ -66,7 +66,7 @@ def _params(result, sensor) -> tuple[dict, dict, dict]:
             dict(zip(model.params, model.param_units)))
 
 
-def _added(sensor, result, before, base, truth, added) -> dict:
+def _added(sensor, result, before, base, truth, added) -> Added:
     """diagnose --add: the filter without the effects beside the filter with them."""
     comp = added_params(*_params(result, sensor)[:2], *_params(before["result"], sensor)[:2],
                         (truth or {}).get(sensor, {}).get("params"))
