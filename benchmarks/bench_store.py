@@ -1,6 +1,6 @@
 """The calibration store's times on a store of N records (default 10,000; docs/lab.md): one `add` (a file checked,
-its record and its 18 parameters' rows in one transaction, the commit on disk), a unit's history, a unit's
-records, every record and every parameter's row as DataFrames, and `lot` of the whole store.
+its record and its rows, an entry each of the one vocabulary, in one transaction, the commit on disk), a unit's
+history, a unit's records, every record and every entry's row as DataFrames, and `lot` of the whole store.
 
 The store is filled first in one transaction per 1,000 records (N files of N / 4 simulated units, four
 calibrations each, through simucal's own writer); then each operation is timed `--repeats` times (the best and

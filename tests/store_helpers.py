@@ -17,7 +17,8 @@ import numpy as np
 
 from simucal.io import calibration
 
-DRIFT_PARAM = "gyro.b_z"
+DRIFT_PARAM = "gyro.b_z"    # the planted drift, in the exact method's own parameter
+DRIFT_ENTRY = "gyro.bias_z"  # it in the one vocabulary: the store's rows, a history's changes, a trend
 
 
 def _pg_bin() -> Path:

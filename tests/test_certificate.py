@@ -13,7 +13,7 @@ import simucal
 from cli_helpers import run
 from simucal.api.demo_run import HIDDEN
 from simucal.errors import SimucalError
-from simucal.report.certificate import K, budget
+from simucal.report.certificate import K, budget, coefficients
 from simucal.report.numbers import value_digits
 from simucal.report.numbers import eng
 
@@ -38,11 +38,17 @@ def test_the_certificates_numbers_are_the_files(files):
     page = simucal.certificate(cal_path, validation=validation)
     raw = json.loads(cal_path.read_text())
     assert raw["acc"]["verdict"] == "fails" and "std_raw" in raw["acc"] and "table_tilt" in raw["gyro"]
+    common = simucal.parameters(cal)
     for sensor, block in cal.blocks():
-        rows = budget(block)
-        assert [r["name"] for r in rows] == list(raw[sensor]["params"])
+        rows = budget(sensor, block)  # the one vocabulary, as simucal.parameters gives it
+        entries = common[(common["sensor"] == sensor) & np.isfinite(common["std"]) & (common["std"] > 0)]
+        assert [(r["name"], r["own_name"], r["u"]) for r in rows] == \
+            [(n, own if isinstance(own, str) else None, u) for n, own, u in
+             zip(entries["name"], entries["own_name"], entries["std"])]
         for r in rows:
-            assert r["u"] == raw[sensor]["std"][r["name"]] and r["U"] == K * r["u"] == 2 * r["u"]
+            assert r["U"] == K * r["u"] == 2 * r["u"] and f">{r['name']}<" in page
+            if r["name"].startswith("bias_"):  # the bias is the parameter itself: u is the file's std of it
+                assert math.isclose(r["u"], raw[sensor]["std"][r["own_name"]], rel_tol=1e-6), r
             parts = r["noise"] ** 2 + (r["table"] or 0.0) ** 2 + r["misfit"] ** 2
             assert math.isclose(parts, r["u"] ** 2, rel_tol=1e-9), (sensor, r)
             assert f">{eng(r['U'])}<" in page and f">{eng(r['value'], value_digits(r['value'], r['u']))}<" in page
@@ -50,7 +56,7 @@ def test_the_certificates_numbers_are_the_files(files):
             assert all(r["misfit"] > r["noise"] for r in rows) and all(r["table"] is None for r in rows)
         else:
             assert all(r["misfit"] == 0 and r["table"] is not None for r in rows)
-            dK = [r["table"] / r["u"] for r in rows if r["name"].startswith("dK")]  # the tilt moves them alike
+            dK = [r["table"] / r["u"] for r in rows if r["own_name"] in ("dK_x", "dK_y", "dK_z")]  # moved alike
             assert len(dK) == 3 and min(dK) > 0.01
     digest = __import__("hashlib").sha256(cal_path.read_bytes()).hexdigest()
     assert digest in page and all(h in page for h in raw["input_sha256"]) and f"simucal {simucal.__version__}" in page
@@ -144,21 +150,29 @@ def test_a_thermal_certificate_gives_its_coefficients_and_each_parameters_temper
     page = simucal.certificate(path)
     th = raw["acc"]["thermal"]
     assert th["parameters"]["b_x"]["degree"] == 2  # the planted polynomial, found
-    for name, f in th["parameters"].items():
-        for k in range(1, f["degree"] + 1):
-            c, u = f["coefficients"][k], f["std"][k]
-            assert f">{name}.T{k}<" in page and f">{eng(c)}<" in page and f">{eng(2 * u)}<" in page
+    terms = {n: (own, c, u) for n, own, c, _, u, _ in coefficients("acc", simucal.load(path).acc)}
+    for n, (own, c, u) in terms.items():  # the one vocabulary's coefficients, the method's own name beside each
+        assert f">{n}<" in page and f">{eng(c)}<" in page and f">{eng(2 * u)}<" in page and f">{own}<" in page
+    for k in (1, 2):  # the bias is the parameter itself: its coefficients are the file's
+        own, c, u = terms[f"bias_x.T{k}"]
+        assert own == f"b_x.T{k}" and math.isclose(c, th["parameters"]["b_x"]["coefficients"][k], rel_tol=1e-6)
+        assert math.isclose(u, th["parameters"]["b_x"]["std"][k], rel_tol=1e-3)
     cov = th["covariance"]
     lo, hi = th["temperature_range_c"]
-    for r in budget(simucal.load(path).acc):
-        names = [r["name"]] + [f"{r['name']}.T{k}" for k in range(1, th["parameters"][r["name"]]["degree"] + 1)]
+    rows = budget("acc", simucal.load(path).acc)
+    assert [r["name"] for r in rows if r["name"].startswith("bias_")] == ["bias_x", "bias_y", "bias_z"]
+    for r in rows:  # an entry's temperature part through J; the bias, the parameter itself, recomputed here
+        assert (r["temperature"] > 0.1 * r["u"]) == (r["name"] == "bias_x"), r  # only the term the data hold
+        if not r["name"].startswith("bias_"):
+            continue
+        own = r["own_name"]
+        names = [own] + [f"{own}.T{k}" for k in range(1, th["parameters"][own]["degree"] + 1)]
         idx = [cov["names"].index(n) for n in names]
         C = np.asarray(cov["matrix"])[np.ix_(idx, idx)]
         var = [sum(C[i, j] * dT ** (i + j) for i in range(len(idx)) for j in range(len(idx)))
                for dT in np.linspace(lo - 25.0, hi - 25.0, 1001)]
         part = math.sqrt(max(max(var) - C[0, 0], 0.0))
         assert math.isclose(r["temperature"], part, rel_tol=1e-3, abs_tol=1e-12 * r["u"]), r
-        assert (r["temperature"] > 0.1 * r["u"]) == (r["name"] == "b_x"), r  # only the term the data hold
     assert "temperature: over the range, beside u" in page and "temperature coefficients" in page
 
 

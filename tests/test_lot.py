@@ -55,8 +55,12 @@ def test_the_lot_report_finds_what_was_planted(lot):
     drift = {d["later"]: d for d in report["drift"]}
     assert set(drift) == {"unit0000_b.json", "unit0001_b.json"}  # the linear one is another group: no drift
     assert drift["unit0000_b.json"]["sensors"]["gyro"]["verdict"] == "drifted"
-    z = {r["name"]: r["z"] for r in drift["unit0000_b.json"]["parameters"]}
-    assert abs(z["gyro.b_z"]) > 5 and max(abs(v) for k, v in z.items() if k != "gyro.b_z") < 4
+    z = {r["name"]: r["z"] for r in drift["unit0000_b.json"]["parameters"]}  # the one vocabulary: b_z is bias_z
+    assert abs(z["gyro.bias_z"]) > 5 and max(abs(v) for k, v in z.items() if k != "gyro.bias_z") < 4
+    assert {r["own_name"] for r in drift["unit0000_b.json"]["parameters"] if r["name"] == "gyro.bias_z"} == {"b_z"}
+    # chi^2 on the rank: the exact accelerometer's 9 parameters are its 9 entries (M lower triangular, bias); the
+    # gyro's 12 entries in b carry C_b^d's own std beside its 9 parameters (std_M)
+    assert {s: v["dof"] for s, v in drift["unit0001_b.json"]["sensors"].items()} == {"acc": 9, "gyro": 12}
     assert all(v["verdict"] == "no drift seen" for v in drift["unit0001_b.json"]["sensors"].values())
     assert units["unit0000_b.json"]["status"] == "flagged" and "unit0000.json" in report["superseded"]
     assert [g["units"] for g in report["groups"]][1:] == [["zz_linear.json"], ["zz_mp.json"]]

@@ -8,9 +8,9 @@ import pytest
 import simucal
 from cli_helpers import run
 from simucal.errors import SimucalError
-from simucal.report.lot_figures import block_parameters
+from simucal.store.records import parameter_rows
 from simucal.store.trend import HORIZON_YEARS, K, due, line
-from store_helpers import DRIFT_PARAM, base_calibration, unit_files
+from store_helpers import DRIFT_ENTRY, DRIFT_PARAM, base_calibration, unit_files
 
 
 def test_the_line_is_the_weighted_least_squares_one():
@@ -49,10 +49,11 @@ def test_a_drifting_units_due_date_on_the_command_line_and_its_page(tmp_path):
             "--html", tmp_path / "h.html")
     assert r.exit_code == 0, r.output
     trend = json.loads((tmp_path / "h.json").read_text())["trend"]
-    p = next(p for p in trend["parameters"] if p["name"] == DRIFT_PARAM)
+    p = next(p for p in trend["parameters"] if p["name"] == DRIFT_ENTRY)  # the spec named it by its own name
     years = (100 - (p["intercept"] - value) / std) * std / p["slope_per_year"]  # the line at value + 100 std
-    assert trend["due_parameter"] == DRIFT_PARAM and np.isclose(p["expected_years"], years, rtol=1e-6)
-    assert p["earliest_years"] < p["expected_years"] and f"{DRIFT_PARAM} is expected to leave its spec" in r.output
+    assert p["own_name"] == name and trend["due_parameter"] == DRIFT_ENTRY
+    assert np.isclose(p["expected_years"], years, rtol=1e-6)
+    assert p["earliest_years"] < p["expected_years"] and f"{DRIFT_ENTRY} is expected to leave its spec" in r.output
     assert trend["due_utc"] == p["earliest_utc"] and p["earliest_utc"][:10] in (tmp_path / "h.html").read_text()
     last = p["values"][-1]  # measured outside already: due at the last calibration, whatever the line says
     spec.write_text(json.dumps({"format": "simucal.limits/1",
@@ -64,6 +65,10 @@ def test_a_drifting_units_due_date_on_the_command_line_and_its_page(tmp_path):
     assert r.exit_code != 0 and "input" in r.output and len(simucal.Store(store).records()) == 3
     spec.write_text(json.dumps({"format": "simucal.limits/1", "limits": {DRIFT_PARAM: {"max": 1.0, "unit": "g"}}}))
     with pytest.raises(SimucalError, match="spec.json: limits.gyro.b_z: unit 'g'"):
+        simucal.Store(store).history("SN-0000", spec=spec)
+    # an own parameter that is no entry (M_xx is 1 + dK_x, not dK_x): refused, naming the entries there are
+    spec.write_text(json.dumps({"format": "simucal.limits/1", "limits": {"gyro.dK_x": {"max": 1.0, "unit": "1"}}}))
+    with pytest.raises(SimucalError, match=r"limits.gyro.dK_x: unit SN-0000's trend .* it has .*gyro.M_xx"):
         simucal.Store(store).history("SN-0000", spec=spec)
 
 
@@ -84,15 +89,15 @@ def test_a_std_of_zero_is_said_to_leave_no_trend_and_a_value_outside_is_still_du
     spec.write_text(json.dumps({"format": "simucal.limits/1", "limits": {DRIFT_PARAM: {
         "max": getattr(last, sensor).params[name] - 1e-9, "unit": getattr(last, sensor).param_units[name]}}}))
     trend = simucal.Store(store).history("SN-0000", spec=spec)["trend"]
-    p = next(p for p in trend["parameters"] if p["name"] == DRIFT_PARAM)
+    p = next(p for p in trend["parameters"] if p["name"] == DRIFT_ENTRY)  # the spec named it by its own name
     assert p["slope_per_year"] is None and "a std of 0 or none in record 2" in p["no_trend"]
-    assert p["expected_years"] == p["t_years"][-1] and trend["due_parameter"] == DRIFT_PARAM  # outside: due now
-    assert f"NO TREND for 1 parameter(s), no date from a line for them: {DRIFT_PARAM}: a std of 0" in trend["verdict"]
+    assert p["expected_years"] == p["t_years"][-1] and trend["due_parameter"] == DRIFT_ENTRY  # outside: due now
+    assert f"NO TREND for 1 parameter(s), no date from a line for them: {DRIFT_ENTRY}: a std of 0" in trend["verdict"]
 
 
 def test_a_spec_bounding_another_lines_parameter_is_refused_not_ignored(tmp_path):
     """The trend follows the unit's last method and model: a spec entry naming a parameter only an earlier line
-    has (the multi-position method's M_xx, where the unit is now calibrated by the exact method) would bound
+    has (the multi-position method's M_xy, where the unit is now calibrated by the exact method) would bound
     nothing, so it is refused, naming the line."""
     base = base_calibration(tmp_path)
     older = tmp_path / "older.json"
@@ -101,10 +106,11 @@ def test_a_spec_bounding_another_lines_parameter_is_refused_not_ignored(tmp_path
     assert run("store", "add", older, "--store", store, "--serial", "SN-0000", "--time", "2025-06-01").exit_code == 0
     for month, path in enumerate(unit_files(base, tmp_path / "cals", 1, 2, seed=2)["SN-0000"]):
         assert run("store", "add", path, "--store", store, "--time", f"2026-{1 + 4 * month:02d}-01").exit_code == 0
-    names = block_parameters(simucal.load(older).acc)  # the names the store records (M_xy, b_x)
-    name = next(n for n in names if n not in block_parameters(simucal.load(base).acc))
+    names = {r["name"]: r["unit"] for r in parameter_rows(simucal.load(older)) if r["sensor"] == "acc"}
+    name = next(n for n in names if n not in {r["name"] for r in parameter_rows(simucal.load(base))
+                                              if r["sensor"] == "acc"})  # M_xy: the exact method's is lower triangular
     spec = tmp_path / "spec.json"
     spec.write_text(json.dumps({"format": "simucal.limits/1", "limits": {f"acc.{name}": {
-        "max": 1.0, "unit": names[name][2]}}}))
+        "max": 1.0, "unit": names[name]}}}))
     with pytest.raises(SimucalError, match=f"limits.acc.{name}: unit SN-0000's trend \\(its calibrations by exact"):
         simucal.Store(store).history("SN-0000", spec=spec)

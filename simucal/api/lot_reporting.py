@@ -11,13 +11,14 @@ z = (x - median) / sqrt(tau^2 + std^2); a unit is flagged where any of its K par
 the threshold at which a unit of a normal lot would be flagged with chance OUTLIER_P (`threshold`:
 simulated lots with this lot's units, stds and spreads; a median and MAD of few units scatter, so the
 threshold rises as the lot shrinks; benchmarks/bench_lot.py measures the rate and the power).
-Spec limits (limits.json, `read_limits`: by those names or the method's own, acc.b_x), each block's model
-test, and the drift between two calibrations of one `unit_serial` by one method and model (in the method's
-own parameters; later minus earlier in file-name order, its std from both covariances: d^T (C_1 + C_2)^-1 d is
-chi^2 on the parameters' count where nothing drifted). Units are grouped by method, model (with its effects),
-thermal or not, and units of the data: each group's distribution is its own (a lot of mixed files is grouped,
-never refused); a unit calibrated more than once enters it with its last calibration. An entry whose std the
-file does not give (the linear method's gyro M, through a C_b^d without a std) is not judged.
+Spec limits (limits.json, `read_limits`: by those names or the method's own, acc.b_x), each block's model test,
+and the drift between two calibrations of one `unit_serial` by one method and model (entry by entry of the one
+vocabulary, each file's covariance of them through M(p); later minus earlier in file-name order, its std from both
+covariances: d^T (C_1 + C_2)^+ d is chi^2 on the rank of C_1 + C_2 where nothing drifted). Units are grouped by
+method, model (with its effects), thermal or not, and units of the data: each group's distribution is its own (a
+lot of mixed files is grouped, never refused); a unit calibrated more than once enters it with its last
+calibration. An entry whose std the file does not give (the linear method's gyro M, through a C_b^d without a std)
+is not judged.
 """
 from __future__ import annotations
 
@@ -29,14 +30,13 @@ import numpy as np
 from numpy.typing import NDArray
 
 from simucal.arguments import checked
-from simucal.report.vocabulary import entries
 from simucal.errors import CalibrationError, InputError, StoreError
 from simucal.io.calibration import Calibration, load
 from simucal.io.calibration_checks import SERIAL, CalibrationFileError
 from simucal.report.console import n_units
-from simucal.report.lot_figures import (DRIFT_P, Drift, Limit, LotGroup, LotParameter, LotReport, LotUnit,
-                                        NamedOutlier, NotCalibration, UnitTest, block_parameters, drift, model_name,
-                                        outside, read_limits)
+from simucal.report.lot_figures import (DRIFT_P, Determined, Drift, Limit, LotGroup, LotParameter, LotReport,
+                                        LotUnit, NamedOutlier, NotCalibration, UnitTest, block_parameters, determined,
+                                        drift, model_name, outside, read_limits)
 
 FORMAT = "simucal.lot/1"
 OUTLIER_P = 1e-3   # the chance that a unit of a normal lot is flagged at all (over its K parameters)
@@ -69,19 +69,18 @@ def _group_key(cal: Calibration) -> str:
     return f"{cal.method}: {model_name(cal)}; " + ", ".join(units)
 
 
-def _parameters(cal: Calibration) -> dict[str, tuple[float, float, str, str | None]]:
+def _parameters(d: Determined) -> dict[str, tuple[float, float, str, str | None]]:
     """{sensor.name: (value, std, unit, the method's own name)} of every block in the one vocabulary
-    (api/vocabulary.py: M_xx .. M_zz, bias_x .. bias_z, the effects by id) that the file determines (a std above
-    0: an entry the model fixes is no unit's)."""
-    return {f"{s}.{e.name}": (e.value, e.std, e.unit, e.own_name) for s, b in cal.blocks()
-            for e in entries(s, b, terms=False) if np.isfinite(e.std) and e.std > 0}
+    (report/vocabulary.py: M_xx .. M_zz, bias_x .. bias_z, the effects by id) that the file determines (d: its
+    lot_figures.determined; a std above 0: an entry the model fixes is no unit's)."""
+    return {f"{s}.{e.name}": (e.value, e.std, e.unit, e.own_name) for s, (es, _) in d.items() for e in es}
 
 
-def _limited(cal: Calibration) -> dict[str, tuple[float, float, str]]:
+def _limited(cal: Calibration, d: Determined) -> dict[str, tuple[float, float, str]]:
     """What a limits file may name: the entries of the one vocabulary, and each method's own parameters
     (report/lot_figures.block_parameters: acc.b_x, acc.dK_x), as the limits files written before it name them."""
     own = {f"{s}.{n}": v for s, b in cal.blocks() for n, v in block_parameters(b).items()}
-    return {**own, **{n: (v, s, u) for n, (v, s, u, _) in _parameters(cal).items()}}
+    return {**own, **{n: (v, s, u) for n, (v, s, u, _) in _parameters(d).items()}}
 
 
 def _z(x: NDArray[np.float64], s: NDArray[np.float64],
@@ -117,35 +116,36 @@ def threshold(tau: NDArray[np.float64], s: NDArray[np.float64], p: float = OUTLI
     return float(np.quantile(np.abs(z).max(axis=-1), 1.0 - p))
 
 
-def _group(key: str, names: Sequence[str], cals: Sequence[Calibration]) -> LotGroup:
-    """One group's (key: its method and model) parameters (those every unit's file gives with a std): each one's
-    distribution over the units and its outliers, by the rule of the module doc."""
-    per_unit = [_parameters(c) for c in cals]
+def _group(key: str, names: Sequence[str], dets: Mapping[str, Determined]) -> LotGroup:
+    """One group's (key: its method and model; names: its units' files, dets their lot_figures.determined)
+    parameters (those every unit's file gives with a std): each one's distribution over the units and its
+    outliers, by the rule of the module doc."""
+    per_unit = [_parameters(dets[n]) for n in names]
     params = sorted(set.intersection(*(set(d) for d in per_unit)))
-    x = np.array([[d[p][0] for p in params] for d in per_unit]).reshape(len(cals), len(params))
+    x = np.array([[d[p][0] for p in params] for d in per_unit]).reshape(len(names), len(params))
     s = np.array([[d[p][1] for p in params] for d in per_unit]).reshape(x.shape)
     z, centre, spread, tau = _z(x, s)
-    tested = len(cals) >= MIN_UNITS and params
+    tested = len(names) >= MIN_UNITS and params
     z_max = threshold(tau[0], s) if tested else None
     rows: list[LotParameter] = [{"name": p, "unit": per_unit[0][p][2], "own_name": per_unit[0][p][3],
              "centre": float(centre[0, j]), "spread": float(spread[0, j]),
              "spread_of_units": float(tau[0, j]), "median_std": float(np.median(s[:, j])),
              "values": x[:, j].tolist(), "stds": s[:, j].tolist(), "z": z[:, j].tolist(),
              "outliers": [{"unit": names[i], "value": float(x[i, j]), "std": float(s[i, j]), "z": float(z[i, j])}
-                          for i in range(len(cals)) if tested and abs(z[i, j]) > z_max]}
+                          for i in range(len(names)) if tested and abs(z[i, j]) > z_max]}
             for j, p in enumerate(params)]
     rule = (f"|z| > {z_max:.3g} in any of {len(params)} parameters, z = (x - median) / sqrt(tau^2 + std^2): a unit "
             f"of a normal lot is flagged with a chance of {OUTLIER_P:g}" if tested else
-            f"not tested: {n_units(len(cals))}, fewer than {MIN_UNITS}")
+            f"not tested: {n_units(len(names))}, fewer than {MIN_UNITS}")
     left = sorted(set().union(*per_unit) - set(params))
     return {"key": key, "units": list(names), "parameters": rows, "outlier_rule": rule, "z_threshold": z_max,
             **({"not_compared": left} if left else {})}
 
 
-def _by_serial(cals: Sequence[tuple[str, Calibration]]) -> tuple[list[tuple[str, Calibration]], list[str],
-                                                                 list[Drift]]:
+def _by_serial(cals: Sequence[tuple[str, Calibration]], dets: Mapping[str, Determined]
+               ) -> tuple[list[tuple[str, Calibration]], list[str], list[Drift]]:
     """The calibration each unit enters the lot with (its last by file name), the earlier ones, and the
-    drift between each unit's consecutive calibrations."""
+    drift between each unit's consecutive calibrations (dets: each file's lot_figures.determined)."""
     last: dict[tuple[str, object], tuple[str, Calibration]] = {}
     earlier: list[str] = []
     drifts: list[Drift] = []
@@ -153,7 +153,7 @@ def _by_serial(cals: Sequence[tuple[str, Calibration]]) -> tuple[list[tuple[str,
         serial = cal.layout.get(SERIAL)  # one unit in one group: another method's calibration is no drift
         key = (_group_key(cal), serial) if serial is not None else ("file", i)
         if key in last:
-            drifts.append(drift(*last[key], name, cal))
+            drifts.append(drift(last[key][0], dets[last[key][0]], name, dets[name], serial))
             earlier.append(last[key][0])
         last[key] = (name, cal)
     return sorted(last.values(), key=lambda nc: nc[0]), earlier, drifts
@@ -163,14 +163,14 @@ def _drifted(d: Drift) -> list[str]:
     return [s for s, v in d["sensors"].items() if v["verdict"] == "drifted"]
 
 
-def _unit(name: str, cal: Calibration, group: str, limits: Mapping[str, Limit], outliers: list[NamedOutlier],
-          drifted: list[Drift]) -> LotUnit:
+def _unit(name: str, cal: Calibration, d: Determined, group: str, limits: Mapping[str, Limit],
+          outliers: list[NamedOutlier], drifted: list[Drift]) -> LotUnit:
     """One unit: its model tests, limits broken, outliers, and its status with the reasons."""
     tests: dict[str, UnitTest] = {s: {"verdict": b.verdict, "p_value": b.p_value} for s, b in cal.blocks()}
     fails = [f"{s} model test fails (p = {t['p_value']:.2g})" for s, t in tests.items() if t["verdict"] == "fails"]
     fails += [f"{s} not calibrated ({why})" for s, why in cal.not_calibrated.items()]
     fails += [f"{s} left at nominal" for s, t in tests.items() if t["verdict"] == "nominal"]
-    params = _limited(cal)
+    params = _limited(cal, d)
     broken = {n: outside(params[n][0], params[n][1], lim) for n, lim in limits.items() if n in params}
     fails += [f"{n} {why}" for n, why in broken.items() if why]
     flags = [f"outlier: {o['name']} z = {o['z']:.3g}" for o in outliers]
@@ -268,18 +268,18 @@ def lot_report(folder: str | os.PathLike[str], limits: str | os.PathLike[str] | 
                cals: Sequence[tuple[str, Calibration]], others: list[NotCalibration]) -> LotReport:
     """The lot report (module doc) of cals, (name, Calibration) each, read from `folder` (or what names them: a
     store), beside `others`, the folder's files that are not calibrations."""
-    latest, earlier, drifts = _by_serial(cals)
+    dets = {n: determined(c) for n, c in cals}
+    latest, earlier, drifts = _by_serial(cals, dets)
     keys = [_group_key(c) for _, c in latest]
-    groups = [_group(k, [n for (n, _), kk in zip(latest, keys) if kk == k],
-                     [c for (_, c), kk in zip(latest, keys) if kk == k]) for k in dict.fromkeys(keys)]
-    known = {n: v[2] for _, c in latest for n, v in _limited(c).items()}
+    groups = [_group(k, [n for (n, _), kk in zip(latest, keys) if kk == k], dets) for k in dict.fromkeys(keys)]
+    known = {u: v[2] for n, c in latest for u, v in _limited(c, dets[n]).items()}
     limits_of = read_limits(limits, known) if limits else {}
     outliers: dict[str, list[NamedOutlier]] = {}  # per unit: its outlying parameters
     for g in groups:
         for p in g["parameters"]:
             for o in p["outliers"]:
                 outliers.setdefault(o["unit"], []).append({"name": p["name"], "z": o["z"]})
-    units = [_unit(n, c, k, limits_of, outliers.get(n, []),
+    units = [_unit(n, c, dets[n], k, limits_of, outliers.get(n, []),
                    [d for d in drifts if d["later"] == n and _drifted(d)])
              for (n, c), k in zip(latest, keys)]
     report: LotReport = {"format": FORMAT, "folder": str(folder), "units": units, "groups": groups,

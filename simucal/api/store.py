@@ -81,8 +81,9 @@ class Store:
     @checked
     def parameters(self, serial: str | None = None, method: str | None = None, model: str | None = None,
                    station: str | None = None, since: str | None = None, until: str | None = None) -> Any:
-        """Every parameter of the matching records with its std: a DataFrame (calibration_id, serial,
-        calibrated_utc, sensor, name, value, std, unit)."""
+        """Every entry of the one vocabulary of the matching records with its std: a DataFrame (calibration_id,
+        serial, calibrated_utc, sensor, name (M_xx, bias_x, an effect's id), value, std, unit, own_name (the
+        method's own parameter of it: dK_x, b_x))."""
         return _table(self._store.parameters(serial=serial, method=method, model=model, station=station, since=since,
                                              until=until), PARAMETER_COLUMNS)
 

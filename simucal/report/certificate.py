@@ -2,7 +2,8 @@
 number read from the calibration file (and its validation, where one was made), none typed by hand.
 
 It gives the unit, the calibration file's sha256 and the measurement set's, the method and each sensor's
-model with its test, each parameter with its standard uncertainty u (the file's std), its expanded
+model with its test, each entry of the one vocabulary (report/vocabulary.py: M, bias, effects, every method's, the
+method's own name beside it) with its standard uncertainty u (the file's stds through M(p)), its expanded
 uncertainty U = k u (k = 2, GUM's coverage factor for about 95 %) and its budget, the validation on
 independent data, and the version of simucal that wrote the certificate. The budget splits u^2 into the
 parts the file records, in the order the methods build the std (turntable/tilt.py, io/blocks
@@ -11,10 +12,11 @@ parts the file records, in the order the methods build the std (turntable/tilt.p
     misfit  = sqrt(u^2 - u_raw^2)                 (where the model failed its test: u = u_raw sqrt(chi2/dof))
     noise   = sqrt(u_raw^2 - table^2)             (the fit's own: the data's noise through the plan)
 where u_raw is the std before the misfit's inflation (u where the model passed). The temperatures the data
-spanned are stated (the calibration holds there). A thermal model's parameters are given at T_ref, its
-temperature coefficients in a table of their own, and beside u its temperature part, what using a parameter
+spanned are stated (the calibration holds there). A thermal model's entries are given at T_ref, their
+temperature coefficients in a table of their own, and beside u its temperature part, what using an entry
 anywhere in the calibrated range adds to u (sqrt(max_T u(T)^2 - u(T_ref)^2), u(T) from the coefficients'
-covariance); no temperature part is invented for a model without one.
+covariance); no temperature part is invented for a model without one. A model-based block's parts reach its
+entries through the Jacobian of M(p) and bias(p) (budget).
 """
 from __future__ import annotations
 
@@ -24,70 +26,77 @@ from typing import Any, Mapping, TypedDict
 
 import numpy as np
 
-from simucal.fit.thermal import std_at, terms
+from simucal.fit.augmented import AugmentedModel
 from simucal.io.calibration import Calibration, SensorBlock
-from simucal.report.lot_figures import block_parameters, model_name
+from simucal.report.lot_figures import model_name
+from simucal.report.vocabulary import TERM, entries, linearised, temperature_parts
 from simucal.report.numbers import eng_html, value_digits
 from simucal.report.page import page, table
 
 K = 2.0  # the coverage factor of the expanded uncertainty
 
 
-def _entry(stds: dict, name: str) -> float:
-    """A parameter's std in a std dict: its own key, or an affine block's entry of M (M_xy) or bias (b_x)."""
-    v = stds.get(name)
-    if isinstance(v, (int, float)):
-        return float(v)
-    M, b = np.asarray(stds.get("M", np.nan), float), np.asarray(stds.get("bias", np.nan), float)
-    if name.startswith("M_") and M.shape == (3, 3):
-        return float(M["xyz".index(name[2]), "xyz".index(name[3])])
-    if name.startswith("b_") and b.shape == (3,):
-        return float(b["xyz".index(name[2])])
-    return math.nan
-
-
-def temperature_part(block: SensorBlock, name: str) -> float | None:
-    """What using parameter `name` anywhere in the calibrated temperature range adds to its u at T_ref:
-    sqrt(max_T u(T)^2 - u(T_ref)^2), u(T) its polynomial's std (fit/thermal.std_at); 0 where the data showed
-    no temperature term of it; None without a temperature model (the value holds at the data's temperatures)."""
-    th = block.thermal
-    if not th or name not in th.get("parameters", {}) or "temperature_range_c" not in th:
-        return None
-    lo, hi = th["temperature_range_c"]
-    u_T = std_at(th, name, np.linspace(lo, hi, 201) - th["t_ref_c"])
-    return float(np.sqrt(max(float(np.max(u_T)) ** 2 - float(std_at(th, name, 0.0)) ** 2, 0.0)))
-
-
 class BudgetRow(TypedDict):
-    """One parameter's uncertainty budget (budget), in its unit."""
-    name: str
+    """One entry's uncertainty budget (budget), in its unit."""
+    name: str                         # the one vocabulary's (report/vocabulary.py): M_xx, bias_x, an effect's id
+    own_name: str | None              # the method's own parameter of it
     value: float
     unit: str
-    u: float                          # the standard uncertainty (the file's std)
+    u: float                          # the standard uncertainty (the entry's std, as the file's stds give it)
     U: float                          # the expanded one, K u
     noise: float | None               # u's parts (None: the file does not split u)
     table: float | None               # the table's stated angle errors' share (None: not in u)
     misfit: float | None
-    temperature: float | None         # beside u, not in it (temperature_part)
+    temperature: float | None         # beside u, not in it (vocabulary.temperature_parts)
 
 
-def budget(block: SensorBlock) -> list[BudgetRow]:
-    """Each parameter of the block with its value, unit, u, U = K u, u's parts (module doc) and the temperature
-    part (temperature_part: beside u, not in it)."""
+def _affine_raw(block: SensorBlock, name: str) -> float:
+    """An affine block's std of entry M_xy or bias_x before the misfit's share (std_raw's M or bias), else NaN."""
+    raw = block.details.get("std_raw") or {}
+    M, b = np.asarray(raw.get("M", np.nan), float), np.asarray(raw.get("bias", np.nan), float)
+    if name.startswith("M_") and M.shape == (3, 3):
+        return float(M["xyz".index(name[2]), "xyz".index(name[3])])
+    if name.startswith("bias_") and b.shape == (3,):
+        return float(b["xyz".index(name[5])])
+    return math.nan
+
+
+def budget(sensor: str, block: SensorBlock) -> list[BudgetRow]:
+    """Each entry the file determines (vocabulary.entries at T_ref, a finite std above 0) with its value, unit, u,
+    U = K u, u's parts (module doc) and the temperature part (beside u, not in it). A model-based block's parts go
+    from its parameters to the entries through their Jacobian J (vocabulary.linearised): the table's |J dp/dtilt|
+    times the stated tilt, u_raw = u sqrt(diag(J D C D J^T) / diag(J C J^T)), D each parameter's std before the
+    misfit's share over its std."""
+    lin = linearised(block, AugmentedModel(block.model, block.library_effects())) if block.params else None
+    rows = entries(sensor, block, terms=False, lin=lin)
+    keep = [i for i, e in enumerate(rows) if np.isfinite(e.std) and e.std > 0]
     tilt = block.details.get("table_tilt")
-    raw = block.details.get("std_raw") or block.details.get("std_noise")  # u before the misfit's share
-    rows: list[BudgetRow] = []
-    for name, (value, u, unit) in block_parameters(block).items():
-        u_raw = min(_entry(raw, name), u) if raw else u
-        table_part = abs(tilt["per_arcsec"].get(name, 0.0)) * tilt["stated_arcsec"] if tilt else None  # None: not in u
+    if lin is not None:
+        cov = np.nan_to_num(lin.cov)
+        full = np.einsum("ij,jk,ik->i", lin.J, cov, lin.J)
+        D = lin.raw[:, None] * cov * lin.raw[None, :]
+        ratio = np.sqrt(np.einsum("ij,jk,ik->i", lin.J, D, lin.J) / np.where(full > 0, full, 1.0))
+        per_arcsec = (lin.J @ np.array([tilt["per_arcsec"].get(n, 0.0) for n in lin.params]) if tilt
+                      else np.full(len(rows), np.nan))
+        warm = temperature_parts(block, lin)
+    else:
+        ratio = np.array([min(_affine_raw(block, e.name) / e.std, 1.0) if np.isfinite(_affine_raw(block, e.name))
+                          else 1.0 for e in rows])
+        per_arcsec, warm = np.full(len(rows), np.nan), None
+    out: list[BudgetRow] = []
+    for i in keep:
+        e = rows[i]
+        table_part = abs(float(per_arcsec[i])) * tilt["stated_arcsec"] if tilt else None  # None: not in u
         noise: float | None = None  # None: the file does not split u (splits)
         misfit: float | None = None
         if splits(block):
+            u_raw = e.std * float(ratio[i])
             noise = math.sqrt(max(u_raw ** 2 - (table_part or 0.0) ** 2, 0.0))
-            misfit = math.sqrt(max(u ** 2 - u_raw ** 2, 0.0))
-        rows.append({"name": name, "value": value, "unit": unit, "u": u, "U": K * u, "noise": noise,
-                     "table": table_part, "misfit": misfit, "temperature": temperature_part(block, name)})
-    return rows
+            misfit = math.sqrt(max(e.std ** 2 - u_raw ** 2, 0.0))
+        out.append({"name": e.name, "own_name": e.own_name, "value": e.value, "unit": e.unit, "u": e.std,
+                    "U": K * e.std, "noise": noise, "table": table_part, "misfit": misfit,
+                    "temperature": None if warm is None else float(warm[i])})
+    return out
 
 
 def splits(block: SensorBlock) -> bool:
@@ -96,11 +105,11 @@ def splits(block: SensorBlock) -> bool:
     return block.verdict != "fails" or bool(block.details.get("std_raw") or block.details.get("std_noise"))
 
 
-def coefficients(block: SensorBlock) -> list[list[Any]]:
-    """A thermal block's temperature coefficients: [name.Tk, value, unit/degC^k, u, U] of every term the data
-    hold (k >= 1), from the block's `thermal` polynomials."""
-    return [[term, c, unit, u, K * u] for name, (_, _, param_unit) in block_parameters(block).items()
-            for term, _, c, u, unit in terms(block.thermal, name, param_unit)]
+def coefficients(sensor: str, block: SensorBlock) -> list[list[Any]]:
+    """A thermal block's temperature coefficients in the one vocabulary (vocabulary.thermal_entries: name.Tk,
+    of (T - T_ref)^k, k >= 1): [name.Tk, the method's own, value, unit/degC^k, u, U]."""
+    return [[e.name, e.own_name, e.value, e.unit, e.std, K * e.std] for e in entries(sensor, block)
+            if TERM.search(e.name)]
 
 
 # each verdict of a block (io/calibration.SensorBlock.verdict) as the certificate states it, and its colour:
@@ -161,18 +170,21 @@ def certificate_page(cal: Calibration, file_name: str, file_sha256: str, validat
                     + (f"; {html.escape(b.details['std_note'])}" if b.details.get("std_note") else "")
                     + ("" if splits(b) else "; u includes the model's misfit, which the file does not split from the "
                        "noise") + ".</p>")
-        rows = budget(b)
+        rows = budget(s, b)
         thermal = any(r["temperature"] is not None for r in rows)
-        body.append(table(["parameter", "value", "unit", "u (std)", f"U (k = {K:g})", "u: noise", "u: table",
-                           "u: model misfit"] + (["temperature: over the range, beside u"] if thermal else []),
-                          [[r["name"], eng_html(r["value"], value_digits(r["value"], r["u"])), r["unit"], r["u"],
-                            r["U"], r["noise"], r["table"], r["misfit"]] + ([r["temperature"]] if thermal else [])
-                           for r in rows]))
-        if b.thermal and coefficients(b):
+        body.append(table(["entry", "method's name", "value", "unit", "u (std)", f"U (k = {K:g})", "u: noise",
+                           "u: table", "u: model misfit"] + (["temperature: over the range, beside u"] if thermal
+                                                              else []),
+                          [[r["name"], r["own_name"] or "", eng_html(r["value"], value_digits(r["value"], r["u"])),
+                            r["unit"], r["u"], r["U"], r["noise"], r["table"], r["misfit"]]
+                           + ([r["temperature"]] if thermal else []) for r in rows]))
+        terms = coefficients(s, b) if b.thermal else []
+        if b.thermal and terms:
             body.append(f"<p>{s}'s temperature coefficients, of (T - T_ref), T_ref = {b.thermal['t_ref_c']:g} degC "
                         "(the value at T is the polynomial's: simucal apply evaluates it at each row's "
                         "temperature):</p>")
-            body.append(table(["coefficient", "value", "unit", "u (std)", f"U (k = {K:g})"], coefficients(b)))
+            body.append(table(["coefficient", "method's name", "value", "unit", "u (std)", f"U (k = {K:g})"],
+                              [[n, own or "", *rest] for n, own, *rest in terms]))
     if validation:
         body.append("<h2>Validation on independent data</h2>")
         body.append(table(["sensor", "check", "n", "unit", "at nominal (rms)", "calibrated (rms)", "floor (rms)",

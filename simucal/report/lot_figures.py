@@ -1,7 +1,7 @@
 """A lot's figures per calibration, shared by the lot report (api/lot_reporting.py) and a lab's store
-(store/): each block's parameters with their stds, the drift between two calibrations of one unit (each
-parameter's change in the std of both, and per sensor the joint chi^2 of no drift), a limits file and a value
-outside its limits, and a calibration's model in words."""
+(store/): each block's own parameters with their stds (what limits files written before the one vocabulary
+name), the drift between two calibrations of one unit (each entry's change in the std of both, and per sensor the
+joint chi^2 of no drift), a limits file and a value outside its limits, and a calibration's model in words."""
 from __future__ import annotations
 
 import json
@@ -9,13 +9,14 @@ from pathlib import Path
 from typing import Mapping, TypedDict
 
 import numpy as np
+from numpy.typing import NDArray
 
 from simucal.errors import CalibrationError
 from simucal.fit.distributions import chi2_sf
 from simucal.fit.results import ALPHA
 from simucal.io.calibration import Calibration
-from simucal.io.calibration_checks import SERIAL
 from simucal.io.text_files import unique_keys
+from simucal.report.vocabulary import Entry, covariance, entries
 
 LIMITS_FORMAT = "simucal.limits/1"
 DRIFT_P = ALPHA    # a drift whose joint chi^2 has a smaller p is reported as drifted (the model test's level)
@@ -30,8 +31,9 @@ class Limit(TypedDict, total=False):
 
 
 class DriftRow(TypedDict):
-    """One parameter's change between two calibrations of a unit (drift), in its unit."""
-    name: str          # sensor.parameter
+    """One entry's change between two calibrations of a unit (drift), in its unit."""
+    name: str          # sensor.entry, the one vocabulary
+    own_name: str | None  # the method's own parameter of it
     unit: str
     drift: float       # later minus earlier
     std: float         # of the change, from both calibrations
@@ -168,6 +170,22 @@ def block_parameters(b) -> Parameters:
     return out
 
 
+def own_aliases(cal: Calibration) -> dict[str, str]:
+    """{sensor.own: sensor.entry} of each own parameter (block_parameters) that is itself an entry of the one
+    vocabulary (the same value in the same unit: the exact method's b_x is bias_x), by which a limits file written
+    before the one vocabulary still names it; an own parameter that is not an entry (dK_x: M_xx is 1 + dK_x) has
+    none."""
+    out = {}
+    for s, b in cal.blocks():
+        by_own = {e.own_name: e for e in entries(s, b, terms=False) if e.own_name}
+        by_own.update({f"b_{e.name[-1]}": e for e in by_own.values() if e.name.startswith("bias_")})
+        for n, (v, _, u) in block_parameters(b).items():
+            e = by_own.get(n)
+            if e is not None and e.name != n and e.unit == u and np.isclose(e.value, v, rtol=1e-12, atol=0.0):
+                out[f"{s}.{n}"] = f"{s}.{e.name}"
+    return out
+
+
 def read_limits(path, known: Mapping[str, str], whose: str = "no calibration of the lot") -> dict[str, Limit]:
     """limits.json: {"format": "simucal.limits/1", "limits": {"acc.b_x": {"min": -0.005, "max": 0.005,
     "unit": "g"}, ...}}, min or max or both, in the unit the calibrations give that parameter (known:
@@ -215,33 +233,39 @@ def outside(value, std, lim) -> str | None:
     return None
 
 
-def covariance_of(block, params, names):
-    """The covariance of the named parameters: the file's (unscaled by a misfit), else their stds squared."""
-    cov = block.details.get("covariance")
-    if cov and all(n in cov["names"] for n in names):
-        i = [cov["names"].index(n) for n in names]
-        return np.asarray(cov["matrix"], float)[np.ix_(i, i)]
-    return np.diag([params[n][1] ** 2 for n in names])
+Determined = dict[str, tuple[list[Entry], NDArray[np.float64]]]  # {sensor: (entries a file determines, covariance)}
 
 
-def drift(name1: str | int, cal1: Calibration, name2: str | int, cal2: Calibration) -> Drift:
-    """cal2 - cal1 per parameter with its std from both, and per sensor the joint chi^2 of no drift."""
+def determined(cal: Calibration) -> Determined:
+    """Each block's entries of the one vocabulary that the file determines, and their covariance
+    (report/vocabulary.covariance): what drift compares, worked out once per calibration."""
+    return {s: covariance(s, b) for s, b in cal.blocks()}
+
+
+def drift(name1: str | int, d1: Determined, name2: str | int, d2: Determined, serial: str | None) -> Drift:
+    """The later calibration (d2: its determined) minus the earlier (d1) per entry of the one vocabulary
+    (report/vocabulary.py: M, bias and effects) with its std from both, and per sensor the joint chi^2 of no
+    drift on the rank of C_1 + C_2 (the entries a model ties together count once); serial: the unit's."""
     sensors: dict[str, SensorDrift] = {}
     rows: list[DriftRow] = []
-    for s, b2 in cal2.blocks():
-        b1 = getattr(cal1, s)
-        p1, p2 = (block_parameters(b1) if b1 is not None else {}), block_parameters(b2)
-        names = [n for n in p2 if n in p1]
-        if not names:
+    for s, (e2, C2) in d2.items():
+        if s not in d1:
             continue
-        d = np.array([p2[n][0] - p1[n][0] for n in names])
-        C = covariance_of(b1, p1, names) + covariance_of(b2, p2, names)
+        e1, C1 = d1[s]
+        at1 = {e.name: i for i, e in enumerate(e1)}
+        both = [(at1[e.name], j) for j, e in enumerate(e2) if e.name in at1 and e.unit == e1[at1[e.name]].unit]
+        if not both:
+            continue
+        i1, i2 = [i for i, _ in both], [j for _, j in both]
+        d = np.array([e2[j].value - e1[i].value for i, j in both])
+        C = C1[np.ix_(i1, i1)] + C2[np.ix_(i2, i2)]
         std = np.sqrt(np.diag(C))
-        rows += [{"name": f"{s}.{n}", "unit": p2[n][2], "drift": float(d[j]), "std": float(std[j]),
-                  "z": float(d[j] / std[j])} for j, n in enumerate(names)]
-        chi2 = float(d @ np.linalg.lstsq(C, d, rcond=None)[0])
-        p = chi2_sf(chi2, len(names))
-        sensors[s] = {"chi2": chi2, "dof": len(names), "p_value": p,
+        rows += [{"name": f"{s}.{e2[j].name}", "own_name": e2[j].own_name, "unit": e2[j].unit, "drift": float(d[k]),
+                  "std": float(std[k]), "z": float(d[k] / std[k])} for k, j in enumerate(i2)]
+        R = C / np.outer(std, std)  # the correlations: their rank and inverse free of the entries' scales
+        dof = int(np.linalg.matrix_rank(R, tol=1e-9, hermitian=True))
+        chi2 = float(d / std @ np.linalg.pinv(R, rcond=1e-9, hermitian=True) @ (d / std))
+        p = chi2_sf(chi2, dof)
+        sensors[s] = {"chi2": chi2, "dof": dof, "p_value": p,
                       "verdict": "drifted" if p < DRIFT_P else "no drift seen"}
-    serial = cal2.layout.get(SERIAL)
     return {"serial": serial, "earlier": name1, "later": name2, "sensors": sensors, "parameters": rows}

@@ -9,7 +9,8 @@ from simucal.report.lot_figures import DriftTest, Limit
 
 class ParameterTrend(TypedDict, total=False):
     """One parameter's trend (module doc), in its unit; times in years since the line's first calibration."""
-    name: str                  # sensor.parameter
+    name: str                  # sensor.entry, the one vocabulary
+    own_name: str | None       # the method's own parameter of it
     unit: str
     t_years: list[float]
     values: list[float]
@@ -47,8 +48,9 @@ class Trend(TypedDict):
 
 
 class ParameterChange(TypedDict):
-    """One parameter's change between two records, in its unit."""
-    name: str          # sensor.parameter
+    """One entry's change between two records, in its unit."""
+    name: str          # sensor.entry, the one vocabulary
+    own_name: str | None  # the method's own parameter of it
     unit: str
     change: float      # later minus earlier
     std: float         # of the change, from both records

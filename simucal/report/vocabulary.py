@@ -30,6 +30,7 @@ from simucal.fit.augmented import AugmentedModel
 from simucal.fit.thermal import terms as thermal_terms
 from simucal.generated.effects import EFFECTS
 from simucal.io.calibration import SensorBlock
+from simucal.io.records import Thermal
 
 AXES = "xyz"
 TERM = re.compile(r"\.T(\d+)$")  # a temperature term's name: its entry's, then .Tk (k >= 1; thermal_entries)
@@ -47,12 +48,13 @@ class Entry(NamedTuple):
 
 
 def entries(sensor: str, block: SensorBlock, temperature_range_c: Sequence[float] | None = None,
-            terms: bool = True) -> list[Entry]:
+            terms: bool = True, lin: Linearised | None = None) -> list[Entry]:
     """The sensor's M, bias and effects in the one vocabulary (module doc); a thermal block's also their
     temperature terms (thermal_entries; terms=False: at T_ref alone), over its calibrated range (the file's
-    temperature_range_c where the block does not hold its own)."""
+    temperature_range_c where the block does not hold its own); lin: the block's linearised, where the caller
+    has it."""
     model = AugmentedModel(block.model, block.library_effects()) if block.params else None
-    M_std, b_std, own = _model_stds(block, model) if model else _affine_stds(block)
+    M_std, b_std, own = _model_stds(lin or linearised(block, model), model) if model else _affine_stds(block)
     if block.details.get("std_M") is not None:  # the gyro in b: C_b^d's uncertainty included
         M_std = np.asarray(block.details["std_M"], float)
     elif block.C_b_model is not None and block.params:  # tied to b by a C_b^d without a std (dong2018 eq. 25-27)
@@ -84,10 +86,19 @@ def _matrix_and_bias(model: AugmentedModel, block: SensorBlock) -> Callable[[NDA
     return mb
 
 
-def _model_stds(block: SensorBlock, model: AugmentedModel) -> Stds:
-    """(std of M (3, 3), of bias (3,), {entry: the parameter that moves it most}) of a model-based block: its
-    parameters' covariance through M(p) and bias(p), scaled to the file's stds; where the file holds no covariance
-    (a warm-up's, each axis alone), the file's stds taken independent."""
+class Linearised(NamedTuple):
+    """A model-based block's entries (M C's 9, bias's 3, then its effects, in block.effects' order) as a linear
+    function of its own parameters at their values: entries(p + dp) = entries(p) + J dp."""
+    params: list[str]          # the model's parameters, J's columns
+    J: NDArray[np.float64]     # (12 + effects, parameters)
+    cov: NDArray[np.float64]   # the parameters' covariance, scaled to the file's stds (inflated where the model fails)
+    raw: NDArray[np.float64]   # each parameter's std before the misfit's inflation over its std (<= 1; 1: none)
+
+
+def linearised(block: SensorBlock, model: AugmentedModel) -> Linearised:
+    """The block's Linearised: J a central difference of the model's M(p) C and bias(p) (identity rows for the
+    effects); the covariance the file's, scaled to its stds, where the file holds no covariance (a warm-up's, each
+    axis alone) its stds taken independent."""
     names = list(model.params)
     p = np.array([block.params[n] for n in names])
     filed = np.array([block.std.get(n, np.nan) for n in names], float)
@@ -97,22 +108,55 @@ def _model_stds(block: SensorBlock, model: AugmentedModel) -> Stds:
     if cov_block and all(n in cov_block["names"] for n in names):
         k = [cov_block["names"].index(n) for n in names]
         cov = np.asarray(cov_block["matrix"], float)[np.ix_(k, k)]
-        raw = np.sqrt(np.maximum(np.diag(cov), 0.0))
-        ratio = filed[raw > 0] / raw[raw > 0]
-        cov = cov * (float(np.nanmedian(ratio)) ** 2 if ratio.size and np.isfinite(ratio).any() else 1.0)
+        own = np.sqrt(np.maximum(np.diag(cov), 0.0))
+        ratio = filed[own > 0] / own[own > 0]
+        ratio = ratio[np.isfinite(ratio)]
+        cov = cov * (float(np.median(ratio)) ** 2 if ratio.size else 1.0)
     else:
         cov = np.diag(filed ** 2)
-        raw = np.nan_to_num(filed)
-    mb = _matrix_and_bias(model, block)
-    steps = np.maximum(raw * 1e-3, 1e-9)
-    J = np.column_stack([(mb(p + s * e) - mb(p - s * e)) / (2 * s) for s, e in zip(steps, np.eye(len(p)))])
-    std = np.sqrt(np.maximum(_propagated(J, cov), 0.0))
+        own = np.nan_to_num(filed)
+    held = filed == 0  # a parameter the file holds fixed: nothing of it in any entry
+    cov[held, :], cov[:, held] = 0.0, 0.0
+    steps = np.maximum(own * 1e-3, 1e-9)
+    M, b = model.matrix_and_bias(np.concatenate([p + np.diag(steps), p - np.diag(steps)]))  # one batch: 2n points
+    at = np.concatenate([(np.asarray(M) @ block.C).reshape(-1, 9), np.asarray(b).reshape(-1, 3)], axis=1)
+    J = ((at[:len(p)] - at[len(p):]) / (2 * steps)[:, None]).T
+    effects = np.array([[float(n == eid) for n in names] for eid in block.effects]).reshape(-1, len(names))
+    before = block.details.get("std_raw") or block.details.get("std_noise") or {}  # the stds before the misfit's
+    raw = np.array([min(v / s, 1.0) if isinstance(v := before.get(n), (int, float)) and s > 0 else 1.0
+                    for n, s in zip(names, filed)])
+    return Linearised(names, np.vstack([J, effects]), cov, raw)
+
+
+def _model_stds(lin: Linearised, model: AugmentedModel) -> Stds:
+    """(std of M (3, 3), of bias (3,), {entry: the parameter that moves it most}) of a model-based block: its
+    parameters' covariance through M(p) and bias(p) (lin: the block's linearised)."""
+    J = lin.J[:12]
+    std = np.sqrt(np.maximum(_propagated(J, lin.cov), 0.0))
     own = {}
-    for j, n in enumerate(names[:len(model.base.params)]):  # each parameter to the entry it moves most
+    for j, n in enumerate(lin.params[:len(model.base.params)]):  # each parameter to the entry it moves most
         at = int(np.argmax(np.abs(J[:, j])))
         if np.abs(J[at, j]) > 0 and LABELS[at] not in own:
             own[LABELS[at]] = n
     return std[:9].reshape(3, 3), std[9:], own
+
+
+def covariance(sensor: str, block: SensorBlock) -> tuple[list[Entry], NDArray[np.float64]]:
+    """The entries at T_ref (entries, terms=False) that the file determines (a finite std above 0), and their
+    covariance: a model-based block's linearised J C J^T (a gyro tied to b through C_b^d: std_M's entries taken
+    independent of the rest), an affine block's stds squared (taken independent, as they are given)."""
+    if not block.params:
+        rows = entries(sensor, block, terms=False)
+        keep = [i for i, e in enumerate(rows) if np.isfinite(e.std) and e.std > 0]
+        return [rows[i] for i in keep], np.diag([rows[i].std ** 2 for i in keep])
+    lin = linearised(block, AugmentedModel(block.model, block.library_effects()))
+    rows = entries(sensor, block, terms=False, lin=lin)
+    keep = [i for i, e in enumerate(rows) if np.isfinite(e.std) and e.std > 0]
+    C = lin.J @ np.nan_to_num(lin.cov) @ lin.J.T
+    if block.details.get("std_M") is not None:  # M's stds carry C_b^d's own, which J does not know
+        C[:9, :] = C[:, :9] = 0.0
+        C[range(9), range(9)] = np.asarray(block.details["std_M"], float).ravel() ** 2
+    return [rows[i] for i in keep], C[np.ix_(keep, keep)]
 
 
 def _propagated(J: NDArray[np.float64], cov: NDArray[np.float64]) -> NDArray[np.float64]:
@@ -141,19 +185,7 @@ def thermal_entries(sensor: str, block: SensorBlock, model: AugmentedModel, own:
     if degree < 1 or not span or max(span) <= min(span):
         return []
     t_ref = float(thermal["t_ref_c"])
-    labels = [(n, k) for n in names if n in fits for k in range(len(fits[n]["coefficients"]))]
-    x0 = np.array([fits[n]["coefficients"][k] for n, k in labels], float)
-    x_std = np.array([fits[n]["std"][k] for n, k in labels], float)
-    cov_block = thermal.get("covariance")
-    keys = [n if k == 0 else f"{n}.T{k}" for n, k in labels]
-    if cov_block and all(key in cov_block["names"] for key in keys):
-        at = [cov_block["names"].index(key) for key in keys]
-        cov = np.asarray(cov_block["matrix"], float)[np.ix_(at, at)]
-        raw = np.sqrt(np.maximum(np.diag(cov), 0.0))
-        scale = np.where((raw > 0) & np.isfinite(x_std), x_std / np.where(raw > 0, raw, 1.0), 1.0)
-        cov = cov * np.outer(scale, scale)  # to the file's stds (inflated by the misfit where the model fails)
-    else:
-        cov = np.diag(x_std ** 2)
+    labels, x0, x_std, cov = _coefficients(thermal, names)
     lo, hi = min(span) - t_ref, max(span) - t_ref
     nodes = 0.5 * (lo + hi) + 0.5 * (hi - lo) * np.cos(np.pi * (np.arange(2 * degree + 3) + 0.5) / (2 * degree + 3))
     V = np.vander(nodes, degree + 1, increasing=True)[:, 1:]
@@ -184,6 +216,48 @@ def thermal_entries(sensor: str, block: SensorBlock, model: AugmentedModel, own:
         rows += [Entry(sensor, term, c, e, unit, term, f"{v.meaning}: coefficient of (T - T_ref)^{k}")
                  for term, k, c, e, unit in thermal_terms(thermal, eid, v.unit)]
     return rows
+
+
+def _coefficients(thermal: Thermal, names: Sequence[str]) -> tuple[list[tuple[str, int]], NDArray[np.float64],
+                                                                     NDArray[np.float64], NDArray[np.float64]]:
+    """The polynomials of the parameters `names` that have one: their (name, k) labels, coefficients, stds and
+    covariance (the block's where it holds it, scaled to the file's stds, inflated by the misfit where the model
+    fails; else the stds taken independent)."""
+    fits = thermal.get("parameters", {})
+    labels = [(n, k) for n in names if n in fits for k in range(len(fits[n]["coefficients"]))]
+    x0 = np.array([fits[n]["coefficients"][k] for n, k in labels], float)
+    x_std = np.array([fits[n]["std"][k] for n, k in labels], float)
+    cov_block = thermal.get("covariance")
+    keys = [n if k == 0 else f"{n}.T{k}" for n, k in labels]
+    if cov_block and all(key in cov_block["names"] for key in keys):
+        at = [cov_block["names"].index(key) for key in keys]
+        cov = np.asarray(cov_block["matrix"], float)[np.ix_(at, at)]
+        raw = np.sqrt(np.maximum(np.diag(cov), 0.0))
+        scale = np.where((raw > 0) & np.isfinite(x_std), x_std / np.where(raw > 0, raw, 1.0), 1.0)
+        cov = cov * np.outer(scale, scale)
+    else:
+        cov = np.diag(x_std ** 2)
+    return labels, x0, x_std, cov
+
+
+def temperature_parts(block: SensorBlock, lin: Linearised) -> NDArray[np.float64] | None:
+    """What using each entry (lin.J's rows) anywhere in the calibrated temperature range adds to its u at T_ref:
+    sqrt(max_T u(T)^2 - u(T_ref)^2), u(T)^2 = diag(J S(T) C S(T)^T J^T), S(T) the polynomials' (T - T_ref)^k and
+    C their coefficients' covariance (_coefficients); J at T_ref. None without a temperature model (the values hold
+    at the data's temperatures)."""
+    th = block.thermal
+    if not th or "temperature_range_c" not in th:
+        return None
+    labels, _, _, cov = _coefficients(th, lin.params)
+    lo, hi = th["temperature_range_c"]
+    var = []
+    for dT in np.linspace(lo, hi, 101) - th["t_ref_c"]:
+        S = np.array([[float(m == n) * dT ** k for m, k in labels] for n in lin.params]).reshape(len(lin.params), -1)
+        JS = lin.J @ S
+        var.append(np.einsum("ij,jk,ik->i", JS, np.nan_to_num(cov), JS))
+    S0 = np.array([[float(m == n and k == 0) for m, k in labels] for n in lin.params]).reshape(len(lin.params), -1)
+    at_ref = np.einsum("ij,jk,ik->i", lin.J @ S0, np.nan_to_num(cov), lin.J @ S0)
+    return cast("NDArray[np.float64]", np.sqrt(np.maximum(np.max(var, axis=0) - at_ref, 0.0)))
 
 
 def _affine_stds(block: SensorBlock) -> Stds:

@@ -5,9 +5,9 @@
     .calibrations(...) -> (name, Calibration) for `simucal lot`;  .history(serial) -> the unit's history and trend
 
 url: a SQLite file (a plain path or sqlite:///path; the standard library's driver) or any SQL server
-SQLAlchemy reaches (postgresql://user@host/db through psycopg). schema.py holds the tables and their
-migrations, records.py a record and its insertion, queries.py the reads, history.py a unit's changes, trend.py
-its drift and due date.
+SQLAlchemy reaches (postgresql://user@host/db through psycopg). schema.py holds the tables, opening.py how a
+store is opened (its schema checked and migrated), records.py a record and its insertion, queries.py the reads,
+history.py a unit's changes, trend.py its drift and due date.
 The engine is opened (and the schema checked, migrated or created) on first use, once per object.
 """
 from __future__ import annotations
@@ -19,7 +19,8 @@ from simucal.io.calibration import Calibration, loads
 from simucal.report.unit_history import History
 from simucal.store import history as _history
 from simucal.store import queries, records
-from simucal.store.schema import ParameterRow, RecordRow, open_engine, shown
+from simucal.store.opening import open_engine
+from simucal.store.schema import ParameterRow, RecordRow, shown
 
 
 class CalibrationStore:

@@ -9,7 +9,7 @@ from simucal.store.schema import CALIBRATIONS, PARAMETERS, ParameterRow, RecordR
 # a record's columns as a query gives them (the file itself only from files())
 RECORD_COLUMNS = ("id", "serial", "calibrated_utc", "recorded_utc", "station", "method", "model", "tool_version",
                   "input_sha256", "file_sha256")
-PARAMETER_COLUMNS = ("calibration_id", "serial", "calibrated_utc", "sensor", "name", "value", "std", "unit")
+PARAMETER_COLUMNS = ("calibration_id", "serial", "calibrated_utc", "sensor", "name", "value", "std", "unit", "own_name")
 
 
 def _where(serial=None, method=None, model=None, station=None, since=None, until=None, record_id=None) -> list:
@@ -43,7 +43,8 @@ def parameters(engine, url, **where) -> list[ParameterRow]:
     """The parameters' rows of the records that match `where` (as records), each with its record's serial and time."""
     from sqlalchemy import select
     c, p = CALIBRATIONS.c, PARAMETERS.c
-    query = select(p.calibration_id, c.serial, c.calibrated_utc, p.sensor, p.name, p.value, p.std, p.unit).join(
+    query = select(p.calibration_id, c.serial, c.calibrated_utc, p.sensor, p.name, p.value, p.std, p.unit,
+                   p.own_name).join(
         CALIBRATIONS, c.id == p.calibration_id).where(*_where(**where))
     return cast(list[ParameterRow], _rows(engine, url, query.order_by(c.calibrated_utc, c.id, p.sensor, p.name)))
 

@@ -2,9 +2,9 @@
 
 The record holds the file byte for byte (its sha256 unique: a file is recorded once), the unit's serial
 (the file's unit_serial from meta.json, or given), its method and model, the tool's version, the sha256 of
-the measurement set's files, the station and the times (recorded, and of the calibration), and each
-parameter with its std as a row of `parameters`. Nothing updates or deletes a record: a recalibration is a
-new one.
+the measurement set's files, the station and the times (recorded, and of the calibration), and each entry
+of the one vocabulary with its std and the method's own name as a row of `parameters` (parameter_rows).
+Nothing updates or deletes a record: a recalibration is a new one.
 """
 from __future__ import annotations
 
@@ -14,10 +14,13 @@ import re
 import socket
 from datetime import datetime
 
+import numpy as np
+
 from simucal.errors import StoreError
 from simucal.io.calibration import Calibration, loads
 from simucal.io.calibration_checks import SERIAL
-from simucal.report.lot_figures import block_parameters, model_name
+from simucal.report.lot_figures import model_name
+from simucal.report.vocabulary import entries
 from simucal.store.schema import (CALIBRATIONS, PARAMETERS, TIME_FORMAT, NewParameter, NewRecord, failure,
                                   utc_now)
 from simucal.version import __version__
@@ -26,9 +29,12 @@ _TIME = re.compile(r"^\d{4}-\d{2}-\d{2}(T\d{2}:\d{2}(:\d{2}(\.\d{1,6})?)?Z?)?$")
 
 
 def parameter_rows(cal: Calibration) -> list[NewParameter]:
-    """Every parameter that carries a std (report/lot_figures.block_parameters), as the rows of `parameters`."""
-    return [{"sensor": s, "name": n, "value": v, "std": std, "unit": u}
-            for s, b in cal.blocks() for n, (v, std, u) in block_parameters(b).items()]
+    """Every entry of the one vocabulary at T_ref (report/vocabulary.entries: M_xx .. bias_z, effects by id) that
+    the file determines (a finite std above 0) or that a parameter the file holds fixed is (std 0: the trend says
+    so), with the method's own name, as the rows of `parameters`."""
+    return [{"sensor": s, "name": e.name, "value": e.value, "std": e.std, "unit": e.unit, "own_name": e.own_name}
+            for s, b in cal.blocks() for e in entries(s, b, terms=False)
+            if np.isfinite(e.std) and (e.std > 0 or e.own_name is not None)]
 
 
 def _time(value: str | None, what: str) -> str | None:

@@ -99,8 +99,9 @@ def _parameter(rows: list[ParameterRow], t0: datetime, spec: dict[str, Limit]) -
     v = np.array([r["value"] for r in rows], float)
     s = np.array([np.nan if r["std"] is None else r["std"] for r in rows], float)  # none recorded: no weight
     name, unit = f"{rows[0]['sensor']}.{rows[0]['name']}", rows[0]["unit"]
-    out: ParameterTrend = {"name": name, "unit": unit, "t_years": t.tolist(), "values": v.tolist(), "stds": s.tolist(),
-                           "records": [r["calibration_id"] for r in rows], "spec": spec.get(name)}
+    out: ParameterTrend = {"name": name, "own_name": rows[-1]["own_name"], "unit": unit, "t_years": t.tolist(),
+                           "values": v.tolist(), "stds": s.tolist(), "records": [r["calibration_id"] for r in rows],
+                           "spec": spec.get(name)}
     lim: Limit = spec.get(name) or {}
     outside = bool(lim) and bool(v[-1] > lim.get("max", np.inf) or v[-1] < lim.get("min", -np.inf))
     no_trend = _no_trend(rows, t, s)
