@@ -87,10 +87,11 @@ def _run(args, tmp: Path) -> None:
             ("add one file", len(adds), min(a[0] for a in adds), statistics.median(a[0] for a in adds),
              min(a[2] for a in adds))]
     unit = "B-00000"
+    entries = len(api.parameters())  # the rows, an entry each of the one vocabulary per record
     for name, n, f in (("history of a unit (4 calibrations)", VISITS, lambda: api.history(unit)),
                        ("a unit's records", VISITS, lambda: api.records(serial=unit)),
                        ("every record (DataFrame)", args.records, api.records),
-                       ("every parameter's row (DataFrame)", 18 * args.records, api.parameters)):
+                       ("every entry's row (DataFrame)", entries, api.parameters)):
         rows.append((name, n, *_timed(f, args.repeats)))
     rows.append((f"lot of the store ({args.records // VISITS} units' last of {args.records} records)", args.records,
                  *_timed(lambda: simucal.lot(store=url), 1)))  # once: the lot of every unit's last calibration

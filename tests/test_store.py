@@ -92,10 +92,33 @@ def test_a_store_of_schema_1_opens_after_its_migration(url, base, tmp_path):
     assert [(r["sensor"], r["name"], r["value"], r["std"], r["unit"], r["own_name"]) for r in rows] == \
         [(r["sensor"], r["name"], r["value"], r["std"], r["unit"], r["own_name"]) for r in
          sorted(records.parameter_rows(cal), key=lambda r: (r["sensor"], r["name"]))]
+    assert [e["id"] for e in store.history("OLD-0000")["records"]] == [rid]
     with engine.connect() as conn:
         versions = [r.version for r in conn.execute(select(schema.SCHEMA_TABLE).order_by("version"))]
     engine.dispose()
     assert versions == list(range(1, schema.SCHEMA + 1)) == [1, 2, 3]
+
+
+def test_a_migration_that_cannot_read_a_records_file_leaves_the_store_as_it_was(url, base, tmp_path):
+    """Schema 3 rewrites the rows from the files: a record whose file this simucal cannot read stops it, naming
+    the store and the record, and the store stays at schema 2 with its rows."""
+    from sqlalchemy import create_engine, func, select
+    opening.make_at(url, 2)
+    path = unit_files(base, tmp_path / "cals", units=1, visits=1, prefix="BAD")["BAD-0000"][0]
+    row, _ = records.record_of(path.read_bytes(), path)
+    _, _, cals_v2, params_v2 = schema.tables(2)
+    engine = create_engine(schema.engine_url(url))
+    with engine.begin() as conn:
+        rid = conn.execute(cals_v2.insert().values({**row, "file": b'{"format": "not a calibration"}'})
+                           ).inserted_primary_key[0]
+        conn.execute(params_v2.insert(), [{"calibration_id": rid, "sensor": "acc", "name": "b_x", "value": 0.0,
+                                           "std": 1.0, "unit": "g"}])
+    with pytest.raises(StoreError, match=rf"migration to schema 3 .* stopped, the store left as it was: record {rid}"):
+        CalibrationStore(url).records()
+    with engine.connect() as conn:
+        assert conn.execute(select(func.max(schema.SCHEMA_TABLE.c.version))).scalar() == 2
+        assert conn.execute(select(func.count()).select_from(params_v2)).scalar() == 1
+    engine.dispose()
 
 
 def test_a_database_not_the_tools_or_newer_is_refused_in_one_line_and_left_as_it_was(url, base, tmp_path):

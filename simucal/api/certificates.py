@@ -79,8 +79,9 @@ def certificate(calibration: str | os.PathLike[str] | None = None, validation: s
                 html: str | os.PathLike[str] | None = None, pdf: str | os.PathLike[str] | None = None,
                 store: str | os.PathLike[str] | None = None, record: int | None = None) -> str:
     """The certificate of a calibration file: the unit, the file's and the data's sha256, the method and each
-    model's test, every parameter with its std u, its expanded uncertainty U = 2 u and u's budget (noise, the
-    table's tilt, the model's misfit), the validation on independent data, simucal's version.
+    model's test, every entry of the one vocabulary (M_xx .. bias_z, the effects, the method's own name beside
+    each) with its std u, its expanded uncertainty U = 2 u and u's budget (noise, the table's tilt, the model's
+    misfit), the validation on independent data, simucal's version.
 
     Parameters
     ----------

@@ -14,9 +14,9 @@ from simucal.store.history import lines as history_lines  # noqa: F401 (the comm
 from simucal.store.queries import PARAMETER_COLUMNS, RECORD_COLUMNS
 from simucal.store.schema import RecordRow, local_file
 
-TREND_COLUMNS = ("name", "unit", "calibrations", "last_value", "last_std", "slope_per_year", "slope_std", "chi2",
-                 "dof", "p_value", "expected_utc", "earliest_utc")
-CHANGE_COLUMNS = ("record", "calibrated_utc", "name", "unit", "value_change_since_last", "z_since_last",
+TREND_COLUMNS = ("name", "own_name", "unit", "calibrations", "last_value", "last_std", "slope_per_year", "slope_std",
+                 "chi2", "dof", "p_value", "expected_utc", "earliest_utc")
+CHANGE_COLUMNS = ("record", "calibrated_utc", "name", "own_name", "unit", "value_change_since_last", "z_since_last",
                   "value_change_since_first", "z_since_first", "flagged")
 
 
@@ -129,8 +129,8 @@ class Store:
         """Each parameter's trend over the unit's calibrations as a DataFrame: the weighted line's slope per year
         with its std, chi2 of the line on dof (from three calibrations), and the dates at which the line
         (expected_utc) and its k = 2 band (earliest_utc) first reach the spec's limits (simucal/store/trend.py)."""
-        rows = [{"name": p["name"], "unit": p["unit"], "calibrations": len(p["values"]), "last_value": p["values"][-1],
-                 "last_std": p["stds"][-1], **{k: p.get(k) for k in TREND_COLUMNS[5:]}}
+        rows = [{"name": p["name"], "own_name": p.get("own_name"), "unit": p["unit"], "calibrations": len(p["values"]),
+                 "last_value": p["values"][-1], "last_std": p["stds"][-1], **{k: p.get(k) for k in TREND_COLUMNS[6:]}}
                 for p in self._store.history(serial, spec=spec)["trend"]["parameters"]]
         return _table(rows, TREND_COLUMNS)
 
@@ -145,8 +145,8 @@ class Store:
             for p in (e.get("since_last") or {"parameters": []})["parameters"]:
                 f = first.get(p["name"], p)
                 rows.append({"record": e["id"], "calibrated_utc": e["calibrated_utc"], "name": p["name"],
-                             "unit": p["unit"], "value_change_since_last": p["change"], "z_since_last": p["z"],
-                             "value_change_since_first": f["change"], "z_since_first": f["z"],
+                             "own_name": p["own_name"], "unit": p["unit"], "value_change_since_last": p["change"],
+                             "z_since_last": p["z"], "value_change_since_first": f["change"], "z_since_first": f["z"],
                              "flagged": e["flagged"]})
         return _table(rows, CHANGE_COLUMNS)
 

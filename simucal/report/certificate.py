@@ -29,7 +29,7 @@ import numpy as np
 from simucal.fit.augmented import AugmentedModel
 from simucal.io.calibration import Calibration, SensorBlock
 from simucal.report.lot_figures import model_name
-from simucal.report.vocabulary import TERM, entries, linearised, temperature_parts
+from simucal.report.vocabulary import TERM, entries, is_determined, linearised, temperature_parts
 from simucal.report.numbers import eng_html, value_digits
 from simucal.report.page import page, table
 
@@ -69,7 +69,7 @@ def budget(sensor: str, block: SensorBlock) -> list[BudgetRow]:
     misfit's share over its std."""
     lin = linearised(block, AugmentedModel(block.model, block.library_effects())) if block.params else None
     rows = entries(sensor, block, terms=False, lin=lin)
-    keep = [i for i, e in enumerate(rows) if np.isfinite(e.std) and e.std > 0]
+    keep = [i for i, e in enumerate(rows) if is_determined(e)]
     tilt = block.details.get("table_tilt")
     if lin is not None:
         cov = np.nan_to_num(lin.cov)
@@ -80,8 +80,9 @@ def budget(sensor: str, block: SensorBlock) -> list[BudgetRow]:
                       else np.full(len(rows), np.nan))
         warm = temperature_parts(block, lin)
     else:
-        ratio = np.array([min(_affine_raw(block, e.name) / e.std, 1.0) if np.isfinite(_affine_raw(block, e.name))
-                          else 1.0 for e in rows])
+        raw = np.array([_affine_raw(block, e.name) for e in rows])
+        ratio = np.where(np.isfinite(raw), np.minimum(raw / np.array([e.std if is_determined(e) else 1.0
+                                                                       for e in rows]), 1.0), 1.0)
         per_arcsec, warm = np.full(len(rows), np.nan), None
     out: list[BudgetRow] = []
     for i in keep:
@@ -178,7 +179,7 @@ def certificate_page(cal: Calibration, file_name: str, file_sha256: str, validat
                           [[r["name"], r["own_name"] or "", eng_html(r["value"], value_digits(r["value"], r["u"])),
                             r["unit"], r["u"], r["U"], r["noise"], r["table"], r["misfit"]]
                            + ([r["temperature"]] if thermal else []) for r in rows]))
-        terms = coefficients(s, b) if b.thermal else []
+        terms = coefficients(s, b)
         if b.thermal and terms:
             body.append(f"<p>{s}'s temperature coefficients, of (T - T_ref), T_ref = {b.thermal['t_ref_c']:g} degC "
                         "(the value at T is the polynomial's: simucal apply evaluates it at each row's "

@@ -238,8 +238,10 @@ Determined = dict[str, tuple[list[Entry], NDArray[np.float64]]]  # {sensor: (ent
 
 def determined(cal: Calibration) -> Determined:
     """Each block's entries of the one vocabulary that the file determines, and their covariance
-    (report/vocabulary.covariance): what drift compares, worked out once per calibration."""
-    return {s: covariance(s, b) for s, b in cal.blocks()}
+    (report/vocabulary.covariance, a gyro tied to b with the unification's std of C_b^d): what drift compares,
+    worked out once per calibration."""
+    phi_std = (cal.unification or {}).get("std_rad")
+    return {s: covariance(s, b, phi_std if s == "gyro" else None) for s, b in cal.blocks()}
 
 
 def drift(name1: str | int, d1: Determined, name2: str | int, d2: Determined, serial: str | None) -> Drift:
@@ -262,9 +264,10 @@ def drift(name1: str | int, d1: Determined, name2: str | int, d2: Determined, se
         std = np.sqrt(np.diag(C))
         rows += [{"name": f"{s}.{e2[j].name}", "own_name": e2[j].own_name, "unit": e2[j].unit, "drift": float(d[k]),
                   "std": float(std[k]), "z": float(d[k] / std[k])} for k, j in enumerate(i2)]
-        R = C / np.outer(std, std)  # the correlations: their rank and inverse free of the entries' scales
-        dof = int(np.linalg.matrix_rank(R, tol=1e-9, hermitian=True))
-        chi2 = float(d / std @ np.linalg.pinv(R, rcond=1e-9, hermitian=True) @ (d / std))
+        w, V = np.linalg.eigh(C / np.outer(std, std))  # the correlations: free of the entries' scales
+        kept = w > 1e-9 * w.max()  # the directions the files determine: their count is the dof
+        dof = int(kept.sum())
+        chi2 = float(np.sum((V[:, kept].T @ (d / std)) ** 2 / w[kept]))
         p = chi2_sf(chi2, dof)
         sensors[s] = {"chi2": chi2, "dof": dof, "p_value": p,
                       "verdict": "drifted" if p < DRIFT_P else "no drift seen"}

@@ -97,21 +97,27 @@ class Linearised(NamedTuple):
 
 def linearised(block: SensorBlock, model: AugmentedModel) -> Linearised:
     """The block's Linearised: J a central difference of the model's M(p) C and bias(p) (identity rows for the
-    effects); the covariance the file's, scaled to its stds, where the file holds no covariance (a warm-up's, each
-    axis alone) its stds taken independent."""
+    effects); the covariance the file's, scaled to its stds, and where the table's stated tilt is in them
+    (turntable/tilt.py: s, each parameter's shift by the tilt, joined the stds in quadrature) s s^T, one angle
+    moving them all; where the file holds no covariance (a warm-up's, each axis alone) its stds taken
+    independent."""
     names = list(model.params)
     p = np.array([block.params[n] for n in names])
     filed = np.array([block.std.get(n, np.nan) for n in names], float)
+    tilt = block.details.get("table_tilt")
+    s = (np.array([tilt["per_arcsec"].get(n, 0.0) for n in names]) * tilt["stated_arcsec"] if tilt
+         else np.zeros(len(names)))
     cov_block = block.details.get("covariance")
     if not (cov_block and all(n in cov_block["names"] for n in names)) and block.thermal:
         cov_block = block.thermal.get("covariance")  # a joint thermal fit's: its k = 0 terms, the parameters at T_ref
+        s = np.zeros(len(names))  # whose covariance holds s s^T already (tilt.add_tilt_thermal)
     if cov_block and all(n in cov_block["names"] for n in names):
         k = [cov_block["names"].index(n) for n in names]
         cov = np.asarray(cov_block["matrix"], float)[np.ix_(k, k)]
         own = np.sqrt(np.maximum(np.diag(cov), 0.0))
-        ratio = filed[own > 0] / own[own > 0]
+        ratio = np.sqrt(np.maximum(filed ** 2 - s ** 2, 0.0))[own > 0] / own[own > 0]  # the fit's share of the std
         ratio = ratio[np.isfinite(ratio)]
-        cov = cov * (float(np.median(ratio)) ** 2 if ratio.size else 1.0)
+        cov = cov * (float(np.median(ratio)) ** 2 if ratio.size else 1.0) + np.outer(s, s)
     else:
         cov = np.diag(filed ** 2)
         own = np.nan_to_num(filed)
@@ -141,22 +147,42 @@ def _model_stds(lin: Linearised, model: AugmentedModel) -> Stds:
     return std[:9].reshape(3, 3), std[9:], own
 
 
-def covariance(sensor: str, block: SensorBlock) -> tuple[list[Entry], NDArray[np.float64]]:
-    """The entries at T_ref (entries, terms=False) that the file determines (a finite std above 0), and their
-    covariance: a model-based block's linearised J C J^T (a gyro tied to b through C_b^d: std_M's entries taken
-    independent of the rest), an affine block's stds squared (taken independent, as they are given)."""
+def is_determined(e: Entry) -> bool:
+    """Whether the file determines an entry: a finite std above 0 (an entry the model fixes, as the norm methods'
+    M_xy, has 0; one tied through a C_b^d without a std, NaN)."""
+    return bool(np.isfinite(e.std) and e.std > 0)
+
+
+def covariance(sensor: str, block: SensorBlock, phi_std_rad: Sequence[float] | None = None
+               ) -> tuple[list[Entry], NDArray[np.float64]]:
+    """The entries at T_ref (entries, terms=False) that the file determines, and their covariance: a model-based
+    block's linearised J C J^T; an affine block's stds squared (taken independent, as they are given). A gyro tied
+    to b through C_b^d = C (I + [phi x]) (dong2018 eq. 25-27 derived exactly, turntable/unification.py) adds to
+    its M's block G diag(phi_std_rad^2) G^T, G_k = M_d C [e_k x] the change of M by phi_k (phi_std_rad: the file's
+    unification std_rad; phi taken independent of the gyro's parameters: the diagonal agrees with the file's std_M
+    within 0.2 % on the simulated table); what std_M holds beyond it (a tilt's share, or all of it without
+    phi_std_rad) is taken independent, entry by entry."""
     if not block.params:
         rows = entries(sensor, block, terms=False)
-        keep = [i for i, e in enumerate(rows) if np.isfinite(e.std) and e.std > 0]
+        keep = [i for i, e in enumerate(rows) if is_determined(e)]
         return [rows[i] for i in keep], np.diag([rows[i].std ** 2 for i in keep])
     lin = linearised(block, AugmentedModel(block.model, block.library_effects()))
     rows = entries(sensor, block, terms=False, lin=lin)
-    keep = [i for i, e in enumerate(rows) if np.isfinite(e.std) and e.std > 0]
+    keep = [i for i, e in enumerate(rows) if is_determined(e)]
     C = lin.J @ np.nan_to_num(lin.cov) @ lin.J.T
-    if block.details.get("std_M") is not None:  # M's stds carry C_b^d's own, which J does not know
-        C[:9, :] = C[:, :9] = 0.0
-        C[range(9), range(9)] = np.asarray(block.details["std_M"], float).ravel() ** 2
+    if block.details.get("std_M") is not None:
+        if phi_std_rad is not None and block.details.get("M_in_d") is not None:
+            M_d = np.asarray(block.details["M_in_d"], float)
+            G = np.column_stack([(M_d @ block.C @ _skew(e)).ravel() for e in np.eye(3)])
+            C[:9, :9] += G @ np.diag(np.asarray(phi_std_rad, float) ** 2) @ G.T
+        beyond = np.asarray(block.details["std_M"], float).ravel() ** 2 - np.diag(C)[:9]
+        C[range(9), range(9)] += np.maximum(beyond, 0.0)
     return [rows[i] for i in keep], C[np.ix_(keep, keep)]
+
+
+def _skew(v: NDArray[np.float64]) -> NDArray[np.float64]:
+    """[v x]: the matrix of the cross product by v."""
+    return np.array([[0.0, -v[2], v[1]], [v[2], 0.0, -v[0]], [-v[1], v[0], 0.0]])
 
 
 def _propagated(J: NDArray[np.float64], cov: NDArray[np.float64]) -> NDArray[np.float64]:

@@ -64,9 +64,17 @@ def _with_aliases(known: dict[str, str], aliases: dict[str, str]) -> dict[str, s
     return {**known, **{own: known[entry] for own, entry in aliases.items() if entry in known}}
 
 
-def _by_entry(limits: dict[str, Limit], aliases: dict[str, str]) -> dict[str, Limit]:
-    """Limits by the one vocabulary's names (an own name's limit is its entry's)."""
-    return {aliases.get(name, name): lim for name, lim in limits.items()}
+def _by_entry(limits: dict[str, Limit], aliases: dict[str, str], path) -> dict[str, Limit]:
+    """Limits by the one vocabulary's names (an own name's limit is its entry's); an entry named twice (b_x and
+    bias_x) is refused, naming the file."""
+    out: dict[str, Limit] = {}
+    for name, lim in limits.items():
+        entry = aliases.get(name, name)
+        if entry in out:
+            raise StoreError(f"{path}: limits.{name}: {entry} is bounded twice (by its own name and the method's); "
+                             "give one of the two")
+        out[entry] = lim
+    return out
 
 
 def history(engine, url: str, serial: str, limits_path=None, spec_path=None) -> History:
@@ -96,13 +104,14 @@ def history(engine, url: str, serial: str, limits_path=None, spec_path=None) -> 
     aliases = own_aliases(cals[-1][1])  # a limits file naming the method's own parameters (b_x for bias_x)
     known = {p["name"]: p["unit"] for e in entries for change in (e.get("since_last"), e.get("since_first"))
              if change for p in change["parameters"]}
-    limits = _by_entry(read_limits(limits_path, _with_aliases(known, aliases)), aliases) if limits_path else {}
+    limits = (_by_entry(read_limits(limits_path, _with_aliases(known, aliases)), aliases, limits_path)
+              if limits_path else {})
     method, model = recs[-1]["method"], recs[-1]["model"]  # the trend's line: the last calibration's (trend.py)
     units = {f"{p['sensor']}.{p['name']}": p["unit"]
              for p in queries.parameters(engine, url, serial=serial, method=method, model=model)}
     spec = (_by_entry(read_limits(spec_path, _with_aliases(units, aliases),
                                   f"unit {serial}'s trend (its calibrations by {method}, {model}, as its last one was "
-                                  "made: a spec bounds that line's parameters)"), aliases)
+                                  "made: a spec bounds that line's parameters)"), aliases, spec_path)
             if spec_path else {})
     level, tests = _judge(entries, limits)
     flagged = [e["id"] for e in entries if e["flagged"]]

@@ -7,7 +7,7 @@ once.
 """
 from __future__ import annotations
 
-from simucal.errors import StoreError
+from simucal.errors import SimucalError, StoreError
 from simucal.io.calibration import loads
 from simucal.store.records import parameter_rows
 from simucal.store.schema import (SCHEMA, SCHEMA_TABLE, TOOL_TABLE, engine_url, failure,
@@ -37,11 +37,18 @@ def _to_3(conn) -> None:
     from sqlalchemy import delete, select, text
     _, _, cals, params = tables(3)
     conn.execute(text("ALTER TABLE parameters ADD COLUMN own_name VARCHAR(64)"))
-    for record in conn.execute(select(cals.c.id, cals.c.file)).all():
-        rows = parameter_rows(loads(bytes(record.file).decode("utf-8"), f"record {record.id}"))
-        conn.execute(delete(params).where(params.c.calibration_id == record.id))
-        if rows:
-            conn.execute(params.insert(), [{"calibration_id": record.id, **r} for r in rows])
+    ids = [r.id for r in conn.execute(select(cals.c.id).order_by(cals.c.id))]
+    for start in range(0, len(ids), 200):  # the files a batch at a time: a store's files need not fit in memory
+        batch = conn.execute(select(cals.c.id, cals.c.file).where(cals.c.id.in_(ids[start:start + 200]))).all()
+        for record in batch:
+            try:
+                rows = parameter_rows(loads(bytes(record.file).decode("utf-8"), f"record {record.id}"))
+            except SimucalError as e:
+                raise StoreError(f"record {record.id}'s file cannot be read in the one vocabulary ({e}); open the "
+                                 "store with the simucal that recorded it, or one that reads that file") from None
+            conn.execute(delete(params).where(params.c.calibration_id == record.id))
+            if rows:
+                conn.execute(params.insert(), [{"calibration_id": record.id, **r} for r in rows])
 
 
 MIGRATIONS = {1: ("calibrations and their parameters", _to_1),
@@ -121,7 +128,11 @@ def _migrate(engine, url: str, create: bool, upto: int = SCHEMA) -> None:
             if found >= upto:
                 break
             what, step = MIGRATIONS[found + 1]
-            step(conn)
+            try:
+                step(conn)
+            except StoreError as e:  # the transaction rolls back: the store is left at schema `found`
+                raise StoreError(f"{shown(url)}: its migration to schema {found + 1} ({what}) stopped, the store left "
+                                 f"as it was: {e}") from None
             conn.execute(SCHEMA_TABLE.insert().values(version=found + 1, applied_utc=utc_now(), what=what))
             found += 1
 

@@ -14,13 +14,11 @@ import re
 import socket
 from datetime import datetime
 
-import numpy as np
-
 from simucal.errors import StoreError
 from simucal.io.calibration import Calibration, loads
 from simucal.io.calibration_checks import SERIAL
 from simucal.report.lot_figures import model_name
-from simucal.report.vocabulary import entries
+from simucal.report.vocabulary import entries, is_determined
 from simucal.store.schema import (CALIBRATIONS, PARAMETERS, TIME_FORMAT, NewParameter, NewRecord, failure,
                                   utc_now)
 from simucal.version import __version__
@@ -34,7 +32,7 @@ def parameter_rows(cal: Calibration) -> list[NewParameter]:
     so), with the method's own name, as the rows of `parameters`."""
     return [{"sensor": s, "name": e.name, "value": e.value, "std": e.std, "unit": e.unit, "own_name": e.own_name}
             for s, b in cal.blocks() for e in entries(s, b, terms=False)
-            if np.isfinite(e.std) and (e.std > 0 or e.own_name is not None)]
+            if is_determined(e) or (e.std == 0 and e.own_name is not None)]
 
 
 def _time(value: str | None, what: str) -> str | None:
