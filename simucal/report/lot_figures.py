@@ -41,7 +41,7 @@ class DriftRow(TypedDict):
 
 
 class DriftTest(TypedDict):
-    """A sensor's joint test of no drift: d^T (C_1 + C_2)^-1 d against chi^2 on the parameters' count."""
+    """A sensor's joint test of no drift: d^T (C_1 + C_2)^+ d against chi^2 on the rank of C_1 + C_2 (drift)."""
     chi2: float
     dof: int
     p_value: float

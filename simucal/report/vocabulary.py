@@ -27,6 +27,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from simucal.fit.augmented import AugmentedModel
+from simucal.fit.rotations import skew
 from simucal.fit.thermal import terms as thermal_terms
 from simucal.generated.effects import EFFECTS
 from simucal.io.calibration import SensorBlock
@@ -79,10 +80,11 @@ MEANINGS = [f"row {AXES[i]}, column {AXES[j]} of M: output {AXES[i]} per input {
 
 
 def _matrix_and_bias(model: AugmentedModel, block: SensorBlock) -> Callable[[NDArray[np.float64]], NDArray[np.float64]]:
-    """p -> (M C as 9 entries, bias): the block's M and bias at parameters p, in its frame b."""
+    """p -> (M C as 9 entries, bias): the block's M and bias at parameters p (..., n), in its frame b, (..., 12)."""
     def mb(q: NDArray[np.float64]) -> NDArray[np.float64]:
         M, b = model.matrix_and_bias(q)
-        return cast("NDArray[np.float64]", np.r_[(np.asarray(M) @ block.C).ravel(), np.asarray(b).ravel()])
+        lead = np.shape(q)[:-1]
+        return np.concatenate([(np.asarray(M) @ block.C).reshape(*lead, 9), np.asarray(b).reshape(*lead, 3)], -1)
     return mb
 
 
@@ -124,13 +126,12 @@ def linearised(block: SensorBlock, model: AugmentedModel) -> Linearised:
     held = filed == 0  # a parameter the file holds fixed: nothing of it in any entry
     cov[held, :], cov[:, held] = 0.0, 0.0
     steps = np.maximum(own * 1e-3, 1e-9)
-    M, b = model.matrix_and_bias(np.concatenate([p + np.diag(steps), p - np.diag(steps)]))  # one batch: 2n points
-    at = np.concatenate([(np.asarray(M) @ block.C).reshape(-1, 9), np.asarray(b).reshape(-1, 3)], axis=1)
+    at = _matrix_and_bias(model, block)(np.concatenate([p + np.diag(steps), p - np.diag(steps)]))  # one batch
     J = ((at[:len(p)] - at[len(p):]) / (2 * steps)[:, None]).T
     effects = np.array([[float(n == eid) for n in names] for eid in block.effects]).reshape(-1, len(names))
     before = block.details.get("std_raw") or block.details.get("std_noise") or {}  # the stds before the misfit's
-    raw = np.array([min(v / s, 1.0) if isinstance(v := before.get(n), (int, float)) and s > 0 else 1.0
-                    for n, s in zip(names, filed)])
+    raw = np.array([min(v / std, 1.0) if isinstance(v := before.get(n), (int, float)) and std > 0 else 1.0
+                    for n, std in zip(names, filed)])
     return Linearised(names, np.vstack([J, effects]), cov, raw)
 
 
@@ -173,16 +174,11 @@ def covariance(sensor: str, block: SensorBlock, phi_std_rad: Sequence[float] | N
     if block.details.get("std_M") is not None:
         if phi_std_rad is not None and block.details.get("M_in_d") is not None:
             M_d = np.asarray(block.details["M_in_d"], float)
-            G = np.column_stack([(M_d @ block.C @ _skew(e)).ravel() for e in np.eye(3)])
+            G = np.column_stack([(M_d @ block.C @ skew(e)).ravel() for e in np.eye(3)])
             C[:9, :9] += G @ np.diag(np.asarray(phi_std_rad, float) ** 2) @ G.T
         beyond = np.asarray(block.details["std_M"], float).ravel() ** 2 - np.diag(C)[:9]
         C[range(9), range(9)] += np.maximum(beyond, 0.0)
     return [rows[i] for i in keep], C[np.ix_(keep, keep)]
-
-
-def _skew(v: NDArray[np.float64]) -> NDArray[np.float64]:
-    """[v x]: the matrix of the cross product by v."""
-    return np.array([[0.0, -v[2], v[1]], [v[2], 0.0, -v[0]], [-v[1], v[0], 0.0]])
 
 
 def _propagated(J: NDArray[np.float64], cov: NDArray[np.float64]) -> NDArray[np.float64]:
